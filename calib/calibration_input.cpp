@@ -1,0 +1,42 @@
+#include "calib/calibration_input.hpp"
+
+#include "calib/table_model.hpp"
+
+namespace imucal::calib {
+
+std::vector<RestPeriod> find_rest_periods(const CalibrationInput& in, size_t min_samples) {
+  std::vector<RestPeriod> out;
+  const size_t n = in.reference.size();
+  size_t k = 0;
+  while (k < n) {
+    if (!in.reference[k].at_rest) {
+      ++k;
+      continue;
+    }
+    size_t e = k;
+    while (e < n && in.reference[e].at_rest) ++e;
+    if (e - k >= min_samples) out.push_back({k, e});
+    k = e;
+  }
+  return out;
+}
+
+ParamSet sigma_from_covariance(const ParamCovariance& cov) {
+  ParamVector s = cov.diagonal().cwiseMax(0.0).cwiseSqrt();
+  return ParamSet::from_vector(s);
+}
+
+CalibrationInput input_from_simulation(const SimResult& sim, const TableGeometry& geometry,
+                                       const Site& site, const NoiseModel& noise) {
+  CalibrationInput in;
+  in.site = site;
+  in.imu = sim.imu;
+  in.noise = noise;
+  TableModel table(geometry);
+  in.reference.reserve(sim.table.size());
+  for (const auto& ts : sim.table)
+    in.reference.push_back({ts.t_s, table.C_bn(ts.outer_rad, ts.inner_rad), ts.at_rest});
+  return in;
+}
+
+}  // namespace imucal::calib
