@@ -2,6 +2,7 @@
 // WGS-84 Earth model: normal gravity (Somigliana with the free-air height term) or a surveyed
 // local gravity, Earth rate and transport-rate helpers in NED.
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <optional>
 
 namespace imucal::calib {

@@ -1,6 +1,7 @@
 #pragma once
 // One IMU sample: increments over [t_s - dt_s, t_s] (see conventions.hpp for their exact meaning).
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <vector>
 
 namespace imucal::calib {

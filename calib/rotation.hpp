@@ -1,6 +1,7 @@
 #pragma once
 // Rotation helpers, templated on the scalar so Ceres Jets can pass through them.
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 

@@ -4,6 +4,16 @@
 // t = table base frame (levelled, rotated by heading_rad about down), p = platform frame,
 // b = IMU housing frame mounted on the platform by the fixture (C_bp: b to p).
 // The true attitude adds the table misalignment ς: C_bn_true = exp([ς x]) C_bn_table.
+//
+// DEFAULT GEOMETRY (the usual IMU-calibration two-axis table): the OUTER axis is HORIZONTAL, along
+// the base frame's x (north at heading 0); the INNER axis is the platform normal, which is vertical
+// (down) at outer = 0. The body frame coincides with the platform frame (C_bp = I). Hence:
+//   inner rotations always turn about body z;
+//   outer rotations turn about body x at inner = 0, about body -y at inner = 90°, ...;
+//   outer = 180° puts body z up; inner = 90° then outer = ±90° puts body x down/up; inner = 0 then
+//   outer = ±90° puts body y up/down.
+// (A vertical outer axis cannot calibrate: the body axis along a horizontal inner axis would never
+// see gravity.)
 #include <Eigen/Core>
 
 #include "sequences/motion_profile.hpp"
@@ -11,8 +21,8 @@
 namespace imucal::calib {
 
 struct TableGeometry {
-  Eigen::Vector3d outer_axis_t{0.0, 0.0, 1.0};  ///< outer axis in the base frame (default: vertical)
-  Eigen::Vector3d inner_axis_o{1.0, 0.0, 0.0};  ///< inner axis in the outer-gimbal frame
+  Eigen::Vector3d outer_axis_t{1.0, 0.0, 0.0};  ///< outer axis in the base frame (default: horizontal)
+  Eigen::Vector3d inner_axis_o{0.0, 0.0, 1.0};  ///< inner axis in the outer-gimbal frame (platform normal)
   double heading_rad = 0.0;                     ///< base-frame heading: C_tn = Rz(heading)
   Eigen::Matrix3d C_bp = Eigen::Matrix3d::Identity();  ///< fixture: body to platform
 };
