@@ -1,0 +1,301 @@
+#include "calib/nlsq.hpp"
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include "calib/earth.hpp"
+#include "calib/nlsq_preprocess.hpp"
+#include "calib/nlsq_residuals.hpp"
+#include "calib/rotation.hpp"
+
+namespace imucal::calib {
+
+namespace {
+
+constexpr const char* kWho = "calibrate_nlsq: ";
+// A rotation between rests smaller than this does not count as "the table moved".
+constexpr double kMinRotation_rad = 1.0 * kDegToRad;
+// Normalised information-matrix eigenvalue below which a direction counts as unobservable.
+constexpr double kMinRelativeEigenvalue = 1e-14;
+
+[[noreturn]] void fail(const std::string& what) { throw std::invalid_argument(kWho + what); }
+
+bool finite3(const Eigen::Vector3d& v) { return v.allFinite(); }
+
+void validate(const CalibrationInput& in, const NlsqOptions& opt) {
+  if (opt.max_outer_iterations < 1) fail("options.max_outer_iterations must be >= 1");
+  if (!(opt.convergence_sigma_ratio > 0.0)) fail("options.convergence_sigma_ratio must be > 0");
+  if (opt.ceres_max_iterations < 1) fail("options.ceres_max_iterations must be >= 1");
+  if (opt.min_rest_samples < 2) fail("options.min_rest_samples must be >= 2");
+  if (in.imu.size() != in.reference.size()) {
+    fail("imu has " + std::to_string(in.imu.size()) + " samples but reference has " +
+         std::to_string(in.reference.size()) + " (must be equal, same time axis)");
+  }
+  if (in.imu.empty()) fail("imu is empty");
+  const NoiseModel& nm = in.noise;
+  if (!(std::isfinite(nm.arw_rad_per_sqrt_s) && nm.arw_rad_per_sqrt_s > 0.0))
+    fail("noise.arw_rad_per_sqrt_s must be finite and > 0 (it weights the gyro residuals)");
+  if (!(std::isfinite(nm.vrw_mps_per_sqrt_s) && nm.vrw_mps_per_sqrt_s > 0.0))
+    fail("noise.vrw_mps_per_sqrt_s must be finite and > 0 (it weights the accel residuals)");
+  if (!(std::isfinite(nm.dtheta_lsb_rad) && nm.dtheta_lsb_rad >= 0.0))
+    fail("noise.dtheta_lsb_rad must be finite and >= 0");
+  if (!(std::isfinite(nm.dv_lsb_mps) && nm.dv_lsb_mps >= 0.0))
+    fail("noise.dv_lsb_mps must be finite and >= 0");
+  if (!std::isfinite(in.site.lat_rad) || std::abs(in.site.lat_rad) > 0.5 * kPi)
+    fail("site.lat_rad must be finite and within [-pi/2, pi/2]");
+  if (!std::isfinite(in.site.height_m)) fail("site.height_m must be finite");
+  if (in.site.gravity_mps2 && !(std::isfinite(*in.site.gravity_mps2) && *in.site.gravity_mps2 > 0.0))
+    fail("site.gravity_mps2 must be finite and > 0 when given");
+  for (size_t k = 0; k < in.imu.size(); ++k) {
+    const ImuIncrement& s = in.imu[k];
+    const std::string at = "imu[" + std::to_string(k) + "]";
+    if (!std::isfinite(s.t_s)) fail(at + ".t_s is not finite");
+    if (!(std::isfinite(s.dt_s) && s.dt_s > 0.0)) fail(at + ".dt_s must be finite and > 0");
+    if (!finite3(s.dtheta_rad)) fail(at + ".dtheta_rad is not finite");
+    if (!finite3(s.dv_mps)) fail(at + ".dv_mps is not finite");
+    const ReferenceSample& r = in.reference[k];
+    const std::string rat = "reference[" + std::to_string(k) + "]";
+    if (!std::isfinite(r.t_s)) fail(rat + ".t_s is not finite");
+    if (!r.C_bn_ref.allFinite()) fail(rat + ".C_bn_ref is not finite");
+    if (std::abs(r.t_s - s.t_s) > 1e-6)
+      fail(rat + ".t_s differs from " + at + ".t_s (must share the time axis)");
+  }
+}
+
+/// The five parameter blocks, in ParamSet's flat order.
+struct Blocks {
+  std::array<double, 3> b_a{};
+  std::array<double, 9> M_a{};
+  std::array<double, 3> b_g{};
+  std::array<double, 9> M_g{};
+  std::array<double, 3> sig{};
+
+  void set(const ParamVector& x) {
+    std::copy(x.data() + 0, x.data() + 3, b_a.begin());
+    std::copy(x.data() + 3, x.data() + 12, M_a.begin());
+    std::copy(x.data() + 12, x.data() + 15, b_g.begin());
+    std::copy(x.data() + 15, x.data() + 24, M_g.begin());
+    std::copy(x.data() + 24, x.data() + 27, sig.begin());
+  }
+  ParamVector get() const {
+    ParamVector x;
+    std::copy(b_a.begin(), b_a.end(), x.data() + 0);
+    std::copy(M_a.begin(), M_a.end(), x.data() + 3);
+    std::copy(b_g.begin(), b_g.end(), x.data() + 12);
+    std::copy(M_g.begin(), M_g.end(), x.data() + 15);
+    std::copy(sig.begin(), sig.end(), x.data() + 24);
+    return x;
+  }
+};
+
+/// A residual block as added to the problem, with where its parameter blocks sit in θ.
+struct BlockRef {
+  ceres::CostFunction* cost = nullptr;  // owned by the problem
+  std::vector<double*> params;
+  std::vector<int> offsets;  // flat index of each parameter block's first element
+};
+
+/// Whitened Jacobian (m x 27) and residuals at the current parameter values.
+void evaluate_all(const std::vector<BlockRef>& blocks, Eigen::MatrixXd& J, Eigen::VectorXd& r) {
+  int m = 0;
+  for (const auto& b : blocks) m += b.cost->num_residuals();
+  J.setZero(m, ParamSet::kSize);
+  r.setZero(m);
+  int row = 0;
+  for (const auto& b : blocks) {
+    const int nr = b.cost->num_residuals();
+    const auto& sizes = b.cost->parameter_block_sizes();
+    std::vector<std::vector<double>> jac(sizes.size());
+    std::vector<double*> jac_ptr(sizes.size());
+    for (size_t i = 0; i < sizes.size(); ++i) {
+      jac[i].assign(static_cast<size_t>(nr * sizes[i]), 0.0);
+      jac_ptr[i] = jac[i].data();
+    }
+    b.cost->Evaluate(b.params.data(), r.data() + row, jac_ptr.data());
+    for (size_t i = 0; i < sizes.size(); ++i)
+      for (int rr = 0; rr < nr; ++rr)
+        for (int c = 0; c < sizes[i]; ++c)
+          J(row + rr, b.offsets[i] + c) = jac[i][static_cast<size_t>(rr * sizes[i] + c)];
+    row += nr;
+  }
+}
+
+std::string describe_null_direction(const Eigen::VectorXd& v, const std::vector<int>& active) {
+  std::ostringstream os;
+  int listed = 0;
+  for (int i = 0; i < v.size() && listed < 6; ++i) {
+    if (std::abs(v(i)) > 0.2) {
+      os << (listed ? ", " : "") << param_info(active[static_cast<size_t>(i)]).name;
+      ++listed;
+    }
+  }
+  return os.str();
+}
+
+}  // namespace
+
+CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& opt) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  validate(in, opt);
+
+  const std::vector<RestPeriod> periods = find_rest_periods(in, opt.min_rest_samples);
+  if (periods.size() < 2) {
+    fail("found " + std::to_string(periods.size()) + " rest period(s) of at least " +
+         std::to_string(opt.min_rest_samples) +
+         " at_rest samples; NLSQ needs at least 2 (a rotation between two rests)");
+  }
+  const std::vector<NlsqRestMean> rests = nlsq_rest_means(in, periods);
+  for (size_t i = 0; i < rests.size(); ++i) {
+    const Eigen::Matrix3d& C = rests[i].C_bn_ref;
+    if ((C.transpose() * C - Eigen::Matrix3d::Identity()).norm() > 1e-6)
+      fail("reference[" + std::to_string(rests[i].mid) + "].C_bn_ref is not a rotation matrix");
+  }
+  double max_rotation = 0.0;
+  for (size_t i = 0; i + 1 < rests.size(); ++i)
+    max_rotation = std::max(
+        max_rotation,
+        matrix_to_rotvec(rests[i].C_bn_ref.transpose() * rests[i + 1].C_bn_ref).norm());
+  if (max_rotation < kMinRotation_rad)
+    fail("no rotation between rest periods (the reference attitude changes by at most " +
+         std::to_string(max_rotation * kRadToDeg) + " deg); nothing is observable");
+
+  const EarthModel earth(in.site);
+  const Eigen::Vector3d w_ie_n = earth.w_ie_n();
+  const Eigen::Vector3d g_n = earth.g_n();
+
+  std::vector<int> active;  // flat indices of estimated parameters
+  for (int i = 0; i < ParamSet::kSize; ++i)
+    if (i < 24 || opt.estimate_table_misalignment) active.push_back(i);
+  const int n_active = static_cast<int>(active.size());
+
+  CalibrationResult res;
+  res.method = "nlsq";
+  if (in.noise.gyro_bias_instability_radps > 0.0 || in.noise.accel_bias_instability_mps2 > 0.0)
+    res.warnings.push_back(
+        "bias instability (Gauss-Markov) is not part of the NLSQ residual weights; sigma covers "
+        "white noise and quantisation only");
+
+  ParamVector theta = ParamVector::Zero();
+  ParamCovariance cov = ParamCovariance::Zero();
+  double chi2 = 0.0;
+  int dof = 0;
+  bool converged = false;
+  int outer = 0;
+  for (outer = 1; outer <= opt.max_outer_iterations; ++outer) {
+    const ParamSet theta0 = ParamSet::from_vector(theta);
+    Blocks blk;
+    blk.set(theta);
+    ceres::Problem problem;
+    std::vector<BlockRef> refs;
+    for (const NlsqRestMean& rest : rests) {
+      auto* cost = new ceres::AutoDiffCostFunction<NlsqAccelRestResidual, 3, 3, 9, 3>(
+          new NlsqAccelRestResidual{rest, w_ie_n, g_n});
+      BlockRef ref{cost, {blk.b_a.data(), blk.M_a.data(), blk.sig.data()}, {0, 3, 24}};
+      problem.AddResidualBlock(cost, nullptr, ref.params);
+      refs.push_back(std::move(ref));
+    }
+    for (size_t i = 0; i + 1 < rests.size(); ++i) {
+      const NlsqRotation rot = nlsq_linearise_rotation(in, rests, i, i + 1, theta0);
+      auto* cost = new ceres::AutoDiffCostFunction<NlsqRotationResidual, 2, 3, 9, 3, 9, 3>(
+          new NlsqRotationResidual{rests[i], rests[i + 1], rot, w_ie_n});
+      BlockRef ref{cost,
+                   {blk.b_a.data(), blk.M_a.data(), blk.b_g.data(), blk.M_g.data(), blk.sig.data()},
+                   {0, 3, 12, 15, 24}};
+      problem.AddResidualBlock(cost, nullptr, ref.params);
+      refs.push_back(std::move(ref));
+    }
+    if (!opt.estimate_table_misalignment) problem.SetParameterBlockConstant(blk.sig.data());
+
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::DENSE_QR;
+    so.max_num_iterations = opt.ceres_max_iterations;
+    so.num_threads = 1;
+    so.logging_type = ceres::SILENT;
+    so.minimizer_progress_to_stdout = false;
+    so.function_tolerance = 1e-14;
+    so.gradient_tolerance = 1e-30;
+    so.parameter_tolerance = 1e-14;
+    ceres::Solver::Summary summary;
+    ceres::Solve(so, &problem, &summary);
+    if (summary.termination_type == ceres::FAILURE)
+      fail("Ceres failed: " + summary.message);
+
+    // Whitened Jacobian at the solution: information matrix, covariance, χ².
+    Eigen::MatrixXd J_full;
+    Eigen::VectorXd r;
+    evaluate_all(refs, J_full, r);
+    Eigen::MatrixXd J(J_full.rows(), n_active);
+    for (int c = 0; c < n_active; ++c) J.col(c) = J_full.col(active[static_cast<size_t>(c)]);
+    dof = static_cast<int>(J.rows()) - n_active;
+    if (dof <= 0) {
+      fail("only " + std::to_string(J.rows()) + " residuals for " + std::to_string(n_active) +
+           " parameters (" + std::to_string(rests.size()) +
+           " rest periods); the sequence needs more rests and rotations");
+    }
+    const Eigen::MatrixXd H = J.transpose() * J;
+    const Eigen::VectorXd d = H.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+    const Eigen::MatrixXd Hn = d.asDiagonal() * H * d.asDiagonal();
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Hn);
+    if (es.info() != Eigen::Success) fail("eigen-decomposition of the information matrix failed");
+    const double lmin = es.eigenvalues()(0), lmax = es.eigenvalues()(n_active - 1);
+    if (!(lmin > kMinRelativeEigenvalue * lmax)) {
+      fail("parameters not observable with this sequence (normalised information eigenvalue " +
+           std::to_string(lmin / lmax) + "); weakest direction involves " +
+           describe_null_direction(es.eigenvectors().col(0), active));
+    }
+    const Eigen::MatrixXd Hn_inv = es.eigenvectors() *
+                                   es.eigenvalues().cwiseInverse().asDiagonal() *
+                                   es.eigenvectors().transpose();
+    const Eigen::MatrixXd cov_active = d.asDiagonal() * Hn_inv * d.asDiagonal();
+    cov.setZero();
+    for (int i = 0; i < n_active; ++i)
+      for (int j = 0; j < n_active; ++j)
+        cov(active[static_cast<size_t>(i)], active[static_cast<size_t>(j)]) = cov_active(i, j);
+    chi2 = r.squaredNorm();
+
+    const ParamVector theta_new = blk.get();
+    const ParamVector step = theta_new - theta;
+    theta = theta_new;
+    converged = true;
+    for (int i : active)
+      if (!(std::abs(step(i)) < opt.convergence_sigma_ratio * std::sqrt(cov(i, i)))) converged = false;
+    if (converged) break;
+  }
+  res.iterations = std::min(outer, opt.max_outer_iterations);
+  if (!converged)
+    res.warnings.push_back("not converged after " + std::to_string(opt.max_outer_iterations) +
+                           " re-linearisations (parameter steps not below " +
+                           std::to_string(opt.convergence_sigma_ratio) + " sigma)");
+
+  // A-posteriori variance factor: the weights come from the noise model; if the residuals are
+  // clearly larger than it predicts, σ would lie, so scale the covariance (and say so).
+  const double variance_factor = chi2 / static_cast<double>(dof);
+  if (variance_factor > 2.0) {
+    std::ostringstream os;
+    os << "a-posteriori variance factor chi2/dof = " << variance_factor << " (chi2 " << chi2
+       << ", dof " << dof << ") exceeds 2: residuals larger than the noise model predicts; "
+       << "sigma scaled by sqrt(" << variance_factor << ")";
+    res.warnings.push_back(os.str());
+    cov *= variance_factor;
+  }
+
+  res.params = ParamSet::from_vector(theta);
+  res.cov = cov;
+  res.sigma = sigma_from_covariance(cov);
+  res.converged = converged;
+  res.runtime_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  return res;
+}
+
+}  // namespace imucal::calib

@@ -1,0 +1,321 @@
+// NLSQ calibration (paper §V) against the truth simulator. Expectations come from the simulator's
+// injected parameters and from physics (noise-free data must be fitted exactly; with noise the
+// error must lie within the reported σ), never from the estimator's own output.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "calib/calibration_input.hpp"
+#include "calib/imu_error_model.hpp"
+#include "calib/nlsq.hpp"
+#include "calib/nlsq_preprocess.hpp"
+#include "calib/rotation.hpp"
+#include "calib/strapdown.hpp"
+#include "calib/table_model.hpp"
+#include "calib/truth_sim.hpp"
+#include "sequences/library.hpp"
+
+using namespace imucal;
+using namespace imucal::calib;
+
+namespace {
+
+Site factory_site() {
+  Site s;
+  s.lat_rad = 55.78 * kDegToRad;
+  s.lon_rad = 12.52 * kDegToRad;
+  s.height_m = 30.0;
+  s.gravity_mps2 = 9.81542;  // surveyed
+  return s;
+}
+
+const sequences::MotionProfile& short_profile() {
+  static const sequences::MotionProfile p = sequences::load_profile("short");
+  return p;
+}
+
+struct SimRun {
+  SimResult sim;
+  CalibrationInput in;
+};
+
+/// Simulate the short sequence. The calibration input always carries the unit's datasheet noise
+/// model (it weights the residuals), even when the simulation itself is noise-free.
+SimRun simulate_short(const UnitModel& unit, bool noise, uint64_t seed) {
+  SimOptions so;
+  so.noise = noise;
+  so.seed = seed;
+  SimRun r;
+  const TableGeometry geom;
+  r.sim = simulate(short_profile(), geom, factory_site(), unit, so);
+  r.in = input_from_simulation(r.sim, geom, factory_site(), unit.noise);
+  return r;
+}
+
+void print_errors(const CalibrationResult& res, const ParamSet& truth) {
+  const ParamVector x = res.params.to_vector();
+  const ParamVector t = truth.to_vector();
+  const ParamVector s = res.sigma.to_vector();
+  for (int i = 0; i < ParamSet::kSize; ++i) {
+    const ParamInfo& pi = param_info(i);
+    std::printf("  %-28s truth %12.4f est %12.4f sigma %10.4f %-6s err/sigma %+10.3e\n",
+                pi.name.c_str(), t(i) * pi.si_to_human, x(i) * pi.si_to_human,
+                s(i) * pi.si_to_human, pi.human_unit.c_str(), (x(i) - t(i)) / s(i));
+  }
+}
+
+/// |error| <= k σ for every parameter.
+void expect_within_sigma(const CalibrationResult& res, const ParamSet& truth, double k) {
+  const ParamVector x = res.params.to_vector();
+  const ParamVector t = truth.to_vector();
+  const ParamVector s = res.sigma.to_vector();
+  for (int i = 0; i < ParamSet::kSize; ++i) {
+    ASSERT_GT(s(i), 0.0) << param_info(i).name;
+    EXPECT_LE(std::abs(x(i) - t(i)), k * s(i))
+        << param_info(i).name << ": truth " << t(i) << " estimate " << x(i) << " sigma " << s(i);
+  }
+}
+
+}  // namespace
+
+// The two halves of the data reduction, checked against the simulator's truth: (1) the rest mean
+// compensated with the true parameters is exactly the specific force of a body at rest, -C_bnᵀ g_n;
+// (2) the gyro propagation from the middle of one rest to the middle of the next, compensated with
+// the true parameters, lands exactly on the true attitude of the second rest, and equals the shared
+// Strapdown integration step by step.
+TEST(NlsqPreprocess, TruthParametersReproduceRestGravityAndAttitude) {
+  const UnitModel unit = default_unit();
+  const SimRun run = simulate_short(unit, /*noise=*/false, 1);
+  const auto periods = find_rest_periods(run.in, 100);
+  ASSERT_GE(periods.size(), 10u);
+  const auto rests = nlsq_rest_means(run.in, periods);
+  const EarthModel earth(factory_site());
+  const ImuErrorModel<double> em = ImuErrorModel<double>::from_params(unit.params);
+  const Eigen::Matrix3d S = rotvec_to_matrix<double>(unit.params.table_misalignment_rad);
+  for (const auto& rest : rests) {
+    const Eigen::Matrix3d C_true = S * rest.C_bn_ref;
+    // Independent of the residual code: undo the error model, then the Earth-rate rotation of the
+    // increments' frame (dv_k = f dt + ½ ω×f dt² + ...), to first order by hand.
+    const Eigen::Vector3d w_b = C_true.transpose() * earth.w_ie_n();
+    Eigen::Vector3d f = em.compensate_dv(rest.f_meas_b, 1.0);
+    f -= rest.h1_s * w_b.cross(f);
+    const Eigen::Vector3d f_expected = -C_true.transpose() * earth.g_n();
+    // ½ω×f is 3.6e-6 m/s²; the neglected second-order terms are < 1e-12 m/s².
+    EXPECT_LT((f - f_expected).norm(), 1e-11);
+  }
+  for (size_t i = 0; i + 1 < rests.size(); ++i) {
+    const NlsqRotation rot = nlsq_linearise_rotation(run.in, rests, i, i + 1, unit.params);
+    const Eigen::Matrix3d C_a = S * rests[i].C_bn_ref;
+    const Eigen::Matrix3d C_b = S * rests[i + 1].C_bn_ref;
+    const Eigen::Matrix3d C_b_gyro = rot.E_n * C_a * rot.dC_b0;
+    EXPECT_LT(matrix_to_rotvec(C_b_gyro * C_b.transpose()).norm(), 1e-12) << "rotation " << i;
+
+    Strapdown sd(earth);
+    NavState st;
+    st.C_bn = C_a;
+    st.lat_rad = factory_site().lat_rad;
+    st.height_m = factory_site().height_m;
+    for (size_t k = rot.begin; k < rot.end; ++k) {
+      const auto& s = run.in.imu[k];
+      sd.step(st, em.compensate_dtheta(s.dtheta_rad, s.dt_s), em.compensate_dv(s.dv_mps, s.dt_s),
+              s.dt_s);
+    }
+    // Strapdown also applies the (tiny) transport rate of its velocity; 1e-11 rad covers it.
+    EXPECT_LT(matrix_to_rotvec(st.C_bn * C_b_gyro.transpose()).norm(), 1e-11) << "rotation " << i;
+  }
+}
+
+// The accumulated sensitivity J_b predicts how ΔC_b changes with the gyro parameters: compare the
+// linearised prediction with a full re-propagation at perturbed parameters. The mismatch must be
+// second order: shrinking the perturbation 10x shrinks it ~100x.
+TEST(NlsqPreprocess, GyroSensitivityMatchesRepropagation) {
+  const UnitModel unit = default_unit();
+  const SimRun run = simulate_short(unit, /*noise=*/false, 1);
+  const auto rests = nlsq_rest_means(run.in, find_rest_periods(run.in, 100));
+  const ParamSet theta0;  // nominal: zero errors
+  double worst_ratio = 0.0;
+  for (size_t i = 0; i + 1 < rests.size(); ++i) {
+    const NlsqRotation rot = nlsq_linearise_rotation(run.in, rests, i, i + 1, theta0);
+    double mismatch[2];
+    for (int level = 0; level < 2; ++level) {
+      const double eps = level == 0 ? 1.0 : 0.1;
+      ParamSet p = theta0;
+      p.gyro_bias_radps = eps * Eigen::Vector3d(3e-6, -2e-6, 4e-6);  // ~0.5-0.8 deg/h
+      p.gyro_M << 2e-3, -1e-3, 1.5e-3, 0.8e-3, -2e-3, 1e-3, -1.2e-3, 0.9e-3, 2.5e-3;
+      p.gyro_M *= eps;
+      Eigen::Matrix<double, 12, 1> dth;
+      dth.head<3>() = p.gyro_bias_radps;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) dth(3 + 3 * r + c) = p.gyro_M(r, c);
+      const Eigen::Matrix3d exact = nlsq_propagate_body(run.in.imu, rot.begin, rot.end, p);
+      const Eigen::Matrix3d lin = rot.dC_b0 * rotvec_to_matrix<double>(Eigen::Vector3d(rot.J_b * dth));
+      const Eigen::Matrix3d nolin = rot.dC_b0;
+      mismatch[level] = matrix_to_rotvec(lin.transpose() * exact).norm();
+      // The first-order effect itself is large compared with the mismatch.
+      EXPECT_GT(matrix_to_rotvec(nolin.transpose() * exact).norm(), 50.0 * mismatch[level]);
+    }
+    worst_ratio = std::max(worst_ratio, mismatch[1] / mismatch[0]);
+  }
+  EXPECT_LT(worst_ratio, 0.02);  // second order: 1/100 expected
+}
+
+// 1. Noise-free data of the default unit: the fit must reproduce the injected parameters to the
+// numerical floor. Physics of the tolerance: in double precision the propagated attitude over ~4000
+// increments and the rest means carry round-off of ~1e-14 rad and ~1e-13 m/s², against the
+// datasheet noise the σ are computed from (~3e-6 rad per rotation, ~2e-5 m/s² per rest): a ratio
+// of ~1e-8. So every error must be below 1e-7 σ (10x margin) -- a systematic flaw of the method
+// (wrong Earth-rate handling, frame of dv, sign of a sensitivity) shows up orders of magnitude
+// above that (dropping the ½ ω×f dt² term of the rest means alone shifts ς by 0.07 arcsec, ~0.5 σ).
+TEST(Nlsq, NoiseFreeDefaultUnitRecoveredExactly) {
+  UnitModel unit = default_unit();
+  unit.noise.dtheta_lsb_rad = 0.0;
+  unit.noise.dv_lsb_mps = 0.0;
+  const SimRun run = simulate_short(unit, /*noise=*/false, 1);
+  NlsqOptions opt;
+  opt.convergence_sigma_ratio = 1e-9;
+  opt.max_outer_iterations = 20;
+  const CalibrationResult res = calibrate_nlsq(run.in, opt);
+  print_errors(res, run.sim.truth);
+  EXPECT_EQ(res.method, "nlsq");
+  EXPECT_TRUE(res.converged);
+  const ParamVector x = res.params.to_vector();
+  const ParamVector t = run.sim.truth.to_vector();
+  const ParamVector s = res.sigma.to_vector();
+  for (int i = 0; i < ParamSet::kSize; ++i) {
+    EXPECT_LE(std::abs(x(i) - t(i)), 1e-7 * s(i)) << param_info(i).name;
+  }
+  // Noise-free residuals are at round-off: no variance-factor warning.
+  for (const auto& w : res.warnings) EXPECT_EQ(w.find("variance factor"), std::string::npos) << w;
+}
+
+// 2. With noise: every parameter within 4σ of truth, converged, χ²/dof unremarkable.
+TEST(Nlsq, NoisyDefaultUnitWithinFourSigma) {
+  const UnitModel unit = default_unit();
+  const SimRun run = simulate_short(unit, /*noise=*/true, 7);
+  const CalibrationResult res = calibrate_nlsq(run.in);
+  print_errors(res, run.sim.truth);
+  std::printf("  iterations %d, runtime %.3f s\n", res.iterations, res.runtime_s);
+  EXPECT_TRUE(res.converged);
+  EXPECT_TRUE(res.warnings.empty()) << res.warnings.front();
+  expect_within_sigma(res, run.sim.truth, 4.0);
+  // The covariance is symmetric positive definite and σ is its diagonal.
+  EXPECT_LT((res.cov - res.cov.transpose()).norm(), 1e-12 * res.cov.norm());
+  for (int i = 0; i < ParamSet::kSize; ++i)
+    EXPECT_DOUBLE_EQ(res.sigma.to_vector()(i), std::sqrt(res.cov(i, i)));
+}
+
+// 3. Far from nominal (sizes at the edge of the unit spec): still converged and within 4σ; the
+// gyro linearisation must be re-done to get there.
+TEST(Nlsq, FarFromNominalConvergesWithinFourSigma) {
+  UnitModel unit = default_unit();
+  ParamSet& p = unit.params;
+  p.accel_bias_mps2 = Eigen::Vector3d(2000.0, -2000.0, 1500.0) * kMicroG_mps2;
+  p.accel_M << 2000e-6, -2e-3, 1.5e-3,  //
+      2e-3, -2000e-6, -2e-3,            //
+      -1.8e-3, 2e-3, 2000e-6;
+  p.gyro_bias_radps = Eigen::Vector3d(0.1, -0.1, 0.08) * kDegPerHourToRadPerSec;
+  p.gyro_M << -2000e-6, 2e-3, -2e-3,  //
+      -2e-3, 2000e-6, 1.6e-3,         //
+      2e-3, -1.9e-3, -2000e-6;
+  p.table_misalignment_rad = Eigen::Vector3d(60.0, -45.0, 120.0) * kArcsecToRad;
+  const SimRun run = simulate_short(unit, /*noise=*/true, 11);
+  const CalibrationResult res = calibrate_nlsq(run.in);
+  print_errors(res, run.sim.truth);
+  EXPECT_TRUE(res.converged);
+  EXPECT_GE(res.iterations, 2);
+  expect_within_sigma(res, run.sim.truth, 4.0);
+}
+
+// Holding ς at zero: its σ is reported as 0 and the other parameters are still estimated.
+TEST(Nlsq, TableMisalignmentCanBeHeldFixed) {
+  UnitModel unit = default_unit();
+  unit.params.table_misalignment_rad.setZero();
+  const SimRun run = simulate_short(unit, /*noise=*/true, 3);
+  NlsqOptions opt;
+  opt.estimate_table_misalignment = false;
+  const CalibrationResult res = calibrate_nlsq(run.in, opt);
+  EXPECT_TRUE(res.converged);
+  EXPECT_EQ(res.sigma.table_misalignment_rad, Eigen::Vector3d::Zero());
+  EXPECT_EQ(res.params.table_misalignment_rad, Eigen::Vector3d::Zero());
+  const ParamVector x = res.params.to_vector();
+  const ParamVector t = run.sim.truth.to_vector();
+  const ParamVector s = res.sigma.to_vector();
+  for (int i = 0; i < 24; ++i) EXPECT_LE(std::abs(x(i) - t(i)), 4.0 * s(i)) << param_info(i).name;
+}
+
+// 4. Bad input: clear errors, no crash, no silent answer.
+namespace {
+std::string error_of(const CalibrationInput& in) {
+  try {
+    calibrate_nlsq(in);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST(Nlsq, FewerThanTwoRestPeriodsIsRejected) {
+  const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
+  // Keep only the first rest period (and the move after it).
+  const auto periods = find_rest_periods(run.in, 100);
+  ASSERT_GE(periods.size(), 2u);
+  CalibrationInput in = run.in;
+  in.imu.resize(periods[1].begin);
+  in.reference.resize(periods[1].begin);
+  const std::string msg = error_of(in);
+  EXPECT_NE(msg.find("calibrate_nlsq"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("1 rest period"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("at least 2"), std::string::npos) << msg;
+}
+
+TEST(Nlsq, NoRotationBetweenRestsIsRejected) {
+  const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
+  CalibrationInput in = run.in;
+  // The table never moves: every reference sample says "the first attitude".
+  for (auto& r : in.reference) r.C_bn_ref = in.reference.front().C_bn_ref;
+  const std::string msg = error_of(in);
+  EXPECT_NE(msg.find("no rotation"), std::string::npos) << msg;
+}
+
+TEST(Nlsq, NonFiniteImuIsRejectedWithItsIndex) {
+  const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
+  CalibrationInput in = run.in;
+  in.imu[1234].dv_mps(1) = std::numeric_limits<double>::quiet_NaN();
+  std::string msg = error_of(in);
+  EXPECT_NE(msg.find("imu[1234].dv_mps"), std::string::npos) << msg;
+  in = run.in;
+  in.imu[77].dtheta_rad(2) = std::numeric_limits<double>::infinity();
+  msg = error_of(in);
+  EXPECT_NE(msg.find("imu[77].dtheta_rad"), std::string::npos) << msg;
+}
+
+TEST(Nlsq, SizeMismatchAndMissingNoiseModelAreRejected) {
+  const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
+  CalibrationInput in = run.in;
+  in.reference.pop_back();
+  EXPECT_NE(error_of(in).find("must be equal"), std::string::npos);
+  in = run.in;
+  in.noise.arw_rad_per_sqrt_s = 0.0;
+  EXPECT_NE(error_of(in).find("noise.arw_rad_per_sqrt_s"), std::string::npos);
+}
+
+// A sequence that only turns the vertical axis cannot determine all 27 parameters: the error must
+// say so rather than return a singular covariance.
+TEST(Nlsq, UnobservableSequenceIsRejected) {
+  const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
+  const auto periods = find_rest_periods(run.in, 100);
+  ASSERT_GE(periods.size(), 4u);
+  // The short sequence starts with three rotations about the vertical outer axis.
+  CalibrationInput in = run.in;
+  in.imu.resize(periods[3].end);
+  in.reference.resize(periods[3].end);
+  const std::string msg = error_of(in);
+  EXPECT_TRUE(msg.find("not observable") != std::string::npos ||
+              msg.find("residuals for") != std::string::npos)
+      << msg;
+}
