@@ -1,0 +1,72 @@
+#pragma once
+// Strict numeric CSV, the table format of the run archive (DESIGN §5, db/archive/FORMAT.md).
+//
+// Reader rules (each violation is an ArchiveError naming file, 1-based line — header = line 1 —
+// and, for a cell, the column):
+//  * a header row with exactly the expected column names in order, optionally followed by a prefix
+//    of the caller's optional trailing columns (e.g. temp_c); nothing else;
+//  * every data row has the header's column count; lines end in "\n" (a "\r\n" ending is accepted);
+//    no blank lines; the last line may lack its newline only if it is complete, otherwise it is
+//    reported as truncated;
+//  * every cell is a decimal number consumed completely by std::from_chars (no whitespace, no "+",
+//    no "1.2x", no empty cells); NaN and Inf are rejected; out-of-range values are rejected;
+//  * optionally the first column (time) is strictly increasing.
+// Writer: shortest round-trip decimal (std::to_chars), so write-then-read is bit-exact.
+#include <cstddef>
+#include <initializer_list>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "db/archive/io_util.hpp"
+
+namespace imucal::archive {
+
+struct CsvSpec {
+  std::vector<std::string> columns;           ///< required, in this order
+  std::vector<std::string> optional_columns;  ///< may follow the required ones, as a prefix, in order
+  bool increasing_first_column = true;        ///< first column is time: strictly increasing
+};
+
+struct CsvTable {
+  std::string file;                  ///< origin used in error messages
+  std::vector<std::string> columns;  ///< the header actually present
+  std::size_t num_rows = 0;
+  std::vector<double> values;        ///< row-major, num_rows * columns.size()
+
+  std::size_t num_cols() const { return columns.size(); }
+  double at(std::size_t row, std::size_t col) const { return values[row * columns.size() + col]; }
+  bool has_column(std::string_view name) const;
+  /// Index of a column; ArchiveError naming the file and column if absent.
+  std::size_t column_index(std::string_view name) const;
+  /// File line of data row `row` (0-based): the header is line 1 and blank lines are not allowed.
+  static std::size_t line_of_row(std::size_t row) { return row + 2; }
+};
+
+/// Parse CSV text; `origin` names the source in errors (usually the path).
+CsvTable parse_csv(std::string_view text, const std::string& origin, const CsvSpec& spec);
+/// Read and parse a CSV file.
+CsvTable read_csv(const std::string& path, const CsvSpec& spec);
+
+/// Streaming CSV writer with the same rules as the reader: it refuses NaN/Inf and (if requested)
+/// non-increasing time, so it never writes a file the reader would reject. close() makes the file
+/// durable (fsync); a writer destroyed without close() leaves an incomplete file for the caller to
+/// remove.
+class CsvWriter {
+ public:
+  CsvWriter(const std::string& path, std::vector<std::string> columns,
+            bool increasing_first_column = true);
+  void write_row(const double* values, std::size_t n);
+  void write_row(std::initializer_list<double> values) { write_row(values.begin(), values.size()); }
+  void close();
+  std::size_t rows_written() const { return rows_; }
+
+ private:
+  DurableFile file_;
+  std::vector<std::string> columns_;
+  bool increasing_;
+  std::size_t rows_ = 0;
+  double last_t_ = 0.0;
+};
+
+}  // namespace imucal::archive

@@ -1,0 +1,556 @@
+#include "db/archive/run_archive.hpp"
+
+#include <fcntl.h>
+#include <stdio.h>  // renameat2 (glibc >= 2.28, _GNU_SOURCE)
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+
+#include "calib/conventions.hpp"
+#include "calib/rotation.hpp"
+#include "db/archive/archive_error.hpp"
+#include "db/archive/csv.hpp"
+#include "db/archive/io_util.hpp"
+#include "db/archive/toml_util.hpp"
+
+namespace imucal::archive {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::vector<std::string> kImuColumns = {"t_s",      "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad",
+                                              "dv_x_mps", "dv_y_mps",     "dv_z_mps"};
+const std::vector<std::string> kImuOptional = {"temp_c"};
+const std::vector<std::string> kTableColumns = {"t_s", "outer_deg", "inner_deg", "at_rest"};
+const std::vector<std::string> kAttitudeColumns = {"t_s", "roll_deg", "pitch_deg", "yaw_deg", "at_rest"};
+
+// Degrees -> rad with one fixed expression; the writer inverts it exactly (human_for_si).
+double deg_to_rad(double d) { return d * kDegToRad; }
+double rad_to_deg_exact(double r) { return human_for_si(r, r * kRadToDeg, deg_to_rad); }
+double arw_to_si(double h) { return h * kDegToRad / 60.0; }  // deg/√h -> rad/√s
+double vrw_to_si(double h) { return h * kMicroG_mps2; }      // µg/√Hz -> (m/s)/√s
+
+std::string join_path(const std::string& dir, const char* name) {
+  if (dir.empty()) return name;
+  return dir.back() == '/' ? dir + name : dir + "/" + name;
+}
+
+std::string strip_trailing_slashes(std::string s) {
+  while (s.size() > 1 && s.back() == '/') s.pop_back();
+  return s;
+}
+
+// ISO 8601 date-time as written by loggers: YYYY-MM-DD[T ]hh:mm[:ss[.fff]][Z|±hh:mm].
+bool is_iso8601(const std::string& s) {
+  auto digits = [&](size_t pos, size_t n) {
+    if (pos + n > s.size()) return false;
+    for (size_t i = pos; i < pos + n; ++i)
+      if (!std::isdigit(static_cast<unsigned char>(s[i]))) return false;
+    return true;
+  };
+  if (!(digits(0, 4) && s.size() > 4 && s[4] == '-' && digits(5, 2) && s.size() > 7 && s[7] == '-' &&
+        digits(8, 2)))
+    return false;
+  if (s.size() == 10) return true;  // date only
+  if (!(s[10] == 'T' || s[10] == 't' || s[10] == ' ')) return false;
+  if (!(digits(11, 2) && s.size() > 13 && s[13] == ':' && digits(14, 2))) return false;
+  size_t p = 16;
+  if (p < s.size() && s[p] == ':') {
+    if (!digits(p + 1, 2)) return false;
+    p += 3;
+    if (p < s.size() && s[p] == '.') {
+      ++p;
+      const size_t f0 = p;
+      while (p < s.size() && std::isdigit(static_cast<unsigned char>(s[p]))) ++p;
+      if (p == f0) return false;
+    }
+  }
+  if (p == s.size()) return true;
+  if ((s[p] == 'Z' || s[p] == 'z') && p + 1 == s.size()) return true;
+  if ((s[p] == '+' || s[p] == '-') && digits(p + 1, 2) && p + 3 < s.size() && s[p + 3] == ':' &&
+      digits(p + 4, 2) && p + 6 == s.size())
+    return true;
+  return false;
+}
+
+bool is_hex64(const std::string& s) {
+  return s.size() == 64 && std::all_of(s.begin(), s.end(), [](char c) {
+           return std::isxdigit(static_cast<unsigned char>(c)) != 0;
+         });
+}
+
+struct ParsedRunInfo {
+  RunInfo info;
+  bool reference_given = false;
+  std::size_t reference_line = 0;
+};
+
+ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& origin) {
+  const toml::table tbl = parse_toml_text(text, origin);
+  const TomlSection root(tbl, origin, "",
+                         {"serial", "software_version", "start_time", "end_time", "reference",
+                          "station", "imu", "table", "sequence", "noise"});
+  ParsedRunInfo out;
+  RunInfo& ri = out.info;
+
+  const auto serial = root.string("serial");
+  if (!serial) throw ArchiveError::field_error(origin, "serial", "missing (required)");
+  if (serial->empty()) root.fail("serial", "must not be empty");
+  for (char c : *serial)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) root.fail("serial", "contains a control character");
+  if (std::isspace(static_cast<unsigned char>(serial->front())) ||
+      std::isspace(static_cast<unsigned char>(serial->back())))
+    root.fail("serial", "has leading or trailing whitespace");
+  ri.serial = *serial;
+  ri.software_version = root.string("software_version").value_or("");
+  for (const char* k : {"start_time", "end_time"}) {
+    const std::string v = root.string_or_datetime(k).value_or("");
+    if (!v.empty() && !is_iso8601(v))
+      root.fail(k, "'" + v + "' is not an ISO 8601 date-time (e.g. 2024-05-01T10:00:00Z)");
+    (std::string(k) == "start_time" ? ri.start_time : ri.end_time) = v;
+  }
+  if (const auto ref = root.string("reference")) {
+    if (*ref == "table") {
+      ri.reference = ReferenceKind::kTable;
+    } else if (*ref == "attitude") {
+      ri.reference = ReferenceKind::kAttitude;
+    } else {
+      root.fail("reference", "must be \"table\" or \"attitude\", got \"" + *ref + "\"");
+    }
+    out.reference_given = true;
+    out.reference_line = root.line_of("reference");
+  }
+
+  const auto station = root.section("station", {"name", "lat_deg", "lon_deg", "height_m", "gravity_mps2"});
+  if (!station) throw ArchiveError::field_error(origin, "station.lat_deg", "missing (required; no [station] section)");
+  ri.station_name = station->string("name").value_or("");
+  const double lat_deg = station->required_number("lat_deg");
+  const double lon_deg = station->required_number("lon_deg");
+  const double height_m = station->required_number("height_m");
+  if (std::fabs(lat_deg) > 90.0) station->fail("lat_deg", "must be within [-90, 90] deg, got " + format_double(lat_deg));
+  if (lon_deg < -180.0 || lon_deg > 360.0)
+    station->fail("lon_deg", "must be within [-180, 360] deg, got " + format_double(lon_deg));
+  if (height_m < -12000.0 || height_m > 100000.0)
+    station->fail("height_m", "must be within [-12000, 100000] m above the ellipsoid, got " + format_double(height_m));
+  ri.site.lat_rad = deg_to_rad(lat_deg);
+  ri.site.lon_rad = deg_to_rad(lon_deg);
+  ri.site.height_m = height_m;
+  if (const auto g = station->number("gravity_mps2")) {
+    if (*g < 9.7 || *g > 9.9)
+      station->fail("gravity_mps2", "must be a surveyed gravity magnitude within [9.7, 9.9] m/s^2, got " +
+                                        format_double(*g));
+    ri.site.gravity_mps2 = *g;
+  }
+
+  const auto imu = root.section("imu", {"rate_hz"});
+  if (!imu) throw ArchiveError::field_error(origin, "imu.rate_hz", "missing (required; no [imu] section)");
+  ri.imu_rate_hz = imu->required_number("rate_hz");
+  if (!(ri.imu_rate_hz > 0.0 && ri.imu_rate_hz <= 100000.0))
+    imu->fail("rate_hz", "must be within (0, 100000] Hz, got " + format_double(ri.imu_rate_hz));
+
+  if (const auto t = root.section("table", {"outer_axis", "inner_axis", "heading_deg", "mount_rpy_deg"})) {
+    for (const char* k : {"outer_axis", "inner_axis"})
+      if (const auto a = t->vec3(k)) {
+        if (std::fabs(a->norm() - 1.0) > 1e-3)
+          t->fail(k, "must be a unit vector (norm " + format_double(a->norm()) + ")");
+        (std::string(k) == "outer_axis" ? ri.table.outer_axis_t : ri.table.inner_axis_o) = *a;
+      }
+    if (const auto h = t->number("heading_deg")) ri.table.heading_rad = deg_to_rad(*h);
+    if (const auto m = t->vec3("mount_rpy_deg")) {
+      if (std::fabs((*m)(1)) > 90.0)
+        t->fail("mount_rpy_deg", "pitch (second element) must be within [-90, 90] deg");
+      ri.table.mount_rpy_rad = {deg_to_rad((*m)(0)), deg_to_rad((*m)(1)), deg_to_rad((*m)(2))};
+    }
+  }
+
+  if (const auto s = root.section("sequence", {"name", "sha256"})) {
+    ri.sequence_name = s->string("name").value_or("");
+    ri.sequence_sha256 = s->string("sha256").value_or("");
+    if (!ri.sequence_sha256.empty() && !is_hex64(ri.sequence_sha256))
+      s->fail("sha256", "must be 64 hexadecimal digits");
+  }
+
+  if (const auto n = root.section("noise", {"arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz"})) {
+    if (const auto a = n->number("arw_deg_per_sqrt_h")) {
+      if (!(*a > 0.0)) n->fail("arw_deg_per_sqrt_h", "must be > 0 (it weights the gyro data)");
+      ri.arw_rad_per_sqrt_s = arw_to_si(*a);
+    }
+    if (const auto v = n->number("vrw_ug_per_sqrt_hz")) {
+      if (!(*v > 0.0)) n->fail("vrw_ug_per_sqrt_hz", "must be > 0 (it weights the accelerometer data)");
+      ri.vrw_mps_per_sqrt_s = vrw_to_si(*v);
+    }
+  }
+  return out;
+}
+
+// at_rest cell: exactly 0 or 1.
+bool rest_flag(const CsvTable& t, size_t row, size_t col) {
+  const double v = t.at(row, col);
+  if (v == 1.0) return true;
+  if (v == 0.0) return false;
+  throw ArchiveError::column_error(t.file, CsvTable::line_of_row(row), t.columns[col],
+                                   "must be 0 or 1, got " + format_double(v));
+}
+
+void check_has_rows(const CsvTable& t) {
+  if (t.num_rows == 0) throw ArchiveError(t.file, 2, "no data rows after the header");
+}
+
+}  // namespace
+
+calib::TableGeometry TableSetup::geometry() const {
+  calib::TableGeometry g;
+  g.outer_axis_t = outer_axis_t.normalized();
+  g.inner_axis_o = inner_axis_o.normalized();
+  g.heading_rad = heading_rad;
+  g.C_bp = calib::euler_to_C_bn(mount_rpy_rad(0), mount_rpy_rad(1), mount_rpy_rad(2));
+  return g;
+}
+
+TableSetup TableSetup::from_geometry(const calib::TableGeometry& g) {
+  TableSetup s;
+  s.outer_axis_t = g.outer_axis_t;
+  s.inner_axis_o = g.inner_axis_o;
+  s.heading_rad = g.heading_rad;
+  if (!((g.C_bp.transpose() * g.C_bp - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-9 &&
+        g.C_bp.determinant() > 0.0))
+    throw ArchiveError::field_error("<table geometry>", "C_bp", "is not a rotation matrix");
+  s.mount_rpy_rad = calib::C_bn_to_euler(g.C_bp);
+  return s;
+}
+
+RunInfo parse_run_info(const std::string& text, const std::string& origin) {
+  return parse_run_info_impl(text, origin).info;
+}
+
+std::string run_info_text(const RunInfo& ri) {
+  TomlWriter w;
+  w.comment("Run archive metadata (db/archive/FORMAT.md).");
+  w.key("serial", ri.serial);
+  if (!ri.software_version.empty()) w.key("software_version", ri.software_version);
+  if (!ri.start_time.empty()) w.key("start_time", ri.start_time);
+  if (!ri.end_time.empty()) w.key("end_time", ri.end_time);
+  w.key("reference", ri.reference == ReferenceKind::kTable ? "table" : "attitude");
+  w.section("station");
+  if (!ri.station_name.empty()) w.key("name", ri.station_name);
+  w.key("lat_deg", rad_to_deg_exact(ri.site.lat_rad));
+  w.key("lon_deg", rad_to_deg_exact(ri.site.lon_rad));
+  w.key("height_m", ri.site.height_m);
+  if (ri.site.gravity_mps2) w.key("gravity_mps2", *ri.site.gravity_mps2);
+  w.section("imu");
+  w.key("rate_hz", ri.imu_rate_hz);
+  w.section("table");
+  w.key("outer_axis", ri.table.outer_axis_t);
+  w.key("inner_axis", ri.table.inner_axis_o);
+  w.key("heading_deg", rad_to_deg_exact(ri.table.heading_rad));
+  w.key("mount_rpy_deg", Eigen::Vector3d(rad_to_deg_exact(ri.table.mount_rpy_rad(0)),
+                                         rad_to_deg_exact(ri.table.mount_rpy_rad(1)),
+                                         rad_to_deg_exact(ri.table.mount_rpy_rad(2))));
+  if (!ri.sequence_name.empty() || !ri.sequence_sha256.empty()) {
+    w.section("sequence");
+    if (!ri.sequence_name.empty()) w.key("name", ri.sequence_name);
+    if (!ri.sequence_sha256.empty()) w.key("sha256", ri.sequence_sha256);
+  }
+  w.section("noise");
+  w.key("arw_deg_per_sqrt_h",
+        human_for_si(ri.arw_rad_per_sqrt_s, ri.arw_rad_per_sqrt_s / arw_to_si(1.0), arw_to_si));
+  w.key("vrw_ug_per_sqrt_hz",
+        human_for_si(ri.vrw_mps_per_sqrt_s, ri.vrw_mps_per_sqrt_s / vrw_to_si(1.0), vrw_to_si));
+  return w.text();
+}
+
+RunArchive read_archive(const std::string& dir_in) {
+  const std::string dir = strip_trailing_slashes(dir_in);
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec))
+    throw ArchiveError(dir, fs::exists(dir, ec) ? "is not a directory (a run archive is a directory)"
+                                                : "no such run archive directory");
+  RunArchive a;
+  a.origin = dir;
+  const std::string run_toml = join_path(dir, "run.toml");
+  if (!fs::exists(run_toml, ec)) throw ArchiveError(run_toml, "missing: every run archive needs run.toml");
+  const ParsedRunInfo parsed = parse_run_info_impl(read_text_file(run_toml), run_toml);
+  a.info = parsed.info;
+
+  const std::string table_csv = join_path(dir, "table.csv");
+  const std::string attitude_csv = join_path(dir, "attitude.csv");
+  const bool has_table = fs::exists(table_csv, ec);
+  const bool has_attitude = fs::exists(attitude_csv, ec);
+  if (has_table && has_attitude)
+    throw ArchiveError(dir, "both table.csv and attitude.csv are present; an archive carries exactly "
+                            "one reference (remove one)");
+  if (!has_table && !has_attitude)
+    throw ArchiveError(dir, "neither table.csv nor attitude.csv is present; an archive needs exactly "
+                            "one reference");
+  const ReferenceKind present = has_table ? ReferenceKind::kTable : ReferenceKind::kAttitude;
+  if (parsed.reference_given && parsed.info.reference != present)
+    throw ArchiveError(run_toml, parsed.reference_line,
+                       std::string("says \"") + (present == ReferenceKind::kTable ? "attitude" : "table") +
+                           "\" but the archive contains " + (has_table ? "table.csv" : "attitude.csv"),
+                       "reference");
+  a.info.reference = present;
+
+  // imu.csv
+  const CsvTable imu = read_csv(join_path(dir, "imu.csv"), CsvSpec{kImuColumns, kImuOptional, true});
+  check_has_rows(imu);
+  const bool has_temp = imu.num_cols() == 8;
+  a.imu.resize(imu.num_rows);
+  for (size_t k = 0; k < imu.num_rows; ++k) {
+    calib::ImuIncrement& s = a.imu[k];
+    s.t_s = imu.at(k, 0);
+    // First interval: the nominal one; afterwards the time difference (strictly positive).
+    s.dt_s = k == 0 ? 1.0 / a.info.imu_rate_hz : s.t_s - imu.at(k - 1, 0);
+    s.dtheta_rad = {imu.at(k, 1), imu.at(k, 2), imu.at(k, 3)};
+    s.dv_mps = {imu.at(k, 4), imu.at(k, 5), imu.at(k, 6)};
+    s.temp_c = has_temp ? imu.at(k, 7) : std::nan("");
+  }
+
+  if (has_table) {
+    const CsvTable t = read_csv(table_csv, CsvSpec{kTableColumns, {}, true});
+    check_has_rows(t);
+    a.table.resize(t.num_rows);
+    for (size_t k = 0; k < t.num_rows; ++k)
+      a.table[k] = {t.at(k, 0), deg_to_rad(t.at(k, 1)), deg_to_rad(t.at(k, 2)), rest_flag(t, k, 3)};
+  } else {
+    const CsvTable t = read_csv(attitude_csv, CsvSpec{kAttitudeColumns, {}, true});
+    check_has_rows(t);
+    a.attitude.resize(t.num_rows);
+    for (size_t k = 0; k < t.num_rows; ++k) {
+      if (std::fabs(t.at(k, 2)) > 90.0)
+        throw ArchiveError::column_error(t.file, CsvTable::line_of_row(k), "pitch_deg",
+                                         "must be within [-90, 90] deg, got " + format_double(t.at(k, 2)));
+      a.attitude[k] = {t.at(k, 0), deg_to_rad(t.at(k, 1)), deg_to_rad(t.at(k, 2)),
+                       deg_to_rad(t.at(k, 3)), rest_flag(t, k, 4)};
+    }
+  }
+
+  const std::string truth_json = join_path(dir, "truth.json");
+  if (fs::exists(truth_json, ec)) a.truth = read_truth_json(truth_json);
+  return a;
+}
+
+namespace {
+
+void write_contents(const std::string& tmp, const RunArchive& a, const std::string& final_dir) {
+  // run.toml, self-checked: the reader must accept exactly what we write.
+  const std::string toml_text = run_info_text(a.info);
+  parse_run_info(toml_text, join_path(final_dir, "run.toml") + " (as being written)");
+  write_file_durable(join_path(tmp, "run.toml"), toml_text);
+
+  // imu.csv: temp_c only if every sample has a temperature.
+  const std::string imu_name = join_path(final_dir, "imu.csv");
+  size_t n_temp = 0;
+  for (const auto& s : a.imu) n_temp += std::isfinite(s.temp_c) ? 1 : 0;
+  if (n_temp != 0 && n_temp != a.imu.size())
+    throw ArchiveError::column_error(imu_name, 0, "temp_c",
+                                     "known for " + std::to_string(n_temp) + " of " +
+                                         std::to_string(a.imu.size()) +
+                                         " samples; write all temperatures or none (set all to NaN)");
+  std::vector<std::string> cols = kImuColumns;
+  if (n_temp) cols.push_back("temp_c");
+  {
+    CsvWriter w(join_path(tmp, "imu.csv"), cols, true);
+    double row[8];
+    const double dt0 = 1.0 / a.info.imu_rate_hz;
+    for (size_t k = 0; k < a.imu.size(); ++k) {
+      const calib::ImuIncrement& s = a.imu[k];
+      // dt is not stored: the reader derives it from t_s. Refuse an archive that would read back a
+      // different interval than the one in memory.
+      const double dt_file = k == 0 ? dt0 : s.t_s - a.imu[k - 1].t_s;
+      if (!(std::fabs(s.dt_s - dt_file) <= 1e-6 * dt0))
+        throw ArchiveError(imu_name, CsvTable::line_of_row(k),
+                           "sample dt_s = " + format_double(s.dt_s) + " s but the archive derives " +
+                               format_double(dt_file) + " s from t_s (first sample: 1/rate_hz)");
+      row[0] = s.t_s;
+      for (int i = 0; i < 3; ++i) {
+        row[1 + i] = s.dtheta_rad(i);
+        row[4 + i] = s.dv_mps(i);
+      }
+      row[7] = s.temp_c;
+      w.write_row(row, cols.size());
+    }
+    w.close();
+  }
+
+  if (a.info.reference == ReferenceKind::kTable) {
+    CsvWriter w(join_path(tmp, "table.csv"), kTableColumns, true);
+    for (const auto& s : a.table)
+      w.write_row({s.t_s, rad_to_deg_exact(s.outer_rad), rad_to_deg_exact(s.inner_rad), s.at_rest ? 1.0 : 0.0});
+    w.close();
+  } else {
+    CsvWriter w(join_path(tmp, "attitude.csv"), kAttitudeColumns, true);
+    for (const auto& s : a.attitude)
+      w.write_row({s.t_s, rad_to_deg_exact(s.roll_rad), rad_to_deg_exact(s.pitch_rad),
+                   rad_to_deg_exact(s.yaw_rad), s.at_rest ? 1.0 : 0.0});
+    w.close();
+  }
+  if (a.truth) write_file_durable(join_path(tmp, "truth.json"), truth_json_text(*a.truth));
+  fsync_directory(tmp);
+}
+
+}  // namespace
+
+void write_archive(const std::string& dir_in, const RunArchive& a, bool overwrite) {
+  const std::string dir = strip_trailing_slashes(dir_in);
+  if (dir.empty()) throw ArchiveError("<archive>", "empty directory name");
+  // Structural checks first: nothing touches the disk for an archive the reader would reject.
+  if (a.imu.empty()) throw ArchiveError(dir, "cannot write an archive without IMU samples");
+  const bool table = a.info.reference == ReferenceKind::kTable;
+  if (table ? (a.table.empty() || !a.attitude.empty()) : (a.attitude.empty() || !a.table.empty()))
+    throw ArchiveError(dir, std::string("info.reference is \"") + (table ? "table" : "attitude") +
+                                "\": exactly that reference must be non-empty and the other empty "
+                                "(table: " + std::to_string(a.table.size()) + " rows, attitude: " +
+                                std::to_string(a.attitude.size()) + " rows)");
+
+  std::error_code ec;
+  bool target_exists = false;
+  if (fs::exists(dir, ec)) {
+    if (!fs::is_directory(dir, ec)) throw ArchiveError(dir, "exists and is not a directory");
+    target_exists = !fs::is_empty(dir, ec);
+    if (target_exists && !overwrite)
+      throw ArchiveError(dir, "exists and is not empty; refusing to overwrite a run archive "
+                              "(remove it or pass overwrite=true)");
+  }
+  const fs::path parent = fs::path(dir).parent_path();
+  const std::string parent_dir = parent.empty() ? "." : parent.string();
+  fs::create_directories(parent_dir, ec);
+  if (ec) throw ArchiveError(parent_dir, "cannot create parent directory: " + ec.message());
+
+  std::string tmp = dir + ".tmp-XXXXXX";
+  if (!::mkdtemp(tmp.data()))
+    throw ArchiveError(dir, std::string("cannot create temporary directory: ") + std::strerror(errno));
+  try {
+    write_contents(tmp, a, dir);
+    if (!target_exists) {
+      // rename(2) onto a missing or empty directory is atomic.
+      if (::rename(tmp.c_str(), dir.c_str()) != 0)
+        throw ArchiveError(dir, std::string("cannot move the archive into place: ") + std::strerror(errno));
+    } else {
+      // Swap atomically; the old archive then lives at tmp and is removed below.
+      if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, dir.c_str(), RENAME_EXCHANGE) != 0) {
+        if (errno != EINVAL && errno != ENOSYS)
+          throw ArchiveError(dir, std::string("cannot replace the archive: ") + std::strerror(errno));
+        // File system without RENAME_EXCHANGE: move the old one aside, then the new one in.
+        std::string old = dir + ".old-XXXXXX";
+        if (!::mkdtemp(old.data()))
+          throw ArchiveError(dir, std::string("cannot create temporary directory: ") + std::strerror(errno));
+        if (::rename(dir.c_str(), old.c_str()) != 0) {
+          const int e = errno;
+          fs::remove_all(old, ec);
+          throw ArchiveError(dir, std::string("cannot move the old archive aside: ") + std::strerror(e));
+        }
+        if (::rename(tmp.c_str(), dir.c_str()) != 0) {
+          const int e = errno;
+          ::rename(old.c_str(), dir.c_str());  // put the old one back
+          throw ArchiveError(dir, std::string("cannot move the archive into place: ") + std::strerror(e));
+        }
+        fs::remove_all(old, ec);
+      } else {
+        fs::remove_all(tmp, ec);
+      }
+    }
+  } catch (...) {
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+  fsync_directory(parent_dir);
+}
+
+calib::CalibrationInput to_calibration_input(const RunArchive& a) {
+  const std::string imu_file = join_path(a.origin, "imu.csv");
+  const bool table = a.info.reference == ReferenceKind::kTable;
+  const std::string ref_file = join_path(a.origin, table ? "table.csv" : "attitude.csv");
+  const size_t n = a.imu.size();
+  const size_t n_ref = table ? a.table.size() : a.attitude.size();
+  if (n == 0) throw ArchiveError(imu_file, "no IMU samples");
+  if (!(a.info.imu_rate_hz > 0.0))
+    throw ArchiveError::field_error(join_path(a.origin, "run.toml"), "imu.rate_hz", "must be > 0");
+  if (n_ref != n)
+    throw ArchiveError(ref_file, std::to_string(n_ref) + " data rows but imu.csv has " + std::to_string(n) +
+                                     "; the reference must be logged on the IMU time axis (one row per "
+                                     "IMU sample; interpolation is not supported yet)");
+
+  calib::CalibrationInput in;
+  in.site = a.info.site;
+  in.imu = a.imu;
+  in.noise = calib::NoiseModel{};
+  in.noise.arw_rad_per_sqrt_s = a.info.arw_rad_per_sqrt_s;
+  in.noise.vrw_mps_per_sqrt_s = a.info.vrw_mps_per_sqrt_s;
+  in.reference.resize(n);
+
+  const calib::TableModel model(a.info.table.geometry());
+  size_t n_rest = 0;
+  for (size_t k = 0; k < n; ++k) {
+    const double t_ref = table ? a.table[k].t_s : a.attitude[k].t_s;
+    if (!(std::fabs(t_ref - a.imu[k].t_s) <= kTimeMatchTolerance_s))
+      throw ArchiveError(ref_file, CsvTable::line_of_row(k),
+                         "t_s = " + format_double(t_ref) + " does not match imu.csv line " +
+                             std::to_string(CsvTable::line_of_row(k)) + " t_s = " + format_double(a.imu[k].t_s) +
+                             " (tolerance 1 µs); the reference must be on the IMU time axis "
+                             "(interpolation is not supported yet)");
+    calib::ReferenceSample& r = in.reference[k];
+    r.t_s = a.imu[k].t_s;
+    if (table) {
+      r.C_bn_ref = model.C_bn(a.table[k].outer_rad, a.table[k].inner_rad);
+      r.at_rest = a.table[k].at_rest;
+    } else {
+      const AttitudeSample& s = a.attitude[k];
+      r.C_bn_ref = calib::euler_to_C_bn(s.roll_rad, s.pitch_rad, s.yaw_rad);
+      r.at_rest = s.at_rest;
+    }
+    n_rest += r.at_rest ? 1 : 0;
+  }
+  if (n_rest == 0)
+    throw ArchiveError(ref_file, std::string("no rest periods in ") + (table ? "table.csv" : "attitude.csv") +
+                                     ": at_rest is never 1");
+
+  // Sample interval vs the declared rate: catches t_s in ms or a wrong [imu] rate_hz.
+  const double dt_nominal = 1.0 / a.info.imu_rate_hz;
+  if (n >= 2) {
+    std::vector<double> dts(n - 1);
+    for (size_t k = 1; k < n; ++k) dts[k - 1] = a.imu[k].dt_s;
+    std::nth_element(dts.begin(), dts.begin() + static_cast<long>(dts.size() / 2), dts.end());
+    const double median = dts[dts.size() / 2];
+    if (std::fabs(median - dt_nominal) > 0.05 * dt_nominal)
+      throw ArchiveError(imu_file, "median sample interval " + format_double(median) +
+                                       " s does not match run.toml [imu] rate_hz = " +
+                                       format_double(a.info.imu_rate_hz) + " (1/rate = " +
+                                       format_double(dt_nominal) + " s); is t_s in seconds and rate_hz right?");
+  }
+
+  // Magnitude plausibility per sample (navigation-grade units on a turntable or a ship).
+  const double kMaxAccel_mps2 = 20.0 * kStandardGravity_mps2;
+  const double kMaxRate_radps = 1000.0 * kDegToRad;
+  double rest_f_sum = 0.0;
+  for (size_t k = 0; k < n; ++k) {
+    const calib::ImuIncrement& s = a.imu[k];
+    const double f = s.dv_mps.norm() / s.dt_s;
+    const double w = s.dtheta_rad.norm() / s.dt_s;
+    if (!(f < kMaxAccel_mps2))
+      throw ArchiveError(imu_file, CsvTable::line_of_row(k),
+                         "|dv|/dt = " + format_double(f) + " m/s^2 exceeds 20 g (dt = " + format_double(s.dt_s) +
+                             " s); dv_*_mps must be velocity increments in m/s over one sample");
+    if (!(w < kMaxRate_radps))
+      throw ArchiveError(imu_file, CsvTable::line_of_row(k),
+                         "|dtheta|/dt = " + format_double(w * kRadToDeg) + " deg/s exceeds 1000 deg/s (dt = " +
+                             format_double(s.dt_s) + " s); dtheta_*_rad must be angle increments in rad over one sample");
+    if (in.reference[k].at_rest) rest_f_sum += f;
+  }
+  const double g = calib::EarthModel(a.info.site).gravity_mps2();
+  const double f_rest = rest_f_sum / static_cast<double>(n_rest);
+  if (std::fabs(f_rest - g) > 0.1 * g)
+    throw ArchiveError(imu_file, "mean |dv|/dt over the " + std::to_string(n_rest) + " rest samples is " +
+                                     format_double(f_rest) + " m/s^2 but local gravity is " + format_double(g) +
+                                     " m/s^2; check the dv units (m/s per sample) and the at_rest flags in " +
+                                     (table ? "table.csv" : "attitude.csv"));
+  return in;
+}
+
+}  // namespace imucal::archive

@@ -1,0 +1,101 @@
+#pragma once
+// The run archive (DESIGN §5): the interchange format every tool reads and through which data from
+// other stations and simulators enter. A run is a directory:
+//   run.toml                  RunInfo (below)
+//   imu.csv                   t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps[,temp_c]
+//   table.csv                 t_s,outer_deg,inner_deg,at_rest              (encoder log)
+//   or attitude.csv           t_s,roll_deg,pitch_deg,yaw_deg,at_rest       (NED, ZYX, body w.r.t. n)
+//   truth.json                (simulated runs only) injected parameters, effect names, noise
+//   capture.log               (daemon runs only) raw CAN frames; not interpreted here
+// Full rules (columns, keys, units, checks): db/archive/FORMAT.md.
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calib/calibration_input.hpp"
+#include "calib/earth.hpp"
+#include "calib/imu_increment.hpp"
+#include "calib/table_model.hpp"
+#include "calib/truth_sim.hpp"
+#include "db/archive/unit_file.hpp"
+
+namespace imucal::archive {
+
+/// Table geometry as run.toml states it ([table] section). Kept in the file's own terms (axes,
+/// heading, fixture Euler angles) so that write-then-read is exact; geometry() builds the
+/// calib::TableGeometry.
+struct TableSetup {
+  /// Defaults follow calib::TableGeometry{} (the station's table).
+  Eigen::Vector3d outer_axis_t = calib::TableGeometry{}.outer_axis_t;  ///< in the base frame, unit
+  Eigen::Vector3d inner_axis_o = calib::TableGeometry{}.inner_axis_o;  ///< in the outer-gimbal frame
+  double heading_rad = calib::TableGeometry{}.heading_rad;            ///< C_tn = Rz(heading)
+  Eigen::Vector3d mount_rpy_rad = Eigen::Vector3d::Zero();  ///< fixture C_bp = euler_to_C_bn(r, p, y)
+
+  calib::TableGeometry geometry() const;
+  /// From a geometry (C_bp decomposed into ZYX Euler angles; exact to round-off).
+  static TableSetup from_geometry(const calib::TableGeometry& g);
+};
+
+enum class ReferenceKind { kTable, kAttitude };
+
+/// run.toml.
+struct RunInfo {
+  std::string serial;                 ///< required
+  std::string station_name;
+  calib::Site site;                   ///< [station] lat_deg, lon_deg, height_m required; gravity_mps2 optional
+  double imu_rate_hz = 0.0;           ///< [imu] rate_hz, required
+  TableSetup table;                   ///< [table], all keys optional (defaults above)
+  std::string sequence_name;          ///< [sequence] name
+  std::string sequence_sha256;        ///< [sequence] sha256: 64 hex digits or empty
+  std::string software_version;
+  std::string start_time;             ///< ISO 8601, empty if unknown
+  std::string end_time;
+  ReferenceKind reference = ReferenceKind::kTable;  ///< must match the reference file present
+  /// [noise] used to weight the estimators; defaults = calib::NoiseModel{} (DESIGN §7).
+  double arw_rad_per_sqrt_s = calib::NoiseModel{}.arw_rad_per_sqrt_s;
+  double vrw_mps_per_sqrt_s = calib::NoiseModel{}.vrw_mps_per_sqrt_s;
+};
+
+/// attitude.csv row (angles converted to rad).
+struct AttitudeSample {
+  double t_s = 0.0;
+  double roll_rad = 0.0;
+  double pitch_rad = 0.0;
+  double yaw_rad = 0.0;
+  bool at_rest = false;
+};
+
+struct RunArchive {
+  RunInfo info;
+  calib::ImuSeries imu;                      ///< temp_c = NaN when imu.csv has no temp_c column
+  std::vector<calib::TableSample> table;     ///< non-empty iff info.reference == kTable
+  std::vector<AttitudeSample> attitude;      ///< non-empty iff info.reference == kAttitude
+  std::optional<Truth> truth;
+  std::string origin;  ///< directory it was read from (names files in later errors); "" if in memory
+};
+
+/// Read and validate an archive directory. Every format error is an ArchiveError naming the file
+/// and line/field.
+RunArchive read_archive(const std::string& dir);
+
+/// Write an archive atomically: everything goes to "<dir>.tmp-XXXXXX" (fsync'd), then one rename
+/// makes it appear. An existing non-empty `dir` is refused unless overwrite (then swapped out
+/// atomically and removed). On any error the temporary directory is removed and `dir` is untouched.
+void write_archive(const std::string& dir, const RunArchive& archive, bool overwrite = false);
+
+/// Parse / produce run.toml text.
+RunInfo parse_run_info(const std::string& text, const std::string& origin);
+std::string run_info_text(const RunInfo& info);
+
+/// Build the calibration input: reference attitude on the IMU time axis (the reference file must
+/// have the same row count and times within 1 µs — no interpolation yet), at least one rest sample,
+/// a sample interval consistent with [imu] rate_hz, and plausible increment magnitudes
+/// (|dv|/dt < 20 g, |dθ|/dt < 1000 °/s, mean |dv|/dt at rest within 10 % of local gravity).
+/// Errors name the files under archive.origin.
+calib::CalibrationInput to_calibration_input(const RunArchive& archive);
+
+/// IMU time axis tolerance between imu.csv and the reference file.
+constexpr double kTimeMatchTolerance_s = 1e-6;
+
+}  // namespace imucal::archive

@@ -1,0 +1,39 @@
+#pragma once
+// Unit files (TOML, human units) -> calib::UnitModel, and truth.json (SI) of simulated runs.
+// Keys and units are listed in db/archive/FORMAT.md. Missing keys mean zero (a perfect sensor,
+// no effect), except [noise] whose missing keys take the calib::NoiseModel{} defaults. Unknown
+// keys are rejected with their line.
+#include <string>
+#include <vector>
+
+#include "calib/param_set.hpp"
+#include "calib/truth_sim.hpp"
+
+namespace imucal::archive {
+
+calib::UnitModel read_unit_file(const std::string& path);
+/// Parse unit-file text; `origin` names it in errors.
+calib::UnitModel parse_unit_file(const std::string& text, const std::string& origin);
+/// Unit-file text for a unit; parse_unit_file(unit_file_text(u)) == u bit-exactly wherever the
+/// human-unit conversion can reach the SI value (otherwise within an ulp).
+std::string unit_file_text(const calib::UnitModel& unit);
+void write_unit_file(const std::string& path, const calib::UnitModel& unit);
+
+/// What a simulated run's truth.json holds: the injected parameters, the names of the injected
+/// effects (calib::Effects::active_names() vocabulary) and the noise model, all SI.
+struct Truth {
+  calib::ParamSet params;
+  std::vector<std::string> effects;
+  calib::NoiseModel noise;
+};
+
+/// Truth from a unit model as simulated (params, active effect names, noise).
+Truth truth_from_unit(const calib::UnitModel& unit);
+
+/// truth.json text: {"params": <param set JSON>, "effects": [...], "noise": {<NoiseModel fields>}}.
+std::string truth_json_text(const Truth& truth);
+Truth parse_truth_json(const std::string& text, const std::string& origin);
+void write_truth_json(const std::string& path, const Truth& truth);
+Truth read_truth_json(const std::string& path);
+
+}  // namespace imucal::archive

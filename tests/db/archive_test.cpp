@@ -1,0 +1,534 @@
+// Run archive (DESIGN §5): bit-exact write/read round trip of a simulated run, the calibration
+// input it yields vs. the in-memory path, one test per class of bad archive (each error must name
+// the file and the line or field), atomic writes, and the attitude.csv reference checked by hand.
+#include "db/archive/run_archive.hpp"
+
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "calib/calibration_input.hpp"
+#include "calib/conventions.hpp"
+#include "calib/earth.hpp"
+#include "calib/rotation.hpp"
+#include "db/archive/archive_error.hpp"
+#include "db/archive/io_util.hpp"
+
+namespace imucal::archive {
+namespace {
+
+namespace fs = std::filesystem;
+
+class TempDir {
+ public:
+  TempDir() {
+    std::string t = (fs::temp_directory_path() / "imucal_archive_test_XXXXXX").string();
+    if (!::mkdtemp(t.data())) throw std::runtime_error("mkdtemp failed");
+    path_ = t;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  const std::string& path() const { return path_; }
+  std::string sub(const std::string& name) const { return path_ + "/" + name; }
+  /// Entries of the temp dir (to detect leftovers of a failed write).
+  std::vector<std::string> entries() const {
+    std::vector<std::string> v;
+    for (const auto& e : fs::directory_iterator(path_)) v.push_back(e.path().filename().string());
+    std::sort(v.begin(), v.end());
+    return v;
+  }
+
+ private:
+  std::string path_;
+};
+
+std::string slurp(const std::string& p) { return read_text_file(p); }
+void put(const std::string& p, const std::string& text) {
+  std::ofstream f(p, std::ios::trunc | std::ios::binary);
+  f << text;
+}
+void replace_in_file(const std::string& p, const std::string& from, const std::string& to) {
+  std::string s = slurp(p);
+  const size_t i = s.find(from);
+  ASSERT_NE(i, std::string::npos) << "'" << from << "' not in " << p;
+  s.replace(i, from.size(), to);
+  put(p, s);
+}
+
+bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+const calib::Site kSite{55.78 * kDegToRad, 12.52 * kDegToRad, 25.0, std::nullopt};
+
+// 2 s rest, 90 deg outer-axis turn in 2 s (bang-bang), 2 s rest: enough for every check.
+sequences::MotionProfile short_profile() {
+  const double a = 90.0 * kDegToRad;  // rad/s^2: 0.5 a 1^2 twice = 90 deg
+  sequences::MotionProfile p;
+  p.name = "short";
+  sequences::ProfileSegment r0{0.0, 2.0, sequences::SegmentKind::kRest, {}, {}, 0};
+  sequences::ProfileSegment m1{2.0, 3.0, sequences::SegmentKind::kMove, {0.0, 0.0, a}, {}, 1};
+  sequences::ProfileSegment m2{3.0, 4.0, sequences::SegmentKind::kMove, {0.5 * a, a, -a}, {}, 1};
+  sequences::ProfileSegment r1{4.0, 6.0, sequences::SegmentKind::kRest, {a, 0.0, 0.0}, {}, 2};
+  p.segments = {r0, m1, m2, r1};
+  return p;
+}
+
+struct SimRun {
+  RunArchive archive;
+  calib::SimResult sim;
+  calib::TableGeometry geometry;
+};
+
+SimRun simulated_run() {
+  SimRun r;
+  r.geometry.heading_rad = 1.5 * kDegToRad;
+  r.geometry.C_bp = calib::euler_to_C_bn(0.5 * kDegToRad, -0.25 * kDegToRad, 180.0 * kDegToRad);
+  calib::UnitModel unit = calib::default_unit();
+  unit.effects.accel_k2_per_mps2 = {1e-6, 0.0, 0.0};
+  calib::SimOptions opt;
+  opt.rate_hz = 100.0;
+  opt.seed = 7;
+  r.sim = calib::simulate(short_profile(), r.geometry, kSite, unit, opt);
+
+  RunInfo& ri = r.archive.info;
+  ri.serial = "FOG-2024-0042";
+  ri.station_name = "factory \"A\" bay 3";  // needs escaping in TOML
+  ri.site = kSite;
+  ri.site.gravity_mps2 = 9.815432;
+  ri.imu_rate_hz = opt.rate_hz;
+  ri.table = TableSetup::from_geometry(r.geometry);
+  ri.sequence_name = "short";
+  ri.sequence_sha256 = std::string(64, 'a');
+  ri.software_version = "0.1.0";
+  ri.start_time = "2024-05-01T10:00:00Z";
+  ri.end_time = "2024-05-01T10:00:06.5+02:00";
+  ri.reference = ReferenceKind::kTable;
+  ri.arw_rad_per_sqrt_s = unit.noise.arw_rad_per_sqrt_s;
+  ri.vrw_mps_per_sqrt_s = unit.noise.vrw_mps_per_sqrt_s;
+  r.archive.imu = r.sim.imu;
+  r.archive.table = r.sim.table;
+  r.archive.truth = truth_from_unit(unit);
+  return r;
+}
+
+ArchiveError read_error(const std::string& dir) {
+  try {
+    const RunArchive a = read_archive(dir);
+    to_calibration_input(a);
+  } catch (const ArchiveError& e) {
+    return e;
+  }
+  ADD_FAILURE() << "no ArchiveError reading " << dir;
+  return ArchiveError("none", "none");
+}
+
+TEST(Archive, SimulatedRunRoundTripsBitExactly) {
+  TempDir tmp;
+  const SimRun run = simulated_run();
+  const std::string dir = tmp.sub("run1");
+  write_archive(dir, run.archive);
+  const RunArchive b = read_archive(dir);
+  const RunArchive& a = run.archive;
+
+  EXPECT_EQ(b.origin, dir);
+  EXPECT_EQ(b.info.serial, a.info.serial);
+  EXPECT_EQ(b.info.station_name, a.info.station_name);
+  EXPECT_TRUE(same_bits(b.info.site.lat_rad, a.info.site.lat_rad));
+  EXPECT_TRUE(same_bits(b.info.site.lon_rad, a.info.site.lon_rad));
+  EXPECT_TRUE(same_bits(b.info.site.height_m, a.info.site.height_m));
+  ASSERT_TRUE(b.info.site.gravity_mps2.has_value());
+  EXPECT_TRUE(same_bits(*b.info.site.gravity_mps2, *a.info.site.gravity_mps2));
+  EXPECT_EQ(b.info.imu_rate_hz, a.info.imu_rate_hz);
+  EXPECT_EQ(b.info.table.outer_axis_t, a.info.table.outer_axis_t);
+  EXPECT_EQ(b.info.table.inner_axis_o, a.info.table.inner_axis_o);
+  EXPECT_TRUE(same_bits(b.info.table.heading_rad, a.info.table.heading_rad));
+  // C_bp -> roll/pitch/yaw -> deg -> rad: the matrix survives to round-off.
+  EXPECT_LT((b.info.table.geometry().C_bp - run.geometry.C_bp).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_EQ(b.info.sequence_name, a.info.sequence_name);
+  EXPECT_EQ(b.info.sequence_sha256, a.info.sequence_sha256);
+  EXPECT_EQ(b.info.software_version, a.info.software_version);
+  EXPECT_EQ(b.info.start_time, a.info.start_time);
+  EXPECT_EQ(b.info.end_time, a.info.end_time);
+  EXPECT_EQ(b.info.reference, ReferenceKind::kTable);
+  EXPECT_TRUE(same_bits(b.info.arw_rad_per_sqrt_s, a.info.arw_rad_per_sqrt_s));
+  EXPECT_TRUE(same_bits(b.info.vrw_mps_per_sqrt_s, a.info.vrw_mps_per_sqrt_s));
+
+  ASSERT_EQ(b.imu.size(), a.imu.size());
+  ASSERT_EQ(b.imu.size(), 600u);
+  for (size_t k = 0; k < a.imu.size(); ++k) {
+    ASSERT_TRUE(same_bits(b.imu[k].t_s, a.imu[k].t_s)) << k;
+    for (int i = 0; i < 3; ++i) {
+      ASSERT_TRUE(same_bits(b.imu[k].dtheta_rad(i), a.imu[k].dtheta_rad(i))) << k;
+      ASSERT_TRUE(same_bits(b.imu[k].dv_mps(i), a.imu[k].dv_mps(i))) << k;
+    }
+    ASSERT_TRUE(same_bits(b.imu[k].temp_c, a.imu[k].temp_c)) << k;
+    // dt is derived from t_s: the simulator's constant 1/rate to round-off of the time stamps.
+    ASSERT_NEAR(b.imu[k].dt_s, a.imu[k].dt_s, 1e-15) << k;
+  }
+  ASSERT_EQ(b.table.size(), a.table.size());
+  size_t exact_angles = 0;
+  for (size_t k = 0; k < a.table.size(); ++k) {
+    ASSERT_TRUE(same_bits(b.table[k].t_s, a.table[k].t_s)) << k;
+    ASSERT_EQ(b.table[k].at_rest, a.table[k].at_rest) << k;
+    // Radians go through degrees; the writer picks the degree value that maps back exactly when
+    // one exists (about 90 % of doubles), otherwise the nearest (1 ulp).
+    for (auto [x, y] : {std::pair{b.table[k].outer_rad, a.table[k].outer_rad},
+                        std::pair{b.table[k].inner_rad, a.table[k].inner_rad}}) {
+      ASSERT_LE(std::fabs(x - y), std::fabs(std::nextafter(y, 10.0) - y) + 1e-300) << k;
+      exact_angles += same_bits(x, y);
+    }
+  }
+  EXPECT_GE(exact_angles, a.table.size() * 2 * 8 / 10);
+  ASSERT_TRUE(b.truth.has_value());
+  EXPECT_EQ(b.truth->params.to_vector(), a.truth->params.to_vector());
+  EXPECT_EQ(b.truth->effects, a.truth->effects);
+
+  // Writing what was read reproduces the files byte for byte (idempotent format).
+  const std::string dir2 = tmp.sub("run2");
+  write_archive(dir2, b);
+  for (const char* f : {"run.toml", "imu.csv", "table.csv", "truth.json"})
+    EXPECT_EQ(slurp(dir + "/" + f), slurp(dir2 + "/" + f)) << f;
+}
+
+TEST(Archive, CalibrationInputMatchesTheInMemoryPath) {
+  TempDir tmp;
+  const SimRun run = simulated_run();
+  write_archive(tmp.sub("run"), run.archive);
+  const calib::CalibrationInput from_disk = to_calibration_input(read_archive(tmp.sub("run")));
+  calib::NoiseModel noise;
+  noise.arw_rad_per_sqrt_s = run.archive.info.arw_rad_per_sqrt_s;
+  noise.vrw_mps_per_sqrt_s = run.archive.info.vrw_mps_per_sqrt_s;
+  const calib::CalibrationInput mem =
+      calib::input_from_simulation(run.sim, run.geometry, run.archive.info.site, noise);
+  ASSERT_EQ(from_disk.reference.size(), mem.reference.size());
+  size_t rest = 0;
+  for (size_t k = 0; k < mem.reference.size(); ++k) {
+    ASSERT_LT((from_disk.reference[k].C_bn_ref - mem.reference[k].C_bn_ref).cwiseAbs().maxCoeff(), 1e-15) << k;
+    ASSERT_EQ(from_disk.reference[k].at_rest, mem.reference[k].at_rest);
+    ASSERT_EQ(from_disk.reference[k].t_s, mem.imu[k].t_s);
+    rest += mem.reference[k].at_rest;
+  }
+  // Two 2 s rests less 0.5 s guards at each end, at 100 Hz: 2 x 100 samples.
+  EXPECT_NEAR(static_cast<double>(rest), 200.0, 2.0);
+  EXPECT_EQ(from_disk.site.lat_rad, kSite.lat_rad);
+  EXPECT_EQ(*from_disk.site.gravity_mps2, 9.815432);
+  EXPECT_EQ(from_disk.noise.arw_rad_per_sqrt_s, noise.arw_rad_per_sqrt_s);
+  EXPECT_EQ(from_disk.noise.dtheta_lsb_rad, calib::NoiseModel{}.dtheta_lsb_rad);
+  // The 90 deg outer turn is a rotation about the outer axis, fixed in n: a_n = Rz(heading) a_t.
+  const Eigen::Matrix3d C0 = from_disk.reference.front().C_bn_ref;
+  const Eigen::Matrix3d C1 = from_disk.reference.back().C_bn_ref;
+  const Eigen::Matrix3d R_n = C1 * C0.transpose();
+  const Eigen::Vector3d a_n =
+      calib::euler_to_C_bn(0, 0, run.geometry.heading_rad) * run.geometry.outer_axis_t.normalized();
+  EXPECT_LT((R_n * a_n - a_n).norm(), 1e-12);
+  EXPECT_NEAR(calib::matrix_to_rotvec(R_n).norm(), 90.0 * kDegToRad, 1e-12);
+}
+
+// Writes a valid table-referenced archive: n samples at 100 Hz, level and at rest except where
+// the caller changes things. Returns the directory.
+std::string write_simple(const TempDir& tmp, const std::string& name, size_t n = 50) {
+  RunArchive a;
+  a.info.serial = "S1";
+  a.info.site = kSite;
+  a.info.imu_rate_hz = 100.0;
+  const double g = calib::EarthModel(kSite).gravity_mps2();
+  for (size_t k = 0; k < n; ++k) {
+    calib::ImuIncrement s;
+    s.t_s = static_cast<double>(k + 1) / 100.0;  // correctly rounded: shortest text "0.03"
+    s.dt_s = k == 0 ? 0.01 : s.t_s - a.imu.back().t_s;
+    s.dv_mps = {0.0, 0.0, -g * 0.01};
+    s.temp_c = std::nan("");
+    a.imu.push_back(s);
+    a.table.push_back({s.t_s, 0.0, 0.0, k >= 10});
+  }
+  const std::string dir = tmp.sub(name);
+  write_archive(dir, a);
+  return dir;
+}
+
+TEST(Archive, SimpleArchiveIsValidAndHasNoTempColumn) {
+  TempDir tmp;
+  const std::string dir = write_simple(tmp, "ok");
+  const RunArchive a = read_archive(dir);
+  EXPECT_TRUE(std::isnan(a.imu[0].temp_c));
+  EXPECT_EQ(a.imu[0].dt_s, 0.01);  // first interval = 1 / rate_hz
+  const std::string head = "t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps\n0.01,";
+  EXPECT_EQ(slurp(dir + "/imu.csv").substr(0, head.size()), head);
+  EXPECT_EQ(to_calibration_input(a).reference.size(), 50u);
+  EXPECT_FALSE(fs::exists(dir + "/truth.json"));
+}
+
+TEST(Archive, UnknownRunTomlKeyNamedWithLine) {
+  TempDir tmp;
+  const std::string dir = write_simple(tmp, "r");
+  replace_in_file(dir + "/run.toml", "[imu]\nrate_hz = 100.0\n", "[imu]\nrate_hz = 100.0\nrate = 200\n");
+  const ArchiveError e = read_error(dir);
+  EXPECT_EQ(e.file(), dir + "/run.toml");
+  EXPECT_EQ(e.field(), "imu.rate");
+  const std::string text = slurp(dir + "/run.toml");
+  const size_t expected_line = 1 + static_cast<size_t>(std::count(text.begin(), text.begin() + static_cast<long>(text.find("rate = 200")), '\n'));
+  EXPECT_EQ(e.line(), expected_line);
+  EXPECT_NE(std::string(e.what()).find("unknown key"), std::string::npos) << e.what();
+}
+
+TEST(Archive, MissingRequiredKeysNamed) {
+  TempDir tmp;
+  const std::string dir = write_simple(tmp, "r");
+  const std::string orig = slurp(dir + "/run.toml");
+  struct Case {
+    std::string from, to, field;
+  };
+  for (const Case& c : {Case{"serial = \"S1\"\n", "", "serial"},
+                        Case{"lat_deg = ", "#lat_deg = ", "station.lat_deg"},
+                        Case{"lon_deg = ", "#lon_deg = ", "station.lon_deg"},
+                        Case{"height_m = ", "#height_m = ", "station.height_m"},
+                        Case{"rate_hz = ", "#rate_hz = ", "imu.rate_hz"}}) {
+    put(dir + "/run.toml", orig);
+    replace_in_file(dir + "/run.toml", c.from, c.to);
+    const ArchiveError e = read_error(dir);
+    EXPECT_EQ(e.field(), c.field) << e.what();
+    EXPECT_NE(std::string(e.what()).find(dir + "/run.toml: field '" + c.field + "': missing"), std::string::npos)
+        << e.what();
+  }
+  // Out-of-range and wrong-typed values name the key and line.
+  put(dir + "/run.toml", orig);
+  replace_in_file(dir + "/run.toml", "rate_hz = 100.0", "rate_hz = \"100\"");
+  EXPECT_EQ(read_error(dir).field(), "imu.rate_hz");
+  put(dir + "/run.toml", orig);
+  replace_in_file(dir + "/run.toml", "reference = \"table\"", "reference = \"table\"\nstart_time = \"yesterday\"");
+  const ArchiveError t = read_error(dir);
+  EXPECT_EQ(t.field(), "start_time");
+  EXPECT_GT(t.line(), 0u);
+}
+
+TEST(Archive, BothOrNeitherReferenceFileRejected) {
+  TempDir tmp;
+  const std::string dir = write_simple(tmp, "r");
+  put(dir + "/attitude.csv", "t_s,roll_deg,pitch_deg,yaw_deg,at_rest\n0.01,0,0,0,1\n");
+  const ArchiveError both = read_error(dir);
+  EXPECT_EQ(both.file(), dir);
+  EXPECT_NE(both.message().find("both table.csv and attitude.csv"), std::string::npos) << both.what();
+  fs::remove(dir + "/attitude.csv");
+  fs::remove(dir + "/table.csv");
+  const ArchiveError neither = read_error(dir);
+  EXPECT_NE(neither.message().find("neither table.csv nor attitude.csv"), std::string::npos) << neither.what();
+}
+
+TEST(Archive, ReferenceKeyMustMatchTheFilePresent) {
+  TempDir tmp;
+  const std::string dir = write_simple(tmp, "r");
+  replace_in_file(dir + "/run.toml", "reference = \"table\"", "reference = \"attitude\"");
+  const ArchiveError e = read_error(dir);
+  EXPECT_EQ(e.field(), "reference");
+  EXPECT_EQ(e.line(), 3u) << e.what();
+}
+
+TEST(Archive, BadAtRestValueNamedWithLineAndColumn) {
+  TempDir tmp;
+  const std::string dir = write_simple(tmp, "r");
+  replace_in_file(dir + "/table.csv", "\n0.05,0,0,0\n", "\n0.05,0,0,0.5\n");  // data row 5 = line 6
+  const ArchiveError e = read_error(dir);
+  EXPECT_EQ(e.file(), dir + "/table.csv");
+  EXPECT_EQ(e.line(), 6u);
+  EXPECT_EQ(e.field(), "at_rest");
+  EXPECT_NE(e.message().find("must be 0 or 1"), std::string::npos);
+}
+
+TEST(Archive, CsvErrorsInsideAnArchiveNameTheFile) {
+  TempDir tmp;
+  const std::string dir = write_simple(tmp, "r");
+  replace_in_file(dir + "/imu.csv", "\n0.03,", "\n0.03,nan,");
+  const ArchiveError nan = read_error(dir);
+  EXPECT_EQ(nan.file(), dir + "/imu.csv");
+  EXPECT_EQ(nan.line(), 4u);
+  EXPECT_EQ(nan.field(), "dtheta_x_rad");
+  const std::string dir2 = write_simple(tmp, "r2");
+  replace_in_file(dir2 + "/table.csv", "\n0.04,0,0,0\n", "\n0.025,0,0,0\n");  // line 5, before 0.03
+  const ArchiveError back = read_error(dir2);
+  EXPECT_EQ(back.file(), dir2 + "/table.csv");
+  EXPECT_EQ(back.line(), 5u);
+  EXPECT_EQ(back.field(), "t_s");
+}
+
+TEST(Archive, MismatchedTimeAxisNamesFirstBadLine) {
+  TempDir tmp;
+  const std::string dir = write_simple(tmp, "r");
+  // Shift row 7 (line 8) by 2 µs: still increasing, but off the IMU axis.
+  replace_in_file(dir + "/table.csv", "\n0.07,", "\n0.070002,");
+  const ArchiveError e = read_error(dir);
+  EXPECT_EQ(e.file(), dir + "/table.csv");
+  EXPECT_EQ(e.line(), 8u);
+  EXPECT_NE(e.message().find("does not match imu.csv line 8"), std::string::npos) << e.what();
+  // 0.5 µs is within tolerance.
+  replace_in_file(dir + "/table.csv", "\n0.070002,", "\n0.0700005,");
+  EXPECT_NO_THROW(to_calibration_input(read_archive(dir)));
+  // Different row count.
+  std::string t = slurp(dir + "/table.csv");
+  t.erase(t.rfind('\n', t.size() - 2) + 1);
+  put(dir + "/table.csv", t);
+  const ArchiveError rows = read_error(dir);
+  EXPECT_EQ(rows.file(), dir + "/table.csv");
+  EXPECT_NE(rows.message().find("49 data rows but imu.csv has 50"), std::string::npos) << rows.what();
+}
+
+TEST(Archive, NoRestPeriodsRejected) {
+  TempDir tmp;
+  const std::string dir = write_simple(tmp, "r");
+  std::string t = slurp(dir + "/table.csv");
+  for (size_t p = t.find(",1\n"); p != std::string::npos; p = t.find(",1\n")) t.replace(p, 3, ",0\n");
+  put(dir + "/table.csv", t);
+  const ArchiveError e = read_error(dir);
+  EXPECT_EQ(e.file(), dir + "/table.csv");
+  EXPECT_EQ(e.message(), "no rest periods in table.csv: at_rest is never 1");
+}
+
+TEST(Archive, ImplausibleIncrementsAndRateMismatchRejected) {
+  TempDir tmp;
+  {
+    const std::string dir = write_simple(tmp, "a");
+    // dv written as acceleration (m/s^2) instead of m/s per sample on one line: 100x too large.
+    std::string t = slurp(dir + "/imu.csv");
+    const size_t line5 = t.find("\n0.04,") + 1;
+    const size_t end5 = t.find('\n', line5);
+    put(dir + "/imu.csv", t.substr(0, line5) + "0.04,0,0,0,0,0,-250" + t.substr(end5));
+    const ArchiveError e = read_error(dir);
+    EXPECT_EQ(e.file(), dir + "/imu.csv");
+    EXPECT_EQ(e.line(), 5u);
+    EXPECT_NE(e.message().find("exceeds 20 g"), std::string::npos) << e.what();
+  }
+  {
+    const std::string dir = write_simple(tmp, "b");
+    replace_in_file(dir + "/imu.csv", "\n0.04,0,0,0,", "\n0.04,0.2,0,0,");  // 20 rad/s = 1146 deg/s
+    const ArchiveError e = read_error(dir);
+    EXPECT_EQ(e.line(), 5u);
+    EXPECT_NE(e.message().find("exceeds 1000 deg/s"), std::string::npos) << e.what();
+  }
+  {
+    const std::string dir = write_simple(tmp, "c");
+    replace_in_file(dir + "/run.toml", "rate_hz = 100.0", "rate_hz = 200.0");
+    const ArchiveError e = read_error(dir);
+    EXPECT_EQ(e.file(), dir + "/imu.csv");
+    EXPECT_NE(e.message().find("does not match run.toml [imu] rate_hz = 200"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Archive, AtomicWriteRefusesExistingTargetAndLeavesNothingBehind) {
+  TempDir tmp;
+  const std::string dir = write_simple(tmp, "run");
+  const std::string before = slurp(dir + "/imu.csv");
+  const std::vector<std::string> entries = tmp.entries();
+  RunArchive other = read_archive(dir);
+  other.info.serial = "OTHER";
+  try {
+    write_archive(dir, other);
+    FAIL() << "overwrote an existing archive";
+  } catch (const ArchiveError& e) {
+    EXPECT_EQ(e.file(), dir);
+    EXPECT_NE(e.message().find("refusing to overwrite"), std::string::npos);
+  }
+  EXPECT_EQ(tmp.entries(), entries);  // no run.tmp-XXXXXX left behind
+  EXPECT_EQ(slurp(dir + "/imu.csv"), before);
+  EXPECT_EQ(read_archive(dir).info.serial, "S1");
+
+  // A failure half way through writing (NaN in sample 30) leaves neither target nor temp dir.
+  RunArchive bad = other;
+  bad.imu[30].dv_mps(1) = std::nan("");
+  try {
+    write_archive(tmp.sub("new"), bad);
+    FAIL() << "wrote NaN";
+  } catch (const ArchiveError& e) {
+    EXPECT_EQ(e.line(), 32u);
+    EXPECT_EQ(e.field(), "dv_y_mps");
+  }
+  EXPECT_EQ(tmp.entries(), entries);
+  // ... nor does it touch an existing archive when overwriting.
+  EXPECT_THROW(write_archive(dir, bad, /*overwrite=*/true), ArchiveError);
+  EXPECT_EQ(tmp.entries(), entries);
+  EXPECT_EQ(read_archive(dir).info.serial, "S1");
+
+  // Explicit overwrite replaces it atomically and cleans up the old one.
+  write_archive(dir, other, /*overwrite=*/true);
+  EXPECT_EQ(read_archive(dir).info.serial, "OTHER");
+  EXPECT_EQ(tmp.entries(), entries);
+
+  // An existing empty directory is a valid target.
+  fs::create_directory(tmp.sub("empty"));
+  write_archive(tmp.sub("empty"), other);
+  EXPECT_EQ(read_archive(tmp.sub("empty")).info.serial, "OTHER");
+}
+
+TEST(Archive, WriterRejectsInconsistentReference) {
+  TempDir tmp;
+  RunArchive a = read_archive(write_simple(tmp, "r"));
+  a.attitude.push_back({0.01, 0, 0, 0, true});
+  EXPECT_THROW(write_archive(tmp.sub("x"), a), ArchiveError);
+  a.attitude.clear();
+  a.table.clear();
+  EXPECT_THROW(write_archive(tmp.sub("x"), a), ArchiveError);
+  EXPECT_FALSE(fs::exists(tmp.sub("x")));
+}
+
+TEST(Archive, AttitudeReferenceBuildsCbnFromNedEuler) {
+  TempDir tmp;
+  const std::string dir = write_simple(tmp, "att");
+  fs::remove(dir + "/table.csv");
+  replace_in_file(dir + "/run.toml", "reference = \"table\"", "reference = \"attitude\"");
+  // Same time axis; yaw 90 deg for all rows except row 1 (pitch 90 deg) and row 2 (roll 90 deg).
+  std::ostringstream csv;
+  csv << "t_s,roll_deg,pitch_deg,yaw_deg,at_rest\n";
+  for (int k = 0; k < 50; ++k) {
+    const char* rpy = k == 1 ? "0,90,0" : (k == 2 ? "90,0,0" : "0,0,90");
+    csv << format_double((k + 1) / 100.0) << "," << rpy << "," << (k >= 10 ? 1 : 0) << "\n";
+  }
+  put(dir + "/attitude.csv", csv.str());
+  const RunArchive a = read_archive(dir);
+  ASSERT_EQ(a.info.reference, ReferenceKind::kAttitude);
+  ASSERT_EQ(a.attitude.size(), 50u);
+  EXPECT_EQ(a.attitude[5].yaw_rad, 90.0 * kDegToRad);
+  const calib::CalibrationInput in = to_calibration_input(a);
+  const Eigen::Vector3d x_b(1, 0, 0), y_b(0, 1, 0);
+  // Yaw 90 deg (heading east): body x points east, body y points south.
+  EXPECT_LT((in.reference[5].C_bn_ref * x_b - Eigen::Vector3d(0, 1, 0)).norm(), 1e-15);
+  EXPECT_LT((in.reference[5].C_bn_ref * y_b - Eigen::Vector3d(-1, 0, 0)).norm(), 1e-15);
+  // Pitch 90 deg (nose up): body x points up = -down.
+  EXPECT_LT((in.reference[1].C_bn_ref * x_b - Eigen::Vector3d(0, 0, -1)).norm(), 1e-15);
+  // Roll 90 deg (right wing down): body y points down.
+  EXPECT_LT((in.reference[2].C_bn_ref * y_b - Eigen::Vector3d(0, 0, 1)).norm(), 1e-15);
+  EXPECT_FALSE(in.reference[5].at_rest);
+  EXPECT_TRUE(in.reference[10].at_rest);
+
+  // Pitch beyond 90 deg is not a valid ZYX attitude.
+  replace_in_file(dir + "/attitude.csv", "\n0.04,0,0,90,", "\n0.04,0,91,90,");
+  const ArchiveError e = read_error(dir);
+  EXPECT_EQ(e.file(), dir + "/attitude.csv");
+  EXPECT_EQ(e.line(), 5u);
+  EXPECT_EQ(e.field(), "pitch_deg");
+
+  // Round trip of an attitude archive.
+  replace_in_file(dir + "/attitude.csv", "\n0.04,0,91,90,", "\n0.04,0,-12.5,90,");
+  const RunArchive b = read_archive(dir);
+  write_archive(tmp.sub("att2"), b);
+  EXPECT_EQ(slurp(dir + "/attitude.csv"), slurp(tmp.sub("att2") + "/attitude.csv"));
+}
+
+TEST(Archive, MissingPiecesNamed) {
+  TempDir tmp;
+  const ArchiveError nodir = read_error(tmp.sub("nope"));
+  EXPECT_NE(nodir.message().find("no such run archive directory"), std::string::npos);
+  const std::string dir = write_simple(tmp, "r");
+  fs::remove(dir + "/imu.csv");
+  const ArchiveError noimu = read_error(dir);
+  EXPECT_EQ(noimu.file(), dir + "/imu.csv");
+  fs::remove(dir + "/run.toml");
+  const ArchiveError notoml = read_error(dir);
+  EXPECT_EQ(notoml.file(), dir + "/run.toml");
+}
+
+}  // namespace
+}  // namespace imucal::archive
