@@ -1,0 +1,82 @@
+#pragma once
+// AINS calibration (paper §IV, DESIGN §6): a 36-state error-state Kalman filter aided at rest by
+// the table orientation (eq. 28-35), zero velocity (eq. 36-39) and mean depth (eq. 40-43), with a
+// Rauch-Tung-Striebel smoother over the whole run, run as an *iterated linearised smoother*:
+//   1. run the INS with the current parameter estimate as nominal (raw increments compensated by
+//      the shared ImuErrorModel), the navigation errors fed back into the nominal at every update
+//      (keeps the unstable vertical channel and the attitude linear), parameters fixed in a pass;
+//   2. forward KF over the whole run, with the prior on the parameters re-centred on the nominal;
+//   3. parameters += filtered parameter error (random constants: smoothed == final filtered);
+//   4. repeat until every update is < convergence_sigma_ratio·σ; RTS backward over the last pass
+//      gives the smoothed navigation states.
+// The state layout and the F/H terms live in ains_model.hpp.
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "calib/calibration_input.hpp"
+#include "calib/param_set.hpp"
+#include "calib/strapdown.hpp"
+
+namespace imucal::calib {
+
+/// Which aiding the filter uses (paper §IV-B/C/D). Only kFactory is implemented: kLand (ZUPT +
+/// depth, 33 states, gyrocompass initial attitude) and kSea (GNSS position + depth) need an
+/// initial alignment from the IMU data and are rejected with std::invalid_argument for now.
+enum class AinsSetting { kFactory, kLand, kSea };
+
+struct AinsOptions {
+  AinsSetting setting = AinsSetting::kFactory;
+  int max_iterations = 6;                 ///< iterated linearised smoother passes
+  double convergence_sigma_ratio = 0.01;  ///< stop when every |Δθ_i| < ratio·σ_i
+  double attitude_sigma_rad = 1e-6;       ///< table orientation aiding noise (eq. 28)
+  double zupt_sigma_mps = 1e-4;           ///< eq. 36-39
+  double depth_sigma_m = 1e-2;            ///< eq. 40-43
+  double update_interval_s = 1.0;         ///< aiding rate while at rest
+  double propagation_interval_s = 0.1;    ///< Φ accumulated over the samples of this interval
+  size_t min_rest_samples = 100;          ///< shorter at_rest runs are not used for aiding
+  /// 1-σ prior of the sensor states (centred on zero). Elements <= 0 take the built-in default
+  /// (default_prior_sigma()).
+  ParamSet prior_sigma;
+};
+
+/// Built-in prior: bias 5 mg / 1 deg/h, dM 5000 ppm (scale and misalignment), ς 1 mrad.
+ParamSet default_prior_sigma();
+/// opt.prior_sigma with non-positive elements replaced by the defaults.
+ParamSet effective_prior_sigma(const AinsOptions& opt);
+
+/// Smoothed navigation state at one KF epoch (RTS output), for evaluation and diagnosis.
+struct SmoothedNav {
+  size_t sample_index = 0;   ///< index into CalibrationInput::imu
+  double t_s = 0.0;
+  bool aided = false;        ///< an aiding update was applied at this epoch
+  NavState nav;              ///< smoothed navigation state (nominal corrected by the smoothed error)
+  Eigen::Vector3d psi_rad = Eigen::Vector3d::Zero();  ///< smoothed attitude error of the nominal
+  Eigen::Vector3d dv_mps = Eigen::Vector3d::Zero();   ///< smoothed velocity error of the nominal
+  Eigen::Vector3d dp_m = Eigen::Vector3d::Zero();     ///< smoothed position error (NED m)
+  Eigen::Vector3d sigma_psi_rad = Eigen::Vector3d::Zero();
+  Eigen::Vector3d sigma_v_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d sigma_p_m = Eigen::Vector3d::Zero();
+};
+
+/// Everything the AINS produces: the calibration plus the smoother's navigation output and the
+/// filter's self-diagnostics.
+struct AinsResult {
+  CalibrationResult calibration;
+  std::vector<SmoothedNav> smoothed;   ///< one per KF epoch of the final pass
+  size_t num_updates = 0;              ///< aiding epochs in the final pass
+  double mean_nis = 0.0;               ///< mean normalised innovation squared per scalar update
+  /// Max over parameters of |smoothed(first epoch) - filtered(last epoch)| / σ: zero for random
+  /// constants in exact arithmetic, so a check of the RTS recursion.
+  double smoother_param_mismatch_sigma = 0.0;
+  std::vector<double> update_norm_sigma;  ///< max_i |Δθ_i|/σ_i of each pass
+};
+
+/// Full AINS calibration. Throws std::invalid_argument when the input cannot be calibrated (sizes
+/// differ, non-finite values, no rest periods, unsupported setting) and std::runtime_error if the
+/// filter diverges numerically.
+AinsResult calibrate_ains_detailed(const CalibrationInput& in, const AinsOptions& opt = {});
+/// The calibration part of calibrate_ains_detailed (method "ains").
+CalibrationResult calibrate_ains(const CalibrationInput& in, const AinsOptions& opt = {});
+
+}  // namespace imucal::calib
