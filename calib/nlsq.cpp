@@ -2,16 +2,16 @@
 
 #include <ceres/ceres.h>
 
-#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <memory>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "calib/earth.hpp"
 #include "calib/nlsq_preprocess.hpp"
@@ -56,19 +56,19 @@ void validate(const CalibrationInput& in, const NlsqOptions& opt) {
   if (!std::isfinite(in.site.height_m)) fail("site.height_m must be finite");
   if (in.site.gravity_mps2 && !(std::isfinite(*in.site.gravity_mps2) && *in.site.gravity_mps2 > 0.0))
     fail("site.gravity_mps2 must be finite and > 0 when given");
+  // Messages are built only on failure: this loop runs over every sample of an hour-long run.
+  auto at = [](const char* what, size_t k) { return std::string(what) + "[" + std::to_string(k) + "]"; };
   for (size_t k = 0; k < in.imu.size(); ++k) {
     const ImuIncrement& s = in.imu[k];
-    const std::string at = "imu[" + std::to_string(k) + "]";
-    if (!std::isfinite(s.t_s)) fail(at + ".t_s is not finite");
-    if (!(std::isfinite(s.dt_s) && s.dt_s > 0.0)) fail(at + ".dt_s must be finite and > 0");
-    if (!finite3(s.dtheta_rad)) fail(at + ".dtheta_rad is not finite");
-    if (!finite3(s.dv_mps)) fail(at + ".dv_mps is not finite");
+    if (!std::isfinite(s.t_s)) fail(at("imu", k) + ".t_s is not finite");
+    if (!(std::isfinite(s.dt_s) && s.dt_s > 0.0)) fail(at("imu", k) + ".dt_s must be finite and > 0");
+    if (!finite3(s.dtheta_rad)) fail(at("imu", k) + ".dtheta_rad is not finite");
+    if (!finite3(s.dv_mps)) fail(at("imu", k) + ".dv_mps is not finite");
     const ReferenceSample& r = in.reference[k];
-    const std::string rat = "reference[" + std::to_string(k) + "]";
-    if (!std::isfinite(r.t_s)) fail(rat + ".t_s is not finite");
-    if (!r.C_bn_ref.allFinite()) fail(rat + ".C_bn_ref is not finite");
+    if (!std::isfinite(r.t_s)) fail(at("reference", k) + ".t_s is not finite");
+    if (!r.C_bn_ref.allFinite()) fail(at("reference", k) + ".C_bn_ref is not finite");
     if (std::abs(r.t_s - s.t_s) > 1e-6)
-      fail(rat + ".t_s differs from " + at + ".t_s (must share the time axis)");
+      fail(at("reference", k) + ".t_s differs from " + at("imu", k) + ".t_s (must share the time axis)");
   }
 }
 
@@ -130,14 +130,19 @@ void evaluate_all(const std::vector<BlockRef>& blocks, Eigen::MatrixXd& J, Eigen
   }
 }
 
-std::string describe_null_direction(const Eigen::VectorXd& v, const std::vector<int>& active) {
+/// Parameters that live (mostly) in the unobservable subspace: for each, the share of its
+/// normalised unit vector inside the span of the null eigenvectors, listed if above 10 %.
+std::string describe_null_space(const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>& es,
+                                int n_null, const std::vector<int>& active) {
+  const Eigen::MatrixXd V = es.eigenvectors().leftCols(n_null);
+  std::vector<std::pair<double, int>> share;
+  for (int i = 0; i < V.rows(); ++i) share.push_back({V.row(i).squaredNorm(), i});
+  std::sort(share.begin(), share.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   std::ostringstream os;
   int listed = 0;
-  for (int i = 0; i < v.size() && listed < 6; ++i) {
-    if (std::abs(v(i)) > 0.2) {
-      os << (listed ? ", " : "") << param_info(active[static_cast<size_t>(i)]).name;
-      ++listed;
-    }
+  for (const auto& [w, i] : share) {
+    if (w < 0.1) break;
+    os << (listed++ ? ", " : "") << param_info(active[static_cast<size_t>(i)]).name;
   }
   return os.str();
 }
@@ -178,6 +183,14 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
     if (i < 24 || opt.estimate_table_misalignment) active.push_back(i);
   const int n_active = static_cast<int>(active.size());
 
+  // 3 residuals per rest (a_R) and 2 per rotation (d_i).
+  const int n_residuals = static_cast<int>(3 * rests.size() + 2 * (rests.size() - 1));
+  if (n_residuals <= n_active) {
+    fail("only " + std::to_string(n_residuals) + " residuals for " + std::to_string(n_active) +
+         " parameters (" + std::to_string(rests.size()) +
+         " rest periods); the sequence needs more rests and rotations");
+  }
+
   CalibrationResult res;
   res.method = "nlsq";
   if (in.noise.gyro_bias_instability_radps > 0.0 || in.noise.accel_bias_instability_mps2 > 0.0)
@@ -191,6 +204,8 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
   int dof = 0;
   bool converged = false;
   int outer = 0;
+  // Outer loop: linearise every rotation's gyro propagation at θ0, solve the (otherwise exactly
+  // nonlinear) problem with Ceres, re-linearise at the solution until the step is ≪ σ.
   for (outer = 1; outer <= opt.max_outer_iterations; ++outer) {
     const ParamSet theta0 = ParamSet::from_vector(theta);
     Blocks blk;
@@ -237,21 +252,21 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
     Eigen::MatrixXd J(J_full.rows(), n_active);
     for (int c = 0; c < n_active; ++c) J.col(c) = J_full.col(active[static_cast<size_t>(c)]);
     dof = static_cast<int>(J.rows()) - n_active;
-    if (dof <= 0) {
-      fail("only " + std::to_string(J.rows()) + " residuals for " + std::to_string(n_active) +
-           " parameters (" + std::to_string(rests.size()) +
-           " rest periods); the sequence needs more rests and rotations");
-    }
     const Eigen::MatrixXd H = J.transpose() * J;
     const Eigen::VectorXd d = H.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
     const Eigen::MatrixXd Hn = d.asDiagonal() * H * d.asDiagonal();
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Hn);
     if (es.info() != Eigen::Success) fail("eigen-decomposition of the information matrix failed");
-    const double lmin = es.eigenvalues()(0), lmax = es.eigenvalues()(n_active - 1);
-    if (!(lmin > kMinRelativeEigenvalue * lmax)) {
-      fail("parameters not observable with this sequence (normalised information eigenvalue " +
-           std::to_string(lmin / lmax) + "); weakest direction involves " +
-           describe_null_direction(es.eigenvectors().col(0), active));
+    const double lmax = es.eigenvalues()(n_active - 1);
+    int n_null = 0;
+    while (n_null < n_active && !(es.eigenvalues()(n_null) > kMinRelativeEigenvalue * lmax)) ++n_null;
+    if (n_null > 0) {
+      std::ostringstream os;
+      os << "parameters not observable with this sequence: " << n_null
+         << " direction(s) with normalised information eigenvalue below " << kMinRelativeEigenvalue
+         << " (smallest " << es.eigenvalues()(0) / lmax
+         << "); parameters involved: " << describe_null_space(es, n_null, active);
+      fail(os.str());
     }
     const Eigen::MatrixXd Hn_inv = es.eigenvectors() *
                                    es.eigenvalues().cwiseInverse().asDiagonal() *

@@ -18,6 +18,7 @@
 #include "calib/table_model.hpp"
 #include "calib/truth_sim.hpp"
 #include "sequences/library.hpp"
+#include "tests/support/hand_profile.hpp"
 
 using namespace imucal;
 using namespace imucal::calib;
@@ -247,6 +248,30 @@ TEST(Nlsq, TableMisalignmentCanBeHeldFixed) {
   for (int i = 0; i < 24; ++i) EXPECT_LE(std::abs(x(i) - t(i)), 4.0 * s(i)) << param_info(i).name;
 }
 
+// A noise model that understates the real noise 4x: χ²/dof ≈ 16 must be reported, and σ scaled
+// by its square root, so that the errors are again covered by the reported σ.
+TEST(Nlsq, UnderstatedNoiseIsDetectedAndSigmaScaled) {
+  const UnitModel unit = default_unit();
+  SimRun run = simulate_short(unit, /*noise=*/true, 21);
+  const CalibrationResult honest = calibrate_nlsq(run.in);
+  run.in.noise.arw_rad_per_sqrt_s /= 4.0;
+  run.in.noise.vrw_mps_per_sqrt_s /= 4.0;
+  const CalibrationResult res = calibrate_nlsq(run.in);
+  ASSERT_FALSE(res.warnings.empty());
+  bool found = false;
+  for (const auto& w : res.warnings) found = found || w.find("variance factor") != std::string::npos;
+  EXPECT_TRUE(found);
+  // Whitening by a uniformly scaled covariance changes neither the estimate nor, after the
+  // variance-factor scaling, σ (up to the sampling spread of χ²: dof ~ 50, so ±40 %).
+  const ParamVector s_honest = honest.sigma.to_vector(), s = res.sigma.to_vector();
+  for (int i = 0; i < ParamSet::kSize; ++i) {
+    EXPECT_NEAR(res.params.to_vector()(i), honest.params.to_vector()(i), 1e-3 * s_honest(i));
+    EXPECT_GT(s(i), 0.6 * s_honest(i)) << param_info(i).name;
+    EXPECT_LT(s(i), 1.4 * s_honest(i)) << param_info(i).name;
+  }
+  expect_within_sigma(res, run.sim.truth, 4.0);
+}
+
 // 4. Bad input: clear errors, no crash, no silent answer.
 namespace {
 std::string error_of(const CalibrationInput& in) {
@@ -304,18 +329,35 @@ TEST(Nlsq, SizeMismatchAndMissingNoiseModelAreRejected) {
   EXPECT_NE(error_of(in).find("noise.arw_rad_per_sqrt_s"), std::string::npos);
 }
 
-// A sequence that only turns the vertical axis cannot determine all 27 parameters: the error must
-// say so rather than return a singular covariance.
+// A sequence that only turns one table axis, back and forth, cannot determine all 27 parameters:
+// the error must say so (and name the parameters involved) rather than return a singular
+// covariance. With the outer axis along body x at inner 0, body x stays horizontal: the x
+// accelerometer never sees gravity, so its bias, scale and the tilt about body x cannot be told apart.
 TEST(Nlsq, UnobservableSequenceIsRejected) {
+  test_support::HandProfile h;
+  h.rest(30.0);
+  for (int i = 0; i < 6; ++i) h.rotate(true, 90.0).rest(30.0).rotate(true, -90.0).rest(30.0);
+  const UnitModel unit = default_unit();
+  SimOptions so;
+  so.seed = 4;
+  const TableGeometry geom;
+  const SimResult sim = simulate(h.build(), geom, factory_site(), unit, so);
+  const CalibrationInput in = input_from_simulation(sim, geom, factory_site(), unit.noise);
+  ASSERT_EQ(find_rest_periods(in, 100).size(), 13u);  // 39 + 24 residuals: enough in number
+  const std::string msg = error_of(in);
+  EXPECT_NE(msg.find("not observable"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("direction(s)"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("accel_bias_mps2[0]"), std::string::npos) << msg;
+}
+
+// Too few rests for 27 parameters is caught by counting, before any inversion.
+TEST(Nlsq, TooFewResidualsAreRejected) {
   const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
   const auto periods = find_rest_periods(run.in, 100);
   ASSERT_GE(periods.size(), 4u);
-  // The short sequence starts with three rotations about the vertical outer axis.
   CalibrationInput in = run.in;
   in.imu.resize(periods[3].end);
   in.reference.resize(periods[3].end);
   const std::string msg = error_of(in);
-  EXPECT_TRUE(msg.find("not observable") != std::string::npos ||
-              msg.find("residuals for") != std::string::npos)
-      << msg;
+  EXPECT_NE(msg.find("residuals for 27 parameters"), std::string::npos) << msg;
 }
