@@ -204,14 +204,18 @@ PassResult run_pass(const PreparedInput& pin, const AinsOptions& opt, const Pass
     FQ.middleCols<3>(kVel) *= q_vel;
     FQ.middleCols<3>(kPos).setZero();
     const NavMat Q_sub = Qc * T + 0.5 * (FQ + FQ.transpose()) * (T * T) +
-                         (1.0 / 3.0) * FQ * F.transpose() * (T * T * T);
+                         (1.0 / 3.0) * (T * T * T) * FQ.lazyProduct(F.transpose());
     // Compose: Φ_ep <- Φ_sub Φ_ep (block upper-triangular with identity sensor block; the ς
     // columns of Φ_ns stay zero: ς does not drive the navigation errors).
     constexpr int kDriven = kTableMis - kNumNav;
-    Phi_ns.leftCols<kDriven>() = Phi_sub_nn * Phi_ns.leftCols<kDriven>() +
-                                 Phi_sub_ns.leftCols<kDriven>();
-    Phi_nn = Phi_sub_nn * Phi_nn;
-    Q = Phi_sub_nn * Q * Phi_sub_nn.transpose() + Q_sub;
+    // (lazyProduct: coefficient-based, far cheaper than blocked GEMM at these sizes)
+    const Eigen::Matrix<double, kNumNav, kDriven> Phi_ns_new =
+        Phi_sub_nn.lazyProduct(Phi_ns.leftCols<kDriven>()) + Phi_sub_ns.leftCols<kDriven>();
+    Phi_ns.leftCols<kDriven>() = Phi_ns_new;
+    const NavMat Phi_nn_new = Phi_sub_nn.lazyProduct(Phi_nn);
+    Phi_nn = Phi_nn_new;
+    const NavMat PQ = Phi_sub_nn.lazyProduct(Q);
+    Q = PQ.lazyProduct(Phi_sub_nn.transpose()) + Q_sub;
     acc.reset();
   };
 

@@ -43,9 +43,12 @@ NavMat nav_error_dynamics(const NavLinearisation& lin) {
 }
 
 NavMat nav_transition(const NavMat& F_nn, double T_s) {
+  // lazyProduct: coefficient-based products; Eigen's blocked GEMM path costs more than the
+  // arithmetic for matrices this small.
   const NavMat A = F_nn * T_s;
-  const NavMat A2 = A * A;
-  return NavMat::Identity() + A + 0.5 * A2 + (1.0 / 6.0) * A2 * A;
+  const NavMat A2 = A.lazyProduct(A);
+  const NavMat A3 = A2.lazyProduct(A);
+  return NavMat::Identity() + A + 0.5 * A2 + (1.0 / 6.0) * A3;
 }
 
 void propagate_covariance(const NavMat& Phi_nn, const NavSensorMat& Phi_ns, const NavMat& Q,
@@ -54,9 +57,9 @@ void propagate_covariance(const NavMat& Phi_nn, const NavSensorMat& Phi_ns, cons
   const auto Pnn = P.topLeftCorner<kNumNav, kNumNav>();
   const auto Pns = P.topRightCorner<kNumNav, kNs>();
   const auto Pss = P.bottomRightCorner<kNs, kNs>();
-  const NavSensorMat Pns_new = Phi_nn * Pns + Phi_ns * Pss;
-  const NavMat M = Phi_nn * Pnn + Phi_ns * Pns.transpose();
-  NavMat Pnn_new = M * Phi_nn.transpose() + Pns_new * Phi_ns.transpose() + Q;
+  const NavSensorMat Pns_new = Phi_nn.lazyProduct(Pns) + Phi_ns.lazyProduct(Pss);
+  const NavMat M = Phi_nn.lazyProduct(Pnn) + Phi_ns.lazyProduct(Pns.transpose());
+  NavMat Pnn_new = M.lazyProduct(Phi_nn.transpose()) + Pns_new.lazyProduct(Phi_ns.transpose()) + Q;
   P_out.topLeftCorner<kNumNav, kNumNav>() = 0.5 * (Pnn_new + Pnn_new.transpose());
   P_out.topRightCorner<kNumNav, kNs>() = Pns_new;
   P_out.bottomLeftCorner<kNs, kNumNav>() = Pns_new.transpose();
@@ -107,14 +110,15 @@ NavSensorMat SensorCouplingAccumulator::transition(const NavMat& F_nn) const {
   // Φ_ns = J0 + F J1 + (T/3) F² J1, with J1 = T J0 - Σ t F_ns dt; only the ψ/gyro and δv/accel
   // blocks of J are non-zero, so only F's ψ and δv columns are needed.
   constexpr int ba = kAccBias - kNumNav, bg = kGyroBias - kNumNav;
-  const NavMat F2 = F_nn * F_nn;
+  const NavMat F2 = F_nn.lazyProduct(F_nn);
   const Eigen::Matrix<double, kNumNav, 3> Fg =
       F_nn.middleCols<3>(kPsi) + (T_s_ / 3.0) * F2.middleCols<3>(kPsi);
   const Eigen::Matrix<double, kNumNav, 3> Fa =
       F_nn.middleCols<3>(kVel) + (T_s_ / 3.0) * F2.middleCols<3>(kVel);
   NavSensorMat Phi = NavSensorMat::Zero();
-  Phi.middleCols<12>(bg) = Fg * (T_s_ * J0_g_ - J1t_g_);
-  Phi.middleCols<12>(ba) = Fa * (T_s_ * J0_a_ - J1t_a_);
+  const Block J1_g = T_s_ * J0_g_ - J1t_g_, J1_a = T_s_ * J0_a_ - J1t_a_;
+  Phi.middleCols<12>(bg) = Fg.lazyProduct(J1_g);
+  Phi.middleCols<12>(ba) = Fa.lazyProduct(J1_a);
   Phi.block<3, 12>(kPsi, bg) += J0_g_;
   Phi.block<3, 12>(kVel, ba) += J0_a_;
   return Phi;
