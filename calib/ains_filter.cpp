@@ -186,25 +186,41 @@ PassResult run_pass(const PreparedInput& pin, const AinsOptions& opt, const Pass
   NavMat Q = NavMat::Zero();
   SensorCouplingAccumulator acc;
 
+  // F_nn depends on the nominal's latitude, height, velocity and mean specific force, which are
+  // constant to first order between two epochs (at rest and, with the IMU at the rotation centre,
+  // during moves: f_n = -g). It is linearised once per epoch interval; Φ_nn and Q of a
+  // sub-interval are reused while its length repeats. (Re-linearising every sub-interval, or
+  // using one sub-interval per epoch, changes the estimates by < 1e-3 σ.)
+  bool lin_valid = false;
+  NavMat F = NavMat::Zero(), F2 = NavMat::Zero(), Phi_sub_nn = NavMat::Identity(), Q_sub = NavMat::Zero();
+  double T_cached = -1.0;
   auto close_subinterval = [&]() {
     if (acc.empty()) return;
-    NavLinearisation lin;
-    lin.lat_rad = nav.lat_rad;
-    lin.height_m = nav.height_m;
-    lin.v_n_mps = nav.v_n_mps;
-    lin.f_n_mps2 = acc.mean_f_n_mps2();
-    lin.dg_dh_per_s2 = dg_dh;
     const double T = acc.duration_s();
-    const NavMat F = nav_error_dynamics(lin);
-    const NavMat Phi_sub_nn = nav_transition(F, T);
-    const NavSensorMat Phi_sub_ns = acc.transition(F);
-    // Q_sub = ∫ Φ(s) Qc Φ(s)^T ds to third order; Qc is diagonal, so F Qc is a column scaling.
-    NavMat FQ = F;
-    FQ.middleCols<3>(kPsi) *= q_psi;
-    FQ.middleCols<3>(kVel) *= q_vel;
-    FQ.middleCols<3>(kPos).setZero();
-    const NavMat Q_sub = Qc * T + 0.5 * (FQ + FQ.transpose()) * (T * T) +
-                         (1.0 / 3.0) * (T * T * T) * FQ.lazyProduct(F.transpose());
+    if (!lin_valid) {
+      NavLinearisation lin;
+      lin.lat_rad = nav.lat_rad;
+      lin.height_m = nav.height_m;
+      lin.v_n_mps = nav.v_n_mps;
+      lin.f_n_mps2 = acc.mean_f_n_mps2();
+      lin.dg_dh_per_s2 = dg_dh;
+      F = nav_error_dynamics(lin);
+      F2 = F.lazyProduct(F);
+      lin_valid = true;
+      T_cached = -1.0;
+    }
+    if (std::abs(T - T_cached) > 1e-9 * T) {
+      Phi_sub_nn = nav_transition(F, T);
+      // Q_sub = ∫ Φ(s) Qc Φ(s)^T ds to third order; Qc is diagonal: F Qc is a column scaling.
+      NavMat FQ = F;
+      FQ.middleCols<3>(kPsi) *= q_psi;
+      FQ.middleCols<3>(kVel) *= q_vel;
+      FQ.middleCols<3>(kPos).setZero();
+      Q_sub = Qc * T + 0.5 * (FQ + FQ.transpose()) * (T * T) +
+              (1.0 / 3.0) * (T * T * T) * FQ.lazyProduct(F.transpose());
+      T_cached = T;
+    }
+    const NavSensorMat Phi_sub_ns = acc.transition(F, F2);
     // Compose: Φ_ep <- Φ_sub Φ_ep (block upper-triangular with identity sensor block; the ς
     // columns of Φ_ns stay zero: ς does not drive the navigation errors).
     constexpr int kDriven = kTableMis - kNumNav;
@@ -234,6 +250,7 @@ PassResult run_pass(const PreparedInput& pin, const AinsOptions& opt, const Pass
     Phi_nn.setIdentity();
     Phi_ns.setZero();
     Q.setZero();
+    lin_valid = false;
   };
 
   // Sequential scalar update with h = c1 e_i1 + c2 e_i2 (all our H rows have this form).

@@ -106,11 +106,10 @@ Vector3d SensorCouplingAccumulator::mean_f_n_mps2() const {
   return T_s_ > 0.0 ? Vector3d(sum_C_dv_ / T_s_) : Vector3d::Zero();
 }
 
-NavSensorMat SensorCouplingAccumulator::transition(const NavMat& F_nn) const {
+NavSensorMat SensorCouplingAccumulator::transition(const NavMat& F_nn, const NavMat& F2) const {
   // Φ_ns = J0 + F J1 + (T/3) F² J1, with J1 = T J0 - Σ t F_ns dt; only the ψ/gyro and δv/accel
   // blocks of J are non-zero, so only F's ψ and δv columns are needed.
   constexpr int ba = kAccBias - kNumNav, bg = kGyroBias - kNumNav;
-  const NavMat F2 = F_nn.lazyProduct(F_nn);
   const Eigen::Matrix<double, kNumNav, 3> Fg =
       F_nn.middleCols<3>(kPsi) + (T_s_ / 3.0) * F2.middleCols<3>(kPsi);
   const Eigen::Matrix<double, kNumNav, 3> Fa =

@@ -104,8 +104,8 @@ class SensorCouplingAccumulator {
   bool empty() const { return T_s_ <= 0.0; }
   /// Mean specific force in n over the interval (Σ C_bn dv / T).
   Eigen::Vector3d mean_f_n_mps2() const;
-  /// Φ_ns of the interval given the interval's F_nn.
-  NavSensorMat transition(const NavMat& F_nn) const;
+  /// Φ_ns of the interval given the interval's F_nn and F_nn².
+  NavSensorMat transition(const NavMat& F_nn, const NavMat& F_nn2) const;
 
  private:
   // Only two blocks of F_ns are non-zero: gyro states -> ψ rows, accel states -> δv rows, each
