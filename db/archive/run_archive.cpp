@@ -90,6 +90,7 @@ struct ParsedRunInfo {
   RunInfo info;
   bool reference_given = false;
   std::size_t reference_line = 0;
+  bool dv_raw_integral = false;  ///< [imu] dv_convention = "raw_integral": convert on reading
 };
 
 ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& origin) {
@@ -149,11 +150,20 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
     ri.site.gravity_mps2 = *g;
   }
 
-  const auto imu = root.section("imu", {"rate_hz"});
+  const auto imu = root.section("imu", {"rate_hz", "dv_convention"});
   if (!imu) throw ArchiveError::field_error(origin, "imu.rate_hz", "missing (required; no [imu] section)");
   ri.imu_rate_hz = imu->required_number("rate_hz");
   if (!(ri.imu_rate_hz > 0.0 && ri.imu_rate_hz <= 100000.0))
     imu->fail("rate_hz", "must be within (0, 100000] Hz, got " + format_double(ri.imu_rate_hz));
+  if (const auto conv = imu->string("dv_convention")) {
+    if (*conv == "raw_integral") {
+      out.dv_raw_integral = true;
+    } else if (*conv != "interval_start") {
+      imu->fail("dv_convention", "must be \"interval_start\" (dv in the body frame at the start of the "
+                                 "interval, the archive's convention) or \"raw_integral\" (plain ∫f dt), got \"" +
+                                     *conv + "\"");
+    }
+  }
 
   if (const auto t = root.section("table", {"outer_axis", "inner_axis", "heading_deg", "mount_rpy_deg"})) {
     for (const char* k : {"outer_axis", "inner_axis"})
@@ -310,6 +320,12 @@ RunArchive read_archive(const std::string& dir_in) {
     s.dtheta_rad = {imu.at(k, 1), imu.at(k, 2), imu.at(k, 3)};
     s.dv_mps = {imu.at(k, 4), imu.at(k, 5), imu.at(k, 6)};
     s.temp_c = has_temp ? imu.at(k, 7) : std::nan("");
+    // Raw integral ∫ f_b dt -> the body frame at the interval start (DESIGN §3, conventions.hpp):
+    // first-order rotation compensation; sculling inside one sample is not recoverable here.
+    if (parsed.dv_raw_integral) {
+      const Eigen::Vector3d v_raw = s.dv_mps;
+      s.dv_mps = v_raw + 0.5 * s.dtheta_rad.cross(v_raw);
+    }
   }
 
   if (has_table) {

@@ -76,7 +76,8 @@ struct RunArchive {
 };
 
 /// Read and validate an archive directory. Every format error is an ArchiveError naming the file
-/// and line/field.
+/// and line/field. With run.toml [imu] dv_convention = "raw_integral" the dv columns are converted
+/// on reading (dv = v_raw + ½ dθ × v_raw); in memory dv always follows conventions.hpp.
 RunArchive read_archive(const std::string& dir);
 
 /// Write an archive atomically: everything goes to "<dir>.tmp-XXXXXX" (fsync'd), then one rename
