@@ -1,0 +1,238 @@
+// End-to-end tests of build/bin/imucal as a user runs it: real files, real process, exit codes and
+// the one-line errors that name the file and line/field.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <functional>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "calib/rotation.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct ProcResult {
+  int code;
+  std::string out;  ///< stdout + stderr
+};
+
+ProcResult run_imucal(const std::string& args) {
+  const std::string cmd = std::string(IMUCAL_BIN_DIR) + "/imucal " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  const int st = pclose(p);
+  return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out};
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+void spit(const fs::path& p, const std::string& s) { std::ofstream(p) << s; }
+
+class ImucalCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    base_ = fs::temp_directory_path() / ("imucal_cli_" + std::to_string(getpid()));
+    fs::create_directories(base_);
+    const ProcResult r = run_imucal("simulate --sequence short --seed 3 --out " + (base_ / "sim").string());
+    ASSERT_EQ(r.code, 0) << r.out;
+  }
+  static void TearDownTestSuite() { fs::remove_all(base_); }
+
+  /// A copy of the simulated archive with one file replaced by `edit(text)`.
+  fs::path variant(const std::string& name, const std::string& file,
+                   const std::function<std::string(std::string)>& edit) {
+    const fs::path d = base_ / name;
+    fs::remove_all(d);
+    fs::copy(base_ / "sim", d);
+    spit(d / file, edit(slurp(d / file)));
+    return d;
+  }
+
+  static fs::path base_;
+};
+fs::path ImucalCli::base_;
+
+/// Replace the n-th line (1-based) of a text.
+std::string replace_line(const std::string& text, int n, const std::string& line) {
+  std::stringstream in(text), out;
+  std::string l;
+  for (int i = 1; std::getline(in, l); ++i) out << (i == n ? line : l) << '\n';
+  return out.str();
+}
+
+std::string line_of(const std::string& text, int n) {
+  std::stringstream in(text);
+  std::string l;
+  for (int i = 1; std::getline(in, l); ++i)
+    if (i == n) return l;
+  return "";
+}
+
+}  // namespace
+
+TEST_F(ImucalCli, CalibrateJsonHasTheDocumentedShapeAndPasses) {
+  const ProcResult r = run_imucal("calibrate " + (base_ / "sim").string() + " --method all --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  for (const char* m : {"ains", "nlsq"}) {
+    ASSERT_TRUE(j.contains(m));
+    EXPECT_TRUE(j[m]["params"].contains("accel_M"));
+    EXPECT_TRUE(j[m]["sigma"].contains("gyro_bias_radps"));
+    EXPECT_GT(j[m]["metrics"]["orientation_rmse_mdeg"].get<double>(), 0.0);
+    EXPECT_GT(j[m]["metrics"]["accel_rmse_ug"].get<double>(), 0.0);
+    EXPECT_GT(j[m]["runtime_s"].get<double>(), 0.0);
+  }
+  EXPECT_EQ(j["crosscheck"]["verdict"], "PASS");
+  EXPECT_TRUE(j["crosscheck"]["failures"].empty());
+}
+
+TEST_F(ImucalCli, HumanOutputCarriesUnitsAndVerdict) {
+  const ProcResult r = run_imucal("calibrate " + (base_ / "sim").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("µg"), std::string::npos);
+  EXPECT_NE(r.out.find("deg/h"), std::string::npos);
+  EXPECT_NE(r.out.find("cross-check: PASS"), std::string::npos);
+}
+
+TEST_F(ImucalCli, HandMadeAttitudeArchiveCalibratesLikeTheSimulatedOne) {
+  // Data from elsewhere: build attitude.csv (roll/pitch/yaw of the table attitude) and a run.toml by
+  // hand, no truth.json, and compare with the table.csv archive.
+  const fs::path d = base_ / "handmade";
+  fs::remove_all(d);
+  fs::create_directories(d);
+  fs::copy_file(base_ / "sim" / "imu.csv", d / "imu.csv");
+  std::stringstream tab(slurp(base_ / "sim" / "table.csv"));
+  std::ofstream att(d / "attitude.csv");
+  att << "t_s,roll_deg,pitch_deg,yaw_deg,at_rest\n";
+  std::string l;
+  std::getline(tab, l);
+  att.precision(17);
+  while (std::getline(tab, l)) {
+    double t, outer, inner;
+    int rest;
+    ASSERT_EQ(std::sscanf(l.c_str(), "%lf,%lf,%lf,%d", &t, &outer, &inner, &rest), 4) << l;
+    // Default geometry: outer about north (x), inner about the platform normal (z).
+    const Eigen::Matrix3d C = imucal::calib::axis_angle(Eigen::Vector3d::UnitX(), outer * M_PI / 180) *
+                              imucal::calib::axis_angle(Eigen::Vector3d::UnitZ(), inner * M_PI / 180);
+    const Eigen::Vector3d e = imucal::calib::C_bn_to_euler(C) * 180.0 / M_PI;
+    att << t << ',' << e(0) << ',' << e(1) << ',' << e(2) << ',' << rest << '\n';
+  }
+  att.close();
+  std::string toml = slurp(base_ / "sim" / "run.toml");
+  const auto pos = toml.find("reference = \"table\"");
+  ASSERT_NE(pos, std::string::npos) << toml;
+  toml.replace(pos, 19, "reference = \"attitude\"");
+  spit(d / "run.toml", toml);
+
+  const ProcResult a = run_imucal("calibrate " + (base_ / "sim").string() + " --method nlsq --json");
+  const ProcResult b = run_imucal("calibrate " + d.string() + " --method nlsq --json");
+  ASSERT_EQ(a.code, 0) << a.out;
+  ASSERT_EQ(b.code, 0) << b.out;
+  const auto ja = nlohmann::json::parse(a.out)["nlsq"], jb = nlohmann::json::parse(b.out)["nlsq"];
+  for (const char* key : {"accel_bias_mps2", "gyro_bias_radps", "table_misalignment_rad"})
+    for (int i = 0; i < 3; ++i) {
+      const double sa = ja["sigma"][key][i].get<double>();
+      EXPECT_NEAR(ja["params"][key][i].get<double>(), jb["params"][key][i].get<double>(), 0.05 * sa)
+          << key << "[" << i << "]";
+    }
+}
+
+TEST_F(ImucalCli, BadInputGivesOneLineErrorNamingFileAndLine) {
+  struct Case {
+    std::string name, file;
+    std::function<std::string(std::string)> edit;
+    std::string expect;  ///< substring of the error
+  };
+  const std::vector<Case> cases = {
+      {"missing_col", "imu.csv",
+       [](std::string s) {
+         const std::string l = line_of(s, 50);
+         return replace_line(s, 50, l.substr(0, l.rfind(',')));
+       },
+       "imu.csv:50"},
+      {"extra_col", "imu.csv", [](std::string s) { return replace_line(s, 60, line_of(s, 60) + ",1.0"); },
+       "imu.csv:60"},
+      {"nan", "imu.csv",
+       [](std::string s) {
+         std::string l = line_of(s, 70);
+         l.replace(l.find(',') + 1, l.find(',', l.find(',') + 1) - l.find(',') - 1, "nan");
+         return replace_line(s, 70, l);
+       },
+       "imu.csv:70"},
+      {"inf", "table.csv",
+       [](std::string s) {
+         std::string l = line_of(s, 80);
+         return replace_line(s, 80, l.substr(0, l.find(',')) + ",inf" + l.substr(l.find(',', l.find(',') + 1)));
+       },
+       "table.csv:80"},
+      {"time_backwards", "imu.csv", [](std::string s) { return replace_line(s, 90, line_of(s, 40)); },
+       "imu.csv:90"},
+      {"truncated", "imu.csv", [](std::string s) { return s.substr(0, s.size() / 2); }, "imu.csv"},
+      {"no_rest", "table.csv",
+       [](std::string s) {
+         std::stringstream in(s), out;
+         std::string l;
+         std::getline(in, l);
+         out << l << '\n';
+         while (std::getline(in, l)) out << l.substr(0, l.rfind(',')) << ",0\n";
+         return out.str();
+       },
+       "rest"},
+      {"bad_toml_key", "run.toml", [](std::string s) { return s + "\nbogus_key = 1\n"; }, "run.toml"},
+  };
+  for (const auto& c : cases) {
+    const fs::path d = variant(c.name, c.file, c.edit);
+    const ProcResult r = run_imucal("calibrate " + d.string() + " --method nlsq");
+    EXPECT_EQ(r.code, 1) << c.name << ": " << r.out;
+    EXPECT_NE(r.out.find("imucal: error: "), std::string::npos) << c.name << ": " << r.out;
+    EXPECT_NE(r.out.find(c.expect), std::string::npos) << c.name << ": " << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << c.name << ": " << r.out;
+  }
+}
+
+TEST_F(ImucalCli, BadSequencesAreRejectedNamingTheProblem) {
+  const fs::path seq = base_ / "too_fast.toml";
+  spit(seq,
+       "name = \"too-fast\"\n[start]\nrest_s = 30.0\n\n[[step]]\nrotate = \"inner\"\nby_deg = 90.0\n"
+       "rate_dps = 500.0\n\n[[step]]\nrest_s = 30.0\n");
+  ProcResult r = run_imucal("simulate --sequence " + seq.string() + " --out " + (base_ / "x").string());
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("too_fast.toml:"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(base_ / "x"));
+
+  // Rank-deficient: only rotations about body z never tilt the unit.
+  const fs::path flat = base_ / "flat.toml";
+  spit(flat,
+       "name = \"flat\"\n[start]\nrest_s = 30.0\n\n[[step]]\nrotate = \"inner\"\nby_deg = 90.0\n\n"
+       "[[step]]\nrest_s = 30.0\n\n[[step]]\nrotate = \"inner\"\nby_deg = -180.0\n\n[[step]]\n"
+       "rest_s = 30.0\n");
+  r = run_imucal("simulate --sequence " + flat.string() + " --out " + (base_ / "y").string());
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("unobservable"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("accel_M[2][2]"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(base_ / "y"));
+  r = run_imucal("crlb --sequence " + flat.string());
+  EXPECT_EQ(r.code, 3) << r.out;
+
+  r = run_imucal("simulate --sequence no-such-sequence --out " + (base_ / "z").string());
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("factory-std"), std::string::npos) << "should list the available names: " << r.out;
+}

@@ -1,0 +1,275 @@
+// imucal — offline calibration tool on run archives (DESIGN §5):
+//   imucal simulate  --sequence FILE --out DIR [--unit FILE] [--seed N]
+//   imucal calibrate DIR --method ains|nlsq|all [--json]
+//   imucal evaluate  DIR --params FILE [--json]
+//   imucal crlb      --sequence FILE [--unit FILE] [--json]
+//   imucal bench     DIR [--repeat N] [--json]   wall time and peak memory of calibrate --method all
+// Exit codes: 0 success; 1 bad input or failed processing (one-line error on stderr naming the file
+// and line/field); 2 usage error; 3 the result needs review (cross-check REVIEW, or a sequence that
+// leaves parameters unobservable).
+#include <CLI/CLI.hpp>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "calib/calibration_pipeline.hpp"
+#include "calib/crlb.hpp"
+#include "calib/truth_sim.hpp"
+#include "db/archive/archive_error.hpp"
+#include "db/archive/param_json.hpp"
+#include "db/archive/run_archive.hpp"
+#include "db/archive/unit_file.hpp"
+#include "sequences/library.hpp"
+#include "sequences/sequence_error.hpp"
+#include "tools/imucal/report.hpp"
+
+using namespace imucal;
+
+namespace {
+
+constexpr int kExitBadInput = 1;
+constexpr int kExitReview = 3;
+
+/// The factory's station (DTU, Lyngby) with a surveyed gravity equal to the normal gravity there.
+calib::Site default_site() {
+  calib::Site s;
+  s.lat_rad = 55.7856 * kDegToRad;
+  s.lon_rad = 12.5213 * kDegToRad;
+  s.height_m = 30.0;
+  s.gravity_mps2 = calib::EarthModel::normal_gravity_mps2(s.lat_rad, s.height_m);
+  return s;
+}
+
+std::string iso_now() {
+  const auto t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
+  return buf;
+}
+
+/// Progress lines on stderr (stdout stays clean for --json), only when stderr is a terminal or
+/// IMUCAL_PROGRESS=1.
+void progress(const std::string& msg) {
+  static const bool on = isatty(2) || std::getenv("IMUCAL_PROGRESS") != nullptr;
+  if (on) std::fprintf(stderr, "imucal: %s...\n", msg.c_str());
+}
+
+calib::UnitModel load_unit(const std::string& path) {
+  return path.empty() ? calib::default_unit() : archive::read_unit_file(path);
+}
+
+/// Reject a sequence that leaves a parameter unobservable, naming the parameters.
+void require_full_rank(const calib::CrlbResult& crlb, const std::string& seq_path) {
+  const auto unobs = calib::unobservable_parameters(crlb);
+  if (unobs.empty()) return;
+  std::string names;
+  for (const auto& n : unobs) names += (names.empty() ? "" : ", ") + n;
+  throw sequences::SequenceError(seq_path, 0,
+                                 "sequence leaves parameters unobservable: " + names);
+}
+
+int cmd_simulate(const std::string& seq, const std::string& out_dir, const std::string& unit_path,
+                 uint64_t seed, double rate_hz, bool overwrite) {
+  const std::string seq_path = sequences::resolve_sequence(seq);
+  progress("loading sequence " + seq_path);
+  const sequences::MotionProfile profile = sequences::load_profile(seq_path);
+  const calib::UnitModel unit = load_unit(unit_path);
+  const calib::Site site = default_site();
+  const calib::TableGeometry geometry{};
+  progress("checking observability");
+  require_full_rank(calib::compute_crlb(profile, geometry, site, unit.noise, rate_hz), seq_path);
+  progress("simulating " + std::to_string(static_cast<int>(profile.duration_s())) + " s at " +
+           std::to_string(static_cast<int>(rate_hz)) + " Hz");
+  calib::SimOptions opt;
+  opt.rate_hz = rate_hz;
+  opt.seed = seed;
+  calib::SimResult sim = calib::simulate(profile, geometry, site, unit, opt);
+
+  archive::RunArchive ar;
+  ar.info.serial = "SIM-" + std::to_string(seed);
+  ar.info.station_name = "imucal-sim";
+  ar.info.site = site;
+  ar.info.imu_rate_hz = rate_hz;
+  ar.info.table = archive::TableSetup::from_geometry(geometry);
+  ar.info.sequence_name = profile.name;
+  ar.info.sequence_sha256 = sequences::sequence_hash(seq_path);
+  ar.info.software_version = IMUCAL_VERSION;
+  ar.info.start_time = iso_now();
+  ar.info.end_time = ar.info.start_time;
+  ar.info.reference = archive::ReferenceKind::kTable;
+  ar.info.arw_rad_per_sqrt_s = unit.noise.arw_rad_per_sqrt_s;
+  ar.info.vrw_mps_per_sqrt_s = unit.noise.vrw_mps_per_sqrt_s;
+  ar.imu = std::move(sim.imu);
+  ar.table = std::move(sim.table);
+  ar.truth = archive::truth_from_unit(unit);
+  progress("writing " + out_dir);
+  archive::write_archive(out_dir, ar, overwrite);
+  std::cout << "wrote " << out_dir << ": " << ar.imu.size() << " samples, "
+            << profile.duration_s() << " s, sequence " << profile.name << ", seed " << seed
+            << '\n';
+  return 0;
+}
+
+calib::MethodSelection parse_method(const std::string& m) {
+  if (m == "ains") return calib::MethodSelection::kAins;
+  if (m == "nlsq") return calib::MethodSelection::kNlsq;
+  return calib::MethodSelection::kAll;
+}
+
+int cmd_calibrate(const std::string& dir, const std::string& method, bool json, double k_sigma) {
+  progress("reading " + dir);
+  const archive::RunArchive ar = archive::read_archive(dir);
+  const calib::CalibrationInput in = archive::to_calibration_input(ar);
+  calib::PipelineOptions opt;
+  opt.methods = parse_method(method);
+  opt.crosscheck.k_sigma = k_sigma;
+  opt.on_phase = progress;
+  const calib::PipelineResult r = calib::run_calibration(in, opt);
+  if (json) {
+    std::cout << tools::pipeline_to_json(r).dump(2) << '\n';
+  } else {
+    std::cout << "run " << dir << " (serial " << ar.info.serial << ", sequence "
+              << ar.info.sequence_name << ", " << in.imu.size() << " samples)\n";
+    tools::print_parameter_table(std::cout, r, ar.truth ? &ar.truth->params : nullptr);
+    tools::print_metrics_and_verdict(std::cout, r);
+  }
+  return (r.crosscheck && !r.crosscheck->pass) ? kExitReview : 0;
+}
+
+int cmd_evaluate(const std::string& dir, const std::string& params_path, bool json) {
+  const archive::RunArchive ar = archive::read_archive(dir);
+  const calib::CalibrationInput in = archive::to_calibration_input(ar);
+  const calib::ParamSet params = archive::read_param_file(params_path);
+  const calib::EvaluationMetrics m = calib::evaluate(in, params);
+  if (json)
+    std::cout << tools::metrics_to_json(m).dump(2) << '\n';
+  else
+    tools::print_evaluation(std::cout, m);
+  return 0;
+}
+
+int cmd_crlb(const std::string& seq, const std::string& unit_path, double rate_hz, bool json) {
+  const std::string seq_path = sequences::resolve_sequence(seq);
+  const sequences::MotionProfile profile = sequences::load_profile(seq_path);
+  const calib::UnitModel unit = load_unit(unit_path);
+  progress("covariance analysis of " + profile.name);
+  const calib::CrlbResult crlb =
+      calib::compute_crlb(profile, calib::TableGeometry{}, default_site(), unit.noise, rate_hz);
+  const auto unobs = calib::unobservable_parameters(crlb);
+  if (json) {
+    std::cout << nlohmann::json{{"sequence", profile.name},
+                                {"duration_s", profile.duration_s()},
+                                {"sigma", archive::param_set_to_json(crlb.sigma)},
+                                {"unobservable", unobs}}
+                     .dump(2)
+              << '\n';
+  } else {
+    std::cout << "sequence " << profile.name << " (" << profile.duration_s() << " s)\n";
+    tools::print_crlb(std::cout, crlb, unobs);
+  }
+  return unobs.empty() ? 0 : kExitReview;
+}
+
+/// Benchmark of `calibrate --method all` (archive read included): wall time per repetition and the
+/// process's peak resident memory. Timing belongs here, not in unit tests (shared, noisy machines).
+int cmd_bench(const std::string& dir, int repeat, bool json) {
+  std::vector<double> wall_s;
+  size_t samples = 0;
+  std::string verdict;
+  for (int i = 0; i < repeat; ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const archive::RunArchive ar = archive::read_archive(dir);
+    const calib::CalibrationInput in = archive::to_calibration_input(ar);
+    const calib::PipelineResult r = calib::run_calibration(in);
+    wall_s.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    samples = in.imu.size();
+    verdict = r.crosscheck ? r.crosscheck->verdict() : "";
+  }
+  std::sort(wall_s.begin(), wall_s.end());
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  const double peak_mb = static_cast<double>(ru.ru_maxrss) / 1024.0;
+  const double median = wall_s[wall_s.size() / 2];
+  if (json) {
+    std::cout << nlohmann::json{{"samples", samples}, {"repeat", repeat}, {"wall_s_min", wall_s.front()},
+                                {"wall_s_median", median}, {"peak_rss_mb", peak_mb},
+                                {"verdict", verdict}}
+                     .dump(2)
+              << '\n';
+  } else {
+    std::printf("calibrate --method all on %zu samples: wall min %.3f s, median %.3f s over %d runs; "
+                "peak RSS %.1f MB; verdict %s\n",
+                samples, wall_s.front(), median, repeat, peak_mb, verdict.c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"imucal — IMU calibration on run archives (simulate, calibrate, evaluate, crlb)"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string(IMUCAL_VERSION));
+
+  std::string seq, out_dir, unit, dir, method = "all", params;
+  uint64_t seed = 1;
+  double rate_hz = 100.0, k_sigma = 4.0;
+  bool json = false, overwrite = false;
+
+  auto* sim = app.add_subcommand("simulate", "simulate a unit on a sequence into a run archive");
+  sim->add_option("--sequence", seq, "sequence name (factory-std, short, pos19) or TOML file")
+      ->required();
+  sim->add_option("--out", out_dir, "archive directory to create")->required();
+  sim->add_option("--unit", unit, "unit file (TOML); default: the built-in default unit");
+  sim->add_option("--seed", seed, "noise seed")->capture_default_str();
+  sim->add_option("--rate", rate_hz, "IMU rate, Hz")->capture_default_str()->check(CLI::Range(10.0, 2000.0));
+  sim->add_flag("--overwrite", overwrite, "replace an existing archive");
+
+  auto* cal = app.add_subcommand("calibrate", "calibrate a run archive (AINS, NLSQ or both + cross-check)");
+  cal->add_option("dir", dir, "run archive directory")->required();
+  cal->add_option("--method", method, "ains|nlsq|all")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"ains", "nlsq", "all"}));
+  cal->add_option("--k-sigma", k_sigma, "cross-check bound in combined σ")->capture_default_str();
+  cal->add_flag("--json", json, "print one JSON object");
+
+  auto* ev = app.add_subcommand("evaluate", "evaluate a parameter set on a run archive (paper §VII)");
+  ev->add_option("dir", dir, "run archive directory")->required();
+  ev->add_option("--params", params, "parameter-set JSON file")->required();
+  ev->add_flag("--json", json, "print one JSON object");
+
+  auto* cr = app.add_subcommand("crlb", "achievable σ of every parameter for a sequence");
+  cr->add_option("--sequence", seq, "sequence name or TOML file")->required();
+  cr->add_option("--unit", unit, "unit file (noise model); default: built-in");
+  cr->add_option("--rate", rate_hz, "IMU rate, Hz")->capture_default_str();
+  cr->add_flag("--json", json, "print one JSON object");
+
+  int repeat = 3;
+  auto* be = app.add_subcommand("bench", "time and peak memory of calibrate --method all");
+  be->add_option("dir", dir, "run archive directory")->required();
+  be->add_option("--repeat", repeat, "repetitions")->capture_default_str()->check(CLI::Range(1, 100));
+  be->add_flag("--json", json, "print one JSON object");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  try {
+    if (*sim) return cmd_simulate(seq, out_dir, unit, seed, rate_hz, overwrite);
+    if (*cal) return cmd_calibrate(dir, method, json, k_sigma);
+    if (*ev) return cmd_evaluate(dir, params, json);
+    if (*cr) return cmd_crlb(seq, unit, rate_hz, json);
+    if (*be) return cmd_bench(dir, repeat, json);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "imucal: error: %s\n", e.what());
+    return kExitBadInput;
+  }
+  return 0;
+}

@@ -1,0 +1,131 @@
+#include "tools/imucal/report.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "db/archive/param_json.hpp"
+
+namespace imucal::tools {
+
+namespace {
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+std::string fmt(const char* f, const char* v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+nlohmann::json outcome_json(const calib::MethodOutcome& m) {
+  return {{"params", archive::param_set_to_json(m.result.params)},
+          {"sigma", archive::param_set_to_json(m.result.sigma)},
+          {"metrics", metrics_to_json(m.metrics)},
+          {"runtime_s", m.result.runtime_s},
+          {"iterations", m.result.iterations},
+          {"converged", m.result.converged},
+          {"warnings", m.result.warnings}};
+}
+
+}  // namespace
+
+nlohmann::json metrics_to_json(const calib::EvaluationMetrics& m) {
+  return {{"orientation_rmse_mdeg", m.orientation_rmse_mdeg},
+          {"accel_rmse_ug", m.accel_rmse_ug},
+          {"heading_offset_gamma_np_rad", m.heading_offset_gamma_np_rad},
+          {"body_misalignment_theta_bp_rad",
+           {m.body_misalignment_theta_bp_rad(0), m.body_misalignment_theta_bp_rad(1),
+            m.body_misalignment_theta_bp_rad(2)}},
+          {"rest_periods", m.periods.size()}};
+}
+
+nlohmann::json pipeline_to_json(const calib::PipelineResult& r) {
+  nlohmann::json j = nlohmann::json::object();
+  if (r.ains) j["ains"] = outcome_json(*r.ains);
+  if (r.nlsq) j["nlsq"] = outcome_json(*r.nlsq);
+  if (r.crosscheck) {
+    nlohmann::json failures = nlohmann::json::array();
+    for (const auto& f : r.crosscheck->failures)
+      failures.push_back({{"term", f.term}, {"detail", f.detail}});
+    j["crosscheck"] = {{"verdict", r.crosscheck->verdict()}, {"failures", failures}};
+  }
+  return j;
+}
+
+void print_parameter_table(std::ostream& os, const calib::PipelineResult& r,
+                           const calib::ParamSet* truth) {
+  std::vector<std::pair<std::string, const calib::CalibrationResult*>> cols;
+  if (r.ains) cols.emplace_back("AINS", &r.ains->result);
+  if (r.nlsq) cols.emplace_back("NLSQ", &r.nlsq->result);
+  char line[512];
+  std::snprintf(line, sizeof line, "%-26s %-7s", "parameter", "unit");
+  os << line;
+  if (truth) os << fmt("%12s", "truth");
+  for (const auto& c : cols) {
+    os << fmt("%14s", (c.first + " est").c_str()) << fmt("%11s", "±1σ");
+    if (truth) os << fmt("%8s", "err/σ");
+  }
+  os << '\n';
+  const calib::ParamVector tv = truth ? truth->to_vector() : calib::ParamVector::Zero();
+  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+    const auto& info = calib::param_info(i);
+    std::snprintf(line, sizeof line, "%-26s %-7s", info.name.c_str(), info.human_unit.c_str());
+    os << line;
+    if (truth) os << fmt("%12.3f", tv(i) * info.si_to_human);
+    for (const auto& c : cols) {
+      const double est = c.second->params.to_vector()(i), sd = c.second->sigma.to_vector()(i);
+      os << fmt("%14.3f", est * info.si_to_human) << fmt("%11.3f", sd * info.si_to_human);
+      if (truth) os << fmt("%8.2f", sd > 0 ? (est - tv(i)) / sd : NAN);
+    }
+    os << '\n';
+  }
+}
+
+void print_evaluation(std::ostream& os, const calib::EvaluationMetrics& m) {
+  os << fmt("orientation RMSE %.3f mdeg", m.orientation_rmse_mdeg)
+     << fmt(", acceleration RMSE %.2f µg", m.accel_rmse_ug)
+     << fmt(" over %.0f rest periods", static_cast<double>(m.periods.size()))
+     << fmt("; fitted heading offset %.2f arcsec\n", m.heading_offset_gamma_np_rad * 206264.806);
+}
+
+void print_metrics_and_verdict(std::ostream& os, const calib::PipelineResult& r) {
+  for (const auto* m : {r.ains ? &*r.ains : nullptr, r.nlsq ? &*r.nlsq : nullptr}) {
+    if (!m) continue;
+    os << m->result.method << ": " << (m->result.converged ? "converged" : "NOT converged")
+       << fmt(" in %.0f iterations", m->result.iterations) << fmt(", %.2f s; ", m->result.runtime_s);
+    print_evaluation(os, m->metrics);
+    for (const auto& w : m->result.warnings) os << "  warning: " << w << '\n';
+  }
+  if (r.crosscheck) {
+    os << "cross-check: " << r.crosscheck->verdict() << '\n';
+    for (const auto& f : r.crosscheck->failures) os << "  " << f.detail << '\n';
+  }
+}
+
+void print_crlb(std::ostream& os, const calib::CrlbResult& crlb,
+                const std::vector<std::string>& unobservable) {
+  const calib::ParamVector s = crlb.sigma.to_vector();
+  char line[256];
+  std::snprintf(line, sizeof line, "%-26s %-7s %14s\n", "parameter", "unit", "CRLB 1σ");
+  os << line;
+  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+    const auto& info = calib::param_info(i);
+    std::snprintf(line, sizeof line, "%-26s %-7s %14.4f\n", info.name.c_str(),
+                  info.human_unit.c_str(), s(i) * info.si_to_human);
+    os << line;
+  }
+  if (unobservable.empty()) {
+    os << "all 27 parameters observable on this sequence\n";
+  } else {
+    os << "UNOBSERVABLE on this sequence:";
+    for (const auto& n : unobservable) os << ' ' << n;
+    os << '\n';
+  }
+}
+
+}  // namespace imucal::tools
