@@ -20,6 +20,7 @@
 
 #include "calib/calibration_pipeline.hpp"
 #include "calib/crlb.hpp"
+#include "calib/site_presets.hpp"
 #include "calib/truth_sim.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/param_json.hpp"
@@ -36,15 +37,7 @@ namespace {
 constexpr int kExitBadInput = 1;
 constexpr int kExitReview = 3;
 
-/// The factory's station (DTU, Lyngby) with a surveyed gravity equal to the normal gravity there.
-calib::Site default_site() {
-  calib::Site s;
-  s.lat_rad = 55.7856 * kDegToRad;
-  s.lon_rad = 12.5213 * kDegToRad;
-  s.height_m = 30.0;
-  s.gravity_mps2 = calib::EarthModel::normal_gravity_mps2(s.lat_rad, s.height_m);
-  return s;
-}
+calib::Site default_site() { return calib::demo_factory_site(); }
 
 std::string iso_now() {
   const auto t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
