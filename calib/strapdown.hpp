@@ -13,11 +13,12 @@ struct NavState {
   double lat_rad = 0.0;
   double lon_rad = 0.0;
   double height_m = 0.0;
+  int steps_since_normalize = 0;  ///< re-orthonormalisation bookkeeping (round-off only)
 };
 
 class Strapdown {
  public:
-  explicit Strapdown(const EarthModel& earth) : earth_(earth) {}
+  explicit Strapdown(const EarthModel& earth);
 
   /// Advance by one *compensated* increment (error model already removed).
   /// Attitude: C_bn(k) = exp(-[ω_in dt x]) C_bn(k-1) exp([dθ x])            (eq. 5 integrated)
@@ -33,7 +34,20 @@ class Strapdown {
   const EarthModel& earth() const { return earth_; }
 
  private:
+  /// Latitude-dependent terms, recomputed only when the latitude moved by more than
+  /// kLatCacheTolerance_rad (≈ 6 m): Earth rate and radii change by < 1e-6 relative over that.
+  struct LatTerms {
+    double lat_rad = 1e9;
+    double cos_lat = 0, tan_lat = 0, R_N = 0, R_E = 0;
+    Eigen::Vector3d w_ie_n = Eigen::Vector3d::Zero();
+  };
+  static constexpr double kLatCacheTolerance_rad = 1e-6;
+  const LatTerms& lat_terms(double lat_rad) const;
+
   EarthModel earth_;
+  double dg_dh_ = 0.0;    ///< normal-gravity height gradient at the site, 1/s^2
+  double dg_dlat_ = 0.0;  ///< normal-gravity latitude gradient at the site, m/s^2/rad
+  mutable LatTerms cache_;
 };
 
 }  // namespace imucal::calib

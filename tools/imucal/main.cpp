@@ -50,7 +50,11 @@ std::string iso_now() {
 /// IMUCAL_PROGRESS=1.
 void progress(const std::string& msg) {
   static const bool on = isatty(2) || std::getenv("IMUCAL_PROGRESS") != nullptr;
-  if (on) std::fprintf(stderr, "imucal: %s...\n", msg.c_str());
+  static const auto t0 = std::chrono::steady_clock::now();
+  if (on)
+    std::fprintf(stderr, "imucal [%6.2f s] %s...\n",
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+                 msg.c_str());
 }
 
 calib::UnitModel load_unit(const std::string& path) {
@@ -118,6 +122,7 @@ calib::MethodSelection parse_method(const std::string& m) {
 int cmd_calibrate(const std::string& dir, const std::string& method, bool json, double k_sigma) {
   progress("reading " + dir);
   const archive::RunArchive ar = archive::read_archive(dir);
+  progress("checking the archive");
   const calib::CalibrationInput in = archive::to_calibration_input(ar);
   calib::PipelineOptions opt;
   opt.methods = parse_method(method);
