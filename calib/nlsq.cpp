@@ -183,8 +183,11 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
     if (i < 24 || opt.estimate_table_misalignment) active.push_back(i);
   const int n_active = static_cast<int>(active.size());
 
-  // 3 residuals per rest (a_R) and 2 per rotation (d_i).
-  const int n_residuals = static_cast<int>(3 * rests.size() + 2 * (rests.size() - 1));
+  // 3 residuals per rest (a_R); with the table heading 3 per rest (ψ_R) and 3 per rotation (ψ_i),
+  // else 2 per rotation (d_i).
+  const size_t n_rot = rests.size() - 1;
+  const int n_residuals = static_cast<int>(
+      opt.use_table_heading ? 6 * rests.size() + 3 * n_rot : 3 * rests.size() + 2 * n_rot);
   if (n_residuals <= n_active) {
     fail("only " + std::to_string(n_residuals) + " residuals for " + std::to_string(n_active) +
          " parameters (" + std::to_string(rests.size()) +
@@ -219,15 +222,33 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
       problem.AddResidualBlock(cost, nullptr, ref.params);
       refs.push_back(std::move(ref));
     }
-    for (size_t i = 0; i + 1 < rests.size(); ++i) {
-      const NlsqRotation rot = nlsq_linearise_rotation(in, rests, i, i + 1, theta0);
-      auto* cost = new ceres::AutoDiffCostFunction<NlsqRotationResidual, 2, 3, 9, 3, 9, 3>(
-          new NlsqRotationResidual{rests[i], rests[i + 1], rot, w_ie_n});
-      BlockRef ref{cost,
-                   {blk.b_a.data(), blk.M_a.data(), blk.b_g.data(), blk.M_g.data(), blk.sig.data()},
-                   {0, 3, 12, 15, 24}};
+    auto add_attitude = [&](size_t a, size_t b, NlsqSpan span) {
+      const NlsqRotation rot = nlsq_linearise_rotation(in, rests, a, b, theta0, span);
+      auto* cost = new ceres::AutoDiffCostFunction<NlsqAttitudeResidual, 3, 3, 9, 3>(
+          new NlsqAttitudeResidual{rests[a], rests[b], rot});
+      BlockRef ref{cost, {blk.b_g.data(), blk.M_g.data(), blk.sig.data()}, {12, 15, 24}};
       problem.AddResidualBlock(cost, nullptr, ref.params);
       refs.push_back(std::move(ref));
+    };
+    if (opt.use_table_heading) {
+      // The spans tile the run from the first rest's start to the last rest's end: every gyro
+      // increment is used once, and the rest noise no longer dilutes the rotations' residuals.
+      for (size_t i = 0; i < rests.size(); ++i) {
+        add_attitude(i, i, NlsqSpan::kWholeRest);
+        if (i + 1 < rests.size()) add_attitude(i, i + 1, NlsqSpan::kRestEndToRestBegin);
+      }
+    } else {
+      for (size_t i = 0; i + 1 < rests.size(); ++i) {
+        const NlsqRotation rot = nlsq_linearise_rotation(in, rests, i, i + 1, theta0);
+        auto* cost = new ceres::AutoDiffCostFunction<NlsqRotationResidual, 2, 3, 9, 3, 9, 3>(
+            new NlsqRotationResidual{rests[i], rests[i + 1], rot, w_ie_n});
+        BlockRef ref{cost,
+                     {blk.b_a.data(), blk.M_a.data(), blk.b_g.data(), blk.M_g.data(),
+                      blk.sig.data()},
+                     {0, 3, 12, 15, 24}};
+        problem.AddResidualBlock(cost, nullptr, ref.params);
+        refs.push_back(std::move(ref));
+      }
     }
     if (!opt.estimate_table_misalignment) problem.SetParameterBlockConstant(blk.sig.data());
 

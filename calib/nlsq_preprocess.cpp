@@ -1,6 +1,8 @@
 #include "calib/nlsq_preprocess.hpp"
 
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 #include "calib/earth.hpp"
 #include "calib/imu_error_model.hpp"
@@ -80,14 +82,33 @@ Eigen::Matrix3d nlsq_propagate_body(const ImuSeries& imu, size_t begin, size_t e
 
 NlsqRotation nlsq_linearise_rotation(const CalibrationInput& in,
                                      const std::vector<NlsqRestMean>& rests, size_t rest_a,
-                                     size_t rest_b, const ParamSet& theta0) {
+                                     size_t rest_b, const ParamSet& theta0, NlsqSpan span) {
   const NlsqRestMean& A = rests.at(rest_a);
   const NlsqRestMean& B = rests.at(rest_b);
   NlsqRotation rot;
   rot.rest_a = rest_a;
   rot.rest_b = rest_b;
-  rot.begin = A.mid;
-  rot.end = B.mid;
+  switch (span) {
+    case NlsqSpan::kMidRestToMidRest:
+      rot.begin = A.mid;
+      rot.end = B.mid;
+      break;
+    case NlsqSpan::kRestEndToRestBegin:
+      rot.begin = A.end;
+      rot.end = B.begin;
+      break;
+    case NlsqSpan::kWholeRest:
+      if (rest_a != rest_b)
+        throw std::invalid_argument(
+            "nlsq_linearise_rotation: a whole-rest span needs rest_a == rest_b");
+      rot.begin = A.begin;
+      rot.end = A.end;
+      break;
+  }
+  if (!(rot.begin < rot.end && rot.end <= in.imu.size()))
+    throw std::invalid_argument("nlsq_linearise_rotation: empty or out-of-range span [" +
+                                std::to_string(rot.begin) + ", " + std::to_string(rot.end) +
+                                ") (rests must be in time order)");
   rot.theta_g0.head<3>() = theta0.gyro_bias_radps;
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) rot.theta_g0(3 + 3 * r + c) = theta0.gyro_M(r, c);

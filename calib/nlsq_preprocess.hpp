@@ -36,33 +36,50 @@ struct NlsqRestMean {
 std::vector<NlsqRestMean> nlsq_rest_means(const CalibrationInput& in,
                                           const std::vector<RestPeriod>& rests);
 
-/// The gyro propagation from the middle of rest A to the middle of rest B, linearised at θ0.
+/// The gyro propagation over increments [begin, end) between two instants at which the table
+/// attitude is known (both ends inside rest periods), linearised at θ0.
 ///
 /// Strapdown attitude (calib/strapdown.hpp, eq. 5 integrated, at rest so ω_in = ω_ie):
-///   Ĉ_bn(B) = E_n · C_bn(A) · ΔC_b(θ),   E_n = exp(-[ω_ie_n T ×]),  ΔC_b = Π_k exp([dθ_k ×])
+///   Ĉ_bn(end) = E_n · C_bn(begin) · ΔC_b(θ),   E_n = exp(-[ω_ie_n T ×]),  ΔC_b = Π_k exp([dθ_k ×])
 /// with dθ_k the increments compensated by θ (eq. 23 inverse). Perturbing the gyro parameters
 /// θ_g = (b_g, dM_g row-major) by δθ_g perturbs each compensated increment by
 ///   δ_k = -(I + dM_g0)⁻¹ (δb_g dt + δdM_g dθ_k)
 /// and, moving every perturbation to the end of the product,
 ///   ΔC_b(θ) ≈ ΔC_b(θ0) · exp([J_b δθ_g ×]),  J_b δθ_g = P_Nᵀ Σ_k P_k J_r(dθ_k) δ_k,
 /// where P_k = Π_{j≤k} exp([dθ_j ×]) and J_r is the right Jacobian of exp. In the psi convention
-/// (Ĉ = (I - [ψ×]) C) this is ψ = -Ĉ_bn(B) J_b δθ_g.
+/// (Ĉ = (I - [ψ×]) C) this is ψ = -Ĉ_bn(end) J_b δθ_g.
+///
+/// Three kinds of span are used (NlsqSpan): a rotation from the middle of rest A to the middle of
+/// rest B (the paper's eq. 50 form, gravity only), a rotation from the last sample of rest A to
+/// the first of rest B, and a whole rest R (A = B = R: the gyros must reproduce the Earth rate
+/// while the table holds still). The last two tile the run without overlap.
 struct NlsqRotation {
-  size_t rest_a = 0, rest_b = 0;         ///< indices into the rest-mean vector
+  size_t rest_a = 0, rest_b = 0;         ///< indices into the rest-mean vector (equal for a rest)
   size_t begin = 0, end = 0;             ///< increments [begin, end) propagated
   double T_s = 0.0;                      ///< Σ dt over the propagation
   Eigen::Matrix3d E_n = Eigen::Matrix3d::Identity();   ///< exp(-[ω_ie_n T ×])
   Eigen::Matrix3d dC_b0 = Eigen::Matrix3d::Identity(); ///< ΔC_b(θ0)
   Eigen::Matrix<double, 3, 12> J_b = Eigen::Matrix<double, 3, 12>::Zero();
   Eigen::Matrix<double, 12, 1> theta_g0 = Eigen::Matrix<double, 12, 1>::Zero();
-  double sigma_psi_rad = 0.0;  ///< 1-σ per axis of the propagated attitude from ARW + quantisation
+  /// 1-σ per axis of the propagated attitude from ARW + quantisation. Spans sharing an end point
+  /// share that point's quantiser residue (correlation -½ of the LSB²/12 term, ~1e-7 of the ARW
+  /// variance at datasheet values); this is neglected.
+  double sigma_psi_rad = 0.0;
   double rotation_angle_rad = 0.0;  ///< angle between the table attitudes of A and B
 };
 
-/// Build the rotation between rests A and B and linearise it at theta0 (only its gyro part is used).
+enum class NlsqSpan {
+  kMidRestToMidRest,  ///< increments [mid(A), mid(B)): eq. 50's rotation, rest halves included
+  kRestEndToRestBegin,  ///< increments [end(A), begin(B)): the move alone (plus the rest guards)
+  kWholeRest,         ///< increments [begin(R), end(R)) of one rest (rest_a = rest_b = R)
+};
+
+/// Build the propagation of the given span between rests A and B (for kWholeRest, rest_a must
+/// equal rest_b) and linearise it at theta0 (only its gyro part is used).
 NlsqRotation nlsq_linearise_rotation(const CalibrationInput& in,
                                      const std::vector<NlsqRestMean>& rests, size_t rest_a,
-                                     size_t rest_b, const ParamSet& theta0);
+                                     size_t rest_b, const ParamSet& theta0,
+                                     NlsqSpan span = NlsqSpan::kMidRestToMidRest);
 
 /// ΔC_b(θ) propagated exactly (no linearisation) over increments [begin, end): used to check the
 /// linearisation and by tests.
