@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "calib/site_presets.hpp"
 #include "calib/ains.hpp"
 #include "calib/calibration_input.hpp"
 #include "calib/conventions.hpp"
@@ -16,13 +17,7 @@
 
 namespace imucal::calib::testing {
 
-inline Site factory_site() {
-  Site s;
-  s.lat_rad = 55.7 * kDegToRad;
-  s.lon_rad = 12.5 * kDegToRad;
-  s.height_m = 40.0;
-  return s;
-}
+inline Site factory_site() { return demo_factory_site(); }
 
 /// One constant-acceleration move of one axis by `by_deg` at 10 deg/s (10 deg/s² ramps), then a rest.
 inline void append_move(sequences::MotionProfile& p, bool outer, double by_deg, double rest_s) {

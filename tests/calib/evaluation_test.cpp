@@ -8,6 +8,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "calib/site_presets.hpp"
 #include "calib/evaluation.hpp"
 #include "calib/rotation.hpp"
 #include "calib/truth_sim.hpp"
@@ -18,14 +19,7 @@ using namespace imucal::calib;
 
 namespace {
 
-Site factory_site() {
-  Site s;
-  s.lat_rad = 55.78 * kDegToRad;
-  s.lon_rad = 12.52 * kDegToRad;
-  s.height_m = 30.0;
-  s.gravity_mps2 = 9.81551;  // surveyed: the evaluation must use it, like the simulator
-  return s;
-}
+Site factory_site() { return demo_factory_site(); }
 
 UnitModel test_unit() {
   UnitModel u = default_unit();  // biases, scale factors, misalignments and a table ς

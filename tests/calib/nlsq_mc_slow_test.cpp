@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <string>
 
+#include "calib/site_presets.hpp"
 #include "calib/calibration_input.hpp"
 #include "calib/nlsq.hpp"
 #include "calib/truth_sim.hpp"
@@ -29,14 +30,7 @@ int mc_seeds() {
   return n > 0 ? n : 20;
 }
 
-Site factory_site() {
-  Site s;
-  s.lat_rad = 55.78 * kDegToRad;
-  s.lon_rad = 12.52 * kDegToRad;
-  s.height_m = 30.0;
-  s.gravity_mps2 = 9.81542;
-  return s;
-}
+Site factory_site() { return demo_factory_site(); }
 
 struct GroupStats {
   double sum_sq = 0.0;

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "calib/site_presets.hpp"
 #include "calib/calibration_input.hpp"
 #include "calib/imu_error_model.hpp"
 #include "calib/nlsq.hpp"
@@ -28,14 +29,7 @@ using namespace imucal::calib;
 
 namespace {
 
-Site factory_site() {
-  Site s;
-  s.lat_rad = 55.78 * kDegToRad;
-  s.lon_rad = 12.52 * kDegToRad;
-  s.height_m = 30.0;
-  s.gravity_mps2 = 9.81542;  // surveyed
-  return s;
-}
+Site factory_site() { return demo_factory_site(); }
 
 const sequences::MotionProfile& short_profile() {
   static const sequences::MotionProfile p = sequences::load_profile("short");

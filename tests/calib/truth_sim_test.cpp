@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "calib/site_presets.hpp"
 #include "calib/imu_error_model.hpp"
 #include "calib/rotation.hpp"
 #include "calib/strapdown.hpp"
@@ -16,13 +17,7 @@ using namespace imucal::calib;
 
 namespace {
 
-Site factory_site() {
-  Site s;
-  s.lat_rad = 55.78 * kDegToRad;
-  s.lon_rad = 12.52 * kDegToRad;
-  s.height_m = 30.0;
-  return s;
-}
+Site factory_site() { return demo_factory_site(); }
 
 UnitModel perfect_unit() {
   UnitModel u;
