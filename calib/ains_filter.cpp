@@ -126,7 +126,7 @@ PassResult run_pass(const PreparedInput& pin, const AinsOptions& opt, const Pass
   const size_t n = in.imu.size();
   const EarthModel earth(in.site);
   const Strapdown ins(earth);
-  const ImuErrorModel<double> err = ImuErrorModel<double>::from_params(cfg.nominal);
+  const ImuCompensator err(cfg.nominal);
   const Matrix3d Aa_inv = (Matrix3d::Identity() + cfg.nominal.accel_M).inverse();
   const Matrix3d Ag_inv = (Matrix3d::Identity() + cfg.nominal.gyro_M).inverse();
   const Vector3d sigma_hat = cfg.nominal.table_misalignment_rad;
@@ -314,8 +314,8 @@ PassResult run_pass(const PreparedInput& pin, const AinsOptions& opt, const Pass
 
   for (size_t k = pin.k0 + 1; k < n; ++k) {
     const ImuIncrement& s = in.imu[k];
-    const Vector3d dth = err.compensate_dtheta(s.dtheta_rad, s.dt_s);
-    const Vector3d dv = err.compensate_dv(s.dv_mps, s.dt_s);
+    const Vector3d dth = err.dtheta(s.dtheta_rad, s.dt_s);
+    const Vector3d dv = err.dv(s.dv_mps, s.dt_s);
     const Matrix3d C_start = nav.C_bn;
     ins.step(nav, dth, dv, s.dt_s);
     acc.add(C_start, nav.C_bn, dth, dv, s.dt_s, Ag_inv, Aa_inv);

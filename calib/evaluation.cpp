@@ -161,11 +161,11 @@ EvaluationMetrics evaluate(const CalibrationInput& in, const ParamSet& params,
   const size_t n = in.imu.size();
 
   // Compensate once with the shared error model (inverse of eq. 18 and 23).
-  const auto model = ImuErrorModel<double>::from_params(params);
+  const ImuCompensator model(params);
   std::vector<Eigen::Vector3d> dtheta(n), dv(n);
   for (size_t k = 0; k < n; ++k) {
-    dtheta[k] = model.compensate_dtheta(in.imu[k].dtheta_rad, in.imu[k].dt_s);
-    dv[k] = model.compensate_dv(in.imu[k].dv_mps, in.imu[k].dt_s);
+    dtheta[k] = model.dtheta(in.imu[k].dtheta_rad, in.imu[k].dt_s);
+    dv[k] = model.dv(in.imu[k].dv_mps, in.imu[k].dt_s);
   }
   // Reference corrected for the table misalignment ς (eq. 30-31): C_bn_true = exp([ς x]) C_bn_table.
   const Eigen::Matrix3d C_sigma = rotvec_to_matrix<double>(params.table_misalignment_rad);

@@ -32,7 +32,8 @@ struct ImuErrorModel {
   Eigen::Matrix<T, 3, 1> corrupt_dtheta(const Eigen::Matrix<T, 3, 1>& dth, T dt_s) const {
     return dth + b_g * dt_s + M_g * dth;
   }
-  /// Inverse of eq. 18: dv = (I + dM_a)^-1 (dv~ - b_a dt).
+  /// Inverse of eq. 18: dv = (I + dM_a)^-1 (dv~ - b_a dt). (For many samples with fixed
+  /// parameters use ImuCompensator, which inverts once.)
   Eigen::Matrix<T, 3, 1> compensate_dv(const Eigen::Matrix<T, 3, 1>& dv_meas, T dt_s) const {
     const Eigen::Matrix<T, 3, 3> A = Eigen::Matrix<T, 3, 3>::Identity() + M_a;
     return A.inverse() * (dv_meas - b_a * dt_s);
@@ -41,6 +42,27 @@ struct ImuErrorModel {
   Eigen::Matrix<T, 3, 1> compensate_dtheta(const Eigen::Matrix<T, 3, 1>& dth_meas, T dt_s) const {
     const Eigen::Matrix<T, 3, 3> A = Eigen::Matrix<T, 3, 3>::Identity() + M_g;
     return A.inverse() * (dth_meas - b_g * dt_s);
+  }
+};
+
+/// The inverse error model with (I + dM)^-1 computed once: for compensating whole runs with fixed
+/// parameters (the per-sample 3x3 inversion otherwise costs as much as a strapdown step).
+struct ImuCompensator {
+  Eigen::Vector3d b_a = Eigen::Vector3d::Zero(), b_g = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d A_a_inv = Eigen::Matrix3d::Identity(), A_g_inv = Eigen::Matrix3d::Identity();
+
+  explicit ImuCompensator(const ImuErrorModel<double>& m)
+      : b_a(m.b_a),
+        b_g(m.b_g),
+        A_a_inv((Eigen::Matrix3d::Identity() + m.M_a).inverse()),
+        A_g_inv((Eigen::Matrix3d::Identity() + m.M_g).inverse()) {}
+  explicit ImuCompensator(const ParamSet& p) : ImuCompensator(ImuErrorModel<double>::from_params(p)) {}
+
+  Eigen::Vector3d dv(const Eigen::Vector3d& dv_meas, double dt_s) const {
+    return A_a_inv * (dv_meas - b_a * dt_s);
+  }
+  Eigen::Vector3d dtheta(const Eigen::Vector3d& dth_meas, double dt_s) const {
+    return A_g_inv * (dth_meas - b_g * dt_s);
   }
 };
 

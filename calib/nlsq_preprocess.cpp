@@ -70,10 +70,10 @@ std::vector<NlsqRestMean> nlsq_rest_means(const CalibrationInput& in,
 
 Eigen::Matrix3d nlsq_propagate_body(const ImuSeries& imu, size_t begin, size_t end,
                                     const ParamSet& theta) {
-  const ImuErrorModel<double> em = ImuErrorModel<double>::from_params(theta);
+  const ImuCompensator em(theta);
   Eigen::Matrix3d P = Eigen::Matrix3d::Identity();
   for (size_t k = begin; k < end; ++k) {
-    const Eigen::Vector3d dth = em.compensate_dtheta(imu[k].dtheta_rad, imu[k].dt_s);
+    const Eigen::Vector3d dth = em.dtheta(imu[k].dtheta_rad, imu[k].dt_s);
     P = P * rotvec_to_matrix<double>(dth);
     if ((k - begin) % kOrthonormaliseEvery == kOrthonormaliseEvery - 1) P = orthonormalize(P);
   }
@@ -122,7 +122,7 @@ NlsqRotation nlsq_linearise_rotation(const CalibrationInput& in,
   for (size_t k = rot.begin; k < rot.end; ++k) {
     const double dt = in.imu[k].dt_s;
     T += dt;
-    const Eigen::Vector3d dth = em.compensate_dtheta(in.imu[k].dtheta_rad, dt);
+    const Eigen::Vector3d dth = A0 * (in.imu[k].dtheta_rad - em.b_g * dt);  // eq. 23 inverted
     P = P * rotvec_to_matrix<double>(dth);
     if ((k - rot.begin) % kOrthonormaliseEvery == kOrthonormaliseEvery - 1) P = orthonormalize(P);
     // Sensitivity of this step's perturbation, carried in the start frame (P_k J_r A0); δ_k =
