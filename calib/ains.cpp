@@ -12,11 +12,11 @@ namespace imucal::calib {
 
 ParamSet default_prior_sigma() {
   ParamSet p;
-  p.accel_bias_mps2.setConstant(5e-3 * kStandardGravity_mps2);   // 5 mg
-  p.accel_M.setConstant(5000e-6);                                // 5000 ppm / 5 mrad
-  p.gyro_bias_radps.setConstant(1.0 * kDegPerHourToRadPerSec);   // 1 deg/h
+  p.accel_bias_mps2.setConstant(5e-3 * kStandardGravity_mps2);  // 5 mg
+  p.accel_M.setConstant(5000e-6);                               // 5000 ppm / 5 mrad
+  p.gyro_bias_radps.setConstant(1.0 * kDegPerHourToRadPerSec);  // 1 deg/h
   p.gyro_M.setConstant(5000e-6);
-  p.table_misalignment_rad.setConstant(1e-3);                    // 1 mrad
+  p.table_misalignment_rad.setConstant(1e-3);  // 1 mrad
   return p;
 }
 
@@ -84,8 +84,7 @@ AinsResult calibrate_ains_detailed(const CalibrationInput& in, const AinsOptions
   if (in.noise.gyro_bias_instability_radps > 0.0 || in.noise.accel_bias_instability_mps2 > 0.0)
     res.warnings.push_back(
         "noise model has bias instability; AINS models biases as random constants (paper §IV-A)");
-  res.runtime_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  res.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return out;
 }
 

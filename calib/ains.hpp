@@ -47,10 +47,10 @@ ParamSet effective_prior_sigma(const AinsOptions& opt);
 
 /// Smoothed navigation state at one KF epoch (RTS output), for evaluation and diagnosis.
 struct SmoothedNav {
-  size_t sample_index = 0;   ///< index into CalibrationInput::imu
+  size_t sample_index = 0;  ///< index into CalibrationInput::imu
   double t_s = 0.0;
-  bool aided = false;        ///< an aiding update was applied at this epoch
-  NavState nav;              ///< smoothed navigation state (nominal corrected by the smoothed error)
+  bool aided = false;  ///< an aiding update was applied at this epoch
+  NavState nav;        ///< smoothed navigation state (nominal corrected by the smoothed error)
   Eigen::Vector3d psi_rad = Eigen::Vector3d::Zero();  ///< smoothed attitude error of the nominal
   Eigen::Vector3d dv_mps = Eigen::Vector3d::Zero();   ///< smoothed velocity error of the nominal
   Eigen::Vector3d dp_m = Eigen::Vector3d::Zero();     ///< smoothed position error (NED m)
@@ -63,9 +63,9 @@ struct SmoothedNav {
 /// filter's self-diagnostics.
 struct AinsResult {
   CalibrationResult calibration;
-  std::vector<SmoothedNav> smoothed;   ///< one per KF epoch of the final pass
-  size_t num_updates = 0;              ///< aiding epochs in the final pass
-  double mean_nis = 0.0;               ///< mean normalised innovation squared per scalar update
+  std::vector<SmoothedNav> smoothed;  ///< one per KF epoch of the final pass
+  size_t num_updates = 0;             ///< aiding epochs in the final pass
+  double mean_nis = 0.0;              ///< mean normalised innovation squared per scalar update
   /// Max over parameters of |smoothed(first epoch) - filtered(last epoch)| / σ: zero for random
   /// constants in exact arithmetic, so a check of the RTS recursion.
   double smoother_param_mismatch_sigma = 0.0;

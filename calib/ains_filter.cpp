@@ -38,16 +38,16 @@ void check_positive(double v, const char* name) {
 
 void check_nonnegative(double v, const char* name) {
   if (!(std::isfinite(v) && v >= 0.0))
-    fail(std::string("noise model ") + name + " must be finite and >= 0, got " +
-         std::to_string(v));
+    fail(std::string("noise model ") + name + " must be finite and >= 0, got " + std::to_string(v));
 }
 
 }  // namespace
 
 PreparedInput prepare_input(const CalibrationInput& in, const AinsOptions& opt) {
   if (opt.setting != AinsSetting::kFactory)
-    fail("only the factory setting (table orientation aiding) is implemented; the land and sea "
-         "settings need a gyrocompass initial alignment");
+    fail(
+        "only the factory setting (table orientation aiding) is implemented; the land and sea "
+        "settings need a gyrocompass initial alignment");
   if (opt.max_iterations < 1) fail("option max_iterations must be >= 1");
   check_positive(opt.convergence_sigma_ratio, "convergence_sigma_ratio");
   check_positive(opt.attitude_sigma_rad, "attitude_sigma_rad");
@@ -77,7 +77,8 @@ PreparedInput prepare_input(const CalibrationInput& in, const AinsOptions& opt) 
   for (size_t k = 0; k < n; ++k) {
     const ImuIncrement& s = in.imu[k];
     if (!std::isfinite(s.t_s)) fail(at("imu", k) + ".t_s is not finite");
-    if (!(std::isfinite(s.dt_s) && s.dt_s > 0.0)) fail(at("imu", k) + ".dt_s must be finite and > 0");
+    if (!(std::isfinite(s.dt_s) && s.dt_s > 0.0))
+      fail(at("imu", k) + ".dt_s must be finite and > 0");
     if (!finite3(s.dtheta_rad)) fail(at("imu", k) + ".dtheta_rad is not finite");
     if (!finite3(s.dv_mps)) fail(at("imu", k) + ".dv_mps is not finite");
     if (k > 0 && !(s.t_s > in.imu[k - 1].t_s)) fail(at("imu", k) + ".t_s is not increasing");
@@ -130,7 +131,8 @@ PassResult run_pass(const PreparedInput& pin, const AinsOptions& opt, const Pass
   const Matrix3d Aa_inv = (Matrix3d::Identity() + cfg.nominal.accel_M).inverse();
   const Matrix3d Ag_inv = (Matrix3d::Identity() + cfg.nominal.gyro_M).inverse();
   const Vector3d sigma_hat = cfg.nominal.table_misalignment_rad;
-  // Predicted reference: C_bn_ref = exp(-[ς x]) C_bn_true (conventions.hpp), so Ĉ_ref = exp(-[ς̂ x]) Ĉ_bn.
+  // Predicted reference: C_bn_ref = exp(-[ς x]) C_bn_true (conventions.hpp), so Ĉ_ref = exp(-[ς̂ x])
+  // Ĉ_bn.
   const Matrix3d C_unmis = rotvec_to_matrix<double>(Vector3d(-sigma_hat));
   const double h0 = in.site.height_m;
   const double dg_dh = 0.5 * (EarthModel::normal_gravity_mps2(in.site.lat_rad, h0 + 1.0) -
@@ -166,7 +168,8 @@ PassResult run_pass(const PreparedInput& pin, const AinsOptions& opt, const Pass
   }
   x.segment<3>(kPsi) = x.segment<3>(kTableMis);
   const Matrix3d P_mis = P.block<3, 3>(kTableMis, kTableMis);
-  P.block<3, 3>(kPsi, kPsi) = P_mis + opt.attitude_sigma_rad * opt.attitude_sigma_rad * Matrix3d::Identity();
+  P.block<3, 3>(kPsi, kPsi) =
+      P_mis + opt.attitude_sigma_rad * opt.attitude_sigma_rad * Matrix3d::Identity();
   P.block<3, 3>(kPsi, kTableMis) = P_mis;
   P.block<3, 3>(kTableMis, kPsi) = P_mis;
   P.block<3, 3>(kVel, kVel) = opt.zupt_sigma_mps * opt.zupt_sigma_mps * Matrix3d::Identity();
@@ -192,7 +195,8 @@ PassResult run_pass(const PreparedInput& pin, const AinsOptions& opt, const Pass
   // sub-interval are reused while its length repeats. (Re-linearising every sub-interval, or
   // using one sub-interval per epoch, changes the estimates by < 1e-3 σ.)
   bool lin_valid = false;
-  NavMat F = NavMat::Zero(), F2 = NavMat::Zero(), Phi_sub_nn = NavMat::Identity(), Q_sub = NavMat::Zero();
+  NavMat F = NavMat::Zero(), F2 = NavMat::Zero(), Phi_sub_nn = NavMat::Identity(),
+         Q_sub = NavMat::Zero();
   double T_cached = -1.0;
   auto close_subinterval = [&]() {
     if (acc.empty()) return;
@@ -395,9 +399,9 @@ std::vector<SmoothedNav> rts_smooth(const std::vector<EpochRecord>& E,
     Ps.topRightCorner<kNumNav, kNs>() += GdP.rightCols<kNs>();
     Ps.bottomLeftCorner<kNs, kNumNav>() = Ps.topRightCorner<kNumNav, kNs>().transpose();
     Ps.bottomRightCorner<kNs, kNs>() += dP.bottomRightCorner<kNs, kNs>();
-    Ps.topLeftCorner<kNumNav, kNumNav>() =
-        0.5 * (Ps.topLeftCorner<kNumNav, kNumNav>() +
-               Ps.topLeftCorner<kNumNav, kNumNav>().transpose()).eval();
+    Ps.topLeftCorner<kNumNav, kNumNav>() = 0.5 * (Ps.topLeftCorner<kNumNav, kNumNav>() +
+                                                  Ps.topLeftCorner<kNumNav, kNumNav>().transpose())
+                                                     .eval();
     emit(i, xs, Ps);
   }
   if (param_mismatch_sigma) {

@@ -13,7 +13,7 @@ namespace imucal::calib::ains {
 /// The input checked once and the epoch schedule fixed once for all passes.
 struct PreparedInput {
   const CalibrationInput* in = nullptr;
-  size_t k0 = 0;                       ///< first sample of the first rest period: INS start
+  size_t k0 = 0;  ///< first sample of the first rest period: INS start
   /// Per sample: 0 = no KF epoch, 1 = epoch without aiding, 2 = epoch with aiding.
   std::vector<uint8_t> schedule;
   size_t num_epochs = 0;
@@ -27,12 +27,12 @@ PreparedInput prepare_input(const CalibrationInput& in, const AinsOptions& opt);
 
 /// What the RTS needs from one KF epoch (kept compact: ~14 kB per epoch, ~50 MB for 1 h at 1 Hz).
 struct EpochRecord {
-  size_t k = 0;                        ///< sample index
+  size_t k = 0;  ///< sample index
   double t_s = 0.0;
   bool aided = false;
-  NavState nominal;                    ///< nominal INS state before the feedback reset
-  StateVec x_f = StateVec::Zero();     ///< filtered error state (after update, before reset)
-  StateCov P_f = StateCov::Zero();     ///< its covariance (the reset does not change it)
+  NavState nominal;                 ///< nominal INS state before the feedback reset
+  StateVec x_f = StateVec::Zero();  ///< filtered error state (after update, before reset)
+  StateCov P_f = StateCov::Zero();  ///< its covariance (the reset does not change it)
   // Transition to the next epoch: Φ = [[Φ_nn, Φ_ns], [0, I]], Q only on the nav block, and the
   // filter's predicted state there (from the *reset* state, so the RTS stays consistent).
   NavMat Phi_nn = NavMat::Identity();
@@ -42,13 +42,13 @@ struct EpochRecord {
 };
 
 struct PassConfig {
-  ParamSet nominal;          ///< parameters the INS compensates with during this pass
+  ParamSet nominal;  ///< parameters the INS compensates with during this pass
   ParamVector prior_mean = ParamVector::Zero();  ///< prior mean of θ (ParamSet order)
-  ParamSet prior_sigma;      ///< prior 1-σ of θ (all > 0)
+  ParamSet prior_sigma;                          ///< prior 1-σ of θ (all > 0)
 };
 
 struct PassResult {
-  StateVec x = StateVec::Zero();   ///< final filtered state (sensor part: θ - nominal)
+  StateVec x = StateVec::Zero();  ///< final filtered state (sensor part: θ - nominal)
   StateCov P = StateCov::Zero();
   size_t num_updates = 0;
   double nis_sum = 0.0;

@@ -76,8 +76,8 @@ void SensorCouplingAccumulator::reset() {
 }
 
 void SensorCouplingAccumulator::add(const Matrix3d& C_bn_start, const Matrix3d& C_bn_end,
-                                    const Vector3d& dtheta_rad, const Vector3d& dv_mps,
-                                    double dt_s, const Matrix3d& Ag_inv, const Matrix3d& Aa_inv) {
+                                    const Vector3d& dtheta_rad, const Vector3d& dv_mps, double dt_s,
+                                    const Matrix3d& Ag_inv, const Matrix3d& Aa_inv) {
   // dv is expressed in the body frame at the sample start (conventions.hpp), so its error maps
   // through C_bn(start); an error in dθ acts on the attitude over the whole sample, so it maps
   // through the mid-sample attitude (mean of both ends, second-order accurate).
@@ -85,8 +85,9 @@ void SensorCouplingAccumulator::add(const Matrix3d& C_bn_start, const Matrix3d& 
   const Matrix3d B_g = -0.5 * (C_bn_start + C_bn_end) * Ag_inv;
   const double t_mid = T_s_ + 0.5 * dt_s;
 
-  // eq. 27 (× dt, ω dt = dθ): ∂ψ/∂(Δb_g, ΔM_g) = -C_bn (I+M̂_g)^-1 [I3 dt, I3 dθ_x, I3 dθ_y, I3 dθ_z]
-  // eq. 22 (× dt, f dt = dv): ∂δv/∂(Δb_a, ΔM_a) = C_bn (I+M̂_a)^-1 [I3 dt, I3 dv_x, I3 dv_y, I3 dv_z]
+  // eq. 27 (× dt, ω dt = dθ): ∂ψ/∂(Δb_g, ΔM_g) = -C_bn (I+M̂_g)^-1 [I3 dt, I3 dθ_x, I3 dθ_y, I3
+  // dθ_z] eq. 22 (× dt, f dt = dv): ∂δv/∂(Δb_a, ΔM_a) = C_bn (I+M̂_a)^-1 [I3 dt, I3 dv_x, I3 dv_y,
+  // I3 dv_z]
   auto accumulate = [&](Block& J0, Block& J1t, const Matrix3d& B, const Vector3d& incr) {
     J0.leftCols<3>() += B * dt_s;
     J1t.leftCols<3>() += B * (dt_s * t_mid);

@@ -23,14 +23,14 @@ namespace imucal::calib::ains {
 /// dM blocks are stored column-major (dM(0,c), dM(1,c), dM(2,c) for c = 0..2) so that the block for
 /// column c is the "I3 f_c" block of eq. 22 / "I3 ω_c" block of eq. 27: δM f = Σ_c col_c(δM) f_c.
 enum StateID : int {
-  kPsi = 0,         ///< ψ, rad
-  kVel = 3,         ///< δv_n, m/s
-  kPos = 6,         ///< δp NED, m
-  kAccBias = 9,     ///< Δb_a, m/s^2
-  kAccM = 12,       ///< ΔM_a, column-major, dimensionless
-  kGyroBias = 21,   ///< Δb_g, rad/s
-  kGyroM = 24,      ///< ΔM_g, column-major
-  kTableMis = 33,   ///< Δς, rad (paper eq. 30-31)
+  kPsi = 0,        ///< ψ, rad
+  kVel = 3,        ///< δv_n, m/s
+  kPos = 6,        ///< δp NED, m
+  kAccBias = 9,    ///< Δb_a, m/s^2
+  kAccM = 12,      ///< ΔM_a, column-major, dimensionless
+  kGyroBias = 21,  ///< Δb_g, rad/s
+  kGyroM = 24,     ///< ΔM_g, column-major
+  kTableMis = 33,  ///< Δς, rad (paper eq. 30-31)
   kNumStates = 36,
   kNumNav = 9,
   kNumSensor = 27,  ///< states 9..35 (sensor + table misalignment)
@@ -90,7 +90,8 @@ NavMat nav_error_dynamics(const NavLinearisation& lin);
 /// Integrates the sensor-to-navigation coupling F_ns (eq. 22 and 27) sample by sample over one
 /// propagation interval, so the 36x36 transition matrix is formed once per interval rather than
 /// at the IMU rate:  Φ_ns = ∫ Φ_nn(T - t) F_ns(t) dt  ≈  J0 + F_nn J1 + ½ F_nn² J2  with
-/// J0 = ∫ F_ns dt, J1 = ∫ (T - t) F_ns dt, J2 = ∫ (T - t)² F_ns dt ≈ (2T/3) J1 (exact for constant F_ns).
+/// J0 = ∫ F_ns dt, J1 = ∫ (T - t) F_ns dt, J2 = ∫ (T - t)² F_ns dt ≈ (2T/3) J1 (exact for constant
+/// F_ns).
 class SensorCouplingAccumulator {
  public:
   SensorCouplingAccumulator() { reset(); }

@@ -23,9 +23,9 @@ struct ReferenceSample {
 
 struct CalibrationInput {
   Site site;
-  ImuSeries imu;                              ///< raw (uncompensated) increments
-  std::vector<ReferenceSample> reference;     ///< same length and times as imu
-  NoiseModel noise;                           ///< sensor noise spec (datasheet or unit file)
+  ImuSeries imu;                           ///< raw (uncompensated) increments
+  std::vector<ReferenceSample> reference;  ///< same length and times as imu
+  NoiseModel noise;                        ///< sensor noise spec (datasheet or unit file)
 };
 
 /// Half-open index range [begin, end) of one rest period in imu/reference.
@@ -39,9 +39,9 @@ struct RestPeriod {
 std::vector<RestPeriod> find_rest_periods(const CalibrationInput& in, size_t min_samples);
 
 struct CalibrationResult {
-  std::string method;               ///< "ains" or "nlsq"
+  std::string method;  ///< "ains" or "nlsq"
   ParamSet params;
-  ParamSet sigma;                   ///< 1-σ of each parameter (sqrt of cov diagonal)
+  ParamSet sigma;  ///< 1-σ of each parameter (sqrt of cov diagonal)
   ParamCovariance cov = ParamCovariance::Zero();
   bool converged = false;
   int iterations = 0;

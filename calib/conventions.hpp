@@ -7,13 +7,14 @@
 //   p  table platform frame (moves with both table axes); t table base frame; i inertial frame.
 //   C_bn means "b to n": y_n = C_bn * y_b. The inverse is C_nb = C_bn^T.
 //
-// Attitude errors (paper eq. 30, 33): an estimate Ĉ_bn relates to truth by Ĉ_bn = (I - [psi x]) C_bn.
-// Table misalignment ς (paper eq. 30-31): C_bn_true = exp([ς x]) * C_bn_table, where C_bn_table is
-// what the table's encoder angles (or attitude.csv) say.
+// Attitude errors (paper eq. 30, 33): an estimate Ĉ_bn relates to truth by Ĉ_bn = (I - [psi x])
+// C_bn. Table misalignment ς (paper eq. 30-31): C_bn_true = exp([ς x]) * C_bn_table, where
+// C_bn_table is what the table's encoder angles (or attitude.csv) say.
 //
 // IMU data are increments per sample, after coning/sculling compensation:
 //   dtheta_k  rotation vector of the body attitude change w.r.t. inertial space over [t_{k-1}, t_k]
-//   dv_k      = integral of C_{b(t)}^{b(t_{k-1})} f_b(t) dt, expressed in the body frame at the *start*
+//   dv_k      = integral of C_{b(t)}^{b(t_{k-1})} f_b(t) dt, expressed in the body frame at the
+//   *start*
 //             of the interval (rotation and sculling compensated).
 //   so the velocity update is  Δv_n = (I - ½[ω_in dt x]) C_bn(t_{k-1}) dv_k + (g_n - coriolis) dt.
 //   A source delivering the raw integral ∫ f_b dt must be converted on import

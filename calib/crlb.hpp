@@ -18,8 +18,8 @@
 namespace imucal::calib {
 
 struct CrlbResult {
-  ParamSet sigma;        ///< achievable 1-σ per parameter
-  ParamCovariance cov;   ///< full posterior covariance (ParamSet flat order)
+  ParamSet sigma;       ///< achievable 1-σ per parameter
+  ParamCovariance cov;  ///< full posterior covariance (ParamSet flat order)
 };
 
 /// Throws std::invalid_argument for an empty profile, a non-positive rate or a profile without

@@ -21,8 +21,8 @@ constexpr double kGM_m3ps2 = 3.986004418e14;
 struct Site {
   double lat_rad = 0.0;
   double lon_rad = 0.0;
-  double height_m = 0.0;                     ///< above the ellipsoid (depth = -height)
-  std::optional<double> gravity_mps2;        ///< surveyed local gravity magnitude, if known
+  double height_m = 0.0;               ///< above the ellipsoid (depth = -height)
+  std::optional<double> gravity_mps2;  ///< surveyed local gravity magnitude, if known
 };
 
 class EarthModel {

@@ -14,9 +14,7 @@ namespace imucal::calib {
 
 namespace {
 
-[[noreturn]] void fail(const std::string& msg) {
-  throw std::invalid_argument("evaluate: " + msg);
-}
+[[noreturn]] void fail(const std::string& msg) { throw std::invalid_argument("evaluate: " + msg); }
 
 std::string idx(const char* field, size_t k) {
   return std::string(field) + "[" + std::to_string(k) + "]";
@@ -92,8 +90,8 @@ struct MisalignmentFit {
   Eigen::Vector3d theta_bp_rad = Eigen::Vector3d::Zero();
 };
 
-double fit_cost(const std::vector<Eigen::Matrix3d>& C_ins, const std::vector<Eigen::Matrix3d>& C_ref,
-                const Eigen::Vector4d& p) {
+double fit_cost(const std::vector<Eigen::Matrix3d>& C_ins,
+                const std::vector<Eigen::Matrix3d>& C_ref, const Eigen::Vector4d& p) {
   const FitFactors f(p);
   double c = 0.0;
   for (size_t i = 0; i < C_ins.size(); ++i) c += f.residual(C_ins[i], C_ref[i]).squaredNorm();
@@ -167,7 +165,8 @@ EvaluationMetrics evaluate(const CalibrationInput& in, const ParamSet& params,
     dtheta[k] = model.dtheta(in.imu[k].dtheta_rad, in.imu[k].dt_s);
     dv[k] = model.dv(in.imu[k].dv_mps, in.imu[k].dt_s);
   }
-  // Reference corrected for the table misalignment ς (eq. 30-31): C_bn_true = exp([ς x]) C_bn_table.
+  // Reference corrected for the table misalignment ς (eq. 30-31): C_bn_true = exp([ς x])
+  // C_bn_table.
   const Eigen::Matrix3d C_sigma = rotvec_to_matrix<double>(params.table_misalignment_rad);
   auto C_ref_true = [&](size_t k) -> Eigen::Matrix3d { return C_sigma * in.reference[k].C_bn_ref; };
 
@@ -198,8 +197,8 @@ EvaluationMetrics evaluate(const CalibrationInput& in, const ParamSet& params,
     // Only the end result of this pass is used, so it runs on increments combined to the
     // filter rate (exactly, per conventions.hpp: dθ = log Π exp([dθ_k x]), dv in the body frame
     // at the block start), which saves most of the strapdown cost of a 100 Hz stream.
-    const size_t block = std::max<size_t>(
-        1, static_cast<size_t>(std::lround(1.0 / (opt.filter_hz * mean_dt_s))));
+    const size_t block =
+        std::max<size_t>(1, static_cast<size_t>(std::lround(1.0 / (opt.filter_hz * mean_dt_s))));
     ZuptIns ins(earth, in.noise, zopt);
     ins.initialize(nav0, P_psi0);
     for (size_t k0 = 1; k0 < n; k0 += block) {
@@ -231,8 +230,8 @@ EvaluationMetrics evaluate(const CalibrationInput& in, const ParamSet& params,
       std::max(in.noise.arw_rad_per_sqrt_s / std::sqrt(opt.filter_hz), 1e-9);
   P_psi1(2, 2) = heading_hold_sigma * heading_hold_sigma;
 
-  const size_t decim = std::max<size_t>(
-      1, static_cast<size_t>(std::lround(1.0 / (opt.decimate_hz * mean_dt_s))));
+  const size_t decim =
+      std::max<size_t>(1, static_cast<size_t>(std::lround(1.0 / (opt.decimate_hz * mean_dt_s))));
   const Eigen::Vector3d g_n = earth.g_n();
   const Eigen::Vector3d w_ie_n = earth.w_ie_n();
 

@@ -21,11 +21,11 @@
 namespace imucal::calib {
 
 struct EvaluationOptions {
-  size_t min_rest_samples = 100;   ///< shorter rest runs are not evaluated (still ZUPT-aided)
-  double decimate_hz = 10.0;       ///< orientation residual sampling rate at rest
-  double zupt_sigma_mps = 1e-4;    ///< zero-velocity observation noise
-  double depth_sigma_m = 1e-2;     ///< mean-depth observation noise
-  double filter_hz = 10.0;         ///< ZUPT-INS covariance propagation and aiding rate
+  size_t min_rest_samples = 100;  ///< shorter rest runs are not evaluated (still ZUPT-aided)
+  double decimate_hz = 10.0;      ///< orientation residual sampling rate at rest
+  double zupt_sigma_mps = 1e-4;   ///< zero-velocity observation noise
+  double depth_sigma_m = 1e-2;    ///< mean-depth observation noise
+  double filter_hz = 10.0;        ///< ZUPT-INS covariance propagation and aiding rate
   /// Prior on the reference's attitude at the start, for the first (gyrocompassing) INS pass:
   /// the paper's fixture had an unknown heading offset, so heading is found from Earth rate.
   double initial_tilt_sigma_rad = 1e-3;
@@ -43,9 +43,9 @@ struct RestPeriodMetric {
 };
 
 struct EvaluationMetrics {
-  double orientation_rmse_mdeg = 0.0;             ///< eq. 51-52, rest periods only
-  double accel_rmse_ug = 0.0;                     ///< eq. 53-54, per-period means, equally weighted
-  double heading_offset_gamma_np_rad = 0.0;       ///< fitted γ_np (rotation about n down)
+  double orientation_rmse_mdeg = 0.0;        ///< eq. 51-52, rest periods only
+  double accel_rmse_ug = 0.0;                ///< eq. 53-54, per-period means, equally weighted
+  double heading_offset_gamma_np_rad = 0.0;  ///< fitted γ_np (rotation about n down)
   Eigen::Vector3d body_misalignment_theta_bp_rad = Eigen::Vector3d::Zero();  ///< fitted θ_bp
   std::vector<RestPeriodMetric> periods;
 };

@@ -56,7 +56,8 @@ struct ImuCompensator {
         b_g(m.b_g),
         A_a_inv((Eigen::Matrix3d::Identity() + m.M_a).inverse()),
         A_g_inv((Eigen::Matrix3d::Identity() + m.M_g).inverse()) {}
-  explicit ImuCompensator(const ParamSet& p) : ImuCompensator(ImuErrorModel<double>::from_params(p)) {}
+  explicit ImuCompensator(const ParamSet& p)
+      : ImuCompensator(ImuErrorModel<double>::from_params(p)) {}
 
   Eigen::Vector3d dv(const Eigen::Vector3d& dv_meas, double dt_s) const {
     return A_a_inv * (dv_meas - b_a * dt_s);

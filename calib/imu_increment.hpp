@@ -7,11 +7,11 @@
 namespace imucal::calib {
 
 struct ImuIncrement {
-  double t_s = 0.0;                                       ///< end of the interval
-  double dt_s = 0.0;                                      ///< interval length
-  Eigen::Vector3d dtheta_rad = Eigen::Vector3d::Zero();   ///< rotation vector, body, w.r.t. inertial
-  Eigen::Vector3d dv_mps = Eigen::Vector3d::Zero();       ///< velocity increment, body at interval start
-  double temp_c = 0.0;                                    ///< sensor temperature, NaN if unknown
+  double t_s = 0.0;                                      ///< end of the interval
+  double dt_s = 0.0;                                     ///< interval length
+  Eigen::Vector3d dtheta_rad = Eigen::Vector3d::Zero();  ///< rotation vector, body, w.r.t. inertial
+  Eigen::Vector3d dv_mps = Eigen::Vector3d::Zero();  ///< velocity increment, body at interval start
+  double temp_c = 0.0;                               ///< sensor temperature, NaN if unknown
 };
 
 /// Reference orientation sample (table encoder or attitude log) for the same time axis.

@@ -54,21 +54,26 @@ void validate(const CalibrationInput& in, const NlsqOptions& opt) {
   if (!std::isfinite(in.site.lat_rad) || std::abs(in.site.lat_rad) > 0.5 * kPi)
     fail("site.lat_rad must be finite and within [-pi/2, pi/2]");
   if (!std::isfinite(in.site.height_m)) fail("site.height_m must be finite");
-  if (in.site.gravity_mps2 && !(std::isfinite(*in.site.gravity_mps2) && *in.site.gravity_mps2 > 0.0))
+  if (in.site.gravity_mps2 &&
+      !(std::isfinite(*in.site.gravity_mps2) && *in.site.gravity_mps2 > 0.0))
     fail("site.gravity_mps2 must be finite and > 0 when given");
   // Messages are built only on failure: this loop runs over every sample of an hour-long run.
-  auto at = [](const char* what, size_t k) { return std::string(what) + "[" + std::to_string(k) + "]"; };
+  auto at = [](const char* what, size_t k) {
+    return std::string(what) + "[" + std::to_string(k) + "]";
+  };
   for (size_t k = 0; k < in.imu.size(); ++k) {
     const ImuIncrement& s = in.imu[k];
     if (!std::isfinite(s.t_s)) fail(at("imu", k) + ".t_s is not finite");
-    if (!(std::isfinite(s.dt_s) && s.dt_s > 0.0)) fail(at("imu", k) + ".dt_s must be finite and > 0");
+    if (!(std::isfinite(s.dt_s) && s.dt_s > 0.0))
+      fail(at("imu", k) + ".dt_s must be finite and > 0");
     if (!finite3(s.dtheta_rad)) fail(at("imu", k) + ".dtheta_rad is not finite");
     if (!finite3(s.dv_mps)) fail(at("imu", k) + ".dv_mps is not finite");
     const ReferenceSample& r = in.reference[k];
     if (!std::isfinite(r.t_s)) fail(at("reference", k) + ".t_s is not finite");
     if (!r.C_bn_ref.allFinite()) fail(at("reference", k) + ".C_bn_ref is not finite");
     if (std::abs(r.t_s - s.t_s) > 1e-6)
-      fail(at("reference", k) + ".t_s differs from " + at("imu", k) + ".t_s (must share the time axis)");
+      fail(at("reference", k) + ".t_s differs from " + at("imu", k) +
+           ".t_s (must share the time axis)");
   }
 }
 
@@ -137,7 +142,8 @@ std::string describe_null_space(const Eigen::SelfAdjointEigenSolver<Eigen::Matri
   const Eigen::MatrixXd V = es.eigenvectors().leftCols(n_null);
   std::vector<std::pair<double, int>> share;
   for (int i = 0; i < V.rows(); ++i) share.push_back({V.row(i).squaredNorm(), i});
-  std::sort(share.begin(), share.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::sort(share.begin(), share.end(),
+            [](const auto& a, const auto& b) { return a.first > b.first; });
   std::ostringstream os;
   int listed = 0;
   for (const auto& [w, i] : share) {
@@ -167,9 +173,9 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
   }
   double max_rotation = 0.0;
   for (size_t i = 0; i + 1 < rests.size(); ++i)
-    max_rotation = std::max(
-        max_rotation,
-        matrix_to_rotvec(rests[i].C_bn_ref.transpose() * rests[i + 1].C_bn_ref).norm());
+    max_rotation =
+        std::max(max_rotation,
+                 matrix_to_rotvec(rests[i].C_bn_ref.transpose() * rests[i + 1].C_bn_ref).norm());
   if (max_rotation < kMinRotation_rad)
     fail("no rotation between rest periods (the reference attitude changes by at most " +
          std::to_string(max_rotation * kRadToDeg) + " deg); nothing is observable");
@@ -186,8 +192,8 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
   // 3 residuals per rest (a_R); with the table heading 3 per rest (ψ_R) and 3 per rotation (ψ_i),
   // else 2 per rotation (d_i).
   const size_t n_rot = rests.size() - 1;
-  const int n_residuals = static_cast<int>(
-      opt.use_table_heading ? 6 * rests.size() + 3 * n_rot : 3 * rests.size() + 2 * n_rot);
+  const int n_residuals = static_cast<int>(opt.use_table_heading ? 6 * rests.size() + 3 * n_rot
+                                                                 : 3 * rests.size() + 2 * n_rot);
   if (n_residuals <= n_active) {
     fail("only " + std::to_string(n_residuals) + " residuals for " + std::to_string(n_active) +
          " parameters (" + std::to_string(rests.size()) +
@@ -242,10 +248,10 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
         const NlsqRotation rot = nlsq_linearise_rotation(in, rests, i, i + 1, theta0);
         auto* cost = new ceres::AutoDiffCostFunction<NlsqRotationResidual, 2, 3, 9, 3, 9, 3>(
             new NlsqRotationResidual{rests[i], rests[i + 1], rot, w_ie_n});
-        BlockRef ref{cost,
-                     {blk.b_a.data(), blk.M_a.data(), blk.b_g.data(), blk.M_g.data(),
-                      blk.sig.data()},
-                     {0, 3, 12, 15, 24}};
+        BlockRef ref{
+            cost,
+            {blk.b_a.data(), blk.M_a.data(), blk.b_g.data(), blk.M_g.data(), blk.sig.data()},
+            {0, 3, 12, 15, 24}};
         problem.AddResidualBlock(cost, nullptr, ref.params);
         refs.push_back(std::move(ref));
       }
@@ -263,8 +269,7 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
     so.parameter_tolerance = 1e-14;
     ceres::Solver::Summary summary;
     ceres::Solve(so, &problem, &summary);
-    if (summary.termination_type == ceres::FAILURE)
-      fail("Ceres failed: " + summary.message);
+    if (summary.termination_type == ceres::FAILURE) fail("Ceres failed: " + summary.message);
 
     // Whitened Jacobian at the solution: information matrix, covariance, χ².
     Eigen::MatrixXd J_full;
@@ -280,7 +285,8 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
     if (es.info() != Eigen::Success) fail("eigen-decomposition of the information matrix failed");
     const double lmax = es.eigenvalues()(n_active - 1);
     int n_null = 0;
-    while (n_null < n_active && !(es.eigenvalues()(n_null) > kMinRelativeEigenvalue * lmax)) ++n_null;
+    while (n_null < n_active && !(es.eigenvalues()(n_null) > kMinRelativeEigenvalue * lmax))
+      ++n_null;
     if (n_null > 0) {
       std::ostringstream os;
       os << "parameters not observable with this sequence: " << n_null
@@ -304,7 +310,8 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
     theta = theta_new;
     converged = true;
     for (int i : active)
-      if (!(std::abs(step(i)) < opt.convergence_sigma_ratio * std::sqrt(cov(i, i)))) converged = false;
+      if (!(std::abs(step(i)) < opt.convergence_sigma_ratio * std::sqrt(cov(i, i))))
+        converged = false;
     if (converged) break;
   }
   res.iterations = std::min(outer, opt.max_outer_iterations);
@@ -329,8 +336,7 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
   res.cov = cov;
   res.sigma = sigma_from_covariance(cov);
   res.converged = converged;
-  res.runtime_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  res.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return res;
 }
 

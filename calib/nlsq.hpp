@@ -54,10 +54,10 @@
 namespace imucal::calib {
 
 struct NlsqOptions {
-  int max_outer_iterations = 10;          ///< re-linearisations of the gyro propagation
-  double convergence_sigma_ratio = 0.01;  ///< stop when every |Δθ_i| < ratio·σ_i
-  int ceres_max_iterations = 50;          ///< Levenberg-Marquardt iterations per linearisation
-  size_t min_rest_samples = 100;          ///< shorter at_rest runs are not used as rest periods
+  int max_outer_iterations = 10;            ///< re-linearisations of the gyro propagation
+  double convergence_sigma_ratio = 0.01;    ///< stop when every |Δθ_i| < ratio·σ_i
+  int ceres_max_iterations = 50;            ///< Levenberg-Marquardt iterations per linearisation
+  size_t min_rest_samples = 100;            ///< shorter at_rest runs are not used as rest periods
   bool estimate_table_misalignment = true;  ///< false: ς held at zero (σ reported as 0)
   /// true (default): eq. 50 extended by the table heading -- full 3-D attitude residuals ψ against
   /// the table per rotation (end of rest A to start of rest B) and per rest; false: the paper's
@@ -66,9 +66,10 @@ struct NlsqOptions {
 };
 
 /// Calibrate the 27 parameters from a factory run. Throws std::invalid_argument (message starting
-/// "calibrate_nlsq:") when the input cannot be calibrated: sizes of imu/reference differ, non-finite
-/// or non-positive values, fewer than 2 rest periods, no rotation between rests, a noise model
-/// without ARW/VRW (needed to weight the residuals), or parameters not observable on the sequence.
+/// "calibrate_nlsq:") when the input cannot be calibrated: sizes of imu/reference differ,
+/// non-finite or non-positive values, fewer than 2 rest periods, no rotation between rests, a noise
+/// model without ARW/VRW (needed to weight the residuals), or parameters not observable on the
+/// sequence.
 CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& opt = {});
 
 }  // namespace imucal::calib

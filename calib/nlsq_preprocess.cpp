@@ -61,8 +61,7 @@ std::vector<NlsqRestMean> nlsq_rest_means(const CalibrationInput& in,
     r.h2_s2 = static_cast<double>(s3 / (6.0L * s1));
     r.C_bn_ref = in.reference[r.mid].C_bn_ref;
     const double vrw = in.noise.vrw_mps_per_sqrt_s;
-    r.sigma_f_mps2 =
-        std::sqrt(vrw * vrw / r.T_s + 2.0 * lsb_dv * lsb_dv / 12.0 / (r.T_s * r.T_s));
+    r.sigma_f_mps2 = std::sqrt(vrw * vrw / r.T_s + 2.0 * lsb_dv * lsb_dv / 12.0 / (r.T_s * r.T_s));
     out.push_back(r);
   }
   return out;

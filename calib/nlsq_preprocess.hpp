@@ -1,6 +1,6 @@
 #pragma once
-// NLSQ data reduction (paper §V, DESIGN §6): rest periods to mean specific forces (once per run) and
-// rotations to a linearised gyro propagation (once per re-linearisation). Everything the Ceres
+// NLSQ data reduction (paper §V, DESIGN §6): rest periods to mean specific forces (once per run)
+// and rotations to a linearised gyro propagation (once per re-linearisation). Everything the Ceres
 // residuals of calib/nlsq_residuals.hpp need, and nothing per sample.
 #include <Eigen/Core>
 #include <cstddef>
@@ -54,11 +54,11 @@ std::vector<NlsqRestMean> nlsq_rest_means(const CalibrationInput& in,
 /// the first of rest B, and a whole rest R (A = B = R: the gyros must reproduce the Earth rate
 /// while the table holds still). The last two tile the run without overlap.
 struct NlsqRotation {
-  size_t rest_a = 0, rest_b = 0;         ///< indices into the rest-mean vector (equal for a rest)
-  size_t begin = 0, end = 0;             ///< increments [begin, end) propagated
-  double T_s = 0.0;                      ///< Σ dt over the propagation
-  Eigen::Matrix3d E_n = Eigen::Matrix3d::Identity();   ///< exp(-[ω_ie_n T ×])
-  Eigen::Matrix3d dC_b0 = Eigen::Matrix3d::Identity(); ///< ΔC_b(θ0)
+  size_t rest_a = 0, rest_b = 0;  ///< indices into the rest-mean vector (equal for a rest)
+  size_t begin = 0, end = 0;      ///< increments [begin, end) propagated
+  double T_s = 0.0;               ///< Σ dt over the propagation
+  Eigen::Matrix3d E_n = Eigen::Matrix3d::Identity();    ///< exp(-[ω_ie_n T ×])
+  Eigen::Matrix3d dC_b0 = Eigen::Matrix3d::Identity();  ///< ΔC_b(θ0)
   Eigen::Matrix<double, 3, 12> J_b = Eigen::Matrix<double, 3, 12>::Zero();
   Eigen::Matrix<double, 12, 1> theta_g0 = Eigen::Matrix<double, 12, 1>::Zero();
   /// 1-σ per axis of the propagated attitude from ARW + quantisation. Spans sharing an end point
@@ -69,9 +69,9 @@ struct NlsqRotation {
 };
 
 enum class NlsqSpan {
-  kMidRestToMidRest,  ///< increments [mid(A), mid(B)): eq. 50's rotation, rest halves included
+  kMidRestToMidRest,    ///< increments [mid(A), mid(B)): eq. 50's rotation, rest halves included
   kRestEndToRestBegin,  ///< increments [end(A), begin(B)): the move alone (plus the rest guards)
-  kWholeRest,         ///< increments [begin(R), end(R)) of one rest (rest_a = rest_b = R)
+  kWholeRest,           ///< increments [begin(R), end(R)) of one rest (rest_a = rest_b = R)
 };
 
 /// Build the propagation of the given span between rests A and B (for kWholeRest, rest_a must

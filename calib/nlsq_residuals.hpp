@@ -116,11 +116,11 @@ struct NlsqAttitudeResidual {
   }
 };
 
-/// d_i = (Ĉ_bn(B) - C_bn_true(B)) f(B): the second block of eq. 50 minus the table-attitude residual
-/// of rest B. Ĉ_bn(B) = E_n C_bn_true(A) ΔC_b(θ), with ΔC_b linearised in the gyro parameters
-/// (NlsqRotation). Noise: ψ (isotropic, σ_psi) shows as d ≈ ψ × g_n, i.e. |f| σ_psi on the two
-/// horizontal components; the vertical one is second order and not used. This is the paper's
-/// gravity-only form (NlsqOptions::use_table_heading = false).
+/// d_i = (Ĉ_bn(B) - C_bn_true(B)) f(B): the second block of eq. 50 minus the table-attitude
+/// residual of rest B. Ĉ_bn(B) = E_n C_bn_true(A) ΔC_b(θ), with ΔC_b linearised in the gyro
+/// parameters (NlsqRotation). Noise: ψ (isotropic, σ_psi) shows as d ≈ ψ × g_n, i.e. |f| σ_psi on
+/// the two horizontal components; the vertical one is second order and not used. This is the
+/// paper's gravity-only form (NlsqOptions::use_table_heading = false).
 struct NlsqRotationResidual {
   NlsqRestMean rest_a;
   NlsqRestMean rest_b;

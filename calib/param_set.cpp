@@ -40,8 +40,8 @@ std::vector<ParamInfo> make_infos() {
                    r == c ? ParamGroup::kAccelScale : ParamGroup::kAccelMisalign,
                    r == c ? "ppm" : "µrad", 1e6});
   for (int i = 0; i < 3; ++i)
-    v.push_back({"gyro_bias_radps" + idx(i), ParamGroup::kGyroBias, "deg/h",
-                 1.0 / kDegPerHourToRadPerSec});
+    v.push_back(
+        {"gyro_bias_radps" + idx(i), ParamGroup::kGyroBias, "deg/h", 1.0 / kDegPerHourToRadPerSec});
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c)
       v.push_back({"gyro_M" + idx(r) + idx(c),
@@ -61,13 +61,20 @@ const ParamInfo& param_info(int i) {
 
 std::string group_name(ParamGroup g) {
   switch (g) {
-    case ParamGroup::kAccelBias: return "accel_bias";
-    case ParamGroup::kAccelScale: return "accel_scale";
-    case ParamGroup::kAccelMisalign: return "accel_misalignment";
-    case ParamGroup::kGyroBias: return "gyro_bias";
-    case ParamGroup::kGyroScale: return "gyro_scale";
-    case ParamGroup::kGyroMisalign: return "gyro_misalignment";
-    case ParamGroup::kTableMisalign: return "table_misalignment";
+    case ParamGroup::kAccelBias:
+      return "accel_bias";
+    case ParamGroup::kAccelScale:
+      return "accel_scale";
+    case ParamGroup::kAccelMisalign:
+      return "accel_misalignment";
+    case ParamGroup::kGyroBias:
+      return "gyro_bias";
+    case ParamGroup::kGyroScale:
+      return "gyro_scale";
+    case ParamGroup::kGyroMisalign:
+      return "gyro_misalignment";
+    case ParamGroup::kTableMisalign:
+      return "table_misalignment";
   }
   return "?";
 }

@@ -9,9 +9,10 @@ namespace imucal::calib {
 
 struct ParamSet {
   Eigen::Vector3d accel_bias_mps2 = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d accel_M = Eigen::Matrix3d::Zero();   ///< dM_a: diag scale error, off-diag misalignment
+  Eigen::Matrix3d accel_M =
+      Eigen::Matrix3d::Zero();  ///< dM_a: diag scale error, off-diag misalignment
   Eigen::Vector3d gyro_bias_radps = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d gyro_M = Eigen::Matrix3d::Zero();    ///< dM_g
+  Eigen::Matrix3d gyro_M = Eigen::Matrix3d::Zero();                  ///< dM_g
   Eigen::Vector3d table_misalignment_rad = Eigen::Vector3d::Zero();  ///< ς, paper eq. 30-31
 
   static constexpr int kSize = 27;
@@ -35,7 +36,7 @@ enum class ParamGroup {
 constexpr int kNumParamGroups = 7;
 
 struct ParamInfo {
-  std::string name;        ///< e.g. "accel_M[0][1]" (JSON path-like, matches the parameter-set JSON)
+  std::string name;  ///< e.g. "accel_M[0][1]" (JSON path-like, matches the parameter-set JSON)
   ParamGroup group;
   std::string human_unit;  ///< "µg", "ppm", "µrad", "deg/h", "arcsec"
   double si_to_human;      ///< multiply an SI value by this to get human units

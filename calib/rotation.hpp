@@ -47,8 +47,8 @@ Mat3<T> rotvec_to_matrix(const Vec3<T>& phi) {
 /// log(C): rotation vector of a rotation matrix (inverse of rotvec_to_matrix), angle < pi.
 inline Eigen::Vector3d matrix_to_rotvec(const Eigen::Matrix3d& C) {
   const Eigen::Vector3d w(C(2, 1) - C(1, 2), C(0, 2) - C(2, 0), C(1, 0) - C(0, 1));
-  const double s = 0.5 * w.norm();                     // sin(theta)
-  const double c = 0.5 * (C.trace() - 1.0);            // cos(theta)
+  const double s = 0.5 * w.norm();           // sin(theta)
+  const double c = 0.5 * (C.trace() - 1.0);  // cos(theta)
   const double theta = std::atan2(s, c);
   if (theta < 1e-6) return 0.5 * (1.0 + theta * theta / 6.0) * w;  // theta/sin(theta) series
   if (theta < 3.1) return (theta / (2.0 * s)) * w;

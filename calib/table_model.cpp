@@ -29,10 +29,9 @@ Eigen::Vector3d TableModel::wdot_nb_b(const sequences::TableState& s) const {
   const Eigen::Matrix3d C_op = axis_angle(g_.inner_axis_o, -s.inner_rad);
   const Eigen::Vector3d outer_p = C_op * g_.outer_axis_t;
   // d/dt C_op = -inner_rate [a_i x] C_op.
-  const Eigen::Vector3d wdot_p = -s.inner_rate_radps * g_.inner_axis_o.cross(outer_p) *
-                                     s.outer_rate_radps +
-                                 s.outer_accel_radps2 * outer_p +
-                                 s.inner_accel_radps2 * g_.inner_axis_o;
+  const Eigen::Vector3d wdot_p =
+      -s.inner_rate_radps * g_.inner_axis_o.cross(outer_p) * s.outer_rate_radps +
+      s.outer_accel_radps2 * outer_p + s.inner_accel_radps2 * g_.inner_axis_o;
   return g_.C_bp.transpose() * wdot_p;
 }
 

@@ -21,9 +21,11 @@
 namespace imucal::calib {
 
 struct TableGeometry {
-  Eigen::Vector3d outer_axis_t{1.0, 0.0, 0.0};  ///< outer axis in the base frame (default: horizontal)
-  Eigen::Vector3d inner_axis_o{0.0, 0.0, 1.0};  ///< inner axis in the outer-gimbal frame (platform normal)
-  double heading_rad = 0.0;                     ///< base-frame heading: C_tn = Rz(heading)
+  Eigen::Vector3d outer_axis_t{1.0, 0.0,
+                               0.0};  ///< outer axis in the base frame (default: horizontal)
+  Eigen::Vector3d inner_axis_o{0.0, 0.0,
+                               1.0};  ///< inner axis in the outer-gimbal frame (platform normal)
+  double heading_rad = 0.0;           ///< base-frame heading: C_tn = Rz(heading)
   Eigen::Matrix3d C_bp = Eigen::Matrix3d::Identity();  ///< fixture: body to platform
 };
 

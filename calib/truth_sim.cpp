@@ -90,7 +90,8 @@ SimResult simulate(const sequences::MotionProfile& profile, const TableGeometry&
   // D = ∫_0^dt exp([ω_ie_n x] s) ds, so that without lever arms dv_k = C_nb(t_{k-1}) D f_n.
   Eigen::Matrix3d D = Eigen::Matrix3d::Zero();
   for (int q = 0; q < 3; ++q)
-    D += kGlWeight[q] * dt_s * rotvec_to_matrix<double>(Eigen::Vector3d(w_ie_n * kGlNode[q] * dt_s));
+    D +=
+        kGlWeight[q] * dt_s * rotvec_to_matrix<double>(Eigen::Vector3d(w_ie_n * kGlNode[q] * dt_s));
 
   const Effects& fx = unit.effects;
   bool size_effect = false;

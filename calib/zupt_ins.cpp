@@ -18,8 +18,8 @@ void require_positive(double v, const char* what) {
 
 void require_non_negative(double v, const char* what) {
   if (!(std::isfinite(v) && v >= 0.0))
-    throw std::invalid_argument(std::string("ZuptIns: noise ") + what + " = " +
-                                std::to_string(v) + " must be non-negative and finite");
+    throw std::invalid_argument(std::string("ZuptIns: noise ") + what + " = " + std::to_string(v) +
+                                " must be non-negative and finite");
 }
 
 }  // namespace
@@ -32,7 +32,8 @@ ZuptIns::ZuptIns(const EarthModel& earth, const NoiseModel& noise, const ZuptIns
   require_positive(opt_.initial_velocity_sigma_mps, "initial_velocity_sigma_mps");
   require_positive(opt_.initial_position_sigma_m, "initial_position_sigma_m");
   if (!(std::isfinite(opt_.tilt_sigma_after_motion_rad) && opt_.tilt_sigma_after_motion_rad >= 0.0))
-    throw std::invalid_argument("ZuptIns: tilt_sigma_after_motion_rad must be non-negative and finite");
+    throw std::invalid_argument(
+        "ZuptIns: tilt_sigma_after_motion_rad must be non-negative and finite");
   require_non_negative(noise.arw_rad_per_sqrt_s, "arw_rad_per_sqrt_s");
   require_non_negative(noise.vrw_mps_per_sqrt_s, "vrw_mps_per_sqrt_s");
   require_non_negative(noise.gyro_bias_instability_radps, "gyro_bias_instability_radps");
@@ -55,8 +56,9 @@ ZuptIns::ZuptIns(const EarthModel& earth, const NoiseModel& noise, const ZuptIns
 
 void ZuptIns::initialize(const NavState& nav0, const Eigen::Matrix3d& P_psi0_rad2) {
   if (!P_psi0_rad2.allFinite() || P_psi0_rad2.diagonal().minCoeff() <= 0.0)
-    throw std::invalid_argument("ZuptIns::initialize: initial attitude covariance must be "
-                                "finite with a positive diagonal");
+    throw std::invalid_argument(
+        "ZuptIns::initialize: initial attitude covariance must be "
+        "finite with a positive diagonal");
   nav_ = nav0;
   depth0_m_ = -nav0.height_m;
   x_.setZero();
@@ -65,8 +67,8 @@ void ZuptIns::initialize(const NavState& nav0, const Eigen::Matrix3d& P_psi0_rad
   P_.block<3, 3>(kPsi0, kPsi0) = P_psi0_rad2;
   P_.block<3, 3>(kPsi, kPsi0) = P_psi0_rad2;  // the clone *is* ψ at t0
   P_.block<3, 3>(kPsi0, kPsi) = P_psi0_rad2;
-  P_.block<3, 3>(kVel, kVel) =
-      Eigen::Matrix3d::Identity() * opt_.initial_velocity_sigma_mps * opt_.initial_velocity_sigma_mps;
+  P_.block<3, 3>(kVel, kVel) = Eigen::Matrix3d::Identity() * opt_.initial_velocity_sigma_mps *
+                               opt_.initial_velocity_sigma_mps;
   P_.block<3, 3>(kPos, kPos) =
       Eigen::Matrix3d::Identity() * opt_.initial_position_sigma_m * opt_.initial_position_sigma_m;
   acc_dt_s_ = 0.0;
@@ -123,11 +125,11 @@ void ZuptIns::update_transition(double dt_s) {
   // Continuous error dynamics, one line per equation of the paper.
   using M9 = Eigen::Matrix<double, 9, 9>;
   M9 F = M9::Zero();
-  F.block<3, 3>(kPsi, kPsi) = -skew<double>(w_ie_n);              // eq. 6: -ω_in x ψ (v = 0)
-  F.block<3, 3>(kVel, kPsi) = skew<double>(f_n);                  // eq. 7/21: [f_n x] ψ
-  F.block<3, 3>(kVel, kVel) = -skew<double>(2.0 * w_ie_n);        // eq. 7: Coriolis
+  F.block<3, 3>(kPsi, kPsi) = -skew<double>(w_ie_n);        // eq. 6: -ω_in x ψ (v = 0)
+  F.block<3, 3>(kVel, kPsi) = skew<double>(f_n);            // eq. 7/21: [f_n x] ψ
+  F.block<3, 3>(kVel, kVel) = -skew<double>(2.0 * w_ie_n);  // eq. 7: Coriolis
   F(kVel + 2, kPos + 2) = 2.0 * g / R;  // δg: gravity grows with depth — the unstable vertical
-  F.block<3, 3>(kPos, kVel) = Eigen::Matrix3d::Identity();        // eq. 8
+  F.block<3, 3>(kPos, kVel) = Eigen::Matrix3d::Identity();  // eq. 8
 
   // Φ = exp(F dt) to third order: the large entries form the nilpotent chain δp←δv←ψ, the rest
   // are Earth-rate sized, so the series is exact to far below the noise for dt ≲ 1 s.
@@ -170,8 +172,8 @@ void ZuptIns::reset_nav() {
   nav_.v_n_mps -= x_.segment<3>(kVel);
   const Eigen::Vector3d dp = x_.segment<3>(kPos);
   nav_.lat_rad -= dp(0) / (EarthModel::radius_north_m(nav_.lat_rad) + nav_.height_m);
-  nav_.lon_rad -= dp(1) / ((EarthModel::radius_east_m(nav_.lat_rad) + nav_.height_m) *
-                           std::cos(nav_.lat_rad));
+  nav_.lon_rad -=
+      dp(1) / ((EarthModel::radius_east_m(nav_.lat_rad) + nav_.height_m) * std::cos(nav_.lat_rad));
   nav_.height_m += dp(2);  // d = -h
   x_.head<9>().setZero();
 }

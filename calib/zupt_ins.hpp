@@ -20,9 +20,9 @@
 namespace imucal::calib {
 
 struct ZuptInsOptions {
-  double filter_hz = 10.0;                   ///< covariance propagation + aiding rate
-  double zupt_sigma_mps = 1e-4;              ///< zero-velocity observation noise, per axis
-  double depth_sigma_m = 1e-2;               ///< mean-depth observation noise
+  double filter_hz = 10.0;       ///< covariance propagation + aiding rate
+  double zupt_sigma_mps = 1e-4;  ///< zero-velocity observation noise, per axis
+  double depth_sigma_m = 1e-2;   ///< mean-depth observation noise
   double initial_velocity_sigma_mps = 1e-3;
   double initial_position_sigma_m = 1e-2;
   /// Tilt uncertainty added when the unit comes to rest after motion (0 = off): lets the ZUPT
@@ -72,7 +72,7 @@ class ZuptIns {
   double depth0_m_ = 0.0;
   StateVector x_ = StateVector::Zero();
   StateCovariance P_ = StateCovariance::Zero();
-  double acc_dt_s_ = 0.0;  ///< time since the last filter epoch
+  double acc_dt_s_ = 0.0;          ///< time since the last filter epoch
   double transition_dt_s_ = -1.0;  ///< interval Φ9_ and Qd9_ were computed for
   Eigen::Matrix<double, 9, 9> Phi9_ = Eigen::Matrix<double, 9, 9>::Identity();
   Eigen::Matrix<double, 9, 9> Qd9_ = Eigen::Matrix<double, 9, 9>::Zero();

@@ -23,7 +23,8 @@ std::string resolve_sequence(const std::string& name_or_path);
 
 /// resolve + parse + validate (station limits tightened by the file's [limits]) + generate.
 /// Throws SequenceError on the first problem.
-MotionProfile load_profile(const std::string& name_or_path, const TableLimits& station = TableLimits{});
+MotionProfile load_profile(const std::string& name_or_path,
+                           const TableLimits& station = TableLimits{});
 
 /// SHA-256 of the file's bytes, lower-case hex (recorded in run.toml so a run names the exact
 /// sequence it followed). Throws SequenceError if the file cannot be read.

@@ -33,8 +33,8 @@ struct TableState {
 };
 
 struct MotionProfile {
-  std::string name;                       ///< sequence name
-  std::vector<ProfileSegment> segments;   ///< contiguous, ordered, first starts at t = 0
+  std::string name;                      ///< sequence name
+  std::vector<ProfileSegment> segments;  ///< contiguous, ordered, first starts at t = 0
 
   double duration_s() const { return segments.empty() ? 0.0 : segments.back().t1_s; }
   /// Index of the segment containing t (t clamped to [0, duration]).

@@ -1,5 +1,7 @@
 #include "sequences/parser.hpp"
 
+#include <toml++/toml.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -10,8 +12,6 @@
 #include <utility>
 #include <vector>
 
-#include <toml++/toml.h>
-
 namespace imucal::sequences {
 namespace {
 
@@ -21,16 +21,26 @@ constexpr double kDefaultAccelDps2 = 10.0;
 
 const char* type_name(toml::node_type t) {
   switch (t) {
-    case toml::node_type::table: return "table";
-    case toml::node_type::array: return "array";
-    case toml::node_type::string: return "string";
-    case toml::node_type::integer: return "integer";
-    case toml::node_type::floating_point: return "float";
-    case toml::node_type::boolean: return "boolean";
-    case toml::node_type::date: return "date";
-    case toml::node_type::time: return "time";
-    case toml::node_type::date_time: return "date-time";
-    default: return "nothing";
+    case toml::node_type::table:
+      return "table";
+    case toml::node_type::array:
+      return "array";
+    case toml::node_type::string:
+      return "string";
+    case toml::node_type::integer:
+      return "integer";
+    case toml::node_type::floating_point:
+      return "float";
+    case toml::node_type::boolean:
+      return "boolean";
+    case toml::node_type::date:
+      return "date";
+    case toml::node_type::time:
+      return "time";
+    case toml::node_type::date_time:
+      return "date-time";
+    default:
+      return "nothing";
   }
 }
 
@@ -75,7 +85,8 @@ class Parser {
     parse_start(*start, seq.start);
 
     if (const toml::table* defaults = table_or_null(root, "defaults")) parse_defaults(*defaults);
-    if (const toml::table* limits = table_or_null(root, "limits")) parse_limits(*limits, seq.limits);
+    if (const toml::table* limits = table_or_null(root, "limits"))
+      parse_limits(*limits, seq.limits);
 
     parse_steps(root, seq.steps);
     return seq;
@@ -98,8 +109,8 @@ class Parser {
     std::vector<std::pair<int, std::string>> unknown;
     for (auto&& [k, v] : t) {
       (void)v;
-      const bool ok = std::any_of(allowed.begin(), allowed.end(),
-                                  [&](const char* a) { return k.str() == a; });
+      const bool ok =
+          std::any_of(allowed.begin(), allowed.end(), [&](const char* a) { return k.str() == a; });
       if (!ok) unknown.emplace_back(line_of(k.source()), std::string(k.str()));
     }
     if (unknown.empty()) return;
@@ -112,8 +123,8 @@ class Parser {
     const toml::node* n = parent.get(key);
     if (!n) return nullptr;
     if (!n->is_table())
-      fail(key_line(parent, key), "'" + std::string(key) + "' must be a table, got " +
-                                      type_name(n->type()));
+      fail(key_line(parent, key),
+           "'" + std::string(key) + "' must be a table, got " + type_name(n->type()));
     return n->as_table();
   }
 
@@ -202,7 +213,8 @@ class Parser {
     if (!n) fail(0, "missing [[step]] entries: a sequence needs at least one step");
     const int array_line = key_line(root, "step");
     if (!n->is_array())
-      fail(array_line, "'step' must be an array of tables ([[step]]), got " + std::string(type_name(n->type())));
+      fail(array_line, "'step' must be an array of tables ([[step]]), got " +
+                           std::string(type_name(n->type())));
     const toml::array& arr = *n->as_array();
     if (arr.empty()) fail(array_line, "'step' is empty: a sequence needs at least one step");
     for (size_t i = 0; i < arr.size(); ++i) {
@@ -230,8 +242,8 @@ class Parser {
       s.kind = StepKind::kRest;
       for (const char* k : {"by_deg", "to_deg", "rate_dps", "accel_dps2"})
         if (t.contains(k))
-          fail(key_line(t, k), "'" + std::string(k) + "' is not allowed in a rest step (" +
-                                   where + ")");
+          fail(key_line(t, k),
+               "'" + std::string(k) + "' is not allowed in a rest step (" + where + ")");
       number(t, "rest_s", where, Sign::kPositive, &s.duration_s, &s.value_line);
       return s;
     }
@@ -285,7 +297,8 @@ Sequence parse_sequence_string(const std::string& text, const std::string& origi
 
 Sequence parse_sequence_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw SequenceError(path, 0, std::string("cannot open sequence file: ") + std::strerror(errno));
+  if (!in)
+    throw SequenceError(path, 0, std::string("cannot open sequence file: ") + std::strerror(errno));
   std::ostringstream buf;
   buf << in.rdbuf();
   if (in.bad()) throw SequenceError(path, 0, "error while reading sequence file");

@@ -103,7 +103,8 @@ MotionProfile generate_profile(const Sequence& seq) {
     const RotationTiming tm = rotation_timing(std::abs(end_rad - start_rad), v, a);
     // Angle covered by the ramp as the segment evaluator computes it, so that the decelerating
     // segment, evaluated at its end, lands on end_rad up to one rounding.
-    const double ramp_rad = tm.peak_rate * tm.accel_time_s - 0.5 * a * tm.accel_time_s * tm.accel_time_s;
+    const double ramp_rad =
+        tm.peak_rate * tm.accel_time_s - 0.5 * a * tm.accel_time_s * tm.accel_time_s;
 
     auto push_move = [&](double duration_s, double angle0_rad, double rate0, double acc) {
       ProfileSegment s;

@@ -28,10 +28,10 @@ struct Step {
   double duration_s = 0.0;
 
   // Source lines (1-based, 0 = unknown) for error messages.
-  int line = 0;           ///< the [[step]] header
-  int value_line = 0;     ///< by_deg / to_deg / rest_s key
-  int rate_line = 0;      ///< rate_dps key (of the step or of [defaults])
-  int accel_line = 0;     ///< accel_dps2 key (of the step or of [defaults])
+  int line = 0;        ///< the [[step]] header
+  int value_line = 0;  ///< by_deg / to_deg / rest_s key
+  int rate_line = 0;   ///< rate_dps key (of the step or of [defaults])
+  int accel_line = 0;  ///< accel_dps2 key (of the step or of [defaults])
 };
 
 /// [start]: where the table is at t = 0 and how long it rests there before the first step.

@@ -48,8 +48,9 @@ std::vector<ValidationIssue> validate(const Sequence& seq, const TableLimits& li
     if (!std::isfinite(deg)) {
       add(line, step, what + ": " + axis_name(axis) + " angle is not finite");
     } else if (deg < lo || deg > hi) {
-      add(line, step, what + " puts the " + axis_name(axis) + " axis at " + fmt(deg) +
-                          " deg, outside its limits [" + fmt(lo) + ", " + fmt(hi) + "] deg");
+      add(line, step,
+          what + " puts the " + axis_name(axis) + " axis at " + fmt(deg) +
+              " deg, outside its limits [" + fmt(lo) + ", " + fmt(hi) + "] deg");
     }
   };
 
@@ -65,8 +66,9 @@ std::vector<ValidationIssue> validate(const Sequence& seq, const TableLimits& li
     duration_ok = false;
   } else {
     if (seq.start.rest_s < lim.min_rest_s)
-      add(rest0_line, -1, "initial rest of " + fmt(seq.start.rest_s) +
-                              " s is shorter than the minimum rest of " + fmt(lim.min_rest_s) + " s");
+      add(rest0_line, -1,
+          "initial rest of " + fmt(seq.start.rest_s) + " s is shorter than the minimum rest of " +
+              fmt(lim.min_rest_s) + " s");
     total_s += seq.start.rest_s;
   }
 
@@ -87,8 +89,8 @@ std::vector<ValidationIssue> validate(const Sequence& seq, const TableLimits& li
       } else {
         if (st.duration_s < lim.min_rest_s)
           add(st.value_line ? st.value_line : st.line, idx,
-              label + ": rest of " + fmt(st.duration_s) + " s is shorter than the minimum rest of " +
-                  fmt(lim.min_rest_s) + " s");
+              label + ": rest of " + fmt(st.duration_s) +
+                  " s is shorter than the minimum rest of " + fmt(lim.min_rest_s) + " s");
         total_s += st.duration_s;
       }
     } else {
@@ -101,17 +103,18 @@ std::vector<ValidationIssue> validate(const Sequence& seq, const TableLimits& li
         add(rate_line, idx, label + ": rate_dps must be finite and > 0, got " + fmt(st.rate_dps));
         kinematics_ok = false;
       } else if (st.rate_dps > lim.max_rate_dps) {
-        add(rate_line, idx, label + ": rate of " + fmt(st.rate_dps) +
-                                " deg/s exceeds the table limit of " + fmt(lim.max_rate_dps) + " deg/s");
+        add(rate_line, idx,
+            label + ": rate of " + fmt(st.rate_dps) + " deg/s exceeds the table limit of " +
+                fmt(lim.max_rate_dps) + " deg/s");
       }
       if (!(std::isfinite(st.accel_dps2) && st.accel_dps2 > 0.0)) {
         add(accel_line, idx,
             label + ": accel_dps2 must be finite and > 0, got " + fmt(st.accel_dps2));
         kinematics_ok = false;
       } else if (st.accel_dps2 > lim.max_accel_dps2) {
-        add(accel_line, idx, label + ": acceleration of " + fmt(st.accel_dps2) +
-                                 " deg/s^2 exceeds the table limit of " + fmt(lim.max_accel_dps2) +
-                                 " deg/s^2");
+        add(accel_line, idx,
+            label + ": acceleration of " + fmt(st.accel_dps2) +
+                " deg/s^2 exceeds the table limit of " + fmt(lim.max_accel_dps2) + " deg/s^2");
       }
       if (st.by_deg.has_value() == st.to_deg.has_value()) {
         add(value_line, idx, label + ": a rotation needs exactly one of by_deg / to_deg");
@@ -123,10 +126,11 @@ std::vector<ValidationIssue> validate(const Sequence& seq, const TableLimits& li
       if (!std::isfinite(delta_deg)) {
         add(value_line, idx, label + ": rotation angle is not finite");
         kinematics_ok = false;
-      } else if (std::abs(delta_deg) < kZeroAngleDeg && st.by_deg.has_value() != st.to_deg.has_value()) {
-        add(value_line, idx, label + ": rotation of zero angle (the " +
-                                 std::string(axis_name(st.axis)) + " axis is already at " +
-                                 fmt(axis_deg) + " deg)");
+      } else if (std::abs(delta_deg) < kZeroAngleDeg &&
+                 st.by_deg.has_value() != st.to_deg.has_value()) {
+        add(value_line, idx,
+            label + ": rotation of zero angle (the " + std::string(axis_name(st.axis)) +
+                " axis is already at " + fmt(axis_deg) + " deg)");
       } else {
         // The axis sweeps monotonically from the current to the new angle, so checking the new
         // angle suffices (the current one was checked when it was reached).
@@ -140,14 +144,18 @@ std::vector<ValidationIssue> validate(const Sequence& seq, const TableLimits& li
         duration_ok = false;
 
       // The estimators compare attitude at the rest before and the rest after each rotation.
-      const bool rest_follows = i + 1 < seq.steps.size() && seq.steps[i + 1].kind == StepKind::kRest;
+      const bool rest_follows =
+          i + 1 < seq.steps.size() && seq.steps[i + 1].kind == StepKind::kRest;
       if (!rest_follows)
-        add(st.line, idx, label + ": rotation is not followed by a rest step (the calibration "
-                                  "needs a rest before and after every rotation)");
+        add(st.line, idx,
+            label +
+                ": rotation is not followed by a rest step (the calibration "
+                "needs a rest before and after every rotation)");
     }
     if (duration_ok && !duration_reported && total_s > lim.max_duration_s) {
-      add(st.line, idx, label + ": the sequence exceeds the maximum duration of " +
-                            fmt(lim.max_duration_s) + " s here (" + fmt(total_s) + " s so far)");
+      add(st.line, idx,
+          label + ": the sequence exceeds the maximum duration of " + fmt(lim.max_duration_s) +
+              " s here (" + fmt(total_s) + " s so far)");
       duration_reported = true;
     }
   }

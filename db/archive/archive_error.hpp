@@ -35,7 +35,7 @@ class ArchiveError : public std::runtime_error {
   }
 
   const std::string& file() const { return file_; }
-  std::size_t line() const { return line_; }          ///< 0 if unknown
+  std::size_t line() const { return line_; }           ///< 0 if unknown
   const std::string& field() const { return field_; }  ///< empty if none
   const std::string& message() const { return message_; }
 

@@ -71,7 +71,8 @@ void check_header(const std::vector<std::string>& hdr, const CsvSpec& spec,
     if (i >= hdr.size())
       throw ArchiveError::column_error(origin, 1, want, "missing column" + expect);
     if (hdr[i] == want) continue;
-    const bool want_later = std::find(hdr.begin() + static_cast<long>(i), hdr.end(), want) != hdr.end();
+    const bool want_later =
+        std::find(hdr.begin() + static_cast<long>(i), hdr.end(), want) != hdr.end();
     if (!want_later)
       throw ArchiveError::column_error(origin, 1, want,
                                        "missing column (found '" + hdr[i] + "' in position " +
@@ -128,14 +129,17 @@ CsvTable parse_csv(std::string_view text, const std::string& origin, const CsvSp
       const std::string& col = t.columns[c];
       if (p == end || *p == '\n' || *p == '\r' || *p == ',') {
         if (c == 0 && is_newline_at(p, end))
-          throw ArchiveError(origin, line, "blank line (expected " + std::to_string(ncol) + " columns)");
-        if (p < end && *p == ',') throw ArchiveError::column_error(origin, line, col, "empty field");
+          throw ArchiveError(origin, line,
+                             "blank line (expected " + std::to_string(ncol) + " columns)");
+        if (p < end && *p == ',')
+          throw ArchiveError::column_error(origin, line, col, "empty field");
         if (p == end)
           throw ArchiveError(origin, line,
                              "truncated last line: no trailing newline and only " +
                                  std::to_string(c) + " of " + std::to_string(ncol) + " columns");
-        throw ArchiveError(origin, line,
-                           "expected " + std::to_string(ncol) + " columns, found " + std::to_string(c));
+        throw ArchiveError(
+            origin, line,
+            "expected " + std::to_string(ncol) + " columns, found " + std::to_string(c));
       }
       double v;
       const auto res = std::from_chars(p, end, v);
@@ -143,7 +147,8 @@ CsvTable parse_csv(std::string_view text, const std::string& origin, const CsvSp
         throw ArchiveError::column_error(origin, line, col,
                                          "number out of double range: '" + cell_text(p, end) + "'");
       if (res.ec != std::errc())
-        throw ArchiveError::column_error(origin, line, col, "not a number: '" + cell_text(p, end) + "'");
+        throw ArchiveError::column_error(origin, line, col,
+                                         "not a number: '" + cell_text(p, end) + "'");
       if (!std::isfinite(v))
         throw ArchiveError::column_error(origin, line, col,
                                          "NaN or Inf is not allowed: '" + cell_text(p, end) + "'");
@@ -155,12 +160,14 @@ CsvTable parse_csv(std::string_view text, const std::string& origin, const CsvSp
           if (q == end)
             throw ArchiveError(origin, line,
                                "truncated last line: no trailing newline and only " +
-                                   std::to_string(c + 1) + " of " + std::to_string(ncol) + " columns");
-          throw ArchiveError(origin, line,
-                             "expected " + std::to_string(ncol) + " columns, found " +
-                                 std::to_string(c + 1));
+                                   std::to_string(c + 1) + " of " + std::to_string(ncol) +
+                                   " columns");
+          throw ArchiveError(
+              origin, line,
+              "expected " + std::to_string(ncol) + " columns, found " + std::to_string(c + 1));
         } else {
-          throw ArchiveError::column_error(origin, line, col, "not a number: '" + cell_text(p, end) + "'");
+          throw ArchiveError::column_error(origin, line, col,
+                                           "not a number: '" + cell_text(p, end) + "'");
         }
       } else {
         if (q == end) {
@@ -176,7 +183,8 @@ CsvTable parse_csv(std::string_view text, const std::string& origin, const CsvSp
                              "expected " + std::to_string(ncol) + " columns, found " +
                                  std::to_string(count_fields(line_start, end)));
         } else {
-          throw ArchiveError::column_error(origin, line, col, "not a number: '" + cell_text(p, end) + "'");
+          throw ArchiveError::column_error(origin, line, col,
+                                           "not a number: '" + cell_text(p, end) + "'");
         }
       }
       if (c == 0 && spec.increasing_first_column) {

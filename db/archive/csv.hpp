@@ -23,16 +23,17 @@
 namespace imucal::archive {
 
 struct CsvSpec {
-  std::vector<std::string> columns;           ///< required, in this order
-  std::vector<std::string> optional_columns;  ///< may follow the required ones, as a prefix, in order
-  bool increasing_first_column = true;        ///< first column is time: strictly increasing
+  std::vector<std::string> columns;  ///< required, in this order
+  std::vector<std::string>
+      optional_columns;                 ///< may follow the required ones, as a prefix, in order
+  bool increasing_first_column = true;  ///< first column is time: strictly increasing
 };
 
 struct CsvTable {
   std::string file;                  ///< origin used in error messages
   std::vector<std::string> columns;  ///< the header actually present
   std::size_t num_rows = 0;
-  std::vector<double> values;        ///< row-major, num_rows * columns.size()
+  std::vector<double> values;  ///< row-major, num_rows * columns.size()
 
   std::size_t num_cols() const { return columns.size(); }
   double at(std::size_t row, std::size_t col) const { return values[row * columns.size() + col]; }

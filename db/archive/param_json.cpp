@@ -38,7 +38,8 @@ json params_object(const calib::ParamSet& p, const std::string& prefix) {
   o["accel_M"] = mat_to_json(p.accel_M, prefix + "accel_M");
   o["gyro_bias_radps"] = vec_to_json(p.gyro_bias_radps, prefix + "gyro_bias_radps");
   o["gyro_M"] = mat_to_json(p.gyro_M, prefix + "gyro_M");
-  o["table_misalignment_rad"] = vec_to_json(p.table_misalignment_rad, prefix + "table_misalignment_rad");
+  o["table_misalignment_rad"] =
+      vec_to_json(p.table_misalignment_rad, prefix + "table_misalignment_rad");
   return o;
 }
 
@@ -79,16 +80,18 @@ Eigen::Matrix3d mat_from(const json& j, const std::string& origin, const std::st
 calib::ParamSet params_from_object(const json& j, const std::string& origin,
                                    const std::string& prefix, bool allow_sigma_key) {
   if (!j.is_object())
-    throw ArchiveError::field_error(origin, prefix.empty() ? "<root>" : prefix.substr(0, prefix.size() - 1),
+    throw ArchiveError::field_error(origin,
+                                    prefix.empty() ? "<root>" : prefix.substr(0, prefix.size() - 1),
                                     std::string("expected a JSON object, got ") + kind_name(j));
   for (auto it = j.begin(); it != j.end(); ++it) {
     bool known = allow_sigma_key && it.key() == "sigma";
     for (const char* k : kParamSetKeys) known = known || it.key() == k;
     if (!known)
-      throw ArchiveError::field_error(origin, prefix + it.key(),
-                                      "unknown field (a parameter set has exactly accel_bias_mps2, "
-                                      "accel_M, gyro_bias_radps, gyro_M, table_misalignment_rad" +
-                                          std::string(allow_sigma_key ? " and optional sigma)" : ")"));
+      throw ArchiveError::field_error(
+          origin, prefix + it.key(),
+          "unknown field (a parameter set has exactly accel_bias_mps2, "
+          "accel_M, gyro_bias_radps, gyro_M, table_misalignment_rad" +
+              std::string(allow_sigma_key ? " and optional sigma)" : ")"));
   }
   for (const char* k : kParamSetKeys)
     if (!j.contains(k)) throw ArchiveError::field_error(origin, prefix + k, "missing");
@@ -97,7 +100,8 @@ calib::ParamSet params_from_object(const json& j, const std::string& origin,
   p.accel_M = mat_from(j["accel_M"], origin, prefix + "accel_M");
   p.gyro_bias_radps = vec_from(j["gyro_bias_radps"], origin, prefix + "gyro_bias_radps");
   p.gyro_M = mat_from(j["gyro_M"], origin, prefix + "gyro_M");
-  p.table_misalignment_rad = vec_from(j["table_misalignment_rad"], origin, prefix + "table_misalignment_rad");
+  p.table_misalignment_rad =
+      vec_from(j["table_misalignment_rad"], origin, prefix + "table_misalignment_rad");
   return p;
 }
 
@@ -139,10 +143,13 @@ json parse_json_text(const std::string& text, const std::string& origin) {
   } catch (const json::parse_error& e) {
     // e.byte is the 1-based position of the offending byte; report its line.
     const size_t upto = std::min(text.size(), e.byte > 0 ? static_cast<size_t>(e.byte - 1) : 0);
-    const size_t line = 1 + static_cast<size_t>(std::count(text.begin(), text.begin() + static_cast<long>(upto), '\n'));
+    const size_t line = 1 + static_cast<size_t>(std::count(
+                                text.begin(), text.begin() + static_cast<long>(upto), '\n'));
     std::string what = e.what();
     const size_t colon = what.find(": ");
-    throw ArchiveError(origin, line, "invalid JSON: " + (colon == std::string::npos ? what : what.substr(colon + 2)));
+    throw ArchiveError(
+        origin, line,
+        "invalid JSON: " + (colon == std::string::npos ? what : what.substr(colon + 2)));
   }
 }
 

@@ -25,11 +25,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const std::vector<std::string> kImuColumns = {"t_s",      "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad",
-                                              "dv_x_mps", "dv_y_mps",     "dv_z_mps"};
+const std::vector<std::string> kImuColumns = {
+    "t_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_mps", "dv_y_mps", "dv_z_mps"};
 const std::vector<std::string> kImuOptional = {"temp_c"};
 const std::vector<std::string> kTableColumns = {"t_s", "outer_deg", "inner_deg", "at_rest"};
-const std::vector<std::string> kAttitudeColumns = {"t_s", "roll_deg", "pitch_deg", "yaw_deg", "at_rest"};
+const std::vector<std::string> kAttitudeColumns = {"t_s", "roll_deg", "pitch_deg", "yaw_deg",
+                                                   "at_rest"};
 
 // Degrees -> rad with one fixed expression; the writer inverts it exactly (human_for_si).
 double deg_to_rad(double d) { return d * kDegToRad; }
@@ -55,8 +56,8 @@ bool is_iso8601(const std::string& s) {
       if (!std::isdigit(static_cast<unsigned char>(s[i]))) return false;
     return true;
   };
-  if (!(digits(0, 4) && s.size() > 4 && s[4] == '-' && digits(5, 2) && s.size() > 7 && s[7] == '-' &&
-        digits(8, 2)))
+  if (!(digits(0, 4) && s.size() > 4 && s[4] == '-' && digits(5, 2) && s.size() > 7 &&
+        s[7] == '-' && digits(8, 2)))
     return false;
   if (s.size() == 10) return true;  // date only
   if (!(s[10] == 'T' || s[10] == 't' || s[10] == ' ')) return false;
@@ -105,7 +106,8 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
   if (!serial) throw ArchiveError::field_error(origin, "serial", "missing (required)");
   if (serial->empty()) root.fail("serial", "must not be empty");
   for (char c : *serial)
-    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) root.fail("serial", "contains a control character");
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+      root.fail("serial", "contains a control character");
   if (std::isspace(static_cast<unsigned char>(serial->front())) ||
       std::isspace(static_cast<unsigned char>(serial->back())))
     root.fail("serial", "has leading or trailing whitespace");
@@ -129,29 +131,36 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
     out.reference_line = root.line_of("reference");
   }
 
-  const auto station = root.section("station", {"name", "lat_deg", "lon_deg", "height_m", "gravity_mps2"});
-  if (!station) throw ArchiveError::field_error(origin, "station.lat_deg", "missing (required; no [station] section)");
+  const auto station =
+      root.section("station", {"name", "lat_deg", "lon_deg", "height_m", "gravity_mps2"});
+  if (!station)
+    throw ArchiveError::field_error(origin, "station.lat_deg",
+                                    "missing (required; no [station] section)");
   ri.station_name = station->string("name").value_or("");
   const double lat_deg = station->required_number("lat_deg");
   const double lon_deg = station->required_number("lon_deg");
   const double height_m = station->required_number("height_m");
-  if (std::fabs(lat_deg) > 90.0) station->fail("lat_deg", "must be within [-90, 90] deg, got " + format_double(lat_deg));
+  if (std::fabs(lat_deg) > 90.0)
+    station->fail("lat_deg", "must be within [-90, 90] deg, got " + format_double(lat_deg));
   if (lon_deg < -180.0 || lon_deg > 360.0)
     station->fail("lon_deg", "must be within [-180, 360] deg, got " + format_double(lon_deg));
   if (height_m < -12000.0 || height_m > 100000.0)
-    station->fail("height_m", "must be within [-12000, 100000] m above the ellipsoid, got " + format_double(height_m));
+    station->fail("height_m", "must be within [-12000, 100000] m above the ellipsoid, got " +
+                                  format_double(height_m));
   ri.site.lat_rad = deg_to_rad(lat_deg);
   ri.site.lon_rad = deg_to_rad(lon_deg);
   ri.site.height_m = height_m;
   if (const auto g = station->number("gravity_mps2")) {
     if (*g < 9.7 || *g > 9.9)
-      station->fail("gravity_mps2", "must be a surveyed gravity magnitude within [9.7, 9.9] m/s^2, got " +
-                                        format_double(*g));
+      station->fail(
+          "gravity_mps2",
+          "must be a surveyed gravity magnitude within [9.7, 9.9] m/s^2, got " + format_double(*g));
     ri.site.gravity_mps2 = *g;
   }
 
   const auto imu = root.section("imu", {"rate_hz", "dv_convention"});
-  if (!imu) throw ArchiveError::field_error(origin, "imu.rate_hz", "missing (required; no [imu] section)");
+  if (!imu)
+    throw ArchiveError::field_error(origin, "imu.rate_hz", "missing (required; no [imu] section)");
   ri.imu_rate_hz = imu->required_number("rate_hz");
   if (!(ri.imu_rate_hz > 0.0 && ri.imu_rate_hz <= 100000.0))
     imu->fail("rate_hz", "must be within (0, 100000] Hz, got " + format_double(ri.imu_rate_hz));
@@ -159,13 +168,15 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
     if (*conv == "raw_integral") {
       out.dv_raw_integral = true;
     } else if (*conv != "interval_start") {
-      imu->fail("dv_convention", "must be \"interval_start\" (dv in the body frame at the start of the "
-                                 "interval, the archive's convention) or \"raw_integral\" (plain ∫f dt), got \"" +
-                                     *conv + "\"");
+      imu->fail("dv_convention",
+                "must be \"interval_start\" (dv in the body frame at the start of the "
+                "interval, the archive's convention) or \"raw_integral\" (plain ∫f dt), got \"" +
+                    *conv + "\"");
     }
   }
 
-  if (const auto t = root.section("table", {"outer_axis", "inner_axis", "heading_deg", "mount_rpy_deg"})) {
+  if (const auto t =
+          root.section("table", {"outer_axis", "inner_axis", "heading_deg", "mount_rpy_deg"})) {
     for (const char* k : {"outer_axis", "inner_axis"})
       if (const auto a = t->vec3(k)) {
         if (std::fabs(a->norm() - 1.0) > 1e-3)
@@ -193,7 +204,8 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
       ri.arw_rad_per_sqrt_s = arw_to_si(*a);
     }
     if (const auto v = n->number("vrw_ug_per_sqrt_hz")) {
-      if (!(*v > 0.0)) n->fail("vrw_ug_per_sqrt_hz", "must be > 0 (it weights the accelerometer data)");
+      if (!(*v > 0.0))
+        n->fail("vrw_ug_per_sqrt_hz", "must be > 0 (it weights the accelerometer data)");
       ri.vrw_mps_per_sqrt_s = vrw_to_si(*v);
     }
   }
@@ -280,12 +292,14 @@ RunArchive read_archive(const std::string& dir_in) {
   const std::string dir = strip_trailing_slashes(dir_in);
   std::error_code ec;
   if (!fs::is_directory(dir, ec))
-    throw ArchiveError(dir, fs::exists(dir, ec) ? "is not a directory (a run archive is a directory)"
-                                                : "no such run archive directory");
+    throw ArchiveError(dir, fs::exists(dir, ec)
+                                ? "is not a directory (a run archive is a directory)"
+                                : "no such run archive directory");
   RunArchive a;
   a.origin = dir;
   const std::string run_toml = join_path(dir, "run.toml");
-  if (!fs::exists(run_toml, ec)) throw ArchiveError(run_toml, "missing: every run archive needs run.toml");
+  if (!fs::exists(run_toml, ec))
+    throw ArchiveError(run_toml, "missing: every run archive needs run.toml");
   const ParsedRunInfo parsed = parse_run_info_impl(read_text_file(run_toml), run_toml);
   a.info = parsed.info;
 
@@ -294,21 +308,25 @@ RunArchive read_archive(const std::string& dir_in) {
   const bool has_table = fs::exists(table_csv, ec);
   const bool has_attitude = fs::exists(attitude_csv, ec);
   if (has_table && has_attitude)
-    throw ArchiveError(dir, "both table.csv and attitude.csv are present; an archive carries exactly "
-                            "one reference (remove one)");
+    throw ArchiveError(dir,
+                       "both table.csv and attitude.csv are present; an archive carries exactly "
+                       "one reference (remove one)");
   if (!has_table && !has_attitude)
-    throw ArchiveError(dir, "neither table.csv nor attitude.csv is present; an archive needs exactly "
-                            "one reference");
+    throw ArchiveError(dir,
+                       "neither table.csv nor attitude.csv is present; an archive needs exactly "
+                       "one reference");
   const ReferenceKind present = has_table ? ReferenceKind::kTable : ReferenceKind::kAttitude;
   if (parsed.reference_given && parsed.info.reference != present)
-    throw ArchiveError(run_toml, parsed.reference_line,
-                       std::string("says \"") + (present == ReferenceKind::kTable ? "attitude" : "table") +
-                           "\" but the archive contains " + (has_table ? "table.csv" : "attitude.csv"),
-                       "reference");
+    throw ArchiveError(
+        run_toml, parsed.reference_line,
+        std::string("says \"") + (present == ReferenceKind::kTable ? "attitude" : "table") +
+            "\" but the archive contains " + (has_table ? "table.csv" : "attitude.csv"),
+        "reference");
   a.info.reference = present;
 
   // imu.csv
-  const CsvTable imu = read_csv(join_path(dir, "imu.csv"), CsvSpec{kImuColumns, kImuOptional, true});
+  const CsvTable imu =
+      read_csv(join_path(dir, "imu.csv"), CsvSpec{kImuColumns, kImuOptional, true});
   check_has_rows(imu);
   const bool has_temp = imu.num_cols() == 8;
   a.imu.resize(imu.num_rows);
@@ -340,8 +358,9 @@ RunArchive read_archive(const std::string& dir_in) {
     a.attitude.resize(t.num_rows);
     for (size_t k = 0; k < t.num_rows; ++k) {
       if (std::fabs(t.at(k, 2)) > 90.0)
-        throw ArchiveError::column_error(t.file, CsvTable::line_of_row(k), "pitch_deg",
-                                         "must be within [-90, 90] deg, got " + format_double(t.at(k, 2)));
+        throw ArchiveError::column_error(
+            t.file, CsvTable::line_of_row(k), "pitch_deg",
+            "must be within [-90, 90] deg, got " + format_double(t.at(k, 2)));
       a.attitude[k] = {t.at(k, 0), deg_to_rad(t.at(k, 1)), deg_to_rad(t.at(k, 2)),
                        deg_to_rad(t.at(k, 3)), rest_flag(t, k, 4)};
     }
@@ -365,10 +384,10 @@ void write_contents(const std::string& tmp, const RunArchive& a, const std::stri
   size_t n_temp = 0;
   for (const auto& s : a.imu) n_temp += std::isfinite(s.temp_c) ? 1 : 0;
   if (n_temp != 0 && n_temp != a.imu.size())
-    throw ArchiveError::column_error(imu_name, 0, "temp_c",
-                                     "known for " + std::to_string(n_temp) + " of " +
-                                         std::to_string(a.imu.size()) +
-                                         " samples; write all temperatures or none (set all to NaN)");
+    throw ArchiveError::column_error(
+        imu_name, 0, "temp_c",
+        "known for " + std::to_string(n_temp) + " of " + std::to_string(a.imu.size()) +
+            " samples; write all temperatures or none (set all to NaN)");
   std::vector<std::string> cols = kImuColumns;
   if (n_temp) cols.push_back("temp_c");
   {
@@ -382,8 +401,9 @@ void write_contents(const std::string& tmp, const RunArchive& a, const std::stri
       const double dt_file = k == 0 ? dt0 : s.t_s - a.imu[k - 1].t_s;
       if (!(std::fabs(s.dt_s - dt_file) <= 1e-6 * dt0))
         throw ArchiveError(imu_name, CsvTable::line_of_row(k),
-                           "sample dt_s = " + format_double(s.dt_s) + " s but the archive derives " +
-                               format_double(dt_file) + " s from t_s (first sample: 1/rate_hz)");
+                           "sample dt_s = " + format_double(s.dt_s) +
+                               " s but the archive derives " + format_double(dt_file) +
+                               " s from t_s (first sample: 1/rate_hz)");
       row[0] = s.t_s;
       for (int i = 0; i < 3; ++i) {
         row[1 + i] = s.dtheta_rad(i);
@@ -398,7 +418,8 @@ void write_contents(const std::string& tmp, const RunArchive& a, const std::stri
   if (a.info.reference == ReferenceKind::kTable) {
     CsvWriter w(join_path(tmp, "table.csv"), kTableColumns, true);
     for (const auto& s : a.table)
-      w.write_row({s.t_s, rad_to_deg_exact(s.outer_rad), rad_to_deg_exact(s.inner_rad), s.at_rest ? 1.0 : 0.0});
+      w.write_row({s.t_s, rad_to_deg_exact(s.outer_rad), rad_to_deg_exact(s.inner_rad),
+                   s.at_rest ? 1.0 : 0.0});
     w.close();
   } else {
     CsvWriter w(join_path(tmp, "attitude.csv"), kAttitudeColumns, true);
@@ -422,8 +443,9 @@ void write_archive(const std::string& dir_in, const RunArchive& a, bool overwrit
   if (table ? (a.table.empty() || !a.attitude.empty()) : (a.attitude.empty() || !a.table.empty()))
     throw ArchiveError(dir, std::string("info.reference is \"") + (table ? "table" : "attitude") +
                                 "\": exactly that reference must be non-empty and the other empty "
-                                "(table: " + std::to_string(a.table.size()) + " rows, attitude: " +
-                                std::to_string(a.attitude.size()) + " rows)");
+                                "(table: " +
+                                std::to_string(a.table.size()) +
+                                " rows, attitude: " + std::to_string(a.attitude.size()) + " rows)");
 
   std::error_code ec;
   bool target_exists = false;
@@ -431,8 +453,9 @@ void write_archive(const std::string& dir_in, const RunArchive& a, bool overwrit
     if (!fs::is_directory(dir, ec)) throw ArchiveError(dir, "exists and is not a directory");
     target_exists = !fs::is_empty(dir, ec);
     if (target_exists && !overwrite)
-      throw ArchiveError(dir, "exists and is not empty; refusing to overwrite a run archive "
-                              "(remove it or pass overwrite=true)");
+      throw ArchiveError(dir,
+                         "exists and is not empty; refusing to overwrite a run archive "
+                         "(remove it or pass overwrite=true)");
   }
   const fs::path parent = fs::path(dir).parent_path();
   const std::string parent_dir = parent.empty() ? "." : parent.string();
@@ -441,31 +464,37 @@ void write_archive(const std::string& dir_in, const RunArchive& a, bool overwrit
 
   std::string tmp = dir + ".tmp-XXXXXX";
   if (!::mkdtemp(tmp.data()))
-    throw ArchiveError(dir, std::string("cannot create temporary directory: ") + std::strerror(errno));
+    throw ArchiveError(dir,
+                       std::string("cannot create temporary directory: ") + std::strerror(errno));
   try {
     write_contents(tmp, a, dir);
     if (!target_exists) {
       // rename(2) onto a missing or empty directory is atomic.
       if (::rename(tmp.c_str(), dir.c_str()) != 0)
-        throw ArchiveError(dir, std::string("cannot move the archive into place: ") + std::strerror(errno));
+        throw ArchiveError(
+            dir, std::string("cannot move the archive into place: ") + std::strerror(errno));
     } else {
       // Swap atomically; the old archive then lives at tmp and is removed below.
       if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, dir.c_str(), RENAME_EXCHANGE) != 0) {
         if (errno != EINVAL && errno != ENOSYS)
-          throw ArchiveError(dir, std::string("cannot replace the archive: ") + std::strerror(errno));
+          throw ArchiveError(dir,
+                             std::string("cannot replace the archive: ") + std::strerror(errno));
         // File system without RENAME_EXCHANGE: move the old one aside, then the new one in.
         std::string old = dir + ".old-XXXXXX";
         if (!::mkdtemp(old.data()))
-          throw ArchiveError(dir, std::string("cannot create temporary directory: ") + std::strerror(errno));
+          throw ArchiveError(
+              dir, std::string("cannot create temporary directory: ") + std::strerror(errno));
         if (::rename(dir.c_str(), old.c_str()) != 0) {
           const int e = errno;
           fs::remove_all(old, ec);
-          throw ArchiveError(dir, std::string("cannot move the old archive aside: ") + std::strerror(e));
+          throw ArchiveError(dir,
+                             std::string("cannot move the old archive aside: ") + std::strerror(e));
         }
         if (::rename(tmp.c_str(), dir.c_str()) != 0) {
           const int e = errno;
           ::rename(old.c_str(), dir.c_str());  // put the old one back
-          throw ArchiveError(dir, std::string("cannot move the archive into place: ") + std::strerror(e));
+          throw ArchiveError(
+              dir, std::string("cannot move the archive into place: ") + std::strerror(e));
         }
         fs::remove_all(old, ec);
       } else {
@@ -489,9 +518,10 @@ calib::CalibrationInput to_calibration_input(const RunArchive& a) {
   if (!(a.info.imu_rate_hz > 0.0))
     throw ArchiveError::field_error(join_path(a.origin, "run.toml"), "imu.rate_hz", "must be > 0");
   if (n_ref != n)
-    throw ArchiveError(ref_file, std::to_string(n_ref) + " data rows but imu.csv has " + std::to_string(n) +
-                                     "; the reference must be logged on the IMU time axis (one row per "
-                                     "IMU sample; interpolation is not supported yet)");
+    throw ArchiveError(ref_file,
+                       std::to_string(n_ref) + " data rows but imu.csv has " + std::to_string(n) +
+                           "; the reference must be logged on the IMU time axis (one row per "
+                           "IMU sample; interpolation is not supported yet)");
 
   calib::CalibrationInput in;
   in.site = a.info.site;
@@ -508,7 +538,8 @@ calib::CalibrationInput to_calibration_input(const RunArchive& a) {
     if (!(std::fabs(t_ref - a.imu[k].t_s) <= kTimeMatchTolerance_s))
       throw ArchiveError(ref_file, CsvTable::line_of_row(k),
                          "t_s = " + format_double(t_ref) + " does not match imu.csv line " +
-                             std::to_string(CsvTable::line_of_row(k)) + " t_s = " + format_double(a.imu[k].t_s) +
+                             std::to_string(CsvTable::line_of_row(k)) +
+                             " t_s = " + format_double(a.imu[k].t_s) +
                              " (tolerance 1 µs); the reference must be on the IMU time axis "
                              "(interpolation is not supported yet)");
     calib::ReferenceSample& r = in.reference[k];
@@ -524,7 +555,8 @@ calib::CalibrationInput to_calibration_input(const RunArchive& a) {
     n_rest += r.at_rest ? 1 : 0;
   }
   if (n_rest == 0)
-    throw ArchiveError(ref_file, std::string("no rest periods in ") + (table ? "table.csv" : "attitude.csv") +
+    throw ArchiveError(ref_file, std::string("no rest periods in ") +
+                                     (table ? "table.csv" : "attitude.csv") +
                                      ": at_rest is never 1");
 
   // Sample interval vs the declared rate: catches t_s in ms or a wrong [imu] rate_hz.
@@ -537,8 +569,9 @@ calib::CalibrationInput to_calibration_input(const RunArchive& a) {
     if (std::fabs(median - dt_nominal) > 0.05 * dt_nominal)
       throw ArchiveError(imu_file, "median sample interval " + format_double(median) +
                                        " s does not match run.toml [imu] rate_hz = " +
-                                       format_double(a.info.imu_rate_hz) + " (1/rate = " +
-                                       format_double(dt_nominal) + " s); is t_s in seconds and rate_hz right?");
+                                       format_double(a.info.imu_rate_hz) +
+                                       " (1/rate = " + format_double(dt_nominal) +
+                                       " s); is t_s in seconds and rate_hz right?");
   }
 
   // Magnitude plausibility per sample (navigation-grade units on a turntable or a ship).
@@ -551,21 +584,24 @@ calib::CalibrationInput to_calibration_input(const RunArchive& a) {
     const double w = s.dtheta_rad.norm() / s.dt_s;
     if (!(f < kMaxAccel_mps2))
       throw ArchiveError(imu_file, CsvTable::line_of_row(k),
-                         "|dv|/dt = " + format_double(f) + " m/s^2 exceeds 20 g (dt = " + format_double(s.dt_s) +
+                         "|dv|/dt = " + format_double(f) +
+                             " m/s^2 exceeds 20 g (dt = " + format_double(s.dt_s) +
                              " s); dv_*_mps must be velocity increments in m/s over one sample");
     if (!(w < kMaxRate_radps))
       throw ArchiveError(imu_file, CsvTable::line_of_row(k),
-                         "|dtheta|/dt = " + format_double(w * kRadToDeg) + " deg/s exceeds 1000 deg/s (dt = " +
-                             format_double(s.dt_s) + " s); dtheta_*_rad must be angle increments in rad over one sample");
+                         "|dtheta|/dt = " + format_double(w * kRadToDeg) +
+                             " deg/s exceeds 1000 deg/s (dt = " + format_double(s.dt_s) +
+                             " s); dtheta_*_rad must be angle increments in rad over one sample");
     if (in.reference[k].at_rest) rest_f_sum += f;
   }
   const double g = calib::EarthModel(a.info.site).gravity_mps2();
   const double f_rest = rest_f_sum / static_cast<double>(n_rest);
   if (std::fabs(f_rest - g) > 0.1 * g)
-    throw ArchiveError(imu_file, "mean |dv|/dt over the " + std::to_string(n_rest) + " rest samples is " +
-                                     format_double(f_rest) + " m/s^2 but local gravity is " + format_double(g) +
-                                     " m/s^2; check the dv units (m/s per sample) and the at_rest flags in " +
-                                     (table ? "table.csv" : "attitude.csv"));
+    throw ArchiveError(
+        imu_file, "mean |dv|/dt over the " + std::to_string(n_rest) + " rest samples is " +
+                      format_double(f_rest) + " m/s^2 but local gravity is " + format_double(g) +
+                      " m/s^2; check the dv units (m/s per sample) and the at_rest flags in " +
+                      (table ? "table.csv" : "attitude.csv"));
   return in;
 }
 

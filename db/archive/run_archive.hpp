@@ -2,10 +2,10 @@
 // The run archive (DESIGN §5): the interchange format every tool reads and through which data from
 // other stations and simulators enter. A run is a directory:
 //   run.toml                  RunInfo (below)
-//   imu.csv                   t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps[,temp_c]
+//   imu.csv t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps[,temp_c]
 //   table.csv                 t_s,outer_deg,inner_deg,at_rest              (encoder log)
-//   or attitude.csv           t_s,roll_deg,pitch_deg,yaw_deg,at_rest       (NED, ZYX, body w.r.t. n)
-//   truth.json                (simulated runs only) injected parameters, effect names, noise
+//   or attitude.csv           t_s,roll_deg,pitch_deg,yaw_deg,at_rest       (NED, ZYX, body w.r.t.
+//   n) truth.json                (simulated runs only) injected parameters, effect names, noise
 //   capture.log               (daemon runs only) raw CAN frames; not interpreted here
 // Full rules (columns, keys, units, checks): db/archive/FORMAT.md.
 #include <Eigen/Core>
@@ -28,9 +28,11 @@ namespace imucal::archive {
 struct TableSetup {
   /// Defaults follow calib::TableGeometry{} (the station's table).
   Eigen::Vector3d outer_axis_t = calib::TableGeometry{}.outer_axis_t;  ///< in the base frame, unit
-  Eigen::Vector3d inner_axis_o = calib::TableGeometry{}.inner_axis_o;  ///< in the outer-gimbal frame
-  double heading_rad = calib::TableGeometry{}.heading_rad;            ///< C_tn = Rz(heading)
-  Eigen::Vector3d mount_rpy_rad = Eigen::Vector3d::Zero();  ///< fixture C_bp = euler_to_C_bn(r, p, y)
+  Eigen::Vector3d inner_axis_o =
+      calib::TableGeometry{}.inner_axis_o;                  ///< in the outer-gimbal frame
+  double heading_rad = calib::TableGeometry{}.heading_rad;  ///< C_tn = Rz(heading)
+  Eigen::Vector3d mount_rpy_rad =
+      Eigen::Vector3d::Zero();  ///< fixture C_bp = euler_to_C_bn(r, p, y)
 
   calib::TableGeometry geometry() const;
   /// From a geometry (C_bp decomposed into ZYX Euler angles; exact to round-off).
@@ -41,15 +43,15 @@ enum class ReferenceKind { kTable, kAttitude };
 
 /// run.toml.
 struct RunInfo {
-  std::string serial;                 ///< required
+  std::string serial;  ///< required
   std::string station_name;
-  calib::Site site;                   ///< [station] lat_deg, lon_deg, height_m required; gravity_mps2 optional
-  double imu_rate_hz = 0.0;           ///< [imu] rate_hz, required
-  TableSetup table;                   ///< [table], all keys optional (defaults above)
-  std::string sequence_name;          ///< [sequence] name
-  std::string sequence_sha256;        ///< [sequence] sha256: 64 hex digits or empty
+  calib::Site site;  ///< [station] lat_deg, lon_deg, height_m required; gravity_mps2 optional
+  double imu_rate_hz = 0.0;     ///< [imu] rate_hz, required
+  TableSetup table;             ///< [table], all keys optional (defaults above)
+  std::string sequence_name;    ///< [sequence] name
+  std::string sequence_sha256;  ///< [sequence] sha256: 64 hex digits or empty
   std::string software_version;
-  std::string start_time;             ///< ISO 8601, empty if unknown
+  std::string start_time;  ///< ISO 8601, empty if unknown
   std::string end_time;
   ReferenceKind reference = ReferenceKind::kTable;  ///< must match the reference file present
   /// [noise] used to weight the estimators; defaults = calib::NoiseModel{} (DESIGN §7).
@@ -68,11 +70,12 @@ struct AttitudeSample {
 
 struct RunArchive {
   RunInfo info;
-  calib::ImuSeries imu;                      ///< temp_c = NaN when imu.csv has no temp_c column
-  std::vector<calib::TableSample> table;     ///< non-empty iff info.reference == kTable
-  std::vector<AttitudeSample> attitude;      ///< non-empty iff info.reference == kAttitude
+  calib::ImuSeries imu;                   ///< temp_c = NaN when imu.csv has no temp_c column
+  std::vector<calib::TableSample> table;  ///< non-empty iff info.reference == kTable
+  std::vector<AttitudeSample> attitude;   ///< non-empty iff info.reference == kAttitude
   std::optional<Truth> truth;
-  std::string origin;  ///< directory it was read from (names files in later errors); "" if in memory
+  std::string
+      origin;  ///< directory it was read from (names files in later errors); "" if in memory
 };
 
 /// Read and validate an archive directory. Every format error is an ArchiveError naming the file

@@ -13,16 +13,26 @@ namespace {
 
 const char* type_name(const toml::node& n) {
   switch (n.type()) {
-    case toml::node_type::table: return "table";
-    case toml::node_type::array: return "array";
-    case toml::node_type::string: return "string";
-    case toml::node_type::integer: return "integer";
-    case toml::node_type::floating_point: return "float";
-    case toml::node_type::boolean: return "boolean";
-    case toml::node_type::date: return "date";
-    case toml::node_type::time: return "time";
-    case toml::node_type::date_time: return "date-time";
-    default: return "nothing";
+    case toml::node_type::table:
+      return "table";
+    case toml::node_type::array:
+      return "array";
+    case toml::node_type::string:
+      return "string";
+    case toml::node_type::integer:
+      return "integer";
+    case toml::node_type::floating_point:
+      return "float";
+    case toml::node_type::boolean:
+      return "boolean";
+    case toml::node_type::date:
+      return "date";
+    case toml::node_type::time:
+      return "time";
+    case toml::node_type::date_time:
+      return "date-time";
+    default:
+      return "nothing";
   }
 }
 
@@ -43,7 +53,8 @@ toml::table parse_toml_text(const std::string& text, const std::string& file) {
   try {
     return toml::parse(text, file);
   } catch (const toml::parse_error& e) {
-    throw ArchiveError(file, e.source().begin.line, "TOML syntax error: " + std::string(e.description()));
+    throw ArchiveError(file, e.source().begin.line,
+                       "TOML syntax error: " + std::string(e.description()));
   }
 }
 
@@ -54,7 +65,8 @@ TomlSection::TomlSection(const toml::table& table, std::string file, std::string
     bool ok = false;
     for (auto a : allowed) ok = ok || k.str() == a;
     if (!ok) {
-      const std::string where = prefix_.empty() ? "at top level" : "in [" + prefix_.substr(0, prefix_.size() - 1) + "]";
+      const std::string where =
+          prefix_.empty() ? "at top level" : "in [" + prefix_.substr(0, prefix_.size() - 1) + "]";
       throw ArchiveError(file_, k.source().begin.line > 0 ? k.source().begin.line : node_line(v),
                          "unknown key " + where + " (allowed: " + list(allowed) + ")",
                          prefix_ + std::string(k.str()));
@@ -71,11 +83,12 @@ void TomlSection::fail(std::string_view key, const std::string& message) const {
   throw ArchiveError(file_, line_of(key), message, path(key));
 }
 
-std::optional<TomlSection> TomlSection::section(std::string_view key,
-                                                std::initializer_list<std::string_view> allowed) const {
+std::optional<TomlSection> TomlSection::section(
+    std::string_view key, std::initializer_list<std::string_view> allowed) const {
   const toml::node* n = table_->get(key);
   if (!n) return std::nullopt;
-  if (!n->is_table()) fail(key, std::string("expected a table [") + std::string(key) + "], got " + type_name(*n));
+  if (!n->is_table())
+    fail(key, std::string("expected a table [") + std::string(key) + "], got " + type_name(*n));
   return TomlSection(*n->as_table(), file_, prefix_ + std::string(key) + ".", allowed);
 }
 
@@ -86,9 +99,11 @@ double TomlSection::number_node(const toml::node& n, const std::string& field) c
   } else if (const auto* i = n.as_integer()) {
     v = static_cast<double>(i->get());
   } else {
-    throw ArchiveError(file_, node_line(n), std::string("expected a number, got ") + type_name(n), field);
+    throw ArchiveError(file_, node_line(n), std::string("expected a number, got ") + type_name(n),
+                       field);
   }
-  if (!std::isfinite(v)) throw ArchiveError(file_, node_line(n), "NaN or Inf is not allowed", field);
+  if (!std::isfinite(v))
+    throw ArchiveError(file_, node_line(n), "NaN or Inf is not allowed", field);
   return v;
 }
 
@@ -120,7 +135,8 @@ std::optional<std::string> TomlSection::string_or_datetime(std::string_view key)
     os << dt->get();
     return os.str();
   }
-  if (!n->is_string()) fail(key, std::string("expected an ISO 8601 date-time string, got ") + type_name(*n));
+  if (!n->is_string())
+    fail(key, std::string("expected an ISO 8601 date-time string, got ") + type_name(*n));
   return n->as_string()->get();
 }
 
@@ -155,7 +171,8 @@ std::optional<Eigen::Matrix3d> TomlSection::mat3(std::string_view key) const {
                              : std::string("expected a row of 3 numbers, got ") + type_name(rn),
                          rfield);
     for (int c = 0; c < 3; ++c)
-      m(r, c) = number_node(*row->get(static_cast<size_t>(c)), rfield + "[" + std::to_string(c) + "]");
+      m(r, c) =
+          number_node(*row->get(static_cast<size_t>(c)), rfield + "[" + std::to_string(c) + "]");
   }
   return m;
 }
@@ -165,11 +182,21 @@ std::string toml_quote(std::string_view s) {
   for (char ch : s) {
     const auto c = static_cast<unsigned char>(ch);
     switch (ch) {
-      case '"': o += "\\\""; break;
-      case '\\': o += "\\\\"; break;
-      case '\n': o += "\\n"; break;
-      case '\t': o += "\\t"; break;
-      case '\r': o += "\\r"; break;
+      case '"':
+        o += "\\\"";
+        break;
+      case '\\':
+        o += "\\\\";
+        break;
+      case '\n':
+        o += "\\n";
+        break;
+      case '\t':
+        o += "\\t";
+        break;
+      case '\r':
+        o += "\\r";
+        break;
       default:
         if (c < 0x20 || c == 0x7f) {
           char buf[8];
@@ -225,7 +252,8 @@ void TomlWriter::key(std::string_view k, const Eigen::Matrix3d& m) {
   out_ += std::string(k) + " = [";
   for (int r = 0; r < 3; ++r) {
     out_ += r ? ", [" : "[";
-    out_ += toml_number(k, m(r, 0)) + ", " + toml_number(k, m(r, 1)) + ", " + toml_number(k, m(r, 2)) + "]";
+    out_ += toml_number(k, m(r, 0)) + ", " + toml_number(k, m(r, 1)) + ", " +
+            toml_number(k, m(r, 2)) + "]";
   }
   out_ += "]\n";
 }

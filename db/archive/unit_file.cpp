@@ -19,8 +19,8 @@ double ug_to_mps2(double h) { return h * kMicroG_mps2; }
 double ppm_to_1(double h) { return h / 1e6; }  // division by an exact 1e6: correctly rounded
 double deg_per_h_to_radps(double h) { return h * kDegPerHourToRadPerSec; }
 double arcsec_to_rad(double h) { return h * kArcsecToRad; }
-double arw_to_si(double h) { return h * kDegToRad / 60.0; }  // deg/√h -> rad/√s
-double vrw_to_si(double h) { return h * kMicroG_mps2; }      // µg/√Hz -> (m/s)/√s
+double arw_to_si(double h) { return h * kDegToRad / 60.0; }             // deg/√h -> rad/√s
+double vrw_to_si(double h) { return h * kMicroG_mps2; }                 // µg/√Hz -> (m/s)/√s
 double k2_to_si(double h) { return h * 1e-6 / kStandardGravity_mps2; }  // µg/g² -> 1/(m/s²)
 double gsens_to_si(double h) { return h * kDegPerHourToRadPerSec / kStandardGravity_mps2; }
 double identity(double h) { return h; }
@@ -57,8 +57,10 @@ struct NoiseField {
   bool strictly_positive;
 };
 const NoiseField kNoiseFields[] = {
-    {"arw_deg_per_sqrt_h", "arw_rad_per_sqrt_s", &calib::NoiseModel::arw_rad_per_sqrt_s, arw_to_si, false},
-    {"vrw_ug_per_sqrt_hz", "vrw_mps_per_sqrt_s", &calib::NoiseModel::vrw_mps_per_sqrt_s, vrw_to_si, false},
+    {"arw_deg_per_sqrt_h", "arw_rad_per_sqrt_s", &calib::NoiseModel::arw_rad_per_sqrt_s, arw_to_si,
+     false},
+    {"vrw_ug_per_sqrt_hz", "vrw_mps_per_sqrt_s", &calib::NoiseModel::vrw_mps_per_sqrt_s, vrw_to_si,
+     false},
     {"gyro_bias_instability_deg_per_h", "gyro_bias_instability_radps",
      &calib::NoiseModel::gyro_bias_instability_radps, deg_per_h_to_radps, false},
     {"gyro_bias_tau_s", "gyro_bias_tau_s", &calib::NoiseModel::gyro_bias_tau_s, identity, true},
@@ -93,16 +95,18 @@ calib::UnitModel parse_unit_file(const std::string& text, const std::string& ori
     if (auto m = s->mat3("M_ppm")) u.params.accel_M = to_si(*m, ppm_to_1);
   }
   if (auto s = root.section("gyro", {"bias_deg_per_h", "M_ppm"})) {
-    if (auto v = s->vec3("bias_deg_per_h")) u.params.gyro_bias_radps = to_si(*v, deg_per_h_to_radps);
+    if (auto v = s->vec3("bias_deg_per_h"))
+      u.params.gyro_bias_radps = to_si(*v, deg_per_h_to_radps);
     if (auto m = s->mat3("M_ppm")) u.params.gyro_M = to_si(*m, ppm_to_1);
   }
   if (auto s = root.section("table", {"misalignment_arcsec"})) {
-    if (auto v = s->vec3("misalignment_arcsec")) u.params.table_misalignment_rad = to_si(*v, arcsec_to_rad);
+    if (auto v = s->vec3("misalignment_arcsec"))
+      u.params.table_misalignment_rad = to_si(*v, arcsec_to_rad);
   }
-  if (auto s = root.section("noise", {"arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz",
-                                      "gyro_bias_instability_deg_per_h", "gyro_bias_tau_s",
-                                      "accel_bias_instability_ug", "accel_bias_tau_s",
-                                      "dtheta_lsb_rad", "dv_lsb_mps"})) {
+  if (auto s = root.section(
+          "noise", {"arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz", "gyro_bias_instability_deg_per_h",
+                    "gyro_bias_tau_s", "accel_bias_instability_ug", "accel_bias_tau_s",
+                    "dtheta_lsb_rad", "dv_lsb_mps"})) {
     for (const NoiseField& f : kNoiseFields)
       if (auto h = s->number(f.unit_key)) {
         check_noise_value(f, *h, origin, s->line_of(f.unit_key), s->path(f.unit_key));
@@ -115,7 +119,8 @@ calib::UnitModel parse_unit_file(const std::string& text, const std::string& ori
     if (auto v = s->vec3("asym_ppm")) u.effects.accel_asym = to_si(*v, ppm_to_1);
     if (auto m = s->mat3("g_sens_deg_per_h_per_g")) u.effects.gyro_g_sens = to_si(*m, gsens_to_si);
     if (auto m = s->mat3("lever_arm_m"))
-      for (int i = 0; i < 3; ++i) u.effects.accel_lever_arm_m[static_cast<size_t>(i)] = m->row(i).transpose();
+      for (int i = 0; i < 3; ++i)
+        u.effects.accel_lever_arm_m[static_cast<size_t>(i)] = m->row(i).transpose();
     if (auto t = s->number("table_time_offset_s")) u.effects.table_time_offset_s = *t;
   }
   return u;
@@ -144,7 +149,8 @@ std::string unit_file_text(const calib::UnitModel& u) {
   w.key("asym_ppm", to_human(u.effects.accel_asym, ppm_to_1));
   w.key("g_sens_deg_per_h_per_g", to_human(u.effects.gyro_g_sens, gsens_to_si));
   Eigen::Matrix3d lever;
-  for (int i = 0; i < 3; ++i) lever.row(i) = u.effects.accel_lever_arm_m[static_cast<size_t>(i)].transpose();
+  for (int i = 0; i < 3; ++i)
+    lever.row(i) = u.effects.accel_lever_arm_m[static_cast<size_t>(i)].transpose();
   w.key("lever_arm_m", lever);
   w.key("table_time_offset_s", u.effects.table_time_offset_s);
   return w.text();
@@ -164,15 +170,16 @@ std::string truth_json_text(const Truth& truth) {
   std::set<std::string> seen;
   for (const auto& e : truth.effects) {
     if (e.empty() || !seen.insert(e).second)
-      throw ArchiveError::field_error("<truth>", "effects",
-                                      e.empty() ? "empty effect name" : "duplicate effect '" + e + "'");
+      throw ArchiveError::field_error(
+          "<truth>", "effects", e.empty() ? "empty effect name" : "duplicate effect '" + e + "'");
   }
   j["effects"] = truth.effects;
   nlohmann::json n = nlohmann::json::object();
   for (const NoiseField& f : kNoiseFields) {
     const double v = truth.noise.*f.member;
     if (!std::isfinite(v))
-      throw ArchiveError::field_error("<truth>", std::string("noise.") + f.json_key, "cannot write NaN or Inf");
+      throw ArchiveError::field_error("<truth>", std::string("noise.") + f.json_key,
+                                      "cannot write NaN or Inf");
     n[f.json_key] = v;
   }
   j["noise"] = n;
@@ -182,10 +189,12 @@ std::string truth_json_text(const Truth& truth) {
 Truth parse_truth_json(const std::string& text, const std::string& origin) {
   const nlohmann::json j = parse_json_text(text, origin);
   if (!j.is_object())
-    throw ArchiveError::field_error(origin, "<root>", std::string("expected a JSON object, got ") + j.type_name());
+    throw ArchiveError::field_error(origin, "<root>",
+                                    std::string("expected a JSON object, got ") + j.type_name());
   for (auto it = j.begin(); it != j.end(); ++it)
     if (it.key() != "params" && it.key() != "effects" && it.key() != "noise")
-      throw ArchiveError::field_error(origin, it.key(), "unknown field (expected params, effects, noise)");
+      throw ArchiveError::field_error(origin, it.key(),
+                                      "unknown field (expected params, effects, noise)");
   for (const char* k : {"params", "effects", "noise"})
     if (!j.contains(k)) throw ArchiveError::field_error(origin, k, "missing");
 
@@ -198,20 +207,24 @@ Truth parse_truth_json(const std::string& text, const std::string& origin) {
   }
   const auto& eff = j["effects"];
   if (!eff.is_array())
-    throw ArchiveError::field_error(origin, "effects", std::string("expected an array of strings, got ") + eff.type_name());
+    throw ArchiveError::field_error(
+        origin, "effects", std::string("expected an array of strings, got ") + eff.type_name());
   std::set<std::string> seen;
   for (size_t i = 0; i < eff.size(); ++i) {
     const std::string field = "effects[" + std::to_string(i) + "]";
     if (!eff[i].is_string())
-      throw ArchiveError::field_error(origin, field, std::string("expected a string, got ") + eff[i].type_name());
+      throw ArchiveError::field_error(origin, field,
+                                      std::string("expected a string, got ") + eff[i].type_name());
     const std::string name = eff[i].get<std::string>();
     if (name.empty()) throw ArchiveError::field_error(origin, field, "empty effect name");
-    if (!seen.insert(name).second) throw ArchiveError::field_error(origin, field, "duplicate effect '" + name + "'");
+    if (!seen.insert(name).second)
+      throw ArchiveError::field_error(origin, field, "duplicate effect '" + name + "'");
     t.effects.push_back(name);
   }
   const auto& n = j["noise"];
   if (!n.is_object())
-    throw ArchiveError::field_error(origin, "noise", std::string("expected an object, got ") + n.type_name());
+    throw ArchiveError::field_error(origin, "noise",
+                                    std::string("expected an object, got ") + n.type_name());
   for (auto it = n.begin(); it != n.end(); ++it) {
     bool known = false;
     for (const NoiseField& f : kNoiseFields) known = known || it.key() == f.json_key;
@@ -222,7 +235,8 @@ Truth parse_truth_json(const std::string& text, const std::string& origin) {
     if (!n.contains(f.json_key)) throw ArchiveError::field_error(origin, field, "missing");
     const auto& v = n[f.json_key];
     if (!v.is_number())
-      throw ArchiveError::field_error(origin, field, std::string("expected a number, got ") + v.type_name());
+      throw ArchiveError::field_error(origin, field,
+                                      std::string("expected a number, got ") + v.type_name());
     const double x = v.get<double>();
     if (!std::isfinite(x)) throw ArchiveError::field_error(origin, field, "not a finite number");
     check_noise_value(f, x, origin, 0, field);

@@ -40,8 +40,10 @@ TEST(AinsMonteCarlo, NormalisedErrorsAreConsistentAndReachTheCrlb) {
   int converged = 0;
   double runtime = 0.0;
   for (int s = 0; s < n; ++s) {
-    const SimResult sim = testing::simulate_run(profile, geom, unit, 1000 + static_cast<uint64_t>(s), true);
-    const CalibrationInput in = input_from_simulation(sim, geom, testing::factory_site(), unit.noise);
+    const SimResult sim =
+        testing::simulate_run(profile, geom, unit, 1000 + static_cast<uint64_t>(s), true);
+    const CalibrationInput in =
+        input_from_simulation(sim, geom, testing::factory_site(), unit.noise);
     const CalibrationResult r = calibrate_ains(in);
     converged += r.converged;
     runtime += r.runtime_s;
@@ -82,8 +84,8 @@ long max_rss_mb() {
 TEST(AinsMonteCarlo, SixtyMinuteRunRuntimeAndMemory) {
   // 60 min at 100 Hz: the factory-standard pattern of moves with rests stretched to fill an hour.
   sequences::MotionProfile p = testing::start_profile("sixty-minutes", 120.0);
-  const double moves[][2] = {{1, 90}, {0, 90}, {1, 180}, {0, -180}, {1, -90}, {0, 90},
-                             {1, 90}, {0, -90}, {1, -180}, {0, 180}, {1, 90}, {0, -90}};
+  const double moves[][2] = {{1, 90}, {0, 90},  {1, 180},  {0, -180}, {1, -90}, {0, 90},
+                             {1, 90}, {0, -90}, {1, -180}, {0, 180},  {1, 90},  {0, -90}};
   while (p.duration_s() < 3600.0 - 140.0)
     for (const auto& m : moves)
       if (p.duration_s() < 3600.0 - 140.0) testing::append_move(p, m[0] > 0.5, m[1], 100.0);
@@ -97,16 +99,19 @@ TEST(AinsMonteCarlo, SixtyMinuteRunRuntimeAndMemory) {
   const AinsResult r = calibrate_ains_detailed(in);
   const double cpu_s = static_cast<double>(std::clock() - cpu0) / CLOCKS_PER_SEC;
   const long rss_after = max_rss_mb();
-  std::printf("60-min run: %zu samples (%.0f s), %d passes, runtime %.3f s wall / %.3f s CPU, %zu smoothed epochs, "
-              "peak RSS %ld MB before / %ld MB after calibration (input itself ~%zu MB)\n",
-              in.imu.size(), p.duration_s(), r.calibration.iterations, r.calibration.runtime_s, cpu_s,
-              r.smoothed.size(), rss_before, rss_after,
-              (in.imu.size() * (sizeof(ImuIncrement) + sizeof(ReferenceSample))) >> 20);
+  std::printf(
+      "60-min run: %zu samples (%.0f s), %d passes, runtime %.3f s wall / %.3f s CPU, %zu smoothed "
+      "epochs, "
+      "peak RSS %ld MB before / %ld MB after calibration (input itself ~%zu MB)\n",
+      in.imu.size(), p.duration_s(), r.calibration.iterations, r.calibration.runtime_s, cpu_s,
+      r.smoothed.size(), rss_before, rss_after,
+      (in.imu.size() * (sizeof(ImuIncrement) + sizeof(ReferenceSample))) >> 20);
   EXPECT_TRUE(r.calibration.converged);
   EXPECT_LT(rss_after - rss_before, 250);
   const ParamVector e = r.calibration.params.to_vector() - unit.params.to_vector();
   const ParamVector s = r.calibration.sigma.to_vector();
-  for (int i = 0; i < ParamSet::kSize; ++i) EXPECT_LT(std::abs(e(i)), 4.0 * s(i)) << param_info(i).name;
+  for (int i = 0; i < ParamSet::kSize; ++i)
+    EXPECT_LT(std::abs(e(i)), 4.0 * s(i)) << param_info(i).name;
 }
 
 }  // namespace

@@ -40,9 +40,9 @@ void expect_within(const CalibrationResult& r, const ParamSet& truth, double k) 
 
 TEST(AinsModel, StateLayoutMapsParamSetRowMajorToColumnMajorBlocks) {
   // Paper eq. 22: the state block multiplying f_c (I3 f_c) is column c of dM.
-  EXPECT_EQ(ains::state_index_of_param(3 + 3 * 0 + 1), ains::kAccM + 3 * 1 + 0);   // M_a(0,1)
-  EXPECT_EQ(ains::state_index_of_param(3 + 3 * 2 + 0), ains::kAccM + 3 * 0 + 2);   // M_a(2,0)
-  EXPECT_EQ(ains::state_index_of_param(15 + 3 * 1 + 2), ains::kGyroM + 3 * 2 + 1); // M_g(1,2)
+  EXPECT_EQ(ains::state_index_of_param(3 + 3 * 0 + 1), ains::kAccM + 3 * 1 + 0);    // M_a(0,1)
+  EXPECT_EQ(ains::state_index_of_param(3 + 3 * 2 + 0), ains::kAccM + 3 * 0 + 2);    // M_a(2,0)
+  EXPECT_EQ(ains::state_index_of_param(15 + 3 * 1 + 2), ains::kGyroM + 3 * 2 + 1);  // M_g(1,2)
   EXPECT_EQ(ains::state_index_of_param(26), ains::kTableMis + 2);
   std::set<int> seen;
   for (int i = 0; i < ParamSet::kSize; ++i) seen.insert(ains::state_index_of_param(i));
@@ -71,7 +71,8 @@ TEST(Ains, NoiseFreeRecoversEveryParameterTightly) {
   EXPECT_EQ(r.calibration.method, "ains");
   expect_within(r.calibration, unit.params, 0.05);
   // Absolute sanity against the truth in human units (independent of the reported σ).
-  const ParamSet e = ParamSet::from_vector(r.calibration.params.to_vector() - unit.params.to_vector());
+  const ParamSet e =
+      ParamSet::from_vector(r.calibration.params.to_vector() - unit.params.to_vector());
   EXPECT_LT(e.accel_bias_mps2.cwiseAbs().maxCoeff(), 0.1 * kMicroG_mps2);
   EXPECT_LT(e.gyro_M.cwiseAbs().maxCoeff(), 0.1e-6);
   EXPECT_LT(e.accel_M.cwiseAbs().maxCoeff(), 0.1e-6);
@@ -87,7 +88,8 @@ TEST(Ains, WithNoiseEveryParameterWithinFourSigma) {
   // The estimate must actually carry information: σ far below the prior everywhere but ς_z.
   const ParamVector s = r.calibration.sigma.to_vector();
   const ParamVector prior = default_prior_sigma().to_vector();
-  for (int i = 0; i < ParamSet::kSize - 1; ++i) EXPECT_LT(s(i), 0.01 * prior(i)) << param_info(i).name;
+  for (int i = 0; i < ParamSet::kSize - 1; ++i)
+    EXPECT_LT(s(i), 0.01 * prior(i)) << param_info(i).name;
   EXPECT_TRUE(r.calibration.warnings.empty());
 }
 
@@ -95,12 +97,12 @@ TEST(Ains, FarFromNominalStillConvergesWithinFourSigma) {
   UnitModel unit = default_unit();
   ParamSet& p = unit.params;
   p.accel_bias_mps2 = Eigen::Vector3d(2.0, -2.0, 1.5) * 1e-3 * kStandardGravity_mps2;  // ±2 mg
-  p.accel_M << 2000e-6, -2e-3, 1.5e-3,  //
-      2e-3, -2000e-6, -2e-3,            //
+  p.accel_M << 2000e-6, -2e-3, 1.5e-3,                                                 //
+      2e-3, -2000e-6, -2e-3,                                                           //
       -1.5e-3, 2e-3, 2000e-6;
   p.gyro_bias_radps = Eigen::Vector3d(0.1, -0.1, 0.08) * kDegPerHourToRadPerSec;  // ±0.1 deg/h
-  p.gyro_M << -2000e-6, 2e-3, -2e-3,  //
-      -2e-3, 2000e-6, 1.8e-3,         //
+  p.gyro_M << -2000e-6, 2e-3, -2e-3,                                              //
+      -2e-3, 2000e-6, 1.8e-3,                                                     //
       2e-3, -1.8e-3, -2000e-6;
   const CalibrationInput in = make_input(short_profile(), unit, 5, true);
   const AinsResult r = calibrate_ains_detailed(in);

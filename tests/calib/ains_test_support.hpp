@@ -5,11 +5,11 @@
 #include <string>
 #include <vector>
 
-#include "calib/site_presets.hpp"
 #include "calib/ains.hpp"
 #include "calib/calibration_input.hpp"
 #include "calib/conventions.hpp"
 #include "calib/rotation.hpp"
+#include "calib/site_presets.hpp"
 #include "calib/table_model.hpp"
 #include "calib/truth_sim.hpp"
 #include "sequences/library.hpp"
@@ -19,14 +19,16 @@ namespace imucal::calib::testing {
 
 inline Site factory_site() { return demo_factory_site(); }
 
-/// One constant-acceleration move of one axis by `by_deg` at 10 deg/s (10 deg/s² ramps), then a rest.
+/// One constant-acceleration move of one axis by `by_deg` at 10 deg/s (10 deg/s² ramps), then a
+/// rest.
 inline void append_move(sequences::MotionProfile& p, bool outer, double by_deg, double rest_s) {
   const double rate = 10.0 * kDegToRad, acc = 10.0 * kDegToRad;
   const double dir = by_deg >= 0 ? 1.0 : -1.0;
   const double t_ramp = rate / acc;
   const double t_cruise = (std::abs(by_deg) * kDegToRad - acc * t_ramp * t_ramp) / rate;
   double angle = outer ? p.segments.back().outer.angle0_rad : p.segments.back().inner.angle0_rad;
-  const double fixed = outer ? p.segments.back().inner.angle0_rad : p.segments.back().outer.angle0_rad;
+  const double fixed =
+      outer ? p.segments.back().inner.angle0_rad : p.segments.back().outer.angle0_rad;
   double rate0 = 0.0;
   auto push = [&](double dur, double a, sequences::SegmentKind kind) {
     sequences::ProfileSegment s;

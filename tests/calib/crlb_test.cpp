@@ -25,7 +25,8 @@ TEST(Crlb, EqualsTheAinsReportedSigmaOnTheSameSequence) {
   const auto profile = testing::short_profile();
   const UnitModel unit = default_unit();
   const SimResult sim = testing::simulate_run(profile, TableGeometry{}, unit, 4, true);
-  const CalibrationInput in = input_from_simulation(sim, TableGeometry{}, factory_site(), unit.noise);
+  const CalibrationInput in =
+      input_from_simulation(sim, TableGeometry{}, factory_site(), unit.noise);
   const CalibrationResult ains = calibrate_ains(in);
   const CrlbResult crlb = compute_crlb(profile, TableGeometry{}, factory_site(), unit.noise, 100.0);
   const ParamVector a = ains.sigma.to_vector(), c = crlb.sigma.to_vector();
@@ -43,8 +44,10 @@ TEST(Crlb, MoreNoiseMeansLargerBound) {
   NoiseModel quiet, loud;
   loud.arw_rad_per_sqrt_s = 4.0 * quiet.arw_rad_per_sqrt_s;
   loud.vrw_mps_per_sqrt_s = 4.0 * quiet.vrw_mps_per_sqrt_s;
-  const ParamVector q = compute_crlb(profile, TableGeometry{}, factory_site(), quiet, 100.0).sigma.to_vector();
-  const ParamVector l = compute_crlb(profile, TableGeometry{}, factory_site(), loud, 100.0).sigma.to_vector();
+  const ParamVector q =
+      compute_crlb(profile, TableGeometry{}, factory_site(), quiet, 100.0).sigma.to_vector();
+  const ParamVector l =
+      compute_crlb(profile, TableGeometry{}, factory_site(), loud, 100.0).sigma.to_vector();
   // Away from the prior the bound scales with the noise (aiding noise is fixed, so not exactly 4x).
   for (int i = 0; i < ParamSet::kSize - 1; ++i) {
     EXPECT_GT(l(i) / q(i), 2.0) << param_info(i).name;
@@ -65,9 +68,9 @@ TEST(Crlb, InnerAxisOnlySequenceIsRankDeficientAndNamesTheParameters) {
   const CrlbResult c = crlb_of(testing::inner_only_profile());
   const std::vector<std::string> names = unobservable_parameters(c);
   const std::set<std::string> got(names.begin(), names.end());
-  for (const char* must : {"gyro_M[0][0]", "gyro_M[1][1]", "gyro_M[0][1]", "gyro_M[2][0]",
-                           "accel_M[0][0]", "accel_M[1][1]", "accel_M[2][1]",
-                           "accel_bias_mps2[2]", "accel_M[2][2]"})
+  for (const char* must :
+       {"gyro_M[0][0]", "gyro_M[1][1]", "gyro_M[0][1]", "gyro_M[2][0]", "accel_M[0][0]",
+        "accel_M[1][1]", "accel_M[2][1]", "accel_bias_mps2[2]", "accel_M[2][2]"})
     EXPECT_TRUE(got.count(must)) << must << " should be unobservable";
   // Turning about z does excite the gyro's z column, and the tilt is seen through gravity.
   for (const char* must_not : {"gyro_M[0][2]", "gyro_M[1][2]", "gyro_M[2][2]",
@@ -82,16 +85,17 @@ TEST(Crlb, InnerAxisOnlySequenceIsRankDeficientAndNamesTheParameters) {
   }
   // The flagged ones are near their prior; the excited ones far below.
   const ParamVector ratio = crlb_prior_ratio(c);
-  EXPECT_GT(ratio(3 + 0), 0.9);   // accel_M[0][0]: no signal at all
-  EXPECT_LT(ratio(15 + 8), 1e-3); // gyro_M[2][2]
+  EXPECT_GT(ratio(3 + 0), 0.9);    // accel_M[0][0]: no signal at all
+  EXPECT_LT(ratio(15 + 8), 1e-3);  // gyro_M[2][2]
 }
 
 TEST(Crlb, BadProfilesAreRejected) {
   sequences::MotionProfile empty;
   empty.name = "empty";
   EXPECT_THROW(crlb_of(empty), std::invalid_argument);
-  EXPECT_THROW(compute_crlb(testing::short_profile(), TableGeometry{}, factory_site(), NoiseModel{}, 0.0),
-               std::invalid_argument);
+  EXPECT_THROW(
+      compute_crlb(testing::short_profile(), TableGeometry{}, factory_site(), NoiseModel{}, 0.0),
+      std::invalid_argument);
   // A profile that never rests long enough cannot be aided.
   sequences::MotionProfile moving = testing::start_profile("moving", 0.5);
   testing::append_move(moving, true, 180.0, 0.5);

@@ -1,10 +1,11 @@
 // WGS-84 Earth model against published reference values (NIMA TR8350.2 / Groves).
+#include "calib/earth.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "calib/conventions.hpp"
-#include "calib/earth.hpp"
 #include "calib/strapdown.hpp"
 
 using namespace imucal;
@@ -16,8 +17,9 @@ TEST(Earth, NormalGravityMatchesWgs84ReferenceValues) {
   EXPECT_NEAR(EarthModel::normal_gravity_mps2(kPi / 2, 0.0), 9.8321849378, 1e-9);
   // Free-air gradient ≈ -3.086e-6 s^-2 at mid latitudes.
   const double lat = 45.0 * kDegToRad;
-  const double grad = (EarthModel::normal_gravity_mps2(lat, 100.0) -
-                       EarthModel::normal_gravity_mps2(lat, 0.0)) / 100.0;
+  const double grad =
+      (EarthModel::normal_gravity_mps2(lat, 100.0) - EarthModel::normal_gravity_mps2(lat, 0.0)) /
+      100.0;
   EXPECT_NEAR(grad, -3.086e-6, 0.005e-6);
 }
 

@@ -2,15 +2,16 @@
 // errors injected into the compensation, on a noisy simulation of a full-rank table sequence:
 // noise floors from the VRW/ARW spectra, bias and scale-factor errors from the rest geometry and
 // the rotations the table made, and a heading offset from the definition of eq. 51.
+#include "calib/evaluation.hpp"
+
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
 
-#include "calib/site_presets.hpp"
-#include "calib/evaluation.hpp"
 #include "calib/rotation.hpp"
+#include "calib/site_presets.hpp"
 #include "calib/truth_sim.hpp"
 #include "sequences/library.hpp"
 
@@ -92,13 +93,14 @@ TEST(Evaluation, TrueParametersGiveTheNoiseFloor) {
   const EvaluationMetrics& m = r.truth_metrics;
   const double accel_floor = accel_noise_floor_ug(r);
   const double orient_floor = orientation_noise_floor_mdeg(r);
-  std::printf("accel RMSE %.3f µg (white-noise floor %.3f µg); orientation RMSE %.4f mdeg "
-              "(floor bound %.4f mdeg); γ_np %.4f mdeg; θ_bp (%.4f %.4f %.4f) mdeg\n",
-              m.accel_rmse_ug, accel_floor, m.orientation_rmse_mdeg, orient_floor,
-              m.heading_offset_gamma_np_rad * kRadToDeg * 1e3,
-              m.body_misalignment_theta_bp_rad(0) * kRadToDeg * 1e3,
-              m.body_misalignment_theta_bp_rad(1) * kRadToDeg * 1e3,
-              m.body_misalignment_theta_bp_rad(2) * kRadToDeg * 1e3);
+  std::printf(
+      "accel RMSE %.3f µg (white-noise floor %.3f µg); orientation RMSE %.4f mdeg "
+      "(floor bound %.4f mdeg); γ_np %.4f mdeg; θ_bp (%.4f %.4f %.4f) mdeg\n",
+      m.accel_rmse_ug, accel_floor, m.orientation_rmse_mdeg, orient_floor,
+      m.heading_offset_gamma_np_rad * kRadToDeg * 1e3,
+      m.body_misalignment_theta_bp_rad(0) * kRadToDeg * 1e3,
+      m.body_misalignment_theta_bp_rad(1) * kRadToDeg * 1e3,
+      m.body_misalignment_theta_bp_rad(2) * kRadToDeg * 1e3);
   size_t rests = 0;  // every rest segment of the profile is long enough to be evaluated
   for (const auto& seg : r.profile.segments) rests += seg.kind == sequences::SegmentKind::kRest;
   ASSERT_EQ(m.periods.size(), rests);
@@ -136,9 +138,10 @@ TEST(Evaluation, AccelBiasErrorShowsAsItsVerticalProjection) {
   ASSERT_GE(x_vertical, 2) << "the profile must put body x up and down";
   const double predicted = std::sqrt(s / static_cast<double>(periods.size()));
   const double floor = accel_noise_floor_ug(r);
-  std::printf("accel RMSE with +30 µg x bias error: %.3f µg; predicted %.3f µg (floor %.3f µg, "
-              "true-parameter RMSE %.3f µg)\n",
-              m.accel_rmse_ug, predicted, floor, r.truth_metrics.accel_rmse_ug);
+  std::printf(
+      "accel RMSE with +30 µg x bias error: %.3f µg; predicted %.3f µg (floor %.3f µg, "
+      "true-parameter RMSE %.3f µg)\n",
+      m.accel_rmse_ug, predicted, floor, r.truth_metrics.accel_rmse_ug);
   EXPECT_GT(m.accel_rmse_ug, 2.5 * floor);
   EXPECT_GT(m.accel_rmse_ug, 2.0 * r.truth_metrics.accel_rmse_ug);
   EXPECT_NEAR(m.accel_rmse_ug, std::sqrt(predicted * predicted + floor * floor),
@@ -187,10 +190,11 @@ TEST(Evaluation, GyroScaleErrorShowsAsHeadingErrorsOfTheRotations) {
   double sq = 0.0;
   for (size_t i = 0; i < H.size(); ++i) sq += w[i] * (H[i] - mean) * (H[i] - mean);
   const double predicted_mdeg = std::sqrt(sq / sw) * kRadToDeg * 1e3;
-  std::printf("orientation RMSE with 1000 ppm gyro scale error: %.2f mdeg; heading-only "
-              "prediction (mean removed) %.2f mdeg, peak |H| %.1f mdeg; floor %.4f mdeg\n",
-              m.orientation_rmse_mdeg, predicted_mdeg, peak * kRadToDeg * 1e3,
-              r.truth_metrics.orientation_rmse_mdeg);
+  std::printf(
+      "orientation RMSE with 1000 ppm gyro scale error: %.2f mdeg; heading-only "
+      "prediction (mean removed) %.2f mdeg, peak |H| %.1f mdeg; floor %.4f mdeg\n",
+      m.orientation_rmse_mdeg, predicted_mdeg, peak * kRadToDeg * 1e3,
+      r.truth_metrics.orientation_rmse_mdeg);
   // Precondition: the profile turns about the vertical (a 90° turn -> 90 mdeg at 1000 ppm).
   ASSERT_GT(peak * kRadToDeg * 1e3, 85.0);
   EXPECT_GT(m.orientation_rmse_mdeg, 10.0 * r.truth_metrics.orientation_rmse_mdeg);
@@ -223,12 +227,12 @@ TEST(Evaluation, HeadingOffsetOfTheReferenceIsAbsorbedByGammaNp) {
     info += omega_n * omega_n / rate_var;
   }
   const double sigma_gc = 1.0 / std::sqrt(info);
-  std::printf("γ_np %.3f mdeg for injected δ %.1f mdeg (gyrocompass σ %.2f mdeg); without "
-              "offset γ_np %.3f mdeg; orientation RMSE %.4f mdeg\n",
-              m.heading_offset_gamma_np_rad * kRadToDeg * 1e3, delta * kRadToDeg * 1e3,
-              sigma_gc * kRadToDeg * 1e3,
-              r.truth_metrics.heading_offset_gamma_np_rad * kRadToDeg * 1e3,
-              m.orientation_rmse_mdeg);
+  std::printf(
+      "γ_np %.3f mdeg for injected δ %.1f mdeg (gyrocompass σ %.2f mdeg); without "
+      "offset γ_np %.3f mdeg; orientation RMSE %.4f mdeg\n",
+      m.heading_offset_gamma_np_rad * kRadToDeg * 1e3, delta * kRadToDeg * 1e3,
+      sigma_gc * kRadToDeg * 1e3, r.truth_metrics.heading_offset_gamma_np_rad * kRadToDeg * 1e3,
+      m.orientation_rmse_mdeg);
   EXPECT_NEAR(m.heading_offset_gamma_np_rad, -delta, 4.0 * sigma_gc);
   EXPECT_NEAR(r.truth_metrics.heading_offset_gamma_np_rad, 0.0, 4.0 * sigma_gc);
   // Same data, same noise: the two fits differ by δ up to second-order terms (δ²/2 ≈ 0.04 mrad).

@@ -36,8 +36,8 @@ Outcome run_factory(const UnitModel& unit, uint64_t seed) {
   double sum = 0;
   const auto rests = find_rest_periods(in, 100);
   for (const auto& r : rests) sum += 3.0 / (static_cast<double>(r.size()) * 0.01);
-  o.floor_accel_ug =
-      unit.noise.vrw_mps_per_sqrt_s * std::sqrt(sum / static_cast<double>(rests.size())) / kMicroG_mps2;
+  o.floor_accel_ug = unit.noise.vrw_mps_per_sqrt_s *
+                     std::sqrt(sum / static_cast<double>(rests.size())) / kMicroG_mps2;
   return o;
 }
 

@@ -12,9 +12,9 @@
 #include <cstdlib>
 #include <string>
 
-#include "calib/site_presets.hpp"
 #include "calib/calibration_input.hpp"
 #include "calib/nlsq.hpp"
+#include "calib/site_presets.hpp"
 #include "calib/truth_sim.hpp"
 #include "sequences/library.hpp"
 

@@ -1,6 +1,8 @@
 // NLSQ calibration (paper §V) against the truth simulator. Expectations come from the simulator's
 // injected parameters and from physics (noise-free data must be fitted exactly; with noise the
 // error must lie within the reported σ), never from the estimator's own output.
+#include "calib/nlsq.hpp"
+
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
 
@@ -11,13 +13,12 @@
 #include <string>
 #include <vector>
 
-#include "calib/site_presets.hpp"
 #include "calib/calibration_input.hpp"
 #include "calib/imu_error_model.hpp"
-#include "calib/nlsq.hpp"
 #include "calib/nlsq_preprocess.hpp"
 #include "calib/nlsq_residuals.hpp"
 #include "calib/rotation.hpp"
+#include "calib/site_presets.hpp"
 #include "calib/strapdown.hpp"
 #include "calib/table_model.hpp"
 #include "calib/truth_sim.hpp"
@@ -199,7 +200,8 @@ TEST(NlsqPreprocess, GyroSensitivityMatchesRepropagation) {
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) dth(3 + 3 * r + c) = p.gyro_M(r, c);
       const Eigen::Matrix3d exact = nlsq_propagate_body(run.in.imu, rot.begin, rot.end, p);
-      const Eigen::Matrix3d lin = rot.dC_b0 * rotvec_to_matrix<double>(Eigen::Vector3d(rot.J_b * dth));
+      const Eigen::Matrix3d lin =
+          rot.dC_b0 * rotvec_to_matrix<double>(Eigen::Vector3d(rot.J_b * dth));
       const Eigen::Matrix3d nolin = rot.dC_b0;
       mismatch[level] = matrix_to_rotvec(lin.transpose() * exact).norm();
       // The first-order effect itself is large compared with the mismatch.
@@ -214,9 +216,10 @@ TEST(NlsqPreprocess, GyroSensitivityMatchesRepropagation) {
 // numerical floor. Physics of the tolerance: in double precision the propagated attitude over ~4000
 // increments and the rest means carry round-off of ~1e-14 rad and ~1e-13 m/s², against the
 // datasheet noise the σ are computed from (~1.5e-6 rad per rotation span, ~2e-5 m/s² per rest): a
-// ratio of ~1e-8. So every error must be below 1e-7 σ (10x margin) -- a systematic flaw of the method
-// (wrong Earth-rate handling, frame of dv, sign of a sensitivity) shows up orders of magnitude
-// above that (dropping the ½ ω×f dt² term of the rest means alone shifts ς by 0.07 arcsec, ~0.5 σ).
+// ratio of ~1e-8. So every error must be below 1e-7 σ (10x margin) -- a systematic flaw of the
+// method (wrong Earth-rate handling, frame of dv, sign of a sensitivity) shows up orders of
+// magnitude above that (dropping the ½ ω×f dt² term of the rest means alone shifts ς by 0.07
+// arcsec, ~0.5 σ).
 TEST(Nlsq, NoiseFreeDefaultUnitRecoveredExactly) {
   UnitModel unit = default_unit();
   unit.noise.dtheta_lsb_rad = 0.0;
@@ -305,7 +308,8 @@ TEST(Nlsq, UnderstatedNoiseIsDetectedAndSigmaScaled) {
   const CalibrationResult res = calibrate_nlsq(run.in);
   ASSERT_FALSE(res.warnings.empty());
   bool found = false;
-  for (const auto& w : res.warnings) found = found || w.find("variance factor") != std::string::npos;
+  for (const auto& w : res.warnings)
+    found = found || w.find("variance factor") != std::string::npos;
   EXPECT_TRUE(found);
   // Whitening by a uniformly scaled covariance changes neither the estimate nor, after the
   // variance-factor scaling, σ (up to the sampling spread of χ²: dof ~ 100, so σ scatters by
@@ -421,7 +425,8 @@ TEST(Nlsq, SizeMismatchAndMissingNoiseModelAreRejected) {
 // A sequence that only turns one table axis, back and forth, cannot determine all 27 parameters:
 // the error must say so (and name the parameters involved) rather than return a singular
 // covariance. With the outer axis along body x at inner 0, body x stays horizontal: the x
-// accelerometer never sees gravity, so its bias, scale and the tilt about body x cannot be told apart.
+// accelerometer never sees gravity, so its bias, scale and the tilt about body x cannot be told
+// apart.
 TEST(Nlsq, UnobservableSequenceIsRejected) {
   test_support::HandProfile h;
   h.rest(30.0);

@@ -1,15 +1,16 @@
 // The truth simulator is checked against independent physics: fine-step integration of the table
 // kinematics (rates from TableModel::w_nb_b, not from attitude differences), closed-form values at
 // rest, and the statistics of the injected noise.
+#include "calib/truth_sim.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "calib/site_presets.hpp"
 #include "calib/imu_error_model.hpp"
 #include "calib/rotation.hpp"
+#include "calib/site_presets.hpp"
 #include "calib/strapdown.hpp"
-#include "calib/truth_sim.hpp"
 #include "tests/support/hand_profile.hpp"
 
 using namespace imucal;
@@ -57,7 +58,11 @@ TEST(TruthSim, RestIncrementsMatchClosedForm) {
 TEST(TruthSim, RotatingIncrementsMatchFineIntegrationOfTableRates) {
   // 10 °/s about a tilted configuration; integrate the inertial attitude with 1000 sub-steps per
   // sample from the *rates* the table model gives (independent of the simulator's log-map path).
-  const auto profile = test_support::HandProfile(20.0, 0.0).rest(1.0).rotate(false, 30.0).rotate(true, -45.0).build();
+  const auto profile = test_support::HandProfile(20.0, 0.0)
+                           .rest(1.0)
+                           .rotate(false, 30.0)
+                           .rotate(true, -45.0)
+                           .build();
   const Site site = factory_site();
   const TableGeometry geom;
   const TableModel table(geom);
@@ -78,7 +83,8 @@ TEST(TruthSim, RotatingIncrementsMatchFineIntegrationOfTableRates) {
       const auto s = profile.at(tm);
       const Eigen::Matrix3d C_bn = true_C_bn(profile, table, unit, tm);
       const Eigen::Vector3d w_ib_b = table.w_nb_b(s) + C_bn.transpose() * earth.w_ie_n();
-      const Eigen::Matrix3d C_half = C_b0_b * rotvec_to_matrix<double>(Eigen::Vector3d(w_ib_b * h * 0.5));
+      const Eigen::Matrix3d C_half =
+          C_b0_b * rotvec_to_matrix<double>(Eigen::Vector3d(w_ib_b * h * 0.5));
       dv += C_half * (C_bn.transpose() * f_n) * h;
       C_b0_b = C_b0_b * rotvec_to_matrix<double>(Eigen::Vector3d(w_ib_b * h));
     }
@@ -92,8 +98,8 @@ TEST(TruthSim, RotatingIncrementsMatchFineIntegrationOfTableRates) {
 
 TEST(TruthSim, StrapdownOnTrueIncrementsStaysAtRestThroughRotations) {
   // The sculling/rotation convention test of DESIGN §3: ignoring the start-of-interval convention
-  // costs ~900 µg while turning at 10 °/s at 100 Hz. With exact increments and the shared strapdown,
-  // the velocity stays ~0 through a full-rank profile.
+  // costs ~900 µg while turning at 10 °/s at 100 Hz. With exact increments and the shared
+  // strapdown, the velocity stays ~0 through a full-rank profile.
   const auto profile = test_support::HandProfile::full_rank(5.0);
   const Site site = factory_site();
   const TableGeometry geom;
@@ -166,7 +172,8 @@ TEST(TruthSim, QuantisationCarriesTheRemainder) {
   unit.noise.dv_lsb_mps = 1e-3;  // coarse on purpose
   unit.noise.dtheta_lsb_rad = 1e-7;
   const SimResult q = simulate(profile, TableGeometry{}, factory_site(), unit, SimOptions{});
-  const SimResult c = simulate(profile, TableGeometry{}, factory_site(), perfect_unit(), noiseless());
+  const SimResult c =
+      simulate(profile, TableGeometry{}, factory_site(), perfect_unit(), noiseless());
   Eigen::Vector3d sum_q = Eigen::Vector3d::Zero(), sum_c = Eigen::Vector3d::Zero();
   for (size_t k = 0; k < q.imu.size(); ++k) {
     sum_q += q.imu[k].dv_mps;
@@ -181,11 +188,13 @@ TEST(TruthSim, QuantisationCarriesTheRemainder) {
 }
 
 TEST(TruthSim, SizeEffectAppearsOnlyWhileRotating) {
-  const auto profile = test_support::HandProfile().rest(3.0).rotate(false, 90.0, 20.0, 20.0).rest(3.0).build();
+  const auto profile =
+      test_support::HandProfile().rest(3.0).rotate(false, 90.0, 20.0, 20.0).rest(3.0).build();
   UnitModel unit = perfect_unit();
   unit.effects.accel_lever_arm_m[0] = Eigen::Vector3d(0.05, 0.0, 0.0);
   const SimResult a = simulate(profile, TableGeometry{}, factory_site(), unit, noiseless());
-  const SimResult b = simulate(profile, TableGeometry{}, factory_site(), perfect_unit(), noiseless());
+  const SimResult b =
+      simulate(profile, TableGeometry{}, factory_site(), perfect_unit(), noiseless());
   double at_rest = 0, moving = 0;
   for (size_t k = 0; k < a.imu.size(); ++k) {
     const double d = std::abs(a.imu[k].dv_mps(0) - b.imu[k].dv_mps(0)) / 0.01;

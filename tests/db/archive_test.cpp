@@ -1,8 +1,6 @@
 // Run archive (DESIGN §5): bit-exact write/read round trip of a simulated run, the calibration
 // input it yields vs. the in-memory path, one test per class of bad archive (each error must name
 // the file and the line or field), atomic writes, and the attitude.csv reference checked by hand.
-#include "db/archive/run_archive.hpp"
-
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
@@ -18,6 +16,7 @@
 #include "calib/rotation.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/io_util.hpp"
+#include "db/archive/run_archive.hpp"
 
 namespace imucal::archive {
 namespace {
@@ -209,7 +208,9 @@ TEST(Archive, CalibrationInputMatchesTheInMemoryPath) {
   ASSERT_EQ(from_disk.reference.size(), mem.reference.size());
   size_t rest = 0;
   for (size_t k = 0; k < mem.reference.size(); ++k) {
-    ASSERT_LT((from_disk.reference[k].C_bn_ref - mem.reference[k].C_bn_ref).cwiseAbs().maxCoeff(), 1e-15) << k;
+    ASSERT_LT((from_disk.reference[k].C_bn_ref - mem.reference[k].C_bn_ref).cwiseAbs().maxCoeff(),
+              1e-15)
+        << k;
     ASSERT_EQ(from_disk.reference[k].at_rest, mem.reference[k].at_rest);
     ASSERT_EQ(from_disk.reference[k].t_s, mem.imu[k].t_s);
     rest += mem.reference[k].at_rest;
@@ -258,7 +259,8 @@ TEST(Archive, SimpleArchiveIsValidAndHasNoTempColumn) {
   const RunArchive a = read_archive(dir);
   EXPECT_TRUE(std::isnan(a.imu[0].temp_c));
   EXPECT_EQ(a.imu[0].dt_s, 0.01);  // first interval = 1 / rate_hz
-  const std::string head = "t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps\n0.01,";
+  const std::string head =
+      "t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps\n0.01,";
   EXPECT_EQ(slurp(dir + "/imu.csv").substr(0, head.size()), head);
   EXPECT_EQ(to_calibration_input(a).reference.size(), 50u);
   EXPECT_FALSE(fs::exists(dir + "/truth.json"));
@@ -267,12 +269,15 @@ TEST(Archive, SimpleArchiveIsValidAndHasNoTempColumn) {
 TEST(Archive, UnknownRunTomlKeyNamedWithLine) {
   TempDir tmp;
   const std::string dir = write_simple(tmp, "r");
-  replace_in_file(dir + "/run.toml", "[imu]\nrate_hz = 100.0\n", "[imu]\nrate_hz = 100.0\nrate = 200\n");
+  replace_in_file(dir + "/run.toml", "[imu]\nrate_hz = 100.0\n",
+                  "[imu]\nrate_hz = 100.0\nrate = 200\n");
   const ArchiveError e = read_error(dir);
   EXPECT_EQ(e.file(), dir + "/run.toml");
   EXPECT_EQ(e.field(), "imu.rate");
   const std::string text = slurp(dir + "/run.toml");
-  const size_t expected_line = 1 + static_cast<size_t>(std::count(text.begin(), text.begin() + static_cast<long>(text.find("rate = 200")), '\n'));
+  const size_t expected_line =
+      1 + static_cast<size_t>(std::count(
+              text.begin(), text.begin() + static_cast<long>(text.find("rate = 200")), '\n'));
   EXPECT_EQ(e.line(), expected_line);
   EXPECT_NE(std::string(e.what()).find("unknown key"), std::string::npos) << e.what();
 }
@@ -293,7 +298,8 @@ TEST(Archive, MissingRequiredKeysNamed) {
     replace_in_file(dir + "/run.toml", c.from, c.to);
     const ArchiveError e = read_error(dir);
     EXPECT_EQ(e.field(), c.field) << e.what();
-    EXPECT_NE(std::string(e.what()).find(dir + "/run.toml: field '" + c.field + "': missing"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find(dir + "/run.toml: field '" + c.field + "': missing"),
+              std::string::npos)
         << e.what();
   }
   // Out-of-range and wrong-typed values name the key and line.
@@ -301,7 +307,8 @@ TEST(Archive, MissingRequiredKeysNamed) {
   replace_in_file(dir + "/run.toml", "rate_hz = 100.0", "rate_hz = \"100\"");
   EXPECT_EQ(read_error(dir).field(), "imu.rate_hz");
   put(dir + "/run.toml", orig);
-  replace_in_file(dir + "/run.toml", "reference = \"table\"", "reference = \"table\"\nstart_time = \"yesterday\"");
+  replace_in_file(dir + "/run.toml", "reference = \"table\"",
+                  "reference = \"table\"\nstart_time = \"yesterday\"");
   const ArchiveError t = read_error(dir);
   EXPECT_EQ(t.field(), "start_time");
   EXPECT_GT(t.line(), 0u);
@@ -313,11 +320,13 @@ TEST(Archive, BothOrNeitherReferenceFileRejected) {
   put(dir + "/attitude.csv", "t_s,roll_deg,pitch_deg,yaw_deg,at_rest\n0.01,0,0,0,1\n");
   const ArchiveError both = read_error(dir);
   EXPECT_EQ(both.file(), dir);
-  EXPECT_NE(both.message().find("both table.csv and attitude.csv"), std::string::npos) << both.what();
+  EXPECT_NE(both.message().find("both table.csv and attitude.csv"), std::string::npos)
+      << both.what();
   fs::remove(dir + "/attitude.csv");
   fs::remove(dir + "/table.csv");
   const ArchiveError neither = read_error(dir);
-  EXPECT_NE(neither.message().find("neither table.csv nor attitude.csv"), std::string::npos) << neither.what();
+  EXPECT_NE(neither.message().find("neither table.csv nor attitude.csv"), std::string::npos)
+      << neither.what();
 }
 
 TEST(Archive, ReferenceKeyMustMatchTheFilePresent) {
@@ -374,14 +383,16 @@ TEST(Archive, MismatchedTimeAxisNamesFirstBadLine) {
   put(dir + "/table.csv", t);
   const ArchiveError rows = read_error(dir);
   EXPECT_EQ(rows.file(), dir + "/table.csv");
-  EXPECT_NE(rows.message().find("49 data rows but imu.csv has 50"), std::string::npos) << rows.what();
+  EXPECT_NE(rows.message().find("49 data rows but imu.csv has 50"), std::string::npos)
+      << rows.what();
 }
 
 TEST(Archive, NoRestPeriodsRejected) {
   TempDir tmp;
   const std::string dir = write_simple(tmp, "r");
   std::string t = slurp(dir + "/table.csv");
-  for (size_t p = t.find(",1\n"); p != std::string::npos; p = t.find(",1\n")) t.replace(p, 3, ",0\n");
+  for (size_t p = t.find(",1\n"); p != std::string::npos; p = t.find(",1\n"))
+    t.replace(p, 3, ",0\n");
   put(dir + "/table.csv", t);
   const ArchiveError e = read_error(dir);
   EXPECT_EQ(e.file(), dir + "/table.csv");
@@ -414,7 +425,8 @@ TEST(Archive, ImplausibleIncrementsAndRateMismatchRejected) {
     replace_in_file(dir + "/run.toml", "rate_hz = 100.0", "rate_hz = 200.0");
     const ArchiveError e = read_error(dir);
     EXPECT_EQ(e.file(), dir + "/imu.csv");
-    EXPECT_NE(e.message().find("does not match run.toml [imu] rate_hz = 200"), std::string::npos) << e.what();
+    EXPECT_NE(e.message().find("does not match run.toml [imu] rate_hz = 200"), std::string::npos)
+        << e.what();
   }
 }
 
@@ -534,13 +546,14 @@ TEST(Archive, RawIntegralDvIsRotationCompensatedOnImport) {
     const Eigen::Vector3d raw((a / w) * (std::sin(w * t1) - std::sin(w * t0)),
                               (a / w) * (std::cos(w * t1) - std::cos(w * t0)), -g * dt);
     exact.emplace_back(a * std::cos(w * t0) * dt, -a * std::sin(w * t0) * dt, -g * dt);
-    imu << format_double(t1) << ",0,0," << format_double(w * dt) << "," << format_double(raw(0)) << ","
-        << format_double(raw(1)) << "," << format_double(raw(2)) << "\n";
+    imu << format_double(t1) << ",0,0," << format_double(w * dt) << "," << format_double(raw(0))
+        << "," << format_double(raw(1)) << "," << format_double(raw(2)) << "\n";
     table << format_double(t1) << ",0,0,1\n";
   }
   put(dir + "/imu.csv", imu.str());
   put(dir + "/table.csv", table.str());
-  const std::string toml = "serial = \"R\"\n[station]\nlat_deg = 0\nlon_deg = 0\nheight_m = 0\n[imu]\nrate_hz = 100\n";
+  const std::string toml =
+      "serial = \"R\"\n[station]\nlat_deg = 0\nlon_deg = 0\nheight_m = 0\n[imu]\nrate_hz = 100\n";
   put(dir + "/run.toml", toml);
   const RunArchive as_is = read_archive(dir);
   put(dir + "/run.toml", toml + "dv_convention = \"raw_integral\"\n");

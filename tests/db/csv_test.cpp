@@ -19,11 +19,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const CsvSpec kImuSpec{{"t_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_mps", "dv_y_mps",
-                        "dv_z_mps"},
-                       {"temp_c"},
-                       true};
-const std::string kHeader = "t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps\n";
+const CsvSpec kImuSpec{
+    {"t_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_mps", "dv_y_mps", "dv_z_mps"},
+    {"temp_c"},
+    true};
+const std::string kHeader =
+    "t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps\n";
 
 class TempDir {
  public:
@@ -76,8 +77,8 @@ TEST(Csv, WriteReadRoundTripIsBitExact) {
   rows[8][4] = std::numeric_limits<double>::min();
   rows[9][5] = 1.0 / 3.0;
   {
-    CsvWriter w(path, {"t_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_mps", "dv_y_mps",
-                       "dv_z_mps", "temp_c"});
+    CsvWriter w(path, {"t_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_mps",
+                       "dv_y_mps", "dv_z_mps", "temp_c"});
     for (const auto& r : rows) w.write_row(r.data(), r.size());
     w.close();
   }
@@ -92,7 +93,8 @@ TEST(Csv, WriteReadRoundTripIsBitExact) {
 
 TEST(Csv, AcceptsValidVariants) {
   // Optional trailing column absent, CRLF line endings, last line complete without newline.
-  const CsvTable a = parse_csv(kHeader + "0.01,1,2,3,4,5,6\r\n0.02,1e-9,-2.5,.5,4,5,6", "x.csv", kImuSpec);
+  const CsvTable a =
+      parse_csv(kHeader + "0.01,1,2,3,4,5,6\r\n0.02,1e-9,-2.5,.5,4,5,6", "x.csv", kImuSpec);
   ASSERT_EQ(a.num_rows, 2u);
   EXPECT_EQ(a.num_cols(), 7u);
   EXPECT_EQ(a.at(1, 1), 1e-9);
@@ -104,14 +106,16 @@ TEST(Csv, AcceptsValidVariants) {
 }
 
 TEST(Csv, MissingColumnNamesColumnAndLine1) {
-  const ArchiveError e = parse_error("t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps\n0.01,1,2,3,4,5\n");
+  const ArchiveError e =
+      parse_error("t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps\n0.01,1,2,3,4,5\n");
   EXPECT_EQ(e.file(), "dir/imu.csv");
   EXPECT_EQ(e.line(), 1u);
   EXPECT_EQ(e.field(), "dv_z_mps");
   EXPECT_NE(std::string(e.what()).find("dir/imu.csv:1:"), std::string::npos) << e.what();
   EXPECT_NE(std::string(e.what()).find("missing column"), std::string::npos) << e.what();
   // Misspelt column in the middle.
-  const ArchiveError e2 = parse_error("t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dvx_mps,dv_y_mps,dv_z_mps\n");
+  const ArchiveError e2 =
+      parse_error("t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dvx_mps,dv_y_mps,dv_z_mps\n");
   EXPECT_EQ(e2.line(), 1u);
   EXPECT_EQ(e2.field(), "dv_x_mps");
 }
@@ -122,8 +126,8 @@ TEST(Csv, ExtraOrReorderedColumnRejected) {
   EXPECT_EQ(e.line(), 1u);
   EXPECT_EQ(e.field(), "pressure_pa");
   EXPECT_NE(std::string(e.what()).find("extra column"), std::string::npos) << e.what();
-  const ArchiveError e2 = parse_error(
-      "t_s,dtheta_y_rad,dtheta_x_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps\n");
+  const ArchiveError e2 =
+      parse_error("t_s,dtheta_y_rad,dtheta_x_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps\n");
   EXPECT_EQ(e2.line(), 1u);
   EXPECT_EQ(e2.field(), "dtheta_y_rad");
 }
@@ -142,9 +146,10 @@ TEST(Csv, MalformedNumbersRejected) {
     const char* cell;
     const char* expect;
   };
-  for (const Case c : {Case{"1.2x", "not a number"}, Case{"", "empty field"}, Case{" 1.0", "not a number"},
-                       Case{"1.0 ", "not a number"}, Case{"+1", "not a number"}, Case{"0x10", "not a number"},
-                       Case{"abc", "not a number"}, Case{"1e400", "out of double range"}}) {
+  for (const Case c :
+       {Case{"1.2x", "not a number"}, Case{"", "empty field"}, Case{" 1.0", "not a number"},
+        Case{"1.0 ", "not a number"}, Case{"+1", "not a number"}, Case{"0x10", "not a number"},
+        Case{"abc", "not a number"}, Case{"1e400", "out of double range"}}) {
     const ArchiveError e = parse_error(kHeader + "0.01,1,2," + c.cell + ",4,5,6\n");
     EXPECT_EQ(e.line(), 2u) << c.cell;
     EXPECT_EQ(e.field(), "dtheta_z_rad") << c.cell;
@@ -153,7 +158,8 @@ TEST(Csv, MalformedNumbersRejected) {
 }
 
 TEST(Csv, NonMonotonicTimeRejected) {
-  const ArchiveError eq = parse_error(kHeader + "0.01,1,2,3,4,5,6\n0.02,1,2,3,4,5,6\n0.02,1,2,3,4,5,6\n");
+  const ArchiveError eq =
+      parse_error(kHeader + "0.01,1,2,3,4,5,6\n0.02,1,2,3,4,5,6\n0.02,1,2,3,4,5,6\n");
   EXPECT_EQ(eq.line(), 4u);
   EXPECT_EQ(eq.field(), "t_s");
   EXPECT_NE(std::string(eq.what()).find("strictly increasing"), std::string::npos) << eq.what();
@@ -162,7 +168,8 @@ TEST(Csv, NonMonotonicTimeRejected) {
   // Without the time rule the same data is fine.
   CsvSpec no_time = kImuSpec;
   no_time.increasing_first_column = false;
-  EXPECT_EQ(parse_csv(kHeader + "0.01,1,2,3,4,5,6\n0.005,1,2,3,4,5,6\n", "x", no_time).num_rows, 2u);
+  EXPECT_EQ(parse_csv(kHeader + "0.01,1,2,3,4,5,6\n0.005,1,2,3,4,5,6\n", "x", no_time).num_rows,
+            2u);
 }
 
 TEST(Csv, TruncatedLastLineReported) {
@@ -177,12 +184,15 @@ TEST(Csv, TruncatedLastLineReported) {
 }
 
 TEST(Csv, WrongColumnCountInARow) {
-  const ArchiveError few = parse_error(kHeader + "0.01,1,2,3,4,5,6\n0.02,1,2,3,4\n0.03,1,2,3,4,5,6\n");
+  const ArchiveError few =
+      parse_error(kHeader + "0.01,1,2,3,4,5,6\n0.02,1,2,3,4\n0.03,1,2,3,4,5,6\n");
   EXPECT_EQ(few.line(), 3u);
-  EXPECT_NE(std::string(few.what()).find("expected 7 columns, found 5"), std::string::npos) << few.what();
+  EXPECT_NE(std::string(few.what()).find("expected 7 columns, found 5"), std::string::npos)
+      << few.what();
   const ArchiveError many = parse_error(kHeader + "0.01,1,2,3,4,5,6,7,8\n");
   EXPECT_EQ(many.line(), 2u);
-  EXPECT_NE(std::string(many.what()).find("expected 7 columns, found 9"), std::string::npos) << many.what();
+  EXPECT_NE(std::string(many.what()).find("expected 7 columns, found 9"), std::string::npos)
+      << many.what();
   // A row with temp_c while the header has none is an extra column, too.
   const ArchiveError temp = parse_error(kHeader + "0.01,1,2,3,4,5,6,25.0\n");
   EXPECT_EQ(temp.line(), 2u);

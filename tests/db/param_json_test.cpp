@@ -111,7 +111,8 @@ TEST(ParamJson, FieldNamedErrors) {
     j.erase("gyro_M");
     const ArchiveError e = from_json_error(j);
     EXPECT_EQ(e.field(), "gyro_M");
-    EXPECT_NE(std::string(e.what()).find("unit42.json: field 'gyro_M': missing"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("unit42.json: field 'gyro_M': missing"), std::string::npos)
+        << e.what();
   }
   {
     json j = good;
@@ -149,9 +150,7 @@ TEST(ParamJson, FieldNamedErrors) {
     EXPECT_EQ(e.field(), "accel_scale");
     EXPECT_NE(e.message().find("unknown field"), std::string::npos);
   }
-  {
-    EXPECT_EQ(from_json_error(json::array()).field(), "<root>");
-  }
+  { EXPECT_EQ(from_json_error(json::array()).field(), "<root>"); }
   {
     // sigma required by the caller but absent; negative sigma.
     calib::ParamSet s;

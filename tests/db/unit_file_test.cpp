@@ -4,12 +4,12 @@
 #include "db/archive/unit_file.hpp"
 
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 #include <stdlib.h>
 
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <random>
 
 #include "db/archive/archive_error.hpp"
@@ -113,9 +113,9 @@ table_time_offset_s = 0.005
   EXPECT_REL(u.params.accel_M(2, 2), -2.5e-4);
   EXPECT_REL(u.params.gyro_bias_radps(0), deg);  // 3600 deg/h = 1 deg/s
   EXPECT_REL(u.params.gyro_M(2, 1), 5e-6);
-  EXPECT_REL(u.params.table_misalignment_rad(0), deg);  // 3600 arcsec = 1 deg
-  EXPECT_REL(u.noise.arw_rad_per_sqrt_s, deg);          // 60 deg/√h = 1 deg/√s
-  EXPECT_REL(u.noise.vrw_mps_per_sqrt_s, g0);           // 1e6 µg/√Hz = 1 g·√s
+  EXPECT_REL(u.params.table_misalignment_rad(0), deg);   // 3600 arcsec = 1 deg
+  EXPECT_REL(u.noise.arw_rad_per_sqrt_s, deg);           // 60 deg/√h = 1 deg/√s
+  EXPECT_REL(u.noise.vrw_mps_per_sqrt_s, g0);            // 1e6 µg/√Hz = 1 g·√s
   EXPECT_REL(u.effects.accel_k2_per_mps2(0), 1.0 / g0);  // 1 g/g² = 1/g0 per m/s²
   EXPECT_REL(u.effects.accel_asym(1), 1e-5);
   EXPECT_REL(u.effects.gyro_g_sens(0, 0), deg / g0);  // 1 deg/s per g
@@ -129,7 +129,8 @@ table_time_offset_s = 0.005
 }
 
 TEST(UnitFile, MissingKeysMeanZeroExceptNoiseDefaults) {
-  const calib::UnitModel u = parse_unit_file("[gyro]\nbias_deg_per_h = [0.01, 0, 0]\n", "sparse.toml");
+  const calib::UnitModel u =
+      parse_unit_file("[gyro]\nbias_deg_per_h = [0.01, 0, 0]\n", "sparse.toml");
   EXPECT_TRUE(u.params.accel_bias_mps2.isZero());
   EXPECT_TRUE(u.params.accel_M.isZero());
   EXPECT_TRUE(u.params.gyro_M.isZero());
@@ -163,7 +164,9 @@ TEST(UnitFile, TextRoundTripReproducesSiValues) {
   const auto a = u.params.to_vector(), b = u2.params.to_vector();
   int exact = 0;
   for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-    EXPECT_LE(std::fabs(a(i) - b(i)), 2 * std::nextafter(std::fabs(a(i)), 1.0) - 2 * std::fabs(a(i))) << i;
+    EXPECT_LE(std::fabs(a(i) - b(i)),
+              2 * std::nextafter(std::fabs(a(i)), 1.0) - 2 * std::fabs(a(i)))
+        << i;
     exact += a(i) == b(i);
   }
   EXPECT_GE(exact, 20);
@@ -226,7 +229,8 @@ TEST(TruthJson, RoundTripIsBitExact) {
 }
 
 TEST(TruthJson, StrictFieldErrors) {
-  const nlohmann::json good = nlohmann::json::parse(truth_json_text(truth_from_unit(calib::default_unit())));
+  const nlohmann::json good =
+      nlohmann::json::parse(truth_json_text(truth_from_unit(calib::default_unit())));
   auto err = [](const nlohmann::json& j) {
     try {
       parse_truth_json(j.dump(), "run/truth.json");

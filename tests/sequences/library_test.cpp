@@ -1,6 +1,8 @@
 // Library: name resolution, hashing, load_profile, and the shipped sequences' content: they
 // parse, validate, fit their time budgets, and exercise every body axis (checked with the table
 // geometry formula of calib/table_model.hpp, evaluated here independently of calib's code).
+#include "sequences/library.hpp"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -13,7 +15,6 @@
 #include <string>
 
 #include "calib/table_model.hpp"
-#include "sequences/library.hpp"
 #include "sequences/parser.hpp"
 #include "sequences/profile_generator.hpp"
 
@@ -28,9 +29,10 @@ TEST(Sha256, KnownDigests) {
   EXPECT_EQ(sha256_hex("abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
   EXPECT_EQ(sha256_hex("abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq"),
             "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
-  EXPECT_EQ(sha256_hex("abcdefghbcdefghicdefghijdefghijkefghijklfghijklmghijklmnhijklmnoijklmnopjklmnopq"
-                       "klmnopqrlmnopqrsmnopqrstnopqrstu"),
-            "cf5b16a778af8380036ce59e7b0492370b249b11e8f07a51afac45037afee9d1");
+  EXPECT_EQ(
+      sha256_hex("abcdefghbcdefghicdefghijdefghijkefghijklfghijklmghijklmnhijklmnoijklmnopjklmnopq"
+                 "klmnopqrlmnopqrsmnopqrstnopqrstu"),
+      "cf5b16a778af8380036ce59e7b0492370b249b11e8f07a51afac45037afee9d1");
   EXPECT_EQ(sha256_hex(std::string(1000000, 'a')),
             "cdc76e5c9914fb9281a1c7e284d73e67f1809a48a497200e046d39ccc7112cd0");
 }
@@ -129,7 +131,8 @@ TEST(Library, EnvironmentOverridesTheDirectory) {
 TEST(Library, LoadProfileRejectsInvalidSequencesWithFileAndLine) {
   const fs::path p = temp_file("imucal_invalid_seq.toml");
   // Parses, but the rotation is not followed by a rest (validator), line 4.
-  write_file(p, "name = \"bad\"\n[start]\nrest_s = 20\n[[step]]\nrotate = \"outer\"\nby_deg = 45\n");
+  write_file(p,
+             "name = \"bad\"\n[start]\nrest_s = 20\n[[step]]\nrotate = \"outer\"\nby_deg = 45\n");
   try {
     load_profile(p.string());
     FAIL() << "expected SequenceError";
@@ -138,8 +141,9 @@ TEST(Library, LoadProfileRejectsInvalidSequencesWithFileAndLine) {
     EXPECT_EQ(e.line(), 4);
   }
   // The file's [limits] tighten the default station limits: 45 deg > inner_max_deg 30 (line 8).
-  write_file(p, "name = \"bad\"\n[start]\nrest_s = 20\n[limits]\ninner_max_deg = 30\n"
-                "[[step]]\nrotate = \"inner\"\nby_deg = 45\n[[step]]\nrest_s = 20\n");
+  write_file(p,
+             "name = \"bad\"\n[start]\nrest_s = 20\n[limits]\ninner_max_deg = 30\n"
+             "[[step]]\nrotate = \"inner\"\nby_deg = 45\n[[step]]\nrest_s = 20\n");
   try {
     load_profile(p.string());
     FAIL() << "expected SequenceError";
@@ -163,9 +167,9 @@ Eigen::Matrix3d C_bn_of(const calib::TableGeometry& g, double outer, double inne
 // axis carried by the outer gimbal.
 Eigen::Vector3d w_nb_b_of(const calib::TableGeometry& g, const TableState& s) {
   const Eigen::Matrix3d C_tn = rot(Eigen::Vector3d::UnitZ(), g.heading_rad);
-  const Eigen::Vector3d w_n = C_tn * g.outer_axis_t.normalized() * s.outer_rate_radps +
-                              C_tn * rot(g.outer_axis_t, s.outer_rad) * g.inner_axis_o.normalized() *
-                                  s.inner_rate_radps;
+  const Eigen::Vector3d w_n =
+      C_tn * g.outer_axis_t.normalized() * s.outer_rate_radps +
+      C_tn * rot(g.outer_axis_t, s.outer_rad) * g.inner_axis_o.normalized() * s.inner_rate_radps;
   return C_bn_of(g, s.outer_rad, s.inner_rad).transpose() * w_n;
 }
 
@@ -223,8 +227,8 @@ TEST_P(ShippedSequences, ParseValidateAndFitTheirBudget) {
   const Coverage c = coverage(p, calib::TableGeometry{});
   EXPECT_GE(c.min_rest_s, sh.min_rest_s);
   EXPECT_LE(c.max_rest_s, sh.max_rest_s);
-  std::printf("[ %s ] duration %.1f s (%.1f min), %d rests, %zu segments\n", sh.name, p.duration_s(),
-              p.duration_s() / 60.0, c.rests, p.segments.size());
+  std::printf("[ %s ] duration %.1f s (%.1f min), %d rests, %zu segments\n", sh.name,
+              p.duration_s(), p.duration_s() / 60.0, c.rests, p.segments.size());
 }
 
 TEST_P(ShippedSequences, ExerciseEveryBodyAxisWithTheDefaultGeometry) {
@@ -257,14 +261,16 @@ TEST(ShippedSequencesPos19, HasNineteenDistinctStaticPositions) {
   std::vector<Eigen::Matrix3d> poses;
   for (const ProfileSegment& s : p.segments) {
     if (s.kind != SegmentKind::kRest) continue;
-    const Eigen::Matrix3d C = C_bn_of(calib::TableGeometry{}, s.outer.angle0_rad, s.inner.angle0_rad);
+    const Eigen::Matrix3d C =
+        C_bn_of(calib::TableGeometry{}, s.outer.angle0_rad, s.inner.angle0_rad);
     for (const auto& q : poses) EXPECT_GT((C - q).norm(), 0.1) << "repeated position";
     poses.push_back(C);
   }
   EXPECT_EQ(poses.size(), 19u);
   // "Various tilts": the angle between body z and down takes 0, 45, 90, 135 and 180 deg.
   std::set<long> tilts;
-  for (const auto& C : poses) tilts.insert(std::lround(std::acos(std::clamp(C(2, 2), -1.0, 1.0)) * 180.0 / M_PI));
+  for (const auto& C : poses)
+    tilts.insert(std::lround(std::acos(std::clamp(C(2, 2), -1.0, 1.0)) * 180.0 / M_PI));
   EXPECT_EQ(tilts, (std::set<long>{0, 45, 90, 135, 180}));
 }
 
@@ -283,7 +289,9 @@ TEST(Geometry, IndependentFormulaMatchesTableModel) {
         s.inner_rad = i * M_PI / 180.0;
         s.outer_rate_radps = 0.1;
         s.inner_rate_radps = -0.07;
-        EXPECT_LT((model.C_bn(s.outer_rad, s.inner_rad) - C_bn_of(g, s.outer_rad, s.inner_rad)).norm(), 1e-12);
+        EXPECT_LT(
+            (model.C_bn(s.outer_rad, s.inner_rad) - C_bn_of(g, s.outer_rad, s.inner_rad)).norm(),
+            1e-12);
         EXPECT_LT((model.w_nb_b(s) - w_nb_b_of(g, s)).norm(), 1e-12);
       }
     }

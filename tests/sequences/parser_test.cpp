@@ -1,4 +1,6 @@
 // Parser: schema, defaults, and that every error names the origin and the offending line.
+#include "sequences/parser.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,16 +11,14 @@
 #include <iterator>
 #include <string>
 
-#include "sequences/parser.hpp"
-
 namespace imucal::sequences {
 namespace {
 
 // Line numbers below are counted in these strings; keep them one key per line.
 const char* kHeader =
-    "name = \"t\"\n"          // 1
-    "[start]\n"               // 2
-    "rest_s = 30.0\n";        // 3
+    "name = \"t\"\n"    // 1
+    "[start]\n"         // 2
+    "rest_s = 30.0\n";  // 3
 
 // Runs the parser on text and returns the error; fails the test if it parses.
 SequenceError parse_error(const std::string& text) {
@@ -33,29 +33,29 @@ SequenceError parse_error(const std::string& text) {
 
 TEST(Parser, ParsesAllFieldsAndAppliesDefaults) {
   const std::string text =
-      "name = \"demo\"\n"                 // 1
-      "description = \"two steps\"\n"     // 2
-      "[start]\n"                         // 3
-      "outer_deg = 10\n"                  // 4  integer accepted as number
-      "inner_deg = -5.5\n"                // 5
-      "rest_s = 30.0\n"                   // 6
-      "[defaults]\n"                      // 7
-      "rate_dps = 7.0\n"                  // 8
-      "[limits]\n"                        // 9
-      "inner_min_deg = -180.0\n"          // 10
-      "max_rate_dps = 15.0\n"             // 11
-      "[[step]]\n"                        // 12
-      "rotate = \"inner\"\n"              // 13
-      "by_deg = 90.0\n"                   // 14
-      "[[step]]\n"                        // 15
-      "rest_s = 20\n"                     // 16
-      "[[step]]\n"                        // 17
-      "rotate = \"outer\"\n"              // 18
-      "to_deg = -90.0\n"                  // 19
-      "rate_dps = 5.0\n"                  // 20
-      "accel_dps2 = 2.5\n"                // 21
-      "[[step]]\n"                        // 22
-      "rest_s = 20.0\n";                  // 23
+      "name = \"demo\"\n"              // 1
+      "description = \"two steps\"\n"  // 2
+      "[start]\n"                      // 3
+      "outer_deg = 10\n"               // 4  integer accepted as number
+      "inner_deg = -5.5\n"             // 5
+      "rest_s = 30.0\n"                // 6
+      "[defaults]\n"                   // 7
+      "rate_dps = 7.0\n"               // 8
+      "[limits]\n"                     // 9
+      "inner_min_deg = -180.0\n"       // 10
+      "max_rate_dps = 15.0\n"          // 11
+      "[[step]]\n"                     // 12
+      "rotate = \"inner\"\n"           // 13
+      "by_deg = 90.0\n"                // 14
+      "[[step]]\n"                     // 15
+      "rest_s = 20\n"                  // 16
+      "[[step]]\n"                     // 17
+      "rotate = \"outer\"\n"           // 18
+      "to_deg = -90.0\n"               // 19
+      "rate_dps = 5.0\n"               // 20
+      "accel_dps2 = 2.5\n"             // 21
+      "[[step]]\n"                     // 22
+      "rest_s = 20.0\n";               // 23
   const Sequence s = parse_sequence_string(text, "demo.toml");
   EXPECT_EQ(s.name, "demo");
   EXPECT_EQ(s.description, "two steps");
@@ -81,8 +81,8 @@ TEST(Parser, ParsesAllFieldsAndAppliesDefaults) {
   EXPECT_DOUBLE_EQ(r1.accel_dps2, 10.0);  // built-in default (FORMAT.md)
   EXPECT_EQ(r1.line, 12);
   EXPECT_EQ(r1.value_line, 14);
-  EXPECT_EQ(r1.rate_line, 8);             // blame [defaults] for a default rate
-  EXPECT_EQ(r1.accel_line, 12);           // no key anywhere: the step header
+  EXPECT_EQ(r1.rate_line, 8);    // blame [defaults] for a default rate
+  EXPECT_EQ(r1.accel_line, 12);  // no key anywhere: the step header
 
   EXPECT_EQ(s.steps[1].kind, StepKind::kRest);
   EXPECT_DOUBLE_EQ(s.steps[1].duration_s, 20.0);
@@ -152,36 +152,40 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"unknown table", H + "[timing]\nx = 1\n", 4, "'timing'"},
         BadCase{"missing name", "[start]\nrest_s = 3\n[[step]]\nrest_s = 3\n", 0, "'name'"},
         BadCase{"missing start", "name = \"t\"\n[[step]]\nrest_s = 3\n", 0, "[start]"},
-        BadCase{"missing start.rest_s", "name = \"t\"\n[start]\nouter_deg = 0\n[[step]]\nrest_s = 1\n", 2,
-                "'rest_s'"},
+        BadCase{"missing start.rest_s",
+                "name = \"t\"\n[start]\nouter_deg = 0\n[[step]]\nrest_s = 1\n", 2, "'rest_s'"},
         BadCase{"missing steps", H, 0, "[[step]]"},
         BadCase{"empty step array", "name = \"t\"\nstep = []\n[start]\nrest_s = 3\n", 2, "empty"},
-        BadCase{"step is not an array", "name = \"t\"\nstep = 5\n[start]\nrest_s = 3\n", 2, "array"},
+        BadCase{"step is not an array", "name = \"t\"\nstep = 5\n[start]\nrest_s = 3\n", 2,
+                "array"},
         BadCase{"name of wrong type", "name = 5\n[start]\nrest_s = 3\n[[step]]\nrest_s = 3\n", 1,
                 "string"},
-        BadCase{"empty name", "name = \"\"\n[start]\nrest_s = 3\n[[step]]\nrest_s = 3\n", 1, "empty"},
+        BadCase{"empty name", "name = \"\"\n[start]\nrest_s = 3\n[[step]]\nrest_s = 3\n", 1,
+                "empty"},
         BadCase{"start not a table", "name = \"t\"\nstart = 3\n[[step]]\nrest_s = 3\n", 2, "table"},
         BadCase{"rate of wrong type",
-                H + "[[step]]\nrotate = \"inner\"\nby_deg = 90\nrate_dps = \"fast\"\n", 7, "number"},
+                H + "[[step]]\nrotate = \"inner\"\nby_deg = 90\nrate_dps = \"fast\"\n", 7,
+                "number"},
         BadCase{"axis of wrong type", H + "[[step]]\nrotate = 1\nby_deg = 90\n", 5, "string"},
-        BadCase{"negative rate", H + "[[step]]\nrotate = \"inner\"\nby_deg = 90\nrate_dps = -1\n", 7,
-                "> 0"},
+        BadCase{"negative rate", H + "[[step]]\nrotate = \"inner\"\nby_deg = 90\nrate_dps = -1\n",
+                7, "> 0"},
         BadCase{"zero accel", H + "[[step]]\nrotate = \"outer\"\nby_deg = 90\naccel_dps2 = 0\n", 7,
                 "> 0"},
         BadCase{"zero rest", H + "[[step]]\nrest_s = 0.0\n", 5, "> 0"},
-        BadCase{"negative initial rest", "name = \"t\"\n[start]\nrest_s = -3\n[[step]]\nrest_s = 3\n", 3,
-                "> 0"},
+        BadCase{"negative initial rest",
+                "name = \"t\"\n[start]\nrest_s = -3\n[[step]]\nrest_s = 3\n", 3, "> 0"},
         BadCase{"negative default rate", H + "[defaults]\nrate_dps = -10\n", 5, "> 0"},
         BadCase{"both by_deg and to_deg",
                 H + "[[step]]\nrotate = \"inner\"\nby_deg = 90\nto_deg = 90\n", 7, "both"},
         BadCase{"neither by_deg nor to_deg", H + "[[step]]\nrotate = \"inner\"\n", 4, "by_deg"},
         BadCase{"nan angle", H + "[[step]]\nrotate = \"inner\"\nby_deg = nan\n", 6, "finite"},
         BadCase{"inf rest", H + "[[step]]\nrest_s = inf\n", 5, "finite"},
-        BadCase{"nan start angle", "name = \"t\"\n[start]\nouter_deg = -nan\nrest_s = 3\n", 3, "finite"},
+        BadCase{"nan start angle", "name = \"t\"\n[start]\nouter_deg = -nan\nrest_s = 3\n", 3,
+                "finite"},
         BadCase{"unknown axis", H + "[[step]]\nrotate = \"middle\"\nby_deg = 90\n", 5, "'middle'"},
         BadCase{"step without action", H + "[[step]]\nrate_dps = 5\n", 4, "no action"},
-        BadCase{"rotate and rest in one step", H + "[[step]]\nrotate = \"inner\"\nby_deg = 9\nrest_s = 9\n", 4,
-                "both"},
+        BadCase{"rotate and rest in one step",
+                H + "[[step]]\nrotate = \"inner\"\nby_deg = 9\nrest_s = 9\n", 4, "both"},
         BadCase{"rate in a rest step", H + "[[step]]\nrest_s = 10\nrate_dps = 5\n", 6, "rest step"},
         BadCase{"limits min >= max",
                 H + "[limits]\ninner_min_deg = 10\ninner_max_deg = -10\n[[step]]\nrest_s = 3\n", 6,
@@ -208,7 +212,8 @@ TEST(Parser, FileParsesLikeString) {
       (std::filesystem::temp_directory_path() / "imucal_parser_test_tmp.toml").string();
   {
     std::ofstream out(path, std::ios::binary);
-    out << kHeader << "[[step]]\nrotate = \"outer\"\nby_deg = 90\n[[step]]\nrest_s = 3\nbogus = 1\n";
+    out << kHeader
+        << "[[step]]\nrotate = \"outer\"\nby_deg = 90\n[[step]]\nrest_s = 3\nbogus = 1\n";
   }
   try {
     parse_sequence_file(path);

@@ -164,7 +164,8 @@ TEST(Profile, ManyRelativeStepsDoNotAccumulateError) {
   for (int k = 0; k < 200; ++k) {
     const double by = (k % 3 == 2) ? -123.4567 : 37.31;
     commanded_deg += by;
-    text += "[[step]]\nrotate = \"outer\"\nby_deg = " + std::to_string(by) + "\n[[step]]\nrest_s = 10\n";
+    text += "[[step]]\nrotate = \"outer\"\nby_deg = " + std::to_string(by) +
+            "\n[[step]]\nrest_s = 10\n";
   }
   const MotionProfile p = generate_profile(parse_sequence_string(text, "m.toml"));
   EXPECT_NEAR(p.at(p.duration_s()).outer_rad, commanded_deg * kD2R, 1e-12);

@@ -1,4 +1,6 @@
 // Validator: table limits, rest rules, angle tracking, duration, and the line it blames.
+#include "sequences/validator.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -6,7 +8,6 @@
 #include <string>
 
 #include "sequences/parser.hpp"
-#include "sequences/validator.hpp"
 
 namespace imucal::sequences {
 namespace {
@@ -15,12 +16,12 @@ Sequence parse(const std::string& text) { return parse_sequence_string(text, "v.
 
 // Lines 1-6; steps start at line 7. Keep one key per line so line numbers can be counted.
 const std::string kHead =
-    "name = \"v\"\n"        // 1
-    "[start]\n"             // 2
-    "outer_deg = 0\n"       // 3
-    "inner_deg = 0\n"       // 4
-    "rest_s = 30\n"         // 5
-    "[defaults]\n";         // 6
+    "name = \"v\"\n"   // 1
+    "[start]\n"        // 2
+    "outer_deg = 0\n"  // 3
+    "inner_deg = 0\n"  // 4
+    "rest_s = 30\n"    // 5
+    "[defaults]\n";    // 6
 
 std::string rot(const char* axis, const std::string& angle_kv, const std::string& extra = "") {
   return std::string("[[step]]\nrotate = \"") + axis + "\"\n" + angle_kv + "\n" + extra;
@@ -93,11 +94,11 @@ TEST(Validator, TracksCommandedAnglesAgainstAxisLimits) {
   // A rotation step takes 3 lines, a rest 2: step 2k+1 starts at line 7 + 5k.
   // inner: 0 -> 90 (ok) -> 180 (out, step 3, by_deg at line 14) -> to 0 (ok, tracking reset)
   // outer: 0 -> to 190 (ok) -> by 20 = 210 (out, step 9, by_deg at line 29)
-  const Sequence s = parse(kHead + rot("inner", "by_deg = 90") + rest(30) +   // steps 1,2
-                           rot("inner", "by_deg = 90") + rest(30) +           // steps 3,4
-                           rot("inner", "to_deg = 0") + rest(30) +            // steps 5,6
-                           rot("outer", "to_deg = 190") + rest(30) +          // steps 7,8
-                           rot("outer", "by_deg = 20") + rest(30));           // steps 9,10
+  const Sequence s = parse(kHead + rot("inner", "by_deg = 90") + rest(30) +  // steps 1,2
+                           rot("inner", "by_deg = 90") + rest(30) +          // steps 3,4
+                           rot("inner", "to_deg = 0") + rest(30) +           // steps 5,6
+                           rot("outer", "to_deg = 190") + rest(30) +         // steps 7,8
+                           rot("outer", "by_deg = 20") + rest(30));          // steps 9,10
   const auto issues = validate(s, lim);
   ASSERT_EQ(issues.size(), 2u);
   EXPECT_EQ(issues[0].step_index, 2);
@@ -123,13 +124,13 @@ TEST(Validator, StartOutsideLimits) {
 }
 
 TEST(Validator, FileLimitsTightenButNeverRelax) {
-  const std::string limits =
-      "[limits]\ninner_max_deg = 45\nmax_rate_dps = 50\nmin_rest_s = 20\n";
-  const Sequence s = parse(kHead + limits + rot("inner", "by_deg = 90", "rate_dps = 25\n") + rest(15));
+  const std::string limits = "[limits]\ninner_max_deg = 45\nmax_rate_dps = 50\nmin_rest_s = 20\n";
+  const Sequence s =
+      parse(kHead + limits + rot("inner", "by_deg = 90", "rate_dps = 25\n") + rest(15));
   const TableLimits eff = effective_limits(TableLimits{}, s.limits);
   EXPECT_EQ(eff.inner_max_deg, 45.0);
-  EXPECT_EQ(eff.max_rate_dps, 20.0);   // station's 20 wins over the file's 50
-  EXPECT_EQ(eff.min_rest_s, 20.0);     // file's 20 wins over the station's 10
+  EXPECT_EQ(eff.max_rate_dps, 20.0);  // station's 20 wins over the file's 50
+  EXPECT_EQ(eff.min_rest_s, 20.0);    // file's 20 wins over the station's 10
   EXPECT_EQ(eff.inner_min_deg, -std::numeric_limits<double>::infinity());
   const auto issues = validate(s, eff);
   EXPECT_EQ(issues.size(), 3u);  // inner angle 90 > 45, rate 25 > 20, rest 15 < 20
@@ -161,10 +162,10 @@ TEST(Validator, TotalDurationFromTrapezoidTiming) {
 
 TEST(Validator, EveryRotationNeedsARestAfterIt) {
   // Two rotations back to back, and a final rotation with nothing after it.
-  const Sequence s = parse(kHead + rot("outer", "by_deg = 90") +   // step 1 at line 7
-                           rot("inner", "by_deg = 90") +           // step 2 at line 10
-                           rest(30) +                              // step 3 at line 13
-                           rot("inner", "by_deg = -90"));          // step 4 at line 15
+  const Sequence s = parse(kHead + rot("outer", "by_deg = 90") +  // step 1 at line 7
+                           rot("inner", "by_deg = 90") +          // step 2 at line 10
+                           rest(30) +                             // step 3 at line 13
+                           rot("inner", "by_deg = -90"));         // step 4 at line 15
   const auto issues = validate(s, TableLimits{});
   ASSERT_EQ(issues.size(), 2u);
   EXPECT_EQ(issues[0].line, 7);
@@ -182,8 +183,8 @@ TEST(Validator, ASequenceWithoutRotationIsRejected) {
 }
 
 TEST(Validator, ZeroAngleRotations) {
-  const Sequence s = parse(kHead + rot("outer", "by_deg = 0") + rest(30) +     // by_deg: line 9
-                           rot("inner", "to_deg = 0") + rest(30) +             // to_deg: line 14
+  const Sequence s = parse(kHead + rot("outer", "by_deg = 0") + rest(30) +  // by_deg: line 9
+                           rot("inner", "to_deg = 0") + rest(30) +          // to_deg: line 14
                            rot("inner", "by_deg = 45") + rest(30));
   const auto issues = validate(s, TableLimits{});
   ASSERT_EQ(issues.size(), 2u);

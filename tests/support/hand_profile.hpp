@@ -75,13 +75,15 @@ class HandProfile {
   static sequences::MotionProfile full_rank(double rest_s = 30.0) {
     HandProfile h;
     h.rest(rest_s);
-    for (double d : {90.0, 90.0, -180.0}) h.rotate(true, d).rest(rest_s);    // about body x: y down/up
-    for (double d : {90.0, 90.0, -180.0}) h.rotate(false, d).rest(rest_s);   // about body z
-    h.rotate(false, 90.0).rest(rest_s);                                       // inner = 90
-    for (double d : {90.0, -180.0, 90.0}) h.rotate(true, d).rest(rest_s);    // about body -y: x down/up
-    h.rotate(true, 180.0).rest(rest_s);                                       // outer = 180: z up
-    for (double d : {-90.0, 180.0}) h.rotate(false, d).rest(rest_s);         // about z, z up
-    h.rotate(true, -180.0).rest(rest_s);                                      // back to z down
+    for (double d : {90.0, 90.0, -180.0})
+      h.rotate(true, d).rest(rest_s);  // about body x: y down/up
+    for (double d : {90.0, 90.0, -180.0}) h.rotate(false, d).rest(rest_s);  // about body z
+    h.rotate(false, 90.0).rest(rest_s);                                     // inner = 90
+    for (double d : {90.0, -180.0, 90.0})
+      h.rotate(true, d).rest(rest_s);                                 // about body -y: x down/up
+    h.rotate(true, 180.0).rest(rest_s);                               // outer = 180: z up
+    for (double d : {-90.0, 180.0}) h.rotate(false, d).rest(rest_s);  // about z, z up
+    h.rotate(true, -180.0).rest(rest_s);                              // back to z down
     return h.build("hand-full-rank");
   }
 

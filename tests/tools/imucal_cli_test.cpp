@@ -5,12 +5,11 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <functional>
-
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -51,7 +50,8 @@ class ImucalCli : public ::testing::Test {
   static void SetUpTestSuite() {
     base_ = fs::temp_directory_path() / ("imucal_cli_" + std::to_string(getpid()));
     fs::create_directories(base_);
-    const ProcResult r = run_imucal("simulate --sequence short --seed 3 --out " + (base_ / "sim").string());
+    const ProcResult r =
+        run_imucal("simulate --sequence short --seed 3 --out " + (base_ / "sim").string());
     ASSERT_EQ(r.code, 0) << r.out;
   }
   static void TearDownTestSuite() { fs::remove_all(base_); }
@@ -113,8 +113,8 @@ TEST_F(ImucalCli, HumanOutputCarriesUnitsAndVerdict) {
 }
 
 TEST_F(ImucalCli, HandMadeAttitudeArchiveCalibratesLikeTheSimulatedOne) {
-  // Data from elsewhere: build attitude.csv (roll/pitch/yaw of the table attitude) and a run.toml by
-  // hand, no truth.json, and compare with the table.csv archive.
+  // Data from elsewhere: build attitude.csv (roll/pitch/yaw of the table attitude) and a run.toml
+  // by hand, no truth.json, and compare with the table.csv archive.
   const fs::path d = base_ / "handmade";
   fs::remove_all(d);
   fs::create_directories(d);
@@ -130,8 +130,9 @@ TEST_F(ImucalCli, HandMadeAttitudeArchiveCalibratesLikeTheSimulatedOne) {
     int rest;
     ASSERT_EQ(std::sscanf(l.c_str(), "%lf,%lf,%lf,%d", &t, &outer, &inner, &rest), 4) << l;
     // Default geometry: outer about north (x), inner about the platform normal (z).
-    const Eigen::Matrix3d C = imucal::calib::axis_angle(Eigen::Vector3d::UnitX(), outer * M_PI / 180) *
-                              imucal::calib::axis_angle(Eigen::Vector3d::UnitZ(), inner * M_PI / 180);
+    const Eigen::Matrix3d C =
+        imucal::calib::axis_angle(Eigen::Vector3d::UnitX(), outer * M_PI / 180) *
+        imucal::calib::axis_angle(Eigen::Vector3d::UnitZ(), inner * M_PI / 180);
     const Eigen::Vector3d e = imucal::calib::C_bn_to_euler(C) * 180.0 / M_PI;
     att << t << ',' << e(0) << ',' << e(1) << ',' << e(2) << ',' << rest << '\n';
   }
@@ -142,7 +143,8 @@ TEST_F(ImucalCli, HandMadeAttitudeArchiveCalibratesLikeTheSimulatedOne) {
   toml.replace(pos, 19, "reference = \"attitude\"");
   spit(d / "run.toml", toml);
 
-  const ProcResult a = run_imucal("calibrate " + (base_ / "sim").string() + " --method nlsq --json");
+  const ProcResult a =
+      run_imucal("calibrate " + (base_ / "sim").string() + " --method nlsq --json");
   const ProcResult b = run_imucal("calibrate " + d.string() + " --method nlsq --json");
   ASSERT_EQ(a.code, 0) << a.out;
   ASSERT_EQ(b.code, 0) << b.out;
@@ -168,8 +170,8 @@ TEST_F(ImucalCli, BadInputGivesOneLineErrorNamingFileAndLine) {
          return replace_line(s, 50, l.substr(0, l.rfind(',')));
        },
        "imu.csv:50"},
-      {"extra_col", "imu.csv", [](std::string s) { return replace_line(s, 60, line_of(s, 60) + ",1.0"); },
-       "imu.csv:60"},
+      {"extra_col", "imu.csv",
+       [](std::string s) { return replace_line(s, 60, line_of(s, 60) + ",1.0"); }, "imu.csv:60"},
       {"nan", "imu.csv",
        [](std::string s) {
          std::string l = line_of(s, 70);
@@ -180,11 +182,12 @@ TEST_F(ImucalCli, BadInputGivesOneLineErrorNamingFileAndLine) {
       {"inf", "table.csv",
        [](std::string s) {
          std::string l = line_of(s, 80);
-         return replace_line(s, 80, l.substr(0, l.find(',')) + ",inf" + l.substr(l.find(',', l.find(',') + 1)));
+         return replace_line(
+             s, 80, l.substr(0, l.find(',')) + ",inf" + l.substr(l.find(',', l.find(',') + 1)));
        },
        "table.csv:80"},
-      {"time_backwards", "imu.csv", [](std::string s) { return replace_line(s, 90, line_of(s, 40)); },
-       "imu.csv:90"},
+      {"time_backwards", "imu.csv",
+       [](std::string s) { return replace_line(s, 90, line_of(s, 40)); }, "imu.csv:90"},
       {"truncated", "imu.csv", [](std::string s) { return s.substr(0, s.size() / 2); }, "imu.csv"},
       {"no_rest", "table.csv",
        [](std::string s) {
@@ -196,7 +199,8 @@ TEST_F(ImucalCli, BadInputGivesOneLineErrorNamingFileAndLine) {
          return out.str();
        },
        "rest"},
-      {"bad_toml_key", "run.toml", [](std::string s) { return s + "\nbogus_key = 1\n"; }, "run.toml"},
+      {"bad_toml_key", "run.toml", [](std::string s) { return s + "\nbogus_key = 1\n"; },
+       "run.toml"},
   };
   for (const auto& c : cases) {
     const fs::path d = variant(c.name, c.file, c.edit);
@@ -210,10 +214,12 @@ TEST_F(ImucalCli, BadInputGivesOneLineErrorNamingFileAndLine) {
 
 TEST_F(ImucalCli, BadSequencesAreRejectedNamingTheProblem) {
   const fs::path seq = base_ / "too_fast.toml";
-  spit(seq,
-       "name = \"too-fast\"\n[start]\nrest_s = 30.0\n\n[[step]]\nrotate = \"inner\"\nby_deg = 90.0\n"
-       "rate_dps = 500.0\n\n[[step]]\nrest_s = 30.0\n");
-  ProcResult r = run_imucal("simulate --sequence " + seq.string() + " --out " + (base_ / "x").string());
+  spit(
+      seq,
+      "name = \"too-fast\"\n[start]\nrest_s = 30.0\n\n[[step]]\nrotate = \"inner\"\nby_deg = 90.0\n"
+      "rate_dps = 500.0\n\n[[step]]\nrest_s = 30.0\n");
+  ProcResult r =
+      run_imucal("simulate --sequence " + seq.string() + " --out " + (base_ / "x").string());
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("too_fast.toml:"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(base_ / "x"));
@@ -234,5 +240,6 @@ TEST_F(ImucalCli, BadSequencesAreRejectedNamingTheProblem) {
 
   r = run_imucal("simulate --sequence no-such-sequence --out " + (base_ / "z").string());
   EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("factory-std"), std::string::npos) << "should list the available names: " << r.out;
+  EXPECT_NE(r.out.find("factory-std"), std::string::npos)
+      << "should list the available names: " << r.out;
 }

@@ -3,14 +3,15 @@
 //   imucal calibrate DIR --method ains|nlsq|all [--json]
 //   imucal evaluate  DIR --params FILE [--json]
 //   imucal crlb      --sequence FILE [--unit FILE] [--json]
-//   imucal bench     DIR [--repeat N] [--json]   wall time and peak memory of calibrate --method all
+//   imucal bench     DIR [--repeat N] [--json]   wall time and peak memory of calibrate --method
+//   all
 // Exit codes: 0 success; 1 bad input or failed processing (one-line error on stderr naming the file
 // and line/field); 2 usage error; 3 the result needs review (cross-check REVIEW, or a sequence that
 // leaves parameters unobservable).
-#include <CLI/CLI.hpp>
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -67,8 +68,7 @@ void require_full_rank(const calib::CrlbResult& crlb, const std::string& seq_pat
   if (unobs.empty()) return;
   std::string names;
   for (const auto& n : unobs) names += (names.empty() ? "" : ", ") + n;
-  throw sequences::SequenceError(seq_path, 0,
-                                 "sequence leaves parameters unobservable: " + names);
+  throw sequences::SequenceError(seq_path, 0, "sequence leaves parameters unobservable: " + names);
 }
 
 int cmd_simulate(const std::string& seq, const std::string& out_dir, const std::string& unit_path,
@@ -107,9 +107,8 @@ int cmd_simulate(const std::string& seq, const std::string& out_dir, const std::
   ar.truth = archive::truth_from_unit(unit);
   progress("writing " + out_dir);
   archive::write_archive(out_dir, ar, overwrite);
-  std::cout << "wrote " << out_dir << ": " << ar.imu.size() << " samples, "
-            << profile.duration_s() << " s, sequence " << profile.name << ", seed " << seed
-            << '\n';
+  std::cout << "wrote " << out_dir << ": " << ar.imu.size() << " samples, " << profile.duration_s()
+            << " s, sequence " << profile.name << ", seed " << seed << '\n';
   return 0;
 }
 
@@ -195,15 +194,16 @@ int cmd_bench(const std::string& dir, int repeat, bool json) {
   const double peak_mb = static_cast<double>(ru.ru_maxrss) / 1024.0;
   const double median = wall_s[wall_s.size() / 2];
   if (json) {
-    std::cout << nlohmann::json{{"samples", samples}, {"repeat", repeat}, {"wall_s_min", wall_s.front()},
-                                {"wall_s_median", median}, {"peak_rss_mb", peak_mb},
-                                {"verdict", verdict}}
+    std::cout << nlohmann::json{{"samples", samples},           {"repeat", repeat},
+                                {"wall_s_min", wall_s.front()}, {"wall_s_median", median},
+                                {"peak_rss_mb", peak_mb},       {"verdict", verdict}}
                      .dump(2)
               << '\n';
   } else {
-    std::printf("calibrate --method all on %zu samples: wall min %.3f s, median %.3f s over %d runs; "
-                "peak RSS %.1f MB; verdict %s\n",
-                samples, wall_s.front(), median, repeat, peak_mb, verdict.c_str());
+    std::printf(
+        "calibrate --method all on %zu samples: wall min %.3f s, median %.3f s over %d runs; "
+        "peak RSS %.1f MB; verdict %s\n",
+        samples, wall_s.front(), median, repeat, peak_mb, verdict.c_str());
   }
   return 0;
 }
@@ -226,10 +226,13 @@ int main(int argc, char** argv) {
   sim->add_option("--out", out_dir, "archive directory to create")->required();
   sim->add_option("--unit", unit, "unit file (TOML); default: the built-in default unit");
   sim->add_option("--seed", seed, "noise seed")->capture_default_str();
-  sim->add_option("--rate", rate_hz, "IMU rate, Hz")->capture_default_str()->check(CLI::Range(10.0, 2000.0));
+  sim->add_option("--rate", rate_hz, "IMU rate, Hz")
+      ->capture_default_str()
+      ->check(CLI::Range(10.0, 2000.0));
   sim->add_flag("--overwrite", overwrite, "replace an existing archive");
 
-  auto* cal = app.add_subcommand("calibrate", "calibrate a run archive (AINS, NLSQ or both + cross-check)");
+  auto* cal =
+      app.add_subcommand("calibrate", "calibrate a run archive (AINS, NLSQ or both + cross-check)");
   cal->add_option("dir", dir, "run archive directory")->required();
   cal->add_option("--method", method, "ains|nlsq|all")
       ->capture_default_str()
@@ -237,7 +240,8 @@ int main(int argc, char** argv) {
   cal->add_option("--k-sigma", k_sigma, "cross-check bound in combined σ")->capture_default_str();
   cal->add_flag("--json", json, "print one JSON object");
 
-  auto* ev = app.add_subcommand("evaluate", "evaluate a parameter set on a run archive (paper §VII)");
+  auto* ev =
+      app.add_subcommand("evaluate", "evaluate a parameter set on a run archive (paper §VII)");
   ev->add_option("dir", dir, "run archive directory")->required();
   ev->add_option("--params", params, "parameter-set JSON file")->required();
   ev->add_flag("--json", json, "print one JSON object");
@@ -251,7 +255,9 @@ int main(int argc, char** argv) {
   int repeat = 3;
   auto* be = app.add_subcommand("bench", "time and peak memory of calibrate --method all");
   be->add_option("dir", dir, "run archive directory")->required();
-  be->add_option("--repeat", repeat, "repetitions")->capture_default_str()->check(CLI::Range(1, 100));
+  be->add_option("--repeat", repeat, "repetitions")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100));
   be->add_flag("--json", json, "print one JSON object");
 
   try {

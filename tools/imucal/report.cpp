@@ -97,7 +97,8 @@ void print_metrics_and_verdict(std::ostream& os, const calib::PipelineResult& r)
   for (const auto* m : {r.ains ? &*r.ains : nullptr, r.nlsq ? &*r.nlsq : nullptr}) {
     if (!m) continue;
     os << m->result.method << ": " << (m->result.converged ? "converged" : "NOT converged")
-       << fmt(" in %.0f iterations", m->result.iterations) << fmt(", %.2f s; ", m->result.runtime_s);
+       << fmt(" in %.0f iterations", m->result.iterations)
+       << fmt(", %.2f s; ", m->result.runtime_s);
     print_evaluation(os, m->metrics);
     for (const auto& w : m->result.warnings) os << "  warning: " << w << '\n';
   }
