@@ -243,3 +243,39 @@ TEST_F(ImucalCli, BadSequencesAreRejectedNamingTheProblem) {
   EXPECT_NE(r.out.find("factory-std"), std::string::npos)
       << "should list the available names: " << r.out;
 }
+
+TEST_F(ImucalCli, EvaluateReproducesTheCalibrateMetricsAndRejectsBadParameterFiles) {
+  const ProcResult c =
+      run_imucal("calibrate " + (base_ / "sim").string() + " --method ains --json");
+  ASSERT_EQ(c.code, 0) << c.out;
+  const auto cj = nlohmann::json::parse(c.out)["ains"];
+  const fs::path params = base_ / "ains_params.json";
+  spit(params, cj["params"].dump());
+  const ProcResult e = run_imucal("evaluate " + (base_ / "sim").string() + " --params " +
+                                  params.string() + " --json");
+  ASSERT_EQ(e.code, 0) << e.out;
+  const auto ej = nlohmann::json::parse(e.out);
+  EXPECT_DOUBLE_EQ(ej["accel_rmse_ug"].get<double>(), cj["metrics"]["accel_rmse_ug"].get<double>());
+  EXPECT_DOUBLE_EQ(ej["orientation_rmse_mdeg"].get<double>(),
+                   cj["metrics"]["orientation_rmse_mdeg"].get<double>());
+
+  // A parameter file with a wrong shape names the field.
+  auto bad = cj["params"];
+  bad["accel_M"][1] = {1.0, 2.0};
+  spit(params, bad.dump());
+  const ProcResult b =
+      run_imucal("evaluate " + (base_ / "sim").string() + " --params " + params.string());
+  EXPECT_EQ(b.code, 1) << b.out;
+  EXPECT_NE(b.out.find("accel_M[1]"), std::string::npos) << b.out;
+}
+
+TEST_F(ImucalCli, CrlbReportsEveryParameterForTheShippedSequences) {
+  for (const char* seq : {"short", "factory-std", "pos19"}) {
+    const ProcResult r = run_imucal(std::string("crlb --json --sequence ") + seq);
+    ASSERT_EQ(r.code, 0) << seq << ": " << r.out;
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_TRUE(j["unobservable"].empty()) << seq;
+    for (const char* key : {"accel_bias_mps2", "gyro_bias_radps", "table_misalignment_rad"})
+      for (int i = 0; i < 3; ++i) EXPECT_GT(j["sigma"][key][i].get<double>(), 0.0) << seq << key;
+  }
+}
