@@ -173,10 +173,19 @@ std::size_t read_records(int fd, std::vector<ReceivedFrame>& out, std::size_t ma
   return got;
 }
 
+bool poll_fd(int fd, short events, int timeout_ms) {
+  pollfd p{fd, events, 0};
+  for (;;) {
+    const int r = ::poll(&p, 1, timeout_ms);
+    if (r < 0 && errno == EINTR) continue;
+    return r > 0 && (p.revents & (events | POLLHUP | POLLERR));
+  }
+}
+
 /// The one write path: sendmmsg without blocking. Returns frames accepted; sets `dead` if the peer
 /// is gone. Refused frames (queue full) are not counted here; callers count them.
 std::size_t write_records(int fd, const CanFrame* frames, std::size_t count, bool& dead,
-                          const std::string& uri) {
+                          const std::string& uri, int timeout_ms) {
   constexpr std::size_t kBatch = 64;
   std::array<struct can_frame, kBatch> lf{};
   std::array<struct iovec, kBatch> iov{};
@@ -194,7 +203,10 @@ std::size_t write_records(int fd, const CanFrame* frames, std::size_t count, boo
     const int n = ::sendmmsg(fd, msgs.data(), static_cast<unsigned>(want), MSG_DONTWAIT | MSG_NOSIGNAL);
     if (n < 0) {
       if (errno == EINTR) continue;
-      if (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS) break;
+      if (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS) {
+        if (timeout_ms > 0 && poll_fd(fd, POLLOUT, timeout_ms)) continue;
+        break;
+      }
       if (errno == EPIPE || errno == ECONNRESET || errno == ENOTCONN) {
         dead = true;
         break;
@@ -202,18 +214,9 @@ std::size_t write_records(int fd, const CanFrame* frames, std::size_t count, boo
       throw CanChannelError(uri + ": send failed: " + errno_text());
     }
     sent += static_cast<std::size_t>(n);
-    if (static_cast<std::size_t>(n) < want) break;
+    if (static_cast<std::size_t>(n) < want && timeout_ms <= 0) break;
   }
   return sent;
-}
-
-bool poll_fd(int fd, short events, int timeout_ms) {
-  pollfd p{fd, events, 0};
-  for (;;) {
-    const int r = ::poll(&p, 1, timeout_ms);
-    if (r < 0 && errno == EINTR) continue;
-    return r > 0 && (p.revents & (events | POLLHUP | POLLERR));
-  }
 }
 
 // --------------------------------------------------------------------- socketcan / unixcan peers
@@ -221,15 +224,15 @@ bool poll_fd(int fd, short events, int timeout_ms) {
 /// A socket whose records are `struct can_frame`: SocketCAN raw sockets and connected unixcan sockets.
 class RecordSocketChannel final : public CanChannel {
  public:
-  RecordSocketChannel(std::string uri, std::string iface, Fd fd)
-      : CanChannel(std::move(uri), std::move(iface)), fd_(std::move(fd)) {}
+  RecordSocketChannel(std::string uri, std::string iface, Fd fd, int write_timeout_ms)
+      : CanChannel(std::move(uri), std::move(iface)), fd_(std::move(fd)), write_timeout_ms_(write_timeout_ms) {}
   int fd() const override { return fd_.get(); }
   std::size_t read(std::vector<ReceivedFrame>& out, std::size_t max_frames) override {
     return read_records(fd_.get(), out, max_frames, counters_, eof_, uri());
   }
   std::size_t write(const CanFrame* frames, std::size_t count) override {
     bool dead = false;
-    const std::size_t sent = write_records(fd_.get(), frames, count, dead, uri());
+    const std::size_t sent = write_records(fd_.get(), frames, count, dead, uri(), write_timeout_ms_);
     if (dead) {
       eof_ = true;
       throw CanChannelError(uri() + ": peer closed the connection");
@@ -242,6 +245,7 @@ class RecordSocketChannel final : public CanChannel {
 
  private:
   Fd fd_;
+  int write_timeout_ms_;
   bool eof_ = false;
 };
 
@@ -271,7 +275,7 @@ std::unique_ptr<CanChannel> open_socketcan(const std::string& uri, const std::st
   addr.can_ifindex = ifr.ifr_ifindex;
   if (::bind(s.get(), reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0)
     throw CanChannelError(uri + ": cannot bind to '" + iface + "': " + errno_text());
-  return std::make_unique<RecordSocketChannel>(uri, iface, std::move(s));
+  return std::make_unique<RecordSocketChannel>(uri, iface, std::move(s), options.write_timeout_ms);
 }
 
 sockaddr_un unix_address(const std::string& uri, const std::string& path) {
@@ -293,7 +297,7 @@ std::unique_ptr<CanChannel> open_unixcan_connect(const std::string& uri, const s
   if (::connect(s.get(), reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0)
     throw CanChannelError(uri + ": cannot connect to " + path + ": " + errno_text() +
                           " (is the simulator or bus listening there?)");
-  return std::make_unique<RecordSocketChannel>(uri, options.log_interface, std::move(s));
+  return std::make_unique<RecordSocketChannel>(uri, options.log_interface, std::move(s), options.write_timeout_ms);
 }
 
 // ------------------------------------------------------------------------------ unixcan listener
@@ -354,7 +358,7 @@ class UnixCanListener final : public CanChannel {
     accept_peers();
     for (std::size_t i = 0; i < peers_.size();) {
       bool dead = false;
-      const std::size_t sent = write_records(peers_[i].get(), frames, count, dead, uri());
+      const std::size_t sent = write_records(peers_[i].get(), frames, count, dead, uri(), options_.write_timeout_ms);
       counters_.tx_overflow += count - sent;
       if (dead) {
         drop_peer(i);
@@ -405,7 +409,7 @@ class UnixCanListener final : public CanChannel {
     for (std::size_t j = 0; j < peers_.size(); ++j) {
       if (j == from) continue;
       bool dead = false;
-      counters_.tx_overflow += f.size() - write_records(peers_[j].get(), f.data(), f.size(), dead, uri());
+      counters_.tx_overflow += f.size() - write_records(peers_[j].get(), f.data(), f.size(), dead, uri(), 0);
     }
   }
 
@@ -540,8 +544,10 @@ std::pair<std::unique_ptr<CanChannel>, std::unique_ptr<CanChannel>> CanChannel::
   Fd a(sv[0]), b(sv[1]);
   configure_socket(a.get(), options, "unixcan:<pair>");
   configure_socket(b.get(), options, "unixcan:<pair>");
-  return {std::make_unique<RecordSocketChannel>("unixcan:<pair>/0", options.log_interface, std::move(a)),
-          std::make_unique<RecordSocketChannel>("unixcan:<pair>/1", options.log_interface, std::move(b))};
+  return {std::make_unique<RecordSocketChannel>("unixcan:<pair>/0", options.log_interface, std::move(a),
+                                                options.write_timeout_ms),
+          std::make_unique<RecordSocketChannel>("unixcan:<pair>/1", options.log_interface, std::move(b),
+                                                options.write_timeout_ms)};
 }
 
 }  // namespace imucal::imu

@@ -18,8 +18,9 @@
 //                    logged time. Read as fast as the caller reads, or paced at the logged rate ×
 //                    CanOpenOptions::replay_speed (fd() is then a timerfd).
 //
-// Counters are cumulative for the channel's life. read() and write() never block; wait_readable()
-// and wait_writable() are conveniences over poll(2) on fd().
+// Counters are cumulative for the channel's life. read() never blocks; wait_readable()
+// and wait_writable() are conveniences over poll(2) on fd(); write() waits only if
+// CanOpenOptions::write_timeout_ms > 0.
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -57,6 +58,10 @@ struct CanOpenOptions {
   /// Socket buffer request (SO_SNDBUF and SO_RCVBUF, bytes; the kernel caps it at
   /// net.core.[wr]mem_max): a deep queue lets a receiver stall briefly without losing frames.
   int socket_buffer_bytes = 4 << 20;
+  /// Writes: how long write() may wait for room in a full transmit queue (per peer) before it counts
+  /// the rest as tx_overflow. 0 = never wait, as a saturated bus loses frames (the default);
+  /// > 0 = lossless back-pressure for simulators and benchmarks that produce faster than real time.
+  int write_timeout_ms = 0;
   /// Interface name written in candump logs for frames of this channel (candump: read from the log).
   std::string log_interface = "can0";
 };
@@ -79,8 +84,10 @@ class CanChannel {
   virtual int fd() const = 0;
   /// Appends the frames available now (at most max_frames) to out; returns how many. Never blocks.
   virtual std::size_t read(std::vector<ReceivedFrame>& out, std::size_t max_frames = 256) = 0;
-  /// Sends frames in order without blocking; returns how many were accepted. Frames refused because
-  /// the transmit queue is full are counted in tx_overflow. Throws CanChannelError on a read-only
+  /// Sends frames in order; returns how many were accepted. Waits for room in a full transmit queue
+  /// at most CanOpenOptions::write_timeout_ms (default: not at all); frames still refused are counted
+  /// in tx_overflow. For the unixcan listener the return value is `count` (the frames are on the bus)
+  /// and a peer's refusals count in tx_overflow. Throws CanChannelError on a read-only
   /// channel (candump) or a dead connection.
   virtual std::size_t write(const CanFrame* frames, std::size_t count) = 0;
   bool write(const CanFrame& frame) { return write(&frame, 1) == 1; }

@@ -82,11 +82,7 @@ SampleFate ImuCanNode::send(const calib::ImuIncrement& inc, uint16_t status_flag
     }
     out[n++] = g;
   }
-  std::size_t sent = channel_.write(out.data(), n);
-  while (sent < n && options_.wait_when_full) {
-    channel_.wait_writable(100);
-    sent += channel_.write(out.data() + sent, n - sent);
-  }
+  const std::size_t sent = channel_.write(out.data(), n);
   fate.frames_refused = static_cast<int>(n - sent);
   stats_.frames_sent += sent;
   stats_.frames_lost += static_cast<uint64_t>(fate.frames_lost);

@@ -13,7 +13,8 @@
 //
 // send() puts one sample on the channel at once (for a caller with its own physics clock, like
 // stationsim); run() sends a whole series paced at rate × speed_factor on CLOCK_MONOTONIC absolute
-// deadlines (no drift).
+// deadlines (no drift). Whether a full transmit queue loses frames (counted in frames_refused) or
+// makes the node wait is the channel's choice: imu::CanOpenOptions::write_timeout_ms.
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -34,9 +35,6 @@ struct ImuCanNodeOptions {
   double corruption_probability = 0.0;  ///< per frame: one data bit flipped
   int reset_lost_samples = 5;           ///< increments swallowed by a reset
   std::vector<double> reset_at_s;       ///< resets when an increment with t_s >= each value is sent
-  /// true: when the channel's transmit queue is full, wait for it (lossless back-pressure, for
-  /// benchmarks); false: refuse the frames and count them, as a saturated bus loses them.
-  bool wait_when_full = false;
   uint64_t seed = 1;
 };
 

@@ -193,10 +193,10 @@ TEST(ImuCanNode, TenThousandSimulatedSamplesArriveWithoutLoss) {
   ASSERT_EQ(series.size(), 10000U);
   sim::ImuCanNodeOptions o;
   o.speed_factor = 0.0;
-  o.wait_when_full = true;
   const std::string path = temp_socket_path("lossless");
   CanOpenOptions lo;
   lo.listen = true;
+  lo.write_timeout_ms = 5000;  // unpaced node: wait for the reader instead of losing frames
   auto bus = CanChannel::open("unixcan:" + path, lo);
   auto reader = CanChannel::open("unixcan:" + path);
   std::vector<ReceivedFrame> none;
@@ -247,12 +247,12 @@ TEST(ImuCanNode, InjectedFrameLossIsCountedExactly) {
   const calib::ImuSeries series = simulated_series();
   sim::ImuCanNodeOptions o;
   o.speed_factor = 0.0;
-  o.wait_when_full = true;
   o.frame_loss_probability = 0.01;
   o.seed = 99;
   const std::string path = temp_socket_path("loss");
   CanOpenOptions lo;
   lo.listen = true;
+  lo.write_timeout_ms = 5000;  // unpaced node: wait for the reader instead of losing frames
   auto bus = CanChannel::open("unixcan:" + path, lo);
   auto reader = CanChannel::open("unixcan:" + path);
   std::vector<ReceivedFrame> none;
@@ -330,7 +330,6 @@ TEST(ImuCanNode, CorruptionAndResetAreCountedAndNeverDecodeWrong) {
   auto [tx, rx] = CanChannel::unix_pair();
   sim::ImuCanNodeOptions o;
   o.speed_factor = 0.0;
-  o.wait_when_full = true;
   o.corruption_probability = 0.005;
   o.reset_at_s = {50.0};
   o.reset_lost_samples = 7;
