@@ -1,0 +1,219 @@
+#include "db/export.hpp"
+
+#include "db/archive/archive_error.hpp"
+#include "db/archive/io_util.hpp"
+#include "db/archive/param_json.hpp"
+
+namespace imucal::db {
+
+using nlohmann::json;
+
+const char* const kCsvRunColumns[15] = {
+    "run_id",           "serial",       "state",          "verdict",        "started_at",
+    "ended_at",         "operator",     "station",        "sequence_name",  "sequence_sha256",
+    "software_version", "archive_path", "archive_sha256", "failure_reason", "reprocessed_from"};
+
+const char* const kCsvCalibrationColumns[11] = {"method",         "converged",
+                                                "iterations",     "runtime_s",
+                                                "warnings",       "orientation_rmse_mdeg",
+                                                "accel_rmse_ug",  "heading_offset_gamma_np_rad",
+                                                "theta_bp_x_rad", "theta_bp_y_rad",
+                                                "theta_bp_z_rad"};
+
+std::string csv_field(const std::string& value) {
+  if (value.find_first_of(",\"\r\n") == std::string::npos) return value;
+  std::string out = "\"";
+  for (char c : value) {
+    if (c == '"') out += '"';
+    out += c;
+  }
+  return out + "\"";
+}
+
+namespace {
+
+void check_stream(std::ostream& out, const char* what) {
+  if (!out)
+    throw IoError(std::string(what) + ": writing the output failed (disk full or closed pipe?)");
+}
+
+class CsvLine {
+ public:
+  void field(const std::string& v) {
+    separator();
+    if (v.find_first_of(",\"\r\n") == std::string::npos)
+      line_ += v;
+    else
+      line_ += csv_field(v);
+  }
+  /// Numbers never need quoting: appended in shortest round-trip form without a temporary.
+  void number(double v) {
+    separator();
+    archive::append_double(line_, v);
+  }
+  void integer(long long v) { field(std::to_string(v)); }
+  void empty() { field(std::string()); }
+  void separator() {
+    if (!first_) line_ += ',';
+    first_ = false;
+  }
+  std::string take() {
+    line_ += "\r\n";
+    std::string s = std::move(line_);
+    line_.clear();
+    first_ = true;
+    return s;
+  }
+
+ private:
+  std::string line_;
+  bool first_ = true;
+};
+
+json params_with_sigma(const CalibrationRecord& c) {
+  try {
+    return archive::param_set_to_json(c.params, &c.sigma);
+  } catch (const archive::ArchiveError& e) {
+    throw Corrupt(std::string("calibration ") + to_string(c.method) + ": " + e.what());
+  }
+}
+
+}  // namespace
+
+std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::ostream& out) {
+  CsvLine line;
+  for (const char* c : kCsvRunColumns) line.field(c);
+  for (const char* c : kCsvCalibrationColumns) line.field(c);
+  for (int i = 0; i < calib::ParamSet::kSize; ++i) line.field(calib::param_info(i).name);
+  for (int i = 0; i < calib::ParamSet::kSize; ++i) line.field("sigma." + calib::param_info(i).name);
+  out << line.take();
+  check_stream(out, "export csv");
+  std::size_t rows = 0;
+  repo.export_rows(filter, [&](const ExportRow& row) {
+    const RunRecord& r = row.run;
+    line.integer(r.run_id);
+    line.field(r.serial);
+    line.field(to_string(r.state));
+    r.verdict ? line.field(to_string(*r.verdict)) : line.empty();
+    line.field(format_time_utc(r.started_at_ms));
+    r.ended_at_ms ? line.field(format_time_utc(*r.ended_at_ms)) : line.empty();
+    line.field(r.operator_name);
+    line.field(r.station);
+    line.field(r.sequence_name);
+    line.field(r.sequence_sha256);
+    line.field(r.software_version);
+    line.field(r.archive_path);
+    line.field(r.archive_sha256);
+    line.field(r.failure_reason);
+    r.reprocessed_from ? line.integer(*r.reprocessed_from) : line.empty();
+    if (row.calibration) {
+      const CalibrationRecord& c = *row.calibration;
+      line.field(to_string(c.method));
+      line.integer(c.converged ? 1 : 0);
+      line.integer(c.iterations);
+      line.number(c.runtime_s);
+      std::string warnings;
+      for (const auto& w : c.warnings) warnings += (warnings.empty() ? "" : "; ") + w;
+      line.field(warnings);
+      if (c.metrics) {
+        line.number(c.metrics->orientation_rmse_mdeg);
+        line.number(c.metrics->accel_rmse_ug);
+        line.number(c.metrics->heading_offset_gamma_np_rad);
+        for (int k = 0; k < 3; ++k) line.number(c.metrics->body_misalignment_theta_bp_rad(k));
+      } else {
+        for (int k = 0; k < 6; ++k) line.empty();
+      }
+      const calib::ParamVector p = c.params.to_vector(), s = c.sigma.to_vector();
+      for (int i = 0; i < calib::ParamSet::kSize; ++i) line.number(p(i));
+      for (int i = 0; i < calib::ParamSet::kSize; ++i) line.number(s(i));
+    } else {
+      for (std::size_t k = 0; k < 11 + 2 * calib::ParamSet::kSize; ++k) line.empty();
+    }
+    out << line.take();
+    check_stream(out, "export csv");
+    ++rows;
+  });
+  out.flush();
+  check_stream(out, "export csv");
+  return rows;
+}
+
+std::size_t export_json(const Repository& repo, const ExportFilter& filter, std::ostream& out) {
+  out << '[';
+  std::size_t rows = 0;
+  repo.export_rows(filter, [&](const ExportRow& row) {
+    json o = run_json(row.run);
+    o["calibration"] = row.calibration ? calibration_json(*row.calibration) : json(nullptr);
+    out << (rows == 0 ? "\n" : ",\n") << o.dump();
+    check_stream(out, "export json");
+    ++rows;
+  });
+  out << (rows == 0 ? "]\n" : "\n]\n");
+  out.flush();
+  check_stream(out, "export json");
+  return rows;
+}
+
+json run_json(const RunRecord& r) {
+  json o;
+  o["run_id"] = r.run_id;
+  o["serial"] = r.serial;
+  o["state"] = to_string(r.state);
+  o["verdict"] = r.verdict ? json(to_string(*r.verdict)) : json(nullptr);
+  o["started_at"] = format_time_utc(r.started_at_ms);
+  o["ended_at"] = r.ended_at_ms ? json(format_time_utc(*r.ended_at_ms)) : json(nullptr);
+  o["started_at_ms"] = r.started_at_ms;
+  o["ended_at_ms"] = r.ended_at_ms ? json(*r.ended_at_ms) : json(nullptr);
+  o["operator"] = r.operator_name;
+  o["station"] = r.station;
+  o["sequence_name"] = r.sequence_name;
+  o["sequence_sha256"] = r.sequence_sha256;
+  o["software_version"] = r.software_version;
+  o["archive_path"] = r.archive_path;
+  o["archive_sha256"] = r.archive_sha256;
+  o["failure_reason"] = r.failure_reason;
+  o["reprocessed_from"] = r.reprocessed_from ? json(*r.reprocessed_from) : json(nullptr);
+  return o;
+}
+
+json calibration_json(const CalibrationRecord& c) {
+  json o;
+  o["method"] = to_string(c.method);
+  o["converged"] = c.converged;
+  o["iterations"] = c.iterations;
+  o["runtime_s"] = c.runtime_s;
+  o["warnings"] = c.warnings;
+  o["params"] = params_with_sigma(c);
+  if (c.metrics) {
+    const StoredMetrics& m = *c.metrics;
+    o["metrics"] = {{"orientation_rmse_mdeg", m.orientation_rmse_mdeg},
+                    {"accel_rmse_ug", m.accel_rmse_ug},
+                    {"heading_offset_gamma_np_rad", m.heading_offset_gamma_np_rad},
+                    {"body_misalignment_theta_bp_rad",
+                     {m.body_misalignment_theta_bp_rad.x(), m.body_misalignment_theta_bp_rad.y(),
+                      m.body_misalignment_theta_bp_rad.z()}}};
+  } else {
+    o["metrics"] = nullptr;
+  }
+  return o;
+}
+
+json crosscheck_json(const CrosscheckRecord& x) {
+  json failures = json::array();
+  for (const auto& f : x.failures) failures.push_back({{"term", f.term}, {"detail", f.detail}});
+  return {{"verdict", to_string(x.verdict)}, {"k_sigma", x.k_sigma}, {"failures", failures}};
+}
+
+json run_details_json(const RunDetails& d) {
+  json cals = json::array();
+  for (const auto& c : d.calibrations) cals.push_back(calibration_json(c));
+  json o;
+  o["run"] = run_json(d.run);
+  o["calibrations"] = cals;
+  o["crosscheck"] = d.crosscheck ? crosscheck_json(*d.crosscheck) : json(nullptr);
+  return o;
+}
+
+json active_params_json(const ActiveCalibration& a) { return params_with_sigma(a.active); }
+
+}  // namespace imucal::db

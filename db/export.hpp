@@ -1,0 +1,54 @@
+#pragma once
+// Export of the calibration history for QA (`stationctl export [--serial SN] [--since DATE]
+// --format csv|json`) and the JSON forms of the repository records (`--json` on read commands).
+// Rows stream from Repository::export_rows straight to the ostream, so memory does not grow with
+// the database.
+//
+// CSV (RFC 4180): a header row, then one row per run and method (a run without calibrations —
+// failed, aborted — has one row with an empty method). Records end in CRLF; a field containing a
+// comma, a double quote, CR or LF is enclosed in double quotes with inner quotes doubled. Columns,
+// in order: kCsvRunColumns, then kCsvCalibrationColumns, then the 27 parameters named as in the
+// parameter-set JSON (calib::param_info(i).name, e.g. "accel_M[0][1]") in SI units, then their
+// 1-σ as "sigma.<name>". Times are ISO 8601 UTC ("2024-05-01T12:34:56.789Z"); numbers are the
+// shortest text that parses back to the stored double; absent values are empty fields.
+//
+// JSON: one array of objects, one object per CSV row: run_json(run) plus "calibration":
+// calibration_json(...) or null.
+#include <cstddef>
+#include <nlohmann/json.hpp>
+#include <ostream>
+
+#include "db/repository.hpp"
+
+namespace imucal::db {
+
+/// Run columns of the CSV export, in order.
+extern const char* const kCsvRunColumns[15];
+/// Calibration columns of the CSV export, in order (then parameters and sigmas).
+extern const char* const kCsvCalibrationColumns[11];
+
+/// Write the CSV export; returns the number of data rows. IoError if the stream fails.
+std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::ostream& out);
+/// Write the JSON export (an array); returns the number of objects. IoError if the stream fails.
+std::size_t export_json(const Repository& repo, const ExportFilter& filter, std::ostream& out);
+
+/// RFC 4180 field quoting (quotes only when needed).
+std::string csv_field(const std::string& value);
+
+// ----- JSON forms of the records -------------------------------------------------------------
+/// {"run_id", "serial", "state", "verdict" (or null), "started_at", "ended_at" (or null),
+///  "started_at_ms", "ended_at_ms", "operator", "station", "sequence_name", "sequence_sha256",
+///  "software_version", "archive_path", "archive_sha256", "failure_reason", "reprocessed_from"}
+nlohmann::json run_json(const RunRecord& run);
+/// {"method", "converged", "iterations", "runtime_s", "warnings",
+///  "params": parameter-set JSON with "sigma" (DESIGN §3), "metrics": {...} or null}
+nlohmann::json calibration_json(const CalibrationRecord& calibration);
+/// {"verdict", "k_sigma", "failures": [{"term", "detail"}]}
+nlohmann::json crosscheck_json(const CrosscheckRecord& crosscheck);
+/// {"run": run_json, "calibrations": [...], "crosscheck": {...} or null}
+nlohmann::json run_details_json(const RunDetails& details);
+/// The active parameter set exactly in the DESIGN §3 schema (five keys + "sigma"), so that
+/// archive::param_set_from_json / read_param_file load it for the INS.
+nlohmann::json active_params_json(const ActiveCalibration& active);
+
+}  // namespace imucal::db

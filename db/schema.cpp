@@ -1,0 +1,229 @@
+#include "db/schema.hpp"
+
+#include <cstdio>
+#include <stdexcept>
+
+#include "db/repository.hpp"
+
+namespace imucal::db::schema {
+
+namespace {
+
+// Migration 1: the initial schema. STRICT tables (SQLite >= 3.37) so a wrong type is an error,
+// not a silent conversion; CHECK constraints repeat the rules the code enforces, so that even a
+// hand-edited database cannot hold a state the code would never write.
+const char* const kMigration1 = R"SQL(
+CREATE TABLE units (
+  id            INTEGER PRIMARY KEY,
+  serial        TEXT    NOT NULL UNIQUE
+                CHECK (length(serial) BETWEEN 1 AND 32 AND serial NOT GLOB '*[^A-Za-z0-9._-]*'
+                       AND substr(serial, 1, 1) GLOB '[A-Za-z0-9]'),
+  first_seen_ms INTEGER NOT NULL
+) STRICT;
+
+CREATE TABLE runs (
+  id               INTEGER PRIMARY KEY AUTOINCREMENT,  -- never reused, even after deletion
+  unit_id          INTEGER NOT NULL REFERENCES units(id),
+  operator         TEXT    NOT NULL,
+  station          TEXT    NOT NULL,
+  sequence_name    TEXT    NOT NULL,
+  sequence_sha256  TEXT    NOT NULL
+                   CHECK (sequence_sha256 = '' OR (length(sequence_sha256) = 64
+                          AND sequence_sha256 NOT GLOB '*[^0-9a-f]*')),
+  software_version TEXT    NOT NULL,
+  started_at_ms    INTEGER NOT NULL,
+  ended_at_ms      INTEGER,
+  state            TEXT    NOT NULL
+                   CHECK (state IN ('preparing', 'running', 'calibrating', 'done', 'review',
+                                    'failed', 'aborted', 'interrupted')),
+  failure_reason   TEXT    NOT NULL DEFAULT '',
+  archive_path     TEXT    NOT NULL DEFAULT '',
+  archive_sha256   TEXT    NOT NULL DEFAULT ''
+                   CHECK (archive_sha256 = '' OR (length(archive_sha256) = 64
+                          AND archive_sha256 NOT GLOB '*[^0-9a-f]*')),
+  reprocessed_from INTEGER REFERENCES runs(id),
+  -- the end time is set exactly when the run has reached a terminal state
+  CHECK ((ended_at_ms IS NOT NULL) =
+         (state IN ('done', 'review', 'failed', 'aborted', 'interrupted')))
+) STRICT;
+
+-- history(serial): newest first, ties by id
+CREATE INDEX runs_by_unit_time ON runs (unit_id, started_at_ms DESC, id DESC);
+-- export --since and whole-database export in time order
+CREATE INDEX runs_by_time ON runs (started_at_ms, id);
+-- start-up recovery and runs_in_state: live runs are few, so a partial index keeps it tiny
+CREATE INDEX runs_live ON runs (state) WHERE state IN ('preparing', 'running', 'calibrating');
+
+CREATE TABLE calibrations (
+  id                          INTEGER PRIMARY KEY,
+  run_id                      INTEGER NOT NULL REFERENCES runs(id),
+  method                      TEXT    NOT NULL CHECK (method IN ('ains', 'nlsq')),
+  params_json                 TEXT    NOT NULL CHECK (json_valid(params_json)),
+  sigma_json                  TEXT    NOT NULL CHECK (json_valid(sigma_json)),
+  converged                   INTEGER NOT NULL CHECK (converged IN (0, 1)),
+  iterations                  INTEGER NOT NULL,
+  runtime_s                   REAL    NOT NULL,
+  warnings_json               TEXT    NOT NULL DEFAULT '[]' CHECK (json_valid(warnings_json)),
+  -- evaluation metrics (paper §VII): all present or all absent
+  orientation_rmse_mdeg       REAL,
+  accel_rmse_ug               REAL,
+  heading_offset_gamma_np_rad REAL,
+  theta_bp_x_rad              REAL,
+  theta_bp_y_rad              REAL,
+  theta_bp_z_rad              REAL,
+  CHECK ((orientation_rmse_mdeg IS NULL) = (accel_rmse_ug IS NULL)
+     AND (accel_rmse_ug IS NULL) = (heading_offset_gamma_np_rad IS NULL)
+     AND (heading_offset_gamma_np_rad IS NULL) = (theta_bp_x_rad IS NULL)
+     AND (theta_bp_x_rad IS NULL) = (theta_bp_y_rad IS NULL)
+     AND (theta_bp_y_rad IS NULL) = (theta_bp_z_rad IS NULL)),
+  UNIQUE (run_id, method)
+) STRICT;
+
+CREATE TABLE crosschecks (
+  run_id        INTEGER PRIMARY KEY REFERENCES runs(id),
+  verdict       TEXT    NOT NULL CHECK (verdict IN ('PASS', 'REVIEW')),
+  k_sigma       REAL    NOT NULL CHECK (k_sigma > 0),
+  failures_json TEXT    NOT NULL CHECK (json_valid(failures_json) AND json_type(failures_json) = 'array')
+) STRICT;
+)SQL";
+
+int pragma_int(sqlite3* db, const char* sql, const std::string& path) {
+  sqlite3_stmt* st = nullptr;
+  int rc = sqlite3_prepare_v2(db, sql, -1, &st, nullptr);
+  if (rc != SQLITE_OK) throw_sqlite(db, rc, path, sql);
+  rc = sqlite3_step(st);
+  if (rc != SQLITE_ROW) {
+    sqlite3_finalize(st);
+    throw_sqlite(db, rc, path, sql);
+  }
+  const int v = sqlite3_column_int(st, 0);
+  sqlite3_finalize(st);
+  return v;
+}
+
+std::string hex32(int v) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "0x%08x", static_cast<unsigned>(v));
+  return buf;
+}
+
+}  // namespace
+
+int check_compatible(sqlite3* db, const std::string& path, int latest) {
+  const int found = user_version(db, path);
+  const int app_id = pragma_int(db, "PRAGMA application_id", path);
+  if (found > latest)
+    throw IncompatibleSchema(path + ": database schema version " + std::to_string(found) +
+                             " is newer than this software supports (" + std::to_string(latest) +
+                             "); refusing to open it — use the software version that wrote it "
+                             "or a newer one");
+  if (app_id != 0 && app_id != kApplicationId)
+    throw IncompatibleSchema(path + ": not a calibration-history database (application_id " +
+                             hex32(app_id) + ", expected " + hex32(kApplicationId) + ")");
+  if (found == 0) {
+    const int tables =
+        pragma_int(db, "SELECT count(*) FROM sqlite_schema WHERE name NOT LIKE 'sqlite_%'", path);
+    if (tables > 0)
+      throw IncompatibleSchema(path + ": database has " + std::to_string(tables) +
+                               " table(s) but no schema version (user_version 0); it was not "
+                               "created by this software — refusing to modify it");
+  }
+  return found;
+}
+
+const std::vector<Migration>& migrations() {
+  static const std::vector<Migration> list = {
+      {1, "initial schema: units, runs, calibrations, crosschecks", kMigration1},
+  };
+  return list;
+}
+
+[[noreturn]] void throw_sqlite(sqlite3* db, int rc, const std::string& path,
+                               const std::string& context) {
+  std::string msg = path + ": " + context + ": ";
+  msg += db ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
+  switch (rc & 0xff) {
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED:
+      throw Busy(msg + " (another connection holds the database; retry later)");
+    case SQLITE_CORRUPT:
+    case SQLITE_NOTADB:
+      throw Corrupt(msg);
+    case SQLITE_READONLY:
+      throw ReadOnly(msg);
+    case SQLITE_CONSTRAINT:
+      throw Conflict(msg);
+    default:
+      throw IoError(msg);
+  }
+}
+
+void exec(sqlite3* db, const char* sql, const std::string& path, const std::string& context) {
+  char* err = nullptr;
+  const int rc = sqlite3_exec(db, sql, nullptr, nullptr, &err);
+  if (rc != SQLITE_OK) {
+    sqlite3_free(err);
+    throw_sqlite(db, rc, path, context);
+  }
+}
+
+int user_version(sqlite3* db, const std::string& path) {
+  return pragma_int(db, "PRAGMA user_version", path);
+}
+
+int migrate(sqlite3* db, const std::string& path, const std::vector<Migration>& list) {
+  const int latest = list.empty() ? 0 : list.back().version;
+  // Refuse before touching anything, then again inside the write transaction (another process
+  // may have migrated in between).
+  for (std::size_t i = 0; i < list.size(); ++i)
+    if (list[i].version != static_cast<int>(i) + 1)
+      throw std::logic_error("schema migrations must be numbered 1, 2, ... without gaps");
+  if (check_compatible(db, path, latest) == latest &&
+      pragma_int(db, "PRAGMA application_id", path) == kApplicationId)
+    return latest;  // current: no write lock needed
+  exec(db, "BEGIN IMMEDIATE", path, "schema migration: begin");
+  try {
+    const int found = check_compatible(db, path, latest);
+    const int app_id = pragma_int(db, "PRAGMA application_id", path);
+    for (const Migration& m : list) {
+      if (m.version <= found) continue;
+      exec(db, m.sql, path, "migration " + std::to_string(m.version) + " (" + m.description + ")");
+      // PRAGMA arguments cannot be bound; the number is our own constant, not input.
+      const std::string bump = "PRAGMA user_version = " + std::to_string(m.version);
+      exec(db, bump.c_str(), path, "migration " + std::to_string(m.version) + ": set user_version");
+    }
+    if (app_id == 0) {
+      const std::string set_app = "PRAGMA application_id = " + std::to_string(kApplicationId);
+      exec(db, set_app.c_str(), path, "schema migration: set application_id");
+    }
+    exec(db, "COMMIT", path, "schema migration: commit");
+    return found;
+  } catch (...) {
+    sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr);
+    throw;
+  }
+}
+
+void check_version_readable(sqlite3* db, const std::string& path) {
+  const int v = user_version(db, path);
+  if (v == kSchemaVersion) {
+    const int app_id = pragma_int(db, "PRAGMA application_id", path);
+    if (app_id != kApplicationId)
+      throw IncompatibleSchema(path + ": not a calibration-history database (application_id " +
+                               hex32(app_id) + ")");
+    return;
+  }
+  if (v > kSchemaVersion)
+    throw IncompatibleSchema(path + ": database schema version " + std::to_string(v) +
+                             " is newer than this software supports (" +
+                             std::to_string(kSchemaVersion) + "); use a newer version to read it");
+  if (v == 0)
+    throw IncompatibleSchema(path +
+                             ": no calibration-history schema (user_version 0); the "
+                             "station daemon creates it when it first opens the database");
+  throw IncompatibleSchema(path + ": database schema version " + std::to_string(v) +
+                           " is older than this software's " + std::to_string(kSchemaVersion) +
+                           "; open it read-write once (start the station daemon) to migrate it");
+}
+
+}  // namespace imucal::db::schema

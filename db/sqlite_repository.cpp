@@ -1,0 +1,886 @@
+#include "db/sqlite_repository.hpp"
+
+#include <sqlite3.h>
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <unordered_map>
+
+#include "db/archive/archive_error.hpp"
+#include "db/archive/param_json.hpp"
+#include "db/schema.hpp"
+#include "db/serial_number.hpp"
+
+namespace imucal::db {
+
+namespace {
+
+using nlohmann::json;
+
+// ----- SQL (constant text only; every value is bound) -------------------------------------------
+
+const std::string kRunColumns =
+    "r.id, u.serial, r.operator, r.station, r.sequence_name, r.sequence_sha256, "
+    "r.software_version, r.started_at_ms, r.ended_at_ms, r.state, r.failure_reason, "
+    "r.archive_path, r.archive_sha256, r.reprocessed_from, x.verdict";
+constexpr int kNumRunColumns = 15;
+const std::string kRunFrom =
+    " FROM runs r JOIN units u ON u.id = r.unit_id LEFT JOIN crosschecks x ON x.run_id = r.id ";
+const std::string kCalColumns =
+    "c.method, c.params_json, c.sigma_json, c.converged, c.iterations, c.runtime_s, "
+    "c.warnings_json, c.orientation_rmse_mdeg, c.accel_rmse_ug, c.heading_offset_gamma_np_rad, "
+    "c.theta_bp_x_rad, c.theta_bp_y_rad, c.theta_bp_z_rad";
+
+const std::string kSqlRunById = "SELECT " + kRunColumns + kRunFrom + "WHERE r.id = ?1";
+const std::string kSqlHistory = "SELECT " + kRunColumns + kRunFrom +
+                                "WHERE r.unit_id = ?1 ORDER BY r.started_at_ms DESC, r.id DESC "
+                                "LIMIT ?2";
+const std::string kSqlActive = "SELECT " + kRunColumns + kRunFrom +
+                               "WHERE r.unit_id = ?1 AND r.state = 'done' AND x.verdict = 'PASS' "
+                               "ORDER BY r.started_at_ms DESC, r.id DESC LIMIT 1";
+const std::string kSqlRunsInState =
+    "SELECT " + kRunColumns + kRunFrom + "WHERE r.state = ?1 ORDER BY r.id";
+const std::string kSqlCalsOfRun =
+    "SELECT " + kCalColumns + " FROM calibrations c WHERE c.run_id = ?1 ORDER BY c.method";
+
+// Export: one statement per filter combination so that each uses its index (an "?1 IS NULL OR"
+// disjunction would defeat the planner). Runs without calibrations appear once (LEFT JOIN).
+const std::string kExportHead = "SELECT " + kRunColumns + ", " + kCalColumns + kRunFrom +
+                                "LEFT JOIN calibrations c ON c.run_id = r.id ";
+const std::string kExportTail = " ORDER BY r.started_at_ms, r.id, c.method";
+const std::string kSqlExportAll = kExportHead + kExportTail;
+const std::string kSqlExportSerial = kExportHead + "WHERE u.serial = ?1" + kExportTail;
+const std::string kSqlExportSince = kExportHead + "WHERE r.started_at_ms >= ?2" + kExportTail;
+const std::string kSqlExportBoth =
+    kExportHead + "WHERE u.serial = ?1 AND r.started_at_ms >= ?2" + kExportTail;
+
+const char* const kSqlUnitId = "SELECT id FROM units WHERE serial = ?1";
+const char* const kSqlInsertUnit =
+    "INSERT INTO units (serial, first_seen_ms) VALUES (?1, ?2) ON CONFLICT (serial) DO NOTHING";
+const char* const kSqlRunExists = "SELECT 1 FROM runs WHERE id = ?1";
+const char* const kSqlInsertRun =
+    "INSERT INTO runs (unit_id, operator, station, sequence_name, sequence_sha256, "
+    "software_version, started_at_ms, state, archive_path, reprocessed_from) "
+    "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)";
+const char* const kSqlRunState = "SELECT state FROM runs WHERE id = ?1";
+const char* const kSqlSetLiveState = "UPDATE runs SET state = ?2 WHERE id = ?1";
+const char* const kSqlFinishRun =
+    "UPDATE runs SET state = ?2, ended_at_ms = ?3, failure_reason = ?4, "
+    "archive_path = coalesce(?5, archive_path), archive_sha256 = ?6 WHERE id = ?1";
+const char* const kSqlHasMethod = "SELECT 1 FROM calibrations WHERE run_id = ?1 AND method = ?2";
+const char* const kSqlInsertCal =
+    "INSERT INTO calibrations (run_id, method, params_json, sigma_json, converged, iterations, "
+    "runtime_s, warnings_json, orientation_rmse_mdeg, accel_rmse_ug, "
+    "heading_offset_gamma_np_rad, theta_bp_x_rad, theta_bp_y_rad, theta_bp_z_rad) "
+    "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)";
+const char* const kSqlVerdict = "SELECT verdict FROM crosschecks WHERE run_id = ?1";
+const char* const kSqlCrosscheck =
+    "SELECT verdict, k_sigma, failures_json FROM crosschecks WHERE run_id = ?1";
+const char* const kSqlInsertCrosscheck =
+    "INSERT INTO crosschecks (run_id, verdict, k_sigma, failures_json) VALUES (?1, ?2, ?3, ?4)";
+const char* const kSqlLiveRuns =
+    "SELECT id, state FROM runs WHERE state IN ('preparing', 'running', 'calibrating') "
+    "ORDER BY id";
+const char* const kSqlCountRunsOfUnit = "SELECT count(*) FROM runs WHERE unit_id = ?1";
+
+int live_rank(RunState s) {
+  switch (s) {
+    case RunState::kPreparing:
+      return 0;
+    case RunState::kRunning:
+      return 1;
+    case RunState::kCalibrating:
+      return 2;
+    default:
+      return 3;
+  }
+}
+
+bool is_sha256_hex(const std::string& s) {
+  if (s.size() != 64) return false;
+  return std::all_of(s.begin(), s.end(),
+                     [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
+}
+
+void check_sha(const std::string& value, const char* field) {
+  if (!value.empty() && !is_sha256_hex(value))
+    throw InvalidInput(std::string(field) + " \"" + value.substr(0, 80) +
+                       "\" is not a SHA-256 (expected 64 lowercase hex digits, or empty)");
+}
+
+std::string run_label(RunId id) { return "run " + std::to_string(id); }
+
+/// Validated JSON text of one calibration's parameters and sigma.
+void check_calibration(const CalibrationRecord& c, RunId run_id, std::string& params_json,
+                       std::string& sigma_json, std::string& warnings_json) {
+  const std::string what = run_label(run_id) + " " + to_string(c.method) + " calibration";
+  try {
+    // param_set_to_json with sigma validates finiteness and non-negative sigma.
+    json both = archive::param_set_to_json(c.params, &c.sigma);
+    json sigma = both["sigma"];
+    both.erase("sigma");
+    params_json = both.dump();
+    sigma_json = sigma.dump();
+  } catch (const archive::ArchiveError& e) {
+    throw InvalidInput(what + ": " + e.what());
+  }
+  if (!std::isfinite(c.runtime_s) || c.runtime_s < 0)
+    throw InvalidInput(what + ": runtime_s must be finite and >= 0");
+  if (c.iterations < 0) throw InvalidInput(what + ": iterations must be >= 0");
+  if (c.metrics) {
+    const StoredMetrics& m = *c.metrics;
+    const bool finite = std::isfinite(m.orientation_rmse_mdeg) && std::isfinite(m.accel_rmse_ug) &&
+                        std::isfinite(m.heading_offset_gamma_np_rad) &&
+                        m.body_misalignment_theta_bp_rad.allFinite();
+    if (!finite) throw InvalidInput(what + ": evaluation metrics must be finite");
+  }
+  warnings_json = json(c.warnings).dump();
+}
+
+void check_crosscheck(const CrosscheckRecord& x, RunId run_id) {
+  if (!std::isfinite(x.k_sigma) || x.k_sigma <= 0)
+    throw InvalidInput(run_label(run_id) + " cross-check: k_sigma must be positive and finite");
+  if (x.verdict == Verdict::kPass && !x.failures.empty())
+    throw InvalidInput(run_label(run_id) + " cross-check: a PASS verdict cannot list failures");
+  if (x.verdict == Verdict::kReview && x.failures.empty())
+    throw InvalidInput(run_label(run_id) +
+                       " cross-check: a REVIEW verdict must list the failing terms");
+}
+
+}  // namespace
+
+// =================================================================================================
+
+struct SqliteRepository::Impl {
+  std::string path;
+  SqliteOptions options;
+  sqlite3* db = nullptr;
+  mutable std::recursive_mutex mutex;
+  mutable std::unordered_map<const char*, sqlite3_stmt*> cache;  // keyed by the SQL text's address
+  mutable int depth = 0;                                         // transaction nesting depth
+
+  ~Impl() {
+    for (auto& kv : cache) sqlite3_finalize(kv.second);
+    if (db) sqlite3_close_v2(db);
+  }
+
+  [[noreturn]] void fail(int rc, const std::string& context) const {
+    schema::throw_sqlite(db, rc, path, context);
+  }
+
+  // ----- statements ------------------------------------------------------------------------------
+  /// A cached prepared statement, reset (bindings cleared) when the handle goes out of scope.
+  class Stmt {
+   public:
+    Stmt(const Impl& impl, const char* sql, const char* op) : impl_(impl), op_(op) {
+      auto it = impl.cache.find(sql);
+      if (it != impl.cache.end()) {
+        st_ = it->second;
+      } else {
+        const int rc =
+            sqlite3_prepare_v3(impl.db, sql, -1, SQLITE_PREPARE_PERSISTENT, &st_, nullptr);
+        if (rc != SQLITE_OK) impl.fail(rc, std::string(op) + ": prepare");
+        impl.cache.emplace(sql, st_);
+      }
+    }
+    ~Stmt() {
+      sqlite3_reset(st_);
+      sqlite3_clear_bindings(st_);
+    }
+    Stmt(const Stmt&) = delete;
+    Stmt& operator=(const Stmt&) = delete;
+
+    Stmt& bind(int i, std::int64_t v) { return check(sqlite3_bind_int64(st_, i, v)); }
+    Stmt& bind(int i, int v) { return check(sqlite3_bind_int64(st_, i, v)); }
+    Stmt& bind(int i, double v) { return check(sqlite3_bind_double(st_, i, v)); }
+    Stmt& bind(int i, const std::string& v) {
+      return check(
+          sqlite3_bind_text(st_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT));
+    }
+    Stmt& bind(int i, const char* v) {
+      return check(sqlite3_bind_text(st_, i, v, -1, SQLITE_TRANSIENT));
+    }
+    Stmt& bind_null(int i) { return check(sqlite3_bind_null(st_, i)); }
+    template <typename T>
+    Stmt& bind(int i, const std::optional<T>& v) {
+      return v ? bind(i, *v) : bind_null(i);
+    }
+
+    /// true: a row is available; false: done.
+    bool step() {
+      const int rc = sqlite3_step(st_);
+      if (rc == SQLITE_ROW) return true;
+      if (rc == SQLITE_DONE) return false;
+      impl_.fail(rc, op_);
+    }
+    void run() {
+      while (step()) {
+      }
+    }
+
+    bool is_null(int c) const { return sqlite3_column_type(st_, c) == SQLITE_NULL; }
+    std::int64_t i64(int c) const { return sqlite3_column_int64(st_, c); }
+    double f64(int c) const { return sqlite3_column_double(st_, c); }
+    std::string text(int c) const {
+      const unsigned char* p = sqlite3_column_text(st_, c);
+      return p ? std::string(reinterpret_cast<const char*>(p),
+                             static_cast<std::size_t>(sqlite3_column_bytes(st_, c)))
+               : std::string();
+    }
+
+   private:
+    Stmt& check(int rc) {
+      if (rc != SQLITE_OK) impl_.fail(rc, std::string(op_) + ": bind");
+      return *this;
+    }
+    const Impl& impl_;
+    const char* op_;
+    sqlite3_stmt* st_ = nullptr;
+  };
+
+  // ----- transactions ----------------------------------------------------------------------------
+  /// Write transaction (BEGIN IMMEDIATE) at depth 0, savepoint inside another transaction.
+  /// Read transactions (deferred BEGIN) give read methods one snapshot.
+  class Tx {
+   public:
+    Tx(const Impl& impl, const char* op, bool write) : impl_(impl), op_(op) {
+      outer_ = impl.depth == 0;
+      const char* sql = outer_ ? (write ? "BEGIN IMMEDIATE" : "BEGIN") : "SAVEPOINT imucal_nested";
+      schema::exec(impl.db, sql, impl.path, std::string(op) + ": begin transaction");
+      ++impl.depth;
+    }
+    void commit() {
+      const char* sql = outer_ ? "COMMIT" : "RELEASE imucal_nested";
+      const int rc = sqlite3_exec(impl_.db, sql, nullptr, nullptr, nullptr);
+      if (rc != SQLITE_OK) {
+        // The destructor rolls back; report the commit failure (e.g. disk full, I/O error).
+        impl_.fail(rc, std::string(op_) + ": commit");
+      }
+      --impl_.depth;
+      done_ = true;
+    }
+    ~Tx() {
+      if (done_) return;
+      if (outer_) {
+        sqlite3_exec(impl_.db, "ROLLBACK", nullptr, nullptr, nullptr);
+      } else {
+        sqlite3_exec(impl_.db, "ROLLBACK TO imucal_nested; RELEASE imucal_nested", nullptr, nullptr,
+                     nullptr);
+      }
+      --impl_.depth;
+    }
+    Tx(const Tx&) = delete;
+    Tx& operator=(const Tx&) = delete;
+
+   private:
+    const Impl& impl_;
+    const char* op_;
+    bool outer_ = true;
+    bool done_ = false;
+  };
+
+  void require_writable(const char* op) const {
+    if (options.read_only)
+      throw ReadOnly(path + ": " + op +
+                     ": the database was opened read-only (QA mode); writes "
+                     "are made by the station daemon");
+  }
+
+  // ----- row decoding ----------------------------------------------------------------------------
+  RunRecord read_run(const Stmt& q) const {
+    RunRecord r;
+    r.run_id = q.i64(0);
+    r.serial = q.text(1);
+    r.operator_name = q.text(2);
+    r.station = q.text(3);
+    r.sequence_name = q.text(4);
+    r.sequence_sha256 = q.text(5);
+    r.software_version = q.text(6);
+    r.started_at_ms = q.i64(7);
+    if (!q.is_null(8)) r.ended_at_ms = q.i64(8);
+    r.state = decode([&] { return run_label(r.run_id) + " state"; },
+                     [&] { return run_state_from_string(q.text(9)); });
+    r.failure_reason = q.text(10);
+    r.archive_path = q.text(11);
+    r.archive_sha256 = q.text(12);
+    if (!q.is_null(13)) r.reprocessed_from = q.i64(13);
+    if (!q.is_null(14))
+      r.verdict = decode([&] { return run_label(r.run_id) + " verdict"; },
+                         [&] { return verdict_from_string(q.text(14)); });
+    return r;
+  }
+
+  /// A stored parameter-set JSON text (five keys, DESIGN §3). The fast path checks the exact
+  /// shape without building any message; anything unexpected is handed to the strict archive
+  /// reader for its field-named error (export reads 200 000 of these for 100 000 runs).
+  calib::ParamSet decode_params(const std::string& text, bool is_sigma,
+                                const std::function<std::string()>& origin) const {
+    json j;
+    try {
+      j = json::parse(text);
+    } catch (const json::exception& e) {
+      throw Corrupt(origin() + ": stored JSON is invalid: " + e.what());
+    }
+    calib::ParamSet p;
+    bool ok = j.is_object() && j.size() == 5;
+    auto vec = [&](const char* key, Eigen::Ref<Eigen::Vector3d> out) {
+      if (!ok) return;
+      auto it = j.find(key);
+      if (it == j.end() || !it->is_array() || it->size() != 3) {
+        ok = false;
+        return;
+      }
+      for (int i = 0; i < 3; ++i) {
+        const json& e = (*it)[static_cast<std::size_t>(i)];
+        if (!e.is_number()) {
+          ok = false;
+          return;
+        }
+        out(i) = e.get<double>();
+        ok = ok && std::isfinite(out(i)) && (!is_sigma || out(i) >= 0.0);
+      }
+    };
+    auto mat = [&](const char* key, Eigen::Matrix3d& out) {
+      if (!ok) return;
+      auto it = j.find(key);
+      if (it == j.end() || !it->is_array() || it->size() != 3) {
+        ok = false;
+        return;
+      }
+      for (int r = 0; r < 3 && ok; ++r) {
+        const json& row = (*it)[static_cast<std::size_t>(r)];
+        if (!row.is_array() || row.size() != 3) {
+          ok = false;
+          return;
+        }
+        for (int c = 0; c < 3; ++c) {
+          const json& e = row[static_cast<std::size_t>(c)];
+          if (!e.is_number()) {
+            ok = false;
+            return;
+          }
+          out(r, c) = e.get<double>();
+          ok = ok && std::isfinite(out(r, c)) && (!is_sigma || out(r, c) >= 0.0);
+        }
+      }
+    };
+    vec("accel_bias_mps2", p.accel_bias_mps2);
+    mat("accel_M", p.accel_M);
+    vec("gyro_bias_radps", p.gyro_bias_radps);
+    mat("gyro_M", p.gyro_M);
+    vec("table_misalignment_rad", p.table_misalignment_rad);
+    if (ok) return p;
+    try {
+      // Same five-key shape for values and sigmas: the strict reader names the bad field.
+      archive::param_set_from_json(j, origin());
+    } catch (const archive::ArchiveError& e) {
+      throw Corrupt(std::string("stored value is invalid: ") + e.what());
+    }
+    if (is_sigma) throw Corrupt(origin() + ": stored 1-sigma set has a negative entry");
+    throw Corrupt(origin() + ": stored parameter set is invalid");
+  }
+
+  /// Calibration columns starting at column c0 (method at c0); nullopt if method is NULL.
+  std::optional<CalibrationRecord> read_calibration(const Stmt& q, int c0, RunId run_id) const {
+    if (q.is_null(c0)) return std::nullopt;
+    CalibrationRecord c;
+    const std::string method = q.text(c0);
+    auto where = [&] { return run_label(run_id) + " calibration"; };
+    c.method = method == "ains"   ? Method::kAins
+               : method == "nlsq" ? Method::kNlsq
+                                  : decode([&] { return where() + " method"; },
+                                           [&] { return method_from_string(method); });
+    auto origin = [&] { return path + ": " + where() + " " + to_string(c.method); };
+    c.params = decode_params(q.text(c0 + 1), false, [&] { return origin() + " params_json"; });
+    c.sigma = decode_params(q.text(c0 + 2), true, [&] { return origin() + " sigma_json"; });
+    c.converged = q.i64(c0 + 3) != 0;
+    c.iterations = static_cast<int>(q.i64(c0 + 4));
+    c.runtime_s = q.f64(c0 + 5);
+    const std::string warnings = q.text(c0 + 6);
+    if (warnings != "[]")
+      c.warnings = decode_json(origin() + " warnings_json", warnings,
+                               [&](const json& j) { return j.get<std::vector<std::string>>(); });
+    if (!q.is_null(c0 + 7)) {
+      StoredMetrics m;
+      m.orientation_rmse_mdeg = q.f64(c0 + 7);
+      m.accel_rmse_ug = q.f64(c0 + 8);
+      m.heading_offset_gamma_np_rad = q.f64(c0 + 9);
+      m.body_misalignment_theta_bp_rad = {q.f64(c0 + 10), q.f64(c0 + 11), q.f64(c0 + 12)};
+      c.metrics = m;
+    }
+    return c;
+  }
+
+  /// f() decodes a stored enum text; its InvalidInput becomes Corrupt naming what(), which is
+  /// only evaluated on failure (rows are decoded by the hundred thousand).
+  template <typename W, typename F>
+  auto decode(W what, F f) const -> decltype(f()) {
+    try {
+      return f();
+    } catch (const InvalidInput& e) {
+      throw Corrupt(path + ": " + what() + ": stored value is invalid: " + e.what());
+    }
+  }
+
+  template <typename F>
+  auto decode_json(const std::string& origin, const std::string& text, F f) const
+      -> decltype(f(json())) {
+    try {
+      return f(json::parse(text));
+    } catch (const archive::ArchiveError& e) {
+      throw Corrupt(std::string("stored value is invalid: ") + e.what());
+    } catch (const json::exception& e) {
+      throw Corrupt(origin + ": stored JSON is invalid: " + e.what());
+    }
+  }
+
+  std::vector<CalibrationRecord> calibrations_of(RunId run_id) const {
+    std::vector<CalibrationRecord> out;
+    Stmt q(*this, kSqlCalsOfRun.c_str(), "read calibrations");
+    q.bind(1, run_id);
+    while (q.step()) out.push_back(*read_calibration(q, 0, run_id));
+    return out;
+  }
+
+  std::optional<CrosscheckRecord> crosscheck_of(RunId run_id) const {
+    Stmt q(*this, kSqlCrosscheck, "read cross-check");
+    q.bind(1, run_id);
+    if (!q.step()) return std::nullopt;
+    CrosscheckRecord x;
+    const std::string what = run_label(run_id) + " cross-check";
+    x.verdict =
+        decode([&] { return what + " verdict"; }, [&] { return verdict_from_string(q.text(0)); });
+    x.k_sigma = q.f64(1);
+    x.failures = decode_json(path + ": " + what + " failures_json", q.text(2), [](const json& j) {
+      std::vector<calib::CrossCheckFailure> v;
+      for (const json& f : j)
+        v.push_back({f.at("term").get<std::string>(), f.at("detail").get<std::string>()});
+      return v;
+    });
+    return x;
+  }
+
+  std::optional<std::int64_t> unit_id(const std::string& serial) const {
+    Stmt q(*this, kSqlUnitId, "find unit");
+    q.bind(1, serial);
+    if (!q.step()) return std::nullopt;
+    return q.i64(0);
+  }
+
+  std::int64_t require_unit(const std::string& serial) const {
+    validate_serial(serial);
+    auto id = unit_id(serial);
+    if (!id) throw NotFound(path + ": no unit with serial number \"" + serial + "\" on record");
+    return *id;
+  }
+
+  RunState state_of(RunId run_id, const char* op) const {
+    Stmt q(*this, kSqlRunState, op);
+    q.bind(1, run_id);
+    if (!q.step()) throw NotFound(path + ": " + op + ": no " + run_label(run_id));
+    return decode([&] { return run_label(run_id) + " state"; },
+                  [&] { return run_state_from_string(q.text(0)); });
+  }
+
+  RunState require_live(RunId run_id, const char* op) const {
+    const RunState s = state_of(run_id, op);
+    if (is_terminal(s))
+      throw Conflict(path + ": " + op + ": " + run_label(run_id) + " is already " + to_string(s) +
+                     " (terminal); a finished run cannot change — reprocess it as a new run");
+    return s;
+  }
+
+  void insert_calibration(RunId run_id, const CalibrationRecord& c, const char* op) {
+    std::string params_json, sigma_json, warnings_json;
+    check_calibration(c, run_id, params_json, sigma_json, warnings_json);
+    {
+      Stmt q(*this, kSqlHasMethod, op);
+      q.bind(1, run_id).bind(2, to_string(c.method));
+      if (q.step())
+        throw Conflict(path + ": " + op + ": " + run_label(run_id) + " already has an " +
+                       to_string(c.method) + " calibration");
+    }
+    Stmt q(*this, kSqlInsertCal, op);
+    q.bind(1, run_id).bind(2, to_string(c.method)).bind(3, params_json).bind(4, sigma_json);
+    q.bind(5, c.converged ? 1 : 0)
+        .bind(6, c.iterations)
+        .bind(7, c.runtime_s)
+        .bind(8, warnings_json);
+    if (c.metrics) {
+      const StoredMetrics& m = *c.metrics;
+      q.bind(9, m.orientation_rmse_mdeg).bind(10, m.accel_rmse_ug);
+      q.bind(11, m.heading_offset_gamma_np_rad);
+      q.bind(12, m.body_misalignment_theta_bp_rad.x())
+          .bind(13, m.body_misalignment_theta_bp_rad.y());
+      q.bind(14, m.body_misalignment_theta_bp_rad.z());
+    } else {
+      for (int i = 9; i <= 14; ++i) q.bind_null(i);
+    }
+    q.run();
+  }
+
+  void insert_crosscheck(RunId run_id, const CrosscheckRecord& x, const char* op) {
+    check_crosscheck(x, run_id);
+    {
+      Stmt q(*this, kSqlVerdict, op);
+      q.bind(1, run_id);
+      if (q.step())
+        throw Conflict(path + ": " + op + ": " + run_label(run_id) +
+                       " already has a cross-check verdict (" + q.text(0) + ")");
+    }
+    json failures = json::array();
+    for (const auto& f : x.failures) failures.push_back({{"term", f.term}, {"detail", f.detail}});
+    Stmt q(*this, kSqlInsertCrosscheck, op);
+    q.bind(1, run_id).bind(2, to_string(x.verdict)).bind(3, x.k_sigma).bind(4, failures.dump());
+    q.run();
+  }
+
+  void finish(RunId run_id, const RunCompletion& c) {
+    const char* op = "finish_run";
+    const std::string who = path + ": " + op + ": " + run_label(run_id);
+    if (!is_terminal(c.state))
+      throw InvalidInput(
+          who + ": state " + to_string(c.state) +
+          " is not terminal (expected done, review, failed, aborted or interrupted)");
+    check_sha(c.archive_sha256, "archive SHA-256");
+    for (std::size_t i = 0; i < c.calibrations.size(); ++i)
+      for (std::size_t k = 0; k < i; ++k)
+        if (c.calibrations[i].method == c.calibrations[k].method)
+          throw InvalidInput(who + ": two " + std::string(to_string(c.calibrations[i].method)) +
+                             " calibrations in one completion");
+    Tx tx(*this, op, true);
+    require_live(run_id, op);
+    for (const auto& cal : c.calibrations) insert_calibration(run_id, cal, op);
+    if (c.crosscheck) insert_crosscheck(run_id, *c.crosscheck, op);
+
+    // Life-cycle rules against everything stored for the run (including earlier store_* calls).
+    bool has_ains = false, has_nlsq = false;
+    {
+      Stmt q(*this, kSqlHasMethod, op);
+      q.bind(1, run_id).bind(2, "ains");
+      has_ains = q.step();
+    }
+    {
+      Stmt q(*this, kSqlHasMethod, op);
+      q.bind(1, run_id).bind(2, "nlsq");
+      has_nlsq = q.step();
+    }
+    std::optional<Verdict> verdict;
+    {
+      Stmt q(*this, kSqlVerdict, op);
+      q.bind(1, run_id);
+      if (q.step()) verdict = verdict_from_string(q.text(0));
+    }
+    if (c.state == RunState::kDone) {
+      std::string missing;
+      if (!has_ains) missing += " ains calibration;";
+      if (!has_nlsq) missing += " nlsq calibration;";
+      if (verdict != Verdict::kPass)
+        missing += verdict ? " a PASS cross-check (it is REVIEW);" : " a cross-check verdict;";
+      if (!missing.empty()) {
+        missing.pop_back();
+        throw Conflict(who + " cannot be done without:" + missing);
+      }
+    }
+    if (verdict == Verdict::kPass && c.state == RunState::kReview)
+      throw Conflict(who + ": cross-check is PASS, so the run cannot go to review");
+    if (verdict == Verdict::kReview && c.state == RunState::kDone)
+      throw Conflict(who + ": cross-check is REVIEW, so the run cannot be done");
+    const bool needs_reason = c.state == RunState::kFailed || c.state == RunState::kAborted ||
+                              c.state == RunState::kInterrupted ||
+                              (c.state == RunState::kReview && verdict != Verdict::kReview);
+    if (needs_reason && c.reason.empty())
+      throw InvalidInput(who + ": state " + to_string(c.state) + " needs a reason");
+
+    Stmt q(*this, kSqlFinishRun, op);
+    q.bind(1, run_id).bind(2, to_string(c.state)).bind(3, c.ended_at_ms).bind(4, c.reason);
+    q.bind(5, c.archive_path).bind(6, c.archive_sha256);
+    q.run();
+    tx.commit();
+  }
+};
+
+// =================================================================================================
+
+SqliteRepository::SqliteRepository(const std::string& path, const SqliteOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& d = *impl_;
+  d.path = path;
+  d.options = options;
+  if (options.busy_timeout_ms < 0) throw InvalidInput(path + ": busy_timeout_ms must be >= 0");
+  struct stat sb;
+  const bool exists = ::stat(path.c_str(), &sb) == 0;
+  if (!exists && (options.read_only || !options.create))
+    throw NotFound(path + ": no such database file" +
+                   (options.read_only ? " (read-only mode never creates one)" : ""));
+  int flags = SQLITE_OPEN_FULLMUTEX;
+  flags |= options.read_only ? SQLITE_OPEN_READONLY
+                             : (SQLITE_OPEN_READWRITE | (options.create ? SQLITE_OPEN_CREATE : 0));
+  const int rc = sqlite3_open_v2(path.c_str(), &d.db, flags, nullptr);
+  if (rc != SQLITE_OK) d.fail(rc, options.read_only ? "open read-only" : "open");
+  sqlite3_extended_result_codes(d.db, 1);
+  // Connection settings (no values: constant pragmas; busy_timeout through the C API).
+  sqlite3_busy_timeout(d.db, options.busy_timeout_ms);
+  schema::exec(d.db, "PRAGMA foreign_keys = ON", path, "open: foreign_keys");
+  if (!options.read_only) {
+    schema::exec(d.db, "PRAGMA synchronous = FULL", path, "open: synchronous=FULL");
+    // Migrate (or refuse a foreign/newer file) before switching the journal mode, so a refused
+    // file is left exactly as it was.
+    schema::migrate(d.db, path);
+    schema::exec(d.db, "PRAGMA journal_mode = WAL", path, "open: journal_mode=WAL");
+  } else {
+    schema::exec(d.db, "PRAGMA synchronous = FULL", path, "open: synchronous=FULL");
+    schema::check_version_readable(d.db, path);
+  }
+}
+
+SqliteRepository::~SqliteRepository() = default;
+
+const std::string& SqliteRepository::path() const { return impl_->path; }
+bool SqliteRepository::read_only() const { return impl_->options.read_only; }
+
+int SqliteRepository::schema_version() const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  return schema::user_version(impl_->db, impl_->path);
+}
+
+std::string SqliteRepository::integrity_check() const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl::Stmt q(*impl_, "PRAGMA integrity_check", "integrity_check");
+  std::string out;
+  while (q.step()) {
+    if (!out.empty()) out += "\n";
+    out += q.text(0);
+  }
+  return out;
+}
+
+void SqliteRepository::transaction(const std::function<void()>& body) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  impl_->require_writable("transaction");
+  Impl::Tx tx(*impl_, "transaction", true);
+  body();
+  tx.commit();
+}
+
+RunId SqliteRepository::create_run(const NewRun& run) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl& d = *impl_;
+  const char* op = "create_run";
+  d.require_writable(op);
+  validate_serial(run.serial);
+  check_sha(run.sequence_sha256, "sequence SHA-256");
+  if (is_terminal(run.state))
+    throw InvalidInput(d.path + ": " + op +
+                       ": a new run starts in a live state (preparing, "
+                       "running or calibrating), not " +
+                       to_string(run.state));
+  Impl::Tx tx(d, op, true);
+  if (run.reprocessed_from) {
+    Impl::Stmt q(d, kSqlRunExists, op);
+    q.bind(1, *run.reprocessed_from);
+    if (!q.step())
+      throw NotFound(d.path + ": " + op + ": reprocessed_from names no run (" +
+                     run_label(*run.reprocessed_from) + ")");
+  }
+  {
+    Impl::Stmt q(d, kSqlInsertUnit, op);
+    q.bind(1, run.serial).bind(2, run.started_at_ms);
+    q.run();
+  }
+  const std::int64_t unit = *d.unit_id(run.serial);
+  {
+    Impl::Stmt q(d, kSqlInsertRun, op);
+    q.bind(1, unit).bind(2, run.operator_name).bind(3, run.station).bind(4, run.sequence_name);
+    q.bind(5, run.sequence_sha256).bind(6, run.software_version).bind(7, run.started_at_ms);
+    q.bind(8, to_string(run.state)).bind(9, run.archive_path).bind(10, run.reprocessed_from);
+    q.run();
+  }
+  const RunId id = sqlite3_last_insert_rowid(d.db);
+  tx.commit();
+  return id;
+}
+
+void SqliteRepository::update_run_state(RunId run_id, RunState state, const std::string& reason) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl& d = *impl_;
+  const char* op = "update_run_state";
+  d.require_writable(op);
+  if (is_terminal(state)) {
+    RunCompletion c;
+    c.state = state;
+    c.ended_at_ms = now_ms();
+    c.reason = reason;
+    d.finish(run_id, c);
+    return;
+  }
+  Impl::Tx tx(d, op, true);
+  const RunState cur = d.require_live(run_id, op);
+  if (live_rank(state) < live_rank(cur))
+    throw Conflict(d.path + ": " + op + ": " + run_label(run_id) + " is " + to_string(cur) +
+                   "; it cannot go back to " + to_string(state));
+  if (state != cur) {
+    Impl::Stmt q(d, kSqlSetLiveState, op);
+    q.bind(1, run_id).bind(2, to_string(state));
+    q.run();
+  }
+  tx.commit();
+}
+
+void SqliteRepository::finish_run(RunId run_id, const RunCompletion& completion) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  impl_->require_writable("finish_run");
+  impl_->finish(run_id, completion);
+}
+
+void SqliteRepository::store_calibration(RunId run_id, const CalibrationRecord& calibration) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl& d = *impl_;
+  const char* op = "store_calibration";
+  d.require_writable(op);
+  Impl::Tx tx(d, op, true);
+  d.require_live(run_id, op);
+  d.insert_calibration(run_id, calibration, op);
+  tx.commit();
+}
+
+void SqliteRepository::store_crosscheck(RunId run_id, const CrosscheckRecord& crosscheck) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl& d = *impl_;
+  const char* op = "store_crosscheck";
+  d.require_writable(op);
+  Impl::Tx tx(d, op, true);
+  d.require_live(run_id, op);
+  d.insert_crosscheck(run_id, crosscheck, op);
+  tx.commit();
+}
+
+std::vector<RunId> SqliteRepository::mark_interrupted_runs(TimestampMs now) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl& d = *impl_;
+  const char* op = "mark_interrupted_runs";
+  d.require_writable(op);
+  Impl::Tx tx(d, op, true);
+  std::vector<std::pair<RunId, std::string>> live;
+  {
+    Impl::Stmt q(d, kSqlLiveRuns, op);
+    while (q.step()) live.emplace_back(q.i64(0), q.text(1));
+  }
+  std::vector<RunId> ids;
+  for (const auto& [id, state] : live) {
+    Impl::Stmt q(d, kSqlFinishRun, op);
+    const std::string reason = "the station daemon stopped while the run was " + state +
+                               " (found at start-up); not resumed — the archive can be reprocessed";
+    q.bind(1, id).bind(2, to_string(RunState::kInterrupted)).bind(3, now).bind(4, reason);
+    q.bind_null(5).bind(6, std::string());
+    q.run();
+    ids.push_back(id);
+  }
+  tx.commit();
+  return ids;
+}
+
+std::vector<RunRecord> SqliteRepository::history(const std::string& serial,
+                                                 std::size_t limit) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  const Impl& d = *impl_;
+  validate_serial(serial);
+  Impl::Tx tx(d, "history", false);
+  const std::int64_t unit = d.require_unit(serial);
+  std::vector<RunRecord> out;
+  Impl::Stmt q(d, kSqlHistory.c_str(), "history");
+  q.bind(1, unit).bind(2, limit == 0 ? std::int64_t{-1} : static_cast<std::int64_t>(limit));
+  while (q.step()) out.push_back(d.read_run(q));
+  return out;  // the read transaction ends (rolls back: nothing was written) with tx
+}
+
+RunDetails SqliteRepository::show(RunId run_id) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  const Impl& d = *impl_;
+  Impl::Tx tx(d, "show", false);
+  RunDetails out;
+  {
+    Impl::Stmt q(d, kSqlRunById.c_str(), "show");
+    q.bind(1, run_id);
+    if (!q.step()) throw NotFound(d.path + ": show: no " + run_label(run_id));
+    out.run = d.read_run(q);
+  }
+  out.calibrations = d.calibrations_of(run_id);
+  out.crosscheck = d.crosscheck_of(run_id);
+  return out;
+}
+
+ActiveCalibration SqliteRepository::active_params(const std::string& serial) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  const Impl& d = *impl_;
+  validate_serial(serial);
+  Impl::Tx tx(d, "active_params", false);
+  const std::int64_t unit = d.require_unit(serial);
+  ActiveCalibration out;
+  {
+    Impl::Stmt q(d, kSqlActive.c_str(), "active_params");
+    q.bind(1, unit);
+    if (!q.step()) {
+      Impl::Stmt n(d, kSqlCountRunsOfUnit, "active_params");
+      n.bind(1, unit);
+      n.step();
+      throw NotFound(d.path + ": serial number \"" + serial +
+                     "\" has no calibration with cross-check PASS (" + std::to_string(n.i64(0)) +
+                     " run(s) on record, none done with PASS)");
+    }
+    out.run = d.read_run(q);
+  }
+  out.all = d.calibrations_of(out.run.run_id);
+  bool found = false;
+  for (const auto& c : out.all)
+    if (c.method == Method::kAins) {
+      out.active = c;
+      found = true;
+    }
+  if (!found)
+    throw Corrupt(d.path + ": " + run_label(out.run.run_id) +
+                  " is done with PASS but has no ains calibration");
+  return out;
+}
+
+void SqliteRepository::export_rows(const ExportFilter& filter,
+                                   const std::function<void(const ExportRow&)>& sink) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  const Impl& d = *impl_;
+  if (filter.serial) validate_serial(*filter.serial);
+  const std::string& sql = filter.serial ? (filter.since_ms ? kSqlExportBoth : kSqlExportSerial)
+                                         : (filter.since_ms ? kSqlExportSince : kSqlExportAll);
+  Impl::Tx tx(d, "export", false);
+  Impl::Stmt q(d, sql.c_str(), "export");
+  if (filter.serial) q.bind(1, *filter.serial);
+  if (filter.since_ms) q.bind(2, *filter.since_ms);
+  ExportRow row;
+  while (q.step()) {
+    row.run = d.read_run(q);
+    row.calibration = d.read_calibration(q, kNumRunColumns, row.run.run_id);
+    sink(row);
+  }
+}
+
+std::vector<RunRecord> SqliteRepository::runs_in_state(const std::vector<RunState>& states) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  const Impl& d = *impl_;
+  Impl::Tx tx(d, "runs_in_state", false);
+  std::vector<RunRecord> out;
+  std::vector<RunState> uniq = states;
+  std::sort(uniq.begin(), uniq.end());
+  uniq.erase(std::unique(uniq.begin(), uniq.end()), uniq.end());
+  for (RunState s : uniq) {
+    Impl::Stmt q(d, kSqlRunsInState.c_str(), "runs_in_state");
+    q.bind(1, to_string(s));
+    while (q.step()) out.push_back(d.read_run(q));
+  }
+  std::sort(out.begin(), out.end(),
+            [](const RunRecord& a, const RunRecord& b) { return a.run_id < b.run_id; });
+  return out;
+}
+
+}  // namespace imucal::db

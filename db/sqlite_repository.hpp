@@ -1,0 +1,72 @@
+#pragma once
+// The embedded default backend of the calibration history: one SQLite file (DESIGN §2, §10).
+//
+// Every connection: journal_mode=WAL (readers never block the writer and vice versa),
+// synchronous=FULL (a commit is on disk before the call returns: a power cut after create_run()
+// returned cannot lose the run), busy_timeout, foreign_keys=ON. Every statement is prepared with
+// bound values (no SQL is ever built from values). Every write, and every multi-row write in
+// particular, is one transaction (BEGIN IMMEDIATE, so two writers queue on busy_timeout instead of
+// deadlocking on a lock upgrade); every read method reads one consistent snapshot.
+//
+// Read-only mode (SqliteOptions::read_only) opens the file with SQLITE_OPEN_READONLY for QA reads
+// while the daemon is down or running: it never creates, migrates or writes; a write method throws
+// db::ReadOnly. It sees every transaction committed before each read method starts.
+//
+// Thread safety: one SqliteRepository may be shared by threads (calls are serialised by an
+// internal mutex). Separate processes each open their own.
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "db/repository.hpp"
+
+namespace imucal::db {
+
+struct SqliteOptions {
+  bool read_only = false;  ///< SQLITE_OPEN_READONLY; the file must exist and be at kSchemaVersion
+  bool create = true;      ///< read-write: create the file if missing (else NotFound)
+  int busy_timeout_ms = 5000;  ///< how long to wait for another writer before db::Busy
+};
+
+class SqliteRepository final : public Repository {
+ public:
+  /// Opens (and in read-write mode creates/migrates, db/schema.hpp) the database at `path`.
+  /// Throws NotFound (no file), IncompatibleSchema (newer or foreign), Corrupt (not a database),
+  /// Busy, IoError — each naming the path.
+  explicit SqliteRepository(const std::string& path, const SqliteOptions& options = {});
+  ~SqliteRepository() override;
+  SqliteRepository(const SqliteRepository&) = delete;
+  SqliteRepository& operator=(const SqliteRepository&) = delete;
+
+  RunId create_run(const NewRun& run) override;
+  void update_run_state(RunId run_id, RunState state, const std::string& reason = {}) override;
+  void finish_run(RunId run_id, const RunCompletion& completion) override;
+  void store_calibration(RunId run_id, const CalibrationRecord& calibration) override;
+  void store_crosscheck(RunId run_id, const CrosscheckRecord& crosscheck) override;
+  std::vector<RunId> mark_interrupted_runs(TimestampMs now_ms) override;
+  std::vector<RunRecord> history(const std::string& serial, std::size_t limit = 0) const override;
+  RunDetails show(RunId run_id) const override;
+  ActiveCalibration active_params(const std::string& serial) const override;
+  void export_rows(const ExportFilter& filter,
+                   const std::function<void(const ExportRow&)>& sink) const override;
+  std::vector<RunRecord> runs_in_state(const std::vector<RunState>& states) const override;
+
+  /// Run `body` (which calls write methods of this repository) as one transaction: all of its
+  /// writes commit together or, if it throws, none does (the exception propagates). Nested
+  /// calls and the write methods inside use savepoints. For bulk imports and for callers that
+  /// need several steps to be atomic.
+  void transaction(const std::function<void()>& body);
+
+  /// PRAGMA integrity_check: "ok" or the problems found, one per line.
+  std::string integrity_check() const;
+  /// PRAGMA user_version of the open database.
+  int schema_version() const;
+  const std::string& path() const;
+  bool read_only() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace imucal::db
