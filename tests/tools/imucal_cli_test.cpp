@@ -279,3 +279,28 @@ TEST_F(ImucalCli, CrlbReportsEveryParameterForTheShippedSequences) {
       for (int i = 0; i < 3; ++i) EXPECT_GT(j["sigma"][key][i].get<double>(), 0.0) << seq << key;
   }
 }
+
+TEST_F(ImucalCli, PlotWritesAnSvgWithEveryParameterAndEveryRestPeriod) {
+  const fs::path svg = base_ / "run.svg";
+  const ProcResult r =
+      run_imucal("calibrate " + (base_ / "sim").string() + " --json --plot " + svg.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::string text = slurp(svg);
+  ASSERT_EQ(text.rfind("<svg", 0), 0u) << text.substr(0, 80);
+  EXPECT_NE(text.find("cross-check PASS"), std::string::npos);
+  const auto j = nlohmann::json::parse(r.out);
+  // One tooltip per parameter in the cross-check panel, one per method and rest period below.
+  auto count = [&](const std::string& needle) {
+    size_t n = 0;
+    for (size_t p = text.find(needle); p != std::string::npos; p = text.find(needle, p + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(count(" σ</title>"), 27u);
+  const size_t rests = j["ains"]["metrics"]["rest_periods"].get<size_t>();
+  EXPECT_EQ(count("µg</title>"), 2 * rests);
+  EXPECT_EQ(count("mdeg</title>"), 2 * rests);
+  // Python's XML parser (a tool nobody here wrote) accepts it.
+  const std::string cmd =
+      "/usr/bin/python3 -c \"import xml.etree.ElementTree as E; E.parse('" + svg.string() + "')\"";
+  EXPECT_EQ(std::system(cmd.c_str()), 0);
+}

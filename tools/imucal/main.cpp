@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
@@ -29,6 +30,7 @@
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
 #include "sequences/sequence_error.hpp"
+#include "tools/imucal/plot.hpp"
 #include "tools/imucal/report.hpp"
 
 using namespace imucal;
@@ -118,7 +120,8 @@ calib::MethodSelection parse_method(const std::string& m) {
   return calib::MethodSelection::kAll;
 }
 
-int cmd_calibrate(const std::string& dir, const std::string& method, bool json, double k_sigma) {
+int cmd_calibrate(const std::string& dir, const std::string& method, bool json, double k_sigma,
+                  const std::string& plot_path) {
   progress("reading " + dir);
   const archive::RunArchive ar = archive::read_archive(dir);
   progress("checking the archive");
@@ -128,6 +131,12 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
   opt.crosscheck.k_sigma = k_sigma;
   opt.on_phase = progress;
   const calib::PipelineResult r = calib::run_calibration(in, opt);
+  if (!plot_path.empty()) {
+    std::ofstream f(plot_path);
+    f << tools::calibration_svg(r, ar.truth ? &ar.truth->params : nullptr, k_sigma,
+                                "run " + ar.info.serial + " (" + ar.info.sequence_name + ")");
+    if (!f) throw std::runtime_error(plot_path + ": cannot write the picture");
+  }
   if (json) {
     std::cout << tools::pipeline_to_json(r).dump(2) << '\n';
   } else {
@@ -239,6 +248,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"ains", "nlsq", "all"}));
   cal->add_option("--k-sigma", k_sigma, "cross-check bound in combined σ")->capture_default_str();
   cal->add_flag("--json", json, "print one JSON object");
+  std::string plot_path;
+  cal->add_option("--plot", plot_path, "also write an SVG picture (cross-check, per-rest metrics)");
 
   auto* ev =
       app.add_subcommand("evaluate", "evaluate a parameter set on a run archive (paper §VII)");
@@ -267,7 +278,7 @@ int main(int argc, char** argv) {
   }
   try {
     if (*sim) return cmd_simulate(seq, out_dir, unit, seed, rate_hz, overwrite);
-    if (*cal) return cmd_calibrate(dir, method, json, k_sigma);
+    if (*cal) return cmd_calibrate(dir, method, json, k_sigma, plot_path);
     if (*ev) return cmd_evaluate(dir, params, json);
     if (*cr) return cmd_crlb(seq, unit, rate_hz, json);
     if (*be) return cmd_bench(dir, repeat, json);

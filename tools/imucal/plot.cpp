@@ -1,0 +1,224 @@
+#include "tools/imucal/plot.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <vector>
+
+namespace imucal::tools {
+
+namespace {
+
+constexpr double kWidth = 960, kPanelH = 230, kLeft = 70, kRight = 20, kTop = 50;
+
+std::string num(double v, const char* f = "%.1f") {
+  char b[48];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+
+std::string esc(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    if (c == '<')
+      o += "&lt;";
+    else if (c == '>')
+      o += "&gt;";
+    else if (c == '&')
+      o += "&amp;";
+    else
+      o += c;
+  }
+  return o;
+}
+
+/// One panel: y axis from -ymax..ymax (symmetric) or 0..ymax, n slots along x.
+struct Panel {
+  std::ostringstream& os;
+  double y0;  ///< top of the panel in page coordinates
+  double ymin, ymax;
+  size_t n;
+  double x(size_t i) const {
+    return kLeft +
+           (kWidth - kLeft - kRight) * (static_cast<double>(i) + 0.5) / static_cast<double>(n);
+  }
+  double slot() const { return (kWidth - kLeft - kRight) / static_cast<double>(n); }
+  double y(double v) const {
+    const double c = std::clamp(v, ymin, ymax);
+    return y0 + kPanelH * (ymax - c) / (ymax - ymin);
+  }
+  void frame(const std::string& title, const std::string& ylabel) {
+    os << "<text x='" << kLeft << "' y='" << y0 - 8 << "' font-weight='bold'>" << esc(title)
+       << "</text>\n";
+    os << "<rect x='" << kLeft << "' y='" << y0 << "' width='" << kWidth - kLeft - kRight
+       << "' height='" << kPanelH << "' fill='none' stroke='#888'/>\n";
+    for (int t = 0; t <= 4; ++t) {
+      const double v = ymin + (ymax - ymin) * t / 4.0;
+      os << "<text x='" << kLeft - 6 << "' y='" << y(v) + 4 << "' text-anchor='end' font-size='11'>"
+         << num(v, std::abs(ymax - ymin) < 10 ? "%.2f" : "%.0f") << "</text>\n";
+      os << "<line x1='" << kLeft << "' x2='" << kWidth - kRight << "' y1='" << y(v) << "' y2='"
+         << y(v) << "' stroke='#eee'/>\n";
+    }
+    os << "<text transform='translate(16," << y0 + kPanelH / 2 << ") rotate(-90)' "
+       << "text-anchor='middle' font-size='12'>" << esc(ylabel) << "</text>\n";
+  }
+  void hline(double v, const char* color, const char* dash = "") {
+    os << "<line x1='" << kLeft << "' x2='" << kWidth - kRight << "' y1='" << y(v) << "' y2='"
+       << y(v) << "' stroke='" << color << "' stroke-dasharray='" << dash << "'/>\n";
+  }
+  void bar(size_t i, double v, double offset, double w, const char* color, const std::string& tip) {
+    const double top = std::min(y(v), y(std::max(0.0, ymin))),
+                 bottom = std::max(y(v), y(std::max(0.0, ymin)));
+    os << "<rect x='" << x(i) + offset - w / 2 << "' y='" << top << "' width='" << w << "' height='"
+       << std::max(bottom - top, 0.5) << "' fill='" << color << "'><title>" << esc(tip)
+       << "</title></rect>\n";
+  }
+};
+
+void legend(std::ostringstream& os, double y, bool ains, bool nlsq) {
+  double x = kWidth - 220;
+  if (ains) {
+    os << "<rect x='" << x << "' y='" << y - 10 << "' width='12' height='12' fill='#1f77b4'/>"
+       << "<text x='" << x + 16 << "' y='" << y << "' font-size='12'>AINS</text>\n";
+    x += 70;
+  }
+  if (nlsq)
+    os << "<rect x='" << x << "' y='" << y - 10 << "' width='12' height='12' fill='#ff7f0e'/>"
+       << "<text x='" << x + 16 << "' y='" << y << "' font-size='12'>NLSQ</text>\n";
+}
+
+/// Compact axis label: "accel_M[0][1]" -> "Ma xy", "gyro_bias_radps[2]" -> "bg z", ς -> "ς x".
+std::string short_label(int i) {
+  static const char* axes = "xyz";
+  const int k = i % 27;
+  if (k < 3) return std::string("ba ") + axes[k];
+  if (k < 12) return std::string("Ma ") + axes[(k - 3) / 3] + axes[(k - 3) % 3];
+  if (k < 15) return std::string("bg ") + axes[k - 12];
+  if (k < 24) return std::string("Mg ") + axes[(k - 15) / 3] + axes[(k - 15) % 3];
+  return std::string("ς ") + axes[k - 24];
+}
+
+}  // namespace
+
+std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSet* truth,
+                            double k_sigma, const std::string& title) {
+  std::ostringstream os;
+  const bool both = r.ains && r.nlsq;
+  const bool panel1 = both || truth;
+  const int panels = (panel1 ? 1 : 0) + 2;
+  const double height = kTop + panels * (kPanelH + 90);
+  os << "<svg xmlns='http://www.w3.org/2000/svg' width='" << kWidth << "' height='" << height
+     << "' font-family='sans-serif'>\n<rect width='100%' height='100%' fill='white'/>\n";
+  os << "<text x='" << kLeft << "' y='24' font-size='16' font-weight='bold'>" << esc(title);
+  if (r.crosscheck) os << " — cross-check " << r.crosscheck->verdict();
+  os << "</text>\n";
+  double y0 = kTop + 20;
+  const char* kBlue = "#1f77b4";
+  const char* kOrange = "#ff7f0e";
+
+  if (panel1) {
+    const int n = calib::ParamSet::kSize;
+    Panel p{os, y0, -std::max(k_sigma * 1.5, 1.0), std::max(k_sigma * 1.5, 1.0),
+            static_cast<size_t>(n)};
+    p.frame(both ? "AINS − NLSQ per parameter, in combined σ (bound ±" + num(k_sigma, "%.0f") + "σ)"
+                 : "estimate − truth per parameter, in σ",
+            both ? "Δ / sqrt(σA² + σB²)" : "error / σ");
+    p.hline(k_sigma, "#d62728", "6,3");
+    p.hline(-k_sigma, "#d62728", "6,3");
+    p.hline(0.0, "#444");
+    for (int i = 0; i < n; ++i) {
+      const auto& info = calib::param_info(i);
+      auto z_of = [&](const calib::CalibrationResult& a) {
+        const double s = a.sigma.to_vector()(i);
+        return s > 0 ? (a.params.to_vector()(i) - truth->to_vector()(i)) / s : 0.0;
+      };
+      if (both) {
+        const double sa = r.ains->result.sigma.to_vector()(i),
+                     sb = r.nlsq->result.sigma.to_vector()(i);
+        const double d =
+            r.ains->result.params.to_vector()(i) - r.nlsq->result.params.to_vector()(i);
+        const double z = d / std::sqrt(sa * sa + sb * sb);
+        p.bar(static_cast<size_t>(i), z, 0.0, p.slot() * 0.6,
+              std::abs(z) > k_sigma ? "#d62728" : "#2ca02c",
+              info.name + ": " + num(z, "%.2f") + " σ");
+      } else {
+        const auto& a = r.ains ? r.ains->result : r.nlsq->result;
+        p.bar(static_cast<size_t>(i), z_of(a), 0.0, p.slot() * 0.6, r.ains ? kBlue : kOrange,
+              info.name + ": " + num(z_of(a), "%.2f") + " σ");
+      }
+      os << "<text transform='translate(" << p.x(static_cast<size_t>(i)) + 4 << ","
+         << y0 + kPanelH + 6 << ") rotate(90)' font-size='11'>" << esc(short_label(i))
+         << "</text>\n";
+    }
+    y0 += kPanelH + 90;
+  }
+
+  const calib::EvaluationMetrics* ma = r.ains ? &r.ains->metrics : nullptr;
+  const calib::EvaluationMetrics* mb = r.nlsq ? &r.nlsq->metrics : nullptr;
+  const size_t periods = std::max(ma ? ma->periods.size() : 0, mb ? mb->periods.size() : 0);
+  if (periods == 0) {
+    os << "</svg>\n";
+    return os.str();
+  }
+  auto max_of = [&](auto get) {
+    double m = 0;
+    for (const auto* mm : {ma, mb})
+      if (mm)
+        for (const auto& pp : mm->periods) m = std::max(m, get(pp));
+    return m;
+  };
+  const double w = 0.35;
+  {
+    const double top = std::max(1.0, 1.15 * max_of([](const calib::RestPeriodMetric& q) {
+                                       return q.accel_err_n_ug.norm();
+                                     }));
+    Panel p{os, y0, 0.0, top, periods};
+    p.frame("acceleration error of each rest period (eq. 53–54)", "|mean δa_n| (µg)");
+    legend(os, y0 - 8, ma != nullptr, mb != nullptr);
+    for (size_t i = 0; i < periods; ++i) {
+      if (ma && i < ma->periods.size())
+        p.bar(i, ma->periods[i].accel_err_n_ug.norm(), mb ? -p.slot() * w / 2 : 0, p.slot() * w,
+              kBlue,
+              "AINS rest " + std::to_string(i + 1) + ": " +
+                  num(ma->periods[i].accel_err_n_ug.norm(), "%.2f") + " µg");
+      if (mb && i < mb->periods.size())
+        p.bar(i, mb->periods[i].accel_err_n_ug.norm(), ma ? p.slot() * w / 2 : 0, p.slot() * w,
+              kOrange,
+              "NLSQ rest " + std::to_string(i + 1) + ": " +
+                  num(mb->periods[i].accel_err_n_ug.norm(), "%.2f") + " µg");
+      os << "<text x='" << p.x(i) << "' y='" << y0 + kPanelH + 14
+         << "' text-anchor='middle' font-size='10'>" << i + 1 << "</text>\n";
+    }
+    os << "<text x='" << kWidth / 2 << "' y='" << y0 + kPanelH + 32
+       << "' text-anchor='middle' font-size='12'>rest period</text>\n";
+    y0 += kPanelH + 90;
+  }
+  {
+    const double top = std::max(0.01, 1.15 * max_of([](const calib::RestPeriodMetric& q) {
+                                        return q.orientation_rms_mdeg;
+                                      }));
+    Panel p{os, y0, 0.0, top, periods};
+    p.frame("orientation residual of each rest period (eq. 51–52)", "RMS (mdeg)");
+    for (size_t i = 0; i < periods; ++i) {
+      if (ma && i < ma->periods.size())
+        p.bar(i, ma->periods[i].orientation_rms_mdeg, mb ? -p.slot() * w / 2 : 0, p.slot() * w,
+              kBlue,
+              "AINS rest " + std::to_string(i + 1) + ": " +
+                  num(ma->periods[i].orientation_rms_mdeg, "%.3f") + " mdeg");
+      if (mb && i < mb->periods.size())
+        p.bar(i, mb->periods[i].orientation_rms_mdeg, ma ? p.slot() * w / 2 : 0, p.slot() * w,
+              kOrange,
+              "NLSQ rest " + std::to_string(i + 1) + ": " +
+                  num(mb->periods[i].orientation_rms_mdeg, "%.3f") + " mdeg");
+      os << "<text x='" << p.x(i) << "' y='" << y0 + kPanelH + 14
+         << "' text-anchor='middle' font-size='10'>" << i + 1 << "</text>\n";
+    }
+    os << "<text x='" << kWidth / 2 << "' y='" << y0 + kPanelH + 32
+       << "' text-anchor='middle' font-size='12'>rest period</text>\n";
+  }
+  os << "</svg>\n";
+  return os.str();
+}
+
+}  // namespace imucal::tools
