@@ -1,3 +1,4 @@
+#include "sequences/toml_support.hpp"
 #include "sequences/parser.hpp"
 
 #include <toml++/toml.h>
@@ -19,30 +20,7 @@ namespace {
 constexpr double kDefaultRateDps = 10.0;
 constexpr double kDefaultAccelDps2 = 10.0;
 
-const char* type_name(toml::node_type t) {
-  switch (t) {
-    case toml::node_type::table:
-      return "table";
-    case toml::node_type::array:
-      return "array";
-    case toml::node_type::string:
-      return "string";
-    case toml::node_type::integer:
-      return "integer";
-    case toml::node_type::floating_point:
-      return "float";
-    case toml::node_type::boolean:
-      return "boolean";
-    case toml::node_type::date:
-      return "date";
-    case toml::node_type::time:
-      return "time";
-    case toml::node_type::date_time:
-      return "date-time";
-    default:
-      return "nothing";
-  }
-}
+const char* type_name(toml::node_type t) { return toml_type_name(t); }
 
 int line_of(const toml::source_region& r) { return static_cast<int>(r.begin.line); }
 
