@@ -220,16 +220,27 @@ void ModbusTableServer::run() {
         const auto until = Clock::now() + std::chrono::milliseconds(delay_ms_.load());
         while (running_.load() && Clock::now() < until) std::this_thread::sleep_for(std::chrono::milliseconds(1));
       }
+      // The reply and the hand-over of written holding registers to the PLC happen under one lock hold:
+      // a master that has its write confirmation (and anything it then tells another thread, e.g. a test
+      // that inspects the PLC through with_plc()) must never find the PLC without that write. Handing the
+      // registers over after the lock had been released let with_plc() run in between under load (seen
+      // as MbpollInterop.CommandsAMove finding ack_seq still at the previous command).
+      const uint8_t function = query[header];
+      const bool is_write = function == MODBUS_FC_WRITE_SINGLE_REGISTER ||
+                            function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS ||
+                            function == MODBUS_FC_WRITE_AND_READ_REGISTERS;
+      std::unique_lock<std::mutex> lock(mu_);
       if (modbus_reply(ctx_, query.data(), rc, mapping_) == -1) {
+        lock.unlock();
         close_client(fd);
         continue;
       }
-      const uint8_t function = query[header];
-      if (function == MODBUS_FC_WRITE_SINGLE_REGISTER || function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS ||
-          function == MODBUS_FC_WRITE_AND_READ_REGISTERS) {
+      if (is_write) {
         ++stats_.write_requests;
-        std::lock_guard<std::mutex> lock(mu_);
         plc_.write_holding(0, mapping_->tab_registers, map.holding_extent());
+        spdlog::debug("modbus table server: fd {} wrote; command {} seq {} (plc t {:.3f} s, outer {:.3f} deg)", fd,
+                      mapping_->tab_registers[map.holding.command], mapping_->tab_registers[map.holding.command_seq],
+                      plc_.time_s(), plc_.outer_deg());
       }
     }
   }

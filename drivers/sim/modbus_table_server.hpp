@@ -4,8 +4,9 @@
 // One server thread runs a select() loop over the listening socket and up to max_clients client
 // sockets: each request is read with modbus_receive and answered with modbus_reply from a
 // modbus_mapping that mirrors the TablePlc's register image (input registers refreshed from the PLC
-// before every reply; holding registers handed to the PLC after every write request). Between requests
-// the loop wakes every loop_period to advance the PLC.
+// before every reply; holding registers handed to the PLC under the same lock hold as the reply to a
+// write, so whoever has seen the confirmation finds the write in the PLC). Between requests the loop
+// wakes every loop_period to advance the PLC.
 //
 // Time: the PLC clock follows a caller-provided TimeSource (seconds, monotonic); the server steps the
 // PLC by the source's increments. ScaledRealTime is real time times a speed factor, so a station

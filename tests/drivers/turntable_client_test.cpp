@@ -1,4 +1,4 @@
-// TurntableClient against the simulated PLC's Modbus TCP server on 127.0.0.1 (real libmodbus on both
+// TurntableClient against the simulated PLC's Modbus TCP server on a loopback address (real libmodbus on both
 // ends). The PLC runs 10x accelerated; expected timings come from the PLC's rate/accel limits.
 #include <gtest/gtest.h>
 #include <spdlog/spdlog.h>
@@ -6,7 +6,10 @@
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
+#include <string>
 #include <thread>
+
+#include <unistd.h>
 
 #include "drivers/sim/modbus_table_server.hpp"
 #include "drivers/turntable/turntable_client.hpp"
@@ -42,14 +45,35 @@ TablePlcConfig plc_config() {
   return c;
 }
 
+/// A loopback address (Linux routes all of 127/8 to lo) of this test process alone: 127.P1.P0.N from the
+/// pid's low 16 bits and a per-process counter. ctest runs every TEST as its own process, two at a time,
+/// and other suites run beside it. With every server on 127.0.0.1, a port freed by one process (server
+/// stopped, destroyed, or refusing connections) can be handed by the kernel to another process's
+/// simulated table, and a client that keeps (re)connecting to the freed port (LinkLoss..., ConnectFails...,
+/// Dropped...) then talks to a table it does not own: its start-up/safe stop stops that other test's move
+/// mid-way. A per-process address makes "tcp:ADDRESS:PORT" name one table only.
+std::string loopback_address() {
+  static int counter = 0;
+  const unsigned pid = static_cast<unsigned>(getpid());
+  counter = counter % 254 + 1;
+  return "127." + std::to_string((pid >> 8) & 0xffu) + "." + std::to_string(pid & 0xffu) + "." +
+         std::to_string(counter);
+}
+
+sim::ModbusTableServerConfig server_config() {
+  sim::ModbusTableServerConfig c;
+  c.address = loopback_address();
+  return c;
+}
+
 struct Station {
   explicit Station(TablePlcConfig plc = plc_config())
-      : server(plc, sim::ModbusTableServerConfig{}, sim::ScaledRealTime(kSpeed)) {
+      : server(plc, server_config(), sim::ScaledRealTime(kSpeed)) {
     server.start();
   }
   TurntableClientConfig client_config() const {
     TurntableClientConfig c;
-    c.endpoint.host = "127.0.0.1";
+    c.endpoint.host = server.config().address;
     c.endpoint.port = server.port();
     c.response_timeout = 200ms;
     c.backoff_initial = 20ms;
@@ -401,13 +425,11 @@ TEST(TurntableClient, UnmappedRegistersGiveAModbusException) {
 }
 
 TEST(TurntableClient, ConnectFailsClearlyWhenNothingListens) {
-  int port;
+  TurntableClientConfig cfg;
   {
     Station st;
-    port = st.server.port();
-  }  // server gone: the port is closed
-  TurntableClientConfig cfg;
-  cfg.endpoint.port = port;
+    cfg.endpoint = st.client_config().endpoint;
+  }  // server gone: the port is closed (and the address is this process's own)
   cfg.backoff_initial = 20ms;
   cfg.reconnect_give_up = 100ms;
   TurntableClient c(cfg);
