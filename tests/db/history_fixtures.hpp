@@ -2,6 +2,7 @@
 // Shared helpers of the calibration-history tests (tests/db/repository_test.cpp, migration_test,
 // crash_test, export_test) and the benchmark history_bench.cpp: a temporary directory, and
 // records whose every value is derived from a seed so a test can recompute what it stored.
+#include <gtest/gtest.h>
 #include <stdlib.h>
 #include <unistd.h>
 
@@ -12,6 +13,21 @@
 #include "db/repository.hpp"
 
 namespace imucal::db::test {
+
+/// Runs f, expects it to throw E and returns the message (a test failure otherwise).
+template <typename E, typename F>
+std::string expect_throw_message(F f) {
+  try {
+    f();
+  } catch (const E& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "wrong exception type: " << e.what();
+    return {};
+  }
+  ADD_FAILURE() << "no exception";
+  return {};
+}
 
 /// A fresh directory under $TMPDIR (or /tmp), removed with everything in it on destruction.
 class TempDir {

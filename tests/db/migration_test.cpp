@@ -15,6 +15,7 @@ namespace imucal::db {
 namespace {
 
 using test::TempDir;
+using test::expect_throw_message;
 
 constexpr TimestampMs kT0 = 1714560000000;
 
@@ -56,20 +57,6 @@ class RawDb {
 std::string file_bytes(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
-}
-
-template <typename E, typename F>
-std::string expect_throw_message(F f) {
-  try {
-    f();
-  } catch (const E& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    ADD_FAILURE() << "wrong exception type: " << e.what();
-    return {};
-  }
-  ADD_FAILURE() << "no exception";
-  return {};
 }
 
 TEST(Migration, FreshDatabaseGetsVersionOneOurApplicationIdAndWal) {

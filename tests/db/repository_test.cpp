@@ -18,6 +18,7 @@ namespace imucal::db {
 namespace {
 
 using test::TempDir;
+using test::expect_throw_message;
 
 constexpr TimestampMs kT0 = 1714560000000;  // 2024-05-01T10:40:00Z
 constexpr TimestampMs kMinute = 60000;
@@ -26,20 +27,6 @@ void expect_params_equal(const calib::ParamSet& a, const calib::ParamSet& b) {
   const calib::ParamVector va = a.to_vector(), vb = b.to_vector();
   for (int i = 0; i < calib::ParamSet::kSize; ++i)
     EXPECT_EQ(va(i), vb(i)) << "parameter " << calib::param_info(i).name;
-}
-
-template <typename E, typename F>
-std::string expect_throw_message(F f) {
-  try {
-    f();
-  } catch (const E& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    ADD_FAILURE() << "wrong exception type: " << e.what();
-    return {};
-  }
-  ADD_FAILURE() << "no exception";
-  return {};
 }
 
 std::vector<RunId> ids_of(const std::vector<RunRecord>& runs) {
