@@ -7,7 +7,8 @@ PKGS=(build-essential cmake ccache pkg-config
       libeigen3-dev libceres-dev libmodbus-dev libsqlite3-dev libspdlog-dev
       libgtest-dev libgmock-dev libcli11-dev libtomlplusplus-dev nlohmann-json3-dev
       libbenchmark-dev
-      can-utils python3-can python3-canmatrix mbpoll)
+      can-utils python3-can python3-canmatrix mbpoll
+      libsystemd-dev qemu-system-x86 linux-image-amd64 busybox-static cpio)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,0 +1,67 @@
+#pragma once
+// What the control socket (control_server.hpp) asks of the daemon. The server owns the transport
+// (Unix socket, JSON lines, peer credentials, permission check, request validation); the daemon
+// (daemon.hpp) implements this interface. Reads (history, show, params, export) are answered by the
+// server straight from the repository, the same way stationctl answers them from a read-only
+// database when the daemon is down (record_json.hpp), so both paths print the same thing.
+//
+// Every method either returns the JSON "result" object of the reply or throws ControlError, whose
+// code is one of the protocol's error codes (control_protocol.hpp) and whose message is the one-line
+// text shown to the operator.
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "db/repository.hpp"
+
+namespace imucal::station {
+
+/// Protocol error codes (the "code" of an error reply).
+namespace error_code {
+inline constexpr const char* kBadRequest = "bad_request";          ///< malformed line / fields
+inline constexpr const char* kPermissionDenied = "permission_denied";  ///< not in the control group
+inline constexpr const char* kBusy = "busy";                       ///< a run is already active
+inline constexpr const char* kNotFound = "not_found";              ///< unknown run / serial / sequence
+inline constexpr const char* kInvalidInput = "invalid_input";      ///< e.g. serial breaks the rules
+inline constexpr const char* kUnavailable = "unavailable";         ///< hardware not reachable etc.
+inline constexpr const char* kInternal = "internal";               ///< a bug: logged with details
+}  // namespace error_code
+
+class ControlError : public std::runtime_error {
+ public:
+  ControlError(std::string code, const std::string& message)
+      : std::runtime_error(message), code_(std::move(code)) {}
+  const std::string& code() const { return code_; }
+
+ private:
+  std::string code_;
+};
+
+struct StartRunRequest {
+  std::string serial;
+  std::optional<std::string> sequence;  ///< library name or path; default: the config's
+  std::string operator_name;            ///< default: the peer's user name
+};
+
+class ControlHandler {
+ public:
+  virtual ~ControlHandler() = default;
+  /// Starts a run; returns {"run_id": N, "serial": ..., "sequence": ..., "steps": N}.
+  /// kBusy if a run is active, kInvalidInput for a bad serial, kNotFound for an unknown sequence.
+  virtual nlohmann::json start_run(const StartRunRequest& request) = 0;
+  /// The daemon's state (see the contract for the fields). With run_id: that run's state, live if
+  /// it is the active one, else from the repository (kNotFound if there is no such run).
+  virtual nlohmann::json status(std::optional<db::RunId> run_id) = 0;
+  /// Aborts the active run (table to safe stop, run -> aborted); kNotFound if none is active.
+  virtual nlohmann::json abort_run(const std::string& reason) = 0;
+  /// Recalibrates a stored run from its archive into a new run; returns {"run_id": new id,
+  /// "reprocessed_from": id}. kBusy if a run is active, kNotFound for an unknown run.
+  virtual nlohmann::json reprocess(db::RunId run_id) = 0;
+  /// The repository reads are served from.
+  virtual const db::Repository& repository() const = 0;
+};
+
+}  // namespace imucal::station
