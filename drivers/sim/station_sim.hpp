@@ -1,0 +1,125 @@
+#pragma once
+// StationSim: the simulated station hardware in one process with ONE physics clock (issue #3 item 3).
+//
+// A Modbus TCP server (ModbusTableServer, created WITHOUT a TimeSource) exposes a TablePlc; an IMU CAN
+// node (ImuCanNode on a unixcan bus the simulator listens on) is mounted on the table. One physics
+// thread owns the clock: the physics time is ScaledRealTime(speed) and, for every IMU sample that is
+// due, the thread steps the PLC to the sample's quadrature nodes (under table_server().with_plc())
+// and reads the table's ACTUAL state there, so the increments (calib::TruthStream) follow the motion
+// the PLC really performed — including moves commanded over Modbus a moment ago, stops and faults.
+// Frames are sent outside the PLC lock. Samples behind the clock (a slow consumer, back-pressure on
+// the bus) are caught up, never skipped: table and IMU always share the physics time.
+//
+// The IMU streams continuously from start() on (at rest or moving), like a unit powered on the table.
+// Faults are scheduled on the physics clock (StationSimFaults) or injected at run time.
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "calib/site_presets.hpp"
+#include "calib/table_model.hpp"
+#include "calib/truth_sim.hpp"
+#include "drivers/sim/modbus_table_server.hpp"
+#include "drivers/sim/table_plc.hpp"
+
+namespace imucal::imu {
+class CanChannel;
+}
+
+namespace imucal::sim {
+
+class ImuCanNode;
+
+struct StationSimFaults {
+  double can_loss = 0.0, can_corrupt = 0.0;  // per frame probabilities
+  std::vector<double> imu_reset_at_s;        // sim time
+  std::vector<double> modbus_drop_at_s;      // sim time: drop every Modbus connection
+  struct Delay {
+    double at_s;
+    int delay_ms;
+    int count;
+  };
+  std::vector<Delay> modbus_delay;  // sim time: hold back `count` replies by delay_ms (wall)
+  struct TableFault {
+    int move_number;
+    double after_s;
+    uint16_t code;
+  };  // 1-based accepted move
+  std::optional<TableFault> table_fault;
+};
+
+struct StationSimConfig {
+  TablePlcConfig plc;              // default map, limits
+  ModbusTableServerConfig modbus;  // address/port (0 = free port)
+  std::string can_path;            // unixcan bus socket path (the sim listens = the bus)
+  calib::UnitModel unit = calib::default_unit();
+  calib::TableGeometry geometry;  // default geometry
+  calib::Site site = calib::demo_factory_site();
+  double rate_hz = 100.0;
+  double speed = 100.0;  // sim seconds per wall second; physics clock = ScaledRealTime
+  uint64_t seed = 1;
+  StationSimFaults faults;
+};
+
+struct StationSimStats {
+  double sim_time_s;
+  uint64_t samples_sent, frames_sent, frames_lost, frames_corrupted, imu_resets, modbus_drops,
+      modbus_requests;
+  double achieved_speed;
+};
+
+class StationSim {  // one physics thread: steps the PLC and emits each IMU sample from the
+ public:            // table's ACTUAL motion (calib/truth_stream), paced by ScaledRealTime(speed)
+  /// Validates the configuration (rate, speed, probabilities, fault schedule); throws
+  /// std::invalid_argument naming the field.
+  explicit StationSim(StationSimConfig cfg);
+  ~StationSim();  // stop()
+  StationSim(const StationSim&) = delete;
+  StationSim& operator=(const StationSim&) = delete;
+
+  void start();  // listening when it returns; throws naming address/path
+  void stop();
+  int modbus_port() const;
+  std::string modbus_endpoint() const;  // "tcp:127.0.0.1:PORT"
+  std::string can_uri() const;          // "unixcan:PATH"
+  double time_s() const;                // physics clock
+  StationSimStats stats() const;
+  ModbusTableServer& table_server();  // for with_plc() inspection / runtime fault injection
+  void inject_imu_reset();            // runtime knobs (thread-safe)
+
+  // --- additions beyond the contract ---
+  const StationSimConfig& config() const { return cfg_; }
+  /// Accepted move commands the PLC has acted on so far (the table-fault schedule counts these).
+  uint64_t moves_accepted() const { return moves_accepted_.load(); }
+  /// Set if the physics thread stopped on an error (e.g. the CAN bus failed); empty otherwise.
+  std::string error() const;
+
+ private:
+  void run();
+
+  StationSimConfig cfg_;
+  std::unique_ptr<ModbusTableServer> server_;
+  std::unique_ptr<imu::CanChannel> channel_;
+  std::unique_ptr<ImuCanNode> node_;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> running_{false};
+  std::unique_ptr<ScaledRealTime> clock_;
+  std::atomic<double> sim_time_s_{0.0};
+  std::atomic<uint64_t> moves_accepted_{0};
+  std::atomic<uint64_t> modbus_drops_{0};
+  std::atomic<bool> reset_requested_{false};
+  mutable std::mutex mu_;  // guards error_ and the node stats snapshot
+  std::string error_;
+  struct NodeSnapshot {
+    uint64_t samples_sent = 0, frames_sent = 0, frames_lost = 0, frames_corrupted = 0, imu_resets = 0;
+  } node_stats_;
+  double wall_elapsed_s_ = 0.0;
+};
+
+}  // namespace imucal::sim
