@@ -1,0 +1,387 @@
+#include "station/config.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <vector>
+
+#include <toml++/toml.h>
+
+#include "calib/conventions.hpp"
+#include "drivers/imu/imu_protocol.hpp"
+#include "drivers/turntable/register_map.hpp"
+#include "sequences/toml_support.hpp"
+
+namespace imucal::station {
+
+namespace fs = std::filesystem;
+
+ConfigError::ConfigError(const std::string& file, int line, int column, const std::string& message)
+    : std::runtime_error(file + ":" + std::to_string(line) + ":" + std::to_string(column) + ": " +
+                         message),
+      file_(file),
+      line_(line),
+      column_(column),
+      message_(message) {}
+
+double StationConfig::arw_rad_per_sqrt_s() const {
+  // deg/√h -> rad/√s: 1 √h = 60 √s.
+  return arw_deg_per_sqrt_h * kDegToRad / 60.0;
+}
+double StationConfig::vrw_mps_per_sqrt_s() const {
+  // µg/√Hz is the same quantity as µg·√s; times g0 per µg gives m/s/√s.
+  return vrw_ug_per_sqrt_hz * kMicroG_mps2;
+}
+
+bool is_log_level(const std::string& level) {
+  static const char* const kLevels[] = {"trace", "debug", "info", "warn", "error", "critical", "off"};
+  return std::find(std::begin(kLevels), std::end(kLevels), level) != std::end(kLevels);
+}
+
+namespace {
+
+struct Pos {
+  int line = 1, column = 1;
+};
+
+Pos pos_of(const toml::source_region& r) {
+  Pos p;
+  if (r.begin.line > 0) {
+    p.line = static_cast<int>(r.begin.line);
+    p.column = std::max(1, static_cast<int>(r.begin.column));
+  }
+  return p;
+}
+
+std::string fmt_double(double x) {
+  std::ostringstream os;
+  os.precision(12);
+  os << x;
+  return os.str();
+}
+
+/// Reads one [section]: every access records the key, unknown keys are refused, every error names
+/// "[section] key" at the key's position.
+class Section {
+ public:
+  Section(std::string origin, std::string name, const toml::table* table, Pos header)
+      : origin_(std::move(origin)), name_(std::move(name)), t_(table), header_(header) {}
+
+  [[noreturn]] void fail(Pos p, const std::string& message) const {
+    throw ConfigError(origin_, p.line, p.column, message);
+  }
+  [[noreturn]] void fail_key(const std::string& key, const std::string& message) const {
+    fail(key_pos(key), "[" + name_ + "] " + key + ": " + message);
+  }
+
+  bool present() const { return t_ != nullptr; }
+  bool has(const std::string& key) const { return t_ && t_->get(key) != nullptr; }
+
+  Pos key_pos(const std::string& key) const {
+    if (!t_) return header_;
+    auto it = t_->find(key);
+    return it == t_->end() ? header_ : pos_of(it->first.source());
+  }
+
+  /// Refuses keys not in `allowed`, reporting the first one in file order.
+  void only(const std::vector<std::string>& allowed) const {
+    if (!t_) return;
+    const toml::key* first = nullptr;
+    for (const auto& [k, v] : *t_) {
+      if (std::find(allowed.begin(), allowed.end(), std::string(k.str())) != allowed.end()) continue;
+      if (!first || k.source().begin < first->source().begin) first = &k;
+    }
+    if (!first) return;
+    std::string list;
+    for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+    fail(pos_of(first->source()),
+         "[" + name_ + "] unknown key '" + std::string(first->str()) + "' (allowed: " + list + ")");
+  }
+
+  const toml::node* node(const std::string& key, bool required) const {
+    const toml::node* n = t_ ? t_->get(key) : nullptr;
+    if (!n && required) {
+      fail(header_, t_ ? "[" + name_ + "] missing required key '" + key + "'"
+                       : "missing required key '" + key + "' (table [" + name_ + "] is missing)");
+    }
+    return n;
+  }
+
+  [[noreturn]] void wrong_type(const std::string& key, const toml::node& n, const char* want) const {
+    fail_key(key, std::string("must be ") + want + ", not " + sequences::toml_type_name(n.type()));
+  }
+
+  std::optional<double> number(const std::string& key, bool required, double lo, double hi,
+                               const char* unit) const {
+    const toml::node* n = node(key, required);
+    if (!n) return std::nullopt;
+    double x;
+    if (const auto* f = n->as_floating_point()) {
+      x = f->get();
+    } else if (const auto* i = n->as_integer()) {
+      x = static_cast<double>(i->get());
+    } else {
+      wrong_type(key, *n, "a number");
+    }
+    if (!std::isfinite(x) || x < lo || x > hi) {
+      fail_key(key, fmt_double(x) + " is out of range [" + fmt_double(lo) + ", " + fmt_double(hi) +
+                        "] " + unit);
+    }
+    return x;
+  }
+
+  std::optional<int64_t> integer(const std::string& key, bool required, int64_t lo, int64_t hi,
+                                 const char* unit) const {
+    const toml::node* n = node(key, required);
+    if (!n) return std::nullopt;
+    const auto* i = n->as_integer();
+    if (!i) wrong_type(key, *n, "an integer");
+    const int64_t x = i->get();
+    if (x < lo || x > hi) {
+      fail_key(key, std::to_string(x) + " is out of range [" + std::to_string(lo) + ", " +
+                        std::to_string(hi) + "] " + unit);
+    }
+    return x;
+  }
+
+  std::optional<std::string> string(const std::string& key, bool required, bool allow_empty) const {
+    const toml::node* n = node(key, required);
+    if (!n) return std::nullopt;
+    const auto* s = n->as_string();
+    if (!s) wrong_type(key, *n, "a string");
+    if (!allow_empty && s->get().empty()) fail_key(key, "must not be empty");
+    return s->get();
+  }
+
+  const toml::table* sub_table(const std::string& key) const {
+    const toml::node* n = node(key, false);
+    if (!n) return nullptr;
+    const auto* t = n->as_table();
+    if (!t) wrong_type(key, *n, "a table");
+    return t;
+  }
+
+  const std::string& origin() const { return origin_; }
+
+ private:
+  std::string origin_;
+  std::string name_;
+  const toml::table* t_;
+  Pos header_;
+};
+
+std::string resolve(const std::string& base_dir, const std::string& p) {
+  fs::path path(p);
+  if (path.is_absolute()) return path.lexically_normal().string();
+  return (fs::path(base_dir) / path).lexically_normal().string();
+}
+
+/// Finds the position of the first node (key or value) on `line` inside `t`, for errors of the
+/// register map reader (which reports lines only).
+std::optional<Pos> find_line(const toml::table& t, int line) {
+  for (const auto& [k, v] : t) {
+    if (static_cast<int>(k.source().begin.line) == line) return pos_of(k.source());
+    if (const auto* sub = v.as_table()) {
+      if (auto p = find_line(*sub, line)) return p;
+    }
+  }
+  return std::nullopt;
+}
+
+StationConfig parse_root(const toml::table& root, const std::string& origin,
+                         const std::string& base_dir) {
+  StationConfig c;
+  c.source_path = origin;
+  c.base_dir = base_dir;
+
+  // Top level: only the known tables.
+  const std::vector<std::string> sections = {"station", "control", "turntable", "imu",
+                                             "calibration", "log"};
+  {
+    const toml::key* first = nullptr;
+    for (const auto& [k, v] : root) {
+      if (std::find(sections.begin(), sections.end(), std::string(k.str())) != sections.end()) {
+        if (!v.is_table()) {
+          throw ConfigError(origin, pos_of(k.source()).line, pos_of(k.source()).column,
+                            "'" + std::string(k.str()) + "' must be a table ([" +
+                                std::string(k.str()) + "]), not " +
+                                sequences::toml_type_name(v.type()));
+        }
+        continue;
+      }
+      if (!first || k.source().begin < first->source().begin) first = &k;
+    }
+    if (first) {
+      throw ConfigError(origin, pos_of(first->source()).line, pos_of(first->source()).column,
+                        "unknown key or table '" + std::string(first->str()) +
+                            "' (allowed tables: [station], [control], [turntable], [imu], "
+                            "[calibration], [log])");
+    }
+  }
+  auto section = [&](const std::string& name) {
+    const toml::table* t = root.get_as<toml::table>(name);
+    Pos header{1, 1};
+    if (t) {
+      auto it = root.find(name);
+      header = pos_of(t->source().begin.line > 0 ? t->source() : it->first.source());
+    }
+    return Section(origin, name, t, header);
+  };
+
+  // [station]
+  {
+    Section s = section("station");
+    s.only({"name", "lat_deg", "lon_deg", "height_m", "gravity_mps2", "data_dir", "database"});
+    c.station_name = *s.string("name", true, false);
+    c.site.lat_rad = *s.number("lat_deg", true, -90.0, 90.0, "deg") * kDegToRad;
+    c.site.lon_rad = *s.number("lon_deg", true, -180.0, 360.0, "deg") * kDegToRad;
+    c.site.height_m = *s.number("height_m", true, -500.0, 9000.0, "m");
+    if (auto g = s.number("gravity_mps2", false, 9.76, 9.84, "m/s^2")) c.site.gravity_mps2 = *g;
+    c.data_dir = resolve(base_dir, *s.string("data_dir", true, false));
+    if (auto db = s.string("database", false, false)) {
+      c.database = resolve(base_dir, *db);
+    } else {
+      c.database = (fs::path(c.data_dir) / "history.sqlite").string();
+    }
+  }
+  // [control]
+  {
+    Section s = section("control");
+    s.only({"socket", "group", "socket_mode"});
+    if (auto v = s.string("socket", false, false)) c.control_socket = resolve(base_dir, *v);
+    if (auto v = s.string("group", false, true)) c.control_group = *v;
+    if (auto v = s.integer("socket_mode", false, 0, 0777, "(octal permission bits, e.g. 0o660)"))
+      c.control_socket_mode = static_cast<unsigned>(*v);
+  }
+  // [turntable]
+  {
+    Section s = section("turntable");
+    s.only({"endpoint", "response_timeout_ms", "ack_timeout_ms", "poll_period_ms",
+            "heartbeat_timeout_ms", "reconnect_give_up_ms", "move_timeout_s", "home_timeout_s",
+            "position_tolerance_deg", "max_rate_dps", "registers"});
+    auto& t = c.turntable;
+    const std::string ep = *s.string("endpoint", true, false);
+    try {
+      t.endpoint = turntable::Endpoint::parse(ep);
+    } catch (const std::exception& e) {
+      s.fail_key("endpoint", std::string(e.what()) +
+                                 " (expected \"tcp:HOST:PORT\" or \"rtu:DEVICE:BAUD:8E1\")");
+    }
+    using ms = std::chrono::milliseconds;
+    if (auto v = s.integer("response_timeout_ms", false, 1, 60000, "ms")) t.response_timeout = ms(*v);
+    if (auto v = s.integer("ack_timeout_ms", false, 1, 60000, "ms")) t.ack_timeout = ms(*v);
+    if (auto v = s.integer("poll_period_ms", false, 1, 10000, "ms")) t.poll_period = ms(*v);
+    if (auto v = s.integer("heartbeat_timeout_ms", false, 1, 600000, "ms"))
+      t.heartbeat_timeout = ms(*v);
+    if (auto v = s.integer("reconnect_give_up_ms", false, 0, 3600000, "ms"))
+      t.reconnect_give_up = ms(*v);
+    if (auto v = s.number("move_timeout_s", false, 0.1, 86400.0, "s")) c.move_timeout_s = *v;
+    if (auto v = s.number("home_timeout_s", false, 0.1, 86400.0, "s")) c.home_timeout_s = *v;
+    if (auto v = s.number("position_tolerance_deg", false, 1e-6, 10.0, "deg"))
+      t.position_tolerance_deg = *v;
+    if (auto v = s.number("max_rate_dps", false, 1e-3, 1000.0, "deg/s")) c.max_rate_dps = *v;
+    if (const toml::table* regs = s.sub_table("registers")) {
+      try {
+        t.map = turntable::register_map_from_toml(*regs, origin);
+      } catch (const turntable::RegisterMapError& e) {
+        // The map reader names "ORIGIN:LINE: message"; add the column and the table name.
+        std::string msg = e.what();
+        const std::string prefix = origin + ":" + std::to_string(e.line()) + ": ";
+        if (msg.rfind(prefix, 0) == 0) msg = msg.substr(prefix.size());
+        Pos p = s.key_pos("registers");
+        if (e.line() > 0) p = find_line(*regs, e.line()).value_or(Pos{e.line(), 1});
+        throw ConfigError(origin, p.line, p.column, "[turntable.registers] " + msg);
+      }
+    }
+  }
+  // [imu]
+  {
+    Section s = section("imu");
+    s.only({"can", "rate_hz", "base_id", "arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz",
+            "max_gap_samples", "settle_guard_samples", "rest_rate_threshold_dps",
+            "stream_timeout_ms"});
+    const std::string can = *s.string("can", true, false);
+    const auto colon = can.find(':');
+    const std::string scheme = colon == std::string::npos ? "" : can.substr(0, colon);
+    const std::string rest = colon == std::string::npos ? "" : can.substr(colon + 1);
+    if ((scheme != "unixcan" && scheme != "socketcan" && scheme != "candump") || rest.empty()) {
+      s.fail_key("can", "\"" + can +
+                            "\" is not a CAN URI (expected \"unixcan:PATH\", \"socketcan:IFACE\" "
+                            "or \"candump:FILE\")");
+    }
+    c.can_uri = scheme == "socketcan" ? can : scheme + ":" + resolve(base_dir, rest);
+    if (auto v = s.number("rate_hz", false, 1.0, 2000.0, "Hz")) c.rate_hz = *v;
+    if (auto v = s.integer("base_id", false, 0, 0x7FF - (imu::kFramesPerSample - 1),
+                           "(11-bit CAN id of the first of the sample's frames)"))
+      c.base_id = static_cast<uint32_t>(*v);
+    if (auto v = s.number("arw_deg_per_sqrt_h", false, 1e-7, 10.0, "deg/sqrt(h)"))
+      c.arw_deg_per_sqrt_h = *v;
+    if (auto v = s.number("vrw_ug_per_sqrt_hz", false, 1e-3, 1e5, "ug/sqrt(Hz)"))
+      c.vrw_ug_per_sqrt_hz = *v;
+    if (auto v = s.integer("max_gap_samples", false, 0, 100000, "samples"))
+      c.max_gap_samples = static_cast<uint64_t>(*v);
+    if (auto v = s.integer("settle_guard_samples", false, 0, 1000000, "samples"))
+      c.settle_guard_samples = static_cast<uint64_t>(*v);
+    if (auto v = s.number("rest_rate_threshold_dps", false, 1e-6, 100.0, "deg/s"))
+      c.rest_rate_threshold_dps = *v;
+    if (auto v = s.integer("stream_timeout_ms", false, 10, 600000, "ms"))
+      c.stream_timeout_ms = static_cast<int>(*v);
+  }
+  // [calibration]
+  {
+    Section s = section("calibration");
+    s.only({"default_sequence", "k_sigma"});
+    if (auto v = s.string("default_sequence", false, false)) {
+      // A path-like value is a file next to the config; a bare name is a library sequence.
+      c.default_sequence = v->find('/') != std::string::npos ? resolve(base_dir, *v) : *v;
+    }
+    if (auto v = s.number("k_sigma", false, 0.5, 100.0, "(combined standard deviations)"))
+      c.k_sigma = *v;
+  }
+  // [log]
+  {
+    Section s = section("log");
+    s.only({"level"});
+    if (auto v = s.string("level", false, false)) {
+      if (!is_log_level(*v)) {
+        s.fail_key("level", "\"" + *v +
+                                "\" is not a log level (trace, debug, info, warn, error, critical, "
+                                "off)");
+      }
+      c.log_level = *v;
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
+StationConfig parse_config(std::string_view text, const std::string& origin,
+                           const std::string& base_dir) {
+  toml::table root;
+  try {
+    root = toml::parse(text, origin);
+  } catch (const toml::parse_error& e) {
+    const Pos p = pos_of(e.source());
+    throw ConfigError(origin, p.line, p.column,
+                      "TOML syntax error: " + std::string(e.description()));
+  }
+  std::string base = fs::absolute(base_dir.empty() ? "." : base_dir).lexically_normal().string();
+  while (base.size() > 1 && base.back() == '/') base.pop_back();
+  return parse_root(root, origin, base);
+}
+
+StationConfig load_config(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw ConfigError(path, 0, 0, "cannot open the configuration file");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw ConfigError(path, 0, 0, "cannot read the configuration file");
+  std::string base = fs::path(path).parent_path().string();
+  return parse_config(ss.str(), path, base.empty() ? "." : base);
+}
+
+}  // namespace imucal::station

@@ -1,0 +1,90 @@
+#pragma once
+// stationd's configuration file (TOML; station/stationd.example.toml documents every key with its
+// unit and default). Read once at start-up; a bad file stops the daemon before it touches anything.
+//
+// Every error is a ConfigError whose what() reads "FILE:LINE:COL: message", the message naming the
+// key ("[imu] rate_hz ..."): unknown key or table, wrong type, value out of range, missing required
+// key, TOML syntax. Relative paths (data_dir, database, control socket, the path of a unixcan:/candump:
+// URI) are resolved against the directory of the configuration file, so a config works from any
+// working directory. Loading never creates, opens or modifies anything but the config file itself.
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+#include "calib/earth.hpp"
+#include "drivers/turntable/turntable_client.hpp"
+
+namespace imucal::station {
+
+class ConfigError : public std::runtime_error {
+ public:
+  ConfigError(const std::string& file, int line, int column, const std::string& message);
+  const std::string& file() const { return file_; }
+  int line() const { return line_; }
+  int column() const { return column_; }
+  /// The message without the "FILE:LINE:COL: " prefix.
+  const std::string& message() const { return message_; }
+
+ private:
+  std::string file_;
+  int line_, column_;
+  std::string message_;
+};
+
+struct StationConfig {
+  std::string source_path;  ///< the config file (as given)
+  std::string base_dir;     ///< its directory, absolute; relative paths were resolved against it
+
+  // [station]
+  std::string station_name;  ///< name (required): recorded with every run
+  calib::Site site;          ///< lat_deg, lon_deg, height_m (required), gravity_mps2 (optional)
+  std::string data_dir;      ///< data_dir (required): run archives go to <data_dir>/runs/
+  std::string database;      ///< database (default <data_dir>/history.sqlite)
+
+  // [control]
+  std::string control_socket = "/run/imucal/stationd.sock";  ///< socket
+  std::string control_group;       ///< group ("" = the daemon's primary group)
+  unsigned control_socket_mode = 0666;  ///< socket_mode
+
+  // [turntable] (+ [turntable.registers])
+  turntable::TurntableClientConfig turntable;  ///< endpoint (required), timeouts, tolerance, map
+  double move_timeout_s = 120.0;               ///< per move, wall time
+  double home_timeout_s = 120.0;
+  double max_rate_dps = 20.0;  ///< station limit; sequences are validated against it, rates clipped
+
+  // [imu]
+  std::string can_uri;  ///< can (required): "unixcan:PATH" | "socketcan:IFACE" | "candump:FILE"
+  double rate_hz = 100.0;
+  uint32_t base_id = 0x100;
+  double arw_deg_per_sqrt_h = 0.0015;  ///< gyro angle random walk (noise weighting of the estimators)
+  double vrw_ug_per_sqrt_hz = 10.0;    ///< accelerometer velocity random walk
+  uint64_t max_gap_samples = 10;
+  uint64_t settle_guard_samples = 50;
+  double rest_rate_threshold_dps = 0.05;
+  int stream_timeout_ms = 2000;
+
+  // [calibration]
+  std::string default_sequence = "factory-std";
+  double k_sigma = 4.0;
+
+  // [log]
+  std::string log_level = "info";  ///< trace, debug, info, warn, error, critical, off
+
+  /// The noise model in SI units (calib::NoiseModel's fields).
+  double arw_rad_per_sqrt_s() const;
+  double vrw_mps_per_sqrt_s() const;
+};
+
+/// Reads and checks the file. Throws ConfigError (a file that cannot be read: line 0, column 0).
+StationConfig load_config(const std::string& path);
+
+/// Same for text; `origin` names it in errors and `base_dir` resolves relative paths.
+StationConfig parse_config(std::string_view text, const std::string& origin,
+                           const std::string& base_dir);
+
+/// The log level words accepted by [log] level and --log-level.
+bool is_log_level(const std::string& level);
+
+}  // namespace imucal::station

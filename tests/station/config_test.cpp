@@ -1,0 +1,221 @@
+// stationd configuration: the shipped example parses to the values it documents; every class of
+// error names FILE:LINE:COL and the key; relative paths resolve against the config's directory.
+#include "station/config.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include "calib/conventions.hpp"
+#include "drivers/turntable/register_map.hpp"
+
+namespace imucal::station {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kExample = std::string(IMUCAL_SOURCE_DIR) + "/station/stationd.example.toml";
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+/// A minimal valid config; line numbers below refer to this text (1-based).
+const char* const kMinimal =
+    "[station]\n"                              // 1
+    "name = \"st\"\n"                          // 2
+    "lat_deg = 10.0\n"                         // 3
+    "lon_deg = 20\n"                           // 4
+    "height_m = 5.0\n"                         // 5
+    "data_dir = \"d\"\n"                       // 6
+    "[turntable]\n"                            // 7
+    "endpoint = \"tcp:127.0.0.1:1502\"\n"      // 8
+    "[imu]\n"                                  // 9
+    "can = \"unixcan:bus.sock\"\n";            // 10
+
+ConfigError error_of(const std::string& text) {
+  try {
+    parse_config(text, "cfg.toml", "/etc/imucal");
+  } catch (const ConfigError& e) {
+    return e;
+  }
+  ADD_FAILURE() << "no ConfigError for:\n" << text;
+  return ConfigError("", 0, 0, "");
+}
+
+/// Replaces line `n` (1-based) of `text` by `replacement` (may contain several lines).
+std::string with_line(std::string text, int n, const std::string& replacement) {
+  std::istringstream in(text);
+  std::ostringstream out;
+  std::string line;
+  for (int i = 1; std::getline(in, line); ++i) out << (i == n ? replacement : line) << '\n';
+  return out.str();
+}
+
+TEST(StationConfig, ExampleParsesToTheDocumentedValues) {
+  const StationConfig c = load_config(kExample);
+  const std::string dir = fs::absolute(fs::path(kExample).parent_path()).lexically_normal().string();
+  EXPECT_EQ(c.station_name, "sim-station");
+  EXPECT_NEAR(c.site.lat_rad, 55.7856 * kDegToRad, 1e-12);
+  EXPECT_NEAR(c.site.lon_rad, 12.5213 * kDegToRad, 1e-12);
+  EXPECT_DOUBLE_EQ(c.site.height_m, 30.0);
+  EXPECT_FALSE(c.site.gravity_mps2.has_value());  // commented out in the example
+  EXPECT_EQ(c.data_dir, dir + "/data");
+  EXPECT_EQ(c.database, dir + "/data/history.sqlite");
+  EXPECT_EQ(c.control_socket, dir + "/stationd.sock");
+  EXPECT_EQ(c.control_group, "");
+  EXPECT_EQ(c.control_socket_mode, 0666u);
+  EXPECT_EQ(c.turntable.endpoint.kind, turntable::Endpoint::Kind::kTcp);
+  EXPECT_EQ(c.turntable.endpoint.host, "127.0.0.1");
+  EXPECT_EQ(c.turntable.endpoint.port, 1502);
+  EXPECT_EQ(c.turntable.response_timeout.count(), 250);
+  EXPECT_EQ(c.turntable.ack_timeout.count(), 1000);
+  EXPECT_EQ(c.turntable.poll_period.count(), 20);
+  EXPECT_EQ(c.turntable.heartbeat_timeout.count(), 1000);
+  EXPECT_EQ(c.turntable.reconnect_give_up.count(), 10000);
+  EXPECT_DOUBLE_EQ(c.move_timeout_s, 120.0);
+  EXPECT_DOUBLE_EQ(c.home_timeout_s, 120.0);
+  EXPECT_DOUBLE_EQ(c.turntable.position_tolerance_deg, 0.01);
+  EXPECT_DOUBLE_EQ(c.max_rate_dps, 20.0);
+  EXPECT_TRUE(c.turntable.map == turntable::default_register_map());
+  EXPECT_EQ(c.can_uri, "unixcan:" + dir + "/imu.can");
+  EXPECT_DOUBLE_EQ(c.rate_hz, 100.0);
+  EXPECT_EQ(c.base_id, 0x100u);
+  EXPECT_EQ(c.max_gap_samples, 10u);
+  EXPECT_EQ(c.settle_guard_samples, 50u);
+  EXPECT_DOUBLE_EQ(c.rest_rate_threshold_dps, 0.05);
+  EXPECT_EQ(c.stream_timeout_ms, 2000);
+  EXPECT_EQ(c.default_sequence, "short");
+  EXPECT_DOUBLE_EQ(c.k_sigma, 4.0);
+  EXPECT_EQ(c.log_level, "info");
+  // Unit conversions: 0.0015 deg/√h = 0.0015·π/180 rad / 60 √s; 10 µg/√Hz = 10e-6·g0 m/s/√s.
+  EXPECT_NEAR(c.arw_rad_per_sqrt_s(), 0.0015 * M_PI / 180.0 / 60.0, 1e-15);
+  EXPECT_NEAR(c.vrw_mps_per_sqrt_s(), 10e-6 * 9.80665, 1e-12);
+}
+
+TEST(StationConfig, ExampleWithItsRegisterMapUncommentedIsTheDefaultMap) {
+  // The commented [turntable.registers] block of the example is meant to be uncommented as is.
+  std::string text = read_file(kExample);
+  std::istringstream in(text);
+  std::ostringstream out;
+  std::string line;
+  bool in_block = false;
+  while (std::getline(in, line)) {
+    if (line.rfind("# [turntable.registers]", 0) == 0) in_block = true;
+    if (in_block && line.rfind("[imu]", 0) == 0) in_block = false;
+    if (in_block && line.rfind("# ", 0) == 0) line = line.substr(2);
+    out << line << '\n';
+  }
+  const StationConfig c = parse_config(out.str(), "example-uncommented", "/tmp");
+  EXPECT_TRUE(c.turntable.map == turntable::default_register_map());
+}
+
+TEST(StationConfig, MinimalConfigGetsTheDefaultsAndResolvesRelativePaths) {
+  const StationConfig c = parse_config(kMinimal, "cfg.toml", "/etc/imucal");
+  EXPECT_EQ(c.data_dir, "/etc/imucal/d");
+  EXPECT_EQ(c.database, "/etc/imucal/d/history.sqlite");
+  EXPECT_EQ(c.can_uri, "unixcan:/etc/imucal/bus.sock");
+  EXPECT_EQ(c.control_socket, "/run/imucal/stationd.sock");
+  EXPECT_EQ(c.default_sequence, "factory-std");
+  EXPECT_NEAR(c.site.lon_rad, 20.0 * kDegToRad, 1e-15);  // an integer is a number too
+  // Absolute paths stay as they are; socketcan names an interface, not a path.
+  const StationConfig d = parse_config(with_line(with_line(kMinimal, 6, "data_dir = \"/srv/x\""), 10,
+                                                 "can = \"socketcan:can0\""),
+                                       "cfg.toml", "/etc/imucal");
+  EXPECT_EQ(d.data_dir, "/srv/x");
+  EXPECT_EQ(d.can_uri, "socketcan:can0");
+}
+
+void expect_error(const std::string& text, int line, int column, const std::string& must_contain) {
+  const ConfigError e = error_of(text);
+  EXPECT_EQ(e.file(), "cfg.toml");
+  EXPECT_EQ(e.line(), line) << e.what();
+  if (column > 0) {
+    EXPECT_EQ(e.column(), column) << e.what();
+  }
+  EXPECT_NE(std::string(e.what()).find(must_contain), std::string::npos) << e.what();
+  const std::string prefix =
+      "cfg.toml:" + std::to_string(e.line()) + ":" + std::to_string(e.column()) + ": ";
+  EXPECT_EQ(std::string(e.what()).rfind(prefix, 0), 0u) << e.what();
+}
+
+TEST(StationConfig, UnknownKeyNamesFileLineColumnAndKey) {
+  expect_error(with_line(kMinimal, 5, "height_m = 5.0\n  heigth = 3"), 6, 3, "unknown key 'heigth'");
+  expect_error(std::string(kMinimal) + "[imus]\nx = 1\n", 11, 2, "unknown key or table 'imus'");
+}
+
+TEST(StationConfig, WrongTypeNamesTheKey) {
+  expect_error(with_line(kMinimal, 3, "lat_deg = \"55\""), 3, 1, "[station] lat_deg: must be a number, not string");
+  expect_error(std::string(kMinimal) + "rate_hz = true\n", 11, 1, "[imu] rate_hz: must be a number, not boolean");
+  expect_error(std::string(kMinimal) + "stream_timeout_ms = 2.5\n", 11, 1,
+               "[imu] stream_timeout_ms: must be an integer, not float");
+  expect_error("log = 3\n" + std::string(kMinimal), 1, 1, "'log' must be a table ([log]), not integer");
+}
+
+TEST(StationConfig, OutOfRangeNamesTheKeyAndTheRange) {
+  expect_error(with_line(kMinimal, 3, "lat_deg = 91.0"), 3, 1, "[station] lat_deg: 91 is out of range [-90, 90] deg");
+  expect_error(std::string(kMinimal) + "rate_hz = 0\n", 11, 1, "[imu] rate_hz: 0 is out of range");
+  expect_error(std::string(kMinimal) + "[control]\nsocket_mode = 0o1777\n", 12, 1,
+               "[control] socket_mode: 1023 is out of range [0, 511]");
+  expect_error(std::string(kMinimal) + "[log]\nlevel = \"loud\"\n", 12, 1, "[log] level: \"loud\" is not a log level");
+  expect_error(with_line(kMinimal, 8, "endpoint = \"udp:1.2.3.4:5\""), 8, 1, "[turntable] endpoint:");
+  expect_error(with_line(kMinimal, 10, "can = \"vcan0\""), 10, 1, "[imu] can: \"vcan0\" is not a CAN URI");
+}
+
+TEST(StationConfig, MissingRequiredKeyNamesTheKeyAndItsTable) {
+  expect_error(with_line(kMinimal, 6, ""), 1, 1, "[station] missing required key 'data_dir'");
+  expect_error(with_line(kMinimal, 8, ""), 7, 1, "[turntable] missing required key 'endpoint'");
+  // A whole table missing: the key it lacks is named with the table.
+  expect_error(with_line(with_line(kMinimal, 9, ""), 10, ""), 1, 1,
+               "missing required key 'can' (table [imu] is missing)");
+}
+
+TEST(StationConfig, SyntaxErrorHasItsPosition) {
+  expect_error(with_line(kMinimal, 4, "lon_deg = = 3"), 4, 0, "TOML syntax error");
+}
+
+TEST(StationConfig, RegisterMapErrorsPointAtTheKeyInTheConfig) {
+  // A register map whose command_seq does not follow command: the map reader's check, reported at
+  // the line of command_seq in THIS file.
+  const std::string regs =
+      "[turntable.registers]\n"                // 11
+      "unit_id = 1\n"                          // 12
+      "word_order = \"ABCD\"\n"                // 13
+      "[turntable.registers.holding]\n"        // 14
+      "target_outer_deg = 0\n"                 // 15
+      "target_inner_deg = 2\n"                 // 16
+      "max_rate_dps = 4\n"                     // 17
+      "command = 6\n"                          // 18
+      "command_seq = 9\n"                      // 19
+      "[turntable.registers.input]\n"          // 20
+      "actual_outer_deg = 0\nactual_inner_deg = 2\nrate_outer_dps = 4\nrate_inner_dps = 6\n"
+      "status = 8\nfault_code = 9\nheartbeat = 10\nack_seq = 11\nack_result = 12\n"
+      "[turntable.registers.status_bits]\nenabled = 0\nhomed = 1\nmoving = 2\nin_position = 3\n"
+      "fault = 4\nestop = 5\n"
+      "[turntable.registers.commands]\nenable = 1\nmove = 2\nstop = 3\nhome = 4\nclear_fault = 5\n";
+  expect_error(std::string(kMinimal) + regs, 19, 1, "[turntable.registers]");
+  // Fixed, the same map loads.
+  const StationConfig c =
+      parse_config(std::string(kMinimal) + std::regex_replace(regs, std::regex("command_seq = 9"), "command_seq = 7"),
+                   "cfg.toml", "/etc");
+  EXPECT_TRUE(c.turntable.map == turntable::default_register_map());
+}
+
+TEST(StationConfig, UnreadableFileIsAnError) {
+  try {
+    load_config("/nonexistent/stationd.toml");
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/stationd.toml"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace imucal::station
