@@ -71,6 +71,8 @@ struct StationSimStats {
   uint64_t samples_sent, frames_sent, frames_lost, frames_corrupted, imu_resets, modbus_drops,
       modbus_requests;
   double achieved_speed;
+  // --- additions beyond the contract ---
+  uint64_t frames_refused;  ///< frames a CAN reader did not take within the write timeout (0 normally)
 };
 
 class StationSim {  // one physics thread: steps the PLC and emits each IMU sample from the
@@ -109,7 +111,7 @@ class StationSim {  // one physics thread: steps the PLC and emits each IMU samp
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<bool> running_{false};
-  std::unique_ptr<ScaledRealTime> clock_;
+  std::unique_ptr<ScaledRealTime> clock_;  // the physics clock (started by start())
   std::atomic<double> sim_time_s_{0.0};
   std::atomic<uint64_t> moves_accepted_{0};
   std::atomic<uint64_t> modbus_drops_{0};
@@ -117,7 +119,9 @@ class StationSim {  // one physics thread: steps the PLC and emits each IMU samp
   mutable std::mutex mu_;  // guards error_ and the node stats snapshot
   std::string error_;
   struct NodeSnapshot {
-    uint64_t samples_sent = 0, frames_sent = 0, frames_lost = 0, frames_corrupted = 0, imu_resets = 0;
+    uint64_t samples_sent = 0, frames_sent = 0, frames_lost = 0, frames_corrupted = 0, frames_refused = 0,
+             imu_resets = 0;
+    double sim_time_s = 0.0;
   } node_stats_;
   double wall_elapsed_s_ = 0.0;
 };
