@@ -1,0 +1,116 @@
+#pragma once
+// The control socket's wire protocol (station contract §C): JSON lines over a Unix stream socket.
+//
+//   request  {"id":N,"cmd":"...","args":{...}}                      one line, '\n'-terminated
+//   reply    {"id":N,"ok":true,"result":{...}}
+//            {"id":N,"ok":false,"error":{"code":"...","message":"..."}}
+//
+// Commands and their arguments ("?" = optional):
+//   run.start  {serial, sequence?, operator?}     run.status {run_id?}     run.abort {reason?}
+//   reprocess  {run_id}                           history {serial, limit?}  show {run_id}
+//   params     {serial}                           export {serial?, since?, format: "csv"|"json"}
+//   ping       {}
+// "args" may be omitted when a command has no required argument. Validation is strict: a line that
+// is not JSON, not an object, lacks "id" or "cmd", names an unknown command, misses a required
+// argument, has an argument of the wrong type or an argument/field the command does not know is
+// refused with code bad_request and a message naming the field ("field 'args.run_id': expected a
+// positive integer, got string"). The reply carries the request's id when it could be read, else
+// null. Lines longer than kMaxLineBytes are refused (and the connection closed: the rest of such a
+// line cannot be told apart from the next request).
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "db/repository.hpp"
+#include "station/control_handler.hpp"
+
+namespace imucal::station {
+
+/// Longest request line accepted (without its '\n').
+constexpr std::size_t kMaxLineBytes = 1024 * 1024;
+
+/// Command names.
+namespace cmd {
+inline constexpr const char* kRunStart = "run.start";
+inline constexpr const char* kRunStatus = "run.status";
+inline constexpr const char* kRunAbort = "run.abort";
+inline constexpr const char* kReprocess = "reprocess";
+inline constexpr const char* kHistory = "history";
+inline constexpr const char* kShow = "show";
+inline constexpr const char* kParams = "params";
+inline constexpr const char* kExport = "export";
+inline constexpr const char* kPing = "ping";
+}  // namespace cmd
+
+/// Every command name, in the order listed above.
+const std::vector<std::string>& command_names();
+/// run.start, run.abort and reprocess: the commands that need membership of the control group.
+bool needs_control_permission(const std::string& command);
+/// history, show, params, export: answered from the repository (record_json.hpp), by the server
+/// and by stationctl's read-only fallback alike.
+bool is_repository_read(const std::string& command);
+
+/// A request that passed validation: `args` has only known keys, every required one, each of the
+/// documented type (so `args.at("run_id").get<db::RunId>()` cannot throw).
+struct Request {
+  std::int64_t id = 0;
+  std::string cmd;
+  nlohmann::json args = nlohmann::json::object();
+};
+
+/// A refused request: code bad_request; `id` is the request's id if one could be read (else null)
+/// and `field` the offending field path ("cmd", "args.serial", "" for the line itself).
+class BadRequest : public ControlError {
+ public:
+  BadRequest(nlohmann::json id, std::string field, const std::string& message)
+      : ControlError(error_code::kBadRequest, message), id_(std::move(id)),
+        field_(std::move(field)) {}
+  const nlohmann::json& id() const { return id_; }
+  const std::string& field() const { return field_; }
+
+ private:
+  nlohmann::json id_;
+  std::string field_;
+};
+
+/// Validates one request line (without '\n'). Throws BadRequest.
+Request parse_request(std::string_view line);
+/// Validates an already parsed request object (same rules; for callers that build JSON).
+Request parse_request(const nlohmann::json& request);
+
+/// One request line, '\n'-terminated. The arguments are not validated here (the server does).
+std::string request_line(std::int64_t id, const std::string& command,
+                         const nlohmann::json& args = nlohmann::json::object());
+
+/// {"id":id,"ok":true,"result":result}
+nlohmann::json ok_reply(const nlohmann::json& id, nlohmann::json result);
+/// {"id":id,"ok":false,"error":{"code":code,"message":message}}
+nlohmann::json error_reply(const nlohmann::json& id, const std::string& code,
+                           const std::string& message);
+/// A reply as one '\n'-terminated line. Invalid UTF-8 in strings is replaced (U+FFFD) rather than
+/// failing, so a reply can always be sent.
+std::string reply_line(const nlohmann::json& reply);
+
+/// The protocol error code for a repository failure: NotFound -> not_found, InvalidInput ->
+/// invalid_input, Busy -> busy, ReadOnly / Conflict -> invalid_input (the request asked for what the
+/// stored state forbids), Io / Corrupt / IncompatibleSchema -> unavailable.
+const char* error_code_for(db::DbErrorKind kind);
+
+/// A reply as read by a client.
+struct Reply {
+  nlohmann::json id;  ///< integer, or null
+  bool ok = false;
+  nlohmann::json result;  ///< when ok
+  std::string error_code;  ///< when !ok
+  std::string error_message;
+};
+
+/// Parses and checks a reply line's shape; std::runtime_error naming the field otherwise.
+Reply parse_reply(std::string_view line);
+
+}  // namespace imucal::station

@@ -1,0 +1,383 @@
+#include "station/record_json.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <stdexcept>
+#include <type_traits>
+#include <utility>
+
+#include "calib/param_set.hpp"
+#include "db/archive/param_json.hpp"
+#include "db/export.hpp"
+
+namespace imucal::station {
+
+using nlohmann::json;
+
+namespace {
+
+// RunRecord::capture_json arrives with schema v2 (lead change); until it is there a record has no
+// capture counters. Detected at compile time so this file builds against both.
+template <typename R, typename = void>
+struct HasCaptureJson : std::false_type {};
+template <typename R>
+struct HasCaptureJson<R, std::void_t<decltype(std::declval<const R&>().capture_json)>>
+    : std::true_type {};
+
+template <typename R>
+std::string capture_text(const R& run) {
+  if constexpr (HasCaptureJson<R>::value)
+    return run.capture_json;
+  else
+    return {};
+}
+
+std::string fmt(const char* format, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, format, v);
+  return buf;
+}
+
+std::string str(const json& o, const char* key, const std::string& fallback = "") {
+  const auto it = o.find(key);
+  if (it == o.end() || it->is_null()) return fallback;
+  if (it->is_string()) return it->get<std::string>();
+  return it->dump();
+}
+
+bool has(const json& o, const char* key) {
+  const auto it = o.find(key);
+  return it != o.end() && !it->is_null();
+}
+
+/// Pads (by code points, so "µg" counts as two columns) or leaves as is when longer.
+std::string pad(const std::string& s, std::size_t width) {
+  std::size_t cols = 0;
+  for (unsigned char c : s)
+    if ((c & 0xC0) != 0x80) ++cols;
+  return cols >= width ? s : s + std::string(width - cols, ' ');
+}
+
+std::string lpad(const std::string& s, std::size_t width) {
+  std::size_t cols = 0;
+  for (unsigned char c : s)
+    if ((c & 0xC0) != 0x80) ++cols;
+  return cols >= width ? s : std::string(width - cols, ' ') + s;
+}
+
+/// Duration of a run from its ms timestamps, or "" when not ended.
+std::string run_duration(const json& run) {
+  if (!has(run, "ended_at_ms") || !has(run, "started_at_ms")) return "";
+  const double s =
+      static_cast<double>(run["ended_at_ms"].get<long long>() - run["started_at_ms"].get<long long>()) /
+      1000.0;
+  return format_duration_s(s);
+}
+
+/// "yyyy-mm-dd hh:mm:ss" out of the ISO text (people do not need the milliseconds in a table).
+std::string short_time(const std::string& iso) {
+  if (iso.size() < 19) return iso;
+  std::string s = iso.substr(0, 19);
+  s[10] = ' ';
+  return s;
+}
+
+}  // namespace
+
+// ----- JSON shapes ------------------------------------------------------------------------------
+
+json run_record_json(const db::RunRecord& run) {
+  json o = db::run_json(run);
+  const std::string capture = capture_text(run);
+  if (capture.empty()) {
+    o["capture"] = nullptr;
+  } else {
+    json c;
+    try {
+      c = json::parse(capture);
+    } catch (const json::parse_error& e) {
+      throw db::Corrupt("run " + std::to_string(run.run_id) +
+                        ": stored capture counters are not JSON: " + e.what());
+    }
+    if (!c.is_object())
+      throw db::Corrupt("run " + std::to_string(run.run_id) +
+                        ": stored capture counters are not a JSON object");
+    o["capture"] = std::move(c);
+  }
+  return o;
+}
+
+json history_result(const std::string& serial, const std::vector<db::RunRecord>& runs) {
+  json list = json::array();
+  for (const auto& r : runs) list.push_back(run_record_json(r));
+  return {{"serial", serial}, {"runs", std::move(list)}};
+}
+
+json show_result(const db::RunDetails& details) {
+  json o = db::run_details_json(details);
+  o["run"] = run_record_json(details.run);
+  return o;
+}
+
+json params_result(const db::ActiveCalibration& active) { return db::active_params_json(active); }
+
+json export_result(const db::Repository& repo, const db::ExportFilter& filter,
+                   const std::string& format) {
+  std::ostringstream out;
+  std::size_t rows = 0;
+  if (format == "csv")
+    rows = db::export_csv(repo, filter, out);
+  else if (format == "json")
+    rows = db::export_json(repo, filter, out);
+  else
+    throw std::invalid_argument("export format \"" + format + "\" (expected csv or json)");
+  return {{"format", format}, {"rows", rows}, {"content", out.str()}};
+}
+
+json answer_repository_read(const db::Repository& repo, const Request& request) {
+  const json& a = request.args;
+  if (request.cmd == cmd::kHistory) {
+    const std::string serial = a.at("serial").get<std::string>();
+    const std::size_t limit = a.contains("limit") ? a.at("limit").get<std::size_t>() : 0;
+    return history_result(serial, repo.history(serial, limit));
+  }
+  if (request.cmd == cmd::kShow) return show_result(repo.show(a.at("run_id").get<db::RunId>()));
+  if (request.cmd == cmd::kParams)
+    return params_result(repo.active_params(a.at("serial").get<std::string>()));
+  if (request.cmd == cmd::kExport) {
+    db::ExportFilter filter;
+    if (a.contains("serial")) {
+      filter.serial = a.at("serial").get<std::string>();
+      // The export of an unknown or malformed serial would silently be empty; say so instead.
+      (void)repo.history(*filter.serial, 1);
+    }
+    if (a.contains("since")) filter.since_ms = db::parse_time_utc(a.at("since").get<std::string>());
+    return export_result(repo, filter, a.at("format").get<std::string>());
+  }
+  throw std::invalid_argument("not a repository read: " + request.cmd);
+}
+
+// ----- Text -------------------------------------------------------------------------------------
+
+std::string format_duration_s(double seconds) {
+  if (!std::isfinite(seconds) || seconds < 0) return "?";
+  const long long s = std::llround(seconds);
+  char buf[64];
+  if (s < 60)
+    std::snprintf(buf, sizeof buf, "%lld s", s);
+  else if (s < 3600)
+    std::snprintf(buf, sizeof buf, "%lld min %02lld s", s / 60, s % 60);
+  else
+    std::snprintf(buf, sizeof buf, "%lld h %02lld min", s / 3600, (s % 3600) / 60);
+  return buf;
+}
+
+std::string render_history_text(const json& history) {
+  std::ostringstream os;
+  const json& runs = history.at("runs");
+  const std::string serial = str(history, "serial");
+  if (runs.empty()) {
+    os << "No runs of " << serial << ".\n";
+    return os.str();
+  }
+  os << "History of " << serial << " (" << runs.size() << (runs.size() == 1 ? " run" : " runs")
+     << ", newest first)\n";
+  os << pad("RUN", 7) << pad("STARTED (UTC)", 21) << pad("STATE", 13) << pad("VERDICT", 9)
+     << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13) << "REASON\n";
+  for (const auto& r : runs) {
+    std::string id = str(r, "run_id");
+    if (has(r, "reprocessed_from")) id += "*";
+    os << pad(id, 7) << pad(short_time(str(r, "started_at")), 21) << pad(str(r, "state"), 13)
+       << pad(str(r, "verdict", "-"), 9) << pad(str(r, "sequence_name"), 16)
+       << pad(str(r, "operator"), 14) << pad(run_duration(r).empty() ? "-" : run_duration(r), 13)
+       << str(r, "failure_reason") << "\n";
+  }
+  bool any_reprocessed = false;
+  for (const auto& r : runs) any_reprocessed = any_reprocessed || has(r, "reprocessed_from");
+  if (any_reprocessed) os << "* reprocessed from an earlier run's archive\n";
+  return os.str();
+}
+
+namespace {
+
+void render_capture(std::ostream& os, const json& capture) {
+  os << "Capture";
+  if (capture.contains("complete") && capture["complete"].is_boolean())
+    os << (capture["complete"].get<bool>() ? " (complete)" : " (INCOMPLETE: recovered archive)");
+  os << "\n";
+  int column = 0;
+  for (auto it = capture.begin(); it != capture.end(); ++it) {
+    if (it.key() == "complete") continue;
+    os << "  " << pad(it.key(), 20) << lpad(it->is_string() ? it->get<std::string>() : it->dump(), 12);
+    os << (++column % 2 == 0 ? "\n" : "  ");
+  }
+  if (column % 2 != 0) os << "\n";
+}
+
+struct MethodColumns {
+  std::string method;
+  calib::ParamVector value = calib::ParamVector::Zero();
+  calib::ParamVector sigma = calib::ParamVector::Zero();
+};
+
+}  // namespace
+
+std::string render_show_text(const json& show) {
+  std::ostringstream os;
+  const json& run = show.at("run");
+  os << "Run " << str(run, "run_id") << "  " << str(run, "serial") << "  " << str(run, "state");
+  if (has(run, "verdict")) os << "  " << str(run, "verdict");
+  os << "\n";
+  auto row = [&os](const char* label, const std::string& value) {
+    if (!value.empty()) os << "  " << pad(label, 13) << value << "\n";
+  };
+  std::string seq = str(run, "sequence_name");
+  if (!str(run, "sequence_sha256").empty())
+    seq += "  (sha256 " + str(run, "sequence_sha256").substr(0, 16) + "...)";
+  row("sequence", seq);
+  row("operator", str(run, "operator"));
+  row("station", str(run, "station"));
+  row("software", str(run, "software_version"));
+  row("started", str(run, "started_at"));
+  if (has(run, "ended_at"))
+    row("ended", str(run, "ended_at") + "  (" + run_duration(run) + ")");
+  if (has(run, "reprocessed_from"))
+    row("reprocessed", "from run " + str(run, "reprocessed_from"));
+  row("reason", str(run, "failure_reason"));
+  row("archive", str(run, "archive_path"));
+  row("archive sha", str(run, "archive_sha256"));
+
+  if (has(run, "capture")) render_capture(os, run["capture"]);
+
+  const json& cals = show.at("calibrations");
+  if (cals.empty()) {
+    os << "No calibration results.\n";
+  } else {
+    std::vector<MethodColumns> cols;
+    for (const auto& c : cals) {
+      MethodColumns m;
+      m.method = str(c, "method");
+      calib::ParamSet sigma;
+      const calib::ParamSet p =
+          archive::param_set_from_json(c.at("params"), "run " + str(run, "run_id") + " " + m.method,
+                                       &sigma);
+      m.value = p.to_vector();
+      m.sigma = sigma.to_vector();
+      cols.push_back(m);
+    }
+    os << "Calibration (1-σ after ±)\n  " << pad("parameter", 26) << pad("unit", 8);
+    for (const auto& m : cols) os << pad(m.method, 25);
+    os << "\n";
+    for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+      const calib::ParamInfo& info = calib::param_info(i);
+      os << "  " << pad(info.name, 26) << pad(info.human_unit, 8);
+      for (const auto& m : cols)
+        os << lpad(fmt("%.3f", m.value(i) * info.si_to_human), 12) << " ± "
+           << pad(fmt("%.3f", m.sigma(i) * info.si_to_human), 10);
+      os << "\n";
+    }
+    for (const auto& c : cals) {
+      os << "  " << pad(str(c, "method"), 6) << (c.value("converged", false) ? "converged" : "NOT converged")
+         << ", " << str(c, "iterations") << " iterations, " << fmt("%.2f", c.value("runtime_s", 0.0))
+         << " s";
+      if (has(c, "metrics")) {
+        const json& m = c["metrics"];
+        os << "; orientation RMSE " << fmt("%.3f", m.value("orientation_rmse_mdeg", 0.0))
+           << " mdeg, accel RMSE " << fmt("%.2f", m.value("accel_rmse_ug", 0.0)) << " µg";
+      }
+      os << "\n";
+      if (c.contains("warnings"))
+        for (const auto& w : c["warnings"]) os << "    warning: " << w.get<std::string>() << "\n";
+    }
+  }
+  if (has(show, "crosscheck")) {
+    const json& x = show["crosscheck"];
+    os << "Cross-check " << str(x, "verdict") << " (bound " << fmt("%g", x.value("k_sigma", 0.0))
+       << "σ)";
+    const json& failures = x.at("failures");
+    if (failures.empty()) {
+      os << ": AINS and NLSQ agree on every parameter\n";
+    } else {
+      os << ", " << failures.size() << " disagreement" << (failures.size() == 1 ? "" : "s") << ":\n";
+      for (const auto& f : failures) os << "  " << str(f, "detail") << "\n";
+    }
+  } else {
+    os << "No cross-check.\n";
+  }
+  return os.str();
+}
+
+std::string render_params_text(const json& params) { return params.dump(2) + "\n"; }
+
+namespace {
+std::string run_head(const json& run) {
+  return "run " + str(run, "run_id", "?") + " " + str(run, "serial", "?");
+}
+}  // namespace
+
+std::string progress_line(const json& run) {
+  std::string s = run_head(run) + ": ";
+  const std::string state = str(run, "state");
+  if (state == "running" || state == "preparing") {
+    if (has(run, "step") && has(run, "steps"))
+      s += "step " + str(run, "step") + "/" + str(run, "steps") + " ";
+    s += str(run, "phase", state);
+    if (has(run, "time_left_s") && run["time_left_s"].is_number())
+      s += ", " + format_duration_s(run["time_left_s"].get<double>()) + " left";
+    return s;
+  }
+  s += state;
+  if (has(run, "phase") && str(run, "phase") != state) s += " (" + str(run, "phase") + ")";
+  if (has(run, "verdict")) s += ", verdict " + str(run, "verdict");
+  return s;
+}
+
+std::string outcome_line(const json& run) {
+  std::string s = run_head(run) + ": " + str(run, "state", "?");
+  if (has(run, "verdict")) s += ", verdict " + str(run, "verdict");
+  const std::string reason = has(run, "reason") ? str(run, "reason") : str(run, "failure_reason");
+  if (!reason.empty()) s += " — " + reason;
+  return s;
+}
+
+std::string render_status_text(const json& status) {
+  std::ostringstream os;
+  if (has(status, "daemon")) {
+    const json& d = status["daemon"];
+    os << "stationd " << str(d, "version", "?") << " (pid " << str(d, "pid", "?") << ") at station "
+       << str(d, "station", "?");
+    if (has(d, "uptime_s") && d["uptime_s"].is_number())
+      os << ", up " << format_duration_s(d["uptime_s"].get<double>());
+    os << ": " << str(status, "state", "?") << "\n";
+  }
+  auto describe = [&os](const char* title, const json& r) {
+    os << title << progress_line(r) << "\n";
+    std::string info;
+    if (!str(r, "sequence").empty()) info += "sequence " + str(r, "sequence");
+    if (!str(r, "operator").empty()) info += (info.empty() ? "" : ", ") + ("operator " + str(r, "operator"));
+    if (!str(r, "started_at").empty())
+      info += (info.empty() ? "" : ", ") + ("started " + str(r, "started_at"));
+    if (!info.empty()) os << "  " << info << "\n";
+    if (!str(r, "reason").empty()) os << "  reason: " << str(r, "reason") << "\n";
+    if (has(r, "capture") && r["capture"].is_object()) {
+      const json& c = r["capture"];
+      std::string counters;
+      for (const char* k : {"samples_decoded", "samples_lost", "samples_corrupt", "samples_filled",
+                            "frames_received", "imu_resets"})
+        if (c.contains(k)) counters += std::string(counters.empty() ? "" : ", ") + k + " " + c[k].dump();
+      if (!counters.empty()) os << "  capture: " << counters << "\n";
+    }
+  };
+  if (status.contains("run")) {
+    if (status["run"].is_object())
+      describe(has(status, "daemon") ? "Active " : "", status["run"]);
+    else if (has(status, "daemon"))
+      os << "No active run.\n";
+  }
+  if (has(status, "last_run") && status["last_run"].is_object())
+    describe("Last ", status["last_run"]);
+  return os.str();
+}
+
+}  // namespace imucal::station

@@ -1,0 +1,61 @@
+#pragma once
+// What the read commands of the control socket return, and how stationctl prints it for people.
+//
+// One path for both transports: the daemon's control server answers history/show/params/export
+// with answer_repository_read() on its repository, and stationctl, when the daemon is down, calls
+// the very same function on a read-only database. The text renderings take the *result JSON*
+// (never the records), so `stationctl show 7` prints the same bytes whichever way it got the
+// answer.
+//
+// Result shapes ("--json" prints exactly these):
+//   history  {"serial": SN, "runs": [run, ...]}              newest first
+//   show     {"run": run, "calibrations": [calibration, ...], "crosscheck": {...} | null}
+//   params   the DESIGN §3 parameter-set JSON with "sigma" (archive::read_param_file loads it)
+//   export   {"format": "csv"|"json", "rows": N, "content": "<the whole export as text>"}
+// where run = db::run_json(record) plus "capture": the run's capture counters (CaptureStats JSON,
+// with "complete") or null, and calibration = db::calibration_json (params + sigma as the
+// parameter-set JSON, metrics or null).
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "db/repository.hpp"
+#include "station/control_protocol.hpp"
+
+namespace imucal::station {
+
+// ----- JSON shapes ------------------------------------------------------------------------------
+/// db::run_json(run) + "capture" (RunRecord::capture_json parsed; null when empty). db::Corrupt
+/// naming the run if the stored capture text is not a JSON object.
+nlohmann::json run_record_json(const db::RunRecord& run);
+nlohmann::json history_result(const std::string& serial, const std::vector<db::RunRecord>& runs);
+nlohmann::json show_result(const db::RunDetails& details);
+/// Exactly the parameter-set JSON of the active (AINS) set with "sigma".
+nlohmann::json params_result(const db::ActiveCalibration& active);
+/// format "csv" or "json" (std::invalid_argument otherwise); the whole export in "content".
+nlohmann::json export_result(const db::Repository& repo, const db::ExportFilter& filter,
+                             const std::string& format);
+
+/// Answers a validated history/show/params/export request from `repo`. Throws db::DbError (the
+/// server maps its kind with error_code_for) or std::invalid_argument for another command.
+nlohmann::json answer_repository_read(const db::Repository& repo, const Request& request);
+
+// ----- Text for people --------------------------------------------------------------------------
+/// A table: run, started (UTC), state, verdict, sequence, operator, duration, reason.
+std::string render_history_text(const nlohmann::json& history);
+/// The run report: identity, times, archive, capture counters, both calibrations side by side in
+/// human units (calib::param_info: µg, ppm, µrad, deg/h, arcsec) with 1-σ, metrics, cross-check.
+std::string render_show_text(const nlohmann::json& show);
+/// The parameter-set JSON, pretty-printed (what an INS loads); ends in '\n'.
+std::string render_params_text(const nlohmann::json& params);
+/// The daemon status (ControlHandler::status without run id) or {"run": {...}} (with one).
+std::string render_status_text(const nlohmann::json& status);
+/// One line for a live run: "run 7 SIM-0001: step 3/18 resting, 12 s left" (no '\n').
+std::string progress_line(const nlohmann::json& run);
+/// One line for a finished run: "run 7 SIM-0001: done, verdict PASS" (+ reason), no '\n'.
+std::string outcome_line(const nlohmann::json& run);
+/// "12 s", "3 min 05 s", "1 h 02 min".
+std::string format_duration_s(double seconds);
+
+}  // namespace imucal::station
