@@ -1,0 +1,439 @@
+// stationctl: the operator's and QA engineer's tool for the calibration station (station contract
+// §C). It talks to stationd over the control socket (JSON lines, station/control_protocol.hpp);
+// the read commands (history, show, params, export, run status --run ID) fall back to reading the
+// history database read-only when the daemon cannot be reached, through the same functions the
+// daemon uses (station/record_json.hpp), so the output is the same either way.
+//
+// Exit codes: 0 ok (with --wait: the run is done with verdict PASS); 1 the run ended review,
+// failed, aborted or interrupted; 2 bad input (usage, invalid serial, unknown sequence or run);
+// 3 refused (busy, permission); 4 daemon unreachable for a control command, database or I/O error.
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include "db/serial_number.hpp"
+#include "db/sqlite_repository.hpp"
+#include "station/config.hpp"
+#include "station/control_client.hpp"
+#include "station/control_protocol.hpp"
+#include "station/record_json.hpp"
+
+namespace {
+
+using nlohmann::json;
+using namespace imucal;
+using station::ControlClient;
+using station::ControlClientError;
+
+enum Exit : int { kOk = 0, kRunNotPassed = 1, kBadInput = 2, kRefused = 3, kUnavailable = 4 };
+
+/// Where stationd looks when no config is given (station/stationd.service passes this file).
+constexpr const char* kDefaultConfig = "/etc/imucal/stationd.toml";
+constexpr const char* kDefaultSocket = "/run/imucal/stationd.sock";
+constexpr auto kPollPeriod = std::chrono::milliseconds(200);
+constexpr auto kReplyTimeout = std::chrono::seconds(60);
+
+/// A failure with its exit code; main prints "stationctl: <message>" and exits with the code.
+struct Failure {
+  int code;
+  std::string message;
+};
+
+int exit_for_error_code(const std::string& code) {
+  namespace ec = station::error_code;
+  if (code == ec::kBadRequest || code == ec::kInvalidInput || code == ec::kNotFound)
+    return kBadInput;
+  if (code == ec::kBusy || code == ec::kPermissionDenied) return kRefused;
+  return kUnavailable;
+}
+
+int exit_for_db_error(db::DbErrorKind kind) {
+  if (kind == db::DbErrorKind::kNotFound || kind == db::DbErrorKind::kInvalidInput)
+    return kBadInput;
+  return kUnavailable;
+}
+
+struct Globals {
+  std::string config;
+  std::string socket;
+  std::string db;
+  bool json = false;
+};
+
+struct Target {
+  std::string socket;
+  std::string db;  ///< "" = none known
+  std::string config_used;
+};
+
+Target resolve_target(const Globals& g) {
+  Target t;
+  std::string config = g.config;
+  if (config.empty() && (g.socket.empty() || g.db.empty()) &&
+      std::filesystem::exists(kDefaultConfig))
+    config = kDefaultConfig;
+  if (!config.empty()) {
+    try {
+      // The daemon's own loader: a config stationd accepts is one stationctl reads the same way
+      // (relative paths against the file's directory). Only the socket and database are used.
+      const station::StationConfig c = station::load_config(config);
+      t.socket = c.control_socket;
+      t.db = c.database;
+      t.config_used = config;
+    } catch (const station::ConfigError& e) {
+      throw Failure{kBadInput, e.what()};
+    }
+  }
+  if (!g.socket.empty()) t.socket = g.socket;
+  if (!g.db.empty()) t.db = g.db;
+  if (t.socket.empty()) t.socket = kDefaultSocket;
+  return t;
+}
+
+/// The result of an ok reply; an error reply becomes a Failure with the reply's message.
+json result_or_fail(const station::Reply& r) {
+  if (!r.ok) throw Failure{exit_for_error_code(r.error_code), r.error_message};
+  return r.result;
+}
+
+json call(ControlClient& client, const std::string& command, const json& args) {
+  try {
+    return result_or_fail(client.call(command, args, kReplyTimeout));
+  } catch (const ControlClientError& e) {
+    throw Failure{kUnavailable, e.what()};
+  }
+}
+
+/// For control commands: the daemon must be there.
+ControlClient connect_or_fail(const Target& t) {
+  try {
+    return ControlClient(t.socket);
+  } catch (const ControlClientError& e) {
+    throw Failure{kUnavailable, std::string(e.what()) + " (is stationd running?)"};
+  }
+}
+
+/// A read: over the socket, or from the database read-only when the daemon is unreachable.
+json read_request(const Target& t, const std::string& command, const json& args) {
+  std::optional<ControlClient> client;
+  std::string why;
+  try {
+    client.emplace(t.socket);
+  } catch (const ControlClientError& e) {
+    if (e.kind() != ControlClientError::Kind::kUnreachable) throw Failure{kUnavailable, e.what()};
+    why = e.what();
+  }
+  if (client) return call(*client, command, args);
+
+  if (t.db.empty())
+    throw Failure{kUnavailable,
+                  why + "; no database to read instead (give --db or --config)"};
+  std::cerr << "stationctl: note: " << why << "; reading the database " << t.db
+            << " read-only instead\n";
+  try {
+    db::SqliteOptions options;
+    options.read_only = true;
+    const db::SqliteRepository repo(t.db, options);
+    // The same validation and the same answer as the daemon's control server.
+    const station::Request request =
+        station::parse_request(json{{"id", 0}, {"cmd", command}, {"args", args}});
+    if (command == station::cmd::kRunStatus) {
+      if (!request.args.contains("run_id"))
+        throw Failure{kUnavailable, why + " (the status of the daemon needs the daemon; "
+                                          "`run status --run ID` reads a run's state from the "
+                                          "database)"};
+      json run = station::run_record_json(repo.show(request.args["run_id"].get<db::RunId>()).run);
+      run["reason"] = run["failure_reason"];
+      return json{{"run", run}};
+    }
+    return station::answer_repository_read(repo, request);
+  } catch (const station::BadRequest& e) {
+    throw Failure{kBadInput, e.what()};
+  } catch (const db::DbError& e) {
+    throw Failure{exit_for_db_error(e.kind()), e.what()};
+  }
+}
+
+void print_json(const json& j) { std::cout << j.dump(2, ' ', false, json::error_handler_t::replace) << "\n"; }
+
+bool is_terminal_state(const std::string& state) {
+  return state == "done" || state == "review" || state == "failed" || state == "aborted" ||
+         state == "interrupted";
+}
+
+/// Polls run.status every ~200 ms until the run is terminal, showing a progress line on stderr
+/// (a TTY: rewritten in place; otherwise a new line only when step, phase or state changes).
+int wait_for_run(ControlClient& client, db::RunId run_id, bool json_out) {
+  const bool tty = ::isatty(STDERR_FILENO) != 0;
+  std::string last_key, last_line;
+  std::size_t shown_width = 0;
+  json run;
+  for (;;) {
+    json status;
+    try {
+      status = call(client, station::cmd::kRunStatus, {{"run_id", run_id}});
+    } catch (Failure& f) {
+      if (tty && shown_width) std::cerr << "\n";
+      f.message = "while waiting for run " + std::to_string(run_id) + ": " + f.message +
+                  " (the run's outcome: `stationctl run status --run " + std::to_string(run_id) +
+                  "`)";
+      throw;
+    }
+    if (!status.contains("run") || !status["run"].is_object())
+      throw Failure{kUnavailable, "run.status reply without a run object: " + status.dump()};
+    run = status["run"];
+    const std::string state = run.value("state", "");
+    const std::string line = station::progress_line(run);
+    if (tty) {
+      if (line != last_line) {
+        std::string out = "\r" + line;
+        if (line.size() < shown_width) out += std::string(shown_width - line.size(), ' ');
+        std::cerr << out << std::flush;
+        shown_width = line.size();
+        last_line = line;
+      }
+    } else {
+      // Time left changes every poll; a log gets a line per step, phase or state only.
+      const std::string key = state + "|" + run.value("phase", "") + "|" +
+                              (run.contains("step") ? run["step"].dump() : "");
+      if (key != last_key) {
+        std::cerr << line << "\n" << std::flush;
+        last_key = key;
+      }
+    }
+    if (is_terminal_state(state)) break;
+    std::this_thread::sleep_for(kPollPeriod);
+  }
+  if (tty) std::cerr << "\n";
+  if (json_out)
+    print_json(json{{"run", run}});
+  else
+    std::cout << station::outcome_line(run) << "\n";
+  const bool pass = run.value("state", "") == "done" && run.contains("verdict") &&
+                    run["verdict"] == "PASS";
+  return pass ? kOk : kRunNotPassed;
+}
+
+void check_serial(const std::string& serial) {
+  if (const auto problem = db::serial_problem(serial)) throw Failure{kBadInput, *problem};
+}
+
+void write_output(const std::string& path, const std::string& content) {
+  const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    if (!f) throw Failure{kUnavailable, "cannot write " + tmp};
+    f << content;
+    f.flush();
+    if (!f) {
+      std::filesystem::remove(tmp);
+      throw Failure{kUnavailable, "writing " + tmp + " failed (disk full?)"};
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp);
+    throw Failure{kUnavailable, "cannot write " + path + ": " + ec.message()};
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"stationctl: start and follow calibration runs; query the calibration history"};
+  app.require_subcommand(1);
+  Globals g;
+  app.add_option("--config", g.config,
+                 std::string("stationd's config file: [control] socket and [station] database "
+                             "(default ") + kDefaultConfig + " if it exists)");
+  app.add_option("--socket", g.socket,
+                 std::string("control socket of stationd (default: the config's, else ") +
+                     kDefaultSocket + ")");
+  app.add_option("--db", g.db, "history database for reads when stationd is down (default: the config's)");
+  app.add_flag("--json", g.json, "print the raw JSON result instead of text");
+
+  // run
+  auto* run = app.add_subcommand("run", "start, follow or abort a calibration run");
+  run->require_subcommand(1);
+  run->fallthrough();
+  std::string serial, sequence, operator_name, reason;
+  bool wait = false;
+  db::RunId run_id = 0;
+  auto* start = run->add_subcommand("start", "start a run of a unit (needs the control group)");
+  start->add_option("--serial", serial, std::string("serial number: ") + db::kSerialRule)->required();
+  start->add_option("--sequence", sequence, "sequence name or file (default: the station's)");
+  start->add_option("--operator", operator_name, "operator name (default: your user name)");
+  start->add_flag("--wait", wait, "follow the run to its end; exit 0 only for done + PASS");
+  start->fallthrough();
+  auto* status = run->add_subcommand("status", "the daemon's state, or one run's (--run)");
+  status->add_option("--run", run_id, "run id")->check(CLI::PositiveNumber);
+  status->fallthrough();
+  auto* abort = run->add_subcommand("abort", "abort the active run (needs the control group)");
+  abort->add_option("--reason", reason, "why (stored with the run)");
+  abort->fallthrough();
+
+  // reads
+  std::size_t limit = 0;
+  auto* history = app.add_subcommand("history", "the runs of a unit, newest first");
+  history->add_option("SN", serial, "serial number")->required();
+  history->add_option("--limit", limit, "at most N runs (0 = all)");
+  history->fallthrough();
+  auto* show = app.add_subcommand("show", "everything stored about a run");
+  show->add_option("RUN_ID", run_id, "run id")->required()->check(CLI::PositiveNumber);
+  show->fallthrough();
+  auto* params = app.add_subcommand(
+      "params", "the unit's active parameter set with 1-sigma (JSON for the INS)");
+  params->add_option("SN", serial, "serial number")->required();
+  params->fallthrough();
+  std::string since, format, output;
+  auto* exp = app.add_subcommand("export", "the history as CSV or JSON");
+  exp->add_option("--serial", serial, "only this unit");
+  exp->add_option("--since", since, "only runs started at or after (YYYY-MM-DD[THH:MM[:SS]][Z])");
+  exp->add_option("--format", format, "csv or json")
+      ->required()
+      ->check(CLI::IsMember({"csv", "json"}));
+  exp->add_option("--output", output, "write to FILE instead of stdout");
+  exp->fallthrough();
+  auto* reprocess = app.add_subcommand(
+      "reprocess", "recalibrate a stored run from its archive into a new run (needs the group)");
+  reprocess->add_option("RUN_ID", run_id, "run id")->required()->check(CLI::PositiveNumber);
+  reprocess->add_flag("--wait", wait, "follow the new run to its end");
+  reprocess->fallthrough();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return kBadInput;
+  }
+
+  try {
+    const Target target = resolve_target(g);
+    if (*start) {
+      check_serial(serial);
+      json args = {{"serial", serial}};
+      if (!sequence.empty()) args["sequence"] = sequence;
+      if (!operator_name.empty()) args["operator"] = operator_name;
+      ControlClient client = connect_or_fail(target);
+      const json r = call(client, station::cmd::kRunStart, args);
+      if (!wait) {
+        if (g.json) print_json(r);
+        else
+          std::cout << "run " << r.value("run_id", json()).dump() << " started: " << serial
+                    << ", sequence " << r.value("sequence", json(sequence)).get<std::string>()
+                    << (r.contains("steps") ? ", " + r["steps"].dump() + " steps" : "") << "\n";
+        return kOk;
+      }
+      if (!g.json)
+        std::cerr << "run " << r.value("run_id", json()).dump() << " started: " << serial << "\n";
+      return wait_for_run(client, r.at("run_id").get<db::RunId>(), g.json);
+    }
+    if (*status) {
+      json args = json::object();
+      if (run_id > 0) args["run_id"] = run_id;
+      const json r = read_request(target, station::cmd::kRunStatus, args);
+      if (g.json) print_json(r);
+      else std::cout << station::render_status_text(r);
+      return kOk;
+    }
+    if (*abort) {
+      json args = json::object();
+      if (!reason.empty()) args["reason"] = reason;
+      ControlClient client = connect_or_fail(target);
+      const json r = call(client, station::cmd::kRunAbort, args);
+      if (g.json) print_json(r);
+      else if (r.contains("run") && r["run"].is_object())
+        std::cout << station::outcome_line(r["run"]) << "\n";
+      else
+        std::cout << "abort requested"
+                  << (r.contains("run_id") ? " for run " + r["run_id"].dump() : std::string())
+                  << "\n";
+      return kOk;
+    }
+    if (*history) {
+      check_serial(serial);
+      json args = {{"serial", serial}};
+      if (limit > 0) args["limit"] = limit;
+      const json r = read_request(target, station::cmd::kHistory, args);
+      if (g.json) print_json(r);
+      else std::cout << station::render_history_text(r);
+      return kOk;
+    }
+    if (*show) {
+      const json r = read_request(target, station::cmd::kShow, {{"run_id", run_id}});
+      if (g.json) print_json(r);
+      else std::cout << station::render_show_text(r);
+      return kOk;
+    }
+    if (*params) {
+      check_serial(serial);
+      const json r = read_request(target, station::cmd::kParams, {{"serial", serial}});
+      if (g.json) print_json(r);
+      else std::cout << station::render_params_text(r);
+      return kOk;
+    }
+    if (*exp) {
+      json args = {{"format", format}};
+      if (!serial.empty()) {
+        check_serial(serial);
+        args["serial"] = serial;
+      }
+      if (!since.empty()) {
+        try {
+          (void)db::parse_time_utc(since);
+        } catch (const db::DbError& e) {
+          throw Failure{kBadInput, std::string("--since: ") + e.what()};
+        }
+        args["since"] = since;
+      }
+      const json r = read_request(target, station::cmd::kExport, args);
+      if (!output.empty()) {
+        write_output(output, r.at("content").get<std::string>());
+        std::cerr << "stationctl: " << r.value("rows", 0) << " rows written to " << output << "\n";
+      } else if (g.json) {
+        print_json(r);
+      } else {
+        std::cout << r.at("content").get<std::string>() << std::flush;
+      }
+      return kOk;
+    }
+    if (*reprocess) {
+      ControlClient client = connect_or_fail(target);
+      const json r = call(client, station::cmd::kReprocess, {{"run_id", run_id}});
+      if (!wait) {
+        if (g.json) print_json(r);
+        else
+          std::cout << "run " << r.value("run_id", json()).dump() << " reprocesses run " << run_id
+                    << "\n";
+        return kOk;
+      }
+      if (!g.json)
+        std::cerr << "run " << r.value("run_id", json()).dump() << " reprocesses run " << run_id
+                  << "\n";
+      return wait_for_run(client, r.at("run_id").get<db::RunId>(), g.json);
+    }
+    throw Failure{kBadInput, "no command given (see --help)"};
+  } catch (const Failure& f) {
+    std::cout.flush();
+    std::cerr << "stationctl: " << f.message << "\n";
+    return f.code;
+  } catch (const std::exception& e) {
+    std::cout.flush();
+    std::cerr << "stationctl: " << e.what() << "\n";
+    return kUnavailable;
+  }
+}
