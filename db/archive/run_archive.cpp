@@ -8,6 +8,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -18,6 +19,7 @@
 #include "db/archive/csv.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/toml_util.hpp"
+#include "sequences/toml_support.hpp"
 
 namespace imucal::archive {
 
@@ -87,6 +89,52 @@ bool is_hex64(const std::string& s) {
          });
 }
 
+// [capture]: `complete` (bool) and every CaptureInfo counter (non-negative integer), all required
+// (the writer always writes them all); unknown keys are errors, as in the other sections.
+CaptureInfo parse_capture_section(const toml::table& t, const std::string& origin) {
+  const auto& counters = CaptureInfo::counters();
+  auto allowed_list = [&] {
+    std::string s = "complete";
+    for (const auto& c : counters) s += std::string(", ") + c.first;
+    return s;
+  };
+  auto line_of = [](const toml::node& n) { return static_cast<std::size_t>(n.source().begin.line); };
+  for (auto&& [k, v] : t) {
+    bool known = k.str() == "complete";
+    for (const auto& c : counters) known = known || k.str() == c.first;
+    if (!known)
+      throw ArchiveError(origin, k.source().begin.line > 0 ? k.source().begin.line : line_of(v),
+                         "unknown key in [capture] (allowed: " + allowed_list() + ")",
+                         "capture." + std::string(k.str()));
+  }
+  CaptureInfo ci;
+  const toml::node* complete = t.get("complete");
+  if (!complete)
+    throw ArchiveError::field_error(origin, "capture.complete", "missing (required in [capture])");
+  if (!complete->is_boolean())
+    throw ArchiveError(origin, line_of(*complete),
+                       std::string("expected a boolean (true/false), got ") +
+                           sequences::toml_type_name(complete->type()),
+                       "capture.complete");
+  ci.complete = complete->as_boolean()->get();
+  for (const auto& [name, member] : counters) {
+    const toml::node* n = t.get(name);
+    const std::string field = std::string("capture.") + name;
+    if (!n) throw ArchiveError::field_error(origin, field, "missing (required in [capture])");
+    if (!n->is_integer())
+      throw ArchiveError(origin, line_of(*n),
+                         std::string("expected a non-negative integer, got ") +
+                             sequences::toml_type_name(n->type()),
+                         field);
+    const int64_t v = n->as_integer()->get();
+    if (v < 0)
+      throw ArchiveError(origin, line_of(*n),
+                         "must be a non-negative count, got " + std::to_string(v), field);
+    ci.*member = static_cast<uint64_t>(v);
+  }
+  return ci;
+}
+
 struct ParsedRunInfo {
   RunInfo info;
   bool reference_given = false;
@@ -98,7 +146,7 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
   const toml::table tbl = parse_toml_text(text, origin);
   const TomlSection root(tbl, origin, "",
                          {"serial", "software_version", "start_time", "end_time", "reference",
-                          "station", "imu", "table", "sequence", "noise"});
+                          "station", "imu", "table", "sequence", "noise", "capture"});
   ParsedRunInfo out;
   RunInfo& ri = out.info;
 
@@ -209,6 +257,13 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
       ri.vrw_mps_per_sqrt_s = vrw_to_si(*v);
     }
   }
+
+  if (const toml::node* cn = tbl.get("capture")) {
+    if (!cn->is_table())
+      root.fail("capture", std::string("expected a table [capture], got ") +
+                               sequences::toml_type_name(cn->type()));
+    ri.capture = parse_capture_section(*cn->as_table(), origin);
+  }
   return out;
 }
 
@@ -285,7 +340,53 @@ std::string run_info_text(const RunInfo& ri) {
         human_for_si(ri.arw_rad_per_sqrt_s, ri.arw_rad_per_sqrt_s / arw_to_si(1.0), arw_to_si));
   w.key("vrw_ug_per_sqrt_hz",
         human_for_si(ri.vrw_mps_per_sqrt_s, ri.vrw_mps_per_sqrt_s / vrw_to_si(1.0), vrw_to_si));
-  return w.text();
+  std::string text = w.text();
+  if (ri.capture) {
+    // TomlWriter has no integer/boolean keys; counters are written as TOML integers (exact).
+    text += "\n[capture]\n";
+    text += std::string("complete = ") + (ri.capture->complete ? "true" : "false") + "\n";
+    for (const auto& [name, member] : CaptureInfo::counters()) {
+      const uint64_t v = (*ri.capture).*member;
+      if (v > static_cast<uint64_t>(INT64_MAX))
+        throw ArchiveError::field_error("run.toml", std::string("capture.") + name,
+                                        "count " + std::to_string(v) +
+                                            " exceeds the TOML integer range");
+      text += std::string(name) + " = " + std::to_string(v) + "\n";
+    }
+  }
+  return text;
+}
+
+const std::vector<std::pair<const char*, uint64_t CaptureInfo::*>>& CaptureInfo::counters() {
+  static const std::vector<std::pair<const char*, uint64_t CaptureInfo::*>> list = {
+      {"frames_received", &CaptureInfo::frames_received},
+      {"frames_logged", &CaptureInfo::frames_logged},
+      {"frames_foreign", &CaptureInfo::frames_foreign},
+      {"frames_error", &CaptureInfo::frames_error},
+      {"frames_malformed", &CaptureInfo::frames_malformed},
+      {"frames_duplicate", &CaptureInfo::frames_duplicate},
+      {"frames_out_of_order", &CaptureInfo::frames_out_of_order},
+      {"frames_discarded", &CaptureInfo::frames_discarded},
+      {"rx_overflow", &CaptureInfo::rx_overflow},
+      {"samples_decoded", &CaptureInfo::samples_decoded},
+      {"samples_lost", &CaptureInfo::samples_lost},
+      {"samples_corrupt", &CaptureInfo::samples_corrupt},
+      {"samples_incomplete", &CaptureInfo::samples_incomplete},
+      {"samples_late", &CaptureInfo::samples_late},
+      {"samples_filled", &CaptureInfo::samples_filled},
+      {"max_gap_samples", &CaptureInfo::max_gap_samples},
+      {"imu_resets", &CaptureInfo::imu_resets},
+      {"rows_written", &CaptureInfo::rows_written},
+      {"rest_samples", &CaptureInfo::rest_samples},
+  };
+  return list;
+}
+
+bool operator==(const CaptureInfo& a, const CaptureInfo& b) {
+  if (a.complete != b.complete) return false;
+  for (const auto& c : CaptureInfo::counters())
+    if (a.*(c.second) != b.*(c.second)) return false;
+  return true;
 }
 
 RunArchive read_archive(const std::string& dir_in) {

@@ -9,8 +9,10 @@
 //   capture.log               (daemon runs only) raw CAN frames; not interpreted here
 // Full rules (columns, keys, units, checks): db/archive/FORMAT.md.
 #include <Eigen/Core>
+#include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "calib/calibration_input.hpp"
@@ -41,6 +43,32 @@ struct TableSetup {
 
 enum class ReferenceKind { kTable, kAttitude };
 
+/// run.toml [capture] (daemon runs only): how the live capture went. The counters have the names
+/// and meanings of station::CaptureStats (station/capture_stats.hpp); this copy keeps the archive
+/// library independent of the daemon.
+struct CaptureInfo {
+  /// true: the capture ended normally (the daemon finished the archive). false: the archive was
+  /// recovered after the daemon died; then only frames_logged, rows_written and rest_samples are
+  /// recounted from the files and the other counters are 0 (unknown).
+  bool complete = false;
+  uint64_t frames_received = 0, frames_logged = 0;
+  uint64_t frames_foreign = 0, frames_error = 0, frames_malformed = 0, frames_duplicate = 0,
+           frames_out_of_order = 0, frames_discarded = 0, rx_overflow = 0;
+  uint64_t samples_decoded = 0, samples_lost = 0, samples_corrupt = 0, samples_incomplete = 0,
+           samples_late = 0;
+  uint64_t samples_filled = 0;
+  uint64_t max_gap_samples = 0;
+  uint64_t imu_resets = 0;
+  uint64_t rows_written = 0;
+  uint64_t rest_samples = 0;
+
+  /// Every counter's run.toml key and member, in file order (the one list the reader, the writer
+  /// and station/capture_stats use).
+  static const std::vector<std::pair<const char*, uint64_t CaptureInfo::*>>& counters();
+  friend bool operator==(const CaptureInfo& a, const CaptureInfo& b);
+  friend bool operator!=(const CaptureInfo& a, const CaptureInfo& b) { return !(a == b); }
+};
+
 /// run.toml.
 struct RunInfo {
   std::string serial;  ///< required
@@ -57,6 +85,8 @@ struct RunInfo {
   /// [noise] used to weight the estimators; defaults = calib::NoiseModel{} (DESIGN §7).
   double arw_rad_per_sqrt_s = calib::NoiseModel{}.arw_rad_per_sqrt_s;
   double vrw_mps_per_sqrt_s = calib::NoiseModel{}.vrw_mps_per_sqrt_s;
+  /// [capture], optional: written by the daemon when it finishes (or recovers) the archive.
+  std::optional<CaptureInfo> capture;
 };
 
 /// attitude.csv row (angles converted to rad).
