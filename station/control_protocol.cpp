@@ -98,23 +98,22 @@ void check_arg(const json& id, const ArgSpec& spec, const json& v) {
       if (!v.is_string()) fail("a string");
       return;
     case ArgType::kPositiveInt:
-      if (!v.is_number_integer()) fail("a positive integer");
-      if (v.is_number_unsigned() ? v.get<std::uint64_t>() >
-                                       static_cast<std::uint64_t>(
-                                           std::numeric_limits<std::int64_t>::max())
-                                 : v.get<std::int64_t>() < 1)
+    case ArgType::kCount: {
+      const bool positive = spec.type == ArgType::kPositiveInt;
+      const char* expected = positive ? "a positive integer" : "a non-negative integer";
+      if (!v.is_number_integer()) fail(expected);
+      // nlohmann stores non-negative integers as unsigned: check the range in both forms.
+      const bool in_range =
+          v.is_number_unsigned()
+              ? v.get<std::uint64_t>() <=
+                        static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max()) &&
+                    (!positive || v.get<std::uint64_t>() >= 1)
+              : v.get<std::int64_t>() >= (positive ? 1 : 0);
+      if (!in_range)
         throw BadRequest(id, field,
-                         "field '" + field + "': expected a positive integer, got " + v.dump());
+                         "field '" + field + "': expected " + expected + ", got " + v.dump());
       return;
-    case ArgType::kCount:
-      if (!v.is_number_integer()) fail("a non-negative integer");
-      if (v.is_number_unsigned() ? v.get<std::uint64_t>() >
-                                       static_cast<std::uint64_t>(
-                                           std::numeric_limits<std::int64_t>::max())
-                                 : v.get<std::int64_t>() < 0)
-        throw BadRequest(id, field,
-                         "field '" + field + "': expected a non-negative integer, got " + v.dump());
-      return;
+    }
     case ArgType::kFormat:
       if (!v.is_string()) fail("\"csv\" or \"json\"");
       if (v != "csv" && v != "json")
@@ -169,10 +168,10 @@ Request parse_request(std::string_view line) {
       what = what.substr(colon + 3);
     throw BadRequest(nullptr, "", "request is not valid JSON (" + what + "): " + excerpt(line));
   }
-  return parse_request(j);
+  return validate_request(j);
 }
 
-Request parse_request(const json& j) {
+Request validate_request(const json& j) {
   if (!j.is_object())
     throw BadRequest(nullptr, "", "request must be a JSON object, got " + type_of(j));
 

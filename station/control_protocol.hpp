@@ -81,7 +81,7 @@ class BadRequest : public ControlError {
 /// Validates one request line (without '\n'). Throws BadRequest.
 Request parse_request(std::string_view line);
 /// Validates an already parsed request object (same rules; for callers that build JSON).
-Request parse_request(const nlohmann::json& request);
+Request validate_request(const nlohmann::json& request);
 
 /// One request line, '\n'-terminated. The arguments are not validated here (the server does).
 std::string request_line(std::int64_t id, const std::string& command,

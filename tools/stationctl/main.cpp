@@ -145,7 +145,7 @@ json read_request(const Target& t, const std::string& command, const json& args)
     const db::SqliteRepository repo(t.db, options);
     // The same validation and the same answer as the daemon's control server.
     const station::Request request =
-        station::parse_request(json{{"id", 0}, {"cmd", command}, {"args", args}});
+        station::validate_request(json{{"id", 0}, {"cmd", command}, {"args", args}});
     if (command == station::cmd::kRunStatus) {
       if (!request.args.contains("run_id"))
         throw Failure{kUnavailable, why + " (the status of the daemon needs the daemon; "
