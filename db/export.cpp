@@ -173,6 +173,16 @@ json run_json(const RunRecord& r) {
   o["archive_sha256"] = r.archive_sha256;
   o["failure_reason"] = r.failure_reason;
   o["reprocessed_from"] = r.reprocessed_from ? json(*r.reprocessed_from) : json(nullptr);
+  // Stored only after finish_run validated it as an object; a damaged text is reported, not hidden.
+  if (r.capture_json.empty()) {
+    o["capture"] = nullptr;
+  } else {
+    json capture = json::parse(r.capture_json, nullptr, /*allow_exceptions=*/false);
+    if (!capture.is_object())
+      throw Corrupt("run " + std::to_string(r.run_id) +
+                    ": stored capture_json is not a JSON object");
+    o["capture"] = std::move(capture);
+  }
   return o;
 }
 

@@ -156,6 +156,8 @@ struct RunRecord {
   std::string archive_sha256;  ///< 64 lowercase hex digits, or empty
   std::optional<RunId> reprocessed_from;
   std::optional<Verdict> verdict;  ///< from the cross-check, if one is stored
+  std::string capture_json;        ///< capture counters (station/capture_stats.hpp) as a JSON
+                                   ///< object text; empty if the run stored none (schema v2)
 };
 
 /// Headline evaluation metrics of one method (paper §VII, calib/evaluation.hpp), per-period
@@ -195,6 +197,7 @@ struct RunCompletion {
   std::vector<CalibrationRecord>
       calibrations;  ///< stored with the run (may be empty if stored before)
   std::optional<CrosscheckRecord> crosscheck;
+  std::string capture_json;  ///< capture counters as a JSON object text, or empty
 };
 
 struct RunDetails {

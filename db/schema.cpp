@@ -134,6 +134,11 @@ int check_compatible(sqlite3* db, const std::string& path, int latest) {
 const std::vector<Migration>& migrations() {
   static const std::vector<Migration> list = {
       {1, "initial schema: units, runs, calibrations, crosschecks", kMigration1},
+      // Version 2 (station daemon): the capture counters of a run (frames, lost/filled samples,
+      // ...) as a JSON object text, so QA sees what the link did to a run's data.
+      {2, "runs.capture_json: capture counters of a run",
+       "ALTER TABLE runs ADD COLUMN capture_json TEXT NOT NULL DEFAULT '' "
+       "CHECK (capture_json = '' OR json_valid(capture_json));"},
   };
   return list;
 }

@@ -25,8 +25,8 @@ using nlohmann::json;
 const std::string kRunColumns =
     "r.id, u.serial, r.operator, r.station, r.sequence_name, r.sequence_sha256, "
     "r.software_version, r.started_at_ms, r.ended_at_ms, r.state, r.failure_reason, "
-    "r.archive_path, r.archive_sha256, r.reprocessed_from, x.verdict";
-constexpr int kNumRunColumns = 15;
+    "r.archive_path, r.archive_sha256, r.reprocessed_from, x.verdict, r.capture_json";
+constexpr int kNumRunColumns = 16;
 const std::string kRunFrom =
     " FROM runs r JOIN units u ON u.id = r.unit_id LEFT JOIN crosschecks x ON x.run_id = r.id ";
 const std::string kCalColumns =
@@ -69,7 +69,8 @@ const char* const kSqlRunState = "SELECT state FROM runs WHERE id = ?1";
 const char* const kSqlSetLiveState = "UPDATE runs SET state = ?2 WHERE id = ?1";
 const char* const kSqlFinishRun =
     "UPDATE runs SET state = ?2, ended_at_ms = ?3, failure_reason = ?4, "
-    "archive_path = coalesce(?5, archive_path), archive_sha256 = ?6 WHERE id = ?1";
+    "archive_path = coalesce(?5, archive_path), archive_sha256 = ?6, capture_json = ?7 WHERE id = "
+    "?1";
 const char* const kSqlHasMethod = "SELECT 1 FROM calibrations WHERE run_id = ?1 AND method = ?2";
 const char* const kSqlInsertCal =
     "INSERT INTO calibrations (run_id, method, params_json, sigma_json, converged, iterations, "
@@ -310,6 +311,7 @@ struct SqliteRepository::Impl {
     if (!q.is_null(14))
       r.verdict = decode([&] { return run_label(r.run_id) + " verdict"; },
                          [&] { return verdict_from_string(q.text(14)); });
+    r.capture_json = q.text(15);
     return r;
   }
 
@@ -546,6 +548,12 @@ struct SqliteRepository::Impl {
           who + ": state " + to_string(c.state) +
           " is not terminal (expected done, review, failed, aborted or interrupted)");
     check_sha(c.archive_sha256, "archive SHA-256");
+    if (!c.capture_json.empty()) {
+      const json parsed = json::parse(c.capture_json, nullptr, /*allow_exceptions=*/false);
+      if (!parsed.is_object())
+        throw InvalidInput(who + ": capture_json must be a JSON object (or empty), got: " +
+                           c.capture_json.substr(0, 80));
+    }
     for (std::size_t i = 0; i < c.calibrations.size(); ++i)
       for (std::size_t k = 0; k < i; ++k)
         if (c.calibrations[i].method == c.calibrations[k].method)
@@ -597,7 +605,7 @@ struct SqliteRepository::Impl {
 
     Stmt q(*this, kSqlFinishRun, op);
     q.bind(1, run_id).bind(2, to_string(c.state)).bind(3, c.ended_at_ms).bind(4, c.reason);
-    q.bind(5, c.archive_path).bind(6, c.archive_sha256);
+    q.bind(5, c.archive_path).bind(6, c.archive_sha256).bind(7, c.capture_json);
     q.run();
     tx.commit();
   }
@@ -775,7 +783,8 @@ std::vector<RunId> SqliteRepository::mark_interrupted_runs(TimestampMs now) {
     const std::string reason = "the station daemon stopped while the run was " + state +
                                " (found at start-up); not resumed — the archive can be reprocessed";
     q.bind(1, id).bind(2, to_string(RunState::kInterrupted)).bind(3, now).bind(4, reason);
-    q.bind_null(5).bind(6, std::string());
+    // Keep whatever capture summary was stored (none: runs get it at finish).
+    q.bind_null(5).bind(6, std::string()).bind(7, std::string());
     q.run();
     ids.push_back(id);
   }

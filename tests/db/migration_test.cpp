@@ -1,6 +1,7 @@
-// Schema versioning (PRAGMA user_version): a fresh file gets version 1 and our application_id; a
-// newer, foreign or non-database file is refused untouched; reopening is idempotent; a migration
-// is applied atomically with its version bump (a failing one leaves the old version intact).
+// Schema versioning (PRAGMA user_version): a fresh file gets the current version and our
+// application_id; a newer, foreign or non-database file is refused untouched; reopening is
+// idempotent; a migration is applied atomically with its version bump (a failing one leaves the old
+// version intact).
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
@@ -14,8 +15,8 @@
 namespace imucal::db {
 namespace {
 
-using test::TempDir;
 using test::expect_throw_message;
+using test::TempDir;
 
 constexpr TimestampMs kT0 = 1714560000000;
 
@@ -59,16 +60,16 @@ std::string file_bytes(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
 }
 
-TEST(Migration, FreshDatabaseGetsVersionOneOurApplicationIdAndWal) {
+TEST(Migration, FreshDatabaseGetsTheCurrentVersionOurApplicationIdAndWal) {
   TempDir dir;
   const std::string path = dir.file("fresh.db");
   {
     SqliteRepository repo(path);
-    EXPECT_EQ(repo.schema_version(), 1);
-    EXPECT_EQ(schema::kSchemaVersion, 1);
+    EXPECT_EQ(repo.schema_version(), schema::kSchemaVersion);
+    EXPECT_EQ(schema::kSchemaVersion, static_cast<int>(schema::migrations().size()));
   }
   RawDb raw(path);
-  EXPECT_EQ(raw.text("PRAGMA user_version"), "1");
+  EXPECT_EQ(raw.text("PRAGMA user_version"), std::to_string(schema::kSchemaVersion));
   EXPECT_EQ(raw.text("PRAGMA application_id"), std::to_string(0x494D5543));
   EXPECT_EQ(raw.text("PRAGMA journal_mode"), "wal") << "WAL is persistent in the file";
   EXPECT_EQ(raw.text("SELECT group_concat(name, ',') FROM (SELECT name FROM sqlite_schema WHERE "
@@ -90,7 +91,7 @@ TEST(Migration, ReopeningIsIdempotentAndKeepsData) {
   const std::string schema_before = RawDb(path).text("SELECT sql FROM sqlite_schema ORDER BY name");
   for (int i = 0; i < 3; ++i) {
     SqliteRepository repo(path);
-    EXPECT_EQ(repo.schema_version(), 1);
+    EXPECT_EQ(repo.schema_version(), schema::kSchemaVersion);
     ASSERT_EQ(repo.history("SIM-0001").size(), 1u);
     EXPECT_EQ(repo.history("SIM-0001")[0].run_id, id);
   }
@@ -110,7 +111,10 @@ TEST(Migration, NewerSchemaVersionIsRefusedAndTheFileLeftUntouched) {
       expect_throw_message<IncompatibleSchema>([&] { SqliteRepository r(path); });
   EXPECT_NE(msg.find(path), std::string::npos) << msg;
   EXPECT_NE(msg.find("99"), std::string::npos) << msg;
-  EXPECT_NE(msg.find("newer than this software supports (1)"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("newer than this software supports (" +
+                     std::to_string(schema::kSchemaVersion) + ")"),
+            std::string::npos)
+      << msg;
   SqliteOptions ro;
   ro.read_only = true;
   EXPECT_THROW(SqliteRepository r(path, ro), IncompatibleSchema);
@@ -130,7 +134,8 @@ TEST(Migration, ForeignAndNonDatabaseFilesAreRefused) {
 
   // Another application's id.
   const std::string other = dir.file("other.db");
-  RawDb(other).exec("PRAGMA application_id = 1234; PRAGMA user_version = 1;");
+  RawDb(other).exec("PRAGMA application_id = 1234; PRAGMA user_version = " +
+                    std::to_string(schema::kSchemaVersion) + ";");
   msg = expect_throw_message<IncompatibleSchema>([&] { SqliteRepository r(other); });
   EXPECT_NE(msg.find("not a calibration-history database"), std::string::npos) << msg;
 
@@ -155,31 +160,99 @@ TEST(Migration, LaterMigrationsApplyInOrderAndAFailingOneRollsBackCompletely) {
   const std::string path = dir.file("mig.db");
   { SqliteRepository repo(path); }
   RawDb raw(path);
+  const int v = schema::kSchemaVersion;
+  const std::string vs = std::to_string(v);
 
-  // A hypothetical version 3 whose second step fails: nothing of 2 or 3 may remain.
+  // Hypothetical versions v+1 and v+2, the second failing halfway: nothing of either may remain.
   std::vector<schema::Migration> broken = schema::migrations();
-  broken.push_back({2, "add a column", "ALTER TABLE units ADD COLUMN model TEXT;"});
+  broken.push_back({v + 1, "add a column", "ALTER TABLE units ADD COLUMN model TEXT;"});
   broken.push_back(
-      {3, "broken", "CREATE TABLE extra (x INTEGER); INSERT INTO no_such_table VALUES (1);"});
+      {v + 2, "broken", "CREATE TABLE extra (x INTEGER); INSERT INTO no_such_table VALUES (1);"});
   EXPECT_THROW(schema::migrate(raw.get(), path, broken), IoError);
-  EXPECT_EQ(raw.text("PRAGMA user_version"), "1");
+  EXPECT_EQ(raw.text("PRAGMA user_version"), vs);
   EXPECT_EQ(raw.text("SELECT count(*) FROM sqlite_schema WHERE name = 'extra'"), "0");
   EXPECT_EQ(raw.text("SELECT count(*) FROM pragma_table_info('units') WHERE name = 'model'"), "0");
 
-  // The same list without the broken step: version 2, column present; applying again is a no-op.
+  // The same list without the broken step: version v+1, column present; again is a no-op.
   broken.pop_back();
-  EXPECT_EQ(schema::migrate(raw.get(), path, broken), 1);
-  EXPECT_EQ(raw.text("PRAGMA user_version"), "2");
+  EXPECT_EQ(schema::migrate(raw.get(), path, broken), v);
+  EXPECT_EQ(raw.text("PRAGMA user_version"), std::to_string(v + 1));
   EXPECT_EQ(raw.text("SELECT count(*) FROM pragma_table_info('units') WHERE name = 'model'"), "1");
-  EXPECT_EQ(schema::migrate(raw.get(), path, broken), 2);
+  EXPECT_EQ(schema::migrate(raw.get(), path, broken), v + 1);
 
-  // This software (version 1) now refuses the version-2 file.
+  // This software now refuses the newer file.
   EXPECT_THROW(SqliteRepository r(path), IncompatibleSchema);
 
   // Gaps in a migration list are a programming error.
   std::vector<schema::Migration> gap = schema::migrations();
-  gap.push_back({5, "gap", "SELECT 1;"});
+  gap.push_back({v + 3, "gap", "SELECT 1;"});
   EXPECT_THROW(schema::migrate(raw.get(), path, gap), std::logic_error);
+}
+
+TEST(Migration, VersionOneDatabaseUpgradesToTwoKeepingItsRunsAndGainsCaptureJson) {
+  TempDir dir;
+  const std::string path = dir.file("v1.db");
+  // A file as the first station release wrote it: only migration 1 applied, one finished run.
+  {
+    RawDb raw(path);
+    const std::vector<schema::Migration> v1(schema::migrations().begin(),
+                                            schema::migrations().begin() + 1);
+    schema::migrate(raw.get(), path, v1);
+    ASSERT_EQ(raw.text("PRAGMA user_version"), "1");
+    ASSERT_EQ(raw.text("SELECT count(*) FROM pragma_table_info('runs') WHERE name = "
+                       "'capture_json'"),
+              "0");
+    raw.exec("INSERT INTO units (serial, first_seen_ms) VALUES ('OLD-1', 1714560000000);");
+    raw.exec(
+        "INSERT INTO runs (unit_id, operator, station, sequence_name, sequence_sha256, "
+        "software_version, started_at_ms, ended_at_ms, state, failure_reason) VALUES "
+        "(1, 'op', 'st', 'short', '', '0.0.9', 1714560000000, 1714560060000, 'aborted', "
+        "'operator abort');");
+  }
+  // A read-only reader refuses the old file with advice; read-write migrates it.
+  SqliteOptions ro;
+  ro.read_only = true;
+  const std::string msg =
+      expect_throw_message<IncompatibleSchema>([&] { SqliteRepository r(path, ro); });
+  EXPECT_NE(msg.find("open it read-write once"), std::string::npos) << msg;
+  {
+    SqliteRepository repo(path);
+    EXPECT_EQ(repo.schema_version(), 2);
+    const auto runs = repo.history("OLD-1");
+    ASSERT_EQ(runs.size(), 1u);
+    EXPECT_EQ(runs[0].state, RunState::kAborted);
+    EXPECT_EQ(runs[0].failure_reason, "operator abort");
+    EXPECT_EQ(runs[0].capture_json, "") << "old runs have no capture summary";
+    EXPECT_EQ(repo.integrity_check(), "ok");
+  }
+  // The new column refuses text that is not JSON, even written around the repository.
+  RawDb raw(path);
+  char* err = nullptr;
+  EXPECT_NE(sqlite3_exec(raw.get(), "UPDATE runs SET capture_json = 'not json' WHERE id = 1",
+                         nullptr, nullptr, &err),
+            SQLITE_OK);
+  sqlite3_free(err);
+}
+
+TEST(Migration, CaptureJsonIsStoredWithTheRunAndMalformedTextIsRefused) {
+  TempDir dir;
+  const std::string path = dir.file("capture.db");
+  SqliteRepository repo(path);
+  const RunId id = repo.create_run(test::new_run("SIM-0002", kT0));
+  RunCompletion bad = test::pass_completion(5, kT0 + 1000);
+  bad.capture_json = "[1, 2]";
+  const std::string msg = expect_throw_message<InvalidInput>([&] { repo.finish_run(id, bad); });
+  EXPECT_NE(msg.find("capture_json must be a JSON object"), std::string::npos) << msg;
+  EXPECT_TRUE(repo.show(id).calibrations.empty()) << "a refused finish writes nothing";
+
+  RunCompletion ok = test::pass_completion(5, kT0 + 1000);
+  ok.capture_json = R"({"frames_received":4000,"samples_filled":3})";
+  repo.finish_run(id, ok);
+  EXPECT_EQ(repo.show(id).run.capture_json, ok.capture_json);
+  EXPECT_EQ(repo.history("SIM-0002").at(0).capture_json, ok.capture_json);
+  std::string exported;
+  repo.export_rows({}, [&](const ExportRow& row) { exported = row.run.capture_json; });
+  EXPECT_EQ(exported, ok.capture_json);
 }
 
 }  // namespace
