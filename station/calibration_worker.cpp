@@ -1,0 +1,186 @@
+#include "station/calibration_worker.hpp"
+
+#include <chrono>
+#include <exception>
+
+#include <spdlog/spdlog.h>
+
+#include "calib/calibration_pipeline.hpp"
+#include "db/archive/run_archive.hpp"
+
+namespace imucal::station {
+
+namespace {
+
+bool already_terminal(db::Repository& repo, db::RunId id) {
+  return db::is_terminal(repo.show(id).run.state);
+}
+
+std::string join_failures(const std::vector<calib::CrossCheckFailure>& failures) {
+  std::string s;
+  for (const auto& f : failures) {
+    if (!s.empty()) s += "; ";
+    s += f.detail.empty() ? f.term : f.detail;
+  }
+  return s.empty() ? "cross-check REVIEW" : "cross-check REVIEW: " + s;
+}
+
+}  // namespace
+
+CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJob& job,
+                                       const std::function<void(const std::string&)>& on_phase) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto phase = [&](const std::string& p) {
+    if (on_phase) on_phase(p);
+  };
+  CalibrationOutcome out;
+  out.run_id = job.run_id;
+
+  db::RunCompletion completion;
+  completion.archive_path = job.archive_dir;
+  completion.archive_sha256 = job.archive_sha256;
+  completion.capture_json = job.capture_json;
+  try {
+    phase("reading the archive");
+    const archive::RunArchive ar = archive::read_archive(job.archive_dir);
+    phase("checking the archive");
+    const calib::CalibrationInput in = archive::to_calibration_input(ar);
+    calib::PipelineOptions opt;
+    opt.methods = calib::MethodSelection::kAll;
+    opt.crosscheck.k_sigma = job.k_sigma;
+    opt.on_phase = phase;
+    const calib::PipelineResult r = calib::run_calibration(in, opt);
+    if (!r.ains || !r.nlsq || !r.crosscheck) {
+      throw std::runtime_error("the calibration pipeline returned without both methods");
+    }
+    completion.calibrations.push_back(db::calibration_record(r.ains->result, &r.ains->metrics));
+    completion.calibrations.push_back(db::calibration_record(r.nlsq->result, &r.nlsq->metrics));
+    completion.crosscheck = db::crosscheck_record(*r.crosscheck, job.k_sigma);
+    if (r.crosscheck->pass) {
+      completion.state = db::RunState::kDone;
+      out.verdict = db::Verdict::kPass;
+    } else {
+      completion.state = db::RunState::kReview;
+      completion.reason = join_failures(r.crosscheck->failures);
+      out.verdict = db::Verdict::kReview;
+    }
+  } catch (const std::exception& e) {
+    completion = db::RunCompletion{};
+    completion.state = db::RunState::kFailed;
+    completion.reason = std::string("calibration failed: ") + e.what();
+    completion.archive_path = job.archive_dir;
+    completion.archive_sha256 = job.archive_sha256;
+    completion.capture_json = job.capture_json;
+    out.verdict.reset();
+  }
+  out.state = completion.state;
+  out.reason = completion.reason;
+  completion.ended_at_ms = db::now_ms();
+
+  phase("storing the results");
+  if (already_terminal(repo, job.run_id)) {
+    out.stored = false;
+  } else {
+    try {
+      repo.finish_run(job.run_id, completion);
+    } catch (const db::Conflict&) {
+      // Became terminal between the check and the write (an abort): that state stands.
+      out.stored = false;
+    }
+  }
+  out.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+CalibrationWorker::CalibrationWorker(db::Repository& repository, Phase on_phase)
+    : repo_(repository), on_phase_(std::move(on_phase)) {
+  thread_ = std::thread([this] { loop(); });
+}
+
+CalibrationWorker::~CalibrationWorker() { stop(); }
+
+void CalibrationWorker::submit(CalibrationJob job, Done done) {
+  {
+    std::lock_guard<std::mutex> lk(mu_);
+    if (stopping_) throw std::logic_error("calibration worker is stopped");
+    queue_.emplace_back(std::move(job), std::move(done));
+  }
+  cv_.notify_all();
+}
+
+bool CalibrationWorker::busy() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return running_job_ || !queue_.empty();
+}
+
+void CalibrationWorker::wait_idle() {
+  std::unique_lock<std::mutex> lk(mu_);
+  cv_.wait(lk, [&] { return !running_job_ && (queue_.empty() || stopping_); });
+}
+
+void CalibrationWorker::stop() {
+  {
+    std::lock_guard<std::mutex> lk(mu_);
+    if (stopping_ && !thread_.joinable()) return;
+    stopping_ = true;
+    if (!queue_.empty()) {
+      spdlog::warn("calibration worker stopping: {} queued job(s) dropped (their runs are marked "
+                   "interrupted at the next start)",
+                   queue_.size());
+    }
+    queue_.clear();
+  }
+  cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void CalibrationWorker::loop() {
+  for (;;) {
+    std::pair<CalibrationJob, Done> item;
+    {
+      std::unique_lock<std::mutex> lk(mu_);
+      cv_.wait(lk, [&] { return stopping_ || !queue_.empty(); });
+      if (queue_.empty()) return;  // stopping
+      item = std::move(queue_.front());
+      queue_.pop_front();
+      running_job_ = true;
+    }
+    const CalibrationJob& job = item.first;
+    spdlog::info("run {}: calibrating from {}", job.run_id, job.archive_dir);
+    CalibrationOutcome out;
+    try {
+      out = run_calibration_job(repo_, job, [&](const std::string& p) {
+        spdlog::debug("run {}: {}", job.run_id, p);
+        if (on_phase_) on_phase_(job.run_id, p);
+      });
+      if (!out.stored) {
+        spdlog::info("run {}: calibration result dropped (the run ended meanwhile)", job.run_id);
+      } else {
+        spdlog::info("run {}: {} in {:.1f} s{}{}", job.run_id, db::to_string(out.state), out.runtime_s,
+                     out.reason.empty() ? "" : ": ", out.reason);
+      }
+    } catch (const std::exception& e) {
+      // The repository failed (disk full, database locked away): the run stays live and start-up
+      // recovery will mark it interrupted with its archive kept.
+      out.run_id = job.run_id;
+      out.state = db::RunState::kFailed;
+      out.reason = std::string("storing the results failed: ") + e.what();
+      out.stored = false;
+      spdlog::error("run {}: {}", job.run_id, out.reason);
+    }
+    if (item.second) {
+      try {
+        item.second(out);
+      } catch (const std::exception& e) {
+        spdlog::error("run {}: completion handler: {}", job.run_id, e.what());
+      }
+    }
+    {
+      std::lock_guard<std::mutex> lk(mu_);
+      running_job_ = false;
+    }
+    cv_.notify_all();
+  }
+}
+
+}  // namespace imucal::station

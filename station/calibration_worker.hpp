@@ -1,0 +1,84 @@
+#pragma once
+// The daemon's calibration worker: one thread that turns a finished run archive into stored results,
+// so the control socket and the table stay responsive while Ceres and the smoother run.
+//
+// A job does exactly what `imucal calibrate` and `reprocess` do (one code path, calib/
+// calibration_pipeline.hpp): archive::read_archive -> archive::to_calibration_input ->
+// calib::run_calibration (AINS and NLSQ, each evaluated, then the cross-check at k_sigma) ->
+// db::calibration_record / db::crosscheck_record -> Repository::finish_run in one transaction:
+//   cross-check PASS   -> done
+//   cross-check REVIEW -> review, reason = the failures ("; "-joined human details)
+//   any error          -> failed, reason = the error (archive format, unobservable data, ...)
+// with the archive's SHA-256 and the capture counters (capture_json) stored with the run.
+//
+// A run that became terminal while its job waited or ran (aborted by the operator, or by SIGTERM) is
+// left as it is: the job's result is dropped and reported as such.
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include "db/repository.hpp"
+
+namespace imucal::station {
+
+struct CalibrationJob {
+  db::RunId run_id = 0;
+  std::string archive_dir;
+  std::string archive_sha256;  ///< stored with the result (checked by the caller for reprocess)
+  std::string capture_json;    ///< capture counters (capture_stats.hpp) as JSON text, or ""
+  double k_sigma = 4.0;
+};
+
+struct CalibrationOutcome {
+  db::RunId run_id = 0;
+  db::RunState state = db::RunState::kFailed;  ///< done, review or failed (as stored)
+  std::optional<db::Verdict> verdict;
+  std::string reason;      ///< review: the failures; failed: the error
+  bool stored = true;      ///< false: the run was already terminal, nothing was written
+  double runtime_s = 0.0;  ///< wall time of the job
+};
+
+/// Runs one job synchronously in the calling thread (what the worker thread does per job).
+/// `on_phase` gets the pipeline's phase texts ("reading the archive", "AINS", ...). Never throws
+/// for job errors (they become a failed run); throws only if the repository itself fails.
+CalibrationOutcome run_calibration_job(db::Repository& repository, const CalibrationJob& job,
+                                       const std::function<void(const std::string&)>& on_phase = {});
+
+class CalibrationWorker {
+ public:
+  using Done = std::function<void(const CalibrationOutcome&)>;
+  using Phase = std::function<void(db::RunId, const std::string&)>;
+
+  explicit CalibrationWorker(db::Repository& repository, Phase on_phase = {});
+  ~CalibrationWorker();  ///< stop()
+  CalibrationWorker(const CalibrationWorker&) = delete;
+  CalibrationWorker& operator=(const CalibrationWorker&) = delete;
+
+  /// Queues a job; `done` is called from the worker thread when it has been stored (or dropped).
+  void submit(CalibrationJob job, Done done);
+  /// True while a job is queued or running.
+  bool busy() const;
+  /// Blocks until no job is queued or running.
+  void wait_idle();
+  /// Lets the running job finish (the pipeline cannot be interrupted), drops queued ones (their
+  /// runs stay live and start-up recovery marks them interrupted), joins the thread. Idempotent.
+  void stop();
+
+ private:
+  void loop();
+
+  db::Repository& repo_;
+  Phase on_phase_;
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<std::pair<CalibrationJob, Done>> queue_;
+  bool running_job_ = false;
+  bool stopping_ = false;
+  std::thread thread_;
+};
+
+}  // namespace imucal::station

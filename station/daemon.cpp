@@ -1,0 +1,213 @@
+#include "station/daemon.hpp"
+
+#include <signal.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+
+#include <spdlog/spdlog.h>
+
+#include "station/control_server.hpp"
+
+namespace imucal::station {
+
+namespace fs = std::filesystem;
+
+Daemon::Daemon(StationConfig config, DaemonOptions options)
+    : cfg_(std::move(config)), opt_(std::move(options)) {}
+
+Daemon::~Daemon() {
+  try {
+    stop("daemon shutting down");
+  } catch (const std::exception& e) {
+    spdlog::error("shutdown: {}", e.what());
+  }
+}
+
+namespace {
+
+void make_dir(const fs::path& p, const char* what) {
+  if (p.empty()) return;
+  std::error_code ec;
+  fs::create_directories(p, ec);
+  if (ec) throw std::runtime_error("cannot create the " + std::string(what) + " " + p.string() + ": " + ec.message());
+}
+
+std::string duration_text(double s) {
+  const long total = std::lround(std::max(0.0, s));
+  if (total < 60) return std::to_string(total) + " s";
+  if (total < 3600) return std::to_string(total / 60) + " min " + std::to_string(total % 60) + " s";
+  return std::to_string(total / 3600) + " h " + std::to_string((total % 3600) / 60) + " min";
+}
+
+}  // namespace
+
+void Daemon::start() {
+  std::lock_guard<std::mutex> lk(lifecycle_mu_);
+  if (started_ok_) return;
+  spdlog::info("stationd {} starting: station {}, config {}", opt_.version, cfg_.station_name,
+               cfg_.source_path);
+  make_dir(cfg_.data_dir, "data directory");
+  make_dir(fs::path(cfg_.data_dir) / "runs", "run archive directory");
+  make_dir(fs::path(cfg_.database).parent_path(), "database directory");
+  make_dir(fs::path(cfg_.control_socket).parent_path(), "control socket directory");
+
+  repo_ = std::make_unique<db::SqliteRepository>(cfg_.database);
+  spdlog::info("history database {}", cfg_.database);
+  recovery_ = recover_at_startup(cfg_, *repo_, opt_.stop_table_at_start);
+  if (!recovery_.runs.empty()) {
+    spdlog::warn("recovery: {} run(s) marked interrupted", recovery_.runs.size());
+  }
+
+  worker_ = std::make_unique<CalibrationWorker>(*repo_);
+  controller_ = std::make_unique<RunController>(cfg_, *repo_, *worker_, opt_.version);
+  ControlServerOptions so;
+  so.socket_path = cfg_.control_socket;
+  so.group = cfg_.control_group;
+  so.socket_mode = cfg_.control_socket_mode;
+  so.version = opt_.version;
+  server_ = std::make_unique<ControlServer>(*this, so);
+  try {
+    server_->start();
+  } catch (...) {
+    server_.reset();
+    controller_.reset();
+    worker_.reset();
+    repo_.reset();
+    throw;
+  }
+  spdlog::info("control socket {} (group {}, mode {:o})", cfg_.control_socket, server_->group_name(),
+               cfg_.control_socket_mode);
+  started_ok_ = true;
+  opt_.notifier.ready(status_line());
+}
+
+void Daemon::stop(const std::string& reason) {
+  std::lock_guard<std::mutex> lk(lifecycle_mu_);
+  if (!started_ok_ || stopped_) return;
+  stopped_ = true;
+  opt_.notifier.stopping();
+  spdlog::info("stationd stopping: {}", reason);
+  // The control socket stays up while the run is being aborted, so clients see it end.
+  if (controller_) controller_->shutdown(reason);
+  if (server_) server_->stop();
+  if (worker_) worker_->stop();
+  controller_.reset();
+  server_.reset();
+  worker_.reset();
+  repo_.reset();
+  spdlog::info("stationd stopped");
+}
+
+void Daemon::request_stop() { stop_requested_.store(true); }
+
+int Daemon::run() {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGINT);
+  // Blocked here, inherited by every thread started below: the signals are only ever taken by
+  // sigtimedwait in this loop, never delivered to a thread in the middle of a Modbus transaction.
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+  start();
+
+  const auto wd = opt_.notifier.watchdog_interval();
+  const auto tick = std::chrono::milliseconds(
+      wd ? std::clamp<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(*wd).count(), 10, 1000)
+         : 1000);
+  auto next_watchdog = std::chrono::steady_clock::now();
+  std::string last_status;
+  std::string stop_reason = "stop requested";
+  while (!stop_requested_.load()) {
+    if (wd && std::chrono::steady_clock::now() >= next_watchdog) {
+      // The loop is alive and the run controller answers (status_line takes its lock).
+      opt_.notifier.watchdog();
+      next_watchdog = std::chrono::steady_clock::now() + *wd;
+    }
+    const std::string line = status_line();
+    if (line != last_status) {
+      opt_.notifier.status(line);
+      last_status = line;
+    }
+    timespec ts{};
+    const auto wait = std::min<long long>(tick.count(), 250);
+    ts.tv_sec = wait / 1000;
+    ts.tv_nsec = (wait % 1000) * 1000000L;
+    const int sig = sigtimedwait(&set, nullptr, &ts);
+    if (sig == SIGTERM || sig == SIGINT) {
+      stop_reason = std::string("daemon stopped by ") + (sig == SIGTERM ? "SIGTERM" : "SIGINT");
+      spdlog::info("{} received", sig == SIGTERM ? "SIGTERM" : "SIGINT");
+      break;
+    }
+    if (sig < 0 && errno != EAGAIN && errno != EINTR) {
+      spdlog::error("sigtimedwait: {}", std::strerror(errno));
+    }
+  }
+  stop(stop_reason);
+  return 0;
+}
+
+std::string Daemon::status_line() const {
+  if (!controller_) return "starting";
+  const auto a = controller_->active();
+  if (!a) return "idle";
+  std::string s = "run " + std::to_string(a->run_id) + " " + a->serial + ": ";
+  if (a->state == db::RunState::kRunning && a->steps > 0) {
+    s += "step " + std::to_string(a->step) + "/" + std::to_string(a->steps) + " ";
+  }
+  s += a->phase != RunPhase::kNone ? to_string(a->phase) : db::to_string(a->state);
+  if (a->time_left_s) s += ", " + duration_text(*a->time_left_s) + " left";
+  return s;
+}
+
+nlohmann::json Daemon::start_run(const StartRunRequest& request) {
+  if (!controller_) throw ControlError(error_code::kUnavailable, "the daemon is not running");
+  return controller_->start(request);
+}
+
+nlohmann::json Daemon::status(std::optional<db::RunId> run_id) {
+  using nlohmann::json;
+  if (!controller_) throw ControlError(error_code::kUnavailable, "the daemon is not running");
+  const auto active = controller_->active();
+  if (run_id) {
+    if (active && active->run_id == *run_id) return {{"run", to_json(*active)}};
+    try {
+      return {{"run", to_json(snapshot_from_record(repo_->show(*run_id).run))}};
+    } catch (const db::NotFound& e) {
+      throw ControlError(error_code::kNotFound, e.what());
+    }
+  }
+  const auto last = controller_->last_finished();
+  json daemon = {{"version", opt_.version},
+                 {"pid", static_cast<long long>(getpid())},
+                 {"station", cfg_.station_name},
+                 {"uptime_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count()}};
+  return {{"daemon", daemon},
+          {"state", active ? "busy" : "idle"},
+          {"run", active ? to_json(*active) : json(nullptr)},
+          {"last_run", last ? to_json(*last) : json(nullptr)}};
+}
+
+nlohmann::json Daemon::abort_run(const std::string& reason) {
+  if (!controller_) throw ControlError(error_code::kUnavailable, "the daemon is not running");
+  const auto active = controller_->active();
+  if (!active || !controller_->abort(reason.empty() ? "aborted by the operator" : reason)) {
+    throw ControlError(error_code::kNotFound, "no run is active");
+  }
+  return {{"run_id", active->run_id}, {"serial", active->serial}, {"aborting", true}};
+}
+
+nlohmann::json Daemon::reprocess(db::RunId run_id) {
+  if (!controller_) throw ControlError(error_code::kUnavailable, "the daemon is not running");
+  return controller_->reprocess(run_id);
+}
+
+const db::Repository& Daemon::repository() const {
+  if (!repo_) throw ControlError(error_code::kUnavailable, "the daemon is not running");
+  return *repo_;
+}
+
+}  // namespace imucal::station

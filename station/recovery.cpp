@@ -1,0 +1,98 @@
+#include "station/recovery.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <spdlog/spdlog.h>
+
+#include "db/archive/run_archive.hpp"
+#include "drivers/turntable/turntable_client.hpp"
+#include "station/archive_writer.hpp"
+#include "station/capture_stats.hpp"
+#include "station/run_controller.hpp"
+
+namespace imucal::station {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+/// The [capture] counters of a (recovered) run.toml as JSON text, "" if unreadable or absent.
+std::string capture_json_of(const std::string& dir) {
+  try {
+    const std::string path = (fs::path(dir) / "run.toml").string();
+    std::ifstream in(path);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    const archive::RunInfo info = archive::parse_run_info(ss.str(), path);
+    if (!info.capture) return "";
+    return to_json(capture_stats_from_info(*info.capture)).dump();
+  } catch (const std::exception& e) {
+    spdlog::warn("recovery: {}: {}", dir, e.what());
+    return "";
+  }
+}
+
+void stop_table(const StationConfig& config, RecoveryReport& report) {
+  turntable::TurntableClientConfig tc = config.turntable;
+  tc.stop_on_connect = true;  // connect() itself commands the safe stop
+  // Do not hold up start-up for long: a table that is switched off is not an error.
+  tc.reconnect_give_up = std::min(tc.reconnect_give_up, std::chrono::milliseconds(2000));
+  try {
+    turntable::TurntableClient client(tc);
+    client.connect();
+    client.close();
+    report.table_reached = true;
+    spdlog::info("recovery: table {} reached; safe stop commanded", tc.endpoint.to_string());
+  } catch (const std::exception& e) {
+    report.table_note = e.what();
+    spdlog::warn("recovery: table not reachable, no stop commanded: {}", e.what());
+  }
+}
+
+}  // namespace
+
+RecoveryReport recover_at_startup(const StationConfig& config, db::Repository& repo, bool stop) {
+  RecoveryReport report;
+  if (stop) stop_table(config, report);
+
+  for (const db::RunRecord& run : repo.runs_in_state(db::live_states())) {
+    RecoveredRun r;
+    r.run_id = run.run_id;
+    r.found_in = run.state;
+    const std::string dir = run.archive_path.empty()
+                                ? run_archive_dir(config.data_dir, run.run_id, run.serial)
+                                : run.archive_path;
+    const std::string found = std::string("the daemon stopped while the run was ") +
+                              db::to_string(run.state) + " (found at start-up; not resumed)";
+    db::RunCompletion c;
+    c.state = db::RunState::kInterrupted;
+    if (fs::exists(fs::path(dir) / "run.toml")) {
+      try {
+        r.rows_kept = recover_archive(dir, db::format_time_utc(db::now_ms()));
+        r.archive_sha256 = archive_digest(dir);
+        r.archive_path = dir;
+        r.reason = found + "; archive " + dir + " kept with " + std::to_string(r.rows_kept) +
+                   " rows, reprocess it to calibrate";
+        c.capture_json = capture_json_of(dir);
+      } catch (const std::exception& e) {
+        r.archive_path = dir;
+        r.reason = found + "; archive " + dir + " could not be recovered: " + e.what();
+      }
+      c.archive_path = dir;
+      c.archive_sha256 = r.archive_sha256;
+    } else {
+      r.reason = found + "; it had no archive yet (stopped before the capture started)";
+    }
+    c.reason = r.reason;
+    c.ended_at_ms = db::now_ms();
+    repo.finish_run(run.run_id, c);
+    spdlog::warn("recovery: run {} ({}) interrupted: {}", run.run_id, run.serial, r.reason);
+    report.runs.push_back(std::move(r));
+  }
+  return report;
+}
+
+}  // namespace imucal::station

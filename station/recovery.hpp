@@ -1,0 +1,44 @@
+#pragma once
+// Start-up recovery of stationd (issue #3 item 4: "an interrupted run is marked interrupted, its raw
+// data kept and reprocessable; never silently resumed").
+//
+// A daemon that died (kill -9, power cut, crash) leaves the table possibly moving and runs in a live
+// state (preparing, running, calibrating) in the database. Before it accepts any request the new
+// daemon:
+//   1. commands the table to a safe stop if it is reachable (a short connect attempt; an unreachable
+//      table is logged, not fatal: it may be switched off);
+//   2. for every live run: cuts its archive to whole, matching rows (recover_archive, which marks
+//      run.toml [capture] complete = false and leaves capture.log as raw data; a finished archive
+//      is left untouched), computes its SHA-256, and stores the run as interrupted with a reason
+//      that says in which state it was found and what was kept — together with the recounted
+//      capture counters. A run killed before its archive existed is interrupted with a reason
+//      saying so. The run is never resumed: `reprocess RUN_ID` recalibrates the kept archive.
+#include <string>
+#include <vector>
+
+#include "db/repository.hpp"
+#include "station/config.hpp"
+
+namespace imucal::station {
+
+struct RecoveredRun {
+  db::RunId run_id = 0;
+  db::RunState found_in = db::RunState::kPreparing;
+  std::string archive_path;  ///< "" if the run had no archive yet
+  uint64_t rows_kept = 0;
+  std::string archive_sha256;
+  std::string reason;  ///< as stored
+};
+
+struct RecoveryReport {
+  bool table_reached = false;  ///< the safe stop was delivered
+  std::string table_note;      ///< why not, if not
+  std::vector<RecoveredRun> runs;
+};
+
+/// Safe stop of the table (skipped if stop_table is false, e.g. for tests without a table).
+/// Throws only if the repository fails; a damaged archive is reported in the run's reason.
+RecoveryReport recover_at_startup(const StationConfig& config, db::Repository& repository,
+                                  bool stop_table = true);
+
+}  // namespace imucal::station

@@ -1,0 +1,175 @@
+#pragma once
+// The run state machine of stationd (issue #3 item 4; station contract §B2).
+//
+// One run at a time. A run's life, with the db::RunState stored at each stage and the "phase" word
+// the status shows:
+//
+//   start()  -> create_run                                  preparing
+//     control thread:  connect the table                       phase connecting
+//                      clear a latched fault, enable, home      phase homing
+//                      move to the sequence's start pose        phase moving / settling
+//                      IMU stream check (samples decode)        (still connecting)
+//                      archive <data_dir>/runs/<id>-<serial>/ created, capture attached
+//                                                             running, step i/N
+//                      per step: rest   -> Capture::begin_rest(round(rest_s * rate_hz) samples),
+//                                          wait_rest_done       phase settling, then resting
+//                                rotate -> move_to(target, min(rate, max_rate_dps)), own status
+//                                          polling feeding Capture::table_moving, wait_in_position
+//                                                               phase moving / settling
+//                      capture detached, archive finished (run.toml [capture] complete = true),
+//                      SHA-256 of the archive             calibrating
+//     worker thread (calibration_worker.hpp): read_archive -> run_calibration -> finish_run
+//                                                             done | review | failed
+//
+// Steps: step 1 is the sequence's initial rest ([start] rest_s), steps 2..N its [[step]]s in file
+// order, so N = 1 + number of [[step]] entries. Rests are counted in IMU samples (Capture), never in
+// wall time, so an accelerated simulator produces the same archive as real time.
+//
+// Ending early (every path commands the table to a safe stop, detaches the capture, finishes the
+// archive with what it has and stores its SHA-256 and the capture counters):
+//   abort(reason) (operator or SIGTERM)            -> aborted, reason as given
+//   table fault, e-stop, stale heartbeat, link lost (reconnect gave up), move timeout, command
+//   rejected                                        -> aborted, reason "table: ..." (fault code)
+//   capture fault (IMU reset, gap, stream timeout, moved during a rest), no IMU stream
+//                                                   -> failed, reason "capture: ..."
+//   anything else (archive I/O, ...)               -> failed, reason = the error
+// An abort during calibrating marks the run aborted at once; the worker's result is dropped.
+//
+// reprocess(run): checks the stored archive's SHA-256 against the archive on disk, creates a new run
+// (reprocessed_from, state calibrating, archive reused) and hands it to the same worker.
+//
+// Threading: the public methods may be called from any thread (the control server's, the signal
+// handler thread); the control thread and the worker's completion callback update the run snapshot
+// under one mutex.
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "db/repository.hpp"
+#include "station/calibration_worker.hpp"
+#include "station/capture_stats.hpp"
+#include "station/config.hpp"
+#include "station/control_handler.hpp"
+
+namespace imucal::turntable {
+class TurntableClient;
+}
+
+namespace imucal::station {
+
+class Capture;
+
+/// What the run is doing right now (the status "phase" word); kNone once it is terminal.
+enum class RunPhase { kNone, kConnecting, kHoming, kMoving, kSettling, kResting, kCalibrating, kStopping };
+/// "connecting", "homing", "moving", "settling", "resting", "calibrating", "stopping"; "" for kNone.
+const char* to_string(RunPhase p);
+
+/// A run as the status shows it (live, or rebuilt from the database).
+struct RunSnapshot {
+  db::RunId run_id = 0;
+  std::string serial, sequence, operator_name;
+  db::RunState state = db::RunState::kPreparing;
+  RunPhase phase = RunPhase::kNone;
+  int step = 0, steps = 0;                 ///< 0 / 0 when not applicable (reprocess, from the DB)
+  std::optional<double> time_left_s;       ///< estimate while capturing
+  std::optional<db::Verdict> verdict;
+  std::string reason;
+  db::TimestampMs started_at_ms = 0;
+  std::optional<db::TimestampMs> ended_at_ms;
+  std::optional<CaptureStats> capture;
+  std::string archive_path;
+  std::optional<db::RunId> reprocessed_from;
+};
+
+/// The contract's "run" object: run_id, serial, sequence, operator, state, phase, step, steps,
+/// time_left_s, verdict, reason, started_at, capture (null where not applicable), plus ended_at,
+/// archive and reprocessed_from.
+nlohmann::json to_json(const RunSnapshot& run);
+/// A stored run in the same shape (phase/step/time left null; capture from capture_json).
+RunSnapshot snapshot_from_record(const db::RunRecord& record);
+
+/// One step of the executed plan (the sequence flattened to table commands).
+struct PlannedStep {
+  enum class Kind { kRest, kMove } kind = Kind::kRest;
+  double outer_deg = 0.0, inner_deg = 0.0;  ///< rest pose / move target
+  double rate_dps = 0.0;                    ///< move: commanded rate (clipped to max_rate_dps)
+  uint64_t rest_samples = 0;                ///< rest: round(rest_s * rate_hz)
+  double expected_s = 0.0;                  ///< expected duration in table (sim) seconds
+  int source_line = 0;                      ///< line in the sequence file
+};
+
+struct RunPlan {
+  std::string sequence_name;  ///< the file's name = "..."
+  std::string sequence_path;
+  std::string sequence_sha256;
+  double start_outer_deg = 0.0, start_inner_deg = 0.0;
+  std::vector<PlannedStep> steps;  ///< steps[0] = the initial rest
+};
+
+/// Resolves (library name or path), parses and validates a sequence against the station's limits
+/// (max_rate_dps) and flattens it. Throws sequences::SequenceError.
+RunPlan plan_run(const std::string& sequence, const StationConfig& config);
+
+/// The archive directory of run `id`: <data_dir>/runs/<id>-<serial>.
+std::string run_archive_dir(const std::string& data_dir, db::RunId id, const std::string& serial);
+
+class RunController {
+ public:
+  /// `repository` and `worker` must outlive the controller.
+  RunController(const StationConfig& config, db::Repository& repository, CalibrationWorker& worker,
+                std::string software_version = IMUCAL_VERSION);
+  ~RunController();  ///< shutdown("daemon shutting down")
+  RunController(const RunController&) = delete;
+  RunController& operator=(const RunController&) = delete;
+
+  /// Starts a run (returns once it is created, preparing). ControlError: kBusy (a run is live),
+  /// kInvalidInput (serial rule, a sequence the station's limits refuse), kNotFound (unknown
+  /// sequence), kUnavailable (data directory not writable). Returns the handler's JSON shape.
+  nlohmann::json start(const StartRunRequest& request);
+  /// ControlError kBusy, kNotFound (no such run / no archive), kInvalidInput (archive changed
+  /// since it was recorded), kUnavailable (archive unreadable).
+  nlohmann::json reprocess(db::RunId run_id);
+  /// Aborts the live run; false if there is none.
+  bool abort(const std::string& reason);
+
+  std::optional<RunSnapshot> active() const;
+  std::optional<RunSnapshot> last_finished() const;
+  bool busy() const;
+  /// Waits until no run is live (true) or the timeout passed (false).
+  bool wait_idle(std::chrono::milliseconds timeout);
+  /// Aborts the live run with `reason`, waits for it to end (the worker's running job included)
+  /// and refuses new runs from then on. Idempotent.
+  void shutdown(const std::string& reason);
+
+ private:
+  struct Live;
+  void control_thread(std::shared_ptr<Live> live);
+  void capture_run(const std::shared_ptr<Live>& live);
+  void finish_early(Live& live, db::RunState state, const std::string& reason);
+  void on_calibrated(const std::shared_ptr<Live>& live, const CalibrationOutcome& out);
+  void set_phase(Live& live, RunPhase phase);
+  void end_live(const std::shared_ptr<Live>& live);
+  std::string archive_dir_for(db::RunId id, const std::string& serial) const;
+
+  StationConfig cfg_;
+  db::Repository& repo_;
+  CalibrationWorker& worker_;
+  std::string software_version_;
+
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::shared_ptr<Live> live_;
+  std::optional<RunSnapshot> last_;
+  std::thread thread_;
+  bool shut_down_ = false;
+};
+
+}  // namespace imucal::station

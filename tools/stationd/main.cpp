@@ -1,0 +1,63 @@
+// stationd: the calibration station daemon (station/README.md is the operator's guide).
+//
+//   stationd --config FILE [--check-config] [--log-level L]
+//
+// Exit codes: 0 clean stop (SIGTERM/SIGINT) or config ok; 1 start-up or runtime failure (database,
+// socket, ...); 2 bad command line or bad configuration (one line "FILE:LINE:COL: message" on
+// stderr, nothing created).
+#include <csignal>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include "station/config.hpp"
+#include "station/daemon.hpp"
+#include "station/logging.hpp"
+#include "station/sd_notify.hpp"
+
+int main(int argc, char** argv) {
+  using namespace imucal::station;
+  CLI::App app{"stationd " IMUCAL_VERSION " — IMU calibration station daemon"};
+  std::string config_path, log_level;
+  bool check_only = false;
+  app.add_option("--config", config_path, "station configuration file (TOML)")->required();
+  app.add_flag("--check-config", check_only, "check the configuration file and exit");
+  app.add_option("--log-level", log_level, "override [log] level")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
+  app.set_version_flag("--version", IMUCAL_VERSION);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc == 0 ? 0 : 2;
+  }
+
+  StationConfig cfg;
+  try {
+    cfg = load_config(config_path);
+  } catch (const ConfigError& e) {
+    std::cerr << e.what() << "\n";
+    return 2;
+  }
+  if (!log_level.empty()) cfg.log_level = log_level;
+  if (check_only) {
+    std::cout << config_path << ": ok (station " << cfg.station_name << ", table "
+              << cfg.turntable.endpoint.to_string() << ", IMU " << cfg.can_uri << ", data "
+              << cfg.data_dir << ", socket " << cfg.control_socket << ")\n";
+    return 0;
+  }
+
+  setup_logging(cfg.log_level);
+  std::signal(SIGPIPE, SIG_IGN);  // a client that hangs up must not kill the daemon
+  try {
+    DaemonOptions opt;
+    opt.notifier = SdNotifier::from_environment();
+    Daemon daemon(cfg, opt);
+    return daemon.run();
+  } catch (const std::exception& e) {
+    spdlog::critical("{}", e.what());
+    if (spdlog::default_logger()->sinks().empty()) std::cerr << "stationd: " << e.what() << "\n";
+    return 1;
+  }
+}
