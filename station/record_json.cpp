@@ -4,7 +4,6 @@
 #include <cstdio>
 #include <sstream>
 #include <stdexcept>
-#include <type_traits>
 #include <utility>
 
 #include "calib/param_set.hpp"
@@ -16,22 +15,6 @@ namespace imucal::station {
 using nlohmann::json;
 
 namespace {
-
-// RunRecord::capture_json arrives with schema v2 (lead change); until it is there a record has no
-// capture counters. Detected at compile time so this file builds against both.
-template <typename R, typename = void>
-struct HasCaptureJson : std::false_type {};
-template <typename R>
-struct HasCaptureJson<R, std::void_t<decltype(std::declval<const R&>().capture_json)>>
-    : std::true_type {};
-
-template <typename R>
-std::string capture_text(const R& run) {
-  if constexpr (HasCaptureJson<R>::value)
-    return run.capture_json;
-  else
-    return {};
-}
 
 std::string fmt(const char* format, double v) {
   char buf[64];
@@ -88,24 +71,9 @@ std::string short_time(const std::string& iso) {
 // ----- JSON shapes ------------------------------------------------------------------------------
 
 json run_record_json(const db::RunRecord& run) {
-  json o = db::run_json(run);
-  const std::string capture = capture_text(run);
-  if (capture.empty()) {
-    o["capture"] = nullptr;
-  } else {
-    json c;
-    try {
-      c = json::parse(capture);
-    } catch (const json::parse_error& e) {
-      throw db::Corrupt("run " + std::to_string(run.run_id) +
-                        ": stored capture counters are not JSON: " + e.what());
-    }
-    if (!c.is_object())
-      throw db::Corrupt("run " + std::to_string(run.run_id) +
-                        ": stored capture counters are not a JSON object");
-    o["capture"] = std::move(c);
-  }
-  return o;
+  // db::run_json carries "capture" (RunRecord::capture_json parsed, null when empty) since schema
+  // v2; one definition of the run's JSON for the export and the control socket.
+  return db::run_json(run);
 }
 
 json history_result(const std::string& serial, const std::vector<db::RunRecord>& runs) {

@@ -12,8 +12,8 @@
 //   show     {"run": run, "calibrations": [calibration, ...], "crosscheck": {...} | null}
 //   params   the DESIGN §3 parameter-set JSON with "sigma" (archive::read_param_file loads it)
 //   export   {"format": "csv"|"json", "rows": N, "content": "<the whole export as text>"}
-// where run = db::run_json(record) plus "capture": the run's capture counters (CaptureStats JSON,
-// with "complete") or null, and calibration = db::calibration_json (params + sigma as the
+// where run = db::run_json(record) (with "capture": the run's capture counters, CaptureStats JSON
+// with "complete", or null), and calibration = db::calibration_json (params + sigma as the
 // parameter-set JSON, metrics or null).
 #include <string>
 #include <vector>
@@ -26,8 +26,8 @@
 namespace imucal::station {
 
 // ----- JSON shapes ------------------------------------------------------------------------------
-/// db::run_json(run) + "capture" (RunRecord::capture_json parsed; null when empty). db::Corrupt
-/// naming the run if the stored capture text is not a JSON object.
+/// db::run_json(run), which includes "capture" (RunRecord::capture_json parsed; null when empty;
+/// db::Corrupt naming the run if the stored text is not a JSON object).
 nlohmann::json run_record_json(const db::RunRecord& run);
 nlohmann::json history_result(const std::string& serial, const std::vector<db::RunRecord>& runs);
 nlohmann::json show_result(const db::RunDetails& details);
