@@ -178,7 +178,7 @@ void ControlServer::start() {
   listen_fd_ = fd;
   running_ = true;
   thread_ = std::thread([this] { loop(); });
-  spdlog::info("control socket listening on {} (mode {:o}, control group '{}')", path,
+  spdlog::info("control socket listening on {} (mode 0{:o}, control group '{}')", path,
                options_.socket_mode, group_name_);
 }
 
