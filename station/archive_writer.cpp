@@ -84,7 +84,8 @@ ArchiveWriter::ArchiveWriter(const std::string& dir_in, const archive::RunInfo& 
   while (dir_.size() > 1 && dir_.back() == '/') dir_.pop_back();
   if (dir_.empty()) throw std::runtime_error("run archive: empty directory name");
   if (info.reference != archive::ReferenceKind::kTable)
-    throw std::runtime_error(dir_ + ": the station writes table.csv; RunInfo.reference must be table");
+    throw std::runtime_error(dir_ +
+                             ": the station writes table.csv; RunInfo.reference must be table");
 
   std::error_code ec;
   bool created_dir = false;
@@ -92,8 +93,9 @@ ArchiveWriter::ArchiveWriter(const std::string& dir_in, const archive::RunInfo& 
     if (!fs::is_directory(dir_, ec))
       throw std::runtime_error(dir_ + ": exists and is not a directory");
     if (!fs::is_empty(dir_, ec))
-      throw std::runtime_error(dir_ + ": exists and is not empty; refusing to write a run archive "
-                                      "over another");
+      throw std::runtime_error(dir_ +
+                               ": exists and is not empty; refusing to write a run archive "
+                               "over another");
   } else {
     fs::create_directories(dir_, ec);
     if (ec) throw std::runtime_error(dir_ + ": cannot create directory: " + ec.message());
@@ -216,7 +218,8 @@ void ArchiveWriter::flush() {
 void ArchiveWriter::sync() {
   flush();
   for (File* f : {&imu_, &table_})
-    if (::fdatasync(f->fd) != 0) throw std::runtime_error(f->path + ": fdatasync failed: " + sys_reason());
+    if (::fdatasync(f->fd) != 0)
+      throw std::runtime_error(f->path + ": fdatasync failed: " + sys_reason());
   capture_->sync();
 }
 
@@ -268,7 +271,8 @@ CsvPrefix usable_prefix(const std::string& path, const std::vector<std::string>&
   const archive::CsvSpec spec{cols, {}, true};
   for (;;) {
     try {
-      p.table = archive::parse_csv(std::string_view(text.data(), p.line_end[n_lines - 1]), path, spec);
+      p.table =
+          archive::parse_csv(std::string_view(text.data(), p.line_end[n_lines - 1]), path, spec);
       break;
     } catch (const archive::ArchiveError& e) {
       // A bad data line (torn or zero-filled by a crash): keep the lines before it.
@@ -288,7 +292,8 @@ void cut_file(const std::string& path, const std::vector<std::string>& cols, boo
     return;
   }
   struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) throw std::runtime_error(path + ": cannot stat: " + sys_reason());
+  if (::stat(path.c_str(), &st) != 0)
+    throw std::runtime_error(path + ": cannot stat: " + sys_reason());
   if (static_cast<std::size_t>(st.st_size) != keep_bytes) {
     if (::truncate(path.c_str(), static_cast<off_t>(keep_bytes)) != 0)
       throw std::runtime_error(path + ": cannot truncate: " + sys_reason());
@@ -313,7 +318,8 @@ uint64_t recover_archive(const std::string& dir_in, const std::string& end_time_
   }
 
   const std::string run_toml = join(dir, "run.toml");
-  if (!fs::exists(run_toml, ec)) throw archive::ArchiveError(run_toml, "missing: cannot recover the run archive");
+  if (!fs::exists(run_toml, ec))
+    throw archive::ArchiveError(run_toml, "missing: cannot recover the run archive");
   archive::RunInfo info = archive::parse_run_info(archive::read_text_file(run_toml), run_toml);
 
   const std::string imu_path = join(dir, "imu.csv");
@@ -371,7 +377,8 @@ uint64_t recover_archive(const std::string& dir_in, const std::string& end_time_
 
 std::string archive_digest(const std::string& dir) {
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) throw std::runtime_error(dir + ": not a directory (archive digest)");
+  if (!fs::is_directory(dir, ec))
+    throw std::runtime_error(dir + ": not a directory (archive digest)");
   std::vector<std::string> names;
   for (const auto& e : fs::directory_iterator(dir, ec))
     if (e.is_regular_file(ec)) names.push_back(e.path().filename().string());
@@ -379,7 +386,8 @@ std::string archive_digest(const std::string& dir) {
   std::sort(names.begin(), names.end());
   std::string manifest;
   for (const auto& name : names)
-    manifest += name + "  " + sequences::sha256_hex(archive::read_text_file(join(dir, name.c_str()))) + "\n";
+    manifest += name + "  " +
+                sequences::sha256_hex(archive::read_text_file(join(dir, name.c_str()))) + "\n";
   return sequences::sha256_hex(manifest);
 }
 

@@ -48,7 +48,8 @@ Capture::Capture(std::unique_ptr<imu::CanChannel> channel, CaptureOptions option
     throw std::invalid_argument("Capture: rest_rate_threshold_dps must be > 0");
   if (options_.stream_timeout.count() <= 0 || options_.flush_period.count() <= 0 ||
       options_.poll_timeout.count() <= 0)
-    throw std::invalid_argument("Capture: stream_timeout, flush_period and poll_timeout must be > 0");
+    throw std::invalid_argument(
+        "Capture: stream_timeout, flush_period and poll_timeout must be > 0");
 }
 
 Capture::~Capture() { stop(); }
@@ -100,7 +101,8 @@ void Capture::run() {
     if (!frames.empty()) on_frames(frames, now);
 
     if (writer_ && !fault_ && now - last_sample_time_ > options_.stream_timeout) {
-      const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(now - last_sample_time_);
+      const auto ms =
+          std::chrono::duration_cast<std::chrono::milliseconds>(now - last_sample_time_);
       set_fault("IMU stream timeout: no sample for " + std::to_string(ms.count()) + " ms after " +
                 (rows_ ? row_label(rows_ - 1) : std::string("attach (no row yet)")) +
                 (eof ? "; the CAN channel is closed" : ""));
@@ -232,7 +234,8 @@ bool Capture::emit_row(const calib::ImuIncrement& in) {
       break;
   }
   calib::ImuIncrement inc = in;
-  inc.t_s = static_cast<double>(row + 1) / options_.decoder.sample_rate_hz;  // contract: (row+1)/rate
+  inc.t_s =
+      static_cast<double>(row + 1) / options_.decoder.sample_rate_hz;  // contract: (row+1)/rate
   inc.dt_s = dt_s_;
   const calib::TableSample table{inc.t_s, outer_deg_ * kDegToRad, inner_deg_ * kDegToRad, at_rest};
   try {
@@ -267,7 +270,8 @@ void Capture::writer_failed(const std::exception& e) {
 
 std::string Capture::row_label(uint64_t row) const {
   return "row " + std::to_string(row + 1) + " (t = " +
-         archive::format_double(static_cast<double>(row + 1) / options_.decoder.sample_rate_hz) + " s)";
+         archive::format_double(static_cast<double>(row + 1) / options_.decoder.sample_rate_hz) +
+         " s)";
 }
 
 bool Capture::wait_for_stream(std::chrono::milliseconds timeout) {

@@ -52,7 +52,8 @@ struct CaptureOptions {
   uint64_t max_gap_samples = 10;          ///< longer gap -> fault
   uint64_t settle_guard_samples = 50;     ///< still samples before a rest's counted samples begin
   double rest_rate_threshold_dps = 0.05;  ///< |dθ|/dt above this = the unit is moving
-  std::chrono::milliseconds stream_timeout{2000};  ///< no sample this long (while attached) -> fault
+  std::chrono::milliseconds stream_timeout{
+      2000};  ///< no sample this long (while attached) -> fault
   std::chrono::milliseconds flush_period{200};
   std::chrono::milliseconds poll_timeout{20};  ///< capture thread's poll(2) timeout (stop latency)
 };

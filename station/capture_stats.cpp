@@ -49,8 +49,8 @@ const std::vector<std::pair<Member, uint64_t archive::CaptureInfo::*>>& counter_
     for (std::size_t i = 0; i < ours.size(); ++i) {
       if (std::string(ours[i].first) != theirs[i].first)
         throw std::logic_error(std::string("CaptureStats counter '") + ours[i].first +
-                               "' does not match archive::CaptureInfo counter '" +
-                               theirs[i].first + "'");
+                               "' does not match archive::CaptureInfo counter '" + theirs[i].first +
+                               "'");
       p.emplace_back(ours[i].second, theirs[i].second);
     }
     return p;
@@ -74,8 +74,8 @@ nlohmann::json to_json(const CaptureStats& stats) {
 
 CaptureStats capture_stats_from_json(const nlohmann::json& j) {
   auto fail = [](const std::string& field, const std::string& what) {
-    throw std::invalid_argument("capture stats: " +
-                                (field.empty() ? std::string() : "field '" + field + "': ") + what);
+    throw std::invalid_argument(
+        "capture stats: " + (field.empty() ? std::string() : "field '" + field + "': ") + what);
   };
   if (!j.is_object()) fail("", std::string("expected a JSON object, got ") + j.type_name());
   for (auto it = j.begin(); it != j.end(); ++it) {

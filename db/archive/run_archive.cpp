@@ -98,7 +98,9 @@ CaptureInfo parse_capture_section(const toml::table& t, const std::string& origi
     for (const auto& c : counters) s += std::string(", ") + c.first;
     return s;
   };
-  auto line_of = [](const toml::node& n) { return static_cast<std::size_t>(n.source().begin.line); };
+  auto line_of = [](const toml::node& n) {
+    return static_cast<std::size_t>(n.source().begin.line);
+  };
   for (auto&& [k, v] : t) {
     bool known = k.str() == "complete";
     for (const auto& c : counters) known = known || k.str() == c.first;
@@ -348,9 +350,9 @@ std::string run_info_text(const RunInfo& ri) {
     for (const auto& [name, member] : CaptureInfo::counters()) {
       const uint64_t v = (*ri.capture).*member;
       if (v > static_cast<uint64_t>(INT64_MAX))
-        throw ArchiveError::field_error("run.toml", std::string("capture.") + name,
-                                        "count " + std::to_string(v) +
-                                            " exceeds the TOML integer range");
+        throw ArchiveError::field_error(
+            "run.toml", std::string("capture.") + name,
+            "count " + std::to_string(v) + " exceeds the TOML integer range");
       text += std::string(name) + " = " + std::to_string(v) + "\n";
     }
   }

@@ -3,6 +3,8 @@
 // SIGKILL at an arbitrary moment leaves an archive that recover_archive() turns into a readable one
 // holding exactly a prefix of what was written; torn and garbage tails are cut; the digest sees
 // every byte; the [capture] section round-trips and is parsed strictly.
+#include "station/archive_writer.hpp"
+
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <stdlib.h>
@@ -22,7 +24,6 @@
 #include "db/archive/run_archive.hpp"
 #include "drivers/imu/candump_log.hpp"
 #include "sequences/library.hpp"
-#include "station/archive_writer.hpp"
 #include "station/capture_stats.hpp"
 
 namespace imucal::station {
@@ -84,7 +85,8 @@ imu::ReceivedFrame frame_of(uint64_t j) {
   imu::ReceivedFrame f;
   f.frame.can_id = 0x100 + static_cast<uint32_t>(j % 4);
   f.frame.len = 8;
-  for (int b = 0; b < 8; ++b) f.frame.data[static_cast<std::size_t>(b)] = static_cast<uint8_t>(j * 31 + b);
+  for (int b = 0; b < 8; ++b)
+    f.frame.data[static_cast<std::size_t>(b)] = static_cast<uint8_t>(j * 31 + b);
   f.rx_time_ns = 1'700'000'000'000'000'000LL + static_cast<int64_t>(j) * 2'500'000;
   return f;
 }
@@ -357,7 +359,10 @@ TEST(RecoverArchive, SkeletonWithoutRowsAndMissingRunToml) {
   const std::string dir = tmp.sub("run");
   { ArchiveWriter w(dir, make_info()); }
   // Killed before the header reached table.csv: recovery restores it.
-  { std::ofstream f(dir + "/table.csv", std::ios::trunc); f << "t_s,out"; }
+  {
+    std::ofstream f(dir + "/table.csv", std::ios::trunc);
+    f << "t_s,out";
+  }
   EXPECT_EQ(recover_archive(dir, "2026-11-22T05:00:00Z"), 0u);
   EXPECT_EQ(archive::read_text_file(dir + "/table.csv"), "t_s,outer_deg,inner_deg,at_rest\n");
   // No rows: the reader refuses it with a clear message (nothing to calibrate), naming imu.csv.
@@ -390,7 +395,10 @@ TEST(RecoverArchive, LeavesAFinishedArchiveUntouched) {
     w.finish(fin);
   }
   // A stray temporary file of an interrupted rewrite is not part of the archive.
-  { std::ofstream f(dir + "/run.toml.tmp-AbC123"); f << "serial = \"x\"\n"; }
+  {
+    std::ofstream f(dir + "/run.toml.tmp-AbC123");
+    f << "serial = \"x\"\n";
+  }
   const std::string run_toml = archive::read_text_file(dir + "/run.toml");
   EXPECT_EQ(recover_archive(dir, "2026-11-22T09:00:00Z"), 50u);
   EXPECT_EQ(archive::read_text_file(dir + "/run.toml"), run_toml);
@@ -439,10 +447,16 @@ TEST(ArchiveDigest, MatchesItsDefinitionAndSeesEveryByte) {
     for (std::size_t pos : {std::size_t{0}, orig.size() / 2, orig.size() - 1}) {
       std::string changed = orig;
       changed[pos] = static_cast<char>(changed[pos] ^ 0x01);
-      { std::ofstream f(path, std::ios::trunc | std::ios::binary); f << changed; }
+      {
+        std::ofstream f(path, std::ios::trunc | std::ios::binary);
+        f << changed;
+      }
       EXPECT_NE(archive_digest(dir), digest) << name << " byte " << pos;
     }
-    { std::ofstream f(path, std::ios::trunc | std::ios::binary); f << orig; }
+    {
+      std::ofstream f(path, std::ios::trunc | std::ios::binary);
+      f << orig;
+    }
     EXPECT_EQ(archive_digest(dir), digest) << name << " restored";
   }
   // A renamed file changes it too (names are part of the manifest).

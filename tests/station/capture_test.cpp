@@ -5,6 +5,8 @@
 // resets, stream timeouts, IMU failure bits and motion inside a counted rest are faults that stop
 // the rows but not the frame log; rest marking is guard-then-exactly-N rows; capture.log holds
 // every frame received and parses with the candump reader.
+#include "station/capture.hpp"
+
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
@@ -24,7 +26,6 @@
 #include "drivers/imu/imu_protocol.hpp"
 #include "drivers/sim/imu_can_node.hpp"
 #include "station/archive_writer.hpp"
-#include "station/capture.hpp"
 #include "station/capture_stats.hpp"
 
 namespace imucal::station {
@@ -276,7 +277,8 @@ TEST(Capture, LostSamplesAreFilledByLinearInterpolationAndCounted) {
         EXPECT_EQ(a.imu[k].dtheta_rad(i), tx[k].dtheta_rad(i)) << "row " << k;
         EXPECT_EQ(a.imu[k].dv_mps(i), tx[k].dv_mps(i)) << "row " << k;
       } else {
-        EXPECT_NEAR(a.imu[k].dtheta_rad(i), interp(before, after, k, i, true), 1e-18) << "row " << k;
+        EXPECT_NEAR(a.imu[k].dtheta_rad(i), interp(before, after, k, i, true), 1e-18)
+            << "row " << k;
         EXPECT_NEAR(a.imu[k].dv_mps(i), interp(before, after, k, i, false), 1e-15) << "row " << k;
       }
     }
@@ -444,7 +446,8 @@ TEST(Capture, StreamTimeoutIsAFaultOnlyWhileAttached) {
   ASSERT_TRUE(rig.wait_rows(10));
   const auto t0 = std::chrono::steady_clock::now();
   ASSERT_TRUE(wait_until([&] { return rig.cap->fault().has_value(); }, 3s));
-  const double waited_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double waited_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_GT(waited_s, 0.2);
   EXPECT_LT(waited_s, 1.5);
   EXPECT_NE(rig.cap->fault()->find("stream timeout"), std::string::npos) << *rig.cap->fault();
