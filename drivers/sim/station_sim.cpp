@@ -94,7 +94,6 @@ void StationSim::start() {
   server_->start();  // throws naming the address
 
   stop_.store(false);
-  clock_ = std::make_unique<ScaledRealTime>(cfg_.speed);
   running_.store(true);
   thread_ = std::thread([this] { run(); });
 }
@@ -187,8 +186,16 @@ void StationSim::run() {
     }
   };
 
-  const ScaledRealTime& clock = *clock_;
+  std::vector<imu::ReceivedFrame> from_peers;
   try {
+    if (cfg_.wait_for_can_peer) {
+      while (!stop_.load() && channel_->counters().peers_connected == 0) {
+        channel_->read(from_peers);  // accepts peers
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+    }
+    clock_ = std::make_unique<ScaledRealTime>(cfg_.speed);
+    const ScaledRealTime& clock = *clock_;
     server_->with_plc([&](TablePlc& plc) { arm_if_due(plc); });
     while (!stop_.load()) {
       const double t_next = stream.next_time_s();
@@ -219,6 +226,11 @@ void StationSim::run() {
         });
       });
       if (reset_requested_.exchange(false)) node_->reset();
+      if (stream.samples() % 16 == 0) {
+        // A bus: what other nodes send reaches the other peers (the listener forwards on read).
+        from_peers.clear();
+        channel_->read(from_peers);
+      }
       node_->send(inc);  // outside the PLC lock: a slow CAN reader must not block Modbus replies
       sim_time_s_.store(inc.t_s);
       const ImuCanNodeStats& ns = node_->stats();
@@ -227,7 +239,7 @@ void StationSim::run() {
       node_stats_.frames_sent = ns.frames_sent;
       node_stats_.frames_lost = ns.frames_lost;
       node_stats_.frames_corrupted = ns.frames_corrupted;
-      node_stats_.frames_refused = ns.frames_refused;
+      node_stats_.frames_refused = ns.frames_refused + channel_->counters().tx_overflow;
       node_stats_.imu_resets = ns.resets;
       node_stats_.sim_time_s = inc.t_s;
       wall_elapsed_s_ = clock() / cfg_.speed;

@@ -64,6 +64,11 @@ struct StationSimConfig {
   double speed = 100.0;  // sim seconds per wall second; physics clock = ScaledRealTime
   uint64_t seed = 1;
   StationSimFaults faults;
+  // --- additions beyond the contract ---
+  /// false (default, like a real unit): the IMU streams from start(). true: the physics clock (t = 0,
+  /// IMU power-up, PLC) starts when the first CAN peer has connected, so that a test or benchmark
+  /// receiver sees every frame from the first one; the Modbus server answers from start() either way.
+  bool wait_for_can_peer = false;
 };
 
 struct StationSimStats {
@@ -111,7 +116,7 @@ class StationSim {  // one physics thread: steps the PLC and emits each IMU samp
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<bool> running_{false};
-  std::unique_ptr<ScaledRealTime> clock_;  // the physics clock (started by start())
+  std::unique_ptr<ScaledRealTime> clock_;  // the physics clock (physics thread only)
   std::atomic<double> sim_time_s_{0.0};
   std::atomic<uint64_t> moves_accepted_{0};
   std::atomic<uint64_t> modbus_drops_{0};

@@ -1,0 +1,351 @@
+// StationSim in process: a TurntableClient drives the simulated PLC over Modbus TCP while a unixcan
+// receiver decodes the IMU the simulator streams from the table's actual motion. Expectations come
+// from physics (the attitude change of a 90° turn seen from inertial space, the unit's known error
+// model, its noise), from the simulator's own injected-fault counters, and from the table's contract.
+#include "drivers/sim/station_sim.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "calib/earth.hpp"
+#include "calib/imu_error_model.hpp"
+#include "calib/rotation.hpp"
+#include "drivers/imu/can_channel.hpp"
+#include "drivers/imu/imu_codec.hpp"
+#include "drivers/turntable/turntable_client.hpp"
+#include "drivers/turntable/turntable_error.hpp"
+
+using namespace std::chrono_literals;
+using namespace imucal;
+
+namespace {
+
+/// Per-process loopback address and CAN socket path (see turntable_client_test.cpp: a port freed
+/// by one test process must never be mistaken for another process's table).
+int next_instance() {
+  static int n = 0;
+  return ++n;
+}
+
+sim::StationSimConfig base_config(double speed) {
+  const unsigned pid = static_cast<unsigned>(::getpid());
+  const int n = next_instance();
+  sim::StationSimConfig c;
+  c.modbus.address = "127." + std::to_string((pid >> 8) & 0xffu) + "." + std::to_string(pid & 0xffu) + "." +
+                     std::to_string(n % 254 + 1);
+  c.modbus.port = 0;
+  c.can_path = "/tmp/imucal_station_sim_test_" + std::to_string(pid) + "_" + std::to_string(n) + ".sock";
+  c.speed = speed;
+  c.wait_for_can_peer = true;  // the receiver sees sample 0: decoded index k = sim interval k
+  return c;
+}
+
+turntable::TurntableClientConfig client_config(sim::StationSim& s) {
+  turntable::TurntableClientConfig c;
+  c.endpoint = turntable::Endpoint::parse(s.modbus_endpoint());
+  c.response_timeout = 300ms;
+  c.backoff_initial = 20ms;
+  c.backoff_max = 200ms;
+  c.reconnect_give_up = 5000ms;
+  c.poll_period = 5ms;
+  c.heartbeat_timeout = 1000ms;
+  return c;
+}
+
+/// Reads the bus in its own thread and decodes every IMU sample.
+class Receiver {
+ public:
+  explicit Receiver(const std::string& uri) : channel_(imu::CanChannel::open(uri)), decoder_(imu::DecoderOptions{}) {
+    thread_ = std::thread([this] { loop(); });
+  }
+  ~Receiver() {
+    quit_.store(true);
+    finish();
+  }
+  /// Stops reading once the bus has closed (the simulator stopped) and flushes the decoder.
+  void finish() {
+    if (thread_.joinable()) thread_.join();
+  }
+  std::vector<imu::DecodedSample> samples() {
+    std::lock_guard<std::mutex> l(mu_);
+    return samples_;
+  }
+  size_t count() {
+    std::lock_guard<std::mutex> l(mu_);
+    return samples_.size();
+  }
+  imu::DecoderCounters counters() {
+    std::lock_guard<std::mutex> l(mu_);
+    return decoder_.counters();
+  }
+  /// Waits (bounded) until a sample with index >= k has been decoded.
+  bool wait_index(uint64_t k, std::chrono::milliseconds timeout) {
+    const auto end = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < end) {
+      {
+        std::lock_guard<std::mutex> l(mu_);
+        if (!samples_.empty() && samples_.back().sample_index >= k) return true;
+      }
+      std::this_thread::sleep_for(2ms);
+    }
+    return false;
+  }
+
+ private:
+  void loop() {
+    std::vector<imu::ReceivedFrame> frames;
+    std::vector<imu::DecodedSample> out;
+    while (!channel_->at_end() && !quit_.load()) {
+      if (!channel_->wait_readable(100)) continue;
+      frames.clear();
+      channel_->read(frames, 1024);
+      std::lock_guard<std::mutex> l(mu_);
+      for (const auto& f : frames) decoder_.push(f, samples_);
+    }
+    std::lock_guard<std::mutex> l(mu_);
+    decoder_.flush(samples_);
+  }
+
+  std::unique_ptr<imu::CanChannel> channel_;
+  imu::ImuFrameDecoder decoder_;
+  std::mutex mu_;
+  std::vector<imu::DecodedSample> samples_;
+  std::atomic<bool> quit_{false};
+  std::thread thread_;
+};
+
+void ready_and_homed(turntable::TurntableClient& c) {
+  c.connect();
+  c.enable();
+  const auto s = c.home(5000ms);
+  ASSERT_TRUE(s.homed);
+}
+
+/// The decoded samples whose intervals lie inside [t_a, t_b] of sim time.
+std::vector<calib::ImuIncrement> window(const std::vector<imu::DecodedSample>& s, double t_a, double t_b,
+                                        double dt) {
+  std::vector<calib::ImuIncrement> w;
+  for (const auto& d : s) {
+    const double t1 = static_cast<double>(d.sample_index + 1) * dt;
+    if (t1 - dt >= t_a - 1e-9 && t1 <= t_b + 1e-9) w.push_back(d.increment);
+  }
+  return w;
+}
+
+}  // namespace
+
+TEST(StationSim, OuterQuarterTurnSeenByTheImuIsTheTableRotation) {
+  sim::StationSimConfig cfg = base_config(40.0);
+  cfg.plc.initial_outer_deg = 4.0;  // homing is a real motion
+  sim::StationSim s(cfg);
+  s.start();
+  Receiver rx(s.can_uri());
+  turntable::TurntableClient c(client_config(s));
+  ready_and_homed(c);
+  // In position after home: at rest at (0, 0). The move, then in position at (90, 0).
+  const double t_a = s.time_s();
+  c.move_to(90.0, 0.0, 20.0);
+  const auto end = c.wait_in_position(10000ms);
+  const double t_b = s.time_s();
+  EXPECT_NEAR(end.outer_deg, 90.0, 0.01);
+  const double dt = 1.0 / cfg.rate_hz;
+  ASSERT_TRUE(rx.wait_index(static_cast<uint64_t>(t_b / dt) + 1, 5000ms));
+  const auto w = window(rx.samples(), t_a, t_b, dt);
+  const double T = static_cast<double>(w.size()) * dt;
+  ASSERT_GT(T, 90.0 / 20.0);  // the whole move is inside the window
+  ASSERT_NEAR(T, t_b - t_a, 2.5 * dt);  // and nothing is missing in it
+
+  // Measured attitude change w.r.t. inertial space: the product of the increments, each corrected
+  // by the unit's known gyro model (dθ~ = (I + dM) dθ + b dt, eq. 18) — and uncorrected.
+  const calib::ImuErrorModel<double> err = calib::ImuErrorModel<double>::from_params(cfg.unit.params);
+  Eigen::Matrix3d C_meas = Eigen::Matrix3d::Identity(), C_raw = Eigen::Matrix3d::Identity();
+  const Eigen::Matrix3d M_inv = (Eigen::Matrix3d::Identity() + err.M_g).inverse();
+  for (const auto& inc : w) {
+    const Eigen::Vector3d dth = M_inv * (inc.dtheta_rad - cfg.unit.params.gyro_bias_radps * dt);
+    C_meas = C_meas * calib::rotvec_to_matrix<double>(dth);
+    C_raw = C_raw * calib::rotvec_to_matrix<double>(inc.dtheta_rad);
+  }
+  // Expected from the table angles and the Earth alone: C_b(a)^b(b) = C_bn(a)^T exp([ω_ie_n x] T) C_bn(b)
+  // with C_bn = exp([ς x]) C_bn_table (conventions.hpp); here (0, 0) -> (90°, 0).
+  const calib::TableModel table(cfg.geometry);
+  const Eigen::Matrix3d S = calib::rotvec_to_matrix<double>(cfg.unit.params.table_misalignment_rad);
+  const Eigen::Matrix3d C_a = S * table.C_bn(0.0, 0.0), C_b = S * table.C_bn(90.0 * kDegToRad, 0.0);
+  const calib::EarthModel earth(cfg.site);
+  const Eigen::Matrix3d C_exp =
+      C_a.transpose() * calib::rotvec_to_matrix<double>(Eigen::Vector3d(earth.w_ie_n() * T)) * C_b;
+  const double err_comp = calib::matrix_to_rotvec(C_exp.transpose() * C_meas).norm();
+  const double err_raw = calib::matrix_to_rotvec(C_exp.transpose() * C_raw).norm();
+  // Tolerance: angle random walk over T (5σ, three axes), the output quantisation of the simulator
+  // and of the CAN codec (both carry their remainder: at most one LSB each per axis in the sum),
+  // and the window's time alignment (one sample of Earth rate).
+  const double tol = 5.0 * std::sqrt(3.0) * cfg.unit.noise.arw_rad_per_sqrt_s * std::sqrt(T) +
+                     2.0 * std::sqrt(3.0) * (cfg.unit.noise.dtheta_lsb_rad + imu::kDthetaLsb_rad) +
+                     earth.w_ie_n().norm() * dt;
+  EXPECT_LT(err_comp, tol) << "compensated residual rotation, rad";
+  // The unit's scale/misalignment (several 1e-4) on a quarter turn is far above that tolerance: the
+  // check above would catch an uncompensated or wrongly modelled gyro.
+  EXPECT_GT(err_raw, 10.0 * tol);
+  // About body x (outer axis at inner = 0): the turn shows in the x increments.
+  double sum_x = 0.0;
+  for (const auto& inc : w) sum_x += inc.dtheta_rad.x();
+  EXPECT_NEAR(sum_x, 90.0 * kDegToRad, 2e-3);
+
+  // Sample count vs sim time: every sample of the physics clock reaches the receiver, in order.
+  s.stop();
+  rx.finish();
+  const auto st = s.stats();
+  const auto all = rx.samples();
+  EXPECT_EQ(st.samples_sent, static_cast<uint64_t>(std::llround(st.sim_time_s * cfg.rate_hz)));
+  EXPECT_EQ(all.size(), st.samples_sent);
+  ASSERT_FALSE(all.empty());
+  EXPECT_EQ(all.front().counter, 0);
+  EXPECT_EQ(all.back().sample_index + 1, st.samples_sent);
+  EXPECT_EQ(rx.counters().samples_lost, 0u);
+  EXPECT_EQ(st.frames_sent, 4 * st.samples_sent);
+  EXPECT_EQ(st.frames_refused, 0u);
+  EXPECT_EQ(s.moves_accepted(), 1u);
+  EXPECT_GT(st.modbus_requests, 0u);
+}
+
+TEST(StationSim, InjectedCanLossAndCorruptionAreWhatTheDecoderCounts) {
+  sim::StationSimConfig cfg = base_config(200.0);
+  cfg.faults.can_loss = 0.01;
+  cfg.faults.can_corrupt = 0.004;
+  cfg.seed = 11;
+  sim::StationSim s(cfg);
+  s.start();
+  Receiver rx(s.can_uri());
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  while (s.time_s() < 50.0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(5ms);
+  ASSERT_GE(s.time_s(), 50.0);
+  s.stop();
+  rx.finish();
+  const auto st = s.stats();
+  const auto dc = rx.counters();
+  const auto all = rx.samples();
+  ASSERT_FALSE(all.empty());
+  // Every frame the simulator put on the bus arrived (the bus itself is lossless).
+  EXPECT_EQ(dc.frames_in, st.frames_sent);
+  EXPECT_EQ(dc.frames_used, 4 * dc.samples_decoded);
+  // Injected loss rate: binomial around can_loss over every frame encoded (sent + lost), 5σ.
+  const double encoded = static_cast<double>(st.frames_sent + st.frames_lost);
+  const double p = cfg.faults.can_loss;
+  EXPECT_NEAR(static_cast<double>(st.frames_lost) / encoded, p, 5.0 * std::sqrt(p * (1 - p) / encoded));
+  // Every sample is accounted for: decoded, or a counter gap, or missing before the first / after the
+  // last decoded one.
+  const uint64_t before = all.front().counter, after = st.samples_sent - 1 - all.back().counter;
+  EXPECT_EQ(dc.samples_decoded + dc.samples_lost + before + after, st.samples_sent);
+  // A faulted frame spoils its sample (integrity check): the missing samples lie between the number
+  // of faulted frames / 4 (all in the same samples) and that number.
+  const uint64_t missing = st.samples_sent - dc.samples_decoded;
+  const uint64_t faulted = st.frames_lost + st.frames_corrupted;
+  EXPECT_LE(missing, faulted);
+  EXPECT_GE(4 * missing, faulted);
+  // A bit flip is caught by the CRC (or, in the counter byte, strands the frame): never more CRC
+  // failures than flips, and at this rate certainly some.
+  EXPECT_LE(dc.samples_corrupt, st.frames_corrupted);
+  EXPECT_GT(dc.samples_corrupt, 0u);
+  EXPECT_GT(st.frames_corrupted, 0u);
+}
+
+TEST(StationSim, TableFaultOnTheSecondMoveFailsTheClientsWait) {
+  sim::StationSimConfig cfg = base_config(40.0);
+  cfg.faults.table_fault = sim::StationSimFaults::TableFault{2, 0.5, 23};
+  sim::StationSim s(cfg);
+  s.start();
+  Receiver rx(s.can_uri());
+  turntable::TurntableClient c(client_config(s));
+  ready_and_homed(c);
+  c.move_to(20.0, 0.0, 20.0);
+  EXPECT_NEAR(c.wait_in_position(10000ms).outer_deg, 20.0, 0.01);  // move 1: no fault
+  c.move_to(80.0, 10.0, 20.0);
+  try {
+    c.wait_in_position(10000ms);
+    FAIL() << "no fault during move 2";
+  } catch (const turntable::TableFaultError& e) {
+    EXPECT_EQ(e.fault_code(), 23) << e.what();
+  }
+  EXPECT_EQ(s.moves_accepted(), 2u);
+  // Stopped short of the target: the fault came 0.5 s into a 3 s move.
+  const double outer = s.table_server().with_plc([](sim::TablePlc& p) { return p.outer_deg(); });
+  EXPECT_LT(outer, 60.0);
+  EXPECT_GT(outer, 20.0);
+}
+
+TEST(StationSim, ScheduledModbusDropMakesTheClientReconnect) {
+  sim::StationSimConfig cfg = base_config(10.0);
+  cfg.faults.modbus_drop_at_s = {5.0};
+  sim::StationSim s(cfg);
+  s.start();
+  Receiver rx(s.can_uri());
+  turntable::TurntableClient c(client_config(s));
+  ready_and_homed(c);
+  const double t_cmd = s.time_s();
+  ASSERT_LT(t_cmd, 4.0) << "setup too slow for the scheduled drop at 5 s";
+  c.move_to(100.0, 0.0, 10.0);  // 10+ s of sim time: the drop comes mid-move
+  const auto end = c.wait_in_position(10000ms);
+  EXPECT_NEAR(end.outer_deg, 100.0, 0.01);
+  EXPECT_GE(c.counters().reconnects, 1u);
+  EXPECT_EQ(s.stats().modbus_drops, 1u);
+}
+
+TEST(StationSim, RuntimeImuResetRestartsTheCounter) {
+  sim::StationSimConfig cfg = base_config(100.0);
+  cfg.faults.imu_reset_at_s = {3.0};
+  sim::StationSim s(cfg);
+  s.start();
+  Receiver rx(s.can_uri());
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (s.time_s() < 6.0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(5ms);
+  s.inject_imu_reset();
+  while (s.time_s() < 9.0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(5ms);
+  s.stop();
+  rx.finish();
+  EXPECT_EQ(s.stats().imu_resets, 2u);
+  EXPECT_EQ(rx.counters().imu_resets, 2u);
+}
+
+TEST(StationSim, BadConfigurationIsRefusedNamingTheField) {
+  auto expect_refused = [](sim::StationSimConfig c, const std::string& field) {
+    try {
+      sim::StationSim s(c);
+      FAIL() << "accepted bad " << field;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  auto c = base_config(100.0);
+  c.faults.can_loss = 1.5;
+  expect_refused(c, "can_loss");
+  c = base_config(100.0);
+  c.speed = 0.0;
+  expect_refused(c, "speed");
+  c = base_config(100.0);
+  c.faults.table_fault = sim::StationSimFaults::TableFault{0, 1.0, 17};
+  expect_refused(c, "move_number");
+  c = base_config(100.0);
+  c.unit.effects.accel_lever_arm_m[1] = Eigen::Vector3d(0.01, 0.0, 0.0);
+  expect_refused(c, "size_effect");
+  c = base_config(100.0);
+  c.unit.effects.table_time_offset_s = 0.01;
+  expect_refused(c, "table_time_offset");
+  // A path nobody can bind: start() names it.
+  c = base_config(100.0);
+  c.can_path = "/nonexistent_dir_for_station_sim/bus.sock";
+  sim::StationSim s(c);
+  try {
+    s.start();
+    FAIL() << "started on an impossible CAN path";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent_dir_for_station_sim/bus.sock"), std::string::npos)
+        << e.what();
+  }
+}

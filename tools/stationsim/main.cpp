@@ -1,0 +1,322 @@
+// stationsim: the simulated station hardware (turntable PLC on Modbus TCP + IMU on a unixcan bus) in one
+// process with one physics clock. CLI: station contract §A (helpers/station_contract.md); run
+// `stationsim --help`. Exit codes: 0 clean exit (SIGTERM/SIGINT, --duration-s reached), 1 runtime
+// failure (cannot listen, the physics thread failed), 2 bad input (flag or unit file).
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <signal.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "calib/conventions.hpp"
+#include "calib/earth.hpp"
+#include "calib/site_presets.hpp"
+#include "db/archive/unit_file.hpp"
+#include "drivers/sim/station_sim.hpp"
+
+namespace {
+
+using imucal::sim::StationSim;
+using imucal::sim::StationSimConfig;
+using imucal::sim::StationSimFaults;
+using imucal::sim::StationSimStats;
+
+/// Bad command-line input: exit 2 with this one-line message.
+struct BadInput : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> parts;
+  std::string cur;
+  std::istringstream in(s);
+  while (std::getline(in, cur, sep)) parts.push_back(cur);
+  if (!s.empty() && s.back() == sep) parts.emplace_back();
+  return parts;
+}
+
+double to_double(const std::string& text, const std::string& flag) {
+  try {
+    size_t used = 0;
+    const double v = std::stod(text, &used);
+    if (used == text.size() && std::isfinite(v)) return v;
+  } catch (const std::exception&) {
+  }
+  throw BadInput(flag + ": '" + text + "' is not a number");
+}
+
+long to_int(const std::string& text, const std::string& flag, long lo, long hi) {
+  try {
+    size_t used = 0;
+    const long v = std::stol(text, &used);
+    if (used == text.size() && v >= lo && v <= hi) return v;
+  } catch (const std::exception&) {
+  }
+  throw BadInput(flag + ": '" + text + "' is not an integer in [" + std::to_string(lo) + ", " +
+                 std::to_string(hi) + "]");
+}
+
+void parse_modbus(const std::string& text, StationSimConfig& cfg) {
+  const auto colon = text.rfind(':');
+  if (colon == std::string::npos || colon == 0)
+    throw BadInput("--modbus: '" + text + "' is not ADDR:PORT");
+  cfg.modbus.address = text.substr(0, colon);
+  cfg.modbus.port = static_cast<int>(to_int(text.substr(colon + 1), "--modbus port", 0, 65535));
+}
+
+StationSimFaults::Delay parse_delay(const std::string& text) {
+  const auto p = split(text, ':');
+  if (p.size() != 3) throw BadInput("--modbus-delay-at: '" + text + "' is not T:MS:COUNT");
+  StationSimFaults::Delay d{};
+  d.at_s = to_double(p[0], "--modbus-delay-at T");
+  d.delay_ms = static_cast<int>(to_int(p[1], "--modbus-delay-at MS", 0, 3'600'000));
+  d.count = static_cast<int>(to_int(p[2], "--modbus-delay-at COUNT", 1, 1'000'000));
+  if (d.at_s < 0) throw BadInput("--modbus-delay-at: T must be >= 0, got '" + p[0] + "'");
+  return d;
+}
+
+StationSimFaults::TableFault parse_table_fault(const std::string& text) {
+  const auto p = split(text, ':');
+  if (p.empty() || p.size() > 3) throw BadInput("--table-fault-move: '" + text + "' is not N[:AFTER_S[:CODE]]");
+  StationSimFaults::TableFault f{};
+  f.move_number = static_cast<int>(to_int(p[0], "--table-fault-move N", 1, 1'000'000));
+  f.after_s = p.size() > 1 ? to_double(p[1], "--table-fault-move AFTER_S") : 1.0;
+  f.code = static_cast<uint16_t>(p.size() > 2 ? to_int(p[2], "--table-fault-move CODE", 1, 65535) : 17);
+  if (f.after_s < 0) throw BadInput("--table-fault-move: AFTER_S must be >= 0, got '" + p[1] + "'");
+  return f;
+}
+
+/// Writes `text` to `path` atomically: a reader sees the old file, no file, or all of the new one.
+void write_atomically(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  {
+    std::ofstream f(tmp, std::ios::trunc);
+    if (!f) throw std::runtime_error("cannot write " + tmp + ": " + std::strerror(errno));
+    f << text;
+    f.flush();
+    if (!f) throw std::runtime_error("cannot write " + tmp);
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    std::remove(tmp.c_str());
+    throw std::runtime_error("cannot rename " + tmp + " to " + path + ": " + why);
+  }
+}
+
+nlohmann::json stats_json(const StationSimStats& s) {
+  return {{"sim_time_s", s.sim_time_s},
+          {"samples_sent", s.samples_sent},
+          {"frames_sent", s.frames_sent},
+          {"frames_lost", s.frames_lost},
+          {"frames_corrupted", s.frames_corrupted},
+          {"frames_refused", s.frames_refused},
+          {"imu_resets", s.imu_resets},
+          {"modbus_drops", s.modbus_drops},
+          {"modbus_requests", s.modbus_requests},
+          {"achieved_speed", s.achieved_speed}};
+}
+
+void print_status(const StationSimStats& s) {
+  std::fprintf(stderr,
+               "stationsim: t=%.1f s sim, speed %.1fx, samples %llu, frames %llu (lost %llu, corrupted "
+               "%llu), modbus requests %llu\n",
+               s.sim_time_s, s.achieved_speed, static_cast<unsigned long long>(s.samples_sent),
+               static_cast<unsigned long long>(s.frames_sent), static_cast<unsigned long long>(s.frames_lost),
+               static_cast<unsigned long long>(s.frames_corrupted),
+               static_cast<unsigned long long>(s.modbus_requests));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // SIGTERM/SIGINT are taken synchronously by the main thread (sigtimedwait below); block them before
+  // any thread starts so that every thread inherits the mask.
+  sigset_t sigs;
+  sigemptyset(&sigs);
+  sigaddset(&sigs, SIGTERM);
+  sigaddset(&sigs, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &sigs, nullptr);
+  signal(SIGPIPE, SIG_IGN);  // a peer closing its socket is an error return, not a death
+
+  // Library logs go to stderr: stdout carries only the ready line (a harness reads it).
+  spdlog::set_default_logger(spdlog::stderr_color_mt("stationsim"));
+
+  CLI::App app{"stationsim: simulated turntable (Modbus TCP) and IMU (CAN over unixcan), one physics clock"};
+  std::string modbus = "127.0.0.1:1502", can_path, unit_path, truth_out, ready_file, stats_file;
+  double speed = 100.0, rate_hz = 100.0, duration_s = -1.0;
+  uint64_t seed = 1;
+  const imucal::calib::Site demo = imucal::calib::demo_factory_site();
+  double lat_deg = demo.lat_rad / imucal::kDegToRad, lon_deg = demo.lon_rad / imucal::kDegToRad,
+         height_m = demo.height_m;
+  double gravity = std::nan("");
+  double can_loss = 0.0, can_corrupt = 0.0;
+  std::vector<double> reset_at, drop_at;
+  std::vector<std::string> delay_at;
+  std::string table_fault;
+  app.add_option("--modbus", modbus, "Modbus TCP listen address ADDR:PORT (port 0 = a free port)");
+  app.add_option("--can", can_path, "unixcan bus socket path (the simulator is the bus)")->required();
+  app.add_option("--unit", unit_path, "unit file (db/archive format); default: the default unit");
+  app.add_option("--speed", speed, "sim seconds per wall second");
+  app.add_option("--rate-hz", rate_hz, "IMU sample rate");
+  app.add_option("--seed", seed, "random seed (noise, CAN faults)");
+  app.add_option("--lat-deg", lat_deg, "site latitude, deg");
+  app.add_option("--lon-deg", lon_deg, "site longitude, deg");
+  app.add_option("--height-m", height_m, "site height, m");
+  app.add_option("--gravity-mps2", gravity, "surveyed gravity, m/s^2 (default: normal gravity at the site)");
+  app.add_option("--can-loss", can_loss, "per-frame CAN loss probability");
+  app.add_option("--can-corrupt", can_corrupt, "per-frame CAN corruption probability");
+  app.add_option("--imu-reset-at", reset_at, "IMU reset at this sim time, s (repeatable)");
+  app.add_option("--modbus-drop-at", drop_at, "drop every Modbus connection at this sim time, s (repeatable)");
+  app.add_option("--modbus-delay-at", delay_at, "T:MS:COUNT: from sim time T hold back COUNT replies by MS ms");
+  app.add_option("--table-fault-move", table_fault, "N[:AFTER_S[:CODE]]: table fault AFTER_S (1.0) into accepted "
+                                                    "move N, fault code CODE (17)");
+  app.add_option("--truth-out", truth_out, "write the unit's truth.json here");
+  app.add_option("--ready-file", ready_file, "write {pid, modbus, can, speed} JSON here once listening");
+  app.add_option("--stats-file", stats_file, "write the final statistics JSON here on exit");
+  app.add_option("--duration-s", duration_s, "exit after this much sim time (default: run until signalled)");
+  bool wait_for_can_peer = false;
+  app.add_flag("--wait-for-can-peer", wait_for_can_peer,
+               "start the physics clock when the first CAN peer connects (benchmarks, tests)");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "stationsim: %s\n", e.what());
+    return 2;
+  }
+
+  StationSimConfig cfg;
+  try {
+    parse_modbus(modbus, cfg);
+    cfg.can_path = can_path;
+    if (!unit_path.empty()) {
+      try {
+        cfg.unit = imucal::archive::read_unit_file(unit_path);
+      } catch (const std::exception& e) {
+        const std::string what = e.what();
+        // The archive reader names the file and line; make sure the file is named either way.
+        throw BadInput("--unit: " + (what.find(unit_path) == std::string::npos ? unit_path + ": " : "") + what);
+      }
+    }
+    if (!(speed > 0.0 && std::isfinite(speed))) throw BadInput("--speed: must be > 0");
+    if (!(rate_hz > 0.0 && std::isfinite(rate_hz))) throw BadInput("--rate-hz: must be > 0");
+    if (!(std::abs(lat_deg) <= 90.0)) throw BadInput("--lat-deg: must be in [-90, 90]");
+    if (!(std::abs(lon_deg) <= 360.0)) throw BadInput("--lon-deg: must be in [-360, 360]");
+    if (!std::isfinite(height_m)) throw BadInput("--height-m: must be finite");
+    cfg.speed = speed;
+    cfg.rate_hz = rate_hz;
+    cfg.seed = seed;
+    cfg.wait_for_can_peer = wait_for_can_peer;
+    cfg.site.lat_rad = lat_deg * imucal::kDegToRad;
+    cfg.site.lon_rad = lon_deg * imucal::kDegToRad;
+    cfg.site.height_m = height_m;
+    if (std::isnan(gravity)) {
+      cfg.site.gravity_mps2 = imucal::calib::EarthModel::normal_gravity_mps2(cfg.site.lat_rad, height_m);
+    } else {
+      if (!(gravity > 9.7 && gravity < 9.9)) throw BadInput("--gravity-mps2: must be in (9.7, 9.9)");
+      cfg.site.gravity_mps2 = gravity;
+    }
+    if (!(can_loss >= 0.0 && can_loss <= 1.0)) throw BadInput("--can-loss: must be in [0, 1]");
+    if (!(can_corrupt >= 0.0 && can_corrupt <= 1.0)) throw BadInput("--can-corrupt: must be in [0, 1]");
+    cfg.faults.can_loss = can_loss;
+    cfg.faults.can_corrupt = can_corrupt;
+    for (double t : reset_at)
+      if (!(t >= 0.0)) throw BadInput("--imu-reset-at: must be >= 0");
+    for (double t : drop_at)
+      if (!(t >= 0.0)) throw BadInput("--modbus-drop-at: must be >= 0");
+    cfg.faults.imu_reset_at_s = reset_at;
+    cfg.faults.modbus_drop_at_s = drop_at;
+    for (const auto& d : delay_at) cfg.faults.modbus_delay.push_back(parse_delay(d));
+    if (!table_fault.empty()) cfg.faults.table_fault = parse_table_fault(table_fault);
+  } catch (const BadInput& e) {
+    std::fprintf(stderr, "stationsim: %s\n", e.what());
+    return 2;
+  }
+
+  std::unique_ptr<StationSim> sim;
+  try {
+    sim = std::make_unique<StationSim>(cfg);
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "stationsim: %s%s\n", unit_path.empty() ? "" : ("--unit " + unit_path + ": ").c_str(),
+                 e.what());
+    return 2;
+  }
+
+  try {
+    if (!truth_out.empty())
+      imucal::archive::write_truth_json(truth_out, imucal::archive::truth_from_unit(cfg.unit));
+    sim->start();
+    nlohmann::json ready;
+    ready["pid"] = static_cast<int>(::getpid());
+    ready["modbus"] = sim->modbus_endpoint();
+    ready["can"] = sim->can_uri();
+    ready["speed"] = speed;
+    // Beyond the contract's keys: what a harness needs to set up the daemon for this station.
+    ready["rate_hz"] = rate_hz;
+    ready["site"] = {{"lat_deg", lat_deg},
+                     {"lon_deg", lon_deg},
+                     {"height_m", height_m},
+                     {"gravity_mps2", imucal::calib::EarthModel(cfg.site).gravity_mps2()}};
+    if (!ready_file.empty()) write_atomically(ready_file, ready.dump() + "\n");
+    std::cout << ready.dump() << std::endl;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "stationsim: %s\n", e.what());
+    return 1;
+  }
+
+  int rc = 0;
+  auto last_status = std::chrono::steady_clock::now();
+  for (;;) {
+    // Wake at most every 100 ms wall, sooner when --duration-s is about to be reached.
+    long wait_ns = 100'000'000;
+    if (duration_s >= 0.0)
+      wait_ns = std::clamp(static_cast<long>((duration_s - sim->time_s()) / speed * 1e9), 200'000L, wait_ns);
+    const timespec wait{0, wait_ns};
+    const int sig = sigtimedwait(&sigs, nullptr, &wait);
+    if (sig == SIGTERM || sig == SIGINT) {
+      std::fprintf(stderr, "stationsim: %s, stopping\n", sig == SIGTERM ? "SIGTERM" : "SIGINT");
+      break;
+    }
+    const std::string err = sim->error();
+    if (!err.empty()) {
+      std::fprintf(stderr, "stationsim: physics thread failed: %s\n", err.c_str());
+      rc = 1;
+      break;
+    }
+    if (duration_s >= 0.0 && sim->time_s() >= duration_s) break;
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_status >= std::chrono::seconds(2)) {
+      print_status(sim->stats());
+      last_status = now;
+    }
+  }
+  sim->stop();
+  const StationSimStats final_stats = sim->stats();
+  print_status(final_stats);
+  if (!stats_file.empty()) {
+    try {
+      write_atomically(stats_file, stats_json(final_stats).dump(2) + "\n");
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "stationsim: %s\n", e.what());
+      rc = 1;
+    }
+  }
+  return rc;
+}
