@@ -49,6 +49,11 @@ std::string lpad(const std::string& s, std::size_t width) {
   return cols >= width ? s : std::string(width - cols, ' ') + s;
 }
 
+std::string rtrim(std::string s) {
+  while (!s.empty() && s.back() == ' ') s.pop_back();
+  return s;
+}
+
 /// Duration of a run from its ms timestamps, or "" when not ended.
 std::string run_duration(const json& run) {
   if (!has(run, "ended_at_ms") || !has(run, "started_at_ms")) return "";
@@ -156,10 +161,12 @@ std::string render_history_text(const json& history) {
   for (const auto& r : runs) {
     std::string id = str(r, "run_id");
     if (has(r, "reprocessed_from")) id += "*";
-    os << pad(id, 7) << pad(short_time(str(r, "started_at")), 21) << pad(str(r, "state"), 13)
-       << pad(str(r, "verdict", "-"), 9) << pad(str(r, "sequence_name"), 16)
-       << pad(str(r, "operator"), 14) << pad(run_duration(r).empty() ? "-" : run_duration(r), 13)
-       << str(r, "failure_reason") << "\n";
+    const std::string duration = run_duration(r);
+    os << rtrim(pad(id, 7) + pad(short_time(str(r, "started_at")), 21) + pad(str(r, "state"), 13) +
+                pad(str(r, "verdict", "-"), 9) + pad(str(r, "sequence_name"), 16) +
+                pad(str(r, "operator"), 14) + pad(duration.empty() ? "-" : duration, 13) +
+                str(r, "failure_reason"))
+       << "\n";
   }
   bool any_reprocessed = false;
   for (const auto& r : runs) any_reprocessed = any_reprocessed || has(r, "reprocessed_from");
@@ -178,7 +185,7 @@ void render_capture(std::ostream& os, const json& capture) {
   for (auto it = capture.begin(); it != capture.end(); ++it) {
     if (it.key() == "complete") continue;
     os << "  " << pad(it.key(), 20) << lpad(it->is_string() ? it->get<std::string>() : it->dump(), 12);
-    os << (++column % 2 == 0 ? "\n" : "  ");
+    os << (++column % 2 == 0 ? "\n" : "");
   }
   if (column % 2 != 0) os << "\n";
 }
@@ -234,16 +241,17 @@ std::string render_show_text(const json& show) {
       m.sigma = sigma.to_vector();
       cols.push_back(m);
     }
-    os << "Calibration (1-σ after ±)\n  " << pad("parameter", 26) << pad("unit", 8);
-    for (const auto& m : cols) os << pad(m.method, 25);
-    os << "\n";
+    os << "Calibration (value ± 1-σ)\n";
+    std::string header = "  " + pad("parameter", 26) + pad("unit", 8);
+    for (const auto& m : cols) header += lpad(m.method, 12) + pad("   ± 1-σ", 13);
+    os << rtrim(header) << "\n";
     for (int i = 0; i < calib::ParamSet::kSize; ++i) {
       const calib::ParamInfo& info = calib::param_info(i);
-      os << "  " << pad(info.name, 26) << pad(info.human_unit, 8);
+      std::string line = "  " + pad(info.name, 26) + pad(info.human_unit, 8);
       for (const auto& m : cols)
-        os << lpad(fmt("%.3f", m.value(i) * info.si_to_human), 12) << " ± "
-           << pad(fmt("%.3f", m.sigma(i) * info.si_to_human), 10);
-      os << "\n";
+        line += lpad(fmt("%.3f", m.value(i) * info.si_to_human), 12) + " ± " +
+                pad(fmt("%.3f", m.sigma(i) * info.si_to_human), 10);
+      os << rtrim(line) << "\n";
     }
     for (const auto& c : cals) {
       os << "  " << pad(str(c, "method"), 6) << (c.value("converged", false) ? "converged" : "NOT converged")
@@ -340,7 +348,7 @@ std::string render_status_text(const json& status) {
   if (status.contains("run")) {
     if (status["run"].is_object())
       describe(has(status, "daemon") ? "Active " : "", status["run"]);
-    else if (has(status, "daemon"))
+    else
       os << "No active run.\n";
   }
   if (has(status, "last_run") && status["last_run"].is_object())

@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -139,10 +140,17 @@ json read_request(const Target& t, const std::string& command, const json& args)
                   why + "; no database to read instead (give --db or --config)"};
   std::cerr << "stationctl: note: " << why << "; reading the database " << t.db
             << " read-only instead\n";
+  std::unique_ptr<db::SqliteRepository> opened;
   try {
     db::SqliteOptions options;
     options.read_only = true;
-    const db::SqliteRepository repo(t.db, options);
+    opened = std::make_unique<db::SqliteRepository>(t.db, options);
+  } catch (const db::DbError& e) {
+    // No database (or not a usable one) is a database error, not bad input.
+    throw Failure{kUnavailable, e.what()};
+  }
+  const db::SqliteRepository& repo = *opened;
+  try {
     // The same validation and the same answer as the daemon's control server.
     const station::Request request =
         station::validate_request(json{{"id", 0}, {"cmd", command}, {"args", args}});
