@@ -171,7 +171,18 @@ json read_request(const Target& t, const std::string& command, const json& args)
   }
 }
 
+/// A member as text: strings as they are, other values as JSON, absent or null as `fallback`.
+std::string text(const json& o, const char* key, const std::string& fallback = "") {
+  const auto it = o.find(key);
+  if (it == o.end() || it->is_null()) return fallback;
+  return it->is_string() ? it->get<std::string>() : it->dump();
+}
+
 void print_json(const json& j) { std::cout << j.dump(2, ' ', false, json::error_handler_t::replace) << "\n"; }
+
+bool state_done_pass(const json& run) {
+  return text(run, "state") == "done" && text(run, "verdict") == "PASS";
+}
 
 bool is_terminal_state(const std::string& state) {
   return state == "done" || state == "review" || state == "failed" || state == "aborted" ||
@@ -190,7 +201,7 @@ int wait_for_run(ControlClient& client, db::RunId run_id, bool json_out) {
     try {
       status = call(client, station::cmd::kRunStatus, {{"run_id", run_id}});
     } catch (Failure& f) {
-      if (tty && shown_width) std::cerr << "\n";
+      if (tty && shown_width) std::cerr << "\n";  // keep the last progress shown
       f.message = "while waiting for run " + std::to_string(run_id) + ": " + f.message +
                   " (the run's outcome: `stationctl run status --run " + std::to_string(run_id) +
                   "`)";
@@ -199,7 +210,8 @@ int wait_for_run(ControlClient& client, db::RunId run_id, bool json_out) {
     if (!status.contains("run") || !status["run"].is_object())
       throw Failure{kUnavailable, "run.status reply without a run object: " + status.dump()};
     run = status["run"];
-    const std::string state = run.value("state", "");
+    const std::string state = text(run, "state");
+    if (is_terminal_state(state)) break;  // the outcome line below says it once
     const std::string line = station::progress_line(run);
     if (tty) {
       if (line != last_line) {
@@ -211,23 +223,22 @@ int wait_for_run(ControlClient& client, db::RunId run_id, bool json_out) {
       }
     } else {
       // Time left changes every poll; a log gets a line per step, phase or state only.
-      const std::string key = state + "|" + run.value("phase", "") + "|" +
+      const std::string key = state + "|" + text(run, "phase") + "|" +
                               (run.contains("step") ? run["step"].dump() : "");
       if (key != last_key) {
         std::cerr << line << "\n" << std::flush;
         last_key = key;
       }
     }
-    if (is_terminal_state(state)) break;
     std::this_thread::sleep_for(kPollPeriod);
   }
-  if (tty) std::cerr << "\n";
+  // On a TTY the progress line is wiped: the outcome replaces it.
+  if (tty && shown_width) std::cerr << "\r" << std::string(shown_width, ' ') << "\r" << std::flush;
   if (json_out)
     print_json(json{{"run", run}});
   else
     std::cout << station::outcome_line(run) << "\n";
-  const bool pass = run.value("state", "") == "done" && run.contains("verdict") &&
-                    run["verdict"] == "PASS";
+  const bool pass = state_done_pass(run);
   return pass ? kOk : kRunNotPassed;
 }
 
@@ -341,13 +352,13 @@ int main(int argc, char** argv) {
       if (!wait) {
         if (g.json) print_json(r);
         else
-          std::cout << "run " << r.value("run_id", json()).dump() << " started: " << serial
-                    << ", sequence " << r.value("sequence", json(sequence)).get<std::string>()
+          std::cout << "run " << text(r, "run_id", "?") << " started: " << serial
+                    << ", sequence " << text(r, "sequence", sequence)
                     << (r.contains("steps") ? ", " + r["steps"].dump() + " steps" : "") << "\n";
         return kOk;
       }
       if (!g.json)
-        std::cerr << "run " << r.value("run_id", json()).dump() << " started: " << serial << "\n";
+        std::cerr << "run " << text(r, "run_id", "?") << " started: " << serial << "\n";
       return wait_for_run(client, r.at("run_id").get<db::RunId>(), g.json);
     }
     if (*status) {
@@ -411,7 +422,7 @@ int main(int argc, char** argv) {
       const json r = read_request(target, station::cmd::kExport, args);
       if (!output.empty()) {
         write_output(output, r.at("content").get<std::string>());
-        std::cerr << "stationctl: " << r.value("rows", 0) << " rows written to " << output << "\n";
+        std::cerr << "stationctl: " << text(r, "rows", "?") << " rows written to " << output << "\n";
       } else if (g.json) {
         print_json(r);
       } else {
@@ -425,12 +436,12 @@ int main(int argc, char** argv) {
       if (!wait) {
         if (g.json) print_json(r);
         else
-          std::cout << "run " << r.value("run_id", json()).dump() << " reprocesses run " << run_id
+          std::cout << "run " << text(r, "run_id", "?") << " reprocesses run " << run_id
                     << "\n";
         return kOk;
       }
       if (!g.json)
-        std::cerr << "run " << r.value("run_id", json()).dump() << " reprocesses run " << run_id
+        std::cerr << "run " << text(r, "run_id", "?") << " reprocesses run " << run_id
                   << "\n";
       return wait_for_run(client, r.at("run_id").get<db::RunId>(), g.json);
     }
