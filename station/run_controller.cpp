@@ -45,7 +45,7 @@ nlohmann::json to_json(const RunSnapshot& r) {
   o["operator"] = r.operator_name;
   o["state"] = db::to_string(r.state);
   o["phase"] = r.phase == RunPhase::kNone ? json(nullptr) : json(to_string(r.phase));
-  o["step"] = live && r.steps > 0 ? json(r.step) : json(nullptr);
+  o["step"] = live && r.steps > 0 && r.step > 0 ? json(r.step) : json(nullptr);  // null while preparing
   o["steps"] = r.steps > 0 ? json(r.steps) : json(nullptr);
   o["time_left_s"] = live && r.time_left_s ? json(*r.time_left_s) : json(nullptr);
   o["verdict"] = r.verdict ? json(db::to_string(*r.verdict)) : json(nullptr);
