@@ -4,10 +4,14 @@
 // in-process control server with a scripted handler (the socket and the fallback print the same;
 // --wait's progress lines and exit codes).
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
+#include <chrono>
+#include <fcntl.h>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -15,6 +19,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "db/archive/param_json.hpp"
@@ -388,6 +393,53 @@ TEST_F(StationctlLive, RefusalsExitWithThree) {
   const Proc st = ctl("run status", live_target());
   EXPECT_EQ(st.code, 0) << st.err;
   EXPECT_NE(st.out.find("No active run."), std::string::npos) << st.out;
+}
+
+/// A run that never ends: for following and stopping to follow.
+std::vector<json> endless() { return {live("running", "resting", 1, 99)}; }
+
+TEST_F(StationctlLive, LosingTheDaemonWhileWaitingExitsFour) {
+  serve(endless());
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(700));
+    server_->stop();
+  });
+  const Proc p = ctl("run start --serial SIM-0001 --wait", live_target());
+  stopper.join();
+  EXPECT_EQ(p.code, 4) << p.err;
+  EXPECT_NE(p.err.find("while waiting for run 41: stationd closed the connection"),
+            std::string::npos)
+      << p.err;
+  EXPECT_NE(p.err.find("stationctl run status --run 41"), std::string::npos) << p.err;
+}
+
+TEST_F(StationctlLive, CtrlCStopsFollowingNotTheRun) {
+  serve(endless());
+  const std::string bin = std::string(IMUCAL_BIN_DIR) + "/stationctl";
+  const std::string sock = dir_.file("live.sock"), err_file = dir_.file("sigint.err");
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, err_file.c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  std::vector<std::string> args = {bin, "--socket", sock, "run", "start", "--serial", "SIM-0001",
+                                   "--wait"};
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  ASSERT_EQ(posix_spawn(&pid, bin.c_str(), &actions, nullptr, argv.data(), environ), 0);
+  posix_spawn_file_actions_destroy(&actions);
+  // Wait until it follows (its first progress line), then interrupt.
+  for (int i = 0; i < 200 && slurp(err_file).find("resting") == std::string::npos; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status)) << "killed by the signal instead of handling it";
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  EXPECT_NE(slurp(err_file).find("stopped following run 41; the run goes on"), std::string::npos)
+      << slurp(err_file);
 }
 
 }  // namespace

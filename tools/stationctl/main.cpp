@@ -6,10 +6,13 @@
 //
 // Exit codes: 0 ok (with --wait: the run is done with verdict PASS); 1 the run ended review,
 // failed, aborted or interrupted; 2 bad input (usage, invalid serial, unknown sequence or run);
-// 3 refused (busy, permission); 4 daemon unreachable for a control command, database or I/O error.
+// 3 refused (busy, permission); 4 daemon unreachable for a control command, database or I/O error;
+// 130 when Ctrl-C stops --wait from following a run (the run itself goes on).
+#include <signal.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -41,6 +44,12 @@ enum Exit : int { kOk = 0, kRunNotPassed = 1, kBadInput = 2, kRefused = 3, kUnav
 constexpr const char* kDefaultConfig = "/etc/imucal/stationd.toml";
 constexpr const char* kDefaultSocket = "/run/imucal/stationd.sock";
 constexpr auto kPollPeriod = std::chrono::milliseconds(200);
+/// Exit code when the operator stops following a run with Ctrl-C (128 + SIGINT, the shell's).
+constexpr int kInterrupted = 130;
+
+/// Set by SIGINT/SIGTERM while --wait follows a run: stop following (the run itself goes on).
+std::atomic<bool> g_stop_following{false};
+extern "C" void on_stop_signal(int) { g_stop_following = true; }
 constexpr auto kReplyTimeout = std::chrono::seconds(60);
 
 /// A failure with its exit code; main prints "stationctl: <message>" and exits with the code.
@@ -196,7 +205,18 @@ int wait_for_run(ControlClient& client, db::RunId run_id, bool json_out) {
   std::string last_key, last_line;
   std::size_t shown_width = 0;
   json run;
+  struct sigaction sa {};
+  sa.sa_handler = on_stop_signal;
+  sigemptyset(&sa.sa_mask);
+  ::sigaction(SIGINT, &sa, nullptr);
+  ::sigaction(SIGTERM, &sa, nullptr);
   for (;;) {
+    if (g_stop_following) {
+      if (tty && shown_width) std::cerr << "\n";
+      std::cerr << "stationctl: stopped following run " << run_id
+                << "; the run goes on (`stationctl run status --run " << run_id << "`)\n";
+      return kInterrupted;
+    }
     json status;
     try {
       status = call(client, station::cmd::kRunStatus, {{"run_id", run_id}});
@@ -230,7 +250,9 @@ int wait_for_run(ControlClient& client, db::RunId run_id, bool json_out) {
         last_key = key;
       }
     }
-    std::this_thread::sleep_for(kPollPeriod);
+    for (auto slept = std::chrono::milliseconds(0); slept < kPollPeriod && !g_stop_following;
+         slept += std::chrono::milliseconds(20))
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   // On a TTY the progress line is wiped: the outcome replaces it.
   if (tty && shown_width) std::cerr << "\r" << std::string(shown_width, ' ') << "\r" << std::flush;
