@@ -1,6 +1,8 @@
 #include "station/daemon.hpp"
 
+#include <fcntl.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -25,6 +27,7 @@ Daemon::~Daemon() {
   } catch (const std::exception& e) {
     spdlog::error("shutdown: {}", e.what());
   }
+  release_lock();
 }
 
 namespace {
@@ -55,6 +58,29 @@ void Daemon::start() {
   make_dir(fs::path(cfg_.database).parent_path(), "database directory");
   make_dir(fs::path(cfg_.control_socket).parent_path(), "control socket directory");
 
+  // One daemon per data directory: a second one (started by mistake on the same config) must not
+  // run start-up recovery, which would stop the first one's table and mark its run interrupted.
+  // flock is released by the kernel when the holder dies, even by SIGKILL.
+  const std::string lock_path = (fs::path(cfg_.data_dir) / "stationd.lock").string();
+  lock_fd_ = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock_fd_ < 0) throw std::runtime_error("cannot open " + lock_path + ": " + std::strerror(errno));
+  if (::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
+    const int err = errno;
+    char buf[32] = {};
+    const ssize_t n = ::pread(lock_fd_, buf, sizeof buf - 1, 0);
+    ::close(lock_fd_);
+    lock_fd_ = -1;
+    std::string holder = n > 0 ? std::string(buf, static_cast<size_t>(n)) : std::string("?");
+    while (!holder.empty() && (holder.back() == '\n' || holder.back() == ' ')) holder.pop_back();
+    throw std::runtime_error(err == EWOULDBLOCK ? "another stationd (pid " + holder + ") is running on " +
+                                                      cfg_.data_dir + " (lock " + lock_path + ")"
+                                                : "cannot lock " + lock_path + ": " + std::strerror(err));
+  }
+  const std::string pid_text = std::to_string(getpid()) + "\n";
+  if (::ftruncate(lock_fd_, 0) != 0 || ::pwrite(lock_fd_, pid_text.data(), pid_text.size(), 0) < 0) {
+    spdlog::warn("cannot write the pid into {}: {}", lock_path, std::strerror(errno));
+  }
+
   repo_ = std::make_unique<db::SqliteRepository>(cfg_.database);
   spdlog::info("history database {}", cfg_.database);
   recovery_ = recover_at_startup(cfg_, *repo_, opt_.stop_table_at_start);
@@ -77,6 +103,7 @@ void Daemon::start() {
     controller_.reset();
     worker_.reset();
     repo_.reset();
+    release_lock();
     throw;
   }
   spdlog::info("control socket {} (group {}, mode {:o})", cfg_.control_socket, server_->group_name(),
@@ -99,7 +126,15 @@ void Daemon::stop(const std::string& reason) {
   server_.reset();
   worker_.reset();
   repo_.reset();
+  release_lock();
   spdlog::info("stationd stopped");
+}
+
+void Daemon::release_lock() {
+  if (lock_fd_ >= 0) {
+    ::close(lock_fd_);  // releases the flock; the file stays (harmless, reused next time)
+    lock_fd_ = -1;
+  }
 }
 
 void Daemon::request_stop() { stop_requested_.store(true); }

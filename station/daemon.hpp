@@ -2,7 +2,8 @@
 // stationd as an object: everything the process owns, in start-up order, and the ControlHandler the
 // control socket calls (station/control_handler.hpp).
 //
-//   start():  data directories -> history database (db::SqliteRepository) -> start-up recovery
+//   start():  data directories -> lock <data_dir>/stationd.lock (one daemon per data directory)
+//             -> history database (db::SqliteRepository) -> start-up recovery
 //             (recovery.hpp: table safe stop, live runs -> interrupted) -> calibration worker ->
 //             run controller -> control socket listening -> sd_notify READY=1 + STATUS=
 //   run():    start(), then the main loop: SIGTERM/SIGINT (blocked in every thread, taken with
@@ -81,6 +82,8 @@ class Daemon final : public ControlHandler {
   std::unique_ptr<RunController> controller_;
   std::unique_ptr<ControlServer> server_;
   RecoveryReport recovery_;
+  int lock_fd_ = -1;  ///< flock'd <data_dir>/stationd.lock: one daemon per data directory
+  void release_lock();
   std::mutex lifecycle_mu_;
   bool started_ok_ = false;
   bool stopped_ = false;

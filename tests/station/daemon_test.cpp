@@ -260,6 +260,44 @@ TEST(Daemon, StatusJsonThroughTheControlSocketBeforeDuringAndAfterARun) {
   EXPECT_FALSE(fs::exists(cfg.control_socket));
 }
 
+TEST(Daemon, SecondDaemonOnTheSameDataDirectoryIsRefusedBeforeTouchingAnything) {
+  TempDir tmp;
+  StationConfig cfg = config_for(tmp.path, "tcp:127.0.0.1:1", "unixcan:" + tmp.path + "/none.sock");
+  DaemonOptions opt;
+  opt.stop_table_at_start = false;
+  Daemon first(cfg, opt);
+  first.start();
+  // A live run of the first daemon (as if it were running one).
+  db::RunId id = 0;
+  {
+    db::SqliteRepository repo(cfg.database);
+    db::NewRun nr;
+    nr.serial = "LOCK-1";
+    nr.started_at_ms = db::now_ms();
+    nr.state = db::RunState::kRunning;
+    id = repo.create_run(nr);
+  }
+  // A second daemon (another socket, same data directory) must not run recovery on it.
+  StationConfig cfg2 = cfg;
+  cfg2.control_socket = tmp.path + "/ctl2.sock";
+  Daemon second(cfg2, opt);
+  try {
+    second.start();
+    FAIL() << "second daemon started";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("another stationd (pid " + std::to_string(getpid()) + ")"),
+              std::string::npos) << e.what();
+  }
+  EXPECT_EQ(first.repository().show(id).run.state, db::RunState::kRunning);
+  EXPECT_FALSE(fs::exists(cfg2.control_socket));
+  first.stop("test over");
+  // Once the first is gone, a new daemon starts and recovers the run.
+  Daemon third(cfg2, opt);
+  third.start();
+  EXPECT_EQ(third.repository().show(id).run.state, db::RunState::kInterrupted);
+  third.stop("test over");
+}
+
 /// A datagram socket standing in for systemd's notify socket.
 class FakeSystemd {
  public:
