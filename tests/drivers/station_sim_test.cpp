@@ -20,6 +20,7 @@
 #include "calib/rotation.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/imu/imu_codec.hpp"
+#include "drivers/sim/imu_can_node.hpp"
 #include "drivers/turntable/turntable_client.hpp"
 #include "drivers/turntable/turntable_error.hpp"
 
@@ -122,12 +123,35 @@ class Receiver {
   std::thread thread_;
 };
 
-void ready_and_homed(turntable::TurntableClient& c) {
-  c.connect();
-  c.enable();
-  const auto s = c.home(5000ms);
-  ASSERT_TRUE(s.homed);
+std::unique_ptr<sim::StationSim> started(const sim::StationSimConfig& cfg) {
+  auto s = std::make_unique<sim::StationSim>(cfg);
+  s->start();
+  return s;
 }
+
+/// A started simulator with a receiver on its bus (from sample 0 on).
+struct Bench {
+  explicit Bench(const sim::StationSimConfig& cfg) : sim(started(cfg)), rx(sim->can_uri()) {}
+  /// Waits (bounded) until the physics clock has passed t_s.
+  bool run_until(double t_s) {
+    const auto deadline = std::chrono::steady_clock::now() + 20s;
+    while (sim->time_s() < t_s && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(5ms);
+    return sim->time_s() >= t_s;
+  }
+  std::unique_ptr<sim::StationSim> sim;
+  Receiver rx;
+};
+
+/// ... plus a Modbus client that has enabled and homed the table.
+struct Rig : Bench {
+  explicit Rig(const sim::StationSimConfig& cfg) : Bench(cfg), client(client_config(*sim)) {
+    client.connect();
+    client.enable();
+    homed = client.home(5000ms).homed;
+  }
+  turntable::TurntableClient client;
+  bool homed = false;
+};
 
 /// The decoded samples whose intervals lie inside [t_a, t_b] of sim time.
 std::vector<calib::ImuIncrement> window(const std::vector<imu::DecodedSample>& s, double t_a, double t_b,
@@ -145,11 +169,10 @@ std::vector<calib::ImuIncrement> window(const std::vector<imu::DecodedSample>& s
 TEST(StationSim, OuterQuarterTurnSeenByTheImuIsTheTableRotation) {
   sim::StationSimConfig cfg = base_config(40.0);
   cfg.plc.initial_outer_deg = 4.0;  // homing is a real motion
-  sim::StationSim s(cfg);
-  s.start();
-  Receiver rx(s.can_uri());
-  turntable::TurntableClient c(client_config(s));
-  ready_and_homed(c);
+  Rig rig(cfg);
+  ASSERT_TRUE(rig.homed);
+  sim::StationSim& s = *rig.sim;
+  turntable::TurntableClient& c = rig.client;
   // In position after home: at rest at (0, 0). The move, then in position at (90, 0).
   const double t_a = s.time_s();
   c.move_to(90.0, 0.0, 20.0);
@@ -157,8 +180,8 @@ TEST(StationSim, OuterQuarterTurnSeenByTheImuIsTheTableRotation) {
   const double t_b = s.time_s();
   EXPECT_NEAR(end.outer_deg, 90.0, 0.01);
   const double dt = 1.0 / cfg.rate_hz;
-  ASSERT_TRUE(rx.wait_index(static_cast<uint64_t>(t_b / dt) + 1, 5000ms));
-  const auto w = window(rx.samples(), t_a, t_b, dt);
+  ASSERT_TRUE(rig.rx.wait_index(static_cast<uint64_t>(t_b / dt) + 1, 5000ms));
+  const auto w = window(rig.rx.samples(), t_a, t_b, dt);
   const double T = static_cast<double>(w.size()) * dt;
   ASSERT_GT(T, 90.0 / 20.0);  // the whole move is inside the window
   ASSERT_NEAR(T, t_b - t_a, 2.5 * dt);  // and nothing is missing in it
@@ -200,15 +223,15 @@ TEST(StationSim, OuterQuarterTurnSeenByTheImuIsTheTableRotation) {
 
   // Sample count vs sim time: every sample of the physics clock reaches the receiver, in order.
   s.stop();
-  rx.finish();
+  rig.rx.finish();
   const auto st = s.stats();
-  const auto all = rx.samples();
+  const auto all = rig.rx.samples();
   EXPECT_EQ(st.samples_sent, static_cast<uint64_t>(std::llround(st.sim_time_s * cfg.rate_hz)));
   EXPECT_EQ(all.size(), st.samples_sent);
   ASSERT_FALSE(all.empty());
   EXPECT_EQ(all.front().counter, 0);
   EXPECT_EQ(all.back().sample_index + 1, st.samples_sent);
-  EXPECT_EQ(rx.counters().samples_lost, 0u);
+  EXPECT_EQ(rig.rx.counters().samples_lost, 0u);
   EXPECT_EQ(st.frames_sent, 4 * st.samples_sent);
   EXPECT_EQ(st.frames_refused, 0u);
   EXPECT_EQ(s.moves_accepted(), 1u);
@@ -220,17 +243,13 @@ TEST(StationSim, InjectedCanLossAndCorruptionAreWhatTheDecoderCounts) {
   cfg.faults.can_loss = 0.01;
   cfg.faults.can_corrupt = 0.004;
   cfg.seed = 11;
-  sim::StationSim s(cfg);
-  s.start();
-  Receiver rx(s.can_uri());
-  const auto deadline = std::chrono::steady_clock::now() + 20s;
-  while (s.time_s() < 50.0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(5ms);
-  ASSERT_GE(s.time_s(), 50.0);
-  s.stop();
-  rx.finish();
-  const auto st = s.stats();
-  const auto dc = rx.counters();
-  const auto all = rx.samples();
+  Bench b(cfg);
+  ASSERT_TRUE(b.run_until(50.0));
+  b.sim->stop();
+  b.rx.finish();
+  const auto st = b.sim->stats();
+  const auto dc = b.rx.counters();
+  const auto all = b.rx.samples();
   ASSERT_FALSE(all.empty());
   // Every frame the simulator put on the bus arrived (the bus itself is lossless).
   EXPECT_EQ(dc.frames_in, st.frames_sent);
@@ -259,11 +278,10 @@ TEST(StationSim, InjectedCanLossAndCorruptionAreWhatTheDecoderCounts) {
 TEST(StationSim, TableFaultOnTheSecondMoveFailsTheClientsWait) {
   sim::StationSimConfig cfg = base_config(40.0);
   cfg.faults.table_fault = sim::StationSimFaults::TableFault{2, 0.5, 23};
-  sim::StationSim s(cfg);
-  s.start();
-  Receiver rx(s.can_uri());
-  turntable::TurntableClient c(client_config(s));
-  ready_and_homed(c);
+  Rig rig(cfg);
+  ASSERT_TRUE(rig.homed);
+  sim::StationSim& s = *rig.sim;
+  turntable::TurntableClient& c = rig.client;
   c.move_to(20.0, 0.0, 20.0);
   EXPECT_NEAR(c.wait_in_position(10000ms).outer_deg, 20.0, 0.01);  // move 1: no fault
   c.move_to(80.0, 10.0, 20.0);
@@ -283,11 +301,10 @@ TEST(StationSim, TableFaultOnTheSecondMoveFailsTheClientsWait) {
 TEST(StationSim, ScheduledModbusDropMakesTheClientReconnect) {
   sim::StationSimConfig cfg = base_config(10.0);
   cfg.faults.modbus_drop_at_s = {5.0};
-  sim::StationSim s(cfg);
-  s.start();
-  Receiver rx(s.can_uri());
-  turntable::TurntableClient c(client_config(s));
-  ready_and_homed(c);
+  Rig rig(cfg);
+  ASSERT_TRUE(rig.homed);
+  sim::StationSim& s = *rig.sim;
+  turntable::TurntableClient& c = rig.client;
   const double t_cmd = s.time_s();
   ASSERT_LT(t_cmd, 4.0) << "setup too slow for the scheduled drop at 5 s";
   c.move_to(100.0, 0.0, 10.0);  // 10+ s of sim time: the drop comes mid-move
@@ -297,20 +314,24 @@ TEST(StationSim, ScheduledModbusDropMakesTheClientReconnect) {
   EXPECT_EQ(s.stats().modbus_drops, 1u);
 }
 
-TEST(StationSim, RuntimeImuResetRestartsTheCounter) {
+TEST(StationSim, ScheduledAndRuntimeImuResetsRestartTheCounter) {
   sim::StationSimConfig cfg = base_config(100.0);
   cfg.faults.imu_reset_at_s = {3.0};
-  sim::StationSim s(cfg);
-  s.start();
-  Receiver rx(s.can_uri());
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (s.time_s() < 6.0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(5ms);
-  s.inject_imu_reset();
-  while (s.time_s() < 9.0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(5ms);
-  s.stop();
-  rx.finish();
-  EXPECT_EQ(s.stats().imu_resets, 2u);
-  EXPECT_EQ(rx.counters().imu_resets, 2u);
+  Bench b(cfg);
+  ASSERT_TRUE(b.run_until(6.0));
+  b.sim->inject_imu_reset();
+  ASSERT_TRUE(b.run_until(9.0));
+  b.sim->stop();
+  b.rx.finish();
+  const auto st = b.sim->stats();
+  EXPECT_EQ(st.imu_resets, 2u);
+  EXPECT_EQ(b.rx.counters().imu_resets, 2u);
+  // Each reset swallows the unit's boot time worth of increments; the physics clock runs on.
+  const uint64_t swallowed = 2u * static_cast<uint64_t>(sim::ImuCanNodeOptions{}.reset_lost_samples);
+  EXPECT_EQ(st.samples_sent + swallowed, static_cast<uint64_t>(std::llround(st.sim_time_s * cfg.rate_hz)));
+  int restarts = 0;
+  for (const auto& d : b.rx.samples()) restarts += d.discontinuity ? 1 : 0;
+  EXPECT_EQ(restarts, 2);
 }
 
 TEST(StationSim, BadConfigurationIsRefusedNamingTheField) {

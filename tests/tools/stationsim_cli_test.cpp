@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <sstream>
+#include <utility>
 #include <string>
 #include <thread>
 #include <vector>
@@ -58,11 +59,13 @@ struct Scratch {
   std::string dir, address;
 };
 
-/// stationsim as a child process, stdout/stderr into files.
+/// A child process (stationsim by default), stdout/stderr into files of the scratch directory.
 class Child {
  public:
-  Child(const Scratch& s, std::vector<std::string> args) : out_(s.path("stdout")), err_(s.path("stderr")) {
-    args.insert(args.begin(), kBinary);
+  Child(const Scratch& s, std::vector<std::string> args, const std::string& program = kBinary,
+        const std::string& tag = "stationsim")
+      : out_(s.path(tag + ".out")), err_(s.path(tag + ".err")) {
+    args.insert(args.begin(), program);
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
@@ -70,7 +73,7 @@ class Child {
     posix_spawn_file_actions_init(&fa);
     posix_spawn_file_actions_addopen(&fa, 1, out_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     posix_spawn_file_actions_addopen(&fa, 2, err_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int rc = posix_spawn(&pid_, kBinary.c_str(), &fa, nullptr, argv.data(), environ);
+    const int rc = posix_spawn(&pid_, program.c_str(), &fa, nullptr, argv.data(), environ);
     posix_spawn_file_actions_destroy(&fa);
     if (rc != 0) pid_ = -1;
   }
@@ -114,29 +117,23 @@ nlohmann::json wait_ready(const std::string& path, Child& child) {
   return nlohmann::json();
 }
 
-struct ProcessResult {
-  int exit_code;
-  std::string output;
-};
-
-ProcessResult run(const std::string& command) {
-  ProcessResult r{-1, ""};
-  FILE* p = popen(("timeout 10 " + command + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.output.append(buf, n);
-  const int status = pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+/// One mbpoll run to completion: exit code and everything it printed.
+std::pair<int, std::string> run_mbpoll(const Scratch& s, const std::vector<std::string>& args) {
+  Child tool(s, args, "/usr/bin/mbpoll", "mbpoll");
+  const int rc = tool.wait(10000ms);
+  return {rc, tool.out() + tool.err()};
 }
 
-/// mbpoll prints one "[ADDRESS]: VALUE" line per value.
-std::map<int, std::string> values(const std::string& output) {
+/// mbpoll's "[ADDRESS]: VALUE" result lines as address -> value text.
+std::map<int, std::string> register_values(const std::string& output) {
   std::map<int, std::string> v;
-  const std::regex line(R"(\[(\d+)\]:\s+(\S+))");
-  for (auto it = std::sregex_iterator(output.begin(), output.end(), line); it != std::sregex_iterator(); ++it)
-    v[std::stoi((*it)[1])] = (*it)[2];
+  std::istringstream lines(output);
+  std::string line;
+  while (std::getline(lines, line)) {
+    int address = 0;
+    char value[64] = {};
+    if (std::sscanf(line.c_str(), "[%d]: %63s", &address, value) == 2) v[address] = value;
+  }
   return v;
 }
 
@@ -170,23 +167,26 @@ TEST(StationsimCli, MbpollReadsTheTableAndCommandsAMoveOverTheHandshake) {
   const auto& map = imucal::turntable::default_register_map();
   // mbpoll OPTIONS HOST [VALUES...]: values to write follow the host.
   auto mbpoll = [&](const std::string& options, const std::string& write_values = "") {
-    return run("mbpoll -m tcp -a 1 -0 -o 2 -p " + port + " " + options + " " + s.address + " " + write_values);
+    std::vector<std::string> args = {"-m", "tcp", "-a", "1", "-0", "-o", "2", "-p", port};
+    std::istringstream o(options + " " + s.address + " " + write_values);
+    for (std::string w; o >> w;) args.push_back(w);
+    return run_mbpoll(s, args);
   };
   auto write_command = [&](uint16_t code, int seq) {
     // Command word and sequence number in ONE write (the handshake of register_map.hpp).
     const auto r = mbpoll("-t 4 -r " + std::to_string(map.holding.command),
                           std::to_string(code) + " " + std::to_string(seq));
-    ASSERT_EQ(r.exit_code, 0) << r.output;
+    ASSERT_EQ(r.first, 0) << r.second;
   };
   auto input_words = [&] {
     const auto r = mbpoll("-1 -t 3 -r " + std::to_string(map.input.status) + " -c 5");
-    EXPECT_EQ(r.exit_code, 0) << r.output;
-    return values(r.output);
+    EXPECT_EQ(r.first, 0) << r.second;
+    return register_values(r.second);
   };
   auto angles = [&] {
     const auto r = mbpoll("-1 -t 3:float -B -r " + std::to_string(map.input.actual_outer_deg) + " -c 2");
-    EXPECT_EQ(r.exit_code, 0) << r.output;
-    auto v = values(r.output);
+    EXPECT_EQ(r.first, 0) << r.second;
+    auto v = register_values(r.second);
     return std::make_pair(std::stod(v.at(map.input.actual_outer_deg)), std::stod(v.at(map.input.actual_inner_deg)));
   };
   /// Polls until the table acknowledged `seq` and `bit` is set (bounded).
@@ -214,7 +214,7 @@ TEST(StationsimCli, MbpollReadsTheTableAndCommandsAMoveOverTheHandshake) {
   EXPECT_DOUBLE_EQ(home.second, 0.0);
   // Targets and rate: three big-endian floats at holding 0, 2, 4, then the move command.
   const auto t = mbpoll("-t 4:float -B -r " + std::to_string(map.holding.target_outer_deg), "-- 45 -20 15");
-  ASSERT_EQ(t.exit_code, 0) << t.output;
+  ASSERT_EQ(t.first, 0) << t.second;
   write_command(map.commands.move, 3);
   ASSERT_TRUE(wait_for(3, map.status_bits.in_position));
   const auto end = angles();
