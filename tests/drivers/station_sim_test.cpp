@@ -314,6 +314,21 @@ TEST(StationSim, ScheduledModbusDropMakesTheClientReconnect) {
   EXPECT_EQ(s.stats().modbus_drops, 1u);
 }
 
+TEST(StationSim, ScheduledModbusDelayMakesTheClientTimeOutAndRecover) {
+  sim::StationSimConfig cfg = base_config(10.0);
+  // One reply held back longer than the client's 300 ms response timeout (the client retries).
+  cfg.faults.modbus_delay = {sim::StationSimFaults::Delay{5.0, 400, 1}};
+  Rig rig(cfg);
+  ASSERT_TRUE(rig.homed);
+  ASSERT_LT(rig.sim->time_s(), 4.0) << "setup too slow for the scheduled delay at 5 s";
+  rig.client.move_to(-100.0, 30.0, 10.0);
+  const auto end = rig.client.wait_in_position(15000ms);
+  EXPECT_NEAR(end.outer_deg, -100.0, 0.01);
+  EXPECT_NEAR(end.inner_deg, 30.0, 0.01);
+  EXPECT_GE(rig.client.counters().timeouts, 1u);
+  EXPECT_GE(rig.sim->table_server().stats().delayed, 1u);
+}
+
 TEST(StationSim, ScheduledAndRuntimeImuResetsRestartTheCounter) {
   sim::StationSimConfig cfg = base_config(100.0);
   cfg.faults.imu_reset_at_s = {3.0};
