@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/un.h>
 #include <unistd.h>
 
@@ -17,6 +18,8 @@
 #include <fstream>
 #include <thread>
 
+#include <spdlog/spdlog.h>
+
 #include "calib/site_presets.hpp"
 #include "calib/truth_sim.hpp"
 #include "db/archive/run_archive.hpp"
@@ -24,6 +27,7 @@
 #include "sequences/library.hpp"
 #include "station/archive_writer.hpp"
 #include "station/control_client.hpp"
+#include "station/logging.hpp"
 
 namespace imucal::station {
 namespace {
@@ -296,6 +300,26 @@ TEST(Daemon, SecondDaemonOnTheSameDataDirectoryIsRefusedBeforeTouchingAnything) 
   third.start();
   EXPECT_EQ(third.repository().show(id).run.state, db::RunState::kInterrupted);
   third.stop("test over");
+}
+
+TEST(Logging, JournalOnlyWhenStderrIsTheJournalStream) {
+  struct stat st {};
+  ASSERT_EQ(fstat(STDERR_FILENO, &st), 0);
+  const std::string mine = std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino);
+  ::unsetenv("JOURNAL_STREAM");
+  EXPECT_FALSE(stderr_is_journal());
+  // Inherited from a service but stderr is something else now: not the journal.
+  ::setenv("JOURNAL_STREAM", (std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino + 1)).c_str(), 1);
+  EXPECT_FALSE(stderr_is_journal());
+  ::setenv("JOURNAL_STREAM", "garbage", 1);
+  EXPECT_FALSE(stderr_is_journal());
+  ::setenv("JOURNAL_STREAM", mine.c_str(), 1);
+  EXPECT_TRUE(stderr_is_journal());
+  ::unsetenv("JOURNAL_STREAM");
+  EXPECT_EQ(setup_logging("warn"), LogTarget::kConsole);
+  EXPECT_EQ(spdlog::default_logger()->level(), spdlog::level::warn);
+  EXPECT_THROW(setup_logging("loud"), std::invalid_argument);
+  setup_logging("info");
 }
 
 /// A datagram socket standing in for systemd's notify socket.
