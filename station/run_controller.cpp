@@ -702,13 +702,13 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
   std::optional<CaptureStats> stats;
   if (cap) {
     cap->detach();
+    cap->stop();  // no more frames counted after the archive's last one
     stats = cap->stats();
     {
       std::lock_guard<std::mutex> lk(mu_);
       L.capture = nullptr;
       L.snap.capture = stats;
     }
-    cap->stop();
     cap.reset();
   }
   std::string sha;
