@@ -159,10 +159,13 @@ TEST(StationFaults, SecondRunStartWhileOneIsRunningIsRefusedWithAClearMessage) {
 
   const CmdResult second = st.ctl({"run", "start", "--serial", "SIM-0204", "--sequence", "short"});
   EXPECT_EQ(second.exit_code, 3) << second.describe();
+  // Clear: it says that a run is active and which one (serial or run id).
   const std::string msg = second.out + second.err;
-  EXPECT_TRUE(contains_ci(msg, "busy") || contains_ci(msg, "already") || contains_ci(msg, "in progress") ||
-              contains_ci(msg, "active"))
+  EXPECT_TRUE(contains_ci(msg, "busy") || contains_ci(msg, "already") || contains_ci(msg, "is running") ||
+              contains_ci(msg, "in progress") || contains_ci(msg, "active"))
       << "not a clear refusal:\n" << second.describe();
+  EXPECT_TRUE(msg.find("SIM-0203") != std::string::npos || msg.find("run " + std::to_string(first_id)) != std::string::npos)
+      << "the refusal does not name the active run:\n" << second.describe();
   std::fprintf(stderr, "[e2e] second run start: %s", second.err.c_str());
   // Nothing stored for the refused serial, and the first run is unaffected.
   EXPECT_EQ(stored_run_count(st.db_path(), "SIM-0204"), 0);

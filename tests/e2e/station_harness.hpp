@@ -654,14 +654,20 @@ class Station {
     }
   }
 
-  /// mbpoll against the simulator's Modbus server (args after the connection options).
-  CmdResult mbpoll(const std::vector<std::string>& args) const {
+  /// mbpoll against the simulator's Modbus server: options, then the address, then the values to
+  /// write (after "--", so negative numbers are not taken for options).
+  CmdResult mbpoll(const std::vector<std::string>& args, const std::vector<std::string>& values = {}) const {
     std::vector<std::string> argv = {"/usr/bin/mbpoll", "-m", "tcp", "-a", "1", "-0", "-o", "2",
                                      "-p", std::to_string(modbus_port_)};
     argv.insert(argv.end(), args.begin(), args.end());
     argv.push_back(address_);
+    if (!values.empty()) {
+      argv.push_back("--");
+      argv.insert(argv.end(), values.begin(), values.end());
+    }
     return run_command(argv, dir_.path(), 15s);
   }
+
 
  private:
   TempDir dir_;
@@ -698,23 +704,34 @@ struct TableReading {
   bool fault() const { return status & (1 << 4); }
 };
 
+/// float32 from two registers, high word first (the default map's "ABCD"), decoded here
+/// independently of drivers/turntable/float_codec.
+inline double float_abcd(unsigned hi, unsigned lo) {
+  const uint32_t bits = (static_cast<uint32_t>(hi & 0xffffu) << 16) | (lo & 0xffffu);
+  float f;
+  std::memcpy(&f, &bits, sizeof f);
+  return f;
+}
+
+/// All 13 input registers in ONE Modbus request (one consistent snapshot of the PLC).
 inline TableReading read_table(const Station& st) {
   TableReading t;
-  const CmdResult floats = st.mbpoll({"-1", "-t", "3:float", "-B", "-r", "0", "-c", "4"});
-  const CmdResult words = st.mbpoll({"-1", "-t", "3", "-r", "8", "-c", "3"});
-  t.raw = floats.describe() + "\n" + words.describe();
-  if (floats.exit_code != 0 || words.exit_code != 0) return t;
-  auto f = mbpoll_values(floats.out);
-  auto w = mbpoll_values(words.out);
-  if (!f.count(0) || !f.count(2) || !f.count(4) || !f.count(6) || !w.count(8) || !w.count(9) || !w.count(10))
-    return t;
-  t.outer_deg = std::stod(f[0]);
-  t.inner_deg = std::stod(f[2]);
-  t.rate_outer_dps = std::stod(f[4]);
-  t.rate_inner_dps = std::stod(f[6]);
-  t.status = std::stoi(w[8]);
-  t.fault_code = std::stoi(w[9]);
-  t.heartbeat = std::stoi(w[10]);
+  const CmdResult r = st.mbpoll({"-1", "-t", "3:hex", "-r", "0", "-c", "13"});
+  t.raw = r.describe();
+  if (r.exit_code != 0) return t;
+  auto v = mbpoll_values(r.out);
+  unsigned w[13];
+  for (int i = 0; i < 13; ++i) {
+    if (!v.count(i)) return t;
+    w[i] = static_cast<unsigned>(std::stoul(v[i], nullptr, 16));
+  }
+  t.outer_deg = float_abcd(w[0], w[1]);
+  t.inner_deg = float_abcd(w[2], w[3]);
+  t.rate_outer_dps = float_abcd(w[4], w[5]);
+  t.rate_inner_dps = float_abcd(w[6], w[7]);
+  t.status = static_cast<int>(w[8]);
+  t.fault_code = static_cast<int>(w[9]);
+  t.heartbeat = static_cast<int>(w[10]);
   t.ok = true;
   return t;
 }

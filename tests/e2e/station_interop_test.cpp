@@ -90,27 +90,34 @@ TEST(StationInterop, MbpollCommandsAMoveOnTheSimulator) {
   };
   auto command = [&](int code, int seq) {
     // command + command_seq in one write (holding 6, 7), as the register map asks.
-    const CmdResult r = st.mbpoll({"-t", "4", "-r", "6", "--", std::to_string(code), std::to_string(seq)});
+    const CmdResult r = st.mbpoll({"-t", "4", "-r", "6"}, {std::to_string(code), std::to_string(seq)});
     EXPECT_EQ(r.exit_code, 0) << r.describe();
     std::pair<int, int> ack;
     EXPECT_TRUE(wait_until([&] { return (ack = ack_seq()).first == seq; }, 10s, 20ms)) << "no ack of " << seq;
     EXPECT_EQ(ack.second, 0) << "command " << code << " rejected with " << ack.second;
   };
   // Targets and rate as big-endian float32 at holding 0, 2, 4.
-  const CmdResult targets = st.mbpoll({"-t", "4:float", "-B", "-r", "0", "--", "45", "-20", "15"});
+  const CmdResult targets = st.mbpoll({"-t", "4:float", "-B", "-r", "0"}, {"45", "-20", "15"});
   ASSERT_EQ(targets.exit_code, 0) << targets.describe();
   command(1, 101);  // enable
   command(4, 102);  // home
   ASSERT_TRUE(wait_until([&] { const auto t = read_table(st); return t.ok && t.homed() && t.in_position(); }, 20s, 50ms))
       << read_table(st).raw;
   // Homing may have left the targets alone or not: write them again before the move.
-  ASSERT_EQ(st.mbpoll({"-t", "4:float", "-B", "-r", "0", "--", "45", "-20", "15"}).exit_code, 0);
+  ASSERT_EQ(st.mbpoll({"-t", "4:float", "-B", "-r", "0"}, {"45", "-20", "15"}).exit_code, 0);
   command(2, 103);  // move
   TableReading t;
   ASSERT_TRUE(wait_until([&] { t = read_table(st); return t.ok && t.in_position() && !t.moving(); }, 30s, 50ms))
       << t.raw;
   EXPECT_NEAR(t.outer_deg, 45.0, 1e-3) << t.raw;
   EXPECT_NEAR(t.inner_deg, -20.0, 1e-3) << t.raw;
+  // mbpoll's own float decoding (-B: big-endian word order) agrees.
+  const CmdResult floats = st.mbpoll({"-1", "-t", "3:float", "-B", "-r", "0", "-c", "2"});
+  ASSERT_EQ(floats.exit_code, 0) << floats.describe();
+  auto f = mbpoll_values(floats.out);
+  ASSERT_TRUE(f.count(0) && f.count(2)) << floats.describe();
+  EXPECT_NEAR(std::stod(f[0]), 45.0, 1e-3) << floats.describe();
+  EXPECT_NEAR(std::stod(f[2]), -20.0, 1e-3) << floats.describe();
 }
 
 TEST(StationInterop, PythonCanReadsTheArchivedCaptureLogWithTheReportedFrameCount) {

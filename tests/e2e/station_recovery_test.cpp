@@ -29,8 +29,9 @@ Killed start_and_kill(Station& st, const std::string& serial, const std::functio
 }
 
 /// After the restart: the run is interrupted with a reason, the database is sound, the archive
-/// reads back; returns the run record.
-json check_interrupted(Station& st, long long run_id) {
+/// reads back; returns the run record. `capture_complete`: whether the capture had finished when
+/// the daemon died (run.toml [capture] complete).
+json check_interrupted(Station& st, long long run_id, bool capture_complete) {
   // Idle after the restart: the run is not resumed.
   const auto status = st.request("run.status");
   EXPECT_TRUE(status && (*status)["ok"] == true) << (status ? status->dump() : "no reply");
@@ -68,7 +69,9 @@ json check_interrupted(Station& st, long long run_id) {
     ADD_FAILURE() << "archive of the interrupted run does not read back: " << e.what();
   }
   const std::string toml = read_text(dir + "/run.toml");
-  EXPECT_TRUE(std::regex_search(toml, std::regex(R"(complete\s*=\s*false)"))) << toml;
+  EXPECT_TRUE(std::regex_search(
+      toml, std::regex(capture_complete ? R"(complete\s*=\s*true)" : R"(complete\s*=\s*false)")))
+      << toml;
   return run;
 }
 
@@ -82,7 +85,7 @@ TEST(StationRecovery, KillNineWhileRunningThenRestartMarksTheRunInterruptedAndRe
   ASSERT_FALSE(k.last_status.is_null()) << "the run never reached step 6:\n" << st.daemon_log();
   std::fprintf(stderr, "[e2e] killed at %s\n", k.last_status.dump().c_str());
   ASSERT_TRUE(st.start_daemon()) << st.daemon_log();
-  const json run = check_interrupted(st, k.run_id);
+  const json run = check_interrupted(st, k.run_id, /*capture_complete=*/false);
   ASSERT_TRUE(run.is_object());
   EXPECT_TRUE(contains_ci(run.value("failure_reason", ""), "running")) << "the reason should name the state:\n"
                                                                        << run.dump(2);
@@ -117,8 +120,10 @@ TEST(StationRecovery, KillNineWhileCalibratingThenRestartAndReprocessPasses) {
   ASSERT_GT(k.run_id, 0);
   ASSERT_FALSE(k.last_status.is_null()) << "never saw the run calibrating:\n" << st.daemon_log();
   ASSERT_TRUE(st.start_daemon()) << st.daemon_log();
-  const json run = check_interrupted(st, k.run_id);
+  // The capture had finished (run.toml rewritten with [capture] complete = true) before calibrating.
+  const json run = check_interrupted(st, k.run_id, /*capture_complete=*/true);
   ASSERT_TRUE(run.is_object());
+  EXPECT_TRUE(contains_ci(run.value("failure_reason", ""), "calibrating")) << run.dump(2);
 
   // The archive was complete when the daemon died: reprocessing it must PASS, and with the same
   // digest the archive is the one the run wrote (reprocess reads it, never rewrites it).
