@@ -55,6 +55,7 @@ stop_process() {  # PID NAME: SIGTERM, wait up to 10 s, then SIGKILL
   wait "$pid" 2>/dev/null || true
 }
 cleanup() {
+  echo "== stopping stationd and stationsim" >&2
   # The daemon first: on SIGTERM it brings the table to a safe stop (through the simulator).
   stop_process "$DAEMON_PID" stationd
   stop_process "$SIM_PID" stationsim
@@ -62,8 +63,11 @@ cleanup() {
 trap cleanup EXIT
 trap 'exit 130' INT TERM
 
+# Both servers run in their own sessions (setsid): a Ctrl-C in the terminal reaches this script and
+# stationctl only, and cleanup() then stops the daemon first (run aborted, table to a safe stop
+# through the still running simulator) and the simulator after it.
 echo "== stationsim: simulated turntable (Modbus TCP) + IMU (CAN), speed ${SPEED}x"
-"$BIN/stationsim" --modbus 127.0.0.1:0 --can "$DEMO/bus.sock" --speed "$SPEED" \
+setsid "$BIN/stationsim" --modbus 127.0.0.1:0 --can "$DEMO/bus.sock" --speed "$SPEED" \
   --ready-file "$DEMO/sim-ready.json" --truth-out "$DEMO/truth.json" \
   >"$DEMO/stationsim.out" 2>"$DEMO/stationsim.log" &
 SIM_PID=$!
@@ -107,7 +111,7 @@ level = "info"
 EOF
 
 echo "== stationd --config $CONFIG (log: $DEMO/stationd.log)"
-"$BIN/stationd" --config "$CONFIG" >"$DEMO/stationd.out" 2>"$DEMO/stationd.log" &
+setsid "$BIN/stationd" --config "$CONFIG" >"$DEMO/stationd.out" 2>"$DEMO/stationd.log" &
 DAEMON_PID=$!
 ready=0
 for _ in $(seq 300); do
