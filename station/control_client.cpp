@@ -84,6 +84,12 @@ std::string ControlClient::read_line(std::chrono::milliseconds timeout) {
   for (;;) {
     const std::size_t nl = in_.find('\n', scanned);
     if (nl != std::string::npos) {
+      if (nl + 1 == in_.size()) {  // the usual case: no copy of a large reply
+        std::string line = std::move(in_);
+        in_.clear();
+        line.pop_back();
+        return line;
+      }
       std::string line = in_.substr(0, nl);
       in_.erase(0, nl + 1);
       return line;

@@ -292,7 +292,7 @@ Reply parse_reply(std::string_view line) {
   r.ok = j["ok"].get<bool>();
   if (r.ok) {
     if (!j.contains("result")) throw std::runtime_error("reply field 'result': missing");
-    r.result = j["result"];
+    r.result = std::move(j["result"]);
   } else {
     const auto e = j.find("error");
     if (e == j.end() || !e->is_object() || !e->contains("code") || !(*e)["code"].is_string() ||

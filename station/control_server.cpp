@@ -270,7 +270,12 @@ void ControlServer::serve_line(Client& client, std::string_view line) {
                   e.what());
     reply = error_reply(id, error_code::kInternal, std::string("internal error: ") + e.what());
   }
-  client.out += reply_line(reply);
+  std::string line_out = reply_line(reply);
+  reply = nullptr;  // large results (export) are freed before the line is queued
+  if (client.out.empty())
+    client.out = std::move(line_out);
+  else
+    client.out += line_out;
   std::lock_guard<std::mutex> lock(stats_mutex_);
   ++stats_.requests;
 }

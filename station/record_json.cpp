@@ -97,15 +97,25 @@ json params_result(const db::ActiveCalibration& active) { return db::active_para
 
 json export_result(const db::Repository& repo, const db::ExportFilter& filter,
                    const std::string& format) {
-  std::ostringstream out;
+  // A whole-history export is hundreds of MB: keep one copy of the text at a time (the stream's
+  // buffer is gone before the JSON takes the string over by move).
   std::size_t rows = 0;
-  if (format == "csv")
-    rows = db::export_csv(repo, filter, out);
-  else if (format == "json")
-    rows = db::export_json(repo, filter, out);
-  else
-    throw std::invalid_argument("export format \"" + format + "\" (expected csv or json)");
-  return {{"format", format}, {"rows", rows}, {"content", out.str()}};
+  std::string content;
+  {
+    std::ostringstream out;
+    if (format == "csv")
+      rows = db::export_csv(repo, filter, out);
+    else if (format == "json")
+      rows = db::export_json(repo, filter, out);
+    else
+      throw std::invalid_argument("export format \"" + format + "\" (expected csv or json)");
+    content = out.str();
+  }
+  json result = json::object();
+  result["format"] = format;
+  result["rows"] = rows;
+  result["content"] = std::move(content);
+  return result;
 }
 
 json answer_repository_read(const db::Repository& repo, const Request& request) {

@@ -443,12 +443,12 @@ int main(int argc, char** argv) {
       }
       const json r = read_request(target, station::cmd::kExport, args);
       if (!output.empty()) {
-        write_output(output, r.at("content").get<std::string>());
+        write_output(output, r.at("content").get_ref<const std::string&>());
         std::cerr << "stationctl: " << text(r, "rows", "?") << " rows written to " << output << "\n";
       } else if (g.json) {
         print_json(r);
       } else {
-        std::cout << r.at("content").get<std::string>() << std::flush;
+        std::cout << r.at("content").get_ref<const std::string&>() << std::flush;
       }
       return kOk;
     }
