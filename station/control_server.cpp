@@ -428,7 +428,15 @@ void ControlServer::loop() {
         else
           c.in.append(chunk.data(), static_cast<std::size_t>(r));
       }
-      pump(c);
+      try {
+        pump(c);
+      } catch (const std::exception& e) {
+        // E.g. out of memory building a reply: this client is dropped, the others go on.
+        spdlog::error("control: dropping the connection of {} (pid {}): {}", c.user, c.cred.pid,
+                      e.what());
+        if (!c.dead) ::close(c.fd);
+        c.dead = true;
+      }
     }
     clients.remove_if([](const Client& c) { return c.dead; });
     std::lock_guard<std::mutex> lock(stats_mutex_);

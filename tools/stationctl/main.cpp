@@ -51,6 +51,8 @@ constexpr int kInterrupted = 130;
 std::atomic<bool> g_stop_following{false};
 extern "C" void on_stop_signal(int) { g_stop_following = true; }
 constexpr auto kReplyTimeout = std::chrono::seconds(60);
+/// An export of the whole history is built before it is sent (11 s for 100 000 runs here).
+constexpr auto kExportTimeout = std::chrono::seconds(600);
 
 /// A failure with its exit code; main prints "stationctl: <message>" and exits with the code.
 struct Failure {
@@ -117,7 +119,8 @@ json result_or_fail(const station::Reply& r) {
 
 json call(ControlClient& client, const std::string& command, const json& args) {
   try {
-    return result_or_fail(client.call(command, args, kReplyTimeout));
+    return result_or_fail(client.call(
+        command, args, command == station::cmd::kExport ? kExportTimeout : kReplyTimeout));
   } catch (const ControlClientError& e) {
     throw Failure{kUnavailable, e.what()};
   }
