@@ -43,9 +43,8 @@ ControlClient::ControlClient(std::string socket_path, std::chrono::milliseconds 
     fd_ = -1;
     // A full listen backlog (EAGAIN) is a busy daemon, not an absent one: retry until the deadline.
     if (err != EAGAIN || Clock::now() >= deadline)
-      throw ControlClientError(Kind::kUnreachable,
-                               "cannot connect to stationd at " + path_ + ": " +
-                                   std::strerror(err));
+      throw ControlClientError(
+          Kind::kUnreachable, "cannot connect to stationd at " + path_ + ": " + std::strerror(err));
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
 }
@@ -70,10 +69,9 @@ void ControlClient::send_raw(std::string_view bytes) {
       continue;
     }
     if (errno == EPIPE || errno == ECONNRESET)
-      throw ControlClientError(Kind::kClosed,
-                               "stationd closed the connection (" + path_ + ")");
-    throw ControlClientError(Kind::kIo, "control socket " + path_ + ": send: " +
-                                            std::strerror(errno));
+      throw ControlClientError(Kind::kClosed, "stationd closed the connection (" + path_ + ")");
+    throw ControlClientError(Kind::kIo,
+                             "control socket " + path_ + ": send: " + std::strerror(errno));
   }
 }
 
@@ -147,8 +145,7 @@ Reply ControlClient::call(const std::string& command, const nlohmann::json& args
   }
   if (!(r.id.is_number_integer() && r.id.get<std::int64_t>() == id) && !(r.id.is_null() && !r.ok))
     throw ControlClientError(Kind::kProtocol, "stationd at " + path_ + ": reply for id " +
-                                                  r.id.dump() + ", expected " +
-                                                  std::to_string(id));
+                                                  r.id.dump() + ", expected " + std::to_string(id));
   return r;
 }
 

@@ -3,11 +3,10 @@
 // reply with a timeout. Used by stationctl and by the tests. Not thread-safe (one per thread).
 #include <chrono>
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
 #include <string_view>
-
-#include <nlohmann/json.hpp>
 
 #include "station/control_protocol.hpp"
 

@@ -155,8 +155,8 @@ bool is_repository_read(const std::string& command) {
 Request parse_request(std::string_view line) {
   if (line.size() > kMaxLineBytes)
     throw BadRequest(nullptr, "",
-                     "request line of " + std::to_string(line.size()) + " bytes exceeds the limit of " +
-                         std::to_string(kMaxLineBytes) + " bytes");
+                     "request line of " + std::to_string(line.size()) +
+                         " bytes exceeds the limit of " + std::to_string(kMaxLineBytes) + " bytes");
   json j;
   try {
     j = json::parse(line.begin(), line.end());

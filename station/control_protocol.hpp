@@ -19,12 +19,11 @@
 // line cannot be told apart from the next request).
 #include <cstddef>
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "db/repository.hpp"
 #include "station/control_handler.hpp"
@@ -68,7 +67,8 @@ struct Request {
 class BadRequest : public ControlError {
  public:
   BadRequest(nlohmann::json id, std::string field, const std::string& message)
-      : ControlError(error_code::kBadRequest, message), id_(std::move(id)),
+      : ControlError(error_code::kBadRequest, message),
+        id_(std::move(id)),
         field_(std::move(field)) {}
   const nlohmann::json& id() const { return id_; }
   const std::string& field() const { return field_; }
@@ -97,15 +97,15 @@ nlohmann::json error_reply(const nlohmann::json& id, const std::string& code,
 std::string reply_line(const nlohmann::json& reply);
 
 /// The protocol error code for a repository failure: NotFound -> not_found, InvalidInput ->
-/// invalid_input, Busy -> busy, ReadOnly / Conflict -> invalid_input (the request asked for what the
-/// stored state forbids), Io / Corrupt / IncompatibleSchema -> unavailable.
+/// invalid_input, Busy -> busy, ReadOnly / Conflict -> invalid_input (the request asked for what
+/// the stored state forbids), Io / Corrupt / IncompatibleSchema -> unavailable.
 const char* error_code_for(db::DbErrorKind kind);
 
 /// A reply as read by a client.
 struct Reply {
   nlohmann::json id;  ///< integer, or null
   bool ok = false;
-  nlohmann::json result;  ///< when ok
+  nlohmann::json result;   ///< when ok
   std::string error_code;  ///< when !ok
   std::string error_message;
 };

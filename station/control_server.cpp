@@ -5,16 +5,17 @@
 #include <grp.h>
 #include <poll.h>
 #include <pwd.h>
+#include <spdlog/spdlog.h>
 #include <sys/eventfd.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <list>
-#include <spdlog/spdlog.h>
 #include <stdexcept>
 #include <vector>
 
@@ -62,11 +63,11 @@ void replace_stale_socket(const std::string& path) {
     throw std::runtime_error("control socket " + path +
                              ": another process is listening there (is stationd already running?)");
   if (err != ECONNREFUSED && err != ENOENT)
-    throw std::runtime_error("control socket " + path + ": probing the existing socket: " +
-                             errno_text(err));
+    throw std::runtime_error("control socket " + path +
+                             ": probing the existing socket: " + errno_text(err));
   if (::unlink(path.c_str()) != 0 && errno != ENOENT)
-    throw std::runtime_error("control socket " + path + ": removing the stale socket: " +
-                             errno_text(errno));
+    throw std::runtime_error("control socket " + path +
+                             ": removing the stale socket: " + errno_text(errno));
 }
 
 std::string group_name_of(gid_t gid) {
@@ -148,7 +149,8 @@ void ControlServer::start() {
   replace_stale_socket(path);
 
   const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
-  if (fd < 0) throw std::runtime_error("control socket " + path + ": socket(): " + errno_text(errno));
+  if (fd < 0)
+    throw std::runtime_error("control socket " + path + ": socket(): " + errno_text(errno));
   auto fail = [&](const std::string& what) {
     const int err = errno;
     ::close(fd);
@@ -376,15 +378,21 @@ void ControlServer::loop() {
       for (;;) {
         const int cfd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
         if (cfd < 0) {
-          if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)
+          if (errno == EMFILE || errno == ENFILE) {
+            // Out of descriptors: the pending connection stays queued and the listening socket
+            // stays readable; pause instead of spinning until a client hangs up.
             spdlog::warn("control socket: accept: {}", errno_text(errno));
+            std::this_thread::sleep_for(std::chrono::milliseconds(100));
+          } else if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
+            spdlog::warn("control socket: accept: {}", errno_text(errno));
+          }
           break;
         }
         Client c;
         c.fd = cfd;
         socklen_t len = sizeof c.cred;
         if (::getsockopt(cfd, SOL_SOCKET, SO_PEERCRED, &c.cred, &len) != 0) {
-          // Without credentials nobody may control the station: uid/gid "nobody".
+          // Without credentials no one may control the station: an id that matches no group.
           c.cred.uid = static_cast<uid_t>(-1);
           c.cred.gid = static_cast<gid_t>(-1);
           c.cred.pid = 0;
@@ -395,9 +403,9 @@ void ControlServer::loop() {
           ++stats_.connections;
         }
         if (clients.size() >= options_.max_clients) {
-          c.out = reply_line(error_reply(nullptr, error_code::kUnavailable,
-                                         "too many control connections (" +
-                                             std::to_string(options_.max_clients) + ")"));
+          c.out = reply_line(error_reply(
+              nullptr, error_code::kUnavailable,
+              "too many control connections (" + std::to_string(options_.max_clients) + ")"));
           c.close_after_write = true;
         }
         clients.push_back(std::move(c));

@@ -38,9 +38,9 @@
 namespace imucal::station {
 
 struct ControlServerOptions {
-  std::string socket_path;       ///< parent directory must exist; a stale socket file is replaced
-  std::string group;             ///< control group name; "" = the daemon's primary group
-  unsigned socket_mode = 0666;   ///< file mode of the socket (chmod after bind)
+  std::string socket_path;      ///< parent directory must exist; a stale socket file is replaced
+  std::string group;            ///< control group name; "" = the daemon's primary group
+  unsigned socket_mode = 0666;  ///< file mode of the socket (chmod after bind)
   std::string version = IMUCAL_VERSION;  ///< answered by ping
   std::size_t max_clients = 128;         ///< more concurrent connections are refused (unavailable)
 };

@@ -57,9 +57,9 @@ std::string rtrim(std::string s) {
 /// Duration of a run from its ms timestamps, or "" when not ended.
 std::string run_duration(const json& run) {
   if (!has(run, "ended_at_ms") || !has(run, "started_at_ms")) return "";
-  const double s =
-      static_cast<double>(run["ended_at_ms"].get<long long>() - run["started_at_ms"].get<long long>()) /
-      1000.0;
+  const double s = static_cast<double>(run["ended_at_ms"].get<long long>() -
+                                       run["started_at_ms"].get<long long>()) /
+                   1000.0;
   return format_duration_s(s);
 }
 
@@ -194,7 +194,8 @@ void render_capture(std::ostream& os, const json& capture) {
   int column = 0;
   for (auto it = capture.begin(); it != capture.end(); ++it) {
     if (it.key() == "complete") continue;
-    os << "  " << pad(it.key(), 20) << lpad(it->is_string() ? it->get<std::string>() : it->dump(), 12);
+    os << "  " << pad(it.key(), 20)
+       << lpad(it->is_string() ? it->get<std::string>() : it->dump(), 12);
     os << (++column % 2 == 0 ? "\n" : "");
   }
   if (column % 2 != 0) os << "\n";
@@ -225,10 +226,8 @@ std::string render_show_text(const json& show) {
   row("station", str(run, "station"));
   row("software", str(run, "software_version"));
   row("started", str(run, "started_at"));
-  if (has(run, "ended_at"))
-    row("ended", str(run, "ended_at") + "  (" + run_duration(run) + ")");
-  if (has(run, "reprocessed_from"))
-    row("reprocessed", "from run " + str(run, "reprocessed_from"));
+  if (has(run, "ended_at")) row("ended", str(run, "ended_at") + "  (" + run_duration(run) + ")");
+  if (has(run, "reprocessed_from")) row("reprocessed", "from run " + str(run, "reprocessed_from"));
   row("reason", str(run, "failure_reason"));
   row("archive", str(run, "archive_path"));
   row("archive sha", str(run, "archive_sha256"));
@@ -244,9 +243,8 @@ std::string render_show_text(const json& show) {
       MethodColumns m;
       m.method = str(c, "method");
       calib::ParamSet sigma;
-      const calib::ParamSet p =
-          archive::param_set_from_json(c.at("params"), "run " + str(run, "run_id") + " " + m.method,
-                                       &sigma);
+      const calib::ParamSet p = archive::param_set_from_json(
+          c.at("params"), "run " + str(run, "run_id") + " " + m.method, &sigma);
       m.value = p.to_vector();
       m.sigma = sigma.to_vector();
       cols.push_back(m);
@@ -264,8 +262,9 @@ std::string render_show_text(const json& show) {
       os << rtrim(line) << "\n";
     }
     for (const auto& c : cals) {
-      os << "  " << pad(str(c, "method"), 6) << (c.value("converged", false) ? "converged" : "NOT converged")
-         << ", " << str(c, "iterations") << " iterations, " << fmt("%.2f", c.value("runtime_s", 0.0))
+      os << "  " << pad(str(c, "method"), 6)
+         << (c.value("converged", false) ? "converged" : "NOT converged") << ", "
+         << str(c, "iterations") << " iterations, " << fmt("%.2f", c.value("runtime_s", 0.0))
          << " s";
       if (has(c, "metrics")) {
         const json& m = c["metrics"];
@@ -285,7 +284,8 @@ std::string render_show_text(const json& show) {
     if (failures.empty()) {
       os << ": AINS and NLSQ agree on every parameter\n";
     } else {
-      os << ", " << failures.size() << " disagreement" << (failures.size() == 1 ? "" : "s") << ":\n";
+      os << ", " << failures.size() << " disagreement" << (failures.size() == 1 ? "" : "s")
+         << ":\n";
       for (const auto& f : failures) os << "  " << str(f, "detail") << "\n";
     }
   } else {
@@ -341,7 +341,8 @@ std::string render_status_text(const json& status) {
     os << title << progress_line(r) << "\n";
     std::string info;
     if (!str(r, "sequence").empty()) info += "sequence " + str(r, "sequence");
-    if (!str(r, "operator").empty()) info += (info.empty() ? "" : ", ") + ("operator " + str(r, "operator"));
+    if (!str(r, "operator").empty())
+      info += (info.empty() ? "" : ", ") + ("operator " + str(r, "operator"));
     if (!str(r, "started_at").empty())
       info += (info.empty() ? "" : ", ") + ("started " + str(r, "started_at"));
     if (!info.empty()) os << "  " << info << "\n";
@@ -351,7 +352,8 @@ std::string render_status_text(const json& status) {
       std::string counters;
       for (const char* k : {"samples_decoded", "samples_lost", "samples_corrupt", "samples_filled",
                             "frames_received", "imu_resets"})
-        if (c.contains(k)) counters += std::string(counters.empty() ? "" : ", ") + k + " " + c[k].dump();
+        if (c.contains(k))
+          counters += std::string(counters.empty() ? "" : ", ") + k + " " + c[k].dump();
       if (!counters.empty()) os << "  capture: " << counters << "\n";
     }
   };

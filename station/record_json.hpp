@@ -15,10 +15,9 @@
 // where run = db::run_json(record) (with "capture": the run's capture counters, CaptureStats JSON
 // with "complete", or null), and calibration = db::calibration_json (params + sigma as the
 // parameter-set JSON, metrics or null).
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "db/repository.hpp"
 #include "station/control_protocol.hpp"

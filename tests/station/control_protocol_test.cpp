@@ -1,11 +1,11 @@
 // The control protocol's request validation and reply shapes (station/control_protocol.hpp): every
 // malformed request is a BadRequest that names the offending field and carries the id back when
 // one could be read; valid requests come out with their arguments intact.
+#include "station/control_protocol.hpp"
+
 #include <gtest/gtest.h>
 
 #include <string>
-
-#include "station/control_protocol.hpp"
 
 namespace imucal::station {
 namespace {
@@ -44,10 +44,11 @@ TEST(ControlProtocol, ValidRequestsOfEveryCommand) {
   EXPECT_EQ(parse_request(R"({"id":1,"cmd":"run.status","args":{"run_id":3}})").args.at("run_id"),
             3);
   EXPECT_TRUE(parse_request(R"({"id":2,"cmd":"run.abort","args":{}})").args.empty());
-  EXPECT_EQ(parse_request(R"({"id":3,"cmd":"reprocess","args":{"run_id":9}})").args.at("run_id"), 9);
-  EXPECT_EQ(parse_request(R"({"id":4,"cmd":"history","args":{"serial":"A","limit":0}})")
-                .args.at("limit"),
-            0);
+  EXPECT_EQ(parse_request(R"({"id":3,"cmd":"reprocess","args":{"run_id":9}})").args.at("run_id"),
+            9);
+  EXPECT_EQ(
+      parse_request(R"({"id":4,"cmd":"history","args":{"serial":"A","limit":0}})").args.at("limit"),
+      0);
   EXPECT_EQ(parse_request(R"({"id":5,"cmd":"show","args":{"run_id":1}})").cmd, "show");
   EXPECT_EQ(parse_request(R"({"id":6,"cmd":"params","args":{"serial":"A"}})").cmd, "params");
   const Request exp = parse_request(

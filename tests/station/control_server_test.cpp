@@ -3,8 +3,10 @@
 // dispatch, reads identical to the repository's answer, malformed and oversize lines isolated to
 // their client, many concurrent clients, peer-credential permission (a forked child running as
 // nobody), error-code mapping and socket file handling.
-#include <gtest/gtest.h>
+#include "station/control_server.hpp"
+
 #include <grp.h>
+#include <gtest/gtest.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -23,7 +25,6 @@
 
 #include "db/sqlite_repository.hpp"
 #include "station/control_client.hpp"
-#include "station/control_server.hpp"
 #include "station/record_json.hpp"
 #include "tests/db/history_fixtures.hpp"
 
@@ -53,7 +54,9 @@ class FakeHandler : public ControlHandler {
     if (r.serial == "BOOM") throw std::runtime_error("division by zero in the fake");
     if (r.sequence && *r.sequence == "nope")
       throw db::NotFound("sequence \"nope\": not in the library");
-    return {{"run_id", 77}, {"serial", r.serial}, {"sequence", r.sequence.value_or("short")},
+    return {{"run_id", 77},
+            {"serial", r.serial},
+            {"sequence", r.sequence.value_or("short")},
             {"steps", 18}};
   }
   json status(std::optional<db::RunId> run_id) override {
@@ -141,8 +144,8 @@ TEST_F(ControlServerTest, PingAndReadsAreTheRepositorysAnswer) {
   for (const auto& [cmd, args] : reads) {
     const Reply r = c.call(cmd, args);
     ASSERT_TRUE(r.ok) << cmd << ": " << r.error_message;
-    const json direct =
-        answer_repository_read(*repo_, validate_request(json{{"id", 1}, {"cmd", cmd}, {"args", args}}));
+    const json direct = answer_repository_read(
+        *repo_, validate_request(json{{"id", 1}, {"cmd", cmd}, {"args", args}}));
     EXPECT_EQ(r.result, direct) << cmd << " " << args.dump();
   }
   // The newest of the three is first.
@@ -169,21 +172,29 @@ TEST_F(ControlServerTest, MalformedLinesGetErrorsAndTheConnectionStaysUsable) {
   EXPECT_EQ(r.error_code, "bad_request");
   EXPECT_NE(r.error_message.find("not valid JSON"), std::string::npos) << r.error_message;
 
-  r = raw(c, R"({"id":3,"cmd":"run.explode"})" "\n");
+  r = raw(c, R"({"id":3,"cmd":"run.explode"})"
+             "\n");
   EXPECT_EQ(r.id, 3);
   EXPECT_EQ(r.error_code, "bad_request");
   EXPECT_NE(r.error_message.find("field 'cmd'"), std::string::npos) << r.error_message;
 
-  r = raw(c, R"({"id":4,"cmd":"run.start","args":{"serial":5}})" "\n");
+  r = raw(c, R"({"id":4,"cmd":"run.start","args":{"serial":5}})"
+             "\n");
   EXPECT_EQ(r.id, 4);
   EXPECT_NE(r.error_message.find("field 'args.serial'"), std::string::npos) << r.error_message;
 
-  r = raw(c, R"({"id":5,"cmd":"show","args":{"run_id":"2"}})" "\n");
+  r = raw(c, R"({"id":5,"cmd":"show","args":{"run_id":"2"}})"
+             "\n");
   EXPECT_NE(r.error_message.find("field 'args.run_id'"), std::string::npos) << r.error_message;
   EXPECT_EQ(handler_->start_calls, 0) << "a refused request never reaches the handler";
 
   // Blank lines are skipped, CRLF is accepted, pipelined requests are answered in order.
-  c.send_raw("\n\r\n" R"({"id":10,"cmd":"ping"})" "\r\n" R"({"id":11,"cmd":"ping"})" "\n");
+  c.send_raw(
+      "\n\r\n"
+      R"({"id":10,"cmd":"ping"})"
+      "\r\n"
+      R"({"id":11,"cmd":"ping"})"
+      "\n");
   EXPECT_EQ(parse_reply(c.read_line(5s)).id, 10);
   EXPECT_EQ(parse_reply(c.read_line(5s)).id, 11);
   EXPECT_TRUE(c.call("ping").ok);
@@ -223,14 +234,15 @@ TEST_F(ControlServerTest, ManyClientsConcurrentlyNeverOverlapInTheHandler) {
   constexpr int kClients = 40, kRounds = 15;
   std::atomic<int> failures{0};
   std::vector<std::unique_ptr<ControlClient>> clients;
-  for (int i = 0; i < kClients; ++i) clients.push_back(std::make_unique<ControlClient>(socket_path()));
+  for (int i = 0; i < kClients; ++i)
+    clients.push_back(std::make_unique<ControlClient>(socket_path()));
   std::vector<std::thread> threads;
   for (int i = 0; i < kClients; ++i)
     threads.emplace_back([&, i] {
       for (int k = 0; k < kRounds; ++k) {
         try {
-          const Reply s = clients[static_cast<std::size_t>(i)]->call(
-              "run.status", {{"run_id", i * 100 + k + 1}});
+          const Reply s = clients[static_cast<std::size_t>(i)]->call("run.status",
+                                                                     {{"run_id", i * 100 + k + 1}});
           if (!s.ok || s.result.at("run").at("run_id") != i * 100 + k + 1) ++failures;
           const Reply h = clients[static_cast<std::size_t>(i)]->call(
               "history", {{"serial", "SIM-0001"}, {"limit", 1}});
@@ -334,10 +346,10 @@ TEST_F(ControlServerTest, NobodyMayReadButNotControl) {
   const std::string path = socket_path();
   const auto [code, diag] = as_nobody([&]() -> int {
     ControlClient c(path);
-    for (const auto& [cmd, args] : std::vector<std::pair<std::string, json>>{
-             {"run.start", {{"serial", "SIM-0001"}}},
-             {"run.abort", json::object()},
-             {"reprocess", {{"run_id", 1}}}}) {
+    for (const auto& [cmd, args] :
+         std::vector<std::pair<std::string, json>>{{"run.start", {{"serial", "SIM-0001"}}},
+                                                   {"run.abort", json::object()},
+                                                   {"reprocess", {{"run_id", 1}}}}) {
       const Reply r = c.call(cmd, args);
       if (r.ok || r.error_code != "permission_denied") {
         std::fprintf(stderr, "%s: expected permission_denied, got %s\n", cmd.c_str(),

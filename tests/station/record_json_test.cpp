@@ -1,5 +1,7 @@
 // JSON shapes and text renderings of the read commands (station/record_json.hpp), against a real
 // SQLite history filled through the repository with seeded values the test recomputes.
+#include "station/record_json.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -11,14 +13,13 @@
 #include "calib/param_set.hpp"
 #include "db/archive/param_json.hpp"
 #include "db/sqlite_repository.hpp"
-#include "station/record_json.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal::station {
 namespace {
 
-using nlohmann::json;
 using db::test::TempDir;
+using nlohmann::json;
 
 constexpr double kG0 = 9.80665;  // standard gravity, m/s²: 1 µg = 9.80665e-6 m/s²
 constexpr double kPi = 3.14159265358979323846;
@@ -88,7 +89,8 @@ TEST_F(RecordJson, HistoryIsNewestFirstWithCaptureAndReasons) {
   EXPECT_TRUE(runs[0].at("capture").is_null());
   EXPECT_EQ(runs[2].at("capture"), json::parse(kCapture));
 
-  const json limited = answer_repository_read(*repo_, read("history", {{"serial", "SN-A"}, {"limit", 1}}));
+  const json limited =
+      answer_repository_read(*repo_, read("history", {{"serial", "SN-A"}, {"limit", 1}}));
   ASSERT_EQ(limited.at("runs").size(), 1u);
   EXPECT_EQ(limited["runs"][0].at("run_id"), r2_);
 
@@ -203,7 +205,8 @@ TEST_F(RecordJson, ParamsIsTheActiveSetLoadableByReadParamFile) {
 
 TEST_F(RecordJson, ExportContentMatchesTheRuns) {
   // SN-A: runs 1 and 2 have two calibrations each, run 3 none -> 5 rows.
-  const json csv = answer_repository_read(*repo_, read("export", {{"serial", "SN-A"}, {"format", "csv"}}));
+  const json csv =
+      answer_repository_read(*repo_, read("export", {{"serial", "SN-A"}, {"format", "csv"}}));
   EXPECT_EQ(csv.at("format"), "csv");
   EXPECT_EQ(csv.at("rows"), 5);
   const auto lines = lines_of(csv.at("content").get<std::string>());
@@ -263,11 +266,12 @@ TEST(RecordJsonText, DurationsProgressAndStatus) {
   done["reason"] = "gyro_M[0][0] disagrees";
   EXPECT_EQ(outcome_line(done), "run 7 SIM-0001: review, verdict REVIEW — gyro_M[0][0] disagrees");
 
-  const json status = {{"daemon", {{"version", "0.1.0"}, {"pid", 42}, {"station", "sim-station"},
-                                   {"uptime_s", 3725.0}}},
-                       {"state", "busy"},
-                       {"run", live},
-                       {"last_run", nullptr}};
+  const json status = {
+      {"daemon",
+       {{"version", "0.1.0"}, {"pid", 42}, {"station", "sim-station"}, {"uptime_s", 3725.0}}},
+      {"state", "busy"},
+      {"run", live},
+      {"last_run", nullptr}};
   const std::string text = render_status_text(status);
   EXPECT_NE(text.find("stationd 0.1.0 (pid 42) at station sim-station, up 1 h 02 min: busy"),
             std::string::npos)

@@ -3,6 +3,7 @@
 // read_param_file, export, exit codes of bad input and of control commands), and against an
 // in-process control server with a scripted handler (the socket and the fallback print the same;
 // --wait's progress lines and exit codes).
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
@@ -11,7 +12,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <fcntl.h>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -31,8 +31,8 @@ namespace imucal {
 namespace {
 
 namespace fs = std::filesystem;
-using nlohmann::json;
 using db::test::TempDir;
+using nlohmann::json;
 
 struct Proc {
   int code;
@@ -89,11 +89,10 @@ class StationctlTest : public ::testing::Test {
   /// stationctl with the absent socket and the database, unless `extra` says otherwise.
   Proc ctl(const std::string& args, const std::string& target = "") {
     const std::string err_file = dir_.file("stderr.txt");
-    const std::string t = target.empty()
-                              ? "--socket " + dir_.file("absent.sock") + " --db " + db_
-                              : target;
-    const std::string cmd = std::string(IMUCAL_BIN_DIR) + "/stationctl " + t + " " + args +
-                            " 2>" + err_file + " </dev/null";
+    const std::string t =
+        target.empty() ? "--socket " + dir_.file("absent.sock") + " --db " + db_ : target;
+    const std::string cmd = std::string(IMUCAL_BIN_DIR) + "/stationctl " + t + " " + args + " 2>" +
+                            err_file + " </dev/null";
     FILE* p = popen(cmd.c_str(), "r");
     std::string out;
     char buf[4096];
@@ -113,7 +112,7 @@ TEST_F(StationctlTest, HistoryFromTheDatabaseIsNewestFirst) {
   EXPECT_NE(p.err.find("reading the database " + db_ + " read-only"), std::string::npos) << p.err;
   EXPECT_NE(p.err.find("absent.sock"), std::string::npos) << "the note names the socket";
   const auto lines = lines_of(p.out);
-  ASSERT_EQ(lines.size(), 6u) << p.out;  // title, header, 4 runs
+  ASSERT_EQ(lines.size(), 6u) << p.out;               // title, header, 4 runs
   const char* expected[] = {"4 ", "2 ", "3 ", "1 "};  // 13:00, 12:00, 11:00, 10:00
   for (int i = 0; i < 4; ++i)
     EXPECT_EQ(lines[static_cast<std::size_t>(i + 2)].rfind(expected[i], 0), 0u)
@@ -304,16 +303,16 @@ class ScriptedHandler : public station::ControlHandler {
 };
 
 json live(const char* state, const char* phase, int step, double left) {
-  return {{"state", state}, {"phase", phase}, {"step", step}, {"steps", 3},
+  return {{"state", state},      {"phase", phase},     {"step", step}, {"steps", 3},
           {"time_left_s", left}, {"verdict", nullptr}, {"reason", ""}};
 }
 
 std::vector<json> script_ending(const char* state, const char* verdict, const char* reason) {
-  json end = {{"state", state}, {"verdict", verdict ? json(verdict) : json(nullptr)},
-              {"reason", reason}};
-  return {live("preparing", "homing", 0, 30), live("running", "moving", 1, 20),
+  json end = {
+      {"state", state}, {"verdict", verdict ? json(verdict) : json(nullptr)}, {"reason", reason}};
+  return {live("preparing", "homing", 0, 30),       live("running", "moving", 1, 20),
           live("running", "moving", 1, 19),  // only the time left changed: no new line
-          live("running", "resting", 1, 15), live("running", "resting", 2, 10),
+          live("running", "resting", 1, 15),        live("running", "resting", 2, 10),
           live("calibrating", "calibrating", 3, 0), end};
 }
 
@@ -336,16 +335,16 @@ class StationctlLive : public StationctlTest {
 
 TEST_F(StationctlLive, SocketAndFallbackPrintTheSame) {
   serve(script_ending("done", "PASS", ""));
-  for (const char* args : {"history SN-A", "--json history SN-A", "show 3", "--json show 1",
-                           "params SN-A", "export --format csv", "export --format json",
-                           "history SN-B --limit 1"}) {
+  for (const char* args :
+       {"history SN-A", "--json history SN-A", "show 3", "--json show 1", "params SN-A",
+        "export --format csv", "export --format json", "history SN-B --limit 1"}) {
     const Proc via_socket = ctl(args, live_target());
     const Proc via_db = ctl(args);
     ASSERT_EQ(via_socket.code, 0) << args << ": " << via_socket.err;
     ASSERT_EQ(via_db.code, 0) << args << ": " << via_db.err;
     EXPECT_EQ(via_socket.out, via_db.out) << args;
-    EXPECT_TRUE(via_socket.err.empty()) << "no fallback note when the daemon answers: "
-                                        << via_socket.err;
+    EXPECT_TRUE(via_socket.err.empty())
+        << "no fallback note when the daemon answers: " << via_socket.err;
   }
   // Errors too: same exit code over the socket.
   EXPECT_EQ(ctl("show 99", live_target()).code, 2);
@@ -422,8 +421,8 @@ TEST_F(StationctlLive, CtrlCStopsFollowingNotTheRun) {
   posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
   posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, err_file.c_str(),
                                    O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  std::vector<std::string> args = {bin, "--socket", sock, "run", "start", "--serial", "SIM-0001",
-                                   "--wait"};
+  std::vector<std::string> args = {bin,     "--socket", sock,       "run",
+                                   "start", "--serial", "SIM-0001", "--wait"};
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);

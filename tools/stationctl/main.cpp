@@ -148,8 +148,7 @@ json read_request(const Target& t, const std::string& command, const json& args)
   if (client) return call(*client, command, args);
 
   if (t.db.empty())
-    throw Failure{kUnavailable,
-                  why + "; no database to read instead (give --db or --config)"};
+    throw Failure{kUnavailable, why + "; no database to read instead (give --db or --config)"};
   std::cerr << "stationctl: note: " << why << "; reading the database " << t.db
             << " read-only instead\n";
   std::unique_ptr<db::SqliteRepository> opened;
@@ -168,9 +167,10 @@ json read_request(const Target& t, const std::string& command, const json& args)
         station::validate_request(json{{"id", 0}, {"cmd", command}, {"args", args}});
     if (command == station::cmd::kRunStatus) {
       if (!request.args.contains("run_id"))
-        throw Failure{kUnavailable, why + " (the status of the daemon needs the daemon; "
-                                          "`run status --run ID` reads a run's state from the "
-                                          "database)"};
+        throw Failure{kUnavailable, why +
+                                        " (the status of the daemon needs the daemon; "
+                                        "`run status --run ID` reads a run's state from the "
+                                        "database)"};
       json run = station::run_record_json(repo.show(request.args["run_id"].get<db::RunId>()).run);
       run["reason"] = run["failure_reason"];
       return json{{"run", run}};
@@ -190,7 +190,9 @@ std::string text(const json& o, const char* key, const std::string& fallback = "
   return it->is_string() ? it->get<std::string>() : it->dump();
 }
 
-void print_json(const json& j) { std::cout << j.dump(2, ' ', false, json::error_handler_t::replace) << "\n"; }
+void print_json(const json& j) {
+  std::cout << j.dump(2, ' ', false, json::error_handler_t::replace) << "\n";
+}
 
 bool state_done_pass(const json& run) {
   return text(run, "state") == "done" && text(run, "verdict") == "PASS";
@@ -246,8 +248,8 @@ int wait_for_run(ControlClient& client, db::RunId run_id, bool json_out) {
       }
     } else {
       // Time left changes every poll; a log gets a line per step, phase or state only.
-      const std::string key = state + "|" + text(run, "phase") + "|" +
-                              (run.contains("step") ? run["step"].dump() : "");
+      const std::string key =
+          state + "|" + text(run, "phase") + "|" + (run.contains("step") ? run["step"].dump() : "");
       if (key != last_key) {
         std::cerr << line << "\n" << std::flush;
         last_key = key;
@@ -299,11 +301,13 @@ int main(int argc, char** argv) {
   Globals g;
   app.add_option("--config", g.config,
                  std::string("stationd's config file: [control] socket and [station] database "
-                             "(default ") + kDefaultConfig + " if it exists)");
+                             "(default ") +
+                     kDefaultConfig + " if it exists)");
   app.add_option("--socket", g.socket,
                  std::string("control socket of stationd (default: the config's, else ") +
                      kDefaultSocket + ")");
-  app.add_option("--db", g.db, "history database for reads when stationd is down (default: the config's)");
+  app.add_option("--db", g.db,
+                 "history database for reads when stationd is down (default: the config's)");
   app.add_flag("--json", g.json, "print the raw JSON result instead of text");
 
   // run
@@ -314,7 +318,8 @@ int main(int argc, char** argv) {
   bool wait = false;
   db::RunId run_id = 0;
   auto* start = run->add_subcommand("start", "start a run of a unit (needs the control group)");
-  start->add_option("--serial", serial, std::string("serial number: ") + db::kSerialRule)->required();
+  start->add_option("--serial", serial, std::string("serial number: ") + db::kSerialRule)
+      ->required();
   start->add_option("--sequence", sequence, "sequence name or file (default: the station's)");
   start->add_option("--operator", operator_name, "operator name (default: your user name)");
   start->add_flag("--wait", wait, "follow the run to its end; exit 0 only for done + PASS");
@@ -375,23 +380,25 @@ int main(int argc, char** argv) {
       ControlClient client = connect_or_fail(target);
       const json r = call(client, station::cmd::kRunStart, args);
       if (!wait) {
-        if (g.json) print_json(r);
+        if (g.json)
+          print_json(r);
         else
-          std::cout << "run " << text(r, "run_id", "?") << " started: " << serial
-                    << ", sequence " << text(r, "sequence", sequence)
+          std::cout << "run " << text(r, "run_id", "?") << " started: " << serial << ", sequence "
+                    << text(r, "sequence", sequence)
                     << (r.contains("steps") ? ", " + r["steps"].dump() + " steps" : "") << "\n";
         return kOk;
       }
-      if (!g.json)
-        std::cerr << "run " << text(r, "run_id", "?") << " started: " << serial << "\n";
+      if (!g.json) std::cerr << "run " << text(r, "run_id", "?") << " started: " << serial << "\n";
       return wait_for_run(client, r.at("run_id").get<db::RunId>(), g.json);
     }
     if (*status) {
       json args = json::object();
       if (run_id > 0) args["run_id"] = run_id;
       const json r = read_request(target, station::cmd::kRunStatus, args);
-      if (g.json) print_json(r);
-      else std::cout << station::render_status_text(r);
+      if (g.json)
+        print_json(r);
+      else
+        std::cout << station::render_status_text(r);
       return kOk;
     }
     if (*abort) {
@@ -399,7 +406,8 @@ int main(int argc, char** argv) {
       if (!reason.empty()) args["reason"] = reason;
       ControlClient client = connect_or_fail(target);
       const json r = call(client, station::cmd::kRunAbort, args);
-      if (g.json) print_json(r);
+      if (g.json)
+        print_json(r);
       else if (r.contains("run") && r["run"].is_object())
         std::cout << station::outcome_line(r["run"]) << "\n";
       else
@@ -413,21 +421,27 @@ int main(int argc, char** argv) {
       json args = {{"serial", serial}};
       if (limit > 0) args["limit"] = limit;
       const json r = read_request(target, station::cmd::kHistory, args);
-      if (g.json) print_json(r);
-      else std::cout << station::render_history_text(r);
+      if (g.json)
+        print_json(r);
+      else
+        std::cout << station::render_history_text(r);
       return kOk;
     }
     if (*show) {
       const json r = read_request(target, station::cmd::kShow, {{"run_id", run_id}});
-      if (g.json) print_json(r);
-      else std::cout << station::render_show_text(r);
+      if (g.json)
+        print_json(r);
+      else
+        std::cout << station::render_show_text(r);
       return kOk;
     }
     if (*params) {
       check_serial(serial);
       const json r = read_request(target, station::cmd::kParams, {{"serial", serial}});
-      if (g.json) print_json(r);
-      else std::cout << station::render_params_text(r);
+      if (g.json)
+        print_json(r);
+      else
+        std::cout << station::render_params_text(r);
       return kOk;
     }
     if (*exp) {
@@ -447,7 +461,8 @@ int main(int argc, char** argv) {
       const json r = read_request(target, station::cmd::kExport, args);
       if (!output.empty()) {
         write_output(output, r.at("content").get_ref<const std::string&>());
-        std::cerr << "stationctl: " << text(r, "rows", "?") << " rows written to " << output << "\n";
+        std::cerr << "stationctl: " << text(r, "rows", "?") << " rows written to " << output
+                  << "\n";
       } else if (g.json) {
         print_json(r);
       } else {
@@ -459,15 +474,14 @@ int main(int argc, char** argv) {
       ControlClient client = connect_or_fail(target);
       const json r = call(client, station::cmd::kReprocess, {{"run_id", run_id}});
       if (!wait) {
-        if (g.json) print_json(r);
+        if (g.json)
+          print_json(r);
         else
-          std::cout << "run " << text(r, "run_id", "?") << " reprocesses run " << run_id
-                    << "\n";
+          std::cout << "run " << text(r, "run_id", "?") << " reprocesses run " << run_id << "\n";
         return kOk;
       }
       if (!g.json)
-        std::cerr << "run " << text(r, "run_id", "?") << " reprocesses run " << run_id
-                  << "\n";
+        std::cerr << "run " << text(r, "run_id", "?") << " reprocesses run " << run_id << "\n";
       return wait_for_run(client, r.at("run_id").get<db::RunId>(), g.json);
     }
     throw Failure{kBadInput, "no command given (see --help)"};
