@@ -16,6 +16,7 @@
 // never a skip.
 #include <fcntl.h>
 #include <grp.h>
+#include <sched.h>
 #include <signal.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -34,6 +35,7 @@
 #include <functional>
 #include <iomanip>
 #include <map>
+#include <memory>
 #include <optional>
 #include <regex>
 #include <set>
@@ -47,6 +49,7 @@
 #include <nlohmann/json.hpp>
 
 #include "calib/earth.hpp"
+#include "db/archive/run_archive.hpp"
 #include "calib/site_presets.hpp"
 #include "db/repository.hpp"
 #include "db/sqlite_repository.hpp"
@@ -147,6 +150,7 @@ struct SpawnOptions {
   std::optional<RunAs> run_as;
   std::vector<std::pair<std::string, std::string>> env;  ///< set in the child
   std::vector<std::string> unset_env;                    ///< removed in the child
+  std::optional<int> cpu;                                ///< pin the child to this CPU
 };
 
 /// One child process. The destructor stops it (SIGTERM, 5 s, SIGKILL) and reaps it.
@@ -180,6 +184,9 @@ class Process {
     cargv.push_back(nullptr);
     const int out_fd = ::open(options.stdout_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     const int err_fd = ::open(options.stderr_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    cpu_set_t cpus;
+    CPU_ZERO(&cpus);
+    if (options.cpu) CPU_SET(*options.cpu, &cpus);
     if (out_fd < 0 || err_fd < 0) {
       if (out_fd >= 0) ::close(out_fd);
       if (err_fd >= 0) ::close(err_fd);
@@ -203,6 +210,7 @@ class Process {
       for (const auto& [k, v] : options.env) ::setenv(k.c_str(), v.c_str(), 1);
       for (const auto& k : options.unset_env) ::unsetenv(k.c_str());
       ::signal(SIGPIPE, SIG_DFL);
+      if (options.cpu && ::sched_setaffinity(0, sizeof cpus, &cpus) != 0) ::_exit(126);
       if (options.run_as) {
         if (::setgroups(0, nullptr) != 0 || ::setgid(options.run_as->gid) != 0 ||
             ::setuid(options.run_as->uid) != 0) {
@@ -457,6 +465,8 @@ class Station {
     // Daemon first (it safe-stops the table through the sim), then the sim.
     daemon_.terminate(10s);
     sim_.terminate(5s);
+    for (auto& h : hogs_) h->signal(SIGKILL);
+    hogs_.clear();
   }
 
   const TempDir& dir() const { return dir_; }
@@ -565,6 +575,7 @@ class Station {
     so.stdout_path = dir_ / ("stationd-" + std::to_string(daemon_starts_) + ".out");
     so.stderr_path = dir_ / ("stationd-" + std::to_string(daemon_starts_) + ".err");
     so.unset_env = {"NOTIFY_SOCKET", "WATCHDOG_USEC", "WATCHDOG_PID", "JOURNAL_STREAM"};
+    so.cpu = daemon_cpu_;
     daemon_.spawn(argv, so);
     const bool pinged = wait_until(
         [&] {
@@ -590,6 +601,19 @@ class Station {
       return false;
     }
     return true;
+  }
+
+  /// Pins the daemon (from its next start) to one CPU, e.g. to share it with busy processes.
+  void pin_daemon(int cpu) { daemon_cpu_ = cpu; }
+
+  /// Starts `n` busy-looping processes pinned to `cpu` (a loaded station PC); stopped with the
+  /// station.
+  void start_cpu_hogs(int cpu, int n) {
+    for (int i = 0; i < n; ++i) {
+      SpawnOptions so;
+      so.cpu = cpu;
+      hogs_.push_back(std::make_unique<Process>(std::vector<std::string>{"/bin/sh", "-c", "while :; do :; done"}, so));
+    }
   }
 
   /// Both processes with the default config.
@@ -677,6 +701,8 @@ class Station {
   std::string sim_modbus_;
   int modbus_port_ = 0;
   int daemon_starts_ = 0;
+  std::optional<int> daemon_cpu_;
+  std::vector<std::unique_ptr<Process>> hogs_;
   Process sim_;
   Process daemon_;
 };
@@ -820,6 +846,41 @@ inline long long stored_run_total(const std::string& db_path) {
 inline double num(const json& j, const std::string& key) {
   if (!j.is_object() || !j.contains(key) || !j[key].is_number()) return 0.0;
   return j[key].get<double>();
+}
+
+/// Rest rows of an archive whose accelerometer does not see gravity where the table says "down" is.
+/// Physics, independent of the calibration: at rest the specific force is -g along the body "down"
+/// direction, and for the default geometry (calib/table_model.hpp; derivation in the comment of
+/// sequences/short.toml) down in body = (sin o sin i, sin o cos i, cos o). Biases (µg), scale
+/// errors (ppm), misalignments (arcsec) and noise (~1e-3 m/s² per 10 ms sample) are far below the
+/// 0.05 m/s² tolerance; a row labelled with the wrong pose is off by ~g·√2.
+struct RestCheck {
+  size_t rest_rows = 0;
+  size_t mislabelled = 0;
+  std::string first;  ///< description of the first mislabelled row
+};
+inline RestCheck check_rest_rows(const archive::RunArchive& a, double g_mps2) {
+  RestCheck r;
+  const size_t n = std::min(a.imu.size(), a.table.size());
+  for (size_t k = 0; k < n; ++k) {
+    const auto& t = a.table[k];
+    if (!t.at_rest) continue;
+    ++r.rest_rows;
+    const auto& m = a.imu[k];
+    const Eigen::Vector3d down(std::sin(t.outer_rad) * std::sin(t.inner_rad),
+                               std::sin(t.outer_rad) * std::cos(t.inner_rad), std::cos(t.outer_rad));
+    const Eigen::Vector3d f = m.dv_mps / m.dt_s;
+    if ((f + g_mps2 * down).norm() > 0.05) {
+      if (r.mislabelled++ == 0) {
+        std::ostringstream d;
+        d << "row " << k + 1 << " (t = " << t.t_s << " s) labelled at rest at outer " << t.outer_rad * kRadToDeg
+          << " deg, inner " << t.inner_rad * kRadToDeg << " deg, but f_b = (" << f.transpose()
+          << ") m/s^2 while that pose gives (" << (-g_mps2 * down).transpose() << ")";
+        r.first = d.str();
+      }
+    }
+  }
+  return r;
 }
 
 }  // namespace imucal::e2e
