@@ -124,6 +124,57 @@ TEST(StationFaults, DroppedModbusConnectionMidRunIsRecoveredOrAbortsWithTheTable
       << "the run ended before the drop (sim time), the scenario was not exercised";
 }
 
+/// Starts a run at speed 100 whose sim time passes `event_at_s` while the run is running (asserted);
+/// returns the terminal run record and the sim time at which the run was seen running.
+struct MidRun {
+  json rec;
+  double sim_at_running = 0;
+};
+MidRun run_through_event(Station& st, const std::string& serial, double speed, double event_at_s) {
+  MidRun m;
+  const CmdResult start = st.ctl({"--json", "run", "start", "--serial", serial, "--sequence", "short"});
+  EXPECT_EQ(start.exit_code, 0) << start.describe();
+  const json running = st.wait_live_run([](const json& r) { return r.value("state", "") == "running"; }, 30s);
+  EXPECT_FALSE(running.is_null()) << st.daemon_log();
+  m.sim_at_running = st.sim_seconds(speed);
+  EXPECT_LT(m.sim_at_running, event_at_s - 20.0)
+      << "set-up too slow: the run began at sim ~" << m.sim_at_running << " s, after the event";
+  m.rec = wait_terminal(st, serial, 120s);
+  EXPECT_TRUE(m.rec.is_object()) << st.daemon_log();
+  return m;
+}
+
+TEST(StationFaults, ImuResetMidRunFailsTheRunNamingTheResetWithTheTableStopped) {
+  Station st;
+  ASSERT_TRUE(st.start(SimOptions{100.0, 15, {"--imu-reset-at", "300"}}));
+  const MidRun m = run_through_event(st, "SIM-0205", 100.0, 300.0);
+  ASSERT_TRUE(m.rec.is_object());
+  std::fprintf(stderr, "[e2e] IMU reset: run %s, reason \"%s\"\n", m.rec.value("state", "").c_str(),
+               m.rec.value("failure_reason", "").c_str());
+  // A reset loses the unit's state mid-sequence: the data cannot be calibrated as one run.
+  EXPECT_EQ(m.rec.value("state", ""), "failed") << m.rec.dump(2);
+  EXPECT_TRUE(contains_ci(m.rec.value("failure_reason", ""), "reset")) << m.rec.dump(2);
+  expect_table_stopped(st);
+  EXPECT_GE(num(m.rec["capture"], "imu_resets"), 1.0) << m.rec.dump(2);
+}
+
+TEST(StationFaults, ModbusReplyDelaysMidRunAreRecoveredOrAbortWithTheTableStopped) {
+  Station st;
+  // From sim 300 s, 3 replies held back 600 ms each (the daemon's response timeout is 250 ms).
+  ASSERT_TRUE(st.start(SimOptions{100.0, 16, {"--modbus-delay-at", "300:600:3"}}));
+  const MidRun m = run_through_event(st, "SIM-0206", 100.0, 300.0);
+  ASSERT_TRUE(m.rec.is_object());
+  const std::string state = m.rec.value("state", "");
+  std::fprintf(stderr, "[e2e] Modbus delays: run %s, reason \"%s\"\n", state.c_str(),
+               m.rec.value("failure_reason", "").c_str());
+  if (state == "aborted") {
+    EXPECT_FALSE(m.rec.value("failure_reason", "").empty());
+    expect_table_stopped(st);
+  } else {
+    EXPECT_TRUE(state == "done" || state == "review") << "neither recovered nor aborted:\n" << m.rec.dump(2);
+  }
+}
+
 TEST(StationFaults, TableFaultMidMoveAbortsTheRunCleanlyNamingTheFault) {
   Station st;
   ASSERT_TRUE(st.start(SimOptions{200.0, 13, {"--table-fault-move", "3:1.0:17"}}));

@@ -511,6 +511,7 @@ class Station {
                     << read_text(dir_ / "sim.err");
       return false;
     }
+    sim_ready_at_ = Clock::now();
     try {
       sim_ready_ = json::parse(read_text(dir_ / "sim-ready.json"));
       const std::string modbus = sim_ready_.at("modbus").get<std::string>();  // tcp:ADDR:PORT
@@ -619,6 +620,12 @@ class Station {
   /// Both processes with the default config.
   bool start(const SimOptions& o = {}) { return start_sim(o) && start_daemon(); }
 
+  /// Simulated time now, estimated from the wall time since the simulator became ready (the sim
+  /// keeps its speed on this machine; its --stats-file reports the speed it reached).
+  double sim_seconds(double speed) const {
+    return std::chrono::duration<double>(Clock::now() - sim_ready_at_).count() * speed;
+  }
+
   /// The daemon's log of its latest start (stderr).
   std::string daemon_log() const {
     return read_text(dir_ / ("stationd-" + std::to_string(daemon_starts_) + ".err"));
@@ -698,6 +705,7 @@ class Station {
   std::string address_;
   SimOptions sim_options_;
   json sim_ready_;
+  Clock::time_point sim_ready_at_ = Clock::now();
   std::string sim_modbus_;
   int modbus_port_ = 0;
   int daemon_starts_ = 0;
