@@ -218,6 +218,11 @@ TEST(StationFaults, SecondRunStartWhileOneIsRunningIsRefusedWithAClearMessage) {
   EXPECT_TRUE(msg.find("SIM-0203") != std::string::npos || msg.find("run " + std::to_string(first_id)) != std::string::npos)
       << "the refusal does not name the active run:\n" << second.describe();
   std::fprintf(stderr, "[e2e] second run start: %s", second.err.c_str());
+  // The protocol's code for it, through the socket.
+  const auto raw = st.request("run.start", {{"serial", "SIM-0204"}, {"sequence", "short"}});
+  ASSERT_TRUE(raw) << "no reply";
+  EXPECT_EQ((*raw)["ok"], json(false)) << raw->dump();
+  EXPECT_EQ((*raw)["error"].value("code", ""), "busy") << raw->dump();
   // Nothing stored for the refused serial, and the first run is unaffected.
   EXPECT_EQ(stored_run_count(st.db_path(), "SIM-0204"), 0);
   const json live = st.live_run();
