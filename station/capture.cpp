@@ -157,6 +157,8 @@ void Capture::on_sample(const imu::DecodedSample& s, Clock::time_point now) {
   have_prev_any_ = true;
   prev_index_any_ = s.sample_index;
   cv_.notify_all();  // wait_for_stream
+  // The commanded move reaches the IMU stream: from here on still samples are after the move.
+  if (motion_pending_ && is_moving(s.increment)) motion_pending_ = false;
 
   if (!writer_ || writes_disabled_ || fault_) return;
   if (s.status & kFailureBits) {
@@ -198,10 +200,18 @@ void Capture::on_sample(const imu::DecodedSample& s, Clock::time_point now) {
   emit_row(s.increment);
 }
 
+bool Capture::is_moving(const calib::ImuIncrement& in) const {
+  return !(rate_dps(in) <= options_.rest_rate_threshold_dps);
+}
+
+double Capture::rate_dps(const calib::ImuIncrement& in) const {
+  return in.dtheta_rad.norm() / dt_s_ * kRadToDeg;
+}
+
 bool Capture::emit_row(const calib::ImuIncrement& in) {
   const uint64_t row = rows_;
-  const double rate_dps = in.dtheta_rad.norm() / dt_s_ * kRadToDeg;
-  const bool moving = !(rate_dps <= options_.rest_rate_threshold_dps);
+  const double rate_dps = this->rate_dps(in);
+  const bool moving = is_moving(in);
   bool at_rest = false;
   switch (phase_) {
     case Phase::kIdle:
@@ -209,8 +219,8 @@ bool Capture::emit_row(const calib::ImuIncrement& in) {
     case Phase::kRestDone:
       break;
     case Phase::kSettling:
-      still_run_ = moving ? 0 : still_run_ + 1;
-      if (still_run_ >= options_.settle_guard_samples) {
+      still_run_ = (moving || motion_pending_) ? 0 : still_run_ + 1;
+      if (!motion_pending_ && still_run_ >= options_.settle_guard_samples) {
         // This row completes the guard; the counted rest starts with the next one.
         phase_ = rest_left_ > 0 ? Phase::kResting : Phase::kRestDone;
         if (phase_ == Phase::kRestDone) {
@@ -313,6 +323,11 @@ void Capture::table_moving(double outer_deg, double inner_deg) {
   rest_done_ = false;
 }
 
+void Capture::move_commanded() {
+  std::lock_guard<std::mutex> lk(mu_);
+  motion_pending_ = true;
+}
+
 void Capture::begin_rest(double outer_deg, double inner_deg, uint64_t rest_samples) {
   std::lock_guard<std::mutex> lk(mu_);
   outer_deg_ = outer_deg;
@@ -323,7 +338,7 @@ void Capture::begin_rest(double outer_deg, double inner_deg, uint64_t rest_sampl
   rest_done_rows_ = 0;
   rest_done_ = false;
   ++rest_generation_;
-  if (options_.settle_guard_samples == 0) {
+  if (options_.settle_guard_samples == 0 && !motion_pending_) {
     phase_ = rest_samples > 0 ? Phase::kResting : Phase::kRestDone;
     rest_done_ = rest_samples == 0;
   }

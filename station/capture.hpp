@@ -83,6 +83,12 @@ class Capture {
 
   // Table side (control thread). Rows get at_rest = 0 and the latest angles given here.
   void table_moving(double outer_deg, double inner_deg);
+  /// A move has been commanded: the next rest's still samples only count once the IMU stream has
+  /// shown motion above the threshold after this call. The IMU stream can lag the Modbus readings
+  /// (a starved capture thread leaves a backlog in the socket), so without this the still samples
+  /// recorded before the move would be counted as the rest at the new pose. Call it before
+  /// move_to for every move long enough to be seen (any move of more than a few millidegrees).
+  void move_commanded();
   /// Rest at these angles: after settle_guard_samples consecutive still samples, the next
   /// rest_samples rows get at_rest = 1 (motion above the threshold during them -> fault).
   void begin_rest(double outer_deg, double inner_deg, uint64_t rest_samples);
@@ -105,7 +111,9 @@ class Capture {
   void run();
   void on_frames(const std::vector<imu::ReceivedFrame>& frames, Clock::time_point now);
   void on_sample(const imu::DecodedSample& s, Clock::time_point now);
-  bool emit_row(const calib::ImuIncrement& inc);  ///< false: fault, nothing written
+  bool emit_row(const calib::ImuIncrement& inc);          ///< false: fault, nothing written
+  double rate_dps(const calib::ImuIncrement& inc) const;  ///< |dθ|/dt in deg/s
+  bool is_moving(const calib::ImuIncrement& inc) const;   ///< above rest_rate_threshold_dps
   void set_fault(std::string reason);
   void writer_failed(const std::exception& e);
   std::string row_label(uint64_t row) const;  ///< "row N (t = X s)"
@@ -149,6 +157,7 @@ class Capture {
   Phase phase_ = Phase::kIdle;
   double outer_deg_ = 0.0, inner_deg_ = 0.0;
   uint64_t still_run_ = 0, rest_left_ = 0, rest_done_rows_ = 0;
+  bool motion_pending_ = false;  ///< move_commanded() and no moving sample seen since
   bool rest_done_ = false;
   uint64_t rest_generation_ = 0;
 };

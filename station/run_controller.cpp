@@ -1,10 +1,10 @@
 #include "station/run_controller.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-
-#include <spdlog/spdlog.h>
 
 #include "db/serial_number.hpp"
 #include "drivers/imu/can_channel.hpp"
@@ -23,14 +23,22 @@ using Clock = std::chrono::steady_clock;
 
 const char* to_string(RunPhase p) {
   switch (p) {
-    case RunPhase::kNone: return "";
-    case RunPhase::kConnecting: return "connecting";
-    case RunPhase::kHoming: return "homing";
-    case RunPhase::kMoving: return "moving";
-    case RunPhase::kSettling: return "settling";
-    case RunPhase::kResting: return "resting";
-    case RunPhase::kCalibrating: return "calibrating";
-    case RunPhase::kStopping: return "stopping";
+    case RunPhase::kNone:
+      return "";
+    case RunPhase::kConnecting:
+      return "connecting";
+    case RunPhase::kHoming:
+      return "homing";
+    case RunPhase::kMoving:
+      return "moving";
+    case RunPhase::kSettling:
+      return "settling";
+    case RunPhase::kResting:
+      return "resting";
+    case RunPhase::kCalibrating:
+      return "calibrating";
+    case RunPhase::kStopping:
+      return "stopping";
   }
   return "";
 }
@@ -45,7 +53,8 @@ nlohmann::json to_json(const RunSnapshot& r) {
   o["operator"] = r.operator_name;
   o["state"] = db::to_string(r.state);
   o["phase"] = r.phase == RunPhase::kNone ? json(nullptr) : json(to_string(r.phase));
-  o["step"] = live && r.steps > 0 && r.step > 0 ? json(r.step) : json(nullptr);  // null while preparing
+  o["step"] =
+      live && r.steps > 0 && r.step > 0 ? json(r.step) : json(nullptr);  // null while preparing
   o["steps"] = r.steps > 0 ? json(r.steps) : json(nullptr);
   o["time_left_s"] = live && r.time_left_s ? json(*r.time_left_s) : json(nullptr);
   o["verdict"] = r.verdict ? json(db::to_string(*r.verdict)) : json(nullptr);
@@ -83,6 +92,10 @@ RunSnapshot snapshot_from_record(const db::RunRecord& rec) {
 }
 
 namespace {
+
+/// Moves longer than this are seen by the IMU (above rest_rate_threshold_dps at any realistic
+/// table acceleration), so the rest after them waits for the motion in the IMU stream.
+constexpr double kVisibleMoveDeg = 0.01;
 
 /// Rest-to-rest time of a trapezoidal (or triangular) move, s.
 double move_time_s(double distance_deg, double rate_dps, double accel_dps2) {
@@ -163,7 +176,10 @@ struct RunController::Live {
 
 RunController::RunController(const StationConfig& config, db::Repository& repository,
                              CalibrationWorker& worker, std::string software_version)
-    : cfg_(config), repo_(repository), worker_(worker), software_version_(std::move(software_version)) {}
+    : cfg_(config),
+      repo_(repository),
+      worker_(worker),
+      software_version_(std::move(software_version)) {}
 
 RunController::~RunController() { shutdown("daemon shutting down"); }
 
@@ -184,7 +200,8 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
   try {
     seq_path = sequences::resolve_sequence(seq_name);
   } catch (const sequences::SequenceError& e) {
-    throw ControlError(error_code::kNotFound, "unknown sequence \"" + seq_name + "\": " + e.message());
+    throw ControlError(error_code::kNotFound,
+                       "unknown sequence \"" + seq_name + "\": " + e.message());
   }
   RunPlan plan;
   try {
@@ -206,8 +223,9 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
   try {
     fs::create_directories(fs::path(cfg_.data_dir) / "runs");
   } catch (const std::exception& e) {
-    throw ControlError(error_code::kUnavailable,
-                       "cannot create " + (fs::path(cfg_.data_dir) / "runs").string() + ": " + e.what());
+    throw ControlError(
+        error_code::kUnavailable,
+        "cannot create " + (fs::path(cfg_.data_dir) / "runs").string() + ": " + e.what());
   }
 
   db::NewRun nr;
@@ -247,7 +265,8 @@ nlohmann::json RunController::reprocess(db::RunId run_id) {
   if (shut_down_) throw ControlError(error_code::kUnavailable, "the daemon is shutting down");
   if (live_) {
     throw ControlError(error_code::kBusy, "run " + std::to_string(live_->snap.run_id) + " is " +
-                                              db::to_string(live_->snap.state) + "; one run at a time");
+                                              db::to_string(live_->snap.state) +
+                                              "; one run at a time");
   }
   db::RunDetails d;
   try {
@@ -257,13 +276,14 @@ nlohmann::json RunController::reprocess(db::RunId run_id) {
   }
   const db::RunRecord& orig = d.run;
   if (!db::is_terminal(orig.state)) {
-    throw ControlError(error_code::kBusy, "run " + std::to_string(run_id) + " is still " +
-                                              db::to_string(orig.state));
+    throw ControlError(error_code::kBusy,
+                       "run " + std::to_string(run_id) + " is still " + db::to_string(orig.state));
   }
   if (orig.archive_path.empty() || !fs::is_directory(orig.archive_path)) {
-    throw ControlError(error_code::kNotFound,
-                       "run " + std::to_string(run_id) + " has no archive" +
-                           (orig.archive_path.empty() ? "" : " (" + orig.archive_path + " is missing)"));
+    throw ControlError(
+        error_code::kNotFound,
+        "run " + std::to_string(run_id) + " has no archive" +
+            (orig.archive_path.empty() ? "" : " (" + orig.archive_path + " is missing)"));
   }
   if (orig.archive_sha256.empty()) {
     throw ControlError(error_code::kInvalidInput, "run " + std::to_string(run_id) +
@@ -389,10 +409,12 @@ std::optional<RunSnapshot> RunController::active() const {
       const PlannedStep& cur = L.plan.steps[L.step_index];
       if (cur.kind == PlannedStep::Kind::kRest && L.capture) {
         const uint64_t done = L.capture->rest_rows_done();
-        left_s += static_cast<double>(cur.rest_samples - std::min(done, cur.rest_samples)) / cfg_.rate_hz;
+        left_s +=
+            static_cast<double>(cur.rest_samples - std::min(done, cur.rest_samples)) / cfg_.rate_hz;
         if (done == 0) left_s += static_cast<double>(cfg_.settle_guard_samples) / cfg_.rate_hz;
       } else {
-        const double elapsed = std::chrono::duration<double>(Clock::now() - L.step_started).count() * speed;
+        const double elapsed =
+            std::chrono::duration<double>(Clock::now() - L.step_started).count() * speed;
         left_s += std::max(0.0, cur.expected_s - elapsed);
       }
     }
@@ -447,7 +469,8 @@ void RunController::end_live(const std::shared_ptr<Live>& live) {
   cv_.notify_all();
 }
 
-void RunController::on_calibrated(const std::shared_ptr<Live>& live, const CalibrationOutcome& out) {
+void RunController::on_calibrated(const std::shared_ptr<Live>& live,
+                                  const CalibrationOutcome& out) {
   {
     std::lock_guard<std::mutex> lk(mu_);
     if (live_ != live) return;  // aborted while calibrating: already ended
@@ -516,7 +539,13 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
   // Commands a move and polls the table until it is in position, handing every reading to the
   // capture (sample-and-hold angles while moving); the final check is the client's own
   // wait_in_position (fault, e-stop, heartbeat, target reached).
+  double at_outer = 0.0, at_inner = 0.0;  // where the table stands (last in-position reading)
   auto move = [&](double outer, double inner, double rate) {
+    // The next rest may only count IMU samples that show this move happened (the IMU stream can
+    // lag the Modbus readings); a move too short to be seen is not waited for.
+    if (cap && (std::abs(outer - at_outer) > kVisibleMoveDeg ||
+                std::abs(inner - at_inner) > kVisibleMoveDeg))
+      cap->move_commanded();
     client->move_to(outer, inner, rate);
     const auto deadline = Clock::now() + move_timeout;
     set_phase(L, RunPhase::kMoving);
@@ -542,26 +571,28 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
     set_phase(L, RunPhase::kSettling);
     // A unit that never comes to rest: give it the rest's real-time length plus a move timeout.
     const double budget_s =
-        static_cast<double>(samples + cfg_.settle_guard_samples) / cfg_.rate_hz + cfg_.move_timeout_s;
+        static_cast<double>(samples + cfg_.settle_guard_samples) / cfg_.rate_hz +
+        cfg_.move_timeout_s;
     const auto deadline = Clock::now() + milliseconds(static_cast<int64_t>(budget_s * 1000.0));
     for (;;) {
       if (cap->wait_rest_done(poll)) return;
       check_capture();
       check_abort();
       const turntable::TableStatus st = client->status();
-      const std::string where = "turntable " + cfg_.turntable.endpoint.to_string() + " during a rest at outer " +
-                                std::to_string(st.outer_deg) + " deg, inner " + std::to_string(st.inner_deg) + " deg";
+      const std::string where = "turntable " + cfg_.turntable.endpoint.to_string() +
+                                " during a rest at outer " + std::to_string(st.outer_deg) +
+                                " deg, inner " + std::to_string(st.inner_deg) + " deg";
       if (st.estop) throw turntable::EstopError(where + ": e-stop open");
       if (st.fault)
-        throw turntable::TableFaultError(where + ": table fault, code " + std::to_string(st.fault_code),
-                                         st.fault_code);
+        throw turntable::TableFaultError(
+            where + ": table fault, code " + std::to_string(st.fault_code), st.fault_code);
       if (st.heartbeat_stale) throw turntable::HeartbeatError(where + ": PLC heartbeat stuck");
       if (st.moving) throw turntable::MoveTimeoutError(where + ": the table moved during a rest");
       if (cap->rest_rows_done() > 0) set_phase(L, RunPhase::kResting);
       if (Clock::now() >= deadline) {
         throw CaptureFailure("the unit did not come to rest within " + std::to_string(budget_s) +
-                             " s (rest rate threshold " + std::to_string(cfg_.rest_rate_threshold_dps) +
-                             " deg/s)");
+                             " s (rest rate threshold " +
+                             std::to_string(cfg_.rest_rate_threshold_dps) + " deg/s)");
       }
     }
   };
@@ -579,7 +610,9 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
     client->connect();
     check_abort();
     turntable::TableStatus st = client->status();
-    if (st.estop) throw turntable::EstopError("turntable " + cfg_.turntable.endpoint.to_string() + ": e-stop open");
+    if (st.estop)
+      throw turntable::EstopError("turntable " + cfg_.turntable.endpoint.to_string() +
+                                  ": e-stop open");
     if (st.fault) {
       spdlog::warn("run {}: table reports fault code {}; clearing it", id, st.fault_code);
       client->clear_fault();
@@ -637,7 +670,8 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
     }
     spdlog::info("run {}: running, archive {}", id, L.snap.archive_path);
 
-    double at_outer = st.outer_deg, at_inner = st.inner_deg;
+    at_outer = st.outer_deg;
+    at_inner = st.inner_deg;
     for (size_t i = 0; i < plan.steps.size(); ++i) {
       const PlannedStep& p = plan.steps[i];
       {
@@ -648,13 +682,14 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
       }
       check_abort();
       if (p.kind == PlannedStep::Kind::kMove) {
-        spdlog::debug("run {}: step {}/{}: move to outer {} deg, inner {} deg at {} deg/s", id, i + 1,
-                      plan.steps.size(), p.outer_deg, p.inner_deg, p.rate_dps);
+        spdlog::debug("run {}: step {}/{}: move to outer {} deg, inner {} deg at {} deg/s", id,
+                      i + 1, plan.steps.size(), p.outer_deg, p.inner_deg, p.rate_dps);
         st = move(p.outer_deg, p.inner_deg, p.rate_dps);
         at_outer = st.outer_deg;
         at_inner = st.inner_deg;
       } else {
-        spdlog::debug("run {}: step {}/{}: rest {} samples", id, i + 1, plan.steps.size(), p.rest_samples);
+        spdlog::debug("run {}: step {}/{}: rest {} samples", id, i + 1, plan.steps.size(),
+                      p.rest_samples);
         rest(at_outer, at_inner, p.rest_samples);
       }
       check_capture();
@@ -760,15 +795,16 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
     spdlog::info("run {}: capture complete ({} rows, {} at rest); calibrating", id,
                  stats ? stats->rows_written : 0, stats ? stats->rest_samples : 0);
     try {
-      worker_.submit(job, [this, self](const CalibrationOutcome& out) { on_calibrated(self, out); });
+      worker_.submit(job,
+                     [this, self](const CalibrationOutcome& out) { on_calibrated(self, out); });
       return;
     } catch (const std::exception& e) {
       // The worker is stopped (daemon shutting down): the archive is complete, reprocess it later.
       std::lock_guard<std::mutex> lk(mu_);
       L.handed_to_worker = false;
       end_state = db::RunState::kInterrupted;
-      reason = std::string("capture complete but not calibrated: ") + e.what() +
-               "; reprocess the run";
+      reason =
+          std::string("capture complete but not calibrated: ") + e.what() + "; reprocess the run";
     }
   }
 

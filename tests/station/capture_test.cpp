@@ -411,6 +411,30 @@ TEST(Capture, RestIsGuardThenExactlyTheCountedSamples) {
   EXPECT_FALSE(rig.cap->fault().has_value());
 }
 
+TEST(Capture, RestAfterACommandedMoveWaitsForTheMoveInTheImuStream) {
+  // The IMU stream lags the Modbus readings: when the table already reports in position at the
+  // new pose, the samples still queued were recorded before the move (still, at the OLD pose).
+  // They must not be counted as the new rest; counting starts only after the move was seen.
+  Rig rig;  // settle_guard_samples = 20
+  rig.cap->attach(rig.writer.get());
+  sim::ImuCanNode node(*rig.tx, node_options());
+  rig.cap->move_commanded();
+  rig.cap->table_moving(0.0, 0.0);
+  rig.cap->begin_rest(90.0, 0.0, 50);
+  for (int k = 0; k < 60; ++k) node.send(still_increment(static_cast<uint64_t>(k)));  // backlog
+  EXPECT_FALSE(rig.cap->wait_rest_done(50ms)) << "still samples before the move were counted";
+  for (int k = 0; k < 25; ++k) node.send(moving_increment(10.0));  // the move itself
+  for (int k = 0; k < 100; ++k) node.send(still_increment(static_cast<uint64_t>(k)));
+  EXPECT_TRUE(rig.cap->wait_rest_done(10s));
+  ASSERT_TRUE(rig.wait_rows(185));
+  const archive::RunArchive a = rig.finish();
+  ASSERT_EQ(a.table.size(), 185u);
+  // rows 0-59 backlog, 60-84 the move, 85-104 guard, 105-154 counted rest, 155-184 after.
+  for (std::size_t k = 0; k < a.table.size(); ++k)
+    EXPECT_EQ(a.table[k].at_rest, k >= 105 && k < 155) << "row " << k;
+  EXPECT_FALSE(rig.cap->fault().has_value());
+}
+
 TEST(Capture, MotionInsideACountedRestIsAFault) {
   CaptureOptions opt = default_options();
   opt.settle_guard_samples = 5;
