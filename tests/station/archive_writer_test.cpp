@@ -25,27 +25,17 @@
 #include "drivers/imu/candump_log.hpp"
 #include "sequences/library.hpp"
 #include "station/capture_stats.hpp"
+#include "tests/support/temp_dir.hpp"
 
 namespace imucal::station {
 namespace {
 
 namespace fs = std::filesystem;
 
-class TempDir {
+/// This file's temporary directories.
+class TempDir : public test_support::ScopedTempDir {
  public:
-  TempDir() {
-    std::string t = (fs::temp_directory_path() / "imucal_archive_writer_test_XXXXXX").string();
-    if (!::mkdtemp(t.data())) throw std::runtime_error("mkdtemp failed");
-    path_ = t;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string sub(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
+  TempDir() : ScopedTempDir("imucal_archive_writer_test") {}
 };
 
 constexpr double kRate_hz = 100.0;

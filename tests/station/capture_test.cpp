@@ -27,6 +27,7 @@
 #include "drivers/sim/imu_can_node.hpp"
 #include "station/archive_writer.hpp"
 #include "station/capture_stats.hpp"
+#include "tests/support/temp_dir.hpp"
 
 namespace imucal::station {
 namespace {
@@ -37,21 +38,10 @@ using namespace std::chrono_literals;
 constexpr double kRate_hz = 100.0;
 constexpr double kDt_s = 1.0 / kRate_hz;
 
-class TempDir {
+/// This file's temporary directories.
+class TempDir : public test_support::ScopedTempDir {
  public:
-  TempDir() {
-    std::string t = (fs::temp_directory_path() / "imucal_capture_test_XXXXXX").string();
-    if (!::mkdtemp(t.data())) throw std::runtime_error("mkdtemp failed");
-    path_ = t;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string sub(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
+  TempDir() : ScopedTempDir("imucal_capture_test") {}
 };
 
 archive::RunInfo make_info() {
