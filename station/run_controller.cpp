@@ -228,15 +228,8 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
         "cannot create " + (fs::path(cfg_.data_dir) / "runs").string() + ": " + e.what());
   }
 
-  db::NewRun nr;
-  nr.serial = request.serial;
-  nr.operator_name = request.operator_name;
-  nr.station = cfg_.station_name;
-  nr.sequence_name = plan.sequence_name;
-  nr.sequence_sha256 = plan.sequence_sha256;
-  nr.software_version = software_version_;
-  nr.started_at_ms = db::now_ms();
-  nr.state = db::RunState::kPreparing;
+  const db::NewRun nr = new_run(request.serial, request.operator_name, plan.sequence_name,
+                                plan.sequence_sha256, db::RunState::kPreparing);
   const db::RunId id = repo_.create_run(nr);
 
   auto live = std::make_shared<Live>();
@@ -304,16 +297,9 @@ nlohmann::json RunController::reprocess(db::RunId run_id) {
   }
   if (thread_.joinable()) thread_.join();
 
-  db::NewRun nr;
-  nr.serial = orig.serial;
-  nr.operator_name = orig.operator_name;
-  nr.station = cfg_.station_name;
-  nr.sequence_name = orig.sequence_name;
-  nr.sequence_sha256 = orig.sequence_sha256;
-  nr.software_version = software_version_;
-  nr.started_at_ms = db::now_ms();
+  db::NewRun nr = new_run(orig.serial, orig.operator_name, orig.sequence_name, orig.sequence_sha256,
+                          db::RunState::kCalibrating);
   nr.archive_path = orig.archive_path;
-  nr.state = db::RunState::kCalibrating;
   nr.reprocessed_from = run_id;
   const db::RunId id = repo_.create_run(nr);
 
@@ -449,6 +435,21 @@ void RunController::shutdown(const std::string& reason) {
     cv_.wait(lk, [&] { return live_ == nullptr; });
   }
   if (thread_.joinable()) thread_.join();
+}
+
+db::NewRun RunController::new_run(const std::string& serial, const std::string& operator_name,
+                                  const std::string& sequence_name,
+                                  const std::string& sequence_sha256, db::RunState state) const {
+  db::NewRun nr;
+  nr.serial = serial;
+  nr.operator_name = operator_name;
+  nr.station = cfg_.station_name;
+  nr.sequence_name = sequence_name;
+  nr.sequence_sha256 = sequence_sha256;
+  nr.software_version = software_version_;
+  nr.started_at_ms = db::now_ms();
+  nr.state = state;
+  return nr;
 }
 
 void RunController::set_phase(Live& live, RunPhase phase) {

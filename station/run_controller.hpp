@@ -22,8 +22,8 @@
 //                                                             done | review | failed
 //
 // Steps: step 1 is the sequence's initial rest ([start] rest_s), steps 2..N its [[step]]s in file
-// order, so N = 1 + number of [[step]] entries. Rests are counted in IMU samples (Capture), never in
-// wall time, so an accelerated simulator produces the same archive as real time.
+// order, so N = 1 + number of [[step]] entries. Rests are counted in IMU samples (Capture), never
+// in wall time, so an accelerated simulator produces the same archive as real time.
 //
 // Ending early (every path commands the table to a safe stop, detaches the capture, finishes the
 // archive with what it has and stores its SHA-256 and the capture counters):
@@ -35,8 +35,8 @@
 //   anything else (archive I/O, ...)               -> failed, reason = the error
 // An abort during calibrating marks the run aborted at once; the worker's result is dropped.
 //
-// reprocess(run): checks the stored archive's SHA-256 against the archive on disk, creates a new run
-// (reprocessed_from, state calibrating, archive reused) and hands it to the same worker.
+// reprocess(run): checks the stored archive's SHA-256 against the archive on disk, creates a new
+// run (reprocessed_from, state calibrating, archive reused) and hands it to the same worker.
 //
 // Threading: the public methods may be called from any thread (the control server's, the signal
 // handler thread); the control thread and the worker's completion callback update the run snapshot
@@ -46,12 +46,11 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "db/repository.hpp"
 #include "station/calibration_worker.hpp"
@@ -68,8 +67,18 @@ namespace imucal::station {
 class Capture;
 
 /// What the run is doing right now (the status "phase" word); kNone once it is terminal.
-enum class RunPhase { kNone, kConnecting, kHoming, kMoving, kSettling, kResting, kCalibrating, kStopping };
-/// "connecting", "homing", "moving", "settling", "resting", "calibrating", "stopping"; "" for kNone.
+enum class RunPhase {
+  kNone,
+  kConnecting,
+  kHoming,
+  kMoving,
+  kSettling,
+  kResting,
+  kCalibrating,
+  kStopping
+};
+/// "connecting", "homing", "moving", "settling", "resting", "calibrating", "stopping"; "" for
+/// kNone.
 const char* to_string(RunPhase p);
 
 /// A run as the status shows it (live, or rebuilt from the database).
@@ -78,8 +87,8 @@ struct RunSnapshot {
   std::string serial, sequence, operator_name;
   db::RunState state = db::RunState::kPreparing;
   RunPhase phase = RunPhase::kNone;
-  int step = 0, steps = 0;                 ///< 0 / 0 when not applicable (reprocess, from the DB)
-  std::optional<double> time_left_s;       ///< estimate while capturing
+  int step = 0, steps = 0;            ///< 0 / 0 when not applicable (reprocess, from the DB)
+  std::optional<double> time_left_s;  ///< estimate while capturing
   std::optional<db::Verdict> verdict;
   std::string reason;
   db::TimestampMs started_at_ms = 0;
@@ -156,6 +165,10 @@ class RunController {
   void finish_early(Live& live, db::RunState state, const std::string& reason);
   void on_calibrated(const std::shared_ptr<Live>& live, const CalibrationOutcome& out);
   void set_phase(Live& live, RunPhase phase);
+  /// A new run of this station and software, started now (what start() and reprocess() share).
+  db::NewRun new_run(const std::string& serial, const std::string& operator_name,
+                     const std::string& sequence_name, const std::string& sequence_sha256,
+                     db::RunState state) const;
   void end_live(const std::shared_ptr<Live>& live);
   std::string archive_dir_for(db::RunId id, const std::string& serial) const;
 
