@@ -35,7 +35,8 @@ CalibrationInput input_from_simulation(const SimResult& sim, const TableGeometry
   TableModel table(geometry);
   in.reference.reserve(sim.table.size());
   for (const auto& ts : sim.table)
-    in.reference.push_back({ts.t_s, table.C_bn(ts.outer_rad, ts.inner_rad), ts.at_rest});
+    in.reference.push_back(
+        {ts.t_s, table.C_bn(ts.outer_rad, ts.inner_rad), ts.at_rest, ts.outer_rad, ts.inner_rad});
   return in;
 }
 

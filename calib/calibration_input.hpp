@@ -3,6 +3,7 @@
 // Built from a run archive (db/archive) or directly from the truth simulator; calib/ never reads
 // files itself.
 #include <Eigen/Core>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,10 @@ struct ReferenceSample {
   double t_s = 0.0;
   Eigen::Matrix3d C_bn_ref = Eigen::Matrix3d::Identity();
   bool at_rest = false;
+  /// The table's encoder angles behind C_bn_ref (NaN when the reference is an attitude log): the
+  /// gap diagnosis needs them for the table effects (non-orthogonality, wobble).
+  double outer_rad = std::numeric_limits<double>::quiet_NaN();
+  double inner_rad = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct CalibrationInput {

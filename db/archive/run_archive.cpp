@@ -650,6 +650,8 @@ calib::CalibrationInput to_calibration_input(const RunArchive& a) {
     if (table) {
       r.C_bn_ref = model.C_bn(a.table[k].outer_rad, a.table[k].inner_rad);
       r.at_rest = a.table[k].at_rest;
+      r.outer_rad = a.table[k].outer_rad;
+      r.inner_rad = a.table[k].inner_rad;
     } else {
       const AttitudeSample& s = a.attitude[k];
       r.C_bn_ref = calib::euler_to_C_bn(s.roll_rad, s.pitch_rad, s.yaw_rad);
