@@ -1,0 +1,458 @@
+#include "calib/diagnosis.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "calib/chi2.hpp"
+#include "calib/gap_fit.hpp"
+
+namespace imucal::calib {
+
+namespace {
+
+// Difference steps of the base parameters (flat ParamSet order): small against the parameters'
+// effect on the residuals yet far above round-off; the residuals are linear in them to ~1e-6.
+double base_step(int i) {
+  if (i < 3) return 1e-5;   // accel bias, m/s² (1 µg)
+  if (i < 12) return 1e-5;  // dM_a
+  if (i < 15) return 1e-8;  // gyro bias, rad/s (0.002 °/h)
+  if (i < 24) return 1e-5;  // dM_g
+  return 1e-5;              // ς, rad
+}
+
+/// A candidate's columns: one per non-shape parameter, in units of the parameter's scale.
+struct CandidateColumns {
+  EffectId id{};
+  double tau_s = 0.0;           ///< shape parameter used (thermal drift), 0 if none
+  std::vector<int> param_index;  ///< which effect parameter each column moves
+  Eigen::VectorXd scale;        ///< SI value of one column unit
+  Eigen::MatrixXd J;            ///< whitened
+};
+
+struct Problem {
+  const GapModel& model;
+  ParamSet base;
+  Eigen::VectorXd r0;      ///< whitened residuals at the calibrated point, no effect
+  Eigen::VectorXd r0_raw;
+  Eigen::MatrixXd Jb;      ///< whitened base Jacobian
+  Eigen::MatrixXd Jb_raw;
+  std::vector<std::vector<int>> folds;
+};
+
+Eigen::VectorXd column(const Problem& p, const ParamSet& base, const Effects& fx, double step) {
+  return (p.model.residuals(base, fx) - p.r0_raw) / step;
+}
+
+void build_base(Problem& p) {
+  p.r0_raw = p.model.residuals(p.base, Effects{});
+  p.r0 = p.model.whiten(p.r0_raw);
+  p.Jb_raw.resize(p.model.rows(), ParamSet::kSize);
+  const ParamVector x0 = p.base.to_vector();
+  for (int i = 0; i < ParamSet::kSize; ++i) {
+    ParamVector x = x0;
+    x(i) += base_step(i);
+    p.Jb_raw.col(i) = column(p, ParamSet::from_vector(x), Effects{}, base_step(i));
+  }
+  p.Jb = p.model.whiten(p.Jb_raw);
+}
+
+/// The scale of parameter j of an effect: its typical value, or (a zero entry in the typical
+/// pattern) the largest typical value among its parameters with the same unit.
+double param_scale(const EffectInfo& e, int j) {
+  const double t = std::abs(e.typical[static_cast<size_t>(j)]);
+  if (t > 0.0) return t;
+  double m = 0.0;
+  for (int i = 0; i < e.size(); ++i)
+    if (e.params[static_cast<size_t>(i)].human_unit == e.params[static_cast<size_t>(j)].human_unit)
+      m = std::max(m, std::abs(e.typical[static_cast<size_t>(i)]));
+  return m > 0.0 ? m : 1.0;
+}
+
+CandidateColumns build_candidate(const Problem& p, EffectId id, double tau_s) {
+  const EffectInfo& e = effect_info(id);
+  CandidateColumns c;
+  c.id = id;
+  c.tau_s = tau_s;
+  for (int j = 0; j < e.size(); ++j)
+    if (!e.params[static_cast<size_t>(j)].shape) c.param_index.push_back(j);
+  const int n = static_cast<int>(c.param_index.size());
+  c.scale.resize(n);
+  Eigen::MatrixXd Jraw(p.model.rows(), n);
+  for (int k = 0; k < n; ++k) {
+    const int j = c.param_index[static_cast<size_t>(k)];
+    c.scale(k) = param_scale(e, j);
+    Effects fx;
+    Eigen::VectorXd v = effect_vector(fx, id);
+    if (tau_s > 0.0) v(e.size() - 1) = tau_s;  // thermal drift: its τ is the last parameter
+    const double step = 0.1 * c.scale(k);
+    v(j) = step;
+    set_effect_vector(fx, id, v);
+    Jraw.col(k) = column(p, p.base, fx, step) * c.scale(k);
+  }
+  c.J = p.model.whiten(Jraw);
+  return c;
+}
+
+std::vector<std::vector<int>> make_folds(const GapModel& m, int k) {
+  const auto& segs = m.segments();
+  size_t rests = 0;
+  for (const auto& s : segs) rests += s.kind == GapSegment::Kind::kRest ? 1 : 0;
+  const int K = std::max(2, std::min<int>(k, static_cast<int>(rests)));
+  std::vector<std::vector<int>> folds(static_cast<size_t>(K));
+  for (size_t s = 0; s < segs.size(); ++s) {
+    // A rest and the move after it go together (interleaved folds: no extrapolation in time).
+    const size_t f = segs[s].rest_a % static_cast<size_t>(K);
+    for (int r = 0; r < kGapRowsPerSegment; ++r)
+      folds[f].push_back(kGapRowsPerSegment * static_cast<int>(s) + r);
+  }
+  return folds;
+}
+
+Eigen::MatrixXd hcat(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B) {
+  Eigen::MatrixXd M(A.rows(), A.cols() + B.cols());
+  M << A, B;
+  return M;
+}
+
+std::vector<SegmentGap> localise(const Problem& p, const GlsFit& fit) {
+  const Eigen::VectorXd e_raw = p.r0_raw + p.Jb_raw * fit.x;
+  const Eigen::VectorXd e_w = p.r0 + p.Jb * fit.x;
+  const Eigen::MatrixXd Jcov = p.Jb_raw * fit.cov;
+  const Eigen::MatrixXd JcovW = p.Jb * fit.cov;
+  std::vector<SegmentGap> out;
+  for (size_t s = 0; s < p.model.segments().size(); ++s) {
+    SegmentGap g;
+    g.segment = p.model.segments()[s];
+    const int r0 = kGapRowsPerSegment * static_cast<int>(s);
+    const Block6& P = p.model.covariance(s);
+    double leverage = 0.0;
+    for (int c = 0; c < kGapRowsPerSegment; ++c) {
+      const int r = r0 + c;
+      // Predicted spread of the post-fit residual: P_ii - (J Cov Jᵀ)_ii.
+      const double var = P(c, c) - Jcov.row(r).dot(p.Jb_raw.row(r));
+      g.residual_si[static_cast<size_t>(c)] = e_raw(r);
+      g.z[static_cast<size_t>(c)] = e_raw(r) / std::sqrt(std::max(var, 1e-6 * P(c, c)));
+      g.nis += e_w(r) * e_w(r);
+      leverage += JcovW.row(r).dot(p.Jb.row(r));
+    }
+    g.nis_expected = kGapRowsPerSegment - leverage;
+    g.p_value = chi2_survival(g.nis * kGapRowsPerSegment / std::max(g.nis_expected, 1e-3),
+                              kGapRowsPerSegment);
+    out.push_back(g);
+  }
+  return out;
+}
+
+std::string base_names(const std::vector<int>& idx) {
+  std::string s;
+  for (int i : idx) s += (s.empty() ? "" : ", ") + param_info(i).name;
+  return s;
+}
+
+/// Fit one candidate jointly with the base (in its separable subspace) and score it.
+CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, double chi2_0,
+                                const DiagnosisOptions& opt, Eigen::MatrixXd& J_eff) {
+  const EffectInfo& e = effect_info(c.id);
+  CandidateResult r;
+  r.id = c.id;
+  r.name = e.name;
+  r.unit = e.magnitude_unit();
+  // A direction whose typical-size effect moves the whitened residuals by less than 0.01 (χ² 1e-4)
+  // has no signature at all on this sequence.
+  const Separability sep = separability(p.Jb, c.J, opt.separability_limit, 1e-4);
+  r.max_correlation = sep.max_correlation;
+  const int n = static_cast<int>(c.J.cols());
+  if (sep.basis.cols() == 0) {
+    std::ostringstream os;
+    os << "not separable on this sequence: ";
+    if (sep.no_signature == n)
+      os << "it changes no rest or move residual (no signature)";
+    else
+      os << "its parameters correlate " << std::max(sep.max_correlation, opt.separability_limit)
+         << " > " << opt.separability_limit << " with " << base_names(sep.aliases);
+    r.note = os.str();
+    r.value_si = Eigen::VectorXd::Zero(e.size());
+    return r;
+  }
+  if (sep.basis.cols() < n) {
+    std::ostringstream os;
+    os << "partly separable: " << sep.basis.cols() << " of " << n << " parameter directions fitted";
+    if (!sep.aliases.empty()) os << " (the others alias " << base_names(sep.aliases) << ")";
+    r.note = os.str();
+  }
+  r.separable = true;
+  r.k = static_cast<int>(sep.basis.cols());
+  J_eff = c.J * sep.basis;
+  const GlsFit fit = gls_fit(p.r0, hcat(p.Jb, J_eff));
+  r.lr = std::max(0.0, chi2_0 - fit.chi2);
+  r.p_value = chi2_survival(r.lr, r.k);
+  r.bic_gain = r.lr - r.k * std::log(static_cast<double>(p.r0.size()));
+  // Back to the effect's SI parameters: x = scale ⊙ (basis α).
+  const Eigen::VectorXd alpha = fit.x.tail(r.k);
+  const Eigen::MatrixXd cov_a = fit.cov.bottomRightCorner(r.k, r.k);
+  const Eigen::MatrixXd B = c.scale.asDiagonal() * sep.basis;
+  const Eigen::VectorXd x = B * alpha;
+  const Eigen::MatrixXd cov_x = B * cov_a * B.transpose();
+  r.value_si = Eigen::VectorXd::Zero(e.size());
+  Eigen::VectorXd sigma_si = Eigen::VectorXd::Zero(e.size());
+  for (int k = 0; k < n; ++k) {
+    r.value_si(c.param_index[static_cast<size_t>(k)]) = x(k);
+    sigma_si(c.param_index[static_cast<size_t>(k)]) = std::sqrt(std::max(0.0, cov_x(k, k)));
+  }
+  if (c.tau_s > 0.0) r.value_si(e.size() - 1) = c.tau_s;
+  for (int j = 0; j < e.size(); ++j) {
+    const EffectParamInfo& pi = e.params[static_cast<size_t>(j)];
+    r.params.push_back({pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human,
+                        pi.shape ? 0.0 : sigma_si(j) * pi.si_to_human});
+  }
+  // Magnitude and its σ (delta method, numerical gradient of the norm).
+  r.magnitude = e.magnitude(r.value_si);
+  Eigen::VectorXd grad = Eigen::VectorXd::Zero(n);
+  for (int k = 0; k < n; ++k) {
+    Eigen::VectorXd v = r.value_si;
+    const double h = 1e-3 * c.scale(k);
+    v(c.param_index[static_cast<size_t>(k)]) += h;
+    grad(k) = (e.magnitude(v) - r.magnitude) / h;
+  }
+  r.magnitude_sigma = std::sqrt(std::max(0.0, grad.dot(cov_x * grad)));
+  r.held_out_gap = held_out_gap(p.r0, hcat(p.Jb, J_eff), p.folds).ratio();
+  return r;
+}
+
+struct Scored {
+  CandidateResult result;
+  Eigen::MatrixXd J_eff;  ///< its fitted columns (whitened)
+};
+
+/// All candidates scored (thermal drift: the best τ of the grid), unranked.
+std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOptions& opt) {
+  std::vector<EffectId> ids = opt.candidates;
+  if (ids.empty())
+    for (const auto& e : effect_catalogue()) ids.push_back(e.id);
+  std::vector<Scored> out;
+  for (EffectId id : ids) {
+    const EffectInfo& e = effect_info(id);
+    if (e.kind == EffectKind::kStochastic) continue;  // scored by their own statistics
+    if (e.kind == EffectKind::kTable && !p.model.has_table() &&
+        id != EffectId::kTableTimeOffset) {
+      Scored s;
+      s.result.id = id;
+      s.result.name = e.name;
+      s.result.note = "not applicable: the archive has no table angles (attitude log)";
+      s.result.value_si = Eigen::VectorXd::Zero(e.size());
+      out.push_back(std::move(s));
+      continue;
+    }
+    std::vector<double> taus{0.0};
+    if (id == EffectId::kThermalDrift) taus = opt.thermal_tau_grid_s;
+    Scored best;
+    bool have = false;
+    for (double tau : taus) {
+      Scored s;
+      s.result = score_candidate(p, build_candidate(p, id, tau), chi2_0, opt, s.J_eff);
+      if (!have || s.result.lr > best.result.lr) best = std::move(s);
+      have = true;
+    }
+    out.push_back(std::move(best));
+  }
+  return out;
+}
+
+/// Mark significance (Bonferroni) and confounding between significant candidates, then rank by BIC
+/// gain (separable first). A significant candidate whose signature another significant one shares
+/// (> separability_limit) stays in the ranking but is marked: the diagnosis cannot tell them apart
+/// on this sequence, so neither is a finding.
+void rank(std::vector<Scored>& c, const Problem& p, const DiagnosisOptions& opt) {
+  const double level = opt.alpha / std::max<size_t>(1, c.size());
+  for (auto& s : c) s.result.significant = s.result.separable && s.result.p_value < level;
+  for (size_t i = 0; i < c.size(); ++i)
+    for (size_t j = i + 1; j < c.size(); ++j) {
+      auto &a = c[i].result, &b = c[j].result;
+      if (!a.significant || !b.significant) continue;
+      const double rho = canonical_correlation(p.Jb, c[i].J_eff, c[j].J_eff);
+      if (rho > opt.separability_limit) {
+        a.confounded_with.push_back(b.name);
+        b.confounded_with.push_back(a.name);
+      }
+    }
+  for (auto& s : c) {
+    if (s.result.confounded_with.empty()) continue;
+    std::string others;
+    for (const auto& o : s.result.confounded_with) others += (others.empty() ? "" : ", ") + o;
+    std::ostringstream os;
+    os << "not separable on this sequence from " << others << " (their signatures correlate > "
+       << opt.separability_limit << ")";
+    s.result.note += (s.result.note.empty() ? "" : "; ") + os.str();
+  }
+  std::stable_sort(c.begin(), c.end(), [](const Scored& a, const Scored& b) {
+    if (a.result.significant != b.result.significant) return a.result.significant;
+    if (a.result.separable != b.result.separable) return a.result.separable;
+    return a.result.bic_gain > b.result.bic_gain;
+  });
+}
+
+std::vector<ParamShift> moved_params(const GlsFit& before, const GlsFit& after) {
+  std::vector<ParamShift> out;
+  for (int i = 0; i < ParamSet::kSize; ++i) {
+    const double sigma = std::sqrt(before.cov(i, i));
+    const double d = after.x(i) - before.x(i);
+    if (sigma > 0.0 && std::abs(d) > sigma) {
+      const ParamInfo& pi = param_info(i);
+      out.push_back({pi.name, pi.human_unit, d / sigma, d * pi.si_to_human});
+    }
+  }
+  std::sort(out.begin(), out.end(),
+            [](const auto& a, const auto& b) { return std::abs(a.shift_sigma) > std::abs(b.shift_sigma); });
+  return out;
+}
+
+std::vector<std::pair<std::string, double>> remaining_gap(const Problem& p, const Eigen::MatrixXd& J,
+                                                          const GlsFit& fit) {
+  const Eigen::VectorXd e = p.r0 + J * fit.x;
+  std::vector<std::pair<std::string, double>> out;
+  for (size_t s = 0; s < p.model.segments().size(); ++s)
+    for (int c = 0; c < kGapRowsPerSegment; ++c) {
+      const double z = e(kGapRowsPerSegment * static_cast<int>(s) + c);
+      if (std::abs(z) > 3.0)
+        out.push_back({p.model.segments()[s].label() + " " + gap_component_name(c), z});
+    }
+  std::sort(out.begin(), out.end(),
+            [](const auto& a, const auto& b) { return std::abs(a.second) > std::abs(b.second); });
+  if (out.size() > 10) out.resize(10);
+  return out;
+}
+
+/// The best pair: the significant candidate that adds most to the best one, if it is significant
+/// given the best.
+std::optional<size_t> find_second(const Problem& p, const std::vector<Scored>& c, size_t best,
+                                  double chi2_best, const DiagnosisOptions& opt) {
+  const double level = opt.alpha / std::max<size_t>(1, c.size());
+  std::optional<size_t> second;
+  double best_lr = 0.0;
+  const Eigen::MatrixXd Jbest = hcat(p.Jb, c[best].J_eff);
+  for (size_t i = 0; i < c.size(); ++i) {
+    if (i == best || !c[i].result.significant) continue;
+    GlsFit f;
+    try {
+      f = gls_fit(p.r0, hcat(Jbest, c[i].J_eff));
+    } catch (const std::invalid_argument&) {
+      continue;  // not separable from the best one
+    }
+    const double lr = chi2_best - f.chi2;
+    if (chi2_survival(lr, c[i].result.k) < level && lr > best_lr) {
+      best_lr = lr;
+      second = i;
+    }
+  }
+  return second;
+}
+
+std::string summarise(const DiagnosisResult& d) {
+  std::ostringstream os;
+  os.precision(3);
+  if (d.verdict == "consistent" && d.ambiguous.empty()) {
+    os << "the run is consistent with the model (chi2/dof " << d.overall_gap << ", expected 1 +- "
+       << d.overall_sigma << "); no candidate effect is significant";
+    return os.str();
+  }
+  if (!d.ambiguous.empty()) {
+    os << "the gap is explained equally well by ";
+    for (size_t i = 0; i < d.ambiguous.size(); ++i)
+      os << (i ? (i + 1 == d.ambiguous.size() ? " or " : ", ") : "") << d.ambiguous[i];
+    os << ", which this sequence cannot tell apart; held-out gap " << d.held_out.gap_before << " -> "
+       << d.held_out.gap_after;
+  } else if (d.best) {
+    const CandidateResult& b = d.candidates[*d.best];
+    os << (d.verdict == "explained" ? "explained by " : "partly explained by ") << b.name << " = "
+       << b.magnitude << " +- " << b.magnitude_sigma << " " << b.unit;
+    if (d.second) {
+      const CandidateResult& s = d.candidates[*d.second];
+      os << " and " << s.name << " = " << s.magnitude << " +- " << s.magnitude_sigma << " " << s.unit;
+    }
+    os << "; held-out gap " << d.held_out.gap_before << " -> "
+       << (d.held_out.has_pair ? d.held_out.gap_after_pair : d.held_out.gap_after);
+  } else {
+    os << "unexplained: chi2/dof " << d.overall_gap << " (expected 1 +- " << d.overall_sigma
+       << ") and no candidate effect explains it";
+  }
+  if (d.verdict == "unexplained" && !d.remaining.empty())
+    os << "; largest remaining: " << d.remaining.front().first;
+  return os.str();
+}
+
+}  // namespace
+
+DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const DiagnosisOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const GapModel model(in, opt.min_rest_samples);
+  Problem p{model, base, {}, {}, {}, {}, {}};
+  build_base(p);
+  p.folds = make_folds(model, opt.folds);
+  const int m = model.rows();
+  if (m <= ParamSet::kSize)
+    throw std::invalid_argument("gap diagnosis: only " + std::to_string(m) + " residuals for " +
+                                std::to_string(ParamSet::kSize) +
+                                " parameters; the run is too short (needs more rests and moves)");
+  DiagnosisResult d;
+  const GlsFit fit0 = gls_fit(p.r0, p.Jb);
+  d.rows = m;
+  d.dof = fit0.dof;
+  d.chi2 = fit0.chi2;
+  d.overall_gap = fit0.chi2 / fit0.dof;
+  d.overall_sigma = std::sqrt(2.0 / fit0.dof);
+  d.overall_p = chi2_survival(fit0.chi2, fit0.dof);
+  d.base = ParamSet::from_vector(base.to_vector() + fit0.x);
+  d.base_sigma = ParamSet::from_vector(fit0.cov.diagonal().cwiseSqrt());
+  d.segments = localise(p, fit0);
+
+  std::vector<Scored> cands = score_all(p, fit0.chi2, opt);
+  rank(cands, p, opt);
+  // The top candidate explains the most; if another significant one tells the same story on this
+  // sequence, it is no finding (best stays empty) but its held-out effect is still reported.
+  const bool top = !cands.empty() && cands.front().result.significant;
+  const bool ambiguous = top && !cands.front().result.confounded_with.empty();
+  if (top && !ambiguous) d.best = 0;
+  if (ambiguous) {
+    d.ambiguous.push_back(cands.front().result.name);
+    for (const auto& o : cands.front().result.confounded_with) d.ambiguous.push_back(o);
+  }
+  d.held_out.gap_before = held_out_gap(p.r0, p.Jb, p.folds).ratio();
+  d.gap_after_best = d.overall_gap;
+  Eigen::MatrixXd J_final = p.Jb;
+  GlsFit fit_final = fit0;
+  if (top) {
+    J_final = hcat(p.Jb, cands[0].J_eff);
+    fit_final = gls_fit(p.r0, J_final);
+    if (!ambiguous) d.second = find_second(p, cands, 0, fit_final.chi2, opt);
+    if (d.second && !cands[*d.second].result.confounded_with.empty()) d.second.reset();
+    d.held_out.has_after = true;
+    d.held_out.gap_after = cands[0].result.held_out_gap;
+    d.moved = moved_params(fit0, fit_final);
+    if (d.second) {
+      J_final = hcat(J_final, cands[*d.second].J_eff);
+      fit_final = gls_fit(p.r0, J_final);
+      d.held_out.has_pair = true;
+      d.held_out.gap_after_pair = held_out_gap(p.r0, J_final, p.folds).ratio();
+    }
+    const double after = d.held_out.has_pair ? d.held_out.gap_after_pair : d.held_out.gap_after;
+    if (d.held_out.gap_before > 1.0)
+      d.held_out.shrinkage =
+          std::clamp((d.held_out.gap_before - after) / (d.held_out.gap_before - 1.0), 0.0, 1.0);
+    d.gap_after_best = fit_final.chi2 / fit_final.dof;
+  }
+  d.remaining = remaining_gap(p, J_final, fit_final);
+  const bool fits_now = chi2_survival(fit_final.chi2, fit_final.dof) >= opt.alpha;
+  if (!top)
+    d.verdict = d.overall_p >= opt.alpha ? "consistent" : "unexplained";
+  else
+    d.verdict = fits_now && !ambiguous ? "explained" : "unexplained";
+  for (auto& s : cands) d.candidates.push_back(std::move(s.result));
+  d.summary = summarise(d);
+  d.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return d;
+}
+
+}  // namespace imucal::calib

@@ -1,0 +1,121 @@
+#pragma once
+// Sim-to-real gap diagnosis (DESIGN §8, issue #8): where a recorded run departs from the model
+// (calibrated parameters + declared noise), which unmodelled effect of the catalogue
+// (calib/effects.hpp) explains it, and how far the gap shrinks once that effect is modelled, on
+// held-out segments.
+//
+//  1. Localise: the segment residuals of calib/gap_model.hpp after refitting the base parameters,
+//     normalised by the model's own predicted spread (leverage included), per segment × sensor axis;
+//     per segment the NIS against χ²; overall χ²/dof against its expectation 1.
+//  2. Attribute: each candidate effect is refitted jointly with the 27 base parameters (linearised at
+//     the calibrated point, Jacobians by differences of the same residual model), scored by the
+//     likelihood ratio (χ² drop, whitened residuals) and BIC. Candidate directions whose multiple
+//     correlation with the base parameters exceeds 0.95 are not separable on this sequence and are
+//     left out of its fit; a candidate left with none is reported as not separable, with the base
+//     parameters it aliases, never as a finding; two candidates whose signatures correlate > 0.95
+//     are not separable from each other.
+//  3. Quantify: the gap on held-out segments (K-fold over rests and the moves after them) before and
+//     after adding the best effect, and the best pair; the base parameters that move, in σ.
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calib/effects.hpp"
+#include "calib/gap_model.hpp"
+#include "calib/param_set.hpp"
+
+namespace imucal::calib {
+
+struct DiagnosisOptions {
+  /// Candidate effects (default: the whole catalogue).
+  std::vector<EffectId> candidates;
+  /// Family-wise significance: a candidate counts when its likelihood ratio's p-value is below
+  /// alpha / (number of candidates) (Bonferroni); the run counts as consistent when the overall χ²
+  /// has p >= alpha.
+  double alpha = 1e-3;
+  double separability_limit = 0.95;
+  int folds = 5;
+  size_t min_rest_samples = 100;
+  /// Time constants searched for the thermal warm-up (its shape parameter), s.
+  std::vector<double> thermal_tau_grid_s = {300.0, 600.0, 1200.0, 2400.0};
+};
+
+struct SegmentGap {
+  GapSegment segment;
+  /// Post-fit residual of each component over its predicted spread (leverage included): N(0, 1)
+  /// under the model. Components: gap_component_name().
+  std::array<double, kGapRowsPerSegment> z{};
+  std::array<double, kGapRowsPerSegment> residual_si{};  ///< raw post-fit residual
+  double nis = 0.0;           ///< whitened χ² of the segment after the fit
+  double nis_expected = 0.0;  ///< its expectation under the model (6 - leverage)
+  double p_value = 1.0;       ///< P(χ²(6) > nis·6/expected)
+};
+
+struct CandidateParam {
+  std::string name, unit;  ///< human unit
+  double value = 0.0, sigma = 0.0;  ///< human units
+};
+
+struct CandidateResult {
+  EffectId id{};
+  std::string name;
+  bool separable = false;       ///< has at least one direction separable from the base (and fitted)
+  std::string note;             ///< why not separable / partly separable / confounded, empty if clean
+  int k = 0;                    ///< parameter directions fitted
+  double lr = 0.0;              ///< χ² drop when added (likelihood ratio statistic)
+  double p_value = 1.0;         ///< P(χ²(k) > lr)
+  double bic_gain = 0.0;        ///< lr - k ln(rows)
+  bool significant = false;     ///< p_value < alpha / candidates, separable, not confounded
+  double magnitude = 0.0, magnitude_sigma = 0.0;
+  std::string unit;             ///< unit of magnitude
+  std::vector<CandidateParam> params;
+  Eigen::VectorXd value_si;     ///< estimated effect parameter vector (SI, shape parameters set)
+  double held_out_gap = 0.0;    ///< held-out gap ratio with this candidate added
+  double max_correlation = 0.0; ///< largest multiple correlation of its directions with the base
+  std::vector<std::string> confounded_with;  ///< other candidates it cannot be told from
+};
+
+struct ParamShift {
+  std::string name, unit;
+  double shift_sigma = 0.0;  ///< change when the best effect is added, in σ of the base fit
+  double shift = 0.0;        ///< in human units
+};
+
+struct DiagnosisResult {
+  std::string verdict;  ///< "consistent", "explained", "unexplained"
+  std::string summary;  ///< one sentence for people
+  std::vector<SegmentGap> segments;
+  int rows = 0, dof = 0;
+  double chi2 = 0.0;
+  double overall_gap = 0.0;       ///< χ²/dof after the base fit
+  double overall_expected = 1.0;  ///< its expectation under the model
+  double overall_sigma = 0.0;     ///< its spread under the model, sqrt(2/dof)
+  double overall_p = 1.0;
+  double gap_after_best = 0.0;    ///< χ²/dof with the best effect (pair) added
+  std::vector<CandidateResult> candidates;  ///< ranked, best first
+  std::optional<size_t> best;     ///< index into candidates
+  std::optional<size_t> second;   ///< the best pair's second member
+  /// Significant candidates that explain the gap equally and that this sequence cannot tell apart
+  /// (the top one first); then best is empty: no finding.
+  std::vector<std::string> ambiguous;
+  struct HeldOut {
+    double gap_before = 0.0, gap_after = 0.0, gap_after_pair = 0.0, shrinkage = 0.0;
+    bool has_after = false, has_pair = false;
+  } held_out;
+  std::vector<ParamShift> moved;  ///< base parameters that move by more than 1 σ, largest first
+  /// Where the gap that remains (after the best effect, if any) lies: segment × component, largest
+  /// |z| first (at most 10, only |z| > 3).
+  std::vector<std::pair<std::string, double>> remaining;
+  ParamSet base;   ///< refitted base parameters (no effect)
+  ParamSet base_sigma;
+  double runtime_s = 0.0;
+};
+
+/// Diagnose a run against the model `base` (a calibration of the same run). Throws
+/// std::invalid_argument for input the diagnosis cannot use (fewer than 2 rests, no noise model,
+/// a run too short for a candidate's parameters), naming the problem.
+DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
+                         const DiagnosisOptions& opt = {});
+
+}  // namespace imucal::calib

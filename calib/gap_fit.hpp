@@ -1,0 +1,59 @@
+#pragma once
+// Linear-Gaussian fitting on whitened segment residuals (the diagnosis' workhorse, DESIGN §8):
+// around the calibrated point the residuals are r(θ0 + δ) ≈ r0 + J δ, whitened so that under the
+// model r0 ~ N(0, I) after the fit. Everything the diagnosis asks — the base refit, a candidate's
+// joint refit, its likelihood ratio, the separability of its parameters from the base ones, the gap
+// on held-out segments — is a least-squares question on (r0, J) restricted to some rows and columns.
+#include <Eigen/Core>
+#include <vector>
+
+namespace imucal::calib {
+
+struct GlsFit {
+  Eigen::VectorXd x;    ///< the step δ minimising ||r0 + J δ||² on the rows used
+  Eigen::MatrixXd cov;  ///< (JᵀJ)⁻¹ (whitened: the honest covariance of δ)
+  double chi2 = 0.0;    ///< ||r0 + J δ||² on the rows used
+  int dof = 0;          ///< rows used - columns
+};
+
+/// Least squares on the rows listed (all rows when `rows` is empty). Columns are scaled to unit norm
+/// for the solve. Throws std::invalid_argument when the columns are rank deficient on those rows.
+GlsFit gls_fit(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J, const std::vector<int>& rows = {});
+
+/// The gap on held-out rows: for each fold, fit on the rows not in it and predict its rows.
+struct HeldOutGap {
+  double chi2 = 0.0;      ///< Σ over folds of ||r0_h + J_h δ_train||²
+  double expected = 0.0;  ///< its expectation if the model is right: Σ (n_h + tr(J_h Cov_train J_hᵀ))
+  double ratio() const { return expected > 0.0 ? chi2 / expected : 0.0; }
+};
+/// folds[f] = the rows held out in fold f.
+HeldOutGap held_out_gap(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J,
+                        const std::vector<std::vector<int>>& folds);
+
+/// Separability of a block of candidate columns Jc from base columns Jb (DESIGN §8: a candidate
+/// correlating > 0.95 with the base parameters is not separable). Works in the candidate's own
+/// parameter space: directions u with (Jc u) of negligible size have no signature at all; of the
+/// others, the fraction of information left after the base parameters are marginalised is
+/// λ(u) = 1 - ρ(u)², ρ the multiple correlation with the base parameters.
+struct Separability {
+  /// Candidate-parameter directions (columns) that are separable: fit the candidate in this basis.
+  Eigen::MatrixXd basis;
+  /// Largest multiple correlation with the base over all directions that have a signature.
+  double max_correlation = 0.0;
+  /// Smallest such correlation (the best-separated direction); 1 if none has a signature.
+  double min_correlation = 1.0;
+  int no_signature = 0;  ///< directions with no signature on this sequence
+  /// For the worst direction, the base columns that mimic it most (indices), strongest first.
+  std::vector<int> aliases;
+};
+/// `signature_floor`: a direction whose ||Jc u||² stays below it (u in the columns' own units) has no
+/// signature. `limit`: the correlation above which a direction is not separable.
+Separability separability(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& Jc, double limit,
+                          double signature_floor);
+
+/// Largest canonical correlation between the parts of two column blocks that the base columns do not
+/// explain (are two candidates telling the same story on this sequence?).
+double canonical_correlation(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& A,
+                             const Eigen::MatrixXd& B);
+
+}  // namespace imucal::calib
