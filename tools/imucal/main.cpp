@@ -30,6 +30,7 @@
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
 #include "sequences/sequence_error.hpp"
+#include "tools/imucal/diagnose_cmd.hpp"
 #include "tools/imucal/plot.hpp"
 #include "tools/imucal/report.hpp"
 
@@ -271,6 +272,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 100));
   be->add_flag("--json", json, "print one JSON object");
 
+  tools::DiagnoseArgs diag;
+  auto* dg = tools::add_diagnose_command(app, diag);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -282,6 +286,7 @@ int main(int argc, char** argv) {
     if (*ev) return cmd_evaluate(dir, params, json);
     if (*cr) return cmd_crlb(seq, unit, rate_hz, json);
     if (*be) return cmd_bench(dir, repeat, json);
+    if (*dg) return tools::cmd_diagnose(diag);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "imucal: error: %s\n", e.what());
     return kExitBadInput;

@@ -1,0 +1,110 @@
+#include "db/archive/diagnosis_json.hpp"
+
+#include <cmath>
+
+namespace imucal::archive {
+
+namespace {
+
+using nlohmann::json;
+
+/// JSON has no NaN/Inf: a non-finite figure (e.g. a χ² ratio of nothing) becomes null.
+json num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
+
+json params_json(const std::vector<calib::CandidateParam>& ps) {
+  json a = json::array();
+  for (const auto& p : ps)
+    a.push_back({{"name", p.name}, {"value", num(p.value)}, {"sigma", num(p.sigma)}, {"unit", p.unit}});
+  return a;
+}
+
+json finding(const calib::CandidateResult& c) {
+  return {{"effect", c.name},
+          {"magnitude", num(c.magnitude)},
+          {"sigma", num(c.magnitude_sigma)},
+          {"unit", c.unit},
+          {"parameters", params_json(c.params)}};
+}
+
+json candidate_json(const calib::CandidateResult& c) {
+  return {{"effect", c.name},
+          {"score", num(c.bic_gain)},
+          {"lr", num(c.lr)},
+          {"k", c.k},
+          {"p_value", num(c.p_value)},
+          {"bic_gain", num(c.bic_gain)},
+          {"magnitude", num(c.magnitude)},
+          {"sigma", num(c.magnitude_sigma)},
+          {"unit", c.unit},
+          {"separable", c.separable},
+          {"significant", c.significant},
+          {"note", c.note},
+          {"held_out_gap", c.separable ? num(c.held_out_gap) : json(nullptr)},
+          {"max_correlation", num(c.max_correlation)},
+          {"confounded_with", c.confounded_with},
+          {"parameters", params_json(c.params)}};
+}
+
+json segment_json(const calib::SegmentGap& g) {
+  json z = json::object(), r = json::object();
+  for (int c = 0; c < calib::kGapRowsPerSegment; ++c) {
+    z[gap_component_key(c)] = num(g.z[static_cast<size_t>(c)]);
+    r[gap_component_key(c)] = num(g.residual_si[static_cast<size_t>(c)]);
+  }
+  const bool rest = g.segment.kind == calib::GapSegment::Kind::kRest;
+  return {{"label", g.segment.label()},
+          {"kind", rest ? "rest" : "move"},
+          {"number", g.segment.number},
+          {"t0_s", num(g.segment.t0_s)},
+          {"t1_s", num(g.segment.t1_s)},
+          {"outer_deg", num(g.segment.outer_deg)},
+          {"inner_deg", num(g.segment.inner_deg)},
+          {"nis", num(g.nis)},
+          {"nis_expected", num(g.nis_expected)},
+          {"p_value", num(g.p_value)},
+          {"z", z},
+          {"residual_si", r}};
+}
+
+}  // namespace
+
+const char* gap_component_key(int c) {
+  static const char* k[calib::kGapRowsPerSegment] = {"accel_x", "accel_y", "accel_z",
+                                                     "gyro_x",  "gyro_y",  "gyro_z"};
+  return k[c];
+}
+
+nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
+  json j;
+  j["verdict"] = d.verdict;
+  j["summary"] = d.summary;
+  j["best"] = d.best ? finding(d.candidates[*d.best]) : json(nullptr);
+  j["second"] = d.second ? finding(d.candidates[*d.second]) : json(nullptr);
+  j["ambiguous"] = d.ambiguous;
+  json cands = json::array();
+  for (const auto& c : d.candidates) cands.push_back(candidate_json(c));
+  j["candidates"] = cands;
+  j["held_out"] = {{"gap_before", num(d.held_out.gap_before)},
+                   {"gap_after", d.held_out.has_after ? num(d.held_out.gap_after) : json(nullptr)},
+                   {"gap_after_pair", d.held_out.has_pair ? num(d.held_out.gap_after_pair) : json(nullptr)},
+                   {"shrinkage", d.held_out.has_after ? num(d.held_out.shrinkage) : json(nullptr)}};
+  j["overall"] = {{"chi2", num(d.chi2)},          {"dof", d.dof},
+                  {"gap", num(d.overall_gap)},     {"expected", num(d.overall_expected)},
+                  {"sigma", num(d.overall_sigma)}, {"p_value", num(d.overall_p)},
+                  {"gap_after_best", num(d.gap_after_best)}};
+  json segs = json::array();
+  for (const auto& g : d.segments) segs.push_back(segment_json(g));
+  j["segments"] = segs;
+  json moved = json::array();
+  for (const auto& m : d.moved)
+    moved.push_back({{"name", m.name}, {"shift_sigma", num(m.shift_sigma)}, {"shift", num(m.shift)},
+                     {"unit", m.unit}});
+  j["moved_parameters"] = moved;
+  json rem = json::array();
+  for (const auto& [where, z] : d.remaining) rem.push_back({{"where", where}, {"z", num(z)}});
+  j["remaining"] = rem;
+  j["runtime_s"] = num(d.runtime_s);
+  return j;
+}
+
+}  // namespace imucal::archive

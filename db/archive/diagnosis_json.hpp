@@ -1,0 +1,27 @@
+#pragma once
+// The gap diagnosis (calib/diagnosis.hpp) as JSON: what `imucal diagnose --json` prints, what the
+// HTML report embeds and what the station keeps with a run. One object:
+//   {"verdict": "consistent"|"explained"|"unexplained", "summary": "...",
+//    "best": null | {"effect", "magnitude", "sigma", "unit", "parameters": [...]},
+//    "second": null | {...}, "ambiguous": [names],
+//    "candidates": [{"effect", "score", "lr", "k", "p_value", "bic_gain", "magnitude", "sigma",
+//                    "unit", "separable", "significant", "note", "held_out_gap",
+//                    "max_correlation", "confounded_with", "parameters"}, ...],   (ranked)
+//    "held_out": {"gap_before", "gap_after", "gap_after_pair", "shrinkage"},
+//    "overall": {"chi2", "dof", "gap", "expected", "sigma", "p_value", "gap_after_best"},
+//    "segments": [{"label", "kind", "number", "t0_s", "t1_s", "outer_deg", "inner_deg", "nis",
+//                  "nis_expected", "p_value", "z": {"accel_x", ...}, "residual_si": {...}}],
+//    "moved_parameters": [...], "remaining": [{"where", "z"}], "runtime_s"}
+// Parameters are in human units (the catalogue's), each with its unit; "score" is the BIC gain.
+#include <nlohmann/json.hpp>
+
+#include "calib/diagnosis.hpp"
+
+namespace imucal::archive {
+
+nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d);
+
+/// "accel_x", ..., "gyro_z": the JSON keys of the six residual components.
+const char* gap_component_key(int c);
+
+}  // namespace imucal::archive

@@ -1,0 +1,137 @@
+#include "tools/imucal/diagnose_cmd.hpp"
+
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+#include <stdexcept>
+
+#include "calib/diagnosis.hpp"
+#include "calib/nlsq.hpp"
+#include "db/archive/diagnosis_json.hpp"
+#include "db/archive/run_archive.hpp"
+
+namespace imucal::tools {
+
+namespace {
+
+constexpr int kExitReview = 3;
+
+std::vector<calib::EffectId> parse_candidates(const std::string& list) {
+  std::vector<calib::EffectId> ids;
+  std::stringstream ss(list);
+  std::string name;
+  while (std::getline(ss, name, ',')) {
+    if (name.empty()) continue;
+    const calib::EffectInfo* e = calib::find_effect(name);
+    if (!e)
+      throw std::invalid_argument("--candidates: unknown effect '" + name +
+                                  "' (known: " + calib::effect_names_list() + ")");
+    ids.push_back(e->id);
+  }
+  if (!list.empty() && ids.empty()) throw std::invalid_argument("--candidates: no effect named");
+  return ids;
+}
+
+void print_candidates(const calib::DiagnosisResult& d) {
+  std::printf("\ncandidate effects, ranked (score = BIC gain; LR = chi2 drop when added):\n");
+  std::printf("  %-24s %10s %10s %3s %9s  %-28s %9s  %s\n", "effect", "score", "LR", "k", "p",
+              "magnitude +- 1 sigma", "held-out", "note");
+  for (const auto& c : d.candidates) {
+    char mag[64] = "-";
+    if (c.separable)
+      std::snprintf(mag, sizeof mag, "%.3g +- %.2g %s", c.magnitude, c.magnitude_sigma, c.unit.c_str());
+    char held[32] = "-";
+    if (c.separable) std::snprintf(held, sizeof held, "%.3f", c.held_out_gap);
+    std::printf("  %-24s %10.1f %10.1f %3d %9.2g  %-28s %9s  %s%s\n", c.name.c_str(), c.bic_gain,
+                c.lr, c.k, c.p_value, mag, held, c.significant ? "significant. " : "",
+                c.note.c_str());
+  }
+}
+
+void print_segments(const calib::DiagnosisResult& d) {
+  std::vector<const calib::SegmentGap*> s;
+  for (const auto& g : d.segments) s.push_back(&g);
+  std::sort(s.begin(), s.end(), [](auto* a, auto* b) { return a->nis > b->nis; });
+  std::printf("\nsegments with the largest gap (NIS; about %d expected under the model):\n",
+              calib::kGapRowsPerSegment);
+  std::printf("  %-26s %8s %8s %9s %9s  %s\n", "segment", "t0 [s]", "NIS", "p", "outer/inner",
+              "largest |z| (sensor axis)");
+  for (size_t i = 0; i < s.size() && i < 8; ++i) {
+    const auto& g = *s[i];
+    int worst = 0;
+    for (int c = 1; c < calib::kGapRowsPerSegment; ++c)
+      if (std::abs(g.z[static_cast<size_t>(c)]) > std::abs(g.z[static_cast<size_t>(worst)])) worst = c;
+    std::printf("  %-26s %8.1f %8.2f %9.2g %4.0f/%-4.0f  %+.2f (%s)\n", g.segment.label().c_str(),
+                g.segment.t0_s, g.nis, g.p_value, g.segment.outer_deg, g.segment.inner_deg,
+                g.z[static_cast<size_t>(worst)], calib::gap_component_name(worst));
+  }
+}
+
+void print_human(const calib::DiagnosisResult& d, const archive::RunArchive& ar, size_t samples) {
+  std::printf("run %s (serial %s, sequence %s, %zu samples, %zu segments)\n", ar.origin.c_str(),
+              ar.info.serial.c_str(), ar.info.sequence_name.c_str(), samples, d.segments.size());
+  std::printf("verdict: %s -- %s\n", d.verdict.c_str(), d.summary.c_str());
+  std::printf("overall gap: chi2/dof %.3f (chi2 %.1f, dof %d; expected 1 +- %.3f; p %.2g)", d.overall_gap,
+              d.chi2, d.dof, d.overall_sigma, d.overall_p);
+  if (d.best || !d.ambiguous.empty()) std::printf(" -> %.3f with the best effect", d.gap_after_best);
+  std::printf("\n");
+  if (d.held_out.has_after) {
+    std::printf("held-out gap (fit on the other segments): %.3f -> %.3f", d.held_out.gap_before,
+                d.held_out.gap_after);
+    if (d.held_out.has_pair) std::printf(" -> %.3f with the pair", d.held_out.gap_after_pair);
+    std::printf(" (shrinkage %.0f %%; 1 = as the model predicts)\n", 100.0 * d.held_out.shrinkage);
+  } else {
+    std::printf("held-out gap (fit on the other segments): %.3f (1 = as the model predicts)\n",
+                d.held_out.gap_before);
+  }
+  print_candidates(d);
+  print_segments(d);
+  if (!d.moved.empty()) {
+    std::printf("\ncalibration parameters that move when %s is added:\n",
+                d.best ? d.candidates[*d.best].name.c_str() : "the best effect");
+    for (const auto& m : d.moved)
+      std::printf("  %-24s %+8.2f sigma  (%+.3g %s)\n", m.name.c_str(), m.shift_sigma, m.shift,
+                  m.unit.c_str());
+  }
+  if (!d.remaining.empty() && d.verdict != "explained") {
+    std::printf("\nwhere the gap remains (|z| > 3):\n");
+    for (const auto& [w, z] : d.remaining) std::printf("  %-40s z %+.2f\n", w.c_str(), z);
+  }
+}
+
+}  // namespace
+
+CLI::App* add_diagnose_command(CLI::App& app, DiagnoseArgs& a) {
+  auto* c = app.add_subcommand(
+      "diagnose", "sim-to-real gap: where a run departs from the model, which effect explains it");
+  c->add_option("dir", a.dir, "run archive directory")->required();
+  c->add_flag("--json", a.json, "print one JSON object");
+  c->add_option("--candidates", a.candidates,
+                "comma-separated effects to consider (default: the whole catalogue; see imucal effects)");
+  return c;
+}
+
+int cmd_diagnose(const DiagnoseArgs& a) {
+  const std::vector<calib::EffectId> ids = parse_candidates(a.candidates);  // before any work
+  const archive::RunArchive ar = archive::read_archive(a.dir);
+  calib::DiagnosisInput in;
+  in.cal = archive::to_calibration_input(ar);
+  if (ar.info.reference == archive::ReferenceKind::kTable) in.geometry = ar.info.table.geometry();
+  const calib::CalibrationResult cal = calib::calibrate_nlsq(in.cal);
+  calib::DiagnosisOptions opt;
+  opt.candidates = ids;
+  const calib::DiagnosisResult d = calib::diagnose(in, cal.params, opt);
+  if (a.json) {
+    nlohmann::json j = archive::diagnosis_to_json(d);
+    j["archive"] = a.dir;
+    j["serial"] = ar.info.serial;
+    j["sequence"] = ar.info.sequence_name;
+    j["base_calibration"] = "nlsq";
+    std::cout << j.dump(2) << '\n';
+  } else {
+    print_human(d, ar, in.cal.imu.size());
+  }
+  return d.verdict == "unexplained" ? kExitReview : 0;
+}
+
+}  // namespace imucal::tools

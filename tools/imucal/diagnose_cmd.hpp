@@ -1,0 +1,24 @@
+#pragma once
+// `imucal diagnose DIR [--json] [--candidates NAME,...]`: the sim-to-real gap diagnosis
+// (calib/diagnosis.hpp) of a run archive — simulated, recorded by stationd or assembled from
+// another source's CSV files. The model it tests is the run's own NLSQ calibration with the
+// archive's declared noise.
+#include <CLI/CLI.hpp>
+#include <string>
+
+namespace imucal::tools {
+
+struct DiagnoseArgs {
+  std::string dir;
+  bool json = false;
+  std::string candidates;  ///< comma-separated catalogue names; empty = all
+  std::string report_dir;  ///< --report OUTDIR; empty = none
+};
+
+/// Adds the subcommand to `app`, binding its options to `args`.
+CLI::App* add_diagnose_command(CLI::App& app, DiagnoseArgs& args);
+/// Runs it. Exit codes as the tool's: 0 consistent or explained, 3 unexplained (needs a look),
+/// 1 bad input (std::exception propagates to main, which prints it).
+int cmd_diagnose(const DiagnoseArgs& args);
+
+}  // namespace imucal::tools
