@@ -8,93 +8,22 @@
 
 #include "calib/chi2.hpp"
 #include "calib/gap_fit.hpp"
+#include "calib/gap_linearisation.hpp"
 
 namespace imucal::calib {
 
 namespace {
 
-// Difference steps of the base parameters (flat ParamSet order): small against the parameters'
-// effect on the residuals yet far above round-off; the residuals are linear in them to ~1e-6.
-double base_step(int i) {
-  if (i < 3) return 1e-5;   // accel bias, m/s² (1 µg)
-  if (i < 12) return 1e-5;  // dM_a
-  if (i < 15) return 1e-8;  // gyro bias, rad/s (0.002 °/h)
-  if (i < 24) return 1e-5;  // dM_g
-  return 1e-5;              // ς, rad
-}
-
-/// A candidate's columns: one per non-shape parameter, in units of the parameter's scale.
-struct CandidateColumns {
-  EffectId id{};
-  double tau_s = 0.0;           ///< shape parameter used (thermal drift), 0 if none
-  std::vector<int> param_index;  ///< which effect parameter each column moves
-  Eigen::VectorXd scale;        ///< SI value of one column unit
-  Eigen::MatrixXd J;            ///< whitened
-};
-
+/// The linearised problem plus the held-out folds.
 struct Problem {
   const GapModel& model;
-  ParamSet base;
-  Eigen::VectorXd r0;      ///< whitened residuals at the calibrated point, no effect
-  Eigen::VectorXd r0_raw;
-  Eigen::MatrixXd Jb;      ///< whitened base Jacobian
-  Eigen::MatrixXd Jb_raw;
+  const GapLinearisation& lin;
+  const Eigen::VectorXd& r0;
+  const Eigen::VectorXd& r0_raw;
+  const Eigen::MatrixXd& Jb;
+  const Eigen::MatrixXd& Jb_raw;
   std::vector<std::vector<int>> folds;
 };
-
-Eigen::VectorXd column(const Problem& p, const ParamSet& base, const Effects& fx, double step) {
-  return (p.model.residuals(base, fx) - p.r0_raw) / step;
-}
-
-void build_base(Problem& p) {
-  p.r0_raw = p.model.residuals(p.base, Effects{});
-  p.r0 = p.model.whiten(p.r0_raw);
-  p.Jb_raw.resize(p.model.rows(), ParamSet::kSize);
-  const ParamVector x0 = p.base.to_vector();
-  for (int i = 0; i < ParamSet::kSize; ++i) {
-    ParamVector x = x0;
-    x(i) += base_step(i);
-    p.Jb_raw.col(i) = column(p, ParamSet::from_vector(x), Effects{}, base_step(i));
-  }
-  p.Jb = p.model.whiten(p.Jb_raw);
-}
-
-/// The scale of parameter j of an effect: its typical value, or (a zero entry in the typical
-/// pattern) the largest typical value among its parameters with the same unit.
-double param_scale(const EffectInfo& e, int j) {
-  const double t = std::abs(e.typical[static_cast<size_t>(j)]);
-  if (t > 0.0) return t;
-  double m = 0.0;
-  for (int i = 0; i < e.size(); ++i)
-    if (e.params[static_cast<size_t>(i)].human_unit == e.params[static_cast<size_t>(j)].human_unit)
-      m = std::max(m, std::abs(e.typical[static_cast<size_t>(i)]));
-  return m > 0.0 ? m : 1.0;
-}
-
-CandidateColumns build_candidate(const Problem& p, EffectId id, double tau_s) {
-  const EffectInfo& e = effect_info(id);
-  CandidateColumns c;
-  c.id = id;
-  c.tau_s = tau_s;
-  for (int j = 0; j < e.size(); ++j)
-    if (!e.params[static_cast<size_t>(j)].shape) c.param_index.push_back(j);
-  const int n = static_cast<int>(c.param_index.size());
-  c.scale.resize(n);
-  Eigen::MatrixXd Jraw(p.model.rows(), n);
-  for (int k = 0; k < n; ++k) {
-    const int j = c.param_index[static_cast<size_t>(k)];
-    c.scale(k) = param_scale(e, j);
-    Effects fx;
-    Eigen::VectorXd v = effect_vector(fx, id);
-    if (tau_s > 0.0) v(e.size() - 1) = tau_s;  // thermal drift: its τ is the last parameter
-    const double step = 0.1 * c.scale(k);
-    v(j) = step;
-    set_effect_vector(fx, id, v);
-    Jraw.col(k) = column(p, p.base, fx, step) * c.scale(k);
-  }
-  c.J = p.model.whiten(Jraw);
-  return c;
-}
 
 std::vector<std::vector<int>> make_folds(const GapModel& m, int k) {
   const auto& segs = m.segments();
@@ -252,7 +181,7 @@ std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOp
     bool have = false;
     for (double tau : taus) {
       Scored s;
-      s.result = score_candidate(p, build_candidate(p, id, tau), chi2_0, opt, s.J_eff);
+      s.result = score_candidate(p, p.lin.candidate(id, tau), chi2_0, opt, s.J_eff);
       if (!have || s.result.lr > best.result.lr) best = std::move(s);
       have = true;
     }
@@ -388,9 +317,8 @@ std::string summarise(const DiagnosisResult& d) {
 DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const DiagnosisOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
   const GapModel model(in, opt.min_rest_samples);
-  Problem p{model, base, {}, {}, {}, {}, {}};
-  build_base(p);
-  p.folds = make_folds(model, opt.folds);
+  const GapLinearisation lin(model, base);
+  Problem p{model, lin, lin.r0(), lin.r0_raw(), lin.Jb(), lin.Jb_raw(), make_folds(model, opt.folds)};
   const int m = model.rows();
   if (m <= ParamSet::kSize)
     throw std::invalid_argument("gap diagnosis: only " + std::to_string(m) + " residuals for " +

@@ -30,6 +30,7 @@
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
 #include "sequences/sequence_error.hpp"
+#include "tools/imucal/detectability_cmd.hpp"
 #include "tools/imucal/diagnose_cmd.hpp"
 #include "tools/imucal/plot.hpp"
 #include "tools/imucal/report.hpp"
@@ -263,6 +264,9 @@ int main(int argc, char** argv) {
   cr->add_option("--unit", unit, "unit file (noise model); default: built-in");
   cr->add_option("--rate", rate_hz, "IMU rate, Hz")->capture_default_str();
   cr->add_flag("--json", json, "print one JSON object");
+  bool effects = false;
+  cr->add_flag("--effects", effects,
+               "per catalogue effect: detection threshold and separability on the sequence");
 
   int repeat = 3;
   auto* be = app.add_subcommand("bench", "time and peak memory of calibrate --method all");
@@ -284,6 +288,7 @@ int main(int argc, char** argv) {
     if (*sim) return cmd_simulate(seq, out_dir, unit, seed, rate_hz, overwrite);
     if (*cal) return cmd_calibrate(dir, method, json, k_sigma, plot_path);
     if (*ev) return cmd_evaluate(dir, params, json);
+    if (*cr && effects) return tools::cmd_crlb_effects(seq, unit, rate_hz, json);
     if (*cr) return cmd_crlb(seq, unit, rate_hz, json);
     if (*be) return cmd_bench(dir, repeat, json);
     if (*dg) return tools::cmd_diagnose(diag);

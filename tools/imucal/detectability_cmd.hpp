@@ -1,0 +1,12 @@
+#pragma once
+// `imucal crlb --sequence S --effects [--json]`: for every effect of the catalogue, the smallest
+// magnitude the sequence detects and whether the diagnosis can separate it from the calibration
+// parameters and from the other effects (calib/effect_detectability.hpp); for an effect it cannot
+// separate, the sequence change that would.
+#include <string>
+
+namespace imucal::tools {
+
+int cmd_crlb_effects(const std::string& seq, const std::string& unit_path, double rate_hz, bool json);
+
+}  // namespace imucal::tools
