@@ -33,6 +33,7 @@
 #include "tools/imucal/detectability_cmd.hpp"
 #include "tools/imucal/diagnose_cmd.hpp"
 #include "tools/imucal/plot.hpp"
+#include "tools/imucal/validate_cmd.hpp"
 #include "tools/imucal/report.hpp"
 
 using namespace imucal;
@@ -278,6 +279,8 @@ int main(int argc, char** argv) {
 
   tools::DiagnoseArgs diag;
   auto* dg = tools::add_diagnose_command(app, diag);
+  tools::ValidateArgs val;
+  auto* vd = tools::add_validate_command(app, val);
 
   try {
     app.parse(argc, argv);
@@ -292,6 +295,7 @@ int main(int argc, char** argv) {
     if (*cr) return cmd_crlb(seq, unit, rate_hz, json);
     if (*be) return cmd_bench(dir, repeat, json);
     if (*dg) return tools::cmd_diagnose(diag);
+    if (*vd) return tools::cmd_validate(val);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "imucal: error: %s\n", e.what());
     return kExitBadInput;

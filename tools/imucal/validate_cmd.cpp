@@ -1,0 +1,128 @@
+#include "tools/imucal/validate_cmd.hpp"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+#include "calib/diagnosis_validation.hpp"
+#include "calib/site_presets.hpp"
+#include "sequences/library.hpp"
+
+namespace imucal::tools {
+
+namespace {
+
+constexpr double kTop1 = 0.9, kFalseAlarm = 0.1, kShrinkage = 0.7, kPairs = 0.7;
+
+std::vector<calib::EffectId> parse_effects(const std::string& list) {
+  std::vector<calib::EffectId> ids;
+  std::stringstream ss(list);
+  std::string n;
+  while (std::getline(ss, n, ',')) {
+    if (n.empty()) continue;
+    const calib::EffectInfo* e = calib::find_effect(n);
+    if (!e)
+      throw std::invalid_argument("--effects: unknown effect '" + n + "' (known: " +
+                                  calib::effect_names_list() + ")");
+    ids.push_back(e->id);
+  }
+  return ids;
+}
+
+void print_confusion(const calib::ValidationReport& r) {
+  std::set<std::string> cols;
+  for (const auto& [inj, row] : r.confusion)
+    for (const auto& [named, n] : row) cols.insert(named);
+  std::printf("\nconfusion matrix (rows: injected, columns: named by the diagnosis)\n  %-24s", "");
+  for (const auto& c : cols) std::printf(" %10.10s", c.c_str());
+  std::printf("\n");
+  for (const auto& [inj, row] : r.confusion) {
+    std::printf("  %-24s", inj.c_str());
+    for (const auto& c : cols) {
+      const auto it = row.find(c);
+      std::printf(" %10d", it == row.end() ? 0 : it->second);
+    }
+    std::printf("\n");
+  }
+  std::printf("  (columns: ");
+  for (const auto& c : cols) std::printf("%s; ", c.c_str());
+  std::printf(")\n");
+}
+
+nlohmann::json to_json(const calib::ValidationReport& r, bool pass) {
+  nlohmann::json runs = nlohmann::json::array();
+  for (const auto& x : r.runs)
+    runs.push_back({{"injected", x.injected}, {"factor", x.factor}, {"seed", x.seed},
+                    {"verdict", x.verdict}, {"named", x.named}, {"second", x.second},
+                    {"shrinkage", x.has_shrinkage ? nlohmann::json(x.shrinkage) : nlohmann::json(nullptr)}});
+  nlohmann::json thresholds = nlohmann::json::object();
+  for (const auto& d : r.detectability)
+    if (std::isfinite(d.threshold)) thresholds[d.name] = {{"threshold", d.threshold}, {"unit", d.unit}};
+  return {{"sequence", r.sequence}, {"effects", r.effects}, {"thresholds", thresholds},
+          {"top1", r.top1}, {"false_alarm", r.false_alarm},
+          {"median_shrinkage", r.median_shrinkage}, {"pair_both", r.pair_both},
+          {"single_runs", r.single_runs}, {"null_runs", r.null_count}, {"pair_runs", r.pair_count},
+          {"confusion", r.confusion}, {"pass", pass}, {"runs", runs}};
+}
+
+}  // namespace
+
+CLI::App* add_validate_command(CLI::App& app, ValidateArgs& a) {
+  auto* c = app.add_subcommand("validate-diagnosis",
+                               "blind test of the gap diagnosis on simulated runs with withheld effects");
+  c->add_option("--runs", a.runs, "runs per effect")->capture_default_str()->check(CLI::Range(1, 1000));
+  c->add_option("--nulls", a.nulls, "null runs (default: --runs)")->check(CLI::Range(0, 1000));
+  c->add_option("--pairs", a.pairs, "runs with two effects (default: --runs)")->check(CLI::Range(0, 1000));
+  c->add_option("--seed", a.seed, "first seed")->capture_default_str();
+  c->add_option("--sequence", a.sequence, "sequence name or TOML file")->capture_default_str();
+  c->add_option("--effects", a.effects, "comma-separated effects (default: all the sequence separates)");
+  c->add_option("--threads", a.threads, "worker threads (default: all cores)")->check(CLI::Range(0, 256));
+  c->add_flag("--json", a.json, "print one JSON object");
+  return c;
+}
+
+int cmd_validate(const ValidateArgs& a) {
+  const std::string path = sequences::resolve_sequence(a.sequence);
+  const sequences::MotionProfile profile = sequences::load_profile(path);
+  calib::ValidationOptions opt;
+  opt.runs_per_effect = a.runs;
+  opt.null_runs = a.nulls < 0 ? a.runs : a.nulls;
+  opt.pair_runs = a.pairs < 0 ? a.runs : a.pairs;
+  opt.seed = a.seed;
+  opt.threads = a.threads;
+  opt.effects = parse_effects(a.effects);
+  const bool tty = isatty(2);
+  const auto t0 = std::chrono::steady_clock::now();
+  opt.on_progress = [&](int done, int total) {
+    const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::fprintf(stderr, "%svalidate-diagnosis: %d/%d runs, %.0f s, about %.0f s left%s",
+                 tty ? "\r" : "", done, total, el, el / done * (total - done), tty ? "   " : "\n");
+    if (tty && done == total) std::fprintf(stderr, "\n");
+  };
+  const calib::ValidationReport r = calib::validate_diagnosis(
+      profile, calib::TableGeometry{}, calib::demo_factory_site(), calib::default_unit(), 100.0, opt);
+  const bool pass = r.top1 >= kTop1 && r.false_alarm <= kFalseAlarm &&
+                    r.median_shrinkage >= kShrinkage && (r.pair_count == 0 || r.pair_both >= kPairs);
+  if (a.json) {
+    std::cout << to_json(r, pass).dump(2) << '\n';
+  } else {
+    std::printf("validate-diagnosis on %s: %zu effects the sequence separates, %d single-effect runs "
+                "(3-10x threshold), %d null runs, %d pair runs\n",
+                r.sequence.c_str(), r.effects.size(), r.single_runs, r.null_count, r.pair_count);
+    print_confusion(r);
+    std::printf("\ntop-1 accuracy      %5.1f %%  (bar >= %.0f %%)\n", 100 * r.top1, 100 * kTop1);
+    std::printf("false alarms (null) %5.1f %%  (bar <= %.0f %%)\n", 100 * r.false_alarm, 100 * kFalseAlarm);
+    std::printf("median shrinkage    %5.1f %%  (bar >= %.0f %%)\n", 100 * r.median_shrinkage, 100 * kShrinkage);
+    if (r.pair_count)
+      std::printf("pairs, both named   %5.1f %%  (bar >= %.0f %%)\n", 100 * r.pair_both, 100 * kPairs);
+    std::printf("%s\n", pass ? "PASS" : "BELOW THE BAR");
+  }
+  return pass ? 0 : 3;
+}
+
+}  // namespace imucal::tools
