@@ -9,6 +9,7 @@
 #include "calib/chi2.hpp"
 #include "calib/gap_fit.hpp"
 #include "calib/gap_linearisation.hpp"
+#include "calib/stochastic_candidates.hpp"
 
 namespace imucal::calib {
 
@@ -148,6 +149,7 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
   }
   r.magnitude_sigma = std::sqrt(std::max(0.0, grad.dot(cov_x * grad)));
   r.held_out_gap = held_out_gap(p.r0, hcat(p.Jb, J_eff), p.folds).ratio();
+  r.chi2_after = fit.chi2;
   return r;
 }
 
@@ -164,7 +166,18 @@ std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOp
   std::vector<Scored> out;
   for (EffectId id : ids) {
     const EffectInfo& e = effect_info(id);
-    if (e.kind == EffectKind::kStochastic) continue;  // scored by their own statistics
+    if (id == EffectId::kQuantisation) {
+      Scored s;
+      s.result = score_quantisation(p.model.input(), p.model.rests(), opt.folds);
+      out.push_back(std::move(s));
+      continue;
+    }
+    if (id == EffectId::kBiasInstability) {
+      Scored s;
+      s.result = score_bias_instability(p.lin, p.folds, opt.instability_tau_grid_s);
+      out.push_back(std::move(s));
+      continue;
+    }
     if (e.kind == EffectKind::kTable && !p.model.has_table() &&
         id != EffectId::kTableTimeOffset) {
       Scored s;
@@ -201,6 +214,7 @@ void rank(std::vector<Scored>& c, const Problem& p, const DiagnosisOptions& opt)
     for (size_t j = i + 1; j < c.size(); ++j) {
       auto &a = c[i].result, &b = c[j].result;
       if (!a.significant || !b.significant) continue;
+      if (c[i].J_eff.cols() == 0 || c[j].J_eff.cols() == 0) continue;  // stochastic: no signature
       const double rho = canonical_correlation(p.Jb, c[i].J_eff, c[j].J_eff);
       if (rho > opt.separability_limit) {
         a.confounded_with.push_back(b.name);
@@ -263,7 +277,7 @@ std::optional<size_t> find_second(const Problem& p, const std::vector<Scored>& c
   double best_lr = 0.0;
   const Eigen::MatrixXd Jbest = hcat(p.Jb, c[best].J_eff);
   for (size_t i = 0; i < c.size(); ++i) {
-    if (i == best || !c[i].result.significant) continue;
+    if (i == best || !c[i].result.significant || c[i].J_eff.cols() == 0) continue;
     GlsFit f;
     try {
       f = gls_fit(p.r0, hcat(Jbest, c[i].J_eff));
@@ -335,6 +349,7 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const D
   d.base = ParamSet::from_vector(base.to_vector() + fit0.x);
   d.base_sigma = ParamSet::from_vector(fit0.cov.diagonal().cwiseSqrt());
   d.segments = localise(p, fit0);
+  d.whiteness = whiteness_stats(in.cal, model.rests());
 
   std::vector<Scored> cands = score_all(p, fit0.chi2, opt);
   rank(cands, p, opt);
@@ -354,10 +369,14 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const D
   if (top) {
     J_final = hcat(p.Jb, cands[0].J_eff);
     fit_final = gls_fit(p.r0, J_final);
-    if (!ambiguous) d.second = find_second(p, cands, 0, fit_final.chi2, opt);
+    // A stochastic best changes the residuals' covariance, not their mean: no pair on top of it.
+    if (!ambiguous && cands[0].J_eff.cols() > 0)
+      d.second = find_second(p, cands, 0, fit_final.chi2, opt);
     if (d.second && !cands[*d.second].result.confounded_with.empty()) d.second.reset();
     d.held_out.has_after = true;
     d.held_out.gap_after = cands[0].result.held_out_gap;
+    if (std::isfinite(cands[0].result.held_out_gap_before))
+      d.held_out.gap_before = cands[0].result.held_out_gap_before;  // judged on its own statistic
     d.moved = moved_params(fit0, fit_final);
     if (d.second) {
       J_final = hcat(J_final, cands[*d.second].J_eff);
@@ -372,7 +391,13 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const D
     d.gap_after_best = fit_final.chi2 / fit_final.dof;
   }
   d.remaining = remaining_gap(p, J_final, fit_final);
-  const bool fits_now = chi2_survival(fit_final.chi2, fit_final.dof) >= opt.alpha;
+  // With the best effect the segment residuals must be consistent: their χ² under the effect's
+  // model (its own covariance for a Gauss-Markov bias; unchanged for quantisation).
+  double chi2_now = fit_final.chi2;
+  if (top && cands[0].J_eff.cols() == 0 && std::isfinite(cands[0].result.chi2_after) && !d.second)
+    chi2_now = cands[0].result.chi2_after;
+  const bool fits_now = chi2_survival(chi2_now, fit_final.dof) >= opt.alpha;
+  if (top && !d.second) d.gap_after_best = chi2_now / fit_final.dof;
   if (!top)
     d.verdict = d.overall_p >= opt.alpha ? "consistent" : "unexplained";
   else

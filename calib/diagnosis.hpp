@@ -17,6 +17,7 @@
 //  3. Quantify: the gap on held-out segments (K-fold over rests and the moves after them) before and
 //     after adding the best effect, and the best pair; the base parameters that move, in σ.
 #include <array>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -24,6 +25,7 @@
 #include "calib/effects.hpp"
 #include "calib/gap_model.hpp"
 #include "calib/param_set.hpp"
+#include "calib/whiteness.hpp"
 
 namespace imucal::calib {
 
@@ -39,6 +41,8 @@ struct DiagnosisOptions {
   size_t min_rest_samples = 100;
   /// Time constants searched for the thermal warm-up (its shape parameter), s.
   std::vector<double> thermal_tau_grid_s = {300.0, 600.0, 1200.0, 2400.0};
+  /// Correlation times searched for an undeclared Gauss-Markov bias, s.
+  std::vector<double> instability_tau_grid_s = {300.0, 1000.0, 3000.0};
 };
 
 struct SegmentGap {
@@ -72,7 +76,13 @@ struct CandidateResult {
   std::vector<CandidateParam> params;
   Eigen::VectorXd value_si;     ///< estimated effect parameter vector (SI, shape parameters set)
   double held_out_gap = 0.0;    ///< held-out gap ratio with this candidate added
+  /// For a candidate judged on a statistic of its own (quantisation: the lag-1 autocovariance), the
+  /// held-out gap of that statistic without it; NaN for the others (the segment gap applies).
+  double held_out_gap_before = std::numeric_limits<double>::quiet_NaN();
   double max_correlation = 0.0; ///< largest multiple correlation of its directions with the base
+  /// Whitened χ² of the segment residuals with the candidate added (for a Gauss-Markov bias: under
+  /// its covariance); NaN when it does not change the segment residuals (quantisation).
+  double chi2_after = std::numeric_limits<double>::quiet_NaN();
   std::vector<std::string> confounded_with;  ///< other candidates it cannot be told from
 };
 
@@ -107,6 +117,7 @@ struct DiagnosisResult {
   /// Where the gap that remains (after the best effect, if any) lies: segment × component, largest
   /// |z| first (at most 10, only |z| > 3).
   std::vector<std::pair<std::string, double>> remaining;
+  WhitenessStats whiteness;  ///< per-sample statistics of the rest residuals (over time)
   ParamSet base;   ///< refitted base parameters (no effect)
   ParamSet base_sigma;
   double runtime_s = 0.0;

@@ -90,6 +90,41 @@ HeldOutGap held_out_gap(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J,
   return g;
 }
 
+HeldOutGap held_out_gap_correlated(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J,
+                                   const Eigen::MatrixXd& S, const std::vector<std::vector<int>>& folds) {
+  HeldOutGap g;
+  const int m = static_cast<int>(r0.size());
+  for (const auto& held : folds) {
+    std::vector<char> out(static_cast<size_t>(m), 0);
+    for (int i : held) out[static_cast<size_t>(i)] = 1;
+    std::vector<int> train;
+    for (int i = 0; i < m; ++i)
+      if (!out[static_cast<size_t>(i)]) train.push_back(i);
+    const auto nt = static_cast<Eigen::Index>(train.size()), nh = static_cast<Eigen::Index>(held.size());
+    Eigen::MatrixXd S_TT(nt, nt), S_HT(nh, nt), S_HH(nh, nh);
+    for (Eigen::Index i = 0; i < nt; ++i)
+      for (Eigen::Index j = 0; j < nt; ++j) S_TT(i, j) = S(train[static_cast<size_t>(i)], train[static_cast<size_t>(j)]);
+    for (Eigen::Index i = 0; i < nh; ++i) {
+      for (Eigen::Index j = 0; j < nt; ++j) S_HT(i, j) = S(held[static_cast<size_t>(i)], train[static_cast<size_t>(j)]);
+      for (Eigen::Index j = 0; j < nh; ++j) S_HH(i, j) = S(held[static_cast<size_t>(i)], held[static_cast<size_t>(j)]);
+    }
+    const Eigen::LLT<Eigen::MatrixXd> llt(S_TT);
+    const Eigen::VectorXd rT = take_rows(r0, train);
+    const Eigen::MatrixXd JT = take_rows(J, train);
+    const GlsFit fit = gls_fit(llt.matrixL().solve(rT), llt.matrixL().solve(JT));
+    const Eigen::MatrixXd A = llt.solve(S_HT.transpose()).transpose();  // S_HT S_TT⁻¹
+    const Eigen::VectorXd nT = rT + JT * fit.x;
+    const Eigen::MatrixXd JH = take_rows(J, held);
+    const Eigen::VectorXd e = take_rows(r0, held) + JH * fit.x - A * nT;
+    const Eigen::MatrixXd Jeff = JH - A * JT;
+    const Eigen::MatrixXd C = S_HH - A * S_HT.transpose();
+    const Eigen::LLT<Eigen::MatrixXd> lc(C);
+    g.chi2 += e.dot(lc.solve(e));
+    g.expected += static_cast<double>(nh) + (lc.solve(Jeff * fit.cov * Jeff.transpose())).trace();
+  }
+  return g;
+}
+
 Separability separability(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& Jc, double limit,
                           double signature_floor) {
   Separability s;
@@ -146,6 +181,7 @@ Separability separability(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& Jc, 
 
 double canonical_correlation(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& A,
                              const Eigen::MatrixXd& B) {
+  if (A.cols() == 0 || B.cols() == 0 || A.rows() != Jb.rows() || B.rows() != Jb.rows()) return 0.0;
   const Eigen::MatrixXd Qa = residual_basis(Jb, A), Qb = residual_basis(Jb, B);
   if (Qa.cols() == 0 || Qb.cols() == 0) return 0.0;
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(Qa.transpose() * Qb);

@@ -30,6 +30,13 @@ struct HeldOutGap {
 HeldOutGap held_out_gap(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J,
                         const std::vector<std::vector<int>>& folds);
 
+/// The same with correlated residuals (covariance S of the whitened residuals under a hypothesis,
+/// e.g. a Gauss-Markov bias): each fold is fitted by generalised least squares on the others and
+/// predicted by the conditional mean given them; χ² and its expectation use the conditional
+/// covariance. With S = I this is held_out_gap.
+HeldOutGap held_out_gap_correlated(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J,
+                                   const Eigen::MatrixXd& S, const std::vector<std::vector<int>>& folds);
+
 /// Separability of a block of candidate columns Jc from base columns Jb (DESIGN §8: a candidate
 /// correlating > 0.95 with the base parameters is not separable). Works in the candidate's own
 /// parameter space: directions u with (Jc u) of negligible size have no signature at all; of the

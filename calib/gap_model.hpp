@@ -71,6 +71,8 @@ class GapModel {
   /// Whether the archive's reference carries table angles (table effects can be evaluated).
   bool has_table() const { return geometry_.has_value(); }
   double duration_s() const;
+  const CalibrationInput& input() const { return in_; }
+  const std::vector<RestPeriod>& rests() const { return rests_; }
 
   /// The residual vector (rows()) of the data against the model (base parameters + effects). Raw,
   /// SI (accel rows m/s² at rest, m/s for moves; gyro rows rad/s at rest, rad for moves).
