@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <limits>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -148,10 +149,21 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
     grad(k) = (e.magnitude(v) - r.magnitude) / h;
   }
   r.magnitude_sigma = std::sqrt(std::max(0.0, grad.dot(cov_x * grad)));
-  r.held_out_gap = held_out_gap(p.r0, hcat(p.Jb, J_eff), p.folds).ratio();
+  try {
+    r.held_out_gap = held_out_gap(p.r0, hcat(p.Jb, J_eff), p.folds).ratio();
+  } catch (const std::invalid_argument&) {
+    r.held_out_gap = std::numeric_limits<double>::quiet_NaN();
+    r.note += std::string(r.note.empty() ? "" : "; ") +
+              "no held-out check: with a fold held out its parameters are not separable";
+  }
   r.chi2_after = fit.chi2;
   return r;
 }
+
+// A candidate is fitted only with at least this many residuals to spare (rows - 27 - its parameters).
+constexpr int kMinDofForCandidate = 12;
+// The held-out folds need rests to fit on: below this the run is too short to diagnose.
+constexpr size_t kMinRests = 4;
 
 struct Scored {
   CandidateResult result;
@@ -184,6 +196,22 @@ std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOp
       s.result.id = id;
       s.result.name = e.name;
       s.result.note = "not applicable: the archive has no table angles (attitude log)";
+      s.result.value_si = Eigen::VectorXd::Zero(e.size());
+      out.push_back(std::move(s));
+      continue;
+    }
+    int k_max = 0;
+    for (const auto& pi : e.params) k_max += pi.shape ? 0 : 1;
+    if (p.model.rows() - ParamSet::kSize - k_max < kMinDofForCandidate) {
+      const std::string why = "the run is too short for its " + std::to_string(k_max) +
+                              " parameters (" + std::to_string(p.model.rows()) + " residuals for " +
+                              std::to_string(ParamSet::kSize) + " + " + std::to_string(k_max) + ")";
+      if (!opt.candidates.empty())
+        throw std::invalid_argument("gap diagnosis: candidate " + e.name + ": " + why);
+      Scored s;
+      s.result.id = id;
+      s.result.name = e.name;
+      s.result.note = "not fitted: " + why;
       s.result.value_si = Eigen::VectorXd::Zero(e.size());
       out.push_back(std::move(s));
       continue;
@@ -334,12 +362,33 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const D
   const GapLinearisation lin(model, base);
   Problem p{model, lin, lin.r0(), lin.r0_raw(), lin.Jb(), lin.Jb_raw(), make_folds(model, opt.folds)};
   const int m = model.rows();
-  if (m <= ParamSet::kSize)
+  if (model.rests().size() < kMinRests)
+    throw std::invalid_argument("gap diagnosis: the run has " + std::to_string(model.rests().size()) +
+                                " rest periods; it needs at least " + std::to_string(kMinRests) +
+                                " (the held-out check fits on some and predicts the others)");
+  if (m <= ParamSet::kSize + kMinDofForCandidate)
     throw std::invalid_argument("gap diagnosis: only " + std::to_string(m) + " residuals for " +
                                 std::to_string(ParamSet::kSize) +
                                 " parameters; the run is too short (needs more rests and moves)");
   DiagnosisResult d;
-  const GlsFit fit0 = gls_fit(p.r0, p.Jb);
+  // Explicitly requested candidates must fit in the run: say so before any work.
+  for (EffectId id : opt.candidates) {
+    int k = 0;
+    for (const auto& pi : effect_info(id).params) k += pi.shape ? 0 : 1;
+    if (m - ParamSet::kSize - k < kMinDofForCandidate)
+      throw std::invalid_argument("gap diagnosis: candidate " + effect_info(id).name +
+                                  ": the run is too short for its " + std::to_string(k) +
+                                  " parameters (" + std::to_string(m) + " residuals for " +
+                                  std::to_string(ParamSet::kSize) + " + " + std::to_string(k) + ")");
+  }
+  GlsFit fit0;
+  try {
+    fit0 = gls_fit(p.r0, p.Jb);
+  } catch (const std::invalid_argument&) {
+    throw std::invalid_argument(
+        "gap diagnosis: the run is too short: the 27 calibration parameters are not all separable on "
+        "its " + std::to_string(model.rests().size()) + " rests");
+  }
   d.rows = m;
   d.dof = fit0.dof;
   d.chi2 = fit0.chi2;
@@ -351,6 +400,13 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const D
   d.segments = localise(p, fit0);
   d.whiteness = whiteness_stats(in.cal, model.rests());
 
+  try {
+    d.held_out.gap_before = held_out_gap(p.r0, p.Jb, p.folds).ratio();
+  } catch (const std::invalid_argument&) {
+    throw std::invalid_argument("gap diagnosis: the run is too short for the held-out check: with a "
+                                "fifth of its " + std::to_string(model.rests().size()) +
+                                " rests held out, the 27 calibration parameters are not all separable");
+  }
   std::vector<Scored> cands = score_all(p, fit0.chi2, opt);
   rank(cands, p, opt);
   // The top candidate explains the most; if another significant one tells the same story on this
@@ -362,7 +418,6 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const D
     d.ambiguous.push_back(cands.front().result.name);
     for (const auto& o : cands.front().result.confounded_with) d.ambiguous.push_back(o);
   }
-  d.held_out.gap_before = held_out_gap(p.r0, p.Jb, p.folds).ratio();
   d.gap_after_best = d.overall_gap;
   Eigen::MatrixXd J_final = p.Jb;
   GlsFit fit_final = fit0;

@@ -1,0 +1,168 @@
+// `imucal diagnose` as a user runs it: the real binary on real archive directories. The JSON shape
+// of the issue, the human report, and every bad-input class: a clear one-line error naming the
+// problem, a non-zero exit, nothing written into the archive.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "tests/support/temp_dir.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Proc {
+  int code = -1;
+  std::string out;
+};
+
+Proc run(const std::string& args, bool merge_stderr = true) {
+  const std::string cmd =
+      std::string(IMUCAL_BIN_DIR) + "/imucal " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null");
+  FILE* p = popen(cmd.c_str(), "r");
+  Proc r;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int st = pclose(p);
+  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+/// Files and their sizes in a directory, to prove that nothing was written.
+std::string listing(const fs::path& dir) {
+  std::string s;
+  for (const auto& e : fs::directory_iterator(dir))
+    s += e.path().filename().string() + ":" + std::to_string(fs::file_size(e.path())) + "\n";
+  return s;
+}
+
+class DiagnoseCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new imucal::test_support::ScopedTempDir("diagnose-cli");
+    // A unit with a gyro g-sensitivity (the simulator injects it; the diagnosis is not told).
+    std::ofstream(fs::path(dir_->path()) / "gsens.toml")
+        << slurp(fs::path(IMUCAL_SOURCE_DIR) / "db/archive/units/default.toml")
+        << "\n[effects]\ng_sens_deg_per_h_per_g = [[0.03, 0.0, 0.0], [0.0, -0.03, 0.0], [0.0, 0.0, 0.02]]\n";
+    ASSERT_EQ(run("simulate --sequence short --seed 4 --out " + (fs::path(dir_->path()) / "gsens").string() +
+                  " --unit " + (fs::path(dir_->path()) / "gsens.toml").string())
+                  .code,
+              0);
+  }
+  static void TearDownTestSuite() { delete dir_; }
+  static fs::path archive() { return fs::path(dir_->path()) / "gsens"; }
+  static imucal::test_support::ScopedTempDir* dir_;
+};
+imucal::test_support::ScopedTempDir* DiagnoseCli::dir_ = nullptr;
+
+}  // namespace
+
+TEST_F(DiagnoseCli, JsonHasTheIssuesShapeAndNamesTheWithheldEffect) {
+  const Proc p = run("diagnose " + archive().string() + " --json", false);
+  ASSERT_TRUE(p.code == 0 || p.code == 3) << p.out;
+  const nlohmann::json j = nlohmann::json::parse(p.out);
+  for (const char* k : {"verdict", "best", "candidates", "held_out", "segments", "overall"})
+    EXPECT_TRUE(j.contains(k)) << k;
+  EXPECT_EQ(j["verdict"], "explained");
+  ASSERT_TRUE(j["best"].is_object());
+  EXPECT_EQ(j["best"]["effect"], "gyro_g_sensitivity");
+  for (const char* k : {"magnitude", "sigma", "unit"}) EXPECT_TRUE(j["best"].contains(k)) << k;
+  for (const char* k : {"gap_before", "gap_after", "shrinkage"}) EXPECT_TRUE(j["held_out"][k].is_number()) << k;
+  EXPECT_GT(j["held_out"]["gap_before"].get<double>(), j["held_out"]["gap_after"].get<double>());
+  // 13 candidates, ranked: the best first; each with score, magnitude, sigma and "separable".
+  ASSERT_EQ(j["candidates"].size(), 13u);
+  EXPECT_EQ(j["candidates"][0]["effect"], "gyro_g_sensitivity");
+  for (const auto& c : j["candidates"])
+    for (const char* k : {"effect", "score", "magnitude", "sigma", "separable"}) EXPECT_TRUE(c.contains(k)) << k;
+  // Segments: every rest and move, each with a normalised gap per sensor axis.
+  ASSERT_GT(j["segments"].size(), 20u);
+  EXPECT_TRUE(j["segments"][0]["z"].contains("gyro_z"));
+}
+
+TEST_F(DiagnoseCli, HumanReportSaysWhereWhichAndHowFar) {
+  const Proc p = run("diagnose " + archive().string());
+  EXPECT_EQ(p.code, 0) << p.out;
+  EXPECT_NE(p.out.find("verdict: explained"), std::string::npos) << p.out;
+  EXPECT_NE(p.out.find("held-out gap"), std::string::npos);
+  EXPECT_NE(p.out.find("segments with the largest gap"), std::string::npos);
+  EXPECT_NE(p.out.find("not separable on this sequence"), std::string::npos);  // gravity_error
+}
+
+TEST_F(DiagnoseCli, BadInputIsNamedAndNothingIsWritten) {
+  const std::string before = listing(archive());
+  // Unknown effect name: the known ones are listed.
+  Proc p = run("diagnose " + archive().string() + " --candidates accel_quadratic_k2,warp_drive");
+  EXPECT_EQ(p.code, 1);
+  EXPECT_NE(p.out.find("unknown effect 'warp_drive'"), std::string::npos) << p.out;
+  EXPECT_NE(p.out.find("table_wobble"), std::string::npos) << p.out;
+  // Missing archive and missing file.
+  p = run("diagnose " + (fs::path(dir_->path()) / "nowhere").string());
+  EXPECT_EQ(p.code, 1);
+  EXPECT_NE(p.out.find("nowhere"), std::string::npos) << p.out;
+  const fs::path noimu = fs::path(dir_->path()) / "noimu";
+  fs::create_directories(noimu);
+  fs::copy_file(archive() / "run.toml", noimu / "run.toml", fs::copy_options::overwrite_existing);
+  fs::copy_file(archive() / "table.csv", noimu / "table.csv", fs::copy_options::overwrite_existing);
+  p = run("diagnose " + noimu.string());
+  EXPECT_EQ(p.code, 1);
+  EXPECT_NE(p.out.find("imu.csv"), std::string::npos) << p.out;
+  // No rest periods.
+  const fs::path norest = fs::path(dir_->path()) / "norest";
+  fs::create_directories(norest);
+  fs::copy_file(archive() / "run.toml", norest / "run.toml", fs::copy_options::overwrite_existing);
+  fs::copy_file(archive() / "imu.csv", norest / "imu.csv", fs::copy_options::overwrite_existing);
+  {
+    std::string t = slurp(archive() / "table.csv");
+    for (size_t i = 0; (i = t.find(",1\n", i)) != std::string::npos;) t.replace(i, 3, ",0\n");
+    std::ofstream(norest / "table.csv") << t;
+  }
+  p = run("diagnose " + norest.string());
+  EXPECT_EQ(p.code, 1);
+  EXPECT_NE(p.out.find("rest"), std::string::npos) << p.out;
+  // Too short for a candidate: cut the run after its 4th rest (>= 100 at_rest rows). 4 rests and 3
+  // moves give 42 residuals: enough for the 27 calibration parameters, too few for the size
+  // effect's 9 lever-arm components on top.
+  const fs::path shortrun = fs::path(dir_->path()) / "shortrun";
+  fs::create_directories(shortrun);
+  fs::copy_file(archive() / "run.toml", shortrun / "run.toml", fs::copy_options::overwrite_existing);
+  size_t keep = 0;
+  {
+    std::istringstream in(slurp(archive() / "table.csv"));
+    std::string line;
+    int rests = 0, run_len = 0;
+    for (size_t i = 0; std::getline(in, line); ++i) {
+      const bool rest = i > 0 && line.size() > 2 && line.substr(line.size() - 2) == ",1";
+      run_len = rest ? run_len + 1 : 0;
+      if (run_len == 100) ++rests;
+      if (rests == 4 && !rest) {
+        keep = i;
+        break;
+      }
+    }
+  }
+  ASSERT_GT(keep, 0u);
+  for (const char* f : {"imu.csv", "table.csv"}) {
+    std::istringstream in(slurp(archive() / f));
+    std::ofstream out(shortrun / f);
+    std::string line;
+    for (size_t i = 0; i < keep && std::getline(in, line); ++i) out << line << '\n';
+  }
+  p = run("diagnose " + shortrun.string() + " --candidates size_effect");
+  EXPECT_EQ(p.code, 1) << p.out;
+  EXPECT_NE(p.out.find("size_effect"), std::string::npos) << p.out;
+  EXPECT_NE(p.out.find("too short"), std::string::npos) << p.out;
+  EXPECT_EQ(listing(archive()), before);  // the diagnosis never writes into the archive
+}
