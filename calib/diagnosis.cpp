@@ -1,6 +1,8 @@
 #include "calib/diagnosis.hpp"
 
+#include <Eigen/Cholesky>
 #include <algorithm>
+#include <optional>
 #include <chrono>
 #include <limits>
 #include <cmath>
@@ -321,6 +323,123 @@ std::optional<size_t> find_second(const Problem& p, const std::vector<Scored>& c
   return second;
 }
 
+/// GLS under a covariance S of the whitened residuals (whitened again by its Cholesky factor).
+GlsFit gls_fit_cov(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J, const Eigen::MatrixXd& S) {
+  const Eigen::LLT<Eigen::MatrixXd> llt(S);
+  return gls_fit(llt.matrixL().solve(r0), llt.matrixL().solve(J));
+}
+
+/// The explanation chosen for the segment residuals (plus quantisation, which acts on the per-sample
+/// statistics only): the members (candidate indices, most important first), their columns, and the
+/// residual covariance if a Gauss-Markov bias is among them.
+struct Selection {
+  std::vector<size_t> members;
+  double bic = 0.0;
+  Eigen::MatrixXd J;  ///< [Jb, deterministic members' columns]
+  bool gm = false;
+  Eigen::MatrixXd S;  ///< whitened-residual covariance under the Gauss-Markov bias (gm only)
+  std::vector<std::string> ambiguous;
+};
+
+std::optional<size_t> index_of(const std::vector<Scored>& c, EffectId id) {
+  for (size_t i = 0; i < c.size(); ++i)
+    if (c[i].result.id == id) return i;
+  return std::nullopt;
+}
+
+/// Model choice by BIC among: the best deterministic effect D1, the best pair D1+D2, an undeclared
+/// Gauss-Markov bias GM, and D1+GM — each only if its members are significant (GM given D1 for the
+/// last). A significant top candidate that another one mimics makes the choice ambiguous: no finding.
+/// Quantisation, independent of the segment residuals, joins when significant.
+Selection select_model(const std::vector<Scored>& c, const Problem& p, double chi2_0,
+                       const DiagnosisOptions& opt) {
+  Selection best;
+  best.J = p.Jb;
+  if (c.empty()) return best;
+  if (c[0].result.significant && !c[0].result.confounded_with.empty()) {
+    best.ambiguous.push_back(c[0].result.name);
+    for (const auto& o : c[0].result.confounded_with) best.ambiguous.push_back(o);
+    best.J = hcat(p.Jb, c[0].J_eff);
+    return best;
+  }
+  const double level = opt.alpha / static_cast<double>(c.size());
+  const double log_m = std::log(static_cast<double>(p.r0.size()));
+  auto consider = [&](Selection s) {
+    if (s.bic > best.bic) best = std::move(s);
+  };
+  std::optional<size_t> d1;
+  for (size_t i = 0; i < c.size() && !d1; ++i)
+    if (c[i].result.significant && c[i].J_eff.cols() > 0 && c[i].result.confounded_with.empty()) d1 = i;
+  if (d1) {
+    const Eigen::MatrixXd J1 = hcat(p.Jb, c[*d1].J_eff);
+    consider({{*d1}, c[*d1].result.bic_gain, J1, false, {}, {}});
+    const GlsFit f1 = gls_fit(p.r0, J1);
+    if (const auto d2 = find_second(p, c, *d1, f1.chi2, opt)) {
+      const Eigen::MatrixXd J2 = hcat(J1, c[*d2].J_eff);
+      const int k = c[*d1].result.k + c[*d2].result.k;
+      consider({{*d1, *d2}, (chi2_0 - gls_fit(p.r0, J2).chi2) - k * log_m, J2, false, {}, {}});
+    }
+  }
+  if (const auto g = index_of(c, EffectId::kBiasInstability); g && c[*g].result.significant) {
+    const GaussMarkovFit f = fit_gauss_markov(p.lin, p.Jb, opt.instability_tau_grid_s);
+    consider({{*g}, c[*g].result.bic_gain, p.Jb, true, f.S, {}});
+    if (d1) {
+      const Eigen::MatrixXd J1 = hcat(p.Jb, c[*d1].J_eff);
+      const GaussMarkovFit fc = fit_gauss_markov(p.lin, J1, opt.instability_tau_grid_s);
+      // Both must be needed: the bias wandering given D1, and D1 given the wandering (a slow trend
+      // is also a wandering bias).
+      const double lr_d_given_g = gls_fit_cov(p.r0, p.Jb, fc.S).chi2 - fc.chi2;
+      if (chi2_survival(fc.lr, 2) < level && chi2_survival(lr_d_given_g, c[*d1].result.k) < level) {
+        std::vector<size_t> m = {*d1, *g};
+        if (c[*g].result.lr > c[*d1].result.lr) std::swap(m[0], m[1]);
+        consider({m, c[*d1].result.lr + fc.lr - (c[*d1].result.k + 2) * log_m, J1, true, fc.S, {}});
+      }
+    }
+  }
+  if (const auto q = index_of(c, EffectId::kQuantisation); q && c[*q].result.significant &&
+                                                          best.members.size() < 2)
+    best.members.push_back(*q);
+  return best;
+}
+
+/// Fill best/second/ambiguous, the held-out figures, the moved parameters, the remaining gap and
+/// the verdict from the selection.
+void apply_selection(DiagnosisResult& d, const Selection& sel, const std::vector<Scored>& c,
+                     const Problem& p, const GlsFit& fit0, const DiagnosisOptions& opt) {
+  d.ambiguous = sel.ambiguous;
+  const bool segment_model = sel.gm || sel.J.cols() > p.Jb.cols();
+  const GlsFit fit = sel.gm ? gls_fit_cov(p.r0, sel.J, sel.S) : gls_fit(p.r0, sel.J);
+  d.gap_after_best = fit.chi2 / fit.dof;
+  if (!sel.members.empty()) d.best = sel.members[0];
+  if (sel.members.size() > 1) d.second = sel.members[1];
+  if (segment_model || !sel.ambiguous.empty()) {
+    d.held_out.has_after = true;
+    const HeldOutGap h = sel.gm ? held_out_gap_correlated(p.r0, sel.J, sel.S, p.folds)
+                                : held_out_gap(p.r0, sel.J, p.folds);
+    d.held_out.gap_after = d.best ? c[*d.best].result.held_out_gap : h.ratio();
+    if (sel.members.size() > 1 && c[sel.members[1]].result.id != EffectId::kQuantisation) {
+      d.held_out.has_pair = true;
+      d.held_out.gap_after_pair = h.ratio();
+    }
+    d.moved = moved_params(fit0, fit);
+  } else if (d.best) {  // quantisation alone: judged on its own statistic
+    d.held_out.has_after = true;
+    d.held_out.gap_before = c[*d.best].result.held_out_gap_before;
+    d.held_out.gap_after = c[*d.best].result.held_out_gap;
+  }
+  if (d.held_out.has_after && d.held_out.gap_before > 1.0) {
+    const double after = d.held_out.has_pair ? d.held_out.gap_after_pair : d.held_out.gap_after;
+    d.held_out.shrinkage =
+        std::clamp((d.held_out.gap_before - after) / (d.held_out.gap_before - 1.0), 0.0, 1.0);
+  }
+  d.remaining = remaining_gap(p, sel.J, gls_fit(p.r0, sel.J));
+  const bool fits_now = chi2_survival(fit.chi2, fit.dof) >= opt.alpha;
+  if (!d.best && sel.ambiguous.empty())
+    d.verdict = d.overall_p >= opt.alpha ? "consistent" : "unexplained";
+  else
+    d.verdict = fits_now && sel.ambiguous.empty() ? "explained" : "unexplained";
+}
+
 std::string summarise(const DiagnosisResult& d) {
   std::ostringstream os;
   os.precision(3);
@@ -409,54 +528,8 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const D
   }
   std::vector<Scored> cands = score_all(p, fit0.chi2, opt);
   rank(cands, p, opt);
-  // The top candidate explains the most; if another significant one tells the same story on this
-  // sequence, it is no finding (best stays empty) but its held-out effect is still reported.
-  const bool top = !cands.empty() && cands.front().result.significant;
-  const bool ambiguous = top && !cands.front().result.confounded_with.empty();
-  if (top && !ambiguous) d.best = 0;
-  if (ambiguous) {
-    d.ambiguous.push_back(cands.front().result.name);
-    for (const auto& o : cands.front().result.confounded_with) d.ambiguous.push_back(o);
-  }
-  d.gap_after_best = d.overall_gap;
-  Eigen::MatrixXd J_final = p.Jb;
-  GlsFit fit_final = fit0;
-  if (top) {
-    J_final = hcat(p.Jb, cands[0].J_eff);
-    fit_final = gls_fit(p.r0, J_final);
-    // A stochastic best changes the residuals' covariance, not their mean: no pair on top of it.
-    if (!ambiguous && cands[0].J_eff.cols() > 0)
-      d.second = find_second(p, cands, 0, fit_final.chi2, opt);
-    if (d.second && !cands[*d.second].result.confounded_with.empty()) d.second.reset();
-    d.held_out.has_after = true;
-    d.held_out.gap_after = cands[0].result.held_out_gap;
-    if (std::isfinite(cands[0].result.held_out_gap_before))
-      d.held_out.gap_before = cands[0].result.held_out_gap_before;  // judged on its own statistic
-    d.moved = moved_params(fit0, fit_final);
-    if (d.second) {
-      J_final = hcat(J_final, cands[*d.second].J_eff);
-      fit_final = gls_fit(p.r0, J_final);
-      d.held_out.has_pair = true;
-      d.held_out.gap_after_pair = held_out_gap(p.r0, J_final, p.folds).ratio();
-    }
-    const double after = d.held_out.has_pair ? d.held_out.gap_after_pair : d.held_out.gap_after;
-    if (d.held_out.gap_before > 1.0)
-      d.held_out.shrinkage =
-          std::clamp((d.held_out.gap_before - after) / (d.held_out.gap_before - 1.0), 0.0, 1.0);
-    d.gap_after_best = fit_final.chi2 / fit_final.dof;
-  }
-  d.remaining = remaining_gap(p, J_final, fit_final);
-  // With the best effect the segment residuals must be consistent: their χ² under the effect's
-  // model (its own covariance for a Gauss-Markov bias; unchanged for quantisation).
-  double chi2_now = fit_final.chi2;
-  if (top && cands[0].J_eff.cols() == 0 && std::isfinite(cands[0].result.chi2_after) && !d.second)
-    chi2_now = cands[0].result.chi2_after;
-  const bool fits_now = chi2_survival(chi2_now, fit_final.dof) >= opt.alpha;
-  if (top && !d.second) d.gap_after_best = chi2_now / fit_final.dof;
-  if (!top)
-    d.verdict = d.overall_p >= opt.alpha ? "consistent" : "unexplained";
-  else
-    d.verdict = fits_now && !ambiguous ? "explained" : "unexplained";
+  const Selection sel = select_model(cands, p, fit0.chi2, opt);
+  apply_selection(d, sel, cands, p, fit0, opt);
   for (auto& s : cands) d.candidates.push_back(std::move(s.result));
   d.summary = summarise(d);
   d.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -31,7 +31,8 @@ std::vector<Task> make_tasks(const std::vector<EffectId>& ids, const ValidationO
     t.ids = std::move(which);
     for (size_t i = 0; i < t.ids.size(); ++i) {
       t.factor.push_back(f(rng));
-      t.sign.push_back(coin(rng) ? 1.0 : -1.0);
+      const bool stochastic = effect_info(t.ids[i]).kind == EffectKind::kStochastic;
+      t.sign.push_back(coin(rng) || stochastic ? 1.0 : -1.0);  // a σ or an LSB has no sign
     }
     t.seed = opt.seed * 1000003ULL + tasks.size() + 1;
     tasks.push_back(std::move(t));
@@ -160,7 +161,15 @@ ValidationReport validate_diagnosis(const sequences::MotionProfile& profile,
   int done = 0;
   auto worker = [&] {
     for (size_t i = next++; i < tasks.size(); i = next++) {
-      rep.runs[i] = run_one(tasks[i], threshold, profile, geometry, site, unit, rate_hz);
+      try {
+        rep.runs[i] = run_one(tasks[i], threshold, profile, geometry, site, unit, rate_hz);
+      } catch (const std::exception& ex) {  // a worker must never take the process down
+        rep.runs[i].verdict = "error";
+        rep.runs[i].named = std::string("error: ") + ex.what();
+        rep.runs[i].seed = tasks[i].seed;
+        for (EffectId id : tasks[i].ids) rep.runs[i].injected.push_back(effect_info(id).name);
+        rep.runs[i].factor = tasks[i].factor;
+      }
       const std::lock_guard<std::mutex> lock(mu);
       ++done;
       if (opt.on_progress) opt.on_progress(done, static_cast<int>(tasks.size()));

@@ -8,6 +8,7 @@
 #include "calib/chi2.hpp"
 #include "calib/gap_fit.hpp"
 #include "calib/gap_linearisation.hpp"
+#include "calib/stochastic_candidates.hpp"
 
 namespace imucal::calib {
 
@@ -78,6 +79,36 @@ Analysed analyse(const GapLinearisation& lin, EffectId id, size_t candidates,
   return a;
 }
 
+/// A stochastic effect: the magnitude m (× typical) at which the expected LR, k + λ(m), reaches the
+/// critical value (λ monotonic in m: bisection on a log scale).
+Analysed analyse_stochastic(const GapLinearisation& lin, EffectId id, size_t candidates,
+                            const DiagnosisOptions& opt) {
+  const EffectInfo& e = effect_info(id);
+  Analysed a;
+  a.d.id = id;
+  a.d.name = e.name;
+  a.d.unit = e.magnitude_unit();
+  a.d.typical = 1.0;
+  a.d.directions = a.d.separable_directions = 2;
+  auto lambda = [&](double m) {
+    return id == EffectId::kQuantisation ? quantisation_noncentrality(lin.model(), m)
+                                         : bias_instability_noncentrality(lin, m);
+  };
+  const double need = chi2_quantile_upper(opt.alpha / static_cast<double>(candidates), 2) - 2.0;
+  double lo = 1e-3, hi = 1e3;
+  if (lambda(hi) < need) {
+    a.d.separable_directions = 0;
+    a.d.reason = "not detectable: even 1000x its typical size stays below the detection level";
+    return a;
+  }
+  for (int i = 0; i < 60; ++i) {
+    const double mid = std::sqrt(lo * hi);
+    (lambda(mid) < need ? lo : hi) = mid;
+  }
+  a.d.threshold = std::sqrt(lo * hi);
+  return a;
+}
+
 }  // namespace
 
 std::vector<EffectDetectability> effect_detectability(const sequences::MotionProfile& profile,
@@ -99,12 +130,7 @@ std::vector<EffectDetectability> effect_detectability(const sequences::MotionPro
   const size_t n = effect_catalogue().size();
   for (const auto& e : effect_catalogue()) {
     if (e.kind == EffectKind::kStochastic) {
-      Analysed a;
-      a.d.id = e.id;
-      a.d.name = e.name;
-      a.d.unit = e.magnitude_unit();
-      a.d.reason = "stochastic effect: detected through the residuals' statistics";
-      all.push_back(a);
+      all.push_back(analyse_stochastic(lin, e.id, n, opt));
       continue;
     }
     all.push_back(analyse(lin, e.id, n, opt));

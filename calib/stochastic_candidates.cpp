@@ -1,6 +1,7 @@
 #include "calib/stochastic_candidates.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -226,12 +227,12 @@ struct GmFit {
   double sa = 0.0, sg = 0.0, tau = 0.0, ell = -std::numeric_limits<double>::infinity();
 };
 
-GmFit fit_gm(const GapLinearisation& lin, const GmMatrices& g, double tau, double typ_a,
-             double typ_g) {
+GmFit fit_gm(const GapLinearisation& lin, const Eigen::MatrixXd& J, const GmMatrices& g, double tau,
+             double typ_a, double typ_g) {
   const int m = lin.model().rows();
   const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(m, m);
   auto ell = [&](double sa, double sg) {
-    return reml(lin.r0(), lin.Jb(), I + sa * sa * g.Ga + sg * sg * g.Gg);
+    return reml(lin.r0(), J, I + sa * sa * g.Ga + sg * sg * g.Gg);
   };
   const std::vector<double> mult = {0.0, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0};
   GmFit best;
@@ -253,6 +254,29 @@ GmFit fit_gm(const GapLinearisation& lin, const GmMatrices& g, double tau, doubl
 
 }  // namespace
 
+GaussMarkovFit fit_gauss_markov(const GapLinearisation& lin, const Eigen::MatrixXd& J,
+                                const std::vector<double>& tau_grid_s) {
+  const EffectInfo& e = effect_info(EffectId::kBiasInstability);
+  const int m = lin.model().rows();
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(m, m);
+  const double ell0 = reml(lin.r0(), J, I);
+  GmFit best;
+  GmMatrices gbest;
+  for (double tau : tau_grid_s) {
+    GmMatrices g = gm_matrices(lin, tau);
+    const GmFit f = fit_gm(lin, J, g, tau, e.typical[1], e.typical[0]);
+    if (f.ell > best.ell) best = f, gbest = std::move(g);
+  }
+  GaussMarkovFit out;
+  out.sigma_accel_mps2 = best.sa;
+  out.sigma_gyro_radps = best.sg;
+  out.tau_s = best.tau;
+  out.lr = std::max(0.0, 2.0 * (best.ell - ell0));
+  out.S = I + best.sa * best.sa * gbest.Ga + best.sg * best.sg * gbest.Gg;
+  reml(lin.r0(), J, out.S, &out.chi2);
+  return out;
+}
+
 CandidateResult score_bias_instability(const GapLinearisation& lin,
                                        const std::vector<std::vector<int>>& folds,
                                        const std::vector<double>& tau_grid_s) {
@@ -263,28 +287,19 @@ CandidateResult score_bias_instability(const GapLinearisation& lin,
   r.unit = e.magnitude_unit();
   r.separable = true;
   r.k = 2;
-  const double typ_g = e.typical[0], typ_a = e.typical[1];
   const int m = lin.model().rows();
-  const double ell0 = reml(lin.r0(), lin.Jb(), Eigen::MatrixXd::Identity(m, m));
-  GmFit best;
-  GmMatrices gbest;
-  for (double tau : tau_grid_s) {
-    GmMatrices g = gm_matrices(lin, tau);
-    const GmFit f = fit_gm(lin, g, tau, typ_a, typ_g);
-    if (f.ell > best.ell) best = f, gbest = std::move(g);
-  }
-  r.lr = std::max(0.0, 2.0 * (best.ell - ell0));
+  const GaussMarkovFit f = fit_gauss_markov(lin, lin.Jb(), tau_grid_s);
+  r.lr = f.lr;
   r.p_value = chi2_survival(r.lr, r.k);
   r.bic_gain = r.lr - r.k * std::log(static_cast<double>(m));
-  r.value_si = Eigen::Vector3d(best.sg, best.sa, best.tau);
+  r.value_si = Eigen::Vector3d(f.sigma_gyro_radps, f.sigma_accel_mps2, f.tau_s);
   r.magnitude = e.magnitude(r.value_si);
   // σ of the magnitude from the curvature of the profile along the fitted direction.
   const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(m, m);
   if (r.magnitude > 0.0) {
-    auto ell_t = [&](double t) {
-      return reml(lin.r0(), lin.Jb(), I + t * t * (best.sa * best.sa * gbest.Ga + best.sg * best.sg * gbest.Gg));
-    };
-    const double lm = ell_t(0.7), l1 = best.ell, lp = ell_t(1.3);
+    const Eigen::MatrixXd D = f.S - I;
+    const double l1 = reml(lin.r0(), lin.Jb(), f.S);
+    const double lm = reml(lin.r0(), lin.Jb(), I + 0.49 * D), lp = reml(lin.r0(), lin.Jb(), I + 1.69 * D);
     const double curv = -(lp - 2.0 * l1 + lm) / (0.3 * 0.3);
     r.magnitude_sigma = curv > 0.0 ? r.magnitude / std::sqrt(curv) : r.magnitude;
   }
@@ -294,12 +309,40 @@ CandidateResult score_bias_instability(const GapLinearisation& lin,
     r.params.push_back({pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human,
                         pi.shape ? 0.0 : rel * r.value_si(j) * pi.si_to_human});
   }
-  const Eigen::MatrixXd S = I + best.sa * best.sa * gbest.Ga + best.sg * best.sg * gbest.Gg;
-  reml(lin.r0(), lin.Jb(), S, &r.chi2_after);
-  r.held_out_gap = held_out_gap_correlated(lin.r0(), lin.Jb(), S, folds).ratio();
-  r.note = "Gauss-Markov bias offsets per segment (tau " + std::to_string(static_cast<int>(best.tau)) +
+  r.chi2_after = f.chi2;
+  r.held_out_gap = held_out_gap_correlated(lin.r0(), lin.Jb(), f.S, folds).ratio();
+  r.note = "Gauss-Markov bias offsets per segment (tau " + std::to_string(static_cast<int>(f.tau_s)) +
            " s), restricted maximum likelihood";
   return r;
+}
+
+double quantisation_noncentrality(const GapModel& model, double m) {
+  const EffectInfo& e = effect_info(EffectId::kQuantisation);
+  const CalibrationInput& in = model.input();
+  double pairs = 0.0;
+  for (const RestPeriod& p : model.rests()) pairs += 3.0 * static_cast<double>(p.size() - 1);
+  const double dt = in.imu.front().dt_s;
+  double lambda = 0.0;
+  for (int sensor = 0; sensor < 2; ++sensor) {
+    const double lsb0 = declared_lsb(in.noise, sensor);
+    const double q = m * e.typical[sensor == 0 ? 1 : 0];
+    const double white = sensor == 0 ? in.noise.vrw_mps_per_sqrt_s : in.noise.arw_rad_per_sqrt_s;
+    const double gamma0 = white * white * dt + q * q / 6.0;
+    const double z = (q * q - lsb0 * lsb0) / 12.0 / (gamma0 / std::sqrt(pairs));
+    lambda += z > 0.0 ? z * z : 0.0;
+  }
+  return lambda;
+}
+
+double bias_instability_noncentrality(const GapLinearisation& lin, double m) {
+  const EffectInfo& e = effect_info(EffectId::kBiasInstability);
+  const GmMatrices g = gm_matrices(lin, e.typical[2]);
+  const Eigen::MatrixXd G = e.typical[1] * e.typical[1] * g.Ga + e.typical[0] * e.typical[0] * g.Gg;
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(lin.Jb());
+  const Eigen::MatrixXd Q = qr.householderQ() * Eigen::MatrixXd::Identity(lin.Jb().rows(), lin.Jb().cols());
+  const Eigen::MatrixXd MG = G - Q * (Q.transpose() * G);
+  const Eigen::MatrixXd MGM = MG - (MG * Q) * Q.transpose();
+  return 0.5 * std::pow(m, 4) * MGM.squaredNorm();  // tr(A²) = ||A||_F² for symmetric A
 }
 
 }  // namespace imucal::calib

@@ -26,8 +26,27 @@ namespace imucal::calib {
 CandidateResult score_quantisation(const CalibrationInput& in, const std::vector<RestPeriod>& rests,
                                    int folds);
 
+/// An undeclared Gauss-Markov bias fitted by restricted maximum likelihood on the whitened residuals
+/// with fixed-effect design J (the base columns, possibly with deterministic effects appended).
+struct GaussMarkovFit {
+  double sigma_accel_mps2 = 0.0, sigma_gyro_radps = 0.0, tau_s = 0.0;
+  double lr = 0.0;        ///< 2 Δℓ against no Gauss-Markov bias, same design
+  double chi2 = 0.0;      ///< GLS χ² under its covariance
+  Eigen::MatrixXd S;      ///< covariance of the whitened residuals under it
+};
+GaussMarkovFit fit_gauss_markov(const GapLinearisation& lin, const Eigen::MatrixXd& J,
+                                const std::vector<double>& tau_grid_s);
+
 CandidateResult score_bias_instability(const GapLinearisation& lin,
                                        const std::vector<std::vector<int>>& folds,
                                        const std::vector<double>& tau_grid_s);
+
+/// Expected likelihood-ratio non-centrality of the catalogue's typical pattern scaled by m (for the
+/// detection thresholds of calib/effect_detectability.hpp), without data:
+///  * quantisation: λ(m) = Σ_sensors z², z = ((m q_typ)² - q_declared²)/12 / σ(γ1);
+///  * bias instability (small-signal): λ(m) = ½ m⁴ tr((M G M)²), M the projection off the base
+///    columns, G = typ_a² G_a + typ_g² G_g at the typical τ.
+double quantisation_noncentrality(const GapModel& model, double m);
+double bias_instability_noncentrality(const GapLinearisation& lin, double m);
 
 }  // namespace imucal::calib

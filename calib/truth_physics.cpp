@@ -2,6 +2,9 @@
 
 #include <cmath>
 
+#include "calib/effects/sensor_effects.hpp"
+#include "calib/effects/site_errors.hpp"
+#include "calib/effects/table_imperfections.hpp"
 #include "calib/rotation.hpp"
 
 namespace imucal::calib {
@@ -9,9 +12,14 @@ namespace imucal::calib {
 TruthKinematics::TruthKinematics(const TableGeometry& geometry, const Site& site, const UnitModel& unit,
                                  double dt_s)
     : table_(geometry),
+      geometry_(geometry),
+      nonorth_rad_(unit.effects.table_nonorthogonality_rad),
+      wobble_rad_(unit.effects.table_wobble_rad),
       misalignment_rad_(unit.params.table_misalignment_rad),
       lever_arm_m_(unit.effects.accel_lever_arm_m) {
-  const EarthModel earth(site);
+  // The physics happens at the true site; the station's configured one may be off (DESIGN §7).
+  const EarthModel earth(
+      true_site(site, unit.effects.gravity_error_mps2, unit.effects.latitude_error_rad));
   w_ie_n_ = earth.w_ie_n();
   f_n_ = -earth.g_n();
   E_dt_ = rotvec_to_matrix<double>(Eigen::Vector3d(w_ie_n_ * dt_s));
@@ -23,7 +31,11 @@ TruthKinematics::TruthKinematics(const TableGeometry& geometry, const Site& site
 }
 
 Eigen::Matrix3d TruthKinematics::C_bn(const sequences::TableState& s) const {
-  return rotvec_to_matrix<double>(misalignment_rad_) * table_.C_bn(s.outer_rad, s.inner_rad);
+  const Eigen::Matrix3d table =
+      nonorth_rad_ == 0.0 && wobble_rad_.isZero()
+          ? table_.C_bn(s.outer_rad, s.inner_rad)
+          : table_C_bn<double>(geometry_, s.outer_rad, s.inner_rad, nonorth_rad_, wobble_rad_);
+  return rotvec_to_matrix<double>(misalignment_rad_) * table;
 }
 
 Eigen::Vector3d TruthKinematics::dtheta(const Eigen::Matrix3d& C_bn_prev,
@@ -41,12 +53,7 @@ Eigen::Vector3d TruthKinematics::lever_f_n(const sequences::TableState& s) const
   const Eigen::Matrix3d C = C_bn(s);
   const Eigen::Vector3d w_ib_b = table_.w_nb_b(s) + C.transpose() * w_ie_n_;
   const Eigen::Vector3d wdot_b = table_.wdot_nb_b(s);
-  Eigen::Vector3d f_b;
-  for (int i = 0; i < 3; ++i) {
-    const Eigen::Vector3d& r = lever_arm_m_[static_cast<size_t>(i)];
-    f_b(i) = (wdot_b.cross(r) + w_ib_b.cross(w_ib_b.cross(r)))(i);
-  }
-  return C * f_b;
+  return C * size_effect_f_b<double>(lever_arm_m_, w_ib_b, wdot_b);
 }
 
 Eigen::Vector3d TruthKinematics::dv_lever(const Eigen::Matrix3d& C_bn_prev,
@@ -66,65 +73,52 @@ Eigen::Vector3d TruthKinematics::dv_lever(const Eigen::Matrix3d& C_bn_prev,
   return C_bn_prev.transpose() * acc;
 }
 
-Eigen::Vector3d TruthSensor::Quantiser::apply(const Eigen::Vector3d& x) {
-  if (lsb <= 0.0) return x;
-  const Eigen::Vector3d total = x + carry;
-  Eigen::Vector3d q;
-  for (int i = 0; i < 3; ++i) q(i) = std::round(total(i) / lsb) * lsb;
-  carry = total - q;
-  return q;
-}
-
-void TruthSensor::GaussMarkov3::init(double sigma_, double tau_s, double dt_s, std::mt19937_64& rng) {
-  sigma = sigma_;
-  if (sigma <= 0.0) return;
-  phi = std::exp(-dt_s / tau_s);
-  drive = sigma * std::sqrt(1.0 - phi * phi);
-  std::normal_distribution<double> n(0.0, 1.0);
-  for (int i = 0; i < 3; ++i) x(i) = sigma * n(rng);  // x(0) ~ N(0, σ²), eq. 16
-}
-
-void TruthSensor::GaussMarkov3::step(std::mt19937_64& rng) {
-  if (sigma <= 0.0) return;
-  std::normal_distribution<double> n(0.0, 1.0);
-  for (int i = 0; i < 3; ++i) x(i) = phi * x(i) + drive * n(rng);
-}
-
 TruthSensor::TruthSensor(const UnitModel& unit, double dt_s, uint64_t seed, bool noise)
     : fx_(unit.effects),
       err_(ImuErrorModel<double>::from_params(unit.params)),
       dt_s_(dt_s),
       noise_(noise),
       rng_(seed),
-      q_dth_{noise ? unit.noise.dtheta_lsb_rad : 0.0},
-      q_dv_{noise ? unit.noise.dv_lsb_mps : 0.0},
+      // The quantisation effect: the unit's real LSBs replace the declared ones.
+      q_dth_{noise ? (unit.effects.quant_dtheta_rad > 0.0 ? unit.effects.quant_dtheta_rad
+                                                          : unit.noise.dtheta_lsb_rad)
+                   : 0.0},
+      q_dv_{noise ? (unit.effects.quant_dv_mps > 0.0 ? unit.effects.quant_dv_mps : unit.noise.dv_lsb_mps)
+                  : 0.0},
       sd_dth_(unit.noise.arw_rad_per_sqrt_s * std::sqrt(dt_s)),
       sd_dv_(unit.noise.vrw_mps_per_sqrt_s * std::sqrt(dt_s)) {
   if (noise_) {
     gm_g_.init(unit.noise.gyro_bias_instability_radps, unit.noise.gyro_bias_tau_s, dt_s, rng_);
     gm_a_.init(unit.noise.accel_bias_instability_mps2, unit.noise.accel_bias_tau_s, dt_s, rng_);
+    // The bias_instability effect: a second, undeclared Gauss-Markov process (draws nothing when off,
+    // so effect-free runs keep their noise stream).
+    fx_gm_g_.init(unit.effects.instability_gyro_radps, unit.effects.instability_tau_s, dt_s, rng_);
+    fx_gm_a_.init(unit.effects.instability_accel_mps2, unit.effects.instability_tau_s, dt_s, rng_);
   }
 }
 
-void TruthSensor::measure(const Eigen::Vector3d& dtheta, const Eigen::Vector3d& dv, ImuIncrement& out) {
+void TruthSensor::measure(const Eigen::Vector3d& dtheta, const Eigen::Vector3d& dv, double t0_s,
+                          ImuIncrement& out) {
   const double dt_s = dt_s_;
-  // Sensor-level effects (DESIGN §7) on the interval-mean specific force.
-  const Eigen::Vector3d f_mean_b = dv / dt_s;
-  Eigen::Vector3d dv_fx = Eigen::Vector3d::Zero(), dth_fx = Eigen::Vector3d::Zero();
-  for (int i = 0; i < 3; ++i) {
-    dv_fx(i) += fx_.accel_k2_per_mps2(i) * f_mean_b(i) * f_mean_b(i) * dt_s;
-    dv_fx(i) += fx_.accel_asym(i) * std::abs(f_mean_b(i)) * dt_s;
-  }
-  dth_fx += fx_.gyro_g_sens * f_mean_b * dt_s;
+  // Sensor-level effects (DESIGN §7, calib/effects/) at the interval-mean kinematics; the size
+  // effect is already in dv (integrated exactly by TruthKinematics::dv_lever).
+  SensorKinematics kin;
+  kin.f_b = dv / dt_s;
+  kin.w_b = dtheta / dt_s;
+  kin.t0_s = t0_s;
+  kin.dt_s = dt_s;
+  const IncrementDelta fx = sensor_effects_delta(fx_, kin, /*include_size_effect=*/false);
 
-  Eigen::Vector3d dth_meas = err_.corrupt_dtheta(dtheta, dt_s) + dth_fx;
-  Eigen::Vector3d dv_meas = err_.corrupt_dv(dv, dt_s) + dv_fx;
+  Eigen::Vector3d dth_meas = err_.corrupt_dtheta(dtheta, dt_s) + fx.dtheta;
+  Eigen::Vector3d dv_meas = err_.corrupt_dv(dv, dt_s) + fx.dv;
   if (noise_) {
     gm_g_.step(rng_);
     gm_a_.step(rng_);
+    fx_gm_g_.step(rng_);
+    fx_gm_a_.step(rng_);
     for (int i = 0; i < 3; ++i) {
-      dth_meas(i) += sd_dth_ * normal_(rng_) + gm_g_.x(i) * dt_s;
-      dv_meas(i) += sd_dv_ * normal_(rng_) + gm_a_.x(i) * dt_s;
+      dth_meas(i) += sd_dth_ * normal_(rng_) + (gm_g_.x(i) + fx_gm_g_.x(i)) * dt_s;
+      dv_meas(i) += sd_dv_ * normal_(rng_) + (gm_a_.x(i) + fx_gm_a_.x(i)) * dt_s;
     }
   }
   out.dtheta_rad = q_dth_.apply(dth_meas);

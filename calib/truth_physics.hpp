@@ -2,7 +2,8 @@
 // The physics of the truth simulator, shared by the batch form (truth_sim.hpp: a whole motion profile
 // known in advance) and the streaming form (truth_stream.hpp: the table's motion known only as it
 // happens). Two halves:
-//  * TruthKinematics — the ideal increments over one interval at the site: exact dθ from the endpoint
+//  * TruthKinematics — the ideal increments over one interval at the true site (gravity and latitude
+//    errors of the effects catalogue applied): exact dθ from the endpoint
 //    attitudes w.r.t. inertial space, dv from gravity in the rotating n-frame plus (size effect) the
 //    lever-arm specific force by Gauss-Legendre quadrature;
 //  * TruthSensor — what the unit makes of them: error model (paper eq. 18, 23), sensor-level effects
@@ -15,6 +16,8 @@
 #include <vector>
 
 #include "calib/earth.hpp"
+#include "calib/effects/bias_instability.hpp"
+#include "calib/effects/quantisation.hpp"
 #include "calib/imu_error_model.hpp"
 #include "calib/table_model.hpp"
 #include "calib/truth_sim.hpp"
@@ -35,7 +38,8 @@ class TruthKinematics {
  public:
   TruthKinematics(const TableGeometry& geometry, const Site& site, const UnitModel& unit, double dt_s);
 
-  /// True body attitude for a table state: C_bn_true = exp([ς x]) C_bn_table (conventions.hpp).
+  /// True body attitude for a table state: C_bn_true = exp([ς x]) C_bn_table (conventions.hpp), the
+  /// table with its imperfections (table_nonorthogonality, table_wobble) if the unit has them.
   Eigen::Matrix3d C_bn(const sequences::TableState& s) const;
   /// Exact rotation vector of the attitude change w.r.t. inertial space over one interval:
   /// C_{b(k)}^{b(k-1)} = C_bn(k-1)^T exp([ω_ie_n x] dt) C_bn(k).
@@ -56,6 +60,9 @@ class TruthKinematics {
   Eigen::Vector3d lever_f_n(const sequences::TableState& s) const;
 
   TableModel table_;
+  TableGeometry geometry_;
+  double nonorth_rad_ = 0.0;              ///< table_nonorthogonality effect
+  Eigen::Vector2d wobble_rad_ = Eigen::Vector2d::Zero();  ///< table_wobble effect
   Eigen::Vector3d misalignment_rad_;
   std::array<Eigen::Vector3d, 3> lever_arm_m_;
   bool size_effect_ = false;
@@ -69,32 +76,20 @@ class TruthSensor {
  public:
   /// noise = false: error model and effects only (deterministic, no quantisation).
   TruthSensor(const UnitModel& unit, double dt_s, uint64_t seed, bool noise);
-  /// The unit's output for ideal increments (dθ, dv) of one interval; fills out.dtheta_rad, dv_mps.
-  void measure(const Eigen::Vector3d& dtheta, const Eigen::Vector3d& dv, ImuIncrement& out);
+  /// The unit's output for ideal increments (dθ, dv) of the interval starting t0_s after the run's
+  /// first sample (the thermal warm-up's clock); fills out.dtheta_rad, dv_mps.
+  void measure(const Eigen::Vector3d& dtheta, const Eigen::Vector3d& dv, double t0_s,
+               ImuIncrement& out);
 
  private:
-  /// Rounds each axis to the LSB, carrying the remainder into the next sample (like a real
-  /// accumulating output register), so quantisation never accumulates into a drift.
-  struct Quantiser {
-    double lsb = 0.0;
-    Eigen::Vector3d carry = Eigen::Vector3d::Zero();
-    Eigen::Vector3d apply(const Eigen::Vector3d& x);
-  };
-  /// First-order Gauss-Markov process per axis (paper eq. 16-17), exact discretisation.
-  struct GaussMarkov3 {
-    double sigma = 0.0, phi = 0.0, drive = 0.0;
-    Eigen::Vector3d x = Eigen::Vector3d::Zero();
-    void init(double sigma_, double tau_s, double dt_s, std::mt19937_64& rng);
-    void step(std::mt19937_64& rng);
-  };
-
   Effects fx_;
   ImuErrorModel<double> err_;
   double dt_s_;
   bool noise_;
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};
-  GaussMarkov3 gm_g_, gm_a_;
+  GaussMarkov3 gm_g_, gm_a_;      ///< the noise model's declared bias instability
+  GaussMarkov3 fx_gm_g_, fx_gm_a_;  ///< the bias_instability effect (undeclared)
   Quantiser q_dth_, q_dv_;
   double sd_dth_, sd_dv_;
 };

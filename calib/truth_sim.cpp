@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "calib/effects/table_imperfections.hpp"
+#include "calib/effects/table_time_offset.hpp"
 #include "calib/truth_physics.hpp"
 #include "calib/rotation.hpp"
 
@@ -28,8 +30,13 @@ UnitModel default_unit() {
 Eigen::Matrix3d true_C_bn(const sequences::MotionProfile& profile, const TableModel& table,
                           const UnitModel& unit, double t_s) {
   const sequences::TableState s = profile.at(t_s);
-  return rotvec_to_matrix<double>(unit.params.table_misalignment_rad) *
-         table.C_bn(s.outer_rad, s.inner_rad);
+  const Effects& fx = unit.effects;
+  const Eigen::Matrix3d C =
+      fx.table_nonorthogonality_rad == 0.0 && fx.table_wobble_rad.isZero()
+          ? table.C_bn(s.outer_rad, s.inner_rad)
+          : table_C_bn<double>(table.geometry(), s.outer_rad, s.inner_rad,
+                               fx.table_nonorthogonality_rad, fx.table_wobble_rad);
+  return rotvec_to_matrix<double>(unit.params.table_misalignment_rad) * C;
 }
 
 SimResult simulate(const sequences::MotionProfile& profile, const TableGeometry& geometry,
@@ -63,11 +70,11 @@ SimResult simulate(const sequences::MotionProfile& profile, const TableGeometry&
     ImuIncrement& s = out.imu[k];
     s.t_s = t1;
     s.dt_s = dt_s;
-    sensor.measure(dtheta, dv, s);
+    sensor.measure(dtheta, dv, t0, s);
     s.temp_c = 25.0;
 
     // Encoder log: the table's own angles, possibly lagging the IMU clock (time-offset effect).
-    const double t_enc = t1 - fx.table_time_offset_s;
+    const double t_enc = encoder_source_time_s(t1, fx.table_time_offset_s);
     const sequences::TableState ts = profile.at(t_enc);
     TableSample& tab = out.table[k];
     tab.t_s = t1;

@@ -14,10 +14,6 @@ TruthStream::TruthStream(const TableGeometry& geometry, const Site& site, const 
   if (!(std::isfinite(options.rate_hz) && options.rate_hz > 0.0))
     throw std::invalid_argument("TruthStream: rate_hz must be positive and finite, got " +
                                 std::to_string(options.rate_hz));
-  if (unit.effects.table_time_offset_s != 0.0)
-    throw std::invalid_argument(
-        "TruthStream: effect table_time_offset cannot be streamed (it shifts the encoder log, which "
-        "the stream does not produce)");
   kin_ = std::make_unique<TruthKinematics>(geometry, site, unit, dt_s_);
   sensor_ = std::make_unique<TruthSensor>(unit, dt_s_, options.seed, options.noise);
 }
@@ -58,7 +54,7 @@ ImuIncrement TruthStream::next(const StateAt& state_at, const std::vector<double
   ImuIncrement s;
   s.t_s = t1;
   s.dt_s = dt_s_;
-  sensor_->measure(dtheta, dv, s);
+  sensor_->measure(dtheta, dv, t0, s);
   s.temp_c = 25.0;
   C_prev_ = C_cur;
   ++k_;

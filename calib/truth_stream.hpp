@@ -10,7 +10,8 @@
 // Effects: the sensor-level effects stream as they are; the size effect (lever arms) needs the
 // times where the table's angular acceleration jumps inside an interval (give them to next(), or the
 // quadrature is not exact across them); the table-time-offset effect acts on the encoder log, which a
-// stream does not produce — the constructor refuses it (std::invalid_argument).
+// stream does not produce: the caller that reports encoder angles (the station simulator's PLC) must
+// report the angles of t - offset (calib/effects/table_time_offset.hpp).
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -30,8 +31,7 @@ class TruthStream {
  public:
   using StateAt = std::function<sequences::TableState(double t_s)>;
 
-  /// Throws std::invalid_argument for a non-positive or non-finite rate, or an effect that cannot be
-  /// streamed (table_time_offset_s != 0), naming it.
+  /// Throws std::invalid_argument for a non-positive or non-finite rate.
   TruthStream(const TableGeometry& geometry, const Site& site, const UnitModel& unit,
               const SimOptions& options);
   ~TruthStream();
