@@ -183,6 +183,15 @@ json run_json(const RunRecord& r) {
                     ": stored capture_json is not a JSON object");
     o["capture"] = std::move(capture);
   }
+  if (r.diagnosis_json.empty()) {
+    o["diagnosis"] = nullptr;
+  } else {
+    json diagnosis = json::parse(r.diagnosis_json, nullptr, /*allow_exceptions=*/false);
+    if (!diagnosis.is_object())
+      throw Corrupt("run " + std::to_string(r.run_id) +
+                    ": stored diagnosis_json is not a JSON object");
+    o["diagnosis"] = std::move(diagnosis);
+  }
   return o;
 }
 

@@ -158,6 +158,8 @@ struct RunRecord {
   std::optional<Verdict> verdict;  ///< from the cross-check, if one is stored
   std::string capture_json;        ///< capture counters (station/capture_stats.hpp) as a JSON
                                    ///< object text; empty if the run stored none (schema v2)
+  std::string diagnosis_json;      ///< gap diagnosis summary (archive::diagnosis_summary_json) as a JSON
+                                   ///< object text; empty if none was made (schema v3)
 };
 
 /// Headline evaluation metrics of one method (paper §VII, calib/evaluation.hpp), per-period
@@ -198,6 +200,7 @@ struct RunCompletion {
       calibrations;  ///< stored with the run (may be empty if stored before)
   std::optional<CrosscheckRecord> crosscheck;
   std::string capture_json;  ///< capture counters as a JSON object text, or empty
+  std::string diagnosis_json;  ///< gap diagnosis summary as a JSON object text, or empty
 };
 
 struct RunDetails {
@@ -252,6 +255,10 @@ class Repository {
   virtual void store_calibration(RunId run_id, const CalibrationRecord& calibration) = 0;
   /// Store the cross-check verdict for a live run. Conflict if terminal or already stored.
   virtual void store_crosscheck(RunId run_id, const CrosscheckRecord& crosscheck) = 0;
+  /// Replace the gap diagnosis summary of a terminal run (`stationctl diagnose`): a JSON object
+  /// text. The run's state and results are untouched. Throws NotFound, InvalidInput (not an
+  /// object), Conflict (the run is still live).
+  virtual void set_diagnosis(RunId run_id, const std::string& diagnosis_json) = 0;
 
   /// Start-up recovery: every run in a live state becomes interrupted (ended_at = now_ms, reason
   /// names the state it was found in). Returns their ids, ascending. Results stored so far stay.

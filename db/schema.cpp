@@ -139,6 +139,12 @@ const std::vector<Migration>& migrations() {
       {2, "runs.capture_json: capture counters of a run",
        "ALTER TABLE runs ADD COLUMN capture_json TEXT NOT NULL DEFAULT '' "
        "CHECK (capture_json = '' OR json_valid(capture_json));"},
+      // Version 3 (gap diagnosis, issue #8): the summary of the run's sim-to-real gap diagnosis
+      // (verdict, best effect with magnitude and σ, overall gap), so QA sees per serial and across
+      // units which unmodelled effects recur.
+      {3, "runs.diagnosis_json: gap diagnosis summary of a run",
+       "ALTER TABLE runs ADD COLUMN diagnosis_json TEXT NOT NULL DEFAULT '' "
+       "CHECK (diagnosis_json = '' OR json_valid(diagnosis_json));"},
   };
   return list;
 }

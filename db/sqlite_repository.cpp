@@ -25,8 +25,9 @@ using nlohmann::json;
 const std::string kRunColumns =
     "r.id, u.serial, r.operator, r.station, r.sequence_name, r.sequence_sha256, "
     "r.software_version, r.started_at_ms, r.ended_at_ms, r.state, r.failure_reason, "
-    "r.archive_path, r.archive_sha256, r.reprocessed_from, x.verdict, r.capture_json";
-constexpr int kNumRunColumns = 16;
+    "r.archive_path, r.archive_sha256, r.reprocessed_from, x.verdict, r.capture_json, "
+    "r.diagnosis_json";
+constexpr int kNumRunColumns = 17;
 const std::string kRunFrom =
     " FROM runs r JOIN units u ON u.id = r.unit_id LEFT JOIN crosschecks x ON x.run_id = r.id ";
 const std::string kCalColumns =
@@ -69,8 +70,9 @@ const char* const kSqlRunState = "SELECT state FROM runs WHERE id = ?1";
 const char* const kSqlSetLiveState = "UPDATE runs SET state = ?2 WHERE id = ?1";
 const char* const kSqlFinishRun =
     "UPDATE runs SET state = ?2, ended_at_ms = ?3, failure_reason = ?4, "
-    "archive_path = coalesce(?5, archive_path), archive_sha256 = ?6, capture_json = ?7 WHERE id = "
-    "?1";
+    "archive_path = coalesce(?5, archive_path), archive_sha256 = ?6, capture_json = ?7, "
+    "diagnosis_json = ?8 WHERE id = ?1";
+const char* const kSqlSetDiagnosis = "UPDATE runs SET diagnosis_json = ?2 WHERE id = ?1";
 const char* const kSqlHasMethod = "SELECT 1 FROM calibrations WHERE run_id = ?1 AND method = ?2";
 const char* const kSqlInsertCal =
     "INSERT INTO calibrations (run_id, method, params_json, sigma_json, converged, iterations, "
@@ -312,6 +314,7 @@ struct SqliteRepository::Impl {
       r.verdict = decode([&] { return run_label(r.run_id) + " verdict"; },
                          [&] { return verdict_from_string(q.text(14)); });
     r.capture_json = q.text(15);
+    r.diagnosis_json = q.text(16);
     return r;
   }
 
@@ -487,6 +490,15 @@ struct SqliteRepository::Impl {
                   [&] { return run_state_from_string(q.text(0)); });
   }
 
+  /// Empty, or a JSON object text (what the *_json columns hold).
+  static void check_json_object(const std::string& text, const std::string& who, const char* field) {
+    if (text.empty()) return;
+    const json parsed = json::parse(text, nullptr, /*allow_exceptions=*/false);
+    if (!parsed.is_object())
+      throw InvalidInput(who + ": " + field + " must be a JSON object (or empty), got: " +
+                         text.substr(0, 80));
+  }
+
   RunState require_live(RunId run_id, const char* op) const {
     const RunState s = state_of(run_id, op);
     if (is_terminal(s))
@@ -548,12 +560,8 @@ struct SqliteRepository::Impl {
           who + ": state " + to_string(c.state) +
           " is not terminal (expected done, review, failed, aborted or interrupted)");
     check_sha(c.archive_sha256, "archive SHA-256");
-    if (!c.capture_json.empty()) {
-      const json parsed = json::parse(c.capture_json, nullptr, /*allow_exceptions=*/false);
-      if (!parsed.is_object())
-        throw InvalidInput(who + ": capture_json must be a JSON object (or empty), got: " +
-                           c.capture_json.substr(0, 80));
-    }
+    check_json_object(c.capture_json, who, "capture_json");
+    check_json_object(c.diagnosis_json, who, "diagnosis_json");
     for (std::size_t i = 0; i < c.calibrations.size(); ++i)
       for (std::size_t k = 0; k < i; ++k)
         if (c.calibrations[i].method == c.calibrations[k].method)
@@ -593,8 +601,9 @@ struct SqliteRepository::Impl {
         throw Conflict(who + " cannot be done without:" + missing);
       }
     }
-    if (verdict == Verdict::kPass && c.state == RunState::kReview)
-      throw Conflict(who + ": cross-check is PASS, so the run cannot go to review");
+    // A PASS cross-check goes to review only with a reason of its own (a significant sim-to-real gap).
+    if (verdict == Verdict::kPass && c.state == RunState::kReview && c.reason.empty())
+      throw Conflict(who + ": cross-check is PASS, so the run cannot go to review without a reason");
     if (verdict == Verdict::kReview && c.state == RunState::kDone)
       throw Conflict(who + ": cross-check is REVIEW, so the run cannot be done");
     const bool needs_reason = c.state == RunState::kFailed || c.state == RunState::kAborted ||
@@ -606,6 +615,7 @@ struct SqliteRepository::Impl {
     Stmt q(*this, kSqlFinishRun, op);
     q.bind(1, run_id).bind(2, to_string(c.state)).bind(3, c.ended_at_ms).bind(4, c.reason);
     q.bind(5, c.archive_path).bind(6, c.archive_sha256).bind(7, c.capture_json);
+    q.bind(8, c.diagnosis_json);
     q.run();
     tx.commit();
   }
@@ -766,6 +776,23 @@ void SqliteRepository::store_crosscheck(RunId run_id, const CrosscheckRecord& cr
   tx.commit();
 }
 
+void SqliteRepository::set_diagnosis(RunId run_id, const std::string& diagnosis_json) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl& d = *impl_;
+  const char* op = "set_diagnosis";
+  d.require_writable(op);
+  const std::string who = d.path + ": " + op + ": " + run_label(run_id);
+  Impl::check_json_object(diagnosis_json, who, "diagnosis_json");
+  Impl::Tx tx(d, op, true);
+  const RunState s = d.state_of(run_id, op);
+  if (!is_terminal(s))
+    throw Conflict(who + " is still " + to_string(s) + "; diagnose it when it has finished");
+  Impl::Stmt q(d, kSqlSetDiagnosis, op);
+  q.bind(1, run_id).bind(2, diagnosis_json);
+  q.run();
+  tx.commit();
+}
+
 std::vector<RunId> SqliteRepository::mark_interrupted_runs(TimestampMs now) {
   std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
   Impl& d = *impl_;
@@ -784,7 +811,7 @@ std::vector<RunId> SqliteRepository::mark_interrupted_runs(TimestampMs now) {
                                " (found at start-up); not resumed — the archive can be reprocessed";
     q.bind(1, id).bind(2, to_string(RunState::kInterrupted)).bind(3, now).bind(4, reason);
     // Keep whatever capture summary was stored (none: runs get it at finish).
-    q.bind_null(5).bind(6, std::string()).bind(7, std::string());
+    q.bind_null(5).bind(6, std::string()).bind(7, std::string()).bind(8, std::string());
     q.run();
     ids.push_back(id);
   }

@@ -43,6 +43,7 @@ class SqliteRepository final : public Repository {
   void finish_run(RunId run_id, const RunCompletion& completion) override;
   void store_calibration(RunId run_id, const CalibrationRecord& calibration) override;
   void store_crosscheck(RunId run_id, const CrosscheckRecord& crosscheck) override;
+  void set_diagnosis(RunId run_id, const std::string& diagnosis_json) override;
   std::vector<RunId> mark_interrupted_runs(TimestampMs now_ms) override;
   std::vector<RunRecord> history(const std::string& serial, std::size_t limit = 0) const override;
   RunDetails show(RunId run_id) const override;

@@ -6,6 +6,8 @@
 #include <spdlog/spdlog.h>
 
 #include "calib/calibration_pipeline.hpp"
+#include "calib/diagnosis.hpp"
+#include "db/archive/diagnosis_json.hpp"
 #include "db/archive/run_archive.hpp"
 
 namespace imucal::station {
@@ -23,6 +25,32 @@ std::string join_failures(const std::vector<calib::CrossCheckFailure>& failures)
     s += f.detail.empty() ? f.term : f.detail;
   }
   return s.empty() ? "cross-check REVIEW" : "cross-check REVIEW: " + s;
+}
+
+/// The run's sim-to-real gap (calib/diagnosis.hpp) against its own NLSQ calibration. A diagnosis
+/// that cannot run (a run too short for it) does not fail a calibration that succeeded: it is stored
+/// as {"verdict": "not run", "reason": ...} and the cross-check decides alone.
+struct GapCheck {
+  nlohmann::json summary;
+  bool significant = false;
+  std::string text;
+};
+
+GapCheck check_gap(calib::CalibrationInput in, const archive::RunArchive& ar,
+                   const calib::ParamSet& nlsq_params) {
+  GapCheck g;
+  try {
+    calib::DiagnosisInput din;
+    din.cal = std::move(in);
+    if (ar.info.reference == archive::ReferenceKind::kTable) din.geometry = ar.info.table.geometry();
+    const calib::DiagnosisResult d = calib::diagnose(din, nlsq_params);
+    g.summary = archive::diagnosis_summary_json(d);
+    g.significant = d.verdict != "consistent";
+    g.text = d.summary;
+  } catch (const std::exception& e) {
+    g.summary = {{"verdict", "not run"}, {"reason", e.what()}};
+  }
+  return g;
 }
 
 }  // namespace
@@ -44,7 +72,7 @@ CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJo
     phase("reading the archive");
     const archive::RunArchive ar = archive::read_archive(job.archive_dir);
     phase("checking the archive");
-    const calib::CalibrationInput in = archive::to_calibration_input(ar);
+    calib::CalibrationInput in = archive::to_calibration_input(ar);
     calib::PipelineOptions opt;
     opt.methods = calib::MethodSelection::kAll;
     opt.crosscheck.k_sigma = job.k_sigma;
@@ -56,12 +84,19 @@ CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJo
     completion.calibrations.push_back(db::calibration_record(r.ains->result, &r.ains->metrics));
     completion.calibrations.push_back(db::calibration_record(r.nlsq->result, &r.nlsq->metrics));
     completion.crosscheck = db::crosscheck_record(*r.crosscheck, job.k_sigma);
-    if (r.crosscheck->pass) {
+    phase("gap diagnosis");
+    // Every run gets the consistency test: a significant gap between the run and its own model
+    // means an unmodelled effect that biases the calibration, so the run is never PASS then.
+    const GapCheck gap = check_gap(std::move(in), ar, r.nlsq->result.params);
+    completion.diagnosis_json = gap.summary.dump();
+    const std::string gap_reason = gap.significant ? "sim-to-real gap: " + gap.text : "";
+    if (r.crosscheck->pass && !gap.significant) {
       completion.state = db::RunState::kDone;
       out.verdict = db::Verdict::kPass;
     } else {
       completion.state = db::RunState::kReview;
-      completion.reason = join_failures(r.crosscheck->failures);
+      completion.reason = r.crosscheck->pass ? gap_reason : join_failures(r.crosscheck->failures);
+      if (!r.crosscheck->pass && gap.significant) completion.reason += "; " + gap_reason;
       out.verdict = db::Verdict::kReview;
     }
   } catch (const std::exception& e) {

@@ -5,11 +5,15 @@
 // A job does exactly what `imucal calibrate` and `reprocess` do (one code path, calib/
 // calibration_pipeline.hpp): archive::read_archive -> archive::to_calibration_input ->
 // calib::run_calibration (AINS and NLSQ, each evaluated, then the cross-check at k_sigma) ->
+// calib::diagnose (the sim-to-real gap of the run against its NLSQ calibration) ->
 // db::calibration_record / db::crosscheck_record -> Repository::finish_run in one transaction:
-//   cross-check PASS   -> done
-//   cross-check REVIEW -> review, reason = the failures ("; "-joined human details)
+//   cross-check PASS, gap consistent   -> done
+//   cross-check PASS, gap significant  -> review, reason = "sim-to-real gap: " + the diagnosis
+//                                         summary (the best candidate effect named)
+//   cross-check REVIEW -> review, reason = the failures ("; "-joined human details) [+ the gap]
 //   any error          -> failed, reason = the error (archive format, unobservable data, ...)
-// with the archive's SHA-256 and the capture counters (capture_json) stored with the run.
+// with the archive's SHA-256, the capture counters (capture_json) and the diagnosis summary
+// (diagnosis_json) stored with the run.
 //
 // A run that became terminal while its job waited or ran (aborted by the operator, or by SIGTERM) is
 // left as it is: the job's result is dropped and reported as such.

@@ -107,4 +107,15 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
   return j;
 }
 
+nlohmann::json diagnosis_summary_json(const calib::DiagnosisResult& d) {
+  const json full = diagnosis_to_json(d);
+  json s;
+  for (const char* k : {"verdict", "summary", "best", "second", "ambiguous", "held_out"}) s[k] = full[k];
+  s["overall"] = {{"gap", full["overall"]["gap"]},
+                  {"expected", full["overall"]["expected"]},
+                  {"sigma", full["overall"]["sigma"]},
+                  {"p_value", full["overall"]["p_value"]}};
+  return s;
+}
+
 }  // namespace imucal::archive

@@ -21,6 +21,10 @@ namespace imucal::archive {
 
 nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d);
 
+/// The summary kept with a station run (runs.diagnosis_json): {"verdict", "summary", "best",
+/// "second", "ambiguous", "overall": {"gap", "expected", "sigma", "p_value"}, "held_out": {...}}.
+nlohmann::json diagnosis_summary_json(const calib::DiagnosisResult& d);
+
 /// "accel_x", ..., "gyro_z": the JSON keys of the six residual components.
 const char* gap_component_key(int c);
 

@@ -56,13 +56,13 @@ StationSim::StationSim(StationSimConfig cfg) : cfg_(std::move(cfg)) {
     if (f.table_fault->code == 0)
       throw std::invalid_argument("StationSimConfig.faults.table_fault.code must be non-zero (0 = no fault)");
   }
-  // The PLC's acceleration switch times are not observable from its state, so the size effect's
-  // quadrature could not be split there; refuse rather than simulate it inexactly.
-  for (const auto& r : cfg_.unit.effects.accel_lever_arm_m)
-    if (!r.isZero())
-      throw std::invalid_argument(
-          "StationSimConfig.unit.effects: size_effect (accelerometer lever arms) is not supported by the "
-          "station simulator (the table's acceleration switch times are not observable)");
+  // table_time_offset: the PLC's encoder registers lag the motion (TablePlcConfig::encoder_delay_s);
+  // an encoder that leads the motion cannot be simulated by a PLC that only knows the present.
+  if (cfg_.unit.effects.table_time_offset_s < 0.0)
+    throw std::invalid_argument(
+        "StationSimConfig.unit.effects: table_time_offset must be >= 0 in the station simulator (the "
+        "PLC's encoder can lag the motion, not lead it)");
+  cfg_.plc.encoder_delay_s = cfg_.unit.effects.table_time_offset_s;
   // Built here so that the unit is checked (e.g. table_time_offset) before anything listens.
   calib::SimOptions o;
   o.rate_hz = cfg_.rate_hz;
@@ -220,10 +220,17 @@ void StationSim::run() {
       }
       calib::ImuIncrement inc;
       server_->with_plc([&](TablePlc& plc) {
-        inc = stream.next([&](double t) {
-          advance(plc, t);
-          return plc.actual_state();
-        });
+        // The size effect's quadrature is split where the PLC's planned acceleration jumps.
+        const std::vector<double> breaks =
+            stream.needs_interior_states()
+                ? plc.accel_switch_times(stream.interval_start_s(), stream.next_time_s())
+                : std::vector<double>{};
+        inc = stream.next(
+            [&](double t) {
+              advance(plc, t);
+              return plc.actual_state();
+            },
+            breaks);
       });
       if (reset_requested_.exchange(false)) node_->reset();
       if (stream.samples() % 16 == 0) {

@@ -19,6 +19,14 @@ double TablePlc::AxisProfile::end_s() const {
   return t;
 }
 
+std::vector<double> TablePlc::AxisProfile::boundaries() const {
+  std::vector<double> b;
+  double t = t0_s;
+  b.push_back(t);
+  for (const auto& p : pieces) b.push_back(t += p.duration_s);
+  return b;
+}
+
 void TablePlc::AxisProfile::eval(double t_s, double* angle_deg, double* rate_dps, double* accel_dps2) const {
   double tau = std::max(0.0, t_s - t0_s);
   double pos = angle0_deg, vel = rate0_dps, acc = 0.0;
@@ -167,6 +175,17 @@ sequences::TableState TablePlc::actual_state() const {
   s.inner_accel_radps2 = acc * kDegToRad;
   s.at_rest = motion_ == Motion::kNone;
   return s;
+}
+
+std::vector<double> TablePlc::accel_switch_times(double t0_s, double t1_s) const {
+  std::vector<double> out;
+  for (const AxisProfile* p : {&outer_, &inner_})
+    if (!p->pieces.empty())
+      for (double b : p->boundaries())
+        if (b > t0_s && b < t1_s) out.push_back(b);
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
 }
 
 double TablePlc::outer_deg() const {
@@ -338,10 +357,13 @@ void TablePlc::put_float(uint16_t address, double value) {
 void TablePlc::publish_inputs() {
   const auto& in = cfg_.map.input;
   double a, r, acc;
-  outer_.eval(t_s_, &a, &r, &acc);
+  // A lagging encoder (table_time_offset) reports the motion of encoder_delay_s ago. Moves start
+  // from rest, so before a profile's start its start angle is the angle then.
+  const double t_enc = t_s_ - cfg_.encoder_delay_s;
+  outer_.eval(t_enc, &a, &r, &acc);
   put_float(in.actual_outer_deg, a);
   put_float(in.rate_outer_dps, r);
-  inner_.eval(t_s_, &a, &r, &acc);
+  inner_.eval(t_enc, &a, &r, &acc);
   put_float(in.actual_inner_deg, a);
   put_float(in.rate_inner_dps, r);
   input_[in.status] = status_word();

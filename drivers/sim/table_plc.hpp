@@ -57,6 +57,10 @@ struct TablePlcConfig {
   double heartbeat_period_s = 0.05;   ///< heartbeat increments once per period of PLC time
   double initial_outer_deg = 0.0;     ///< power-up angles
   double initial_inner_deg = 0.0;
+  /// The encoder readings (actual angle and rate registers) lag the physical motion by this much, s
+  /// (>= 0): the effects catalogue's table_time_offset. The motion itself (actual_state()) is not
+  /// delayed.
+  double encoder_delay_s = 0.0;
 };
 
 class TablePlc {
@@ -81,6 +85,9 @@ class TablePlc {
   // --- actual motion ---
   /// Exact angles (rad), rates and accelerations at the current PLC time; at_rest = no profile running.
   sequences::TableState actual_state() const;
+  /// The times strictly inside (t0_s, t1_s) where either axis' planned acceleration jumps (profile
+  /// piece boundaries), ascending: where a quadrature over the motion must be split (size effect).
+  std::vector<double> accel_switch_times(double t0_s, double t1_s) const;
   double outer_deg() const;
   double inner_deg() const;
 
@@ -129,6 +136,8 @@ class TablePlc {
     std::optional<double> final_angle_deg;  ///< exact end angle (removes round-off at the end)
 
     double end_s() const;
+    /// Piece boundaries (t0 + cumulative durations).
+    std::vector<double> boundaries() const;
     void eval(double t_s, double* angle_deg, double* rate_dps, double* accel_dps2) const;
   };
   enum class Motion { kNone, kMove, kHome, kStopping };

@@ -189,7 +189,7 @@ TEST(Migration, LaterMigrationsApplyInOrderAndAFailingOneRollsBackCompletely) {
   EXPECT_THROW(schema::migrate(raw.get(), path, gap), std::logic_error);
 }
 
-TEST(Migration, VersionOneDatabaseUpgradesToTwoKeepingItsRunsAndGainsCaptureJson) {
+TEST(Migration, VersionOneDatabaseUpgradesToTheCurrentKeepingItsRunsAndGainsCaptureJson) {
   TempDir dir;
   const std::string path = dir.file("v1.db");
   // A file as the first station release wrote it: only migration 1 applied, one finished run.
@@ -217,12 +217,13 @@ TEST(Migration, VersionOneDatabaseUpgradesToTwoKeepingItsRunsAndGainsCaptureJson
   EXPECT_NE(msg.find("open it read-write once"), std::string::npos) << msg;
   {
     SqliteRepository repo(path);
-    EXPECT_EQ(repo.schema_version(), 2);
+    EXPECT_EQ(repo.schema_version(), schema::kSchemaVersion);
     const auto runs = repo.history("OLD-1");
     ASSERT_EQ(runs.size(), 1u);
     EXPECT_EQ(runs[0].state, RunState::kAborted);
     EXPECT_EQ(runs[0].failure_reason, "operator abort");
     EXPECT_EQ(runs[0].capture_json, "") << "old runs have no capture summary";
+    EXPECT_EQ(runs[0].diagnosis_json, "") << "old runs have no diagnosis";
     EXPECT_EQ(repo.integrity_check(), "ok");
   }
   // The new column refuses text that is not JSON, even written around the repository.
@@ -253,6 +254,60 @@ TEST(Migration, CaptureJsonIsStoredWithTheRunAndMalformedTextIsRefused) {
   std::string exported;
   repo.export_rows({}, [&](const ExportRow& row) { exported = row.run.capture_json; });
   EXPECT_EQ(exported, ok.capture_json);
+}
+
+TEST(Migration, VersionTwoDatabaseGainsDiagnosisJsonKeepingItsCaptureCounters) {
+  TempDir dir;
+  const std::string path = dir.file("v2.db");
+  {
+    RawDb raw(path);
+    const std::vector<schema::Migration> v2(schema::migrations().begin(),
+                                            schema::migrations().begin() + 2);
+    schema::migrate(raw.get(), path, v2);
+    ASSERT_EQ(raw.text("PRAGMA user_version"), "2");
+    raw.exec("INSERT INTO units (serial, first_seen_ms) VALUES ('OLD-2', 1714560000000);");
+    raw.exec(
+        "INSERT INTO runs (unit_id, operator, station, sequence_name, sequence_sha256, "
+        "software_version, started_at_ms, ended_at_ms, state, failure_reason, capture_json) VALUES "
+        "(1, 'op', 'st', 'short', '', '0.1.0', 1714560000000, 1714560060000, 'aborted', "
+        "'operator abort', '{\"frames_received\":12}');");
+  }
+  SqliteRepository repo(path);
+  EXPECT_EQ(repo.schema_version(), schema::kSchemaVersion);
+  const auto runs = repo.history("OLD-2");
+  ASSERT_EQ(runs.size(), 1u);
+  EXPECT_EQ(runs[0].capture_json, R"({"frames_received":12})");
+  EXPECT_EQ(runs[0].diagnosis_json, "");
+  // A finished run can be diagnosed afterwards (stationctl diagnose): only its summary changes.
+  const std::string summary = R"({"verdict":"explained","best":{"effect":"accel_quadratic_k2"}})";
+  repo.set_diagnosis(runs[0].run_id, summary);
+  EXPECT_EQ(repo.history("OLD-2").at(0).diagnosis_json, summary);
+  EXPECT_EQ(repo.history("OLD-2").at(0).state, RunState::kAborted);
+  EXPECT_EQ(repo.integrity_check(), "ok");
+}
+
+TEST(Migration, DiagnosisJsonIsStoredWithTheRunAndOnlyAnObjectIsAccepted) {
+  TempDir dir;
+  SqliteRepository repo(dir.file("diag.db"));
+  const RunId id = repo.create_run(test::new_run("SIM-0003", kT0));
+  EXPECT_THROW(repo.set_diagnosis(id, R"({"verdict":"consistent"})"), Conflict)
+      << "a live run is diagnosed when it has finished";
+  RunCompletion bad = test::pass_completion(5, kT0 + 1000);
+  bad.diagnosis_json = "\"consistent\"";
+  const std::string msg = expect_throw_message<InvalidInput>([&] { repo.finish_run(id, bad); });
+  EXPECT_NE(msg.find("diagnosis_json must be a JSON object"), std::string::npos) << msg;
+  // A PASS cross-check with a significant gap goes to review, with its reason.
+  RunCompletion gap = test::pass_completion(5, kT0 + 1000);
+  gap.state = RunState::kReview;
+  gap.reason = "sim-to-real gap: explained by gyro_g_sensitivity";
+  gap.diagnosis_json = R"({"verdict":"explained","best":{"effect":"gyro_g_sensitivity"}})";
+  repo.finish_run(id, gap);
+  const RunDetails d = repo.show(id);
+  EXPECT_EQ(d.run.state, RunState::kReview);
+  EXPECT_EQ(d.run.diagnosis_json, gap.diagnosis_json);
+  EXPECT_THROW(repo.active_params("SIM-0003"), NotFound) << "a review run is never active";
+  EXPECT_THROW(repo.set_diagnosis(id, "[1]"), InvalidInput);
+  EXPECT_THROW(repo.set_diagnosis(id + 100, "{}"), NotFound);
 }
 
 }  // namespace

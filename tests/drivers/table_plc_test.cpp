@@ -338,3 +338,46 @@ TEST(TablePlc, CustomMapLayoutIsHonoured) {
 
 }  // namespace
 }  // namespace imucal::sim
+
+namespace imucal::sim {
+namespace {
+
+// table_time_offset (DESIGN §7) in the station simulator: the encoder registers show the motion of
+// encoder_delay_s ago; the physics (actual_state) is not delayed. Outer 0 -> 90 at 20 °/s with
+// 10 °/s² (the trapezoid above): at t = 3 s the axis is at 40° cruising at 20 °/s, so an encoder
+// 0.25 s late reads 40 - 20·0.25 = 35°.
+TEST(TablePlc, ALaggingEncoderReportsTheAnglesOfItsDelayAgo) {
+  TablePlcConfig cfg = test_config();
+  cfg.encoder_delay_s = 0.25;
+  TablePlc plc(cfg);
+  Master m(plc);
+  m.ready();
+  const double t0 = plc.time_s();
+  ASSERT_EQ(m.move(90.0, -30.0, 20.0), AckResult::kAccepted);
+  m.run_until(t0 + 3.0);
+  EXPECT_NEAR(plc.actual_state().outer_rad * 180 / kPi, 40.0, 1e-9);
+  EXPECT_NEAR(m.input_float(m.map_.input.actual_outer_deg), 35.0, 1e-4);
+  EXPECT_NEAR(m.input_float(m.map_.input.rate_outer_dps), 20.0, 1e-4);
+  // At the end both agree again (once the delay has passed).
+  m.run_until(t0 + 10.0);
+  EXPECT_NEAR(m.input_float(m.map_.input.actual_outer_deg), 90.0, 1e-4);
+}
+
+// The size effect's quadrature needs the instants where the planned acceleration jumps: the
+// trapezoid's corners at t0 + 2, 4.5 and 6.5 s (outer) and the triangle's at t0 + √3, 2√3 (inner).
+TEST(TablePlc, AccelerationSwitchTimesAreTheProfileCorners) {
+  TablePlc plc(test_config());
+  Master m(plc);
+  m.ready();
+  const double t0 = plc.time_s();
+  ASSERT_EQ(m.move(90.0, -30.0, 20.0), AckResult::kAccepted);
+  const auto sw = plc.accel_switch_times(t0 + 0.5, t0 + 7.0);
+  const std::vector<double> expect = {t0 + std::sqrt(3.0), t0 + 2.0, t0 + 2.0 * std::sqrt(3.0),
+                                      t0 + 4.5, t0 + 6.5};
+  ASSERT_EQ(sw.size(), expect.size());
+  for (size_t i = 0; i < sw.size(); ++i) EXPECT_NEAR(sw[i], expect[i], 1e-9) << i;
+  EXPECT_TRUE(plc.accel_switch_times(t0 + 2.1, t0 + 2.2).empty());
+}
+
+}  // namespace
+}  // namespace imucal::sim

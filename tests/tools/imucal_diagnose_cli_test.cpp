@@ -53,10 +53,11 @@ class DiagnoseCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new imucal::test_support::ScopedTempDir("diagnose-cli");
-    // A unit with a gyro g-sensitivity (the simulator injects it; the diagnosis is not told).
+    // A unit with a gyro g-sensitivity (the simulator injects it; the diagnosis is not told), about
+    // 3.5x the detection threshold of the short sequence (imucal crlb --sequence short --effects).
     std::ofstream(fs::path(dir_->path()) / "gsens.toml")
         << slurp(fs::path(IMUCAL_SOURCE_DIR) / "db/archive/units/default.toml")
-        << "\n[effects]\ng_sens_deg_per_h_per_g = [[0.03, 0.0, 0.0], [0.0, -0.03, 0.0], [0.0, 0.0, 0.02]]\n";
+        << "\n[effects]\ng_sens_deg_per_h_per_g = [[0.1, 0.0, 0.0], [0.0, -0.1, 0.0], [0.0, 0.0, 0.08]]\n";
     ASSERT_EQ(run("simulate --sequence short --seed 4 --out " + (fs::path(dir_->path()) / "gsens").string() +
                   " --unit " + (fs::path(dir_->path()) / "gsens.toml").string())
                   .code,
