@@ -16,7 +16,7 @@ const char* type_name(const toml::node& n) { return sequences::toml_type_name(n.
 
 std::size_t node_line(const toml::node& n) { return n.source().begin.line; }
 
-std::string list(std::initializer_list<std::string_view> keys) {
+std::string list(const std::vector<std::string_view>& keys) {
   std::string s;
   for (auto k : keys) {
     if (!s.empty()) s += ", ";
@@ -37,7 +37,7 @@ toml::table parse_toml_text(const std::string& text, const std::string& file) {
 }
 
 TomlSection::TomlSection(const toml::table& table, std::string file, std::string prefix,
-                         std::initializer_list<std::string_view> allowed)
+                         const std::vector<std::string_view>& allowed)
     : table_(&table), file_(std::move(file)), prefix_(std::move(prefix)) {
   for (auto&& [k, v] : table) {
     bool ok = false;
@@ -62,7 +62,7 @@ void TomlSection::fail(std::string_view key, const std::string& message) const {
 }
 
 std::optional<TomlSection> TomlSection::section(
-    std::string_view key, std::initializer_list<std::string_view> allowed) const {
+    std::string_view key, const std::vector<std::string_view>& allowed) const {
   const toml::node* n = table_->get(key);
   if (!n) return std::nullopt;
   if (!n->is_table())
@@ -128,6 +128,17 @@ std::optional<Eigen::Vector3d> TomlSection::vec3(std::string_view key) const {
   Eigen::Vector3d v;
   for (int i = 0; i < 3; ++i)
     v(i) = number_node(*a->get(static_cast<size_t>(i)), path(key) + "[" + std::to_string(i) + "]");
+  return v;
+}
+
+std::optional<std::vector<double>> TomlSection::numbers(std::string_view key) const {
+  const toml::node* n = table_->get(key);
+  if (!n) return std::nullopt;
+  const auto* a = n->as_array();
+  if (!a) fail(key, std::string("expected an array of numbers, got ") + type_name(*n));
+  std::vector<double> v;
+  for (size_t i = 0; i < a->size(); ++i)
+    v.push_back(number_node(*a->get(i), path(key) + "[" + std::to_string(i) + "]"));
   return v;
 }
 
@@ -224,6 +235,12 @@ void TomlWriter::key(std::string_view k, std::string_view v) {
 void TomlWriter::key(std::string_view k, const Eigen::Vector3d& v) {
   out_ += std::string(k) + " = [" + toml_number(k, v(0)) + ", " + toml_number(k, v(1)) + ", " +
           toml_number(k, v(2)) + "]\n";
+}
+
+void TomlWriter::key(std::string_view k, const std::vector<double>& v) {
+  out_ += std::string(k) + " = [";
+  for (size_t i = 0; i < v.size(); ++i) out_ += (i ? ", " : "") + toml_number(k, v[i]);
+  out_ += "]\n";
 }
 
 void TomlWriter::key(std::string_view k, const Eigen::Matrix3d& m) {

@@ -22,12 +22,12 @@ class TomlSection {
   /// `prefix` is the dotted path of this table ("" for the root, "station." for [station]).
   /// Throws on the first key not in `allowed`, naming it and its line.
   TomlSection(const toml::table& table, std::string file, std::string prefix,
-              std::initializer_list<std::string_view> allowed);
+              const std::vector<std::string_view>& allowed);
 
   bool has(std::string_view key) const { return table_->contains(key); }
   /// Subsection [key]; nullopt if absent; error if present but not a table.
   std::optional<TomlSection> section(std::string_view key,
-                                     std::initializer_list<std::string_view> allowed) const;
+                                     const std::vector<std::string_view>& allowed) const;
 
   std::optional<double> number(std::string_view key) const;  ///< integer or float, finite
   double required_number(std::string_view key) const;
@@ -36,6 +36,8 @@ class TomlSection {
   std::optional<std::string> string_or_datetime(std::string_view key) const;
   std::optional<Eigen::Vector3d> vec3(std::string_view key) const;
   std::optional<Eigen::Matrix3d> mat3(std::string_view key) const;  ///< [[r0],[r1],[r2]]
+  /// An array of numbers of any length.
+  std::optional<std::vector<double>> numbers(std::string_view key) const;
 
   /// Error at this key's line (or without a line if the key is absent).
   [[noreturn]] void fail(std::string_view key, const std::string& message) const;
@@ -59,6 +61,7 @@ class TomlWriter {
   void key(std::string_view k, std::string_view v);
   void key(std::string_view k, const Eigen::Vector3d& v);
   void key(std::string_view k, const Eigen::Matrix3d& m);
+  void key(std::string_view k, const std::vector<double>& v);
   const std::string& text() const { return out_; }
 
  private:

@@ -1,5 +1,7 @@
 #include "db/archive/unit_file.hpp"
 
+#include "calib/effects.hpp"
+
 #include <cmath>
 #include <set>
 
@@ -82,6 +84,51 @@ void check_noise_value(const NoiseField& f, double v, const std::string& origin,
 
 }  // namespace
 
+namespace {
+
+/// The human-unit keys of the first five effects (kept for existing unit files).
+const std::vector<std::string_view> kHumanEffectKeys = {
+    "k2_ug_per_g2", "asym_ppm", "g_sens_deg_per_h_per_g", "lever_arm_m", "table_time_offset_s"};
+
+/// [effects]: every catalogue effect by its name with its SI parameter vector (the order of
+/// `--effect NAME=V,...`, trailing shape parameters optional), plus the older human-unit keys. One
+/// effect given both ways is refused.
+void parse_effects_section(const TomlSection& root, calib::UnitModel& u) {
+  std::vector<std::string_view> allowed = kHumanEffectKeys;
+  for (const auto& e : calib::effect_catalogue()) allowed.push_back(e.name);
+  const auto s = root.section("effects", allowed);
+  if (!s) return;
+  if (auto v = s->vec3("k2_ug_per_g2")) u.effects.accel_k2_per_mps2 = to_si(*v, k2_to_si);
+  if (auto v = s->vec3("asym_ppm")) u.effects.accel_asym = to_si(*v, ppm_to_1);
+  if (auto m = s->mat3("g_sens_deg_per_h_per_g")) u.effects.gyro_g_sens = to_si(*m, gsens_to_si);
+  if (auto m = s->mat3("lever_arm_m"))
+    for (int i = 0; i < 3; ++i)
+      u.effects.accel_lever_arm_m[static_cast<size_t>(i)] = m->row(i).transpose();
+  if (auto t = s->number("table_time_offset_s")) u.effects.table_time_offset_s = *t;
+  const std::pair<const char*, calib::EffectId> same[] = {
+      {"k2_ug_per_g2", calib::EffectId::kAccelQuadraticK2},
+      {"asym_ppm", calib::EffectId::kAccelAsymmetry},
+      {"g_sens_deg_per_h_per_g", calib::EffectId::kGyroGSensitivity},
+      {"lever_arm_m", calib::EffectId::kSizeEffect},
+      {"table_time_offset_s", calib::EffectId::kTableTimeOffset}};
+  for (const auto& e : calib::effect_catalogue()) {
+    const auto v = s->numbers(e.name);
+    if (!v) continue;
+    for (const auto& [key, id] : same)
+      if (id == e.id && s->has(key))
+        s->fail(e.name, "effect " + e.name + " is also given as " + key + "; give it once");
+    std::string spec = e.name + "=";
+    for (size_t i = 0; i < v->size(); ++i) spec += (i ? "," : "") + format_double((*v)[i]);
+    try {
+      calib::apply_effect_spec(u.effects, spec);
+    } catch (const std::invalid_argument& ex) {
+      s->fail(e.name, ex.what());
+    }
+  }
+}
+
+}  // namespace
+
 calib::UnitModel parse_unit_file(const std::string& text, const std::string& origin) {
   const toml::table tbl = parse_toml_text(text, origin);
   const TomlSection root(tbl, origin, "", {"accel", "gyro", "table", "noise", "effects"});
@@ -113,16 +160,7 @@ calib::UnitModel parse_unit_file(const std::string& text, const std::string& ori
         u.noise.*f.member = f.to_si(*h);
       }
   }
-  if (auto s = root.section("effects", {"k2_ug_per_g2", "asym_ppm", "g_sens_deg_per_h_per_g",
-                                        "lever_arm_m", "table_time_offset_s"})) {
-    if (auto v = s->vec3("k2_ug_per_g2")) u.effects.accel_k2_per_mps2 = to_si(*v, k2_to_si);
-    if (auto v = s->vec3("asym_ppm")) u.effects.accel_asym = to_si(*v, ppm_to_1);
-    if (auto m = s->mat3("g_sens_deg_per_h_per_g")) u.effects.gyro_g_sens = to_si(*m, gsens_to_si);
-    if (auto m = s->mat3("lever_arm_m"))
-      for (int i = 0; i < 3; ++i)
-        u.effects.accel_lever_arm_m[static_cast<size_t>(i)] = m->row(i).transpose();
-    if (auto t = s->number("table_time_offset_s")) u.effects.table_time_offset_s = *t;
-  }
+  parse_effects_section(root, u);
   return u;
 }
 
@@ -153,6 +191,16 @@ std::string unit_file_text(const calib::UnitModel& u) {
     lever.row(i) = u.effects.accel_lever_arm_m[static_cast<size_t>(i)].transpose();
   w.key("lever_arm_m", lever);
   w.key("table_time_offset_s", u.effects.table_time_offset_s);
+  for (const auto& e : calib::effect_catalogue()) {
+    bool human = false;
+    for (auto id : {calib::EffectId::kAccelQuadraticK2, calib::EffectId::kAccelAsymmetry,
+                    calib::EffectId::kGyroGSensitivity, calib::EffectId::kSizeEffect,
+                    calib::EffectId::kTableTimeOffset})
+      human = human || id == e.id;
+    if (human || !u.effects.active(e.id)) continue;
+    const Eigen::VectorXd v = calib::effect_vector(u.effects, e.id);
+    w.key(e.name, std::vector<double>(v.data(), v.data() + v.size()));
+  }
   return w.text();
 }
 
@@ -161,19 +209,93 @@ void write_unit_file(const std::string& path, const calib::UnitModel& unit) {
 }
 
 Truth truth_from_unit(const calib::UnitModel& unit) {
-  return Truth{unit.params, unit.effects.active_names(), unit.noise};
+  Truth t;
+  t.params = unit.params;
+  t.effects = unit.effects;
+  t.noise = unit.noise;
+  return t;
 }
+
+namespace {
+
+nlohmann::json effects_json(const Truth& truth) {
+  if (!truth.effect_values_known) return truth.legacy_effect_names;
+  nlohmann::json e = nlohmann::json::object();
+  for (const auto& info : calib::effect_catalogue()) {
+    if (!truth.effects.active(info.id)) continue;
+    const Eigen::VectorXd v = calib::effect_vector(truth.effects, info.id);
+    nlohmann::json o = nlohmann::json::object();
+    for (int i = 0; i < info.size(); ++i) {
+      if (!std::isfinite(v(i)))
+        throw ArchiveError::field_error("<truth>", "effects." + info.name, "cannot write NaN or Inf");
+      o[info.params[static_cast<size_t>(i)].name] = v(i);
+    }
+    e[info.name] = o;
+  }
+  return e;
+}
+
+/// "effects": {"<name>": {"<param>": value}} — every parameter of the catalogue entry, no other.
+void parse_effect_values(const nlohmann::json& eff, const std::string& origin, Truth& t) {
+  for (auto it = eff.begin(); it != eff.end(); ++it) {
+    const std::string base = "effects." + it.key();
+    const calib::EffectInfo* info = calib::find_effect(it.key());
+    if (!info)
+      throw ArchiveError::field_error(origin, base,
+                                      "unknown effect (known: " + calib::effect_names_list() + ")");
+    if (!it->is_object())
+      throw ArchiveError::field_error(origin, base,
+                                      std::string("expected an object, got ") + it->type_name());
+    for (auto p = it->begin(); p != it->end(); ++p) {
+      bool known = false;
+      for (const auto& pi : info->params) known = known || pi.name == p.key();
+      if (!known) throw ArchiveError::field_error(origin, base + "." + p.key(), "unknown parameter");
+    }
+    Eigen::VectorXd v(info->size());
+    for (int i = 0; i < info->size(); ++i) {
+      const std::string& name = info->params[static_cast<size_t>(i)].name;
+      const std::string field = base + "." + name;
+      if (!it->contains(name)) throw ArchiveError::field_error(origin, field, "missing");
+      const auto& x = (*it)[name];
+      if (!x.is_number())
+        throw ArchiveError::field_error(origin, field,
+                                        std::string("expected a number, got ") + x.type_name());
+      v(i) = x.get<double>();
+    }
+    try {
+      calib::set_effect_vector(t.effects, info->id, v);
+    } catch (const std::invalid_argument& e) {
+      throw ArchiveError::field_error(origin, base, e.what());
+    }
+  }
+}
+
+/// The older form: a list of names (values unknown).
+void parse_effect_names(const nlohmann::json& eff, const std::string& origin, Truth& t) {
+  t.effect_values_known = false;
+  std::set<std::string> seen;
+  for (size_t i = 0; i < eff.size(); ++i) {
+    const std::string field = "effects[" + std::to_string(i) + "]";
+    if (!eff[i].is_string())
+      throw ArchiveError::field_error(origin, field,
+                                      std::string("expected a string, got ") + eff[i].type_name());
+    const std::string name = eff[i].get<std::string>();
+    if (name.empty()) throw ArchiveError::field_error(origin, field, "empty effect name");
+    if (!calib::find_effect(name))
+      throw ArchiveError::field_error(origin, field, "unknown effect '" + name + "' (known: " +
+                                                         calib::effect_names_list() + ")");
+    if (!seen.insert(name).second)
+      throw ArchiveError::field_error(origin, field, "duplicate effect '" + name + "'");
+    t.legacy_effect_names.push_back(name);
+  }
+}
+
+}  // namespace
 
 std::string truth_json_text(const Truth& truth) {
   nlohmann::json j = nlohmann::json::object();
   j["params"] = param_set_to_json(truth.params);
-  std::set<std::string> seen;
-  for (const auto& e : truth.effects) {
-    if (e.empty() || !seen.insert(e).second)
-      throw ArchiveError::field_error(
-          "<truth>", "effects", e.empty() ? "empty effect name" : "duplicate effect '" + e + "'");
-  }
-  j["effects"] = truth.effects;
+  j["effects"] = effects_json(truth);
   nlohmann::json n = nlohmann::json::object();
   for (const NoiseField& f : kNoiseFields) {
     const double v = truth.noise.*f.member;
@@ -206,21 +328,14 @@ Truth parse_truth_json(const std::string& text, const std::string& origin) {
     throw ArchiveError::field_error(origin, "params." + e.field(), e.message());
   }
   const auto& eff = j["effects"];
-  if (!eff.is_array())
+  if (eff.is_object())
+    parse_effect_values(eff, origin, t);
+  else if (eff.is_array())
+    parse_effect_names(eff, origin, t);
+  else
     throw ArchiveError::field_error(
-        origin, "effects", std::string("expected an array of strings, got ") + eff.type_name());
-  std::set<std::string> seen;
-  for (size_t i = 0; i < eff.size(); ++i) {
-    const std::string field = "effects[" + std::to_string(i) + "]";
-    if (!eff[i].is_string())
-      throw ArchiveError::field_error(origin, field,
-                                      std::string("expected a string, got ") + eff[i].type_name());
-    const std::string name = eff[i].get<std::string>();
-    if (name.empty()) throw ArchiveError::field_error(origin, field, "empty effect name");
-    if (!seen.insert(name).second)
-      throw ArchiveError::field_error(origin, field, "duplicate effect '" + name + "'");
-    t.effects.push_back(name);
-  }
+        origin, "effects",
+        std::string("expected an object of effect values, got ") + eff.type_name());
   const auto& n = j["noise"];
   if (!n.is_object())
     throw ArchiveError::field_error(origin, "noise",

@@ -19,18 +19,28 @@ calib::UnitModel parse_unit_file(const std::string& text, const std::string& ori
 std::string unit_file_text(const calib::UnitModel& unit);
 void write_unit_file(const std::string& path, const calib::UnitModel& unit);
 
-/// What a simulated run's truth.json holds: the injected parameters, the names of the injected
-/// effects (calib::Effects::active_names() vocabulary) and the noise model, all SI.
+/// What a simulated run's truth.json holds: the injected parameters, every injected effect with its
+/// values (the catalogue of calib/effects.hpp) and the noise model, all SI.
 struct Truth {
   calib::ParamSet params;
-  std::vector<std::string> effects;
+  calib::Effects effects;
   calib::NoiseModel noise;
+  /// false for a truth.json written before effect values were stored (a list of names): then
+  /// `effects` is all zero and legacy_effect_names holds the names.
+  bool effect_values_known = true;
+  std::vector<std::string> legacy_effect_names;
+  /// The injected effects' names, catalogue order.
+  std::vector<std::string> effect_names() const {
+    return effect_values_known ? effects.active_names() : legacy_effect_names;
+  }
 };
 
 /// Truth from a unit model as simulated (params, active effect names, noise).
 Truth truth_from_unit(const calib::UnitModel& unit);
 
-/// truth.json text: {"params": <param set JSON>, "effects": [...], "noise": {<NoiseModel fields>}}.
+/// truth.json text: {"params": <param set JSON>, "effects": {"<effect>": {"<param>": SI value, ...},
+/// ...} (active effects only, catalogue parameter names, shape parameters included), "noise": {...}}.
+/// The reader also accepts the older "effects": [names] (values unknown).
 std::string truth_json_text(const Truth& truth);
 Truth parse_truth_json(const std::string& text, const std::string& origin);
 void write_truth_json(const std::string& path, const Truth& truth);

@@ -32,6 +32,7 @@
 #include "sequences/sequence_error.hpp"
 #include "tools/imucal/detectability_cmd.hpp"
 #include "tools/imucal/diagnose_cmd.hpp"
+#include "tools/imucal/effects_cmd.hpp"
 #include "tools/imucal/plot.hpp"
 #include "tools/imucal/validate_cmd.hpp"
 #include "tools/imucal/report.hpp"
@@ -77,11 +78,20 @@ void require_full_rank(const calib::CrlbResult& crlb, const std::string& seq_pat
 }
 
 int cmd_simulate(const std::string& seq, const std::string& out_dir, const std::string& unit_path,
-                 uint64_t seed, double rate_hz, bool overwrite) {
+                 uint64_t seed, double rate_hz, bool overwrite,
+                 const std::vector<std::string>& effect_specs) {
+  calib::UnitModel unit = load_unit(unit_path);
+  // Catalogue effects on top of the unit (checked before any work: nothing is written on error).
+  for (const std::string& spec : effect_specs) {
+    try {
+      calib::apply_effect_spec(unit.effects, spec);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("--effect " + spec + ": " + e.what());
+    }
+  }
   const std::string seq_path = sequences::resolve_sequence(seq);
   progress("loading sequence " + seq_path);
   const sequences::MotionProfile profile = sequences::load_profile(seq_path);
-  const calib::UnitModel unit = load_unit(unit_path);
   const calib::Site site = default_site();
   const calib::TableGeometry geometry{};
   progress("checking observability");
@@ -242,6 +252,10 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(10.0, 2000.0));
   sim->add_flag("--overwrite", overwrite, "replace an existing archive");
+  std::vector<std::string> effect_specs;
+  sim->add_option("--effect", effect_specs,
+                  "inject a catalogue effect, NAME=V[,V...] in SI (repeatable; see imucal effects)")
+      ->take_all();
 
   auto* cal =
       app.add_subcommand("calibrate", "calibrate a run archive (AINS, NLSQ or both + cross-check)");
@@ -279,6 +293,9 @@ int main(int argc, char** argv) {
 
   tools::DiagnoseArgs diag;
   auto* dg = tools::add_diagnose_command(app, diag);
+  bool effects_json = false;
+  auto* ef = app.add_subcommand("effects", "the effects catalogue: names, models, parameters, typical sizes");
+  ef->add_flag("--json", effects_json, "print one JSON array");
   tools::ValidateArgs val;
   auto* vd = tools::add_validate_command(app, val);
 
@@ -288,7 +305,7 @@ int main(int argc, char** argv) {
     return app.exit(e);
   }
   try {
-    if (*sim) return cmd_simulate(seq, out_dir, unit, seed, rate_hz, overwrite);
+    if (*sim) return cmd_simulate(seq, out_dir, unit, seed, rate_hz, overwrite, effect_specs);
     if (*cal) return cmd_calibrate(dir, method, json, k_sigma, plot_path);
     if (*ev) return cmd_evaluate(dir, params, json);
     if (*cr && effects) return tools::cmd_crlb_effects(seq, unit, rate_hz, json);
@@ -296,6 +313,7 @@ int main(int argc, char** argv) {
     if (*be) return cmd_bench(dir, repeat, json);
     if (*dg) return tools::cmd_diagnose(diag);
     if (*vd) return tools::cmd_validate(val);
+    if (*ef) return tools::cmd_effects(effects_json);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "imucal: error: %s\n", e.what());
     return kExitBadInput;

@@ -26,6 +26,7 @@
 #include "calib/conventions.hpp"
 #include "calib/earth.hpp"
 #include "calib/site_presets.hpp"
+#include "calib/effects.hpp"
 #include "db/archive/unit_file.hpp"
 #include "drivers/sim/station_sim.hpp"
 
@@ -171,6 +172,10 @@ int main(int argc, char** argv) {
   app.add_option("--modbus", modbus, "Modbus TCP listen address ADDR:PORT (port 0 = a free port)");
   app.add_option("--can", can_path, "unixcan bus socket path (the simulator is the bus)")->required();
   app.add_option("--unit", unit_path, "unit file (db/archive format); default: the default unit");
+  std::vector<std::string> effect_specs;
+  app.add_option("--effect", effect_specs,
+                 "inject a catalogue effect, NAME=V[,V...] in SI (repeatable; imucal effects lists them)")
+      ->take_all();
   app.add_option("--speed", speed, "sim seconds per wall second");
   app.add_option("--rate-hz", rate_hz, "IMU sample rate");
   app.add_option("--seed", seed, "random seed (noise, CAN faults)");
@@ -213,6 +218,14 @@ int main(int argc, char** argv) {
         const std::string what = e.what();
         // The archive reader names the file and line; make sure the file is named either way.
         throw BadInput("--unit: " + (what.find(unit_path) == std::string::npos ? unit_path + ": " : "") + what);
+      }
+    }
+    // Effects of the catalogue (calib/effects.hpp) on top of the unit, withheld from the station.
+    for (const std::string& spec : effect_specs) {
+      try {
+        imucal::calib::apply_effect_spec(cfg.unit.effects, spec);
+      } catch (const std::exception& e) {
+        throw BadInput(std::string("--effect ") + spec + ": " + e.what());
       }
     }
     if (!(speed > 0.0 && std::isfinite(speed))) throw BadInput("--speed: must be > 0");
