@@ -6,8 +6,7 @@
 #include <spdlog/spdlog.h>
 
 #include "calib/calibration_pipeline.hpp"
-#include "calib/diagnosis.hpp"
-#include "db/archive/diagnosis_json.hpp"
+#include "station/gap_check.hpp"
 #include "db/archive/run_archive.hpp"
 
 namespace imucal::station {
@@ -25,32 +24,6 @@ std::string join_failures(const std::vector<calib::CrossCheckFailure>& failures)
     s += f.detail.empty() ? f.term : f.detail;
   }
   return s.empty() ? "cross-check REVIEW" : "cross-check REVIEW: " + s;
-}
-
-/// The run's sim-to-real gap (calib/diagnosis.hpp) against its own NLSQ calibration. A diagnosis
-/// that cannot run (a run too short for it) does not fail a calibration that succeeded: it is stored
-/// as {"verdict": "not run", "reason": ...} and the cross-check decides alone.
-struct GapCheck {
-  nlohmann::json summary;
-  bool significant = false;
-  std::string text;
-};
-
-GapCheck check_gap(calib::CalibrationInput in, const archive::RunArchive& ar,
-                   const calib::ParamSet& nlsq_params) {
-  GapCheck g;
-  try {
-    calib::DiagnosisInput din;
-    din.cal = std::move(in);
-    if (ar.info.reference == archive::ReferenceKind::kTable) din.geometry = ar.info.table.geometry();
-    const calib::DiagnosisResult d = calib::diagnose(din, nlsq_params);
-    g.summary = archive::diagnosis_summary_json(d);
-    g.significant = d.verdict != "consistent";
-    g.text = d.summary;
-  } catch (const std::exception& e) {
-    g.summary = {{"verdict", "not run"}, {"reason", e.what()}};
-  }
-  return g;
 }
 
 }  // namespace

@@ -60,6 +60,9 @@ class ControlHandler {
   /// Recalibrates a stored run from its archive into a new run; returns {"run_id": new id,
   /// "reprocessed_from": id}. kBusy if a run is active, kNotFound for an unknown run.
   virtual nlohmann::json reprocess(db::RunId run_id) = 0;
+  /// The sim-to-real gap diagnosis of a finished run (station/gap_check.hpp), its summary stored with
+  /// the run; returns the full diagnosis JSON plus "run_id". kBusy while a run is active.
+  virtual nlohmann::json diagnose(db::RunId run_id) = 0;
   /// The repository reads are served from.
   virtual const db::Repository& repository() const = 0;
 };

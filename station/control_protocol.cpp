@@ -45,6 +45,7 @@ const std::vector<CommandSpec>& specs() {
         {"since", ArgType::kTime, false},
         {"format", ArgType::kFormat, true}}},
       {cmd::kPing, {}},
+      {cmd::kDiagnose, {{"run_id", ArgType::kPositiveInt, true}}},
   };
   return s;
 }
@@ -144,7 +145,8 @@ const std::vector<std::string>& command_names() {
 }
 
 bool needs_control_permission(const std::string& command) {
-  return command == cmd::kRunStart || command == cmd::kRunAbort || command == cmd::kReprocess;
+  return command == cmd::kRunStart || command == cmd::kRunAbort || command == cmd::kReprocess ||
+         command == cmd::kDiagnose;
 }
 
 bool is_repository_read(const std::string& command) {

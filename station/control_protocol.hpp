@@ -9,7 +9,7 @@
 //   run.start  {serial, sequence?, operator?}     run.status {run_id?}     run.abort {reason?}
 //   reprocess  {run_id}                           history {serial, limit?}  show {run_id}
 //   params     {serial}                           export {serial?, since?, format: "csv"|"json"}
-//   ping       {}
+//   diagnose   {run_id}                           ping       {}
 // "args" may be omitted when a command has no required argument. Validation is strict: a line that
 // is not JSON, not an object, lacks "id" or "cmd", names an unknown command, misses a required
 // argument, has an argument of the wrong type or an argument/field the command does not know is
@@ -44,11 +44,13 @@ inline constexpr const char* kShow = "show";
 inline constexpr const char* kParams = "params";
 inline constexpr const char* kExport = "export";
 inline constexpr const char* kPing = "ping";
+inline constexpr const char* kDiagnose = "diagnose";
 }  // namespace cmd
 
 /// Every command name, in the order listed above.
 const std::vector<std::string>& command_names();
-/// run.start, run.abort and reprocess: the commands that need membership of the control group.
+/// run.start, run.abort, reprocess and diagnose (it stores its summary with the run): the commands
+/// that need membership of the control group.
 bool needs_control_permission(const std::string& command);
 /// history, show, params, export: answered from the repository (record_json.hpp), by the server
 /// and by stationctl's read-only fallback alike.

@@ -246,6 +246,10 @@ json ControlServer::dispatch(Client& client, const Request& r) {
     spdlog::info("control: reprocess run {} by {}", a.at("run_id").get<db::RunId>(), client.user);
     return handler_.reprocess(a.at("run_id").get<db::RunId>());
   }
+  if (r.cmd == cmd::kDiagnose) {
+    spdlog::info("control: diagnose run {} by {}", a.at("run_id").get<db::RunId>(), client.user);
+    return handler_.diagnose(a.at("run_id").get<db::RunId>());
+  }
   if (is_repository_read(r.cmd)) return answer_repository_read(handler_.repository(), r);
   throw ControlError(error_code::kInternal, "command " + r.cmd + " has no dispatcher");
 }

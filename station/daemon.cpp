@@ -240,6 +240,11 @@ nlohmann::json Daemon::reprocess(db::RunId run_id) {
   return controller_->reprocess(run_id);
 }
 
+nlohmann::json Daemon::diagnose(db::RunId run_id) {
+  if (!controller_) throw ControlError(error_code::kUnavailable, "the daemon is not running");
+  return controller_->diagnose(run_id);
+}
+
 const db::Repository& Daemon::repository() const {
   if (!repo_) throw ControlError(error_code::kUnavailable, "the daemon is not running");
   return *repo_;

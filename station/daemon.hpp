@@ -65,6 +65,7 @@ class Daemon final : public ControlHandler {
   nlohmann::json status(std::optional<db::RunId> run_id) override;
   nlohmann::json abort_run(const std::string& reason) override;
   nlohmann::json reprocess(db::RunId run_id) override;
+  nlohmann::json diagnose(db::RunId run_id) override;
   const db::Repository& repository() const override;
 
   const RecoveryReport& recovery() const { return recovery_; }

@@ -156,6 +156,58 @@ std::string format_duration_s(double seconds) {
   return buf;
 }
 
+namespace {
+
+std::string magnitude_text(const json& best) {
+  char buf[96];
+  const double m = best.value("magnitude", 0.0), sg = best.value("sigma", 0.0);
+  std::snprintf(buf, sizeof buf, "%.3g±%.2g %s", m, sg, best.value("unit", std::string()).c_str());
+  return buf;
+}
+
+}  // namespace
+
+std::string gap_cell(const json& run) {
+  if (!has(run, "diagnosis") || !run["diagnosis"].is_object()) return "-";
+  const json& d = run["diagnosis"];
+  if (d.contains("best") && d["best"].is_object())
+    return d["best"].value("effect", std::string("?")) + " " + magnitude_text(d["best"]);
+  if (d.contains("ambiguous") && d["ambiguous"].is_array() && !d["ambiguous"].empty()) {
+    std::string s;
+    for (const auto& a : d["ambiguous"]) s += (s.empty() ? "" : "|") + a.get<std::string>();
+    return s;
+  }
+  return d.value("verdict", std::string("?"));
+}
+
+std::string render_diagnosis_text(const json& d) {
+  std::ostringstream os;
+  os << "Run " << str(d, "run_id", "?") << " gap diagnosis: " << str(d, "verdict", "?") << "\n  "
+     << str(d, "summary") << "\n";
+  if (d.contains("overall") && d["overall"].is_object()) {
+    const json& o = d["overall"];
+    os << "  overall chi2/dof " << fmt("%.3f", o.value("gap", 0.0)) << " (expected 1 +- "
+       << fmt("%.3f", o.value("sigma", 0.0)) << ", p " << fmt("%.2g", o.value("p_value", 1.0))
+       << ")\n";
+  }
+  if (d.contains("held_out") && d["held_out"].is_object() && d["held_out"]["gap_after"].is_number()) {
+    const json& h = d["held_out"];
+    os << "  held-out gap " << fmt("%.3f", h.value("gap_before", 0.0)) << " -> "
+       << fmt("%.3f", h["gap_after"].get<double>()) << " (shrinkage "
+       << fmt("%.0f", 100.0 * h.value("shrinkage", 0.0)) << " %)\n";
+  }
+  if (d.contains("candidates") && d["candidates"].is_array()) {
+    os << "  candidates (ranked):\n";
+    int n = 0;
+    for (const auto& c : d["candidates"]) {
+      if (++n > 6) break;
+      os << "    " << pad(str(c, "effect"), 24) << pad(fmt("%.1f", c.value("score", 0.0)), 10)
+         << (c.value("separable", false) ? magnitude_text(c) : std::string("not separable")) << "\n";
+    }
+  }
+  return os.str();
+}
+
 std::string render_history_text(const json& history) {
   std::ostringstream os;
   const json& runs = history.at("runs");
@@ -167,7 +219,8 @@ std::string render_history_text(const json& history) {
   os << "History of " << serial << " (" << runs.size() << (runs.size() == 1 ? " run" : " runs")
      << ", newest first)\n";
   os << pad("RUN", 7) << pad("STARTED (UTC)", 21) << pad("STATE", 13) << pad("VERDICT", 9)
-     << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13) << "REASON\n";
+     << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13) << pad("GAP (best effect)", 40)
+     << "REASON\n";
   for (const auto& r : runs) {
     std::string id = str(r, "run_id");
     if (has(r, "reprocessed_from")) id += "*";
@@ -175,7 +228,7 @@ std::string render_history_text(const json& history) {
     os << rtrim(pad(id, 7) + pad(short_time(str(r, "started_at")), 21) + pad(str(r, "state"), 13) +
                 pad(str(r, "verdict", "-"), 9) + pad(str(r, "sequence_name"), 16) +
                 pad(str(r, "operator"), 14) + pad(duration.empty() ? "-" : duration, 13) +
-                str(r, "failure_reason"))
+                pad(gap_cell(r), 40) + str(r, "failure_reason"))
        << "\n";
   }
   bool any_reprocessed = false;
@@ -233,6 +286,12 @@ std::string render_show_text(const json& show) {
   row("archive sha", str(run, "archive_sha256"));
 
   if (has(run, "capture")) render_capture(os, run["capture"]);
+  if (has(run, "diagnosis") && run["diagnosis"].is_object()) {
+    const json& g = run["diagnosis"];
+    os << "Gap diagnosis: " << str(g, "verdict", "?") << "  (" << gap_cell(run) << ")\n";
+    if (!str(g, "summary").empty()) os << "  " << str(g, "summary") << "\n";
+    if (!str(g, "reason").empty()) os << "  " << str(g, "reason") << "\n";
+  }
 
   const json& cals = show.at("calibrations");
   if (cals.empty()) {

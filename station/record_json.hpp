@@ -48,6 +48,11 @@ std::string render_history_text(const nlohmann::json& history);
 std::string render_show_text(const nlohmann::json& show);
 /// The parameter-set JSON, pretty-printed (what an INS loads); ends in '\n'.
 std::string render_params_text(const nlohmann::json& params);
+/// `stationctl diagnose`: the full diagnosis (archive::diagnosis_to_json + "run_id") for people.
+std::string render_diagnosis_text(const nlohmann::json& diagnosis);
+/// One short cell for a run's stored gap diagnosis: "-" (none), "consistent", the best effect with
+/// its magnitude ("gyro_g_sensitivity 0.04±0.004 deg/h/g"), or the ambiguous names joined by "|".
+std::string gap_cell(const nlohmann::json& run);
 /// The daemon status (ControlHandler::status without run id) or {"run": {...}} (with one).
 std::string render_status_text(const nlohmann::json& status);
 /// One line for a live run: "run 7 SIM-0001: step 3/18 resting, 12 s left" (no '\n').

@@ -14,6 +14,7 @@
 #include "sequences/validator.hpp"
 #include "station/archive_writer.hpp"
 #include "station/capture.hpp"
+#include "station/gap_check.hpp"
 
 namespace imucal::station {
 
@@ -253,8 +254,8 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
           {"steps", live->snap.steps}};
 }
 
-nlohmann::json RunController::reprocess(db::RunId run_id) {
-  std::unique_lock<std::mutex> lk(mu_);
+db::RunDetails RunController::stored_run_with_archive(db::RunId run_id, const char* what,
+                                                    std::string& digest) const {
   if (shut_down_) throw ControlError(error_code::kUnavailable, "the daemon is shutting down");
   if (live_) {
     throw ControlError(error_code::kBusy, "run " + std::to_string(live_->snap.run_id) + " is " +
@@ -283,7 +284,6 @@ nlohmann::json RunController::reprocess(db::RunId run_id) {
                                                       " has no recorded archive SHA-256 to check " +
                                                       orig.archive_path + " against");
   }
-  std::string digest;
   try {
     digest = archive_digest(orig.archive_path);
   } catch (const std::exception& e) {
@@ -293,8 +293,35 @@ nlohmann::json RunController::reprocess(db::RunId run_id) {
     throw ControlError(error_code::kInvalidInput,
                        "archive " + orig.archive_path + " of run " + std::to_string(run_id) +
                            " has changed since it was recorded (SHA-256 now " + digest +
-                           ", recorded " + orig.archive_sha256 + "); not reprocessing");
+                           ", recorded " + orig.archive_sha256 + "); not " + what);
   }
+  return d;
+}
+
+nlohmann::json RunController::diagnose(db::RunId run_id) {
+  // Held throughout: no run starts while the diagnosis takes the CPU (about a second).
+  std::lock_guard<std::mutex> lk(mu_);
+  std::string digest;
+  const db::RunDetails d = stored_run_with_archive(run_id, "diagnosing", digest);
+  nlohmann::json full;
+  try {
+    full = diagnose_archive(d.run.archive_path);
+  } catch (const std::exception& e) {
+    throw ControlError(error_code::kInvalidInput,
+                       "run " + std::to_string(run_id) + ": diagnosis failed: " + e.what());
+  }
+  repo_.set_diagnosis(run_id, full.at("stored_summary").dump());
+  full.erase("stored_summary");
+  full["run_id"] = run_id;
+  spdlog::info("run {}: diagnosed: {}", run_id, full.value("summary", std::string()));
+  return full;
+}
+
+nlohmann::json RunController::reprocess(db::RunId run_id) {
+  std::unique_lock<std::mutex> lk(mu_);
+  std::string digest;
+  const db::RunDetails d = stored_run_with_archive(run_id, "reprocessing", digest);
+  const db::RunRecord& orig = d.run;
   if (thread_.joinable()) thread_.join();
 
   db::NewRun nr = new_run(orig.serial, orig.operator_name, orig.sequence_name, orig.sequence_sha256,

@@ -146,6 +146,11 @@ class RunController {
   /// ControlError kBusy, kNotFound (no such run / no archive), kInvalidInput (archive changed
   /// since it was recorded), kUnavailable (archive unreadable).
   nlohmann::json reprocess(db::RunId run_id);
+  /// The full gap diagnosis of a finished run's archive (checked against its recorded SHA-256; the
+  /// run's NLSQ calibration recomputed as the model), its summary stored with the run
+  /// (Repository::set_diagnosis). kBusy while a run is active, kNotFound for an unknown run or a
+  /// missing archive, kInvalidInput for a changed archive or one the diagnosis cannot use.
+  nlohmann::json diagnose(db::RunId run_id);
   /// Aborts the live run; false if there is none.
   bool abort(const std::string& reason);
 
@@ -165,6 +170,9 @@ class RunController {
   void finish_early(Live& live, db::RunState state, const std::string& reason);
   void on_calibrated(const std::shared_ptr<Live>& live, const CalibrationOutcome& out);
   void set_phase(Live& live, RunPhase phase);
+  /// A finished run whose archive is present and unchanged (what reprocess() and diagnose() check);
+  /// `digest` gets the archive's SHA-256. Throws ControlError. Needs mu_.
+  db::RunDetails stored_run_with_archive(db::RunId run_id, const char* what, std::string& digest) const;
   /// A new run of this station and software, started now (what start() and reprocess() share).
   db::NewRun new_run(const std::string& serial, const std::string& operator_name,
                      const std::string& sequence_name, const std::string& sequence_sha256,

@@ -57,7 +57,7 @@ TEST(ControlProtocol, ValidRequestsOfEveryCommand) {
   EXPECT_EQ(parse_request(R"({"id":-4,"cmd":"ping"})").id, -4);
   // Key order and whitespace do not matter; a trailing '\r' is the server's business, not JSON's.
   EXPECT_EQ(parse_request(R"(  { "args" : {"run_id":2} , "cmd":"show", "id":11 }  )").id, 11);
-  EXPECT_EQ(command_names().size(), 9u);
+  EXPECT_EQ(command_names().size(), 10u);
 }
 
 TEST(ControlProtocol, LinesThatAreNotRequestObjects) {
@@ -211,6 +211,9 @@ TEST(ControlProtocol, PermissionsAndReadsAndErrorCodes) {
   EXPECT_TRUE(needs_control_permission("run.start"));
   EXPECT_TRUE(needs_control_permission("run.abort"));
   EXPECT_TRUE(needs_control_permission("reprocess"));
+  EXPECT_TRUE(needs_control_permission("diagnose"));  // it stores its summary with the run
+  EXPECT_EQ(parse_request(R"({"id":9,"cmd":"diagnose","args":{"run_id":3}})").args.at("run_id"), 3);
+  EXPECT_THROW(parse_request(R"({"id":9,"cmd":"diagnose","args":{}})"), BadRequest);
   for (const char* c : {"run.status", "history", "show", "params", "export", "ping"})
     EXPECT_FALSE(needs_control_permission(c)) << c;
   for (const char* c : {"history", "show", "params", "export"}) EXPECT_TRUE(is_repository_read(c));

@@ -74,6 +74,7 @@ class FakeHandler : public ControlHandler {
     last_reason = reason;
     return {{"run_id", 77}};
   }
+  json diagnose(db::RunId run_id) override { return {{"run_id", run_id}, {"verdict", "consistent"}}; }
   json reprocess(db::RunId run_id) override {
     ++reprocess_calls;
     return {{"run_id", 78}, {"reprocessed_from", run_id}};

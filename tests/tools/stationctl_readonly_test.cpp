@@ -294,6 +294,7 @@ class ScriptedHandler : public station::ControlHandler {
   }
   json abort_run(const std::string&) override { return {{"run_id", 41}}; }
   json reprocess(db::RunId id) override { return {{"run_id", 42}, {"reprocessed_from", id}}; }
+  json diagnose(db::RunId id) override { return {{"run_id", id}, {"verdict", "consistent"}}; }
   const db::Repository& repository() const override { return repo_; }
 
  private:

@@ -358,6 +358,10 @@ int main(int argc, char** argv) {
   reprocess->add_option("RUN_ID", run_id, "run id")->required()->check(CLI::PositiveNumber);
   reprocess->add_flag("--wait", wait, "follow the new run to its end");
   reprocess->fallthrough();
+  auto* diagnose = app.add_subcommand(
+      "diagnose", "sim-to-real gap diagnosis of a stored run, kept with the run (needs the group)");
+  diagnose->add_option("RUN_ID", run_id, "run id")->required()->check(CLI::PositiveNumber);
+  diagnose->fallthrough();
 
   try {
     app.parse(argc, argv);
@@ -483,6 +487,15 @@ int main(int argc, char** argv) {
       if (!g.json)
         std::cerr << "run " << text(r, "run_id", "?") << " reprocesses run " << run_id << "\n";
       return wait_for_run(client, r.at("run_id").get<db::RunId>(), g.json);
+    }
+    if (*diagnose) {
+      ControlClient client = connect_or_fail(target);
+      const json r = call(client, station::cmd::kDiagnose, {{"run_id", run_id}});
+      if (g.json)
+        print_json(r);
+      else
+        std::cout << station::render_diagnosis_text(r);
+      return kOk;
     }
     throw Failure{kBadInput, "no command given (see --help)"};
   } catch (const Failure& f) {

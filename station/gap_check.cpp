@@ -1,0 +1,47 @@
+#include "station/gap_check.hpp"
+
+#include "calib/diagnosis.hpp"
+#include "calib/nlsq.hpp"
+#include "db/archive/diagnosis_json.hpp"
+
+namespace imucal::station {
+
+namespace {
+
+calib::DiagnosisInput diagnosis_input(calib::CalibrationInput in, const archive::RunArchive& ar) {
+  calib::DiagnosisInput din;
+  din.cal = std::move(in);
+  if (ar.info.reference == archive::ReferenceKind::kTable) din.geometry = ar.info.table.geometry();
+  return din;
+}
+
+}  // namespace
+
+GapCheck check_gap(calib::CalibrationInput in, const archive::RunArchive& ar,
+                   const calib::ParamSet& nlsq_params) {
+  GapCheck g;
+  try {
+    const calib::DiagnosisResult d = calib::diagnose(diagnosis_input(std::move(in), ar), nlsq_params);
+    g.summary = archive::diagnosis_summary_json(d);
+    g.significant = d.verdict != "consistent";
+    g.text = d.summary;
+  } catch (const std::exception& e) {
+    g.summary = {{"verdict", "not run"}, {"reason", e.what()}};
+  }
+  return g;
+}
+
+nlohmann::json diagnose_archive(const std::string& dir) {
+  const archive::RunArchive ar = archive::read_archive(dir);
+  calib::CalibrationInput in = archive::to_calibration_input(ar);
+  const calib::CalibrationResult cal = calib::calibrate_nlsq(in);
+  const calib::DiagnosisResult d = calib::diagnose(diagnosis_input(std::move(in), ar), cal.params);
+  nlohmann::json j = archive::diagnosis_to_json(d);
+  j["stored_summary"] = archive::diagnosis_summary_json(d);
+  j["archive"] = dir;
+  j["serial"] = ar.info.serial;
+  j["sequence"] = ar.info.sequence_name;
+  return j;
+}
+
+}  // namespace imucal::station

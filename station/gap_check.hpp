@@ -1,0 +1,32 @@
+#pragma once
+// The station's use of the sim-to-real gap diagnosis (calib/diagnosis.hpp, issue #8):
+//  * check_gap: every calibrated run gets it in the worker, against its own NLSQ calibration; a
+//    significant gap makes the run REVIEW with the best candidate effect named;
+//  * diagnose_archive: `stationctl diagnose RUN_ID` on a stored run's archive.
+// The summary kept with the run is archive::diagnosis_summary_json (verdict, best effect with
+// magnitude and σ, overall gap, held-out gap).
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "calib/calibration_input.hpp"
+#include "calib/param_set.hpp"
+#include "db/archive/run_archive.hpp"
+
+namespace imucal::station {
+
+struct GapCheck {
+  nlohmann::json summary;    ///< stored with the run
+  bool significant = false;  ///< the run departs from its model: never PASS
+  std::string text;          ///< the diagnosis' one-sentence summary
+};
+
+/// A diagnosis that cannot run (a run too short for it) does not fail a calibration that
+/// succeeded: it is stored as {"verdict": "not run", "reason": ...} and the cross-check decides.
+GapCheck check_gap(calib::CalibrationInput in, const archive::RunArchive& ar,
+                   const calib::ParamSet& nlsq_params);
+
+/// The full diagnosis JSON (archive::diagnosis_to_json) of an archive directory, plus
+/// "stored_summary" (what check_gap stores). Throws on input it cannot use, naming it.
+nlohmann::json diagnose_archive(const std::string& dir);
+
+}  // namespace imucal::station
