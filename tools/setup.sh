@@ -8,7 +8,8 @@ PKGS=(build-essential cmake ccache pkg-config
       libgtest-dev libgmock-dev libcli11-dev libtomlplusplus-dev nlohmann-json3-dev
       libbenchmark-dev
       can-utils python3-can python3-canmatrix mbpoll
-      libsystemd-dev qemu-system-x86 linux-image-amd64 busybox-static cpio iproute2 xz-utils binutils)
+      libsystemd-dev qemu-system-x86 linux-image-amd64 busybox-static cpio iproute2 xz-utils binutils
+      chromium)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,6 +1,7 @@
 #include "tools/imucal/diagnose_cmd.hpp"
 
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <sstream>
 #include <stdexcept>
@@ -8,7 +9,9 @@
 #include "calib/diagnosis.hpp"
 #include "calib/nlsq.hpp"
 #include "db/archive/diagnosis_json.hpp"
+#include "db/archive/io_util.hpp"
 #include "db/archive/run_archive.hpp"
+#include "tools/imucal/diagnosis_report.hpp"
 
 namespace imucal::tools {
 
@@ -106,13 +109,38 @@ CLI::App* add_diagnose_command(CLI::App& app, DiagnoseArgs& a) {
       "diagnose", "sim-to-real gap: where a run departs from the model, which effect explains it");
   c->add_option("dir", a.dir, "run archive directory")->required();
   c->add_flag("--json", a.json, "print one JSON object");
+  c->add_option("--report", a.report_dir,
+                "also write OUTDIR/report.html (heat map, ranking, before/after) and OUTDIR/diagnosis.json");
   c->add_option("--candidates", a.candidates,
                 "comma-separated effects to consider (default: the whole catalogue; see imucal effects)");
   return c;
 }
 
+namespace {
+
+/// --report OUTDIR must be a directory or not exist yet (checked before any work).
+void check_report_dir(const std::string& dir) {
+  if (dir.empty()) return;
+  std::error_code ec;
+  if (std::filesystem::exists(dir, ec) && !std::filesystem::is_directory(dir, ec))
+    throw std::invalid_argument("--report " + dir + ": exists and is not a directory");
+}
+
+/// OUTDIR/report.html and OUTDIR/diagnosis.json, each written atomically; OUTDIR created only now
+/// that the diagnosis has succeeded.
+void write_report(const std::string& dir, const nlohmann::json& j) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw std::runtime_error("--report " + dir + ": cannot create it: " + ec.message());
+  archive::write_file_atomic(dir + "/diagnosis.json", j.dump(2) + "\n");
+  archive::write_file_atomic(dir + "/report.html", diagnosis_report_html(j));
+}
+
+}  // namespace
+
 int cmd_diagnose(const DiagnoseArgs& a) {
   const std::vector<calib::EffectId> ids = parse_candidates(a.candidates);  // before any work
+  check_report_dir(a.report_dir);
   const archive::RunArchive ar = archive::read_archive(a.dir);
   calib::DiagnosisInput in;
   in.cal = archive::to_calibration_input(ar);
@@ -121,12 +149,13 @@ int cmd_diagnose(const DiagnoseArgs& a) {
   calib::DiagnosisOptions opt;
   opt.candidates = ids;
   const calib::DiagnosisResult d = calib::diagnose(in, cal.params, opt);
+  nlohmann::json j = archive::diagnosis_to_json(d);
+  j["archive"] = a.dir;
+  j["serial"] = ar.info.serial;
+  j["sequence"] = ar.info.sequence_name;
+  j["base_calibration"] = "nlsq";
+  if (!a.report_dir.empty()) write_report(a.report_dir, j);
   if (a.json) {
-    nlohmann::json j = archive::diagnosis_to_json(d);
-    j["archive"] = a.dir;
-    j["serial"] = ar.info.serial;
-    j["sequence"] = ar.info.sequence_name;
-    j["base_calibration"] = "nlsq";
     std::cout << j.dump(2) << '\n';
   } else {
     print_human(d, ar, in.cal.imu.size());
