@@ -1,0 +1,328 @@
+// The effects catalogue (DESIGN §7): every effect's forward model, as the simulator injects it,
+// against a case derived by hand here (independent formulas: Eigen's AngleAxis for rotations, the
+// textbook form of each effect) — not only a round trip. Runs use a perfect sensor (zero calibration
+// parameters) and, where noise is not the point, no noise, so the simulator's output is the true
+// increments plus the effect.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <vector>
+
+#include "calib/effects.hpp"
+#include "calib/site_presets.hpp"
+#include "calib/truth_sim.hpp"
+#include "tests/support/hand_profile.hpp"
+
+using namespace imucal;
+using namespace imucal::calib;
+using test_support::HandProfile;
+
+namespace {
+
+constexpr double kDt = 0.01;
+
+/// A perfect unit: no calibration errors; noise and quantisation off unless a test turns them on.
+UnitModel perfect_unit() {
+  UnitModel u;
+  u.noise.arw_rad_per_sqrt_s = 0.0;
+  u.noise.vrw_mps_per_sqrt_s = 0.0;
+  u.noise.dtheta_lsb_rad = 0.0;
+  u.noise.dv_lsb_mps = 0.0;
+  return u;
+}
+
+SimResult run(const sequences::MotionProfile& p, const UnitModel& u, bool noise = false,
+              uint64_t seed = 1) {
+  SimOptions so;
+  so.noise = noise;
+  so.seed = seed;
+  return simulate(p, TableGeometry{}, demo_factory_site(), u, so);
+}
+
+/// Mean dv/dt and dθ/dt over the samples whose interval lies in [t0, t1].
+struct Means {
+  Eigen::Vector3d f = Eigen::Vector3d::Zero(), w = Eigen::Vector3d::Zero();
+};
+Means means(const SimResult& s, double t0, double t1) {
+  Means m;
+  int n = 0;
+  for (const auto& x : s.imu)
+    if (x.t_s - x.dt_s >= t0 && x.t_s <= t1) {
+      m.f += x.dv_mps / x.dt_s;
+      m.w += x.dtheta_rad / x.dt_s;
+      ++n;
+    }
+  m.f /= n;
+  m.w /= n;
+  return m;
+}
+
+double g_local() { return *demo_factory_site().gravity_mps2; }
+
+Eigen::Matrix3d Rx(double a) { return Eigen::AngleAxisd(a, Eigen::Vector3d::UnitX()).toRotationMatrix(); }
+Eigen::Matrix3d Rz(double a) { return Eigen::AngleAxisd(a, Eigen::Vector3d::UnitZ()).toRotationMatrix(); }
+
+/// A rest at (outer, inner) degrees reached from (0, 0) by an outer then an inner turn.
+sequences::MotionProfile rest_at(double outer_deg, double inner_deg, double rest_s = 20.0) {
+  HandProfile h;
+  h.rest(1.0);
+  if (outer_deg != 0.0) h.rotate(true, outer_deg, 30.0, 30.0);
+  if (inner_deg != 0.0) h.rotate(false, inner_deg, 30.0, 30.0);
+  return h.rest(rest_s).build();
+}
+double rest_start(const sequences::MotionProfile& p) { return p.segments.back().t0_s + 1.0; }
+
+/// Specific force the unit feels at rest for a body attitude C_bn (hand form of conventions.hpp:
+/// dv = C_bnᵀ (f_n dt + ½ dt² ω_ie × f_n), f_n = -g_n).
+Eigen::Vector3d rest_f_b(const Eigen::Matrix3d& C_bn, double g, double lat_rad) {
+  const Eigen::Vector3d f_n(0, 0, -g);
+  const Eigen::Vector3d w(7.292115e-5 * std::cos(lat_rad), 0.0, -7.292115e-5 * std::sin(lat_rad));
+  return C_bn.transpose() * (f_n + 0.5 * kDt * w.cross(f_n));
+}
+
+}  // namespace
+
+// K2 δf_i = K2_i f_i²: with body x down f_x = -g, so f_x moves by K2 g²; at a 45° tilt of y (outer
+// 45°: down in body = (0, sin 45°, cos 45°)) f_y = -g/√2 and the shift is K2 g²/2.
+TEST(Effects, AccelQuadraticK2ShiftsBy_K2_f_squared) {
+  const double k2 = 30e-6 / kStandardGravity_mps2, g = g_local();
+  UnitModel u = perfect_unit();
+  for (const auto& [o, i, axis, f2] : std::vector<std::tuple<double, double, int, double>>{
+           {90.0, 90.0, 0, g * g}, {45.0, 0.0, 1, g * g / 2.0}}) {
+    const auto p = rest_at(o, i);
+    u.effects = Effects{};
+    const Means m0 = means(run(p, u), rest_start(p), p.duration_s());
+    u.effects.accel_k2_per_mps2(axis) = k2;
+    const Means m1 = means(run(p, u), rest_start(p), p.duration_s());
+    // f² is g² (x down) or g²/2 (y at 45°) up to the Earth-rotation term of the increments (1e-6).
+    EXPECT_NEAR(m0.f(axis) * m0.f(axis) / f2, 1.0, 2e-6) << o << "/" << i;
+    EXPECT_NEAR(m1.f(axis) - m0.f(axis), k2 * m0.f(axis) * m0.f(axis), 1e-7 * k2 * f2) << o << "/" << i;
+  }
+}
+
+// Asymmetry δf_i = Kap_i |f_i|: the same +Kap g with x down and x up (outer 90°, inner 90° / 270°).
+TEST(Effects, AccelAsymmetryIsTheSameOnBothSides) {
+  const double kap = 12e-6, g = g_local();
+  for (double inner : {90.0, 270.0}) {
+    const auto p = rest_at(90.0, inner);
+    UnitModel u = perfect_unit();
+    const Means m0 = means(run(p, u), rest_start(p), p.duration_s());
+    u.effects.accel_asym(0) = kap;
+    const Means m1 = means(run(p, u), rest_start(p), p.duration_s());
+    EXPECT_NEAR(std::abs(m0.f(0)), g, 1e-5);
+    EXPECT_NEAR(m1.f(0) - m0.f(0), kap * g, 1e-6 * kap * g) << inner;
+  }
+}
+
+// Size effect: accelerometer x 5 cm out along x; a constant-rate inner turn about body z (vertical)
+// at ω gives accelerometer x the centripetal -ω² r (([ω×]² r)_x = -(ω_y² + ω_z²) r_x).
+TEST(Effects, SizeEffectIsTheCentripetalTermWhileTurning) {
+  const auto p = HandProfile().rest(5.0).rotate(false, 180.0, 20.0, 20.0).rest(5.0).build();
+  UnitModel u = perfect_unit();
+  u.effects.accel_lever_arm_m[0] = Eigen::Vector3d(0.05, 0.0, 0.0);
+  const SimResult s = run(p, u);
+  const double w = 20.0 * kDegToRad;
+  double sum = 0.0;
+  int n = 0;
+  for (const auto& x : s.imu)
+    if (std::abs(x.dtheta_rad.z() / x.dt_s - w) < 1e-4) sum += x.dv_mps.x() / x.dt_s, ++n;  // + Earth rate
+  ASSERT_GT(n, 500);
+  // Earth rate adds ~1e-9 relative; the tilt of body x is zero at outer 0.
+  EXPECT_NEAR(sum / n, -w * w * 0.05, 2e-3 * w * w * 0.05);
+}
+
+// g-sensitivity δω = G f: with body x down f = (-g, 0, 0), so the mean rate moves by -g G[:, 0].
+TEST(Effects, GyroGSensitivityMovesTheStaticRateByGf) {
+  const auto p = rest_at(90.0, 90.0);
+  UnitModel u = perfect_unit();
+  const Means m0 = means(run(p, u), rest_start(p), p.duration_s());
+  Eigen::Matrix3d G = Eigen::Matrix3d::Zero();
+  G.col(0) = Eigen::Vector3d(0.02, -0.01, 0.005) * kDegPerHourToRadPerSec / kStandardGravity_mps2;
+  u.effects.gyro_g_sens = G;
+  const Means m1 = means(run(p, u), rest_start(p), p.duration_s());
+  const Eigen::Vector3d expected = G * m0.f;  // f ≈ (-g, 0, 0)
+  EXPECT_NEAR(m0.f(0), -g_local(), 1e-5);
+  EXPECT_LT((m1.w - m0.w - expected).norm(), 1e-6 * expected.norm());
+}
+
+// Gyro-accel skew δf = t_GA (ω × f): turning about body z at outer 90° (z horizontal), ω ⊥ f, so
+// every cruise sample's shift has magnitude t_GA ω g and the direction of ω × f.
+TEST(Effects, GyroAccelSkewShiftsByTimeOffsetTimesOmegaCrossF) {
+  HandProfile h;
+  h.rest(1.0).rotate(true, 90.0, 30.0, 30.0).rest(1.0).rotate(false, 180.0, 10.0, 10.0).rest(1.0);
+  const auto p = h.build();
+  UnitModel u = perfect_unit();
+  const SimResult s0 = run(p, u);
+  u.effects.gyro_accel_skew_s = 1e-3;
+  const SimResult s1 = run(p, u);
+  const double w = 10.0 * kDegToRad;
+  int n = 0;
+  for (size_t k = 0; k < s0.imu.size(); ++k) {
+    const Eigen::Vector3d om = s0.imu[k].dtheta_rad / kDt, f = s0.imu[k].dv_mps / kDt;
+    if (std::abs(om.z() - w) > 1e-4) continue;  // cruise (ω_z includes a little Earth rate)
+    const Eigen::Vector3d d = (s1.imu[k].dv_mps - s0.imu[k].dv_mps) / kDt;
+    EXPECT_NEAR(d.norm(), 1e-3 * w * g_local(), 2e-3 * 1e-3 * w * g_local());
+    EXPECT_LT((d - 1e-3 * om.cross(f)).norm(), 1e-9);
+    ++n;
+  }
+  EXPECT_GT(n, 1000);
+}
+
+// Thermal warm-up b(t) = A exp(-t/τ): over the first τ seconds the mean shift is A (1 - e^-1).
+TEST(Effects, ThermalDriftIsAnExponentialWarmUp) {
+  const double tau = 60.0;
+  const auto p = HandProfile().rest(tau).build();
+  UnitModel u = perfect_unit();
+  const Means m0 = means(run(p, u), 0.0, tau);
+  u.effects.thermal_accel_mps2 = Eigen::Vector3d(20e-6 * kStandardGravity_mps2, 0, 0);
+  u.effects.thermal_gyro_radps = Eigen::Vector3d(0, 0, 0.005 * kDegPerHourToRadPerSec);
+  u.effects.thermal_tau_s = tau;
+  const Means m1 = means(run(p, u), 0.0, tau);
+  const double k = 1.0 - std::exp(-1.0);
+  EXPECT_NEAR(m1.f(0) - m0.f(0), u.effects.thermal_accel_mps2(0) * k, 1e-12);
+  EXPECT_NEAR(m1.w(2) - m0.w(2), u.effects.thermal_gyro_radps(2) * k, 1e-16);
+}
+
+// Bias instability: an undeclared Gauss-Markov bias — its samples have variance σ² and lag-τ
+// autocorrelation e^-1 (statistical tolerances for 3000 s at τ = 20 s: ~150 correlation times).
+TEST(Effects, BiasInstabilityIsAGaussMarkovProcess) {
+  const auto p = HandProfile().rest(3000.0).build();
+  UnitModel u = perfect_unit();
+  const SimResult s0 = run(p, u, false);
+  u.effects.instability_accel_mps2 = 10e-6 * kStandardGravity_mps2;
+  u.effects.instability_tau_s = 20.0;
+  const SimResult s1 = run(p, u, true, 5);
+  std::vector<double> b;
+  for (size_t k = 0; k < s0.imu.size(); ++k)
+    b.push_back((s1.imu[k].dv_mps.y() - s0.imu[k].dv_mps.y()) / kDt);
+  double mean = 0.0, var = 0.0, lag = 0.0;
+  for (double x : b) mean += x;
+  mean /= static_cast<double>(b.size());
+  const size_t L = static_cast<size_t>(20.0 / kDt);
+  for (size_t k = 0; k < b.size(); ++k) {
+    var += (b[k] - mean) * (b[k] - mean);
+    if (k + L < b.size()) lag += (b[k] - mean) * (b[k + L] - mean);
+  }
+  lag /= static_cast<double>(b.size() - L);
+  var /= static_cast<double>(b.size());
+  const double s2 = std::pow(u.effects.instability_accel_mps2, 2);
+  EXPECT_NEAR(var / s2, 1.0, 0.3);
+  EXPECT_NEAR(lag / var, std::exp(-1.0), 0.12);
+}
+
+// Quantisation with the remainder carried: every output is a whole number of LSBs, and (with the
+// white noise dithering it) the rounding error e_k - e_{k-1} has variance LSB²/6 and lag-1
+// autocovariance -LSB²/12. The same seed with and without the effect gives the same noise.
+TEST(Effects, QuantisationRoundsToTheLsbWithACarriedRemainder) {
+  const auto p = HandProfile().rest(300.0).build();
+  UnitModel u = perfect_unit();
+  u.noise.vrw_mps_per_sqrt_s = 10e-6 * kStandardGravity_mps2;  // dithers the rounding
+  const SimResult s0 = run(p, u, true, 3);
+  const double q = 1e-5;
+  u.effects.quant_dv_mps = q;
+  const SimResult s1 = run(p, u, true, 3);
+  std::vector<double> e;
+  int off_grid = 0;
+  for (size_t k = 0; k < s1.imu.size(); ++k) {
+    const double out = s1.imu[k].dv_mps.z();
+    off_grid += std::abs(out / q - std::round(out / q)) > 1e-6 ? 1 : 0;
+    e.push_back(out - s0.imu[k].dv_mps.z());
+  }
+  EXPECT_EQ(off_grid, 0);
+  double v = 0.0, c1 = 0.0;
+  for (size_t k = 0; k < e.size(); ++k) {
+    v += e[k] * e[k];
+    if (k + 1 < e.size()) c1 += e[k] * e[k + 1];
+  }
+  v /= static_cast<double>(e.size());
+  c1 /= static_cast<double>(e.size() - 1);
+  EXPECT_NEAR(v / (q * q / 6.0), 1.0, 0.05);
+  EXPECT_NEAR(c1 / (-q * q / 12.0), 1.0, 0.08);
+}
+
+// Table non-orthogonality: the inner axis leans by δ towards the outer axis, a' = (sin δ, 0, cos δ)
+// in the outer-gimbal frame; at outer 90°, inner 90° the body attitude is Rx(90°) R(a', 90°) and
+// gravity in the body follows it.
+TEST(Effects, TableNonorthogonalityTiltsTheInnerAxis) {
+  const double delta = 10.0 * kArcsecToRad;
+  const auto p = rest_at(90.0, 90.0);
+  UnitModel u = perfect_unit();
+  u.effects.table_nonorthogonality_rad = delta;
+  const Means m = means(run(p, u), rest_start(p), p.duration_s());
+  const Eigen::Vector3d a(std::sin(delta), 0.0, std::cos(delta));
+  const Eigen::Matrix3d C = Rx(kPi / 2) * Eigen::AngleAxisd(kPi / 2, a).toRotationMatrix();
+  const Eigen::Vector3d expected = rest_f_b(C, g_local(), demo_factory_site().lat_rad);
+  EXPECT_LT((m.f - expected).norm(), 1e-9) << m.f.transpose() << " vs " << expected.transpose();
+  // And the lean is seen: the nominal table puts nothing on z; the lean about δ g (4.8e-4 m/s²).
+  EXPECT_NEAR(std::abs(m.f.z()), delta * g_local(), 0.01 * delta * g_local());
+}
+
+// Table wobble: platform tilt δ_o(inner) = Rz(-inner) (w_x, w_y, 0) between the outer gimbal and the
+// inner rotation: at inner 0 the tilt is (w_x, w_y, 0), at inner 90° it is (w_y, -w_x, 0).
+TEST(Effects, TableWobbleTiltsThePlatformOncePerRevolution) {
+  const double wx = 8.0 * kArcsecToRad, wy = -5.0 * kArcsecToRad;
+  for (double inner : {0.0, 90.0}) {
+    const auto p = rest_at(60.0, inner);
+    UnitModel u = perfect_unit();
+    u.effects.table_wobble_rad = Eigen::Vector2d(wx, wy);
+    const Means m = means(run(p, u), rest_start(p), p.duration_s());
+    const Eigen::Vector3d tilt = inner == 0.0 ? Eigen::Vector3d(wx, wy, 0) : Eigen::Vector3d(wy, -wx, 0);
+    const Eigen::Matrix3d C = Rx(60.0 * kDegToRad) *
+                              Eigen::AngleAxisd(tilt.norm(), tilt.normalized()).toRotationMatrix() *
+                              Rz(inner * kDegToRad);
+    const Eigen::Vector3d expected = rest_f_b(C, g_local(), demo_factory_site().lat_rad);
+    EXPECT_LT((m.f - expected).norm(), 1e-9) << inner;
+  }
+}
+
+// Gravity error: the unit at rest feels g + δg (the station's configured g is wrong by δg).
+TEST(Effects, GravityErrorChangesTheSpecificForceMagnitude) {
+  const auto p = rest_at(0.0, 0.0);
+  UnitModel u = perfect_unit();
+  u.effects.gravity_error_mps2 = 50e-6 * kStandardGravity_mps2;
+  const Means m = means(run(p, u), rest_start(p), p.duration_s());
+  EXPECT_NEAR(m.f.norm(), g_local() + u.effects.gravity_error_mps2, 1e-9);
+}
+
+// Latitude error: at (0, 0) (body = NED) the gyros read the Earth rate of the true latitude,
+// Ω (cos φ, 0, -sin φ) with φ = configured + δφ.
+TEST(Effects, LatitudeErrorSplitsTheEarthRateAtTheTrueLatitude) {
+  const auto p = rest_at(0.0, 0.0);
+  UnitModel u = perfect_unit();
+  u.effects.latitude_error_rad = 1.0 / 60.0 * kDegToRad;
+  const Means m = means(run(p, u), rest_start(p), p.duration_s());
+  const double phi = demo_factory_site().lat_rad + u.effects.latitude_error_rad;
+  const Eigen::Vector3d expected(7.292115e-5 * std::cos(phi), 0.0, -7.292115e-5 * std::sin(phi));
+  EXPECT_LT((m.w - expected).norm(), 1e-13);
+}
+
+// Table time offset: during a constant-rate move the encoder log lags the motion by ω δt.
+TEST(Effects, TableTimeOffsetDelaysTheEncoderLog) {
+  const auto p = HandProfile().rest(2.0).rotate(true, 90.0, 10.0, 20.0).rest(2.0).build();
+  UnitModel u = perfect_unit();
+  const SimResult s0 = run(p, u);
+  u.effects.table_time_offset_s = 0.02;
+  const SimResult s1 = run(p, u);
+  // Mid-cruise (t = 2 + 0.5 + 4 s): outer moves at 10 °/s.
+  const size_t k = static_cast<size_t>(6.5 / kDt);
+  EXPECT_NEAR(s0.table[k].outer_rad - s1.table[k].outer_rad, 10.0 * kDegToRad * 0.02, 1e-9);
+  // The IMU stream itself does not change.
+  EXPECT_EQ(s0.imu[k].dtheta_rad, s1.imu[k].dtheta_rad);
+}
+
+TEST(Effects, CatalogueNamesAndSpecsAreOneVocabulary) {
+  EXPECT_EQ(effect_catalogue().size(), static_cast<size_t>(kNumEffects));
+  Effects fx;
+  apply_effect_spec(fx, "thermal_drift=1e-4,0,0,0,0,2e-8");  // τ left out: default kept
+  EXPECT_EQ(fx.thermal_accel_mps2(0), 1e-4);
+  EXPECT_EQ(fx.thermal_tau_s, Effects{}.thermal_tau_s);
+  EXPECT_EQ(fx.active_names(), std::vector<std::string>{"thermal_drift"});
+  EXPECT_THROW(apply_effect_spec(fx, "thermal_drift=1"), std::invalid_argument);
+  EXPECT_THROW(apply_effect_spec(fx, "bias_instability=-1,0"), std::invalid_argument);
+  EXPECT_THROW(apply_effect_spec(fx, "nope=1"), std::invalid_argument);
+  EXPECT_THROW(apply_effect_spec(fx, "gravity_error=abc"), std::invalid_argument);
+  // Magnitudes: the typical pattern of a relative effect is 1 x typical.
+  const EffectInfo& t = effect_info(EffectId::kThermalDrift);
+  EXPECT_NEAR(t.magnitude(Eigen::Map<const Eigen::VectorXd>(t.typical.data(), t.size())), 1.0, 1e-12);
+}
