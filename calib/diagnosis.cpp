@@ -12,6 +12,7 @@
 #include "calib/chi2.hpp"
 #include "calib/gap_fit.hpp"
 #include "calib/gap_linearisation.hpp"
+#include "calib/simulated_twin.hpp"
 #include "calib/stochastic_candidates.hpp"
 
 namespace imucal::calib {
@@ -77,6 +78,21 @@ std::vector<SegmentGap> localise(const Problem& p, const GlsFit& fit) {
     out.push_back(g);
   }
   return out;
+}
+
+/// The simulated twin through the same residual model, refitted with the same Jacobian (same
+/// trajectory, same parameters): its overall χ²/dof and per-segment NIS beside the real ones.
+void compare_with_twin(DiagnosisResult& d, const DiagnosisInput& in, const Problem& p,
+                       const DiagnosisOptions& opt) {
+  const DiagnosisInput twin = simulated_twin(in, d.base, opt.twin_seed);
+  const GapModel tm(twin, opt.min_rest_samples);
+  if (tm.rows() != p.model.rows()) return;  // same rest flags, so never; be safe
+  const Eigen::VectorXd r = tm.whiten(tm.residuals(d.base, Effects{}));
+  const GlsFit f = gls_fit(r, p.Jb);
+  d.twin_gap = f.chi2 / f.dof;
+  const Eigen::VectorXd e = r + p.Jb * f.x;
+  for (size_t s = 0; s < d.segments.size(); ++s)
+    d.segments[s].nis_twin = e.segment<kGapRowsPerSegment>(kGapRowsPerSegment * static_cast<int>(s)).squaredNorm();
 }
 
 std::string base_names(const std::vector<int>& idx) {
@@ -518,6 +534,7 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const D
   d.base_sigma = ParamSet::from_vector(fit0.cov.diagonal().cwiseSqrt());
   d.segments = localise(p, fit0);
   d.whiteness = whiteness_stats(in.cal, model.rests());
+  compare_with_twin(d, in, p, opt);
 
   try {
     d.held_out.gap_before = held_out_gap(p.r0, p.Jb, p.folds).ratio();

@@ -17,6 +17,7 @@
 //  3. Quantify: the gap on held-out segments (K-fold over rests and the moves after them) before and
 //     after adding the best effect, and the best pair; the base parameters that move, in σ.
 #include <array>
+#include <cstdint>
 #include <limits>
 #include <optional>
 #include <string>
@@ -43,6 +44,7 @@ struct DiagnosisOptions {
   std::vector<double> thermal_tau_grid_s = {300.0, 600.0, 1200.0, 2400.0};
   /// Correlation times searched for an undeclared Gauss-Markov bias, s.
   std::vector<double> instability_tau_grid_s = {300.0, 1000.0, 3000.0};
+  uint64_t twin_seed = 1;  ///< noise seed of the simulated twin
 };
 
 struct SegmentGap {
@@ -53,6 +55,7 @@ struct SegmentGap {
   std::array<double, kGapRowsPerSegment> residual_si{};  ///< raw post-fit residual
   double nis = 0.0;           ///< whitened χ² of the segment after the fit
   double nis_expected = 0.0;  ///< its expectation under the model (6 - leverage)
+  double nis_twin = 0.0;      ///< the same segment's NIS on the simulated twin (calib/simulated_twin.hpp)
   double p_value = 1.0;       ///< P(χ²(6) > nis·6/expected)
 };
 
@@ -102,6 +105,9 @@ struct DiagnosisResult {
   double overall_expected = 1.0;  ///< its expectation under the model
   double overall_sigma = 0.0;     ///< its spread under the model, sqrt(2/dof)
   double overall_p = 1.0;
+  /// χ²/dof of the simulated twin (the same trajectory simulated with the calibrated model and the
+  /// declared noise, through the same residual model): what the model predicts for this run.
+  double twin_gap = 0.0;
   double gap_after_best = 0.0;    ///< χ²/dof with the best effect (pair) added
   std::vector<CandidateResult> candidates;  ///< ranked, best first
   std::optional<size_t> best;     ///< index into candidates

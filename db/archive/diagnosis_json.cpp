@@ -61,6 +61,7 @@ json segment_json(const calib::SegmentGap& g) {
           {"inner_deg", num(g.segment.inner_deg)},
           {"nis", num(g.nis)},
           {"nis_expected", num(g.nis_expected)},
+          {"nis_sim", num(g.nis_twin)},
           {"p_value", num(g.p_value)},
           {"z", z},
           {"residual_si", r}};
@@ -91,7 +92,19 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
   j["overall"] = {{"chi2", num(d.chi2)},          {"dof", d.dof},
                   {"gap", num(d.overall_gap)},     {"expected", num(d.overall_expected)},
                   {"sigma", num(d.overall_sigma)}, {"p_value", num(d.overall_p)},
-                  {"gap_after_best", num(d.gap_after_best)}};
+                  {"gap_after_best", num(d.gap_after_best)},
+                  {"simulated_gap", num(d.twin_gap)}};
+  json axes = json::object();
+  for (int c = 0; c < calib::kGapRowsPerSegment; ++c) {
+    json adev = json::array(), exp = json::array();
+    for (double v : d.whiteness.adev[static_cast<size_t>(c)]) adev.push_back(num(v));
+    for (double v : d.whiteness.adev_expected[static_cast<size_t>(c)]) exp.push_back(num(v));
+    axes[gap_component_key(c)] = {{"lag1_autocorr", num(d.whiteness.lag1_autocorr[static_cast<size_t>(c)])},
+                                  {"lag1_z", num(d.whiteness.lag1_z[static_cast<size_t>(c)])},
+                                  {"adev", adev},
+                                  {"adev_expected", exp}};
+  }
+  j["whiteness"] = {{"tau_s", d.whiteness.tau_s}, {"axes", axes}};
   json segs = json::array();
   for (const auto& g : d.segments) segs.push_back(segment_json(g));
   j["segments"] = segs;

@@ -190,3 +190,23 @@ TEST(Diagnosis, UndeclaredBiasInstabilityIsNamed) {
   EXPECT_EQ(d.candidates[*d.best].name, "bias_instability");
   EXPECT_LT(d.held_out.gap_after, d.held_out.gap_before);
 }
+
+// The simulated twin (the run's own trajectory, the calibrated model, the declared noise) predicts
+// χ²/dof near 1 whatever the real run holds; on a null run the real run agrees with it, on a run with
+// an unmodelled effect the real run stands far above it.
+TEST(Diagnosis, SimulatedTwinPredictsWhatTheModelExpects) {
+  const UnitModel null_unit = default_unit();
+  const DiagnosisInput a = simulate_run("factory-std", null_unit, true, 31);
+  const DiagnosisResult d0 = diagnose(a, calibrate_nlsq(a.cal).params);
+  EXPECT_NEAR(d0.twin_gap, 1.0, 5.0 * d0.overall_sigma);
+  EXPECT_NEAR(d0.overall_gap, d0.twin_gap, 7.0 * d0.overall_sigma);
+  UnitModel fx = default_unit();
+  fx.effects.table_nonorthogonality_rad = 3.0 * kArcsecToRad;
+  const DiagnosisInput b = simulate_run("factory-std", fx, true, 32);
+  const DiagnosisResult d1 = diagnose(b, calibrate_nlsq(b.cal).params);
+  EXPECT_NEAR(d1.twin_gap, 1.0, 5.0 * d1.overall_sigma);
+  EXPECT_GT(d1.overall_gap, d1.twin_gap + 5.0 * d1.overall_sigma);
+  double sum_twin = 0.0;
+  for (const auto& s : d1.segments) sum_twin += s.nis_twin;
+  EXPECT_NEAR(sum_twin / d1.dof, d1.twin_gap, 1e-9);  // the per-segment NIS add up to the whole
+}

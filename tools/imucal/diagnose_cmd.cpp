@@ -57,15 +57,15 @@ void print_segments(const calib::DiagnosisResult& d) {
   std::sort(s.begin(), s.end(), [](auto* a, auto* b) { return a->nis > b->nis; });
   std::printf("\nsegments with the largest gap (NIS; about %d expected under the model):\n",
               calib::kGapRowsPerSegment);
-  std::printf("  %-26s %8s %8s %9s %9s  %s\n", "segment", "t0 [s]", "NIS", "p", "outer/inner",
-              "largest |z| (sensor axis)");
+  std::printf("  %-26s %8s %8s %8s %9s %9s  %s\n", "segment", "t0 [s]", "NIS", "NIS sim", "p",
+              "outer/inner", "largest |z| (sensor axis)");
   for (size_t i = 0; i < s.size() && i < 8; ++i) {
     const auto& g = *s[i];
     int worst = 0;
     for (int c = 1; c < calib::kGapRowsPerSegment; ++c)
       if (std::abs(g.z[static_cast<size_t>(c)]) > std::abs(g.z[static_cast<size_t>(worst)])) worst = c;
-    std::printf("  %-26s %8.1f %8.2f %9.2g %4.0f/%-4.0f  %+.2f (%s)\n", g.segment.label().c_str(),
-                g.segment.t0_s, g.nis, g.p_value, g.segment.outer_deg, g.segment.inner_deg,
+    std::printf("  %-26s %8.1f %8.2f %8.2f %9.2g %4.0f/%-4.0f  %+.2f (%s)\n", g.segment.label().c_str(),
+                g.segment.t0_s, g.nis, g.nis_twin, g.p_value, g.segment.outer_deg, g.segment.inner_deg,
                 g.z[static_cast<size_t>(worst)], calib::gap_component_name(worst));
   }
 }
@@ -77,6 +77,12 @@ void print_human(const calib::DiagnosisResult& d, const archive::RunArchive& ar,
   std::printf("overall gap: chi2/dof %.3f (chi2 %.1f, dof %d; expected 1 +- %.3f; p %.2g)", d.overall_gap,
               d.chi2, d.dof, d.overall_sigma, d.overall_p);
   if (d.best || !d.ambiguous.empty()) std::printf(" -> %.3f with the best effect", d.gap_after_best);
+  std::printf("\nsimulated twin (this trajectory, the calibrated model, the declared noise): chi2/dof %.3f\n",
+              d.twin_gap);
+  std::printf("rest samples, lag-1 autocorrelation (z vs declared noise):");
+  for (int c = 0; c < calib::kGapRowsPerSegment; ++c)
+    std::printf(" %s %+.3f (%+.1f)", calib::gap_component_name(c), d.whiteness.lag1_autocorr[static_cast<size_t>(c)],
+                d.whiteness.lag1_z[static_cast<size_t>(c)]);
   std::printf("\n");
   if (d.held_out.has_after) {
     std::printf("held-out gap (fit on the other segments): %.3f -> %.3f", d.held_out.gap_before,
