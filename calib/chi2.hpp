@@ -1,7 +1,7 @@
 #pragma once
-// χ² distribution tail, for the diagnosis' significance tests (likelihood ratios, NIS, overall gap):
-// P(X > x) for X ~ χ²(k) = Q(k/2, x/2), the regularised upper incomplete gamma function, by its
-// series (x < a + 1) or its continued fraction (modified Lentz), both to ~1e-15 relative.
+// χ² distribution tail, for the diagnosis' significance tests (likelihood ratios, NIS, overall
+// gap): P(X > x) for X ~ χ²(k) = Q(k/2, x/2), the regularised upper incomplete gamma function, by
+// its series (x < a + 1) or its continued fraction (modified Lentz), both to ~1e-15 relative.
 namespace imucal::calib {
 
 /// Q(a, x) = Γ(a, x) / Γ(a), a > 0, x >= 0.

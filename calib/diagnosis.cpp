@@ -2,10 +2,10 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
-#include <optional>
 #include <chrono>
-#include <limits>
 #include <cmath>
+#include <limits>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -92,7 +92,8 @@ void compare_with_twin(DiagnosisResult& d, const DiagnosisInput& in, const Probl
   d.twin_gap = f.chi2 / f.dof;
   const Eigen::VectorXd e = r + p.Jb * f.x;
   for (size_t s = 0; s < d.segments.size(); ++s)
-    d.segments[s].nis_twin = e.segment<kGapRowsPerSegment>(kGapRowsPerSegment * static_cast<int>(s)).squaredNorm();
+    d.segments[s].nis_twin =
+        e.segment<kGapRowsPerSegment>(kGapRowsPerSegment * static_cast<int>(s)).squaredNorm();
 }
 
 std::string base_names(const std::vector<int>& idx) {
@@ -178,7 +179,8 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
   return r;
 }
 
-// A candidate is fitted only with at least this many residuals to spare (rows - 27 - its parameters).
+// A candidate is fitted only with at least this many residuals to spare (rows - 27 - its
+// parameters).
 constexpr int kMinDofForCandidate = 12;
 // The held-out folds need rests to fit on: below this the run is too short to diagnose.
 constexpr size_t kMinRests = 4;
@@ -208,8 +210,7 @@ std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOp
       out.push_back(std::move(s));
       continue;
     }
-    if (e.kind == EffectKind::kTable && !p.model.has_table() &&
-        id != EffectId::kTableTimeOffset) {
+    if (e.kind == EffectKind::kTable && !p.model.has_table() && id != EffectId::kTableTimeOffset) {
       Scored s;
       s.result.id = id;
       s.result.name = e.name;
@@ -293,12 +294,14 @@ std::vector<ParamShift> moved_params(const GlsFit& before, const GlsFit& after) 
       out.push_back({pi.name, pi.human_unit, d / sigma, d * pi.si_to_human});
     }
   }
-  std::sort(out.begin(), out.end(),
-            [](const auto& a, const auto& b) { return std::abs(a.shift_sigma) > std::abs(b.shift_sigma); });
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
+    return std::abs(a.shift_sigma) > std::abs(b.shift_sigma);
+  });
   return out;
 }
 
-std::vector<std::pair<std::string, double>> remaining_gap(const Problem& p, const Eigen::MatrixXd& J,
+std::vector<std::pair<std::string, double>> remaining_gap(const Problem& p,
+                                                          const Eigen::MatrixXd& J,
                                                           const GlsFit& fit) {
   const Eigen::VectorXd e = p.r0 + J * fit.x;
   std::vector<std::pair<std::string, double>> out;
@@ -345,9 +348,9 @@ GlsFit gls_fit_cov(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J, const Ei
   return gls_fit(llt.matrixL().solve(r0), llt.matrixL().solve(J));
 }
 
-/// The explanation chosen for the segment residuals (plus quantisation, which acts on the per-sample
-/// statistics only): the members (candidate indices, most important first), their columns, and the
-/// residual covariance if a Gauss-Markov bias is among them.
+/// The explanation chosen for the segment residuals (plus quantisation, which acts on the
+/// per-sample statistics only): the members (candidate indices, most important first), their
+/// columns, and the residual covariance if a Gauss-Markov bias is among them.
 struct Selection {
   std::vector<size_t> members;
   double bic = 0.0;
@@ -365,8 +368,8 @@ std::optional<size_t> index_of(const std::vector<Scored>& c, EffectId id) {
 
 /// Model choice by BIC among: the best deterministic effect D1, the best pair D1+D2, an undeclared
 /// Gauss-Markov bias GM, and D1+GM — each only if its members are significant (GM given D1 for the
-/// last). A significant top candidate that another one mimics makes the choice ambiguous: no finding.
-/// Quantisation, independent of the segment residuals, joins when significant.
+/// last). A significant top candidate that another one mimics makes the choice ambiguous: no
+/// finding. Quantisation, independent of the segment residuals, joins when significant.
 Selection select_model(const std::vector<Scored>& c, const Problem& p, double chi2_0,
                        const DiagnosisOptions& opt) {
   Selection best;
@@ -385,7 +388,8 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
   };
   std::optional<size_t> d1;
   for (size_t i = 0; i < c.size() && !d1; ++i)
-    if (c[i].result.significant && c[i].J_eff.cols() > 0 && c[i].result.confounded_with.empty()) d1 = i;
+    if (c[i].result.significant && c[i].J_eff.cols() > 0 && c[i].result.confounded_with.empty())
+      d1 = i;
   if (d1) {
     const Eigen::MatrixXd J1 = hcat(p.Jb, c[*d1].J_eff);
     consider({{*d1}, c[*d1].result.bic_gain, J1, false, {}, {}});
@@ -412,8 +416,8 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
       }
     }
   }
-  if (const auto q = index_of(c, EffectId::kQuantisation); q && c[*q].result.significant &&
-                                                          best.members.size() < 2)
+  if (const auto q = index_of(c, EffectId::kQuantisation);
+      q && c[*q].result.significant && best.members.size() < 2)
     best.members.push_back(*q);
   return best;
 }
@@ -468,15 +472,16 @@ std::string summarise(const DiagnosisResult& d) {
     os << "the gap is explained equally well by ";
     for (size_t i = 0; i < d.ambiguous.size(); ++i)
       os << (i ? (i + 1 == d.ambiguous.size() ? " or " : ", ") : "") << d.ambiguous[i];
-    os << ", which this sequence cannot tell apart; held-out gap " << d.held_out.gap_before << " -> "
-       << d.held_out.gap_after;
+    os << ", which this sequence cannot tell apart; held-out gap " << d.held_out.gap_before
+       << " -> " << d.held_out.gap_after;
   } else if (d.best) {
     const CandidateResult& b = d.candidates[*d.best];
     os << (d.verdict == "explained" ? "explained by " : "partly explained by ") << b.name << " = "
        << b.magnitude << " +- " << b.magnitude_sigma << " " << b.unit;
     if (d.second) {
       const CandidateResult& s = d.candidates[*d.second];
-      os << " and " << s.name << " = " << s.magnitude << " +- " << s.magnitude_sigma << " " << s.unit;
+      os << " and " << s.name << " = " << s.magnitude << " +- " << s.magnitude_sigma << " "
+         << s.unit;
     }
     os << "; held-out gap " << d.held_out.gap_before << " -> "
        << (d.held_out.has_pair ? d.held_out.gap_after_pair : d.held_out.gap_after);
@@ -491,14 +496,17 @@ std::string summarise(const DiagnosisResult& d) {
 
 }  // namespace
 
-DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const DiagnosisOptions& opt) {
+DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
+                         const DiagnosisOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
   const GapModel model(in, opt.min_rest_samples);
   const GapLinearisation lin(model, base);
-  Problem p{model, lin, lin.r0(), lin.r0_raw(), lin.Jb(), lin.Jb_raw(), make_folds(model, opt.folds)};
+  Problem p{
+      model, lin, lin.r0(), lin.r0_raw(), lin.Jb(), lin.Jb_raw(), make_folds(model, opt.folds)};
   const int m = model.rows();
   if (model.rests().size() < kMinRests)
-    throw std::invalid_argument("gap diagnosis: the run has " + std::to_string(model.rests().size()) +
+    throw std::invalid_argument("gap diagnosis: the run has " +
+                                std::to_string(model.rests().size()) +
                                 " rest periods; it needs at least " + std::to_string(kMinRests) +
                                 " (the held-out check fits on some and predicts the others)");
   if (m <= ParamSet::kSize + kMinDofForCandidate)
@@ -511,18 +519,20 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const D
     int k = 0;
     for (const auto& pi : effect_info(id).params) k += pi.shape ? 0 : 1;
     if (m - ParamSet::kSize - k < kMinDofForCandidate)
-      throw std::invalid_argument("gap diagnosis: candidate " + effect_info(id).name +
-                                  ": the run is too short for its " + std::to_string(k) +
-                                  " parameters (" + std::to_string(m) + " residuals for " +
-                                  std::to_string(ParamSet::kSize) + " + " + std::to_string(k) + ")");
+      throw std::invalid_argument(
+          "gap diagnosis: candidate " + effect_info(id).name + ": the run is too short for its " +
+          std::to_string(k) + " parameters (" + std::to_string(m) + " residuals for " +
+          std::to_string(ParamSet::kSize) + " + " + std::to_string(k) + ")");
   }
   GlsFit fit0;
   try {
     fit0 = gls_fit(p.r0, p.Jb);
   } catch (const std::invalid_argument&) {
     throw std::invalid_argument(
-        "gap diagnosis: the run is too short: the 27 calibration parameters are not all separable on "
-        "its " + std::to_string(model.rests().size()) + " rests");
+        "gap diagnosis: the run is too short: the 27 calibration parameters are not all separable "
+        "on "
+        "its " +
+        std::to_string(model.rests().size()) + " rests");
   }
   d.rows = m;
   d.dof = fit0.dof;
@@ -539,9 +549,11 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base, const D
   try {
     d.held_out.gap_before = held_out_gap(p.r0, p.Jb, p.folds).ratio();
   } catch (const std::invalid_argument&) {
-    throw std::invalid_argument("gap diagnosis: the run is too short for the held-out check: with a "
-                                "fifth of its " + std::to_string(model.rests().size()) +
-                                " rests held out, the 27 calibration parameters are not all separable");
+    throw std::invalid_argument(
+        "gap diagnosis: the run is too short for the held-out check: with a "
+        "fifth of its " +
+        std::to_string(model.rests().size()) +
+        " rests held out, the 27 calibration parameters are not all separable");
   }
   std::vector<Scored> cands = score_all(p, fit0.chi2, opt);
   rank(cands, p, opt);

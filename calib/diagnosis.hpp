@@ -5,16 +5,18 @@
 // held-out segments.
 //
 //  1. Localise: the segment residuals of calib/gap_model.hpp after refitting the base parameters,
-//     normalised by the model's own predicted spread (leverage included), per segment × sensor axis;
-//     per segment the NIS against χ²; overall χ²/dof against its expectation 1.
-//  2. Attribute: each candidate effect is refitted jointly with the 27 base parameters (linearised at
+//     normalised by the model's own predicted spread (leverage included), per segment × sensor
+//     axis; per segment the NIS against χ²; overall χ²/dof against its expectation 1.
+//  2. Attribute: each candidate effect is refitted jointly with the 27 base parameters (linearised
+//  at
 //     the calibrated point, Jacobians by differences of the same residual model), scored by the
 //     likelihood ratio (χ² drop, whitened residuals) and BIC. Candidate directions whose multiple
 //     correlation with the base parameters exceeds 0.95 are not separable on this sequence and are
 //     left out of its fit; a candidate left with none is reported as not separable, with the base
 //     parameters it aliases, never as a finding; two candidates whose signatures correlate > 0.95
 //     are not separable from each other.
-//  3. Quantify: the gap on held-out segments (K-fold over rests and the moves after them) before and
+//  3. Quantify: the gap on held-out segments (K-fold over rests and the moves after them) before
+//  and
 //     after adding the best effect, and the best pair; the base parameters that move, in σ.
 #include <array>
 #include <cstdint>
@@ -55,34 +57,35 @@ struct SegmentGap {
   std::array<double, kGapRowsPerSegment> residual_si{};  ///< raw post-fit residual
   double nis = 0.0;           ///< whitened χ² of the segment after the fit
   double nis_expected = 0.0;  ///< its expectation under the model (6 - leverage)
-  double nis_twin = 0.0;      ///< the same segment's NIS on the simulated twin (calib/simulated_twin.hpp)
-  double p_value = 1.0;       ///< P(χ²(6) > nis·6/expected)
+  double nis_twin =
+      0.0;  ///< the same segment's NIS on the simulated twin (calib/simulated_twin.hpp)
+  double p_value = 1.0;  ///< P(χ²(6) > nis·6/expected)
 };
 
 struct CandidateParam {
-  std::string name, unit;  ///< human unit
+  std::string name, unit;           ///< human unit
   double value = 0.0, sigma = 0.0;  ///< human units
 };
 
 struct CandidateResult {
   EffectId id{};
   std::string name;
-  bool separable = false;       ///< has at least one direction separable from the base (and fitted)
-  std::string note;             ///< why not separable / partly separable / confounded, empty if clean
-  int k = 0;                    ///< parameter directions fitted
-  double lr = 0.0;              ///< χ² drop when added (likelihood ratio statistic)
-  double p_value = 1.0;         ///< P(χ²(k) > lr)
-  double bic_gain = 0.0;        ///< lr - k ln(rows)
-  bool significant = false;     ///< p_value < alpha / candidates, separable, not confounded
+  bool separable = false;    ///< has at least one direction separable from the base (and fitted)
+  std::string note;          ///< why not separable / partly separable / confounded, empty if clean
+  int k = 0;                 ///< parameter directions fitted
+  double lr = 0.0;           ///< χ² drop when added (likelihood ratio statistic)
+  double p_value = 1.0;      ///< P(χ²(k) > lr)
+  double bic_gain = 0.0;     ///< lr - k ln(rows)
+  bool significant = false;  ///< p_value < alpha / candidates, separable, not confounded
   double magnitude = 0.0, magnitude_sigma = 0.0;
-  std::string unit;             ///< unit of magnitude
+  std::string unit;  ///< unit of magnitude
   std::vector<CandidateParam> params;
-  Eigen::VectorXd value_si;     ///< estimated effect parameter vector (SI, shape parameters set)
-  double held_out_gap = 0.0;    ///< held-out gap ratio with this candidate added
+  Eigen::VectorXd value_si;   ///< estimated effect parameter vector (SI, shape parameters set)
+  double held_out_gap = 0.0;  ///< held-out gap ratio with this candidate added
   /// For a candidate judged on a statistic of its own (quantisation: the lag-1 autocovariance), the
   /// held-out gap of that statistic without it; NaN for the others (the segment gap applies).
   double held_out_gap_before = std::numeric_limits<double>::quiet_NaN();
-  double max_correlation = 0.0; ///< largest multiple correlation of its directions with the base
+  double max_correlation = 0.0;  ///< largest multiple correlation of its directions with the base
   /// Whitened χ² of the segment residuals with the candidate added (for a Gauss-Markov bias: under
   /// its covariance); NaN when it does not change the segment residuals (quantisation).
   double chi2_after = std::numeric_limits<double>::quiet_NaN();
@@ -108,10 +111,10 @@ struct DiagnosisResult {
   /// χ²/dof of the simulated twin (the same trajectory simulated with the calibrated model and the
   /// declared noise, through the same residual model): what the model predicts for this run.
   double twin_gap = 0.0;
-  double gap_after_best = 0.0;    ///< χ²/dof with the best effect (pair) added
+  double gap_after_best = 0.0;              ///< χ²/dof with the best effect (pair) added
   std::vector<CandidateResult> candidates;  ///< ranked, best first
-  std::optional<size_t> best;     ///< index into candidates
-  std::optional<size_t> second;   ///< the best pair's second member
+  std::optional<size_t> best;               ///< index into candidates
+  std::optional<size_t> second;             ///< the best pair's second member
   /// Significant candidates that explain the gap equally and that this sequence cannot tell apart
   /// (the top one first); then best is empty: no finding.
   std::vector<std::string> ambiguous;
@@ -124,7 +127,7 @@ struct DiagnosisResult {
   /// |z| first (at most 10, only |z| > 3).
   std::vector<std::pair<std::string, double>> remaining;
   WhitenessStats whiteness;  ///< per-sample statistics of the rest residuals (over time)
-  ParamSet base;   ///< refitted base parameters (no effect)
+  ParamSet base;             ///< refitted base parameters (no effect)
   ParamSet base_sigma;
   double runtime_s = 0.0;
 };

@@ -61,7 +61,8 @@ ValidationRun run_one(const Task& t, const std::map<EffectId, double>& threshold
   r.seed = t.seed;
   for (size_t i = 0; i < t.ids.size(); ++i) {
     const EffectInfo& e = effect_info(t.ids[i]);
-    set_effect_vector(u.effects, e.id, scaled_typical(e, t.factor[i] * threshold.at(e.id), t.sign[i]));
+    set_effect_vector(u.effects, e.id,
+                      scaled_typical(e, t.factor[i] * threshold.at(e.id), t.sign[i]));
     r.injected.push_back(e.name);
     r.factor.push_back(t.factor[i]);
   }
@@ -98,7 +99,9 @@ void summarise(ValidationReport& rep) {
   std::vector<double> shrink;
   int single_ok = 0, null_alarm = 0, pair_ok = 0;
   for (const auto& r : rep.runs) {
-    const std::string injected = r.injected.empty() ? "none" : r.injected.size() == 1 ? r.injected[0] : "";
+    const std::string injected = r.injected.empty()       ? "none"
+                                 : r.injected.size() == 1 ? r.injected[0]
+                                                          : "";
     if (r.injected.size() <= 1) rep.confusion[injected][r.named] += 1;
     if (r.injected.empty()) {
       ++rep.null_count;
@@ -147,8 +150,8 @@ ValidationReport validate_diagnosis(const sequences::MotionProfile& profile,
   std::map<EffectId, double> threshold;
   std::vector<EffectId> ids;
   for (const auto& d : rep.detectability) {
-    const bool wanted = opt.effects.empty() ||
-                        std::find(opt.effects.begin(), opt.effects.end(), d.id) != opt.effects.end();
+    const bool wanted = opt.effects.empty() || std::find(opt.effects.begin(), opt.effects.end(),
+                                                         d.id) != opt.effects.end();
     if (!wanted || !d.separable() || !std::isfinite(d.threshold)) continue;
     ids.push_back(d.id);
     threshold[d.id] = d.threshold;

@@ -27,7 +27,8 @@ struct ValidationOptions {
   int threads = 0;                             ///< 0: hardware concurrency
   /// Restrict to these effects (default: every effect the sequence separates).
   std::vector<EffectId> effects;
-  /// Called after each run with (done, total); may be empty. Called from worker threads, serialised.
+  /// Called after each run with (done, total); may be empty. Called from worker threads,
+  /// serialised.
   std::function<void(int, int)> on_progress;
 };
 
@@ -50,8 +51,8 @@ struct ValidationReport {
   std::vector<ValidationRun> runs;
   /// confusion[injected][named] = count; injected "none" for null runs.
   std::map<std::string, std::map<std::string, int>> confusion;
-  double top1 = 0.0;              ///< single-effect runs whose best is the injected effect
-  double false_alarm = 0.0;       ///< null runs with a named effect or a verdict other than consistent
+  double top1 = 0.0;         ///< single-effect runs whose best is the injected effect
+  double false_alarm = 0.0;  ///< null runs with a named effect or a verdict other than consistent
   double median_shrinkage = 0.0;  ///< over single-effect runs where the effect was named
   double pair_both = 0.0;         ///< pair runs naming both effects (best + second, any order)
   int single_runs = 0, null_count = 0, pair_count = 0;

@@ -56,11 +56,13 @@ Analysed analyse(const GapLinearisation& lin, EffectId id, size_t candidates,
       os << "no signature: it changes no rest or move residual on this sequence";
     else
       os << "correlates " << std::max(sep.max_correlation, opt.separability_limit) << " > "
-         << opt.separability_limit << " with the base parameters (" << [&] {
-              std::string s;
-              for (const auto& n : d.aliases) s += (s.empty() ? "" : ", ") + n;
-              return s;
-            }() << ")";
+         << opt.separability_limit << " with the base parameters (" <<
+          [&] {
+            std::string s;
+            for (const auto& n : d.aliases) s += (s.empty() ? "" : ", ") + n;
+            return s;
+          }()
+         << ")";
     d.reason = os.str();
     return a;
   }
@@ -112,9 +114,9 @@ Analysed analyse_stochastic(const GapLinearisation& lin, EffectId id, size_t can
 }  // namespace
 
 std::vector<EffectDetectability> effect_detectability(const sequences::MotionProfile& profile,
-                                                      const TableGeometry& geometry, const Site& site,
-                                                      const UnitModel& unit, double rate_hz,
-                                                      const DiagnosisOptions& opt) {
+                                                      const TableGeometry& geometry,
+                                                      const Site& site, const UnitModel& unit,
+                                                      double rate_hz, const DiagnosisOptions& opt) {
   UnitModel plain = unit;
   plain.effects = Effects{};
   SimOptions so;

@@ -62,8 +62,8 @@ GlsFit gls_fit(const Eigen::VectorXd& r0_all, const Eigen::MatrixXd& J_all,
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(H);
   if (es.info() != Eigen::Success || !(es.eigenvalues()(0) > 1e-13 * es.eigenvalues()(n - 1)))
     throw std::invalid_argument("gap fit: parameters not separable on these rows (rank deficient)");
-  const Eigen::MatrixXd Hinv =
-      es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
+  const Eigen::MatrixXd Hinv = es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() *
+                               es.eigenvectors().transpose();
   const Eigen::VectorXd xs = -Hinv * (Js.transpose() * r0);
   f.x = d.asDiagonal() * xs;
   f.cov = d.asDiagonal() * Hinv * d.asDiagonal();
@@ -91,7 +91,8 @@ HeldOutGap held_out_gap(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J,
 }
 
 HeldOutGap held_out_gap_correlated(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J,
-                                   const Eigen::MatrixXd& S, const std::vector<std::vector<int>>& folds) {
+                                   const Eigen::MatrixXd& S,
+                                   const std::vector<std::vector<int>>& folds) {
   HeldOutGap g;
   const int m = static_cast<int>(r0.size());
   for (const auto& held : folds) {
@@ -100,13 +101,17 @@ HeldOutGap held_out_gap_correlated(const Eigen::VectorXd& r0, const Eigen::Matri
     std::vector<int> train;
     for (int i = 0; i < m; ++i)
       if (!out[static_cast<size_t>(i)]) train.push_back(i);
-    const auto nt = static_cast<Eigen::Index>(train.size()), nh = static_cast<Eigen::Index>(held.size());
+    const auto nt = static_cast<Eigen::Index>(train.size()),
+               nh = static_cast<Eigen::Index>(held.size());
     Eigen::MatrixXd S_TT(nt, nt), S_HT(nh, nt), S_HH(nh, nh);
     for (Eigen::Index i = 0; i < nt; ++i)
-      for (Eigen::Index j = 0; j < nt; ++j) S_TT(i, j) = S(train[static_cast<size_t>(i)], train[static_cast<size_t>(j)]);
+      for (Eigen::Index j = 0; j < nt; ++j)
+        S_TT(i, j) = S(train[static_cast<size_t>(i)], train[static_cast<size_t>(j)]);
     for (Eigen::Index i = 0; i < nh; ++i) {
-      for (Eigen::Index j = 0; j < nt; ++j) S_HT(i, j) = S(held[static_cast<size_t>(i)], train[static_cast<size_t>(j)]);
-      for (Eigen::Index j = 0; j < nh; ++j) S_HH(i, j) = S(held[static_cast<size_t>(i)], held[static_cast<size_t>(j)]);
+      for (Eigen::Index j = 0; j < nt; ++j)
+        S_HT(i, j) = S(held[static_cast<size_t>(i)], train[static_cast<size_t>(j)]);
+      for (Eigen::Index j = 0; j < nh; ++j)
+        S_HH(i, j) = S(held[static_cast<size_t>(i)], held[static_cast<size_t>(j)]);
     }
     const Eigen::LLT<Eigen::MatrixXd> llt(S_TT);
     const Eigen::VectorXd rT = take_rows(r0, train);

@@ -3,7 +3,8 @@
 // around the calibrated point the residuals are r(θ0 + δ) ≈ r0 + J δ, whitened so that under the
 // model r0 ~ N(0, I) after the fit. Everything the diagnosis asks — the base refit, a candidate's
 // joint refit, its likelihood ratio, the separability of its parameters from the base ones, the gap
-// on held-out segments — is a least-squares question on (r0, J) restricted to some rows and columns.
+// on held-out segments — is a least-squares question on (r0, J) restricted to some rows and
+// columns.
 #include <Eigen/Core>
 #include <vector>
 
@@ -16,14 +17,17 @@ struct GlsFit {
   int dof = 0;          ///< rows used - columns
 };
 
-/// Least squares on the rows listed (all rows when `rows` is empty). Columns are scaled to unit norm
-/// for the solve. Throws std::invalid_argument when the columns are rank deficient on those rows.
-GlsFit gls_fit(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J, const std::vector<int>& rows = {});
+/// Least squares on the rows listed (all rows when `rows` is empty). Columns are scaled to unit
+/// norm for the solve. Throws std::invalid_argument when the columns are rank deficient on those
+/// rows.
+GlsFit gls_fit(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J,
+               const std::vector<int>& rows = {});
 
 /// The gap on held-out rows: for each fold, fit on the rows not in it and predict its rows.
 struct HeldOutGap {
-  double chi2 = 0.0;      ///< Σ over folds of ||r0_h + J_h δ_train||²
-  double expected = 0.0;  ///< its expectation if the model is right: Σ (n_h + tr(J_h Cov_train J_hᵀ))
+  double chi2 = 0.0;  ///< Σ over folds of ||r0_h + J_h δ_train||²
+  double expected =
+      0.0;  ///< its expectation if the model is right: Σ (n_h + tr(J_h Cov_train J_hᵀ))
   double ratio() const { return expected > 0.0 ? chi2 / expected : 0.0; }
 };
 /// folds[f] = the rows held out in fold f.
@@ -35,7 +39,8 @@ HeldOutGap held_out_gap(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J,
 /// predicted by the conditional mean given them; χ² and its expectation use the conditional
 /// covariance. With S = I this is held_out_gap.
 HeldOutGap held_out_gap_correlated(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J,
-                                   const Eigen::MatrixXd& S, const std::vector<std::vector<int>>& folds);
+                                   const Eigen::MatrixXd& S,
+                                   const std::vector<std::vector<int>>& folds);
 
 /// Separability of a block of candidate columns Jc from base columns Jb (DESIGN §8: a candidate
 /// correlating > 0.95 with the base parameters is not separable). Works in the candidate's own
@@ -53,13 +58,13 @@ struct Separability {
   /// For the worst direction, the base columns that mimic it most (indices), strongest first.
   std::vector<int> aliases;
 };
-/// `signature_floor`: a direction whose ||Jc u||² stays below it (u in the columns' own units) has no
-/// signature. `limit`: the correlation above which a direction is not separable.
+/// `signature_floor`: a direction whose ||Jc u||² stays below it (u in the columns' own units) has
+/// no signature. `limit`: the correlation above which a direction is not separable.
 Separability separability(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& Jc, double limit,
                           double signature_floor);
 
-/// Largest canonical correlation between the parts of two column blocks that the base columns do not
-/// explain (are two candidates telling the same story on this sequence?).
+/// Largest canonical correlation between the parts of two column blocks that the base columns do
+/// not explain (are two candidates telling the same story on this sequence?).
 double canonical_correlation(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& A,
                              const Eigen::MatrixXd& B);
 

@@ -40,7 +40,8 @@ GapLinearisation::GapLinearisation(const GapModel& model, const ParamSet& base)
   Jb_ = model_.whiten(Jb_raw_);
 }
 
-Eigen::VectorXd GapLinearisation::column(const ParamSet& base, const Effects& fx, double step) const {
+Eigen::VectorXd GapLinearisation::column(const ParamSet& base, const Effects& fx,
+                                         double step) const {
   return (model_.residuals(base, fx) - r0_raw_) / step;
 }
 

@@ -27,9 +27,9 @@ class GapLinearisation {
   GapLinearisation(const GapModel& model, const ParamSet& base);
   const GapModel& model() const { return model_; }
   const ParamSet& base() const { return base_; }
-  const Eigen::VectorXd& r0() const { return r0_; }          ///< whitened
+  const Eigen::VectorXd& r0() const { return r0_; }  ///< whitened
   const Eigen::VectorXd& r0_raw() const { return r0_raw_; }
-  const Eigen::MatrixXd& Jb() const { return Jb_; }          ///< whitened, rows x 27
+  const Eigen::MatrixXd& Jb() const { return Jb_; }  ///< whitened, rows x 27
   const Eigen::MatrixXd& Jb_raw() const { return Jb_raw_; }
   /// The candidate's columns (tau_s: the shape parameter to use, thermal drift only; 0 = none).
   CandidateColumns candidate(EffectId id, double tau_s = 0.0) const;

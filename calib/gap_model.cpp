@@ -24,7 +24,6 @@ constexpr size_t kOrthonormaliseEvery = 256;
 
 }  // namespace
 
-
 const char* gap_component_name(int c) {
   static const char* names[kGapRowsPerSegment] = {"accel x", "accel y", "accel z",
                                                   "gyro x",  "gyro y",  "gyro z"};
@@ -140,7 +139,8 @@ void GapModel::build_covariances() {
       // n-frame: ψ = Σ n_j (random walk), δv = Σ_k [f_n×] ψ_k dt + VRW noise (see header).
       Block6 Pn = Block6::Zero();
       const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
-      Pn.topLeftCorner<3, 3>() = F * F.transpose() * (arw2 * T * T * T / 3.0) + (vrw2 * T + q_dv) * I;
+      Pn.topLeftCorner<3, 3>() =
+          F * F.transpose() * (arw2 * T * T * T / 3.0) + (vrw2 * T + q_dv) * I;
       Pn.topRightCorner<3, 3>() = F * (arw2 * T * T / 2.0);
       Pn.bottomLeftCorner<3, 3>() = Pn.topRightCorner<3, 3>().transpose();
       Pn.bottomRightCorner<3, 3>() = (arw2 * T + q_th) * I;
@@ -153,7 +153,8 @@ void GapModel::build_covariances() {
     }
     cov_.push_back(P);
     const Eigen::LLT<Block6> llt(P);
-    if (llt.info() != Eigen::Success) fail("segment " + s.label() + ": covariance not positive definite");
+    if (llt.info() != Eigen::Success)
+      fail("segment " + s.label() + ": covariance not positive definite");
     Block6 L = llt.matrixL();
     whitener_.push_back(L.inverse());
   }
@@ -169,7 +170,8 @@ Eigen::VectorXd GapModel::whiten(const Eigen::VectorXd& r) const {
 Eigen::MatrixXd GapModel::whiten(const Eigen::MatrixXd& J) const {
   Eigen::MatrixXd w(J.rows(), J.cols());
   for (size_t s = 0; s < segments_.size(); ++s)
-    w.middleRows<6>(6 * static_cast<int>(s)) = whitener_[s] * J.middleRows<6>(6 * static_cast<int>(s));
+    w.middleRows<6>(6 * static_cast<int>(s)) =
+        whitener_[s] * J.middleRows<6>(6 * static_cast<int>(s));
   return w;
 }
 
@@ -223,7 +225,8 @@ void GapModel::rest_residual(size_t r, const ParamSet& base, const Effects& fx, 
 }
 
 // Strapdown over the move from the table's attitude at A (conventions.hpp):
-//   C(k) = exp(-[ω_ie_n dt×]) C(k-1) exp([dθ_k×]),  Δv_n += (I - ½[ω_ie_n dt×]) C(k-1) dv_k + g_n dt.
+//   C(k) = exp(-[ω_ie_n dt×]) C(k-1) exp([dθ_k×]),  Δv_n += (I - ½[ω_ie_n dt×]) C(k-1) dv_k + g_n
+//   dt.
 // Each increment is compensated by the error model and by the hypothesised sensor effects,
 // evaluated at the sample's own kinematics (ω̇ by central differences of the raw rates).
 void GapModel::move_residual(const GapSegment& seg, const ParamSet& base, const Effects& fx,
@@ -263,7 +266,8 @@ void GapModel::move_residual(const GapSegment& seg, const ParamSet& base, const 
     if ((k - seg.begin) % kOrthonormaliseEvery == kOrthonormaliseEvery - 1) C = orthonormalize(C);
   }
   const Eigen::Matrix3d C_b = true_attitude(sums_[seg.rest_b].ref_sample, base, fx);
-  const Eigen::Vector3d psi = C_b.transpose() * matrix_to_rotvec(C_b * orthonormalize(C).transpose());
+  const Eigen::Vector3d psi =
+      C_b.transpose() * matrix_to_rotvec(C_b * orthonormalize(C).transpose());
   const Eigen::Vector3d vb = C_b.transpose() * v;
   for (int i = 0; i < 3; ++i) {
     out[i] = vb(i);

@@ -44,8 +44,8 @@ struct DiagnosisInput {
 struct GapSegment {
   enum class Kind { kRest, kMove };
   Kind kind = Kind::kRest;
-  int number = 0;              ///< 1-based rest number or move number
-  size_t begin = 0, end = 0;   ///< samples [begin, end)
+  int number = 0;                 ///< 1-based rest number or move number
+  size_t begin = 0, end = 0;      ///< samples [begin, end)
   size_t rest_a = 0, rest_b = 0;  ///< rest indices (a rest: both its own)
   double t0_s = 0.0, t1_s = 0.0;  ///< time span (IMU clock)
   /// The table attitude (or attitude log) at the segment's end, and for table archives its angles.
@@ -89,14 +89,15 @@ class GapModel {
     Eigen::Vector3d f_mean_raw = Eigen::Vector3d::Zero();  ///< Σ dv~ / T
     Eigen::Vector3d w_mean_raw = Eigen::Vector3d::Zero();  ///< Σ dθ~ / T
     double T_s = 0.0, h1_s = 0.0, h2_s2 = 0.0;             ///< see NlsqRestMean
-    double t0_s = 0.0;       ///< start of the rest's first interval, from the run's start
-    size_t ref_sample = 0;   ///< the reference sample giving the rest's attitude (its middle)
+    double t0_s = 0.0;      ///< start of the rest's first interval, from the run's start
+    size_t ref_sample = 0;  ///< the reference sample giving the rest's attitude (its middle)
   };
   void build_segments(size_t min_rest_samples);
   void build_covariances();
   Eigen::Matrix3d true_attitude(size_t sample, const ParamSet& base, const Effects& fx) const;
   void rest_residual(size_t r, const ParamSet& base, const Effects& fx, double* out) const;
-  void move_residual(const GapSegment& s, const ParamSet& base, const Effects& fx, double* out) const;
+  void move_residual(const GapSegment& s, const ParamSet& base, const Effects& fx,
+                     double* out) const;
 
   const CalibrationInput& in_;
   std::optional<TableGeometry> geometry_;

@@ -9,7 +9,8 @@
 
 namespace imucal::calib {
 
-DiagnosisInput simulated_twin(const DiagnosisInput& real, const ParamSet& calibrated, uint64_t seed) {
+DiagnosisInput simulated_twin(const DiagnosisInput& real, const ParamSet& calibrated,
+                              uint64_t seed) {
   DiagnosisInput twin = real;
   const CalibrationInput& in = real.cal;
   const EarthModel earth(in.site);
@@ -23,11 +24,12 @@ DiagnosisInput simulated_twin(const DiagnosisInput& real, const ParamSet& calibr
   for (size_t k = 0; k < in.imu.size(); ++k) {
     const double dt = in.imu[k].dt_s;
     const Eigen::Matrix3d C = S * in.reference[k].C_bn_ref;
-    const Eigen::Vector3d dth =
-        matrix_to_rotvec(C_prev.transpose() * rotvec_to_matrix<double>(Eigen::Vector3d(w_ie_n * dt)) * C);
+    const Eigen::Vector3d dth = matrix_to_rotvec(
+        C_prev.transpose() * rotvec_to_matrix<double>(Eigen::Vector3d(w_ie_n * dt)) * C);
     const Eigen::Vector3d dv = C_prev.transpose() * (f_n * dt + 0.5 * dt * dt * w_ie_n.cross(f_n));
     Eigen::Vector3d th = em.corrupt_dtheta(dth, dt), v = em.corrupt_dv(dv, dt);
-    const double sth = in.noise.arw_rad_per_sqrt_s * std::sqrt(dt), sv = in.noise.vrw_mps_per_sqrt_s * std::sqrt(dt);
+    const double sth = in.noise.arw_rad_per_sqrt_s * std::sqrt(dt),
+                 sv = in.noise.vrw_mps_per_sqrt_s * std::sqrt(dt);
     for (int i = 0; i < 3; ++i) {
       th(i) += sth * n01(rng);
       v(i) += sv * n01(rng);

@@ -143,7 +143,8 @@ CandidateResult score_quantisation(const CalibrationInput& in, const std::vector
     const double q2 = std::max(lsb0 * lsb0, -12.0 * all.gamma1());
     const int p = sensor == 0 ? 1 : 0;  // catalogue order: dtheta_lsb, dv_lsb
     r.value_si(p) = std::sqrt(q2);
-    sigma(p) = 6.0 * all.sigma_gamma1() / std::max(r.value_si(p), std::sqrt(12.0 * all.sigma_gamma1()));
+    sigma(p) =
+        6.0 * all.sigma_gamma1() / std::max(r.value_si(p), std::sqrt(12.0 * all.sigma_gamma1()));
     for (int f = 0; f < K; ++f) {
       Lag1Sums train;
       for (int g = 0; g < K; ++g)
@@ -164,12 +165,14 @@ CandidateResult score_quantisation(const CalibrationInput& in, const std::vector
   r.magnitude_sigma = e.magnitude(sigma);
   for (int j = 0; j < 2; ++j) {
     const EffectParamInfo& pi = e.params[static_cast<size_t>(j)];
-    r.params.push_back({pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human, sigma(j) * pi.si_to_human});
+    r.params.push_back(
+        {pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human, sigma(j) * pi.si_to_human});
   }
   char note[160];
-  std::snprintf(note, sizeof note,
-                "from the lag-1 autocovariance of the rest samples (declared LSBs %.3g rad, %.3g m/s)",
-                in.noise.dtheta_lsb_rad, in.noise.dv_lsb_mps);
+  std::snprintf(
+      note, sizeof note,
+      "from the lag-1 autocovariance of the rest samples (declared LSBs %.3g rad, %.3g m/s)",
+      in.noise.dtheta_lsb_rad, in.noise.dv_lsb_mps);
   r.note = note;
   return r;
 }
@@ -299,7 +302,8 @@ CandidateResult score_bias_instability(const GapLinearisation& lin,
   if (r.magnitude > 0.0) {
     const Eigen::MatrixXd D = f.S - I;
     const double l1 = reml(lin.r0(), lin.Jb(), f.S);
-    const double lm = reml(lin.r0(), lin.Jb(), I + 0.49 * D), lp = reml(lin.r0(), lin.Jb(), I + 1.69 * D);
+    const double lm = reml(lin.r0(), lin.Jb(), I + 0.49 * D),
+                 lp = reml(lin.r0(), lin.Jb(), I + 1.69 * D);
     const double curv = -(lp - 2.0 * l1 + lm) / (0.3 * 0.3);
     r.magnitude_sigma = curv > 0.0 ? r.magnitude / std::sqrt(curv) : r.magnitude;
   }
@@ -311,8 +315,8 @@ CandidateResult score_bias_instability(const GapLinearisation& lin,
   }
   r.chi2_after = f.chi2;
   r.held_out_gap = held_out_gap_correlated(lin.r0(), lin.Jb(), f.S, folds).ratio();
-  r.note = "Gauss-Markov bias offsets per segment (tau " + std::to_string(static_cast<int>(f.tau_s)) +
-           " s), restricted maximum likelihood";
+  r.note = "Gauss-Markov bias offsets per segment (tau " +
+           std::to_string(static_cast<int>(f.tau_s)) + " s), restricted maximum likelihood";
   return r;
 }
 
@@ -339,7 +343,8 @@ double bias_instability_noncentrality(const GapLinearisation& lin, double m) {
   const GmMatrices g = gm_matrices(lin, e.typical[2]);
   const Eigen::MatrixXd G = e.typical[1] * e.typical[1] * g.Ga + e.typical[0] * e.typical[0] * g.Gg;
   const Eigen::HouseholderQR<Eigen::MatrixXd> qr(lin.Jb());
-  const Eigen::MatrixXd Q = qr.householderQ() * Eigen::MatrixXd::Identity(lin.Jb().rows(), lin.Jb().cols());
+  const Eigen::MatrixXd Q =
+      qr.householderQ() * Eigen::MatrixXd::Identity(lin.Jb().rows(), lin.Jb().cols());
   const Eigen::MatrixXd MG = G - Q * (Q.transpose() * G);
   const Eigen::MatrixXd MGM = MG - (MG * Q) * Q.transpose();
   return 0.5 * std::pow(m, 4) * MGM.squaredNorm();  // tr(A²) = ||A||_F² for symmetric A

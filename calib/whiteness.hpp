@@ -12,13 +12,13 @@
 namespace imucal::calib {
 
 /// Per-sample statistics of the rest residuals per sensor axis (the "over time" part of localising
-/// the gap): lag-1 autocorrelation with its z against the declared noise, and the Allan deviation of
-/// the rate residual against the declared white noise.
+/// the gap): lag-1 autocorrelation with its z against the declared noise, and the Allan deviation
+/// of the rate residual against the declared white noise.
 struct WhitenessStats {
-  std::array<double, 6> lag1_autocorr{};  ///< accel x..z, gyro x..z
-  std::array<double, 6> lag1_z{};         ///< departure from the declared quantisation, in σ
-  std::vector<double> tau_s;              ///< Allan τ
-  std::array<std::vector<double>, 6> adev;           ///< measured (m/s² or rad/s)
+  std::array<double, 6> lag1_autocorr{};    ///< accel x..z, gyro x..z
+  std::array<double, 6> lag1_z{};           ///< departure from the declared quantisation, in σ
+  std::vector<double> tau_s;                ///< Allan τ
+  std::array<std::vector<double>, 6> adev;  ///< measured (m/s² or rad/s)
   std::array<std::vector<double>, 6> adev_expected;  ///< declared white noise + quantisation
 };
 

@@ -21,7 +21,8 @@ GapCheck check_gap(calib::CalibrationInput in, const archive::RunArchive& ar,
                    const calib::ParamSet& nlsq_params) {
   GapCheck g;
   try {
-    const calib::DiagnosisResult d = calib::diagnose(diagnosis_input(std::move(in), ar), nlsq_params);
+    const calib::DiagnosisResult d =
+        calib::diagnose(diagnosis_input(std::move(in), ar), nlsq_params);
     g.summary = archive::diagnosis_summary_json(d);
     g.significant = d.verdict != "consistent";
     g.text = d.summary;

@@ -14,7 +14,8 @@ json num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 json params_json(const std::vector<calib::CandidateParam>& ps) {
   json a = json::array();
   for (const auto& p : ps)
-    a.push_back({{"name", p.name}, {"value", num(p.value)}, {"sigma", num(p.sigma)}, {"unit", p.unit}});
+    a.push_back(
+        {{"name", p.name}, {"value", num(p.value)}, {"sigma", num(p.sigma)}, {"unit", p.unit}});
   return a;
 }
 
@@ -85,13 +86,17 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
   json cands = json::array();
   for (const auto& c : d.candidates) cands.push_back(candidate_json(c));
   j["candidates"] = cands;
-  j["held_out"] = {{"gap_before", num(d.held_out.gap_before)},
-                   {"gap_after", d.held_out.has_after ? num(d.held_out.gap_after) : json(nullptr)},
-                   {"gap_after_pair", d.held_out.has_pair ? num(d.held_out.gap_after_pair) : json(nullptr)},
-                   {"shrinkage", d.held_out.has_after ? num(d.held_out.shrinkage) : json(nullptr)}};
-  j["overall"] = {{"chi2", num(d.chi2)},          {"dof", d.dof},
-                  {"gap", num(d.overall_gap)},     {"expected", num(d.overall_expected)},
-                  {"sigma", num(d.overall_sigma)}, {"p_value", num(d.overall_p)},
+  j["held_out"] = {
+      {"gap_before", num(d.held_out.gap_before)},
+      {"gap_after", d.held_out.has_after ? num(d.held_out.gap_after) : json(nullptr)},
+      {"gap_after_pair", d.held_out.has_pair ? num(d.held_out.gap_after_pair) : json(nullptr)},
+      {"shrinkage", d.held_out.has_after ? num(d.held_out.shrinkage) : json(nullptr)}};
+  j["overall"] = {{"chi2", num(d.chi2)},
+                  {"dof", d.dof},
+                  {"gap", num(d.overall_gap)},
+                  {"expected", num(d.overall_expected)},
+                  {"sigma", num(d.overall_sigma)},
+                  {"p_value", num(d.overall_p)},
                   {"gap_after_best", num(d.gap_after_best)},
                   {"simulated_gap", num(d.twin_gap)}};
   json axes = json::object();
@@ -99,10 +104,11 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
     json adev = json::array(), exp = json::array();
     for (double v : d.whiteness.adev[static_cast<size_t>(c)]) adev.push_back(num(v));
     for (double v : d.whiteness.adev_expected[static_cast<size_t>(c)]) exp.push_back(num(v));
-    axes[gap_component_key(c)] = {{"lag1_autocorr", num(d.whiteness.lag1_autocorr[static_cast<size_t>(c)])},
-                                  {"lag1_z", num(d.whiteness.lag1_z[static_cast<size_t>(c)])},
-                                  {"adev", adev},
-                                  {"adev_expected", exp}};
+    axes[gap_component_key(c)] = {
+        {"lag1_autocorr", num(d.whiteness.lag1_autocorr[static_cast<size_t>(c)])},
+        {"lag1_z", num(d.whiteness.lag1_z[static_cast<size_t>(c)])},
+        {"adev", adev},
+        {"adev_expected", exp}};
   }
   j["whiteness"] = {{"tau_s", d.whiteness.tau_s}, {"axes", axes}};
   json segs = json::array();
@@ -110,7 +116,9 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
   j["segments"] = segs;
   json moved = json::array();
   for (const auto& m : d.moved)
-    moved.push_back({{"name", m.name}, {"shift_sigma", num(m.shift_sigma)}, {"shift", num(m.shift)},
+    moved.push_back({{"name", m.name},
+                     {"shift_sigma", num(m.shift_sigma)},
+                     {"shift", num(m.shift)},
                      {"unit", m.unit}});
   j["moved_parameters"] = moved;
   json rem = json::array();
@@ -123,7 +131,8 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
 nlohmann::json diagnosis_summary_json(const calib::DiagnosisResult& d) {
   const json full = diagnosis_to_json(d);
   json s;
-  for (const char* k : {"verdict", "summary", "best", "second", "ambiguous", "held_out"}) s[k] = full[k];
+  for (const char* k : {"verdict", "summary", "best", "second", "ambiguous", "held_out"})
+    s[k] = full[k];
   s["overall"] = {{"gap", full["overall"]["gap"]},
                   {"expected", full["overall"]["expected"]},
                   {"sigma", full["overall"]["sigma"]},

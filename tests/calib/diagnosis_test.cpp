@@ -31,7 +31,8 @@ const sequences::MotionProfile& profile(const std::string& name) {
   return it->second;
 }
 
-DiagnosisInput simulate_run(const std::string& seq, const UnitModel& unit, bool noise, uint64_t seed) {
+DiagnosisInput simulate_run(const std::string& seq, const UnitModel& unit, bool noise,
+                            uint64_t seed) {
   SimOptions so;
   so.noise = noise;
   so.seed = seed;
@@ -97,8 +98,8 @@ TEST(Diagnosis, NullRunIsConsistent) {
   EXPECT_FALSE(d.best.has_value());
 }
 
-// On factory-std every axis sits at 0 or ±1 g at rest, where K2·f² and Kap·|f| coincide (f² = g|f|):
-// the two explain a K2 equally, so the diagnosis must say so and name neither as a finding.
+// On factory-std every axis sits at 0 or ±1 g at rest, where K2·f² and Kap·|f| coincide (f² =
+// g|f|): the two explain a K2 equally, so the diagnosis must say so and name neither as a finding.
 TEST(Diagnosis, K2OnFactoryStdIsExplainedButNotSeparableFromAsymmetry) {
   UnitModel unit = default_unit();
   const Eigen::Vector3d k2_ug_per_g2(30.0, -20.0, 25.0);
@@ -192,8 +193,8 @@ TEST(Diagnosis, UndeclaredBiasInstabilityIsNamed) {
 }
 
 // The simulated twin (the run's own trajectory, the calibrated model, the declared noise) predicts
-// χ²/dof near 1 whatever the real run holds; on a null run the real run agrees with it, on a run with
-// an unmodelled effect the real run stands far above it.
+// χ²/dof near 1 whatever the real run holds; on a null run the real run agrees with it, on a run
+// with an unmodelled effect the real run stands far above it.
 TEST(Diagnosis, SimulatedTwinPredictsWhatTheModelExpects) {
   const UnitModel null_unit = default_unit();
   const DiagnosisInput a = simulate_run("factory-std", null_unit, true, 31);

@@ -4,13 +4,12 @@
 // shrinkage >= 70 %, both of a pair named >= 70 % — is measured at full size by
 // `imucal validate-diagnosis --runs 10` (README); this smaller count (IMUCAL_VALIDATION_RUNS per
 // effect, default 3) asserts it with margins for the sampling noise of so few runs.
-#include "calib/diagnosis_validation.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cstdio>
 #include <cstdlib>
 
+#include "calib/diagnosis_validation.hpp"
 #include "calib/site_presets.hpp"
 #include "sequences/library.hpp"
 
@@ -25,17 +24,20 @@ TEST(DiagnosisValidation, FactoryStdMeetsTheBarWithMargins) {
   opt.null_runs = 3 * runs;
   opt.pair_runs = 2 * runs;
   opt.seed = 7;
-  const ValidationReport r = validate_diagnosis(sequences::load_profile("factory-std"), TableGeometry{},
-                                                demo_factory_site(), default_unit(), 100.0, opt);
-  std::printf("%zu effects, %d single runs, %d null, %d pairs: top-1 %.2f, false alarms %.2f, "
-              "median shrinkage %.2f, pairs %.2f\n",
-              r.effects.size(), r.single_runs, r.null_count, r.pair_count, r.top1, r.false_alarm,
-              r.median_shrinkage, r.pair_both);
+  const ValidationReport r =
+      validate_diagnosis(sequences::load_profile("factory-std"), TableGeometry{},
+                         demo_factory_site(), default_unit(), 100.0, opt);
+  std::printf(
+      "%zu effects, %d single runs, %d null, %d pairs: top-1 %.2f, false alarms %.2f, "
+      "median shrinkage %.2f, pairs %.2f\n",
+      r.effects.size(), r.single_runs, r.null_count, r.pair_count, r.top1, r.false_alarm,
+      r.median_shrinkage, r.pair_both);
   for (const auto& run : r.runs)
     if ((run.injected.size() == 1 && run.named != run.injected[0]) ||
         (run.injected.empty() && run.named != "none"))
-      std::printf("  miss: %s -> %s (%s)\n", run.injected.empty() ? "none" : run.injected[0].c_str(),
-                  run.named.c_str(), run.verdict.c_str());
+      std::printf("  miss: %s -> %s (%s)\n",
+                  run.injected.empty() ? "none" : run.injected[0].c_str(), run.named.c_str(),
+                  run.verdict.c_str());
   // Every effect factory-std separates is validated: the dynamic, table, site and stochastic ones.
   EXPECT_GE(r.effects.size(), 9u);
   EXPECT_GE(r.top1, 0.8);

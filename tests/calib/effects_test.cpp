@@ -1,15 +1,16 @@
 // The effects catalogue (DESIGN §7): every effect's forward model, as the simulator injects it,
 // against a case derived by hand here (independent formulas: Eigen's AngleAxis for rotations, the
-// textbook form of each effect) — not only a round trip. Runs use a perfect sensor (zero calibration
-// parameters) and, where noise is not the point, no noise, so the simulator's output is the true
-// increments plus the effect.
+// textbook form of each effect) — not only a round trip. Runs use a perfect sensor (zero
+// calibration parameters) and, where noise is not the point, no noise, so the simulator's output is
+// the true increments plus the effect.
+#include "calib/effects.hpp"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
 #include <vector>
 
-#include "calib/effects.hpp"
 #include "calib/site_presets.hpp"
 #include "calib/truth_sim.hpp"
 #include "tests/support/hand_profile.hpp"
@@ -60,8 +61,12 @@ Means means(const SimResult& s, double t0, double t1) {
 
 double g_local() { return *demo_factory_site().gravity_mps2; }
 
-Eigen::Matrix3d Rx(double a) { return Eigen::AngleAxisd(a, Eigen::Vector3d::UnitX()).toRotationMatrix(); }
-Eigen::Matrix3d Rz(double a) { return Eigen::AngleAxisd(a, Eigen::Vector3d::UnitZ()).toRotationMatrix(); }
+Eigen::Matrix3d Rx(double a) {
+  return Eigen::AngleAxisd(a, Eigen::Vector3d::UnitX()).toRotationMatrix();
+}
+Eigen::Matrix3d Rz(double a) {
+  return Eigen::AngleAxisd(a, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+}
 
 /// A rest at (outer, inner) degrees reached from (0, 0) by an outer then an inner turn.
 sequences::MotionProfile rest_at(double outer_deg, double inner_deg, double rest_s = 20.0) {
@@ -97,7 +102,8 @@ TEST(Effects, AccelQuadraticK2ShiftsBy_K2_f_squared) {
     const Means m1 = means(run(p, u), rest_start(p), p.duration_s());
     // f² is g² (x down) or g²/2 (y at 45°) up to the Earth-rotation term of the increments (1e-6).
     EXPECT_NEAR(m0.f(axis) * m0.f(axis) / f2, 1.0, 2e-6) << o << "/" << i;
-    EXPECT_NEAR(m1.f(axis) - m0.f(axis), k2 * m0.f(axis) * m0.f(axis), 1e-7 * k2 * f2) << o << "/" << i;
+    EXPECT_NEAR(m1.f(axis) - m0.f(axis), k2 * m0.f(axis) * m0.f(axis), 1e-7 * k2 * f2)
+        << o << "/" << i;
   }
 }
 
@@ -126,7 +132,8 @@ TEST(Effects, SizeEffectIsTheCentripetalTermWhileTurning) {
   double sum = 0.0;
   int n = 0;
   for (const auto& x : s.imu)
-    if (std::abs(x.dtheta_rad.z() / x.dt_s - w) < 1e-4) sum += x.dv_mps.x() / x.dt_s, ++n;  // + Earth rate
+    if (std::abs(x.dtheta_rad.z() / x.dt_s - w) < 1e-4)
+      sum += x.dv_mps.x() / x.dt_s, ++n;  // + Earth rate
   ASSERT_GT(n, 500);
   // Earth rate adds ~1e-9 relative; the tilt of body x is zero at outer 0.
   EXPECT_NEAR(sum / n, -w * w * 0.05, 2e-3 * w * w * 0.05);
@@ -258,8 +265,8 @@ TEST(Effects, TableNonorthogonalityTiltsTheInnerAxis) {
   EXPECT_NEAR(std::abs(m.f.z()), delta * g_local(), 0.01 * delta * g_local());
 }
 
-// Table wobble: platform tilt δ_o(inner) = Rz(-inner) (w_x, w_y, 0) between the outer gimbal and the
-// inner rotation: at inner 0 the tilt is (w_x, w_y, 0), at inner 90° it is (w_y, -w_x, 0).
+// Table wobble: platform tilt δ_o(inner) = Rz(-inner) (w_x, w_y, 0) between the outer gimbal and
+// the inner rotation: at inner 0 the tilt is (w_x, w_y, 0), at inner 90° it is (w_y, -w_x, 0).
 TEST(Effects, TableWobbleTiltsThePlatformOncePerRevolution) {
   const double wx = 8.0 * kArcsecToRad, wy = -5.0 * kArcsecToRad;
   for (double inner : {0.0, 90.0}) {
@@ -267,7 +274,8 @@ TEST(Effects, TableWobbleTiltsThePlatformOncePerRevolution) {
     UnitModel u = perfect_unit();
     u.effects.table_wobble_rad = Eigen::Vector2d(wx, wy);
     const Means m = means(run(p, u), rest_start(p), p.duration_s());
-    const Eigen::Vector3d tilt = inner == 0.0 ? Eigen::Vector3d(wx, wy, 0) : Eigen::Vector3d(wy, -wx, 0);
+    const Eigen::Vector3d tilt =
+        inner == 0.0 ? Eigen::Vector3d(wx, wy, 0) : Eigen::Vector3d(wy, -wx, 0);
     const Eigen::Matrix3d C = Rx(60.0 * kDegToRad) *
                               Eigen::AngleAxisd(tilt.norm(), tilt.normalized()).toRotationMatrix() *
                               Rz(inner * kDegToRad);
@@ -324,5 +332,6 @@ TEST(Effects, CatalogueNamesAndSpecsAreOneVocabulary) {
   EXPECT_THROW(apply_effect_spec(fx, "gravity_error=abc"), std::invalid_argument);
   // Magnitudes: the typical pattern of a relative effect is 1 x typical.
   const EffectInfo& t = effect_info(EffectId::kThermalDrift);
-  EXPECT_NEAR(t.magnitude(Eigen::Map<const Eigen::VectorXd>(t.typical.data(), t.size())), 1.0, 1e-12);
+  EXPECT_NEAR(t.magnitude(Eigen::Map<const Eigen::VectorXd>(t.typical.data(), t.size())), 1.0,
+              1e-12);
 }

@@ -1,7 +1,7 @@
-// End to end (issue #8, "on the station"): a unit whose simulator carries an effect of the catalogue
-// that nobody told the station about — stationsim --effect, stationd, stationctl as real processes
-// on loopback. The run must not PASS: it ends REVIEW with the effect named; `stationctl diagnose`
-// names it again with its size, keeps the summary with the run, and history shows it.
+// End to end (issue #8, "on the station"): a unit whose simulator carries an effect of the
+// catalogue that nobody told the station about — stationsim --effect, stationd, stationctl as real
+// processes on loopback. The run must not PASS: it ends REVIEW with the effect named; `stationctl
+// diagnose` names it again with its size, keeps the summary with the run, and history shows it.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -33,18 +33,22 @@ TEST(StationGap, AWithheldEffectEndsReviewAndStationctlDiagnoseNamesIt) {
   EXPECT_NEAR(truth["effects"]["gyro_g_sensitivity"]["G_xx"].get<double>(),
               0.12 * 3.14159265358979323846 / 180.0 / 3600.0 / 9.80665, 1e-20);
 
-  const CmdResult run = st.ctl(
-      {"run", "start", "--serial", "GAP-0001", "--sequence", "short", "--operator", "e2e", "--wait"}, 180s);
+  const CmdResult run = st.ctl({"run", "start", "--serial", "GAP-0001", "--sequence", "short",
+                                "--operator", "e2e", "--wait"},
+                               180s);
   EXPECT_EQ(run.exit_code, 1) << "a run with a significant gap is never PASS\n"
-                              << run.describe() << "\ndaemon log:\n" << st.daemon_log();
+                              << run.describe() << "\ndaemon log:\n"
+                              << st.daemon_log();
   const CmdResult hist = st.ctl({"history", "GAP-0001", "--json"});
   ASSERT_EQ(hist.exit_code, 0) << hist.describe();
   const json runs = hist.json_out()["runs"];
   ASSERT_EQ(runs.size(), 1u);
   const json& rec = runs[0];
   EXPECT_EQ(rec.value("state", ""), "review") << rec.dump(2);
-  EXPECT_NE(rec.value("failure_reason", "").find("sim-to-real gap"), std::string::npos) << rec.dump(2);
-  EXPECT_NE(rec.value("failure_reason", "").find("gyro_g_sensitivity"), std::string::npos) << rec.dump(2);
+  EXPECT_NE(rec.value("failure_reason", "").find("sim-to-real gap"), std::string::npos)
+      << rec.dump(2);
+  EXPECT_NE(rec.value("failure_reason", "").find("gyro_g_sensitivity"), std::string::npos)
+      << rec.dump(2);
   ASSERT_TRUE(rec["diagnosis"].is_object()) << rec.dump(2);
   EXPECT_EQ(rec["diagnosis"]["best"]["effect"], "gyro_g_sensitivity") << rec.dump(2);
   const long long run_id = rec.value("run_id", -1LL);
@@ -58,7 +62,8 @@ TEST(StationGap, AWithheldEffectEndsReviewAndStationctlDiagnoseNamesIt) {
   EXPECT_EQ(d["verdict"], "explained") << d["summary"];
   ASSERT_TRUE(d["best"].is_object()) << d.dump(2).substr(0, 3000);
   EXPECT_EQ(d["best"]["effect"], "gyro_g_sensitivity");
-  EXPECT_NEAR(d["best"]["magnitude"].get<double>(), std::sqrt(0.12 * 0.12 + 0.1 * 0.1 + 0.08 * 0.08),
+  EXPECT_NEAR(d["best"]["magnitude"].get<double>(),
+              std::sqrt(0.12 * 0.12 + 0.1 * 0.1 + 0.08 * 0.08),
               5.0 * d["best"]["sigma"].get<double>() + 0.02);
   EXPECT_EQ(d["best"]["unit"], "deg/h/g");
   // The people's views: history's gap column and show's section.

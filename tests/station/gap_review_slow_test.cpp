@@ -1,5 +1,5 @@
-// The station's consistency test on factory-length runs (issue #8, "What it must show"): through the
-// daemon's own calibration job (station/calibration_worker.hpp: AINS, NLSQ, cross-check, gap
+// The station's consistency test on factory-length runs (issue #8, "What it must show"): through
+// the daemon's own calibration job (station/calibration_worker.hpp: AINS, NLSQ, cross-check, gap
 // diagnosis, SQLite), on simulated factory-std runs of the default unit:
 //  * every catalogue effect that the factory sequence can detect (imucal crlb --effects: a finite
 //    detection threshold), injected at 3x its threshold, no longer ends a run PASS — it ends REVIEW
@@ -96,7 +96,8 @@ std::vector<Outcome> run_all(const std::vector<Case>& cases) {
       out[i] = run_case(cases[i], tmp.sub("run-" + std::to_string(i)), repo);
   };
   std::vector<std::thread> pool;
-  for (unsigned t = 0; t < std::max(1u, std::thread::hardware_concurrency()); ++t) pool.emplace_back(worker);
+  for (unsigned t = 0; t < std::max(1u, std::thread::hardware_concurrency()); ++t)
+    pool.emplace_back(worker);
   for (auto& t : pool) t.join();
   return out;
 }
@@ -104,16 +105,18 @@ std::vector<Outcome> run_all(const std::vector<Case>& cases) {
 }  // namespace
 
 TEST(GapReview, EveryDetectableEffectAtThreeTimesItsThresholdIsNeverPass) {
-  const auto det = calib::effect_detectability(factory_std(), calib::TableGeometry{},
-                                               calib::demo_factory_site(), calib::default_unit(), 100.0);
+  const auto det =
+      calib::effect_detectability(factory_std(), calib::TableGeometry{}, calib::demo_factory_site(),
+                                  calib::default_unit(), 100.0);
   std::vector<Case> cases;
   for (const auto& d : det) {
-    if (!std::isfinite(d.threshold)) continue;  // not detectable on factory-std (named in crlb --effects)
+    if (!std::isfinite(d.threshold))
+      continue;  // not detectable on factory-std (named in crlb --effects)
     Case c;
     c.name = d.name;
     c.seed = 500 + cases.size();
-    calib::set_effect_vector(c.effects, d.id,
-                             calib::scaled_typical(calib::effect_info(d.id), 3.0 * d.threshold, 1.0));
+    calib::set_effect_vector(
+        c.effects, d.id, calib::scaled_typical(calib::effect_info(d.id), 3.0 * d.threshold, 1.0));
     cases.push_back(c);
   }
   ASSERT_GE(cases.size(), 11u) << "K2, asymmetry, size, g-sensitivity, skew, thermal, instability, "
@@ -130,7 +133,8 @@ TEST(GapReview, EveryDetectableEffectAtThreeTimesItsThresholdIsNeverPass) {
 TEST(GapReview, NullRunsStillPass) {
   const int n = null_seeds();
   std::vector<Case> cases;
-  for (int i = 0; i < n; ++i) cases.push_back({"null", calib::Effects{}, 1000u + static_cast<uint64_t>(i)});
+  for (int i = 0; i < n; ++i)
+    cases.push_back({"null", calib::Effects{}, 1000u + static_cast<uint64_t>(i)});
   const auto out = run_all(cases);
   int review = 0;
   for (size_t i = 0; i < out.size(); ++i) {

@@ -3,11 +3,12 @@
 // `imucal diagnose` must name it with its size.
 //
 // The test's own physics (DESIGN §3 conventions, written out here independently):
-//   table: C_bn_table(outer, inner) = Rx(outer) Rz(inner) (outer axis north, inner axis the platform
-//   normal), truth C_bn = exp([ς×]) C_bn_table; angles move at a constant 10 °/s between rests;
-//   inertial attitude C_bi(t) = exp([ω_ie_n t×]) C_bn(t) so dθ_k = log(C_bn(k-1)ᵀ exp([ω_ie_n dt×]) C_bn(k));
-//   the table does not translate, so f_n = -g_n and dv_k = C_bn(k-1)ᵀ (f_n dt + ½ dt² ω_ie_n × f_n);
-//   the unit: dθ~ = dθ + b_g dt + M_g dθ + G f_b dt, dv~ = dv + b_a dt + M_a dv, white noise.
+//   table: C_bn_table(outer, inner) = Rx(outer) Rz(inner) (outer axis north, inner axis the
+//   platform normal), truth C_bn = exp([ς×]) C_bn_table; angles move at a constant 10 °/s between
+//   rests; inertial attitude C_bi(t) = exp([ω_ie_n t×]) C_bn(t) so dθ_k = log(C_bn(k-1)ᵀ
+//   exp([ω_ie_n dt×]) C_bn(k)); the table does not translate, so f_n = -g_n and dv_k = C_bn(k-1)ᵀ
+//   (f_n dt + ½ dt² ω_ie_n × f_n); the unit: dθ~ = dθ + b_g dt + M_g dθ + G f_b dt, dv~ = dv + b_a
+//   dt + M_a dv, white noise.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -30,11 +31,13 @@ namespace {
 constexpr double kPi = 3.14159265358979323846, kDeg = kPi / 180.0;
 constexpr double kLat = 55.78 * kDeg, kG = 9.81560, kWie = 7.292115e-5;
 constexpr double kDt = 0.01, kRate = 10.0 * kDeg;
-constexpr double kArw = 0.0015 * kDeg / 60.0;   // rad/√s
-constexpr double kVrw = 10e-6 * 9.80665;         // m/s²/√Hz
+constexpr double kArw = 0.0015 * kDeg / 60.0;  // rad/√s
+constexpr double kVrw = 10e-6 * 9.80665;       // m/s²/√Hz
 constexpr double kDegPerHour = kDeg / 3600.0;
 
-Matrix3d rot(const Vector3d& axis, double a) { return Eigen::AngleAxisd(a, axis).toRotationMatrix(); }
+Matrix3d rot(const Vector3d& axis, double a) {
+  return Eigen::AngleAxisd(a, axis).toRotationMatrix();
+}
 Matrix3d expm(const Vector3d& phi) {
   const double a = phi.norm();
   return a < 1e-15 ? Matrix3d::Identity() : rot(phi / a, a);
@@ -57,9 +60,9 @@ struct Sample {
 
 /// Angles at time t of a piecewise schedule: rest 60 s, move one axis at 10 °/s, rest, ...
 struct Schedule {
-  std::vector<double> t;  // knot times
-  std::vector<Pose> p;    // pose at each knot
-  std::vector<char> rest; // segment after knot i is a rest
+  std::vector<double> t;   // knot times
+  std::vector<Pose> p;     // pose at each knot
+  std::vector<char> rest;  // segment after knot i is a rest
   Pose at(double time) const {
     size_t i = 0;
     while (i + 1 < t.size() && t[i + 1] <= time) ++i;
@@ -77,8 +80,8 @@ struct Schedule {
 
 Schedule schedule() {
   // Every body axis up and down, turns about every body axis (gravity sees them).
-  const std::vector<Pose> poses = {{0, 0},     {90, 0},    {90, 90},  {90, 180}, {90, 270},
-                                   {180, 270}, {180, 180}, {180, 90}, {180, 0},  {270, 0},
+  const std::vector<Pose> poses = {{0, 0},     {90, 0},    {90, 90},   {90, 180},  {90, 270},
+                                   {180, 270}, {180, 180}, {180, 90},  {180, 0},   {270, 0},
                                    {270, 90},  {270, 180}, {360, 180}, {360, 270}, {360, 360}};
   Schedule s;
   double time = 0.0;
@@ -112,7 +115,8 @@ std::vector<Sample> make_run(const Matrix3d& G, uint64_t seed) {
   const Vector3d f_n(0.0, 0.0, -kG);
   const Matrix3d E = expm(w_ie_n * kDt);
   const Matrix3d Cs = expm(Vector3d(10.0, -15.0, 30.0) * kDeg / 3600.0);  // table misalignment ς
-  const Vector3d b_a = Vector3d(50, -40, 30) * 9.80665e-6, b_g = Vector3d(0.01, -0.008, 0.012) * kDegPerHour;
+  const Vector3d b_a = Vector3d(50, -40, 30) * 9.80665e-6,
+                 b_g = Vector3d(0.01, -0.008, 0.012) * kDegPerHour;
   Matrix3d M_a, M_g;
   M_a << 300e-6, 120e-6, -80e-6, -150e-6, -200e-6, 60e-6, 90e-6, -110e-6, 450e-6;
   M_g << -150e-6, 200e-6, -100e-6, 80e-6, 400e-6, 150e-6, -120e-6, 90e-6, 250e-6;
@@ -147,11 +151,12 @@ std::vector<Sample> make_run(const Matrix3d& G, uint64_t seed) {
 
 void write_archive(const fs::path& dir, const std::vector<Sample>& run) {
   fs::create_directories(dir);
-  std::ofstream(dir / "run.toml") << "serial = \"HAND-1\"\nreference = \"table\"\n"
-                                  << "[station]\nlat_deg = 55.78\nlon_deg = 12.52\nheight_m = 40.0\n"
-                                  << "gravity_mps2 = 9.8156\n[imu]\nrate_hz = 100.0\n"
-                                  << "[sequence]\nname = \"hand-made\"\n"
-                                  << "[noise]\narw_deg_per_sqrt_h = 0.0015\nvrw_ug_per_sqrt_hz = 10.0\n";
+  std::ofstream(dir / "run.toml")
+      << "serial = \"HAND-1\"\nreference = \"table\"\n"
+      << "[station]\nlat_deg = 55.78\nlon_deg = 12.52\nheight_m = 40.0\n"
+      << "gravity_mps2 = 9.8156\n[imu]\nrate_hz = 100.0\n"
+      << "[sequence]\nname = \"hand-made\"\n"
+      << "[noise]\narw_deg_per_sqrt_h = 0.0015\nvrw_ug_per_sqrt_hz = 10.0\n";
   std::ofstream imu(dir / "imu.csv"), tab(dir / "table.csv");
   imu << "t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps\n";
   tab << "t_s,outer_deg,inner_deg,at_rest\n";
@@ -167,7 +172,8 @@ void write_archive(const fs::path& dir, const std::vector<Sample>& run) {
 }
 
 nlohmann::json diagnose_json(const fs::path& dir, int* code) {
-  const std::string cmd = std::string(IMUCAL_BIN_DIR) + "/imucal diagnose " + dir.string() + " --json";
+  const std::string cmd =
+      std::string(IMUCAL_BIN_DIR) + "/imucal diagnose " + dir.string() + " --json";
   FILE* p = popen(cmd.c_str(), "r");
   std::string out;
   char buf[4096];

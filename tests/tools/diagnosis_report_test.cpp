@@ -1,7 +1,8 @@
 // `imucal diagnose DIR --report OUTDIR` as a person sees it: the real binary writes the page, and
 // Debian's Chromium (headless) renders it. The DOM must hold the pictures (the heat map, the NIS
 // chart, the score chart, the held-out comparison) and the candidate table with the withheld effect
-// ranked first; the screenshot must not be blank. Bad --report targets are refused, nothing written.
+// ranked first; the screenshot must not be blank. Bad --report targets are refused, nothing
+// written.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -47,7 +48,8 @@ std::string slurp(const fs::path& p) {
 std::pair<int, int> png_size(const std::string& png) {
   if (png.size() < 24 || png.compare(1, 3, "PNG") != 0) return {0, 0};
   auto be = [&](size_t o) {
-    return (static_cast<unsigned char>(png[o]) << 24) | (static_cast<unsigned char>(png[o + 1]) << 16) |
+    return (static_cast<unsigned char>(png[o]) << 24) |
+           (static_cast<unsigned char>(png[o + 1]) << 16) |
            (static_cast<unsigned char>(png[o + 2]) << 8) | static_cast<unsigned char>(png[o + 3]);
   };
   return {static_cast<int>(be(16)), static_cast<int>(be(20))};
@@ -72,7 +74,8 @@ TEST(DiagnosisReport, ChromiumRendersTheReportWithItsPictures) {
   for (const char* k : {"verdict", "best", "candidates", "held_out", "segments", "serial"})
     EXPECT_TRUE(j.contains(k)) << k;
 
-  const std::string chrome = "timeout 90 chromium --headless --no-sandbox --disable-gpu --hide-scrollbars ";
+  const std::string chrome =
+      "timeout 90 chromium --headless --no-sandbox --disable-gpu --hide-scrollbars ";
   const std::string url = "file://" + (out / "report.html").string();
   const Proc dom = run(chrome + "--dump-dom " + url);
   ASSERT_EQ(dom.code, 0) << dom.out.substr(0, 2000);
@@ -80,8 +83,8 @@ TEST(DiagnosisReport, ChromiumRendersTheReportWithItsPictures) {
     EXPECT_NE(dom.out.find(std::string("id=\"") + id + "\""), std::string::npos) << id;
   // The heat map has a cell per segment and sensor axis.
   const std::regex cell("<rect[^>]*fill=\"#[0-9a-f]{6}\"><title>");
-  const size_t cells = static_cast<size_t>(
-      std::distance(std::sregex_iterator(dom.out.begin(), dom.out.end(), cell), std::sregex_iterator()));
+  const size_t cells = static_cast<size_t>(std::distance(
+      std::sregex_iterator(dom.out.begin(), dom.out.end(), cell), std::sregex_iterator()));
   EXPECT_GE(cells, 6 * j["segments"].size());
   // The withheld effect heads the ranking table.
   const size_t table = dom.out.find("id=\"candidates\"");
@@ -100,7 +103,8 @@ TEST(DiagnosisReport, ChromiumRendersTheReportWithItsPictures) {
 TEST(DiagnosisReport, ABadReportTargetIsRefusedAndNothingIsWritten) {
   const imucal::test_support::ScopedTempDir tmp("report-bad");
   const fs::path dir = fs::path(tmp.path()) / "run", file = fs::path(tmp.path()) / "taken";
-  ASSERT_EQ(run(imucal_bin() + " simulate --sequence short --seed 2 --out " + dir.string()).code, 0);
+  ASSERT_EQ(run(imucal_bin() + " simulate --sequence short --seed 2 --out " + dir.string()).code,
+            0);
   std::ofstream(file) << "x";
   const Proc p = run(imucal_bin() + " diagnose " + dir.string() + " --report " + file.string());
   EXPECT_EQ(p.code, 1);
@@ -108,6 +112,9 @@ TEST(DiagnosisReport, ABadReportTargetIsRefusedAndNothingIsWritten) {
   EXPECT_EQ(slurp(file), "x");
   // A diagnosis that fails (unknown candidate) creates no report directory.
   const fs::path out = fs::path(tmp.path()) / "never";
-  EXPECT_EQ(run(imucal_bin() + " diagnose " + dir.string() + " --candidates nope --report " + out.string()).code, 1);
+  EXPECT_EQ(run(imucal_bin() + " diagnose " + dir.string() + " --candidates nope --report " +
+                out.string())
+                .code,
+            1);
   EXPECT_FALSE(fs::exists(out));
 }

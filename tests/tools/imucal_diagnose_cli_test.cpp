@@ -57,9 +57,11 @@ class DiagnoseCli : public ::testing::Test {
     // 3.5x the detection threshold of the short sequence (imucal crlb --sequence short --effects).
     std::ofstream(fs::path(dir_->path()) / "gsens.toml")
         << slurp(fs::path(IMUCAL_SOURCE_DIR) / "db/archive/units/default.toml")
-        << "\n[effects]\ng_sens_deg_per_h_per_g = [[0.1, 0.0, 0.0], [0.0, -0.1, 0.0], [0.0, 0.0, 0.08]]\n";
-    ASSERT_EQ(run("simulate --sequence short --seed 4 --out " + (fs::path(dir_->path()) / "gsens").string() +
-                  " --unit " + (fs::path(dir_->path()) / "gsens.toml").string())
+        << "\n[effects]\ng_sens_deg_per_h_per_g = [[0.1, 0.0, 0.0], [0.0, -0.1, 0.0], [0.0, 0.0, "
+           "0.08]]\n";
+    ASSERT_EQ(run("simulate --sequence short --seed 4 --out " +
+                  (fs::path(dir_->path()) / "gsens").string() + " --unit " +
+                  (fs::path(dir_->path()) / "gsens.toml").string())
                   .code,
               0);
   }
@@ -81,13 +83,15 @@ TEST_F(DiagnoseCli, JsonHasTheIssuesShapeAndNamesTheWithheldEffect) {
   ASSERT_TRUE(j["best"].is_object());
   EXPECT_EQ(j["best"]["effect"], "gyro_g_sensitivity");
   for (const char* k : {"magnitude", "sigma", "unit"}) EXPECT_TRUE(j["best"].contains(k)) << k;
-  for (const char* k : {"gap_before", "gap_after", "shrinkage"}) EXPECT_TRUE(j["held_out"][k].is_number()) << k;
+  for (const char* k : {"gap_before", "gap_after", "shrinkage"})
+    EXPECT_TRUE(j["held_out"][k].is_number()) << k;
   EXPECT_GT(j["held_out"]["gap_before"].get<double>(), j["held_out"]["gap_after"].get<double>());
   // 13 candidates, ranked: the best first; each with score, magnitude, sigma and "separable".
   ASSERT_EQ(j["candidates"].size(), 13u);
   EXPECT_EQ(j["candidates"][0]["effect"], "gyro_g_sensitivity");
   for (const auto& c : j["candidates"])
-    for (const char* k : {"effect", "score", "magnitude", "sigma", "separable"}) EXPECT_TRUE(c.contains(k)) << k;
+    for (const char* k : {"effect", "score", "magnitude", "sigma", "separable"})
+      EXPECT_TRUE(c.contains(k)) << k;
   // Segments: every rest and move, each with a normalised gap per sensor axis.
   ASSERT_GT(j["segments"].size(), 20u);
   EXPECT_TRUE(j["segments"][0]["z"].contains("gyro_z"));
@@ -138,7 +142,8 @@ TEST_F(DiagnoseCli, BadInputIsNamedAndNothingIsWritten) {
   // effect's 9 lever-arm components on top.
   const fs::path shortrun = fs::path(dir_->path()) / "shortrun";
   fs::create_directories(shortrun);
-  fs::copy_file(archive() / "run.toml", shortrun / "run.toml", fs::copy_options::overwrite_existing);
+  fs::copy_file(archive() / "run.toml", shortrun / "run.toml",
+                fs::copy_options::overwrite_existing);
   size_t keep = 0;
   {
     std::istringstream in(slurp(archive() / "table.csv"));

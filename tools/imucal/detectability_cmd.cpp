@@ -23,7 +23,8 @@ std::string remedy(calib::EffectId id) {
     case EffectId::kAccelAsymmetry:
       return "no gravity-only table sequence: with a free bias (and the odd part in the scale "
              "factor) K2 f^2 and Kap |f| correlate >= 0.96 for any set of static tilts within "
-             "[0, 1] g (60 deg tilts take it from 0.998 to 0.96); telling them apart needs specific "
+             "[0, 1] g (60 deg tilts take it from 0.998 to 0.96); telling them apart needs "
+             "specific "
              "forces beyond 1 g (a centrifuge). The gap itself is found, as one of the two";
     case EffectId::kGravityError:
       return "no rotation sequence: the table offers no reference acceleration other than gravity, "
@@ -52,11 +53,12 @@ std::string remedy(calib::EffectId id) {
 }
 
 void print_table(const std::vector<calib::EffectDetectability>& d, const std::string& seq) {
-  std::printf("effects on sequence %s: detection threshold (the diagnosis names an effect of this size "
-              "about half the time; 3x it essentially always) and separability\n",
-              seq.c_str());
-  std::printf("  %-24s %-11s %14s %14s  %-6s  %s\n", "effect", "directions", "threshold",
-              "typical", "ratio", "separable?");
+  std::printf(
+      "effects on sequence %s: detection threshold (the diagnosis names an effect of this size "
+      "about half the time; 3x it essentially always) and separability\n",
+      seq.c_str());
+  std::printf("  %-24s %-11s %14s %14s  %-6s  %s\n", "effect", "directions", "threshold", "typical",
+              "ratio", "separable?");
   for (const auto& e : d) {
     char thr[32] = "-", typ[32] = "-", ratio[16] = "-";
     if (std::isfinite(e.threshold)) {
@@ -89,7 +91,8 @@ nlohmann::json to_json(const std::vector<calib::EffectDetectability>& d, const s
                         {"max_correlation", e.max_correlation},
                         {"aliases", e.aliases},
                         {"confounded_with", e.confounded_with},
-                        {"threshold", std::isfinite(e.threshold) ? nlohmann::json(e.threshold) : nlohmann::json(nullptr)},
+                        {"threshold", std::isfinite(e.threshold) ? nlohmann::json(e.threshold)
+                                                                 : nlohmann::json(nullptr)},
                         {"typical", e.typical},
                         {"unit", e.unit},
                         {"separable", e.separable()},
@@ -102,7 +105,8 @@ nlohmann::json to_json(const std::vector<calib::EffectDetectability>& d, const s
 
 }  // namespace
 
-int cmd_crlb_effects(const std::string& seq, const std::string& unit_path, double rate_hz, bool json) {
+int cmd_crlb_effects(const std::string& seq, const std::string& unit_path, double rate_hz,
+                     bool json) {
   const std::string seq_path = sequences::resolve_sequence(seq);
   const sequences::MotionProfile profile = sequences::load_profile(seq_path);
   const calib::UnitModel unit =

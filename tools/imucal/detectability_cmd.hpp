@@ -7,6 +7,7 @@
 
 namespace imucal::tools {
 
-int cmd_crlb_effects(const std::string& seq, const std::string& unit_path, double rate_hz, bool json);
+int cmd_crlb_effects(const std::string& seq, const std::string& unit_path, double rate_hz,
+                     bool json);
 
 }  // namespace imucal::tools

@@ -42,7 +42,8 @@ void print_candidates(const calib::DiagnosisResult& d) {
   for (const auto& c : d.candidates) {
     char mag[64] = "-";
     if (c.separable)
-      std::snprintf(mag, sizeof mag, "%.3g +- %.2g %s", c.magnitude, c.magnitude_sigma, c.unit.c_str());
+      std::snprintf(mag, sizeof mag, "%.3g +- %.2g %s", c.magnitude, c.magnitude_sigma,
+                    c.unit.c_str());
     char held[32] = "-";
     if (c.separable) std::snprintf(held, sizeof held, "%.3f", c.held_out_gap);
     std::printf("  %-24s %10.1f %10.1f %3d %9.2g  %-28s %9s  %s%s\n", c.name.c_str(), c.bic_gain,
@@ -63,10 +64,12 @@ void print_segments(const calib::DiagnosisResult& d) {
     const auto& g = *s[i];
     int worst = 0;
     for (int c = 1; c < calib::kGapRowsPerSegment; ++c)
-      if (std::abs(g.z[static_cast<size_t>(c)]) > std::abs(g.z[static_cast<size_t>(worst)])) worst = c;
-    std::printf("  %-26s %8.1f %8.2f %8.2f %9.2g %4.0f/%-4.0f  %+.2f (%s)\n", g.segment.label().c_str(),
-                g.segment.t0_s, g.nis, g.nis_twin, g.p_value, g.segment.outer_deg, g.segment.inner_deg,
-                g.z[static_cast<size_t>(worst)], calib::gap_component_name(worst));
+      if (std::abs(g.z[static_cast<size_t>(c)]) > std::abs(g.z[static_cast<size_t>(worst)]))
+        worst = c;
+    std::printf("  %-26s %8.1f %8.2f %8.2f %9.2g %4.0f/%-4.0f  %+.2f (%s)\n",
+                g.segment.label().c_str(), g.segment.t0_s, g.nis, g.nis_twin, g.p_value,
+                g.segment.outer_deg, g.segment.inner_deg, g.z[static_cast<size_t>(worst)],
+                calib::gap_component_name(worst));
   }
 }
 
@@ -74,14 +77,18 @@ void print_human(const calib::DiagnosisResult& d, const archive::RunArchive& ar,
   std::printf("run %s (serial %s, sequence %s, %zu samples, %zu segments)\n", ar.origin.c_str(),
               ar.info.serial.c_str(), ar.info.sequence_name.c_str(), samples, d.segments.size());
   std::printf("verdict: %s -- %s\n", d.verdict.c_str(), d.summary.c_str());
-  std::printf("overall gap: chi2/dof %.3f (chi2 %.1f, dof %d; expected 1 +- %.3f; p %.2g)", d.overall_gap,
-              d.chi2, d.dof, d.overall_sigma, d.overall_p);
-  if (d.best || !d.ambiguous.empty()) std::printf(" -> %.3f with the best effect", d.gap_after_best);
-  std::printf("\nsimulated twin (this trajectory, the calibrated model, the declared noise): chi2/dof %.3f\n",
-              d.twin_gap);
+  std::printf("overall gap: chi2/dof %.3f (chi2 %.1f, dof %d; expected 1 +- %.3f; p %.2g)",
+              d.overall_gap, d.chi2, d.dof, d.overall_sigma, d.overall_p);
+  if (d.best || !d.ambiguous.empty())
+    std::printf(" -> %.3f with the best effect", d.gap_after_best);
+  std::printf(
+      "\nsimulated twin (this trajectory, the calibrated model, the declared noise): chi2/dof "
+      "%.3f\n",
+      d.twin_gap);
   std::printf("rest samples, lag-1 autocorrelation (z vs declared noise):");
   for (int c = 0; c < calib::kGapRowsPerSegment; ++c)
-    std::printf(" %s %+.3f (%+.1f)", calib::gap_component_name(c), d.whiteness.lag1_autocorr[static_cast<size_t>(c)],
+    std::printf(" %s %+.3f (%+.1f)", calib::gap_component_name(c),
+                d.whiteness.lag1_autocorr[static_cast<size_t>(c)],
                 d.whiteness.lag1_z[static_cast<size_t>(c)]);
   std::printf("\n");
   if (d.held_out.has_after) {
@@ -115,10 +122,12 @@ CLI::App* add_diagnose_command(CLI::App& app, DiagnoseArgs& a) {
       "diagnose", "sim-to-real gap: where a run departs from the model, which effect explains it");
   c->add_option("dir", a.dir, "run archive directory")->required();
   c->add_flag("--json", a.json, "print one JSON object");
-  c->add_option("--report", a.report_dir,
-                "also write OUTDIR/report.html (heat map, ranking, before/after) and OUTDIR/diagnosis.json");
-  c->add_option("--candidates", a.candidates,
-                "comma-separated effects to consider (default: the whole catalogue; see imucal effects)");
+  c->add_option(
+      "--report", a.report_dir,
+      "also write OUTDIR/report.html (heat map, ranking, before/after) and OUTDIR/diagnosis.json");
+  c->add_option(
+      "--candidates", a.candidates,
+      "comma-separated effects to consider (default: the whole catalogue; see imucal effects)");
   return c;
 }
 

@@ -12,8 +12,10 @@ namespace {
 
 using nlohmann::json;
 
-constexpr const char* kComponents[6] = {"accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z"};
-constexpr const char* kComponentLabels[6] = {"accel x", "accel y", "accel z", "gyro x", "gyro y", "gyro z"};
+constexpr const char* kComponents[6] = {"accel_x", "accel_y", "accel_z",
+                                        "gyro_x",  "gyro_y",  "gyro_z"};
+constexpr const char* kComponentLabels[6] = {"accel x", "accel y", "accel z",
+                                             "gyro x",  "gyro y",  "gyro z"};
 constexpr double kMicroG = 9.80665e-6, kDegPerHour = 3.14159265358979323846 / 180.0 / 3600.0,
                  kArcsec = 3.14159265358979323846 / 180.0 / 3600.0;
 
@@ -26,12 +28,18 @@ std::string f(double v, const char* fmt = "%.3g") {
 std::string esc(const std::string& s) {
   std::string o;
   for (char c : s) {
-    if (c == '<') o += "&lt;";
-    else if (c == '>') o += "&gt;";
-    else if (c == '&') o += "&amp;";
-    else if (c == '\'') o += "&#39;";
-    else if (c == '"') o += "&quot;";
-    else o += c;
+    if (c == '<')
+      o += "&lt;";
+    else if (c == '>')
+      o += "&gt;";
+    else if (c == '&')
+      o += "&amp;";
+    else if (c == '\'')
+      o += "&#39;";
+    else if (c == '"')
+      o += "&quot;";
+    else
+      o += c;
   }
   return o;
 }
@@ -82,10 +90,11 @@ void heatmap(std::ostringstream& os, const json& segs) {
       const double z = g["z"].contains(kComponents[c]) ? num(g["z"], kComponents[c]) : 0.0;
       const double r = num(g["residual_si"], kComponents[c]);
       os << "<rect x='" << x << "' y='" << top + cell_h * c << "' width='" << cell_w - 1
-         << "' height='" << cell_h - 1 << "' fill='" << z_colour(z) << "'><title>" << esc(str(g, "label"))
-         << " (t " << f(num(g, "t0_s"), "%.0f") << "-" << f(num(g, "t1_s"), "%.0f") << " s, outer "
-         << f(num(g, "outer_deg"), "%.0f") << " / inner " << f(num(g, "inner_deg"), "%.0f") << " deg), "
-         << kComponentLabels[c] << ": z = " << f(z, "%.2f") << ", residual " << human_residual(r, c, rest)
+         << "' height='" << cell_h - 1 << "' fill='" << z_colour(z) << "'><title>"
+         << esc(str(g, "label")) << " (t " << f(num(g, "t0_s"), "%.0f") << "-"
+         << f(num(g, "t1_s"), "%.0f") << " s, outer " << f(num(g, "outer_deg"), "%.0f")
+         << " / inner " << f(num(g, "inner_deg"), "%.0f") << " deg), " << kComponentLabels[c]
+         << ": z = " << f(z, "%.2f") << ", residual " << human_residual(r, c, rest)
          << "</title></rect>\n";
     }
     // Segment kind along the bottom: rests dark, moves light.
@@ -104,7 +113,8 @@ void heatmap(std::ostringstream& os, const json& segs) {
       os << "<text x='" << left + 14.0 * i + 7 << "' y='" << ly + 26 << "' text-anchor='middle'>"
          << f(z, "%+.0f") << "</text>\n";
   }
-  os << "<text x='" << left + 14.0 * 21 + 8 << "' y='" << ly + 10 << "'>z (|z| &gt; 5 saturates)</text>\n";
+  os << "<text x='" << left + 14.0 * 21 + 8 << "' y='" << ly + 10
+     << "'>z (|z| &gt; 5 saturates)</text>\n";
   os << "</svg>\n";
 }
 
@@ -116,31 +126,35 @@ void nis_chart(std::ostringstream& os, const json& segs) {
   for (const auto& g : segs) ymax = std::max(ymax, num(g, "nis"));
   ymax = std::min(ymax * 1.1, 200.0);
   auto y = [&](double v) { return top + h * (1.0 - std::min(v, ymax) / ymax); };
-  os << "<svg id='nis' xmlns='http://www.w3.org/2000/svg' width='" << left + w * n + 160 << "' height='"
-     << top + h + 40 << "' font-family='sans-serif' font-size='11'>\n";
+  os << "<svg id='nis' xmlns='http://www.w3.org/2000/svg' width='" << left + w * n + 160
+     << "' height='" << top + h + 40 << "' font-family='sans-serif' font-size='11'>\n";
   os << "<rect x='" << left << "' y='" << top << "' width='" << w * n << "' height='" << h
      << "' fill='none' stroke='#888'/>\n";
   for (double v : {0.0, ymax / 2, ymax})
-    os << "<text x='" << left - 6 << "' y='" << y(v) + 4 << "' text-anchor='end'>" << f(v, "%.0f") << "</text>\n";
+    os << "<text x='" << left - 6 << "' y='" << y(v) + 4 << "' text-anchor='end'>" << f(v, "%.0f")
+       << "</text>\n";
   os << "<text x='16' y='" << top + h / 2 << "' transform='rotate(-90 16 " << top + h / 2
      << ")' text-anchor='middle'>NIS (6 dof)</text>\n";
   for (size_t s = 0; s < segs.size(); ++s) {
     const json& g = segs[s];
     const double v = num(g, "nis");
-    os << "<rect x='" << left + w * static_cast<double>(s) << "' y='" << y(v) << "' width='" << w - 1
-       << "' height='" << top + h - y(v) << "' fill='" << (num(g, "p_value", 1.0) < 0.01 ? "#d33" : "#69c")
-       << "'><title>" << esc(str(g, "label")) << ": NIS " << f(v, "%.2f") << " (expected "
-       << f(num(g, "nis_expected"), "%.2f") << ", p " << f(num(g, "p_value", 1.0), "%.2g") << ")</title></rect>\n";
+    os << "<rect x='" << left + w * static_cast<double>(s) << "' y='" << y(v) << "' width='"
+       << w - 1 << "' height='" << top + h - y(v) << "' fill='"
+       << (num(g, "p_value", 1.0) < 0.01 ? "#d33" : "#69c") << "'><title>" << esc(str(g, "label"))
+       << ": NIS " << f(v, "%.2f") << " (expected " << f(num(g, "nis_expected"), "%.2f") << ", p "
+       << f(num(g, "p_value", 1.0), "%.2g") << ")</title></rect>\n";
   }
   // The simulated twin's NIS (same trajectory, calibrated model, declared noise) as dots.
   for (size_t s = 0; s < segs.size(); ++s)
-    os << "<circle cx='" << left + w * (static_cast<double>(s) + 0.5) << "' cy='" << y(num(segs[s], "nis_sim"))
-       << "' r='2.5' fill='#222'><title>" << esc(str(segs[s], "label")) << ": simulated twin NIS "
+    os << "<circle cx='" << left + w * (static_cast<double>(s) + 0.5) << "' cy='"
+       << y(num(segs[s], "nis_sim")) << "' r='2.5' fill='#222'><title>"
+       << esc(str(segs[s], "label")) << ": simulated twin NIS "
        << f(num(segs[s], "nis_sim"), "%.2f") << "</title></circle>\n";
-  for (const auto& [v, label] : {std::pair<double, const char*>{6.0, "expected 6"}, {16.81, "chi2 99 %"}})
+  for (const auto& [v, label] :
+       {std::pair<double, const char*>{6.0, "expected 6"}, {16.81, "chi2 99 %"}})
     os << "<line x1='" << left << "' x2='" << left + w * n << "' y1='" << y(v) << "' y2='" << y(v)
-       << "' stroke='#333' stroke-dasharray='4 3'/><text x='" << left + w * n + 6 << "' y='" << y(v) + 4
-       << "'>" << label << "</text>\n";
+       << "' stroke='#333' stroke-dasharray='4 3'/><text x='" << left + w * n + 6 << "' y='"
+       << y(v) + 4 << "'>" << label << "</text>\n";
   os << "</svg>\n";
 }
 
@@ -150,11 +164,16 @@ void candidate_table(std::ostringstream& os, const json& cands) {
   int i = 0;
   for (const auto& c : cands) {
     const bool sep = c.value("separable", false), sig = c.value("significant", false);
-    os << "<tr class='" << (sig ? "sig" : sep ? "" : "nosep") << "'><td>" << ++i << "</td><td>"
-       << esc(str(c, "effect")) << "</td><td>" << f(num(c, "score"), "%.1f") << "</td><td>"
-       << f(num(c, "lr"), "%.1f") << "</td><td>" << c.value("k", 0) << "</td><td>"
-       << f(num(c, "p_value", 1.0), "%.2g") << "</td><td>"
-       << (sep ? f(num(c, "magnitude")) + " ± " + f(num(c, "sigma"), "%.2g") + " " + esc(str(c, "unit")) : "-")
+    os << "<tr class='"
+       << (sig   ? "sig"
+           : sep ? ""
+                 : "nosep")
+       << "'><td>" << ++i << "</td><td>" << esc(str(c, "effect")) << "</td><td>"
+       << f(num(c, "score"), "%.1f") << "</td><td>" << f(num(c, "lr"), "%.1f") << "</td><td>"
+       << c.value("k", 0) << "</td><td>" << f(num(c, "p_value", 1.0), "%.2g") << "</td><td>"
+       << (sep ? f(num(c, "magnitude")) + " ± " + f(num(c, "sigma"), "%.2g") + " " +
+                     esc(str(c, "unit"))
+               : "-")
        << "</td><td>" << (c["held_out_gap"].is_number() ? f(num(c, "held_out_gap"), "%.3f") : "-")
        << "</td><td>" << esc(str(c, "note")) << "</td></tr>\n";
   }
@@ -165,39 +184,47 @@ void score_chart(std::ostringstream& os, const json& cands) {
   const double left = 190, top = 10, bar = 18, w = 520;
   double smax = 10.0;
   for (const auto& c : cands) smax = std::max(smax, num(c, "score"));
-  os << "<svg id='scores' xmlns='http://www.w3.org/2000/svg' width='" << left + w + 120 << "' height='"
-     << top + bar * static_cast<double>(cands.size()) + 30 << "' font-family='sans-serif' font-size='11'>\n";
+  os << "<svg id='scores' xmlns='http://www.w3.org/2000/svg' width='" << left + w + 120
+     << "' height='" << top + bar * static_cast<double>(cands.size()) + 30
+     << "' font-family='sans-serif' font-size='11'>\n";
   int i = 0;
   for (const auto& c : cands) {
     const double s = num(c, "score"), y = top + bar * i++;
     const double len = std::max(0.0, s) / smax * w;
-    os << "<text x='" << left - 6 << "' y='" << y + 13 << "' text-anchor='end'>" << esc(str(c, "effect"))
-       << "</text><rect x='" << left << "' y='" << y + 3 << "' width='" << std::max(1.0, len)
-       << "' height='" << bar - 5 << "' fill='"
-       << (c.value("significant", false) ? "#d33" : c.value("separable", false) ? "#69c" : "#ccc")
+    os << "<text x='" << left - 6 << "' y='" << y + 13 << "' text-anchor='end'>"
+       << esc(str(c, "effect")) << "</text><rect x='" << left << "' y='" << y + 3 << "' width='"
+       << std::max(1.0, len) << "' height='" << bar - 5 << "' fill='"
+       << (c.value("significant", false) ? "#d33"
+           : c.value("separable", false) ? "#69c"
+                                         : "#ccc")
        << "'><title>" << esc(str(c, "effect")) << ": score " << f(s, "%.1f") << "</title></rect>"
-       << "<text x='" << left + std::max(1.0, len) + 4 << "' y='" << y + 13 << "'>" << f(s, "%.1f") << "</text>\n";
+       << "<text x='" << left + std::max(1.0, len) + 4 << "' y='" << y + 13 << "'>" << f(s, "%.1f")
+       << "</text>\n";
   }
   os << "<text x='" << left << "' y='" << top + bar * i + 18
-     << "'>score = LR - k ln(rows); red: significant, blue: separable, grey: not separable</text></svg>\n";
+     << "'>score = LR - k ln(rows); red: significant, blue: separable, grey: not "
+        "separable</text></svg>\n";
 }
 
 void held_out_chart(std::ostringstream& os, const json& h) {
   std::vector<std::pair<std::string, double>> bars = {{"before", num(h, "gap_before")}};
   if (h["gap_after"].is_number()) bars.push_back({"with the best effect", num(h, "gap_after")});
-  if (h["gap_after_pair"].is_number()) bars.push_back({"with the best pair", num(h, "gap_after_pair")});
+  if (h["gap_after_pair"].is_number())
+    bars.push_back({"with the best pair", num(h, "gap_after_pair")});
   double vmax = 2.0;
   for (const auto& b : bars) vmax = std::max(vmax, b.second * 1.1);
   const double left = 160, w = 480, bar = 30, top = 10;
   auto x = [&](double v) { return left + w * std::min(v, vmax) / vmax; };
-  os << "<svg id='heldout' xmlns='http://www.w3.org/2000/svg' width='" << left + w + 120 << "' height='"
-     << top + bar * static_cast<double>(bars.size()) + 40 << "' font-family='sans-serif' font-size='12'>\n";
+  os << "<svg id='heldout' xmlns='http://www.w3.org/2000/svg' width='" << left + w + 120
+     << "' height='" << top + bar * static_cast<double>(bars.size()) + 40
+     << "' font-family='sans-serif' font-size='12'>\n";
   for (size_t i = 0; i < bars.size(); ++i) {
     const double y = top + bar * static_cast<double>(i);
     os << "<text x='" << left - 8 << "' y='" << y + 19 << "' text-anchor='end'>" << bars[i].first
        << "</text><rect x='" << left << "' y='" << y + 4 << "' width='" << x(bars[i].second) - left
        << "' height='" << bar - 8 << "' fill='" << (i == 0 ? "#d86" : "#6a6") << "'/><text x='"
-       << x(bars[i].second) + 5 << "' y='" << y + 19 << "'>" << f(bars[i].second, "%.3f") << "</text>\n";
+       << x(bars[i].second) + 5 << "' y='" << y + 19 << "'>" << f(bars[i].second, "%.3f")
+       << "</text>\n";
   }
   const double yb = top + bar * static_cast<double>(bars.size());
   os << "<line x1='" << x(1.0) << "' x2='" << x(1.0) << "' y1='" << top << "' y2='" << yb
@@ -209,16 +236,18 @@ void header(std::ostringstream& os, const json& d) {
   const std::string verdict = str(d, "verdict");
   const char* colour = verdict == "consistent" ? "#2a7" : verdict == "explained" ? "#d90" : "#c33";
   os << "<h1>Sim-to-real gap diagnosis</h1>\n<p class='meta'>run " << esc(str(d, "archive"))
-     << " &middot; serial " << esc(str(d, "serial")) << " &middot; sequence " << esc(str(d, "sequence"))
-     << "</p>\n<p><span class='badge' style='background:" << colour << "'>" << esc(verdict)
-     << "</span> " << esc(str(d, "summary")) << "</p>\n";
+     << " &middot; serial " << esc(str(d, "serial")) << " &middot; sequence "
+     << esc(str(d, "sequence")) << "</p>\n<p><span class='badge' style='background:" << colour
+     << "'>" << esc(verdict) << "</span> " << esc(str(d, "summary")) << "</p>\n";
   const json& o = d["overall"];
   os << "<p>Overall gap: &chi;&sup2;/dof = <b>" << f(num(o, "gap"), "%.3f") << "</b> (&chi;&sup2; "
      << f(num(o, "chi2"), "%.1f") << ", dof " << o.value("dof", 0) << "; expected 1 &plusmn; "
      << f(num(o, "sigma"), "%.3f") << " under the model, p = " << f(num(o, "p_value", 1.0), "%.2g")
      << "); with the best effect " << f(num(o, "gap_after_best"), "%.3f")
-     << "; the simulated twin (this trajectory simulated with the calibrated model and the declared "
-        "noise) gives " << f(num(o, "simulated_gap"), "%.3f") << ".</p>\n";
+     << "; the simulated twin (this trajectory simulated with the calibrated model and the "
+        "declared "
+        "noise) gives "
+     << f(num(o, "simulated_gap"), "%.3f") << ".</p>\n";
 }
 
 void lists(std::ostringstream& os, const json& d) {
@@ -227,7 +256,8 @@ void lists(std::ostringstream& os, const json& d) {
           "parameter</th><th>shift (σ)</th><th>shift</th></tr>\n";
     for (const auto& m : d["moved_parameters"])
       os << "<tr><td>" << esc(str(m, "name")) << "</td><td>" << f(num(m, "shift_sigma"), "%+.2f")
-         << "</td><td>" << f(num(m, "shift"), "%+.3g") << " " << esc(str(m, "unit")) << "</td></tr>\n";
+         << "</td><td>" << f(num(m, "shift"), "%+.3g") << " " << esc(str(m, "unit"))
+         << "</td></tr>\n";
     os << "</table>\n";
   }
   if (d.contains("remaining") && !d["remaining"].empty()) {
@@ -243,15 +273,19 @@ void lists(std::ostringstream& os, const json& d) {
 std::string diagnosis_report_html(const json& d) {
   std::ostringstream os;
   os << "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'><title>Gap diagnosis "
-     << esc(str(d, "serial")) << "</title>\n<style>body{font-family:sans-serif;margin:24px;color:#222;"
-        "max-width:1200px}h1{font-size:22px}h2{font-size:17px;margin-top:28px;border-bottom:1px solid "
-        "#ccc}.meta{color:#666}.badge{color:#fff;padding:3px 10px;border-radius:4px;font-weight:bold}"
+     << esc(str(d, "serial"))
+     << "</title>\n<style>body{font-family:sans-serif;margin:24px;color:#222;"
+        "max-width:1200px}h1{font-size:22px}h2{font-size:17px;margin-top:28px;border-bottom:1px "
+        "solid "
+        "#ccc}.meta{color:#666}.badge{color:#fff;padding:3px "
+        "10px;border-radius:4px;font-weight:bold}"
         "table{border-collapse:collapse;font-size:12px}td,th{border:1px solid #ccc;padding:3px 6px;"
         "text-align:left}tr.sig{background:#fde}tr.nosep{color:#999}</style></head><body>\n";
   header(os, d);
   os << "<h2>Where: normalised gap by segment and sensor axis</h2>\n";
   heatmap(os, d["segments"]);
-  os << "<h2>Residuals per segment: NIS of the real run (bars) and of its simulated twin (dots)</h2>\n";
+  os << "<h2>Residuals per segment: NIS of the real run (bars) and of its simulated twin "
+        "(dots)</h2>\n";
   nis_chart(os, d["segments"]);
   os << "<h2>Which: candidate effects, refitted with the calibration</h2>\n";
   score_chart(os, d["candidates"]);
@@ -259,7 +293,8 @@ std::string diagnosis_report_html(const json& d) {
   os << "<h2>How far: the gap on held-out segments</h2>\n";
   held_out_chart(os, d["held_out"]);
   lists(os, d);
-  os << "<p class='meta'>Generated by imucal diagnose. Segments are the rests and the moves between "
+  os << "<p class='meta'>Generated by imucal diagnose. Segments are the rests and the moves "
+        "between "
         "them; each residual is divided by its spread predicted by the declared noise model, so "
         "|z| &le; 2 is normal.</p>\n</body></html>\n";
   return os.str();

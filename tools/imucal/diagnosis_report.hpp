@@ -1,12 +1,13 @@
 #pragma once
-// The gap diagnosis as a self-contained HTML page (`imucal diagnose DIR --report OUTDIR`): inline CSS
-// and inline SVG, no scripts, no external resources, so it opens anywhere and can be attached to a
-// quality record. For a test engineer chasing a discrepancy:
+// The gap diagnosis as a self-contained HTML page (`imucal diagnose DIR --report OUTDIR`): inline
+// CSS and inline SVG, no scripts, no external resources, so it opens anywhere and can be attached
+// to a quality record. For a test engineer chasing a discrepancy:
 //   * the verdict and the one-sentence summary, the overall gap against its expectation;
 //   * the heat map of the normalised gap by segment (time order) × sensor axis (id "heatmap"),
 //     hover a cell for the segment, the z and the raw residual in human units;
 //   * each segment's NIS against its expectation and the χ² 99 % line (id "nis");
-//   * the candidate ranking as a table (id "candidates") and a bar chart of the scores (id "scores");
+//   * the candidate ranking as a table (id "candidates") and a bar chart of the scores (id
+//   "scores");
 //   * the held-out gap before and after the best effect and the best pair (id "heldout"), and the
 //     calibration parameters that move when it is added; where the gap remains.
 #include <nlohmann/json.hpp>

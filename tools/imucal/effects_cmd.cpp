@@ -12,10 +12,14 @@ namespace {
 
 const char* kind_name(calib::EffectKind k) {
   switch (k) {
-    case calib::EffectKind::kSensor: return "sensor";
-    case calib::EffectKind::kTable: return "table";
-    case calib::EffectKind::kSite: return "site";
-    case calib::EffectKind::kStochastic: return "stochastic";
+    case calib::EffectKind::kSensor:
+      return "sensor";
+    case calib::EffectKind::kTable:
+      return "table";
+    case calib::EffectKind::kSite:
+      return "site";
+    case calib::EffectKind::kStochastic:
+      return "stochastic";
   }
   return "?";
 }
@@ -29,18 +33,27 @@ int cmd_effects(bool json) {
       nlohmann::json ps = nlohmann::json::array();
       for (int i = 0; i < e.size(); ++i) {
         const auto& p = e.params[static_cast<size_t>(i)];
-        ps.push_back({{"name", p.name}, {"si_unit", p.si_unit}, {"human_unit", p.human_unit},
-                      {"si_to_human", p.si_to_human}, {"shape", p.shape},
+        ps.push_back({{"name", p.name},
+                      {"si_unit", p.si_unit},
+                      {"human_unit", p.human_unit},
+                      {"si_to_human", p.si_to_human},
+                      {"shape", p.shape},
                       {"typical_si", e.typical[static_cast<size_t>(i)]}});
       }
-      a.push_back({{"name", e.name}, {"kind", kind_name(e.kind)}, {"model", e.model},
-                   {"signature", e.signature}, {"parameters", ps}, {"magnitude_unit", e.magnitude_unit()}});
+      a.push_back({{"name", e.name},
+                   {"kind", kind_name(e.kind)},
+                   {"model", e.model},
+                   {"signature", e.signature},
+                   {"parameters", ps},
+                   {"magnitude_unit", e.magnitude_unit()}});
     }
     std::cout << a.dump(2) << '\n';
     return 0;
   }
-  std::printf("effects catalogue (DESIGN §7): inject with  imucal simulate|stationsim --effect NAME=V[,V...]\n"
-              "(SI values in the order below; a trailing (shape) parameter may be left out)\n");
+  std::printf(
+      "effects catalogue (DESIGN §7): inject with  imucal simulate|stationsim --effect "
+      "NAME=V[,V...]\n"
+      "(SI values in the order below; a trailing (shape) parameter may be left out)\n");
   for (const auto& e : calib::effect_catalogue()) {
     std::printf("\n%s  [%s]\n  model:     %s\n  signature: %s\n  --effect %s=", e.name.c_str(),
                 kind_name(e.kind), e.model.c_str(), e.signature.c_str(), e.name.c_str());
@@ -50,8 +63,9 @@ int cmd_effects(bool json) {
     for (int i = 0; i < e.size(); ++i) {
       const auto& p = e.params[static_cast<size_t>(i)];
       const double t = e.typical[static_cast<size_t>(i)];
-      std::printf("    %-12s SI %-16s typical %-12.4g (%g %s)%s\n", p.name.c_str(), p.si_unit.c_str(), t,
-                  t * p.si_to_human, p.human_unit.c_str(), p.shape ? "  shape parameter" : "");
+      std::printf("    %-12s SI %-16s typical %-12.4g (%g %s)%s\n", p.name.c_str(),
+                  p.si_unit.c_str(), t, t * p.si_to_human, p.human_unit.c_str(),
+                  p.shape ? "  shape parameter" : "");
     }
   }
   return 0;

@@ -27,8 +27,8 @@ std::vector<calib::EffectId> parse_effects(const std::string& list) {
     if (n.empty()) continue;
     const calib::EffectInfo* e = calib::find_effect(n);
     if (!e)
-      throw std::invalid_argument("--effects: unknown effect '" + n + "' (known: " +
-                                  calib::effect_names_list() + ")");
+      throw std::invalid_argument("--effects: unknown effect '" + n +
+                                  "' (known: " + calib::effect_names_list() + ")");
     ids.push_back(e->id);
   }
   return ids;
@@ -57,31 +57,51 @@ void print_confusion(const calib::ValidationReport& r) {
 nlohmann::json to_json(const calib::ValidationReport& r, bool pass) {
   nlohmann::json runs = nlohmann::json::array();
   for (const auto& x : r.runs)
-    runs.push_back({{"injected", x.injected}, {"factor", x.factor}, {"seed", x.seed},
-                    {"verdict", x.verdict}, {"named", x.named}, {"second", x.second},
-                    {"shrinkage", x.has_shrinkage ? nlohmann::json(x.shrinkage) : nlohmann::json(nullptr)}});
+    runs.push_back(
+        {{"injected", x.injected},
+         {"factor", x.factor},
+         {"seed", x.seed},
+         {"verdict", x.verdict},
+         {"named", x.named},
+         {"second", x.second},
+         {"shrinkage", x.has_shrinkage ? nlohmann::json(x.shrinkage) : nlohmann::json(nullptr)}});
   nlohmann::json thresholds = nlohmann::json::object();
   for (const auto& d : r.detectability)
-    if (std::isfinite(d.threshold)) thresholds[d.name] = {{"threshold", d.threshold}, {"unit", d.unit}};
-  return {{"sequence", r.sequence}, {"effects", r.effects}, {"thresholds", thresholds},
-          {"top1", r.top1}, {"false_alarm", r.false_alarm},
-          {"median_shrinkage", r.median_shrinkage}, {"pair_both", r.pair_both},
-          {"single_runs", r.single_runs}, {"null_runs", r.null_count}, {"pair_runs", r.pair_count},
-          {"confusion", r.confusion}, {"pass", pass}, {"runs", runs}};
+    if (std::isfinite(d.threshold))
+      thresholds[d.name] = {{"threshold", d.threshold}, {"unit", d.unit}};
+  return {{"sequence", r.sequence},
+          {"effects", r.effects},
+          {"thresholds", thresholds},
+          {"top1", r.top1},
+          {"false_alarm", r.false_alarm},
+          {"median_shrinkage", r.median_shrinkage},
+          {"pair_both", r.pair_both},
+          {"single_runs", r.single_runs},
+          {"null_runs", r.null_count},
+          {"pair_runs", r.pair_count},
+          {"confusion", r.confusion},
+          {"pass", pass},
+          {"runs", runs}};
 }
 
 }  // namespace
 
 CLI::App* add_validate_command(CLI::App& app, ValidateArgs& a) {
-  auto* c = app.add_subcommand("validate-diagnosis",
-                               "blind test of the gap diagnosis on simulated runs with withheld effects");
-  c->add_option("--runs", a.runs, "runs per effect")->capture_default_str()->check(CLI::Range(1, 1000));
+  auto* c =
+      app.add_subcommand("validate-diagnosis",
+                         "blind test of the gap diagnosis on simulated runs with withheld effects");
+  c->add_option("--runs", a.runs, "runs per effect")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
   c->add_option("--nulls", a.nulls, "null runs (default: --runs)")->check(CLI::Range(0, 1000));
-  c->add_option("--pairs", a.pairs, "runs with two effects (default: --runs)")->check(CLI::Range(0, 1000));
+  c->add_option("--pairs", a.pairs, "runs with two effects (default: --runs)")
+      ->check(CLI::Range(0, 1000));
   c->add_option("--seed", a.seed, "first seed")->capture_default_str();
   c->add_option("--sequence", a.sequence, "sequence name or TOML file")->capture_default_str();
-  c->add_option("--effects", a.effects, "comma-separated effects (default: all the sequence separates)");
-  c->add_option("--threads", a.threads, "worker threads (default: all cores)")->check(CLI::Range(0, 256));
+  c->add_option("--effects", a.effects,
+                "comma-separated effects (default: all the sequence separates)");
+  c->add_option("--threads", a.threads, "worker threads (default: all cores)")
+      ->check(CLI::Range(0, 256));
   c->add_flag("--json", a.json, "print one JSON object");
   return c;
 }
@@ -104,22 +124,28 @@ int cmd_validate(const ValidateArgs& a) {
                  tty ? "\r" : "", done, total, el, el / done * (total - done), tty ? "   " : "\n");
     if (tty && done == total) std::fprintf(stderr, "\n");
   };
-  const calib::ValidationReport r = calib::validate_diagnosis(
-      profile, calib::TableGeometry{}, calib::demo_factory_site(), calib::default_unit(), 100.0, opt);
+  const calib::ValidationReport r =
+      calib::validate_diagnosis(profile, calib::TableGeometry{}, calib::demo_factory_site(),
+                                calib::default_unit(), 100.0, opt);
   const bool pass = r.top1 >= kTop1 && r.false_alarm <= kFalseAlarm &&
-                    r.median_shrinkage >= kShrinkage && (r.pair_count == 0 || r.pair_both >= kPairs);
+                    r.median_shrinkage >= kShrinkage &&
+                    (r.pair_count == 0 || r.pair_both >= kPairs);
   if (a.json) {
     std::cout << to_json(r, pass).dump(2) << '\n';
   } else {
-    std::printf("validate-diagnosis on %s: %zu effects the sequence separates, %d single-effect runs "
-                "(3-10x threshold), %d null runs, %d pair runs\n",
-                r.sequence.c_str(), r.effects.size(), r.single_runs, r.null_count, r.pair_count);
+    std::printf(
+        "validate-diagnosis on %s: %zu effects the sequence separates, %d single-effect runs "
+        "(3-10x threshold), %d null runs, %d pair runs\n",
+        r.sequence.c_str(), r.effects.size(), r.single_runs, r.null_count, r.pair_count);
     print_confusion(r);
     std::printf("\ntop-1 accuracy      %5.1f %%  (bar >= %.0f %%)\n", 100 * r.top1, 100 * kTop1);
-    std::printf("false alarms (null) %5.1f %%  (bar <= %.0f %%)\n", 100 * r.false_alarm, 100 * kFalseAlarm);
-    std::printf("median shrinkage    %5.1f %%  (bar >= %.0f %%)\n", 100 * r.median_shrinkage, 100 * kShrinkage);
+    std::printf("false alarms (null) %5.1f %%  (bar <= %.0f %%)\n", 100 * r.false_alarm,
+                100 * kFalseAlarm);
+    std::printf("median shrinkage    %5.1f %%  (bar >= %.0f %%)\n", 100 * r.median_shrinkage,
+                100 * kShrinkage);
     if (r.pair_count)
-      std::printf("pairs, both named   %5.1f %%  (bar >= %.0f %%)\n", 100 * r.pair_both, 100 * kPairs);
+      std::printf("pairs, both named   %5.1f %%  (bar >= %.0f %%)\n", 100 * r.pair_both,
+                  100 * kPairs);
     std::printf("%s\n", pass ? "PASS" : "BELOW THE BAR");
   }
   return pass ? 0 : 3;
