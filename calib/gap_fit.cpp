@@ -25,6 +25,16 @@ Eigen::VectorXd take_rows(const Eigen::VectorXd& v, const std::vector<int>& rows
   return out;
 }
 
+/// The rows 0..m-1 not in `held` (the training rows of a fold).
+std::vector<int> complement(const std::vector<int>& held, int m) {
+  std::vector<char> out(static_cast<size_t>(m), 0);
+  for (int i : held) out[static_cast<size_t>(i)] = 1;
+  std::vector<int> train;
+  for (int i = 0; i < m; ++i)
+    if (!out[static_cast<size_t>(i)]) train.push_back(i);
+  return train;
+}
+
 /// Orthonormal basis of the part of A that the columns of B do not explain.
 Eigen::MatrixXd residual_basis(const Eigen::MatrixXd& B, const Eigen::MatrixXd& A) {
   Eigen::MatrixXd R = A;
@@ -76,11 +86,7 @@ HeldOutGap held_out_gap(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J,
   HeldOutGap g;
   const int m = static_cast<int>(r0.size());
   for (const auto& held : folds) {
-    std::vector<char> out(static_cast<size_t>(m), 0);
-    for (int i : held) out[static_cast<size_t>(i)] = 1;
-    std::vector<int> train;
-    for (int i = 0; i < m; ++i)
-      if (!out[static_cast<size_t>(i)]) train.push_back(i);
+    const std::vector<int> train = complement(held, m);
     const GlsFit fit = gls_fit(r0, J, train);
     const Eigen::MatrixXd Jh = take_rows(J, held);
     const Eigen::VectorXd rh = take_rows(r0, held) + Jh * fit.x;
@@ -96,11 +102,7 @@ HeldOutGap held_out_gap_correlated(const Eigen::VectorXd& r0, const Eigen::Matri
   HeldOutGap g;
   const int m = static_cast<int>(r0.size());
   for (const auto& held : folds) {
-    std::vector<char> out(static_cast<size_t>(m), 0);
-    for (int i : held) out[static_cast<size_t>(i)] = 1;
-    std::vector<int> train;
-    for (int i = 0; i < m; ++i)
-      if (!out[static_cast<size_t>(i)]) train.push_back(i);
+    const std::vector<int> train = complement(held, m);
     const auto nt = static_cast<Eigen::Index>(train.size()),
                nh = static_cast<Eigen::Index>(held.size());
     Eigen::MatrixXd S_TT(nt, nt), S_HT(nh, nt), S_HH(nh, nh);

@@ -113,15 +113,26 @@ WhitenessStats whiteness_stats(const CalibrationInput& in, const std::vector<Res
   return w;
 }
 
-CandidateResult score_quantisation(const CalibrationInput& in, const std::vector<RestPeriod>& rests,
-                                   int folds) {
-  const EffectInfo& e = effect_info(EffectId::kQuantisation);
+namespace {
+
+/// A stochastic candidate's fixed fields: two amplitude parameters, always separable from the
+/// deterministic base (it acts on the residuals' statistics, not their mean).
+CandidateResult stochastic_candidate(const EffectInfo& e) {
   CandidateResult r;
   r.id = e.id;
   r.name = e.name;
   r.unit = e.magnitude_unit();
   r.separable = true;
   r.k = 2;
+  return r;
+}
+
+}  // namespace
+
+CandidateResult score_quantisation(const CalibrationInput& in, const std::vector<RestPeriod>& rests,
+                                   int folds) {
+  const EffectInfo& e = effect_info(EffectId::kQuantisation);
+  CandidateResult r = stochastic_candidate(e);
   const int K = std::max(2, std::min<int>(folds, static_cast<int>(rests.size())));
   // Per sensor (param 0 = dθ LSB, 1 = dv LSB; sensor 0 = dv, 1 = dθ) and per fold.
   std::array<std::vector<Lag1Sums>, 2> fold_sums{std::vector<Lag1Sums>(static_cast<size_t>(K)),
@@ -284,12 +295,7 @@ CandidateResult score_bias_instability(const GapLinearisation& lin,
                                        const std::vector<std::vector<int>>& folds,
                                        const std::vector<double>& tau_grid_s) {
   const EffectInfo& e = effect_info(EffectId::kBiasInstability);
-  CandidateResult r;
-  r.id = e.id;
-  r.name = e.name;
-  r.unit = e.magnitude_unit();
-  r.separable = true;
-  r.k = 2;
+  CandidateResult r = stochastic_candidate(e);
   const int m = lin.model().rows();
   const GaussMarkovFit f = fit_gauss_markov(lin, lin.Jb(), tau_grid_s);
   r.lr = f.lr;

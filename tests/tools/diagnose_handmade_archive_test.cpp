@@ -20,6 +20,7 @@
 #include <random>
 #include <vector>
 
+#include "tests/support/run_command.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace fs = std::filesystem;
@@ -172,16 +173,10 @@ void write_archive(const fs::path& dir, const std::vector<Sample>& run) {
 }
 
 nlohmann::json diagnose_json(const fs::path& dir, int* code) {
-  const std::string cmd =
-      std::string(IMUCAL_BIN_DIR) + "/imucal diagnose " + dir.string() + " --json";
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int st = pclose(p);
-  *code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return nlohmann::json::parse(out);
+  const auto r = imucal::test_support::run_command(std::string(IMUCAL_BIN_DIR) +
+                                                   "/imucal diagnose " + dir.string() + " --json");
+  *code = r.code;
+  return nlohmann::json::parse(r.out);
 }
 
 }  // namespace

@@ -13,27 +13,16 @@
 #include <sstream>
 #include <string>
 
+#include "tests/support/run_command.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-struct Proc {
-  int code = -1;
-  std::string out;
-};
+using Proc = imucal::test_support::CommandResult;
 
-Proc run(const std::string& cmd) {
-  FILE* p = popen((cmd + " 2>&1").c_str(), "r");
-  Proc r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = pclose(p);
-  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
-}
+Proc run(const std::string& cmd) { return imucal::test_support::run_command(cmd + " 2>&1"); }
 
 std::string imucal_bin() { return std::string(IMUCAL_BIN_DIR) + "/imucal"; }
 

@@ -10,28 +10,18 @@
 #include <sstream>
 #include <string>
 
+#include "tests/support/run_command.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-struct Proc {
-  int code = -1;
-  std::string out;
-};
+using Proc = imucal::test_support::CommandResult;
 
 Proc run(const std::string& args, bool merge_stderr = true) {
-  const std::string cmd =
-      std::string(IMUCAL_BIN_DIR) + "/imucal " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null");
-  FILE* p = popen(cmd.c_str(), "r");
-  Proc r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = pclose(p);
-  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
+  return imucal::test_support::run_command(std::string(IMUCAL_BIN_DIR) + "/imucal " + args +
+                                           (merge_stderr ? " 2>&1" : " 2>/dev/null"));
 }
 
 std::string slurp(const fs::path& p) {

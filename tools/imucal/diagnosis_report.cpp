@@ -1,5 +1,7 @@
 #include "tools/imucal/diagnosis_report.hpp"
 
+#include "tools/imucal/html_escape.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -25,24 +27,7 @@ std::string f(double v, const char* fmt = "%.3g") {
   return b;
 }
 
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    if (c == '<')
-      o += "&lt;";
-    else if (c == '>')
-      o += "&gt;";
-    else if (c == '&')
-      o += "&amp;";
-    else if (c == '\'')
-      o += "&#39;";
-    else if (c == '"')
-      o += "&quot;";
-    else
-      o += c;
-  }
-  return o;
-}
+std::string esc(const std::string& s) { return html_escape(s); }
 
 double num(const json& o, const char* k, double fallback = 0.0) {
   return o.contains(k) && o[k].is_number() ? o[k].get<double>() : fallback;

@@ -1,5 +1,7 @@
 #include "tools/imucal/plot.hpp"
 
+#include "tools/imucal/html_escape.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -18,20 +20,7 @@ std::string num(double v, const char* f = "%.1f") {
   return b;
 }
 
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    if (c == '<')
-      o += "&lt;";
-    else if (c == '>')
-      o += "&gt;";
-    else if (c == '&')
-      o += "&amp;";
-    else
-      o += c;
-  }
-  return o;
-}
+std::string esc(const std::string& s) { return html_escape(s); }
 
 /// One panel: y axis from -ymax..ymax (symmetric) or 0..ymax, n slots along x.
 struct Panel {
