@@ -215,6 +215,21 @@ std::string effect_names_list() {
   return s;
 }
 
+std::vector<EffectId> parse_effect_list(const std::string& list) {
+  std::vector<EffectId> ids;
+  std::stringstream ss(list);
+  std::string name;
+  while (std::getline(ss, name, ',')) {
+    if (name.empty()) continue;
+    const EffectInfo* e = find_effect(name);
+    if (!e)
+      throw std::invalid_argument("unknown effect '" + name + "' (known: " + effect_names_list() + ")");
+    ids.push_back(e->id);
+  }
+  if (!list.empty() && ids.empty()) throw std::invalid_argument("no effect named");
+  return ids;
+}
+
 Eigen::VectorXd effect_vector(const Effects& fx, EffectId id) {
   Eigen::VectorXd v(effect_info(id).size());
   switch (id) {

@@ -80,6 +80,9 @@ const EffectInfo& effect_info(EffectId id);
 const EffectInfo* find_effect(const std::string& name);
 /// "accel_quadratic_k2, accel_asymmetry, ..." for error messages.
 std::string effect_names_list();
+/// "NAME,NAME,..." (as `--candidates` and `--effects` take it) to ids; empty text -> empty list.
+/// Throws std::invalid_argument "unknown effect 'x' (known: ...)" or "no effect named".
+std::vector<EffectId> parse_effect_list(const std::string& comma_separated);
 
 /// The values of every effect, SI. Defaults: all off.
 struct Effects {

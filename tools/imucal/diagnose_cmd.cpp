@@ -20,19 +20,11 @@ namespace {
 constexpr int kExitReview = 3;
 
 std::vector<calib::EffectId> parse_candidates(const std::string& list) {
-  std::vector<calib::EffectId> ids;
-  std::stringstream ss(list);
-  std::string name;
-  while (std::getline(ss, name, ',')) {
-    if (name.empty()) continue;
-    const calib::EffectInfo* e = calib::find_effect(name);
-    if (!e)
-      throw std::invalid_argument("--candidates: unknown effect '" + name +
-                                  "' (known: " + calib::effect_names_list() + ")");
-    ids.push_back(e->id);
+  try {
+    return calib::parse_effect_list(list);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--candidates: ") + e.what());
   }
-  if (!list.empty() && ids.empty()) throw std::invalid_argument("--candidates: no effect named");
-  return ids;
 }
 
 void print_candidates(const calib::DiagnosisResult& d) {

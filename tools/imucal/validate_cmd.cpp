@@ -20,18 +20,11 @@ namespace {
 constexpr double kTop1 = 0.9, kFalseAlarm = 0.1, kShrinkage = 0.7, kPairs = 0.7;
 
 std::vector<calib::EffectId> parse_effects(const std::string& list) {
-  std::vector<calib::EffectId> ids;
-  std::stringstream ss(list);
-  std::string n;
-  while (std::getline(ss, n, ',')) {
-    if (n.empty()) continue;
-    const calib::EffectInfo* e = calib::find_effect(n);
-    if (!e)
-      throw std::invalid_argument("--effects: unknown effect '" + n +
-                                  "' (known: " + calib::effect_names_list() + ")");
-    ids.push_back(e->id);
+  try {
+    return calib::parse_effect_list(list);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--effects: ") + e.what());
   }
-  return ids;
 }
 
 void print_confusion(const calib::ValidationReport& r) {
