@@ -154,6 +154,19 @@ std::size_t export_json(const Repository& repo, const ExportFilter& filter, std:
   return rows;
 }
 
+namespace {
+
+/// A stored JSON-object column: null when empty, Corrupt when damaged.
+json stored_object(const std::string& text, RunId run_id, const char* column) {
+  if (text.empty()) return nullptr;
+  json parsed = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!parsed.is_object())
+    throw Corrupt("run " + std::to_string(run_id) + ": stored " + column + " is not a JSON object");
+  return parsed;
+}
+
+}  // namespace
+
 json run_json(const RunRecord& r) {
   json o;
   o["run_id"] = r.run_id;
@@ -173,25 +186,9 @@ json run_json(const RunRecord& r) {
   o["archive_sha256"] = r.archive_sha256;
   o["failure_reason"] = r.failure_reason;
   o["reprocessed_from"] = r.reprocessed_from ? json(*r.reprocessed_from) : json(nullptr);
-  // Stored only after finish_run validated it as an object; a damaged text is reported, not hidden.
-  if (r.capture_json.empty()) {
-    o["capture"] = nullptr;
-  } else {
-    json capture = json::parse(r.capture_json, nullptr, /*allow_exceptions=*/false);
-    if (!capture.is_object())
-      throw Corrupt("run " + std::to_string(r.run_id) +
-                    ": stored capture_json is not a JSON object");
-    o["capture"] = std::move(capture);
-  }
-  if (r.diagnosis_json.empty()) {
-    o["diagnosis"] = nullptr;
-  } else {
-    json diagnosis = json::parse(r.diagnosis_json, nullptr, /*allow_exceptions=*/false);
-    if (!diagnosis.is_object())
-      throw Corrupt("run " + std::to_string(r.run_id) +
-                    ": stored diagnosis_json is not a JSON object");
-    o["diagnosis"] = std::move(diagnosis);
-  }
+  // Stored only after finish_run validated them as objects; a damaged text is reported, not hidden.
+  o["capture"] = stored_object(r.capture_json, r.run_id, "capture_json");
+  o["diagnosis"] = stored_object(r.diagnosis_json, r.run_id, "diagnosis_json");
   return o;
 }
 
