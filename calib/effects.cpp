@@ -21,7 +21,8 @@ EffectParamInfo p(std::string name, std::string si, std::string human, double k,
   return {std::move(name), std::move(si), std::move(human), k, shape};
 }
 
-std::vector<EffectInfo> build_catalogue() {
+/// The first four entries: the accelerometer and gyro effects with per-axis parameters.
+std::vector<EffectInfo> sensor_effects() {
   std::vector<EffectInfo> c;
   const char* xyz[3] = {"x", "y", "z"};
   {
@@ -82,6 +83,12 @@ std::vector<EffectInfo> build_catalogue() {
     for (int i = 0; i < 9; ++i) e.magnitude_params.push_back(i);
     c.push_back(e);
   }
+  return c;
+}
+
+/// Skew, time offset, warm-up, instability, table, site and quantisation entries (catalogue order).
+void add_remaining_effects(std::vector<EffectInfo>& c) {
+  const char* xyz[3] = {"x", "y", "z"};
   c.push_back({EffectId::kGyroAccelSkew,
                "gyro_accel_skew",
                EffectKind::kSensor,
@@ -164,6 +171,11 @@ std::vector<EffectInfo> build_catalogue() {
                {p("dtheta_lsb", "rad", "nrad", 1e9), p("dv_lsb", "m/s", "um/s", 1e6)},
                {5e-8, 1e-5},
                {}});
+}
+
+std::vector<EffectInfo> build_catalogue() {
+  std::vector<EffectInfo> c = sensor_effects();
+  add_remaining_effects(c);
   return c;
 }
 
@@ -223,7 +235,8 @@ std::vector<EffectId> parse_effect_list(const std::string& list) {
     if (name.empty()) continue;
     const EffectInfo* e = find_effect(name);
     if (!e)
-      throw std::invalid_argument("unknown effect '" + name + "' (known: " + effect_names_list() + ")");
+      throw std::invalid_argument("unknown effect '" + name + "' (known: " + effect_names_list() +
+                                  ")");
     ids.push_back(e->id);
   }
   if (!list.empty() && ids.empty()) throw std::invalid_argument("no effect named");

@@ -6,11 +6,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <utility>
 
 #include "calib/imu_error_model.hpp"
 #include "calib/rotation.hpp"
 #include "calib/site_presets.hpp"
 #include "calib/strapdown.hpp"
+#include "sequences/library.hpp"
 #include "tests/support/hand_profile.hpp"
 
 using namespace imucal;
@@ -203,4 +205,55 @@ TEST(TruthSim, SizeEffectAppearsOnlyWhileRotating) {
   // Cruise at 20 °/s about z: centripetal ω² r = (0.349)^2 * 0.05 ≈ 6.1e-3 m/s² on x.
   EXPECT_NEAR(moving, std::pow(20.0 * kDegToRad, 2) * 0.05, 2e-3);
   EXPECT_LT(at_rest, 1e-9);
+}
+
+namespace {
+
+/// Order-sensitive checksum of a run: Σ_k Σ_i (k + 1)(i + 1) x_k(i), for dv and for dθ.
+std::pair<double, double> weighted_sums(const SimResult& r) {
+  double dv = 0.0, dth = 0.0;
+  for (size_t k = 0; k < r.imu.size(); ++k)
+    for (int i = 0; i < 3; ++i) {
+      const double w = (static_cast<double>(k) + 1.0) * (i + 1.0);
+      dv += w * r.imu[k].dv_mps(i);
+      dth += w * r.imu[k].dtheta_rad(i);
+    }
+  return {dv, dth};
+}
+
+}  // namespace
+
+// Guard against accidental changes of the simulator's arithmetic or of the order it draws random
+// numbers in: with every catalogue effect off, the output must stay bit-identical to the simulator
+// as it was before the effects catalogue reached it (commit 786313e). The numbers below were
+// printed with %.17g by a stand-alone program running this exact computation against that commit's
+// calib/truth_*.cpp, built with the project's Release flags (GCC -O3, libstdc++); the current code
+// gave the same digits. They depend on the toolchain (std::normal_distribution, libm): on another
+// compiler or standard library a failure here means "recompute", not necessarily a bug.
+// Three runs of the `short` sequence (517 s, 51 700 samples), seed 20261125, default_unit() (its
+// values unchanged since that commit): with its noise (ARW, VRW, LSBs), without noise (no
+// quantisation: every bit of the physics shows), and with the noise model's declared Gauss-Markov
+// biases on (the RNG order of eq. 16-17).
+TEST(TruthSim, EffectFreeOutputIsBitIdenticalToTheSimulatorBeforeTheEffectsCatalogue) {
+  const auto profile = sequences::load_profile("short");
+  ASSERT_EQ(profile.duration_s(), 517.0);
+  UnitModel unit = default_unit();
+  ASSERT_FALSE(unit.effects.any());
+  SimOptions o;
+  o.seed = 20261125;
+  const auto noisy = weighted_sums(simulate(profile, TableGeometry{}, factory_site(), unit, o));
+  o.noise = false;
+  const auto clean = weighted_sums(simulate(profile, TableGeometry{}, factory_site(), unit, o));
+  o.noise = true;
+  unit.noise.gyro_bias_instability_radps = 0.003 * kDegPerHourToRadPerSec;
+  unit.noise.accel_bias_instability_mps2 = 5e-6 * kStandardGravity_mps2;
+  unit.noise.gyro_bias_tau_s = 300.0;
+  unit.noise.accel_bias_tau_s = 600.0;
+  const auto gm = weighted_sums(simulate(profile, TableGeometry{}, factory_site(), unit, o));
+  EXPECT_EQ(noisy.first, -175874827.48477384);
+  EXPECT_EQ(noisy.second, -242443.13883377827);
+  EXPECT_EQ(clean.first, -175874794.31154943);
+  EXPECT_EQ(clean.second, -242441.7660198446);
+  EXPECT_EQ(gm.first, -175878094.74885833);
+  EXPECT_EQ(gm.second, -242441.36339754215);
 }
