@@ -4,12 +4,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <vector>
 
 #include "calib/earth.hpp"
+#include "calib/effects.hpp"
 #include "calib/site_presets.hpp"
 #include "tests/support/hand_profile.hpp"
 
@@ -38,9 +40,33 @@ UnitModel unit_with_effects() {
   return u;
 }
 
+/// Every catalogue effect on at once (DESIGN §7, typical sizes or larger), the stochastic ones only
+/// acting with noise on. The table time offset changes only the batch form's encoder log.
+UnitModel unit_with_every_effect() {
+  UnitModel u = unit_with_effects();
+  Effects& fx = u.effects;
+  fx.gyro_accel_skew_s = 5e-4;
+  fx.thermal_accel_mps2 << 20e-6 * kStandardGravity_mps2, -10e-6 * kStandardGravity_mps2, 0.0;
+  fx.thermal_gyro_radps << 0.0, 0.005 * kDegPerHourToRadPerSec, -0.003 * kDegPerHourToRadPerSec;
+  fx.thermal_tau_s = 2.0;  // the warm-up visible within the few seconds of the profile
+  fx.instability_gyro_radps = 0.002 * kDegPerHourToRadPerSec;
+  fx.instability_accel_mps2 = 20e-6 * kStandardGravity_mps2;
+  fx.instability_tau_s = 1.0;
+  fx.quant_dtheta_rad = 1e-7;
+  fx.quant_dv_mps = 1e-5;
+  fx.table_time_offset_s = 0.005;
+  fx.table_nonorthogonality_rad = 8.0 * kArcsecToRad;
+  fx.table_wobble_rad << 4.0 * kArcsecToRad, -3.0 * kArcsecToRad;
+  fx.gravity_error_mps2 = 40e-6 * kStandardGravity_mps2;
+  fx.latitude_error_rad = 1.0 / 60.0 * kDegToRad;
+  for (const EffectInfo& e : effect_catalogue()) EXPECT_TRUE(fx.active(e.id)) << e.name;
+  return u;
+}
+
 /// Runs the stream over the profile, feeding it the acceleration breakpoints inside each interval
 /// and recording every time state_at was asked for.
-ImuSeries stream_profile(const sequences::MotionProfile& p, const UnitModel& unit, const SimOptions& o,
+ImuSeries stream_profile(const sequences::MotionProfile& p, const UnitModel& unit,
+                         const SimOptions& o,
                          std::vector<std::pair<double, double>>* intervals = nullptr,
                          std::vector<std::vector<double>>* calls = nullptr) {
   TruthStream stream(TableGeometry{}, demo_factory_site(), unit, o);
@@ -105,6 +131,56 @@ TEST(TruthStream, NoiselessEqualsBatchSimulatorWithEffects) {
     }
     EXPECT_EQ(calls[k].back(), intervals[k].second);  // ends at the sample time
   }
+}
+
+// Every effect of the catalogue at once, noiseless: the deterministic effects (sensor, table, site)
+// stream exactly like the batch form injects them — and they really are in the data (compared with
+// the same unit without them).
+TEST(TruthStream, NoiselessEqualsBatchSimulatorWithEveryEffect) {
+  const auto p = two_axis_profile();
+  const UnitModel unit = unit_with_every_effect();
+  SimOptions o;
+  o.noise = false;
+  const SimResult batch = simulate(p, TableGeometry{}, demo_factory_site(), unit, o);
+  const ImuSeries s = stream_profile(p, unit, o);
+  ASSERT_EQ(s.size(), batch.imu.size());
+  const double eps = std::numeric_limits<double>::epsilon(), dt = 1.0 / o.rate_hz;
+  const double tol_dth = 64.0 * eps * (30.0 * kDegToRad + 7.3e-5) * dt;
+  const double tol_dv = 64.0 * eps * (10.0 + 1.0) * dt;
+  for (size_t k = 0; k < s.size(); ++k) {
+    ASSERT_LE((s[k].dtheta_rad - batch.imu[k].dtheta_rad).lpNorm<Eigen::Infinity>(), tol_dth) << k;
+    ASSERT_LE((s[k].dv_mps - batch.imu[k].dv_mps).lpNorm<Eigen::Infinity>(), tol_dv) << k;
+  }
+  const SimResult without = simulate(p, TableGeometry{}, demo_factory_site(), default_unit(), o);
+  double d_dv = 0.0, d_dth = 0.0;
+  for (size_t k = 0; k < s.size(); ++k) {
+    d_dv = std::max(d_dv, (s[k].dv_mps - without.imu[k].dv_mps).norm());
+    d_dth = std::max(d_dth, (s[k].dtheta_rad - without.imu[k].dtheta_rad).norm());
+  }
+  EXPECT_GT(d_dv, 1e3 * tol_dv);
+  EXPECT_GT(d_dth, 1e3 * tol_dth);
+}
+
+// ... and with noise: the undeclared Gauss-Markov bias draws from the same generator in the same
+// order, and the coarser real LSBs round the same sums (a rounding may flip where the two forms'
+// last bits differ: one LSB, carried into the next sample).
+TEST(TruthStream, NoisyEqualsBatchSimulatorWithEveryEffect) {
+  const auto p = two_axis_profile();
+  const UnitModel unit = unit_with_every_effect();
+  SimOptions o;
+  o.seed = 77;
+  const SimResult batch = simulate(p, TableGeometry{}, demo_factory_site(), unit, o);
+  const ImuSeries s = stream_profile(p, unit, o);
+  ASSERT_EQ(s.size(), batch.imu.size());
+  int differ = 0;
+  for (size_t k = 0; k < s.size(); ++k) {
+    const double e_th = (s[k].dtheta_rad - batch.imu[k].dtheta_rad).lpNorm<Eigen::Infinity>();
+    const double e_v = (s[k].dv_mps - batch.imu[k].dv_mps).lpNorm<Eigen::Infinity>();
+    ASSERT_LE(e_th, 1.5 * unit.effects.quant_dtheta_rad) << k;
+    ASSERT_LE(e_v, 1.5 * unit.effects.quant_dv_mps) << k;
+    differ += (e_th > 0.0 || e_v > 0.0) ? 1 : 0;
+  }
+  EXPECT_LT(differ, 10);
 }
 
 TEST(TruthStream, SizeEffectQuadratureNeedsTheBreakpoints) {
@@ -206,8 +282,8 @@ TEST(TruthStream, WhiteNoiseMatchesArwVrwAndQuantisation) {
   // two successive independent uniform remainders: 2 × lsb²/12.
   const double var_g = std::pow(unit.noise.arw_rad_per_sqrt_s, 2) * dt +
                        std::pow(unit.noise.dtheta_lsb_rad, 2) / 6.0;
-  const double var_a = std::pow(unit.noise.vrw_mps_per_sqrt_s, 2) * dt +
-                       std::pow(unit.noise.dv_lsb_mps, 2) / 6.0;
+  const double var_a =
+      std::pow(unit.noise.vrw_mps_per_sqrt_s, 2) * dt + std::pow(unit.noise.dv_lsb_mps, 2) / 6.0;
   // Sample variance of n Gaussian values: relative standard error sqrt(2/n) = 0.7 %; allow 5σ.
   const double rel_tol = 5.0 * std::sqrt(2.0 / static_cast<double>(n));
   for (int i = 0; i < 3; ++i) {
@@ -242,8 +318,9 @@ TEST(TruthStream, GaussMarkovBiasMatchesSigmaAndCorrelationTime) {
     int kind;
     double sigma, tau;
   };
-  for (const Case c : {Case{0, unit.noise.gyro_bias_instability_radps, unit.noise.gyro_bias_tau_s},
-                       Case{1, unit.noise.accel_bias_instability_mps2, unit.noise.accel_bias_tau_s}}) {
+  for (const Case c :
+       {Case{0, unit.noise.gyro_bias_instability_radps, unit.noise.gyro_bias_tau_s},
+        Case{1, unit.noise.accel_bias_instability_mps2, unit.noise.accel_bias_tau_s}}) {
     double var = 0.0, lag1 = 0.0;
     for (int i = 0; i < 3; ++i) {
       std::vector<double> x = r[c.kind][i];
