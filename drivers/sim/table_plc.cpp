@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -178,11 +180,23 @@ sequences::TableState TablePlc::actual_state() const {
 }
 
 std::vector<double> TablePlc::accel_switch_times(double t0_s, double t1_s) const {
+  // A pending fault cuts the plan short: the corners after it never happen; its ramp-down's do.
+  const double cut_s = pending_fault_ ? pending_fault_->second : std::numeric_limits<double>::infinity();
   std::vector<double> out;
-  for (const AxisProfile* p : {&outer_, &inner_})
-    if (!p->pieces.empty())
-      for (double b : p->boundaries())
-        if (b > t0_s && b < t1_s) out.push_back(b);
+  auto add_corners = [&](const AxisProfile& p, double until_s) {
+    if (p.pieces.empty()) return;
+    for (double b : p.boundaries())
+      if (b > t0_s && b < t1_s && b <= until_s) out.push_back(b);
+  };
+  for (const AxisProfile* p : {&outer_, &inner_}) {
+    add_corners(*p, cut_s);
+    if (pending_fault_ && cut_s < t1_s) {
+      double a, r, acc;
+      p->eval(cut_s, &a, &r, &acc);
+      add_corners(plan_stop(cut_s, a, r, cfg_.accel_limit_dps2), t1_s);
+    }
+  }
+  if (cut_s > t0_s && cut_s < t1_s) out.push_back(cut_s);
   std::sort(out.begin(), out.end());
   out.erase(std::unique(out.begin(), out.end()), out.end());
   return out;
@@ -279,11 +293,11 @@ AckResult TablePlc::execute(uint16_t code) {
 }
 
 void TablePlc::start_motion(Motion kind, double outer_target_deg, double inner_target_deg, double rate_dps) {
-  double a, r, acc;
-  outer_.eval(t_s_, &a, &r, &acc);
-  outer_ = plan_move(t_s_, a, r, outer_target_deg, rate_dps, cfg_.accel_limit_dps2);
-  inner_.eval(t_s_, &a, &r, &acc);
-  inner_ = plan_move(t_s_, a, r, inner_target_deg, rate_dps, cfg_.accel_limit_dps2);
+  double a_o, r_o, a_i, r_i, acc;
+  outer_.eval(t_s_, &a_o, &r_o, &acc);
+  inner_.eval(t_s_, &a_i, &r_i, &acc);
+  replan(plan_move(t_s_, a_o, r_o, outer_target_deg, rate_dps, cfg_.accel_limit_dps2),
+         plan_move(t_s_, a_i, r_i, inner_target_deg, rate_dps, cfg_.accel_limit_dps2));
   motion_ = kind;
   settling_ = false;
   in_position_ = false;
@@ -294,14 +308,27 @@ void TablePlc::start_motion(Motion kind, double outer_target_deg, double inner_t
 }
 
 void TablePlc::ramp_down(double decel_dps2) {
-  double a, r, acc;
-  outer_.eval(t_s_, &a, &r, &acc);
-  outer_ = plan_stop(t_s_, a, r, decel_dps2);
-  inner_.eval(t_s_, &a, &r, &acc);
-  inner_ = plan_stop(t_s_, a, r, decel_dps2);
+  double a_o, r_o, a_i, r_i, acc;
+  outer_.eval(t_s_, &a_o, &r_o, &acc);
+  inner_.eval(t_s_, &a_i, &r_i, &acc);
+  replan(plan_stop(t_s_, a_o, r_o, decel_dps2), plan_stop(t_s_, a_i, r_i, decel_dps2));
   motion_ = (outer_.pieces.empty() && inner_.pieces.empty()) ? Motion::kNone : Motion::kStopping;
   settling_ = false;
   in_position_ = false;
+}
+
+void TablePlc::replan(AxisProfile outer, AxisProfile inner) {
+  if (cfg_.encoder_delay_s > 0.0) replaced_.emplace_back(std::move(outer_), std::move(inner_));
+  outer_ = std::move(outer);
+  inner_ = std::move(inner);
+}
+
+std::pair<const TablePlc::AxisProfile*, const TablePlc::AxisProfile*> TablePlc::profiles_at(double t_s) const {
+  // Both axes are always replanned together, so the outer profile's start dates the pair.
+  if (t_s >= outer_.t0_s || replaced_.empty()) return {&outer_, &inner_};
+  for (auto it = replaced_.rbegin(); it != replaced_.rend(); ++it)
+    if (t_s >= it->first.t0_s) return {&it->first, &it->second};
+  return {&replaced_.front().first, &replaced_.front().second};  // before it: its start state
 }
 
 void TablePlc::advance_to(double t_s) {
@@ -357,13 +384,19 @@ void TablePlc::put_float(uint16_t address, double value) {
 void TablePlc::publish_inputs() {
   const auto& in = cfg_.map.input;
   double a, r, acc;
-  // A lagging encoder (table_time_offset) reports the motion of encoder_delay_s ago. Moves start
-  // from rest, so before a profile's start its start angle is the angle then.
+  // A lagging encoder (table_time_offset) reports the motion of encoder_delay_s ago: the profiles
+  // that ran then (a replaced plan ran up to its replacement's start). Older plans are dropped.
   const double t_enc = t_s_ - cfg_.encoder_delay_s;
-  outer_.eval(t_enc, &a, &r, &acc);
+  size_t obsolete = 0;
+  while (obsolete < replaced_.size() &&
+         (obsolete + 1 < replaced_.size() ? replaced_[obsolete + 1].first.t0_s : outer_.t0_s) <= t_enc)
+    ++obsolete;
+  replaced_.erase(replaced_.begin(), replaced_.begin() + static_cast<std::ptrdiff_t>(obsolete));
+  const auto [outer, inner] = profiles_at(t_enc);
+  outer->eval(t_enc, &a, &r, &acc);
   put_float(in.actual_outer_deg, a);
   put_float(in.rate_outer_dps, r);
-  inner_.eval(t_enc, &a, &r, &acc);
+  inner->eval(t_enc, &a, &r, &acc);
   put_float(in.actual_inner_deg, a);
   put_float(in.rate_inner_dps, r);
   input_[in.status] = status_word();

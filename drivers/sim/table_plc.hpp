@@ -27,6 +27,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "drivers/turntable/register_map.hpp"
@@ -86,7 +87,9 @@ class TablePlc {
   /// Exact angles (rad), rates and accelerations at the current PLC time; at_rest = no profile running.
   sequences::TableState actual_state() const;
   /// The times strictly inside (t0_s, t1_s) where either axis' planned acceleration jumps (profile
-  /// piece boundaries), ascending: where a quadrature over the motion must be split (size effect).
+  /// piece boundaries, and a pending fault's ramp-down), ascending: where a quadrature over the
+  /// motion must be split (size effect). Exact for the plan as it stands: a command scanned later
+  /// starts a new plan at its scan time (call step(0) first to act on written commands).
   std::vector<double> accel_switch_times(double t0_s, double t1_s) const;
   double outer_deg() const;
   double inner_deg() const;
@@ -146,6 +149,11 @@ class TablePlc {
                                double amax_dps2);
   static AxisProfile plan_stop(double t0_s, double angle_deg, double rate_dps, double decel_dps2);
 
+  /// Replaces both axes' profiles (a new motion from now), keeping the replaced ones while a lagging
+  /// encoder still shows them.
+  void replan(AxisProfile outer, AxisProfile inner);
+  /// The profiles that were running at t_s (t_s <= now): the current ones or a replaced pair.
+  std::pair<const AxisProfile*, const AxisProfile*> profiles_at(double t_s) const;
   void scan_commands();
   AckResult execute(uint16_t code);
   void start_motion(Motion kind, double outer_target_deg, double inner_target_deg, double rate_dps);
@@ -161,6 +169,9 @@ class TablePlc {
   double t_s_ = 0.0;
 
   AxisProfile outer_, inner_;
+  /// Replaced (outer, inner) profiles, oldest first, kept only while encoder_delay_s reaches back
+  /// to them: the encoder shows the motion that really happened then, not the new plan.
+  std::vector<std::pair<AxisProfile, AxisProfile>> replaced_;
   Motion motion_ = Motion::kNone;
   bool settling_ = false;  ///< a move/home ended at its target; in_position after settle_time_s
   double motion_end_s_ = 0.0;

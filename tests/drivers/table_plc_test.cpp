@@ -363,6 +363,40 @@ TEST(TablePlc, ALaggingEncoderReportsTheAnglesOfItsDelayAgo) {
   EXPECT_NEAR(m.input_float(m.map_.input.actual_outer_deg), 90.0, 1e-4);
 }
 
+// A lagging encoder across a replanned motion: the registers follow the motion that really happened
+// delay_s ago, not the new plan. Redirected at t0 + 3 s (40°, +20 °/s) back to 0, the axis brakes
+// at 10 °/s²: 0.1 s later an encoder 0.25 s late still shows the old cruise, 40 - 20·0.15 = 37°,
+// and 0.3 s after the redirect it shows the braking, 40 + 20·0.05 - 5·0.05² = 40.9875°. A stop
+// mid-move likewise.
+TEST(TablePlc, ALaggingEncoderFollowsTheMotionThroughARedirectAndAStop) {
+  TablePlcConfig cfg = test_config();
+  cfg.encoder_delay_s = 0.25;
+  TablePlc plc(cfg);
+  Master m(plc);
+  m.ready();
+  const double t0 = plc.time_s();
+  ASSERT_EQ(m.move(90.0, 0.0, 20.0), AckResult::kAccepted);
+  m.run_until(t0 + 3.0);
+  ASSERT_EQ(m.move(0.0, 0.0, 20.0), AckResult::kAccepted);
+  m.run_until(t0 + 3.1);
+  EXPECT_NEAR(m.input_float(m.map_.input.actual_outer_deg), 37.0, 1e-4);
+  EXPECT_NEAR(m.input_float(m.map_.input.rate_outer_dps), 20.0, 1e-4);
+  m.run_until(t0 + 3.3);
+  EXPECT_NEAR(m.input_float(m.map_.input.actual_outer_deg), 40.9875, 1e-4);
+  EXPECT_NEAR(m.input_float(m.map_.input.rate_outer_dps), 19.5, 1e-4);
+  // Braking ends at 60° (t0 + 5 s), back at 0 at t0 + 10 s. A new move out, stopped mid-cruise.
+  m.run_until(t0 + 11.0);
+  EXPECT_NEAR(m.input_float(m.map_.input.actual_outer_deg), 0.0, 1e-4);
+  const double t1 = plc.time_s();
+  ASSERT_EQ(m.move(90.0, 0.0, 20.0), AckResult::kAccepted);
+  m.run_until(t1 + 3.0);  // 40°, +20 °/s
+  ASSERT_EQ(m.command(m.map_.commands.stop), AckResult::kAccepted);
+  m.run_until(t1 + 3.2);  // the encoder shows t1 + 2.95 s: 39°
+  EXPECT_NEAR(m.input_float(m.map_.input.actual_outer_deg), 39.0, 1e-4);
+  m.run_until(t1 + 10.0);
+  EXPECT_NEAR(m.input_float(m.map_.input.actual_outer_deg), 60.0, 1e-4);
+}
+
 // The size effect's quadrature needs the instants where the planned acceleration jumps: the
 // trapezoid's corners at t0 + 2, 4.5 and 6.5 s (outer) and the triangle's at t0 + √3, 2√3 (inner).
 TEST(TablePlc, AccelerationSwitchTimesAreTheProfileCorners) {
@@ -377,6 +411,28 @@ TEST(TablePlc, AccelerationSwitchTimesAreTheProfileCorners) {
   ASSERT_EQ(sw.size(), expect.size());
   for (size_t i = 0; i < sw.size(); ++i) EXPECT_NEAR(sw[i], expect[i], 1e-9) << i;
   EXPECT_TRUE(plc.accel_switch_times(t0 + 2.1, t0 + 2.2).empty());
+}
+
+// A pending fault cuts the plan: 0 -> 90 at 20 °/s, 10 °/s², fault 3 s into the move (cruising):
+// the corners are the end of the acceleration (t0 + 2), the fault (t0 + 3) and the end of the
+// ramp-down from 20 °/s at 10 °/s² (t0 + 5) — not the planned 4.5 and 6.5 s. And they are right:
+// the axis really decelerates on exactly those pieces.
+TEST(TablePlc, AccelerationSwitchTimesFollowAPendingFault) {
+  TablePlc plc(test_config());
+  Master m(plc);
+  m.ready();
+  plc.arm_fault_during_next_move(0x17, 3.0);
+  const double t0 = plc.time_s();
+  ASSERT_EQ(m.move(90.0, 0.0, 20.0), AckResult::kAccepted);
+  const auto sw = plc.accel_switch_times(t0 + 0.5, t0 + 7.0);
+  const std::vector<double> expect = {t0 + 2.0, t0 + 3.0, t0 + 5.0};
+  ASSERT_EQ(sw.size(), expect.size());
+  for (size_t i = 0; i < sw.size(); ++i) EXPECT_NEAR(sw[i], expect[i], 1e-9) << i;
+  m.run_until(t0 + 4.0);
+  EXPECT_TRUE(plc.fault());
+  EXPECT_NEAR(plc.actual_state().outer_accel_radps2 * 180 / kPi, -10.0, 1e-9);
+  m.run_until(t0 + 5.5);
+  EXPECT_NEAR(plc.outer_deg(), 20.0 + 20.0 + 20.0, 1e-9);  // ramp 20°, cruise 1 s, brake 20°
 }
 
 }  // namespace
