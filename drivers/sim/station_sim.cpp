@@ -220,7 +220,10 @@ void StationSim::run() {
       }
       calib::ImuIncrement inc;
       server_->with_plc([&](TablePlc& plc) {
-        // The size effect's quadrature is split where the PLC's planned acceleration jumps.
+        // Commands written over Modbus since the last sample are acted on at the interval start (a
+        // PLC scan), so the motion they start is planned before its acceleration jumps are asked
+        // for: the size effect's quadrature is split exactly there (DESIGN §7).
+        advance(plc, stream.interval_start_s());
         const std::vector<double> breaks =
             stream.needs_interior_states()
                 ? plc.accel_switch_times(stream.interval_start_s(), stream.next_time_s())

@@ -12,6 +12,15 @@
 //
 // The IMU streams continuously from start() on (at rest or moving), like a unit powered on the table.
 // Faults are scheduled on the physics clock (StationSimFaults) or injected at run time.
+//
+// The unit's catalogue effects (DESIGN §7, config.unit.effects) are withheld from the station and
+// streamed like calib::simulate() injects them: the sensor, stochastic and site effects by TruthStream
+// (config.site is the site the station believes; the physics runs at the true one); the table's
+// imperfections in the true attitude; the size effect with its quadrature split where the PLC's
+// acceleration jumps (TablePlc::accel_switch_times, after a scan at the interval start); the
+// table_time_offset δt >= 0 as a lagging encoder: the PLC's actual-angle and rate registers show the
+// motion of δt ago (TablePlcConfig::encoder_delay_s) while the IMU follows the motion itself — the
+// same clock, the encoder reading late. A negative δt (an encoder ahead of the motion) is refused.
 #include <atomic>
 #include <cstdint>
 #include <memory>

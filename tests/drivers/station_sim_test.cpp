@@ -372,6 +372,68 @@ TEST(StationSim, SizeEffectStreamsTheCentripetalAcceleration) {
   EXPECT_NEAR(f1.y() - f0.y(), 0.0, tol);  // accelerometer y has no lever arm
 }
 
+// The table time offset through the station (DESIGN §7): the encoder registers the station polls lag
+// the physics by δt, while the IMU streams the motion itself. Mid-cruise of an outer quarter turn at
+// 20 °/s, the actual-angle register (read atomically with the physics clock) trails the PLC's true
+// angle by ω δt = 1°, and the angle the IMU has turned by then (its increments up to the same
+// instant, compensated with the unit's known gyro model) is the true angle, ahead of the register.
+TEST(StationSim, TableTimeOffsetMakesTheEncoderRegistersLagTheStreamedMotion) {
+  sim::StationSimConfig cfg = base_config(40.0);
+  const double lag_s = 0.05, rate_dps = 20.0;
+  cfg.unit.effects.table_time_offset_s = lag_s;
+  Rig rig(cfg);
+  ASSERT_TRUE(rig.homed);
+  const double dt = 1.0 / cfg.rate_hz;
+  const double t_a = rig.sim->time_s();  // at rest at (0, 0)
+  rig.client.move_to(90.0, 0.0, rate_dps);
+  struct Snapshot {
+    double t_s = 0.0, true_deg = 0.0, register_deg = 0.0, register_rate_dps = 0.0;
+    bool cruising = false;
+  } snap;
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (!snap.cruising && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(5ms);
+    snap = rig.sim->table_server().with_plc([](sim::TablePlc& plc) {
+      const auto& map = plc.config().map;
+      const auto reg = [&](uint16_t a) { return turntable::decode_float(&plc.input_image()[a], map.word_order); };
+      const sequences::TableState st = plc.actual_state();
+      Snapshot x;
+      x.t_s = plc.time_s();
+      x.true_deg = st.outer_rad / kDegToRad;
+      x.register_deg = reg(map.input.actual_outer_deg);
+      x.register_rate_dps = reg(map.input.rate_outer_dps);
+      // Cruising for longer than the lag: the register's instant is in the cruise too.
+      x.cruising = st.outer_accel_radps2 == 0.0 && x.true_deg > 30.0 && x.true_deg < 60.0;
+      return x;
+    });
+  }
+  ASSERT_TRUE(snap.cruising);
+  EXPECT_NEAR(snap.true_deg - snap.register_deg, rate_dps * lag_s, 1e-4);  // float32 registers
+  EXPECT_NEAR(snap.register_rate_dps, rate_dps, 1e-4);
+
+  // The IMU up to the same physics instant: sample k ends at (k + 1) dt = snap.t_s.
+  ASSERT_TRUE(rig.rx.wait_index(static_cast<uint64_t>(std::llround(snap.t_s / dt)), 5000ms));
+  const auto w = window(rig.rx.samples(), t_a, snap.t_s, dt);
+  ASSERT_NEAR(static_cast<double>(w.size()) * dt, snap.t_s - t_a, 0.5 * dt);
+  const calib::ImuErrorModel<double> err = calib::ImuErrorModel<double>::from_params(cfg.unit.params);
+  const Eigen::Matrix3d M_inv = (Eigen::Matrix3d::Identity() + err.M_g).inverse();
+  double turned_rad = 0.0;  // about body x = the outer axis at inner 0
+  for (const auto& inc : w) turned_rad += (M_inv * (inc.dtheta_rad - cfg.unit.params.gyro_bias_radps * dt)).x();
+  // Plus the Earth rate about the outer axis (north) over the window; tolerance: the ARW (5σ), the
+  // LSBs of the simulator and the CAN codec, and ς tilting the axis (arcseconds of the Earth rate).
+  const double T = static_cast<double>(w.size()) * dt;
+  const double imu_deg = (turned_rad - calib::EarthModel(cfg.site).w_ie_n().x() * T) / kDegToRad;
+  const double tol_deg = (5.0 * cfg.unit.noise.arw_rad_per_sqrt_s * std::sqrt(T) +
+                          2.0 * (cfg.unit.noise.dtheta_lsb_rad + imu::kDthetaLsb_rad) + 1e-4 * 7.3e-5 * T) /
+                         kDegToRad;
+  EXPECT_NEAR(imu_deg, snap.true_deg, tol_deg);  // measured: ~4e-7 rad (2e-5°) off
+  EXPECT_NEAR(imu_deg - snap.register_deg, rate_dps * lag_s, tol_deg + 1e-4);
+
+  // At rest again the encoder catches up: no lasting offset.
+  const auto end = rig.client.wait_in_position(10000ms);
+  EXPECT_NEAR(end.outer_deg, 90.0, 1e-4);
+}
+
 TEST(StationSim, ScheduledAndRuntimeImuResetsRestartTheCounter) {
   sim::StationSimConfig cfg = base_config(100.0);
   cfg.faults.imu_reset_at_s = {3.0};
