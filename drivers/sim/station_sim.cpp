@@ -63,7 +63,8 @@ StationSim::StationSim(StationSimConfig cfg) : cfg_(std::move(cfg)) {
         "StationSimConfig.unit.effects: table_time_offset must be >= 0 in the station simulator (the "
         "PLC's encoder can lag the motion, not lead it)");
   cfg_.plc.encoder_delay_s = cfg_.unit.effects.table_time_offset_s;
-  // Built here so that the unit is checked (e.g. table_time_offset) before anything listens.
+  // Built here so that whatever the stream refuses is refused before anything listens (every
+  // catalogue effect streams; the time offset is the PLC's, above).
   calib::SimOptions o;
   o.rate_hz = cfg_.rate_hz;
   o.seed = cfg_.seed;
