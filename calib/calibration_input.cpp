@@ -4,6 +4,21 @@
 
 namespace imucal::calib {
 
+const char* setting_name(Setting s) {
+  switch (s) {
+    case Setting::kFactory: return "factory";
+    case Setting::kLand: return "land";
+    case Setting::kSea: return "sea";
+  }
+  return "factory";
+}
+
+std::optional<Setting> parse_setting(const std::string& name) {
+  for (Setting s : {Setting::kFactory, Setting::kLand, Setting::kSea})
+    if (name == setting_name(s)) return s;
+  return std::nullopt;
+}
+
 std::vector<RestPeriod> find_rest_periods(const CalibrationInput& in, size_t min_samples) {
   std::vector<RestPeriod> out;
   const size_t n = in.reference.size();
