@@ -1,11 +1,14 @@
 #include "calib/ains.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 
 #include "calib/ains_filter.hpp"
+#include "calib/coarse_alignment.hpp"
+#include "calib/rotation.hpp"
 #include "calib/conventions.hpp"
 
 namespace imucal::calib {
@@ -28,9 +31,41 @@ ParamSet effective_prior_sigma(const AinsOptions& opt) {
   return ParamSet::from_vector(p);
 }
 
+namespace {
+
+/// Field settings: the site for the alignment (at sea the first fix's position).
+Site alignment_site(const CalibrationInput& in) {
+  Site site = in.site;
+  if (in.setting == Setting::kSea && !in.gnss.empty()) {
+    site.lat_rad = in.gnss.front().lat_rad;
+    site.lon_rad = in.gnss.front().lon_rad;
+  }
+  return site;
+}
+
+/// What a field result cannot say, stated with it (issue #9: "say so in the output").
+void describe_field_frame(CalibrationResult& res) {
+  res.body_frame = BodyFrame::kAccelSymmetric;
+  for (int i = 24; i < ParamSet::kSize; ++i) res.observable[static_cast<size_t>(i)] = false;
+  const std::string where = res.setting == Setting::kSea ? "at sea" : "on land";
+  res.unobservable_notes.push_back(
+      "housing orientation: not observable " + where +
+      " (no attitude reference); misalignments are relative to the accelerometer triad's own "
+      "orthogonal frame (accel_M symmetric), not to the housing");
+  res.unobservable_notes.push_back("table misalignment: no table " + where + ", not estimated");
+}
+
+/// The smoothed ψ(0) of a pass in units of its σ (how far the initial attitude still moves).
+double initial_attitude_update_sigma(const SmoothedNav& s0) {
+  return s0.psi_rad.cwiseAbs().cwiseQuotient(s0.sigma_psi_rad.cwiseMax(1e-300)).maxCoeff();
+}
+
+}  // namespace
+
 AinsResult calibrate_ains_detailed(const CalibrationInput& in, const AinsOptions& opt) {
   const auto t_start = std::chrono::steady_clock::now();
   const ains::PreparedInput pin = ains::prepare_input(in, opt);
+  const bool field = in.setting != Setting::kFactory;
 
   ains::PassConfig cfg;
   cfg.prior_sigma = effective_prior_sigma(opt);
@@ -38,8 +73,16 @@ AinsResult calibrate_ains_detailed(const CalibrationInput& in, const AinsOptions
   cfg.nominal = ParamSet::from_vector(cfg.prior_mean);
 
   AinsResult out;
+  if (field) {
+    // Levelling and gyrocompassing on the first rest, from scratch (no reference, no prior).
+    out.coarse_C_bn = coarse_align(in.imu, pin.first_rest.begin, pin.first_rest.end,
+                                   alignment_site(in), cfg.nominal, in.noise.vrw_mps_per_sqrt_s)
+                          .C_bn;
+    cfg.C_bn0 = out.coarse_C_bn;
+  }
   CalibrationResult& res = out.calibration;
   res.method = "ains";
+  res.setting = in.setting;
   std::vector<ains::EpochRecord> epochs;
   ains::PassResult pass;
   double last_ratio = 0.0;
@@ -52,6 +95,14 @@ AinsResult calibrate_ains_detailed(const CalibrationInput& in, const AinsOptions
                                std::to_string(it));
     const ParamVector sigma = cov.diagonal().cwiseMax(1e-300).cwiseSqrt();
     last_ratio = delta.cwiseAbs().cwiseQuotient(sigma).maxCoeff();
+    if (field) {
+      // The initial attitude is a state like the parameters: re-centre the nominal on its
+      // smoothed value (the prior stays centred on the coarse alignment).
+      const std::vector<SmoothedNav> sm = ains::rts_smooth(epochs, nullptr);
+      last_ratio = std::max(last_ratio, initial_attitude_update_sigma(sm.front()));
+      cfg.C_bn0 = sm.front().nav.C_bn;
+      cfg.psi0_prior_mean = matrix_to_rotvec(out.coarse_C_bn * cfg.C_bn0.transpose());
+    }
     out.update_norm_sigma.push_back(last_ratio);
     cfg.nominal = ParamSet::from_vector(cfg.nominal.to_vector() + delta);
     res.cov = cov;
@@ -66,6 +117,8 @@ AinsResult calibrate_ains_detailed(const CalibrationInput& in, const AinsOptions
   out.num_updates = pass.num_updates;
   out.mean_nis = pass.nis_count ? pass.nis_sum / static_cast<double>(pass.nis_count) : 0.0;
   out.smoothed = ains::rts_smooth(epochs, &out.smoother_param_mismatch_sigma);
+  out.initial_C_bn = out.smoothed.front().nav.C_bn;
+  if (field) describe_field_frame(res);
 
   if (!res.converged) {
     std::ostringstream os;

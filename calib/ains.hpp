@@ -20,18 +20,33 @@
 
 namespace imucal::calib {
 
-/// Which aiding the filter uses (paper §IV-B/C/D). Only kFactory is implemented: kLand (ZUPT +
-/// depth, 33 states, gyrocompass initial attitude) and kSea (GNSS position + depth) need an
-/// initial alignment from the IMU data and are rejected with std::invalid_argument for now.
-enum class AinsSetting { kFactory, kLand, kSea };
+/// Kept for source compatibility: the aiding now follows CalibrationInput::setting.
+using AinsSetting = Setting;
 
+/// Aiding by setting (paper §IV-B/C/D; the setting comes from CalibrationInput::setting):
+///  * factory: table orientation (eq. 28-35), zero velocity (36-39), mean depth (40-43) at rest;
+///    initial attitude from the reference; 36 states;
+///  * land: zero velocity and mean depth at rest, no orientation aiding; initial attitude from
+///    the data (calib/coarse_alignment.hpp), refined by the smoother each pass; ς frozen (33
+///    states); the common rotation of both triads fixed by the accel-symmetric body frame
+///    (calib/body_frame.hpp) as three exact pseudo-measurements;
+///  * sea: as land, but GNSS horizontal position (eq. 44-47) at every fix and mean depth there,
+///    no zero velocity.
 struct AinsOptions {
-  AinsSetting setting = AinsSetting::kFactory;
-  int max_iterations = 6;                 ///< iterated linearised smoother passes
+  int max_iterations = 8;                 ///< iterated linearised smoother passes
   double convergence_sigma_ratio = 0.01;  ///< stop when every |Δθ_i| < ratio·σ_i
   double attitude_sigma_rad = 1e-6;       ///< table orientation aiding noise (eq. 28)
   double zupt_sigma_mps = 1e-4;           ///< eq. 36-39
-  double depth_sigma_m = 1e-2;            ///< eq. 40-43
+  double depth_sigma_m = 1e-2;            ///< eq. 40-43 (factory, land)
+  /// eq. 40-43 at sea: the unit's height about mean sea level (heave, calm water). Heave is
+  /// narrow-band, so treating it as white noise of this σ is conservative.
+  double sea_depth_sigma_m = 0.05;
+  double gnss_sigma_m = 0.0;              ///< eq. 44-47; <= 0: each fix's own sigma_m (default 0.3)
+  /// Field settings: prior 1-σ of the initial attitude about the coarse alignment. Broad, so the
+  /// data (not the alignment, which used the same samples) decide it.
+  double initial_tilt_sigma_rad = 1e-2;
+  double initial_heading_sigma_rad = 0.1;
+  double sea_initial_velocity_sigma_mps = 0.2;  ///< a drifting vessel's speed
   double update_interval_s = 1.0;         ///< aiding rate while at rest
   double propagation_interval_s = 0.1;    ///< Φ accumulated over the samples of this interval
   size_t min_rest_samples = 100;          ///< shorter at_rest runs are not used for aiding
@@ -70,10 +85,14 @@ struct AinsResult {
   /// constants in exact arithmetic, so a check of the RTS recursion.
   double smoother_param_mismatch_sigma = 0.0;
   std::vector<double> update_norm_sigma;  ///< max_i |Δθ_i|/σ_i of each pass
+  /// The smoothed attitude at the INS start (field settings: from the data; factory: the
+  /// reference's, corrected by ς̂) and the coarse alignment it started from (field only).
+  Eigen::Matrix3d initial_C_bn = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d coarse_C_bn = Eigen::Matrix3d::Identity();
 };
 
 /// Full AINS calibration. Throws std::invalid_argument when the input cannot be calibrated (sizes
-/// differ, non-finite values, no rest periods, unsupported setting) and std::runtime_error if the
+/// differ, non-finite values, no rest periods, a sea run without GNSS fixes) and std::runtime_error if the
 /// filter diverges numerically.
 AinsResult calibrate_ains_detailed(const CalibrationInput& in, const AinsOptions& opt = {});
 /// The calibration part of calibrate_ains_detailed (method "ains").

@@ -16,6 +16,9 @@ struct PreparedInput {
   size_t k0 = 0;  ///< first sample of the first rest period: INS start
   /// Per sample: 0 = no KF epoch, 1 = epoch without aiding, 2 = epoch with aiding.
   std::vector<uint8_t> schedule;
+  /// Sea: per sample the index of the GNSS fix used there, -1 if none (empty otherwise).
+  std::vector<int32_t> gnss_at;
+  RestPeriod first_rest;  ///< the rest period the INS starts in (field: the alignment window)
   size_t num_epochs = 0;
   size_t num_rest_periods = 0;
 };
@@ -43,6 +46,10 @@ struct EpochRecord {
 
 struct PassConfig {
   ParamSet nominal;  ///< parameters the INS compensates with during this pass
+  /// Field settings: the nominal attitude at the INS start and the prior mean of its error ψ(0)
+  /// (the coarse alignment's attitude relative to it). Unused in the factory setting.
+  Eigen::Matrix3d C_bn0 = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d psi0_prior_mean = Eigen::Vector3d::Zero();
   ParamVector prior_mean = ParamVector::Zero();  ///< prior mean of θ (ParamSet order)
   ParamSet prior_sigma;                          ///< prior 1-σ of θ (all > 0)
 };

@@ -180,14 +180,17 @@ TEST(Ains, MalformedInputIsRejectedNamingTheField) {
   in.imu.clear();
   in.reference.clear();
   expect_message(in, "no IMU samples");
-  AinsOptions opt;
-  opt.setting = AinsSetting::kSea;
-  try {
-    calibrate_ains(good, opt);
-    ADD_FAILURE() << "sea setting is not implemented and must be rejected";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("factory"), std::string::npos) << e.what();
-  }
+  // A sea run needs GNSS fixes; a factory run must not carry them.
+  in = good;
+  in.setting = Setting::kSea;
+  expect_message(in, "GNSS");
+  in = good;
+  in.gnss.push_back({good.imu[10].t_s, good.site.lat_rad, good.site.lon_rad, 0.3});
+  expect_message(in, "factory run");
+  in = good;
+  in.setting = Setting::kSea;
+  in.gnss.push_back({good.imu.back().t_s + 5.0, good.site.lat_rad, good.site.lon_rad, 0.3});
+  expect_message(in, "gnss[0].t_s");
 }
 
 }  // namespace
