@@ -1,5 +1,6 @@
 #include "calib/calibration_input.hpp"
 
+#include "calib/rest_detector.hpp"
 #include "calib/table_model.hpp"
 
 namespace imucal::calib {
@@ -39,6 +40,24 @@ std::vector<RestPeriod> find_rest_periods(const CalibrationInput& in, size_t min
 ParamSet sigma_from_covariance(const ParamCovariance& cov) {
   ParamVector s = cov.diagonal().cwiseMax(0.0).cwiseSqrt();
   return ParamSet::from_vector(s);
+}
+
+CalibrationInput input_from_field_data(Setting setting, const ImuSeries& imu,
+                                       const std::vector<GnssFix>& gnss, const Site& site,
+                                       const NoiseModel& noise) {
+  CalibrationInput in;
+  in.setting = setting;
+  in.site = site;
+  in.imu = imu;
+  in.gnss = gnss;
+  in.noise = noise;
+  const std::vector<bool> rest = detect_rest(imu);
+  in.reference.resize(imu.size());
+  for (size_t k = 0; k < imu.size(); ++k) {
+    in.reference[k].t_s = imu[k].t_s;
+    in.reference[k].at_rest = rest[k];
+  }
+  return in;
 }
 
 CalibrationInput input_from_simulation(const SimResult& sim, const TableGeometry& geometry,

@@ -110,6 +110,12 @@ struct CalibrationResult {
 /// sigma from a covariance (sqrt of the diagonal, in ParamSet shape).
 ParamSet sigma_from_covariance(const ParamCovariance& cov);
 
+/// A land or sea run's input: no attitude reference, rest periods from the IMU data alone
+/// (calib/rest_detector.hpp: `at_rest` per sample, C_bn_ref identity), GNSS fixes at sea.
+CalibrationInput input_from_field_data(Setting setting, const ImuSeries& imu,
+                                       const std::vector<GnssFix>& gnss, const Site& site,
+                                       const NoiseModel& noise);
+
 /// Build a CalibrationInput from a simulation (the table reference from encoder angles).
 CalibrationInput input_from_simulation(const SimResult& sim, const TableGeometry& geometry,
                                        const Site& site, const NoiseModel& noise);

@@ -1,32 +1,68 @@
 #include "calib/calibration_pipeline.hpp"
 
+#include <stdexcept>
+#include <string>
+
 namespace imucal::calib {
 
-PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions& opt) {
+namespace {
+
+using Method = CalibrationResult (*)(const CalibrationInput&, const PipelineOptions&);
+
+CalibrationResult run_ains(const CalibrationInput& in, const PipelineOptions& o) {
+  return calibrate_ains(in, o.ains);
+}
+CalibrationResult run_nlsq(const CalibrationInput& in, const PipelineOptions& o) {
+  return calibrate_nlsq(in, o.nlsq);
+}
+CalibrationResult run_legacy(const CalibrationInput& in, const PipelineOptions& o) {
+  return calibrate_legacy(in, o.legacy);
+}
+
+/// One method and its evaluation (paper §VII) — or, without an attitude reference, the statement
+/// that there is none to evaluate against.
+MethodOutcome run_method(const CalibrationInput& in, const PipelineOptions& opt, const char* label,
+                         Method method) {
   auto phase = [&](const std::string& p) {
     if (opt.on_phase) opt.on_phase(p);
   };
+  phase(std::string(label) + " calibration");
+  MethodOutcome m;
+  m.result = method(in, opt);
+  if (in.has_reference_attitude()) {
+    phase(std::string(label) + " evaluation");
+    m.metrics = evaluate(in, m.result.params, opt.evaluation);
+  } else {
+    m.metrics.evaluated = false;
+    m.metrics.not_evaluated_reason = std::string("no attitude reference in a ") +
+                                     setting_name(in.setting) +
+                                     " run: the paper's metrics need the table (evaluate the "
+                                     "parameters on a factory run of the unit)";
+  }
+  return m;
+}
+
+}  // namespace
+
+PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions& opt) {
+  const bool field = in.setting != Setting::kFactory;
+  const MethodSelection sel = opt.methods;
+  if (field && sel == MethodSelection::kNlsq)
+    throw std::invalid_argument(
+        std::string("NLSQ needs the table's attitude reference (paper §V) and cannot calibrate a ") +
+        setting_name(in.setting) + " run; use --method ains or legacy (or all: AINS + legacy)");
+  const bool all = sel == MethodSelection::kAll;
   PipelineResult out;
-  if (opt.methods != MethodSelection::kNlsq) {
-    phase("AINS calibration");
-    MethodOutcome m;
-    m.result = calibrate_ains(in, opt.ains);
-    phase("AINS evaluation");
-    m.metrics = evaluate(in, m.result.params, opt.evaluation);
-    out.ains = std::move(m);
-  }
-  if (opt.methods != MethodSelection::kAins) {
-    phase("NLSQ calibration");
-    MethodOutcome m;
-    m.result = calibrate_nlsq(in, opt.nlsq);
-    phase("NLSQ evaluation");
-    m.metrics = evaluate(in, m.result.params, opt.evaluation);
-    out.nlsq = std::move(m);
-  }
-  if (out.ains && out.nlsq) {
-    phase("cross-check");
-    out.crosscheck = cross_check(out.ains->result, out.ains->metrics, out.nlsq->result,
-                                 out.nlsq->metrics, opt.crosscheck);
+  if (all || sel == MethodSelection::kAins) out.ains = run_method(in, opt, "AINS", run_ains);
+  if ((all && !field) || sel == MethodSelection::kNlsq)
+    out.nlsq = run_method(in, opt, "NLSQ", run_nlsq);
+  if ((all && field) || sel == MethodSelection::kLegacy)
+    out.legacy = run_method(in, opt, "legacy", run_legacy);
+  const std::optional<MethodOutcome>& second = out.nlsq ? out.nlsq : out.legacy;
+  if (out.ains && second) {
+    if (opt.on_phase) opt.on_phase("cross-check");
+    out.crosscheck = cross_check(out.ains->result, out.ains->metrics, second->result,
+                                 second->metrics, opt.crosscheck);
   }
   return out;
 }

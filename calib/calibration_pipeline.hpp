@@ -1,7 +1,11 @@
 #pragma once
-// The station's calibration job in one call: both independent methods, each evaluated (paper
-// §VII), then the cross-check (DESIGN §6). Used by `imucal calibrate` and, later, by stationd's
-// worker, so the two can never drift apart.
+// The station's calibration job in one call: two independent methods, each evaluated (paper
+// §VII), then the cross-check (DESIGN §6). Used by `imucal calibrate` and by stationd's worker, so
+// the two can never drift apart.
+//   factory: AINS + NLSQ (both need the table reference), evaluated against it;
+//   land/sea: AINS (aided as the setting allows) + the legacy method (no reference needed); there
+//             is no attitude reference to evaluate against, so the metrics are marked not
+//             evaluated and the cross-check compares the parameters each can observe.
 #include <functional>
 #include <optional>
 #include <string>
@@ -10,16 +14,19 @@
 #include "calib/calibration_input.hpp"
 #include "calib/crosscheck.hpp"
 #include "calib/evaluation.hpp"
+#include "calib/legacy.hpp"
 #include "calib/nlsq.hpp"
 
 namespace imucal::calib {
 
-enum class MethodSelection { kAins, kNlsq, kAll };
+/// kAll: the setting's two methods (factory: AINS + NLSQ; land/sea: AINS + legacy).
+enum class MethodSelection { kAins, kNlsq, kLegacy, kAll };
 
 struct PipelineOptions {
   MethodSelection methods = MethodSelection::kAll;
   AinsOptions ains;
   NlsqOptions nlsq;
+  LegacyOptions legacy;
   EvaluationOptions evaluation;
   CrossCheckOptions crosscheck;
   /// Called with a short phase description ("AINS", "NLSQ", "evaluating AINS", ...) before each
@@ -35,9 +42,12 @@ struct MethodOutcome {
 struct PipelineResult {
   std::optional<MethodOutcome> ains;
   std::optional<MethodOutcome> nlsq;
-  std::optional<CrossCheckResult> crosscheck;  ///< only when both methods ran
+  std::optional<MethodOutcome> legacy;
+  std::optional<CrossCheckResult> crosscheck;  ///< only when two methods ran
 };
 
+/// Throws std::invalid_argument for NLSQ on a land/sea input (it needs the table reference,
+/// paper §V) and whatever the methods throw for bad input.
 PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions& opt = {});
 
 }  // namespace imucal::calib

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "calib/body_frame.hpp"
 #include "calib/param_set.hpp"
 
 namespace imucal::calib {
@@ -36,8 +37,8 @@ void check_metric(const std::string& method, const char* term, const char* label
 
 }  // namespace
 
-CrossCheckResult cross_check(const CalibrationResult& a, const EvaluationMetrics& ma,
-                             const CalibrationResult& b, const EvaluationMetrics& mb,
+CrossCheckResult cross_check(const CalibrationResult& a_in, const EvaluationMetrics& ma,
+                             const CalibrationResult& b_in, const EvaluationMetrics& mb,
                              const CrossCheckOptions& opt) {
   auto positive = [](double v, const char* name) {
     if (!(std::isfinite(v) && v > 0.0))
@@ -48,6 +49,12 @@ CrossCheckResult cross_check(const CalibrationResult& a, const EvaluationMetrics
   positive(opt.max_orientation_rmse_mdeg, "max_orientation_rmse_mdeg");
   positive(opt.max_accel_rmse_ug, "max_accel_rmse_ug");
 
+  // Compare like with like: a housing-frame result is brought into the other's accel-symmetric
+  // frame (the housing orientation is what only one of them knows).
+  const bool same_frame = a_in.body_frame == b_in.body_frame;
+  const CalibrationResult a = same_frame ? a_in : in_accel_symmetric_frame(a_in);
+  const CalibrationResult b = same_frame ? b_in : in_accel_symmetric_frame(b_in);
+
   CrossCheckResult r;
   const ParamVector xa = a.params.to_vector(), xb = b.params.to_vector();
   const ParamVector sa = a.sigma.to_vector(), sb = b.sigma.to_vector();
@@ -55,6 +62,11 @@ CrossCheckResult cross_check(const CalibrationResult& a, const EvaluationMetrics
   std::snprintf(k_buf, sizeof k_buf, "%g", opt.k_sigma);
   const std::string k_label = std::string(k_buf) + "σ";
   for (int i = 0; i < ParamSet::kSize; ++i) {
+    const auto u = static_cast<size_t>(i);
+    if (!a.observable[u] || !b.observable[u]) {
+      r.skipped.push_back(param_info(i).name);
+      continue;
+    }
     const ParamInfo& info = param_info(i);
     const double diff = std::abs(xa(i) - xb(i));
     const double bound = opt.k_sigma * std::sqrt(sa(i) * sa(i) + sb(i) * sb(i));
@@ -66,14 +78,14 @@ CrossCheckResult cross_check(const CalibrationResult& a, const EvaluationMetrics
                                          human_number(bound * s) + " " + info.human_unit});
   }
   const std::string na = method_name(a, "A"), nb = method_name(b, "B");
-  check_metric(na, "orientation_rmse_mdeg", "orientation RMSE", ma.orientation_rmse_mdeg,
-               opt.max_orientation_rmse_mdeg, "mdeg", r.failures);
-  check_metric(nb, "orientation_rmse_mdeg", "orientation RMSE", mb.orientation_rmse_mdeg,
-               opt.max_orientation_rmse_mdeg, "mdeg", r.failures);
-  check_metric(na, "accel_rmse_ug", "acceleration RMSE", ma.accel_rmse_ug, opt.max_accel_rmse_ug,
-               "µg", r.failures);
-  check_metric(nb, "accel_rmse_ug", "acceleration RMSE", mb.accel_rmse_ug, opt.max_accel_rmse_ug,
-               "µg", r.failures);
+  // Metrics exist only where there is an attitude reference (not on land or at sea).
+  for (const auto& [name, m] : {std::pair{na, &ma}, std::pair{nb, &mb}}) {
+    if (!m->evaluated) continue;
+    check_metric(name, "orientation_rmse_mdeg", "orientation RMSE", m->orientation_rmse_mdeg,
+                 opt.max_orientation_rmse_mdeg, "mdeg", r.failures);
+    check_metric(name, "accel_rmse_ug", "acceleration RMSE", m->accel_rmse_ug,
+                 opt.max_accel_rmse_ug, "µg", r.failures);
+  }
   r.pass = r.failures.empty();
   return r;
 }

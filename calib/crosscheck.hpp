@@ -25,9 +25,14 @@ struct CrossCheckFailure {
 struct CrossCheckResult {
   bool pass = false;
   std::vector<CrossCheckFailure> failures;
+  /// Parameters not compared because one result cannot observe them (ς without a table; ...).
+  std::vector<std::string> skipped;
   std::string verdict() const { return pass ? "PASS" : "REVIEW"; }
 };
 
+/// Results in different body frames (calib/body_frame.hpp) are compared in the accel-symmetric
+/// one; parameters either result marks unobservable are skipped (listed in `skipped`); metrics
+/// with evaluated == false (no reference) are not checked.
 /// Throws std::invalid_argument if an option is not positive and finite.
 CrossCheckResult cross_check(const CalibrationResult& a, const EvaluationMetrics& ma,
                              const CalibrationResult& b, const EvaluationMetrics& mb,

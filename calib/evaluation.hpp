@@ -12,6 +12,7 @@
 //
 // Independent of calib/ains.* and calib/nlsq.* by design: it must be able to judge both.
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "calib/calibration_input.hpp"
@@ -43,6 +44,10 @@ struct RestPeriodMetric {
 };
 
 struct EvaluationMetrics {
+  /// false: the run has no attitude reference (land, sea), so neither metric exists; the other
+  /// fields are then meaningless and not_evaluated_reason says why.
+  bool evaluated = true;
+  std::string not_evaluated_reason;
   double orientation_rmse_mdeg = 0.0;        ///< eq. 51-52, rest periods only
   double accel_rmse_ug = 0.0;                ///< eq. 53-54, per-period means, equally weighted
   double heading_offset_gamma_np_rad = 0.0;  ///< fitted γ_np (rotation about n down)

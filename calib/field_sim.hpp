@@ -15,9 +15,12 @@
 //    w.r.t. inertial space at the sample ends, dv = C_bi(t0)ᵀ [Δv_i − ∫ G_i dt] (inertial velocity
 //    change minus gravitation, Gauss–Legendre), so translation, transport rate and Earth rate are
 //    all in; then the unit's error model, sensor effects and noise (TruthSensor).
-// Table effects (non-orthogonality, wobble, time offset, size effect) have no meaning here and
-// are refused.
+// Table effects (non-orthogonality, wobble, time offset, size effect) and latitude_error have no
+// meaning here and are refused; gravity_error is the true local gravity's departure from the
+// site's (normal or surveyed) value. The site's position is the tangent-frame origin; at sea the
+// GNSS fixes are the platform's true position plus white noise.
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "calib/calibration_input.hpp"
@@ -53,6 +56,8 @@ struct FieldSimResult {
   ParamSet truth;               ///< the unit's parameters (housing frame; ς = 0)
   /// True attitude at every sample (for tests of the alignment and of the filter's navigation).
   std::vector<Eigen::Matrix3d> C_bn;
+  /// The rest spans [t0, t1] of the hand's timeline (truth.json "rest_intervals").
+  std::vector<std::pair<double, double>> rest_spans;
 };
 
 /// Throws std::invalid_argument for a factory setting, a table effect, or options out of range.

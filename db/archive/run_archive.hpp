@@ -72,6 +72,8 @@ struct CaptureInfo {
 /// run.toml.
 struct RunInfo {
   std::string serial;  ///< required
+  /// [run] setting: factory (default), land or sea — which observations the run has.
+  calib::Setting setting = calib::Setting::kFactory;
   std::string station_name;
   calib::Site site;  ///< [station] lat_deg, lon_deg, height_m required; gravity_mps2 optional
   double imu_rate_hz = 0.0;     ///< [imu] rate_hz, required

@@ -1,6 +1,6 @@
 // imucal — offline calibration tool on run archives (DESIGN §5):
 //   imucal simulate  --sequence FILE --out DIR [--unit FILE] [--seed N]
-//   imucal calibrate DIR --method ains|nlsq|all [--json]
+//   imucal calibrate DIR --method ains|nlsq|legacy|all [--setting factory|land|sea] [--json]
 //   imucal evaluate  DIR --params FILE [--json]
 //   imucal crlb      --sequence FILE [--unit FILE] [--json]
 //   imucal bench     DIR [--repeat N] [--json]   wall time and peak memory of calibrate --method
@@ -34,6 +34,7 @@
 #include "tools/imucal/diagnose_cmd.hpp"
 #include "tools/imucal/effects_cmd.hpp"
 #include "tools/imucal/plot.hpp"
+#include "tools/imucal/paper_tables_cmd.hpp"
 #include "tools/imucal/validate_cmd.hpp"
 #include "tools/imucal/report.hpp"
 
@@ -130,15 +131,24 @@ int cmd_simulate(const std::string& seq, const std::string& out_dir, const std::
 calib::MethodSelection parse_method(const std::string& m) {
   if (m == "ains") return calib::MethodSelection::kAins;
   if (m == "nlsq") return calib::MethodSelection::kNlsq;
+  if (m == "legacy") return calib::MethodSelection::kLegacy;
   return calib::MethodSelection::kAll;
 }
 
+/// The archive's calibration input, optionally processed as another setting: a table run "as
+/// land" withholds its reference attitude (rest flags come from the IMU data, as in the field); a
+/// table run "as sea" needs GNSS fixes, which a table run does not have.
+calib::CalibrationInput calibration_input(archive::RunArchive ar, const std::string& setting) {
+  if (!setting.empty()) ar.info.setting = *calib::parse_setting(setting);
+  return archive::to_calibration_input(ar);
+}
+
 int cmd_calibrate(const std::string& dir, const std::string& method, bool json, double k_sigma,
-                  const std::string& plot_path) {
+                  const std::string& plot_path, const std::string& setting) {
   progress("reading " + dir);
   const archive::RunArchive ar = archive::read_archive(dir);
   progress("checking the archive");
-  const calib::CalibrationInput in = archive::to_calibration_input(ar);
+  const calib::CalibrationInput in = calibration_input(ar, setting);
   calib::PipelineOptions opt;
   opt.methods = parse_method(method);
   opt.crosscheck.k_sigma = k_sigma;
@@ -154,7 +164,8 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
     std::cout << tools::pipeline_to_json(r).dump(2) << '\n';
   } else {
     std::cout << "run " << dir << " (serial " << ar.info.serial << ", sequence "
-              << ar.info.sequence_name << ", " << in.imu.size() << " samples)\n";
+              << ar.info.sequence_name << ", setting " << calib::setting_name(in.setting) << ", "
+              << in.imu.size() << " samples)\n";
     tools::print_parameter_table(std::cout, r, ar.truth ? &ar.truth->params : nullptr);
     tools::print_metrics_and_verdict(std::cout, r);
   }
@@ -257,12 +268,19 @@ int main(int argc, char** argv) {
                   "inject a catalogue effect, NAME=V[,V...] in SI (repeatable; see imucal effects)")
       ->take_all();
 
-  auto* cal =
-      app.add_subcommand("calibrate", "calibrate a run archive (AINS, NLSQ or both + cross-check)");
+  auto* cal = app.add_subcommand(
+      "calibrate",
+      "calibrate a run archive: factory AINS + NLSQ, land/sea AINS + legacy, and the cross-check");
   cal->add_option("dir", dir, "run archive directory")->required();
-  cal->add_option("--method", method, "ains|nlsq|all")
+  cal->add_option("--method", method,
+                  "ains|nlsq|legacy|all (all: the setting's two methods and their cross-check)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"ains", "nlsq", "all"}));
+      ->check(CLI::IsMember({"ains", "nlsq", "legacy", "all"}));
+  std::string setting_override;
+  cal->add_option("--setting", setting_override,
+                  "factory|land|sea: process as this setting instead of run.toml's (e.g. a table "
+                  "run as the paper did: its reference withheld)")
+      ->check(CLI::IsMember({"factory", "land", "sea"}));
   cal->add_option("--k-sigma", k_sigma, "cross-check bound in combined σ")->capture_default_str();
   cal->add_flag("--json", json, "print one JSON object");
   std::string plot_path;
@@ -298,6 +316,8 @@ int main(int argc, char** argv) {
   ef->add_flag("--json", effects_json, "print one JSON array");
   tools::ValidateArgs val;
   auto* vd = tools::add_validate_command(app, val);
+  tools::PaperTablesArgs paper;
+  auto* pt = tools::add_paper_tables_command(app, paper);
 
   try {
     app.parse(argc, argv);
@@ -306,13 +326,14 @@ int main(int argc, char** argv) {
   }
   try {
     if (*sim) return cmd_simulate(seq, out_dir, unit, seed, rate_hz, overwrite, effect_specs);
-    if (*cal) return cmd_calibrate(dir, method, json, k_sigma, plot_path);
+    if (*cal) return cmd_calibrate(dir, method, json, k_sigma, plot_path, setting_override);
     if (*ev) return cmd_evaluate(dir, params, json);
     if (*cr && effects) return tools::cmd_crlb_effects(seq, unit, rate_hz, json);
     if (*cr) return cmd_crlb(seq, unit, rate_hz, json);
     if (*be) return cmd_bench(dir, repeat, json);
     if (*dg) return tools::cmd_diagnose(diag);
     if (*vd) return tools::cmd_validate(val);
+    if (*pt) return tools::cmd_paper_tables(paper);
     if (*ef) return tools::cmd_effects(effects_json);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "imucal: error: %s\n", e.what());

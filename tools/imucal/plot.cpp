@@ -65,7 +65,8 @@ struct Panel {
   }
 };
 
-void legend(std::ostringstream& os, double y, bool ains, bool nlsq) {
+void legend(std::ostringstream& os, double y, bool ains, bool nlsq,
+            const std::string& second_name = "NLSQ") {
   double x = kWidth - 220;
   if (ains) {
     os << "<rect x='" << x << "' y='" << y - 10 << "' width='12' height='12' fill='#1f77b4'/>"
@@ -74,7 +75,7 @@ void legend(std::ostringstream& os, double y, bool ains, bool nlsq) {
   }
   if (nlsq)
     os << "<rect x='" << x << "' y='" << y - 10 << "' width='12' height='12' fill='#ff7f0e'/>"
-       << "<text x='" << x + 16 << "' y='" << y << "' font-size='12'>NLSQ</text>\n";
+       << "<text x='" << x + 16 << "' y='" << y << "' font-size='12'>" << second_name << "</text>\n";
 }
 
 /// Compact axis label: "accel_M[0][1]" -> "Ma xy", "gyro_bias_radps[2]" -> "bg z", ς -> "ς x".
@@ -93,7 +94,10 @@ std::string short_label(int i) {
 std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSet* truth,
                             double k_sigma, const std::string& title) {
   std::ostringstream os;
-  const bool both = r.ains && r.nlsq;
+  // The second method: NLSQ in the factory, the legacy method on land and at sea.
+  const calib::MethodOutcome* second = r.nlsq ? &*r.nlsq : r.legacy ? &*r.legacy : nullptr;
+  const std::string second_name = r.nlsq ? "NLSQ" : "legacy";
+  const bool both = r.ains && second;
   const bool panel1 = both || truth;
   const int panels = (panel1 ? 1 : 0) + 2;
   const double height = kTop + panels * (kPanelH + 90);
@@ -110,7 +114,7 @@ std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSe
     const int n = calib::ParamSet::kSize;
     Panel p{os, y0, -std::max(k_sigma * 1.5, 1.0), std::max(k_sigma * 1.5, 1.0),
             static_cast<size_t>(n)};
-    p.frame(both ? "AINS − NLSQ per parameter, in combined σ (bound ±" + num(k_sigma, "%.0f") + "σ)"
+    p.frame(both ? "AINS − " + second_name + " per parameter, in combined σ (bound ±" + num(k_sigma, "%.0f") + "σ)"
                  : "estimate − truth per parameter, in σ",
             both ? "Δ / sqrt(σA² + σB²)" : "error / σ");
     p.hline(k_sigma, "#d62728", "6,3");
@@ -122,17 +126,21 @@ std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSe
         const double s = a.sigma.to_vector()(i);
         return s > 0 ? (a.params.to_vector()(i) - truth->to_vector()(i)) / s : 0.0;
       };
-      if (both) {
+      const bool observable = (!r.ains || r.ains->result.observable[static_cast<size_t>(i)]) &&
+                              (!second || second->result.observable[static_cast<size_t>(i)]);
+      if (!observable) {
+        // Not observable in this setting (e.g. ς without a table): no bar.
+      } else if (both) {
         const double sa = r.ains->result.sigma.to_vector()(i),
-                     sb = r.nlsq->result.sigma.to_vector()(i);
+                     sb = second->result.sigma.to_vector()(i);
         const double d =
-            r.ains->result.params.to_vector()(i) - r.nlsq->result.params.to_vector()(i);
+            r.ains->result.params.to_vector()(i) - second->result.params.to_vector()(i);
         const double z = d / std::sqrt(sa * sa + sb * sb);
         p.bar(static_cast<size_t>(i), z, 0.0, p.slot() * 0.6,
               std::abs(z) > k_sigma ? "#d62728" : "#2ca02c",
               info.name + ": " + num(z, "%.2f") + " σ");
       } else {
-        const auto& a = r.ains ? r.ains->result : r.nlsq->result;
+        const auto& a = r.ains ? r.ains->result : second->result;
         p.bar(static_cast<size_t>(i), z_of(a), 0.0, p.slot() * 0.6, r.ains ? kBlue : kOrange,
               info.name + ": " + num(z_of(a), "%.2f") + " σ");
       }
@@ -144,7 +152,7 @@ std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSe
   }
 
   const calib::EvaluationMetrics* ma = r.ains ? &r.ains->metrics : nullptr;
-  const calib::EvaluationMetrics* mb = r.nlsq ? &r.nlsq->metrics : nullptr;
+  const calib::EvaluationMetrics* mb = second ? &second->metrics : nullptr;
   const size_t periods = std::max(ma ? ma->periods.size() : 0, mb ? mb->periods.size() : 0);
   if (periods == 0) {
     os << "</svg>\n";
@@ -164,7 +172,7 @@ std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSe
                                      }));
     Panel p{os, y0, 0.0, top, periods};
     p.frame("acceleration error of each rest period (eq. 53–54)", "|mean δa_n| (µg)");
-    legend(os, y0 - 8, ma != nullptr, mb != nullptr);
+    legend(os, y0 - 8, ma != nullptr, mb != nullptr, second_name);
     for (size_t i = 0; i < periods; ++i) {
       if (ma && i < ma->periods.size())
         p.bar(i, ma->periods[i].accel_err_n_ug.norm(), mb ? -p.slot() * w / 2 : 0, p.slot() * w,
@@ -174,7 +182,7 @@ std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSe
       if (mb && i < mb->periods.size())
         p.bar(i, mb->periods[i].accel_err_n_ug.norm(), ma ? p.slot() * w / 2 : 0, p.slot() * w,
               kOrange,
-              "NLSQ rest " + std::to_string(i + 1) + ": " +
+              second_name + " rest " + std::to_string(i + 1) + ": " +
                   num(mb->periods[i].accel_err_n_ug.norm(), "%.2f") + " µg");
       os << "<text x='" << p.x(i) << "' y='" << y0 + kPanelH + 14
          << "' text-anchor='middle' font-size='10'>" << i + 1 << "</text>\n";
@@ -198,7 +206,7 @@ std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSe
       if (mb && i < mb->periods.size())
         p.bar(i, mb->periods[i].orientation_rms_mdeg, ma ? p.slot() * w / 2 : 0, p.slot() * w,
               kOrange,
-              "NLSQ rest " + std::to_string(i + 1) + ": " +
+              second_name + " rest " + std::to_string(i + 1) + ": " +
                   num(mb->periods[i].orientation_rms_mdeg, "%.3f") + " mdeg");
       os << "<text x='" << p.x(i) << "' y='" << y0 + kPanelH + 14
          << "' text-anchor='middle' font-size='10'>" << i + 1 << "</text>\n";

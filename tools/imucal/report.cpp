@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <string>
 
+#include "calib/body_frame.hpp"
 #include "db/archive/param_json.hpp"
 
 namespace imucal::tools {
@@ -22,8 +23,31 @@ std::string fmt(const char* f, const char* v) {
   return buf;
 }
 
+const char* frame_name(calib::BodyFrame f) {
+  return f == calib::BodyFrame::kHousing ? "housing" : "accel_symmetric";
+}
+
+std::vector<std::string> unobservable_names(const calib::CalibrationResult& r) {
+  std::vector<std::string> out;
+  for (int i = 0; i < calib::ParamSet::kSize; ++i)
+    if (!r.observable[static_cast<size_t>(i)]) out.push_back(calib::param_info(i).name);
+  return out;
+}
+
+/// The truth in the frame a result is expressed in (what its error is measured against).
+calib::ParamVector truth_in_frame(const calib::ParamSet& truth, calib::BodyFrame f) {
+  return f == calib::BodyFrame::kHousing
+             ? truth.to_vector()
+             : calib::to_accel_symmetric_frame(truth).params.to_vector();
+}
+
 nlohmann::json outcome_json(const calib::MethodOutcome& m) {
-  return {{"params", archive::param_set_to_json(m.result.params)},
+  return {{"method", m.result.method},
+          {"setting", calib::setting_name(m.result.setting)},
+          {"body_frame", frame_name(m.result.body_frame)},
+          {"unobservable", unobservable_names(m.result)},
+          {"unobservable_notes", m.result.unobservable_notes},
+          {"params", archive::param_set_to_json(m.result.params)},
           {"sigma", archive::param_set_to_json(m.result.sigma)},
           {"metrics", metrics_to_json(m.metrics)},
           {"runtime_s", m.result.runtime_s},
@@ -35,7 +59,9 @@ nlohmann::json outcome_json(const calib::MethodOutcome& m) {
 }  // namespace
 
 nlohmann::json metrics_to_json(const calib::EvaluationMetrics& m) {
-  return {{"orientation_rmse_mdeg", m.orientation_rmse_mdeg},
+  if (!m.evaluated) return {{"evaluated", false}, {"reason", m.not_evaluated_reason}};
+  return {{"evaluated", true},
+          {"orientation_rmse_mdeg", m.orientation_rmse_mdeg},
           {"accel_rmse_ug", m.accel_rmse_ug},
           {"heading_offset_gamma_np_rad", m.heading_offset_gamma_np_rad},
           {"body_misalignment_theta_bp_rad",
@@ -48,11 +74,14 @@ nlohmann::json pipeline_to_json(const calib::PipelineResult& r) {
   nlohmann::json j = nlohmann::json::object();
   if (r.ains) j["ains"] = outcome_json(*r.ains);
   if (r.nlsq) j["nlsq"] = outcome_json(*r.nlsq);
+  if (r.legacy) j["legacy"] = outcome_json(*r.legacy);
   if (r.crosscheck) {
     nlohmann::json failures = nlohmann::json::array();
     for (const auto& f : r.crosscheck->failures)
       failures.push_back({{"term", f.term}, {"detail", f.detail}});
-    j["crosscheck"] = {{"verdict", r.crosscheck->verdict()}, {"failures", failures}};
+    j["crosscheck"] = {{"verdict", r.crosscheck->verdict()},
+                       {"failures", failures},
+                       {"not_compared", r.crosscheck->skipped}};
   }
   return j;
 }
@@ -62,6 +91,11 @@ void print_parameter_table(std::ostream& os, const calib::PipelineResult& r,
   std::vector<std::pair<std::string, const calib::CalibrationResult*>> cols;
   if (r.ains) cols.emplace_back("AINS", &r.ains->result);
   if (r.nlsq) cols.emplace_back("NLSQ", &r.nlsq->result);
+  if (r.legacy) cols.emplace_back("legacy", &r.legacy->result);
+  std::vector<calib::ParamVector> col_truth;
+  for (const auto& c : cols)
+    col_truth.push_back(truth ? truth_in_frame(*truth, c.second->body_frame)
+                              : calib::ParamVector::Zero());
   char line[512];
   std::snprintf(line, sizeof line, "%-26s %-7s", "parameter", "unit");
   os << line;
@@ -77,16 +111,31 @@ void print_parameter_table(std::ostream& os, const calib::PipelineResult& r,
     std::snprintf(line, sizeof line, "%-26s %-7s", info.name.c_str(), info.human_unit.c_str());
     os << line;
     if (truth) os << fmt("%12.3f", tv(i) * info.si_to_human);
-    for (const auto& c : cols) {
-      const double est = c.second->params.to_vector()(i), sd = c.second->sigma.to_vector()(i);
+    for (size_t c = 0; c < cols.size(); ++c) {
+      const calib::CalibrationResult& res = *cols[c].second;
+      if (!res.observable[static_cast<size_t>(i)]) {
+        os << fmt("%14s", "n/a") << fmt("%11s", "") << (truth ? fmt("%8s", "") : "");
+        continue;
+      }
+      const double est = res.params.to_vector()(i), sd = res.sigma.to_vector()(i);
       os << fmt("%14.3f", est * info.si_to_human) << fmt("%11.3f", sd * info.si_to_human);
-      if (truth) os << fmt("%8.2f", sd > 0 ? (est - tv(i)) / sd : NAN);
+      if (truth) os << fmt("%8.2f", sd > 0 ? (est - col_truth[c](i)) / sd : NAN);
     }
     os << '\n';
   }
+  for (const auto& c : cols)
+    if (c.second->body_frame == calib::BodyFrame::kAccelSymmetric)
+      os << c.first
+         << ": misalignments in the accelerometer triad's own orthogonal frame (accel_M "
+            "symmetric)"
+         << (truth ? "; err/σ against the truth brought into that frame" : "") << '\n';
 }
 
 void print_evaluation(std::ostream& os, const calib::EvaluationMetrics& m) {
+  if (!m.evaluated) {
+    os << "not evaluated: " << m.not_evaluated_reason << '\n';
+    return;
+  }
   os << fmt("orientation RMSE %.3f mdeg", m.orientation_rmse_mdeg)
      << fmt(", acceleration RMSE %.2f µg", m.accel_rmse_ug)
      << fmt(" over %.0f rest periods", static_cast<double>(m.periods.size()))
@@ -94,16 +143,21 @@ void print_evaluation(std::ostream& os, const calib::EvaluationMetrics& m) {
 }
 
 void print_metrics_and_verdict(std::ostream& os, const calib::PipelineResult& r) {
-  for (const auto* m : {r.ains ? &*r.ains : nullptr, r.nlsq ? &*r.nlsq : nullptr}) {
+  for (const auto* m : {r.ains ? &*r.ains : nullptr, r.nlsq ? &*r.nlsq : nullptr,
+                        r.legacy ? &*r.legacy : nullptr}) {
     if (!m) continue;
     os << m->result.method << ": " << (m->result.converged ? "converged" : "NOT converged")
        << fmt(" in %.0f iterations", m->result.iterations)
        << fmt(", %.2f s; ", m->result.runtime_s);
     print_evaluation(os, m->metrics);
     for (const auto& w : m->result.warnings) os << "  warning: " << w << '\n';
+    for (const auto& n : m->result.unobservable_notes) os << "  not observable: " << n << '\n';
   }
   if (r.crosscheck) {
-    os << "cross-check: " << r.crosscheck->verdict() << '\n';
+    os << "cross-check: " << r.crosscheck->verdict();
+    if (!r.crosscheck->skipped.empty())
+      os << " (" << r.crosscheck->skipped.size() << " parameters not compared: not observable)";
+    os << '\n';
     for (const auto& f : r.crosscheck->failures) os << "  " << f.detail << '\n';
   }
 }

@@ -1,8 +1,6 @@
 #include "tools/imucal/validate_cmd.hpp"
 
-#include <unistd.h>
 
-#include <chrono>
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -12,6 +10,7 @@
 #include "calib/diagnosis_validation.hpp"
 #include "calib/site_presets.hpp"
 #include "sequences/library.hpp"
+#include "tools/imucal/progress_line.hpp"
 
 namespace imucal::tools {
 
@@ -109,14 +108,7 @@ int cmd_validate(const ValidateArgs& a) {
   opt.seed = a.seed;
   opt.threads = a.threads;
   opt.effects = parse_effects(a.effects);
-  const bool tty = isatty(2);
-  const auto t0 = std::chrono::steady_clock::now();
-  opt.on_progress = [&](int done, int total) {
-    const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::fprintf(stderr, "%svalidate-diagnosis: %d/%d runs, %.0f s, about %.0f s left%s",
-                 tty ? "\r" : "", done, total, el, el / done * (total - done), tty ? "   " : "\n");
-    if (tty && done == total) std::fprintf(stderr, "\n");
-  };
+  opt.on_progress = ProgressLine("validate-diagnosis", "runs");
   const calib::ValidationReport r =
       calib::validate_diagnosis(profile, calib::TableGeometry{}, calib::demo_factory_site(),
                                 calib::default_unit(), 100.0, opt);
