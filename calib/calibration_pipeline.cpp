@@ -56,7 +56,9 @@ PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions
   if (all || sel == MethodSelection::kAins) out.ains = run_method(in, opt, "AINS", run_ains);
   if ((all && !field) || sel == MethodSelection::kNlsq)
     out.nlsq = run_method(in, opt, "NLSQ", run_nlsq);
-  if ((all && field) || sel == MethodSelection::kLegacy)
+  // The legacy method needs a still platform: on land it is AINS's independent check; at sea
+  // (a rocking, drifting deck) there is none, and AINS stands alone.
+  if ((all && in.setting == Setting::kLand) || sel == MethodSelection::kLegacy)
     out.legacy = run_method(in, opt, "legacy", run_legacy);
   const std::optional<MethodOutcome>& second = out.nlsq ? out.nlsq : out.legacy;
   if (out.ains && second) {

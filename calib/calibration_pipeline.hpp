@@ -3,9 +3,10 @@
 // §VII), then the cross-check (DESIGN §6). Used by `imucal calibrate` and by stationd's worker, so
 // the two can never drift apart.
 //   factory: AINS + NLSQ (both need the table reference), evaluated against it;
-//   land/sea: AINS (aided as the setting allows) + the legacy method (no reference needed); there
-//             is no attitude reference to evaluate against, so the metrics are marked not
-//             evaluated and the cross-check compares the parameters each can observe.
+//   land:     AINS (zero velocity, depth) + the legacy method (no reference needed);
+//   sea:      AINS (GNSS, depth) alone — the legacy method needs a still platform;
+//   without an attitude reference the metrics are marked not evaluated, and the cross-check
+//   compares the parameters both can observe.
 #include <functional>
 #include <optional>
 #include <string>
@@ -19,7 +20,7 @@
 
 namespace imucal::calib {
 
-/// kAll: the setting's two methods (factory: AINS + NLSQ; land/sea: AINS + legacy).
+/// kAll: the setting's methods (factory: AINS + NLSQ; land: AINS + legacy; sea: AINS).
 enum class MethodSelection { kAins, kNlsq, kLegacy, kAll };
 
 struct PipelineOptions {

@@ -309,6 +309,9 @@ MatrixXd scaled_covariance(const LsqOutcome& o, double floor_var) {
 
 CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptions& opt) {
   const auto t_start = std::chrono::steady_clock::now();
+  if (in.setting == Setting::kSea)
+    fail("the multi-position method needs a still platform; a sea run's deck rocks and drifts "
+         "(calibrate it with AINS, which uses the GNSS fixes)");
   if (opt.min_rest_samples < 4) fail("option min_rest_samples must be >= 4");
   if (!(std::isfinite(opt.trim_s) && opt.trim_s >= 0.0)) fail("option trim_s must be >= 0");
   const std::vector<Rest> rests = usable_rests(in, opt);

@@ -31,6 +31,7 @@ const std::vector<std::string> kImuColumns = {
     "t_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_mps", "dv_y_mps", "dv_z_mps"};
 const std::vector<std::string> kImuOptional = {"temp_c"};
 const std::vector<std::string> kTableColumns = {"t_s", "outer_deg", "inner_deg", "at_rest"};
+const std::vector<std::string> kGnssColumns = {"t_s", "lat_deg", "lon_deg", "sigma_m"};
 const std::vector<std::string> kAttitudeColumns = {"t_s", "roll_deg", "pitch_deg", "yaw_deg",
                                                    "at_rest"};
 
@@ -148,7 +149,7 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
   const toml::table tbl = parse_toml_text(text, origin);
   const TomlSection root(tbl, origin, "",
                          {"serial", "software_version", "start_time", "end_time", "reference",
-                          "station", "imu", "table", "sequence", "noise", "capture"});
+                          "setting", "station", "imu", "table", "sequence", "noise", "capture"});
   ParsedRunInfo out;
   RunInfo& ri = out.info;
 
@@ -169,13 +170,22 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
       root.fail(k, "'" + v + "' is not an ISO 8601 date-time (e.g. 2024-05-01T10:00:00Z)");
     (std::string(k) == "start_time" ? ri.start_time : ri.end_time) = v;
   }
+  if (const auto setting = root.string("setting")) {
+    const auto s = calib::parse_setting(*setting);
+    if (!s)
+      root.fail("setting", "must be \"factory\", \"land\" or \"sea\", got \"" + *setting + "\"");
+    ri.setting = *s;
+  }
   if (const auto ref = root.string("reference")) {
     if (*ref == "table") {
       ri.reference = ReferenceKind::kTable;
     } else if (*ref == "attitude") {
       ri.reference = ReferenceKind::kAttitude;
+    } else if (*ref == "none") {
+      ri.reference = ReferenceKind::kNone;
     } else {
-      root.fail("reference", "must be \"table\" or \"attitude\", got \"" + *ref + "\"");
+      root.fail("reference",
+                "must be \"table\", \"attitude\" or \"none\", got \"" + *ref + "\"");
     }
     out.reference_given = true;
     out.reference_line = root.line_of("reference");
@@ -269,6 +279,15 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
   return out;
 }
 
+const char* reference_name(ReferenceKind k) {
+  switch (k) {
+    case ReferenceKind::kTable: return "table";
+    case ReferenceKind::kAttitude: return "attitude";
+    case ReferenceKind::kNone: return "none";
+  }
+  return "none";
+}
+
 // at_rest cell: exactly 0 or 1.
 bool rest_flag(const CsvTable& t, size_t row, size_t col) {
   const double v = t.at(row, col);
@@ -316,7 +335,8 @@ std::string run_info_text(const RunInfo& ri) {
   if (!ri.software_version.empty()) w.key("software_version", ri.software_version);
   if (!ri.start_time.empty()) w.key("start_time", ri.start_time);
   if (!ri.end_time.empty()) w.key("end_time", ri.end_time);
-  w.key("reference", ri.reference == ReferenceKind::kTable ? "table" : "attitude");
+  if (ri.setting != calib::Setting::kFactory) w.key("setting", calib::setting_name(ri.setting));
+  w.key("reference", reference_name(ri.reference));
   w.section("station");
   if (!ri.station_name.empty()) w.key("name", ri.station_name);
   w.key("lat_deg", rad_to_deg_exact(ri.site.lat_rad));
@@ -391,6 +411,50 @@ bool operator==(const CaptureInfo& a, const CaptureInfo& b) {
   return true;
 }
 
+namespace {
+
+/// gnss.csv: required at sea, optional elsewhere; every fix inside the IMU's time span.
+void read_gnss(const std::string& dir, RunArchive& a) {
+  std::error_code ec;
+  const std::string gnss_csv = join_path(dir, "gnss.csv");
+  if (!fs::exists(gnss_csv, ec)) {
+    if (a.info.setting == calib::Setting::kSea)
+      throw ArchiveError(gnss_csv,
+                         "missing: a sea run needs GNSS position fixes (there is no zero "
+                         "velocity at sea; paper §IV-D)");
+    return;
+  }
+  const CsvTable t = read_csv(gnss_csv, CsvSpec{kGnssColumns, {}, true});
+  check_has_rows(t);
+  const double t_first = a.imu.front().t_s - a.imu.front().dt_s, t_last = a.imu.back().t_s;
+  a.gnss.resize(t.num_rows);
+  for (size_t k = 0; k < t.num_rows; ++k) {
+    const size_t line = CsvTable::line_of_row(k);
+    const double ts = t.at(k, 0), lat = t.at(k, 1), lon = t.at(k, 2), sig = t.at(k, 3);
+    if (k > 0 && !(ts > t.at(k - 1, 0)))
+      throw ArchiveError::column_error(gnss_csv, line, "t_s",
+                                       "must increase (previous row " + format_double(t.at(k - 1, 0)) +
+                                           ", this row " + format_double(ts) + ")");
+    if (ts < t_first || ts > t_last)
+      throw ArchiveError::column_error(
+          gnss_csv, line, "t_s",
+          format_double(ts) + " is outside the IMU's time span [" + format_double(t_first) + ", " +
+              format_double(t_last) + "] s (both files share one clock)");
+    if (std::fabs(lat) > 90.0)
+      throw ArchiveError::column_error(gnss_csv, line, "lat_deg",
+                                       "must be within [-90, 90], got " + format_double(lat));
+    if (lon < -180.0 || lon > 360.0)
+      throw ArchiveError::column_error(gnss_csv, line, "lon_deg",
+                                       "must be within [-180, 360], got " + format_double(lon));
+    if (!(sig > 0.0 && sig < 1000.0))
+      throw ArchiveError::column_error(gnss_csv, line, "sigma_m",
+                                       "must be within (0, 1000) m, got " + format_double(sig));
+    a.gnss[k] = {ts, deg_to_rad(lat), deg_to_rad(lon), sig};
+  }
+}
+
+}  // namespace
+
 RunArchive read_archive(const std::string& dir_in) {
   const std::string dir = strip_trailing_slashes(dir_in);
   std::error_code ec;
@@ -414,17 +478,22 @@ RunArchive read_archive(const std::string& dir_in) {
     throw ArchiveError(dir,
                        "both table.csv and attitude.csv are present; an archive carries exactly "
                        "one reference (remove one)");
-  if (!has_table && !has_attitude)
+  const bool field = a.info.setting != calib::Setting::kFactory;
+  if (!has_table && !has_attitude && !field)
     throw ArchiveError(dir,
-                       "neither table.csv nor attitude.csv is present; an archive needs exactly "
-                       "one reference");
-  const ReferenceKind present = has_table ? ReferenceKind::kTable : ReferenceKind::kAttitude;
+                       "neither table.csv nor attitude.csv is present; a factory run needs "
+                       "exactly one reference (a land or sea run says so in run.toml: setting)");
+  const ReferenceKind present = has_table      ? ReferenceKind::kTable
+                                : has_attitude ? ReferenceKind::kAttitude
+                                               : ReferenceKind::kNone;
   if (parsed.reference_given && parsed.info.reference != present)
-    throw ArchiveError(
-        run_toml, parsed.reference_line,
-        std::string("says \"") + (present == ReferenceKind::kTable ? "attitude" : "table") +
-            "\" but the archive contains " + (has_table ? "table.csv" : "attitude.csv"),
-        "reference");
+    throw ArchiveError(run_toml, parsed.reference_line,
+                       std::string("says \"") + reference_name(parsed.info.reference) +
+                           "\" but the archive contains " +
+                           (has_table      ? "table.csv"
+                            : has_attitude ? "attitude.csv"
+                                           : "no reference file"),
+                       "reference");
   a.info.reference = present;
 
   // imu.csv
@@ -455,7 +524,7 @@ RunArchive read_archive(const std::string& dir_in) {
     a.table.resize(t.num_rows);
     for (size_t k = 0; k < t.num_rows; ++k)
       a.table[k] = {t.at(k, 0), deg_to_rad(t.at(k, 1)), deg_to_rad(t.at(k, 2)), rest_flag(t, k, 3)};
-  } else {
+  } else if (has_attitude) {
     const CsvTable t = read_csv(attitude_csv, CsvSpec{kAttitudeColumns, {}, true});
     check_has_rows(t);
     a.attitude.resize(t.num_rows);
@@ -468,6 +537,8 @@ RunArchive read_archive(const std::string& dir_in) {
                        deg_to_rad(t.at(k, 3)), rest_flag(t, k, 4)};
     }
   }
+
+  read_gnss(dir, a);
 
   const std::string truth_json = join_path(dir, "truth.json");
   if (fs::exists(truth_json, ec)) a.truth = read_truth_json(truth_json);
@@ -518,13 +589,19 @@ void write_contents(const std::string& tmp, const RunArchive& a, const std::stri
     w.close();
   }
 
+  if (!a.gnss.empty()) {
+    CsvWriter w(join_path(tmp, "gnss.csv"), kGnssColumns, true);
+    for (const auto& g : a.gnss)
+      w.write_row({g.t_s, rad_to_deg_exact(g.lat_rad), rad_to_deg_exact(g.lon_rad), g.sigma_m});
+    w.close();
+  }
   if (a.info.reference == ReferenceKind::kTable) {
     CsvWriter w(join_path(tmp, "table.csv"), kTableColumns, true);
     for (const auto& s : a.table)
       w.write_row({s.t_s, rad_to_deg_exact(s.outer_rad), rad_to_deg_exact(s.inner_rad),
                    s.at_rest ? 1.0 : 0.0});
     w.close();
-  } else {
+  } else if (a.info.reference == ReferenceKind::kAttitude) {
     CsvWriter w(join_path(tmp, "attitude.csv"), kAttitudeColumns, true);
     for (const auto& s : a.attitude)
       w.write_row({s.t_s, rad_to_deg_exact(s.roll_rad), rad_to_deg_exact(s.pitch_rad),
@@ -542,13 +619,20 @@ void write_archive(const std::string& dir_in, const RunArchive& a, bool overwrit
   if (dir.empty()) throw ArchiveError("<archive>", "empty directory name");
   // Structural checks first: nothing touches the disk for an archive the reader would reject.
   if (a.imu.empty()) throw ArchiveError(dir, "cannot write an archive without IMU samples");
-  const bool table = a.info.reference == ReferenceKind::kTable;
-  if (table ? (a.table.empty() || !a.attitude.empty()) : (a.attitude.empty() || !a.table.empty()))
-    throw ArchiveError(dir, std::string("info.reference is \"") + (table ? "table" : "attitude") +
-                                "\": exactly that reference must be non-empty and the other empty "
-                                "(table: " +
+  const ReferenceKind ref = a.info.reference;
+  const bool ref_ok = ref == ReferenceKind::kTable      ? !a.table.empty() && a.attitude.empty()
+                      : ref == ReferenceKind::kAttitude ? !a.attitude.empty() && a.table.empty()
+                                                        : a.table.empty() && a.attitude.empty();
+  if (!ref_ok)
+    throw ArchiveError(dir, std::string("info.reference is \"") + reference_name(ref) +
+                                "\": exactly that reference must be non-empty and the others "
+                                "empty (table: " +
                                 std::to_string(a.table.size()) +
                                 " rows, attitude: " + std::to_string(a.attitude.size()) + " rows)");
+  if (ref == ReferenceKind::kNone && a.info.setting == calib::Setting::kFactory)
+    throw ArchiveError(dir, "a factory run needs a reference (table or attitude log)");
+  if (a.info.setting == calib::Setting::kSea && a.gnss.empty())
+    throw ArchiveError(dir, "a sea run needs GNSS fixes (gnss.csv)");
 
   std::error_code ec;
   bool target_exists = false;
@@ -611,8 +695,109 @@ void write_archive(const std::string& dir_in, const RunArchive& a, bool overwrit
   fsync_directory(parent_dir);
 }
 
+namespace {
+
+/// The sample interval against the declared rate: catches t_s in ms or a wrong [imu] rate_hz.
+void check_sample_interval(const RunArchive& a, const std::string& imu_file) {
+  const size_t n = a.imu.size();
+  const double dt_nominal = 1.0 / a.info.imu_rate_hz;
+  if (n < 2) return;
+  std::vector<double> dts(n - 1);
+  for (size_t k = 1; k < n; ++k) dts[k - 1] = a.imu[k].dt_s;
+  std::nth_element(dts.begin(), dts.begin() + static_cast<long>(dts.size() / 2), dts.end());
+  const double median = dts[dts.size() / 2];
+  if (std::fabs(median - dt_nominal) > 0.05 * dt_nominal)
+    throw ArchiveError(imu_file, "median sample interval " + format_double(median) +
+                                     " s does not match run.toml [imu] rate_hz = " +
+                                     format_double(a.info.imu_rate_hz) +
+                                     " (1/rate = " + format_double(dt_nominal) +
+                                     " s); is t_s in seconds and rate_hz right?");
+}
+
+/// Magnitude plausibility per sample, and the mean specific force at rest against gravity.
+void check_magnitudes(const RunArchive& a, const calib::CalibrationInput& in,
+                      const std::string& imu_file, const std::string& rest_source) {
+  const double kMaxAccel_mps2 = 20.0 * kStandardGravity_mps2;
+  const double kMaxRate_radps = 1000.0 * kDegToRad;
+  double rest_f_sum = 0.0;
+  size_t n_rest = 0;
+  for (size_t k = 0; k < a.imu.size(); ++k) {
+    const calib::ImuIncrement& s = a.imu[k];
+    const double f = s.dv_mps.norm() / s.dt_s;
+    const double w = s.dtheta_rad.norm() / s.dt_s;
+    if (!(f < kMaxAccel_mps2))
+      throw ArchiveError(imu_file, CsvTable::line_of_row(k),
+                         "|dv|/dt = " + format_double(f) +
+                             " m/s^2 exceeds 20 g (dt = " + format_double(s.dt_s) +
+                             " s); dv_*_mps must be velocity increments in m/s over one sample");
+    if (!(w < kMaxRate_radps))
+      throw ArchiveError(imu_file, CsvTable::line_of_row(k),
+                         "|dtheta|/dt = " + format_double(w * kRadToDeg) +
+                             " deg/s exceeds 1000 deg/s (dt = " + format_double(s.dt_s) +
+                             " s); dtheta_*_rad must be angle increments in rad over one sample");
+    if (in.reference[k].at_rest) {
+      rest_f_sum += f;
+      ++n_rest;
+    }
+  }
+  if (n_rest == 0) return;
+  const double g = calib::EarthModel(a.info.site).gravity_mps2();
+  const double f_rest = rest_f_sum / static_cast<double>(n_rest);
+  if (std::fabs(f_rest - g) > 0.1 * g)
+    throw ArchiveError(
+        imu_file, "mean |dv|/dt over the " + std::to_string(n_rest) + " rest samples is " +
+                      format_double(f_rest) + " m/s^2 but local gravity is " + format_double(g) +
+                      " m/s^2; check the dv units (m/s per sample) and the at_rest flags in " +
+                      rest_source);
+}
+
+/// Land and sea: rest periods from the IMU data; the first must open the run (alignment).
+calib::CalibrationInput field_input(const RunArchive& a, const std::string& imu_file) {
+  const calib::CalibrationInput in = calib::input_from_field_data(
+      a.info.setting, a.imu,
+      a.info.setting == calib::Setting::kSea ? a.gnss : std::vector<calib::GnssFix>{},
+      a.info.site, [&] {
+        calib::NoiseModel nm;
+        nm.arw_rad_per_sqrt_s = a.info.arw_rad_per_sqrt_s;
+        nm.vrw_mps_per_sqrt_s = a.info.vrw_mps_per_sqrt_s;
+        return nm;
+      }());
+  const double t0 = a.imu.front().t_s, t_end = a.imu.back().t_s;
+  const double latest_start = std::max(kMaxFirstRestStart_s, 0.2 * (t_end - t0));
+  const std::vector<calib::RestPeriod> rests = calib::find_rest_periods(in, 2);
+  const calib::RestPeriod* first = rests.empty() ? nullptr : &rests.front();
+  const auto span_s = [&](const calib::RestPeriod& r) {
+    return a.imu[r.end - 1].t_s - a.imu[r.begin].t_s;
+  };
+  if (!first || a.imu[first->begin].t_s - t0 > latest_start || span_s(*first) < kMinFirstRest_s)
+    throw ArchiveError(
+        imu_file,
+        std::string("no rest period at the start of this ") + calib::setting_name(a.info.setting) +
+            " run: the initial alignment needs the unit standing still for at least " +
+            format_double(kMinFirstRest_s) + " s within the first " +
+            format_double(latest_start) + " s" +
+            (first ? " (the first rest found in the IMU data starts at t = " +
+                         format_double(a.imu[first->begin].t_s) + " s and lasts " +
+                         format_double(span_s(*first)) + " s)"
+                   : " (no rest found in the IMU data at all)"));
+  return in;
+}
+
+}  // namespace
+
 calib::CalibrationInput to_calibration_input(const RunArchive& a) {
   const std::string imu_file = join_path(a.origin, "imu.csv");
+  if (a.imu.empty()) throw ArchiveError(imu_file, "no IMU samples");
+  if (!(a.info.imu_rate_hz > 0.0))
+    throw ArchiveError::field_error(join_path(a.origin, "run.toml"), "imu.rate_hz", "must be > 0");
+  if (a.info.setting != calib::Setting::kFactory) {
+    check_sample_interval(a, imu_file);
+    calib::CalibrationInput in = field_input(a, imu_file);
+    check_magnitudes(a, in, imu_file, "the rest periods detected in imu.csv");
+    return in;
+  }
+  if (a.info.reference == ReferenceKind::kNone)
+    throw ArchiveError(a.origin, "a factory run needs a reference (table.csv or attitude.csv)");
   const bool table = a.info.reference == ReferenceKind::kTable;
   const std::string ref_file = join_path(a.origin, table ? "table.csv" : "attitude.csv");
   const size_t n = a.imu.size();
@@ -664,49 +849,8 @@ calib::CalibrationInput to_calibration_input(const RunArchive& a) {
                                      (table ? "table.csv" : "attitude.csv") +
                                      ": at_rest is never 1");
 
-  // Sample interval vs the declared rate: catches t_s in ms or a wrong [imu] rate_hz.
-  const double dt_nominal = 1.0 / a.info.imu_rate_hz;
-  if (n >= 2) {
-    std::vector<double> dts(n - 1);
-    for (size_t k = 1; k < n; ++k) dts[k - 1] = a.imu[k].dt_s;
-    std::nth_element(dts.begin(), dts.begin() + static_cast<long>(dts.size() / 2), dts.end());
-    const double median = dts[dts.size() / 2];
-    if (std::fabs(median - dt_nominal) > 0.05 * dt_nominal)
-      throw ArchiveError(imu_file, "median sample interval " + format_double(median) +
-                                       " s does not match run.toml [imu] rate_hz = " +
-                                       format_double(a.info.imu_rate_hz) +
-                                       " (1/rate = " + format_double(dt_nominal) +
-                                       " s); is t_s in seconds and rate_hz right?");
-  }
-
-  // Magnitude plausibility per sample (navigation-grade units on a turntable or a ship).
-  const double kMaxAccel_mps2 = 20.0 * kStandardGravity_mps2;
-  const double kMaxRate_radps = 1000.0 * kDegToRad;
-  double rest_f_sum = 0.0;
-  for (size_t k = 0; k < n; ++k) {
-    const calib::ImuIncrement& s = a.imu[k];
-    const double f = s.dv_mps.norm() / s.dt_s;
-    const double w = s.dtheta_rad.norm() / s.dt_s;
-    if (!(f < kMaxAccel_mps2))
-      throw ArchiveError(imu_file, CsvTable::line_of_row(k),
-                         "|dv|/dt = " + format_double(f) +
-                             " m/s^2 exceeds 20 g (dt = " + format_double(s.dt_s) +
-                             " s); dv_*_mps must be velocity increments in m/s over one sample");
-    if (!(w < kMaxRate_radps))
-      throw ArchiveError(imu_file, CsvTable::line_of_row(k),
-                         "|dtheta|/dt = " + format_double(w * kRadToDeg) +
-                             " deg/s exceeds 1000 deg/s (dt = " + format_double(s.dt_s) +
-                             " s); dtheta_*_rad must be angle increments in rad over one sample");
-    if (in.reference[k].at_rest) rest_f_sum += f;
-  }
-  const double g = calib::EarthModel(a.info.site).gravity_mps2();
-  const double f_rest = rest_f_sum / static_cast<double>(n_rest);
-  if (std::fabs(f_rest - g) > 0.1 * g)
-    throw ArchiveError(
-        imu_file, "mean |dv|/dt over the " + std::to_string(n_rest) + " rest samples is " +
-                      format_double(f_rest) + " m/s^2 but local gravity is " + format_double(g) +
-                      " m/s^2; check the dv units (m/s per sample) and the at_rest flags in " +
-                      (table ? "table.csv" : "attitude.csv"));
+  check_sample_interval(a, imu_file);
+  check_magnitudes(a, in, imu_file, table ? "table.csv" : "attitude.csv");
   return in;
 }
 

@@ -5,7 +5,8 @@
 //   imu.csv t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps[,temp_c]
 //   table.csv                 t_s,outer_deg,inner_deg,at_rest              (encoder log)
 //   or attitude.csv           t_s,roll_deg,pitch_deg,yaw_deg,at_rest       (NED, ZYX, body w.r.t.
-//   n) truth.json                (simulated runs only) injected parameters, effect names, noise
+//   n) gnss.csv              t_s,lat_deg,lon_deg,sigma_m   (GNSS position fixes; required at sea)
+//   truth.json                (simulated runs only) injected parameters, effect names, noise
 //   capture.log               (daemon runs only) raw CAN frames; not interpreted here
 // Full rules (columns, keys, units, checks): db/archive/FORMAT.md.
 #include <Eigen/Core>
@@ -41,7 +42,8 @@ struct TableSetup {
   static TableSetup from_geometry(const calib::TableGeometry& g);
 };
 
-enum class ReferenceKind { kTable, kAttitude };
+/// The attitude reference file of a run: table.csv, attitude.csv, or none (land and sea runs).
+enum class ReferenceKind { kTable, kAttitude, kNone };
 
 /// run.toml [capture] (daemon runs only): how the live capture went. The counters have the names
 /// and meanings of station::CaptureStats (station/capture_stats.hpp); this copy keeps the archive
@@ -72,7 +74,7 @@ struct CaptureInfo {
 /// run.toml.
 struct RunInfo {
   std::string serial;  ///< required
-  /// [run] setting: factory (default), land or sea — which observations the run has.
+  /// setting: factory (default), land or sea — which observations the run has (FORMAT.md).
   calib::Setting setting = calib::Setting::kFactory;
   std::string station_name;
   calib::Site site;  ///< [station] lat_deg, lon_deg, height_m required; gravity_mps2 optional
@@ -105,6 +107,7 @@ struct RunArchive {
   calib::ImuSeries imu;                   ///< temp_c = NaN when imu.csv has no temp_c column
   std::vector<calib::TableSample> table;  ///< non-empty iff info.reference == kTable
   std::vector<AttitudeSample> attitude;   ///< non-empty iff info.reference == kAttitude
+  std::vector<calib::GnssFix> gnss;       ///< gnss.csv (required at sea), angles in rad
   std::optional<Truth> truth;
   std::string
       origin;  ///< directory it was read from (names files in later errors); "" if in memory
@@ -124,12 +127,20 @@ void write_archive(const std::string& dir, const RunArchive& archive, bool overw
 RunInfo parse_run_info(const std::string& text, const std::string& origin);
 std::string run_info_text(const RunInfo& info);
 
-/// Build the calibration input: reference attitude on the IMU time axis (the reference file must
+/// Build the calibration input. Land and sea (run.toml setting): no attitude reference is used,
+/// rest periods come from the IMU data (calib/rest_detector.hpp) and the first must start the
+/// run (the initial alignment needs the unit at rest for kMinFirstRest_s first); at sea the GNSS
+/// fixes are passed on. Factory: reference attitude on the IMU time axis (the reference file must
 /// have the same row count and times within 1 µs — no interpolation yet), at least one rest sample,
 /// a sample interval consistent with [imu] rate_hz, and plausible increment magnitudes
 /// (|dv|/dt < 20 g, |dθ|/dt < 1000 °/s, mean |dv|/dt at rest within 10 % of local gravity).
 /// Errors name the files under archive.origin.
 calib::CalibrationInput to_calibration_input(const RunArchive& archive);
+
+/// Land/sea: the first rest must last this long and start within kMaxFirstRestStart_s of the
+/// run's start (or its first fifth, whichever is longer).
+constexpr double kMinFirstRest_s = 20.0;
+constexpr double kMaxFirstRestStart_s = 60.0;
 
 /// IMU time axis tolerance between imu.csv and the reference file.
 constexpr double kTimeMatchTolerance_s = 1e-6;

@@ -1,5 +1,5 @@
 // imucal — offline calibration tool on run archives (DESIGN §5):
-//   imucal simulate  --sequence FILE --out DIR [--unit FILE] [--seed N]
+//   imucal simulate  --sequence FILE --out DIR [--unit FILE] [--seed N] [--setting land|sea]
 //   imucal calibrate DIR --method ains|nlsq|legacy|all [--setting factory|land|sea] [--json]
 //   imucal evaluate  DIR --params FILE [--json]
 //   imucal crlb      --sequence FILE [--unit FILE] [--json]
@@ -22,6 +22,7 @@
 
 #include "calib/calibration_pipeline.hpp"
 #include "calib/crlb.hpp"
+#include "calib/field_sim.hpp"
 #include "calib/site_presets.hpp"
 #include "calib/truth_sim.hpp"
 #include "db/archive/archive_error.hpp"
@@ -78,53 +79,102 @@ void require_full_rank(const calib::CrlbResult& crlb, const std::string& seq_pat
   throw sequences::SequenceError(seq_path, 0, "sequence leaves parameters unobservable: " + names);
 }
 
-int cmd_simulate(const std::string& seq, const std::string& out_dir, const std::string& unit_path,
-                 uint64_t seed, double rate_hz, bool overwrite,
-                 const std::vector<std::string>& effect_specs) {
-  calib::UnitModel unit = load_unit(unit_path);
+struct SimulateArgs {
+  std::string seq = "factory-std", out_dir, unit;
+  uint64_t seed = 1;
+  double rate_hz = 100.0;
+  bool overwrite = false;
+  std::vector<std::string> effect_specs;
+  std::string setting = "factory";
+  double gnss_sigma_m = 0.3;
+  double placement_sigma_deg = 2.0;
+};
+
+/// The archive's metadata common to every setting.
+archive::RunArchive simulated_archive(const SimulateArgs& a, const calib::UnitModel& unit,
+                                      const sequences::MotionProfile& profile,
+                                      const std::string& seq_path, const calib::Site& site) {
+  archive::RunArchive ar;
+  ar.info.serial = "SIM-" + std::to_string(a.seed);
+  ar.info.station_name = "imucal-sim";
+  ar.info.site = site;
+  ar.info.imu_rate_hz = a.rate_hz;
+  ar.info.sequence_name = profile.name;
+  ar.info.sequence_sha256 = sequences::sequence_hash(seq_path);
+  ar.info.software_version = IMUCAL_VERSION;
+  ar.info.start_time = iso_now();
+  ar.info.end_time = ar.info.start_time;
+  ar.info.arw_rad_per_sqrt_s = unit.noise.arw_rad_per_sqrt_s;
+  ar.info.vrw_mps_per_sqrt_s = unit.noise.vrw_mps_per_sqrt_s;
+  ar.truth = archive::truth_from_unit(unit);
+  return ar;
+}
+
+/// Land or sea: hand-placed rotations through the sequence's rest positions, no table log, at sea
+/// a drifting, rocking deck and GNSS fixes (calib/field_sim.hpp). No surveyed gravity.
+archive::RunArchive simulate_field_archive(const SimulateArgs& a, const calib::UnitModel& unit,
+                                           const sequences::MotionProfile& profile,
+                                           const std::string& seq_path) {
+  calib::Site site = default_site();
+  site.gravity_mps2.reset();
+  calib::FieldSimOptions fo;
+  fo.setting = *calib::parse_setting(a.setting);
+  fo.rate_hz = a.rate_hz;
+  fo.seed = a.seed;
+  fo.gnss_sigma_m = a.gnss_sigma_m;
+  fo.placement_sigma_deg = a.placement_sigma_deg;
+  calib::UnitModel field_unit = unit;
+  field_unit.params.table_misalignment_rad.setZero();  // no table
+  progress("simulating " + a.setting + " run on " + profile.name);
+  calib::FieldSimResult sim = calib::simulate_field(profile, site, field_unit, fo);
+  archive::RunArchive ar = simulated_archive(a, field_unit, profile, seq_path, site);
+  ar.info.setting = fo.setting;
+  ar.info.reference = archive::ReferenceKind::kNone;
+  ar.imu = std::move(sim.imu);
+  ar.gnss = std::move(sim.gnss);
+  return ar;
+}
+
+int cmd_simulate(const SimulateArgs& a) {
+  calib::UnitModel unit = load_unit(a.unit);
   // Catalogue effects on top of the unit (checked before any work: nothing is written on error).
-  for (const std::string& spec : effect_specs) {
+  for (const std::string& spec : a.effect_specs) {
     try {
       calib::apply_effect_spec(unit.effects, spec);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument("--effect " + spec + ": " + e.what());
     }
   }
-  const std::string seq_path = sequences::resolve_sequence(seq);
+  const std::string seq_path = sequences::resolve_sequence(a.seq);
   progress("loading sequence " + seq_path);
   const sequences::MotionProfile profile = sequences::load_profile(seq_path);
-  const calib::Site site = default_site();
-  const calib::TableGeometry geometry{};
-  progress("checking observability");
-  require_full_rank(calib::compute_crlb(profile, geometry, site, unit.noise, rate_hz), seq_path);
-  progress("simulating " + std::to_string(static_cast<int>(profile.duration_s())) + " s at " +
-           std::to_string(static_cast<int>(rate_hz)) + " Hz");
-  calib::SimOptions opt;
-  opt.rate_hz = rate_hz;
-  opt.seed = seed;
-  calib::SimResult sim = calib::simulate(profile, geometry, site, unit, opt);
-
   archive::RunArchive ar;
-  ar.info.serial = "SIM-" + std::to_string(seed);
-  ar.info.station_name = "imucal-sim";
-  ar.info.site = site;
-  ar.info.imu_rate_hz = rate_hz;
-  ar.info.table = archive::TableSetup::from_geometry(geometry);
-  ar.info.sequence_name = profile.name;
-  ar.info.sequence_sha256 = sequences::sequence_hash(seq_path);
-  ar.info.software_version = IMUCAL_VERSION;
-  ar.info.start_time = iso_now();
-  ar.info.end_time = ar.info.start_time;
-  ar.info.reference = archive::ReferenceKind::kTable;
-  ar.info.arw_rad_per_sqrt_s = unit.noise.arw_rad_per_sqrt_s;
-  ar.info.vrw_mps_per_sqrt_s = unit.noise.vrw_mps_per_sqrt_s;
-  ar.imu = std::move(sim.imu);
-  ar.table = std::move(sim.table);
-  ar.truth = archive::truth_from_unit(unit);
-  progress("writing " + out_dir);
-  archive::write_archive(out_dir, ar, overwrite);
-  std::cout << "wrote " << out_dir << ": " << ar.imu.size() << " samples, " << profile.duration_s()
-            << " s, sequence " << profile.name << ", seed " << seed << '\n';
+  if (a.setting != "factory") {
+    ar = simulate_field_archive(a, unit, profile, seq_path);
+  } else {
+    const calib::Site site = default_site();
+    const calib::TableGeometry geometry{};
+    progress("checking observability");
+    require_full_rank(calib::compute_crlb(profile, geometry, site, unit.noise, a.rate_hz),
+                      seq_path);
+    progress("simulating " + std::to_string(static_cast<int>(profile.duration_s())) + " s at " +
+             std::to_string(static_cast<int>(a.rate_hz)) + " Hz");
+    calib::SimOptions opt;
+    opt.rate_hz = a.rate_hz;
+    opt.seed = a.seed;
+    calib::SimResult sim = calib::simulate(profile, geometry, site, unit, opt);
+    ar = simulated_archive(a, unit, profile, seq_path, site);
+    ar.info.table = archive::TableSetup::from_geometry(geometry);
+    ar.info.reference = archive::ReferenceKind::kTable;
+    ar.imu = std::move(sim.imu);
+    ar.table = std::move(sim.table);
+  }
+  progress("writing " + a.out_dir);
+  archive::write_archive(a.out_dir, ar, a.overwrite);
+  std::cout << "wrote " << a.out_dir << ": " << ar.imu.size() << " samples, "
+            << ar.imu.back().t_s << " s, sequence " << profile.name << ", setting " << a.setting
+            << (ar.gnss.empty() ? "" : ", " + std::to_string(ar.gnss.size()) + " GNSS fixes")
+            << ", seed " << a.seed << '\n';
   return 0;
 }
 
@@ -248,25 +298,37 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string(IMUCAL_VERSION));
 
-  std::string seq, out_dir, unit, dir, method = "all", params;
-  uint64_t seed = 1;
+  std::string seq, unit, dir, method = "all", params;
   double rate_hz = 100.0, k_sigma = 4.0;
-  bool json = false, overwrite = false;
+  bool json = false;
 
-  auto* sim = app.add_subcommand("simulate", "simulate a unit on a sequence into a run archive");
-  sim->add_option("--sequence", seq, "sequence name (factory-std, short, pos19) or TOML file")
+  SimulateArgs sa;
+  auto* sim = app.add_subcommand(
+      "simulate", "simulate a unit on a sequence into a run archive (factory table, land or sea)");
+  sim->add_option("--sequence", sa.seq, "sequence name (factory-std, short, pos19) or TOML file")
       ->required();
-  sim->add_option("--out", out_dir, "archive directory to create")->required();
-  sim->add_option("--unit", unit, "unit file (TOML); default: the built-in default unit");
-  sim->add_option("--seed", seed, "noise seed")->capture_default_str();
-  sim->add_option("--rate", rate_hz, "IMU rate, Hz")
+  sim->add_option("--out", sa.out_dir, "archive directory to create")->required();
+  sim->add_option("--unit", sa.unit, "unit file (TOML); default: the built-in default unit");
+  sim->add_option("--seed", sa.seed, "noise seed")->capture_default_str();
+  sim->add_option("--rate", sa.rate_hz, "IMU rate, Hz")
       ->capture_default_str()
       ->check(CLI::Range(10.0, 2000.0));
-  sim->add_flag("--overwrite", overwrite, "replace an existing archive");
-  std::vector<std::string> effect_specs;
-  sim->add_option("--effect", effect_specs,
+  sim->add_flag("--overwrite", sa.overwrite, "replace an existing archive");
+  sim->add_option("--effect", sa.effect_specs,
                   "inject a catalogue effect, NAME=V[,V...] in SI (repeatable; see imucal effects)")
       ->take_all();
+  sim->add_option("--setting", sa.setting,
+                  "factory (table run), land (hand-placed rotations, no table log) or sea (as land "
+                  "on a drifting, rocking deck, with GNSS fixes)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"factory", "land", "sea"}));
+  sim->add_option("--gnss-sigma", sa.gnss_sigma_m, "sea: GNSS white noise per axis, m")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 100.0));
+  sim->add_option("--placement-sigma", sa.placement_sigma_deg,
+                  "land/sea: hand placement error per axis and rest, deg")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 20.0));
 
   auto* cal = app.add_subcommand(
       "calibrate",
@@ -325,7 +387,7 @@ int main(int argc, char** argv) {
     return app.exit(e);
   }
   try {
-    if (*sim) return cmd_simulate(seq, out_dir, unit, seed, rate_hz, overwrite, effect_specs);
+    if (*sim) return cmd_simulate(sa);
     if (*cal) return cmd_calibrate(dir, method, json, k_sigma, plot_path, setting_override);
     if (*ev) return cmd_evaluate(dir, params, json);
     if (*cr && effects) return tools::cmd_crlb_effects(seq, unit, rate_hz, json);

@@ -153,6 +153,10 @@ void print_metrics_and_verdict(std::ostream& os, const calib::PipelineResult& r)
     for (const auto& w : m->result.warnings) os << "  warning: " << w << '\n';
     for (const auto& n : m->result.unobservable_notes) os << "  not observable: " << n << '\n';
   }
+  if (!r.crosscheck && r.ains && !r.nlsq && !r.legacy &&
+      r.ains->result.setting == calib::Setting::kSea)
+    os << "cross-check: none at sea (the legacy method needs a still platform; AINS stands "
+          "alone)\n";
   if (r.crosscheck) {
     os << "cross-check: " << r.crosscheck->verdict();
     if (!r.crosscheck->skipped.empty())
