@@ -762,8 +762,8 @@ calib::CalibrationInput field_input(const RunArchive& a, const std::string& imu_
         nm.vrw_mps_per_sqrt_s = a.info.vrw_mps_per_sqrt_s;
         return nm;
       }());
-  const double t0 = a.imu.front().t_s, t_end = a.imu.back().t_s;
-  const double latest_start = std::max(kMaxFirstRestStart_s, 0.2 * (t_end - t0));
+  const double t0 = a.imu.front().t_s;
+  const double latest_start = kMaxFirstRestStart_s;
   const std::vector<calib::RestPeriod> rests = calib::find_rest_periods(in, 2);
   const calib::RestPeriod* first = rests.empty() ? nullptr : &rests.front();
   const auto span_s = [&](const calib::RestPeriod& r) {

@@ -137,10 +137,11 @@ std::string run_info_text(const RunInfo& info);
 /// Errors name the files under archive.origin.
 calib::CalibrationInput to_calibration_input(const RunArchive& archive);
 
-/// Land/sea: the first rest must last this long and start within kMaxFirstRestStart_s of the
-/// run's start (or its first fifth, whichever is longer).
+/// Land/sea: a field run starts with the unit at rest — the first rest found in the IMU data must
+/// begin within kMaxFirstRestStart_s of the first sample (handling before the recording settles)
+/// and last kMinFirstRest_s (levelling and gyrocompassing).
 constexpr double kMinFirstRest_s = 20.0;
-constexpr double kMaxFirstRestStart_s = 60.0;
+constexpr double kMaxFirstRestStart_s = 10.0;
 
 /// IMU time axis tolerance between imu.csv and the reference file.
 constexpr double kTimeMatchTolerance_s = 1e-6;

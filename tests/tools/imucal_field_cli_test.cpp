@@ -1,0 +1,180 @@
+// `imucal simulate/calibrate --setting land|sea` and `imucal paper-tables` as a user runs them:
+// the real binary on real archive directories, and every bad-input class of the field settings
+// (sea without GNSS, land without a rest at the start, GNSS times outside the IMU's, a bad
+// setting): one line naming the file and the problem, a non-zero exit, nothing written.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "tests/support/run_command.hpp"
+#include "tests/support/temp_dir.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using Proc = imucal::test_support::CommandResult;
+
+Proc run(const std::string& args, bool merge_stderr = true) {
+  return imucal::test_support::run_command(std::string(IMUCAL_BIN_DIR) + "/imucal " + args +
+                                           (merge_stderr ? " 2>&1" : " 2>/dev/null"));
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+std::string listing(const fs::path& dir) {
+  std::string s;
+  for (const auto& e : fs::directory_iterator(dir))
+    s += e.path().filename().string() + ":" + std::to_string(fs::file_size(e.path())) + "\n";
+  return s;
+}
+
+class FieldCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new imucal::test_support::ScopedTempDir("field-cli");
+    for (const char* s : {"land", "sea"})
+      ASSERT_EQ(run(std::string("simulate --sequence short --seed 7 --setting ") + s +
+                    " --out " + (root() / s).string())
+                    .code,
+                0);
+  }
+  static void TearDownTestSuite() { delete dir_; }
+  static fs::path root() { return fs::path(dir_->path()); }
+  /// A copy of a simulated archive to edit.
+  static fs::path copy(const char* from, const std::string& to) {
+    const fs::path dst = root() / to;
+    fs::copy(root() / from, dst, fs::copy_options::recursive);
+    return dst;
+  }
+  /// Runs calibrate on a bad archive: exit 1, one line naming `needle`, nothing written.
+  static void expect_refused(const fs::path& dir, const std::string& needle) {
+    const std::string before = listing(dir);
+    const Proc p = run("calibrate " + dir.string());
+    EXPECT_EQ(p.code, 1) << p.out;
+    EXPECT_NE(p.out.find(needle), std::string::npos) << p.out;
+    EXPECT_EQ(std::count(p.out.begin(), p.out.end(), '\n'), 1) << p.out;
+    EXPECT_EQ(listing(dir), before);
+  }
+  static imucal::test_support::ScopedTempDir* dir_;
+};
+imucal::test_support::ScopedTempDir* FieldCli::dir_ = nullptr;
+
+TEST_F(FieldCli, SimulatedArchivesCarryTheSettingAndNoTableLog) {
+  EXPECT_NE(slurp(root() / "land" / "run.toml").find("setting = \"land\""), std::string::npos);
+  EXPECT_NE(slurp(root() / "land" / "run.toml").find("reference = \"none\""), std::string::npos);
+  EXPECT_FALSE(fs::exists(root() / "land" / "table.csv"));
+  EXPECT_FALSE(fs::exists(root() / "land" / "gnss.csv"));
+  EXPECT_TRUE(fs::exists(root() / "sea" / "gnss.csv"));
+  EXPECT_EQ(slurp(root() / "sea" / "gnss.csv").rfind("t_s,lat_deg,lon_deg,sigma_m\n", 0), 0u);
+}
+
+TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
+  const Proc p = run("calibrate " + (root() / "land").string() + " --json", false);
+  ASSERT_EQ(p.code, 0) << p.out;
+  const auto j = nlohmann::json::parse(p.out);
+  EXPECT_EQ(j["ains"]["setting"], "land");
+  EXPECT_EQ(j["ains"]["body_frame"], "accel_symmetric");
+  EXPECT_EQ(j["ains"]["metrics"]["evaluated"], false);
+  EXPECT_TRUE(j.contains("legacy"));
+  EXPECT_FALSE(j.contains("nlsq"));
+  EXPECT_EQ(j["crosscheck"]["verdict"], "PASS");
+  EXPECT_EQ(j["crosscheck"]["not_compared"].size(), 3u);
+  bool housing = false;
+  for (const auto& n : j["ains"]["unobservable_notes"])
+    housing |= n.get<std::string>().find("housing orientation: not observable") != std::string::npos;
+  EXPECT_TRUE(housing);
+  // The human report says it too, and NLSQ is refused on land with the reason.
+  const Proc h = run("calibrate " + (root() / "land").string());
+  EXPECT_NE(h.out.find("not observable: housing orientation"), std::string::npos) << h.out;
+  const Proc n = run("calibrate " + (root() / "land").string() + " --method nlsq");
+  EXPECT_EQ(n.code, 1);
+  EXPECT_NE(n.out.find("NLSQ needs the table's attitude reference"), std::string::npos) << n.out;
+}
+
+TEST_F(FieldCli, SeaCalibratesWithAinsAlone) {
+  const Proc p = run("calibrate " + (root() / "sea").string() + " --json", false);
+  ASSERT_EQ(p.code, 0) << p.out;
+  const auto j = nlohmann::json::parse(p.out);
+  EXPECT_EQ(j["ains"]["setting"], "sea");
+  EXPECT_TRUE(j["ains"]["converged"].get<bool>());
+  EXPECT_FALSE(j.contains("legacy"));
+  EXPECT_FALSE(j.contains("crosscheck"));
+  const Proc l = run("calibrate " + (root() / "sea").string() + " --method legacy");
+  EXPECT_EQ(l.code, 1);
+  EXPECT_NE(l.out.find("still platform"), std::string::npos) << l.out;
+}
+
+TEST_F(FieldCli, SeaArchiveWithoutGnss) {
+  const fs::path d = copy("sea", "sea-nognss");
+  fs::remove(d / "gnss.csv");
+  expect_refused(d, "gnss.csv: missing: a sea run needs GNSS position fixes");
+}
+
+TEST_F(FieldCli, GnssTimesOutsideTheImus) {
+  const fs::path d = copy("sea", "sea-late-fix");
+  std::ofstream(d / "gnss.csv", std::ios::app) << "99999,55.7856,12.5213,0.3\n";
+  expect_refused(d, "is outside the IMU's time span");
+  const std::string out = run("calibrate " + d.string()).out;
+  EXPECT_NE(out.find("gnss.csv"), std::string::npos) << out;
+  EXPECT_NE(out.find("t_s"), std::string::npos) << out;
+}
+
+TEST_F(FieldCli, LandArchiveWithNoRestAtTheStart) {
+  // Drop the first 26 s of the run: the unit is then already turning, or still for only a few s.
+  const fs::path d = copy("land", "land-nostart");
+  std::istringstream in(slurp(d / "imu.csv"));
+  std::ostringstream out;
+  std::string line;
+  std::getline(in, line);
+  out << line << '\n';
+  while (std::getline(in, line))
+    if (std::stod(line.substr(0, line.find(','))) > 26.0) out << line << '\n';
+  std::ofstream(d / "imu.csv") << out.str();
+  expect_refused(d, "no rest period at the start of this land run");
+}
+
+TEST_F(FieldCli, UnknownSettingAndFactoryWithoutReference) {
+  fs::path d = copy("land", "bad-setting");
+  std::string toml = slurp(d / "run.toml");
+  toml.replace(toml.find("\"land\""), 6, "\"lake\"");
+  std::ofstream(d / "run.toml") << toml;
+  expect_refused(d, "setting");
+  EXPECT_NE(run("calibrate " + d.string()).out.find("\"factory\", \"land\" or \"sea\""),
+            std::string::npos);
+  d = copy("land", "factory-noref");
+  toml = slurp(d / "run.toml");
+  toml.erase(toml.find("setting = \"land\"\n"), std::string("setting = \"land\"\n").size());
+  toml.erase(toml.find("reference = \"none\"\n"), std::string("reference = \"none\"\n").size());
+  std::ofstream(d / "run.toml") << toml;
+  expect_refused(d, "neither table.csv nor attitude.csv");
+}
+
+TEST_F(FieldCli, PaperTablesOnTwoUnits) {
+  const Proc p = run("paper-tables --units 2 --seed 3 --json", false);
+  ASSERT_TRUE(p.code == 0 || p.code == 3) << p.out;
+  const auto j = nlohmann::json::parse(p.out);
+  ASSERT_EQ(j["units"].size(), 2u);
+  for (const char* c : {"factory AINS", "factory NLSQ", "factory legacy", "land AINS", "sea AINS"}) {
+    EXPECT_GT(j["mean"][c]["orientation_rmse_mdeg"].get<double>(), 0.0) << c;
+    EXPECT_GT(j["mean"][c]["accel_rmse_ug"].get<double>(), 0.0) << c;
+    EXPECT_GT(j["paper_mean"][c]["orientation_rmse_mdeg"].get<double>(), 10.0) << c;
+  }
+  // AINS performs almost identically in the three settings (the paper's finding).
+  EXPECT_LE(j["findings"]["ains_orientation_spread"].get<double>(), 0.25);
+  EXPECT_LE(j["findings"]["ains_accel_spread"].get<double>(), 0.25);
+  const Proc t = run("paper-tables --units 1 --seed 3");
+  for (const char* table : {"TABLE I ", "TABLE II ", "TABLE III ", "TABLE IV "})
+    EXPECT_NE(t.out.find(table), std::string::npos) << table;
+}
+
+}  // namespace
