@@ -31,6 +31,9 @@ struct PaperTablesOptions {
   uint64_t seed = 1;
   double rate_hz = 100.0;
   int threads = 2;  ///< units run in parallel
+  /// Give every unit the catalogue's typical unmodelled effects (paper_unit). false (default):
+  /// ideal units — the calibrated parameters and white noise only.
+  bool unmodelled_effects = false;
   /// Called after each finished unit with (done, total); from worker threads, serialised.
   std::function<void(int, int)> on_progress;
 };
@@ -45,6 +48,7 @@ struct PaperUnitResult {
 
 struct PaperTables {
   std::string sequence;
+  bool unmodelled_effects = true;
   double duration_s = 0.0;
   std::vector<PaperUnitResult> units;
   /// Column means over the units (the tables' "Mean" row).
@@ -54,8 +58,11 @@ struct PaperTables {
 };
 
 /// Unit u's true model: parameters drawn within DESIGN §7's default-unit sizes (biases 50 µg /
-/// 0.01 °/h, scale and misalignment 300 ppm/µrad, 1σ) and its noise within ±20 % of the default.
-UnitModel paper_unit(int unit, uint64_t seed);
+/// 0.01 °/h, scale and misalignment 300 ppm/µrad, 1σ), its noise within ±20 % of the default,
+/// and — as a real unit has — unmodelled effects at the catalogue's typical sizes: thermal
+/// warm-up (20 µg, 0.005 °/h, τ 900 s), bias instability (10 µg, 0.001 °/h, τ 1000 s) and a
+/// quadratic accelerometer error (20 µg/g²), 1σ draws.
+UnitModel paper_unit(int unit, uint64_t seed, bool unmodelled_effects = true);
 
 /// Throws std::invalid_argument for units < 1 or threads < 1, and whatever a method throws.
 PaperTables run_paper_tables(const sequences::MotionProfile& profile, const Site& site,

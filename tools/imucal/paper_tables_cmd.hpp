@@ -1,5 +1,6 @@
 #pragma once
-// `imucal paper-tables [--units 6] [--seed S] [--sequence factory-std] [--threads N] [--json]`:
+// `imucal paper-tables [--units 6] [--seed S] [--sequence factory-std] [--effects typical|none]
+// [--threads N] [--json]`:
 // the paper's Tables I–IV (calib/paper_tables.hpp) on simulated units, in the paper's layout and
 // beside its published figures, with a progress line on stderr. Exit 0 when the paper's findings
 // hold in kind (AINS within 25 % across the three settings on both metrics; the legacy method
@@ -16,6 +17,7 @@ struct PaperTablesArgs {
   uint64_t seed = 1;
   std::string sequence = "factory-std";
   bool json = false;
+  std::string effects = "none";  ///< "none" | "typical": unmodelled effects of the units
 };
 
 CLI::App* add_paper_tables_command(CLI::App& app, PaperTablesArgs& args);
