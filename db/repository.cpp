@@ -76,12 +76,20 @@ const std::vector<RunState>& live_states() {
   return states;
 }
 
-const char* to_string(Method m) { return m == Method::kAins ? "ains" : "nlsq"; }
+const char* to_string(Method m) {
+  switch (m) {
+    case Method::kAins: return "ains";
+    case Method::kNlsq: return "nlsq";
+    case Method::kLegacy: return "legacy";
+  }
+  return "ains";
+}
 
 Method method_from_string(const std::string& s) {
   if (s == "ains") return Method::kAins;
   if (s == "nlsq") return Method::kNlsq;
-  throw InvalidInput("unknown calibration method \"" + s + "\" (expected ains or nlsq)");
+  if (s == "legacy") return Method::kLegacy;
+  throw InvalidInput("unknown calibration method \"" + s + "\" (expected ains, nlsq or legacy)");
 }
 
 const char* to_string(Verdict v) { return v == Verdict::kPass ? "PASS" : "REVIEW"; }

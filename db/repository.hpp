@@ -11,8 +11,10 @@
 // aborted | interrupted. The first three are "live"; the last five are terminal and final — a run
 // never leaves a terminal state (reprocessing creates a new run that names its origin).
 //
-// The *active* calibration of a serial is the AINS parameter set of its latest run (by start
-// time, then run id) whose state is done with cross-check verdict PASS. AINS is "the" set because
+// The *active* calibration of a serial is the AINS parameter set of its latest FACTORY run (by
+// start time, then run id) whose state is done with cross-check verdict PASS — unless QA promoted
+// a field run (land/sea, `stationctl promote`) after that run ended: then the latest promoted run.
+// A field run never becomes active on its own, even with PASS. AINS is "the" set because
 // it estimates the full model (paper §IV, 27 parameters incl. table misalignment ς, with
 // smoothed covariance) and is the paper's primary method; NLSQ is the independent check that
 // made the verdict PASS. Both sets of that run stay retrievable (ActiveCalibration::all).
@@ -113,8 +115,8 @@ bool is_terminal(RunState s);
 /// The live states in life-cycle order (preparing, running, calibrating).
 const std::vector<RunState>& live_states();
 
-enum class Method { kAins, kNlsq };
-const char* to_string(Method m);                  ///< "ains", "nlsq"
+enum class Method { kAins, kNlsq, kLegacy };
+const char* to_string(Method m);                  ///< "ains", "nlsq", "legacy"
 Method method_from_string(const std::string& s);  ///< InvalidInput otherwise
 
 enum class Verdict { kPass, kReview };
@@ -138,6 +140,8 @@ struct NewRun {
   RunState state = RunState::kPreparing;  ///< must be a live state
   std::optional<RunId>
       reprocessed_from;  ///< for `reprocess RUN_ID`: the run whose archive is reused
+  calib::Setting setting = calib::Setting::kFactory;  ///< where the data were recorded (v4)
+  std::string origin;  ///< e.g. "imported from /path" for `stationctl import`; empty for runs
 };
 
 struct RunRecord {
@@ -160,6 +164,11 @@ struct RunRecord {
                                    ///< object text; empty if the run stored none (schema v2)
   std::string diagnosis_json;      ///< gap diagnosis summary (archive::diagnosis_summary_json) as a JSON
                                    ///< object text; empty if none was made (schema v3)
+  calib::Setting setting = calib::Setting::kFactory;  ///< schema v4
+  std::string origin;                                 ///< "imported from DIR", or empty
+  std::optional<TimestampMs> promoted_at_ms;  ///< set when QA promoted this run (field runs)
+  std::string promoted_by;                    ///< who promoted it (user name or uid)
+  std::string promote_reason;
 };
 
 /// Headline evaluation metrics of one method (paper §VII, calib/evaluation.hpp), per-period
@@ -283,6 +292,13 @@ class Repository {
 
   /// Runs currently in any of `states`, ascending id.
   virtual std::vector<RunRecord> runs_in_state(const std::vector<RunState>& states) const = 0;
+
+  /// QA's explicit promotion of a field run (land or sea) to the unit's active parameters, with
+  /// who, when and why. InvalidInput for an empty reason or `by`; NotFound for an unknown run;
+  /// Conflict for a factory run (its PASS makes it active by itself), a live run, or a run that
+  /// is neither done (PASS) nor a sea run reviewed only for want of a second method.
+  virtual void promote(RunId run_id, const std::string& by, const std::string& reason,
+                       TimestampMs at_ms) = 0;
 };
 
 // ---------------------------------------------------------------------------------------------

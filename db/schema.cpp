@@ -87,6 +87,46 @@ CREATE TABLE crosschecks (
 ) STRICT;
 )SQL";
 
+// Migration 4. SQLite cannot alter a CHECK constraint, so calibrations is rebuilt with the wider
+// method set (same columns, same order; rows copied unchanged).
+const char* const kMigration4 = R"SQL(
+ALTER TABLE runs ADD COLUMN setting TEXT NOT NULL DEFAULT 'factory'
+  CHECK (setting IN ('factory', 'land', 'sea'));
+ALTER TABLE runs ADD COLUMN origin TEXT NOT NULL DEFAULT '';
+ALTER TABLE runs ADD COLUMN promoted_at_ms INTEGER;
+ALTER TABLE runs ADD COLUMN promoted_by TEXT NOT NULL DEFAULT '';
+ALTER TABLE runs ADD COLUMN promote_reason TEXT NOT NULL DEFAULT '';
+
+CREATE TABLE calibrations_v4 (
+  id                          INTEGER PRIMARY KEY,
+  run_id                      INTEGER NOT NULL REFERENCES runs(id),
+  method                      TEXT    NOT NULL CHECK (method IN ('ains', 'nlsq', 'legacy')),
+  params_json                 TEXT    NOT NULL CHECK (json_valid(params_json)),
+  sigma_json                  TEXT    NOT NULL CHECK (json_valid(sigma_json)),
+  converged                   INTEGER NOT NULL CHECK (converged IN (0, 1)),
+  iterations                  INTEGER NOT NULL,
+  runtime_s                   REAL    NOT NULL,
+  warnings_json               TEXT    NOT NULL DEFAULT '[]' CHECK (json_valid(warnings_json)),
+  orientation_rmse_mdeg       REAL,
+  accel_rmse_ug               REAL,
+  heading_offset_gamma_np_rad REAL,
+  theta_bp_x_rad              REAL,
+  theta_bp_y_rad              REAL,
+  theta_bp_z_rad              REAL,
+  CHECK ((orientation_rmse_mdeg IS NULL) = (accel_rmse_ug IS NULL)
+     AND (accel_rmse_ug IS NULL) = (heading_offset_gamma_np_rad IS NULL)
+     AND (heading_offset_gamma_np_rad IS NULL) = (theta_bp_x_rad IS NULL)
+     AND (theta_bp_x_rad IS NULL) = (theta_bp_y_rad IS NULL)
+     AND (theta_bp_y_rad IS NULL) = (theta_bp_z_rad IS NULL)),
+  UNIQUE (run_id, method)
+) STRICT;
+INSERT INTO calibrations_v4 SELECT * FROM calibrations;
+DROP TABLE calibrations;
+ALTER TABLE calibrations_v4 RENAME TO calibrations;
+-- active_params: the latest promotion of a unit
+CREATE INDEX runs_promoted ON runs (unit_id, promoted_at_ms) WHERE promoted_at_ms IS NOT NULL;
+)SQL";
+
 int pragma_int(sqlite3* db, const char* sql, const std::string& path) {
   sqlite3_stmt* st = nullptr;
   int rc = sqlite3_prepare_v2(db, sql, -1, &st, nullptr);
@@ -145,6 +185,9 @@ const std::vector<Migration>& migrations() {
       {3, "runs.diagnosis_json: gap diagnosis summary of a run",
        "ALTER TABLE runs ADD COLUMN diagnosis_json TEXT NOT NULL DEFAULT '' "
        "CHECK (diagnosis_json = '' OR json_valid(diagnosis_json));"},
+      // Version 4 (field settings, issue #9): where a run's data were recorded, imported field
+      // runs' origin, QA's promotion of a field run, and the legacy method's results.
+      {4, "runs.setting/origin/promotion; calibrations.method gains 'legacy'", kMigration4},
   };
   return list;
 }

@@ -26,8 +26,8 @@ const std::string kRunColumns =
     "r.id, u.serial, r.operator, r.station, r.sequence_name, r.sequence_sha256, "
     "r.software_version, r.started_at_ms, r.ended_at_ms, r.state, r.failure_reason, "
     "r.archive_path, r.archive_sha256, r.reprocessed_from, x.verdict, r.capture_json, "
-    "r.diagnosis_json";
-constexpr int kNumRunColumns = 17;
+    "r.diagnosis_json, r.setting, r.origin, r.promoted_at_ms, r.promoted_by, r.promote_reason";
+constexpr int kNumRunColumns = 22;
 const std::string kRunFrom =
     " FROM runs r JOIN units u ON u.id = r.unit_id LEFT JOIN crosschecks x ON x.run_id = r.id ";
 const std::string kCalColumns =
@@ -41,7 +41,11 @@ const std::string kSqlHistory = "SELECT " + kRunColumns + kRunFrom +
                                 "LIMIT ?2";
 const std::string kSqlActive = "SELECT " + kRunColumns + kRunFrom +
                                "WHERE r.unit_id = ?1 AND r.state = 'done' AND x.verdict = 'PASS' "
+                               "AND r.setting = 'factory' "
                                "ORDER BY r.started_at_ms DESC, r.id DESC LIMIT 1";
+const std::string kSqlLatestPromoted = "SELECT " + kRunColumns + kRunFrom +
+                                       "WHERE r.unit_id = ?1 AND r.promoted_at_ms IS NOT NULL "
+                                       "ORDER BY r.promoted_at_ms DESC, r.id DESC LIMIT 1";
 const std::string kSqlRunsInState =
     "SELECT " + kRunColumns + kRunFrom + "WHERE r.state = ?1 ORDER BY r.id";
 const std::string kSqlCalsOfRun =
@@ -64,8 +68,10 @@ const char* const kSqlInsertUnit =
 const char* const kSqlRunExists = "SELECT 1 FROM runs WHERE id = ?1";
 const char* const kSqlInsertRun =
     "INSERT INTO runs (unit_id, operator, station, sequence_name, sequence_sha256, "
-    "software_version, started_at_ms, state, archive_path, reprocessed_from) "
-    "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)";
+    "software_version, started_at_ms, state, archive_path, reprocessed_from, setting, origin) "
+    "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)";
+const char* const kSqlPromote =
+    "UPDATE runs SET promoted_at_ms = ?2, promoted_by = ?3, promote_reason = ?4 WHERE id = ?1";
 const char* const kSqlRunState = "SELECT state FROM runs WHERE id = ?1";
 const char* const kSqlSetLiveState = "UPDATE runs SET state = ?2 WHERE id = ?1";
 const char* const kSqlFinishRun =
@@ -315,6 +321,17 @@ struct SqliteRepository::Impl {
                          [&] { return verdict_from_string(q.text(14)); });
     r.capture_json = q.text(15);
     r.diagnosis_json = q.text(16);
+    const std::string setting = q.text(17);
+    r.setting = decode([&] { return run_label(r.run_id) + " setting"; },
+                       [&] {
+                         const auto v = calib::parse_setting(setting);
+                         if (!v) throw InvalidInput("unknown setting \"" + setting + "\"");
+                         return *v;
+                       });
+    r.origin = q.text(18);
+    if (!q.is_null(19)) r.promoted_at_ms = q.i64(19);
+    r.promoted_by = q.text(20);
+    r.promote_reason = q.text(21);
     return r;
   }
 
@@ -552,6 +569,15 @@ struct SqliteRepository::Impl {
     q.run();
   }
 
+  calib::Setting setting_of(RunId run_id, const char* op) const {
+    Stmt q(*this, "SELECT setting FROM runs WHERE id = ?1", op);
+    q.bind(1, run_id);
+    if (!q.step()) throw NotFound(path + ": " + op + ": no " + run_label(run_id));
+    const auto v = calib::parse_setting(q.text(0));
+    if (!v) throw Corrupt(path + ": " + run_label(run_id) + " has an unknown setting");
+    return *v;
+  }
+
   void finish(RunId run_id, const RunCompletion& c) {
     const char* op = "finish_run";
     const std::string who = path + ": " + op + ": " + run_label(run_id);
@@ -573,17 +599,17 @@ struct SqliteRepository::Impl {
     if (c.crosscheck) insert_crosscheck(run_id, *c.crosscheck, op);
 
     // Life-cycle rules against everything stored for the run (including earlier store_* calls).
-    bool has_ains = false, has_nlsq = false;
-    {
+    // The second method is the setting's: NLSQ in the factory, legacy on land; a sea run has
+    // AINS alone and so is never done (QA may promote it).
+    const calib::Setting setting = setting_of(run_id, op);
+    auto has = [&](const char* method) {
       Stmt q(*this, kSqlHasMethod, op);
-      q.bind(1, run_id).bind(2, "ains");
-      has_ains = q.step();
-    }
-    {
-      Stmt q(*this, kSqlHasMethod, op);
-      q.bind(1, run_id).bind(2, "nlsq");
-      has_nlsq = q.step();
-    }
+      q.bind(1, run_id).bind(2, method);
+      return q.step();
+    };
+    const bool has_ains = has("ains");
+    const char* second = setting == calib::Setting::kLand ? "legacy" : "nlsq";
+    const bool has_second = has(second);
     std::optional<Verdict> verdict;
     {
       Stmt q(*this, kSqlVerdict, op);
@@ -592,8 +618,11 @@ struct SqliteRepository::Impl {
     }
     if (c.state == RunState::kDone) {
       std::string missing;
+      if (setting == calib::Setting::kSea)
+        missing += " a second method (a sea run has AINS alone: review, or promote explicitly);";
       if (!has_ains) missing += " ains calibration;";
-      if (!has_nlsq) missing += " nlsq calibration;";
+      if (setting != calib::Setting::kSea && !has_second)
+        missing += std::string(" ") + second + " calibration;";
       if (verdict != Verdict::kPass)
         missing += verdict ? " a PASS cross-check (it is REVIEW);" : " a cross-check verdict;";
       if (!missing.empty()) {
@@ -715,6 +744,7 @@ RunId SqliteRepository::create_run(const NewRun& run) {
     q.bind(1, unit).bind(2, run.operator_name).bind(3, run.station).bind(4, run.sequence_name);
     q.bind(5, run.sequence_sha256).bind(6, run.software_version).bind(7, run.started_at_ms);
     q.bind(8, to_string(run.state)).bind(9, run.archive_path).bind(10, run.reprocessed_from);
+    q.bind(11, calib::setting_name(run.setting)).bind(12, run.origin);
     q.run();
   }
   const RunId id = sqlite3_last_insert_rowid(d.db);
@@ -856,18 +886,34 @@ ActiveCalibration SqliteRepository::active_params(const std::string& serial) con
   Impl::Tx tx(d, "active_params", false);
   const std::int64_t unit = d.require_unit(serial);
   ActiveCalibration out;
+  bool have_factory = false;
   {
     Impl::Stmt q(d, kSqlActive.c_str(), "active_params");
     q.bind(1, unit);
-    if (!q.step()) {
+    have_factory = q.step();
+    if (have_factory) out.run = d.read_run(q);
+  }
+  if (!have_factory) {
+    Impl::Stmt p(d, kSqlLatestPromoted.c_str(), "active_params");
+    p.bind(1, unit);
+    if (!p.step()) {
       Impl::Stmt n(d, kSqlCountRunsOfUnit, "active_params");
       n.bind(1, unit);
       n.step();
       throw NotFound(d.path + ": serial number \"" + serial +
                      "\" has no calibration with cross-check PASS (" + std::to_string(n.i64(0)) +
-                     " run(s) on record, none done with PASS)");
+                     " run(s) on record, none a factory run done with PASS, none promoted)");
     }
-    out.run = d.read_run(q);
+  }
+  {
+    // A promotion made after the latest factory PASS ended wins (QA's explicit choice).
+    Impl::Stmt q(d, kSqlLatestPromoted.c_str(), "active_params");
+    q.bind(1, unit);
+    if (q.step()) {
+      RunRecord promoted = d.read_run(q);
+      if (!have_factory || *promoted.promoted_at_ms > out.run.ended_at_ms.value_or(0))
+        out.run = std::move(promoted);
+    }
   }
   out.all = d.calibrations_of(out.run.run_id);
   bool found = false;
@@ -878,8 +924,42 @@ ActiveCalibration SqliteRepository::active_params(const std::string& serial) con
     }
   if (!found)
     throw Corrupt(d.path + ": " + run_label(out.run.run_id) +
-                  " is done with PASS but has no ains calibration");
+                  " is active but has no ains calibration");
   return out;
+}
+
+void SqliteRepository::promote(RunId run_id, const std::string& by, const std::string& reason,
+                               TimestampMs at_ms) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl& d = *impl_;
+  const char* op = "promote";
+  d.require_writable(op);
+  const std::string who = d.path + ": " + op + ": " + run_label(run_id);
+  if (reason.empty()) throw InvalidInput(who + ": a promotion needs a reason (QA record)");
+  if (by.empty()) throw InvalidInput(who + ": a promotion needs the name of who promotes");
+  Impl::Tx tx(d, op, true);
+  RunRecord r;
+  {
+    Impl::Stmt q(d, kSqlRunById.c_str(), op);
+    q.bind(1, run_id);
+    if (!q.step()) throw NotFound(d.path + ": " + op + ": no " + run_label(run_id));
+    r = d.read_run(q);
+  }
+  if (r.setting == calib::Setting::kFactory)
+    throw Conflict(who + " is a factory run: a factory PASS is active by itself; only field "
+                         "(land/sea) runs are promoted");
+  if (!is_terminal(r.state)) throw Conflict(who + " is still " + to_string(r.state));
+  const bool sea_alone =
+      r.setting == calib::Setting::kSea && r.state == RunState::kReview && !r.verdict;
+  if (r.state != RunState::kDone && !sea_alone)
+    throw Conflict(who + " is " + to_string(r.state) +
+                   (r.failure_reason.empty() ? "" : " (" + r.failure_reason + ")") +
+                   "; only a done (PASS) field run, or a sea run reviewed only for having AINS "
+                   "alone, can be promoted");
+  Impl::Stmt q(d, kSqlPromote, op);
+  q.bind(1, run_id).bind(2, at_ms).bind(3, by).bind(4, reason);
+  q.run();
+  tx.commit();
 }
 
 void SqliteRepository::export_rows(const ExportFilter& filter,

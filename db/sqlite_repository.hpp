@@ -51,6 +51,8 @@ class SqliteRepository final : public Repository {
   void export_rows(const ExportFilter& filter,
                    const std::function<void(const ExportRow&)>& sink) const override;
   std::vector<RunRecord> runs_in_state(const std::vector<RunState>& states) const override;
+  void promote(RunId run_id, const std::string& by, const std::string& reason,
+               TimestampMs at_ms) override;
 
   /// Run `body` (which calls write methods of this repository) as one transaction: all of its
   /// writes commit together or, if it throws, none does (the exception propagates). Nested

@@ -1,0 +1,181 @@
+// Field runs in the calibration history (issue #9 item 6, schema v4): the setting of every run,
+// the legacy method's results, the done rules per setting, QA's explicit promotion, and the rule
+// that the active parameters stay the latest factory PASS unless a field run is promoted after it.
+#include <gtest/gtest.h>
+#include <sqlite3.h>
+
+#include "db/schema.hpp"
+#include "db/sqlite_repository.hpp"
+#include "tests/db/history_fixtures.hpp"
+
+namespace imucal::db {
+namespace {
+
+using test::expect_throw_message;
+using test::TempDir;
+
+constexpr TimestampMs kT0 = 1714560000000;
+
+NewRun field_run(const std::string& serial, TimestampMs t, calib::Setting s) {
+  NewRun r = test::new_run(serial, t);
+  r.setting = s;
+  r.origin = "imported from /media/usb/" + serial;
+  return r;
+}
+
+/// A land run's completion: AINS + legacy and a PASS cross-check.
+RunCompletion land_pass(long seed, TimestampMs end) {
+  RunCompletion c = test::pass_completion(seed, end);
+  c.calibrations = {test::seeded_calibration(seed, Method::kAins, false),
+                    test::seeded_calibration(seed, Method::kLegacy, false)};
+  return c;
+}
+
+/// A sea run: AINS alone, so review with the reason (no cross-check exists).
+RunCompletion sea_alone(long seed, TimestampMs end) {
+  RunCompletion c;
+  c.state = RunState::kReview;
+  c.ended_at_ms = end;
+  c.reason = "sea: AINS alone, no independent method";
+  c.calibrations = {test::seeded_calibration(seed, Method::kAins, false)};
+  return c;
+}
+
+TEST(FieldRuns, SettingOriginAndLegacyAreStoredAndRead) {
+  TempDir dir;
+  SqliteRepository repo(dir.file("h.db"));
+  const RunId land = repo.create_run(field_run("FOG-1", kT0, calib::Setting::kLand));
+  repo.finish_run(land, land_pass(1, kT0 + 1000));
+  const RunDetails d = repo.show(land);
+  EXPECT_EQ(d.run.setting, calib::Setting::kLand);
+  EXPECT_EQ(d.run.origin, "imported from /media/usb/FOG-1");
+  ASSERT_EQ(d.calibrations.size(), 2u);
+  EXPECT_EQ(d.calibrations[0].method, Method::kAins);
+  EXPECT_EQ(d.calibrations[1].method, Method::kLegacy);
+  EXPECT_EQ(d.calibrations[1].params.to_vector(),
+            test::seeded_calibration(1, Method::kLegacy, false).params.to_vector());
+  const RunId fac = repo.create_run(test::new_run("FOG-1", kT0 + 5000));
+  EXPECT_EQ(repo.show(fac).run.setting, calib::Setting::kFactory);
+  EXPECT_EQ(repo.integrity_check(), "ok");
+}
+
+TEST(FieldRuns, DoneNeedsTheSettingsSecondMethodAndASeaRunIsNeverDone) {
+  TempDir dir;
+  SqliteRepository repo(dir.file("h.db"));
+  // Land with AINS + NLSQ (the factory's pair) is not done: the land pair is AINS + legacy.
+  const RunId land = repo.create_run(field_run("FOG-2", kT0, calib::Setting::kLand));
+  const std::string m1 =
+      expect_throw_message<Conflict>([&] { repo.finish_run(land, test::pass_completion(2, kT0 + 1)); });
+  EXPECT_NE(m1.find("legacy calibration"), std::string::npos) << m1;
+  // A sea run has AINS alone: done is refused, review with the reason is fine.
+  const RunId sea = repo.create_run(field_run("FOG-2", kT0 + 10, calib::Setting::kSea));
+  RunCompletion done = sea_alone(3, kT0 + 20);
+  done.state = RunState::kDone;
+  const std::string m2 = expect_throw_message<Conflict>([&] { repo.finish_run(sea, done); });
+  EXPECT_NE(m2.find("a second method"), std::string::npos) << m2;
+  repo.finish_run(sea, sea_alone(3, kT0 + 20));
+  EXPECT_EQ(repo.show(sea).run.state, RunState::kReview);
+}
+
+TEST(FieldRuns, ActiveStaysTheFactoryPassUntilQaPromotesAFieldRun) {
+  TempDir dir;
+  SqliteRepository repo(dir.file("h.db"));
+  const RunId fac1 = repo.create_run(test::new_run("FOG-3", kT0));
+  repo.finish_run(fac1, test::pass_completion(10, kT0 + 1000));
+  // A later land PASS does not replace it on its own.
+  const RunId land = repo.create_run(field_run("FOG-3", kT0 + 2000, calib::Setting::kLand));
+  repo.finish_run(land, land_pass(11, kT0 + 3000));
+  EXPECT_EQ(repo.active_params("FOG-3").run.run_id, fac1);
+  // QA promotes it: recorded with who, when, why; it becomes active.
+  repo.promote(land, "qa.jensen", "field recalibration after shipping damage check", kT0 + 4000);
+  const ActiveCalibration a = repo.active_params("FOG-3");
+  EXPECT_EQ(a.run.run_id, land);
+  EXPECT_EQ(a.run.promoted_by, "qa.jensen");
+  EXPECT_EQ(a.run.promote_reason, "field recalibration after shipping damage check");
+  EXPECT_EQ(a.run.promoted_at_ms, kT0 + 4000);
+  EXPECT_EQ(a.active.method, Method::kAins);
+  EXPECT_EQ(a.active.params.to_vector(),
+            test::seeded_calibration(11, Method::kAins, false).params.to_vector());
+  // A newer factory PASS wins again.
+  const RunId fac2 = repo.create_run(test::new_run("FOG-3", kT0 + 5000));
+  repo.finish_run(fac2, test::pass_completion(12, kT0 + 6000));
+  EXPECT_EQ(repo.active_params("FOG-3").run.run_id, fac2);
+  // A sea run reviewed only for having AINS alone may be promoted; then it is active.
+  const RunId sea = repo.create_run(field_run("FOG-3", kT0 + 7000, calib::Setting::kSea));
+  repo.finish_run(sea, sea_alone(13, kT0 + 8000));
+  repo.promote(sea, "qa.jensen", "vessel unit, no table within reach", kT0 + 9000);
+  EXPECT_EQ(repo.active_params("FOG-3").run.run_id, sea);
+}
+
+TEST(FieldRuns, PromotionIsRefusedWhereItMakesNoSense) {
+  TempDir dir;
+  SqliteRepository repo(dir.file("h.db"));
+  const RunId fac = repo.create_run(test::new_run("FOG-4", kT0));
+  repo.finish_run(fac, test::pass_completion(20, kT0 + 1000));
+  EXPECT_NE(expect_throw_message<Conflict>([&] { repo.promote(fac, "qa", "x", kT0 + 2); })
+                .find("factory run"),
+            std::string::npos);
+  const RunId live = repo.create_run(field_run("FOG-4", kT0 + 10, calib::Setting::kLand));
+  EXPECT_NE(expect_throw_message<Conflict>([&] { repo.promote(live, "qa", "x", kT0 + 20); })
+                .find("still preparing"),
+            std::string::npos);
+  RunCompletion rev = land_pass(21, kT0 + 30);
+  rev.state = RunState::kReview;
+  rev.crosscheck = CrosscheckRecord{Verdict::kReview, 4.0, {{"gyro_M[1][1]", "too far apart"}}};
+  repo.finish_run(live, rev);
+  EXPECT_NE(expect_throw_message<Conflict>([&] { repo.promote(live, "qa", "x", kT0 + 40); })
+                .find("only a done (PASS) field run"),
+            std::string::npos);
+  EXPECT_THROW(repo.promote(live, "qa", "", kT0 + 40), InvalidInput);
+  EXPECT_THROW(repo.promote(99999, "qa", "x", kT0 + 40), NotFound);
+  // Nothing was promoted: the factory run is still active.
+  EXPECT_EQ(repo.active_params("FOG-4").run.run_id, fac);
+}
+
+TEST(FieldRuns, VersionThreeDatabaseMigratesKeepingItsCalibrations) {
+  TempDir dir;
+  const std::string path = dir.file("v3.db");
+  {
+    sqlite3* raw = nullptr;
+    ASSERT_EQ(sqlite3_open(path.c_str(), &raw), SQLITE_OK);
+    const std::vector<schema::Migration> v3(schema::migrations().begin(),
+                                            schema::migrations().begin() + 3);
+    schema::migrate(raw, path, v3);
+    const char* sql =
+        "INSERT INTO units (serial, first_seen_ms) VALUES ('OLD-3', 1714560000000);"
+        "INSERT INTO runs (unit_id, operator, station, sequence_name, sequence_sha256, "
+        "software_version, started_at_ms, ended_at_ms, state) VALUES "
+        "(1, 'op', 'st', 'short', '', '0.1.0', 1714560000000, 1714560060000, 'review');"
+        "INSERT INTO calibrations (run_id, method, params_json, sigma_json, converged, "
+        "iterations, runtime_s) VALUES (1, 'ains', '{}', '{}', 1, 3, 0.5);";
+    ASSERT_EQ(sqlite3_exec(raw, sql, nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(raw);
+    // v3 refuses a legacy result: the CHECK the migration widens.
+    EXPECT_NE(sqlite3_exec(raw,
+                           "INSERT INTO calibrations (run_id, method, params_json, sigma_json, "
+                           "converged, iterations, runtime_s) VALUES (1, 'legacy', '{}', '{}', 1, "
+                           "3, 0.5);",
+                           nullptr, nullptr, nullptr),
+              SQLITE_OK);
+    sqlite3_close(raw);
+  }
+  SqliteRepository repo(path);
+  EXPECT_EQ(repo.schema_version(), 4);
+  const auto runs = repo.history("OLD-3");
+  ASSERT_EQ(runs.size(), 1u);
+  EXPECT_EQ(runs[0].setting, calib::Setting::kFactory);
+  EXPECT_FALSE(runs[0].promoted_at_ms.has_value());
+  EXPECT_EQ(repo.integrity_check(), "ok");
+  // The old calibration row survived the table rebuild (read back through the raw file).
+  sqlite3* raw = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &raw), SQLITE_OK);
+  sqlite3_stmt* st = nullptr;
+  sqlite3_prepare_v2(raw, "SELECT method, iterations FROM calibrations", -1, &st, nullptr);
+  ASSERT_EQ(sqlite3_step(st), SQLITE_ROW);
+  EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(st, 0)), "ains");
+  EXPECT_EQ(sqlite3_column_int(st, 1), 3);
+  sqlite3_finalize(st);
+  sqlite3_close(raw);
+}
+
+}  // namespace
+}  // namespace imucal::db
