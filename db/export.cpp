@@ -8,10 +8,11 @@ namespace imucal::db {
 
 using nlohmann::json;
 
-const char* const kCsvRunColumns[15] = {
+const char* const kCsvRunColumns[20] = {
     "run_id",           "serial",       "state",          "verdict",        "started_at",
     "ended_at",         "operator",     "station",        "sequence_name",  "sequence_sha256",
-    "software_version", "archive_path", "archive_sha256", "failure_reason", "reprocessed_from"};
+    "software_version", "archive_path", "archive_sha256", "failure_reason", "reprocessed_from",
+    "setting",          "origin",       "promoted_at",    "promoted_by",    "promote_reason"};
 
 const char* const kCsvCalibrationColumns[11] = {"method",         "converged",
                                                 "iterations",     "runtime_s",
@@ -106,6 +107,11 @@ std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::
     line.field(r.archive_sha256);
     line.field(r.failure_reason);
     r.reprocessed_from ? line.integer(*r.reprocessed_from) : line.empty();
+    line.field(calib::setting_name(r.setting));
+    line.field(r.origin);
+    r.promoted_at_ms ? line.field(format_time_utc(*r.promoted_at_ms)) : line.empty();
+    line.field(r.promoted_by);
+    line.field(r.promote_reason);
     if (row.calibration) {
       const CalibrationRecord& c = *row.calibration;
       line.field(to_string(c.method));
@@ -186,6 +192,11 @@ json run_json(const RunRecord& r) {
   o["archive_sha256"] = r.archive_sha256;
   o["failure_reason"] = r.failure_reason;
   o["reprocessed_from"] = r.reprocessed_from ? json(*r.reprocessed_from) : json(nullptr);
+  o["setting"] = calib::setting_name(r.setting);
+  o["origin"] = r.origin;
+  o["promoted_at"] = r.promoted_at_ms ? json(format_time_utc(*r.promoted_at_ms)) : json(nullptr);
+  o["promoted_by"] = r.promoted_by;
+  o["promote_reason"] = r.promote_reason;
   // Stored only after finish_run validated them as objects; a damaged text is reported, not hidden.
   o["capture"] = stored_object(r.capture_json, r.run_id, "capture_json");
   o["diagnosis"] = stored_object(r.diagnosis_json, r.run_id, "diagnosis_json");

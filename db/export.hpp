@@ -23,7 +23,7 @@
 namespace imucal::db {
 
 /// Run columns of the CSV export, in order.
-extern const char* const kCsvRunColumns[15];
+extern const char* const kCsvRunColumns[20];
 /// Calibration columns of the CSV export, in order (then parameters and sigmas).
 extern const char* const kCsvCalibrationColumns[11];
 

@@ -26,6 +26,62 @@ std::string join_failures(const std::vector<calib::CrossCheckFailure>& failures)
   return s.empty() ? "cross-check REVIEW" : "cross-check REVIEW: " + s;
 }
 
+/// Factory: AINS + NLSQ, cross-check, and the gap check (a significant sim-to-real gap means an
+/// unmodelled effect that biases the calibration, so the run is never PASS then).
+void store_factory_result(const calib::PipelineResult& r, calib::CalibrationInput in,
+                          const archive::RunArchive& ar, double k_sigma,
+                          const std::function<void(const std::string&)>& phase,
+                          db::RunCompletion& completion, CalibrationOutcome& out) {
+  if (!r.ains || !r.nlsq || !r.crosscheck)
+    throw std::runtime_error("the calibration pipeline returned without both methods");
+  completion.calibrations.push_back(db::calibration_record(r.ains->result, &r.ains->metrics));
+  completion.calibrations.push_back(db::calibration_record(r.nlsq->result, &r.nlsq->metrics));
+  completion.crosscheck = db::crosscheck_record(*r.crosscheck, k_sigma);
+  phase("gap diagnosis");
+  const GapCheck gap = check_gap(std::move(in), ar, r.nlsq->result.params);
+  completion.diagnosis_json = gap.summary.dump();
+  const std::string gap_reason = gap.significant ? "sim-to-real gap: " + gap.text : "";
+  if (r.crosscheck->pass && !gap.significant) {
+    completion.state = db::RunState::kDone;
+    out.verdict = db::Verdict::kPass;
+  } else {
+    completion.state = db::RunState::kReview;
+    completion.reason = r.crosscheck->pass ? gap_reason : join_failures(r.crosscheck->failures);
+    if (!r.crosscheck->pass && gap.significant) completion.reason += "; " + gap_reason;
+    out.verdict = db::Verdict::kReview;
+  }
+}
+
+/// Land: AINS + legacy and their cross-check (no metrics: no attitude reference; no gap check:
+/// it models a table run). Sea: AINS alone, which no second method can check — review, for QA to
+/// promote explicitly.
+void store_field_result(const calib::PipelineResult& r, calib::Setting setting, double k_sigma,
+                        db::RunCompletion& completion, CalibrationOutcome& out) {
+  if (!r.ains) throw std::runtime_error("the calibration pipeline returned without AINS");
+  completion.calibrations.push_back(db::calibration_record(r.ains->result, nullptr));
+  const std::string frame_note =
+      "housing orientation not observable " +
+      std::string(setting == calib::Setting::kSea ? "at sea" : "on land") +
+      " (misalignments in the accelerometer triad's frame)";
+  if (setting == calib::Setting::kSea || !r.legacy || !r.crosscheck) {
+    completion.state = db::RunState::kReview;
+    completion.reason = "sea: AINS alone, no independent method to cross-check it (the legacy "
+                        "method needs a still platform); " + frame_note + "; promote explicitly";
+    out.verdict.reset();
+    return;
+  }
+  completion.calibrations.push_back(db::calibration_record(r.legacy->result, nullptr));
+  completion.crosscheck = db::crosscheck_record(*r.crosscheck, k_sigma);
+  if (r.crosscheck->pass) {
+    completion.state = db::RunState::kDone;
+    out.verdict = db::Verdict::kPass;
+  } else {
+    completion.state = db::RunState::kReview;
+    completion.reason = join_failures(r.crosscheck->failures);
+    out.verdict = db::Verdict::kReview;
+  }
+}
+
 }  // namespace
 
 CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJob& job,
@@ -51,27 +107,10 @@ CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJo
     opt.crosscheck.k_sigma = job.k_sigma;
     opt.on_phase = phase;
     const calib::PipelineResult r = calib::run_calibration(in, opt);
-    if (!r.ains || !r.nlsq || !r.crosscheck) {
-      throw std::runtime_error("the calibration pipeline returned without both methods");
-    }
-    completion.calibrations.push_back(db::calibration_record(r.ains->result, &r.ains->metrics));
-    completion.calibrations.push_back(db::calibration_record(r.nlsq->result, &r.nlsq->metrics));
-    completion.crosscheck = db::crosscheck_record(*r.crosscheck, job.k_sigma);
-    phase("gap diagnosis");
-    // Every run gets the consistency test: a significant gap between the run and its own model
-    // means an unmodelled effect that biases the calibration, so the run is never PASS then.
-    const GapCheck gap = check_gap(std::move(in), ar, r.nlsq->result.params);
-    completion.diagnosis_json = gap.summary.dump();
-    const std::string gap_reason = gap.significant ? "sim-to-real gap: " + gap.text : "";
-    if (r.crosscheck->pass && !gap.significant) {
-      completion.state = db::RunState::kDone;
-      out.verdict = db::Verdict::kPass;
-    } else {
-      completion.state = db::RunState::kReview;
-      completion.reason = r.crosscheck->pass ? gap_reason : join_failures(r.crosscheck->failures);
-      if (!r.crosscheck->pass && gap.significant) completion.reason += "; " + gap_reason;
-      out.verdict = db::Verdict::kReview;
-    }
+    if (in.setting == calib::Setting::kFactory)
+      store_factory_result(r, std::move(in), ar, job.k_sigma, phase, completion, out);
+    else
+      store_field_result(r, in.setting, job.k_sigma, completion, out);
   } catch (const std::exception& e) {
     completion = db::RunCompletion{};
     completion.state = db::RunState::kFailed;

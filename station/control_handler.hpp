@@ -63,6 +63,24 @@ class ControlHandler {
   /// The sim-to-real gap diagnosis of a finished run (station/gap_check.hpp), its summary stored with
   /// the run; returns the full diagnosis JSON plus "run_id". kBusy while a run is active.
   virtual nlohmann::json diagnose(db::RunId run_id) = 0;
+  /// Imports a field (or another station's) run archive into the history for its serial and
+  /// calibrates it with the setting run.toml names; returns {"run_id", "serial", "setting"}.
+  /// kInvalidInput naming the file for a bad archive (nothing stored), kBusy while a run is
+  /// active. `user` is recorded as the run's operator.
+  virtual nlohmann::json import_archive(const std::string& dir, const std::string& user) {
+    (void)dir;
+    (void)user;
+    throw ControlError(error_code::kInternal, "import is not supported by this handler");
+  }
+  /// QA's promotion of a field run to the unit's active parameters (db::Repository::promote),
+  /// recorded with `user`; returns {"run_id", "promoted_by", "promoted_at"}.
+  virtual nlohmann::json promote(db::RunId run_id, const std::string& user,
+                                 const std::string& reason) {
+    (void)run_id;
+    (void)user;
+    (void)reason;
+    throw ControlError(error_code::kInternal, "promote is not supported by this handler");
+  }
   /// The repository reads are served from.
   virtual const db::Repository& repository() const = 0;
 };

@@ -46,6 +46,8 @@ const std::vector<CommandSpec>& specs() {
         {"format", ArgType::kFormat, true}}},
       {cmd::kPing, {}},
       {cmd::kDiagnose, {{"run_id", ArgType::kPositiveInt, true}}},
+      {cmd::kImport, {{"dir", ArgType::kString, true}}},
+      {cmd::kPromote, {{"run_id", ArgType::kPositiveInt, true}, {"reason", ArgType::kString, true}}},
   };
   return s;
 }
@@ -146,7 +148,7 @@ const std::vector<std::string>& command_names() {
 
 bool needs_control_permission(const std::string& command) {
   return command == cmd::kRunStart || command == cmd::kRunAbort || command == cmd::kReprocess ||
-         command == cmd::kDiagnose;
+         command == cmd::kDiagnose || command == cmd::kImport || command == cmd::kPromote;
 }
 
 bool is_repository_read(const std::string& command) {

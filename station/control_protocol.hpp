@@ -10,6 +10,7 @@
 //   reprocess  {run_id}                           history {serial, limit?}  show {run_id}
 //   params     {serial}                           export {serial?, since?, format: "csv"|"json"}
 //   diagnose   {run_id}                           ping       {}
+//   import     {dir}                              promote    {run_id, reason}
 // "args" may be omitted when a command has no required argument. Validation is strict: a line that
 // is not JSON, not an object, lacks "id" or "cmd", names an unknown command, misses a required
 // argument, has an argument of the wrong type or an argument/field the command does not know is
@@ -45,12 +46,14 @@ inline constexpr const char* kParams = "params";
 inline constexpr const char* kExport = "export";
 inline constexpr const char* kPing = "ping";
 inline constexpr const char* kDiagnose = "diagnose";
+inline constexpr const char* kImport = "import";
+inline constexpr const char* kPromote = "promote";
 }  // namespace cmd
 
 /// Every command name, in the order listed above.
 const std::vector<std::string>& command_names();
-/// run.start, run.abort, reprocess and diagnose (it stores its summary with the run): the commands
-/// that need membership of the control group.
+/// run.start, run.abort, reprocess, diagnose (it stores its summary with the run), import and
+/// promote: the commands that need membership of the control group.
 bool needs_control_permission(const std::string& command);
 /// history, show, params, export: answered from the repository (record_json.hpp), by the server
 /// and by stationctl's read-only fallback alike.

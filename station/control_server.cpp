@@ -250,6 +250,16 @@ json ControlServer::dispatch(Client& client, const Request& r) {
     spdlog::info("control: diagnose run {} by {}", a.at("run_id").get<db::RunId>(), client.user);
     return handler_.diagnose(a.at("run_id").get<db::RunId>());
   }
+  if (r.cmd == cmd::kImport) {
+    const std::string dir = a.at("dir").get<std::string>();
+    spdlog::info("control: import {} by {} (uid {})", dir, client.user, client.cred.uid);
+    return handler_.import_archive(dir, client.user);
+  }
+  if (r.cmd == cmd::kPromote) {
+    const auto id = a.at("run_id").get<db::RunId>();
+    spdlog::info("control: promote run {} by {} (uid {})", id, client.user, client.cred.uid);
+    return handler_.promote(id, client.user, a.at("reason").get<std::string>());
+  }
   if (is_repository_read(r.cmd)) return answer_repository_read(handler_.repository(), r);
   throw ControlError(error_code::kInternal, "command " + r.cmd + " has no dispatcher");
 }

@@ -245,6 +245,17 @@ nlohmann::json Daemon::diagnose(db::RunId run_id) {
   return controller_->diagnose(run_id);
 }
 
+nlohmann::json Daemon::import_archive(const std::string& dir, const std::string& user) {
+  if (!controller_) throw ControlError(error_code::kUnavailable, "the daemon is not running");
+  return controller_->import_archive(dir, user);
+}
+
+nlohmann::json Daemon::promote(db::RunId run_id, const std::string& user,
+                               const std::string& reason) {
+  if (!controller_) throw ControlError(error_code::kUnavailable, "the daemon is not running");
+  return controller_->promote(run_id, user, reason);
+}
+
 const db::Repository& Daemon::repository() const {
   if (!repo_) throw ControlError(error_code::kUnavailable, "the daemon is not running");
   return *repo_;

@@ -66,6 +66,9 @@ class Daemon final : public ControlHandler {
   nlohmann::json abort_run(const std::string& reason) override;
   nlohmann::json reprocess(db::RunId run_id) override;
   nlohmann::json diagnose(db::RunId run_id) override;
+  nlohmann::json import_archive(const std::string& dir, const std::string& user) override;
+  nlohmann::json promote(db::RunId run_id, const std::string& user,
+                         const std::string& reason) override;
   const db::Repository& repository() const override;
 
   const RecoveryReport& recovery() const { return recovery_; }

@@ -218,14 +218,16 @@ std::string render_history_text(const json& history) {
   }
   os << "History of " << serial << " (" << runs.size() << (runs.size() == 1 ? " run" : " runs")
      << ", newest first)\n";
-  os << pad("RUN", 7) << pad("STARTED (UTC)", 21) << pad("STATE", 13) << pad("VERDICT", 9)
-     << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13) << pad("GAP (best effect)", 40)
+  os << pad("RUN", 7) << pad("STARTED (UTC)", 21) << pad("SETTING", 9) << pad("STATE", 13)
+     << pad("VERDICT", 9) << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13) << pad("GAP (best effect)", 40)
      << "REASON\n";
   for (const auto& r : runs) {
     std::string id = str(r, "run_id");
     if (has(r, "reprocessed_from")) id += "*";
+    if (has(r, "promoted_at")) id += "^";
     const std::string duration = run_duration(r);
-    os << rtrim(pad(id, 7) + pad(short_time(str(r, "started_at")), 21) + pad(str(r, "state"), 13) +
+    os << rtrim(pad(id, 7) + pad(short_time(str(r, "started_at")), 21) +
+                pad(str(r, "setting", "factory"), 9) + pad(str(r, "state"), 13) +
                 pad(str(r, "verdict", "-"), 9) + pad(str(r, "sequence_name"), 16) +
                 pad(str(r, "operator"), 14) + pad(duration.empty() ? "-" : duration, 13) +
                 pad(gap_cell(r), 40) + str(r, "failure_reason"))
@@ -234,6 +236,10 @@ std::string render_history_text(const json& history) {
   bool any_reprocessed = false;
   for (const auto& r : runs) any_reprocessed = any_reprocessed || has(r, "reprocessed_from");
   if (any_reprocessed) os << "* reprocessed from an earlier run's archive\n";
+  bool any_promoted = false;
+  for (const auto& r : runs) any_promoted = any_promoted || has(r, "promoted_at");
+  if (any_promoted)
+    os << "^ field run promoted by QA to the active parameters (stationctl show RUN for why)\n";
   return os.str();
 }
 
@@ -275,6 +281,11 @@ std::string render_show_text(const json& show) {
   if (!str(run, "sequence_sha256").empty())
     seq += "  (sha256 " + str(run, "sequence_sha256").substr(0, 16) + "...)";
   row("sequence", seq);
+  row("setting", str(run, "setting", "factory"));
+  row("origin", str(run, "origin"));
+  if (has(run, "promoted_at"))
+    row("promoted", str(run, "promoted_at") + " by " + str(run, "promoted_by") + ": " +
+                        str(run, "promote_reason"));
   row("operator", str(run, "operator"));
   row("station", str(run, "station"));
   row("software", str(run, "software_version"));

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "db/archive/run_archive.hpp"
 #include "db/serial_number.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/turntable/turntable_client.hpp"
@@ -354,6 +355,106 @@ nlohmann::json RunController::reprocess(db::RunId run_id) {
   lk.unlock();
   worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, out); });
   return {{"run_id", id}, {"reprocessed_from", run_id}};
+}
+
+namespace {
+
+/// The archive to import, read and checked as the calibration will read it; any problem is the
+/// caller's (kInvalidInput, naming the file), and nothing is stored.
+archive::RunArchive checked_import(const std::string& dir) {
+  if (dir.empty() || !fs::path(dir).is_absolute())
+    throw ControlError(error_code::kInvalidInput,
+                       "import: '" + dir + "' is not an absolute path (stationctl sends one)");
+  try {
+    archive::RunArchive ar = archive::read_archive(dir);
+    (void)archive::to_calibration_input(ar);
+    return ar;
+  } catch (const std::exception& e) {
+    throw ControlError(error_code::kInvalidInput, std::string("import: ") + e.what());
+  }
+}
+
+}  // namespace
+
+nlohmann::json RunController::import_archive(const std::string& dir, const std::string& user) {
+  std::unique_lock<std::mutex> lk(mu_);
+  if (shut_down_) throw ControlError(error_code::kUnavailable, "the daemon is shutting down");
+  if (live_)
+    throw ControlError(error_code::kBusy, "run " + std::to_string(live_->snap.run_id) + " is " +
+                                              db::to_string(live_->snap.state) +
+                                              "; one run at a time");
+  archive::RunArchive ar = checked_import(dir);
+  if (thread_.joinable()) thread_.join();
+
+  db::NewRun nr = new_run(ar.info.serial, user, ar.info.sequence_name, ar.info.sequence_sha256,
+                          db::RunState::kCalibrating);
+  nr.setting = ar.info.setting;
+  nr.origin = "imported from " + dir;
+  db::RunId id = 0;
+  try {
+    id = repo_.create_run(nr);
+  } catch (const db::InvalidInput& e) {
+    throw ControlError(error_code::kInvalidInput, std::string("import: ") + e.what());
+  }
+  // The station keeps its own copy (atomic: a temporary directory renamed into place), so the
+  // record stays reproducible whatever happens to the medium it came from.
+  const std::string dest = archive_dir_for(id, ar.info.serial);
+  std::string digest;
+  try {
+    fs::create_directories(fs::path(cfg_.data_dir) / "runs");
+    archive::write_archive(dest, ar);
+    digest = archive_digest(dest);
+  } catch (const std::exception& e) {
+    db::RunCompletion c;
+    c.state = db::RunState::kFailed;
+    c.ended_at_ms = db::now_ms();
+    c.reason = std::string("import: cannot store the archive: ") + e.what();
+    repo_.finish_run(id, c);
+    throw ControlError(error_code::kUnavailable, c.reason);
+  }
+
+  auto live = std::make_shared<Live>();
+  live->reprocess = true;
+  live->handed_to_worker = true;
+  live->snap.run_id = id;
+  live->snap.serial = ar.info.serial;
+  live->snap.sequence = ar.info.sequence_name;
+  live->snap.operator_name = user;
+  live->snap.archive_path = dest;
+  live->snap.state = db::RunState::kCalibrating;
+  live->snap.phase = RunPhase::kCalibrating;
+  live->snap.started_at_ms = nr.started_at_ms;
+  live_ = live;
+  spdlog::info("run {}: imported {} ({} run of {}) into {}", id, dir,
+               calib::setting_name(ar.info.setting), ar.info.serial, dest);
+
+  CalibrationJob job;
+  job.run_id = id;
+  job.archive_dir = dest;
+  job.archive_sha256 = digest;
+  job.k_sigma = cfg_.k_sigma;
+  lk.unlock();
+  worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, out); });
+  return {{"run_id", id},
+          {"serial", ar.info.serial},
+          {"setting", calib::setting_name(ar.info.setting)},
+          {"archive", dest}};
+}
+
+nlohmann::json RunController::promote(db::RunId run_id, const std::string& user,
+                                      const std::string& reason) {
+  const db::TimestampMs now = db::now_ms();
+  try {
+    repo_.promote(run_id, user, reason, now);
+  } catch (const db::NotFound& e) {
+    throw ControlError(error_code::kNotFound, e.what());
+  } catch (const db::Conflict& e) {
+    throw ControlError(error_code::kInvalidInput, e.what());
+  } catch (const db::InvalidInput& e) {
+    throw ControlError(error_code::kInvalidInput, e.what());
+  }
+  spdlog::info("run {}: promoted to the active parameters by {}: {}", run_id, user, reason);
+  return {{"run_id", run_id}, {"promoted_by", user}, {"promoted_at", db::format_time_utc(now)}};
 }
 
 bool RunController::abort(const std::string& reason) {

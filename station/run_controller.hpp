@@ -146,6 +146,11 @@ class RunController {
   /// ControlError kBusy, kNotFound (no such run / no archive), kInvalidInput (archive changed
   /// since it was recorded), kUnavailable (archive unreadable).
   nlohmann::json reprocess(db::RunId run_id);
+  /// `stationctl import DIR`: a field (or other station's) archive into the history, copied into
+  /// the station's store and calibrated with its own setting (ControlHandler::import_archive).
+  nlohmann::json import_archive(const std::string& dir, const std::string& user);
+  /// `stationctl promote RUN --reason`: QA makes a field run the unit's active parameters.
+  nlohmann::json promote(db::RunId run_id, const std::string& user, const std::string& reason);
   /// The full gap diagnosis of a finished run's archive (checked against its recorded SHA-256; the
   /// run's NLSQ calibration recomputed as the model), its summary stored with the run
   /// (Repository::set_diagnosis). kBusy while a run is active, kNotFound for an unknown run or a

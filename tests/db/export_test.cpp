@@ -167,12 +167,13 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
     const auto rows = parse_csv(os.str());
     ASSERT_FALSE(rows.empty());
     const auto& header = rows[0];
-    ASSERT_EQ(header.size(), 15u + 11u + 2u * calib::ParamSet::kSize);
+    ASSERT_EQ(header.size(), 20u + 11u + 2u * calib::ParamSet::kSize);
     std::map<std::string, std::size_t> col;
     for (std::size_t c = 0; c < header.size(); ++c) col[header[c]] = c;
     ASSERT_EQ(col.size(), header.size()) << "duplicate column names";
     for (const char* name : {"run_id", "serial", "state", "verdict", "started_at", "method",
-                             "failure_reason", "accel_M[1][2]", "sigma.gyro_bias_radps[0]"})
+                             "failure_reason", "setting", "origin", "promoted_at", "promoted_by",
+                             "promote_reason", "accel_M[1][2]", "sigma.gyro_bias_radps[0]"})
       ASSERT_TRUE(col.count(name)) << name;
 
     const auto expected = expected_rows(f);
@@ -187,6 +188,8 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
       const Stored& s = stored(id);
       EXPECT_EQ(row[col["serial"]], s.serial);
       EXPECT_EQ(row[col["state"]], to_string(s.state));
+      EXPECT_EQ(row[col["setting"]], "factory");
+      EXPECT_EQ(row[col["promoted_at"]], "");
       EXPECT_EQ(parse_time_utc(row[col["started_at"]]), s.t);
       if (s.seed == 0) {
         EXPECT_EQ(row[col["verdict"]], "");

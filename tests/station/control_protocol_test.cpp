@@ -57,7 +57,13 @@ TEST(ControlProtocol, ValidRequestsOfEveryCommand) {
   EXPECT_EQ(parse_request(R"({"id":-4,"cmd":"ping"})").id, -4);
   // Key order and whitespace do not matter; a trailing '\r' is the server's business, not JSON's.
   EXPECT_EQ(parse_request(R"(  { "args" : {"run_id":2} , "cmd":"show", "id":11 }  )").id, 11);
-  EXPECT_EQ(command_names().size(), 10u);
+  EXPECT_EQ(parse_request(R"({"id":12,"cmd":"import","args":{"dir":"/x"}})").args.at("dir"), "/x");
+  EXPECT_EQ(parse_request(R"({"id":13,"cmd":"promote","args":{"run_id":3,"reason":"r"}})").cmd,
+            "promote");
+  EXPECT_THROW(parse_request(R"({"id":14,"cmd":"promote","args":{"run_id":3}})"), BadRequest);
+  EXPECT_TRUE(needs_control_permission("import"));
+  EXPECT_TRUE(needs_control_permission("promote"));
+  EXPECT_EQ(command_names().size(), 12u);
 }
 
 TEST(ControlProtocol, LinesThatAreNotRequestObjects) {

@@ -205,6 +205,42 @@ bool is_terminal_state(const std::string& state) {
 
 /// Polls run.status every ~200 ms until the run is terminal, showing a progress line on stderr
 /// (a TTY: rewritten in place; otherwise a new line only when step, phase or state changes).
+int wait_for_run(ControlClient& client, db::RunId run_id, bool json_out);
+
+/// `stationctl import DIR [--wait]`: the daemon reads the archive itself, so the path is made
+/// absolute here (the daemon's working directory is not the user's).
+int cmd_import(const Target& target, const std::string& dir, bool wait, bool json_out) {
+  std::error_code ec;
+  const std::string abs = std::filesystem::absolute(dir, ec).lexically_normal().string();
+  if (ec || !std::filesystem::is_directory(abs))
+    throw Failure{kBadInput, dir + ": no such run archive directory"};
+  ControlClient client = connect_or_fail(target);
+  const json r = call(client, station::cmd::kImport, {{"dir", abs}});
+  const std::string head = "run " + text(r, "run_id", "?") + ": imported " + text(r, "setting") +
+                           " run of " + text(r, "serial") + " from " + abs;
+  if (!wait) {
+    if (json_out)
+      print_json(r);
+    else
+      std::cout << head << "\n";
+    return kOk;
+  }
+  if (!json_out) std::cerr << head << "\n";
+  return wait_for_run(client, r.at("run_id").get<db::RunId>(), json_out);
+}
+
+/// `stationctl promote RUN_ID --reason TEXT`: recorded with the caller's user name.
+int cmd_promote(const Target& target, db::RunId run_id, const std::string& reason, bool json_out) {
+  ControlClient client = connect_or_fail(target);
+  const json r = call(client, station::cmd::kPromote, {{"run_id", run_id}, {"reason", reason}});
+  if (json_out)
+    print_json(r);
+  else
+    std::cout << "run " << run_id << " promoted to the active parameters by "
+              << text(r, "promoted_by") << " at " << text(r, "promoted_at") << "\n";
+  return kOk;
+}
+
 int wait_for_run(ControlClient& client, db::RunId run_id, bool json_out) {
   const bool tty = ::isatty(STDERR_FILENO) != 0;
   std::string last_key, last_line;
@@ -362,6 +398,20 @@ int main(int argc, char** argv) {
       "diagnose", "sim-to-real gap diagnosis of a stored run, kept with the run (needs the group)");
   diagnose->add_option("RUN_ID", run_id, "run id")->required()->check(CLI::PositiveNumber);
   diagnose->fallthrough();
+  std::string import_dir;
+  auto* import = app.add_subcommand(
+      "import",
+      "add a field (land/sea) or other station's run archive to its unit's history and calibrate "
+      "it with its setting (needs the group); it never becomes active unless promoted");
+  import->add_option("DIR", import_dir, "run archive directory (imucal simulate/calibrate format)")
+      ->required();
+  import->add_flag("--wait", wait, "follow the calibration to its end");
+  import->fallthrough();
+  auto* promote = app.add_subcommand(
+      "promote", "QA: make a field run the unit's active parameters (needs the group)");
+  promote->add_option("RUN_ID", run_id, "run id")->required()->check(CLI::PositiveNumber);
+  promote->add_option("--reason", reason, "why (stored with the run, required)")->required();
+  promote->fallthrough();
 
   try {
     app.parse(argc, argv);
@@ -497,6 +547,8 @@ int main(int argc, char** argv) {
         std::cout << station::render_diagnosis_text(r);
       return kOk;
     }
+    if (*import) return cmd_import(target, import_dir, wait, g.json);
+    if (*promote) return cmd_promote(target, run_id, reason, g.json);
     throw Failure{kBadInput, "no command given (see --help)"};
   } catch (const Failure& f) {
     std::cout.flush();
