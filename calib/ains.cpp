@@ -8,8 +8,8 @@
 
 #include "calib/ains_filter.hpp"
 #include "calib/coarse_alignment.hpp"
-#include "calib/rotation.hpp"
 #include "calib/conventions.hpp"
+#include "calib/rotation.hpp"
 
 namespace imucal::calib {
 

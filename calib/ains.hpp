@@ -42,15 +42,15 @@ struct AinsOptions {
   /// as imucal simulate --setting sea). Heave is narrow-band, so treating it as white noise of
   /// this σ is conservative (accel RMS(error/σ) ≈ 0.76 at sea against ≈ 0.9 on land).
   double sea_depth_sigma_m = 0.035;
-  double gnss_sigma_m = 0.0;              ///< eq. 44-47; <= 0: each fix's own sigma_m (default 0.3)
+  double gnss_sigma_m = 0.0;  ///< eq. 44-47; <= 0: each fix's own sigma_m (default 0.3)
   /// Field settings: prior 1-σ of the initial attitude about the coarse alignment. Broad, so the
   /// data (not the alignment, which used the same samples) decide it.
   double initial_tilt_sigma_rad = 1e-2;
   double initial_heading_sigma_rad = 0.1;
   double sea_initial_velocity_sigma_mps = 0.2;  ///< a drifting vessel's speed
-  double update_interval_s = 1.0;         ///< aiding rate while at rest
-  double propagation_interval_s = 0.1;    ///< Φ accumulated over the samples of this interval
-  size_t min_rest_samples = 100;          ///< shorter at_rest runs are not used for aiding
+  double update_interval_s = 1.0;               ///< aiding rate while at rest
+  double propagation_interval_s = 0.1;  ///< Φ accumulated over the samples of this interval
+  size_t min_rest_samples = 100;        ///< shorter at_rest runs are not used for aiding
   /// 1-σ prior of the sensor states (centred on zero). Elements <= 0 take the built-in default
   /// (default_prior_sigma()).
   ParamSet prior_sigma;
@@ -93,8 +93,8 @@ struct AinsResult {
 };
 
 /// Full AINS calibration. Throws std::invalid_argument when the input cannot be calibrated (sizes
-/// differ, non-finite values, no rest periods, a sea run without GNSS fixes) and std::runtime_error if the
-/// filter diverges numerically.
+/// differ, non-finite values, no rest periods, a sea run without GNSS fixes) and std::runtime_error
+/// if the filter diverges numerically.
 AinsResult calibrate_ains_detailed(const CalibrationInput& in, const AinsOptions& opt = {});
 /// The calibration part of calibrate_ains_detailed (method "ains").
 CalibrationResult calibrate_ains(const CalibrationInput& in, const AinsOptions& opt = {});

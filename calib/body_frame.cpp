@@ -21,8 +21,8 @@ BodyFrameChange to_accel_symmetric_frame(const ParamSet& params) {
   out.params = params;
   const Eigen::Matrix3d S = A * U.transpose();
   out.params.accel_M = 0.5 * (S + S.transpose()) - Eigen::Matrix3d::Identity();
-  out.params.gyro_M = (Eigen::Matrix3d::Identity() + params.gyro_M) * U.transpose() -
-                      Eigen::Matrix3d::Identity();
+  out.params.gyro_M =
+      (Eigen::Matrix3d::Identity() + params.gyro_M) * U.transpose() - Eigen::Matrix3d::Identity();
   return out;
 }
 

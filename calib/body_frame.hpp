@@ -20,8 +20,8 @@
 namespace imucal::calib {
 
 struct BodyFrameChange {
-  ParamSet params;   ///< in the accel-symmetric frame (biases and ς unchanged)
-  Eigen::Matrix3d R; ///< b' = R b: the housing-to-sensor-frame rotation
+  ParamSet params;    ///< in the accel-symmetric frame (biases and ς unchanged)
+  Eigen::Matrix3d R;  ///< b' = R b: the housing-to-sensor-frame rotation
 };
 
 /// Express params (housing or any frame) in the accel-symmetric frame. Throws

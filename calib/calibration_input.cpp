@@ -7,9 +7,12 @@ namespace imucal::calib {
 
 const char* setting_name(Setting s) {
   switch (s) {
-    case Setting::kFactory: return "factory";
-    case Setting::kLand: return "land";
-    case Setting::kSea: return "sea";
+    case Setting::kFactory:
+      return "factory";
+    case Setting::kLand:
+      return "land";
+    case Setting::kSea:
+      return "sea";
   }
   return "factory";
 }

@@ -52,7 +52,7 @@ struct ReferenceSample {
 
 struct CalibrationInput {
   Setting setting = Setting::kFactory;
-  Site site;     ///< factory: surveyed; land: approximately known; sea: approximate (GNSS aids)
+  Site site;      ///< factory: surveyed; land: approximately known; sea: approximate (GNSS aids)
   ImuSeries imu;  ///< raw (uncompensated) increments
   /// Same length and times as imu. Factory: the reference attitude and the table's at_rest flag.
   /// Land/sea: at_rest only (from calib/rest_detector.hpp); C_bn_ref is identity and unused.
@@ -75,7 +75,8 @@ struct RestPeriod {
 std::vector<RestPeriod> find_rest_periods(const CalibrationInput& in, size_t min_samples);
 
 /// The body frame a result's misalignments refer to.
-///  * kHousing — the IMU housing (mounting fixture) frame: needs an orientation reference (factory);
+///  * kHousing — the IMU housing (mounting fixture) frame: needs an orientation reference
+///  (factory);
 ///  * kAccelSymmetric — the frame in which I + dM_a is symmetric (the accelerometer triad's own
 ///    orthogonal frame, polar decomposition; calib/body_frame.hpp). Used where the housing
 ///    orientation is not observable (land, sea, the legacy method): a common rotation of both

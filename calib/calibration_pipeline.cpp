@@ -49,7 +49,8 @@ PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions
   const MethodSelection sel = opt.methods;
   if (field && sel == MethodSelection::kNlsq)
     throw std::invalid_argument(
-        std::string("NLSQ needs the table's attitude reference (paper §V) and cannot calibrate a ") +
+        std::string(
+            "NLSQ needs the table's attitude reference (paper §V) and cannot calibrate a ") +
         setting_name(in.setting) + " run; use --method ains or legacy (or all: AINS + legacy)");
   const bool all = sel == MethodSelection::kAll;
   PipelineResult out;

@@ -53,7 +53,8 @@ CoarseAlignment coarse_align(const ImuSeries& imu, size_t begin, size_t end, con
     const Eigen::Vector3d dv_b0 = C_b0_b * comp.dv(s.dv_mps, s.dt_s);
     C_b0_b = C_b0_b * rotvec_to_matrix<double>(comp.dtheta(s.dtheta_rad, s.dt_s));
     const double tau = s.t_s - 0.5 * s.dt_s - t0;
-    const Eigen::Vector3d dW = rotvec_to_matrix<double>(Eigen::Vector3d(w_ie_n * tau)) * f_n * s.dt_s;
+    const Eigen::Vector3d dW =
+        rotvec_to_matrix<double>(Eigen::Vector3d(w_ie_n * tau)) * f_n * s.dt_s;
     const bool first_half = s.t_s - 0.5 * s.dt_s < t_mid;
     (first_half ? u1 : u2) += dv_b0;
     (first_half ? W1 : W2) += dW;

@@ -33,8 +33,8 @@ void check_options(const FieldSimOptions& o, const UnitModel& unit) {
   check_positive(o.heave_period_s, "heave_period_s");
   check_positive(o.gnss_rate_hz, "gnss_rate_hz");
   check_positive(o.gnss_sigma_m, "gnss_sigma_m");
-  for (double v : {o.placement_sigma_deg, o.rock_amplitude_deg, o.drift_amplitude_m,
-                   o.heave_amplitude_m})
+  for (double v :
+       {o.placement_sigma_deg, o.rock_amplitude_deg, o.drift_amplitude_m, o.heave_amplitude_m})
     if (!(std::isfinite(v) && v >= 0.0)) fail("amplitudes and placement_sigma_deg must be >= 0");
   if (!(o.duration_jitter >= 0.0 && o.duration_jitter < 0.9))
     fail("option duration_jitter must be in [0, 0.9)");
@@ -58,8 +58,7 @@ class HandTimeline {
  public:
   HandTimeline(const sequences::MotionProfile& p, const FieldSimOptions& o, std::mt19937_64& rng)
       : profile_(p) {
-    std::uniform_real_distribution<double> jitter(1.0 - o.duration_jitter,
-                                                  1.0 + o.duration_jitter);
+    std::uniform_real_distribution<double> jitter(1.0 - o.duration_jitter, 1.0 + o.duration_jitter);
     std::normal_distribution<double> n01;
     double t = 0.0;
     Eigen::Vector3d e = Eigen::Vector3d::Zero();
@@ -325,7 +324,8 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
       GnssFix g;
       g.t_s = t;
       g.lat_rad = site.lat_rad + (p(0) + opt.gnss_sigma_m * n01(rng)) / RN;
-      g.lon_rad = site.lon_rad + (p(1) + opt.gnss_sigma_m * n01(rng)) / (RE * std::cos(site.lat_rad));
+      g.lon_rad =
+          site.lon_rad + (p(1) + opt.gnss_sigma_m * n01(rng)) / (RE * std::cos(site.lat_rad));
       g.sigma_m = opt.gnss_sigma_m;
       out.gnss.push_back(g);
     }

@@ -120,34 +120,56 @@ LsqOutcome gauss_newton(Model& model, VectorXd& x, int max_iter = 50) {
   return o;
 }
 
-/// Step 2: bias and lower-triangular T with |T (f_p - b)| = g in every rest.
+/// The accelerometer unknowns x = (b, t): bias and the six entries of the lower-triangular T
+/// (f = T (f~ - b)), entry k at (kRow[k], kCol[k]).
+namespace tri {
+constexpr int kRow[6] = {0, 1, 1, 2, 2, 2}, kCol[6] = {0, 0, 1, 0, 1, 2};
+
+Matrix3d T_of(const VectorXd& x) {
+  Matrix3d T = Matrix3d::Zero();
+  for (int k = 0; k < 6; ++k) T(kRow[k], kCol[k]) = x(3 + k);
+  return T;
+}
+
+/// |T (f - b)| - g of one rest and its gradient w.r.t. (b, t), both divided by `scale`.
+void magnitude_row(const Vector3d& f_mean, const VectorXd& x, const Matrix3d& T, double g,
+                   double scale, double& r,
+                   Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> J) {
+  const Vector3d u = f_mean - x.head<3>();
+  const Vector3d y = T * u;
+  const double rho = y.norm();
+  r = (rho - g) / scale;
+  J.head<3>() = -(y / rho).transpose() * T / scale;
+  for (int k = 0; k < 6; ++k) J(3 + k) = y(kRow[k]) / rho * u(kCol[k]) / scale;
+}
+
+/// ∂(b_a, vec(M_a)) / ∂(b, t) with M_a = T⁻¹ - I (12 x 9; ∂M/∂t = -T⁻¹ E T⁻¹).
+Eigen::Matrix<double, 12, 9> to_params_jacobian(const Matrix3d& T) {
+  const Matrix3d Ti = T.inverse();
+  Eigen::Matrix<double, 12, 9> G = Eigen::Matrix<double, 12, 9>::Zero();
+  G.block<3, 3>(0, 0).setIdentity();
+  for (int k = 0; k < 6; ++k) {
+    Matrix3d E = Matrix3d::Zero();
+    E(kRow[k], kCol[k]) = 1.0;
+    const Matrix3d dM = -Ti * E * Ti;
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) G(3 + 3 * a + b, 3 + k) = dM(a, b);
+  }
+  return G;
+}
+}  // namespace tri
+
+/// Step 2 alone (starting values): bias and triangular T with |T (f_p - b)| = g in every rest.
 struct AccelModel {
   const std::vector<Rest>& rests;
   double g;
-  static Matrix3d T_of(const VectorXd& x) {
-    Matrix3d T = Matrix3d::Zero();
-    T(0, 0) = x(3);
-    T(1, 0) = x(4);
-    T(1, 1) = x(5);
-    T(2, 0) = x(6);
-    T(2, 1) = x(7);
-    T(2, 2) = x(8);
-    return T;
-  }
   void evaluate(const VectorXd& x, VectorXd& r, MatrixXd& J) const {
-    const Vector3d b = x.head<3>();
-    const Matrix3d T = T_of(x);
+    const Matrix3d T = tri::T_of(x);
     r.resize(static_cast<Eigen::Index>(rests.size()));
     J.setZero(static_cast<Eigen::Index>(rests.size()), 9);
-    static const int kRow[6] = {0, 1, 1, 2, 2, 2}, kCol[6] = {0, 0, 1, 0, 1, 2};
     for (size_t p = 0; p < rests.size(); ++p) {
-      const Vector3d u = rests[p].f_mean - b;
-      const Vector3d y = T * u;
-      const double rho = y.norm();
       const auto i = static_cast<Eigen::Index>(p);
-      r(i) = rho - g;
-      J.block<1, 3>(i, 0) = -(y / rho).transpose() * T;
-      for (int k = 0; k < 6; ++k) J(i, 3 + k) = y(kRow[k]) / rho * u(kCol[k]);
+      tri::magnitude_row(rests[p].f_mean, x, T, g, 1.0, r(i), J.row(i));
     }
   }
 };
@@ -157,13 +179,16 @@ struct GyroBiasModel {
   const std::vector<Rest>& rests;
   const std::vector<Vector3d>& down;  ///< compensated down direction per rest (body)
   Matrix3d Ag_inv;
-  double Om_s, Om_c;  ///< Ω sin φ, Ω cos φ
+  double Om_s, Om_c;                                 ///< Ω sin φ, Ω cos φ
   std::vector<std::pair<Vector3d, Vector3d>> basis;  ///< (e1, e2) ⊥ down per rest
 
   GyroBiasModel(const std::vector<Rest>& r, const std::vector<Vector3d>& d, const Matrix3d& Ag,
                 double lat)
-      : rests(r), down(d), Ag_inv(Ag.inverse()),
-        Om_s(wgs84::kEarthRate_radps * std::sin(lat)), Om_c(wgs84::kEarthRate_radps * std::cos(lat)) {
+      : rests(r),
+        down(d),
+        Ag_inv(Ag.inverse()),
+        Om_s(wgs84::kEarthRate_radps * std::sin(lat)),
+        Om_c(wgs84::kEarthRate_radps * std::cos(lat)) {
     for (const Vector3d& dn : d) {
       const Vector3d a = std::abs(dn(0)) < 0.9 ? Vector3d::UnitX() : Vector3d::UnitY();
       const Vector3d e1 = (a - a.dot(dn) * dn).normalized();
@@ -203,28 +228,16 @@ struct JointModel {
   Vector3d b_g;
   double g, sigma_f, sigma_d;
 
-  static Matrix3d T_of(const VectorXd& x) {
-    Matrix3d T = Matrix3d::Zero();
-    T(0, 0) = x(3);
-    T(1, 0) = x(4);
-    T(1, 1) = x(5);
-    T(2, 0) = x(6);
-    T(2, 1) = x(7);
-    T(2, 2) = x(8);
-    return T;
-  }
-  static constexpr int kRow[6] = {0, 1, 1, 2, 2, 2}, kCol[6] = {0, 0, 1, 0, 1, 2};
-
   /// Down direction of rest p and its Jacobian w.r.t. (b, t) (3 x 9).
   void down(const VectorXd& x, size_t p, Vector3d& d, Eigen::Matrix<double, 3, 9>& Jd) const {
-    const Matrix3d T = T_of(x);
+    const Matrix3d T = tri::T_of(x);
     const Vector3d u = rests[p].f_mean - x.head<3>();
     const Vector3d y = T * u;
     const double rho = y.norm();
     d = -y / rho;
     const Matrix3d dd_dy = -(Matrix3d::Identity() - (y / rho) * (y / rho).transpose()) / rho;
     Jd.leftCols<3>() = -dd_dy * T;
-    for (int k = 0; k < 6; ++k) Jd.col(3 + k) = dd_dy.col(kRow[k]) * u(kCol[k]);
+    for (int k = 0; k < 6; ++k) Jd.col(3 + k) = dd_dy.col(tri::kRow[k]) * u(tri::kCol[k]);
   }
 
   void evaluate(const VectorXd& x, VectorXd& r, MatrixXd& J) const {
@@ -232,15 +245,10 @@ struct JointModel {
     const auto rows = static_cast<Eigen::Index>(n + 3 * (n - 1));
     r.resize(rows);
     J.setZero(rows, 18);
-    const Matrix3d T = T_of(x);
+    const Matrix3d T = tri::T_of(x);
     for (size_t p = 0; p < n; ++p) {  // magnitudes
-      const Vector3d u = rests[p].f_mean - x.head<3>();
-      const Vector3d y = T * u;
-      const double rho = y.norm();
       const auto i = static_cast<Eigen::Index>(p);
-      r(i) = (rho - g) / sigma_f;
-      J.block<1, 3>(i, 0) = -(y / rho).transpose() * T / sigma_f;
-      for (int k = 0; k < 6; ++k) J(i, 3 + k) = y(kRow[k]) / rho * u(kCol[k]) / sigma_f;
+      tri::magnitude_row(rests[p].f_mean, x, T, g, sigma_f, r(i), J.row(i).head(9));
     }
     Matrix3d M;
     M << x(9), x(10), x(11), x(12), x(13), x(14), x(15), x(16), x(17);
@@ -261,8 +269,7 @@ struct JointModel {
         for (int j = 0; j < 3; ++j) W[j] += th(j) * C;
       }
       const double dt = in.imu[k1].t_s - in.imu[k0].t_s;
-      const Matrix3d R =
-          C.transpose() * rotvec_to_matrix<double>(Vector3d(earth_rate_b[p] * dt));
+      const Matrix3d R = C.transpose() * rotvec_to_matrix<double>(Vector3d(earth_rate_b[p] * dt));
       const Vector3d d_pred = R * d[p];
       const auto i = static_cast<Eigen::Index>(n + 3 * p);
       r.segment<3>(i) = (d[p + 1] - d_pred) / sigma_d;
@@ -279,18 +286,7 @@ struct JointModel {
 ParamCovariance assemble_covariance(const Matrix3d& T, const MatrixXd& cov_accel,
                                     const Matrix3d& cov_bg, const MatrixXd& cov_Mg) {
   ParamCovariance C = ParamCovariance::Zero();
-  // (b, t) -> (b_a, M_a = T⁻¹ - I): ∂M/∂t = -T⁻¹ E T⁻¹.
-  const Matrix3d Ti = T.inverse();
-  Eigen::Matrix<double, 12, 9> G = Eigen::Matrix<double, 12, 9>::Zero();
-  G.block<3, 3>(0, 0).setIdentity();
-  static const int kRow[6] = {0, 1, 1, 2, 2, 2}, kCol[6] = {0, 0, 1, 0, 1, 2};
-  for (int k = 0; k < 6; ++k) {
-    Matrix3d E = Matrix3d::Zero();
-    E(kRow[k], kCol[k]) = 1.0;
-    const Matrix3d dM = -Ti * E * Ti;
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) G(3 + 3 * a + b, 3 + k) = dM(a, b);
-  }
+  const Eigen::Matrix<double, 12, 9> G = tri::to_params_jacobian(T);
   C.block<12, 12>(0, 0) = G * cov_accel * G.transpose();
   C.block<3, 3>(12, 12) = cov_bg;
   C.block<9, 9>(15, 15) = cov_Mg;
@@ -310,8 +306,9 @@ MatrixXd scaled_covariance(const LsqOutcome& o, double floor_var) {
 CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptions& opt) {
   const auto t_start = std::chrono::steady_clock::now();
   if (in.setting == Setting::kSea)
-    fail("the multi-position method needs a still platform; a sea run's deck rocks and drifts "
-         "(calibrate it with AINS, which uses the GNSS fixes)");
+    fail(
+        "the multi-position method needs a still platform; a sea run's deck rocks and drifts "
+        "(calibrate it with AINS, which uses the GNSS fixes)");
   if (opt.min_rest_samples < 4) fail("option min_rest_samples must be >= 4");
   if (!(std::isfinite(opt.trim_s) && opt.trim_s >= 0.0)) fail("option trim_s must be >= 0");
   const std::vector<Rest> rests = usable_rests(in, opt);
@@ -333,13 +330,15 @@ CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptio
     const double spread = Eigen::JacobiSVD<MatrixXd>(Draw).singularValues()(2) /
                           std::sqrt(static_cast<double>(rests.size()));
     if (spread < 0.2)
-      fail("the rest positions do not span three dimensions (smallest singular value of the "
-           "gravity directions " + std::to_string(spread) + " < 0.2): some axis never sees gravity");
+      fail(
+          "the rest positions do not span three dimensions (smallest singular value of the "
+          "gravity directions " +
+          std::to_string(spread) + " < 0.2): some axis never sees gravity");
   }
   // A magnitude-only fit first: starting values for the joint fit (its non-orthogonality is
   // unobserved with axis-aligned positions, which the joint fit then resolves).
   gauss_newton(am, xa);
-  const Matrix3d T0 = AccelModel::T_of(xa);
+  const Matrix3d T0 = tri::T_of(xa);
   if (!xa.allFinite() || !(T0.determinant() > 0.1))
     fail("the accelerometer fit failed (is the unit at rest in the flagged periods?)");
   std::vector<Vector3d> down;
@@ -357,7 +356,7 @@ CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptio
   VectorXd xj = VectorXd::Zero(18);
   xj.head<9>() = xa;
   for (int round = 0; round < 3; ++round) {
-    const Matrix3d Tj = JointModel::T_of(xj);
+    const Matrix3d Tj = tri::T_of(xj);
     for (size_t p = 0; p < rests.size(); ++p)
       down[p] = -(Tj * (rests[p].f_mean - xj.head<3>())).normalized();
     GyroBiasModel bm(rests, down, Matrix3d::Identity() + Mg, in.site.lat_rad);
@@ -376,7 +375,7 @@ CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptio
     oj = gauss_newton(jm, xj, 30);
     Mg << xj(9), xj(10), xj(11), xj(12), xj(13), xj(14), xj(15), xj(16), xj(17);
   }
-  const Matrix3d T = JointModel::T_of(xj);
+  const Matrix3d T = tri::T_of(xj);
   if (!xj.allFinite() || !bg.allFinite() || !(T.determinant() > 0.1) ||
       !(std::abs((Matrix3d::Identity() + Mg).determinant()) > 0.1))
     fail("the fit did not converge");
@@ -399,17 +398,7 @@ CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptio
                                 cov_j.bottomRightCorner(9, 9));
   // The accel-gyro cross-covariance of the joint fit (J maps (b,t) like assemble_covariance).
   {
-    const Matrix3d Ti = T.inverse();
-    Eigen::Matrix<double, 12, 9> G = Eigen::Matrix<double, 12, 9>::Zero();
-    G.block<3, 3>(0, 0).setIdentity();
-    for (int k = 0; k < 6; ++k) {
-      Matrix3d E = Matrix3d::Zero();
-      E(JointModel::kRow[k], JointModel::kCol[k]) = 1.0;
-      const Matrix3d dM = -Ti * E * Ti;
-      for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) G(3 + 3 * a + b, 3 + k) = dM(a, b);
-    }
-    const Eigen::Matrix<double, 12, 9> X = G * cov_j.topRightCorner(9, 9);
+    const Eigen::Matrix<double, 12, 9> X = tri::to_params_jacobian(T) * cov_j.topRightCorner(9, 9);
     res.cov.block<12, 9>(0, 15) = X;
     res.cov.block<9, 12>(15, 0) = X.transpose();
   }
@@ -427,8 +416,7 @@ CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptio
   // From the accelerometer triad's triangular frame into the accel-symmetric one.
   res.body_frame = BodyFrame::kHousing;
   CalibrationResult out = in_accel_symmetric_frame(res);
-  out.runtime_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  out.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return out;
 }
 

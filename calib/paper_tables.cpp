@@ -19,11 +19,16 @@ namespace imucal::calib {
 
 const char* paper_column_name(PaperColumn c) {
   switch (c) {
-    case PaperColumn::kFactoryAins: return "factory AINS";
-    case PaperColumn::kFactoryNlsq: return "factory NLSQ";
-    case PaperColumn::kFactoryLegacy: return "factory legacy";
-    case PaperColumn::kLandAins: return "land AINS";
-    case PaperColumn::kSeaAins: return "sea AINS";
+    case PaperColumn::kFactoryAins:
+      return "factory AINS";
+    case PaperColumn::kFactoryNlsq:
+      return "factory NLSQ";
+    case PaperColumn::kFactoryLegacy:
+      return "factory legacy";
+    case PaperColumn::kLandAins:
+      return "land AINS";
+    case PaperColumn::kSeaAins:
+      return "sea AINS";
   }
   return "?";
 }
@@ -53,7 +58,8 @@ UnitModel paper_unit(int unit, uint64_t seed, bool unmodelled_effects) {
   for (int i = 0; i < 3; ++i) {
     fx.thermal_accel_mps2(i) = 20.0 * kMicroG_mps2 * n01(rng);
     fx.thermal_gyro_radps(i) = 0.005 * kDegPerHourToRadPerSec * n01(rng);
-    fx.accel_k2_per_mps2(i) = 20.0 * kMicroG_mps2 / (kStandardGravity_mps2 * kStandardGravity_mps2) * n01(rng);
+    fx.accel_k2_per_mps2(i) =
+        20.0 * kMicroG_mps2 / (kStandardGravity_mps2 * kStandardGravity_mps2) * n01(rng);
   }
   fx.thermal_tau_s = 900.0;
   fx.instability_gyro_radps = 0.001 * kDegPerHourToRadPerSec;
@@ -98,10 +104,10 @@ PaperUnitResult run_unit(int unit, const sequences::MotionProfile& profile, cons
   cal[0] = calibrate_ains(factory);
   cal[1] = calibrate_nlsq(factory);
   cal[2] = calibrate_legacy(factory);
-  cal[3] = calibrate_ains(input_from_field_data(Setting::kLand, land_run.imu, {}, field_site,
-                                                out.model.noise));
-  cal[4] = calibrate_ains(input_from_field_data(Setting::kSea, sea_run.imu, sea_run.gnss,
-                                                field_site, out.model.noise));
+  cal[3] = calibrate_ains(
+      input_from_field_data(Setting::kLand, land_run.imu, {}, field_site, out.model.noise));
+  cal[4] = calibrate_ains(
+      input_from_field_data(Setting::kSea, sea_run.imu, sea_run.gnss, field_site, out.model.noise));
   // ς is the table's: where a method cannot know it, evaluate with the factory AINS's estimate.
   const Eigen::Vector3d station_sigma = cal[0].params.table_misalignment_rad;
   for (int c = 0; c < kNumPaperColumns; ++c) {
@@ -168,21 +174,20 @@ PaperTables run_paper_tables(const sequences::MotionProfile& profile, const Site
 const PaperPublished& paper_published() {
   // Tables I–IV of the paper (../shared/seeds/000_62dd7cfa38220fdf.txt §VIII), columns as
   // PaperColumn: factory AINS, NLSQ, proprietary; land AINS; sea AINS. Rows IMU 1–6, then mean.
-  static const PaperPublished p = {
-      {{{10.7668, 11.0004, 12.8470, 30.1818, 17.6468},
-        {20.3281, 20.9816, 21.9415, 20.4200, 20.0357},
-        {26.6626, 26.1676, 27.4034, 26.4714, 25.8094},
-        {22.3295, 23.0129, 22.6769, 22.9644, 25.2287},
-        {28.8444, 27.5539, 25.1533, 28.0645, 27.4300},
-        {26.3689, 26.5847, 26.5428, 25.4839, 27.9529},
-        {22.5500, 22.5502, 22.7608, 25.5977, 24.0173}}},
-      {{{16.7683, 16.4582, 21.9174, 67.6954, 28.5954},
-        {29.9454, 26.5149, 29.7009, 29.8001, 32.6557},
-        {28.5088, 22.1025, 89.6507, 26.8985, 34.5786},
-        {33.2744, 29.1359, 28.2366, 27.8462, 31.4044},
-        {25.6030, 23.4516, 31.6360, 28.9807, 24.9405},
-        {31.9135, 30.0562, 34.0508, 29.7186, 33.9529},
-        {27.6689, 24.6199, 39.1987, 35.1566, 31.0213}}}};
+  static const PaperPublished p = {{{{10.7668, 11.0004, 12.8470, 30.1818, 17.6468},
+                                     {20.3281, 20.9816, 21.9415, 20.4200, 20.0357},
+                                     {26.6626, 26.1676, 27.4034, 26.4714, 25.8094},
+                                     {22.3295, 23.0129, 22.6769, 22.9644, 25.2287},
+                                     {28.8444, 27.5539, 25.1533, 28.0645, 27.4300},
+                                     {26.3689, 26.5847, 26.5428, 25.4839, 27.9529},
+                                     {22.5500, 22.5502, 22.7608, 25.5977, 24.0173}}},
+                                   {{{16.7683, 16.4582, 21.9174, 67.6954, 28.5954},
+                                     {29.9454, 26.5149, 29.7009, 29.8001, 32.6557},
+                                     {28.5088, 22.1025, 89.6507, 26.8985, 34.5786},
+                                     {33.2744, 29.1359, 28.2366, 27.8462, 31.4044},
+                                     {25.6030, 23.4516, 31.6360, 28.9807, 24.9405},
+                                     {31.9135, 30.0562, 34.0508, 29.7186, 33.9529},
+                                     {27.6689, 24.6199, 39.1987, 35.1566, 31.0213}}}};
   return p;
 }
 

@@ -17,11 +17,11 @@
 namespace imucal::calib {
 
 struct RestDetectorOptions {
-  double window_s = 1.0;            ///< centred window of the rate and force statistics
-  double max_rate_degps = 1.0;      ///< |mean ω| over the window above this: moving
-  double max_force_std_mps2 = 0.05; ///< std of |f| over the window above this: moving (handling)
-  double min_rest_s = 10.0;         ///< shorter quiet spans are not rest
-  double edge_guard_s = 1.0;        ///< trimmed from both ends of every rest span
+  double window_s = 1.0;             ///< centred window of the rate and force statistics
+  double max_rate_degps = 1.0;       ///< |mean ω| over the window above this: moving
+  double max_force_std_mps2 = 0.05;  ///< std of |f| over the window above this: moving (handling)
+  double min_rest_s = 10.0;          ///< shorter quiet spans are not rest
+  double edge_guard_s = 1.0;         ///< trimmed from both ends of every rest span
 };
 
 /// Per sample: the unit is at rest (not being turned). Throws std::invalid_argument for options

@@ -78,9 +78,12 @@ const std::vector<RunState>& live_states() {
 
 const char* to_string(Method m) {
   switch (m) {
-    case Method::kAins: return "ains";
-    case Method::kNlsq: return "nlsq";
-    case Method::kLegacy: return "legacy";
+    case Method::kAins:
+      return "ains";
+    case Method::kNlsq:
+      return "nlsq";
+    case Method::kLegacy:
+      return "legacy";
   }
   return "ains";
 }

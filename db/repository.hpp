@@ -162,8 +162,8 @@ struct RunRecord {
   std::optional<Verdict> verdict;  ///< from the cross-check, if one is stored
   std::string capture_json;        ///< capture counters (station/capture_stats.hpp) as a JSON
                                    ///< object text; empty if the run stored none (schema v2)
-  std::string diagnosis_json;      ///< gap diagnosis summary (archive::diagnosis_summary_json) as a JSON
-                                   ///< object text; empty if none was made (schema v3)
+  std::string diagnosis_json;      ///< gap diagnosis summary (archive::diagnosis_summary_json) as a
+                               ///< JSON object text; empty if none was made (schema v3)
   calib::Setting setting = calib::Setting::kFactory;  ///< schema v4
   std::string origin;                                 ///< "imported from DIR", or empty
   std::optional<TimestampMs> promoted_at_ms;  ///< set when QA promoted this run (field runs)
@@ -208,7 +208,7 @@ struct RunCompletion {
   std::vector<CalibrationRecord>
       calibrations;  ///< stored with the run (may be empty if stored before)
   std::optional<CrosscheckRecord> crosscheck;
-  std::string capture_json;  ///< capture counters as a JSON object text, or empty
+  std::string capture_json;    ///< capture counters as a JSON object text, or empty
   std::string diagnosis_json;  ///< gap diagnosis summary as a JSON object text, or empty
 };
 

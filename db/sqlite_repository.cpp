@@ -508,12 +508,13 @@ struct SqliteRepository::Impl {
   }
 
   /// Empty, or a JSON object text (what the *_json columns hold).
-  static void check_json_object(const std::string& text, const std::string& who, const char* field) {
+  static void check_json_object(const std::string& text, const std::string& who,
+                                const char* field) {
     if (text.empty()) return;
     const json parsed = json::parse(text, nullptr, /*allow_exceptions=*/false);
     if (!parsed.is_object())
-      throw InvalidInput(who + ": " + field + " must be a JSON object (or empty), got: " +
-                         text.substr(0, 80));
+      throw InvalidInput(who + ": " + field +
+                         " must be a JSON object (or empty), got: " + text.substr(0, 80));
   }
 
   RunState require_live(RunId run_id, const char* op) const {
@@ -630,9 +631,11 @@ struct SqliteRepository::Impl {
         throw Conflict(who + " cannot be done without:" + missing);
       }
     }
-    // A PASS cross-check goes to review only with a reason of its own (a significant sim-to-real gap).
+    // A PASS cross-check goes to review only with a reason of its own (a significant sim-to-real
+    // gap).
     if (verdict == Verdict::kPass && c.state == RunState::kReview && c.reason.empty())
-      throw Conflict(who + ": cross-check is PASS, so the run cannot go to review without a reason");
+      throw Conflict(who +
+                     ": cross-check is PASS, so the run cannot go to review without a reason");
     if (verdict == Verdict::kReview && c.state == RunState::kDone)
       throw Conflict(who + ": cross-check is REVIEW, so the run cannot be done");
     const bool needs_reason = c.state == RunState::kFailed || c.state == RunState::kAborted ||
@@ -946,8 +949,9 @@ void SqliteRepository::promote(RunId run_id, const std::string& by, const std::s
     r = d.read_run(q);
   }
   if (r.setting == calib::Setting::kFactory)
-    throw Conflict(who + " is a factory run: a factory PASS is active by itself; only field "
-                         "(land/sea) runs are promoted");
+    throw Conflict(who +
+                   " is a factory run: a factory PASS is active by itself; only field "
+                   "(land/sea) runs are promoted");
   if (!is_terminal(r.state)) throw Conflict(who + " is still " + to_string(r.state));
   const bool sea_alone =
       r.setting == calib::Setting::kSea && r.state == RunState::kReview && !r.verdict;

@@ -1,13 +1,13 @@
 #include "station/calibration_worker.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <chrono>
 #include <exception>
 
-#include <spdlog/spdlog.h>
-
 #include "calib/calibration_pipeline.hpp"
-#include "station/gap_check.hpp"
 #include "db/archive/run_archive.hpp"
+#include "station/gap_check.hpp"
 
 namespace imucal::station {
 
@@ -65,8 +65,10 @@ void store_field_result(const calib::PipelineResult& r, calib::Setting setting, 
       " (misalignments in the accelerometer triad's frame)";
   if (setting == calib::Setting::kSea || !r.legacy || !r.crosscheck) {
     completion.state = db::RunState::kReview;
-    completion.reason = "sea: AINS alone, no independent method to cross-check it (the legacy "
-                        "method needs a still platform); " + frame_note + "; promote explicitly";
+    completion.reason =
+        "sea: AINS alone, no independent method to cross-check it (the legacy "
+        "method needs a still platform); " +
+        frame_note + "; promote explicitly";
     out.verdict.reset();
     return;
   }
@@ -171,9 +173,10 @@ void CalibrationWorker::stop() {
     if (stopping_ && !thread_.joinable()) return;
     stopping_ = true;
     if (!queue_.empty()) {
-      spdlog::warn("calibration worker stopping: {} queued job(s) dropped (their runs are marked "
-                   "interrupted at the next start)",
-                   queue_.size());
+      spdlog::warn(
+          "calibration worker stopping: {} queued job(s) dropped (their runs are marked "
+          "interrupted at the next start)",
+          queue_.size());
     }
     queue_.clear();
   }
@@ -203,8 +206,8 @@ void CalibrationWorker::loop() {
       if (!out.stored) {
         spdlog::info("run {}: calibration result dropped (the run ended meanwhile)", job.run_id);
       } else {
-        spdlog::info("run {}: {} in {:.1f} s{}{}", job.run_id, db::to_string(out.state), out.runtime_s,
-                     out.reason.empty() ? "" : ": ", out.reason);
+        spdlog::info("run {}: {} in {:.1f} s{}{}", job.run_id, db::to_string(out.state),
+                     out.runtime_s, out.reason.empty() ? "" : ": ", out.reason);
       }
     } catch (const std::exception& e) {
       // The repository failed (disk full, database locked away): the run stays live and start-up

@@ -6,14 +6,13 @@
 // database when the daemon is down (record_json.hpp), so both paths print the same thing.
 //
 // Every method either returns the JSON "result" object of the reply or throws ControlError, whose
-// code is one of the protocol's error codes (control_protocol.hpp) and whose message is the one-line
-// text shown to the operator.
+// code is one of the protocol's error codes (control_protocol.hpp) and whose message is the
+// one-line text shown to the operator.
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
 #include <string>
-
-#include <nlohmann/json.hpp>
 
 #include "db/repository.hpp"
 
@@ -21,13 +20,13 @@ namespace imucal::station {
 
 /// Protocol error codes (the "code" of an error reply).
 namespace error_code {
-inline constexpr const char* kBadRequest = "bad_request";          ///< malformed line / fields
+inline constexpr const char* kBadRequest = "bad_request";              ///< malformed line / fields
 inline constexpr const char* kPermissionDenied = "permission_denied";  ///< not in the control group
-inline constexpr const char* kBusy = "busy";                       ///< a run is already active
-inline constexpr const char* kNotFound = "not_found";              ///< unknown run / serial / sequence
-inline constexpr const char* kInvalidInput = "invalid_input";      ///< e.g. serial breaks the rules
-inline constexpr const char* kUnavailable = "unavailable";         ///< hardware not reachable etc.
-inline constexpr const char* kInternal = "internal";               ///< a bug: logged with details
+inline constexpr const char* kBusy = "busy";                           ///< a run is already active
+inline constexpr const char* kNotFound = "not_found";          ///< unknown run / serial / sequence
+inline constexpr const char* kInvalidInput = "invalid_input";  ///< e.g. serial breaks the rules
+inline constexpr const char* kUnavailable = "unavailable";     ///< hardware not reachable etc.
+inline constexpr const char* kInternal = "internal";           ///< a bug: logged with details
 }  // namespace error_code
 
 class ControlError : public std::runtime_error {
@@ -60,8 +59,8 @@ class ControlHandler {
   /// Recalibrates a stored run from its archive into a new run; returns {"run_id": new id,
   /// "reprocessed_from": id}. kBusy if a run is active, kNotFound for an unknown run.
   virtual nlohmann::json reprocess(db::RunId run_id) = 0;
-  /// The sim-to-real gap diagnosis of a finished run (station/gap_check.hpp), its summary stored with
-  /// the run; returns the full diagnosis JSON plus "run_id". kBusy while a run is active.
+  /// The sim-to-real gap diagnosis of a finished run (station/gap_check.hpp), its summary stored
+  /// with the run; returns the full diagnosis JSON plus "run_id". kBusy while a run is active.
   virtual nlohmann::json diagnose(db::RunId run_id) = 0;
   /// Imports a field (or another station's) run archive into the history for its serial and
   /// calibrates it with the setting run.toml names; returns {"run_id", "serial", "setting"}.

@@ -47,7 +47,8 @@ const std::vector<CommandSpec>& specs() {
       {cmd::kPing, {}},
       {cmd::kDiagnose, {{"run_id", ArgType::kPositiveInt, true}}},
       {cmd::kImport, {{"dir", ArgType::kString, true}}},
-      {cmd::kPromote, {{"run_id", ArgType::kPositiveInt, true}, {"reason", ArgType::kString, true}}},
+      {cmd::kPromote,
+       {{"run_id", ArgType::kPositiveInt, true}, {"reason", ArgType::kString, true}}},
   };
   return s;
 }

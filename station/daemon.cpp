@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <signal.h>
+#include <spdlog/spdlog.h>
 #include <sys/file.h>
 #include <unistd.h>
 
@@ -9,8 +10,6 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-
-#include <spdlog/spdlog.h>
 
 #include "station/control_server.hpp"
 
@@ -36,7 +35,9 @@ void make_dir(const fs::path& p, const char* what) {
   if (p.empty()) return;
   std::error_code ec;
   fs::create_directories(p, ec);
-  if (ec) throw std::runtime_error("cannot create the " + std::string(what) + " " + p.string() + ": " + ec.message());
+  if (ec)
+    throw std::runtime_error("cannot create the " + std::string(what) + " " + p.string() + ": " +
+                             ec.message());
 }
 
 std::string duration_text(double s) {
@@ -63,7 +64,8 @@ void Daemon::start() {
   // flock is released by the kernel when the holder dies, even by SIGKILL.
   const std::string lock_path = (fs::path(cfg_.data_dir) / "stationd.lock").string();
   lock_fd_ = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-  if (lock_fd_ < 0) throw std::runtime_error("cannot open " + lock_path + ": " + std::strerror(errno));
+  if (lock_fd_ < 0)
+    throw std::runtime_error("cannot open " + lock_path + ": " + std::strerror(errno));
   if (::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
     const int err = errno;
     char buf[32] = {};
@@ -72,12 +74,14 @@ void Daemon::start() {
     lock_fd_ = -1;
     std::string holder = n > 0 ? std::string(buf, static_cast<size_t>(n)) : std::string("?");
     while (!holder.empty() && (holder.back() == '\n' || holder.back() == ' ')) holder.pop_back();
-    throw std::runtime_error(err == EWOULDBLOCK ? "another stationd (pid " + holder + ") is running on " +
-                                                      cfg_.data_dir + " (lock " + lock_path + ")"
-                                                : "cannot lock " + lock_path + ": " + std::strerror(err));
+    throw std::runtime_error(err == EWOULDBLOCK
+                                 ? "another stationd (pid " + holder + ") is running on " +
+                                       cfg_.data_dir + " (lock " + lock_path + ")"
+                                 : "cannot lock " + lock_path + ": " + std::strerror(err));
   }
   const std::string pid_text = std::to_string(getpid()) + "\n";
-  if (::ftruncate(lock_fd_, 0) != 0 || ::pwrite(lock_fd_, pid_text.data(), pid_text.size(), 0) < 0) {
+  if (::ftruncate(lock_fd_, 0) != 0 ||
+      ::pwrite(lock_fd_, pid_text.data(), pid_text.size(), 0) < 0) {
     spdlog::warn("cannot write the pid into {}: {}", lock_path, std::strerror(errno));
   }
 
@@ -106,8 +110,8 @@ void Daemon::start() {
     release_lock();
     throw;
   }
-  spdlog::info("control socket {} (group {}, mode {:o})", cfg_.control_socket, server_->group_name(),
-               cfg_.control_socket_mode);
+  spdlog::info("control socket {} (group {}, mode {:o})", cfg_.control_socket,
+               server_->group_name(), cfg_.control_socket_mode);
   started_ok_ = true;
   opt_.notifier.ready(status_line());
 }
@@ -151,7 +155,8 @@ int Daemon::run() {
 
   const auto wd = opt_.notifier.watchdog_interval();
   const auto tick = std::chrono::milliseconds(
-      wd ? std::clamp<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(*wd).count(), 10, 1000)
+      wd ? std::clamp<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(*wd).count(),
+                                 10, 1000)
          : 1000);
   auto next_watchdog = std::chrono::steady_clock::now();
   std::string last_status;
@@ -216,10 +221,12 @@ nlohmann::json Daemon::status(std::optional<db::RunId> run_id) {
     }
   }
   const auto last = controller_->last_finished();
-  json daemon = {{"version", opt_.version},
-                 {"pid", static_cast<long long>(getpid())},
-                 {"station", cfg_.station_name},
-                 {"uptime_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count()}};
+  json daemon = {
+      {"version", opt_.version},
+      {"pid", static_cast<long long>(getpid())},
+      {"station", cfg_.station_name},
+      {"uptime_s",
+       std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count()}};
   return {{"daemon", daemon},
           {"state", active ? "busy" : "idle"},
           {"run", active ? to_json(*active) : json(nullptr)},

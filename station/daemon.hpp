@@ -18,10 +18,9 @@
 #include <chrono>
 #include <memory>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
-
-#include <nlohmann/json.hpp>
 
 #include "db/sqlite_repository.hpp"
 #include "station/calibration_worker.hpp"

@@ -190,7 +190,8 @@ std::string render_diagnosis_text(const json& d) {
        << fmt("%.3f", o.value("sigma", 0.0)) << ", p " << fmt("%.2g", o.value("p_value", 1.0))
        << ")\n";
   }
-  if (d.contains("held_out") && d["held_out"].is_object() && d["held_out"]["gap_after"].is_number()) {
+  if (d.contains("held_out") && d["held_out"].is_object() &&
+      d["held_out"]["gap_after"].is_number()) {
     const json& h = d["held_out"];
     os << "  held-out gap " << fmt("%.3f", h.value("gap_before", 0.0)) << " -> "
        << fmt("%.3f", h["gap_after"].get<double>()) << " (shrinkage "
@@ -202,7 +203,8 @@ std::string render_diagnosis_text(const json& d) {
     for (const auto& c : d["candidates"]) {
       if (++n > 6) break;
       os << "    " << pad(str(c, "effect"), 24) << pad(fmt("%.1f", c.value("score", 0.0)), 10)
-         << (c.value("separable", false) ? magnitude_text(c) : std::string("not separable")) << "\n";
+         << (c.value("separable", false) ? magnitude_text(c) : std::string("not separable"))
+         << "\n";
     }
   }
   return os.str();
@@ -219,8 +221,8 @@ std::string render_history_text(const json& history) {
   os << "History of " << serial << " (" << runs.size() << (runs.size() == 1 ? " run" : " runs")
      << ", newest first)\n";
   os << pad("RUN", 7) << pad("STARTED (UTC)", 21) << pad("SETTING", 9) << pad("STATE", 13)
-     << pad("VERDICT", 9) << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13) << pad("GAP (best effect)", 40)
-     << "REASON\n";
+     << pad("VERDICT", 9) << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13)
+     << pad("GAP (best effect)", 40) << "REASON\n";
   for (const auto& r : runs) {
     std::string id = str(r, "run_id");
     if (has(r, "reprocessed_from")) id += "*";

@@ -256,7 +256,7 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
 }
 
 db::RunDetails RunController::stored_run_with_archive(db::RunId run_id, const char* what,
-                                                    std::string& digest) const {
+                                                      std::string& digest) const {
   if (shut_down_) throw ControlError(error_code::kUnavailable, "the daemon is shutting down");
   if (live_) {
     throw ControlError(error_code::kBusy, "run " + std::to_string(live_->snap.run_id) + " is " +

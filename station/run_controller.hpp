@@ -177,7 +177,8 @@ class RunController {
   void set_phase(Live& live, RunPhase phase);
   /// A finished run whose archive is present and unchanged (what reprocess() and diagnose() check);
   /// `digest` gets the archive's SHA-256. Throws ControlError. Needs mu_.
-  db::RunDetails stored_run_with_archive(db::RunId run_id, const char* what, std::string& digest) const;
+  db::RunDetails stored_run_with_archive(db::RunId run_id, const char* what,
+                                         std::string& digest) const;
   /// A new run of this station and software, started now (what start() and reprocess() share).
   db::NewRun new_run(const std::string& serial, const std::string& operator_name,
                      const std::string& sequence_name, const std::string& sequence_sha256,

@@ -184,8 +184,7 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
     } else if (*ref == "none") {
       ri.reference = ReferenceKind::kNone;
     } else {
-      root.fail("reference",
-                "must be \"table\", \"attitude\" or \"none\", got \"" + *ref + "\"");
+      root.fail("reference", "must be \"table\", \"attitude\" or \"none\", got \"" + *ref + "\"");
     }
     out.reference_given = true;
     out.reference_line = root.line_of("reference");
@@ -281,9 +280,12 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
 
 const char* reference_name(ReferenceKind k) {
   switch (k) {
-    case ReferenceKind::kTable: return "table";
-    case ReferenceKind::kAttitude: return "attitude";
-    case ReferenceKind::kNone: return "none";
+    case ReferenceKind::kTable:
+      return "table";
+    case ReferenceKind::kAttitude:
+      return "attitude";
+    case ReferenceKind::kNone:
+      return "none";
   }
   return "none";
 }
@@ -433,13 +435,14 @@ void read_gnss(const std::string& dir, RunArchive& a) {
     const double ts = t.at(k, 0), lat = t.at(k, 1), lon = t.at(k, 2), sig = t.at(k, 3);
     if (k > 0 && !(ts > t.at(k - 1, 0)))
       throw ArchiveError::column_error(gnss_csv, line, "t_s",
-                                       "must increase (previous row " + format_double(t.at(k - 1, 0)) +
-                                           ", this row " + format_double(ts) + ")");
+                                       "must increase (previous row " +
+                                           format_double(t.at(k - 1, 0)) + ", this row " +
+                                           format_double(ts) + ")");
     if (ts < t_first || ts > t_last)
-      throw ArchiveError::column_error(
-          gnss_csv, line, "t_s",
-          format_double(ts) + " is outside the IMU's time span [" + format_double(t_first) + ", " +
-              format_double(t_last) + "] s (both files share one clock)");
+      throw ArchiveError::column_error(gnss_csv, line, "t_s",
+                                       format_double(ts) + " is outside the IMU's time span [" +
+                                           format_double(t_first) + ", " + format_double(t_last) +
+                                           "] s (both files share one clock)");
     if (std::fabs(lat) > 90.0)
       throw ArchiveError::column_error(gnss_csv, line, "lat_deg",
                                        "must be within [-90, 90], got " + format_double(lat));
@@ -755,8 +758,8 @@ void check_magnitudes(const RunArchive& a, const calib::CalibrationInput& in,
 calib::CalibrationInput field_input(const RunArchive& a, const std::string& imu_file) {
   const calib::CalibrationInput in = calib::input_from_field_data(
       a.info.setting, a.imu,
-      a.info.setting == calib::Setting::kSea ? a.gnss : std::vector<calib::GnssFix>{},
-      a.info.site, [&] {
+      a.info.setting == calib::Setting::kSea ? a.gnss : std::vector<calib::GnssFix>{}, a.info.site,
+      [&] {
         calib::NoiseModel nm;
         nm.arw_rad_per_sqrt_s = a.info.arw_rad_per_sqrt_s;
         nm.vrw_mps_per_sqrt_s = a.info.vrw_mps_per_sqrt_s;
@@ -771,15 +774,15 @@ calib::CalibrationInput field_input(const RunArchive& a, const std::string& imu_
   };
   if (!first || a.imu[first->begin].t_s - t0 > latest_start || span_s(*first) < kMinFirstRest_s)
     throw ArchiveError(
-        imu_file,
-        std::string("no rest period at the start of this ") + calib::setting_name(a.info.setting) +
-            " run: the initial alignment needs the unit standing still for at least " +
-            format_double(kMinFirstRest_s) + " s within the first " +
-            format_double(latest_start) + " s" +
-            (first ? " (the first rest found in the IMU data starts at t = " +
-                         format_double(a.imu[first->begin].t_s) + " s and lasts " +
-                         format_double(span_s(*first)) + " s)"
-                   : " (no rest found in the IMU data at all)"));
+        imu_file, std::string("no rest period at the start of this ") +
+                      calib::setting_name(a.info.setting) +
+                      " run: the initial alignment needs the unit standing still for at least " +
+                      format_double(kMinFirstRest_s) + " s within the first " +
+                      format_double(latest_start) + " s" +
+                      (first ? " (the first rest found in the IMU data starts at t = " +
+                                   format_double(a.imu[first->begin].t_s) + " s and lasts " +
+                                   format_double(span_s(*first)) + " s)"
+                             : " (no rest found in the IMU data at all)"));
   return in;
 }
 

@@ -54,8 +54,8 @@ void expect_within(const CalibrationResult& r, const ParamSet& truth, double k) 
   const ParamVector z = normalised_errors(r, truth);
   for (int i = 0; i < ParamSet::kSize; ++i)
     EXPECT_LT(std::abs(z(i)), k) << param_info(i).name << " error/sigma " << z(i) << " sigma "
-                                  << r.sigma.to_vector()(i) * param_info(i).si_to_human << " "
-                                  << param_info(i).human_unit;
+                                 << r.sigma.to_vector()(i) * param_info(i).si_to_human << " "
+                                 << param_info(i).human_unit;
 }
 
 class AinsField : public ::testing::TestWithParam<Setting> {};

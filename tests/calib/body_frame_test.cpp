@@ -23,7 +23,8 @@ TEST(BodyFrame, SameSensorOutputsInTheRotatedFrameAndMaSymmetric) {
   // f~ = (I + M_a) f_b + b_a  must equal  (I + M_a') f_b' + b_a  with f_b' = R f_b; same for ω.
   const Eigen::Vector3d f_b(0.3, -9.1, 2.2), w_b(1e-3, 2e-4, -5e-4);
   const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
-  EXPECT_LT(((I + p.accel_M) * f_b - (I + ch.params.accel_M) * (ch.R * f_b)).norm(), 1e-13);  // round-off on |f| ≈ 9.4
+  EXPECT_LT(((I + p.accel_M) * f_b - (I + ch.params.accel_M) * (ch.R * f_b)).norm(),
+            1e-13);  // round-off on |f| ≈ 9.4
   EXPECT_LT(((I + p.gyro_M) * w_b - (I + ch.params.gyro_M) * (ch.R * w_b)).norm(), 1e-18);
   EXPECT_EQ(ch.params.accel_bias_mps2, p.accel_bias_mps2);
   EXPECT_EQ(ch.params.gyro_bias_radps, p.gyro_bias_radps);

@@ -74,9 +74,8 @@ TEST(CoarseAlignment, HeadingErrorIsEastGyroBiasOverHorizontalEarthRate) {
 TEST(CoarseAlignment, NoisyRunWithinAFewMilliradians) {
   const UnitModel unit = default_unit();
   const AlignRun r = table_run(unit, true);
-  const CoarseAlignment a =
-      coarse_align(r.in.imu, r.first.begin, r.first.end, factory_site(), ParamSet{},
-                   unit.noise.vrw_mps_per_sqrt_s);
+  const CoarseAlignment a = coarse_align(r.in.imu, r.first.begin, r.first.end, factory_site(),
+                                         ParamSet{}, unit.noise.vrw_mps_per_sqrt_s);
   const Eigen::Vector3d e = attitude_error(a.C_bn, r.in.reference[r.first.begin].C_bn_ref);
   // Tilt: accel misalignment ≤ 150 µrad, bias ≤ 50 µg (5e-5 rad), ς ≤ 15" (7e-5 rad): < 3e-4.
   // Heading: gyro bias 0.01 °/h (≈ 1 mrad), ARW over 120 s, ς_z 30": a few mrad at most.

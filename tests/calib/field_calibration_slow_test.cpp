@@ -65,8 +65,7 @@ TEST_P(FieldCalibration, ObservableParametersWithinFourSigmaAndConsistent) {
     if (count[static_cast<size_t>(g)] == 0) continue;
     const double rms = std::sqrt(sum2[static_cast<size_t>(g)] / count[static_cast<size_t>(g)]);
     std::printf("%s %-18s RMS(error/sigma) %.3f over %d\n", setting_name(GetParam()),
-                group_name(static_cast<ParamGroup>(g)).c_str(), rms,
-                count[static_cast<size_t>(g)]);
+                group_name(static_cast<ParamGroup>(g)).c_str(), rms, count[static_cast<size_t>(g)]);
     EXPECT_GE(rms, 0.7) << group_name(static_cast<ParamGroup>(g));
     EXPECT_LE(rms, 1.4) << group_name(static_cast<ParamGroup>(g));
   }

@@ -92,7 +92,8 @@ std::pair<double, double> strapdown_errors(const FieldSimResult& r, const Site& 
 TEST(FieldSim, StrapdownFollowsTheTruthOnLandAndOnARockingDeck) {
   const Site site = field_site();
   FieldSimOptions o = options(Setting::kLand, false);
-  auto [att, pos] = strapdown_errors(simulate_field(short_profile(), site, ideal_unit(), o), site, o);
+  auto [att, pos] =
+      strapdown_errors(simulate_field(short_profile(), site, ideal_unit(), o), site, o);
   EXPECT_LT(att, 1e-8);
   // Exact increments: the position drift is the strapdown's own (second-order) integration error.
   EXPECT_LT(pos, 1e-2);

@@ -62,7 +62,8 @@ TEST(Legacy, NoisyRunErrorsWithinAFewSigma) {
   double s2 = 0.0;
   int n = 0;
   for (uint64_t seed = 10; seed < 14; ++seed) {
-    const CalibrationResult r = calibrate_legacy(table_input(testing::short_profile(), unit, seed, true));
+    const CalibrationResult r =
+        calibrate_legacy(table_input(testing::short_profile(), unit, seed, true));
     const ParamVector e = errors(r, unit.params), s = r.sigma.to_vector();
     for (int i = 0; i < 24; ++i) {
       const double z = e(i) / s(i);

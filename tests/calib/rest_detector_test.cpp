@@ -13,8 +13,8 @@ namespace imucal::calib {
 namespace {
 
 struct Score {
-  double found = 0.0;       ///< fraction of true rest samples detected
-  size_t false_rest = 0;    ///< samples detected at rest while the hand turns the unit
+  double found = 0.0;     ///< fraction of true rest samples detected
+  size_t false_rest = 0;  ///< samples detected at rest while the hand turns the unit
 };
 
 Score score(const FieldSimResult& r, const std::vector<bool>& rest) {

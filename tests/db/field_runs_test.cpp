@@ -64,8 +64,8 @@ TEST(FieldRuns, DoneNeedsTheSettingsSecondMethodAndASeaRunIsNeverDone) {
   SqliteRepository repo(dir.file("h.db"));
   // Land with AINS + NLSQ (the factory's pair) is not done: the land pair is AINS + legacy.
   const RunId land = repo.create_run(field_run("FOG-2", kT0, calib::Setting::kLand));
-  const std::string m1 =
-      expect_throw_message<Conflict>([&] { repo.finish_run(land, test::pass_completion(2, kT0 + 1)); });
+  const std::string m1 = expect_throw_message<Conflict>(
+      [&] { repo.finish_run(land, test::pass_completion(2, kT0 + 1)); });
   EXPECT_NE(m1.find("legacy calibration"), std::string::npos) << m1;
   // A sea run has AINS alone: done is refused, review with the reason is fine.
   const RunId sea = repo.create_run(field_run("FOG-2", kT0 + 10, calib::Setting::kSea));
@@ -112,19 +112,22 @@ TEST(FieldRuns, PromotionIsRefusedWhereItMakesNoSense) {
   SqliteRepository repo(dir.file("h.db"));
   const RunId fac = repo.create_run(test::new_run("FOG-4", kT0));
   repo.finish_run(fac, test::pass_completion(20, kT0 + 1000));
-  EXPECT_NE(expect_throw_message<Conflict>([&] { repo.promote(fac, "qa", "x", kT0 + 2); })
-                .find("factory run"),
+  EXPECT_NE(expect_throw_message<Conflict>([&] {
+              repo.promote(fac, "qa", "x", kT0 + 2);
+            }).find("factory run"),
             std::string::npos);
   const RunId live = repo.create_run(field_run("FOG-4", kT0 + 10, calib::Setting::kLand));
-  EXPECT_NE(expect_throw_message<Conflict>([&] { repo.promote(live, "qa", "x", kT0 + 20); })
-                .find("still preparing"),
+  EXPECT_NE(expect_throw_message<Conflict>([&] {
+              repo.promote(live, "qa", "x", kT0 + 20);
+            }).find("still preparing"),
             std::string::npos);
   RunCompletion rev = land_pass(21, kT0 + 30);
   rev.state = RunState::kReview;
   rev.crosscheck = CrosscheckRecord{Verdict::kReview, 4.0, {{"gyro_M[1][1]", "too far apart"}}};
   repo.finish_run(live, rev);
-  EXPECT_NE(expect_throw_message<Conflict>([&] { repo.promote(live, "qa", "x", kT0 + 40); })
-                .find("only a done (PASS) field run"),
+  EXPECT_NE(expect_throw_message<Conflict>([&] {
+              repo.promote(live, "qa", "x", kT0 + 40);
+            }).find("only a done (PASS) field run"),
             std::string::npos);
   EXPECT_THROW(repo.promote(live, "qa", "", kT0 + 40), InvalidInput);
   EXPECT_THROW(repo.promote(99999, "qa", "x", kT0 + 40), NotFound);

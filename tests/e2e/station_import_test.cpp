@@ -25,9 +25,9 @@ TEST(StationImport, FieldRunsJoinTheHistoryWithTheirSettingAndBecomeActiveOnlyWh
   Station st;
   ASSERT_TRUE(st.start());
   // A factory run of the unit first: its PASS is the active set.
-  const CmdResult run = st.ctl({"run", "start", "--serial", "SIM-7", "--sequence", "short",
-                                "--operator", "e2e", "--wait"},
-                               180s);
+  const CmdResult run = st.ctl(
+      {"run", "start", "--serial", "SIM-7", "--sequence", "short", "--operator", "e2e", "--wait"},
+      180s);
   ASSERT_EQ(run.exit_code, 0) << run.describe() << "\n" << st.daemon_log();
   const json factory_params = st.ctl({"params", "SIM-7", "--json"}).json_out();
 

@@ -10,7 +10,7 @@
 #include <sstream>
 #include <string>
 
-#include "tests/support/run_command.hpp"
+#include "tests/support/imucal_cli.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace fs = std::filesystem;
@@ -20,24 +20,10 @@ namespace {
 using Proc = imucal::test_support::CommandResult;
 
 Proc run(const std::string& args, bool merge_stderr = true) {
-  return imucal::test_support::run_command(std::string(IMUCAL_BIN_DIR) + "/imucal " + args +
-                                           (merge_stderr ? " 2>&1" : " 2>/dev/null"));
+  return imucal::test_support::run_imucal(args, merge_stderr);
 }
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
-/// Files and their sizes in a directory, to prove that nothing was written.
-std::string listing(const fs::path& dir) {
-  std::string s;
-  for (const auto& e : fs::directory_iterator(dir))
-    s += e.path().filename().string() + ":" + std::to_string(fs::file_size(e.path())) + "\n";
-  return s;
-}
+using imucal::test_support::listing;
+using imucal::test_support::slurp;
 
 class DiagnoseCli : public ::testing::Test {
  protected:

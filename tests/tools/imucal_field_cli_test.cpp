@@ -10,7 +10,7 @@
 #include <sstream>
 #include <string>
 
-#include "tests/support/run_command.hpp"
+#include "tests/support/imucal_cli.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace fs = std::filesystem;
@@ -20,31 +20,18 @@ namespace {
 using Proc = imucal::test_support::CommandResult;
 
 Proc run(const std::string& args, bool merge_stderr = true) {
-  return imucal::test_support::run_command(std::string(IMUCAL_BIN_DIR) + "/imucal " + args +
-                                           (merge_stderr ? " 2>&1" : " 2>/dev/null"));
+  return imucal::test_support::run_imucal(args, merge_stderr);
 }
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
-std::string listing(const fs::path& dir) {
-  std::string s;
-  for (const auto& e : fs::directory_iterator(dir))
-    s += e.path().filename().string() + ":" + std::to_string(fs::file_size(e.path())) + "\n";
-  return s;
-}
+using imucal::test_support::listing;
+using imucal::test_support::slurp;
 
 class FieldCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new imucal::test_support::ScopedTempDir("field-cli");
     for (const char* s : {"land", "sea"})
-      ASSERT_EQ(run(std::string("simulate --sequence short --seed 7 --setting ") + s +
-                    " --out " + (root() / s).string())
+      ASSERT_EQ(run(std::string("simulate --sequence short --seed 7 --setting ") + s + " --out " +
+                    (root() / s).string())
                     .code,
                 0);
   }
@@ -91,7 +78,8 @@ TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
   EXPECT_EQ(j["crosscheck"]["not_compared"].size(), 3u);
   bool housing = false;
   for (const auto& n : j["ains"]["unobservable_notes"])
-    housing |= n.get<std::string>().find("housing orientation: not observable") != std::string::npos;
+    housing |=
+        n.get<std::string>().find("housing orientation: not observable") != std::string::npos;
   EXPECT_TRUE(housing);
   // The human report says it too, and NLSQ is refused on land with the reason.
   const Proc h = run("calibrate " + (root() / "land").string());
@@ -164,7 +152,8 @@ TEST_F(FieldCli, PaperTablesOnTwoUnits) {
   ASSERT_TRUE(p.code == 0 || p.code == 3) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   ASSERT_EQ(j["units"].size(), 2u);
-  for (const char* c : {"factory AINS", "factory NLSQ", "factory legacy", "land AINS", "sea AINS"}) {
+  for (const char* c :
+       {"factory AINS", "factory NLSQ", "factory legacy", "land AINS", "sea AINS"}) {
     EXPECT_GT(j["mean"][c]["orientation_rmse_mdeg"].get<double>(), 0.0) << c;
     EXPECT_GT(j["mean"][c]["accel_rmse_ug"].get<double>(), 0.0) << c;
     EXPECT_GT(j["paper_mean"][c]["orientation_rmse_mdeg"].get<double>(), 10.0) << c;

@@ -34,10 +34,10 @@
 #include "tools/imucal/detectability_cmd.hpp"
 #include "tools/imucal/diagnose_cmd.hpp"
 #include "tools/imucal/effects_cmd.hpp"
-#include "tools/imucal/plot.hpp"
 #include "tools/imucal/paper_tables_cmd.hpp"
-#include "tools/imucal/validate_cmd.hpp"
+#include "tools/imucal/plot.hpp"
 #include "tools/imucal/report.hpp"
+#include "tools/imucal/validate_cmd.hpp"
 
 using namespace imucal;
 
@@ -171,8 +171,8 @@ int cmd_simulate(const SimulateArgs& a) {
   }
   progress("writing " + a.out_dir);
   archive::write_archive(a.out_dir, ar, a.overwrite);
-  std::cout << "wrote " << a.out_dir << ": " << ar.imu.size() << " samples, "
-            << ar.imu.back().t_s << " s, sequence " << profile.name << ", setting " << a.setting
+  std::cout << "wrote " << a.out_dir << ": " << ar.imu.size() << " samples, " << ar.imu.back().t_s
+            << " s, sequence " << profile.name << ", setting " << a.setting
             << (ar.gnss.empty() ? "" : ", " + std::to_string(ar.gnss.size()) + " GNSS fixes")
             << ", seed " << a.seed << '\n';
   return 0;
@@ -374,7 +374,8 @@ int main(int argc, char** argv) {
   tools::DiagnoseArgs diag;
   auto* dg = tools::add_diagnose_command(app, diag);
   bool effects_json = false;
-  auto* ef = app.add_subcommand("effects", "the effects catalogue: names, models, parameters, typical sizes");
+  auto* ef = app.add_subcommand("effects",
+                                "the effects catalogue: names, models, parameters, typical sizes");
   ef->add_flag("--json", effects_json, "print one JSON array");
   tools::ValidateArgs val;
   auto* vd = tools::add_validate_command(app, val);

@@ -138,7 +138,8 @@ CLI::App* add_paper_tables_command(CLI::App& app, PaperTablesArgs& a) {
       ->capture_default_str()
       ->check(CLI::Range(1, 100));
   c->add_option("--seed", a.seed, "seed of the units' parameters and noise")->capture_default_str();
-  c->add_option("--sequence", a.sequence, "rotation sequence (name or file)")->capture_default_str();
+  c->add_option("--sequence", a.sequence, "rotation sequence (name or file)")
+      ->capture_default_str();
   c->add_option("--threads", a.threads, "units in parallel (0: one per core)")
       ->capture_default_str()
       ->check(CLI::Range(0, 64));
@@ -158,11 +159,10 @@ int cmd_paper_tables(const PaperTablesArgs& a) {
   opt.units = a.units;
   opt.seed = a.seed;
   opt.unmodelled_effects = a.effects == "typical";
-  opt.threads =
-      a.threads > 0 ? a.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  opt.threads = a.threads > 0 ? a.threads
+                              : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   opt.on_progress = ProgressLine("paper-tables", "units");
-  const calib::PaperTables t =
-      calib::run_paper_tables(profile, calib::demo_factory_site(), opt);
+  const calib::PaperTables t = calib::run_paper_tables(profile, calib::demo_factory_site(), opt);
   const Findings f = findings(t);
   if (a.json) {
     std::cout << to_json(t, f).dump(2) << '\n';

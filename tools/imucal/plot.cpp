@@ -1,12 +1,12 @@
 #include "tools/imucal/plot.hpp"
 
-#include "tools/imucal/html_escape.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
 #include <vector>
+
+#include "tools/imucal/html_escape.hpp"
 
 namespace imucal::tools {
 
@@ -75,7 +75,8 @@ void legend(std::ostringstream& os, double y, bool ains, bool nlsq,
   }
   if (nlsq)
     os << "<rect x='" << x << "' y='" << y - 10 << "' width='12' height='12' fill='#ff7f0e'/>"
-       << "<text x='" << x + 16 << "' y='" << y << "' font-size='12'>" << second_name << "</text>\n";
+       << "<text x='" << x + 16 << "' y='" << y << "' font-size='12'>" << second_name
+       << "</text>\n";
 }
 
 /// Compact axis label: "accel_M[0][1]" -> "Ma xy", "gyro_bias_radps[2]" -> "bg z", ς -> "ς x".
@@ -114,7 +115,8 @@ std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSe
     const int n = calib::ParamSet::kSize;
     Panel p{os, y0, -std::max(k_sigma * 1.5, 1.0), std::max(k_sigma * 1.5, 1.0),
             static_cast<size_t>(n)};
-    p.frame(both ? "AINS − " + second_name + " per parameter, in combined σ (bound ±" + num(k_sigma, "%.0f") + "σ)"
+    p.frame(both ? "AINS − " + second_name + " per parameter, in combined σ (bound ±" +
+                       num(k_sigma, "%.0f") + "σ)"
                  : "estimate − truth per parameter, in σ",
             both ? "Δ / sqrt(σA² + σB²)" : "error / σ");
     p.hline(k_sigma, "#d62728", "6,3");

@@ -1,6 +1,5 @@
 #include "tools/imucal/validate_cmd.hpp"
 
-
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
