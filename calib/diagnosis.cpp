@@ -499,6 +499,11 @@ std::string summarise(const DiagnosisResult& d) {
 DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
                          const DiagnosisOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
+  if (!in.cal.has_reference_attitude())
+    throw std::invalid_argument(
+        std::string("gap diagnosis: a ") + setting_name(in.cal.setting) +
+        " run has no table reference; the diagnosis compares a table run with its simulation "
+        "(run it on a factory run of the unit)");
   const GapModel model(in, opt.min_rest_samples);
   const GapLinearisation lin(model, base);
   Problem p{

@@ -21,6 +21,10 @@ std::string idx(const char* field, size_t k) {
 }
 
 void validate(const CalibrationInput& in, const ParamSet& params, const EvaluationOptions& opt) {
+  if (!in.has_reference_attitude())
+    fail(std::string("a ") + setting_name(in.setting) +
+         " run has no attitude reference; the paper's metrics need a table run (evaluate the "
+         "parameters on a factory run of the unit)");
   if (opt.min_rest_samples < 2) fail("options.min_rest_samples must be at least 2");
   auto positive = [](double v, const char* name) {
     if (!(std::isfinite(v) && v > 0.0))

@@ -33,6 +33,9 @@ constexpr double kMinRelativeEigenvalue = 1e-14;
 bool finite3(const Eigen::Vector3d& v) { return v.allFinite(); }
 
 void validate(const CalibrationInput& in, const NlsqOptions& opt) {
+  if (!in.has_reference_attitude())
+    fail(std::string("needs the table's attitude reference (paper §V); a ") +
+         setting_name(in.setting) + " run has none (use AINS or the legacy method)");
   if (opt.max_outer_iterations < 1) fail("options.max_outer_iterations must be >= 1");
   if (!(opt.convergence_sigma_ratio > 0.0)) fail("options.convergence_sigma_ratio must be > 0");
   if (opt.ceres_max_iterations < 1) fail("options.ceres_max_iterations must be >= 1");

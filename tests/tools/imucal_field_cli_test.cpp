@@ -89,6 +89,23 @@ TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
   EXPECT_NE(n.out.find("NLSQ needs the table's attitude reference"), std::string::npos) << n.out;
 }
 
+TEST_F(FieldCli, EvaluateAndDiagnoseRefuseARunWithoutReference) {
+  // Both need the table: a silent number from a land run would be meaningless.
+  const fs::path params = root() / "land-params.json";
+  std::ofstream(params)
+      << nlohmann::json::parse(
+             run("calibrate " + (root() / "land").string() + " --json", false).out)
+             .at("ains")
+             .at("params")
+             .dump();
+  const Proc e = run("evaluate " + (root() / "land").string() + " --params " + params.string());
+  EXPECT_EQ(e.code, 1) << e.out;
+  EXPECT_NE(e.out.find("no attitude reference"), std::string::npos) << e.out;
+  const Proc d = run("diagnose " + (root() / "land").string());
+  EXPECT_EQ(d.code, 1) << d.out;
+  EXPECT_NE(d.out.find("no table reference"), std::string::npos) << d.out;
+}
+
 TEST_F(FieldCli, SeaCalibratesWithAinsAlone) {
   const Proc p = run("calibrate " + (root() / "sea").string() + " --json", false);
   ASSERT_EQ(p.code, 0) << p.out;

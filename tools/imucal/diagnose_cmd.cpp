@@ -152,6 +152,11 @@ int cmd_diagnose(const DiagnoseArgs& a) {
   calib::DiagnosisInput in;
   in.cal = archive::to_calibration_input(ar);
   if (ar.info.reference == archive::ReferenceKind::kTable) in.geometry = ar.info.table.geometry();
+  if (!in.cal.has_reference_attitude())
+    throw std::invalid_argument(
+        a.dir + ": a " + std::string(calib::setting_name(in.cal.setting)) +
+        " run has no table reference; the gap diagnosis compares a table run with its simulation "
+        "(run it on a factory run of the unit)");
   const calib::CalibrationResult cal = calib::calibrate_nlsq(in.cal);
   calib::DiagnosisOptions opt;
   opt.candidates = ids;
