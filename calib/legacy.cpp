@@ -303,107 +303,109 @@ MatrixXd scaled_covariance(const LsqOutcome& o, double floor_var) {
 
 }  // namespace
 
-CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptions& opt) {
-  const auto t_start = std::chrono::steady_clock::now();
-  if (in.setting == Setting::kSea)
-    fail(
-        "the multi-position method needs a still platform; a sea run's deck rocks and drifts "
-        "(calibrate it with AINS, which uses the GNSS fixes)");
-  if (opt.min_rest_samples < 4) fail("option min_rest_samples must be >= 4");
-  if (!(std::isfinite(opt.trim_s) && opt.trim_s >= 0.0)) fail("option trim_s must be >= 0");
-  const std::vector<Rest> rests = usable_rests(in, opt);
+namespace {
+
+constexpr double kTypicalRest_s = 60.0;  ///< for the noise weights of the rest means
+
+void check_input(const std::vector<Rest>& rests) {
   if (rests.size() < 9)
     fail("only " + std::to_string(rests.size()) +
          " usable rest positions; the multi-position test needs at least 9 (9 accelerometer "
          "unknowns)");
-  const double g = EarthModel(in.site).gravity_mps2();
+  // Raw gravity directions must span three dimensions: every axis must see gravity.
+  MatrixXd D(static_cast<Eigen::Index>(rests.size()), 3);
+  for (size_t p = 0; p < rests.size(); ++p)
+    D.row(static_cast<Eigen::Index>(p)) = rests[p].f_mean.normalized().transpose();
+  const double spread = Eigen::JacobiSVD<MatrixXd>(D).singularValues()(2) /
+                        std::sqrt(static_cast<double>(rests.size()));
+  if (spread < 0.2)
+    fail(
+        "the rest positions do not span three dimensions (smallest singular value of the "
+        "gravity directions " +
+        std::to_string(spread) + " < 0.2): some axis never sees gravity");
+}
 
-  // Step 2: accelerometers, from scratch (T = I, b = 0).
+/// Step 2 alone, from scratch (T = I, b = 0): starting values for the joint fit (its
+/// non-orthogonality is unobserved with axis-aligned positions; the joint fit resolves it).
+VectorXd accelerometer_start(const std::vector<Rest>& rests, double g) {
   VectorXd xa = VectorXd::Zero(9);
   xa(3) = xa(5) = xa(8) = 1.0;
   AccelModel am{rests, g};
-  {
-    // Raw gravity directions must span three dimensions: every axis must see gravity.
-    MatrixXd Draw(static_cast<Eigen::Index>(rests.size()), 3);
-    for (size_t p = 0; p < rests.size(); ++p)
-      Draw.row(static_cast<Eigen::Index>(p)) = rests[p].f_mean.normalized().transpose();
-    const double spread = Eigen::JacobiSVD<MatrixXd>(Draw).singularValues()(2) /
-                          std::sqrt(static_cast<double>(rests.size()));
-    if (spread < 0.2)
-      fail(
-          "the rest positions do not span three dimensions (smallest singular value of the "
-          "gravity directions " +
-          std::to_string(spread) + " < 0.2): some axis never sees gravity");
-  }
-  // A magnitude-only fit first: starting values for the joint fit (its non-orthogonality is
-  // unobserved with axis-aligned positions, which the joint fit then resolves).
   gauss_newton(am, xa);
-  const Matrix3d T0 = tri::T_of(xa);
-  if (!xa.allFinite() || !(T0.determinant() > 0.1))
+  if (!xa.allFinite() || !(tri::T_of(xa).determinant() > 0.1))
     fail("the accelerometer fit failed (is the unit at rest in the flagged periods?)");
-  std::vector<Vector3d> down;
-  for (size_t p = 0; p < rests.size(); ++p)
-    down.push_back(-(T0 * (rests[p].f_mean - xa.head<3>())).normalized());
-  // Steps 3 and 2+4, alternated: the bias needs M_g, M_g needs the bias and the Earth rate.
-  const double T_rest = 60.0;  // typical rest length, for the noise weights
-  const double sigma_f = std::max(in.noise.vrw_mps_per_sqrt_s / std::sqrt(T_rest), 1e-7 * g);
+  return xa;
+}
+
+struct LegacyFit {
+  VectorXd x;  ///< (b_a, t, vec M_g): 18
+  Vector3d bg = Vector3d::Zero();
+  LsqOutcome bias, joint;
+};
+
+/// Steps 3 and 2+4, alternated three times: the bias needs M_g, M_g the bias and the Earth rate.
+LegacyFit fit_alternating(const CalibrationInput& in, const std::vector<Rest>& rests, double g,
+                          const VectorXd& xa) {
+  const double sigma_f =
+      std::max(in.noise.vrw_mps_per_sqrt_s / std::sqrt(kTypicalRest_s), 1e-7 * g);
   const double sigma_d =
       std::max(std::hypot(std::sqrt(2.0) * sigma_f / g, in.noise.arw_rad_per_sqrt_s * 10.0), 1e-8);
-  Vector3d bg = Vector3d::Zero();
+  LegacyFit f;
+  f.x = VectorXd::Zero(18);
+  f.x.head<9>() = xa;
   Matrix3d Mg = Matrix3d::Zero();
-  LsqOutcome ob, oj;
-  std::vector<Vector3d> earth_b(rests.size());
-  VectorXd xj = VectorXd::Zero(18);
-  xj.head<9>() = xa;
+  std::vector<Vector3d> down(rests.size()), earth_b(rests.size());
   for (int round = 0; round < 3; ++round) {
-    const Matrix3d Tj = tri::T_of(xj);
+    const Matrix3d T = tri::T_of(f.x);
     for (size_t p = 0; p < rests.size(); ++p)
-      down[p] = -(Tj * (rests[p].f_mean - xj.head<3>())).normalized();
+      down[p] = -(T * (rests[p].f_mean - f.x.head<3>())).normalized();
     GyroBiasModel bm(rests, down, Matrix3d::Identity() + Mg, in.site.lat_rad);
     VectorXd xb = VectorXd::Zero(static_cast<Eigen::Index>(3 + rests.size()));
-    xb.head<3>() = bg;
+    xb.head<3>() = f.bg;
     for (size_t p = 0; p < rests.size(); ++p) {
-      const Vector3d w = bm.Ag_inv * (rests[p].w_mean - bg);
+      const Vector3d w = bm.Ag_inv * (rests[p].w_mean - f.bg);
       xb(static_cast<Eigen::Index>(3 + p)) =
           std::atan2(w.dot(bm.basis[p].second), w.dot(bm.basis[p].first));
     }
-    ob = gauss_newton(bm, xb);
-    bg = xb.head<3>();
+    f.bias = gauss_newton(bm, xb);
+    f.bg = xb.head<3>();
     for (size_t p = 0; p < rests.size(); ++p)
       earth_b[p] = bm.earth_rate(p, xb(static_cast<Eigen::Index>(3 + p)));
-    JointModel jm{in, rests, earth_b, bg, g, sigma_f, sigma_d};
-    oj = gauss_newton(jm, xj, 30);
-    Mg << xj(9), xj(10), xj(11), xj(12), xj(13), xj(14), xj(15), xj(16), xj(17);
+    JointModel jm{in, rests, earth_b, f.bg, g, sigma_f, sigma_d};
+    f.joint = gauss_newton(jm, f.x, 30);
+    Mg = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(f.x.data() + 9);
   }
-  const Matrix3d T = tri::T_of(xj);
-  if (!xj.allFinite() || !bg.allFinite() || !(T.determinant() > 0.1) ||
+  if (!f.x.allFinite() || !f.bg.allFinite() || !(tri::T_of(f.x).determinant() > 0.1) ||
       !(std::abs((Matrix3d::Identity() + Mg).determinant()) > 0.1))
     fail("the fit did not converge");
+  return f;
+}
 
+/// Parameters, covariance (weighted residuals: (JᵀJ)⁻¹, inflated by the reduced χ² when the fit
+/// is worse than the noise), and what the method cannot know — in the triangular frame.
+CalibrationResult legacy_result(const CalibrationInput& in, const LegacyFit& f) {
+  const Matrix3d T = tri::T_of(f.x);
   CalibrationResult res;
   res.method = "legacy";
   res.setting = in.setting;
-  res.params.accel_bias_mps2 = xj.head<3>();
+  res.params.accel_bias_mps2 = f.x.head<3>();
   res.params.accel_M = T.inverse() - Matrix3d::Identity();
-  res.params.gyro_bias_radps = bg;
-  res.params.gyro_M = Mg;
-  // Weighted residuals: covariance (JᵀJ)⁻¹, inflated by the reduced χ² when the fit is worse
-  // than the noise (model errors are then in the residuals).
-  const MatrixXd cov_j = scaled_covariance(oj, 1.0);
-  const double floor_w = std::pow(in.noise.arw_rad_per_sqrt_s / std::sqrt(T_rest) /
+  res.params.gyro_bias_radps = f.bg;
+  res.params.gyro_M =
+      Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(f.x.data() + 9);
+  const MatrixXd cov_j = scaled_covariance(f.joint, 1.0);
+  const double floor_w = std::pow(in.noise.arw_rad_per_sqrt_s / std::sqrt(kTypicalRest_s) /
                                       (wgs84::kEarthRate_radps * std::cos(in.site.lat_rad)),
                                   2);
-  const MatrixXd cov_b = scaled_covariance(ob, floor_w);
+  const MatrixXd cov_b = scaled_covariance(f.bias, floor_w);
   res.cov = assemble_covariance(T, cov_j.topLeftCorner(9, 9), cov_b.topLeftCorner<3, 3>(),
                                 cov_j.bottomRightCorner(9, 9));
-  // The accel-gyro cross-covariance of the joint fit (J maps (b,t) like assemble_covariance).
-  {
-    const Eigen::Matrix<double, 12, 9> X = tri::to_params_jacobian(T) * cov_j.topRightCorner(9, 9);
-    res.cov.block<12, 9>(0, 15) = X;
-    res.cov.block<9, 12>(15, 0) = X.transpose();
-  }
+  // The accel-gyro cross-covariance of the joint fit.
+  const Eigen::Matrix<double, 12, 9> X = tri::to_params_jacobian(T) * cov_j.topRightCorner(9, 9);
+  res.cov.block<12, 9>(0, 15) = X;
+  res.cov.block<9, 12>(15, 0) = X.transpose();
   res.sigma = sigma_from_covariance(res.cov);
-  res.converged = ob.converged && oj.converged;
+  res.converged = f.bias.converged && f.joint.converged;
   res.iterations = 3;
   for (int i = 24; i < ParamSet::kSize; ++i) res.observable[static_cast<size_t>(i)] = false;
   res.unobservable_notes.push_back(
@@ -413,9 +415,26 @@ CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptio
   res.warnings.push_back(
       "legacy σ from the noise-weighted fits (gyro bias separate: its cross-covariance with the "
       "other terms is neglected)");
+  res.body_frame = BodyFrame::kHousing;  // "not accel-symmetric": transformed by the caller
+  return res;
+}
+
+}  // namespace
+
+CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptions& opt) {
+  const auto t_start = std::chrono::steady_clock::now();
+  if (in.setting == Setting::kSea)
+    fail(
+        "the multi-position method needs a still platform; a sea run's deck rocks and drifts "
+        "(calibrate it with AINS, which uses the GNSS fixes)");
+  if (opt.min_rest_samples < 4) fail("option min_rest_samples must be >= 4");
+  if (!(std::isfinite(opt.trim_s) && opt.trim_s >= 0.0)) fail("option trim_s must be >= 0");
+  const std::vector<Rest> rests = usable_rests(in, opt);
+  check_input(rests);
+  const double g = EarthModel(in.site).gravity_mps2();
+  const LegacyFit fit = fit_alternating(in, rests, g, accelerometer_start(rests, g));
   // From the accelerometer triad's triangular frame into the accel-symmetric one.
-  res.body_frame = BodyFrame::kHousing;
-  CalibrationResult out = in_accel_symmetric_frame(res);
+  CalibrationResult out = in_accel_symmetric_frame(legacy_result(in, fit));
   out.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return out;
 }
