@@ -238,6 +238,40 @@ class EarthKinematics {
   double RN_, RE_;
 };
 
+Platform make_platform(const FieldSimOptions& opt, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  Platform plat;
+  plat.sea = opt.setting == Setting::kSea;
+  plat.drift_amp = opt.drift_amplitude_m;
+  plat.drift_w = 2.0 * kPi / opt.drift_period_s;
+  plat.heave_amp = opt.heave_amplitude_m;
+  plat.heave_w = 2.0 * kPi / opt.heave_period_s;
+  plat.rock_amp = opt.rock_amplitude_deg * kDegToRad;
+  plat.rock_w = 2.0 * kPi / opt.rock_period_s;
+  for (double& ph : plat.phase) ph = 2.0 * kPi * u01(rng);
+  return plat;
+}
+
+/// GNSS fixes at the platform's true position plus white noise, at multiples of 1/rate.
+std::vector<GnssFix> gnss_fixes(const Platform& plat, const Site& site, const FieldSimOptions& opt,
+                                double t_end, std::mt19937_64& rng) {
+  std::normal_distribution<double> n01;
+  const double RN = EarthModel::radius_north_m(site.lat_rad) + site.height_m;
+  const double RE = EarthModel::radius_east_m(site.lat_rad) + site.height_m;
+  std::vector<GnssFix> out;
+  for (int m = 1; m / opt.gnss_rate_hz <= t_end + 1e-9; ++m) {
+    const double t = m / opt.gnss_rate_hz;
+    const Eigen::Vector3d p = plat.p(t);
+    GnssFix g;
+    g.t_s = t;
+    g.lat_rad = site.lat_rad + (p(0) + opt.gnss_sigma_m * n01(rng)) / RN;
+    g.lon_rad = site.lon_rad + (p(1) + opt.gnss_sigma_m * n01(rng)) / (RE * std::cos(site.lat_rad));
+    g.sigma_m = opt.gnss_sigma_m;
+    out.push_back(g);
+  }
+  return out;
+}
+
 }  // namespace
 
 FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Site& site,
@@ -251,15 +285,7 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
   geom.heading_rad = 2.0 * kPi * u01(rng);
   const TableModel table(geom);
   const HandTimeline hand(profile, opt, rng);
-  Platform plat;
-  plat.sea = opt.setting == Setting::kSea;
-  plat.drift_amp = opt.drift_amplitude_m;
-  plat.drift_w = 2.0 * kPi / opt.drift_period_s;
-  plat.heave_amp = opt.heave_amplitude_m;
-  plat.heave_w = 2.0 * kPi / opt.heave_period_s;
-  plat.rock_amp = opt.rock_amplitude_deg * kDegToRad;
-  plat.rock_w = 2.0 * kPi / opt.rock_period_s;
-  for (double& ph : plat.phase) ph = 2.0 * kPi * u01(rng);
+  const Platform plat = make_platform(opt, rng);
 
   // The true gravity: the site's (surveyed, or normal gravity) plus the gravity_error effect.
   const Site truth = true_site(site, unit.effects.gravity_error_mps2, 0.0);
@@ -314,22 +340,7 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
     v_i_prev = v_i;
   }
 
-  if (plat.sea) {
-    const double RN = EarthModel::radius_north_m(site.lat_rad) + site.height_m;
-    const double RE = EarthModel::radius_east_m(site.lat_rad) + site.height_m;
-    const double t_end = n ? out.imu.back().t_s : 0.0;
-    for (int m = 1; m / opt.gnss_rate_hz <= t_end + 1e-9; ++m) {
-      const double t = m / opt.gnss_rate_hz;
-      const Eigen::Vector3d p = plat.p(t);
-      GnssFix g;
-      g.t_s = t;
-      g.lat_rad = site.lat_rad + (p(0) + opt.gnss_sigma_m * n01(rng)) / RN;
-      g.lon_rad =
-          site.lon_rad + (p(1) + opt.gnss_sigma_m * n01(rng)) / (RE * std::cos(site.lat_rad));
-      g.sigma_m = opt.gnss_sigma_m;
-      out.gnss.push_back(g);
-    }
-  }
+  if (plat.sea) out.gnss = gnss_fixes(plat, site, opt, n ? out.imu.back().t_s : 0.0, rng);
   return out;
 }
 
