@@ -1,5 +1,6 @@
 #include "calib/paper_tables.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <exception>
@@ -33,7 +34,44 @@ const char* paper_column_name(PaperColumn c) {
   return "?";
 }
 
-UnitModel paper_unit(int unit, uint64_t seed, bool unmodelled_effects) {
+std::string PaperEffects::names() const {
+  if (thermal && instability && k2) return "typical";
+  std::string out;
+  const auto add = [&out](bool on, const char* name) {
+    if (!on) return;
+    if (!out.empty()) out += ',';
+    out += name;
+  };
+  add(thermal, "thermal");
+  add(instability, "instability");
+  add(k2, "k2");
+  return out.empty() ? "none" : out;
+}
+
+PaperEffects parse_paper_effects(const std::string& text) {
+  PaperEffects e;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t comma = std::min(text.find(',', start), text.size());
+    const std::string word = text.substr(start, comma - start);
+    if (word == "typical") {
+      e = PaperEffects::typical();
+    } else if (word == "thermal") {
+      e.thermal = true;
+    } else if (word == "instability") {
+      e.instability = true;
+    } else if (word == "k2") {
+      e.k2 = true;
+    } else if (word != "none" || text != "none") {
+      throw std::invalid_argument("unknown effect '" + word +
+                                  "' (none, typical, or a list of thermal, instability, k2)");
+    }
+    start = comma + 1;
+  }
+  return e;
+}
+
+UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects) {
   std::mt19937_64 rng(seed * 1000003ULL + static_cast<uint64_t>(unit) * 7919ULL);
   std::normal_distribution<double> n01;
   std::uniform_real_distribution<double> u(0.8, 1.2);
@@ -65,7 +103,15 @@ UnitModel paper_unit(int unit, uint64_t seed, bool unmodelled_effects) {
   fx.instability_gyro_radps = 0.001 * kDegPerHourToRadPerSec;
   fx.instability_accel_mps2 = 10.0 * kMicroG_mps2;
   fx.instability_tau_s = 1000.0;
-  if (!unmodelled_effects) fx = Effects{};
+  if (!effects.thermal) {
+    fx.thermal_accel_mps2.setZero();
+    fx.thermal_gyro_radps.setZero();
+  }
+  if (!effects.instability) {
+    fx.instability_gyro_radps = 0.0;
+    fx.instability_accel_mps2 = 0.0;
+  }
+  if (!effects.k2) fx.accel_k2_per_mps2.setZero();
   return m;
 }
 
@@ -76,7 +122,7 @@ PaperUnitResult run_unit(int unit, const sequences::MotionProfile& profile, cons
                          const PaperTablesOptions& opt) {
   PaperUnitResult out;
   out.unit = unit;
-  out.model = paper_unit(unit, opt.seed, opt.unmodelled_effects);
+  out.model = paper_unit(unit, opt.seed, opt.effects);
   const uint64_t seed = opt.seed * 1000 + static_cast<uint64_t>(unit);
 
   SimOptions so;
@@ -129,7 +175,7 @@ PaperTables run_paper_tables(const sequences::MotionProfile& profile, const Site
   const auto t0 = std::chrono::steady_clock::now();
   PaperTables out;
   out.sequence = profile.name;
-  out.unmodelled_effects = opt.unmodelled_effects;
+  out.effects = opt.effects;
   out.duration_s = profile.duration_s();
   out.units.resize(static_cast<size_t>(opt.units));
 

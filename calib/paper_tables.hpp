@@ -26,14 +26,28 @@ enum class PaperColumn { kFactoryAins, kFactoryNlsq, kFactoryLegacy, kLandAins, 
 constexpr int kNumPaperColumns = 5;
 const char* paper_column_name(PaperColumn c);
 
+/// Which of the catalogue's unmodelled effects the simulated units carry (paper_unit), at the
+/// typical sizes below. None (default): ideal units — the calibrated parameters and white noise.
+struct PaperEffects {
+  bool thermal = false;      ///< warm-up drift of both biases
+  bool instability = false;  ///< bias instability (Gauss–Markov) of both biases
+  bool k2 = false;           ///< quadratic accelerometer error
+  static PaperEffects typical() { return {true, true, true}; }
+  bool any() const { return thermal || instability || k2; }
+  /// "none", "typical" or the comma-separated names ("thermal,k2").
+  std::string names() const;
+};
+
+/// Parses what names() prints (also "instability", "thermal", "k2" in any order and any
+/// combination with commas). Throws std::invalid_argument naming the unknown word.
+PaperEffects parse_paper_effects(const std::string& text);
+
 struct PaperTablesOptions {
   int units = 6;
   uint64_t seed = 1;
   double rate_hz = 100.0;
-  int threads = 2;  ///< units run in parallel
-  /// Give every unit the catalogue's typical unmodelled effects (paper_unit). false (default):
-  /// ideal units — the calibrated parameters and white noise only.
-  bool unmodelled_effects = false;
+  int threads = 2;       ///< units run in parallel
+  PaperEffects effects;  ///< unmodelled effects every unit carries (paper_unit)
   /// Called after each finished unit with (done, total); from worker threads, serialised.
   std::function<void(int, int)> on_progress;
 };
@@ -48,7 +62,7 @@ struct PaperUnitResult {
 
 struct PaperTables {
   std::string sequence;
-  bool unmodelled_effects = true;
+  PaperEffects effects;
   double duration_s = 0.0;
   std::vector<PaperUnitResult> units;
   /// Column means over the units (the tables' "Mean" row).
@@ -61,8 +75,8 @@ struct PaperTables {
 /// 0.01 °/h, scale and misalignment 300 ppm/µrad, 1σ), its noise within ±20 % of the default,
 /// and — as a real unit has — unmodelled effects at the catalogue's typical sizes: thermal
 /// warm-up (20 µg, 0.005 °/h, τ 900 s), bias instability (10 µg, 0.001 °/h, τ 1000 s) and a
-/// quadratic accelerometer error (20 µg/g²), 1σ draws.
-UnitModel paper_unit(int unit, uint64_t seed, bool unmodelled_effects = true);
+/// quadratic accelerometer error (20 µg/g²), 1σ draws — those that `effects` selects.
+UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects = PaperEffects::typical());
 
 /// Throws std::invalid_argument for units < 1 or threads < 1, and whatever a method throws.
 PaperTables run_paper_tables(const sequences::MotionProfile& profile, const Site& site,

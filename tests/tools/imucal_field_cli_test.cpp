@@ -183,4 +183,18 @@ TEST_F(FieldCli, PaperTablesOnTwoUnits) {
     EXPECT_NE(t.out.find(table), std::string::npos) << table;
 }
 
+// A quadratic accelerometer error is what a method without an attitude reference cannot tell from
+// a tilt: with it the legacy method is clearly worse on orientation than the factory AINS (and so
+// are the field AINS runs, README § the paper's tables). An unknown effect is refused by name.
+TEST_F(FieldCli, PaperTablesWithOneChosenEffect) {
+  const Proc p = run("paper-tables --units 2 --seed 3 --effects k2 --json", false);
+  ASSERT_TRUE(p.code == 0 || p.code == 3) << p.out;
+  const auto j = nlohmann::json::parse(p.out);
+  EXPECT_EQ(j["unmodelled_effects"], "k2");
+  EXPECT_GT(j["findings"]["legacy_over_ains_orientation"].get<double>(), 1.5);
+  const Proc bad = run("paper-tables --units 1 --effects thermal,bogus");
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.out.find("unknown effect 'bogus'"), std::string::npos) << bad.out;
+}
+
 }  // namespace

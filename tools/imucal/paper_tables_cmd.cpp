@@ -114,7 +114,7 @@ nlohmann::json to_json(const calib::PaperTables& t, const Findings& f) {
                    {"accel_rmse_ug", pub.accel_ug[6][static_cast<size_t>(c)]}};
   }
   return {{"sequence", t.sequence},
-          {"unmodelled_effects", t.unmodelled_effects},
+          {"unmodelled_effects", t.effects.names()},
           {"duration_s", t.duration_s},
           {"units", units},
           {"mean", mean},
@@ -145,9 +145,17 @@ CLI::App* add_paper_tables_command(CLI::App& app, PaperTablesArgs& a) {
       ->check(CLI::Range(0, 64));
   c->add_option("--effects", a.effects,
                 "none: ideal units (parameters and white noise); typical: every unit also carries "
-                "the catalogue's unmodelled effects at typical sizes, as real units do")
+                "the catalogue's unmodelled effects at typical sizes, as real units do; or a "
+                "comma-separated choice of thermal, instability, k2")
       ->capture_default_str()
-      ->check(CLI::IsMember({"typical", "none"}));
+      ->check([](const std::string& v) {
+        try {
+          calib::parse_paper_effects(v);
+          return std::string();
+        } catch (const std::invalid_argument& e) {
+          return std::string(e.what());
+        }
+      });
   c->add_flag("--json", a.json, "print one JSON object");
   return c;
 }
@@ -158,7 +166,7 @@ int cmd_paper_tables(const PaperTablesArgs& a) {
   calib::PaperTablesOptions opt;
   opt.units = a.units;
   opt.seed = a.seed;
-  opt.unmodelled_effects = a.effects == "typical";
+  opt.effects = calib::parse_paper_effects(a.effects);
   opt.threads = a.threads > 0 ? a.threads
                               : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   opt.on_progress = ProgressLine("paper-tables", "units");
@@ -172,7 +180,7 @@ int cmd_paper_tables(const PaperTablesArgs& a) {
       "paper-tables: %zu simulated IMUs on %s (%.0f min), seed %llu, unmodelled effects %s, "
       "%.0f s\n",
       t.units.size(), t.sequence.c_str(), t.duration_s / 60.0,
-      static_cast<unsigned long long>(a.seed), a.effects.c_str(), t.wall_s);
+      static_cast<unsigned long long>(a.seed), t.effects.names().c_str(), t.wall_s);
   std::printf(
       "Every parameter set is judged on the unit's table run (paper §VII). Legacy = the textbook "
       "multi-position method in the role of the paper's proprietary one.\n");

@@ -1,5 +1,5 @@
 #pragma once
-// `imucal paper-tables [--units 6] [--seed S] [--sequence factory-std] [--effects typical|none]
+// `imucal paper-tables [--units 6] [--seed S] [--sequence factory-std] [--effects none|typical|LIST]
 // [--threads N] [--json]`:
 // the paper's Tables I–IV (calib/paper_tables.hpp) on simulated units, in the paper's layout and
 // beside its published figures, with a progress line on stderr. Exit 0 when the paper's findings
@@ -17,7 +17,7 @@ struct PaperTablesArgs {
   uint64_t seed = 1;
   std::string sequence = "factory-std";
   bool json = false;
-  std::string effects = "none";  ///< "none" | "typical": unmodelled effects of the units
+  std::string effects = "none";  ///< "none" | "typical" | e.g. "thermal,k2": units' unmodelled effects
 };
 
 CLI::App* add_paper_tables_command(CLI::App& app, PaperTablesArgs& args);
