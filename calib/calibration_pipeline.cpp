@@ -67,6 +67,13 @@ PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions
     out.crosscheck = cross_check(out.ains->result, out.ains->metrics, second->result,
                                  second->metrics, opt.crosscheck);
   }
+  // The cross-check already holds both methods' metrics to their limits; a method on its own
+  // gets that check here.
+  LimitCheckOptions limits = opt.limits;
+  limits.max_orientation_rmse_mdeg = opt.crosscheck.max_orientation_rmse_mdeg;
+  limits.max_accel_rmse_ug = opt.crosscheck.max_accel_rmse_ug;
+  for (const auto* m : {&out.ains, &out.nlsq, &out.legacy})
+    if (*m) check_limits((*m)->result, (*m)->metrics, !out.crosscheck, limits, out.limits);
   return out;
 }
 

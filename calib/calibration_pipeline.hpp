@@ -16,6 +16,7 @@
 #include "calib/crosscheck.hpp"
 #include "calib/evaluation.hpp"
 #include "calib/legacy.hpp"
+#include "calib/limit_check.hpp"
 #include "calib/nlsq.hpp"
 
 namespace imucal::calib {
@@ -30,6 +31,9 @@ struct PipelineOptions {
   LegacyOptions legacy;
   EvaluationOptions evaluation;
   CrossCheckOptions crosscheck;
+  /// Every method's result is checked (convergence, finiteness, datasheet envelope; the metrics
+  /// where no cross-check looks at them). Its metric limits follow `crosscheck`'s.
+  LimitCheckOptions limits;
   /// Called with a short phase description ("AINS", "NLSQ", "evaluating AINS", ...) before each
   /// phase, so front ends can show progress. May be empty.
   std::function<void(const std::string&)> on_phase;
@@ -45,6 +49,9 @@ struct PipelineResult {
   std::optional<MethodOutcome> nlsq;
   std::optional<MethodOutcome> legacy;
   std::optional<CrossCheckResult> crosscheck;  ///< only when two methods ran
+  LimitCheckResult limits;                     ///< of every method that ran
+  /// Good enough to store as good: every limit holds and, where two methods ran, they agree.
+  bool pass() const { return limits.pass && (!crosscheck || crosscheck->pass); }
 };
 
 /// Throws std::invalid_argument for NLSQ on a land/sea input (it needs the table reference,

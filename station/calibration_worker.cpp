@@ -26,6 +26,20 @@ std::string join_failures(const std::vector<calib::CrossCheckFailure>& failures)
   return s.empty() ? "cross-check REVIEW" : "cross-check REVIEW: " + s;
 }
 
+std::string join_limit_failures(const calib::LimitCheckResult& limits) {
+  std::string s;
+  for (const auto& f : limits.failures) s += (s.empty() ? "" : "; ") + f.detail;
+  return "limits: " + s;
+}
+
+/// Why a pipeline result is not PASS ("" when it is): cross-check failures, then limit failures.
+std::string review_reason(const calib::PipelineResult& r) {
+  std::string reason;
+  if (r.crosscheck && !r.crosscheck->pass) reason = join_failures(r.crosscheck->failures);
+  if (!r.limits.pass) reason += (reason.empty() ? "" : "; ") + join_limit_failures(r.limits);
+  return reason;
+}
+
 /// Factory: AINS + NLSQ, cross-check, and the gap check (a significant sim-to-real gap means an
 /// unmodelled effect that biases the calibration, so the run is never PASS then).
 void store_factory_result(const calib::PipelineResult& r, calib::CalibrationInput in,
@@ -41,13 +55,13 @@ void store_factory_result(const calib::PipelineResult& r, calib::CalibrationInpu
   const GapCheck gap = check_gap(std::move(in), ar, r.nlsq->result.params);
   completion.diagnosis_json = gap.summary.dump();
   const std::string gap_reason = gap.significant ? "sim-to-real gap: " + gap.text : "";
-  if (r.crosscheck->pass && !gap.significant) {
+  if (r.pass() && !gap.significant) {
     completion.state = db::RunState::kDone;
     out.verdict = db::Verdict::kPass;
   } else {
     completion.state = db::RunState::kReview;
-    completion.reason = r.crosscheck->pass ? gap_reason : join_failures(r.crosscheck->failures);
-    if (!r.crosscheck->pass && gap.significant) completion.reason += "; " + gap_reason;
+    completion.reason = review_reason(r);
+    if (gap.significant) completion.reason += (completion.reason.empty() ? "" : "; ") + gap_reason;
     out.verdict = db::Verdict::kReview;
   }
 }
@@ -69,17 +83,19 @@ void store_field_result(const calib::PipelineResult& r, calib::Setting setting, 
         "sea: AINS alone, no independent method to cross-check it (the legacy "
         "method needs a still platform); " +
         frame_note + "; promote explicitly";
+    if (!r.limits.pass)
+      completion.reason = join_limit_failures(r.limits) + "; " + completion.reason;
     out.verdict.reset();
     return;
   }
   completion.calibrations.push_back(db::calibration_record(r.legacy->result, nullptr));
   completion.crosscheck = db::crosscheck_record(*r.crosscheck, k_sigma);
-  if (r.crosscheck->pass) {
+  if (r.pass()) {
     completion.state = db::RunState::kDone;
     out.verdict = db::Verdict::kPass;
   } else {
     completion.state = db::RunState::kReview;
-    completion.reason = join_failures(r.crosscheck->failures);
+    completion.reason = review_reason(r);
     out.verdict = db::Verdict::kReview;
   }
 }

@@ -83,6 +83,11 @@ nlohmann::json pipeline_to_json(const calib::PipelineResult& r) {
                        {"failures", failures},
                        {"not_compared", r.crosscheck->skipped}};
   }
+  nlohmann::json limit_failures = nlohmann::json::array();
+  for (const auto& f : r.limits.failures)
+    limit_failures.push_back({{"method", f.method}, {"term", f.term}, {"detail", f.detail}});
+  j["limits"] = {{"pass", r.limits.pass}, {"failures", limit_failures}};
+  j["verdict"] = r.pass() ? "PASS" : "REVIEW";
   return j;
 }
 
@@ -164,6 +169,9 @@ void print_metrics_and_verdict(std::ostream& os, const calib::PipelineResult& r)
     os << '\n';
     for (const auto& f : r.crosscheck->failures) os << "  " << f.detail << '\n';
   }
+  os << "limits: " << (r.limits.pass ? "all hold" : "FAILED") << '\n';
+  for (const auto& f : r.limits.failures) os << "  " << f.detail << '\n';
+  os << "verdict: " << (r.pass() ? "PASS" : "REVIEW") << '\n';
 }
 
 void print_crlb(std::ostream& os, const calib::CrlbResult& crlb,
