@@ -304,3 +304,45 @@ TEST_F(ImucalCli, PlotWritesAnSvgWithEveryParameterAndEveryRestPeriod) {
       "/usr/bin/python3 -c \"import xml.etree.ElementTree as E; E.parse('" + svg.string() + "')\"";
   EXPECT_EQ(std::system(cmd.c_str()), 0);
 }
+
+namespace {
+
+// Usage errors exit 2 like every other tool's (not CLI11's 105–109); help and version exit 0.
+TEST(ImucalUsage, UsageErrorsExitTwo) {
+  for (const char* args : {"", "calibrate", "calibrate --method bogus x", "frobnicate",
+                           "simulate --sequence short", "paper-tables --units 0"}) {
+    const ProcResult r = run_imucal(args);
+    EXPECT_EQ(r.code, 2) << "imucal " << args << "\n" << r.out;
+    EXPECT_FALSE(r.out.empty()) << args;
+  }
+  EXPECT_EQ(run_imucal("--help").code, 0);
+  EXPECT_EQ(run_imucal("--version").code, 0);
+}
+
+// With --json, an error is a JSON object on stdout as well (a script parsing the output reads the
+// error instead of failing to parse), with the same exit code.
+TEST(ImucalUsage, JsonErrorsAreJson) {
+  const std::string cmd = std::string(IMUCAL_BIN_DIR) + "/imucal calibrate /nonexistent-dir --json";
+  FILE* p = popen((cmd + " 2>/dev/null").c_str(), "r");
+  std::string out;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  const int st = pclose(p);
+  EXPECT_EQ(WEXITSTATUS(st), 1);
+  const auto j = nlohmann::json::parse(out);
+  EXPECT_NE(j["error"].get<std::string>().find("/nonexistent-dir"), std::string::npos);
+  EXPECT_EQ(j["exit_code"], 1);
+}
+
+}  // namespace
+
+// --plot writes SVG; a name that promises another format is refused before any work.
+TEST_F(ImucalCli, PlotRefusesANameThatIsNotSvg) {
+  const fs::path png = base_ / "run.png";
+  const ProcResult r =
+      run_imucal("calibrate " + (base_ / "sim").string() + " --plot " + png.string());
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("name it .svg"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(png));
+}

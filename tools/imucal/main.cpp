@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -45,6 +46,21 @@ namespace {
 
 constexpr int kExitBadInput = 1;
 constexpr int kExitReview = 3;
+constexpr int kExitUsage = 2;
+
+/// --json anywhere on the command line: errors are then one JSON object on stdout too, so that a
+/// script parsing the output gets an error it can read instead of a parse failure.
+bool wants_json(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i)
+    if (std::string(argv[i]) == "--json") return true;
+  return false;
+}
+
+int json_error(const std::string& message, int exit_code) {
+  std::cout << nlohmann::json{{"error", message}, {"exit_code", exit_code}}.dump() << '\n';
+  std::fprintf(stderr, "imucal: error: %s\n", message.c_str());
+  return exit_code;
+}
 
 calib::Site default_site() { return calib::demo_factory_site(); }
 
@@ -346,7 +362,13 @@ int main(int argc, char** argv) {
   cal->add_option("--k-sigma", k_sigma, "cross-check bound in combined σ")->capture_default_str();
   cal->add_flag("--json", json, "print one JSON object");
   std::string plot_path;
-  cal->add_option("--plot", plot_path, "also write an SVG picture (cross-check, per-rest metrics)");
+  cal->add_option("--plot", plot_path, "also write an SVG picture (cross-check, per-rest metrics)")
+      ->check([](const std::string& p) {
+        const std::string ext = std::filesystem::path(p).extension().string();
+        return ext == ".svg" || ext == ".SVG"
+                   ? std::string()
+                   : "the picture is SVG: name it .svg (got '" + p + "')";
+      });
 
   auto* ev =
       app.add_subcommand("evaluate", "evaluate a parameter set on a run archive (paper §VII)");
@@ -382,10 +404,16 @@ int main(int argc, char** argv) {
   tools::PaperTablesArgs paper;
   auto* pt = tools::add_paper_tables_command(app, paper);
 
+  const bool json_errors = wants_json(argc, argv);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // Help and version exit 0; every usage error exits 2, like every other tool's (CLI11's own
+    // codes, 105–109, mean nothing to a shell script).
+    if (e.get_exit_code() == 0) return app.exit(e);
+    if (json_errors) return json_error(e.what(), kExitUsage);
+    app.exit(e);
+    return kExitUsage;
   }
   try {
     if (*sim) return cmd_simulate(sa);
@@ -399,6 +427,7 @@ int main(int argc, char** argv) {
     if (*pt) return tools::cmd_paper_tables(paper);
     if (*ef) return tools::cmd_effects(effects_json);
   } catch (const std::exception& e) {
+    if (json_errors) return json_error(e.what(), kExitBadInput);
     std::fprintf(stderr, "imucal: error: %s\n", e.what());
     return kExitBadInput;
   }
