@@ -90,6 +90,13 @@ LsqOutcome gauss_newton(Model& model, VectorXd& x, int max_iter = 50) {
     MatrixXd A = JtJ;
     A.diagonal() += lambda * JtJ.diagonal().cwiseMax(1e-300);
     const VectorXd dx = -A.ldlt().solve(g);
+    // At a stationary point the undamped step predicts no decrease worth having: converged,
+    // even when rounding makes the (tiny) step look uphill and it would be rejected below.
+    const VectorXd dx_gn = -JtJ.ldlt().solve(g);
+    if (dx_gn.allFinite() && -g.dot(dx_gn) <= 1e-10 * rss) {
+      o.converged = true;
+      break;
+    }
     VectorXd x_new = x + dx;
     VectorXd r_new;
     MatrixXd J_new;

@@ -1,6 +1,7 @@
 #include "station/control_protocol.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <limits>
 
 namespace imucal::station {
@@ -15,6 +16,8 @@ enum class ArgType {
   kCount,        ///< integer >= 0 (limit; 0 = all)
   kFormat,       ///< "csv" | "json"
   kTime,         ///< string accepted by db::parse_time_utc
+  kName,         ///< a person's name: printable text of 1..kMaxNameChars characters
+  kReason,       ///< free text stored with a run: printable, 1..kMaxReasonChars characters
 };
 
 struct ArgSpec {
@@ -33,9 +36,9 @@ const std::vector<CommandSpec>& specs() {
       {cmd::kRunStart,
        {{"serial", ArgType::kString, true},
         {"sequence", ArgType::kString, false},
-        {"operator", ArgType::kString, false}}},
+        {"operator", ArgType::kName, false}}},
       {cmd::kRunStatus, {{"run_id", ArgType::kPositiveInt, false}}},
-      {cmd::kRunAbort, {{"reason", ArgType::kString, false}}},
+      {cmd::kRunAbort, {{"reason", ArgType::kReason, false}}},
       {cmd::kReprocess, {{"run_id", ArgType::kPositiveInt, true}}},
       {cmd::kHistory, {{"serial", ArgType::kString, true}, {"limit", ArgType::kCount, false}}},
       {cmd::kShow, {{"run_id", ArgType::kPositiveInt, true}}},
@@ -48,7 +51,7 @@ const std::vector<CommandSpec>& specs() {
       {cmd::kDiagnose, {{"run_id", ArgType::kPositiveInt, true}}},
       {cmd::kImport, {{"dir", ArgType::kString, true}}},
       {cmd::kPromote,
-       {{"run_id", ArgType::kPositiveInt, true}, {"reason", ArgType::kString, true}}},
+       {{"run_id", ArgType::kPositiveInt, true}, {"reason", ArgType::kReason, true}}},
   };
   return s;
 }
@@ -91,6 +94,14 @@ std::string excerpt(std::string_view line) {
   return json(s).dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
+/// Text that goes into the history and the log: no control characters (a newline would forge a
+/// log line or break the history's layout), and a length a person would type.
+void check_text(const json& id, const std::string& field, const json& v, std::size_t max_chars) {
+  const std::string s = v.get<std::string>();
+  const std::string err = text_field_error(s, max_chars);
+  if (!err.empty()) throw BadRequest(id, field, "field '" + field + "': " + err);
+}
+
 void check_arg(const json& id, const ArgSpec& spec, const json& v) {
   const std::string field = std::string("args.") + spec.name;
   auto fail = [&](const std::string& expected) {
@@ -125,6 +136,11 @@ void check_arg(const json& id, const ArgSpec& spec, const json& v) {
                          "field '" + field + "': expected \"csv\" or \"json\", got " +
                              v.dump(-1, ' ', false, json::error_handler_t::replace));
       return;
+    case ArgType::kName:
+    case ArgType::kReason:
+      if (!v.is_string()) fail("a string");
+      check_text(id, field, v, spec.type == ArgType::kName ? kMaxNameChars : kMaxReasonChars);
+      return;
     case ArgType::kTime:
       if (!v.is_string()) fail("a date/time string");
       try {
@@ -137,6 +153,29 @@ void check_arg(const json& id, const ArgSpec& spec, const json& v) {
 }
 
 }  // namespace
+
+std::string text_field_error(const std::string& s, std::size_t max_chars) {
+  std::size_t chars = 0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    if ((c & 0xC0) != 0x80) ++chars;  // count UTF-8 characters, not bytes
+    // C0 controls and DEL; C1 controls (U+0080..U+009F, UTF-8 C2 80..C2 9F).
+    const bool c1 = c == 0xC2 && i + 1 < s.size() && static_cast<unsigned char>(s[i + 1]) >= 0x80 &&
+                    static_cast<unsigned char>(s[i + 1]) <= 0x9F;
+    if (c < 0x20 || c == 0x7F || c1) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "control character U+%04X at character %zu is not allowed",
+                    c1 ? static_cast<unsigned>(static_cast<unsigned char>(s[i + 1])) : c, chars);
+      return buf;
+    }
+  }
+  if (chars == 0) return "must not be empty";
+  if (s.find_first_not_of(' ') == std::string::npos) return "must not be blank";
+  if (chars > max_chars)
+    return std::to_string(chars) + " characters, more than the limit of " +
+           std::to_string(max_chars);
+  return "";
+}
 
 const std::vector<std::string>& command_names() {
   static const std::vector<std::string> names = [] {

@@ -33,6 +33,14 @@ namespace imucal::station {
 
 /// Longest request line accepted (without its '\n').
 constexpr std::size_t kMaxLineBytes = 1024 * 1024;
+/// Limits of the human text a request carries into the history and the log (operator names,
+/// abort and promotion reasons), in characters.
+constexpr std::size_t kMaxNameChars = 64;
+constexpr std::size_t kMaxReasonChars = 500;
+
+/// Why `s` is not acceptable as a name or reason of at most max_chars characters ("" when it is):
+/// empty or blank, too long, or containing a control character (newline, tab, ESC, C1, ...).
+std::string text_field_error(const std::string& s, std::size_t max_chars);
 
 /// Command names.
 namespace cmd {

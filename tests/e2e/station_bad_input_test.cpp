@@ -133,6 +133,33 @@ TEST(StationBadInput, UnknownSequenceAndInvalidSerialAreRefusedAndNothingIsStore
   EXPECT_EQ((*status)["result"].value("state", ""), "idle") << status->dump(2);
 }
 
+/// Operator names and reasons (issue #10): a newline would forge a log line or break the history
+/// layout, thousands of characters bury it. stationctl refuses before connecting, the daemon
+/// refuses what bypasses stationctl; nothing is stored either way.
+TEST(StationBadInput, OperatorNamesAndReasonsWithControlCharactersOrTooLongAreRefused) {
+  Station st;
+  ASSERT_TRUE(st.start());
+  const CmdResult forged =
+      st.ctl({"run", "start", "--serial", "SIM-0410", "--sequence", "short", "--operator", "eve\n[info] run 1 PASS"});
+  EXPECT_EQ(forged.exit_code, 2) << forged.describe();
+  EXPECT_NE((forged.out + forged.err).find("control character U+000A"), std::string::npos) << forged.describe();
+  const CmdResult longname =
+      st.ctl({"run", "start", "--serial", "SIM-0410", "--sequence", "short", "--operator", std::string(3000, 'o')});
+  EXPECT_EQ(longname.exit_code, 2) << longname.describe();
+  EXPECT_NE((longname.out + longname.err).find("more than the limit of 64"), std::string::npos)
+      << longname.describe();
+  const CmdResult reason = st.ctl({"run", "abort", "--reason", std::string(5000, 'r')});
+  EXPECT_EQ(reason.exit_code, 2) << reason.describe();
+  EXPECT_NE((reason.out + reason.err).find("5000 characters"), std::string::npos) << reason.describe();
+  // Straight through the socket.
+  const auto reply =
+      st.request("run.start", {{"serial", "SIM-0410"}, {"sequence", "short"}, {"operator", "a\x1b[2Jb"}});
+  ASSERT_TRUE(reply);
+  EXPECT_EQ((*reply)["error"].value("code", ""), "bad_request") << reply->dump();
+  EXPECT_NE((*reply)["error"].value("message", "").find("args.operator"), std::string::npos) << reply->dump();
+  EXPECT_EQ(stored_run_total(st.db_path()), 0) << "a refused start stored a run";
+}
+
 /// An error reply of code bad_request whose message names `field` (if given).
 void expect_bad_request(const std::optional<json>& reply, const std::string& field, const std::string& sent) {
   ASSERT_TRUE(reply.has_value()) << "no reply to: " << sent;

@@ -232,5 +232,49 @@ TEST(ControlProtocol, PermissionsAndReadsAndErrorCodes) {
   EXPECT_STREQ(error_code_for(db::DbErrorKind::kCorrupt), "unavailable");
 }
 
+// Operator names and reasons go into the history and the log: a newline would forge a log line
+// or break the history's layout, thousands of characters would bury it. Each is refused naming
+// the field and the problem; ordinary names (accents included) pass.
+TEST(ControlProtocol, NamesAndReasonsAreLimitedAndFreeOfControlCharacters) {
+  auto start = [](const std::string& op) {
+    return nlohmann::json{
+        {"id", 1}, {"cmd", "run.start"}, {"args", {{"serial", "IMU-1"}, {"operator", op}}}}
+        .dump();
+  };
+  auto abort = [](const std::string& reason) {
+    return nlohmann::json{{"id", 2}, {"cmd", "run.abort"}, {"args", {{"reason", reason}}}}.dump();
+  };
+  EXPECT_NO_THROW(parse_request(start("Åsa Lindqvist-Øre")));
+  EXPECT_NO_THROW(parse_request(abort(std::string(kMaxReasonChars, 'x'))));
+  // 64 two-byte characters are 64 characters, not 128.
+  std::string accents;
+  for (std::size_t i = 0; i < kMaxNameChars; ++i) accents += "é";
+  EXPECT_NO_THROW(parse_request(start(accents)));
+
+  auto message = [](const std::string& line) {
+    try {
+      parse_request(line);
+    } catch (const BadRequest& e) {
+      return e.field() + ": " + e.what();
+    }
+    return std::string("accepted");
+  };
+  EXPECT_NE(message(start("eve\n2026-11-25 [info] run 7 PASS")).find("control character U+000A"),
+            std::string::npos);
+  EXPECT_NE(message(start("a\tb")).find("args.operator"), std::string::npos);
+  EXPECT_NE(message(start("\x1b[31mred")).find("U+001B"), std::string::npos);
+  EXPECT_NE(message(start("a\xc2\x85z")).find("U+0085"), std::string::npos);  // C1 NEL
+  EXPECT_NE(message(start(std::string(kMaxNameChars + 1, 'n'))).find("more than the limit of 64"),
+            std::string::npos);
+  EXPECT_NE(message(start("   ")).find("blank"), std::string::npos);
+  EXPECT_NE(message(start("")).find("empty"), std::string::npos);
+  EXPECT_NE(message(abort(std::string(5000, 'r'))).find("5000 characters"), std::string::npos);
+  EXPECT_NE(message(abort("line1\r\nline2")).find("args.reason"), std::string::npos);
+  const std::string promote =
+      nlohmann::json{{"id", 3}, {"cmd", "promote"}, {"args", {{"run_id", 4}, {"reason", "a\nb"}}}}
+          .dump();
+  EXPECT_NE(message(promote).find("U+000A"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace imucal::station

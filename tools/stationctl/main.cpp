@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -44,6 +45,12 @@ enum Exit : int { kOk = 0, kRunNotPassed = 1, kBadInput = 2, kRefused = 3, kUnav
 constexpr const char* kDefaultConfig = "/etc/imucal/stationd.toml";
 constexpr const char* kDefaultSocket = "/run/imucal/stationd.sock";
 constexpr auto kPollPeriod = std::chrono::milliseconds(200);
+/// The daemon's own rule for names and reasons (station/control_protocol.hpp), checked before
+/// connecting so that the operator sees the problem at once.
+std::function<std::string(const std::string&)> text_check(std::size_t max_chars) {
+  return [max_chars](const std::string& v) { return station::text_field_error(v, max_chars); };
+}
+
 /// Exit code when the operator stops following a run with Ctrl-C (128 + SIGINT, the shell's).
 constexpr int kInterrupted = 130;
 
@@ -357,14 +364,16 @@ int main(int argc, char** argv) {
   start->add_option("--serial", serial, std::string("serial number: ") + db::kSerialRule)
       ->required();
   start->add_option("--sequence", sequence, "sequence name or file (default: the station's)");
-  start->add_option("--operator", operator_name, "operator name (default: your user name)");
+  start->add_option("--operator", operator_name, "operator name (default: your user name)")
+      ->check(text_check(station::kMaxNameChars));
   start->add_flag("--wait", wait, "follow the run to its end; exit 0 only for done + PASS");
   start->fallthrough();
   auto* status = run->add_subcommand("status", "the daemon's state, or one run's (--run)");
   status->add_option("--run", run_id, "run id")->check(CLI::PositiveNumber);
   status->fallthrough();
   auto* abort = run->add_subcommand("abort", "abort the active run (needs the control group)");
-  abort->add_option("--reason", reason, "why (stored with the run)");
+  abort->add_option("--reason", reason, "why (stored with the run)")
+      ->check(text_check(station::kMaxReasonChars));
   abort->fallthrough();
 
   // reads
@@ -410,7 +419,9 @@ int main(int argc, char** argv) {
   auto* promote = app.add_subcommand(
       "promote", "QA: make a field run the unit's active parameters (needs the group)");
   promote->add_option("RUN_ID", run_id, "run id")->required()->check(CLI::PositiveNumber);
-  promote->add_option("--reason", reason, "why (stored with the run, required)")->required();
+  promote->add_option("--reason", reason, "why (stored with the run, required)")
+      ->required()
+      ->check(text_check(station::kMaxReasonChars));
   promote->fallthrough();
 
   try {
