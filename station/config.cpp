@@ -1,5 +1,7 @@
 #include "station/config.hpp"
 
+#include <toml++/toml.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -7,8 +9,6 @@
 #include <limits>
 #include <sstream>
 #include <vector>
-
-#include <toml++/toml.h>
 
 #include "calib/conventions.hpp"
 #include "drivers/imu/imu_protocol.hpp"
@@ -37,7 +37,8 @@ double StationConfig::vrw_mps_per_sqrt_s() const {
 }
 
 bool is_log_level(const std::string& level) {
-  static const char* const kLevels[] = {"trace", "debug", "info", "warn", "error", "critical", "off"};
+  static const char* const kLevels[] = {"trace", "debug",    "info", "warn",
+                                        "error", "critical", "off"};
   return std::find(std::begin(kLevels), std::end(kLevels), level) != std::end(kLevels);
 }
 
@@ -91,7 +92,8 @@ class Section {
     if (!t_) return;
     const toml::key* first = nullptr;
     for (const auto& [k, v] : *t_) {
-      if (std::find(allowed.begin(), allowed.end(), std::string(k.str())) != allowed.end()) continue;
+      if (std::find(allowed.begin(), allowed.end(), std::string(k.str())) != allowed.end())
+        continue;
       if (!first || k.source().begin < first->source().begin) first = &k;
     }
     if (!first) return;
@@ -110,7 +112,8 @@ class Section {
     return n;
   }
 
-  [[noreturn]] void wrong_type(const std::string& key, const toml::node& n, const char* want) const {
+  [[noreturn]] void wrong_type(const std::string& key, const toml::node& n,
+                               const char* want) const {
     fail_key(key, std::string("must be ") + want + ", not " + sequences::toml_type_name(n.type()));
   }
 
@@ -198,8 +201,8 @@ StationConfig parse_root(const toml::table& root, const std::string& origin,
   c.base_dir = base_dir;
 
   // Top level: only the known tables.
-  const std::vector<std::string> sections = {"station", "control", "turntable", "imu",
-                                             "calibration", "log"};
+  const std::vector<std::string> sections = {"station", "control",     "turntable",
+                                             "imu",     "calibration", "log"};
   {
     const toml::key* first = nullptr;
     for (const auto& [k, v] : root) {
@@ -250,11 +253,14 @@ StationConfig parse_root(const toml::table& root, const std::string& origin,
   // [control]
   {
     Section s = section("control");
-    s.only({"socket", "group", "socket_mode"});
+    s.only({"socket", "group", "socket_mode", "idle_timeout_s", "max_connections_per_user"});
     if (auto v = s.string("socket", false, false)) c.control_socket = resolve(base_dir, *v);
     if (auto v = s.string("group", false, true)) c.control_group = *v;
     if (auto v = s.integer("socket_mode", false, 0, 0777, "(octal permission bits, e.g. 0o660)"))
       c.control_socket_mode = static_cast<unsigned>(*v);
+    if (auto v = s.number("idle_timeout_s", false, 1.0, 3600.0, "s")) c.control_idle_timeout_s = *v;
+    if (auto v = s.integer("max_connections_per_user", false, 1, 1024, ""))
+      c.control_max_connections_per_user = static_cast<std::size_t>(*v);
   }
   // [turntable]
   {
@@ -271,7 +277,8 @@ StationConfig parse_root(const toml::table& root, const std::string& origin,
                                  " (expected \"tcp:HOST:PORT\" or \"rtu:DEVICE:BAUD:8E1\")");
     }
     using ms = std::chrono::milliseconds;
-    if (auto v = s.integer("response_timeout_ms", false, 1, 60000, "ms")) t.response_timeout = ms(*v);
+    if (auto v = s.integer("response_timeout_ms", false, 1, 60000, "ms"))
+      t.response_timeout = ms(*v);
     if (auto v = s.integer("ack_timeout_ms", false, 1, 60000, "ms")) t.ack_timeout = ms(*v);
     if (auto v = s.integer("poll_period_ms", false, 1, 10000, "ms")) t.poll_period = ms(*v);
     if (auto v = s.integer("heartbeat_timeout_ms", false, 1, 600000, "ms"))

@@ -4,9 +4,10 @@
 //
 // Every error is a ConfigError whose what() reads "FILE:LINE:COL: message", the message naming the
 // key ("[imu] rate_hz ..."): unknown key or table, wrong type, value out of range, missing required
-// key, TOML syntax. Relative paths (data_dir, database, control socket, the path of a unixcan:/candump:
-// URI) are resolved against the directory of the configuration file, so a config works from any
-// working directory. Loading never creates, opens or modifies anything but the config file itself.
+// key, TOML syntax. Relative paths (data_dir, database, control socket, the path of a
+// unixcan:/candump: URI) are resolved against the directory of the configuration file, so a config
+// works from any working directory. Loading never creates, opens or modifies anything but the
+// config file itself.
 #include <cstdint>
 #include <optional>
 #include <stdexcept>
@@ -45,8 +46,10 @@ struct StationConfig {
 
   // [control]
   std::string control_socket = "/run/imucal/stationd.sock";  ///< socket
-  std::string control_group;       ///< group ("" = the daemon's primary group)
-  unsigned control_socket_mode = 0666;  ///< socket_mode
+  std::string control_group;             ///< group ("" = the daemon's primary group)
+  unsigned control_socket_mode = 0660;   ///< socket_mode (owner and control group)
+  double control_idle_timeout_s = 60.0;  ///< idle_timeout_s: idle connections are closed
+  std::size_t control_max_connections_per_user = 16;  ///< max_connections_per_user
 
   // [turntable] (+ [turntable.registers])
   turntable::TurntableClientConfig turntable;  ///< endpoint (required), timeouts, tolerance, map
@@ -58,8 +61,9 @@ struct StationConfig {
   std::string can_uri;  ///< can (required): "unixcan:PATH" | "socketcan:IFACE" | "candump:FILE"
   double rate_hz = 100.0;
   uint32_t base_id = 0x100;
-  double arw_deg_per_sqrt_h = 0.0015;  ///< gyro angle random walk (noise weighting of the estimators)
-  double vrw_ug_per_sqrt_hz = 10.0;    ///< accelerometer velocity random walk
+  double arw_deg_per_sqrt_h =
+      0.0015;                        ///< gyro angle random walk (noise weighting of the estimators)
+  double vrw_ug_per_sqrt_hz = 10.0;  ///< accelerometer velocity random walk
   uint64_t max_gap_samples = 10;
   uint64_t settle_guard_samples = 50;
   double rest_rate_threshold_dps = 0.05;

@@ -42,6 +42,12 @@ ControlClient::ControlClient(std::string socket_path, std::chrono::milliseconds 
     ::close(fd_);
     fd_ = -1;
     // A full listen backlog (EAGAIN) is a busy daemon, not an absent one: retry until the deadline.
+    if (err == EACCES || err == EPERM)
+      throw ControlClientError(Kind::kNoPermission,
+                               "cannot connect to stationd at " + path_ + ": " +
+                                   std::strerror(err) +
+                                   " (the control socket admits its owner and the station's "
+                                   "control group only)");
     if (err != EAGAIN || Clock::now() >= deadline)
       throw ControlClientError(
           Kind::kUnreachable, "cannot connect to stationd at " + path_ + ": " + std::strerror(err));

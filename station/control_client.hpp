@@ -15,11 +15,12 @@ namespace imucal::station {
 class ControlClientError : public std::runtime_error {
  public:
   enum class Kind {
-    kUnreachable,  ///< connect failed: no socket file, nobody listening, no permission on the file
-    kTimeout,      ///< no (complete) reply within the timeout
-    kClosed,       ///< the daemon closed the connection
-    kIo,           ///< another socket error
-    kProtocol,     ///< the reply is not a protocol reply (or answers another id)
+    kUnreachable,   ///< connect failed: no socket file, nobody listening
+    kNoPermission,  ///< connect refused by the socket file's mode (not owner, not in its group)
+    kTimeout,       ///< no (complete) reply within the timeout
+    kClosed,        ///< the daemon closed the connection
+    kIo,            ///< another socket error
+    kProtocol,      ///< the reply is not a protocol reply (or answers another id)
   };
   ControlClientError(Kind kind, const std::string& message)
       : std::runtime_error(message), kind_(kind) {}

@@ -12,6 +12,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
@@ -115,6 +116,7 @@ struct ControlServer::Client {
   bool close_after_write = false;
   bool eof = false;  ///< the peer finished sending
   bool dead = false;
+  std::chrono::steady_clock::time_point last_traffic = std::chrono::steady_clock::now();
 };
 
 ControlServer::ControlServer(ControlHandler& handler, ControlServerOptions options)
@@ -310,6 +312,7 @@ void ControlServer::pump(Client& c) {
         return;
       }
       c.out_pos += static_cast<std::size_t>(w);
+      c.last_traffic = std::chrono::steady_clock::now();
       if (c.out_pos < c.out.size()) return;
       c.out.clear();
       c.out_pos = 0;
@@ -354,6 +357,53 @@ void ControlServer::pump(Client& c) {
   }
 }
 
+/// Until the earliest idle deadline (at least 10 ms, so a burst of idle closes is not a spin).
+int ControlServer::poll_timeout_ms(const std::list<Client>& clients) const {
+  if (clients.empty()) return -1;
+  auto earliest = std::chrono::steady_clock::time_point::max();
+  for (const auto& c : clients) earliest = std::min(earliest, c.last_traffic);
+  const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+      earliest + options_.idle_timeout - std::chrono::steady_clock::now());
+  return static_cast<int>(std::clamp<std::int64_t>(left.count() + 1, 10, 60000));
+}
+
+/// Closes every connection without traffic for idle_timeout: an idle client holds a slot, a
+/// client that does not read its reply holds a slot and a buffer.
+void ControlServer::close_idle(std::list<Client>& clients) {
+  const auto now = std::chrono::steady_clock::now();
+  for (auto& c : clients) {
+    if (c.dead || now - c.last_traffic < options_.idle_timeout) continue;
+    spdlog::info("control: closing the idle connection of {} (pid {}) after {} s", c.user,
+                 c.cred.pid, options_.idle_timeout.count() / 1000.0);
+    ::close(c.fd);
+    c.dead = true;
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    ++stats_.idle_closed;
+  }
+}
+
+/// A new connection over the total or the per-user limit gets one error reply and is closed.
+void ControlServer::refuse_if_over_limits(const std::list<Client>& clients, Client& c) {
+  std::string why;
+  if (clients.size() >= options_.max_clients) {
+    why = "too many control connections (" + std::to_string(options_.max_clients) + ")";
+  } else if (c.cred.uid != 0 && c.cred.uid != ::getuid()) {
+    std::size_t mine = 0;
+    for (const auto& o : clients)
+      if (!o.dead && !o.close_after_write && o.cred.uid == c.cred.uid) ++mine;
+    if (mine >= options_.max_clients_per_user) {
+      why = "too many control connections from " + c.user + " (" +
+            std::to_string(options_.max_clients_per_user) + "); close some and retry";
+      std::lock_guard<std::mutex> lock(stats_mutex_);
+      ++stats_.per_user_refused;
+    }
+  }
+  if (why.empty()) return;
+  spdlog::warn("control: refusing a connection of {} (pid {}): {}", c.user, c.cred.pid, why);
+  c.out = reply_line(error_reply(nullptr, error_code::kUnavailable, why));
+  c.close_after_write = true;
+}
+
 void ControlServer::loop() {
   std::list<Client> clients;
   std::vector<pollfd> fds;
@@ -380,7 +430,7 @@ void ControlServer::loop() {
       fds.push_back({c.fd, events, 0});
       order.push_back(&c);
     }
-    const int n = ::poll(fds.data(), fds.size(), -1);
+    const int n = ::poll(fds.data(), fds.size(), poll_timeout_ms(clients));
     if (n < 0) {
       if (errno == EINTR) continue;
       spdlog::error("control socket: poll: {}", errno_text(errno));
@@ -416,12 +466,7 @@ void ControlServer::loop() {
           std::lock_guard<std::mutex> lock(stats_mutex_);
           ++stats_.connections;
         }
-        if (clients.size() >= options_.max_clients) {
-          c.out = reply_line(error_reply(
-              nullptr, error_code::kUnavailable,
-              "too many control connections (" + std::to_string(options_.max_clients) + ")"));
-          c.close_after_write = true;
-        }
+        refuse_if_over_limits(clients, c);
         clients.push_back(std::move(c));
       }
     }
@@ -445,10 +490,12 @@ void ControlServer::loop() {
           if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) close_client(c);
           continue;
         }
-        if (r == 0)
+        if (r == 0) {
           c.eof = true;
-        else
+        } else {
           c.in.append(chunk.data(), static_cast<std::size_t>(r));
+          c.last_traffic = std::chrono::steady_clock::now();
+        }
       }
       try {
         pump(c);
@@ -460,6 +507,7 @@ void ControlServer::loop() {
         c.dead = true;
       }
     }
+    close_idle(clients);
     clients.remove_if([](const Client& c) { return c.dead; });
     std::lock_guard<std::mutex> lock(stats_mutex_);
     stats_.clients = clients.size();

@@ -10,13 +10,17 @@
 // Permission: the peer's credentials are read with SO_PEERCRED when it connects. uid 0 is allowed;
 // otherwise the peer must be in the control group — as its primary gid, or by the group list of its
 // user (getgrouplist of the passwd entry of its uid). A refusal is permission_denied and names the
-// group; the handler is not called. Reads need no membership (the socket file mode decides who may
-// connect at all; 0666 by default).
+// group; the handler is not called. Reads need no membership of the group, but the socket file
+// mode decides who may connect at all: 0660 by default (owner and control group); everyone else
+// reads the history database directly (stationctl falls back to it).
 //
 // Robustness: one client's garbage gets that client an error reply and nothing else; a line longer
 // than kMaxLineBytes gets an error reply and that connection is closed (the rest of the line cannot
 // be told from the next request); a client that stops reading stalls only itself (its requests are
-// not read while a reply to it is pending, so its buffers stay bounded).
+// not read while a reply to it is pending, so its buffers stay bounded). A connection that neither
+// sends nor reads for idle_timeout is closed (idle and slow clients cannot pile up), and one user
+// (uid) holds at most max_clients_per_user connections (root and the daemon's own uid exempt), so
+// no single account can lock the operators out.
 //
 // Threading: the handler is only ever called from the server thread, one request at a time, so two
 // clients never run handler code concurrently. A slow handler call delays the other clients'
@@ -26,7 +30,9 @@
 #include <sys/types.h>
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
+#include <list>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -40,9 +46,13 @@ namespace imucal::station {
 struct ControlServerOptions {
   std::string socket_path;      ///< parent directory must exist; a stale socket file is replaced
   std::string group;            ///< control group name; "" = the daemon's primary group
-  unsigned socket_mode = 0666;  ///< file mode of the socket (chmod after bind)
-  std::string version = IMUCAL_VERSION;  ///< answered by ping
-  std::size_t max_clients = 128;         ///< more concurrent connections are refused (unavailable)
+  unsigned socket_mode = 0660;  ///< file mode of the socket (chmod after bind)
+  std::string version = IMUCAL_VERSION;   ///< answered by ping
+  std::size_t max_clients = 128;          ///< more concurrent connections are refused (unavailable)
+  std::size_t max_clients_per_user = 16;  ///< per peer uid (root and the daemon's uid exempt)
+  /// A connection with no traffic either way for this long is closed (a pending reply the client
+  /// does not read counts as no traffic).
+  std::chrono::milliseconds idle_timeout{60000};
 };
 
 struct ControlServerStats {
@@ -51,6 +61,8 @@ struct ControlServerStats {
   std::uint64_t bad_requests = 0;       ///< bad_request replies
   std::uint64_t permission_denied = 0;  ///< refused control commands
   std::uint64_t oversize_closed = 0;    ///< connections closed for a line over the limit
+  std::uint64_t idle_closed = 0;        ///< connections closed after idle_timeout
+  std::uint64_t per_user_refused = 0;   ///< connections refused over max_clients_per_user
   std::size_t clients = 0;              ///< connected now
 };
 
@@ -79,6 +91,9 @@ class ControlServer {
   void loop();
   void pump(Client& client);
   void serve_line(Client& client, std::string_view line);
+  int poll_timeout_ms(const std::list<Client>& clients) const;
+  void close_idle(std::list<Client>& clients);
+  void refuse_if_over_limits(const std::list<Client>& clients, Client& client);
   nlohmann::json dispatch(Client& client, const Request& request);
   bool permitted(const Client& client) const;
 

@@ -98,6 +98,9 @@ void Daemon::start() {
   so.socket_path = cfg_.control_socket;
   so.group = cfg_.control_group;
   so.socket_mode = cfg_.control_socket_mode;
+  so.idle_timeout =
+      std::chrono::milliseconds(static_cast<int64_t>(cfg_.control_idle_timeout_s * 1000));
+  so.max_clients_per_user = cfg_.control_max_connections_per_user;
   so.version = opt_.version;
   server_ = std::make_unique<ControlServer>(*this, so);
   try {
@@ -110,8 +113,6 @@ void Daemon::start() {
     release_lock();
     throw;
   }
-  spdlog::info("control socket {} (group {}, mode {:o})", cfg_.control_socket,
-               server_->group_name(), cfg_.control_socket_mode);
   started_ok_ = true;
   opt_.notifier.ready(status_line());
 }

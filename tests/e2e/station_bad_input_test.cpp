@@ -6,6 +6,9 @@
 //     error replies, and the daemon keeps serving this and other clients;
 //   * a QA user (not in the control group) starting or aborting a run: refused (exit 3), nothing
 //     written; reading still works for them.
+#include <grp.h>
+#include <sys/stat.h>
+
 #include "db/serial_number.hpp"
 #include "tests/e2e/station_harness.hpp"
 
@@ -242,24 +245,60 @@ TEST(StationBadInput, QaUserOutsideTheControlGroupCannotStartOrAbortRunsButCanRe
   ASSERT_EQ(geteuid(), 0u) << "this test drops to uid/gid 65534 (nobody) and needs root";
   Station st;
   ASSERT_TRUE(st.start());
+  // A PASS run to read back.
+  const CmdResult run = st.ctl({"run", "start", "--serial", "SIM-0501", "--sequence", "short", "--wait"}, 300s);
+  ASSERT_EQ(run.exit_code, 0) << run.describe();
+  // The default socket mode is 0660: owner and control group (here root's primary group) only.
+  struct stat sock {};
+  ASSERT_EQ(::stat(st.socket_path().c_str(), &sock), 0);
+  EXPECT_EQ(sock.st_mode & 0777, 0660u);
   const RunAs qa{65534, 65534};
   const CmdResult start = st.ctl({"run", "start", "--serial", "SIM-0500", "--sequence", "short"}, 30s, qa);
   EXPECT_EQ(start.exit_code, 3) << start.describe();
   const std::string msg = start.out + start.err;
-  EXPECT_TRUE(contains_ci(msg, "permission") || contains_ci(msg, "group")) << start.describe();
+  EXPECT_TRUE(contains_ci(msg, "permission") && contains_ci(msg, "group")) << start.describe();
   EXPECT_EQ(stored_run_count(st.db_path(), "SIM-0500"), 0);
   EXPECT_EQ(archives_of(st, "SIM-0500"), 0);
   const CmdResult abort = st.ctl({"run", "abort"}, 30s, qa);
   EXPECT_EQ(abort.exit_code, 3) << abort.describe();
   const CmdResult rep = st.ctl({"reprocess", "1"}, 30s, qa);
   EXPECT_EQ(rep.exit_code, 3) << rep.describe();
-  // Reading needs no membership.
-  const CmdResult status = st.ctl({"run", "status"}, 30s, qa);
-  EXPECT_EQ(status.exit_code, 0) << status.describe();
+  // Reading needs only read access to the database: stationctl reads it directly.
+  const CmdResult hist = st.ctl({"--json", "history", "SIM-0501"}, 30s, qa);
+  ASSERT_EQ(hist.exit_code, 0) << hist.describe();
+  EXPECT_EQ(hist.json_out()["runs"].size(), 1u) << hist.describe();
+  const CmdResult params = st.ctl({"params", "SIM-0501"}, 30s, qa);
+  EXPECT_EQ(params.exit_code, 0) << params.describe();
   const auto idle = st.request("run.status");
   ASSERT_TRUE(idle);
   EXPECT_EQ((*idle)["result"].value("state", ""), "idle") << idle->dump(2);
-  EXPECT_EQ(stored_run_total(st.db_path()), 0);
+  EXPECT_EQ(stored_run_total(st.db_path()), 1);
+}
+
+// A user inside the configured control group may start a run (accepted, stored with their name).
+TEST(StationBadInput, AUserInTheControlGroupMayStartARun) {
+  ASSERT_EQ(geteuid(), 0u) << "this test drops to uid/gid 65534 (nobody) and needs root";
+  group* g = ::getgrgid(65534);
+  ASSERT_NE(g, nullptr) << "gid 65534 has no group entry";
+  Station st;
+  ASSERT_TRUE(st.start_sim());
+  std::string text = st.config_text();
+  const auto at = text.find("[control]\n");
+  ASSERT_NE(at, std::string::npos);
+  text.insert(at + 10, "group = \"" + std::string(g->gr_name) + "\"\n");
+  st.write_config(text);
+  ASSERT_TRUE(st.start_daemon());
+  struct stat sock {};
+  ASSERT_EQ(::stat(st.socket_path().c_str(), &sock), 0);
+  EXPECT_EQ(sock.st_gid, 65534u) << "the socket belongs to the control group";
+  const RunAs member{65534, 65534};
+  const CmdResult start =
+      st.ctl({"run", "start", "--serial", "SIM-0502", "--sequence", "short", "--wait"}, 300s, member);
+  EXPECT_EQ(start.exit_code, 0) << start.describe();
+  const CmdResult show = st.ctl({"--json", "history", "SIM-0502"});
+  ASSERT_EQ(show.exit_code, 0) << show.describe();
+  ASSERT_EQ(show.json_out()["runs"].size(), 1u) << show.describe();
+  EXPECT_EQ(show.json_out()["runs"][0].value("operator", ""), "nobody") << show.describe();
 }
 
 }  // namespace

@@ -29,16 +29,16 @@ std::string read_file(const std::string& path) {
 
 /// A minimal valid config; line numbers below refer to this text (1-based).
 const char* const kMinimal =
-    "[station]\n"                              // 1
-    "name = \"st\"\n"                          // 2
-    "lat_deg = 10.0\n"                         // 3
-    "lon_deg = 20\n"                           // 4
-    "height_m = 5.0\n"                         // 5
-    "data_dir = \"d\"\n"                       // 6
-    "[turntable]\n"                            // 7
-    "endpoint = \"tcp:127.0.0.1:1502\"\n"      // 8
-    "[imu]\n"                                  // 9
-    "can = \"unixcan:bus.sock\"\n";            // 10
+    "[station]\n"                          // 1
+    "name = \"st\"\n"                      // 2
+    "lat_deg = 10.0\n"                     // 3
+    "lon_deg = 20\n"                       // 4
+    "height_m = 5.0\n"                     // 5
+    "data_dir = \"d\"\n"                   // 6
+    "[turntable]\n"                        // 7
+    "endpoint = \"tcp:127.0.0.1:1502\"\n"  // 8
+    "[imu]\n"                              // 9
+    "can = \"unixcan:bus.sock\"\n";        // 10
 
 ConfigError error_of(const std::string& text) {
   try {
@@ -61,7 +61,8 @@ std::string with_line(std::string text, int n, const std::string& replacement) {
 
 TEST(StationConfig, ExampleParsesToTheDocumentedValues) {
   const StationConfig c = load_config(kExample);
-  const std::string dir = fs::absolute(fs::path(kExample).parent_path()).lexically_normal().string();
+  const std::string dir =
+      fs::absolute(fs::path(kExample).parent_path()).lexically_normal().string();
   EXPECT_EQ(c.station_name, "sim-station");
   EXPECT_NEAR(c.site.lat_rad, 55.7856 * kDegToRad, 1e-12);
   EXPECT_NEAR(c.site.lon_rad, 12.5213 * kDegToRad, 1e-12);
@@ -71,7 +72,9 @@ TEST(StationConfig, ExampleParsesToTheDocumentedValues) {
   EXPECT_EQ(c.database, dir + "/data/history.sqlite");
   EXPECT_EQ(c.control_socket, dir + "/stationd.sock");
   EXPECT_EQ(c.control_group, "");
-  EXPECT_EQ(c.control_socket_mode, 0666u);
+  EXPECT_EQ(c.control_socket_mode, 0660u);
+  EXPECT_EQ(c.control_idle_timeout_s, 60.0);
+  EXPECT_EQ(c.control_max_connections_per_user, 16u);
   EXPECT_EQ(c.turntable.endpoint.kind, turntable::Endpoint::Kind::kTcp);
   EXPECT_EQ(c.turntable.endpoint.host, "127.0.0.1");
   EXPECT_EQ(c.turntable.endpoint.port, 1502);
@@ -126,9 +129,9 @@ TEST(StationConfig, MinimalConfigGetsTheDefaultsAndResolvesRelativePaths) {
   EXPECT_EQ(c.default_sequence, "factory-std");
   EXPECT_NEAR(c.site.lon_rad, 20.0 * kDegToRad, 1e-15);  // an integer is a number too
   // Absolute paths stay as they are; socketcan names an interface, not a path.
-  const StationConfig d = parse_config(with_line(with_line(kMinimal, 6, "data_dir = \"/srv/x\""), 10,
-                                                 "can = \"socketcan:can0\""),
-                                       "cfg.toml", "/etc/imucal");
+  const StationConfig d = parse_config(
+      with_line(with_line(kMinimal, 6, "data_dir = \"/srv/x\""), 10, "can = \"socketcan:can0\""),
+      "cfg.toml", "/etc/imucal");
   EXPECT_EQ(d.data_dir, "/srv/x");
   EXPECT_EQ(d.can_uri, "socketcan:can0");
 }
@@ -147,26 +150,34 @@ void expect_error(const std::string& text, int line, int column, const std::stri
 }
 
 TEST(StationConfig, UnknownKeyNamesFileLineColumnAndKey) {
-  expect_error(with_line(kMinimal, 5, "height_m = 5.0\n  heigth = 3"), 6, 3, "unknown key 'heigth'");
+  expect_error(with_line(kMinimal, 5, "height_m = 5.0\n  heigth = 3"), 6, 3,
+               "unknown key 'heigth'");
   expect_error(std::string(kMinimal) + "[imus]\nx = 1\n", 11, 2, "unknown key or table 'imus'");
 }
 
 TEST(StationConfig, WrongTypeNamesTheKey) {
-  expect_error(with_line(kMinimal, 3, "lat_deg = \"55\""), 3, 1, "[station] lat_deg: must be a number, not string");
-  expect_error(std::string(kMinimal) + "rate_hz = true\n", 11, 1, "[imu] rate_hz: must be a number, not boolean");
+  expect_error(with_line(kMinimal, 3, "lat_deg = \"55\""), 3, 1,
+               "[station] lat_deg: must be a number, not string");
+  expect_error(std::string(kMinimal) + "rate_hz = true\n", 11, 1,
+               "[imu] rate_hz: must be a number, not boolean");
   expect_error(std::string(kMinimal) + "stream_timeout_ms = 2.5\n", 11, 1,
                "[imu] stream_timeout_ms: must be an integer, not float");
-  expect_error("log = 3\n" + std::string(kMinimal), 1, 1, "'log' must be a table ([log]), not integer");
+  expect_error("log = 3\n" + std::string(kMinimal), 1, 1,
+               "'log' must be a table ([log]), not integer");
 }
 
 TEST(StationConfig, OutOfRangeNamesTheKeyAndTheRange) {
-  expect_error(with_line(kMinimal, 3, "lat_deg = 91.0"), 3, 1, "[station] lat_deg: 91 is out of range [-90, 90] deg");
+  expect_error(with_line(kMinimal, 3, "lat_deg = 91.0"), 3, 1,
+               "[station] lat_deg: 91 is out of range [-90, 90] deg");
   expect_error(std::string(kMinimal) + "rate_hz = 0\n", 11, 1, "[imu] rate_hz: 0 is out of range");
   expect_error(std::string(kMinimal) + "[control]\nsocket_mode = 0o1777\n", 12, 1,
                "[control] socket_mode: 1023 is out of range [0, 511]");
-  expect_error(std::string(kMinimal) + "[log]\nlevel = \"loud\"\n", 12, 1, "[log] level: \"loud\" is not a log level");
-  expect_error(with_line(kMinimal, 8, "endpoint = \"udp:1.2.3.4:5\""), 8, 1, "[turntable] endpoint:");
-  expect_error(with_line(kMinimal, 10, "can = \"vcan0\""), 10, 1, "[imu] can: \"vcan0\" is not a CAN URI");
+  expect_error(std::string(kMinimal) + "[log]\nlevel = \"loud\"\n", 12, 1,
+               "[log] level: \"loud\" is not a log level");
+  expect_error(with_line(kMinimal, 8, "endpoint = \"udp:1.2.3.4:5\""), 8, 1,
+               "[turntable] endpoint:");
+  expect_error(with_line(kMinimal, 10, "can = \"vcan0\""), 10, 1,
+               "[imu] can: \"vcan0\" is not a CAN URI");
 }
 
 TEST(StationConfig, MissingRequiredKeyNamesTheKeyAndItsTable) {
@@ -185,16 +196,16 @@ TEST(StationConfig, RegisterMapErrorsPointAtTheKeyInTheConfig) {
   // A register map whose command_seq does not follow command: the map reader's check, reported at
   // the line of command_seq in THIS file.
   const std::string regs =
-      "[turntable.registers]\n"                // 11
-      "unit_id = 1\n"                          // 12
-      "word_order = \"ABCD\"\n"                // 13
-      "[turntable.registers.holding]\n"        // 14
-      "target_outer_deg = 0\n"                 // 15
-      "target_inner_deg = 2\n"                 // 16
-      "max_rate_dps = 4\n"                     // 17
-      "command = 6\n"                          // 18
-      "command_seq = 9\n"                      // 19
-      "[turntable.registers.input]\n"          // 20
+      "[turntable.registers]\n"          // 11
+      "unit_id = 1\n"                    // 12
+      "word_order = \"ABCD\"\n"          // 13
+      "[turntable.registers.holding]\n"  // 14
+      "target_outer_deg = 0\n"           // 15
+      "target_inner_deg = 2\n"           // 16
+      "max_rate_dps = 4\n"               // 17
+      "command = 6\n"                    // 18
+      "command_seq = 9\n"                // 19
+      "[turntable.registers.input]\n"    // 20
       "actual_outer_deg = 0\nactual_inner_deg = 2\nrate_outer_dps = 4\nrate_inner_dps = 6\n"
       "status = 8\nfault_code = 9\nheartbeat = 10\nack_seq = 11\nack_result = 12\n"
       "[turntable.registers.status_bits]\nenabled = 0\nhomed = 1\nmoving = 2\nin_position = 3\n"
@@ -203,7 +214,8 @@ TEST(StationConfig, RegisterMapErrorsPointAtTheKeyInTheConfig) {
   expect_error(std::string(kMinimal) + regs, 19, 1, "[turntable.registers]");
   // Fixed, the same map loads.
   const StationConfig c =
-      parse_config(std::string(kMinimal) + std::regex_replace(regs, std::regex("command_seq = 9"), "command_seq = 7"),
+      parse_config(std::string(kMinimal) +
+                       std::regex_replace(regs, std::regex("command_seq = 9"), "command_seq = 7"),
                    "cfg.toml", "/etc");
   EXPECT_TRUE(c.turntable.map == turntable::default_register_map());
 }

@@ -74,7 +74,9 @@ class FakeHandler : public ControlHandler {
     last_reason = reason;
     return {{"run_id", 77}};
   }
-  json diagnose(db::RunId run_id) override { return {{"run_id", run_id}, {"verdict", "consistent"}}; }
+  json diagnose(db::RunId run_id) override {
+    return {{"run_id", run_id}, {"verdict", "consistent"}};
+  }
   json reprocess(db::RunId run_id) override {
     ++reprocess_calls;
     return {{"run_id", 78}, {"reprocessed_from", run_id}};
@@ -99,7 +101,8 @@ class FakeHandler : public ControlHandler {
 class ControlServerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    // nobody must be able to reach the socket inside the temp dir (mode 0666 socket).
+    // nobody must be able to reach the socket inside the temp dir: these tests are about the
+    // protocol's own permission check, so the socket admits everyone (0666, not the default).
     ::chmod(dir_.path().c_str(), 0755);
     repo_ = std::make_unique<db::SqliteRepository>(dir_.file("history.sqlite"));
     const db::TimestampMs t0 = db::parse_time_utc("2024-05-01T10:00:00Z");
@@ -111,6 +114,7 @@ class ControlServerTest : public ::testing::Test {
     ControlServerOptions o;
     o.socket_path = socket_path();
     o.version = "9.8.7-test";
+    o.socket_mode = 0666;
     server_ = std::make_unique<ControlServer>(*handler_, o);
     server_->start();
   }
@@ -419,7 +423,7 @@ TEST_F(ControlServerTest, SocketFileHandling) {
   struct stat st {};
   ASSERT_EQ(::stat(socket_path().c_str(), &st), 0);
   EXPECT_TRUE(S_ISSOCK(st.st_mode));
-  EXPECT_EQ(st.st_mode & 0777, 0666u) << "default mode";
+  EXPECT_EQ(st.st_mode & 0777, 0666u) << "the fixture's mode";
 
   auto start_error = [&](ControlServerOptions o) -> std::string {
     try {
@@ -474,6 +478,85 @@ TEST_F(ControlServerTest, UnterminatedLastLineIsAnsweredAtEndOfStream) {
   EXPECT_TRUE(r.ok);
   EXPECT_EQ(r.id, 21);
   EXPECT_TRUE(c.closed_by_peer(5s));
+}
+
+// The default socket mode (0660) admits the owner and the control group only: anyone else is
+// refused by the kernel at connect, which the client reports as no permission.
+TEST_F(ControlServerTest, DefaultModeAdmitsOnlyOwnerAndGroup) {
+  ControlServerOptions o;
+  o.socket_path = dir_.file("default.sock");
+  ControlServer s(*handler_, o);
+  s.start();
+  struct stat st {};
+  ASSERT_EQ(::stat(o.socket_path.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0660u) << "default mode";
+  const std::string path = o.socket_path;
+  const auto [code, diag] = as_nobody([&]() -> int {
+    try {
+      ControlClient c(path);
+    } catch (const ControlClientError& e) {
+      if (e.kind() != ControlClientError::Kind::kNoPermission) {
+        std::fprintf(stderr, "wrong kind: %s\n", e.what());
+        return 2;
+      }
+      return std::string(e.what()).find("control group") == std::string::npos ? 3 : 0;
+    }
+    return 1;  // connected
+  });
+  EXPECT_EQ(code, 0) << diag;
+  EXPECT_EQ(s.stats().connections, 0u);
+}
+
+// An idle client is closed after idle_timeout; one that keeps talking is not. (Before: 128 idle
+// clients held every slot for ever and locked the operators out.)
+TEST_F(ControlServerTest, IdleConnectionsAreClosedActiveOnesAreNot) {
+  ControlServerOptions o;
+  o.socket_path = dir_.file("idle.sock");
+  o.idle_timeout = 400ms;
+  ControlServer s(*handler_, o);
+  s.start();
+  ControlClient idle(o.socket_path), active(o.socket_path);
+  for (int i = 0; i < 10; ++i) {
+    ASSERT_TRUE(active.call("ping").ok);
+    std::this_thread::sleep_for(100ms);
+  }
+  EXPECT_TRUE(idle.closed_by_peer(2s)) << "the idle connection was not closed";
+  EXPECT_TRUE(active.call("ping").ok) << "the active connection was closed";
+  EXPECT_GE(s.stats().idle_closed, 1u);
+}
+
+// One user holds at most max_clients_per_user connections; the next gets an error reply naming
+// the limit, and others (root) still get in.
+TEST_F(ControlServerTest, ConnectionsPerUserAreCapped) {
+  ControlServerOptions o;
+  o.socket_path = dir_.file("cap.sock");
+  o.socket_mode = 0666;
+  o.max_clients_per_user = 3;
+  ControlServer s(*handler_, o);
+  s.start();
+  const std::string path = o.socket_path;
+  const auto [code, diag] = as_nobody([&]() -> int {
+    std::vector<std::unique_ptr<ControlClient>> held;
+    for (int i = 0; i < 3; ++i) {
+      held.push_back(std::make_unique<ControlClient>(path));
+      if (!held.back()->call("ping").ok) return 1;
+    }
+    ControlClient extra(path);
+    const Reply r = extra.call("ping");
+    if (r.ok || r.error_code != "unavailable") return 2;
+    if (r.error_message.find("from nobody (3)") == std::string::npos) {
+      std::fprintf(stderr, "%s\n", r.error_message.c_str());
+      return 3;
+    }
+    held.pop_back();  // one slot free again
+    std::this_thread::sleep_for(200ms);
+    ControlClient again(path);
+    return again.call("ping").ok ? 0 : 4;
+  });
+  EXPECT_EQ(code, 0) << diag;
+  EXPECT_EQ(s.stats().per_user_refused, 1u);
+  ControlClient root(path);
+  EXPECT_TRUE(root.call("ping").ok);
 }
 
 }  // namespace

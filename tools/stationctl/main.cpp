@@ -58,6 +58,8 @@ constexpr int kInterrupted = 130;
 std::atomic<bool> g_stop_following{false};
 extern "C" void on_stop_signal(int) { g_stop_following = true; }
 constexpr auto kReplyTimeout = std::chrono::seconds(60);
+/// A read the daemon does not answer in this time is read from the database instead.
+constexpr auto kReadTimeout = std::chrono::seconds(10);
 /// An export of the whole history is built before it is sent (11 s for 100 000 runs here).
 constexpr auto kExportTimeout = std::chrono::seconds(600);
 
@@ -138,6 +140,7 @@ ControlClient connect_or_fail(const Target& t) {
   try {
     return ControlClient(t.socket);
   } catch (const ControlClientError& e) {
+    if (e.kind() == ControlClientError::Kind::kNoPermission) throw Failure{kRefused, e.what()};
     throw Failure{kUnavailable, std::string(e.what()) + " (is stationd running?)"};
   }
 }
@@ -146,13 +149,29 @@ ControlClient connect_or_fail(const Target& t) {
 json read_request(const Target& t, const std::string& command, const json& args) {
   std::optional<ControlClient> client;
   std::string why;
+  using Kind = ControlClientError::Kind;
   try {
     client.emplace(t.socket);
   } catch (const ControlClientError& e) {
-    if (e.kind() != ControlClientError::Kind::kUnreachable) throw Failure{kUnavailable, e.what()};
+    if (e.kind() != Kind::kUnreachable && e.kind() != Kind::kNoPermission)
+      throw Failure{kUnavailable, e.what()};
     why = e.what();
   }
-  if (client) return call(*client, command, args);
+  // A daemon that does not answer (busy, or its connections exhausted) is no reason not to read:
+  // the database is there.
+  if (client) {
+    try {
+      const station::Reply r = client->call(
+          command, args, command == station::cmd::kExport ? kExportTimeout : kReadTimeout);
+      if (r.ok || r.error_code != station::error_code::kUnavailable || t.db.empty())
+        return result_or_fail(r);
+      why = "stationd: " + r.error_message;  // e.g. its connections are exhausted
+    } catch (const ControlClientError& e) {
+      if (t.db.empty() || (e.kind() != Kind::kTimeout && e.kind() != Kind::kClosed))
+        throw Failure{kUnavailable, e.what()};
+      why = e.what();
+    }
+  }
 
   if (t.db.empty())
     throw Failure{kUnavailable, why + "; no database to read instead (give --db or --config)"};
