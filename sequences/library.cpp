@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <sstream>
 
 #include "sequences/parser.hpp"
@@ -111,10 +112,47 @@ std::string sha256_hex(std::string_view bytes) {
   return out;
 }
 
+namespace {
+
+std::mutex g_dir_mutex;
+std::string g_configured_dir;  ///< set_sequence_dir(); "" = none
+
+bool is_dir(const fs::path& p) {
+  std::error_code ec;
+  return fs::is_directory(p, ec);
+}
+
+/// <prefix>/share/imucal/sequences of an installed program (<prefix>/bin/<tool>), found from the
+/// running executable so that a relocated install (a package unpacked elsewhere) finds its own.
+std::string installed_dir_next_to_executable() {
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) return "";
+  const fs::path dir = exe.parent_path().parent_path() / "share" / "imucal" / "sequences";
+  return is_dir(dir) ? dir.string() : "";
+}
+
+}  // namespace
+
+void set_sequence_dir(const std::string& dir) {
+  std::lock_guard<std::mutex> lock(g_dir_mutex);
+  g_configured_dir = dir;
+}
+
 std::string sequence_dir() {
+  {
+    std::lock_guard<std::mutex> lock(g_dir_mutex);
+    if (!g_configured_dir.empty()) return g_configured_dir;
+  }
   const char* env = std::getenv("IMUCAL_SEQUENCE_DIR");
   if (env && *env) return env;
-  return IMUCAL_SEQUENCE_DIR;
+  if (std::string installed = installed_dir_next_to_executable(); !installed.empty())
+    return installed;
+  // A build tree uses its own sources; a program installed from it, where the sources are not
+  // there (another machine, or a service with ProtectHome), the install prefix's data.
+  if (is_dir(IMUCAL_SEQUENCE_DIR) || !is_dir(IMUCAL_INSTALLED_SEQUENCE_DIR))
+    return IMUCAL_SEQUENCE_DIR;
+  return IMUCAL_INSTALLED_SEQUENCE_DIR;
 }
 
 std::vector<std::string> available_sequences() {

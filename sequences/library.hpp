@@ -10,9 +10,15 @@
 
 namespace imucal::sequences {
 
-/// Directory of the library: $IMUCAL_SEQUENCE_DIR if set and non-empty (installed tools, tests
-/// with a private library), else the source directory compiled in.
+/// Directory of the library, the first of: the directory set by set_sequence_dir() (stationd's
+/// [calibration] sequence_dir); $IMUCAL_SEQUENCE_DIR if set and non-empty; <prefix>/share/imucal/
+/// sequences next to the running program's <prefix>/bin (an installed or unpacked package); the
+/// source directory compiled in, if it exists (a build tree); the install prefix's data directory
+/// compiled in.
 std::string sequence_dir();
+
+/// Makes `dir` the library for this process ("" = back to the lookup above).
+void set_sequence_dir(const std::string& dir);
 
 /// Library names (file stems of *.toml in sequence_dir()), sorted.
 std::vector<std::string> available_sequences();

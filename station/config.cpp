@@ -13,6 +13,7 @@
 #include "calib/conventions.hpp"
 #include "drivers/imu/imu_protocol.hpp"
 #include "drivers/turntable/register_map.hpp"
+#include "sequences/library.hpp"
 #include "sequences/toml_support.hpp"
 
 namespace imucal::station {
@@ -194,6 +195,31 @@ std::optional<Pos> find_line(const toml::table& t, int line) {
   return std::nullopt;
 }
 
+/// The default sequence must exist where the daemon will look for it (a service started with
+/// PrivateTmp/ProtectHome sees no source tree): a path must be a file, a name a *.toml of the
+/// library — sequence_dir when configured, the daemon's lookup (sequences/library.hpp) otherwise.
+void check_default_sequence(const StationConfig& c, const Section& s) {
+  const std::string& v = c.default_sequence;
+  std::error_code ec;
+  if (v.find('/') != std::string::npos) {
+    if (!fs::is_regular_file(v, ec)) s.fail_key("default_sequence", "\"" + v + "\": no such file");
+    return;
+  }
+  const std::string dir = c.sequence_dir.empty() ? sequences::sequence_dir() : c.sequence_dir;
+  const std::string stem =
+      v.size() > 5 && v.compare(v.size() - 5, 5, ".toml") == 0 ? v.substr(0, v.size() - 5) : v;
+  if (!stem.empty() && fs::is_regular_file(fs::path(dir) / (stem + ".toml"), ec)) return;
+  std::vector<std::string> names;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec))
+    if (it->path().extension() == ".toml") names.push_back(it->path().stem().string());
+  std::sort(names.begin(), names.end());
+  std::string list;
+  for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+  s.fail_key("default_sequence", "\"" + v + "\" is not a sequence of the library " + dir +
+                                     " (available: " + (list.empty() ? "none" : list) +
+                                     "; set [calibration] sequence_dir)");
+}
+
 StationConfig parse_root(const toml::table& root, const std::string& origin,
                          const std::string& base_dir) {
   StationConfig c;
@@ -340,11 +366,18 @@ StationConfig parse_root(const toml::table& root, const std::string& origin,
   // [calibration]
   {
     Section s = section("calibration");
-    s.only({"default_sequence", "k_sigma"});
+    s.only({"default_sequence", "k_sigma", "sequence_dir"});
+    if (auto v = s.string("sequence_dir", false, false)) {
+      c.sequence_dir = resolve(base_dir, *v);
+      std::error_code ec;
+      if (!fs::is_directory(c.sequence_dir, ec))
+        s.fail_key("sequence_dir", "\"" + c.sequence_dir + "\" is not a directory");
+    }
     if (auto v = s.string("default_sequence", false, false)) {
       // A path-like value is a file next to the config; a bare name is a library sequence.
       c.default_sequence = v->find('/') != std::string::npos ? resolve(base_dir, *v) : *v;
     }
+    check_default_sequence(c, s);
     if (auto v = s.number("k_sigma", false, 0.5, 100.0, "(combined standard deviations)"))
       c.k_sigma = *v;
   }

@@ -71,6 +71,9 @@ struct StationConfig {
 
   // [calibration]
   std::string default_sequence = "factory-std";
+  /// sequence_dir: the sequence library ("" = the lookup of sequences/library.hpp); relative to
+  /// the config file's directory.
+  std::string sequence_dir;
   double k_sigma = 4.0;
 
   // [log]

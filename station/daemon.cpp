@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "sequences/library.hpp"
 #include "station/control_server.hpp"
 
 namespace imucal::station {
@@ -54,6 +55,8 @@ void Daemon::start() {
   if (started_ok_) return;
   spdlog::info("stationd {} starting: station {}, config {}", opt_.version, cfg_.station_name,
                cfg_.source_path);
+  if (!cfg_.sequence_dir.empty()) sequences::set_sequence_dir(cfg_.sequence_dir);
+  spdlog::info("sequence library {}", sequences::sequence_dir());
   make_dir(cfg_.data_dir, "data directory");
   make_dir(fs::path(cfg_.data_dir) / "runs", "run archive directory");
   make_dir(fs::path(cfg_.database).parent_path(), "database directory");

@@ -128,6 +128,26 @@ TEST(Library, EnvironmentOverridesTheDirectory) {
   EXPECT_EQ(sequence_dir(), IMUCAL_SEQUENCE_DIR);
 }
 
+// stationd's configured directory (set_sequence_dir) wins over the environment; "" restores the
+// lookup.
+TEST(Library, ConfiguredDirectoryWinsOverTheEnvironment) {
+  const fs::path dir = fs::temp_directory_path() / "imucal_seq_cfg_dir";
+  fs::create_directories(dir);
+  write_file(dir / "cfg.toml", "x");
+  setenv("IMUCAL_SEQUENCE_DIR", "/nonexistent-env-dir", 1);
+  set_sequence_dir(dir.string());
+  const std::string configured = sequence_dir();
+  const std::string resolved = resolve_sequence("cfg");
+  set_sequence_dir("");
+  const std::string env = sequence_dir();
+  unsetenv("IMUCAL_SEQUENCE_DIR");
+  fs::remove_all(dir);
+  EXPECT_EQ(configured, dir.string());
+  EXPECT_EQ(resolved, (dir / "cfg.toml").string());
+  EXPECT_EQ(env, "/nonexistent-env-dir");
+  EXPECT_EQ(sequence_dir(), IMUCAL_SEQUENCE_DIR);
+}
+
 TEST(Library, LoadProfileRejectsInvalidSequencesWithFileAndLine) {
   const fs::path p = temp_file("imucal_invalid_seq.toml");
   // Parses, but the rotation is not followed by a rest (validator), line 4.

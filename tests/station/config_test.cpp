@@ -3,6 +3,7 @@
 #include "station/config.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -230,4 +231,40 @@ TEST(StationConfig, UnreadableFileIsAnError) {
 }
 
 }  // namespace
+
+// The default sequence must exist where the daemon will look (an installed service sees no
+// source tree): an unknown name names the key's line, the library and what it holds; a configured
+// sequence_dir must be a directory and is where names are looked up.
+TEST(StationConfig, DefaultSequenceAndSequenceDirAreChecked) {
+  expect_error(std::string(kMinimal) + "[calibration]\ndefault_sequence = \"nope\"\n", 12, 1,
+               "[calibration] default_sequence: \"nope\" is not a sequence of the library");
+  const ConfigError e =
+      error_of(std::string(kMinimal) + "[calibration]\ndefault_sequence = \"nope\"\n");
+  EXPECT_NE(std::string(e.what()).find("factory-std, pos19, short"), std::string::npos) << e.what();
+  expect_error(std::string(kMinimal) + "[calibration]\nsequence_dir = \"/no/such/dir\"\n", 12, 1,
+               "[calibration] sequence_dir: \"/no/such/dir\" is not a directory");
+  expect_error(std::string(kMinimal) + "[calibration]\ndefault_sequence = \"./no.toml\"\n", 12, 1,
+               "no such file");
+
+  const std::string dir =
+      (std::filesystem::temp_directory_path() / ("imucal-seqdir-" + std::to_string(::getpid())))
+          .string();
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir + "/mine.toml") << "name = \"mine\"\n";
+  // Relative to the config's directory, like every other path.
+  const StationConfig ok = parse_config(std::string(kMinimal) + "[calibration]\nsequence_dir = \"" +
+                                            dir + "\"\ndefault_sequence = \"mine\"\n",
+                                        "cfg.toml", "/etc/imucal");
+  EXPECT_EQ(ok.sequence_dir, dir);
+  // The library's "factory-std" (the default) is not in the private library.
+  const ConfigError missing =
+      error_of(std::string(kMinimal) + "[calibration]\nsequence_dir = \"" + dir + "\"\n");
+  EXPECT_NE(
+      std::string(missing.what())
+          .find("\"factory-std\" is not a sequence of the library " + dir + " (available: mine"),
+      std::string::npos)
+      << missing.what();
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace imucal::station

@@ -25,8 +25,7 @@ struct ProcResult {
   std::string out;  ///< stdout + stderr
 };
 
-ProcResult run_imucal(const std::string& args) {
-  const std::string cmd = std::string(IMUCAL_BIN_DIR) + "/imucal " + args + " 2>&1";
+ProcResult run_shell(const std::string& cmd) {
   FILE* p = popen(cmd.c_str(), "r");
   std::string out;
   char buf[4096];
@@ -34,6 +33,10 @@ ProcResult run_imucal(const std::string& args) {
   while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
   const int st = pclose(p);
   return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out};
+}
+
+ProcResult run_imucal(const std::string& args) {
+  return run_shell(std::string(IMUCAL_BIN_DIR) + "/imucal " + args + " 2>&1");
 }
 
 std::string slurp(const fs::path& p) {
@@ -322,15 +325,10 @@ TEST(ImucalUsage, UsageErrorsExitTwo) {
 // With --json, an error is a JSON object on stdout as well (a script parsing the output reads the
 // error instead of failing to parse), with the same exit code.
 TEST(ImucalUsage, JsonErrorsAreJson) {
-  const std::string cmd = std::string(IMUCAL_BIN_DIR) + "/imucal calibrate /nonexistent-dir --json";
-  FILE* p = popen((cmd + " 2>/dev/null").c_str(), "r");
-  std::string out;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int st = pclose(p);
-  EXPECT_EQ(WEXITSTATUS(st), 1);
-  const auto j = nlohmann::json::parse(out);
+  const ProcResult r = run_shell(std::string(IMUCAL_BIN_DIR) +
+                                 "/imucal calibrate /nonexistent-dir --json 2>/dev/null");
+  EXPECT_EQ(r.code, 1);
+  const auto j = nlohmann::json::parse(r.out);
   EXPECT_NE(j["error"].get<std::string>().find("/nonexistent-dir"), std::string::npos);
   EXPECT_EQ(j["exit_code"], 1);
 }
@@ -345,4 +343,28 @@ TEST_F(ImucalCli, PlotRefusesANameThatIsNotSvg) {
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_NE(r.out.find("name it .svg"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(png));
+}
+
+// An installed (or unpacked) program finds the sequence library under its own prefix
+// (<prefix>/share/imucal/sequences), not through the source tree compiled in: a service with
+// ProtectHome or a package on another machine has no source tree.
+TEST(ImucalInstalled, FindsTheSequencesUnderItsOwnPrefix) {
+  const fs::path prefix = fs::temp_directory_path() / ("imucal-prefix-" + std::to_string(getpid()));
+  fs::create_directories(prefix / "bin");
+  fs::create_directories(prefix / "share/imucal/sequences");
+  fs::copy_file(std::string(IMUCAL_BIN_DIR) + "/imucal", prefix / "bin/imucal");
+  fs::copy_file(std::string(IMUCAL_SOURCE_DIR) + "/sequences/short.toml",
+                prefix / "share/imucal/sequences/only-here.toml");
+  auto run = [&](const std::string& args) {
+    return run_shell("env -u IMUCAL_SEQUENCE_DIR " + (prefix / "bin/imucal").string() + " " + args +
+                     " 2>&1");
+  };
+  const auto found = run("crlb --sequence only-here --json");
+  EXPECT_TRUE(found.code == 0 || found.code == 3) << found.out;
+  EXPECT_NE(found.out.find("\"duration_s\""), std::string::npos) << found.out;
+  // The source tree's library is not consulted: "pos19" exists only there.
+  const auto missing = run("crlb --sequence pos19");
+  EXPECT_EQ(missing.code, 1) << missing.out;
+  EXPECT_NE(missing.out.find("only-here"), std::string::npos) << missing.out;
+  fs::remove_all(prefix);
 }
