@@ -92,7 +92,7 @@ void Daemon::start() {
   spdlog::info("history database {}", cfg_.database);
   recovery_ = recover_at_startup(cfg_, *repo_, opt_.stop_table_at_start);
   if (!recovery_.runs.empty()) {
-    spdlog::warn("recovery: {} run(s) marked interrupted", recovery_.runs.size());
+    spdlog::warn("recovery: {} run(s) ended at start-up", recovery_.runs.size());
   }
 
   worker_ = std::make_unique<CalibrationWorker>(*repo_);

@@ -1,16 +1,17 @@
 #include "station/recovery.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
-#include <spdlog/spdlog.h>
-
 #include "db/archive/run_archive.hpp"
 #include "drivers/turntable/turntable_client.hpp"
 #include "station/archive_writer.hpp"
 #include "station/capture_stats.hpp"
+#include "station/end_note.hpp"
 #include "station/run_controller.hpp"
 
 namespace imucal::station {
@@ -69,6 +70,9 @@ RecoveryReport recover_at_startup(const StationConfig& config, db::Repository& r
                               db::to_string(run.state) + " (found at start-up; not resumed)";
     db::RunCompletion c;
     c.state = db::RunState::kInterrupted;
+    // The run ended while the database could not record it (disk full): its own end and reason.
+    const std::string note_path = end_note_path(config.data_dir, run.run_id);
+    const std::optional<EndNote> note = read_end_note(note_path);
     if (fs::exists(fs::path(dir) / "run.toml")) {
       try {
         r.rows_kept = recover_archive(dir, db::format_time_utc(db::now_ms()));
@@ -86,10 +90,19 @@ RecoveryReport recover_at_startup(const StationConfig& config, db::Repository& r
     } else {
       r.reason = found + "; it had no archive yet (stopped before the capture started)";
     }
+    if (note) {
+      c.state = note->state;
+      r.reason = note->reason +
+                 " (recorded at start-up from the run's end note: the database "
+                 "could not take it then); " +
+                 r.reason;
+    }
     c.reason = r.reason;
     c.ended_at_ms = db::now_ms();
     repo.finish_run(run.run_id, c);
-    spdlog::warn("recovery: run {} ({}) interrupted: {}", run.run_id, run.serial, r.reason);
+    remove_end_note(note_path);
+    spdlog::warn("recovery: run {} ({}) {}: {}", run.run_id, run.serial, db::to_string(c.state),
+                 r.reason);
     report.runs.push_back(std::move(r));
   }
   return report;

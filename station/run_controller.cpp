@@ -15,6 +15,7 @@
 #include "sequences/validator.hpp"
 #include "station/archive_writer.hpp"
 #include "station/capture.hpp"
+#include "station/end_note.hpp"
 #include "station/gap_check.hpp"
 
 namespace imucal::station {
@@ -245,6 +246,11 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
   live->snap.steps = static_cast<int>(live->plan.steps.size());
   live->snap.started_at_ms = nr.started_at_ms;
   live->snap.archive_path = archive_dir_for(id, nr.serial);
+  if (const std::string err = reserve_end_note(end_note_path(cfg_.data_dir, id)); !err.empty())
+    spdlog::warn(
+        "run {}: no end note reserved ({}); if the disk fills up, a restart before "
+        "space returns will not know why the run ended",
+        id, err);
   live_ = live;
   spdlog::info("run {}: serial {}, sequence {} ({} steps), operator {}", id, nr.serial,
                nr.sequence_name, live->snap.steps, nr.operator_name);
@@ -470,6 +476,7 @@ bool RunController::abort(const std::string& reason) {
         spdlog::warn("run {}: abort requested: {}", live->snap.run_id, reason);
       }
       if (live->client) live->client->request_abort();
+      cv_.notify_all();  // wakes record_end's retry wait
       return true;
     }
   }
@@ -949,7 +956,39 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
     std::lock_guard<std::mutex> lk(mu_);
     if (!have_archive) L.snap.archive_path.clear();
   }
-  repo_.finish_run(id, c);
+  record_end(L, c);
+}
+
+void RunController::record_end(Live& L, const db::RunCompletion& c) {
+  const db::RunId id = L.snap.run_id;
+  const std::string note = end_note_path(cfg_.data_dir, id);
+  bool noted = false;
+  for (int attempt = 0;; ++attempt) {
+    try {
+      repo_.finish_run(id, c);
+      remove_end_note(note);
+      if (attempt > 0) spdlog::info("run {}: end recorded in the database at last", id);
+      return;
+    } catch (const std::exception& e) {
+      // Typically the disk is full (the database shares it with the archives). The run has ended
+      // (status says so, `--wait` returns); its end is kept in the reserved note so that a restart
+      // finds the real reason, and recording is retried until space returns or the daemon stops.
+      if (!noted) {
+        const std::string err = record_end_note(note, c.state, c.reason);
+        spdlog::error("run {}: the database cannot record its end ({}); {}; retrying every {} s",
+                      id, e.what(),
+                      err.empty() ? "kept in " + note : "and no end note either: " + err,
+                      kRecordRetry.count() / 1000.0);
+        noted = true;
+      }
+    }
+    std::unique_lock<std::mutex> lk(mu_);
+    if (cv_.wait_for(lk, kRecordRetry, [&] { return L.abort || shut_down_; })) {
+      spdlog::warn("run {}: stopping with its end unrecorded; start-up recovery takes it from {}",
+                   id, note);
+      return;
+    }
+  }
 }
 
 }  // namespace imucal::station

@@ -173,6 +173,10 @@ class RunController {
   void control_thread(std::shared_ptr<Live> live);
   void capture_run(const std::shared_ptr<Live>& live);
   void finish_early(Live& live, db::RunState state, const std::string& reason);
+  /// Stores the run's end; when the database cannot (disk full), keeps it in the run's end note
+  /// and retries every kRecordRetry until it can or the run is aborted / the daemon stops.
+  void record_end(Live& live, const db::RunCompletion& completion);
+  static constexpr std::chrono::milliseconds kRecordRetry{2000};
   void on_calibrated(const std::shared_ptr<Live>& live, const CalibrationOutcome& out);
   void set_phase(Live& live, RunPhase phase);
   /// A finished run whose archive is present and unchanged (what reprocess() and diagnose() check);
