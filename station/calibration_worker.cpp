@@ -100,6 +100,25 @@ void store_field_result(const calib::PipelineResult& r, calib::Setting setting, 
   }
 }
 
+/// An incomplete archive (the reprocess of an aborted or interrupted run, asked for explicitly, or
+/// any archive whose run.toml says its capture did not complete) is REVIEW at best: the rest of
+/// the sequence is missing, and it must never become the unit's active parameters.
+void cap_partial_archive(const CalibrationJob& job, const archive::RunArchive& ar,
+                         db::RunCompletion& completion, CalibrationOutcome& out) {
+  std::string why = job.partial_reason;
+  if (why.empty() && ar.info.capture && !ar.info.capture->complete)
+    why = "its archive is incomplete (run.toml [capture] complete = false)";
+  if (why.empty()) return;
+  const std::string note = "partial archive: " + why + " — REVIEW at best";
+  if (completion.state == db::RunState::kDone) {
+    completion.state = db::RunState::kReview;
+    out.verdict = db::Verdict::kReview;
+    completion.reason = note;
+  } else if (completion.state == db::RunState::kReview) {
+    completion.reason = note + "; " + completion.reason;
+  }
+}
+
 }  // namespace
 
 CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJob& job,
@@ -129,6 +148,7 @@ CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJo
       store_factory_result(r, std::move(in), ar, job.k_sigma, phase, completion, out);
     else
       store_field_result(r, in.setting, job.k_sigma, completion, out);
+    cap_partial_archive(job, ar, completion, out);
   } catch (const std::exception& e) {
     completion = db::RunCompletion{};
     completion.state = db::RunState::kFailed;

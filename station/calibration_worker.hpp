@@ -1,6 +1,6 @@
 #pragma once
-// The daemon's calibration worker: one thread that turns a finished run archive into stored results,
-// so the control socket and the table stay responsive while Ceres and the smoother run.
+// The daemon's calibration worker: one thread that turns a finished run archive into stored
+// results, so the control socket and the table stay responsive while Ceres and the smoother run.
 //
 // A job does exactly what `imucal calibrate` and `reprocess` do (one code path, calib/
 // calibration_pipeline.hpp): archive::read_archive -> archive::to_calibration_input ->
@@ -15,8 +15,8 @@
 // with the archive's SHA-256, the capture counters (capture_json) and the diagnosis summary
 // (diagnosis_json) stored with the run.
 //
-// A run that became terminal while its job waited or ran (aborted by the operator, or by SIGTERM) is
-// left as it is: the job's result is dropped and reported as such.
+// A run that became terminal while its job waited or ran (aborted by the operator, or by SIGTERM)
+// is left as it is: the job's result is dropped and reported as such.
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -35,6 +35,8 @@ struct CalibrationJob {
   std::string archive_sha256;  ///< stored with the result (checked by the caller for reprocess)
   std::string capture_json;    ///< capture counters (capture_stats.hpp) as JSON text, or ""
   double k_sigma = 4.0;
+  /// Why the archive is incomplete ("" = complete): the result is then REVIEW at best.
+  std::string partial_reason;
 };
 
 struct CalibrationOutcome {
@@ -49,8 +51,9 @@ struct CalibrationOutcome {
 /// Runs one job synchronously in the calling thread (what the worker thread does per job).
 /// `on_phase` gets the pipeline's phase texts ("reading the archive", "AINS", ...). Never throws
 /// for job errors (they become a failed run); throws only if the repository itself fails.
-CalibrationOutcome run_calibration_job(db::Repository& repository, const CalibrationJob& job,
-                                       const std::function<void(const std::string&)>& on_phase = {});
+CalibrationOutcome run_calibration_job(
+    db::Repository& repository, const CalibrationJob& job,
+    const std::function<void(const std::string&)>& on_phase = {});
 
 class CalibrationWorker {
  public:

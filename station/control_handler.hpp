@@ -39,6 +39,12 @@ class ControlError : public std::runtime_error {
   std::string code_;
 };
 
+struct ReprocessRequest {
+  db::RunId run_id = 0;
+  std::string user;            ///< who asked (recorded as the new run's operator)
+  bool allow_partial = false;  ///< calibrate an incomplete archive anyway (REVIEW at best)
+};
+
 struct StartRunRequest {
   std::string serial;
   std::optional<std::string> sequence;  ///< library name or path; default: the config's
@@ -57,8 +63,10 @@ class ControlHandler {
   /// Aborts the active run (table to safe stop, run -> aborted); kNotFound if none is active.
   virtual nlohmann::json abort_run(const std::string& reason) = 0;
   /// Recalibrates a stored run from its archive into a new run; returns {"run_id": new id,
-  /// "reprocessed_from": id}. kBusy if a run is active, kNotFound for an unknown run.
-  virtual nlohmann::json reprocess(db::RunId run_id) = 0;
+  /// "reprocessed_from": id}. kBusy if a run is active, kNotFound for an unknown run,
+  /// kInvalidInput for an incomplete archive (aborted, interrupted, failed capture) unless
+  /// allow_partial — then the result is REVIEW at best, never the unit's active parameters.
+  virtual nlohmann::json reprocess(const ReprocessRequest& request) = 0;
   /// The sim-to-real gap diagnosis of a finished run (station/gap_check.hpp), its summary stored
   /// with the run; returns the full diagnosis JSON plus "run_id". kBusy while a run is active.
   virtual nlohmann::json diagnose(db::RunId run_id) = 0;

@@ -18,6 +18,7 @@ enum class ArgType {
   kTime,         ///< string accepted by db::parse_time_utc
   kName,         ///< a person's name: printable text of 1..kMaxNameChars characters
   kReason,       ///< free text stored with a run: printable, 1..kMaxReasonChars characters
+  kBool,         ///< true | false
 };
 
 struct ArgSpec {
@@ -39,7 +40,8 @@ const std::vector<CommandSpec>& specs() {
         {"operator", ArgType::kName, false}}},
       {cmd::kRunStatus, {{"run_id", ArgType::kPositiveInt, false}}},
       {cmd::kRunAbort, {{"reason", ArgType::kReason, false}}},
-      {cmd::kReprocess, {{"run_id", ArgType::kPositiveInt, true}}},
+      {cmd::kReprocess,
+       {{"run_id", ArgType::kPositiveInt, true}, {"partial", ArgType::kBool, false}}},
       {cmd::kHistory, {{"serial", ArgType::kString, true}, {"limit", ArgType::kCount, false}}},
       {cmd::kShow, {{"run_id", ArgType::kPositiveInt, true}}},
       {cmd::kParams, {{"serial", ArgType::kString, true}}},
@@ -135,6 +137,9 @@ void check_arg(const json& id, const ArgSpec& spec, const json& v) {
         throw BadRequest(id, field,
                          "field '" + field + "': expected \"csv\" or \"json\", got " +
                              v.dump(-1, ' ', false, json::error_handler_t::replace));
+      return;
+    case ArgType::kBool:
+      if (!v.is_boolean()) fail("true or false");
       return;
     case ArgType::kName:
     case ArgType::kReason:

@@ -245,8 +245,13 @@ json ControlServer::dispatch(Client& client, const Request& r) {
     return handler_.abort_run(reason);
   }
   if (r.cmd == cmd::kReprocess) {
-    spdlog::info("control: reprocess run {} by {}", a.at("run_id").get<db::RunId>(), client.user);
-    return handler_.reprocess(a.at("run_id").get<db::RunId>());
+    ReprocessRequest q;
+    q.run_id = a.at("run_id").get<db::RunId>();
+    q.user = client.user;
+    q.allow_partial = a.value("partial", false);
+    spdlog::info("control: reprocess run {} by {} (uid {}){}", q.run_id, client.user,
+                 client.cred.uid, q.allow_partial ? ", partial archive allowed" : "");
+    return handler_.reprocess(q);
   }
   if (r.cmd == cmd::kDiagnose) {
     spdlog::info("control: diagnose run {} by {}", a.at("run_id").get<db::RunId>(), client.user);

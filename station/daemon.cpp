@@ -246,9 +246,9 @@ nlohmann::json Daemon::abort_run(const std::string& reason) {
   return {{"run_id", active->run_id}, {"serial", active->serial}, {"aborting", true}};
 }
 
-nlohmann::json Daemon::reprocess(db::RunId run_id) {
+nlohmann::json Daemon::reprocess(const ReprocessRequest& request) {
   if (!controller_) throw ControlError(error_code::kUnavailable, "the daemon is not running");
-  return controller_->reprocess(run_id);
+  return controller_->reprocess(request);
 }
 
 nlohmann::json Daemon::diagnose(db::RunId run_id) {

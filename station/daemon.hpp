@@ -63,7 +63,7 @@ class Daemon final : public ControlHandler {
   nlohmann::json start_run(const StartRunRequest& request) override;
   nlohmann::json status(std::optional<db::RunId> run_id) override;
   nlohmann::json abort_run(const std::string& reason) override;
-  nlohmann::json reprocess(db::RunId run_id) override;
+  nlohmann::json reprocess(const ReprocessRequest& request) override;
   nlohmann::json diagnose(db::RunId run_id) override;
   nlohmann::json import_archive(const std::string& dir, const std::string& user) override;
   nlohmann::json promote(db::RunId run_id, const std::string& user,

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "db/archive/run_archive.hpp"
 #include "db/serial_number.hpp"
@@ -324,14 +326,52 @@ nlohmann::json RunController::diagnose(db::RunId run_id) {
   return full;
 }
 
-nlohmann::json RunController::reprocess(db::RunId run_id) {
+namespace {
+
+/// Why a stored run's archive is incomplete, "" if it is complete: its run.toml says the capture
+/// did not complete, or the run ended before its capture did (aborted, or failed for anything but
+/// the calibration itself — archives written before run.toml said so claim complete).
+std::string partial_archive_reason(const db::RunRecord& run) {
+  const std::string path = (fs::path(run.archive_path) / "run.toml").string();
+  try {
+    std::ifstream in(path);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    const archive::RunInfo info = archive::parse_run_info(ss.str(), path);
+    if (info.capture && !info.capture->complete)
+      return "its archive is incomplete (run.toml [capture] complete = false)";
+  } catch (const std::exception& e) {
+    return std::string("its run.toml cannot be read: ") + e.what();
+  }
+  // Interrupted runs: recovery marked a cut archive incomplete above and left a finished one
+  // (killed while calibrating) complete.
+  const bool calibration_failure = run.failure_reason.rfind("calibration failed", 0) == 0;
+  if (run.state == db::RunState::kAborted ||
+      (run.state == db::RunState::kFailed && !calibration_failure))
+    return std::string("the run ended ") + db::to_string(run.state) +
+           " before its capture completed (" + run.failure_reason + ")";
+  return "";
+}
+
+}  // namespace
+
+nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
+  const db::RunId run_id = request.run_id;
   std::unique_lock<std::mutex> lk(mu_);
   std::string digest;
   const db::RunDetails d = stored_run_with_archive(run_id, "reprocessing", digest);
   const db::RunRecord& orig = d.run;
+  const std::string partial = partial_archive_reason(orig);
+  if (!partial.empty() && !request.allow_partial)
+    throw ControlError(error_code::kInvalidInput,
+                       "run " + std::to_string(run_id) + ": " + partial +
+                           "; not reprocessed (reprocess --partial calibrates it anyway, stored "
+                           "REVIEW at best and never active)");
   if (thread_.joinable()) thread_.join();
 
-  db::NewRun nr = new_run(orig.serial, orig.operator_name, orig.sequence_name, orig.sequence_sha256,
+  // The new run is recorded as the requester's, not the original operator's.
+  const std::string by = request.user.empty() ? orig.operator_name : request.user;
+  db::NewRun nr = new_run(orig.serial, by, orig.sequence_name, orig.sequence_sha256,
                           db::RunState::kCalibrating);
   nr.archive_path = orig.archive_path;
   nr.reprocessed_from = run_id;
@@ -349,8 +389,10 @@ nlohmann::json RunController::reprocess(db::RunId run_id) {
   live->snap.started_at_ms = nr.started_at_ms;
   live->snap.ended_at_ms.reset();
   live->snap.reprocessed_from = run_id;
+  live->snap.operator_name = by;
   live_ = live;
-  spdlog::info("run {}: reprocessing run {} from {}", id, run_id, orig.archive_path);
+  spdlog::info("run {}: reprocessing run {} from {} for {}{}", id, run_id, orig.archive_path, by,
+               partial.empty() ? "" : " (partial archive: " + partial + ")");
 
   CalibrationJob job;
   job.run_id = id;
@@ -358,6 +400,7 @@ nlohmann::json RunController::reprocess(db::RunId run_id) {
   job.archive_sha256 = digest;
   job.capture_json = orig.capture_json;
   job.k_sigma = cfg_.k_sigma;
+  job.partial_reason = partial;
   lk.unlock();
   worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, out); });
   return {{"run_id", id}, {"reprocessed_from", run_id}};
@@ -886,7 +929,9 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
   if (writer) {
     try {
       info.end_time = db::format_time_utc(db::now_ms());
-      info.capture = to_capture_info(stats.value_or(CaptureStats{}), true);
+      // complete only when every step ran: an aborted or failed run's archive says so, and its
+      // reprocess is refused unless asked for (REVIEW at best then).
+      info.capture = to_capture_info(stats.value_or(CaptureStats{}), captured);
       writer->finish(info);
     } catch (const std::exception& e) {
       spdlog::error("run {}: finishing the archive: {}", id, e.what());

@@ -145,7 +145,7 @@ class RunController {
   nlohmann::json start(const StartRunRequest& request);
   /// ControlError kBusy, kNotFound (no such run / no archive), kInvalidInput (archive changed
   /// since it was recorded), kUnavailable (archive unreadable).
-  nlohmann::json reprocess(db::RunId run_id);
+  nlohmann::json reprocess(const ReprocessRequest& request);
   /// `stationctl import DIR`: a field (or other station's) archive into the history, copied into
   /// the station's store and calibrated with its own setting (ControlHandler::import_archive).
   nlohmann::json import_archive(const std::string& dir, const std::string& user);

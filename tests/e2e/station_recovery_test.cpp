@@ -90,23 +90,24 @@ TEST(StationRecovery, KillNineWhileRunningThenRestartMarksTheRunInterruptedAndRe
   EXPECT_TRUE(contains_ci(run.value("failure_reason", ""), "running")) << "the reason should name the state:\n"
                                                                        << run.dump(2);
 
-  // Reprocess: a prefix of the sequence. Whatever the calibration makes of it, the outcome must be
-  // a finished run that names its origin, with a reason unless it passed.
-  const CmdResult rep = st.ctl({"reprocess", std::to_string(k.run_id), "--wait"}, 180s);
-  std::fprintf(stderr, "[e2e] reprocess of a run killed while running: exit %d\n%s%s", rep.exit_code,
+  // Reprocess: a prefix of the sequence, which must never become the unit's active parameters.
+  // Refused unless asked for explicitly, naming why; then REVIEW at best.
+  const CmdResult refused = st.ctl({"reprocess", std::to_string(k.run_id), "--wait"}, 60s);
+  EXPECT_EQ(refused.exit_code, 2) << refused.describe();
+  EXPECT_TRUE(contains_ci(refused.out + refused.err, "incomplete")) << refused.describe();
+  const CmdResult rep = st.ctl({"reprocess", std::to_string(k.run_id), "--partial", "--wait"}, 180s);
+  std::fprintf(stderr, "[e2e] reprocess --partial of a run killed while running: exit %d\n%s%s", rep.exit_code,
                rep.out.c_str(), rep.err.c_str());
-  ASSERT_TRUE(rep.exit_code == 0 || rep.exit_code == 1) << rep.describe();
+  EXPECT_EQ(rep.exit_code, 1) << rep.describe();
   const json newest = newest_run(st, "SIM-0300");
   ASSERT_TRUE(newest.is_object());
   EXPECT_NE(newest.value("run_id", -1LL), k.run_id);
   EXPECT_EQ(newest["reprocessed_from"], json(k.run_id)) << newest.dump(2);
   const std::string state = newest.value("state", "");
-  if (rep.exit_code == 0) {
-    EXPECT_EQ(state, "done");
-  } else {
-    EXPECT_TRUE(state == "review" || state == "failed") << newest.dump(2);
-    EXPECT_FALSE(newest.value("failure_reason", "").empty()) << newest.dump(2);
-  }
+  EXPECT_TRUE(state == "review" || state == "failed") << newest.dump(2);
+  EXPECT_FALSE(newest.value("failure_reason", "").empty()) << newest.dump(2);
+  const CmdResult params = st.ctl({"params", "SIM-0300"});
+  EXPECT_NE(params.exit_code, 0) << "a partial archive became active:\n" << params.describe();
   // The interrupted run stays interrupted (terminal states are final).
   EXPECT_EQ(show_run(st, k.run_id)["run"].value("state", ""), "interrupted");
 }

@@ -77,15 +77,17 @@ class FakeHandler : public ControlHandler {
   json diagnose(db::RunId run_id) override {
     return {{"run_id", run_id}, {"verdict", "consistent"}};
   }
-  json reprocess(db::RunId run_id) override {
+  json reprocess(const ReprocessRequest& q) override {
     ++reprocess_calls;
-    return {{"run_id", 78}, {"reprocessed_from", run_id}};
+    last_reprocess = q;
+    return {{"run_id", 78}, {"reprocessed_from", q.run_id}};
   }
   const db::Repository& repository() const override { return repo_; }
 
   std::atomic<int> start_calls{0}, status_calls{0}, abort_calls{0}, reprocess_calls{0};
   std::atomic<int> overlaps{0};
   StartRunRequest last_start;
+  ReprocessRequest last_reprocess;
   std::string last_reason;
 
  private:
@@ -313,6 +315,15 @@ TEST_F(ControlServerTest, RootMayControlAndTheOperatorDefaultsToThePeer) {
   ASSERT_TRUE(r.ok);
   EXPECT_EQ(r.result.at("reprocessed_from"), 2);
   EXPECT_EQ(handler_->reprocess_calls, 1);
+  // Who asked is passed on (recorded with the new run); a partial archive only when asked.
+  EXPECT_EQ(handler_->last_reprocess.user, "root");
+  EXPECT_FALSE(handler_->last_reprocess.allow_partial);
+  r = c.call("reprocess", {{"run_id", 2}, {"partial", true}});
+  ASSERT_TRUE(r.ok);
+  EXPECT_TRUE(handler_->last_reprocess.allow_partial);
+  r = c.call("reprocess", {{"run_id", 2}, {"partial", "yes"}});
+  EXPECT_FALSE(r.ok);
+  EXPECT_EQ(r.error_code, "bad_request");
 }
 
 /// Runs `body` in a forked child as nobody:nogroup; returns the child's exit status and whatever

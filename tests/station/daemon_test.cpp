@@ -1,11 +1,12 @@
 // The Daemon in process: start-up recovery marks live runs interrupted and keeps their archives
-// intact and reprocessable; the status JSON carries the contract's fields before, during and after a
-// run (through the real control socket); run() notifies systemd (READY=1, WATCHDOG=1, STOPPING=1)
+// intact and reprocessable; the status JSON carries the contract's fields before, during and after
+// a run (through the real control socket); run() notifies systemd (READY=1, WATCHDOG=1, STOPPING=1)
 // and shuts down cleanly.
 #include "station/daemon.hpp"
 
 #include <gtest/gtest.h>
 #include <poll.h>
+#include <spdlog/spdlog.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -17,8 +18,6 @@
 #include <filesystem>
 #include <fstream>
 #include <thread>
-
-#include <spdlog/spdlog.h>
 
 #include "calib/site_presets.hpp"
 #include "calib/truth_sim.hpp"
@@ -42,14 +41,20 @@ std::string make_temp_dir() {
   return tmpl;
 }
 
-StationConfig config_for(const std::string& dir, const std::string& endpoint, const std::string& can) {
-  const std::string text = "[station]\nname = \"daemon-test\"\nlat_deg = 55.7856\nlon_deg = 12.5213\n"
-                           "height_m = 30.0\ndata_dir = \"data\"\n"
-                           "[control]\nsocket = \"ctl.sock\"\n"
-                           "[turntable]\nendpoint = \"" + endpoint + "\"\nreconnect_give_up_ms = 300\n"
-                           "move_timeout_s = 30\nhome_timeout_s = 30\n"
-                           "[imu]\ncan = \"" + can + "\"\n"
-                           "[calibration]\ndefault_sequence = \"short\"\n";
+StationConfig config_for(const std::string& dir, const std::string& endpoint,
+                         const std::string& can) {
+  const std::string text =
+      "[station]\nname = \"daemon-test\"\nlat_deg = 55.7856\nlon_deg = 12.5213\n"
+      "height_m = 30.0\ndata_dir = \"data\"\n"
+      "[control]\nsocket = \"ctl.sock\"\n"
+      "[turntable]\nendpoint = \"" +
+      endpoint +
+      "\"\nreconnect_give_up_ms = 300\n"
+      "move_timeout_s = 30\nhome_timeout_s = 30\n"
+      "[imu]\ncan = \"" +
+      can +
+      "\"\n"
+      "[calibration]\ndefault_sequence = \"short\"\n";
   return parse_config(text, dir + "/stationd.toml", dir);
 }
 
@@ -69,8 +74,8 @@ size_t write_killed_archive(const std::string& dir, const std::string& serial) {
   const auto profile = sequences::load_profile("short");
   calib::SimOptions so;
   so.seed = 3;
-  const calib::SimResult sim =
-      calib::simulate(profile, calib::TableGeometry{}, calib::demo_factory_site(), calib::default_unit(), so);
+  const calib::SimResult sim = calib::simulate(
+      profile, calib::TableGeometry{}, calib::demo_factory_site(), calib::default_unit(), so);
   archive::RunInfo info;
   info.serial = serial;
   info.station_name = "daemon-test";
@@ -119,7 +124,8 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
   const db::RunRecord rec = d.repository().show(running_id).run;
   EXPECT_EQ(rec.state, db::RunState::kInterrupted);
   EXPECT_NE(rec.failure_reason.find("running"), std::string::npos) << rec.failure_reason;
-  EXPECT_NE(rec.failure_reason.find(std::to_string(rows) + " rows"), std::string::npos) << rec.failure_reason;
+  EXPECT_NE(rec.failure_reason.find(std::to_string(rows) + " rows"), std::string::npos)
+      << rec.failure_reason;
   // Intact: every complete row kept, the torn line gone, readable, hash recorded.
   const archive::RunArchive ar = archive::read_archive(rec.archive_path);
   EXPECT_EQ(ar.imu.size(), rows);
@@ -137,22 +143,37 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
   // Nothing is resumed: the daemon is idle.
   EXPECT_EQ(d.status(std::nullopt).at("state"), "idle");
 
-  // reprocess: a new run from the kept archive, calibrated by the worker.
-  const json r = d.reprocess(running_id);
+  // reprocess of the cut archive: refused unless asked for explicitly, naming why.
+  try {
+    d.reprocess({running_id, "qa-anna", false});
+    FAIL() << "a partial archive was reprocessed without being asked for";
+  } catch (const ControlError& e) {
+    EXPECT_EQ(e.code(), error_code::kInvalidInput);
+    EXPECT_NE(std::string(e.what()).find("incomplete"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--partial"), std::string::npos) << e.what();
+  }
+  // Asked for: a new run from the kept archive, calibrated by the worker, REVIEW at best and
+  // recorded as the requester's.
+  const json r = d.reprocess({running_id, "qa-anna", true});
   const db::RunId new_id = r.at("run_id").get<db::RunId>();
   EXPECT_EQ(r.at("reprocessed_from").get<db::RunId>(), running_id);
-  EXPECT_THROW(d.reprocess(running_id), ControlError);  // busy meanwhile
+  EXPECT_THROW(d.reprocess({running_id, "qa-anna", true}), ControlError);  // busy meanwhile
   ASSERT_TRUE(d.controller().wait_idle(60s));
   const json s = d.status(new_id).at("run");
-  EXPECT_EQ(s.at("state"), "done") << s.dump();
-  EXPECT_EQ(s.at("verdict"), "PASS");
+  EXPECT_EQ(s.at("state"), "review") << s.dump();
+  // (The verdict is the cross-check's: the two methods may well agree on the prefix.)
+  EXPECT_NE(s.at("reason").get<std::string>().find("partial archive"), std::string::npos)
+      << s.dump();
   EXPECT_EQ(s.at("reprocessed_from").get<db::RunId>(), running_id);
+  EXPECT_EQ(d.repository().show(new_id).run.operator_name, "qa-anna");
   EXPECT_EQ(d.repository().show(new_id).run.archive_sha256, rec.archive_sha256);
+  EXPECT_THROW(d.repository().active_params("REC-1"), db::NotFound)
+      << "a partial archive became the unit's active parameters";
 
   // A changed archive is refused before anything is written.
   std::ofstream(rec.archive_path + "/capture.log", std::ios::app) << "x";
   try {
-    d.reprocess(running_id);
+    d.reprocess({running_id, "qa-anna", true});
     FAIL() << "a changed archive was reprocessed";
   } catch (const ControlError& e) {
     EXPECT_EQ(e.code(), error_code::kInvalidInput);
@@ -194,7 +215,8 @@ TEST(Daemon, StatusJsonThroughTheControlSocketBeforeDuringAndAfterARun) {
   EXPECT_TRUE(r.result.at("run").is_null());
   EXPECT_TRUE(r.result.at("last_run").is_null());
 
-  r = c.call("run.start", {{"serial", "STAT-1"}, {"sequence", tmp.path + "/tiny.toml"}, {"operator", "alice"}});
+  r = c.call("run.start",
+             {{"serial", "STAT-1"}, {"sequence", tmp.path + "/tiny.toml"}, {"operator", "alice"}});
   ASSERT_TRUE(r.ok) << r.error_message;
   const db::RunId id = r.result.at("run_id").get<db::RunId>();
   EXPECT_EQ(r.result.at("steps"), 3);
@@ -290,7 +312,8 @@ TEST(Daemon, SecondDaemonOnTheSameDataDirectoryIsRefusedBeforeTouchingAnything) 
     FAIL() << "second daemon started";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("another stationd (pid " + std::to_string(getpid()) + ")"),
-              std::string::npos) << e.what();
+              std::string::npos)
+        << e.what();
   }
   EXPECT_EQ(first.repository().show(id).run.state, db::RunState::kRunning);
   EXPECT_FALSE(fs::exists(cfg2.control_socket));
@@ -309,7 +332,8 @@ TEST(Logging, JournalOnlyWhenStderrIsTheJournalStream) {
   ::unsetenv("JOURNAL_STREAM");
   EXPECT_FALSE(stderr_is_journal());
   // Inherited from a service but stderr is something else now: not the journal.
-  ::setenv("JOURNAL_STREAM", (std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino + 1)).c_str(), 1);
+  ::setenv("JOURNAL_STREAM",
+           (std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino + 1)).c_str(), 1);
   EXPECT_FALSE(stderr_is_journal());
   ::setenv("JOURNAL_STREAM", "garbage", 1);
   EXPECT_FALSE(stderr_is_journal());
@@ -330,7 +354,8 @@ class FakeSystemd {
     sockaddr_un a{};
     a.sun_family = AF_UNIX;
     std::memcpy(a.sun_path, path.data(), path.size());
-    ::bind(fd_, reinterpret_cast<sockaddr*>(&a), static_cast<socklen_t>(offsetof(sockaddr_un, sun_path) + path.size()));
+    ::bind(fd_, reinterpret_cast<sockaddr*>(&a),
+           static_cast<socklen_t>(offsetof(sockaddr_un, sun_path) + path.size()));
   }
   ~FakeSystemd() { ::close(fd_); }
   /// Waits for a datagram containing `what`; all datagrams seen are appended to log.

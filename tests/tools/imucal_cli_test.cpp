@@ -368,3 +368,24 @@ TEST(ImucalInstalled, FindsTheSequencesUnderItsOwnPrefix) {
   EXPECT_NE(missing.out.find("only-here"), std::string::npos) << missing.out;
   fs::remove_all(prefix);
 }
+
+// An archive whose run.toml says the capture did not complete (an aborted or interrupted run) is
+// REVIEW at best: `imucal calibrate` exits 3 and says why, even when both methods agree.
+TEST_F(ImucalCli, PartialArchiveIsReviewAtBest) {
+  const fs::path dir = variant("partial", "run.toml", [](std::string t) {
+    return t + "\n[capture]\ncomplete = false\nframes_received = 0\nframes_logged = 0\n"
+               "frames_foreign = 0\nframes_error = 0\nframes_malformed = 0\nframes_duplicate = 0\n"
+               "frames_out_of_order = 0\nframes_discarded = 0\nsamples_decoded = 0\n"
+               "samples_lost = 0\nsamples_corrupt = 0\nsamples_incomplete = 0\nsamples_late = 0\n"
+               "samples_filled = 0\nimu_resets = 0\nrx_overflow = 0\nrows_written = 0\n"
+               "rest_samples = 0\nmax_gap_samples = 0\n";
+  });
+  const ProcResult r = run_imucal("calibrate " + dir.string());
+  EXPECT_EQ(r.code, 3) << r.out;
+  EXPECT_NE(r.out.find("capture incomplete"), std::string::npos) << r.out;
+  const ProcResult j = run_imucal("calibrate " + dir.string() + " --json");
+  EXPECT_EQ(j.code, 3);
+  const auto json = nlohmann::json::parse(j.out.substr(j.out.find('{')));
+  EXPECT_EQ(json["verdict"], "REVIEW");
+  EXPECT_TRUE(json["partial_archive"].get<bool>());
+}

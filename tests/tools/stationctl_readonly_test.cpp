@@ -293,7 +293,9 @@ class ScriptedHandler : public station::ControlHandler {
     return {{"run", run}};
   }
   json abort_run(const std::string&) override { return {{"run_id", 41}}; }
-  json reprocess(db::RunId id) override { return {{"run_id", 42}, {"reprocessed_from", id}}; }
+  json reprocess(const station::ReprocessRequest& q) override {
+    return {{"run_id", 42}, {"reprocessed_from", q.run_id}};
+  }
   json diagnose(db::RunId id) override { return {{"run_id", id}, {"verdict", "consistent"}}; }
   const db::Repository& repository() const override { return repo_; }
 

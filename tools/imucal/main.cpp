@@ -226,16 +226,25 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
                                 "run " + ar.info.serial + " (" + ar.info.sequence_name + ")");
     if (!f) throw std::runtime_error(plot_path + ": cannot write the picture");
   }
+  // An archive whose capture did not complete (an aborted or interrupted run) holds a prefix of
+  // the sequence: REVIEW at best, whatever the methods make of it.
+  const bool partial = ar.info.capture && !ar.info.capture->complete;
+  const char* partial_note =
+      "archive: capture incomplete (run.toml [capture] complete = false): REVIEW at best";
   if (json) {
-    std::cout << tools::pipeline_to_json(r).dump(2) << '\n';
+    nlohmann::json j = tools::pipeline_to_json(r);
+    j["partial_archive"] = partial;
+    if (partial) j["verdict"] = "REVIEW";
+    std::cout << j.dump(2) << '\n';
   } else {
     std::cout << "run " << dir << " (serial " << ar.info.serial << ", sequence "
               << ar.info.sequence_name << ", setting " << calib::setting_name(in.setting) << ", "
               << in.imu.size() << " samples)\n";
     tools::print_parameter_table(std::cout, r, ar.truth ? &ar.truth->params : nullptr);
     tools::print_metrics_and_verdict(std::cout, r);
+    if (partial) std::cout << partial_note << '\n';
   }
-  return r.pass() ? 0 : kExitReview;
+  return r.pass() && !partial ? 0 : kExitReview;
 }
 
 int cmd_evaluate(const std::string& dir, const std::string& params_path, bool json) {

@@ -421,6 +421,10 @@ int main(int argc, char** argv) {
       "reprocess", "recalibrate a stored run from its archive into a new run (needs the group)");
   reprocess->add_option("RUN_ID", run_id, "run id")->required()->check(CLI::PositiveNumber);
   reprocess->add_flag("--wait", wait, "follow the new run to its end");
+  bool partial = false;
+  reprocess->add_flag("--partial", partial,
+                      "calibrate an incomplete archive (aborted, interrupted or failed capture) "
+                      "anyway: stored REVIEW at best, never the unit's active parameters");
   reprocess->fallthrough();
   auto* diagnose = app.add_subcommand(
       "diagnose", "sim-to-real gap diagnosis of a stored run, kept with the run (needs the group)");
@@ -556,7 +560,9 @@ int main(int argc, char** argv) {
     }
     if (*reprocess) {
       ControlClient client = connect_or_fail(target);
-      const json r = call(client, station::cmd::kReprocess, {{"run_id", run_id}});
+      json args = {{"run_id", run_id}};
+      if (partial) args["partial"] = true;
+      const json r = call(client, station::cmd::kReprocess, args);
       if (!wait) {
         if (g.json)
           print_json(r);
