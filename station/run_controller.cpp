@@ -896,6 +896,14 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
   }
   {
     std::lock_guard<std::mutex> lk(mu_);
+    // The operator's reason wins over whatever the abort made the table or capture report (a
+    // table link that was down, say): it is what the run ended for.
+    if (L.abort && !captured) {
+      const std::string consequence = reason;
+      end_state = db::RunState::kAborted;
+      reason = L.abort_reason;
+      if (!consequence.empty() && consequence != reason) reason += " (then: " + consequence + ")";
+    }
     if (end_state == db::RunState::kAborted && reason.empty()) reason = L.abort_reason;
     // An abort that arrived after the last step still wins over calibrating.
     if (captured && L.abort) {

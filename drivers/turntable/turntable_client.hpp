@@ -1,32 +1,32 @@
 #pragma once
 // Modbus master for a PLC-driven two-axis turntable (DESIGN §4), over TCP or RTU (libmodbus).
 //
-// Link handling: libmodbus error recovery is NONE; errno is handled here. A timeout flushes the link and
-// retries the request; a malformed or mismatched reply (e.g. a late reply to a request that had timed
-// out) waits until the link is quiet, flushes and retries; a Modbus exception is reported at once; a
-// link error (reset, refused, broken pipe, I/O error) closes the context and reconnects with
-// exponential backoff (backoff_initial doubling up to backoff_max) until reconnect_give_up has passed,
-// then throws LinkError. When every attempt of a request timed out the link is treated as dead: it is
-// closed and the next request reconnects.
+// Link handling: libmodbus error recovery is NONE; errno is handled here. A timeout flushes the
+// link and retries the request; a malformed or mismatched reply (e.g. a late reply to a request
+// that had timed out) waits until the link is quiet, flushes and retries; a Modbus exception is
+// reported at once; a link error (reset, refused, broken pipe, I/O error) closes the context and
+// reconnects with exponential backoff (backoff_initial doubling up to backoff_max) until
+// reconnect_give_up has passed, then throws LinkError. When every attempt of a request timed out
+// the link is treated as dead: it is closed and the next request reconnects.
 //
 // Commands use the register map's handshake (register_map.hpp): targets and the command word with a
-// fresh sequence number are written (in one request when the map makes them contiguous), then the input
-// registers are polled until ack_seq echoes the sequence; a non-zero ack_result throws
-// CommandRejectedError, no echo within ack_timeout throws AckTimeoutError. If the link was re-opened
-// while waiting, the command is written again with the SAME sequence number (the table ignores a
-// repeated sequence, so this cannot act twice).
+// fresh sequence number are written (in one request when the map makes them contiguous), then the
+// input registers are polled until ack_seq echoes the sequence; a non-zero ack_result throws
+// CommandRejectedError, no echo within ack_timeout throws AckTimeoutError. If the link was
+// re-opened while waiting, the command is written again with the SAME sequence number (the table
+// ignores a repeated sequence, so this cannot act twice).
 //
-// Safety: the table is commanded to stop on connect() (start-up, unless stop_on_connect is off), when a
-// wait sees a fault, an e-stop, a stale heartbeat, a timeout or an abort request, and (best effort,
-// without reconnecting) on destruction of a client that has commanded a move or homing. The daemon calls
-// safe_stop() itself on shutdown.
+// Safety: the table is commanded to stop on connect() (start-up, unless stop_on_connect is off),
+// when a wait sees a fault, an e-stop, a stale heartbeat, a timeout or an abort request, and (best
+// effort, without reconnecting) on destruction of a client that has commanded a move or homing. The
+// daemon calls safe_stop() itself on shutdown.
 //
 // One commanding master per table: two clients sending commands at the same time can pick the same
 // sequence number, and the table acts on only one of them. Read-only observers (status() only, with
 // stop_on_connect off) may be connected in any number.
 //
-// Threading: one libmodbus context per client and one thread using it at a time (libmodbus contexts are
-// not thread-safe). request_abort(), state() and counters() may be called from any thread.
+// Threading: one libmodbus context per client and one thread using it at a time (libmodbus contexts
+// are not thread-safe). request_abort(), state() and counters() may be called from any thread.
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -46,7 +46,8 @@ class logger;
 
 namespace imucal::turntable {
 
-/// Where the table is: "tcp:HOST:PORT" or "rtu:DEVICE:BAUD:FORMAT" with FORMAT like 8N1 / 8E1 / 8O2.
+/// Where the table is: "tcp:HOST:PORT" or "rtu:DEVICE:BAUD:FORMAT" with FORMAT like 8N1 / 8E1 /
+/// 8O2.
 struct Endpoint {
   enum class Kind { kTcp, kRtu };
   Kind kind = Kind::kTcp;
@@ -73,9 +74,11 @@ struct TurntableClientConfig {
   std::chrono::milliseconds reconnect_give_up{10000};  ///< total reconnect time before LinkError
   std::chrono::milliseconds ack_timeout{1000};         ///< command -> ack_seq echo
   std::chrono::milliseconds poll_period{20};           ///< status polling in the wait_* calls
-  std::chrono::milliseconds heartbeat_timeout{1000};   ///< heartbeat unchanged this long = stale = fault
-  double position_tolerance_deg = 0.01;  ///< |actual - target| required on top of the in_position bit
-  bool stop_on_connect = true;           ///< command a safe stop right after connecting (start-up)
+  std::chrono::milliseconds heartbeat_timeout{
+      1000};  ///< heartbeat unchanged this long = stale = fault
+  double position_tolerance_deg =
+      0.01;                     ///< |actual - target| required on top of the in_position bit
+  bool stop_on_connect = true;  ///< command a safe stop right after connecting (start-up)
   std::shared_ptr<spdlog::logger> logger;  ///< null: spdlog's default logger
 };
 
@@ -83,7 +86,8 @@ struct TurntableClientConfig {
 struct TableStatus {
   double outer_deg = 0.0, inner_deg = 0.0;
   double outer_rate_dps = 0.0, inner_rate_dps = 0.0;
-  bool enabled = false, homed = false, moving = false, in_position = false, fault = false, estop = false;
+  bool enabled = false, homed = false, moving = false, in_position = false, fault = false,
+       estop = false;
   uint16_t fault_code = 0;
   uint16_t heartbeat = 0;
   bool heartbeat_stale = false;  ///< heartbeat unchanged for longer than heartbeat_timeout
@@ -104,16 +108,16 @@ enum class State {
 const char* to_string(State s);
 
 struct ClientCounters {
-  uint64_t requests = 0;        ///< Modbus transactions attempted
-  uint64_t timeouts = 0;        ///< transactions that timed out
-  uint64_t bad_responses = 0;   ///< malformed/mismatched replies, nonsense values
-  uint64_t exceptions = 0;      ///< Modbus exception replies
-  uint64_t link_errors = 0;     ///< link failures seen (reset, refused, ...)
-  uint64_t reconnects = 0;      ///< successful re-opens after a link loss
+  uint64_t requests = 0;          ///< Modbus transactions attempted
+  uint64_t timeouts = 0;          ///< transactions that timed out
+  uint64_t bad_responses = 0;     ///< malformed/mismatched replies, nonsense values
+  uint64_t exceptions = 0;        ///< Modbus exception replies
+  uint64_t link_errors = 0;       ///< link failures seen (reset, refused, ...)
+  uint64_t reconnects = 0;        ///< successful re-opens after a link loss
   uint64_t connect_failures = 0;  ///< failed connect attempts (each backoff step)
-  uint64_t commands = 0;        ///< commands acknowledged as accepted
-  uint64_t rejected = 0;        ///< commands acknowledged as rejected
-  uint64_t heartbeat_stale = 0;  ///< transitions into "heartbeat stale"
+  uint64_t commands = 0;          ///< commands acknowledged as accepted
+  uint64_t rejected = 0;          ///< commands acknowledged as rejected
+  uint64_t heartbeat_stale = 0;   ///< transitions into "heartbeat stale"
 };
 
 class TurntableClient {
@@ -137,10 +141,11 @@ class TurntableClient {
   void clear_fault();
   /// Commands homing and waits until homed and in position.
   TableStatus home(std::chrono::milliseconds timeout);
-  /// Writes targets and rate, commands the move and waits for its acknowledgement (not for the motion).
+  /// Writes targets and rate, commands the move and waits for its acknowledgement (not for the
+  /// motion).
   void move_to(double outer_deg, double inner_deg, double rate_dps);
-  /// Waits until the table is in position at the last move_to target. On fault, e-stop, stale heartbeat,
-  /// abort or timeout it commands a safe stop and throws the matching error.
+  /// Waits until the table is in position at the last move_to target. On fault, e-stop, stale
+  /// heartbeat, abort or timeout it commands a safe stop and throws the matching error.
   TableStatus wait_in_position(std::chrono::milliseconds timeout);
   /// Commands a stop (decelerate to standstill) and waits for its acknowledgement.
   void stop();
@@ -165,6 +170,8 @@ class TurntableClient {
 
   bool open_once(std::string* why);
   void open_with_backoff(bool is_reconnect, const std::string& reason);
+  /// AbortedError if request_abort() was called (checked between connection attempts).
+  void throw_if_aborted(const char* what);
   void drop_link();
   template <class Op>
   int transact(const char* what, Op op);
@@ -182,7 +189,8 @@ class TurntableClient {
   std::shared_ptr<spdlog::logger> logger_;
   modbus_t* ctx_ = nullptr;
   uint16_t next_seq_ = 1;
-  std::optional<std::pair<double, double>> target_deg_;  ///< last accepted move target (outer, inner)
+  std::optional<std::pair<double, double>>
+      target_deg_;  ///< last accepted move target (outer, inner)
 
   std::optional<uint16_t> last_heartbeat_;
   std::chrono::steady_clock::time_point heartbeat_changed_at_{};
@@ -195,7 +203,8 @@ class TurntableClient {
         reconnects{0}, connect_failures{0}, commands{0}, rejected{0}, heartbeat_stale{0};
   } n_;
   bool commanded_motion_ = false;  ///< a move/home was accepted: the destructor stops the table
-  bool no_reconnect_ = false;  ///< set while destroying: a best-effort stop must not block on backoff
+  bool no_reconnect_ =
+      false;  ///< set while destroying: a best-effort stop must not block on backoff
 };
 
 }  // namespace imucal::turntable

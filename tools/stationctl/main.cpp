@@ -60,6 +60,8 @@ extern "C" void on_stop_signal(int) { g_stop_following = true; }
 constexpr auto kReplyTimeout = std::chrono::seconds(60);
 /// A read the daemon does not answer in this time is read from the database instead.
 constexpr auto kReadTimeout = std::chrono::seconds(10);
+/// How long --wait looks in the database for the outcome of a run whose daemon went away.
+constexpr auto kOutcomeGrace = std::chrono::seconds(10);
 /// An export of the whole history is built before it is sent (11 s for 100 000 runs here).
 constexpr auto kExportTimeout = std::chrono::seconds(600);
 
@@ -231,7 +233,7 @@ bool is_terminal_state(const std::string& state) {
 
 /// Polls run.status every ~200 ms until the run is terminal, showing a progress line on stderr
 /// (a TTY: rewritten in place; otherwise a new line only when step, phase or state changes).
-int wait_for_run(ControlClient& client, db::RunId run_id, bool json_out);
+int wait_for_run(const Target& target, ControlClient& client, db::RunId run_id, bool json_out);
 
 /// `stationctl import DIR [--wait]`: the daemon reads the archive itself, so the path is made
 /// absolute here (the daemon's working directory is not the user's).
@@ -252,7 +254,7 @@ int cmd_import(const Target& target, const std::string& dir, bool wait, bool jso
     return kOk;
   }
   if (!json_out) std::cerr << head << "\n";
-  return wait_for_run(client, r.at("run_id").get<db::RunId>(), json_out);
+  return wait_for_run(target, client, r.at("run_id").get<db::RunId>(), json_out);
 }
 
 /// `stationctl promote RUN_ID --reason TEXT`: recorded with the caller's user name.
@@ -267,7 +269,25 @@ int cmd_promote(const Target& target, db::RunId run_id, const std::string& reaso
   return kOk;
 }
 
-int wait_for_run(ControlClient& client, db::RunId run_id, bool json_out) {
+/// The daemon went away while a run was followed (SIGTERM, a crash): what the database says of
+/// the run once it is terminal — the daemon records an abort as it stops, recovery a crash when
+/// it starts again. Waits up to kOutcomeGrace for that; nullopt if there is still no outcome.
+std::optional<json> outcome_after_daemon_left(const Target& target, db::RunId run_id) {
+  const auto deadline = std::chrono::steady_clock::now() + kOutcomeGrace;
+  for (;;) {
+    try {
+      const json status = read_request(target, station::cmd::kRunStatus, {{"run_id", run_id}});
+      if (status.contains("run") && is_terminal_state(text(status["run"], "state")))
+        return status["run"];
+    } catch (const Failure&) {
+      // The database is not readable either (yet): try again until the deadline.
+    }
+    if (std::chrono::steady_clock::now() >= deadline) return std::nullopt;
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+}
+
+int wait_for_run(const Target& target, ControlClient& client, db::RunId run_id, bool json_out) {
   const bool tty = ::isatty(STDERR_FILENO) != 0;
   std::string last_key, last_line;
   std::size_t shown_width = 0;
@@ -289,6 +309,13 @@ int wait_for_run(ControlClient& client, db::RunId run_id, bool json_out) {
       status = call(client, station::cmd::kRunStatus, {{"run_id", run_id}});
     } catch (Failure& f) {
       if (tty && shown_width) std::cerr << "\n";  // keep the last progress shown
+      shown_width = 0;
+      if (f.code == kUnavailable) {
+        if (auto outcome = outcome_after_daemon_left(target, run_id)) {
+          run = *outcome;
+          break;
+        }
+      }
       f.message = "while waiting for run " + std::to_string(run_id) + ": " + f.message +
                   " (the run's outcome: `stationctl run status --run " + std::to_string(run_id) +
                   "`)";
@@ -477,7 +504,7 @@ int main(int argc, char** argv) {
         return kOk;
       }
       if (!g.json) std::cerr << "run " << text(r, "run_id", "?") << " started: " << serial << "\n";
-      return wait_for_run(client, r.at("run_id").get<db::RunId>(), g.json);
+      return wait_for_run(target, client, r.at("run_id").get<db::RunId>(), g.json);
     }
     if (*status) {
       json args = json::object();
@@ -572,7 +599,7 @@ int main(int argc, char** argv) {
       }
       if (!g.json)
         std::cerr << "run " << text(r, "run_id", "?") << " reprocesses run " << run_id << "\n";
-      return wait_for_run(client, r.at("run_id").get<db::RunId>(), g.json);
+      return wait_for_run(target, client, r.at("run_id").get<db::RunId>(), g.json);
     }
     if (*diagnose) {
       ControlClient client = connect_or_fail(target);
