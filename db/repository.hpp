@@ -163,7 +163,7 @@ struct RunRecord {
   std::string capture_json;        ///< capture counters (station/capture_stats.hpp) as a JSON
                                    ///< object text; empty if the run stored none (schema v2)
   std::string diagnosis_json;      ///< gap diagnosis summary (archive::diagnosis_summary_json) as a
-                               ///< JSON object text; empty if none was made (schema v3)
+                                   ///< JSON object text; empty if none was made (schema v3)
   calib::Setting setting = calib::Setting::kFactory;  ///< schema v4
   std::string origin;                                 ///< "imported from DIR", or empty
   std::optional<TimestampMs> promoted_at_ms;  ///< set when QA promoted this run (field runs)
@@ -277,6 +277,9 @@ class Repository {
   /// all. InvalidInput for a malformed serial; NotFound if no unit has this serial.
   virtual std::vector<RunRecord> history(const std::string& serial,
                                          std::size_t limit = 0) const = 0;
+  /// How many runs the serial has in all (what `history --limit N` shows N of). NotFound as
+  /// history().
+  virtual std::size_t run_count(const std::string& serial) const = 0;
 
   /// Everything stored about a run. NotFound if there is no such run.
   virtual RunDetails show(RunId run_id) const = 0;

@@ -866,6 +866,17 @@ std::vector<RunRecord> SqliteRepository::history(const std::string& serial,
   return out;  // the read transaction ends (rolls back: nothing was written) with tx
 }
 
+std::size_t SqliteRepository::run_count(const std::string& serial) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  const Impl& d = *impl_;
+  validate_serial(serial);
+  Impl::Tx tx(d, "run_count", false);
+  const std::int64_t unit = d.require_unit(serial);
+  Impl::Stmt q(d, "SELECT COUNT(*) FROM runs WHERE unit_id = ?1", "run_count");
+  q.bind(1, unit);
+  return q.step() ? static_cast<std::size_t>(q.i64(0)) : 0;
+}
+
 RunDetails SqliteRepository::show(RunId run_id) const {
   std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
   const Impl& d = *impl_;

@@ -81,10 +81,11 @@ json run_record_json(const db::RunRecord& run) {
   return db::run_json(run);
 }
 
-json history_result(const std::string& serial, const std::vector<db::RunRecord>& runs) {
+json history_result(const std::string& serial, const std::vector<db::RunRecord>& runs,
+                    std::size_t total) {
   json list = json::array();
   for (const auto& r : runs) list.push_back(run_record_json(r));
-  return {{"serial", serial}, {"runs", std::move(list)}};
+  return {{"serial", serial}, {"runs", std::move(list)}, {"total", std::max(total, runs.size())}};
 }
 
 json show_result(const db::RunDetails& details) {
@@ -123,7 +124,7 @@ json answer_repository_read(const db::Repository& repo, const Request& request) 
   if (request.cmd == cmd::kHistory) {
     const std::string serial = a.at("serial").get<std::string>();
     const std::size_t limit = a.contains("limit") ? a.at("limit").get<std::size_t>() : 0;
-    return history_result(serial, repo.history(serial, limit));
+    return history_result(serial, repo.history(serial, limit), repo.run_count(serial));
   }
   if (request.cmd == cmd::kShow) return show_result(repo.show(a.at("run_id").get<db::RunId>()));
   if (request.cmd == cmd::kParams)
@@ -218,8 +219,13 @@ std::string render_history_text(const json& history) {
     os << "No runs of " << serial << ".\n";
     return os.str();
   }
-  os << "History of " << serial << " (" << runs.size() << (runs.size() == 1 ? " run" : " runs")
-     << ", newest first)\n";
+  const std::size_t total = history.value("total", runs.size());
+  os << "History of " << serial << " (";
+  if (total > runs.size())
+    os << "newest " << runs.size() << " of " << total << " runs";
+  else
+    os << runs.size() << (runs.size() == 1 ? " run" : " runs") << ", newest first";
+  os << ")\n";
   os << pad("RUN", 7) << pad("STARTED (UTC)", 21) << pad("SETTING", 9) << pad("STATE", 13)
      << pad("VERDICT", 9) << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13)
      << pad("GAP (best effect)", 40) << "REASON\n";

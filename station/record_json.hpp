@@ -28,7 +28,9 @@ namespace imucal::station {
 /// db::run_json(run), which includes "capture" (RunRecord::capture_json parsed; null when empty;
 /// db::Corrupt naming the run if the stored text is not a JSON object).
 nlohmann::json run_record_json(const db::RunRecord& run);
-nlohmann::json history_result(const std::string& serial, const std::vector<db::RunRecord>& runs);
+/// `total`: how many runs the serial has in all (runs may be the newest few of them).
+nlohmann::json history_result(const std::string& serial, const std::vector<db::RunRecord>& runs,
+                              std::size_t total);
 nlohmann::json show_result(const db::RunDetails& details);
 /// Exactly the parameter-set JSON of the active (AINS) set with "sigma".
 nlohmann::json params_result(const db::ActiveCalibration& active);

@@ -132,6 +132,14 @@ TEST_F(StationctlTest, HistoryFromTheDatabaseIsNewestFirst) {
   const Proc limited = ctl("history SN-A --limit 2 --json");
   ASSERT_EQ(limited.code, 0) << limited.err;
   EXPECT_EQ(json::parse(limited.out).at("runs").size(), 2u);
+  const std::size_t total = json::parse(ctl("--json history SN-A").out).at("runs").size();
+  ASSERT_GT(total, 2u);
+  EXPECT_EQ(json::parse(limited.out).at("total"), total);
+  // The text says how many of how many it shows (it said "1 run" of many).
+  const Proc one = ctl("history SN-A --limit 1");
+  ASSERT_EQ(one.code, 0) << one.err;
+  EXPECT_NE(one.out.find("(newest 1 of " + std::to_string(total) + " runs)"), std::string::npos)
+      << one.out;
 }
 
 TEST_F(StationctlTest, ShowPrintsTheRunAndItsParameters) {
