@@ -3,6 +3,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "calib/data_check.hpp"
+
 namespace imucal::calib {
 
 namespace {
@@ -52,6 +54,12 @@ PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions
         std::string(
             "NLSQ needs the table's attitude reference (paper §V) and cannot calibrate a ") +
         setting_name(in.setting) + " run; use --method ains or legacy (or all: AINS + legacy)");
+  // A broken stream or a wrong set-up is refused with its symptom before any method runs.
+  if (opt.check_data) {
+    if (opt.on_phase) opt.on_phase("checking the data");
+    std::vector<DataProblem> problems = check_data(in);
+    if (!problems.empty()) throw DataCheckError(std::move(problems));
+  }
   const bool all = sel == MethodSelection::kAll;
   PipelineResult out;
   if (all || sel == MethodSelection::kAins) out.ains = run_method(in, opt, "AINS", run_ains);

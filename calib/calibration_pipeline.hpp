@@ -34,6 +34,9 @@ struct PipelineOptions {
   /// Every method's result is checked (convergence, finiteness, datasheet envelope; the metrics
   /// where no cross-check looks at them). Its metric limits follow `crosscheck`'s.
   LimitCheckOptions limits;
+  /// Sanity checks of the raw data first (calib/data_check.hpp): DataCheckError naming the
+  /// symptom (stuck or clipped channel, wrong fixture orientation, swapped axes, unit not moved).
+  bool check_data = true;
   /// Called with a short phase description ("AINS", "NLSQ", "evaluating AINS", ...) before each
   /// phase, so front ends can show progress. May be empty.
   std::function<void(const std::string&)> on_phase;
@@ -54,7 +57,8 @@ struct PipelineResult {
   bool pass() const { return limits.pass && (!crosscheck || crosscheck->pass); }
 };
 
-/// Throws std::invalid_argument for NLSQ on a land/sea input (it needs the table reference,
+/// Throws DataCheckError (an std::invalid_argument) when the raw data fail the sanity checks,
+/// std::invalid_argument for NLSQ on a land/sea input (it needs the table reference,
 /// paper §V) and whatever the methods throw for bad input.
 PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions& opt = {});
 
