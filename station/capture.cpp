@@ -159,6 +159,7 @@ void Capture::on_sample(const imu::DecodedSample& s, Clock::time_point now) {
   cv_.notify_all();  // wait_for_stream
   // The commanded move reaches the IMU stream: from here on still samples are after the move.
   if (motion_pending_ && is_moving(s.increment)) motion_pending_ = false;
+  if (motion_pending_ && phase_ != Phase::kMoving) ++unseen_move_samples_;
 
   if (!writer_ || writes_disabled_ || fault_) return;
   if (s.status & kFailureBits) {
@@ -284,6 +285,11 @@ std::string Capture::row_label(uint64_t row) const {
          " s)";
 }
 
+uint64_t Capture::unseen_move_samples() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return motion_pending_ ? unseen_move_samples_ : 0;
+}
+
 bool Capture::wait_for_stream(std::chrono::milliseconds timeout) {
   std::unique_lock<std::mutex> lk(mu_);
   const uint64_t seen = samples_seen_;
@@ -338,6 +344,7 @@ void Capture::begin_rest(double outer_deg, double inner_deg, uint64_t rest_sampl
   rest_done_rows_ = 0;
   rest_done_ = false;
   ++rest_generation_;
+  unseen_move_samples_ = 0;
   if (options_.settle_guard_samples == 0 && !motion_pending_) {
     phase_ = rest_samples > 0 ? Phase::kResting : Phase::kRestDone;
     rest_done_ = rest_samples == 0;

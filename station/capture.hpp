@@ -74,6 +74,10 @@ class Capture {
 
   /// True once the stream is live: a sample decodes after this call, within timeout.
   bool wait_for_stream(std::chrono::milliseconds timeout);
+  /// Samples received since the current rest began while the last commanded move has still not
+  /// shown in the IMU stream (0 once it has): a unit that does not turn with the table, or whose
+  /// gyro axis of that rotation is dead, never shows it.
+  uint64_t unseen_move_samples() const;
   /// From the next frame/sample on: frames into capture.log, rows into imu.csv/table.csv. Resets
   /// the row count, the fault and the counters; keeps the table state given so far. The writer
   /// must outlive detach().
@@ -157,7 +161,8 @@ class Capture {
   Phase phase_ = Phase::kIdle;
   double outer_deg_ = 0.0, inner_deg_ = 0.0;
   uint64_t still_run_ = 0, rest_left_ = 0, rest_done_rows_ = 0;
-  bool motion_pending_ = false;  ///< move_commanded() and no moving sample seen since
+  bool motion_pending_ = false;       ///< move_commanded() and no moving sample seen since
+  uint64_t unseen_move_samples_ = 0;  ///< samples since begin_rest() with the move still unseen
   bool rest_done_ = false;
   uint64_t rest_generation_ = 0;
 };

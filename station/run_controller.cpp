@@ -101,6 +101,10 @@ namespace {
 /// Moves longer than this are seen by the IMU (above rest_rate_threshold_dps at any realistic
 /// table acceleration), so the rest after them waits for the motion in the IMU stream.
 constexpr double kVisibleMoveDeg = 0.01;
+/// How long (in IMU samples, as seconds at the configured rate) after a rest begins a commanded
+/// move may still be invisible in the IMU stream before the run fails: a unit that does not turn
+/// with the table never shows it.
+constexpr double kMoveVisibleWithin_s = 5.0;
 
 /// Rest-to-rest time of a trapezoidal (or triangular) move, s.
 double move_time_s(double distance_deg, double rate_dps, double accel_dps2) {
@@ -768,6 +772,14 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
       if (st.heartbeat_stale) throw turntable::HeartbeatError(where + ": PLC heartbeat stuck");
       if (st.moving) throw turntable::MoveTimeoutError(where + ": the table moved during a rest");
       if (cap->rest_rows_done() > 0) set_phase(L, RunPhase::kResting);
+      // The table has arrived; the IMU must have seen the move within a few seconds of samples.
+      if (cap->unseen_move_samples() > static_cast<uint64_t>(kMoveVisibleWithin_s * cfg_.rate_hz))
+        throw CaptureFailure(
+            "the IMU did not show the table's move to outer " + std::to_string(outer) +
+            " deg, inner " + std::to_string(inner) + " deg (" +
+            std::to_string(static_cast<int>(kMoveVisibleWithin_s)) +
+            " s of samples after the table stopped): the unit did not move with the table "
+            "(loose, or not on it), or its gyro axis of that rotation is dead");
       if (Clock::now() >= deadline) {
         throw CaptureFailure("the unit did not come to rest within " + std::to_string(budget_s) +
                              " s (rest rate threshold " +

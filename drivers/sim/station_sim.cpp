@@ -15,8 +15,8 @@ namespace {
 
 void check_probability(double p, const char* name) {
   if (!(p >= 0.0 && p <= 1.0))
-    throw std::invalid_argument(std::string("StationSimConfig.faults.") + name + " must be in [0, 1], got " +
-                                std::to_string(p));
+    throw std::invalid_argument(std::string("StationSimConfig.faults.") + name +
+                                " must be in [0, 1], got " + std::to_string(p));
 }
 
 void check_time(double t, const char* name) {
@@ -26,17 +26,19 @@ void check_time(double t, const char* name) {
 }
 
 /// How long a CAN write may wait for a slow reader before the frames count as refused: long enough
-/// that a live consumer never loses frames (back-pressure slows the simulator instead), short enough
-/// that a hung one cannot stall the table for long.
+/// that a live consumer never loses frames (back-pressure slows the simulator instead), short
+/// enough that a hung one cannot stall the table for long.
 constexpr int kCanWriteTimeoutMs = 500;
 
 }  // namespace
 
 StationSim::StationSim(StationSimConfig cfg) : cfg_(std::move(cfg)) {
   if (!(std::isfinite(cfg_.rate_hz) && cfg_.rate_hz > 0.0))
-    throw std::invalid_argument("StationSimConfig.rate_hz must be positive, got " + std::to_string(cfg_.rate_hz));
+    throw std::invalid_argument("StationSimConfig.rate_hz must be positive, got " +
+                                std::to_string(cfg_.rate_hz));
   if (!(std::isfinite(cfg_.speed) && cfg_.speed > 0.0))
-    throw std::invalid_argument("StationSimConfig.speed must be positive, got " + std::to_string(cfg_.speed));
+    throw std::invalid_argument("StationSimConfig.speed must be positive, got " +
+                                std::to_string(cfg_.speed));
   if (cfg_.can_path.empty()) throw std::invalid_argument("StationSimConfig.can_path is empty");
   const StationSimFaults& f = cfg_.faults;
   check_probability(f.can_loss, "can_loss");
@@ -46,21 +48,26 @@ StationSim::StationSim(StationSimConfig cfg) : cfg_(std::move(cfg)) {
   for (const auto& d : f.modbus_delay) {
     check_time(d.at_s, "modbus_delay.at_s");
     if (d.delay_ms < 0 || d.count < 1)
-      throw std::invalid_argument("StationSimConfig.faults.modbus_delay: delay_ms must be >= 0 and count >= 1");
+      throw std::invalid_argument(
+          "StationSimConfig.faults.modbus_delay: delay_ms must be >= 0 and count >= 1");
   }
   if (f.table_fault) {
     if (f.table_fault->move_number < 1)
-      throw std::invalid_argument("StationSimConfig.faults.table_fault.move_number must be >= 1 (1-based)");
+      throw std::invalid_argument(
+          "StationSimConfig.faults.table_fault.move_number must be >= 1 (1-based)");
     if (!(std::isfinite(f.table_fault->after_s) && f.table_fault->after_s >= 0.0))
       throw std::invalid_argument("StationSimConfig.faults.table_fault.after_s must be >= 0");
     if (f.table_fault->code == 0)
-      throw std::invalid_argument("StationSimConfig.faults.table_fault.code must be non-zero (0 = no fault)");
+      throw std::invalid_argument(
+          "StationSimConfig.faults.table_fault.code must be non-zero (0 = no fault)");
   }
-  // table_time_offset: the PLC's encoder registers lag the motion (TablePlcConfig::encoder_delay_s);
-  // an encoder that leads the motion cannot be simulated by a PLC that only knows the present.
+  // table_time_offset: the PLC's encoder registers lag the motion
+  // (TablePlcConfig::encoder_delay_s); an encoder that leads the motion cannot be simulated by a
+  // PLC that only knows the present.
   if (cfg_.unit.effects.table_time_offset_s < 0.0)
     throw std::invalid_argument(
-        "StationSimConfig.unit.effects: table_time_offset must be >= 0 in the station simulator (the "
+        "StationSimConfig.unit.effects: table_time_offset must be >= 0 in the station simulator "
+        "(the "
         "PLC's encoder can lag the motion, not lead it)");
   cfg_.plc.encoder_delay_s = cfg_.unit.effects.table_time_offset_s;
   // Built here so that whatever the stream refuses is refused before anything listens (every
@@ -160,8 +167,10 @@ void StationSim::run() {
   std::vector<double> drops = cfg_.faults.modbus_drop_at_s;
   std::sort(drops.begin(), drops.end());
   std::vector<StationSimFaults::Delay> delays = cfg_.faults.modbus_delay;
-  std::sort(delays.begin(), delays.end(), [](const auto& a, const auto& b) { return a.at_s < b.at_s; });
+  std::sort(delays.begin(), delays.end(),
+            [](const auto& a, const auto& b) { return a.at_s < b.at_s; });
   size_t next_drop = 0, next_delay = 0;
+  ImuFaultInjector fault(cfg_.faults.imu_fault);
   const auto& table_fault = cfg_.faults.table_fault;
   bool fault_armed = false;
   uint64_t commands_seen = 0;
@@ -216,7 +225,8 @@ void StationSim::run() {
         ++next_drop;
       }
       while (next_delay < delays.size() && delays[next_delay].at_s <= t_next) {
-        server_->delay_replies(std::chrono::milliseconds(delays[next_delay].delay_ms), delays[next_delay].count);
+        server_->delay_replies(std::chrono::milliseconds(delays[next_delay].delay_ms),
+                               delays[next_delay].count);
         ++next_delay;
       }
       calib::ImuIncrement inc;
@@ -242,7 +252,10 @@ void StationSim::run() {
         from_peers.clear();
         channel_->read(from_peers);
       }
-      node_->send(inc);  // outside the PLC lock: a slow CAN reader must not block Modbus replies
+      const uint16_t fault_flags = fault.apply(inc);
+      node_->send(
+          inc,
+          fault_flags);  // outside the PLC lock: a slow CAN reader must not block Modbus replies
       sim_time_s_.store(inc.t_s);
       const ImuCanNodeStats& ns = node_->stats();
       std::lock_guard<std::mutex> lock(mu_);

@@ -1,26 +1,29 @@
 #pragma once
-// StationSim: the simulated station hardware in one process with ONE physics clock (issue #3 item 3).
+// StationSim: the simulated station hardware in one process with ONE physics clock (issue #3 item
+// 3).
 //
-// A Modbus TCP server (ModbusTableServer, created WITHOUT a TimeSource) exposes a TablePlc; an IMU CAN
-// node (ImuCanNode on a unixcan bus the simulator listens on) is mounted on the table. One physics
-// thread owns the clock: the physics time is ScaledRealTime(speed) and, for every IMU sample that is
-// due, the thread steps the PLC to the sample's quadrature nodes (under table_server().with_plc())
-// and reads the table's ACTUAL state there, so the increments (calib::TruthStream) follow the motion
-// the PLC really performed — including moves commanded over Modbus a moment ago, stops and faults.
-// Frames are sent outside the PLC lock. Samples behind the clock (a slow consumer, back-pressure on
-// the bus) are caught up, never skipped: table and IMU always share the physics time.
+// A Modbus TCP server (ModbusTableServer, created WITHOUT a TimeSource) exposes a TablePlc; an IMU
+// CAN node (ImuCanNode on a unixcan bus the simulator listens on) is mounted on the table. One
+// physics thread owns the clock: the physics time is ScaledRealTime(speed) and, for every IMU
+// sample that is due, the thread steps the PLC to the sample's quadrature nodes (under
+// table_server().with_plc()) and reads the table's ACTUAL state there, so the increments
+// (calib::TruthStream) follow the motion the PLC really performed — including moves commanded over
+// Modbus a moment ago, stops and faults. Frames are sent outside the PLC lock. Samples behind the
+// clock (a slow consumer, back-pressure on the bus) are caught up, never skipped: table and IMU
+// always share the physics time.
 //
-// The IMU streams continuously from start() on (at rest or moving), like a unit powered on the table.
-// Faults are scheduled on the physics clock (StationSimFaults) or injected at run time.
+// The IMU streams continuously from start() on (at rest or moving), like a unit powered on the
+// table. Faults are scheduled on the physics clock (StationSimFaults) or injected at run time.
 //
 // The unit's catalogue effects (DESIGN §7, config.unit.effects) are withheld from the station and
-// streamed like calib::simulate() injects them: the sensor, stochastic and site effects by TruthStream
-// (config.site is the site the station believes; the physics runs at the true one); the table's
-// imperfections in the true attitude; the size effect with its quadrature split where the PLC's
-// acceleration jumps (TablePlc::accel_switch_times, after a scan at the interval start); the
-// table_time_offset δt >= 0 as a lagging encoder: the PLC's actual-angle and rate registers show the
-// motion of δt ago (TablePlcConfig::encoder_delay_s) while the IMU follows the motion itself — the
-// same clock, the encoder reading late. A negative δt (an encoder ahead of the motion) is refused.
+// streamed like calib::simulate() injects them: the sensor, stochastic and site effects by
+// TruthStream (config.site is the site the station believes; the physics runs at the true one); the
+// table's imperfections in the true attitude; the size effect with its quadrature split where the
+// PLC's acceleration jumps (TablePlc::accel_switch_times, after a scan at the interval start); the
+// table_time_offset δt >= 0 as a lagging encoder: the PLC's actual-angle and rate registers show
+// the motion of δt ago (TablePlcConfig::encoder_delay_s) while the IMU follows the motion itself —
+// the same clock, the encoder reading late. A negative δt (an encoder ahead of the motion) is
+// refused.
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -33,6 +36,7 @@
 #include "calib/site_presets.hpp"
 #include "calib/table_model.hpp"
 #include "calib/truth_sim.hpp"
+#include "drivers/sim/imu_fault.hpp"
 #include "drivers/sim/modbus_table_server.hpp"
 #include "drivers/sim/table_plc.hpp"
 
@@ -60,6 +64,7 @@ struct StationSimFaults {
     uint16_t code;
   };  // 1-based accepted move
   std::optional<TableFault> table_fault;
+  ImuFault imu_fault;  // a broken or wrongly mounted unit (drivers/sim/imu_fault.hpp)
 };
 
 struct StationSimConfig {
@@ -74,9 +79,10 @@ struct StationSimConfig {
   uint64_t seed = 1;
   StationSimFaults faults;
   // --- additions beyond the contract ---
-  /// false (default, like a real unit): the IMU streams from start(). true: the physics clock (t = 0,
-  /// IMU power-up, PLC) starts when the first CAN peer has connected, so that a test or benchmark
-  /// receiver sees every frame from the first one; the Modbus server answers from start() either way.
+  /// false (default, like a real unit): the IMU streams from start(). true: the physics clock (t =
+  /// 0, IMU power-up, PLC) starts when the first CAN peer has connected, so that a test or
+  /// benchmark receiver sees every frame from the first one; the Modbus server answers from start()
+  /// either way.
   bool wait_for_can_peer = false;
 };
 
@@ -86,7 +92,8 @@ struct StationSimStats {
       modbus_requests;
   double achieved_speed;
   // --- additions beyond the contract ---
-  uint64_t frames_refused;  ///< frames a CAN reader did not take within the write timeout (0 normally)
+  uint64_t
+      frames_refused;  ///< frames a CAN reader did not take within the write timeout (0 normally)
 };
 
 class StationSim {  // one physics thread: steps the PLC and emits each IMU sample from the
@@ -133,8 +140,8 @@ class StationSim {  // one physics thread: steps the PLC and emits each IMU samp
   mutable std::mutex mu_;  // guards error_ and the node stats snapshot
   std::string error_;
   struct NodeSnapshot {
-    uint64_t samples_sent = 0, frames_sent = 0, frames_lost = 0, frames_corrupted = 0, frames_refused = 0,
-             imu_resets = 0;
+    uint64_t samples_sent = 0, frames_sent = 0, frames_lost = 0, frames_corrupted = 0,
+             frames_refused = 0, imu_resets = 0;
     double sim_time_s = 0.0;
   } node_stats_;
   double wall_elapsed_s_ = 0.0;

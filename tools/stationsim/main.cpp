@@ -1,14 +1,13 @@
-// stationsim: the simulated station hardware (turntable PLC on Modbus TCP + IMU on a unixcan bus) in one
-// process with one physics clock. CLI: station contract §A (helpers/station_contract.md); run
-// `stationsim --help`. Exit codes: 0 clean exit (SIGTERM/SIGINT, --duration-s reached), 1 runtime
-// failure (cannot listen, the physics thread failed), 2 bad input (flag or unit file).
-#include <CLI/CLI.hpp>
-#include <nlohmann/json.hpp>
+// stationsim: the simulated station hardware (turntable PLC on Modbus TCP + IMU on a unixcan bus)
+// in one process with one physics clock. CLI: station contract §A (helpers/station_contract.md);
+// run `stationsim --help`. Exit codes: 0 clean exit (SIGTERM/SIGINT, --duration-s reached), 1
+// runtime failure (cannot listen, the physics thread failed), 2 bad input (flag or unit file).
 #include <signal.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
@@ -18,6 +17,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -25,8 +25,8 @@
 
 #include "calib/conventions.hpp"
 #include "calib/earth.hpp"
-#include "calib/site_presets.hpp"
 #include "calib/effects.hpp"
+#include "calib/site_presets.hpp"
 #include "db/archive/unit_file.hpp"
 #include "drivers/sim/station_sim.hpp"
 
@@ -93,11 +93,13 @@ StationSimFaults::Delay parse_delay(const std::string& text) {
 
 StationSimFaults::TableFault parse_table_fault(const std::string& text) {
   const auto p = split(text, ':');
-  if (p.empty() || p.size() > 3) throw BadInput("--table-fault-move: '" + text + "' is not N[:AFTER_S[:CODE]]");
+  if (p.empty() || p.size() > 3)
+    throw BadInput("--table-fault-move: '" + text + "' is not N[:AFTER_S[:CODE]]");
   StationSimFaults::TableFault f{};
   f.move_number = static_cast<int>(to_int(p[0], "--table-fault-move N", 1, 1'000'000));
   f.after_s = p.size() > 1 ? to_double(p[1], "--table-fault-move AFTER_S") : 1.0;
-  f.code = static_cast<uint16_t>(p.size() > 2 ? to_int(p[2], "--table-fault-move CODE", 1, 65535) : 17);
+  f.code =
+      static_cast<uint16_t>(p.size() > 2 ? to_int(p[2], "--table-fault-move CODE", 1, 65535) : 17);
   if (f.after_s < 0) throw BadInput("--table-fault-move: AFTER_S must be >= 0, got '" + p[1] + "'");
   return f;
 }
@@ -133,20 +135,22 @@ nlohmann::json stats_json(const StationSimStats& s) {
 }
 
 void print_status(const StationSimStats& s) {
-  std::fprintf(stderr,
-               "stationsim: t=%.1f s sim, speed %.1fx, samples %llu, frames %llu (lost %llu, corrupted "
-               "%llu), modbus requests %llu\n",
-               s.sim_time_s, s.achieved_speed, static_cast<unsigned long long>(s.samples_sent),
-               static_cast<unsigned long long>(s.frames_sent), static_cast<unsigned long long>(s.frames_lost),
-               static_cast<unsigned long long>(s.frames_corrupted),
-               static_cast<unsigned long long>(s.modbus_requests));
+  std::fprintf(
+      stderr,
+      "stationsim: t=%.1f s sim, speed %.1fx, samples %llu, frames %llu (lost %llu, corrupted "
+      "%llu), modbus requests %llu\n",
+      s.sim_time_s, s.achieved_speed, static_cast<unsigned long long>(s.samples_sent),
+      static_cast<unsigned long long>(s.frames_sent),
+      static_cast<unsigned long long>(s.frames_lost),
+      static_cast<unsigned long long>(s.frames_corrupted),
+      static_cast<unsigned long long>(s.modbus_requests));
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  // SIGTERM/SIGINT are taken synchronously by the main thread (sigtimedwait below); block them before
-  // any thread starts so that every thread inherits the mask.
+  // SIGTERM/SIGINT are taken synchronously by the main thread (sigtimedwait below); block them
+  // before any thread starts so that every thread inherits the mask.
   sigset_t sigs;
   sigemptyset(&sigs);
   sigaddset(&sigs, SIGTERM);
@@ -157,7 +161,8 @@ int main(int argc, char** argv) {
   // Library logs go to stderr: stdout carries only the ready line (a harness reads it).
   spdlog::set_default_logger(spdlog::stderr_color_mt("stationsim"));
 
-  CLI::App app{"stationsim: simulated turntable (Modbus TCP) and IMU (CAN over unixcan), one physics clock"};
+  CLI::App app{
+      "stationsim: simulated turntable (Modbus TCP) and IMU (CAN over unixcan), one physics clock"};
   std::string modbus = "127.0.0.1:1502", can_path, unit_path, truth_out, ready_file, stats_file;
   double speed = 100.0, rate_hz = 100.0, duration_s = -1.0;
   uint64_t seed = 1;
@@ -169,12 +174,15 @@ int main(int argc, char** argv) {
   std::vector<double> reset_at, drop_at;
   std::vector<std::string> delay_at;
   std::string table_fault;
+  std::string imu_fault;
   app.add_option("--modbus", modbus, "Modbus TCP listen address ADDR:PORT (port 0 = a free port)");
-  app.add_option("--can", can_path, "unixcan bus socket path (the simulator is the bus)")->required();
+  app.add_option("--can", can_path, "unixcan bus socket path (the simulator is the bus)")
+      ->required();
   app.add_option("--unit", unit_path, "unit file (db/archive format); default: the default unit");
   std::vector<std::string> effect_specs;
-  app.add_option("--effect", effect_specs,
-                 "inject a catalogue effect, NAME=V[,V...] in SI (repeatable; imucal effects lists them)")
+  app.add_option(
+         "--effect", effect_specs,
+         "inject a catalogue effect, NAME=V[,V...] in SI (repeatable; imucal effects lists them)")
       ->take_all();
   app.add_option("--speed", speed, "sim seconds per wall second");
   app.add_option("--rate-hz", rate_hz, "IMU sample rate");
@@ -182,18 +190,27 @@ int main(int argc, char** argv) {
   app.add_option("--lat-deg", lat_deg, "site latitude, deg");
   app.add_option("--lon-deg", lon_deg, "site longitude, deg");
   app.add_option("--height-m", height_m, "site height, m");
-  app.add_option("--gravity-mps2", gravity, "surveyed gravity, m/s^2 (default: normal gravity at the site)");
+  app.add_option("--gravity-mps2", gravity,
+                 "surveyed gravity, m/s^2 (default: normal gravity at the site)");
   app.add_option("--can-loss", can_loss, "per-frame CAN loss probability");
   app.add_option("--can-corrupt", can_corrupt, "per-frame CAN corruption probability");
   app.add_option("--imu-reset-at", reset_at, "IMU reset at this sim time, s (repeatable)");
-  app.add_option("--modbus-drop-at", drop_at, "drop every Modbus connection at this sim time, s (repeatable)");
-  app.add_option("--modbus-delay-at", delay_at, "T:MS:COUNT: from sim time T hold back COUNT replies by MS ms");
-  app.add_option("--table-fault-move", table_fault, "N[:AFTER_S[:CODE]]: table fault AFTER_S (1.0) into accepted "
-                                                    "move N, fault code CODE (17)");
+  app.add_option("--modbus-drop-at", drop_at,
+                 "drop every Modbus connection at this sim time, s (repeatable)");
+  app.add_option("--modbus-delay-at", delay_at,
+                 "T:MS:COUNT: from sim time T hold back COUNT replies by MS ms");
+  app.add_option("--table-fault-move", table_fault,
+                 "N[:AFTER_S[:CODE]]: table fault AFTER_S (1.0) into accepted "
+                 "move N, fault code CODE (17)");
+  app.add_option("--imu-fault", imu_fault,
+                 "a broken or wrongly mounted unit: stuck:CH, swap:gyro-xy, flip:CH, not-on-table, "
+                 "fixture-rot90, saturate:DPS (CH: gyro-x .. accel-z)");
   app.add_option("--truth-out", truth_out, "write the unit's truth.json here");
-  app.add_option("--ready-file", ready_file, "write {pid, modbus, can, speed} JSON here once listening");
+  app.add_option("--ready-file", ready_file,
+                 "write {pid, modbus, can, speed} JSON here once listening");
   app.add_option("--stats-file", stats_file, "write the final statistics JSON here on exit");
-  app.add_option("--duration-s", duration_s, "exit after this much sim time (default: run until signalled)");
+  app.add_option("--duration-s", duration_s,
+                 "exit after this much sim time (default: run until signalled)");
   bool wait_for_can_peer = false;
   app.add_flag("--wait-for-can-peer", wait_for_can_peer,
                "start the physics clock when the first CAN peer connects (benchmarks, tests)");
@@ -217,7 +234,8 @@ int main(int argc, char** argv) {
       } catch (const std::exception& e) {
         const std::string what = e.what();
         // The archive reader names the file and line; make sure the file is named either way.
-        throw BadInput("--unit: " + (what.find(unit_path) == std::string::npos ? unit_path + ": " : "") + what);
+        throw BadInput("--unit: " +
+                       (what.find(unit_path) == std::string::npos ? unit_path + ": " : "") + what);
       }
     }
     // Effects of the catalogue (calib/effects.hpp) on top of the unit, withheld from the station.
@@ -241,13 +259,16 @@ int main(int argc, char** argv) {
     cfg.site.lon_rad = lon_deg * imucal::kDegToRad;
     cfg.site.height_m = height_m;
     if (std::isnan(gravity)) {
-      cfg.site.gravity_mps2 = imucal::calib::EarthModel::normal_gravity_mps2(cfg.site.lat_rad, height_m);
+      cfg.site.gravity_mps2 =
+          imucal::calib::EarthModel::normal_gravity_mps2(cfg.site.lat_rad, height_m);
     } else {
-      if (!(gravity > 9.7 && gravity < 9.9)) throw BadInput("--gravity-mps2: must be in (9.7, 9.9)");
+      if (!(gravity > 9.7 && gravity < 9.9))
+        throw BadInput("--gravity-mps2: must be in (9.7, 9.9)");
       cfg.site.gravity_mps2 = gravity;
     }
     if (!(can_loss >= 0.0 && can_loss <= 1.0)) throw BadInput("--can-loss: must be in [0, 1]");
-    if (!(can_corrupt >= 0.0 && can_corrupt <= 1.0)) throw BadInput("--can-corrupt: must be in [0, 1]");
+    if (!(can_corrupt >= 0.0 && can_corrupt <= 1.0))
+      throw BadInput("--can-corrupt: must be in [0, 1]");
     cfg.faults.can_loss = can_loss;
     cfg.faults.can_corrupt = can_corrupt;
     for (double t : reset_at)
@@ -258,6 +279,13 @@ int main(int argc, char** argv) {
     cfg.faults.modbus_drop_at_s = drop_at;
     for (const auto& d : delay_at) cfg.faults.modbus_delay.push_back(parse_delay(d));
     if (!table_fault.empty()) cfg.faults.table_fault = parse_table_fault(table_fault);
+    if (!imu_fault.empty()) {
+      try {
+        cfg.faults.imu_fault = imucal::sim::parse_imu_fault(imu_fault);
+      } catch (const std::invalid_argument& e) {
+        throw BadInput(e.what());
+      }
+    }
   } catch (const BadInput& e) {
     std::fprintf(stderr, "stationsim: %s\n", e.what());
     return 2;
@@ -267,8 +295,8 @@ int main(int argc, char** argv) {
   try {
     sim = std::make_unique<StationSim>(cfg);
   } catch (const std::invalid_argument& e) {
-    std::fprintf(stderr, "stationsim: %s%s\n", unit_path.empty() ? "" : ("--unit " + unit_path + ": ").c_str(),
-                 e.what());
+    std::fprintf(stderr, "stationsim: %s%s\n",
+                 unit_path.empty() ? "" : ("--unit " + unit_path + ": ").c_str(), e.what());
     return 2;
   }
 
@@ -300,7 +328,8 @@ int main(int argc, char** argv) {
     // Wake at most every 100 ms wall, sooner when --duration-s is about to be reached.
     long wait_ns = 100'000'000;
     if (duration_s >= 0.0)
-      wait_ns = std::clamp(static_cast<long>((duration_s - sim->time_s()) / speed * 1e9), 200'000L, wait_ns);
+      wait_ns = std::clamp(static_cast<long>((duration_s - sim->time_s()) / speed * 1e9), 200'000L,
+                           wait_ns);
     const timespec wait{0, wait_ns};
     const int sig = sigtimedwait(&sigs, nullptr, &wait);
     if (sig == SIGTERM || sig == SIGINT) {
