@@ -9,7 +9,7 @@ PKGS=(build-essential cmake ccache pkg-config
       libbenchmark-dev
       can-utils python3-can python3-canmatrix mbpoll
       libsystemd-dev qemu-system-x86 linux-image-amd64 busybox-static cpio iproute2 xz-utils binutils
-      chromium)
+      chromium clang-16 libclang-rt-16-dev)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,8 +1,17 @@
 #!/usr/bin/env bash
 # The whole test suite: set up (packages, configure, build), then ctest.
-# IMUCAL_SLOW=1 runs the slow Monte Carlo set with its full seed count.
+# IMUCAL_SLOW=1 runs the slow Monte Carlo set with its full seed count; IMUCAL_SKIP_FUZZ=1 skips
+# the fuzzing stage.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh
-cd build
-ctest --output-on-failure -j2 --timeout 1500
+(cd build && ctest --output-on-failure -j2 --timeout 1500)
+
+# Fuzzing (issue #10, tests/fuzz/README.md): the libFuzzer targets built with clang-16 under
+# ASan + UBSan (only they and the libraries they need), then a bounded run of each (30 s).
+if [ "${IMUCAL_SKIP_FUZZ:-0}" != 1 ]; then
+  CC=clang-16 CXX=clang++-16 cmake -S . -B build-fuzz -DIMUCAL_FUZZ=ON -DCMAKE_BUILD_TYPE=None \
+    -DCMAKE_CXX_FLAGS=-O1 -DCMAKE_CXX_COMPILER_LAUNCHER=ccache >/dev/null
+  cmake --build build-fuzz -j2 --target fuzz_targets
+  (cd build-fuzz && ctest -L fuzz -j2 --output-on-failure)
+fi
