@@ -5,6 +5,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <limits>
 #include <utility>
 
 namespace imucal::imu {
@@ -95,6 +96,9 @@ CandumpRecord parse_candump_line(std::string_view line) {
     if (num[i] < '0' || num[i] > '9') fail("timestamp '" + std::string(ts) + "' is not a number");
     sec = sec * 10 + (num[i] - '0');
   }
+  // Nanoseconds in int64 reach year 2262: a later time is not a capture (found by fuzzing).
+  if (sec > std::numeric_limits<int64_t>::max() / 1000000000 - 1)
+    fail("timestamp '" + std::string(ts) + "' is out of range (after the year 2262)");
   const std::size_t nfrac = num.size() - dot - 1;
   if (nfrac > 9) fail("timestamp '" + std::string(ts) + "' has more than 9 fraction digits");
   for (std::size_t i = 0; i < 9; ++i) {

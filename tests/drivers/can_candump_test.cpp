@@ -91,6 +91,9 @@ TEST(CandumpFormat, BadLinesAreRefusedWithTheReason) {
                           "(1.0) can0 123#000000000000000000", "(1.0) can0 123##1AABB", "(1.0) can0 123#R9",
                           "(1.0) can0 123#00 X", "(1.0) can0 E0000000#00", "(1.1234567890) can0 123#"})
     EXPECT_THROW(parse_candump_line(bad), std::invalid_argument) << "'" << bad << "'";
+  // Found by fuzzing: a time past int64 nanoseconds (year 2262) overflowed instead of refusing.
+  EXPECT_THROW(parse_candump_line("(170000000000.000000) can0 123#00"), std::invalid_argument);
+  EXPECT_NO_THROW(parse_candump_line("(9223372035.000000) can0 123#00"));
 }
 
 TEST(CandumpLog, WriterOutputIsParsedBackExactly) {
