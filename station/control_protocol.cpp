@@ -216,6 +216,13 @@ Request parse_request(std::string_view line) {
     if (what.rfind("[json.exception", 0) == 0 && colon != std::string::npos)
       what = what.substr(colon + 3);
     throw BadRequest(nullptr, "", "request is not valid JSON (" + what + "): " + excerpt(line));
+  } catch (const json::exception& e) {
+    // Not a syntax error but still no request: a number beyond double's range ("1e99999",
+    // out_of_range 406 — found by fuzzing; it used to escape as an internal error).
+    std::string what = e.what();
+    const auto bracket = what.find("] ");
+    if (bracket != std::string::npos) what = what.substr(bracket + 2);
+    throw BadRequest(nullptr, "", "request is not valid JSON (" + what + "): " + excerpt(line));
   }
   return validate_request(j);
 }
@@ -328,7 +335,7 @@ Reply parse_reply(std::string_view line) {
   json j;
   try {
     j = json::parse(line.begin(), line.end());
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
     throw std::runtime_error(std::string("reply is not valid JSON: ") + e.what());
   }
   if (!j.is_object()) throw std::runtime_error("reply is not a JSON object");

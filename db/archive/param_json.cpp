@@ -150,6 +150,13 @@ json parse_json_text(const std::string& text, const std::string& origin) {
     throw ArchiveError(
         origin, line,
         "invalid JSON: " + (colon == std::string::npos ? what : what.substr(colon + 2)));
+  } catch (const json::exception& e) {
+    // E.g. out_of_range 406, a number beyond double's range (found by fuzzing): no position.
+    std::string what = e.what();
+    const size_t bracket = what.find("] ");
+    throw ArchiveError(
+        origin,
+        "invalid JSON: " + (bracket == std::string::npos ? what : what.substr(bracket + 2)));
   }
 }
 

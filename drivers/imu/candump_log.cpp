@@ -42,7 +42,8 @@ std::string_view next_token(std::string_view& rest) {
 }  // namespace
 
 CandumpParseError::CandumpParseError(std::string file, std::size_t line, const std::string& reason)
-    : std::runtime_error(file + ":" + (line ? std::to_string(line) + ":" : std::string()) + " " + reason),
+    : std::runtime_error(file + ":" + (line ? std::to_string(line) + ":" : std::string()) + " " +
+                         reason),
       file_(std::move(file)),
       line_(line) {}
 
@@ -57,7 +58,8 @@ std::string format_candump_line(const ReceivedFrame& rf, std::string_view interf
   std::string s;
   s.reserve(48 + interface.size());
   char ts[40];
-  std::snprintf(ts, sizeof ts, "(%010lld.%06lld) ", static_cast<long long>(rf.rx_time_ns / 1000000000),
+  std::snprintf(ts, sizeof ts, "(%010lld.%06lld) ",
+                static_cast<long long>(rf.rx_time_ns / 1000000000),
                 static_cast<long long>((rf.rx_time_ns % 1000000000) / 1000));
   s += ts;
   s += interface;
@@ -127,7 +129,8 @@ CandumpRecord parse_candump_line(std::string_view line) {
   const std::string_view id_text = frame.substr(0, hash);
   std::string_view data = frame.substr(hash + 1);
   if (id_text.size() != 3 && id_text.size() != 8)
-    fail("identifier '" + std::string(id_text) + "' must have 3 (standard) or 8 (extended) hex digits");
+    fail("identifier '" + std::string(id_text) +
+         "' must have 3 (standard) or 8 (extended) hex digits");
   uint32_t id = 0;
   for (char c : id_text) {
     const int v = hex_value(c);
@@ -160,10 +163,13 @@ CandumpRecord parse_candump_line(std::string_view line) {
       data.remove_prefix(1);
       continue;
     }
-    if (data.size() < 2) fail("data '" + std::string(frame.substr(hash + 1)) + "' has an odd number of hex digits");
+    if (data.size() < 2)
+      fail("data '" + std::string(frame.substr(hash + 1)) + "' has an odd number of hex digits");
     const int hi = hex_value(data[0]), lo = hex_value(data[1]);
-    if (hi < 0 || lo < 0) fail("data '" + std::string(frame.substr(hash + 1)) + "' is not hexadecimal");
-    if (n == kCanMaxDataLength) fail("frame '" + std::string(frame) + "' has more than 8 data bytes");
+    if (hi < 0 || lo < 0)
+      fail("data '" + std::string(frame.substr(hash + 1)) + "' is not hexadecimal");
+    if (n == kCanMaxDataLength)
+      fail("frame '" + std::string(frame) + "' has more than 8 data bytes");
     f.data[n++] = static_cast<uint8_t>((hi << 4) | lo);
     data.remove_prefix(2);
   }
@@ -196,7 +202,9 @@ bool CandumpReader::next(CandumpRecord& record) {
       }
       line_.push_back(static_cast<char>(c));
     }
-    if (std::ferror(file_)) throw CandumpParseError(path_, line_no_ + 1, std::string("read error: ") + std::strerror(errno));
+    if (std::ferror(file_))
+      throw CandumpParseError(path_, line_no_ + 1,
+                              std::string("read error: ") + std::strerror(errno));
     if (!newline && line_.empty()) return false;
     ++line_no_;
     if (line_.find_first_not_of(" \t\r") == std::string::npos) continue;

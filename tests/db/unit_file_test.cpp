@@ -220,7 +220,8 @@ TEST(TruthJson, RoundTripIsBitExact) {
   u.effects.table_time_offset_s = 0.004;
   u.noise.gyro_bias_instability_radps = 1.234567890123e-9;
   const Truth t = truth_from_unit(u);
-  ASSERT_EQ(t.effect_names(), (std::vector<std::string>{"accel_quadratic_k2", "table_time_offset"}));
+  ASSERT_EQ(t.effect_names(),
+            (std::vector<std::string>{"accel_quadratic_k2", "table_time_offset"}));
   const Truth r = parse_truth_json(truth_json_text(t), "truth.json");
   const auto a = t.params.to_vector(), b = r.params.to_vector();
   EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * calib::ParamSet::kSize), 0);
@@ -237,19 +238,24 @@ TEST(TruthJson, EveryCatalogueEffectRoundTripsWithItsValues) {
   std::uniform_real_distribution<double> f(0.5, 2.0);
   for (const auto& e : calib::effect_catalogue()) {
     Eigen::VectorXd v(e.size());
-    for (int i = 0; i < e.size(); ++i) v(i) = e.typical[static_cast<size_t>(i)] * f(rng) + (e.typical[static_cast<size_t>(i)] == 0.0 ? 1e-3 * f(rng) : 0.0);
+    for (int i = 0; i < e.size(); ++i)
+      v(i) = e.typical[static_cast<size_t>(i)] * f(rng) +
+             (e.typical[static_cast<size_t>(i)] == 0.0 ? 1e-3 * f(rng) : 0.0);
     calib::set_effect_vector(u.effects, e.id, v);
   }
   const Truth t = truth_from_unit(u);
   ASSERT_EQ(t.effect_names().size(), calib::effect_catalogue().size());
   const std::string text = truth_json_text(t);
   const nlohmann::json j = nlohmann::json::parse(text);
-  EXPECT_DOUBLE_EQ(j["effects"]["accel_quadratic_k2"]["k2_x"].get<double>(), u.effects.accel_k2_per_mps2(0));
+  EXPECT_DOUBLE_EQ(j["effects"]["accel_quadratic_k2"]["k2_x"].get<double>(),
+                   u.effects.accel_k2_per_mps2(0));
   EXPECT_DOUBLE_EQ(j["effects"]["thermal_drift"]["tau"].get<double>(), u.effects.thermal_tau_s);
   const Truth r = parse_truth_json(text, "truth.json");
   for (const auto& e : calib::effect_catalogue()) {
-    const Eigen::VectorXd a = calib::effect_vector(t.effects, e.id), b = calib::effect_vector(r.effects, e.id);
-    EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(e.size())), 0) << e.name;
+    const Eigen::VectorXd a = calib::effect_vector(t.effects, e.id),
+                          b = calib::effect_vector(r.effects, e.id);
+    EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(e.size())), 0)
+        << e.name;
   }
 }
 
@@ -258,7 +264,8 @@ TEST(TruthJson, OlderListOfNamesIsStillReadWithValuesUnknown) {
   j["effects"] = {"accel_quadratic_k2", "table_time_offset"};
   const Truth r = parse_truth_json(j.dump(), "old/truth.json");
   EXPECT_FALSE(r.effect_values_known);
-  EXPECT_EQ(r.effect_names(), (std::vector<std::string>{"accel_quadratic_k2", "table_time_offset"}));
+  EXPECT_EQ(r.effect_names(),
+            (std::vector<std::string>{"accel_quadratic_k2", "table_time_offset"}));
   EXPECT_FALSE(r.effects.any());
 }
 
@@ -300,8 +307,14 @@ TEST(TruthJson, StrictFieldErrors) {
   j["effects"] = {{"gravity_error", {{"dg", "big"}}}};
   EXPECT_EQ(err(j).field(), "effects.gravity_error.dg");
   j = good;
-  j["effects"] = {{"thermal_drift", {{"accel_x", 0}, {"accel_y", 0}, {"accel_z", 0}, {"gyro_x", 0},
-                                     {"gyro_y", 0}, {"gyro_z", 1e-8}, {"tau", -5.0}}}};
+  j["effects"] = {{"thermal_drift",
+                   {{"accel_x", 0},
+                    {"accel_y", 0},
+                    {"accel_z", 0},
+                    {"gyro_x", 0},
+                    {"gyro_y", 0},
+                    {"gyro_z", 1e-8},
+                    {"tau", -5.0}}}};
   EXPECT_EQ(err(j).field(), "effects.thermal_drift");  // τ must be > 0
   j = good;
   j["params"]["accel_M"][0][1] = "x";
@@ -378,4 +391,16 @@ TEST(UnitFile, EffectMistakesAreNamedWithTheirLine) {
 }
 
 }  // namespace
+// Found by fuzzing: a number beyond double's range in truth.json escaped as nlohmann's
+// out_of_range; it is an ArchiveError naming the file like every other bad JSON.
+TEST(UnitFile, TruthJsonNumberOutOfRangeIsABadInputError) {
+  try {
+    parse_truth_json("{\"params\": {\"accel_bias_mps2\": [4e807, 0, 0]}}", "run/truth.json");
+    FAIL() << "accepted";
+  } catch (const ArchiveError& e) {
+    EXPECT_NE(std::string(e.what()).find("run/truth.json"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("invalid JSON"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace imucal::archive

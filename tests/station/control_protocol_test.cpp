@@ -176,6 +176,15 @@ TEST(ControlProtocol, OversizeLineIsRefusedWithoutParsing) {
   EXPECT_NE(r.message.find("exceeds the limit of 1048576 bytes"), std::string::npos) << r.message;
 }
 
+// Found by fuzzing: a number beyond double's range is not a syntax error to nlohmann (it throws
+// out_of_range); it must still be a bad request, not an internal error.
+TEST(ControlProtocol, NumberOutOfRangeIsABadRequest) {
+  const Refusal r = refuse(R"({"id":1e99999,"cmd":"ping"})");
+  EXPECT_NE(r.message.find("not valid JSON"), std::string::npos) << r.message;
+  const Refusal a = refuse(R"({"id":2,"cmd":"history","args":{"serial":"S","limit":9e999}})");
+  EXPECT_NE(a.message.find("not valid JSON"), std::string::npos) << a.message;
+}
+
 TEST(ControlProtocol, InvalidUtf8InARequestIsAnErrorNotACrash) {
   const Refusal r = refuse(std::string("{\"id\":1,\"cmd\":\"\xff\xfe\"}"));
   EXPECT_NE(r.message.find("not valid JSON"), std::string::npos) << r.message;
