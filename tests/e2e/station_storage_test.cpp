@@ -135,7 +135,8 @@ TEST(StationStorage, ReadOnlyDataDiskRefusesRunsAndRecovers) {
   // Whether refused at the start or failed at once: never good.
   const CmdResult params = st.ctl({"--json", "history", "SIM-0721"});
   if (params.exit_code == 0) {
-    for (const auto& r : params.json_out()["runs"]) EXPECT_NE(r.value("state", ""), "done") << r.dump(2);
+    const json runs = params.json_out()["runs"];  // a copy: the range-for must not outlive it
+    for (const auto& r : runs) EXPECT_NE(r.value("state", ""), "done") << r.dump(2);
   }
 }
 
