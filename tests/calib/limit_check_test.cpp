@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "calib/truth_sim.hpp"
+#include "plausible_result.hpp"
 
 using namespace imucal;
 using namespace imucal::calib;
@@ -16,17 +17,7 @@ using namespace imucal::calib;
 namespace {
 
 CalibrationResult healthy(const std::string& method) {
-  CalibrationResult r;
-  r.method = method;
-  r.params = default_unit().params;
-  r.sigma.accel_bias_mps2.setConstant(3.0 * kMicroG_mps2);
-  r.sigma.accel_M.setConstant(5e-6);
-  r.sigma.gyro_bias_radps.setConstant(0.001 * kDegPerHourToRadPerSec);
-  r.sigma.gyro_M.setConstant(4e-6);
-  r.sigma.table_misalignment_rad.setConstant(1.0 * kArcsecToRad);
-  r.converged = true;
-  r.iterations = 4;
-  return r;
+  return calib::testing::plausible_result(method);
 }
 
 EvaluationMetrics metrics(double orientation_mdeg, double accel_ug) {
