@@ -30,8 +30,10 @@ TEST(StationAbort, AbortWhileTheTableLinkIsDownIsImmediateAndKeepsTheReason) {
         return rec.is_object() && rec.value("state", "") == "aborted";
       },
       20s, 50ms))
-      << rec.dump(2) << "\n" << st.daemon_log();
-  const double took_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      << rec.dump(2) << "\n"
+      << st.daemon_log();
+  const double took_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_LT(took_s, 3.0) << "the abort waited for the connection backoff";
   EXPECT_EQ(rec.value("failure_reason", "").rfind("wrong unit mounted", 0), 0u) << rec.dump(2);
 }
@@ -42,10 +44,11 @@ TEST(StationAbort, SigtermWhileFollowingARunReportsItAborted) {
   SpawnOptions so;
   so.stdout_path = st.dir() / "wait.out";
   so.stderr_path = st.dir() / "wait.err";
-  Process follower({bin("stationctl"), "--config", st.config_path(), "run", "start", "--serial", "SIM-0801",
-                    "--sequence", "short", "--wait"},
+  Process follower({bin("stationctl"), "--config", st.config_path(), "run", "start", "--serial",
+                    "SIM-0801", "--sequence", "short", "--wait"},
                    so);
-  const json running = st.wait_live_run([](const json& r) { return r.value("state", "") == "running"; }, 60s);
+  const json running =
+      st.wait_live_run([](const json& r) { return r.value("state", "") == "running"; }, 60s);
   ASSERT_FALSE(running.is_null()) << st.daemon_log();
   st.daemon().signal(SIGTERM);
   const auto code = follower.wait_for(30s);

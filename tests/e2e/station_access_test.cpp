@@ -47,7 +47,8 @@ TEST(StationAccess, IdleClientsCannotLockOutTheOperator) {
   // The operator is not locked out: a read over the socket and a run start.
   const CmdResult live = st.ctl({"--json", "run", "status"}, 20s);
   EXPECT_EQ(live.exit_code, 0) << live.describe();
-  const CmdResult run = st.ctl({"run", "start", "--serial", "SIM-0600", "--sequence", "short", "--wait"}, 300s);
+  const CmdResult run =
+      st.ctl({"run", "start", "--serial", "SIM-0600", "--sequence", "short", "--wait"}, 300s);
   EXPECT_EQ(run.exit_code, 0) << run.describe();
   int status = 0;
   ASSERT_EQ(::waitpid(attacker, &status, 0), attacker);
@@ -61,12 +62,14 @@ TEST(StationAccess, IdleClientsCannotLockOutTheOperator) {
 TEST(StationAccess, ReadsFallBackToTheDatabaseWhenTheDaemonDoesNotAnswer) {
   Station st;
   ASSERT_TRUE(st.start());
-  const CmdResult run = st.ctl({"run", "start", "--serial", "SIM-0601", "--sequence", "short", "--wait"}, 300s);
+  const CmdResult run =
+      st.ctl({"run", "start", "--serial", "SIM-0601", "--sequence", "short", "--wait"}, 300s);
   ASSERT_EQ(run.exit_code, 0) << run.describe();
   st.daemon().signal(SIGSTOP);  // accepts (the kernel queues the connection), never answers
   const auto t0 = std::chrono::steady_clock::now();
   const CmdResult hist = st.ctl({"--json", "history", "SIM-0601"}, 60s);
-  const double waited_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double waited_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   st.daemon().signal(SIGCONT);
   ASSERT_EQ(hist.exit_code, 0) << hist.describe();
   EXPECT_EQ(hist.json_out()["runs"].size(), 1u) << hist.describe();

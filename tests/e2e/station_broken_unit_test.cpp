@@ -19,7 +19,8 @@ TEST_P(StationBrokenUnit, RunEndsFailedOrReviewNamingTheSymptom) {
   Station st;
   ASSERT_TRUE(st.start(SimOptions{200.0, 31, {"--imu-fault", c.fault}}));
   const std::string serial = "SIM-0900";
-  const CmdResult run = st.ctl({"run", "start", "--serial", serial, "--sequence", "short", "--wait"}, 300s);
+  const CmdResult run =
+      st.ctl({"run", "start", "--serial", serial, "--sequence", "short", "--wait"}, 300s);
   EXPECT_EQ(run.exit_code, 1) << run.describe() << "\n" << st.daemon_log();
   const json rec = newest_run(st, serial);
   ASSERT_TRUE(rec.is_object());

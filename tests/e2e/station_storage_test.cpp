@@ -29,7 +29,8 @@ class SmallDisk {
     return ::mount("tmpfs", dir_.c_str(), "tmpfs", MS_REMOUNT, opts.c_str()) == 0;
   }
   bool read_only(bool ro) {
-    if (::mount("tmpfs", dir_.c_str(), "tmpfs", MS_REMOUNT | (ro ? MS_RDONLY : 0), nullptr) == 0) return true;
+    if (::mount("tmpfs", dir_.c_str(), "tmpfs", MS_REMOUNT | (ro ? MS_RDONLY : 0), nullptr) == 0)
+      return true;
     error_ = std::strerror(errno);
     return false;
   }
@@ -47,10 +48,13 @@ TEST(StationStorage, DataDiskFullDuringARunFailsItAtOnceWithTheRealReason) {
   ASSERT_TRUE(disk.mounted()) << "mount tmpfs: " << disk.error();
   ASSERT_TRUE(st.start());
   const auto t0 = std::chrono::steady_clock::now();
-  const CmdResult run = st.ctl({"run", "start", "--serial", "SIM-0700", "--sequence", "short", "--wait"}, 300s);
-  const double took_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const CmdResult run =
+      st.ctl({"run", "start", "--serial", "SIM-0700", "--sequence", "short", "--wait"}, 300s);
+  const double took_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_EQ(run.exit_code, 1) << run.describe();
-  EXPECT_NE((run.out + run.err).find("No space left on device"), std::string::npos) << run.describe();
+  EXPECT_NE((run.out + run.err).find("No space left on device"), std::string::npos)
+      << run.describe();
   EXPECT_LT(took_s, 120.0) << "the run did not end at once";
   // The database says FAILED with the reason; nothing is marked good.
   const CmdResult hist = st.ctl({"--json", "history", "SIM-0700"});
@@ -60,10 +64,12 @@ TEST(StationStorage, DataDiskFullDuringARunFailsItAtOnceWithTheRealReason) {
   EXPECT_EQ(runs[0].value("state", ""), "failed") << runs.dump(2);
   EXPECT_NE(runs[0].dump().find("No space left on device"), std::string::npos) << runs.dump(2);
   const CmdResult params = st.ctl({"params", "SIM-0700"});
-  EXPECT_NE(params.exit_code, 0) << "a failed run gave the unit active parameters\n" << params.describe();
+  EXPECT_NE(params.exit_code, 0) << "a failed run gave the unit active parameters\n"
+                                 << params.describe();
   // Space returns: the next run works.
   ASSERT_TRUE(disk.resize("200m"));
-  const CmdResult again = st.ctl({"run", "start", "--serial", "SIM-0701", "--sequence", "short", "--wait"}, 300s);
+  const CmdResult again =
+      st.ctl({"run", "start", "--serial", "SIM-0701", "--sequence", "short", "--wait"}, 300s);
   EXPECT_EQ(again.exit_code, 0) << again.describe();
 }
 
@@ -88,9 +94,11 @@ TEST(StationStorage, DiskFullWithTheDatabaseOnItEndsTheRunAndKeepsTheReason) {
   ASSERT_TRUE(st.start_sim());
   database_on_the_data_disk(st);
   ASSERT_TRUE(st.start_daemon());
-  const CmdResult run = st.ctl({"run", "start", "--serial", "SIM-0710", "--sequence", "short", "--wait"}, 180s);
+  const CmdResult run =
+      st.ctl({"run", "start", "--serial", "SIM-0710", "--sequence", "short", "--wait"}, 180s);
   EXPECT_EQ(run.exit_code, 1) << run.describe();
-  EXPECT_NE((run.out + run.err).find("No space left on device"), std::string::npos) << run.describe();
+  EXPECT_NE((run.out + run.err).find("No space left on device"), std::string::npos)
+      << run.describe();
   const CmdResult status = st.ctl({"--json", "run", "status"});
   EXPECT_EQ(status.exit_code, 0) << status.describe();
   // Reads go on (the daemon serves them from the database it still reads).
@@ -107,30 +115,35 @@ TEST(StationStorage, DiskFullWithTheDatabaseOnItEndsTheRunAndKeepsTheReason) {
   EXPECT_NE(runs[0].dump().find("No space left on device"), std::string::npos) << runs.dump(2);
   // Space returns: the next run works.
   ASSERT_TRUE(disk.resize("200m"));
-  const CmdResult again = st.ctl({"run", "start", "--serial", "SIM-0711", "--sequence", "short", "--wait"}, 300s);
+  const CmdResult again =
+      st.ctl({"run", "start", "--serial", "SIM-0711", "--sequence", "short", "--wait"}, 300s);
   EXPECT_EQ(again.exit_code, 0) << again.describe();
 }
 
 // A read-only archive disk (a disk holding the daemon's open database or lock file cannot be
-// remounted read-only under it): the run fails with the reason, nothing is marked good, reads go on, and the
-// station works again once the disk is writable.
+// remounted read-only under it): the run fails with the reason, nothing is marked good, reads go
+// on, and the station works again once the disk is writable.
 TEST(StationStorage, ReadOnlyDataDiskRefusesRunsAndRecovers) {
   ASSERT_EQ(geteuid(), 0u) << "mounting a tmpfs needs root";
   Station st;
   SmallDisk disk(st.data_dir() + "/runs", "200m");  // the daemon's lock file is one level up
   ASSERT_TRUE(disk.mounted()) << "mount tmpfs: " << disk.error();
   ASSERT_TRUE(st.start());
-  const CmdResult first = st.ctl({"run", "start", "--serial", "SIM-0720", "--sequence", "short", "--wait"}, 300s);
+  const CmdResult first =
+      st.ctl({"run", "start", "--serial", "SIM-0720", "--sequence", "short", "--wait"}, 300s);
   ASSERT_EQ(first.exit_code, 0) << first.describe();
   ASSERT_TRUE(disk.read_only(true)) << disk.error();
-  const CmdResult refused = st.ctl({"run", "start", "--serial", "SIM-0721", "--sequence", "short", "--wait"}, 120s);
+  const CmdResult refused =
+      st.ctl({"run", "start", "--serial", "SIM-0721", "--sequence", "short", "--wait"}, 120s);
   EXPECT_NE(refused.exit_code, 0) << refused.describe();
-  EXPECT_TRUE(contains_ci(refused.out + refused.err, "read-only") || contains_ci(refused.out + refused.err, "readonly"))
+  EXPECT_TRUE(contains_ci(refused.out + refused.err, "read-only") ||
+              contains_ci(refused.out + refused.err, "readonly"))
       << refused.describe();
   const CmdResult hist = st.ctl({"--json", "history", "SIM-0720"});
   EXPECT_EQ(hist.exit_code, 0) << hist.describe();
   ASSERT_TRUE(disk.read_only(false));
-  const CmdResult again = st.ctl({"run", "start", "--serial", "SIM-0722", "--sequence", "short", "--wait"}, 300s);
+  const CmdResult again =
+      st.ctl({"run", "start", "--serial", "SIM-0722", "--sequence", "short", "--wait"}, 300s);
   EXPECT_EQ(again.exit_code, 0) << again.describe();
   // Whether refused at the start or failed at once: never good.
   const CmdResult params = st.ctl({"--json", "history", "SIM-0721"});
