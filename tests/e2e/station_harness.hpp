@@ -17,6 +17,7 @@
 #include <fcntl.h>
 #include <grp.h>
 #include <sched.h>
+#include <sys/prctl.h>
 #include <signal.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -210,6 +211,9 @@ class Process {
       for (const auto& [k, v] : options.env) ::setenv(k.c_str(), v.c_str(), 1);
       for (const auto& k : options.unset_env) ::unsetenv(k.c_str());
       ::signal(SIGPIPE, SIG_DFL);
+      // A test killed by a timeout must not leave its simulator and daemon running (they
+      // loaded the machine for the rest of a session once): they die with the test process.
+      ::prctl(PR_SET_PDEATHSIG, SIGKILL);
       if (options.cpu && ::sched_setaffinity(0, sizeof cpus, &cpus) != 0) ::_exit(126);
       if (options.run_as) {
         if (::setgroups(0, nullptr) != 0 || ::setgid(options.run_as->gid) != 0 ||
