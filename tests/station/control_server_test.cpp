@@ -574,7 +574,7 @@ TEST_F(ControlServerTest, ConnectionsPerUserAreCapped) {
     return 4;
   });
   EXPECT_EQ(code, 0) << diag;
-  EXPECT_EQ(s.stats().per_user_refused, 1u);
+  EXPECT_GE(s.stats().per_user_refused, 1u);
   ControlClient root(path);
   EXPECT_TRUE(root.call("ping").ok);
 }
