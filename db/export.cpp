@@ -3,6 +3,7 @@
 #include "db/archive/archive_error.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/param_json.hpp"
+#include "db/archive/run_archive.hpp"
 
 namespace imucal::db {
 
@@ -20,6 +21,8 @@ const char* const kCsvCalibrationColumns[11] = {"method",         "converged",
                                                 "accel_rmse_ug",  "heading_offset_gamma_np_rad",
                                                 "theta_bp_x_rad", "theta_bp_y_rad",
                                                 "theta_bp_z_rad"};
+
+const char* const kCsvCrosscheckColumns[2] = {"crosscheck_k_sigma", "crosscheck_failures"};
 
 std::string csv_field(const std::string& value) {
   if (value.find_first_of(",\"\r\n") == std::string::npos) return value;
@@ -79,6 +82,34 @@ json params_with_sigma(const CalibrationRecord& c) {
   }
 }
 
+/// The run's cross-check and capture counters (the columns after the sigmas).
+void crosscheck_and_capture_fields(const ExportRow& row, CsvLine& line) {
+  if (row.crosscheck) {
+    line.number(row.crosscheck->k_sigma);
+    std::string failures;
+    for (const auto& f : row.crosscheck->failures)
+      failures += (failures.empty() ? "" : "; ") + f.term + ": " + f.detail;
+    line.field(failures);
+  } else {
+    line.empty();
+    line.empty();
+  }
+  json capture;
+  if (!row.run.capture_json.empty()) {
+    capture = json::parse(row.run.capture_json, nullptr, /*allow_exceptions=*/false);
+    if (!capture.is_object())
+      throw Corrupt("run " + std::to_string(row.run.run_id) + ": stored capture_json is not a JSON object");
+  }
+  for (const auto& [name, member] : archive::CaptureInfo::counters()) {
+    (void)member;
+    const auto it = capture.is_object() ? capture.find(name) : capture.end();
+    if (capture.is_object() && it != capture.end() && it->is_number_integer())
+      line.integer(it->get<long long>());
+    else
+      line.empty();
+  }
+}
+
 }  // namespace
 
 std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::ostream& out) {
@@ -87,6 +118,9 @@ std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::
   for (const char* c : kCsvCalibrationColumns) line.field(c);
   for (int i = 0; i < calib::ParamSet::kSize; ++i) line.field(calib::param_info(i).name);
   for (int i = 0; i < calib::ParamSet::kSize; ++i) line.field("sigma." + calib::param_info(i).name);
+  for (const char* c : kCsvCrosscheckColumns) line.field(c);
+  for (const auto& counter : archive::CaptureInfo::counters())
+    line.field(std::string("capture.") + counter.first);
   out << line.take();
   check_stream(out, "export csv");
   std::size_t rows = 0;
@@ -135,6 +169,7 @@ std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::
     } else {
       for (std::size_t k = 0; k < 11 + 2 * calib::ParamSet::kSize; ++k) line.empty();
     }
+    crosscheck_and_capture_fields(row, line);
     out << line.take();
     check_stream(out, "export csv");
     ++rows;
@@ -150,6 +185,7 @@ std::size_t export_json(const Repository& repo, const ExportFilter& filter, std:
   repo.export_rows(filter, [&](const ExportRow& row) {
     json o = run_json(row.run);
     o["calibration"] = row.calibration ? calibration_json(*row.calibration) : json(nullptr);
+    o["crosscheck"] = row.crosscheck ? crosscheck_json(*row.crosscheck) : json(nullptr);
     out << (rows == 0 ? "\n" : ",\n") << o.dump();
     check_stream(out, "export json");
     ++rows;

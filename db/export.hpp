@@ -9,11 +9,14 @@
 // comma, a double quote, CR or LF is enclosed in double quotes with inner quotes doubled. Columns,
 // in order: kCsvRunColumns, then kCsvCalibrationColumns, then the 27 parameters named as in the
 // parameter-set JSON (calib::param_info(i).name, e.g. "accel_M[0][1]") in SI units, then their
-// 1-σ as "sigma.<name>". Times are ISO 8601 UTC ("2024-05-01T12:34:56.789Z"); numbers are the
-// shortest text that parses back to the stored double; absent values are empty fields.
+// 1-σ as "sigma.<name>", then the run's cross-check (kCsvCrosscheckColumns: k_sigma and the
+// failing terms as "term: detail" joined by "; ") and its capture counters as "capture.<counter>"
+// (archive::CaptureInfo::counters(), the names of db/archive/FORMAT.md). Times are ISO 8601 UTC
+// ("2024-05-01T12:34:56.789Z"); numbers are the shortest text that parses back to the stored
+// double; absent values are empty fields.
 //
-// JSON: one array of objects, one object per CSV row: run_json(run) plus "calibration":
-// calibration_json(...) or null.
+// JSON: one array of objects, one object per CSV row: run_json(run) (capture counters included)
+// plus "calibration": calibration_json(...) or null, and "crosscheck": crosscheck_json(...) or null.
 #include <cstddef>
 #include <nlohmann/json.hpp>
 #include <ostream>
@@ -26,6 +29,8 @@ namespace imucal::db {
 extern const char* const kCsvRunColumns[20];
 /// Calibration columns of the CSV export, in order (then parameters and sigmas).
 extern const char* const kCsvCalibrationColumns[11];
+/// The run's cross-check columns, after the sigmas (then the capture counters).
+extern const char* const kCsvCrosscheckColumns[2];
 
 /// Write the CSV export; returns the number of data rows. IoError if the stream fails.
 std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::ostream& out);

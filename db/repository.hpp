@@ -234,6 +234,7 @@ struct ExportFilter {
 struct ExportRow {
   RunRecord run;
   std::optional<CalibrationRecord> calibration;
+  std::optional<CrosscheckRecord> crosscheck;  ///< the run's cross-check, if one is stored
 };
 
 // ---------------------------------------------------------------------------------------------

@@ -28,6 +28,7 @@ const std::string kRunColumns =
     "r.archive_path, r.archive_sha256, r.reprocessed_from, x.verdict, r.capture_json, "
     "r.diagnosis_json, r.setting, r.origin, r.promoted_at_ms, r.promoted_by, r.promote_reason";
 constexpr int kNumRunColumns = 22;
+constexpr int kExportVerdictColumn = 14;  ///< x.verdict among kRunColumns
 const std::string kRunFrom =
     " FROM runs r JOIN units u ON u.id = r.unit_id LEFT JOIN crosschecks x ON x.run_id = r.id ";
 const std::string kCalColumns =
@@ -53,8 +54,11 @@ const std::string kSqlCalsOfRun =
 
 // Export: one statement per filter combination so that each uses its index (an "?1 IS NULL OR"
 // disjunction would defeat the planner). Runs without calibrations appear once (LEFT JOIN).
-const std::string kExportHead = "SELECT " + kRunColumns + ", " + kCalColumns + kRunFrom +
+const std::string kExportHead = "SELECT " + kRunColumns + ", " + kCalColumns +
+                                ", x.k_sigma, x.failures_json" + kRunFrom +
                                 "LEFT JOIN calibrations c ON c.run_id = r.id ";
+constexpr int kNumCalColumns = 13;
+constexpr int kExportCrosscheckColumn = kNumRunColumns + kNumCalColumns;  ///< x.k_sigma
 const std::string kExportTail = " ORDER BY r.started_at_ms, r.id, c.method";
 const std::string kSqlExportAll = kExportHead + kExportTail;
 const std::string kSqlExportSerial = kExportHead + "WHERE u.serial = ?1" + kExportTail;
@@ -471,12 +475,17 @@ struct SqliteRepository::Impl {
     Stmt q(*this, kSqlCrosscheck, "read cross-check");
     q.bind(1, run_id);
     if (!q.step()) return std::nullopt;
+    return read_crosscheck(q, 0, 1, run_id);
+  }
+
+  /// A cross-check from a result row: verdict, k_sigma and failures_json at k_col + 1.
+  CrosscheckRecord read_crosscheck(const Stmt& q, int verdict_col, int k_col, RunId run_id) const {
     CrosscheckRecord x;
     const std::string what = run_label(run_id) + " cross-check";
-    x.verdict =
-        decode([&] { return what + " verdict"; }, [&] { return verdict_from_string(q.text(0)); });
-    x.k_sigma = q.f64(1);
-    x.failures = decode_json(path + ": " + what + " failures_json", q.text(2), [](const json& j) {
+    x.verdict = decode([&] { return what + " verdict"; },
+                       [&] { return verdict_from_string(q.text(verdict_col)); });
+    x.k_sigma = q.f64(k_col);
+    x.failures = decode_json(path + ": " + what + " failures_json", q.text(k_col + 1), [](const json& j) {
       std::vector<calib::CrossCheckFailure> v;
       for (const json& f : j)
         v.push_back({f.at("term").get<std::string>(), f.at("detail").get<std::string>()});
@@ -992,6 +1001,9 @@ void SqliteRepository::export_rows(const ExportFilter& filter,
   while (q.step()) {
     row.run = d.read_run(q);
     row.calibration = d.read_calibration(q, kNumRunColumns, row.run.run_id);
+    row.crosscheck.reset();
+    if (!q.is_null(kExportCrosscheckColumn))
+      row.crosscheck = d.read_crosscheck(q, kExportVerdictColumn, kExportCrosscheckColumn, row.run.run_id);
     sink(row);
   }
 }

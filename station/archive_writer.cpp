@@ -18,6 +18,7 @@
 #include "db/archive/csv.hpp"
 #include "db/archive/io_util.hpp"
 #include "drivers/imu/candump_log.hpp"
+#include "drivers/imu/imu_codec.hpp"
 #include "sequences/library.hpp"
 
 namespace imucal::station {
@@ -303,7 +304,61 @@ void cut_file(const std::string& path, const std::vector<std::string>& cols, boo
 
 }  // namespace
 
-uint64_t recover_archive(const std::string& dir_in, const std::string& end_time_iso) {
+namespace {
+
+/// The capture counters capture.log can give back: its frames (every frame the capture received
+/// was logged) replayed through the IMU frame decoder, as the live capture decoded them. A torn
+/// last line is skipped by the reader; a damaged line ends the count (raw data stays as it is).
+archive::CaptureInfo recount_capture_log(const std::string& log, const imu::DecoderOptions& decoder) {
+  archive::CaptureInfo ci;
+  std::error_code ec;
+  if (!fs::exists(log, ec)) return ci;
+  imu::ImuFrameDecoder dec(decoder);
+  std::vector<imu::DecodedSample> samples;
+  bool have_prev = false;
+  uint64_t prev_index = 0;
+  auto take = [&] {
+    for (const imu::DecodedSample& s : samples) {
+      if (have_prev && !s.discontinuity && s.sample_index > prev_index + 1)
+        ci.max_gap_samples = std::max<uint64_t>(ci.max_gap_samples, s.sample_index - prev_index - 1);
+      have_prev = true;
+      prev_index = s.sample_index;
+    }
+    samples.clear();
+  };
+  try {
+    imu::CandumpReader reader(log);
+    imu::CandumpRecord rec;
+    while (reader.next(rec)) {
+      ++ci.frames_logged;
+      dec.push(rec.frame, samples);
+      take();
+    }
+  } catch (const imu::CandumpParseError&) {
+  }
+  dec.flush(samples);
+  take();
+  const imu::DecoderCounters& c = dec.counters();
+  ci.frames_received = ci.frames_logged;
+  ci.frames_foreign = c.foreign_frames;
+  ci.frames_error = c.error_frames;
+  ci.frames_malformed = c.malformed_frames;
+  ci.frames_duplicate = c.duplicate_frames;
+  ci.frames_out_of_order = c.out_of_order_frames;
+  ci.frames_discarded = c.discarded_frames;
+  ci.samples_decoded = c.samples_decoded;
+  ci.samples_lost = c.samples_lost;
+  ci.samples_corrupt = c.samples_corrupt;
+  ci.samples_incomplete = c.samples_incomplete;
+  ci.samples_late = c.samples_late;
+  ci.imu_resets = c.imu_resets;
+  return ci;
+}
+
+}  // namespace
+
+uint64_t recover_archive(const std::string& dir_in, const std::string& end_time_iso,
+                         const imu::DecoderOptions& decoder) {
   std::string dir = dir_in;
   while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
   std::error_code ec;
@@ -348,22 +403,8 @@ uint64_t recover_archive(const std::string& dir_in, const std::string& end_time_
   cut_file(imu_path, kImuColumns, imu_hdr, imu.line_end[n]);
   cut_file(table_path, kTableColumns, table_hdr, tab.line_end[n]);
 
-  // Frames in capture.log: the records that parse (a torn last line is skipped by the reader).
-  uint64_t frames = 0;
-  const std::string log = join(dir, "capture.log");
-  if (fs::exists(log, ec)) {
-    try {
-      imu::CandumpReader reader(log);
-      imu::CandumpRecord rec;
-      while (reader.next(rec)) ++frames;
-    } catch (const imu::CandumpParseError&) {
-      // Raw data is kept as it is; the count covers the lines before the damage.
-    }
-  }
-
-  archive::CaptureInfo ci;
+  archive::CaptureInfo ci = recount_capture_log(join(dir, "capture.log"), decoder);
   ci.complete = false;
-  ci.frames_logged = frames;
   ci.rows_written = n;
   ci.rest_samples = rest;
   info.capture = ci;

@@ -19,6 +19,7 @@
 #include "calib/imu_increment.hpp"
 #include "db/archive/run_archive.hpp"
 #include "drivers/imu/can_frame.hpp"
+#include "drivers/imu/imu_codec.hpp"
 
 namespace imucal::imu {
 class CandumpWriter;
@@ -82,12 +83,16 @@ class ArchiveWriter {
 
 /// Start-up recovery of an archive a killed daemon left: imu.csv and table.csv cut to their common
 /// prefix of complete rows (complete lines that parse, with matching t_s), run.toml rewritten with
-/// end_time and [capture] complete = false (+ the counters it can recount: frames_logged,
-/// rows_written, rest_samples). capture.log is left as it is (raw data). An archive that was
+/// end_time and [capture] complete = false and the counters it can recount: rows_written and
+/// rest_samples from the CSV files, and from capture.log (every frame the capture received is
+/// logged) frames_received = frames_logged and the decoder's counters by replaying the log through
+/// an ImuFrameDecoder with `decoder`'s options, as the live capture decoded it (samples_filled and
+/// rx_overflow cannot be recounted: 0). capture.log is left as it is (raw data). An archive that was
 /// finished ([capture] complete = true and the files agree with it) is left untouched. Temporary
 /// files of an interrupted atomic rewrite are removed. Returns rows kept. Throws
 /// archive::ArchiveError if run.toml is missing or unreadable or a CSV header is not the archive's.
-uint64_t recover_archive(const std::string& dir, const std::string& end_time_iso);
+uint64_t recover_archive(const std::string& dir, const std::string& end_time_iso,
+                         const imu::DecoderOptions& decoder = {});
 
 /// SHA-256 over the archive files (regular files directly in dir, sorted by name;
 /// "name  sha256(file)\n" lines hashed), lower-case hex. Throws std::runtime_error naming the path.

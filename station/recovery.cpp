@@ -75,11 +75,16 @@ RecoveryReport recover_at_startup(const StationConfig& config, db::Repository& r
     const std::optional<EndNote> note = read_end_note(note_path);
     if (fs::exists(fs::path(dir) / "run.toml")) {
       try {
-        r.rows_kept = recover_archive(dir, db::format_time_utc(db::now_ms()));
+        imu::DecoderOptions decoder;
+        decoder.base_id = config.base_id;
+        decoder.sample_rate_hz = config.rate_hz;
+        r.rows_kept = recover_archive(dir, db::format_time_utc(db::now_ms()), decoder);
         r.archive_sha256 = archive_digest(dir);
         r.archive_path = dir;
-        r.reason = found + "; archive " + dir + " kept with " + std::to_string(r.rows_kept) +
-                   " rows, reprocess it to calibrate";
+        r.reason = r.rows_kept == 0
+                       ? found + "; archive " + dir + " kept, but it holds no data rows yet: nothing to reprocess"
+                       : found + "; archive " + dir + " kept with " + std::to_string(r.rows_kept) +
+                             " rows, reprocess it to calibrate";
         c.capture_json = capture_json_of(dir);
       } catch (const std::exception& e) {
         r.archive_path = dir;

@@ -357,6 +357,17 @@ std::string partial_archive_reason(const db::RunRecord& run) {
   return "";
 }
 
+/// Whether the archive's imu.csv has a data row after its header (a run killed or stopped
+/// before its first sample keeps an archive without any: nothing to calibrate).
+bool archive_has_data(const std::string& dir) {
+  std::ifstream in((fs::path(dir) / "imu.csv").string());
+  std::string line;
+  if (!std::getline(in, line)) return false;  // not even a header
+  while (std::getline(in, line))
+    if (!line.empty() && line != "\r") return true;
+  return false;
+}
+
 }  // namespace
 
 nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
@@ -371,6 +382,11 @@ nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
                        "run " + std::to_string(run_id) + ": " + partial +
                            "; not reprocessed (reprocess --partial calibrates it anyway, stored "
                            "REVIEW at best and never active)");
+  if (!archive_has_data(orig.archive_path))
+    throw ControlError(error_code::kInvalidInput,
+                       "run " + std::to_string(run_id) + ": its archive " + orig.archive_path +
+                           " holds no data rows (the run stopped before its first sample); "
+                           "nothing to reprocess");
   if (thread_.joinable()) thread_.join();
 
   // The new run is recorded as the requester's, not the original operator's.

@@ -50,8 +50,8 @@ enum class ReferenceKind { kTable, kAttitude, kNone };
 /// library independent of the daemon.
 struct CaptureInfo {
   /// true: the capture ended normally (the daemon finished the archive). false: the archive was
-  /// recovered after the daemon died; then only frames_logged, rows_written and rest_samples are
-  /// recounted from the files and the other counters are 0 (unknown).
+  /// cut short (aborted, failed) or recovered after the daemon died; a recovered archive's counters
+  /// are recounted from its files (FORMAT.md), samples_filled and rx_overflow then 0 (unknown).
   bool complete = false;
   uint64_t frames_received = 0, frames_logged = 0;
   uint64_t frames_foreign = 0, frames_error = 0, frames_malformed = 0, frames_duplicate = 0,

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "db/archive/param_json.hpp"
+#include "db/archive/run_archive.hpp"
 #include "db/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 
@@ -115,7 +116,9 @@ class ExportTest : public ::testing::Test {
     if (state == RunState::kDone) {
       repo_->finish_run(id, test::pass_completion(seed, t + 1000));
     } else if (state == RunState::kReview) {
-      repo_->finish_run(id, test::review_completion(seed, t + 1000));
+      RunCompletion c = test::review_completion(seed, t + 1000);
+      c.capture_json = kCaptureJson;
+      repo_->finish_run(id, c);
     } else {
       repo_->update_run_state(id, state, kReason);
     }
@@ -149,6 +152,8 @@ class ExportTest : public ::testing::Test {
     throw std::runtime_error("unknown id");
   }
 
+  static constexpr const char* kCaptureJson =
+      R"({"frames_received": 40012, "frames_logged": 40012, "samples_decoded": 10001, "samples_lost": 2})";
   static constexpr const char* kReason = "table fault 17, \"axis 2\" overcurrent\nstep 3/12";
   TempDir dir_;
   std::unique_ptr<SqliteRepository> repo_;
@@ -167,13 +172,15 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
     const auto rows = parse_csv(os.str());
     ASSERT_FALSE(rows.empty());
     const auto& header = rows[0];
-    ASSERT_EQ(header.size(), 20u + 11u + 2u * calib::ParamSet::kSize);
+    ASSERT_EQ(header.size(), 20u + 11u + 2u * calib::ParamSet::kSize + 2u + archive::CaptureInfo::counters().size());
     std::map<std::string, std::size_t> col;
     for (std::size_t c = 0; c < header.size(); ++c) col[header[c]] = c;
     ASSERT_EQ(col.size(), header.size()) << "duplicate column names";
     for (const char* name : {"run_id", "serial", "state", "verdict", "started_at", "method",
                              "failure_reason", "setting", "origin", "promoted_at", "promoted_by",
-                             "promote_reason", "accel_M[1][2]", "sigma.gyro_bias_radps[0]"})
+                             "promote_reason", "accel_M[1][2]", "sigma.gyro_bias_radps[0]",
+                             "crosscheck_k_sigma", "crosscheck_failures", "capture.frames_received",
+                             "capture.samples_lost", "capture.rest_samples"})
       ASSERT_TRUE(col.count(name)) << name;
 
     const auto expected = expected_rows(f);
@@ -195,9 +202,23 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
         EXPECT_EQ(row[col["verdict"]], "");
         EXPECT_EQ(row[col["failure_reason"]], kReason) << "quoted field round trip";
         EXPECT_EQ(row[col["accel_M[1][2]"]], "");
+        EXPECT_EQ(row[col["crosscheck_k_sigma"]], "");
+        EXPECT_EQ(row[col["capture.frames_received"]], "");
         continue;
       }
       EXPECT_EQ(row[col["verdict"]], s.state == RunState::kDone ? "PASS" : "REVIEW");
+      EXPECT_EQ(to_double(row[col["crosscheck_k_sigma"]]), 4.0);
+      if (s.state == RunState::kReview) {
+        // The failing term with its detail (the review fixture's one failure), and the counters.
+        EXPECT_EQ(row[col["crosscheck_failures"]],
+                  "accel_bias_mps2[1]: accel_bias_mps2[1]: |Δ| = 12.3 µg > 4σ bound 8.1 µg");
+        EXPECT_EQ(row[col["capture.frames_received"]], "40012");
+        EXPECT_EQ(row[col["capture.samples_lost"]], "2");
+        EXPECT_EQ(row[col["capture.rest_samples"]], "") << "a counter the run did not store";
+      } else {
+        EXPECT_EQ(row[col["crosscheck_failures"]], "");
+        EXPECT_EQ(row[col["capture.frames_received"]], "");
+      }
       EXPECT_EQ(parse_time_utc(row[col["ended_at"]]), s.t + 1000);
       const int mi = row[col["method"]] == "ains" ? 0 : 1;
       const calib::ParamVector p = test::seeded_params(s.seed, mi).to_vector();
@@ -238,9 +259,15 @@ TEST_F(ExportTest, JsonParsesBackWithStrictParameterSetsForEveryFilter) {
       EXPECT_EQ(parse_time_utc(o.at("started_at").get<std::string>()), s.t);
       if (expected[r].second.empty()) {
         EXPECT_TRUE(o.at("calibration").is_null());
+        EXPECT_TRUE(o.at("crosscheck").is_null());
         EXPECT_TRUE(o.at("verdict").is_null());
         EXPECT_EQ(o.at("failure_reason"), kReason);
         continue;
+      }
+      EXPECT_EQ(o.at("crosscheck").at("verdict"), s.state == RunState::kDone ? "PASS" : "REVIEW");
+      EXPECT_EQ(o.at("crosscheck").at("failures").size(), s.state == RunState::kDone ? 0u : 1u);
+      if (s.state == RunState::kReview) {
+        EXPECT_EQ(o.at("capture").at("samples_decoded"), 10001);
       }
       const json& c = o.at("calibration");
       EXPECT_EQ(c.at("method"), expected[r].second);

@@ -23,6 +23,7 @@
 #include "db/archive/io_util.hpp"
 #include "db/archive/run_archive.hpp"
 #include "drivers/imu/candump_log.hpp"
+#include "drivers/imu/imu_codec.hpp"
 #include "sequences/library.hpp"
 #include "station/capture_stats.hpp"
 #include "tests/support/temp_dir.hpp"
@@ -545,6 +546,53 @@ TEST(CaptureSection, StatsConvertBothWays) {
   EXPECT_EQ(s.max_gap_samples, ci.max_gap_samples);
   EXPECT_EQ(to_capture_info(s, false), ci);
   EXPECT_NE(to_capture_info(s, true), ci);
+}
+
+// Issue #10: a recovered run's capture counters add up (frames_received = frames_logged, the
+// decoder's counters recounted from capture.log) instead of showing 0 received beside N logged.
+TEST(RecoverArchive, RecountsTheDecoderCountersFromTheCaptureLog) {
+  TempDir tmp;
+  const std::string dir = tmp.sub("run");
+  imu::ImuFrameEncoder enc;
+  uint64_t logged = 0;
+  {
+    ArchiveWriter w(dir, make_info());
+    int64_t t_ns = 1'700'000'000'000'000'000LL;
+    for (uint64_t k = 0; k < 50; ++k) {
+      w.append_row(imu_row(k), table_row(k));
+      calib::ImuIncrement inc;
+      inc.dt_s = 0.01;
+      inc.dv_mps = Eigen::Vector3d(0, 0, -0.098);
+      const auto frames = enc.encode(inc);
+      if (k == 20) continue;  // sample 20 lost on the bus: a gap of one
+      for (std::size_t p = 0; p < frames.size(); ++p) {
+        imu::ReceivedFrame f;
+        f.frame = frames[p];
+        f.rx_time_ns = (t_ns += 2'500'000);
+        w.append_frame(f, "can0");
+        ++logged;
+        if (k == 30 && p == 1) {  // one frame seen twice
+          w.append_frame(f, "can0");
+          ++logged;
+        }
+      }
+    }
+    w.flush();
+  }  // destroyed unfinished, like a daemon that died
+
+  ASSERT_EQ(recover_archive(dir, "2026-11-25T05:00:00Z"), 50u);
+  const archive::RunArchive a = archive::read_archive(dir);
+  ASSERT_TRUE(a.info.capture.has_value());
+  const archive::CaptureInfo& c = *a.info.capture;
+  EXPECT_FALSE(c.complete);
+  EXPECT_EQ(c.frames_logged, logged);
+  EXPECT_EQ(c.frames_received, logged);
+  EXPECT_EQ(c.samples_decoded, 49u);
+  EXPECT_EQ(c.samples_lost, 1u);
+  EXPECT_EQ(c.max_gap_samples, 1u);
+  EXPECT_EQ(c.frames_duplicate, 1u);
+  EXPECT_EQ(c.samples_corrupt, 0u);
+  EXPECT_EQ(c.rows_written, 50u);
 }
 
 }  // namespace
