@@ -137,11 +137,22 @@ void Capture::on_frames(const std::vector<imu::ReceivedFrame>& frames, Clock::ti
         writer_failed(e);
       }
     }
+    if (f.frame.is_error() && (f.frame.can_id & imu::kCanErrBusOff)) on_bus_off();
     samples.clear();
     decoder_.push(f, samples);
     dec_ = decoder_.counters();
     for (const imu::DecodedSample& s : samples) on_sample(s, now);
   }
+}
+
+void Capture::on_bus_off() {
+  // The controller has left the bus: frames are lost until it restarts, so the run's stream has a
+  // hole of unknown length. A fault with its own reason (not a later "no sample" or gap fault).
+  if (!writer_ || writes_disabled_ || fault_) return;
+  const uint64_t errors = dec_.error_frames - baseline_.frames_error;
+  set_fault("CAN controller " + channel_->interface_name() + " went bus-off at " + row_label(rows_) +
+            " (after " + std::to_string(errors) +
+            " error frames in this run): the IMU stream has a hole; check the bus wiring and termination");
 }
 
 void Capture::on_sample(const imu::DecodedSample& s, Clock::time_point now) {

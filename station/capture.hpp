@@ -19,7 +19,8 @@
 // yields the same archive as real time.
 //
 // Faults (fault() returns a one-line reason naming the row and its time): IMU reset or counter
-// resync, a gap longer than max_gap_samples, no IMU sample for stream_timeout while attached,
+// resync, a gap longer than max_gap_samples, no IMU sample for stream_timeout while attached, the
+// CAN controller going bus-off (an error frame of that class; other error frames are only counted),
 // motion during a counted rest, IMU-reported failures (status bits: gyro/accel fault, built-in test
 // failure, saturation), CAN channel or archive I/O errors. After a fault no more rows are written;
 // frames are still logged to capture.log (the raw record of what happened), except after an archive
@@ -115,6 +116,7 @@ class Capture {
   void run();
   void on_frames(const std::vector<imu::ReceivedFrame>& frames, Clock::time_point now);
   void on_sample(const imu::DecodedSample& s, Clock::time_point now);
+  void on_bus_off();  ///< an error frame of class bus-off: a fault while attached
   bool emit_row(const calib::ImuIncrement& inc);          ///< false: fault, nothing written
   double rate_dps(const calib::ImuIncrement& inc) const;  ///< |dθ|/dt in deg/s
   bool is_moving(const calib::ImuIncrement& inc) const;   ///< above rest_rate_threshold_dps

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <linux/can.h>
+#include <linux/can/error.h>
 #include <linux/can/raw.h>
 #include <net/if.h>
 #include <poll.h>
@@ -28,6 +29,9 @@ namespace {
 static_assert(sizeof(struct can_frame) == 16, "unixcan records are Linux struct can_frame");
 static_assert(kCanEffFlag == CAN_EFF_FLAG && kCanRtrFlag == CAN_RTR_FLAG && kCanErrFlag == CAN_ERR_FLAG,
               "can_frame.hpp flags must match linux/can.h");
+static_assert(kCanErrCrtl == CAN_ERR_CRTL && kCanErrProt == CAN_ERR_PROT && kCanErrBusOff == CAN_ERR_BUSOFF &&
+                  kCanErrRestarted == CAN_ERR_RESTARTED,
+              "can_frame.hpp error classes must match linux/can/error.h");
 
 std::string errno_text() { return std::strerror(errno); }
 

@@ -20,6 +20,13 @@ constexpr uint32_t kCanErrFlag = 0x20000000U;
 constexpr uint32_t kCanSffMask = 0x000007FFU;
 constexpr uint32_t kCanEffMask = 0x1FFFFFFFU;
 constexpr uint8_t kCanMaxDataLength = 8;
+/// Error classes in an error frame's identifier (linux/can/error.h): the controller went bus-off
+/// (CAN_ERR_BUSOFF), controller problems such as error-passive (CAN_ERR_CRTL), protocol violations
+/// (CAN_ERR_PROT), and the controller restarted after bus-off (CAN_ERR_RESTARTED).
+constexpr uint32_t kCanErrCrtl = 0x00000004U;
+constexpr uint32_t kCanErrProt = 0x00000008U;
+constexpr uint32_t kCanErrBusOff = 0x00000040U;
+constexpr uint32_t kCanErrRestarted = 0x00000100U;
 
 struct CanFrame {
   uint32_t can_id = 0;             ///< identifier + flags (SocketCAN layout, see above)

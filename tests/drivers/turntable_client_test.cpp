@@ -301,6 +301,42 @@ TEST(TurntableClient, ReplyDelayBeyondTimeoutIsCountedAndRecovered) {
   EXPECT_NEAR(c.wait_in_position(3000ms).outer_deg, 10.0, 1e-5);
 }
 
+// Issue #10 item 7: the reply to a timed-out attempt arrives while the retry is outstanding. It
+// must be flushed (Modbus TCP transaction ids differ), never taken for the retry's answer. The
+// table moves meanwhile, so the two replies carry different angles: the late one the angle when
+// the first attempt was received, the retry's one ~45° further (0.15 s wall = 1.5 s of PLC time
+// at 30 °/s).
+TEST(TurntableClient, ALateReplyIsFlushedNotTakenForTheRetrysAnswer) {
+  Station st;
+  auto cfg = st.client_config();
+  cfg.response_timeout = 100ms;
+  cfg.max_attempts = 3;
+  TurntableClient c(cfg);
+  make_ready(c);
+  c.move_to(340.0, 0.0, 30.0);
+  st.wait_outer_past(20.0);
+  const auto before = c.counters();
+  const double p0 = st.plc_outer();
+  st.server.delay_replies(150ms, 1);
+  const auto s = c.status();
+  const double p1 = st.plc_outer();
+  ASSERT_LT(p1, 330.0) << "the move ended during the exchange: the replies would not differ";
+  EXPECT_EQ(c.counters().timeouts - before.timeouts, 1u);
+  // The late reply did reach the client while the retry was outstanding, and was refused there.
+  EXPECT_EQ(c.counters().bad_responses - before.bad_responses, 1u);
+  EXPECT_GT(s.outer_deg, p0 + 20.0) << "the late reply (outer " << p0 << " deg when it was read) was taken for the "
+                                    << "retry's answer; PLC now at " << p1;
+  EXPECT_LE(s.outer_deg, p1 + 1e-6);
+  // The exchange has recovered: further reads follow the table without another timeout.
+  double last = s.outer_deg;
+  for (int i = 0; i < 5; ++i) {
+    const auto r = c.status();
+    EXPECT_GE(r.outer_deg, last - 1e-6);
+    last = r.outer_deg;
+  }
+  EXPECT_EQ(c.counters().timeouts - before.timeouts, 1u);
+}
+
 TEST(TurntableClient, SeveralClientsAtOnce) {
   Station st;
   TurntableClient commander(st.client_config());

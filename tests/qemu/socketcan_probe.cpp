@@ -23,9 +23,16 @@
 //   the
 //                   first R frames, and after a marker sample its rx_overflow (SO_RXQ_OVFL) equals
 //                   the burst size minus R, while a deep-buffered reader got the whole burst.
+//   5. capture      the daemon's own station::Capture (the code stationd runs) on a socketcan
+//                   channel, writing a run archive: every sample the node sent becomes a row whose
+//                   increments are the transmitted counts; an error flood (protocol errors,
+//                   error-passive, interleaved with samples) is counted and logged but stops
+//                   nothing; an error frame of class bus-off is a fault naming it, after which no
+//                   row is written; the archive reads back with every frame in capture.log.
 // Prints one JSON line (stdout) and exits 0 only if every check passed.
 //
 // Usage: socketcan_probe [--iface vcan0] [--samples 4000] [--burst-samples 400]
+//                        [--capture-samples 1000]
 #include <linux/can.h>
 #include <linux/can/error.h>
 #include <linux/can/raw.h>
@@ -43,6 +50,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
+#include <functional>
 #include <iostream>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -53,10 +62,15 @@
 #include <thread>
 #include <vector>
 
+#include "calib/site_presets.hpp"
+#include "db/archive/run_archive.hpp"
 #include "drivers/imu/can_channel.hpp"
+#include "drivers/imu/candump_log.hpp"
 #include "drivers/imu/imu_codec.hpp"
 #include "drivers/imu/imu_protocol.hpp"
 #include "drivers/sim/imu_can_node.hpp"
+#include "station/archive_writer.hpp"
+#include "station/capture.hpp"
 
 namespace {
 
@@ -163,6 +177,7 @@ struct Args {
   std::string iface = "vcan0";
   std::size_t samples = 4000;
   std::size_t burst_samples = 400;
+  std::size_t capture_samples = 1000;
 };
 
 Args parse_args(int argc, char** argv) {
@@ -173,15 +188,15 @@ Args parse_args(int argc, char** argv) {
     const std::string v = argv[++i];
     if (k == "--iface") {
       a.iface = v;
-    } else if (k == "--samples" || k == "--burst-samples") {
+    } else if (k == "--samples" || k == "--burst-samples" || k == "--capture-samples") {
       std::size_t pos = 0;
       const unsigned long n = std::stoul(v, &pos);
       if (pos != v.size() || n < 20 || n > 60000)
         throw std::invalid_argument(k + " must be an integer in [20, 60000], got '" + v + "'");
-      (k == "--samples" ? a.samples : a.burst_samples) = n;
+      (k == "--samples" ? a.samples : k == "--burst-samples" ? a.burst_samples : a.capture_samples) = n;
     } else {
       throw std::invalid_argument("unknown option " + k +
-                                  " (expected --iface, --samples, --burst-samples)");
+                                  " (expected --iface, --samples, --burst-samples, --capture-samples)");
     }
   }
   return a;
@@ -469,6 +484,122 @@ json overflow(const Args& args, CanChannel& rx, sim::ImuCanNode& node,
           {"decoder_samples_lost", dec.counters().samples_lost}};
 }
 
+/// Waits (bounded) until `pred` holds.
+bool wait_for(const std::function<bool()>& pred, std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (pred()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return pred();
+}
+
+/// Phase 5: stationd's Capture on the real kernel's CAN stack, with an error flood and bus-off.
+json daemon_capture(const Args& args, Failures& fail) {
+  using namespace std::chrono_literals;
+  const std::string dir = "/tmp/imucal-capture-run";
+  std::filesystem::remove_all(dir);
+  archive::RunInfo info;
+  info.serial = "QEMU-0001";
+  info.site = calib::demo_factory_site();
+  info.imu_rate_hz = kRate_hz;
+  station::ArchiveWriter writer(dir, info);
+  station::CaptureOptions co;
+  co.decoder.sample_rate_hz = kRate_hz;
+  co.flush_period = 50ms;
+  station::Capture cap(CanChannel::open("socketcan:" + args.iface), co);
+  cap.start();
+  auto tx = CanChannel::open("socketcan:" + args.iface);
+  sim::ImuCanNodeOptions no;
+  no.rate_hz = kRate_hz;
+  no.speed_factor = 0.0;
+  sim::ImuCanNode node(*tx, no);
+  const calib::ImuSeries series = make_series(args.capture_samples + 20, 20261125);
+  std::vector<std::array<CanFrame, imu::kFramesPerSample>> sent;
+  auto send = [&](std::size_t k) { sent.push_back(node.send(series[k]).clean); };
+  auto error_frame = [](uint32_t cls) {
+    CanFrame e;
+    e.can_id = imu::kCanErrFlag | cls;
+    e.len = 8;
+    return e;
+  };
+
+  cap.attach(&writer);
+  // Samples with an error flood woven in: every sample is followed by `flood_per_sample` errors.
+  const std::size_t n = args.capture_samples;
+  const int per_sample = 5;
+  std::size_t errors = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    send(k);
+    for (int i = 0; i < per_sample; ++i, ++errors)
+      fail.check(tx->write(error_frame(i % 2 ? imu::kCanErrProt : imu::kCanErrCrtl)), "capture: error frame write");
+    if (k % 50 == 49) wait_for([&] { return cap.rows() >= k + 1; }, 5s);  // no kernel queue overflow
+  }
+  const bool all_rows = wait_for([&] { return cap.rows() >= n; }, 10s);
+  const station::CaptureStats during = cap.stats();
+  fail.check(all_rows && cap.rows() == n, "capture: " + std::to_string(cap.rows()) + " rows of " +
+                                              std::to_string(n) + " samples sent through the error flood");
+  fail.check(!cap.fault(), "capture: the error flood faulted the capture: " + cap.fault().value_or(""));
+  fail.check(during.frames_error == errors, "capture: frames_error " + std::to_string(during.frames_error) +
+                                                ", sent " + std::to_string(errors));
+  fail.check(during.samples_decoded == n && during.samples_lost == 0 && during.rx_overflow == 0,
+             "capture: decoded " + std::to_string(during.samples_decoded) + ", lost " +
+                 std::to_string(during.samples_lost) + ", rx_overflow " + std::to_string(during.rx_overflow));
+
+  // Bus-off, then more samples: a fault naming it, and no row after it.
+  fail.check(tx->write(error_frame(imu::kCanErrBusOff)), "capture: bus-off frame write");
+  const bool faulted = wait_for([&] { return cap.fault().has_value(); }, 5s);
+  const std::string fault = cap.fault().value_or("");
+  fail.check(faulted && fault.find("bus-off") != std::string::npos && fault.find(args.iface) != std::string::npos,
+             "capture: bus-off not reported as such: \"" + fault + "\"");
+  const uint64_t rows_at_fault = cap.rows();
+  for (std::size_t k = n; k < n + 20; ++k) send(k);
+  const uint64_t frames_total = 4 * (n + 20) + errors + 1;
+  wait_for([&] { return cap.stats().frames_received >= frames_total; }, 5s);
+  fail.check(cap.rows() == rows_at_fault, "capture: rows written after bus-off");
+  cap.detach();
+  const station::CaptureStats end = cap.stats();
+  cap.stop();
+  fail.check(end.frames_received == frames_total && end.frames_logged == frames_total,
+             "capture: received " + std::to_string(end.frames_received) + ", logged " +
+                 std::to_string(end.frames_logged) + ", sent " + std::to_string(frames_total));
+
+  // The archive: rows equal to the transmitted counts of every sample, the log holds every frame.
+  archive::RunInfo fin = info;
+  fin.capture = station::to_capture_info(end, false);
+  writer.finish(fin);
+  const archive::RunArchive a = archive::read_archive(dir);
+  std::size_t row_mismatch = 0;
+  for (std::size_t k = 0; k < std::min<std::size_t>(a.imu.size(), n); ++k) {
+    for (int ax = 0; ax < 3; ++ax) {
+      const imu::AxisFields f = imu::unpack_axis(sent[k][static_cast<std::size_t>(ax)].data);
+      if (a.imu[k].dtheta_rad(ax) != static_cast<double>(f.dtheta_count) * imu::kDthetaLsb_rad ||
+          a.imu[k].dv_mps(ax) != static_cast<double>(f.dv_count) * imu::kDvLsb_mps)
+        ++row_mismatch;
+    }
+  }
+  fail.check(a.imu.size() == n && row_mismatch == 0,
+             "capture: archive has " + std::to_string(a.imu.size()) + " rows, " + std::to_string(row_mismatch) +
+                 " axis values differ from the transmitted counts");
+  imu::CandumpReader log(dir + "/capture.log");
+  imu::CandumpRecord rec;
+  std::size_t logged = 0, logged_errors = 0;
+  while (log.next(rec)) {
+    ++logged;
+    if (rec.frame.frame.is_error()) ++logged_errors;
+  }
+  fail.check(logged == frames_total && logged_errors == errors + 1,
+             "capture: capture.log holds " + std::to_string(logged) + " frames (" + std::to_string(logged_errors) +
+                 " error frames)");
+  return {{"samples", n},
+          {"rows", a.imu.size()},
+          {"error_frames", errors},
+          {"frames_error", during.frames_error},
+          {"fault", fault},
+          {"rows_after_bus_off", cap.rows() - rows_at_fault},
+          {"frames_logged", logged}};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -491,6 +622,7 @@ int main(int argc, char** argv) {
     summary["round_trip"] = round_trip(*tx, *rx, node, series, fail);
     summary["error_frames"] = error_frames(args, *tx, *rx, fail);
     summary["overflow"] = overflow(args, *rx, node, series, fail);
+    summary["capture"] = daemon_capture(args, fail);
   } catch (const std::exception& e) {
     fail.list.push_back(std::string("exception: ") + e.what());
   }

@@ -512,6 +512,43 @@ TEST(Capture, ForeignFramesAreCountedAndLogged) {
   EXPECT_EQ(log[20].frame.frame, foreign);
 }
 
+// Issue #10 item 7: an error flood (protocol errors, error-passive) is counted and logged while the
+// rows go on; the controller going bus-off is a fault with its own reason, and no row is written
+// after it (the stream has a hole of unknown length).
+TEST(Capture, ErrorFloodIsCountedBusOffIsAFault) {
+  Rig rig;
+  rig.cap->attach(rig.writer.get());
+  sim::ImuCanNode node(*rig.tx, node_options());
+  auto error_frame = [](uint32_t cls) {
+    imu::CanFrame e;
+    e.can_id = imu::kCanErrFlag | cls;
+    e.len = 8;
+    return e;
+  };
+  uint64_t k = 0;
+  for (; k < 20; ++k) node.send(still_increment(k));
+  for (int i = 0; i < 300; ++i) {  // the flood, interleaved with the IMU's samples
+    ASSERT_TRUE(rig.tx->write(error_frame(i % 2 ? imu::kCanErrProt : imu::kCanErrCrtl)));
+    if (i % 10 == 0) node.send(still_increment(k++));
+  }
+  ASSERT_TRUE(rig.wait_rows(k));
+  EXPECT_FALSE(rig.cap->fault().has_value()) << *rig.cap->fault();
+  EXPECT_EQ(rig.cap->stats().frames_error, 300u);
+
+  ASSERT_TRUE(rig.tx->write(error_frame(imu::kCanErrBusOff)));
+  ASSERT_TRUE(wait_until([&] { return rig.cap->fault().has_value(); }));
+  const std::string fault = *rig.cap->fault();
+  EXPECT_NE(fault.find("bus-off"), std::string::npos) << fault;
+  EXPECT_NE(fault.find("300 error frames"), std::string::npos) << fault;
+  EXPECT_NE(fault.find("row " + std::to_string(k + 1)), std::string::npos) << fault;
+  const uint64_t rows_at_fault = rig.cap->rows();
+  for (int i = 0; i < 10; ++i) node.send(still_increment(k++));
+  ASSERT_TRUE(wait_until([&] { return rig.cap->stats().frames_received >= 4 * k + 301; }));
+  EXPECT_EQ(rig.cap->rows(), rows_at_fault) << "rows written after bus-off";
+  rig.cap->detach();
+  EXPECT_EQ(rig.log().size(), 4 * k + 301) << "every frame, the error frames too, is in capture.log";
+}
+
 TEST(CaptureStatsJson, RoundTripAndStrictParsing) {
   CaptureStats s;
   s.frames_received = 123456789012ULL;
