@@ -88,7 +88,8 @@ std::string describe(const db::RunRecord& r) {
 void expect_same_record(const StoredRun& was, const StoredRun& now) {
   const db::RunRecord& a = was.run;
   const db::RunRecord& b = now.run;
-  EXPECT_EQ(db::to_string(a.state), db::to_string(b.state)) << describe(a) << "\nbecame\n" << describe(b);
+  EXPECT_EQ(db::to_string(a.state), db::to_string(b.state)) << describe(a) << "\nbecame\n"
+                                                            << describe(b);
   EXPECT_EQ(a.ended_at_ms, b.ended_at_ms) << describe(a);
   EXPECT_EQ(a.failure_reason, b.failure_reason) << describe(a);
   EXPECT_EQ(a.archive_path, b.archive_path) << describe(a);
@@ -122,30 +123,37 @@ void expect_consistent(const Snapshot& before, const Snapshot& after, bool new_r
     EXPECT_EQ(was.crosscheck, now.crosscheck) << describe(now.run);
   }
   for (const auto& [id, now] : after) {
-    EXPECT_TRUE(new_runs_allowed || before.count(id)) << "a run appeared during recovery: " << describe(now.run);
+    EXPECT_TRUE(new_runs_allowed || before.count(id))
+        << "a run appeared during recovery: " << describe(now.run);
     std::set<std::string> methods;
     for (const auto& c : now.calibrations) {
       const std::string m = c.substr(0, c.find(':'));
-      EXPECT_TRUE(methods.insert(m).second) << "method " << m << " stored twice: " << describe(now.run);
+      EXPECT_TRUE(methods.insert(m).second)
+          << "method " << m << " stored twice: " << describe(now.run);
     }
   }
 }
 
 /// Archives: digest where recorded, readable where the run was interrupted, no temporary files.
-void expect_archives_sound(const Snapshot& s) {
+/// Only the runs `changed` (given) are checked — hashing every archive after every kill would make
+/// the test quadratic —; the last call checks them all.
+void expect_archives_sound(const Snapshot& s, const std::set<long long>* changed = nullptr) {
   for (const auto& [id, r] : s) {
+    if (changed && !changed->count(id)) continue;
     const std::string& dir = r.run.archive_path;
     if (!r.run.archive_sha256.empty()) {
       try {
         EXPECT_EQ(station::archive_digest(dir), r.run.archive_sha256)
             << "archive differs from the digest the database holds: " << describe(r.run);
       } catch (const std::exception& e) {
-        ADD_FAILURE() << "archive of a run with a recorded digest is unreadable: " << e.what() << "\n"
+        ADD_FAILURE() << "archive of a run with a recorded digest is unreadable: " << e.what()
+                      << "\n"
                       << describe(r.run);
       }
     }
     if (r.run.state == db::RunState::kDone) {
-      EXPECT_EQ(r.run.archive_sha256.size(), 64u) << "a done run without an archive digest: " << describe(r.run);
+      EXPECT_EQ(r.run.archive_sha256.size(), 64u)
+          << "a done run without an archive digest: " << describe(r.run);
     }
     if (dir.empty() || !fs::exists(fs::path(dir) / "run.toml")) {
       // Only a run killed before its capture began may lack an archive, and it says so.
@@ -161,24 +169,29 @@ void expect_archives_sound(const Snapshot& s) {
     if (r.run.state != db::RunState::kInterrupted) continue;
     if (contains_ci(r.run.failure_reason, "no data rows")) {
       // Killed before the first sample was written: nothing to reprocess, and the reason says so.
-      EXPECT_NO_THROW(archive::parse_run_info(read_text(dir + "/run.toml"), dir + "/run.toml")) << describe(r.run);
-      EXPECT_THROW(archive::read_archive(dir), std::exception) << "the reason says no data: " << describe(r.run);
+      EXPECT_NO_THROW(archive::parse_run_info(read_text(dir + "/run.toml"), dir + "/run.toml"))
+          << describe(r.run);
+      EXPECT_THROW(archive::read_archive(dir), std::exception)
+          << "the reason says no data: " << describe(r.run);
       continue;
     }
     try {
       const archive::RunArchive a = archive::read_archive(dir);
       EXPECT_EQ(a.imu.size(), a.table.size()) << describe(r.run);
       EXPECT_EQ(a.info.serial, r.run.serial) << describe(r.run);
-      EXPECT_FALSE(a.info.end_time.empty()) << "recovery must write the end time: " << describe(r.run);
+      EXPECT_FALSE(a.info.end_time.empty())
+          << "recovery must write the end time: " << describe(r.run);
       // The recounted capture counters add up (every received frame is logged; the log decodes).
       if (a.info.capture && !a.info.capture->complete) {
-        EXPECT_EQ(a.info.capture->frames_received, a.info.capture->frames_logged) << describe(r.run);
+        EXPECT_EQ(a.info.capture->frames_received, a.info.capture->frames_logged)
+            << describe(r.run);
         if (a.imu.size() > 0) {
           EXPECT_GT(a.info.capture->samples_decoded, 0u) << describe(r.run);
         }
       }
     } catch (const std::exception& e) {
-      ADD_FAILURE() << "interrupted run's archive does not read back: " << e.what() << "\n" << describe(r.run);
+      ADD_FAILURE() << "interrupted run's archive does not read back: " << e.what() << "\n"
+                    << describe(r.run);
     }
   }
 }
@@ -193,7 +206,8 @@ struct Life {
 
 Life measure_life(Station& st) {
   const auto t0 = Clock::now();
-  const CmdResult start = st.ctl({"--json", "run", "start", "--serial", "SIM-CRASH-REF", "--sequence", "short"});
+  const CmdResult start =
+      st.ctl({"--json", "run", "start", "--serial", "SIM-CRASH-REF", "--sequence", "short"});
   EXPECT_EQ(start.exit_code, 0) << start.describe();
   const long long id = run_id_of(start.json_out());
   Life life;
@@ -237,7 +251,8 @@ std::string kill_point(const json& live, const Snapshot& before, long long run_i
   if (r.state == db::RunState::kRunning && fs::exists(toml) &&
       std::regex_search(read_text(toml), std::regex(R"(complete\s*=\s*true)")))
     return "archive finalised, state not yet calibrating";
-  if (r.state == db::RunState::kPreparing) return "preparing" + (phase.empty() ? "" : " (" + phase + ")");
+  if (r.state == db::RunState::kPreparing)
+    return "preparing" + (phase.empty() ? "" : " (" + phase + ")");
   return phase.empty() ? "running" : phase;
 }
 
@@ -252,7 +267,8 @@ void note_reprocessable(const Snapshot& after, long long run_id, Reprocessable& 
   if (it == after.end() || it->second.run.state != db::RunState::kInterrupted) return;
   const std::string dir = it->second.run.archive_path;
   if (dir.empty() || !fs::exists(fs::path(dir) / "run.toml")) return;
-  const bool complete = std::regex_search(read_text(dir + "/run.toml"), std::regex(R"(complete\s*=\s*true)"));
+  const bool complete =
+      std::regex_search(read_text(dir + "/run.toml"), std::regex(R"(complete\s*=\s*true)"));
   const bool empty = contains_ci(it->second.run.failure_reason, "no data rows");
   long long& slot = empty ? r.empty : complete ? r.complete : r.cut;
   if (slot < 0) slot = run_id;
@@ -261,8 +277,9 @@ void note_reprocessable(const Snapshot& after, long long run_id, Reprocessable& 
 void reprocess_interrupted(Station& st, const Reprocessable& r) {
   if (r.complete > 0) {
     const CmdResult rep = st.ctl({"reprocess", std::to_string(r.complete), "--wait"}, 300s);
-    EXPECT_EQ(rep.exit_code, 0) << "a complete archive of an interrupted run must reprocess to PASS\n"
-                                << rep.describe() << st.daemon_log();
+    EXPECT_EQ(rep.exit_code, 0)
+        << "a complete archive of an interrupted run must reprocess to PASS\n"
+        << rep.describe() << st.daemon_log();
   } else {
     std::fprintf(stderr, "[crash] no interrupted run with a complete capture to reprocess\n");
   }
@@ -270,23 +287,28 @@ void reprocess_interrupted(Station& st, const Reprocessable& r) {
     const CmdResult refused = st.ctl({"reprocess", std::to_string(r.cut), "--wait"}, 60s);
     EXPECT_EQ(refused.exit_code, 2) << refused.describe();
     const CmdResult rep = st.ctl({"reprocess", std::to_string(r.cut), "--partial", "--wait"}, 300s);
-    EXPECT_EQ(rep.exit_code, 1) << "a cut archive reprocesses to REVIEW or FAILED\n" << rep.describe();
+    EXPECT_EQ(rep.exit_code, 1) << "a cut archive reprocesses to REVIEW or FAILED\n"
+                                << rep.describe();
   }
   if (r.empty > 0) {
-    const CmdResult rep = st.ctl({"reprocess", std::to_string(r.empty), "--partial", "--wait"}, 60s);
-    EXPECT_EQ(rep.exit_code, 2) << "an archive without data cannot be reprocessed\n" << rep.describe();
+    const CmdResult rep =
+        st.ctl({"reprocess", std::to_string(r.empty), "--partial", "--wait"}, 60s);
+    EXPECT_EQ(rep.exit_code, 2) << "an archive without data cannot be reprocessed\n"
+                                << rep.describe();
     EXPECT_TRUE(contains_ci(rep.out + rep.err, "no data")) << rep.describe();
   }
 }
 
-TEST(StationCrash, SigkillAtRandomPointsOfARunsLifeLosesNothingAndEveryInterruptedRunIsReprocessable) {
+TEST(StationCrash,
+     SigkillAtRandomPointsOfARunsLifeLosesNothingAndEveryInterruptedRunIsReprocessable) {
   const int n = env_int("IMUCAL_CRASH_POINTS", 30);
   const uint64_t seed = static_cast<uint64_t>(env_int("IMUCAL_CRASH_SEED", 20261125));
   std::mt19937_64 rng(seed);
   Station st;
   ASSERT_TRUE(st.start(SimOptions{400.0, 31, {}}));
   const Life life = measure_life(st);
-  std::fprintf(stderr, "[crash] %d kill points, seed %llu; reference run: capture %.2f s, end %.2f s\n", n,
+  std::fprintf(stderr,
+               "[crash] %d kill points, seed %llu; reference run: capture %.2f s, end %.2f s\n", n,
                static_cast<unsigned long long>(seed), life.capture_end_s, life.end_s);
   ASSERT_GT(life.end_s, life.capture_end_s);
 
@@ -296,7 +318,8 @@ TEST(StationCrash, SigkillAtRandomPointsOfARunsLifeLosesNothingAndEveryInterrupt
   const auto delays = kill_delays(life, n, rng);
   for (int i = 0; i < n; ++i) {
     const std::string serial = "SIM-CRASH-" + std::to_string(i % 4);
-    const CmdResult start = st.ctl({"--json", "run", "start", "--serial", serial, "--sequence", "short"});
+    const CmdResult start =
+        st.ctl({"--json", "run", "start", "--serial", serial, "--sequence", "short"});
     ASSERT_EQ(start.exit_code, 0) << "kill " << i << ": " << start.describe() << st.daemon_log();
     const long long run_id = run_id_of(start.json_out());
     std::this_thread::sleep_for(std::chrono::duration<double>(std::max(0.0, delays[i] - 0.003)));
@@ -308,11 +331,19 @@ TEST(StationCrash, SigkillAtRandomPointsOfARunsLifeLosesNothingAndEveryInterrupt
     ++histogram[where];
     ASSERT_TRUE(st.start_daemon()) << "restart after kill " << i << " (" << where << ")";
     const Snapshot after = read_snapshot(st.db_path());
-    SCOPED_TRACE("kill " + std::to_string(i) + " at " + std::to_string(delays[i]) + " s (" + where + ")");
+    SCOPED_TRACE("kill " + std::to_string(i) + " at " + std::to_string(delays[i]) + " s (" + where +
+                 ")");
     EXPECT_TRUE(after.count(run_id)) << "the run the client was given is not stored: " << run_id;
     expect_consistent(ledger, before, true);  // nothing changed from the last restart to the kill
     expect_consistent(before, after, false);
-    expect_archives_sound(after);
+    std::set<long long> changed;  // runs new since the last restart, or whose record changed
+    for (const auto& [id, now] : after) {
+      const auto it = ledger.find(id);
+      if (it == ledger.end() || it->second.run.state != now.run.state ||
+          it->second.run.archive_sha256 != now.run.archive_sha256)
+        changed.insert(id);
+    }
+    expect_archives_sound(after, &changed);
     note_reprocessable(after, run_id, reprocessable);
     ledger = after;
     if (HasFatalFailure() || ::testing::Test::HasFailure()) break;
@@ -320,10 +351,12 @@ TEST(StationCrash, SigkillAtRandomPointsOfARunsLifeLosesNothingAndEveryInterrupt
   std::ostringstream h;
   for (const auto& [k, v] : histogram) h << "  " << v << "  " << k << "\n";
   std::fprintf(stderr, "[crash] kill points by moment of the run:\n%s", h.str().c_str());
-  EXPECT_GE(histogram.size(), 4u) << "the kill points did not spread over the run's life:\n" << h.str();
+  EXPECT_GE(histogram.size(), 4u) << "the kill points did not spread over the run's life:\n"
+                                  << h.str();
   reprocess_interrupted(st, reprocessable);
   const Snapshot final_state = read_snapshot(st.db_path());
   expect_consistent(ledger, final_state, true);  // reprocessing adds runs; the old ones stay
+  expect_archives_sound(final_state);            // every archive, once more, at the end
 }
 
 }  // namespace

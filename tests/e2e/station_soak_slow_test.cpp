@@ -6,6 +6,7 @@
 // last ones) and its open descriptors must not grow.
 // IMUCAL_SOAK_RUNS sets the count (CI: 12; the full soak: 50, figures in the README).
 #include <atomic>
+#include <mutex>
 #include <thread>
 
 #include "tests/e2e/station_harness.hpp"
@@ -48,6 +49,9 @@ class Querier {
   }
   int queries() const { return queries_; }
   const std::vector<std::string>& failures() const { return failures_; }
+  /// Holds the loop after its current query (for a quiet moment to count descriptors).
+  void pause() { busy_.lock(); }
+  void resume() { busy_.unlock(); }
 
  private:
   void loop() {
@@ -59,12 +63,16 @@ class Querier {
         args.insert(args.end(), {"--json", "history", "SIM-SOAK-1"});
       else
         args.insert(args.end(), {"export", "--format", (k % 8 < 4) ? "csv" : "json"});
+      std::unique_lock<std::mutex> lk(busy_);
       const CmdResult r = st_.ctl(args, 60s);
+      lk.unlock();
+      std::this_thread::sleep_for(5ms);  // lets pause() in (the mutex is not fair)
       ++queries_;
       const std::string all = r.out + r.err;
       // A unit with no runs yet is "not found" (exit 2): the only acceptable failure, early on.
       const bool unknown_yet = r.exit_code == 2 && contains_ci(all, "no unit");
-      if ((r.exit_code != 0 && !unknown_yet) || contains_ci(all, "busy") || contains_ci(all, "locked"))
+      if ((r.exit_code != 0 && !unknown_yet) || contains_ci(all, "busy") ||
+          contains_ci(all, "locked"))
         failures_.push_back(r.describe());
     }
   }
@@ -73,6 +81,7 @@ class Querier {
   std::atomic<bool> stop_{false};
   std::atomic<int> queries_{0};
   std::vector<std::string> failures_;
+  std::mutex busy_;
   std::thread thread_;
 };
 
@@ -96,16 +105,22 @@ TEST(StationSoak, ConsecutiveRunsWithParallelQueriesAllPassWithFlatMemoryAndNoDe
       const CmdResult r = st.ctl({"run", "start", "--serial", "SIM-SOAK-" + std::to_string(i % 3),
                                   "--sequence", "short", "--wait"},
                                  300s);
-      EXPECT_EQ(r.exit_code, 0) << "run " << i << " did not PASS:\n" << r.describe() << st.daemon_log();
+      EXPECT_EQ(r.exit_code, 0) << "run " << i << " did not PASS:\n"
+                                << r.describe() << st.daemon_log();
       if (r.exit_code == 0) ++passed;
+      q.pause();  // no client connected: the daemon's own descriptors only
+      std::this_thread::sleep_for(200ms);
       samples.push_back({rss_kb(daemon), fd_count(daemon)});
-      std::fprintf(stderr, "[soak] run %d: exit %d, daemon RSS %ld kB, %ld fds, %d queries so far\n", i + 1,
+      q.resume();
+      std::fprintf(stderr,
+                   "[soak] run %d: exit %d, daemon RSS %ld kB, %ld fds, %d queries so far\n", i + 1,
                    r.exit_code, samples.back().rss_kb, samples.back().fds, q.queries());
     }
     q.stop();
     EXPECT_GE(q.queries(), n) << "the querying process hardly ran";
     for (const auto& f : q.failures()) ADD_FAILURE() << "a query failed during the soak:\n" << f;
-    std::fprintf(stderr, "[soak] %d queries in parallel, %zu failed\n", q.queries(), q.failures().size());
+    std::fprintf(stderr, "[soak] %d queries in parallel, %zu failed\n", q.queries(),
+                 q.failures().size());
   }
   EXPECT_EQ(passed, n);
   ASSERT_TRUE(st.daemon().running()) << st.daemon_log();
@@ -118,12 +133,15 @@ TEST(StationSoak, ConsecutiveRunsWithParallelQueriesAllPassWithFlatMemoryAndNoDe
   };
   const double warm = mean_rss(2, 5);
   const double last = mean_rss(samples.size() - 3, samples.size());
-  std::fprintf(stderr, "[soak] daemon RSS: start %ld kB, warmed-up %.0f kB, last %.0f kB (%+.1f %%); fds %ld -> %ld\n",
-               at_start.rss_kb, warm, last, 100.0 * (last - warm) / warm, samples[2].fds, samples.back().fds);
+  std::fprintf(stderr,
+               "[soak] daemon RSS: start %ld kB, warmed-up %.0f kB, last %.0f kB (%+.1f %%); fds "
+               "%ld -> %ld\n",
+               at_start.rss_kb, warm, last, 100.0 * (last - warm) / warm, samples[2].fds,
+               samples.back().fds);
   EXPECT_LE(last, 1.10 * warm) << "the daemon's resident memory grew over the soak";
   // Descriptors: after the warm-up every run ends with the same open set (idle, no client).
-  EXPECT_LE(samples.back().fds, samples[2].fds) << "descriptors leak: " << samples[2].fds << " -> "
-                                                << samples.back().fds;
+  EXPECT_LE(samples.back().fds, samples[2].fds)
+      << "descriptors leak: " << samples[2].fds << " -> " << samples.back().fds;
 }
 
 }  // namespace
