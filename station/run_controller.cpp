@@ -664,8 +664,11 @@ void RunController::end_live(const std::shared_ptr<Live>& live) {
     if (!live->snap.ended_at_ms) live->snap.ended_at_ms = db::now_ms();
     last_ = live->snap;
     live_.reset();
+    // Notified under the lock: the calibration worker's thread ends runs too, and shutdown() (the
+    // destructor) may return and destroy cv_ as soon as it sees live_ empty — a notify after the
+    // unlock could touch a destroyed condition variable (found by ThreadSanitizer).
+    cv_.notify_all();
   }
-  cv_.notify_all();
 }
 
 void RunController::on_calibrated(const std::shared_ptr<Live>& live,

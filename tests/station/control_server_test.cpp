@@ -46,7 +46,7 @@ class FakeHandler : public ControlHandler {
     ++start_calls;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      last_start = r;
+      last_start_ = r;
     }
     leave();
     if (r.serial == "BUSY-1") throw ControlError(error_code::kBusy, "run 4 is active (SIM-0004)");
@@ -71,7 +71,7 @@ class FakeHandler : public ControlHandler {
   json abort_run(const std::string& reason) override {
     ++abort_calls;
     std::lock_guard<std::mutex> lock(mutex_);
-    last_reason = reason;
+    last_reason_ = reason;
     return {{"run_id", 77}};
   }
   json diagnose(db::RunId run_id) override {
@@ -79,18 +79,33 @@ class FakeHandler : public ControlHandler {
   }
   json reprocess(const ReprocessRequest& q) override {
     ++reprocess_calls;
-    last_reprocess = q;
+    std::lock_guard<std::mutex> lock(mutex_);
+    last_reprocess_ = q;
     return {{"run_id", 78}, {"reprocessed_from", q.run_id}};
   }
   const db::Repository& repository() const override { return repo_; }
 
   std::atomic<int> start_calls{0}, status_calls{0}, abort_calls{0}, reprocess_calls{0};
   std::atomic<int> overlaps{0};
-  StartRunRequest last_start;
-  ReprocessRequest last_reprocess;
-  std::string last_reason;
+  // What the server handed over, read under the lock the server thread wrote it with (a reply
+  // that went through a forked client is no happens-before edge a race detector can see).
+  StartRunRequest last_start() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return last_start_;
+  }
+  ReprocessRequest last_reprocess() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return last_reprocess_;
+  }
+  std::string last_reason() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return last_reason_;
+  }
 
  private:
+  StartRunRequest last_start_;
+  ReprocessRequest last_reprocess_;
+  std::string last_reason_;
   void enter() {
     if (in_call_.exchange(true)) ++overlaps;
   }
@@ -299,28 +314,28 @@ TEST_F(ControlServerTest, RootMayControlAndTheOperatorDefaultsToThePeer) {
   ASSERT_TRUE(r.ok) << r.error_message;
   EXPECT_EQ(r.result.at("run_id"), 77);
   EXPECT_EQ(handler_->start_calls, 1);
-  EXPECT_EQ(handler_->last_start.serial, "SIM-0009");
-  EXPECT_EQ(handler_->last_start.sequence.value_or(""), "short");
-  EXPECT_EQ(handler_->last_start.operator_name, "root");
+  EXPECT_EQ(handler_->last_start().serial, "SIM-0009");
+  EXPECT_EQ(handler_->last_start().sequence.value_or(""), "short");
+  EXPECT_EQ(handler_->last_start().operator_name, "root");
   r = c.call("run.start", {{"serial", "SIM-0009"}, {"operator", "anna"}});
-  EXPECT_EQ(handler_->last_start.operator_name, "anna");
-  EXPECT_FALSE(handler_->last_start.sequence.has_value());
+  EXPECT_EQ(handler_->last_start().operator_name, "anna");
+  EXPECT_FALSE(handler_->last_start().sequence.has_value());
 
   r = c.call("run.abort");
   ASSERT_TRUE(r.ok);
-  EXPECT_EQ(handler_->last_reason, "aborted by root");
+  EXPECT_EQ(handler_->last_reason(), "aborted by root");
   r = c.call("run.abort", {{"reason", "unit fell off"}});
-  EXPECT_EQ(handler_->last_reason, "unit fell off");
+  EXPECT_EQ(handler_->last_reason(), "unit fell off");
   r = c.call("reprocess", {{"run_id", 2}});
   ASSERT_TRUE(r.ok);
   EXPECT_EQ(r.result.at("reprocessed_from"), 2);
   EXPECT_EQ(handler_->reprocess_calls, 1);
   // Who asked is passed on (recorded with the new run); a partial archive only when asked.
-  EXPECT_EQ(handler_->last_reprocess.user, "root");
-  EXPECT_FALSE(handler_->last_reprocess.allow_partial);
+  EXPECT_EQ(handler_->last_reprocess().user, "root");
+  EXPECT_FALSE(handler_->last_reprocess().allow_partial);
   r = c.call("reprocess", {{"run_id", 2}, {"partial", true}});
   ASSERT_TRUE(r.ok);
-  EXPECT_TRUE(handler_->last_reprocess.allow_partial);
+  EXPECT_TRUE(handler_->last_reprocess().allow_partial);
   r = c.call("reprocess", {{"run_id", 2}, {"partial", "yes"}});
   EXPECT_FALSE(r.ok);
   EXPECT_EQ(r.error_code, "bad_request");
@@ -420,7 +435,7 @@ TEST_F(ControlServerTest, AMemberOfTheControlGroupMayControl) {
   });
   EXPECT_EQ(code, 0) << diag;
   EXPECT_EQ(handler_->start_calls, 1);
-  EXPECT_EQ(handler_->last_start.operator_name, "nobody");
+  EXPECT_EQ(handler_->last_start().operator_name, "nobody");
 
   // Group lists: nobody's own group counts even when the peer's current gid is another one
   // (getgrouplist of the passwd entry), a foreign group does not, root always does.
