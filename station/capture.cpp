@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <ctime>
 #include <stdexcept>
 
 #include "calib/conventions.hpp"
@@ -14,6 +15,13 @@
 namespace imucal::station {
 
 namespace {
+
+/// CLOCK_REALTIME in ns: the domain of the CAN channel's receive times (SO_TIMESTAMP).
+int64_t realtime_ns() {
+  timespec ts{};
+  ::clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
+}
 
 // IMU status bits that make the data unusable for a calibration (imu_protocol.hpp).
 constexpr uint16_t kFailureBits = imu::status::kGyroFault | imu::status::kAccelFault |
@@ -170,7 +178,10 @@ void Capture::on_sample(const imu::DecodedSample& s, Clock::time_point now) {
   cv_.notify_all();  // wait_for_stream
   // The commanded move reaches the IMU stream: from here on still samples are after the move.
   if (motion_pending_ && is_moving(s.increment)) motion_pending_ = false;
-  if (motion_pending_ && phase_ != Phase::kMoving) ++unseen_move_samples_;
+  // Only samples the kernel received after the rest began count: a starved capture thread still
+  // reads a backlog of samples from before and during the move, which prove nothing (seen under
+  // ThreadSanitizer on a busy CPU as a false "the unit did not move with the table").
+  if (motion_pending_ && phase_ != Phase::kMoving && s.rx_time_ns >= rest_begun_ns_) ++unseen_move_samples_;
 
   if (!writer_ || writes_disabled_ || fault_) return;
   if (s.status & kFailureBits) {
@@ -356,6 +367,7 @@ void Capture::begin_rest(double outer_deg, double inner_deg, uint64_t rest_sampl
   rest_done_ = false;
   ++rest_generation_;
   unseen_move_samples_ = 0;
+  rest_begun_ns_ = realtime_ns();
   if (options_.settle_guard_samples == 0 && !motion_pending_) {
     phase_ = rest_samples > 0 ? Phase::kResting : Phase::kRestDone;
     rest_done_ = rest_samples == 0;

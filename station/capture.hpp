@@ -139,6 +139,7 @@ class Capture {
   ArchiveWriter* writer_ = nullptr;
   bool writes_disabled_ = false;  ///< archive I/O error: no more writes at all
   std::optional<std::string> fault_;
+  int64_t rest_begun_ns_ = 0;  ///< realtime of the latest begin_rest (the receive-time domain)
 
   // Cumulative counters (since start); stats() subtracts baseline_ (taken at attach).
   uint64_t frames_received_ = 0, frames_logged_ = 0, rx_overflow_ = 0;

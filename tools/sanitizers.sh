@@ -6,8 +6,8 @@
 #                              writes its reports under build-tsan/reports, and any report fails.
 #   tools/sanitizers.sh asan   the whole suite except the Monte Carlo, QEMU and fuzz sets under
 #                              ASan + UBSan (gcc; -fno-sanitize-recover: UB stops the test).
-# Not part of tools/test.sh yet: on 2 cores the extra builds do not fit beside the Release suite in
-# CI's 30 minutes (README, "Reliability"). ccache makes repeated runs cheap.
+# tools/test.sh runs the tsan mode (~5 min); the asan mode does not fit beside the Release suite
+# in CI's 30 minutes on 2 cores (README, "Reliability"). ccache makes repeated runs cheap.
 # IMUCAL_SANITIZER_TREE=DIR uses another build tree.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -18,8 +18,11 @@ command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 case $mode in
   tsan)
     tree=${IMUCAL_SANITIZER_TREE:-build-tsan}
+    # The calibration core (single-threaded math) is linked from the Release tree when it exists.
+    calib=()
+    [[ -f build/calib/libimucal_calib.a ]] && calib=(-DIMUCAL_CALIB_LIBRARY="$PWD/build/calib/libimucal_calib.a")
     cmake -S . -B $tree -DIMUCAL_TSAN=ON -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1 -g" \
-      "${launcher[@]}" >/dev/null
+      "${launcher[@]}" "${calib[@]}" >/dev/null
     tests=(station_capture_test drivers_turntable_client_test drivers_station_sim_test
            station_control_server_test station_daemon_test station_run_controller_test
            e2e_station_run_test e2e_station_abort_test e2e_station_faults_test)
