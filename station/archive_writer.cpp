@@ -20,6 +20,7 @@
 #include "drivers/imu/candump_log.hpp"
 #include "drivers/imu/imu_codec.hpp"
 #include "sequences/library.hpp"
+#include "station/capture_stats.hpp"
 
 namespace imucal::station {
 
@@ -310,9 +311,9 @@ namespace {
 /// was logged) replayed through the IMU frame decoder, as the live capture decoded them. A torn
 /// last line is skipped by the reader; a damaged line ends the count (raw data stays as it is).
 archive::CaptureInfo recount_capture_log(const std::string& log, const imu::DecoderOptions& decoder) {
-  archive::CaptureInfo ci;
+  CaptureStats stats;
   std::error_code ec;
-  if (!fs::exists(log, ec)) return ci;
+  if (!fs::exists(log, ec)) return to_capture_info(stats, false);
   imu::ImuFrameDecoder dec(decoder);
   std::vector<imu::DecodedSample> samples;
   bool have_prev = false;
@@ -320,7 +321,7 @@ archive::CaptureInfo recount_capture_log(const std::string& log, const imu::Deco
   auto take = [&] {
     for (const imu::DecodedSample& s : samples) {
       if (have_prev && !s.discontinuity && s.sample_index > prev_index + 1)
-        ci.max_gap_samples = std::max<uint64_t>(ci.max_gap_samples, s.sample_index - prev_index - 1);
+        stats.max_gap_samples = std::max<uint64_t>(stats.max_gap_samples, s.sample_index - prev_index - 1);
       have_prev = true;
       prev_index = s.sample_index;
     }
@@ -330,7 +331,7 @@ archive::CaptureInfo recount_capture_log(const std::string& log, const imu::Deco
     imu::CandumpReader reader(log);
     imu::CandumpRecord rec;
     while (reader.next(rec)) {
-      ++ci.frames_logged;
+      ++stats.frames_logged;
       dec.push(rec.frame, samples);
       take();
     }
@@ -338,21 +339,9 @@ archive::CaptureInfo recount_capture_log(const std::string& log, const imu::Deco
   }
   dec.flush(samples);
   take();
-  const imu::DecoderCounters& c = dec.counters();
-  ci.frames_received = ci.frames_logged;
-  ci.frames_foreign = c.foreign_frames;
-  ci.frames_error = c.error_frames;
-  ci.frames_malformed = c.malformed_frames;
-  ci.frames_duplicate = c.duplicate_frames;
-  ci.frames_out_of_order = c.out_of_order_frames;
-  ci.frames_discarded = c.discarded_frames;
-  ci.samples_decoded = c.samples_decoded;
-  ci.samples_lost = c.samples_lost;
-  ci.samples_corrupt = c.samples_corrupt;
-  ci.samples_incomplete = c.samples_incomplete;
-  ci.samples_late = c.samples_late;
-  ci.imu_resets = c.imu_resets;
-  return ci;
+  stats.frames_received = stats.frames_logged;
+  set_decoder_counters(stats, dec.counters());
+  return to_capture_info(stats, false);
 }
 
 }  // namespace

@@ -114,4 +114,19 @@ CaptureStats capture_stats_from_info(const archive::CaptureInfo& info) {
   return s;
 }
 
+void set_decoder_counters(CaptureStats& s, const imu::DecoderCounters& d) {
+  s.frames_foreign = d.foreign_frames;
+  s.frames_error = d.error_frames;
+  s.frames_malformed = d.malformed_frames;
+  s.frames_duplicate = d.duplicate_frames;
+  s.frames_out_of_order = d.out_of_order_frames;
+  s.frames_discarded = d.discarded_frames;
+  s.samples_decoded = d.samples_decoded;
+  s.samples_lost = d.samples_lost;
+  s.samples_corrupt = d.samples_corrupt;
+  s.samples_incomplete = d.samples_incomplete;
+  s.samples_late = d.samples_late;
+  s.imu_resets = d.imu_resets;
+}
+
 }  // namespace imucal::station

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "db/archive/run_archive.hpp"
+#include "drivers/imu/imu_codec.hpp"
 
 namespace imucal::station {
 
@@ -25,6 +26,10 @@ struct CaptureStats {
   friend bool operator==(const CaptureStats& a, const CaptureStats& b);
   friend bool operator!=(const CaptureStats& a, const CaptureStats& b) { return !(a == b); }
 };
+
+/// The decoder's frame and sample counters into `stats` (frames_foreign … samples_late, imu_resets);
+/// the others are left as they are.
+void set_decoder_counters(CaptureStats& stats, const imu::DecoderCounters& decoder);
 
 /// JSON object with one integer member per counter (the names above).
 nlohmann::json to_json(const CaptureStats& stats);

@@ -95,6 +95,14 @@ struct Station {
   ModbusTableServer server;
 };
 
+/// A client that retries a request up to 3 times after 100 ms without a reply.
+TurntableClientConfig retrying_config(const Station& st) {
+  auto cfg = st.client_config();
+  cfg.response_timeout = 100ms;
+  cfg.max_attempts = 3;
+  return cfg;
+}
+
 /// Connected, enabled and homed.
 void make_ready(TurntableClient& c) {
   c.connect();
@@ -274,10 +282,7 @@ TEST(TurntableClient, LinkLossBeyondGiveUpIsAClearError) {
 
 TEST(TurntableClient, ReplyDelayBeyondTimeoutIsCountedAndRecovered) {
   Station st;
-  auto cfg = st.client_config();
-  cfg.response_timeout = 100ms;
-  cfg.max_attempts = 3;
-  TurntableClient c(cfg);
+  TurntableClient c(retrying_config(st));
   make_ready(c);
   // One reply 150 ms late: the first attempt times out, a retry gets through within the same call.
   auto before = c.counters();
@@ -308,10 +313,7 @@ TEST(TurntableClient, ReplyDelayBeyondTimeoutIsCountedAndRecovered) {
 // at 30 °/s).
 TEST(TurntableClient, ALateReplyIsFlushedNotTakenForTheRetrysAnswer) {
   Station st;
-  auto cfg = st.client_config();
-  cfg.response_timeout = 100ms;
-  cfg.max_attempts = 3;
-  TurntableClient c(cfg);
+  TurntableClient c(retrying_config(st));
   make_ready(c);
   c.move_to(340.0, 0.0, 30.0);
   st.wait_outer_past(20.0);
