@@ -98,7 +98,8 @@ void crosscheck_and_capture_fields(const ExportRow& row, CsvLine& line) {
   if (!row.run.capture_json.empty()) {
     capture = json::parse(row.run.capture_json, nullptr, /*allow_exceptions=*/false);
     if (!capture.is_object())
-      throw Corrupt("run " + std::to_string(row.run.run_id) + ": stored capture_json is not a JSON object");
+      throw Corrupt("run " + std::to_string(row.run.run_id) +
+                    ": stored capture_json is not a JSON object");
   }
   for (const auto& [name, member] : archive::CaptureInfo::counters()) {
     (void)member;

@@ -16,7 +16,8 @@
 // double; absent values are empty fields.
 //
 // JSON: one array of objects, one object per CSV row: run_json(run) (capture counters included)
-// plus "calibration": calibration_json(...) or null, and "crosscheck": crosscheck_json(...) or null.
+// plus "calibration": calibration_json(...) or null, and "crosscheck": crosscheck_json(...) or
+// null.
 #include <cstddef>
 #include <nlohmann/json.hpp>
 #include <ostream>

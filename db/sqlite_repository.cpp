@@ -485,12 +485,13 @@ struct SqliteRepository::Impl {
     x.verdict = decode([&] { return what + " verdict"; },
                        [&] { return verdict_from_string(q.text(verdict_col)); });
     x.k_sigma = q.f64(k_col);
-    x.failures = decode_json(path + ": " + what + " failures_json", q.text(k_col + 1), [](const json& j) {
-      std::vector<calib::CrossCheckFailure> v;
-      for (const json& f : j)
-        v.push_back({f.at("term").get<std::string>(), f.at("detail").get<std::string>()});
-      return v;
-    });
+    x.failures =
+        decode_json(path + ": " + what + " failures_json", q.text(k_col + 1), [](const json& j) {
+          std::vector<calib::CrossCheckFailure> v;
+          for (const json& f : j)
+            v.push_back({f.at("term").get<std::string>(), f.at("detail").get<std::string>()});
+          return v;
+        });
     return x;
   }
 
@@ -1003,7 +1004,8 @@ void SqliteRepository::export_rows(const ExportFilter& filter,
     row.calibration = d.read_calibration(q, kNumRunColumns, row.run.run_id);
     row.crosscheck.reset();
     if (!q.is_null(kExportCrosscheckColumn))
-      row.crosscheck = d.read_crosscheck(q, kExportVerdictColumn, kExportCrosscheckColumn, row.run.run_id);
+      row.crosscheck =
+          d.read_crosscheck(q, kExportVerdictColumn, kExportCrosscheckColumn, row.run.run_id);
     sink(row);
   }
 }

@@ -310,7 +310,8 @@ namespace {
 /// The capture counters capture.log can give back: its frames (every frame the capture received
 /// was logged) replayed through the IMU frame decoder, as the live capture decoded them. A torn
 /// last line is skipped by the reader; a damaged line ends the count (raw data stays as it is).
-archive::CaptureInfo recount_capture_log(const std::string& log, const imu::DecoderOptions& decoder) {
+archive::CaptureInfo recount_capture_log(const std::string& log,
+                                         const imu::DecoderOptions& decoder) {
   CaptureStats stats;
   std::error_code ec;
   if (!fs::exists(log, ec)) return to_capture_info(stats, false);
@@ -321,7 +322,8 @@ archive::CaptureInfo recount_capture_log(const std::string& log, const imu::Deco
   auto take = [&] {
     for (const imu::DecodedSample& s : samples) {
       if (have_prev && !s.discontinuity && s.sample_index > prev_index + 1)
-        stats.max_gap_samples = std::max<uint64_t>(stats.max_gap_samples, s.sample_index - prev_index - 1);
+        stats.max_gap_samples =
+            std::max<uint64_t>(stats.max_gap_samples, s.sample_index - prev_index - 1);
       have_prev = true;
       prev_index = s.sample_index;
     }

@@ -87,9 +87,9 @@ class ArchiveWriter {
 /// rest_samples from the CSV files, and from capture.log (every frame the capture received is
 /// logged) frames_received = frames_logged and the decoder's counters by replaying the log through
 /// an ImuFrameDecoder with `decoder`'s options, as the live capture decoded it (samples_filled and
-/// rx_overflow cannot be recounted: 0). capture.log is left as it is (raw data). An archive that was
-/// finished ([capture] complete = true and the files agree with it) is left untouched. Temporary
-/// files of an interrupted atomic rewrite are removed. Returns rows kept. Throws
+/// rx_overflow cannot be recounted: 0). capture.log is left as it is (raw data). An archive that
+/// was finished ([capture] complete = true and the files agree with it) is left untouched.
+/// Temporary files of an interrupted atomic rewrite are removed. Returns rows kept. Throws
 /// archive::ArchiveError if run.toml is missing or unreadable or a CSV header is not the archive's.
 uint64_t recover_archive(const std::string& dir, const std::string& end_time_iso,
                          const imu::DecoderOptions& decoder = {});

@@ -158,9 +158,10 @@ void Capture::on_bus_off() {
   // hole of unknown length. A fault with its own reason (not a later "no sample" or gap fault).
   if (!writer_ || writes_disabled_ || fault_) return;
   const uint64_t errors = dec_.error_frames - baseline_.frames_error;
-  set_fault("CAN controller " + channel_->interface_name() + " went bus-off at " + row_label(rows_) +
-            " (after " + std::to_string(errors) +
-            " error frames in this run): the IMU stream has a hole; check the bus wiring and termination");
+  set_fault("CAN controller " + channel_->interface_name() + " went bus-off at " +
+            row_label(rows_) + " (after " + std::to_string(errors) +
+            " error frames in this run): the IMU stream has a hole; check the bus wiring and "
+            "termination");
 }
 
 void Capture::on_sample(const imu::DecodedSample& s, Clock::time_point now) {
@@ -181,7 +182,8 @@ void Capture::on_sample(const imu::DecodedSample& s, Clock::time_point now) {
   // Only samples the kernel received after the rest began count: a starved capture thread still
   // reads a backlog of samples from before and during the move, which prove nothing (seen under
   // ThreadSanitizer on a busy CPU as a false "the unit did not move with the table").
-  if (motion_pending_ && phase_ != Phase::kMoving && s.rx_time_ns >= rest_begun_ns_) ++unseen_move_samples_;
+  if (motion_pending_ && phase_ != Phase::kMoving && s.rx_time_ns >= rest_begun_ns_)
+    ++unseen_move_samples_;
 
   if (!writer_ || writes_disabled_ || fault_) return;
   if (s.status & kFailureBits) {

@@ -27,8 +27,8 @@ struct CaptureStats {
   friend bool operator!=(const CaptureStats& a, const CaptureStats& b) { return !(a == b); }
 };
 
-/// The decoder's frame and sample counters into `stats` (frames_foreign … samples_late, imu_resets);
-/// the others are left as they are.
+/// The decoder's frame and sample counters into `stats` (frames_foreign … samples_late,
+/// imu_resets); the others are left as they are.
 void set_decoder_counters(CaptureStats& stats, const imu::DecoderCounters& decoder);
 
 /// JSON object with one integer member per counter (the names above).

@@ -82,7 +82,8 @@ RecoveryReport recover_at_startup(const StationConfig& config, db::Repository& r
         r.archive_sha256 = archive_digest(dir);
         r.archive_path = dir;
         r.reason = r.rows_kept == 0
-                       ? found + "; archive " + dir + " kept, but it holds no data rows yet: nothing to reprocess"
+                       ? found + "; archive " + dir +
+                             " kept, but it holds no data rows yet: nothing to reprocess"
                        : found + "; archive " + dir + " kept with " + std::to_string(r.rows_kept) +
                              " rows, reprocess it to calibrate";
         c.capture_json = capture_json_of(dir);

@@ -29,8 +29,8 @@ namespace {
 static_assert(sizeof(struct can_frame) == 16, "unixcan records are Linux struct can_frame");
 static_assert(kCanEffFlag == CAN_EFF_FLAG && kCanRtrFlag == CAN_RTR_FLAG && kCanErrFlag == CAN_ERR_FLAG,
               "can_frame.hpp flags must match linux/can.h");
-static_assert(kCanErrCrtl == CAN_ERR_CRTL && kCanErrProt == CAN_ERR_PROT && kCanErrBusOff == CAN_ERR_BUSOFF &&
-                  kCanErrRestarted == CAN_ERR_RESTARTED,
+static_assert(kCanErrCrtl == CAN_ERR_CRTL && kCanErrProt == CAN_ERR_PROT &&
+                  kCanErrBusOff == CAN_ERR_BUSOFF && kCanErrRestarted == CAN_ERR_RESTARTED,
               "can_frame.hpp error classes must match linux/can/error.h");
 
 std::string errno_text() { return std::strerror(errno); }

@@ -172,15 +172,16 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
     const auto rows = parse_csv(os.str());
     ASSERT_FALSE(rows.empty());
     const auto& header = rows[0];
-    ASSERT_EQ(header.size(), 20u + 11u + 2u * calib::ParamSet::kSize + 2u + archive::CaptureInfo::counters().size());
+    ASSERT_EQ(header.size(), 20u + 11u + 2u * calib::ParamSet::kSize + 2u +
+                                 archive::CaptureInfo::counters().size());
     std::map<std::string, std::size_t> col;
     for (std::size_t c = 0; c < header.size(); ++c) col[header[c]] = c;
     ASSERT_EQ(col.size(), header.size()) << "duplicate column names";
-    for (const char* name : {"run_id", "serial", "state", "verdict", "started_at", "method",
-                             "failure_reason", "setting", "origin", "promoted_at", "promoted_by",
-                             "promote_reason", "accel_M[1][2]", "sigma.gyro_bias_radps[0]",
-                             "crosscheck_k_sigma", "crosscheck_failures", "capture.frames_received",
-                             "capture.samples_lost", "capture.rest_samples"})
+    for (const char* name :
+         {"run_id", "serial", "state", "verdict", "started_at", "method", "failure_reason",
+          "setting", "origin", "promoted_at", "promoted_by", "promote_reason", "accel_M[1][2]",
+          "sigma.gyro_bias_radps[0]", "crosscheck_k_sigma", "crosscheck_failures",
+          "capture.frames_received", "capture.samples_lost", "capture.rest_samples"})
       ASSERT_TRUE(col.count(name)) << name;
 
     const auto expected = expected_rows(f);

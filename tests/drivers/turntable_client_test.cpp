@@ -326,8 +326,9 @@ TEST(TurntableClient, ALateReplyIsFlushedNotTakenForTheRetrysAnswer) {
   EXPECT_EQ(c.counters().timeouts - before.timeouts, 1u);
   // The late reply did reach the client while the retry was outstanding, and was refused there.
   EXPECT_EQ(c.counters().bad_responses - before.bad_responses, 1u);
-  EXPECT_GT(s.outer_deg, p0 + 20.0) << "the late reply (outer " << p0 << " deg when it was read) was taken for the "
-                                    << "retry's answer; PLC now at " << p1;
+  EXPECT_GT(s.outer_deg, p0 + 20.0)
+      << "the late reply (outer " << p0 << " deg when it was read) was taken for the "
+      << "retry's answer; PLC now at " << p1;
   EXPECT_LE(s.outer_deg, p1 + 1e-3);  // the registers carry float32 angles
   // The exchange has recovered: further reads follow the table without another timeout.
   double last = s.outer_deg;

@@ -193,10 +193,13 @@ Args parse_args(int argc, char** argv) {
       const unsigned long n = std::stoul(v, &pos);
       if (pos != v.size() || n < 20 || n > 60000)
         throw std::invalid_argument(k + " must be an integer in [20, 60000], got '" + v + "'");
-      (k == "--samples" ? a.samples : k == "--burst-samples" ? a.burst_samples : a.capture_samples) = n;
+      (k == "--samples"         ? a.samples
+       : k == "--burst-samples" ? a.burst_samples
+                                : a.capture_samples) = n;
     } else {
-      throw std::invalid_argument("unknown option " + k +
-                                  " (expected --iface, --samples, --burst-samples, --capture-samples)");
+      throw std::invalid_argument(
+          "unknown option " + k +
+          " (expected --iface, --samples, --burst-samples, --capture-samples)");
     }
   }
   return a;
@@ -532,25 +535,32 @@ json daemon_capture(const Args& args, Failures& fail) {
   for (std::size_t k = 0; k < n; ++k) {
     send(k);
     for (int i = 0; i < per_sample; ++i, ++errors)
-      fail.check(tx->write(error_frame(i % 2 ? imu::kCanErrProt : imu::kCanErrCrtl)), "capture: error frame write");
-    if (k % 50 == 49) wait_for([&] { return cap.rows() >= k + 1; }, 5s);  // no kernel queue overflow
+      fail.check(tx->write(error_frame(i % 2 ? imu::kCanErrProt : imu::kCanErrCrtl)),
+                 "capture: error frame write");
+    if (k % 50 == 49)
+      wait_for([&] { return cap.rows() >= k + 1; }, 5s);  // no kernel queue overflow
   }
   const bool all_rows = wait_for([&] { return cap.rows() >= n; }, 10s);
   const station::CaptureStats during = cap.stats();
   fail.check(all_rows && cap.rows() == n, "capture: " + std::to_string(cap.rows()) + " rows of " +
-                                              std::to_string(n) + " samples sent through the error flood");
-  fail.check(!cap.fault(), "capture: the error flood faulted the capture: " + cap.fault().value_or(""));
-  fail.check(during.frames_error == errors, "capture: frames_error " + std::to_string(during.frames_error) +
-                                                ", sent " + std::to_string(errors));
+                                              std::to_string(n) +
+                                              " samples sent through the error flood");
+  fail.check(!cap.fault(),
+             "capture: the error flood faulted the capture: " + cap.fault().value_or(""));
+  fail.check(during.frames_error == errors, "capture: frames_error " +
+                                                std::to_string(during.frames_error) + ", sent " +
+                                                std::to_string(errors));
   fail.check(during.samples_decoded == n && during.samples_lost == 0 && during.rx_overflow == 0,
              "capture: decoded " + std::to_string(during.samples_decoded) + ", lost " +
-                 std::to_string(during.samples_lost) + ", rx_overflow " + std::to_string(during.rx_overflow));
+                 std::to_string(during.samples_lost) + ", rx_overflow " +
+                 std::to_string(during.rx_overflow));
 
   // Bus-off, then more samples: a fault naming it, and no row after it.
   fail.check(tx->write(error_frame(imu::kCanErrBusOff)), "capture: bus-off frame write");
   const bool faulted = wait_for([&] { return cap.fault().has_value(); }, 5s);
   const std::string fault = cap.fault().value_or("");
-  fail.check(faulted && fault.find("bus-off") != std::string::npos && fault.find(args.iface) != std::string::npos,
+  fail.check(faulted && fault.find("bus-off") != std::string::npos &&
+                 fault.find(args.iface) != std::string::npos,
              "capture: bus-off not reported as such: \"" + fault + "\"");
   const uint64_t rows_at_fault = cap.rows();
   for (std::size_t k = n; k < n + 20; ++k) send(k);
@@ -579,8 +589,8 @@ json daemon_capture(const Args& args, Failures& fail) {
     }
   }
   fail.check(a.imu.size() == n && row_mismatch == 0,
-             "capture: archive has " + std::to_string(a.imu.size()) + " rows, " + std::to_string(row_mismatch) +
-                 " axis values differ from the transmitted counts");
+             "capture: archive has " + std::to_string(a.imu.size()) + " rows, " +
+                 std::to_string(row_mismatch) + " axis values differ from the transmitted counts");
   imu::CandumpReader log(dir + "/capture.log");
   imu::CandumpRecord rec;
   std::size_t logged = 0, logged_errors = 0;
@@ -589,14 +599,11 @@ json daemon_capture(const Args& args, Failures& fail) {
     if (rec.frame.frame.is_error()) ++logged_errors;
   }
   fail.check(logged == frames_total && logged_errors == errors + 1,
-             "capture: capture.log holds " + std::to_string(logged) + " frames (" + std::to_string(logged_errors) +
-                 " error frames)");
-  return {{"samples", n},
-          {"rows", a.imu.size()},
-          {"error_frames", errors},
-          {"frames_error", during.frames_error},
-          {"fault", fault},
-          {"rows_after_bus_off", cap.rows() - rows_at_fault},
+             "capture: capture.log holds " + std::to_string(logged) + " frames (" +
+                 std::to_string(logged_errors) + " error frames)");
+  return {{"samples", n},           {"rows", a.imu.size()},
+          {"error_frames", errors}, {"frames_error", during.frames_error},
+          {"fault", fault},         {"rows_after_bus_off", cap.rows() - rows_at_fault},
           {"frames_logged", logged}};
 }
 

@@ -546,7 +546,8 @@ TEST(Capture, ErrorFloodIsCountedBusOffIsAFault) {
   ASSERT_TRUE(wait_until([&] { return rig.cap->stats().frames_received >= 4 * k + 301; }));
   EXPECT_EQ(rig.cap->rows(), rows_at_fault) << "rows written after bus-off";
   rig.cap->detach();
-  EXPECT_EQ(rig.log().size(), 4 * k + 301) << "every frame, the error frames too, is in capture.log";
+  EXPECT_EQ(rig.log().size(), 4 * k + 301)
+      << "every frame, the error frames too, is in capture.log";
 }
 
 TEST(CaptureStatsJson, RoundTripAndStrictParsing) {
