@@ -4,7 +4,10 @@
 // daemon writes it. Every run must PASS; no query may fail or show SQLITE_BUSY / "locked" to its
 // user; the daemon's resident memory must stay flat (within 10 % from the warmed-up runs to the
 // last ones) and its open descriptors must not grow.
-// IMUCAL_SOAK_RUNS sets the count (CI: 12; the full soak: 50, figures in the README).
+// IMUCAL_SOAK_RUNS sets the count (CI: 15; the full soak: 50, figures in the README). The daemon's
+// RSS steps up over the first few runs (the allocator gives the control, capture and calibration
+// threads their own arenas, each grown to the run's peak once), so the reference is the mean of
+// three runs after the first third, compared with the mean of the last three.
 #include <atomic>
 #include <mutex>
 #include <thread>
@@ -91,8 +94,8 @@ struct Sample {
 };
 
 TEST(StationSoak, ConsecutiveRunsWithParallelQueriesAllPassWithFlatMemoryAndNoDescriptorLeak) {
-  const int n = env_int("IMUCAL_SOAK_RUNS", 12);
-  ASSERT_GE(n, 6) << "IMUCAL_SOAK_RUNS below 6 cannot show a trend";
+  const int n = env_int("IMUCAL_SOAK_RUNS", 15);
+  ASSERT_GE(n, 12) << "IMUCAL_SOAK_RUNS below 12 cannot show a trend after the warm-up";
   Station st;
   ASSERT_TRUE(st.start(SimOptions{400.0, 41, {}}));
   const pid_t daemon = st.daemon().pid();
@@ -125,23 +128,24 @@ TEST(StationSoak, ConsecutiveRunsWithParallelQueriesAllPassWithFlatMemoryAndNoDe
   EXPECT_EQ(passed, n);
   ASSERT_TRUE(st.daemon().running()) << st.daemon_log();
 
-  // Memory: the mean of the runs after warm-up (runs 3..5) against the mean of the last three.
+  // Memory: the mean of three runs after the warm-up (the first third) against the last three.
   auto mean_rss = [&](size_t from, size_t to) {
     double s = 0;
     for (size_t k = from; k < to; ++k) s += samples[k].rss_kb;
     return s / static_cast<double>(to - from);
   };
-  const double warm = mean_rss(2, 5);
+  const size_t warm_from = std::max<size_t>(4, samples.size() / 3);
+  const double warm = mean_rss(warm_from, warm_from + 3);
   const double last = mean_rss(samples.size() - 3, samples.size());
   std::fprintf(stderr,
                "[soak] daemon RSS: start %ld kB, warmed-up %.0f kB, last %.0f kB (%+.1f %%); fds "
                "%ld -> %ld\n",
-               at_start.rss_kb, warm, last, 100.0 * (last - warm) / warm, samples[2].fds,
+               at_start.rss_kb, warm, last, 100.0 * (last - warm) / warm, samples[warm_from].fds,
                samples.back().fds);
   EXPECT_LE(last, 1.10 * warm) << "the daemon's resident memory grew over the soak";
   // Descriptors: after the warm-up every run ends with the same open set (idle, no client).
-  EXPECT_LE(samples.back().fds, samples[2].fds)
-      << "descriptors leak: " << samples[2].fds << " -> " << samples.back().fds;
+  EXPECT_LE(samples.back().fds, samples[warm_from].fds)
+      << "descriptors leak: " << samples[warm_from].fds << " -> " << samples.back().fds;
 }
 
 }  // namespace
