@@ -101,13 +101,11 @@ void crosscheck_and_capture_fields(const ExportRow& row, CsvLine& line) {
       throw Corrupt("run " + std::to_string(row.run.run_id) +
                     ": stored capture_json is not a JSON object");
   }
-  for (const auto& [name, member] : archive::CaptureInfo::counters()) {
-    (void)member;
-    const auto it = capture.is_object() ? capture.find(name) : capture.end();
-    if (capture.is_object() && it != capture.end() && it->is_number_integer())
-      line.integer(it->get<long long>());
-    else
-      line.empty();
+  for (const auto& counter : archive::CaptureInfo::counters()) {
+    const json* value = capture.is_object() && capture.contains(counter.first)
+                            ? &capture.at(counter.first)
+                            : nullptr;
+    value && value->is_number_integer() ? line.integer(value->get<long long>()) : line.empty();
   }
 }
 

@@ -303,10 +303,6 @@ void cut_file(const std::string& path, const std::vector<std::string>& cols, boo
   }
 }
 
-}  // namespace
-
-namespace {
-
 /// The capture counters capture.log can give back: its frames (every frame the capture received
 /// was logged) replayed through the IMU frame decoder, as the live capture decoded them. A torn
 /// last line is skipped by the reader; a damaged line ends the count (raw data stays as it is).

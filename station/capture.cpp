@@ -5,7 +5,6 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
-#include <ctime>
 #include <stdexcept>
 
 #include "calib/conventions.hpp"
@@ -15,13 +14,6 @@
 namespace imucal::station {
 
 namespace {
-
-/// CLOCK_REALTIME in ns: the domain of the CAN channel's receive times (SO_TIMESTAMP).
-int64_t realtime_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
-}
 
 // IMU status bits that make the data unusable for a calibration (imu_protocol.hpp).
 constexpr uint16_t kFailureBits = imu::status::kGyroFault | imu::status::kAccelFault |
@@ -369,7 +361,7 @@ void Capture::begin_rest(double outer_deg, double inner_deg, uint64_t rest_sampl
   rest_done_ = false;
   ++rest_generation_;
   unseen_move_samples_ = 0;
-  rest_begun_ns_ = realtime_ns();
+  rest_begun_ns_ = imu::receive_clock_now_ns();
   if (options_.settle_guard_samples == 0 && !motion_pending_) {
     phase_ = rest_samples > 0 ? Phase::kResting : Phase::kRestDone;
     rest_done_ = rest_samples == 0;

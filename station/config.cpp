@@ -424,4 +424,11 @@ StationConfig load_config(const std::string& path) {
   return parse_config(ss.str(), path, base.empty() ? "." : base);
 }
 
+imu::DecoderOptions decoder_options(const StationConfig& config) {
+  imu::DecoderOptions o;
+  o.base_id = config.base_id;
+  o.sample_rate_hz = config.rate_hz;
+  return o;
+}
+
 }  // namespace imucal::station

@@ -15,6 +15,7 @@
 #include <string_view>
 
 #include "calib/earth.hpp"
+#include "drivers/imu/imu_codec.hpp"
 #include "drivers/turntable/turntable_client.hpp"
 
 namespace imucal::station {
@@ -83,6 +84,9 @@ struct StationConfig {
   double arw_rad_per_sqrt_s() const;
   double vrw_mps_per_sqrt_s() const;
 };
+
+/// The IMU frame decoder's options of this station ([imu] base_id, rate_hz).
+imu::DecoderOptions decoder_options(const StationConfig& config);
 
 /// Reads and checks the file. Throws ConfigError (a file that cannot be read: line 0, column 0).
 StationConfig load_config(const std::string& path);

@@ -75,10 +75,8 @@ RecoveryReport recover_at_startup(const StationConfig& config, db::Repository& r
     const std::optional<EndNote> note = read_end_note(note_path);
     if (fs::exists(fs::path(dir) / "run.toml")) {
       try {
-        imu::DecoderOptions decoder;
-        decoder.base_id = config.base_id;
-        decoder.sample_rate_hz = config.rate_hz;
-        r.rows_kept = recover_archive(dir, db::format_time_utc(db::now_ms()), decoder);
+        r.rows_kept =
+            recover_archive(dir, db::format_time_utc(db::now_ms()), decoder_options(config));
         r.archive_sha256 = archive_digest(dir);
         r.archive_path = dir;
         r.reason = r.rows_kept == 0

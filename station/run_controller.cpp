@@ -839,8 +839,7 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
     // --- preparing: IMU ---
     set_phase(L, RunPhase::kConnecting);
     CaptureOptions co;
-    co.decoder.base_id = cfg_.base_id;
-    co.decoder.sample_rate_hz = cfg_.rate_hz;
+    co.decoder = decoder_options(cfg_);
     co.max_gap_samples = cfg_.max_gap_samples;
     co.settle_guard_samples = cfg_.settle_guard_samples;
     co.rest_rate_threshold_dps = cfg_.rest_rate_threshold_dps;

@@ -24,6 +24,13 @@
 #include "drivers/imu/candump_log.hpp"
 
 namespace imucal::imu {
+
+int64_t receive_clock_now_ns() {
+  timespec ts{};
+  ::clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
+}
+
 namespace {
 
 static_assert(sizeof(struct can_frame) == 16, "unixcan records are Linux struct can_frame");
@@ -34,12 +41,6 @@ static_assert(kCanErrCrtl == CAN_ERR_CRTL && kCanErrProt == CAN_ERR_PROT &&
               "can_frame.hpp error classes must match linux/can/error.h");
 
 std::string errno_text() { return std::strerror(errno); }
-
-int64_t realtime_now_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
-}
 
 int64_t monotonic_now_ns() {
   timespec ts{};
@@ -140,7 +141,7 @@ std::size_t read_records(int fd, std::vector<ReceivedFrame>& out, std::size_t ma
       throw CanChannelError(uri + ": receive failed: " + errno_text());
     }
     if (n == 0) break;
-    const int64_t fallback_ns = realtime_now_ns();
+    const int64_t fallback_ns = receive_clock_now_ns();
     for (int i = 0; i < n; ++i) {
       const mmsghdr& m = msgs[static_cast<std::size_t>(i)];
       if (m.msg_len == 0) {  // SOCK_SEQPACKET end of file: the peer closed

@@ -52,4 +52,7 @@ struct ReceivedFrame {
   int64_t rx_time_ns = 0;
 };
 
+/// Now on the clock of ReceivedFrame::rx_time_ns (CLOCK_REALTIME, ns).
+int64_t receive_clock_now_ns();
+
 }  // namespace imucal::imu
