@@ -85,8 +85,8 @@ class Parser {
   void reject_unknown_keys(const toml::table& t, std::initializer_list<const char*> allowed,
                            const std::string& where) const {
     std::vector<std::pair<int, std::string>> unknown;
-    for (auto&& [k, v] : t) {
-      (void)v;
+    for (const auto& entry : t) {
+      const toml::key& k = entry.first;  // a named reference: lambdas may not capture a binding in C++17
       const bool ok =
           std::any_of(allowed.begin(), allowed.end(), [&](const char* a) { return k.str() == a; });
       if (!ok) unknown.emplace_back(line_of(k.source()), std::string(k.str()));

@@ -4,11 +4,15 @@
 #                              server, daemon, run controller) and three end-to-end tests whose
 #                              stationd/stationsim/stationctl are TSan builds too; every process
 #                              writes its reports under build-tsan/reports, and any report fails.
-#   tools/sanitizers.sh asan   the whole suite except the Monte Carlo, QEMU and fuzz sets under
-#                              ASan + UBSan (gcc; -fno-sanitize-recover: UB stops the test).
-# tools/test.sh runs the tsan mode (~5 min); the asan mode does not fit beside the Release suite
-# in CI's 30 minutes on 2 cores (README, "Reliability"). ccache makes repeated runs cheap.
-# IMUCAL_SANITIZER_TREE=DIR uses another build tree.
+#   tools/sanitizers.sh asan   the whole suite but the slow and QEMU sets under ASan + UBSan
+#                              (clang-16; -fno-sanitize-recover: UB stops the test), with the
+#                              bounded libFuzzer runs; every process's reports go to
+#                              build-asan/reports, and any report fails.
+#   tools/sanitizers.sh fuzz   the same tree, only the libFuzzer targets: their seed corpus and
+#                              regression inputs replayed, then 30 s of fuzzing each.
+# tools/test.sh runs tsan and fuzz always, asan with IMUCAL_ASAN=1 (README, "Reliability", for
+# why and for the times). ccache makes repeated runs cheap.
+# IMUCAL_SANITIZER_TREE=DIR uses another build tree; IMUCAL_BUILD_ONLY=1 stops after the build.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 mode=${1:-}
@@ -21,8 +25,9 @@ case $mode in
     # The calibration core (single-threaded math) is linked from the Release tree when it exists.
     calib=()
     [[ -f build/calib/libimucal_calib.a ]] && calib=(-DIMUCAL_CALIB_LIBRARY="$PWD/build/calib/libimucal_calib.a")
-    cmake -S . -B $tree -DIMUCAL_TSAN=ON -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1 -g" \
-      "${launcher[@]}" "${calib[@]}" >/dev/null
+    # Line tables only (-g1) are all the reports need; the test programs at -O0 (compile time).
+    cmake -S . -B $tree -DIMUCAL_TSAN=ON -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1 -g1" \
+      -DIMUCAL_TEST_OPTIMIZE=-O0 "${launcher[@]}" "${calib[@]}" >/dev/null
     tests=(station_capture_test drivers_turntable_client_test drivers_station_sim_test
            station_control_server_test station_daemon_test station_run_controller_test
            e2e_station_run_test e2e_station_abort_test e2e_station_faults_test)
@@ -47,12 +52,43 @@ case $mode in
     fi
     exit $failed
     ;;
-  asan)
+  asan | fuzz)
+    # One clang-16 tree for both (gcc takes three times as long to compile under ASan): the
+    # programs under test at -O1, the calibration core at -O2 (its Eigen loops run 20x slower than
+    # Release at -O1 under ASan), the test programs at -O0 (their compile time is code generation,
+    # and no time is spent in them). Only the fuzzed parsers carry coverage instrumentation.
     tree=${IMUCAL_SANITIZER_TREE:-build-asan}
-    cmake -S . -B $tree -DIMUCAL_SANITIZE=ON -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1 -g" \
+    CC=clang-16 CXX=clang++-16 cmake -S . -B $tree -DIMUCAL_FUZZ=ON -DCMAKE_BUILD_TYPE=None \
+      -DCMAKE_CXX_FLAGS="-O1 -gline-tables-only" -DIMUCAL_CALIB_OPTIMIZE=-O2 -DIMUCAL_TEST_OPTIMIZE=-O0 \
       "${launcher[@]}" >/dev/null
-    cmake --build $tree -j2
-    (cd $tree && ASAN_OPTIONS=detect_leaks=1 ctest -j2 -LE "slow|qemu|fuzz" --output-on-failure --timeout 1500)
+    if [ "$mode" = fuzz ]; then
+      cmake --build $tree -j2 --target fuzz_targets $(cd tests/fuzz && ls fuzz_*.cpp | sed 's/^fuzz_/fuzz_replay_/; s/\.cpp$//')
+      selection=(-R "^Fuzz\\.")
+    else
+      cmake --build $tree -j2
+      selection=(-LE "slow|qemu")
+    fi
+    [ "${IMUCAL_BUILD_ONLY:-0}" = 1 ] && exit 0
+    # Every process (test programs and the stationd/stationsim/stationctl/imucal they start) logs
+    # its sanitizer reports under $tree/reports; a report fails the stage even when the process
+    # that wrote it was a child whose exit status no test looked at.
+    reports=$(cd "$tree" && pwd)/reports
+    rm -rf "$reports" && mkdir -p "$reports"
+    failed=0
+    (cd $tree && ASAN_OPTIONS="detect_leaks=1:log_path=$reports/asan" \
+      UBSAN_OPTIONS="print_stacktrace=1:log_path=$reports/ubsan" \
+      ctest -j2 "${selection[@]}" --output-on-failure --timeout 1500) || failed=1
+    if compgen -G "$reports/*san.[0-9]*" >/dev/null; then
+      echo "$mode: AddressSanitizer / UndefinedBehaviorSanitizer reports:"
+      ls "$reports"/*san.[0-9]*
+      head -60 "$reports"/*san.[0-9]*
+      failed=1
+    fi
+    exit $failed
+    ;;
+  *)
+    echo "usage: tools/sanitizers.sh tsan|asan|fuzz" >&2
+    exit 2
     ;;
   *)
     echo "usage: tools/sanitizers.sh tsan|asan" >&2
