@@ -86,7 +86,8 @@ class Parser {
                            const std::string& where) const {
     std::vector<std::pair<int, std::string>> unknown;
     for (const auto& entry : t) {
-      const toml::key& k = entry.first;  // a named reference: lambdas may not capture a binding in C++17
+      // A named reference: a lambda may not capture a structured binding in C++17.
+      const toml::key& k = entry.first;
       const bool ok =
           std::any_of(allowed.begin(), allowed.end(), [&](const char* a) { return k.str() == a; });
       if (!ok) unknown.emplace_back(line_of(k.source()), std::string(k.str()));
