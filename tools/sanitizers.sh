@@ -8,8 +8,9 @@
 #                              (clang-16; -fno-sanitize-recover: UB stops the test), with the
 #                              bounded libFuzzer runs; every process's reports go to
 #                              build-asan/reports, and any report fails.
-#   tools/sanitizers.sh fuzz   the same tree, only the libFuzzer targets: their seed corpus and
-#                              regression inputs replayed, then 30 s of fuzzing each.
+#   tools/sanitizers.sh fuzz   only the libFuzzer targets (tree build-fuzz, the calibration core
+#                              linked from build/): their seed corpus and regression inputs
+#                              replayed, then 30 s of fuzzing each.
 # tools/test.sh runs tsan and fuzz always, asan with IMUCAL_ASAN=1 (README, "Reliability", for
 # why and for the times). ccache makes repeated runs cheap.
 # IMUCAL_SANITIZER_TREE=DIR uses another build tree; IMUCAL_BUILD_ONLY=1 stops after the build.
@@ -53,14 +54,23 @@ case $mode in
     exit $failed
     ;;
   asan | fuzz)
-    # One clang-16 tree for both (gcc takes three times as long to compile under ASan): the
-    # programs under test at -O1, the calibration core at -O2 (its Eigen loops run 20x slower than
-    # Release at -O1 under ASan), the test programs at -O0 (their compile time is code generation,
-    # and no time is spent in them). Only the fuzzed parsers carry coverage instrumentation.
-    tree=${IMUCAL_SANITIZER_TREE:-build-asan}
+    # clang-16 (gcc takes three times as long to compile under ASan), the same flags for both: the
+    # programs under test at -O1, the calibration core at -O2 (the suite spends its time in its
+    # Eigen loops, ~20x Release's time under ASan), the test programs at -O0 (their compile time is
+    # code generation, and no time is spent in them). Only the fuzzed parsers carry coverage.
+    # The fuzz mode has a tree of its own, build-fuzz, that links the calibration core from the
+    # Release tree like the TSan tree: no parser calls into its math, and compiling it under ASan
+    # would be half of the stage's time.
+    calib=()
+    if [ "$mode" = fuzz ]; then
+      tree=${IMUCAL_SANITIZER_TREE:-build-fuzz}
+      [[ -f build/calib/libimucal_calib.a ]] && calib=(-DIMUCAL_CALIB_LIBRARY="$PWD/build/calib/libimucal_calib.a")
+    else
+      tree=${IMUCAL_SANITIZER_TREE:-build-asan}
+    fi
     CC=clang-16 CXX=clang++-16 cmake -S . -B $tree -DIMUCAL_FUZZ=ON -DCMAKE_BUILD_TYPE=None \
       -DCMAKE_CXX_FLAGS="-O1 -gline-tables-only" -DIMUCAL_CALIB_OPTIMIZE=-O2 -DIMUCAL_TEST_OPTIMIZE=-O0 \
-      "${launcher[@]}" >/dev/null
+      "${launcher[@]}" "${calib[@]}" >/dev/null
     if [ "$mode" = fuzz ]; then
       cmake --build $tree -j2 --target fuzz_targets $(cd tests/fuzz && ls fuzz_*.cpp | sed 's/^fuzz_/fuzz_replay_/; s/\.cpp$//')
       selection=(-R "^Fuzz\\.")

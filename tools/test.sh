@@ -18,8 +18,9 @@ fi
 
 # Fuzzing under ASan + UBSan (issue #10, tests/fuzz/README.md): the libFuzzer targets built with
 # clang-16, their corpus replayed and each fuzzed for 30 s. IMUCAL_SKIP_FUZZ=1 skips it.
-# IMUCAL_ASAN=1 runs the whole suite in that tree instead (tools/sanitizers.sh asan, the fuzzing
-# included): ~25 min more than CI's budget allows from an empty ccache (README, "Reliability").
+# IMUCAL_ASAN=1 runs the whole suite under ASan + UBSan instead (tools/sanitizers.sh asan, tree
+# build-asan, the fuzzing included): more than CI's 30 min allow from an empty ccache (README,
+# "Reliability").
 if [ "${IMUCAL_ASAN:-0}" = 1 ]; then
   bash tools/sanitizers.sh asan
 elif [ "${IMUCAL_SKIP_FUZZ:-0}" != 1 ]; then
