@@ -35,7 +35,7 @@ fi
 apt_pid=""
 apt_log=$(mktemp "${TMPDIR:-/tmp}/imucal-apt-XXXXXX")
 if [ ${#missing_test[@]} -gt 0 ]; then
-  install "${missing_test[@]}" >"$apt_log" 2>&1 &
+  install "${missing_test[@]}" </dev/null >"$apt_log" 2>&1 &
   apt_pid=$!
 fi
 
