@@ -20,21 +20,36 @@ mode=${1:-}
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 
+# The calibration core (single-threaded math, which neither the threaded tests nor the parsers
+# need instrumented) linked from the Release tree when it exists, for the tsan and fuzz modes:
+# compiling it is most of a sanitizer tree's build time.
+release_calib=()
+[[ -f build/calib/libimucal_calib.a ]] && release_calib=(-DIMUCAL_CALIB_LIBRARY="$PWD/build/calib/libimucal_calib.a")
+
+fresh_reports() {  # fresh_reports TREE: an empty TREE/reports; prints its absolute path
+  local dir
+  dir=$(cd "$1" && pwd)/reports
+  rm -rf "$dir" && mkdir -p "$dir"
+  echo "$dir"
+}
+found_reports() {  # found_reports MODE GLOB: prints the reports matching GLOB; true if any
+  compgen -G "$2" >/dev/null || return 1
+  echo "$1: sanitizer reports:"
+  ls $2
+  head -60 $2
+}
+
 case $mode in
   tsan)
     tree=${IMUCAL_SANITIZER_TREE:-build-tsan}
-    # The calibration core (single-threaded math) is linked from the Release tree when it exists.
-    calib=()
-    [[ -f build/calib/libimucal_calib.a ]] && calib=(-DIMUCAL_CALIB_LIBRARY="$PWD/build/calib/libimucal_calib.a")
     # Line tables only (-g1) are all the reports need; the test programs at -O0 (compile time).
     cmake -S . -B $tree -DIMUCAL_TSAN=ON -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1 -g1" \
-      -DIMUCAL_TEST_OPTIMIZE=-O0 "${launcher[@]}" "${calib[@]}" >/dev/null
+      -DIMUCAL_TEST_OPTIMIZE=-O0 "${launcher[@]}" "${release_calib[@]}" >/dev/null
     tests=(station_capture_test drivers_turntable_client_test drivers_station_sim_test
            station_control_server_test station_daemon_test station_run_controller_test
            e2e_station_run_test e2e_station_abort_test e2e_station_faults_test)
     cmake --build $tree -j2 --target "${tests[@]}" stationd stationsim stationctl
-    reports=$(cd "$tree" && pwd)/reports
-    rm -rf "$reports" && mkdir -p "$reports"
+    reports=$(fresh_reports $tree)
     failed=0
     for t in "${tests[@]}"; do
       if TSAN_OPTIONS="halt_on_error=0 second_deadlock_stack=1 log_path=$reports/$t" \
@@ -45,12 +60,7 @@ case $mode in
         failed=1
       fi
     done
-    if compgen -G "$reports/*.[0-9]*" >/dev/null; then
-      echo "tsan: ThreadSanitizer reports:"
-      ls "$reports"/*.[0-9]*
-      head -40 "$reports"/*.[0-9]*
-      failed=1
-    fi
+    found_reports tsan "$reports/*.[0-9]*" && failed=1
     exit $failed
     ;;
   asan | fuzz)
@@ -58,13 +68,12 @@ case $mode in
     # programs under test at -O1, the calibration core at -O2 (the suite spends its time in its
     # Eigen loops, ~20x Release's time under ASan), the test programs at -O0 (their compile time is
     # code generation, and no time is spent in them). Only the fuzzed parsers carry coverage.
-    # The fuzz mode has a tree of its own, build-fuzz, that links the calibration core from the
-    # Release tree like the TSan tree: no parser calls into its math, and compiling it under ASan
-    # would be half of the stage's time.
+    # The fuzz mode has a tree of its own, build-fuzz, that links the Release calibration core like
+    # the TSan tree (no parser calls into its math).
     calib=()
     if [ "$mode" = fuzz ]; then
       tree=${IMUCAL_SANITIZER_TREE:-build-fuzz}
-      [[ -f build/calib/libimucal_calib.a ]] && calib=(-DIMUCAL_CALIB_LIBRARY="$PWD/build/calib/libimucal_calib.a")
+      calib=("${release_calib[@]}")
     else
       tree=${IMUCAL_SANITIZER_TREE:-build-asan}
     fi
@@ -72,7 +81,7 @@ case $mode in
       -DCMAKE_CXX_FLAGS="-O1 -gline-tables-only" -DIMUCAL_CALIB_OPTIMIZE=-O2 -DIMUCAL_TEST_OPTIMIZE=-O0 \
       "${launcher[@]}" "${calib[@]}" >/dev/null
     if [ "$mode" = fuzz ]; then
-      cmake --build $tree -j2 --target fuzz_targets $(cd tests/fuzz && ls fuzz_*.cpp | sed 's/^fuzz_/fuzz_replay_/; s/\.cpp$//')
+      cmake --build $tree -j2 --target fuzz_targets fuzz_replays
       selection=(-R "^Fuzz\\.")
     else
       cmake --build $tree -j2
@@ -82,26 +91,16 @@ case $mode in
     # Every process (test programs and the stationd/stationsim/stationctl/imucal they start) logs
     # its sanitizer reports under $tree/reports; a report fails the stage even when the process
     # that wrote it was a child whose exit status no test looked at.
-    reports=$(cd "$tree" && pwd)/reports
-    rm -rf "$reports" && mkdir -p "$reports"
+    reports=$(fresh_reports $tree)
     failed=0
     (cd $tree && ASAN_OPTIONS="detect_leaks=1:log_path=$reports/asan" \
       UBSAN_OPTIONS="print_stacktrace=1:log_path=$reports/ubsan" \
       ctest -j2 "${selection[@]}" --output-on-failure --timeout 1500) || failed=1
-    if compgen -G "$reports/*san.[0-9]*" >/dev/null; then
-      echo "$mode: AddressSanitizer / UndefinedBehaviorSanitizer reports:"
-      ls "$reports"/*san.[0-9]*
-      head -60 "$reports"/*san.[0-9]*
-      failed=1
-    fi
+    found_reports $mode "$reports/*san.[0-9]*" && failed=1
     exit $failed
     ;;
   *)
     echo "usage: tools/sanitizers.sh tsan|asan|fuzz" >&2
-    exit 2
-    ;;
-  *)
-    echo "usage: tools/sanitizers.sh tsan|asan" >&2
     exit 2
     ;;
 esac
