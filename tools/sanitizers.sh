@@ -56,7 +56,8 @@ case $mode in
         "$tree/tests/$t" >"$reports/$t.out" 2>&1; then
         echo "tsan: $t passed"
       else
-        echo "tsan: $t FAILED (output: $reports/$t.out)"
+        echo "tsan: $t FAILED (output: $reports/$t.out); its failures:"
+        grep -B2 -A12 -E "Failure|FAILED|terminate|Segmentation" "$reports/$t.out" | head -80
         failed=1
       fi
     done

@@ -40,8 +40,11 @@ if [ ${#missing_test[@]} -gt 0 ]; then
 fi
 
 BUILD_TYPE=${BUILD_TYPE:-Release}
+# The test programs at -O1: a quarter to a third less compile time than Release's -O3 (their own
+# code only orchestrates and asserts; the code under test keeps the build type's flags).
 build_status=0
-{ cmake -S . -B build -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DCMAKE_CXX_COMPILER_LAUNCHER=ccache >/dev/null &&
+{ cmake -S . -B build -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
+    -DIMUCAL_TEST_OPTIMIZE="${IMUCAL_TEST_OPTIMIZE--O1}" >/dev/null &&
   cmake --build build -j2; } || build_status=$?
 
 if [ -n "$apt_pid" ]; then

@@ -5,15 +5,22 @@
 # suite under ASan + UBSan as well.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash tools/setup.sh
-(cd build && ctest --output-on-failure -j2 --timeout 1500)
+stage() {  # stage NAME COMMAND...: runs it and prints how long it took (CI's 30-min budget)
+  local name=$1 start=$SECONDS status=0
+  shift
+  "$@" || status=$?
+  echo "test.sh: $name took $((SECONDS - start)) s (exit $status)"
+  return $status
+}
+stage setup bash tools/setup.sh
+stage ctest bash -c 'cd build && ctest --output-on-failure -j2 --timeout 1500'
 
 # ThreadSanitizer (issue #10): the threaded tests (capture, turntable client, simulator, control
 # server, daemon, run controller) and three end-to-end tests whose stationd, stationsim and
 # stationctl are TSan builds; any report fails (tools/sanitizers.sh; the single-threaded
 # calibration core is linked from build/).
 if [ "${IMUCAL_SKIP_TSAN:-0}" != 1 ]; then
-  bash tools/sanitizers.sh tsan
+  stage tsan bash tools/sanitizers.sh tsan
 fi
 
 # Fuzzing under ASan + UBSan (issue #10, tests/fuzz/README.md): the libFuzzer targets built with
@@ -22,7 +29,7 @@ fi
 # build-asan, the fuzzing included): more than CI's 30 min allow from an empty ccache (README,
 # "Reliability").
 if [ "${IMUCAL_ASAN:-0}" = 1 ]; then
-  bash tools/sanitizers.sh asan
+  stage asan bash tools/sanitizers.sh asan
 elif [ "${IMUCAL_SKIP_FUZZ:-0}" != 1 ]; then
-  bash tools/sanitizers.sh fuzz
+  stage fuzz bash tools/sanitizers.sh fuzz
 fi
