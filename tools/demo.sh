@@ -8,9 +8,10 @@
 # Usage: tools/demo.sh [SERIAL] [SEQUENCE]          (defaults: SIM-0001 factory-std)
 # Environment:
 #   SPEED=200        simulation speed factor (sim seconds per wall second)
-#   BUILD_DIR=build  build tree whose bin/ holds stationsim, stationd, stationctl
-#   SKIP_BUILD=1     do not run tools/setup.sh (install packages if missing + build) first
-#   DEMO_FRESH=1     start with an empty var/demo/ (otherwise the history keeps earlier demo runs)
+#   BUILD_DIR=build  build tree (tools/setup.sh --main builds the four programs there)
+#   SKIP_BUILD=1     do not run tools/setup.sh --main (install packages if missing + build) first
+#   DEMO_DIR=var/demo  where the config, logs, archives and history go
+#   DEMO_FRESH=1     start with an empty DEMO_DIR (otherwise the history keeps earlier demo runs)
 # Exit code: stationctl's (0 = done with verdict PASS, 1 = review/failed/aborted, others: errors).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -19,11 +20,11 @@ SERIAL=${1:-SIM-0001}
 SEQ=${2:-factory-std}
 SPEED=${SPEED:-200}
 BUILD_DIR=${BUILD_DIR:-build}
-BIN="$ROOT/$BUILD_DIR/bin"
-DEMO="$ROOT/var/demo"   # .gitignore ignores var/
+BIN="$(realpath -m "$BUILD_DIR")/bin"
+DEMO=$(realpath -m "${DEMO_DIR:-var/demo}")   # .gitignore ignores var/
 
 if [ "${SKIP_BUILD:-0}" != 1 ]; then
-  bash tools/setup.sh
+  IMUCAL_BUILD_DIR="$BUILD_DIR" bash tools/setup.sh --main
 fi
 for exe in stationsim stationd stationctl; do
   if [ ! -x "$BIN/$exe" ]; then

@@ -86,7 +86,7 @@ case $mode in
       selection=(-R "^Fuzz\\.")
     else
       cmake --build $tree -j2
-      selection=(-LE "slow|qemu")
+      selection=(-LE "slow|qemu|install")
     fi
     [ "${IMUCAL_BUILD_ONLY:-0}" = 1 ] && exit 0
     # Every process (test programs and the stationd/stationsim/stationctl/imucal they start) logs

@@ -1,18 +1,36 @@
 #!/usr/bin/env bash
-# Installs every Debian package the project needs, then configures and builds it.
-# Idempotent: safe to run on a fresh machine and again on a prepared one.
+# Installs the Debian packages the project needs, then configures and builds it.
+#   tools/setup.sh          everything (the test command, tools/test.sh): all packages, every
+#                           program, test and benchmark
+#   tools/setup.sh --main   the main job (tools/demo.sh) and the install: only the packages the four
+#                           programs need, and only imucal, stationd, stationsim and stationctl
+#                           (no test program, no test-only package)
+# Idempotent: safe to run on a fresh machine and again on a prepared one. Both modes build in
+# build/ (IMUCAL_BUILD_DIR=DIR: elsewhere).
 # The packages only tests need (qemu and a kernel image, chromium, clang-16, the CAN and Modbus peer
-# tools) are installed in the background while the build runs: their download and unpacking
-# overlap the compilation, and the script waits for them before it returns.
+# tools, lintian and help2man for the Debian package) are installed in the background while the
+# build runs: their download and unpacking overlap the compilation, and the script waits for them
+# before it returns.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BUILD_PKGS=(build-essential cmake ccache pkg-config
-            libeigen3-dev libceres-dev libmodbus-dev libsqlite3-dev libspdlog-dev
-            libgtest-dev libgmock-dev libcli11-dev libtomlplusplus-dev nlohmann-json3-dev
-            libbenchmark-dev libsystemd-dev)
+MODE=all
+case "${1:-}" in
+  "") ;;
+  --main) MODE=main ;;
+  *)
+    echo "usage: tools/setup.sh [--main]" >&2
+    exit 2
+    ;;
+esac
+MAIN_PKGS=(build-essential cmake ccache pkg-config
+           libeigen3-dev libceres-dev libmodbus-dev libsqlite3-dev libspdlog-dev
+           libcli11-dev libtomlplusplus-dev nlohmann-json3-dev libsystemd-dev)
+# The test programs' and benchmarks' libraries: needed before the build, so not in the background.
+TEST_BUILD_PKGS=(libgtest-dev libgmock-dev libbenchmark-dev)
 TEST_PKGS=(can-utils python3-can python3-canmatrix mbpoll
            qemu-system-x86 linux-image-amd64 busybox-static cpio iproute2 xz-utils binutils
-           chromium clang-16 libclang-rt-16-dev)
+           chromium clang-16 libclang-rt-16-dev lintian help2man)
+PROGRAMS=(imucal stationd stationsim stationctl)
 SUDO=""
 [ "$(id -u)" -ne 0 ] && SUDO="sudo"
 
@@ -25,8 +43,13 @@ install() {
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "$@"
 }
 
-mapfile -t missing_build < <(missing "${BUILD_PKGS[@]}")
-mapfile -t missing_test < <(missing "${TEST_PKGS[@]}")
+if [ $MODE = main ]; then
+  mapfile -t missing_build < <(missing "${MAIN_PKGS[@]}")
+  missing_test=()
+else
+  mapfile -t missing_build < <(missing "${MAIN_PKGS[@]}" "${TEST_BUILD_PKGS[@]}")
+  mapfile -t missing_test < <(missing "${TEST_PKGS[@]}")
+fi
 if [ $((${#missing_build[@]} + ${#missing_test[@]})) -gt 0 ]; then
   $SUDO apt-get update -qq
 fi
@@ -42,10 +65,18 @@ fi
 BUILD_TYPE=${BUILD_TYPE:-Release}
 # The test programs at -O1: a quarter to a third less compile time than Release's -O3 (their own
 # code only orchestrates and asserts; the code under test keeps the build type's flags).
+targets=()
+tests=ON
+if [ $MODE = main ]; then
+  targets=(--target "${PROGRAMS[@]}")
+  tests=OFF
+fi
 build_status=0
-{ cmake -S . -B build -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
+BUILD_DIR=${IMUCAL_BUILD_DIR:-build}
+{ cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
+    -DCMAKE_INSTALL_PREFIX=/usr -DIMUCAL_BUILD_TESTS=$tests \
     -DIMUCAL_TEST_OPTIMIZE="${IMUCAL_TEST_OPTIMIZE--O1}" >/dev/null &&
-  cmake --build build -j2; } || build_status=$?
+  cmake --build "$BUILD_DIR" -j2 "${targets[@]}"; } || build_status=$?
 
 if [ -n "$apt_pid" ]; then
   if ! wait "$apt_pid"; then

@@ -474,6 +474,10 @@ class Station {
   }
 
   const TempDir& dir() const { return dir_; }
+  /// Run stationsim, stationd and stationctl from `dir` (e.g. an installed package's bin/) instead
+  /// of the build tree's.
+  void use_programs_from(const std::string& dir) { program_dir_ = dir; }
+  std::string program(const std::string& name) const { return program_dir_ + "/" + name; }
   std::string path(const std::string& name) const { return dir_ / name; }
   const std::string& address() const { return address_; }
   std::string config_path() const { return dir_ / "stationd.toml"; }
@@ -493,11 +497,21 @@ class Station {
     sim_options_ = o;
     std::ostringstream speed;
     speed << o.speed;
-    std::vector<std::string> argv = {bin("stationsim"),   "--modbus",      address_ + ":0",
-                                     "--can",             bus_path(),      "--ready-file",
-                                     dir_ / "sim-ready.json", "--truth-out", truth_path(),
-                                     "--stats-file",      sim_stats_path(), "--speed",
-                                     speed.str(),         "--seed",        std::to_string(o.seed)};
+    std::vector<std::string> argv = {program("stationsim"),
+                                     "--modbus",
+                                     address_ + ":0",
+                                     "--can",
+                                     bus_path(),
+                                     "--ready-file",
+                                     dir_ / "sim-ready.json",
+                                     "--truth-out",
+                                     truth_path(),
+                                     "--stats-file",
+                                     sim_stats_path(),
+                                     "--speed",
+                                     speed.str(),
+                                     "--seed",
+                                     std::to_string(o.seed)};
     argv.insert(argv.end(), o.extra.begin(), o.extra.end());
     if (access(argv[0].c_str(), X_OK) != 0) {
       ADD_FAILURE() << argv[0] << " is not built";
@@ -570,7 +584,7 @@ class Station {
   /// exits 0. Failure: ADD_FAILURE + false.
   bool start_daemon(std::chrono::milliseconds timeout = 30s) {
     if (!fs::exists(config_path())) write_config(config_text());
-    const std::vector<std::string> argv = {bin("stationd"), "--config", config_path()};
+    const std::vector<std::string> argv = {program("stationd"), "--config", config_path()};
     if (access(argv[0].c_str(), X_OK) != 0) {
       ADD_FAILURE() << argv[0] << " is not built";
       return false;
@@ -638,7 +652,7 @@ class Station {
   /// stationctl --config <config> ARGS...
   CmdResult ctl(const std::vector<std::string>& args, std::chrono::milliseconds timeout = 120s,
                 std::optional<RunAs> run_as = std::nullopt) const {
-    std::vector<std::string> argv = {bin("stationctl"), "--config", config_path()};
+    std::vector<std::string> argv = {program("stationctl"), "--config", config_path()};
     argv.insert(argv.end(), args.begin(), args.end());
     return run_command(argv, dir_.path(), timeout, run_as);
   }
@@ -711,6 +725,7 @@ class Station {
   json sim_ready_;
   Clock::time_point sim_ready_at_ = Clock::now();
   std::string sim_modbus_;
+  std::string program_dir_ = IMUCAL_BIN_DIR;
   int modbus_port_ = 0;
   int daemon_starts_ = 0;
   std::optional<int> daemon_cpu_;

@@ -387,6 +387,7 @@ void write_output(const std::string& path, const std::string& content) {
 int main(int argc, char** argv) {
   CLI::App app{"stationctl: start and follow calibration runs; query the calibration history"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", std::string(IMUCAL_VERSION));
   Globals g;
   app.add_option("--config", g.config,
                  std::string("stationd's config file: [control] socket and [station] database "

@@ -175,6 +175,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> delay_at;
   std::string table_fault;
   std::string imu_fault;
+  app.set_version_flag("--version", std::string(IMUCAL_VERSION));
   app.add_option("--modbus", modbus, "Modbus TCP listen address ADDR:PORT (port 0 = a free port)");
   app.add_option("--can", can_path, "unixcan bus socket path (the simulator is the bus)")
       ->required();
