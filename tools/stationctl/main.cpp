@@ -41,7 +41,7 @@ using station::ControlClientError;
 
 enum Exit : int { kOk = 0, kRunNotPassed = 1, kBadInput = 2, kRefused = 3, kUnavailable = 4 };
 
-/// Where stationd looks when no config is given (station/stationd.service passes this file).
+/// Where stationd looks when no config is given (the systemd unit, station/stationd.service.in, passes this file).
 constexpr const char* kDefaultConfig = "/etc/imucal/stationd.toml";
 constexpr const char* kDefaultSocket = "/run/imucal/stationd.sock";
 constexpr auto kPollPeriod = std::chrono::milliseconds(200);
