@@ -11,6 +11,7 @@
 
 #include "db/archive/archive_error.hpp"
 #include "db/archive/param_json.hpp"
+#include "db/compact_param_text.hpp"
 #include "db/schema.hpp"
 #include "db/serial_number.hpp"
 
@@ -344,13 +345,14 @@ struct SqliteRepository::Impl {
   /// reader for its field-named error (export reads 200 000 of these for 100 000 runs).
   calib::ParamSet decode_params(const std::string& text, bool is_sigma,
                                 const std::function<std::string()>& origin) const {
+    calib::ParamSet p;
+    if (read_compact_param_set(text, is_sigma, p)) return p;  // the text as stored
     json j;
     try {
       j = json::parse(text);
     } catch (const json::exception& e) {
       throw Corrupt(origin() + ": stored JSON is invalid: " + e.what());
     }
-    calib::ParamSet p;
     bool ok = j.is_object() && j.size() == 5;
     auto vec = [&](const char* key, Eigen::Ref<Eigen::Vector3d> out) {
       if (!ok) return;
@@ -481,17 +483,18 @@ struct SqliteRepository::Impl {
   /// A cross-check from a result row: verdict, k_sigma and failures_json at k_col + 1.
   CrosscheckRecord read_crosscheck(const Stmt& q, int verdict_col, int k_col, RunId run_id) const {
     CrosscheckRecord x;
-    const std::string what = run_label(run_id) + " cross-check";
-    x.verdict = decode([&] { return what + " verdict"; },
+    const auto what = [&] { return run_label(run_id) + " cross-check"; };  // for errors only
+    x.verdict = decode([&] { return what() + " verdict"; },
                        [&] { return verdict_from_string(q.text(verdict_col)); });
     x.k_sigma = q.f64(k_col);
-    x.failures =
-        decode_json(path + ": " + what + " failures_json", q.text(k_col + 1), [](const json& j) {
-          std::vector<calib::CrossCheckFailure> v;
-          for (const json& f : j)
-            v.push_back({f.at("term").get<std::string>(), f.at("detail").get<std::string>()});
-          return v;
-        });
+    const std::string failures = q.text(k_col + 1);
+    if (failures == "[]") return x;  // a PASS: no JSON to parse
+    x.failures = decode_json(path + ": " + what() + " failures_json", failures, [](const json& j) {
+      std::vector<calib::CrossCheckFailure> v;
+      for (const json& f : j)
+        v.push_back({f.at("term").get<std::string>(), f.at("detail").get<std::string>()});
+      return v;
+    });
     return x;
   }
 
