@@ -178,14 +178,23 @@ std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::
   return rows;
 }
 
+namespace {
+
+/// One export row as a JSON object (the array element of the JSON export, the line of NDJSON).
+json export_row_json(const ExportRow& row) {
+  json o = run_json(row.run);
+  o["calibration"] = row.calibration ? calibration_json(*row.calibration) : json(nullptr);
+  o["crosscheck"] = row.crosscheck ? crosscheck_json(*row.crosscheck) : json(nullptr);
+  return o;
+}
+
+}  // namespace
+
 std::size_t export_json(const Repository& repo, const ExportFilter& filter, std::ostream& out) {
   out << '[';
   std::size_t rows = 0;
   repo.export_rows(filter, [&](const ExportRow& row) {
-    json o = run_json(row.run);
-    o["calibration"] = row.calibration ? calibration_json(*row.calibration) : json(nullptr);
-    o["crosscheck"] = row.crosscheck ? crosscheck_json(*row.crosscheck) : json(nullptr);
-    out << (rows == 0 ? "\n" : ",\n") << o.dump();
+    out << (rows == 0 ? "\n" : ",\n") << export_row_json(row).dump();
     check_stream(out, "export json");
     ++rows;
   });
@@ -193,6 +202,26 @@ std::size_t export_json(const Repository& repo, const ExportFilter& filter, std:
   out.flush();
   check_stream(out, "export json");
   return rows;
+}
+
+std::size_t export_ndjson(const Repository& repo, const ExportFilter& filter, std::ostream& out) {
+  std::size_t rows = 0;
+  repo.export_rows(filter, [&](const ExportRow& row) {
+    out << export_row_json(row).dump() << '\n';
+    check_stream(out, "export ndjson");
+    ++rows;
+  });
+  out.flush();
+  check_stream(out, "export ndjson");
+  return rows;
+}
+
+std::size_t export_history(const Repository& repo, const ExportFilter& filter,
+                           const std::string& format, std::ostream& out) {
+  if (format == "csv") return export_csv(repo, filter, out);
+  if (format == "json") return export_json(repo, filter, out);
+  if (format == "ndjson") return export_ndjson(repo, filter, out);
+  throw InvalidInput("export format \"" + format + "\" (expected csv, json or ndjson)");
 }
 
 namespace {

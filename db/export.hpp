@@ -17,7 +17,7 @@
 //
 // JSON: one array of objects, one object per CSV row: run_json(run) (capture counters included)
 // plus "calibration": calibration_json(...) or null, and "crosscheck": crosscheck_json(...) or
-// null.
+// null. NDJSON: the same objects, one per line, no array.
 #include <cstddef>
 #include <nlohmann/json.hpp>
 #include <ostream>
@@ -37,6 +37,12 @@ extern const char* const kCsvCrosscheckColumns[2];
 std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::ostream& out);
 /// Write the JSON export (an array); returns the number of objects. IoError if the stream fails.
 std::size_t export_json(const Repository& repo, const ExportFilter& filter, std::ostream& out);
+/// Write the NDJSON export: the JSON export's objects, one per line (for tools that read a line at
+/// a time); returns the number of objects. IoError if the stream fails.
+std::size_t export_ndjson(const Repository& repo, const ExportFilter& filter, std::ostream& out);
+/// The export in `format` ("csv", "json" or "ndjson"; InvalidInput otherwise).
+std::size_t export_history(const Repository& repo, const ExportFilter& filter,
+                           const std::string& format, std::ostream& out);
 
 /// RFC 4180 field quoting (quotes only when needed).
 std::string csv_field(const std::string& value);

@@ -6,6 +6,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstring>
 #include <thread>
 
@@ -81,6 +82,31 @@ void ControlClient::send_raw(std::string_view bytes) {
   }
 }
 
+std::size_t ControlClient::receive(char* buf, std::size_t size, Clock::time_point deadline,
+                                   std::chrono::milliseconds timeout) {
+  for (;;) {
+    pollfd p{fd_, POLLIN, 0};
+    const int n = ::poll(&p, 1, remaining_ms(deadline));
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      throw ControlClientError(Kind::kIo, std::string("poll: ") + std::strerror(errno));
+    }
+    if (n == 0)
+      throw ControlClientError(Kind::kTimeout, "no reply from stationd at " + path_ + " within " +
+                                                   std::to_string(timeout.count()) + " ms");
+    const ssize_t r = ::recv(fd_, buf, size, 0);
+    if (r == 0)
+      throw ControlClientError(Kind::kClosed, "stationd closed the connection (" + path_ + ")");
+    if (r < 0) {
+      if (errno == EINTR || errno == EAGAIN || errno == EWOULDBLOCK) continue;
+      if (errno == ECONNRESET)
+        throw ControlClientError(Kind::kClosed, "stationd reset the connection (" + path_ + ")");
+      throw ControlClientError(Kind::kIo, std::string("recv: ") + std::strerror(errno));
+    }
+    return static_cast<std::size_t>(r);
+  }
+}
+
 std::string ControlClient::read_line(std::chrono::milliseconds timeout) {
   const auto deadline = Clock::now() + timeout;
   std::size_t scanned = 0;
@@ -99,25 +125,23 @@ std::string ControlClient::read_line(std::chrono::milliseconds timeout) {
       return line;
     }
     scanned = in_.size();
-    pollfd p{fd_, POLLIN, 0};
-    const int n = ::poll(&p, 1, remaining_ms(deadline));
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      throw ControlClientError(Kind::kIo, std::string("poll: ") + std::strerror(errno));
-    }
-    if (n == 0)
-      throw ControlClientError(Kind::kTimeout, "no reply from stationd at " + path_ + " within " +
-                                                   std::to_string(timeout.count()) + " ms");
-    const ssize_t r = ::recv(fd_, buf, sizeof buf, 0);
-    if (r == 0)
-      throw ControlClientError(Kind::kClosed, "stationd closed the connection (" + path_ + ")");
-    if (r < 0) {
-      if (errno == EINTR || errno == EAGAIN || errno == EWOULDBLOCK) continue;
-      if (errno == ECONNRESET)
-        throw ControlClientError(Kind::kClosed, "stationd reset the connection (" + path_ + ")");
-      throw ControlClientError(Kind::kIo, std::string("recv: ") + std::strerror(errno));
-    }
-    in_.append(buf, static_cast<std::size_t>(r));
+    in_.append(buf, receive(buf, sizeof buf, deadline, timeout));
+  }
+}
+
+void ControlClient::read_exact(std::size_t n, const std::function<void(std::string_view)>& sink,
+                               std::chrono::milliseconds timeout) {
+  const std::size_t buffered = std::min(n, in_.size());
+  if (buffered > 0) {
+    sink(std::string_view(in_).substr(0, buffered));
+    in_.erase(0, buffered);
+    n -= buffered;
+  }
+  char buf[65536];
+  while (n > 0) {
+    const std::size_t got = receive(buf, std::min(n, sizeof buf), Clock::now() + timeout, timeout);
+    sink(std::string_view(buf, got));
+    n -= got;
   }
 }
 
@@ -142,6 +166,39 @@ Reply ControlClient::call(const std::string& command, const nlohmann::json& args
                           std::chrono::milliseconds timeout) {
   const std::int64_t id = next_id_++;
   send_raw(request_line(id, command, args));
+  return read_reply(id, timeout);
+}
+
+Reply ControlClient::call_streamed(const std::string& command, const nlohmann::json& args,
+                                   const std::function<void(std::string_view)>& sink,
+                                   std::chrono::milliseconds timeout) {
+  const std::int64_t id = next_id_++;
+  send_raw(request_line(id, command, args));
+  const Reply header = read_reply(id, timeout);
+  if (!header.ok) return header;
+  if (!header.result.is_object() || !header.result.value("stream", false))
+    throw ControlClientError(Kind::kProtocol,
+                             "stationd at " + path_ + ": " + command + " was not streamed");
+  for (;;) {
+    const std::string size_line = read_line(timeout);
+    std::size_t n = 0;
+    std::size_t used = 0;
+    try {
+      n = std::stoull(size_line, &used, 16);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (size_line.empty() || used != size_line.size())
+      throw ControlClientError(Kind::kProtocol, "stationd at " + path_ +
+                                                    ": a frame of the stream starts with \"" +
+                                                    size_line.substr(0, 40) + "\"");
+    if (n == 0) break;
+    read_exact(n, sink, timeout);
+  }
+  return read_reply(id, timeout);
+}
+
+Reply ControlClient::read_reply(std::int64_t id, std::chrono::milliseconds timeout) {
   const std::string line = read_line(timeout);
   Reply r;
   try {

@@ -3,6 +3,7 @@
 // reply with a timeout. Used by stationctl and by the tests. Not thread-safe (one per thread).
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
@@ -44,6 +45,14 @@ class ControlClient {
   Reply call(const std::string& command, const nlohmann::json& args = nlohmann::json::object(),
              std::chrono::milliseconds timeout = std::chrono::seconds(30));
 
+  /// A streamed request (export with "stream": true, control_protocol.hpp): hands the export's
+  /// bytes to `sink` frame by frame as they arrive (at most a frame is held) and returns the final
+  /// reply (rows) — or the error reply, which may come before any bytes or after some. `timeout`
+  /// applies to each wait for data (a stalled daemon), not to the whole export.
+  Reply call_streamed(const std::string& command, const nlohmann::json& args,
+                      const std::function<void(std::string_view)>& sink,
+                      std::chrono::milliseconds timeout = std::chrono::seconds(30));
+
   /// Raw access for tests: write bytes as they are; read one line (without '\n').
   void send_raw(std::string_view bytes);
   std::string read_line(std::chrono::milliseconds timeout);
@@ -54,6 +63,14 @@ class ControlClient {
   int fd() const { return fd_; }
 
  private:
+  Reply read_reply(std::int64_t id, std::chrono::milliseconds timeout);
+  /// Exactly n bytes to sink (buffered ones first, then straight from the socket).
+  void read_exact(std::size_t n, const std::function<void(std::string_view)>& sink,
+                  std::chrono::milliseconds timeout);
+  /// recv into buf by the deadline; the byte count (> 0), or throws (closed, timeout, error).
+  std::size_t receive(char* buf, std::size_t size, std::chrono::steady_clock::time_point deadline,
+                      std::chrono::milliseconds timeout);
+
   std::string path_;
   int fd_ = -1;
   std::int64_t next_id_ = 1;

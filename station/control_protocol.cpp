@@ -14,7 +14,7 @@ enum class ArgType {
   kString,       ///< any JSON string
   kPositiveInt,  ///< integer >= 1 (run ids)
   kCount,        ///< integer >= 0 (limit; 0 = all)
-  kFormat,       ///< "csv" | "json"
+  kFormat,       ///< "csv" | "json" | "ndjson"
   kTime,         ///< string accepted by db::parse_time_utc
   kName,         ///< a person's name: printable text of 1..kMaxNameChars characters
   kReason,       ///< free text stored with a run: printable, 1..kMaxReasonChars characters
@@ -48,7 +48,8 @@ const std::vector<CommandSpec>& specs() {
       {cmd::kExport,
        {{"serial", ArgType::kString, false},
         {"since", ArgType::kTime, false},
-        {"format", ArgType::kFormat, true}}},
+        {"format", ArgType::kFormat, true},
+        {"stream", ArgType::kBool, false}}},
       {cmd::kPing, {}},
       {cmd::kDiagnose, {{"run_id", ArgType::kPositiveInt, true}}},
       {cmd::kImport, {{"dir", ArgType::kString, true}}},
@@ -132,10 +133,10 @@ void check_arg(const json& id, const ArgSpec& spec, const json& v) {
       return;
     }
     case ArgType::kFormat:
-      if (!v.is_string()) fail("\"csv\" or \"json\"");
-      if (v != "csv" && v != "json")
+      if (!v.is_string()) fail("\"csv\", \"json\" or \"ndjson\"");
+      if (v != "csv" && v != "json" && v != "ndjson")
         throw BadRequest(id, field,
-                         "field '" + field + "': expected \"csv\" or \"json\", got " +
+                         "field '" + field + "': expected \"csv\", \"json\" or \"ndjson\", got " +
                              v.dump(-1, ' ', false, json::error_handler_t::replace));
       return;
     case ArgType::kBool:

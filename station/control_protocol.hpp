@@ -8,9 +8,16 @@
 // Commands and their arguments ("?" = optional):
 //   run.start  {serial, sequence?, operator?}     run.status {run_id?}     run.abort {reason?}
 //   reprocess  {run_id, partial?}                 history {serial, limit?}  show {run_id}
-//   params     {serial}                           export {serial?, since?, format: "csv"|"json"}
+//   params     {serial}                           export {serial?, since?, format, stream?}
 //   diagnose   {run_id}                           ping       {}
 //   import     {dir}                              promote    {run_id, reason}
+// export's format is "csv", "json" or "ndjson" (one JSON object per line). Without "stream" the
+// reply's result is {"format", "rows", "content"}: the whole export in one string, for small
+// exports. With "stream": true the export is streamed (kept to a bounded buffer at both ends):
+//   {"id":N,"ok":true,"result":{"format":F,"stream":true}}     the header line, then frames:
+//   <byte count, hexadecimal>\n<that many bytes of the export>  ...   0\n      (the last frame)
+//   {"id":N,"ok":true,"result":{"format":F,"rows":R}}          or an error reply, and the daemon
+// closes the connection: a streamed export is its connection's last request.
 // "args" may be omitted when a command has no required argument. Validation is strict: a line that
 // is not JSON, not an object, lacks "id" or "cmd", names an unknown command, misses a required
 // argument, has an argument of the wrong type or an argument/field the command does not know is

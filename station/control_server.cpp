@@ -181,6 +181,9 @@ void ControlServer::start() {
   }
   listen_fd_ = fd;
   running_ = true;
+  if (!options_.database_path.empty())
+    exports_ = std::make_unique<ExportStreams>(options_.database_path, options_.max_exports,
+                                               options_.idle_timeout);
   thread_ = std::thread([this] { loop(); });
   spdlog::info("control socket listening on {} (mode 0{:o}, control group '{}')", path,
                options_.socket_mode, group_name_);
@@ -193,6 +196,7 @@ void ControlServer::stop() {
     // The loop also re-checks running_ on every wake-up; a full eventfd cannot happen here.
   }
   if (thread_.joinable()) thread_.join();
+  if (exports_) exports_->stop_all();
   ::close(listen_fd_);
   ::close(wake_fd_);
   listen_fd_ = wake_fd_ = -1;
@@ -200,8 +204,13 @@ void ControlServer::stop() {
 }
 
 ControlServerStats ControlServer::stats() const {
-  std::lock_guard<std::mutex> lock(stats_mutex_);
-  return stats_;
+  ControlServerStats s;
+  {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    s = stats_;
+  }
+  if (exports_) s.exports = exports_->active();
+  return s;
 }
 
 bool ControlServer::permitted(const Client& client) const {
@@ -271,12 +280,36 @@ json ControlServer::dispatch(Client& client, const Request& r) {
   throw ControlError(error_code::kInternal, "command " + r.cmd + " has no dispatcher");
 }
 
+/// The connection goes to a thread of the export streams (a copy of its descriptor); the loop
+/// closes its own copy and reads no further requests from it.
+void ControlServer::hand_over_export(Client& client, const Request& r) {
+  if (!exports_)
+    throw ControlError(error_code::kUnavailable,
+                       "streamed exports are not available here (no database path)");
+  const int fd = ::fcntl(client.fd, F_DUPFD_CLOEXEC, 0);
+  if (fd < 0) throw ControlError(error_code::kUnavailable, "export: " + errno_text(errno));
+  try {
+    exports_->start(fd, r, client.user);
+  } catch (...) {
+    ::close(fd);
+    throw;
+  }
+  client.in.clear();
+  client.close_after_write = true;
+}
+
 void ControlServer::serve_line(Client& client, std::string_view line) {
   json id = nullptr;
   json reply;
   try {
     const Request r = parse_request(line);
     id = r.id;
+    if (r.cmd == cmd::kExport && r.args.value("stream", false)) {
+      hand_over_export(client, r);
+      std::lock_guard<std::mutex> lock(stats_mutex_);
+      ++stats_.requests;
+      return;
+    }
     reply = ok_reply(id, dispatch(client, r));
   } catch (const BadRequest& e) {
     {

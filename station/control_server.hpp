@@ -5,7 +5,8 @@
 // Per request line: validate (bad_request naming the field), check permission for run.start,
 // run.abort and reprocess, then dispatch — to the ControlHandler for the run commands and
 // run.status, to record_json.hpp's answer_repository_read(handler.repository()) for history, show,
-// params and export, and ping is answered here ({"version": ...}).
+// params and export, and ping is answered here ({"version": ...}). A streamed export is handed to
+// an ExportStreams thread with the connection (export_stream.hpp): the poll loop is done with it.
 //
 // Permission: the peer's credentials are read with SO_PEERCRED when it connects. uid 0 is allowed;
 // otherwise the peer must be in the control group — as its primary gid, or by the group list of its
@@ -40,6 +41,7 @@
 
 #include "station/control_handler.hpp"
 #include "station/control_protocol.hpp"
+#include "station/export_stream.hpp"
 
 namespace imucal::station {
 
@@ -53,6 +55,10 @@ struct ControlServerOptions {
   /// A connection with no traffic either way for this long is closed (a pending reply the client
   /// does not read counts as no traffic).
   std::chrono::milliseconds idle_timeout{60000};
+  /// The history database, for streamed exports (export_stream.hpp), each of which reads it on a
+  /// connection of its own; "" = streamed exports are refused (unavailable).
+  std::string database_path;
+  std::size_t max_exports = 4;  ///< streamed exports at a time; more are refused (busy)
 };
 
 struct ControlServerStats {
@@ -64,6 +70,7 @@ struct ControlServerStats {
   std::uint64_t idle_closed = 0;        ///< connections closed after idle_timeout
   std::uint64_t per_user_refused = 0;   ///< connections refused over max_clients_per_user
   std::size_t clients = 0;              ///< connected now
+  std::size_t exports = 0;              ///< streamed exports running now (own threads)
 };
 
 class ControlServer {
@@ -95,6 +102,7 @@ class ControlServer {
   void close_idle(std::list<Client>& clients);
   void refuse_if_over_limits(const std::list<Client>& clients, Client& client);
   nlohmann::json dispatch(Client& client, const Request& request);
+  void hand_over_export(Client& client, const Request& request);
   bool permitted(const Client& client) const;
 
   ControlHandler& handler_;
@@ -104,6 +112,7 @@ class ControlServer {
   int listen_fd_ = -1;
   int wake_fd_ = -1;  ///< eventfd: stop() wakes the poll loop
   std::thread thread_;
+  std::unique_ptr<ExportStreams> exports_;
   std::atomic<bool> running_{false};
   mutable std::mutex stats_mutex_;
   ControlServerStats stats_;

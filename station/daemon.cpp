@@ -99,6 +99,7 @@ void Daemon::start() {
   controller_ = std::make_unique<RunController>(cfg_, *repo_, *worker_, opt_.version);
   ControlServerOptions so;
   so.socket_path = cfg_.control_socket;
+  so.database_path = cfg_.database;  // streamed exports read it on connections of their own
   so.group = cfg_.control_group;
   so.socket_mode = cfg_.control_socket_mode;
   so.idle_timeout =

@@ -104,12 +104,7 @@ json export_result(const db::Repository& repo, const db::ExportFilter& filter,
   std::string content;
   {
     std::ostringstream out;
-    if (format == "csv")
-      rows = db::export_csv(repo, filter, out);
-    else if (format == "json")
-      rows = db::export_json(repo, filter, out);
-    else
-      throw std::invalid_argument("export format \"" + format + "\" (expected csv or json)");
+    rows = db::export_history(repo, filter, format, out);
     content = out.str();
   }
   json result = json::object();
@@ -117,6 +112,18 @@ json export_result(const db::Repository& repo, const db::ExportFilter& filter,
   result["rows"] = rows;
   result["content"] = std::move(content);
   return result;
+}
+
+db::ExportFilter export_filter(const db::Repository& repo, const json& args) {
+  db::ExportFilter filter;
+  if (args.contains("serial")) {
+    filter.serial = args.at("serial").get<std::string>();
+    // The export of an unknown or malformed serial would silently be empty; say so instead.
+    (void)repo.history(*filter.serial, 1);
+  }
+  if (args.contains("since"))
+    filter.since_ms = db::parse_time_utc(args.at("since").get<std::string>());
+  return filter;
 }
 
 json answer_repository_read(const db::Repository& repo, const Request& request) {
@@ -129,16 +136,8 @@ json answer_repository_read(const db::Repository& repo, const Request& request) 
   if (request.cmd == cmd::kShow) return show_result(repo.show(a.at("run_id").get<db::RunId>()));
   if (request.cmd == cmd::kParams)
     return params_result(repo.active_params(a.at("serial").get<std::string>()));
-  if (request.cmd == cmd::kExport) {
-    db::ExportFilter filter;
-    if (a.contains("serial")) {
-      filter.serial = a.at("serial").get<std::string>();
-      // The export of an unknown or malformed serial would silently be empty; say so instead.
-      (void)repo.history(*filter.serial, 1);
-    }
-    if (a.contains("since")) filter.since_ms = db::parse_time_utc(a.at("since").get<std::string>());
-    return export_result(repo, filter, a.at("format").get<std::string>());
-  }
+  if (request.cmd == cmd::kExport)
+    return export_result(repo, export_filter(repo, a), a.at("format").get<std::string>());
   throw std::invalid_argument("not a repository read: " + request.cmd);
 }
 

@@ -34,9 +34,12 @@ nlohmann::json history_result(const std::string& serial, const std::vector<db::R
 nlohmann::json show_result(const db::RunDetails& details);
 /// Exactly the parameter-set JSON of the active (AINS) set with "sigma".
 nlohmann::json params_result(const db::ActiveCalibration& active);
-/// format "csv" or "json" (std::invalid_argument otherwise); the whole export in "content".
+/// format "csv", "json" or "ndjson" (db::InvalidInput otherwise); the whole export in "content".
 nlohmann::json export_result(const db::Repository& repo, const db::ExportFilter& filter,
                              const std::string& format);
+/// The filter of an export request's validated args (serial, since): db::NotFound for a serial
+/// with no runs (its export would silently be empty).
+db::ExportFilter export_filter(const db::Repository& repo, const nlohmann::json& args);
 
 /// Answers a validated history/show/params/export request from `repo`. Throws db::DbError (the
 /// server maps its kind with error_code_for) or std::invalid_argument for another command.

@@ -46,7 +46,8 @@ case $mode in
     cmake -S . -B $tree -DIMUCAL_TSAN=ON -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1 -g1" \
       -DIMUCAL_TEST_OPTIMIZE=-O0 "${launcher[@]}" "${release_calib[@]}" >/dev/null
     tests=(station_capture_test drivers_turntable_client_test drivers_station_sim_test
-           station_control_server_test station_daemon_test station_run_controller_test
+           station_control_server_test station_export_stream_test station_daemon_test
+           station_run_controller_test
            e2e_station_run_test e2e_station_abort_test e2e_station_faults_test)
     cmake --build $tree -j2 --target "${tests[@]}" stationd stationsim stationctl
     reports=$(fresh_reports $tree)

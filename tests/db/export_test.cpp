@@ -284,6 +284,30 @@ TEST_F(ExportTest, JsonParsesBackWithStrictParameterSetsForEveryFilter) {
   }
 }
 
+// NDJSON is the JSON export's objects, one per line, in the same order; export_history picks the
+// format by name and refuses an unknown one.
+TEST_F(ExportTest, NdjsonIsTheJsonExportOneObjectPerLine) {
+  for (const ExportFilter& f :
+       std::vector<ExportFilter>{{}, {std::string("SIM-B"), std::nullopt}}) {
+    std::ostringstream js, nd;
+    const std::size_t n = export_json(*repo_, f, js);
+    ASSERT_EQ(export_ndjson(*repo_, f, nd), n);
+    const json array = json::parse(js.str());
+    std::istringstream lines(nd.str());
+    std::size_t k = 0;
+    for (std::string line; std::getline(lines, line); ++k) {
+      ASSERT_LT(k, array.size());
+      EXPECT_EQ(json::parse(line), array[k]) << k;
+    }
+    EXPECT_EQ(k, n);
+    std::ostringstream by_name;
+    EXPECT_EQ(export_history(*repo_, f, "ndjson", by_name), n);
+    EXPECT_EQ(by_name.str(), nd.str());
+  }
+  std::ostringstream os;
+  EXPECT_THROW(export_history(*repo_, {}, "xml", os), InvalidInput);
+}
+
 TEST_F(ExportTest, EmptyResultIsAHeaderOrAnEmptyArray) {
   ExportFilter none{std::string("SIM-A"), kT0 + 365 * kDay};
   std::ostringstream csv, js;
@@ -301,6 +325,7 @@ TEST_F(ExportTest, AFailingStreamIsAnIoError) {
   os.setstate(std::ios::badbit);
   EXPECT_THROW(export_csv(*repo_, {}, os), IoError);
   EXPECT_THROW(export_json(*repo_, {}, os), IoError);
+  EXPECT_THROW(export_ndjson(*repo_, {}, os), IoError);
 }
 
 TEST_F(ExportTest, ActiveParamsJsonLoadsWithTheStrictParameterSetReader) {

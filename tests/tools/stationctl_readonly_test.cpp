@@ -334,6 +334,7 @@ class StationctlLive : public StationctlTest {
     handler_ = std::make_unique<ScriptedHandler>(*ro_, std::move(script));
     station::ControlServerOptions o;
     o.socket_path = dir_.file("live.sock");
+    o.database_path = db_;  // streamed exports read it, as the daemon's do
     server_ = std::make_unique<station::ControlServer>(*handler_, o);
     server_->start();
   }

@@ -25,6 +25,7 @@
 #include <string>
 #include <thread>
 
+#include "db/export.hpp"
 #include "db/serial_number.hpp"
 #include "db/sqlite_repository.hpp"
 #include "station/config.hpp"
@@ -62,8 +63,8 @@ constexpr auto kReplyTimeout = std::chrono::seconds(60);
 constexpr auto kReadTimeout = std::chrono::seconds(10);
 /// How long --wait looks in the database for the outcome of a run whose daemon went away.
 constexpr auto kOutcomeGrace = std::chrono::seconds(10);
-/// An export of the whole history is built before it is sent (11 s for 100 000 runs here).
-constexpr auto kExportTimeout = std::chrono::seconds(600);
+/// A streamed export: the longest wait for its next frame (the daemon sends one per 64 KiB).
+constexpr auto kExportFrameTimeout = std::chrono::seconds(30);
 
 /// A failure with its exit code; main prints "stationctl: <message>" and exits with the code.
 struct Failure {
@@ -130,8 +131,7 @@ json result_or_fail(const station::Reply& r) {
 
 json call(ControlClient& client, const std::string& command, const json& args) {
   try {
-    return result_or_fail(client.call(
-        command, args, command == station::cmd::kExport ? kExportTimeout : kReplyTimeout));
+    return result_or_fail(client.call(command, args, kReplyTimeout));
   } catch (const ControlClientError& e) {
     throw Failure{kUnavailable, e.what()};
   }
@@ -163,8 +163,7 @@ json read_request(const Target& t, const std::string& command, const json& args)
   // the database is there.
   if (client) {
     try {
-      const station::Reply r = client->call(
-          command, args, command == station::cmd::kExport ? kExportTimeout : kReadTimeout);
+      const station::Reply r = client->call(command, args, kReadTimeout);
       if (r.ok || r.error_code != station::error_code::kUnavailable || t.db.empty())
         return result_or_fail(r);
       why = "stationd: " + r.error_message;  // e.g. its connections are exhausted
@@ -362,24 +361,110 @@ void check_serial(const std::string& serial) {
   if (const auto problem = db::serial_problem(serial)) throw Failure{kBadInput, *problem};
 }
 
-void write_output(const std::string& path, const std::string& content) {
-  const std::string tmp = path + ".tmp" + std::to_string(::getpid());
-  {
-    std::ofstream f(tmp, std::ios::binary);
-    if (!f) throw Failure{kUnavailable, "cannot write " + tmp};
-    f << content;
-    f.flush();
-    if (!f) {
-      std::filesystem::remove(tmp);
-      throw Failure{kUnavailable, "writing " + tmp + " failed (disk full?)"};
+/// Where an export goes: stdout, or FILE through a temporary file renamed at the end, so that a
+/// failed or interrupted export leaves no half-written FILE.
+class ExportOutput {
+ public:
+  explicit ExportOutput(std::string path) : path_(std::move(path)) {
+    if (path_.empty()) return;
+    tmp_ = path_ + ".tmp" + std::to_string(::getpid());
+    file_.open(tmp_, std::ios::binary | std::ios::trunc);
+    if (!file_) throw Failure{kUnavailable, "cannot write " + tmp_};
+  }
+  ~ExportOutput() {
+    if (!tmp_.empty() && !committed_) {
+      std::error_code ec;
+      std::filesystem::remove(tmp_, ec);
     }
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp);
-    throw Failure{kUnavailable, "cannot write " + path + ": " + ec.message()};
+  std::ostream& stream() { return path_.empty() ? std::cout : file_; }
+  void write(std::string_view bytes) {
+    stream().write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    if (!stream()) throw Failure{kUnavailable, "writing " + where() + " failed (disk full?)"};
   }
+  void commit() {
+    stream().flush();
+    if (!stream()) throw Failure{kUnavailable, "writing " + where() + " failed (disk full?)"};
+    if (path_.empty()) return;
+    file_.close();
+    std::error_code ec;
+    std::filesystem::rename(tmp_, path_, ec);
+    if (ec) throw Failure{kUnavailable, "cannot write " + path_ + ": " + ec.message()};
+    committed_ = true;
+  }
+
+ private:
+  std::string where() const { return path_.empty() ? "stdout" : tmp_; }
+  std::string path_, tmp_;
+  std::ofstream file_;
+  bool committed_ = false;
+};
+
+/// The export streamed from the daemon into `out`; the rows, or nullopt (with `why`) when the
+/// daemon cannot serve it and nothing has been written yet, so the database can be read instead.
+std::optional<std::size_t> export_from_daemon(const Target& t, const json& args, ExportOutput& out,
+                                              std::string& why) {
+  using Kind = ControlClientError::Kind;
+  std::optional<ControlClient> client;
+  try {
+    client.emplace(t.socket);
+  } catch (const ControlClientError& e) {
+    if (e.kind() != Kind::kUnreachable && e.kind() != Kind::kNoPermission)
+      throw Failure{kUnavailable, e.what()};
+    why = e.what();
+    return std::nullopt;
+  }
+  bool wrote = false;
+  try {
+    json streamed = args;
+    streamed["stream"] = true;
+    const station::Reply r = client->call_streamed(
+        station::cmd::kExport, streamed,
+        [&](std::string_view bytes) {
+          wrote = true;
+          out.write(bytes);
+        },
+        kExportFrameTimeout);
+    if (r.ok) return r.result.at("rows").get<std::size_t>();
+    if (r.error_code != station::error_code::kUnavailable || t.db.empty() || wrote)
+      result_or_fail(r);
+    why = "stationd: " + r.error_message;
+  } catch (const ControlClientError& e) {
+    if (wrote || t.db.empty() || (e.kind() != Kind::kTimeout && e.kind() != Kind::kClosed))
+      throw Failure{kUnavailable, e.what()};
+    why = e.what();
+  }
+  return std::nullopt;
+}
+
+/// `stationctl export`: streamed from the daemon as it reads the rows, or straight from the
+/// database when the daemon is down; memory stays flat either way (issue #11).
+int cmd_export(const Target& t, const json& args, const std::string& output, bool json_out) {
+  ExportOutput out(output);
+  std::string why;
+  std::optional<std::size_t> rows = export_from_daemon(t, args, out, why);
+  if (!rows) {
+    if (t.db.empty())
+      throw Failure{kUnavailable, why + "; no database to read instead (give --db or --config)"};
+    std::cerr << "stationctl: note: " << why << "; reading the database " << t.db
+              << " read-only instead\n";
+    try {
+      db::SqliteOptions options;
+      options.read_only = true;
+      const db::SqliteRepository repo(t.db, options);
+      rows = db::export_history(repo, station::export_filter(repo, args),
+                                args.at("format").get<std::string>(), out.stream());
+    } catch (const db::DbError& e) {
+      throw Failure{exit_for_db_error(e.kind()), e.what()};
+    }
+  }
+  out.commit();
+  if (output.empty()) return kOk;
+  if (json_out)
+    print_json({{"format", args.at("format")}, {"rows", *rows}, {"output", output}});
+  else
+    std::cerr << "stationctl: " << *rows << " rows written to " << output << "\n";
+  return kOk;
 }
 
 }  // namespace
@@ -437,12 +522,15 @@ int main(int argc, char** argv) {
   params->add_option("SN", serial, "serial number")->required();
   params->fallthrough();
   std::string since, format, output;
-  auto* exp = app.add_subcommand("export", "the history as CSV or JSON");
+  auto* exp = app.add_subcommand(
+      "export",
+      "the history as CSV, JSON or NDJSON, streamed (with --json and --output: a JSON "
+      "summary of what was written)");
   exp->add_option("--serial", serial, "only this unit");
   exp->add_option("--since", since, "only runs started at or after (YYYY-MM-DD[THH:MM[:SS]][Z])");
-  exp->add_option("--format", format, "csv or json")
+  exp->add_option("--format", format, "csv, json (one array) or ndjson (one object per line)")
       ->required()
-      ->check(CLI::IsMember({"csv", "json"}));
+      ->check(CLI::IsMember({"csv", "json", "ndjson"}));
   exp->add_option("--output", output, "write to FILE instead of stdout");
   exp->fallthrough();
   auto* reprocess = app.add_subcommand(
@@ -574,17 +662,7 @@ int main(int argc, char** argv) {
         }
         args["since"] = since;
       }
-      const json r = read_request(target, station::cmd::kExport, args);
-      if (!output.empty()) {
-        write_output(output, r.at("content").get_ref<const std::string&>());
-        std::cerr << "stationctl: " << text(r, "rows", "?") << " rows written to " << output
-                  << "\n";
-      } else if (g.json) {
-        print_json(r);
-      } else {
-        std::cout << r.at("content").get_ref<const std::string&>() << std::flush;
-      }
-      return kOk;
+      return cmd_export(target, args, output, g.json);
     }
     if (*reprocess) {
       ControlClient client = connect_or_fail(target);
