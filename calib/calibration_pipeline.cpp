@@ -1,7 +1,11 @@
 #include "calib/calibration_pipeline.hpp"
 
+#include <exception>
+#include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "calib/data_check.hpp"
 
@@ -44,6 +48,53 @@ MethodOutcome run_method(const CalibrationInput& in, const PipelineOptions& opt,
   return m;
 }
 
+/// `opt` with on_phase behind a lock: the methods may report from two threads.
+PipelineOptions with_serialised_phases(const PipelineOptions& opt) {
+  PipelineOptions o = opt;
+  if (o.on_phase) {
+    auto lock = std::make_shared<std::mutex>();
+    o.on_phase = [lock, report = opt.on_phase](const std::string& phase) {
+      const std::lock_guard<std::mutex> guard(*lock);
+      report(phase);
+    };
+  }
+  return o;
+}
+
+/// AINS, and NLSQ or legacy, each with its evaluation: with opt.concurrent the second method runs
+/// on a thread of its own meanwhile (they only read `in`). An exception of either is rethrown
+/// once both have ended.
+void run_methods(const CalibrationInput& in, const PipelineOptions& opt, bool ains, bool nlsq,
+                 bool legacy, PipelineResult& out) {
+  std::optional<MethodOutcome>* second = nlsq ? &out.nlsq : legacy ? &out.legacy : nullptr;
+  auto run_second = [&] {
+    *second =
+        nlsq ? run_method(in, opt, "NLSQ", run_nlsq) : run_method(in, opt, "legacy", run_legacy);
+  };
+  if (!(ains && second && opt.concurrent)) {
+    if (ains) out.ains = run_method(in, opt, "AINS", run_ains);
+    if (second) run_second();
+    return;
+  }
+  std::exception_ptr second_error;
+  std::thread worker([&] {
+    try {
+      run_second();
+    } catch (...) {
+      second_error = std::current_exception();
+    }
+  });
+  std::exception_ptr ains_error;
+  try {
+    out.ains = run_method(in, opt, "AINS", run_ains);
+  } catch (...) {
+    ains_error = std::current_exception();
+  }
+  worker.join();
+  if (ains_error) std::rethrow_exception(ains_error);
+  if (second_error) std::rethrow_exception(second_error);
+}
+
 }  // namespace
 
 PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions& opt) {
@@ -62,13 +113,11 @@ PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions
   }
   const bool all = sel == MethodSelection::kAll;
   PipelineResult out;
-  if (all || sel == MethodSelection::kAins) out.ains = run_method(in, opt, "AINS", run_ains);
-  if ((all && !field) || sel == MethodSelection::kNlsq)
-    out.nlsq = run_method(in, opt, "NLSQ", run_nlsq);
-  // The legacy method needs a still platform: on land it is AINS's independent check; at sea
-  // (a rocking, drifting deck) there is none, and AINS stands alone.
-  if ((all && in.setting == Setting::kLand) || sel == MethodSelection::kLegacy)
-    out.legacy = run_method(in, opt, "legacy", run_legacy);
+  run_methods(in, with_serialised_phases(opt), all || sel == MethodSelection::kAins,
+              (all && !field) || sel == MethodSelection::kNlsq,
+              // The legacy method needs a still platform: on land it is AINS's independent check;
+              // at sea (a rocking, drifting deck) there is none, and AINS stands alone.
+              (all && in.setting == Setting::kLand) || sel == MethodSelection::kLegacy, out);
   const std::optional<MethodOutcome>& second = out.nlsq ? out.nlsq : out.legacy;
   if (out.ains && second) {
     if (opt.on_phase) opt.on_phase("cross-check");

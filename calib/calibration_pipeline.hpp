@@ -37,8 +37,12 @@ struct PipelineOptions {
   /// Sanity checks of the raw data first (calib/data_check.hpp): DataCheckError naming the
   /// symptom (stuck or clipped channel, wrong fixture orientation, swapped axes, unit not moved).
   bool check_data = true;
+  /// The two methods (and their evaluations) at the same time, the second on a thread of its own:
+  /// they share only the read-only input, and the results are the same either way (issue #11).
+  bool concurrent = true;
   /// Called with a short phase description ("AINS", "NLSQ", "evaluating AINS", ...) before each
-  /// phase, so front ends can show progress. May be empty.
+  /// phase, so front ends can show progress. May be empty. Never called by two threads at once
+  /// (with `concurrent`, the phases of the two methods interleave).
   std::function<void(const std::string&)> on_phase;
 };
 

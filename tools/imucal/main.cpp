@@ -283,7 +283,7 @@ int cmd_crlb(const std::string& seq, const std::string& unit_path, double rate_h
 
 /// Benchmark of `calibrate --method all` (archive read included): wall time per repetition and the
 /// process's peak resident memory. Timing belongs here, not in unit tests (shared, noisy machines).
-int cmd_bench(const std::string& dir, int repeat, bool json) {
+int cmd_bench(const std::string& dir, int repeat, bool sequential, bool json) {
   std::vector<double> wall_s;
   size_t samples = 0;
   std::string verdict;
@@ -291,7 +291,9 @@ int cmd_bench(const std::string& dir, int repeat, bool json) {
     const auto t0 = std::chrono::steady_clock::now();
     const archive::RunArchive ar = archive::read_archive(dir);
     const calib::CalibrationInput in = archive::to_calibration_input(ar);
-    const calib::PipelineResult r = calib::run_calibration(in);
+    calib::PipelineOptions options;
+    options.concurrent = !sequential;
+    const calib::PipelineResult r = calib::run_calibration(in, options);
     wall_s.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     samples = in.imu.size();
     verdict = r.pass() ? "PASS" : "REVIEW";
@@ -304,14 +306,16 @@ int cmd_bench(const std::string& dir, int repeat, bool json) {
   if (json) {
     std::cout << nlohmann::json{{"samples", samples},           {"repeat", repeat},
                                 {"wall_s_min", wall_s.front()}, {"wall_s_median", median},
-                                {"peak_rss_mb", peak_mb},       {"verdict", verdict}}
+                                {"peak_rss_mb", peak_mb},       {"verdict", verdict},
+                                {"concurrent", !sequential}}
                      .dump(2)
               << '\n';
   } else {
     std::printf(
-        "calibrate --method all on %zu samples: wall min %.3f s, median %.3f s over %d runs; "
-        "peak RSS %.1f MB; verdict %s\n",
-        samples, wall_s.front(), median, repeat, peak_mb, verdict.c_str());
+        "calibrate --method all (%s) on %zu samples: wall min %.3f s, median %.3f s over %d "
+        "runs; peak RSS %.1f MB; verdict %s\n",
+        sequential ? "methods one after the other" : "methods concurrently", samples,
+        wall_s.front(), median, repeat, peak_mb, verdict.c_str());
   }
   return 0;
 }
@@ -400,6 +404,9 @@ int main(int argc, char** argv) {
   be->add_option("--repeat", repeat, "repetitions")
       ->capture_default_str()
       ->check(CLI::Range(1, 100));
+  bool sequential = false;
+  be->add_flag("--sequential", sequential,
+               "the two methods one after the other (as before issue #11), for comparison");
   be->add_flag("--json", json, "print one JSON object");
 
   tools::DiagnoseArgs diag;
@@ -430,7 +437,7 @@ int main(int argc, char** argv) {
     if (*ev) return cmd_evaluate(dir, params, json);
     if (*cr && effects) return tools::cmd_crlb_effects(seq, unit, rate_hz, json);
     if (*cr) return cmd_crlb(seq, unit, rate_hz, json);
-    if (*be) return cmd_bench(dir, repeat, json);
+    if (*be) return cmd_bench(dir, repeat, sequential, json);
     if (*dg) return tools::cmd_diagnose(diag);
     if (*vd) return tools::cmd_validate(val);
     if (*pt) return tools::cmd_paper_tables(paper);
