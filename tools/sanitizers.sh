@@ -58,7 +58,7 @@ case $mode in
         echo "tsan: $t passed"
       else
         echo "tsan: $t FAILED (output: $reports/$t.out); its failures:"
-        grep -B2 -A12 -E "Failure|FAILED|terminate|Segmentation" "$reports/$t.out" | head -80
+        grep -B2 -A12 -E "Failure|FAILED|terminate|Segmentation" "$reports/$t.out" | head -80 || true
         failed=1
       fi
     done

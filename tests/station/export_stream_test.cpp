@@ -12,6 +12,7 @@
 #include <string>
 #include <thread>
 
+#include "calib/param_set.hpp"
 #include "db/export.hpp"
 #include "db/sqlite_repository.hpp"
 #include "station/control_client.hpp"
@@ -44,6 +45,11 @@ constexpr int kRuns = 1500;
 class ExportStreamTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
+    // The calibration core's parameter table (a function-local static) built here, before any
+    // thread: the TSan tree links the calibration core uninstrumented (tools/sanitizers.sh), so
+    // TSan cannot see the guard of its lazy construction and would report the first reads from two
+    // threads as a race.
+    (void)calib::param_info(0);
     dir_ = new db::test::TempDir();
     db::SqliteRepository repo(dir_->file("history.sqlite"));
     const db::TimestampMs t0 = db::parse_time_utc("2024-05-01T10:00:00Z");
