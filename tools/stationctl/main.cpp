@@ -147,18 +147,25 @@ ControlClient connect_or_fail(const Target& t) {
   }
 }
 
-/// A read: over the socket, or from the database read-only when the daemon is unreachable.
-json read_request(const Target& t, const std::string& command, const json& args) {
-  std::optional<ControlClient> client;
-  std::string why;
+/// For reads: a connection to the daemon, or none (with `why`) when it is not there or the socket
+/// admits only the control group, so that the database is read instead.
+std::optional<ControlClient> connect_for_read(const Target& t, std::string& why) {
   using Kind = ControlClientError::Kind;
   try {
-    client.emplace(t.socket);
+    return std::optional<ControlClient>(std::in_place, t.socket);
   } catch (const ControlClientError& e) {
     if (e.kind() != Kind::kUnreachable && e.kind() != Kind::kNoPermission)
       throw Failure{kUnavailable, e.what()};
     why = e.what();
+    return std::nullopt;
   }
+}
+
+/// A read: over the socket, or from the database read-only when the daemon is unreachable.
+json read_request(const Target& t, const std::string& command, const json& args) {
+  std::string why;
+  using Kind = ControlClientError::Kind;
+  std::optional<ControlClient> client = connect_for_read(t, why);
   // A daemon that does not answer (busy, or its connections exhausted) is no reason not to read:
   // the database is there.
   if (client) {
@@ -405,15 +412,8 @@ class ExportOutput {
 std::optional<std::size_t> export_from_daemon(const Target& t, const json& args, ExportOutput& out,
                                               std::string& why) {
   using Kind = ControlClientError::Kind;
-  std::optional<ControlClient> client;
-  try {
-    client.emplace(t.socket);
-  } catch (const ControlClientError& e) {
-    if (e.kind() != Kind::kUnreachable && e.kind() != Kind::kNoPermission)
-      throw Failure{kUnavailable, e.what()};
-    why = e.what();
-    return std::nullopt;
-  }
+  std::optional<ControlClient> client = connect_for_read(t, why);
+  if (!client) return std::nullopt;
   bool wrote = false;
   try {
     json streamed = args;
