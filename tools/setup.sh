@@ -8,9 +8,9 @@
 # Idempotent: safe to run on a fresh machine and again on a prepared one. Both modes build in
 # build/ (IMUCAL_BUILD_DIR=DIR: elsewhere).
 # The packages only tests need (qemu and a kernel image, chromium, clang-16, the CAN and Modbus peer
-# tools, lintian and help2man for the Debian package) are installed in the background while the
-# build runs: their download and unpacking overlap the compilation, and the script waits for them
-# before it returns.
+# tools, lintian for the Debian package) are installed in the background while the build runs:
+# their download and unpacking overlap the compilation, and the script waits for them before it
+# returns.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MODE=all
@@ -25,11 +25,12 @@ esac
 MAIN_PKGS=(build-essential cmake ccache pkg-config
            libeigen3-dev libceres-dev libmodbus-dev libsqlite3-dev libspdlog-dev
            libcli11-dev libtomlplusplus-dev nlohmann-json3-dev libsystemd-dev)
-# The test programs' and benchmarks' libraries: needed before the build, so not in the background.
-TEST_BUILD_PKGS=(libgtest-dev libgmock-dev libbenchmark-dev)
+# Needed before the build, so not in the background: the test programs' and benchmarks' libraries,
+# and help2man (CMake looks for it when it configures; the man pages of the Debian package).
+TEST_BUILD_PKGS=(libgtest-dev libgmock-dev libbenchmark-dev help2man)
 TEST_PKGS=(can-utils python3-can python3-canmatrix mbpoll
            qemu-system-x86 linux-image-amd64 busybox-static cpio iproute2 xz-utils binutils
-           chromium clang-16 libclang-rt-16-dev lintian help2man)
+           chromium clang-16 libclang-rt-16-dev lintian)
 PROGRAMS=(imucal stationd stationsim stationctl)
 SUDO=""
 [ "$(id -u)" -ne 0 ] && SUDO="sudo"
