@@ -65,7 +65,8 @@ fi
 
 BUILD_TYPE=${BUILD_TYPE:-Release}
 # The test programs at -O1: a quarter to a third less compile time than Release's -O3 (their own
-# code only orchestrates and asserts; the code under test keeps the build type's flags).
+# code only orchestrates and asserts; the code under test keeps the build type's flags). Linked by
+# gold (binutils): 0.3 s instead of 1.0 s for each of ~90 programs.
 targets=()
 tests=ON
 if [ $MODE = main ]; then
@@ -75,7 +76,7 @@ fi
 build_status=0
 BUILD_DIR=${IMUCAL_BUILD_DIR:-build}
 { cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
-    -DCMAKE_INSTALL_PREFIX=/usr -DIMUCAL_BUILD_TESTS=$tests \
+    -DCMAKE_INSTALL_PREFIX=/usr -DIMUCAL_BUILD_TESTS=$tests -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=gold \
     -DIMUCAL_TEST_OPTIMIZE="${IMUCAL_TEST_OPTIMIZE--O1}" >/dev/null &&
   cmake --build "$BUILD_DIR" -j2 "${targets[@]}"; } || build_status=$?
 
