@@ -117,8 +117,7 @@ TEST_F(DebianPackage, IsLintianCleanAndHoldsEverythingWhereDebianWantsIt) {
     EXPECT_NE(page.out.find(kVersion), std::string::npos) << p;
   }
   // The unit runs the installed daemon on the packaged config.
-  std::ifstream unit(tmp / "lib/systemd/system/stationd.service");
-  const std::string text((std::istreambuf_iterator<char>(unit)), {});
+  const std::string text = imucal::e2e::read_text(tmp / "lib/systemd/system/stationd.service");
   EXPECT_NE(text.find("ExecStart=/usr/bin/stationd --config /etc/imucal/stationd.toml"),
             std::string::npos)
       << text;

@@ -19,18 +19,12 @@
 namespace {
 
 namespace fs = std::filesystem;
+using imucal::e2e::read_text;
 using imucal::test_support::run_command;
-
-std::string read_file(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 /// The README's main-job command: the line of its first code block marked "# main job".
 std::string readme_main_job_command() {
-  std::istringstream readme(read_file(fs::path(IMUCAL_SOURCE_DIR) / "README.md"));
+  std::istringstream readme(read_text(std::string(IMUCAL_SOURCE_DIR) + "/README.md"));
   for (std::string line; std::getline(readme, line);) {
     const auto mark = line.find("# main job");
     if (mark == std::string::npos) continue;
@@ -66,7 +60,7 @@ TEST(MainJob, FromNothingInstallsNoTestPackageBuildsOnlyTheFourProgramsAndReache
   EXPECT_NE(r.out.find("PASS"), std::string::npos) << r.out;
 
   // What it asked apt for: the four programs' build dependencies, and nothing only tests need.
-  const std::string asked = read_file(apt_log);
+  const std::string asked = read_text(apt_log);
   EXPECT_NE(asked.find("libceres-dev"), std::string::npos) << asked;
   EXPECT_NE(asked.find("libmodbus-dev"), std::string::npos) << asked;
   for (const char* test_only :
@@ -86,7 +80,7 @@ TEST(MainJob, FromNothingInstallsNoTestPackageBuildsOnlyTheFourProgramsAndReache
       ++test_programs;
   }
   EXPECT_EQ(test_programs, 0);
-  EXPECT_NE(read_file(build + "/CMakeCache.txt").find("IMUCAL_BUILD_TESTS:BOOL=OFF"),
+  EXPECT_NE(read_text(build + "/CMakeCache.txt").find("IMUCAL_BUILD_TESTS:BOOL=OFF"),
             std::string::npos);
 }
 
