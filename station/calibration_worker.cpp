@@ -136,9 +136,11 @@ CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJo
   completion.capture_json = job.capture_json;
   try {
     phase("reading the archive");
-    const archive::RunArchive ar = archive::read_archive(job.archive_dir);
+    archive::RunArchive ar = archive::read_archive(job.archive_dir);
     phase("checking the archive");
-    calib::CalibrationInput in = archive::to_calibration_input(ar);
+    // The samples move into the input (no copy held through the calibration); ar keeps its info,
+    // all that is used below.
+    calib::CalibrationInput in = archive::to_calibration_input(std::move(ar));
     calib::PipelineOptions opt;
     opt.methods = calib::MethodSelection::kAll;
     opt.crosscheck.k_sigma = job.k_sigma;

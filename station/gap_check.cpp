@@ -33,8 +33,9 @@ GapCheck check_gap(calib::CalibrationInput in, const archive::RunArchive& ar,
 }
 
 nlohmann::json diagnose_archive(const std::string& dir) {
-  const archive::RunArchive ar = archive::read_archive(dir);
-  calib::CalibrationInput in = archive::to_calibration_input(ar);
+  archive::RunArchive ar = archive::read_archive(dir);
+  // The samples move into the input; ar keeps its info, all that is used below.
+  calib::CalibrationInput in = archive::to_calibration_input(std::move(ar));
   const calib::CalibrationResult cal = calib::calibrate_nlsq(in);
   const calib::DiagnosisResult d = calib::diagnose(diagnosis_input(std::move(in), ar), cal.params);
   nlohmann::json j = archive::diagnosis_to_json(d);

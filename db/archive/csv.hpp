@@ -11,6 +11,9 @@
 //  * every cell is a decimal number consumed completely by std::from_chars (no whitespace, no "+",
 //    no "1.2x", no empty cells); NaN and Inf are rejected; out-of-range values are rejected;
 //  * optionally the first column (time) is strictly increasing.
+// Large texts are parsed in two chunks, split at a line end, on two threads; the rows, the error
+// and its line are those of a parse from the top (the first error in file order wins). Files are
+// read a block at a time, never whole.
 // Writer: shortest round-trip decimal (std::to_chars), so write-then-read is bit-exact.
 #include <cstddef>
 #include <initializer_list>
@@ -48,6 +51,43 @@ struct CsvTable {
 CsvTable parse_csv(std::string_view text, const std::string& origin, const CsvSpec& spec);
 /// Read and parse a CSV file.
 CsvTable read_csv(const std::string& path, const CsvSpec& spec);
+
+/// Takes the data rows of a CSV text straight into the caller's storage (a 35 MB imu.csv would
+/// otherwise exist three times: text, CsvTable, the caller's rows).
+class CsvRowSink {
+ public:
+  virtual ~CsvRowSink() = default;
+  /// Called once before any row: the header present and the number of data rows (exact for a text
+  /// that parses; row indices never reach it either way).
+  virtual void begin(const std::vector<std::string>& columns, std::size_t num_rows) = 0;
+  /// Data row `row` (0-based; file line CsvTable::line_of_row(row)) with columns.size() values.
+  /// Two threads call it at once for different rows (each row at most once), so it may only write
+  /// the storage of its own row, and it must not throw: report bad values after the parse, in row
+  /// order, as a parse followed by a check over the rows would.
+  virtual void row(std::size_t row, const double* values) = 0;
+};
+
+/// How parse_csv_rows and read_csv_rows split the data rows between their two threads.
+struct CsvChunking {
+  static constexpr std::size_t kMiddle = static_cast<std::size_t>(-1);
+  /// Less data than this (bytes after the header) is parsed on the calling thread alone: starting
+  /// a thread costs about as much as parsing 20 kB.
+  std::size_t min_parallel_bytes = 256 * 1024;
+  /// The second chunk starts after the first '\n' at or after this offset into the data (tests
+  /// move the boundary through the text); kMiddle: half the data.
+  std::size_t split_at = kMiddle;
+  /// read_csv_rows() reads a file through one buffer of this size per thread (grown for a longer
+  /// line) rather than whole: no 35 MB text next to the rows, no page faults for it.
+  std::size_t block_bytes = 256 * 1024;
+};
+
+/// parse_csv() into a sink: the same rules, the same errors.
+void parse_csv_rows(std::string_view text, const std::string& origin, const CsvSpec& spec,
+                    CsvRowSink& sink, const CsvChunking& chunking = {});
+/// read_csv() into a sink, a block at a time. A file that shrinks or changes while it is read is
+/// an ArchiveError (as a read error, or "changed while it was being read").
+void read_csv_rows(const std::string& path, const CsvSpec& spec, CsvRowSink& sink,
+                   const CsvChunking& chunking = {});
 
 /// Streaming CSV writer with the same rules as the reader: it refuses NaN/Inf and (if requested)
 /// non-increasing time, so it never writes a file the reader would reject. close() makes the file

@@ -9,17 +9,20 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <system_error>
+#include <utility>
 
 #include "db/archive/archive_error.hpp"
 
 namespace imucal::archive {
 
 namespace {
-std::string os_reason(int err) { return std::strerror(err); }
-}  // namespace
 
-std::string read_text_file(const std::string& path) {
+std::string os_reason(int err) { return std::strerror(err); }
+
+// Opens a file for reading; its size as stat reports it (0 for pipes and /proc files).
+int open_for_reading(const std::string& path, std::size_t& size_bytes, bool* regular = nullptr) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw ArchiveError(path, "cannot open: " + os_reason(errno));
   struct stat st {};
@@ -32,24 +35,93 @@ std::string read_text_file(const std::string& path) {
     ::close(fd);
     throw ArchiveError(path, "is a directory, expected a file");
   }
+  size_bytes = static_cast<std::size_t>(st.st_size);
+  if (regular) *regular = S_ISREG(st.st_mode);
+  return fd;
+}
+
+// read(2) into buf[got, capacity) until it is full or at EOF; returns the new fill level.
+std::size_t read_some(int fd, const std::string& path, char* buf, std::size_t got,
+                      std::size_t capacity) {
+  while (got < capacity) {
+    const ssize_t n = ::read(fd, buf + got, capacity - got);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      throw ArchiveError(path, "read error: " + os_reason(errno));
+    }
+    if (n == 0) break;
+    got += static_cast<std::size_t>(n);
+  }
+  return got;
+}
+
+struct FdCloser {
+  int fd;
+  ~FdCloser() { ::close(fd); }
+};
+
+}  // namespace
+
+std::string read_text_file(const std::string& path) {
+  std::size_t size_bytes = 0;
+  const FdCloser file{open_for_reading(path, size_bytes)};
   std::string out;
-  out.resize(static_cast<size_t>(st.st_size));
+  out.resize(size_bytes);
   size_t got = 0;
   for (;;) {
     if (got == out.size()) out.resize(out.size() + 65536);  // file grew or st_size was 0 (pipes)
-    const ssize_t n = ::read(fd, &out[got], out.size() - got);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      const int e = errno;
-      ::close(fd);
-      throw ArchiveError(path, "read error: " + os_reason(e));
-    }
-    if (n == 0) break;
-    got += static_cast<size_t>(n);
+    got = read_some(file.fd, path, out.data(), got, out.size());
+    if (got < out.size()) break;  // EOF
   }
-  ::close(fd);
   out.resize(got);
   return out;
+}
+
+ReadableFile::ReadableFile(const std::string& path) : path_(path) {
+  std::size_t size_bytes = 0;
+  bool regular = false;
+  fd_ = open_for_reading(path, size_bytes, &regular);
+  size_ = regular ? size_bytes : 0;
+}
+
+ReadableFile::~ReadableFile() { ::close(fd_); }
+
+FileBytes ReadableFile::read_all() const {
+  // new char[] leaves the bytes uninitialised: read(2) is the only write. One byte more than stat
+  // says, so that a file that grew shows up as a full buffer.
+  std::size_t capacity = size_ + 1;
+  std::unique_ptr<char[]> buf(new char[capacity]);
+  std::size_t got = 0;
+  for (;;) {
+    got = read_some(fd_, path_, buf.get(), got, capacity);
+    if (got < capacity) break;  // EOF
+    // File grew or reported no size (pipes): grow geometrically and read on.
+    const std::size_t bigger = capacity * 2 + 65536;
+    std::unique_ptr<char[]> grown(new char[bigger]);
+    std::memcpy(grown.get(), buf.get(), got);
+    buf = std::move(grown);
+    capacity = bigger;
+  }
+  FileBytes out;
+  out.data_ = std::move(buf);
+  out.size_ = got;
+  return out;
+}
+
+FileBytes read_file_bytes(const std::string& path) { return ReadableFile(path).read_all(); }
+
+void ReadableFile::read_at(std::size_t offset, char* buf, std::size_t n) const {
+  while (n > 0) {
+    const ssize_t got = ::pread(fd_, buf, n, static_cast<off_t>(offset));
+    if (got < 0) {
+      if (errno == EINTR) continue;
+      throw ArchiveError(path_, "read error: " + os_reason(errno));
+    }
+    if (got == 0) throw ArchiveError(path_, "read error: the file shrank while it was being read");
+    buf += got;
+    offset += static_cast<std::size_t>(got);
+    n -= static_cast<std::size_t>(got);
+  }
 }
 
 DurableFile::DurableFile(std::string path, bool overwrite) : path_(std::move(path)) {

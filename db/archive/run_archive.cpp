@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
 
 #include "calib/conventions.hpp"
 #include "calib/rotation.hpp"
@@ -415,6 +416,85 @@ bool operator==(const CaptureInfo& a, const CaptureInfo& b) {
 
 namespace {
 
+/// imu.csv rows straight into RunArchive::imu. dt_s is set after the parse: it needs the row
+/// before, which may be the other thread's.
+class ImuRowSink final : public CsvRowSink {
+ public:
+  ImuRowSink(calib::ImuSeries& imu, bool dv_raw_integral)
+      : imu_(imu), dv_raw_integral_(dv_raw_integral) {}
+  void begin(const std::vector<std::string>& columns, size_t num_rows) override {
+    has_temp_ = columns.size() == 8;
+    imu_.resize(num_rows);
+  }
+  void row(size_t k, const double* v) override {
+    calib::ImuIncrement& s = imu_[k];
+    s.t_s = v[0];
+    s.dtheta_rad = {v[1], v[2], v[3]};
+    s.dv_mps = {v[4], v[5], v[6]};
+    s.temp_c = has_temp_ ? v[7] : nan_;
+    // Raw integral ∫ f_b dt -> the body frame at the interval start (DESIGN §3, conventions.hpp):
+    // first-order rotation compensation; sculling inside one sample is not recoverable here.
+    if (dv_raw_integral_) {
+      const Eigen::Vector3d v_raw = s.dv_mps;
+      s.dv_mps = v_raw + 0.5 * s.dtheta_rad.cross(v_raw);
+    }
+  }
+
+ private:
+  calib::ImuSeries& imu_;
+  bool dv_raw_integral_;
+  bool has_temp_ = false;
+  const double nan_ = std::nan("");  // temp_c when imu.csv has no temp_c column
+};
+
+void read_imu(const std::string& path, bool dv_raw_integral, RunArchive& a) {
+  ImuRowSink sink(a.imu, dv_raw_integral);
+  read_csv_rows(path, CsvSpec{kImuColumns, kImuOptional, true}, sink);
+  if (a.imu.empty()) throw ArchiveError(path, 2, "no data rows after the header");
+  // First interval: the nominal one; afterwards the time difference (strictly positive).
+  a.imu[0].dt_s = 1.0 / a.info.imu_rate_hz;
+  for (size_t k = 1; k < a.imu.size(); ++k) a.imu[k].dt_s = a.imu[k].t_s - a.imu[k - 1].t_s;
+}
+
+/// table.csv rows straight into RunArchive::table. An at_rest other than 0 or 1 is remembered
+/// (the first in file order) and reported after the parse, as the check after a CsvTable was.
+class TableRowSink final : public CsvRowSink {
+ public:
+  explicit TableRowSink(std::vector<calib::TableSample>& table) : table_(table) {}
+  void begin(const std::vector<std::string>&, size_t num_rows) override { table_.resize(num_rows); }
+  void row(size_t k, const double* v) override {
+    table_[k] = {v[0], deg_to_rad(v[1]), deg_to_rad(v[2]), v[3] == 1.0};
+    if (v[3] != 0.0 && v[3] != 1.0) {
+      const std::lock_guard<std::mutex> lock(bad_mutex_);  // both threads may find one
+      if (k < bad_row_) {
+        bad_row_ = k;
+        bad_value_ = v[3];
+      }
+    }
+  }
+  /// The first row whose at_rest is neither 0 nor 1, if any.
+  std::optional<std::pair<size_t, double>> bad_rest_flag() const {
+    if (bad_row_ == kNone) return std::nullopt;
+    return std::make_pair(bad_row_, bad_value_);
+  }
+
+ private:
+  static constexpr size_t kNone = static_cast<size_t>(-1);
+  std::vector<calib::TableSample>& table_;
+  std::mutex bad_mutex_;
+  size_t bad_row_ = kNone;
+  double bad_value_ = 0.0;
+};
+
+void read_table(const std::string& path, RunArchive& a) {
+  TableRowSink sink(a.table);
+  read_csv_rows(path, CsvSpec{kTableColumns, {}, true}, sink);
+  if (a.table.empty()) throw ArchiveError(path, 2, "no data rows after the header");
+  if (const auto bad = sink.bad_rest_flag())
+    throw ArchiveError::column_error(path, CsvTable::line_of_row(bad->first), "at_rest",
+                                     "must be 0 or 1, got " + format_double(bad->second));
+}
+
 /// gnss.csv: required at sea, optional elsewhere; every fix inside the IMU's time span.
 void read_gnss(const std::string& dir, RunArchive& a) {
   std::error_code ec;
@@ -499,34 +579,9 @@ RunArchive read_archive(const std::string& dir_in) {
                        "reference");
   a.info.reference = present;
 
-  // imu.csv
-  const CsvTable imu =
-      read_csv(join_path(dir, "imu.csv"), CsvSpec{kImuColumns, kImuOptional, true});
-  check_has_rows(imu);
-  const bool has_temp = imu.num_cols() == 8;
-  a.imu.resize(imu.num_rows);
-  for (size_t k = 0; k < imu.num_rows; ++k) {
-    calib::ImuIncrement& s = a.imu[k];
-    s.t_s = imu.at(k, 0);
-    // First interval: the nominal one; afterwards the time difference (strictly positive).
-    s.dt_s = k == 0 ? 1.0 / a.info.imu_rate_hz : s.t_s - imu.at(k - 1, 0);
-    s.dtheta_rad = {imu.at(k, 1), imu.at(k, 2), imu.at(k, 3)};
-    s.dv_mps = {imu.at(k, 4), imu.at(k, 5), imu.at(k, 6)};
-    s.temp_c = has_temp ? imu.at(k, 7) : std::nan("");
-    // Raw integral ∫ f_b dt -> the body frame at the interval start (DESIGN §3, conventions.hpp):
-    // first-order rotation compensation; sculling inside one sample is not recoverable here.
-    if (parsed.dv_raw_integral) {
-      const Eigen::Vector3d v_raw = s.dv_mps;
-      s.dv_mps = v_raw + 0.5 * s.dtheta_rad.cross(v_raw);
-    }
-  }
-
+  read_imu(join_path(dir, "imu.csv"), parsed.dv_raw_integral, a);
   if (has_table) {
-    const CsvTable t = read_csv(table_csv, CsvSpec{kTableColumns, {}, true});
-    check_has_rows(t);
-    a.table.resize(t.num_rows);
-    for (size_t k = 0; k < t.num_rows; ++k)
-      a.table[k] = {t.at(k, 0), deg_to_rad(t.at(k, 1)), deg_to_rad(t.at(k, 2)), rest_flag(t, k, 3)};
+    read_table(table_csv, a);
   } else if (has_attitude) {
     const CsvTable t = read_csv(attitude_csv, CsvSpec{kAttitudeColumns, {}, true});
     check_has_rows(t);
@@ -701,31 +756,34 @@ void write_archive(const std::string& dir_in, const RunArchive& a, bool overwrit
 namespace {
 
 /// The sample interval against the declared rate: catches t_s in ms or a wrong [imu] rate_hz.
-void check_sample_interval(const RunArchive& a, const std::string& imu_file) {
-  const size_t n = a.imu.size();
-  const double dt_nominal = 1.0 / a.info.imu_rate_hz;
+void check_sample_interval(const calib::ImuSeries& imu, const RunInfo& info,
+                           const std::string& imu_file) {
+  const size_t n = imu.size();
+  const double dt_nominal = 1.0 / info.imu_rate_hz;
   if (n < 2) return;
   std::vector<double> dts(n - 1);
-  for (size_t k = 1; k < n; ++k) dts[k - 1] = a.imu[k].dt_s;
+  for (size_t k = 1; k < n; ++k) dts[k - 1] = imu[k].dt_s;
   std::nth_element(dts.begin(), dts.begin() + static_cast<long>(dts.size() / 2), dts.end());
   const double median = dts[dts.size() / 2];
   if (std::fabs(median - dt_nominal) > 0.05 * dt_nominal)
     throw ArchiveError(imu_file, "median sample interval " + format_double(median) +
                                      " s does not match run.toml [imu] rate_hz = " +
-                                     format_double(a.info.imu_rate_hz) +
+                                     format_double(info.imu_rate_hz) +
                                      " (1/rate = " + format_double(dt_nominal) +
                                      " s); is t_s in seconds and rate_hz right?");
 }
 
 /// Magnitude plausibility per sample, and the mean specific force at rest against gravity.
-void check_magnitudes(const RunArchive& a, const calib::CalibrationInput& in,
+/// is_rest(k): the rest flag of sample k (the reference's, or the rest detector's).
+template <typename IsRest>
+void check_magnitudes(const calib::ImuSeries& imu, IsRest is_rest, const calib::Site& site,
                       const std::string& imu_file, const std::string& rest_source) {
   const double kMaxAccel_mps2 = 20.0 * kStandardGravity_mps2;
   const double kMaxRate_radps = 1000.0 * kDegToRad;
   double rest_f_sum = 0.0;
   size_t n_rest = 0;
-  for (size_t k = 0; k < a.imu.size(); ++k) {
-    const calib::ImuIncrement& s = a.imu[k];
+  for (size_t k = 0; k < imu.size(); ++k) {
+    const calib::ImuIncrement& s = imu[k];
     const double f = s.dv_mps.norm() / s.dt_s;
     const double w = s.dtheta_rad.norm() / s.dt_s;
     if (!(f < kMaxAccel_mps2))
@@ -738,13 +796,13 @@ void check_magnitudes(const RunArchive& a, const calib::CalibrationInput& in,
                          "|dtheta|/dt = " + format_double(w * kRadToDeg) +
                              " deg/s exceeds 1000 deg/s (dt = " + format_double(s.dt_s) +
                              " s); dtheta_*_rad must be angle increments in rad over one sample");
-    if (in.reference[k].at_rest) {
+    if (is_rest(k)) {
       rest_f_sum += f;
       ++n_rest;
     }
   }
   if (n_rest == 0) return;
-  const double g = calib::EarthModel(a.info.site).gravity_mps2();
+  const double g = calib::EarthModel(site).gravity_mps2();
   const double f_rest = rest_f_sum / static_cast<double>(n_rest);
   if (std::fabs(f_rest - g) > 0.1 * g)
     throw ArchiveError(
@@ -756,7 +814,7 @@ void check_magnitudes(const RunArchive& a, const calib::CalibrationInput& in,
 
 /// Land and sea: rest periods from the IMU data; the first must open the run (alignment).
 calib::CalibrationInput field_input(const RunArchive& a, const std::string& imu_file) {
-  const calib::CalibrationInput in = calib::input_from_field_data(
+  calib::CalibrationInput in = calib::input_from_field_data(
       a.info.setting, a.imu,
       a.info.setting == calib::Setting::kSea ? a.gnss : std::vector<calib::GnssFix>{}, a.info.site,
       [&] {
@@ -786,28 +844,67 @@ calib::CalibrationInput field_input(const RunArchive& a, const std::string& imu_
   return in;
 }
 
-}  // namespace
-
-calib::CalibrationInput to_calibration_input(const RunArchive& a) {
-  const std::string imu_file = join_path(a.origin, "imu.csv");
-  if (a.imu.empty()) throw ArchiveError(imu_file, "no IMU samples");
-  if (!(a.info.imu_rate_hz > 0.0))
-    throw ArchiveError::field_error(join_path(a.origin, "run.toml"), "imu.rate_hz", "must be > 0");
-  if (a.info.setting != calib::Setting::kFactory) {
-    check_sample_interval(a, imu_file);
-    calib::CalibrationInput in = field_input(a, imu_file);
-    check_magnitudes(a, in, imu_file, "the rest periods detected in imu.csv");
-    return in;
+/// The factory reference: the attitude on the IMU time axis and the rest flag, sample by sample in
+/// one pass (reserve + push_back: every page is written once, where resize() would first write
+/// the default samples). Throws at the first sample whose time does not match imu.csv.
+std::vector<calib::ReferenceSample> factory_reference(const RunArchive& a,
+                                                      const calib::ImuSeries& imu,
+                                                      const std::string& ref_file) {
+  const bool table = a.info.reference == ReferenceKind::kTable;
+  const calib::TableModel model(a.info.table.geometry());
+  std::vector<calib::ReferenceSample> reference;
+  reference.reserve(imu.size());
+  // The table stands still most of the time (93 % of a factory-60 run): the same encoder angles
+  // give the same C_bn bit for bit, so it is computed once per change (bits compared: -0 != +0).
+  Eigen::Matrix3d C_bn;
+  double C_outer = 0.0, C_inner = 0.0;
+  bool have_C = false;
+  auto same_bits = [](double x, double y) { return std::memcmp(&x, &y, sizeof x) == 0; };
+  for (size_t k = 0; k < imu.size(); ++k) {
+    const double t_ref = table ? a.table[k].t_s : a.attitude[k].t_s;
+    if (!(std::fabs(t_ref - imu[k].t_s) <= kTimeMatchTolerance_s))
+      throw ArchiveError(ref_file, CsvTable::line_of_row(k),
+                         "t_s = " + format_double(t_ref) + " does not match imu.csv line " +
+                             std::to_string(CsvTable::line_of_row(k)) +
+                             " t_s = " + format_double(imu[k].t_s) +
+                             " (tolerance 1 µs); the reference must be on the IMU time axis "
+                             "(interpolation is not supported yet)");
+    calib::ReferenceSample r;
+    r.t_s = imu[k].t_s;
+    if (table) {
+      const calib::TableSample& s = a.table[k];
+      if (!have_C || !same_bits(s.outer_rad, C_outer) || !same_bits(s.inner_rad, C_inner)) {
+        C_bn = model.C_bn(s.outer_rad, s.inner_rad);
+        C_outer = s.outer_rad;
+        C_inner = s.inner_rad;
+        have_C = true;
+      }
+      r.C_bn_ref = C_bn;
+      r.at_rest = s.at_rest;
+      r.outer_rad = s.outer_rad;
+      r.inner_rad = s.inner_rad;
+    } else {
+      const AttitudeSample& s = a.attitude[k];
+      r.C_bn_ref = calib::euler_to_C_bn(s.roll_rad, s.pitch_rad, s.yaw_rad);
+      r.at_rest = s.at_rest;
+    }
+    reference.push_back(r);
   }
+  return reference;
+}
+
+/// Factory runs: the reference on the IMU time axis, then the checks. `owned` is the archive
+/// itself when the caller gave it up: its IMU series is moved into the input instead of copied
+/// and its reference samples are freed as soon as the reference is built.
+calib::CalibrationInput factory_input(const RunArchive& a, RunArchive* owned,
+                                      const std::string& imu_file) {
   if (a.info.reference == ReferenceKind::kNone)
     throw ArchiveError(a.origin, "a factory run needs a reference (table.csv or attitude.csv)");
   const bool table = a.info.reference == ReferenceKind::kTable;
   const std::string ref_file = join_path(a.origin, table ? "table.csv" : "attitude.csv");
+  const char* ref_name = table ? "table.csv" : "attitude.csv";
   const size_t n = a.imu.size();
   const size_t n_ref = table ? a.table.size() : a.attitude.size();
-  if (n == 0) throw ArchiveError(imu_file, "no IMU samples");
-  if (!(a.info.imu_rate_hz > 0.0))
-    throw ArchiveError::field_error(join_path(a.origin, "run.toml"), "imu.rate_hz", "must be > 0");
   if (n_ref != n)
     throw ArchiveError(ref_file,
                        std::to_string(n_ref) + " data rows but imu.csv has " + std::to_string(n) +
@@ -816,45 +913,56 @@ calib::CalibrationInput to_calibration_input(const RunArchive& a) {
 
   calib::CalibrationInput in;
   in.site = a.info.site;
-  in.imu = a.imu;
   in.noise = calib::NoiseModel{};
   in.noise.arw_rad_per_sqrt_s = a.info.arw_rad_per_sqrt_s;
   in.noise.vrw_mps_per_sqrt_s = a.info.vrw_mps_per_sqrt_s;
-  in.reference.resize(n);
-
-  const calib::TableModel model(a.info.table.geometry());
-  size_t n_rest = 0;
-  for (size_t k = 0; k < n; ++k) {
-    const double t_ref = table ? a.table[k].t_s : a.attitude[k].t_s;
-    if (!(std::fabs(t_ref - a.imu[k].t_s) <= kTimeMatchTolerance_s))
-      throw ArchiveError(ref_file, CsvTable::line_of_row(k),
-                         "t_s = " + format_double(t_ref) + " does not match imu.csv line " +
-                             std::to_string(CsvTable::line_of_row(k)) +
-                             " t_s = " + format_double(a.imu[k].t_s) +
-                             " (tolerance 1 µs); the reference must be on the IMU time axis "
-                             "(interpolation is not supported yet)");
-    calib::ReferenceSample& r = in.reference[k];
-    r.t_s = a.imu[k].t_s;
-    if (table) {
-      r.C_bn_ref = model.C_bn(a.table[k].outer_rad, a.table[k].inner_rad);
-      r.at_rest = a.table[k].at_rest;
-      r.outer_rad = a.table[k].outer_rad;
-      r.inner_rad = a.table[k].inner_rad;
-    } else {
-      const AttitudeSample& s = a.attitude[k];
-      r.C_bn_ref = calib::euler_to_C_bn(s.roll_rad, s.pitch_rad, s.yaw_rad);
-      r.at_rest = s.at_rest;
-    }
-    n_rest += r.at_rest ? 1 : 0;
+  if (owned) in.imu = std::move(owned->imu);
+  const calib::ImuSeries& imu = owned ? in.imu : a.imu;
+  auto is_rest = [&](size_t k) { return table ? a.table[k].at_rest : a.attitude[k].at_rest; };
+  // Two independent jobs, each mostly first writes to fresh memory (an hour at 100 Hz: a 37 MB
+  // reference; a 26 MB copy of the series): the reference and its rest check on this thread, the
+  // copy and the data checks on the other. run_concurrently reports this thread's error first,
+  // which is the order of the checks one after the other.
+  run_concurrently(
+      [&] {
+        in.reference = factory_reference(a, imu, ref_file);
+        if (std::none_of(in.reference.begin(), in.reference.end(),
+                         [](const calib::ReferenceSample& r) { return r.at_rest; }))
+          throw ArchiveError(
+              ref_file, std::string("no rest periods in ") + ref_name + ": at_rest is never 1");
+      },
+      [&] {
+        if (!owned) in.imu = a.imu;
+        check_sample_interval(imu, a.info, imu_file);
+        check_magnitudes(imu, is_rest, a.info.site, imu_file, ref_name);
+      });
+  if (owned) {  // the reference holds them now (the angles and rest flags too)
+    std::vector<calib::TableSample>().swap(owned->table);
+    std::vector<AttitudeSample>().swap(owned->attitude);
   }
-  if (n_rest == 0)
-    throw ArchiveError(ref_file, std::string("no rest periods in ") +
-                                     (table ? "table.csv" : "attitude.csv") +
-                                     ": at_rest is never 1");
-
-  check_sample_interval(a, imu_file);
-  check_magnitudes(a, in, imu_file, table ? "table.csv" : "attitude.csv");
   return in;
 }
+
+/// Both overloads; `owned` as for factory_input.
+calib::CalibrationInput convert(const RunArchive& a, RunArchive* owned) {
+  const std::string imu_file = join_path(a.origin, "imu.csv");
+  if (a.imu.empty()) throw ArchiveError(imu_file, "no IMU samples");
+  if (!(a.info.imu_rate_hz > 0.0))
+    throw ArchiveError::field_error(join_path(a.origin, "run.toml"), "imu.rate_hz", "must be > 0");
+  if (a.info.setting == calib::Setting::kFactory) return factory_input(a, owned, imu_file);
+  // Land and sea: calib::input_from_field_data copies the series either way.
+  check_sample_interval(a.imu, a.info, imu_file);
+  calib::CalibrationInput in = field_input(a, imu_file);
+  check_magnitudes(
+      a.imu, [&](size_t k) { return in.reference[k].at_rest; }, a.info.site, imu_file,
+      "the rest periods detected in imu.csv");
+  return in;
+}
+
+}  // namespace
+
+calib::CalibrationInput to_calibration_input(const RunArchive& a) { return convert(a, nullptr); }
+
+calib::CalibrationInput to_calibration_input(RunArchive&& a) { return convert(a, &a); }
 
 }  // namespace imucal::archive

@@ -136,6 +136,13 @@ std::string run_info_text(const RunInfo& info);
 /// (|dv|/dt < 20 g, |dθ|/dt < 1000 °/s, mean |dv|/dt at rest within 10 % of local gravity).
 /// Errors name the files under archive.origin.
 calib::CalibrationInput to_calibration_input(const RunArchive& archive);
+/// The same input, bit for bit, from an archive the caller no longer needs whole: a factory run's
+/// IMU series is moved into the input (not copied) and its table/attitude samples are freed once
+/// the reference is built, which saves a copy of the series and lowers the peak memory by about
+/// a quarter. Afterwards `archive` keeps info, gnss, truth and origin; imu, table and attitude are
+/// empty (land and sea runs: left as they were, calib::input_from_field_data copies the series).
+/// After an error the samples may be gone as well.
+calib::CalibrationInput to_calibration_input(RunArchive&& archive);
 
 /// Land/sea: a field run starts with the unit at rest — the first rest found in the IMU data must
 /// begin within kMaxFirstRestStart_s of the first sample (handling before the recording settles)

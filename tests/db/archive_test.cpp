@@ -577,6 +577,118 @@ TEST(Archive, RawIntegralDvIsRotationCompensatedOnImport) {
   EXPECT_EQ(read_error(dir).field(), "imu.dv_convention");
 }
 
+// Bit-for-bit equality of two calibration inputs (NaN payloads included).
+void expect_identical(const calib::CalibrationInput& a, const calib::CalibrationInput& b) {
+  auto same = [](const auto& x, const auto& y) { return std::memcmp(&x, &y, sizeof x) == 0; };
+  EXPECT_EQ(a.setting, b.setting);
+  EXPECT_TRUE(same(a.site.lat_rad, b.site.lat_rad) && same(a.site.lon_rad, b.site.lon_rad) &&
+              same(a.site.height_m, b.site.height_m) && a.site.gravity_mps2 == b.site.gravity_mps2);
+  EXPECT_TRUE(same(a.noise.arw_rad_per_sqrt_s, b.noise.arw_rad_per_sqrt_s) &&
+              same(a.noise.vrw_mps_per_sqrt_s, b.noise.vrw_mps_per_sqrt_s));
+  ASSERT_EQ(a.imu.size(), b.imu.size());
+  for (size_t k = 0; k < a.imu.size(); ++k) {
+    const calib::ImuIncrement &x = a.imu[k], &y = b.imu[k];
+    ASSERT_TRUE(same(x.t_s, y.t_s) && same(x.dt_s, y.dt_s) && same(x.temp_c, y.temp_c) &&
+                x.dtheta_rad == y.dtheta_rad && x.dv_mps == y.dv_mps)
+        << "imu sample " << k;
+  }
+  ASSERT_EQ(a.reference.size(), b.reference.size());
+  for (size_t k = 0; k < a.reference.size(); ++k) {
+    const calib::ReferenceSample &x = a.reference[k], &y = b.reference[k];
+    ASSERT_TRUE(same(x.t_s, y.t_s) && same(x.C_bn_ref, y.C_bn_ref) && x.at_rest == y.at_rest &&
+                same(x.outer_rad, y.outer_rad) && same(x.inner_rad, y.inner_rad))
+        << "reference sample " << k;
+  }
+  ASSERT_EQ(a.gnss.size(), b.gnss.size());
+}
+
+TEST(Archive, ConvertingAGivenUpArchiveGivesTheSameInputBitForBit) {
+  TempDir tmp;
+  const SimRun run = simulated_run();
+  write_archive(tmp.sub("run"), run.archive);
+  const RunArchive kept = read_archive(tmp.sub("run"));
+  RunArchive given = read_archive(tmp.sub("run"));
+  const calib::CalibrationInput from_const = to_calibration_input(kept);
+  const calib::CalibrationInput from_moved = to_calibration_input(std::move(given));
+  expect_identical(from_const, from_moved);
+  EXPECT_EQ(from_moved.imu.size(), run.archive.imu.size());
+  // The samples went into the input; what describes the run stays.
+  EXPECT_TRUE(given.imu.empty());
+  EXPECT_TRUE(given.table.empty());
+  EXPECT_EQ(given.info.serial, "FOG-2024-0042");
+  EXPECT_TRUE(given.truth.has_value());
+  EXPECT_EQ(given.origin, tmp.sub("run"));
+
+  // An attitude reference too.
+  const std::string dir = write_simple(tmp, "att");
+  fs::remove(dir + "/table.csv");
+  replace_in_file(dir + "/run.toml", "reference = \"table\"", "reference = \"attitude\"");
+  std::ostringstream csv;
+  csv << "t_s,roll_deg,pitch_deg,yaw_deg,at_rest\n";
+  for (int k = 0; k < 50; ++k)
+    csv << format_double((k + 1) / 100.0) << ",1.5,-2.25," << k << "," << (k >= 10 ? 1 : 0) << "\n";
+  put(dir + "/attitude.csv", csv.str());
+  RunArchive att = read_archive(dir);
+  const calib::CalibrationInput att_const = to_calibration_input(att);
+  expect_identical(att_const, to_calibration_input(std::move(att)));
+  EXPECT_TRUE(att.attitude.empty());
+}
+
+TEST(Archive, TimeMismatchInEitherHalfNamesTheFirstBadLine) {
+  TempDir tmp;
+  const std::string dir = write_simple(tmp, "r");  // 50 rows: the halves are rows 0-24, 25-49
+  replace_in_file(dir + "/table.csv", "\n0.41,", "\n0.410002,");  // row 40, line 42
+  for (const bool moved : {false, true}) {
+    RunArchive a = read_archive(dir);
+    try {
+      moved ? to_calibration_input(std::move(a)) : to_calibration_input(a);
+      ADD_FAILURE() << "no error";
+    } catch (const ArchiveError& e) {
+      EXPECT_EQ(e.line(), 42u) << e.what();
+    }
+  }
+  replace_in_file(dir + "/table.csv", "\n0.07,", "\n0.070002,");  // row 6, line 8: wins
+  const ArchiveError e = read_error(dir);
+  EXPECT_EQ(e.line(), 8u);
+  EXPECT_NE(e.message().find("does not match imu.csv line 8"), std::string::npos) << e.what();
+}
+
+TEST(Archive, LargeArchiveReadOnTwoThreadsReportsTheFirstErrorInTheFile) {
+  TempDir tmp;
+  const size_t n = 30000;  // 300 s at 100 Hz: both CSV files are split between two threads
+  const std::string dir = write_simple(tmp, "big", n);
+  ASSERT_GT(fs::file_size(dir + "/table.csv"), 256u * 1024u);
+  {
+    RunArchive a = read_archive(dir);
+    ASSERT_EQ(a.imu.size(), n);
+    ASSERT_EQ(a.table.size(), n);
+    EXPECT_EQ(a.imu[n - 1].t_s, 300.0);
+    EXPECT_EQ(a.imu[n / 2].dt_s, a.imu[n / 2].t_s - a.imu[n / 2 - 1].t_s);
+    const calib::CalibrationInput in = to_calibration_input(a);
+    expect_identical(in, to_calibration_input(std::move(a)));
+  }
+  // A bad rest flag in each half of table.csv: the first one (data row 100, line 102) is named.
+  const std::string flags = tmp.sub("flags");
+  fs::copy(dir, flags);
+  replace_in_file(flags + "/table.csv", "\n250.01,0,0,1\n", "\n250.01,0,0,2\n");
+  EXPECT_EQ(read_error(flags).line(), 25002u);
+  replace_in_file(flags + "/table.csv", "\n1.01,0,0,1\n", "\n1.01,0,0,0.5\n");
+  const ArchiveError flag = read_error(flags);
+  EXPECT_EQ(flag.line(), 102u);
+  EXPECT_EQ(flag.field(), "at_rest");
+  EXPECT_EQ(flag.message(), "must be 0 or 1, got 0.5");
+  // A bad cell in each half of imu.csv: the first one.
+  const std::string cells = tmp.sub("cells");
+  fs::copy(dir, cells);
+  replace_in_file(cells + "/imu.csv", "\n290.01,0,", "\n290.01,0x,");
+  EXPECT_EQ(read_error(cells).line(), 29002u);
+  replace_in_file(cells + "/imu.csv", "\n2.01,0,", "\n2.01,0x,");
+  const ArchiveError cell = read_error(cells);
+  EXPECT_EQ(cell.file(), cells + "/imu.csv");
+  EXPECT_EQ(cell.line(), 202u);
+  EXPECT_EQ(cell.field(), "dtheta_x_rad");
+}
+
 TEST(Archive, MissingPiecesNamed) {
   TempDir tmp;
   const ArchiveError nodir = read_error(tmp.sub("nope"));
