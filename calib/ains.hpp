@@ -49,7 +49,7 @@ struct AinsOptions {
   double initial_heading_sigma_rad = 0.1;
   double sea_initial_velocity_sigma_mps = 0.2;  ///< a drifting vessel's speed
   double update_interval_s = 1.0;               ///< aiding rate while at rest
-  double propagation_interval_s = 0.1;  ///< Φ accumulated over the samples of this interval
+  double propagation_interval_s = 1.0;  ///< Φ accumulated over the samples of this interval
   size_t min_rest_samples = 100;        ///< shorter at_rest runs are not used for aiding
   /// 1-σ prior of the sensor states (centred on zero). Elements <= 0 take the built-in default
   /// (default_prior_sigma()).

@@ -57,9 +57,16 @@ void propagate_covariance(const NavMat& Phi_nn, const NavSensorMat& Phi_ns, cons
   const auto Pnn = P.topLeftCorner<kNumNav, kNumNav>();
   const auto Pns = P.topRightCorner<kNumNav, kNs>();
   const auto Pss = P.bottomRightCorner<kNs, kNs>();
-  const NavSensorMat Pns_new = Phi_nn.lazyProduct(Pns) + Phi_ns.lazyProduct(Pss);
-  const NavMat M = Phi_nn.lazyProduct(Pnn) + Phi_ns.lazyProduct(Pns.transpose());
-  NavMat Pnn_new = M.lazyProduct(Phi_nn.transpose()) + Pns_new.lazyProduct(Phi_ns.transpose()) + Q;
+  // Φ_ns's ς columns are zero (ς does not drive the navigation errors): 24 of its 27 columns.
+  constexpr int kDriven = kTableMis - kNumNav;
+  const auto Phi_nd = Phi_ns.leftCols<kDriven>();
+  NavSensorMat Pns_new;
+  Pns_new.noalias() = Phi_nd * Pss.topRows<kDriven>();
+  Pns_new.noalias() += Phi_nn.lazyProduct(Pns);
+  const NavMat M =
+      Phi_nn.lazyProduct(Pnn) + Phi_nd.lazyProduct(Pns.leftCols<kDriven>().transpose());
+  NavMat Pnn_new = M.lazyProduct(Phi_nn.transpose()) +
+                   Pns_new.leftCols<kDriven>().lazyProduct(Phi_nd.transpose()) + Q;
   P_out.topLeftCorner<kNumNav, kNumNav>() = 0.5 * (Pnn_new + Pnn_new.transpose());
   P_out.topRightCorner<kNumNav, kNs>() = Pns_new;
   P_out.bottomLeftCorner<kNs, kNumNav>() = Pns_new.transpose();
@@ -67,60 +74,74 @@ void propagate_covariance(const NavMat& Phi_nn, const NavSensorMat& Phi_ns, cons
 }
 
 void SensorCouplingAccumulator::reset() {
-  J0_g_.setZero();
-  J0_a_.setZero();
-  J1t_g_.setZero();
-  J1t_a_.setZero();
-  sum_C_dv_.setZero();
+  S_g_.setZero();
+  S_a_.setZero();
   T_s_ = 0.0;
 }
 
 void SensorCouplingAccumulator::add(const Matrix3d& C_bn_start, const Matrix3d& C_bn_end,
-                                    const Vector3d& dtheta_rad, const Vector3d& dv_mps, double dt_s,
-                                    const Matrix3d& Ag_inv, const Matrix3d& Aa_inv) {
-  // dv is expressed in the body frame at the sample start (conventions.hpp), so its error maps
-  // through C_bn(start); an error in dθ acts on the attitude over the whole sample, so it maps
-  // through the mid-sample attitude (mean of both ends, second-order accurate).
-  const Matrix3d B_a = C_bn_start * Aa_inv;
-  const Matrix3d B_g = -0.5 * (C_bn_start + C_bn_end) * Ag_inv;
-  const double t_mid = T_s_ + 0.5 * dt_s;
-
+                                    const Vector3d& dtheta_rad, const Vector3d& dv_mps,
+                                    double dt_s) {
   // eq. 27 (× dt, ω dt = dθ): ∂ψ/∂(Δb_g, ΔM_g) = -C_bn (I+M̂_g)^-1 [I3 dt, I3 dθ_x, I3 dθ_y, I3
   // dθ_z] eq. 22 (× dt, f dt = dv): ∂δv/∂(Δb_a, ΔM_a) = C_bn (I+M̂_a)^-1 [I3 dt, I3 dv_x, I3 dv_y,
-  // I3 dv_z]
-  auto accumulate = [&](Block& J0, Block& J1t, const Matrix3d& B, const Vector3d& incr) {
-    J0.leftCols<3>() += B * dt_s;
-    J1t.leftCols<3>() += B * (dt_s * t_mid);
-    for (int c = 0; c < 3; ++c) {
-      J0.middleCols<3>(3 + 3 * c) += B * incr(c);
-      J1t.middleCols<3>(3 + 3 * c) += B * (incr(c) * t_mid);
-    }
-  };
-  accumulate(J0_g_, J1t_g_, B_g, dtheta_rad);
-  accumulate(J0_a_, J1t_a_, B_a, dv_mps);
-
-  sum_C_dv_ += C_bn_start * dv_mps;
+  // I3 dv_z] The gyro rows use the mid-sample attitude (mean of both ends, second-order accurate).
+  const double t_mid = T_s_ + 0.5 * dt_s;
+  const double t_pow[3] = {1.0, t_mid, t_mid * t_mid};
+  Eigen::Matrix<double, 12, 1> w_g, w_a;
+  for (int m = 0; m < 3; ++m) {
+    w_g.segment<4>(4 * m) << dt_s, dtheta_rad;
+    w_a.segment<4>(4 * m) << dt_s, dv_mps;
+    w_g.segment<4>(4 * m) *= -0.5 * t_pow[m];
+    w_a.segment<4>(4 * m) *= t_pow[m];
+  }
+  // Rank-one updates column by column (12-element columns vectorise; Eigen's generic outer
+  // product did not inline here).
+  for (int i = 0; i < 9; ++i) {
+    S_g_.col(i) += w_g * (C_bn_start.data()[i] + C_bn_end.data()[i]);
+    S_a_.col(i) += w_a * C_bn_start.data()[i];
+  }
   T_s_ += dt_s;
 }
 
 Vector3d SensorCouplingAccumulator::mean_f_n_mps2() const {
-  return T_s_ > 0.0 ? Vector3d(sum_C_dv_ / T_s_) : Vector3d::Zero();
+  if (!(T_s_ > 0.0)) return Vector3d::Zero();
+  // Σ C dv = Σ_c (Σ dv_c C) e_c: column c of the moment of weight dv_c.
+  Vector3d sum_C_dv = Vector3d::Zero();
+  for (int c = 0; c < 3; ++c)
+    sum_C_dv +=
+        Eigen::Map<const Matrix3d>(Eigen::Matrix<double, 1, 9>(S_a_.row(1 + c)).data()).col(c);
+  return sum_C_dv / T_s_;
 }
 
-NavSensorMat SensorCouplingAccumulator::transition(const NavMat& F_nn, const NavMat& F2) const {
-  // Φ_ns = J0 + F J1 + (T/3) F² J1, with J1 = T J0 - Σ t F_ns dt; only the ψ/gyro and δv/accel
-  // blocks of J are non-zero, so only F's ψ and δv columns are needed.
+SensorCouplingAccumulator::Block SensorCouplingAccumulator::coupling(const Moments& S, int m,
+                                                                     const Matrix3d& A_inv) const {
+  // Σ (T - t)^m w_j C = Σ_i binom(m, i) T^(m-i) (-1)^i Σ t^i w_j C, then times A_inv.
+  static constexpr double kBinom[3][3] = {{1, 0, 0}, {1, -1, 0}, {1, -2, 1}};
+  Eigen::Matrix<double, 4, 9> rows = Eigen::Matrix<double, 4, 9>::Zero();
+  for (int i = 0; i <= m; ++i)
+    rows += (kBinom[m][i] * std::pow(T_s_, m - i)) * S.middleRows<4>(4 * i);
+  Block J;
+  for (int j = 0; j < 4; ++j)
+    J.middleCols<3>(3 * j) =
+        Eigen::Map<const Matrix3d>(Eigen::Matrix<double, 1, 9>(rows.row(j)).data()) * A_inv;
+  return J;
+}
+
+NavSensorMat SensorCouplingAccumulator::transition(const NavMat& F_nn, const NavMat& F2,
+                                                   const Matrix3d& Ag_inv,
+                                                   const Matrix3d& Aa_inv) const {
+  // Φ_ns = J0 + F J1 + ½ F² J2; only the ψ/gyro and δv/accel blocks of J are non-zero, so only
+  // F's ψ and δv columns are needed.
   constexpr int ba = kAccBias - kNumNav, bg = kGyroBias - kNumNav;
-  const Eigen::Matrix<double, kNumNav, 3> Fg =
-      F_nn.middleCols<3>(kPsi) + (T_s_ / 3.0) * F2.middleCols<3>(kPsi);
-  const Eigen::Matrix<double, kNumNav, 3> Fa =
-      F_nn.middleCols<3>(kVel) + (T_s_ / 3.0) * F2.middleCols<3>(kVel);
   NavSensorMat Phi = NavSensorMat::Zero();
-  const Block J1_g = T_s_ * J0_g_ - J1t_g_, J1_a = T_s_ * J0_a_ - J1t_a_;
-  Phi.middleCols<12>(bg) = Fg.lazyProduct(J1_g);
-  Phi.middleCols<12>(ba) = Fa.lazyProduct(J1_a);
-  Phi.block<3, 12>(kPsi, bg) += J0_g_;
-  Phi.block<3, 12>(kVel, ba) += J0_a_;
+  const Block J1_g = coupling(S_g_, 1, Ag_inv), J1_a = coupling(S_a_, 1, Aa_inv);
+  const Block J2_g = coupling(S_g_, 2, Ag_inv), J2_a = coupling(S_a_, 2, Aa_inv);
+  Phi.middleCols<12>(bg) =
+      F_nn.middleCols<3>(kPsi).lazyProduct(J1_g) + 0.5 * F2.middleCols<3>(kPsi).lazyProduct(J2_g);
+  Phi.middleCols<12>(ba) =
+      F_nn.middleCols<3>(kVel).lazyProduct(J1_a) + 0.5 * F2.middleCols<3>(kVel).lazyProduct(J2_a);
+  Phi.block<3, 12>(kPsi, bg) += coupling(S_g_, 0, Ag_inv);
+  Phi.block<3, 12>(kVel, ba) += coupling(S_a_, 0, Aa_inv);
   return Phi;
 }
 

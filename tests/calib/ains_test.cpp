@@ -144,6 +144,40 @@ TEST(Ains, SmoothedNavigationMatchesTrueAttitudeAndZeroVelocity) {
   EXPECT_LE(n_att_out, 3u) << "of " << 3 * n_checked;
 }
 
+TEST(Ains, SubIntervalLengthDoesNotMoveTheEstimate) {
+  // The transition is accumulated over sub-intervals of propagation_interval_s, re-linearised in
+  // each (issue #11 lengthened them from 0.1 s to 1 s for speed). Tenfold shorter sub-intervals
+  // must give the same estimate to far below its σ, on the moves too (the short profile turns
+  // the table through every axis).
+  UnitModel unit = default_unit();
+  const CalibrationInput in = make_input(short_profile(), unit, 31, true);
+  AinsOptions fine, coarse;
+  fine.propagation_interval_s = 0.1;
+  coarse.propagation_interval_s = 1.0;
+  ASSERT_EQ(AinsOptions{}.propagation_interval_s, coarse.propagation_interval_s);
+  const CalibrationResult a = calibrate_ains(in, fine), b = calibrate_ains(in, coarse);
+  const ParamVector d = (a.params.to_vector() - b.params.to_vector()).cwiseAbs();
+  for (int i = 0; i < ParamSet::kSize; ++i) {
+    EXPECT_LT(d(i), 0.005 * a.sigma.to_vector()(i)) << param_info(i).name;
+    EXPECT_NEAR(a.sigma.to_vector()(i), b.sigma.to_vector()(i), 1e-3 * a.sigma.to_vector()(i))
+        << param_info(i).name;
+  }
+}
+
+TEST(Ains, CalibrationWithoutTheSmootherIsTheDetailedCalibration) {
+  // calibrate_ains skips the epoch records and the RTS pass (they only feed the smoothed
+  // navigation output): its calibration must be the detailed one's, bit for bit.
+  UnitModel unit = default_unit();
+  const CalibrationInput in = make_input(short_profile(), unit, 32, true);
+  const AinsResult detailed = calibrate_ains_detailed(in);
+  const CalibrationResult plain = calibrate_ains(in);
+  EXPECT_EQ(plain.params.to_vector(), detailed.calibration.params.to_vector());
+  EXPECT_EQ(plain.cov, detailed.calibration.cov);
+  EXPECT_EQ(plain.iterations, detailed.calibration.iterations);
+  EXPECT_EQ(plain.converged, detailed.calibration.converged);
+  EXPECT_EQ(plain.warnings, detailed.calibration.warnings);
+}
+
 TEST(Ains, NoRestPeriodsIsRejectedWithAClearMessage) {
   UnitModel unit = default_unit();
   CalibrationInput in = make_input(short_profile(), unit, 2, true);
