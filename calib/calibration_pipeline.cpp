@@ -61,9 +61,18 @@ PipelineOptions with_serialised_phases(const PipelineOptions& opt) {
   return o;
 }
 
-/// AINS, and NLSQ or legacy, each with its evaluation: with opt.concurrent the second method runs
-/// on a thread of its own meanwhile (they only read `in`). An exception of either is rethrown
-/// once both have ended.
+/// The raw-data checks: a broken stream or a wrong set-up is refused with its symptom.
+std::vector<DataProblem> check_input(const CalibrationInput& in, const PipelineOptions& opt) {
+  if (!opt.check_data) return {};
+  if (opt.on_phase) opt.on_phase("checking the data");
+  return check_data(in);
+}
+
+/// The data checks, then AINS, and NLSQ or legacy, each with its evaluation. With opt.concurrent
+/// (and AINS selected) a second thread runs the checks and then the second method while AINS
+/// runs: AINS only reads `in`, and if the checks fail its result is dropped and DataCheckError
+/// thrown as if no method had run. Otherwise an exception of either method is rethrown once both
+/// have ended.
 void run_methods(const CalibrationInput& in, const PipelineOptions& opt, bool ains, bool nlsq,
                  bool legacy, PipelineResult& out) {
   std::optional<MethodOutcome>* second = nlsq ? &out.nlsq : legacy ? &out.legacy : nullptr;
@@ -71,13 +80,23 @@ void run_methods(const CalibrationInput& in, const PipelineOptions& opt, bool ai
     *second =
         nlsq ? run_method(in, opt, "NLSQ", run_nlsq) : run_method(in, opt, "legacy", run_legacy);
   };
-  if (!(ains && second && opt.concurrent)) {
+  if (!(ains && opt.concurrent)) {
+    std::vector<DataProblem> problems = check_input(in, opt);
+    if (!problems.empty()) throw DataCheckError(std::move(problems));
     if (ains) out.ains = run_method(in, opt, "AINS", run_ains);
     if (second) run_second();
     return;
   }
-  std::exception_ptr second_error;
+  std::vector<DataProblem> problems;
+  std::exception_ptr check_error, second_error;
   std::thread worker([&] {
+    try {
+      problems = check_input(in, opt);
+    } catch (...) {
+      check_error = std::current_exception();
+      return;
+    }
+    if (!problems.empty() || !second) return;
     try {
       run_second();
     } catch (...) {
@@ -91,6 +110,11 @@ void run_methods(const CalibrationInput& in, const PipelineOptions& opt, bool ai
     ains_error = std::current_exception();
   }
   worker.join();
+  if (check_error) std::rethrow_exception(check_error);
+  if (!problems.empty()) {
+    out.ains.reset();
+    throw DataCheckError(std::move(problems));
+  }
   if (ains_error) std::rethrow_exception(ains_error);
   if (second_error) std::rethrow_exception(second_error);
 }
@@ -105,12 +129,6 @@ PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions
         std::string(
             "NLSQ needs the table's attitude reference (paper §V) and cannot calibrate a ") +
         setting_name(in.setting) + " run; use --method ains or legacy (or all: AINS + legacy)");
-  // A broken stream or a wrong set-up is refused with its symptom before any method runs.
-  if (opt.check_data) {
-    if (opt.on_phase) opt.on_phase("checking the data");
-    std::vector<DataProblem> problems = check_data(in);
-    if (!problems.empty()) throw DataCheckError(std::move(problems));
-  }
   const bool all = sel == MethodSelection::kAll;
   PipelineResult out;
   run_methods(in, with_serialised_phases(opt), all || sel == MethodSelection::kAins,

@@ -34,11 +34,13 @@ struct PipelineOptions {
   /// Every method's result is checked (convergence, finiteness, datasheet envelope; the metrics
   /// where no cross-check looks at them). Its metric limits follow `crosscheck`'s.
   LimitCheckOptions limits;
-  /// Sanity checks of the raw data first (calib/data_check.hpp): DataCheckError naming the
-  /// symptom (stuck or clipped channel, wrong fixture orientation, swapped axes, unit not moved).
+  /// Sanity checks of the raw data (calib/data_check.hpp): DataCheckError naming the symptom
+  /// (stuck or clipped channel, wrong fixture orientation, swapped axes, unit not moved) instead of
+  /// any result. Without `concurrent` they run first; with it, beside AINS.
   bool check_data = true;
-  /// The two methods (and their evaluations) at the same time, the second on a thread of its own:
-  /// they share only the read-only input, and the results are the same either way (issue #11).
+  /// The two methods (and their evaluations) at the same time, the second on a thread of its own
+  /// after the data checks, AINS meanwhile: they share only the read-only input, and the results
+  /// are the same either way (issue #11).
   bool concurrent = true;
   /// Called with a short phase description ("AINS", "NLSQ", "evaluating AINS", ...) before each
   /// phase, so front ends can show progress. May be empty. Never called by two threads at once
