@@ -50,6 +50,7 @@ TEST(CalibrationPipeline, ConcurrentMethodsGiveBitForBitTheSequentialResult) {
   EXPECT_EQ(phases.count("AINS calibration"), 1u);
   EXPECT_EQ(phases.count("NLSQ calibration"), 1u);
   EXPECT_EQ(phases.count("cross-check"), 1u);
+  EXPECT_EQ(phases.count("checking the data"), 1u);
 }
 
 TEST(CalibrationPipeline, AnErrorOnTheSecondThreadReachesTheCaller) {
