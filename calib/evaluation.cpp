@@ -125,6 +125,9 @@ MisalignmentFit fit_misalignments(const std::vector<Eigen::Matrix3d>& C_ins,
       Jte.noalias() += J.transpose() * e0;
     }
     const Eigen::Vector4d dp = -JtJ.completeOrthogonalDecomposition().solve(Jte);
+    // Converged: a step this small changes the cost only at round-off, where the line search
+    // below would halve it a dozen times for nothing (each halving a pass over every record).
+    if (dp.norm() < 1e-11) break;
     // Step halving keeps the cost monotone if the linearisation is poor.
     double step = 1.0;
     bool improved = false;
