@@ -203,16 +203,20 @@ calib::MethodSelection parse_method(const std::string& m) {
 
 /// The archive's calibration input, optionally processed as another setting: a table run "as
 /// land" withholds its reference attitude (rest flags come from the IMU data, as in the field); a
-/// table run "as sea" needs GNSS fixes, which a table run does not have.
-calib::CalibrationInput calibration_input(archive::RunArchive ar, const std::string& setting) {
+/// table run "as sea" needs GNSS fixes, which a table run does not have. The samples move into the
+/// input (no copy of the series next to it); `ar` keeps its info and truth.
+calib::CalibrationInput calibration_input(archive::RunArchive& ar, const std::string& setting) {
+  const calib::Setting recorded = ar.info.setting;
   if (!setting.empty()) ar.info.setting = *calib::parse_setting(setting);
-  return archive::to_calibration_input(ar);
+  calib::CalibrationInput in = archive::to_calibration_input(std::move(ar));
+  ar.info.setting = recorded;
+  return in;
 }
 
 int cmd_calibrate(const std::string& dir, const std::string& method, bool json, double k_sigma,
                   const std::string& plot_path, const std::string& setting) {
   progress("reading " + dir);
-  const archive::RunArchive ar = archive::read_archive(dir);
+  archive::RunArchive ar = archive::read_archive(dir);
   progress("checking the archive");
   const calib::CalibrationInput in = calibration_input(ar, setting);
   calib::PipelineOptions opt;
@@ -248,8 +252,7 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
 }
 
 int cmd_evaluate(const std::string& dir, const std::string& params_path, bool json) {
-  const archive::RunArchive ar = archive::read_archive(dir);
-  const calib::CalibrationInput in = archive::to_calibration_input(ar);
+  const calib::CalibrationInput in = archive::to_calibration_input(archive::read_archive(dir));
   const calib::ParamSet params = archive::read_param_file(params_path);
   const calib::EvaluationMetrics m = calib::evaluate(in, params);
   if (json)
@@ -289,8 +292,7 @@ int cmd_bench(const std::string& dir, int repeat, bool sequential, bool json) {
   std::string verdict;
   for (int i = 0; i < repeat; ++i) {
     const auto t0 = std::chrono::steady_clock::now();
-    const archive::RunArchive ar = archive::read_archive(dir);
-    const calib::CalibrationInput in = archive::to_calibration_input(ar);
+    const calib::CalibrationInput in = archive::to_calibration_input(archive::read_archive(dir));
     calib::PipelineOptions options;
     options.concurrent = !sequential;
     const calib::PipelineResult r = calib::run_calibration(in, options);
