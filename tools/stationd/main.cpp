@@ -5,11 +5,12 @@
 // Exit codes: 0 clean stop (SIGTERM/SIGINT) or config ok; 1 start-up or runtime failure (database,
 // socket, ...); 2 bad command line or bad configuration (one line "FILE:LINE:COL: message" on
 // stderr, nothing created).
-#include <csignal>
-#include <iostream>
+#include <malloc.h>
+#include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
-#include <spdlog/spdlog.h>
+#include <csignal>
+#include <iostream>
 
 #include "station/config.hpp"
 #include "station/daemon.hpp"
@@ -17,6 +18,12 @@
 #include "station/sd_notify.hpp"
 
 int main(int argc, char** argv) {
+  // One malloc arena for the whole daemon, set before any thread starts: a calibration allocates
+  // its sample arrays on up to three threads (archive read, the two methods), and with glibc's
+  // default of one arena per thread up to 8 per core, each arena kept its own high-water mark —
+  // the resident size crept up by tens of MB over a soak of 15 runs. Allocation is not on any hot
+  // path here (measured: `imucal bench` unchanged with MALLOC_ARENA_MAX=1).
+  mallopt(M_ARENA_MAX, 1);
   using namespace imucal::station;
   CLI::App app{"stationd " IMUCAL_VERSION " — IMU calibration station daemon"};
   std::string config_path, log_level;
