@@ -23,28 +23,12 @@
 #include "db/archive/archive_error.hpp"
 #include "db/archive/csv.hpp"
 #include "db/archive/io_util.hpp"
+#include "tests/support/temp_dir.hpp"
 
 namespace imucal::archive {
 namespace {
 
 namespace fs = std::filesystem;
-
-class TempDir {
- public:
-  TempDir() {
-    std::string t = (fs::temp_directory_path() / "imucal_csv_chunk_test_XXXXXX").string();
-    if (!::mkdtemp(t.data())) throw std::runtime_error("mkdtemp failed");
-    path_ = t;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
 
 const CsvSpec kImuSpec{
     {"t_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_mps", "dv_y_mps", "dv_z_mps"},
@@ -275,8 +259,8 @@ void write_file(const std::string& path, const std::string& text) {
 }
 
 TEST(CsvChunks, FileReadBlockByBlockGivesTheSameRows) {
-  TempDir dir;
-  const std::string path = dir.file("imu.csv");
+  test_support::ScopedTempDir dir("imucal_csv_chunk_test");
+  const std::string path = dir.sub("imu.csv");
   for (const std::string& text :
        {imu_text(12, true, "\r\n", false, 21), imu_text(12, false, "\n", true, 22),
         imu_text(1, false, "\n", false, 23), imu_text(2, true, "\r\n", true, 24)}) {
@@ -298,8 +282,8 @@ TEST(CsvChunks, FileReadBlockByBlockGivesTheSameRows) {
 }
 
 TEST(CsvChunks, FileReadBlockByBlockGivesTheSameErrors) {
-  TempDir dir;
-  const std::string path = dir.file("imu.csv");
+  test_support::ScopedTempDir dir("imucal_csv_chunk_test");
+  const std::string path = dir.sub("imu.csv");
   const std::string lf = imu_text(12, false, "\n", true, 31);
   for (const std::string& text :
        {with_row(with_row(lf, 3, "0.04,1,2x,3,4,5,6"), 9, "0.1,1,2,3,4,nan,6"),
@@ -330,18 +314,18 @@ std::string error_of(const std::function<void()>& f) {
 }
 
 TEST(FileBytes, SameBytesAndErrorsAsReadTextFile) {
-  TempDir dir;
+  test_support::ScopedTempDir dir("imucal_csv_chunk_test");
   const std::string text = imu_text(3000, true, "\n", false, 2);
   for (const auto& [name, content] :
        {std::pair<std::string, std::string>{"a.csv", text}, {"empty.csv", ""}, {"one.csv", "x"}}) {
-    std::ofstream(dir.file(name), std::ios::binary) << content;
-    const FileBytes b = read_file_bytes(dir.file(name));
+    std::ofstream(dir.sub(name), std::ios::binary) << content;
+    const FileBytes b = read_file_bytes(dir.sub(name));
     EXPECT_EQ(b.view(), content) << name;
-    EXPECT_EQ(b.view(), read_text_file(dir.file(name))) << name;
+    EXPECT_EQ(b.view(), read_text_file(dir.sub(name))) << name;
   }
   // A file that reports no size: read until EOF.
   EXPECT_EQ(read_file_bytes("/proc/self/status").view().substr(0, 5), "Name:");
-  for (const std::string& bad : {dir.file("missing.csv"), dir.file("")}) {
+  for (const std::string& bad : {dir.sub("missing.csv"), dir.sub("")}) {
     const std::string e = error_of([&] { read_file_bytes(bad); });
     EXPECT_NE(e, "") << bad;
     EXPECT_EQ(e, error_of([&] { read_text_file(bad); }));
@@ -349,8 +333,8 @@ TEST(FileBytes, SameBytesAndErrorsAsReadTextFile) {
 }
 
 TEST(FileBytes, ReadAtNamesAFileThatShrankWhileOpen) {
-  TempDir dir;
-  const std::string path = dir.file("imu.csv");
+  test_support::ScopedTempDir dir("imucal_csv_chunk_test");
+  const std::string path = dir.sub("imu.csv");
   std::ofstream(path, std::ios::binary) << "0123456789";
   const ReadableFile file(path);
   ASSERT_TRUE(file.has_size());
@@ -363,8 +347,8 @@ TEST(FileBytes, ReadAtNamesAFileThatShrankWhileOpen) {
 }
 
 TEST(FileBytes, PipeLongerThanOneBufferIsReadWhole) {
-  TempDir dir;
-  const std::string fifo = dir.file("pipe");
+  test_support::ScopedTempDir dir("imucal_csv_chunk_test");
+  const std::string fifo = dir.sub("pipe");
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   const std::string text = imu_text(5000, true, "\n", true, 4);  // several 64 kB pipe buffers
   std::thread writer([&] { std::ofstream(fifo, std::ios::binary) << text; });

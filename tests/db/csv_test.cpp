@@ -13,6 +13,7 @@
 #include <random>
 
 #include "db/archive/archive_error.hpp"
+#include "tests/support/temp_dir.hpp"
 
 namespace imucal::archive {
 namespace {
@@ -25,23 +26,6 @@ const CsvSpec kImuSpec{
     true};
 const std::string kHeader =
     "t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps\n";
-
-class TempDir {
- public:
-  TempDir() {
-    std::string t = (fs::temp_directory_path() / "imucal_csv_test_XXXXXX").string();
-    if (!::mkdtemp(t.data())) throw std::runtime_error("mkdtemp failed");
-    path_ = t;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
 
 // Expect parse_csv to fail; returns the error for further checks.
 ArchiveError parse_error(const std::string& text, const CsvSpec& spec = kImuSpec) {
@@ -57,8 +41,8 @@ ArchiveError parse_error(const std::string& text, const CsvSpec& spec = kImuSpec
 bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
 TEST(Csv, WriteReadRoundTripIsBitExact) {
-  TempDir dir;
-  const std::string path = dir.file("imu.csv");
+  test_support::ScopedTempDir dir("imucal_csv_test");
+  const std::string path = dir.sub("imu.csv");
   std::mt19937_64 rng(42);
   std::uniform_real_distribution<double> mant(-1.0, 1.0);
   std::uniform_int_distribution<int> expo(-320, 300);
@@ -221,8 +205,8 @@ TEST(Csv, MissingFileNamesPath) {
 }
 
 TEST(Csv, WriterRefusesWhatTheReaderWouldReject) {
-  TempDir dir;
-  CsvWriter w(dir.file("t.csv"), {"t_s", "x"});
+  test_support::ScopedTempDir dir("imucal_csv_test");
+  CsvWriter w(dir.sub("t.csv"), {"t_s", "x"});
   w.write_row({0.0, 1.0});
   try {
     w.write_row({0.1, std::nan("")});
@@ -236,7 +220,7 @@ TEST(Csv, WriterRefusesWhatTheReaderWouldReject) {
   EXPECT_THROW(w.write_row({0.2}), ArchiveError);       // wrong count
   w.write_row({0.2, 2.0});
   w.close();
-  const CsvTable t = read_csv(dir.file("t.csv"), CsvSpec{{"t_s", "x"}, {}, true});
+  const CsvTable t = read_csv(dir.sub("t.csv"), CsvSpec{{"t_s", "x"}, {}, true});
   ASSERT_EQ(t.num_rows, 2u);
   EXPECT_EQ(t.at(1, 1), 2.0);
 }
