@@ -4,6 +4,7 @@
 #include "db/archive/io_util.hpp"
 #include "db/archive/param_json.hpp"
 #include "db/archive/run_archive.hpp"
+#include "db/export_row_writer.hpp"
 
 namespace imucal::db {
 
@@ -178,23 +179,14 @@ std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::
   return rows;
 }
 
-namespace {
-
-/// One export row as a JSON object (the array element of the JSON export, the line of NDJSON).
-json export_row_json(const ExportRow& row) {
-  json o = run_json(row.run);
-  o["calibration"] = row.calibration ? calibration_json(*row.calibration) : json(nullptr);
-  o["crosscheck"] = row.crosscheck ? crosscheck_json(*row.crosscheck) : json(nullptr);
-  return o;
-}
-
-}  // namespace
-
 std::size_t export_json(const Repository& repo, const ExportFilter& filter, std::ostream& out) {
   out << '[';
   std::size_t rows = 0;
+  std::string text;
   repo.export_rows(filter, [&](const ExportRow& row) {
-    out << (rows == 0 ? "\n" : ",\n") << export_row_json(row).dump();
+    text.assign(rows == 0 ? "\n" : ",\n");
+    append_export_row_json(text, row);
+    out << text;
     check_stream(out, "export json");
     ++rows;
   });
@@ -206,8 +198,12 @@ std::size_t export_json(const Repository& repo, const ExportFilter& filter, std:
 
 std::size_t export_ndjson(const Repository& repo, const ExportFilter& filter, std::ostream& out) {
   std::size_t rows = 0;
+  std::string text;
   repo.export_rows(filter, [&](const ExportRow& row) {
-    out << export_row_json(row).dump() << '\n';
+    text.clear();
+    append_export_row_json(text, row);
+    text += '\n';
+    out << text;
     check_stream(out, "export ndjson");
     ++rows;
   });
