@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -17,36 +18,23 @@
 #include "db/archive/archive_error.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/run_archive.hpp"
+#include "tests/support/temp_dir.hpp"
 
 namespace imucal::archive {
 namespace {
 
 namespace fs = std::filesystem;
 
-class TempDir {
- public:
-  TempDir() {
-    std::string t = (fs::temp_directory_path() / "imucal_archive_test_XXXXXX").string();
-    if (!::mkdtemp(t.data())) throw std::runtime_error("mkdtemp failed");
-    path_ = t;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const std::string& path() const { return path_; }
-  std::string sub(const std::string& name) const { return path_ + "/" + name; }
-  /// Entries of the temp dir (to detect leftovers of a failed write).
-  std::vector<std::string> entries() const {
-    std::vector<std::string> v;
-    for (const auto& e : fs::directory_iterator(path_)) v.push_back(e.path().filename().string());
-    std::sort(v.begin(), v.end());
-    return v;
-  }
+using TempDir = test_support::ScopedTempDir;
 
- private:
-  std::string path_;
-};
+/// Entries of a directory, sorted (to detect leftovers of a failed write).
+std::vector<std::string> dir_entries(const TempDir& dir) {
+  std::vector<std::string> v;
+  for (const auto& e : fs::directory_iterator(dir.path()))
+    v.push_back(e.path().filename().string());
+  std::sort(v.begin(), v.end());
+  return v;
+}
 
 std::string slurp(const std::string& p) { return read_text_file(p); }
 void put(const std::string& p, const std::string& text) {
@@ -128,7 +116,7 @@ ArchiveError read_error(const std::string& dir) {
 }
 
 TEST(Archive, SimulatedRunRoundTripsBitExactly) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const SimRun run = simulated_run();
   const std::string dir = tmp.sub("run1");
   write_archive(dir, run.archive);
@@ -196,7 +184,7 @@ TEST(Archive, SimulatedRunRoundTripsBitExactly) {
 }
 
 TEST(Archive, CalibrationInputMatchesTheInMemoryPath) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const SimRun run = simulated_run();
   write_archive(tmp.sub("run"), run.archive);
   const calib::CalibrationInput from_disk = to_calibration_input(read_archive(tmp.sub("run")));
@@ -254,7 +242,7 @@ std::string write_simple(const TempDir& tmp, const std::string& name, size_t n =
 }
 
 TEST(Archive, SimpleArchiveIsValidAndHasNoTempColumn) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "ok");
   const RunArchive a = read_archive(dir);
   EXPECT_TRUE(std::isnan(a.imu[0].temp_c));
@@ -267,7 +255,7 @@ TEST(Archive, SimpleArchiveIsValidAndHasNoTempColumn) {
 }
 
 TEST(Archive, UnknownRunTomlKeyNamedWithLine) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "r");
   replace_in_file(dir + "/run.toml", "[imu]\nrate_hz = 100.0\n",
                   "[imu]\nrate_hz = 100.0\nrate = 200\n");
@@ -283,7 +271,7 @@ TEST(Archive, UnknownRunTomlKeyNamedWithLine) {
 }
 
 TEST(Archive, MissingRequiredKeysNamed) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "r");
   const std::string orig = slurp(dir + "/run.toml");
   struct Case {
@@ -315,7 +303,7 @@ TEST(Archive, MissingRequiredKeysNamed) {
 }
 
 TEST(Archive, BothOrNeitherReferenceFileRejected) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "r");
   put(dir + "/attitude.csv", "t_s,roll_deg,pitch_deg,yaw_deg,at_rest\n0.01,0,0,0,1\n");
   const ArchiveError both = read_error(dir);
@@ -330,7 +318,7 @@ TEST(Archive, BothOrNeitherReferenceFileRejected) {
 }
 
 TEST(Archive, ReferenceKeyMustMatchTheFilePresent) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "r");
   replace_in_file(dir + "/run.toml", "reference = \"table\"", "reference = \"attitude\"");
   const ArchiveError e = read_error(dir);
@@ -339,7 +327,7 @@ TEST(Archive, ReferenceKeyMustMatchTheFilePresent) {
 }
 
 TEST(Archive, BadAtRestValueNamedWithLineAndColumn) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "r");
   replace_in_file(dir + "/table.csv", "\n0.05,0,0,0\n", "\n0.05,0,0,0.5\n");  // data row 5 = line 6
   const ArchiveError e = read_error(dir);
@@ -350,7 +338,7 @@ TEST(Archive, BadAtRestValueNamedWithLineAndColumn) {
 }
 
 TEST(Archive, CsvErrorsInsideAnArchiveNameTheFile) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "r");
   replace_in_file(dir + "/imu.csv", "\n0.03,", "\n0.03,nan,");
   const ArchiveError nan = read_error(dir);
@@ -366,7 +354,7 @@ TEST(Archive, CsvErrorsInsideAnArchiveNameTheFile) {
 }
 
 TEST(Archive, MismatchedTimeAxisNamesFirstBadLine) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "r");
   // Shift row 7 (line 8) by 2 µs: still increasing, but off the IMU axis.
   replace_in_file(dir + "/table.csv", "\n0.07,", "\n0.070002,");
@@ -388,7 +376,7 @@ TEST(Archive, MismatchedTimeAxisNamesFirstBadLine) {
 }
 
 TEST(Archive, NoRestPeriodsRejected) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "r");
   std::string t = slurp(dir + "/table.csv");
   for (size_t p = t.find(",1\n"); p != std::string::npos; p = t.find(",1\n"))
@@ -400,7 +388,7 @@ TEST(Archive, NoRestPeriodsRejected) {
 }
 
 TEST(Archive, ImplausibleIncrementsAndRateMismatchRejected) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   {
     const std::string dir = write_simple(tmp, "a");
     // dv written as acceleration (m/s^2) instead of m/s per sample on one line: 100x too large.
@@ -431,10 +419,10 @@ TEST(Archive, ImplausibleIncrementsAndRateMismatchRejected) {
 }
 
 TEST(Archive, AtomicWriteRefusesExistingTargetAndLeavesNothingBehind) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "run");
   const std::string before = slurp(dir + "/imu.csv");
-  const std::vector<std::string> entries = tmp.entries();
+  const std::vector<std::string> entries = dir_entries(tmp);
   RunArchive other = read_archive(dir);
   other.info.serial = "OTHER";
   try {
@@ -444,7 +432,7 @@ TEST(Archive, AtomicWriteRefusesExistingTargetAndLeavesNothingBehind) {
     EXPECT_EQ(e.file(), dir);
     EXPECT_NE(e.message().find("refusing to overwrite"), std::string::npos);
   }
-  EXPECT_EQ(tmp.entries(), entries);  // no run.tmp-XXXXXX left behind
+  EXPECT_EQ(dir_entries(tmp), entries);  // no run.tmp-XXXXXX left behind
   EXPECT_EQ(slurp(dir + "/imu.csv"), before);
   EXPECT_EQ(read_archive(dir).info.serial, "S1");
 
@@ -458,16 +446,16 @@ TEST(Archive, AtomicWriteRefusesExistingTargetAndLeavesNothingBehind) {
     EXPECT_EQ(e.line(), 32u);
     EXPECT_EQ(e.field(), "dv_y_mps");
   }
-  EXPECT_EQ(tmp.entries(), entries);
+  EXPECT_EQ(dir_entries(tmp), entries);
   // ... nor does it touch an existing archive when overwriting.
   EXPECT_THROW(write_archive(dir, bad, /*overwrite=*/true), ArchiveError);
-  EXPECT_EQ(tmp.entries(), entries);
+  EXPECT_EQ(dir_entries(tmp), entries);
   EXPECT_EQ(read_archive(dir).info.serial, "S1");
 
   // Explicit overwrite replaces it atomically and cleans up the old one.
   write_archive(dir, other, /*overwrite=*/true);
   EXPECT_EQ(read_archive(dir).info.serial, "OTHER");
-  EXPECT_EQ(tmp.entries(), entries);
+  EXPECT_EQ(dir_entries(tmp), entries);
 
   // An existing empty directory is a valid target.
   fs::create_directory(tmp.sub("empty"));
@@ -476,7 +464,7 @@ TEST(Archive, AtomicWriteRefusesExistingTargetAndLeavesNothingBehind) {
 }
 
 TEST(Archive, WriterRejectsInconsistentReference) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   RunArchive a = read_archive(write_simple(tmp, "r"));
   a.attitude.push_back({0.01, 0, 0, 0, true});
   EXPECT_THROW(write_archive(tmp.sub("x"), a), ArchiveError);
@@ -487,7 +475,7 @@ TEST(Archive, WriterRejectsInconsistentReference) {
 }
 
 TEST(Archive, AttitudeReferenceBuildsCbnFromNedEuler) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "att");
   fs::remove(dir + "/table.csv");
   replace_in_file(dir + "/run.toml", "reference = \"table\"", "reference = \"attitude\"");
@@ -533,7 +521,7 @@ TEST(Archive, RawIntegralDvIsRotationCompensatedOnImport) {
   // Body turning about z at 10 deg/s under a constant n-frame specific force with a horizontal
   // part a: f_b(t) = Rz(-ω t) f_n. The archive's dv is ∫ C_{b(t)}^{b(t_{k-1})} f_b dt
   // = Rz(-ω t_{k-1}) f_n dt exactly; a raw-integral IMU delivers ∫ Rz(-ω t) f_n dt instead.
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = tmp.sub("raw");
   fs::create_directory(dir);
   const double w = 10.0 * kDegToRad, a = 1.0, g = 9.81, dt = 0.01;
@@ -603,7 +591,7 @@ void expect_identical(const calib::CalibrationInput& a, const calib::Calibration
 }
 
 TEST(Archive, ConvertingAGivenUpArchiveGivesTheSameInputBitForBit) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const SimRun run = simulated_run();
   write_archive(tmp.sub("run"), run.archive);
   const RunArchive kept = read_archive(tmp.sub("run"));
@@ -635,7 +623,7 @@ TEST(Archive, ConvertingAGivenUpArchiveGivesTheSameInputBitForBit) {
 }
 
 TEST(Archive, TimeMismatchInEitherHalfNamesTheFirstBadLine) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "r");  // 50 rows: the halves are rows 0-24, 25-49
   replace_in_file(dir + "/table.csv", "\n0.41,", "\n0.410002,");  // row 40, line 42
   for (const bool moved : {false, true}) {
@@ -654,7 +642,7 @@ TEST(Archive, TimeMismatchInEitherHalfNamesTheFirstBadLine) {
 }
 
 TEST(Archive, LargeArchiveReadOnTwoThreadsReportsTheFirstErrorInTheFile) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const size_t n = 30000;  // 300 s at 100 Hz: both CSV files are split between two threads
   const std::string dir = write_simple(tmp, "big", n);
   ASSERT_GT(fs::file_size(dir + "/table.csv"), 256u * 1024u);
@@ -690,7 +678,7 @@ TEST(Archive, LargeArchiveReadOnTwoThreadsReportsTheFirstErrorInTheFile) {
 }
 
 TEST(Archive, MissingPiecesNamed) {
-  TempDir tmp;
+  TempDir tmp("imucal_archive_test");
   const ArchiveError nodir = read_error(tmp.sub("nope"));
   EXPECT_NE(nodir.message().find("no such run archive directory"), std::string::npos);
   const std::string dir = write_simple(tmp, "r");
