@@ -467,13 +467,21 @@ int cmd_export(const Target& t, const json& args, const std::string& output, boo
   return kOk;
 }
 
-}  // namespace
+/// Every option value of every command (CLI11 binds to these; one command runs per call).
+struct Args {
+  std::string serial, sequence, operator_name, reason, since, format, output, import_dir;
+  bool wait = false, partial = false;
+  db::RunId run_id = 0;
+  std::size_t limit = 0;
+};
 
-int main(int argc, char** argv) {
-  CLI::App app{"stationctl: start and follow calibration runs; query the calibration history"};
-  app.require_subcommand(1);
-  app.set_version_flag("--version", std::string(IMUCAL_VERSION));
-  Globals g;
+/// The subcommands, to find the one given.
+struct Commands {
+  CLI::App *start, *status, *abort, *history, *show, *params, *exp, *reprocess, *diagnose, *import,
+      *promote;
+};
+
+void add_global_options(CLI::App& app, Globals& g) {
   app.add_option("--config", g.config,
                  std::string("stationd's config file: [control] socket and [station] database "
                              "(default ") +
@@ -484,85 +492,213 @@ int main(int argc, char** argv) {
   app.add_option("--db", g.db,
                  "history database for reads when stationd is down (default: the config's)");
   app.add_flag("--json", g.json, "print the raw JSON result instead of text");
+}
 
-  // run
+void add_run_commands(CLI::App& app, Args& a, Commands& c) {
   auto* run = app.add_subcommand("run", "start, follow or abort a calibration run");
   run->require_subcommand(1);
   run->fallthrough();
-  std::string serial, sequence, operator_name, reason;
-  bool wait = false;
-  db::RunId run_id = 0;
-  auto* start = run->add_subcommand("start", "start a run of a unit (needs the control group)");
-  start->add_option("--serial", serial, std::string("serial number: ") + db::kSerialRule)
+  c.start = run->add_subcommand("start", "start a run of a unit (needs the control group)");
+  c.start->add_option("--serial", a.serial, std::string("serial number: ") + db::kSerialRule)
       ->required();
-  start->add_option("--sequence", sequence, "sequence name or file (default: the station's)");
-  start->add_option("--operator", operator_name, "operator name (default: your user name)")
+  c.start->add_option("--sequence", a.sequence, "sequence name or file (default: the station's)");
+  c.start->add_option("--operator", a.operator_name, "operator name (default: your user name)")
       ->check(text_check(station::kMaxNameChars));
-  start->add_flag("--wait", wait, "follow the run to its end; exit 0 only for done + PASS");
-  start->fallthrough();
-  auto* status = run->add_subcommand("status", "the daemon's state, or one run's (--run)");
-  status->add_option("--run", run_id, "run id")->check(CLI::PositiveNumber);
-  status->fallthrough();
-  auto* abort = run->add_subcommand("abort", "abort the active run (needs the control group)");
-  abort->add_option("--reason", reason, "why (stored with the run)")
+  c.start->add_flag("--wait", a.wait, "follow the run to its end; exit 0 only for done + PASS");
+  c.start->fallthrough();
+  c.status = run->add_subcommand("status", "the daemon's state, or one run's (--run)");
+  c.status->add_option("--run", a.run_id, "run id")->check(CLI::PositiveNumber);
+  c.status->fallthrough();
+  c.abort = run->add_subcommand("abort", "abort the active run (needs the control group)");
+  c.abort->add_option("--reason", a.reason, "why (stored with the run)")
       ->check(text_check(station::kMaxReasonChars));
-  abort->fallthrough();
+  c.abort->fallthrough();
+}
 
-  // reads
-  std::size_t limit = 0;
-  auto* history = app.add_subcommand("history", "the runs of a unit, newest first");
-  history->add_option("SN", serial, "serial number")->required();
-  history->add_option("--limit", limit, "at most N runs (0 = all)");
-  history->fallthrough();
-  auto* show = app.add_subcommand("show", "everything stored about a run");
-  show->add_option("RUN_ID", run_id, "run id")->required()->check(CLI::PositiveNumber);
-  show->fallthrough();
-  auto* params = app.add_subcommand(
-      "params", "the unit's active parameter set with 1-sigma (JSON for the INS)");
-  params->add_option("SN", serial, "serial number")->required();
-  params->fallthrough();
-  std::string since, format, output;
-  auto* exp = app.add_subcommand(
+void add_read_commands(CLI::App& app, Args& a, Commands& c) {
+  c.history = app.add_subcommand("history", "the runs of a unit, newest first");
+  c.history->add_option("SN", a.serial, "serial number")->required();
+  c.history->add_option("--limit", a.limit, "at most N runs (0 = all)");
+  c.history->fallthrough();
+  c.show = app.add_subcommand("show", "everything stored about a run");
+  c.show->add_option("RUN_ID", a.run_id, "run id")->required()->check(CLI::PositiveNumber);
+  c.show->fallthrough();
+  c.params = app.add_subcommand("params",
+                                "the unit's active parameter set with 1-sigma (JSON for the INS)");
+  c.params->add_option("SN", a.serial, "serial number")->required();
+  c.params->fallthrough();
+  c.exp = app.add_subcommand(
       "export",
       "the history as CSV, JSON or NDJSON, streamed (with --json and --output: a JSON "
       "summary of what was written)");
-  exp->add_option("--serial", serial, "only this unit");
-  exp->add_option("--since", since, "only runs started at or after (YYYY-MM-DD[THH:MM[:SS]][Z])");
-  exp->add_option("--format", format, "csv, json (one array) or ndjson (one object per line)")
+  c.exp->add_option("--serial", a.serial, "only this unit");
+  c.exp->add_option("--since", a.since,
+                    "only runs started at or after (YYYY-MM-DD[THH:MM[:SS]][Z])");
+  c.exp->add_option("--format", a.format, "csv, json (one array) or ndjson (one object per line)")
       ->required()
       ->check(CLI::IsMember({"csv", "json", "ndjson"}));
-  exp->add_option("--output", output, "write to FILE instead of stdout");
-  exp->fallthrough();
-  auto* reprocess = app.add_subcommand(
+  c.exp->add_option("--output", a.output, "write to FILE instead of stdout");
+  c.exp->fallthrough();
+}
+
+void add_history_commands(CLI::App& app, Args& a, Commands& c) {
+  c.reprocess = app.add_subcommand(
       "reprocess", "recalibrate a stored run from its archive into a new run (needs the group)");
-  reprocess->add_option("RUN_ID", run_id, "run id")->required()->check(CLI::PositiveNumber);
-  reprocess->add_flag("--wait", wait, "follow the new run to its end");
-  bool partial = false;
-  reprocess->add_flag("--partial", partial,
-                      "calibrate an incomplete archive (aborted, interrupted or failed capture) "
-                      "anyway: stored REVIEW at best, never the unit's active parameters");
-  reprocess->fallthrough();
-  auto* diagnose = app.add_subcommand(
+  c.reprocess->add_option("RUN_ID", a.run_id, "run id")->required()->check(CLI::PositiveNumber);
+  c.reprocess->add_flag("--wait", a.wait, "follow the new run to its end");
+  c.reprocess->add_flag("--partial", a.partial,
+                        "calibrate an incomplete archive (aborted, interrupted or failed capture) "
+                        "anyway: stored REVIEW at best, never the unit's active parameters");
+  c.reprocess->fallthrough();
+  c.diagnose = app.add_subcommand(
       "diagnose", "sim-to-real gap diagnosis of a stored run, kept with the run (needs the group)");
-  diagnose->add_option("RUN_ID", run_id, "run id")->required()->check(CLI::PositiveNumber);
-  diagnose->fallthrough();
-  std::string import_dir;
-  auto* import = app.add_subcommand(
+  c.diagnose->add_option("RUN_ID", a.run_id, "run id")->required()->check(CLI::PositiveNumber);
+  c.diagnose->fallthrough();
+  c.import = app.add_subcommand(
       "import",
       "add a field (land/sea) or other station's run archive to its unit's history and calibrate "
       "it with its setting (needs the group); it never becomes active unless promoted");
-  import->add_option("DIR", import_dir, "run archive directory (imucal simulate/calibrate format)")
+  c.import
+      ->add_option("DIR", a.import_dir, "run archive directory (imucal simulate/calibrate format)")
       ->required();
-  import->add_flag("--wait", wait, "follow the calibration to its end");
-  import->fallthrough();
-  auto* promote = app.add_subcommand(
+  c.import->add_flag("--wait", a.wait, "follow the calibration to its end");
+  c.import->fallthrough();
+  c.promote = app.add_subcommand(
       "promote", "QA: make a field run the unit's active parameters (needs the group)");
-  promote->add_option("RUN_ID", run_id, "run id")->required()->check(CLI::PositiveNumber);
-  promote->add_option("--reason", reason, "why (stored with the run, required)")
+  c.promote->add_option("RUN_ID", a.run_id, "run id")->required()->check(CLI::PositiveNumber);
+  c.promote->add_option("--reason", a.reason, "why (stored with the run, required)")
       ->required()
       ->check(text_check(station::kMaxReasonChars));
-  promote->fallthrough();
+  c.promote->fallthrough();
+}
 
+/// A result as JSON, or as the text `render` makes of it.
+int print_result(const json& r, bool as_json, std::string (*render)(const json&)) {
+  if (as_json)
+    print_json(r);
+  else
+    std::cout << render(r);
+  return kOk;
+}
+
+/// A run started (or a reprocessing): its id printed, or followed to its end with --wait.
+int started(const Target& t, ControlClient& client, const json& r, const std::string& what,
+            bool wait, bool as_json) {
+  if (!wait) {
+    if (as_json)
+      print_json(r);
+    else
+      std::cout << "run " << text(r, "run_id", "?") << " " << what << "\n";
+    return kOk;
+  }
+  if (!as_json) std::cerr << "run " << text(r, "run_id", "?") << " " << what << "\n";
+  return wait_for_run(t, client, r.at("run_id").get<db::RunId>(), as_json);
+}
+
+int cmd_run_start(const Target& t, const Args& a, bool as_json) {
+  check_serial(a.serial);
+  json args = {{"serial", a.serial}};
+  if (!a.sequence.empty()) args["sequence"] = a.sequence;
+  if (!a.operator_name.empty()) args["operator"] = a.operator_name;
+  ControlClient client = connect_or_fail(t);
+  const json r = call(client, station::cmd::kRunStart, args);
+  if (a.wait || as_json) return started(t, client, r, "started: " + a.serial, a.wait, as_json);
+  std::cout << "run " << text(r, "run_id", "?") << " started: " << a.serial << ", sequence "
+            << text(r, "sequence", a.sequence)
+            << (r.contains("steps") ? ", " + r["steps"].dump() + " steps" : "") << "\n";
+  return kOk;
+}
+
+int cmd_run_abort(const Target& t, const Args& a, bool as_json) {
+  json args = json::object();
+  if (!a.reason.empty()) args["reason"] = a.reason;
+  ControlClient client = connect_or_fail(t);
+  const json r = call(client, station::cmd::kRunAbort, args);
+  if (as_json)
+    print_json(r);
+  else if (r.contains("run") && r["run"].is_object())
+    std::cout << station::outcome_line(r["run"]) << "\n";
+  else
+    std::cout << "abort requested"
+              << (r.contains("run_id") ? " for run " + r["run_id"].dump() : std::string()) << "\n";
+  return kOk;
+}
+
+int cmd_export_history(const Target& t, const Args& a, bool as_json) {
+  json args = {{"format", a.format}};
+  if (!a.serial.empty()) {
+    check_serial(a.serial);
+    args["serial"] = a.serial;
+  }
+  if (!a.since.empty()) {
+    try {
+      (void)db::parse_time_utc(a.since);
+    } catch (const db::DbError& e) {
+      throw Failure{kBadInput, std::string("--since: ") + e.what()};
+    }
+    args["since"] = a.since;
+  }
+  return cmd_export(t, args, a.output, as_json);
+}
+
+int cmd_reprocess(const Target& t, const Args& a, bool as_json) {
+  ControlClient client = connect_or_fail(t);
+  json args = {{"run_id", a.run_id}};
+  if (a.partial) args["partial"] = true;
+  const json r = call(client, station::cmd::kReprocess, args);
+  return started(t, client, r, "reprocesses run " + std::to_string(a.run_id), a.wait, as_json);
+}
+
+/// The command given, run.
+int dispatch(const Target& t, const Args& a, const Commands& c, bool as_json) {
+  if (*c.start) return cmd_run_start(t, a, as_json);
+  if (*c.status) {
+    json args = json::object();
+    if (a.run_id > 0) args["run_id"] = a.run_id;
+    return print_result(read_request(t, station::cmd::kRunStatus, args), as_json,
+                        station::render_status_text);
+  }
+  if (*c.abort) return cmd_run_abort(t, a, as_json);
+  if (*c.history) {
+    check_serial(a.serial);
+    json args = {{"serial", a.serial}};
+    if (a.limit > 0) args["limit"] = a.limit;
+    return print_result(read_request(t, station::cmd::kHistory, args), as_json,
+                        station::render_history_text);
+  }
+  if (*c.show)
+    return print_result(read_request(t, station::cmd::kShow, {{"run_id", a.run_id}}), as_json,
+                        station::render_show_text);
+  if (*c.params) {
+    check_serial(a.serial);
+    return print_result(read_request(t, station::cmd::kParams, {{"serial", a.serial}}), as_json,
+                        station::render_params_text);
+  }
+  if (*c.exp) return cmd_export_history(t, a, as_json);
+  if (*c.reprocess) return cmd_reprocess(t, a, as_json);
+  if (*c.diagnose) {
+    ControlClient client = connect_or_fail(t);
+    return print_result(call(client, station::cmd::kDiagnose, {{"run_id", a.run_id}}), as_json,
+                        station::render_diagnosis_text);
+  }
+  if (*c.import) return cmd_import(t, a.import_dir, a.wait, as_json);
+  if (*c.promote) return cmd_promote(t, a.run_id, a.reason, as_json);
+  throw Failure{kBadInput, "no command given (see --help)"};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"stationctl: start and follow calibration runs; query the calibration history"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string(IMUCAL_VERSION));
+  Globals g;
+  Args a;
+  Commands c{};
+  add_global_options(app, g);
+  add_run_commands(app, a, c);
+  add_read_commands(app, a, c);
+  add_history_commands(app, a, c);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -573,125 +709,8 @@ int main(int argc, char** argv) {
     app.exit(e);
     return kBadInput;
   }
-
   try {
-    const Target target = resolve_target(g);
-    if (*start) {
-      check_serial(serial);
-      json args = {{"serial", serial}};
-      if (!sequence.empty()) args["sequence"] = sequence;
-      if (!operator_name.empty()) args["operator"] = operator_name;
-      ControlClient client = connect_or_fail(target);
-      const json r = call(client, station::cmd::kRunStart, args);
-      if (!wait) {
-        if (g.json)
-          print_json(r);
-        else
-          std::cout << "run " << text(r, "run_id", "?") << " started: " << serial << ", sequence "
-                    << text(r, "sequence", sequence)
-                    << (r.contains("steps") ? ", " + r["steps"].dump() + " steps" : "") << "\n";
-        return kOk;
-      }
-      if (!g.json) std::cerr << "run " << text(r, "run_id", "?") << " started: " << serial << "\n";
-      return wait_for_run(target, client, r.at("run_id").get<db::RunId>(), g.json);
-    }
-    if (*status) {
-      json args = json::object();
-      if (run_id > 0) args["run_id"] = run_id;
-      const json r = read_request(target, station::cmd::kRunStatus, args);
-      if (g.json)
-        print_json(r);
-      else
-        std::cout << station::render_status_text(r);
-      return kOk;
-    }
-    if (*abort) {
-      json args = json::object();
-      if (!reason.empty()) args["reason"] = reason;
-      ControlClient client = connect_or_fail(target);
-      const json r = call(client, station::cmd::kRunAbort, args);
-      if (g.json)
-        print_json(r);
-      else if (r.contains("run") && r["run"].is_object())
-        std::cout << station::outcome_line(r["run"]) << "\n";
-      else
-        std::cout << "abort requested"
-                  << (r.contains("run_id") ? " for run " + r["run_id"].dump() : std::string())
-                  << "\n";
-      return kOk;
-    }
-    if (*history) {
-      check_serial(serial);
-      json args = {{"serial", serial}};
-      if (limit > 0) args["limit"] = limit;
-      const json r = read_request(target, station::cmd::kHistory, args);
-      if (g.json)
-        print_json(r);
-      else
-        std::cout << station::render_history_text(r);
-      return kOk;
-    }
-    if (*show) {
-      const json r = read_request(target, station::cmd::kShow, {{"run_id", run_id}});
-      if (g.json)
-        print_json(r);
-      else
-        std::cout << station::render_show_text(r);
-      return kOk;
-    }
-    if (*params) {
-      check_serial(serial);
-      const json r = read_request(target, station::cmd::kParams, {{"serial", serial}});
-      if (g.json)
-        print_json(r);
-      else
-        std::cout << station::render_params_text(r);
-      return kOk;
-    }
-    if (*exp) {
-      json args = {{"format", format}};
-      if (!serial.empty()) {
-        check_serial(serial);
-        args["serial"] = serial;
-      }
-      if (!since.empty()) {
-        try {
-          (void)db::parse_time_utc(since);
-        } catch (const db::DbError& e) {
-          throw Failure{kBadInput, std::string("--since: ") + e.what()};
-        }
-        args["since"] = since;
-      }
-      return cmd_export(target, args, output, g.json);
-    }
-    if (*reprocess) {
-      ControlClient client = connect_or_fail(target);
-      json args = {{"run_id", run_id}};
-      if (partial) args["partial"] = true;
-      const json r = call(client, station::cmd::kReprocess, args);
-      if (!wait) {
-        if (g.json)
-          print_json(r);
-        else
-          std::cout << "run " << text(r, "run_id", "?") << " reprocesses run " << run_id << "\n";
-        return kOk;
-      }
-      if (!g.json)
-        std::cerr << "run " << text(r, "run_id", "?") << " reprocesses run " << run_id << "\n";
-      return wait_for_run(target, client, r.at("run_id").get<db::RunId>(), g.json);
-    }
-    if (*diagnose) {
-      ControlClient client = connect_or_fail(target);
-      const json r = call(client, station::cmd::kDiagnose, {{"run_id", run_id}});
-      if (g.json)
-        print_json(r);
-      else
-        std::cout << station::render_diagnosis_text(r);
-      return kOk;
-    }
-    if (*import) return cmd_import(target, import_dir, wait, g.json);
-    if (*promote) return cmd_promote(target, run_id, reason, g.json);
-    throw Failure{kBadInput, "no command given (see --help)"};
+    return dispatch(resolve_target(g), a, c, g.json);
   } catch (const Failure& f) {
     std::cout.flush();
     std::cerr << "stationctl: " << f.message << "\n";
