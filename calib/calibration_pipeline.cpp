@@ -111,10 +111,7 @@ void run_methods(const CalibrationInput& in, const PipelineOptions& opt, bool ai
   }
   worker.join();
   if (check_error) std::rethrow_exception(check_error);
-  if (!problems.empty()) {
-    out.ains.reset();
-    throw DataCheckError(std::move(problems));
-  }
+  if (!problems.empty()) throw DataCheckError(std::move(problems));
   if (ains_error) std::rethrow_exception(ains_error);
   if (second_error) std::rethrow_exception(second_error);
 }

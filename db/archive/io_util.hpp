@@ -11,7 +11,8 @@
 
 namespace imucal::archive {
 
-/// Whole file as bytes. Throws ArchiveError("<path>: cannot open: <reason>") on failure.
+/// Whole file as bytes (read_file_bytes() copied into a string: for the small files). Throws
+/// ArchiveError("<path>: cannot open: <reason>") on failure.
 std::string read_text_file(const std::string& path);
 
 /// A whole file's bytes in a heap buffer that nothing writes before read(2) does (std::string's
@@ -28,8 +29,8 @@ class FileBytes {
   std::size_t size_ = 0;
 };
 
-/// read_text_file() without the copy into a std::string; the same errors. Files that report no
-/// size (pipes, /proc) are read until EOF as well.
+/// A whole file, without a copy into a std::string. Files that report no size (pipes, /proc) are
+/// read until EOF as well.
 FileBytes read_file_bytes(const std::string& path);
 
 /// A file open for reading, closed by the destructor; opening fails with read_text_file()'s errors.
