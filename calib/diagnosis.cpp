@@ -460,6 +460,15 @@ void apply_selection(DiagnosisResult& d, const Selection& sel, const std::vector
     d.verdict = fits_now && sel.ambiguous.empty() ? "explained" : "unexplained";
 }
 
+/// Whether the selected finding (best effect, pair or ambiguous set) removes enough of the held-out
+/// gap's excess to count as an explanation (DiagnosisOptions::min_shrinkage). Quantisation alone is
+/// judged on its own statistic's held-out gap, the same way. No finding: nothing to judge.
+bool explains_enough(const DiagnosisResult& d, const DiagnosisOptions& opt) {
+  if (!d.best && d.ambiguous.empty()) return true;
+  if (!d.held_out.has_after) return true;
+  return d.held_out.gap_before > 1.0 && d.held_out.shrinkage >= opt.min_shrinkage;
+}
+
 std::string summarise(const DiagnosisResult& d) {
   std::ostringstream os;
   os.precision(3);
@@ -488,6 +497,11 @@ std::string summarise(const DiagnosisResult& d) {
   } else {
     os << "unexplained: chi2/dof " << d.overall_gap << " (expected 1 +- " << d.overall_sigma
        << ") and no candidate effect explains it";
+    // Named in the JSON and the report (weak_candidate), not here: the summary is the station's
+    // REVIEW reason, which must not suggest a cause the held-out segments do not confirm.
+    if (!d.weak_candidate.empty())
+      os << " (the best candidate removes " << std::lround(100.0 * d.weak_shrinkage)
+         << " % of the held-out gap)";
   }
   if (d.verdict == "unexplained" && !d.remaining.empty())
     os << "; largest remaining: " << d.remaining.front().first;
@@ -564,10 +578,38 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
   rank(cands, p, opt);
   const Selection sel = select_model(cands, p, fit0.chi2, opt);
   apply_selection(d, sel, cands, p, fit0, opt);
+  if (!explains_enough(d, opt)) {
+    // A significant candidate that predicts too little of the held-out gap is no finding: judge the
+    // run as without one (best, pair and ambiguous set cleared, the held-out "before" kept).
+    d.weak_candidate =
+        d.best ? cands[*d.best].result.name : (d.ambiguous.empty() ? "" : d.ambiguous.front());
+    d.weak_shrinkage = d.held_out.shrinkage;
+    const double gap_before = d.held_out.gap_before;
+    d.best.reset();
+    d.second.reset();
+    d.held_out = {};
+    d.held_out.gap_before = gap_before;
+    d.moved.clear();
+    Selection none;
+    none.J = p.Jb;
+    apply_selection(d, none, cands, p, fit0, opt);
+  }
   for (auto& s : cands) d.candidates.push_back(std::move(s.result));
   d.summary = summarise(d);
   d.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return d;
+}
+
+DiagnosisOptions diagnosis_options_for_false_alarm(double per_run) {
+  if (!(per_run > 0.0 && per_run < 1.0))
+    throw std::invalid_argument(
+        "gap diagnosis: the false-alarm rate per run must be in (0, 1), got " +
+        std::to_string(per_run));
+  DiagnosisOptions o;
+  // The overall test at alpha and the candidates at alpha / k each (select_model): the union of the
+  // two families is at most 2 alpha (Bonferroni).
+  o.alpha = per_run / 2.0;
+  return o;
 }
 
 }  // namespace imucal::calib

@@ -39,6 +39,14 @@ struct DiagnosisOptions {
   /// alpha / (number of candidates) (Bonferroni); the run counts as consistent when the overall χ²
   /// has p >= alpha.
   double alpha = 1e-3;
+  /// A finding must shrink the held-out gap: the best effect (pair, or an ambiguous set) counts as
+  /// an explanation only when it removes at least this fraction of the held-out gap's excess,
+  /// (before - after) / (before - 1). Below it the run is judged as if no candidate were
+  /// significant (a significant gap is then "unexplained", and the summary names no effect): an
+  /// effect that fits a few segments' noise better but predicts none of the held-out segments is
+  /// not a cause (issue #28: a null run was "explained" by a latitude error that shrank the
+  /// held-out gap by 3 %).
+  double min_shrinkage = 0.5;
   double separability_limit = 0.95;
   int folds = 5;
   size_t min_rest_samples = 100;
@@ -118,6 +126,11 @@ struct DiagnosisResult {
   /// Significant candidates that explain the gap equally and that this sequence cannot tell apart
   /// (the top one first); then best is empty: no finding.
   std::vector<std::string> ambiguous;
+  /// The best candidate (or ambiguous set's first) that was significant but shrank the held-out gap
+  /// by less than DiagnosisOptions::min_shrinkage, and that shrinkage; empty when there was none.
+  /// Never a finding: reported beside the verdict for the engineer, never in the summary.
+  std::string weak_candidate;
+  double weak_shrinkage = 0.0;
   struct HeldOut {
     double gap_before = 0.0, gap_after = 0.0, gap_after_pair = 0.0, shrinkage = 0.0;
     bool has_after = false, has_pair = false;
@@ -137,5 +150,10 @@ struct DiagnosisResult {
 /// a run too short for a candidate's parameters), naming the problem.
 DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
                          const DiagnosisOptions& opt = {});
+
+/// The options of a diagnosis whose false-alarm rate on a run without any unmodelled effect is at
+/// most `per_run` (the station's [calibration] gap_false_alarm): the overall χ² test and the
+/// candidates' tests (Bonferroni over the candidates) each get half of it.
+DiagnosisOptions diagnosis_options_for_false_alarm(double per_run);
 
 }  // namespace imucal::calib

@@ -83,6 +83,10 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
   j["best"] = d.best ? finding(d.candidates[*d.best]) : json(nullptr);
   j["second"] = d.second ? finding(d.candidates[*d.second]) : json(nullptr);
   j["ambiguous"] = d.ambiguous;
+  // A significant candidate that removed too little of the held-out gap to be a finding.
+  j["weak_candidate"] = d.weak_candidate.empty() ? json(nullptr)
+                                                 : json{{"effect", d.weak_candidate},
+                                                        {"shrinkage", num(d.weak_shrinkage)}};
   json cands = json::array();
   for (const auto& c : d.candidates) cands.push_back(candidate_json(c));
   j["candidates"] = cands;
@@ -131,7 +135,8 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
 nlohmann::json diagnosis_summary_json(const calib::DiagnosisResult& d) {
   const json full = diagnosis_to_json(d);
   json s;
-  for (const char* k : {"verdict", "summary", "best", "second", "ambiguous", "held_out"})
+  for (const char* k :
+       {"verdict", "summary", "best", "second", "ambiguous", "weak_candidate", "held_out"})
     s[k] = full[k];
   s["overall"] = {{"gap", full["overall"]["gap"]},
                   {"expected", full["overall"]["expected"]},

@@ -146,6 +146,42 @@ TEST(Diagnosis, WithheldGyroGSensitivityIsNamedWithItsMagnitude) {
   }
 }
 
+// Issue #28: a finding must predict the held-out segments. The same run and the same significant
+// effect count as an explanation when the bar (DiagnosisOptions::min_shrinkage) is below what the
+// effect removes of the held-out gap, and are no finding above it: then the summary names no
+// effect, the candidate is reported as weak with its shrinkage, and the verdict is the overall
+// test's.
+TEST(Diagnosis, AFindingMustRemoveTheDocumentedFractionOfTheHeldOutGap) {
+  UnitModel unit = default_unit();
+  unit.effects.latitude_error_rad = 20.0 / 60.0 * kDegToRad;  // 20 arcmin: a clear finding
+  const DiagnosisInput in = simulate_run("short", unit, true, 7);
+  const CalibrationResult cal = calibrate_nlsq(in.cal);
+  const DiagnosisResult found = diagnose(in, cal.params);
+  print(found);
+  ASSERT_TRUE(found.best.has_value());
+  ASSERT_EQ(found.candidates[*found.best].name, "latitude_error");
+  ASSERT_EQ(found.verdict, "explained");
+  const double s = found.held_out.shrinkage;
+  ASSERT_GE(s, DiagnosisOptions{}.min_shrinkage);
+  ASSERT_LT(s, 0.999) << "the effect removes all of the gap: no bar above it to test";
+  EXPECT_TRUE(found.weak_candidate.empty());
+
+  DiagnosisOptions strict;
+  strict.min_shrinkage = s + 0.5 * (1.0 - s);
+  const DiagnosisResult weak = diagnose(in, cal.params, strict);
+  print(weak);
+  EXPECT_FALSE(weak.best.has_value());
+  EXPECT_FALSE(weak.second.has_value());
+  EXPECT_TRUE(weak.ambiguous.empty());
+  EXPECT_EQ(weak.weak_candidate, "latitude_error");
+  EXPECT_NEAR(weak.weak_shrinkage, s, 1e-12);
+  EXPECT_EQ(weak.verdict, weak.overall_p >= strict.alpha ? "consistent" : "unexplained");
+  EXPECT_EQ(weak.summary.find("latitude"), std::string::npos) << weak.summary;
+  EXPECT_FALSE(weak.held_out.has_after);
+  EXPECT_DOUBLE_EQ(weak.held_out.gap_before, found.held_out.gap_before);
+  EXPECT_TRUE(weak.moved.empty());
+}
+
 namespace {
 
 /// Simulate with `truth_noise` but give the diagnosis the default declared noise (an undeclared
