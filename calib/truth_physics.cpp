@@ -97,6 +97,11 @@ TruthSensor::TruthSensor(const UnitModel& unit, double dt_s, uint64_t seed, bool
   }
 }
 
+void TruthSensor::reseed_noise(uint64_t seed) {
+  rng_.seed(seed);
+  normal_.reset();  // drops the polar method's cached second value, drawn from the old stream
+}
+
 void TruthSensor::measure(const Eigen::Vector3d& dtheta, const Eigen::Vector3d& dv, double t0_s,
                           ImuIncrement& out) {
   const double dt_s = dt_s_;

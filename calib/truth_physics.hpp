@@ -80,6 +80,9 @@ class TruthSensor {
   /// first sample (the thermal warm-up's clock); fills out.dtheta_rad, dv_mps.
   void measure(const Eigen::Vector3d& dtheta, const Eigen::Vector3d& dv, double t0_s,
                ImuIncrement& out);
+  /// Continues with the noise stream of `seed` (the Gauss-Markov states and the quantisers' carries
+  /// continue: only the white noise's source changes).
+  void reseed_noise(uint64_t seed);
 
  private:
   Effects fx_;

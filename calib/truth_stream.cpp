@@ -61,4 +61,6 @@ ImuIncrement TruthStream::next(const StateAt& state_at, const std::vector<double
   return s;
 }
 
+void TruthStream::reseed_noise(uint64_t seed) { sensor_->reseed_noise(seed); }
+
 }  // namespace imucal::calib

@@ -51,6 +51,8 @@ class TruthStream {
   double dt_s() const { return dt_s_; }
   /// True if next() samples the state inside the interval (size effect), not only at its ends.
   bool needs_interior_states() const;
+  /// The sensor noise continues from the stream of `seed` (TruthSensor::reseed_noise).
+  void reseed_noise(uint64_t seed);
 
  private:
   double dt_s_;

@@ -30,6 +30,15 @@ void check_time(double t, const char* name) {
 /// enough that a hung one cannot stall the table for long.
 constexpr int kCanWriteTimeoutMs = 500;
 
+/// A noise seed derived from (seed, n): splitmix64, so that the streams of neighbouring seeds and
+/// counts are unrelated.
+uint64_t noise_seed(uint64_t seed, uint64_t n) {
+  uint64_t z = seed + 0x9e3779b97f4a7c15ULL * (n + 1);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
 }  // namespace
 
 StationSim::StationSim(StationSimConfig cfg) : cfg_(std::move(cfg)) {
@@ -163,6 +172,16 @@ void StationSim::run() {
   o.noise = true;
   calib::TruthStream stream(cfg_.geometry, cfg_.site, cfg_.unit, o);
   const uint16_t move_code = cfg_.plc.map.commands.move;
+  const uint16_t home_code = cfg_.plc.map.commands.home;
+  // The sensor noise restarts from a stream of its own at each accepted home command (a station
+  // starts every run with one) and at the end of each motion after it: stream (seed, homes, motions
+  // ended since the home). A run's noise then does not depend on how long the station idled before
+  // it, nor each rest's on how long the daemon took to command the moves before it — both are
+  // wall-clock latencies times the speed factor (issue #28: on a slow machine the soak's third run
+  // always read the same unlucky stretch of one continuous stream). Left: the daemon's latency
+  // between a motion's end and the start of its rest count, a second or two of sim time at 400x.
+  uint64_t homes_accepted = 0, motions_ended = 0;
+  bool reseed_due = false, was_moving = false;
 
   std::vector<double> drops = cfg_.faults.modbus_drop_at_s;
   std::sort(drops.begin(), drops.end());
@@ -192,6 +211,11 @@ void StationSim::run() {
       if (plc.last_command() == move_code && plc.ack_result() == AckResult::kAccepted) {
         moves_accepted_.fetch_add(1);
         arm_if_due(plc);
+      }
+      if (plc.last_command() == home_code && plc.ack_result() == AckResult::kAccepted) {
+        ++homes_accepted;
+        motions_ended = 0;
+        reseed_due = true;
       }
     }
   };
@@ -245,7 +269,16 @@ void StationSim::run() {
               return plc.actual_state();
             },
             breaks);
+        if (was_moving && !plc.moving()) {  // the motion ended inside this sample
+          ++motions_ended;
+          reseed_due = true;
+        }
+        was_moving = plc.moving();
       });
+      if (reseed_due) {  // from the next sample on
+        stream.reseed_noise(noise_seed(noise_seed(cfg_.seed, homes_accepted), motions_ended));
+        reseed_due = false;
+      }
       if (reset_requested_.exchange(false)) node_->reset();
       if (stream.samples() % 16 == 0) {
         // A bus: what other nodes send reaches the other peers (the listener forwards on read).
