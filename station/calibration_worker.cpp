@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <exception>
+#include <nlohmann/json.hpp>
 
 #include "calib/calibration_pipeline.hpp"
 #include "db/archive/run_archive.hpp"
@@ -41,21 +42,38 @@ std::string review_reason(const calib::PipelineResult& r) {
   return reason;
 }
 
+/// What the capture filled in or lost, for a gap reason: "" for a clean capture (or no counters).
+/// A gap on a run with interpolated samples may be the interpolation's, not the unit's.
+std::string capture_note(const std::string& capture_json) {
+  if (capture_json.empty()) return "";
+  const nlohmann::json c = nlohmann::json::parse(capture_json, nullptr, false);
+  if (!c.is_object()) return "";
+  const auto count = [&](const char* key) { return c.value(key, uint64_t{0}); };
+  const uint64_t lost = count("samples_lost"), filled = count("samples_filled"),
+                 late = count("samples_late"), corrupt = count("samples_corrupt");
+  if (lost + filled + late + corrupt == 0) return "";
+  return " (capture: " + std::to_string(lost) + " samples lost, " + std::to_string(filled) +
+         " filled by interpolation, " + std::to_string(late) + " late, " + std::to_string(corrupt) +
+         " corrupt)";
+}
+
 /// Factory: AINS + NLSQ, cross-check, and the gap check (a significant sim-to-real gap means an
 /// unmodelled effect that biases the calibration, so the run is never PASS then).
 void store_factory_result(const calib::PipelineResult& r, calib::CalibrationInput in,
-                          const archive::RunArchive& ar, double k_sigma,
+                          const archive::RunArchive& ar, const CalibrationJob& job,
                           const std::function<void(const std::string&)>& phase,
                           db::RunCompletion& completion, CalibrationOutcome& out) {
+  const double k_sigma = job.k_sigma;
   if (!r.ains || !r.nlsq || !r.crosscheck)
     throw std::runtime_error("the calibration pipeline returned without both methods");
   completion.calibrations.push_back(db::calibration_record(r.ains->result, &r.ains->metrics));
   completion.calibrations.push_back(db::calibration_record(r.nlsq->result, &r.nlsq->metrics));
   completion.crosscheck = db::crosscheck_record(*r.crosscheck, k_sigma);
   phase("gap diagnosis");
-  const GapCheck gap = check_gap(std::move(in), ar, r.nlsq->result.params);
+  const GapCheck gap = check_gap(std::move(in), ar, r.nlsq->result.params, job.gap_false_alarm);
   completion.diagnosis_json = gap.summary.dump();
-  const std::string gap_reason = gap.significant ? "sim-to-real gap: " + gap.text : "";
+  const std::string gap_reason =
+      gap.significant ? "sim-to-real gap: " + gap.text + capture_note(job.capture_json) : "";
   if (r.pass() && !gap.significant) {
     completion.state = db::RunState::kDone;
     out.verdict = db::Verdict::kPass;
@@ -148,7 +166,7 @@ CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJo
     opt.on_phase = phase;
     const calib::PipelineResult r = calib::run_calibration(in, opt);
     if (in.setting == calib::Setting::kFactory)
-      store_factory_result(r, std::move(in), ar, job.k_sigma, phase, completion, out);
+      store_factory_result(r, std::move(in), ar, job, phase, completion, out);
     else
       store_field_result(r, in.setting, job.k_sigma, completion, out);
     cap_partial_archive(job, ar, completion, out);

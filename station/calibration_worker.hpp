@@ -35,6 +35,8 @@ struct CalibrationJob {
   std::string archive_sha256;  ///< stored with the result (checked by the caller for reprocess)
   std::string capture_json;    ///< capture counters (capture_stats.hpp) as JSON text, or ""
   double k_sigma = 4.0;
+  /// The gap check's false-alarm rate per run ([calibration] gap_false_alarm).
+  double gap_false_alarm = 1e-4;
   /// Why the archive is incomplete ("" = complete): the result is then REVIEW at best.
   std::string partial_reason;
 };

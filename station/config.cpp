@@ -366,7 +366,7 @@ StationConfig parse_root(const toml::table& root, const std::string& origin,
   // [calibration]
   {
     Section s = section("calibration");
-    s.only({"default_sequence", "k_sigma", "sequence_dir"});
+    s.only({"default_sequence", "k_sigma", "gap_false_alarm", "sequence_dir"});
     if (auto v = s.string("sequence_dir", false, false)) {
       c.sequence_dir = resolve(base_dir, *v);
       std::error_code ec;
@@ -380,6 +380,8 @@ StationConfig parse_root(const toml::table& root, const std::string& origin,
     check_default_sequence(c, s);
     if (auto v = s.number("k_sigma", false, 0.5, 100.0, "(combined standard deviations)"))
       c.k_sigma = *v;
+    if (auto v = s.number("gap_false_alarm", false, 1e-9, 0.1, "(probability per run)"))
+      c.gap_false_alarm = *v;
   }
   // [log]
   {

@@ -76,6 +76,11 @@ struct StationConfig {
   /// the config file's directory.
   std::string sequence_dir;
   double k_sigma = 4.0;
+  /// The gap check's false-alarm rate per run: the probability that a run of a unit without any
+  /// unmodelled effect ends REVIEW through the sim-to-real gap check (calib/diagnosis.hpp,
+  /// diagnosis_options_for_false_alarm). 1e-4: a line of 300 units a day sees one needless review
+  /// in about a month; a larger rate detects smaller effects (README, "The gap check").
+  double gap_false_alarm = 1e-4;
 
   // [log]
   std::string log_level = "info";  ///< trace, debug, info, warn, error, critical, off

@@ -18,11 +18,12 @@ calib::DiagnosisInput diagnosis_input(calib::CalibrationInput in, const archive:
 }  // namespace
 
 GapCheck check_gap(calib::CalibrationInput in, const archive::RunArchive& ar,
-                   const calib::ParamSet& nlsq_params) {
+                   const calib::ParamSet& nlsq_params, double false_alarm_per_run) {
   GapCheck g;
+  const calib::DiagnosisOptions opt = calib::diagnosis_options_for_false_alarm(false_alarm_per_run);
   try {
     const calib::DiagnosisResult d =
-        calib::diagnose(diagnosis_input(std::move(in), ar), nlsq_params);
+        calib::diagnose(diagnosis_input(std::move(in), ar), nlsq_params, opt);
     g.summary = archive::diagnosis_summary_json(d);
     g.significant = d.verdict != "consistent";
     g.text = d.summary;

@@ -1,7 +1,8 @@
 #pragma once
 // The station's use of the sim-to-real gap diagnosis (calib/diagnosis.hpp, issue #8):
-//  * check_gap: every calibrated run gets it in the worker, against its own NLSQ calibration; a
-//    significant gap makes the run REVIEW with the best candidate effect named;
+//  * check_gap: every calibrated run gets it in the worker, against its own NLSQ calibration, at
+//    the station's false-alarm rate per run; a significant gap makes the run REVIEW, naming an
+//    effect only when it explains the gap (DiagnosisOptions::min_shrinkage of the held-out gap);
 //  * diagnose_archive: `stationctl diagnose RUN_ID` on a stored run's archive.
 // The summary kept with the run is archive::diagnosis_summary_json (verdict, best effect with
 // magnitude and σ, overall gap, held-out gap).
@@ -22,8 +23,10 @@ struct GapCheck {
 
 /// A diagnosis that cannot run (a run too short for it) does not fail a calibration that
 /// succeeded: it is stored as {"verdict": "not run", "reason": ...} and the cross-check decides.
+/// `false_alarm_per_run`: the rate at which a run without any unmodelled effect is called
+/// significant ([calibration] gap_false_alarm).
 GapCheck check_gap(calib::CalibrationInput in, const archive::RunArchive& ar,
-                   const calib::ParamSet& nlsq_params);
+                   const calib::ParamSet& nlsq_params, double false_alarm_per_run);
 
 /// The full diagnosis JSON (archive::diagnosis_to_json) of an archive directory, plus
 /// "stored_summary" (what check_gap stores). Throws on input it cannot use, naming it.

@@ -420,6 +420,7 @@ nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
   job.archive_sha256 = digest;
   job.capture_json = orig.capture_json;
   job.k_sigma = cfg_.k_sigma;
+  job.gap_false_alarm = cfg_.gap_false_alarm;
   job.partial_reason = partial;
   lk.unlock();
   worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, out); });
@@ -502,6 +503,7 @@ nlohmann::json RunController::import_archive(const std::string& dir, const std::
   job.archive_dir = dest;
   job.archive_sha256 = digest;
   job.k_sigma = cfg_.k_sigma;
+  job.gap_false_alarm = cfg_.gap_false_alarm;
   lk.unlock();
   worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, out); });
   return {{"run_id", id},
@@ -1005,6 +1007,7 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
     job.archive_sha256 = sha;
     job.capture_json = capture_json;
     job.k_sigma = cfg_.k_sigma;
+    job.gap_false_alarm = cfg_.gap_false_alarm;
     {
       std::lock_guard<std::mutex> lk(mu_);
       L.snap.state = db::RunState::kCalibrating;

@@ -98,6 +98,7 @@ TEST(StationConfig, ExampleParsesToTheDocumentedValues) {
   EXPECT_EQ(c.stream_timeout_ms, 2000);
   EXPECT_EQ(c.default_sequence, "short");
   EXPECT_DOUBLE_EQ(c.k_sigma, 4.0);
+  EXPECT_DOUBLE_EQ(c.gap_false_alarm, 1e-4);
   EXPECT_EQ(c.log_level, "info");
   // Unit conversions: 0.0015 deg/√h = 0.0015·π/180 rad / 60 √s; 10 µg/√Hz = 10e-6·g0 m/s/√s.
   EXPECT_NEAR(c.arw_rad_per_sqrt_s(), 0.0015 * M_PI / 180.0 / 60.0, 1e-15);
@@ -179,6 +180,18 @@ TEST(StationConfig, OutOfRangeNamesTheKeyAndTheRange) {
                "[turntable] endpoint:");
   expect_error(with_line(kMinimal, 10, "can = \"vcan0\""), 10, 1,
                "[imu] can: \"vcan0\" is not a CAN URI");
+}
+
+// Issue #28: the gap check's false-alarm rate per run is a setting, a probability well below 1.
+TEST(StationConfig, GapFalseAlarmIsAProbabilityPerRun) {
+  EXPECT_DOUBLE_EQ(parse_config(kMinimal, "cfg.toml", "/etc").gap_false_alarm, 1e-4);
+  const StationConfig c = parse_config(
+      std::string(kMinimal) + "[calibration]\ngap_false_alarm = 1e-3\n", "cfg.toml", "/etc");
+  EXPECT_DOUBLE_EQ(c.gap_false_alarm, 1e-3);
+  expect_error(std::string(kMinimal) + "[calibration]\ngap_false_alarm = 0.5\n", 12, 1,
+               "[calibration] gap_false_alarm: 0.5 is out of range");
+  expect_error(std::string(kMinimal) + "[calibration]\ngap_false_alarm = 0\n", 12, 1,
+               "[calibration] gap_false_alarm: 0 is out of range");
 }
 
 TEST(StationConfig, MissingRequiredKeyNamesTheKeyAndItsTable) {
