@@ -6,11 +6,12 @@
 //   stationctl  --config <tmp>/stationd.toml ...  (exit code, stdout, stderr captured)
 //
 // Every test gets its own temporary directory, its own loopback address (so a Modbus port freed by
-// one test can never be reached by another test's daemon, see tests/drivers/turntable_client_test.cpp)
-// and its own processes. Processes are children of the test (fork/exec, stdout/stderr to files in
-// the temporary directory) and are always stopped by the destructors (SIGTERM, then SIGKILL), so a
-// failing assertion never leaves a daemon behind. Set IMUCAL_E2E_KEEP=1 to keep the directories
-// (their paths are printed) for post-mortems.
+// one test can never be reached by another test's daemon, see
+// tests/drivers/turntable_client_test.cpp) and its own processes. Processes are children of the
+// test (fork/exec, stdout/stderr to files in the temporary directory) and are always stopped by the
+// destructors (SIGTERM, then SIGKILL), so a failing assertion never leaves a daemon behind. Set
+// IMUCAL_E2E_KEEP=1 to keep the directories (their paths are printed) for post-mortems; a failing
+// test keeps its own unless IMUCAL_E2E_KEEP=0.
 //
 // Binaries come from IMUCAL_BIN_DIR (the build tree's bin/). A missing binary is a test failure,
 // never a skip.
@@ -125,6 +126,13 @@ class TempDir {
     const char* keep = std::getenv("IMUCAL_E2E_KEEP");
     if (keep && *keep && std::string(keep) != "0") {
       std::fprintf(stderr, "[e2e] kept %s\n", path_.c_str());
+      return;
+    }
+    // A failing test keeps its run archives, logs and database for the post-mortem (issue #28);
+    // IMUCAL_E2E_KEEP=0 removes them all the same.
+    if (!keep && ::testing::Test::HasFailure()) {
+      std::fprintf(stderr, "[e2e] the test failed: kept %s (IMUCAL_E2E_KEEP=0 removes it)\n",
+                   path_.c_str());
       return;
     }
     std::error_code ec;

@@ -22,6 +22,11 @@ int env_int(const char* name, int fallback) {
   return (v && *v) ? std::atoi(v) : fallback;
 }
 
+double env_double(const char* name, double fallback) {
+  const char* v = std::getenv(name);
+  return (v && *v) ? std::atof(v) : fallback;
+}
+
 /// VmRSS of a process in kB (-1 if unreadable).
 long rss_kb(pid_t pid) {
   std::ifstream in("/proc/" + std::to_string(pid) + "/status");
@@ -97,7 +102,9 @@ TEST(StationSoak, ConsecutiveRunsWithParallelQueriesAllPassWithFlatMemoryAndNoDe
   const int n = env_int("IMUCAL_SOAK_RUNS", 15);
   ASSERT_GE(n, 12) << "IMUCAL_SOAK_RUNS below 12 cannot show a trend after the warm-up";
   Station st;
-  ASSERT_TRUE(st.start(SimOptions{400.0, 41, {}}));
+  ASSERT_TRUE(st.start(SimOptions{env_double("IMUCAL_SOAK_SPEED", 400.0),
+                                  static_cast<uint64_t>(env_int("IMUCAL_SOAK_SEED", 41)),
+                                  {}}));
   const pid_t daemon = st.daemon().pid();
   std::vector<Sample> samples;
   const Sample at_start{rss_kb(daemon), fd_count(daemon)};
