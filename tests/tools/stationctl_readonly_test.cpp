@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -200,6 +202,93 @@ TEST_F(StationctlTest, ExportCsvAndJson) {
   EXPECT_TRUE(to_file.out.empty());
   EXPECT_NE(to_file.err.find("3 rows written to " + out_file), std::string::npos) << to_file.err;
   EXPECT_EQ(lines_of(slurp(out_file)).size(), 4u);
+}
+
+/// The file type of a path, not following a final symbolic link.
+mode_t lstat_type(const std::string& path) {
+  struct stat st {};
+  return ::lstat(path.c_str(), &st) == 0 ? (st.st_mode & S_IFMT) : 0;
+}
+
+// Issue #19, item 1: `--output PATH` must never destroy what is at PATH. As root, /dev/full became
+// a regular file ("12 rows written", exit 0) and a named pipe and a symbolic link were replaced.
+TEST_F(StationctlTest, ExportOutputWritesDevicesAndPipesInPlaceAndFollowsLinks) {
+  const std::string rows = ctl("export --serial SN-B --format csv").out;
+  ASSERT_EQ(lines_of(rows).size(), 4u);
+
+  // A full device: the write error with its reason, exit non-zero, the device still a device. As
+  // root (CI) a device node of our own (the same major/minor as /dev/full) keeps /dev untouched.
+  std::string full = "/dev/full";
+  if (::geteuid() == 0) {
+    full = dir_.file("full");
+    ASSERT_EQ(::mknod(full.c_str(), S_IFCHR | 0666, makedev(1, 7)), 0) << std::strerror(errno);
+  }
+  const Proc to_full = ctl("export --serial SN-B --format csv --output " + full);
+  EXPECT_NE(to_full.code, 0) << to_full.err;
+  EXPECT_NE(to_full.err.find("cannot write " + full + ": No space left on device"),
+            std::string::npos)
+      << to_full.err;
+  EXPECT_EQ(to_full.err.find("rows written"), std::string::npos) << to_full.err;
+  EXPECT_EQ(lstat_type(full), static_cast<mode_t>(S_IFCHR));
+
+  // A named pipe: its reader gets the rows; the pipe stays a pipe.
+  const std::string fifo = dir_.file("rows.fifo");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::string from_pipe;
+  std::thread reader([&] {
+    std::ifstream in(fifo, std::ios::binary);  // blocks until stationctl opens the pipe
+    from_pipe.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  });
+  const Proc to_fifo = ctl("export --serial SN-B --format csv --output " + fifo);
+  reader.join();
+  EXPECT_EQ(to_fifo.code, 0) << to_fifo.err;
+  EXPECT_EQ(from_pipe, rows);
+  EXPECT_EQ(lstat_type(fifo), static_cast<mode_t>(S_IFIFO));
+
+  // A symbolic link to a regular file: the target gets the rows (its permissions kept), the link
+  // stays a link; a dangling link's target is created.
+  const std::string target = dir_.file("target.csv"), link = dir_.file("link.csv");
+  { std::ofstream(target) << "old content\n"; }
+  ASSERT_EQ(::chmod(target.c_str(), 0640), 0);
+  fs::create_symlink("target.csv", link);
+  const Proc to_link = ctl("export --serial SN-B --format csv --output " + link);
+  EXPECT_EQ(to_link.code, 0) << to_link.err;
+  EXPECT_EQ(lstat_type(link), static_cast<mode_t>(S_IFLNK));
+  EXPECT_EQ(slurp(target), rows);
+  EXPECT_EQ(fs::status(target).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+  const std::string dangling = dir_.file("dangling.csv");
+  fs::create_symlink("created.csv", dangling);
+  const Proc to_dangling = ctl("export --serial SN-B --format csv --output " + dangling);
+  EXPECT_EQ(to_dangling.code, 0) << to_dangling.err;
+  EXPECT_EQ(lstat_type(dangling), static_cast<mode_t>(S_IFLNK));
+  EXPECT_EQ(slurp(dir_.file("created.csv")), rows);
+
+  // /dev/stdout is the process's own standard output (here the test's pipe).
+  const Proc to_stdout = ctl("export --serial SN-B --format csv --output /dev/stdout");
+  EXPECT_EQ(to_stdout.code, 0) << to_stdout.err;
+  EXPECT_EQ(to_stdout.out, rows);
+
+  // Refused before anything is written, naming the user's path (never a temporary file) and the
+  // system's reason; nothing left beside it.
+  const Proc to_dir = ctl("export --serial SN-B --format csv --output " + dir_.path());
+  EXPECT_NE(to_dir.code, 0);
+  EXPECT_NE(to_dir.err.find("cannot write " + dir_.path() + ": it is a directory"),
+            std::string::npos)
+      << to_dir.err;
+  const Proc to_proc = ctl("export --serial SN-B --format csv --output /proc/nope.csv");
+  EXPECT_NE(to_proc.code, 0);
+  EXPECT_NE(to_proc.err.find("cannot write /proc/nope.csv: "), std::string::npos) << to_proc.err;
+  EXPECT_EQ(to_proc.err.find("tmp"), std::string::npos) << to_proc.err;
+  const std::string missing_dir = dir_.file("no-such-dir") + "/x.csv";
+  const Proc to_missing = ctl("export --serial SN-B --format csv --output " + missing_dir);
+  EXPECT_NE(to_missing.code, 0);
+  EXPECT_NE(to_missing.err.find("cannot write " + missing_dir + ": No such file or directory"),
+            std::string::npos)
+      << to_missing.err;
+  for (const auto& e : fs::directory_iterator(dir_.path()))
+    EXPECT_EQ(e.path().filename().string().rfind(".", 0), std::string::npos)
+        << "a temporary file was left: " << e.path();
 }
 
 TEST_F(StationctlTest, BadInputExitsWithTwo) {

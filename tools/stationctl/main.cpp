@@ -32,6 +32,7 @@
 #include "station/control_client.hpp"
 #include "station/control_protocol.hpp"
 #include "station/record_json.hpp"
+#include "tools/stationctl/export_output.hpp"
 
 namespace {
 
@@ -39,6 +40,8 @@ using nlohmann::json;
 using namespace imucal;
 using station::ControlClient;
 using station::ControlClientError;
+using stationctl::ExportOutput;
+using stationctl::ExportOutputError;
 
 enum Exit : int { kOk = 0, kRunNotPassed = 1, kBadInput = 2, kRefused = 3, kUnavailable = 4 };
 
@@ -368,45 +371,6 @@ void check_serial(const std::string& serial) {
   if (const auto problem = db::serial_problem(serial)) throw Failure{kBadInput, *problem};
 }
 
-/// Where an export goes: stdout, or FILE through a temporary file renamed at the end, so that a
-/// failed or interrupted export leaves no half-written FILE.
-class ExportOutput {
- public:
-  explicit ExportOutput(std::string path) : path_(std::move(path)) {
-    if (path_.empty()) return;
-    tmp_ = path_ + ".tmp" + std::to_string(::getpid());
-    file_.open(tmp_, std::ios::binary | std::ios::trunc);
-    if (!file_) throw Failure{kUnavailable, "cannot write " + tmp_};
-  }
-  ~ExportOutput() {
-    if (!tmp_.empty() && !committed_) {
-      std::error_code ec;
-      std::filesystem::remove(tmp_, ec);
-    }
-  }
-  std::ostream& stream() { return path_.empty() ? std::cout : file_; }
-  void write(std::string_view bytes) {
-    stream().write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    if (!stream()) throw Failure{kUnavailable, "writing " + where() + " failed (disk full?)"};
-  }
-  void commit() {
-    stream().flush();
-    if (!stream()) throw Failure{kUnavailable, "writing " + where() + " failed (disk full?)"};
-    if (path_.empty()) return;
-    file_.close();
-    std::error_code ec;
-    std::filesystem::rename(tmp_, path_, ec);
-    if (ec) throw Failure{kUnavailable, "cannot write " + path_ + ": " + ec.message()};
-    committed_ = true;
-  }
-
- private:
-  std::string where() const { return path_.empty() ? "stdout" : tmp_; }
-  std::string path_, tmp_;
-  std::ofstream file_;
-  bool committed_ = false;
-};
-
 /// The export streamed from the daemon into `out`; the rows, or nullopt (with `why`) when the
 /// daemon cannot serve it and nothing has been written yet, so the database can be read instead.
 std::optional<std::size_t> export_from_daemon(const Target& t, const json& args, ExportOutput& out,
@@ -438,8 +402,9 @@ std::optional<std::size_t> export_from_daemon(const Target& t, const json& args,
 }
 
 /// `stationctl export`: streamed from the daemon as it reads the rows, or straight from the
-/// database when the daemon is down; memory stays flat either way (issue #11).
-int cmd_export(const Target& t, const json& args, const std::string& output, bool json_out) {
+/// database when the daemon is down; memory stays flat either way (issue #11). Where the bytes go:
+/// tools/stationctl/export_output.hpp.
+int export_to(const Target& t, const json& args, const std::string& output, bool json_out) {
   ExportOutput out(output);
   std::string why;
   std::optional<std::size_t> rows = export_from_daemon(t, args, out, why);
@@ -455,6 +420,7 @@ int cmd_export(const Target& t, const json& args, const std::string& output, boo
       rows = db::export_history(repo, station::export_filter(repo, args),
                                 args.at("format").get<std::string>(), out.stream());
     } catch (const db::DbError& e) {
+      out.check();  // the output's own failure, with the system's reason, before the export's words
       throw Failure{exit_for_db_error(e.kind()), e.what()};
     }
   }
@@ -465,6 +431,14 @@ int cmd_export(const Target& t, const json& args, const std::string& output, boo
   else
     std::cerr << "stationctl: " << *rows << " rows written to " << output << "\n";
   return kOk;
+}
+
+int cmd_export(const Target& t, const json& args, const std::string& output, bool json_out) {
+  try {
+    return export_to(t, args, output, json_out);
+  } catch (const ExportOutputError& e) {
+    throw Failure{kUnavailable, e.what()};
+  }
 }
 
 /// Every option value of every command (CLI11 binds to these; one command runs per call).
