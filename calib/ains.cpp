@@ -80,8 +80,7 @@ ains::PassResult iterate_passes(const ains::PreparedInput& pin, const AinsOption
     const ParamVector delta = ains::sensor_states_to_params(pass.x);
     const ParamCovariance cov = ains::sensor_cov_to_params(pass.P);
     if (!delta.allFinite() || !cov.allFinite())
-      throw std::runtime_error("calibrate_ains: non-finite parameter update in pass " +
-                               std::to_string(it));
+      throw std::runtime_error("AINS: non-finite parameter update in pass " + std::to_string(it));
     const ParamVector sigma = cov.diagonal().cwiseMax(1e-300).cwiseSqrt();
     double ratio = delta.cwiseAbs().cwiseQuotient(sigma).maxCoeff();
     if (field) {

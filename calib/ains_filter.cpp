@@ -20,7 +20,7 @@ namespace {
 constexpr int kNs = kNumSensor;
 
 [[noreturn]] void fail(const std::string& what) {
-  throw std::invalid_argument("calibrate_ains: " + what);
+  throw std::invalid_argument("AINS: " + what);  // the method, not the function (issue #19)
 }
 
 bool finite3(const Vector3d& v) { return v.allFinite(); }
@@ -231,7 +231,7 @@ class PassRunner {
       if (kind == 2) update(k, in_.has_reference_attitude());
       record_and_reset(k, kind == 2);
       if (!x_.allFinite() || !P_.allFinite())
-        throw std::runtime_error("calibrate_ains: filter diverged (non-finite state) at sample " +
+        throw std::runtime_error("AINS: filter diverged (non-finite state) at sample " +
                                  std::to_string(k));
     }
     res_.x = x_;

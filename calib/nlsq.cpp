@@ -22,7 +22,8 @@ namespace imucal::calib {
 
 namespace {
 
-constexpr const char* kWho = "calibrate_nlsq: ";
+// Messages reach operators: the method's name, not the function's (issue #19 item 9).
+constexpr const char* kWho = "NLSQ: ";
 // A rotation between rests smaller than this does not count as "the table moved".
 constexpr double kMinRotation_rad = 1.0 * kDegToRad;
 // Normalised information-matrix eigenvalue below which a direction counts as unobservable.

@@ -66,7 +66,7 @@ struct NlsqOptions {
 };
 
 /// Calibrate the 27 parameters from a factory run. Throws std::invalid_argument (message starting
-/// "calibrate_nlsq:") when the input cannot be calibrated: sizes of imu/reference differ,
+/// "NLSQ:") when the input cannot be calibrated: sizes of imu/reference differ,
 /// non-finite or non-positive values, fewer than 2 rest periods, no rotation between rests, a noise
 /// model without ARW/VRW (needed to weight the residuals), or parameters not observable on the
 /// sequence.

@@ -515,7 +515,8 @@ struct SqliteRepository::Impl {
   RunState state_of(RunId run_id, const char* op) const {
     Stmt q(*this, kSqlRunState, op);
     q.bind(1, run_id);
-    if (!q.step()) throw NotFound(path + ": " + op + ": no " + run_label(run_id));
+    if (!q.step())
+      throw NotFound("no " + run_label(run_id) + " in " + path);  // op: internal, not for users
     return decode([&] { return run_label(run_id) + " state"; },
                   [&] { return run_state_from_string(q.text(0)); });
   }
@@ -586,7 +587,8 @@ struct SqliteRepository::Impl {
   calib::Setting setting_of(RunId run_id, const char* op) const {
     Stmt q(*this, "SELECT setting FROM runs WHERE id = ?1", op);
     q.bind(1, run_id);
-    if (!q.step()) throw NotFound(path + ": " + op + ": no " + run_label(run_id));
+    if (!q.step())
+      throw NotFound("no " + run_label(run_id) + " in " + path);  // op: internal, not for users
     const auto v = calib::parse_setting(q.text(0));
     if (!v) throw Corrupt(path + ": " + run_label(run_id) + " has an unknown setting");
     return *v;
@@ -898,7 +900,7 @@ RunDetails SqliteRepository::show(RunId run_id) const {
   {
     Impl::Stmt q(d, kSqlRunById.c_str(), "show");
     q.bind(1, run_id);
-    if (!q.step()) throw NotFound(d.path + ": show: no " + run_label(run_id));
+    if (!q.step()) throw NotFound("no " + run_label(run_id) + " in " + d.path);
     out.run = d.read_run(q);
   }
   out.calibrations = d.calibrations_of(run_id);
@@ -969,7 +971,7 @@ void SqliteRepository::promote(RunId run_id, const std::string& by, const std::s
   {
     Impl::Stmt q(d, kSqlRunById.c_str(), op);
     q.bind(1, run_id);
-    if (!q.step()) throw NotFound(d.path + ": " + op + ": no " + run_label(run_id));
+    if (!q.step()) throw NotFound("no " + run_label(run_id) + " in " + d.path);
     r = d.read_run(q);
   }
   if (r.setting == calib::Setting::kFactory)

@@ -177,9 +177,12 @@ std::string resolve_sequence(const std::string& name_or_path) {
   }
   std::string names;
   for (const std::string& n : available_sequences()) names += (names.empty() ? "" : ", ") + n;
+  // A bare name is a library name to the user; a path is a file.
+  if (name_or_path.find('/') == std::string::npos)
+    throw SequenceError::unknown_name(name_or_path, sequence_dir(), names);
   throw SequenceError(name_or_path, 0,
-                      "no such sequence file or library name; available in " + sequence_dir() +
-                          ": " + (names.empty() ? "(none)" : names));
+                      "no such sequence file (library " + sequence_dir() + ": " +
+                          (names.empty() ? "(none)" : names) + ")");
 }
 
 MotionProfile load_profile(const std::string& name_or_path, const TableLimits& station) {

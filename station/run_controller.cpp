@@ -210,7 +210,7 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
     seq_path = sequences::resolve_sequence(seq_name);
   } catch (const sequences::SequenceError& e) {
     throw ControlError(error_code::kNotFound,
-                       "unknown sequence \"" + seq_name + "\": " + e.message());
+                       e.what());  // names the sequence (and the library's, for a bare name)
   }
   RunPlan plan;
   try {

@@ -700,7 +700,7 @@ void write_archive(const std::string& dir_in, const RunArchive& a, bool overwrit
     if (target_exists && !overwrite)
       throw ArchiveError(dir,
                          "exists and is not empty; refusing to overwrite a run archive "
-                         "(remove it or pass overwrite=true)");
+                         "(remove it first)");
   }
   const fs::path parent = fs::path(dir).parent_path();
   const std::string parent_dir = parent.empty() ? "." : parent.string();

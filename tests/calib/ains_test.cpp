@@ -187,6 +187,8 @@ TEST(Ains, NoRestPeriodsIsRejectedWithAClearMessage) {
     FAIL() << "expected std::invalid_argument";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("no rest periods"), std::string::npos) << e.what();
+    // Issue #19 item 9: the method's name, not the function's.
+    EXPECT_EQ(std::string(e.what()).rfind("AINS: ", 0), 0u) << e.what();
   }
 }
 

@@ -386,7 +386,9 @@ TEST(Nlsq, FewerThanTwoRestPeriodsIsRejected) {
   in.imu.resize(periods[1].begin);
   in.reference.resize(periods[1].begin);
   const std::string msg = error_of(in);
-  EXPECT_NE(msg.find("calibrate_nlsq"), std::string::npos) << msg;
+  // Issue #19 item 9: the method's name, not the function's.
+  EXPECT_EQ(msg.rfind("NLSQ: ", 0), 0u) << msg;
+  EXPECT_EQ(msg.find("calibrate_nlsq"), std::string::npos) << msg;
   EXPECT_NE(msg.find("1 rest period"), std::string::npos) << msg;
   EXPECT_NE(msg.find("at least 2"), std::string::npos) << msg;
 }

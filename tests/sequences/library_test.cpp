@@ -106,6 +106,13 @@ TEST(Library, UnknownNameListsTheAvailableOnes) {
       const std::string msg = e.what();
       for (const char* n : {"factory-std", "pos19", "short"})
         EXPECT_NE(msg.find(n), std::string::npos) << msg;
+      // Issue #19 item 9: no line number for a missing file ("shrot:0: ..."); a bare name is an
+      // unknown sequence, named as the user typed it.
+      EXPECT_EQ(msg.find(":0:"), std::string::npos) << msg;
+      if (bad.find('/') == std::string::npos)
+        EXPECT_EQ(msg.rfind("unknown sequence '" + bad + "' (library ", 0), 0u) << msg;
+      else
+        EXPECT_EQ(msg.rfind(bad + ": no such sequence file (library ", 0), 0u) << msg;
     }
   }
 }

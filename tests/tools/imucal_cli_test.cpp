@@ -245,6 +245,31 @@ TEST_F(ImucalCli, BadSequencesAreRejectedNamingTheProblem) {
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("factory-std"), std::string::npos)
       << "should list the available names: " << r.out;
+  // Issue #19 item 9: a typo reads as one (was "imucal: error: shrot:0: no such sequence file or
+  // library name; ...").
+  r = run_imucal("simulate --sequence shrot --out " + (base_ / "z").string());
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("imucal: error: unknown sequence 'shrot' (library "), std::string::npos)
+      << r.out;
+  EXPECT_EQ(r.out.find(":0:"), std::string::npos) << r.out;
+}
+
+// Issue #19 item 9: the refusal names the command's flag (was "pass overwrite=true"), before any
+// simulation work; with the flag the archive is replaced.
+TEST_F(ImucalCli, SimulateIntoAnExistingArchiveNamesTheOverwriteFlag) {
+  const std::string dir = (base_ / "sim").string();
+  const auto before = fs::last_write_time(base_ / "sim" / "imu.csv");
+  ProcResult r = run_imucal("simulate --sequence short --seed 4 --out " + dir);
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(dir + ": exists and is not empty"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--overwrite"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("overwrite=true"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::last_write_time(base_ / "sim" / "imu.csv") == before);
+  const fs::path other = base_ / "replaced";
+  r = run_imucal("simulate --sequence short --seed 4 --out " + other.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run_imucal("simulate --sequence short --seed 5 --out " + other.string() + " --overwrite");
+  EXPECT_EQ(r.code, 0) << r.out;
 }
 
 TEST_F(ImucalCli, EvaluateReproducesTheCalibrateMetricsAndRejectsBadParameterFiles) {

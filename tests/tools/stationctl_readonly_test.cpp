@@ -163,6 +163,15 @@ TEST_F(StationctlTest, ShowPrintsTheRunAndItsParameters) {
   EXPECT_EQ(sigma.to_vector(), db::test::seeded_sigma(2, 1).to_vector());
 }
 
+// Issue #19 item 9: no internal operation names in messages (was "history.sqlite: show: no run
+// 99").
+TEST_F(StationctlTest, ShowOfAnUnknownRunNamesTheRunAndTheDatabase) {
+  const Proc r = ctl("show 99");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("no run 99 in " + db_), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("show:"), std::string::npos) << r.err;
+}
+
 TEST_F(StationctlTest, ParamsOutputLoadsAsTheStoredActiveSet) {
   // SN-A's latest done+PASS run is run 2 (12:00): the REVIEW at 11:00 and the abort at 13:00 do
   // not count. Its AINS set (seed 2, method 0) is the active one.

@@ -44,6 +44,8 @@ using namespace imucal;
 
 namespace {
 
+namespace fs = std::filesystem;
+
 constexpr int kExitBadInput = 1;
 constexpr int kExitReview = 3;
 constexpr int kExitUsage = 2;
@@ -151,7 +153,18 @@ archive::RunArchive simulate_field_archive(const SimulateArgs& a, const calib::U
   return ar;
 }
 
+/// Refuses an --out directory that already holds something, naming the flag that allows it, before
+/// any simulation work.
+void refuse_existing_output(const SimulateArgs& a) {
+  std::error_code ec;
+  if (a.overwrite || !fs::is_directory(a.out_dir, ec) || fs::is_empty(a.out_dir, ec)) return;
+  throw archive::ArchiveError(a.out_dir,
+                              "exists and is not empty; refusing to overwrite a run archive "
+                              "(remove it, or give --overwrite to replace it)");
+}
+
 int cmd_simulate(const SimulateArgs& a) {
+  refuse_existing_output(a);
   calib::UnitModel unit = load_unit(a.unit);
   // Catalogue effects on top of the unit (checked before any work: nothing is written on error).
   for (const std::string& spec : a.effect_specs) {
@@ -325,7 +338,7 @@ int cmd_bench(const std::string& dir, int repeat, bool sequential, bool json) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"imucal — IMU calibration on run archives (simulate, calibrate, evaluate, crlb)"};
+  CLI::App app{"imucal — IMU calibration on run archives"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string(IMUCAL_VERSION));
 
