@@ -5,7 +5,6 @@
 
 #include <chrono>
 #include <exception>
-#include <nlohmann/json.hpp>
 
 #include "calib/calibration_pipeline.hpp"
 #include "db/archive/run_archive.hpp"
@@ -42,18 +41,16 @@ std::string review_reason(const calib::PipelineResult& r) {
   return reason;
 }
 
-/// What the capture filled in or lost, for a gap reason: "" for a clean capture (or no counters).
-/// A gap on a run with interpolated samples may be the interpolation's, not the unit's.
-std::string capture_note(const std::string& capture_json) {
-  if (capture_json.empty()) return "";
-  const nlohmann::json c = nlohmann::json::parse(capture_json, nullptr, false);
-  if (!c.is_object()) return "";
-  const auto count = [&](const char* key) { return c.value(key, uint64_t{0}); };
-  const uint64_t lost = count("samples_lost"), filled = count("samples_filled"),
-                 late = count("samples_late"), corrupt = count("samples_corrupt");
-  if (lost + filled + late + corrupt == 0) return "";
-  return " (capture: " + std::to_string(lost) + " samples lost, " + std::to_string(filled) +
-         " filled by interpolation, " + std::to_string(late) + " late, " + std::to_string(corrupt) +
+/// What the capture filled in or lost (the archive's run.toml [capture]), for a gap reason: "" for
+/// a clean capture or an archive without counters. A gap on a run with interpolated samples may be
+/// the interpolation's, not the unit's.
+std::string capture_note(const archive::RunArchive& ar) {
+  if (!ar.info.capture) return "";
+  const archive::CaptureInfo& c = *ar.info.capture;
+  if (c.samples_lost + c.samples_filled + c.samples_late + c.samples_corrupt == 0) return "";
+  return " (capture: " + std::to_string(c.samples_lost) + " samples lost, " +
+         std::to_string(c.samples_filled) + " filled by interpolation, " +
+         std::to_string(c.samples_late) + " late, " + std::to_string(c.samples_corrupt) +
          " corrupt)";
 }
 
@@ -73,7 +70,7 @@ void store_factory_result(const calib::PipelineResult& r, calib::CalibrationInpu
   const GapCheck gap = check_gap(std::move(in), ar, r.nlsq->result.params, job.gap_false_alarm);
   completion.diagnosis_json = gap.summary.dump();
   const std::string gap_reason =
-      gap.significant ? "sim-to-real gap: " + gap.text + capture_note(job.capture_json) : "";
+      gap.significant ? "sim-to-real gap: " + gap.text + capture_note(ar) : "";
   if (r.pass() && !gap.significant) {
     completion.state = db::RunState::kDone;
     out.verdict = db::Verdict::kPass;

@@ -39,6 +39,67 @@ uint64_t noise_seed(uint64_t seed, uint64_t n) {
   return z ^ (z >> 31);
 }
 
+/// The scheduled Modbus faults (dropped connections, delayed replies), applied by physics time.
+class ModbusFaultSchedule {
+ public:
+  explicit ModbusFaultSchedule(const StationSimFaults& f)
+      : drops_(f.modbus_drop_at_s), delays_(f.modbus_delay) {
+    std::sort(drops_.begin(), drops_.end());
+    std::sort(delays_.begin(), delays_.end(),
+              [](const auto& a, const auto& b) { return a.at_s < b.at_s; });
+  }
+  /// Applies every fault due by t_s; returns the connections dropped.
+  uint64_t apply_due(double t_s, ModbusTableServer& server) {
+    uint64_t dropped = 0;
+    for (; next_drop_ < drops_.size() && drops_[next_drop_] <= t_s; ++next_drop_, ++dropped)
+      server.drop_clients();
+    for (; next_delay_ < delays_.size() && delays_[next_delay_].at_s <= t_s; ++next_delay_)
+      server.delay_replies(std::chrono::milliseconds(delays_[next_delay_].delay_ms),
+                           delays_[next_delay_].count);
+    return dropped;
+  }
+
+ private:
+  std::vector<double> drops_;
+  std::vector<StationSimFaults::Delay> delays_;
+  size_t next_drop_ = 0, next_delay_ = 0;
+};
+
+/// When the sensor noise restarts: from a stream of its own at each accepted home command (a
+/// station starts every run with one) and at the end of each motion after it — stream (seed, homes,
+/// motions ended since the home). A run's noise then does not depend on how long the station idled
+/// before it, nor each rest's on how long the daemon took to command the moves before it: both are
+/// wall-clock latencies times the speed factor (issue #28: on a slow machine the soak's third run
+/// always read the same unlucky stretch of one continuous stream). Left: the daemon's latency
+/// between a motion's end and the start of its rest count, a second or two of sim time at 400x.
+class NoiseRestarts {
+ public:
+  explicit NoiseRestarts(uint64_t seed) : seed_(seed) {}
+  void home_accepted() {
+    ++homes_;
+    motions_ = 0;
+    due_ = true;
+  }
+  /// After each sample, with whether the table is moving at its end.
+  void sample_done(bool moving) {
+    if (was_moving_ && !moving) {  // the motion ended inside this sample
+      ++motions_;
+      due_ = true;
+    }
+    was_moving_ = moving;
+  }
+  /// Restarts the stream's noise if due (from the next sample on).
+  void apply(calib::TruthStream& stream) {
+    if (!due_) return;
+    stream.reseed_noise(noise_seed(noise_seed(seed_, homes_), motions_));
+    due_ = false;
+  }
+
+ private:
+  uint64_t seed_, homes_ = 0, motions_ = 0;
+  bool due_ = false, was_moving_ = false;
+};
+
 }  // namespace
 
 StationSim::StationSim(StationSimConfig cfg) : cfg_(std::move(cfg)) {
@@ -165,6 +226,20 @@ StationSimStats StationSim::stats() const {
   return s;
 }
 
+void StationSim::record_sample_sent(double t_s, double wall_elapsed_s) {
+  sim_time_s_.store(t_s);
+  const ImuCanNodeStats& ns = node_->stats();
+  std::lock_guard<std::mutex> lock(mu_);
+  node_stats_.samples_sent = ns.samples_transmitted;
+  node_stats_.frames_sent = ns.frames_sent;
+  node_stats_.frames_lost = ns.frames_lost;
+  node_stats_.frames_corrupted = ns.frames_corrupted;
+  node_stats_.frames_refused = ns.frames_refused + channel_->counters().tx_overflow;
+  node_stats_.imu_resets = ns.resets;
+  node_stats_.sim_time_s = t_s;
+  wall_elapsed_s_ = wall_elapsed_s;
+}
+
 void StationSim::run() {
   calib::SimOptions o;
   o.rate_hz = cfg_.rate_hz;
@@ -173,22 +248,9 @@ void StationSim::run() {
   calib::TruthStream stream(cfg_.geometry, cfg_.site, cfg_.unit, o);
   const uint16_t move_code = cfg_.plc.map.commands.move;
   const uint16_t home_code = cfg_.plc.map.commands.home;
-  // The sensor noise restarts from a stream of its own at each accepted home command (a station
-  // starts every run with one) and at the end of each motion after it: stream (seed, homes, motions
-  // ended since the home). A run's noise then does not depend on how long the station idled before
-  // it, nor each rest's on how long the daemon took to command the moves before it — both are
-  // wall-clock latencies times the speed factor (issue #28: on a slow machine the soak's third run
-  // always read the same unlucky stretch of one continuous stream). Left: the daemon's latency
-  // between a motion's end and the start of its rest count, a second or two of sim time at 400x.
-  uint64_t homes_accepted = 0, motions_ended = 0;
-  bool reseed_due = false, was_moving = false;
+  NoiseRestarts noise_restarts(cfg_.seed);
 
-  std::vector<double> drops = cfg_.faults.modbus_drop_at_s;
-  std::sort(drops.begin(), drops.end());
-  std::vector<StationSimFaults::Delay> delays = cfg_.faults.modbus_delay;
-  std::sort(delays.begin(), delays.end(),
-            [](const auto& a, const auto& b) { return a.at_s < b.at_s; });
-  size_t next_drop = 0, next_delay = 0;
+  ModbusFaultSchedule modbus_faults(cfg_.faults);
   ImuFaultInjector fault(cfg_.faults.imu_fault);
   const auto& table_fault = cfg_.faults.table_fault;
   bool fault_armed = false;
@@ -212,11 +274,8 @@ void StationSim::run() {
         moves_accepted_.fetch_add(1);
         arm_if_due(plc);
       }
-      if (plc.last_command() == home_code && plc.ack_result() == AckResult::kAccepted) {
-        ++homes_accepted;
-        motions_ended = 0;
-        reseed_due = true;
-      }
+      if (plc.last_command() == home_code && plc.ack_result() == AckResult::kAccepted)
+        noise_restarts.home_accepted();
     }
   };
 
@@ -242,17 +301,7 @@ void StationSim::run() {
         std::this_thread::sleep_for(std::chrono::duration<double>(wait_s));
         continue;
       }
-      // Scheduled Modbus faults by physics time.
-      while (next_drop < drops.size() && drops[next_drop] <= t_next) {
-        server_->drop_clients();
-        modbus_drops_.fetch_add(1);
-        ++next_drop;
-      }
-      while (next_delay < delays.size() && delays[next_delay].at_s <= t_next) {
-        server_->delay_replies(std::chrono::milliseconds(delays[next_delay].delay_ms),
-                               delays[next_delay].count);
-        ++next_delay;
-      }
+      modbus_drops_.fetch_add(modbus_faults.apply_due(t_next, *server_));
       calib::ImuIncrement inc;
       server_->with_plc([&](TablePlc& plc) {
         // Commands written over Modbus since the last sample are acted on at the interval start (a
@@ -269,16 +318,9 @@ void StationSim::run() {
               return plc.actual_state();
             },
             breaks);
-        if (was_moving && !plc.moving()) {  // the motion ended inside this sample
-          ++motions_ended;
-          reseed_due = true;
-        }
-        was_moving = plc.moving();
+        noise_restarts.sample_done(plc.moving());
       });
-      if (reseed_due) {  // from the next sample on
-        stream.reseed_noise(noise_seed(noise_seed(cfg_.seed, homes_accepted), motions_ended));
-        reseed_due = false;
-      }
+      noise_restarts.apply(stream);
       if (reset_requested_.exchange(false)) node_->reset();
       if (stream.samples() % 16 == 0) {
         // A bus: what other nodes send reaches the other peers (the listener forwards on read).
@@ -289,17 +331,7 @@ void StationSim::run() {
       node_->send(
           inc,
           fault_flags);  // outside the PLC lock: a slow CAN reader must not block Modbus replies
-      sim_time_s_.store(inc.t_s);
-      const ImuCanNodeStats& ns = node_->stats();
-      std::lock_guard<std::mutex> lock(mu_);
-      node_stats_.samples_sent = ns.samples_transmitted;
-      node_stats_.frames_sent = ns.frames_sent;
-      node_stats_.frames_lost = ns.frames_lost;
-      node_stats_.frames_corrupted = ns.frames_corrupted;
-      node_stats_.frames_refused = ns.frames_refused + channel_->counters().tx_overflow;
-      node_stats_.imu_resets = ns.resets;
-      node_stats_.sim_time_s = inc.t_s;
-      wall_elapsed_s_ = clock() / cfg_.speed;
+      record_sample_sent(inc.t_s, clock() / cfg_.speed);
     }
   } catch (const std::exception& e) {
     std::lock_guard<std::mutex> lock(mu_);

@@ -124,6 +124,8 @@ class StationSim {  // one physics thread: steps the PLC and emits each IMU samp
 
  private:
   void run();
+  /// The counters after a sample went out (physics time t_s, wall time since the start).
+  void record_sample_sent(double t_s, double wall_elapsed_s);
 
   StationSimConfig cfg_;
   std::unique_ptr<ModbusTableServer> server_;
