@@ -10,8 +10,9 @@ namespace imucal::db {
 
 using nlohmann::json;
 
-const char* const kCsvRunColumns[20] = {
-    "run_id",           "serial",       "state",          "verdict",        "started_at",
+const char* const kCsvRunColumns[21] = {
+    "run_id",           "serial",       "state",          "verdict",        "crosscheck_verdict",
+    "started_at",
     "ended_at",         "operator",     "station",        "sequence_name",  "sequence_sha256",
     "software_version", "archive_path", "archive_sha256", "failure_reason", "reprocessed_from",
     "setting",          "origin",       "promoted_at",    "promoted_by",    "promote_reason"};
@@ -130,6 +131,7 @@ std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::
     line.field(r.serial);
     line.field(to_string(r.state));
     r.verdict ? line.field(to_string(*r.verdict)) : line.empty();
+    r.crosscheck_verdict ? line.field(to_string(*r.crosscheck_verdict)) : line.empty();
     line.field(format_time_utc(r.started_at_ms));
     r.ended_at_ms ? line.field(format_time_utc(*r.ended_at_ms)) : line.empty();
     line.field(r.operator_name);
@@ -233,12 +235,20 @@ json stored_object(const std::string& text, RunId run_id, const char* column) {
 
 }  // namespace
 
+json reasons_json(const std::vector<RunReason>& reasons) {
+  json a = json::array();
+  for (const RunReason& x : reasons) a.push_back({{"source", x.source}, {"text", x.text}});
+  return a;
+}
+
 json run_json(const RunRecord& r) {
   json o;
   o["run_id"] = r.run_id;
   o["serial"] = r.serial;
   o["state"] = to_string(r.state);
   o["verdict"] = r.verdict ? json(to_string(*r.verdict)) : json(nullptr);
+  o["crosscheck_verdict"] =
+      r.crosscheck_verdict ? json(to_string(*r.crosscheck_verdict)) : json(nullptr);
   o["started_at"] = format_time_utc(r.started_at_ms);
   o["ended_at"] = r.ended_at_ms ? json(format_time_utc(*r.ended_at_ms)) : json(nullptr);
   o["started_at_ms"] = r.started_at_ms;
@@ -251,6 +261,7 @@ json run_json(const RunRecord& r) {
   o["archive_path"] = r.archive_path;
   o["archive_sha256"] = r.archive_sha256;
   o["failure_reason"] = r.failure_reason;
+  o["reasons"] = reasons_json(r.reasons);
   o["reprocessed_from"] = r.reprocessed_from ? json(*r.reprocessed_from) : json(nullptr);
   o["setting"] = calib::setting_name(r.setting);
   o["origin"] = r.origin;

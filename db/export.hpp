@@ -11,7 +11,9 @@
 // parameter-set JSON (calib::param_info(i).name, e.g. "accel_M[0][1]") in SI units, then their
 // 1-σ as "sigma.<name>", then the run's cross-check (kCsvCrosscheckColumns: k_sigma and the
 // failing terms as "term: detail" joined by "; ") and its capture counters as "capture.<counter>"
-// (archive::CaptureInfo::counters(), the names of db/archive/FORMAT.md). Times are ISO 8601 UTC
+// (archive::CaptureInfo::counters(), the names of db/archive/FORMAT.md). "verdict" is the run's
+// (PASS/REVIEW/FAILED), "crosscheck_verdict" the cross-check's own (PASS/REVIEW), "failure_reason"
+// every reason joined by "; ". Times are ISO 8601 UTC
 // ("2024-05-01T12:34:56.789Z"); numbers are the shortest text that parses back to the stored
 // double; absent values are empty fields.
 //
@@ -27,7 +29,7 @@
 namespace imucal::db {
 
 /// Run columns of the CSV export, in order.
-extern const char* const kCsvRunColumns[20];
+extern const char* const kCsvRunColumns[21];
 /// Calibration columns of the CSV export, in order (then parameters and sigmas).
 extern const char* const kCsvCalibrationColumns[11];
 /// The run's cross-check columns, after the sigmas (then the capture counters).
@@ -48,10 +50,14 @@ std::size_t export_history(const Repository& repo, const ExportFilter& filter,
 std::string csv_field(const std::string& value);
 
 // ----- JSON forms of the records -------------------------------------------------------------
-/// {"run_id", "serial", "state", "verdict" (or null), "started_at", "ended_at" (or null),
-///  "started_at_ms", "ended_at_ms", "operator", "station", "sequence_name", "sequence_sha256",
-///  "software_version", "archive_path", "archive_sha256", "failure_reason", "reprocessed_from"}
+/// {"run_id", "serial", "state", "verdict" (the run's: PASS/REVIEW/FAILED, or null while live),
+///  "crosscheck_verdict" (the cross-check's own: PASS/REVIEW, or null), "started_at", "ended_at"
+///  (or null), "started_at_ms", "ended_at_ms", "operator", "station", "sequence_name",
+///  "sequence_sha256", "software_version", "archive_path", "archive_sha256", "failure_reason",
+///  "reasons" (reasons_json), "reprocessed_from", ...}
 nlohmann::json run_json(const RunRecord& run);
+/// [{"source", "text"}, ...]: a run's reasons (RunReason).
+nlohmann::json reasons_json(const std::vector<RunReason>& reasons);
 /// {"method", "converged", "iterations", "runtime_s", "warnings",
 ///  "params": parameter-set JSON with "sigma" (DESIGN §3), "metrics": {...} or null}
 nlohmann::json calibration_json(const CalibrationRecord& calibration);

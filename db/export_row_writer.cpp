@@ -150,6 +150,18 @@ void append_crosscheck(std::string& out, const CrosscheckRecord& x) {
   append_string(o.key("verdict"), to_string(x.verdict));
 }
 
+/// The run's reasons as run_json prints them: [{"source", "text"}, ...].
+void append_reasons(std::string& out, const std::vector<RunReason>& reasons) {
+  out += '[';
+  for (size_t i = 0; i < reasons.size(); ++i) {
+    if (i) out += ',';
+    Object reason(out);
+    append_string(reason.key("source"), reasons[i].source);
+    append_string(reason.key("text"), reasons[i].text);
+  }
+  out += ']';
+}
+
 /// A stored JSON-object column as run_json prints it: null when empty, Corrupt when damaged.
 void append_stored_object(std::string& out, const std::string& text, RunId run_id,
                           const char* column) {
@@ -177,6 +189,8 @@ void append_export_row_json(std::string& out, const ExportRow& row) {
   append_optional(o.key("calibration"), row.calibration, append_calibration);
   append_stored_object(o.key("capture"), r.capture_json, r.run_id, "capture_json");
   append_optional(o.key("crosscheck"), row.crosscheck, append_crosscheck);
+  append_optional(o.key("crosscheck_verdict"), r.crosscheck_verdict,
+                  [](std::string& s, Verdict v) { append_string(s, to_string(v)); });
   append_stored_object(o.key("diagnosis"), r.diagnosis_json, r.run_id, "diagnosis_json");
   append_optional(o.key("ended_at"), r.ended_at_ms, time_utc);
   append_optional(o.key("ended_at_ms"), r.ended_at_ms, integer);
@@ -186,6 +200,7 @@ void append_export_row_json(std::string& out, const ExportRow& row) {
   append_string(o.key("promote_reason"), r.promote_reason);
   append_optional(o.key("promoted_at"), r.promoted_at_ms, time_utc);
   append_string(o.key("promoted_by"), r.promoted_by);
+  append_reasons(o.key("reasons"), r.reasons);
   append_optional(o.key("reprocessed_from"), r.reprocessed_from, integer);
   append_int(o.key("run_id"), r.run_id);
   append_string(o.key("sequence_name"), r.sequence_name);
@@ -198,7 +213,7 @@ void append_export_row_json(std::string& out, const ExportRow& row) {
   append_string(o.key("state"), to_string(r.state));
   append_string(o.key("station"), r.station);
   append_optional(o.key("verdict"), r.verdict,
-                  [](std::string& s, Verdict v) { append_string(s, to_string(v)); });
+                  [](std::string& s, RunVerdict v) { append_string(s, to_string(v)); });
 }
 
 }  // namespace imucal::db

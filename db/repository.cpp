@@ -103,6 +103,39 @@ Verdict verdict_from_string(const std::string& s) {
   throw InvalidInput("unknown cross-check verdict \"" + s + "\" (expected PASS or REVIEW)");
 }
 
+const char* to_string(RunVerdict v) {
+  switch (v) {
+    case RunVerdict::kPass:
+      return "PASS";
+    case RunVerdict::kReview:
+      return "REVIEW";
+    case RunVerdict::kFailed:
+      return "FAILED";
+  }
+  return "FAILED";
+}
+
+std::optional<RunVerdict> run_verdict(RunState s) {
+  switch (s) {
+    case RunState::kDone:
+      return RunVerdict::kPass;
+    case RunState::kReview:
+      return RunVerdict::kReview;
+    case RunState::kFailed:
+    case RunState::kAborted:
+    case RunState::kInterrupted:
+      return RunVerdict::kFailed;
+    default:
+      return std::nullopt;
+  }
+}
+
+std::string join_reasons(const std::vector<RunReason>& reasons) {
+  std::string s;
+  for (const RunReason& r : reasons) s += (s.empty() ? "" : "; ") + r.text;
+  return s;
+}
+
 CalibrationRecord calibration_record(const calib::CalibrationResult& result,
                                      const calib::EvaluationMetrics* metrics) {
   CalibrationRecord r;
@@ -130,6 +163,12 @@ CrosscheckRecord crosscheck_record(const calib::CrossCheckResult& result, double
   r.k_sigma = k_sigma;
   r.failures = result.failures;
   return r;
+}
+
+RunReason crosscheck_reason(const CrosscheckRecord& x) {
+  std::string s;
+  for (const auto& f : x.failures) s += (s.empty() ? "" : "; ") + (f.detail.empty() ? f.term : f.detail);
+  return {"cross-check", s.empty() ? "cross-check REVIEW" : "cross-check REVIEW: " + s};
 }
 
 // ----- time ------------------------------------------------------------------------------------

@@ -119,9 +119,30 @@ enum class Method { kAins, kNlsq, kLegacy };
 const char* to_string(Method m);                  ///< "ains", "nlsq", "legacy"
 Method method_from_string(const std::string& s);  ///< InvalidInput otherwise
 
+/// The cross-check's own verdict (AINS against the second method), one input of the run verdict.
 enum class Verdict { kPass, kReview };
 const char* to_string(Verdict v);                   ///< "PASS", "REVIEW"
 Verdict verdict_from_string(const std::string& s);  ///< InvalidInput otherwise
+
+/// The run's verdict (issue #19 item 2): the one answer every view shows, a function of the
+/// terminal state — done → PASS, review → REVIEW, failed/aborted/interrupted → FAILED; a live run
+/// has none. A PASS cross-check does not make a run PASS: the limits, the gap check, a partial
+/// archive or a field setting can still send it to review (its reasons say which).
+enum class RunVerdict { kPass, kReview, kFailed };
+const char* to_string(RunVerdict v);  ///< "PASS", "REVIEW", "FAILED"
+std::optional<RunVerdict> run_verdict(RunState s);
+
+/// One reason a run is not PASS, with what raised it. Sources: "cross-check", "limits", "gap",
+/// "partial archive", "field" (a setting no second method can check), "error" (the calibration
+/// failed: data checks, archive format, ...), "aborted", "interrupted", or "migrated" (a run
+/// stored before schema v5, whose single reason text is kept whole).
+struct RunReason {
+  std::string source;
+  std::string text;  ///< as people read it, e.g. "limits: gyro bias z 0.31 deg/h > 0.2 deg/h"
+  bool operator==(const RunReason& o) const { return source == o.source && text == o.text; }
+};
+/// The reasons' texts joined by "; " (RunRecord::failure_reason).
+std::string join_reasons(const std::vector<RunReason>& reasons);
 
 // ---------------------------------------------------------------------------------------------
 // Records.
@@ -155,11 +176,13 @@ struct RunRecord {
   TimestampMs started_at_ms = 0;
   std::optional<TimestampMs> ended_at_ms;  ///< set exactly when the state is terminal
   RunState state = RunState::kPreparing;
-  std::string failure_reason;  ///< why failed/aborted/interrupted/review; else empty
+  std::string failure_reason;  ///< why failed/aborted/interrupted/review (the reasons joined)
+  std::vector<RunReason> reasons;  ///< the same, one per source (schema v5); empty for PASS
   std::string archive_path;
   std::string archive_sha256;  ///< 64 lowercase hex digits, or empty
   std::optional<RunId> reprocessed_from;
-  std::optional<Verdict> verdict;  ///< from the cross-check, if one is stored
+  std::optional<RunVerdict> verdict;  ///< the run's verdict (run_verdict(state)); none while live
+  std::optional<Verdict> crosscheck_verdict;  ///< the cross-check's own, if one is stored
   std::string capture_json;        ///< capture counters (station/capture_stats.hpp) as a JSON
                                    ///< object text; empty if the run stored none (schema v2)
   std::string diagnosis_json;      ///< gap diagnosis summary (archive::diagnosis_summary_json) as a
@@ -202,7 +225,9 @@ struct RunCompletion {
   RunState state = RunState::kDone;  ///< must be terminal
   TimestampMs ended_at_ms = 0;
   std::string reason;                       ///< required for failed/aborted/interrupted, and
-                                            ///< for review without a REVIEW cross-check
+                                            ///< for review without a REVIEW cross-check;
+                                            ///< empty: join_reasons(reasons)
+  std::vector<RunReason> reasons;  ///< every reason by source; empty: `reason` as one reason
   std::optional<std::string> archive_path;  ///< replaces the stored path if given
   std::string archive_sha256;               ///< 64 lowercase hex digits, or empty
   std::vector<CalibrationRecord>
@@ -313,6 +338,9 @@ class Repository {
 CalibrationRecord calibration_record(const calib::CalibrationResult& result,
                                      const calib::EvaluationMetrics* metrics);
 CrosscheckRecord crosscheck_record(const calib::CrossCheckResult& result, double k_sigma);
+/// The reason a REVIEW cross-check gives: {"cross-check", "cross-check REVIEW: " + the failures'
+/// details joined by "; "}.
+RunReason crosscheck_reason(const CrosscheckRecord& crosscheck);
 
 // ---------------------------------------------------------------------------------------------
 // Time.

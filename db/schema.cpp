@@ -127,6 +127,34 @@ ALTER TABLE calibrations_v4 RENAME TO calibrations;
 CREATE INDEX runs_promoted ON runs (unit_id, promoted_at_ms) WHERE promoted_at_ms IS NOT NULL;
 )SQL";
 
+// Migration 5 (issue #19 items 2 and 3). The run verdict is a generated column, a function of
+// the state, so no row can show a verdict its state contradicts (before, views showed the
+// cross-check's PASS on runs the limits, the gap check or a partial archive had sent to review).
+// reasons_json keeps every reason by source; a run stored before keeps its one reason text whole,
+// under the source its state or prefix names ("migrated" when neither does). The index serves
+// the import's duplicate check (an archive's SHA-256 already stored).
+const char* const kMigration5 = R"SQL(
+ALTER TABLE runs ADD COLUMN verdict TEXT GENERATED ALWAYS AS (
+  CASE state WHEN 'done' THEN 'PASS' WHEN 'review' THEN 'REVIEW'
+             WHEN 'failed' THEN 'FAILED' WHEN 'aborted' THEN 'FAILED'
+             WHEN 'interrupted' THEN 'FAILED' END) VIRTUAL;
+ALTER TABLE runs ADD COLUMN reasons_json TEXT NOT NULL DEFAULT '[]'
+  CHECK (json_valid(reasons_json) AND json_type(reasons_json) = 'array');
+UPDATE runs SET reasons_json = json_array(json_object(
+  'source', CASE
+    WHEN state IN ('aborted', 'interrupted') THEN state
+    WHEN state = 'failed' THEN 'error'
+    WHEN failure_reason LIKE 'cross-check%' THEN 'cross-check'
+    WHEN failure_reason LIKE 'limits:%' THEN 'limits'
+    WHEN failure_reason LIKE 'sim-to-real gap%' THEN 'gap'
+    WHEN failure_reason LIKE 'partial archive%' THEN 'partial archive'
+    WHEN failure_reason LIKE 'sea:%' THEN 'field'
+    ELSE 'migrated' END,
+  'text', failure_reason))
+WHERE failure_reason <> '';
+CREATE INDEX runs_by_archive_sha256 ON runs (archive_sha256) WHERE archive_sha256 <> '';
+)SQL";
+
 int pragma_int(sqlite3* db, const char* sql, const std::string& path) {
   sqlite3_stmt* st = nullptr;
   int rc = sqlite3_prepare_v2(db, sql, -1, &st, nullptr);
@@ -188,6 +216,9 @@ const std::vector<Migration>& migrations() {
       // Version 4 (field settings, issue #9): where a run's data were recorded, imported field
       // runs' origin, QA's promotion of a field run, and the legacy method's results.
       {4, "runs.setting/origin/promotion; calibrations.method gains 'legacy'", kMigration4},
+      // Version 5 (issue #19): the run verdict (PASS/REVIEW/FAILED from the state) and its
+      // reasons by source; the archive SHA-256 index for the import's duplicate check.
+      {5, "runs.verdict (generated), runs.reasons_json; archive SHA-256 index", kMigration5},
   };
   return list;
 }

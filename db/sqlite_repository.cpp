@@ -27,8 +27,9 @@ const std::string kRunColumns =
     "r.id, u.serial, r.operator, r.station, r.sequence_name, r.sequence_sha256, "
     "r.software_version, r.started_at_ms, r.ended_at_ms, r.state, r.failure_reason, "
     "r.archive_path, r.archive_sha256, r.reprocessed_from, x.verdict, r.capture_json, "
-    "r.diagnosis_json, r.setting, r.origin, r.promoted_at_ms, r.promoted_by, r.promote_reason";
-constexpr int kNumRunColumns = 22;
+    "r.diagnosis_json, r.setting, r.origin, r.promoted_at_ms, r.promoted_by, r.promote_reason, "
+    "r.verdict, r.reasons_json";
+constexpr int kNumRunColumns = 24;
 constexpr int kExportVerdictColumn = 14;  ///< x.verdict among kRunColumns
 const std::string kRunFrom =
     " FROM runs r JOIN units u ON u.id = r.unit_id LEFT JOIN crosschecks x ON x.run_id = r.id ";
@@ -42,8 +43,8 @@ const std::string kSqlHistory = "SELECT " + kRunColumns + kRunFrom +
                                 "WHERE r.unit_id = ?1 ORDER BY r.started_at_ms DESC, r.id DESC "
                                 "LIMIT ?2";
 const std::string kSqlActive = "SELECT " + kRunColumns + kRunFrom +
-                               "WHERE r.unit_id = ?1 AND r.state = 'done' AND x.verdict = 'PASS' "
-                               "AND r.setting = 'factory' "
+                               "WHERE r.unit_id = ?1 AND r.verdict = 'PASS' "
+                               "AND r.setting = 'factory' AND r.origin = '' "
                                "ORDER BY r.started_at_ms DESC, r.id DESC LIMIT 1";
 const std::string kSqlLatestPromoted = "SELECT " + kRunColumns + kRunFrom +
                                        "WHERE r.unit_id = ?1 AND r.promoted_at_ms IS NOT NULL "
@@ -82,7 +83,7 @@ const char* const kSqlSetLiveState = "UPDATE runs SET state = ?2 WHERE id = ?1";
 const char* const kSqlFinishRun =
     "UPDATE runs SET state = ?2, ended_at_ms = ?3, failure_reason = ?4, "
     "archive_path = coalesce(?5, archive_path), archive_sha256 = ?6, capture_json = ?7, "
-    "diagnosis_json = ?8 WHERE id = ?1";
+    "diagnosis_json = ?8, reasons_json = ?9 WHERE id = ?1";
 const char* const kSqlSetDiagnosis = "UPDATE runs SET diagnosis_json = ?2 WHERE id = ?1";
 const char* const kSqlHasMethod = "SELECT 1 FROM calibrations WHERE run_id = ?1 AND method = ?2";
 const char* const kSqlInsertCal =
@@ -126,6 +127,40 @@ void check_sha(const std::string& value, const char* field) {
 }
 
 std::string run_label(RunId id) { return "run " + std::to_string(id); }
+
+std::string reasons_to_json(const std::vector<RunReason>& reasons) {
+  json a = json::array();
+  for (const RunReason& r : reasons) a.push_back({{"source", r.source}, {"text", r.text}});
+  return a.dump();
+}
+
+/// The stored reasons_json (an array of {source, text}); InvalidInput naming what is wrong.
+std::vector<RunReason> reasons_from_json(const std::string& text) {
+  const json a = json::parse(text, nullptr, false);
+  if (!a.is_array()) throw InvalidInput("not a JSON array");
+  std::vector<RunReason> out;
+  for (const json& e : a) {
+    if (!e.is_object() || !e.contains("source") || !e["source"].is_string() ||
+        !e.contains("text") || !e["text"].is_string())
+      throw InvalidInput("an entry is not {\"source\": text, \"text\": text}: " + e.dump());
+    out.push_back({e["source"].get<std::string>(), e["text"].get<std::string>()});
+  }
+  return out;
+}
+
+/// The source of a single reason given as text, by the state it ends (RunReason sources).
+const char* default_reason_source(RunState s) {
+  switch (s) {
+    case RunState::kAborted:
+      return "aborted";
+    case RunState::kInterrupted:
+      return "interrupted";
+    case RunState::kFailed:
+      return "error";
+    default:
+      return "review";
+  }
+}
 
 /// Validated JSON text of one calibration's parameters and sigma.
 void check_calibration(const CalibrationRecord& c, RunId run_id, std::string& params_json,
@@ -322,8 +357,8 @@ struct SqliteRepository::Impl {
     r.archive_sha256 = q.text(12);
     if (!q.is_null(13)) r.reprocessed_from = q.i64(13);
     if (!q.is_null(14))
-      r.verdict = decode([&] { return run_label(r.run_id) + " verdict"; },
-                         [&] { return verdict_from_string(q.text(14)); });
+      r.crosscheck_verdict = decode([&] { return run_label(r.run_id) + " cross-check verdict"; },
+                                    [&] { return verdict_from_string(q.text(14)); });
     r.capture_json = q.text(15);
     r.diagnosis_json = q.text(16);
     const std::string setting = q.text(17);
@@ -337,6 +372,12 @@ struct SqliteRepository::Impl {
     if (!q.is_null(19)) r.promoted_at_ms = q.i64(19);
     r.promoted_by = q.text(20);
     r.promote_reason = q.text(21);
+    r.verdict = run_verdict(r.state);
+    if (q.is_null(22) != !r.verdict || (r.verdict && q.text(22) != to_string(*r.verdict)))
+      throw Corrupt(path + ": " + run_label(r.run_id) + " verdict \"" + q.text(22) +
+                    "\" contradicts its state " + to_string(r.state));
+    r.reasons = decode([&] { return run_label(r.run_id) + " reasons_json"; },
+                       [&] { return reasons_from_json(q.text(23)); });
     return r;
   }
 
@@ -604,6 +645,13 @@ struct SqliteRepository::Impl {
     check_sha(c.archive_sha256, "archive SHA-256");
     check_json_object(c.capture_json, who, "capture_json");
     check_json_object(c.diagnosis_json, who, "diagnosis_json");
+    std::string reason = !c.reason.empty() ? c.reason : join_reasons(c.reasons);
+    std::vector<RunReason> reasons = c.reasons;
+    if (reasons.empty() && !reason.empty())
+      reasons.push_back({default_reason_source(c.state), reason});
+    for (const RunReason& r : reasons)
+      if (r.source.empty() || r.text.empty())
+        throw InvalidInput(who + ": a reason needs a source and a text");
     for (std::size_t i = 0; i < c.calibrations.size(); ++i)
       for (std::size_t k = 0; k < i; ++k)
         if (c.calibrations[i].method == c.calibrations[k].method)
@@ -632,6 +680,11 @@ struct SqliteRepository::Impl {
       q.bind(1, run_id);
       if (q.step()) verdict = verdict_from_string(q.text(0));
     }
+    if (reasons.empty() && c.state == RunState::kReview && verdict == Verdict::kReview) {
+      // In review by the cross-check alone: its failures are the reason every view lists.
+      reasons.push_back(crosscheck_reason(*crosscheck_of(run_id)));
+      reason = reasons.back().text;
+    }
     if (c.state == RunState::kDone) {
       std::string missing;
       if (setting == calib::Setting::kSea)
@@ -648,7 +701,7 @@ struct SqliteRepository::Impl {
     }
     // A PASS cross-check goes to review only with a reason of its own (a significant sim-to-real
     // gap).
-    if (verdict == Verdict::kPass && c.state == RunState::kReview && c.reason.empty())
+    if (verdict == Verdict::kPass && c.state == RunState::kReview && reason.empty())
       throw Conflict(who +
                      ": cross-check is PASS, so the run cannot go to review without a reason");
     if (verdict == Verdict::kReview && c.state == RunState::kDone)
@@ -656,13 +709,16 @@ struct SqliteRepository::Impl {
     const bool needs_reason = c.state == RunState::kFailed || c.state == RunState::kAborted ||
                               c.state == RunState::kInterrupted ||
                               (c.state == RunState::kReview && verdict != Verdict::kReview);
-    if (needs_reason && c.reason.empty())
+    if (needs_reason && reason.empty())
       throw InvalidInput(who + ": state " + to_string(c.state) + " needs a reason");
+    if (c.state == RunState::kDone && !reasons.empty())
+      throw InvalidInput(who + ": a done (PASS) run has no reasons against it: " +
+                         join_reasons(reasons));
 
     Stmt q(*this, kSqlFinishRun, op);
-    q.bind(1, run_id).bind(2, to_string(c.state)).bind(3, c.ended_at_ms).bind(4, c.reason);
+    q.bind(1, run_id).bind(2, to_string(c.state)).bind(3, c.ended_at_ms).bind(4, reason);
     q.bind(5, c.archive_path).bind(6, c.archive_sha256).bind(7, c.capture_json);
-    q.bind(8, c.diagnosis_json);
+    q.bind(8, c.diagnosis_json).bind(9, reasons_to_json(reasons));
     q.run();
     tx.commit();
   }
@@ -860,6 +916,7 @@ std::vector<RunId> SqliteRepository::mark_interrupted_runs(TimestampMs now) {
     q.bind(1, id).bind(2, to_string(RunState::kInterrupted)).bind(3, now).bind(4, reason);
     // Keep whatever capture summary was stored (none: runs get it at finish).
     q.bind_null(5).bind(6, std::string()).bind(7, std::string()).bind(8, std::string());
+    q.bind(9, reasons_to_json({{default_reason_source(RunState::kInterrupted), reason}}));
     q.run();
     ids.push_back(id);
   }
@@ -930,8 +987,9 @@ ActiveCalibration SqliteRepository::active_params(const std::string& serial) con
       n.bind(1, unit);
       n.step();
       throw NotFound(d.path + ": serial number \"" + serial +
-                     "\" has no calibration with cross-check PASS (" + std::to_string(n.i64(0)) +
-                     " run(s) on record, none a factory run done with PASS, none promoted)");
+                     "\" has no active calibration (" + std::to_string(n.i64(0)) +
+                     " run(s) on record: none a station factory run with verdict PASS, none "
+                     "promoted)");
     }
   }
   {
@@ -980,7 +1038,7 @@ void SqliteRepository::promote(RunId run_id, const std::string& by, const std::s
                    "(land/sea) runs are promoted");
   if (!is_terminal(r.state)) throw Conflict(who + " is still " + to_string(r.state));
   const bool sea_alone =
-      r.setting == calib::Setting::kSea && r.state == RunState::kReview && !r.verdict;
+      r.setting == calib::Setting::kSea && r.state == RunState::kReview && !r.crosscheck_verdict;
   if (r.state != RunState::kDone && !sea_alone)
     throw Conflict(who + " is " + to_string(r.state) +
                    (r.failure_reason.empty() ? "" : " (" + r.failure_reason + ")") +

@@ -18,27 +18,19 @@ bool already_terminal(db::Repository& repo, db::RunId id) {
   return db::is_terminal(repo.show(id).run.state);
 }
 
-std::string join_failures(const std::vector<calib::CrossCheckFailure>& failures) {
-  std::string s;
-  for (const auto& f : failures) {
-    if (!s.empty()) s += "; ";
-    s += f.detail.empty() ? f.term : f.detail;
-  }
-  return s.empty() ? "cross-check REVIEW" : "cross-check REVIEW: " + s;
-}
-
-std::string join_limit_failures(const calib::LimitCheckResult& limits) {
+db::RunReason limits_reason(const calib::LimitCheckResult& limits) {
   std::string s;
   for (const auto& f : limits.failures) s += (s.empty() ? "" : "; ") + f.detail;
-  return "limits: " + s;
+  return {"limits", "limits: " + s};
 }
 
-/// Why a pipeline result is not PASS ("" when it is): cross-check failures, then limit failures.
-std::string review_reason(const calib::PipelineResult& r) {
-  std::string reason;
-  if (r.crosscheck && !r.crosscheck->pass) reason = join_failures(r.crosscheck->failures);
-  if (!r.limits.pass) reason += (reason.empty() ? "" : "; ") + join_limit_failures(r.limits);
-  return reason;
+/// Why a pipeline result is not PASS (none when it is): cross-check failures, then limits.
+std::vector<db::RunReason> review_reasons(const calib::PipelineResult& r) {
+  std::vector<db::RunReason> reasons;
+  if (r.crosscheck && !r.crosscheck->pass)
+    reasons.push_back(db::crosscheck_reason(db::crosscheck_record(*r.crosscheck, 0.0)));
+  if (!r.limits.pass) reasons.push_back(limits_reason(r.limits));
+  return reasons;
 }
 
 /// What the capture filled in or lost (the archive's run.toml [capture]), for a gap reason: "" for
@@ -59,34 +51,26 @@ std::string capture_note(const archive::RunArchive& ar) {
 void store_factory_result(const calib::PipelineResult& r, calib::CalibrationInput in,
                           const archive::RunArchive& ar, const CalibrationJob& job,
                           const std::function<void(const std::string&)>& phase,
-                          db::RunCompletion& completion, CalibrationOutcome& out) {
-  const double k_sigma = job.k_sigma;
+                          db::RunCompletion& completion) {
   if (!r.ains || !r.nlsq || !r.crosscheck)
     throw std::runtime_error("the calibration pipeline returned without both methods");
   completion.calibrations.push_back(db::calibration_record(r.ains->result, &r.ains->metrics));
   completion.calibrations.push_back(db::calibration_record(r.nlsq->result, &r.nlsq->metrics));
-  completion.crosscheck = db::crosscheck_record(*r.crosscheck, k_sigma);
+  completion.crosscheck = db::crosscheck_record(*r.crosscheck, job.k_sigma);
   phase("gap diagnosis");
   const GapCheck gap = check_gap(std::move(in), ar, r.nlsq->result.params, job.gap_false_alarm);
   completion.diagnosis_json = gap.summary.dump();
-  const std::string gap_reason =
-      gap.significant ? "sim-to-real gap: " + gap.text + capture_note(ar) : "";
-  if (r.pass() && !gap.significant) {
-    completion.state = db::RunState::kDone;
-    out.verdict = db::Verdict::kPass;
-  } else {
-    completion.state = db::RunState::kReview;
-    completion.reason = review_reason(r);
-    if (gap.significant) completion.reason += (completion.reason.empty() ? "" : "; ") + gap_reason;
-    out.verdict = db::Verdict::kReview;
-  }
+  completion.reasons = review_reasons(r);
+  if (gap.significant)
+    completion.reasons.push_back({"gap", "sim-to-real gap: " + gap.text + capture_note(ar)});
+  completion.state = completion.reasons.empty() ? db::RunState::kDone : db::RunState::kReview;
 }
 
 /// Land: AINS + legacy and their cross-check (no metrics: no attitude reference; no gap check:
 /// it models a table run). Sea: AINS alone, which no second method can check — review, for QA to
 /// promote explicitly.
 void store_field_result(const calib::PipelineResult& r, calib::Setting setting, double k_sigma,
-                        db::RunCompletion& completion, CalibrationOutcome& out) {
+                        db::RunCompletion& completion) {
   if (!r.ains) throw std::runtime_error("the calibration pipeline returned without AINS");
   completion.calibrations.push_back(db::calibration_record(r.ains->result, nullptr));
   const std::string frame_note =
@@ -95,44 +79,31 @@ void store_field_result(const calib::PipelineResult& r, calib::Setting setting, 
       " (misalignments in the accelerometer triad's frame)";
   if (setting == calib::Setting::kSea || !r.legacy || !r.crosscheck) {
     completion.state = db::RunState::kReview;
-    completion.reason =
-        "sea: AINS alone, no independent method to cross-check it (the legacy "
-        "method needs a still platform); " +
-        frame_note + "; promote explicitly";
-    if (!r.limits.pass)
-      completion.reason = join_limit_failures(r.limits) + "; " + completion.reason;
-    out.verdict.reset();
+    if (!r.limits.pass) completion.reasons.push_back(limits_reason(r.limits));
+    completion.reasons.push_back({"field",
+                                  "sea: AINS alone, no independent method to cross-check it (the "
+                                  "legacy method needs a still platform); " +
+                                      frame_note + "; promote explicitly"});
     return;
   }
   completion.calibrations.push_back(db::calibration_record(r.legacy->result, nullptr));
   completion.crosscheck = db::crosscheck_record(*r.crosscheck, k_sigma);
-  if (r.pass()) {
-    completion.state = db::RunState::kDone;
-    out.verdict = db::Verdict::kPass;
-  } else {
-    completion.state = db::RunState::kReview;
-    completion.reason = review_reason(r);
-    out.verdict = db::Verdict::kReview;
-  }
+  completion.reasons = review_reasons(r);
+  completion.state = completion.reasons.empty() ? db::RunState::kDone : db::RunState::kReview;
 }
 
 /// An incomplete archive (the reprocess of an aborted or interrupted run, asked for explicitly, or
 /// any archive whose run.toml says its capture did not complete) is REVIEW at best: the rest of
 /// the sequence is missing, and it must never become the unit's active parameters.
 void cap_partial_archive(const CalibrationJob& job, const archive::RunArchive& ar,
-                         db::RunCompletion& completion, CalibrationOutcome& out) {
+                         db::RunCompletion& completion) {
   std::string why = job.partial_reason;
   if (why.empty() && ar.info.capture && !ar.info.capture->complete)
     why = "its archive is incomplete (run.toml [capture] complete = false)";
-  if (why.empty()) return;
-  const std::string note = "partial archive: " + why + " — REVIEW at best";
-  if (completion.state == db::RunState::kDone) {
-    completion.state = db::RunState::kReview;
-    out.verdict = db::Verdict::kReview;
-    completion.reason = note;
-  } else if (completion.state == db::RunState::kReview) {
-    completion.reason = note + "; " + completion.reason;
-  }
+  if (why.empty() || completion.state == db::RunState::kFailed) return;
+  completion.state = db::RunState::kReview;
+  completion.reasons.insert(completion.reasons.begin(),
+                            {"partial archive", "partial archive: " + why + " — REVIEW at best"});
 }
 
 }  // namespace
@@ -163,20 +134,22 @@ CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJo
     opt.on_phase = phase;
     const calib::PipelineResult r = calib::run_calibration(in, opt);
     if (in.setting == calib::Setting::kFactory)
-      store_factory_result(r, std::move(in), ar, job, phase, completion, out);
+      store_factory_result(r, std::move(in), ar, job, phase, completion);
     else
-      store_field_result(r, in.setting, job.k_sigma, completion, out);
-    cap_partial_archive(job, ar, completion, out);
+      store_field_result(r, in.setting, job.k_sigma, completion);
+    cap_partial_archive(job, ar, completion);
   } catch (const std::exception& e) {
     completion = db::RunCompletion{};
     completion.state = db::RunState::kFailed;
-    completion.reason = std::string("calibration failed: ") + e.what();
+    completion.reasons = {{"error", std::string("calibration failed: ") + e.what()}};
     completion.archive_path = job.archive_dir;
     completion.archive_sha256 = job.archive_sha256;
     completion.capture_json = job.capture_json;
-    out.verdict.reset();
   }
+  completion.reason = db::join_reasons(completion.reasons);
   out.state = completion.state;
+  out.verdict = db::run_verdict(completion.state);
+  if (completion.crosscheck) out.crosscheck_verdict = completion.crosscheck->verdict;
   out.reason = completion.reason;
   completion.ended_at_ms = db::now_ms();
   // The calibration's sample arrays (tens of MB) are freed now; glibc keeps freed heap memory

@@ -7,11 +7,11 @@
 // calib::run_calibration (AINS and NLSQ, each evaluated, then the cross-check at k_sigma) ->
 // calib::diagnose (the sim-to-real gap of the run against its NLSQ calibration) ->
 // db::calibration_record / db::crosscheck_record -> Repository::finish_run in one transaction:
-//   cross-check PASS, gap consistent   -> done
-//   cross-check PASS, gap significant  -> review, reason = "sim-to-real gap: " + the diagnosis
-//                                         summary (the best candidate effect named)
-//   cross-check REVIEW -> review, reason = the failures ("; "-joined human details) [+ the gap]
-//   any error          -> failed, reason = the error (archive format, unobservable data, ...)
+//   cross-check PASS, limits kept, gap consistent, archive complete -> done (verdict PASS)
+//   otherwise -> review (verdict REVIEW) with one reason per source (db::RunReason): the
+//     cross-check's failures, the limits', "sim-to-real gap: " + the diagnosis summary, a
+//     partial archive, a field setting no second method checks
+//   any error -> failed (verdict FAILED), reason = the error (data checks, archive format, ...)
 // with the archive's SHA-256, the capture counters (capture_json) and the diagnosis summary
 // (diagnosis_json) stored with the run.
 //
@@ -44,8 +44,9 @@ struct CalibrationJob {
 struct CalibrationOutcome {
   db::RunId run_id = 0;
   db::RunState state = db::RunState::kFailed;  ///< done, review or failed (as stored)
-  std::optional<db::Verdict> verdict;
-  std::string reason;      ///< review: the failures; failed: the error
+  std::optional<db::RunVerdict> verdict;  ///< the run's (db::run_verdict(state))
+  std::optional<db::Verdict> crosscheck_verdict;  ///< the cross-check's own, if one was made
+  std::string reason;      ///< review: every reason ("; "-joined); failed: the error
   bool stored = true;      ///< false: the run was already terminal, nothing was written
   double runtime_s = 0.0;  ///< wall time of the job
 };

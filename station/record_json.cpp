@@ -226,7 +226,7 @@ std::string render_history_text(const json& history) {
     os << runs.size() << (runs.size() == 1 ? " run" : " runs") << ", newest first";
   os << ")\n";
   os << pad("RUN", 7) << pad("STARTED (UTC)", 21) << pad("SETTING", 9) << pad("STATE", 13)
-     << pad("VERDICT", 9) << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13)
+     << pad("VERDICT", 9) << pad("CROSS-CHECK", 13) << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13)
      << pad("GAP (best effect)", 40) << "REASON\n";
   for (const auto& r : runs) {
     std::string id = str(r, "run_id");
@@ -235,7 +235,8 @@ std::string render_history_text(const json& history) {
     const std::string duration = run_duration(r);
     os << rtrim(pad(id, 7) + pad(short_time(str(r, "started_at")), 21) +
                 pad(str(r, "setting", "factory"), 9) + pad(str(r, "state"), 13) +
-                pad(str(r, "verdict", "-"), 9) + pad(str(r, "sequence_name"), 16) +
+                pad(str(r, "verdict", "-"), 9) + pad(str(r, "crosscheck_verdict", "-"), 13) +
+                pad(str(r, "sequence_name"), 16) +
                 pad(str(r, "operator"), 14) + pad(duration.empty() ? "-" : duration, 13) +
                 pad(gap_cell(r), 40) + str(r, "failure_reason"))
        << "\n";
@@ -267,6 +268,21 @@ void render_capture(std::ostream& os, const json& capture) {
   if (column % 2 != 0) os << "\n";
 }
 
+/// The run's reasons, one per line with its source ("  gap: sim-to-real gap: ..."); a run stored
+/// without the list (none in JSON) falls back to its failure_reason.
+void render_reasons(std::ostream& os, const json& run) {
+  const bool listed = run.contains("reasons") && run["reasons"].is_array();
+  if (listed && run["reasons"].empty()) return;
+  if (!listed) {
+    if (!str(run, "failure_reason").empty()) os << "  reason: " << str(run, "failure_reason") << "\n";
+    return;
+  }
+  const std::size_t n = run["reasons"].size();
+  os << "  " << (n == 1 ? "reason" : std::to_string(n) + " reasons") << ":\n";
+  for (const json& r : run["reasons"])
+    os << "    [" << str(r, "source", "?") << "] " << str(r, "text") << "\n";
+}
+
 struct MethodColumns {
   std::string method;
   calib::ParamVector value = calib::ParamVector::Zero();
@@ -279,8 +295,10 @@ std::string render_show_text(const json& show) {
   std::ostringstream os;
   const json& run = show.at("run");
   os << "Run " << str(run, "run_id") << "  " << str(run, "serial") << "  " << str(run, "state");
-  if (has(run, "verdict")) os << "  " << str(run, "verdict");
+  if (has(run, "verdict")) os << "  verdict " << str(run, "verdict");
+  if (has(run, "crosscheck_verdict")) os << "  (cross-check " << str(run, "crosscheck_verdict") << ")";
   os << "\n";
+  render_reasons(os, run);
   auto row = [&os](const char* label, const std::string& value) {
     if (!value.empty()) os << "  " << pad(label, 13) << value << "\n";
   };
@@ -299,7 +317,6 @@ std::string render_show_text(const json& show) {
   row("started", str(run, "started_at"));
   if (has(run, "ended_at")) row("ended", str(run, "ended_at") + "  (" + run_duration(run) + ")");
   if (has(run, "reprocessed_from")) row("reprocessed", "from run " + str(run, "reprocessed_from"));
-  row("reason", str(run, "failure_reason"));
   row("archive", str(run, "archive_path"));
   row("archive sha", str(run, "archive_sha256"));
 
@@ -399,6 +416,7 @@ std::string progress_line(const json& run) {
 std::string outcome_line(const json& run) {
   std::string s = run_head(run) + ": " + str(run, "state", "?");
   if (has(run, "verdict")) s += ", verdict " + str(run, "verdict");
+  if (has(run, "crosscheck_verdict")) s += " (cross-check " + str(run, "crosscheck_verdict") + ")";
   const std::string reason = has(run, "reason") ? str(run, "reason") : str(run, "failure_reason");
   if (!reason.empty()) s += " — " + reason;
   return s;

@@ -63,6 +63,8 @@ nlohmann::json to_json(const RunSnapshot& r) {
   o["steps"] = r.steps > 0 ? json(r.steps) : json(nullptr);
   o["time_left_s"] = live && r.time_left_s ? json(*r.time_left_s) : json(nullptr);
   o["verdict"] = r.verdict ? json(db::to_string(*r.verdict)) : json(nullptr);
+  o["crosscheck_verdict"] =
+      r.crosscheck_verdict ? json(db::to_string(*r.crosscheck_verdict)) : json(nullptr);
   o["reason"] = r.reason;
   o["started_at"] = r.started_at_ms ? json(db::format_time_utc(r.started_at_ms)) : json(nullptr);
   o["ended_at"] = r.ended_at_ms ? json(db::format_time_utc(*r.ended_at_ms)) : json(nullptr);
@@ -81,6 +83,7 @@ RunSnapshot snapshot_from_record(const db::RunRecord& rec) {
   s.state = rec.state;
   s.phase = rec.state == db::RunState::kCalibrating ? RunPhase::kCalibrating : RunPhase::kNone;
   s.verdict = rec.verdict;
+  s.crosscheck_verdict = rec.crosscheck_verdict;
   s.reason = rec.failure_reason;
   s.started_at_ms = rec.started_at_ms;
   s.ended_at_ms = rec.ended_at_ms;
@@ -405,6 +408,7 @@ nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
   live->snap.state = db::RunState::kCalibrating;
   live->snap.phase = RunPhase::kCalibrating;
   live->snap.verdict.reset();
+  live->snap.crosscheck_verdict.reset();
   live->snap.reason.clear();
   live->snap.started_at_ms = nr.started_at_ms;
   live->snap.ended_at_ms.reset();
@@ -681,6 +685,7 @@ void RunController::on_calibrated(const std::shared_ptr<Live>& live,
     if (out.stored) {
       live->snap.state = out.state;
       live->snap.verdict = out.verdict;
+      live->snap.crosscheck_verdict = out.crosscheck_verdict;
       live->snap.reason = out.reason;
     } else {
       // Not stored: either already terminal in the database (take that) or the database failed
@@ -689,6 +694,7 @@ void RunController::on_calibrated(const std::shared_ptr<Live>& live,
         const db::RunRecord rec = repo_.show(live->snap.run_id).run;
         live->snap.state = rec.state;
         live->snap.verdict = rec.verdict;
+        live->snap.crosscheck_verdict = rec.crosscheck_verdict;
         live->snap.reason = rec.failure_reason;
         live->snap.ended_at_ms = rec.ended_at_ms;
       } catch (const std::exception&) {

@@ -89,7 +89,8 @@ struct RunSnapshot {
   RunPhase phase = RunPhase::kNone;
   int step = 0, steps = 0;            ///< 0 / 0 when not applicable (reprocess, from the DB)
   std::optional<double> time_left_s;  ///< estimate while capturing
-  std::optional<db::Verdict> verdict;
+  std::optional<db::RunVerdict> verdict;          ///< the run's: PASS / REVIEW / FAILED
+  std::optional<db::Verdict> crosscheck_verdict;  ///< the cross-check's own, if one was made
   std::string reason;
   db::TimestampMs started_at_ms = 0;
   std::optional<db::TimestampMs> ended_at_ms;
@@ -99,8 +100,8 @@ struct RunSnapshot {
 };
 
 /// The contract's "run" object: run_id, serial, sequence, operator, state, phase, step, steps,
-/// time_left_s, verdict, reason, started_at, capture (null where not applicable), plus ended_at,
-/// archive and reprocessed_from.
+/// time_left_s, verdict (the run's), crosscheck_verdict, reason, started_at, capture (null where not
+/// applicable), plus ended_at, archive and reprocessed_from.
 nlohmann::json to_json(const RunSnapshot& run);
 /// A stored run in the same shape (phase/step/time left null; capture from capture_json).
 RunSnapshot snapshot_from_record(const db::RunRecord& record);

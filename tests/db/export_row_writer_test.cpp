@@ -56,7 +56,9 @@ ExportRow full_row() {
   r.archive_path = "/var/lib/imucal/runs/SN-0042/2026-11-26T00-00-00Z";
   r.archive_sha256 = std::string(64, 'f');
   r.reprocessed_from = 7;
-  r.verdict = Verdict::kPass;
+  r.verdict = RunVerdict::kReview;
+  r.crosscheck_verdict = Verdict::kPass;
+  r.reasons = {{"gap", "sim-to-real gap: \"K2\"; ±1e-7"}, {"limits", "ctl\x01 del\x7f"}};
   r.capture_json =
       R"({ "frames_received" : 359700, "crc_errors":0, "nested": {"b":1.5,"a":[1,2]} })";
   r.diagnosis_json = R"({"verdict":"PASS","gap":1e-7,"unicode":"\u00e9\ud83d\ude00"})";
@@ -107,6 +109,8 @@ TEST(ExportRowWriter, EveryOptionalAbsent) {
   partial.crosscheck->failures.clear();
   partial.run.capture_json.clear();
   partial.run.verdict.reset();
+  partial.run.crosscheck_verdict.reset();
+  partial.run.reasons.clear();
   EXPECT_EQ(direct(partial), reference(partial));
 }
 

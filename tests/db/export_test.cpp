@@ -172,13 +172,14 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
     const auto rows = parse_csv(os.str());
     ASSERT_FALSE(rows.empty());
     const auto& header = rows[0];
-    ASSERT_EQ(header.size(), 20u + 11u + 2u * calib::ParamSet::kSize + 2u +
+    ASSERT_EQ(header.size(), 21u + 11u + 2u * calib::ParamSet::kSize + 2u +
                                  archive::CaptureInfo::counters().size());
     std::map<std::string, std::size_t> col;
     for (std::size_t c = 0; c < header.size(); ++c) col[header[c]] = c;
     ASSERT_EQ(col.size(), header.size()) << "duplicate column names";
     for (const char* name :
-         {"run_id", "serial", "state", "verdict", "started_at", "method", "failure_reason",
+         {"run_id", "serial", "state", "verdict", "crosscheck_verdict", "started_at", "method",
+          "failure_reason",
           "setting", "origin", "promoted_at", "promoted_by", "promote_reason", "accel_M[1][2]",
           "sigma.gyro_bias_radps[0]", "crosscheck_k_sigma", "crosscheck_failures",
           "capture.frames_received", "capture.samples_lost", "capture.rest_samples"})
@@ -196,18 +197,19 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
       const Stored& s = stored(id);
       EXPECT_EQ(row[col["serial"]], s.serial);
       EXPECT_EQ(row[col["state"]], to_string(s.state));
+      EXPECT_EQ(row[col["verdict"]], to_string(*run_verdict(s.state))) << "the run's verdict";
       EXPECT_EQ(row[col["setting"]], "factory");
       EXPECT_EQ(row[col["promoted_at"]], "");
       EXPECT_EQ(parse_time_utc(row[col["started_at"]]), s.t);
       if (s.seed == 0) {
-        EXPECT_EQ(row[col["verdict"]], "");
+        EXPECT_EQ(row[col["crosscheck_verdict"]], "");
         EXPECT_EQ(row[col["failure_reason"]], kReason) << "quoted field round trip";
         EXPECT_EQ(row[col["accel_M[1][2]"]], "");
         EXPECT_EQ(row[col["crosscheck_k_sigma"]], "");
         EXPECT_EQ(row[col["capture.frames_received"]], "");
         continue;
       }
-      EXPECT_EQ(row[col["verdict"]], s.state == RunState::kDone ? "PASS" : "REVIEW");
+      EXPECT_EQ(row[col["crosscheck_verdict"]], s.state == RunState::kDone ? "PASS" : "REVIEW");
       EXPECT_EQ(to_double(row[col["crosscheck_k_sigma"]]), 4.0);
       if (s.state == RunState::kReview) {
         // The failing term with its detail (the review fixture's one failure), and the counters.
@@ -261,11 +263,14 @@ TEST_F(ExportTest, JsonParsesBackWithStrictParameterSetsForEveryFilter) {
       if (expected[r].second.empty()) {
         EXPECT_TRUE(o.at("calibration").is_null());
         EXPECT_TRUE(o.at("crosscheck").is_null());
-        EXPECT_TRUE(o.at("verdict").is_null());
+        EXPECT_EQ(o.at("verdict"), to_string(*run_verdict(s.state)));
+        EXPECT_TRUE(o.at("crosscheck_verdict").is_null());
         EXPECT_EQ(o.at("failure_reason"), kReason);
         continue;
       }
       EXPECT_EQ(o.at("crosscheck").at("verdict"), s.state == RunState::kDone ? "PASS" : "REVIEW");
+      EXPECT_EQ(o.at("crosscheck_verdict"), o.at("crosscheck").at("verdict"));
+      EXPECT_EQ(o.at("verdict"), to_string(*run_verdict(s.state)));
       EXPECT_EQ(o.at("crosscheck").at("failures").size(), s.state == RunState::kDone ? 0u : 1u);
       if (s.state == RunState::kReview) {
         EXPECT_EQ(o.at("capture").at("samples_decoded"), 10001);

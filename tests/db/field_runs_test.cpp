@@ -162,7 +162,7 @@ TEST(FieldRuns, VersionThreeDatabaseMigratesKeepingItsCalibrations) {
     sqlite3_close(raw);
   }
   SqliteRepository repo(path);
-  EXPECT_EQ(repo.schema_version(), 4);
+  EXPECT_EQ(repo.schema_version(), schema::kSchemaVersion);
   const auto runs = repo.history("OLD-3");
   ASSERT_EQ(runs.size(), 1u);
   EXPECT_EQ(runs[0].setting, calib::Setting::kFactory);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 
@@ -311,4 +312,85 @@ TEST(Migration, DiagnosisJsonIsStoredWithTheRunAndOnlyAnObjectIsAccepted) {
 }
 
 }  // namespace
+// Issue #19 item 2: a database written by the previous release (schema 4,
+// tests/data/history-v4.sqlite, made by commit 3ff3a6c's SqliteRepository; tests/data/README.md
+// lists its runs). Before v5 every view showed the cross-check's verdict as the run's.
+TEST(Migration, VersionFourDatabaseFromThePreviousReleaseGainsTheRunVerdictAndReasons) {
+  TempDir dir;
+  const std::string path = dir.file("history.sqlite");
+  std::filesystem::copy_file(IMUCAL_SOURCE_DIR "/tests/data/history-v4.sqlite", path);
+  {
+    RawDb raw(path);
+    ASSERT_EQ(raw.text("PRAGMA user_version"), "4") << "the fixture is a version-4 database";
+  }
+  SqliteOptions ro;
+  ro.read_only = true;
+  const std::string msg =
+      expect_throw_message<IncompatibleSchema>([&] { SqliteRepository r(path, ro); });
+  EXPECT_NE(msg.find("open it read-write once"), std::string::npos) << msg;
+
+  SqliteRepository repo(path);
+  EXPECT_EQ(repo.schema_version(), 5);
+  EXPECT_EQ(repo.integrity_check(), "ok");
+  struct Expected {
+    RunId id;
+    RunState state;
+    std::optional<RunVerdict> verdict;
+    std::optional<Verdict> crosscheck;
+    const char* source;  ///< the migrated reason's source, or nullptr for none
+  };
+  const std::vector<Expected> expected = {
+      {1, RunState::kDone, RunVerdict::kPass, Verdict::kPass, nullptr},
+      {2, RunState::kReview, RunVerdict::kReview, Verdict::kPass, "gap"},
+      {3, RunState::kReview, RunVerdict::kReview, Verdict::kReview, "cross-check"},
+      {4, RunState::kFailed, RunVerdict::kFailed, std::nullopt, "error"},
+      {5, RunState::kAborted, RunVerdict::kFailed, std::nullopt, "aborted"},
+      {6, RunState::kReview, RunVerdict::kReview, Verdict::kPass, "partial archive"},
+      {7, RunState::kDone, RunVerdict::kPass, Verdict::kPass, nullptr},
+      {8, RunState::kDone, RunVerdict::kPass, Verdict::kPass, nullptr},
+      {9, RunState::kReview, RunVerdict::kReview, std::nullopt, "field"},
+      {10, RunState::kInterrupted, RunVerdict::kFailed, std::nullopt, "interrupted"},
+      {11, RunState::kRunning, std::nullopt, std::nullopt, nullptr},
+  };
+  for (const Expected& e : expected) {
+    const RunDetails d = repo.show(e.id);
+    EXPECT_EQ(d.run.state, e.state) << "run " << e.id;
+    EXPECT_EQ(d.run.verdict, e.verdict) << "run " << e.id;
+    EXPECT_EQ(d.run.crosscheck_verdict, e.crosscheck) << "run " << e.id;
+    if (e.source) {
+      ASSERT_EQ(d.run.reasons.size(), 1u) << "run " << e.id;
+      EXPECT_EQ(d.run.reasons[0].source, e.source) << "run " << e.id;
+      EXPECT_EQ(d.run.reasons[0].text, d.run.failure_reason) << "kept whole, run " << e.id;
+    } else {
+      EXPECT_TRUE(d.run.reasons.empty()) << "run " << e.id;
+    }
+  }
+  // The data the previous release stored are all there, values unchanged.
+  const RunDetails first = repo.show(1);
+  ASSERT_EQ(first.calibrations.size(), 2u);
+  EXPECT_TRUE(first.calibrations[0].params.to_vector() == test::seeded_params(1, 0).to_vector());
+  EXPECT_TRUE(first.calibrations[1].sigma.to_vector() == test::seeded_sigma(1, 1).to_vector());
+  EXPECT_EQ(first.run.capture_json, R"({"frames_received":38400,"samples_lost":0})");
+  EXPECT_EQ(repo.show(3).crosscheck->failures.size(), 1u);
+  EXPECT_EQ(*repo.show(9).run.promoted_at_ms, 1780000000000 + 8 * 3600000LL + 30 * 60000LL);
+  EXPECT_EQ(repo.active_params("V4-A").run.run_id, 1) << "the later REVIEW runs never replace it";
+  EXPECT_EQ(repo.active_params("V4-C").run.run_id, 9) << "QA's promotion stands";
+  // Every view reads the same verdict: export rows as show.
+  std::size_t rows = 0;
+  repo.export_rows({}, [&](const ExportRow& row) {
+    ++rows;
+    EXPECT_EQ(row.run.verdict, repo.show(row.run.run_id).run.verdict) << row.run.run_id;
+  });
+  EXPECT_EQ(rows, 17u) << "6 runs with two methods, 1 with one, 4 without";
+  // The verdict is generated from the state: it cannot be written around the code.
+  RawDb raw(path);
+  char* err = nullptr;
+  EXPECT_NE(sqlite3_exec(raw.get(), "UPDATE runs SET verdict = 'PASS' WHERE id = 2", nullptr,
+                         nullptr, &err),
+            SQLITE_OK);
+  sqlite3_free(err);
+  EXPECT_EQ(raw.text("SELECT verdict FROM runs WHERE id = 2"), "REVIEW");
+  EXPECT_EQ(raw.text("SELECT count(*) FROM runs WHERE verdict = 'PASS'"), "3");
+}
+
 }  // namespace imucal::db

@@ -73,7 +73,8 @@ TEST(Repository, HistoryOfTwoSerialsIsNewestFirstWithIdTieBreak) {
       EXPECT_EQ(hist[i].started_at_ms, expected[i].t);
       EXPECT_EQ(hist[i].state, RunState::kDone);
       ASSERT_TRUE(hist[i].verdict.has_value());
-      EXPECT_EQ(*hist[i].verdict, Verdict::kPass);
+      EXPECT_EQ(*hist[i].verdict, RunVerdict::kPass);
+      EXPECT_EQ(hist[i].crosscheck_verdict, Verdict::kPass);
     }
     const auto top2 = repo.history(serial, 2);
     ASSERT_EQ(top2.size(), 2u);
@@ -127,7 +128,7 @@ TEST(Repository, ActiveParamsIsLatestPassAndALaterReviewDoesNotReplaceIt) {
   const RunId rb = repo.create_run(test::new_run("SIM-B", kT0));
   repo.finish_run(rb, test::review_completion(21, kT0 + kMinute));
   const std::string msg = expect_throw_message<NotFound>([&] { repo.active_params("SIM-B"); });
-  EXPECT_NE(msg.find("no calibration with cross-check PASS"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("has no active calibration"), std::string::npos) << msg;
   EXPECT_NE(msg.find("1 run(s)"), std::string::npos) << msg;
   EXPECT_THROW(repo.active_params("SIM-NONE"), NotFound);
 
@@ -185,7 +186,8 @@ TEST(Repository, ShowReturnsEverythingStored) {
   ASSERT_TRUE(d.run.reprocessed_from.has_value());
   EXPECT_EQ(*d.run.reprocessed_from, origin);
   ASSERT_TRUE(d.run.verdict.has_value());
-  EXPECT_EQ(*d.run.verdict, Verdict::kReview);
+  EXPECT_EQ(*d.run.verdict, RunVerdict::kReview);
+  EXPECT_EQ(d.run.crosscheck_verdict, Verdict::kReview);
 
   ASSERT_EQ(d.calibrations.size(), 2u);
   const CalibrationRecord& a = d.calibrations[0];
@@ -214,6 +216,52 @@ TEST(Repository, ShowReturnsEverythingStored) {
   EXPECT_EQ(d.crosscheck->failures[1].detail, x.failures[1].detail);
 
   EXPECT_THROW(repo.show(id + 1000), NotFound);
+}
+
+// Issue #19 item 2: before schema v5 every view showed the cross-check's verdict as the run's, so a
+// run the gap check, the limits or a partial archive had sent to review read "PASS".
+TEST(Repository, TheRunVerdictFollowsTheStateWithEveryReasonNotTheCrossCheckAlone) {
+  TempDir dir;
+  SqliteRepository repo(dir.file("verdict.db"));
+  // Cross-check PASS, but the limits and the gap say review.
+  const RunId review = repo.create_run(test::new_run("SIM-V", kT0));
+  RunCompletion c = test::pass_completion(1, kT0 + kMinute);
+  c.state = RunState::kReview;
+  c.reasons = {{"limits", "limits: gyro bias z 0.31 deg/h > 0.2 deg/h"},
+               {"gap", "sim-to-real gap: explained by gyro_g_sensitivity"}};
+  repo.finish_run(review, c);
+  const RunId failed = repo.create_run(test::new_run("SIM-V", kT0 + 2 * kMinute));
+  repo.update_run_state(failed, RunState::kAborted, "aborted by operator");
+  const RunId done = repo.create_run(test::new_run("SIM-V", kT0 + 4 * kMinute));
+  repo.finish_run(done, test::pass_completion(2, kT0 + 5 * kMinute));
+  const RunId live = repo.create_run(test::new_run("SIM-V", kT0 + 6 * kMinute));
+
+  const RunRecord r = repo.show(review).run;
+  EXPECT_EQ(r.verdict, RunVerdict::kReview);
+  EXPECT_EQ(r.crosscheck_verdict, Verdict::kPass) << "the cross-check's own result stays beside it";
+  ASSERT_EQ(r.reasons.size(), 2u);
+  EXPECT_EQ(r.reasons[0], (RunReason{"limits", "limits: gyro bias z 0.31 deg/h > 0.2 deg/h"}));
+  EXPECT_EQ(r.reasons[1].source, "gap");
+  EXPECT_EQ(r.failure_reason,
+            "limits: gyro bias z 0.31 deg/h > 0.2 deg/h; sim-to-real gap: explained by "
+            "gyro_g_sensitivity");
+  const RunRecord a = repo.show(failed).run;
+  EXPECT_EQ(a.verdict, RunVerdict::kFailed);
+  EXPECT_EQ(a.reasons, (std::vector<RunReason>{{"aborted", "aborted by operator"}}));
+  EXPECT_EQ(repo.show(done).run.verdict, RunVerdict::kPass);
+  EXPECT_TRUE(repo.show(done).run.reasons.empty());
+  EXPECT_FALSE(repo.show(live).run.verdict.has_value());
+  // History and export say the same as show.
+  for (const RunRecord& h : repo.history("SIM-V"))
+    EXPECT_EQ(h.verdict, repo.show(h.run_id).run.verdict) << "run " << h.run_id;
+  repo.export_rows({}, [&](const ExportRow& row) {
+    EXPECT_EQ(row.run.verdict, repo.show(row.run.run_id).run.verdict) << row.run.run_id;
+  });
+  // Only the PASS run is active, and a done run cannot carry reasons against it.
+  EXPECT_EQ(repo.active_params("SIM-V").run.run_id, done);
+  RunCompletion contradictory = test::pass_completion(3, kT0 + 7 * kMinute);
+  contradictory.reasons = {{"gap", "sim-to-real gap"}};
+  EXPECT_THROW(repo.finish_run(live, contradictory), InvalidInput);
 }
 
 TEST(Repository, LifeCycleRulesAreEnforcedAndARefusedFinishWritesNothing) {

@@ -45,6 +45,12 @@ TEST(StationGap, AWithheldEffectEndsReviewAndStationctlDiagnoseNamesIt) {
   ASSERT_EQ(runs.size(), 1u);
   const json& rec = runs[0];
   EXPECT_EQ(rec.value("state", ""), "review") << rec.dump(2);
+  // Issue #19 item 2: one verdict everywhere (it read PASS, the cross-check's, in every view).
+  EXPECT_EQ(rec.value("verdict", ""), "REVIEW") << rec.dump(2);
+  EXPECT_EQ(rec.value("crosscheck_verdict", ""), "PASS") << rec.dump(2);
+  EXPECT_NE(run.out.find("review, verdict REVIEW (cross-check PASS) — sim-to-real gap"),
+            std::string::npos)
+      << run.describe();
   EXPECT_NE(rec.value("failure_reason", "").find("sim-to-real gap"), std::string::npos)
       << rec.dump(2);
   EXPECT_NE(rec.value("failure_reason", "").find("gyro_g_sensitivity"), std::string::npos)
@@ -71,6 +77,12 @@ TEST(StationGap, AWithheldEffectEndsReviewAndStationctlDiagnoseNamesIt) {
   EXPECT_NE(text.out.find("gyro_g_sensitivity"), std::string::npos) << text.describe();
   const CmdResult show = st.ctl({"show", std::to_string(run_id)});
   EXPECT_NE(show.out.find("Gap diagnosis: explained"), std::string::npos) << show.describe();
+  EXPECT_NE(show.out.find("review  verdict REVIEW  (cross-check PASS)"), std::string::npos)
+      << show.describe();
+  EXPECT_NE(show.out.find("[gap] sim-to-real gap"), std::string::npos) << show.describe();
+  const CmdResult csv = st.ctl({"export", "--serial", "GAP-0001", "--format", "csv"});
+  ASSERT_EQ(csv.exit_code, 0) << csv.describe();
+  EXPECT_NE(csv.out.find(",review,REVIEW,PASS,"), std::string::npos) << csv.out.substr(0, 2000);
   // Diagnosing an unknown run is refused, naming it.
   const CmdResult bad = st.ctl({"diagnose", "999"});
   EXPECT_NE(bad.exit_code, 0);

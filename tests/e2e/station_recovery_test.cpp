@@ -106,6 +106,9 @@ TEST(StationRecovery, KillNineWhileRunningThenRestartMarksTheRunInterruptedAndRe
   const std::string state = newest.value("state", "");
   EXPECT_TRUE(state == "review" || state == "failed") << newest.dump(2);
   EXPECT_FALSE(newest.value("failure_reason", "").empty()) << newest.dump(2);
+  // Issue #19 item 2: the verdict follows the state (it showed the cross-check's PASS).
+  EXPECT_EQ(newest.value("verdict", ""), state == "review" ? "REVIEW" : "FAILED") << newest.dump(2);
+  EXPECT_EQ(rep.out.find("verdict PASS"), std::string::npos) << rep.describe();
   const CmdResult params = st.ctl({"params", "SIM-0300"});
   EXPECT_NE(params.exit_code, 0) << "a partial archive became active:\n" << params.describe();
   // The interrupted run stays interrupted (terminal states are final).

@@ -108,6 +108,51 @@ TEST_F(RecordJson, HistoryIsNewestFirstWithCaptureAndReasons) {
   EXPECT_NE(lines[4].find("12 min 34 s"), std::string::npos) << lines[4];
 }
 
+// Issue #19 item 2: a run whose cross-check passed but which the gap check and a partial archive
+// sent to review showed "PASS" in history, show, export and the run's end line.
+TEST_F(RecordJson, EveryViewShowsTheRunVerdictWithItsReasonsAndTheCrossCheckLabelled) {
+  const db::RunId id = repo_->create_run(db::test::new_run("SN-C", t10_));
+  db::RunCompletion c = db::test::pass_completion(5, t10_ + 60000);
+  c.state = db::RunState::kReview;
+  c.reasons = {{"partial archive", "partial archive: aborted at step 9 of 18 — REVIEW at best"},
+               {"gap", "sim-to-real gap: explained by gyro_g_sensitivity"}};
+  repo_->finish_run(id, c);
+
+  const json h = answer_repository_read(*repo_, read("history", {{"serial", "SN-C"}}));
+  const json& run = h.at("runs").at(0);
+  EXPECT_EQ(run.at("verdict"), "REVIEW");
+  EXPECT_EQ(run.at("crosscheck_verdict"), "PASS");
+  ASSERT_EQ(run.at("reasons").size(), 2u);
+  EXPECT_EQ(run["reasons"][1].at("source"), "gap");
+  const auto lines = lines_of(render_history_text(h));
+  ASSERT_GE(lines.size(), 3u);
+  const std::size_t verdict_col = lines[1].find("VERDICT"), xcheck_col = lines[1].find("CROSS-CHECK");
+  ASSERT_NE(verdict_col, std::string::npos);
+  ASSERT_NE(xcheck_col, std::string::npos);
+  EXPECT_EQ(lines[2].substr(verdict_col, 6), "REVIEW") << lines[2];
+  EXPECT_EQ(lines[2].substr(xcheck_col, 4), "PASS") << lines[2];
+
+  const json s = answer_repository_read(*repo_, read("show", {{"run_id", id}}));
+  const std::string text = render_show_text(s);
+  EXPECT_EQ(text.rfind("Run " + std::to_string(id) + "  SN-C  review  verdict REVIEW  (cross-check PASS)\n", 0),
+            0u)
+      << text;
+  EXPECT_NE(text.find("2 reasons:\n    [partial archive] partial archive: aborted at step 9"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("    [gap] sim-to-real gap: explained by gyro_g_sensitivity"), std::string::npos);
+  EXPECT_NE(text.find("Cross-check PASS"), std::string::npos) << "labelled as the cross-check's";
+
+  const std::string line = outcome_line(s.at("run"));
+  EXPECT_EQ(line.rfind("run " + std::to_string(id) + " SN-C: review, verdict REVIEW (cross-check PASS) — partial archive", 0), 0u)
+      << line;
+
+  const json e = answer_repository_read(*repo_, read("export", {{"serial", "SN-C"}, {"format", "json"}}));
+  for (const json& row : json::parse(e.at("content").get<std::string>()))
+    EXPECT_EQ(row.at("verdict"), "REVIEW");
+  EXPECT_THROW(repo_->active_params("SN-C"), db::NotFound) << "REVIEW is never active";
+}
+
 TEST_F(RecordJson, ShowCarriesBothParameterSetsBitExact) {
   const json s = answer_repository_read(*repo_, read("show", {{"run_id", r1_}}));
   EXPECT_EQ(s.at("run").at("run_id"), r1_);

@@ -217,7 +217,7 @@ TEST(RunController, ShortSequenceEndsDonePassWithParametersNearTheTruth) {
   const db::RunDetails d = st.repo_->show(id);
   ASSERT_EQ(d.run.state, db::RunState::kDone) << d.run.failure_reason;
   ASSERT_TRUE(d.run.verdict.has_value());
-  EXPECT_EQ(*d.run.verdict, db::Verdict::kPass);
+  EXPECT_EQ(*d.run.verdict, db::RunVerdict::kPass);
   ASSERT_EQ(d.calibrations.size(), 2u);
   // The AINS estimate against the simulator's true unit, parameter by parameter within 4σ.
   const calib::ParamSet truth = st.sim_->config().unit.params;
@@ -229,7 +229,7 @@ TEST(RunController, ShortSequenceEndsDonePassWithParametersNearTheTruth) {
   }
   // Steps of "short": initial rest + 26 [[step]]s.
   EXPECT_EQ(st.ctl_->last_finished()->steps, 27);
-  EXPECT_EQ(*st.ctl_->last_finished()->verdict, db::Verdict::kPass);
+  EXPECT_EQ(*st.ctl_->last_finished()->verdict, db::RunVerdict::kPass);
 }
 
 TEST(RunController, AbortMidRunStopsTheTableAndMarksTheRunAborted) {

@@ -147,7 +147,8 @@ TEST_F(StationctlTest, HistoryFromTheDatabaseIsNewestFirst) {
 TEST_F(StationctlTest, ShowPrintsTheRunAndItsParameters) {
   const Proc p = ctl("show 3");
   ASSERT_EQ(p.code, 0) << p.err;
-  EXPECT_EQ(p.out.rfind("Run 3  SN-A  review  REVIEW", 0), 0u) << p.out;
+  EXPECT_EQ(p.out.rfind("Run 3  SN-A  review  verdict REVIEW  (cross-check REVIEW)", 0), 0u)
+      << p.out;
   EXPECT_NE(p.out.find("accel_bias_mps2[1]: |Δ| = 12.3 µg"), std::string::npos) << p.out;
   EXPECT_NE(p.out.find("gyro_M[2][2]"), std::string::npos);
 
