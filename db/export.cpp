@@ -11,11 +11,11 @@ namespace imucal::db {
 using nlohmann::json;
 
 const char* const kCsvRunColumns[21] = {
-    "run_id",           "serial",       "state",          "verdict",        "crosscheck_verdict",
-    "started_at",
-    "ended_at",         "operator",     "station",        "sequence_name",  "sequence_sha256",
-    "software_version", "archive_path", "archive_sha256", "failure_reason", "reprocessed_from",
-    "setting",          "origin",       "promoted_at",    "promoted_by",    "promote_reason"};
+    "run_id",           "serial",           "state",        "verdict",        "crosscheck_verdict",
+    "started_at",       "ended_at",         "operator",     "station",        "sequence_name",
+    "sequence_sha256",  "software_version", "archive_path", "archive_sha256", "failure_reason",
+    "reprocessed_from", "setting",          "origin",       "promoted_at",    "promoted_by",
+    "promote_reason"};
 
 const char* const kCsvCalibrationColumns[11] = {"method",         "converged",
                                                 "iterations",     "runtime_s",
@@ -312,6 +312,24 @@ json run_details_json(const RunDetails& d) {
   return o;
 }
 
-json active_params_json(const ActiveCalibration& a) { return params_with_sigma(a.active); }
+json active_params_json(const ActiveCalibration& a) {
+  json j = params_with_sigma(a.active);
+  const RunRecord& r = a.run;
+  json source = {{"run_id", r.run_id},
+                 {"serial", r.serial},
+                 {"method", to_string(a.active.method)},
+                 {"setting", calib::setting_name(r.setting)},
+                 {"station", r.station},
+                 {"started_at", format_time_utc(r.started_at_ms)},
+                 {"verdict", r.verdict ? json(to_string(*r.verdict)) : json(nullptr)}};
+  if (!r.origin.empty()) source["origin"] = r.origin;
+  if (r.promoted_at_ms) {
+    source["promoted_at"] = format_time_utc(*r.promoted_at_ms);
+    source["promoted_by"] = r.promoted_by;
+    source["promote_reason"] = r.promote_reason;
+  }
+  j["source"] = std::move(source);
+  return j;
+}
 
 }  // namespace imucal::db

@@ -65,8 +65,10 @@ nlohmann::json calibration_json(const CalibrationRecord& calibration);
 nlohmann::json crosscheck_json(const CrosscheckRecord& crosscheck);
 /// {"run": run_json, "calibrations": [...], "crosscheck": {...} or null}
 nlohmann::json run_details_json(const RunDetails& details);
-/// The active parameter set exactly in the DESIGN §3 schema (five keys + "sigma"), so that
-/// archive::param_set_from_json / read_param_file load it for the INS.
+/// The active parameter set in the DESIGN §3 schema (five keys + "sigma") plus "source": the run
+/// it comes from {run_id, serial, method, setting, station, started_at, verdict, [origin],
+/// [promoted_at, promoted_by, promote_reason]}; archive::param_set_from_json / read_param_file load
+/// it for the INS.
 nlohmann::json active_params_json(const ActiveCalibration& active);
 
 }  // namespace imucal::db

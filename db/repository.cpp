@@ -167,7 +167,8 @@ CrosscheckRecord crosscheck_record(const calib::CrossCheckResult& result, double
 
 RunReason crosscheck_reason(const CrosscheckRecord& x) {
   std::string s;
-  for (const auto& f : x.failures) s += (s.empty() ? "" : "; ") + (f.detail.empty() ? f.term : f.detail);
+  for (const auto& f : x.failures)
+    s += (s.empty() ? "" : "; ") + (f.detail.empty() ? f.term : f.detail);
   return {"cross-check", s.empty() ? "cross-check REVIEW" : "cross-check REVIEW: " + s};
 }
 

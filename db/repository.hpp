@@ -11,14 +11,15 @@
 // aborted | interrupted. The first three are "live"; the last five are terminal and final — a run
 // never leaves a terminal state (reprocessing creates a new run that names its origin).
 //
-// The *active* calibration of a serial is the AINS parameter set of its latest FACTORY run (by
-// start time, then run id) whose state is done with cross-check verdict PASS — unless QA promoted
-// a field run (land/sea, `stationctl promote`) after that run ended: then the latest promoted run.
-// A field run never becomes active on its own, even with PASS. AINS is "the" set because
-// it estimates the full model (paper §IV, 27 parameters incl. table misalignment ς, with
-// smoothed covariance) and is the paper's primary method; NLSQ is the independent check that
-// made the verdict PASS. Both sets of that run stay retrievable (ActiveCalibration::all).
-// A later REVIEW, failed, aborted or interrupted run never replaces the active set.
+// The *active* calibration of a serial is the AINS parameter set of its latest FACTORY run
+// recorded by this station (by start time, then run id) whose verdict is PASS — unless QA promoted
+// a field run (land/sea) or an imported run (`stationctl promote`) after that run ended: then the
+// latest promoted run. A field or imported run never becomes active on its own, even with PASS.
+// AINS is "the" set because it estimates the full model (paper §IV, 27 parameters incl. table
+// misalignment ς, with smoothed covariance) and is the paper's primary method; NLSQ is the
+// independent check that made the verdict PASS. Both sets of that run stay retrievable
+// (ActiveCalibration::all). A later REVIEW, failed, aborted or interrupted run never replaces the
+// active set.
 //
 // Times are UTC milliseconds since the Unix epoch (TimestampMs); format_time_utc/parse_time_utc
 // convert to/from ISO 8601 for people and files.
@@ -176,7 +177,7 @@ struct RunRecord {
   TimestampMs started_at_ms = 0;
   std::optional<TimestampMs> ended_at_ms;  ///< set exactly when the state is terminal
   RunState state = RunState::kPreparing;
-  std::string failure_reason;  ///< why failed/aborted/interrupted/review (the reasons joined)
+  std::string failure_reason;      ///< why failed/aborted/interrupted/review (the reasons joined)
   std::vector<RunReason> reasons;  ///< the same, one per source (schema v5); empty for PASS
   std::string archive_path;
   std::string archive_sha256;  ///< 64 lowercase hex digits, or empty
@@ -224,9 +225,9 @@ struct CrosscheckRecord {
 struct RunCompletion {
   RunState state = RunState::kDone;  ///< must be terminal
   TimestampMs ended_at_ms = 0;
-  std::string reason;                       ///< required for failed/aborted/interrupted, and
-                                            ///< for review without a REVIEW cross-check;
-                                            ///< empty: join_reasons(reasons)
+  std::string reason;              ///< required for failed/aborted/interrupted, and
+                                   ///< for review without a REVIEW cross-check;
+                                   ///< empty: join_reasons(reasons)
   std::vector<RunReason> reasons;  ///< every reason by source; empty: `reason` as one reason
   std::optional<std::string> archive_path;  ///< replaces the stored path if given
   std::string archive_sha256;               ///< 64 lowercase hex digits, or empty
@@ -319,13 +320,18 @@ class Repository {
   virtual void export_rows(const ExportFilter& filter,
                            const std::function<void(const ExportRow&)>& sink) const = 0;
 
+  /// Runs whose stored archive SHA-256 is `sha256` (64 lowercase hex digits; InvalidInput
+  /// otherwise), ascending id: `stationctl import` refuses an archive the history already holds.
+  virtual std::vector<RunRecord> runs_with_archive_sha256(const std::string& sha256) const = 0;
+
   /// Runs currently in any of `states`, ascending id.
   virtual std::vector<RunRecord> runs_in_state(const std::vector<RunState>& states) const = 0;
 
-  /// QA's explicit promotion of a field run (land or sea) to the unit's active parameters, with
-  /// who, when and why. InvalidInput for an empty reason or `by`; NotFound for an unknown run;
-  /// Conflict for a factory run (its PASS makes it active by itself), a live run, or a run that
-  /// is neither done (PASS) nor a sea run reviewed only for want of a second method.
+  /// QA's explicit promotion of a field run (land or sea) or an imported run to the unit's active
+  /// parameters, with who, when and why. InvalidInput for an empty reason or `by`; NotFound for
+  /// an unknown run; Conflict for a factory run of this station (its PASS makes it active by
+  /// itself), a live run, or a run that is neither done (PASS) nor a sea run reviewed only for
+  /// want of a second method.
   virtual void promote(RunId run_id, const std::string& by, const std::string& reason,
                        TimestampMs at_ms) = 0;
 };

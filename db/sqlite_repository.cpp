@@ -49,6 +49,8 @@ const std::string kSqlActive = "SELECT " + kRunColumns + kRunFrom +
 const std::string kSqlLatestPromoted = "SELECT " + kRunColumns + kRunFrom +
                                        "WHERE r.unit_id = ?1 AND r.promoted_at_ms IS NOT NULL "
                                        "ORDER BY r.promoted_at_ms DESC, r.id DESC LIMIT 1";
+const std::string kSqlRunsWithArchiveSha =
+    "SELECT " + kRunColumns + kRunFrom + "WHERE r.archive_sha256 = ?1 ORDER BY r.id";
 const std::string kSqlRunsInState =
     "SELECT " + kRunColumns + kRunFrom + "WHERE r.state = ?1 ORDER BY r.id";
 const std::string kSqlCalsOfRun =
@@ -712,8 +714,8 @@ struct SqliteRepository::Impl {
     if (needs_reason && reason.empty())
       throw InvalidInput(who + ": state " + to_string(c.state) + " needs a reason");
     if (c.state == RunState::kDone && !reasons.empty())
-      throw InvalidInput(who + ": a done (PASS) run has no reasons against it: " +
-                         join_reasons(reasons));
+      throw InvalidInput(who +
+                         ": a done (PASS) run has no reasons against it: " + join_reasons(reasons));
 
     Stmt q(*this, kSqlFinishRun, op);
     q.bind(1, run_id).bind(2, to_string(c.state)).bind(3, c.ended_at_ms).bind(4, reason);
@@ -986,8 +988,8 @@ ActiveCalibration SqliteRepository::active_params(const std::string& serial) con
       Impl::Stmt n(d, kSqlCountRunsOfUnit, "active_params");
       n.bind(1, unit);
       n.step();
-      throw NotFound(d.path + ": serial number \"" + serial +
-                     "\" has no active calibration (" + std::to_string(n.i64(0)) +
+      throw NotFound(d.path + ": serial number \"" + serial + "\" has no active calibration (" +
+                     std::to_string(n.i64(0)) +
                      " run(s) on record: none a station factory run with verdict PASS, none "
                      "promoted)");
     }
@@ -1015,6 +1017,20 @@ ActiveCalibration SqliteRepository::active_params(const std::string& serial) con
   return out;
 }
 
+std::vector<RunRecord> SqliteRepository::runs_with_archive_sha256(const std::string& sha256) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  const Impl& d = *impl_;
+  if (!is_sha256_hex(sha256))
+    throw InvalidInput(d.path + ": runs_with_archive_sha256: \"" + sha256.substr(0, 80) +
+                       "\" is not a SHA-256 (64 lowercase hex digits)");
+  Impl::Tx tx(d, "runs_with_archive_sha256", false);
+  Impl::Stmt q(d, kSqlRunsWithArchiveSha.c_str(), "runs_with_archive_sha256");
+  q.bind(1, sha256);
+  std::vector<RunRecord> out;
+  while (q.step()) out.push_back(d.read_run(q));
+  return out;
+}
+
 void SqliteRepository::promote(RunId run_id, const std::string& by, const std::string& reason,
                                TimestampMs at_ms) {
   std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
@@ -1032,10 +1048,10 @@ void SqliteRepository::promote(RunId run_id, const std::string& by, const std::s
     if (!q.step()) throw NotFound("no " + run_label(run_id) + " in " + d.path);
     r = d.read_run(q);
   }
-  if (r.setting == calib::Setting::kFactory)
+  if (r.setting == calib::Setting::kFactory && r.origin.empty())
     throw Conflict(who +
-                   " is a factory run: a factory PASS is active by itself; only field "
-                   "(land/sea) runs are promoted");
+                   " is a factory run of this station: its PASS is active by itself; only field "
+                   "(land/sea) and imported runs are promoted");
   if (!is_terminal(r.state)) throw Conflict(who + " is still " + to_string(r.state));
   const bool sea_alone =
       r.setting == calib::Setting::kSea && r.state == RunState::kReview && !r.crosscheck_verdict;

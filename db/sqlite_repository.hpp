@@ -52,6 +52,7 @@ class SqliteRepository final : public Repository {
   void export_rows(const ExportFilter& filter,
                    const std::function<void(const ExportRow&)>& sink) const override;
   std::vector<RunRecord> runs_in_state(const std::vector<RunState>& states) const override;
+  std::vector<RunRecord> runs_with_archive_sha256(const std::string& sha256) const override;
   void promote(RunId run_id, const std::string& by, const std::string& reason,
                TimestampMs at_ms) override;
 

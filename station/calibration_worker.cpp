@@ -151,7 +151,7 @@ CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJo
   out.verdict = db::run_verdict(completion.state);
   if (completion.crosscheck) out.crosscheck_verdict = completion.crosscheck->verdict;
   out.reason = completion.reason;
-  completion.ended_at_ms = db::now_ms();
+  completion.ended_at_ms = job.ended_at_ms.value_or(db::now_ms());
   // The calibration's sample arrays (tens of MB) are freed now; glibc keeps freed heap memory
   // mapped, so give it back: between runs the daemon returns to its idle size (the soak test:
   // 16 MB flat instead of 39 MB).

@@ -39,12 +39,14 @@ struct CalibrationJob {
   double gap_false_alarm = 1e-4;
   /// Why the archive is incomplete ("" = complete): the result is then REVIEW at best.
   std::string partial_reason;
+  /// The run's end as recorded (an import keeps its archive's times); none: when the job ends.
+  std::optional<db::TimestampMs> ended_at_ms;
 };
 
 struct CalibrationOutcome {
   db::RunId run_id = 0;
   db::RunState state = db::RunState::kFailed;  ///< done, review or failed (as stored)
-  std::optional<db::RunVerdict> verdict;  ///< the run's (db::run_verdict(state))
+  std::optional<db::RunVerdict> verdict;       ///< the run's (db::run_verdict(state))
   std::optional<db::Verdict> crosscheck_verdict;  ///< the cross-check's own, if one was made
   std::string reason;      ///< review: every reason ("; "-joined); failed: the error
   bool stored = true;      ///< false: the run was already terminal, nothing was written

@@ -226,8 +226,8 @@ std::string render_history_text(const json& history) {
     os << runs.size() << (runs.size() == 1 ? " run" : " runs") << ", newest first";
   os << ")\n";
   os << pad("RUN", 7) << pad("STARTED (UTC)", 21) << pad("SETTING", 9) << pad("STATE", 13)
-     << pad("VERDICT", 9) << pad("CROSS-CHECK", 13) << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13)
-     << pad("GAP (best effect)", 40) << "REASON\n";
+     << pad("VERDICT", 9) << pad("CROSS-CHECK", 13) << pad("SEQUENCE", 16) << pad("OPERATOR", 14)
+     << pad("DURATION", 13) << pad("GAP (best effect)", 40) << "REASON\n";
   for (const auto& r : runs) {
     std::string id = str(r, "run_id");
     if (has(r, "reprocessed_from")) id += "*";
@@ -236,9 +236,9 @@ std::string render_history_text(const json& history) {
     os << rtrim(pad(id, 7) + pad(short_time(str(r, "started_at")), 21) +
                 pad(str(r, "setting", "factory"), 9) + pad(str(r, "state"), 13) +
                 pad(str(r, "verdict", "-"), 9) + pad(str(r, "crosscheck_verdict", "-"), 13) +
-                pad(str(r, "sequence_name"), 16) +
-                pad(str(r, "operator"), 14) + pad(duration.empty() ? "-" : duration, 13) +
-                pad(gap_cell(r), 40) + str(r, "failure_reason"))
+                pad(str(r, "sequence_name"), 16) + pad(str(r, "operator"), 14) +
+                pad(duration.empty() ? "-" : duration, 13) + pad(gap_cell(r), 40) +
+                str(r, "failure_reason"))
        << "\n";
   }
   bool any_reprocessed = false;
@@ -274,7 +274,8 @@ void render_reasons(std::ostream& os, const json& run) {
   const bool listed = run.contains("reasons") && run["reasons"].is_array();
   if (listed && run["reasons"].empty()) return;
   if (!listed) {
-    if (!str(run, "failure_reason").empty()) os << "  reason: " << str(run, "failure_reason") << "\n";
+    if (!str(run, "failure_reason").empty())
+      os << "  reason: " << str(run, "failure_reason") << "\n";
     return;
   }
   const std::size_t n = run["reasons"].size();
@@ -296,7 +297,8 @@ std::string render_show_text(const json& show) {
   const json& run = show.at("run");
   os << "Run " << str(run, "run_id") << "  " << str(run, "serial") << "  " << str(run, "state");
   if (has(run, "verdict")) os << "  verdict " << str(run, "verdict");
-  if (has(run, "crosscheck_verdict")) os << "  (cross-check " << str(run, "crosscheck_verdict") << ")";
+  if (has(run, "crosscheck_verdict"))
+    os << "  (cross-check " << str(run, "crosscheck_verdict") << ")";
   os << "\n";
   render_reasons(os, run);
   auto row = [&os](const char* label, const std::string& value) {

@@ -19,6 +19,7 @@
 #include "station/capture.hpp"
 #include "station/end_note.hpp"
 #include "station/gap_check.hpp"
+#include "station/import_staging.hpp"
 
 namespace imucal::station {
 
@@ -460,24 +461,35 @@ nlohmann::json RunController::import_archive(const std::string& dir, const std::
   archive::RunArchive ar = checked_import(dir);
   if (thread_.joinable()) thread_.join();
 
+  // The station keeps its own copy (staged, then renamed into place once the run exists), so the
+  // record stays reproducible whatever happens to the medium it came from; an archive the history
+  // already holds is refused before anything is stored.
+  std::optional<StagedImport> staged;
+  try {
+    staged.emplace(dir, ar, (fs::path(cfg_.data_dir) / "runs").string());
+  } catch (const std::exception& e) {
+    throw ControlError(error_code::kUnavailable,
+                       std::string("import: cannot store the archive: ") + e.what());
+  }
+  if (const auto dup = duplicate_import(repo_, *staged))
+    throw ControlError(error_code::kInvalidInput, "import: " + *dup);
+
+  const db::TimestampMs now = db::now_ms();
+  const RecordedTimes times = recorded_times(ar, now);
   db::NewRun nr = new_run(ar.info.serial, user, ar.info.sequence_name, ar.info.sequence_sha256,
                           db::RunState::kCalibrating);
   nr.setting = ar.info.setting;
-  nr.origin = "imported from " + dir;
+  nr.started_at_ms = times.started_at_ms;
+  nr.origin = import_origin(dir, now, times);
   db::RunId id = 0;
   try {
     id = repo_.create_run(nr);
   } catch (const db::InvalidInput& e) {
     throw ControlError(error_code::kInvalidInput, std::string("import: ") + e.what());
   }
-  // The station keeps its own copy (atomic: a temporary directory renamed into place), so the
-  // record stays reproducible whatever happens to the medium it came from.
   const std::string dest = archive_dir_for(id, ar.info.serial);
-  std::string digest;
   try {
-    fs::create_directories(fs::path(cfg_.data_dir) / "runs");
-    archive::write_archive(dest, ar);
-    digest = archive_digest(dest);
+    staged->move_to(dest);
   } catch (const std::exception& e) {
     db::RunCompletion c;
     c.state = db::RunState::kFailed;
@@ -499,15 +511,17 @@ nlohmann::json RunController::import_archive(const std::string& dir, const std::
   live->snap.phase = RunPhase::kCalibrating;
   live->snap.started_at_ms = nr.started_at_ms;
   live_ = live;
-  spdlog::info("run {}: imported {} ({} run of {}) into {}", id, dir,
-               calib::setting_name(ar.info.setting), ar.info.serial, dest);
+  spdlog::info("run {}: imported {} ({} run of {}, recorded {}) into {}", id, dir,
+               calib::setting_name(ar.info.setting), ar.info.serial,
+               db::format_time_utc(times.started_at_ms), dest);
 
   CalibrationJob job;
   job.run_id = id;
   job.archive_dir = dest;
-  job.archive_sha256 = digest;
+  job.archive_sha256 = staged->copy_sha256();
   job.k_sigma = cfg_.k_sigma;
   job.gap_false_alarm = cfg_.gap_false_alarm;
+  job.ended_at_ms = times.ended_at_ms;
   lk.unlock();
   worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, out); });
   return {{"run_id", id},

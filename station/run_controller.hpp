@@ -100,8 +100,8 @@ struct RunSnapshot {
 };
 
 /// The contract's "run" object: run_id, serial, sequence, operator, state, phase, step, steps,
-/// time_left_s, verdict (the run's), crosscheck_verdict, reason, started_at, capture (null where not
-/// applicable), plus ended_at, archive and reprocessed_from.
+/// time_left_s, verdict (the run's), crosscheck_verdict, reason, started_at, capture (null where
+/// not applicable), plus ended_at, archive and reprocessed_from.
 nlohmann::json to_json(const RunSnapshot& run);
 /// A stored run in the same shape (phase/step/time left null; capture from capture_json).
 RunSnapshot snapshot_from_record(const db::RunRecord& record);

@@ -84,14 +84,14 @@ calib::ParamSet params_from_object(const json& j, const std::string& origin,
                                     prefix.empty() ? "<root>" : prefix.substr(0, prefix.size() - 1),
                                     std::string("expected a JSON object, got ") + kind_name(j));
   for (auto it = j.begin(); it != j.end(); ++it) {
-    bool known = allow_sigma_key && it.key() == "sigma";
+    bool known = allow_sigma_key && (it.key() == "sigma" || it.key() == "source");
     for (const char* k : kParamSetKeys) known = known || it.key() == k;
     if (!known)
       throw ArchiveError::field_error(
           origin, prefix + it.key(),
           "unknown field (a parameter set has exactly accel_bias_mps2, "
           "accel_M, gyro_bias_radps, gyro_M, table_misalignment_rad" +
-              std::string(allow_sigma_key ? " and optional sigma)" : ")"));
+              std::string(allow_sigma_key ? " and optional sigma and source)" : ")"));
   }
   for (const char* k : kParamSetKeys)
     if (!j.contains(k)) throw ArchiveError::field_error(origin, prefix + k, "missing");
@@ -123,6 +123,9 @@ json param_set_to_json(const calib::ParamSet& params, const calib::ParamSet* sig
 calib::ParamSet param_set_from_json(const json& j, const std::string& origin,
                                     calib::ParamSet* sigma_out) {
   calib::ParamSet p = params_from_object(j, origin, "", /*allow_sigma_key=*/true);
+  if (j.contains("source") && !j["source"].is_object())
+    throw ArchiveError::field_error(
+        origin, "source", std::string("expected a JSON object, got ") + kind_name(j["source"]));
   if (j.contains("sigma")) {
     const calib::ParamSet s = params_from_object(j["sigma"], origin, "sigma.", false);
     const calib::ParamVector sv = s.to_vector();

@@ -25,7 +25,8 @@ nlohmann::json param_set_to_json(const calib::ParamSet& params,
 /// only, finite. Errors name `origin` and the field path, e.g. "run7/truth.json: field
 /// 'accel_M[1][2]': expected a number, got string". If sigma_out is non-null the "sigma" object is
 /// required (negative entries rejected) and stored there; if null, a present "sigma" is still
-/// validated but discarded.
+/// validated but discarded. An optional "source" object at the root (where the set came from:
+/// `stationctl params` names its run there, issue #19) is allowed and not read.
 calib::ParamSet param_set_from_json(const nlohmann::json& j, const std::string& origin,
                                     calib::ParamSet* sigma_out = nullptr);
 

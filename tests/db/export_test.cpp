@@ -177,12 +177,26 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
     std::map<std::string, std::size_t> col;
     for (std::size_t c = 0; c < header.size(); ++c) col[header[c]] = c;
     ASSERT_EQ(col.size(), header.size()) << "duplicate column names";
-    for (const char* name :
-         {"run_id", "serial", "state", "verdict", "crosscheck_verdict", "started_at", "method",
-          "failure_reason",
-          "setting", "origin", "promoted_at", "promoted_by", "promote_reason", "accel_M[1][2]",
-          "sigma.gyro_bias_radps[0]", "crosscheck_k_sigma", "crosscheck_failures",
-          "capture.frames_received", "capture.samples_lost", "capture.rest_samples"})
+    for (const char* name : {"run_id",
+                             "serial",
+                             "state",
+                             "verdict",
+                             "crosscheck_verdict",
+                             "started_at",
+                             "method",
+                             "failure_reason",
+                             "setting",
+                             "origin",
+                             "promoted_at",
+                             "promoted_by",
+                             "promote_reason",
+                             "accel_M[1][2]",
+                             "sigma.gyro_bias_radps[0]",
+                             "crosscheck_k_sigma",
+                             "crosscheck_failures",
+                             "capture.frames_received",
+                             "capture.samples_lost",
+                             "capture.rest_samples"})
       ASSERT_TRUE(col.count(name)) << name;
 
     const auto expected = expected_rows(f);

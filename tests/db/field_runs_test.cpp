@@ -180,5 +180,30 @@ TEST(FieldRuns, VersionThreeDatabaseMigratesKeepingItsCalibrations) {
   sqlite3_close(raw);
 }
 
+// Issue #19 item 3: an imported factory archive is active only once QA promotes it, and the
+// history finds a run by its archive's SHA-256 (the import's duplicate check).
+TEST(FieldRuns, AnImportedFactoryRunIsActiveOnlyWhenPromotedAndIsFoundByItsArchiveHash) {
+  TempDir dir;
+  SqliteRepository repo(dir.file("h.db"));
+  const RunId station = repo.create_run(test::new_run("NAV-1", kT0));
+  repo.finish_run(station, test::pass_completion(1, kT0 + 1000));
+  const RunId imported = repo.create_run(field_run("NAV-1", kT0 + 5000, calib::Setting::kFactory));
+  RunCompletion c = test::pass_completion(2, kT0 + 6000);
+  repo.finish_run(imported, c);
+  EXPECT_EQ(repo.active_params("NAV-1").run.run_id, station)
+      << "a later imported PASS is not active";
+  const std::string msg =
+      expect_throw_message<Conflict>([&] { repo.promote(station, "qa", "why not", kT0 + 7000); });
+  EXPECT_NE(msg.find("factory run of this station"), std::string::npos) << msg;
+  repo.promote(imported, "qa", "golden unit", kT0 + 8000);
+  EXPECT_EQ(repo.active_params("NAV-1").run.run_id, imported);
+
+  const auto found = repo.runs_with_archive_sha256(c.archive_sha256);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].run_id, imported);
+  EXPECT_TRUE(repo.runs_with_archive_sha256(std::string(64, 'e')).empty());
+  EXPECT_THROW(repo.runs_with_archive_sha256("not-a-hash"), InvalidInput);
+}
+
 }  // namespace
 }  // namespace imucal::db

@@ -180,7 +180,11 @@ TEST(Repository, ShowReturnsEverythingStored) {
   ASSERT_TRUE(d.run.ended_at_ms.has_value());
   EXPECT_EQ(*d.run.ended_at_ms, kT0 + 999);
   EXPECT_EQ(d.run.state, RunState::kReview);
-  EXPECT_EQ(d.run.failure_reason, "");
+  // In review by the cross-check alone: its failures are the run's reason (issue #19 item 2).
+  EXPECT_EQ(d.run.failure_reason,
+            "cross-check REVIEW: " + x.failures[0].detail + "; " + x.failures[1].detail);
+  ASSERT_EQ(d.run.reasons.size(), 1u);
+  EXPECT_EQ(d.run.reasons[0].source, "cross-check");
   EXPECT_EQ(d.run.archive_path, "/data/runs/42");
   EXPECT_EQ(d.run.archive_sha256, std::string(64, 'f'));
   ASSERT_TRUE(d.run.reprocessed_from.has_value());

@@ -44,12 +44,16 @@ TEST(StationImport, FieldRunsJoinTheHistoryWithTheirSettingAndBecomeActiveOnlyWh
   ASSERT_EQ(hist.exit_code, 0) << hist.describe();
   const json runs = hist.json_out()["runs"];
   ASSERT_EQ(runs.size(), 2u) << runs.dump(2);
-  const json& lr = runs[0];  // newest first
+  // History is by recorded start time: the simulated land recording (minutes long, ended just
+  // before the import) started before the factory run on the fast simulator.
+  const std::size_t land_at = runs[0].value("setting", "") == "land" ? 0 : 1;
+  const json& lr = runs[land_at];
+  const json& fr = runs[1 - land_at];
   EXPECT_EQ(lr.value("setting", ""), "land") << lr.dump(2);
   EXPECT_EQ(lr.value("state", ""), "done") << lr.dump(2);  // AINS and legacy agree
   EXPECT_EQ(lr.value("verdict", ""), "PASS") << lr.dump(2);
   EXPECT_NE(lr.value("origin", "").find(land), std::string::npos) << lr.dump(2);
-  EXPECT_EQ(runs[1].value("setting", ""), "factory");
+  EXPECT_EQ(fr.value("setting", ""), "factory");
   const long long land_id = lr.value("run_id", -1LL);
   // The station keeps its own copy of the archive.
   EXPECT_EQ(lr.value("archive_path", "").rfind(st.data_dir(), 0), 0u) << lr.dump(2);
@@ -78,13 +82,96 @@ TEST(StationImport, FieldRunsJoinTheHistoryWithTheirSettingAndBecomeActiveOnlyWh
   ASSERT_EQ(prom.exit_code, 0) << prom.describe();
   const json after = st.ctl({"params", "SIM-7", "--json"}).json_out();
   EXPECT_NE(after, factory_params);
+  EXPECT_EQ(after.at("source").value("run_id", -1LL), land_id) << after.dump(2);
+  EXPECT_EQ(factory_params.at("source").value("run_id", -1LL), fr.value("run_id", -1LL));
   const json rec = st.ctl({"show", std::to_string(land_id), "--json"}).json_out()["run"];
   EXPECT_EQ(rec.value("promote_reason", ""), "recalibrated at the customer") << rec.dump(2);
   EXPECT_FALSE(rec.value("promoted_by", "").empty()) << rec.dump(2);
-  // A factory run cannot be promoted.
+  // A factory run of this station cannot be promoted.
   const CmdResult bad_prom =
-      st.ctl({"promote", std::to_string(runs[1].value("run_id", -1LL)), "--reason", "x"});
+      st.ctl({"promote", std::to_string(fr.value("run_id", -1LL)), "--reason", "x"});
   EXPECT_NE(bad_prom.exit_code, 0) << bad_prom.describe();
+}
+
+/// Sets run.toml's start_time and end_time of an archive directory.
+void set_recorded_times(const std::string& dir, const std::string& start, const std::string& end) {
+  const std::string path = dir + "/run.toml";
+  std::string toml = read_text(path);
+  for (const auto& [key, value] :
+       {std::pair{std::string("start_time"), start}, {"end_time", end}}) {
+    const std::size_t at = toml.find(key + " = ");
+    ASSERT_NE(at, std::string::npos) << key << " missing in\n" << toml;
+    const std::size_t eol = toml.find('\n', at);
+    toml.replace(at, eol - at, key + " = \"" + value + "\"");
+  }
+  write_text(path, toml);
+}
+
+// Issue #19 item 3: an imported factory archive became active at once, a second import of the same
+// archive made a duplicate run, the run's start was the import time and its duration "1 s", and
+// `params` did not say which run its set came from.
+TEST(StationImport, AnImportKeepsItsTimesIsActiveOnlyWhenPromotedAndIsNeverStoredTwice) {
+  Station st;
+  ASSERT_TRUE(st.start());
+  const std::string factory = st.dir() / "factory-SIM-10";
+  ASSERT_EQ(
+      imucal(st, {"simulate", "--sequence", "short", "--seed", "10", "--out", factory}).exit_code,
+      0);
+  set_recorded_times(factory, "2026-03-02T08:15:00Z", "2026-03-02T08:36:40Z");
+  const CmdResult imp = st.ctl({"import", factory, "--wait"}, 180s);
+  ASSERT_EQ(imp.exit_code, 0) << imp.describe() << "\n" << st.daemon_log();
+  const json runs = st.ctl({"history", "SIM-10", "--json"}).json_out()["runs"];
+  ASSERT_EQ(runs.size(), 1u);
+  const json& run = runs[0];
+  const long long id = run.value("run_id", -1LL);
+  EXPECT_EQ(run.value("verdict", ""), "PASS") << run.dump(2);
+  EXPECT_EQ(run.value("started_at", ""), "2026-03-02T08:15:00.000Z") << run.dump(2);
+  EXPECT_EQ(run.value("ended_at", ""), "2026-03-02T08:36:40.000Z") << run.dump(2);
+  EXPECT_EQ(run.value("origin", "").rfind("imported from " + factory + " on ", 0), 0u)
+      << run.dump(2);
+  EXPECT_NE(st.ctl({"history", "SIM-10"}).out.find("21 min 40 s"), std::string::npos);
+
+  // Not active until promoted, whatever its verdict ("never becomes active unless promoted").
+  const CmdResult before = st.ctl({"params", "SIM-10"});
+  EXPECT_NE(before.exit_code, 0) << "an imported archive became active:\n" << before.describe();
+  EXPECT_NE((before.out + before.err).find("none promoted"), std::string::npos)
+      << before.describe();
+
+  // The same archive again: refused, naming the run that holds it; nothing stored or left behind.
+  const CmdResult again = st.ctl({"import", factory, "--wait"}, 60s);
+  EXPECT_NE(again.exit_code, 0) << again.describe();
+  EXPECT_NE((again.out + again.err).find("already stored as run " + std::to_string(id)),
+            std::string::npos)
+      << again.describe();
+  EXPECT_EQ(st.ctl({"history", "SIM-10", "--json"}).json_out()["runs"].size(), 1u);
+  for (const auto& e : std::filesystem::directory_iterator(st.data_dir() + "/runs"))
+    EXPECT_EQ(e.path().filename().string().rfind(".import-", 0), std::string::npos) << e.path();
+  // ... and so is the station's own copy of it.
+  const CmdResult copy = st.ctl({"import", run.value("archive_path", ""), "--wait"}, 60s);
+  EXPECT_NE((copy.out + copy.err).find("already stored as run " + std::to_string(id)),
+            std::string::npos)
+      << copy.describe();
+
+  // Promoted, it is active, and params names the run, in JSON and in text.
+  ASSERT_EQ(
+      st.ctl({"promote", std::to_string(id), "--reason", "golden unit from line 2"}).exit_code, 0);
+  const CmdResult params = st.ctl({"params", "SIM-10", "--json"});
+  ASSERT_EQ(params.exit_code, 0) << params.describe();
+  const json source = params.json_out().at("source");
+  EXPECT_EQ(source.value("run_id", -1LL), id) << source.dump(2);
+  EXPECT_EQ(source.value("method", ""), "ains");
+  EXPECT_EQ(source.value("promote_reason", ""), "golden unit from line 2");
+  EXPECT_NE(source.value("origin", "").find(factory), std::string::npos);
+  const CmdResult text = st.ctl({"params", "SIM-10"});
+  EXPECT_NE(text.out.find("\"run_id\": " + std::to_string(id)), std::string::npos) << text.out;
+  const json bare = st.ctl({"params", "SIM-10", "--json", "--bare"}).json_out();
+  EXPECT_FALSE(bare.contains("source")) << bare.dump(2);
+  EXPECT_EQ(bare.size(), 6u) << "the five schema keys and sigma";
+  // What params prints still loads as a parameter set (imucal evaluate --params reads it).
+  write_text(st.dir() / "active.json", text.out);
+  const CmdResult check =
+      imucal(st, {"evaluate", factory, "--params", st.dir() / "active.json", "--json"});
+  EXPECT_EQ(check.exit_code, 0) << check.describe();
 }
 
 TEST(StationImport, SeaRunIsReviewedForHavingAinsAloneAndBadArchivesAreRefused) {

@@ -126,7 +126,8 @@ TEST_F(RecordJson, EveryViewShowsTheRunVerdictWithItsReasonsAndTheCrossCheckLabe
   EXPECT_EQ(run["reasons"][1].at("source"), "gap");
   const auto lines = lines_of(render_history_text(h));
   ASSERT_GE(lines.size(), 3u);
-  const std::size_t verdict_col = lines[1].find("VERDICT"), xcheck_col = lines[1].find("CROSS-CHECK");
+  const std::size_t verdict_col = lines[1].find("VERDICT"),
+                    xcheck_col = lines[1].find("CROSS-CHECK");
   ASSERT_NE(verdict_col, std::string::npos);
   ASSERT_NE(xcheck_col, std::string::npos);
   EXPECT_EQ(lines[2].substr(verdict_col, 6), "REVIEW") << lines[2];
@@ -134,20 +135,27 @@ TEST_F(RecordJson, EveryViewShowsTheRunVerdictWithItsReasonsAndTheCrossCheckLabe
 
   const json s = answer_repository_read(*repo_, read("show", {{"run_id", id}}));
   const std::string text = render_show_text(s);
-  EXPECT_EQ(text.rfind("Run " + std::to_string(id) + "  SN-C  review  verdict REVIEW  (cross-check PASS)\n", 0),
-            0u)
+  EXPECT_EQ(
+      text.rfind(
+          "Run " + std::to_string(id) + "  SN-C  review  verdict REVIEW  (cross-check PASS)\n", 0),
+      0u)
       << text;
   EXPECT_NE(text.find("2 reasons:\n    [partial archive] partial archive: aborted at step 9"),
             std::string::npos)
       << text;
-  EXPECT_NE(text.find("    [gap] sim-to-real gap: explained by gyro_g_sensitivity"), std::string::npos);
+  EXPECT_NE(text.find("    [gap] sim-to-real gap: explained by gyro_g_sensitivity"),
+            std::string::npos);
   EXPECT_NE(text.find("Cross-check PASS"), std::string::npos) << "labelled as the cross-check's";
 
   const std::string line = outcome_line(s.at("run"));
-  EXPECT_EQ(line.rfind("run " + std::to_string(id) + " SN-C: review, verdict REVIEW (cross-check PASS) — partial archive", 0), 0u)
+  EXPECT_EQ(line.rfind("run " + std::to_string(id) +
+                           " SN-C: review, verdict REVIEW (cross-check PASS) — partial archive",
+                       0),
+            0u)
       << line;
 
-  const json e = answer_repository_read(*repo_, read("export", {{"serial", "SN-C"}, {"format", "json"}}));
+  const json e =
+      answer_repository_read(*repo_, read("export", {{"serial", "SN-C"}, {"format", "json"}}));
   for (const json& row : json::parse(e.at("content").get<std::string>()))
     EXPECT_EQ(row.at("verdict"), "REVIEW");
   EXPECT_THROW(repo_->active_params("SN-C"), db::NotFound) << "REVIEW is never active";
@@ -240,9 +248,16 @@ TEST_F(RecordJson, ParamsIsTheActiveSetLoadableByReadParamFile) {
   const calib::ParamSet loaded = archive::read_param_file(path, &sigma);
   EXPECT_EQ(loaded.to_vector(), db::test::seeded_params(1, 0).to_vector());
   EXPECT_EQ(sigma.to_vector(), db::test::seeded_sigma(1, 0).to_vector());
-  // Exactly the schema's keys: nothing a strict INS loader would trip over.
+  // The schema's keys, sigma and "source": the run the set comes from (issue #19 item 3), which
+  // `stationctl params --bare` leaves out for a loader that accepts nothing else.
+  const json& source = p.at("source");
+  EXPECT_EQ(source.at("run_id"), r1_);
+  EXPECT_EQ(source.at("serial"), "SN-A");
+  EXPECT_EQ(source.at("method"), "ains");
+  EXPECT_EQ(source.at("verdict"), "PASS");
+  EXPECT_EQ(source.at("started_at"), "2024-05-01T10:00:00.000Z");
   for (auto it = p.begin(); it != p.end(); ++it) {
-    bool known = it.key() == "sigma";
+    bool known = it.key() == "sigma" || it.key() == "source";
     for (const char* k : archive::kParamSetKeys) known = known || it.key() == k;
     EXPECT_TRUE(known) << it.key();
   }

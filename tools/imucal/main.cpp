@@ -66,8 +66,8 @@ int json_error(const std::string& message, int exit_code) {
 
 calib::Site default_site() { return calib::demo_factory_site(); }
 
-std::string iso_now() {
-  const auto t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+std::string iso_utc(std::chrono::system_clock::time_point at) {
+  const auto t = std::chrono::system_clock::to_time_t(at);
   char buf[32];
   std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
   return buf;
@@ -120,8 +120,6 @@ archive::RunArchive simulated_archive(const SimulateArgs& a, const calib::UnitMo
   ar.info.sequence_name = profile.name;
   ar.info.sequence_sha256 = sequences::sequence_hash(seq_path);
   ar.info.software_version = IMUCAL_VERSION;
-  ar.info.start_time = iso_now();
-  ar.info.end_time = ar.info.start_time;
   ar.info.arw_rad_per_sqrt_s = unit.noise.arw_rad_per_sqrt_s;
   ar.info.vrw_mps_per_sqrt_s = unit.noise.vrw_mps_per_sqrt_s;
   ar.truth = archive::truth_from_unit(unit);
@@ -198,6 +196,12 @@ int cmd_simulate(const SimulateArgs& a) {
     ar.imu = std::move(sim.imu);
     ar.table = std::move(sim.table);
   }
+  // A simulated recording ends now and lasts as long as its data (an import keeps these times).
+  const auto end = std::chrono::system_clock::now();
+  const double span_s =
+      ar.imu.empty() ? 0.0 : ar.imu.back().t_s - ar.imu.front().t_s + ar.imu.front().dt_s;
+  ar.info.end_time = iso_utc(end);
+  ar.info.start_time = iso_utc(end - std::chrono::seconds(std::llround(span_s)));
   progress("writing " + a.out_dir);
   archive::write_archive(a.out_dir, ar, a.overwrite);
   std::cout << "wrote " << a.out_dir << ": " << ar.imu.size() << " samples, " << ar.imu.back().t_s

@@ -444,7 +444,7 @@ int cmd_export(const Target& t, const json& args, const std::string& output, boo
 /// Every option value of every command (CLI11 binds to these; one command runs per call).
 struct Args {
   std::string serial, sequence, operator_name, reason, since, format, output, import_dir;
-  bool wait = false, partial = false;
+  bool wait = false, partial = false, bare = false;
   db::RunId run_id = 0;
   std::size_t limit = 0;
 };
@@ -497,9 +497,14 @@ void add_read_commands(CLI::App& app, Args& a, Commands& c) {
   c.show = app.add_subcommand("show", "everything stored about a run");
   c.show->add_option("RUN_ID", a.run_id, "run id")->required()->check(CLI::PositiveNumber);
   c.show->fallthrough();
-  c.params = app.add_subcommand("params",
-                                "the unit's active parameter set with 1-sigma (JSON for the INS)");
+  c.params = app.add_subcommand(
+      "params",
+      "the unit's active parameter set with 1-sigma (JSON for the INS) and, under \"source\", the "
+      "run it comes from");
   c.params->add_option("SN", a.serial, "serial number")->required();
+  c.params->add_flag("--bare", a.bare,
+                     "leave \"source\" out: only the five schema keys and sigma, for a loader that "
+                     "accepts nothing else");
   c.params->fallthrough();
   c.exp = app.add_subcommand(
       "export",
@@ -531,7 +536,8 @@ void add_history_commands(CLI::App& app, Args& a, Commands& c) {
   c.import = app.add_subcommand(
       "import",
       "add a field (land/sea) or other station's run archive to its unit's history and calibrate "
-      "it with its setting (needs the group); it never becomes active unless promoted");
+      "it with its setting (needs the group); it keeps the archive's recorded start and end, never "
+      "becomes active unless promoted, and an archive already stored is refused");
   c.import
       ->add_option("DIR", a.import_dir, "run archive directory (imucal simulate/calibrate format)")
       ->required();
@@ -645,8 +651,9 @@ int dispatch(const Target& t, const Args& a, const Commands& c, bool as_json) {
                         station::render_show_text);
   if (*c.params) {
     check_serial(a.serial);
-    return print_result(read_request(t, station::cmd::kParams, {{"serial", a.serial}}), as_json,
-                        station::render_params_text);
+    json params = read_request(t, station::cmd::kParams, {{"serial", a.serial}});
+    if (a.bare) params.erase("source");
+    return print_result(params, as_json, station::render_params_text);
   }
   if (*c.exp) return cmd_export_history(t, a, as_json);
   if (*c.reprocess) return cmd_reprocess(t, a, as_json);
