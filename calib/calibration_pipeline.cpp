@@ -146,6 +146,10 @@ PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions
   limits.max_accel_rmse_ug = opt.crosscheck.max_accel_rmse_ug;
   for (const auto* m : {&out.ains, &out.nlsq, &out.legacy})
     if (*m) check_limits((*m)->result, (*m)->metrics, !out.crosscheck, limits, out.limits);
+  if (in.setting == Setting::kSea)
+    out.unchecked_reason =
+        "sea: AINS alone, no independent method to cross-check it (the legacy method needs a "
+        "still platform)";
   return out;
 }
 

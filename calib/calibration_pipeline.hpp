@@ -59,8 +59,14 @@ struct PipelineResult {
   std::optional<MethodOutcome> legacy;
   std::optional<CrossCheckResult> crosscheck;  ///< only when two methods ran
   LimitCheckResult limits;                     ///< of every method that ran
-  /// Good enough to store as good: every limit holds and, where two methods ran, they agree.
-  bool pass() const { return limits.pass && (!crosscheck || crosscheck->pass); }
+  /// Why no second method can check this result ("" when one can, or one was not asked for): a
+  /// sea run has AINS alone. Such a result is REVIEW in `imucal calibrate` as in the station.
+  std::string unchecked_reason;
+  /// Good enough to store as good: every limit holds and, where two methods ran, they agree; a
+  /// sea run never is (nothing independent checks it).
+  bool pass() const {
+    return limits.pass && (!crosscheck || crosscheck->pass) && unchecked_reason.empty();
+  }
 };
 
 /// Throws DataCheckError (an std::invalid_argument) when the raw data fail the sanity checks,

@@ -281,6 +281,9 @@ json calibration_json(const CalibrationRecord& c) {
   o["iterations"] = c.iterations;
   o["runtime_s"] = c.runtime_s;
   o["warnings"] = c.warnings;
+  o["body_frame"] = to_string(c.body_frame);
+  o["unobservable"] = c.unobservable;
+  o["notes"] = c.notes;
   o["params"] = params_with_sigma(c);
   if (c.metrics) {
     const StoredMetrics& m = *c.metrics;
@@ -299,7 +302,10 @@ json calibration_json(const CalibrationRecord& c) {
 json crosscheck_json(const CrosscheckRecord& x) {
   json failures = json::array();
   for (const auto& f : x.failures) failures.push_back({{"term", f.term}, {"detail", f.detail}});
-  return {{"verdict", to_string(x.verdict)}, {"k_sigma", x.k_sigma}, {"failures", failures}};
+  return {{"verdict", to_string(x.verdict)},
+          {"k_sigma", x.k_sigma},
+          {"failures", failures},
+          {"not_compared", x.not_compared}};
 }
 
 json run_details_json(const RunDetails& d) {
@@ -321,7 +327,9 @@ json active_params_json(const ActiveCalibration& a) {
                  {"setting", calib::setting_name(r.setting)},
                  {"station", r.station},
                  {"started_at", format_time_utc(r.started_at_ms)},
-                 {"verdict", r.verdict ? json(to_string(*r.verdict)) : json(nullptr)}};
+                 {"verdict", r.verdict ? json(to_string(*r.verdict)) : json(nullptr)},
+                 {"body_frame", to_string(a.active.body_frame)},
+                 {"not_observable", a.active.unobservable}};
   if (!r.origin.empty()) source["origin"] = r.origin;
   if (r.promoted_at_ms) {
     source["promoted_at"] = format_time_utc(*r.promoted_at_ms);

@@ -118,21 +118,27 @@ void append_metrics(std::string& out, const StoredMetrics& m) {
   append_double(o.key("orientation_rmse_mdeg"), m.orientation_rmse_mdeg);
 }
 
+void append_strings(std::string& out, const std::vector<std::string>& v) {
+  out += '[';
+  for (size_t i = 0; i < v.size(); ++i) {
+    if (i) out += ',';
+    append_string(out, v[i]);
+  }
+  out += ']';
+}
+
 void append_calibration(std::string& out, const CalibrationRecord& c) {
   Object o(out);
+  append_string(o.key("body_frame"), to_string(c.body_frame));
   append_bool(o.key("converged"), c.converged);
   append_int(o.key("iterations"), c.iterations);
   append_string(o.key("method"), to_string(c.method));
   c.metrics ? append_metrics(o.key("metrics"), *c.metrics) : append_null(o.key("metrics"));
+  append_strings(o.key("notes"), c.notes);
   append_params(o.key("params"), c);
   append_double(o.key("runtime_s"), c.runtime_s);
-  std::string& w = o.key("warnings");
-  w += '[';
-  for (size_t i = 0; i < c.warnings.size(); ++i) {
-    if (i) w += ',';
-    append_string(w, c.warnings[i]);
-  }
-  w += ']';
+  append_strings(o.key("unobservable"), c.unobservable);
+  append_strings(o.key("warnings"), c.warnings);
 }
 
 void append_crosscheck(std::string& out, const CrosscheckRecord& x) {
@@ -147,6 +153,7 @@ void append_crosscheck(std::string& out, const CrosscheckRecord& x) {
   }
   f += ']';
   append_double(o.key("k_sigma"), x.k_sigma);
+  append_strings(o.key("not_compared"), x.not_compared);
   append_string(o.key("verdict"), to_string(x.verdict));
 }
 

@@ -95,6 +95,16 @@ Method method_from_string(const std::string& s) {
   throw InvalidInput("unknown calibration method \"" + s + "\" (expected ains, nlsq or legacy)");
 }
 
+const char* to_string(calib::BodyFrame f) {
+  return f == calib::BodyFrame::kHousing ? "housing" : "accel_symmetric";
+}
+
+calib::BodyFrame body_frame_from_string(const std::string& s) {
+  if (s == "housing") return calib::BodyFrame::kHousing;
+  if (s == "accel_symmetric") return calib::BodyFrame::kAccelSymmetric;
+  throw InvalidInput("unknown body frame \"" + s + "\" (expected housing or accel_symmetric)");
+}
+
 const char* to_string(Verdict v) { return v == Verdict::kPass ? "PASS" : "REVIEW"; }
 
 Verdict verdict_from_string(const std::string& s) {
@@ -146,6 +156,11 @@ CalibrationRecord calibration_record(const calib::CalibrationResult& result,
   r.iterations = result.iterations;
   r.runtime_s = result.runtime_s;
   r.warnings = result.warnings;
+  r.body_frame = result.body_frame;
+  for (int i = 0; i < calib::ParamSet::kSize; ++i)
+    if (!result.observable[static_cast<size_t>(i)])
+      r.unobservable.push_back(calib::param_info(i).name);
+  r.notes = result.unobservable_notes;
   if (metrics) {
     StoredMetrics m;
     m.orientation_rmse_mdeg = metrics->orientation_rmse_mdeg;
@@ -162,6 +177,7 @@ CrosscheckRecord crosscheck_record(const calib::CrossCheckResult& result, double
   r.verdict = result.pass ? Verdict::kPass : Verdict::kReview;
   r.k_sigma = k_sigma;
   r.failures = result.failures;
+  r.not_compared = result.skipped;
   return r;
 }
 

@@ -118,6 +118,8 @@ const std::vector<RunState>& live_states();
 
 enum class Method { kAins, kNlsq, kLegacy };
 const char* to_string(Method m);                  ///< "ains", "nlsq", "legacy"
+const char* to_string(calib::BodyFrame f);        ///< "housing", "accel_symmetric"
+calib::BodyFrame body_frame_from_string(const std::string& s);  ///< InvalidInput otherwise
 Method method_from_string(const std::string& s);  ///< InvalidInput otherwise
 
 /// The cross-check's own verdict (AINS against the second method), one input of the run verdict.
@@ -213,12 +215,18 @@ struct CalibrationRecord {
   double runtime_s = 0.0;
   std::vector<std::string> warnings;
   std::optional<StoredMetrics> metrics;
+  /// The frame its misalignments refer to (schema v5): housing, or the accelerometer triad's own
+  /// (field runs: the housing orientation is not observable without an attitude reference).
+  calib::BodyFrame body_frame = calib::BodyFrame::kHousing;
+  std::vector<std::string> unobservable;  ///< parameter names it does not determine (v5)
+  std::vector<std::string> notes;         ///< what it cannot say, for people (v5)
 };
 
 struct CrosscheckRecord {
   Verdict verdict = Verdict::kReview;
   double k_sigma = 4.0;
   std::vector<calib::CrossCheckFailure> failures;  ///< empty for PASS
+  std::vector<std::string> not_compared;           ///< parameters one method cannot observe (v5)
 };
 
 /// What finish_run stores, all in one transaction (a run is never "done" without its results).

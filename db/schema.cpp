@@ -153,6 +153,30 @@ UPDATE runs SET reasons_json = json_array(json_object(
   'text', failure_reason))
 WHERE failure_reason <> '';
 CREATE INDEX runs_by_archive_sha256 ON runs (archive_sha256) WHERE archive_sha256 <> '';
+
+ALTER TABLE calibrations ADD COLUMN body_frame TEXT NOT NULL DEFAULT 'housing'
+  CHECK (body_frame IN ('housing', 'accel_symmetric'));
+ALTER TABLE calibrations ADD COLUMN unobservable_json TEXT NOT NULL DEFAULT '[]'
+  CHECK (json_valid(unobservable_json) AND json_type(unobservable_json) = 'array');
+ALTER TABLE calibrations ADD COLUMN notes_json TEXT NOT NULL DEFAULT '[]'
+  CHECK (json_valid(notes_json) AND json_type(notes_json) = 'array');
+ALTER TABLE crosschecks ADD COLUMN not_compared_json TEXT NOT NULL DEFAULT '[]'
+  CHECK (json_valid(not_compared_json) AND json_type(not_compared_json) = 'array');
+-- Field results stored before v5: every one was in the triad's frame without the table terms
+-- (calib/ains.cpp describe_field_frame, calib/legacy.cpp), and their cross-check skipped those.
+UPDATE calibrations SET body_frame = 'accel_symmetric',
+  unobservable_json = '["table_misalignment_rad[0]","table_misalignment_rad[1]","table_misalignment_rad[2]"]',
+  notes_json = json_array(
+    'housing orientation: not observable ' ||
+      (SELECT CASE setting WHEN 'sea' THEN 'at sea' ELSE 'on land' END FROM runs
+       WHERE runs.id = calibrations.run_id) ||
+      ' (no attitude reference); misalignments are relative to the accelerometer triad''s own '
+      || 'orthogonal frame',
+    'table misalignment: no table, not estimated')
+WHERE run_id IN (SELECT id FROM runs WHERE setting <> 'factory');
+UPDATE crosschecks SET
+  not_compared_json = '["table_misalignment_rad[0]","table_misalignment_rad[1]","table_misalignment_rad[2]"]'
+WHERE run_id IN (SELECT id FROM runs WHERE setting <> 'factory');
 )SQL";
 
 int pragma_int(sqlite3* db, const char* sql, const std::string& path) {
@@ -218,7 +242,10 @@ const std::vector<Migration>& migrations() {
       {4, "runs.setting/origin/promotion; calibrations.method gains 'legacy'", kMigration4},
       // Version 5 (issue #19): the run verdict (PASS/REVIEW/FAILED from the state) and its
       // reasons by source; the archive SHA-256 index for the import's duplicate check.
-      {5, "runs.verdict (generated), runs.reasons_json; archive SHA-256 index", kMigration5},
+      {5,
+       "runs.verdict (generated), runs.reasons_json; archive SHA-256 index; calibrations "
+       "body_frame/unobservable/notes; crosschecks.not_compared",
+       kMigration5},
   };
   return list;
 }

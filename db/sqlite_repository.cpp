@@ -36,7 +36,8 @@ const std::string kRunFrom =
 const std::string kCalColumns =
     "c.method, c.params_json, c.sigma_json, c.converged, c.iterations, c.runtime_s, "
     "c.warnings_json, c.orientation_rmse_mdeg, c.accel_rmse_ug, c.heading_offset_gamma_np_rad, "
-    "c.theta_bp_x_rad, c.theta_bp_y_rad, c.theta_bp_z_rad";
+    "c.theta_bp_x_rad, c.theta_bp_y_rad, c.theta_bp_z_rad, c.body_frame, c.unobservable_json, "
+    "c.notes_json";
 
 const std::string kSqlRunById = "SELECT " + kRunColumns + kRunFrom + "WHERE r.id = ?1";
 const std::string kSqlHistory = "SELECT " + kRunColumns + kRunFrom +
@@ -59,9 +60,9 @@ const std::string kSqlCalsOfRun =
 // Export: one statement per filter combination so that each uses its index (an "?1 IS NULL OR"
 // disjunction would defeat the planner). Runs without calibrations appear once (LEFT JOIN).
 const std::string kExportHead = "SELECT " + kRunColumns + ", " + kCalColumns +
-                                ", x.k_sigma, x.failures_json" + kRunFrom +
+                                ", x.k_sigma, x.failures_json, x.not_compared_json" + kRunFrom +
                                 "LEFT JOIN calibrations c ON c.run_id = r.id ";
-constexpr int kNumCalColumns = 13;
+constexpr int kNumCalColumns = 16;
 constexpr int kExportCrosscheckColumn = kNumRunColumns + kNumCalColumns;  ///< x.k_sigma
 const std::string kExportTail = " ORDER BY r.started_at_ms, r.id, c.method";
 const std::string kSqlExportAll = kExportHead + kExportTail;
@@ -91,13 +92,15 @@ const char* const kSqlHasMethod = "SELECT 1 FROM calibrations WHERE run_id = ?1 
 const char* const kSqlInsertCal =
     "INSERT INTO calibrations (run_id, method, params_json, sigma_json, converged, iterations, "
     "runtime_s, warnings_json, orientation_rmse_mdeg, accel_rmse_ug, "
-    "heading_offset_gamma_np_rad, theta_bp_x_rad, theta_bp_y_rad, theta_bp_z_rad) "
-    "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)";
+    "heading_offset_gamma_np_rad, theta_bp_x_rad, theta_bp_y_rad, theta_bp_z_rad, body_frame, "
+    "unobservable_json, notes_json) "
+    "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17)";
 const char* const kSqlVerdict = "SELECT verdict FROM crosschecks WHERE run_id = ?1";
 const char* const kSqlCrosscheck =
-    "SELECT verdict, k_sigma, failures_json FROM crosschecks WHERE run_id = ?1";
+    "SELECT verdict, k_sigma, failures_json, not_compared_json FROM crosschecks WHERE run_id = ?1";
 const char* const kSqlInsertCrosscheck =
-    "INSERT INTO crosschecks (run_id, verdict, k_sigma, failures_json) VALUES (?1, ?2, ?3, ?4)";
+    "INSERT INTO crosschecks (run_id, verdict, k_sigma, failures_json, not_compared_json) "
+    "VALUES (?1, ?2, ?3, ?4, ?5)";
 const char* const kSqlLiveRuns =
     "SELECT id, state FROM runs WHERE state IN ('preparing', 'running', 'calibrating') "
     "ORDER BY id";
@@ -482,6 +485,10 @@ struct SqliteRepository::Impl {
       m.body_misalignment_theta_bp_rad = {q.f64(c0 + 10), q.f64(c0 + 11), q.f64(c0 + 12)};
       c.metrics = m;
     }
+    c.body_frame = decode([&] { return origin() + " body_frame"; },
+                          [&] { return body_frame_from_string(q.text(c0 + 13)); });
+    c.unobservable = string_list(q.text(c0 + 14), [&] { return origin() + " unobservable_json"; });
+    c.notes = string_list(q.text(c0 + 15), [&] { return origin() + " notes_json"; });
     return c;
   }
 
@@ -494,6 +501,14 @@ struct SqliteRepository::Impl {
     } catch (const InvalidInput& e) {
       throw Corrupt(path + ": " + what() + ": stored value is invalid: " + e.what());
     }
+  }
+
+  /// A stored JSON array of strings ("[]" without parsing: the common case by far).
+  template <typename W>
+  std::vector<std::string> string_list(const std::string& text, W what) const {
+    if (text == "[]") return {};
+    return decode_json(what(), text,
+                       [](const json& j) { return j.get<std::vector<std::string>>(); });
   }
 
   template <typename F>
@@ -530,6 +545,8 @@ struct SqliteRepository::Impl {
     x.verdict = decode([&] { return what() + " verdict"; },
                        [&] { return verdict_from_string(q.text(verdict_col)); });
     x.k_sigma = q.f64(k_col);
+    x.not_compared =
+        string_list(q.text(k_col + 2), [&] { return path + ": " + what() + " not_compared_json"; });
     const std::string failures = q.text(k_col + 1);
     if (failures == "[]") return x;  // a PASS: no JSON to parse
     x.failures = decode_json(path + ": " + what() + " failures_json", failures, [](const json& j) {
@@ -608,6 +625,8 @@ struct SqliteRepository::Impl {
     } else {
       for (int i = 9; i <= 14; ++i) q.bind_null(i);
     }
+    q.bind(15, to_string(c.body_frame));
+    q.bind(16, json(c.unobservable).dump()).bind(17, json(c.notes).dump());
     q.run();
   }
 
@@ -624,6 +643,7 @@ struct SqliteRepository::Impl {
     for (const auto& f : x.failures) failures.push_back({{"term", f.term}, {"detail", f.detail}});
     Stmt q(*this, kSqlInsertCrosscheck, op);
     q.bind(1, run_id).bind(2, to_string(x.verdict)).bind(3, x.k_sigma).bind(4, failures.dump());
+    q.bind(5, json(x.not_compared).dump());
     q.run();
   }
 

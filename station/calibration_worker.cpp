@@ -80,10 +80,10 @@ void store_field_result(const calib::PipelineResult& r, calib::Setting setting, 
   if (setting == calib::Setting::kSea || !r.legacy || !r.crosscheck) {
     completion.state = db::RunState::kReview;
     if (!r.limits.pass) completion.reasons.push_back(limits_reason(r.limits));
-    completion.reasons.push_back({"field",
-                                  "sea: AINS alone, no independent method to cross-check it (the "
-                                  "legacy method needs a still platform); " +
-                                      frame_note + "; promote explicitly"});
+    const std::string unchecked = r.unchecked_reason.empty()
+                                      ? "AINS alone, no second method to cross-check it"
+                                      : r.unchecked_reason;
+    completion.reasons.push_back({"field", unchecked + "; " + frame_note + "; promote explicitly"});
     return;
   }
   completion.calibrations.push_back(db::calibration_record(r.legacy->result, nullptr));

@@ -290,6 +290,105 @@ struct MethodColumns {
   calib::ParamVector sigma = calib::ParamVector::Zero();
 };
 
+/// The method names as people read them: "AINS", "NLSQ", "legacy".
+std::string method_label(const std::string& m) {
+  if (m == "ains") return "AINS";
+  if (m == "nlsq") return "NLSQ";
+  return m;
+}
+
+bool listed(const json& c, const char* key, const std::string& name) {
+  if (!c.contains(key) || !c[key].is_array()) return false;
+  for (const json& n : c[key])
+    if (n.is_string() && n.get<std::string>() == name) return true;
+  return false;
+}
+
+void render_method_line(std::ostream& os, const json& c);
+
+/// Both (or all) calibrations side by side in human units with 1-σ; a parameter a method does not
+/// determine reads "not observable", never a value with σ 0. Then each method's line and notes.
+void render_calibration_table(std::ostream& os, const json& run, const json& cals) {
+  std::vector<MethodColumns> cols;
+  for (const auto& c : cals) {
+    MethodColumns m;
+    m.method = str(c, "method");
+    calib::ParamSet sigma;
+    const calib::ParamSet p = archive::param_set_from_json(
+        c.at("params"), "run " + str(run, "run_id") + " " + m.method, &sigma);
+    m.value = p.to_vector();
+    m.sigma = sigma.to_vector();
+    cols.push_back(m);
+  }
+  os << "Calibration (value ± 1-σ)\n";
+  std::string header = "  " + pad("parameter", 26) + pad("unit", 8);
+  for (const auto& m : cols) header += lpad(m.method, 12) + pad("   ± 1-σ", 13);
+  os << rtrim(header) << "\n";
+  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+    const calib::ParamInfo& info = calib::param_info(i);
+    std::string line = "  " + pad(info.name, 26) + pad(info.human_unit, 8);
+    for (std::size_t k = 0; k < cols.size(); ++k) {
+      if (listed(cals[k], "unobservable", info.name)) {
+        line += lpad("not observable", 25);
+        continue;
+      }
+      line += lpad(fmt("%.3f", cols[k].value(i) * info.si_to_human), 12) + " ± " +
+              pad(fmt("%.3f", cols[k].sigma(i) * info.si_to_human), 10);
+    }
+    os << rtrim(line) << "\n";
+  }
+  for (const auto& c : cals) render_method_line(os, c);
+}
+
+void render_method_line(std::ostream& os, const json& c) {
+  os << "  " << pad(str(c, "method"), 8)
+     << (c.value("converged", false) ? "converged" : "NOT converged") << ", "
+     << str(c, "iterations") << " iterations, " << fmt("%.2f", c.value("runtime_s", 0.0)) << " s";
+  if (has(c, "metrics")) {
+    const json& m = c["metrics"];
+    os << "; orientation RMSE " << fmt("%.3f", m.value("orientation_rmse_mdeg", 0.0))
+       << " mdeg, accel RMSE " << fmt("%.2f", m.value("accel_rmse_ug", 0.0)) << " µg";
+  }
+  os << "\n";
+  if (str(c, "body_frame") == "accel_symmetric")
+    os << "    frame: misalignments in the accelerometer triad's own orthogonal frame\n";
+  if (c.contains("notes"))
+    for (const auto& n : c["notes"]) os << "    not observable: " << n.get<std::string>() << "\n";
+  if (c.contains("warnings"))
+    for (const auto& w : c["warnings"]) os << "    warning: " << w.get<std::string>() << "\n";
+}
+
+/// "Cross-check PASS (AINS against legacy, bound 4σ): they agree on every compared parameter;
+/// 3 not compared (not observable by both): ..." — the methods named as stored.
+void render_crosscheck(std::ostream& os, const json& show, const json& cals) {
+  if (!has(show, "crosscheck")) {
+    os << "No cross-check.\n";
+    return;
+  }
+  const json& x = show["crosscheck"];
+  std::string methods;
+  for (const auto& c : cals)
+    methods += (methods.empty() ? "" : " against ") + method_label(str(c, "method"));
+  os << "Cross-check " << str(x, "verdict") << " (" << (methods.empty() ? "" : methods + ", ")
+     << "bound " << fmt("%g", x.value("k_sigma", 0.0)) << "σ)";
+  const json& failures = x.at("failures");
+  if (failures.empty()) {
+    os << ": they agree on every compared parameter";
+  } else {
+    os << ", " << failures.size() << " disagreement" << (failures.size() == 1 ? "" : "s") << ":";
+  }
+  const std::size_t skipped = x.contains("not_compared") ? x["not_compared"].size() : 0;
+  if (skipped > 0) {
+    std::string names;
+    for (const auto& n : x["not_compared"])
+      names += (names.empty() ? "" : ", ") + n.get<std::string>();
+    os << (failures.empty() ? "; " : " ") << skipped
+       << " not compared (not observable by both: " << names << ")";
+  }
+  os << "\n";
+  for (const auto& f : failures) os << "  " << str(f, "detail") << "\n";
+}
+
 }  // namespace
 
 std::string render_show_text(const json& show) {
@@ -334,59 +433,9 @@ std::string render_show_text(const json& show) {
   if (cals.empty()) {
     os << "No calibration results.\n";
   } else {
-    std::vector<MethodColumns> cols;
-    for (const auto& c : cals) {
-      MethodColumns m;
-      m.method = str(c, "method");
-      calib::ParamSet sigma;
-      const calib::ParamSet p = archive::param_set_from_json(
-          c.at("params"), "run " + str(run, "run_id") + " " + m.method, &sigma);
-      m.value = p.to_vector();
-      m.sigma = sigma.to_vector();
-      cols.push_back(m);
-    }
-    os << "Calibration (value ± 1-σ)\n";
-    std::string header = "  " + pad("parameter", 26) + pad("unit", 8);
-    for (const auto& m : cols) header += lpad(m.method, 12) + pad("   ± 1-σ", 13);
-    os << rtrim(header) << "\n";
-    for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-      const calib::ParamInfo& info = calib::param_info(i);
-      std::string line = "  " + pad(info.name, 26) + pad(info.human_unit, 8);
-      for (const auto& m : cols)
-        line += lpad(fmt("%.3f", m.value(i) * info.si_to_human), 12) + " ± " +
-                pad(fmt("%.3f", m.sigma(i) * info.si_to_human), 10);
-      os << rtrim(line) << "\n";
-    }
-    for (const auto& c : cals) {
-      os << "  " << pad(str(c, "method"), 6)
-         << (c.value("converged", false) ? "converged" : "NOT converged") << ", "
-         << str(c, "iterations") << " iterations, " << fmt("%.2f", c.value("runtime_s", 0.0))
-         << " s";
-      if (has(c, "metrics")) {
-        const json& m = c["metrics"];
-        os << "; orientation RMSE " << fmt("%.3f", m.value("orientation_rmse_mdeg", 0.0))
-           << " mdeg, accel RMSE " << fmt("%.2f", m.value("accel_rmse_ug", 0.0)) << " µg";
-      }
-      os << "\n";
-      if (c.contains("warnings"))
-        for (const auto& w : c["warnings"]) os << "    warning: " << w.get<std::string>() << "\n";
-    }
+    render_calibration_table(os, run, cals);
   }
-  if (has(show, "crosscheck")) {
-    const json& x = show["crosscheck"];
-    os << "Cross-check " << str(x, "verdict") << " (bound " << fmt("%g", x.value("k_sigma", 0.0))
-       << "σ)";
-    const json& failures = x.at("failures");
-    if (failures.empty()) {
-      os << ": AINS and NLSQ agree on every parameter\n";
-    } else {
-      os << ", " << failures.size() << " disagreement" << (failures.size() == 1 ? "" : "s")
-         << ":\n";
-      for (const auto& f : failures) os << "  " << str(f, "detail") << "\n";
-    }
-  } else {
-    os << "No cross-check.\n";
-  }
+  render_crosscheck(os, show, cals);
   return os.str();
 }
 

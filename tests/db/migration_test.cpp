@@ -375,6 +375,19 @@ TEST(Migration, VersionFourDatabaseFromThePreviousReleaseGainsTheRunVerdictAndRe
   EXPECT_EQ(*repo.show(9).run.promoted_at_ms, 1780000000000 + 8 * 3600000LL + 30 * 60000LL);
   EXPECT_EQ(repo.active_params("V4-A").run.run_id, 1) << "the later REVIEW runs never replace it";
   EXPECT_EQ(repo.active_params("V4-C").run.run_id, 9) << "QA's promotion stands";
+  // Field results stored before v5 say what they could not observe, as new ones do.
+  for (const RunId field : {8, 9}) {
+    for (const CalibrationRecord& c : repo.show(field).calibrations) {
+      EXPECT_EQ(c.body_frame, calib::BodyFrame::kAccelSymmetric) << "run " << field;
+      EXPECT_EQ(c.unobservable.size(), 3u) << "run " << field;
+      ASSERT_EQ(c.notes.size(), 2u) << "run " << field;
+      EXPECT_NE(c.notes[0].find(field == 9 ? "at sea" : "on land"), std::string::npos)
+          << c.notes[0];
+    }
+  }
+  EXPECT_EQ(repo.show(8).crosscheck->not_compared.size(), 3u);
+  EXPECT_TRUE(repo.show(1).crosscheck->not_compared.empty());
+  EXPECT_EQ(repo.show(1).calibrations[0].body_frame, calib::BodyFrame::kHousing);
   // Every view reads the same verdict: export rows as show.
   std::size_t rows = 0;
   repo.export_rows({}, [&](const ExportRow& row) {

@@ -161,6 +161,53 @@ TEST_F(RecordJson, EveryViewShowsTheRunVerdictWithItsReasonsAndTheCrossCheckLabe
   EXPECT_THROW(repo_->active_params("SN-C"), db::NotFound) << "REVIEW is never active";
 }
 
+// Issue #19 item 4: a land run's show said "AINS and NLSQ agree on every parameter" (the second
+// method was legacy, three terms were not compared), printed the table misalignment it cannot see
+// as "0.000 ± 0.000", left out the housing-orientation note and ran "legacyconverged" together.
+TEST_F(RecordJson, AFieldRunShowsItsMethodsWhatWasNotComparedAndWhatIsNotObservable) {
+  db::NewRun nr = db::test::new_run("SN-L", t10_);
+  nr.setting = calib::Setting::kLand;
+  nr.origin = "imported from /media/land-01";
+  const db::RunId id = repo_->create_run(nr);
+  db::RunCompletion c = db::test::pass_completion(6, t10_ + 60000);
+  c.calibrations = {db::test::seeded_calibration(6, db::Method::kAins, false),
+                    db::test::seeded_calibration(6, db::Method::kLegacy, false)};
+  const std::vector<std::string> table = {"table_misalignment_rad[0]", "table_misalignment_rad[1]",
+                                          "table_misalignment_rad[2]"};
+  for (auto& cal : c.calibrations) {
+    cal.body_frame = calib::BodyFrame::kAccelSymmetric;
+    cal.params.table_misalignment_rad.setZero();
+    cal.sigma.table_misalignment_rad.setZero();
+    cal.unobservable = table;
+    cal.notes = {"housing orientation: not observable on land (no attitude reference)"};
+  }
+  c.crosscheck->not_compared = table;
+  repo_->finish_run(id, c);
+  repo_->promote(id, "qa", "field recalibration", t10_ + 120000);
+
+  const json s = answer_repository_read(*repo_, read("show", {{"run_id", id}}));
+  const std::string text = render_show_text(s);
+  EXPECT_NE(text.find("Cross-check PASS (AINS against legacy, bound 4σ): they agree on every "
+                      "compared parameter; 3 not compared (not observable by both: "
+                      "table_misalignment_rad[0]"),
+            std::string::npos)
+      << text;
+  EXPECT_EQ(text.find("NLSQ"), std::string::npos) << text;
+  for (const auto& line : lines_of(text))
+    if (line.find("table_misalignment_rad[") == 2) {
+      EXPECT_NE(line.find("not observable"), std::string::npos) << line;
+      EXPECT_EQ(line.find("0.000 ± 0.000"), std::string::npos) << line;
+    }
+  EXPECT_NE(text.find("not observable: housing orientation"), std::string::npos) << text;
+  EXPECT_NE(text.find("accelerometer triad's own orthogonal frame"), std::string::npos) << text;
+  EXPECT_EQ(text.find("legacyconverged"), std::string::npos) << text;
+  EXPECT_NE(text.find("legacy  converged"), std::string::npos) << text;
+  // params says which terms its set does not determine (their σ 0 means "not estimated").
+  const json p = answer_repository_read(*repo_, read("params", {{"serial", "SN-L"}}));
+  EXPECT_EQ(p.at("source").at("not_observable"), json(table));
+  EXPECT_EQ(p.at("source").at("body_frame"), "accel_symmetric");
+}
+
 TEST_F(RecordJson, ShowCarriesBothParameterSetsBitExact) {
   const json s = answer_repository_read(*repo_, read("show", {{"run_id", r1_}}));
   EXPECT_EQ(s.at("run").at("run_id"), r1_);

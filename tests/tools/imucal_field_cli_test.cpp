@@ -106,10 +106,35 @@ TEST_F(FieldCli, EvaluateAndDiagnoseRefuseARunWithoutReference) {
   EXPECT_NE(d.out.find("no table reference"), std::string::npos) << d.out;
 }
 
-TEST_F(FieldCli, SeaCalibratesWithAinsAlone) {
-  const Proc p = run("calibrate " + (root() / "sea").string() + " --json", false);
+// Issue #19 item 4: the truth column was in the housing frame while err/σ was computed against the
+// truth in the triad's frame, so a reader checking (est − truth)/σ got a different number.
+TEST_F(FieldCli, LandTruthColumnIsTheOneErrOverSigmaIsMeasuredAgainst) {
+  const Proc p = run("calibrate " + (root() / "land").string(), false);
   ASSERT_EQ(p.code, 0) << p.out;
+  std::istringstream in(p.out);
+  std::string line;
+  int checked = 0;
+  while (std::getline(in, line)) {
+    std::istringstream row(line);
+    std::string name, unit;
+    double truth = 0, est = 0, sd = 0, z = 0;
+    if (!(row >> name >> unit >> truth >> est >> sd >> z)) continue;  // not a parameter row
+    if (sd < 0.1) continue;  // three printed decimals cannot reproduce the ratio
+    EXPECT_NEAR((est - truth) / sd, z, 0.02 + 0.001 / sd) << line;
+    ++checked;
+  }
+  EXPECT_GE(checked, 15) << p.out;
+}
+
+TEST_F(FieldCli, SeaCalibratesWithAinsAlone) {
+  // One rule with the station: nothing independent checks a sea result, so it is REVIEW (exit 3).
+  const Proc p = run("calibrate " + (root() / "sea").string() + " --json", false);
+  ASSERT_EQ(p.code, 3) << p.out;
   const auto j = nlohmann::json::parse(p.out);
+  EXPECT_EQ(j["verdict"], "REVIEW");
+  EXPECT_NE(j["unchecked_reason"].get<std::string>().find("AINS alone"), std::string::npos);
+  const Proc t = run("calibrate " + (root() / "sea").string());
+  EXPECT_NE(t.out.find("verdict: REVIEW — sea: AINS alone"), std::string::npos) << t.out;
   EXPECT_EQ(j["ains"]["setting"], "sea");
   EXPECT_TRUE(j["ains"]["converged"].get<bool>());
   EXPECT_FALSE(j.contains("legacy"));

@@ -88,6 +88,8 @@ nlohmann::json pipeline_to_json(const calib::PipelineResult& r) {
     limit_failures.push_back({{"method", f.method}, {"term", f.term}, {"detail", f.detail}});
   j["limits"] = {{"pass", r.limits.pass}, {"failures", limit_failures}};
   j["verdict"] = r.pass() ? "PASS" : "REVIEW";
+  j["unchecked_reason"] =
+      r.unchecked_reason.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.unchecked_reason);
   return j;
 }
 
@@ -110,7 +112,9 @@ void print_parameter_table(std::ostream& os, const calib::PipelineResult& r,
     if (truth) os << fmt("%8s", "err/σ");
   }
   os << '\n';
-  const calib::ParamVector tv = truth ? truth->to_vector() : calib::ParamVector::Zero();
+  // The truth printed is the one err/σ is measured against: in the first method's frame (all
+  // methods of one setting share it; a different one is named below).
+  const calib::ParamVector tv = col_truth.empty() ? calib::ParamVector::Zero() : col_truth[0];
   for (int i = 0; i < calib::ParamSet::kSize; ++i) {
     const auto& info = calib::param_info(i);
     std::snprintf(line, sizeof line, "%-26s %-7s", info.name.c_str(), info.human_unit.c_str());
@@ -133,7 +137,12 @@ void print_parameter_table(std::ostream& os, const calib::PipelineResult& r,
       os << c.first
          << ": misalignments in the accelerometer triad's own orthogonal frame (accel_M "
             "symmetric)"
-         << (truth ? "; err/σ against the truth brought into that frame" : "") << '\n';
+         << (truth ? "; truth and err/σ in that frame" : "") << '\n';
+  if (truth)
+    for (size_t c = 1; c < cols.size(); ++c)
+      if (cols[c].second->body_frame != cols[0].second->body_frame)
+        os << cols[c].first << ": err/σ against the truth in its own frame ("
+           << frame_name(cols[c].second->body_frame) << "), not the truth column's\n";
 }
 
 void print_evaluation(std::ostream& os, const calib::EvaluationMetrics& m) {
@@ -171,7 +180,9 @@ void print_metrics_and_verdict(std::ostream& os, const calib::PipelineResult& r)
   }
   os << "limits: " << (r.limits.pass ? "all hold" : "FAILED") << '\n';
   for (const auto& f : r.limits.failures) os << "  " << f.detail << '\n';
-  os << "verdict: " << (r.pass() ? "PASS" : "REVIEW") << '\n';
+  os << "verdict: " << (r.pass() ? "PASS" : "REVIEW");
+  if (!r.unchecked_reason.empty()) os << " — " << r.unchecked_reason << " (as in the station)";
+  os << '\n';
 }
 
 void print_crlb(std::ostream& os, const calib::CrlbResult& crlb,
