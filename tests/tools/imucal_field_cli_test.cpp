@@ -189,6 +189,26 @@ TEST_F(FieldCli, UnknownSettingAndFactoryWithoutReference) {
   expect_refused(d, "neither table.csv nor attitude.csv");
 }
 
+// Issue #19 item 5: with two units the "Mean" row set our two-unit mean beside the paper's six-unit
+// one, and the run ended "NOT as in the paper" (exit 3) on a ratio two units cannot judge.
+TEST_F(FieldCli, PaperTablesOnTwoUnitsComparesTheSameImusAndJudgesOnlyWhatItCan) {
+  const Proc p = run("paper-tables --units 2 --seed 3 --json", false);
+  EXPECT_EQ(p.code, 0) << p.out;
+  const auto j = nlohmann::json::parse(p.out);
+  // The paper's Table I, IMUs 1 and 2: AINS 10.7668 and 20.3281 milli-degrees.
+  EXPECT_NEAR(j["paper_mean"]["factory AINS"]["orientation_rmse_mdeg"].get<double>(),
+              (10.7668 + 20.3281) / 2, 1e-3);
+  EXPECT_EQ(j["paper_mean"]["factory AINS"]["imus"], 2);
+  EXPECT_FALSE(j["findings"]["ratio_judged"].get<bool>());
+  EXPECT_TRUE(j["findings"]["hold"].get<bool>());
+  const Proc t = run("paper-tables --units 2 --seed 3", false);
+  EXPECT_NE(t.out.find("(Mean: over IMUs 1-2, the paper's over the same IMU numbers)"),
+            std::string::npos)
+      << t.out;
+  EXPECT_NE(t.out.find("not judged with 2 IMUs"), std::string::npos) << t.out;
+  EXPECT_EQ(t.out.find("NOT as in the paper"), std::string::npos) << t.out;
+}
+
 TEST_F(FieldCli, PaperTablesOnTwoUnits) {
   const Proc p = run("paper-tables --units 2 --seed 3 --json", false);
   ASSERT_TRUE(p.code == 0 || p.code == 3) << p.out;

@@ -1,6 +1,7 @@
 #include "tools/imucal/paper_tables_cmd.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -28,22 +29,63 @@ double ains_spread(const std::array<double, calib::kNumPaperColumns>& mean) {
   return lo > 0 ? hi / lo - 1.0 : 1e9;
 }
 
+/// The paper's mean of one column over its IMUs 1..n (n ≤ 6; the published mean for n ≥ 6), so a
+/// run of fewer units is compared with the same IMU numbers, not the six-unit mean.
+double paper_mean(const std::array<std::array<double, calib::kNumPaperColumns>, 7>& paper,
+                  PaperColumn c, size_t n) {
+  if (n >= 6 || n == 0) return paper[6][col(c)];
+  double sum = 0.0;
+  for (size_t i = 0; i < n; ++i) sum += paper[i][col(c)];
+  return sum / static_cast<double>(n);
+}
+
+/// "legacy is worse than AINS in orientation" judged against its scatter over the units: needs
+/// at least kMinUnitsForRatio units (a standard error from two is no error bar).
+constexpr size_t kMinUnitsForRatio = 3;
+
 struct Findings {
   double orientation_spread = 0.0, accel_spread = 0.0;
   double legacy_orientation_ratio = 0.0;  ///< legacy / factory AINS, orientation means
+  double ratio_se = 0.0;                  ///< standard error of the per-unit ratios' mean
+  double paper_ratio = 0.0;               ///< the paper's, over the same IMU numbers
+  size_t units = 0;
+  bool ratio_judged() const { return units >= kMinUnitsForRatio; }
+  /// Consistent with the paper's ratio within two standard errors of ours.
+  bool ratio_holds() const {
+    return !ratio_judged() || std::abs(legacy_orientation_ratio - paper_ratio) <= 2.0 * ratio_se;
+  }
   bool hold() const {
-    return orientation_spread <= kSettingSpread && accel_spread <= kSettingSpread &&
-           legacy_orientation_ratio > 1.0;
+    return orientation_spread <= kSettingSpread && accel_spread <= kSettingSpread && ratio_holds();
   }
 };
 
 Findings findings(const calib::PaperTables& t) {
   Findings f;
+  f.units = t.units.size();
   f.orientation_spread = ains_spread(t.mean_orientation_mdeg);
   f.accel_spread = ains_spread(t.mean_accel_ug);
   f.legacy_orientation_ratio = t.mean_orientation_mdeg[col(PaperColumn::kFactoryLegacy)] /
                                t.mean_orientation_mdeg[col(PaperColumn::kFactoryAins)];
+  // The ratio of means moves with the units' scatter: its standard error from the per-unit
+  // ratios (delta method would need the covariance; the per-unit spread is what a reader sees).
+  double sum = 0.0, sum2 = 0.0;
+  for (const auto& u : t.units) {
+    const double r = u.metrics[col(PaperColumn::kFactoryLegacy)].orientation_rmse_mdeg /
+                     u.metrics[col(PaperColumn::kFactoryAins)].orientation_rmse_mdeg;
+    sum += r;
+    sum2 += r * r;
+  }
+  const double n = static_cast<double>(t.units.size());
+  if (n >= 2) f.ratio_se = std::sqrt(std::max(0.0, (sum2 - sum * sum / n) / (n - 1)) / n);
+  const auto& pub = calib::paper_published().orientation_mdeg;
+  f.paper_ratio = paper_mean(pub, PaperColumn::kFactoryLegacy, f.units) /
+                  paper_mean(pub, PaperColumn::kFactoryAins, f.units);
   return f;
+}
+
+/// Under a table of fewer than six units: whose mean the "Mean" row holds.
+void print_mean_note(size_t n) {
+  if (n < 6) std::printf("(Mean: over IMUs 1-%zu, the paper's over the same IMU numbers)\n", n);
 }
 
 double metric(const calib::PaperUnitResult& u, PaperColumn c, bool orientation) {
@@ -72,8 +114,10 @@ void print_factory_table(const calib::PaperTables& t, bool orientation) {
   }
   const auto& mean = orientation ? t.mean_orientation_mdeg : t.mean_accel_ug;
   std::printf("%-6s", "Mean");
-  for (PaperColumn c : cols) std::printf(" %9.4f | %9.4f", mean[col(c)], paper[6][col(c)]);
+  for (PaperColumn c : cols)
+    std::printf(" %9.4f | %9.4f", mean[col(c)], paper_mean(paper, c, t.units.size()));
   std::printf("\n");
+  print_mean_note(t.units.size());
 }
 
 /// Tables III (land) and IV (sea): IMU#, orientation, acceleration.
@@ -89,8 +133,11 @@ void print_field_table(const calib::PaperTables& t, PaperColumn c, const char* n
     std::printf("%-6zu %11.4f | %11.4f %11.4f | %11.4f\n", i + 1, metric(t.units[i], c, true), po,
                 metric(t.units[i], c, false), pa);
   }
+  const size_t n = t.units.size();
   std::printf("%-6s %11.4f | %11.4f %11.4f | %11.4f\n", "Mean", t.mean_orientation_mdeg[col(c)],
-              pub.orientation_mdeg[6][col(c)], t.mean_accel_ug[col(c)], pub.accel_ug[6][col(c)]);
+              paper_mean(pub.orientation_mdeg, c, n), t.mean_accel_ug[col(c)],
+              paper_mean(pub.accel_ug, c, n));
+  print_mean_note(n);
 }
 
 nlohmann::json to_json(const calib::PaperTables& t, const Findings& f) {
@@ -110,8 +157,10 @@ nlohmann::json to_json(const calib::PaperTables& t, const Findings& f) {
     const char* name = calib::paper_column_name(static_cast<PaperColumn>(c));
     mean[name] = {{"orientation_rmse_mdeg", t.mean_orientation_mdeg[static_cast<size_t>(c)]},
                   {"accel_rmse_ug", t.mean_accel_ug[static_cast<size_t>(c)]}};
-    paper[name] = {{"orientation_rmse_mdeg", pub.orientation_mdeg[6][static_cast<size_t>(c)]},
-                   {"accel_rmse_ug", pub.accel_ug[6][static_cast<size_t>(c)]}};
+    const auto pc = static_cast<PaperColumn>(c);
+    paper[name] = {{"orientation_rmse_mdeg", paper_mean(pub.orientation_mdeg, pc, t.units.size())},
+                   {"accel_rmse_ug", paper_mean(pub.accel_ug, pc, t.units.size())},
+                   {"imus", std::min<size_t>(t.units.size(), 6)}};
   }
   return {{"sequence", t.sequence},
           {"unmodelled_effects", t.effects.names()},
@@ -123,8 +172,26 @@ nlohmann::json to_json(const calib::PaperTables& t, const Findings& f) {
            {{"ains_orientation_spread", f.orientation_spread},
             {"ains_accel_spread", f.accel_spread},
             {"legacy_over_ains_orientation", f.legacy_orientation_ratio},
+            {"legacy_over_ains_orientation_se", f.ratio_se},
+            {"paper_legacy_over_ains_orientation", f.paper_ratio},
+            {"ratio_judged", f.ratio_judged()},
             {"hold", f.hold()}}},
           {"wall_s", t.wall_s}};
+}
+
+void print_findings(const Findings& f) {
+  std::printf(
+      "\nFindings: AINS means across factory/land/sea differ by %.0f %% (orientation) and %.0f %% "
+      "(acceleration), bar %.0f %%; legacy / AINS orientation %.2f ± %.2f (paper, same IMUs: "
+      "%.2f)",
+      100 * f.orientation_spread, 100 * f.accel_spread, 100 * kSettingSpread,
+      f.legacy_orientation_ratio, f.ratio_se, f.paper_ratio);
+  if (!f.ratio_judged())
+    std::printf(", not judged with %zu IMU%s (needs %zu for a scatter)", f.units,
+                f.units == 1 ? "" : "s", kMinUnitsForRatio);
+  else
+    std::printf(", %s within 2σ", f.ratio_holds() ? "consistent" : "NOT consistent");
+  std::printf(". %s\n", f.hold() ? "The paper's findings hold in kind." : "NOT as in the paper.");
 }
 
 }  // namespace
@@ -188,14 +255,7 @@ int cmd_paper_tables(const PaperTablesArgs& a) {
   print_factory_table(t, false);
   print_field_table(t, PaperColumn::kLandAins, "III", "on land");
   print_field_table(t, PaperColumn::kSeaAins, "IV", "at sea");
-  std::printf(
-      "\nFindings: AINS means across factory/land/sea differ by %.0f %% (orientation) and %.0f %% "
-      "(acceleration), bar %.0f %%; legacy / AINS orientation %.2f (paper: %.2f). %s\n",
-      100 * f.orientation_spread, 100 * f.accel_spread, 100 * kSettingSpread,
-      f.legacy_orientation_ratio,
-      calib::paper_published().orientation_mdeg[6][col(PaperColumn::kFactoryLegacy)] /
-          calib::paper_published().orientation_mdeg[6][col(PaperColumn::kFactoryAins)],
-      f.hold() ? "The paper's findings hold in kind." : "NOT as in the paper.");
+  print_findings(f);
   return f.hold() ? 0 : 3;
 }
 
