@@ -20,6 +20,7 @@
 #include "station/end_note.hpp"
 #include "station/gap_check.hpp"
 #include "station/import_staging.hpp"
+#include "station/time_left.hpp"
 
 namespace imucal::station {
 
@@ -185,6 +186,9 @@ struct RunController::Live {
   int step_index = -1;  // into plan.steps; -1 while preparing
   Clock::time_point step_started{};
   bool handed_to_worker = false;
+  Clock::time_point stream_started{};  // when the first IMU samples arrived
+  uint64_t rows_at_stream_start = 0;
+  mutable TimeLeftEstimator time_left;  // active() is const; the estimate only ever shrinks
 };
 
 RunController::RunController(const StationConfig& config, db::Repository& repository,
@@ -600,12 +604,11 @@ std::optional<RunSnapshot> RunController::active() const {
   if (L.capture) s.capture = L.capture->stats();
   // Time left: the plan's remaining table time, scaled by how fast the IMU samples really arrive
   // (a simulator may run faster than real time).
-  if (!L.handed_to_worker && !L.plan.steps.empty()) {
-    double speed = 1.0;
-    if (L.capture) {
-      const double observed = L.capture->sample_rate_observed_hz();
-      if (observed > 0) speed = observed / cfg_.rate_hz;
-    }
+  if (!L.handed_to_worker && !L.plan.steps.empty() && L.capture) {
+    const double table_done_s =
+        static_cast<double>(L.capture->rows() - L.rows_at_stream_start) / cfg_.rate_hz;
+    const double wall_s = std::chrono::duration<double>(Clock::now() - L.stream_started).count();
+    const double speed = wall_s > 0 && table_done_s > 0 ? table_done_s / wall_s : 1.0;
     double left_s = 0.0;
     const int n = static_cast<int>(L.plan.steps.size());
     for (int j = std::max(0, L.step_index + 1); j < n; ++j) left_s += L.plan.steps[j].expected_s;
@@ -622,7 +625,7 @@ std::optional<RunSnapshot> RunController::active() const {
         left_s += std::max(0.0, cur.expected_s - elapsed);
       }
     }
-    s.time_left_s = left_s / speed;
+    s.time_left_s = L.time_left.update(left_s, table_done_s, wall_s);
   }
   return s;
 }
@@ -876,6 +879,11 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) {
       check_capture();
       throw CaptureFailure("no IMU samples on " + cfg_.can_uri + " within " +
                            std::to_string(cfg_.stream_timeout_ms) + " ms");
+    }
+    {
+      std::lock_guard<std::mutex> lk(mu_);
+      L.stream_started = Clock::now();
+      L.rows_at_stream_start = cap->rows();
     }
     check_abort();
 
