@@ -79,8 +79,8 @@ TEST(CrlbEffects, SeparableButNotDetectableAtTypicalSizeIsSaidInWords) {
             << seq << ": " << name << " (ratio " << ratio << ") not said in words:\n"
             << said;
       } else {
-        EXPECT_EQ(said, "") << seq << ": " << name << " (ratio " << ratio
-                            << ", separable " << e["separable"] << ")";
+        EXPECT_EQ(said, "") << seq << ": " << name << " (ratio " << ratio << ", separable "
+                            << e["separable"] << ")";
       }
     }
     // Both sequences have such effects (g-sensitivity and latitude): the test checks something.
