@@ -1,10 +1,12 @@
 #include "tools/imucal/detectability_cmd.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "calib/diagnosis.hpp"
 #include "calib/effect_detectability.hpp"
 #include "calib/site_presets.hpp"
 #include "db/archive/unit_file.hpp"
@@ -52,25 +54,92 @@ std::string remedy(calib::EffectId id) {
   }
 }
 
+std::string fmt(const char* format, double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, format, v);
+  return b;
+}
+
+std::string joined(const std::vector<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
+  return s;
+}
+
+/// A correlation as printed: three decimals (0.995, 1.000), enough to tell one just over the 0.95
+/// limit from the limit, short enough to read in a table.
+std::string correlation(double rho) { return fmt("%.3f", rho); }
+
+/// Why an effect is not separable: the analysis' reason (calib::EffectDetectability::reason) with
+/// its correlations to three digits; the analysis writes them at full precision ("0.994933").
+std::string reason_text(const calib::EffectDetectability& e) {
+  // The limit effect_detectability applied: cmd_crlb_effects passes the default options.
+  const double limit = calib::DiagnosisOptions{}.separability_limit;
+  if (e.separable_directions == 0 && e.no_signature < e.directions && !e.aliases.empty())
+    return "correlates " + correlation(std::max(e.max_correlation, limit)) + " > " +
+           fmt("%.2f", limit) + " with the base parameters (" + joined(e.aliases) + ")";
+  if (e.separable_directions > 0 && !e.confounded_with.empty())
+    return "confounded with " + joined(e.confounded_with) + " (signatures correlate " +
+           correlation(e.max_cross_correlation) + " > " + fmt("%.2f", limit) + ")";
+  return e.reason;
+}
+
+/// threshold / typical: how many times its catalogue typical size an effect must be to be named
+/// about half the time; NaN where there is no threshold or no typical size.
+double ratio_to_typical(const calib::EffectDetectability& e) {
+  return std::isfinite(e.threshold) && e.typical > 0 ? e.threshold / e.typical : std::nan("");
+}
+
+/// Separated from everything else on this sequence, yet at its typical size below the detection
+/// threshold: a real unit's effect of this kind would go unnoticed.
+bool separable_but_too_small(const calib::EffectDetectability& e) {
+  return e.separable() && ratio_to_typical(e) > 1.0;
+}
+
+void print_rows(const std::vector<calib::EffectDetectability>& d) {
+  std::printf("  %-24s %-11s %15s %15s  %-6s  %s\n", "effect", "directions", "threshold", "typical",
+              "ratio", "separable?");
+  for (const auto& e : d) {
+    char thr[32] = "-", typ[32] = "-", ratio[16] = "-";
+    if (std::isfinite(e.threshold))
+      std::snprintf(thr, sizeof thr, "%.3g %s", e.threshold, e.unit.c_str());
+    if (std::isfinite(ratio_to_typical(e)))
+      std::snprintf(ratio, sizeof ratio, "%.2g", ratio_to_typical(e));
+    if (e.typical > 0) std::snprintf(typ, sizeof typ, "%.3g %s", e.typical, e.unit.c_str());
+    char dirs[16];
+    std::snprintf(dirs, sizeof dirs, "%d of %d", e.separable_directions, e.directions);
+    const std::string sep = !e.separable()               ? "no: " + reason_text(e)
+                            : separable_but_too_small(e) ? "yes, not at typical size"
+                                                         : "yes";
+    std::printf("  %-24s %-11s %15s %15s  %-6s  %s\n", e.name.c_str(), dirs, thr, typ, ratio,
+                sep.c_str());
+  }
+}
+
+void print_too_small(const std::vector<calib::EffectDetectability>& d) {
+  bool any = false;
+  for (const auto& e : d) {
+    if (!separable_but_too_small(e)) continue;
+    if (!any) std::printf("\nseparable but not detectable at its typical size on this sequence:\n");
+    any = true;
+    std::printf(
+        "  %-24s at its typical size (%.3g %s) it is below the detection threshold: it must "
+        "be %.2gx that (%.3g %s) to be named about half the time\n",
+        e.name.c_str(), e.typical, e.unit.c_str(), ratio_to_typical(e), e.threshold,
+        e.unit.c_str());
+  }
+}
+
 void print_table(const std::vector<calib::EffectDetectability>& d, const std::string& seq) {
   std::printf(
       "effects on sequence %s: detection threshold (the diagnosis names an effect of this size "
       "about half the time; 3x it essentially always) and separability\n",
       seq.c_str());
-  std::printf("  %-24s %-11s %14s %14s  %-6s  %s\n", "effect", "directions", "threshold", "typical",
-              "ratio", "separable?");
-  for (const auto& e : d) {
-    char thr[32] = "-", typ[32] = "-", ratio[16] = "-";
-    if (std::isfinite(e.threshold)) {
-      std::snprintf(thr, sizeof thr, "%.3g %s", e.threshold, e.unit.c_str());
-      if (e.typical > 0) std::snprintf(ratio, sizeof ratio, "%.2g", e.threshold / e.typical);
-    }
-    if (e.typical > 0) std::snprintf(typ, sizeof typ, "%.3g %s", e.typical, e.unit.c_str());
-    char dirs[16];
-    std::snprintf(dirs, sizeof dirs, "%d of %d", e.separable_directions, e.directions);
-    std::printf("  %-24s %-11s %14s %14s  %-6s  %s\n", e.name.c_str(), dirs, thr, typ, ratio,
-                e.separable() ? "yes" : ("no: " + e.reason).c_str());
-  }
+  std::printf(
+      "ratio = threshold / typical: how many times its catalogue typical size an effect must be "
+      "to be detected (above 1: not detectable at its typical size on this sequence)\n");
+  print_rows(d);
+  print_too_small(d);
   bool any = false;
   for (const auto& e : d)
     if (!e.separable() && e.id != calib::EffectId::kBiasInstability &&
@@ -84,19 +153,24 @@ void print_table(const std::vector<calib::EffectDetectability>& d, const std::st
 nlohmann::json to_json(const std::vector<calib::EffectDetectability>& d, const std::string& seq) {
   nlohmann::json a = nlohmann::json::array();
   for (const auto& e : d) {
-    nlohmann::json j = {{"effect", e.name},
-                        {"directions", e.directions},
-                        {"separable_directions", e.separable_directions},
-                        {"no_signature", e.no_signature},
-                        {"max_correlation", e.max_correlation},
-                        {"aliases", e.aliases},
-                        {"confounded_with", e.confounded_with},
-                        {"threshold", std::isfinite(e.threshold) ? nlohmann::json(e.threshold)
-                                                                 : nlohmann::json(nullptr)},
-                        {"typical", e.typical},
-                        {"unit", e.unit},
-                        {"separable", e.separable()},
-                        {"reason", e.reason}};
+    const double ratio = ratio_to_typical(e);
+    nlohmann::json j = {
+        {"effect", e.name},
+        {"directions", e.directions},
+        {"separable_directions", e.separable_directions},
+        {"no_signature", e.no_signature},
+        {"max_correlation", e.max_correlation},
+        {"max_cross_correlation", e.max_cross_correlation},
+        {"aliases", e.aliases},
+        {"confounded_with", e.confounded_with},
+        {"threshold",
+         std::isfinite(e.threshold) ? nlohmann::json(e.threshold) : nlohmann::json(nullptr)},
+        {"typical", e.typical},
+        {"unit", e.unit},
+        {"ratio", std::isfinite(ratio) ? nlohmann::json(ratio) : nlohmann::json(nullptr)},
+        {"detectable_at_typical", std::isfinite(ratio) && ratio <= 1.0},
+        {"separable", e.separable()},
+        {"reason", reason_text(e)}};
     if (!e.separable()) j["remedy"] = remedy(e.id);
     a.push_back(j);
   }

@@ -57,11 +57,76 @@ std::string z_colour(double z) {
   return b;
 }
 
+/// A segment's axis label: which step, when it starts, and for a rest where the table holds the
+/// IMU ("rest 3 · 124 s · 90°/0°"); a move's attitude is the next rest's, so it is left out.
+std::string segment_axis_label(const json& g) {
+  const bool rest = str(g, "kind") == "rest";
+  std::string s = (rest ? "rest " : "move ") + std::to_string(g.value("number", 0)) + " \u00b7 " +
+                  f(num(g, "t0_s"), "%.0f") + " s";
+  if (rest)
+    s += " \u00b7 " + f(num(g, "outer_deg"), "%.0f") + "\u00b0/" + f(num(g, "inner_deg"), "%.0f") +
+         "\u00b0";
+  return s;
+}
+
+// Rotated labels 10 px high side by side: one every `stride` columns so they never overlap. A
+// character of 10 px sans-serif is ~4-5.5 px long: the band below the map fits the longest.
+constexpr double kAxisLabelFontPx = 10, kAxisLabelMinPitchPx = 12, kAxisLabelCharPx = 5;
+
+size_t heatmap_axis_stride(double cell_w_px) {
+  return static_cast<size_t>(std::max(1.0, std::ceil(kAxisLabelMinPitchPx / cell_w_px)));
+}
+
+/// How far below the map the rotated labels reach (each label's · and ° count one character each).
+double heatmap_axis_band_px(const json& segs, double cell_w_px) {
+  size_t chars = 0;
+  for (size_t s = 0; s < segs.size(); s += heatmap_axis_stride(cell_w_px)) {
+    const std::string l = segment_axis_label(segs[s]);
+    // UTF-8: count characters, not bytes (continuation bytes are 10xxxxxx).
+    chars = std::max<size_t>(chars, std::count_if(l.begin(), l.end(), [](char c) {
+                               return (static_cast<unsigned char>(c) & 0xC0) != 0x80;
+                             }));
+  }
+  return kAxisLabelCharPx * static_cast<double>(chars) + 6;
+}
+
+/// The heat map's horizontal axis: under each labelled column, its segment label read bottom to
+/// top, ending just under the column (top_px).
+void heatmap_axis(std::ostringstream& os, const json& segs, double left_px, double cell_w_px,
+                  double top_px) {
+  for (size_t s = 0; s < segs.size(); s += heatmap_axis_stride(cell_w_px)) {
+    // The baseline right of the column's centre: the glyphs extend leftwards from it.
+    const double x = left_px + cell_w_px * (static_cast<double>(s) + 0.5) + 3.5;
+    os << "<text x='" << x << "' y='" << top_px << "' transform='rotate(-90 " << x << " " << top_px
+       << ")' text-anchor='end' font-size='" << kAxisLabelFontPx << "'>"
+       << esc(segment_axis_label(segs[s])) << "</text>\n";
+  }
+}
+
+void heatmap_legend(std::ostringstream& os, double left_px, double top_px) {
+  os << "<text x='" << left_px << "' y='" << top_px - 8
+     << "'>segments in time order, labelled segment &middot; start time &middot; table outer/inner "
+        "angle (dark: rests, light: moves); colour = normalised gap z (N(0,1) under the "
+        "model)</text>\n";
+  for (int i = 0; i <= 20; ++i) {
+    const double z = -5.0 + 0.5 * i;
+    os << "<rect x='" << left_px + 14.0 * i << "' y='" << top_px
+       << "' width='14' height='12' fill='" << z_colour(z) << "'/>\n";
+    if (i % 4 == 0)
+      os << "<text x='" << left_px + 14.0 * i + 7 << "' y='" << top_px + 26
+         << "' text-anchor='middle'>" << f(z, "%+.0f") << "</text>\n";
+  }
+  os << "<text x='" << left_px + 14.0 * 21 + 8 << "' y='" << top_px + 10
+     << "'>z (|z| &gt; 5 saturates)</text>\n";
+}
+
 void heatmap(std::ostringstream& os, const json& segs) {
   const double left = 70, top = 20, cell_h = 26;
   const double n = std::max<double>(1.0, static_cast<double>(segs.size()));
   const double cell_w = std::max(6.0, std::min(28.0, 1000.0 / n));
-  const double width = left + cell_w * n + 20, height = top + 6 * cell_h + 90;
+  const double axis_top = top + 6 * cell_h + 12,
+               legend_top = axis_top + heatmap_axis_band_px(segs, cell_w) + 24;
+  const double width = left + cell_w * n + 20, height = legend_top + 40;
   os << "<svg id='heatmap' xmlns='http://www.w3.org/2000/svg' width='" << width << "' height='"
      << height << "' font-family='sans-serif' font-size='11'>\n";
   for (int c = 0; c < 6; ++c)
@@ -86,45 +151,103 @@ void heatmap(std::ostringstream& os, const json& segs) {
     os << "<rect x='" << x << "' y='" << top + 6 * cell_h + 2 << "' width='" << cell_w - 1
        << "' height='6' fill='" << (rest ? "#555" : "#bbb") << "'/>\n";
   }
-  const double ly = top + 6 * cell_h + 30;
-  os << "<text x='" << left << "' y='" << ly - 8
-     << "'>segments in time order (dark: rests, light: moves); colour = normalised gap z (N(0,1) "
-        "under the model)</text>\n";
-  for (int i = 0; i <= 20; ++i) {
-    const double z = -5.0 + 0.5 * i;
-    os << "<rect x='" << left + 14.0 * i << "' y='" << ly << "' width='14' height='12' fill='"
-       << z_colour(z) << "'/>\n";
-    if (i % 4 == 0)
-      os << "<text x='" << left + 14.0 * i + 7 << "' y='" << ly + 26 << "' text-anchor='middle'>"
-         << f(z, "%+.0f") << "</text>\n";
-  }
-  os << "<text x='" << left + 14.0 * 21 + 8 << "' y='" << ly + 10
-     << "'>z (|z| &gt; 5 saturates)</text>\n";
+  heatmap_axis(os, segs, left, cell_w, axis_top);
+  heatmap_legend(os, left, legend_top);
   os << "</svg>\n";
 }
 
+/// The NIS chart's vertical axis: logarithmic over whole decades, so per-segment NIS from below 1
+/// to beyond 10^4 all rank (a linear axis clipped at 200 drew every bar of a K2 run alike).
+struct NisAxis {
+  double lo_decade = 0, hi_decade = 1;  ///< log10 of the axis' bottom and top
+  double top_px = 0, height_px = 0;
+  /// Screen y of a NIS; values at or below the bottom decade sit on the bottom.
+  double y(double nis) const {
+    const double d = nis > 0 ? std::clamp(std::log10(nis), lo_decade, hi_decade) : lo_decade;
+    return top_px + height_px * (hi_decade - d) / (hi_decade - lo_decade);
+  }
+};
+
+constexpr double kNisExpected = 6.0, kNisChi2p99 = 16.81;  // χ²(6): mean, 99 % quantile
+
+NisAxis nis_axis(const json& segs, double top_px, double height_px) {
+  double vmin = kNisExpected, vmax = kNisChi2p99;  // both reference lines always on the axis
+  for (const auto& g : segs)
+    for (const char* k : {"nis", "nis_sim"}) {
+      const double v = num(g, k);
+      if (v > 0) vmin = std::min(vmin, v), vmax = std::max(vmax, v);
+    }
+  // Below 0.01 a NIS is as good as 0: the axis stops there rather than stretch for it.
+  const double lo = std::max(-2.0, std::floor(std::log10(vmin)));
+  return {lo, std::max(lo + 1.0, std::ceil(std::log10(vmax))), top_px, height_px};
+}
+
+/// Labelled decades (0.1, 1, 10, ...) with light grid lines, and unlabelled ticks at 2..9.
+void nis_ticks(std::ostringstream& os, const NisAxis& a, double left_px, double width_px) {
+  for (int k = static_cast<int>(a.lo_decade); k <= static_cast<int>(a.hi_decade); ++k) {
+    const double v = std::pow(10.0, k), y = a.y(v);
+    os << "<line x1='" << left_px << "' x2='" << left_px + width_px << "' y1='" << y << "' y2='"
+       << y << "' stroke='#ddd'/><text x='" << left_px - 6 << "' y='" << y + 4
+       << "' text-anchor='end'>" << f(v, k < 0 ? ("%." + std::to_string(-k) + "f").c_str() : "%.0f")
+       << "</text>\n";
+    for (int m = 2; m <= 9 && k < static_cast<int>(a.hi_decade); ++m)
+      os << "<line x1='" << left_px - 3 << "' x2='" << left_px << "' y1='" << a.y(m * v) << "' y2='"
+         << a.y(m * v) << "' stroke='#888'/>\n";
+  }
+}
+
+/// Baselines for labels wanted at `want_px`: consecutive labels (in y) at least `pitch_px` apart so
+/// their text never overlaps, the group moved as little as that needs (centred on the wanted
+/// positions), each keeping its order.
+std::vector<double> spread_labels(const std::vector<double>& want_px, double pitch_px) {
+  std::vector<size_t> order(want_px.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(),
+            [&](size_t a, size_t b) { return want_px[a] < want_px[b]; });
+  std::vector<double> y(want_px.size());
+  double shift = 0;
+  for (size_t i = 0; i < order.size(); ++i) {
+    const size_t k = order[i];
+    y[k] = i == 0 ? want_px[k] : std::max(want_px[k], y[order[i - 1]] + pitch_px);
+    shift += (y[k] - want_px[k]) / static_cast<double>(order.size());
+  }
+  for (double& v : y) v -= shift;
+  return y;
+}
+
+void nis_reference_lines(std::ostringstream& os, const NisAxis& a, double left_px,
+                         double width_px) {
+  const std::pair<double, const char*> refs[2] = {{kNisExpected, "expected 6"},
+                                                  {kNisChi2p99, "chi2 99 %"}};
+  // 11 px text is ~12 px tall on screen: 14 px apart keeps the two labels clear of each other.
+  const std::vector<double> label_y = spread_labels({a.y(refs[0].first), a.y(refs[1].first)}, 14);
+  for (size_t i = 0; i < 2; ++i) {
+    const double y = a.y(refs[i].first);
+    os << "<line x1='" << left_px << "' x2='" << left_px + width_px << "' y1='" << y << "' y2='"
+       << y << "' stroke='#333' stroke-dasharray='4 3'/><text x='" << left_px + width_px + 6
+       << "' y='" << label_y[i] + 4 << "'>" << refs[i].second << "</text>\n";
+  }
+}
+
 void nis_chart(std::ostringstream& os, const json& segs) {
-  const double left = 70, top = 20, h = 160;
+  const double left = 70, top = 20, h = 220;
   const double n = std::max<double>(1.0, static_cast<double>(segs.size()));
   const double w = std::max(6.0, std::min(28.0, 1000.0 / n));
-  double ymax = 20.0;
-  for (const auto& g : segs) ymax = std::max(ymax, num(g, "nis"));
-  ymax = std::min(ymax * 1.1, 200.0);
-  auto y = [&](double v) { return top + h * (1.0 - std::min(v, ymax) / ymax); };
+  const NisAxis axis = nis_axis(segs, top, h);
   os << "<svg id='nis' xmlns='http://www.w3.org/2000/svg' width='" << left + w * n + 160
      << "' height='" << top + h + 40 << "' font-family='sans-serif' font-size='11'>\n";
+  nis_ticks(os, axis, left, w * n);
   os << "<rect x='" << left << "' y='" << top << "' width='" << w * n << "' height='" << h
      << "' fill='none' stroke='#888'/>\n";
-  for (double v : {0.0, ymax / 2, ymax})
-    os << "<text x='" << left - 6 << "' y='" << y(v) + 4 << "' text-anchor='end'>" << f(v, "%.0f")
-       << "</text>\n";
   os << "<text x='16' y='" << top + h / 2 << "' transform='rotate(-90 16 " << top + h / 2
-     << ")' text-anchor='middle'>NIS (6 dof)</text>\n";
+     << ")' text-anchor='middle'>NIS (6 dof), log scale</text>\n";
   for (size_t s = 0; s < segs.size(); ++s) {
     const json& g = segs[s];
     const double v = num(g, "nis");
-    os << "<rect x='" << left + w * static_cast<double>(s) << "' y='" << y(v) << "' width='"
-       << w - 1 << "' height='" << top + h - y(v) << "' fill='"
+    // At least 1 px: a bar below the axis' bottom decade still shows and keeps its tooltip.
+    const double y = std::min(axis.y(v), top + h - 1);
+    os << "<rect x='" << left + w * static_cast<double>(s) << "' y='" << y << "' width='" << w - 1
+       << "' height='" << top + h - y << "' fill='"
        << (num(g, "p_value", 1.0) < 0.01 ? "#d33" : "#69c") << "'><title>" << esc(str(g, "label"))
        << ": NIS " << f(v, "%.2f") << " (expected " << f(num(g, "nis_expected"), "%.2f") << ", p "
        << f(num(g, "p_value", 1.0), "%.2g") << ")</title></rect>\n";
@@ -132,14 +255,10 @@ void nis_chart(std::ostringstream& os, const json& segs) {
   // The simulated twin's NIS (same trajectory, calibrated model, declared noise) as dots.
   for (size_t s = 0; s < segs.size(); ++s)
     os << "<circle cx='" << left + w * (static_cast<double>(s) + 0.5) << "' cy='"
-       << y(num(segs[s], "nis_sim")) << "' r='2.5' fill='#222'><title>"
+       << axis.y(num(segs[s], "nis_sim")) << "' r='2.5' fill='#222'><title>"
        << esc(str(segs[s], "label")) << ": simulated twin NIS "
        << f(num(segs[s], "nis_sim"), "%.2f") << "</title></circle>\n";
-  for (const auto& [v, label] :
-       {std::pair<double, const char*>{6.0, "expected 6"}, {16.81, "chi2 99 %"}})
-    os << "<line x1='" << left << "' x2='" << left + w * n << "' y1='" << y(v) << "' y2='" << y(v)
-       << "' stroke='#333' stroke-dasharray='4 3'/><text x='" << left + w * n + 6 << "' y='"
-       << y(v) + 4 << "'>" << label << "</text>\n";
+  nis_reference_lines(os, axis, left, w * n);
   os << "</svg>\n";
 }
 

@@ -4,8 +4,10 @@
 // to a quality record. For a test engineer chasing a discrepancy:
 //   * the verdict and the one-sentence summary, the overall gap against its expectation;
 //   * the heat map of the normalised gap by segment (time order) × sensor axis (id "heatmap"),
-//     hover a cell for the segment, the z and the raw residual in human units;
-//   * each segment's NIS against its expectation and the χ² 99 % line (id "nis");
+//     each column labelled on the axis (segment, start time, table angles of a rest), hover a cell
+//     for the z and the raw residual in human units;
+//   * each segment's NIS on a log axis (they span 1 to 10^4) against its expectation and the
+//     χ² 99 % line (id "nis");
 //   * the candidate ranking as a table (id "candidates") and a bar chart of the scores (id
 //   "scores");
 //   * the held-out gap before and after the best effect and the best pair (id "heldout"), and the
