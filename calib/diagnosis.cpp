@@ -254,13 +254,59 @@ std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOp
 /// gain (separable first). A significant candidate whose signature another significant one shares
 /// (> separability_limit) stays in the ranking but is marked: the diagnosis cannot tell them apart
 /// on this sequence, so neither is a finding.
-void rank(std::vector<Scored>& c, const Problem& p, const DiagnosisOptions& opt) {
+/// Marks a candidate of implausible size (far beyond its catalogue typical): never a finding.
+void judge_plausibility(CandidateResult& r, const DiagnosisOptions& opt) {
+  const EffectInfo& e = effect_info(r.id);
+  const Eigen::VectorXd typical = Eigen::Map<const Eigen::VectorXd>(
+      e.typical.data(), static_cast<Eigen::Index>(e.typical.size()));
+  const double t = e.magnitude(typical);
+  if (!(t > 0.0) || !r.separable) return;
+  r.typical_ratio = r.magnitude / t;
+  r.plausible = r.typical_ratio <= opt.max_plausible_typical;
+  if (!r.plausible) {
+    std::ostringstream os;
+    os.precision(3);
+    os << "implausible size: " << r.typical_ratio << "x its typical " << t << " " << r.unit
+       << " (limit " << opt.max_plausible_typical << "x)";
+    r.note += (r.note.empty() ? "" : "; ") + os.str();
+  }
+}
+
+/// Mark significance (Bonferroni), plausibility and confounding between significant candidates,
+/// then rank: findings first (significant, or an ambiguous set's members) by their held-out gap —
+/// the proof of a cause is how much of the gap it predicts on segments it was not fitted to —
+/// then the rest by BIC gain (separable first). A candidate whose signature another significant
+/// one shares (> separability_limit) is not significant on its own: the two explain as a set.
+/// Whether a candidate predicts the held-out segments better than the model without it (its own
+/// statistic's held-out gap for one judged on its own, as quantisation). A candidate that only fits
+/// the segments it was fitted to is no cause, however small its p-value (issue #19 item 6: a
+/// thermal drift fitted to a K2 run's residuals made the held-out gap worse, 84 -> 110, and read
+/// "significant").
+bool predicts_held_out(CandidateResult& r, double gap_before) {
+  const double before = std::isnan(r.held_out_gap_before) ? gap_before : r.held_out_gap_before;
+  if (std::isnan(r.held_out_gap) || std::isnan(before) || r.held_out_gap < before) return true;
+  std::ostringstream os;
+  os.precision(3);
+  os << "does not predict the held-out segments (held-out gap " << before << " -> "
+     << r.held_out_gap << ")";
+  r.note += (r.note.empty() ? "" : "; ") + os.str();
+  return false;
+}
+
+void rank(std::vector<Scored>& c, const Problem& p, double held_out_before,
+          const DiagnosisOptions& opt) {
   const double level = opt.alpha / std::max<size_t>(1, c.size());
-  for (auto& s : c) s.result.significant = s.result.separable && s.result.p_value < level;
+  std::vector<bool> test(c.size(), false);
+  for (size_t i = 0; i < c.size(); ++i) {
+    CandidateResult& r = c[i].result;
+    judge_plausibility(r, opt);
+    test[i] =
+        r.separable && r.plausible && r.p_value < level && predicts_held_out(r, held_out_before);
+  }
   for (size_t i = 0; i < c.size(); ++i)
     for (size_t j = i + 1; j < c.size(); ++j) {
       auto &a = c[i].result, &b = c[j].result;
-      if (!a.significant || !b.significant) continue;
+      if (!test[i] || !test[j]) continue;
       if (c[i].J_eff.cols() == 0 || c[j].J_eff.cols() == 0) continue;  // stochastic: no signature
       const double rho = canonical_correlation(p.Jb, c[i].J_eff, c[j].J_eff);
       if (rho > opt.separability_limit) {
@@ -268,17 +314,26 @@ void rank(std::vector<Scored>& c, const Problem& p, const DiagnosisOptions& opt)
         b.confounded_with.push_back(a.name);
       }
     }
-  for (auto& s : c) {
-    if (s.result.confounded_with.empty()) continue;
+  for (size_t i = 0; i < c.size(); ++i) {
+    CandidateResult& r = c[i].result;
+    r.significant = test[i] && r.confounded_with.empty();
+    r.in_ambiguous_set = test[i] && !r.confounded_with.empty();
+    if (r.confounded_with.empty()) continue;
     std::string others;
-    for (const auto& o : s.result.confounded_with) others += (others.empty() ? "" : ", ") + o;
+    for (const auto& o : r.confounded_with) others += (others.empty() ? "" : ", ") + o;
     std::ostringstream os;
     os << "not separable on this sequence from " << others << " (their signatures correlate > "
        << opt.separability_limit << ")";
-    s.result.note += (s.result.note.empty() ? "" : "; ") + os.str();
+    r.note += (r.note.empty() ? "" : "; ") + os.str();
   }
-  std::stable_sort(c.begin(), c.end(), [](const Scored& a, const Scored& b) {
-    if (a.result.significant != b.result.significant) return a.result.significant;
+  auto finding = [](const CandidateResult& r) { return r.significant || r.in_ambiguous_set; };
+  auto held_out = [](const CandidateResult& r) {
+    return std::isnan(r.held_out_gap) ? std::numeric_limits<double>::infinity() : r.held_out_gap;
+  };
+  std::stable_sort(c.begin(), c.end(), [&](const Scored& a, const Scored& b) {
+    if (finding(a.result) != finding(b.result)) return finding(a.result);
+    if (finding(a.result) && held_out(a.result) != held_out(b.result))
+      return held_out(a.result) < held_out(b.result);
     if (a.result.separable != b.result.separable) return a.result.separable;
     return a.result.bic_gain > b.result.bic_gain;
   });
@@ -375,7 +430,7 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
   Selection best;
   best.J = p.Jb;
   if (c.empty()) return best;
-  if (c[0].result.significant && !c[0].result.confounded_with.empty()) {
+  if (c[0].result.in_ambiguous_set) {
     best.ambiguous.push_back(c[0].result.name);
     for (const auto& o : c[0].result.confounded_with) best.ambiguous.push_back(o);
     best.J = hcat(p.Jb, c[0].J_eff);
@@ -388,8 +443,7 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
   };
   std::optional<size_t> d1;
   for (size_t i = 0; i < c.size() && !d1; ++i)
-    if (c[i].result.significant && c[i].J_eff.cols() > 0 && c[i].result.confounded_with.empty())
-      d1 = i;
+    if (c[i].result.significant && c[i].J_eff.cols() > 0) d1 = i;
   if (d1) {
     const Eigen::MatrixXd J1 = hcat(p.Jb, c[*d1].J_eff);
     consider({{*d1}, c[*d1].result.bic_gain, J1, false, {}, {}});
@@ -454,10 +508,20 @@ void apply_selection(DiagnosisResult& d, const Selection& sel, const std::vector
   }
   d.remaining = remaining_gap(p, sel.J, gls_fit(p.r0, sel.J));
   const bool fits_now = chi2_survival(fit.chi2, fit.dof) >= opt.alpha;
-  if (!d.best && sel.ambiguous.empty())
+  d.explained_by.clear();
+  if (!d.best && sel.ambiguous.empty()) {
     d.verdict = d.overall_p >= opt.alpha ? "consistent" : "unexplained";
-  else
-    d.verdict = fits_now && sel.ambiguous.empty() ? "explained" : "unexplained";
+    return;
+  }
+  // A set this sequence cannot tell apart explains the gap as well as one named effect: it is
+  // explained (by the set), not unexplained (issue #19 item 6).
+  d.verdict = fits_now ? "explained" : "unexplained";
+  if (!fits_now) return;
+  if (!sel.ambiguous.empty()) {
+    d.explained_by = sel.ambiguous;
+  } else {
+    for (size_t m : sel.members) d.explained_by.push_back(c[m].result.name);
+  }
 }
 
 /// Whether the selected finding (best effect, pair or ambiguous set) removes enough of the held-out
@@ -478,11 +542,11 @@ std::string summarise(const DiagnosisResult& d) {
     return os.str();
   }
   if (!d.ambiguous.empty()) {
-    os << "the gap is explained equally well by ";
+    os << (d.verdict == "explained" ? "explained by " : "partly explained by ");
     for (size_t i = 0; i < d.ambiguous.size(); ++i)
       os << (i ? (i + 1 == d.ambiguous.size() ? " or " : ", ") : "") << d.ambiguous[i];
-    os << ", which this sequence cannot tell apart; held-out gap " << d.held_out.gap_before
-       << " -> " << d.held_out.gap_after;
+    os << " (equally well: this sequence cannot tell them apart); held-out gap "
+       << d.held_out.gap_before << " -> " << d.held_out.gap_after;
   } else if (d.best) {
     const CandidateResult& b = d.candidates[*d.best];
     os << (d.verdict == "explained" ? "explained by " : "partly explained by ") << b.name << " = "
@@ -575,7 +639,7 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
         " rests held out, the 27 calibration parameters are not all separable");
   }
   std::vector<Scored> cands = score_all(p, fit0.chi2, opt);
-  rank(cands, p, opt);
+  rank(cands, p, d.held_out.gap_before, opt);
   const Selection sel = select_model(cands, p, fit0.chi2, opt);
   apply_selection(d, sel, cands, p, fit0, opt);
   if (!explains_enough(d, opt)) {

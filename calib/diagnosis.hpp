@@ -48,6 +48,10 @@ struct DiagnosisOptions {
   /// held-out gap by 3 %).
   double min_shrinkage = 0.5;
   double separability_limit = 0.95;
+  /// A candidate's fitted size above this many times its catalogue typical (navigation-grade) size
+  /// is not physically plausible: not a finding however significant its fit (a K2 run's leakage
+  /// read as a 4.6 m size effect). Raise it for grades whose effects are larger.
+  double max_plausible_typical = 50.0;
   int folds = 5;
   size_t min_rest_samples = 100;
   /// Time constants searched for the thermal warm-up (its shape parameter), s.
@@ -84,7 +88,14 @@ struct CandidateResult {
   double lr = 0.0;           ///< χ² drop when added (likelihood ratio statistic)
   double p_value = 1.0;      ///< P(χ²(k) > lr)
   double bic_gain = 0.0;     ///< lr - k ln(rows)
-  bool significant = false;  ///< p_value < alpha / candidates, separable, not confounded
+  /// p_value < alpha / candidates, separable from the base and from every other significant
+  /// candidate, and of a plausible size: a finding on its own.
+  bool significant = false;
+  /// Significant by its test and plausible, but another such candidate mimics it on this sequence
+  /// (confounded_with): the two explain the gap as a set, neither alone.
+  bool in_ambiguous_set = false;
+  bool plausible = true;  ///< size ≤ max_plausible_typical × its catalogue typical size
+  double typical_ratio = std::numeric_limits<double>::quiet_NaN();  ///< magnitude / typical
   double magnitude = 0.0, magnitude_sigma = 0.0;
   std::string unit;  ///< unit of magnitude
   std::vector<CandidateParam> params;
@@ -124,8 +135,11 @@ struct DiagnosisResult {
   std::optional<size_t> best;               ///< index into candidates
   std::optional<size_t> second;             ///< the best pair's second member
   /// Significant candidates that explain the gap equally and that this sequence cannot tell apart
-  /// (the top one first); then best is empty: no finding.
+  /// (the top one first); then best is empty and the finding is the set (explained_by).
   std::vector<std::string> ambiguous;
+  /// What the gap is explained by: the best effect (and its pair), or the ambiguous set; empty
+  /// when the verdict is not "explained".
+  std::vector<std::string> explained_by;
   /// The best candidate (or ambiguous set's first) that was significant but shrank the held-out gap
   /// by less than DiagnosisOptions::min_shrinkage, and that shrinkage; empty when there was none.
   /// Never a finding: reported beside the verdict for the engineer, never in the summary.

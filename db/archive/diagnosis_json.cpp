@@ -37,8 +37,15 @@ json candidate_json(const calib::CandidateResult& c) {
           {"magnitude", num(c.magnitude)},
           {"sigma", num(c.magnitude_sigma)},
           {"unit", c.unit},
-          {"separable", c.separable},
+          // "separable": a finding on its own could be told apart on this sequence — from the
+          // base parameters and from every other significant candidate (issue #19 item 6: it
+          // read true beside a note saying "not separable ... from accel_asymmetry").
+          {"separable", c.separable && c.confounded_with.empty()},
+          {"separable_from_base", c.separable},
           {"significant", c.significant},
+          {"in_ambiguous_set", c.in_ambiguous_set},
+          {"plausible", c.plausible},
+          {"typical_ratio", num(c.typical_ratio)},
           {"note", c.note},
           {"held_out_gap", c.separable ? num(c.held_out_gap) : json(nullptr)},
           {"max_correlation", num(c.max_correlation)},
@@ -83,6 +90,7 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
   j["best"] = d.best ? finding(d.candidates[*d.best]) : json(nullptr);
   j["second"] = d.second ? finding(d.candidates[*d.second]) : json(nullptr);
   j["ambiguous"] = d.ambiguous;
+  j["explained_by"] = d.explained_by;
   // A significant candidate that removed too little of the held-out gap to be a finding.
   j["weak_candidate"] = d.weak_candidate.empty() ? json(nullptr)
                                                  : json{{"effect", d.weak_candidate},
@@ -135,8 +143,8 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
 nlohmann::json diagnosis_summary_json(const calib::DiagnosisResult& d) {
   const json full = diagnosis_to_json(d);
   json s;
-  for (const char* k :
-       {"verdict", "summary", "best", "second", "ambiguous", "weak_candidate", "held_out"})
+  for (const char* k : {"verdict", "summary", "best", "second", "ambiguous", "explained_by",
+                        "weak_candidate", "held_out"})
     s[k] = full[k];
   s["overall"] = {{"gap", full["overall"]["gap"]},
                   {"expected", full["overall"]["expected"]},

@@ -73,6 +73,37 @@ TEST_F(DiagnoseCli, JsonHasTheIssuesShapeAndNamesTheWithheldEffect) {
   EXPECT_TRUE(j["segments"][0]["z"].contains("gyro_z"));
 }
 
+// Issue #19 item 6 on the real binary: a K2 run (3x the catalogue's typical K2, as the README's
+// screenshot) said "unexplained" (exit 3, best null) though the held-out gap fell 84 -> 1; the
+// JSON said "separable": true beside "not separable"; side candidates were "significant" with a
+// 4.6 m size effect; the per-axis values were only in the JSON.
+TEST_F(DiagnoseCli, AnAmbiguousSetIsAnExplanationAndOnlyPlausibleHeldOutConfirmedCandidatesFlag) {
+  const fs::path k2 = fs::path(dir_->path()) / "k2";
+  ASSERT_EQ(run("simulate --sequence short --seed 9 --out " + k2.string() +
+                " --effect accel_quadratic_k2=6.118e-6,-4.589e-6,7.648e-6")
+                .code,
+            0);
+  const Proc p = run("diagnose " + k2.string() + " --json", false);
+  EXPECT_EQ(p.code, 0) << "an explained run exits 0";
+  const nlohmann::json j = nlohmann::json::parse(p.out);
+  EXPECT_EQ(j["verdict"], "explained");
+  EXPECT_EQ(j["explained_by"].size(), 2u) << j["explained_by"];
+  const double before = j["held_out"]["gap_before"].get<double>();
+  for (const auto& c : j["candidates"]) {
+    const std::string note = c.value("note", "");
+    if (note.find("not separable") != std::string::npos)
+      EXPECT_FALSE(c["separable"].get<bool>()) << c["effect"] << ": " << note;
+    if (c["significant"].get<bool>() || c["in_ambiguous_set"].get<bool>()) {
+      EXPECT_TRUE(c["plausible"].get<bool>()) << c["effect"];
+      EXPECT_LT(c["held_out_gap"].get<double>(), before) << c["effect"];
+    }
+    if (c["effect"] == "size_effect") EXPECT_FALSE(c["significant"].get<bool>()) << note;
+  }
+  const Proc t = run("diagnose " + k2.string());
+  EXPECT_NE(t.out.find("verdict: explained -- explained by "), std::string::npos) << t.out;
+  EXPECT_NE(t.out.find("  accel_quadratic_k2: k2_x = "), std::string::npos) << t.out;
+}
+
 TEST_F(DiagnoseCli, HumanReportSaysWhereWhichAndHowFar) {
   const Proc p = run("diagnose " + archive().string());
   EXPECT_EQ(p.code, 0) << p.out;

@@ -39,9 +39,29 @@ void print_candidates(const calib::DiagnosisResult& d) {
     char held[32] = "-";
     if (c.separable) std::snprintf(held, sizeof held, "%.3f", c.held_out_gap);
     std::printf("  %-24s %10.1f %10.1f %3d %9.2g  %-28s %9s  %s%s\n", c.name.c_str(), c.bic_gain,
-                c.lr, c.k, c.p_value, mag, held, c.significant ? "significant. " : "",
+                c.lr, c.k, c.p_value, mag, held,
+                c.significant        ? "significant. "
+                : c.in_ambiguous_set ? "significant as a set. "
+                                     : "",
                 c.note.c_str());
   }
+}
+
+/// The explaining effects per parameter (the text said only the norm; issue #19 item 6).
+void print_explained_by(const calib::DiagnosisResult& d) {
+  for (const std::string& name : d.explained_by)
+    for (const auto& c : d.candidates) {
+      if (c.name != name) continue;
+      std::printf("  %s:", c.name.c_str());
+      const char* sep = " ";
+      for (const auto& p : c.params) {
+        if (!(p.sigma > 0.0)) continue;  // shape parameters (searched on a grid) and unfitted ones
+        std::printf("%s%s = %.3g +- %.2g %s", sep, p.name.c_str(), p.value, p.sigma,
+                    p.unit.c_str());
+        sep = ", ";
+      }
+      std::printf("\n");
+    }
 }
 
 void print_segments(const calib::DiagnosisResult& d) {
@@ -69,6 +89,7 @@ void print_human(const calib::DiagnosisResult& d, const archive::RunArchive& ar,
   std::printf("run %s (serial %s, sequence %s, %zu samples, %zu segments)\n", ar.origin.c_str(),
               ar.info.serial.c_str(), ar.info.sequence_name.c_str(), samples, d.segments.size());
   std::printf("verdict: %s -- %s\n", d.verdict.c_str(), d.summary.c_str());
+  print_explained_by(d);
   std::printf("overall gap: chi2/dof %.3f (chi2 %.1f, dof %d; expected 1 +- %.3f; p %.2g)",
               d.overall_gap, d.chi2, d.dof, d.overall_sigma, d.overall_p);
   if (d.best || !d.ambiguous.empty())

@@ -262,12 +262,26 @@ void nis_chart(std::ostringstream& os, const json& segs) {
   os << "</svg>\n";
 }
 
+/// A finding's value per parameter ("K2_x 105 ± 1.3 ug/g^2"), so a reader sees the axes, not
+/// only the norm.
+std::string per_parameter(const json& c) {
+  std::string s;
+  if (!c.contains("parameters")) return s;
+  for (const auto& p : c["parameters"]) {
+    if (!p["sigma"].is_number() || num(p, "sigma") <= 0.0) continue;  // shape parameters
+    s += (s.empty() ? "" : ", ") + esc(str(p, "name")) + " " + f(num(p, "value"), "%.3g") + " ± " +
+         f(num(p, "sigma"), "%.2g") + " " + esc(str(p, "unit"));
+  }
+  return s;
+}
+
 void candidate_table(std::ostringstream& os, const json& cands) {
   os << "<table id='candidates'><tr><th>#</th><th>effect</th><th>score (BIC gain)</th><th>LR</th>"
         "<th>k</th><th>p</th><th>magnitude ± 1σ</th><th>held-out gap</th><th>note</th></tr>\n";
   int i = 0;
   for (const auto& c : cands) {
-    const bool sep = c.value("separable", false), sig = c.value("significant", false);
+    const bool sep = c.value("separable_from_base", c.value("separable", false));
+    const bool sig = c.value("significant", false) || c.value("in_ambiguous_set", false);
     os << "<tr class='"
        << (sig   ? "sig"
            : sep ? ""
@@ -278,8 +292,9 @@ void candidate_table(std::ostringstream& os, const json& cands) {
        << (sep ? f(num(c, "magnitude")) + " ± " + f(num(c, "sigma"), "%.2g") + " " +
                      esc(str(c, "unit"))
                : "-")
-       << "</td><td>" << (c["held_out_gap"].is_number() ? f(num(c, "held_out_gap"), "%.3f") : "-")
-       << "</td><td>" << esc(str(c, "note")) << "</td></tr>\n";
+       << (sig ? "<br><small class='axes'>" + per_parameter(c) + "</small>" : "") << "</td><td>"
+       << (c["held_out_gap"].is_number() ? f(num(c, "held_out_gap"), "%.3f") : "-") << "</td><td>"
+       << esc(str(c, "note")) << "</td></tr>\n";
   }
   os << "</table>\n";
 }
@@ -298,16 +313,16 @@ void score_chart(std::ostringstream& os, const json& cands) {
     os << "<text x='" << left - 6 << "' y='" << y + 13 << "' text-anchor='end'>"
        << esc(str(c, "effect")) << "</text><rect x='" << left << "' y='" << y + 3 << "' width='"
        << std::max(1.0, len) << "' height='" << bar - 5 << "' fill='"
-       << (c.value("significant", false) ? "#d33"
-           : c.value("separable", false) ? "#69c"
-                                         : "#ccc")
+       << (c.value("significant", false) || c.value("in_ambiguous_set", false) ? "#d33"
+           : c.value("separable_from_base", c.value("separable", false))       ? "#69c"
+                                                                               : "#ccc")
        << "'><title>" << esc(str(c, "effect")) << ": score " << f(s, "%.1f") << "</title></rect>"
        << "<text x='" << left + std::max(1.0, len) + 4 << "' y='" << y + 13 << "'>" << f(s, "%.1f")
        << "</text>\n";
   }
   os << "<text x='" << left << "' y='" << top + bar * i + 18
-     << "'>score = LR - k ln(rows); red: significant, blue: separable, grey: not "
-        "separable</text></svg>\n";
+     << "'>score = LR - k ln(rows); red: significant (alone or as a set this sequence cannot "
+        "split), blue: separable, grey: not separable</text></svg>\n";
 }
 
 void held_out_chart(std::ostringstream& os, const json& h) {
