@@ -315,6 +315,10 @@ class Repository {
   /// How many runs the serial has in all (what `history --limit N` shows N of). NotFound as
   /// history().
   virtual std::size_t run_count(const std::string& serial) const = 0;
+  /// The newest runs of every unit (start time descending, then run id descending); limit 0 = all.
+  virtual std::vector<RunRecord> recent_runs(std::size_t limit) const = 0;
+  /// How many runs the database holds in all.
+  virtual std::size_t total_run_count() const = 0;
 
   /// Everything stored about a run. NotFound if there is no such run.
   virtual RunDetails show(RunId run_id) const = 0;

@@ -43,6 +43,9 @@ const std::string kSqlRunById = "SELECT " + kRunColumns + kRunFrom + "WHERE r.id
 const std::string kSqlHistory = "SELECT " + kRunColumns + kRunFrom +
                                 "WHERE r.unit_id = ?1 ORDER BY r.started_at_ms DESC, r.id DESC "
                                 "LIMIT ?2";
+const std::string kSqlRecent =
+    "SELECT " + kRunColumns + kRunFrom + "ORDER BY r.started_at_ms DESC, r.id DESC LIMIT ?1";
+const char* const kSqlCountRuns = "SELECT count(*) FROM runs";
 const std::string kSqlActive = "SELECT " + kRunColumns + kRunFrom +
                                "WHERE r.unit_id = ?1 AND r.verdict = 'PASS' "
                                "AND r.setting = 'factory' AND r.origin = '' "
@@ -1035,6 +1038,26 @@ ActiveCalibration SqliteRepository::active_params(const std::string& serial) con
     throw Corrupt(d.path + ": " + run_label(out.run.run_id) +
                   " is active but has no ains calibration");
   return out;
+}
+
+std::vector<RunRecord> SqliteRepository::recent_runs(std::size_t limit) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  const Impl& d = *impl_;
+  Impl::Tx tx(d, "recent_runs", false);
+  Impl::Stmt q(d, kSqlRecent.c_str(), "recent_runs");
+  q.bind(1, limit == 0 ? static_cast<std::int64_t>(-1) : static_cast<std::int64_t>(limit));
+  std::vector<RunRecord> out;
+  while (q.step()) out.push_back(d.read_run(q));
+  return out;
+}
+
+std::size_t SqliteRepository::total_run_count() const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  const Impl& d = *impl_;
+  Impl::Tx tx(d, "total_run_count", false);
+  Impl::Stmt q(d, kSqlCountRuns, "total_run_count");
+  q.step();
+  return static_cast<std::size_t>(q.i64(0));
 }
 
 std::vector<RunRecord> SqliteRepository::runs_with_archive_sha256(const std::string& sha256) const {

@@ -47,6 +47,8 @@ class SqliteRepository final : public Repository {
   std::vector<RunId> mark_interrupted_runs(TimestampMs now_ms) override;
   std::vector<RunRecord> history(const std::string& serial, std::size_t limit = 0) const override;
   std::size_t run_count(const std::string& serial) const override;
+  std::vector<RunRecord> recent_runs(std::size_t limit) const override;
+  std::size_t total_run_count() const override;
   RunDetails show(RunId run_id) const override;
   ActiveCalibration active_params(const std::string& serial) const override;
   void export_rows(const ExportFilter& filter,

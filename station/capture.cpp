@@ -317,6 +317,7 @@ void Capture::attach(ArchiveWriter* writer) {
   writer_ = writer;
   writes_disabled_ = false;
   fault_.reset();
+  end_counters_.reset();
   baseline_ = raw_counters();
   rows_ = 0;
   max_gap_ = 0;
@@ -334,6 +335,7 @@ void Capture::detach() {
       writer_failed(e);
     }
   }
+  if (writer_) end_counters_ = raw_counters();
   writer_ = nullptr;
 }
 
@@ -392,7 +394,7 @@ CaptureStats Capture::raw_counters() const {
 
 CaptureStats Capture::stats() const {
   std::lock_guard<std::mutex> lk(mu_);
-  CaptureStats s = raw_counters();
+  CaptureStats s = end_counters_ ? *end_counters_ : raw_counters();
   const CaptureStats& b = baseline_;
   s.frames_received -= b.frames_received;
   s.frames_logged -= b.frames_logged;

@@ -145,6 +145,9 @@ class Capture {
   uint64_t frames_received_ = 0, frames_logged_ = 0, rx_overflow_ = 0;
   imu::DecoderCounters dec_;
   CaptureStats baseline_;
+  /// The counters at detach: a run's counters end with its archive (frames that arrive between
+  /// detach and stop are no run's; issue #19 item 11: 384 196 logged of 384 197 received).
+  std::optional<CaptureStats> end_counters_;
   uint64_t samples_filled_ = 0, max_gap_ = 0, rows_ = 0, rest_rows_ = 0;
 
   // Stream liveness and rate.

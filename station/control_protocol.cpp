@@ -42,7 +42,7 @@ const std::vector<CommandSpec>& specs() {
       {cmd::kRunAbort, {{"reason", ArgType::kReason, false}}},
       {cmd::kReprocess,
        {{"run_id", ArgType::kPositiveInt, true}, {"partial", ArgType::kBool, false}}},
-      {cmd::kHistory, {{"serial", ArgType::kString, true}, {"limit", ArgType::kCount, false}}},
+      {cmd::kHistory, {{"serial", ArgType::kString, false}, {"limit", ArgType::kCount, false}}},
       {cmd::kShow, {{"run_id", ArgType::kPositiveInt, true}}},
       {cmd::kParams, {{"serial", ArgType::kString, true}}},
       {cmd::kExport,

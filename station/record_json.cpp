@@ -129,6 +129,14 @@ db::ExportFilter export_filter(const db::Repository& repo, const json& args) {
 json answer_repository_read(const db::Repository& repo, const Request& request) {
   const json& a = request.args;
   if (request.cmd == cmd::kHistory) {
+    if (!a.contains("serial")) {
+      // Every unit's newest runs (issue #19 item 11), a screenful unless asked for more.
+      const std::size_t limit =
+          a.contains("limit") ? a.at("limit").get<std::size_t>() : kAllUnitsHistoryLimit;
+      json h = history_result("", repo.recent_runs(limit), repo.total_run_count());
+      h["serial"] = nullptr;
+      return h;
+    }
     const std::string serial = a.at("serial").get<std::string>();
     const std::size_t limit = a.contains("limit") ? a.at("limit").get<std::size_t>() : 0;
     return history_result(serial, repo.history(serial, limit), repo.run_count(serial));
@@ -214,31 +222,33 @@ std::string render_history_text(const json& history) {
   std::ostringstream os;
   const json& runs = history.at("runs");
   const std::string serial = str(history, "serial");
+  const bool all_units = serial.empty();
   if (runs.empty()) {
-    os << "No runs of " << serial << ".\n";
+    os << "No runs of " << (all_units ? std::string("any unit") : serial) << ".\n";
     return os.str();
   }
   const std::size_t total = history.value("total", runs.size());
-  os << "History of " << serial << " (";
+  os << "History of " << (all_units ? std::string("all units") : serial) << " (";
   if (total > runs.size())
     os << "newest " << runs.size() << " of " << total << " runs";
   else
     os << runs.size() << (runs.size() == 1 ? " run" : " runs") << ", newest first";
   os << ")\n";
-  os << pad("RUN", 7) << pad("STARTED (UTC)", 21) << pad("SETTING", 9) << pad("STATE", 13)
-     << pad("VERDICT", 9) << pad("CROSS-CHECK", 13) << pad("SEQUENCE", 16) << pad("OPERATOR", 14)
-     << pad("DURATION", 13) << pad("GAP (best effect)", 40) << "REASON\n";
+  os << pad("RUN", 7) << (all_units ? pad("SERIAL", 16) : "") << pad("STARTED (UTC)", 21)
+     << pad("SETTING", 9) << pad("STATE", 13) << pad("VERDICT", 9) << pad("CROSS-CHECK", 13)
+     << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13)
+     << pad("GAP (best effect)", 40) << "REASON\n";
   for (const auto& r : runs) {
     std::string id = str(r, "run_id");
     if (has(r, "reprocessed_from")) id += "*";
     if (has(r, "promoted_at")) id += "^";
     const std::string duration = run_duration(r);
-    os << rtrim(pad(id, 7) + pad(short_time(str(r, "started_at")), 21) +
-                pad(str(r, "setting", "factory"), 9) + pad(str(r, "state"), 13) +
-                pad(str(r, "verdict", "-"), 9) + pad(str(r, "crosscheck_verdict", "-"), 13) +
-                pad(str(r, "sequence_name"), 16) + pad(str(r, "operator"), 14) +
-                pad(duration.empty() ? "-" : duration, 13) + pad(gap_cell(r), 40) +
-                str(r, "failure_reason"))
+    os << rtrim(pad(id, 7) + (all_units ? pad(str(r, "serial"), 16) : "") +
+                pad(short_time(str(r, "started_at")), 21) + pad(str(r, "setting", "factory"), 9) +
+                pad(str(r, "state"), 13) + pad(str(r, "verdict", "-"), 9) +
+                pad(str(r, "crosscheck_verdict", "-"), 13) + pad(str(r, "sequence_name"), 16) +
+                pad(str(r, "operator"), 14) + pad(duration.empty() ? "-" : duration, 13) +
+                pad(gap_cell(r), 40) + str(r, "failure_reason"))
        << "\n";
   }
   bool any_reprocessed = false;
@@ -424,7 +434,10 @@ std::string render_show_text(const json& show) {
   if (has(run, "capture")) render_capture(os, run["capture"]);
   if (has(run, "diagnosis") && run["diagnosis"].is_object()) {
     const json& g = run["diagnosis"];
-    os << "Gap diagnosis: " << str(g, "verdict", "?") << "  (" << gap_cell(run) << ")\n";
+    // The cell repeats the verdict when no effect is named ("consistent"): say it once.
+    const std::string cell = gap_cell(run);
+    os << "Gap diagnosis: " << str(g, "verdict", "?")
+       << (cell == str(g, "verdict") ? "" : "  (" + cell + ")") << "\n";
     if (!str(g, "summary").empty()) os << "  " << str(g, "summary") << "\n";
     if (!str(g, "reason").empty()) os << "  " << str(g, "reason") << "\n";
   }

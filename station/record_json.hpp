@@ -8,7 +8,8 @@
 // answer.
 //
 // Result shapes ("--json" prints exactly these):
-//   history  {"serial": SN, "runs": [run, ...]}              newest first
+//   history  {"serial": SN, "runs": [run, ...], "total": N}  newest first; without a serial
+//            "serial" is null and the runs are every unit's newest (kAllUnitsHistoryLimit)
 //   show     {"run": run, "calibrations": [calibration, ...], "crosscheck": {...} | null}
 //   params   the DESIGN §3 parameter-set JSON with "sigma" (archive::read_param_file loads it)
 //   export   {"format": "csv"|"json", "rows": N, "content": "<the whole export as text>"}
@@ -40,6 +41,9 @@ nlohmann::json export_result(const db::Repository& repo, const db::ExportFilter&
 /// The filter of an export request's validated args (serial, since): db::NotFound for a serial
 /// with no runs (its export would silently be empty).
 db::ExportFilter export_filter(const db::Repository& repo, const nlohmann::json& args);
+
+/// `history` without a serial: every unit's newest runs, this many unless args.limit says.
+inline constexpr std::size_t kAllUnitsHistoryLimit = 20;
 
 /// Answers a validated history/show/params/export request from `repo`. Throws db::DbError (the
 /// server maps its kind with error_code_for) or std::invalid_argument for another command.

@@ -512,6 +512,26 @@ TEST(Capture, ForeignFramesAreCountedAndLogged) {
   EXPECT_EQ(log[20].frame.frame, foreign);
 }
 
+// Issue #19 item 11: an aborted run's counters did not add up (384 196 logged of 384 197
+// received): frames arriving between the archive's end (detach) and the capture's stop were
+// counted as received. A run's counters end with its archive.
+TEST(Capture, CountersEndWithTheArchiveFramesAfterDetachAreNoRunsFrames) {
+  Rig rig;
+  rig.cap->attach(rig.writer.get());
+  sim::ImuCanNode node(*rig.tx, node_options());
+  for (uint64_t k = 0; k < 10; ++k) node.send(still_increment(k));
+  ASSERT_TRUE(rig.wait_rows(10));
+  rig.cap->detach();
+  for (uint64_t k = 10; k < 15; ++k) node.send(still_increment(k));
+  std::this_thread::sleep_for(300ms);  // the capture thread reads them within milliseconds
+  rig.cap->stop();
+  const CaptureStats st = rig.cap->stats();
+  EXPECT_EQ(st.frames_received, 40u);
+  EXPECT_EQ(st.frames_logged, st.frames_received);
+  EXPECT_EQ(st.samples_decoded, 10u);
+  EXPECT_EQ(rig.log().size(), 40u);
+}
+
 // Issue #10 item 7: an error flood (protocol errors, error-passive) is counted and logged while the
 // rows go on; the controller going bus-off is a fault with its own reason, and no row is written
 // after it (the stream has a hole of unknown length).

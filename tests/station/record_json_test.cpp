@@ -208,6 +208,17 @@ TEST_F(RecordJson, AFieldRunShowsItsMethodsWhatWasNotComparedAndWhatIsNotObserva
   EXPECT_EQ(p.at("source").at("body_frame"), "accel_symmetric");
 }
 
+// Issue #19 item 11: show printed "Gap diagnosis: consistent  (consistent)".
+TEST_F(RecordJson, ShowSaysAConsistentGapOnce) {
+  repo_->set_diagnosis(r1_, R"({"verdict":"consistent","summary":"the run is consistent"})");
+  const std::string text =
+      render_show_text(answer_repository_read(*repo_, read("show", {{"run_id", r1_}})));
+  const std::size_t at = text.find("Gap diagnosis: consistent");
+  ASSERT_NE(at, std::string::npos) << text;
+  const std::string line = text.substr(at, text.find('\n', at) - at);
+  EXPECT_EQ(line, "Gap diagnosis: consistent") << text;
+}
+
 TEST_F(RecordJson, ShowCarriesBothParameterSetsBitExact) {
   const json s = answer_repository_read(*repo_, read("show", {{"run_id", r1_}}));
   EXPECT_EQ(s.at("run").at("run_id"), r1_);

@@ -108,6 +108,26 @@ class StationctlTest : public ::testing::Test {
   std::string db_;
 };
 
+// Issue #19 item 11: `history` without a serial was refused ("SN is required"); QA wants the line's
+// newest runs whatever the unit.
+TEST_F(StationctlTest, HistoryWithoutASerialListsEveryUnitsNewestRuns) {
+  const Proc p = ctl("history");
+  ASSERT_EQ(p.code, 0) << p.err;
+  const auto lines = lines_of(p.out);
+  ASSERT_EQ(lines.size(), 8u) << p.out;  // title, header, 6 runs
+  EXPECT_NE(lines[0].find("all units"), std::string::npos) << lines[0];
+  EXPECT_NE(lines[1].find("SERIAL"), std::string::npos) << lines[1];
+  // 13:00 SN-A 4, 12:00 2, 11:00 3, 10:00 1, 09:30 SN-B 6, 09:00 5.
+  const char* expected[] = {"4 ", "2 ", "3 ", "1 ", "6 ", "5 "};
+  for (std::size_t i = 0; i < 6; ++i)
+    EXPECT_EQ(lines[i + 2].rfind(expected[i], 0), 0u) << lines[i + 2];
+  EXPECT_NE(lines[6].find("SN-B"), std::string::npos) << lines[6];
+  const json j = json::parse(ctl("--json history --limit 3").out);
+  EXPECT_TRUE(j.at("serial").is_null());
+  EXPECT_EQ(j.at("runs").size(), 3u);
+  EXPECT_EQ(j.at("total"), 6);
+}
+
 TEST_F(StationctlTest, HistoryFromTheDatabaseIsNewestFirst) {
   const Proc p = ctl("history SN-A");
   ASSERT_EQ(p.code, 0) << p.err;

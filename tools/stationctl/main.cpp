@@ -490,9 +490,11 @@ void add_run_commands(CLI::App& app, Args& a, Commands& c) {
 }
 
 void add_read_commands(CLI::App& app, Args& a, Commands& c) {
-  c.history = app.add_subcommand("history", "the runs of a unit, newest first");
-  c.history->add_option("SN", a.serial, "serial number")->required();
-  c.history->add_option("--limit", a.limit, "at most N runs (0 = all)");
+  c.history = app.add_subcommand(
+      "history", "the runs of a unit, newest first; without SN the newest runs of every unit");
+  c.history->add_option("SN", a.serial, "serial number (default: every unit)");
+  c.history->add_option("--limit", a.limit,
+                        "at most N runs (default: all of a unit, the newest 20 of every unit)");
   c.history->fallthrough();
   c.show = app.add_subcommand("show", "everything stored about a run");
   c.show->add_option("RUN_ID", a.run_id, "run id")->required()->check(CLI::PositiveNumber);
@@ -640,8 +642,11 @@ int dispatch(const Target& t, const Args& a, const Commands& c, bool as_json) {
   }
   if (*c.abort) return cmd_run_abort(t, a, as_json);
   if (*c.history) {
-    check_serial(a.serial);
-    json args = {{"serial", a.serial}};
+    json args = json::object();
+    if (!a.serial.empty()) {
+      check_serial(a.serial);
+      args["serial"] = a.serial;
+    }
     if (a.limit > 0) args["limit"] = a.limit;
     return print_result(read_request(t, station::cmd::kHistory, args), as_json,
                         station::render_history_text);
