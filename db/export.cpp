@@ -26,6 +26,14 @@ const char* const kCsvCalibrationColumns[11] = {"method",         "converged",
 
 const char* const kCsvCrosscheckColumns[2] = {"crosscheck_k_sigma", "crosscheck_failures"};
 
+const char* const kCsvDiagnosisColumns[11] = {
+    "diagnosis.verdict",           "diagnosis.summary",
+    "diagnosis.explained_by",      "diagnosis.best.effect",
+    "diagnosis.best.magnitude",    "diagnosis.best.sigma",
+    "diagnosis.best.unit",         "diagnosis.overall.gap",
+    "diagnosis.overall.p_value",   "diagnosis.held_out.gap_before",
+    "diagnosis.held_out.gap_after"};
+
 std::string csv_field(const std::string& value) {
   if (value.find_first_of(",\"\r\n") == std::string::npos) return value;
   std::string out = "\"";
@@ -111,6 +119,48 @@ void crosscheck_and_capture_fields(const ExportRow& row, CsvLine& line) {
   }
 }
 
+/// The run's stored gap diagnosis summary (what the JSON export's "diagnosis" holds) as
+/// kCsvDiagnosisColumns; empty fields where the run has none or a key is absent.
+void diagnosis_fields(const RunRecord& run, CsvLine& line) {
+  json d;
+  if (!run.diagnosis_json.empty()) {
+    d = json::parse(run.diagnosis_json, nullptr, /*allow_exceptions=*/false);
+    if (!d.is_object())
+      throw Corrupt("run " + std::to_string(run.run_id) +
+                    ": stored diagnosis_json is not a JSON object");
+  }
+  const auto at = [&](std::initializer_list<const char*> path) -> const json* {
+    const json* j = &d;
+    for (const char* k : path) {
+      if (!j->is_object() || !j->contains(k)) return nullptr;
+      j = &(*j)[k];
+    }
+    return j;
+  };
+  const auto text = [&](std::initializer_list<const char*> path) {
+    const json* j = at(path);
+    j && j->is_string() ? line.field(j->get<std::string>()) : line.empty();
+  };
+  const auto number = [&](std::initializer_list<const char*> path) {
+    const json* j = at(path);
+    j && j->is_number() ? line.number(j->get<double>()) : line.empty();
+  };
+  text({"verdict"});
+  text({"summary"});
+  std::string set;
+  if (const json* e = at({"explained_by"}); e && e->is_array())
+    for (const auto& n : *e) set += (set.empty() ? "" : "|") + n.get<std::string>();
+  line.field(set);
+  text({"best", "effect"});
+  number({"best", "magnitude"});
+  number({"best", "sigma"});
+  text({"best", "unit"});
+  number({"overall", "gap"});
+  number({"overall", "p_value"});
+  number({"held_out", "gap_before"});
+  number({"held_out", "gap_after"});
+}
+
 }  // namespace
 
 std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::ostream& out) {
@@ -122,6 +172,7 @@ std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::
   for (const char* c : kCsvCrosscheckColumns) line.field(c);
   for (const auto& counter : archive::CaptureInfo::counters())
     line.field(std::string("capture.") + counter.first);
+  for (const char* c : kCsvDiagnosisColumns) line.field(c);
   out << line.take();
   check_stream(out, "export csv");
   std::size_t rows = 0;
@@ -172,6 +223,7 @@ std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::
       for (std::size_t k = 0; k < 11 + 2 * calib::ParamSet::kSize; ++k) line.empty();
     }
     crosscheck_and_capture_fields(row, line);
+    diagnosis_fields(row.run, line);
     out << line.take();
     check_stream(out, "export csv");
     ++rows;

@@ -11,7 +11,8 @@
 // parameter-set JSON (calib::param_info(i).name, e.g. "accel_M[0][1]") in SI units, then their
 // 1-σ as "sigma.<name>", then the run's cross-check (kCsvCrosscheckColumns: k_sigma and the
 // failing terms as "term: detail" joined by "; ") and its capture counters as "capture.<counter>"
-// (archive::CaptureInfo::counters(), the names of db/archive/FORMAT.md). "verdict" is the run's
+// (archive::CaptureInfo::counters(), the names of db/archive/FORMAT.md), then its gap diagnosis
+// (kCsvDiagnosisColumns). "verdict" is the run's
 // (PASS/REVIEW/FAILED), "crosscheck_verdict" the cross-check's own (PASS/REVIEW), "failure_reason"
 // every reason joined by "; ". Times are ISO 8601 UTC
 // ("2024-05-01T12:34:56.789Z"); numbers are the shortest text that parses back to the stored
@@ -34,6 +35,10 @@ extern const char* const kCsvRunColumns[21];
 extern const char* const kCsvCalibrationColumns[11];
 /// The run's cross-check columns, after the sigmas (then the capture counters).
 extern const char* const kCsvCrosscheckColumns[2];
+/// The run's stored gap diagnosis (the JSON export's "diagnosis"), after the capture counters:
+/// verdict, summary, explained_by ("|"-joined), best effect/magnitude/sigma/unit, overall gap and
+/// p-value, held-out gap before/after.
+extern const char* const kCsvDiagnosisColumns[11];
 
 /// Write the CSV export; returns the number of data rows. IoError if the stream fails.
 std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::ostream& out);

@@ -173,7 +173,7 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
     ASSERT_FALSE(rows.empty());
     const auto& header = rows[0];
     ASSERT_EQ(header.size(), 21u + 11u + 2u * calib::ParamSet::kSize + 2u +
-                                 archive::CaptureInfo::counters().size());
+                                 archive::CaptureInfo::counters().size() + 11u);
     std::map<std::string, std::size_t> col;
     for (std::size_t c = 0; c < header.size(); ++c) col[header[c]] = c;
     ASSERT_EQ(col.size(), header.size()) << "duplicate column names";
@@ -360,6 +360,40 @@ TEST_F(ExportTest, ActiveParamsJsonLoadsWithTheStrictParameterSetReader) {
   EXPECT_EQ(d.at("crosscheck").at("verdict"), "REVIEW");
   EXPECT_EQ(d.at("crosscheck").at("failures").at(0).at("term"), "accel_bias_mps2[1]");
   EXPECT_EQ(d.at("calibrations").size(), 2u);
+}
+
+// Issue #19 item 11: the CSV export lacked the gap diagnosis the JSON export carries.
+TEST(ExportDiagnosis, CsvCarriesTheStoredDiagnosisAsTheJsonDoes) {
+  TempDir dir;
+  SqliteRepository repo(dir.file("d.db"));
+  const RunId id = repo.create_run(test::new_run("SIM-D", kT0));
+  RunCompletion c = test::pass_completion(1, kT0 + kDay / 100);
+  c.state = RunState::kReview;
+  c.reasons = {{"gap", "sim-to-real gap: explained by accel_quadratic_k2 or accel_asymmetry"}};
+  c.diagnosis_json =
+      R"({"verdict":"explained","summary":"explained by accel_quadratic_k2 or accel_asymmetry, \"equally\"",)"
+      R"("explained_by":["accel_quadratic_k2","accel_asymmetry"],"best":null,)"
+      R"("overall":{"gap":49.037,"p_value":0},"held_out":{"gap_before":84.2,"gap_after":1.009}})";
+  repo.finish_run(id, c);
+  std::ostringstream csv, js;
+  export_csv(repo, {}, csv);
+  export_json(repo, {}, js);
+  const auto rows = parse_csv(csv.str());
+  ASSERT_EQ(rows.size(), 3u);  // header, ains, nlsq
+  std::map<std::string, std::size_t> col;
+  for (std::size_t i = 0; i < rows[0].size(); ++i) col[rows[0][i]] = i;
+  const json d = json::parse(js.str())[0].at("diagnosis");
+  for (std::size_t r = 1; r < rows.size(); ++r) {
+    const auto& row = rows[r];
+    EXPECT_EQ(row[col.at("diagnosis.verdict")], d.at("verdict"));
+    EXPECT_EQ(row[col.at("diagnosis.summary")], d.at("summary"));
+    EXPECT_EQ(row[col.at("diagnosis.explained_by")], "accel_quadratic_k2|accel_asymmetry");
+    EXPECT_EQ(row[col.at("diagnosis.best.effect")], "");
+    EXPECT_DOUBLE_EQ(std::stod(row[col.at("diagnosis.overall.gap")]),
+                     d["overall"]["gap"].get<double>());
+    EXPECT_DOUBLE_EQ(std::stod(row[col.at("diagnosis.held_out.gap_after")]),
+                     d["held_out"]["gap_after"].get<double>());
+  }
 }
 
 TEST(CsvField, QuotesOnlyWhenNeededAndDoublesQuotes) {

@@ -83,6 +83,17 @@ TEST(StationGap, AWithheldEffectEndsReviewAndStationctlDiagnoseNamesIt) {
   const CmdResult csv = st.ctl({"export", "--serial", "GAP-0001", "--format", "csv"});
   ASSERT_EQ(csv.exit_code, 0) << csv.describe();
   EXPECT_NE(csv.out.find(",review,REVIEW,PASS,"), std::string::npos) << csv.out.substr(0, 2000);
+  // Issue #19 item 11: stationctl diagnose writes the same report as imucal diagnose --report and
+  // exits as it does (0 for an explained gap, 3 for an unexplained one).
+  const std::string report = st.dir() / "gap-report";
+  const CmdResult rep = st.ctl({"diagnose", std::to_string(run_id), "--report", report});
+  EXPECT_EQ(rep.exit_code, 0) << rep.describe();
+  const std::string html = read_text(report + "/report.html");
+  EXPECT_NE(html.find("id='candidates'"), std::string::npos) << html.substr(0, 500);
+  EXPECT_EQ(json::parse(read_text(report + "/diagnosis.json")).value("verdict", ""), "explained");
+  const CmdResult not_dir =
+      st.ctl({"diagnose", std::to_string(run_id), "--report", report + "/report.html"});
+  EXPECT_EQ(not_dir.exit_code, 2) << not_dir.describe();
   // Diagnosing an unknown run is refused, naming it.
   const CmdResult bad = st.ctl({"diagnose", "999"});
   EXPECT_NE(bad.exit_code, 0);

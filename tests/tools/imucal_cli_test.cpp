@@ -11,6 +11,8 @@
 #include <fstream>
 #include <functional>
 #include <nlohmann/json.hpp>
+#include <regex>
+#include <set>
 #include <sstream>
 #include <string>
 
@@ -345,6 +347,32 @@ TEST(ImucalUsage, UsageErrorsExitTwo) {
   }
   EXPECT_EQ(run_imucal("--help").code, 0);
   EXPECT_EQ(run_imucal("--version").code, 0);
+}
+
+// Issue #19 item 11: `imucal --help` began "(simulate, calibrate, evaluate, crlb)", 4 of its 9
+// commands. Every command the README documents is listed under "Subcommands:" with its own help,
+// and the description names either none of them or all.
+TEST(ImucalUsage, HelpListsEveryDocumentedCommand) {
+  std::ifstream readme(std::string(IMUCAL_SOURCE_DIR) + "/README.md");
+  std::set<std::string> documented;
+  std::string line;
+  const std::regex usage(R"(^imucal ([a-z-]+) )");
+  std::smatch m;
+  while (std::getline(readme, line))
+    if (std::regex_search(line, m, usage)) documented.insert(m[1]);
+  ASSERT_GE(documented.size(), 9u) << "the README's imucal usage block";
+  const ProcResult help = run_imucal("--help");
+  ASSERT_EQ(help.code, 0);
+  const std::size_t sub = help.out.find("Subcommands:");
+  ASSERT_NE(sub, std::string::npos) << help.out;
+  const std::string description = help.out.substr(0, help.out.find('\n'));
+  std::size_t named = 0;
+  for (const std::string& cmd : documented) {
+    EXPECT_NE(help.out.find("\n  " + cmd + " ", sub), std::string::npos) << cmd << "\n" << help.out;
+    EXPECT_EQ(run_imucal(cmd + " --help").code, 0) << cmd;
+    named += description.find(cmd) != std::string::npos ? 1 : 0;
+  }
+  EXPECT_TRUE(named == 0 || named == documented.size()) << description;
 }
 
 // With --json, an error is a JSON object on stdout as well (a script parsing the output reads the

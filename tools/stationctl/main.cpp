@@ -7,7 +7,9 @@
 // Exit codes: 0 ok (with --wait: the run is done with verdict PASS); 1 the run ended review,
 // failed, aborted or interrupted; 2 bad input (usage, invalid serial, unknown sequence or run);
 // 3 refused (busy, permission); 4 daemon unreachable for a control command, database or I/O error;
-// 130 when Ctrl-C stops --wait from following a run (the run itself goes on).
+// 130 when Ctrl-C stops --wait from following a run (the run itself goes on). `diagnose` exits as
+// `imucal diagnose` does: 0 consistent or explained, 3 unexplained (a refusal, also 3, says so on
+// stderr).
 #include <signal.h>
 #include <unistd.h>
 
@@ -25,6 +27,7 @@
 #include <string>
 #include <thread>
 
+#include "db/archive/io_util.hpp"
 #include "db/export.hpp"
 #include "db/serial_number.hpp"
 #include "db/sqlite_repository.hpp"
@@ -32,6 +35,7 @@
 #include "station/control_client.hpp"
 #include "station/control_protocol.hpp"
 #include "station/record_json.hpp"
+#include "tools/imucal/diagnosis_report.hpp"
 #include "tools/stationctl/export_output.hpp"
 
 namespace {
@@ -44,6 +48,8 @@ using stationctl::ExportOutput;
 using stationctl::ExportOutputError;
 
 enum Exit : int { kOk = 0, kRunNotPassed = 1, kBadInput = 2, kRefused = 3, kUnavailable = 4 };
+/// `diagnose` of a run whose gap no candidate explains: the exit code of imucal diagnose.
+constexpr int kGapUnexplained = 3;
 
 /// Where stationd looks when no config is given (the systemd unit, station/stationd.service.in, passes this file).
 constexpr const char* kDefaultConfig = "/etc/imucal/stationd.toml";
@@ -443,7 +449,8 @@ int cmd_export(const Target& t, const json& args, const std::string& output, boo
 
 /// Every option value of every command (CLI11 binds to these; one command runs per call).
 struct Args {
-  std::string serial, sequence, operator_name, reason, since, format, output, import_dir;
+  std::string serial, sequence, operator_name, reason, since, format, output, import_dir,
+      report_dir;
   bool wait = false, partial = false, bare = false;
   db::RunId run_id = 0;
   std::size_t limit = 0;
@@ -534,6 +541,9 @@ void add_history_commands(CLI::App& app, Args& a, Commands& c) {
   c.diagnose = app.add_subcommand(
       "diagnose", "sim-to-real gap diagnosis of a stored run, kept with the run (needs the group)");
   c.diagnose->add_option("RUN_ID", a.run_id, "run id")->required()->check(CLI::PositiveNumber);
+  c.diagnose->add_option("--report", a.report_dir,
+                         "also write OUTDIR/report.html and OUTDIR/diagnosis.json (as imucal "
+                         "diagnose --report)");
   c.diagnose->fallthrough();
   c.import = app.add_subcommand(
       "import",
@@ -631,6 +641,34 @@ int cmd_reprocess(const Target& t, const Args& a, bool as_json) {
   return started(t, client, r, "reprocesses run " + std::to_string(a.run_id), a.wait, as_json);
 }
 
+/// --report OUTDIR must be a directory or not exist yet (checked before the daemon works).
+void check_report_dir(const std::string& dir) {
+  std::error_code ec;
+  if (!dir.empty() && std::filesystem::exists(dir, ec) && !std::filesystem::is_directory(dir, ec))
+    throw Failure{kBadInput, "--report " + dir + ": exists and is not a directory"};
+}
+
+/// `stationctl diagnose RUN_ID [--report OUTDIR]`: the daemon diagnoses (and stores the summary);
+/// the report is written here, the same page as imucal diagnose's; exit 3 when unexplained.
+int cmd_diagnose(const Target& t, const Args& a, bool as_json) {
+  check_report_dir(a.report_dir);
+  ControlClient client = connect_or_fail(t);
+  const json d = call(client, station::cmd::kDiagnose, {{"run_id", a.run_id}});
+  if (!a.report_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(a.report_dir, ec);
+    if (ec) throw Failure{kUnavailable, "--report " + a.report_dir + ": " + ec.message()};
+    try {
+      archive::write_file_atomic(a.report_dir + "/diagnosis.json", d.dump(2) + "\n");
+      archive::write_file_atomic(a.report_dir + "/report.html", tools::diagnosis_report_html(d));
+    } catch (const std::exception& e) {
+      throw Failure{kUnavailable, std::string("--report: ") + e.what()};
+    }
+  }
+  print_result(d, as_json, station::render_diagnosis_text);
+  return d.value("verdict", "") == "unexplained" ? kGapUnexplained : kOk;
+}
+
 /// The command given, run.
 int dispatch(const Target& t, const Args& a, const Commands& c, bool as_json) {
   if (*c.start) return cmd_run_start(t, a, as_json);
@@ -662,11 +700,7 @@ int dispatch(const Target& t, const Args& a, const Commands& c, bool as_json) {
   }
   if (*c.exp) return cmd_export_history(t, a, as_json);
   if (*c.reprocess) return cmd_reprocess(t, a, as_json);
-  if (*c.diagnose) {
-    ControlClient client = connect_or_fail(t);
-    return print_result(call(client, station::cmd::kDiagnose, {{"run_id", a.run_id}}), as_json,
-                        station::render_diagnosis_text);
-  }
+  if (*c.diagnose) return cmd_diagnose(t, a, as_json);
   if (*c.import) return cmd_import(t, a.import_dir, a.wait, as_json);
   if (*c.promote) return cmd_promote(t, a.run_id, a.reason, as_json);
   throw Failure{kBadInput, "no command given (see --help)"};
