@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "calib/chi2.hpp"
+#include "calib/effect_magnitude.hpp"
 #include "calib/gap_fit.hpp"
 #include "calib/gap_linearisation.hpp"
 #include "calib/simulated_twin.hpp"
@@ -158,16 +159,25 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
     r.params.push_back({pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human,
                         pi.shape ? 0.0 : sigma_si(j) * pi.si_to_human});
   }
-  // Magnitude and its σ (delta method, numerical gradient of the norm).
-  r.magnitude = e.magnitude(r.value_si);
-  Eigen::VectorXd grad = Eigen::VectorXd::Zero(n);
+  // Magnitude and its σ. The magnitude is a norm of scaled parameters, |s ⊙ v|; with two or more
+  // fitted components it is debiased for their noise (calib/effect_magnitude.hpp), with one it is
+  // |x| ± σ.
+  Eigen::VectorXd scale_h(n);
   for (int k = 0; k < n; ++k) {
-    Eigen::VectorXd v = r.value_si;
-    const double h = 1e-3 * c.scale(k);
-    v(c.param_index[static_cast<size_t>(k)]) += h;
-    grad(k) = (e.magnitude(v) - r.magnitude) / h;
+    Eigen::VectorXd unit = Eigen::VectorXd::Zero(e.size());
+    unit(c.param_index[static_cast<size_t>(k)]) = 1.0;
+    scale_h(k) = e.magnitude(unit);
   }
-  r.magnitude_sigma = std::sqrt(std::max(0.0, grad.dot(cov_x * grad)));
+  const Eigen::VectorXd y = scale_h.cwiseProduct(x);
+  const Eigen::MatrixXd Sy = scale_h.asDiagonal() * cov_x * scale_h.asDiagonal();
+  if ((scale_h.array() > 0.0).count() >= 2) {
+    const NormEstimate m = debiased_norm(y, Sy);
+    r.magnitude = m.value;
+    r.magnitude_sigma = m.sigma;
+  } else {
+    r.magnitude = y.norm();
+    r.magnitude_sigma = std::sqrt(std::max(0.0, Sy.sum()));
+  }
   try {
     r.held_out_gap = held_out_gap(p.r0, hcat(p.Jb, J_eff), p.folds).ratio();
   } catch (const std::invalid_argument&) {
