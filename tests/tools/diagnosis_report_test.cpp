@@ -361,3 +361,22 @@ TEST_F(RenderedReport, EveryHeatMapColumnIsLabelledWithSegmentTimeAndAttitude) {
           << seg["label"] << " " << angle << " " << seg[angle] << ": axis reads '" << axis << "'";
   }
 }
+
+// Issue #19 item 6: the per-axis values were only in the JSON. The explaining effects' rows show
+// each fitted parameter with its value and σ.
+TEST_F(RenderedReport, TheExplainingEffectsShowTheirPerAxisValues) {
+  const std::string html = slurp(fs::path(tmp_->path()) / "report" / "report.html");
+  ASSERT_FALSE(diagnosis_["explained_by"].empty()) << diagnosis_["summary"];
+  for (const auto& name : diagnosis_["explained_by"]) {
+    const size_t row = html.find("<td>" + name.get<std::string>() + "</td>");
+    ASSERT_NE(row, std::string::npos) << name;
+    const std::string cells = html.substr(row, html.find("</tr>", row) - row);
+    for (const auto& c : diagnosis_["candidates"]) {
+      if (c["effect"] != name) continue;
+      for (const auto& p : c["parameters"])
+        if (p["sigma"].is_number() && p["sigma"].get<double>() > 0.0)
+          EXPECT_NE(cells.find(p["name"].get<std::string>() + " "), std::string::npos)
+              << name << " " << p["name"] << ": " << cells;
+    }
+  }
+}
