@@ -20,13 +20,13 @@
 #include "station/end_note.hpp"
 #include "station/gap_check.hpp"
 #include "station/import_staging.hpp"
+#include "station/run_live.hpp"
 #include "station/time_left.hpp"
 
 namespace imucal::station {
 
 namespace fs = std::filesystem;
 using std::chrono::milliseconds;
-using Clock = std::chrono::steady_clock;
 
 const char* to_string(RunPhase p) {
   switch (p) {
@@ -103,14 +103,6 @@ RunSnapshot snapshot_from_record(const db::RunRecord& rec) {
 
 namespace {
 
-/// Moves longer than this are seen by the IMU (above rest_rate_threshold_dps at any realistic
-/// table acceleration), so the rest after them waits for the motion in the IMU stream.
-constexpr double kVisibleMoveDeg = 0.01;
-/// How long (in IMU samples, as seconds at the configured rate) after a rest begins a commanded
-/// move may still be invisible in the IMU stream before the run fails: a unit that does not turn
-/// with the table never shows it.
-constexpr double kMoveVisibleWithin_s = 5.0;
-
 /// Rest-to-rest time of a trapezoidal (or triangular) move, s.
 double move_time_s(double distance_deg, double rate_dps, double accel_dps2) {
   const double d = std::abs(distance_deg);
@@ -118,15 +110,6 @@ double move_time_s(double distance_deg, double rate_dps, double accel_dps2) {
   if (d >= rate_dps * rate_dps / accel_dps2) return d / rate_dps + rate_dps / accel_dps2;
   return 2.0 * std::sqrt(d / accel_dps2);
 }
-
-/// The operator (or SIGTERM) asked to stop; carries no text (the reason is in Live).
-struct AbortRequested {};
-
-/// The IMU side failed: run -> failed.
-class CaptureFailure : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 }  // namespace
 
@@ -174,22 +157,6 @@ RunPlan plan_run(const std::string& sequence, const StationConfig& cfg) {
   }
   return plan;
 }
-
-struct RunController::Live {
-  RunSnapshot snap;  // everything below: guarded by the controller's mutex
-  RunPlan plan;
-  bool reprocess = false;
-  bool abort = false;
-  std::string abort_reason;
-  turntable::TurntableClient* client = nullptr;
-  Capture* capture = nullptr;
-  int step_index = -1;  // into plan.steps; -1 while preparing
-  Clock::time_point step_started{};
-  bool handed_to_worker = false;
-  Clock::time_point stream_started{};  // when the first IMU samples arrived
-  uint64_t rows_at_stream_start = 0;
-  mutable TimeLeftEstimator time_left;  // active() is const; the estimate only ever shrinks
-};
 
 RunController::RunController(const StationConfig& config, db::Repository& repository,
                              CalibrationWorker& worker, std::string software_version)
@@ -737,340 +704,6 @@ void RunController::finish_early(Live& live, db::RunState state, const std::stri
   live.snap.state = state;
   live.snap.reason = reason;
   live.snap.ended_at_ms = db::now_ms();
-}
-
-void RunController::capture_run(const std::shared_ptr<Live>& self) {
-  Live& L = *self;
-  const db::RunId id = L.snap.run_id;
-  const RunPlan& plan = L.plan;
-  std::unique_ptr<turntable::TurntableClient> client;
-  std::unique_ptr<Capture> cap;
-  std::unique_ptr<ArchiveWriter> writer;
-  archive::RunInfo info;
-  bool captured = false;
-  db::RunState end_state = db::RunState::kFailed;
-  std::string reason;
-
-  auto check_abort = [&] {
-    std::lock_guard<std::mutex> lk(mu_);
-    if (L.abort) throw AbortRequested{};
-  };
-  auto check_capture = [&] {
-    if (cap) {
-      if (auto f = cap->fault()) throw CaptureFailure(*f);
-    }
-  };
-  const milliseconds poll = std::max(milliseconds(1), cfg_.turntable.poll_period);
-  const auto move_timeout = milliseconds(static_cast<int64_t>(cfg_.move_timeout_s * 1000.0));
-
-  // Commands a move and polls the table until it is in position, handing every reading to the
-  // capture (sample-and-hold angles while moving); the final check is the client's own
-  // wait_in_position (fault, e-stop, heartbeat, target reached).
-  double at_outer = 0.0, at_inner = 0.0;  // where the table stands (last in-position reading)
-  auto move = [&](double outer, double inner, double rate) {
-    // The next rest may only count IMU samples that show this move happened (the IMU stream can
-    // lag the Modbus readings); a move too short to be seen is not waited for.
-    if (cap && (std::abs(outer - at_outer) > kVisibleMoveDeg ||
-                std::abs(inner - at_inner) > kVisibleMoveDeg))
-      cap->move_commanded();
-    client->move_to(outer, inner, rate);
-    const auto deadline = Clock::now() + move_timeout;
-    set_phase(L, RunPhase::kMoving);
-    for (;;) {
-      check_abort();
-      const turntable::TableStatus st = client->status();
-      if (cap) cap->table_moving(st.outer_deg, st.inner_deg);
-      check_capture();
-      if (st.fault || st.estop || st.heartbeat_stale) break;
-      if (st.in_position && !st.moving) break;
-      set_phase(L, st.moving ? RunPhase::kMoving : RunPhase::kSettling);
-      if (Clock::now() >= deadline) break;
-      std::this_thread::sleep_for(poll);
-    }
-    const auto left = std::chrono::duration_cast<milliseconds>(deadline - Clock::now());
-    return client->wait_in_position(std::max(milliseconds(1), left));
-  };
-
-  // A counted rest: the capture marks rest_samples rows at_rest once the unit is still; meanwhile
-  // the table is watched for faults (it must hold its position).
-  auto rest = [&](double outer, double inner, uint64_t samples) {
-    cap->begin_rest(outer, inner, samples);
-    set_phase(L, RunPhase::kSettling);
-    // A unit that never comes to rest: give it the rest's real-time length plus a move timeout.
-    const double budget_s =
-        static_cast<double>(samples + cfg_.settle_guard_samples) / cfg_.rate_hz +
-        cfg_.move_timeout_s;
-    const auto deadline = Clock::now() + milliseconds(static_cast<int64_t>(budget_s * 1000.0));
-    for (;;) {
-      if (cap->wait_rest_done(poll)) return;
-      check_capture();
-      check_abort();
-      const turntable::TableStatus st = client->status();
-      const std::string where = "turntable " + cfg_.turntable.endpoint.to_string() +
-                                " during a rest at outer " + std::to_string(st.outer_deg) +
-                                " deg, inner " + std::to_string(st.inner_deg) + " deg";
-      if (st.estop) throw turntable::EstopError(where + ": e-stop open");
-      if (st.fault)
-        throw turntable::TableFaultError(
-            where + ": table fault, code " + std::to_string(st.fault_code), st.fault_code);
-      if (st.heartbeat_stale) throw turntable::HeartbeatError(where + ": PLC heartbeat stuck");
-      if (st.moving) throw turntable::MoveTimeoutError(where + ": the table moved during a rest");
-      if (cap->rest_rows_done() > 0) set_phase(L, RunPhase::kResting);
-      // The table has arrived; the IMU must have seen the move within a few seconds of samples.
-      if (cap->unseen_move_samples() > static_cast<uint64_t>(kMoveVisibleWithin_s * cfg_.rate_hz))
-        throw CaptureFailure(
-            "the IMU did not show the table's move to outer " + std::to_string(outer) +
-            " deg, inner " + std::to_string(inner) + " deg (" +
-            std::to_string(static_cast<int>(kMoveVisibleWithin_s)) +
-            " s of samples after the table stopped): the unit did not move with the table "
-            "(loose, or not on it), or its gyro axis of that rotation is dead");
-      if (Clock::now() >= deadline) {
-        throw CaptureFailure("the unit did not come to rest within " + std::to_string(budget_s) +
-                             " s (rest rate threshold " +
-                             std::to_string(cfg_.rest_rate_threshold_dps) + " deg/s)");
-      }
-    }
-  };
-
-  try {
-    // --- preparing: table ---
-    set_phase(L, RunPhase::kConnecting);
-    client = std::make_unique<turntable::TurntableClient>(cfg_.turntable);
-    {
-      std::lock_guard<std::mutex> lk(mu_);
-      L.client = client.get();
-      if (L.abort) client->request_abort();
-    }
-    check_abort();
-    client->connect();
-    check_abort();
-    turntable::TableStatus st = client->status();
-    if (st.estop)
-      throw turntable::EstopError("turntable " + cfg_.turntable.endpoint.to_string() +
-                                  ": e-stop open");
-    if (st.fault) {
-      spdlog::warn("run {}: table reports fault code {}; clearing it", id, st.fault_code);
-      client->clear_fault();
-    }
-    client->enable();
-    set_phase(L, RunPhase::kHoming);
-    st = client->home(milliseconds(static_cast<int64_t>(cfg_.home_timeout_s * 1000.0)));
-    check_abort();
-    if (std::abs(st.outer_deg - plan.start_outer_deg) > cfg_.turntable.position_tolerance_deg ||
-        std::abs(st.inner_deg - plan.start_inner_deg) > cfg_.turntable.position_tolerance_deg) {
-      st = move(plan.start_outer_deg, plan.start_inner_deg, cfg_.max_rate_dps);
-    }
-
-    // --- preparing: IMU ---
-    set_phase(L, RunPhase::kConnecting);
-    CaptureOptions co;
-    co.decoder = decoder_options(cfg_);
-    co.max_gap_samples = cfg_.max_gap_samples;
-    co.settle_guard_samples = cfg_.settle_guard_samples;
-    co.rest_rate_threshold_dps = cfg_.rest_rate_threshold_dps;
-    co.stream_timeout = milliseconds(cfg_.stream_timeout_ms);
-    cap = std::make_unique<Capture>(imu::CanChannel::open(cfg_.can_uri), co);
-    cap->start();
-    {
-      std::lock_guard<std::mutex> lk(mu_);
-      L.capture = cap.get();
-    }
-    if (!cap->wait_for_stream(co.stream_timeout)) {
-      check_capture();
-      throw CaptureFailure("no IMU samples on " + cfg_.can_uri + " within " +
-                           std::to_string(cfg_.stream_timeout_ms) + " ms");
-    }
-    {
-      std::lock_guard<std::mutex> lk(mu_);
-      L.stream_started = Clock::now();
-      L.rows_at_stream_start = cap->rows();
-    }
-    check_abort();
-
-    // --- archive + running ---
-    info.serial = L.snap.serial;
-    info.station_name = cfg_.station_name;
-    info.site = cfg_.site;
-    info.imu_rate_hz = cfg_.rate_hz;
-    info.sequence_name = plan.sequence_name;
-    info.sequence_sha256 = plan.sequence_sha256;
-    info.software_version = software_version_;
-    info.start_time = db::format_time_utc(L.snap.started_at_ms);
-    info.reference = archive::ReferenceKind::kTable;
-    info.arw_rad_per_sqrt_s = cfg_.arw_rad_per_sqrt_s();
-    info.vrw_mps_per_sqrt_s = cfg_.vrw_mps_per_sqrt_s();
-    writer = std::make_unique<ArchiveWriter>(L.snap.archive_path, info);
-    cap->table_moving(st.outer_deg, st.inner_deg);
-    cap->attach(writer.get());
-    repo_.update_run_state(id, db::RunState::kRunning);
-    {
-      std::lock_guard<std::mutex> lk(mu_);
-      L.snap.state = db::RunState::kRunning;
-    }
-    spdlog::info("run {}: running, archive {}", id, L.snap.archive_path);
-
-    at_outer = st.outer_deg;
-    at_inner = st.inner_deg;
-    for (size_t i = 0; i < plan.steps.size(); ++i) {
-      const PlannedStep& p = plan.steps[i];
-      {
-        std::lock_guard<std::mutex> lk(mu_);
-        L.step_index = static_cast<int>(i);
-        L.snap.step = static_cast<int>(i) + 1;
-        L.step_started = Clock::now();
-      }
-      check_abort();
-      if (p.kind == PlannedStep::Kind::kMove) {
-        spdlog::debug("run {}: step {}/{}: move to outer {} deg, inner {} deg at {} deg/s", id,
-                      i + 1, plan.steps.size(), p.outer_deg, p.inner_deg, p.rate_dps);
-        st = move(p.outer_deg, p.inner_deg, p.rate_dps);
-        at_outer = st.outer_deg;
-        at_inner = st.inner_deg;
-      } else {
-        spdlog::debug("run {}: step {}/{}: rest {} samples", id, i + 1, plan.steps.size(),
-                      p.rest_samples);
-        rest(at_outer, at_inner, p.rest_samples);
-      }
-      check_capture();
-    }
-    check_abort();
-    cap->detach();
-    check_capture();
-    captured = true;
-  } catch (const AbortRequested&) {
-    end_state = db::RunState::kAborted;
-  } catch (const turntable::AbortedError&) {
-    end_state = db::RunState::kAborted;
-  } catch (const turntable::TurntableError& e) {
-    end_state = db::RunState::kAborted;
-    reason = std::string("table: ") + e.what();
-  } catch (const CaptureFailure& e) {
-    end_state = db::RunState::kFailed;
-    reason = std::string("capture: ") + e.what();
-  } catch (const imu::CanChannelError& e) {
-    end_state = db::RunState::kFailed;
-    reason = std::string("capture: ") + e.what();
-  } catch (const std::exception& e) {
-    end_state = db::RunState::kFailed;
-    reason = e.what();
-  }
-  {
-    std::lock_guard<std::mutex> lk(mu_);
-    // The operator's reason wins over whatever the abort made the table or capture report (a
-    // table link that was down, say): it is what the run ended for.
-    if (L.abort && !captured) {
-      const std::string consequence = reason;
-      end_state = db::RunState::kAborted;
-      reason = L.abort_reason;
-      if (!consequence.empty() && consequence != reason) reason += " (then: " + consequence + ")";
-    }
-    if (end_state == db::RunState::kAborted && reason.empty()) reason = L.abort_reason;
-    // An abort that arrived after the last step still wins over calibrating.
-    if (captured && L.abort) {
-      captured = false;
-      end_state = db::RunState::kAborted;
-      reason = L.abort_reason;
-    }
-  }
-  if (reason.empty()) reason = "aborted";
-
-  if (!captured) {
-    spdlog::warn("run {}: {}: {}", id, db::to_string(end_state), reason);
-    set_phase(L, RunPhase::kStopping);
-    if (client && client->connected()) client->safe_stop();
-  }
-
-  // Capture and archive end on every path: counters, run.toml with end time and [capture].
-  std::optional<CaptureStats> stats;
-  if (cap) {
-    cap->detach();
-    cap->stop();  // no more frames counted after the archive's last one
-    stats = cap->stats();
-    {
-      std::lock_guard<std::mutex> lk(mu_);
-      L.capture = nullptr;
-      L.snap.capture = stats;
-    }
-    cap.reset();
-  }
-  std::string sha;
-  if (writer) {
-    try {
-      info.end_time = db::format_time_utc(db::now_ms());
-      // complete only when every step ran: an aborted or failed run's archive says so, and its
-      // reprocess is refused unless asked for (REVIEW at best then).
-      info.capture = to_capture_info(stats.value_or(CaptureStats{}), captured);
-      writer->finish(info);
-    } catch (const std::exception& e) {
-      spdlog::error("run {}: finishing the archive: {}", id, e.what());
-      if (captured) {
-        captured = false;
-        end_state = db::RunState::kFailed;
-        reason = std::string("archive: ") + e.what();
-      }
-    }
-    writer.reset();
-    try {
-      sha = archive_digest(L.snap.archive_path);
-    } catch (const std::exception& e) {
-      spdlog::error("run {}: {}", id, e.what());
-    }
-  }
-  {
-    std::lock_guard<std::mutex> lk(mu_);
-    L.client = nullptr;
-  }
-  if (client) {
-    client->close();
-    client.reset();
-  }
-  const std::string capture_json = stats ? to_json(*stats).dump() : std::string();
-  const bool have_archive = fs::exists(fs::path(L.snap.archive_path) / "run.toml");
-
-  if (captured) {
-    repo_.update_run_state(id, db::RunState::kCalibrating);
-    CalibrationJob job;
-    job.run_id = id;
-    job.archive_dir = L.snap.archive_path;
-    job.archive_sha256 = sha;
-    job.capture_json = capture_json;
-    job.k_sigma = cfg_.k_sigma;
-    job.gap_false_alarm = cfg_.gap_false_alarm;
-    {
-      std::lock_guard<std::mutex> lk(mu_);
-      L.snap.state = db::RunState::kCalibrating;
-      L.snap.phase = RunPhase::kCalibrating;
-      L.handed_to_worker = true;
-    }
-    spdlog::info("run {}: capture complete ({} rows, {} at rest); calibrating", id,
-                 stats ? stats->rows_written : 0, stats ? stats->rest_samples : 0);
-    try {
-      worker_.submit(job,
-                     [this, self](const CalibrationOutcome& out) { on_calibrated(self, out); });
-      return;
-    } catch (const std::exception& e) {
-      // The worker is stopped (daemon shutting down): the archive is complete, reprocess it later.
-      std::lock_guard<std::mutex> lk(mu_);
-      L.handed_to_worker = false;
-      end_state = db::RunState::kInterrupted;
-      reason =
-          std::string("capture complete but not calibrated: ") + e.what() + "; reprocess the run";
-    }
-  }
-
-  db::RunCompletion c;
-  c.state = end_state;
-  c.ended_at_ms = db::now_ms();
-  c.reason = reason;
-  if (have_archive) c.archive_path = L.snap.archive_path;
-  c.archive_sha256 = sha;
-  c.capture_json = capture_json;
-  finish_early(L, end_state, reason);
-  {
-    std::lock_guard<std::mutex> lk(mu_);
-    if (!have_archive) L.snap.archive_path.clear();
-  }
-  record_end(L, c);
 }
 
 void RunController::record_end(Live& L, const db::RunCompletion& c) {

@@ -171,6 +171,9 @@ class RunController {
 
  private:
   struct Live;
+  /// One run's capture as named stages (station/run_session.cpp).
+  struct Session;
+  friend struct Session;
   void control_thread(std::shared_ptr<Live> live);
   void capture_run(const std::shared_ptr<Live>& live);
   void finish_early(Live& live, db::RunState state, const std::string& reason);

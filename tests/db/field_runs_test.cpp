@@ -123,7 +123,7 @@ TEST(FieldRuns, PromotionIsRefusedWhereItMakesNoSense) {
             std::string::npos);
   RunCompletion rev = land_pass(21, kT0 + 30);
   rev.state = RunState::kReview;
-  rev.crosscheck = CrosscheckRecord{Verdict::kReview, 4.0, {{"gyro_M[1][1]", "too far apart"}}};
+  rev.crosscheck = CrosscheckRecord{Verdict::kReview, 4.0, {{"gyro_M[1][1]", "too far apart"}}, {}};
   repo.finish_run(live, rev);
   EXPECT_NE(expect_throw_message<Conflict>([&] {
               repo.promote(live, "qa", "x", kT0 + 40);

@@ -110,7 +110,7 @@ inline RunCompletion pass_completion(long seed, TimestampMs ended_at_ms) {
   c.archive_sha256 = std::string(63, 'b') + static_cast<char>('0' + seed % 10);
   c.calibrations = {seeded_calibration(seed, Method::kAins),
                     seeded_calibration(seed, Method::kNlsq)};
-  c.crosscheck = CrosscheckRecord{Verdict::kPass, 4.0, {}};
+  c.crosscheck = CrosscheckRecord{Verdict::kPass, 4.0, {}, {}};
   return c;
 }
 
@@ -121,7 +121,8 @@ inline RunCompletion review_completion(long seed, TimestampMs ended_at_ms) {
   c.crosscheck = CrosscheckRecord{
       Verdict::kReview,
       4.0,
-      {{"accel_bias_mps2[1]", "accel_bias_mps2[1]: |Δ| = 12.3 µg > 4σ bound 8.1 µg"}}};
+      {{"accel_bias_mps2[1]", "accel_bias_mps2[1]: |Δ| = 12.3 µg > 4σ bound 8.1 µg"}},
+      {}};
   return c;
 }
 

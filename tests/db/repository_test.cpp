@@ -159,7 +159,8 @@ TEST(Repository, ShowReturnsEverythingStored) {
   CrosscheckRecord x{Verdict::kReview,
                      3.5,
                      {{"gyro_M[0][0]", "gyro_M[0][0]: |Δ| = 30 ppm > 3.5σ bound 12 ppm"},
-                      {"accel_rmse_ug", "NLSQ accel RMSE 55 µg > 40 µg, \"limit\""}}};
+                      {"accel_rmse_ug", "NLSQ accel RMSE 55 µg > 40 µg, \"limit\""}},
+                     {}};
   repo.store_crosscheck(id, x);
   RunCompletion c;
   c.state = RunState::kReview;
@@ -328,7 +329,7 @@ TEST(Repository, LifeCycleRulesAreEnforcedAndARefusedFinishWritesNothing) {
   EXPECT_EQ(d.calibrations.size(), 2u);
   EXPECT_THROW(repo.update_run_state(id, RunState::kRunning), Conflict);
   EXPECT_THROW(repo.update_run_state(id, RunState::kAborted, "late abort"), Conflict);
-  EXPECT_THROW(repo.store_crosscheck(id, CrosscheckRecord{Verdict::kPass, 4.0, {}}), Conflict);
+  EXPECT_THROW(repo.store_crosscheck(id, CrosscheckRecord{Verdict::kPass, 4.0, {}, {}}), Conflict);
   EXPECT_THROW(repo.finish_run(id, ok), Conflict);
 
   // Unknown runs and bad new runs.
