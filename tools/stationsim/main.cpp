@@ -148,8 +148,220 @@ void print_status(const StationSimStats& s) {
 
 }  // namespace
 
+namespace {
+
+/// The command line, as given (checked by config_from).
+struct CliArgs {
+  std::string modbus = "127.0.0.1:1502", can_path, unit_path, truth_out, ready_file, stats_file;
+  double speed = 100.0, rate_hz = 100.0, duration_s = -1.0;
+  uint64_t seed = 1;
+  double lat_deg = 0.0, lon_deg = 0.0, height_m = 0.0;
+  double gravity = std::nan("");
+  double can_loss = 0.0, can_corrupt = 0.0;
+  std::vector<double> reset_at, drop_at;
+  std::vector<std::string> delay_at, effect_specs;
+  std::string table_fault, imu_fault;
+  bool wait_for_can_peer = false;
+};
+
+void add_options(CLI::App& app, CliArgs& a) {
+  const imucal::calib::Site demo = imucal::calib::demo_factory_site();
+  a.lat_deg = demo.lat_rad / imucal::kDegToRad;
+  a.lon_deg = demo.lon_rad / imucal::kDegToRad;
+  a.height_m = demo.height_m;
+  app.set_version_flag("--version", std::string(IMUCAL_VERSION));
+  app.add_option("--modbus", a.modbus,
+                 "Modbus TCP listen address ADDR:PORT (port 0 = a free port)");
+  app.add_option("--can", a.can_path, "unixcan bus socket path (the simulator is the bus)")
+      ->required();
+  app.add_option("--unit", a.unit_path, "unit file (db/archive format); default: the default unit");
+  app.add_option(
+         "--effect", a.effect_specs,
+         "inject a catalogue effect, NAME=V[,V...] in SI (repeatable; imucal effects lists them)")
+      ->take_all();
+  app.add_option("--speed", a.speed, "sim seconds per wall second");
+  app.add_option("--rate-hz", a.rate_hz, "IMU sample rate");
+  app.add_option("--seed", a.seed, "random seed (noise, CAN faults)");
+  app.add_option("--lat-deg", a.lat_deg, "site latitude, deg");
+  app.add_option("--lon-deg", a.lon_deg, "site longitude, deg");
+  app.add_option("--height-m", a.height_m, "site height, m");
+  app.add_option("--gravity-mps2", a.gravity,
+                 "surveyed gravity, m/s^2 (default: normal gravity at the site)");
+  app.add_option("--can-loss", a.can_loss, "per-frame CAN loss probability");
+  app.add_option("--can-corrupt", a.can_corrupt, "per-frame CAN corruption probability");
+  app.add_option("--imu-reset-at", a.reset_at, "IMU reset at this sim time, s (repeatable)");
+  app.add_option("--modbus-drop-at", a.drop_at,
+                 "drop every Modbus connection at this sim time, s (repeatable)");
+  app.add_option("--modbus-delay-at", a.delay_at,
+                 "T:MS:COUNT: from sim time T hold back COUNT replies by MS ms");
+  app.add_option("--table-fault-move", a.table_fault,
+                 "N[:AFTER_S[:CODE]]: table fault AFTER_S (1.0) into accepted "
+                 "move N, fault code CODE (17)");
+  app.add_option("--imu-fault", a.imu_fault,
+                 "a broken or wrongly mounted unit: stuck:CH, swap:gyro-xy, flip:CH, not-on-table, "
+                 "fixture-rot90, saturate:DPS (CH: gyro-x .. accel-z)");
+  app.add_option("--truth-out", a.truth_out, "write the unit's truth.json here");
+  app.add_option("--ready-file", a.ready_file,
+                 "write {pid, modbus, can, speed} JSON here once listening");
+  app.add_option("--stats-file", a.stats_file, "write the final statistics JSON here on exit");
+  app.add_option("--duration-s", a.duration_s,
+                 "exit after this much sim time (default: run until signalled)");
+  app.add_flag("--wait-for-can-peer", a.wait_for_can_peer,
+               "start the physics clock when the first CAN peer connects (benchmarks, tests)");
+}
+
+/// The unit file and the catalogue effects on top of it (withheld from the station).
+void apply_unit(const CliArgs& a, StationSimConfig& cfg) {
+  if (!a.unit_path.empty()) {
+    try {
+      cfg.unit = imucal::archive::read_unit_file(a.unit_path);
+    } catch (const std::exception& e) {
+      const std::string what = e.what();
+      // The archive reader names the file and line; make sure the file is named either way.
+      throw BadInput(
+          "--unit: " + (what.find(a.unit_path) == std::string::npos ? a.unit_path + ": " : "") +
+          what);
+    }
+  }
+  for (const std::string& spec : a.effect_specs) {
+    try {
+      imucal::calib::apply_effect_spec(cfg.unit.effects, spec);
+    } catch (const std::exception& e) {
+      throw BadInput(std::string("--effect ") + spec + ": " + e.what());
+    }
+  }
+}
+
+/// Speed, rate, seed and the site (gravity: surveyed, or normal gravity at the site).
+void apply_clock_and_site(const CliArgs& a, StationSimConfig& cfg) {
+  if (!(a.speed > 0.0 && std::isfinite(a.speed))) throw BadInput("--speed: must be > 0");
+  if (!(a.rate_hz > 0.0 && std::isfinite(a.rate_hz))) throw BadInput("--rate-hz: must be > 0");
+  if (!(std::abs(a.lat_deg) <= 90.0)) throw BadInput("--lat-deg: must be in [-90, 90]");
+  if (!(std::abs(a.lon_deg) <= 360.0)) throw BadInput("--lon-deg: must be in [-360, 360]");
+  if (!std::isfinite(a.height_m)) throw BadInput("--height-m: must be finite");
+  cfg.speed = a.speed;
+  cfg.rate_hz = a.rate_hz;
+  cfg.seed = a.seed;
+  cfg.wait_for_can_peer = a.wait_for_can_peer;
+  cfg.site.lat_rad = a.lat_deg * imucal::kDegToRad;
+  cfg.site.lon_rad = a.lon_deg * imucal::kDegToRad;
+  cfg.site.height_m = a.height_m;
+  if (std::isnan(a.gravity)) {
+    cfg.site.gravity_mps2 =
+        imucal::calib::EarthModel::normal_gravity_mps2(cfg.site.lat_rad, a.height_m);
+  } else {
+    if (!(a.gravity > 9.7 && a.gravity < 9.9))
+      throw BadInput("--gravity-mps2: must be in (9.7, 9.9)");
+    cfg.site.gravity_mps2 = a.gravity;
+  }
+}
+
+/// The injected faults: CAN loss and corruption, IMU resets, Modbus drops and delays, a table
+/// fault during a move, a broken or wrongly mounted unit.
+void apply_faults(const CliArgs& a, StationSimConfig& cfg) {
+  if (!(a.can_loss >= 0.0 && a.can_loss <= 1.0)) throw BadInput("--can-loss: must be in [0, 1]");
+  if (!(a.can_corrupt >= 0.0 && a.can_corrupt <= 1.0))
+    throw BadInput("--can-corrupt: must be in [0, 1]");
+  cfg.faults.can_loss = a.can_loss;
+  cfg.faults.can_corrupt = a.can_corrupt;
+  for (double t : a.reset_at)
+    if (!(t >= 0.0)) throw BadInput("--imu-reset-at: must be >= 0");
+  for (double t : a.drop_at)
+    if (!(t >= 0.0)) throw BadInput("--modbus-drop-at: must be >= 0");
+  cfg.faults.imu_reset_at_s = a.reset_at;
+  cfg.faults.modbus_drop_at_s = a.drop_at;
+  for (const auto& d : a.delay_at) cfg.faults.modbus_delay.push_back(parse_delay(d));
+  if (!a.table_fault.empty()) cfg.faults.table_fault = parse_table_fault(a.table_fault);
+  if (!a.imu_fault.empty()) {
+    try {
+      cfg.faults.imu_fault = imucal::sim::parse_imu_fault(a.imu_fault);
+    } catch (const std::invalid_argument& e) {
+      throw BadInput(e.what());
+    }
+  }
+}
+
+/// The simulator's configuration from the command line; BadInput naming the option.
+StationSimConfig config_from(const CliArgs& a) {
+  StationSimConfig cfg;
+  parse_modbus(a.modbus, cfg);
+  cfg.can_path = a.can_path;
+  apply_unit(a, cfg);
+  apply_clock_and_site(a, cfg);
+  apply_faults(a, cfg);
+  return cfg;
+}
+
+/// truth.json, then the ready line on stdout (and in --ready-file) once the simulator listens.
+void announce_ready(StationSim& sim, const CliArgs& a, const StationSimConfig& cfg) {
+  if (!a.truth_out.empty())
+    imucal::archive::write_truth_json(a.truth_out, imucal::archive::truth_from_unit(cfg.unit));
+  sim.start();
+  nlohmann::json ready;
+  ready["pid"] = static_cast<int>(::getpid());
+  ready["modbus"] = sim.modbus_endpoint();
+  ready["can"] = sim.can_uri();
+  ready["speed"] = a.speed;
+  // Beyond the contract's keys: what a harness needs to set up the daemon for this station.
+  ready["rate_hz"] = a.rate_hz;
+  ready["site"] = {{"lat_deg", a.lat_deg},
+                   {"lon_deg", a.lon_deg},
+                   {"height_m", a.height_m},
+                   {"gravity_mps2", imucal::calib::EarthModel(cfg.site).gravity_mps2()}};
+  if (!a.ready_file.empty()) write_atomically(a.ready_file, ready.dump() + "\n");
+  std::cout << ready.dump() << std::endl;
+}
+
+/// Runs until SIGTERM/SIGINT, --duration-s or a physics failure (exit 1), with a status line
+/// every 2 s.
+int serve(StationSim& sim, const CliArgs& a, const sigset_t& sigs) {
+  auto last_status = std::chrono::steady_clock::now();
+  for (;;) {
+    // Wake at most every 100 ms wall, sooner when --duration-s is about to be reached.
+    long wait_ns = 100'000'000;
+    if (a.duration_s >= 0.0)
+      wait_ns = std::clamp(static_cast<long>((a.duration_s - sim.time_s()) / a.speed * 1e9),
+                           200'000L, wait_ns);
+    const timespec wait{0, wait_ns};
+    const int sig = sigtimedwait(&sigs, nullptr, &wait);
+    if (sig == SIGTERM || sig == SIGINT) {
+      std::fprintf(stderr, "stationsim: %s, stopping\n", sig == SIGTERM ? "SIGTERM" : "SIGINT");
+      return 0;
+    }
+    const std::string err = sim.error();
+    if (!err.empty()) {
+      std::fprintf(stderr, "stationsim: physics thread failed: %s\n", err.c_str());
+      return 1;
+    }
+    if (a.duration_s >= 0.0 && sim.time_s() >= a.duration_s) return 0;
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_status >= std::chrono::seconds(2)) {
+      print_status(sim.stats());
+      last_status = now;
+    }
+  }
+}
+
+/// Stops the simulator; the final statistics on stderr and in --stats-file.
+int stop_and_report(StationSim& sim, const CliArgs& a, int rc) {
+  sim.stop();
+  const StationSimStats final_stats = sim.stats();
+  print_status(final_stats);
+  if (!a.stats_file.empty()) {
+    try {
+      write_atomically(a.stats_file, stats_json(final_stats).dump(2) + "\n");
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "stationsim: %s\n", e.what());
+      rc = 1;
+    }
+  }
+  return rc;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
-  // SIGTERM/SIGINT are taken synchronously by the main thread (sigtimedwait below); block them
+  // SIGTERM/SIGINT are taken synchronously by the main thread (sigtimedwait in serve); block them
   // before any thread starts so that every thread inherits the mask.
   sigset_t sigs;
   sigemptyset(&sigs);
@@ -163,59 +375,8 @@ int main(int argc, char** argv) {
 
   CLI::App app{
       "stationsim: simulated turntable (Modbus TCP) and IMU (CAN over unixcan), one physics clock"};
-  std::string modbus = "127.0.0.1:1502", can_path, unit_path, truth_out, ready_file, stats_file;
-  double speed = 100.0, rate_hz = 100.0, duration_s = -1.0;
-  uint64_t seed = 1;
-  const imucal::calib::Site demo = imucal::calib::demo_factory_site();
-  double lat_deg = demo.lat_rad / imucal::kDegToRad, lon_deg = demo.lon_rad / imucal::kDegToRad,
-         height_m = demo.height_m;
-  double gravity = std::nan("");
-  double can_loss = 0.0, can_corrupt = 0.0;
-  std::vector<double> reset_at, drop_at;
-  std::vector<std::string> delay_at;
-  std::string table_fault;
-  std::string imu_fault;
-  app.set_version_flag("--version", std::string(IMUCAL_VERSION));
-  app.add_option("--modbus", modbus, "Modbus TCP listen address ADDR:PORT (port 0 = a free port)");
-  app.add_option("--can", can_path, "unixcan bus socket path (the simulator is the bus)")
-      ->required();
-  app.add_option("--unit", unit_path, "unit file (db/archive format); default: the default unit");
-  std::vector<std::string> effect_specs;
-  app.add_option(
-         "--effect", effect_specs,
-         "inject a catalogue effect, NAME=V[,V...] in SI (repeatable; imucal effects lists them)")
-      ->take_all();
-  app.add_option("--speed", speed, "sim seconds per wall second");
-  app.add_option("--rate-hz", rate_hz, "IMU sample rate");
-  app.add_option("--seed", seed, "random seed (noise, CAN faults)");
-  app.add_option("--lat-deg", lat_deg, "site latitude, deg");
-  app.add_option("--lon-deg", lon_deg, "site longitude, deg");
-  app.add_option("--height-m", height_m, "site height, m");
-  app.add_option("--gravity-mps2", gravity,
-                 "surveyed gravity, m/s^2 (default: normal gravity at the site)");
-  app.add_option("--can-loss", can_loss, "per-frame CAN loss probability");
-  app.add_option("--can-corrupt", can_corrupt, "per-frame CAN corruption probability");
-  app.add_option("--imu-reset-at", reset_at, "IMU reset at this sim time, s (repeatable)");
-  app.add_option("--modbus-drop-at", drop_at,
-                 "drop every Modbus connection at this sim time, s (repeatable)");
-  app.add_option("--modbus-delay-at", delay_at,
-                 "T:MS:COUNT: from sim time T hold back COUNT replies by MS ms");
-  app.add_option("--table-fault-move", table_fault,
-                 "N[:AFTER_S[:CODE]]: table fault AFTER_S (1.0) into accepted "
-                 "move N, fault code CODE (17)");
-  app.add_option("--imu-fault", imu_fault,
-                 "a broken or wrongly mounted unit: stuck:CH, swap:gyro-xy, flip:CH, not-on-table, "
-                 "fixture-rot90, saturate:DPS (CH: gyro-x .. accel-z)");
-  app.add_option("--truth-out", truth_out, "write the unit's truth.json here");
-  app.add_option("--ready-file", ready_file,
-                 "write {pid, modbus, can, speed} JSON here once listening");
-  app.add_option("--stats-file", stats_file, "write the final statistics JSON here on exit");
-  app.add_option("--duration-s", duration_s,
-                 "exit after this much sim time (default: run until signalled)");
-  bool wait_for_can_peer = false;
-  app.add_flag("--wait-for-can-peer", wait_for_can_peer,
-               "start the physics clock when the first CAN peer connects (benchmarks, tests)");
-
+  CliArgs args;
+  add_options(app, args);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -227,139 +388,25 @@ int main(int argc, char** argv) {
 
   StationSimConfig cfg;
   try {
-    parse_modbus(modbus, cfg);
-    cfg.can_path = can_path;
-    if (!unit_path.empty()) {
-      try {
-        cfg.unit = imucal::archive::read_unit_file(unit_path);
-      } catch (const std::exception& e) {
-        const std::string what = e.what();
-        // The archive reader names the file and line; make sure the file is named either way.
-        throw BadInput("--unit: " +
-                       (what.find(unit_path) == std::string::npos ? unit_path + ": " : "") + what);
-      }
-    }
-    // Effects of the catalogue (calib/effects.hpp) on top of the unit, withheld from the station.
-    for (const std::string& spec : effect_specs) {
-      try {
-        imucal::calib::apply_effect_spec(cfg.unit.effects, spec);
-      } catch (const std::exception& e) {
-        throw BadInput(std::string("--effect ") + spec + ": " + e.what());
-      }
-    }
-    if (!(speed > 0.0 && std::isfinite(speed))) throw BadInput("--speed: must be > 0");
-    if (!(rate_hz > 0.0 && std::isfinite(rate_hz))) throw BadInput("--rate-hz: must be > 0");
-    if (!(std::abs(lat_deg) <= 90.0)) throw BadInput("--lat-deg: must be in [-90, 90]");
-    if (!(std::abs(lon_deg) <= 360.0)) throw BadInput("--lon-deg: must be in [-360, 360]");
-    if (!std::isfinite(height_m)) throw BadInput("--height-m: must be finite");
-    cfg.speed = speed;
-    cfg.rate_hz = rate_hz;
-    cfg.seed = seed;
-    cfg.wait_for_can_peer = wait_for_can_peer;
-    cfg.site.lat_rad = lat_deg * imucal::kDegToRad;
-    cfg.site.lon_rad = lon_deg * imucal::kDegToRad;
-    cfg.site.height_m = height_m;
-    if (std::isnan(gravity)) {
-      cfg.site.gravity_mps2 =
-          imucal::calib::EarthModel::normal_gravity_mps2(cfg.site.lat_rad, height_m);
-    } else {
-      if (!(gravity > 9.7 && gravity < 9.9))
-        throw BadInput("--gravity-mps2: must be in (9.7, 9.9)");
-      cfg.site.gravity_mps2 = gravity;
-    }
-    if (!(can_loss >= 0.0 && can_loss <= 1.0)) throw BadInput("--can-loss: must be in [0, 1]");
-    if (!(can_corrupt >= 0.0 && can_corrupt <= 1.0))
-      throw BadInput("--can-corrupt: must be in [0, 1]");
-    cfg.faults.can_loss = can_loss;
-    cfg.faults.can_corrupt = can_corrupt;
-    for (double t : reset_at)
-      if (!(t >= 0.0)) throw BadInput("--imu-reset-at: must be >= 0");
-    for (double t : drop_at)
-      if (!(t >= 0.0)) throw BadInput("--modbus-drop-at: must be >= 0");
-    cfg.faults.imu_reset_at_s = reset_at;
-    cfg.faults.modbus_drop_at_s = drop_at;
-    for (const auto& d : delay_at) cfg.faults.modbus_delay.push_back(parse_delay(d));
-    if (!table_fault.empty()) cfg.faults.table_fault = parse_table_fault(table_fault);
-    if (!imu_fault.empty()) {
-      try {
-        cfg.faults.imu_fault = imucal::sim::parse_imu_fault(imu_fault);
-      } catch (const std::invalid_argument& e) {
-        throw BadInput(e.what());
-      }
-    }
+    cfg = config_from(args);
   } catch (const BadInput& e) {
     std::fprintf(stderr, "stationsim: %s\n", e.what());
     return 2;
   }
-
   std::unique_ptr<StationSim> sim;
   try {
     sim = std::make_unique<StationSim>(cfg);
   } catch (const std::invalid_argument& e) {
     std::fprintf(stderr, "stationsim: %s%s\n",
-                 unit_path.empty() ? "" : ("--unit " + unit_path + ": ").c_str(), e.what());
+                 args.unit_path.empty() ? "" : ("--unit " + args.unit_path + ": ").c_str(),
+                 e.what());
     return 2;
   }
-
   try {
-    if (!truth_out.empty())
-      imucal::archive::write_truth_json(truth_out, imucal::archive::truth_from_unit(cfg.unit));
-    sim->start();
-    nlohmann::json ready;
-    ready["pid"] = static_cast<int>(::getpid());
-    ready["modbus"] = sim->modbus_endpoint();
-    ready["can"] = sim->can_uri();
-    ready["speed"] = speed;
-    // Beyond the contract's keys: what a harness needs to set up the daemon for this station.
-    ready["rate_hz"] = rate_hz;
-    ready["site"] = {{"lat_deg", lat_deg},
-                     {"lon_deg", lon_deg},
-                     {"height_m", height_m},
-                     {"gravity_mps2", imucal::calib::EarthModel(cfg.site).gravity_mps2()}};
-    if (!ready_file.empty()) write_atomically(ready_file, ready.dump() + "\n");
-    std::cout << ready.dump() << std::endl;
+    announce_ready(*sim, args, cfg);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "stationsim: %s\n", e.what());
     return 1;
   }
-
-  int rc = 0;
-  auto last_status = std::chrono::steady_clock::now();
-  for (;;) {
-    // Wake at most every 100 ms wall, sooner when --duration-s is about to be reached.
-    long wait_ns = 100'000'000;
-    if (duration_s >= 0.0)
-      wait_ns = std::clamp(static_cast<long>((duration_s - sim->time_s()) / speed * 1e9), 200'000L,
-                           wait_ns);
-    const timespec wait{0, wait_ns};
-    const int sig = sigtimedwait(&sigs, nullptr, &wait);
-    if (sig == SIGTERM || sig == SIGINT) {
-      std::fprintf(stderr, "stationsim: %s, stopping\n", sig == SIGTERM ? "SIGTERM" : "SIGINT");
-      break;
-    }
-    const std::string err = sim->error();
-    if (!err.empty()) {
-      std::fprintf(stderr, "stationsim: physics thread failed: %s\n", err.c_str());
-      rc = 1;
-      break;
-    }
-    if (duration_s >= 0.0 && sim->time_s() >= duration_s) break;
-    const auto now = std::chrono::steady_clock::now();
-    if (now - last_status >= std::chrono::seconds(2)) {
-      print_status(sim->stats());
-      last_status = now;
-    }
-  }
-  sim->stop();
-  const StationSimStats final_stats = sim->stats();
-  print_status(final_stats);
-  if (!stats_file.empty()) {
-    try {
-      write_atomically(stats_file, stats_json(final_stats).dump(2) + "\n");
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "stationsim: %s\n", e.what());
-      rc = 1;
-    }
-  }
-  return rc;
+  return stop_and_report(*sim, args, serve(*sim, args, sigs));
 }
