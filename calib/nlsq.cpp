@@ -159,10 +159,11 @@ std::string describe_null_space(const Eigen::SelfAdjointEigenSolver<Eigen::Matri
 
 }  // namespace
 
-CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& opt) {
-  const auto wall0 = std::chrono::steady_clock::now();
-  validate(in, opt);
+namespace {
 
+/// The rest periods' means, checked: at least two, rotation matrices, and a rotation between
+/// them (else nothing is observable).
+std::vector<NlsqRestMean> checked_rest_means(const CalibrationInput& in, const NlsqOptions& opt) {
   const std::vector<RestPeriod> periods = find_rest_periods(in, opt.min_rest_samples);
   if (periods.size() < 2) {
     fail("found " + std::to_string(periods.size()) + " rest period(s) of at least " +
@@ -183,16 +184,16 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
   if (max_rotation < kMinRotation_rad)
     fail("no rotation between rest periods (the reference attitude changes by at most " +
          std::to_string(max_rotation * kRadToDeg) + " deg); nothing is observable");
+  return rests;
+}
 
-  const EarthModel earth(in.site);
-  const Eigen::Vector3d w_ie_n = earth.w_ie_n();
-  const Eigen::Vector3d g_n = earth.g_n();
-
-  std::vector<int> active;  // flat indices of estimated parameters
+/// Flat indices of the estimated parameters (the table misalignment only if asked for), checked
+/// against the number of residuals the rests give.
+std::vector<int> active_parameters(const std::vector<NlsqRestMean>& rests, const NlsqOptions& opt) {
+  std::vector<int> active;
   for (int i = 0; i < ParamSet::kSize; ++i)
     if (i < 24 || opt.estimate_table_misalignment) active.push_back(i);
   const int n_active = static_cast<int>(active.size());
-
   // 3 residuals per rest (a_R); with the table heading 3 per rest (ψ_R) and 3 per rotation (ψ_i),
   // else 2 per rotation (d_i).
   const size_t n_rot = rests.size() - 1;
@@ -203,28 +204,21 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
          " parameters (" + std::to_string(rests.size()) +
          " rest periods); the sequence needs more rests and rotations");
   }
+  return active;
+}
 
-  CalibrationResult res;
-  res.method = "nlsq";
-  if (in.noise.gyro_bias_instability_radps > 0.0 || in.noise.accel_bias_instability_mps2 > 0.0)
-    res.warnings.push_back(
-        "bias instability (Gauss-Markov) is not part of the NLSQ residual weights; sigma covers "
-        "white noise and quantisation only");
+/// One linearisation's least-squares problem (paper eq. 41-45): the rests' specific-force
+/// residuals, and the rotations' attitude residuals linearised at theta0.
+struct NlsqProblem {
+  const CalibrationInput& in;
+  const std::vector<NlsqRestMean>& rests;
+  const NlsqOptions& opt;
+  Eigen::Vector3d w_ie_n, g_n;
 
-  ParamVector theta = ParamVector::Zero();
-  ParamCovariance cov = ParamCovariance::Zero();
-  double chi2 = 0.0;
-  int dof = 0;
-  bool converged = false;
-  int outer = 0;
-  // Outer loop: linearise every rotation's gyro propagation at θ0, solve the (otherwise exactly
-  // nonlinear) problem with Ceres, re-linearise at the solution until the step is ≪ σ.
-  for (outer = 1; outer <= opt.max_outer_iterations; ++outer) {
+  void build(const ParamVector& theta, Blocks& blk, ceres::Problem& problem,
+             std::vector<BlockRef>& refs) const {
     const ParamSet theta0 = ParamSet::from_vector(theta);
-    Blocks blk;
     blk.set(theta);
-    ceres::Problem problem;
-    std::vector<BlockRef> refs;
     for (const NlsqRestMean& rest : rests) {
       auto* cost = new ceres::AutoDiffCostFunction<NlsqAccelRestResidual, 3, 3, 9, 3>(
           new NlsqAccelRestResidual{rest, w_ie_n, g_n});
@@ -261,54 +255,106 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
       }
     }
     if (!opt.estimate_table_misalignment) problem.SetParameterBlockConstant(blk.sig.data());
+  }
+};
 
-    ceres::Solver::Options so;
-    so.linear_solver_type = ceres::DENSE_QR;
-    so.max_num_iterations = opt.ceres_max_iterations;
-    so.num_threads = 1;
-    so.logging_type = ceres::SILENT;
-    so.minimizer_progress_to_stdout = false;
-    so.function_tolerance = 1e-14;
-    so.gradient_tolerance = 1e-30;
-    so.parameter_tolerance = 1e-14;
-    ceres::Solver::Summary summary;
-    ceres::Solve(so, &problem, &summary);
-    if (summary.termination_type == ceres::FAILURE) fail("Ceres failed: " + summary.message);
+void solve(ceres::Problem& problem, const NlsqOptions& opt) {
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = opt.ceres_max_iterations;
+  so.num_threads = 1;
+  so.logging_type = ceres::SILENT;
+  so.minimizer_progress_to_stdout = false;
+  so.function_tolerance = 1e-14;
+  so.gradient_tolerance = 1e-30;
+  so.parameter_tolerance = 1e-14;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  if (summary.termination_type == ceres::FAILURE) fail("Ceres failed: " + summary.message);
+}
 
-    // Whitened Jacobian at the solution: information matrix, covariance, χ².
-    Eigen::MatrixXd J_full;
-    Eigen::VectorXd r;
-    evaluate_all(refs, J_full, r);
-    Eigen::MatrixXd J(J_full.rows(), n_active);
-    for (int c = 0; c < n_active; ++c) J.col(c) = J_full.col(active[static_cast<size_t>(c)]);
-    dof = static_cast<int>(J.rows()) - n_active;
-    const Eigen::MatrixXd H = J.transpose() * J;
-    const Eigen::VectorXd d = H.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
-    const Eigen::MatrixXd Hn = d.asDiagonal() * H * d.asDiagonal();
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Hn);
-    if (es.info() != Eigen::Success) fail("eigen-decomposition of the information matrix failed");
-    const double lmax = es.eigenvalues()(n_active - 1);
-    int n_null = 0;
-    while (n_null < n_active && !(es.eigenvalues()(n_null) > kMinRelativeEigenvalue * lmax))
-      ++n_null;
-    if (n_null > 0) {
-      std::ostringstream os;
-      os << "parameters not observable with this sequence: " << n_null
-         << " direction(s) with normalised information eigenvalue below " << kMinRelativeEigenvalue
-         << " (smallest " << es.eigenvalues()(0) / lmax
-         << "); parameters involved: " << describe_null_space(es, n_null, active);
-      fail(os.str());
-    }
-    const Eigen::MatrixXd Hn_inv = es.eigenvectors() *
-                                   es.eigenvalues().cwiseInverse().asDiagonal() *
-                                   es.eigenvectors().transpose();
-    const Eigen::MatrixXd cov_active = d.asDiagonal() * Hn_inv * d.asDiagonal();
-    cov.setZero();
-    for (int i = 0; i < n_active; ++i)
-      for (int j = 0; j < n_active; ++j)
-        cov(active[static_cast<size_t>(i)], active[static_cast<size_t>(j)]) = cov_active(i, j);
-    chi2 = r.squaredNorm();
+/// The whitened Jacobian at the solution: the covariance of the active parameters (refused when a
+/// direction is not observable with this sequence), χ² and its degrees of freedom.
+void covariance_at_solution(const std::vector<BlockRef>& refs, const std::vector<int>& active,
+                            ParamCovariance& cov, double& chi2, int& dof) {
+  const int n_active = static_cast<int>(active.size());
+  Eigen::MatrixXd J_full;
+  Eigen::VectorXd r;
+  evaluate_all(refs, J_full, r);
+  Eigen::MatrixXd J(J_full.rows(), n_active);
+  for (int c = 0; c < n_active; ++c) J.col(c) = J_full.col(active[static_cast<size_t>(c)]);
+  dof = static_cast<int>(J.rows()) - n_active;
+  const Eigen::MatrixXd H = J.transpose() * J;
+  const Eigen::VectorXd d = H.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd Hn = d.asDiagonal() * H * d.asDiagonal();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Hn);
+  if (es.info() != Eigen::Success) fail("eigen-decomposition of the information matrix failed");
+  const double lmax = es.eigenvalues()(n_active - 1);
+  int n_null = 0;
+  while (n_null < n_active && !(es.eigenvalues()(n_null) > kMinRelativeEigenvalue * lmax)) ++n_null;
+  if (n_null > 0) {
+    std::ostringstream os;
+    os << "parameters not observable with this sequence: " << n_null
+       << " direction(s) with normalised information eigenvalue below " << kMinRelativeEigenvalue
+       << " (smallest " << es.eigenvalues()(0) / lmax
+       << "); parameters involved: " << describe_null_space(es, n_null, active);
+    fail(os.str());
+  }
+  const Eigen::MatrixXd Hn_inv = es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() *
+                                 es.eigenvectors().transpose();
+  const Eigen::MatrixXd cov_active = d.asDiagonal() * Hn_inv * d.asDiagonal();
+  cov.setZero();
+  for (int i = 0; i < n_active; ++i)
+    for (int j = 0; j < n_active; ++j)
+      cov(active[static_cast<size_t>(i)], active[static_cast<size_t>(j)]) = cov_active(i, j);
+  chi2 = r.squaredNorm();
+}
 
+/// A-posteriori variance factor: the weights come from the noise model; if the residuals are
+/// clearly larger than it predicts, σ would lie, so scale the covariance (and say so).
+void apply_variance_factor(double chi2, int dof, ParamCovariance& cov, CalibrationResult& res) {
+  const double variance_factor = chi2 / static_cast<double>(dof);
+  if (variance_factor <= 2.0) return;
+  std::ostringstream os;
+  os << "a-posteriori variance factor chi2/dof = " << variance_factor << " (chi2 " << chi2
+     << ", dof " << dof << ") exceeds 2: residuals larger than the noise model predicts; "
+     << "sigma scaled by sqrt(" << variance_factor << ")";
+  res.warnings.push_back(os.str());
+  cov *= variance_factor;
+}
+
+}  // namespace
+
+CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& opt) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  validate(in, opt);
+  const std::vector<NlsqRestMean> rests = checked_rest_means(in, opt);
+  const std::vector<int> active = active_parameters(rests, opt);
+  const EarthModel earth(in.site);
+  const NlsqProblem lsq{in, rests, opt, earth.w_ie_n(), earth.g_n()};
+
+  CalibrationResult res;
+  res.method = "nlsq";
+  if (in.noise.gyro_bias_instability_radps > 0.0 || in.noise.accel_bias_instability_mps2 > 0.0)
+    res.warnings.push_back(
+        "bias instability (Gauss-Markov) is not part of the NLSQ residual weights; sigma covers "
+        "white noise and quantisation only");
+
+  ParamVector theta = ParamVector::Zero();
+  ParamCovariance cov = ParamCovariance::Zero();
+  double chi2 = 0.0;
+  int dof = 0;
+  bool converged = false;
+  int outer = 0;
+  // Outer loop: linearise every rotation's gyro propagation at θ0, solve the (otherwise exactly
+  // nonlinear) problem with Ceres, re-linearise at the solution until the step is ≪ σ.
+  for (outer = 1; outer <= opt.max_outer_iterations; ++outer) {
+    Blocks blk;
+    ceres::Problem problem;
+    std::vector<BlockRef> refs;
+    lsq.build(theta, blk, problem, refs);
+    solve(problem, opt);
+    covariance_at_solution(refs, active, cov, chi2, dof);
     const ParamVector theta_new = blk.get();
     const ParamVector step = theta_new - theta;
     theta = theta_new;
@@ -323,19 +369,7 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
     res.warnings.push_back("not converged after " + std::to_string(opt.max_outer_iterations) +
                            " re-linearisations (parameter steps not below " +
                            std::to_string(opt.convergence_sigma_ratio) + " sigma)");
-
-  // A-posteriori variance factor: the weights come from the noise model; if the residuals are
-  // clearly larger than it predicts, σ would lie, so scale the covariance (and say so).
-  const double variance_factor = chi2 / static_cast<double>(dof);
-  if (variance_factor > 2.0) {
-    std::ostringstream os;
-    os << "a-posteriori variance factor chi2/dof = " << variance_factor << " (chi2 " << chi2
-       << ", dof " << dof << ") exceeds 2: residuals larger than the noise model predicts; "
-       << "sigma scaled by sqrt(" << variance_factor << ")";
-    res.warnings.push_back(os.str());
-    cov *= variance_factor;
-  }
-
+  apply_variance_factor(chi2, dof, cov, res);
   res.params = ParamSet::from_vector(theta);
   res.cov = cov;
   res.sigma = sigma_from_covariance(cov);
