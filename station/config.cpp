@@ -220,182 +220,189 @@ void check_default_sequence(const StationConfig& c, const Section& s) {
                                      "; set [calibration] sequence_dir)");
 }
 
+/// Top level: only the known tables, each a table.
+void check_top_level(const toml::table& root, const std::string& origin) {
+  const std::vector<std::string> sections = {"station", "control",     "turntable",
+                                             "imu",     "calibration", "log"};
+  const toml::key* first = nullptr;
+  for (const auto& [k, v] : root) {
+    if (std::find(sections.begin(), sections.end(), std::string(k.str())) != sections.end()) {
+      if (!v.is_table()) {
+        throw ConfigError(origin, pos_of(k.source()).line, pos_of(k.source()).column,
+                          "'" + std::string(k.str()) + "' must be a table ([" +
+                              std::string(k.str()) + "]), not " +
+                              sequences::toml_type_name(v.type()));
+      }
+      continue;
+    }
+    if (!first || k.source().begin < first->source().begin) first = &k;
+  }
+  if (first) {
+    throw ConfigError(origin, pos_of(first->source()).line, pos_of(first->source()).column,
+                      "unknown key or table '" + std::string(first->str()) +
+                          "' (allowed tables: [station], [control], [turntable], [imu], "
+                          "[calibration], [log])");
+  }
+}
+
+/// A section of the root (an absent one reads as empty, positioned at the file's start).
+Section section_of(const toml::table& root, const std::string& origin, const std::string& name) {
+  const toml::table* t = root.get_as<toml::table>(name);
+  Pos header{1, 1};
+  if (t) {
+    auto it = root.find(name);
+    header = pos_of(t->source().begin.line > 0 ? t->source() : it->first.source());
+  }
+  return Section(origin, name, t, header);
+}
+
+/// [station]: name, site, data directory and database.
+void parse_station(const Section& s, const std::string& base_dir, StationConfig& c) {
+  s.only({"name", "lat_deg", "lon_deg", "height_m", "gravity_mps2", "data_dir", "database"});
+  c.station_name = *s.string("name", true, false);
+  c.site.lat_rad = *s.number("lat_deg", true, -90.0, 90.0, "deg") * kDegToRad;
+  c.site.lon_rad = *s.number("lon_deg", true, -180.0, 360.0, "deg") * kDegToRad;
+  c.site.height_m = *s.number("height_m", true, -500.0, 9000.0, "m");
+  if (auto g = s.number("gravity_mps2", false, 9.76, 9.84, "m/s^2")) c.site.gravity_mps2 = *g;
+  c.data_dir = resolve(base_dir, *s.string("data_dir", true, false));
+  if (auto db = s.string("database", false, false)) {
+    c.database = resolve(base_dir, *db);
+  } else {
+    c.database = (fs::path(c.data_dir) / "history.sqlite").string();
+  }
+}
+
+/// [control]: the control socket and its limits.
+void parse_control(const Section& s, const std::string& base_dir, StationConfig& c) {
+  s.only({"socket", "group", "socket_mode", "idle_timeout_s", "max_connections_per_user"});
+  if (auto v = s.string("socket", false, false)) c.control_socket = resolve(base_dir, *v);
+  if (auto v = s.string("group", false, true)) c.control_group = *v;
+  if (auto v = s.integer("socket_mode", false, 0, 0777, "(octal permission bits, e.g. 0o660)"))
+    c.control_socket_mode = static_cast<unsigned>(*v);
+  if (auto v = s.number("idle_timeout_s", false, 1.0, 3600.0, "s")) c.control_idle_timeout_s = *v;
+  if (auto v = s.integer("max_connections_per_user", false, 1, 1024, ""))
+    c.control_max_connections_per_user = static_cast<std::size_t>(*v);
+}
+
+/// [turntable]: endpoint, timeouts, limits and the register map.
+void parse_turntable(const Section& s, const std::string& origin, StationConfig& c) {
+  s.only({"endpoint", "response_timeout_ms", "ack_timeout_ms", "poll_period_ms",
+          "heartbeat_timeout_ms", "reconnect_give_up_ms", "move_timeout_s", "home_timeout_s",
+          "position_tolerance_deg", "max_rate_dps", "registers"});
+  auto& t = c.turntable;
+  const std::string ep = *s.string("endpoint", true, false);
+  try {
+    t.endpoint = turntable::Endpoint::parse(ep);
+  } catch (const std::exception& e) {
+    s.fail_key("endpoint",
+               std::string(e.what()) + " (expected \"tcp:HOST:PORT\" or \"rtu:DEVICE:BAUD:8E1\")");
+  }
+  using ms = std::chrono::milliseconds;
+  if (auto v = s.integer("response_timeout_ms", false, 1, 60000, "ms")) t.response_timeout = ms(*v);
+  if (auto v = s.integer("ack_timeout_ms", false, 1, 60000, "ms")) t.ack_timeout = ms(*v);
+  if (auto v = s.integer("poll_period_ms", false, 1, 10000, "ms")) t.poll_period = ms(*v);
+  if (auto v = s.integer("heartbeat_timeout_ms", false, 1, 600000, "ms"))
+    t.heartbeat_timeout = ms(*v);
+  if (auto v = s.integer("reconnect_give_up_ms", false, 0, 3600000, "ms"))
+    t.reconnect_give_up = ms(*v);
+  if (auto v = s.number("move_timeout_s", false, 0.1, 86400.0, "s")) c.move_timeout_s = *v;
+  if (auto v = s.number("home_timeout_s", false, 0.1, 86400.0, "s")) c.home_timeout_s = *v;
+  if (auto v = s.number("position_tolerance_deg", false, 1e-6, 10.0, "deg"))
+    t.position_tolerance_deg = *v;
+  if (auto v = s.number("max_rate_dps", false, 1e-3, 1000.0, "deg/s")) c.max_rate_dps = *v;
+  if (const toml::table* regs = s.sub_table("registers")) {
+    try {
+      t.map = turntable::register_map_from_toml(*regs, origin);
+    } catch (const turntable::RegisterMapError& e) {
+      // The map reader names "ORIGIN:LINE: message"; add the column and the table name.
+      std::string msg = e.what();
+      const std::string prefix = origin + ":" + std::to_string(e.line()) + ": ";
+      if (msg.rfind(prefix, 0) == 0) msg = msg.substr(prefix.size());
+      Pos p = s.key_pos("registers");
+      if (e.line() > 0) p = find_line(*regs, e.line()).value_or(Pos{e.line(), 1});
+      throw ConfigError(origin, p.line, p.column, "[turntable.registers] " + msg);
+    }
+  }
+}
+
+/// [imu]: the CAN URI, rate, frame id, noise and the capture's thresholds.
+void parse_imu(const Section& s, const std::string& base_dir, StationConfig& c) {
+  s.only({"can", "rate_hz", "base_id", "arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz",
+          "max_gap_samples", "settle_guard_samples", "rest_rate_threshold_dps",
+          "stream_timeout_ms"});
+  const std::string can = *s.string("can", true, false);
+  const auto colon = can.find(':');
+  const std::string scheme = colon == std::string::npos ? "" : can.substr(0, colon);
+  const std::string rest = colon == std::string::npos ? "" : can.substr(colon + 1);
+  if ((scheme != "unixcan" && scheme != "socketcan" && scheme != "candump") || rest.empty()) {
+    s.fail_key("can", "\"" + can +
+                          "\" is not a CAN URI (expected \"unixcan:PATH\", \"socketcan:IFACE\" "
+                          "or \"candump:FILE\")");
+  }
+  c.can_uri = scheme == "socketcan" ? can : scheme + ":" + resolve(base_dir, rest);
+  if (auto v = s.number("rate_hz", false, 1.0, 2000.0, "Hz")) c.rate_hz = *v;
+  if (auto v = s.integer("base_id", false, 0, 0x7FF - (imu::kFramesPerSample - 1),
+                         "(11-bit CAN id of the first of the sample's frames)"))
+    c.base_id = static_cast<uint32_t>(*v);
+  if (auto v = s.number("arw_deg_per_sqrt_h", false, 1e-7, 10.0, "deg/sqrt(h)"))
+    c.arw_deg_per_sqrt_h = *v;
+  if (auto v = s.number("vrw_ug_per_sqrt_hz", false, 1e-3, 1e5, "ug/sqrt(Hz)"))
+    c.vrw_ug_per_sqrt_hz = *v;
+  if (auto v = s.integer("max_gap_samples", false, 0, 100000, "samples"))
+    c.max_gap_samples = static_cast<uint64_t>(*v);
+  if (auto v = s.integer("settle_guard_samples", false, 0, 1000000, "samples"))
+    c.settle_guard_samples = static_cast<uint64_t>(*v);
+  if (auto v = s.number("rest_rate_threshold_dps", false, 1e-6, 100.0, "deg/s"))
+    c.rest_rate_threshold_dps = *v;
+  if (auto v = s.integer("stream_timeout_ms", false, 10, 600000, "ms"))
+    c.stream_timeout_ms = static_cast<int>(*v);
+}
+
+/// [calibration]: the sequence library and default, the cross-check bound, the gap false alarm.
+void parse_calibration(const Section& s, const std::string& base_dir, StationConfig& c) {
+  s.only({"default_sequence", "k_sigma", "gap_false_alarm", "sequence_dir"});
+  if (auto v = s.string("sequence_dir", false, false)) {
+    c.sequence_dir = resolve(base_dir, *v);
+    std::error_code ec;
+    if (!fs::is_directory(c.sequence_dir, ec))
+      s.fail_key("sequence_dir", "\"" + c.sequence_dir + "\" is not a directory");
+  }
+  if (auto v = s.string("default_sequence", false, false)) {
+    // A path-like value is a file next to the config; a bare name is a library sequence.
+    c.default_sequence = v->find('/') != std::string::npos ? resolve(base_dir, *v) : *v;
+  }
+  check_default_sequence(c, s);
+  if (auto v = s.number("k_sigma", false, 0.5, 100.0, "(combined standard deviations)"))
+    c.k_sigma = *v;
+  if (auto v = s.number("gap_false_alarm", false, 1e-9, 0.1, "(probability per run)"))
+    c.gap_false_alarm = *v;
+}
+
+/// [log]: the log level.
+void parse_log(const Section& s, StationConfig& c) {
+  s.only({"level"});
+  if (auto v = s.string("level", false, false)) {
+    if (!is_log_level(*v)) {
+      s.fail_key("level", "\"" + *v +
+                              "\" is not a log level (trace, debug, info, warn, error, critical, "
+                              "off)");
+    }
+    c.log_level = *v;
+  }
+}
+
 StationConfig parse_root(const toml::table& root, const std::string& origin,
                          const std::string& base_dir) {
+  check_top_level(root, origin);
   StationConfig c;
   c.source_path = origin;
   c.base_dir = base_dir;
-
-  // Top level: only the known tables.
-  const std::vector<std::string> sections = {"station", "control",     "turntable",
-                                             "imu",     "calibration", "log"};
-  {
-    const toml::key* first = nullptr;
-    for (const auto& [k, v] : root) {
-      if (std::find(sections.begin(), sections.end(), std::string(k.str())) != sections.end()) {
-        if (!v.is_table()) {
-          throw ConfigError(origin, pos_of(k.source()).line, pos_of(k.source()).column,
-                            "'" + std::string(k.str()) + "' must be a table ([" +
-                                std::string(k.str()) + "]), not " +
-                                sequences::toml_type_name(v.type()));
-        }
-        continue;
-      }
-      if (!first || k.source().begin < first->source().begin) first = &k;
-    }
-    if (first) {
-      throw ConfigError(origin, pos_of(first->source()).line, pos_of(first->source()).column,
-                        "unknown key or table '" + std::string(first->str()) +
-                            "' (allowed tables: [station], [control], [turntable], [imu], "
-                            "[calibration], [log])");
-    }
-  }
-  auto section = [&](const std::string& name) {
-    const toml::table* t = root.get_as<toml::table>(name);
-    Pos header{1, 1};
-    if (t) {
-      auto it = root.find(name);
-      header = pos_of(t->source().begin.line > 0 ? t->source() : it->first.source());
-    }
-    return Section(origin, name, t, header);
-  };
-
-  // [station]
-  {
-    Section s = section("station");
-    s.only({"name", "lat_deg", "lon_deg", "height_m", "gravity_mps2", "data_dir", "database"});
-    c.station_name = *s.string("name", true, false);
-    c.site.lat_rad = *s.number("lat_deg", true, -90.0, 90.0, "deg") * kDegToRad;
-    c.site.lon_rad = *s.number("lon_deg", true, -180.0, 360.0, "deg") * kDegToRad;
-    c.site.height_m = *s.number("height_m", true, -500.0, 9000.0, "m");
-    if (auto g = s.number("gravity_mps2", false, 9.76, 9.84, "m/s^2")) c.site.gravity_mps2 = *g;
-    c.data_dir = resolve(base_dir, *s.string("data_dir", true, false));
-    if (auto db = s.string("database", false, false)) {
-      c.database = resolve(base_dir, *db);
-    } else {
-      c.database = (fs::path(c.data_dir) / "history.sqlite").string();
-    }
-  }
-  // [control]
-  {
-    Section s = section("control");
-    s.only({"socket", "group", "socket_mode", "idle_timeout_s", "max_connections_per_user"});
-    if (auto v = s.string("socket", false, false)) c.control_socket = resolve(base_dir, *v);
-    if (auto v = s.string("group", false, true)) c.control_group = *v;
-    if (auto v = s.integer("socket_mode", false, 0, 0777, "(octal permission bits, e.g. 0o660)"))
-      c.control_socket_mode = static_cast<unsigned>(*v);
-    if (auto v = s.number("idle_timeout_s", false, 1.0, 3600.0, "s")) c.control_idle_timeout_s = *v;
-    if (auto v = s.integer("max_connections_per_user", false, 1, 1024, ""))
-      c.control_max_connections_per_user = static_cast<std::size_t>(*v);
-  }
-  // [turntable]
-  {
-    Section s = section("turntable");
-    s.only({"endpoint", "response_timeout_ms", "ack_timeout_ms", "poll_period_ms",
-            "heartbeat_timeout_ms", "reconnect_give_up_ms", "move_timeout_s", "home_timeout_s",
-            "position_tolerance_deg", "max_rate_dps", "registers"});
-    auto& t = c.turntable;
-    const std::string ep = *s.string("endpoint", true, false);
-    try {
-      t.endpoint = turntable::Endpoint::parse(ep);
-    } catch (const std::exception& e) {
-      s.fail_key("endpoint", std::string(e.what()) +
-                                 " (expected \"tcp:HOST:PORT\" or \"rtu:DEVICE:BAUD:8E1\")");
-    }
-    using ms = std::chrono::milliseconds;
-    if (auto v = s.integer("response_timeout_ms", false, 1, 60000, "ms"))
-      t.response_timeout = ms(*v);
-    if (auto v = s.integer("ack_timeout_ms", false, 1, 60000, "ms")) t.ack_timeout = ms(*v);
-    if (auto v = s.integer("poll_period_ms", false, 1, 10000, "ms")) t.poll_period = ms(*v);
-    if (auto v = s.integer("heartbeat_timeout_ms", false, 1, 600000, "ms"))
-      t.heartbeat_timeout = ms(*v);
-    if (auto v = s.integer("reconnect_give_up_ms", false, 0, 3600000, "ms"))
-      t.reconnect_give_up = ms(*v);
-    if (auto v = s.number("move_timeout_s", false, 0.1, 86400.0, "s")) c.move_timeout_s = *v;
-    if (auto v = s.number("home_timeout_s", false, 0.1, 86400.0, "s")) c.home_timeout_s = *v;
-    if (auto v = s.number("position_tolerance_deg", false, 1e-6, 10.0, "deg"))
-      t.position_tolerance_deg = *v;
-    if (auto v = s.number("max_rate_dps", false, 1e-3, 1000.0, "deg/s")) c.max_rate_dps = *v;
-    if (const toml::table* regs = s.sub_table("registers")) {
-      try {
-        t.map = turntable::register_map_from_toml(*regs, origin);
-      } catch (const turntable::RegisterMapError& e) {
-        // The map reader names "ORIGIN:LINE: message"; add the column and the table name.
-        std::string msg = e.what();
-        const std::string prefix = origin + ":" + std::to_string(e.line()) + ": ";
-        if (msg.rfind(prefix, 0) == 0) msg = msg.substr(prefix.size());
-        Pos p = s.key_pos("registers");
-        if (e.line() > 0) p = find_line(*regs, e.line()).value_or(Pos{e.line(), 1});
-        throw ConfigError(origin, p.line, p.column, "[turntable.registers] " + msg);
-      }
-    }
-  }
-  // [imu]
-  {
-    Section s = section("imu");
-    s.only({"can", "rate_hz", "base_id", "arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz",
-            "max_gap_samples", "settle_guard_samples", "rest_rate_threshold_dps",
-            "stream_timeout_ms"});
-    const std::string can = *s.string("can", true, false);
-    const auto colon = can.find(':');
-    const std::string scheme = colon == std::string::npos ? "" : can.substr(0, colon);
-    const std::string rest = colon == std::string::npos ? "" : can.substr(colon + 1);
-    if ((scheme != "unixcan" && scheme != "socketcan" && scheme != "candump") || rest.empty()) {
-      s.fail_key("can", "\"" + can +
-                            "\" is not a CAN URI (expected \"unixcan:PATH\", \"socketcan:IFACE\" "
-                            "or \"candump:FILE\")");
-    }
-    c.can_uri = scheme == "socketcan" ? can : scheme + ":" + resolve(base_dir, rest);
-    if (auto v = s.number("rate_hz", false, 1.0, 2000.0, "Hz")) c.rate_hz = *v;
-    if (auto v = s.integer("base_id", false, 0, 0x7FF - (imu::kFramesPerSample - 1),
-                           "(11-bit CAN id of the first of the sample's frames)"))
-      c.base_id = static_cast<uint32_t>(*v);
-    if (auto v = s.number("arw_deg_per_sqrt_h", false, 1e-7, 10.0, "deg/sqrt(h)"))
-      c.arw_deg_per_sqrt_h = *v;
-    if (auto v = s.number("vrw_ug_per_sqrt_hz", false, 1e-3, 1e5, "ug/sqrt(Hz)"))
-      c.vrw_ug_per_sqrt_hz = *v;
-    if (auto v = s.integer("max_gap_samples", false, 0, 100000, "samples"))
-      c.max_gap_samples = static_cast<uint64_t>(*v);
-    if (auto v = s.integer("settle_guard_samples", false, 0, 1000000, "samples"))
-      c.settle_guard_samples = static_cast<uint64_t>(*v);
-    if (auto v = s.number("rest_rate_threshold_dps", false, 1e-6, 100.0, "deg/s"))
-      c.rest_rate_threshold_dps = *v;
-    if (auto v = s.integer("stream_timeout_ms", false, 10, 600000, "ms"))
-      c.stream_timeout_ms = static_cast<int>(*v);
-  }
-  // [calibration]
-  {
-    Section s = section("calibration");
-    s.only({"default_sequence", "k_sigma", "gap_false_alarm", "sequence_dir"});
-    if (auto v = s.string("sequence_dir", false, false)) {
-      c.sequence_dir = resolve(base_dir, *v);
-      std::error_code ec;
-      if (!fs::is_directory(c.sequence_dir, ec))
-        s.fail_key("sequence_dir", "\"" + c.sequence_dir + "\" is not a directory");
-    }
-    if (auto v = s.string("default_sequence", false, false)) {
-      // A path-like value is a file next to the config; a bare name is a library sequence.
-      c.default_sequence = v->find('/') != std::string::npos ? resolve(base_dir, *v) : *v;
-    }
-    check_default_sequence(c, s);
-    if (auto v = s.number("k_sigma", false, 0.5, 100.0, "(combined standard deviations)"))
-      c.k_sigma = *v;
-    if (auto v = s.number("gap_false_alarm", false, 1e-9, 0.1, "(probability per run)"))
-      c.gap_false_alarm = *v;
-  }
-  // [log]
-  {
-    Section s = section("log");
-    s.only({"level"});
-    if (auto v = s.string("level", false, false)) {
-      if (!is_log_level(*v)) {
-        s.fail_key("level", "\"" + *v +
-                                "\" is not a log level (trace, debug, info, warn, error, critical, "
-                                "off)");
-      }
-      c.log_level = *v;
-    }
-  }
+  parse_station(section_of(root, origin, "station"), base_dir, c);
+  parse_control(section_of(root, origin, "control"), base_dir, c);
+  parse_turntable(section_of(root, origin, "turntable"), origin, c);
+  parse_imu(section_of(root, origin, "imu"), base_dir, c);
+  parse_calibration(section_of(root, origin, "calibration"), base_dir, c);
+  parse_log(section_of(root, origin, "log"), c);
   return c;
 }
 
