@@ -146,14 +146,9 @@ struct ParsedRunInfo {
   bool dv_raw_integral = false;  ///< [imu] dv_convention = "raw_integral": convert on reading
 };
 
-ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& origin) {
-  const toml::table tbl = parse_toml_text(text, origin);
-  const TomlSection root(tbl, origin, "",
-                         {"serial", "software_version", "start_time", "end_time", "reference",
-                          "setting", "station", "imu", "table", "sequence", "noise", "capture"});
-  ParsedRunInfo out;
+/// The run's identity: serial, software, times, setting and reference kind.
+void read_identity(const TomlSection& root, const std::string& origin, ParsedRunInfo& out) {
   RunInfo& ri = out.info;
-
   const auto serial = root.string("serial");
   if (!serial) throw ArchiveError::field_error(origin, "serial", "missing (required)");
   if (serial->empty()) root.fail("serial", "must not be empty");
@@ -190,7 +185,10 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
     out.reference_given = true;
     out.reference_line = root.line_of("reference");
   }
+}
 
+/// [station]: required, the site within physical bounds.
+void read_station(const TomlSection& root, const std::string& origin, RunInfo& ri) {
   const auto station =
       root.section("station", {"name", "lat_deg", "lon_deg", "height_m", "gravity_mps2"});
   if (!station)
@@ -217,7 +215,11 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
           "must be a surveyed gravity magnitude within [9.7, 9.9] m/s^2, got " + format_double(*g));
     ri.site.gravity_mps2 = *g;
   }
+}
 
+/// [imu]: required rate, and the dv convention of the data.
+void read_imu(const TomlSection& root, const std::string& origin, ParsedRunInfo& out) {
+  RunInfo& ri = out.info;
   const auto imu = root.section("imu", {"rate_hz", "dv_convention"});
   if (!imu)
     throw ArchiveError::field_error(origin, "imu.rate_hz", "missing (required; no [imu] section)");
@@ -234,7 +236,10 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
                     *conv + "\"");
     }
   }
+}
 
+/// [table], [sequence], [noise]: optional, each checked where given.
+void read_optional_sections(const TomlSection& root, RunInfo& ri) {
   if (const auto t =
           root.section("table", {"outer_axis", "inner_axis", "heading_deg", "mount_rpy_deg"})) {
     for (const char* k : {"outer_axis", "inner_axis"})
@@ -250,14 +255,12 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
       ri.table.mount_rpy_rad = {deg_to_rad((*m)(0)), deg_to_rad((*m)(1)), deg_to_rad((*m)(2))};
     }
   }
-
   if (const auto s = root.section("sequence", {"name", "sha256"})) {
     ri.sequence_name = s->string("name").value_or("");
     ri.sequence_sha256 = s->string("sha256").value_or("");
     if (!ri.sequence_sha256.empty() && !is_hex64(ri.sequence_sha256))
       s->fail("sha256", "must be 64 hexadecimal digits");
   }
-
   if (const auto n = root.section("noise", {"arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz"})) {
     if (const auto a = n->number("arw_deg_per_sqrt_h")) {
       if (!(*a > 0.0)) n->fail("arw_deg_per_sqrt_h", "must be > 0 (it weights the gyro data)");
@@ -269,12 +272,23 @@ ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& or
       ri.vrw_mps_per_sqrt_s = vrw_to_si(*v);
     }
   }
+}
 
+ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& origin) {
+  const toml::table tbl = parse_toml_text(text, origin);
+  const TomlSection root(tbl, origin, "",
+                         {"serial", "software_version", "start_time", "end_time", "reference",
+                          "setting", "station", "imu", "table", "sequence", "noise", "capture"});
+  ParsedRunInfo out;
+  read_identity(root, origin, out);
+  read_station(root, origin, out.info);
+  read_imu(root, origin, out);
+  read_optional_sections(root, out.info);
   if (const toml::node* cn = tbl.get("capture")) {
     if (!cn->is_table())
       root.fail("capture", std::string("expected a table [capture], got ") +
                                sequences::toml_type_name(cn->type()));
-    ri.capture = parse_capture_section(*cn->as_table(), origin);
+    out.info.capture = parse_capture_section(*cn->as_table(), origin);
   }
   return out;
 }
