@@ -341,17 +341,25 @@ int cmd_bench(const std::string& dir, int repeat, bool sequential, bool json) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  CLI::App app{"imucal — IMU calibration on run archives"};
-  app.require_subcommand(1);
-  app.set_version_flag("--version", std::string(IMUCAL_VERSION));
+namespace {
 
-  std::string seq, unit, dir, method = "all", params;
-  double rate_hz = 100.0, k_sigma = 4.0;
-  bool json = false;
-
+/// Every subcommand's arguments and whether it was given.
+struct Commands {
   SimulateArgs sa;
-  auto* sim = app.add_subcommand(
+  std::string seq, unit, dir, method = "all", params, setting_override, plot_path;
+  double rate_hz = 100.0, k_sigma = 4.0;
+  bool json = false, effects = false, sequential = false, effects_json = false;
+  int repeat = 3;
+  tools::DiagnoseArgs diag;
+  tools::ValidateArgs val;
+  tools::PaperTablesArgs paper;
+  CLI::App *sim = nullptr, *cal = nullptr, *ev = nullptr, *cr = nullptr, *be = nullptr,
+           *dg = nullptr, *ef = nullptr, *vd = nullptr, *pt = nullptr;
+};
+
+void add_simulate(CLI::App& app, Commands& c) {
+  SimulateArgs& sa = c.sa;
+  auto* sim = c.sim = app.add_subcommand(
       "simulate", "simulate a unit on a sequence into a run archive (factory table, land or sea)");
   sim->add_option("--sequence", sa.seq, "sequence name (factory-std, short, pos19) or TOML file")
       ->required();
@@ -377,67 +385,89 @@ int main(int argc, char** argv) {
                   "land/sea: hand placement error per axis and rest, deg")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 20.0));
+}
 
-  auto* cal = app.add_subcommand(
+void add_calibrate(CLI::App& app, Commands& c) {
+  auto* cal = c.cal = app.add_subcommand(
       "calibrate",
       "calibrate a run archive: factory AINS + NLSQ, land/sea AINS + legacy, and the cross-check");
-  cal->add_option("dir", dir, "run archive directory")->required();
-  cal->add_option("--method", method,
+  cal->add_option("dir", c.dir, "run archive directory")->required();
+  cal->add_option("--method", c.method,
                   "ains|nlsq|legacy|all (all: the setting's two methods and their cross-check)")
       ->capture_default_str()
       ->check(CLI::IsMember({"ains", "nlsq", "legacy", "all"}));
-  std::string setting_override;
-  cal->add_option("--setting", setting_override,
+  cal->add_option("--setting", c.setting_override,
                   "factory|land|sea: process as this setting instead of run.toml's (e.g. a table "
                   "run as the paper did: its reference withheld)")
       ->check(CLI::IsMember({"factory", "land", "sea"}));
-  cal->add_option("--k-sigma", k_sigma, "cross-check bound in combined σ")->capture_default_str();
-  cal->add_flag("--json", json, "print one JSON object");
-  std::string plot_path;
-  cal->add_option("--plot", plot_path, "also write an SVG picture (cross-check, per-rest metrics)")
+  cal->add_option("--k-sigma", c.k_sigma, "cross-check bound in combined σ")->capture_default_str();
+  cal->add_flag("--json", c.json, "print one JSON object");
+  cal->add_option("--plot", c.plot_path,
+                  "also write an SVG picture (cross-check, per-rest metrics)")
       ->check([](const std::string& p) {
         const std::string ext = std::filesystem::path(p).extension().string();
         return ext == ".svg" || ext == ".SVG"
                    ? std::string()
                    : "the picture is SVG: name it .svg (got '" + p + "')";
       });
+}
 
-  auto* ev =
-      app.add_subcommand("evaluate", "evaluate a parameter set on a run archive (paper §VII)");
-  ev->add_option("dir", dir, "run archive directory")->required();
-  ev->add_option("--params", params, "parameter-set JSON file")->required();
-  ev->add_flag("--json", json, "print one JSON object");
+/// evaluate, crlb, bench and effects: the smaller commands.
+void add_small_commands(CLI::App& app, Commands& c) {
+  c.ev = app.add_subcommand("evaluate", "evaluate a parameter set on a run archive (paper §VII)");
+  c.ev->add_option("dir", c.dir, "run archive directory")->required();
+  c.ev->add_option("--params", c.params, "parameter-set JSON file")->required();
+  c.ev->add_flag("--json", c.json, "print one JSON object");
 
-  auto* cr = app.add_subcommand("crlb", "achievable σ of every parameter for a sequence");
-  cr->add_option("--sequence", seq, "sequence name or TOML file")->required();
-  cr->add_option("--unit", unit, "unit file (noise model); default: built-in");
-  cr->add_option("--rate", rate_hz, "IMU rate, Hz")->capture_default_str();
-  cr->add_flag("--json", json, "print one JSON object");
-  bool effects = false;
-  cr->add_flag("--effects", effects,
-               "per catalogue effect: detection threshold and separability on the sequence");
+  c.cr = app.add_subcommand("crlb", "achievable σ of every parameter for a sequence");
+  c.cr->add_option("--sequence", c.seq, "sequence name or TOML file")->required();
+  c.cr->add_option("--unit", c.unit, "unit file (noise model); default: built-in");
+  c.cr->add_option("--rate", c.rate_hz, "IMU rate, Hz")->capture_default_str();
+  c.cr->add_flag("--json", c.json, "print one JSON object");
+  c.cr->add_flag("--effects", c.effects,
+                 "per catalogue effect: detection threshold and separability on the sequence");
 
-  int repeat = 3;
-  auto* be = app.add_subcommand("bench", "time and peak memory of calibrate --method all");
-  be->add_option("dir", dir, "run archive directory")->required();
-  be->add_option("--repeat", repeat, "repetitions")
+  c.be = app.add_subcommand("bench", "time and peak memory of calibrate --method all");
+  c.be->add_option("dir", c.dir, "run archive directory")->required();
+  c.be->add_option("--repeat", c.repeat, "repetitions")
       ->capture_default_str()
       ->check(CLI::Range(1, 100));
-  bool sequential = false;
-  be->add_flag("--sequential", sequential,
-               "the two methods one after the other (as before issue #11), for comparison");
-  be->add_flag("--json", json, "print one JSON object");
+  c.be->add_flag("--sequential", c.sequential,
+                 "the two methods one after the other (as before issue #11), for comparison");
+  c.be->add_flag("--json", c.json, "print one JSON object");
+}
 
-  tools::DiagnoseArgs diag;
-  auto* dg = tools::add_diagnose_command(app, diag);
-  bool effects_json = false;
-  auto* ef = app.add_subcommand("effects",
-                                "the effects catalogue: names, models, parameters, typical sizes");
-  ef->add_flag("--json", effects_json, "print one JSON array");
-  tools::ValidateArgs val;
-  auto* vd = tools::add_validate_command(app, val);
-  tools::PaperTablesArgs paper;
-  auto* pt = tools::add_paper_tables_command(app, paper);
+int dispatch(const Commands& c) {
+  if (*c.sim) return cmd_simulate(c.sa);
+  if (*c.cal)
+    return cmd_calibrate(c.dir, c.method, c.json, c.k_sigma, c.plot_path, c.setting_override);
+  if (*c.ev) return cmd_evaluate(c.dir, c.params, c.json);
+  if (*c.cr && c.effects) return tools::cmd_crlb_effects(c.seq, c.unit, c.rate_hz, c.json);
+  if (*c.cr) return cmd_crlb(c.seq, c.unit, c.rate_hz, c.json);
+  if (*c.be) return cmd_bench(c.dir, c.repeat, c.sequential, c.json);
+  if (*c.dg) return tools::cmd_diagnose(c.diag);
+  if (*c.vd) return tools::cmd_validate(c.val);
+  if (*c.pt) return tools::cmd_paper_tables(c.paper);
+  if (*c.ef) return tools::cmd_effects(c.effects_json);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"imucal — IMU calibration on run archives"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string(IMUCAL_VERSION));
+  Commands c;
+  add_simulate(app, c);
+  add_calibrate(app, c);
+  add_small_commands(app, c);
+  c.dg = tools::add_diagnose_command(app, c.diag);
+  c.ef = app.add_subcommand("effects",
+                            "the effects catalogue: names, models, parameters, typical sizes");
+  c.ef->add_flag("--json", c.effects_json, "print one JSON array");
+  c.vd = tools::add_validate_command(app, c.val);
+  c.pt = tools::add_paper_tables_command(app, c.paper);
 
   const bool json_errors = wants_json(argc, argv);
   try {
@@ -451,20 +481,10 @@ int main(int argc, char** argv) {
     return kExitUsage;
   }
   try {
-    if (*sim) return cmd_simulate(sa);
-    if (*cal) return cmd_calibrate(dir, method, json, k_sigma, plot_path, setting_override);
-    if (*ev) return cmd_evaluate(dir, params, json);
-    if (*cr && effects) return tools::cmd_crlb_effects(seq, unit, rate_hz, json);
-    if (*cr) return cmd_crlb(seq, unit, rate_hz, json);
-    if (*be) return cmd_bench(dir, repeat, sequential, json);
-    if (*dg) return tools::cmd_diagnose(diag);
-    if (*vd) return tools::cmd_validate(val);
-    if (*pt) return tools::cmd_paper_tables(paper);
-    if (*ef) return tools::cmd_effects(effects_json);
+    return dispatch(c);
   } catch (const std::exception& e) {
     if (json_errors) return json_error(e.what(), kExitBadInput);
     std::fprintf(stderr, "imucal: error: %s\n", e.what());
     return kExitBadInput;
   }
-  return 0;
 }
