@@ -92,14 +92,102 @@ std::string short_label(int i) {
 
 }  // namespace
 
+namespace {
+
+const char* const kBlue = "#1f77b4";
+const char* const kOrange = "#ff7f0e";
+
+/// Per parameter: AINS against the second method in combined σ (or an estimate against the truth
+/// in σ); a parameter not observable in this setting (ς without a table) has no bar.
+void parameter_panel(std::ostringstream& os, double y0, const calib::PipelineResult& r,
+                     const calib::MethodOutcome* second, const std::string& second_name,
+                     const calib::ParamSet* truth, double k_sigma) {
+  const bool both = r.ains && second;
+  const int n = calib::ParamSet::kSize;
+  Panel p{os, y0, -std::max(k_sigma * 1.5, 1.0), std::max(k_sigma * 1.5, 1.0),
+          static_cast<size_t>(n)};
+  p.frame(both ? "AINS − " + second_name + " per parameter, in combined σ (bound ±" +
+                     num(k_sigma, "%.0f") + "σ)"
+               : "estimate − truth per parameter, in σ",
+          both ? "Δ / sqrt(σA² + σB²)" : "error / σ");
+  p.hline(k_sigma, "#d62728", "6,3");
+  p.hline(-k_sigma, "#d62728", "6,3");
+  p.hline(0.0, "#444");
+  for (int i = 0; i < n; ++i) {
+    const auto& info = calib::param_info(i);
+    auto z_of = [&](const calib::CalibrationResult& a) {
+      const double s = a.sigma.to_vector()(i);
+      return s > 0 ? (a.params.to_vector()(i) - truth->to_vector()(i)) / s : 0.0;
+    };
+    const bool observable = (!r.ains || r.ains->result.observable[static_cast<size_t>(i)]) &&
+                            (!second || second->result.observable[static_cast<size_t>(i)]);
+    if (!observable) {
+      // Not observable in this setting (e.g. ς without a table): no bar.
+    } else if (both) {
+      const double sa = r.ains->result.sigma.to_vector()(i),
+                   sb = second->result.sigma.to_vector()(i);
+      const double d = r.ains->result.params.to_vector()(i) - second->result.params.to_vector()(i);
+      const double z = d / std::sqrt(sa * sa + sb * sb);
+      p.bar(static_cast<size_t>(i), z, 0.0, p.slot() * 0.6,
+            std::abs(z) > k_sigma ? "#d62728" : "#2ca02c",
+            info.name + ": " + num(z, "%.2f") + " σ");
+    } else {
+      const auto& a = r.ains ? r.ains->result : second->result;
+      p.bar(static_cast<size_t>(i), z_of(a), 0.0, p.slot() * 0.6, r.ains ? kBlue : kOrange,
+            info.name + ": " + num(z_of(a), "%.2f") + " σ");
+    }
+    os << "<text transform='translate(" << p.x(static_cast<size_t>(i)) + 4 << ","
+       << y0 + kPanelH + 6 << ") rotate(90)' font-size='11'>" << esc(short_label(i)) << "</text>\n";
+  }
+}
+
+/// One metric per rest period, AINS (blue) beside the second method (orange).
+struct RestPanel {
+  const char* title;
+  const char* axis;
+  double min_top;
+  double (*value)(const calib::RestPeriodMetric&);
+  const char* format;
+  const char* unit;
+};
+
+void rest_panel(std::ostringstream& os, double y0, const RestPanel& spec,
+                const calib::EvaluationMetrics* ma, const calib::EvaluationMetrics* mb,
+                size_t periods, const std::string& second_name, bool with_legend) {
+  double top = 0;
+  for (const auto* mm : {ma, mb})
+    if (mm)
+      for (const auto& pp : mm->periods) top = std::max(top, spec.value(pp));
+  top = std::max(spec.min_top, 1.15 * top);
+  const double w = 0.35;
+  Panel p{os, y0, 0.0, top, periods};
+  p.frame(spec.title, spec.axis);
+  if (with_legend) legend(os, y0 - 8, ma != nullptr, mb != nullptr, second_name);
+  for (size_t i = 0; i < periods; ++i) {
+    if (ma && i < ma->periods.size())
+      p.bar(i, spec.value(ma->periods[i]), mb ? -p.slot() * w / 2 : 0, p.slot() * w, kBlue,
+            "AINS rest " + std::to_string(i + 1) + ": " +
+                num(spec.value(ma->periods[i]), spec.format) + spec.unit);
+    if (mb && i < mb->periods.size())
+      p.bar(i, spec.value(mb->periods[i]), ma ? p.slot() * w / 2 : 0, p.slot() * w, kOrange,
+            second_name + " rest " + std::to_string(i + 1) + ": " +
+                num(spec.value(mb->periods[i]), spec.format) + spec.unit);
+    os << "<text x='" << p.x(i) << "' y='" << y0 + kPanelH + 14
+       << "' text-anchor='middle' font-size='10'>" << i + 1 << "</text>\n";
+  }
+  os << "<text x='" << kWidth / 2 << "' y='" << y0 + kPanelH + 32
+     << "' text-anchor='middle' font-size='12'>rest period</text>\n";
+}
+
+}  // namespace
+
 std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSet* truth,
                             double k_sigma, const std::string& title) {
   std::ostringstream os;
   // The second method: NLSQ in the factory, the legacy method on land and at sea.
   const calib::MethodOutcome* second = r.nlsq ? &*r.nlsq : r.legacy ? &*r.legacy : nullptr;
   const std::string second_name = r.nlsq ? "NLSQ" : "legacy";
-  const bool both = r.ains && second;
-  const bool panel1 = both || truth;
+  const bool panel1 = (r.ains && second) || truth;
   const int panels = (panel1 ? 1 : 0) + 2;
   const double height = kTop + panels * (kPanelH + 90);
   os << "<svg xmlns='http://www.w3.org/2000/svg' width='" << kWidth << "' height='" << height
@@ -108,113 +196,29 @@ std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSe
   if (r.crosscheck) os << " — cross-check " << r.crosscheck->verdict();
   os << "</text>\n";
   double y0 = kTop + 20;
-  const char* kBlue = "#1f77b4";
-  const char* kOrange = "#ff7f0e";
-
   if (panel1) {
-    const int n = calib::ParamSet::kSize;
-    Panel p{os, y0, -std::max(k_sigma * 1.5, 1.0), std::max(k_sigma * 1.5, 1.0),
-            static_cast<size_t>(n)};
-    p.frame(both ? "AINS − " + second_name + " per parameter, in combined σ (bound ±" +
-                       num(k_sigma, "%.0f") + "σ)"
-                 : "estimate − truth per parameter, in σ",
-            both ? "Δ / sqrt(σA² + σB²)" : "error / σ");
-    p.hline(k_sigma, "#d62728", "6,3");
-    p.hline(-k_sigma, "#d62728", "6,3");
-    p.hline(0.0, "#444");
-    for (int i = 0; i < n; ++i) {
-      const auto& info = calib::param_info(i);
-      auto z_of = [&](const calib::CalibrationResult& a) {
-        const double s = a.sigma.to_vector()(i);
-        return s > 0 ? (a.params.to_vector()(i) - truth->to_vector()(i)) / s : 0.0;
-      };
-      const bool observable = (!r.ains || r.ains->result.observable[static_cast<size_t>(i)]) &&
-                              (!second || second->result.observable[static_cast<size_t>(i)]);
-      if (!observable) {
-        // Not observable in this setting (e.g. ς without a table): no bar.
-      } else if (both) {
-        const double sa = r.ains->result.sigma.to_vector()(i),
-                     sb = second->result.sigma.to_vector()(i);
-        const double d =
-            r.ains->result.params.to_vector()(i) - second->result.params.to_vector()(i);
-        const double z = d / std::sqrt(sa * sa + sb * sb);
-        p.bar(static_cast<size_t>(i), z, 0.0, p.slot() * 0.6,
-              std::abs(z) > k_sigma ? "#d62728" : "#2ca02c",
-              info.name + ": " + num(z, "%.2f") + " σ");
-      } else {
-        const auto& a = r.ains ? r.ains->result : second->result;
-        p.bar(static_cast<size_t>(i), z_of(a), 0.0, p.slot() * 0.6, r.ains ? kBlue : kOrange,
-              info.name + ": " + num(z_of(a), "%.2f") + " σ");
-      }
-      os << "<text transform='translate(" << p.x(static_cast<size_t>(i)) + 4 << ","
-         << y0 + kPanelH + 6 << ") rotate(90)' font-size='11'>" << esc(short_label(i))
-         << "</text>\n";
-    }
+    parameter_panel(os, y0, r, second, second_name, truth, k_sigma);
     y0 += kPanelH + 90;
   }
-
   const calib::EvaluationMetrics* ma = r.ains ? &r.ains->metrics : nullptr;
   const calib::EvaluationMetrics* mb = second ? &second->metrics : nullptr;
   const size_t periods = std::max(ma ? ma->periods.size() : 0, mb ? mb->periods.size() : 0);
-  if (periods == 0) {
-    os << "</svg>\n";
-    return os.str();
-  }
-  auto max_of = [&](auto get) {
-    double m = 0;
-    for (const auto* mm : {ma, mb})
-      if (mm)
-        for (const auto& pp : mm->periods) m = std::max(m, get(pp));
-    return m;
-  };
-  const double w = 0.35;
-  {
-    const double top = std::max(1.0, 1.15 * max_of([](const calib::RestPeriodMetric& q) {
-                                       return q.accel_err_n_ug.norm();
-                                     }));
-    Panel p{os, y0, 0.0, top, periods};
-    p.frame("acceleration error of each rest period (eq. 53–54)", "|mean δa_n| (µg)");
-    legend(os, y0 - 8, ma != nullptr, mb != nullptr, second_name);
-    for (size_t i = 0; i < periods; ++i) {
-      if (ma && i < ma->periods.size())
-        p.bar(i, ma->periods[i].accel_err_n_ug.norm(), mb ? -p.slot() * w / 2 : 0, p.slot() * w,
-              kBlue,
-              "AINS rest " + std::to_string(i + 1) + ": " +
-                  num(ma->periods[i].accel_err_n_ug.norm(), "%.2f") + " µg");
-      if (mb && i < mb->periods.size())
-        p.bar(i, mb->periods[i].accel_err_n_ug.norm(), ma ? p.slot() * w / 2 : 0, p.slot() * w,
-              kOrange,
-              second_name + " rest " + std::to_string(i + 1) + ": " +
-                  num(mb->periods[i].accel_err_n_ug.norm(), "%.2f") + " µg");
-      os << "<text x='" << p.x(i) << "' y='" << y0 + kPanelH + 14
-         << "' text-anchor='middle' font-size='10'>" << i + 1 << "</text>\n";
-    }
-    os << "<text x='" << kWidth / 2 << "' y='" << y0 + kPanelH + 32
-       << "' text-anchor='middle' font-size='12'>rest period</text>\n";
+  if (periods > 0) {
+    const RestPanel accel{"acceleration error of each rest period (eq. 53–54)",
+                          "|mean δa_n| (µg)",
+                          1.0,
+                          [](const calib::RestPeriodMetric& q) { return q.accel_err_n_ug.norm(); },
+                          "%.2f",
+                          " µg"};
+    rest_panel(os, y0, accel, ma, mb, periods, second_name, true);
     y0 += kPanelH + 90;
-  }
-  {
-    const double top = std::max(0.01, 1.15 * max_of([](const calib::RestPeriodMetric& q) {
-                                        return q.orientation_rms_mdeg;
-                                      }));
-    Panel p{os, y0, 0.0, top, periods};
-    p.frame("orientation residual of each rest period (eq. 51–52)", "RMS (mdeg)");
-    for (size_t i = 0; i < periods; ++i) {
-      if (ma && i < ma->periods.size())
-        p.bar(i, ma->periods[i].orientation_rms_mdeg, mb ? -p.slot() * w / 2 : 0, p.slot() * w,
-              kBlue,
-              "AINS rest " + std::to_string(i + 1) + ": " +
-                  num(ma->periods[i].orientation_rms_mdeg, "%.3f") + " mdeg");
-      if (mb && i < mb->periods.size())
-        p.bar(i, mb->periods[i].orientation_rms_mdeg, ma ? p.slot() * w / 2 : 0, p.slot() * w,
-              kOrange,
-              second_name + " rest " + std::to_string(i + 1) + ": " +
-                  num(mb->periods[i].orientation_rms_mdeg, "%.3f") + " mdeg");
-      os << "<text x='" << p.x(i) << "' y='" << y0 + kPanelH + 14
-         << "' text-anchor='middle' font-size='10'>" << i + 1 << "</text>\n";
-    }
-    os << "<text x='" << kWidth / 2 << "' y='" << y0 + kPanelH + 32
-       << "' text-anchor='middle' font-size='12'>rest period</text>\n";
+    const RestPanel orient{"orientation residual of each rest period (eq. 51–52)",
+                           "RMS (mdeg)",
+                           0.01,
+                           [](const calib::RestPeriodMetric& q) { return q.orientation_rms_mdeg; },
+                           "%.3f",
+                           " mdeg"};
+    rest_panel(os, y0, orient, ma, mb, periods, second_name, false);
   }
   os << "</svg>\n";
   return os.str();
