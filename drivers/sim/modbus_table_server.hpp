@@ -1,4 +1,5 @@
 #pragma once
+#include <sys/select.h>
 // Simulated turntable PLC behind a Modbus TCP server (libmodbus server API), for stationsim and tests.
 //
 // One server thread runs a select() loop over the listening socket and up to max_clients client
@@ -97,7 +98,14 @@ class ModbusTableServer {
   ModbusTableServerStats stats() const;
 
  private:
+  /// The serving loop's own state (clients, request buffer, refusal window), and run()'s named
+  /// steps.
+  struct Loop;
   void run();
+  void apply_fault_knobs(Loop& loop);
+  int wait_readable(Loop& loop, fd_set& readable);
+  void accept_client(Loop& loop);
+  void serve_request(Loop& loop, int fd);
   void open_listener();
   void close_listener();
   void advance_plc();  // mu_ held
