@@ -447,12 +447,6 @@ void ControlServer::loop() {
   std::vector<pollfd> fds;
   std::vector<Client*> order;
   std::vector<char> chunk(kReadChunk);
-
-  auto close_client = [](Client& c) {
-    ::close(c.fd);
-    c.dead = true;
-  };
-
   while (running_) {
     fds.clear();
     order.clear();
@@ -475,76 +469,9 @@ void ControlServer::loop() {
       break;
     }
     if (fds[0].revents) break;  // stop()
-
-    if (fds[1].revents & POLLIN) {
-      for (;;) {
-        const int cfd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
-        if (cfd < 0) {
-          if (errno == EMFILE || errno == ENFILE) {
-            // Out of descriptors: the pending connection stays queued and the listening socket
-            // stays readable; pause instead of spinning until a client hangs up.
-            spdlog::warn("control socket: accept: {}", errno_text(errno));
-            std::this_thread::sleep_for(std::chrono::milliseconds(100));
-          } else if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
-            spdlog::warn("control socket: accept: {}", errno_text(errno));
-          }
-          break;
-        }
-        Client c;
-        c.fd = cfd;
-        socklen_t len = sizeof c.cred;
-        if (::getsockopt(cfd, SOL_SOCKET, SO_PEERCRED, &c.cred, &len) != 0) {
-          // Without credentials no one may control the station: an id that matches no group.
-          c.cred.uid = static_cast<uid_t>(-1);
-          c.cred.gid = static_cast<gid_t>(-1);
-          c.cred.pid = 0;
-        }
-        c.user = user_name_of(c.cred.uid);
-        {
-          std::lock_guard<std::mutex> lock(stats_mutex_);
-          ++stats_.connections;
-        }
-        refuse_if_over_limits(clients, c);
-        clients.push_back(std::move(c));
-      }
-    }
-
-    for (std::size_t i = 0; i < order.size(); ++i) {
-      Client& c = *order[i];
-      const short re = fds[i + 2].revents;
-      if (!re) continue;
-      if (re & POLLNVAL) {
-        c.dead = true;
-        continue;
-      }
-      if (c.out_pos < c.out.size()) {
-        if (re & (POLLERR | POLLHUP) && !(re & POLLOUT)) {
-          close_client(c);
-          continue;
-        }
-      } else if (re & (POLLIN | POLLHUP | POLLERR)) {
-        const ssize_t r = ::recv(c.fd, chunk.data(), chunk.size(), MSG_DONTWAIT);
-        if (r < 0) {
-          if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) close_client(c);
-          continue;
-        }
-        if (r == 0) {
-          c.eof = true;
-        } else {
-          c.in.append(chunk.data(), static_cast<std::size_t>(r));
-          c.last_traffic = std::chrono::steady_clock::now();
-        }
-      }
-      try {
-        pump(c);
-      } catch (const std::exception& e) {
-        // E.g. out of memory building a reply: this client is dropped, the others go on.
-        spdlog::error("control: dropping the connection of {} (pid {}): {}", c.user, c.cred.pid,
-                      e.what());
-        if (!c.dead) ::close(c.fd);
-        c.dead = true;
-      }
-    }
+    if (fds[1].revents & POLLIN) accept_pending(clients);
+    for (std::size_t i = 0; i < order.size(); ++i)
+      if (fds[i + 2].revents) serve_ready(*order[i], fds[i + 2].revents, chunk);
     close_idle(clients);
     clients.remove_if([](const Client& c) { return c.dead; });
     std::lock_guard<std::mutex> lock(stats_mutex_);
@@ -554,6 +481,81 @@ void ControlServer::loop() {
     if (!c.dead) ::close(c.fd);
   std::lock_guard<std::mutex> lock(stats_mutex_);
   stats_.clients = 0;
+}
+
+/// Every queued connection, with its peer's credentials (none: no control), refused when over the
+/// per-user or total limits.
+void ControlServer::accept_pending(std::list<Client>& clients) {
+  for (;;) {
+    const int cfd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
+    if (cfd < 0) {
+      if (errno == EMFILE || errno == ENFILE) {
+        // Out of descriptors: the pending connection stays queued and the listening socket
+        // stays readable; pause instead of spinning until a client hangs up.
+        spdlog::warn("control socket: accept: {}", errno_text(errno));
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      } else if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
+        spdlog::warn("control socket: accept: {}", errno_text(errno));
+      }
+      return;
+    }
+    Client c;
+    c.fd = cfd;
+    socklen_t len = sizeof c.cred;
+    if (::getsockopt(cfd, SOL_SOCKET, SO_PEERCRED, &c.cred, &len) != 0) {
+      // Without credentials no one may control the station: an id that matches no group.
+      c.cred.uid = static_cast<uid_t>(-1);
+      c.cred.gid = static_cast<gid_t>(-1);
+      c.cred.pid = 0;
+    }
+    c.user = user_name_of(c.cred.uid);
+    {
+      std::lock_guard<std::mutex> lock(stats_mutex_);
+      ++stats_.connections;
+    }
+    refuse_if_over_limits(clients, c);
+    clients.push_back(std::move(c));
+  }
+}
+
+/// A client the poll found ready: its reply's socket gone, or new bytes (or its end) read; then
+/// pump it (requests answered, replies written). An exception drops this client only.
+void ControlServer::serve_ready(Client& c, short re, std::vector<char>& chunk) {
+  if (re & POLLNVAL) {
+    c.dead = true;
+    return;
+  }
+  if (c.out_pos < c.out.size()) {
+    if (re & (POLLERR | POLLHUP) && !(re & POLLOUT)) {
+      ::close(c.fd);
+      c.dead = true;
+      return;
+    }
+  } else if (re & (POLLIN | POLLHUP | POLLERR)) {
+    const ssize_t r = ::recv(c.fd, chunk.data(), chunk.size(), MSG_DONTWAIT);
+    if (r < 0) {
+      if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
+        ::close(c.fd);
+        c.dead = true;
+      }
+      return;
+    }
+    if (r == 0) {
+      c.eof = true;
+    } else {
+      c.in.append(chunk.data(), static_cast<std::size_t>(r));
+      c.last_traffic = std::chrono::steady_clock::now();
+    }
+  }
+  try {
+    pump(c);
+  } catch (const std::exception& e) {
+    // E.g. out of memory building a reply: this client is dropped, the others go on.
+    spdlog::error("control: dropping the connection of {} (pid {}): {}", c.user, c.cred.pid,
+                  e.what());
+    if (!c.dead) ::close(c.fd);
+    c.dead = true;
+  }
 }
 
 }  // namespace imucal::station

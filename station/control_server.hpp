@@ -96,6 +96,9 @@ class ControlServer {
  private:
   struct Client;
   void loop();
+  /// loop()'s steps: accept every pending connection; read from one ready client and pump it.
+  void accept_pending(std::list<Client>& clients);
+  void serve_ready(Client& client, short revents, std::vector<char>& chunk);
   void pump(Client& client);
   void serve_line(Client& client, std::string_view line);
   int poll_timeout_ms(const std::list<Client>& clients) const;
