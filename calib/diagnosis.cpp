@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <optional>
 #include <sstream>
@@ -19,6 +20,13 @@
 namespace imucal::calib {
 
 namespace {
+
+/// A correlation as people read it: three decimals ("0.977", not "0.977463").
+std::string three_digits(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", x);
+  return buf;
+}
 
 /// The linearised problem plus the held-out folds.
 struct Problem {
@@ -122,8 +130,9 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
     if (sep.no_signature == n)
       os << "it changes no rest or move residual (no signature)";
     else
-      os << "its parameters correlate " << std::max(sep.max_correlation, opt.separability_limit)
-         << " > " << opt.separability_limit << " with " << base_names(sep.aliases);
+      os << "its parameters correlate "
+         << three_digits(std::max(sep.max_correlation, opt.separability_limit)) << " > "
+         << opt.separability_limit << " with " << base_names(sep.aliases);
     r.note = os.str();
     r.value_si = Eigen::VectorXd::Zero(e.size());
     return r;

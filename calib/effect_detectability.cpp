@@ -3,6 +3,7 @@
 #include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 #include "calib/chi2.hpp"
@@ -13,6 +14,13 @@
 namespace imucal::calib {
 
 namespace {
+
+/// A correlation as people read it: three decimals ("0.977", not "0.977463").
+std::string three_digits(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", x);
+  return buf;
+}
 
 struct Analysed {
   EffectDetectability d;
@@ -55,8 +63,8 @@ Analysed analyse(const GapLinearisation& lin, EffectId id, size_t candidates,
     if (d.no_signature == d.directions)
       os << "no signature: it changes no rest or move residual on this sequence";
     else
-      os << "correlates " << std::max(sep.max_correlation, opt.separability_limit) << " > "
-         << opt.separability_limit << " with the base parameters (" <<
+      os << "correlates " << three_digits(std::max(sep.max_correlation, opt.separability_limit))
+         << " > " << opt.separability_limit << " with the base parameters (" <<
           [&] {
             std::string s;
             for (const auto& n : d.aliases) s += (s.empty() ? "" : ", ") + n;
@@ -154,8 +162,8 @@ std::vector<EffectDetectability> effect_detectability(const sequences::MotionPro
       std::string s;
       for (const auto& o : a.d.confounded_with) s += (s.empty() ? "" : ", ") + o;
       std::ostringstream os;
-      os << "confounded with " << s << " (signatures correlate " << a.d.max_cross_correlation
-         << " > " << opt.separability_limit << ")";
+      os << "confounded with " << s << " (signatures correlate "
+         << three_digits(a.d.max_cross_correlation) << " > " << opt.separability_limit << ")";
       a.d.reason = os.str();
     }
     out.push_back(a.d);
