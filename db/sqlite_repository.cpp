@@ -12,6 +12,7 @@
 #include "db/archive/archive_error.hpp"
 #include "db/archive/param_json.hpp"
 #include "db/compact_param_text.hpp"
+#include "db/export.hpp"
 #include "db/schema.hpp"
 #include "db/serial_number.hpp"
 
@@ -136,10 +137,9 @@ void check_sha(const std::string& value, const char* field) {
 
 std::string run_label(RunId id) { return "run " + std::to_string(id); }
 
+/// The stored reasons_json text: the same array run_json prints (db/export.hpp).
 std::string reasons_to_json(const std::vector<RunReason>& reasons) {
-  json a = json::array();
-  for (const RunReason& r : reasons) a.push_back({{"source", r.source}, {"text", r.text}});
-  return a.dump();
+  return reasons_json(reasons).dump();
 }
 
 /// The stored reasons_json (an array of {source, text}); InvalidInput naming what is wrong.

@@ -23,13 +23,6 @@ std::optional<db::TimestampMs> parse_recorded(const std::string& iso) {
   }
 }
 
-/// The IMU data's span in ms (last sample time minus first), 0 without samples.
-db::TimestampMs data_span_ms(const archive::RunArchive& ar) {
-  if (ar.imu.empty()) return 0;
-  const double span_s = ar.imu.back().t_s - ar.imu.front().t_s + ar.imu.front().dt_s;
-  return static_cast<db::TimestampMs>(span_s * 1000.0 + 0.5);
-}
-
 }  // namespace
 
 RecordedTimes recorded_times(const archive::RunArchive& ar, db::TimestampMs import_ms) {
@@ -38,7 +31,10 @@ RecordedTimes recorded_times(const archive::RunArchive& ar, db::TimestampMs impo
   t.recorded = start.has_value();
   t.started_at_ms = start.value_or(import_ms);
   const auto end = parse_recorded(ar.info.end_time);
-  t.ended_at_ms = end && *end > t.started_at_ms ? *end : t.started_at_ms + data_span_ms(ar);
+  t.ended_at_ms =
+      end && *end > t.started_at_ms
+          ? *end
+          : t.started_at_ms + static_cast<db::TimestampMs>(archive::data_span_s(ar) * 1000.0 + 0.5);
   return t;
 }
 

@@ -979,4 +979,9 @@ calib::CalibrationInput to_calibration_input(const RunArchive& a) { return conve
 
 calib::CalibrationInput to_calibration_input(RunArchive&& a) { return convert(a, &a); }
 
+double data_span_s(const RunArchive& ar) {
+  if (ar.imu.empty()) return 0.0;
+  return ar.imu.back().t_s - ar.imu.front().t_s + ar.imu.front().dt_s;
+}
+
 }  // namespace imucal::archive

@@ -113,6 +113,10 @@ struct RunArchive {
       origin;  ///< directory it was read from (names files in later errors); "" if in memory
 };
 
+/// The IMU data's span, s: from the start of the first sample's interval to the last sample (0
+/// without samples). What an archive's recording lasted.
+double data_span_s(const RunArchive& archive);
+
 /// Read and validate an archive directory. Every format error is an ArchiveError naming the file
 /// and line/field. With run.toml [imu] dv_convention = "raw_integral" the dv columns are converted
 /// on reading (dv = v_raw + ½ dθ × v_raw); in memory dv always follows conventions.hpp.

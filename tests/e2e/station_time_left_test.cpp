@@ -39,10 +39,13 @@ TEST(StationTimeLeft, IsWallTimeAtTheSimulatorsSpeedNeverGrowsAndIsZeroOnlyAtThe
     if (!p.left_s) continue;
     ++estimates;
     if (!first) first = p.left_s;
-    if (prev) EXPECT_LE(*p.left_s, *prev) << "time left grew at step " << p.step;
+    if (prev) {
+      EXPECT_LE(*p.left_s, *prev) << "time left grew at step " << p.step;
+    }
     // 0 once the last rest is captured (the run still reads "running" while its archive closes).
-    if (p.step < p.steps)
+    if (p.step < p.steps) {
       EXPECT_GT(*p.left_s, 0.0) << "0 s left while step " << p.step << " of " << p.steps;
+    }
     prev = p.left_s;
   }
   ASSERT_GE(estimates, 3) << "no time left shown while the run captured";

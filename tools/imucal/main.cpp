@@ -198,8 +198,7 @@ int cmd_simulate(const SimulateArgs& a) {
   }
   // A simulated recording ends now and lasts as long as its data (an import keeps these times).
   const auto end = std::chrono::system_clock::now();
-  const double span_s =
-      ar.imu.empty() ? 0.0 : ar.imu.back().t_s - ar.imu.front().t_s + ar.imu.front().dt_s;
+  const double span_s = archive::data_span_s(ar);
   ar.info.end_time = iso_utc(end);
   ar.info.start_time = iso_utc(end - std::chrono::seconds(std::llround(span_s)));
   progress("writing " + a.out_dir);
