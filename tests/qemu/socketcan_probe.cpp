@@ -540,7 +540,11 @@ json daemon_capture(const Args& args, Failures& fail) {
     if (k % 50 == 49)
       wait_for([&] { return cap.rows() >= k + 1; }, 5s);  // no kernel queue overflow
   }
-  const bool all_rows = wait_for([&] { return cap.rows() >= n; }, 10s);
+  // The last sample completes row n before its own error frames are read: wait for every frame
+  // sent, not only the rows, or the count below races the reader (CI saw 4996 of 5000).
+  const uint64_t frames_before_bus_off = 4 * n + errors;
+  const bool all_rows = wait_for(
+      [&] { return cap.rows() >= n && cap.stats().frames_received >= frames_before_bus_off; }, 10s);
   const station::CaptureStats during = cap.stats();
   fail.check(all_rows && cap.rows() == n, "capture: " + std::to_string(cap.rows()) + " rows of " +
                                               std::to_string(n) +
