@@ -1,7 +1,6 @@
 #include "calib/calibration_input.hpp"
 
 #include "calib/rest_detector.hpp"
-#include "calib/table_model.hpp"
 
 namespace imucal::calib {
 
@@ -60,20 +59,6 @@ CalibrationInput input_from_field_data(Setting setting, const ImuSeries& imu,
     in.reference[k].t_s = imu[k].t_s;
     in.reference[k].at_rest = rest[k];
   }
-  return in;
-}
-
-CalibrationInput input_from_simulation(const SimResult& sim, const TableGeometry& geometry,
-                                       const Site& site, const NoiseModel& noise) {
-  CalibrationInput in;
-  in.site = site;
-  in.imu = sim.imu;
-  in.noise = noise;
-  TableModel table(geometry);
-  in.reference.reserve(sim.table.size());
-  for (const auto& ts : sim.table)
-    in.reference.push_back(
-        {ts.t_s, table.C_bn(ts.outer_rad, ts.inner_rad), ts.at_rest, ts.outer_rad, ts.inner_rad});
   return in;
 }
 

@@ -11,8 +11,8 @@
 
 #include "calib/earth.hpp"
 #include "calib/imu_increment.hpp"
+#include "calib/noise_model.hpp"
 #include "calib/param_set.hpp"
-#include "calib/truth_sim.hpp"
 
 namespace imucal::calib {
 
@@ -116,9 +116,5 @@ ParamSet sigma_from_covariance(const ParamCovariance& cov);
 CalibrationInput input_from_field_data(Setting setting, const ImuSeries& imu,
                                        const std::vector<GnssFix>& gnss, const Site& site,
                                        const NoiseModel& noise);
-
-/// Build a CalibrationInput from a simulation (the table reference from encoder angles).
-CalibrationInput input_from_simulation(const SimResult& sim, const TableGeometry& geometry,
-                                       const Site& site, const NoiseModel& noise);
 
 }  // namespace imucal::calib

@@ -54,7 +54,7 @@ CrlbResult compute_crlb(const sequences::MotionProfile& profile, const TableGeom
   const double dt = 1.0 / rate_hz;
   const size_t n = static_cast<size_t>(std::floor(profile.duration_s() * rate_hz + 1e-9)) + 1;
   const Matrix3d C_earth = rotvec_to_matrix<double>(Vector3d(w_ie_n * dt));
-  const auto rests = rest_intervals(profile, SimOptions{}.rest_guard_s);
+  const auto rests = rest_intervals(profile, kTableRestGuard_s);
 
   CalibrationInput in;
   in.site = site;

@@ -10,9 +10,9 @@
 
 #include "calib/ains.hpp"
 #include "calib/earth.hpp"
+#include "calib/noise_model.hpp"
 #include "calib/param_set.hpp"
 #include "calib/table_model.hpp"
-#include "calib/truth_sim.hpp"
 #include "sequences/motion_profile.hpp"
 
 namespace imucal::calib {

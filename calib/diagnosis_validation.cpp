@@ -9,6 +9,7 @@
 
 #include "calib/calibration_input.hpp"
 #include "calib/nlsq.hpp"
+#include "calib/sim_input.hpp"
 
 namespace imucal::calib {
 

@@ -9,6 +9,7 @@
 #include "calib/chi2.hpp"
 #include "calib/gap_fit.hpp"
 #include "calib/gap_linearisation.hpp"
+#include "calib/sim_input.hpp"
 #include "calib/stochastic_candidates.hpp"
 
 namespace imucal::calib {

@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "calib/calibration_input.hpp"
+#include "calib/noise_model.hpp"
 #include "calib/param_set.hpp"
-#include "calib/truth_sim.hpp"
 
 namespace imucal::calib {
 

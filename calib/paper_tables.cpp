@@ -15,6 +15,7 @@
 #include "calib/field_sim.hpp"
 #include "calib/legacy.hpp"
 #include "calib/nlsq.hpp"
+#include "calib/sim_input.hpp"
 
 namespace imucal::calib {
 

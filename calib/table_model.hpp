@@ -20,6 +20,10 @@
 
 namespace imucal::calib {
 
+/// How far inside a table's rest segment its at_rest flag begins and ends (s): the simulator
+/// flags rest this way and the CRLB places its aiding epochs the same, so both see the same epochs.
+constexpr double kTableRestGuard_s = 0.5;
+
 struct TableGeometry {
   Eigen::Vector3d outer_axis_t{1.0, 0.0,
                                0.0};  ///< outer axis in the base frame (default: horizontal)

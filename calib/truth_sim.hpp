@@ -15,23 +15,12 @@
 #include "calib/earth.hpp"
 #include "calib/effects.hpp"
 #include "calib/imu_increment.hpp"
+#include "calib/noise_model.hpp"
 #include "calib/param_set.hpp"
 #include "calib/table_model.hpp"
 #include "sequences/motion_profile.hpp"
 
 namespace imucal::calib {
-
-/// Stochastic model of a unit (SI units; see unit-file parsing for human units).
-struct NoiseModel {
-  double arw_rad_per_sqrt_s = 0.0015 * kDegToRad / 60.0;  ///< angle random walk (0.0015 deg/√h)
-  double vrw_mps_per_sqrt_s = 10.0 * kMicroG_mps2;        ///< velocity random walk (10 µg/√Hz)
-  double gyro_bias_instability_radps = 0.0;               ///< Gauss-Markov σ
-  double gyro_bias_tau_s = 1000.0;
-  double accel_bias_instability_mps2 = 0.0;
-  double accel_bias_tau_s = 1000.0;
-  double dtheta_lsb_rad = 1e-9;  ///< quantisation of the output (0 = off)
-  double dv_lsb_mps = 1e-7;
-};
 
 struct UnitModel {
   ParamSet params;  ///< true calibration parameters (table_misalignment = the station's ς)
@@ -46,7 +35,7 @@ struct SimOptions {
   double rate_hz = 100.0;
   uint64_t seed = 1;
   bool noise = true;          ///< false: deterministic increments (for exactness tests)
-  double rest_guard_s = 0.5;  ///< at_rest is reported only this far inside rest segments
+  double rest_guard_s = kTableRestGuard_s;  ///< at_rest only this far inside rest segments
 };
 
 struct SimResult {

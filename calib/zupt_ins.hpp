@@ -14,8 +14,8 @@
 #include <Eigen/Core>
 
 #include "calib/earth.hpp"
+#include "calib/noise_model.hpp"
 #include "calib/strapdown.hpp"
-#include "calib/truth_sim.hpp"
 
 namespace imucal::calib {
 

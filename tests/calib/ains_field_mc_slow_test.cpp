@@ -12,6 +12,7 @@
 #include "ains_test_support.hpp"
 #include "calib/ains.hpp"
 #include "calib/body_frame.hpp"
+#include "calib/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

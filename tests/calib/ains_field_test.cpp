@@ -12,6 +12,7 @@
 #include "calib/ains.hpp"
 #include "calib/body_frame.hpp"
 #include "calib/rest_detector.hpp"
+#include "calib/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

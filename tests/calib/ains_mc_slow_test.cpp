@@ -16,6 +16,7 @@
 #include "ains_test_support.hpp"
 #include "calib/ains.hpp"
 #include "calib/crlb.hpp"
+#include "calib/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

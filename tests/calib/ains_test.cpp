@@ -14,6 +14,7 @@
 #include "ains_test_support.hpp"
 #include "calib/ains_model.hpp"
 #include "calib/rotation.hpp"
+#include "calib/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

@@ -8,6 +8,7 @@
 
 #include "ains_test_support.hpp"
 #include "calib/calibration_input.hpp"
+#include "calib/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

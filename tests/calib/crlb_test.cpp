@@ -11,6 +11,7 @@
 #include <string>
 
 #include "ains_test_support.hpp"
+#include "calib/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

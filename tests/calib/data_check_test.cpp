@@ -11,6 +11,7 @@
 #include "ains_test_support.hpp"
 #include "calib/calibration_pipeline.hpp"
 #include "calib/field_sim.hpp"
+#include "calib/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

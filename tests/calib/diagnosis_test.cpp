@@ -15,6 +15,7 @@
 #include "calib/chi2.hpp"
 #include "calib/gap_model.hpp"
 #include "calib/nlsq.hpp"
+#include "calib/sim_input.hpp"
 #include "calib/site_presets.hpp"
 #include "calib/truth_sim.hpp"
 #include "sequences/library.hpp"

@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "calib/rotation.hpp"
+#include "calib/sim_input.hpp"
 #include "calib/site_presets.hpp"
 #include "calib/truth_sim.hpp"
 #include "sequences/library.hpp"

@@ -12,6 +12,7 @@
 #include "calib/ains.hpp"
 #include "calib/crlb.hpp"
 #include "calib/nlsq.hpp"
+#include "calib/sim_input.hpp"
 #include "calib/site_presets.hpp"
 #include "calib/truth_sim.hpp"
 #include "sequences/library.hpp"

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "calib/calibration_pipeline.hpp"
+#include "calib/sim_input.hpp"
 #include "calib/site_presets.hpp"
 #include "calib/truth_sim.hpp"
 #include "db/archive/unit_file.hpp"

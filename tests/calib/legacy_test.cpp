@@ -9,6 +9,7 @@
 #include "ains_test_support.hpp"
 #include "calib/body_frame.hpp"
 #include "calib/evaluation.hpp"
+#include "calib/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

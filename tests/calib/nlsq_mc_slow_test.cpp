@@ -14,6 +14,7 @@
 
 #include "calib/calibration_input.hpp"
 #include "calib/nlsq.hpp"
+#include "calib/sim_input.hpp"
 #include "calib/site_presets.hpp"
 #include "calib/truth_sim.hpp"
 #include "sequences/library.hpp"

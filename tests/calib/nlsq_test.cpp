@@ -18,6 +18,7 @@
 #include "calib/nlsq_preprocess.hpp"
 #include "calib/nlsq_residuals.hpp"
 #include "calib/rotation.hpp"
+#include "calib/sim_input.hpp"
 #include "calib/site_presets.hpp"
 #include "calib/strapdown.hpp"
 #include "calib/table_model.hpp"

@@ -15,6 +15,7 @@
 #include "calib/conventions.hpp"
 #include "calib/earth.hpp"
 #include "calib/rotation.hpp"
+#include "calib/sim_input.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/run_archive.hpp"
