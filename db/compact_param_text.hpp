@@ -8,7 +8,7 @@
 // other text makes it return false, and the caller parses it strictly for a field-named error.
 #include <string_view>
 
-#include "calib/param_set.hpp"
+#include "calib/core/param_set.hpp"
 
 namespace imucal::db {
 

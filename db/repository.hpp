@@ -31,10 +31,10 @@
 #include <string>
 #include <vector>
 
-#include "calib/calibration_input.hpp"
-#include "calib/crosscheck.hpp"
-#include "calib/evaluation.hpp"
-#include "calib/param_set.hpp"
+#include "calib/checks/crosscheck.hpp"
+#include "calib/checks/evaluation.hpp"
+#include "calib/core/calibration_input.hpp"
+#include "calib/core/param_set.hpp"
 
 namespace imucal::db {
 
@@ -197,7 +197,7 @@ struct RunRecord {
   std::string promote_reason;
 };
 
-/// Headline evaluation metrics of one method (paper §VII, calib/evaluation.hpp), per-period
+/// Headline evaluation metrics of one method (paper §VII, calib/checks/evaluation.hpp), per-period
 /// details excluded (they are reproducible from the archive).
 struct StoredMetrics {
   double orientation_rmse_mdeg = 0.0;

@@ -163,7 +163,7 @@ ALTER TABLE calibrations ADD COLUMN notes_json TEXT NOT NULL DEFAULT '[]'
 ALTER TABLE crosschecks ADD COLUMN not_compared_json TEXT NOT NULL DEFAULT '[]'
   CHECK (json_valid(not_compared_json) AND json_type(not_compared_json) = 'array');
 -- Field results stored before v5: every one was in the triad's frame without the table terms
--- (calib/ains.cpp describe_field_frame, calib/legacy.cpp), and their cross-check skipped those.
+-- (calib/ains/ains.cpp describe_field_frame, calib/legacy/legacy.cpp), and their cross-check skipped those.
 UPDATE calibrations SET body_frame = 'accel_symmetric',
   unobservable_json = '["table_misalignment_rad[0]","table_misalignment_rad[1]","table_misalignment_rad[2]"]',
   notes_json = json_array(

@@ -13,7 +13,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "calib/conventions.hpp"
+#include "calib/core/conventions.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/csv.hpp"
 #include "db/archive/io_util.hpp"

@@ -16,7 +16,7 @@
 #include <string>
 #include <string_view>
 
-#include "calib/imu_increment.hpp"
+#include "calib/core/imu_increment.hpp"
 #include "db/archive/run_archive.hpp"
 #include "drivers/imu/can_frame.hpp"
 #include "drivers/imu/imu_codec.hpp"

@@ -6,7 +6,7 @@
 #include <chrono>
 #include <exception>
 
-#include "calib/calibration_pipeline.hpp"
+#include "calib/pipeline/calibration_pipeline.hpp"
 #include "db/archive/run_archive.hpp"
 #include "station/gap_check.hpp"
 

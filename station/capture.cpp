@@ -7,7 +7,7 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "calib/conventions.hpp"
+#include "calib/core/conventions.hpp"
 #include "db/archive/io_util.hpp"
 #include "drivers/imu/imu_protocol.hpp"
 

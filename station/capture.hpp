@@ -40,7 +40,7 @@
 #include <utility>
 #include <vector>
 
-#include "calib/imu_increment.hpp"
+#include "calib/core/imu_increment.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/imu/imu_codec.hpp"
 #include "station/archive_writer.hpp"

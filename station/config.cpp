@@ -10,7 +10,7 @@
 #include <sstream>
 #include <vector>
 
-#include "calib/conventions.hpp"
+#include "calib/core/conventions.hpp"
 #include "drivers/imu/imu_protocol.hpp"
 #include "drivers/turntable/register_map.hpp"
 #include "sequences/library.hpp"

@@ -14,7 +14,7 @@
 #include <string>
 #include <string_view>
 
-#include "calib/earth.hpp"
+#include "calib/core/earth.hpp"
 #include "drivers/imu/imu_codec.hpp"
 #include "drivers/turntable/turntable_client.hpp"
 
@@ -77,9 +77,10 @@ struct StationConfig {
   std::string sequence_dir;
   double k_sigma = 4.0;
   /// The gap check's false-alarm rate per run: the probability that a run of a unit without any
-  /// unmodelled effect ends REVIEW through the sim-to-real gap check (calib/diagnosis.hpp,
-  /// diagnosis_options_for_false_alarm). 1e-4: a line of 300 units a day sees one needless review
-  /// in about a month; a larger rate detects smaller effects (README, "The gap check").
+  /// unmodelled effect ends REVIEW through the sim-to-real gap check
+  /// (calib/diagnosis/diagnosis.hpp, diagnosis_options_for_false_alarm). 1e-4: a line of 300 units
+  /// a day sees one needless review in about a month; a larger rate detects smaller effects
+  /// (README, "The gap check").
   double gap_false_alarm = 1e-4;
 
   // [log]

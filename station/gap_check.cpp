@@ -1,7 +1,7 @@
 #include "station/gap_check.hpp"
 
-#include "calib/diagnosis.hpp"
-#include "calib/nlsq.hpp"
+#include "calib/diagnosis/diagnosis.hpp"
+#include "calib/nlsq/nlsq.hpp"
 #include "db/archive/diagnosis_json.hpp"
 
 namespace imucal::station {

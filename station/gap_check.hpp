@@ -1,5 +1,5 @@
 #pragma once
-// The station's use of the sim-to-real gap diagnosis (calib/diagnosis.hpp, issue #8):
+// The station's use of the sim-to-real gap diagnosis (calib/diagnosis/diagnosis.hpp, issue #8):
 //  * check_gap: every calibrated run gets it in the worker, against its own NLSQ calibration, at
 //    the station's false-alarm rate per run; a significant gap makes the run REVIEW, naming an
 //    effect only when it explains the gap (DiagnosisOptions::min_shrinkage of the held-out gap);
@@ -9,8 +9,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "calib/calibration_input.hpp"
-#include "calib/param_set.hpp"
+#include "calib/core/calibration_input.hpp"
+#include "calib/core/param_set.hpp"
 #include "db/archive/run_archive.hpp"
 
 namespace imucal::station {

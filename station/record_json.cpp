@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "calib/param_set.hpp"
+#include "calib/core/param_set.hpp"
 #include "db/archive/param_json.hpp"
 #include "db/export.hpp"
 

@@ -87,7 +87,7 @@ cat >"$CONFIG" <<EOF
 # Written by tools/demo.sh: the station on loopback against stationsim.
 [station]
 name = "demo-station"
-lat_deg = 55.7856     # the simulator's site (demo factory, calib/site_presets.hpp)
+lat_deg = 55.7856     # the simulator's site (demo factory, calib/core/site_presets.hpp)
 lon_deg = 12.5213
 height_m = 30.0
 data_dir = "data"

@@ -24,7 +24,7 @@ command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 # need instrumented) linked from the Release tree when it exists, for the tsan and fuzz modes:
 # compiling it is most of a sanitizer tree's build time.
 release_calib=()
-[[ -f build/calib/libimucal_calib.a ]] && release_calib=(-DIMUCAL_CALIB_LIBRARY="$PWD/build/calib/libimucal_calib.a")
+[[ -f build/calib/libimucal_calib_core.a ]] && release_calib=(-DIMUCAL_CALIB_PREBUILT_DIR="$PWD/build/calib")
 
 fresh_reports() {  # fresh_reports TREE: an empty TREE/reports; prints its absolute path
   local dir

@@ -1,6 +1,6 @@
 #pragma once
-// The gap diagnosis (calib/diagnosis.hpp) as JSON: what `imucal diagnose --json` prints, what the
-// HTML report embeds and what the station keeps with a run. One object:
+// The gap diagnosis (calib/diagnosis/diagnosis.hpp) as JSON: what `imucal diagnose --json` prints,
+// what the HTML report embeds and what the station keeps with a run. One object:
 //   {"verdict": "consistent"|"explained"|"unexplained", "summary": "...",
 //    "best": null | {"effect", "magnitude", "sigma", "unit", "parameters": [...]},
 //    "second": null | {...}, "ambiguous": [names],
@@ -15,7 +15,7 @@
 // Parameters are in human units (the catalogue's), each with its unit; "score" is the BIC gain.
 #include <nlohmann/json.hpp>
 
-#include "calib/diagnosis.hpp"
+#include "calib/diagnosis/diagnosis.hpp"
 
 namespace imucal::archive {
 

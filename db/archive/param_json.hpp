@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "calib/param_set.hpp"
+#include "calib/core/param_set.hpp"
 
 namespace imucal::archive {
 

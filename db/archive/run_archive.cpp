@@ -14,8 +14,8 @@
 #include <filesystem>
 #include <mutex>
 
-#include "calib/conventions.hpp"
-#include "calib/rotation.hpp"
+#include "calib/core/conventions.hpp"
+#include "calib/core/rotation.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/csv.hpp"
 #include "db/archive/io_util.hpp"

@@ -16,11 +16,11 @@
 #include <utility>
 #include <vector>
 
-#include "calib/calibration_input.hpp"
-#include "calib/earth.hpp"
-#include "calib/imu_increment.hpp"
-#include "calib/table_model.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/core/calibration_input.hpp"
+#include "calib/core/earth.hpp"
+#include "calib/core/imu_increment.hpp"
+#include "calib/core/table_model.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "db/archive/unit_file.hpp"
 
 namespace imucal::archive {
@@ -132,7 +132,7 @@ RunInfo parse_run_info(const std::string& text, const std::string& origin);
 std::string run_info_text(const RunInfo& info);
 
 /// Build the calibration input. Land and sea (run.toml setting): no attitude reference is used,
-/// rest periods come from the IMU data (calib/rest_detector.hpp) and the first must start the
+/// rest periods come from the IMU data (calib/core/rest_detector.hpp) and the first must start the
 /// run (the initial alignment needs the unit at rest for kMinFirstRest_s first); at sea the GNSS
 /// fixes are passed on. Factory: reference attitude on the IMU time axis (the reference file must
 /// have the same row count and times within 1 µs — no interpolation yet), at least one rest sample,

@@ -1,11 +1,10 @@
 #include "db/archive/unit_file.hpp"
 
-#include "calib/effects.hpp"
-
 #include <cmath>
 #include <set>
 
-#include "calib/conventions.hpp"
+#include "calib/core/conventions.hpp"
+#include "calib/sim/effects.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/param_json.hpp"

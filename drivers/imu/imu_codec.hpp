@@ -1,21 +1,23 @@
 #pragma once
 // Encoder and decoder of the IMU CAN protocol (drivers/imu/PROTOCOL.md, imu_protocol.hpp).
 //
-// Encoder: one ImuIncrement (+ status bits, temperature) -> the 4 frames of one sample. dθ and dv are
-// quantised to the LSB with the remainder carried into the next sample (as calib/truth_sim.cpp's
-// Quantiser does), so quantisation noise does not accumulate: the sum of the transmitted increments
-// stays within half an LSB of the sum of the true increments for any number of samples.
+// Encoder: one ImuIncrement (+ status bits, temperature) -> the 4 frames of one sample. dθ and dv
+// are quantised to the LSB with the remainder carried into the next sample (as
+// calib/sim/truth_sim.cpp's Quantiser does), so quantisation noise does not accumulate: the sum of
+// the transmitted increments stays within half an LSB of the sum of the true increments for any
+// number of samples.
 //
-// Decoder: stateful reassembly of samples from frames in any order, by the counter in byte 0 of every
-// frame. A sample is output only when all 4 frames are present and the CRC-16 over them matches, so a
-// lost, corrupted, duplicated or reordered frame can make a sample go missing but never produce a
-// wrong one. Samples are output in counter order; an incomplete sample is waited for during
-// `reorder_window_frames` received frames, then given up. Every anomaly is counted (DecoderCounters).
+// Decoder: stateful reassembly of samples from frames in any order, by the counter in byte 0 of
+// every frame. A sample is output only when all 4 frames are present and the CRC-16 over them
+// matches, so a lost, corrupted, duplicated or reordered frame can make a sample go missing but
+// never produce a wrong one. Samples are output in counter order; an incomplete sample is waited
+// for during `reorder_window_frames` received frames, then given up. Every anomaly is counted
+// (DecoderCounters).
 #include <array>
 #include <cstdint>
 #include <vector>
 
-#include "calib/imu_increment.hpp"
+#include "calib/core/imu_increment.hpp"
 #include "drivers/imu/can_frame.hpp"
 #include "drivers/imu/imu_protocol.hpp"
 

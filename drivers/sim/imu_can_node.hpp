@@ -21,7 +21,7 @@
 #include <random>
 #include <vector>
 
-#include "calib/imu_increment.hpp"
+#include "calib/core/imu_increment.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/imu/imu_codec.hpp"
 

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <stdexcept>
 
-#include "calib/conventions.hpp"
+#include "calib/core/conventions.hpp"
 #include "drivers/imu/imu_protocol.hpp"
 
 namespace imucal::sim {

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "calib/imu_increment.hpp"
+#include "calib/core/imu_increment.hpp"
 
 namespace imucal::sim {
 

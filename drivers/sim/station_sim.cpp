@@ -5,7 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "calib/truth_stream.hpp"
+#include "calib/sim/truth_stream.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/sim/imu_can_node.hpp"
 

@@ -33,9 +33,9 @@
 #include <thread>
 #include <vector>
 
-#include "calib/site_presets.hpp"
-#include "calib/table_model.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/core/table_model.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "drivers/sim/imu_fault.hpp"
 #include "drivers/sim/modbus_table_server.hpp"
 #include "drivers/sim/table_plc.hpp"

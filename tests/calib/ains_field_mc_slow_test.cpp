@@ -1,7 +1,7 @@
 // Monte Carlo consistency of the AINS in the field settings (issue #9: RMS(error/σ) in [0.7, 1.4]
 // per parameter group, every observable parameter). Table-run data with the reference withheld,
 // as the paper processed its land and sea sets; the hand-placed, rocking-platform data of
-// calib/field_sim.hpp are checked in field_calibration_slow_test.cpp. CI runs the reduced count
+// calib/sim/field_sim.hpp are checked in field_calibration_slow_test.cpp. CI runs the reduced count
 // below; IMUCAL_MC_RUNS raises it.
 #include <gtest/gtest.h>
 
@@ -10,9 +10,9 @@
 #include <random>
 
 #include "ains_test_support.hpp"
-#include "calib/ains.hpp"
-#include "calib/body_frame.hpp"
-#include "calib/sim_input.hpp"
+#include "calib/ains/ains.hpp"
+#include "calib/core/body_frame.hpp"
+#include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

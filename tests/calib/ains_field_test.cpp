@@ -1,7 +1,7 @@
 // AINS in the field settings (issue #9, paper §IV-C/D) on table-run data processed as the paper
 // did: the reference attitude withheld (land: zero velocity + mean depth; sea: GNSS positions of
 // the table plus 0.3 m white noise + mean depth). Truth is the simulator's parameter set brought
-// into the accel-symmetric body frame by the polar decomposition (calib/body_frame.hpp): the
+// into the accel-symmetric body frame by the polar decomposition (calib/core/body_frame.hpp): the
 // housing orientation is not observable without a reference.
 #include <gtest/gtest.h>
 
@@ -9,10 +9,10 @@
 #include <random>
 
 #include "ains_test_support.hpp"
-#include "calib/ains.hpp"
-#include "calib/body_frame.hpp"
-#include "calib/rest_detector.hpp"
-#include "calib/sim_input.hpp"
+#include "calib/ains/ains.hpp"
+#include "calib/core/body_frame.hpp"
+#include "calib/core/rest_detector.hpp"
+#include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

@@ -14,9 +14,9 @@
 #include <string>
 
 #include "ains_test_support.hpp"
-#include "calib/ains.hpp"
-#include "calib/crlb.hpp"
-#include "calib/sim_input.hpp"
+#include "calib/ains/ains.hpp"
+#include "calib/checks/crlb.hpp"
+#include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

@@ -1,7 +1,7 @@
 // AINS calibration against the truth simulator (paper §IV, DESIGN §6). Expected values come from
 // the simulator's truth (and, for the smoother, from the simulator's true attitude), never from
 // the estimator's own output.
-#include "calib/ains.hpp"
+#include "calib/ains/ains.hpp"
 
 #include <gtest/gtest.h>
 
@@ -12,9 +12,9 @@
 #include <string>
 
 #include "ains_test_support.hpp"
-#include "calib/ains_model.hpp"
-#include "calib/rotation.hpp"
-#include "calib/sim_input.hpp"
+#include "calib/ains/ains_model.hpp"
+#include "calib/core/rotation.hpp"
+#include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

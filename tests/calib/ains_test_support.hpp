@@ -5,13 +5,13 @@
 #include <string>
 #include <vector>
 
-#include "calib/ains.hpp"
-#include "calib/calibration_input.hpp"
-#include "calib/conventions.hpp"
-#include "calib/rotation.hpp"
-#include "calib/site_presets.hpp"
-#include "calib/table_model.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/ains/ains.hpp"
+#include "calib/core/calibration_input.hpp"
+#include "calib/core/conventions.hpp"
+#include "calib/core/rotation.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/core/table_model.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "sequences/library.hpp"
 #include "sequences/motion_profile.hpp"
 
@@ -61,8 +61,8 @@ inline sequences::MotionProfile start_profile(const std::string& name, double re
 }
 
 /// Rank-deficient on purpose: inner-axis rotations only at outer = 0. With the default geometry
-/// (calib/table_model.hpp: outer axis horizontal, inner axis = platform normal = body z, vertical
-/// at outer = 0) the body turns about z only and body z always points down.
+/// (calib/core/table_model.hpp: outer axis horizontal, inner axis = platform normal = body z,
+/// vertical at outer = 0) the body turns about z only and body z always points down.
 inline sequences::MotionProfile inner_only_profile() {
   sequences::MotionProfile p = start_profile("inner-only", 30.0);
   for (double d : {90.0, 90.0, -270.0, 90.0, 180.0, -90.0, -90.0, 180.0})

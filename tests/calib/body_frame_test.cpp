@@ -1,14 +1,14 @@
-// The accel-symmetric body frame (calib/body_frame.hpp): the transformed parameters describe the
-// same sensor outputs for a body rotated by R, I + M_a' is symmetric, and the covariance follows
-// the transformation (checked against sampling, not against the code's own Jacobian).
-#include "calib/body_frame.hpp"
+// The accel-symmetric body frame (calib/core/body_frame.hpp): the transformed parameters describe
+// the same sensor outputs for a body rotated by R, I + M_a' is symmetric, and the covariance
+// follows the transformation (checked against sampling, not against the code's own Jacobian).
+#include "calib/core/body_frame.hpp"
 
 #include <gtest/gtest.h>
 
 #include <random>
 
-#include "calib/rotation.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/core/rotation.hpp"
+#include "calib/sim/truth_sim.hpp"
 
 namespace imucal::calib {
 namespace {

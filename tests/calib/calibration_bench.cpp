@@ -16,11 +16,11 @@
 #include <filesystem>
 #include <string>
 
-#include "calib/ains.hpp"
-#include "calib/calibration_pipeline.hpp"
-#include "calib/data_check.hpp"
-#include "calib/evaluation.hpp"
-#include "calib/nlsq.hpp"
+#include "calib/ains/ains.hpp"
+#include "calib/checks/data_check.hpp"
+#include "calib/checks/evaluation.hpp"
+#include "calib/nlsq/nlsq.hpp"
+#include "calib/pipeline/calibration_pipeline.hpp"
 #include "db/archive/run_archive.hpp"
 
 namespace {

@@ -1,8 +1,8 @@
-// The calibration job (calib/calibration_pipeline.hpp) with its two methods run concurrently
-// (issue #11) gives exactly what it gives with them one after the other: the same parameters,
-// sigmas, metrics and cross-check, bit for bit; progress phases never arrive from two threads at
-// once; an error of the method on the second thread reaches the caller.
-#include "calib/calibration_pipeline.hpp"
+// The calibration job (calib/pipeline/calibration_pipeline.hpp) with its two methods run
+// concurrently (issue #11) gives exactly what it gives with them one after the other: the same
+// parameters, sigmas, metrics and cross-check, bit for bit; progress phases never arrive from two
+// threads at once; an error of the method on the second thread reaches the caller.
+#include "calib/pipeline/calibration_pipeline.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +11,7 @@
 #include <string>
 
 #include "ains_test_support.hpp"
-#include "calib/sim_input.hpp"
+#include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

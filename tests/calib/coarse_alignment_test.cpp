@@ -1,14 +1,14 @@
-// Levelling and gyrocompassing from the IMU data (calib/coarse_alignment.hpp) against the table
-// simulator's true attitude; error sizes from the gyrocompass physics, worked out by hand.
-#include "calib/coarse_alignment.hpp"
+// Levelling and gyrocompassing from the IMU data (calib/core/coarse_alignment.hpp) against the
+// table simulator's true attitude; error sizes from the gyrocompass physics, worked out by hand.
+#include "calib/core/coarse_alignment.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "ains_test_support.hpp"
-#include "calib/calibration_input.hpp"
-#include "calib/sim_input.hpp"
+#include "calib/core/calibration_input.hpp"
+#include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {
@@ -52,7 +52,7 @@ TEST(CoarseAlignment, ErrorFreeUnitAlignsExactly) {
 TEST(CoarseAlignment, HeadingErrorIsEastGyroBiasOverHorizontalEarthRate) {
   // Classic gyrocompass limit: an east gyro bias b_E is read as Earth rate, giving a heading
   // error of b_E / (Ω cos φ); a north accel bias tilts the level by b_N / g. Body x = north at
-  // table heading 0, outer 0 (calib/table_model.hpp), so body y = east.
+  // table heading 0, outer 0 (calib/core/table_model.hpp), so body y = east.
   UnitModel unit = default_unit();
   unit.params = ParamSet{};
   const double bE = 0.01 * kDegPerHourToRadPerSec, bN = 50 * kMicroG_mps2;

@@ -1,7 +1,7 @@
 // CRLB / observability (DESIGN §6): the covariance-only run of the AINS model along the true
 // trajectory. Checked against the AINS on simulated data and against what the physics of a
 // rank-deficient sequence says must be unobservable.
-#include "calib/crlb.hpp"
+#include "calib/checks/crlb.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +11,7 @@
 #include <string>
 
 #include "ains_test_support.hpp"
-#include "calib/sim_input.hpp"
+#include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

@@ -1,14 +1,14 @@
 // Cross-check (DESIGN §6): per-parameter agreement within k·sqrt(σA² + σB²) and both methods'
 // metrics under their limits. Expected numbers in the messages are computed here from the
 // inputs and the unit definitions, not read back from the code.
-#include "calib/crosscheck.hpp"
+#include "calib/checks/crosscheck.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <stdexcept>
 
-#include "calib/truth_sim.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "plausible_result.hpp"
 
 using namespace imucal;

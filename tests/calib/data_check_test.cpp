@@ -1,17 +1,17 @@
-// Sanity checks of the raw data (calib/data_check.hpp): clean simulated runs of every setting pass;
-// each corruption an operator meets (stuck, clipped, swapped, sign-flipped axes, a unit that did
-// not move, a wrong fixture orientation, a clock jump) is found and named — and the pipeline
-// refuses to calibrate it.
-#include "calib/data_check.hpp"
+// Sanity checks of the raw data (calib/checks/data_check.hpp): clean simulated runs of every
+// setting pass; each corruption an operator meets (stuck, clipped, swapped, sign-flipped axes, a
+// unit that did not move, a wrong fixture orientation, a clock jump) is found and named — and the
+// pipeline refuses to calibrate it.
+#include "calib/checks/data_check.hpp"
 
 #include <gtest/gtest.h>
 
 #include <functional>
 
 #include "ains_test_support.hpp"
-#include "calib/calibration_pipeline.hpp"
-#include "calib/field_sim.hpp"
-#include "calib/sim_input.hpp"
+#include "calib/pipeline/calibration_pipeline.hpp"
+#include "calib/sim/field_sim.hpp"
+#include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

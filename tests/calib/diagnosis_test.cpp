@@ -2,7 +2,7 @@
 // and the simulator's injected truth: noise-free data at the true parameters leave no residual; a
 // null run (no effect) is consistent with χ²/dof near 1; a run with an effect injected and withheld
 // from the diagnoser names that effect with its magnitude within its σ.
-#include "calib/diagnosis.hpp"
+#include "calib/diagnosis/diagnosis.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,13 +11,13 @@
 #include <map>
 #include <set>
 
-#include "calib/calibration_input.hpp"
-#include "calib/chi2.hpp"
-#include "calib/gap_model.hpp"
-#include "calib/nlsq.hpp"
-#include "calib/sim_input.hpp"
-#include "calib/site_presets.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/core/calibration_input.hpp"
+#include "calib/core/chi2.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/diagnosis/gap_model.hpp"
+#include "calib/nlsq/nlsq.hpp"
+#include "calib/sim/sim_input.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "sequences/library.hpp"
 
 using namespace imucal;
@@ -127,7 +127,9 @@ TEST(Diagnosis, K2OnFactoryStdIsExplainedButNotSeparableFromAsymmetry) {
       EXPECT_TRUE(c.plausible) << c.name << " " << c.magnitude;
       EXPECT_LT(c.held_out_gap, d.held_out.gap_before) << c.name;
     }
-    if (c.in_ambiguous_set) EXPECT_FALSE(c.significant) << c.name;
+    if (c.in_ambiguous_set) {
+      EXPECT_FALSE(c.significant) << c.name;
+    }
   }
   // Either one, added, removes the gap on held-out segments.
   EXPECT_GT(d.held_out.gap_before, 10.0);

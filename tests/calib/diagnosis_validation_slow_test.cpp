@@ -9,8 +9,8 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "calib/diagnosis_validation.hpp"
-#include "calib/site_presets.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/diagnosis/diagnosis_validation.hpp"
 #include "sequences/library.hpp"
 
 using namespace imucal;

@@ -1,12 +1,12 @@
 // WGS-84 Earth model against published reference values (NIMA TR8350.2 / Groves).
-#include "calib/earth.hpp"
+#include "calib/core/earth.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "calib/conventions.hpp"
-#include "calib/strapdown.hpp"
+#include "calib/core/conventions.hpp"
+#include "calib/core/strapdown.hpp"
 
 using namespace imucal;
 using namespace imucal::calib;

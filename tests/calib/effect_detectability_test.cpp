@@ -3,14 +3,14 @@
 // (only gravity as reference); K2·f² and Kap·|f| coincide at 0 and ±1 g; a table-time offset has no
 // signature when encoder angles are used only at rest; a short run cannot tell a warm-up from a
 // bias, a longer one (factory-std) can.
-#include "calib/effect_detectability.hpp"
+#include "calib/diagnosis/effect_detectability.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <map>
 
-#include "calib/site_presets.hpp"
+#include "calib/core/site_presets.hpp"
 #include "sequences/library.hpp"
 
 using namespace imucal;

@@ -2,7 +2,7 @@
 // 9-parameter estimate with the delta-method σ reads a null effect as "≈ 3σ" (a null factory-std
 // run read a size effect of 900 ± 780 mm); the debiased norm reads it as consistent with 0 and
 // stays honest, (estimate − truth)/σ ≈ N(0, 1), once the effect stands out of the noise.
-#include "calib/effect_magnitude.hpp"
+#include "calib/diagnosis/effect_magnitude.hpp"
 
 #include <gtest/gtest.h>
 

@@ -3,7 +3,7 @@
 // textbook form of each effect) — not only a round trip. Runs use a perfect sensor (zero
 // calibration parameters) and, where noise is not the point, no noise, so the simulator's output is
 // the true increments plus the effect.
-#include "calib/effects.hpp"
+#include "calib/sim/effects.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,9 +11,9 @@
 #include <cmath>
 #include <vector>
 
-#include "calib/effects/quantisation.hpp"
-#include "calib/site_presets.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/sim/effects/quantisation.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "tests/support/hand_profile.hpp"
 
 using namespace imucal;

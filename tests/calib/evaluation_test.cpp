@@ -2,7 +2,7 @@
 // errors injected into the compensation, on a noisy simulation of a full-rank table sequence:
 // noise floors from the VRW/ARW spectra, bias and scale-factor errors from the rest geometry and
 // the rotations the table made, and a heading offset from the definition of eq. 51.
-#include "calib/evaluation.hpp"
+#include "calib/checks/evaluation.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,10 +10,10 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "calib/rotation.hpp"
-#include "calib/sim_input.hpp"
-#include "calib/site_presets.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/core/rotation.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/sim/sim_input.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "sequences/library.hpp"
 
 using namespace imucal;

@@ -9,12 +9,12 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "calib/ains.hpp"
-#include "calib/crlb.hpp"
-#include "calib/nlsq.hpp"
-#include "calib/sim_input.hpp"
-#include "calib/site_presets.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/ains/ains.hpp"
+#include "calib/checks/crlb.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/nlsq/nlsq.hpp"
+#include "calib/sim/sim_input.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "sequences/library.hpp"
 
 using namespace imucal;

@@ -6,10 +6,10 @@
 
 #include <cmath>
 
-#include "calib/calibration_pipeline.hpp"
-#include "calib/sim_input.hpp"
-#include "calib/site_presets.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/pipeline/calibration_pipeline.hpp"
+#include "calib/sim/sim_input.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
 

@@ -1,6 +1,6 @@
 // Field calibration on field data (issue #9): hand-placed rotations with imperfect angles and rest
-// times, no table log; at sea a drifting, rocking deck with GNSS fixes (calib/field_sim.hpp); the
-// rest periods found by the at-rest detector and the initial attitude by the coarse alignment,
+// times, no table log; at sea a drifting, rocking deck with GNSS fixes (calib/sim/field_sim.hpp);
+// the rest periods found by the at-rest detector and the initial attitude by the coarse alignment,
 // exactly as `imucal calibrate` does. Every parameter the setting can observe within 4σ of the
 // truth (in the accel-symmetric frame) and RMS(error/σ) in [0.7, 1.4] per group.
 // IMUCAL_MC_RUNS raises the count (CI runs the default).
@@ -9,11 +9,11 @@
 #include <cmath>
 #include <cstdlib>
 
-#include "calib/ains.hpp"
-#include "calib/body_frame.hpp"
-#include "calib/calibration_input.hpp"
-#include "calib/field_sim.hpp"
-#include "calib/site_presets.hpp"
+#include "calib/ains/ains.hpp"
+#include "calib/core/body_frame.hpp"
+#include "calib/core/calibration_input.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/sim/field_sim.hpp"
 #include "sequences/library.hpp"
 
 namespace imucal::calib {

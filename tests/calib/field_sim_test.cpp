@@ -1,15 +1,15 @@
-// Field-run simulator (calib/field_sim.hpp): physics checked against hand-derived values and an
+// Field-run simulator (calib/sim/field_sim.hpp): physics checked against hand-derived values and an
 // independent strapdown integration; placement, timing and GNSS statistics; refusals.
-#include "calib/field_sim.hpp"
+#include "calib/sim/field_sim.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "calib/conventions.hpp"
-#include "calib/rotation.hpp"
-#include "calib/site_presets.hpp"
-#include "calib/strapdown.hpp"
+#include "calib/core/conventions.hpp"
+#include "calib/core/rotation.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/core/strapdown.hpp"
 #include "sequences/library.hpp"
 
 namespace imucal::calib {

@@ -1,15 +1,16 @@
-// The legacy baseline (calib/legacy.hpp) against the table simulator's truth, brought into the
-// accel-symmetric frame by the polar decomposition (the legacy method does not know the housing).
-#include "calib/legacy.hpp"
+// The legacy baseline (calib/legacy/legacy.hpp) against the table simulator's truth, brought into
+// the accel-symmetric frame by the polar decomposition (the legacy method does not know the
+// housing).
+#include "calib/legacy/legacy.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "ains_test_support.hpp"
-#include "calib/body_frame.hpp"
-#include "calib/evaluation.hpp"
-#include "calib/sim_input.hpp"
+#include "calib/checks/evaluation.hpp"
+#include "calib/core/body_frame.hpp"
+#include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
 namespace {

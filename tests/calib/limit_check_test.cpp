@@ -1,14 +1,14 @@
-// Limit checks of one method's result (calib/limit_check.hpp): convergence, finite numbers, the
-// datasheet envelope, and the paper's metrics where no cross-check looks at them. The limits in
+// Limit checks of one method's result (calib/checks/limit_check.hpp): convergence, finite numbers,
+// the datasheet envelope, and the paper's metrics where no cross-check looks at them. The limits in
 // the expected messages are computed here from the options, not read back from the code.
-#include "calib/limit_check.hpp"
+#include "calib/checks/limit_check.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <stdexcept>
 
-#include "calib/truth_sim.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "plausible_result.hpp"
 
 using namespace imucal;

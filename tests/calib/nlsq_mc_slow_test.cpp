@@ -12,11 +12,11 @@
 #include <cstdlib>
 #include <string>
 
-#include "calib/calibration_input.hpp"
-#include "calib/nlsq.hpp"
-#include "calib/sim_input.hpp"
-#include "calib/site_presets.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/core/calibration_input.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/nlsq/nlsq.hpp"
+#include "calib/sim/sim_input.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "sequences/library.hpp"
 
 using namespace imucal;

@@ -1,7 +1,7 @@
 // NLSQ calibration (paper §V) against the truth simulator. Expectations come from the simulator's
 // injected parameters and from physics (noise-free data must be fitted exactly; with noise the
 // error must lie within the reported σ), never from the estimator's own output.
-#include "calib/nlsq.hpp"
+#include "calib/nlsq/nlsq.hpp"
 
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
@@ -13,16 +13,16 @@
 #include <string>
 #include <vector>
 
-#include "calib/calibration_input.hpp"
-#include "calib/imu_error_model.hpp"
-#include "calib/nlsq_preprocess.hpp"
-#include "calib/nlsq_residuals.hpp"
-#include "calib/rotation.hpp"
-#include "calib/sim_input.hpp"
-#include "calib/site_presets.hpp"
-#include "calib/strapdown.hpp"
-#include "calib/table_model.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/core/calibration_input.hpp"
+#include "calib/core/imu_error_model.hpp"
+#include "calib/core/rotation.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/core/strapdown.hpp"
+#include "calib/core/table_model.hpp"
+#include "calib/nlsq/nlsq_preprocess.hpp"
+#include "calib/nlsq/nlsq_residuals.hpp"
+#include "calib/sim/sim_input.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "sequences/library.hpp"
 #include "tests/support/hand_profile.hpp"
 

@@ -3,9 +3,9 @@
 // checks): the default unit's parameters with navigation-grade 1-σ uncertainties, converged.
 #include <string>
 
-#include "calib/calibration_input.hpp"
-#include "calib/conventions.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/core/calibration_input.hpp"
+#include "calib/core/conventions.hpp"
+#include "calib/sim/truth_sim.hpp"
 
 namespace imucal::calib::testing {
 

@@ -1,12 +1,12 @@
-// At-rest detection from the IMU data alone (calib/rest_detector.hpp), on field-simulator runs
+// At-rest detection from the IMU data alone (calib/core/rest_detector.hpp), on field-simulator runs
 // whose true rest spans are known: no false rest while the hand turns the unit, and at least 95 %
 // of the true rest time found — also on a drifting, rocking deck.
-#include "calib/rest_detector.hpp"
+#include "calib/core/rest_detector.hpp"
 
 #include <gtest/gtest.h>
 
-#include "calib/field_sim.hpp"
-#include "calib/site_presets.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/sim/field_sim.hpp"
 #include "sequences/library.hpp"
 
 namespace imucal::calib {

@@ -15,8 +15,8 @@
 #include <sstream>
 #include <string>
 
-#include "calib/crlb.hpp"
-#include "calib/site_presets.hpp"
+#include "calib/checks/crlb.hpp"
+#include "calib/core/site_presets.hpp"
 #include "sequences/library.hpp"
 #include "sequences/parser.hpp"
 #include "sequences/profile_generator.hpp"

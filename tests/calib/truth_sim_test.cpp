@@ -1,17 +1,17 @@
 // The truth simulator is checked against independent physics: fine-step integration of the table
 // kinematics (rates from TableModel::w_nb_b, not from attitude differences), closed-form values at
 // rest, and the statistics of the injected noise.
-#include "calib/truth_sim.hpp"
+#include "calib/sim/truth_sim.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <utility>
 
-#include "calib/imu_error_model.hpp"
-#include "calib/rotation.hpp"
-#include "calib/site_presets.hpp"
-#include "calib/strapdown.hpp"
+#include "calib/core/imu_error_model.hpp"
+#include "calib/core/rotation.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/core/strapdown.hpp"
 #include "sequences/library.hpp"
 #include "tests/support/hand_profile.hpp"
 
@@ -227,11 +227,11 @@ std::pair<double, double> weighted_sums(const SimResult& r) {
 // numbers in: with every catalogue effect off, the output must stay bit-identical to the simulator
 // as it was before the effects catalogue reached it (commit 786313e). The numbers below were
 // printed with %.17g by a stand-alone program running this exact computation against that commit's
-// calib/truth_*.cpp, built with the project's Release flags (GCC -O3, libstdc++); the current code
-// gave the same digits. They depend on the toolchain (std::normal_distribution, libm): on another
-// compiler or standard library a failure here means "recompute", not necessarily a bug.
-// One deliberate change since: rotvec_to_matrix forms I + aK + bK² element by element (issue #11,
-// a quarter of the arithmetic), which moved two of the six sums in their last digits. The test
+// calib/truth_*.cpp (now calib/sim/), built with the project's Release flags (GCC -O3, libstdc++);
+// the current code gave the same digits. They depend on the toolchain (std::normal_distribution,
+// libm): on another compiler or standard library a failure here means "recompute", not necessarily
+// a bug. One deliberate change since: rotvec_to_matrix forms I + aK + bK² element by element (issue
+// #11, a quarter of the arithmetic), which moved two of the six sums in their last digits. The test
 // holds the current digits exactly and those of 786313e to 1e-14 relative (round-off only).
 // Three runs of the `short` sequence (517 s, 51 700 samples), seed 20261125, default_unit() (its
 // values unchanged since that commit): with its noise (ARW, VRW, LSBs), without noise (no

@@ -1,6 +1,6 @@
 // The streaming truth simulator against the batch one (same physics, so the same increments when
 // both see the same motion), and its noise against the NoiseModel it was given.
-#include "calib/truth_stream.hpp"
+#include "calib/sim/truth_stream.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,9 +10,9 @@
 #include <stdexcept>
 #include <vector>
 
-#include "calib/earth.hpp"
-#include "calib/effects.hpp"
-#include "calib/site_presets.hpp"
+#include "calib/core/earth.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/sim/effects.hpp"
 #include "tests/support/hand_profile.hpp"
 
 using namespace imucal;

@@ -11,11 +11,11 @@
 #include <fstream>
 #include <sstream>
 
-#include "calib/calibration_input.hpp"
-#include "calib/conventions.hpp"
-#include "calib/earth.hpp"
-#include "calib/rotation.hpp"
-#include "calib/sim_input.hpp"
+#include "calib/core/calibration_input.hpp"
+#include "calib/core/conventions.hpp"
+#include "calib/core/earth.hpp"
+#include "calib/core/rotation.hpp"
+#include "calib/sim/sim_input.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/run_archive.hpp"

@@ -10,9 +10,9 @@
 #include <fstream>
 #include <thread>
 
-#include "calib/earth.hpp"
-#include "calib/table_model.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/core/earth.hpp"
+#include "calib/core/table_model.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/imu/imu_codec.hpp"
 #include "drivers/sim/imu_can_node.hpp"

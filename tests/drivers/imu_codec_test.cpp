@@ -1,5 +1,7 @@
 // IMU CAN codec: LSB/range bounds of DESIGN §4, bit layout, round trips, quantisation carry, and the
 // decoder's reassembly and counters under loss, corruption, reordering, duplication and resets.
+#include "drivers/imu/imu_codec.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -8,8 +10,7 @@
 #include <set>
 #include <vector>
 
-#include "calib/conventions.hpp"
-#include "drivers/imu/imu_codec.hpp"
+#include "calib/core/conventions.hpp"
 
 namespace imucal::imu {
 namespace {

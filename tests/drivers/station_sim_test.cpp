@@ -16,9 +16,9 @@
 #include <thread>
 #include <vector>
 
-#include "calib/earth.hpp"
-#include "calib/imu_error_model.hpp"
-#include "calib/rotation.hpp"
+#include "calib/core/earth.hpp"
+#include "calib/core/imu_error_model.hpp"
+#include "calib/core/rotation.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/imu/imu_codec.hpp"
 #include "drivers/sim/imu_can_node.hpp"

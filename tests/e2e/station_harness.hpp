@@ -17,9 +17,10 @@
 // never a skip.
 #include <fcntl.h>
 #include <grp.h>
+#include <gtest/gtest.h>
 #include <sched.h>
-#include <sys/prctl.h>
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/types.h>
@@ -38,6 +39,7 @@
 #include <iomanip>
 #include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <regex>
 #include <set>
@@ -47,12 +49,9 @@
 #include <thread>
 #include <vector>
 
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
-
-#include "calib/earth.hpp"
+#include "calib/core/earth.hpp"
+#include "calib/core/site_presets.hpp"
 #include "db/archive/run_archive.hpp"
-#include "calib/site_presets.hpp"
 #include "db/repository.hpp"
 #include "db/sqlite_repository.hpp"
 
@@ -885,8 +884,8 @@ inline double num(const json& j, const std::string& key) {
 
 /// Rest rows of an archive whose accelerometer does not see gravity where the table says "down" is.
 /// Physics, independent of the calibration: at rest the specific force is -g along the body "down"
-/// direction, and for the default geometry (calib/table_model.hpp; derivation in the comment of
-/// sequences/short.toml) down in body = (sin o sin i, sin o cos i, cos o). Biases (µg), scale
+/// direction, and for the default geometry (calib/core/table_model.hpp; derivation in the comment
+/// of sequences/short.toml) down in body = (sin o sin i, sin o cos i, cos o). Biases (µg), scale
 /// errors (ppm), misalignments (arcsec) and noise (~1e-3 m/s² per 10 ms sample) are far below the
 /// 0.05 m/s² tolerance; a row labelled with the wrong pose is off by ~g·√2.
 struct RestCheck {

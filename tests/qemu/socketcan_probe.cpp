@@ -62,7 +62,7 @@
 #include <thread>
 #include <vector>
 
-#include "calib/site_presets.hpp"
+#include "calib/core/site_presets.hpp"
 #include "db/archive/run_archive.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/imu/candump_log.hpp"

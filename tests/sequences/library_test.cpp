@@ -1,6 +1,6 @@
 // Library: name resolution, hashing, load_profile, and the shipped sequences' content: they
 // parse, validate, fit their time budgets, and exercise every body axis (checked with the table
-// geometry formula of calib/table_model.hpp, evaluated here independently of calib's code).
+// geometry formula of calib/core/table_model.hpp, evaluated here independently of calib's code).
 #include "sequences/library.hpp"
 
 #include <gtest/gtest.h>
@@ -14,7 +14,7 @@
 #include <set>
 #include <string>
 
-#include "calib/table_model.hpp"
+#include "calib/core/table_model.hpp"
 #include "sequences/parser.hpp"
 #include "sequences/profile_generator.hpp"
 
@@ -181,7 +181,7 @@ TEST(Library, LoadProfileRejectsInvalidSequencesWithFileAndLine) {
 }
 
 // ---------------------------------------------------------------- shipped sequences
-// Table geometry formula of calib/table_model.hpp, evaluated here from TableGeometry's fields:
+// Table geometry formula of calib/core/table_model.hpp, evaluated here from TableGeometry's fields:
 // C_bn = Rz(heading) R(a_outer, outer) R(a_inner, inner) C_bp.
 Eigen::Matrix3d rot(const Eigen::Vector3d& axis, double angle) {
   return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();

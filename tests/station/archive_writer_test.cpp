@@ -17,8 +17,8 @@
 #include <fstream>
 #include <thread>
 
-#include "calib/conventions.hpp"
-#include "calib/site_presets.hpp"
+#include "calib/core/conventions.hpp"
+#include "calib/core/site_presets.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/run_archive.hpp"

@@ -17,8 +17,8 @@
 #include <random>
 #include <thread>
 
-#include "calib/conventions.hpp"
-#include "calib/site_presets.hpp"
+#include "calib/core/conventions.hpp"
+#include "calib/core/site_presets.hpp"
 #include "db/archive/run_archive.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/imu/candump_log.hpp"

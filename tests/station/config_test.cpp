@@ -11,7 +11,7 @@
 #include <regex>
 #include <sstream>
 
-#include "calib/conventions.hpp"
+#include "calib/core/conventions.hpp"
 #include "drivers/turntable/register_map.hpp"
 
 namespace imucal::station {

@@ -19,8 +19,8 @@
 #include <fstream>
 #include <thread>
 
-#include "calib/site_presets.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "db/archive/run_archive.hpp"
 #include "drivers/sim/station_sim.hpp"
 #include "sequences/library.hpp"

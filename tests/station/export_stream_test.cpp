@@ -12,7 +12,7 @@
 #include <string>
 #include <thread>
 
-#include "calib/param_set.hpp"
+#include "calib/core/param_set.hpp"
 #include "db/export.hpp"
 #include "db/sqlite_repository.hpp"
 #include "station/control_client.hpp"

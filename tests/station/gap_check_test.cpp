@@ -11,8 +11,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "calib/diagnosis.hpp"
-#include "calib/nlsq.hpp"
+#include "calib/diagnosis/diagnosis.hpp"
+#include "calib/nlsq/nlsq.hpp"
 #include "db/archive/run_archive.hpp"
 #include "station/config.hpp"
 #include "tests/support/temp_dir.hpp"

@@ -16,9 +16,9 @@
 #include <mutex>
 #include <thread>
 
-#include "calib/diagnosis_validation.hpp"
-#include "calib/effect_detectability.hpp"
-#include "calib/site_presets.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/diagnosis/diagnosis_validation.hpp"
+#include "calib/diagnosis/effect_detectability.hpp"
 #include "db/archive/run_archive.hpp"
 #include "db/sqlite_repository.hpp"
 #include "sequences/library.hpp"

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "calib/param_set.hpp"
+#include "calib/core/param_set.hpp"
 #include "db/archive/param_json.hpp"
 #include "db/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"

@@ -15,7 +15,7 @@
 #include <fstream>
 #include <thread>
 
-#include "calib/param_set.hpp"
+#include "calib/core/param_set.hpp"
 #include "db/archive/run_archive.hpp"
 #include "db/sqlite_repository.hpp"
 #include "drivers/sim/station_sim.hpp"

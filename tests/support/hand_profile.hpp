@@ -3,7 +3,7 @@
 // rests and single-axis trapezoidal moves (accelerate, cruise, decelerate).
 #include <cmath>
 
-#include "calib/conventions.hpp"
+#include "calib/core/conventions.hpp"
 #include "sequences/motion_profile.hpp"
 
 namespace imucal::test_support {

@@ -16,7 +16,7 @@
 #include <sstream>
 #include <string>
 
-#include "calib/rotation.hpp"
+#include "calib/core/rotation.hpp"
 
 namespace fs = std::filesystem;
 

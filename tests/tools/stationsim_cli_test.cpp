@@ -3,8 +3,8 @@
 // command/sequence handshake, clean exit on SIGTERM with the statistics file, truth.json, and
 // refusal of bad flags and unit files (exit 2, message naming them). mbpoll missing = failure
 // (tools/setup.sh installs it), not a skip.
-#include <gtest/gtest.h>
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -19,12 +19,12 @@
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <sstream>
-#include <utility>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
-#include "calib/truth_sim.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "db/archive/unit_file.hpp"
 #include "drivers/turntable/register_map.hpp"
 

@@ -6,9 +6,9 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
-#include "calib/diagnosis.hpp"
-#include "calib/effect_detectability.hpp"
-#include "calib/site_presets.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/diagnosis/diagnosis.hpp"
+#include "calib/diagnosis/effect_detectability.hpp"
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
 

@@ -1,8 +1,8 @@
 #pragma once
 // `imucal crlb --sequence S --effects [--json]`: for every effect of the catalogue, the smallest
 // magnitude the sequence detects and whether the diagnosis can separate it from the calibration
-// parameters and from the other effects (calib/effect_detectability.hpp); for an effect it cannot
-// separate, the sequence change that would.
+// parameters and from the other effects (calib/diagnosis/effect_detectability.hpp); for an effect
+// it cannot separate, the sequence change that would.
 #include <string>
 
 namespace imucal::tools {

@@ -6,8 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "calib/diagnosis.hpp"
-#include "calib/nlsq.hpp"
+#include "calib/diagnosis/diagnosis.hpp"
+#include "calib/nlsq/nlsq.hpp"
 #include "db/archive/diagnosis_json.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/run_archive.hpp"

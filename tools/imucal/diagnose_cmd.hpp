@@ -1,7 +1,7 @@
 #pragma once
 // `imucal diagnose DIR [--json] [--candidates NAME,...]`: the sim-to-real gap diagnosis
-// (calib/diagnosis.hpp) of a run archive — simulated, recorded by stationd or assembled from
-// another source's CSV files. The model it tests is the run's own NLSQ calibration with the
+// (calib/diagnosis/diagnosis.hpp) of a run archive — simulated, recorded by stationd or assembled
+// from another source's CSV files. The model it tests is the run's own NLSQ calibration with the
 // archive's declared noise.
 #include <CLI/CLI.hpp>
 #include <string>

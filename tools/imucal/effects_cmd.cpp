@@ -4,7 +4,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
-#include "calib/effects.hpp"
+#include "calib/sim/effects.hpp"
 
 namespace imucal::tools {
 

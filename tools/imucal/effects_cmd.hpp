@@ -1,7 +1,8 @@
 #pragma once
-// `imucal effects [--json]`: the effects catalogue (calib/effects.hpp, DESIGN §7) as test engineers
-// read it — each effect's name (as unit files, truth.json, --effect and reports use it), its model,
-// its signature, and its parameters with SI and human units and a typical navigation-grade value.
+// `imucal effects [--json]`: the effects catalogue (calib/sim/effects.hpp, DESIGN §7) as test
+// engineers read it — each effect's name (as unit files, truth.json, --effect and reports use it),
+// its model, its signature, and its parameters with SI and human units and a typical
+// navigation-grade value.
 namespace imucal::tools {
 
 int cmd_effects(bool json);

@@ -21,11 +21,11 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
-#include "calib/calibration_pipeline.hpp"
-#include "calib/crlb.hpp"
-#include "calib/field_sim.hpp"
-#include "calib/site_presets.hpp"
-#include "calib/truth_sim.hpp"
+#include "calib/checks/crlb.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/pipeline/calibration_pipeline.hpp"
+#include "calib/sim/field_sim.hpp"
+#include "calib/sim/truth_sim.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/param_json.hpp"
 #include "db/archive/run_archive.hpp"
@@ -127,7 +127,7 @@ archive::RunArchive simulated_archive(const SimulateArgs& a, const calib::UnitMo
 }
 
 /// Land or sea: hand-placed rotations through the sequence's rest positions, no table log, at sea
-/// a drifting, rocking deck and GNSS fixes (calib/field_sim.hpp). No surveyed gravity.
+/// a drifting, rocking deck and GNSS fixes (calib/sim/field_sim.hpp). No surveyed gravity.
 archive::RunArchive simulate_field_archive(const SimulateArgs& a, const calib::UnitModel& unit,
                                            const sequences::MotionProfile& profile,
                                            const std::string& seq_path) {

@@ -7,8 +7,8 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-#include "calib/paper_tables.hpp"
-#include "calib/site_presets.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/paper/paper_tables.hpp"
 #include "sequences/library.hpp"
 #include "tools/imucal/progress_line.hpp"
 

@@ -1,10 +1,11 @@
 #pragma once
-// `imucal paper-tables [--units 6] [--seed S] [--sequence factory-std] [--effects none|typical|LIST]
+// `imucal paper-tables [--units 6] [--seed S] [--sequence factory-std] [--effects
+// none|typical|LIST]
 // [--threads N] [--json]`:
-// the paper's Tables I–IV (calib/paper_tables.hpp) on simulated units, in the paper's layout and
-// beside its published figures, with a progress line on stderr. Exit 0 when the paper's findings
-// hold in kind (AINS within 25 % across the three settings on both metrics; the legacy method
-// worse on orientation than the factory AINS), 3 otherwise.
+// the paper's Tables I–IV (calib/paper/paper_tables.hpp) on simulated units, in the paper's layout
+// and beside its published figures, with a progress line on stderr. Exit 0 when the paper's
+// findings hold in kind (AINS within 25 % across the three settings on both metrics; the legacy
+// method worse on orientation than the factory AINS), 3 otherwise.
 #include <CLI/CLI.hpp>
 #include <cstdint>
 #include <string>

@@ -5,7 +5,7 @@
 // (3) each rest period's orientation residual (eq. 51–52). No plotting library: plain SVG.
 #include <string>
 
-#include "calib/calibration_pipeline.hpp"
+#include "calib/pipeline/calibration_pipeline.hpp"
 
 namespace imucal::tools {
 

@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <string>
 
-#include "calib/body_frame.hpp"
+#include "calib/core/body_frame.hpp"
 #include "db/archive/param_json.hpp"
 
 namespace imucal::tools {

@@ -5,8 +5,8 @@
 #include <optional>
 #include <ostream>
 
-#include "calib/calibration_pipeline.hpp"
-#include "calib/crlb.hpp"
+#include "calib/checks/crlb.hpp"
+#include "calib/pipeline/calibration_pipeline.hpp"
 
 namespace imucal::tools {
 

@@ -6,8 +6,8 @@
 #include <set>
 #include <sstream>
 
-#include "calib/diagnosis_validation.hpp"
-#include "calib/site_presets.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/diagnosis/diagnosis_validation.hpp"
 #include "sequences/library.hpp"
 #include "tools/imucal/progress_line.hpp"
 

@@ -1,8 +1,8 @@
 #pragma once
 // `imucal validate-diagnosis [--runs N] [--nulls N] [--pairs N] [--seed S] [--sequence S]
 // [--effects a,b] [--threads N] [--json]`: the blind validation of the gap diagnosis
-// (calib/diagnosis_validation.hpp) — confusion matrix, top-1 accuracy, false alarms on null runs,
-// median held-out shrinkage, pairs named — with a progress line on stderr.
+// (calib/diagnosis/diagnosis_validation.hpp) — confusion matrix, top-1 accuracy, false alarms on
+// null runs, median held-out shrinkage, pairs named — with a progress line on stderr.
 #include <CLI/CLI.hpp>
 #include <cstdint>
 #include <string>

@@ -23,10 +23,10 @@
 #include <string>
 #include <vector>
 
-#include "calib/conventions.hpp"
-#include "calib/earth.hpp"
-#include "calib/effects.hpp"
-#include "calib/site_presets.hpp"
+#include "calib/core/conventions.hpp"
+#include "calib/core/earth.hpp"
+#include "calib/core/site_presets.hpp"
+#include "calib/sim/effects.hpp"
 #include "db/archive/unit_file.hpp"
 #include "drivers/sim/station_sim.hpp"
 

@@ -1,0 +1,180 @@
+#include "calib/ains/ains.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "calib/ains/ains_filter.hpp"
+#include "calib/core/coarse_alignment.hpp"
+#include "calib/core/conventions.hpp"
+#include "calib/core/rotation.hpp"
+
+namespace imucal::calib {
+
+ParamSet default_prior_sigma() {
+  ParamSet p;
+  p.accel_bias_mps2.setConstant(5e-3 * kStandardGravity_mps2);  // 5 mg
+  p.accel_M.setConstant(5000e-6);                               // 5000 ppm / 5 mrad
+  p.gyro_bias_radps.setConstant(1.0 * kDegPerHourToRadPerSec);  // 1 deg/h
+  p.gyro_M.setConstant(5000e-6);
+  p.table_misalignment_rad.setConstant(1e-3);  // 1 mrad
+  return p;
+}
+
+ParamSet effective_prior_sigma(const AinsOptions& opt) {
+  ParamVector p = opt.prior_sigma.to_vector();
+  const ParamVector d = default_prior_sigma().to_vector();
+  for (int i = 0; i < ParamSet::kSize; ++i)
+    if (!(p(i) > 0.0)) p(i) = d(i);
+  return ParamSet::from_vector(p);
+}
+
+namespace {
+
+/// Field settings: the site for the alignment (at sea the first fix's position).
+Site alignment_site(const CalibrationInput& in) {
+  Site site = in.site;
+  if (in.setting == Setting::kSea && !in.gnss.empty()) {
+    site.lat_rad = in.gnss.front().lat_rad;
+    site.lon_rad = in.gnss.front().lon_rad;
+  }
+  return site;
+}
+
+/// What a field result cannot say, stated with it (issue #9: "say so in the output").
+void describe_field_frame(CalibrationResult& res) {
+  res.body_frame = BodyFrame::kAccelSymmetric;
+  for (int i = 24; i < ParamSet::kSize; ++i) res.observable[static_cast<size_t>(i)] = false;
+  const std::string where = res.setting == Setting::kSea ? "at sea" : "on land";
+  res.unobservable_notes.push_back(
+      "housing orientation: not observable " + where +
+      " (no attitude reference); misalignments are relative to the accelerometer triad's own "
+      "orthogonal frame (accel_M symmetric), not to the housing");
+  res.unobservable_notes.push_back("table misalignment: no table " + where + ", not estimated");
+}
+
+/// The smoothed ψ(0) of a pass in units of its σ (how far the initial attitude still moves).
+double initial_attitude_update_sigma(const SmoothedNav& s0) {
+  return s0.psi_rad.cwiseAbs().cwiseQuotient(s0.sigma_psi_rad.cwiseMax(1e-300)).maxCoeff();
+}
+
+}  // namespace
+
+namespace {
+
+/// The iterated passes (steps 1-4 of ains.hpp): each pass linearises about the last estimate
+/// until every update is below convergence_sigma_ratio·σ. `epochs` receives the last pass's
+/// epochs when `keep_epochs` (the field settings need them in every pass: the smoother re-centres
+/// the initial attitude); otherwise no epoch is recorded, which is most of a factory pass's
+/// memory and a quarter of its time.
+ains::PassResult iterate_passes(const ains::PreparedInput& pin, const AinsOptions& opt,
+                                bool keep_epochs, ains::PassConfig& cfg, AinsResult& out,
+                                std::vector<ains::EpochRecord>& epochs) {
+  const bool field = pin.in->setting != Setting::kFactory;
+  CalibrationResult& res = out.calibration;
+  ains::PassResult pass;
+  for (int it = 1; it <= opt.max_iterations; ++it) {
+    pass = ains::run_pass(pin, opt, cfg, keep_epochs || field ? &epochs : nullptr);
+    const ParamVector delta = ains::sensor_states_to_params(pass.x);
+    const ParamCovariance cov = ains::sensor_cov_to_params(pass.P);
+    if (!delta.allFinite() || !cov.allFinite())
+      throw std::runtime_error("AINS: non-finite parameter update in pass " + std::to_string(it));
+    const ParamVector sigma = cov.diagonal().cwiseMax(1e-300).cwiseSqrt();
+    double ratio = delta.cwiseAbs().cwiseQuotient(sigma).maxCoeff();
+    if (field) {
+      // The initial attitude is a state like the parameters: re-centre the nominal on its
+      // smoothed value (the prior stays centred on the coarse alignment).
+      const std::vector<SmoothedNav> sm = ains::rts_smooth(epochs, nullptr);
+      ratio = std::max(ratio, initial_attitude_update_sigma(sm.front()));
+      cfg.C_bn0 = sm.front().nav.C_bn;
+      cfg.psi0_prior_mean = matrix_to_rotvec(out.coarse_C_bn * cfg.C_bn0.transpose());
+    }
+    out.update_norm_sigma.push_back(ratio);
+    cfg.nominal = ParamSet::from_vector(cfg.nominal.to_vector() + delta);
+    res.cov = cov;
+    res.iterations = it;
+    if (ratio < opt.convergence_sigma_ratio) {
+      res.converged = true;
+      break;
+    }
+  }
+  return pass;
+}
+
+/// What the result's reader must know: no convergence, innovations too large, a noise model the
+/// filter does not represent.
+void add_warnings(const CalibrationInput& in, const AinsOptions& opt, AinsResult& out) {
+  CalibrationResult& res = out.calibration;
+  if (!res.converged) {
+    std::ostringstream os;
+    os << "AINS did not converge in " << opt.max_iterations
+       << " passes: last update max |dtheta|/sigma = " << out.update_norm_sigma.back();
+    res.warnings.push_back(os.str());
+  }
+  // Each scalar innovation has expectation 1 of ν²/s if the noise model fits; a mean far above
+  // it means the data disagree with the model (unmodelled effects, wrong noise spec, bad aiding).
+  if (out.mean_nis > 5.0) {
+    std::ostringstream os;
+    os << "innovations larger than the noise model predicts: mean NIS " << out.mean_nis
+       << " (expected <= 1); sigma may be optimistic";
+    res.warnings.push_back(os.str());
+  }
+  if (in.noise.gyro_bias_instability_radps > 0.0 || in.noise.accel_bias_instability_mps2 > 0.0)
+    res.warnings.push_back(
+        "noise model has bias instability; AINS models biases as random constants (paper §IV-A)");
+}
+
+/// The calibration, and with `smooth` the smoother's navigation output of the last pass.
+AinsResult run_ains(const CalibrationInput& in, const AinsOptions& opt, bool smooth) {
+  const auto t_start = std::chrono::steady_clock::now();
+  const ains::PreparedInput pin = ains::prepare_input(in, opt);
+  const bool field = in.setting != Setting::kFactory;
+
+  ains::PassConfig cfg;
+  cfg.prior_sigma = effective_prior_sigma(opt);
+  cfg.prior_mean = ParamVector::Zero();
+  cfg.nominal = ParamSet::from_vector(cfg.prior_mean);
+
+  AinsResult out;
+  if (field) {
+    // Levelling and gyrocompassing on the first rest, from scratch (no reference, no prior).
+    out.coarse_C_bn = coarse_align(in.imu, pin.first_rest.begin, pin.first_rest.end,
+                                   alignment_site(in), cfg.nominal, in.noise.vrw_mps_per_sqrt_s)
+                          .C_bn;
+    cfg.C_bn0 = out.coarse_C_bn;
+  }
+  CalibrationResult& res = out.calibration;
+  res.method = "ains";
+  res.setting = in.setting;
+  std::vector<ains::EpochRecord> epochs;
+  const ains::PassResult pass = iterate_passes(pin, opt, smooth, cfg, out, epochs);
+  res.params = cfg.nominal;
+  res.sigma = sigma_from_covariance(res.cov);
+  out.num_updates = pass.num_updates;
+  out.mean_nis = pass.nis_count ? pass.nis_sum / static_cast<double>(pass.nis_count) : 0.0;
+  if (smooth) {
+    out.smoothed = ains::rts_smooth(epochs, &out.smoother_param_mismatch_sigma);
+    out.initial_C_bn = out.smoothed.front().nav.C_bn;
+  } else if (field) {
+    out.initial_C_bn = cfg.C_bn0;  // the last pass's smoothed initial attitude
+  }
+  if (field) describe_field_frame(res);
+  add_warnings(in, opt, out);
+  res.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return out;
+}
+
+}  // namespace
+
+AinsResult calibrate_ains_detailed(const CalibrationInput& in, const AinsOptions& opt) {
+  return run_ains(in, opt, /*smooth=*/true);
+}
+
+CalibrationResult calibrate_ains(const CalibrationInput& in, const AinsOptions& opt) {
+  // The smoothed navigation states are not part of a calibration: no RTS pass, no epoch records.
+  return run_ains(in, opt, /*smooth=*/false).calibration;
+}
+
+}  // namespace imucal::calib

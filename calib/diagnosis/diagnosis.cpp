@@ -1,0 +1,698 @@
+#include "calib/diagnosis/diagnosis.hpp"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+
+#include "calib/core/chi2.hpp"
+#include "calib/diagnosis/effect_magnitude.hpp"
+#include "calib/diagnosis/gap_fit.hpp"
+#include "calib/diagnosis/gap_linearisation.hpp"
+#include "calib/diagnosis/simulated_twin.hpp"
+#include "calib/diagnosis/stochastic_candidates.hpp"
+
+namespace imucal::calib {
+
+namespace {
+
+/// A correlation as people read it: three decimals ("0.977", not "0.977463").
+std::string three_digits(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", x);
+  return buf;
+}
+
+/// The linearised problem plus the held-out folds.
+struct Problem {
+  const GapModel& model;
+  const GapLinearisation& lin;
+  const Eigen::VectorXd& r0;
+  const Eigen::VectorXd& r0_raw;
+  const Eigen::MatrixXd& Jb;
+  const Eigen::MatrixXd& Jb_raw;
+  std::vector<std::vector<int>> folds;
+};
+
+std::vector<std::vector<int>> make_folds(const GapModel& m, int k) {
+  const auto& segs = m.segments();
+  size_t rests = 0;
+  for (const auto& s : segs) rests += s.kind == GapSegment::Kind::kRest ? 1 : 0;
+  const int K = std::max(2, std::min<int>(k, static_cast<int>(rests)));
+  std::vector<std::vector<int>> folds(static_cast<size_t>(K));
+  for (size_t s = 0; s < segs.size(); ++s) {
+    // A rest and the move after it go together (interleaved folds: no extrapolation in time).
+    const size_t f = segs[s].rest_a % static_cast<size_t>(K);
+    for (int r = 0; r < kGapRowsPerSegment; ++r)
+      folds[f].push_back(kGapRowsPerSegment * static_cast<int>(s) + r);
+  }
+  return folds;
+}
+
+Eigen::MatrixXd hcat(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B) {
+  Eigen::MatrixXd M(A.rows(), A.cols() + B.cols());
+  M << A, B;
+  return M;
+}
+
+std::vector<SegmentGap> localise(const Problem& p, const GlsFit& fit) {
+  const Eigen::VectorXd e_raw = p.r0_raw + p.Jb_raw * fit.x;
+  const Eigen::VectorXd e_w = p.r0 + p.Jb * fit.x;
+  const Eigen::MatrixXd Jcov = p.Jb_raw * fit.cov;
+  const Eigen::MatrixXd JcovW = p.Jb * fit.cov;
+  std::vector<SegmentGap> out;
+  for (size_t s = 0; s < p.model.segments().size(); ++s) {
+    SegmentGap g;
+    g.segment = p.model.segments()[s];
+    const int r0 = kGapRowsPerSegment * static_cast<int>(s);
+    const Block6& P = p.model.covariance(s);
+    double leverage = 0.0;
+    for (int c = 0; c < kGapRowsPerSegment; ++c) {
+      const int r = r0 + c;
+      // Predicted spread of the post-fit residual: P_ii - (J Cov Jᵀ)_ii.
+      const double var = P(c, c) - Jcov.row(r).dot(p.Jb_raw.row(r));
+      g.residual_si[static_cast<size_t>(c)] = e_raw(r);
+      g.z[static_cast<size_t>(c)] = e_raw(r) / std::sqrt(std::max(var, 1e-6 * P(c, c)));
+      g.nis += e_w(r) * e_w(r);
+      leverage += JcovW.row(r).dot(p.Jb.row(r));
+    }
+    g.nis_expected = kGapRowsPerSegment - leverage;
+    g.p_value = chi2_survival(g.nis * kGapRowsPerSegment / std::max(g.nis_expected, 1e-3),
+                              kGapRowsPerSegment);
+    out.push_back(g);
+  }
+  return out;
+}
+
+/// The simulated twin through the same residual model, refitted with the same Jacobian (same
+/// trajectory, same parameters): its overall χ²/dof and per-segment NIS beside the real ones.
+void compare_with_twin(DiagnosisResult& d, const DiagnosisInput& in, const Problem& p,
+                       const DiagnosisOptions& opt) {
+  const DiagnosisInput twin = simulated_twin(in, d.base, opt.twin_seed);
+  const GapModel tm(twin, opt.min_rest_samples);
+  if (tm.rows() != p.model.rows()) return;  // same rest flags, so never; be safe
+  const Eigen::VectorXd r = tm.whiten(tm.residuals(d.base, Effects{}));
+  const GlsFit f = gls_fit(r, p.Jb);
+  d.twin_gap = f.chi2 / f.dof;
+  const Eigen::VectorXd e = r + p.Jb * f.x;
+  for (size_t s = 0; s < d.segments.size(); ++s)
+    d.segments[s].nis_twin =
+        e.segment<kGapRowsPerSegment>(kGapRowsPerSegment * static_cast<int>(s)).squaredNorm();
+}
+
+std::string base_names(const std::vector<int>& idx) {
+  std::string s;
+  for (int i : idx) s += (s.empty() ? "" : ", ") + param_info(i).name;
+  return s;
+}
+
+/// Fit one candidate jointly with the base (in its separable subspace) and score it.
+CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, double chi2_0,
+                                const DiagnosisOptions& opt, Eigen::MatrixXd& J_eff) {
+  const EffectInfo& e = effect_info(c.id);
+  CandidateResult r;
+  r.id = c.id;
+  r.name = e.name;
+  r.unit = e.magnitude_unit();
+  // A direction whose typical-size effect moves the whitened residuals by less than 0.01 (χ² 1e-4)
+  // has no signature at all on this sequence.
+  const Separability sep = separability(p.Jb, c.J, opt.separability_limit, 1e-4);
+  r.max_correlation = sep.max_correlation;
+  const int n = static_cast<int>(c.J.cols());
+  if (sep.basis.cols() == 0) {
+    std::ostringstream os;
+    os << "not separable on this sequence: ";
+    if (sep.no_signature == n)
+      os << "it changes no rest or move residual (no signature)";
+    else
+      os << "its parameters correlate "
+         << three_digits(std::max(sep.max_correlation, opt.separability_limit)) << " > "
+         << opt.separability_limit << " with " << base_names(sep.aliases);
+    r.note = os.str();
+    r.value_si = Eigen::VectorXd::Zero(e.size());
+    return r;
+  }
+  if (sep.basis.cols() < n) {
+    std::ostringstream os;
+    os << "partly separable: " << sep.basis.cols() << " of " << n << " parameter directions fitted";
+    if (!sep.aliases.empty()) os << " (the others alias " << base_names(sep.aliases) << ")";
+    r.note = os.str();
+  }
+  r.separable = true;
+  r.k = static_cast<int>(sep.basis.cols());
+  J_eff = c.J * sep.basis;
+  const GlsFit fit = gls_fit(p.r0, hcat(p.Jb, J_eff));
+  r.lr = std::max(0.0, chi2_0 - fit.chi2);
+  r.p_value = chi2_survival(r.lr, r.k);
+  r.bic_gain = r.lr - r.k * std::log(static_cast<double>(p.r0.size()));
+  // Back to the effect's SI parameters: x = scale ⊙ (basis α).
+  const Eigen::VectorXd alpha = fit.x.tail(r.k);
+  const Eigen::MatrixXd cov_a = fit.cov.bottomRightCorner(r.k, r.k);
+  const Eigen::MatrixXd B = c.scale.asDiagonal() * sep.basis;
+  const Eigen::VectorXd x = B * alpha;
+  const Eigen::MatrixXd cov_x = B * cov_a * B.transpose();
+  r.value_si = Eigen::VectorXd::Zero(e.size());
+  Eigen::VectorXd sigma_si = Eigen::VectorXd::Zero(e.size());
+  for (int k = 0; k < n; ++k) {
+    r.value_si(c.param_index[static_cast<size_t>(k)]) = x(k);
+    sigma_si(c.param_index[static_cast<size_t>(k)]) = std::sqrt(std::max(0.0, cov_x(k, k)));
+  }
+  if (c.tau_s > 0.0) r.value_si(e.size() - 1) = c.tau_s;
+  for (int j = 0; j < e.size(); ++j) {
+    const EffectParamInfo& pi = e.params[static_cast<size_t>(j)];
+    r.params.push_back({pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human,
+                        pi.shape ? 0.0 : sigma_si(j) * pi.si_to_human});
+  }
+  // Magnitude and its σ. The magnitude is a norm of scaled parameters, |s ⊙ v|; with two or more
+  // fitted components it is debiased for their noise (calib/diagnosis/effect_magnitude.hpp), with
+  // one it is |x| ± σ.
+  Eigen::VectorXd scale_h(n);
+  for (int k = 0; k < n; ++k) {
+    Eigen::VectorXd unit = Eigen::VectorXd::Zero(e.size());
+    unit(c.param_index[static_cast<size_t>(k)]) = 1.0;
+    scale_h(k) = e.magnitude(unit);
+  }
+  const Eigen::VectorXd y = scale_h.cwiseProduct(x);
+  const Eigen::MatrixXd Sy = scale_h.asDiagonal() * cov_x * scale_h.asDiagonal();
+  if ((scale_h.array() > 0.0).count() >= 2) {
+    const NormEstimate m = debiased_norm(y, Sy);
+    r.magnitude = m.value;
+    r.magnitude_sigma = m.sigma;
+  } else {
+    r.magnitude = y.norm();
+    r.magnitude_sigma = std::sqrt(std::max(0.0, Sy.sum()));
+  }
+  try {
+    r.held_out_gap = held_out_gap(p.r0, hcat(p.Jb, J_eff), p.folds).ratio();
+  } catch (const std::invalid_argument&) {
+    r.held_out_gap = std::numeric_limits<double>::quiet_NaN();
+    r.note += std::string(r.note.empty() ? "" : "; ") +
+              "no held-out check: with a fold held out its parameters are not separable";
+  }
+  r.chi2_after = fit.chi2;
+  return r;
+}
+
+// A candidate is fitted only with at least this many residuals to spare (rows - 27 - its
+// parameters).
+constexpr int kMinDofForCandidate = 12;
+// The held-out folds need rests to fit on: below this the run is too short to diagnose.
+constexpr size_t kMinRests = 4;
+
+struct Scored {
+  CandidateResult result;
+  Eigen::MatrixXd J_eff;  ///< its fitted columns (whitened)
+};
+
+/// All candidates scored (thermal drift: the best τ of the grid), unranked.
+std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOptions& opt) {
+  std::vector<EffectId> ids = opt.candidates;
+  if (ids.empty())
+    for (const auto& e : effect_catalogue()) ids.push_back(e.id);
+  std::vector<Scored> out;
+  for (EffectId id : ids) {
+    const EffectInfo& e = effect_info(id);
+    if (id == EffectId::kQuantisation) {
+      Scored s;
+      s.result = score_quantisation(p.model.input(), p.model.rests(), opt.folds);
+      out.push_back(std::move(s));
+      continue;
+    }
+    if (id == EffectId::kBiasInstability) {
+      Scored s;
+      s.result = score_bias_instability(p.lin, p.folds, opt.instability_tau_grid_s);
+      out.push_back(std::move(s));
+      continue;
+    }
+    if (e.kind == EffectKind::kTable && !p.model.has_table() && id != EffectId::kTableTimeOffset) {
+      Scored s;
+      s.result.id = id;
+      s.result.name = e.name;
+      s.result.note = "not applicable: the archive has no table angles (attitude log)";
+      s.result.value_si = Eigen::VectorXd::Zero(e.size());
+      out.push_back(std::move(s));
+      continue;
+    }
+    int k_max = 0;
+    for (const auto& pi : e.params) k_max += pi.shape ? 0 : 1;
+    if (p.model.rows() - ParamSet::kSize - k_max < kMinDofForCandidate) {
+      const std::string why = "the run is too short for its " + std::to_string(k_max) +
+                              " parameters (" + std::to_string(p.model.rows()) + " residuals for " +
+                              std::to_string(ParamSet::kSize) + " + " + std::to_string(k_max) + ")";
+      if (!opt.candidates.empty())
+        throw std::invalid_argument("gap diagnosis: candidate " + e.name + ": " + why);
+      Scored s;
+      s.result.id = id;
+      s.result.name = e.name;
+      s.result.note = "not fitted: " + why;
+      s.result.value_si = Eigen::VectorXd::Zero(e.size());
+      out.push_back(std::move(s));
+      continue;
+    }
+    std::vector<double> taus{0.0};
+    if (id == EffectId::kThermalDrift) taus = opt.thermal_tau_grid_s;
+    Scored best;
+    bool have = false;
+    for (double tau : taus) {
+      Scored s;
+      s.result = score_candidate(p, p.lin.candidate(id, tau), chi2_0, opt, s.J_eff);
+      if (!have || s.result.lr > best.result.lr) best = std::move(s);
+      have = true;
+    }
+    out.push_back(std::move(best));
+  }
+  return out;
+}
+
+/// Mark significance (Bonferroni) and confounding between significant candidates, then rank by BIC
+/// gain (separable first). A significant candidate whose signature another significant one shares
+/// (> separability_limit) stays in the ranking but is marked: the diagnosis cannot tell them apart
+/// on this sequence, so neither is a finding.
+/// Marks a candidate of implausible size (far beyond its catalogue typical): never a finding.
+void judge_plausibility(CandidateResult& r, const DiagnosisOptions& opt) {
+  const EffectInfo& e = effect_info(r.id);
+  const Eigen::VectorXd typical = Eigen::Map<const Eigen::VectorXd>(
+      e.typical.data(), static_cast<Eigen::Index>(e.typical.size()));
+  const double t = e.magnitude(typical);
+  if (!(t > 0.0) || !r.separable) return;
+  r.typical_ratio = r.magnitude / t;
+  r.plausible = r.typical_ratio <= opt.max_plausible_typical;
+  if (!r.plausible) {
+    std::ostringstream os;
+    os.precision(3);
+    os << "implausible size: " << r.typical_ratio << "x its typical " << t << " " << r.unit
+       << " (limit " << opt.max_plausible_typical << "x)";
+    r.note += (r.note.empty() ? "" : "; ") + os.str();
+  }
+}
+
+/// Mark significance (Bonferroni), plausibility and confounding between significant candidates,
+/// then rank: findings first (significant, or an ambiguous set's members) by their held-out gap —
+/// the proof of a cause is how much of the gap it predicts on segments it was not fitted to —
+/// then the rest by BIC gain (separable first). A candidate whose signature another significant
+/// one shares (> separability_limit) is not significant on its own: the two explain as a set.
+/// Whether a candidate predicts the held-out segments better than the model without it (its own
+/// statistic's held-out gap for one judged on its own, as quantisation). A candidate that only fits
+/// the segments it was fitted to is no cause, however small its p-value (issue #19 item 6: a
+/// thermal drift fitted to a K2 run's residuals made the held-out gap worse, 84 -> 110, and read
+/// "significant").
+bool predicts_held_out(CandidateResult& r, double gap_before) {
+  const double before = std::isnan(r.held_out_gap_before) ? gap_before : r.held_out_gap_before;
+  if (std::isnan(r.held_out_gap) || std::isnan(before) || r.held_out_gap < before) return true;
+  std::ostringstream os;
+  os.precision(3);
+  os << "does not predict the held-out segments (held-out gap " << before << " -> "
+     << r.held_out_gap << ")";
+  r.note += (r.note.empty() ? "" : "; ") + os.str();
+  return false;
+}
+
+void rank(std::vector<Scored>& c, const Problem& p, double held_out_before,
+          const DiagnosisOptions& opt) {
+  const double level = opt.alpha / std::max<size_t>(1, c.size());
+  std::vector<bool> test(c.size(), false);
+  for (size_t i = 0; i < c.size(); ++i) {
+    CandidateResult& r = c[i].result;
+    judge_plausibility(r, opt);
+    test[i] =
+        r.separable && r.plausible && r.p_value < level && predicts_held_out(r, held_out_before);
+  }
+  for (size_t i = 0; i < c.size(); ++i)
+    for (size_t j = i + 1; j < c.size(); ++j) {
+      auto &a = c[i].result, &b = c[j].result;
+      if (!test[i] || !test[j]) continue;
+      if (c[i].J_eff.cols() == 0 || c[j].J_eff.cols() == 0) continue;  // stochastic: no signature
+      const double rho = canonical_correlation(p.Jb, c[i].J_eff, c[j].J_eff);
+      if (rho > opt.separability_limit) {
+        a.confounded_with.push_back(b.name);
+        b.confounded_with.push_back(a.name);
+      }
+    }
+  for (size_t i = 0; i < c.size(); ++i) {
+    CandidateResult& r = c[i].result;
+    r.significant = test[i] && r.confounded_with.empty();
+    r.in_ambiguous_set = test[i] && !r.confounded_with.empty();
+    if (r.confounded_with.empty()) continue;
+    std::string others;
+    for (const auto& o : r.confounded_with) others += (others.empty() ? "" : ", ") + o;
+    std::ostringstream os;
+    os << "not separable on this sequence from " << others << " (their signatures correlate > "
+       << opt.separability_limit << ")";
+    r.note += (r.note.empty() ? "" : "; ") + os.str();
+  }
+  auto finding = [](const CandidateResult& r) { return r.significant || r.in_ambiguous_set; };
+  auto held_out = [](const CandidateResult& r) {
+    return std::isnan(r.held_out_gap) ? std::numeric_limits<double>::infinity() : r.held_out_gap;
+  };
+  std::stable_sort(c.begin(), c.end(), [&](const Scored& a, const Scored& b) {
+    if (finding(a.result) != finding(b.result)) return finding(a.result);
+    if (finding(a.result) && held_out(a.result) != held_out(b.result))
+      return held_out(a.result) < held_out(b.result);
+    if (a.result.separable != b.result.separable) return a.result.separable;
+    return a.result.bic_gain > b.result.bic_gain;
+  });
+}
+
+std::vector<ParamShift> moved_params(const GlsFit& before, const GlsFit& after) {
+  std::vector<ParamShift> out;
+  for (int i = 0; i < ParamSet::kSize; ++i) {
+    const double sigma = std::sqrt(before.cov(i, i));
+    const double d = after.x(i) - before.x(i);
+    if (sigma > 0.0 && std::abs(d) > sigma) {
+      const ParamInfo& pi = param_info(i);
+      out.push_back({pi.name, pi.human_unit, d / sigma, d * pi.si_to_human});
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
+    return std::abs(a.shift_sigma) > std::abs(b.shift_sigma);
+  });
+  return out;
+}
+
+std::vector<std::pair<std::string, double>> remaining_gap(const Problem& p,
+                                                          const Eigen::MatrixXd& J,
+                                                          const GlsFit& fit) {
+  const Eigen::VectorXd e = p.r0 + J * fit.x;
+  std::vector<std::pair<std::string, double>> out;
+  for (size_t s = 0; s < p.model.segments().size(); ++s)
+    for (int c = 0; c < kGapRowsPerSegment; ++c) {
+      const double z = e(kGapRowsPerSegment * static_cast<int>(s) + c);
+      if (std::abs(z) > 3.0)
+        out.push_back({p.model.segments()[s].label() + " " + gap_component_name(c), z});
+    }
+  std::sort(out.begin(), out.end(),
+            [](const auto& a, const auto& b) { return std::abs(a.second) > std::abs(b.second); });
+  if (out.size() > 10) out.resize(10);
+  return out;
+}
+
+/// The best pair: the significant candidate that adds most to the best one, if it is significant
+/// given the best.
+std::optional<size_t> find_second(const Problem& p, const std::vector<Scored>& c, size_t best,
+                                  double chi2_best, const DiagnosisOptions& opt) {
+  const double level = opt.alpha / std::max<size_t>(1, c.size());
+  std::optional<size_t> second;
+  double best_lr = 0.0;
+  const Eigen::MatrixXd Jbest = hcat(p.Jb, c[best].J_eff);
+  for (size_t i = 0; i < c.size(); ++i) {
+    if (i == best || !c[i].result.significant || c[i].J_eff.cols() == 0) continue;
+    GlsFit f;
+    try {
+      f = gls_fit(p.r0, hcat(Jbest, c[i].J_eff));
+    } catch (const std::invalid_argument&) {
+      continue;  // not separable from the best one
+    }
+    const double lr = chi2_best - f.chi2;
+    if (chi2_survival(lr, c[i].result.k) < level && lr > best_lr) {
+      best_lr = lr;
+      second = i;
+    }
+  }
+  return second;
+}
+
+/// GLS under a covariance S of the whitened residuals (whitened again by its Cholesky factor).
+GlsFit gls_fit_cov(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J, const Eigen::MatrixXd& S) {
+  const Eigen::LLT<Eigen::MatrixXd> llt(S);
+  return gls_fit(llt.matrixL().solve(r0), llt.matrixL().solve(J));
+}
+
+/// The explanation chosen for the segment residuals (plus quantisation, which acts on the
+/// per-sample statistics only): the members (candidate indices, most important first), their
+/// columns, and the residual covariance if a Gauss-Markov bias is among them.
+struct Selection {
+  std::vector<size_t> members;
+  double bic = 0.0;
+  Eigen::MatrixXd J;  ///< [Jb, deterministic members' columns]
+  bool gm = false;
+  Eigen::MatrixXd S;  ///< whitened-residual covariance under the Gauss-Markov bias (gm only)
+  std::vector<std::string> ambiguous;
+};
+
+std::optional<size_t> index_of(const std::vector<Scored>& c, EffectId id) {
+  for (size_t i = 0; i < c.size(); ++i)
+    if (c[i].result.id == id) return i;
+  return std::nullopt;
+}
+
+/// Model choice by BIC among: the best deterministic effect D1, the best pair D1+D2, an undeclared
+/// Gauss-Markov bias GM, and D1+GM — each only if its members are significant (GM given D1 for the
+/// last). A significant top candidate that another one mimics makes the choice ambiguous: no
+/// finding. Quantisation, independent of the segment residuals, joins when significant.
+Selection select_model(const std::vector<Scored>& c, const Problem& p, double chi2_0,
+                       const DiagnosisOptions& opt) {
+  Selection best;
+  best.J = p.Jb;
+  if (c.empty()) return best;
+  if (c[0].result.in_ambiguous_set) {
+    best.ambiguous.push_back(c[0].result.name);
+    for (const auto& o : c[0].result.confounded_with) best.ambiguous.push_back(o);
+    best.J = hcat(p.Jb, c[0].J_eff);
+    return best;
+  }
+  const double level = opt.alpha / static_cast<double>(c.size());
+  const double log_m = std::log(static_cast<double>(p.r0.size()));
+  auto consider = [&](Selection s) {
+    if (s.bic > best.bic) best = std::move(s);
+  };
+  std::optional<size_t> d1;
+  for (size_t i = 0; i < c.size() && !d1; ++i)
+    if (c[i].result.significant && c[i].J_eff.cols() > 0) d1 = i;
+  if (d1) {
+    const Eigen::MatrixXd J1 = hcat(p.Jb, c[*d1].J_eff);
+    consider({{*d1}, c[*d1].result.bic_gain, J1, false, {}, {}});
+    const GlsFit f1 = gls_fit(p.r0, J1);
+    if (const auto d2 = find_second(p, c, *d1, f1.chi2, opt)) {
+      const Eigen::MatrixXd J2 = hcat(J1, c[*d2].J_eff);
+      const int k = c[*d1].result.k + c[*d2].result.k;
+      consider({{*d1, *d2}, (chi2_0 - gls_fit(p.r0, J2).chi2) - k * log_m, J2, false, {}, {}});
+    }
+  }
+  if (const auto g = index_of(c, EffectId::kBiasInstability); g && c[*g].result.significant) {
+    const GaussMarkovFit f = fit_gauss_markov(p.lin, p.Jb, opt.instability_tau_grid_s);
+    consider({{*g}, c[*g].result.bic_gain, p.Jb, true, f.S, {}});
+    if (d1) {
+      const Eigen::MatrixXd J1 = hcat(p.Jb, c[*d1].J_eff);
+      const GaussMarkovFit fc = fit_gauss_markov(p.lin, J1, opt.instability_tau_grid_s);
+      // Both must be needed: the bias wandering given D1, and D1 given the wandering (a slow trend
+      // is also a wandering bias).
+      const double lr_d_given_g = gls_fit_cov(p.r0, p.Jb, fc.S).chi2 - fc.chi2;
+      if (chi2_survival(fc.lr, 2) < level && chi2_survival(lr_d_given_g, c[*d1].result.k) < level) {
+        std::vector<size_t> m = {*d1, *g};
+        if (c[*g].result.lr > c[*d1].result.lr) std::swap(m[0], m[1]);
+        consider({m, c[*d1].result.lr + fc.lr - (c[*d1].result.k + 2) * log_m, J1, true, fc.S, {}});
+      }
+    }
+  }
+  if (const auto q = index_of(c, EffectId::kQuantisation);
+      q && c[*q].result.significant && best.members.size() < 2)
+    best.members.push_back(*q);
+  return best;
+}
+
+/// Fill best/second/ambiguous, the held-out figures, the moved parameters, the remaining gap and
+/// the verdict from the selection.
+void apply_selection(DiagnosisResult& d, const Selection& sel, const std::vector<Scored>& c,
+                     const Problem& p, const GlsFit& fit0, const DiagnosisOptions& opt) {
+  d.ambiguous = sel.ambiguous;
+  const bool segment_model = sel.gm || sel.J.cols() > p.Jb.cols();
+  const GlsFit fit = sel.gm ? gls_fit_cov(p.r0, sel.J, sel.S) : gls_fit(p.r0, sel.J);
+  d.gap_after_best = fit.chi2 / fit.dof;
+  if (!sel.members.empty()) d.best = sel.members[0];
+  if (sel.members.size() > 1) d.second = sel.members[1];
+  if (segment_model || !sel.ambiguous.empty()) {
+    d.held_out.has_after = true;
+    const HeldOutGap h = sel.gm ? held_out_gap_correlated(p.r0, sel.J, sel.S, p.folds)
+                                : held_out_gap(p.r0, sel.J, p.folds);
+    d.held_out.gap_after = d.best ? c[*d.best].result.held_out_gap : h.ratio();
+    if (sel.members.size() > 1 && c[sel.members[1]].result.id != EffectId::kQuantisation) {
+      d.held_out.has_pair = true;
+      d.held_out.gap_after_pair = h.ratio();
+    }
+    d.moved = moved_params(fit0, fit);
+  } else if (d.best) {  // quantisation alone: judged on its own statistic
+    d.held_out.has_after = true;
+    d.held_out.gap_before = c[*d.best].result.held_out_gap_before;
+    d.held_out.gap_after = c[*d.best].result.held_out_gap;
+  }
+  if (d.held_out.has_after && d.held_out.gap_before > 1.0) {
+    const double after = d.held_out.has_pair ? d.held_out.gap_after_pair : d.held_out.gap_after;
+    d.held_out.shrinkage =
+        std::clamp((d.held_out.gap_before - after) / (d.held_out.gap_before - 1.0), 0.0, 1.0);
+  }
+  d.remaining = remaining_gap(p, sel.J, gls_fit(p.r0, sel.J));
+  const bool fits_now = chi2_survival(fit.chi2, fit.dof) >= opt.alpha;
+  d.explained_by.clear();
+  if (!d.best && sel.ambiguous.empty()) {
+    d.verdict = d.overall_p >= opt.alpha ? "consistent" : "unexplained";
+    return;
+  }
+  // A set this sequence cannot tell apart explains the gap as well as one named effect: it is
+  // explained (by the set), not unexplained (issue #19 item 6).
+  d.verdict = fits_now ? "explained" : "unexplained";
+  if (!fits_now) return;
+  if (!sel.ambiguous.empty()) {
+    d.explained_by = sel.ambiguous;
+  } else {
+    for (size_t m : sel.members) d.explained_by.push_back(c[m].result.name);
+  }
+}
+
+/// Whether the selected finding (best effect, pair or ambiguous set) removes enough of the held-out
+/// gap's excess to count as an explanation (DiagnosisOptions::min_shrinkage). Quantisation alone is
+/// judged on its own statistic's held-out gap, the same way. No finding: nothing to judge.
+bool explains_enough(const DiagnosisResult& d, const DiagnosisOptions& opt) {
+  if (!d.best && d.ambiguous.empty()) return true;
+  if (!d.held_out.has_after) return true;
+  return d.held_out.gap_before > 1.0 && d.held_out.shrinkage >= opt.min_shrinkage;
+}
+
+std::string summarise(const DiagnosisResult& d) {
+  std::ostringstream os;
+  os.precision(3);
+  if (d.verdict == "consistent" && d.ambiguous.empty()) {
+    os << "the run is consistent with the model (chi2/dof " << d.overall_gap << ", expected 1 +- "
+       << d.overall_sigma << "); no candidate effect is significant";
+    return os.str();
+  }
+  if (!d.ambiguous.empty()) {
+    os << (d.verdict == "explained" ? "explained by " : "partly explained by ");
+    for (size_t i = 0; i < d.ambiguous.size(); ++i)
+      os << (i ? (i + 1 == d.ambiguous.size() ? " or " : ", ") : "") << d.ambiguous[i];
+    os << " (equally well: this sequence cannot tell them apart); held-out gap "
+       << d.held_out.gap_before << " -> " << d.held_out.gap_after;
+  } else if (d.best) {
+    const CandidateResult& b = d.candidates[*d.best];
+    os << (d.verdict == "explained" ? "explained by " : "partly explained by ") << b.name << " = "
+       << b.magnitude << " +- " << b.magnitude_sigma << " " << b.unit;
+    if (d.second) {
+      const CandidateResult& s = d.candidates[*d.second];
+      os << " and " << s.name << " = " << s.magnitude << " +- " << s.magnitude_sigma << " "
+         << s.unit;
+    }
+    os << "; held-out gap " << d.held_out.gap_before << " -> "
+       << (d.held_out.has_pair ? d.held_out.gap_after_pair : d.held_out.gap_after);
+  } else {
+    os << "unexplained: chi2/dof " << d.overall_gap << " (expected 1 +- " << d.overall_sigma
+       << ") and no candidate effect explains it";
+    // Named in the JSON and the report (weak_candidate), not here: the summary is the station's
+    // REVIEW reason, which must not suggest a cause the held-out segments do not confirm.
+    if (!d.weak_candidate.empty())
+      os << " (the best candidate removes " << std::lround(100.0 * d.weak_shrinkage)
+         << " % of the held-out gap)";
+  }
+  if (d.verdict == "unexplained" && !d.remaining.empty())
+    os << "; largest remaining: " << d.remaining.front().first;
+  return os.str();
+}
+
+}  // namespace
+
+DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
+                         const DiagnosisOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!in.cal.has_reference_attitude())
+    throw std::invalid_argument(
+        std::string("gap diagnosis: a ") + setting_name(in.cal.setting) +
+        " run has no table reference; the diagnosis compares a table run with its simulation "
+        "(run it on a factory run of the unit)");
+  const GapModel model(in, opt.min_rest_samples);
+  const GapLinearisation lin(model, base);
+  Problem p{
+      model, lin, lin.r0(), lin.r0_raw(), lin.Jb(), lin.Jb_raw(), make_folds(model, opt.folds)};
+  const int m = model.rows();
+  if (model.rests().size() < kMinRests)
+    throw std::invalid_argument("gap diagnosis: the run has " +
+                                std::to_string(model.rests().size()) +
+                                " rest periods; it needs at least " + std::to_string(kMinRests) +
+                                " (the held-out check fits on some and predicts the others)");
+  if (m <= ParamSet::kSize + kMinDofForCandidate)
+    throw std::invalid_argument("gap diagnosis: only " + std::to_string(m) + " residuals for " +
+                                std::to_string(ParamSet::kSize) +
+                                " parameters; the run is too short (needs more rests and moves)");
+  DiagnosisResult d;
+  // Explicitly requested candidates must fit in the run: say so before any work.
+  for (EffectId id : opt.candidates) {
+    int k = 0;
+    for (const auto& pi : effect_info(id).params) k += pi.shape ? 0 : 1;
+    if (m - ParamSet::kSize - k < kMinDofForCandidate)
+      throw std::invalid_argument(
+          "gap diagnosis: candidate " + effect_info(id).name + ": the run is too short for its " +
+          std::to_string(k) + " parameters (" + std::to_string(m) + " residuals for " +
+          std::to_string(ParamSet::kSize) + " + " + std::to_string(k) + ")");
+  }
+  GlsFit fit0;
+  try {
+    fit0 = gls_fit(p.r0, p.Jb);
+  } catch (const std::invalid_argument&) {
+    throw std::invalid_argument(
+        "gap diagnosis: the run is too short: the 27 calibration parameters are not all separable "
+        "on "
+        "its " +
+        std::to_string(model.rests().size()) + " rests");
+  }
+  d.rows = m;
+  d.dof = fit0.dof;
+  d.chi2 = fit0.chi2;
+  d.overall_gap = fit0.chi2 / fit0.dof;
+  d.overall_sigma = std::sqrt(2.0 / fit0.dof);
+  d.overall_p = chi2_survival(fit0.chi2, fit0.dof);
+  d.base = ParamSet::from_vector(base.to_vector() + fit0.x);
+  d.base_sigma = ParamSet::from_vector(fit0.cov.diagonal().cwiseSqrt());
+  d.segments = localise(p, fit0);
+  d.whiteness = whiteness_stats(in.cal, model.rests());
+  compare_with_twin(d, in, p, opt);
+
+  try {
+    d.held_out.gap_before = held_out_gap(p.r0, p.Jb, p.folds).ratio();
+  } catch (const std::invalid_argument&) {
+    throw std::invalid_argument(
+        "gap diagnosis: the run is too short for the held-out check: with a "
+        "fifth of its " +
+        std::to_string(model.rests().size()) +
+        " rests held out, the 27 calibration parameters are not all separable");
+  }
+  std::vector<Scored> cands = score_all(p, fit0.chi2, opt);
+  rank(cands, p, d.held_out.gap_before, opt);
+  const Selection sel = select_model(cands, p, fit0.chi2, opt);
+  apply_selection(d, sel, cands, p, fit0, opt);
+  if (!explains_enough(d, opt)) {
+    // A significant candidate that predicts too little of the held-out gap is no finding: judge the
+    // run as without one (best, pair and ambiguous set cleared, the held-out "before" kept).
+    d.weak_candidate =
+        d.best ? cands[*d.best].result.name : (d.ambiguous.empty() ? "" : d.ambiguous.front());
+    d.weak_shrinkage = d.held_out.shrinkage;
+    const double gap_before = d.held_out.gap_before;
+    d.best.reset();
+    d.second.reset();
+    d.held_out = {};
+    d.held_out.gap_before = gap_before;
+    d.moved.clear();
+    Selection none;
+    none.J = p.Jb;
+    apply_selection(d, none, cands, p, fit0, opt);
+  }
+  for (auto& s : cands) d.candidates.push_back(std::move(s.result));
+  d.summary = summarise(d);
+  d.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return d;
+}
+
+DiagnosisOptions diagnosis_options_for_false_alarm(double per_run) {
+  if (!(per_run > 0.0 && per_run < 1.0))
+    throw std::invalid_argument(
+        "gap diagnosis: the false-alarm rate per run must be in (0, 1), got " +
+        std::to_string(per_run));
+  DiagnosisOptions o;
+  // The overall test at alpha and the candidates at alpha / k each (select_model): the union of the
+  // two families is at most 2 alpha (Bonferroni).
+  o.alpha = per_run / 2.0;
+  return o;
+}
+
+}  // namespace imucal::calib

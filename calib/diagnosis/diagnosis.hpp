@@ -1,0 +1,174 @@
+#pragma once
+// Sim-to-real gap diagnosis (DESIGN §8, issue #8): where a recorded run departs from the model
+// (calibrated parameters + declared noise), which unmodelled effect of the catalogue
+// (calib/sim/effects.hpp) explains it, and how far the gap shrinks once that effect is modelled, on
+// held-out segments.
+//
+//  1. Localise: the segment residuals of calib/diagnosis/gap_model.hpp after refitting the base
+//  parameters,
+//     normalised by the model's own predicted spread (leverage included), per segment × sensor
+//     axis; per segment the NIS against χ²; overall χ²/dof against its expectation 1.
+//  2. Attribute: each candidate effect is refitted jointly with the 27 base parameters (linearised
+//  at
+//     the calibrated point, Jacobians by differences of the same residual model), scored by the
+//     likelihood ratio (χ² drop, whitened residuals) and BIC. Candidate directions whose multiple
+//     correlation with the base parameters exceeds 0.95 are not separable on this sequence and are
+//     left out of its fit; a candidate left with none is reported as not separable, with the base
+//     parameters it aliases, never as a finding; two candidates whose signatures correlate > 0.95
+//     are not separable from each other.
+//  3. Quantify: the gap on held-out segments (K-fold over rests and the moves after them) before
+//  and
+//     after adding the best effect, and the best pair; the base parameters that move, in σ.
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calib/core/param_set.hpp"
+#include "calib/diagnosis/gap_model.hpp"
+#include "calib/diagnosis/whiteness.hpp"
+#include "calib/sim/effects.hpp"
+
+namespace imucal::calib {
+
+struct DiagnosisOptions {
+  /// Candidate effects (default: the whole catalogue).
+  std::vector<EffectId> candidates;
+  /// Family-wise significance: a candidate counts when its likelihood ratio's p-value is below
+  /// alpha / (number of candidates) (Bonferroni); the run counts as consistent when the overall χ²
+  /// has p >= alpha.
+  double alpha = 1e-3;
+  /// A finding must shrink the held-out gap: the best effect (pair, or an ambiguous set) counts as
+  /// an explanation only when it removes at least this fraction of the held-out gap's excess,
+  /// (before - after) / (before - 1). Below it the run is judged as if no candidate were
+  /// significant (a significant gap is then "unexplained", and the summary names no effect): an
+  /// effect that fits a few segments' noise better but predicts none of the held-out segments is
+  /// not a cause (issue #28: a null run was "explained" by a latitude error that shrank the
+  /// held-out gap by 3 %).
+  double min_shrinkage = 0.5;
+  double separability_limit = 0.95;
+  /// A candidate's fitted size above this many times its catalogue typical (navigation-grade) size
+  /// is not physically plausible: not a finding however significant its fit (a K2 run's leakage
+  /// read as a 4.6 m size effect). Raise it for grades whose effects are larger.
+  double max_plausible_typical = 50.0;
+  int folds = 5;
+  size_t min_rest_samples = 100;
+  /// Time constants searched for the thermal warm-up (its shape parameter), s.
+  std::vector<double> thermal_tau_grid_s = {300.0, 600.0, 1200.0, 2400.0};
+  /// Correlation times searched for an undeclared Gauss-Markov bias, s.
+  std::vector<double> instability_tau_grid_s = {300.0, 1000.0, 3000.0};
+  uint64_t twin_seed = 1;  ///< noise seed of the simulated twin
+};
+
+struct SegmentGap {
+  GapSegment segment;
+  /// Post-fit residual of each component over its predicted spread (leverage included): N(0, 1)
+  /// under the model. Components: gap_component_name().
+  std::array<double, kGapRowsPerSegment> z{};
+  std::array<double, kGapRowsPerSegment> residual_si{};  ///< raw post-fit residual
+  double nis = 0.0;           ///< whitened χ² of the segment after the fit
+  double nis_expected = 0.0;  ///< its expectation under the model (6 - leverage)
+  double nis_twin =
+      0.0;  ///< the same segment's NIS on the simulated twin (calib/diagnosis/simulated_twin.hpp)
+  double p_value = 1.0;  ///< P(χ²(6) > nis·6/expected)
+};
+
+struct CandidateParam {
+  std::string name, unit;           ///< human unit
+  double value = 0.0, sigma = 0.0;  ///< human units
+};
+
+struct CandidateResult {
+  EffectId id{};
+  std::string name;
+  bool separable = false;  ///< has at least one direction separable from the base (and fitted)
+  std::string note;        ///< why not separable / partly separable / confounded, empty if clean
+  int k = 0;               ///< parameter directions fitted
+  double lr = 0.0;         ///< χ² drop when added (likelihood ratio statistic)
+  double p_value = 1.0;    ///< P(χ²(k) > lr)
+  double bic_gain = 0.0;   ///< lr - k ln(rows)
+  /// p_value < alpha / candidates, separable from the base and from every other significant
+  /// candidate, and of a plausible size: a finding on its own.
+  bool significant = false;
+  /// Significant by its test and plausible, but another such candidate mimics it on this sequence
+  /// (confounded_with): the two explain the gap as a set, neither alone.
+  bool in_ambiguous_set = false;
+  bool plausible = true;  ///< size ≤ max_plausible_typical × its catalogue typical size
+  double typical_ratio = std::numeric_limits<double>::quiet_NaN();  ///< magnitude / typical
+  double magnitude = 0.0, magnitude_sigma = 0.0;
+  std::string unit;  ///< unit of magnitude
+  std::vector<CandidateParam> params;
+  Eigen::VectorXd value_si;   ///< estimated effect parameter vector (SI, shape parameters set)
+  double held_out_gap = 0.0;  ///< held-out gap ratio with this candidate added
+  /// For a candidate judged on a statistic of its own (quantisation: the lag-1 autocovariance), the
+  /// held-out gap of that statistic without it; NaN for the others (the segment gap applies).
+  double held_out_gap_before = std::numeric_limits<double>::quiet_NaN();
+  double max_correlation = 0.0;  ///< largest multiple correlation of its directions with the base
+  /// Whitened χ² of the segment residuals with the candidate added (for a Gauss-Markov bias: under
+  /// its covariance); NaN when it does not change the segment residuals (quantisation).
+  double chi2_after = std::numeric_limits<double>::quiet_NaN();
+  std::vector<std::string> confounded_with;  ///< other candidates it cannot be told from
+};
+
+struct ParamShift {
+  std::string name, unit;
+  double shift_sigma = 0.0;  ///< change when the best effect is added, in σ of the base fit
+  double shift = 0.0;        ///< in human units
+};
+
+struct DiagnosisResult {
+  std::string verdict;  ///< "consistent", "explained", "unexplained"
+  std::string summary;  ///< one sentence for people
+  std::vector<SegmentGap> segments;
+  int rows = 0, dof = 0;
+  double chi2 = 0.0;
+  double overall_gap = 0.0;       ///< χ²/dof after the base fit
+  double overall_expected = 1.0;  ///< its expectation under the model
+  double overall_sigma = 0.0;     ///< its spread under the model, sqrt(2/dof)
+  double overall_p = 1.0;
+  /// χ²/dof of the simulated twin (the same trajectory simulated with the calibrated model and the
+  /// declared noise, through the same residual model): what the model predicts for this run.
+  double twin_gap = 0.0;
+  double gap_after_best = 0.0;              ///< χ²/dof with the best effect (pair) added
+  std::vector<CandidateResult> candidates;  ///< ranked, best first
+  std::optional<size_t> best;               ///< index into candidates
+  std::optional<size_t> second;             ///< the best pair's second member
+  /// Significant candidates that explain the gap equally and that this sequence cannot tell apart
+  /// (the top one first); then best is empty and the finding is the set (explained_by).
+  std::vector<std::string> ambiguous;
+  /// What the gap is explained by: the best effect (and its pair), or the ambiguous set; empty
+  /// when the verdict is not "explained".
+  std::vector<std::string> explained_by;
+  /// The best candidate (or ambiguous set's first) that was significant but shrank the held-out gap
+  /// by less than DiagnosisOptions::min_shrinkage, and that shrinkage; empty when there was none.
+  /// Never a finding: reported beside the verdict for the engineer, never in the summary.
+  std::string weak_candidate;
+  double weak_shrinkage = 0.0;
+  struct HeldOut {
+    double gap_before = 0.0, gap_after = 0.0, gap_after_pair = 0.0, shrinkage = 0.0;
+    bool has_after = false, has_pair = false;
+  } held_out;
+  std::vector<ParamShift> moved;  ///< base parameters that move by more than 1 σ, largest first
+  /// Where the gap that remains (after the best effect, if any) lies: segment × component, largest
+  /// |z| first (at most 10, only |z| > 3).
+  std::vector<std::pair<std::string, double>> remaining;
+  WhitenessStats whiteness;  ///< per-sample statistics of the rest residuals (over time)
+  ParamSet base;             ///< refitted base parameters (no effect)
+  ParamSet base_sigma;
+  double runtime_s = 0.0;
+};
+
+/// Diagnose a run against the model `base` (a calibration of the same run). Throws
+/// std::invalid_argument for input the diagnosis cannot use (fewer than 2 rests, no noise model,
+/// a run too short for a candidate's parameters), naming the problem.
+DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
+                         const DiagnosisOptions& opt = {});
+
+/// The options of a diagnosis whose false-alarm rate on a run without any unmodelled effect is at
+/// most `per_run` (the station's [calibration] gap_false_alarm): the overall χ² test and the
+/// candidates' tests (Bonferroni over the candidates) each get half of it.
+DiagnosisOptions diagnosis_options_for_false_alarm(double per_run);
+
+}  // namespace imucal::calib

@@ -1,0 +1,190 @@
+#include "calib/diagnosis/diagnosis_validation.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <mutex>
+#include <random>
+#include <stdexcept>
+#include <thread>
+
+#include "calib/core/calibration_input.hpp"
+#include "calib/nlsq/nlsq.hpp"
+#include "calib/sim/sim_input.hpp"
+
+namespace imucal::calib {
+
+namespace {
+
+struct Task {
+  std::vector<EffectId> ids;
+  std::vector<double> factor;
+  std::vector<double> sign;
+  uint64_t seed = 0;
+};
+
+std::vector<Task> make_tasks(const std::vector<EffectId>& ids, const ValidationOptions& opt) {
+  std::mt19937_64 rng(opt.seed);
+  std::uniform_real_distribution<double> f(opt.min_factor, opt.max_factor);
+  std::bernoulli_distribution coin(0.5);
+  std::vector<Task> tasks;
+  auto draw = [&](std::vector<EffectId> which) {
+    Task t;
+    t.ids = std::move(which);
+    for (size_t i = 0; i < t.ids.size(); ++i) {
+      t.factor.push_back(f(rng));
+      const bool stochastic = effect_info(t.ids[i]).kind == EffectKind::kStochastic;
+      t.sign.push_back(coin(rng) || stochastic ? 1.0 : -1.0);  // a σ or an LSB has no sign
+    }
+    t.seed = opt.seed * 1000003ULL + tasks.size() + 1;
+    tasks.push_back(std::move(t));
+  };
+  for (EffectId id : ids)
+    for (int i = 0; i < opt.runs_per_effect; ++i) draw({id});
+  for (int i = 0; i < opt.null_runs; ++i) draw({});
+  if (ids.size() >= 2) {
+    std::uniform_int_distribution<size_t> pick(0, ids.size() - 1);
+    for (int i = 0; i < opt.pair_runs; ++i) {
+      const size_t a = pick(rng);
+      size_t b = pick(rng);
+      while (b == a) b = pick(rng);
+      draw({ids[a], ids[b]});
+    }
+  }
+  return tasks;
+}
+
+ValidationRun run_one(const Task& t, const std::map<EffectId, double>& threshold,
+                      const sequences::MotionProfile& profile, const TableGeometry& geometry,
+                      const Site& site, const UnitModel& unit, double rate_hz) {
+  UnitModel u = unit;
+  u.effects = Effects{};
+  ValidationRun r;
+  r.seed = t.seed;
+  for (size_t i = 0; i < t.ids.size(); ++i) {
+    const EffectInfo& e = effect_info(t.ids[i]);
+    set_effect_vector(u.effects, e.id,
+                      scaled_typical(e, t.factor[i] * threshold.at(e.id), t.sign[i]));
+    r.injected.push_back(e.name);
+    r.factor.push_back(t.factor[i]);
+  }
+  SimOptions so;
+  so.rate_hz = rate_hz;
+  so.seed = t.seed;
+  const SimResult sim = simulate(profile, geometry, site, u, so);
+  DiagnosisInput in;
+  in.cal = input_from_simulation(sim, geometry, site, unit.noise);
+  in.geometry = geometry;
+  try {
+    const CalibrationResult cal = calibrate_nlsq(in.cal);
+    const DiagnosisResult d = diagnose(in, cal.params);
+    r.verdict = d.verdict;
+    if (d.best) {
+      r.named = d.candidates[*d.best].name;
+    } else if (!d.ambiguous.empty()) {
+      r.named = "ambiguous:";
+      for (const auto& a : d.ambiguous) r.named += " " + a;
+    } else {
+      r.named = "none";
+    }
+    if (d.second) r.second = d.candidates[*d.second].name;
+    r.has_shrinkage = d.held_out.has_after;
+    r.shrinkage = d.held_out.shrinkage;
+  } catch (const std::exception& ex) {
+    r.verdict = "error";
+    r.named = std::string("error: ") + ex.what();
+  }
+  return r;
+}
+
+void summarise(ValidationReport& rep) {
+  std::vector<double> shrink;
+  int single_ok = 0, null_alarm = 0, pair_ok = 0;
+  for (const auto& r : rep.runs) {
+    const std::string injected = r.injected.empty()       ? "none"
+                                 : r.injected.size() == 1 ? r.injected[0]
+                                                          : "";
+    if (r.injected.size() <= 1) rep.confusion[injected][r.named] += 1;
+    if (r.injected.empty()) {
+      ++rep.null_count;
+      null_alarm += (r.named != "none" || r.verdict != "consistent") ? 1 : 0;
+    } else if (r.injected.size() == 1) {
+      ++rep.single_runs;
+      if (r.named == r.injected[0]) {
+        ++single_ok;
+        if (r.has_shrinkage) shrink.push_back(r.shrinkage);
+      }
+    } else {
+      ++rep.pair_count;
+      const bool a = r.named == r.injected[0] || r.second == r.injected[0];
+      const bool b = r.named == r.injected[1] || r.second == r.injected[1];
+      pair_ok += (a && b) ? 1 : 0;
+    }
+  }
+  rep.top1 = rep.single_runs ? static_cast<double>(single_ok) / rep.single_runs : 0.0;
+  rep.false_alarm = rep.null_count ? static_cast<double>(null_alarm) / rep.null_count : 0.0;
+  rep.pair_both = rep.pair_count ? static_cast<double>(pair_ok) / rep.pair_count : 0.0;
+  if (!shrink.empty()) {
+    std::sort(shrink.begin(), shrink.end());
+    const size_t n = shrink.size();
+    rep.median_shrinkage = n % 2 ? shrink[n / 2] : 0.5 * (shrink[n / 2 - 1] + shrink[n / 2]);
+  }
+}
+
+}  // namespace
+
+Eigen::VectorXd scaled_typical(const EffectInfo& e, double magnitude, double sign) {
+  Eigen::VectorXd v = Eigen::Map<const Eigen::VectorXd>(e.typical.data(), e.size());
+  const double m0 = e.magnitude(v);
+  if (!(m0 > 0.0)) throw std::invalid_argument("effect " + e.name + ": typical magnitude is zero");
+  for (int i = 0; i < e.size(); ++i)
+    if (!e.params[static_cast<size_t>(i)].shape) v(i) *= sign * magnitude / m0;
+  return v;
+}
+
+ValidationReport validate_diagnosis(const sequences::MotionProfile& profile,
+                                    const TableGeometry& geometry, const Site& site,
+                                    const UnitModel& unit, double rate_hz,
+                                    const ValidationOptions& opt) {
+  ValidationReport rep;
+  rep.sequence = profile.name;
+  rep.detectability = effect_detectability(profile, geometry, site, unit, rate_hz);
+  std::map<EffectId, double> threshold;
+  std::vector<EffectId> ids;
+  for (const auto& d : rep.detectability) {
+    const bool wanted = opt.effects.empty() || std::find(opt.effects.begin(), opt.effects.end(),
+                                                         d.id) != opt.effects.end();
+    if (!wanted || !d.separable() || !std::isfinite(d.threshold)) continue;
+    ids.push_back(d.id);
+    threshold[d.id] = d.threshold;
+    rep.effects.push_back(d.name);
+  }
+  const std::vector<Task> tasks = make_tasks(ids, opt);
+  rep.runs.resize(tasks.size());
+  std::atomic<size_t> next{0};
+  std::mutex mu;
+  int done = 0;
+  auto worker = [&] {
+    for (size_t i = next++; i < tasks.size(); i = next++) {
+      try {
+        rep.runs[i] = run_one(tasks[i], threshold, profile, geometry, site, unit, rate_hz);
+      } catch (const std::exception& ex) {  // a worker must never take the process down
+        rep.runs[i].verdict = "error";
+        rep.runs[i].named = std::string("error: ") + ex.what();
+        rep.runs[i].seed = tasks[i].seed;
+        for (EffectId id : tasks[i].ids) rep.runs[i].injected.push_back(effect_info(id).name);
+        rep.runs[i].factor = tasks[i].factor;
+      }
+      const std::lock_guard<std::mutex> lock(mu);
+      ++done;
+      if (opt.on_progress) opt.on_progress(done, static_cast<int>(tasks.size()));
+    }
+  };
+  const int n = opt.threads > 0 ? opt.threads : std::max(1u, std::thread::hardware_concurrency());
+  std::vector<std::thread> pool;
+  for (int i = 0; i < n; ++i) pool.emplace_back(worker);
+  for (auto& t : pool) t.join();
+  summarise(rep);
+  return rep;
+}
+
+}  // namespace imucal::calib

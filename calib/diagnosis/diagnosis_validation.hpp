@@ -1,0 +1,69 @@
+#pragma once
+// Blind validation of the gap diagnosis (DESIGN §8 step 4, issue #8 item 4): simulate runs of a
+// sequence with one effect (and, separately, pairs) injected at magnitudes drawn between 3× and 10×
+// the effect's detection threshold on that sequence (calib/diagnosis/effect_detectability.hpp),
+// plus null runs with none; calibrate each (NLSQ) and diagnose it without telling the diagnosis
+// what was injected; count what it names.
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "calib/core/table_model.hpp"
+#include "calib/diagnosis/diagnosis.hpp"
+#include "calib/diagnosis/effect_detectability.hpp"
+#include "calib/sim/truth_sim.hpp"
+#include "sequences/motion_profile.hpp"
+
+namespace imucal::calib {
+
+struct ValidationOptions {
+  int runs_per_effect = 10;  ///< single-effect runs per separable effect
+  int null_runs = 10;        ///< runs with no effect
+  int pair_runs = 10;        ///< runs with two effects (random separable pairs)
+  uint64_t seed = 1;
+  double min_factor = 3.0, max_factor = 10.0;  ///< magnitude range in detection thresholds
+  int threads = 0;                             ///< 0: hardware concurrency
+  /// Restrict to these effects (default: every effect the sequence separates).
+  std::vector<EffectId> effects;
+  /// Called after each run with (done, total); may be empty. Called from worker threads,
+  /// serialised.
+  std::function<void(int, int)> on_progress;
+};
+
+/// One simulated run and what the diagnosis said.
+struct ValidationRun {
+  std::vector<std::string> injected;  ///< effect names (empty: null run)
+  std::vector<double> factor;         ///< magnitude in thresholds, per injected effect
+  uint64_t seed = 0;
+  std::string verdict;
+  std::string named;   ///< best effect, "none", or "ambiguous: a|b"
+  std::string second;  ///< the pair's second, or ""
+  double shrinkage = 0.0;
+  bool has_shrinkage = false;
+};
+
+struct ValidationReport {
+  std::string sequence;
+  std::vector<EffectDetectability> detectability;
+  std::vector<std::string> effects;  ///< validated (separable) effects
+  std::vector<ValidationRun> runs;
+  /// confusion[injected][named] = count; injected "none" for null runs.
+  std::map<std::string, std::map<std::string, int>> confusion;
+  double top1 = 0.0;         ///< single-effect runs whose best is the injected effect
+  double false_alarm = 0.0;  ///< null runs with a named effect or a verdict other than consistent
+  double median_shrinkage = 0.0;  ///< over single-effect runs where the effect was named
+  double pair_both = 0.0;         ///< pair runs naming both effects (best + second, any order)
+  int single_runs = 0, null_count = 0, pair_count = 0;
+};
+
+ValidationReport validate_diagnosis(const sequences::MotionProfile& profile,
+                                    const TableGeometry& geometry, const Site& site,
+                                    const UnitModel& unit, double rate_hz,
+                                    const ValidationOptions& opt = {});
+
+/// The effect's typical pattern scaled to `magnitude` (its magnitude unit) with a sign, SI vector.
+Eigen::VectorXd scaled_typical(const EffectInfo& e, double magnitude, double sign);
+
+}  // namespace imucal::calib

@@ -1,0 +1,278 @@
+#include "calib/diagnosis/gap_model.hpp"
+
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "calib/core/earth.hpp"
+#include "calib/core/imu_error_model.hpp"
+#include "calib/core/rotation.hpp"
+#include "calib/sim/effects/sensor_effects.hpp"
+#include "calib/sim/effects/site_errors.hpp"
+#include "calib/sim/effects/table_imperfections.hpp"
+
+namespace imucal::calib {
+
+namespace {
+
+constexpr const char* kWho = "gap diagnosis: ";
+// Re-orthonormalise the propagated attitude this often (round-off ~1e-16 per step).
+constexpr size_t kOrthonormaliseEvery = 256;
+
+[[noreturn]] void fail(const std::string& what) { throw std::invalid_argument(kWho + what); }
+
+}  // namespace
+
+const char* gap_component_name(int c) {
+  static const char* names[kGapRowsPerSegment] = {"accel x", "accel y", "accel z",
+                                                  "gyro x",  "gyro y",  "gyro z"};
+  return names[c];
+}
+
+std::string GapSegment::label() const {
+  if (kind == Kind::kRest) return "rest " + std::to_string(number);
+  return "move " + std::to_string(number) + " (rest " + std::to_string(rest_a + 1) + " -> " +
+         std::to_string(rest_b + 1) + ")";
+}
+
+GapModel::GapModel(const DiagnosisInput& in, size_t min_rest_samples)
+    : in_(in.cal), geometry_(in.geometry) {
+  if (in_.imu.size() != in_.reference.size() || in_.imu.empty())
+    fail("imu and reference must be non-empty and of equal length");
+  const NoiseModel& nm = in_.noise;
+  if (!(nm.arw_rad_per_sqrt_s > 0.0 && nm.vrw_mps_per_sqrt_s > 0.0 &&
+        std::isfinite(nm.arw_rad_per_sqrt_s) && std::isfinite(nm.vrw_mps_per_sqrt_s)))
+    fail("the noise model needs a finite ARW and VRW > 0 (they are the model's predicted spread)");
+  if (geometry_)
+    for (const ReferenceSample& r : in_.reference)
+      if (!(std::isfinite(r.outer_rad) && std::isfinite(r.inner_rad))) {
+        geometry_.reset();  // no angles after all (e.g. built by hand): no table effects
+        break;
+      }
+  t_first_s_ = in_.imu.front().t_s - in_.imu.front().dt_s;
+  build_segments(min_rest_samples);
+  build_covariances();
+}
+
+double GapModel::duration_s() const { return in_.imu.back().t_s - t_first_s_; }
+
+void GapModel::build_segments(size_t min_rest_samples) {
+  rests_ = find_rest_periods(in_, min_rest_samples);
+  if (rests_.size() < 2)
+    fail("found " + std::to_string(rests_.size()) + " rest period(s) of at least " +
+         std::to_string(min_rest_samples) +
+         " at_rest samples; the diagnosis needs at least 2 (rests and the moves between them)");
+  auto angles = [&](GapSegment& s, size_t k) {
+    s.outer_deg = in_.reference[k].outer_rad * kRadToDeg;
+    s.inner_deg = in_.reference[k].inner_rad * kRadToDeg;
+  };
+  for (size_t r = 0; r < rests_.size(); ++r) {
+    const RestPeriod& p = rests_[r];
+    RestSums s;
+    long double dv[3] = {0, 0, 0}, dth[3] = {0, 0, 0}, s1 = 0, s2 = 0, s3 = 0;
+    for (size_t k = p.begin; k < p.end; ++k) {
+      const ImuIncrement& x = in_.imu[k];
+      for (int i = 0; i < 3; ++i) {
+        dv[i] += x.dv_mps(i);
+        dth[i] += x.dtheta_rad(i);
+      }
+      const long double dt = x.dt_s;
+      s1 += dt;
+      s2 += dt * dt;
+      s3 += dt * dt * dt;
+    }
+    s.T_s = static_cast<double>(s1);
+    for (int i = 0; i < 3; ++i) {
+      s.f_mean_raw(i) = static_cast<double>(dv[i] / s1);
+      s.w_mean_raw(i) = static_cast<double>(dth[i] / s1);
+    }
+    s.h1_s = static_cast<double>(s2 / (2.0L * s1));
+    s.h2_s2 = static_cast<double>(s3 / (6.0L * s1));
+    s.t0_s = in_.imu[p.begin].t_s - in_.imu[p.begin].dt_s - t_first_s_;
+    s.ref_sample = p.begin + p.size() / 2;
+    sums_.push_back(s);
+
+    GapSegment seg;
+    seg.kind = GapSegment::Kind::kRest;
+    seg.number = static_cast<int>(r) + 1;
+    seg.begin = p.begin;
+    seg.end = p.end;
+    seg.rest_a = seg.rest_b = r;
+    seg.t0_s = in_.imu[p.begin].t_s - in_.imu[p.begin].dt_s;
+    seg.t1_s = in_.imu[p.end - 1].t_s;
+    angles(seg, s.ref_sample);
+    segments_.push_back(seg);
+    if (r + 1 < rests_.size()) {
+      GapSegment mv;
+      mv.kind = GapSegment::Kind::kMove;
+      mv.number = static_cast<int>(r) + 1;
+      mv.begin = p.end;
+      mv.end = rests_[r + 1].begin;
+      mv.rest_a = r;
+      mv.rest_b = r + 1;
+      mv.t0_s = seg.t1_s;
+      mv.t1_s = in_.imu[mv.end - 1].t_s;
+      angles(mv, rests_[r + 1].begin + rests_[r + 1].size() / 2);
+      segments_.push_back(mv);
+    }
+  }
+}
+
+void GapModel::build_covariances() {
+  const NoiseModel& nm = in_.noise;
+  const double arw2 = nm.arw_rad_per_sqrt_s * nm.arw_rad_per_sqrt_s;
+  const double vrw2 = nm.vrw_mps_per_sqrt_s * nm.vrw_mps_per_sqrt_s;
+  const double q_dv = 2.0 * nm.dv_lsb_mps * nm.dv_lsb_mps / 12.0;  // one LSB residue at each end
+  const double q_th = 2.0 * nm.dtheta_lsb_rad * nm.dtheta_lsb_rad / 12.0;
+  const EarthModel earth(in_.site);
+  const Eigen::Matrix3d F = skew<double>(Eigen::Vector3d(-earth.g_n()));  // [f_n×] at rest
+  for (const GapSegment& s : segments_) {
+    Block6 P = Block6::Zero();
+    if (s.kind == GapSegment::Kind::kRest) {
+      const double T = sums_[s.rest_a].T_s;
+      P.topLeftCorner<3, 3>().diagonal().setConstant(vrw2 / T + q_dv / (T * T));
+      P.bottomRightCorner<3, 3>().diagonal().setConstant(arw2 / T + q_th / (T * T));
+    } else {
+      double T = 0.0;
+      for (size_t k = s.begin; k < s.end; ++k) T += in_.imu[k].dt_s;
+      // n-frame: ψ = Σ n_j (random walk), δv = Σ_k [f_n×] ψ_k dt + VRW noise (see header).
+      Block6 Pn = Block6::Zero();
+      const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+      Pn.topLeftCorner<3, 3>() =
+          F * F.transpose() * (arw2 * T * T * T / 3.0) + (vrw2 * T + q_dv) * I;
+      Pn.topRightCorner<3, 3>() = F * (arw2 * T * T / 2.0);
+      Pn.bottomLeftCorner<3, 3>() = Pn.topRightCorner<3, 3>().transpose();
+      Pn.bottomRightCorner<3, 3>() = (arw2 * T + q_th) * I;
+      // Residuals are reported in body axes at B: rotate both blocks.
+      const Eigen::Matrix3d C = in_.reference[rests_[s.rest_b].begin].C_bn_ref;
+      Block6 R = Block6::Zero();
+      R.topLeftCorner<3, 3>() = C.transpose();
+      R.bottomRightCorner<3, 3>() = C.transpose();
+      P = R * Pn * R.transpose();
+    }
+    cov_.push_back(P);
+    const Eigen::LLT<Block6> llt(P);
+    if (llt.info() != Eigen::Success)
+      fail("segment " + s.label() + ": covariance not positive definite");
+    Block6 L = llt.matrixL();
+    whitener_.push_back(L.inverse());
+  }
+}
+
+Eigen::VectorXd GapModel::whiten(const Eigen::VectorXd& r) const {
+  Eigen::VectorXd w(r.size());
+  for (size_t s = 0; s < segments_.size(); ++s)
+    w.segment<6>(6 * static_cast<int>(s)) = whitener_[s] * r.segment<6>(6 * static_cast<int>(s));
+  return w;
+}
+
+Eigen::MatrixXd GapModel::whiten(const Eigen::MatrixXd& J) const {
+  Eigen::MatrixXd w(J.rows(), J.cols());
+  for (size_t s = 0; s < segments_.size(); ++s)
+    w.middleRows<6>(6 * static_cast<int>(s)) =
+        whitener_[s] * J.middleRows<6>(6 * static_cast<int>(s));
+  return w;
+}
+
+Eigen::Matrix3d GapModel::true_attitude(size_t k, const ParamSet& base, const Effects& fx) const {
+  const ReferenceSample& ref = in_.reference[k];
+  Eigen::Matrix3d C = ref.C_bn_ref;
+  if (geometry_ && (fx.table_nonorthogonality_rad != 0.0 || !fx.table_wobble_rad.isZero()))
+    C = table_C_bn<double>(*geometry_, ref.outer_rad, ref.inner_rad, fx.table_nonorthogonality_rad,
+                           fx.table_wobble_rad);
+  return rotvec_to_matrix<double>(base.table_misalignment_rad) * C;
+}
+
+Eigen::VectorXd GapModel::residuals(const ParamSet& base, const Effects& fx) const {
+  Eigen::VectorXd r(rows());
+  for (size_t s = 0; s < segments_.size(); ++s) {
+    double* out = r.data() + 6 * s;
+    if (segments_[s].kind == GapSegment::Kind::kRest)
+      rest_residual(segments_[s].rest_a, base, fx, out);
+    else
+      move_residual(segments_[s], base, fx, out);
+  }
+  return r;
+}
+
+// At rest f and ω are constant in body axes, so the sensor effects are evaluated once at the rest's
+// mean kinematics, the thermal warm-up integrated exactly over the rest's span.
+void GapModel::rest_residual(size_t r, const ParamSet& base, const Effects& fx, double* out) const {
+  const RestSums& s = sums_[r];
+  const ImuCompensator comp(base);
+  const Site site = true_site(in_.site, fx.gravity_error_mps2, fx.latitude_error_rad);
+  const EarthModel earth(site);
+  const Eigen::Matrix3d C = true_attitude(s.ref_sample, base, fx);
+  SensorKinematics kin;
+  kin.f_b = comp.dv(s.f_mean_raw, 1.0);
+  kin.w_b = comp.dtheta(s.w_mean_raw, 1.0);
+  kin.t0_s = s.t0_s;
+  kin.dt_s = s.T_s;
+  const IncrementDelta d = sensor_effects_delta(fx, kin, /*include_size_effect=*/true);
+  // Eq. 18/23 inverted with the effects removed first (they act after the error model).
+  const Eigen::Vector3d f = comp.A_a_inv * (s.f_mean_raw - base.accel_bias_mps2 - d.dv / s.T_s);
+  const Eigen::Vector3d w = comp.A_g_inv * (s.w_mean_raw - base.gyro_bias_radps - d.dtheta / s.T_s);
+  const Eigen::Vector3d w_ie_b = C.transpose() * earth.w_ie_n();
+  const Eigen::Matrix3d W = skew<double>(w_ie_b);
+  const Eigen::Matrix3d K = Eigen::Matrix3d::Identity() + s.h1_s * W + s.h2_s2 * W * W;
+  const Eigen::Vector3d a = K.inverse() * f + C.transpose() * earth.g_n();
+  const Eigen::Vector3d g = w - w_ie_b;
+  for (int i = 0; i < 3; ++i) {
+    out[i] = a(i);
+    out[3 + i] = g(i);
+  }
+}
+
+// Strapdown over the move from the table's attitude at A (conventions.hpp):
+//   C(k) = exp(-[ω_ie_n dt×]) C(k-1) exp([dθ_k×]),  Δv_n += (I - ½[ω_ie_n dt×]) C(k-1) dv_k + g_n
+//   dt.
+// Each increment is compensated by the error model and by the hypothesised sensor effects,
+// evaluated at the sample's own kinematics (ω̇ by central differences of the raw rates).
+void GapModel::move_residual(const GapSegment& seg, const ParamSet& base, const Effects& fx,
+                             double* out) const {
+  const ImuCompensator comp(base);
+  const Site site = true_site(in_.site, fx.gravity_error_mps2, fx.latitude_error_rad);
+  const EarthModel earth(site);
+  const Eigen::Vector3d w_ie_n = earth.w_ie_n(), g_n = earth.g_n();
+  const bool effects = fx.any();
+  Eigen::Matrix3d C = true_attitude(sums_[seg.rest_a].ref_sample, base, fx);
+  Eigen::Vector3d v = Eigen::Vector3d::Zero();
+  const size_t n = in_.imu.size();
+  for (size_t k = seg.begin; k < seg.end; ++k) {
+    const ImuIncrement& x = in_.imu[k];
+    const double dt = x.dt_s;
+    Eigen::Vector3d dv_raw = x.dv_mps, dth_raw = x.dtheta_rad;
+    if (effects) {
+      SensorKinematics kin;
+      kin.f_b = comp.dv(x.dv_mps, dt) / dt;
+      kin.w_b = comp.dtheta(x.dtheta_rad, dt) / dt;
+      const ImuIncrement& prev = in_.imu[k > 0 ? k - 1 : k];
+      const ImuIncrement& next = in_.imu[k + 1 < n ? k + 1 : k];
+      const double span = 0.5 * (next.t_s - prev.t_s);
+      if (span > 0.0)
+        kin.wdot_b = (next.dtheta_rad / next.dt_s - prev.dtheta_rad / prev.dt_s) / (2.0 * span);
+      kin.t0_s = x.t_s - dt - t_first_s_;
+      kin.dt_s = dt;
+      const IncrementDelta d = sensor_effects_delta(fx, kin, /*include_size_effect=*/true);
+      dv_raw -= d.dv;
+      dth_raw -= d.dtheta;
+    }
+    const Eigen::Vector3d dv = comp.dv(dv_raw, dt);
+    const Eigen::Vector3d dth = comp.dtheta(dth_raw, dt);
+    const Eigen::Vector3d e = w_ie_n * dt;
+    v += (C * dv - 0.5 * e.cross(C * dv)) + g_n * dt;
+    C = rotvec_to_matrix<double>(Eigen::Vector3d(-e)) * C * rotvec_to_matrix<double>(dth);
+    if ((k - seg.begin) % kOrthonormaliseEvery == kOrthonormaliseEvery - 1) C = orthonormalize(C);
+  }
+  const Eigen::Matrix3d C_b = true_attitude(sums_[seg.rest_b].ref_sample, base, fx);
+  const Eigen::Vector3d psi =
+      C_b.transpose() * matrix_to_rotvec(C_b * orthonormalize(C).transpose());
+  const Eigen::Vector3d vb = C_b.transpose() * v;
+  for (int i = 0; i < 3; ++i) {
+    out[i] = vb(i);
+    out[3 + i] = psi(i);
+  }
+}
+
+}  // namespace imucal::calib

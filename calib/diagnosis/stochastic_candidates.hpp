@@ -1,0 +1,54 @@
+#pragma once
+// The two stochastic effects of the catalogue as diagnosis candidates (DESIGN §7-8). They have no
+// deterministic signature to refit; each is estimated through the statistics it changes.
+//
+//  * quantisation: an accumulating output register rounds each increment with the remainder
+//  carried,
+//    so its error e_k - e_{k-1} has lag-1 autocovariance -LSB²/12, where white noise (ARW, VRW) has
+//    none. Over the rest samples (each rest's mean removed) the pooled lag-1 autocovariance γ1 per
+//    sensor estimates LSB² = -12 γ1 with σ(γ1) ≈ γ0/√N; the likelihood ratio is the squared z of
+//    the departure from the declared LSB (one-sided). The held-out gap is that statistic on
+//    held-out rests before and after the fitted LSB.
+//  * bias_instability: a Gauss-Markov bias (σ, τ) not in the noise model moves each segment's bias
+//    away from the run's mean, correlated over |Δt| as exp(-|Δt|/τ). In the whitened segment
+//    residuals this adds σ_a² G_a + σ_g² G_g to the unit covariance, G built from the bias columns
+//    of each segment; σ_a, σ_g are found by restricted maximum likelihood (base parameters profiled
+//    out) on a grid, τ on a grid; LR = 2 Δℓ (χ²(2), conservative at the boundary). Held-out: each
+//    fold predicted by the conditional mean given the others.
+#include <array>
+#include <vector>
+
+#include "calib/diagnosis/diagnosis.hpp"
+#include "calib/diagnosis/gap_linearisation.hpp"
+#include "calib/diagnosis/whiteness.hpp"
+
+namespace imucal::calib {
+
+CandidateResult score_quantisation(const CalibrationInput& in, const std::vector<RestPeriod>& rests,
+                                   int folds);
+
+/// An undeclared Gauss-Markov bias fitted by restricted maximum likelihood on the whitened
+/// residuals with fixed-effect design J (the base columns, possibly with deterministic effects
+/// appended).
+struct GaussMarkovFit {
+  double sigma_accel_mps2 = 0.0, sigma_gyro_radps = 0.0, tau_s = 0.0;
+  double lr = 0.0;    ///< 2 Δℓ against no Gauss-Markov bias, same design
+  double chi2 = 0.0;  ///< GLS χ² under its covariance
+  Eigen::MatrixXd S;  ///< covariance of the whitened residuals under it
+};
+GaussMarkovFit fit_gauss_markov(const GapLinearisation& lin, const Eigen::MatrixXd& J,
+                                const std::vector<double>& tau_grid_s);
+
+CandidateResult score_bias_instability(const GapLinearisation& lin,
+                                       const std::vector<std::vector<int>>& folds,
+                                       const std::vector<double>& tau_grid_s);
+
+/// Expected likelihood-ratio non-centrality of the catalogue's typical pattern scaled by m (for the
+/// detection thresholds of calib/diagnosis/effect_detectability.hpp), without data:
+///  * quantisation: λ(m) = Σ_sensors z², z = ((m q_typ)² - q_declared²)/12 / σ(γ1);
+///  * bias instability (small-signal): λ(m) = ½ m⁴ tr((M G M)²), M the projection off the base
+///    columns, G = typ_a² G_a + typ_g² G_g at the typical τ.
+double quantisation_noncentrality(const GapModel& model, double m);
+double bias_instability_noncentrality(const GapLinearisation& lin, double m);
+
+}  // namespace imucal::calib

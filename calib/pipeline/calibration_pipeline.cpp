@@ -1,0 +1,156 @@
+#include "calib/pipeline/calibration_pipeline.hpp"
+
+#include <exception>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <thread>
+
+#include "calib/checks/data_check.hpp"
+
+namespace imucal::calib {
+
+namespace {
+
+using Method = CalibrationResult (*)(const CalibrationInput&, const PipelineOptions&);
+
+CalibrationResult run_ains(const CalibrationInput& in, const PipelineOptions& o) {
+  return calibrate_ains(in, o.ains);
+}
+CalibrationResult run_nlsq(const CalibrationInput& in, const PipelineOptions& o) {
+  return calibrate_nlsq(in, o.nlsq);
+}
+CalibrationResult run_legacy(const CalibrationInput& in, const PipelineOptions& o) {
+  return calibrate_legacy(in, o.legacy);
+}
+
+/// One method and its evaluation (paper §VII) — or, without an attitude reference, the statement
+/// that there is none to evaluate against.
+MethodOutcome run_method(const CalibrationInput& in, const PipelineOptions& opt, const char* label,
+                         Method method) {
+  auto phase = [&](const std::string& p) {
+    if (opt.on_phase) opt.on_phase(p);
+  };
+  phase(std::string(label) + " calibration");
+  MethodOutcome m;
+  m.result = method(in, opt);
+  if (in.has_reference_attitude()) {
+    phase(std::string(label) + " evaluation");
+    m.metrics = evaluate(in, m.result.params, opt.evaluation);
+  } else {
+    m.metrics.evaluated = false;
+    m.metrics.not_evaluated_reason = std::string("no attitude reference in a ") +
+                                     setting_name(in.setting) +
+                                     " run: the paper's metrics need the table (evaluate the "
+                                     "parameters on a factory run of the unit)";
+  }
+  return m;
+}
+
+/// `opt` with on_phase behind a lock: the methods may report from two threads.
+PipelineOptions with_serialised_phases(const PipelineOptions& opt) {
+  PipelineOptions o = opt;
+  if (o.on_phase) {
+    auto lock = std::make_shared<std::mutex>();
+    o.on_phase = [lock, report = opt.on_phase](const std::string& phase) {
+      const std::lock_guard<std::mutex> guard(*lock);
+      report(phase);
+    };
+  }
+  return o;
+}
+
+/// The raw-data checks: a broken stream or a wrong set-up is refused with its symptom.
+std::vector<DataProblem> check_input(const CalibrationInput& in, const PipelineOptions& opt) {
+  if (!opt.check_data) return {};
+  if (opt.on_phase) opt.on_phase("checking the data");
+  return check_data(in);
+}
+
+/// The data checks, then AINS, and NLSQ or legacy, each with its evaluation. With opt.concurrent
+/// (and AINS selected) a second thread runs the checks and then the second method while AINS
+/// runs: AINS only reads `in`, and if the checks fail its result is dropped and DataCheckError
+/// thrown as if no method had run. Otherwise an exception of either method is rethrown once both
+/// have ended.
+void run_methods(const CalibrationInput& in, const PipelineOptions& opt, bool ains, bool nlsq,
+                 bool legacy, PipelineResult& out) {
+  std::optional<MethodOutcome>* second = nlsq ? &out.nlsq : legacy ? &out.legacy : nullptr;
+  auto run_second = [&] {
+    *second =
+        nlsq ? run_method(in, opt, "NLSQ", run_nlsq) : run_method(in, opt, "legacy", run_legacy);
+  };
+  if (!(ains && opt.concurrent)) {
+    std::vector<DataProblem> problems = check_input(in, opt);
+    if (!problems.empty()) throw DataCheckError(std::move(problems));
+    if (ains) out.ains = run_method(in, opt, "AINS", run_ains);
+    if (second) run_second();
+    return;
+  }
+  std::vector<DataProblem> problems;
+  std::exception_ptr check_error, second_error;
+  std::thread worker([&] {
+    try {
+      problems = check_input(in, opt);
+    } catch (...) {
+      check_error = std::current_exception();
+      return;
+    }
+    if (!problems.empty() || !second) return;
+    try {
+      run_second();
+    } catch (...) {
+      second_error = std::current_exception();
+    }
+  });
+  std::exception_ptr ains_error;
+  try {
+    out.ains = run_method(in, opt, "AINS", run_ains);
+  } catch (...) {
+    ains_error = std::current_exception();
+  }
+  worker.join();
+  if (check_error) std::rethrow_exception(check_error);
+  if (!problems.empty()) throw DataCheckError(std::move(problems));
+  if (ains_error) std::rethrow_exception(ains_error);
+  if (second_error) std::rethrow_exception(second_error);
+}
+
+}  // namespace
+
+PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions& opt) {
+  const bool field = in.setting != Setting::kFactory;
+  const MethodSelection sel = opt.methods;
+  if (field && sel == MethodSelection::kNlsq)
+    throw std::invalid_argument(
+        std::string(
+            "NLSQ needs the table's attitude reference (paper §V) and cannot calibrate a ") +
+        setting_name(in.setting) + " run; use --method ains or legacy (or all: AINS + legacy)");
+  const bool all = sel == MethodSelection::kAll;
+  PipelineResult out;
+  run_methods(in, with_serialised_phases(opt), all || sel == MethodSelection::kAins,
+              (all && !field) || sel == MethodSelection::kNlsq,
+              // The legacy method needs a still platform: on land it is AINS's independent check;
+              // at sea (a rocking, drifting deck) there is none, and AINS stands alone.
+              (all && in.setting == Setting::kLand) || sel == MethodSelection::kLegacy, out);
+  const std::optional<MethodOutcome>& second = out.nlsq ? out.nlsq : out.legacy;
+  if (out.ains && second) {
+    if (opt.on_phase) opt.on_phase("cross-check");
+    out.crosscheck = cross_check(out.ains->result, out.ains->metrics, second->result,
+                                 second->metrics, opt.crosscheck);
+  }
+  // The cross-check already holds both methods' metrics to their limits; a method on its own
+  // gets that check here.
+  LimitCheckOptions limits = opt.limits;
+  limits.max_orientation_rmse_mdeg = opt.crosscheck.max_orientation_rmse_mdeg;
+  limits.max_accel_rmse_ug = opt.crosscheck.max_accel_rmse_ug;
+  for (const auto* m : {&out.ains, &out.nlsq, &out.legacy})
+    if (*m) check_limits((*m)->result, (*m)->metrics, !out.crosscheck, limits, out.limits);
+  if (in.setting == Setting::kSea)
+    out.unchecked_reason =
+        "sea: AINS alone, no independent method to cross-check it (the legacy method needs a "
+        "still platform)";
+  return out;
+}
+
+}  // namespace imucal::calib

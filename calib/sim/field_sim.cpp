@@ -1,0 +1,347 @@
+#include "calib/sim/field_sim.hpp"
+
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+#include "calib/core/conventions.hpp"
+#include "calib/core/rotation.hpp"
+#include "calib/core/table_model.hpp"
+#include "calib/sim/effects/site_errors.hpp"
+#include "calib/sim/truth_physics.hpp"
+
+namespace imucal::calib {
+
+namespace {
+
+[[noreturn]] void fail(const std::string& what) {
+  throw std::invalid_argument("field simulation: " + what);
+}
+
+void check_positive(double v, const char* name) {
+  if (!(std::isfinite(v) && v > 0.0))
+    fail(std::string("option ") + name + " must be positive and finite, got " + std::to_string(v));
+}
+
+void check_options(const FieldSimOptions& o, const UnitModel& unit) {
+  if (o.setting == Setting::kFactory)
+    fail("the factory setting is simulated with the table simulator (imucal simulate)");
+  check_positive(o.rate_hz, "rate_hz");
+  check_positive(o.rock_period_s, "rock_period_s");
+  check_positive(o.drift_period_s, "drift_period_s");
+  check_positive(o.heave_period_s, "heave_period_s");
+  check_positive(o.gnss_rate_hz, "gnss_rate_hz");
+  check_positive(o.gnss_sigma_m, "gnss_sigma_m");
+  for (double v :
+       {o.placement_sigma_deg, o.rock_amplitude_deg, o.drift_amplitude_m, o.heave_amplitude_m})
+    if (!(std::isfinite(v) && v >= 0.0)) fail("amplitudes and placement_sigma_deg must be >= 0");
+  if (!(o.duration_jitter >= 0.0 && o.duration_jitter < 0.9))
+    fail("option duration_jitter must be in [0, 0.9)");
+  const Effects& fx = unit.effects;
+  if (fx.table_time_offset_s != 0.0 || fx.table_nonorthogonality_rad != 0.0 ||
+      !fx.table_wobble_rad.isZero() || fx.latitude_error_rad != 0.0)
+    fail("table effects and latitude_error have no meaning without a table (land/sea)");
+  for (const auto& r : fx.accel_lever_arm_m)
+    if (!r.isZero()) fail("the size effect needs the table's rotation model; not simulated here");
+}
+
+/// Smooth 0 -> 1 step (zero slope at both ends).
+double smoothstep(double x) {
+  x = std::clamp(x, 0.0, 1.0);
+  return 0.5 - 0.5 * std::cos(kPi * x);
+}
+
+/// The hand's timeline: every profile segment stretched by its own factor, each rest with its
+/// own placement error, blended over the moves between rests.
+class HandTimeline {
+ public:
+  HandTimeline(const sequences::MotionProfile& p, const FieldSimOptions& o, std::mt19937_64& rng)
+      : profile_(p) {
+    std::uniform_real_distribution<double> jitter(1.0 - o.duration_jitter, 1.0 + o.duration_jitter);
+    std::normal_distribution<double> n01;
+    double t = 0.0;
+    Eigen::Vector3d e = Eigen::Vector3d::Zero();
+    for (const auto& seg : p.segments) {
+      Warped w;
+      w.t0 = t;
+      w.t1 = t + (seg.t1_s - seg.t0_s) * jitter(rng);
+      w.rest = seg.kind == sequences::SegmentKind::kRest;
+      if (w.rest) {
+        e = Eigen::Vector3d(n01(rng), n01(rng), n01(rng)) * (o.placement_sigma_deg * kDegToRad);
+      }
+      w.placement = e;
+      warped_.push_back(w);
+      t = w.t1;
+    }
+    // Each move run (consecutive moves) blends from the rest before to the rest after.
+    for (size_t i = 0; i < warped_.size(); ++i) {
+      if (warped_[i].rest) continue;
+      size_t j = i;
+      while (j < warped_.size() && !warped_[j].rest) ++j;
+      const Eigen::Vector3d from = i > 0 ? warped_[i - 1].placement : Eigen::Vector3d::Zero();
+      const Eigen::Vector3d to = j < warped_.size() ? warped_[j].placement : from;
+      for (size_t k = i; k < j; ++k) {
+        warped_[k].blend_from = from;
+        warped_[k].blend_to = to;
+        warped_[k].run_t0 = warped_[i].t0;
+        warped_[k].run_t1 = warped_[j - 1].t1;
+      }
+      i = j;
+    }
+  }
+
+  double duration_s() const { return warped_.empty() ? 0.0 : warped_.back().t1; }
+
+  /// Profile time and placement rotation vector at hand time t.
+  void at(double t, double& t_profile, Eigen::Vector3d& placement, bool& rest) const {
+    const size_t i = index(t);
+    const Warped& w = warped_[i];
+    const auto& seg = profile_.segments[i];
+    const double x = (t - w.t0) / (w.t1 - w.t0);
+    t_profile = seg.t0_s + std::clamp(x, 0.0, 1.0) * (seg.t1_s - seg.t0_s);
+    rest = w.rest;
+    if (w.rest) {
+      placement = w.placement;
+    } else {
+      const double s = smoothstep((t - w.run_t0) / (w.run_t1 - w.run_t0));
+      placement = (1.0 - s) * w.blend_from + s * w.blend_to;
+    }
+  }
+
+  /// True if [t0, t1] lies inside one rest segment.
+  bool rest_interval(double t0, double t1) const {
+    const Warped& w = warped_[index(0.5 * (t0 + t1))];
+    return w.rest && t0 >= w.t0 && t1 <= w.t1;
+  }
+
+  std::vector<std::pair<double, double>> rest_spans() const {
+    std::vector<std::pair<double, double>> out;
+    for (const auto& w : warped_)
+      if (w.rest) out.emplace_back(w.t0, w.t1);
+    return out;
+  }
+
+ private:
+  struct Warped {
+    double t0 = 0, t1 = 0;
+    bool rest = false;
+    Eigen::Vector3d placement = Eigen::Vector3d::Zero();
+    Eigen::Vector3d blend_from = Eigen::Vector3d::Zero(), blend_to = Eigen::Vector3d::Zero();
+    double run_t0 = 0, run_t1 = 1;
+  };
+  size_t index(double t) const {
+    size_t lo = 0, hi = warped_.size();
+    while (hi - lo > 1) {
+      const size_t mid = (lo + hi) / 2;
+      (warped_[mid].t0 <= t ? lo : hi) = mid;
+    }
+    return lo;
+  }
+  const sequences::MotionProfile& profile_;
+  std::vector<Warped> warped_;
+};
+
+/// The platform: still on land; at sea a DP vessel's slow drift, heave and rocking (sinusoids).
+struct Platform {
+  bool sea = false;
+  double drift_amp = 0, drift_w = 0, heave_amp = 0, heave_w = 0, rock_amp = 0, rock_w = 0;
+  double phase[6] = {0, 0, 0, 0, 0, 0};
+
+  /// NED displacement from the site, m, and its rate.
+  Eigen::Vector3d p(double t) const {
+    if (!sea) return Eigen::Vector3d::Zero();
+    return {drift_amp * std::sin(drift_w * t + phase[0]),
+            drift_amp * std::sin(0.77 * drift_w * t + phase[1]),
+            heave_amp * std::sin(heave_w * t + phase[2])};
+  }
+  Eigen::Vector3d p_dot(double t) const {
+    if (!sea) return Eigen::Vector3d::Zero();
+    return {drift_amp * drift_w * std::cos(drift_w * t + phase[0]),
+            drift_amp * 0.77 * drift_w * std::cos(0.77 * drift_w * t + phase[1]),
+            heave_amp * heave_w * std::cos(heave_w * t + phase[2])};
+  }
+  /// Rocking rotation (n side): roll and pitch at the amplitude, yaw at half of it, incommensurate
+  /// periods around the nominal one.
+  Eigen::Matrix3d C_rock(double t) const {
+    if (!sea) return Eigen::Matrix3d::Identity();
+    const Eigen::Vector3d rho(rock_amp * std::sin(rock_w * t + phase[3]),
+                              rock_amp * std::sin(1.13 * rock_w * t + phase[4]),
+                              0.5 * rock_amp * std::sin(0.71 * rock_w * t + phase[5]));
+    return rotvec_to_matrix<double>(rho);
+  }
+};
+
+/// Earth-fixed kinematics of the unit: position (from the site's tangent frame, exact to far
+/// below a millimetre over a DP excursion), n-frame at the current position, inertial frame.
+class EarthKinematics {
+ public:
+  EarthKinematics(const Site& site) : site_(site) {
+    r0_ = ecef(site.lat_rad, site.lon_rad, site.height_m);
+    C_en0_ = C_en(site.lat_rad, site.lon_rad);
+    RN_ = EarthModel::radius_north_m(site.lat_rad) + site.height_m;
+    RE_ = EarthModel::radius_east_m(site.lat_rad) + site.height_m;
+    w_ie_ = Eigen::Vector3d(0, 0, wgs84::kEarthRate_radps);
+  }
+  static Eigen::Vector3d ecef(double lat, double lon, double h) {
+    const double s = std::sin(lat), c = std::cos(lat);
+    const double N = wgs84::kSemiMajor_m / std::sqrt(1.0 - wgs84::kEcc2 * s * s);
+    return {(N + h) * c * std::cos(lon), (N + h) * c * std::sin(lon),
+            (N * (1.0 - wgs84::kEcc2) + h) * s};
+  }
+  /// n (NED) to e.
+  static Eigen::Matrix3d C_en(double lat, double lon) {
+    const double sL = std::sin(lat), cL = std::cos(lat), sl = std::sin(lon), cl = std::cos(lon);
+    Eigen::Matrix3d C;
+    C << -sL * cl, -sl, -cL * cl,  //
+        -sL * sl, cl, -cL * sl,    //
+        cL, 0.0, -sL;
+    return C;
+  }
+  Eigen::Matrix3d C_ie(double t) const {
+    return rotvec_to_matrix<double>(Eigen::Vector3d(w_ie_ * t));
+  }
+  /// Geodetic position of a NED displacement p (tangent frame at the site).
+  void lla(const Eigen::Vector3d& p, double& lat, double& lon, double& h) const {
+    lat = site_.lat_rad + p(0) / RN_;
+    lon = site_.lon_rad + p(1) / (RE_ * std::cos(site_.lat_rad));
+    h = site_.height_m - p(2);
+  }
+  Eigen::Vector3d r_e(const Eigen::Vector3d& p) const { return r0_ + C_en0_ * p; }
+  Eigen::Vector3d v_e(const Eigen::Vector3d& p_dot) const { return C_en0_ * p_dot; }
+  /// C_bi = C_ie C_en(position) C_bn: body to inertial.
+  Eigen::Matrix3d C_bi(double t, const Eigen::Vector3d& p, const Eigen::Matrix3d& C_bn) const {
+    double lat, lon, h;
+    lla(p, lat, lon, h);
+    return C_ie(t) * C_en(lat, lon) * C_bn;
+  }
+  Eigen::Vector3d v_i(double t, const Eigen::Vector3d& p, const Eigen::Vector3d& p_dot) const {
+    const Eigen::Vector3d r = r_e(p);
+    return C_ie(t) * (v_e(p_dot) + w_ie_.cross(r));
+  }
+  /// Gravitation (mass attraction only) in i: G = g + ω × (ω × r), g along the local down with the
+  /// true magnitude (normal gravity at the position, or the surveyed value with its height
+  /// gradient, plus any gravity error).
+  Eigen::Vector3d G_i(double t, const Eigen::Vector3d& p, double g_offset) const {
+    double lat, lon, h;
+    lla(p, lat, lon, h);
+    const double g = EarthModel::normal_gravity_mps2(lat, h) + g_offset;
+    const Eigen::Vector3d r = r_e(p);
+    const Eigen::Vector3d g_e = C_en(lat, lon) * Eigen::Vector3d(0, 0, g);
+    return C_ie(t) * (g_e + w_ie_.cross(w_ie_.cross(r)));
+  }
+
+ private:
+  Site site_;
+  Eigen::Vector3d r0_, w_ie_;
+  Eigen::Matrix3d C_en0_;
+  double RN_, RE_;
+};
+
+Platform make_platform(const FieldSimOptions& opt, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  Platform plat;
+  plat.sea = opt.setting == Setting::kSea;
+  plat.drift_amp = opt.drift_amplitude_m;
+  plat.drift_w = 2.0 * kPi / opt.drift_period_s;
+  plat.heave_amp = opt.heave_amplitude_m;
+  plat.heave_w = 2.0 * kPi / opt.heave_period_s;
+  plat.rock_amp = opt.rock_amplitude_deg * kDegToRad;
+  plat.rock_w = 2.0 * kPi / opt.rock_period_s;
+  for (double& ph : plat.phase) ph = 2.0 * kPi * u01(rng);
+  return plat;
+}
+
+/// GNSS fixes at the platform's true position plus white noise, at multiples of 1/rate.
+std::vector<GnssFix> gnss_fixes(const Platform& plat, const Site& site, const FieldSimOptions& opt,
+                                double t_end, std::mt19937_64& rng) {
+  std::normal_distribution<double> n01;
+  const double RN = EarthModel::radius_north_m(site.lat_rad) + site.height_m;
+  const double RE = EarthModel::radius_east_m(site.lat_rad) + site.height_m;
+  std::vector<GnssFix> out;
+  for (int m = 1; m / opt.gnss_rate_hz <= t_end + 1e-9; ++m) {
+    const double t = m / opt.gnss_rate_hz;
+    const Eigen::Vector3d p = plat.p(t);
+    GnssFix g;
+    g.t_s = t;
+    g.lat_rad = site.lat_rad + (p(0) + opt.gnss_sigma_m * n01(rng)) / RN;
+    g.lon_rad = site.lon_rad + (p(1) + opt.gnss_sigma_m * n01(rng)) / (RE * std::cos(site.lat_rad));
+    g.sigma_m = opt.gnss_sigma_m;
+    out.push_back(g);
+  }
+  return out;
+}
+
+}  // namespace
+
+FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Site& site,
+                              const UnitModel& unit, const FieldSimOptions& opt) {
+  check_options(opt, unit);
+  std::mt19937_64 rng(opt.seed * 0x9E3779B97F4A7C15ULL + 17);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::normal_distribution<double> n01;
+
+  TableGeometry geom;
+  geom.heading_rad = 2.0 * kPi * u01(rng);
+  const TableModel table(geom);
+  const HandTimeline hand(profile, opt, rng);
+  const Platform plat = make_platform(opt, rng);
+
+  // The true gravity: the site's (surveyed, or normal gravity) plus the gravity_error effect.
+  const Site truth = true_site(site, unit.effects.gravity_error_mps2, 0.0);
+  const double g_offset =
+      truth.gravity_mps2
+          ? *truth.gravity_mps2 - EarthModel::normal_gravity_mps2(site.lat_rad, site.height_m)
+          : 0.0;
+  const EarthKinematics earth(site);
+
+  auto C_bn_at = [&](double t) {
+    double tp;
+    Eigen::Vector3d e;
+    bool rest;
+    hand.at(t, tp, e, rest);
+    const sequences::TableState s = profile.at(tp);
+    return Eigen::Matrix3d(plat.C_rock(t) * rotvec_to_matrix<double>(e) *
+                           table.C_bn(s.outer_rad, s.inner_rad));
+  };
+
+  const double dt = 1.0 / opt.rate_hz;
+  const size_t n = static_cast<size_t>(std::floor(hand.duration_s() * opt.rate_hz + 1e-9));
+  FieldSimResult out;
+  out.truth = unit.params;
+  out.imu.resize(n);
+  out.true_rest.resize(n);
+  out.C_bn.resize(n);
+  out.rest_spans = hand.rest_spans();
+  TruthSensor sensor(unit, dt, opt.seed, opt.noise);
+  Eigen::Matrix3d C_bi_prev = earth.C_bi(0.0, plat.p(0.0), C_bn_at(0.0));
+  Eigen::Vector3d v_i_prev = earth.v_i(0.0, plat.p(0.0), plat.p_dot(0.0));
+  for (size_t k = 0; k < n; ++k) {
+    const double t0 = static_cast<double>(k) * dt, t1 = static_cast<double>(k + 1) * dt;
+    const Eigen::Matrix3d C_bn = C_bn_at(t1);
+    const Eigen::Vector3d p1 = plat.p(t1);
+    const Eigen::Matrix3d C_bi = earth.C_bi(t1, p1, C_bn);
+    const Eigen::Vector3d v_i = earth.v_i(t1, p1, plat.p_dot(t1));
+    Eigen::Vector3d int_G = Eigen::Vector3d::Zero();
+    for (int q = 0; q < 3; ++q) {
+      const double t = t0 + GaussLegendre3::kNode[q] * dt;
+      int_G += GaussLegendre3::kWeight[q] * dt * earth.G_i(t, plat.p(t), g_offset);
+    }
+    const Eigen::Vector3d dtheta = matrix_to_rotvec(C_bi_prev.transpose() * C_bi);
+    const Eigen::Vector3d dv = C_bi_prev.transpose() * (v_i - v_i_prev - int_G);
+    ImuIncrement& s = out.imu[k];
+    s.t_s = t1;
+    s.dt_s = dt;
+    sensor.measure(dtheta, dv, t0, s);
+    s.temp_c = 25.0;
+    out.true_rest[k] = hand.rest_interval(t0, t1);
+    out.C_bn[k] = C_bn;
+    C_bi_prev = C_bi;
+    v_i_prev = v_i;
+  }
+
+  if (plat.sea) out.gnss = gnss_fixes(plat, site, opt, n ? out.imu.back().t_s : 0.0, rng);
+  return out;
+}
+
+}  // namespace imucal::calib
