@@ -23,8 +23,6 @@ constexpr int kNs = kNumSensor;
   throw std::invalid_argument("AINS: " + what);  // the method, not the function (issue #19)
 }
 
-bool finite3(const Vector3d& v) { return v.allFinite(); }
-
 std::string at(const char* field, size_t k) {
   std::ostringstream os;
   os << field << "[" << k << "]";
@@ -74,31 +72,6 @@ void check_site_and_noise(const CalibrationInput& in) {
     fail("site gravity_mps2 must be finite and > 0");
 }
 
-void check_samples(const CalibrationInput& in) {
-  const size_t n = in.imu.size();
-  if (n == 0) fail("input has no IMU samples");
-  if (in.reference.size() != n)
-    fail("imu has " + std::to_string(n) + " samples but reference has " +
-         std::to_string(in.reference.size()) + " (must be equal, same time axis)");
-  for (size_t k = 0; k < n; ++k) {
-    const ImuIncrement& s = in.imu[k];
-    if (!std::isfinite(s.t_s)) fail(at("imu", k) + ".t_s is not finite");
-    if (!(std::isfinite(s.dt_s) && s.dt_s > 0.0))
-      fail(at("imu", k) + ".dt_s must be finite and > 0");
-    if (!finite3(s.dtheta_rad)) fail(at("imu", k) + ".dtheta_rad is not finite");
-    if (!finite3(s.dv_mps)) fail(at("imu", k) + ".dv_mps is not finite");
-    if (k > 0 && !(s.t_s > in.imu[k - 1].t_s)) fail(at("imu", k) + ".t_s is not increasing");
-    const ReferenceSample& r = in.reference[k];
-    if (!(std::abs(r.t_s - s.t_s) <= 0.5 * s.dt_s))
-      fail(at("reference", k) + ".t_s differs from imu[k].t_s by more than half a sample");
-    if (!in.has_reference_attitude()) continue;
-    if (!r.C_bn_ref.allFinite()) fail(at("reference", k) + ".C_bn_ref is not finite");
-    if ((r.C_bn_ref.transpose() * r.C_bn_ref - Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6 ||
-        r.C_bn_ref.determinant() < 0.0)
-      fail(at("reference", k) + ".C_bn_ref is not a rotation matrix");
-  }
-}
-
 /// Sea: every fix checked and mapped to the IMU sample nearest its time.
 std::vector<int32_t> map_gnss(const CalibrationInput& in) {
   if (in.setting != Setting::kSea) {
@@ -132,7 +105,7 @@ std::vector<int32_t> map_gnss(const CalibrationInput& in) {
 PreparedInput prepare_input(const CalibrationInput& in, const AinsOptions& opt) {
   check_options(opt);
   check_site_and_noise(in);
-  check_samples(in);
+  check_input_samples(in, "AINS: ");
   const size_t n = in.imu.size();
 
   const std::vector<RestPeriod> rests = find_rest_periods(in, opt.min_rest_samples);

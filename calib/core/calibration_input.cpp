@@ -1,5 +1,8 @@
 #include "calib/core/calibration_input.hpp"
 
+#include <cmath>
+#include <stdexcept>
+
 #include "calib/core/rest_detector.hpp"
 
 namespace imucal::calib {
@@ -60,6 +63,37 @@ CalibrationInput input_from_field_data(Setting setting, const ImuSeries& imu,
     in.reference[k].at_rest = rest[k];
   }
   return in;
+}
+
+void check_input_samples(const CalibrationInput& in, const std::string& who) {
+  // Messages are built only on failure: this loop runs over every sample of an hour-long run.
+  auto fail = [&who](const std::string& what) { throw std::invalid_argument(who + what); };
+  auto at = [](const char* field, size_t k) {
+    return std::string(field) + "[" + std::to_string(k) + "]";
+  };
+  const size_t n = in.imu.size();
+  if (n == 0) fail("input has no IMU samples");
+  if (in.reference.size() != n)
+    fail("imu has " + std::to_string(n) + " samples but reference has " +
+         std::to_string(in.reference.size()) + " (must be equal, same time axis)");
+  for (size_t k = 0; k < n; ++k) {
+    const ImuIncrement& s = in.imu[k];
+    if (!std::isfinite(s.t_s)) fail(at("imu", k) + ".t_s is not finite");
+    if (!(std::isfinite(s.dt_s) && s.dt_s > 0.0))
+      fail(at("imu", k) + ".dt_s must be finite and > 0");
+    if (!s.dtheta_rad.allFinite()) fail(at("imu", k) + ".dtheta_rad is not finite");
+    if (!s.dv_mps.allFinite()) fail(at("imu", k) + ".dv_mps is not finite");
+    if (k > 0 && !(s.t_s > in.imu[k - 1].t_s)) fail(at("imu", k) + ".t_s is not increasing");
+    const ReferenceSample& r = in.reference[k];
+    if (!(std::abs(r.t_s - s.t_s) <= 0.5 * s.dt_s))
+      fail(at("reference", k) + ".t_s differs from imu[k].t_s by more than half a sample");
+    if (!in.has_reference_attitude()) continue;
+    if (!r.C_bn_ref.allFinite()) fail(at("reference", k) + ".C_bn_ref is not finite");
+    if ((r.C_bn_ref.transpose() * r.C_bn_ref - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() >
+            1e-6 ||
+        r.C_bn_ref.determinant() < 0.0)
+      fail(at("reference", k) + ".C_bn_ref is not a rotation matrix");
+  }
 }
 
 }  // namespace imucal::calib

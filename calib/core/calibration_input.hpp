@@ -108,6 +108,13 @@ struct CalibrationResult {
   }
 };
 
+/// The per-sample validity every method needs before it reads a sample: imu and reference of the
+/// same length on the same time axis (within half a sample), each increment finite with dt_s > 0
+/// and times increasing, and — where the setting has an attitude reference — each C_bn_ref a
+/// finite rotation. Throws std::invalid_argument naming the first bad sample, prefixed with `who`
+/// (the method's name as operators read it: "AINS: imu[12].dt_s must be finite and > 0").
+void check_input_samples(const CalibrationInput& in, const std::string& who);
+
 /// sigma from a covariance (sqrt of the diagonal, in ParamSet shape).
 ParamSet sigma_from_covariance(const ParamCovariance& cov);
 

@@ -21,13 +21,6 @@ namespace imucal::calib {
 
 namespace {
 
-/// A correlation as people read it: three decimals ("0.977", not "0.977463").
-std::string three_digits(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3f", x);
-  return buf;
-}
-
 /// The linearised problem plus the held-out folds.
 struct Problem {
   const GapModel& model;
@@ -131,7 +124,7 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
       os << "it changes no rest or move residual (no signature)";
     else
       os << "its parameters correlate "
-         << three_digits(std::max(sep.max_correlation, opt.separability_limit)) << " > "
+         << correlation_text(std::max(sep.max_correlation, opt.separability_limit)) << " > "
          << opt.separability_limit << " with " << base_names(sep.aliases);
     r.note = os.str();
     r.value_si = Eigen::VectorXd::Zero(e.size());

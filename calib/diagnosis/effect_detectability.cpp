@@ -16,13 +16,6 @@ namespace imucal::calib {
 
 namespace {
 
-/// A correlation as people read it: three decimals ("0.977", not "0.977463").
-std::string three_digits(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3f", x);
-  return buf;
-}
-
 struct Analysed {
   EffectDetectability d;
   Eigen::MatrixXd J_sep;  ///< whitened columns of its separable directions
@@ -64,7 +57,7 @@ Analysed analyse(const GapLinearisation& lin, EffectId id, size_t candidates,
     if (d.no_signature == d.directions)
       os << "no signature: it changes no rest or move residual on this sequence";
     else
-      os << "correlates " << three_digits(std::max(sep.max_correlation, opt.separability_limit))
+      os << "correlates " << correlation_text(std::max(sep.max_correlation, opt.separability_limit))
          << " > " << opt.separability_limit << " with the base parameters (" <<
           [&] {
             std::string s;
@@ -164,7 +157,7 @@ std::vector<EffectDetectability> effect_detectability(const sequences::MotionPro
       for (const auto& o : a.d.confounded_with) s += (s.empty() ? "" : ", ") + o;
       std::ostringstream os;
       os << "confounded with " << s << " (signatures correlate "
-         << three_digits(a.d.max_cross_correlation) << " > " << opt.separability_limit << ")";
+         << correlation_text(a.d.max_cross_correlation) << " > " << opt.separability_limit << ")";
       a.d.reason = os.str();
     }
     out.push_back(a.d);

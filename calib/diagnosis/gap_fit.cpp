@@ -6,6 +6,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numeric>
 #include <stdexcept>
 
@@ -193,6 +194,12 @@ double canonical_correlation(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& A
   if (Qa.cols() == 0 || Qb.cols() == 0) return 0.0;
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(Qa.transpose() * Qb);
   return std::min(1.0, svd.singularValues()(0));
+}
+
+std::string correlation_text(double r) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", r);
+  return buf;
 }
 
 }  // namespace imucal::calib

@@ -6,6 +6,7 @@
 // on held-out segments — is a least-squares question on (r0, J) restricted to some rows and
 // columns.
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 namespace imucal::calib {
@@ -62,6 +63,9 @@ struct Separability {
 /// no signature. `limit`: the correlation above which a direction is not separable.
 Separability separability(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& Jc, double limit,
                           double signature_floor);
+
+/// A correlation as people read it in a note: three decimals ("0.977", not "0.977463").
+std::string correlation_text(double r);
 
 /// Largest canonical correlation between the parts of two column blocks that the base columns do
 /// not explain (are two candidates telling the same story on this sequence?).

@@ -31,8 +31,6 @@ constexpr double kMinRelativeEigenvalue = 1e-14;
 
 [[noreturn]] void fail(const std::string& what) { throw std::invalid_argument(kWho + what); }
 
-bool finite3(const Eigen::Vector3d& v) { return v.allFinite(); }
-
 void validate(const CalibrationInput& in, const NlsqOptions& opt) {
   if (!in.has_reference_attitude())
     fail(std::string("needs the table's attitude reference (paper §V); a ") +
@@ -41,11 +39,6 @@ void validate(const CalibrationInput& in, const NlsqOptions& opt) {
   if (!(opt.convergence_sigma_ratio > 0.0)) fail("options.convergence_sigma_ratio must be > 0");
   if (opt.ceres_max_iterations < 1) fail("options.ceres_max_iterations must be >= 1");
   if (opt.min_rest_samples < 2) fail("options.min_rest_samples must be >= 2");
-  if (in.imu.size() != in.reference.size()) {
-    fail("imu has " + std::to_string(in.imu.size()) + " samples but reference has " +
-         std::to_string(in.reference.size()) + " (must be equal, same time axis)");
-  }
-  if (in.imu.empty()) fail("imu is empty");
   const NoiseModel& nm = in.noise;
   if (!(std::isfinite(nm.arw_rad_per_sqrt_s) && nm.arw_rad_per_sqrt_s > 0.0))
     fail("noise.arw_rad_per_sqrt_s must be finite and > 0 (it weights the gyro residuals)");
@@ -61,24 +54,7 @@ void validate(const CalibrationInput& in, const NlsqOptions& opt) {
   if (in.site.gravity_mps2 &&
       !(std::isfinite(*in.site.gravity_mps2) && *in.site.gravity_mps2 > 0.0))
     fail("site.gravity_mps2 must be finite and > 0 when given");
-  // Messages are built only on failure: this loop runs over every sample of an hour-long run.
-  auto at = [](const char* what, size_t k) {
-    return std::string(what) + "[" + std::to_string(k) + "]";
-  };
-  for (size_t k = 0; k < in.imu.size(); ++k) {
-    const ImuIncrement& s = in.imu[k];
-    if (!std::isfinite(s.t_s)) fail(at("imu", k) + ".t_s is not finite");
-    if (!(std::isfinite(s.dt_s) && s.dt_s > 0.0))
-      fail(at("imu", k) + ".dt_s must be finite and > 0");
-    if (!finite3(s.dtheta_rad)) fail(at("imu", k) + ".dtheta_rad is not finite");
-    if (!finite3(s.dv_mps)) fail(at("imu", k) + ".dv_mps is not finite");
-    const ReferenceSample& r = in.reference[k];
-    if (!std::isfinite(r.t_s)) fail(at("reference", k) + ".t_s is not finite");
-    if (!r.C_bn_ref.allFinite()) fail(at("reference", k) + ".C_bn_ref is not finite");
-    if (std::abs(r.t_s - s.t_s) > 1e-6)
-      fail(at("reference", k) + ".t_s differs from " + at("imu", k) +
-           ".t_s (must share the time axis)");
-  }
+  check_input_samples(in, kWho);
 }
 
 /// The five parameter blocks, in ParamSet's flat order.

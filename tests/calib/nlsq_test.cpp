@@ -415,6 +415,21 @@ TEST(Nlsq, NonFiniteImuIsRejectedWithItsIndex) {
   EXPECT_NE(msg.find("imu[77].dtheta_rad"), std::string::npos) << msg;
 }
 
+// The per-sample checks are AINS's too (calib/core check_input_samples): the reference must be a
+// rotation and the times increasing, which NLSQ's own loop did not hold before.
+TEST(Nlsq, ReferenceThatIsNoRotationAndTimeGoingBackAreRejectedLikeAins) {
+  const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
+  CalibrationInput in = run.in;
+  in.reference[77].C_bn_ref(0, 0) = 2.0;
+  std::string msg = error_of(in);
+  EXPECT_EQ(msg.rfind("NLSQ: reference[77].C_bn_ref is not a rotation matrix", 0), 0u) << msg;
+  in = run.in;
+  in.imu[500].t_s = in.imu[498].t_s;
+  in.reference[500].t_s = in.imu[500].t_s;
+  msg = error_of(in);
+  EXPECT_EQ(msg.rfind("NLSQ: imu[500].t_s is not increasing", 0), 0u) << msg;
+}
+
 TEST(Nlsq, SizeMismatchAndMissingNoiseModelAreRejected) {
   const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
   CalibrationInput in = run.in;
