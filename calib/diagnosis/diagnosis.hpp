@@ -1,8 +1,8 @@
 #pragma once
 // Sim-to-real gap diagnosis (DESIGN §8, issue #8): where a recorded run departs from the model
 // (calibrated parameters + declared noise), which unmodelled effect of the catalogue
-// (calib/sim/effects.hpp) explains it, and how far the gap shrinks once that effect is modelled, on
-// held-out segments.
+// (calib/effects/catalogue.hpp) explains it, and how far the gap shrinks once that effect is
+// modelled, on held-out segments.
 //
 //  1. Localise: the segment residuals of calib/diagnosis/gap_model.hpp after refitting the base
 //  parameters,
@@ -29,7 +29,7 @@
 #include "calib/core/param_set.hpp"
 #include "calib/diagnosis/gap_model.hpp"
 #include "calib/diagnosis/whiteness.hpp"
-#include "calib/sim/effects.hpp"
+#include "calib/effects/catalogue.hpp"
 
 namespace imucal::calib {
 

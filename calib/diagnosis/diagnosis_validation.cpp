@@ -9,7 +9,6 @@
 
 #include "calib/core/calibration_input.hpp"
 #include "calib/nlsq/nlsq.hpp"
-#include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
 
@@ -54,25 +53,19 @@ std::vector<Task> make_tasks(const std::vector<EffectId>& ids, const ValidationO
 }
 
 ValidationRun run_one(const Task& t, const std::map<EffectId, double>& threshold,
-                      const sequences::MotionProfile& profile, const TableGeometry& geometry,
-                      const Site& site, const UnitModel& unit, double rate_hz) {
-  UnitModel u = unit;
-  u.effects = Effects{};
+                      const RunSource& world, const TableGeometry& geometry) {
+  Effects effects;
   ValidationRun r;
   r.seed = t.seed;
   for (size_t i = 0; i < t.ids.size(); ++i) {
     const EffectInfo& e = effect_info(t.ids[i]);
-    set_effect_vector(u.effects, e.id,
+    set_effect_vector(effects, e.id,
                       scaled_typical(e, t.factor[i] * threshold.at(e.id), t.sign[i]));
     r.injected.push_back(e.name);
     r.factor.push_back(t.factor[i]);
   }
-  SimOptions so;
-  so.rate_hz = rate_hz;
-  so.seed = t.seed;
-  const SimResult sim = simulate(profile, geometry, site, u, so);
   DiagnosisInput in;
-  in.cal = input_from_simulation(sim, geometry, site, unit.noise);
+  in.cal = world(effects, t.seed, /*noise=*/true);
   in.geometry = geometry;
   try {
     const CalibrationResult cal = calibrate_nlsq(in.cal);
@@ -141,13 +134,12 @@ Eigen::VectorXd scaled_typical(const EffectInfo& e, double magnitude, double sig
   return v;
 }
 
-ValidationReport validate_diagnosis(const sequences::MotionProfile& profile,
-                                    const TableGeometry& geometry, const Site& site,
-                                    const UnitModel& unit, double rate_hz,
+ValidationReport validate_diagnosis(const RunSource& world, const TableGeometry& geometry,
+                                    const ParamSet& base, const std::string& sequence,
                                     const ValidationOptions& opt) {
   ValidationReport rep;
-  rep.sequence = profile.name;
-  rep.detectability = effect_detectability(profile, geometry, site, unit, rate_hz);
+  rep.sequence = sequence;
+  rep.detectability = effect_detectability(world(Effects{}, 1, /*noise=*/false), geometry, base);
   std::map<EffectId, double> threshold;
   std::vector<EffectId> ids;
   for (const auto& d : rep.detectability) {
@@ -166,7 +158,7 @@ ValidationReport validate_diagnosis(const sequences::MotionProfile& profile,
   auto worker = [&] {
     for (size_t i = next++; i < tasks.size(); i = next++) {
       try {
-        rep.runs[i] = run_one(tasks[i], threshold, profile, geometry, site, unit, rate_hz);
+        rep.runs[i] = run_one(tasks[i], threshold, world, geometry);
       } catch (const std::exception& ex) {  // a worker must never take the process down
         rep.runs[i].verdict = "error";
         rep.runs[i].named = std::string("error: ") + ex.what();

@@ -1,20 +1,21 @@
 #pragma once
-// Blind validation of the gap diagnosis (DESIGN §8 step 4, issue #8 item 4): simulate runs of a
-// sequence with one effect (and, separately, pairs) injected at magnitudes drawn between 3× and 10×
-// the effect's detection threshold on that sequence (calib/diagnosis/effect_detectability.hpp),
-// plus null runs with none; calibrate each (NLSQ) and diagnose it without telling the diagnosis
-// what was injected; count what it names.
+// Blind validation of the gap diagnosis (DESIGN §8 step 4, issue #8 item 4): draw runs of a
+// sequence from a RunSource (calib/effects/run_source.hpp: the truth simulator, or another) with
+// one effect (and, separately, pairs) injected at magnitudes drawn between 3× and 10× the effect's
+// detection threshold on that sequence (calib/diagnosis/effect_detectability.hpp), plus null runs
+// with none; calibrate each (NLSQ) and diagnose it without telling the diagnosis what was injected;
+// count what it names.
 #include <cstdint>
 #include <functional>
 #include <map>
 #include <string>
 #include <vector>
 
+#include "calib/core/param_set.hpp"
 #include "calib/core/table_model.hpp"
 #include "calib/diagnosis/diagnosis.hpp"
 #include "calib/diagnosis/effect_detectability.hpp"
-#include "calib/sim/truth_sim.hpp"
-#include "sequences/motion_profile.hpp"
+#include "calib/effects/run_source.hpp"
 
 namespace imucal::calib {
 
@@ -58,9 +59,10 @@ struct ValidationReport {
   int single_runs = 0, null_count = 0, pair_count = 0;
 };
 
-ValidationReport validate_diagnosis(const sequences::MotionProfile& profile,
-                                    const TableGeometry& geometry, const Site& site,
-                                    const UnitModel& unit, double rate_hz,
+/// `world` draws the runs (its unit's declared noise with them), `geometry` is its table's, `base`
+/// its unit's parameters (the detectability's linearisation point), `sequence` the name reported.
+ValidationReport validate_diagnosis(const RunSource& world, const TableGeometry& geometry,
+                                    const ParamSet& base, const std::string& sequence,
                                     const ValidationOptions& opt = {});
 
 /// The effect's typical pattern scaled to `magnitude` (its magnitude unit) with a sign, SI vector.

@@ -10,7 +10,6 @@
 #include "calib/diagnosis/gap_fit.hpp"
 #include "calib/diagnosis/gap_linearisation.hpp"
 #include "calib/diagnosis/stochastic_candidates.hpp"
-#include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
 
@@ -115,21 +114,15 @@ Analysed analyse_stochastic(const GapLinearisation& lin, EffectId id, size_t can
 
 }  // namespace
 
-std::vector<EffectDetectability> effect_detectability(const sequences::MotionProfile& profile,
+std::vector<EffectDetectability> effect_detectability(const CalibrationInput& exact_run,
                                                       const TableGeometry& geometry,
-                                                      const Site& site, const UnitModel& unit,
-                                                      double rate_hz, const DiagnosisOptions& opt) {
-  UnitModel plain = unit;
-  plain.effects = Effects{};
-  SimOptions so;
-  so.noise = false;
-  so.rate_hz = rate_hz;
-  const SimResult sim = simulate(profile, geometry, site, plain, so);
+                                                      const ParamSet& base,
+                                                      const DiagnosisOptions& opt) {
   DiagnosisInput in;
-  in.cal = input_from_simulation(sim, geometry, site, unit.noise);
+  in.cal = exact_run;
   in.geometry = geometry;
   const GapModel model(in, opt.min_rest_samples);
-  const GapLinearisation lin(model, plain.params);
+  const GapLinearisation lin(model, base);
   std::vector<Analysed> all;
   const size_t n = effect_catalogue().size();
   for (const auto& e : effect_catalogue()) {

@@ -17,11 +17,11 @@
 #include <string>
 #include <vector>
 
+#include "calib/core/calibration_input.hpp"
+#include "calib/core/param_set.hpp"
 #include "calib/core/table_model.hpp"
 #include "calib/diagnosis/diagnosis.hpp"
-#include "calib/sim/effects.hpp"
-#include "calib/sim/truth_sim.hpp"
-#include "sequences/motion_profile.hpp"
+#include "calib/effects/catalogue.hpp"
 
 namespace imucal::calib {
 
@@ -43,12 +43,12 @@ struct EffectDetectability {
   std::string reason;  ///< why not separable (empty when separable)
 };
 
-/// One entry per catalogue effect, in catalogue order. `unit` supplies the base parameters (the
-/// linearisation point) and the declared noise (the weights); its effects are ignored.
-std::vector<EffectDetectability> effect_detectability(const sequences::MotionProfile& profile,
+/// One entry per catalogue effect, in catalogue order. `exact_run` is the sequence's run without
+/// noise or effects (the true trajectory; a RunSource's run with noise off), whose declared noise
+/// model supplies the weights; `base` the unit's parameters, the linearisation point.
+std::vector<EffectDetectability> effect_detectability(const CalibrationInput& exact_run,
                                                       const TableGeometry& geometry,
-                                                      const Site& site, const UnitModel& unit,
-                                                      double rate_hz,
+                                                      const ParamSet& base,
                                                       const DiagnosisOptions& opt = {});
 
 }  // namespace imucal::calib

@@ -9,7 +9,7 @@
 
 #include "calib/core/param_set.hpp"
 #include "calib/diagnosis/gap_model.hpp"
-#include "calib/sim/effects.hpp"
+#include "calib/effects/catalogue.hpp"
 
 namespace imucal::calib {
 

@@ -8,9 +8,9 @@
 #include "calib/core/earth.hpp"
 #include "calib/core/imu_error_model.hpp"
 #include "calib/core/rotation.hpp"
-#include "calib/sim/effects/sensor_effects.hpp"
-#include "calib/sim/effects/site_errors.hpp"
-#include "calib/sim/effects/table_imperfections.hpp"
+#include "calib/effects/sensor_effects.hpp"
+#include "calib/effects/site_errors.hpp"
+#include "calib/effects/table_imperfections.hpp"
 
 namespace imucal::calib {
 

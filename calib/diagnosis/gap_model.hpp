@@ -30,7 +30,7 @@
 #include "calib/core/calibration_input.hpp"
 #include "calib/core/param_set.hpp"
 #include "calib/core/table_model.hpp"
-#include "calib/sim/effects.hpp"
+#include "calib/effects/catalogue.hpp"
 
 namespace imucal::calib {
 

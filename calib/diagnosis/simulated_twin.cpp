@@ -5,7 +5,7 @@
 #include "calib/core/earth.hpp"
 #include "calib/core/imu_error_model.hpp"
 #include "calib/core/rotation.hpp"
-#include "calib/sim/effects/quantisation.hpp"
+#include "calib/effects/quantisation.hpp"
 
 namespace imucal::calib {
 

@@ -9,7 +9,7 @@
 
 #include "calib/core/chi2.hpp"
 #include "calib/diagnosis/gap_fit.hpp"
-#include "calib/sim/effects/bias_instability.hpp"
+#include "calib/effects/bias_instability.hpp"
 
 namespace imucal::calib {
 

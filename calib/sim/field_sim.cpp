@@ -8,7 +8,7 @@
 #include "calib/core/conventions.hpp"
 #include "calib/core/rotation.hpp"
 #include "calib/core/table_model.hpp"
-#include "calib/sim/effects/site_errors.hpp"
+#include "calib/effects/site_errors.hpp"
 #include "calib/sim/truth_physics.hpp"
 
 namespace imucal::calib {

@@ -1,5 +1,7 @@
 #include "calib/sim/sim_input.hpp"
 
+#include <memory>
+
 namespace imucal::calib {
 
 CalibrationInput input_from_simulation(const SimResult& sim, const TableGeometry& geometry,
@@ -14,6 +16,21 @@ CalibrationInput input_from_simulation(const SimResult& sim, const TableGeometry
     in.reference.push_back(
         {ts.t_s, table.C_bn(ts.outer_rad, ts.inner_rad), ts.at_rest, ts.outer_rad, ts.inner_rad});
   return in;
+}
+
+RunSource truth_run_source(const sequences::MotionProfile& profile, const TableGeometry& geometry,
+                           const Site& site, const UnitModel& unit, double rate_hz) {
+  auto world = std::make_shared<const sequences::MotionProfile>(profile);
+  return [world, geometry, site, unit, rate_hz](const Effects& effects, uint64_t seed, bool noise) {
+    UnitModel u = unit;
+    u.effects = effects;
+    SimOptions so;
+    so.rate_hz = rate_hz;
+    so.seed = seed;
+    so.noise = noise;
+    return input_from_simulation(simulate(*world, geometry, site, u, so), geometry, site,
+                                 unit.noise);
+  };
 }
 
 }  // namespace imucal::calib

@@ -3,9 +3,9 @@
 #include <cmath>
 
 #include "calib/core/rotation.hpp"
-#include "calib/sim/effects/sensor_effects.hpp"
-#include "calib/sim/effects/site_errors.hpp"
-#include "calib/sim/effects/table_imperfections.hpp"
+#include "calib/effects/sensor_effects.hpp"
+#include "calib/effects/site_errors.hpp"
+#include "calib/effects/table_imperfections.hpp"
 
 namespace imucal::calib {
 
@@ -107,7 +107,7 @@ void TruthSensor::reseed_noise(uint64_t seed) {
 void TruthSensor::measure(const Eigen::Vector3d& dtheta, const Eigen::Vector3d& dv, double t0_s,
                           ImuIncrement& out) {
   const double dt_s = dt_s_;
-  // Sensor-level effects (DESIGN §7, calib/sim/effects/) at the interval-mean kinematics; the size
+  // Sensor-level effects (DESIGN §7, calib/effects/) at the interval-mean kinematics; the size
   // effect is already in dv (integrated exactly by TruthKinematics::dv_lever).
   SensorKinematics kin;
   kin.f_b = dv / dt_s;

@@ -20,8 +20,8 @@
 #include "calib/core/earth.hpp"
 #include "calib/core/imu_error_model.hpp"
 #include "calib/core/table_model.hpp"
-#include "calib/sim/effects/bias_instability.hpp"
-#include "calib/sim/effects/quantisation.hpp"
+#include "calib/effects/bias_instability.hpp"
+#include "calib/effects/quantisation.hpp"
 #include "calib/sim/truth_sim.hpp"
 #include "sequences/motion_profile.hpp"
 

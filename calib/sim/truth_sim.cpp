@@ -4,8 +4,8 @@
 #include <cmath>
 
 #include "calib/core/rotation.hpp"
-#include "calib/sim/effects/table_imperfections.hpp"
-#include "calib/sim/effects/table_time_offset.hpp"
+#include "calib/effects/table_imperfections.hpp"
+#include "calib/effects/table_time_offset.hpp"
 #include "calib/sim/truth_physics.hpp"
 
 namespace imucal::calib {

@@ -17,7 +17,7 @@
 #include "calib/core/noise_model.hpp"
 #include "calib/core/param_set.hpp"
 #include "calib/core/table_model.hpp"
-#include "calib/sim/effects.hpp"
+#include "calib/effects/catalogue.hpp"
 #include "sequences/motion_profile.hpp"
 
 namespace imucal::calib {

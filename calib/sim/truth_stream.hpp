@@ -12,7 +12,7 @@
 // times where the table's angular acceleration jumps inside an interval (give them to next(), or
 // the quadrature is not exact across them); the table-time-offset effect acts on the encoder log,
 // which a stream does not produce: the caller that reports encoder angles (the station simulator's
-// PLC) must report the angles of t - offset (calib/sim/effects/table_time_offset.hpp).
+// PLC) must report the angles of t - offset (calib/effects/table_time_offset.hpp).
 #include <cstdint>
 #include <functional>
 #include <memory>

@@ -4,7 +4,7 @@
 #include <set>
 
 #include "calib/core/conventions.hpp"
-#include "calib/sim/effects.hpp"
+#include "calib/effects/catalogue.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/param_json.hpp"

@@ -20,7 +20,7 @@ std::string unit_file_text(const calib::UnitModel& unit);
 void write_unit_file(const std::string& path, const calib::UnitModel& unit);
 
 /// What a simulated run's truth.json holds: the injected parameters, every injected effect with its
-/// values (the catalogue of calib/sim/effects.hpp) and the noise model, all SI.
+/// values (the catalogue of calib/effects/catalogue.hpp) and the noise model, all SI.
 struct Truth {
   calib::ParamSet params;
   calib::Effects effects;

@@ -11,6 +11,7 @@
 
 #include "calib/core/site_presets.hpp"
 #include "calib/diagnosis/diagnosis_validation.hpp"
+#include "calib/sim/sim_input.hpp"
 #include "sequences/library.hpp"
 
 using namespace imucal;
@@ -25,8 +26,9 @@ TEST(DiagnosisValidation, FactoryStdMeetsTheBarWithMargins) {
   opt.pair_runs = 2 * runs;
   opt.seed = 7;
   const ValidationReport r =
-      validate_diagnosis(sequences::load_profile("factory-std"), TableGeometry{},
-                         demo_factory_site(), default_unit(), 100.0, opt);
+      validate_diagnosis(truth_run_source(sequences::load_profile("factory-std"), TableGeometry{},
+                                          demo_factory_site(), default_unit(), 100.0),
+                         TableGeometry{}, default_unit().params, "factory-std", opt);
   std::printf(
       "%zu effects, %d single runs, %d null, %d pairs: top-1 %.2f, false alarms %.2f, "
       "median shrinkage %.2f, pairs %.2f\n",

@@ -11,6 +11,7 @@
 #include <map>
 
 #include "calib/core/site_presets.hpp"
+#include "calib/sim/sim_input.hpp"
 #include "sequences/library.hpp"
 
 using namespace imucal;
@@ -19,8 +20,11 @@ using namespace imucal::calib;
 namespace {
 
 std::map<std::string, EffectDetectability> analyse(const std::string& seq) {
-  const auto d = effect_detectability(sequences::load_profile(seq), TableGeometry{},
-                                      demo_factory_site(), default_unit(), 100.0);
+  const UnitModel unit = default_unit();
+  const RunSource world = truth_run_source(sequences::load_profile(seq), TableGeometry{},
+                                           demo_factory_site(), unit, 100.0);
+  const auto d =
+      effect_detectability(world(Effects{}, 1, /*noise=*/false), TableGeometry{}, unit.params);
   std::map<std::string, EffectDetectability> m;
   for (const auto& e : d) m[e.name] = e;
   EXPECT_EQ(d.size(), effect_catalogue().size());

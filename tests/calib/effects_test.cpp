@@ -3,8 +3,6 @@
 // textbook form of each effect) — not only a round trip. Runs use a perfect sensor (zero
 // calibration parameters) and, where noise is not the point, no noise, so the simulator's output is
 // the true increments plus the effect.
-#include "calib/sim/effects.hpp"
-
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -12,7 +10,8 @@
 #include <vector>
 
 #include "calib/core/site_presets.hpp"
-#include "calib/sim/effects/quantisation.hpp"
+#include "calib/effects/catalogue.hpp"
+#include "calib/effects/quantisation.hpp"
 #include "calib/sim/truth_sim.hpp"
 #include "tests/support/hand_profile.hpp"
 

@@ -12,7 +12,7 @@
 
 #include "calib/core/earth.hpp"
 #include "calib/core/site_presets.hpp"
-#include "calib/sim/effects.hpp"
+#include "calib/effects/catalogue.hpp"
 #include "tests/support/hand_profile.hpp"
 
 using namespace imucal;

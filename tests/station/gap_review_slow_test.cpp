@@ -19,6 +19,7 @@
 #include "calib/core/site_presets.hpp"
 #include "calib/diagnosis/diagnosis_validation.hpp"
 #include "calib/diagnosis/effect_detectability.hpp"
+#include "calib/sim/sim_input.hpp"
 #include "db/archive/run_archive.hpp"
 #include "db/sqlite_repository.hpp"
 #include "sequences/library.hpp"
@@ -105,9 +106,10 @@ std::vector<Outcome> run_all(const std::vector<Case>& cases) {
 }  // namespace
 
 TEST(GapReview, EveryDetectableEffectAtThreeTimesItsThresholdIsNeverPass) {
-  const auto det =
-      calib::effect_detectability(factory_std(), calib::TableGeometry{}, calib::demo_factory_site(),
-                                  calib::default_unit(), 100.0);
+  const auto det = calib::effect_detectability(
+      calib::truth_run_source(factory_std(), calib::TableGeometry{}, calib::demo_factory_site(),
+                              calib::default_unit(), 100.0)(calib::Effects{}, 1, /*noise=*/false),
+      calib::TableGeometry{}, calib::default_unit().params);
   std::vector<Case> cases;
   for (const auto& d : det) {
     if (!std::isfinite(d.threshold))

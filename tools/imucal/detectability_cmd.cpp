@@ -9,6 +9,7 @@
 #include "calib/core/site_presets.hpp"
 #include "calib/diagnosis/diagnosis.hpp"
 #include "calib/diagnosis/effect_detectability.hpp"
+#include "calib/sim/sim_input.hpp"
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
 
@@ -185,8 +186,10 @@ int cmd_crlb_effects(const std::string& seq, const std::string& unit_path, doubl
   const sequences::MotionProfile profile = sequences::load_profile(seq_path);
   const calib::UnitModel unit =
       unit_path.empty() ? calib::default_unit() : archive::read_unit_file(unit_path);
-  const auto d = calib::effect_detectability(profile, calib::TableGeometry{},
-                                             calib::demo_factory_site(), unit, rate_hz);
+  const calib::RunSource world = calib::truth_run_source(profile, calib::TableGeometry{},
+                                                         calib::demo_factory_site(), unit, rate_hz);
+  const auto d = calib::effect_detectability(world(calib::Effects{}, 1, /*noise=*/false),
+                                             calib::TableGeometry{}, unit.params);
   if (json)
     std::cout << to_json(d, profile.name).dump(2) << '\n';
   else

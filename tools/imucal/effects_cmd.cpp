@@ -4,7 +4,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
-#include "calib/sim/effects.hpp"
+#include "calib/effects/catalogue.hpp"
 
 namespace imucal::tools {
 

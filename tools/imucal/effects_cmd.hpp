@@ -1,5 +1,5 @@
 #pragma once
-// `imucal effects [--json]`: the effects catalogue (calib/sim/effects.hpp, DESIGN §7) as test
+// `imucal effects [--json]`: the effects catalogue (calib/effects/catalogue.hpp, DESIGN §7) as test
 // engineers read it — each effect's name (as unit files, truth.json, --effect and reports use it),
 // its model, its signature, and its parameters with SI and human units and a typical
 // navigation-grade value.

@@ -8,6 +8,7 @@
 
 #include "calib/core/site_presets.hpp"
 #include "calib/diagnosis/diagnosis_validation.hpp"
+#include "calib/sim/sim_input.hpp"
 #include "sequences/library.hpp"
 #include "tools/imucal/progress_line.hpp"
 
@@ -108,9 +109,11 @@ int cmd_validate(const ValidateArgs& a) {
   opt.threads = a.threads;
   opt.effects = parse_effects(a.effects);
   opt.on_progress = ProgressLine("validate-diagnosis", "runs");
+  const calib::UnitModel unit = calib::default_unit();
   const calib::ValidationReport r =
-      calib::validate_diagnosis(profile, calib::TableGeometry{}, calib::demo_factory_site(),
-                                calib::default_unit(), 100.0, opt);
+      calib::validate_diagnosis(calib::truth_run_source(profile, calib::TableGeometry{},
+                                                        calib::demo_factory_site(), unit, 100.0),
+                                calib::TableGeometry{}, unit.params, profile.name, opt);
   const bool pass = r.top1 >= kTop1 && r.false_alarm <= kFalseAlarm &&
                     r.median_shrinkage >= kShrinkage &&
                     (r.pair_count == 0 || r.pair_both >= kPairs);

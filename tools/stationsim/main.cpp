@@ -26,7 +26,7 @@
 #include "calib/core/conventions.hpp"
 #include "calib/core/earth.hpp"
 #include "calib/core/site_presets.hpp"
-#include "calib/sim/effects.hpp"
+#include "calib/effects/catalogue.hpp"
 #include "db/archive/unit_file.hpp"
 #include "drivers/sim/station_sim.hpp"
 

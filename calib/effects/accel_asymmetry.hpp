@@ -4,7 +4,7 @@
 // |cos| rather than cos².
 #include <cmath>
 
-#include "calib/sim/effects/sensor_kinematics.hpp"
+#include "calib/effects/sensor_kinematics.hpp"
 
 namespace imucal::calib {
 

@@ -2,7 +2,7 @@
 // gyro_g_sensitivity (DESIGN §7): a gyro rate error proportional to the specific force, δω = G f
 // (G 3x3, (rad/s)/(m/s²); row i = output axis i). The static gyro bias then changes with the
 // orientation of the unit against gravity.
-#include "calib/sim/effects/sensor_kinematics.hpp"
+#include "calib/effects/sensor_kinematics.hpp"
 
 namespace imucal::calib {
 

@@ -1,4 +1,4 @@
-#include "calib/sim/effects.hpp"
+#include "calib/effects/catalogue.hpp"
 
 #include <cmath>
 #include <sstream>

@@ -5,7 +5,7 @@
 // parameters with their human units and a typical navigation-grade magnitude); `Effects` holds the
 // values of all of them in typed fields, and effect_vector()/set_effect_vector() convert between
 // the two, so generic code (CLI parsing, truth.json, the diagnosis) and the physics (the forward
-// models in calib/sim/effects/*.hpp, shared by the simulator and the diagnosis) see the same
+// models in calib/effects/*.hpp, shared by the simulator and the diagnosis) see the same
 // numbers.
 //
 // Every field defaults to "off" (zero). An effect is active when any of its parameters is non-zero
@@ -87,7 +87,7 @@ std::vector<EffectId> parse_effect_list(const std::string& comma_separated);
 
 /// The values of every effect, SI. Defaults: all off.
 struct Effects {
-  // --- sensor effects (calib/sim/effects/*.hpp) ---
+  // --- sensor effects (calib/effects/*.hpp) ---
   /// accel_quadratic_k2: δf_i = K2_i f_i², in 1/(m/s²) (10 µg/g² ≈ 1.02e-6).
   Eigen::Vector3d accel_k2_per_mps2 = Eigen::Vector3d::Zero();
   /// accel_asymmetry: δf_i = Kap_i |f_i| (dimensionless).

@@ -4,7 +4,7 @@
 // over the interval: ∫ A exp(-t/τ) dt = A τ (exp(-t0/τ) - exp(-t1/τ)).
 #include <cmath>
 
-#include "calib/sim/effects/sensor_kinematics.hpp"
+#include "calib/effects/sensor_kinematics.hpp"
 
 namespace imucal::calib {
 

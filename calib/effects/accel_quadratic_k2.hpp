@@ -2,7 +2,7 @@
 // accel_quadratic_k2 (DESIGN §7): a second-order accelerometer scale term, δf_i = K2_i f_i².
 // Even in f: at ±1 g it looks like a bias (K2 g² on both sides), only tilted positions (f_i² < g²)
 // tell it apart. Parameters: K2 per axis, 1/(m/s²) (10 µg/g² = 1e-5/9.80665 per m/s²).
-#include "calib/sim/effects/sensor_kinematics.hpp"
+#include "calib/effects/sensor_kinematics.hpp"
 
 namespace imucal::calib {
 

@@ -5,8 +5,8 @@
 //   C_bn = C_tn R(a_outer, outer) exp([δ_o(inner)×]) R(a_inner', inner) C_bp.
 // With both zero this is TableModel::C_bn.
 #include "calib/core/table_model.hpp"
-#include "calib/sim/effects/table_nonorthogonality.hpp"
-#include "calib/sim/effects/table_wobble.hpp"
+#include "calib/effects/table_nonorthogonality.hpp"
+#include "calib/effects/table_wobble.hpp"
 
 namespace imucal::calib {
 

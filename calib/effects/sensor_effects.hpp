@@ -1,17 +1,17 @@
 #pragma once
-// The sum of the sensor-level effects of calib/sim/effects.hpp on one sample interval: what the
-// simulator adds to the ideal increments (after the error model of eq. 18/23) and what the
+// The sum of the sensor-level effects of calib/effects/catalogue.hpp on one sample interval: what
+// the simulator adds to the ideal increments (after the error model of eq. 18/23) and what the
 // diagnosis subtracts from the measured ones. The size effect is included at the interval's mean
 // rate and acceleration (the simulator integrates it exactly by quadrature instead, see
 // TruthKinematics::dv_lever, and passes include_size_effect = false).
-#include "calib/sim/effects.hpp"
-#include "calib/sim/effects/accel_asymmetry.hpp"
-#include "calib/sim/effects/accel_quadratic_k2.hpp"
-#include "calib/sim/effects/gyro_accel_skew.hpp"
-#include "calib/sim/effects/gyro_g_sensitivity.hpp"
-#include "calib/sim/effects/sensor_kinematics.hpp"
-#include "calib/sim/effects/size_effect.hpp"
-#include "calib/sim/effects/thermal_drift.hpp"
+#include "calib/effects/accel_asymmetry.hpp"
+#include "calib/effects/accel_quadratic_k2.hpp"
+#include "calib/effects/catalogue.hpp"
+#include "calib/effects/gyro_accel_skew.hpp"
+#include "calib/effects/gyro_g_sensitivity.hpp"
+#include "calib/effects/sensor_kinematics.hpp"
+#include "calib/effects/size_effect.hpp"
+#include "calib/effects/thermal_drift.hpp"
 
 namespace imucal::calib {
 

@@ -5,7 +5,7 @@
 // Only while the table turns: ∝ ω² in cruise, spikes ∝ ω̇ at the ramps.
 #include <array>
 
-#include "calib/sim/effects/sensor_kinematics.hpp"
+#include "calib/effects/sensor_kinematics.hpp"
 
 namespace imucal::calib {
 
