@@ -1,0 +1,51 @@
+#pragma once
+// A unit's grade and the prior that comes with it (issue #21 item 1, DESIGN §2 core: "unit grades
+// and priors"). The station was written for navigation-grade units (fibre-optic gyros, pendulous
+// accelerometers, near nominal after assembly); a factory also builds tactical and MEMS units,
+// and field units come back aged. Everything that assumes a unit before seeing its data should
+// take it from here: so far the rest detection that needs no calibration
+// (calib/core/variation_rest_detector.hpp).
+//
+// The envelopes are datasheet classes, the spread of uncalibrated units of each class (the
+// values a calibration from scratch must reach), not one product's specification:
+//  * navigation — FOG/RLG with force-rebalanced accelerometers: gyro bias ≤ 0.05 °/h, ARW ≤ 0.005
+//    °/√h, accelerometer bias ≤ 1 mg, scale ≤ 0.1 %, misalignment ≤ 1 mrad before calibration;
+//  * tactical — small FOG / high-end MEMS: gyro bias ≤ 10 °/h, ARW ≤ 0.2 °/√h, accelerometer bias
+//    ≤ 5 mg, scale ≤ 1 %, misalignment ≤ 5 mrad;
+//  * mems — consumer and industrial MEMS read with nominal scales: gyro bias ≤ 5 °/s, ARW ≤ 1
+//    °/√h, accelerometer bias ≤ 200 mg, scale ≤ 30 %, misalignment ≤ 50 mrad (issue #21: a real
+//    unit had a gyro scale 24 % from nominal, gyro biases to 2.9 °/s, accelerometer biases to
+//    124 mg).
+#include <optional>
+#include <string>
+
+namespace imucal::calib {
+
+enum class Grade { kNavigation, kTactical, kMems };
+
+/// "navigation", "tactical", "mems".
+const char* grade_name(Grade g);
+/// The inverse of grade_name; nullopt for anything else.
+std::optional<Grade> parse_grade(const std::string& name);
+
+/// What a unit of a grade may be before calibration (envelopes, SI) and how it behaves at rest.
+struct GradePrior {
+  double gyro_bias_radps = 0.0;     ///< |bias| per axis, envelope
+  double accel_bias_mps2 = 0.0;     ///< |bias| per axis, envelope
+  double scale = 0.0;               ///< |scale factor error| per axis (fraction), envelope
+  double misalignment_rad = 0.0;    ///< |non-orthogonality / misalignment| per pair, envelope
+  double arw_rad_per_sqrt_s = 0.0;  ///< angle random walk, worst of the class
+  double vrw_mps_per_sqrt_s = 0.0;  ///< velocity random walk, worst of the class
+  /// Rest detection: variations of the rate and the specific force (RMS over a short window, per
+  /// axis) below which a unit counts as still whatever its own noise — a bench's and a calm
+  /// deck's disturbances, which a quiet unit resolves but which are not a hand turning it.
+  double still_rate_radps = 0.0;
+  double still_force_mps2 = 0.0;
+  /// How far a rest's mean rate may sit from the unit's common gyro offset: Earth rate, the
+  /// gyros' g-sensitivity and bias drift between rests, well below any deliberate rotation.
+  double rest_rate_spread_radps = 0.0;
+};
+
+GradePrior grade_prior(Grade g);
+
+}  // namespace imucal::calib

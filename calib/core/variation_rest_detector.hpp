@@ -1,0 +1,55 @@
+#pragma once
+// Rest detection that needs no calibration (issue #21 item 2). calib/core/rest_detector.hpp
+// thresholds the magnitude of the uncorrected rate at 1 °/s: right for a navigation-grade unit,
+// blind for a MEMS gyro whose offset alone is a few °/s (it is never "at rest"). This detector
+// looks at how the raw signals *vary*, as the static-interval detectors of the multi-position
+// literature do, and so works on any offset, scale or misalignment:
+//
+//  1. per sample, the RMS deviation (per axis, about the window mean) of the rate ω = dθ/dt and of
+//     the specific force f = dv/dt over a short centred window (window_s);
+//  2. the unit's own noise: the quietest windows of the record (the `noise_quantile` of each
+//     statistic — the record must be at least that fraction at rest, a hand-placed run is most of
+//     it); a window is quiet when both statistics are below max(√variance_factor × that noise, the
+//     grade's still floor) — the floor keeps a very quiet unit on a bench or a calm deck "still";
+//  3. quiet spans of at least min_rest_s, less edge_guard_s at both ends, are rest candidates;
+//  4. a constant-rate rotation (a turntable's cruise about the vertical) varies neither signal: the
+//     unit's common gyro offset is the median of the candidates' mean rates, and a sample whose
+//     window's mean rate departs from it by more than the grade's rest_rate_spread is turning, not
+//     at rest; the spans are then cut again as in step 3.
+#include <Eigen/Core>
+#include <vector>
+
+#include "calib/core/imu_increment.hpp"
+#include "calib/core/unit_grade.hpp"
+
+namespace imucal::calib {
+
+struct VariationRestOptions {
+  double window_s = 0.2;          ///< centred window of the variation statistics
+  double noise_quantile = 0.05;   ///< quietest fraction of windows that sets the unit's noise
+  double variance_factor = 4.0;   ///< quiet: variance below this × the noise variance (or floor)
+  double min_rest_s = 2.0;        ///< shorter quiet spans are not rest
+  double edge_guard_s = 0.05;     ///< trimmed from both ends of every rest span
+  double still_rate_radps = 0.0;  ///< the grade's floors (variation_rest_options)
+  double still_force_mps2 = 0.0;
+  double rest_rate_spread_radps = 0.0;  ///< > 0: see step 4
+};
+
+/// The defaults with the grade's floors and rest-rate spread (calib/core/unit_grade.hpp).
+VariationRestOptions variation_rest_options(Grade grade);
+
+struct VariationRestResult {
+  std::vector<bool> at_rest;      ///< per sample
+  int rests = 0;                  ///< rest spans kept
+  int rotations_rejected = 0;     ///< quiet spans rejected as constant-rate rotations (step 4)
+  double rate_noise_radps = 0.0;  ///< the unit's rate noise per sample, RMS per axis (step 2)
+  double force_noise_mps2 = 0.0;
+  Eigen::Vector3d gyro_offset_radps = Eigen::Vector3d::Zero();  ///< step 4 (zero: no rest)
+};
+
+/// Throws std::invalid_argument naming the option that is out of range, or the first sample with
+/// a non-finite increment or a non-positive dt_s.
+VariationRestResult detect_rest_by_variation(const ImuSeries& imu,
+                                             const VariationRestOptions& options);
+
+}  // namespace imucal::calib
