@@ -117,10 +117,30 @@ std::vector<Vector3d> rest_means(const CalibrationInput& in, const std::vector<R
 }
 
 /// The IMU's own rotation from sample a to sample b: body at b relative to body at a.
-Matrix3d integrate(const ImuSeries& imu, size_t a, size_t b) {
+Matrix3d integrate(const ImuSeries& imu, size_t a, size_t b, const Vector3d& offset_radps) {
   Matrix3d C = Matrix3d::Identity();
-  for (size_t i = a; i < b; ++i) C = C * rotvec_to_matrix<double>(imu[i].dtheta_rad);
+  for (size_t i = a; i < b; ++i)
+    C = C * rotvec_to_matrix<double>(Vector3d(imu[i].dtheta_rad - offset_radps * imu[i].dt_s));
   return C;
+}
+
+/// The gyros' common offset: per axis the median of the rests' mean rates.
+Vector3d gyro_offset(const ImuSeries& imu, const std::vector<RestPeriod>& rests) {
+  Vector3d m = Vector3d::Zero();
+  for (int ax = 0; ax < 3; ++ax) {
+    std::vector<double> v;
+    for (const auto& r : rests) {
+      double dtheta = 0.0, T = 0.0;
+      for (size_t i = r.begin; i < r.end; ++i) {
+        dtheta += imu[i].dtheta_rad(ax);
+        T += imu[i].dt_s;
+      }
+      v.push_back(dtheta / T);
+    }
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    m(ax) = v[v.size() / 2];
+  }
+  return m;
 }
 
 void check_gravity(const CalibrationInput& in, const std::vector<RestPeriod>& rests,
@@ -170,13 +190,17 @@ void check_rotations(const CalibrationInput& in, const std::vector<RestPeriod>& 
   double worst_carry = 0.0, worst_table = 0.0;
   size_t worst_carry_k = 0, worst_table_k = 0;
   double table_angle_at_worst = 0.0, imu_angle_at_worst = 0.0, mismatch_at_worst = 0.0;
+  const Vector3d offset = o.remove_gyro_offset ? gyro_offset(in.imu, rests) : Vector3d::Zero();
   for (size_t k = 0; k + 1 < rests.size(); ++k) {
     const size_t a = (rests[k].begin + rests[k].end) / 2,
                  b = (rests[k + 1].begin + rests[k + 1].end) / 2;
-    const Matrix3d C_imu = integrate(in.imu, a + 1, b + 1);  // body at b w.r.t. body at a
+    const Matrix3d C_imu = integrate(in.imu, a + 1, b + 1, offset);  // body at b w.r.t. at a
     // Gravity seen at rest k, carried by the gyros to rest k+1 (Earth rate ≪ the tolerance).
     // Beyond what a scale factor within a few per cent could do over this rotation.
-    const double turned_deg = matrix_to_rotvec(C_imu).norm() / kDegToRad;
+    // The angle turned along the path, not the net rotation (a turn past 180° nets less).
+    double turned_deg = 0.0;
+    for (size_t i = a + 1; i < b + 1; ++i)
+      turned_deg += (in.imu[i].dtheta_rad - offset * in.imu[i].dt_s).norm() / kDegToRad;
     const double carry =
         angle_deg(C_imu.transpose() * f[k], f[k + 1]) - o.rotation_tol_fraction * turned_deg;
     if (carry > worst_carry) {
@@ -215,6 +239,21 @@ void check_rotations(const CalibrationInput& in, const std::vector<RestPeriod>& 
 }
 
 }  // namespace
+
+DataCheckOptions data_check_options(Grade grade) {
+  DataCheckOptions o;
+  if (grade == Grade::kNavigation) return o;
+  const GradePrior p = grade_prior(grade);
+  // |f| at rest: each axis' scale and bias (at 2 g of bias for margin, √3 axes at worst).
+  o.gravity_magnitude_tol =
+      std::max(o.gravity_magnitude_tol, p.scale + 2.0 * std::sqrt(3.0) * p.accel_bias_mps2 / 9.8);
+  // Gravity carried across a move: the gyros' scale and misalignment turn it by that fraction of
+  // the angle, the accelerometers' misalignment moves where it is seen at each end.
+  o.rotation_tol_fraction = std::max(o.rotation_tol_fraction, p.scale + 2.0 * p.misalignment_rad);
+  o.direction_tol_deg = std::max(o.direction_tol_deg, 3.0 + 2.0 * p.misalignment_rad / kDegToRad);
+  o.remove_gyro_offset = true;
+  return o;
+}
 
 std::vector<DataProblem> check_data(const CalibrationInput& in, const DataCheckOptions& o) {
   std::vector<DataProblem> out;

@@ -40,7 +40,17 @@ struct DataCheckOptions {
   double rotation_tol_deg = 3.0;        ///< table vs IMU rotation (plus rotation_tol_fraction)
   double rotation_tol_fraction = 0.05;  ///< of the table's rotation angle
   size_t min_rest_samples = 50;
+  /// Subtract the gyros' common offset (the median of the rests' mean rates) before carrying
+  /// gravity across a move: a MEMS gyro's offset of a few °/s would otherwise turn it by tens of
+  /// degrees. Off at navigation grade (the offset is Earth rate, far inside the tolerance).
+  bool remove_gyro_offset = false;
 };
+
+/// The defaults, widened to what an uncalibrated unit of the grade may be (calib/core/
+/// unit_grade.hpp): the gravity magnitude by its scale and bias envelopes, the gyro-carried
+/// gravity by its scale and misalignment envelopes. Navigation grade: the defaults. A dead,
+/// stuck, clipped, swapped or sign-flipped axis stays far outside these at every grade.
+DataCheckOptions data_check_options(Grade grade);
 
 /// Every problem found (empty: the data look sane). Needs in.imu and in.reference of equal size.
 std::vector<DataProblem> check_data(const CalibrationInput& in, const DataCheckOptions& o = {});

@@ -1,5 +1,6 @@
 #include "calib/checks/limit_check.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
@@ -93,6 +94,22 @@ void check_limits(const CalibrationResult& r, const EvaluationMetrics& metrics, 
     check_metric(method, "accel_rmse_ug", "acceleration RMSE", metrics.accel_rmse_ug,
                  opt.max_accel_rmse_ug, "µg", out);
   }
+}
+
+DatasheetLimits limits_for_grade(const DatasheetLimits& limits, Grade grade) {
+  if (grade == Grade::kNavigation) return limits;
+  const GradePrior p = grade_prior(grade);
+  DatasheetLimits l = limits;
+  l.accel_bias_mps2 = std::max(l.accel_bias_mps2, p.accel_bias_mps2);
+  l.accel_scale = std::max(l.accel_scale, p.scale);
+  l.accel_misalignment_rad = std::max(l.accel_misalignment_rad, p.misalignment_rad);
+  l.gyro_bias_radps = std::max(l.gyro_bias_radps, p.gyro_bias_radps);
+  l.gyro_scale = std::max(l.gyro_scale, p.scale);
+  // A field result is in the accelerometer triad's own frame (calib/core/body_frame.hpp): the gyro
+  // off-diagonals then carry the rotation between the triads as well, up to the accelerometers'
+  // misalignment again.
+  l.gyro_misalignment_rad = std::max(l.gyro_misalignment_rad, 2.0 * p.misalignment_rad);
+  return l;
 }
 
 }  // namespace imucal::calib

@@ -30,6 +30,11 @@ struct DatasheetLimits {
   double of(ParamGroup g) const;
 };
 
+/// `limits` widened, group by group, to the envelope of an uncalibrated unit of `grade`
+/// (calib/core/unit_grade.hpp): a MEMS gyro 24 % off scale is that unit, not a failed
+/// calibration. Navigation grade: `limits` unchanged (the station's datasheet).
+DatasheetLimits limits_for_grade(const DatasheetLimits& limits, Grade grade);
+
 struct LimitCheckOptions {
   DatasheetLimits datasheet;
   double max_orientation_rmse_mdeg = 30.0;  ///< as the cross-check's (crosscheck.hpp)

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "calib/core/rest_detector.hpp"
+#include "calib/core/variation_rest_detector.hpp"
 
 namespace imucal::calib {
 
@@ -49,14 +50,24 @@ ParamSet sigma_from_covariance(const ParamCovariance& cov) {
 
 CalibrationInput input_from_field_data(Setting setting, const ImuSeries& imu,
                                        const std::vector<GnssFix>& gnss, const Site& site,
-                                       const NoiseModel& noise) {
+                                       const NoiseModel& noise, Grade grade, double min_rest_s) {
   CalibrationInput in;
   in.setting = setting;
   in.site = site;
   in.imu = imu;
   in.gnss = gnss;
   in.noise = noise;
-  const std::vector<bool> rest = detect_rest(imu);
+  in.grade = grade;
+  std::vector<bool> rest;
+  if (grade == Grade::kNavigation) {
+    RestDetectorOptions o;
+    if (min_rest_s > 0.0) o.min_rest_s = min_rest_s;
+    rest = detect_rest(imu, o);
+  } else {
+    VariationRestOptions o = variation_rest_options(grade);
+    if (min_rest_s > 0.0) o.min_rest_s = min_rest_s;
+    rest = detect_rest_by_variation(imu, o).at_rest;
+  }
   in.reference.resize(imu.size());
   for (size_t k = 0; k < imu.size(); ++k) {
     in.reference[k].t_s = imu[k].t_s;

@@ -13,6 +13,7 @@
 #include "calib/core/imu_increment.hpp"
 #include "calib/core/noise_model.hpp"
 #include "calib/core/param_set.hpp"
+#include "calib/core/unit_grade.hpp"
 
 namespace imucal::calib {
 
@@ -59,6 +60,7 @@ struct CalibrationInput {
   std::vector<ReferenceSample> reference;
   std::vector<GnssFix> gnss;  ///< sea: position fixes inside the IMU's time span; else empty
   NoiseModel noise;           ///< sensor noise spec (datasheet or unit file)
+  Grade grade = Grade::kNavigation;  ///< the unit's grade: what may be assumed before its data
 
   /// True when reference[].C_bn_ref is a real attitude reference (the factory setting).
   bool has_reference_attitude() const { return setting == Setting::kFactory; }
@@ -120,8 +122,13 @@ ParamSet sigma_from_covariance(const ParamCovariance& cov);
 
 /// A land or sea run's input: no attitude reference, rest periods from the IMU data alone
 /// (calib/core/rest_detector.hpp: `at_rest` per sample, C_bn_ref identity), GNSS fixes at sea.
+/// `grade` chooses the rest detector: navigation grade the magnitude detector
+/// (calib/core/rest_detector.hpp, as before the grades existed), the others the variation detector
+/// that needs no calibration (calib/core/variation_rest_detector.hpp) with the grade's floors;
+/// `min_rest_s` > 0 overrides the detector's shortest rest.
 CalibrationInput input_from_field_data(Setting setting, const ImuSeries& imu,
                                        const std::vector<GnssFix>& gnss, const Site& site,
-                                       const NoiseModel& noise);
+                                       const NoiseModel& noise, Grade grade = Grade::kNavigation,
+                                       double min_rest_s = 0.0);
 
 }  // namespace imucal::calib

@@ -348,9 +348,13 @@ struct LegacyFit {
   VectorXd x;  ///< (b_a, t, vec M_g): 18
   Vector3d bg = Vector3d::Zero();
   LsqOutcome bias, joint;
+  int rounds = 0;
 };
 
-/// Steps 3 and 2+4, alternated three times: the bias needs M_g, M_g the bias and the Earth rate.
+/// Steps 3 and 2+4, alternated: the bias needs M_g, M_g the bias and the Earth rate. Three rounds
+/// settle a unit near nominal; one far from it (a MEMS gyro 24 % off scale, issue #21) goes on
+/// until both fits converge, up to kMaxRounds.
+constexpr int kMinRounds = 3, kMaxRounds = 12;
 LegacyFit fit_alternating(const CalibrationInput& in, const std::vector<Rest>& rests, double g,
                           const VectorXd& xa) {
   const double sigma_f =
@@ -362,7 +366,7 @@ LegacyFit fit_alternating(const CalibrationInput& in, const std::vector<Rest>& r
   f.x.head<9>() = xa;
   Matrix3d Mg = Matrix3d::Zero();
   std::vector<Vector3d> down(rests.size()), earth_b(rests.size());
-  for (int round = 0; round < 3; ++round) {
+  for (int round = 0; round < kMaxRounds; ++round) {
     const Matrix3d T = tri::T_of(f.x);
     for (size_t p = 0; p < rests.size(); ++p)
       down[p] = -(T * (rests[p].f_mean - f.x.head<3>())).normalized();
@@ -381,6 +385,8 @@ LegacyFit fit_alternating(const CalibrationInput& in, const std::vector<Rest>& r
     JointModel jm{in, rests, earth_b, f.bg, g, sigma_f, sigma_d};
     f.joint = gauss_newton(jm, f.x, 30);
     Mg = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(f.x.data() + 9);
+    f.rounds = round + 1;
+    if (f.rounds >= kMinRounds && f.bias.converged && f.joint.converged) break;
   }
   if (!f.x.allFinite() || !f.bg.allFinite() || !(tri::T_of(f.x).determinant() > 0.1) ||
       !(std::abs((Matrix3d::Identity() + Mg).determinant()) > 0.1))
@@ -413,7 +419,7 @@ CalibrationResult legacy_result(const CalibrationInput& in, const LegacyFit& f) 
   res.cov.block<9, 12>(15, 0) = X.transpose();
   res.sigma = sigma_from_covariance(res.cov);
   res.converged = f.bias.converged && f.joint.converged;
-  res.iterations = 3;
+  res.iterations = f.rounds;
   for (int i = 24; i < ParamSet::kSize; ++i) res.observable[static_cast<size_t>(i)] = false;
   res.unobservable_notes.push_back(
       "housing orientation: not determined (legacy method: orthogonal body frame only; "

@@ -65,7 +65,7 @@ PipelineOptions with_serialised_phases(const PipelineOptions& opt) {
 std::vector<DataProblem> check_input(const CalibrationInput& in, const PipelineOptions& opt) {
   if (!opt.check_data) return {};
   if (opt.on_phase) opt.on_phase("checking the data");
-  return check_data(in);
+  return check_data(in, data_check_options(in.grade));
 }
 
 /// The data checks, then AINS, and NLSQ or legacy, each with its evaluation. With opt.concurrent
@@ -142,6 +142,7 @@ PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions
   // The cross-check already holds both methods' metrics to their limits; a method on its own
   // gets that check here.
   LimitCheckOptions limits = opt.limits;
+  limits.datasheet = limits_for_grade(limits.datasheet, in.grade);
   limits.max_orientation_rmse_mdeg = opt.crosscheck.max_orientation_rmse_mdeg;
   limits.max_accel_rmse_ug = opt.crosscheck.max_accel_rmse_ug;
   for (const auto* m : {&out.ains, &out.nlsq, &out.legacy})

@@ -261,6 +261,18 @@ void read_optional_sections(const TomlSection& root, RunInfo& ri) {
     if (!ri.sequence_sha256.empty() && !is_hex64(ri.sequence_sha256))
       s->fail("sha256", "must be 64 hexadecimal digits");
   }
+  if (const auto p = root.section("prior", {"grade", "min_rest_s"})) {
+    if (const auto g = p->string("grade")) {
+      const auto grade = calib::parse_grade(*g);
+      if (!grade)
+        p->fail("grade", "must be \"navigation\", \"tactical\" or \"mems\", got \"" + *g + "\"");
+      ri.grade = *grade;
+    }
+    if (const auto m = p->number("min_rest_s")) {
+      if (!(*m >= 0.5 && *m <= 600.0)) p->fail("min_rest_s", "must be in [0.5, 600] s");
+      ri.min_rest_s = *m;
+    }
+  }
   if (const auto n = root.section("noise", {"arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz"})) {
     if (const auto a = n->number("arw_deg_per_sqrt_h")) {
       if (!(*a > 0.0)) n->fail("arw_deg_per_sqrt_h", "must be > 0 (it weights the gyro data)");
@@ -276,9 +288,10 @@ void read_optional_sections(const TomlSection& root, RunInfo& ri) {
 
 ParsedRunInfo parse_run_info_impl(const std::string& text, const std::string& origin) {
   const toml::table tbl = parse_toml_text(text, origin);
-  const TomlSection root(tbl, origin, "",
-                         {"serial", "software_version", "start_time", "end_time", "reference",
-                          "setting", "station", "imu", "table", "sequence", "noise", "capture"});
+  const TomlSection root(
+      tbl, origin, "",
+      {"serial", "software_version", "start_time", "end_time", "reference", "setting", "station",
+       "imu", "table", "sequence", "prior", "noise", "capture"});
   ParsedRunInfo out;
   read_identity(root, origin, out);
   read_station(root, origin, out.info);
@@ -373,6 +386,12 @@ std::string run_info_text(const RunInfo& ri) {
     w.section("sequence");
     if (!ri.sequence_name.empty()) w.key("name", ri.sequence_name);
     if (!ri.sequence_sha256.empty()) w.key("sha256", ri.sequence_sha256);
+  }
+  // Written only when it says something: a navigation-grade archive stays as it always was.
+  if (ri.grade != calib::Grade::kNavigation || ri.min_rest_s > 0.0) {
+    w.section("prior");
+    w.key("grade", calib::grade_name(ri.grade));
+    if (ri.min_rest_s > 0.0) w.key("min_rest_s", ri.min_rest_s);
   }
   w.section("noise");
   w.key("arw_deg_per_sqrt_h",
@@ -836,7 +855,8 @@ calib::CalibrationInput field_input(const RunArchive& a, const std::string& imu_
         nm.arw_rad_per_sqrt_s = a.info.arw_rad_per_sqrt_s;
         nm.vrw_mps_per_sqrt_s = a.info.vrw_mps_per_sqrt_s;
         return nm;
-      }());
+      }(),
+      a.info.grade, a.info.min_rest_s);
   const double t0 = a.imu.front().t_s;
   const double latest_start = kMaxFirstRestStart_s;
   const std::vector<calib::RestPeriod> rests = calib::find_rest_periods(in, 2);
@@ -930,6 +950,7 @@ calib::CalibrationInput factory_input(const RunArchive& a, RunArchive* owned,
   in.noise = calib::NoiseModel{};
   in.noise.arw_rad_per_sqrt_s = a.info.arw_rad_per_sqrt_s;
   in.noise.vrw_mps_per_sqrt_s = a.info.vrw_mps_per_sqrt_s;
+  in.grade = a.info.grade;
   if (owned) in.imu = std::move(owned->imu);
   const calib::ImuSeries& imu = owned ? in.imu : a.imu;
   auto is_rest = [&](size_t k) { return table ? a.table[k].at_rest : a.attitude[k].at_rest; };

@@ -89,6 +89,11 @@ struct RunInfo {
   /// [noise] used to weight the estimators; defaults = calib::NoiseModel{} (DESIGN §7).
   double arw_rad_per_sqrt_s = calib::NoiseModel{}.arw_rad_per_sqrt_s;
   double vrw_mps_per_sqrt_s = calib::NoiseModel{}.vrw_mps_per_sqrt_s;
+  /// [prior] grade: what the unit is expected to be (calib/core/unit_grade.hpp); navigation by
+  /// default. Chooses the field runs' rest detector so far (issue #21).
+  calib::Grade grade = calib::Grade::kNavigation;
+  /// [prior] min_rest_s: the shortest rest the field runs' detector keeps (0: its default).
+  double min_rest_s = 0.0;
   /// [capture], optional: written by the daemon when it finishes (or recovers) the archive.
   std::optional<CaptureInfo> capture;
 };

@@ -15,49 +15,13 @@
 #include "calib/core/conventions.hpp"
 #include "calib/core/rest_detector.hpp"
 #include "calib/core/variation_rest_detector.hpp"
+#include "tests/support/imu_tk_xsens.hpp"
 
 namespace imucal::calib {
 namespace {
 
-constexpr double kZero_counts = 32768.0;
-constexpr double kGyro_radps_per_count = 1.0 / 6258.0;
-constexpr double kAccel_mps2_per_count = 2.65e-3;
-
-/// One xz-compressed IMU-TK ".mat" file: rows of time (s) and three raw counts.
-std::vector<std::array<double, 4>> read_mat(const std::string& name) {
-  const std::string path = std::string(IMUCAL_SOURCE_DIR) + "/tests/data/imu_tk_xsens/" + name;
-  FILE* p = ::popen(("xz -dc '" + path + "'").c_str(), "r");
-  EXPECT_NE(p, nullptr) << path;
-  std::vector<std::array<double, 4>> rows;
-  std::array<double, 4> r{};
-  while (p && std::fscanf(p, "%lf %lf %lf %lf", &r[0], &r[1], &r[2], &r[3]) == 4) rows.push_back(r);
-  if (p) {
-    EXPECT_EQ(::pclose(p), 0) << path;
-  }
-  return rows;
-}
-
-ImuSeries read_recording() {
-  const auto acc = read_mat("xsens_acc.mat.xz");
-  const auto gyro = read_mat("xsens_gyro.mat.xz");
-  EXPECT_EQ(acc.size(), gyro.size());
-  ImuSeries imu;
-  for (size_t k = 0; k < std::min(acc.size(), gyro.size()); ++k) {
-    EXPECT_EQ(acc[k][0], gyro[k][0]) << "row " << k;
-    ImuIncrement s;
-    s.t_s = gyro[k][0];
-    s.dt_s = k == 0 ? 0.01 : gyro[k][0] - gyro[k - 1][0];
-    for (int ax = 0; ax < 3; ++ax) {
-      s.dtheta_rad(ax) = (gyro[k][ax + 1] - kZero_counts) * kGyro_radps_per_count * s.dt_s;
-      s.dv_mps(ax) = (acc[k][ax + 1] - kZero_counts) * kAccel_mps2_per_count * s.dt_s;
-    }
-    imu.push_back(s);
-  }
-  return imu;
-}
-
 TEST(RealRecordingRest, ImuTkXsensRestsAreFoundAndStill) {
-  const ImuSeries imu = read_recording();
+  const ImuSeries imu = test_support::read_imu_tk_xsens();
   ASSERT_EQ(imu.size(), 51175u);  // the file as committed (tests/data/imu_tk_xsens/SHA256SUMS)
   const VariationRestResult r = detect_rest_by_variation(imu, variation_rest_options(Grade::kMems));
   // The spans, their duration, gravity and how far the force turned inside each.

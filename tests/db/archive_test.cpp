@@ -271,6 +271,41 @@ TEST(Archive, UnknownRunTomlKeyNamedWithLine) {
   EXPECT_NE(std::string(e.what()).find("unknown key"), std::string::npos) << e.what();
 }
 
+// [prior] (issue #21): the grade and the shortest rest, read, written back only when they say
+// something, and refused with file, line and key when wrong.
+TEST(Archive, PriorGradeReadsWritesBackAndIsRefusedWhenWrong) {
+  TempDir tmp("imucal_archive_test");
+  const std::string dir = write_simple(tmp, "r");
+  const std::string orig = slurp(dir + "/run.toml");
+  EXPECT_EQ(orig.find("[prior]"), std::string::npos);  // navigation grade: not written
+  EXPECT_EQ(read_archive(dir).info.grade, calib::Grade::kNavigation);
+  replace_in_file(dir + "/run.toml", "[imu]\n",
+                  "[prior]\ngrade = \"mems\"\nmin_rest_s = 2.5\n[imu]\n");
+  RunArchive a = read_archive(dir);
+  EXPECT_EQ(a.info.grade, calib::Grade::kMems);
+  EXPECT_EQ(a.info.min_rest_s, 2.5);
+  const std::string again = tmp.path() + "/again";
+  write_archive(again, a, false);
+  const RunArchive b = read_archive(again);
+  EXPECT_EQ(b.info.grade, calib::Grade::kMems);
+  EXPECT_EQ(b.info.min_rest_s, 2.5);
+  struct Case {
+    std::string prior, field, says;
+  };
+  for (const Case& c :
+       {Case{"grade = \"consumer\"", "prior.grade", "\"navigation\", \"tactical\" or \"mems\""},
+        Case{"min_rest_s = 0.1", "prior.min_rest_s", "[0.5, 600]"},
+        Case{"grades = \"mems\"", "prior.grades", "unknown key"}}) {
+    put(dir + "/run.toml", orig);
+    replace_in_file(dir + "/run.toml", "[imu]\n", "[prior]\n" + c.prior + "\n[imu]\n");
+    const ArchiveError e = read_error(dir);
+    EXPECT_EQ(e.field(), c.field) << e.what();
+    EXPECT_EQ(e.file(), dir + "/run.toml");
+    EXPECT_GT(e.line(), 0u);
+    EXPECT_NE(std::string(e.what()).find(c.says), std::string::npos) << e.what();
+  }
+}
+
 TEST(Archive, MissingRequiredKeysNamed) {
   TempDir tmp("imucal_archive_test");
   const std::string dir = write_simple(tmp, "r");

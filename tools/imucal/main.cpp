@@ -210,6 +210,12 @@ int cmd_simulate(const SimulateArgs& a) {
   return 0;
 }
 
+/// What `calibrate` may say about the unit instead of run.toml's [prior].
+struct PriorOverride {
+  std::string grade;        ///< empty: run.toml's
+  double min_rest_s = 0.0;  ///< 0: run.toml's
+};
+
 calib::MethodSelection parse_method(const std::string& m) {
   if (m == "ains") return calib::MethodSelection::kAins;
   if (m == "nlsq") return calib::MethodSelection::kNlsq;
@@ -230,9 +236,12 @@ calib::CalibrationInput calibration_input(archive::RunArchive& ar, const std::st
 }
 
 int cmd_calibrate(const std::string& dir, const std::string& method, bool json, double k_sigma,
-                  const std::string& plot_path, const std::string& setting) {
+                  const std::string& plot_path, const std::string& setting,
+                  const PriorOverride& prior) {
   progress("reading " + dir);
   archive::RunArchive ar = archive::read_archive(dir);
+  if (!prior.grade.empty()) ar.info.grade = *calib::parse_grade(prior.grade);
+  if (prior.min_rest_s > 0.0) ar.info.min_rest_s = prior.min_rest_s;
   progress("checking the archive");
   const calib::CalibrationInput in = calibration_input(ar, setting);
   calib::PipelineOptions opt;
@@ -346,6 +355,7 @@ namespace {
 struct Commands {
   SimulateArgs sa;
   std::string seq, unit, dir, method = "all", params, setting_override, plot_path;
+  PriorOverride prior;  ///< calibrate --grade, --min-rest-s
   double rate_hz = 100.0, k_sigma = 4.0;
   bool json = false, effects = false, sequential = false, effects_json = false;
   int repeat = 3;
@@ -399,6 +409,15 @@ void add_calibrate(CLI::App& app, Commands& c) {
                   "factory|land|sea: process as this setting instead of run.toml's (e.g. a table "
                   "run as the paper did: its reference withheld)")
       ->check(CLI::IsMember({"factory", "land", "sea"}));
+  cal->add_option("--grade", c.prior.grade,
+                  "navigation|tactical|mems: the unit's grade instead of run.toml's [prior] grade "
+                  "(field runs: navigation finds rests by the rate's magnitude, the others by the "
+                  "signals' variation, which needs no calibration)")
+      ->check(CLI::IsMember({"navigation", "tactical", "mems"}));
+  cal->add_option("--min-rest-s", c.prior.min_rest_s,
+                  "field runs: the shortest rest kept, s (default: the detector's, 10 s for "
+                  "navigation grade, 2 s otherwise)")
+      ->check(CLI::Range(0.5, 600.0));
   cal->add_option("--k-sigma", c.k_sigma, "cross-check bound in combined σ")->capture_default_str();
   cal->add_flag("--json", c.json, "print one JSON object");
   cal->add_option("--plot", c.plot_path,
@@ -439,7 +458,8 @@ void add_small_commands(CLI::App& app, Commands& c) {
 int dispatch(const Commands& c) {
   if (*c.sim) return cmd_simulate(c.sa);
   if (*c.cal)
-    return cmd_calibrate(c.dir, c.method, c.json, c.k_sigma, c.plot_path, c.setting_override);
+    return cmd_calibrate(c.dir, c.method, c.json, c.k_sigma, c.plot_path, c.setting_override,
+                         c.prior);
   if (*c.ev) return cmd_evaluate(c.dir, c.params, c.json);
   if (*c.cr && c.effects) return tools::cmd_crlb_effects(c.seq, c.unit, c.rate_hz, c.json);
   if (*c.cr) return cmd_crlb(c.seq, c.unit, c.rate_hz, c.json);

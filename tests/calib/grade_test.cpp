@@ -1,0 +1,126 @@
+// What follows a unit's grade (issue #21): the data checks widen to what an uncalibrated unit of
+// the grade may be yet still catch a swapped, sign-flipped or dead axis; the legacy method
+// calibrates a MEMS unit far from nominal from scratch; the limits accept it. Runs: MEMS-grade
+// hand-placed land runs (tests/support/mems_runs.hpp).
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+
+#include "calib/checks/data_check.hpp"
+#include "calib/checks/limit_check.hpp"
+#include "calib/core/body_frame.hpp"
+#include "calib/legacy/legacy.hpp"
+#include "tests/support/mems_runs.hpp"
+
+namespace imucal::calib {
+namespace {
+
+CalibrationInput mems_input(const FieldSimResult& sim) {
+  NoiseModel noise;
+  const GradePrior mems = grade_prior(Grade::kMems);
+  noise.arw_rad_per_sqrt_s = mems.arw_rad_per_sqrt_s;
+  noise.vrw_mps_per_sqrt_s = mems.vrw_mps_per_sqrt_s;
+  return input_from_field_data(Setting::kLand, sim.imu, {}, demo_factory_site(), noise,
+                               Grade::kMems);
+}
+
+std::string symptoms(const std::vector<DataProblem>& problems) {
+  std::string s;
+  for (const auto& p : problems) s += "[" + p.symptom + "] " + p.detail + " ";
+  return s;
+}
+
+bool has(const std::vector<DataProblem>& problems, const std::string& symptom) {
+  for (const auto& p : problems)
+    if (p.symptom == symptom) return true;
+  return false;
+}
+
+TEST(GradeDataChecks, AMemsUnitFarFromNominalIsSaneAtItsGradeOnly) {
+  const CalibrationInput in = mems_input(testing::simulate_mems(1));
+  EXPECT_EQ(in.grade, Grade::kMems);
+  const auto at_grade = check_data(in, data_check_options(Grade::kMems));
+  EXPECT_TRUE(at_grade.empty()) << symptoms(at_grade);
+  // Held to navigation grade the same unit looks broken (what issue #21 met on a real unit).
+  const auto at_navigation = check_data(in, data_check_options(Grade::kNavigation));
+  EXPECT_TRUE(has(at_navigation, "gyro vs gravity") || has(at_navigation, "gravity magnitude"))
+      << symptoms(at_navigation);
+}
+
+TEST(GradeDataChecks, SwappedFlippedAndDeadAxesAreStillCaughtAtMemsGrade) {
+  const CalibrationInput good = mems_input(testing::simulate_mems(2));
+  const DataCheckOptions o = data_check_options(Grade::kMems);
+  CalibrationInput in = good;
+  for (auto& s : in.imu) std::swap(s.dtheta_rad(0), s.dtheta_rad(1));
+  EXPECT_TRUE(has(check_data(in, o), "gyro vs gravity")) << "gyro x/y swapped";
+  in = good;
+  for (auto& s : in.imu) s.dtheta_rad(2) = -s.dtheta_rad(2);
+  EXPECT_TRUE(has(check_data(in, o), "gyro vs gravity")) << "gyro z sign-flipped";
+  in = good;
+  for (auto& s : in.imu) std::swap(s.dv_mps(1), s.dv_mps(2));
+  EXPECT_TRUE(has(check_data(in, o), "gyro vs gravity")) << "accelerometer y/z swapped";
+  in = good;
+  for (auto& s : in.imu) s.dv_mps(0) = 0.0;  // a dead accelerometer
+  const auto dead = check_data(in, o);
+  EXPECT_TRUE(has(dead, "gravity magnitude") || has(dead, "stuck channel")) << symptoms(dead);
+}
+
+// From scratch (T = I, b = 0) on units with gyro offsets of 2.5–5 °/s, scales ±25 % and 50 mrad:
+// converged, within the MEMS limits, and accurate to what makes a MEMS calibration worth having
+// (1 mg, 1000 ppm, 0.02 °/s, 2000 ppm — against envelopes of 200 mg, 30 %, 5 °/s, 30 %). The σ are
+// not yet honest here (issue #21 stays open): error/σ is printed by group, not asserted — the
+// accelerometer groups' σ are about 2× too small (the rest means are weighted as if every rest were
+// 60 s long, kTypicalRest_s, and these last 3–11 s), the gyro scale's 10× too large.
+TEST(GradeLegacy, MemsUnitsFarFromNominalFromScratch) {
+  double s2 = 0.0;
+  int n = 0;
+  std::array<double, kNumParamGroups> g2{};
+  std::array<int, kNumParamGroups> gn{};
+  for (uint64_t seed = 1; seed <= 3; ++seed) {
+    const FieldSimResult sim = testing::simulate_mems(seed);
+    const CalibrationResult r = calibrate_legacy(mems_input(sim));
+    EXPECT_TRUE(r.converged) << "seed " << seed << ", " << r.iterations << " rounds";
+    const ParamVector e =
+        r.params.to_vector() - to_accel_symmetric_frame(sim.truth).params.to_vector();
+    const ParamVector s = r.sigma.to_vector();
+    const ParamSet pe = ParamSet::from_vector(e);
+    EXPECT_LT(pe.accel_bias_mps2.cwiseAbs().maxCoeff(), 1e-3 * kStandardGravity_mps2) << seed;
+    EXPECT_LT(pe.accel_M.cwiseAbs().maxCoeff(), 1000e-6) << seed;
+    EXPECT_LT(pe.gyro_bias_radps.cwiseAbs().maxCoeff(), 0.02 * kDegToRad) << seed;
+    EXPECT_LT(pe.gyro_M.cwiseAbs().maxCoeff(), 2000e-6) << seed;
+    for (int i = 0; i < 24; ++i) {
+      const double z = e(i) / s(i);
+      s2 += z * z;
+      ++n;
+      g2[static_cast<size_t>(param_info(i).group)] += z * z;
+      ++gn[static_cast<size_t>(param_info(i).group)];
+    }
+    LimitCheckOptions lo;
+    lo.datasheet = limits_for_grade(lo.datasheet, Grade::kMems);
+    LimitCheckResult lr;
+    check_limits(r, EvaluationMetrics{}, false, lo, lr);
+    EXPECT_TRUE(lr.pass) << "seed " << seed << ": "
+                         << (lr.failures.empty() ? "" : lr.failures.front().detail);
+  }
+  std::printf("legacy on MEMS hand-placed runs: RMS(error/sigma) %.2f over %d terms;",
+              std::sqrt(s2 / n), n);
+  for (int g = 0; g < 6; ++g)
+    std::printf(" %s %.2f", group_name(static_cast<ParamGroup>(g)).c_str(),
+                std::sqrt(g2[static_cast<size_t>(g)] / gn[static_cast<size_t>(g)]));
+  std::printf("\n");
+}
+
+TEST(GradeLimits, NavigationKeepsTheStationsDatasheetAndMemsWidensIt) {
+  const DatasheetLimits station;
+  const DatasheetLimits nav = limits_for_grade(station, Grade::kNavigation);
+  EXPECT_EQ(nav.gyro_bias_radps, station.gyro_bias_radps);
+  EXPECT_EQ(nav.accel_scale, station.accel_scale);
+  const DatasheetLimits mems = limits_for_grade(station, Grade::kMems);
+  EXPECT_GE(mems.gyro_bias_radps, 5.0 * kDegToRad);
+  EXPECT_GE(mems.gyro_scale, 0.25);
+  EXPECT_EQ(mems.table_misalignment_rad, station.table_misalignment_rad);
+}
+
+}  // namespace
+}  // namespace imucal::calib
