@@ -67,13 +67,20 @@ std::vector<bool> detect_rest(const ImuSeries& imu, const RestDetectorOptions& o
   check(opt.min_rest_s, "min_rest_s");
   if (!(std::isfinite(opt.edge_guard_s) && opt.edge_guard_s >= 0.0))
     throw std::invalid_argument("rest detector: option edge_guard_s must be >= 0 and finite");
+  check_rest_detector_input(imu);
+  return rests_from_quiet(imu, quiet_samples(imu, opt), opt.min_rest_s, opt.edge_guard_s);
+}
+
+void check_rest_detector_input(const ImuSeries& imu) {
   for (size_t k = 0; k < imu.size(); ++k)
     if (!(std::isfinite(imu[k].dt_s) && imu[k].dt_s > 0.0) || !imu[k].dtheta_rad.allFinite() ||
         !imu[k].dv_mps.allFinite())
       throw std::invalid_argument("rest detector: imu[" + std::to_string(k) +
                                   "] has a non-finite increment or a non-positive dt_s");
+}
 
-  const std::vector<bool> quiet = quiet_samples(imu, opt);
+std::vector<bool> rests_from_quiet(const ImuSeries& imu, const std::vector<bool>& quiet,
+                                   double min_rest_s, double edge_guard_s) {
   std::vector<bool> rest(imu.size(), false);
   size_t k = 0;
   while (k < imu.size()) {
@@ -85,10 +92,9 @@ std::vector<bool> detect_rest(const ImuSeries& imu, const RestDetectorOptions& o
     while (e < imu.size() && quiet[e]) ++e;
     // Span [k, e): keep it if long enough, trimmed by the guard at both ends.
     const double t0 = imu[k].t_s - imu[k].dt_s, t1 = imu[e - 1].t_s;
-    if (t1 - t0 >= opt.min_rest_s)
+    if (t1 - t0 >= min_rest_s)
       for (size_t j = k; j < e; ++j)
-        rest[j] = imu[j].t_s - imu[j].dt_s >= t0 + opt.edge_guard_s &&
-                  imu[j].t_s <= t1 - opt.edge_guard_s;
+        rest[j] = imu[j].t_s - imu[j].dt_s >= t0 + edge_guard_s && imu[j].t_s <= t1 - edge_guard_s;
     k = e;
   }
   return rest;

@@ -24,6 +24,15 @@ struct RestDetectorOptions {
   double edge_guard_s = 1.0;         ///< trimmed from both ends of every rest span
 };
 
+/// Quiet samples cut into rests: the maximal quiet runs lasting at least min_rest_s, each trimmed
+/// by edge_guard_s at both ends (shared by this detector and calib/core/variation_rest_detector).
+std::vector<bool> rests_from_quiet(const ImuSeries& imu, const std::vector<bool>& quiet,
+                                   double min_rest_s, double edge_guard_s);
+
+/// Throws std::invalid_argument naming the first sample with a non-finite increment or a
+/// non-positive dt_s (what every rest detector needs of its input).
+void check_rest_detector_input(const ImuSeries& imu);
+
 /// Per sample: the unit is at rest (not being turned). Throws std::invalid_argument for options
 /// that are not positive and finite, naming the option.
 std::vector<bool> detect_rest(const ImuSeries& imu, const RestDetectorOptions& options = {});

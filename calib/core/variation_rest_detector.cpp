@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "calib/core/rest_detector.hpp"
+
 namespace imucal::calib {
 
 namespace {
@@ -31,14 +33,6 @@ void check_options(const VariationRestOptions& o) {
   if (!(o.noise_quantile > 0.0 && o.noise_quantile < 1.0))
     throw std::invalid_argument("rest detector: option noise_quantile must be in (0, 1), got " +
                                 std::to_string(o.noise_quantile));
-}
-
-void check_samples(const ImuSeries& imu) {
-  for (size_t k = 0; k < imu.size(); ++k)
-    if (!(std::isfinite(imu[k].dt_s) && imu[k].dt_s > 0.0) || !imu[k].dtheta_rad.allFinite() ||
-        !imu[k].dv_mps.allFinite())
-      throw std::invalid_argument("rest detector: imu[" + std::to_string(k) +
-                                  "] has a non-finite increment or a non-positive dt_s");
 }
 
 /// Per-sample RMS deviation (per axis, about the window mean, N − 1 normalised) of a signal over
@@ -97,37 +91,27 @@ struct Span {
   Eigen::Vector3d mean_rate_radps;
 };
 
-/// Quiet spans of at least min_rest_s, trimmed by the edge guard, with their mean rates.
+/// Quiet spans of at least min_rest_s, trimmed by the edge guard (rests_from_quiet), with their
+/// mean rates.
 std::vector<Span> quiet_spans(const ImuSeries& imu, const std::vector<bool>& quiet,
                               const VariationRestOptions& o) {
+  const std::vector<bool> rest = rests_from_quiet(imu, quiet, o.min_rest_s, o.edge_guard_s);
   std::vector<Span> spans;
-  size_t k = 0;
-  while (k < imu.size()) {
-    if (!quiet[k]) {
+  for (size_t k = 0; k < imu.size();) {
+    if (!rest[k]) {
       ++k;
       continue;
     }
-    size_t e = k;
-    while (e < imu.size() && quiet[e]) ++e;
-    const double t0 = imu[k].t_s - imu[k].dt_s, t1 = imu[e - 1].t_s;
-    if (t1 - t0 >= o.min_rest_s) {
-      Span s{k, k, Eigen::Vector3d::Zero()};
-      Eigen::Vector3d dtheta = Eigen::Vector3d::Zero();
-      double T = 0.0;
-      for (size_t j = k; j < e; ++j) {
-        if (imu[j].t_s - imu[j].dt_s < t0 + o.edge_guard_s || imu[j].t_s > t1 - o.edge_guard_s)
-          continue;
-        if (s.end == s.begin) s.begin = j;
-        s.end = j + 1;
-        dtheta += imu[j].dtheta_rad;
-        T += imu[j].dt_s;
-      }
-      if (T > 0.0) {
-        s.mean_rate_radps = dtheta / T;
-        spans.push_back(s);
-      }
+    Span s{k, k, Eigen::Vector3d::Zero()};
+    Eigen::Vector3d dtheta = Eigen::Vector3d::Zero();
+    double T = 0.0;
+    for (; s.end < imu.size() && rest[s.end]; ++s.end) {
+      dtheta += imu[s.end].dtheta_rad;
+      T += imu[s.end].dt_s;
     }
-    k = e;
+    s.mean_rate_radps = dtheta / T;
+    spans.push_back(s);
+    k = s.end;
   }
   return spans;
 }
@@ -155,7 +139,7 @@ VariationRestOptions variation_rest_options(Grade grade) {
 
 VariationRestResult detect_rest_by_variation(const ImuSeries& imu, const VariationRestOptions& o) {
   check_options(o);
-  check_samples(imu);
+  check_rest_detector_input(imu);
   VariationRestResult r;
   r.at_rest.assign(imu.size(), false);
   // Step 1: the variation of the raw rate and specific force.
