@@ -25,7 +25,9 @@
 #include "calib/core/site_presets.hpp"
 #include "calib/pipeline/calibration_pipeline.hpp"
 #include "calib/sim/field_sim.hpp"
+#include "calib/sim/hand_placement.hpp"
 #include "calib/sim/truth_sim.hpp"
+#include "calib/sim/unit_draw.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/param_json.hpp"
 #include "db/archive/run_archive.hpp"
@@ -106,7 +108,11 @@ struct SimulateArgs {
   std::string setting = "factory";
   double gnss_sigma_m = 0.3;
   double placement_sigma_deg = 2.0;
+  std::string grade = "navigation";  ///< the unit drawn from its envelope (unless --unit)
 };
+
+/// `--sequence hand`: a hand-placed multi-position run (calib/sim/hand_placement.hpp), field only.
+constexpr const char* kHandSequence = "hand";
 
 /// The archive's metadata common to every setting.
 archive::RunArchive simulated_archive(const SimulateArgs& a, const calib::UnitModel& unit,
@@ -118,7 +124,8 @@ archive::RunArchive simulated_archive(const SimulateArgs& a, const calib::UnitMo
   ar.info.site = site;
   ar.info.imu_rate_hz = a.rate_hz;
   ar.info.sequence_name = profile.name;
-  ar.info.sequence_sha256 = sequences::sequence_hash(seq_path);
+  ar.info.sequence_sha256 = seq_path.empty() ? "" : sequences::sequence_hash(seq_path);
+  ar.info.grade = *calib::parse_grade(a.grade);
   ar.info.software_version = IMUCAL_VERSION;
   ar.info.arw_rad_per_sqrt_s = unit.noise.arw_rad_per_sqrt_s;
   ar.info.vrw_mps_per_sqrt_s = unit.noise.vrw_mps_per_sqrt_s;
@@ -163,7 +170,12 @@ void refuse_existing_output(const SimulateArgs& a) {
 
 int cmd_simulate(const SimulateArgs& a) {
   refuse_existing_output(a);
-  calib::UnitModel unit = load_unit(a.unit);
+  const calib::Grade grade = *calib::parse_grade(a.grade);
+  if (a.seq == kHandSequence && a.setting == "factory")
+    throw std::invalid_argument(
+        "--sequence hand is a hand-placed run: give --setting land or sea (a table runs a "
+        "sequence file)");
+  calib::UnitModel unit = a.unit.empty() ? calib::draw_unit(grade, a.seed) : load_unit(a.unit);
   // Catalogue effects on top of the unit (checked before any work: nothing is written on error).
   for (const std::string& spec : a.effect_specs) {
     try {
@@ -172,9 +184,11 @@ int cmd_simulate(const SimulateArgs& a) {
       throw std::invalid_argument("--effect " + spec + ": " + e.what());
     }
   }
-  const std::string seq_path = sequences::resolve_sequence(a.seq);
-  progress("loading sequence " + seq_path);
-  const sequences::MotionProfile profile = sequences::load_profile(seq_path);
+  const bool hand = a.seq == kHandSequence;
+  const std::string seq_path = hand ? "" : sequences::resolve_sequence(a.seq);
+  if (!hand) progress("loading sequence " + seq_path);
+  const sequences::MotionProfile profile =
+      hand ? calib::hand_placed_profile(a.seed) : sequences::load_profile(seq_path);
   archive::RunArchive ar;
   if (a.setting != "factory") {
     ar = simulate_field_archive(a, unit, profile, seq_path);
@@ -370,8 +384,15 @@ void add_simulate(CLI::App& app, Commands& c) {
   SimulateArgs& sa = c.sa;
   auto* sim = c.sim = app.add_subcommand(
       "simulate", "simulate a unit on a sequence into a run archive (factory table, land or sea)");
-  sim->add_option("--sequence", sa.seq, "sequence name (factory-std, short, pos19) or TOML file")
+  sim->add_option("--sequence", sa.seq,
+                  "sequence name (factory-std, short, pos19) or TOML file; land/sea also 'hand': "
+                  "a 50 s rest and 38 hand-placed positions of 3-11 s")
       ->required();
+  sim->add_option("--grade", sa.grade,
+                  "navigation|tactical|mems: without --unit, a unit drawn (by --seed) from the "
+                  "grade's envelope; written to run.toml [prior]")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"navigation", "tactical", "mems"}));
   sim->add_option("--out", sa.out_dir, "archive directory to create")->required();
   sim->add_option("--unit", sa.unit, "unit file (TOML); default: the built-in default unit");
   sim->add_option("--seed", sa.seed, "noise seed")->capture_default_str();

@@ -1,0 +1,28 @@
+#include "calib/sim/unit_draw.hpp"
+
+#include <random>
+
+namespace imucal::calib {
+
+UnitModel draw_unit(Grade grade, uint64_t seed) {
+  if (grade == Grade::kNavigation) return default_unit();
+  const GradePrior p = grade_prior(grade);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  auto pick = [&](double envelope) { return envelope * u(rng); };
+  UnitModel unit;
+  for (int i = 0; i < 3; ++i)
+    unit.params.gyro_bias_radps(i) =
+        (u(rng) > 0 ? 1.0 : -1.0) * (0.75 + 0.25 * u(rng)) * p.gyro_bias_radps;
+  for (int i = 0; i < 3; ++i) unit.params.accel_bias_mps2(i) = pick(p.accel_bias_mps2);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      unit.params.gyro_M(i, j) = pick(i == j ? 0.8 * p.scale : p.misalignment_rad);
+      unit.params.accel_M(i, j) = pick(i == j ? p.scale / 3.0 : p.misalignment_rad);
+    }
+  unit.noise.arw_rad_per_sqrt_s = p.arw_rad_per_sqrt_s;
+  unit.noise.vrw_mps_per_sqrt_s = p.vrw_mps_per_sqrt_s;
+  return unit;
+}
+
+}  // namespace imucal::calib

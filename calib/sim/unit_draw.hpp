@@ -1,0 +1,16 @@
+#pragma once
+// A unit drawn from its grade's envelope (calib/core/unit_grade.hpp), for simulated runs of
+// tactical and MEMS units (issue #21): gyro biases of half to all of the envelope on every axis
+// (random signs), accelerometer biases and misalignments anywhere within it, gyro scales within
+// 80 % of it and accelerometer scales within a third, the grade's noise. Navigation grade: the
+// default unit of DESIGN §7 (default_unit()), as before grades existed.
+#include <cstdint>
+
+#include "calib/core/unit_grade.hpp"
+#include "calib/sim/truth_sim.hpp"
+
+namespace imucal::calib {
+
+UnitModel draw_unit(Grade grade, uint64_t seed);
+
+}  // namespace imucal::calib
