@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <mutex>
 
+#include "calib/checks/data_check.hpp"
 #include "calib/core/conventions.hpp"
 #include "calib/core/rotation.hpp"
 #include "db/archive/archive_error.hpp"
@@ -810,7 +811,8 @@ void check_sample_interval(const calib::ImuSeries& imu, const RunInfo& info,
 /// is_rest(k): the rest flag of sample k (the reference's, or the rest detector's).
 template <typename IsRest>
 void check_magnitudes(const calib::ImuSeries& imu, IsRest is_rest, const calib::Site& site,
-                      const std::string& imu_file, const std::string& rest_source) {
+                      const std::string& imu_file, const std::string& rest_source,
+                      calib::Grade grade) {
   const double kMaxAccel_mps2 = 20.0 * kStandardGravity_mps2;
   const double kMaxRate_radps = 1000.0 * kDegToRad;
   double rest_f_sum = 0.0;
@@ -837,7 +839,10 @@ void check_magnitudes(const calib::ImuSeries& imu, IsRest is_rest, const calib::
   if (n_rest == 0) return;
   const double g = calib::EarthModel(site).gravity_mps2();
   const double f_rest = rest_f_sum / static_cast<double>(n_rest);
-  if (std::fabs(f_rest - g) > 0.1 * g)
+  // A units check (m/s per sample, not m/s²): 10 %, or as wide as the grade's own envelope lets
+  // gravity read (a MEMS unit 30 % off scale is that unit; the data checks then look per rest).
+  const double tol = std::max(0.1, calib::data_check_options(grade).gravity_magnitude_tol);
+  if (std::fabs(f_rest - g) > tol * g)
     throw ArchiveError(
         imu_file, "mean |dv|/dt over the " + std::to_string(n_rest) + " rest samples is " +
                       format_double(f_rest) + " m/s^2 but local gravity is " + format_double(g) +
@@ -969,7 +974,7 @@ calib::CalibrationInput factory_input(const RunArchive& a, RunArchive* owned,
       [&] {
         if (!owned) in.imu = a.imu;
         check_sample_interval(imu, a.info, imu_file);
-        check_magnitudes(imu, is_rest, a.info.site, imu_file, ref_name);
+        check_magnitudes(imu, is_rest, a.info.site, imu_file, ref_name, a.info.grade);
       });
   if (owned) {  // the reference holds them now (the angles and rest flags too)
     std::vector<calib::TableSample>().swap(owned->table);
@@ -990,7 +995,7 @@ calib::CalibrationInput convert(const RunArchive& a, RunArchive* owned) {
   calib::CalibrationInput in = field_input(a, imu_file);
   check_magnitudes(
       a.imu, [&](size_t k) { return in.reference[k].at_rest; }, a.info.site, imu_file,
-      "the rest periods detected in imu.csv");
+      "the rest periods detected in imu.csv", a.info.grade);
   return in;
 }
 

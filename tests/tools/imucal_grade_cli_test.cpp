@@ -5,8 +5,13 @@
 // it, non-zero exit, nothing written.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
+#include <sstream>
+#include <vector>
 
 #include "calib/core/body_frame.hpp"
 #include "calib/core/conventions.hpp"
@@ -69,6 +74,51 @@ TEST(ImucalGradeCli, HandOnATableAndAnUnknownGradeAreRefusedWritingNothing) {
   EXPECT_NE(grade.code, 0);
   EXPECT_NE(grade.out.find("--grade"), std::string::npos) << grade.out;
   EXPECT_FALSE(fs::exists(dir));
+}
+
+// A broken MEMS unit is still broken at its grade: a dead accelerometer axis (imu.csv's dv_x
+// column zero) and gyro axes swapped are refused through the real imucal, naming the symptom, with
+// a non-zero exit; the archive is left as it was.
+TEST(ImucalGradeCli, ADeadOrSwappedAxisIsRefusedAtMemsGrade) {
+  test_support::ScopedTempDir tmp("imucal-grade-broken");
+  const std::string dir = tmp.path() + "/mems";
+  ASSERT_EQ(
+      run_imucal("simulate --sequence hand --setting land --grade mems --seed 5 --out " + dir).code,
+      0);
+  const std::string csv = test_support::slurp(dir + "/imu.csv");
+  // Rewrites every data row of imu.csv with `edit` applied to its seven fields.
+  auto rewrite = [&](const std::function<void(std::vector<std::string>&)>& edit) {
+    std::istringstream in(csv);
+    std::ostringstream out;
+    std::string line;
+    std::getline(in, line);
+    out << line << '\n';
+    while (std::getline(in, line)) {
+      std::vector<std::string> f;
+      std::string cell;
+      std::istringstream ls(line);
+      while (std::getline(ls, cell, ',')) f.push_back(cell);
+      edit(f);
+      for (size_t i = 0; i < f.size(); ++i) out << (i ? "," : "") << f[i];
+      out << '\n';
+    }
+    std::ofstream(dir + "/imu.csv") << out.str();
+  };
+  struct Case {
+    std::string name, symptom;
+    std::function<void(std::vector<std::string>&)> edit;
+  };
+  for (const Case& c :
+       {Case{"dead accelerometer x", "stuck channel", [](auto& f) { f[4] = "0"; }},
+        Case{"gyro x and y swapped", "gyro vs gravity", [](auto& f) { std::swap(f[1], f[2]); }}}) {
+    rewrite(c.edit);
+    const std::string before = test_support::listing(dir);
+    const auto r = run_imucal("calibrate " + dir + " --method legacy");
+    EXPECT_NE(r.code, 0) << c.name << ": " << r.out;
+    EXPECT_NE(r.out.find(c.symptom), std::string::npos) << c.name << ": " << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << c.name << ": one line\n" << r.out;
+    EXPECT_EQ(test_support::listing(dir), before) << c.name;
+  }
 }
 
 }  // namespace
