@@ -124,25 +124,6 @@ Matrix3d integrate(const ImuSeries& imu, size_t a, size_t b, const Vector3d& off
   return C;
 }
 
-/// The gyros' common offset: per axis the median of the rests' mean rates.
-Vector3d gyro_offset(const ImuSeries& imu, const std::vector<RestPeriod>& rests) {
-  Vector3d m = Vector3d::Zero();
-  for (int ax = 0; ax < 3; ++ax) {
-    std::vector<double> v;
-    for (const auto& r : rests) {
-      double dtheta = 0.0, T = 0.0;
-      for (size_t i = r.begin; i < r.end; ++i) {
-        dtheta += imu[i].dtheta_rad(ax);
-        T += imu[i].dt_s;
-      }
-      v.push_back(dtheta / T);
-    }
-    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-    m(ax) = v[v.size() / 2];
-  }
-  return m;
-}
-
 void check_gravity(const CalibrationInput& in, const std::vector<RestPeriod>& rests,
                    const std::vector<Vector3d>& f, const DataCheckOptions& o,
                    std::vector<DataProblem>& out) {
@@ -190,7 +171,8 @@ void check_rotations(const CalibrationInput& in, const std::vector<RestPeriod>& 
   double worst_carry = 0.0, worst_table = 0.0;
   size_t worst_carry_k = 0, worst_table_k = 0;
   double table_angle_at_worst = 0.0, imu_angle_at_worst = 0.0, mismatch_at_worst = 0.0;
-  const Vector3d offset = o.remove_gyro_offset ? gyro_offset(in.imu, rests) : Vector3d::Zero();
+  const Vector3d offset =
+      o.remove_gyro_offset ? median_rest_rate_radps(in.imu, rests) : Vector3d::Zero();
   for (size_t k = 0; k + 1 < rests.size(); ++k) {
     const size_t a = (rests[k].begin + rests[k].end) / 2,
                  b = (rests[k + 1].begin + rests[k + 1].end) / 2;

@@ -1,5 +1,6 @@
 #include "calib/core/calibration_input.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -41,6 +42,30 @@ std::vector<RestPeriod> find_rest_periods(const CalibrationInput& in, size_t min
     k = e;
   }
   return out;
+}
+
+Eigen::Vector3d mean_rate_radps(const ImuSeries& imu, const RestPeriod& rest) {
+  Eigen::Vector3d dtheta = Eigen::Vector3d::Zero();
+  double T = 0.0;
+  for (size_t k = rest.begin; k < rest.end; ++k) {
+    dtheta += imu[k].dtheta_rad;
+    T += imu[k].dt_s;
+  }
+  return dtheta / T;
+}
+
+Eigen::Vector3d median_rest_rate_radps(const ImuSeries& imu, const std::vector<RestPeriod>& rests) {
+  Eigen::Vector3d m = Eigen::Vector3d::Zero();
+  if (rests.empty()) return m;
+  std::vector<Eigen::Vector3d> rates;
+  for (const auto& r : rests) rates.push_back(mean_rate_radps(imu, r));
+  for (int ax = 0; ax < 3; ++ax) {
+    std::vector<double> v;
+    for (const auto& w : rates) v.push_back(w(ax));
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    m(ax) = v[v.size() / 2];
+  }
+  return m;
 }
 
 ParamSet sigma_from_covariance(const ParamCovariance& cov) {

@@ -76,6 +76,13 @@ struct RestPeriod {
 /// Maximal runs of at_rest samples with at least min_samples samples.
 std::vector<RestPeriod> find_rest_periods(const CalibrationInput& in, size_t min_samples);
 
+/// The raw mean angular rate over a rest period (rad/s): the gyro bias plus Earth rate there.
+Eigen::Vector3d mean_rate_radps(const ImuSeries& imu, const RestPeriod& rest);
+
+/// The gyros' common offset before any calibration: per axis the median of the rests' mean rates
+/// (what a MEMS gyro's few °/s of bias make of every rest; zero when there is no rest).
+Eigen::Vector3d median_rest_rate_radps(const ImuSeries& imu, const std::vector<RestPeriod>& rests);
+
 /// The body frame a result's misalignments refer to.
 ///  * kHousing — the IMU housing (mounting fixture) frame: needs an orientation reference
 ///  (factory);

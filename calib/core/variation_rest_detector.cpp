@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "calib/core/calibration_input.hpp"
 #include "calib/core/rest_detector.hpp"
 
 namespace imucal::calib {
@@ -86,44 +87,22 @@ double quantile(std::vector<double> v, double q) {
   return v[i];
 }
 
-struct Span {
-  size_t begin, end;  ///< [begin, end)
-  Eigen::Vector3d mean_rate_radps;
-};
-
-/// Quiet spans of at least min_rest_s, trimmed by the edge guard (rests_from_quiet), with their
-/// mean rates.
-std::vector<Span> quiet_spans(const ImuSeries& imu, const std::vector<bool>& quiet,
-                              const VariationRestOptions& o) {
+/// Quiet spans of at least min_rest_s, trimmed by the edge guard (rests_from_quiet).
+std::vector<RestPeriod> quiet_spans(const ImuSeries& imu, const std::vector<bool>& quiet,
+                                    const VariationRestOptions& o) {
   const std::vector<bool> rest = rests_from_quiet(imu, quiet, o.min_rest_s, o.edge_guard_s);
-  std::vector<Span> spans;
+  std::vector<RestPeriod> spans;
   for (size_t k = 0; k < imu.size();) {
     if (!rest[k]) {
       ++k;
       continue;
     }
-    Span s{k, k, Eigen::Vector3d::Zero()};
-    Eigen::Vector3d dtheta = Eigen::Vector3d::Zero();
-    double T = 0.0;
-    for (; s.end < imu.size() && rest[s.end]; ++s.end) {
-      dtheta += imu[s.end].dtheta_rad;
-      T += imu[s.end].dt_s;
-    }
-    s.mean_rate_radps = dtheta / T;
+    RestPeriod s{k, k};
+    while (s.end < imu.size() && rest[s.end]) ++s.end;
     spans.push_back(s);
     k = s.end;
   }
   return spans;
-}
-
-Eigen::Vector3d median_rate(const std::vector<Span>& spans) {
-  Eigen::Vector3d m = Eigen::Vector3d::Zero();
-  for (int ax = 0; ax < 3; ++ax) {
-    std::vector<double> v;
-    for (const auto& s : spans) v.push_back(s.mean_rate_radps(ax));
-    m(ax) = quantile(v, 0.5);
-  }
-  return m;
 }
 
 }  // namespace
@@ -162,12 +141,12 @@ VariationRestResult detect_rest_by_variation(const ImuSeries& imu, const Variati
   // window turns faster than the spread about it is moving (this also trims the gentle start and
   // end of a table's acceleration, which varies too little to be seen in step 2), and what stays
   // quiet is cut into rests again.
-  const std::vector<Span> candidates = quiet_spans(imu, quiet, o);
+  const std::vector<RestPeriod> candidates = quiet_spans(imu, quiet, o);
   if (candidates.empty()) return r;
-  r.gyro_offset_radps = median_rate(candidates);
+  r.gyro_offset_radps = median_rest_rate_radps(imu, candidates);
   if (o.rest_rate_spread_radps > 0.0) {
     for (const auto& c : candidates)
-      if ((c.mean_rate_radps - r.gyro_offset_radps).norm() > o.rest_rate_spread_radps)
+      if ((mean_rate_radps(imu, c) - r.gyro_offset_radps).norm() > o.rest_rate_spread_radps)
         ++r.rotations_rejected;
     const std::vector<Eigen::Vector3d> mean_w = windowed_mean(imu, w, o.window_s);
     for (size_t k = 0; k < imu.size(); ++k)
