@@ -32,6 +32,7 @@ struct Rest {
   size_t begin = 0, end = 0, mid = 0;
   Vector3d f_mean = Vector3d::Zero();  ///< raw specific force, m/s²
   Vector3d w_mean = Vector3d::Zero();  ///< raw angular rate, rad/s
+  double T_s = 0.0;                    ///< time averaged, s
 };
 
 std::vector<Rest> usable_rests(const CalibrationInput& in, const LegacyOptions& opt) {
@@ -61,6 +62,7 @@ std::vector<Rest> usable_rests(const CalibrationInput& in, const LegacyOptions& 
     }
     r.f_mean /= T;
     r.w_mean /= T;
+    r.T_s = T;
     r.mid = (r.begin + r.end) / 2;
     out.push_back(r);
   }
@@ -181,18 +183,68 @@ struct AccelModel {
   }
 };
 
+/// The residuals' noise, from the unit's white noise and each rest's own length (a hand-placed
+/// MEMS run's rests last 3–11 s, a table's a minute or more: weighting them alike made the σ of
+/// the one 2× too small and of the other several times too large, issue #21).
+struct NoiseWeights {
+  std::vector<double> sigma_f;  ///< mean specific force of rest p, per axis, m/s²
+  std::vector<double> sigma_w;  ///< mean rate of rest p, per axis, rad/s
+  std::vector<double> sigma_d;  ///< down direction carried over move p → p+1, per axis, rad
+
+  NoiseWeights(const CalibrationInput& in, const std::vector<Rest>& rests, double g) {
+    const double vrw = in.noise.vrw_mps_per_sqrt_s, arw = in.noise.arw_rad_per_sqrt_s;
+    for (const Rest& r : rests) {
+      sigma_f.push_back(std::max(vrw / std::sqrt(r.T_s), 1e-7 * g));
+      sigma_w.push_back(std::max(arw / std::sqrt(r.T_s), 1e-12));
+    }
+    // Each rest's down direction is known to σ_f/g across it; the gyros integrate from the
+    // middle of one rest to the middle of the next, collecting ARW·√Δt.
+    for (size_t p = 0; p + 1 < rests.size(); ++p) {
+      const double dt_s = in.imu[rests[p + 1].mid].t_s - in.imu[rests[p].mid].t_s;
+      const double dir2 = (sigma_f[p] * sigma_f[p] + sigma_f[p + 1] * sigma_f[p + 1]) / (g * g);
+      sigma_d.push_back(std::max(std::sqrt(dir2 + arw * arw * dt_s), 1e-8));
+    }
+  }
+
+  /// Helmert's variance components, never below the noise model: a real unit's moves scatter
+  /// more than its white noise says (hand tremor at the ends of a rest, g-sensitivity), and
+  /// weighted by the noise alone they would pull the magnitudes off (issue #21's real recording:
+  /// gravity residual 0.19 mg, with the moves scaled to their scatter 0.12). Each class of
+  /// residual (magnitudes, moves) is scaled up by its own RMS when that exceeds 1.05 — never down:
+  /// scaled down to a sample's luck, the σ of the simulated runs came out 20–75 % too small.
+  /// Returns whether either scale moved.
+  bool rescale_to(const VectorXd& r_weighted) {
+    const auto n = static_cast<Eigen::Index>(sigma_f.size());
+    const double k_f = std::sqrt(r_weighted.head(n).squaredNorm() / static_cast<double>(n));
+    const double k_d = std::sqrt(r_weighted.tail(r_weighted.size() - n).squaredNorm() /
+                                 static_cast<double>(r_weighted.size() - n));
+    bool moved = false;
+    if (k_f > 1.05) {
+      for (double& s : sigma_f) s *= k_f;
+      moved = true;
+    }
+    if (k_d > 1.05) {
+      for (double& s : sigma_d) s *= k_d;
+      moved = true;
+    }
+    return moved;
+  }
+};
+
 /// Step 3: gyro bias and the heading of every rest (Earth rate's horizontal direction).
 struct GyroBiasModel {
   const std::vector<Rest>& rests;
   const std::vector<Vector3d>& down;  ///< compensated down direction per rest (body)
+  const std::vector<double>& sigma_w;  ///< noise of each rest's mean rate, rad/s
   Matrix3d Ag_inv;
   double Om_s, Om_c;                                 ///< Ω sin φ, Ω cos φ
   std::vector<std::pair<Vector3d, Vector3d>> basis;  ///< (e1, e2) ⊥ down per rest
 
-  GyroBiasModel(const std::vector<Rest>& r, const std::vector<Vector3d>& d, const Matrix3d& Ag,
-                double lat)
+  GyroBiasModel(const std::vector<Rest>& r, const std::vector<Vector3d>& d,
+                const std::vector<double>& sw, const Matrix3d& Ag, double lat)
       : rests(r),
         down(d),
+        sigma_w(sw),
         Ag_inv(Ag.inverse()),
         Om_s(wgs84::kEarthRate_radps * std::sin(lat)),
         Om_c(wgs84::kEarthRate_radps * std::cos(lat)) {
@@ -214,10 +266,10 @@ struct GyroBiasModel {
     for (size_t p = 0; p < n; ++p) {
       const double a = x(static_cast<Eigen::Index>(3 + p));
       const auto i = static_cast<Eigen::Index>(3 * p);
-      r.segment<3>(i) = (Ag_inv * (rests[p].w_mean - b) - earth_rate(p, a)) / Om_c;
-      J.block<3, 3>(i, 0) = -Ag_inv / Om_c;
+      r.segment<3>(i) = (Ag_inv * (rests[p].w_mean - b) - earth_rate(p, a)) / sigma_w[p];
+      J.block<3, 3>(i, 0) = -Ag_inv / sigma_w[p];
       J.block<3, 1>(i, static_cast<Eigen::Index>(3 + p)) =
-          -(-std::sin(a) * basis[p].first + std::cos(a) * basis[p].second);
+          -Om_c * (-std::sin(a) * basis[p].first + std::cos(a) * basis[p].second) / sigma_w[p];
     }
   }
 };
@@ -233,7 +285,8 @@ struct JointModel {
   const std::vector<Rest>& rests;
   const std::vector<Vector3d>& earth_rate_b;  ///< per rest, body frame
   Vector3d b_g;
-  double g, sigma_f, sigma_d;
+  double g;
+  const NoiseWeights& w;
 
   /// Down direction of rest p and its Jacobian w.r.t. (b, t) (3 x 9).
   void down(const VectorXd& x, size_t p, Vector3d& d, Eigen::Matrix<double, 3, 9>& Jd) const {
@@ -255,7 +308,7 @@ struct JointModel {
     const Matrix3d T = tri::T_of(x);
     for (size_t p = 0; p < n; ++p) {  // magnitudes
       const auto i = static_cast<Eigen::Index>(p);
-      tri::magnitude_row(rests[p].f_mean, x, T, g, sigma_f, r(i), J.row(i).head(9));
+      tri::magnitude_row(rests[p].f_mean, x, T, g, w.sigma_f[p], r(i), J.row(i).head(9));
     }
     Matrix3d M;
     M << x(9), x(10), x(11), x(12), x(13), x(14), x(15), x(16), x(17);
@@ -279,6 +332,7 @@ struct JointModel {
       const Matrix3d R = C.transpose() * rotvec_to_matrix<double>(Vector3d(earth_rate_b[p] * dt));
       const Vector3d d_pred = R * d[p];
       const auto i = static_cast<Eigen::Index>(n + 3 * p);
+      const double sigma_d = w.sigma_d[p];
       r.segment<3>(i) = (d[p + 1] - d_pred) / sigma_d;
       J.block<3, 9>(i, 0) = (Jd[p + 1] - R * Jd[p]) / sigma_d;
       // δφ = -Cᵀ W_j A⁻¹ e_a per δM_aj (right perturbation of C); ∂r/∂m = -[d_pred x] δφ.
@@ -311,8 +365,6 @@ MatrixXd scaled_covariance(const LsqOutcome& o, double floor_var) {
 }  // namespace
 
 namespace {
-
-constexpr double kTypicalRest_s = 60.0;  ///< for the noise weights of the rest means
 
 void check_input(const std::vector<Rest>& rests) {
   if (rests.size() < 9)
@@ -357,10 +409,7 @@ struct LegacyFit {
 constexpr int kMinRounds = 3, kMaxRounds = 12;
 LegacyFit fit_alternating(const CalibrationInput& in, const std::vector<Rest>& rests, double g,
                           const VectorXd& xa) {
-  const double sigma_f =
-      std::max(in.noise.vrw_mps_per_sqrt_s / std::sqrt(kTypicalRest_s), 1e-7 * g);
-  const double sigma_d =
-      std::max(std::hypot(std::sqrt(2.0) * sigma_f / g, in.noise.arw_rad_per_sqrt_s * 10.0), 1e-8);
+  NoiseWeights w(in, rests, g);
   LegacyFit f;
   f.x = VectorXd::Zero(18);
   f.x.head<9>() = xa;
@@ -370,7 +419,7 @@ LegacyFit fit_alternating(const CalibrationInput& in, const std::vector<Rest>& r
     const Matrix3d T = tri::T_of(f.x);
     for (size_t p = 0; p < rests.size(); ++p)
       down[p] = -(T * (rests[p].f_mean - f.x.head<3>())).normalized();
-    GyroBiasModel bm(rests, down, Matrix3d::Identity() + Mg, in.site.lat_rad);
+    GyroBiasModel bm(rests, down, w.sigma_w, Matrix3d::Identity() + Mg, in.site.lat_rad);
     VectorXd xb = VectorXd::Zero(static_cast<Eigen::Index>(3 + rests.size()));
     xb.head<3>() = f.bg;
     for (size_t p = 0; p < rests.size(); ++p) {
@@ -382,11 +431,15 @@ LegacyFit fit_alternating(const CalibrationInput& in, const std::vector<Rest>& r
     f.bg = xb.head<3>();
     for (size_t p = 0; p < rests.size(); ++p)
       earth_b[p] = bm.earth_rate(p, xb(static_cast<Eigen::Index>(3 + p)));
-    JointModel jm{in, rests, earth_b, f.bg, g, sigma_f, sigma_d};
+    JointModel jm{in, rests, earth_b, f.bg, g, w};
     f.joint = gauss_newton(jm, f.x, 30);
     Mg = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(f.x.data() + 9);
     f.rounds = round + 1;
-    if (f.rounds >= kMinRounds && f.bias.converged && f.joint.converged) break;
+    VectorXd r;
+    MatrixXd J;
+    jm.evaluate(f.x, r, J);
+    const bool reweighted = w.rescale_to(r);
+    if (f.rounds >= kMinRounds && f.bias.converged && f.joint.converged && !reweighted) break;
   }
   if (!f.x.allFinite() || !f.bg.allFinite() || !(tri::T_of(f.x).determinant() > 0.1) ||
       !(std::abs((Matrix3d::Identity() + Mg).determinant()) > 0.1))
@@ -407,10 +460,7 @@ CalibrationResult legacy_result(const CalibrationInput& in, const LegacyFit& f) 
   res.params.gyro_M =
       Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(f.x.data() + 9);
   const MatrixXd cov_j = scaled_covariance(f.joint, 1.0);
-  const double floor_w = std::pow(in.noise.arw_rad_per_sqrt_s / std::sqrt(kTypicalRest_s) /
-                                      (wgs84::kEarthRate_radps * std::cos(in.site.lat_rad)),
-                                  2);
-  const MatrixXd cov_b = scaled_covariance(f.bias, floor_w);
+  const MatrixXd cov_b = scaled_covariance(f.bias, 1.0);
   res.cov = assemble_covariance(T, cov_j.topLeftCorner(9, 9), cov_b.topLeftCorner<3, 3>(),
                                 cov_j.bottomRightCorner(9, 9));
   // The accel-gyro cross-covariance of the joint fit.

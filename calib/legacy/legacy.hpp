@@ -14,10 +14,12 @@
 //     direction of the rest before it into that of the rest after it (Earth rate included). Fitted
 //     jointly with step 2, because with a table's 90°/180° positions the magnitudes alone leave the
 //     accelerometer non-orthogonality unobserved (it enters them squared). Steps 3 and 2+4
-//     alternate three times.
+//     alternate until both converge (3 to 12 rounds).
 // The result is an orthogonal body frame but not the housing orientation: it is reported in the
 // accel-symmetric frame (calib/core/body_frame.hpp); ς is not estimated. σ from the least-squares
-// covariance scaled by the residuals.
+// covariance: residuals weighted by the unit's white noise over each rest's own length and each
+// move's duration, each class (magnitudes, moves) scaled up to its own scatter where it exceeds
+// the noise (variance components), the whole inflated by the reduced χ² when above 1.
 #include "calib/core/calibration_input.hpp"
 
 namespace imucal::calib {
