@@ -116,6 +116,40 @@ std::vector<Vector3d> rest_means(const CalibrationInput& in, const std::vector<R
   return f;
 }
 
+/// The rest means with each accelerometer's offset and scale removed by an ellipsoid fit
+/// (|diag(1 + s)(f_p - b)| = g at every rest, Gauss–Newton from b = 0, s = 0). A MEMS unit's
+/// 200 mg biases and 10 % scales tilt where gravity is seen by up to 20° and turn it by
+/// different amounts at each rest; a swap or a sign flip survives the fit (it leaves every
+/// magnitude alone), so the gyro-vs-gravity check still sees it. The raw means when the rests
+/// cannot fix six unknowns or the fit lands outside any plausible unit (a dead axis).
+std::vector<Vector3d> without_accel_offset(const std::vector<Vector3d>& f, double g) {
+  if (f.size() < 9) return f;
+  Eigen::Matrix<double, 6, 1> x = Eigen::Matrix<double, 6, 1>::Zero();  // (b, s)
+  for (int it = 0; it < 30; ++it) {
+    Eigen::MatrixXd J(static_cast<Eigen::Index>(f.size()), 6);
+    Eigen::VectorXd r(static_cast<Eigen::Index>(f.size()));
+    for (size_t p = 0; p < f.size(); ++p) {
+      const Vector3d u = f[p] - x.head<3>();
+      const Vector3d y = (Vector3d::Ones() + x.tail<3>()).cwiseProduct(u);
+      const double rho = std::max(y.norm(), 1e-9);
+      const auto i = static_cast<Eigen::Index>(p);
+      r(i) = rho - g;
+      J.block<1, 3>(i, 0) = -(y / rho).cwiseProduct(Vector3d::Ones() + x.tail<3>()).transpose();
+      J.block<1, 3>(i, 3) = (y / rho).cwiseProduct(u).transpose();
+    }
+    const Eigen::Matrix<double, 6, 1> dx = (J.transpose() * J).ldlt().solve(-J.transpose() * r);
+    if (!dx.allFinite()) return f;
+    x += dx;
+    if (dx.norm() < 1e-10 * (1.0 + x.norm())) break;
+  }
+  if (!x.allFinite() || x.head<3>().norm() > 0.5 * g || x.tail<3>().cwiseAbs().maxCoeff() > 0.5)
+    return f;
+  std::vector<Vector3d> out;
+  for (const Vector3d& fp : f)
+    out.push_back((Vector3d::Ones() + x.tail<3>()).cwiseProduct(fp - x.head<3>()));
+  return out;
+}
+
 /// The IMU's own rotation from sample a to sample b: body at b relative to body at a.
 Matrix3d integrate(const ImuSeries& imu, size_t a, size_t b, const Vector3d& offset_radps) {
   Matrix3d C = Matrix3d::Identity();
@@ -234,6 +268,7 @@ DataCheckOptions data_check_options(Grade grade) {
   o.rotation_tol_fraction = std::max(o.rotation_tol_fraction, p.scale + 2.0 * p.misalignment_rad);
   o.direction_tol_deg = std::max(o.direction_tol_deg, 3.0 + 2.0 * p.misalignment_rad / kDegToRad);
   o.remove_gyro_offset = true;
+  o.remove_accel_offset = true;
   return o;
 }
 
@@ -247,7 +282,10 @@ std::vector<DataProblem> check_data(const CalibrationInput& in, const DataCheckO
   if (rests.empty()) return out;
   const std::vector<Vector3d> f = rest_means(in, rests);
   check_gravity(in, rests, f, o, out);
-  check_rotations(in, rests, f, o, out);
+  check_rotations(
+      in, rests,
+      o.remove_accel_offset ? without_accel_offset(f, EarthModel(in.site).gravity_mps2()) : f, o,
+      out);
   return out;
 }
 

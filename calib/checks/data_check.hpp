@@ -44,6 +44,10 @@ struct DataCheckOptions {
   /// gravity across a move: a MEMS gyro's offset of a few °/s would otherwise turn it by tens of
   /// degrees. Off at navigation grade (the offset is Earth rate, far inside the tolerance).
   bool remove_gyro_offset = false;
+  /// Remove each accelerometer's offset and scale (an ellipsoid fit to the rests' |f| = g) before
+  /// comparing the gravity directions across a move: a MEMS unit's 200 mg biases tilt them by up
+  /// to 20°. Off at navigation grade (1 mg is 0.06°).
+  bool remove_accel_offset = false;
 };
 
 /// The defaults, widened to what an uncalibrated unit of the grade may be (calib/core/
