@@ -11,6 +11,7 @@
 //      gives the smoothed navigation states.
 // The state layout and the F/H terms live in ains_model.hpp.
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -52,14 +53,24 @@ struct AinsOptions {
   double propagation_interval_s = 1.0;  ///< Φ accumulated over the samples of this interval
   size_t min_rest_samples = 100;        ///< shorter at_rest runs are not used for aiding
   /// 1-σ prior of the sensor states (centred on zero). Elements <= 0 take the built-in default
-  /// (default_prior_sigma()).
+  /// of the input's grade (prior_sigma_for_grade()).
   ParamSet prior_sigma;
+  /// Where the first pass linearises (empty: zero, the nominal unit). A unit far from nominal — a
+  /// MEMS gyro 24 % off scale and 3 °/s off zero — is outside the reach of a linearised filter
+  /// started at zero; started at the legacy result it converges (issue #21). Only the start: the
+  /// prior stays centred on zero with the grade's σ, and the passes iterate to the same fixed
+  /// point from any start close enough (tests/calib/ains_grade_test.cpp).
+  std::optional<ParamSet> start;
 };
 
 /// Built-in prior: bias 5 mg / 1 deg/h, dM 5000 ppm (scale and misalignment), ς 1 mrad.
 ParamSet default_prior_sigma();
-/// opt.prior_sigma with non-positive elements replaced by the defaults.
-ParamSet effective_prior_sigma(const AinsOptions& opt);
+/// The prior of a unit of `grade` before calibration (issue #21: the filter's initial covariance
+/// follows the grade): navigation keeps default_prior_sigma(); tactical and MEMS take the grade's
+/// envelope (calib/core/unit_grade.hpp) as 1-σ, ς 1 mrad as before.
+ParamSet prior_sigma_for_grade(Grade grade);
+/// opt.prior_sigma with non-positive elements replaced by the defaults of `grade`.
+ParamSet effective_prior_sigma(const AinsOptions& opt, Grade grade = Grade::kNavigation);
 
 /// Smoothed navigation state at one KF epoch (RTS output), for evaluation and diagnosis.
 struct SmoothedNav {

@@ -58,6 +58,8 @@ void check_options(const AinsOptions& opt) {
   if (!std::isfinite(opt.gnss_sigma_m)) fail("option gnss_sigma_m must be finite");
   if (opt.min_rest_samples < 2) fail("option min_rest_samples must be >= 2");
   if (!opt.prior_sigma.to_vector().allFinite()) fail("option prior_sigma has a non-finite element");
+  if (opt.start && !opt.start->to_vector().allFinite())
+    fail("option start has a non-finite element");
 }
 
 void check_site_and_noise(const CalibrationInput& in) {

@@ -1,6 +1,8 @@
 #include "calib/pipeline/calibration_pipeline.hpp"
 
+#include <algorithm>
 #include <exception>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <stdexcept>
@@ -13,7 +15,7 @@ namespace imucal::calib {
 
 namespace {
 
-using Method = CalibrationResult (*)(const CalibrationInput&, const PipelineOptions&);
+using Method = std::function<CalibrationResult(const CalibrationInput&, const PipelineOptions&)>;
 
 CalibrationResult run_ains(const CalibrationInput& in, const PipelineOptions& o) {
   return calibrate_ains(in, o.ains);
@@ -28,7 +30,7 @@ CalibrationResult run_legacy(const CalibrationInput& in, const PipelineOptions& 
 /// One method and its evaluation (paper §VII) — or, without an attitude reference, the statement
 /// that there is none to evaluate against.
 MethodOutcome run_method(const CalibrationInput& in, const PipelineOptions& opt, const char* label,
-                         Method method) {
+                         const Method& method) {
   auto phase = [&](const std::string& p) {
     if (opt.on_phase) opt.on_phase(p);
   };
@@ -68,6 +70,47 @@ std::vector<DataProblem> check_input(const CalibrationInput& in, const PipelineO
   return check_data(in, data_check_options(in.grade));
 }
 
+/// A land run of a unit that may be far from nominal (every grade but navigation): the filter
+/// cannot start from zero (a MEMS gyro's offset of degrees per second defeats gyrocompassing and
+/// linearisation alike), so it starts from the legacy result (issue #21).
+bool ains_starts_from_legacy(const CalibrationInput& in) {
+  return in.setting == Setting::kLand && in.grade != Grade::kNavigation;
+}
+
+/// Heading after gyrocompassing with a gyro whose bias is known to σ_b: σ_b / (Ω cos φ). A MEMS
+/// gyro's residual after legacy is of the order of the Earth rate itself: the coarse heading is
+/// a guess, and the filter's rotations between rests must decide it.
+constexpr double kUnknownHeadingSigma_rad = 1.0;
+
+/// AINS linearised about `start` (the legacy result), the prior unchanged: the grade's, centred
+/// on zero. The result says where it started.
+CalibrationResult run_ains_from(const CalibrationInput& in, const PipelineOptions& opt,
+                                const ParamSet& start) {
+  AinsOptions o = opt.ains;
+  o.start = start;
+  o.initial_heading_sigma_rad = std::max(o.initial_heading_sigma_rad, kUnknownHeadingSigma_rad);
+  CalibrationResult r = calibrate_ains(in, o);
+  r.warnings.push_back(std::string("AINS linearised about the legacy result (a ") +
+                       grade_name(in.grade) +
+                       " unit may be far from nominal); its prior is the grade's, centred on zero");
+  return r;
+}
+
+/// The data checks, the legacy method, then AINS started from its result: one after the other.
+/// The legacy outcome is reported only when it was asked for.
+void run_methods_from_legacy(const CalibrationInput& in, const PipelineOptions& opt, bool legacy,
+                             PipelineResult& out) {
+  std::vector<DataProblem> problems = check_input(in, opt);
+  if (!problems.empty()) throw DataCheckError(std::move(problems));
+  MethodOutcome start = run_method(in, opt, "legacy", run_legacy);
+  const ParamSet params = start.result.params;
+  if (legacy) out.legacy = std::move(start);
+  auto ains_from_legacy = [&params](const CalibrationInput& i, const PipelineOptions& o) {
+    return run_ains_from(i, o, params);
+  };
+  out.ains = run_method(in, opt, "AINS", ains_from_legacy);
+}
+
 /// The data checks, then AINS, and NLSQ or legacy, each with its evaluation. With opt.concurrent
 /// (and AINS selected) a second thread runs the checks and then the second method while AINS
 /// runs: AINS only reads `in`, and if the checks fail its result is dropped and DataCheckError
@@ -75,6 +118,7 @@ std::vector<DataProblem> check_input(const CalibrationInput& in, const PipelineO
 /// have ended.
 void run_methods(const CalibrationInput& in, const PipelineOptions& opt, bool ains, bool nlsq,
                  bool legacy, PipelineResult& out) {
+  if (ains && ains_starts_from_legacy(in)) return run_methods_from_legacy(in, opt, legacy, out);
   std::optional<MethodOutcome>* second = nlsq ? &out.nlsq : legacy ? &out.legacy : nullptr;
   auto run_second = [&] {
     *second =
