@@ -1,6 +1,7 @@
 #include "calib/ains/ains.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <sstream>
@@ -77,6 +78,44 @@ double initial_attitude_update_sigma(const SmoothedNav& s0) {
 
 namespace {
 
+/// The initial heading of a unit that cannot gyrocompass, by likelihood. Below navigation grade
+/// the gyros' residual bias is of the order of the Earth rate: the coarse alignment's heading is
+/// anywhere (off by up to 180° on simulated MEMS runs), and from there the passes do not find it —
+/// the heading is a flat valley for a linearised filter — while the mis-projected Earth rate, a
+/// horizontal rate error fixed in the navigation frame, biases the accelerometer terms by up to
+/// 6σ (tests/calib/ains_grade_test.cpp). One pass from each of 12 headings 30° apart, the prior
+/// on ψ(0) centred on the candidate (the coarse heading means nothing here); the χ² of the
+/// innovations is a smooth bowl about the truth (Δχ² ≈ 60 between the best heading and its
+/// opposite on a 6-minute hand-placed run), so a parabola through the best and its neighbours
+/// finds its bottom to a few degrees. Returns the chosen attitude.
+Eigen::Matrix3d search_initial_heading(const ains::PreparedInput& pin, const AinsOptions& opt,
+                                       ains::PassConfig cfg, const Eigen::Matrix3d& C_coarse) {
+  constexpr int kCandidates = 12;
+  constexpr double kStep_rad = 2.0 * kPi / kCandidates;
+  auto turned = [&](double dpsi_rad) {
+    return Eigen::Matrix3d(rotvec_to_matrix<double>(Eigen::Vector3d(0.0, 0.0, dpsi_rad)) *
+                           C_coarse);
+  };
+  auto chi2 = [&](double dpsi_rad) {
+    cfg.C_bn0 = turned(dpsi_rad);
+    cfg.psi0_prior_mean.setZero();
+    return ains::run_pass(pin, opt, cfg, nullptr).nis_sum;
+  };
+  std::array<double, kCandidates> c{};
+  int best = 0;
+  for (int i = 0; i < kCandidates; ++i) {
+    c[static_cast<size_t>(i)] = chi2(i * kStep_rad);
+    if (c[static_cast<size_t>(i)] < c[static_cast<size_t>(best)]) best = i;
+  }
+  const double lo = c[static_cast<size_t>((best + kCandidates - 1) % kCandidates)];
+  const double mid = c[static_cast<size_t>(best)];
+  const double hi = c[static_cast<size_t>((best + 1) % kCandidates)];
+  const double curvature = lo - 2.0 * mid + hi;
+  const double shift = curvature > 0.0 ? std::clamp(0.5 * (lo - hi) / curvature, -0.5, 0.5) : 0.0;
+  const double dpsi_rad = (best + shift) * kStep_rad;
+  return chi2(dpsi_rad) <= mid ? turned(dpsi_rad) : turned(best * kStep_rad);
+}
+
 /// The iterated passes (steps 1-4 of ains.hpp): each pass linearises about the last estimate
 /// until every update is below convergence_sigma_ratio·σ. `epochs` receives the last pass's
 /// epochs when `keep_epochs` (the field settings need them in every pass: the smoother re-centres
@@ -86,12 +125,12 @@ ains::PassResult iterate_passes(const ains::PreparedInput& pin, const AinsOption
                                 bool keep_epochs, ains::PassConfig& cfg, AinsResult& out,
                                 std::vector<ains::EpochRecord>& epochs) {
   const bool field = pin.in->setting != Setting::kFactory;
-  // A gyro that cannot gyrocompass (every grade but navigation: its bias residual is of the order
-  // of the Earth rate) leaves the initial heading and the vertical gyro bias a flat valley: the
-  // heading (σ of degrees) keeps stepping by a few hundredths of its σ per pass while the
-  // parameters have settled to below 0.005σ (tests/calib/ains_grade_test.cpp). Its own bar is
-  // ten times looser there; navigation grade keeps the one bar.
-  const double attitude_slack = pin.in->grade == Grade::kNavigation ? 1.0 : 10.0;
+  // A gyro that cannot gyrocompass (every grade but navigation) leaves the initial heading a
+  // flat valley for the linearised passes: it keeps stepping by a tenth of its (optimistic) σ a
+  // pass while the parameters have settled. Its heading comes from the likelihood search
+  // (search_initial_heading), and the parameters alone decide convergence; navigation grade
+  // holds the initial attitude to the same bar as the parameters.
+  const bool attitude_decides = pin.in->grade == Grade::kNavigation;
   CalibrationResult& res = out.calibration;
   ains::PassResult pass;
   for (int it = 1; it <= opt.max_iterations; ++it) {
@@ -106,7 +145,7 @@ ains::PassResult iterate_passes(const ains::PreparedInput& pin, const AinsOption
       // The initial attitude is a state like the parameters: re-centre the nominal on its
       // smoothed value (the prior stays centred on the coarse alignment).
       const std::vector<SmoothedNav> sm = ains::rts_smooth(epochs, nullptr);
-      ratio = std::max(ratio, initial_attitude_update_sigma(sm.front()) / attitude_slack);
+      if (attitude_decides) ratio = std::max(ratio, initial_attitude_update_sigma(sm.front()));
       cfg.C_bn0 = sm.front().nav.C_bn;
       cfg.psi0_prior_mean = matrix_to_rotvec(out.coarse_C_bn * cfg.C_bn0.transpose());
     }
@@ -162,6 +201,10 @@ AinsResult run_ains(const CalibrationInput& in, const AinsOptions& opt, bool smo
     out.coarse_C_bn = coarse_align(in.imu, pin.first_rest.begin, pin.first_rest.end,
                                    alignment_site(in), cfg.nominal, in.noise.vrw_mps_per_sqrt_s)
                           .C_bn;
+    if (opt.initial_C_bn)
+      out.coarse_C_bn = *opt.initial_C_bn;
+    else if (in.grade != Grade::kNavigation)
+      out.coarse_C_bn = search_initial_heading(pin, opt, cfg, out.coarse_C_bn);
     cfg.C_bn0 = out.coarse_C_bn;
   }
   CalibrationResult& res = out.calibration;

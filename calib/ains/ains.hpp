@@ -28,7 +28,8 @@ using AinsSetting = Setting;
 ///  * factory: table orientation (eq. 28-35), zero velocity (36-39), mean depth (40-43) at rest;
 ///    initial attitude from the reference; 36 states;
 ///  * land: zero velocity and mean depth at rest, no orientation aiding; initial attitude from
-///    the data (calib/core/coarse_alignment.hpp), refined by the smoother each pass; ς frozen (33
+///    the data (calib/core/coarse_alignment.hpp; below navigation grade its heading by a
+///    likelihood search over 12 headings), refined by the smoother each pass; ς frozen (33
 ///    states); the common rotation of both triads fixed by the accel-symmetric body frame
 ///    (calib/core/body_frame.hpp) as three exact pseudo-measurements;
 ///  * sea: as land, but GNSS horizontal position (eq. 44-47) at every fix and mean depth there,
@@ -61,6 +62,9 @@ struct AinsOptions {
   /// prior stays centred on zero with the grade's σ, and the passes iterate to the same fixed
   /// point from any start close enough (tests/calib/ains_grade_test.cpp).
   std::optional<ParamSet> start;
+  /// Field settings: the attitude at the INS start in place of the coarse alignment's (which
+  /// stays the prior's centre only when this is empty).
+  std::optional<Eigen::Matrix3d> initial_C_bn;
 };
 
 /// Built-in prior: bias 5 mg / 1 deg/h, dM 5000 ppm (scale and misalignment), ς 1 mrad.
@@ -98,7 +102,9 @@ struct AinsResult {
   double smoother_param_mismatch_sigma = 0.0;
   std::vector<double> update_norm_sigma;  ///< max_i |Δθ_i|/σ_i of each pass
   /// The smoothed attitude at the INS start (field settings: from the data; factory: the
-  /// reference's, corrected by ς̂) and the coarse alignment it started from (field only).
+  /// reference's, corrected by ς̂) and the attitude the passes started from (field only): the
+  /// coarse alignment, with its heading searched by likelihood below navigation grade (a gyro
+  /// that cannot gyrocompass), or AinsOptions::initial_C_bn.
   Eigen::Matrix3d initial_C_bn = Eigen::Matrix3d::Identity();
   Eigen::Matrix3d coarse_C_bn = Eigen::Matrix3d::Identity();
 };

@@ -3,7 +3,9 @@
 // legacy method first, the filter linearised about its result, the prior the grade's.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <cstdio>
 
 #include "calib/ains/ains.hpp"
 #include "calib/core/body_frame.hpp"
@@ -34,27 +36,49 @@ PipelineResult land_all(const CalibrationInput& in) {
   return run_calibration(in, o);
 }
 
-// Started from the legacy result, every observable parameter lands within 4σ of truth on these
-// seeds. Not yet the issue's bar (issue #21 stays open): over 24 runs RMS(error/σ) of the
-// accelerometer scales is 2.1 (accel_M[2][2] 3.1, errors mostly positive), the answer moves by up
-// to 0.3σ with the start (legacy vs truth), and on one run in three the passes creep along the
-// heading / vertical gyro bias valley (0.03–0.05σ per pass) and do not converge in 8 — so the
-// run is REVIEW, as it should be while that holds.
+// Every observable parameter within 4σ of truth, converged, within the MEMS limits, and the two
+// methods agree (the cross-check passes): the run is PASS at its grade.
 TEST(AinsGrade, LandMemsRunsFromTheLegacyStartWithin4Sigma) {
   for (uint64_t seed = 1; seed <= 3; ++seed) {
     const FieldSimResult sim = testing::simulate_mems(seed);
     const PipelineResult p = land_all(mems_input(sim));
     ASSERT_TRUE(p.ains && p.legacy) << seed;
     const CalibrationResult& r = p.ains->result;
+    EXPECT_TRUE(r.converged) << "seed " << seed << ", " << r.iterations << " passes";
     const ParamVector e = errors(r, sim), s = r.sigma.to_vector();
     for (int i = 0; i < ParamSet::kSize; ++i) {
       if (r.observable[static_cast<size_t>(i)]) {
         EXPECT_LT(std::abs(e(i) / s(i)), 4.0) << param_info(i).name << " seed " << seed;
       }
     }
-    if (!r.converged) {
-      EXPECT_FALSE(p.pass()) << "an unconverged AINS must not PASS, seed " << seed;
-    }
+    EXPECT_TRUE(p.pass()) << "seed " << seed << ": "
+                          << (p.limits.failures.empty() ? "" : p.limits.failures.front().detail)
+                          << (p.crosscheck && !p.crosscheck->pass ? " cross-check fails" : "");
+  }
+}
+
+// The start is a linearisation point, not information: from the legacy result and from the
+// truth itself, with the same initial attitude, AINS lands on the same parameters (within 0.1σ),
+// so the cross-check still compares two independent estimates. (The initial heading is searched
+// by likelihood from each start and may land a few degrees apart — on seed 8 that moves the
+// vertical gyro bias by 1σ; the Monte Carlo below holds the σ honest with that search.)
+TEST(AinsGrade, TheStartDoesNotDecideTheAnswer) {
+  for (uint64_t seed : {7u, 8u}) {
+    const FieldSimResult sim = testing::simulate_mems(seed);
+    const CalibrationInput in = mems_input(sim);
+    AinsOptions o;
+    o.initial_heading_sigma_rad = 1.0;
+    o.start = calibrate_legacy(in).params;
+    const AinsResult from_legacy = calibrate_ains_detailed(in, o);
+    o.start = to_accel_symmetric_frame(sim.truth).params;
+    o.initial_C_bn = from_legacy.coarse_C_bn;
+    const CalibrationResult from_truth = calibrate_ains(in, o);
+    ASSERT_TRUE(from_legacy.calibration.converged && from_truth.converged) << seed;
+    const ParamVector d =
+        from_legacy.calibration.params.to_vector() - from_truth.params.to_vector();
+    const ParamVector s = from_truth.sigma.to_vector();
+    for (int i = 0; i < 24; ++i)
+      EXPECT_LT(std::abs(d(i) / s(i)), 0.1) << param_info(i).name << " seed " << seed;
   }
 }
 
@@ -71,6 +95,40 @@ TEST(AinsGrade, FromZeroAMemsUnitIsOutOfReach) {
     reached = false;
   }
   EXPECT_FALSE(reached);
+}
+
+// Honest σ (issue #21's Monte Carlo bar): RMS(error/σ) per group within [0.7, 1.4], through the
+// pipeline as `imucal calibrate --method ains` runs it (legacy start, heading search).
+TEST(AinsGrade, MemsSigmaIsHonestMonteCarlo) {
+  constexpr int kRuns = 24;
+  std::array<double, kNumParamGroups> g2{};
+  std::array<int, kNumParamGroups> gn{};
+  int converged = 0;
+  for (uint64_t seed = 100; seed < 100 + kRuns; ++seed) {
+    const FieldSimResult sim = testing::simulate_mems(seed);
+    PipelineOptions o;
+    o.methods = MethodSelection::kAins;
+    const PipelineResult p = run_calibration(mems_input(sim), o);
+    ASSERT_TRUE(p.ains) << seed;
+    const CalibrationResult& r = p.ains->result;
+    converged += r.converged;
+    const ParamVector e = errors(r, sim), s = r.sigma.to_vector();
+    for (int i = 0; i < 24; ++i) {
+      const auto g = static_cast<size_t>(param_info(i).group);
+      g2[g] += (e(i) / s(i)) * (e(i) / s(i));
+      ++gn[g];
+    }
+  }
+  std::printf("land AINS on %d MEMS hand-placed runs (%d converged), RMS(error/sigma):", kRuns,
+              converged);
+  EXPECT_EQ(converged, kRuns);
+  for (int g = 0; g < 6; ++g) {
+    const double rms = std::sqrt(g2[static_cast<size_t>(g)] / gn[static_cast<size_t>(g)]);
+    std::printf(" %s %.2f", group_name(static_cast<ParamGroup>(g)).c_str(), rms);
+    EXPECT_GE(rms, 0.7) << group_name(static_cast<ParamGroup>(g));
+    EXPECT_LE(rms, 1.4) << group_name(static_cast<ParamGroup>(g));
+  }
+  std::printf("\n");
 }
 
 }  // namespace
