@@ -25,6 +25,11 @@ class TomlSection {
               const std::vector<std::string_view>& allowed);
 
   bool has(std::string_view key) const { return table_->contains(key); }
+  /// The key is present and an array (a value that may be a number or a list of them).
+  bool is_array(std::string_view key) const {
+    const toml::node* n = table_->get(key);
+    return n && n->is_array();
+  }
   /// Subsection [key]; nullopt if absent; error if present but not a table.
   std::optional<TomlSection> section(std::string_view key,
                                      const std::vector<std::string_view>& allowed) const;

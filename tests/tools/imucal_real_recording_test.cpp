@@ -1,21 +1,23 @@
-// A real unit's recording through the real `imucal` binary (issue #21 item 6): IMU-TK's Xsens
-// test data (tests/data/imu_tk_xsens, read with nominal values only: gyro offsets to 2.85 °/s,
-// scales a quarter off) as a land archive of a MEMS unit. `calibrate --method legacy` finds its
+// A real unit's recording through the real `imucal` binary (issue #21 items 5, 6): IMU-TK's Xsens
+// test data (tests/data/imu_tk_xsens, two raw files of counts) imported as a user would —
+// `imucal import` with nominal values only (import.toml: gyro offsets to 2.85 °/s, scales a
+// quarter off) — into a land archive of a MEMS unit. `calibrate --method legacy` finds its
 // rests without a calibration, passes the data checks at its grade, calibrates from scratch and
 // passes the MEMS limits; the calibration then makes every rest see one gravity and the gyros carry
 // gravity from rest to rest — the figures of the multi-position method's own residuals, computed
-// here from the archive and the printed parameters alone. Held to navigation grade (no [prior]),
-// the same archive is refused naming the missing rest.
+// here from the archive and the printed parameters alone. Imported as navigation grade, the same
+// recording is refused naming the missing rest.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "calib/core/conventions.hpp"
 #include "calib/core/rotation.hpp"
 #include "calib/core/variation_rest_detector.hpp"
-#include "tests/support/imu_tk_xsens.hpp"
+#include "db/archive/run_archive.hpp"
 #include "tests/support/imucal_cli.hpp"
 #include "tests/support/temp_dir.hpp"
 
@@ -28,20 +30,20 @@ using Eigen::Vector3d;
 
 constexpr double kGravity_mps2 = 9.81744;  // the gravity IMU-TK's own example calibrates with
 
-void write_archive(const std::string& dir, const ImuSeries& imu, bool with_prior) {
-  std::ofstream csv(dir + "/imu.csv");
-  csv << "t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps\n";
-  csv.precision(17);
-  for (const auto& s : imu)
-    csv << s.t_s << ',' << s.dtheta_rad(0) << ',' << s.dtheta_rad(1) << ',' << s.dtheta_rad(2)
-        << ',' << s.dv_mps(0) << ',' << s.dv_mps(1) << ',' << s.dv_mps(2) << '\n';
-  std::ofstream toml(dir + "/run.toml");
-  toml << "serial = \"XSENS-IMUTK\"\nsetting = \"land\"\nreference = \"none\"\n"
-          "[station]\nname = \"IMU-TK test data\"\nlat_deg = 41.9\nlon_deg = 12.5\n"
-          "height_m = 50.0\ngravity_mps2 = "
-       << kGravity_mps2 << "\n[imu]\nrate_hz = 100.0\n"
-       << (with_prior ? "[prior]\ngrade = \"mems\"\n" : "")
-       << "[noise]\narw_deg_per_sqrt_h = 1.0\nvrw_ug_per_sqrt_hz = 300.0\n";
+/// The recording as a user gets it in: the two files decompressed beside the archive, then
+/// `imucal import` with the committed config (tests/data/imu_tk_xsens/import.toml); `extra`
+/// flags override it. Returns the archive directory.
+std::string import_xsens(const test_support::ScopedTempDir& dir, const std::string& extra = "") {
+  const std::string data = std::string(IMUCAL_SOURCE_DIR) + "/tests/data/imu_tk_xsens/";
+  for (const char* f : {"xsens_gyro.mat", "xsens_acc.mat"})
+    EXPECT_EQ(
+        std::system(("xz -dc '" + data + f + ".xz' > '" + dir.path() + "/" + f + "'").c_str()), 0);
+  const std::string out = dir.path() + "/run";
+  const auto r = test_support::run_imucal("import --config " + data + "import.toml --gyro " +
+                                          dir.path() + "/xsens_gyro.mat --accel " + dir.path() +
+                                          "/xsens_acc.mat --out " + out + " " + extra);
+  EXPECT_EQ(r.code, 0) << r.out;
+  return out;
 }
 
 Matrix3d matrix(const nlohmann::json& j) {
@@ -55,11 +57,11 @@ Vector3d vector(const nlohmann::json& j) {
 }
 
 TEST(ImucalRealRecording, LegacyCalibratesTheImuTkXsensUnitFromScratch) {
-  const ImuSeries imu = test_support::read_imu_tk_xsens();
-  ASSERT_EQ(imu.size(), 51175u);
   test_support::ScopedTempDir dir("imucal-xsens");
-  write_archive(dir.path(), imu, /*with_prior=*/true);
-  const auto r = test_support::run_imucal("calibrate " + dir.path() + " --method legacy --json",
+  const std::string run = import_xsens(dir);
+  const ImuSeries imu = archive::read_archive(run).imu;  // as imported: re-stamped, rates × T
+  ASSERT_EQ(imu.size(), 51175u);
+  const auto r = test_support::run_imucal("calibrate " + run + " --method legacy --json",
                                           /*merge_stderr=*/false);
   ASSERT_EQ(r.code, 0) << r.out;
   const nlohmann::json j = nlohmann::json::parse(r.out);
@@ -124,17 +126,15 @@ TEST(ImucalRealRecording, LegacyCalibratesTheImuTkXsensUnitFromScratch) {
 }
 
 TEST(ImucalRealRecording, HeldToNavigationGradeTheUnitHasNoRestAndGradeOnTheCommandLineFixesIt) {
-  const ImuSeries imu = test_support::read_imu_tk_xsens();
   test_support::ScopedTempDir dir("imucal-xsens-nav");
-  write_archive(dir.path(), imu, /*with_prior=*/false);
-  const auto nav = test_support::run_imucal("calibrate " + dir.path() + " --method legacy");
+  const std::string run = import_xsens(dir, "--grade navigation");
+  const auto nav = test_support::run_imucal("calibrate " + run + " --method legacy");
   EXPECT_NE(nav.code, 0);
   EXPECT_NE(nav.out.find("no rest found in the IMU data at all"), std::string::npos) << nav.out;
-  const auto mems =
-      test_support::run_imucal("calibrate " + dir.path() + " --method legacy --grade mems");
+  const auto mems = test_support::run_imucal("calibrate " + run + " --method legacy --grade mems");
   EXPECT_EQ(mems.code, 0) << mems.out;
   EXPECT_NE(mems.out.find("verdict: PASS"), std::string::npos) << mems.out;
-  const auto bad = test_support::run_imucal("calibrate " + dir.path() + " --grade consumer");
+  const auto bad = test_support::run_imucal("calibrate " + run + " --grade consumer");
   EXPECT_NE(bad.code, 0);
   EXPECT_NE(bad.out.find("--grade"), std::string::npos) << bad.out;
 }

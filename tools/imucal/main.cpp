@@ -1,5 +1,6 @@
 // imucal — offline calibration tool on run archives (DESIGN §5):
 //   imucal simulate  --sequence FILE --out DIR [--unit FILE] [--seed N] [--setting land|sea]
+//   imucal import    --file F | --gyro F --accel F --out DIR [--config TOML] ...  a raw recording
 //   imucal calibrate DIR --method ains|nlsq|legacy|all [--setting factory|land|sea] [--json]
 //   imucal evaluate  DIR --params FILE [--json]
 //   imucal crlb      --sequence FILE [--unit FILE] [--json]
@@ -37,6 +38,7 @@
 #include "tools/imucal/detectability_cmd.hpp"
 #include "tools/imucal/diagnose_cmd.hpp"
 #include "tools/imucal/effects_cmd.hpp"
+#include "tools/imucal/import_cmd.hpp"
 #include "tools/imucal/paper_tables_cmd.hpp"
 #include "tools/imucal/plot.hpp"
 #include "tools/imucal/report.hpp"
@@ -376,6 +378,8 @@ struct Commands {
   tools::DiagnoseArgs diag;
   tools::ValidateArgs val;
   tools::PaperTablesArgs paper;
+  tools::ImportArgs import;
+  CLI::App* im = nullptr;
   CLI::App *sim = nullptr, *cal = nullptr, *ev = nullptr, *cr = nullptr, *be = nullptr,
            *dg = nullptr, *ef = nullptr, *vd = nullptr, *pt = nullptr;
 };
@@ -478,6 +482,7 @@ void add_small_commands(CLI::App& app, Commands& c) {
 
 int dispatch(const Commands& c) {
   if (*c.sim) return cmd_simulate(c.sa);
+  if (*c.im) return tools::cmd_import(c.import);
   if (*c.cal)
     return cmd_calibrate(c.dir, c.method, c.json, c.k_sigma, c.plot_path, c.setting_override,
                          c.prior);
@@ -508,6 +513,7 @@ int main(int argc, char** argv) {
   c.ef->add_flag("--json", c.effects_json, "print one JSON array");
   c.vd = tools::add_validate_command(app, c.val);
   c.pt = tools::add_paper_tables_command(app, c.paper);
+  c.im = tools::add_import_command(app, c.import);
 
   const bool json_errors = wants_json(argc, argv);
   try {

@@ -1,0 +1,240 @@
+#include "tools/imucal/import_cmd.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+
+#include "calib/core/conventions.hpp"
+#include "calib/core/unit_grade.hpp"
+#include "db/archive/archive_error.hpp"
+#include "db/archive/raw_recording.hpp"
+#include "db/archive/run_archive.hpp"
+#include "db/archive/toml_util.hpp"
+
+namespace imucal::tools {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+bool unset(double v) { return v == ImportArgs::kUnset; }
+
+/// A scalar (all three axes) or three values.
+Eigen::Vector3d axes(const std::vector<double>& v, const char* flag) {
+  if (v.size() == 1) return Eigen::Vector3d::Constant(v[0]);
+  if (v.size() == 3) return {v[0], v[1], v[2]};
+  throw std::invalid_argument(std::string(flag) + " takes one value (every axis) or three (x y z)");
+}
+
+/// [gyro] / [accel] of the config: scale and offset, each a number or [x, y, z].
+void read_axis_section(const archive::TomlSection& root, const char* name,
+                       std::vector<double>& scale, std::vector<double>& offset) {
+  const auto s = root.section(name, {"scale", "offset"});
+  if (!s) return;
+  for (auto [key, out] : {std::pair{"scale", &scale}, std::pair{"offset", &offset}}) {
+    if (!s->has(key) || !out->empty()) continue;  // the command line wins
+    if (s->is_array(key)) {
+      *out = *s->numbers(key);
+      if (out->size() != 3) s->fail(key, "give one number or three [x, y, z]");
+    } else {
+      *out = {*s->number(key)};
+    }
+  }
+}
+
+void take(std::string& dst, const std::optional<std::string>& v) {
+  if (dst.empty() && v) dst = *v;
+}
+void take(double& dst, const std::optional<double>& v) {
+  if (unset(dst) && v) dst = *v;
+}
+
+/// The options the command line left out, from the TOML config.
+void merge_config(ImportArgs& a) {
+  std::ifstream f(a.config);
+  if (!f) throw archive::ArchiveError(a.config, "cannot open");
+  std::stringstream text;
+  text << f.rdbuf();
+  const toml::table t = archive::parse_toml_text(text.str(), a.config);
+  const archive::TomlSection root(t, a.config, "",
+                                  {"input", "gyro", "accel", "run", "station", "noise"});
+  if (const auto in = root.section("input", {"columns", "time_unit", "quantity"})) {
+    take(a.columns, in->string("columns"));
+    take(a.time_unit, in->string("time_unit"));
+    take(a.quantity, in->string("quantity"));
+  }
+  read_axis_section(root, "gyro", a.gyro_scale, a.gyro_offset);
+  read_axis_section(root, "accel", a.accel_scale, a.accel_offset);
+  if (const auto run = root.section("run", {"serial", "grade"})) {
+    take(a.serial, run->string("serial"));
+    take(a.grade, run->string("grade"));
+  }
+  if (const auto st =
+          root.section("station", {"name", "lat_deg", "lon_deg", "height_m", "gravity_mps2"})) {
+    take(a.station_name, st->string("name"));
+    take(a.lat_deg, st->number("lat_deg"));
+    take(a.lon_deg, st->number("lon_deg"));
+    take(a.height_m, st->number("height_m"));
+    take(a.gravity_mps2, st->number("gravity_mps2"));
+  }
+  if (const auto n = root.section("noise", {"arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz"})) {
+    take(a.arw_deg_per_sqrt_h, n->number("arw_deg_per_sqrt_h"));
+    take(a.vrw_ug_per_sqrt_hz, n->number("vrw_ug_per_sqrt_hz"));
+  }
+}
+
+double seconds_per(const std::string& unit) {
+  if (unit.empty() || unit == "s") return 1.0;
+  if (unit == "ms") return 1e-3;
+  if (unit == "us") return 1e-6;
+  if (unit == "ns") return 1e-9;
+  throw std::invalid_argument("time unit '" + unit + "': give s, ms, us or ns");
+}
+
+archive::RawImportOptions raw_options(const ImportArgs& a) {
+  archive::RawImportOptions o;
+  if (!a.columns.empty()) o.columns = archive::parse_raw_columns(a.columns);
+  o.seconds_per_time_unit = seconds_per(a.time_unit);
+  if (a.quantity == "increments")
+    o.quantity = archive::RawQuantity::kIncrements;
+  else if (!a.quantity.empty() && a.quantity != "rates")
+    throw std::invalid_argument("quantity '" + a.quantity + "': give rates or increments");
+  if (!a.gyro_scale.empty()) o.gyro.scale = axes(a.gyro_scale, "--gyro-scale");
+  if (!a.gyro_offset.empty()) o.gyro.offset = axes(a.gyro_offset, "--gyro-offset");
+  if (!a.accel_scale.empty()) o.accel.scale = axes(a.accel_scale, "--accel-scale");
+  if (!a.accel_offset.empty()) o.accel.offset = axes(a.accel_offset, "--accel-offset");
+  return o;
+}
+
+/// run.toml of the imported run: a land run of the grade, at the station given.
+archive::RunInfo run_info(const ImportArgs& a, double rate_hz) {
+  if (a.serial.empty()) throw std::invalid_argument("give the unit's --serial (or [run] serial)");
+  for (auto [v, name] : {std::pair{a.lat_deg, "--lat-deg"}, std::pair{a.lon_deg, "--lon-deg"},
+                         std::pair{a.height_m, "--height-m"}})
+    if (unset(v))
+      throw std::invalid_argument(std::string("give ") + name +
+                                  " (or [station] in --config): where the recording was made");
+  const std::optional<calib::Grade> grade =
+      calib::parse_grade(a.grade.empty() ? "navigation" : a.grade);
+  if (!grade)
+    throw std::invalid_argument("grade '" + a.grade + "': give navigation, tactical or mems");
+  archive::RunInfo info;
+  info.serial = a.serial;
+  info.setting = calib::Setting::kLand;
+  info.reference = archive::ReferenceKind::kNone;
+  info.station_name = a.station_name.empty() ? "imported" : a.station_name;
+  info.site.lat_rad = a.lat_deg * kDegToRad;
+  info.site.lon_rad = a.lon_deg * kDegToRad;
+  info.site.height_m = a.height_m;
+  if (!unset(a.gravity_mps2)) info.site.gravity_mps2 = a.gravity_mps2;
+  info.imu_rate_hz = rate_hz;
+  info.grade = *grade;
+  const calib::GradePrior prior = calib::grade_prior(*grade);
+  info.arw_rad_per_sqrt_s = unset(a.arw_deg_per_sqrt_h) ? prior.arw_rad_per_sqrt_s
+                                                        : a.arw_deg_per_sqrt_h * kDegToRad / 60.0;
+  info.vrw_mps_per_sqrt_s =
+      unset(a.vrw_ug_per_sqrt_hz) ? prior.vrw_mps_per_sqrt_s : a.vrw_ug_per_sqrt_hz * kMicroG_mps2;
+  info.software_version = IMUCAL_VERSION;
+  return info;
+}
+
+void refuse_existing_output(const ImportArgs& a) {
+  std::error_code ec;
+  if (a.overwrite || !fs::exists(a.out_dir, ec) ||
+      (fs::is_directory(a.out_dir, ec) && fs::is_empty(a.out_dir, ec)))
+    return;
+  throw archive::ArchiveError(a.out_dir,
+                              "exists and is not empty; refusing to overwrite a run archive "
+                              "(remove it, or give --overwrite to replace it)");
+}
+
+void report(const ImportArgs& a, const archive::RawRecording& rec) {
+  const double span_s = rec.imu.back().t_s - rec.imu.front().t_s + rec.imu.front().dt_s;
+  if (a.json) {
+    std::cout << nlohmann::json{{"out", a.out_dir},
+                                {"samples", rec.imu.size()},
+                                {"rate_hz", rec.rate_hz},
+                                {"span_s", span_s},
+                                {"jitter_rms_s", rec.jitter_rms_s},
+                                {"jitter_max_s", rec.jitter_max_s},
+                                {"header_lines", rec.header_lines}}
+                     .dump()
+              << '\n';
+    return;
+  }
+  std::printf(
+      "wrote %s: %zu samples, %.1f s at %.4f Hz (land, no reference)\n"
+      "time: host stamps re-stamped onto the sensor's uniform grid (least-squares period over "
+      "the whole recording); they sat %.1f us RMS, %.1f us at worst from it; no sample "
+      "interpolated%s\n",
+      a.out_dir.c_str(), rec.imu.size(), span_s, rec.rate_hz, rec.jitter_rms_s * 1e6,
+      rec.jitter_max_s * 1e6,
+      a.quantity == "increments" ? "" : "; rates integrated over the period");
+}
+
+}  // namespace
+
+CLI::App* add_import_command(CLI::App& app, ImportArgs& a) {
+  CLI::App* im = app.add_subcommand(
+      "import", "a raw IMU recording (text columns, counts or SI) into a land run archive");
+  im->add_option("--out", a.out_dir, "archive directory to create")->required();
+  im->add_option("--file", a.file, "one file with every channel (see --columns)");
+  im->add_option("--gyro", a.gyro_file, "one file per sensor: the gyros' (time x y z)");
+  im->add_option("--accel", a.accel_file, "one file per sensor: the accelerometers' (time x y z)");
+  im->add_option("--config", a.config, "TOML file with any of these options (the flags win)");
+  im->add_option("--columns", a.columns,
+                 "--file's columns in order: t,gx,gy,gz,ax,ay,az, - to ignore one "
+                 "(default t,gx,gy,gz,ax,ay,az)");
+  im->add_option("--time-unit", a.time_unit, "s (default), ms, us or ns");
+  im->add_option("--quantity", a.quantity,
+                 "rates (default: rad/s, m/s² after scaling) or "
+                 "increments (rad, m/s per sample)");
+  im->add_option("--gyro-scale", a.gyro_scale, "SI per raw unit (one value or x y z)")
+      ->expected(1, 3);
+  im->add_option("--gyro-offset", a.gyro_offset, "raw zero (one value or x y z)")->expected(1, 3);
+  im->add_option("--accel-scale", a.accel_scale, "SI per raw unit (one value or x y z)")
+      ->expected(1, 3);
+  im->add_option("--accel-offset", a.accel_offset, "raw zero (one value or x y z)")->expected(1, 3);
+  im->add_option("--serial", a.serial, "the unit's serial number");
+  im->add_option("--grade", a.grade, "navigation (default), tactical or mems");
+  im->add_option("--station", a.station_name, "where it was recorded (a name)");
+  im->add_option("--lat-deg", a.lat_deg, "latitude of the recording, deg");
+  im->add_option("--lon-deg", a.lon_deg, "longitude, deg");
+  im->add_option("--height-m", a.height_m, "height above the ellipsoid, m");
+  im->add_option("--gravity", a.gravity_mps2, "surveyed gravity, m/s² (default: normal gravity)");
+  im->add_option("--arw", a.arw_deg_per_sqrt_h, "angle random walk, deg/√h (default: the grade's)");
+  im->add_option("--vrw", a.vrw_ug_per_sqrt_hz,
+                 "velocity random walk, µg/√Hz (default: the "
+                 "grade's)");
+  im->add_flag("--overwrite", a.overwrite, "replace an existing archive");
+  im->add_flag("--json", a.json, "print one JSON object");
+  return im;
+}
+
+int cmd_import(const ImportArgs& args) {
+  ImportArgs a = args;
+  if (!a.config.empty()) merge_config(a);
+  const bool pair = !a.gyro_file.empty() || !a.accel_file.empty();
+  if (pair == !a.file.empty())
+    throw std::invalid_argument(
+        "give either --file (every channel in one file) or --gyro and "
+        "--accel (one file per sensor)");
+  if (pair && (a.gyro_file.empty() || a.accel_file.empty()))
+    throw std::invalid_argument("one file per sensor needs both --gyro and --accel");
+  refuse_existing_output(a);
+  const archive::RawImportOptions o = raw_options(a);
+  archive::RawRecording rec = pair ? archive::read_raw_recording_pair(a.gyro_file, a.accel_file, o)
+                                   : archive::read_raw_recording(a.file, o);
+  archive::RunArchive ar;
+  ar.info = run_info(a, rec.rate_hz);
+  ar.imu = rec.imu;
+  archive::write_archive(a.out_dir, ar, a.overwrite);
+  report(a, rec);
+  return 0;
+}
+
+}  // namespace imucal::tools

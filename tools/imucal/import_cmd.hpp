@@ -1,0 +1,36 @@
+#pragma once
+// `imucal import`: a raw IMU recording as it comes (issue #21 item 5) into a land run archive that
+// `imucal calibrate` reads — one file with every channel (--file, --columns) or one per sensor
+// (--gyro, --accel: time x y z each), in counts or SI (--gyro-scale/--gyro-offset,
+// --accel-scale/--accel-offset: SI = (raw - offset) * scale), rates or increments, host time
+// stamps re-stamped onto the sensor's own uniform grid (db/archive/raw_recording.hpp says how).
+// Every option may also come from a TOML file (--config; the command line wins):
+//   [input]   columns = "t,gx,gy,gz,ax,ay,az", time_unit = "s"|"ms"|"us"|"ns",
+//             quantity = "rates"|"increments"
+//   [gyro]    scale = S or [Sx, Sy, Sz], offset = O or [Ox, Oy, Oz]
+//   [accel]   scale, offset (as [gyro])
+//   [run]     serial = "...", grade = "navigation"|"tactical"|"mems"
+//   [station] name, lat_deg, lon_deg, height_m (required), gravity_mps2 (optional)
+//   [noise]   arw_deg_per_sqrt_h, vrw_ug_per_sqrt_hz (default: the grade's worst of class)
+// Bad input is one line naming the file, line and column or key; nothing is written.
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+namespace imucal::tools {
+
+struct ImportArgs {
+  std::string file, gyro_file, accel_file, out_dir, config;
+  std::string columns, time_unit, quantity;
+  std::vector<double> gyro_scale, gyro_offset, accel_scale, accel_offset;
+  std::string serial, grade, station_name;
+  double lat_deg = kUnset, lon_deg = kUnset, height_m = kUnset, gravity_mps2 = kUnset;
+  double arw_deg_per_sqrt_h = kUnset, vrw_ug_per_sqrt_hz = kUnset;
+  bool overwrite = false, json = false;
+  static constexpr double kUnset = -1e300;
+};
+
+CLI::App* add_import_command(CLI::App& app, ImportArgs& args);
+int cmd_import(const ImportArgs& args);
+
+}  // namespace imucal::tools
