@@ -24,9 +24,9 @@ ParamSet default_prior_sigma() {
   return p;
 }
 
-ParamSet prior_sigma_for_grade(Grade grade) {
-  if (grade == Grade::kNavigation) return default_prior_sigma();
-  const GradePrior g = grade_prior(grade);
+ParamSet prior_sigma_for_grade(const UnitPrior& prior) {
+  if (prior.plain_navigation()) return default_prior_sigma();
+  const GradePrior g = prior.envelope();
   ParamSet p = default_prior_sigma();
   p.accel_bias_mps2.setConstant(g.accel_bias_mps2);
   p.gyro_bias_radps.setConstant(g.gyro_bias_radps);
@@ -37,9 +37,9 @@ ParamSet prior_sigma_for_grade(Grade grade) {
   return p;
 }
 
-ParamSet effective_prior_sigma(const AinsOptions& opt, Grade grade) {
+ParamSet effective_prior_sigma(const AinsOptions& opt, const UnitPrior& prior) {
   ParamVector p = opt.prior_sigma.to_vector();
-  const ParamVector d = prior_sigma_for_grade(grade).to_vector();
+  const ParamVector d = prior_sigma_for_grade(prior).to_vector();
   for (int i = 0; i < ParamSet::kSize; ++i)
     if (!(p(i) > 0.0)) p(i) = d(i);
   return ParamSet::from_vector(p);
@@ -191,7 +191,7 @@ AinsResult run_ains(const CalibrationInput& in, const AinsOptions& opt, bool smo
   const bool field = in.setting != Setting::kFactory;
 
   ains::PassConfig cfg;
-  cfg.prior_sigma = effective_prior_sigma(opt, in.grade);
+  cfg.prior_sigma = effective_prior_sigma(opt, in.unit_prior());
   cfg.prior_mean = ParamVector::Zero();
   cfg.nominal = opt.start ? *opt.start : ParamSet::from_vector(cfg.prior_mean);
 

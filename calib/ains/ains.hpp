@@ -70,11 +70,11 @@ struct AinsOptions {
 /// Built-in prior: bias 5 mg / 1 deg/h, dM 5000 ppm (scale and misalignment), ς 1 mrad.
 ParamSet default_prior_sigma();
 /// The prior of a unit of `grade` before calibration (issue #21: the filter's initial covariance
-/// follows the grade): navigation keeps default_prior_sigma(); tactical and MEMS take the grade's
-/// envelope (calib/core/unit_grade.hpp) as 1-σ, ς 1 mrad as before.
-ParamSet prior_sigma_for_grade(Grade grade);
-/// opt.prior_sigma with non-positive elements replaced by the defaults of `grade`.
-ParamSet effective_prior_sigma(const AinsOptions& opt, Grade grade = Grade::kNavigation);
+/// follows the grade): navigation without overrides keeps default_prior_sigma(); otherwise the
+/// envelope (calib/core/unit_grade.hpp, with run.toml's [prior] overrides) as 1-σ, ς 1 mrad.
+ParamSet prior_sigma_for_grade(const UnitPrior& prior);
+/// opt.prior_sigma with non-positive elements replaced by the defaults of `prior`.
+ParamSet effective_prior_sigma(const AinsOptions& opt, const UnitPrior& prior = {});
 
 /// Smoothed navigation state at one KF epoch (RTS output), for evaluation and diagnosis.
 struct SmoothedNav {

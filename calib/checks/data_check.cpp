@@ -256,10 +256,10 @@ void check_rotations(const CalibrationInput& in, const std::vector<RestPeriod>& 
 
 }  // namespace
 
-DataCheckOptions data_check_options(Grade grade) {
+DataCheckOptions data_check_options(const UnitPrior& prior) {
   DataCheckOptions o;
-  if (grade == Grade::kNavigation) return o;
-  const GradePrior p = grade_prior(grade);
+  if (prior.plain_navigation()) return o;
+  const GradePrior p = prior.envelope();
   // |f| at rest: each axis' scale and bias (at 2 g of bias for margin, √3 axes at worst).
   o.gravity_magnitude_tol =
       std::max(o.gravity_magnitude_tol, p.scale + 2.0 * std::sqrt(3.0) * p.accel_bias_mps2 / 9.8);

@@ -52,9 +52,10 @@ struct DataCheckOptions {
 
 /// The defaults, widened to what an uncalibrated unit of the grade may be (calib/core/
 /// unit_grade.hpp): the gravity magnitude by its scale and bias envelopes, the gyro-carried
-/// gravity by its scale and misalignment envelopes. Navigation grade: the defaults. A dead,
+/// gravity by its scale and misalignment envelopes (run.toml's [prior] overrides included).
+/// Navigation grade without overrides: the defaults. A dead,
 /// stuck, clipped, swapped or sign-flipped axis stays far outside these at every grade.
-DataCheckOptions data_check_options(Grade grade);
+DataCheckOptions data_check_options(const UnitPrior& prior);
 
 /// Every problem found (empty: the data look sane). Needs in.imu and in.reference of equal size.
 std::vector<DataProblem> check_data(const CalibrationInput& in, const DataCheckOptions& o = {});

@@ -96,9 +96,9 @@ void check_limits(const CalibrationResult& r, const EvaluationMetrics& metrics, 
   }
 }
 
-DatasheetLimits limits_for_grade(const DatasheetLimits& limits, Grade grade) {
-  if (grade == Grade::kNavigation) return limits;
-  const GradePrior p = grade_prior(grade);
+DatasheetLimits limits_for_grade(const DatasheetLimits& limits, const UnitPrior& prior) {
+  if (prior.plain_navigation()) return limits;
+  const GradePrior p = prior.envelope();
   DatasheetLimits l = limits;
   l.accel_bias_mps2 = std::max(l.accel_bias_mps2, p.accel_bias_mps2);
   l.accel_scale = std::max(l.accel_scale, p.scale);

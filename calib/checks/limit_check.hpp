@@ -33,7 +33,7 @@ struct DatasheetLimits {
 /// `limits` widened, group by group, to the envelope of an uncalibrated unit of `grade`
 /// (calib/core/unit_grade.hpp): a MEMS gyro 24 % off scale is that unit, not a failed
 /// calibration. Navigation grade: `limits` unchanged (the station's datasheet).
-DatasheetLimits limits_for_grade(const DatasheetLimits& limits, Grade grade);
+DatasheetLimits limits_for_grade(const DatasheetLimits& limits, const UnitPrior& prior);
 
 struct LimitCheckOptions {
   DatasheetLimits datasheet;

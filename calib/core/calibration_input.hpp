@@ -61,6 +61,10 @@ struct CalibrationInput {
   std::vector<GnssFix> gnss;  ///< sea: position fixes inside the IMU's time span; else empty
   NoiseModel noise;           ///< sensor noise spec (datasheet or unit file)
   Grade grade = Grade::kNavigation;  ///< the unit's grade: what may be assumed before its data
+  EnvelopeOverrides prior_overrides;  ///< run.toml [prior] overrides of the grade's envelopes
+
+  /// The grade with its overrides: what the data checks, limits and the filter's prior assume.
+  UnitPrior unit_prior() const { return {grade, prior_overrides}; }
 
   /// True when reference[].C_bn_ref is a real attitude reference (the factory setting).
   bool has_reference_attitude() const { return setting == Setting::kFactory; }

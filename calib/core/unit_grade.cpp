@@ -65,4 +65,17 @@ GradePrior grade_prior(Grade g) {
   return p;
 }
 
+GradePrior UnitPrior::envelope() const {
+  GradePrior p = grade_prior(grade);
+  if (overrides.gyro_bias_radps) p.gyro_bias_radps = *overrides.gyro_bias_radps;
+  if (overrides.accel_bias_mps2) p.accel_bias_mps2 = *overrides.accel_bias_mps2;
+  if (overrides.scale) p.scale = *overrides.scale;
+  if (overrides.misalignment_rad) p.misalignment_rad = *overrides.misalignment_rad;
+  return p;
+}
+
+EnvelopeRange envelope_range() {
+  return {100.0 * kDegToRad, 2.0 * kStandardGravity_mps2, 0.5, 0.2};
+}
+
 }  // namespace imucal::calib

@@ -48,4 +48,32 @@ struct GradePrior {
 
 GradePrior grade_prior(Grade g);
 
+/// run.toml [prior] overrides of a grade's envelopes (issue #21): a product whose datasheet is
+/// wider or narrower than its class's. Empty: the grade's.
+struct EnvelopeOverrides {
+  std::optional<double> gyro_bias_radps, accel_bias_mps2, scale, misalignment_rad;
+  bool any() const { return gyro_bias_radps || accel_bias_mps2 || scale || misalignment_rad; }
+};
+
+/// What may be assumed about a unit before its data: its grade and any overrides of the grade's
+/// envelopes. A bare grade converts to it (no overrides).
+struct UnitPrior {
+  Grade grade = Grade::kNavigation;
+  EnvelopeOverrides overrides;
+  UnitPrior() = default;
+  UnitPrior(Grade g) : grade(g) {}  // NOLINT(google-explicit-constructor): a grade is a prior
+  UnitPrior(Grade g, EnvelopeOverrides o) : grade(g), overrides(o) {}
+  /// A navigation-grade unit without overrides: everything as before the grades existed.
+  bool plain_navigation() const { return grade == Grade::kNavigation && !overrides.any(); }
+  /// grade_prior(grade) with the overrides applied.
+  GradePrior envelope() const;
+};
+
+/// Each override's admissible range, SI (what run.toml checks): gyro bias (0, 100 °/s],
+/// accelerometer bias (0, 2 g], scale (0, 0.5], misalignment (0, 0.2 rad].
+struct EnvelopeRange {
+  double max_gyro_bias_radps, max_accel_bias_mps2, max_scale, max_misalignment_rad;
+};
+EnvelopeRange envelope_range();
+
 }  // namespace imucal::calib

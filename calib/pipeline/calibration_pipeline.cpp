@@ -67,7 +67,7 @@ PipelineOptions with_serialised_phases(const PipelineOptions& opt) {
 std::vector<DataProblem> check_input(const CalibrationInput& in, const PipelineOptions& opt) {
   if (!opt.check_data) return {};
   if (opt.on_phase) opt.on_phase("checking the data");
-  return check_data(in, data_check_options(in.grade));
+  return check_data(in, data_check_options(in.unit_prior()));
 }
 
 /// A land run of a unit that may be far from nominal (every grade but navigation): the filter
@@ -186,7 +186,7 @@ PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions
   // The cross-check already holds both methods' metrics to their limits; a method on its own
   // gets that check here.
   LimitCheckOptions limits = opt.limits;
-  limits.datasheet = limits_for_grade(limits.datasheet, in.grade);
+  limits.datasheet = limits_for_grade(limits.datasheet, in.unit_prior());
   limits.max_orientation_rmse_mdeg = opt.crosscheck.max_orientation_rmse_mdeg;
   limits.max_accel_rmse_ug = opt.crosscheck.max_accel_rmse_ug;
   for (const auto* m : {&out.ains, &out.nlsq, &out.legacy})

@@ -43,6 +43,34 @@ double rad_to_deg_exact(double r) { return human_for_si(r, r * kRadToDeg, deg_to
 double arw_to_si(double h) { return h * kDegToRad / 60.0; }  // deg/√h -> rad/√s
 double vrw_to_si(double h) { return h * kMicroG_mps2; }      // µg/√Hz -> (m/s)/√s
 
+/// run.toml [prior]'s envelope overrides: key, human unit, SI conversion, the override it sets
+/// and its admissible maximum (calib::envelope_range()).
+struct EnvelopeKey {
+  const char* key;
+  const char* unit;
+  double (*to_si)(double);
+  std::optional<double> calib::EnvelopeOverrides::*member;
+  double max_si;
+  const char* range;  ///< as the error states it
+};
+double deg_per_s_to_si(double h) { return h * kDegToRad; }
+double mg_to_si(double h) { return h * 1e3 * kMicroG_mps2; }
+double ppm_to_si(double h) { return h * 1e-6; }
+double mrad_to_si(double h) { return h * 1e-3; }
+const std::vector<EnvelopeKey>& envelope_keys() {
+  static const calib::EnvelopeRange r = calib::envelope_range();
+  static const std::vector<EnvelopeKey> keys = {
+      {"gyro_bias_deg_per_s", "deg/s", deg_per_s_to_si, &calib::EnvelopeOverrides::gyro_bias_radps,
+       r.max_gyro_bias_radps, "(0, 100] deg/s"},
+      {"accel_bias_mg", "mg", mg_to_si, &calib::EnvelopeOverrides::accel_bias_mps2,
+       r.max_accel_bias_mps2, "(0, 2000] mg"},
+      {"scale_ppm", "ppm", ppm_to_si, &calib::EnvelopeOverrides::scale, r.max_scale,
+       "(0, 500000] ppm"},
+      {"misalignment_mrad", "mrad", mrad_to_si, &calib::EnvelopeOverrides::misalignment_rad,
+       r.max_misalignment_rad, "(0, 200] mrad"}};
+  return keys;
+}
+
 std::string join_path(const std::string& dir, const char* name) {
   if (dir.empty()) return name;
   return dir.back() == '/' ? dir + name : dir + "/" + name;
@@ -262,7 +290,16 @@ void read_optional_sections(const TomlSection& root, RunInfo& ri) {
     if (!ri.sequence_sha256.empty() && !is_hex64(ri.sequence_sha256))
       s->fail("sha256", "must be 64 hexadecimal digits");
   }
-  if (const auto p = root.section("prior", {"grade", "min_rest_s"})) {
+  if (const auto p = root.section("prior", {"grade", "min_rest_s", "gyro_bias_deg_per_s",
+                                            "accel_bias_mg", "scale_ppm", "misalignment_mrad"})) {
+    for (const EnvelopeKey& k : envelope_keys())
+      if (const auto v = p->number(k.key)) {
+        const double si = k.to_si(*v);
+        if (!(si > 0.0 && si <= k.max_si * (1.0 + 1e-12)))
+          p->fail(k.key, std::string("must be in ") + k.range + ", got " + format_double(*v) + " " +
+                             k.unit);
+        ri.prior_overrides.*k.member = si;
+      }
     if (const auto g = p->string("grade")) {
       const auto grade = calib::parse_grade(*g);
       if (!grade)
@@ -389,10 +426,13 @@ std::string run_info_text(const RunInfo& ri) {
     if (!ri.sequence_sha256.empty()) w.key("sha256", ri.sequence_sha256);
   }
   // Written only when it says something: a navigation-grade archive stays as it always was.
-  if (ri.grade != calib::Grade::kNavigation || ri.min_rest_s > 0.0) {
+  if (ri.grade != calib::Grade::kNavigation || ri.min_rest_s > 0.0 || ri.prior_overrides.any()) {
     w.section("prior");
     w.key("grade", calib::grade_name(ri.grade));
     if (ri.min_rest_s > 0.0) w.key("min_rest_s", ri.min_rest_s);
+    for (const EnvelopeKey& k : envelope_keys())
+      if (const auto& v = ri.prior_overrides.*k.member)
+        w.key(k.key, human_for_si(*v, *v / k.to_si(1.0), k.to_si));
   }
   w.section("noise");
   w.key("arw_deg_per_sqrt_h",
@@ -862,6 +902,7 @@ calib::CalibrationInput field_input(const RunArchive& a, const std::string& imu_
         return nm;
       }(),
       a.info.grade, a.info.min_rest_s);
+  in.prior_overrides = a.info.prior_overrides;
   const double t0 = a.imu.front().t_s;
   const double latest_start = kMaxFirstRestStart_s;
   const std::vector<calib::RestPeriod> rests = calib::find_rest_periods(in, 2);
@@ -956,6 +997,7 @@ calib::CalibrationInput factory_input(const RunArchive& a, RunArchive* owned,
   in.noise.arw_rad_per_sqrt_s = a.info.arw_rad_per_sqrt_s;
   in.noise.vrw_mps_per_sqrt_s = a.info.vrw_mps_per_sqrt_s;
   in.grade = a.info.grade;
+  in.prior_overrides = a.info.prior_overrides;
   if (owned) in.imu = std::move(owned->imu);
   const calib::ImuSeries& imu = owned ? in.imu : a.imu;
   auto is_rest = [&](size_t k) { return table ? a.table[k].at_rest : a.attitude[k].at_rest; };

@@ -94,6 +94,9 @@ struct RunInfo {
   calib::Grade grade = calib::Grade::kNavigation;
   /// [prior] min_rest_s: the shortest rest the field runs' detector keeps (0: its default).
   double min_rest_s = 0.0;
+  /// [prior] gyro_bias_deg_per_s, accel_bias_mg, scale_ppm, misalignment_mrad: overrides of the
+  /// grade's envelopes (a product whose datasheet differs from its class's).
+  calib::EnvelopeOverrides prior_overrides;
   /// [capture], optional: written by the daemon when it finishes (or recovers) the archive.
   std::optional<CaptureInfo> capture;
 };

@@ -295,7 +295,11 @@ TEST(Archive, PriorGradeReadsWritesBackAndIsRefusedWhenWrong) {
   for (const Case& c :
        {Case{"grade = \"consumer\"", "prior.grade", "\"navigation\", \"tactical\" or \"mems\""},
         Case{"min_rest_s = 0.1", "prior.min_rest_s", "[0.5, 600]"},
-        Case{"grades = \"mems\"", "prior.grades", "unknown key"}}) {
+        Case{"grades = \"mems\"", "prior.grades", "unknown key"},
+        Case{"scale_ppm = 600000", "prior.scale_ppm", "(0, 500000] ppm"},
+        Case{"gyro_bias_deg_per_s = 0", "prior.gyro_bias_deg_per_s", "(0, 100] deg/s"},
+        Case{"accel_bias_mg = -5", "prior.accel_bias_mg", "(0, 2000] mg"},
+        Case{"misalignment_mrad = 250", "prior.misalignment_mrad", "(0, 200] mrad"}}) {
     put(dir + "/run.toml", orig);
     replace_in_file(dir + "/run.toml", "[imu]\n", "[prior]\n" + c.prior + "\n[imu]\n");
     const ArchiveError e = read_error(dir);
@@ -304,6 +308,34 @@ TEST(Archive, PriorGradeReadsWritesBackAndIsRefusedWhenWrong) {
     EXPECT_GT(e.line(), 0u);
     EXPECT_NE(std::string(e.what()).find(c.says), std::string::npos) << e.what();
   }
+}
+
+// Issue #21: the grade's envelopes may be overridden per product; the overrides reach the
+// calibration input exactly and survive a write/read.
+TEST(Archive, PriorEnvelopeOverridesReadWriteBackAndReachTheInput) {
+  TempDir tmp("imucal_archive_test");
+  const std::string dir = write_simple(tmp, "r");
+  replace_in_file(dir + "/run.toml", "[imu]\n",
+                  "[prior]\ngrade = \"tactical\"\nscale_ppm = 20000\naccel_bias_mg = 12.5\n"
+                  "gyro_bias_deg_per_s = 0.01\nmisalignment_mrad = 7\n[imu]\n");
+  const RunArchive a = read_archive(dir);
+  ASSERT_TRUE(a.info.prior_overrides.scale && a.info.prior_overrides.accel_bias_mps2);
+  EXPECT_DOUBLE_EQ(*a.info.prior_overrides.scale, 0.02);
+  EXPECT_DOUBLE_EQ(*a.info.prior_overrides.accel_bias_mps2, 12.5e-3 * 9.80665);
+  EXPECT_DOUBLE_EQ(*a.info.prior_overrides.gyro_bias_radps, 0.01 * kDegToRad);
+  EXPECT_DOUBLE_EQ(*a.info.prior_overrides.misalignment_rad, 7e-3);
+  const calib::CalibrationInput in = to_calibration_input(a);
+  const calib::GradePrior env = in.unit_prior().envelope();
+  EXPECT_DOUBLE_EQ(env.scale, 0.02);  // not the tactical class's 1 %
+  EXPECT_DOUBLE_EQ(env.arw_rad_per_sqrt_s,
+                   calib::grade_prior(calib::Grade::kTactical).arw_rad_per_sqrt_s);
+  const std::string again = tmp.path() + "/again";
+  write_archive(again, a, false);
+  const RunArchive b = read_archive(again);
+  EXPECT_EQ(*b.info.prior_overrides.scale, *a.info.prior_overrides.scale);
+  EXPECT_EQ(*b.info.prior_overrides.accel_bias_mps2, *a.info.prior_overrides.accel_bias_mps2);
+  EXPECT_EQ(*b.info.prior_overrides.gyro_bias_radps, *a.info.prior_overrides.gyro_bias_radps);
+  EXPECT_EQ(*b.info.prior_overrides.misalignment_rad, *a.info.prior_overrides.misalignment_rad);
 }
 
 TEST(Archive, MissingRequiredKeysNamed) {
