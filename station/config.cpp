@@ -327,7 +327,7 @@ void parse_turntable(const Section& s, const std::string& origin, StationConfig&
 
 /// [imu]: the CAN URI, rate, frame id, noise and the capture's thresholds.
 void parse_imu(const Section& s, const std::string& base_dir, StationConfig& c) {
-  s.only({"can", "rate_hz", "base_id", "arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz",
+  s.only({"can", "rate_hz", "base_id", "arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz", "grade",
           "max_gap_samples", "settle_guard_samples", "rest_rate_threshold_dps",
           "stream_timeout_ms"});
   const std::string can = *s.string("can", true, false);
@@ -348,6 +348,11 @@ void parse_imu(const Section& s, const std::string& base_dir, StationConfig& c) 
     c.arw_deg_per_sqrt_h = *v;
   if (auto v = s.number("vrw_ug_per_sqrt_hz", false, 1e-3, 1e5, "ug/sqrt(Hz)"))
     c.vrw_ug_per_sqrt_hz = *v;
+  if (auto g = s.string("grade", false, false)) {
+    const std::optional<calib::Grade> grade = calib::parse_grade(*g);
+    if (!grade) s.fail_key("grade", "\"" + *g + "\" is not a grade (navigation, tactical or mems)");
+    c.grade = *grade;
+  }
   if (auto v = s.integer("max_gap_samples", false, 0, 100000, "samples"))
     c.max_gap_samples = static_cast<uint64_t>(*v);
   if (auto v = s.integer("settle_guard_samples", false, 0, 1000000, "samples"))

@@ -15,6 +15,7 @@
 #include <string_view>
 
 #include "calib/core/earth.hpp"
+#include "calib/core/unit_grade.hpp"
 #include "drivers/imu/imu_codec.hpp"
 #include "drivers/turntable/turntable_client.hpp"
 
@@ -65,6 +66,9 @@ struct StationConfig {
   double arw_deg_per_sqrt_h =
       0.0015;                        ///< gyro angle random walk (noise weighting of the estimators)
   double vrw_ug_per_sqrt_hz = 10.0;  ///< accelerometer velocity random walk
+  /// The product this station calibrates (calib/core/unit_grade.hpp): written to every run's
+  /// run.toml [prior], so the data checks, limits and the filter's prior follow it.
+  calib::Grade grade = calib::Grade::kNavigation;
   uint64_t max_gap_samples = 10;
   uint64_t settle_guard_samples = 50;
   double rest_rate_threshold_dps = 0.05;

@@ -204,6 +204,7 @@ void RunController::Session::open_archive(const turntable::TableStatus& st) {
   info.reference = archive::ReferenceKind::kTable;
   info.arw_rad_per_sqrt_s = cfg.arw_rad_per_sqrt_s();
   info.vrw_mps_per_sqrt_s = cfg.vrw_mps_per_sqrt_s();
+  info.grade = cfg.grade;
   writer = std::make_unique<ArchiveWriter>(L.snap.archive_path, info);
   cap->table_moving(st.outer_deg, st.inner_deg);
   cap->attach(writer.get());

@@ -17,6 +17,7 @@
 #include "calib/core/noise_model.hpp"
 #include "calib/core/param_set.hpp"
 #include "calib/core/table_model.hpp"
+#include "calib/core/unit_grade.hpp"
 #include "calib/effects/catalogue.hpp"
 #include "sequences/motion_profile.hpp"
 
@@ -26,6 +27,8 @@ struct UnitModel {
   ParamSet params;  ///< true calibration parameters (table_misalignment = the station's ς)
   NoiseModel noise;
   Effects effects;  ///< unmodelled physics (DESIGN §7); empty = none
+  /// The product the unit is (calib/core/unit_grade.hpp): what a run of it states in [prior].
+  Grade grade = Grade::kNavigation;
 };
 
 /// The default unit of DESIGN §7 (fixed, deterministic values within the stated sizes).

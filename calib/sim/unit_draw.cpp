@@ -11,6 +11,7 @@ UnitModel draw_unit(Grade grade, uint64_t seed) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   auto pick = [&](double envelope) { return envelope * u(rng); };
   UnitModel unit;
+  unit.grade = grade;
   for (int i = 0; i < 3; ++i)
     unit.params.gyro_bias_radps(i) =
         (u(rng) > 0 ? 1.0 : -1.0) * (0.75 + 0.25 * u(rng)) * p.gyro_bias_radps;

@@ -130,8 +130,13 @@ void parse_effects_section(const TomlSection& root, calib::UnitModel& u) {
 
 calib::UnitModel parse_unit_file(const std::string& text, const std::string& origin) {
   const toml::table tbl = parse_toml_text(text, origin);
-  const TomlSection root(tbl, origin, "", {"accel", "gyro", "table", "noise", "effects"});
+  const TomlSection root(tbl, origin, "", {"grade", "accel", "gyro", "table", "noise", "effects"});
   calib::UnitModel u;
+  if (const auto g = root.string("grade")) {
+    const std::optional<calib::Grade> grade = calib::parse_grade(*g);
+    if (!grade) root.fail("grade", "\"" + *g + "\" is not a grade (navigation, tactical or mems)");
+    u.grade = *grade;
+  }
   u.params = calib::ParamSet{};  // missing keys mean zero
   u.effects = calib::Effects{};
   u.noise = calib::NoiseModel{};  // missing noise keys take these defaults
@@ -171,6 +176,7 @@ std::string unit_file_text(const calib::UnitModel& u) {
   TomlWriter w;
   w.comment("IMU unit model (db/archive/FORMAT.md). Human units; M_ppm: diagonal = scale-factor");
   w.comment("error in ppm, off-diagonal = misalignment in µrad (both 1e-6).");
+  if (u.grade != calib::Grade::kNavigation) w.key("grade", calib::grade_name(u.grade));
   w.section("accel");
   w.key("bias_ug", to_human(u.params.accel_bias_mps2, ug_to_mps2));
   w.key("M_ppm", to_human(u.params.accel_M, ppm_to_1));

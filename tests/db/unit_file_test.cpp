@@ -214,6 +214,19 @@ TEST(UnitFile, WrongShapesTypesAndValuesRejected) {
   EXPECT_EQ(not_table.field(), "accel");
 }
 
+// Issue #21: a unit file may name its product's grade; written back only when not navigation.
+TEST(UnitFile, GradeIsReadCheckedAndRoundTrips) {
+  EXPECT_EQ(parse_unit_file("", "units/x.toml").grade, calib::Grade::kNavigation);
+  const calib::UnitModel mems = parse_unit_file("grade = \"mems\"\n", "units/x.toml");
+  EXPECT_EQ(mems.grade, calib::Grade::kMems);
+  EXPECT_EQ(parse_unit_file(unit_file_text(mems), "units/y.toml").grade, calib::Grade::kMems);
+  EXPECT_EQ(unit_file_text(calib::default_unit()).find("grade"), std::string::npos);
+  const ArchiveError bad = unit_error("\ngrade = \"consumer\"\n");
+  EXPECT_EQ(bad.line(), 2u);
+  EXPECT_EQ(bad.field(), "grade");
+  EXPECT_NE(std::string(bad.what()).find("is not a grade"), std::string::npos) << bad.what();
+}
+
 TEST(TruthJson, RoundTripIsBitExact) {
   calib::UnitModel u = calib::default_unit();
   u.effects.accel_k2_per_mps2 = {1e-6, 0, 0};

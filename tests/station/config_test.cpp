@@ -194,6 +194,17 @@ TEST(StationConfig, GapFalseAlarmIsAProbabilityPerRun) {
                "[calibration] gap_false_alarm: 0 is out of range");
 }
 
+// Issue #21: the station names the product it calibrates; every run's run.toml carries it.
+TEST(StationConfig, TheGradeOfTheProductIsNamedAndChecked) {
+  EXPECT_EQ(parse_config(kMinimal, "cfg.toml", "/etc").grade, calib::Grade::kNavigation);
+  EXPECT_EQ(parse_config(read_file(kExample), kExample, "/etc").grade, calib::Grade::kNavigation);
+  const StationConfig c =
+      parse_config(std::string(kMinimal) + "grade = \"mems\"\n", "cfg.toml", "/etc");
+  EXPECT_EQ(c.grade, calib::Grade::kMems);
+  expect_error(std::string(kMinimal) + "grade = \"consumer\"\n", 11, 1,
+               "[imu] grade: \"consumer\" is not a grade (navigation, tactical or mems)");
+}
+
 TEST(StationConfig, MissingRequiredKeyNamesTheKeyAndItsTable) {
   expect_error(with_line(kMinimal, 6, ""), 1, 1, "[station] missing required key 'data_dir'");
   expect_error(with_line(kMinimal, 8, ""), 7, 1, "[turntable] missing required key 'endpoint'");
