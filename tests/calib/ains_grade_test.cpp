@@ -16,14 +16,7 @@
 namespace imucal::calib {
 namespace {
 
-CalibrationInput mems_input(const FieldSimResult& sim) {
-  NoiseModel noise;
-  const GradePrior mems = grade_prior(Grade::kMems);
-  noise.arw_rad_per_sqrt_s = mems.arw_rad_per_sqrt_s;
-  noise.vrw_mps_per_sqrt_s = mems.vrw_mps_per_sqrt_s;
-  return input_from_field_data(Setting::kLand, sim.imu, {}, demo_factory_site(), noise,
-                               Grade::kMems);
-}
+using testing::mems_input;
 
 /// Errors against truth in the accel-symmetric frame both field methods report in.
 ParamVector errors(const CalibrationResult& r, const FieldSimResult& sim) {

@@ -5,6 +5,7 @@
 // 200 mg, the grade's noise) by hand through 38 positions with rests of 3–11 s after a 50 s rest
 // (calib/sim/hand_placement.hpp), as the public recording of issue #21 was taken
 // (tests/data/imu_tk_xsens).
+#include "calib/core/calibration_input.hpp"
 #include "calib/core/conventions.hpp"
 #include "calib/core/site_presets.hpp"
 #include "calib/core/unit_grade.hpp"
@@ -13,6 +14,16 @@
 #include "calib/sim/unit_draw.hpp"
 
 namespace imucal::calib::testing {
+
+/// The run as a MEMS unit's land calibration reads it: the grade's noise, rests by variation.
+inline CalibrationInput mems_input(const FieldSimResult& sim) {
+  NoiseModel noise;
+  const GradePrior mems = grade_prior(Grade::kMems);
+  noise.arw_rad_per_sqrt_s = mems.arw_rad_per_sqrt_s;
+  noise.vrw_mps_per_sqrt_s = mems.vrw_mps_per_sqrt_s;
+  return input_from_field_data(Setting::kLand, sim.imu, {}, demo_factory_site(), noise,
+                               Grade::kMems);
+}
 
 inline FieldSimResult simulate_mems(uint64_t seed, double cruise_deg = 0.0) {
   FieldSimOptions o;

@@ -15,7 +15,10 @@
 
 #include "calib/core/body_frame.hpp"
 #include "calib/core/conventions.hpp"
+#include "calib/sim/unit_draw.hpp"
+#include "db/archive/param_json.hpp"
 #include "db/archive/run_archive.hpp"
+#include "db/archive/unit_file.hpp"
 #include "tests/support/imucal_cli.hpp"
 #include "tests/support/temp_dir.hpp"
 
@@ -26,16 +29,7 @@ namespace fs = std::filesystem;
 using test_support::run_imucal;
 
 calib::ParamSet params_of(const nlohmann::json& p) {
-  calib::ParamSet s;
-  for (int i = 0; i < 3; ++i) {
-    s.accel_bias_mps2(i) = p.at("accel_bias_mps2").at(i).get<double>();
-    s.gyro_bias_radps(i) = p.at("gyro_bias_radps").at(i).get<double>();
-    for (int j = 0; j < 3; ++j) {
-      s.accel_M(i, j) = p.at("accel_M").at(i).at(j).get<double>();
-      s.gyro_M(i, j) = p.at("gyro_M").at(i).at(j).get<double>();
-    }
-  }
-  return s;
+  return archive::param_set_from_json(p, "imucal calibrate --json");
 }
 
 TEST(ImucalGradeCli, AHandPlacedMemsRunIsCalibratedFromScratch) {
@@ -119,6 +113,82 @@ TEST(ImucalGradeCli, ADeadOrSwappedAxisIsRefusedAtMemsGrade) {
     EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << c.name << ": one line\n" << r.out;
     EXPECT_EQ(test_support::listing(dir), before) << c.name;
   }
+}
+
+// Bad [prior] input (issue #21): an envelope override out of range is one line naming the file,
+// line and key, a non-zero exit, and the archive left as it was; in range, it is what the limits
+// hold the result to (a MEMS product promising half the drawn unit's gyro scale error is REVIEW).
+TEST(ImucalGradeCli, APriorOverrideOutOfRangeIsRefusedAndInRangeDecidesTheLimits) {
+  test_support::ScopedTempDir tmp("imucal-grade-prior");
+  const std::string dir = tmp.path() + "/mems";
+  ASSERT_EQ(
+      run_imucal("simulate --sequence hand --setting land --grade mems --seed 4 --out " + dir).code,
+      0);
+  fs::copy(dir, dir + "/../mems-copy");  // the untouched archive, for its truth
+  const std::string toml = test_support::slurp(dir + "/run.toml");
+  const size_t at = toml.find("grade = \"mems\"\n");
+  ASSERT_NE(at, std::string::npos);
+  auto with_prior = [&](const std::string& line) {
+    std::ofstream(dir + "/run.toml") << toml.substr(0, at) << "grade = \"mems\"\n"
+                                     << line << '\n'
+                                     << toml.substr(at + 15);
+  };
+  with_prior("scale_ppm = 600000");
+  const std::string before = test_support::listing(dir);
+  const auto bad = run_imucal("calibrate " + dir + " --method legacy");
+  EXPECT_EQ(bad.code, 1) << bad.out;
+  EXPECT_NE(bad.out.find("run.toml:"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("prior.scale_ppm"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("(0, 500000] ppm"), std::string::npos) << bad.out;
+  EXPECT_EQ(std::count(bad.out.begin(), bad.out.end(), '\n'), 1) << bad.out;
+  EXPECT_EQ(test_support::listing(dir), before);
+  // A product datasheet promising half this unit's largest scale error.
+  const archive::RunArchive a = archive::read_archive(dir + "/../mems-copy");
+  const double worst = a.truth->params.gyro_M.diagonal().cwiseAbs().maxCoeff();
+  ASSERT_GT(worst, 0.02);
+  with_prior("scale_ppm = " + std::to_string(static_cast<int>(0.5 * worst * 1e6)));
+  const auto tight = run_imucal("calibrate " + dir + " --method legacy --json", false);
+  EXPECT_EQ(tight.code, 3) << tight.out;
+  const nlohmann::json j = nlohmann::json::parse(tight.out);
+  EXPECT_EQ(j.at("verdict"), "REVIEW");
+  EXPECT_NE(j.at("limits").dump().find("gyro_M"), std::string::npos) << j.at("limits").dump();
+}
+
+// A unit file names its product's grade (issue #21): a run simulated from it states that grade in
+// run.toml [prior]; --grade on the command line overrides it.
+TEST(ImucalGradeCli, AUnitFilesGradeReachesTheRunUnlessOverridden) {
+  test_support::ScopedTempDir tmp("imucal-grade-unit");
+  const std::string unit = tmp.path() + "/mems.toml";
+  archive::write_unit_file(unit, calib::draw_unit(calib::Grade::kMems, 3));
+  ASSERT_EQ(run_imucal("simulate --sequence hand --setting land --unit " + unit + " --out " +
+                       tmp.path() + "/a")
+                .code,
+            0);
+  EXPECT_EQ(archive::read_archive(tmp.path() + "/a").info.grade, calib::Grade::kMems);
+  ASSERT_EQ(run_imucal("simulate --sequence hand --setting land --grade tactical --unit " + unit +
+                       " --out " + tmp.path() + "/b")
+                .code,
+            0);
+  EXPECT_EQ(archive::read_archive(tmp.path() + "/b").info.grade, calib::Grade::kTactical);
+}
+
+// crlb --grade (issue #21): the achievable σ of a unit of the grade (its class's worst noise, the
+// filter's prior of the grade). A MEMS unit on `short` reaches its gyro biases 500× less well than
+// the navigation unit, and can no longer tell the fixture's misalignment ς (exit 3, named).
+TEST(ImucalGradeCli, CrlbAtAGradeUsesItsNoiseAndPrior) {
+  const auto nav = run_imucal("crlb --sequence short --json", false);
+  const auto mems = run_imucal("crlb --sequence short --grade mems --json", false);
+  ASSERT_EQ(nav.code, 0) << nav.out;
+  EXPECT_EQ(mems.code, 3) << mems.out;
+  const nlohmann::json jn = nlohmann::json::parse(nav.out), jm = nlohmann::json::parse(mems.out);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_GT(jm.at("sigma").at("gyro_bias_radps").at(i).get<double>(),
+              500.0 * jn.at("sigma").at("gyro_bias_radps").at(i).get<double>());
+  EXPECT_NE(jm.at("unobservable").dump().find("table_misalignment"), std::string::npos)
+      << jm.dump();
+  const auto bad = run_imucal("crlb --sequence short --grade consumer");
+  EXPECT_EQ(bad.code, 2) << bad.out;
+  EXPECT_NE(bad.out.find("--grade"), std::string::npos) << bad.out;
 }
 
 }  // namespace

@@ -17,6 +17,7 @@
 
 #include "calib/core/body_frame.hpp"
 #include "calib/core/conventions.hpp"
+#include "db/archive/param_json.hpp"
 #include "db/archive/run_archive.hpp"
 #include "tests/support/imucal_cli.hpp"
 #include "tests/support/temp_dir.hpp"
@@ -54,16 +55,7 @@ void write_logger_csv(const archive::RunArchive& a, const std::string& path, uin
 }
 
 calib::ParamSet params_of(const nlohmann::json& p) {
-  calib::ParamSet s;
-  for (int i = 0; i < 3; ++i) {
-    s.accel_bias_mps2(i) = p.at("accel_bias_mps2").at(i).get<double>();
-    s.gyro_bias_radps(i) = p.at("gyro_bias_radps").at(i).get<double>();
-    for (int j = 0; j < 3; ++j) {
-      s.accel_M(i, j) = p.at("accel_M").at(i).at(j).get<double>();
-      s.gyro_M(i, j) = p.at("gyro_M").at(i).at(j).get<double>();
-    }
-  }
-  return s;
+  return archive::param_set_from_json(p, "imucal calibrate --json");
 }
 
 nlohmann::json legacy_params(const std::string& dir) {

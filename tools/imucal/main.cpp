@@ -110,7 +110,9 @@ struct SimulateArgs {
   std::string setting = "factory";
   double gnss_sigma_m = 0.3;
   double placement_sigma_deg = 2.0;
-  std::string grade = "navigation";  ///< the unit drawn from its envelope (unless --unit)
+  /// The unit drawn from its envelope (without --unit), or the grade instead of the unit file's;
+  /// empty: the unit file's, navigation without one.
+  std::string grade;
 };
 
 /// `--sequence hand`: a hand-placed multi-position run (calib/sim/hand_placement.hpp), field only.
@@ -127,7 +129,7 @@ archive::RunArchive simulated_archive(const SimulateArgs& a, const calib::UnitMo
   ar.info.imu_rate_hz = a.rate_hz;
   ar.info.sequence_name = profile.name;
   ar.info.sequence_sha256 = seq_path.empty() ? "" : sequences::sequence_hash(seq_path);
-  ar.info.grade = *calib::parse_grade(a.grade);
+  ar.info.grade = unit.grade;
   ar.info.software_version = IMUCAL_VERSION;
   ar.info.arw_rad_per_sqrt_s = unit.noise.arw_rad_per_sqrt_s;
   ar.info.vrw_mps_per_sqrt_s = unit.noise.vrw_mps_per_sqrt_s;
@@ -172,12 +174,13 @@ void refuse_existing_output(const SimulateArgs& a) {
 
 int cmd_simulate(const SimulateArgs& a) {
   refuse_existing_output(a);
-  const calib::Grade grade = *calib::parse_grade(a.grade);
+  const calib::Grade grade = *calib::parse_grade(a.grade.empty() ? "navigation" : a.grade);
   if (a.seq == kHandSequence && a.setting == "factory")
     throw std::invalid_argument(
         "--sequence hand is a hand-placed run: give --setting land or sea (a table runs a "
         "sequence file)");
   calib::UnitModel unit = a.unit.empty() ? calib::draw_unit(grade, a.seed) : load_unit(a.unit);
+  if (!a.grade.empty()) unit.grade = grade;  // the command line over the unit file
   // Catalogue effects on top of the unit (checked before any work: nothing is written on error).
   for (const std::string& spec : a.effect_specs) {
     try {
@@ -303,14 +306,26 @@ int cmd_evaluate(const std::string& dir, const std::string& params_path, bool js
   return 0;
 }
 
-int cmd_crlb(const std::string& seq, const std::string& unit_path, double rate_hz, bool json) {
+int cmd_crlb(const std::string& seq, const std::string& unit_path, double rate_hz,
+             const std::string& grade_name, bool json) {
   const std::string seq_path = sequences::resolve_sequence(seq);
   const sequences::MotionProfile profile = sequences::load_profile(seq_path);
-  const calib::UnitModel unit = load_unit(unit_path);
+  calib::UnitModel unit = load_unit(unit_path);
+  // --grade: the prior of such a unit (the filter's initial covariance) and, without --unit, the
+  // noise of the class's worst (issue #21).
+  calib::AinsOptions opt;
+  if (!grade_name.empty()) {
+    const calib::Grade grade = *calib::parse_grade(grade_name);
+    opt.prior_sigma = calib::prior_sigma_for_grade(grade);
+    if (unit_path.empty()) {
+      unit.noise.arw_rad_per_sqrt_s = calib::grade_prior(grade).arw_rad_per_sqrt_s;
+      unit.noise.vrw_mps_per_sqrt_s = calib::grade_prior(grade).vrw_mps_per_sqrt_s;
+    }
+  }
   progress("covariance analysis of " + profile.name);
-  const calib::CrlbResult crlb =
-      calib::compute_crlb(profile, calib::TableGeometry{}, default_site(), unit.noise, rate_hz);
-  const auto unobs = calib::unobservable_parameters(crlb);
+  const calib::CrlbResult crlb = calib::compute_crlb(profile, calib::TableGeometry{},
+                                                     default_site(), unit.noise, rate_hz, opt);
+  const auto unobs = calib::unobservable_parameters(crlb, opt);
   if (json) {
     std::cout << nlohmann::json{{"sequence", profile.name},
                                 {"duration_s", profile.duration_s()},
@@ -371,7 +386,8 @@ namespace {
 struct Commands {
   SimulateArgs sa;
   std::string seq, unit, dir, method = "all", params, setting_override, plot_path;
-  PriorOverride prior;  ///< calibrate --grade, --min-rest-s
+  PriorOverride prior;     ///< calibrate --grade, --min-rest-s
+  std::string crlb_grade;  ///< crlb --grade
   double rate_hz = 100.0, k_sigma = 4.0;
   bool json = false, effects = false, sequential = false, effects_json = false;
   int repeat = 3;
@@ -394,8 +410,8 @@ void add_simulate(CLI::App& app, Commands& c) {
       ->required();
   sim->add_option("--grade", sa.grade,
                   "navigation|tactical|mems: without --unit, a unit drawn (by --seed) from the "
-                  "grade's envelope; written to run.toml [prior]")
-      ->capture_default_str()
+                  "grade's envelope; with it, instead of the unit file's grade; written to "
+                  "run.toml [prior] (default: the unit file's, else navigation)")
       ->check(CLI::IsMember({"navigation", "tactical", "mems"}));
   sim->add_option("--out", sa.out_dir, "archive directory to create")->required();
   sim->add_option("--unit", sa.unit, "unit file (TOML); default: the built-in default unit");
@@ -466,6 +482,10 @@ void add_small_commands(CLI::App& app, Commands& c) {
   c.cr->add_option("--sequence", c.seq, "sequence name or TOML file")->required();
   c.cr->add_option("--unit", c.unit, "unit file (noise model); default: built-in");
   c.cr->add_option("--rate", c.rate_hz, "IMU rate, Hz")->capture_default_str();
+  c.cr->add_option("--grade", c.crlb_grade,
+                   "navigation|tactical|mems: the filter's prior of such a unit and, without "
+                   "--unit, the noise of the class's worst")
+      ->check(CLI::IsMember({"navigation", "tactical", "mems"}));
   c.cr->add_flag("--json", c.json, "print one JSON object");
   c.cr->add_flag("--effects", c.effects,
                  "per catalogue effect: detection threshold and separability on the sequence");
@@ -488,7 +508,7 @@ int dispatch(const Commands& c) {
                          c.prior);
   if (*c.ev) return cmd_evaluate(c.dir, c.params, c.json);
   if (*c.cr && c.effects) return tools::cmd_crlb_effects(c.seq, c.unit, c.rate_hz, c.json);
-  if (*c.cr) return cmd_crlb(c.seq, c.unit, c.rate_hz, c.json);
+  if (*c.cr) return cmd_crlb(c.seq, c.unit, c.rate_hz, c.crlb_grade, c.json);
   if (*c.be) return cmd_bench(c.dir, c.repeat, c.sequential, c.json);
   if (*c.dg) return tools::cmd_diagnose(c.diag);
   if (*c.vd) return tools::cmd_validate(c.val);
