@@ -221,5 +221,30 @@ TEST(ImucalImport, OneFilePerSensorMustHoldTheSameSamplesAndTheConfigIsStrict) {
   EXPECT_NEAR(ar.imu[3].dv_mps(2), 9.8 * 0.01, 1e-12);
 }
 
+// A recording with no rest at all (a unit turned the whole time) imports — it is well-formed — but
+// no calibration can use it: one line naming the file and why, exit 1, the archive as it was.
+TEST(ImucalImport, ARecordingWithNoRestAtAllIsRefusedByTheCalibrationAtMemsGrade) {
+  test_support::ScopedTempDir tmp("imucal-import-norest");
+  std::string text;
+  for (int k = 0; k < 6000; ++k) {
+    const double t = 0.01 * k;
+    text += std::to_string(t) + " " + std::to_string(0.5 * std::sin(0.3 * t) + 0.3) + " " +
+            std::to_string(0.2 * std::cos(0.5 * t)) + " 0.1 " + std::to_string(0.5 * std::sin(t)) +
+            " 0.3 9.8\n";
+  }
+  std::ofstream(tmp.path() + "/rec.txt") << text;
+  const std::string out = tmp.path() + "/run";
+  ASSERT_EQ(
+      run_imucal("import --file " + tmp.path() + "/rec.txt --grade mems --out " + out + kSite).code,
+      0);
+  const std::string before = test_support::listing(out);
+  const auto r = run_imucal("calibrate " + out);
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("imu.csv: no rest period"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("no rest found in the IMU data at all"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_EQ(test_support::listing(out), before);
+}
+
 }  // namespace
 }  // namespace imucal
