@@ -3,7 +3,6 @@
 // legacy method first, the filter linearised about its result, the prior the grade's.
 #include <gtest/gtest.h>
 
-#include <array>
 #include <cmath>
 #include <cstdio>
 
@@ -12,6 +11,7 @@
 #include "calib/legacy/legacy.hpp"
 #include "calib/pipeline/calibration_pipeline.hpp"
 #include "tests/support/mems_runs.hpp"
+#include "tests/support/sigma_honesty.hpp"
 
 namespace imucal::calib {
 namespace {
@@ -94,8 +94,7 @@ TEST(AinsGrade, FromZeroAMemsUnitIsOutOfReach) {
 // pipeline as `imucal calibrate --method ains` runs it (legacy start, heading search).
 TEST(AinsGrade, MemsSigmaIsHonestMonteCarlo) {
   constexpr int kRuns = 24;
-  std::array<double, kNumParamGroups> g2{};
-  std::array<int, kNumParamGroups> gn{};
+  testing::GroupSigmaCheck check;
   int converged = 0;
   for (uint64_t seed = 100; seed < 100 + kRuns; ++seed) {
     const FieldSimResult sim = testing::simulate_mems(seed);
@@ -105,23 +104,11 @@ TEST(AinsGrade, MemsSigmaIsHonestMonteCarlo) {
     ASSERT_TRUE(p.ains) << seed;
     const CalibrationResult& r = p.ains->result;
     converged += r.converged;
-    const ParamVector e = errors(r, sim), s = r.sigma.to_vector();
-    for (int i = 0; i < 24; ++i) {
-      const auto g = static_cast<size_t>(param_info(i).group);
-      g2[g] += (e(i) / s(i)) * (e(i) / s(i));
-      ++gn[g];
-    }
+    check.add(errors(r, sim), r.sigma.to_vector());
   }
-  std::printf("land AINS on %d MEMS hand-placed runs (%d converged), RMS(error/sigma):", kRuns,
-              converged);
   EXPECT_EQ(converged, kRuns);
-  for (int g = 0; g < 6; ++g) {
-    const double rms = std::sqrt(g2[static_cast<size_t>(g)] / gn[static_cast<size_t>(g)]);
-    std::printf(" %s %.2f", group_name(static_cast<ParamGroup>(g)).c_str(), rms);
-    EXPECT_GE(rms, 0.7) << group_name(static_cast<ParamGroup>(g));
-    EXPECT_LE(rms, 1.4) << group_name(static_cast<ParamGroup>(g));
-  }
-  std::printf("\n");
+  check.expect_within("land AINS on " + std::to_string(kRuns) + " MEMS hand-placed runs (" +
+                      std::to_string(converged) + " converged)");
 }
 
 }  // namespace

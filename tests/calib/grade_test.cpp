@@ -4,7 +4,6 @@
 // hand-placed land runs (tests/support/mems_runs.hpp).
 #include <gtest/gtest.h>
 
-#include <array>
 #include <cmath>
 
 #include "calib/checks/data_check.hpp"
@@ -12,6 +11,7 @@
 #include "calib/core/body_frame.hpp"
 #include "calib/legacy/legacy.hpp"
 #include "tests/support/mems_runs.hpp"
+#include "tests/support/sigma_honesty.hpp"
 
 namespace imucal::calib {
 namespace {
@@ -96,26 +96,13 @@ TEST(GradeLegacy, MemsUnitsFarFromNominalFromScratch) {
 // groups' σ 2.2× too small and the gyro scale's 10× too large.
 TEST(GradeLegacy, MemsSigmaIsHonestMonteCarlo) {
   constexpr int kRuns = 40;
-  std::array<double, kNumParamGroups> g2{};
-  std::array<int, kNumParamGroups> gn{};
+  testing::GroupSigmaCheck check;
   for (uint64_t seed = 100; seed < 100 + kRuns; ++seed) {
     const FieldSimResult sim = testing::simulate_mems(seed);
     const CalibrationResult r = calibrate_legacy(mems_input(sim));
-    const ParamVector e = legacy_errors(r, sim), s = r.sigma.to_vector();
-    for (int i = 0; i < 24; ++i) {
-      const auto g = static_cast<size_t>(param_info(i).group);
-      g2[g] += (e(i) / s(i)) * (e(i) / s(i));
-      ++gn[g];
-    }
+    check.add(legacy_errors(r, sim), r.sigma.to_vector());
   }
-  std::printf("legacy on %d MEMS hand-placed runs, RMS(error/sigma):", kRuns);
-  for (int g = 0; g < 6; ++g) {
-    const double rms = std::sqrt(g2[static_cast<size_t>(g)] / gn[static_cast<size_t>(g)]);
-    std::printf(" %s %.2f", group_name(static_cast<ParamGroup>(g)).c_str(), rms);
-    EXPECT_GE(rms, 0.7) << group_name(static_cast<ParamGroup>(g));
-    EXPECT_LE(rms, 1.4) << group_name(static_cast<ParamGroup>(g));
-  }
-  std::printf("\n");
+  check.expect_within("legacy on " + std::to_string(kRuns) + " MEMS hand-placed runs");
 }
 
 TEST(GradeLimits, NavigationKeepsTheStationsDatasheetAndMemsWidensIt) {
