@@ -78,8 +78,8 @@ bool ains_starts_from_legacy(const CalibrationInput& in) {
 }
 
 /// Heading after gyrocompassing with a gyro whose bias is known to σ_b: σ_b / (Ω cos φ). A MEMS
-/// gyro's residual after legacy is of the order of the Earth rate itself: the coarse heading is
-/// a guess, and the filter's rotations between rests must decide it.
+/// gyro's residual after legacy is of the order of the Earth rate itself, so the heading comes
+/// from AINS's likelihood search (calib/ains/ains.cpp) and its prior must not hold it.
 constexpr double kUnknownHeadingSigma_rad = 1.0;
 
 /// AINS linearised about `start` (the legacy result), the prior unchanged: the grade's, centred

@@ -3,7 +3,9 @@
 // §VII), then the cross-check (DESIGN §6). Used by `imucal calibrate` and by stationd's worker, so
 // the two can never drift apart.
 //   factory: AINS + NLSQ (both need the table reference), evaluated against it;
-//   land:     AINS (zero velocity, depth) + the legacy method (no reference needed);
+//   land:     AINS (zero velocity, depth) + the legacy method (no reference needed); below
+//             navigation grade legacy runs first and AINS linearises about its result (a unit far
+//             from nominal is out of a filter's reach from zero, issue #21);
 //   sea:      AINS (GNSS, depth) alone — the legacy method needs a still platform;
 //   without an attitude reference the metrics are marked not evaluated, and the cross-check
 //   compares the parameters both can observe.
