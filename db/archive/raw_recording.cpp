@@ -220,21 +220,32 @@ RawRecording assemble(const Rows& g, const std::size_t gcols[3], const Rows& a,
 
 }  // namespace
 
-std::vector<std::string> parse_raw_columns(const std::string& text) {
-  std::vector<std::string> cols;
-  std::stringstream ss(text);
-  std::string c;
-  while (std::getline(ss, c, ',')) cols.emplace_back(trim(c));
+namespace {
+
+/// Each of t, gx, gy, gz, ax, ay, az exactly once, "-" for the columns to ignore, nothing else.
+void check_raw_columns(const std::vector<std::string>& cols) {
+  auto fail = [&](const std::string& what) {
+    std::string list;
+    for (const auto& c : cols) list += (list.empty() ? "" : ",") + c;
+    throw std::invalid_argument("columns \"" + list + "\": " + what +
+                                " (names: t, gx, gy, gz, ax, ay, az, - to ignore a column)");
+  };
   for (const char* need : {"t", "gx", "gy", "gz", "ax", "ay", "az"})
     if (std::count(cols.begin(), cols.end(), need) != 1)
-      throw std::invalid_argument("columns \"" + text + "\": '" + need +
-                                  "' must appear exactly once (names: t, gx, gy, gz, ax, ay, az, "
-                                  "- to ignore a column)");
+      fail(std::string("'") + need + "' must appear exactly once");
   const std::vector<std::string> known = {"-", "t", "gx", "gy", "gz", "ax", "ay", "az"};
   for (const std::string& name : cols)
     if (std::find(known.begin(), known.end(), name) == known.end())
-      throw std::invalid_argument("columns \"" + text + "\": unknown name '" + name +
-                                  "' (names: t, gx, gy, gz, ax, ay, az, - to ignore a column)");
+      fail("unknown name '" + name + "'");
+}
+
+}  // namespace
+
+std::vector<std::string> parse_raw_columns(const std::string& text) {
+  std::vector<std::string> cols;
+  std::stringstream ss(text);
+  for (std::string c; std::getline(ss, c, ',');) cols.emplace_back(trim(c));
+  check_raw_columns(cols);
   return cols;
 }
 
@@ -256,26 +267,20 @@ RawRecording one_file(const Rows& rows, const std::vector<std::string>& cols,
   return out;
 }
 
-std::vector<std::string> checked_columns(const RawImportOptions& o) {
-  std::string s;
-  for (const auto& c : o.columns) s += (s.empty() ? "" : ",") + c;
-  return parse_raw_columns(s);
-}
-
 }  // namespace
 
 RawRecording parse_raw_recording(const std::string& text, const std::string& origin,
                                  const RawImportOptions& o) {
   check_options(o);
-  const std::vector<std::string> cols = checked_columns(o);
+  check_raw_columns(o.columns);
   std::istringstream in(text);
-  return one_file(read_rows(in, origin, cols.size(), cols), cols, origin, o);
+  return one_file(read_rows(in, origin, o.columns.size(), o.columns), o.columns, origin, o);
 }
 
 RawRecording read_raw_recording(const std::string& path, const RawImportOptions& o) {
   check_options(o);
-  const std::vector<std::string> cols = checked_columns(o);
-  return one_file(read_rows(path, cols.size(), cols), cols, path, o);
+  check_raw_columns(o.columns);
+  return one_file(read_rows(path, o.columns.size(), o.columns), o.columns, path, o);
 }
 
 RawRecording read_raw_recording_pair(const std::string& gyro_path, const std::string& accel_path,

@@ -746,6 +746,16 @@ void write_contents(const std::string& tmp, const RunArchive& a, const std::stri
 
 }  // namespace
 
+void check_archive_target(const std::string& dir, bool overwrite,
+                          const std::string& how_to_replace) {
+  std::error_code ec;
+  if (!fs::exists(dir, ec)) return;
+  if (!fs::is_directory(dir, ec)) throw ArchiveError(dir, "exists and is not a directory");
+  if (!overwrite && !fs::is_empty(dir, ec))
+    throw ArchiveError(dir, "exists and is not empty; refusing to overwrite a run archive (" +
+                                how_to_replace + ")");
+}
+
 void write_archive(const std::string& dir_in, const RunArchive& a, bool overwrite) {
   const std::string dir = strip_trailing_slashes(dir_in);
   if (dir.empty()) throw ArchiveError("<archive>", "empty directory name");
@@ -766,16 +776,9 @@ void write_archive(const std::string& dir_in, const RunArchive& a, bool overwrit
   if (a.info.setting == calib::Setting::kSea && a.gnss.empty())
     throw ArchiveError(dir, "a sea run needs GNSS fixes (gnss.csv)");
 
+  check_archive_target(dir, overwrite);
   std::error_code ec;
-  bool target_exists = false;
-  if (fs::exists(dir, ec)) {
-    if (!fs::is_directory(dir, ec)) throw ArchiveError(dir, "exists and is not a directory");
-    target_exists = !fs::is_empty(dir, ec);
-    if (target_exists && !overwrite)
-      throw ArchiveError(dir,
-                         "exists and is not empty; refusing to overwrite a run archive "
-                         "(remove it first)");
-  }
+  const bool target_exists = fs::exists(dir, ec) && !fs::is_empty(dir, ec);
   const fs::path parent = fs::path(dir).parent_path();
   const std::string parent_dir = parent.empty() ? "." : parent.string();
   fs::create_directories(parent_dir, ec);

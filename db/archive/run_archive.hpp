@@ -135,6 +135,12 @@ RunArchive read_archive(const std::string& dir);
 /// atomically and removed). On any error the temporary directory is removed and `dir` is untouched.
 void write_archive(const std::string& dir, const RunArchive& archive, bool overwrite = false);
 
+/// What write_archive refuses as the archive's place, checked on its own so that a tool can refuse
+/// before any work: a non-directory, or a non-empty directory unless `overwrite`. The message ends
+/// with `how_to_replace`.
+void check_archive_target(const std::string& dir, bool overwrite,
+                          const std::string& how_to_replace = "remove it first");
+
 /// Parse / produce run.toml text.
 RunInfo parse_run_info(const std::string& text, const std::string& origin);
 std::string run_info_text(const RunInfo& info);

@@ -32,12 +32,17 @@ calib::ParamSet params_of(const nlohmann::json& p) {
   return archive::param_set_from_json(p, "imucal calibrate --json");
 }
 
+/// `imucal simulate` of a MEMS unit drawn by `seed`, hand-placed on land, into `dir`.
+void simulate_hand_mems(int seed, const std::string& dir) {
+  const auto r = run_imucal("simulate --sequence hand --setting land --grade mems --seed " +
+                            std::to_string(seed) + " --out " + dir);
+  ASSERT_EQ(r.code, 0) << r.out;
+}
+
 TEST(ImucalGradeCli, AHandPlacedMemsRunIsCalibratedFromScratch) {
   test_support::ScopedTempDir tmp("imucal-grade");
   const std::string dir = tmp.path() + "/mems";
-  const auto sim =
-      run_imucal("simulate --sequence hand --setting land --grade mems --seed 4 --out " + dir);
-  ASSERT_EQ(sim.code, 0) << sim.out;
+  ASSERT_NO_FATAL_FAILURE(simulate_hand_mems(4, dir));
   const archive::RunArchive a = archive::read_archive(dir);
   EXPECT_EQ(a.info.grade, calib::Grade::kMems);
   ASSERT_TRUE(a.truth.has_value());
@@ -76,9 +81,7 @@ TEST(ImucalGradeCli, HandOnATableAndAnUnknownGradeAreRefusedWritingNothing) {
 TEST(ImucalGradeCli, ADeadOrSwappedAxisIsRefusedAtMemsGrade) {
   test_support::ScopedTempDir tmp("imucal-grade-broken");
   const std::string dir = tmp.path() + "/mems";
-  ASSERT_EQ(
-      run_imucal("simulate --sequence hand --setting land --grade mems --seed 5 --out " + dir).code,
-      0);
+  ASSERT_NO_FATAL_FAILURE(simulate_hand_mems(5, dir));
   const std::string csv = test_support::slurp(dir + "/imu.csv");
   // Rewrites every data row of imu.csv with `edit` applied to its seven fields.
   auto rewrite = [&](const std::function<void(std::vector<std::string>&)>& edit) {
@@ -121,10 +124,9 @@ TEST(ImucalGradeCli, ADeadOrSwappedAxisIsRefusedAtMemsGrade) {
 TEST(ImucalGradeCli, APriorOverrideOutOfRangeIsRefusedAndInRangeDecidesTheLimits) {
   test_support::ScopedTempDir tmp("imucal-grade-prior");
   const std::string dir = tmp.path() + "/mems";
-  ASSERT_EQ(
-      run_imucal("simulate --sequence hand --setting land --grade mems --seed 4 --out " + dir).code,
-      0);
-  fs::copy(dir, dir + "/../mems-copy");  // the untouched archive, for its truth
+  ASSERT_NO_FATAL_FAILURE(simulate_hand_mems(4, dir));
+  const double worst_scale =
+      archive::read_archive(dir).truth->params.gyro_M.diagonal().cwiseAbs().maxCoeff();
   const std::string toml = test_support::slurp(dir + "/run.toml");
   const size_t at = toml.find("grade = \"mems\"\n");
   ASSERT_NE(at, std::string::npos);
@@ -143,10 +145,8 @@ TEST(ImucalGradeCli, APriorOverrideOutOfRangeIsRefusedAndInRangeDecidesTheLimits
   EXPECT_EQ(std::count(bad.out.begin(), bad.out.end(), '\n'), 1) << bad.out;
   EXPECT_EQ(test_support::listing(dir), before);
   // A product datasheet promising half this unit's largest scale error.
-  const archive::RunArchive a = archive::read_archive(dir + "/../mems-copy");
-  const double worst = a.truth->params.gyro_M.diagonal().cwiseAbs().maxCoeff();
-  ASSERT_GT(worst, 0.02);
-  with_prior("scale_ppm = " + std::to_string(static_cast<int>(0.5 * worst * 1e6)));
+  ASSERT_GT(worst_scale, 0.02);
+  with_prior("scale_ppm = " + std::to_string(static_cast<int>(0.5 * worst_scale * 1e6)));
   const auto tight = run_imucal("calibrate " + dir + " --method legacy --json", false);
   EXPECT_EQ(tight.code, 3) << tight.out;
   const nlohmann::json j = nlohmann::json::parse(tight.out);

@@ -21,6 +21,7 @@
 #include "calib/core/rotation.hpp"
 #include "calib/core/variation_rest_detector.hpp"
 #include "db/archive/run_archive.hpp"
+#include "tests/support/imu_tk_xsens.hpp"
 #include "tests/support/imucal_cli.hpp"
 #include "tests/support/temp_dir.hpp"
 
@@ -134,13 +135,16 @@ Compensation imu_tk_compensation() {
   const Matrix3d TKa = mat("acc_misalignment") * vec("acc_scale").asDiagonal();
   const Matrix3d TKg = mat("gyro_misalignment") * vec("gyro_scale").asDiagonal();
   const Vector3d Ba = vec("acc_bias"), Bg = vec("gyro_bias");
-  constexpr double kZero = 32768.0, kAccel = 2.65e-3, kGyro = 1.0 / 6258.0;  // import.toml
+  using test_support::kAccel_mps2_per_count, test_support::kGyro_radps_per_count,
+      test_support::kZero_counts;  // the nominal values of import.toml
   return {[=](const calib::ImuIncrement& s) {
-            const Vector3d counts = (s.dv_mps / s.dt_s / kAccel).array() + kZero;
+            const Vector3d counts =
+                (s.dv_mps / s.dt_s / kAccel_mps2_per_count).array() + kZero_counts;
             return Vector3d(TKa * (counts - Ba));
           },
           [=](const calib::ImuIncrement& s) {
-            const Vector3d counts = (s.dtheta_rad / s.dt_s / kGyro).array() + kZero;
+            const Vector3d counts =
+                (s.dtheta_rad / s.dt_s / kGyro_radps_per_count).array() + kZero_counts;
             return Vector3d(TKg * (counts - Bg));
           }};
 }

@@ -1,7 +1,6 @@
 #include "tools/imucal/import_cmd.hpp"
 
 #include <cmath>
-#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -18,8 +17,6 @@
 namespace imucal::tools {
 
 namespace {
-
-namespace fs = std::filesystem;
 
 bool unset(double v) { return v == ImportArgs::kUnset; }
 
@@ -142,16 +139,6 @@ archive::RunInfo run_info(const ImportArgs& a, double rate_hz) {
   return info;
 }
 
-void refuse_existing_output(const ImportArgs& a) {
-  std::error_code ec;
-  if (a.overwrite || !fs::exists(a.out_dir, ec) ||
-      (fs::is_directory(a.out_dir, ec) && fs::is_empty(a.out_dir, ec)))
-    return;
-  throw archive::ArchiveError(a.out_dir,
-                              "exists and is not empty; refusing to overwrite a run archive "
-                              "(remove it, or give --overwrite to replace it)");
-}
-
 void report(const ImportArgs& a, const archive::RawRecording& rec) {
   const double span_s = rec.imu.back().t_s - rec.imu.front().t_s + rec.imu.front().dt_s;
   if (a.json) {
@@ -225,7 +212,8 @@ int cmd_import(const ImportArgs& args) {
         "--accel (one file per sensor)");
   if (pair && (a.gyro_file.empty() || a.accel_file.empty()))
     throw std::invalid_argument("one file per sensor needs both --gyro and --accel");
-  refuse_existing_output(a);
+  archive::check_archive_target(a.out_dir, a.overwrite,
+                                "remove it, or give --overwrite to replace it");
   const archive::RawImportOptions o = raw_options(a);
   archive::RawRecording rec = pair ? archive::read_raw_recording_pair(a.gyro_file, a.accel_file, o)
                                    : archive::read_raw_recording(a.file, o);

@@ -48,8 +48,6 @@ using namespace imucal;
 
 namespace {
 
-namespace fs = std::filesystem;
-
 constexpr int kExitBadInput = 1;
 constexpr int kExitReview = 3;
 constexpr int kExitUsage = 2;
@@ -162,18 +160,10 @@ archive::RunArchive simulate_field_archive(const SimulateArgs& a, const calib::U
   return ar;
 }
 
-/// Refuses an --out directory that already holds something, naming the flag that allows it, before
-/// any simulation work.
-void refuse_existing_output(const SimulateArgs& a) {
-  std::error_code ec;
-  if (a.overwrite || !fs::is_directory(a.out_dir, ec) || fs::is_empty(a.out_dir, ec)) return;
-  throw archive::ArchiveError(a.out_dir,
-                              "exists and is not empty; refusing to overwrite a run archive "
-                              "(remove it, or give --overwrite to replace it)");
-}
-
 int cmd_simulate(const SimulateArgs& a) {
-  refuse_existing_output(a);
+  // Refused before any simulation work.
+  archive::check_archive_target(a.out_dir, a.overwrite,
+                                "remove it, or give --overwrite to replace it");
   const calib::Grade grade = *calib::parse_grade(a.grade.empty() ? "navigation" : a.grade);
   if (a.seq == kHandSequence && a.setting == "factory")
     throw std::invalid_argument(
