@@ -49,6 +49,7 @@ GradePrior grade_prior(Grade g) {
       p.still_rate_radps = 0.05 * kDegToRad;
       p.still_force_mps2 = 0.005;
       p.rest_rate_spread_radps = 0.1 * kDegToRad;
+      p.effect_scale = 30.0;
       break;
     case Grade::kMems:
       p.gyro_bias_radps = 5.0 * kDegToRad;
@@ -60,6 +61,7 @@ GradePrior grade_prior(Grade g) {
       p.still_rate_radps = 0.1 * kDegToRad;
       p.still_force_mps2 = 0.01;
       p.rest_rate_spread_radps = 0.5 * kDegToRad;
+      p.effect_scale = 1000.0;
       break;
   }
   return p;

@@ -44,6 +44,11 @@ struct GradePrior {
   /// How far a rest's mean rate may sit from the unit's common gyro offset: Earth rate, the
   /// gyros' g-sensitivity and bias drift between rests, well below any deliberate rotation.
   double rest_rate_spread_radps = 0.0;
+  /// How much larger than the effects catalogue's typical (navigation-grade) sizes this class's
+  /// unmodelled effects may be: the gap diagnosis' plausibility limit scales with it. A MEMS
+  /// gyro's g-sensitivity (~0.1 °/s/g on datasheets) is ~10⁴ times a navigation gyro's, its
+  /// accelerometers' non-linearity ~10² times.
+  double effect_scale = 1.0;
 };
 
 GradePrior grade_prior(Grade g);

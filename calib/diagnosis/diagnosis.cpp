@@ -38,11 +38,19 @@ std::vector<std::vector<int>> make_folds(const GapModel& m, int k) {
   for (const auto& s : segs) rests += s.kind == GapSegment::Kind::kRest ? 1 : 0;
   const int K = std::max(2, std::min<int>(k, static_cast<int>(rests)));
   std::vector<std::vector<int>> folds(static_cast<size_t>(K));
+  // Table-free: a rest's attitude is an unknown that only its own rest and the moves on either side
+  // see, so those moves must stay in the training set when the rest is held out: move i goes
+  // to fold i + 2 (K >= 4 rests here), never to its neighbours' folds.
+  const size_t shift = m.table_free() ? 2 : 0;
   for (size_t s = 0; s < segs.size(); ++s) {
     // A rest and the move after it go together (interleaved folds: no extrapolation in time).
-    const size_t f = segs[s].rest_a % static_cast<size_t>(K);
-    for (int r = 0; r < kGapRowsPerSegment; ++r)
+    const bool move = segs[s].kind == GapSegment::Kind::kMove;
+    const size_t f = (segs[s].rest_a + (move ? shift : 0)) % static_cast<size_t>(K);
+    for (int r = 0; r < kGapRowsPerSegment; ++r) {
+      // The relative heading across a table-free move is that move's alone: it stays in the fit.
+      if (move && m.table_free() && r == GapModel::kHeadingRow) continue;
       folds[f].push_back(kGapRowsPerSegment * static_cast<int>(s) + r);
+    }
   }
   return folds;
 }
@@ -86,6 +94,11 @@ std::vector<SegmentGap> localise(const Problem& p, const GlsFit& fit) {
 /// trajectory, same parameters): its overall χ²/dof and per-segment NIS beside the real ones.
 void compare_with_twin(DiagnosisResult& d, const DiagnosisInput& in, const Problem& p,
                        const DiagnosisOptions& opt) {
+  if (p.model.table_free()) {  // no reference trajectory to simulate the twin along
+    d.twin_gap = std::numeric_limits<double>::quiet_NaN();
+    for (auto& s : d.segments) s.nis_twin = std::numeric_limits<double>::quiet_NaN();
+    return;
+  }
   const DiagnosisInput twin = simulated_twin(in, d.base, opt.twin_seed);
   const GapModel tm(twin, opt.min_rest_samples);
   if (tm.rows() != p.model.rows()) return;  // same rest flags, so never; be safe
@@ -98,9 +111,9 @@ void compare_with_twin(DiagnosisResult& d, const DiagnosisInput& in, const Probl
         e.segment<kGapRowsPerSegment>(kGapRowsPerSegment * static_cast<int>(s)).squaredNorm();
 }
 
-std::string base_names(const std::vector<int>& idx) {
+std::string base_names(const GapLinearisation& lin, const std::vector<int>& idx) {
   std::string s;
-  for (int i : idx) s += (s.empty() ? "" : ", ") + param_info(i).name;
+  for (int i : idx) s += (s.empty() ? "" : ", ") + lin.column_name(i);
   return s;
 }
 
@@ -125,7 +138,7 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
     else
       os << "its parameters correlate "
          << correlation_text(std::max(sep.max_correlation, opt.separability_limit)) << " > "
-         << opt.separability_limit << " with " << base_names(sep.aliases);
+         << opt.separability_limit << " with " << base_names(p.lin, sep.aliases);
     r.note = os.str();
     r.value_si = Eigen::VectorXd::Zero(e.size());
     return r;
@@ -133,7 +146,7 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
   if (sep.basis.cols() < n) {
     std::ostringstream os;
     os << "partly separable: " << sep.basis.cols() << " of " << n << " parameter directions fitted";
-    if (!sep.aliases.empty()) os << " (the others alias " << base_names(sep.aliases) << ")";
+    if (!sep.aliases.empty()) os << " (the others alias " << base_names(p.lin, sep.aliases) << ")";
     r.note = os.str();
   }
   r.separable = true;
@@ -191,7 +204,7 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
   return r;
 }
 
-// A candidate is fitted only with at least this many residuals to spare (rows - 27 - its
+// A candidate is fitted only with at least this many residuals to spare (rows - base columns - its
 // parameters).
 constexpr int kMinDofForCandidate = 12;
 // The held-out folds need rests to fit on: below this the run is too short to diagnose.
@@ -222,21 +235,26 @@ std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOp
       out.push_back(std::move(s));
       continue;
     }
-    if (e.kind == EffectKind::kTable && !p.model.has_table() && id != EffectId::kTableTimeOffset) {
+    const bool no_reference = p.model.table_free();
+    if (e.kind == EffectKind::kTable &&
+        (no_reference || (!p.model.has_table() && id != EffectId::kTableTimeOffset))) {
       Scored s;
       s.result.id = id;
       s.result.name = e.name;
-      s.result.note = "not applicable: the archive has no table angles (attitude log)";
+      s.result.note = no_reference
+                          ? "not applicable: the run has no table (table-free)"
+                          : "not applicable: the archive has no table angles (attitude log)";
       s.result.value_si = Eigen::VectorXd::Zero(e.size());
       out.push_back(std::move(s));
       continue;
     }
     int k_max = 0;
     for (const auto& pi : e.params) k_max += pi.shape ? 0 : 1;
-    if (p.model.rows() - ParamSet::kSize - k_max < kMinDofForCandidate) {
+    const int nb = static_cast<int>(p.Jb.cols());
+    if (p.model.rows() - nb - k_max < kMinDofForCandidate) {
       const std::string why = "the run is too short for its " + std::to_string(k_max) +
                               " parameters (" + std::to_string(p.model.rows()) + " residuals for " +
-                              std::to_string(ParamSet::kSize) + " + " + std::to_string(k_max) + ")";
+                              std::to_string(nb) + " + " + std::to_string(k_max) + ")";
       if (!opt.candidates.empty())
         throw std::invalid_argument("gap diagnosis: candidate " + e.name + ": " + why);
       Scored s;
@@ -267,19 +285,19 @@ std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOp
 /// (> separability_limit) stays in the ranking but is marked: the diagnosis cannot tell them apart
 /// on this sequence, so neither is a finding.
 /// Marks a candidate of implausible size (far beyond its catalogue typical): never a finding.
-void judge_plausibility(CandidateResult& r, const DiagnosisOptions& opt) {
+void judge_plausibility(CandidateResult& r, double max_typical) {
   const EffectInfo& e = effect_info(r.id);
   const Eigen::VectorXd typical = Eigen::Map<const Eigen::VectorXd>(
       e.typical.data(), static_cast<Eigen::Index>(e.typical.size()));
   const double t = e.magnitude(typical);
   if (!(t > 0.0) || !r.separable) return;
   r.typical_ratio = r.magnitude / t;
-  r.plausible = r.typical_ratio <= opt.max_plausible_typical;
+  r.plausible = r.typical_ratio <= max_typical;
   if (!r.plausible) {
     std::ostringstream os;
     os.precision(3);
     os << "implausible size: " << r.typical_ratio << "x its typical " << t << " " << r.unit
-       << " (limit " << opt.max_plausible_typical << "x)";
+       << " (limit " << max_typical << "x)";
     r.note += (r.note.empty() ? "" : "; ") + os.str();
   }
 }
@@ -311,7 +329,9 @@ void rank(std::vector<Scored>& c, const Problem& p, double held_out_before,
   std::vector<bool> test(c.size(), false);
   for (size_t i = 0; i < c.size(); ++i) {
     CandidateResult& r = c[i].result;
-    judge_plausibility(r, opt);
+    // The limit grows with the unit's grade: a MEMS unit's effects dwarf a navigation unit's.
+    judge_plausibility(r,
+                       opt.max_plausible_typical * grade_prior(p.model.input().grade).effect_scale);
     test[i] =
         r.separable && r.plausible && r.p_value < level && predicts_held_out(r, held_out_before);
   }
@@ -351,13 +371,17 @@ void rank(std::vector<Scored>& c, const Problem& p, double held_out_before,
   });
 }
 
-std::vector<ParamShift> moved_params(const GlsFit& before, const GlsFit& after) {
+std::vector<ParamShift> moved_params(const GapLinearisation& lin, const GlsFit& before,
+                                     const GlsFit& after) {
   std::vector<ParamShift> out;
-  for (int i = 0; i < ParamSet::kSize; ++i) {
+  for (size_t c = 0; c < lin.columns().size(); ++c) {
+    const int j = lin.columns()[c];
+    if (j < 0) continue;  // a rest's attitude: not a calibration parameter
+    const int i = static_cast<int>(c);
     const double sigma = std::sqrt(before.cov(i, i));
     const double d = after.x(i) - before.x(i);
     if (sigma > 0.0 && std::abs(d) > sigma) {
-      const ParamInfo& pi = param_info(i);
+      const ParamInfo& pi = param_info(j);
       out.push_back({pi.name, pi.human_unit, d / sigma, d * pi.si_to_human});
     }
   }
@@ -507,7 +531,7 @@ void apply_selection(DiagnosisResult& d, const Selection& sel, const std::vector
       d.held_out.has_pair = true;
       d.held_out.gap_after_pair = h.ratio();
     }
-    d.moved = moved_params(fit0, fit);
+    d.moved = moved_params(p.lin, fit0, fit);
   } else if (d.best) {  // quantisation alone: judged on its own statistic
     d.held_out.has_after = true;
     d.held_out.gap_before = c[*d.best].result.held_out_gap_before;
@@ -584,72 +608,88 @@ std::string summarise(const DiagnosisResult& d) {
   return os.str();
 }
 
-}  // namespace
+/// "the 27 calibration parameters" on a table run; on a table-free run its 24 and the rests'
+/// attitudes.
+std::string base_text(const GapLinearisation& lin) {
+  const int params = lin.param_columns();
+  const int attitudes = static_cast<int>(lin.columns().size()) - params;
+  std::string s = "the " + std::to_string(params) + " calibration parameters";
+  if (attitudes > 0) s += " and " + std::to_string(attitudes) + " rest-attitude unknowns";
+  return s;
+}
 
-DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
-                         const DiagnosisOptions& opt) {
-  const auto t0 = std::chrono::steady_clock::now();
-  if (!in.cal.has_reference_attitude())
-    throw std::invalid_argument(
-        std::string("gap diagnosis: a ") + setting_name(in.cal.setting) +
-        " run has no table reference; the diagnosis compares a table run with its simulation "
-        "(run it on a factory run of the unit)");
-  const GapModel model(in, opt.min_rest_samples);
-  const GapLinearisation lin(model, base);
-  Problem p{
-      model, lin, lin.r0(), lin.r0_raw(), lin.Jb(), lin.Jb_raw(), make_folds(model, opt.folds)};
+/// Enough rests and residuals for the base columns, and for every requested candidate (before
+/// any work).
+void check_run_size(const GapModel& model, const GapLinearisation& lin,
+                    const DiagnosisOptions& opt) {
   const int m = model.rows();
+  const int nb = static_cast<int>(lin.Jb().cols());
   if (model.rests().size() < kMinRests)
     throw std::invalid_argument("gap diagnosis: the run has " +
                                 std::to_string(model.rests().size()) +
                                 " rest periods; it needs at least " + std::to_string(kMinRests) +
                                 " (the held-out check fits on some and predicts the others)");
-  if (m <= ParamSet::kSize + kMinDofForCandidate)
+  if (m <= nb + kMinDofForCandidate)
     throw std::invalid_argument("gap diagnosis: only " + std::to_string(m) + " residuals for " +
-                                std::to_string(ParamSet::kSize) +
-                                " parameters; the run is too short (needs more rests and moves)");
-  DiagnosisResult d;
-  // Explicitly requested candidates must fit in the run: say so before any work.
+                                base_text(lin) +
+                                "; the run is too short (needs more rests and moves)");
   for (EffectId id : opt.candidates) {
     int k = 0;
     for (const auto& pi : effect_info(id).params) k += pi.shape ? 0 : 1;
-    if (m - ParamSet::kSize - k < kMinDofForCandidate)
-      throw std::invalid_argument(
-          "gap diagnosis: candidate " + effect_info(id).name + ": the run is too short for its " +
-          std::to_string(k) + " parameters (" + std::to_string(m) + " residuals for " +
-          std::to_string(ParamSet::kSize) + " + " + std::to_string(k) + ")");
+    if (m - nb - k < kMinDofForCandidate)
+      throw std::invalid_argument("gap diagnosis: candidate " + effect_info(id).name +
+                                  ": the run is too short for its " + std::to_string(k) +
+                                  " parameters (" + std::to_string(m) + " residuals for " +
+                                  std::to_string(nb) + " + " + std::to_string(k) + ")");
   }
+}
+
+/// The base refit (no effect) and what it says about the run: the overall gap, the localisation,
+/// the whiteness, the twin and the held-out gap.
+GlsFit fit_base(DiagnosisResult& d, const DiagnosisInput& in, const Problem& p,
+                const DiagnosisOptions& opt) {
   GlsFit fit0;
   try {
     fit0 = gls_fit(p.r0, p.Jb);
   } catch (const std::invalid_argument&) {
-    throw std::invalid_argument(
-        "gap diagnosis: the run is too short: the 27 calibration parameters are not all separable "
-        "on "
-        "its " +
-        std::to_string(model.rests().size()) + " rests");
+    throw std::invalid_argument("gap diagnosis: the run is too short: " + base_text(p.lin) +
+                                " are not all separable on its " +
+                                std::to_string(p.model.rests().size()) + " rests");
   }
-  d.rows = m;
+  d.rows = p.model.rows();
   d.dof = fit0.dof;
   d.chi2 = fit0.chi2;
   d.overall_gap = fit0.chi2 / fit0.dof;
   d.overall_sigma = std::sqrt(2.0 / fit0.dof);
   d.overall_p = chi2_survival(fit0.chi2, fit0.dof);
-  d.base = ParamSet::from_vector(base.to_vector() + fit0.x);
-  d.base_sigma = ParamSet::from_vector(fit0.cov.diagonal().cwiseSqrt());
+  d.base = p.lin.params_after(fit0.x);
+  d.base_sigma = p.lin.params_sigma(fit0.cov);
   d.segments = localise(p, fit0);
-  d.whiteness = whiteness_stats(in.cal, model.rests());
+  d.whiteness = whiteness_stats(in.cal, p.model.rests());
   compare_with_twin(d, in, p, opt);
-
   try {
     d.held_out.gap_before = held_out_gap(p.r0, p.Jb, p.folds).ratio();
   } catch (const std::invalid_argument&) {
     throw std::invalid_argument(
-        "gap diagnosis: the run is too short for the held-out check: with a "
-        "fifth of its " +
-        std::to_string(model.rests().size()) +
-        " rests held out, the 27 calibration parameters are not all separable");
+        "gap diagnosis: the run is too short for the held-out check: with a fifth of its " +
+        std::to_string(p.model.rests().size()) + " rests held out, " + base_text(p.lin) +
+        " are not all separable");
   }
+  return fit0;
+}
+
+}  // namespace
+
+DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
+                         const DiagnosisOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const GapModel model(in, opt.min_rest_samples, &base);
+  const GapLinearisation lin(model, base);
+  Problem p{
+      model, lin, lin.r0(), lin.r0_raw(), lin.Jb(), lin.Jb_raw(), make_folds(model, opt.folds)};
+  check_run_size(model, lin, opt);
+  DiagnosisResult d;
+  const GlsFit fit0 = fit_base(d, in, p, opt);
   std::vector<Scored> cands = score_all(p, fit0.chi2, opt);
   rank(cands, p, d.held_out.gap_before, opt);
   const Selection sel = select_model(cands, p, fit0.chi2, opt);

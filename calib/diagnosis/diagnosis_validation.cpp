@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "calib/core/calibration_input.hpp"
+#include "calib/legacy/legacy.hpp"
 #include "calib/nlsq/nlsq.hpp"
 
 namespace imucal::calib {
@@ -68,7 +69,10 @@ ValidationRun run_one(const Task& t, const std::map<EffectId, double>& threshold
   in.cal = world(effects, t.seed, /*noise=*/true);
   in.geometry = geometry;
   try {
-    const CalibrationResult cal = calibrate_nlsq(in.cal);
+    // A table run is calibrated by NLSQ; a table-free one by the multi-position method, which
+    // needs no prior beyond the grade's (the diagnosis refits the base parameters either way).
+    const CalibrationResult cal =
+        in.cal.has_reference_attitude() ? calibrate_nlsq(in.cal) : calibrate_legacy(in.cal);
     const DiagnosisResult d = diagnose(in, cal.params);
     r.verdict = d.verdict;
     if (d.best) {

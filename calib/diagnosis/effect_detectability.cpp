@@ -50,7 +50,7 @@ Analysed analyse(const GapLinearisation& lin, EffectId id, size_t candidates,
   d.separable_directions = static_cast<int>(sep.basis.cols());
   d.no_signature = sep.no_signature;
   d.max_correlation = sep.max_correlation;
-  for (int i : sep.aliases) d.aliases.push_back(param_info(i).name);
+  for (int i : sep.aliases) d.aliases.push_back(lin.column_name(i));
   if (d.separable_directions == 0) {
     std::ostringstream os;
     if (d.no_signature == d.directions)
@@ -121,11 +121,20 @@ std::vector<EffectDetectability> effect_detectability(const CalibrationInput& ex
   DiagnosisInput in;
   in.cal = exact_run;
   in.geometry = geometry;
-  const GapModel model(in, opt.min_rest_samples);
+  const GapModel model(in, opt.min_rest_samples, &base);
   const GapLinearisation lin(model, base);
   std::vector<Analysed> all;
   const size_t n = effect_catalogue().size();
   for (const auto& e : effect_catalogue()) {
+    if (e.kind == EffectKind::kTable && model.table_free()) {
+      Analysed a;
+      a.d.id = e.id;
+      a.d.name = e.name;
+      a.d.unit = e.magnitude_unit();
+      a.d.reason = "not applicable: the run has no table (table-free)";
+      all.push_back(a);
+      continue;
+    }
     if (e.kind == EffectKind::kStochastic) {
       all.push_back(analyse_stochastic(lin, e.id, n, opt));
       continue;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 namespace imucal::calib {
 
@@ -30,14 +31,49 @@ GapLinearisation::GapLinearisation(const GapModel& model, const ParamSet& base)
     : model_(model), base_(base) {
   r0_raw_ = model_.residuals(base_, Effects{});
   r0_ = model_.whiten(r0_raw_);
-  Jb_raw_.resize(model_.rows(), ParamSet::kSize);
+  // ς (the last three) is the rests' common attitude on a table-free run: not a column there.
+  const int params = model_.table_free() ? ParamSet::kSize - 3 : ParamSet::kSize;
+  const int attitudes = model_.attitude_unknowns();
+  Jb_raw_.resize(model_.rows(), params + attitudes);
   const ParamVector x0 = base_.to_vector();
-  for (int i = 0; i < ParamSet::kSize; ++i) {
+  for (int i = 0; i < params; ++i) {
     ParamVector x = x0;
     x(i) += base_step(i);
     Jb_raw_.col(i) = column(ParamSet::from_vector(x), Effects{}, base_step(i));
+    columns_.push_back(i);
   }
+  if (attitudes > 0) Jb_raw_.rightCols(attitudes) = model_.attitude_jacobian(base_);
+  for (int u = 0; u < attitudes; ++u) columns_.push_back(-1 - u);
   Jb_ = model_.whiten(Jb_raw_);
+}
+
+std::string GapLinearisation::column_name(int c) const {
+  const int j = columns_[static_cast<size_t>(c)];
+  if (j >= 0) return param_info(j).name;
+  static const char* axis[3] = {"north", "east", "down"};
+  const int u = -1 - j;
+  return "rest " + std::to_string(u / 3 + 1) + " attitude (" + axis[u % 3] + ")";
+}
+
+int GapLinearisation::param_columns() const {
+  int n = 0;
+  for (int j : columns_) n += j >= 0 ? 1 : 0;
+  return n;
+}
+
+ParamSet GapLinearisation::params_after(const Eigen::VectorXd& x) const {
+  ParamVector v = base_.to_vector();
+  for (size_t c = 0; c < columns_.size(); ++c)
+    if (columns_[c] >= 0) v(columns_[c]) += x(static_cast<int>(c));
+  return ParamSet::from_vector(v);
+}
+
+ParamSet GapLinearisation::params_sigma(const Eigen::MatrixXd& cov) const {
+  ParamVector v = ParamVector::Zero();
+  for (size_t c = 0; c < columns_.size(); ++c)
+    if (columns_[c] >= 0)
+      v(columns_[c]) = std::sqrt(std::max(0.0, cov(static_cast<int>(c), static_cast<int>(c))));
+  return ParamSet::from_vector(v);
 }
 
 Eigen::VectorXd GapLinearisation::column(const ParamSet& base, const Effects& fx,

@@ -5,6 +5,7 @@
 // (calib/diagnosis/gap_model.hpp), so the diagnosis fits exactly the model the simulator injects.
 // Shared by the diagnosis (a recorded run) and the detectability analysis (a sequence, noise-free).
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "calib/core/param_set.hpp"
@@ -22,6 +23,9 @@ struct CandidateColumns {
   Eigen::MatrixXd J;             ///< whitened
 };
 
+/// The base columns: on a table run the 27 calibration parameters; on a table-free run the 24
+/// sensor parameters (ς has no meaning without a table) and the rests' attitude unknowns
+/// (calib/diagnosis/gap_model.hpp) — what the diagnosis refits before any candidate.
 class GapLinearisation {
  public:
   GapLinearisation(const GapModel& model, const ParamSet& base);
@@ -29,8 +33,19 @@ class GapLinearisation {
   const ParamSet& base() const { return base_; }
   const Eigen::VectorXd& r0() const { return r0_; }  ///< whitened
   const Eigen::VectorXd& r0_raw() const { return r0_raw_; }
-  const Eigen::MatrixXd& Jb() const { return Jb_; }  ///< whitened, rows x 27
+  const Eigen::MatrixXd& Jb() const { return Jb_; }  ///< whitened, rows x base columns
   const Eigen::MatrixXd& Jb_raw() const { return Jb_raw_; }
+  /// What base column c moves: a ParamSet index (flat order) >= 0, or -1 - u for the rests'
+  /// attitude unknown u.
+  const std::vector<int>& columns() const { return columns_; }
+  /// "gyro_bias[0]", "rest 4 attitude (east)".
+  std::string column_name(int c) const;
+  /// The calibration parameters after a step x over the base columns (attitude unknowns dropped).
+  ParamSet params_after(const Eigen::VectorXd& x) const;
+  /// σ of the calibration parameters from a covariance over the base columns (0 where no column).
+  ParamSet params_sigma(const Eigen::MatrixXd& cov) const;
+  /// The calibration parameters among the base columns.
+  int param_columns() const;
   /// The candidate's columns (tau_s: the shape parameter to use, thermal drift only; 0 = none).
   CandidateColumns candidate(EffectId id, double tau_s = 0.0) const;
 
@@ -41,6 +56,7 @@ class GapLinearisation {
   ParamSet base_;
   Eigen::VectorXd r0_, r0_raw_;
   Eigen::MatrixXd Jb_, Jb_raw_;
+  std::vector<int> columns_;
 };
 
 /// The scale of parameter j of an effect: its typical value, or (a zero entry in the typical

@@ -36,10 +36,20 @@ std::string GapSegment::label() const {
          std::to_string(rest_b + 1) + ")";
 }
 
-GapModel::GapModel(const DiagnosisInput& in, size_t min_rest_samples)
-    : in_(in.cal), geometry_(in.geometry) {
+GapModel::GapModel(const DiagnosisInput& in, size_t min_rest_samples, const ParamSet* calibrated)
+    : in_(in.cal), geometry_(in.geometry), table_free_(!in.cal.has_reference_attitude()) {
   if (in_.imu.size() != in_.reference.size() || in_.imu.empty())
     fail("imu and reference must be non-empty and of equal length");
+  if (in_.setting == Setting::kSea)
+    fail(
+        "a sea run cannot be diagnosed: the vessel rocks and drifts the unit during its rests, so "
+        "no rest is still enough for the rest and move residuals (run it on a land or factory "
+        "run of the unit)");
+  if (table_free_ && !calibrated)
+    fail(
+        "a run without an attitude reference needs its calibration to estimate the rests' "
+        "attitudes");
+  if (table_free_) geometry_.reset();
   const NoiseModel& nm = in_.noise;
   if (!(nm.arw_rad_per_sqrt_s > 0.0 && nm.vrw_mps_per_sqrt_s > 0.0 &&
         std::isfinite(nm.arw_rad_per_sqrt_s) && std::isfinite(nm.vrw_mps_per_sqrt_s)))
@@ -52,13 +62,40 @@ GapModel::GapModel(const DiagnosisInput& in, size_t min_rest_samples)
       }
   t_first_s_ = in_.imu.front().t_s - in_.imu.front().dt_s;
   build_segments(min_rest_samples);
-  build_covariances();
+  if (table_free_) {
+    estimate_rest_attitudes(*calibrated);  // builds the covariances on the way
+  } else {
+    for (const RestSums& r : sums_) rest_C_bn_.push_back(in_.reference[r.ref_sample].C_bn_ref);
+    build_covariances();
+  }
+}
+
+std::vector<size_t> GapModel::segments_of_rest(size_t r) const {
+  std::vector<size_t> out;
+  for (size_t s = 0; s < segments_.size(); ++s)
+    if (segments_[s].rest_a == r || segments_[s].rest_b == r) out.push_back(s);
+  return out;
 }
 
 double GapModel::duration_s() const { return in_.imu.back().t_s - t_first_s_; }
 
+// A rest found by a detector on the data (table-free) may include the first or last instants of
+// the hand's motion: half a second off each end (as far as the rest keeps min_rest_samples) leaves
+// them to the moves, whose strapdown carries any motion.
+void GapModel::trim_rests(size_t min_rest_samples) {
+  constexpr double kTrim_s = 0.5;
+  for (RestPeriod& p : rests_) {
+    size_t b = p.begin, e = p.end;
+    while (e - b > min_rest_samples && in_.imu[b].t_s - in_.imu[p.begin].t_s < kTrim_s) ++b;
+    while (e - b > min_rest_samples && in_.imu[p.end - 1].t_s - in_.imu[e - 1].t_s < kTrim_s) --e;
+    p.begin = b;
+    p.end = e;
+  }
+}
+
 void GapModel::build_segments(size_t min_rest_samples) {
   rests_ = find_rest_periods(in_, min_rest_samples);
+  if (table_free_) trim_rests(min_rest_samples);
   if (rests_.size() < 2)
     fail("found " + std::to_string(rests_.size()) + " rest period(s) of at least " +
          std::to_string(min_rest_samples) +
@@ -145,7 +182,7 @@ void GapModel::build_covariances() {
       Pn.bottomLeftCorner<3, 3>() = Pn.topRightCorner<3, 3>().transpose();
       Pn.bottomRightCorner<3, 3>() = (arw2 * T + q_th) * I;
       // Residuals are reported in body axes at B: rotate both blocks.
-      const Eigen::Matrix3d C = in_.reference[rests_[s.rest_b].begin].C_bn_ref;
+      const Eigen::Matrix3d& C = rest_C_bn_[s.rest_b];
       Block6 R = Block6::Zero();
       R.topLeftCorner<3, 3>() = C.transpose();
       R.bottomRightCorner<3, 3>() = C.transpose();
@@ -156,8 +193,24 @@ void GapModel::build_covariances() {
     if (llt.info() != Eigen::Success)
       fail("segment " + s.label() + ": covariance not positive definite");
     Block6 L = llt.matrixL();
-    whitener_.push_back(L.inverse());
+    Block6 W = L.inverse();
+    if (table_free_ && s.kind == GapSegment::Kind::kMove) W = heading_last(W, s) * W;
+    whitener_.push_back(W);
   }
+}
+
+// A table-free move's attitude residual sees the relative heading of its two rests, which nothing
+// else measures (the rests' Earth rate only weakly): the whitening is rotated (Householder) so that
+// the heading direction h = (0, C_Bᵀ e_down) lands in whitened row kHeadingRow alone. The other
+// five rows are then free of it: the held-out check predicts those (calib/diagnosis/diagnosis.cpp).
+Block6 GapModel::heading_last(const Block6& W, const GapSegment& s) const {
+  Eigen::Matrix<double, 6, 1> h = Eigen::Matrix<double, 6, 1>::Zero();
+  h.tail<3>() = rest_C_bn_[s.rest_b].transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::Matrix<double, 6, 1> u = (W * h).normalized();
+  Eigen::Matrix<double, 6, 1> v = u;
+  v(kHeadingRow) -= 1.0;
+  if (!(v.norm() > 1e-12)) return Block6::Identity();
+  return Block6::Identity() - 2.0 * v * v.transpose() / v.squaredNorm();
 }
 
 Eigen::VectorXd GapModel::whiten(const Eigen::VectorXd& r) const {
@@ -184,26 +237,48 @@ Eigen::Matrix3d GapModel::true_attitude(size_t k, const ParamSet& base, const Ef
   return rotvec_to_matrix<double>(base.table_misalignment_rad) * C;
 }
 
+Eigen::Matrix3d GapModel::rest_attitude(size_t r, const ParamSet& base, const Effects& fx,
+                                        const Eigen::VectorXd* dpsi_n) const {
+  if (!table_free_) return true_attitude(sums_[r].ref_sample, base, fx);
+  if (!dpsi_n) return rest_C_bn_[r];
+  const Eigen::Vector3d d = dpsi_n->segment<3>(3 * static_cast<int>(r));
+  return rotvec_to_matrix<double>(d) * rest_C_bn_[r];
+}
+
+void GapModel::segment_residuals(size_t s, const ParamSet& base, const Effects& fx,
+                                 const Eigen::VectorXd* dpsi_n, double* out) const {
+  if (segments_[s].kind == GapSegment::Kind::kRest)
+    rest_residual(segments_[s].rest_a, base, fx, dpsi_n, out);
+  else
+    move_residual(segments_[s], base, fx, dpsi_n, out);
+}
+
 Eigen::VectorXd GapModel::residuals(const ParamSet& base, const Effects& fx) const {
   Eigen::VectorXd r(rows());
-  for (size_t s = 0; s < segments_.size(); ++s) {
-    double* out = r.data() + 6 * s;
-    if (segments_[s].kind == GapSegment::Kind::kRest)
-      rest_residual(segments_[s].rest_a, base, fx, out);
-    else
-      move_residual(segments_[s], base, fx, out);
-  }
+  for (size_t s = 0; s < segments_.size(); ++s)
+    segment_residuals(s, base, fx, nullptr, r.data() + 6 * s);
+  return r;
+}
+
+Eigen::VectorXd GapModel::residuals(const ParamSet& base, const Effects& fx,
+                                    const Eigen::VectorXd& dpsi_n) const {
+  if (dpsi_n.size() != attitude_unknowns())
+    throw std::logic_error("gap model: rest attitude unknowns of the wrong size");
+  Eigen::VectorXd r(rows());
+  for (size_t s = 0; s < segments_.size(); ++s)
+    segment_residuals(s, base, fx, &dpsi_n, r.data() + 6 * s);
   return r;
 }
 
 // At rest f and ω are constant in body axes, so the sensor effects are evaluated once at the rest's
 // mean kinematics, the thermal warm-up integrated exactly over the rest's span.
-void GapModel::rest_residual(size_t r, const ParamSet& base, const Effects& fx, double* out) const {
+void GapModel::rest_residual(size_t r, const ParamSet& base, const Effects& fx,
+                             const Eigen::VectorXd* dpsi_n, double* out) const {
   const RestSums& s = sums_[r];
   const ImuCompensator comp(base);
   const Site site = true_site(in_.site, fx.gravity_error_mps2, fx.latitude_error_rad);
   const EarthModel earth(site);
-  const Eigen::Matrix3d C = true_attitude(s.ref_sample, base, fx);
+  const Eigen::Matrix3d C = rest_attitude(r, base, fx, dpsi_n);
   SensorKinematics kin;
   kin.f_b = comp.dv(s.f_mean_raw, 1.0);
   kin.w_b = comp.dtheta(s.w_mean_raw, 1.0);
@@ -230,13 +305,13 @@ void GapModel::rest_residual(size_t r, const ParamSet& base, const Effects& fx, 
 // Each increment is compensated by the error model and by the hypothesised sensor effects,
 // evaluated at the sample's own kinematics (ω̇ by central differences of the raw rates).
 void GapModel::move_residual(const GapSegment& seg, const ParamSet& base, const Effects& fx,
-                             double* out) const {
+                             const Eigen::VectorXd* dpsi_n, double* out) const {
   const ImuCompensator comp(base);
   const Site site = true_site(in_.site, fx.gravity_error_mps2, fx.latitude_error_rad);
   const EarthModel earth(site);
   const Eigen::Vector3d w_ie_n = earth.w_ie_n(), g_n = earth.g_n();
   const bool effects = fx.any();
-  Eigen::Matrix3d C = true_attitude(sums_[seg.rest_a].ref_sample, base, fx);
+  Eigen::Matrix3d C = rest_attitude(seg.rest_a, base, fx, dpsi_n);
   Eigen::Vector3d v = Eigen::Vector3d::Zero();
   const size_t n = in_.imu.size();
   for (size_t k = seg.begin; k < seg.end; ++k) {
@@ -265,7 +340,7 @@ void GapModel::move_residual(const GapSegment& seg, const ParamSet& base, const 
     C = rotvec_to_matrix<double>(Eigen::Vector3d(-e)) * C * rotvec_to_matrix<double>(dth);
     if ((k - seg.begin) % kOrthonormaliseEvery == kOrthonormaliseEvery - 1) C = orthonormalize(C);
   }
-  const Eigen::Matrix3d C_b = true_attitude(sums_[seg.rest_b].ref_sample, base, fx);
+  const Eigen::Matrix3d C_b = rest_attitude(seg.rest_b, base, fx, dpsi_n);
   const Eigen::Vector3d psi =
       C_b.transpose() * matrix_to_rotvec(C_b * orthonormalize(C).transpose());
   const Eigen::Vector3d vb = C_b.transpose() * v;

@@ -22,6 +22,16 @@
 // (|g|² ARW² T³/3 horizontally) and their correlation (ARW² T²/2 [f_n×]). Segments are independent
 // (disjoint samples). So a residual vector whitened segment by segment is N(0, I) under the model:
 // every departure — per segment, per sensor axis — is the gap, in units of the model's own spread.
+//
+// Table-free runs (land, multi-position by hand; issue #21 item 4) have no attitude reference. The
+// same residuals are formed against an attitude per rest that the model carries as unknowns: an
+// estimate from the data and the calibrated parameters (levelled on each rest's specific force,
+// carried across each move by the gyros, the common heading chosen by the Earth rate the rests
+// see) plus a small rotation δ_R (navigation axes, rad) per rest that the diagnosis fits with the
+// base parameters. What such a run observes is then what is left: the gravity magnitude and the
+// Earth rate at each rest, the gravity and attitude carried by the gyros across each move, the
+// zero velocity gained over it. The table misalignment ς has no meaning there (it is the rests'
+// common attitude). Rests are trimmed by half a second at each end (the hand's detector edge).
 #include <Eigen/Core>
 #include <optional>
 #include <string>
@@ -63,8 +73,12 @@ using Block6 = Eigen::Matrix<double, 6, 6>;
 class GapModel {
  public:
   /// Cuts the run into rests (at_rest runs of at least min_rest_samples) and the moves between
-  /// them. Throws std::invalid_argument naming the problem: fewer than 2 rests, non-finite noise.
-  GapModel(const DiagnosisInput& in, size_t min_rest_samples = 100);
+  /// them. A run without an attitude reference (land) is table-free: `calibrated` (required then)
+  /// gives the rests' attitude estimates. Throws std::invalid_argument naming the problem: fewer
+  /// than 2 rests, non-finite noise, a sea run (the vessel moves the unit during its rests), a
+  /// table-free run without `calibrated`.
+  GapModel(const DiagnosisInput& in, size_t min_rest_samples = 100,
+           const ParamSet* calibrated = nullptr);
 
   const std::vector<GapSegment>& segments() const { return segments_; }
   int rows() const { return kGapRowsPerSegment * static_cast<int>(segments_.size()); }
@@ -73,10 +87,30 @@ class GapModel {
   double duration_s() const;
   const CalibrationInput& input() const { return in_; }
   const std::vector<RestPeriod>& rests() const { return rests_; }
+  /// No attitude reference: each rest's attitude is an unknown of the fit (see the header).
+  bool table_free() const { return table_free_; }
+  /// The rest attitudes' unknowns: 3 per rest (δ_R, navigation axes, rad), table-free runs only.
+  int attitude_unknowns() const { return table_free_ ? 3 * static_cast<int>(rests_.size()) : 0; }
+  /// The estimate of rest r's attitude the residuals start from (the table's on table runs).
+  const Eigen::Matrix3d& rest_attitude_estimate(size_t r) const { return rest_C_bn_[r]; }
+  /// On a table-free move, the whitened row that alone carries the relative heading of its rests
+  /// (see heading_last): no other segment predicts it, so the held-out check leaves it out.
+  static constexpr int kHeadingRow = kGapRowsPerSegment - 1;
+  /// The segments rest r's attitude enters: the rest itself and the moves on either side.
+  std::vector<size_t> segments_of_rest(size_t r) const;
 
   /// The residual vector (rows()) of the data against the model (base parameters + effects). Raw,
   /// SI (accel rows m/s² at rest, m/s for moves; gyro rows rad/s at rest, rad for moves).
   Eigen::VectorXd residuals(const ParamSet& base, const Effects& fx) const;
+  /// The same with the rest attitudes rotated by `dpsi_n` (attitude_unknowns() entries).
+  Eigen::VectorXd residuals(const ParamSet& base, const Effects& fx,
+                            const Eigen::VectorXd& dpsi_n) const;
+  /// d residuals / d δ (raw, rows() × attitude_unknowns()) at δ = 0, by differences of the
+  /// segments each rest's attitude enters.
+  Eigen::MatrixXd attitude_jacobian(const ParamSet& base) const;
+  /// One segment's six residuals (rows 6s .. 6s+5 of residuals()); dpsi_n may be null.
+  void segment_residuals(size_t s, const ParamSet& base, const Effects& fx,
+                         const Eigen::VectorXd* dpsi_n, double* out) const;
   /// The model's predicted covariance of one segment's residuals (declared noise).
   const Block6& covariance(size_t segment) const { return cov_[segment]; }
   /// Whitening per segment: L⁻¹ r with L Lᵀ the segment covariance.
@@ -93,11 +127,27 @@ class GapModel {
     size_t ref_sample = 0;  ///< the reference sample giving the rest's attitude (its middle)
   };
   void build_segments(size_t min_rest_samples);
+  void trim_rests(size_t min_rest_samples);
   void build_covariances();
+  Block6 heading_last(const Block6& W, const GapSegment& s) const;
   Eigen::Matrix3d true_attitude(size_t sample, const ParamSet& base, const Effects& fx) const;
-  void rest_residual(size_t r, const ParamSet& base, const Effects& fx, double* out) const;
+  /// Rest r's attitude under the hypothesis: the table's (with ς and the table effects), or the
+  /// table-free estimate rotated by its unknowns.
+  Eigen::Matrix3d rest_attitude(size_t r, const ParamSet& base, const Effects& fx,
+                                const Eigen::VectorXd* dpsi_n) const;
+  void rest_residual(size_t r, const ParamSet& base, const Effects& fx,
+                     const Eigen::VectorXd* dpsi_n, double* out) const;
   void move_residual(const GapSegment& s, const ParamSet& base, const Effects& fx,
-                     double* out) const;
+                     const Eigen::VectorXd* dpsi_n, double* out) const;
+  /// The gyro-propagated attitude at the end of a move from `C_start` (the move residual's
+  /// strapdown without effects), for the table-free estimates.
+  Eigen::Matrix3d carry_attitude(const GapSegment& s, const ParamSet& calibrated,
+                                 const Eigen::Matrix3d& C_start) const;
+  // Table-free estimates (gap_model_attitudes.cpp).
+  void estimate_rest_attitudes(const ParamSet& calibrated);
+  void chain_rest_attitudes(const ParamSet& calibrated);
+  void choose_common_heading(const ParamSet& calibrated);
+  void refine_rest_attitudes(const ParamSet& calibrated);
 
   const CalibrationInput& in_;
   std::optional<TableGeometry> geometry_;
@@ -106,6 +156,8 @@ class GapModel {
   std::vector<GapSegment> segments_;
   std::vector<Block6> cov_;
   std::vector<Block6> whitener_;  ///< L⁻¹ per segment
+  bool table_free_ = false;
+  std::vector<Eigen::Matrix3d> rest_C_bn_;  ///< per rest: the table's, or the estimate
   double t_first_s_ = 0.0;        ///< start of the first interval (thermal drift's t = 0)
 };
 

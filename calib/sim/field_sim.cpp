@@ -1,5 +1,7 @@
 #include "calib/sim/field_sim.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
 #include <stdexcept>
@@ -42,8 +44,34 @@ void check_options(const FieldSimOptions& o, const UnitModel& unit) {
   if (fx.table_time_offset_s != 0.0 || fx.table_nonorthogonality_rad != 0.0 ||
       !fx.table_wobble_rad.isZero() || fx.latitude_error_rad != 0.0)
     fail("table effects and latitude_error have no meaning without a table (land/sea)");
-  for (const auto& r : fx.accel_lever_arm_m)
-    if (!r.isZero()) fail("the size effect needs the table's rotation model; not simulated here");
+}
+
+/// The size effect's velocity increment over [t0, t1] (calib/effects/size_effect.hpp), body axes:
+/// component i of ∫ ([ω̇×] + [ω×]²) r_i dt, the ω̇ part exactly (ω(t1) - ω(t0)), the ω² part by
+/// 3-point Gauss-Legendre; ω the body rate relative to the ground from the attitude by central
+/// differences (the Earth's rate adds ~1e-4 of it, and the frame turns by ω dt within a sample:
+/// both far below the effect's own noise).
+template <typename AttitudeAt>
+Eigen::Vector3d lever_dv_b(const std::array<Eigen::Vector3d, 3>& r_m, const AttitudeAt& C_bn_at,
+                           double t0, double t1) {
+  constexpr double h = 1e-4;
+  auto w_b = [&](double t) {
+    const double a = std::max(0.0, t - h);
+    return Eigen::Vector3d(matrix_to_rotvec(C_bn_at(a).transpose() * C_bn_at(t + h)) / (t + h - a));
+  };
+  const Eigen::Vector3d dw = w_b(t1) - w_b(t0);
+  Eigen::Vector3d dv = Eigen::Vector3d::Zero();
+  for (int i = 0; i < 3; ++i) {
+    const Eigen::Vector3d& r = r_m[static_cast<size_t>(i)];
+    if (r.isZero()) continue;
+    double centripetal = 0.0;
+    for (int q = 0; q < 3; ++q) {
+      const Eigen::Vector3d w = w_b(t0 + GaussLegendre3::kNode[q] * (t1 - t0));
+      centripetal += GaussLegendre3::kWeight[q] * (t1 - t0) * w.cross(w.cross(r))(i);
+    }
+    dv(i) = dw.cross(r)(i) + centripetal;
+  }
+  return dv;
 }
 
 /// Smooth 0 -> 1 step (zero slope at both ends).
@@ -314,6 +342,8 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
   out.C_bn.resize(n);
   out.rest_spans = hand.rest_spans();
   TruthSensor sensor(unit, dt, opt.seed, opt.noise);
+  bool lever = false;
+  for (const auto& r : unit.effects.accel_lever_arm_m) lever = lever || !r.isZero();
   Eigen::Matrix3d C_bi_prev = earth.C_bi(0.0, plat.p(0.0), C_bn_at(0.0));
   Eigen::Vector3d v_i_prev = earth.v_i(0.0, plat.p(0.0), plat.p_dot(0.0));
   for (size_t k = 0; k < n; ++k) {
@@ -328,7 +358,8 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
       int_G += GaussLegendre3::kWeight[q] * dt * earth.G_i(t, plat.p(t), g_offset);
     }
     const Eigen::Vector3d dtheta = matrix_to_rotvec(C_bi_prev.transpose() * C_bi);
-    const Eigen::Vector3d dv = C_bi_prev.transpose() * (v_i - v_i_prev - int_G);
+    Eigen::Vector3d dv = C_bi_prev.transpose() * (v_i - v_i_prev - int_G);
+    if (lever) dv += lever_dv_b(unit.effects.accel_lever_arm_m, C_bn_at, t0, t1);
     ImuIncrement& s = out.imu[k];
     s.t_s = t1;
     s.dt_s = dt;

@@ -15,8 +15,9 @@
 //    w.r.t. inertial space at the sample ends, dv = C_bi(t0)ᵀ [Δv_i − ∫ G_i dt] (inertial velocity
 //    change minus gravitation, Gauss–Legendre), so translation, transport rate and Earth rate are
 //    all in; then the unit's error model, sensor effects and noise (TruthSensor).
-// Table effects (non-orthogonality, wobble, time offset, size effect) and latitude_error have no
-// meaning here and are refused; gravity_error is the true local gravity's departure from the
+// The size effect (the accelerometers' lever arms) acts on the hand's rotations as on the table's.
+// Table effects (non-orthogonality, wobble, time offset) and latitude_error have no meaning here
+// and are refused; gravity_error is the true local gravity's departure from the
 // site's (normal or surveyed) value. The site's position is the tangent-frame origin; at sea the
 // GNSS fixes are the platform's true position plus white noise.
 #include <cstdint>

@@ -33,4 +33,18 @@ RunSource truth_run_source(const sequences::MotionProfile& profile, const TableG
   };
 }
 
+RunSource field_run_source(const sequences::MotionProfile& profile, const Site& site,
+                           const UnitModel& unit, const FieldSimOptions& options, Grade grade) {
+  auto world = std::make_shared<const sequences::MotionProfile>(profile);
+  return [world, site, unit, options, grade](const Effects& effects, uint64_t seed, bool noise) {
+    UnitModel u = unit;
+    u.effects = effects;
+    FieldSimOptions o = options;
+    o.seed = seed;
+    o.noise = noise;
+    const FieldSimResult sim = simulate_field(*world, site, u, o);
+    return input_from_field_data(o.setting, sim.imu, sim.gnss, site, unit.noise, grade);
+  };
+}
+
 }  // namespace imucal::calib

@@ -4,7 +4,9 @@
 // (the simulator) to the estimate side, kept here so that nothing there includes the simulator.
 #include "calib/core/calibration_input.hpp"
 #include "calib/core/table_model.hpp"
+#include "calib/core/unit_grade.hpp"
 #include "calib/effects/run_source.hpp"
+#include "calib/sim/field_sim.hpp"
 #include "calib/sim/truth_sim.hpp"
 #include "sequences/motion_profile.hpp"
 
@@ -19,5 +21,11 @@ CalibrationInput input_from_simulation(const SimResult& sim, const TableGeometry
 /// simulated encoder angles and the unit's declared noise model. Keeps its own copy of everything.
 RunSource truth_run_source(const sequences::MotionProfile& profile, const TableGeometry& geometry,
                            const Site& site, const UnitModel& unit, double rate_hz);
+
+/// The field simulator as a RunSource (table-free runs, calib/sim/field_sim.hpp): `options` with
+/// the seed and noise of each call, the rests found as `imucal calibrate` finds them for `grade`.
+RunSource field_run_source(const sequences::MotionProfile& profile, const Site& site,
+                           const UnitModel& unit, const FieldSimOptions& options,
+                           Grade grade = Grade::kNavigation);
 
 }  // namespace imucal::calib

@@ -89,8 +89,8 @@ TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
   EXPECT_NE(n.out.find("NLSQ needs the table's attitude reference"), std::string::npos) << n.out;
 }
 
-TEST_F(FieldCli, EvaluateAndDiagnoseRefuseARunWithoutReference) {
-  // Both need the table: a silent number from a land run would be meaningless.
+TEST_F(FieldCli, EvaluateRefusesARunWithoutReferenceAndDiagnoseRefusesOnlyTheSea) {
+  // The evaluation needs the table: a silent number from a land run would be meaningless.
   const fs::path params = root() / "land-params.json";
   std::ofstream(params)
       << nlohmann::json::parse(
@@ -101,9 +101,19 @@ TEST_F(FieldCli, EvaluateAndDiagnoseRefuseARunWithoutReference) {
   const Proc e = run("evaluate " + (root() / "land").string() + " --params " + params.string());
   EXPECT_EQ(e.code, 1) << e.out;
   EXPECT_NE(e.out.find("no attitude reference"), std::string::npos) << e.out;
-  const Proc d = run("diagnose " + (root() / "land").string());
-  EXPECT_EQ(d.code, 1) << d.out;
-  EXPECT_NE(d.out.find("no table reference"), std::string::npos) << d.out;
+  // The diagnosis works without a table on land (issue #21 item 4: each rest's attitude an
+  // unknown), not at sea, where the deck moves the unit during its rests.
+  const Proc d = run("diagnose " + (root() / "land").string() + " --json", false);
+  ASSERT_EQ(d.code, 0) << d.out;
+  const nlohmann::json j = nlohmann::json::parse(d.out);
+  EXPECT_EQ(j.at("verdict"), "consistent") << j.at("summary");
+  EXPECT_TRUE(j.at("table_free").get<bool>());
+  EXPECT_EQ(j.at("base_calibration"), "legacy");
+  EXPECT_TRUE(j.at("overall").at("simulated_gap").is_null());  // no reference trajectory: no twin
+  const Proc sea = run("diagnose " + (root() / "sea").string());
+  EXPECT_EQ(sea.code, 1) << sea.out;
+  EXPECT_NE(sea.out.find("a sea run cannot be diagnosed"), std::string::npos) << sea.out;
+  EXPECT_NE(sea.out.find("rocks and drifts"), std::string::npos) << sea.out;
 }
 
 // Issue #19 item 4: the truth column was in the housing frame while err/σ was computed against the

@@ -1,5 +1,6 @@
 #include "tools/imucal/diagnose_cmd.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -7,6 +8,7 @@
 #include <stdexcept>
 
 #include "calib/diagnosis/diagnosis.hpp"
+#include "calib/legacy/legacy.hpp"
 #include "calib/nlsq/nlsq.hpp"
 #include "db/archive/diagnosis_json.hpp"
 #include "db/archive/io_util.hpp"
@@ -78,9 +80,14 @@ void print_segments(const calib::DiagnosisResult& d) {
     for (int c = 1; c < calib::kGapRowsPerSegment; ++c)
       if (std::abs(g.z[static_cast<size_t>(c)]) > std::abs(g.z[static_cast<size_t>(worst)]))
         worst = c;
-    std::printf("  %-26s %8.1f %8.2f %8.2f %9.2g %4.0f/%-4.0f  %+.2f (%s)\n",
-                g.segment.label().c_str(), g.segment.t0_s, g.nis, g.nis_twin, g.p_value,
-                g.segment.outer_deg, g.segment.inner_deg, g.z[static_cast<size_t>(worst)],
+    char twin[16] = "-";  // a table-free run has no twin
+    if (std::isfinite(g.nis_twin)) std::snprintf(twin, sizeof twin, "%.2f", g.nis_twin);
+    char angles[24] = "-";  // table-free: no table angles
+    if (std::isfinite(g.segment.outer_deg))
+      std::snprintf(angles, sizeof angles, "%4.0f/%-4.0f", g.segment.outer_deg,
+                    g.segment.inner_deg);
+    std::printf("  %-26s %8.1f %8.2f %8s %9.2g %9s  %+.2f (%s)\n", g.segment.label().c_str(),
+                g.segment.t0_s, g.nis, twin, g.p_value, angles, g.z[static_cast<size_t>(worst)],
                 calib::gap_component_name(worst));
   }
 }
@@ -94,10 +101,16 @@ void print_human(const calib::DiagnosisResult& d, const archive::RunArchive& ar,
               d.overall_gap, d.chi2, d.dof, d.overall_sigma, d.overall_p);
   if (d.best || !d.ambiguous.empty())
     std::printf(" -> %.3f with the best effect", d.gap_after_best);
-  std::printf(
-      "\nsimulated twin (this trajectory, the calibrated model, the declared noise): chi2/dof "
-      "%.3f\n",
-      d.twin_gap);
+  if (std::isfinite(d.twin_gap))
+    std::printf(
+        "\nsimulated twin (this trajectory, the calibrated model, the declared noise): chi2/dof "
+        "%.3f\n",
+        d.twin_gap);
+  else
+    std::printf(
+        "\ntable-free run: each rest's attitude is an unknown of the fit (what such a run "
+        "observes: gravity's magnitude and the Earth rate at each rest, gravity and attitude "
+        "carried by the gyros across each move, no velocity gained); no simulated twin\n");
   std::printf("rest samples, lag-1 autocorrelation (z vs declared noise):");
   for (int c = 0; c < calib::kGapRowsPerSegment; ++c)
     std::printf(" %s %+.3f (%+.1f)", calib::gap_component_name(c),
@@ -141,6 +154,13 @@ CLI::App* add_diagnose_command(CLI::App& app, DiagnoseArgs& a) {
   c->add_option(
       "--candidates", a.candidates,
       "comma-separated effects to consider (default: the whole catalogue; see imucal effects)");
+  c->add_option("--grade", a.grade,
+                "navigation|tactical|mems: the unit's grade instead of run.toml's [prior] grade "
+                "(field runs: the rest detector; every run: how large an effect may plausibly be)")
+      ->check(CLI::IsMember({"navigation", "tactical", "mems"}));
+  c->add_option("--min-rest-s", a.min_rest_s,
+                "field runs: the shortest rest kept, s (default: the detector's)")
+      ->check(CLI::Range(0.5, 600.0));
   return c;
 }
 
@@ -169,16 +189,23 @@ void write_report(const std::string& dir, const nlohmann::json& j) {
 int cmd_diagnose(const DiagnoseArgs& a) {
   const std::vector<calib::EffectId> ids = parse_candidates(a.candidates);  // before any work
   check_report_dir(a.report_dir);
-  const archive::RunArchive ar = archive::read_archive(a.dir);
+  archive::RunArchive ar = archive::read_archive(a.dir);
+  if (!a.grade.empty()) ar.info.grade = *calib::parse_grade(a.grade);
+  if (a.min_rest_s > 0.0) ar.info.min_rest_s = a.min_rest_s;
+  if (ar.info.setting == calib::Setting::kSea)
+    throw std::invalid_argument(
+        a.dir +
+        ": a sea run cannot be diagnosed: the vessel rocks and drifts the unit during its rests, "
+        "so no rest is still enough for the rest and move residuals (diagnose a land or factory "
+        "run of the unit)");
   calib::DiagnosisInput in;
   in.cal = archive::to_calibration_input(ar);
   if (ar.info.reference == archive::ReferenceKind::kTable) in.geometry = ar.info.table.geometry();
-  if (!in.cal.has_reference_attitude())
-    throw std::invalid_argument(
-        a.dir + ": a " + std::string(calib::setting_name(in.cal.setting)) +
-        " run has no table reference; the gap diagnosis compares a table run with its simulation "
-        "(run it on a factory run of the unit)");
-  const calib::CalibrationResult cal = calib::calibrate_nlsq(in.cal);
+  // The model under test: a table run's NLSQ calibration; a table-free run's multi-position one,
+  // which needs no prior beyond the grade's (the diagnosis refits the base either way).
+  const bool table_free = !in.cal.has_reference_attitude();
+  const calib::CalibrationResult cal =
+      table_free ? calib::calibrate_legacy(in.cal) : calib::calibrate_nlsq(in.cal);
   calib::DiagnosisOptions opt;
   opt.candidates = ids;
   const calib::DiagnosisResult d = calib::diagnose(in, cal.params, opt);
@@ -186,7 +213,10 @@ int cmd_diagnose(const DiagnoseArgs& a) {
   j["archive"] = a.dir;
   j["serial"] = ar.info.serial;
   j["sequence"] = ar.info.sequence_name;
-  j["base_calibration"] = "nlsq";
+  j["setting"] = calib::setting_name(in.cal.setting);
+  j["grade"] = calib::grade_name(in.cal.grade);
+  j["table_free"] = table_free;
+  j["base_calibration"] = table_free ? "legacy" : "nlsq";
   if (!a.report_dir.empty()) write_report(a.report_dir, j);
   if (a.json) {
     std::cout << j.dump(2) << '\n';

@@ -1,8 +1,9 @@
 #pragma once
 // `imucal diagnose DIR [--json] [--candidates NAME,...]`: the sim-to-real gap diagnosis
 // (calib/diagnosis/diagnosis.hpp) of a run archive — simulated, recorded by stationd or assembled
-// from another source's CSV files. The model it tests is the run's own NLSQ calibration with the
-// archive's declared noise.
+// from another source's CSV files. The model it tests is the run's own calibration with the
+// archive's declared noise: NLSQ on a table run; on a table-free (land) run the multi-position
+// method, each rest's attitude then an unknown of the diagnosis (calib/diagnosis/gap_model.hpp).
 #include <CLI/CLI.hpp>
 #include <string>
 
@@ -13,6 +14,8 @@ struct DiagnoseArgs {
   bool json = false;
   std::string candidates;  ///< comma-separated catalogue names; empty = all
   std::string report_dir;  ///< --report OUTDIR; empty = none
+  std::string grade;       ///< --grade: instead of run.toml's [prior] grade; empty = run.toml's
+  double min_rest_s = 0.0;  ///< --min-rest-s (field runs); 0 = run.toml's
 };
 
 /// Adds the subcommand to `app`, binding its options to `args`.

@@ -253,11 +253,13 @@ void nis_chart(std::ostringstream& os, const json& segs) {
        << f(num(g, "p_value", 1.0), "%.2g") << ")</title></rect>\n";
   }
   // The simulated twin's NIS (same trajectory, calibrated model, declared noise) as dots.
-  for (size_t s = 0; s < segs.size(); ++s)
+  for (size_t s = 0; s < segs.size(); ++s) {
+    if (!segs[s].contains("nis_sim") || !segs[s]["nis_sim"].is_number()) continue;  // table-free
     os << "<circle cx='" << left + w * (static_cast<double>(s) + 0.5) << "' cy='"
        << axis.y(num(segs[s], "nis_sim")) << "' r='2.5' fill='#222'><title>"
        << esc(str(segs[s], "label")) << ": simulated twin NIS "
        << f(num(segs[s], "nis_sim"), "%.2f") << "</title></circle>\n";
+  }
   nis_reference_lines(os, axis, left, w * n);
   os << "</svg>\n";
 }
@@ -362,11 +364,14 @@ void header(std::ostringstream& os, const json& d) {
   os << "<p>Overall gap: &chi;&sup2;/dof = <b>" << f(num(o, "gap"), "%.3f") << "</b> (&chi;&sup2; "
      << f(num(o, "chi2"), "%.1f") << ", dof " << o.value("dof", 0) << "; expected 1 &plusmn; "
      << f(num(o, "sigma"), "%.3f") << " under the model, p = " << f(num(o, "p_value", 1.0), "%.2g")
-     << "); with the best effect " << f(num(o, "gap_after_best"), "%.3f")
-     << "; the simulated twin (this trajectory simulated with the calibrated model and the "
-        "declared "
-        "noise) gives "
-     << f(num(o, "simulated_gap"), "%.3f") << ".</p>\n";
+     << "); with the best effect " << f(num(o, "gap_after_best"), "%.3f");
+  if (o.contains("simulated_gap") && o["simulated_gap"].is_number())
+    os << "; the simulated twin (this trajectory simulated with the calibrated model and the "
+          "declared noise) gives "
+       << f(num(o, "simulated_gap"), "%.3f") << ".</p>\n";
+  else
+    os << ". A table-free run: each rest's attitude is an unknown of the fit, and there is no "
+          "reference trajectory to simulate a twin along.</p>\n";
 }
 
 void lists(std::ostringstream& os, const json& d) {
