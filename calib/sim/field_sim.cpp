@@ -42,8 +42,8 @@ void check_options(const FieldSimOptions& o, const UnitModel& unit) {
     fail("option duration_jitter must be in [0, 0.9)");
   const Effects& fx = unit.effects;
   if (fx.table_time_offset_s != 0.0 || fx.table_nonorthogonality_rad != 0.0 ||
-      !fx.table_wobble_rad.isZero() || fx.latitude_error_rad != 0.0)
-    fail("table effects and latitude_error have no meaning without a table (land/sea)");
+      !fx.table_wobble_rad.isZero())
+    fail("table effects have no meaning without a table (land/sea)");
 }
 
 /// The size effect's velocity increment over [t0, t1] (calib/effects/size_effect.hpp), body axes:
@@ -315,13 +315,16 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
   const HandTimeline hand(profile, opt, rng);
   const Platform plat = make_platform(opt, rng);
 
-  // The true gravity: the site's (surveyed, or normal gravity) plus the gravity_error effect.
-  const Site truth = true_site(site, unit.effects.gravity_error_mps2, 0.0);
+  // The true site: the configured one with the latitude_error effect (the physics happens where
+  // the unit is, the station computes with what it was told), its gravity the site's (surveyed, or
+  // normal gravity there) plus the gravity_error effect.
+  const Site truth =
+      true_site(site, unit.effects.gravity_error_mps2, unit.effects.latitude_error_rad);
   const double g_offset =
       truth.gravity_mps2
-          ? *truth.gravity_mps2 - EarthModel::normal_gravity_mps2(site.lat_rad, site.height_m)
+          ? *truth.gravity_mps2 - EarthModel::normal_gravity_mps2(truth.lat_rad, truth.height_m)
           : 0.0;
-  const EarthKinematics earth(site);
+  const EarthKinematics earth(truth);
 
   auto C_bn_at = [&](double t) {
     double tp;
@@ -371,7 +374,7 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
     v_i_prev = v_i;
   }
 
-  if (plat.sea) out.gnss = gnss_fixes(plat, site, opt, n ? out.imu.back().t_s : 0.0, rng);
+  if (plat.sea) out.gnss = gnss_fixes(plat, truth, opt, n ? out.imu.back().t_s : 0.0, rng);
   return out;
 }
 

@@ -15,11 +15,12 @@
 //    w.r.t. inertial space at the sample ends, dv = C_bi(t0)ᵀ [Δv_i − ∫ G_i dt] (inertial velocity
 //    change minus gravitation, Gauss–Legendre), so translation, transport rate and Earth rate are
 //    all in; then the unit's error model, sensor effects and noise (TruthSensor).
-// The size effect (the accelerometers' lever arms) acts on the hand's rotations as on the table's.
-// Table effects (non-orthogonality, wobble, time offset) and latitude_error have no meaning here
-// and are refused; gravity_error is the true local gravity's departure from the
-// site's (normal or surveyed) value. The site's position is the tangent-frame origin; at sea the
-// GNSS fixes are the platform's true position plus white noise.
+// The size effect (the accelerometers' lever arms) acts on the hand's rotations as on the table's;
+// latitude_error puts the unit at the true latitude while the site keeps the configured one (the
+// GNSS fixes report the true position). Table effects (non-orthogonality, wobble, time offset)
+// have no meaning here and are refused; gravity_error is the true local gravity's departure from
+// the site's (normal or surveyed) value. The site's position is the tangent-frame origin; at sea
+// the GNSS fixes are the platform's true position plus white noise.
 #include <cstdint>
 #include <utility>
 #include <vector>

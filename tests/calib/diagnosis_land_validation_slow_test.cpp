@@ -1,0 +1,100 @@
+// Blind validation of the gap diagnosis without a table (issue #21 "What it must show": table-free
+// simulated runs with one withheld effect each — K2, g-sensitivity, thermal drift, size effect,
+// where the setting can separate them — top-1 >= 90 %, nulls <= 5 %). factory-std's positions taken
+// by hand on land (calib/sim/field_sim.hpp: placement errors, rest and move times jittered, no
+// table log), calibrated by the multi-position method and diagnosed with each rest's attitude
+// unknown. The full-size figures come from `imucal validate-diagnosis --setting land --runs 10
+// --nulls 40` (README); this count (IMUCAL_VALIDATION_RUNS per effect, default 3) asserts them with
+// margins.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+
+#include "calib/core/site_presets.hpp"
+#include "calib/diagnosis/diagnosis_validation.hpp"
+#include "calib/legacy/legacy.hpp"
+#include "calib/sim/sim_input.hpp"
+#include "sequences/library.hpp"
+
+using namespace imucal;
+using namespace imucal::calib;
+
+namespace {
+
+UnitModel land_unit() {
+  UnitModel u = default_unit();
+  u.params.table_misalignment_rad.setZero();
+  return u;
+}
+
+RunSource land_source() {
+  FieldSimOptions o;
+  o.setting = Setting::kLand;
+  return field_run_source(sequences::load_profile("factory-std"), demo_factory_site(), land_unit(),
+                          o);
+}
+
+bool validated(const ValidationReport& r, const char* name) {
+  return std::find(r.effects.begin(), r.effects.end(), name) != r.effects.end();
+}
+
+}  // namespace
+
+TEST(LandDiagnosisValidation, FactoryStdByHandMeetsTheBarWithMargins) {
+  const char* env = std::getenv("IMUCAL_VALIDATION_RUNS");
+  const int runs = env && std::atoi(env) > 0 ? std::atoi(env) : 3;
+  ValidationOptions opt;
+  opt.runs_per_effect = runs;
+  opt.null_runs = 4 * runs;
+  opt.pair_runs = 0;
+  opt.seed = 5;
+  const ValidationReport r =
+      validate_diagnosis(land_source(), TableGeometry{}, land_unit().params, "factory-std", opt);
+  std::printf(
+      "%zu effects, %d single runs, %d null: top-1 %.2f, false alarms %.2f, shrinkage %.2f\n",
+      r.effects.size(), r.single_runs, r.null_count, r.top1, r.false_alarm, r.median_shrinkage);
+  for (const auto& d : r.detectability)
+    if (!d.separable()) std::printf("  not validated: %s (%s)\n", d.name.c_str(), d.reason.c_str());
+  for (const auto& run : r.runs)
+    if ((run.injected.size() == 1 && run.named != run.injected[0]) ||
+        (run.injected.empty() && run.named != "none"))
+      std::printf("  miss: %s -> %s (%s)\n",
+                  run.injected.empty() ? "none" : run.injected[0].c_str(), run.named.c_str(),
+                  run.verdict.c_str());
+  // The issue's effects that a hand-placed land run separates on its own (K2 is confounded with
+  // the asymmetry here as on the table: see the next test).
+  EXPECT_TRUE(validated(r, "gyro_g_sensitivity"));
+  EXPECT_TRUE(validated(r, "thermal_drift"));
+  EXPECT_TRUE(validated(r, "size_effect"));
+  EXPECT_GE(r.effects.size(), 6u);
+  EXPECT_GE(r.top1, 0.85);
+  EXPECT_LE(r.false_alarm, 0.1);
+  EXPECT_GE(r.median_shrinkage, 0.7);
+}
+
+// K2 and the accelerometer asymmetry tell the same story on factory-std's positions (at ±1 g and
+// at tilts |f| and f² differ too little): a K2 run is explained by the set, with K2's own values.
+TEST(LandDiagnosisValidation, K2ByHandIsExplainedAsTheSetItCannotBeToldFrom) {
+  const RunSource world = land_source();
+  Effects fx;
+  fx.accel_k2_per_mps2 = Eigen::Vector3d(2e-6, -2e-6, 2e-6);  // ±20 µg/g², ~5x its threshold
+  for (uint64_t seed : {8u, 9u}) {
+    DiagnosisInput in;
+    in.cal = world(fx, seed, true);
+    const DiagnosisResult d = diagnose(in, calibrate_legacy(in.cal).params);
+    std::printf("seed %llu: %s\n", static_cast<unsigned long long>(seed), d.summary.c_str());
+    EXPECT_EQ(d.verdict, "explained");
+    EXPECT_NE(std::find(d.explained_by.begin(), d.explained_by.end(), "accel_quadratic_k2"),
+              d.explained_by.end());
+    for (const auto& c : d.candidates) {
+      if (c.name != "accel_quadratic_k2") continue;
+      for (int i = 0; i < 3; ++i)
+        EXPECT_LT(std::abs(c.value_si(i) - fx.accel_k2_per_mps2(i)),
+                  4.0 * c.params[static_cast<size_t>(i)].sigma /
+                      effect_info(c.id).params[static_cast<size_t>(i)].si_to_human)
+            << c.params[static_cast<size_t>(i)].name;
+    }
+  }
+}
