@@ -49,7 +49,7 @@ GradePrior grade_prior(Grade g) {
       p.still_rate_radps = 0.05 * kDegToRad;
       p.still_force_mps2 = 0.005;
       p.rest_rate_spread_radps = 0.1 * kDegToRad;
-      p.effect_scale = 30.0;
+      p.effect_scale = 100.0;
       break;
     case Grade::kMems:
       p.gyro_bias_radps = 5.0 * kDegToRad;
@@ -61,7 +61,7 @@ GradePrior grade_prior(Grade g) {
       p.still_rate_radps = 0.1 * kDegToRad;
       p.still_force_mps2 = 0.01;
       p.rest_rate_spread_radps = 0.5 * kDegToRad;
-      p.effect_scale = 1000.0;
+      p.effect_scale = 1e4;
       break;
   }
   return p;

@@ -45,9 +45,10 @@ struct GradePrior {
   /// gyros' g-sensitivity and bias drift between rests, well below any deliberate rotation.
   double rest_rate_spread_radps = 0.0;
   /// How much larger than the effects catalogue's typical (navigation-grade) sizes this class's
-  /// unmodelled effects may be: the gap diagnosis' plausibility limit scales with it. A MEMS
-  /// gyro's g-sensitivity (~0.1 °/s/g on datasheets) is ~10⁴ times a navigation gyro's, its
-  /// accelerometers' non-linearity ~10² times.
+  /// unmodelled effects may be: the gap diagnosis' plausibility limit and its signature floor scale
+  /// with it. A MEMS gyro's g-sensitivity (~0.1 °/s/g on datasheets) is ~4·10⁴ times the
+  /// catalogue's typical 0.009 °/h/g, a tactical one's (~1 °/h/g) ~10²; navigation 1, tactical 100,
+  /// MEMS 10⁴.
   double effect_scale = 1.0;
 };
 

@@ -126,8 +126,10 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
   r.name = e.name;
   r.unit = e.magnitude_unit();
   // A direction whose typical-size effect moves the whitened residuals by less than 0.01 (χ² 1e-4)
-  // has no signature at all on this sequence.
-  const Separability sep = separability(p.Jb, c.J, opt.separability_limit, 1e-4);
+  // has no signature at all on this sequence — typical for the unit's grade: a MEMS unit's effects
+  // are effect_scale times the catalogue's (navigation-grade) typical sizes, and so is its noise.
+  const Separability sep = separability(p.Jb, c.J, opt.separability_limit,
+                                        signature_floor(effect_scale(c.id, p.model.input().grade)));
   r.max_correlation = sep.max_correlation;
   const int n = static_cast<int>(c.J.cols());
   if (sep.basis.cols() == 0) {
@@ -330,8 +332,7 @@ void rank(std::vector<Scored>& c, const Problem& p, double held_out_before,
   for (size_t i = 0; i < c.size(); ++i) {
     CandidateResult& r = c[i].result;
     // The limit grows with the unit's grade: a MEMS unit's effects dwarf a navigation unit's.
-    judge_plausibility(r,
-                       opt.max_plausible_typical * grade_prior(p.model.input().grade).effect_scale);
+    judge_plausibility(r, opt.max_plausible_typical * effect_scale(r.id, p.model.input().grade));
     test[i] =
         r.separable && r.plausible && r.p_value < level && predicts_held_out(r, held_out_before);
   }

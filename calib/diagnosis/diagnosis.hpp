@@ -52,7 +52,7 @@ struct DiagnosisOptions {
   /// A candidate's fitted size above this many times its catalogue typical (navigation-grade) size
   /// is not physically plausible: not a finding however significant its fit (a K2 run's leakage
   /// read as a 4.6 m size effect). It is multiplied by the unit's grade's effect_scale
-  /// (calib/core/unit_grade.hpp: 1 navigation, 30 tactical, 1000 MEMS).
+  /// (calib/core/unit_grade.hpp: 1 navigation, 100 tactical, 10⁴ MEMS).
   double max_plausible_typical = 50.0;
   int folds = 5;
   size_t min_rest_samples = 100;

@@ -46,7 +46,9 @@ Analysed analyse(const GapLinearisation& lin, EffectId id, size_t candidates,
   const double tau = id == EffectId::kThermalDrift ? e.typical.back() : 0.0;
   const CandidateColumns c = lin.candidate(id, tau);
   d.directions = static_cast<int>(c.J.cols());
-  const Separability sep = separability(lin.Jb(), c.J, opt.separability_limit, 1e-4);
+  const Separability sep =
+      separability(lin.Jb(), c.J, opt.separability_limit,
+                   signature_floor(effect_scale(id, lin.model().input().grade)));
   d.separable_directions = static_cast<int>(sep.basis.cols());
   d.no_signature = sep.no_signature;
   d.max_correlation = sep.max_correlation;

@@ -9,6 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "calib/core/unit_grade.hpp"
+#include "calib/effects/catalogue.hpp"
+
 namespace imucal::calib {
 
 struct GlsFit {
@@ -63,6 +66,20 @@ struct Separability {
 /// no signature. `limit`: the correlation above which a direction is not separable.
 Separability separability(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& Jc, double limit,
                           double signature_floor);
+
+/// The signature floor of separability() for candidate columns in units of the catalogue's typical
+/// size: χ² 1e-4 (a 0.01 move of the whitened residuals) for an effect of the grade's typical size,
+/// effect_scale times the catalogue's (calib/core/unit_grade.hpp).
+inline double signature_floor(double effect_scale) { return 1e-4 / (effect_scale * effect_scale); }
+
+/// How much larger than its catalogue typical size an effect may be on a unit of `grade`: the
+/// grade's effect_scale (calib/core/unit_grade.hpp) for the unit's own effects (sensor and
+/// stochastic); 1 for the table's and the site's, which do not follow the unit's grade.
+inline double effect_scale(EffectId id, Grade grade) {
+  const EffectKind k = effect_info(id).kind;
+  return k == EffectKind::kSensor || k == EffectKind::kStochastic ? grade_prior(grade).effect_scale
+                                                                  : 1.0;
+}
 
 /// A correlation as people read it in a note: three decimals ("0.977", not "0.977463").
 std::string correlation_text(double r);

@@ -8,6 +8,7 @@
 #include "calib/core/earth.hpp"
 #include "calib/core/imu_error_model.hpp"
 #include "calib/core/rotation.hpp"
+#include "calib/effects/effect_compensation.hpp"
 #include "calib/effects/sensor_effects.hpp"
 #include "calib/effects/site_errors.hpp"
 #include "calib/effects/table_imperfections.hpp"
@@ -313,23 +314,12 @@ void GapModel::move_residual(const GapSegment& seg, const ParamSet& base, const 
   const bool effects = fx.any();
   Eigen::Matrix3d C = rest_attitude(seg.rest_a, base, fx, dpsi_n);
   Eigen::Vector3d v = Eigen::Vector3d::Zero();
-  const size_t n = in_.imu.size();
   for (size_t k = seg.begin; k < seg.end; ++k) {
     const ImuIncrement& x = in_.imu[k];
     const double dt = x.dt_s;
     Eigen::Vector3d dv_raw = x.dv_mps, dth_raw = x.dtheta_rad;
     if (effects) {
-      SensorKinematics kin;
-      kin.f_b = comp.dv(x.dv_mps, dt) / dt;
-      kin.w_b = comp.dtheta(x.dtheta_rad, dt) / dt;
-      const ImuIncrement& prev = in_.imu[k > 0 ? k - 1 : k];
-      const ImuIncrement& next = in_.imu[k + 1 < n ? k + 1 : k];
-      const double span = 0.5 * (next.t_s - prev.t_s);
-      if (span > 0.0)
-        kin.wdot_b = (next.dtheta_rad / next.dt_s - prev.dtheta_rad / prev.dt_s) / (2.0 * span);
-      kin.t0_s = x.t_s - dt - t_first_s_;
-      kin.dt_s = dt;
-      const IncrementDelta d = sensor_effects_delta(fx, kin, /*include_size_effect=*/true);
+      const IncrementDelta d = sensor_effects_at(in_.imu, k, comp, fx, t_first_s_);
       dv_raw -= d.dv;
       dth_raw -= d.dtheta;
     }

@@ -1,6 +1,8 @@
 #include "db/archive/diagnosis_json.hpp"
 
 #include <cmath>
+#include <sstream>
+#include <stdexcept>
 
 namespace imucal::archive {
 
@@ -151,6 +153,55 @@ nlohmann::json diagnosis_summary_json(const calib::DiagnosisResult& d) {
                   {"sigma", full["overall"]["sigma"]},
                   {"p_value", full["overall"]["p_value"]}};
   return s;
+}
+
+namespace {
+
+/// One finding ({"effect", "parameters": [{"name", "value", "unit"}]}) into `fx`, in SI.
+std::string add_finding(const nlohmann::json& f, const std::string& where, calib::Effects& fx) {
+  auto bad = [&](const std::string& what) { return std::invalid_argument(where + ": " + what); };
+  if (!f.is_object() || !f.contains("effect") || !f["effect"].is_string())
+    throw bad("not a finding (an object with \"effect\" and \"parameters\")");
+  const std::string name = f["effect"].get<std::string>();
+  const calib::EffectInfo* e = calib::find_effect(name);
+  if (!e) throw bad("unknown effect \"" + name + "\"");
+  if (!f.contains("parameters") || !f["parameters"].is_array()) throw bad("no \"parameters\"");
+  Eigen::VectorXd v = calib::effect_vector(fx, e->id);
+  for (int i = 0; i < e->size(); ++i) {
+    const calib::EffectParamInfo& pi = e->params[static_cast<size_t>(i)];
+    bool found = false;
+    for (const auto& p : f["parameters"]) {
+      if (!p.is_object() || p.value("name", "") != pi.name) continue;
+      if (!p.contains("value") || !p["value"].is_number())
+        throw bad(name + "." + pi.name + ": \"value\" must be a number");
+      v(i) = p["value"].get<double>() / pi.si_to_human;
+      found = true;
+    }
+    if (!found) throw bad(name + ": parameter " + pi.name + " missing");
+  }
+  calib::set_effect_vector(fx, e->id, v);
+  std::ostringstream os;
+  os.precision(3);
+  os << name;
+  if (f.contains("magnitude") && f["magnitude"].is_number())
+    os << " = " << f["magnitude"].get<double>() << " " << f.value("unit", "");
+  return os.str();
+}
+
+}  // namespace
+
+DiagnosedEffects diagnosed_effects(const nlohmann::json& j, const std::string& origin) {
+  if (!j.is_object() || !j.contains("verdict"))
+    throw std::invalid_argument(origin + ": not a gap diagnosis (no \"verdict\")");
+  DiagnosedEffects out;
+  for (const char* k : {"best", "second"}) {
+    if (!j.contains(k) || j[k].is_null()) continue;
+    out.names.push_back(add_finding(j[k], origin + ": " + k, out.effects));
+  }
+  if (out.names.empty())
+    throw std::invalid_argument(origin + ": the diagnosis names no effect to compensate (verdict " +
+                                j["verdict"].dump() + ")");
+  return out;
 }
 
 }  // namespace imucal::archive

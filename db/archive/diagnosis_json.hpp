@@ -14,6 +14,8 @@
 //    "moved_parameters": [...], "remaining": [{"where", "z"}], "runtime_s"}
 // Parameters are in human units (the catalogue's), each with its unit; "score" is the BIC gain.
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
 #include "calib/diagnosis/diagnosis.hpp"
 
@@ -24,6 +26,17 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d);
 /// The summary kept with a station run (runs.diagnosis_json): {"verdict", "summary", "best",
 /// "second", "ambiguous", "overall": {"gap", "expected", "sigma", "p_value"}, "held_out": {...}}.
 nlohmann::json diagnosis_summary_json(const calib::DiagnosisResult& d);
+
+/// The effects a diagnosis found (its "best" and "second"), back in SI: what `imucal calibrate
+/// --compensate` removes from a run before calibrating it.
+struct DiagnosedEffects {
+  calib::Effects effects;
+  std::vector<std::string> names;  ///< "gyro_g_sensitivity = 686 deg/h/g", one per effect
+};
+/// Reads them from a diagnosis JSON (diagnose --json, or --report's diagnosis.json); `origin`
+/// names it in errors. Throws std::invalid_argument naming the file and field when it is not a
+/// diagnosis, names no effect, or a parameter is missing.
+DiagnosedEffects diagnosed_effects(const nlohmann::json& j, const std::string& origin);
 
 /// "accel_x", ..., "gyro_z": the JSON keys of the six residual components.
 const char* gap_component_key(int c);

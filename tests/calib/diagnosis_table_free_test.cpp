@@ -14,6 +14,7 @@
 #include "calib/core/site_presets.hpp"
 #include "calib/diagnosis/diagnosis.hpp"
 #include "calib/diagnosis/gap_model.hpp"
+#include "calib/effects/effect_compensation.hpp"
 #include "calib/sim/field_sim.hpp"
 #include "sequences/library.hpp"
 
@@ -106,13 +107,16 @@ TEST(TableFreeDiagnosis, WithheldEffectsOfALandRunAreNamedWithTheirSize) {
                   p.unit.c_str());
       if (!(p.sigma > 0.0)) continue;
       EXPECT_LT(std::abs(p.value - t), 4.0 * p.sigma) << p.name;
-      if (c.id == EffectId::kGyroGSensitivity && t != 0.0)
+      if (c.id == EffectId::kGyroGSensitivity && t != 0.0) {
         EXPECT_LT(p.sigma, 0.25 * std::abs(t)) << p.name << " not resolved";
+      }
     }
     EXPECT_GT(d.held_out.shrinkage, 0.7);
     // No table: its effects are not candidates, and there is no simulated twin.
     for (const auto& k : d.candidates) {
-      if (effect_info(k.id).kind == EffectKind::kTable) EXPECT_FALSE(k.separable) << k.name;
+      if (effect_info(k.id).kind == EffectKind::kTable) {
+        EXPECT_FALSE(k.separable) << k.name;
+      }
     }
     EXPECT_TRUE(std::isnan(d.twin_gap));
   }
@@ -143,4 +147,32 @@ TEST(TableFreeDiagnosis, ASeaRunIsRefusedNamingWhy) {
     EXPECT_NE(std::string(e.what()).find("sea run cannot be diagnosed"), std::string::npos)
         << e.what();
   }
+}
+
+// What `calibrate --compensate` does with a diagnosis' finding: the effect taken out of the data
+// leaves the run the unit would have recorded without it (to the second order the effect is
+// evaluated at measured rather than true kinematics), and only the unit's own effects come out.
+TEST(EffectCompensation, RemovingAnEffectLeavesTheRunWithoutIt) {
+  Effects fx;
+  fx.gyro_g_sens = Eigen::Matrix3d::Identity() * 1e-7;
+  fx.gyro_accel_skew_s = 2e-3;
+  UnitModel with = land_unit(), without = land_unit();
+  with.effects = fx;
+  ImuSeries imu = simulate_land(with, false, 4).sim.imu;
+  const ImuSeries clean = simulate_land(without, false, 4).sim.imu;
+  double effect = 0.0, left = 0.0;
+  for (size_t k = 0; k < imu.size(); ++k)
+    effect = std::max(effect, (imu[k].dtheta_rad - clean[k].dtheta_rad).norm() +
+                                  (imu[k].dv_mps - clean[k].dv_mps).norm());
+  remove_sensor_effects(imu, fx, with.params);
+  for (size_t k = 0; k < imu.size(); ++k)
+    left = std::max(left, (imu[k].dtheta_rad - clean[k].dtheta_rad).norm() +
+                              (imu[k].dv_mps - clean[k].dv_mps).norm());
+  std::printf("the effects per sample up to %.3g (rad + m/s); left after removal %.3g\n", effect,
+              left);
+  EXPECT_GT(effect, 1e-5);
+  EXPECT_LT(left, 1e-3 * effect);
+  Effects table;
+  table.table_nonorthogonality_rad = 1e-5;
+  EXPECT_THROW(remove_sensor_effects(imu, table, with.params), std::invalid_argument);
 }

@@ -21,15 +21,19 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "calib/checks/crlb.hpp"
 #include "calib/core/site_presets.hpp"
+#include "calib/effects/effect_compensation.hpp"
+#include "calib/legacy/legacy.hpp"
 #include "calib/pipeline/calibration_pipeline.hpp"
 #include "calib/sim/field_sim.hpp"
 #include "calib/sim/hand_placement.hpp"
 #include "calib/sim/truth_sim.hpp"
 #include "calib/sim/unit_draw.hpp"
 #include "db/archive/archive_error.hpp"
+#include "db/archive/diagnosis_json.hpp"
 #include "db/archive/param_json.hpp"
 #include "db/archive/run_archive.hpp"
 #include "db/archive/unit_file.hpp"
@@ -223,7 +227,37 @@ int cmd_simulate(const SimulateArgs& a) {
 struct PriorOverride {
   std::string grade;        ///< empty: run.toml's
   double min_rest_s = 0.0;  ///< 0: run.toml's
+  std::string compensate;   ///< --compensate: a diagnosis JSON whose effects are removed first
 };
+
+/// --compensate FILE: the effects a diagnosis found (its best and second), read before any work.
+std::optional<archive::DiagnosedEffects> read_compensation(const std::string& path) {
+  if (path.empty()) return std::nullopt;
+  std::ifstream f(path);
+  if (!f) throw std::invalid_argument("--compensate " + path + ": cannot read it");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(f);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw std::invalid_argument("--compensate " + path + ": not JSON: " + e.what());
+  }
+  archive::DiagnosedEffects fx = archive::diagnosed_effects(j, "--compensate " + path);
+  try {
+    calib::check_removable(fx.effects);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("--compensate " + path + ": " + e.what());
+  }
+  return fx;
+}
+
+/// Removes the diagnosed effects from the run before the methods see it, evaluated with the
+/// multi-position calibration of the run as it is (the effects act on the true rates and forces,
+/// which need a calibration to be known, and that one needs no prior beyond the grade's).
+void compensate(calib::CalibrationInput& in, const archive::DiagnosedEffects& fx) {
+  progress("removing the diagnosed effects");
+  const calib::CalibrationResult base = calib::calibrate_legacy(in);
+  calib::remove_sensor_effects(in.imu, fx.effects, base.params);
+}
 
 calib::MethodSelection parse_method(const std::string& m) {
   if (m == "ains") return calib::MethodSelection::kAins;
@@ -251,8 +285,10 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
   archive::RunArchive ar = archive::read_archive(dir);
   if (!prior.grade.empty()) ar.info.grade = *calib::parse_grade(prior.grade);
   if (prior.min_rest_s > 0.0) ar.info.min_rest_s = prior.min_rest_s;
+  const std::optional<archive::DiagnosedEffects> fx = read_compensation(prior.compensate);
   progress("checking the archive");
-  const calib::CalibrationInput in = calibration_input(ar, setting);
+  calib::CalibrationInput in = calibration_input(ar, setting);
+  if (fx) compensate(in, *fx);
   calib::PipelineOptions opt;
   opt.methods = parse_method(method);
   opt.crosscheck.k_sigma = k_sigma;
@@ -272,12 +308,18 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
   if (json) {
     nlohmann::json j = tools::pipeline_to_json(r);
     j["partial_archive"] = partial;
+    if (fx) j["compensated"] = {{"file", prior.compensate}, {"effects", fx->names}};
     if (partial) j["verdict"] = "REVIEW";
     std::cout << j.dump(2) << '\n';
   } else {
     std::cout << "run " << dir << " (serial " << ar.info.serial << ", sequence "
               << ar.info.sequence_name << ", setting " << calib::setting_name(in.setting) << ", "
               << in.imu.size() << " samples)\n";
+    if (fx) {
+      std::cout << "compensated before calibrating (from " << prior.compensate << "):";
+      for (const std::string& n : fx->names) std::cout << ' ' << n << ';';
+      std::cout << '\n';
+    }
     tools::print_parameter_table(std::cout, r, ar.truth ? &ar.truth->params : nullptr);
     tools::print_metrics_and_verdict(std::cout, r);
     if (partial) std::cout << partial_note << '\n';
@@ -449,6 +491,11 @@ void add_calibrate(CLI::App& app, Commands& c) {
                   "field runs: the shortest rest kept, s (default: the detector's, 10 s for "
                   "navigation grade, 2 s otherwise)")
       ->check(CLI::Range(0.5, 600.0));
+  cal->add_option("--compensate", c.prior.compensate,
+                  "a gap diagnosis (imucal diagnose --json, or --report's diagnosis.json): remove "
+                  "the effects it found (its best and second) from the run before calibrating it "
+                  "— the unit's sensor effects only, evaluated with the run's multi-position "
+                  "calibration");
   cal->add_option("--k-sigma", c.k_sigma, "cross-check bound in combined σ")->capture_default_str();
   cal->add_flag("--json", c.json, "print one JSON object");
   cal->add_option("--plot", c.plot_path,
