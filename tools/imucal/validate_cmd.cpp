@@ -8,7 +8,9 @@
 
 #include "calib/core/site_presets.hpp"
 #include "calib/diagnosis/diagnosis_validation.hpp"
+#include "calib/sim/hand_placement.hpp"
 #include "calib/sim/sim_input.hpp"
+#include "calib/sim/unit_draw.hpp"
 #include "sequences/library.hpp"
 #include "tools/imucal/progress_line.hpp"
 
@@ -101,13 +103,55 @@ CLI::App* add_validate_command(CLI::App& app, ValidateArgs& a) {
                 "hand, no table log, the multi-position calibration)")
       ->capture_default_str()
       ->check(CLI::IsMember({"factory", "land"}));
+  c->add_option(
+       "--grade", a.grade,
+       "land: the unit drawn (by --seed) from this grade's envelope instead of the default "
+       "navigation-grade unit; with --sequence hand, 38 hand-placed positions of 3-11 s "
+       "after a 50 s rest")
+      ->check(CLI::IsMember({"navigation", "tactical", "mems"}));
   c->add_flag("--json", a.json, "print one JSON object");
   return c;
 }
 
+namespace {
+
+/// The runs to validate on: table runs of the default unit; on land the default unit or one drawn
+/// from --grade's envelope, the sequence's positions (or the hand-placed 'hand' set) by hand.
+struct World {
+  calib::RunSource source;
+  calib::UnitModel unit;
+  std::string name;
+};
+
+World make_world(const ValidateArgs& a) {
+  const bool land = a.setting == "land";
+  if (!land && (!a.grade.empty() || a.sequence == "hand"))
+    throw std::invalid_argument("--grade and --sequence hand need --setting land");
+  const sequences::MotionProfile profile =
+      a.sequence == "hand" ? calib::hand_placed_profile(a.seed)
+                           : sequences::load_profile(sequences::resolve_sequence(a.sequence));
+  World w;
+  const calib::Grade grade =
+      a.grade.empty() ? calib::Grade::kNavigation : *calib::parse_grade(a.grade);
+  w.unit = a.grade.empty() ? calib::default_unit() : calib::draw_unit(grade, a.seed);
+  w.name = profile.name;
+  if (!land) {
+    w.source = calib::truth_run_source(profile, calib::TableGeometry{}, calib::demo_factory_site(),
+                                       w.unit, 100.0);
+    return w;
+  }
+  w.unit.params.table_misalignment_rad.setZero();  // no table: no table misalignment
+  calib::FieldSimOptions field;
+  field.setting = calib::Setting::kLand;
+  w.source = calib::field_run_source(profile, calib::demo_factory_site(), w.unit, field, grade);
+  w.name += std::string(" (land, ") + calib::grade_name(grade) + ")";
+  return w;
+}
+
+}  // namespace
+
 int cmd_validate(const ValidateArgs& a) {
-  const std::string path = sequences::resolve_sequence(a.sequence);
-  const sequences::MotionProfile profile = sequences::load_profile(path);
+  const World world = make_world(a);
   calib::ValidationOptions opt;
   opt.runs_per_effect = a.runs;
   opt.null_runs = a.nulls < 0 ? a.runs : a.nulls;
@@ -116,18 +160,9 @@ int cmd_validate(const ValidateArgs& a) {
   opt.threads = a.threads;
   opt.effects = parse_effects(a.effects);
   opt.on_progress = ProgressLine("validate-diagnosis", "runs");
-  calib::UnitModel unit = calib::default_unit();
-  const bool land = a.setting == "land";
-  if (land) unit.params.table_misalignment_rad.setZero();  // no table: no table misalignment
-  calib::FieldSimOptions field;
-  field.setting = calib::Setting::kLand;
-  const calib::RunSource world =
-      land ? calib::field_run_source(profile, calib::demo_factory_site(), unit, field)
-           : calib::truth_run_source(profile, calib::TableGeometry{}, calib::demo_factory_site(),
-                                     unit, 100.0);
-  const calib::ValidationReport r = calib::validate_diagnosis(
-      world, calib::TableGeometry{}, unit.params, profile.name + (land ? " (land)" : ""), opt);
-  const double false_alarm_bar = land ? kFalseAlarmLand : kFalseAlarm;
+  const calib::ValidationReport r = calib::validate_diagnosis(world.source, calib::TableGeometry{},
+                                                              world.unit.params, world.name, opt);
+  const double false_alarm_bar = a.setting == "land" ? kFalseAlarmLand : kFalseAlarm;
   const bool pass = r.top1 >= kTop1 && r.false_alarm <= false_alarm_bar &&
                     r.median_shrinkage >= kShrinkage &&
                     (r.pair_count == 0 || r.pair_both >= kPairs);

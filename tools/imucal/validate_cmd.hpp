@@ -1,9 +1,9 @@
 #pragma once
 // `imucal validate-diagnosis [--runs N] [--nulls N] [--pairs N] [--seed S] [--sequence S]
-// [--effects a,b] [--threads N] [--setting factory|land] [--json]`: the blind validation of the gap
-// diagnosis
-// (calib/diagnosis/diagnosis_validation.hpp) — confusion matrix, top-1 accuracy, false alarms on
-// null runs, median held-out shrinkage, pairs named — with a progress line on stderr.
+// [--effects a,b] [--threads N] [--setting factory|land] [--grade G] [--json]`: the blind
+// validation of the gap diagnosis (calib/diagnosis/diagnosis_validation.hpp) — confusion matrix,
+// top-1 accuracy, false alarms on null runs, median held-out shrinkage, pairs named — with a
+// progress line on stderr.
 #include <CLI/CLI.hpp>
 #include <cstdint>
 #include <string>
@@ -16,6 +16,7 @@ struct ValidateArgs {
   std::string sequence = "factory-std";
   std::string effects;
   std::string setting = "factory";  ///< factory: table runs; land: table-free hand-placed runs
+  std::string grade;                ///< land: a unit drawn from this grade's envelope (--seed)
   bool json = false;
 };
 
