@@ -158,9 +158,11 @@ Matrix3d integrate(const ImuSeries& imu, size_t a, size_t b, const Vector3d& off
   return C;
 }
 
+/// `f`: the rests' raw mean specific force (the magnitudes); `f_dir`: the same with each
+/// accelerometer's offset and scale removed when the grade asks for it (the directions).
 void check_gravity(const CalibrationInput& in, const std::vector<RestPeriod>& rests,
-                   const std::vector<Vector3d>& f, const DataCheckOptions& o,
-                   std::vector<DataProblem>& out) {
+                   const std::vector<Vector3d>& f, const std::vector<Vector3d>& f_dir,
+                   const DataCheckOptions& o, std::vector<DataProblem>& out) {
   const double g = EarthModel(in.site).gravity_mps2();
   size_t worst = 0;
   double worst_rel = 0.0;
@@ -183,7 +185,7 @@ void check_gravity(const CalibrationInput& in, const std::vector<RestPeriod>& re
   for (size_t k = 0; k < f.size(); ++k) {
     const size_t mid = (rests[k].begin + rests[k].end) / 2;
     const Vector3d expected = in.reference[mid].C_bn_ref.transpose() * Vector3d(0, 0, -g);
-    off.push_back(angle_deg(f[k], expected));
+    off.push_back(angle_deg(f_dir[k], expected));
   }
   // Calibration errors never move gravity by degrees at any rest: two such rests are a finding
   // (an axis swapped or flipped shows only in the rests where it is not horizontal).
@@ -281,11 +283,13 @@ std::vector<DataProblem> check_data(const CalibrationInput& in, const DataCheckO
   const std::vector<RestPeriod> rests = find_rest_periods(in, o.min_rest_samples);
   if (rests.empty()) return out;
   const std::vector<Vector3d> f = rest_means(in, rests);
-  check_gravity(in, rests, f, o, out);
-  check_rotations(
-      in, rests,
-      o.remove_accel_offset ? without_accel_offset(f, EarthModel(in.site).gravity_mps2()) : f, o,
-      out);
+  // Below navigation grade each accelerometer's offset and scale (up to 200 mg and 30 %) would
+  // tilt gravity by up to 20°: the directions are compared with them removed (an ellipsoid fit to
+  // |f| = g), which leaves a swap or a sign flip as it is.
+  const std::vector<Vector3d> f_dir =
+      o.remove_accel_offset ? without_accel_offset(f, EarthModel(in.site).gravity_mps2()) : f;
+  check_gravity(in, rests, f, f_dir, o, out);
+  check_rotations(in, rests, f_dir, o, out);
   return out;
 }
 

@@ -112,4 +112,11 @@ DatasheetLimits limits_for_grade(const DatasheetLimits& limits, const UnitPrior&
   return l;
 }
 
+MetricLimits metric_limits_for_grade(const MetricLimits& limits, Grade grade) {
+  if (grade == Grade::kNavigation) return limits;
+  const GradePrior nav = grade_prior(Grade::kNavigation), g = grade_prior(grade);
+  return {limits.orientation_rmse_mdeg * g.arw_rad_per_sqrt_s / nav.arw_rad_per_sqrt_s,
+          limits.accel_rmse_ug * g.vrw_mps_per_sqrt_s / nav.vrw_mps_per_sqrt_s};
+}
+
 }  // namespace imucal::calib

@@ -41,6 +41,16 @@ struct LimitCheckOptions {
   double max_accel_rmse_ug = 40.0;
 };
 
+/// The evaluation metrics' limits (orientation RMSE, acceleration RMSE; set for a navigation-grade
+/// product) for a unit of `grade`: scaled by the grade's class noise over the navigation class's
+/// — ARW for the orientation, VRW for the acceleration (calib/core/unit_grade.hpp: ×200 and ×6 for
+/// MEMS, ×40 and ×2 for tactical) — so they keep the same margin over what the unit's own noise
+/// leaves. Navigation grade: unchanged.
+struct MetricLimits {
+  double orientation_rmse_mdeg = 30.0, accel_rmse_ug = 40.0;
+};
+MetricLimits metric_limits_for_grade(const MetricLimits& limits, Grade grade);
+
 struct LimitFailure {
   std::string method;  ///< "ains", "nlsq", "legacy"
   std::string term;    ///< parameter name, "converged", or a metric name

@@ -16,6 +16,10 @@
 //     left out of its fit; a candidate left with none is reported as not separable, with the base
 //     parameters it aliases, never as a finding; two candidates whose signatures correlate > 0.95
 //     are not separable from each other.
+//  A table-free run (land, by hand; issue #21) is diagnosed the same way with each rest's attitude
+//  an unknown of every fit (calib/diagnosis/gap_model.hpp): the base columns are then the 24 sensor
+//  parameters and those attitudes, and the held-out check leaves out what only the held-out move
+//  measures (its relative heading).
 //  3. Quantify: the gap on held-out segments (K-fold over rests and the moves after them) before
 //  and
 //     after adding the best effect, and the best pair; the base parameters that move, in σ.

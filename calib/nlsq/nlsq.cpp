@@ -316,7 +316,7 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
         "bias instability (Gauss-Markov) is not part of the NLSQ residual weights; sigma covers "
         "white noise and quantisation only");
 
-  ParamVector theta = ParamVector::Zero();
+  ParamVector theta = opt.start ? opt.start->to_vector() : ParamVector::Zero();
   ParamCovariance cov = ParamCovariance::Zero();
   double chi2 = 0.0;
   int dof = 0;

@@ -48,6 +48,7 @@
 // precision is unchanged (its information comes from a_R in both forms); ς's heading component
 // gains a little from the gyros' Earth-rate sensing at rest.
 #include <cstddef>
+#include <optional>
 
 #include "calib/core/calibration_input.hpp"
 
@@ -63,6 +64,10 @@ struct NlsqOptions {
   /// the table per rotation (end of rest A to start of rest B) and per rest; false: the paper's
   /// gravity-only eq. 50 (2-D tilt d_i, mid-rest to mid-rest). See the notes above.
   bool use_table_heading = true;
+  /// The first linearisation point (default: zero, a unit near nominal). Below navigation grade
+  /// the pipeline starts from the legacy result: a MEMS unit's gyro offsets of degrees per second
+  /// and scales 30 % off are beyond what the re-linearisations reach from zero.
+  std::optional<ParamSet> start;
 };
 
 /// Calibrate the 27 parameters from a factory run. Throws std::invalid_argument (message starting

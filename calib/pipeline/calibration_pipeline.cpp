@@ -73,8 +73,10 @@ std::vector<DataProblem> check_input(const CalibrationInput& in, const PipelineO
 /// A land run of a unit that may be far from nominal (every grade but navigation): the filter
 /// cannot start from zero (a MEMS gyro's offset of degrees per second defeats gyrocompassing and
 /// linearisation alike), so it starts from the legacy result (issue #21).
-bool ains_starts_from_legacy(const CalibrationInput& in) {
-  return in.setting == Setting::kLand && in.grade != Grade::kNavigation;
+/// Below navigation grade, on land and on the table, the methods start from the legacy result
+/// (at sea there is no legacy method: AINS stands alone).
+bool starts_from_legacy(const CalibrationInput& in) {
+  return in.setting != Setting::kSea && in.grade != Grade::kNavigation;
 }
 
 /// Heading after gyrocompassing with a gyro whose bias is known to σ_b: σ_b / (Ω cos φ). A MEMS
@@ -96,10 +98,34 @@ CalibrationResult run_ains_from(const CalibrationInput& in, const PipelineOption
   return r;
 }
 
-/// The data checks, the legacy method, then AINS started from its result: one after the other.
-/// The legacy outcome is reported only when it was asked for.
-void run_methods_from_legacy(const CalibrationInput& in, const PipelineOptions& opt, bool legacy,
-                             PipelineResult& out) {
+/// Below navigation grade no table run observes the fixture's heading misalignment ς_z: only
+/// gyrocompassing does, and such gyros cannot resolve the Earth rate to a useful heading. The
+/// result says so instead of reporting its value (or failing the limits on it).
+void describe_unresolved_heading(const CalibrationInput& in, CalibrationResult& r) {
+  if (in.setting != Setting::kFactory || in.grade == Grade::kNavigation) return;
+  constexpr size_t kTableHeading = ParamSet::kSize - 1;  // ς_z, the last of the flat order
+  if (!r.observable[kTableHeading]) return;
+  r.observable[kTableHeading] = false;
+  r.unobservable_notes.push_back(
+      std::string("table heading misalignment: not observable with a ") + grade_name(in.grade) +
+      " unit (only gyrocompassing sees it, and these gyros cannot resolve the Earth rate)");
+}
+
+/// NLSQ linearised first about `start` (the legacy result). The result says where it started.
+CalibrationResult run_nlsq_from(const CalibrationInput& in, const PipelineOptions& opt,
+                                const ParamSet& start) {
+  NlsqOptions o = opt.nlsq;
+  o.start = start;
+  CalibrationResult r = calibrate_nlsq(in, o);
+  r.warnings.push_back(std::string("NLSQ linearised first about the legacy result (a ") +
+                       grade_name(in.grade) + " unit may be far from nominal)");
+  return r;
+}
+
+/// The data checks, the legacy method, then AINS (and on the table NLSQ) started from its result:
+/// one after the other. The legacy outcome is reported only when it was asked for.
+void run_methods_from_legacy(const CalibrationInput& in, const PipelineOptions& opt, bool ains,
+                             bool nlsq, bool legacy, PipelineResult& out) {
   std::vector<DataProblem> problems = check_input(in, opt);
   if (!problems.empty()) throw DataCheckError(std::move(problems));
   MethodOutcome start = run_method(in, opt, "legacy", run_legacy);
@@ -108,7 +134,11 @@ void run_methods_from_legacy(const CalibrationInput& in, const PipelineOptions& 
   auto ains_from_legacy = [&params](const CalibrationInput& i, const PipelineOptions& o) {
     return run_ains_from(i, o, params);
   };
-  out.ains = run_method(in, opt, "AINS", ains_from_legacy);
+  auto nlsq_from_legacy = [&params](const CalibrationInput& i, const PipelineOptions& o) {
+    return run_nlsq_from(i, o, params);
+  };
+  if (ains) out.ains = run_method(in, opt, "AINS", ains_from_legacy);
+  if (nlsq) out.nlsq = run_method(in, opt, "NLSQ", nlsq_from_legacy);
 }
 
 /// The data checks, then AINS, and NLSQ or legacy, each with its evaluation. With opt.concurrent
@@ -118,7 +148,8 @@ void run_methods_from_legacy(const CalibrationInput& in, const PipelineOptions& 
 /// have ended.
 void run_methods(const CalibrationInput& in, const PipelineOptions& opt, bool ains, bool nlsq,
                  bool legacy, PipelineResult& out) {
-  if (ains && ains_starts_from_legacy(in)) return run_methods_from_legacy(in, opt, legacy, out);
+  if ((ains || nlsq) && starts_from_legacy(in))
+    return run_methods_from_legacy(in, opt, ains, nlsq, legacy, out);
   std::optional<MethodOutcome>* second = nlsq ? &out.nlsq : legacy ? &out.legacy : nullptr;
   auto run_second = [&] {
     *second =
@@ -177,18 +208,26 @@ PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions
               // The legacy method needs a still platform: on land it is AINS's independent check;
               // at sea (a rocking, drifting deck) there is none, and AINS stands alone.
               (all && in.setting == Setting::kLand) || sel == MethodSelection::kLegacy, out);
+  for (auto* m : {&out.ains, &out.nlsq})
+    if (*m) describe_unresolved_heading(in, (*m)->result);
   const std::optional<MethodOutcome>& second = out.nlsq ? out.nlsq : out.legacy;
+  // The metrics' limits follow the unit's grade (a MEMS unit's noise alone leaves ~200 mdeg).
+  CrossCheckOptions crosscheck = opt.crosscheck;
+  const MetricLimits metric = metric_limits_for_grade(
+      {crosscheck.max_orientation_rmse_mdeg, crosscheck.max_accel_rmse_ug}, in.grade);
+  crosscheck.max_orientation_rmse_mdeg = metric.orientation_rmse_mdeg;
+  crosscheck.max_accel_rmse_ug = metric.accel_rmse_ug;
   if (out.ains && second) {
     if (opt.on_phase) opt.on_phase("cross-check");
     out.crosscheck = cross_check(out.ains->result, out.ains->metrics, second->result,
-                                 second->metrics, opt.crosscheck);
+                                 second->metrics, crosscheck);
   }
   // The cross-check already holds both methods' metrics to their limits; a method on its own
   // gets that check here.
   LimitCheckOptions limits = opt.limits;
   limits.datasheet = limits_for_grade(limits.datasheet, in.unit_prior());
-  limits.max_orientation_rmse_mdeg = opt.crosscheck.max_orientation_rmse_mdeg;
-  limits.max_accel_rmse_ug = opt.crosscheck.max_accel_rmse_ug;
+  limits.max_orientation_rmse_mdeg = crosscheck.max_orientation_rmse_mdeg;
+  limits.max_accel_rmse_ug = crosscheck.max_accel_rmse_ug;
   for (const auto* m : {&out.ains, &out.nlsq, &out.legacy})
     if (*m) check_limits((*m)->result, (*m)->metrics, !out.crosscheck, limits, out.limits);
   if (in.setting == Setting::kSea)

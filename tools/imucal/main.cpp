@@ -95,8 +95,13 @@ calib::UnitModel load_unit(const std::string& path) {
 }
 
 /// Reject a sequence that leaves a parameter unobservable, naming the parameters.
-void require_full_rank(const calib::CrlbResult& crlb, const std::string& seq_path) {
-  const auto unobs = calib::unobservable_parameters(crlb);
+void require_full_rank(const calib::CrlbResult& crlb, const std::string& seq_path,
+                       const calib::AinsOptions& opt = {}, bool heading_by_gyrocompass = true) {
+  auto unobs = calib::unobservable_parameters(crlb, opt);
+  // Below navigation grade no sequence observes the fixture's heading misalignment ς_z: only
+  // gyrocompassing does, and the gyros cannot resolve the Earth rate. The calibration says so.
+  if (!heading_by_gyrocompass)
+    unobs.erase(std::remove(unobs.begin(), unobs.end(), "table_misalignment_rad[2]"), unobs.end());
   if (unobs.empty()) return;
   std::string names;
   for (const auto& n : unobs) names += (names.empty() ? "" : ", ") + n;
@@ -195,8 +200,13 @@ int cmd_simulate(const SimulateArgs& a) {
     const calib::Site site = default_site();
     const calib::TableGeometry geometry{};
     progress("checking observability");
-    require_full_rank(calib::compute_crlb(profile, geometry, site, unit.noise, a.rate_hz),
-                      seq_path);
+    // Against the prior of the unit's grade (as `crlb --grade` does): a MEMS unit's gyro terms
+    // are seen to a small fraction of its wide envelope, not of a navigation unit's.
+    calib::AinsOptions prior;
+    if (unit.grade != calib::Grade::kNavigation)
+      prior.prior_sigma = calib::prior_sigma_for_grade(unit.grade);
+    require_full_rank(calib::compute_crlb(profile, geometry, site, unit.noise, a.rate_hz, prior),
+                      seq_path, prior, unit.grade == calib::Grade::kNavigation);
     progress("simulating " + std::to_string(static_cast<int>(profile.duration_s())) + " s at " +
              std::to_string(static_cast<int>(a.rate_hz)) + " Hz");
     calib::SimOptions opt;
