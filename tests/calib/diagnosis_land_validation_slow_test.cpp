@@ -17,6 +17,7 @@
 #include "calib/legacy/legacy.hpp"
 #include "calib/sim/sim_input.hpp"
 #include "sequences/library.hpp"
+#include "tests/support/validation_report.hpp"
 
 using namespace imucal;
 using namespace imucal::calib;
@@ -52,17 +53,9 @@ TEST(LandDiagnosisValidation, FactoryStdByHandMeetsTheBarWithMargins) {
   opt.seed = 5;
   const ValidationReport r =
       validate_diagnosis(land_source(), TableGeometry{}, land_unit().params, "factory-std", opt);
-  std::printf(
-      "%zu effects, %d single runs, %d null: top-1 %.2f, false alarms %.2f, shrinkage %.2f\n",
-      r.effects.size(), r.single_runs, r.null_count, r.top1, r.false_alarm, r.median_shrinkage);
+  calib::testing::print_validation(r);
   for (const auto& d : r.detectability)
     if (!d.separable()) std::printf("  not validated: %s (%s)\n", d.name.c_str(), d.reason.c_str());
-  for (const auto& run : r.runs)
-    if ((run.injected.size() == 1 && run.named != run.injected[0]) ||
-        (run.injected.empty() && run.named != "none"))
-      std::printf("  miss: %s -> %s (%s)\n",
-                  run.injected.empty() ? "none" : run.injected[0].c_str(), run.named.c_str(),
-                  run.verdict.c_str());
   // The effects that a hand-placed land run separates on its own (K2 is confounded with
   // the asymmetry here as on the table: see the next test).
   EXPECT_TRUE(validated(r, "gyro_g_sensitivity"));

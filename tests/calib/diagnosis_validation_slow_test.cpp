@@ -13,6 +13,7 @@
 #include "calib/diagnosis/diagnosis_validation.hpp"
 #include "calib/sim/sim_input.hpp"
 #include "sequences/library.hpp"
+#include "tests/support/validation_report.hpp"
 
 using namespace imucal;
 using namespace imucal::calib;
@@ -29,17 +30,7 @@ TEST(DiagnosisValidation, FactoryStdMeetsTheBarWithMargins) {
       validate_diagnosis(truth_run_source(sequences::load_profile("factory-std"), TableGeometry{},
                                           demo_factory_site(), default_unit(), 100.0),
                          TableGeometry{}, default_unit().params, "factory-std", opt);
-  std::printf(
-      "%zu effects, %d single runs, %d null, %d pairs: top-1 %.2f, false alarms %.2f, "
-      "median shrinkage %.2f, pairs %.2f\n",
-      r.effects.size(), r.single_runs, r.null_count, r.pair_count, r.top1, r.false_alarm,
-      r.median_shrinkage, r.pair_both);
-  for (const auto& run : r.runs)
-    if ((run.injected.size() == 1 && run.named != run.injected[0]) ||
-        (run.injected.empty() && run.named != "none"))
-      std::printf("  miss: %s -> %s (%s)\n",
-                  run.injected.empty() ? "none" : run.injected[0].c_str(), run.named.c_str(),
-                  run.verdict.c_str());
+  calib::testing::print_validation(r);
   // Every effect factory-std separates is validated: the dynamic, table, site and stochastic ones.
   EXPECT_GE(r.effects.size(), 9u);
   EXPECT_GE(r.top1, 0.8);
