@@ -117,6 +117,30 @@ std::string base_names(const GapLinearisation& lin, const std::vector<int>& idx)
   return s;
 }
 
+/// A fitted candidate's magnitude and its σ. The magnitude is a norm of scaled parameters,
+/// |s ⊙ v|; with two or more fitted components it is debiased for their noise
+/// (calib/diagnosis/effect_magnitude.hpp), with one it is |x| ± σ.
+void set_magnitude(CandidateResult& r, const EffectInfo& e, const CandidateColumns& c,
+                   const Eigen::VectorXd& x, const Eigen::MatrixXd& cov_x) {
+  const int n = static_cast<int>(c.param_index.size());
+  Eigen::VectorXd scale_h(n);
+  for (int k = 0; k < n; ++k) {
+    Eigen::VectorXd unit = Eigen::VectorXd::Zero(e.size());
+    unit(c.param_index[static_cast<size_t>(k)]) = 1.0;
+    scale_h(k) = e.magnitude(unit);
+  }
+  const Eigen::VectorXd y = scale_h.cwiseProduct(x);
+  const Eigen::MatrixXd Sy = scale_h.asDiagonal() * cov_x * scale_h.asDiagonal();
+  if ((scale_h.array() > 0.0).count() >= 2) {
+    const NormEstimate m = debiased_norm(y, Sy);
+    r.magnitude = m.value;
+    r.magnitude_sigma = m.sigma;
+  } else {
+    r.magnitude = y.norm();
+    r.magnitude_sigma = std::sqrt(std::max(0.0, Sy.sum()));
+  }
+}
+
 /// Fit one candidate jointly with the base (in its separable subspace) and score it.
 CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, double chi2_0,
                                 const DiagnosisOptions& opt, Eigen::MatrixXd& J_eff) {
@@ -176,25 +200,7 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
     r.params.push_back({pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human,
                         pi.shape ? 0.0 : sigma_si(j) * pi.si_to_human});
   }
-  // Magnitude and its σ. The magnitude is a norm of scaled parameters, |s ⊙ v|; with two or more
-  // fitted components it is debiased for their noise (calib/diagnosis/effect_magnitude.hpp), with
-  // one it is |x| ± σ.
-  Eigen::VectorXd scale_h(n);
-  for (int k = 0; k < n; ++k) {
-    Eigen::VectorXd unit = Eigen::VectorXd::Zero(e.size());
-    unit(c.param_index[static_cast<size_t>(k)]) = 1.0;
-    scale_h(k) = e.magnitude(unit);
-  }
-  const Eigen::VectorXd y = scale_h.cwiseProduct(x);
-  const Eigen::MatrixXd Sy = scale_h.asDiagonal() * cov_x * scale_h.asDiagonal();
-  if ((scale_h.array() > 0.0).count() >= 2) {
-    const NormEstimate m = debiased_norm(y, Sy);
-    r.magnitude = m.value;
-    r.magnitude_sigma = m.sigma;
-  } else {
-    r.magnitude = y.norm();
-    r.magnitude_sigma = std::sqrt(std::max(0.0, Sy.sum()));
-  }
+  set_magnitude(r, e, c, x, cov_x);
   try {
     r.held_out_gap = held_out_gap(p.r0, hcat(p.Jb, J_eff), p.folds).ratio();
   } catch (const std::invalid_argument&) {
