@@ -176,3 +176,34 @@ TEST(EffectCompensation, RemovingAnEffectLeavesTheRunWithoutIt) {
   table.table_nonorthogonality_rad = 1e-5;
   EXPECT_THROW(remove_sensor_effects(imu, table, with.params), std::invalid_argument);
 }
+
+// The table-free fit's σ are honest: over land runs with a withheld g-sensitivity, the fitted
+// terms' error over their σ is N(0, 1) (RMS within [0.7, 1.4]).
+TEST(TableFreeDiagnosis, TheFittedEffectsSigmaIsHonestMonteCarlo) {
+  Effects fx;
+  fx.gyro_g_sens << 1e-7, 2e-8, 0.0, -3e-8, 8e-8, 1e-8, 0.0, 4e-8, 1.2e-7;
+  UnitModel unit = land_unit();
+  unit.effects = fx;
+  const Eigen::VectorXd truth = effect_vector(fx, EffectId::kGyroGSensitivity);
+  double sum2 = 0.0;
+  int n = 0;
+  for (uint64_t seed = 40; seed < 48; ++seed) {
+    const LandRun run = simulate_land(unit, true, seed);
+    DiagnosisOptions opt;
+    opt.candidates = {EffectId::kGyroGSensitivity};
+    const DiagnosisResult d = diagnose(run.in, land_unit().params, opt);
+    ASSERT_TRUE(d.best) << d.summary;
+    const CandidateResult& c = d.candidates[*d.best];
+    const EffectInfo& e = effect_info(c.id);
+    for (size_t j = 0; j < c.params.size(); ++j) {
+      const double t = truth(static_cast<int>(j)) * e.params[j].si_to_human;
+      const double z = (c.params[j].value - t) / c.params[j].sigma;
+      sum2 += z * z;
+      ++n;
+    }
+  }
+  const double rms = std::sqrt(sum2 / n);
+  std::printf("g-sensitivity on land, RMS(error/sigma) %.3f over %d terms\n", rms, n);
+  EXPECT_GE(rms, 0.7);
+  EXPECT_LE(rms, 1.4);
+}
