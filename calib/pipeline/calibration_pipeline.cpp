@@ -70,11 +70,10 @@ std::vector<DataProblem> check_input(const CalibrationInput& in, const PipelineO
   return check_data(in, data_check_options(in.unit_prior()));
 }
 
-/// A land run of a unit that may be far from nominal (every grade but navigation): the filter
-/// cannot start from zero (a MEMS gyro's offset of degrees per second defeats gyrocompassing and
-/// linearisation alike), so it starts from the legacy result (issue #21).
-/// Below navigation grade, on land and on the table, the methods start from the legacy result
-/// (at sea there is no legacy method: AINS stands alone).
+/// A run of a unit that may be far from nominal (every grade but navigation), on land or on the
+/// table: AINS and NLSQ cannot start from zero (a MEMS gyro's offset of degrees per second defeats
+/// gyrocompassing and linearisation alike), so they start from the legacy result (issue #21). At
+/// sea there is no legacy method: AINS stands alone.
 bool starts_from_legacy(const CalibrationInput& in) {
   return in.setting != Setting::kSea && in.grade != Grade::kNavigation;
 }
