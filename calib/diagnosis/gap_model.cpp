@@ -41,11 +41,7 @@ GapModel::GapModel(const DiagnosisInput& in, size_t min_rest_samples, const Para
     : in_(in.cal), geometry_(in.geometry), table_free_(!in.cal.has_reference_attitude()) {
   if (in_.imu.size() != in_.reference.size() || in_.imu.empty())
     fail("imu and reference must be non-empty and of equal length");
-  if (in_.setting == Setting::kSea)
-    fail(
-        "a sea run cannot be diagnosed: the vessel rocks and drifts the unit during its rests, so "
-        "no rest is still enough for the rest and move residuals (run it on a land or factory "
-        "run of the unit)");
+  check_setting(in_);
   if (table_free_ && !calibrated)
     fail(
         "a run without an attitude reference needs its calibration to estimate the rests' "
@@ -69,6 +65,14 @@ GapModel::GapModel(const DiagnosisInput& in, size_t min_rest_samples, const Para
     for (const RestSums& r : sums_) rest_C_bn_.push_back(in_.reference[r.ref_sample].C_bn_ref);
     build_covariances();
   }
+}
+
+void GapModel::check_setting(const CalibrationInput& in) {
+  if (in.setting == Setting::kSea)
+    fail(
+        "a sea run cannot be diagnosed: the vessel rocks and drifts the unit during its rests, so "
+        "no rest is still enough for the rest and move residuals (diagnose a land or factory run "
+        "of the unit)");
 }
 
 std::vector<size_t> GapModel::segments_of_rest(size_t r) const {
@@ -158,6 +162,8 @@ void GapModel::build_segments(size_t min_rest_samples) {
 }
 
 void GapModel::build_covariances() {
+  cov_.clear();
+  whitener_.clear();
   const NoiseModel& nm = in_.noise;
   const double arw2 = nm.arw_rad_per_sqrt_s * nm.arw_rad_per_sqrt_s;
   const double vrw2 = nm.vrw_mps_per_sqrt_s * nm.vrw_mps_per_sqrt_s;
@@ -327,7 +333,7 @@ void GapModel::move_residual(const GapSegment& seg, const ParamSet& base, const 
     const Eigen::Vector3d dth = comp.dtheta(dth_raw, dt);
     const Eigen::Vector3d e = w_ie_n * dt;
     v += (C * dv - 0.5 * e.cross(C * dv)) + g_n * dt;
-    C = rotvec_to_matrix<double>(Eigen::Vector3d(-e)) * C * rotvec_to_matrix<double>(dth);
+    C = advance_attitude(C, dth, e);
     if ((k - seg.begin) % kOrthonormaliseEvery == kOrthonormaliseEvery - 1) C = orthonormalize(C);
   }
   const Eigen::Matrix3d C_b = rest_attitude(seg.rest_b, base, fx, dpsi_n);

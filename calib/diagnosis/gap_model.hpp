@@ -39,6 +39,7 @@
 
 #include "calib/core/calibration_input.hpp"
 #include "calib/core/param_set.hpp"
+#include "calib/core/rotation.hpp"
 #include "calib/core/table_model.hpp"
 #include "calib/effects/catalogue.hpp"
 
@@ -79,6 +80,9 @@ class GapModel {
   /// table-free run without `calibrated`.
   GapModel(const DiagnosisInput& in, size_t min_rest_samples = 100,
            const ParamSet* calibrated = nullptr);
+  /// Throws std::invalid_argument, saying why, for a run the model cannot take whatever its data:
+  /// a sea run (callers may ask before any other work).
+  static void check_setting(const CalibrationInput& in);
 
   const std::vector<GapSegment>& segments() const { return segments_; }
   int rows() const { return kGapRowsPerSegment * static_cast<int>(segments_.size()); }
@@ -128,7 +132,7 @@ class GapModel {
   };
   void build_segments(size_t min_rest_samples);
   void trim_rests(size_t min_rest_samples);
-  void build_covariances();
+  void build_covariances();  ///< (re)builds cov_ and whitener_ from the rest attitudes
   Block6 heading_last(const Block6& W, const GapSegment& s) const;
   Eigen::Matrix3d true_attitude(size_t sample, const ParamSet& base, const Effects& fx) const;
   /// Rest r's attitude under the hypothesis: the table's (with ς and the table effects), or the
@@ -139,6 +143,12 @@ class GapModel {
                      const Eigen::VectorXd* dpsi_n, double* out) const;
   void move_residual(const GapSegment& s, const ParamSet& base, const Effects& fx,
                      const Eigen::VectorXd* dpsi_n, double* out) const;
+  /// One strapdown attitude step (conventions.hpp): C(k) = exp(-[e×]) C(k-1) exp([dθ×]), e the
+  /// Earth's rotation over the interval in navigation axes.
+  static Eigen::Matrix3d advance_attitude(const Eigen::Matrix3d& C, const Eigen::Vector3d& dth,
+                                          const Eigen::Vector3d& e) {
+    return rotvec_to_matrix<double>(Eigen::Vector3d(-e)) * C * rotvec_to_matrix<double>(dth);
+  }
   /// The gyro-propagated attitude at the end of a move from `C_start` (the move residual's
   /// strapdown without effects), for the table-free estimates.
   Eigen::Matrix3d carry_attitude(const GapSegment& s, const ParamSet& calibrated,

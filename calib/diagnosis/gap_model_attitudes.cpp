@@ -48,9 +48,7 @@ Eigen::Matrix3d GapModel::carry_attitude(const GapSegment& seg, const ParamSet& 
   Eigen::Matrix3d C = C_start;
   for (size_t k = seg.begin; k < seg.end; ++k) {
     const ImuIncrement& x = in_.imu[k];
-    const Eigen::Vector3d e = w_ie_n * x.dt_s;
-    C = rotvec_to_matrix<double>(Eigen::Vector3d(-e)) * C *
-        rotvec_to_matrix<double>(comp.dtheta(x.dtheta_rad, x.dt_s));
+    C = advance_attitude(C, comp.dtheta(x.dtheta_rad, x.dt_s), w_ie_n * x.dt_s);
   }
   return orthonormalize(C);
 }
@@ -60,8 +58,6 @@ void GapModel::estimate_rest_attitudes(const ParamSet& calibrated) {
   choose_common_heading(calibrated);
   build_covariances();
   refine_rest_attitudes(calibrated);
-  cov_.clear();
-  whitener_.clear();
   build_covariances();  // the move blocks are rotated into the refined attitudes
 }
 

@@ -25,12 +25,7 @@ IncrementDelta sensor_effects_at(const ImuSeries& imu, size_t k, const ImuCompen
 
 void check_removable(const Effects& fx) {
   for (const EffectInfo& e : effect_catalogue()) {
-    if (e.kind == EffectKind::kSensor) continue;
-    const Eigen::VectorXd v = effect_vector(fx, e.id);
-    bool active = false;  // a shape parameter (a time constant) alone does not make it active
-    for (int i = 0; i < e.size(); ++i)
-      active = active || (!e.params[static_cast<size_t>(i)].shape && v(i) != 0.0);
-    if (!active) continue;
+    if (e.kind == EffectKind::kSensor || !fx.active(e.id)) continue;
     throw std::invalid_argument(
         "effect " + e.name +
         (e.kind == EffectKind::kStochastic

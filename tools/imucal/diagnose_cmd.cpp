@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "calib/diagnosis/diagnosis.hpp"
+#include "calib/diagnosis/gap_model.hpp"
 #include "calib/legacy/legacy.hpp"
 #include "calib/nlsq/nlsq.hpp"
 #include "db/archive/diagnosis_json.hpp"
@@ -192,14 +193,13 @@ int cmd_diagnose(const DiagnoseArgs& a) {
   archive::RunArchive ar = archive::read_archive(a.dir);
   if (!a.grade.empty()) ar.info.grade = *calib::parse_grade(a.grade);
   if (a.min_rest_s > 0.0) ar.info.min_rest_s = a.min_rest_s;
-  if (ar.info.setting == calib::Setting::kSea)
-    throw std::invalid_argument(
-        a.dir +
-        ": a sea run cannot be diagnosed: the vessel rocks and drifts the unit during its rests, "
-        "so no rest is still enough for the rest and move residuals (diagnose a land or factory "
-        "run of the unit)");
   calib::DiagnosisInput in;
   in.cal = archive::to_calibration_input(ar);
+  try {
+    calib::GapModel::check_setting(in.cal);  // before calibrating it
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(a.dir + ": " + e.what());
+  }
   if (ar.info.reference == archive::ReferenceKind::kTable) in.geometry = ar.info.table.geometry();
   // The model under test: a table run's NLSQ calibration; a table-free run's multi-position one,
   // which needs no prior beyond the grade's (the diagnosis refits the base either way).
