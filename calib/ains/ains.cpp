@@ -47,16 +47,6 @@ ParamSet effective_prior_sigma(const AinsOptions& opt, const UnitPrior& prior) {
 
 namespace {
 
-/// Field settings: the site for the alignment (at sea the first fix's position).
-Site alignment_site(const CalibrationInput& in) {
-  Site site = in.site;
-  if (in.setting == Setting::kSea && !in.gnss.empty()) {
-    site.lat_rad = in.gnss.front().lat_rad;
-    site.lon_rad = in.gnss.front().lon_rad;
-  }
-  return site;
-}
-
 /// What a field result cannot say, stated with it (issue #9: "say so in the output").
 void describe_field_frame(CalibrationResult& res) {
   res.body_frame = BodyFrame::kAccelSymmetric;
@@ -198,9 +188,10 @@ AinsResult run_ains(const CalibrationInput& in, const AinsOptions& opt, bool smo
   AinsResult out;
   if (field) {
     // Levelling and gyrocompassing on the first rest, from scratch (no reference, no prior).
-    out.coarse_C_bn = coarse_align(in.imu, pin.first_rest.begin, pin.first_rest.end,
-                                   alignment_site(in), cfg.nominal, in.noise.vrw_mps_per_sqrt_s)
-                          .C_bn;
+    out.coarse_C_bn =
+        coarse_align(in.imu, pin.first_rest.begin, pin.first_rest.end, ains::alignment_site(in),
+                     cfg.nominal, in.noise.vrw_mps_per_sqrt_s)
+            .C_bn;
     if (opt.initial_C_bn)
       out.coarse_C_bn = *opt.initial_C_bn;
     else if (in.grade != Grade::kNavigation)

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "calib/ains/ains_innovations.hpp"
 #include "calib/core/imu_error_model.hpp"
 #include "calib/core/rotation.hpp"
 
@@ -388,7 +389,7 @@ class PassRunner {
 
   /// Sequential scalar update with h = c1 e_i1 + c2 e_i2 (all our H rows have this form).
   void scalar_update(double z, int i1, double c1, int i2, double c2, double r,
-                     bool count_nis = true) {
+                     bool count_nis = true, int kind = 0) {
     Eigen::Matrix<double, kNumStates, 1> Ph = c1 * P_.col(i1);
     if (c2 != 0.0) Ph += c2 * P_.col(i2);
     const double s = c1 * Ph(i1) + (c2 != 0.0 ? c2 * Ph(i2) : 0.0) + r;
@@ -398,25 +399,32 @@ class PassRunner {
     if (!count_nis) return;
     res_.nis_sum += nu * nu / s;
     ++res_.nis_count;
+    if (cfg_.innovations) cfg_.innovations->push_back({k_, kind, nu, s});
   }
 
   void update(size_t k, bool with_attitude) {
+    k_ = k;
     if (with_attitude) {
       // eq. 32-35 with m = n: δC = I - Ĉ_ref C_ref^T ≈ [ψ x] - [Δς x]; z = log(C_ref Ĉ_ref^T).
       const Matrix3d C_ref_hat = C_unmis_ * nav_.C_bn;
       const Vector3d z = matrix_to_rotvec(in_.reference[k].C_bn_ref * C_ref_hat.transpose());
       const double r = opt_.attitude_sigma_rad * opt_.attitude_sigma_rad;
-      for (int i = 0; i < 3; ++i) scalar_update(z(i), kPsi + i, 1.0, kTableMis + i, -1.0, r);
+      for (int i = 0; i < 3; ++i)
+        scalar_update(z(i), kPsi + i, 1.0, kTableMis + i, -1.0, r, true,
+                      AinsInnovation::kAttitudeX + i);
     }
     if (in_.setting == Setting::kSea) {
       if (k != pin_.k0) update_gnss(in_.gnss[static_cast<size_t>(pin_.gnss_at[k])]);
     } else {
       // eq. 36-39: ZUPT, δz = v̂_n - 0 = δv_n.
       const double r_v = opt_.zupt_sigma_mps * opt_.zupt_sigma_mps;
-      for (int i = 0; i < 3; ++i) scalar_update(nav_.v_n_mps(i), kVel + i, 1.0, 0, 0.0, r_v);
+      for (int i = 0; i < 3; ++i)
+        scalar_update(nav_.v_n_mps(i), kVel + i, 1.0, 0, 0.0, r_v, true,
+                      AinsInnovation::kZuptNorth + i);
     }
     // eq. 40-43: mean depth, δz = d̂ - d0 = δp_D (depth = -height).
-    scalar_update(h0_ - nav_.height_m, kPos + 2, 1.0, 0, 0.0, depth_sigma() * depth_sigma());
+    scalar_update(h0_ - nav_.height_m, kPos + 2, 1.0, 0, 0.0, depth_sigma() * depth_sigma(), true,
+                  AinsInnovation::kDepth);
     P_ = 0.5 * (P_ + P_.transpose()).eval();
     ++res_.num_updates;
   }
@@ -428,8 +436,8 @@ class PassRunner {
     const double zN = (nav_.lat_rad - g.lat_rad) * RNh;
     const double zE = (nav_.lon_rad - g.lon_rad) * REh * std::cos(nav_.lat_rad);
     const double r = gnss_sigma(g) * gnss_sigma(g);
-    scalar_update(zN, kPos + 0, 1.0, 0, 0.0, r);
-    scalar_update(zE, kPos + 1, 1.0, 0, 0.0, r);
+    scalar_update(zN, kPos + 0, 1.0, 0, 0.0, r, true, AinsInnovation::kGnssNorth);
+    scalar_update(zE, kPos + 1, 1.0, 0, 0.0, r, true, AinsInnovation::kGnssEast);
   }
 
   void record_and_reset(size_t k, bool aided) {
@@ -495,6 +503,7 @@ class PassRunner {
   NavSensorMat Phi_ns_ = NavSensorMat::Zero();
   NavMat Q_ = NavMat::Zero();
   SensorCouplingAccumulator acc_;
+  size_t k_ = 0;             ///< sample of the update in progress (for the innovation records)
   bool epoch_start_ = true;  ///< no sub-interval composed into Φ_nn_, Φ_ns_, Q_ yet
   NavMat F_ = NavMat::Zero(), F2_ = NavMat::Zero();
 };

@@ -28,6 +28,16 @@ struct PreparedInput {
 /// opt.min_rest_samples samples, then every opt.update_interval_s, and at its last sample.
 PreparedInput prepare_input(const CalibrationInput& in, const AinsOptions& opt);
 
+/// Field settings: the site for the coarse alignment (at sea the first fix's position).
+inline Site alignment_site(const CalibrationInput& in) {
+  Site site = in.site;
+  if (in.setting == Setting::kSea && !in.gnss.empty()) {
+    site.lat_rad = in.gnss.front().lat_rad;
+    site.lon_rad = in.gnss.front().lon_rad;
+  }
+  return site;
+}
+
 /// What the RTS needs from one KF epoch (kept compact: ~14 kB per epoch, ~50 MB for 1 h at 1 Hz).
 struct EpochRecord {
   size_t k = 0;  ///< sample index
@@ -44,6 +54,13 @@ struct EpochRecord {
   StateVec x_p_next = StateVec::Zero();
 };
 
+/// One scalar aiding innovation of a pass (what ains_innovations() returns, see there).
+struct InnovationRecord {
+  size_t k = 0;  ///< sample index
+  int kind = 0;  ///< AinsInnovation::Kind
+  double nu = 0.0, s = 0.0;
+};
+
 struct PassConfig {
   ParamSet nominal;  ///< parameters the INS compensates with during this pass
   /// Field settings: the nominal attitude at the INS start and the prior mean of its error ψ(0)
@@ -51,7 +68,9 @@ struct PassConfig {
   Eigen::Matrix3d C_bn0 = Eigen::Matrix3d::Identity();
   Eigen::Vector3d psi0_prior_mean = Eigen::Vector3d::Zero();
   ParamVector prior_mean = ParamVector::Zero();  ///< prior mean of θ (ParamSet order)
-  ParamSet prior_sigma;                          ///< prior 1-σ of θ (all > 0)
+  ParamSet prior_sigma;                          ///< prior 1-σ of θ (> 0; 0 holds θ fixed)
+  /// When set, receives every aiding update's scalar innovation and its predicted variance.
+  std::vector<InnovationRecord>* innovations = nullptr;
 };
 
 struct PassResult {
