@@ -18,7 +18,7 @@ set(calib_room_deps_nlsq core)
 set(calib_room_deps_legacy core)
 set(calib_room_deps_checks core ains)
 set(calib_room_deps_pipeline core ains nlsq legacy checks)
-set(calib_room_deps_diagnosis core effects nlsq legacy)
+set(calib_room_deps_diagnosis core effects ains nlsq legacy)
 set(calib_room_deps_paper core effects sim ains nlsq legacy checks)
 
 # calib_room_closure(ROOM OUT): every room ROOM reaches through its dependencies, itself excluded.

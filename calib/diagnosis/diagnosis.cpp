@@ -41,15 +41,16 @@ std::vector<std::vector<int>> make_folds(const GapModel& m, int k) {
   // Table-free: a rest's attitude is an unknown that only its own rest and the moves on either side
   // see, so those moves must stay in the training set when the rest is held out: move i goes
   // to fold i + 2 (K >= 4 rests here), never to its neighbours' folds.
-  const size_t shift = m.table_free() ? 2 : 0;
+  const bool attitudes = m.attitude_unknowns() > 0;
+  const size_t shift = attitudes ? 2 : 0;
   for (size_t s = 0; s < segs.size(); ++s) {
     // A rest and the move after it go together (interleaved folds: no extrapolation in time).
     const bool move = segs[s].kind == GapSegment::Kind::kMove;
     const size_t f = (segs[s].rest_a + (move ? shift : 0)) % static_cast<size_t>(K);
-    for (int r = 0; r < kGapRowsPerSegment; ++r) {
+    for (int r = m.row_begin(s); r < m.row_end(s); ++r) {
       // The relative heading across a table-free move is that move's alone: it stays in the fit.
-      if (move && m.table_free() && r == GapModel::kHeadingRow) continue;
-      folds[f].push_back(kGapRowsPerSegment * static_cast<int>(s) + r);
+      if (move && attitudes && r - m.row_begin(s) == GapModel::kHeadingRow) continue;
+      folds[f].push_back(r);
     }
   }
   return folds;
@@ -61,7 +62,48 @@ Eigen::MatrixXd hcat(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B) {
   return M;
 }
 
+/// A sea segment: the NIS over its fixes, and per component (north, east) the mean post-fit
+/// innovation (m) and its sum over the predicted spread of the sum (a common offset, N(0, 1) under
+/// the model); the other components NaN.
+SegmentGap localise_innovations(const Problem& p, const GlsFit& fit, size_t s,
+                                const Eigen::VectorXd& e_w, const Eigen::MatrixXd& JcovW) {
+  SegmentGap g;
+  g.segment = p.model.segments()[s];
+  g.z.fill(std::numeric_limits<double>::quiet_NaN());
+  g.residual_si.fill(std::numeric_limits<double>::quiet_NaN());
+  double sum[2] = {0, 0}, sum_raw[2] = {0, 0}, spread[2] = {0, 0}, leverage = 0.0;
+  int n[2] = {0, 0};
+  const int b = p.model.row_begin(s), e = p.model.row_end(s);
+  for (int r = b; r < e; ++r) {
+    const int c = p.model.row_component(r);
+    const double lev = JcovW.row(r).dot(p.Jb.row(r));
+    sum[c] += e_w(r);
+    sum_raw[c] += p.r0_raw(r) + p.Jb_raw.row(r).dot(fit.x);
+    spread[c] += 1.0 - lev;
+    ++n[c];
+    g.nis += e_w(r) * e_w(r);
+    leverage += lev;
+  }
+  for (int c = 0; c < 2; ++c) {
+    if (n[c] == 0) continue;
+    g.residual_si[static_cast<size_t>(c)] = sum_raw[c] / n[c];
+    g.z[static_cast<size_t>(c)] = sum[c] / std::sqrt(std::max(spread[c], 1e-6 * n[c]));
+  }
+  const int rows = e - b;
+  g.nis_expected = rows - leverage;
+  g.p_value = rows > 0 ? chi2_survival(g.nis * rows / std::max(g.nis_expected, 1e-3), rows) : 1.0;
+  return g;
+}
+
 std::vector<SegmentGap> localise(const Problem& p, const GlsFit& fit) {
+  if (p.model.innovations()) {
+    const Eigen::VectorXd e_w = p.r0 + p.Jb * fit.x;
+    const Eigen::MatrixXd JcovW = p.Jb * fit.cov;
+    std::vector<SegmentGap> out;
+    for (size_t s = 0; s < p.model.segments().size(); ++s)
+      out.push_back(localise_innovations(p, fit, s, e_w, JcovW));
+    return out;
+  }
   const Eigen::VectorXd e_raw = p.r0_raw + p.Jb_raw * fit.x;
   const Eigen::VectorXd e_w = p.r0 + p.Jb * fit.x;
   const Eigen::MatrixXd Jcov = p.Jb_raw * fit.cov;
@@ -223,6 +265,15 @@ struct Scored {
   Eigen::MatrixXd J_eff;  ///< its fitted columns (whitened)
 };
 
+Scored not_applicable(const EffectInfo& e, const std::string& note) {
+  Scored s;
+  s.result.id = e.id;
+  s.result.name = e.name;
+  s.result.note = note;
+  s.result.value_si = Eigen::VectorXd::Zero(e.size());
+  return s;
+}
+
 /// All candidates scored (thermal drift: the best τ of the grid), unranked.
 std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOptions& opt) {
   std::vector<EffectId> ids = opt.candidates;
@@ -231,6 +282,10 @@ std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOp
   std::vector<Scored> out;
   for (EffectId id : ids) {
     const EffectInfo& e = effect_info(id);
+    if (const std::string why = p.model.not_applicable(id); !why.empty()) {
+      out.push_back(not_applicable(e, why));
+      continue;
+    }
     if (id == EffectId::kQuantisation) {
       Scored s;
       s.result = score_quantisation(p.model.input(), p.model.rests(), opt.folds);
@@ -240,19 +295,6 @@ std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOp
     if (id == EffectId::kBiasInstability) {
       Scored s;
       s.result = score_bias_instability(p.lin, p.folds, opt.instability_tau_grid_s);
-      out.push_back(std::move(s));
-      continue;
-    }
-    const bool no_reference = p.model.table_free();
-    if (e.kind == EffectKind::kTable &&
-        (no_reference || (!p.model.has_table() && id != EffectId::kTableTimeOffset))) {
-      Scored s;
-      s.result.id = id;
-      s.result.name = e.name;
-      s.result.note = no_reference
-                          ? "not applicable: the run has no table (table-free)"
-                          : "not applicable: the archive has no table angles (attitude log)";
-      s.result.value_si = Eigen::VectorXd::Zero(e.size());
       out.push_back(std::move(s));
       continue;
     }
@@ -300,12 +342,16 @@ void judge_plausibility(CandidateResult& r, double max_typical) {
   const double t = e.magnitude(typical);
   if (!(t > 0.0) || !r.separable) return;
   r.typical_ratio = r.magnitude / t;
-  r.plausible = r.typical_ratio <= max_typical;
+  // Implausible only when the size is beyond the limit by more than its own 2σ: a poorly
+  // determined fit (a sea run's g-sensitivity diagonal, σ half its value) may land above the limit
+  // by its noise alone.
+  const double sigma = std::isfinite(r.magnitude_sigma) ? r.magnitude_sigma : 0.0;
+  r.plausible = (r.magnitude - 2.0 * sigma) / t <= max_typical;
   if (!r.plausible) {
     std::ostringstream os;
     os.precision(3);
     os << "implausible size: " << r.typical_ratio << "x its typical " << t << " " << r.unit
-       << " (limit " << max_typical << "x)";
+       << " (limit " << max_typical << "x, beyond it by more than 2 sigma)";
     r.note += (r.note.empty() ? "" : "; ") + os.str();
   }
 }
@@ -404,10 +450,12 @@ std::vector<std::pair<std::string, double>> remaining_gap(const Problem& p,
   const Eigen::VectorXd e = p.r0 + J * fit.x;
   std::vector<std::pair<std::string, double>> out;
   for (size_t s = 0; s < p.model.segments().size(); ++s)
-    for (int c = 0; c < kGapRowsPerSegment; ++c) {
-      const double z = e(kGapRowsPerSegment * static_cast<int>(s) + c);
+    for (int r = p.model.row_begin(s); r < p.model.row_end(s); ++r) {
+      const double z = e(r);
       if (std::abs(z) > 3.0)
-        out.push_back({p.model.segments()[s].label() + " " + gap_component_name(c), z});
+        out.push_back(
+            {p.model.segments()[s].label() + " " + p.model.component_name(p.model.row_component(r)),
+             z});
     }
   std::sort(out.begin(), out.end(),
             [](const auto& a, const auto& b) { return std::abs(a.second) > std::abs(b.second); });
@@ -672,7 +720,18 @@ GlsFit fit_base(DiagnosisResult& d, const DiagnosisInput& in, const Problem& p,
   d.base = p.lin.params_after(fit0.x);
   d.base_sigma = p.lin.params_sigma(fit0.cov);
   d.segments = localise(p, fit0);
-  d.whiteness = whiteness_stats(in.cal, p.model.rests());
+  d.innovation_residuals = p.model.innovations();
+  for (int c = 0; c < p.model.components(); ++c) {
+    d.components.push_back(p.model.component_name(c));
+    d.component_keys.push_back(p.model.component_key(c));
+  }
+  // A rocking deck turns the unit during its rests: their samples say nothing of the sensor noise.
+  if (p.model.innovations()) {
+    d.whiteness.lag1_autocorr.fill(std::numeric_limits<double>::quiet_NaN());
+    d.whiteness.lag1_z.fill(std::numeric_limits<double>::quiet_NaN());
+  } else {
+    d.whiteness = whiteness_stats(in.cal, p.model.rests());
+  }
   compare_with_twin(d, in, p, opt);
   try {
     d.held_out.gap_before = held_out_gap(p.r0, p.Jb, p.folds).ratio();

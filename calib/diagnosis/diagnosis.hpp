@@ -56,7 +56,8 @@ struct DiagnosisOptions {
   /// A candidate's fitted size above this many times its catalogue typical (navigation-grade) size
   /// is not physically plausible: not a finding however significant its fit (a K2 run's leakage
   /// read as a 4.6 m size effect). It is multiplied by the unit's grade's effect_scale
-  /// (calib/core/unit_grade.hpp: 1 navigation, 100 tactical, 10⁴ MEMS).
+  /// (calib/core/unit_grade.hpp: 1 navigation, 100 tactical, 10⁴ MEMS). A fitted size counts as
+  /// beyond it only when it is so by more than 2σ of its own.
   double max_plausible_typical = 50.0;
   int folds = 5;
   size_t min_rest_samples = 100;
@@ -100,7 +101,8 @@ struct CandidateResult {
   /// Significant by its test and plausible, but another such candidate mimics it on this sequence
   /// (confounded_with): the two explain the gap as a set, neither alone.
   bool in_ambiguous_set = false;
-  bool plausible = true;  ///< size ≤ max_plausible_typical × its catalogue typical size
+  /// size - 2σ ≤ max_plausible_typical × its catalogue typical size
+  bool plausible = true;
   double typical_ratio = std::numeric_limits<double>::quiet_NaN();  ///< magnitude / typical
   double magnitude = 0.0, magnitude_sigma = 0.0;
   std::string unit;  ///< unit of magnitude
@@ -127,6 +129,12 @@ struct DiagnosisResult {
   std::string verdict;  ///< "consistent", "explained", "unexplained"
   std::string summary;  ///< one sentence for people
   std::vector<SegmentGap> segments;
+  /// The segments' residual components (SegmentGap::z in this order): "accel x" ... "gyro z", at
+  /// sea "gnss north", "gnss east"; and their JSON keys ("accel_x", "gnss_north").
+  std::vector<std::string> components, component_keys;
+  /// The residuals are the navigation filter's GNSS innovations (a sea run), not rest and move
+  /// residuals.
+  bool innovation_residuals = false;
   int rows = 0, dof = 0;
   double chi2 = 0.0;
   double overall_gap = 0.0;       ///< χ²/dof after the base fit

@@ -7,13 +7,17 @@
 #include <stdexcept>
 #include <thread>
 
+#include "calib/ains/ains.hpp"
 #include "calib/core/calibration_input.hpp"
+#include "calib/diagnosis/gap_fit.hpp"
 #include "calib/legacy/legacy.hpp"
 #include "calib/nlsq/nlsq.hpp"
 
 namespace imucal::calib {
 
 namespace {
+
+constexpr double kPlausibleShare = 0.7;
 
 struct Task {
   std::vector<EffectId> ids;
@@ -22,16 +26,19 @@ struct Task {
   uint64_t seed = 0;
 };
 
-std::vector<Task> make_tasks(const std::vector<EffectId>& ids, const ValidationOptions& opt) {
+std::vector<Task> make_tasks(const std::vector<EffectId>& ids,
+                             const std::map<EffectId, double>& max_factor,
+                             const ValidationOptions& opt) {
   std::mt19937_64 rng(opt.seed);
-  std::uniform_real_distribution<double> f(opt.min_factor, opt.max_factor);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::bernoulli_distribution coin(0.5);
   std::vector<Task> tasks;
   auto draw = [&](std::vector<EffectId> which) {
     Task t;
     t.ids = std::move(which);
     for (size_t i = 0; i < t.ids.size(); ++i) {
-      t.factor.push_back(f(rng));
+      const double hi = max_factor.at(t.ids[i]);
+      t.factor.push_back(opt.min_factor + (hi - opt.min_factor) * unit(rng));
       const bool stochastic = effect_info(t.ids[i]).kind == EffectKind::kStochastic;
       t.sign.push_back(coin(rng) || stochastic ? 1.0 : -1.0);  // a σ or an LSB has no sign
     }
@@ -69,10 +76,12 @@ ValidationRun run_one(const Task& t, const std::map<EffectId, double>& threshold
   in.cal = world(effects, t.seed, /*noise=*/true);
   in.geometry = geometry;
   try {
-    // A table run is calibrated by NLSQ; a table-free one by the multi-position method, which
-    // needs no prior beyond the grade's (the diagnosis refits the base parameters either way).
-    const CalibrationResult cal =
-        in.cal.has_reference_attitude() ? calibrate_nlsq(in.cal) : calibrate_legacy(in.cal);
+    // A table run is calibrated by NLSQ; a land run by the multi-position method, which needs no
+    // prior beyond the grade's; a sea run by AINS (the multi-position method needs still rests).
+    // The diagnosis refits the base parameters either way.
+    const CalibrationResult cal = in.cal.setting == Setting::kSea   ? calibrate_ains(in.cal)
+                                  : in.cal.has_reference_attitude() ? calibrate_nlsq(in.cal)
+                                                                    : calibrate_legacy(in.cal);
     const DiagnosisResult d = diagnose(in, cal.params);
     r.verdict = d.verdict;
     if (d.best) {
@@ -144,17 +153,29 @@ ValidationReport validate_diagnosis(const RunSource& world, const TableGeometry&
   ValidationReport rep;
   rep.sequence = sequence;
   rep.detectability = effect_detectability(world(Effects{}, 1, /*noise=*/false), geometry, base);
-  std::map<EffectId, double> threshold;
+  std::map<EffectId, double> threshold, max_factor;
   std::vector<EffectId> ids;
+  const Grade grade = world(Effects{}, 1, /*noise=*/false).grade;
   for (const auto& d : rep.detectability) {
     const bool wanted = opt.effects.empty() || std::find(opt.effects.begin(), opt.effects.end(),
                                                          d.id) != opt.effects.end();
     if (!wanted || !d.separable() || !std::isfinite(d.threshold)) continue;
+    // A size the diagnosis is told to call implausible is no test of it: where the sequence
+    // detects an effect only near that limit (a sea run's g-sensitivity: 10× its typical size),
+    // draw no higher than kPlausibleShare of it, so a fit a few σ high stays plausible too.
+    const double ceiling = kPlausibleShare * DiagnosisOptions{}.max_plausible_typical *
+                           effect_scale(d.id, grade) * d.typical / d.threshold;
+    if (d.typical > 0.0 && ceiling < opt.min_factor) {
+      rep.beyond_plausible.push_back(d.name);
+      continue;
+    }
     ids.push_back(d.id);
     threshold[d.id] = d.threshold;
+    max_factor[d.id] = d.typical > 0.0 ? std::min(opt.max_factor, ceiling) : opt.max_factor;
+    if (max_factor[d.id] < opt.max_factor) rep.factor_cap[d.name] = max_factor[d.id];
     rep.effects.push_back(d.name);
   }
-  const std::vector<Task> tasks = make_tasks(ids, opt);
+  const std::vector<Task> tasks = make_tasks(ids, max_factor, opt);
   rep.runs.resize(tasks.size());
   std::atomic<size_t> next{0};
   std::mutex mu;

@@ -2,9 +2,9 @@
 // Blind validation of the gap diagnosis (DESIGN §8 step 4, issue #8 item 4): draw runs of a
 // sequence from a RunSource (calib/effects/run_source.hpp: the truth simulator, or another) with
 // one effect (and, separately, pairs) injected at magnitudes drawn between 3× and 10× the effect's
-// detection threshold on that sequence (calib/diagnosis/effect_detectability.hpp), plus null runs
-// with none; calibrate each (NLSQ) and diagnose it without telling the diagnosis what was injected;
-// count what it names.
+// detection threshold on that sequence (at most 0.7 × the size the diagnosis still calls plausible)
+// (calib/diagnosis/effect_detectability.hpp), plus null runs with none; calibrate each (NLSQ) and
+// diagnose it without telling the diagnosis what was injected; count what it names.
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -49,6 +49,11 @@ struct ValidationReport {
   std::string sequence;
   std::vector<EffectDetectability> detectability;
   std::vector<std::string> effects;  ///< validated (separable) effects
+  /// Effects drawn below max_factor: their plausible size (the diagnosis' limit, times 0.7) is
+  /// reached first; the factor they were drawn up to.
+  std::map<std::string, double> factor_cap;
+  /// Separable effects left out: detectable only beyond 0.7 × their plausible size.
+  std::vector<std::string> beyond_plausible;
   std::vector<ValidationRun> runs;
   /// confusion[injected][named] = count; injected "none" for null runs.
   std::map<std::string, std::map<std::string, int>> confusion;

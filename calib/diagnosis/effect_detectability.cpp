@@ -128,12 +128,12 @@ std::vector<EffectDetectability> effect_detectability(const CalibrationInput& ex
   std::vector<Analysed> all;
   const size_t n = effect_catalogue().size();
   for (const auto& e : effect_catalogue()) {
-    if (e.kind == EffectKind::kTable && model.table_free()) {
+    if (const std::string why = model.not_applicable(e.id); !why.empty()) {
       Analysed a;
       a.d.id = e.id;
       a.d.name = e.name;
       a.d.unit = e.magnitude_unit();
-      a.d.reason = "not applicable: the run has no table (table-free)";
+      a.d.reason = why;
       all.push_back(a);
       continue;
     }

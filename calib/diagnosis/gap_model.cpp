@@ -59,7 +59,9 @@ GapModel::GapModel(const DiagnosisInput& in, size_t min_rest_samples, const Para
       }
   t_first_s_ = in_.imu.front().t_s - in_.imu.front().dt_s;
   build_segments(min_rest_samples);
-  if (table_free_) {
+  if (in_.setting == Setting::kSea) {
+    build_innovation_rows(*calibrated, min_rest_samples);
+  } else if (table_free_) {
     estimate_rest_attitudes(*calibrated);  // builds the covariances on the way
   } else {
     for (const RestSums& r : sums_) rest_C_bn_.push_back(in_.reference[r.ref_sample].C_bn_ref);
@@ -68,11 +70,40 @@ GapModel::GapModel(const DiagnosisInput& in, size_t min_rest_samples, const Para
 }
 
 void GapModel::check_setting(const CalibrationInput& in) {
-  if (in.setting == Setting::kSea)
+  if (in.setting == Setting::kSea && in.gnss.empty())
     fail(
-        "a sea run cannot be diagnosed: the vessel rocks and drifts the unit during its rests, so "
-        "no rest is still enough for the rest and move residuals (diagnose a land or factory run "
-        "of the unit)");
+        "a sea run without GNSS fixes (gnss.csv) cannot be diagnosed: its residuals are the "
+        "navigation filter's GNSS innovations, and the vessel moves the unit during its rests");
+}
+
+std::string GapModel::not_applicable(EffectId id) const {
+  const EffectInfo& e = effect_info(id);
+  const bool sea = in_.setting == Setting::kSea;
+  if (e.kind == EffectKind::kTable) {
+    if (sea) return "not applicable: the run has no table (sea)";
+    if (table_free_) return "not applicable: the run has no table (table-free)";
+    if (!has_table() && id != EffectId::kTableTimeOffset)
+      return "not applicable: the archive has no table angles (attitude log)";
+    return "";
+  }
+  if (!sea) return "";
+  if (id == EffectId::kLatitudeError)
+    return "not applicable: at sea the latitude comes from the GNSS fixes";
+  if (e.kind == EffectKind::kStochastic)
+    return "not assessed at sea: the deck's motion leaves no still rest for a noise statistic";
+  return "";
+}
+
+const char* GapModel::component_name(int c) const {
+  if (!innovations_) return gap_component_name(c);
+  return c == 0 ? "gnss north" : "gnss east";
+}
+
+const char* GapModel::component_key(int c) const {
+  static const char* keys[kGapRowsPerSegment] = {"accel_x", "accel_y", "accel_z",
+                                                 "gyro_x",  "gyro_y",  "gyro_z"};
+  if (!innovations_) return keys[c];
+  return c == 0 ? "gnss_north" : "gnss_east";
 }
 
 std::vector<size_t> GapModel::segments_of_rest(size_t r) const {
@@ -221,6 +252,8 @@ Block6 GapModel::heading_last(const Block6& W, const GapSegment& s) const {
 }
 
 Eigen::VectorXd GapModel::whiten(const Eigen::VectorXd& r) const {
+  if (innovations_)
+    return r.cwiseQuotient(Eigen::Map<const Eigen::VectorXd>(row_sqrt_s_.data(), rows()));
   Eigen::VectorXd w(r.size());
   for (size_t s = 0; s < segments_.size(); ++s)
     w.segment<6>(6 * static_cast<int>(s)) = whitener_[s] * r.segment<6>(6 * static_cast<int>(s));
@@ -228,6 +261,11 @@ Eigen::VectorXd GapModel::whiten(const Eigen::VectorXd& r) const {
 }
 
 Eigen::MatrixXd GapModel::whiten(const Eigen::MatrixXd& J) const {
+  if (innovations_)
+    return Eigen::Map<const Eigen::VectorXd>(row_sqrt_s_.data(), rows())
+               .cwiseInverse()
+               .asDiagonal() *
+           J;
   Eigen::MatrixXd w(J.rows(), J.cols());
   for (size_t s = 0; s < segments_.size(); ++s)
     w.middleRows<6>(6 * static_cast<int>(s)) =
@@ -261,6 +299,7 @@ void GapModel::segment_residuals(size_t s, const ParamSet& base, const Effects& 
 }
 
 Eigen::VectorXd GapModel::residuals(const ParamSet& base, const Effects& fx) const {
+  if (innovations_) return innovation_residuals(base, fx);
   Eigen::VectorXd r(rows());
   for (size_t s = 0; s < segments_.size(); ++s)
     segment_residuals(s, base, fx, nullptr, r.data() + 6 * s);

@@ -32,6 +32,17 @@
 // Earth rate at each rest, the gravity and attitude carried by the gyros across each move, the
 // zero velocity gained over it. The table misalignment ς has no meaning there (it is the rests'
 // common attitude). Rests are trimmed by half a second at each end (the hand's detector edge).
+//
+// Sea runs (issue #21 item 4) have no still rest: the deck rocks, heaves and drifts the unit. What
+// such a run observes is what the navigation filter makes of its GNSS fixes, so its residuals are
+// the AINS innovations of each horizontal fix with the sensor parameters held at the hypothesis
+// (calib/ains/ains_innovations.hpp): the data, less the hypothesised sensor effects, run through
+// a navigation-only filter compensated by the base parameters; raw in metres, whitened by each
+// innovation's predicted σ (independent N(0, 1) under the model). Segments are still the rests
+// and moves the detector finds (for localising and for the held-out folds); each holds the fixes
+// that fall in it, two rows per fix (north, east). The depth updates are not residuals: heave is
+// a narrow-band swell that the filter takes as white noise of its RMS, so their whitened values
+// are correlated over the swell's period.
 #include <Eigen/Core>
 #include <optional>
 #include <string>
@@ -64,7 +75,8 @@ struct GapSegment {
   std::string label() const;  ///< "rest 3", "move 2 (rest 2 -> 3)"
 };
 
-/// Residual components per segment, in this order (rows 6s .. 6s+5 of segment s).
+/// Residual components per segment, in this order (rows 6s .. 6s+5 of segment s); a sea run's
+/// segments have components 0 and 1 only (GNSS north, east) and any number of rows.
 constexpr int kGapRowsPerSegment = 6;
 /// "accel x", ..., "gyro z".
 const char* gap_component_name(int c);
@@ -74,27 +86,54 @@ using Block6 = Eigen::Matrix<double, 6, 6>;
 class GapModel {
  public:
   /// Cuts the run into rests (at_rest runs of at least min_rest_samples) and the moves between
-  /// them. A run without an attitude reference (land) is table-free: `calibrated` (required then)
-  /// gives the rests' attitude estimates. Throws std::invalid_argument naming the problem: fewer
-  /// than 2 rests, non-finite noise, a sea run (the vessel moves the unit during its rests), a
-  /// table-free run without `calibrated`.
+  /// them. A run without an attitude reference (land, sea) is table-free: `calibrated` (required
+  /// then) gives the rests' attitude estimates, at sea the navigation filter's compensation.
+  /// Throws std::invalid_argument naming the problem: fewer than 2 rests, non-finite noise, a sea
+  /// run without GNSS fixes, a table-free run without `calibrated`.
   GapModel(const DiagnosisInput& in, size_t min_rest_samples = 100,
            const ParamSet* calibrated = nullptr);
   /// Throws std::invalid_argument, saying why, for a run the model cannot take whatever its data:
-  /// a sea run (callers may ask before any other work).
+  /// a sea run without GNSS fixes (callers may ask before any other work).
   static void check_setting(const CalibrationInput& in);
 
   const std::vector<GapSegment>& segments() const { return segments_; }
-  int rows() const { return kGapRowsPerSegment * static_cast<int>(segments_.size()); }
+  int rows() const {
+    return innovations_ ? static_cast<int>(row_sample_.size())
+                        : kGapRowsPerSegment * static_cast<int>(segments_.size());
+  }
+  /// A sea run: the residuals are the navigation filter's GNSS innovations (see the header).
+  bool innovations() const { return innovations_; }
+  /// Segment s's rows are [row_begin(s), row_end(s)).
+  int row_begin(size_t s) const {
+    return innovations_ ? seg_row_begin_[s] : kGapRowsPerSegment * static_cast<int>(s);
+  }
+  int row_end(size_t s) const {
+    return innovations_ ? seg_row_begin_[s + 1] : kGapRowsPerSegment * static_cast<int>(s + 1);
+  }
+  /// The component of row i (0 .. components() - 1) and the components' names.
+  int row_component(int i) const {
+    return innovations_ ? row_kind_[static_cast<size_t>(i)] : i % kGapRowsPerSegment;
+  }
+  int components() const { return innovations_ ? 2 : kGapRowsPerSegment; }
+  /// "accel x" ... "gyro z"; at sea "gnss north", "gnss east".
+  const char* component_name(int c) const;
+  /// "accel_x" ... "gyro_z"; at sea "gnss_north", "gnss_east" (the JSON's keys).
+  const char* component_key(int c) const;
   /// Whether the archive's reference carries table angles (table effects can be evaluated).
   bool has_table() const { return geometry_.has_value(); }
+  /// Why candidate `id` has no meaning on this run, or "" when it has: a table effect without
+  /// table angles; at sea also the latitude (the fixes give it) and the noise candidates (judged on
+  /// still rests and the segment residuals' covariance, which a rocking deck does not leave).
+  std::string not_applicable(EffectId id) const;
   double duration_s() const;
   const CalibrationInput& input() const { return in_; }
   const std::vector<RestPeriod>& rests() const { return rests_; }
   /// No attitude reference: each rest's attitude is an unknown of the fit (see the header).
   bool table_free() const { return table_free_; }
   /// The rest attitudes' unknowns: 3 per rest (δ_R, navigation axes, rad), table-free runs only.
-  int attitude_unknowns() const { return table_free_ ? 3 * static_cast<int>(rests_.size()) : 0; }
+  int attitude_unknowns() const {
+    return table_free_ && !innovations_ ? 3 * static_cast<int>(rests_.size()) : 0;
+  }
   /// The estimate of rest r's attitude the residuals start from (the table's on table runs).
   const Eigen::Matrix3d& rest_attitude_estimate(size_t r) const { return rest_C_bn_[r]; }
   /// On a table-free move, the whitened row that alone carries the relative heading of its rests
@@ -115,8 +154,13 @@ class GapModel {
   /// One segment's six residuals (rows 6s .. 6s+5 of residuals()); dpsi_n may be null.
   void segment_residuals(size_t s, const ParamSet& base, const Effects& fx,
                          const Eigen::VectorXd* dpsi_n, double* out) const;
-  /// The model's predicted covariance of one segment's residuals (declared noise).
+  /// The model's predicted covariance of one segment's residuals (declared noise; not at sea,
+  /// where each row's variance is innovation_variance()).
   const Block6& covariance(size_t segment) const { return cov_[segment]; }
+  /// At sea: the predicted variance of row i's innovation (m²).
+  double innovation_variance(int i) const {
+    return row_sqrt_s_[static_cast<size_t>(i)] * row_sqrt_s_[static_cast<size_t>(i)];
+  }
   /// Whitening per segment: L⁻¹ r with L Lᵀ the segment covariance.
   Eigen::VectorXd whiten(const Eigen::VectorXd& r) const;
   Eigen::MatrixXd whiten(const Eigen::MatrixXd& J) const;
@@ -153,6 +197,9 @@ class GapModel {
   /// strapdown without effects), for the table-free estimates.
   Eigen::Matrix3d carry_attitude(const GapSegment& s, const ParamSet& calibrated,
                                  const Eigen::Matrix3d& C_start) const;
+  // Sea runs (gap_model_innovations.cpp).
+  void build_innovation_rows(const ParamSet& calibrated, size_t min_rest_samples);
+  Eigen::VectorXd innovation_residuals(const ParamSet& base, const Effects& fx) const;
   // Table-free estimates (gap_model_attitudes.cpp).
   void estimate_rest_attitudes(const ParamSet& calibrated);
   void chain_rest_attitudes(const ParamSet& calibrated);
@@ -169,6 +216,15 @@ class GapModel {
   bool table_free_ = false;
   std::vector<Eigen::Matrix3d> rest_C_bn_;  ///< per rest: the table's, or the estimate
   double t_first_s_ = 0.0;        ///< start of the first interval (thermal drift's t = 0)
+  // Sea: the kept rows (GNSS fixes inside a segment), their index among the filter's innovations,
+  // sample, component (0 north, 1 east) and predicted σ; the INS start attitude held for every
+  // hypothesis; segment s's rows [seg_row_begin_[s], seg_row_begin_[s + 1]).
+  bool innovations_ = false;
+  Eigen::Matrix3d C_bn0_ = Eigen::Matrix3d::Identity();
+  size_t min_rest_samples_ = 100;
+  std::vector<size_t> row_source_, row_sample_;
+  std::vector<int> row_kind_, seg_row_begin_;
+  std::vector<double> row_sqrt_s_;
 };
 
 }  // namespace imucal::calib

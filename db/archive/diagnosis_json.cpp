@@ -55,11 +55,11 @@ json candidate_json(const calib::CandidateResult& c) {
           {"parameters", params_json(c.params)}};
 }
 
-json segment_json(const calib::SegmentGap& g) {
+json segment_json(const calib::SegmentGap& g, const std::vector<std::string>& keys) {
   json z = json::object(), r = json::object();
-  for (int c = 0; c < calib::kGapRowsPerSegment; ++c) {
-    z[gap_component_key(c)] = num(g.z[static_cast<size_t>(c)]);
-    r[gap_component_key(c)] = num(g.residual_si[static_cast<size_t>(c)]);
+  for (size_t c = 0; c < keys.size(); ++c) {
+    z[keys[c]] = num(g.z[c]);
+    r[keys[c]] = num(g.residual_si[c]);
   }
   const bool rest = g.segment.kind == calib::GapSegment::Kind::kRest;
   return {{"label", g.segment.label()},
@@ -126,7 +126,9 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
   }
   j["whiteness"] = {{"tau_s", d.whiteness.tau_s}, {"axes", axes}};
   json segs = json::array();
-  for (const auto& g : d.segments) segs.push_back(segment_json(g));
+  for (const auto& g : d.segments) segs.push_back(segment_json(g, d.component_keys));
+  j["residuals"] = d.innovation_residuals ? "gnss_innovations" : "rests_and_moves";
+  j["components"] = d.component_keys;
   j["segments"] = segs;
   json moved = json::array();
   for (const auto& m : d.moved)

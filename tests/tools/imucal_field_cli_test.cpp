@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -89,7 +90,7 @@ TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
   EXPECT_NE(n.out.find("NLSQ needs the table's attitude reference"), std::string::npos) << n.out;
 }
 
-TEST_F(FieldCli, EvaluateRefusesARunWithoutReferenceAndDiagnoseRefusesOnlyTheSea) {
+TEST_F(FieldCli, EvaluateRefusesARunWithoutReferenceAndDiagnoseWorksOnLandAndSea) {
   // The evaluation needs the table: a silent number from a land run would be meaningless.
   const fs::path params = root() / "land-params.json";
   std::ofstream(params)
@@ -102,7 +103,7 @@ TEST_F(FieldCli, EvaluateRefusesARunWithoutReferenceAndDiagnoseRefusesOnlyTheSea
   EXPECT_EQ(e.code, 1) << e.out;
   EXPECT_NE(e.out.find("no attitude reference"), std::string::npos) << e.out;
   // The diagnosis works without a table on land (issue #21 item 4: each rest's attitude an
-  // unknown), not at sea, where the deck moves the unit during its rests.
+  // unknown) and at sea (the navigation filter's GNSS innovations, the deck moving the unit).
   const Proc d = run("diagnose " + (root() / "land").string() + " --json", false);
   ASSERT_EQ(d.code, 0) << d.out;
   const nlohmann::json j = nlohmann::json::parse(d.out);
@@ -110,10 +111,21 @@ TEST_F(FieldCli, EvaluateRefusesARunWithoutReferenceAndDiagnoseRefusesOnlyTheSea
   EXPECT_TRUE(j.at("table_free").get<bool>());
   EXPECT_EQ(j.at("base_calibration"), "legacy");
   EXPECT_TRUE(j.at("overall").at("simulated_gap").is_null());  // no reference trajectory: no twin
-  const Proc sea = run("diagnose " + (root() / "sea").string());
-  EXPECT_EQ(sea.code, 1) << sea.out;
-  EXPECT_NE(sea.out.find("a sea run cannot be diagnosed"), std::string::npos) << sea.out;
-  EXPECT_NE(sea.out.find("rocks and drifts"), std::string::npos) << sea.out;
+  const fs::path report = root() / "sea-report";
+  const Proc sea =
+      run("diagnose " + (root() / "sea").string() + " --json --report " + report.string(), false);
+  ASSERT_EQ(sea.code, 0) << sea.out;
+  const nlohmann::json s = nlohmann::json::parse(sea.out);
+  EXPECT_EQ(s.at("verdict"), "consistent") << s.at("summary");
+  EXPECT_EQ(s.at("setting"), "sea");
+  EXPECT_EQ(s.at("base_calibration"), "ains");
+  EXPECT_EQ(s.at("residuals"), "gnss_innovations");
+  EXPECT_EQ(s.at("components"), nlohmann::json::array({"gnss_north", "gnss_east"}));
+  EXPECT_TRUE(s.at("segments").at(0).at("z").contains("gnss_east"));
+  std::ifstream html(report / "report.html");
+  const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
+  EXPECT_NE(page.find("gnss north"), std::string::npos);
+  EXPECT_EQ(page.find("accel x"), std::string::npos);  // no sensor-axis rows at sea
 }
 
 // Issue #19 item 4: the truth column was in the housing frame while err/σ was computed against the

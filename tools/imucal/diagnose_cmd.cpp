@@ -7,6 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "calib/ains/ains.hpp"
 #include "calib/diagnosis/diagnosis.hpp"
 #include "calib/diagnosis/gap_model.hpp"
 #include "calib/legacy/legacy.hpp"
@@ -71,15 +72,20 @@ void print_segments(const calib::DiagnosisResult& d) {
   std::vector<const calib::SegmentGap*> s;
   for (const auto& g : d.segments) s.push_back(&g);
   std::sort(s.begin(), s.end(), [](auto* a, auto* b) { return a->nis > b->nis; });
-  std::printf("\nsegments with the largest gap (NIS; about %d expected under the model):\n",
-              calib::kGapRowsPerSegment);
+  if (d.innovation_residuals)
+    std::printf("\nsegments with the largest gap (NIS over their GNSS fixes; about their rows):\n");
+  else
+    std::printf("\nsegments with the largest gap (NIS; about %d expected under the model):\n",
+                calib::kGapRowsPerSegment);
   std::printf("  %-26s %8s %8s %8s %9s %9s  %s\n", "segment", "t0 [s]", "NIS", "NIS sim", "p",
-              "outer/inner", "largest |z| (sensor axis)");
+              "outer/inner",
+              d.innovation_residuals ? "largest |z| (GNSS axis)" : "largest |z| (sensor axis)");
   for (size_t i = 0; i < s.size() && i < 8; ++i) {
     const auto& g = *s[i];
     int worst = 0;
-    for (int c = 1; c < calib::kGapRowsPerSegment; ++c)
-      if (std::abs(g.z[static_cast<size_t>(c)]) > std::abs(g.z[static_cast<size_t>(worst)]))
+    for (int c = 1; c < static_cast<int>(d.components.size()); ++c)
+      if (std::abs(g.z[static_cast<size_t>(c)]) > std::abs(g.z[static_cast<size_t>(worst)]) ||
+          !std::isfinite(g.z[static_cast<size_t>(worst)]))
         worst = c;
     char twin[16] = "-";  // a table-free run has no twin
     if (std::isfinite(g.nis_twin)) std::snprintf(twin, sizeof twin, "%.2f", g.nis_twin);
@@ -89,7 +95,7 @@ void print_segments(const calib::DiagnosisResult& d) {
                     g.segment.inner_deg);
     std::printf("  %-26s %8.1f %8.2f %8s %9.2g %9s  %+.2f (%s)\n", g.segment.label().c_str(),
                 g.segment.t0_s, g.nis, twin, g.p_value, angles, g.z[static_cast<size_t>(worst)],
-                calib::gap_component_name(worst));
+                d.components[static_cast<size_t>(worst)].c_str());
   }
 }
 
@@ -107,17 +113,26 @@ void print_human(const calib::DiagnosisResult& d, const archive::RunArchive& ar,
         "\nsimulated twin (this trajectory, the calibrated model, the declared noise): chi2/dof "
         "%.3f\n",
         d.twin_gap);
+  else if (d.innovation_residuals)
+    std::printf(
+        "\nsea run: the residuals are the navigation filter's GNSS innovations with the sensor "
+        "parameters held at the calibration (the deck moves the unit during its rests); no "
+        "simulated twin\n");
   else
     std::printf(
         "\ntable-free run: each rest's attitude is an unknown of the fit (what such a run "
         "observes: gravity's magnitude and the Earth rate at each rest, gravity and attitude "
         "carried by the gyros across each move, no velocity gained); no simulated twin\n");
-  std::printf("rest samples, lag-1 autocorrelation (z vs declared noise):");
-  for (int c = 0; c < calib::kGapRowsPerSegment; ++c)
-    std::printf(" %s %+.3f (%+.1f)", calib::gap_component_name(c),
-                d.whiteness.lag1_autocorr[static_cast<size_t>(c)],
-                d.whiteness.lag1_z[static_cast<size_t>(c)]);
-  std::printf("\n");
+  if (d.innovation_residuals) {
+    std::printf("rest samples: not judged at sea (the deck turns the unit during its rests)\n");
+  } else {
+    std::printf("rest samples, lag-1 autocorrelation (z vs declared noise):");
+    for (int c = 0; c < calib::kGapRowsPerSegment; ++c)
+      std::printf(" %s %+.3f (%+.1f)", calib::gap_component_name(c),
+                  d.whiteness.lag1_autocorr[static_cast<size_t>(c)],
+                  d.whiteness.lag1_z[static_cast<size_t>(c)]);
+    std::printf("\n");
+  }
   if (d.held_out.has_after) {
     std::printf("held-out gap (fit on the other segments): %.3f -> %.3f", d.held_out.gap_before,
                 d.held_out.gap_after);
@@ -201,11 +216,15 @@ int cmd_diagnose(const DiagnoseArgs& a) {
     throw std::invalid_argument(a.dir + ": " + e.what());
   }
   if (ar.info.reference == archive::ReferenceKind::kTable) in.geometry = ar.info.table.geometry();
-  // The model under test: a table run's NLSQ calibration; a table-free run's multi-position one,
-  // which needs no prior beyond the grade's (the diagnosis refits the base either way).
+  // The model under test: a table run's NLSQ calibration; a land run's multi-position one, which
+  // needs no prior beyond the grade's; a sea run's AINS (a rocking deck has no still rest for the
+  // multi-position method). The diagnosis refits the base either way.
   const bool table_free = !in.cal.has_reference_attitude();
-  const calib::CalibrationResult cal =
-      table_free ? calib::calibrate_legacy(in.cal) : calib::calibrate_nlsq(in.cal);
+  const bool sea = in.cal.setting == calib::Setting::kSea;
+  const char* method = sea ? "ains" : table_free ? "legacy" : "nlsq";
+  const calib::CalibrationResult cal = sea          ? calib::calibrate_ains(in.cal)
+                                       : table_free ? calib::calibrate_legacy(in.cal)
+                                                    : calib::calibrate_nlsq(in.cal);
   calib::DiagnosisOptions opt;
   opt.candidates = ids;
   const calib::DiagnosisResult d = calib::diagnose(in, cal.params, opt);
@@ -216,7 +235,7 @@ int cmd_diagnose(const DiagnoseArgs& a) {
   j["setting"] = calib::setting_name(in.cal.setting);
   j["grade"] = calib::grade_name(in.cal.grade);
   j["table_free"] = table_free;
-  j["base_calibration"] = table_free ? "legacy" : "nlsq";
+  j["base_calibration"] = method;
   if (!a.report_dir.empty()) write_report(a.report_dir, j);
   if (a.json) {
     std::cout << j.dump(2) << '\n';

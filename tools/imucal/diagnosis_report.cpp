@@ -16,8 +16,6 @@ using nlohmann::json;
 
 constexpr const char* kComponents[6] = {"accel_x", "accel_y", "accel_z",
                                         "gyro_x",  "gyro_y",  "gyro_z"};
-constexpr const char* kComponentLabels[6] = {"accel x", "accel y", "accel z",
-                                             "gyro x",  "gyro y",  "gyro z"};
 constexpr double kMicroG = 9.80665e-6, kDegPerHour = 3.14159265358979323846 / 180.0 / 3600.0,
                  kArcsec = 3.14159265358979323846 / 180.0 / 3600.0;
 
@@ -39,7 +37,8 @@ std::string str(const json& o, const char* k) {
 
 /// A residual in human units: accelerometer rows are m/s² at rests (µg) and m/s over moves (mm/s);
 /// gyro rows rad/s at rests (deg/h) and rad over moves (arcsec).
-std::string human_residual(double si, int component, bool rest) {
+std::string human_residual(double si, int component, bool rest, bool gnss = false) {
+  if (gnss) return f(si, "%.3f") + " m";  // a mean GNSS innovation
   if (component < 3) return rest ? f(si / kMicroG, "%.2f") + " ug" : f(si * 1e3, "%.3f") + " mm/s";
   return rest ? f(si / kDegPerHour, "%.4f") + " deg/h" : f(si / kArcsec, "%.3f") + " arcsec";
 }
@@ -58,15 +57,24 @@ std::string z_colour(double z) {
 }
 
 /// A segment's axis label: which step, when it starts, and for a rest where the table holds the
-/// IMU ("rest 3 · 124 s · 90°/0°"); a move's attitude is the next rest's, so it is left out.
+/// IMU ("rest 3 · 124 s · 90°/0°"; no angles without a table); a move's attitude is the next
+/// rest's, so it is left out.
 std::string segment_axis_label(const json& g) {
   const bool rest = str(g, "kind") == "rest";
   std::string s = (rest ? "rest " : "move ") + std::to_string(g.value("number", 0)) + " \u00b7 " +
                   f(num(g, "t0_s"), "%.0f") + " s";
-  if (rest)
+  // A table-free run has no table angles (null in the JSON).
+  if (rest && g.contains("outer_deg") && g["outer_deg"].is_number())
     s += " \u00b7 " + f(num(g, "outer_deg"), "%.0f") + "\u00b0/" + f(num(g, "inner_deg"), "%.0f") +
          "\u00b0";
   return s;
+}
+
+/// ", outer 90 / inner 0 deg" for a table run's segment; nothing without table angles.
+std::string table_angles(const json& g) {
+  if (!g.contains("outer_deg") || !g["outer_deg"].is_number()) return "";
+  return ", outer " + f(num(g, "outer_deg"), "%.0f") + " / inner " +
+         f(num(g, "inner_deg"), "%.0f") + " deg";
 }
 
 // Rotated labels 10 px high side by side: one every `stride` columns so they never overlap. A
@@ -120,35 +128,53 @@ void heatmap_legend(std::ostringstream& os, double left_px, double top_px) {
      << "'>z (|z| &gt; 5 saturates)</text>\n";
 }
 
-void heatmap(std::ostringstream& os, const json& segs) {
-  const double left = 70, top = 20, cell_h = 26;
+/// The segments' residual components: the JSON's list (a sea run: "gnss_north", "gnss_east"), or
+/// the six sensor axes of a diagnosis written before it had one.
+std::vector<std::string> component_keys(const json& d) {
+  std::vector<std::string> keys;
+  if (d.contains("components") && d["components"].is_array())
+    for (const auto& k : d["components"])
+      if (k.is_string()) keys.push_back(k.get<std::string>());
+  if (keys.empty()) keys.assign(std::begin(kComponents), std::end(kComponents));
+  return keys;
+}
+
+std::string component_label(std::string key) {
+  std::replace(key.begin(), key.end(), '_', ' ');
+  return key;
+}
+
+void heatmap(std::ostringstream& os, const json& segs, const std::vector<std::string>& keys) {
+  const int rows = static_cast<int>(keys.size());
+  const bool gnss = rows > 0 && keys[0].rfind("gnss", 0) == 0;
+  const double left = 80, top = 20, cell_h = 26;
   const double n = std::max<double>(1.0, static_cast<double>(segs.size()));
   const double cell_w = std::max(6.0, std::min(28.0, 1000.0 / n));
-  const double axis_top = top + 6 * cell_h + 12,
+  const double axis_top = top + rows * cell_h + 12,
                legend_top = axis_top + heatmap_axis_band_px(segs, cell_w) + 24;
   const double width = left + cell_w * n + 20, height = legend_top + 40;
   os << "<svg id='heatmap' xmlns='http://www.w3.org/2000/svg' width='" << width << "' height='"
      << height << "' font-family='sans-serif' font-size='11'>\n";
-  for (int c = 0; c < 6; ++c)
+  for (int c = 0; c < rows; ++c)
     os << "<text x='" << left - 6 << "' y='" << top + cell_h * (c + 0.65) << "' text-anchor='end'>"
-       << kComponentLabels[c] << "</text>\n";
+       << esc(component_label(keys[static_cast<size_t>(c)])) << "</text>\n";
   for (size_t s = 0; s < segs.size(); ++s) {
     const json& g = segs[s];
     const bool rest = str(g, "kind") == "rest";
     const double x = left + cell_w * static_cast<double>(s);
-    for (int c = 0; c < 6; ++c) {
-      const double z = g["z"].contains(kComponents[c]) ? num(g["z"], kComponents[c]) : 0.0;
-      const double r = num(g["residual_si"], kComponents[c]);
+    for (int c = 0; c < rows; ++c) {
+      const char* key = keys[static_cast<size_t>(c)].c_str();
+      const double z = g["z"].contains(key) ? num(g["z"], key) : 0.0;
+      const double r = num(g["residual_si"], key);
       os << "<rect x='" << x << "' y='" << top + cell_h * c << "' width='" << cell_w - 1
          << "' height='" << cell_h - 1 << "' fill='" << z_colour(z) << "'><title>"
          << esc(str(g, "label")) << " (t " << f(num(g, "t0_s"), "%.0f") << "-"
-         << f(num(g, "t1_s"), "%.0f") << " s, outer " << f(num(g, "outer_deg"), "%.0f")
-         << " / inner " << f(num(g, "inner_deg"), "%.0f") << " deg), " << kComponentLabels[c]
-         << ": z = " << f(z, "%.2f") << ", residual " << human_residual(r, c, rest)
-         << "</title></rect>\n";
+         << f(num(g, "t1_s"), "%.0f") << " s" << table_angles(g) << "), "
+         << esc(component_label(key)) << ": z = " << f(z, "%.2f") << ", residual "
+         << human_residual(r, c, rest, gnss) << "</title></rect>\n";
     }
     // Segment kind along the bottom: rests dark, moves light.
-    os << "<rect x='" << x << "' y='" << top + 6 * cell_h + 2 << "' width='" << cell_w - 1
+    os << "<rect x='" << x << "' y='" << top + rows * cell_h + 2 << "' width='" << cell_w - 1
        << "' height='6' fill='" << (rest ? "#555" : "#bbb") << "'/>\n";
   }
   heatmap_axis(os, segs, left, cell_w, axis_top);
@@ -369,6 +395,10 @@ void header(std::ostringstream& os, const json& d) {
     os << "; the simulated twin (this trajectory simulated with the calibrated model and the "
           "declared noise) gives "
        << f(num(o, "simulated_gap"), "%.3f") << ".</p>\n";
+  else if (str(d, "residuals") == "gnss_innovations")
+    os << ". A sea run: the residuals are the navigation filter's GNSS innovations with the sensor "
+          "parameters held at the calibration (the deck moves the unit during its rests), and "
+          "there is no reference trajectory to simulate a twin along.</p>\n";
   else
     os << ". A table-free run: each rest's attitude is an unknown of the fit, and there is no "
           "reference trajectory to simulate a twin along.</p>\n";
@@ -406,11 +436,27 @@ std::string diagnosis_report_html(const json& d) {
         "table{border-collapse:collapse;font-size:12px}td,th{border:1px solid #ccc;padding:3px 6px;"
         "text-align:left}tr.sig{background:#fde}tr.nosep{color:#999}</style></head><body>\n";
   header(os, d);
-  os << "<h2>Where: normalised gap by segment and sensor axis</h2>\n";
-  heatmap(os, d["segments"]);
-  os << "<h2>Residuals per segment: NIS of the real run (bars) and of its simulated twin "
-        "(dots)</h2>\n";
-  nis_chart(os, d["segments"]);
+  const bool gnss = str(d, "residuals") == "gnss_innovations";
+  os << "<h2>Where: normalised gap by segment and "
+     << (gnss ? "GNSS axis (the filter's innovations, summed over each segment's fixes)"
+              : "sensor axis")
+     << "</h2>\n";
+  heatmap(os, d["segments"], component_keys(d));
+  if (gnss) {
+    // A sea segment holds as many rows as it has fixes: its NIS is drawn scaled to 6 rows so the
+    // χ²(6) reference lines hold for every bar (the tooltip keeps the NIS and its expectation).
+    json segs = d["segments"];
+    for (auto& g : segs) {
+      const double e = num(g, "nis_expected");
+      if (e > 0) g["nis"] = num(g, "nis") * kNisExpected / e;
+    }
+    os << "<h2>Residuals per segment: NIS of the GNSS innovations, scaled to 6 rows</h2>\n";
+    nis_chart(os, segs);
+  } else {
+    os << "<h2>Residuals per segment: NIS of the real run (bars) and of its simulated twin "
+          "(dots)</h2>\n";
+    nis_chart(os, d["segments"]);
+  }
   os << "<h2>Which: candidate effects, refitted with the calibration</h2>\n";
   score_chart(os, d["candidates"]);
   candidate_table(os, d["candidates"]);
