@@ -194,8 +194,9 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
   // A direction whose typical-size effect moves the whitened residuals by less than 0.01 (χ² 1e-4)
   // has no signature at all on this sequence — typical for the unit's grade: a MEMS unit's effects
   // are effect_scale times the catalogue's (navigation-grade) typical sizes, and so is its noise.
-  const Separability sep = separability(p.Jb, c.J, opt.separability_limit,
-                                        signature_floor(effect_scale(c.id, p.model.input().grade)));
+  const Separability sep =
+      separability(p.Jb, c.J, opt.separability_limit,
+                   signature_floor(effect_scale(c.id, p.model.input().grade)), opt.fit_limit);
   r.max_correlation = sep.max_correlation;
   const int n = static_cast<int>(c.J.cols());
   if (sep.basis.cols() == 0) {
@@ -213,13 +214,19 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
   }
   if (sep.basis.cols() < n) {
     std::ostringstream os;
-    os << "partly separable: " << sep.basis.cols() << " of " << n << " parameter directions fitted";
+    os << "partly separable: " << sep.basis.cols() << " of " << n << " parameter directions";
     if (!sep.aliases.empty()) os << " (the others alias " << base_names(p.lin, sep.aliases) << ")";
+    if (sep.nuisance.cols() > 0)
+      os << "; " << sep.nuisance.cols() << " more fitted with them, not resolved (correlation "
+         << correlation_text(sep.max_nuisance_correlation) << ")";
     r.note = os.str();
   }
   r.separable = true;
-  r.k = static_cast<int>(sep.basis.cols());
-  J_eff = c.J * sep.basis;
+  // The fitted directions: the separable ones and the nuisance ones (DiagnosisOptions::fit_limit).
+  Eigen::MatrixXd basis(n, sep.basis.cols() + sep.nuisance.cols());
+  basis << sep.basis, sep.nuisance;
+  r.k = static_cast<int>(basis.cols());
+  J_eff = c.J * basis;
   const GlsFit fit = gls_fit(p.r0, hcat(p.Jb, J_eff));
   r.lr = std::max(0.0, chi2_0 - fit.chi2);
   r.p_value = chi2_survival(r.lr, r.k);
@@ -227,7 +234,7 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
   // Back to the effect's SI parameters: x = scale ⊙ (basis α).
   const Eigen::VectorXd alpha = fit.x.tail(r.k);
   const Eigen::MatrixXd cov_a = fit.cov.bottomRightCorner(r.k, r.k);
-  const Eigen::MatrixXd B = c.scale.asDiagonal() * sep.basis;
+  const Eigen::MatrixXd B = c.scale.asDiagonal() * basis;
   const Eigen::VectorXd x = B * alpha;
   const Eigen::MatrixXd cov_x = B * cov_a * B.transpose();
   r.value_si = Eigen::VectorXd::Zero(e.size());

@@ -53,6 +53,13 @@ struct DiagnosisOptions {
   /// held-out gap by 3 %).
   double min_shrinkage = 0.5;
   double separability_limit = 0.95;
+  /// A candidate direction that correlates above separability_limit but at most this much with the
+  /// base parameters is fitted with the candidate's separable directions (its values are not
+  /// resolved and the note says so): left out, its remainder (1 - ρ² of its signature) is a gap
+  /// that another candidate takes (issue #21: a MEMS unit's K2 on hand-placed positions, its z
+  /// direction at 0.972, was named after a wandering bias). Above it the direction is near
+  /// degenerate (variance inflated more than 100×) and stays out.
+  double fit_limit = 0.995;
   /// A candidate's fitted size above this many times its catalogue typical (navigation-grade) size
   /// is not physically plausible: not a finding however significant its fit (a K2 run's leakage
   /// read as a 4.6 m size effect). It is multiplied by the unit's grade's effect_scale

@@ -134,7 +134,7 @@ HeldOutGap held_out_gap_correlated(const Eigen::VectorXd& r0, const Eigen::Matri
 }
 
 Separability separability(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& Jc, double limit,
-                          double signature_floor) {
+                          double signature_floor, double fit_limit) {
   Separability s;
   const int nc = static_cast<int>(Jc.cols());
   // Directions of the candidate's own information matrix; those below the floor have no signature.
@@ -163,17 +163,26 @@ Separability separability(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& Jc, 
   }
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> el(P.transpose() * P);
   const double lambda_min = 1.0 - limit * limit;
-  std::vector<int> sep;
+  const double lambda_fit = fit_limit > limit ? 1.0 - fit_limit * fit_limit : lambda_min;
+  std::vector<int> sep, nuisance;
   for (int i = 0; i < el.eigenvalues().size(); ++i) {
     const double lam = std::clamp(el.eigenvalues()(i), 0.0, 1.0);
     const double rho = std::sqrt(1.0 - lam);
     s.max_correlation = std::max(s.max_correlation, rho);
     s.min_correlation = std::min(s.min_correlation, rho);
-    if (lam > lambda_min) sep.push_back(i);
+    if (lam > lambda_min) {
+      sep.push_back(i);
+    } else if (lam > lambda_fit) {
+      nuisance.push_back(i);
+      s.max_nuisance_correlation = std::max(s.max_nuisance_correlation, rho);
+    }
   }
   s.basis.resize(nc, static_cast<Eigen::Index>(sep.size()));
   for (size_t i = 0; i < sep.size(); ++i)
     s.basis.col(static_cast<Eigen::Index>(i)) = U * el.eigenvectors().col(sep[i]);
+  s.nuisance.resize(nc, static_cast<Eigen::Index>(nuisance.size()));
+  for (size_t i = 0; i < nuisance.size(); ++i)
+    s.nuisance.col(static_cast<Eigen::Index>(i)) = U * el.eigenvectors().col(nuisance[i]);
   // Which base columns mimic the worst direction: the regression of its signature on the base.
   if (Jb.cols() > 0) {
     const Eigen::VectorXd worst = A * el.eigenvectors().col(0);

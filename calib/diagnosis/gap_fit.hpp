@@ -54,6 +54,12 @@ HeldOutGap held_out_gap_correlated(const Eigen::VectorXd& r0, const Eigen::Matri
 struct Separability {
   /// Candidate-parameter directions (columns) that are separable: fit the candidate in this basis.
   Eigen::MatrixXd basis;
+  /// Directions that correlate above the limit but no more than `fit_limit` with the base: not
+  /// separable, yet far from degenerate (variance inflation at most 1 / (1 - fit_limit²)). Fitted
+  /// with the separable ones when the candidate is, so that its share of the gap is the
+  /// candidate's and not a remainder another candidate takes; never reported as resolved.
+  Eigen::MatrixXd nuisance;
+  double max_nuisance_correlation = 0.0;
   /// Largest multiple correlation with the base over all directions that have a signature.
   double max_correlation = 0.0;
   /// Smallest such correlation (the best-separated direction); 1 if none has a signature.
@@ -63,9 +69,10 @@ struct Separability {
   std::vector<int> aliases;
 };
 /// `signature_floor`: a direction whose ||Jc u||² stays below it (u in the columns' own units) has
-/// no signature. `limit`: the correlation above which a direction is not separable.
+/// no signature. `limit`: the correlation above which a direction is not separable; `fit_limit`
+/// (> limit, else none): the one up to which such a direction is still a nuisance direction.
 Separability separability(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& Jc, double limit,
-                          double signature_floor);
+                          double signature_floor, double fit_limit = 0.0);
 
 /// The signature floor of separability() for candidate columns in units of the catalogue's typical
 /// size: χ² 1e-4 (a 0.01 move of the whitened residuals) for an effect of the grade's typical size,
