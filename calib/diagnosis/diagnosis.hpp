@@ -19,7 +19,9 @@
 //  A table-free run (land, by hand; issue #21) is diagnosed the same way with each rest's attitude
 //  an unknown of every fit (calib/diagnosis/gap_model.hpp): the base columns are then the 24 sensor
 //  parameters and those attitudes, and the held-out check leaves out what only the held-out move
-//  measures (its relative heading).
+//  measures (its relative heading). A sea run has no still rest: its residuals are the navigation
+//  filter's GNSS innovations under each hypothesis (gap_model.hpp, "Sea runs"), the base columns
+//  the 24 sensor parameters.
 //  3. Quantify: the gap on held-out segments (K-fold over rests and the moves after them) before
 //  and
 //     after adding the best effect, and the best pair; the base parameters that move, in σ.

@@ -152,10 +152,11 @@ ValidationReport validate_diagnosis(const RunSource& world, const TableGeometry&
                                     const ValidationOptions& opt) {
   ValidationReport rep;
   rep.sequence = sequence;
-  rep.detectability = effect_detectability(world(Effects{}, 1, /*noise=*/false), geometry, base);
+  const CalibrationInput exact = world(Effects{}, 1, /*noise=*/false);
+  rep.detectability = effect_detectability(exact, geometry, base);
   std::map<EffectId, double> threshold, max_factor;
   std::vector<EffectId> ids;
-  const Grade grade = world(Effects{}, 1, /*noise=*/false).grade;
+  const Grade grade = exact.grade;
   for (const auto& d : rep.detectability) {
     const bool wanted = opt.effects.empty() || std::find(opt.effects.begin(), opt.effects.end(),
                                                          d.id) != opt.effects.end();

@@ -155,12 +155,8 @@ class GapModel {
   void segment_residuals(size_t s, const ParamSet& base, const Effects& fx,
                          const Eigen::VectorXd* dpsi_n, double* out) const;
   /// The model's predicted covariance of one segment's residuals (declared noise; not at sea,
-  /// where each row's variance is innovation_variance()).
+  /// where each row is whitened by its innovation's predicted σ).
   const Block6& covariance(size_t segment) const { return cov_[segment]; }
-  /// At sea: the predicted variance of row i's innovation (m²).
-  double innovation_variance(int i) const {
-    return row_sqrt_s_[static_cast<size_t>(i)] * row_sqrt_s_[static_cast<size_t>(i)];
-  }
   /// Whitening per segment: L⁻¹ r with L Lᵀ the segment covariance.
   Eigen::VectorXd whiten(const Eigen::VectorXd& r) const;
   Eigen::MatrixXd whiten(const Eigen::MatrixXd& J) const;

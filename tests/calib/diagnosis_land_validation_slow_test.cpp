@@ -19,6 +19,7 @@
 #include "calib/sim/sim_input.hpp"
 #include "calib/sim/unit_draw.hpp"
 #include "sequences/library.hpp"
+#include "tests/support/field_unit.hpp"
 #include "tests/support/validation_report.hpp"
 
 using namespace imucal;
@@ -26,17 +27,11 @@ using namespace imucal::calib;
 
 namespace {
 
-UnitModel land_unit() {
-  UnitModel u = default_unit();
-  u.params.table_misalignment_rad.setZero();
-  return u;
-}
-
 RunSource land_source() {
   FieldSimOptions o;
   o.setting = Setting::kLand;
-  return field_run_source(sequences::load_profile("factory-std"), demo_factory_site(), land_unit(),
-                          o);
+  return field_run_source(sequences::load_profile("factory-std"), demo_factory_site(),
+                          test_support::field_unit(), o);
 }
 
 bool validated(const ValidationReport& r, const char* name) {
@@ -53,8 +48,8 @@ TEST(LandDiagnosisValidation, FactoryStdByHandMeetsTheBarWithMargins) {
   opt.null_runs = 4 * runs;
   opt.pair_runs = 0;
   opt.seed = 5;
-  const ValidationReport r =
-      validate_diagnosis(land_source(), TableGeometry{}, land_unit().params, "factory-std", opt);
+  const ValidationReport r = validate_diagnosis(
+      land_source(), TableGeometry{}, test_support::field_unit().params, "factory-std", opt);
   calib::testing::print_validation(r);
   for (const auto& d : r.detectability)
     if (!d.separable()) std::printf("  not validated: %s (%s)\n", d.name.c_str(), d.reason.c_str());

@@ -18,17 +18,13 @@
 #include "calib/diagnosis/gap_model.hpp"
 #include "calib/sim/field_sim.hpp"
 #include "sequences/library.hpp"
+#include "tests/support/diagnosis_finding.hpp"
+#include "tests/support/field_unit.hpp"
 
 using namespace imucal;
 using namespace imucal::calib;
 
 namespace {
-
-UnitModel sea_unit() {
-  UnitModel u = default_unit();
-  u.params.table_misalignment_rad.setZero();  // no table
-  return u;
-}
 
 DiagnosisInput simulate_sea(const UnitModel& unit, const char* sequence, uint64_t seed) {
   FieldSimOptions o;
@@ -47,7 +43,7 @@ DiagnosisInput simulate_sea(const UnitModel& unit, const char* sequence, uint64_
 // fix's whitened innovation is N(0, 1) (mean and mean square over ~1000 of them), and an effect
 // the calibration does not model raises them.
 TEST(AinsInnovations, AtTheTruthTheGnssInnovationsAreStandardNormal) {
-  const UnitModel unit = sea_unit();
+  const UnitModel unit = test_support::field_unit();
   const DiagnosisInput run = simulate_sea(unit, "short", 3);
   const AinsInnovations a = ains_innovations(run.cal, unit.params);
   double sum = 0.0, sum2 = 0.0;
@@ -68,7 +64,7 @@ TEST(AinsInnovations, AtTheTruthTheGnssInnovationsAreStandardNormal) {
 // A null sea run is consistent with the model, and the candidates a sea run cannot judge are
 // marked so, saying why (no table; the latitude from the fixes; no still rest for the noise).
 TEST(SeaDiagnosis, NullSeaRunIsConsistentAndSaysWhatItCannotJudge) {
-  const UnitModel unit = sea_unit();
+  const UnitModel unit = test_support::field_unit();
   const DiagnosisInput run = simulate_sea(unit, "factory-std", 5);
   const CalibrationResult cal = calibrate_ains(run.cal);
   const DiagnosisResult d = diagnose(run, cal.params);
@@ -118,33 +114,19 @@ TEST(SeaDiagnosis, WithheldEffectsOfASeaRunAreNamedWithTheirSize) {
   for (const Case& c :
        {Case{EffectId::kGyroGSensitivity, gs}, Case{EffectId::kSizeEffect, size},
         Case{EffectId::kGyroAccelSkew, skew}, Case{EffectId::kThermalDrift, warm}}) {
-    UnitModel unit = sea_unit();
+    UnitModel unit = test_support::field_unit();
     unit.effects = c.fx;
     const DiagnosisInput run = simulate_sea(unit, "factory-std", 11);
     const CalibrationResult cal = calibrate_ains(run.cal);
     const DiagnosisResult d = diagnose(run, cal.params);
-    const EffectInfo& e = effect_info(c.id);
-    std::printf("%s: %s\n", e.name.c_str(), d.summary.c_str());
-    ASSERT_TRUE(d.best) << d.summary;
-    const CandidateResult& best = d.candidates[*d.best];
-    EXPECT_EQ(best.name, e.name);
-    EXPECT_EQ(d.verdict, "explained");
+    test_support::expect_finding(d, c.id, c.fx);
     EXPECT_GT(d.held_out.shrinkage, 0.7);
-    const Eigen::VectorXd truth = effect_vector(c.fx, c.id);
-    for (size_t j = 0; j < best.params.size(); ++j) {
-      const CandidateParam& p = best.params[j];
-      const double t = truth(static_cast<int>(j)) * e.params[j].si_to_human;
-      std::printf("  %s = %.4g +- %.3g (truth %.4g) %s\n", p.name.c_str(), p.value, p.sigma, t,
-                  p.unit.c_str());
-      if (!(p.sigma > 0.0)) continue;  // the shape parameter (thermal τ) is searched on a grid
-      EXPECT_LT(std::abs(p.value - t), 4.0 * p.sigma) << p.name;
-    }
   }
 }
 
 // The model's own refusals: a sea run needs its GNSS fixes (the residuals are their innovations).
 TEST(SeaDiagnosis, ASeaRunWithoutFixesIsRefusedNamingWhy) {
-  const UnitModel unit = sea_unit();
+  const UnitModel unit = test_support::field_unit();
   DiagnosisInput run = simulate_sea(unit, "short", 5);
   run.cal.gnss.clear();
   try {

@@ -15,6 +15,7 @@
 #include "calib/diagnosis/diagnosis_validation.hpp"
 #include "calib/sim/sim_input.hpp"
 #include "sequences/library.hpp"
+#include "tests/support/field_unit.hpp"
 #include "tests/support/validation_report.hpp"
 
 using namespace imucal;
@@ -23,8 +24,7 @@ using namespace imucal::calib;
 TEST(SeaDiagnosisValidation, FactoryStdAtSeaMeetsTheBarWithMargins) {
   const char* env = std::getenv("IMUCAL_VALIDATION_RUNS");
   const int runs = env && std::atoi(env) > 0 ? std::atoi(env) : 2;
-  UnitModel unit = default_unit();
-  unit.params.table_misalignment_rad.setZero();
+  const UnitModel unit = test_support::field_unit();
   FieldSimOptions o;
   o.setting = Setting::kSea;
   const RunSource world =

@@ -16,6 +16,7 @@
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/imu/candump_log.hpp"
 #include "drivers/imu/imu_codec.hpp"
+#include "tests/support/run_command.hpp"
 
 namespace imucal::imu {
 namespace {
@@ -27,16 +28,9 @@ std::string temp_path(const std::string& name) {
   return "/tmp/imucal-candump-" + std::to_string(::getpid()) + "-" + name;
 }
 
-/// Runs a shell command, returns its exit status and stdout.
 std::pair<int, std::string> run(const std::string& cmd) {
-  std::string out;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) return {-1, out};
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int st = ::pclose(p);
-  return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out};
+  const test_support::CommandResult r = test_support::run_command(cmd);
+  return {r.code, r.out};
 }
 
 void require_tool(const std::string& check, const std::string& package) {

@@ -19,6 +19,7 @@
 
 #include "drivers/imu/dbc_codec.hpp"
 #include "drivers/imu/dbc_database.hpp"
+#include "tests/support/run_command.hpp"
 
 namespace imucal::imu {
 namespace {
@@ -26,14 +27,8 @@ namespace {
 const std::string kCases = std::string(IMUCAL_SOURCE_DIR) + "/tests/data/dbc/reader_cases.dbc";
 
 std::pair<int, std::string> run(const std::string& cmd) {
-  std::string out;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) return {-1, out};
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int st = ::pclose(p);
-  return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out};
+  const test_support::CommandResult r = test_support::run_command(cmd);
+  return {r.code, r.out};
 }
 
 TEST(DbcReader, ReadsMessagesAndSignalsAsTheFileStatesThem) {

@@ -12,19 +12,14 @@
 #include <sstream>
 
 #include "drivers/imu/imu_codec.hpp"
+#include "tests/support/run_command.hpp"
 
 namespace imucal::imu {
 namespace {
 
 std::pair<int, std::string> run(const std::string& cmd) {
-  std::string out;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) return {-1, out};
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int st = ::pclose(p);
-  return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out};
+  const test_support::CommandResult r = test_support::run_command(cmd);
+  return {r.code, r.out};
 }
 
 TEST(ImuDbc, CanmatrixDecodesOurFramesToTheDocumentedFields) {
