@@ -183,6 +183,18 @@ void set_magnitude(CandidateResult& r, const EffectInfo& e, const CandidateColum
   }
 }
 
+/// "partly separable: 2 of 3 parameter directions (the others alias ...); 1 more fitted with them,
+/// not resolved (correlation 0.972)".
+std::string partly_separable_note(const Problem& p, const Separability& sep, int n) {
+  std::ostringstream os;
+  os << "partly separable: " << sep.basis.cols() << " of " << n << " parameter directions";
+  if (!sep.aliases.empty()) os << " (the others alias " << base_names(p.lin, sep.aliases) << ")";
+  if (sep.nuisance.cols() > 0)
+    os << "; " << sep.nuisance.cols() << " more fitted with them, not resolved (correlation "
+       << correlation_text(sep.max_nuisance_correlation) << ")";
+  return os.str();
+}
+
 /// Fit one candidate jointly with the base (in its separable subspace) and score it.
 CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, double chi2_0,
                                 const DiagnosisOptions& opt, Eigen::MatrixXd& J_eff) {
@@ -212,15 +224,7 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
     r.value_si = Eigen::VectorXd::Zero(e.size());
     return r;
   }
-  if (sep.basis.cols() < n) {
-    std::ostringstream os;
-    os << "partly separable: " << sep.basis.cols() << " of " << n << " parameter directions";
-    if (!sep.aliases.empty()) os << " (the others alias " << base_names(p.lin, sep.aliases) << ")";
-    if (sep.nuisance.cols() > 0)
-      os << "; " << sep.nuisance.cols() << " more fitted with them, not resolved (correlation "
-         << correlation_text(sep.max_nuisance_correlation) << ")";
-    r.note = os.str();
-  }
+  if (sep.basis.cols() < n) r.note = partly_separable_note(p, sep, n);
   r.separable = true;
   // The fitted directions: the separable ones and the nuisance ones (DiagnosisOptions::fit_limit).
   Eigen::MatrixXd basis(n, sep.basis.cols() + sep.nuisance.cols());
