@@ -99,10 +99,14 @@ const char* GapModel::component_name(int c) const {
   return c == 0 ? "gnss north" : "gnss east";
 }
 
-const char* GapModel::component_key(int c) const {
+const char* gap_component_key(int c) {
   static const char* keys[kGapRowsPerSegment] = {"accel_x", "accel_y", "accel_z",
                                                  "gyro_x",  "gyro_y",  "gyro_z"};
-  if (!innovations_) return keys[c];
+  return keys[c];
+}
+
+const char* GapModel::component_key(int c) const {
+  if (!innovations_) return gap_component_key(c);
   return c == 0 ? "gnss_north" : "gnss_east";
 }
 

@@ -80,6 +80,8 @@ struct GapSegment {
 constexpr int kGapRowsPerSegment = 6;
 /// "accel x", ..., "gyro z".
 const char* gap_component_name(int c);
+/// "accel_x", ..., "gyro_z" (the JSON's keys).
+const char* gap_component_key(int c);
 
 using Block6 = Eigen::Matrix<double, 6, 6>;
 

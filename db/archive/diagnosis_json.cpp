@@ -79,12 +79,6 @@ json segment_json(const calib::SegmentGap& g, const std::vector<std::string>& ke
 
 }  // namespace
 
-const char* gap_component_key(int c) {
-  static const char* k[calib::kGapRowsPerSegment] = {"accel_x", "accel_y", "accel_z",
-                                                     "gyro_x",  "gyro_y",  "gyro_z"};
-  return k[c];
-}
-
 nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
   json j;
   j["verdict"] = d.verdict;
@@ -118,7 +112,7 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
     json adev = json::array(), exp = json::array();
     for (double v : d.whiteness.adev[static_cast<size_t>(c)]) adev.push_back(num(v));
     for (double v : d.whiteness.adev_expected[static_cast<size_t>(c)]) exp.push_back(num(v));
-    axes[gap_component_key(c)] = {
+    axes[calib::gap_component_key(c)] = {
         {"lag1_autocorr", num(d.whiteness.lag1_autocorr[static_cast<size_t>(c)])},
         {"lag1_z", num(d.whiteness.lag1_z[static_cast<size_t>(c)])},
         {"adev", adev},

@@ -38,7 +38,4 @@ struct DiagnosedEffects {
 /// diagnosis, names no effect, or a parameter is missing.
 DiagnosedEffects diagnosed_effects(const nlohmann::json& j, const std::string& origin);
 
-/// "accel_x", ..., "gyro_z": the JSON keys of the six residual components.
-const char* gap_component_key(int c);
-
 }  // namespace imucal::archive
