@@ -15,22 +15,19 @@ namespace imucal::station {
 
 namespace {
 
-// IMU status bits that make the data unusable for a calibration (imu_protocol.hpp).
-constexpr uint16_t kFailureBits = imu::status::kGyroFault | imu::status::kAccelFault |
-                                  imu::status::kBitFail | imu::status::kGyroSaturated |
-                                  imu::status::kAccelSaturated;
+// IMU conditions that make the data unusable for a calibration.
+constexpr uint8_t kFailureConditions = imu::condition::kFault | imu::condition::kSaturation;
 
-std::string failure_names(uint16_t st) {
-  std::string s;
-  auto add = [&](uint16_t bit, const char* name) {
-    if (st & bit) s += (s.empty() ? "" : ", ") + std::string(name);
+/// "fault (IMU_STATUS.GyroFault), saturation (...)": the conditions and the protocol's signals.
+std::string failure_names(const imu::ImuFrameDecoder& dec, const imu::DecodedSample& s) {
+  std::string out;
+  auto add = [&](uint8_t c, const char* name) {
+    if (!(s.conditions & c)) return;
+    out += (out.empty() ? "" : ", ") + std::string(name) + " (" + dec.flag_names(s.flags, c) + ")";
   };
-  add(imu::status::kGyroFault, "gyro fault");
-  add(imu::status::kAccelFault, "accelerometer fault");
-  add(imu::status::kBitFail, "built-in test failed");
-  add(imu::status::kGyroSaturated, "gyro saturated");
-  add(imu::status::kAccelSaturated, "accelerometer saturated");
-  return s;
+  add(imu::condition::kFault, "fault");
+  add(imu::condition::kSaturation, "saturation");
+  return out;
 }
 
 constexpr auto kRateWindow = std::chrono::seconds(2);
@@ -178,8 +175,8 @@ void Capture::on_sample(const imu::DecodedSample& s, Clock::time_point now) {
     ++unseen_move_samples_;
 
   if (!writer_ || writes_disabled_ || fault_) return;
-  if (s.status & kFailureBits) {
-    set_fault("IMU reports " + failure_names(s.status) + " at " + row_label(rows_));
+  if (s.conditions & kFailureConditions) {
+    set_fault("IMU reports " + failure_names(decoder_, s) + " at " + row_label(rows_));
     return;
   }
   if (!have_prev_row_) {

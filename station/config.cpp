@@ -325,10 +325,42 @@ void parse_turntable(const Section& s, const std::string& origin, StationConfig&
   }
 }
 
-/// [imu]: the CAN URI, rate, frame id, noise and the capture's thresholds.
+/// A still unit's rate noise stays below this: 8 σ of one sample's rate (ARW / √dt; the magnitude
+/// of three axes' noise passes 8 σ with probability 3e-13 a sample, 5 σ with 1.4e-5 — a few
+/// times in a factory-std run's 2.3e5 rest samples), and never below 0.05 °/s. A
+/// navigation-grade unit (2.5e-4 °/s a sample at 100 Hz) gets 0.05 °/s; a tactical one
+/// (0.2 °/√h: 0.033 °/s a sample) 0.27 °/s, where 0.05 would never see it still.
+double default_rest_rate_threshold_dps(const StationConfig& c) {
+  const double sigma_dps = c.arw_rad_per_sqrt_s() * std::sqrt(c.rate_hz) / kDegToRad;
+  return std::max(0.05, 8.0 * sigma_dps);
+}
+
+/// [imu] protocol and base_id: the unit's protocol file read and checked now (its DBC too), so
+/// that a bad one stops the daemon before it starts; its errors name the file and line.
+void parse_protocol(const Section& s, const std::string& base_dir, StationConfig& c) {
+  std::shared_ptr<const imu::ImuProtocolMap> map;
+  if (auto p = s.string("protocol", false, false)) {
+    c.protocol_path = resolve(base_dir, *p);
+    try {
+      map = std::make_shared<const imu::ImuProtocolMap>(imu::read_protocol_map(c.protocol_path));
+    } catch (const std::invalid_argument& e) {
+      s.fail_key("protocol", e.what());
+    }
+  }
+  if (auto v = s.integer("base_id", false, 0, 0x1FFFFFFF,
+                         "(CAN id of the lowest of the sample's frames)"))
+    c.base_id = static_cast<uint32_t>(*v);
+  try {
+    c.protocol = imu::resolve_protocol(map, c.base_id);
+  } catch (const std::invalid_argument& e) {
+    s.fail_key(c.base_id ? "base_id" : "protocol", e.what());
+  }
+}
+
+/// [imu]: the CAN URI, rate, protocol, frame id, noise and the capture's thresholds.
 void parse_imu(const Section& s, const std::string& base_dir, StationConfig& c) {
-  s.only({"can", "rate_hz", "base_id", "arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz", "grade",
-          "max_gap_samples", "settle_guard_samples", "rest_rate_threshold_dps",
+  s.only({"can", "rate_hz", "protocol", "base_id", "arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz",
+          "grade", "max_gap_samples", "settle_guard_samples", "rest_rate_threshold_dps",
           "stream_timeout_ms"});
   const std::string can = *s.string("can", true, false);
   const auto colon = can.find(':');
@@ -341,9 +373,7 @@ void parse_imu(const Section& s, const std::string& base_dir, StationConfig& c) 
   }
   c.can_uri = scheme == "socketcan" ? can : scheme + ":" + resolve(base_dir, rest);
   if (auto v = s.number("rate_hz", false, 1.0, 2000.0, "Hz")) c.rate_hz = *v;
-  if (auto v = s.integer("base_id", false, 0, 0x7FF - (imu::kFramesPerSample - 1),
-                         "(11-bit CAN id of the first of the sample's frames)"))
-    c.base_id = static_cast<uint32_t>(*v);
+  parse_protocol(s, base_dir, c);
   if (auto v = s.number("arw_deg_per_sqrt_h", false, 1e-7, 10.0, "deg/sqrt(h)"))
     c.arw_deg_per_sqrt_h = *v;
   if (auto v = s.number("vrw_ug_per_sqrt_hz", false, 1e-3, 1e5, "ug/sqrt(Hz)"))
@@ -359,6 +389,8 @@ void parse_imu(const Section& s, const std::string& base_dir, StationConfig& c) 
     c.settle_guard_samples = static_cast<uint64_t>(*v);
   if (auto v = s.number("rest_rate_threshold_dps", false, 1e-6, 100.0, "deg/s"))
     c.rest_rate_threshold_dps = *v;
+  else
+    c.rest_rate_threshold_dps = default_rest_rate_threshold_dps(c);
   if (auto v = s.integer("stream_timeout_ms", false, 10, 600000, "ms"))
     c.stream_timeout_ms = static_cast<int>(*v);
 }
@@ -440,7 +472,7 @@ StationConfig load_config(const std::string& path) {
 
 imu::DecoderOptions decoder_options(const StationConfig& config) {
   imu::DecoderOptions o;
-  o.base_id = config.base_id;
+  o.protocol = config.protocol;  // base_id applied
   o.sample_rate_hz = config.rate_hz;
   return o;
 }

@@ -9,6 +9,7 @@
 // works from any working directory. Loading never creates, opens or modifies anything but the
 // config file itself.
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -17,6 +18,7 @@
 #include "calib/core/earth.hpp"
 #include "calib/core/unit_grade.hpp"
 #include "drivers/imu/imu_codec.hpp"
+#include "drivers/imu/imu_protocol_map.hpp"
 #include "drivers/turntable/turntable_client.hpp"
 
 namespace imucal::station {
@@ -62,7 +64,14 @@ struct StationConfig {
   // [imu]
   std::string can_uri;  ///< can (required): "unixcan:PATH" | "socketcan:IFACE" | "candump:FILE"
   double rate_hz = 100.0;
-  uint32_t base_id = 0x100;
+  /// protocol: the unit's protocol file (drivers/imu/PROTOCOLS.md; "" = the built-in protocol,
+  /// /usr/share/imucal/protocols/imucal-imu-1.toml), relative to the config file's directory.
+  std::string protocol_path;
+  /// base_id: moves the protocol's identifiers so that its lowest is this one (unset: as in the
+  /// protocol's DBC file; 0x100 for the built-in one).
+  std::optional<uint32_t> base_id;
+  /// The protocol as read and checked at load time, with base_id applied.
+  std::shared_ptr<const imu::ImuProtocolMap> protocol;
   double arw_deg_per_sqrt_h =
       0.0015;                        ///< gyro angle random walk (noise weighting of the estimators)
   double vrw_ug_per_sqrt_hz = 10.0;  ///< accelerometer velocity random walk
@@ -71,6 +80,7 @@ struct StationConfig {
   calib::Grade grade = calib::Grade::kNavigation;
   uint64_t max_gap_samples = 10;
   uint64_t settle_guard_samples = 50;
+  /// Default: 8 σ of a still unit's per-sample rate noise from arw and rate_hz, at least 0.05.
   double rest_rate_threshold_dps = 0.05;
   int stream_timeout_ms = 2000;
 
@@ -95,7 +105,7 @@ struct StationConfig {
   double vrw_mps_per_sqrt_s() const;
 };
 
-/// The IMU frame decoder's options of this station ([imu] base_id, rate_hz).
+/// The IMU frame decoder's options of this station ([imu] protocol, base_id, rate_hz).
 imu::DecoderOptions decoder_options(const StationConfig& config);
 
 /// Reads and checks the file. Throws ConfigError (a file that cannot be read: line 0, column 0).

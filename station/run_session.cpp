@@ -204,6 +204,12 @@ void RunController::Session::open_archive(const turntable::TableStatus& st) {
   info.reference = archive::ReferenceKind::kTable;
   info.arw_rad_per_sqrt_s = cfg.arw_rad_per_sqrt_s();
   info.vrw_mps_per_sqrt_s = cfg.vrw_mps_per_sqrt_s();
+  if (cfg.protocol) {  // the protocol's resolution: the gap diagnosis models its quantisation
+    const imu::IncrementResolution q = imu::increment_resolution(*cfg.protocol, 1.0 / cfg.rate_hz);
+    info.dtheta_lsb_rad = q.dtheta_rad;
+    info.dv_lsb_mps = q.dv_mps;
+    info.imu_protocol = cfg.protocol->name;
+  }
   info.grade = cfg.grade;
   writer = std::make_unique<ArchiveWriter>(L.snap.archive_path, info);
   cap->table_moving(st.outer_deg, st.inner_deg);

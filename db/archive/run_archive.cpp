@@ -249,12 +249,13 @@ void read_station(const TomlSection& root, const std::string& origin, RunInfo& r
 /// [imu]: required rate, and the dv convention of the data.
 void read_imu(const TomlSection& root, const std::string& origin, ParsedRunInfo& out) {
   RunInfo& ri = out.info;
-  const auto imu = root.section("imu", {"rate_hz", "dv_convention"});
+  const auto imu = root.section("imu", {"rate_hz", "dv_convention", "protocol"});
   if (!imu)
     throw ArchiveError::field_error(origin, "imu.rate_hz", "missing (required; no [imu] section)");
   ri.imu_rate_hz = imu->required_number("rate_hz");
   if (!(ri.imu_rate_hz > 0.0 && ri.imu_rate_hz <= 100000.0))
     imu->fail("rate_hz", "must be within (0, 100000] Hz, got " + format_double(ri.imu_rate_hz));
+  if (const auto p = imu->string("protocol")) ri.imu_protocol = *p;
   if (const auto conv = imu->string("dv_convention")) {
     if (*conv == "raw_integral") {
       out.dv_raw_integral = true;
@@ -311,7 +312,14 @@ void read_optional_sections(const TomlSection& root, RunInfo& ri) {
       ri.min_rest_s = *m;
     }
   }
-  if (const auto n = root.section("noise", {"arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz"})) {
+  if (const auto n = root.section(
+          "noise", {"arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz", "dtheta_lsb_rad", "dv_lsb_mps"})) {
+    for (const auto& [key, member] : {std::pair{"dtheta_lsb_rad", &RunInfo::dtheta_lsb_rad},
+                                      std::pair{"dv_lsb_mps", &RunInfo::dv_lsb_mps}})
+      if (const auto q = n->number(key)) {
+        if (!(*q >= 0.0 && *q < 1.0)) n->fail(key, "must be in [0, 1) (0 = no quantisation)");
+        ri.*member = *q;
+      }
     if (const auto a = n->number("arw_deg_per_sqrt_h")) {
       if (!(*a > 0.0)) n->fail("arw_deg_per_sqrt_h", "must be > 0 (it weights the gyro data)");
       ri.arw_rad_per_sqrt_s = arw_to_si(*a);
@@ -413,6 +421,7 @@ std::string run_info_text(const RunInfo& ri) {
   if (ri.site.gravity_mps2) w.key("gravity_mps2", *ri.site.gravity_mps2);
   w.section("imu");
   w.key("rate_hz", ri.imu_rate_hz);
+  if (!ri.imu_protocol.empty()) w.key("protocol", ri.imu_protocol);
   w.section("table");
   w.key("outer_axis", ri.table.outer_axis_t);
   w.key("inner_axis", ri.table.inner_axis_o);
@@ -439,6 +448,11 @@ std::string run_info_text(const RunInfo& ri) {
         human_for_si(ri.arw_rad_per_sqrt_s, ri.arw_rad_per_sqrt_s / arw_to_si(1.0), arw_to_si));
   w.key("vrw_ug_per_sqrt_hz",
         human_for_si(ri.vrw_mps_per_sqrt_s, ri.vrw_mps_per_sqrt_s / vrw_to_si(1.0), vrw_to_si));
+  if (ri.dtheta_lsb_rad != calib::NoiseModel{}.dtheta_lsb_rad ||
+      ri.dv_lsb_mps != calib::NoiseModel{}.dv_lsb_mps) {
+    w.key("dtheta_lsb_rad", ri.dtheta_lsb_rad);
+    w.key("dv_lsb_mps", ri.dv_lsb_mps);
+  }
   std::string text = w.text();
   if (ri.capture) {
     // TomlWriter has no integer/boolean keys; counters are written as TOML integers (exact).
@@ -902,6 +916,8 @@ calib::CalibrationInput field_input(const RunArchive& a, const std::string& imu_
         calib::NoiseModel nm;
         nm.arw_rad_per_sqrt_s = a.info.arw_rad_per_sqrt_s;
         nm.vrw_mps_per_sqrt_s = a.info.vrw_mps_per_sqrt_s;
+        nm.dtheta_lsb_rad = a.info.dtheta_lsb_rad;
+        nm.dv_lsb_mps = a.info.dv_lsb_mps;
         return nm;
       }(),
       a.info.grade, a.info.min_rest_s);
@@ -999,6 +1015,8 @@ calib::CalibrationInput factory_input(const RunArchive& a, RunArchive* owned,
   in.noise = calib::NoiseModel{};
   in.noise.arw_rad_per_sqrt_s = a.info.arw_rad_per_sqrt_s;
   in.noise.vrw_mps_per_sqrt_s = a.info.vrw_mps_per_sqrt_s;
+  in.noise.dtheta_lsb_rad = a.info.dtheta_lsb_rad;
+  in.noise.dv_lsb_mps = a.info.dv_lsb_mps;
   in.grade = a.info.grade;
   in.prior_overrides = a.info.prior_overrides;
   if (owned) in.imu = std::move(owned->imu);

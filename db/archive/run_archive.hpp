@@ -79,6 +79,9 @@ struct RunInfo {
   std::string station_name;
   calib::Site site;  ///< [station] lat_deg, lon_deg, height_m required; gravity_mps2 optional
   double imu_rate_hz = 0.0;     ///< [imu] rate_hz, required
+  /// [imu] protocol, optional: the name of the unit's CAN protocol the station read it through
+  /// (drivers/imu/PROTOCOLS.md; "imucal-imu-1" is the built-in one).
+  std::string imu_protocol;
   TableSetup table;             ///< [table], all keys optional (defaults above)
   std::string sequence_name;    ///< [sequence] name
   std::string sequence_sha256;  ///< [sequence] sha256: 64 hex digits or empty
@@ -89,6 +92,11 @@ struct RunInfo {
   /// [noise] used to weight the estimators; defaults = calib::NoiseModel{} (DESIGN §7).
   double arw_rad_per_sqrt_s = calib::NoiseModel{}.arw_rad_per_sqrt_s;
   double vrw_mps_per_sqrt_s = calib::NoiseModel{}.vrw_mps_per_sqrt_s;
+  /// [noise] dtheta_lsb_rad, dv_lsb_mps: the resolution of one sample's increments as the unit's
+  /// protocol carries them (written by the daemon when they differ from the built-in protocol's
+  /// 1e-9 rad and 1e-7 m/s); the gap diagnosis models the quantisation with them.
+  double dtheta_lsb_rad = calib::NoiseModel{}.dtheta_lsb_rad;
+  double dv_lsb_mps = calib::NoiseModel{}.dv_lsb_mps;
   /// [prior] grade: what the unit is expected to be (calib/core/unit_grade.hpp); navigation by
   /// default. Chooses the field runs' rest detector so far (issue #21).
   calib::Grade grade = calib::Grade::kNavigation;

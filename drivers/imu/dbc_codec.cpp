@@ -24,8 +24,37 @@ bool bit_at(const uint8_t* data, int pos) { return ((data[pos / 8] >> (pos % 8))
 
 }  // namespace
 
+namespace {
+
+/// A classic frame's signal by shifts of its 8 bytes read as one integer (the hot path of the
+/// station's decoder); false when the signal does not lie within those 64 bits.
+bool extract_from_word(const DbcSignal& s, const uint8_t* data, size_t size, uint64_t& raw) {
+  if (size > 8) return false;
+  uint8_t b[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  std::memcpy(b, data, size);
+  const uint64_t all = s.length >= 64 ? ~uint64_t{0} : (uint64_t{1} << s.length) - 1;
+  if (s.order == DbcSignal::ByteOrder::kIntel) {
+    if (s.start_bit + s.length > 64) return false;
+    uint64_t le = 0;
+    for (int i = 7; i >= 0; --i) le = (le << 8) | b[i];
+    raw = (le >> s.start_bit) & all;
+    return true;
+  }
+  // Motorola: the start bit is the most significant; in the frame read big-endian it sits at
+  // index (from the top) byte × 8 + (7 − bit).
+  const int top = (s.start_bit / 8) * 8 + (7 - s.start_bit % 8);
+  if (top + s.length > 64) return false;
+  uint64_t be = 0;
+  for (int i = 0; i < 8; ++i) be = (be << 8) | b[i];
+  raw = (be << top) >> (64 - s.length);
+  return true;
+}
+
+}  // namespace
+
 uint64_t dbc_extract_raw(const DbcSignal& s, const uint8_t* data, size_t size) {
   uint64_t raw = 0;
+  if (extract_from_word(s, data, size, raw)) return raw;
   int pos = s.start_bit;
   for (int i = 0; i < s.length; ++i) {
     if (pos < 0 || static_cast<size_t>(pos / 8) >= size) return raw;  // checked by the caller

@@ -2,32 +2,48 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
 
-namespace imucal::imu {
-namespace {
+#include "drivers/imu/dbc_codec.hpp"
+#include "drivers/imu/imu_sample_codec.hpp"
 
-CanFrame make_frame(uint32_t id, const std::array<uint8_t, 8>& data) {
-  CanFrame f;
-  f.can_id = id;
-  f.len = 8;
-  f.data = data;
-  return f;
+namespace imucal::imu {
+
+std::shared_ptr<const ImuProtocolMap> resolve_protocol(
+    std::shared_ptr<const ImuProtocolMap> protocol, std::optional<uint32_t> base_id) {
+  if (!protocol) protocol = builtin_protocol_map();
+  if (base_id) protocol = std::make_shared<const ImuProtocolMap>(with_base_id(*protocol, *base_id));
+  const std::string why = station_unsupported(*protocol);
+  if (!why.empty()) throw std::invalid_argument(why);
+  return protocol;
 }
 
-uint16_t fwd16(uint16_t to, uint16_t from) { return static_cast<uint16_t>(to - from); }
+namespace {
+
+uint32_t lowest_id(const ImuProtocolMap& map) {
+  uint32_t lowest = UINT32_MAX;
+  for (const int i : map.messages) lowest = std::min(lowest, map.message(i).id);
+  return lowest;
+}
+
+uint32_t mask_of(int bits) {
+  return bits >= 32 ? UINT32_MAX : static_cast<uint32_t>((uint64_t{1} << bits) - 1);
+}
 
 }  // namespace
 
 // ----------------------------------------------------------------------------------------- encoder
 
 ImuFrameEncoder::ImuFrameEncoder(uint32_t base_id, bool carry_remainder)
-    : base_id_(base_id), carry_remainder_(carry_remainder) {
-  if (base_id > kCanSffMask - (kFramesPerSample - 1))
-    throw std::invalid_argument("ImuFrameEncoder: base_id 0x" + std::to_string(base_id) +
-                                " leaves no room for 4 standard 11-bit identifiers");
+    : ImuFrameEncoder(nullptr, base_id, carry_remainder) {}
+
+ImuFrameEncoder::ImuFrameEncoder(std::shared_ptr<const ImuProtocolMap> protocol,
+                                 std::optional<uint32_t> base_id, bool carry_remainder)
+    : map_(resolve_protocol(std::move(protocol), base_id)), carry_remainder_(carry_remainder) {
+  base_id_ = lowest_id(*map_);
 }
 
 void ImuFrameEncoder::restart() {
@@ -37,85 +53,147 @@ void ImuFrameEncoder::restart() {
   carry_dv_mps_ = {};
 }
 
-int32_t ImuFrameEncoder::quantise(double x, double lsb, int64_t min_count, int64_t max_count,
-                                  double& carry, bool& clipped) {
-  const double total = x + (carry_remainder_ ? carry : 0.0);
-  const double q = std::round(total / lsb);
-  if (q > static_cast<double>(max_count) || q < static_cast<double>(min_count)) {
+double ImuFrameEncoder::quantise(double increment, const DbcSignal& s, double scale, double dt_s,
+                                 double& carry, bool& clipped) const {
+  const bool rates = map_->quantity == ImuProtocolMap::Quantity::kRates;
+  const double total = increment + (carry_remainder_ ? carry : 0.0);
+  bool clip = false;
+  const double sent = sent_value(s, (rates ? total / dt_s : total) / scale, clip) * scale;
+  if (clip) {
     // Clipped: the remainder would be meaningless (and grow without bound), so it is dropped.
     clipped = true;
     carry = 0.0;
-    return static_cast<int32_t>(q > 0 ? max_count : min_count);
+  } else {
+    carry = total - (rates ? sent * dt_s : sent);
   }
-  carry = total - q * lsb;
-  return static_cast<int32_t>(q);
+  return sent;
 }
 
-std::array<CanFrame, kFramesPerSample> ImuFrameEncoder::encode(const calib::ImuIncrement& inc,
-                                                               uint16_t status_flags) {
+uint32_t ImuFrameEncoder::flags_for(uint16_t st, bool gyro_clip, bool accel_clip) const {
+  using C = ImuProtocolMap::Condition;
+  uint32_t flags = 0;
+  // The index-th flag of a condition's list (the first when the list is shorter).
+  auto raise = [&](C c, size_t index) {
+    int first = -1, chosen = -1;
+    size_t k = 0;
+    for (size_t i = 0; i < map_->flags.size(); ++i) {
+      if (map_->flags[i].condition != c) continue;
+      if (first < 0) first = static_cast<int>(i);
+      if (k++ == index) chosen = static_cast<int>(i);
+    }
+    if (chosen < 0) chosen = first;
+    if (chosen >= 0) flags |= 1U << chosen;
+  };
+  if (st & status::kGyroFault) raise(C::kFault, 0);
+  if (st & status::kAccelFault) raise(C::kFault, 1);
+  if (st & status::kBitFail) raise(C::kFault, 2);
+  if ((st & status::kGyroSaturated) || gyro_clip) raise(C::kSaturation, 0);
+  if ((st & status::kAccelSaturated) || accel_clip) raise(C::kSaturation, 1);
+  if (st & status::kStartup) raise(C::kStartup, 0);
+  if (st & status::kTempInvalid) raise(C::kTemperatureInvalid, 0);
+  return flags;
+}
+
+std::vector<CanFrame> ImuFrameEncoder::encode(const calib::ImuIncrement& inc,
+                                              uint16_t status_flags) {
   for (int i = 0; i < 3; ++i)
     if (!std::isfinite(inc.dtheta_rad(i)) || !std::isfinite(inc.dv_mps(i)))
       throw std::invalid_argument("ImuFrameEncoder: non-finite increment component " + std::to_string(i) +
                                   " at t_s=" + std::to_string(inc.t_s));
+  ProtocolSample s;
   bool gyro_clip = false, accel_clip = false;
-  std::array<std::array<uint8_t, 8>, kFramesPerSample> data{};
-  const uint8_t lo = static_cast<uint8_t>(counter_ & 0xFF);
-  for (int i = 0; i < 3; ++i) {
-    AxisFields a;
-    a.counter_lo = lo;
-    a.dtheta_count = quantise(inc.dtheta_rad(i), kDthetaLsb_rad, kDthetaMinCount, kDthetaMaxCount,
-                              carry_dtheta_rad_[static_cast<std::size_t>(i)], gyro_clip);
-    a.dv_count = quantise(inc.dv_mps(i), kDvLsb_mps, kDvMinCount, kDvMaxCount,
-                          carry_dv_mps_[static_cast<std::size_t>(i)], accel_clip);
-    data[static_cast<std::size_t>(i)] = pack_axis(a);
+  for (size_t i = 0; i < 3; ++i) {
+    s.angular[i] = quantise(inc.dtheta_rad(static_cast<int>(i)), map_->signal(map_->angular[i]),
+                            map_->angular_scale, inc.dt_s, carry_dtheta_rad_[i], gyro_clip);
+    s.velocity[i] = quantise(inc.dv_mps(static_cast<int>(i)), map_->signal(map_->velocity[i]),
+                             map_->velocity_scale, inc.dt_s, carry_dv_mps_[i], accel_clip);
   }
-  StatusFields s;
-  s.counter = counter_;
-  s.status = status_flags;
-  if (gyro_clip) s.status |= status::kGyroSaturated;
-  if (accel_clip) s.status |= status::kAccelSaturated;
   if (startup_left_ > 0) {
-    s.status |= status::kStartup;
+    status_flags |= status::kStartup;
     --startup_left_;
   }
-  if (std::isfinite(inc.temp_c)) {
-    const double t = std::clamp(std::round(inc.temp_c / kTemperatureLsb_degc), -32767.0, 32767.0);
-    s.temperature_count = static_cast<int16_t>(t);
-  } else {
-    s.temperature_count = kTemperatureUnknown;
-    s.status |= status::kTempInvalid;
+  s.temperature_c = inc.temp_c;
+  if (!std::isfinite(inc.temp_c)) status_flags |= status::kTempInvalid;
+  s.counter = counter_;
+  s.flags = flags_for(status_flags, gyro_clip, accel_clip);
+  counter_ = (counter_ + 1) & mask_of(map_->counter_bits);
+  std::vector<CanFrame> frames;
+  for (const ProtocolFrame& p : encode_sample(*map_, s)) {
+    CanFrame f;
+    f.can_id = p.id | (p.extended ? kCanEffFlag : 0U);
+    f.len = static_cast<uint8_t>(p.length);
+    std::memcpy(f.data.data(), p.data.data(), f.len);
+    frames.push_back(f);
   }
-  data[3] = pack_status(s);  // CRC field still 0; bytes 0-5 are final
-  s.crc = sample_crc(data[0], data[1], data[2], data[3]);
-  data[3] = pack_status(s);
-  ++counter_;
-  std::array<CanFrame, kFramesPerSample> frames;
-  for (std::size_t p = 0; p < frames.size(); ++p)
-    frames[p] = make_frame(base_id_ + static_cast<uint32_t>(p), data[p]);
   return frames;
 }
 
 // ----------------------------------------------------------------------------------------- decoder
 
-ImuFrameDecoder::ImuFrameDecoder(const DecoderOptions& options) : options_(options) {
+ImuFrameDecoder::ImuFrameDecoder(const DecoderOptions& options)
+    : options_(options), map_(resolve_protocol(options.protocol, options.base_id)) {
   if (!(options.sample_rate_hz > 0.0) || !std::isfinite(options.sample_rate_hz))
     throw std::invalid_argument("ImuFrameDecoder: sample_rate_hz must be positive, got " +
                                 std::to_string(options.sample_rate_hz));
   if (options.reorder_window_frames < 1)
     throw std::invalid_argument("ImuFrameDecoder: reorder_window_frames must be >= 1");
-  if (options.base_id > kCanSffMask - (kFramesPerSample - 1))
-    throw std::invalid_argument("ImuFrameDecoder: base_id leaves no room for 4 standard identifiers");
+  parts_ = static_cast<int>(map_->messages.size());
   dt_s_ = 1.0 / options.sample_rate_hz;
+  to_increment_ = map_->quantity == ImuProtocolMap::Quantity::kRates ? dt_s_ : 1.0;
+  counter_mask_ = mask_of(map_->counter_bits);
+  tie_mask_ = mask_of(map_->counter.front().bits);
+  const uint64_t half = (uint64_t{counter_mask_} + 1) / 2;
+  late_window_ = static_cast<uint32_t>(std::min<uint64_t>(256, half / 2));
+  restart_jump_ = static_cast<uint32_t>(std::min<uint64_t>(64, half / 2));
+  hold_span_ = static_cast<uint32_t>(std::min<uint64_t>(256, uint64_t{tie_mask_} + 1));
+  last_temperature_c_ = std::numeric_limits<double>::quiet_NaN();
   held_.reserve(kMaxHeld + 1);
 }
 
-bool ImuFrameDecoder::is_recent_duplicate(int part, const std::array<uint8_t, 8>& data) const {
-  const Recent& r = recent_[data[0]];
-  if (r.valid && counters_.samples_decoded - r.decoded_no < kRecentSamples &&
-      r.data[static_cast<std::size_t>(part)] == data)
+std::string ImuFrameDecoder::flag_names(uint32_t flags, uint8_t conditions) const {
+  std::string s;
+  for (size_t i = 0; i < map_->flags.size(); ++i) {
+    const uint8_t c = static_cast<uint8_t>(1U << static_cast<int>(map_->flags[i].condition));
+    if (((flags >> i) & 1U) && (c & conditions))
+      s += (s.empty() ? "" : ", ") + map_->flags[i].ref.text;
+  }
+  return s;
+}
+
+int ImuFrameDecoder::part_of(const CanFrame& f) const {
+  const uint32_t id = f.id();
+  for (int p = 0; p < parts_; ++p) {
+    const DbcMessage& m = map_->message(map_->messages[static_cast<size_t>(p)]);
+    if (m.id == id && m.extended == f.is_extended()) return p;
+  }
+  return -1;
+}
+
+uint32_t ImuFrameDecoder::tie_of(int part, const Data& data) const {
+  const DbcSignalRef& t = map_->tie[static_cast<size_t>(part)];
+  return static_cast<uint32_t>(dbc_extract_raw(map_->signal(t), data.data(), data.size())) &
+         tie_mask_;
+}
+
+bool ImuFrameDecoder::slot_complete(const Slot& s) const {
+  for (int p = 0; p < parts_; ++p)
+    if (s.n[static_cast<size_t>(p)] == 0) return false;
+  return true;
+}
+
+int ImuFrameDecoder::slot_total(const Slot& s) const {
+  int t = 0;
+  for (int p = 0; p < parts_; ++p) t += s.n[static_cast<size_t>(p)];
+  return t;
+}
+
+bool ImuFrameDecoder::is_recent_duplicate(int part, const Data& data) const {
+  const auto p = static_cast<std::size_t>(part);
+  const Recent& r = recent_[tie_of(part, data) & 0xFF];
+  if (r.valid && counters_.samples_decoded - r.decoded_no < kRecentSamples && r.data[p] == data)
     return true;
   for (const Verified& v : held_)
-    if (v.data[static_cast<std::size_t>(part)] == data) return true;
+    if (v.data[p] == data) return true;
   return false;
 }
 
@@ -127,21 +205,20 @@ void ImuFrameDecoder::push(const ReceivedFrame& rf, std::vector<DecodedSample>& 
       ++counters_.error_frames;
       return;
     }
-    const uint32_t id = f.id();
-    if (f.is_extended() || id < options_.base_id || id >= options_.base_id + kFramesPerSample) {
+    const int part = part_of(f);
+    if (part < 0) {
       ++counters_.foreign_frames;
       return;
     }
-    if (f.is_remote() || f.len != 8) {
+    const auto p = static_cast<std::size_t>(part);
+    if (f.is_remote() || f.len != map_->message(map_->messages[p]).length) {
       ++counters_.malformed_frames;
       return;
     }
-    const int part = static_cast<int>(id - options_.base_id);
-    const auto p = static_cast<std::size_t>(part);
-    const uint8_t lo = f.data[0];
+    const uint32_t tie = tie_of(part, f.data);
     Slot* slot = nullptr;
     for (Slot& s : slots_)
-      if (s.live && s.counter_lo == lo) slot = &s;
+      if (s.live && s.tie == tie) slot = &s;
     if (slot) {
       for (int i = 0; i < slot->n[p]; ++i)
         if (slot->cand[p][static_cast<std::size_t>(i)].data == f.data) {
@@ -170,13 +247,13 @@ void ImuFrameDecoder::push(const ReceivedFrame& rf, std::vector<DecodedSample>& 
       }
       *slot = Slot{};
       slot->live = true;
-      slot->counter_lo = lo;
+      slot->tie = tie;
       slot->created_arrival = arrival;
     }
     slot->cand[p][static_cast<std::size_t>(slot->n[p]++)] = Candidate{f.data, arrival, rf.rx_time_ns};
-    if (slot->n[0] > 0 && slot->n[1] > 0 && slot->n[2] > 0 && slot->n[3] > 0) complete(*slot, out);
+    if (slot_complete(*slot)) complete(*slot, out);
   }();
-  // Give up samples that have waited too long for missing frames (or a CRC-consistent candidate).
+  // Give up samples that have waited too long for missing frames (or a check-consistent candidate).
   for (Slot& s : slots_)
     if (s.live && arrival - s.created_arrival >= static_cast<uint64_t>(options_.reorder_window_frames))
       abandon(s);
@@ -184,70 +261,90 @@ void ImuFrameDecoder::push(const ReceivedFrame& rf, std::vector<DecodedSample>& 
 }
 
 void ImuFrameDecoder::abandon(Slot& slot) {
-  const bool all_parts = slot.n[0] > 0 && slot.n[1] > 0 && slot.n[2] > 0 && slot.n[3] > 0;
-  if (all_parts)
-    ++counters_.samples_corrupt;  // every frame arrived but no combination passed the CRC
+  if (slot_complete(slot))
+    ++counters_.samples_corrupt;  // every frame arrived but no combination passed the check
   else
     ++counters_.samples_incomplete;
-  counters_.discarded_frames += static_cast<uint64_t>(slot.total());
+  counters_.discarded_frames += static_cast<uint64_t>(slot_total(slot));
   slot.live = false;
 }
 
+bool ImuFrameDecoder::verify(const Slot& slot, const std::array<int, kMaxParts>& pick,
+                             Verified& v) {
+  std::array<const uint8_t*, kMaxParts> ptr{};
+  std::array<const Candidate*, kMaxParts> c{};
+  for (size_t p = 0; p < static_cast<size_t>(parts_); ++p) {
+    c[p] = &slot.cand[p][static_cast<size_t>(pick[p])];
+    ptr[p] = c[p]->data.data();
+  }
+  const SampleReading r = decode_sample(*map_, ptr.data());
+  if (!r.ok) return false;
+  v.completed_at = counters_.frames_in;
+  v.tie = slot.tie;
+  for (size_t p = 0; p < static_cast<size_t>(parts_); ++p) {
+    v.data[p] = c[p]->data;
+    v.arrival[p] = c[p]->arrival;
+  }
+  DecodedSample& d = v.sample;
+  d.counter = r.sample.counter;
+  d.flags = r.sample.flags;
+  d.conditions = static_cast<uint8_t>((r.sample.fault ? condition::kFault : 0) |
+                                      (r.sample.saturation ? condition::kSaturation : 0) |
+                                      (r.sample.startup ? condition::kStartup : 0));
+  for (size_t i = 0; i < map_->flags.size(); ++i)
+    if (map_->flags[i].condition == ImuProtocolMap::Condition::kTemperatureInvalid &&
+        ((d.flags >> i) & 1U))
+      d.conditions |= condition::kTemperatureInvalid;
+  d.rx_time_ns = c[static_cast<size_t>(parts_ - 1)]->rx_time_ns;
+  for (int a = 0; a < 3; ++a) {
+    d.increment.dtheta_rad(a) = r.sample.angular[static_cast<size_t>(a)] * to_increment_;
+    d.increment.dv_mps(a) = r.sample.velocity[static_cast<size_t>(a)] * to_increment_;
+  }
+  d.increment.dt_s = dt_s_;
+  if (r.sample.temperature_carried) last_temperature_c_ = r.sample.temperature_c;
+  d.increment.temp_c = last_temperature_c_;
+  return true;
+}
+
 void ImuFrameDecoder::complete(Slot& slot, std::vector<DecodedSample>& out) {
-  // A frame whose counter byte was corrupted can land in this slot as a second candidate for one
-  // part; the CRC picks the consistent combination (at most 2^4 tries).
-  for (int i0 = 0; i0 < slot.n[0]; ++i0)
-    for (int i1 = 0; i1 < slot.n[1]; ++i1)
-      for (int i2 = 0; i2 < slot.n[2]; ++i2)
-        for (int i3 = 0; i3 < slot.n[3]; ++i3) {
-          const std::array<const Candidate*, 4> c{&slot.cand[0][static_cast<std::size_t>(i0)],
-                                                  &slot.cand[1][static_cast<std::size_t>(i1)],
-                                                  &slot.cand[2][static_cast<std::size_t>(i2)],
-                                                  &slot.cand[3][static_cast<std::size_t>(i3)]};
-          const StatusFields st = unpack_status(c[3]->data);
-          if (st.crc != sample_crc(c[0]->data, c[1]->data, c[2]->data, c[3]->data)) continue;
-          Verified v;
-          v.completed_at = counters_.frames_in;
-          for (std::size_t p = 0; p < 4; ++p) {
-            v.data[p] = c[p]->data;
-            v.arrival[p] = c[p]->arrival;
-          }
-          DecodedSample& d = v.sample;
-          d.counter = st.counter;
-          d.status = st.status;
-          d.rx_time_ns = c[3]->rx_time_ns;
-          for (int a = 0; a < 3; ++a) {
-            const AxisFields ax = unpack_axis(c[static_cast<std::size_t>(a)]->data);
-            d.increment.dtheta_rad(a) = static_cast<double>(ax.dtheta_count) * kDthetaLsb_rad;
-            d.increment.dv_mps(a) = static_cast<double>(ax.dv_count) * kDvLsb_mps;
-          }
-          d.increment.dt_s = dt_s_;
-          d.increment.temp_c = (st.temperature_count == kTemperatureUnknown || (st.status & status::kTempInvalid))
-                                   ? std::numeric_limits<double>::quiet_NaN()
-                                   : static_cast<double>(st.temperature_count) * kTemperatureLsb_degc;
-          counters_.discarded_frames += static_cast<uint64_t>(slot.total() - 4);
-          slot.live = false;
-          accept(std::move(v), out);
-          return;
-        }
+  // A frame whose counter copy was corrupted can land in this slot as a second candidate for one
+  // part; the check picks the consistent combination (at most 2^parts tries).
+  std::array<int, kMaxParts> pick{};
+  for (;;) {
+    Verified v;
+    if (verify(slot, pick, v)) {
+      counters_.discarded_frames += static_cast<uint64_t>(slot_total(slot) - parts_);
+      slot.live = false;
+      accept(std::move(v), out);
+      return;
+    }
+    int p = 0;  // next combination (odometer over the parts' candidates)
+    for (; p < parts_; ++p) {
+      const auto q = static_cast<size_t>(p);
+      if (++pick[q] < slot.n[q]) break;
+      pick[q] = 0;
+    }
+    if (p == parts_) break;
+  }
   // No consistent combination yet: keep the slot; a later candidate may complete it, otherwise it
   // expires as corrupt.
 }
 
 void ImuFrameDecoder::accept(Verified&& v, std::vector<DecodedSample>& out) {
-  const uint16_t c = v.sample.counter;
+  const uint32_t c = v.sample.counter;
+  const auto parts = static_cast<uint64_t>(parts_);
   for (const Verified& h : held_)
     if (h.sample.counter == c) {
-      counters_.duplicate_frames += kFramesPerSample;
+      counters_.duplicate_frames += parts;
       return;
     }
   if (!have_last_) {
     emit(v, false, out);
     return;
   }
-  const uint16_t d = fwd16(c, last_counter_);
-  const bool startup = (v.sample.status & status::kStartup) != 0;
-  if (startup && (!(last_status_ & status::kStartup) || d == 0 || d > 64)) {
+  const uint32_t d = fwd(c, last_counter_);
+  const bool startup = (v.sample.conditions & condition::kStartup) != 0;
+  if (startup && (!(last_conditions_ & condition::kStartup) || d == 0 || d > restart_jump_)) {
     // The counter restarted with the startup flag: the IMU was reset. Output what is held first.
     release(out, true);
     ++counters_.imu_resets;
@@ -255,17 +352,18 @@ void ImuFrameDecoder::accept(Verified&& v, std::vector<DecodedSample>& out) {
     return;
   }
   if (d == 0) {
-    counters_.duplicate_frames += kFramesPerSample;
+    counters_.duplicate_frames += parts;
     return;
   }
-  if (d < 0x8000) {
+  const uint64_t range = uint64_t{counter_mask_} + 1;
+  if (d < range / 2) {
     held_.push_back(std::move(v));
     release(out, false);
     return;
   }
-  if (0x10000U - d <= kLateWindow) {
+  if (range - d <= late_window_) {
     ++counters_.samples_late;
-    counters_.discarded_frames += kFramesPerSample;
+    counters_.discarded_frames += parts;
     return;
   }
   release(out, true);
@@ -275,17 +373,18 @@ void ImuFrameDecoder::accept(Verified&& v, std::vector<DecodedSample>& out) {
 
 void ImuFrameDecoder::release(std::vector<DecodedSample>& out, bool all) {
   while (!held_.empty()) {
-    auto head = std::min_element(held_.begin(), held_.end(), [&](const Verified& a, const Verified& b) {
-      return fwd16(a.sample.counter, last_counter_) < fwd16(b.sample.counter, last_counter_);
-    });
-    const uint16_t dh = fwd16(head->sample.counter, last_counter_);
-    if (!all && dh > 1 && dh < 256 && held_.size() <= kMaxHeld) {
+    auto head =
+        std::min_element(held_.begin(), held_.end(), [&](const Verified& a, const Verified& b) {
+          return fwd(a.sample.counter, last_counter_) < fwd(b.sample.counter, last_counter_);
+        });
+    const uint32_t dh = fwd(head->sample.counter, last_counter_);
+    if (!all && dh > 1 && dh < hold_span_ && held_.size() <= kMaxHeld) {
       // A gap before it: hold it for the reorder window (the missing samples' frames may still come),
       // and while an incomplete sample between the last output and it may still complete.
       bool blocked = counters_.frames_in - head->completed_at < static_cast<uint64_t>(options_.reorder_window_frames);
       for (const Slot& s : slots_)
         if (s.live) {
-          const uint8_t ds = static_cast<uint8_t>(s.counter_lo - static_cast<uint8_t>(last_counter_));
+          const uint32_t ds = (s.tie - last_counter_) & tie_mask_;
           if (ds > 0 && ds < dh) blocked = true;
         }
       if (blocked) return;
@@ -305,7 +404,7 @@ void ImuFrameDecoder::emit(Verified& v, bool discontinuity, std::vector<DecodedS
       const double gap = std::round(static_cast<double>(s.rx_time_ns - last_rx_ns_) * 1e-9 / dt_s_);
       index = last_index_ + static_cast<uint64_t>(std::max(1.0, std::isfinite(gap) ? gap : 1.0));
     } else {
-      const uint16_t d = fwd16(s.counter, last_counter_);
+      const uint32_t d = fwd(s.counter, last_counter_);
       counters_.samples_lost += static_cast<uint64_t>(d - 1);
       index = last_index_ + d;
     }
@@ -313,19 +412,19 @@ void ImuFrameDecoder::emit(Verified& v, bool discontinuity, std::vector<DecodedS
   s.sample_index = index;
   s.discontinuity = discontinuity;
   s.increment.t_s = static_cast<double>(index + 1) * dt_s_;
-  for (std::size_t p = 0; p < 4; ++p) {
+  for (std::size_t p = 0; p < static_cast<size_t>(parts_); ++p) {
     if (v.arrival[p] < max_arrival_out_) ++counters_.out_of_order_frames;
     max_arrival_out_ = std::max(max_arrival_out_, v.arrival[p]);
   }
-  counters_.frames_used += kFramesPerSample;
+  counters_.frames_used += static_cast<uint64_t>(parts_);
   ++counters_.samples_decoded;
-  Recent& r = recent_[static_cast<uint8_t>(s.counter & 0xFF)];
+  Recent& r = recent_[v.tie & 0xFF];
   r.valid = true;
   r.decoded_no = counters_.samples_decoded;
   r.data = v.data;
   have_last_ = true;
   last_counter_ = s.counter;
-  last_status_ = s.status;
+  last_conditions_ = s.conditions;
   last_rx_ns_ = s.rx_time_ns;
   last_index_ = index;
   out.push_back(s);

@@ -28,13 +28,28 @@ uint64_t field(int64_t v, int bits) {
 
 }  // namespace
 
-uint16_t crc16_ccitt_false(const uint8_t* bytes, std::size_t len, uint16_t crc) {
-  // Bitwise form: 30 bytes per sample make a table unnecessary (~1 µs per sample).
-  for (std::size_t i = 0; i < len; ++i) {
-    crc = static_cast<uint16_t>(crc ^ (static_cast<uint16_t>(bytes[i]) << 8));
+namespace {
+
+/// CRC-16/CCITT-FALSE one byte at a time (the station decodes up to 8 000 frames/s; a table makes
+/// the check a small part of it).
+constexpr std::array<uint16_t, 256> crc16_table() {
+  std::array<uint16_t, 256> t{};
+  for (unsigned i = 0; i < 256; ++i) {
+    uint16_t crc = static_cast<uint16_t>(i << 8);
     for (int b = 0; b < 8; ++b)
-      crc = (crc & 0x8000U) ? static_cast<uint16_t>((crc << 1) ^ 0x1021U) : static_cast<uint16_t>(crc << 1);
+      crc = (crc & 0x8000U) ? static_cast<uint16_t>((crc << 1) ^ 0x1021U)
+                            : static_cast<uint16_t>(crc << 1);
+    t[i] = crc;
   }
+  return t;
+}
+constexpr std::array<uint16_t, 256> kCrc16Table = crc16_table();
+
+}  // namespace
+
+uint16_t crc16_ccitt_false(const uint8_t* bytes, std::size_t len, uint16_t crc) {
+  for (std::size_t i = 0; i < len; ++i)
+    crc = static_cast<uint16_t>((crc << 8) ^ kCrc16Table[((crc >> 8) ^ bytes[i]) & 0xFFU]);
   return crc;
 }
 

@@ -1,13 +1,15 @@
 #include "drivers/imu/imu_protocol_map.hpp"
 
+#include <toml++/toml.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
-#include <toml++/toml.h>
 
+#include "drivers/imu/builtin_protocol_text.hpp"
 #include "drivers/imu/dbc_codec.hpp"
 
 namespace imucal::imu {
@@ -19,7 +21,8 @@ int line_of(const toml::source_region& r) { return static_cast<int>(r.begin.line
 /// Reads one protocol file: every error names the file and the line of the key at fault.
 class MapReader {
  public:
-  MapReader(std::string path, ImuProtocolMap& out) : path_(std::move(path)), m_(out) {}
+  MapReader(std::string path, ImuProtocolMap& out, const std::string* dbc_text)
+      : path_(std::move(path)), m_(out), dbc_text_(dbc_text) {}
 
   void run(const toml::table& root) {
     only_keys(root, {"protocol", "channels", "counter", "status", "check"}, "the file");
@@ -28,6 +31,7 @@ class MapReader {
     counter(required_table(root, "counter"));
     if (const toml::table* s = table(root, "status", false)) status(*s);
     if (const toml::table* c = table(root, "check", false)) check(*c);
+    ties(key_line(required_table(root, "counter"), "parts"));
   }
 
  private:
@@ -104,6 +108,10 @@ class MapReader {
     return out;
   }
 
+  int position_of(int message) const {
+    const auto it = std::find(m_.messages.begin(), m_.messages.end(), message);
+    return it == m_.messages.end() ? -1 : static_cast<int>(it - m_.messages.begin());
+  }
   int message_index(const std::string& name, int line) const {
     for (size_t i = 0; i < m_.dbc.messages.size(); ++i)
       if (m_.dbc.messages[i].name == name) return static_cast<int>(i);
@@ -115,6 +123,7 @@ class MapReader {
     DbcSignalRef r;
     r.text = text;
     r.message = message_index(text.substr(0, dot), line);
+    r.position = position_of(r.message);
     const DbcMessage& msg = m_.message(r.message);
     for (size_t i = 0; i < msg.signals.size(); ++i)
       if (msg.signals[i].name == text.substr(dot + 1)) r.signal = static_cast<int>(i);
@@ -129,7 +138,7 @@ class MapReader {
     m_.name = text(t, "name", "[protocol]");
     std::filesystem::path dbc = text(t, "dbc", "[protocol]");
     if (dbc.is_relative()) dbc = std::filesystem::path(path_).parent_path() / dbc;
-    m_.dbc = read_dbc(dbc.string());
+    m_.dbc = dbc_text_ ? parse_dbc(*dbc_text_, dbc.string()) : read_dbc(dbc.string());
     const std::string q = text(t, "quantity", "[protocol]");
     if (q != "increments" && q != "rates")
       fail(key_line(t, "quantity"), "quantity '" + q + "' is not \"increments\" or \"rates\"");
@@ -155,7 +164,10 @@ class MapReader {
   }
 
   void channels(const toml::table& t) {
-    only_keys(t, {"angular", "velocity", "angular_scale", "velocity_scale"}, "[channels]");
+    only_keys(t,
+              {"angular", "velocity", "angular_scale", "velocity_scale", "temperature",
+               "temperature_unknown"},
+              "[channels]");
     auto three = [&](const char* key, std::array<DbcSignalRef, 3>& out) {
       const auto names = strings(t, key, true);
       if (names.size() != 3)
@@ -174,6 +186,17 @@ class MapReader {
     m_.velocity_scale = number(t, "velocity_scale", 1.0);
     if (m_.angular_scale == 0.0) fail(key_line(t, "angular_scale"), "angular_scale is 0");
     if (m_.velocity_scale == 0.0) fail(key_line(t, "velocity_scale"), "velocity_scale is 0");
+    if (t.get("temperature")) {
+      m_.temperature = ref(text(t, "temperature", "[channels]"), key_line(t, "temperature"));
+      in_sample(m_.temperature, key_line(t, "temperature"));  // multiplexed: held between pages
+    }
+    if (const toml::node* n = t.get("temperature_unknown")) {
+      if (!n->is_integer())
+        fail(key_line(t, "temperature_unknown"), "'temperature_unknown' must be an integer");
+      if (m_.temperature.message < 0)
+        fail(key_line(t, "temperature_unknown"), "'temperature_unknown' without 'temperature'");
+      m_.temperature_unknown = n->as_integer()->get();
+    }
   }
 
   void counter(const toml::table& t) {
@@ -212,16 +235,45 @@ class MapReader {
   }
 
   void status(const toml::table& t) {
-    only_keys(t, {"fault", "saturation", "startup"}, "[status]");
-    auto list = [&](const char* key, std::vector<DbcSignalRef>& out) {
+    only_keys(t, {"fault", "saturation", "startup", "temperature_invalid"}, "[status]");
+    using C = ImuProtocolMap::Condition;
+    auto list = [&](const char* key, std::vector<DbcSignalRef>& out, C condition) {
       for (const auto& [name, line] : strings(t, key, false)) {
         out.push_back(ref(name, line));
         in_sample(out.back(), line);
+        m_.flags.push_back({out.back(), condition});
+        if (m_.flags.size() > 32) fail(line, "more than 32 status flags");
       }
     };
-    list("fault", m_.fault);
-    list("saturation", m_.saturation);
-    list("startup", m_.startup);
+    list("fault", m_.fault, C::kFault);
+    list("saturation", m_.saturation, C::kSaturation);
+    list("startup", m_.startup, C::kStartup);
+    list("temperature_invalid", m_.temperature_invalid, C::kTemperatureInvalid);
+  }
+
+  /// Which signal ties each message's frame to its sample: the counter's low part where it is,
+  /// a copy of it elsewhere. With several messages per sample, every one needs one.
+  void ties(int line) {
+    const ImuProtocolMap::CounterPart& low = m_.counter.front();
+    if (!m_.same_in.empty() && low.shift != 0)
+      fail(line, "the first counter part (" + low.ref.text +
+                     ") must be the low part (shift 0) when 'same_in' copies it");
+    for (const int msg : m_.messages) {
+      DbcSignalRef tie;
+      if (low.ref.message == msg) tie = low.ref;
+      for (const DbcSignalRef& c : m_.same_in)
+        if (c.message == msg) {
+          if (tie.message >= 0)
+            fail(line, c.text + ": message " + m_.message(msg).name +
+                           " already carries the counter's low part");
+          tie = c;
+        }
+      if (tie.message < 0 && m_.messages.size() > 1)
+        fail(line, "message " + m_.message(msg).name +
+                       " carries no copy of the counter's low part (add one to [counter] "
+                       "same_in): its frames could not be told from another sample's");
+      m_.tie.push_back(tie);
+    }
   }
 
   void check(const toml::table& t) {
@@ -249,7 +301,8 @@ class MapReader {
     ImuProtocolMap::ByteRange r;
     const size_t colon = spec.find(':');
     r.message = message_index(spec.substr(0, colon), line);
-    in_sample({r.message, 0, spec}, line);
+    r.position = position_of(r.message);
+    in_sample({r.message, 0, -1, spec}, line);
     const int length = m_.message(r.message).length;
     r.last = length - 1;
     if (colon != std::string::npos) {
@@ -272,11 +325,13 @@ class MapReader {
 
   std::string path_;
   ImuProtocolMap& m_;
+  const std::string* dbc_text_;
 };
 
 }  // namespace
 
-ImuProtocolMap parse_protocol_map(const std::string& text, const std::string& path) {
+ImuProtocolMap parse_protocol_map(const std::string& text, const std::string& path,
+                                  const std::string* dbc_text) {
   toml::table root;
   try {
     root = toml::parse(text, path);
@@ -286,7 +341,7 @@ ImuProtocolMap parse_protocol_map(const std::string& text, const std::string& pa
   }
   ImuProtocolMap m;
   m.path = path;
-  MapReader(path, m).run(root);
+  MapReader(path, m, dbc_text).run(root);
   return m;
 }
 
@@ -296,6 +351,59 @@ ImuProtocolMap read_protocol_map(const std::string& path) {
   std::ostringstream os;
   os << f.rdbuf();
   return parse_protocol_map(os.str(), path);
+}
+
+std::shared_ptr<const ImuProtocolMap> builtin_protocol_map() {
+  static const std::shared_ptr<const ImuProtocolMap> map = [] {
+    const std::string dbc = builtin_protocol_dbc_text();
+    return std::make_shared<const ImuProtocolMap>(
+        parse_protocol_map(builtin_protocol_toml_text(), "(built-in) imucal-imu-1.toml", &dbc));
+  }();
+  return map;
+}
+
+ImuProtocolMap with_base_id(ImuProtocolMap map, uint32_t base_id) {
+  uint32_t lowest = UINT32_MAX;
+  for (const int i : map.messages) lowest = std::min(lowest, map.message(i).id);
+  for (const int i : map.messages) {
+    DbcMessage& m = map.dbc.messages[static_cast<size_t>(i)];
+    const uint64_t id = uint64_t{m.id} - lowest + base_id;
+    const uint64_t limit = m.extended ? 0x1FFFFFFF : 0x7FF;
+    if (id > limit) {
+      std::ostringstream os;
+      os << map.path << ": base id 0x" << std::hex << base_id << " puts message " << m.name
+         << " at 0x" << id << std::dec << ", beyond the " << (m.extended ? 29 : 11) << "-bit range";
+      throw std::invalid_argument(os.str());
+    }
+    m.id = static_cast<uint32_t>(id);
+  }
+  return map;
+}
+
+IncrementResolution increment_resolution(const ImuProtocolMap& map, double dt_s) {
+  const double per = map.quantity == ImuProtocolMap::Quantity::kRates ? dt_s : 1.0;
+  IncrementResolution r;
+  for (size_t i = 0; i < 3; ++i) {
+    r.dtheta_rad = std::max(r.dtheta_rad,
+                            std::abs(map.signal(map.angular[i]).factor * map.angular_scale) * per);
+    r.dv_mps =
+        std::max(r.dv_mps, std::abs(map.signal(map.velocity[i]).factor * map.velocity_scale) * per);
+  }
+  return r;
+}
+
+std::string station_unsupported(const ImuProtocolMap& map) {
+  if (map.messages.size() > static_cast<size_t>(kMaxSampleMessages))
+    return map.path + ": a sample of " + std::to_string(map.messages.size()) +
+           " messages (the station takes at most " + std::to_string(kMaxSampleMessages) + ")";
+  for (const int i : map.messages) {
+    const DbcMessage& m = map.message(i);
+    if (m.fd || m.length > 8)
+      return map.path + ": message " + m.name + " is a CAN FD frame of " +
+             std::to_string(m.length) +
+             " bytes; the station's CAN channel carries classic frames (up to 8 bytes)";
+  }
+  return "";
 }
 
 }  // namespace imucal::imu

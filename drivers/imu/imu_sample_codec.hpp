@@ -6,6 +6,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -17,7 +18,15 @@ struct ProtocolSample {
   /// SI, as the protocol carries them: increments (rad, m/s) or rates (rad/s, m/s²).
   std::array<double, 3> angular{}, velocity{};
   uint32_t counter = 0;  ///< modulo 2^counter_bits
+  /// Conditions. Encoding raises each through the first signal of its list in the map (and every
+  /// signal whose bit is set in `flags`); decoding reports any signal of the list.
   bool fault = false, saturation = false, startup = false;
+  uint32_t flags = 0;  ///< bit i: the map's flags[i] is set
+  /// °C; NaN = unknown (encoded as temperature_unknown and the temperature_invalid flag).
+  double temperature_c = std::numeric_limits<double>::quiet_NaN();
+  /// Decoding: the sample's frames carried the temperature (a multiplexed temperature is only in
+  /// the frames of its page).
+  bool temperature_carried = false;
 };
 
 /// One frame's data as the protocol sends it (up to 64 bytes; `length` of them are used).
@@ -30,8 +39,10 @@ struct ProtocolFrame {
 };
 
 /// The sample's frames in the order sent. Channel values are rounded to their signal's resolution
-/// and clipped to its raw range (a clipped channel sets `saturation` in the frames); a multiplexed
-/// flag's frame carries the flag's multiplexor value. The check is computed last.
+/// and clipped to its raw range (a clipped channel sets `saturation` in the frames). A multiplexed
+/// frame carries the page of its raised flags when it has any, otherwise the pages its mapped
+/// signals use in turn (by the counter); signals of other pages are not written. The check is
+/// computed last.
 std::vector<ProtocolFrame> encode_sample(const ImuProtocolMap& map, const ProtocolSample& s);
 
 struct SampleReading {
@@ -45,8 +56,17 @@ struct SampleReading {
 /// not set.
 SampleReading decode_sample(const ImuProtocolMap& map,
                             const std::vector<std::array<uint8_t, 64>>& frames);
+/// The same from one pointer per message position (each to at least the message's length): the
+/// stream decoder's allocation-free path.
+SampleReading decode_sample(const ImuProtocolMap& map, const uint8_t* const* frames);
+
+/// The value that `physical` is sent as: rounded to the signal's resolution and clipped to its raw
+/// range (`clipped` then), in the signal's physical unit.
+double sent_value(const DbcSignal& s, double physical, bool& clipped);
 
 /// CRC-8/SAE-J1850 (poly 0x1D, init 0xFF, xorout 0xFF; "123456789" -> 0x4B).
 uint8_t crc8_sae_j1850(const uint8_t* bytes, size_t len);
+/// The same over several pieces: start with crc = 0xFF, feed each, finish with ^ 0xFF.
+uint8_t crc8_sae_j1850_update(uint8_t crc, const uint8_t* bytes, size_t len);
 
 }  // namespace imucal::imu

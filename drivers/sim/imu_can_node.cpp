@@ -19,7 +19,10 @@ void check_probability(double p, const char* name) {
 }  // namespace
 
 ImuCanNode::ImuCanNode(imu::CanChannel& channel, const ImuCanNodeOptions& options)
-    : channel_(channel), options_(options), encoder_(options.base_id), rng_(options.seed) {
+    : channel_(channel),
+      options_(options),
+      encoder_(options.protocol, options.base_id),
+      rng_(options.seed) {
   check_probability(options.frame_loss_probability, "frame_loss_probability");
   check_probability(options.corruption_probability, "corruption_probability");
   if (!(options.rate_hz > 0.0) || !std::isfinite(options.rate_hz))
@@ -67,7 +70,7 @@ SampleFate ImuCanNode::send(const calib::ImuIncrement& inc, uint16_t status_flag
   fate.transmitted = true;
   fate.counter = encoder_.next_counter();
   fate.clean = encoder_.encode(inc, status_flags);
-  std::array<imu::CanFrame, imu::kFramesPerSample> out{};
+  std::vector<imu::CanFrame> out(fate.clean.size());
   std::size_t n = 0;
   for (const imu::CanFrame& f : fate.clean) {
     if (options_.frame_loss_probability > 0.0 && uniform_(rng_) < options_.frame_loss_probability) {

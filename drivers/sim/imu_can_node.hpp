@@ -18,6 +18,8 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <memory>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -30,7 +32,10 @@ namespace imucal::sim {
 struct ImuCanNodeOptions {
   double rate_hz = 100.0;               ///< the unit's sample rate (run() pacing)
   double speed_factor = 1.0;            ///< run(): simulated seconds per wall second; 0 = unpaced
-  uint32_t base_id = imu::kDefaultImuBaseId;
+  /// The unit's protocol (null: the built-in one) and where its identifiers start (unset: as in
+  /// the protocol's DBC file).
+  std::shared_ptr<const imu::ImuProtocolMap> protocol;
+  std::optional<uint32_t> base_id;
   double frame_loss_probability = 0.0;  ///< per frame
   double corruption_probability = 0.0;  ///< per frame: one data bit flipped
   int reset_lost_samples = 5;           ///< increments swallowed by a reset
@@ -41,12 +46,12 @@ struct ImuCanNodeOptions {
 /// What happened to one increment given to send().
 struct SampleFate {
   bool transmitted = false;  ///< false: swallowed by a reset
-  uint16_t counter = 0;      ///< counter the IMU gave it (if transmitted)
+  uint32_t counter = 0;      ///< counter the IMU gave it (if transmitted)
   int frames_lost = 0;       ///< injected losses
   int frames_corrupted = 0;  ///< injected bit flips
   int frames_refused = 0;    ///< refused by a full transmit queue
   /// The frames as encoded, before any fault (what a perfect bus would carry).
-  std::array<imu::CanFrame, imu::kFramesPerSample> clean{};
+  std::vector<imu::CanFrame> clean;
   bool intact() const { return transmitted && frames_lost + frames_corrupted + frames_refused == 0; }
 };
 

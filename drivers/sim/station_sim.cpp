@@ -165,6 +165,8 @@ void StationSim::start() {
   node_opt.corruption_probability = cfg_.faults.can_corrupt;
   node_opt.reset_at_s = cfg_.faults.imu_reset_at_s;
   node_opt.seed = cfg_.seed ^ 0x9e3779b97f4a7c15ULL;  // independent of the sensor noise stream
+  node_opt.protocol = cfg_.protocol;
+  node_opt.base_id = cfg_.base_id;
   node_ = std::make_unique<ImuCanNode>(*channel_, node_opt);
 
   // No TimeSource: the physics thread is the only one that advances the PLC.

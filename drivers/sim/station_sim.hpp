@@ -36,6 +36,7 @@
 #include "calib/core/site_presets.hpp"
 #include "calib/core/table_model.hpp"
 #include "calib/sim/truth_sim.hpp"
+#include "drivers/imu/imu_protocol_map.hpp"
 #include "drivers/sim/imu_fault.hpp"
 #include "drivers/sim/modbus_table_server.hpp"
 #include "drivers/sim/table_plc.hpp"
@@ -84,6 +85,10 @@ struct StationSimConfig {
   /// benchmark receiver sees every frame from the first one; the Modbus server answers from start()
   /// either way.
   bool wait_for_can_peer = false;
+  /// The IMU's CAN protocol (null: the built-in one; drivers/imu/PROTOCOLS.md) and its base id
+  /// (unset: the ids of the protocol's DBC file).
+  std::shared_ptr<const imu::ImuProtocolMap> protocol;
+  std::optional<uint32_t> base_id;
 };
 
 struct StationSimStats {

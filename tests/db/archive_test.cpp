@@ -310,6 +310,37 @@ TEST(Archive, PriorGradeReadsWritesBackAndIsRefusedWhenWrong) {
   }
 }
 
+// Issue #27: the protocol the daemon read the unit through and its resolution are recorded; the
+// resolution reaches the calibration input's noise model (the gap diagnosis' quantisation) and
+// survives a write/read; the built-in protocol's resolution is not written.
+TEST(Archive, TheProtocolAndItsResolutionReadWriteBackAndReachTheInput) {
+  TempDir tmp("imucal_archive_test");
+  const std::string dir = write_simple(tmp, "r");
+  const std::string orig = slurp(dir + "/run.toml");
+  EXPECT_EQ(orig.find("dtheta_lsb_rad"), std::string::npos);
+  replace_in_file(dir + "/run.toml", "[imu]\n", "[imu]\nprotocol = \"rates16\"\n");
+  replace_in_file(dir + "/run.toml", "[noise]\n",
+                  "[noise]\ndtheta_lsb_rad = 1.75e-6\ndv_lsb_mps = 9.8e-5\n");
+  const RunArchive a = read_archive(dir);
+  EXPECT_EQ(a.info.imu_protocol, "rates16");
+  EXPECT_EQ(a.info.dtheta_lsb_rad, 1.75e-6);
+  EXPECT_EQ(a.info.dv_lsb_mps, 9.8e-5);
+  const calib::CalibrationInput in = to_calibration_input(a);
+  EXPECT_EQ(in.noise.dtheta_lsb_rad, 1.75e-6);
+  EXPECT_EQ(in.noise.dv_lsb_mps, 9.8e-5);
+  const std::string again = tmp.path() + "/again";
+  write_archive(again, a, false);
+  const RunArchive b = read_archive(again);
+  EXPECT_EQ(b.info.imu_protocol, "rates16");
+  EXPECT_EQ(b.info.dtheta_lsb_rad, 1.75e-6);
+  EXPECT_EQ(b.info.dv_lsb_mps, 9.8e-5);
+  put(dir + "/run.toml", orig);
+  replace_in_file(dir + "/run.toml", "[noise]\n", "[noise]\ndv_lsb_mps = -1\n");
+  const ArchiveError e = read_error(dir);
+  EXPECT_EQ(e.field(), "noise.dv_lsb_mps") << e.what();
+  EXPECT_NE(std::string(e.what()).find("[0, 1)"), std::string::npos) << e.what();
+}
+
 // Issue #21: the grade's envelopes may be overridden per product; the overrides reach the
 // calibration input exactly and survive a write/read.
 TEST(Archive, PriorEnvelopeOverridesReadWriteBackAndReachTheInput) {

@@ -3,11 +3,16 @@
 // frames/s equivalent (2000 Hz × 4 frames = a 1 Mbit/s bus at full load) for 60 simulated seconds.
 // Not a unit test (no *_test.cpp name). Build target: bench_can_path (wired by the lead).
 //
-//   BM_CanPathPaced/speed/log   the node paced at 2000 Hz × speed on CLOCK_MONOTONIC, no back-pressure
-//                               (a full queue loses frames, as on a bus); speed 1 = real time (60 s).
-//                               Counters: frames, lost (must be 0), capture CPU share of one core at
-//                               8000 frames/s (the reader thread's CPU time ÷ simulated time), node CPU.
-//   BM_CanPathUnpaced/log       as fast as possible with back-pressure: the path's ceiling in frames/s.
+//   BM_CanPathPaced/speed/log/protocol
+//                               the node paced at 8000 frames/s × speed on CLOCK_MONOTONIC, no
+//                               back-pressure (a full queue loses frames, as on a bus); speed 1 =
+//                               real time (60 s). protocol 0: the built-in one (2000 Hz × 4
+//                               frames); 1: tests/data/protocols/rates16 (2667 Hz × 3 frames; issue
+//                               #27). Counters: frames, lost (must be 0), capture CPU share of one
+//                               core at 8000 frames/s (the reader thread's CPU time ÷ simulated
+//                               time), node CPU.
+//   BM_CanPathUnpaced/log       as fast as possible with back-pressure: the path's ceiling in
+//   frames/s.
 #include <benchmark/benchmark.h>
 #include <time.h>
 #include <unistd.h>
@@ -27,8 +32,14 @@ namespace {
 
 using namespace imucal;
 
-constexpr double kRate_hz = 2000.0;
+constexpr double kFramesPerSecond = 8000.0;
 constexpr double kSimulated_s = 60.0;
+
+std::shared_ptr<const imu::ImuProtocolMap> protocol_of(int64_t which) {
+  if (which == 0) return imu::builtin_protocol_map();
+  return std::make_shared<const imu::ImuProtocolMap>(imu::read_protocol_map(
+      std::string(IMUCAL_SOURCE_DIR) + "/tests/data/protocols/rates16.toml"));
+}
 
 double thread_cpu_s() {
   timespec ts{};
@@ -36,16 +47,17 @@ double thread_cpu_s() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
-calib::ImuSeries synthetic_series(std::size_t n) {
+calib::ImuSeries synthetic_series(std::size_t n, double rate_hz) {
   // A unit at rest with noise (values change every sample, as real data do).
   std::mt19937_64 rng(1);
   std::normal_distribution<double> g(0.0, 1.0);
   calib::ImuSeries s(n);
   for (std::size_t k = 0; k < n; ++k) {
-    s[k].t_s = static_cast<double>(k + 1) / kRate_hz;
-    s[k].dt_s = 1.0 / kRate_hz;
+    s[k].t_s = static_cast<double>(k + 1) / rate_hz;
+    s[k].dt_s = 1.0 / rate_hz;
     s[k].dtheta_rad = Eigen::Vector3d(4e-8, 0.0, -6e-8) + 2e-9 * Eigen::Vector3d(g(rng), g(rng), g(rng));
-    s[k].dv_mps = Eigen::Vector3d(0.0, 0.0, -9.81 / kRate_hz) + 1e-6 * Eigen::Vector3d(g(rng), g(rng), g(rng));
+    s[k].dv_mps =
+        Eigen::Vector3d(0.0, 0.0, -9.81 / rate_hz) + 1e-6 * Eigen::Vector3d(g(rng), g(rng), g(rng));
     s[k].temp_c = 30.0;
   }
   return s;
@@ -61,9 +73,11 @@ struct PathResult {
   double wall_s = 0.0;
 };
 
-PathResult run_path(double speed, bool write_log) {
-  const std::size_t n = static_cast<std::size_t>(kRate_hz * kSimulated_s);
-  static const calib::ImuSeries series = synthetic_series(n);
+PathResult run_path(double speed, bool write_log, int64_t protocol = 0) {
+  const auto map = protocol_of(protocol);
+  const double rate_hz = kFramesPerSecond / static_cast<double>(map->messages.size());
+  const std::size_t n = static_cast<std::size_t>(rate_hz * kSimulated_s);
+  const calib::ImuSeries series = synthetic_series(n, rate_hz);
   const std::string path = "/tmp/imucal-bench-can-" + std::to_string(::getpid()) + ".sock";
   const std::string log_path = "/tmp/imucal-bench-can-" + std::to_string(::getpid()) + ".log";
   imu::CanOpenOptions lo;
@@ -75,8 +89,9 @@ PathResult run_path(double speed, bool write_log) {
   bus->read(none);
 
   sim::ImuCanNodeOptions o;
-  o.rate_hz = kRate_hz;
+  o.rate_hz = rate_hz;
   o.speed_factor = speed;
+  o.protocol = map;
   sim::ImuCanNode node(*bus, o);
   std::atomic<bool> node_done{false};
   PathResult r;
@@ -91,7 +106,8 @@ PathResult run_path(double speed, bool write_log) {
   // The capture side, as stationd's capture thread would do it: poll, read a batch, decode, log.
   const double c0 = thread_cpu_s();
   imu::DecoderOptions dopt;
-  dopt.sample_rate_hz = kRate_hz;
+  dopt.sample_rate_hz = rate_hz;
+  dopt.protocol = map;
   imu::ImuFrameDecoder dec(dopt);
   std::unique_ptr<imu::CandumpWriter> log;
   if (write_log) log = std::make_unique<imu::CandumpWriter>(log_path);
@@ -144,10 +160,17 @@ void report(benchmark::State& state, const PathResult& r) {
 void BM_CanPathPaced(benchmark::State& state) {
   const double speed = static_cast<double>(state.range(0));
   PathResult r;
-  for (auto _ : state) r = run_path(speed, state.range(1) != 0);
+  for (auto _ : state) r = run_path(speed, state.range(1) != 0, state.range(2));
   report(state, r);
 }
-BENCHMARK(BM_CanPathPaced)->Args({10, 1})->Args({1, 1})->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(BM_CanPathPaced)
+    ->Args({10, 1, 0})
+    ->Args({1, 1, 0})
+    ->Args({10, 1, 1})
+    ->Args({1, 1, 1})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime();
 
 void BM_CanPathUnpaced(benchmark::State& state) {
   PathResult r;

@@ -10,6 +10,7 @@
 #include <sstream>
 #include <string>
 
+#include "drivers/imu/builtin_protocol_text.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace imucal::imu {
@@ -117,6 +118,24 @@ TEST_F(BadMap, AMissingSignalAZeroScaleAndATooWideCounterAreNamed) {
   expect_refused("quantity = \"rates\"", "quantity = \"speeds\"", "bad.toml:", "quantity 'speeds'");
   expect_refused("dbc = \"rates16.dbc\"", "dbc = \"missing.dbc\"", "missing.dbc",
                  "cannot read the DBC file");
+  expect_refused("same_in = [\"R16_GYRO.Counter\", \"R16_ACCEL.Counter\"]",
+                 "same_in = [\"R16_GYRO.Counter\"]",
+                 "bad.toml:", "message R16_ACCEL carries no copy of the counter's low part");
+  expect_refused("temperature = \"R16_STATUS.Temperature\"",
+                 "temperature = \"R16_STATUS.Temperature\"\ntemperature_unknown = 1.5",
+                 "bad.toml:", "'temperature_unknown' must be an integer");
+}
+
+// The compiled-in default is the shipped file byte for byte, and parses to the same protocol.
+TEST(ImuProtocolMap, TheCompiledInDefaultIsTheShippedFile) {
+  EXPECT_EQ(builtin_protocol_toml_text(),
+            slurp(kSource + "/drivers/imu/protocols/imucal-imu-1.toml"));
+  EXPECT_EQ(builtin_protocol_dbc_text(), slurp(kSource + "/drivers/imu/imu.dbc"));
+  const auto m = builtin_protocol_map();
+  EXPECT_EQ(m->name, "imucal-imu-1");
+  EXPECT_EQ(m->flags.size(), 7u);  // 3 fault, 2 saturation, startup, temperature invalid
+  EXPECT_EQ(m->temperature_unknown, -32768);
+  EXPECT_EQ(m->tie.size(), 4u);
 }
 
 TEST_F(BadMap, ADbcWithOverlappingSignalsIsRefusedNamingTheDbcLine) {

@@ -38,7 +38,7 @@ INSTANTIATE_TEST_SUITE_P(
                       BrokenUnit{"flip:gyro-z", "table vs IMU rotation"},
                       BrokenUnit{"not-on-table", "did not move with the table"},
                       BrokenUnit{"fixture-rot90", "wrong fixture orientation"},
-                      BrokenUnit{"saturate:5", "gyro saturated"}),
+                      BrokenUnit{"saturate:5", "saturation (IMU_STATUS.GyroSaturated)"}),
     [](const ::testing::TestParamInfo<BrokenUnit>& i) {
       std::string n = i.param.fault;
       for (char& ch : n)

@@ -137,7 +137,7 @@ sim::ImuCanNodeOptions node_options() {
 struct Transmitted {
   Eigen::Vector3d dtheta_rad, dv_mps;
 };
-Transmitted transmitted(const std::array<imu::CanFrame, imu::kFramesPerSample>& frames) {
+Transmitted transmitted(const std::vector<imu::CanFrame>& frames) {
   Transmitted t;
   for (int a = 0; a < 3; ++a) {
     const imu::AxisFields f = imu::unpack_axis(frames[static_cast<std::size_t>(a)].data);
@@ -364,7 +364,9 @@ TEST(Capture, ImuFailureBitsAreAFault) {
   for (uint64_t k = 0; k < 10; ++k) node.send(still_increment(k));
   node.send(still_increment(10), imu::status::kGyroFault);
   ASSERT_TRUE(wait_until([&] { return rig.cap->fault().has_value(); }));
-  EXPECT_NE(rig.cap->fault()->find("gyro fault at row 11"), std::string::npos) << *rig.cap->fault();
+  EXPECT_NE(rig.cap->fault()->find("IMU reports fault (IMU_STATUS.GyroFault) at row 11"),
+            std::string::npos)
+      << *rig.cap->fault();
   EXPECT_EQ(rig.cap->rows(), 10u);
 }
 

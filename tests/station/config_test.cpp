@@ -91,7 +91,11 @@ TEST(StationConfig, ExampleParsesToTheDocumentedValues) {
   EXPECT_TRUE(c.turntable.map == turntable::default_register_map());
   EXPECT_EQ(c.can_uri, "unixcan:" + dir + "/imu.can");
   EXPECT_DOUBLE_EQ(c.rate_hz, 100.0);
-  EXPECT_EQ(c.base_id, 0x100u);
+  EXPECT_FALSE(c.base_id);  // the protocol's own ids: the built-in protocol's 0x100-0x103
+  ASSERT_TRUE(c.protocol);
+  EXPECT_EQ(c.protocol->name, "imucal-imu-1");
+  EXPECT_EQ(c.protocol->message(c.protocol->messages.front()).id, 0x100u);
+  EXPECT_TRUE(c.protocol_path.empty());
   EXPECT_EQ(c.max_gap_samples, 10u);
   EXPECT_EQ(c.settle_guard_samples, 50u);
   EXPECT_DOUBLE_EQ(c.rest_rate_threshold_dps, 0.05);
@@ -136,6 +140,36 @@ TEST(StationConfig, MinimalConfigGetsTheDefaultsAndResolvesRelativePaths) {
       "cfg.toml", "/etc/imucal");
   EXPECT_EQ(d.data_dir, "/srv/x");
   EXPECT_EQ(d.can_uri, "socketcan:can0");
+}
+
+// The rest threshold follows the unit's noise unless given: a tactical unit's rate noise (0.2 °/√h
+// at 100 Hz: 0.033 °/s a sample) would never look still under the navigation grade's 0.05 °/s.
+TEST(StationConfig, TheRestThresholdFollowsTheNoiseUnlessGiven) {
+  EXPECT_DOUBLE_EQ(parse_config(kMinimal, "cfg.toml", "/etc/imucal").rest_rate_threshold_dps, 0.05);
+  const std::string tactical = std::string(kMinimal) + "arw_deg_per_sqrt_h = 0.2\n";
+  EXPECT_NEAR(parse_config(tactical, "cfg.toml", "/e").rest_rate_threshold_dps, 8 * 0.2 / 60 * 10,
+              1e-12);
+  EXPECT_DOUBLE_EQ(parse_config(tactical + "rest_rate_threshold_dps = 0.3\n", "cfg.toml", "/e")
+                       .rest_rate_threshold_dps,
+                   0.3);
+}
+
+// A protocol file in [imu] is read at load time; base_id moves its identifiers.
+TEST(StationConfig, TheProtocolIsReadAtLoadTimeAndBaseIdMovesItsIds) {
+  const std::string rates16 = std::string(IMUCAL_SOURCE_DIR) + "/tests/data/protocols/rates16.toml";
+  const std::string with = std::string(kMinimal) + "protocol = \"" + rates16 + "\"\n";
+  const StationConfig c = parse_config(with, "cfg.toml", "/e");
+  ASSERT_TRUE(c.protocol);
+  EXPECT_EQ(c.protocol->name, "rates16");
+  EXPECT_EQ(c.protocol_path, rates16);
+  EXPECT_EQ(c.protocol->message(c.protocol->messages.front()).id, 0x18FF1000u);
+  const StationConfig moved = parse_config(with + "base_id = 0x18FF2000\n", "cfg.toml", "/e");
+  EXPECT_EQ(moved.protocol->message(moved.protocol->messages.back()).id, 0x18FF2200u);
+  EXPECT_EQ(decoder_options(moved).protocol, moved.protocol);
+  // The built-in protocol's four 11-bit ids do not fit above 0x7FC.
+  const ConfigError e = error_of(std::string(kMinimal) + "base_id = 0x7FE\n");
+  EXPECT_EQ(e.line(), 11) << e.what();
+  EXPECT_NE(std::string(e.what()).find("beyond the 11-bit range"), std::string::npos) << e.what();
 }
 
 void expect_error(const std::string& text, int line, int column, const std::string& must_contain) {

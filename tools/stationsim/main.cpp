@@ -28,6 +28,7 @@
 #include "calib/core/site_presets.hpp"
 #include "calib/effects/catalogue.hpp"
 #include "db/archive/unit_file.hpp"
+#include "drivers/imu/imu_codec.hpp"
 #include "drivers/sim/station_sim.hpp"
 
 namespace {
@@ -160,7 +161,8 @@ struct CliArgs {
   double can_loss = 0.0, can_corrupt = 0.0;
   std::vector<double> reset_at, drop_at;
   std::vector<std::string> delay_at, effect_specs;
-  std::string table_fault, imu_fault;
+  std::string table_fault, imu_fault, protocol;
+  int64_t base_id = -1;
   bool wait_for_can_peer = false;
 };
 
@@ -179,6 +181,12 @@ void add_options(CLI::App& app, CliArgs& a) {
          "--effect", a.effect_specs,
          "inject a catalogue effect, NAME=V[,V...] in SI (repeatable; imucal effects lists them)")
       ->take_all();
+  app.add_option("--protocol", a.protocol,
+                 "the IMU's CAN protocol file (drivers/imu/PROTOCOLS.md); default: the built-in "
+                 "protocol");
+  app.add_option("--base-id", a.base_id,
+                 "move the protocol's CAN ids so that the lowest is this one (default: as in its "
+                 "DBC file)");
   app.add_option("--speed", a.speed, "sim seconds per wall second");
   app.add_option("--rate-hz", a.rate_hz, "IMU sample rate");
   app.add_option("--seed", a.seed, "random seed (noise, CAN faults)");
@@ -243,6 +251,15 @@ void apply_clock_and_site(const CliArgs& a, StationSimConfig& cfg) {
   cfg.rate_hz = a.rate_hz;
   cfg.seed = a.seed;
   cfg.wait_for_can_peer = a.wait_for_can_peer;
+  try {
+    if (!a.protocol.empty())
+      cfg.protocol = std::make_shared<const imucal::imu::ImuProtocolMap>(
+          imucal::imu::read_protocol_map(a.protocol));
+    if (a.base_id >= 0) cfg.base_id = static_cast<uint32_t>(a.base_id);
+    cfg.protocol = imucal::imu::resolve_protocol(cfg.protocol, cfg.base_id);
+  } catch (const std::invalid_argument& e) {
+    throw BadInput(std::string(a.protocol.empty() ? "--base-id" : "--protocol") + ": " + e.what());
+  }
   cfg.site.lat_rad = a.lat_deg * imucal::kDegToRad;
   cfg.site.lon_rad = a.lon_deg * imucal::kDegToRad;
   cfg.site.height_m = a.height_m;
