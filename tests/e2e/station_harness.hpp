@@ -11,7 +11,9 @@
 // test (fork/exec, stdout/stderr to files in the temporary directory) and are always stopped by the
 // destructors (SIGTERM, then SIGKILL), so a failing assertion never leaves a daemon behind. Set
 // IMUCAL_E2E_KEEP=1 to keep the directories (their paths are printed) for post-mortems; a failing
-// test keeps its own unless IMUCAL_E2E_KEEP=0.
+// test keeps its own unless IMUCAL_E2E_KEEP=0. IMUCAL_E2E_PROTOCOL=FILE runs the simulator and the
+// daemon of every test that does not choose one on that IMU protocol file (issue #27; its
+// resolution must suit the default navigation-grade unit: drivers/imu/PROTOCOLS.md).
 //
 // Binaries come from IMUCAL_BIN_DIR (the build tree's bin/). A missing binary is a test failure,
 // never a skip.
@@ -28,6 +30,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -520,6 +523,9 @@ class Station {
                                      "--seed",
                                      std::to_string(o.seed)};
     argv.insert(argv.end(), o.extra.begin(), o.extra.end());
+    const bool chooses = std::find(o.extra.begin(), o.extra.end(), "--protocol") != o.extra.end();
+    if (!chooses && !env_protocol().empty())
+      argv.insert(argv.end(), {"--protocol", env_protocol()});
     if (access(argv[0].c_str(), X_OK) != 0) {
       ADD_FAILURE() << argv[0] << " is not built";
       return false;
@@ -572,6 +578,9 @@ class Station {
       << "\n[imu]\n"
       << "can = \"unixcan:" << bus_path() << "\"\n"
       << "rate_hz = 100.0\n"
+      << (env_protocol().empty() || imu_extra.find("protocol =") != std::string::npos
+              ? std::string()
+              : "protocol = \"" + env_protocol() + "\"\n")
       << imu_extra << "\n[calibration]\n"
       << "default_sequence = \"short\"\n"
       << "k_sigma = 4.0\n"
@@ -579,6 +588,12 @@ class Station {
       << "level = \"info\"\n"
       << extra;
     return c.str();
+  }
+
+  /// IMUCAL_E2E_PROTOCOL: the IMU protocol file of every test that does not choose one.
+  static std::string env_protocol() {
+    const char* p = std::getenv("IMUCAL_E2E_PROTOCOL");
+    return p ? p : "";
   }
 
   void write_config(const std::string& text) {
