@@ -262,7 +262,18 @@ TEST(StationsimCli, BadFlagsAndUnitFilesExitTwoNamingThem) {
   };
   std::ofstream(s.path("bad_unit.toml")) << "[gyro]\nbias_deg_per_h = [0.01, 0.0, 0.0]\nbogus_key = 3\n";
   std::ofstream(s.path("bad_value.toml")) << "[accel]\nbias_ug = \"fifty\"\n";
+  // A protocol file (issue #27) naming a signal its DBC does not have, on line 8.
+  const std::string dbc = std::string(IMUCAL_SOURCE_DIR) + "/drivers/imu/imu.dbc";
+  std::ofstream(s.path("bad_protocol.toml"))
+      << "[protocol]\nname = \"x\"\ndbc = \"" << dbc
+      << "\"\nquantity = \"increments\"\nmessages = [\"IMU_STATUS\"]\n"
+         "completes_sample = \"IMU_STATUS\"\n[channels]\n"
+         "angular = [\"IMU_STATUS.Nope\", \"IMU_STATUS.Nope\", \"IMU_STATUS.Nope\"]\n";
   const std::vector<Case> cases = {
+      {{"--protocol", s.path("missing.toml")}, "--protocol: " + s.path("missing.toml")},
+      {{"--protocol", s.path("bad_protocol.toml")},
+       s.path("bad_protocol.toml") + ":8: signal 'Nope' is not in message IMU_STATUS"},
+      {{"--base-id", "0x7FE"}, "beyond the 11-bit range"},
       {{"--speed", "fast"}, "--speed"},
       {{"--frobnicate"}, "--frobnicate"},
       {{"--can-loss", "1.5"}, "--can-loss"},
