@@ -7,9 +7,9 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
-#include <thread>
 
 #include "calib/checks/data_check.hpp"
+#include "calib/core/run_concurrently.hpp"
 
 namespace imucal::calib {
 
@@ -141,10 +141,10 @@ void run_methods_from_legacy(const CalibrationInput& in, const PipelineOptions& 
 }
 
 /// The data checks, then AINS, and NLSQ or legacy, each with its evaluation. With opt.concurrent
-/// (and AINS selected) a second thread runs the checks and then the second method while AINS
-/// runs: AINS only reads `in`, and if the checks fail its result is dropped and DataCheckError
-/// thrown as if no method had run. Otherwise an exception of either method is rethrown once both
-/// have ended.
+/// (and AINS selected) a second thread (calib/core/run_concurrently.hpp) runs the checks and then
+/// the second method while AINS runs: AINS only reads `in`, and if the checks fail its result is
+/// dropped and DataCheckError thrown as if no method had run. Otherwise an exception of either
+/// method is rethrown once both have ended.
 void run_methods(const CalibrationInput& in, const PipelineOptions& opt, bool ains, bool nlsq,
                  bool legacy, PipelineResult& out) {
   if ((ains || nlsq) && starts_from_legacy(in))
@@ -162,28 +162,24 @@ void run_methods(const CalibrationInput& in, const PipelineOptions& opt, bool ai
     return;
   }
   std::vector<DataProblem> problems;
-  std::exception_ptr check_error, second_error;
-  std::thread worker([&] {
+  std::exception_ptr check_error, ains_error, second_error;
+  // Both tasks keep their own errors, so that they are rethrown in the order a reader expects:
+  // the data checks', then AINS', then the second method's.
+  auto guarded = [](std::exception_ptr& error, auto&& task) {
     try {
-      problems = check_input(in, opt);
+      task();
+      return true;
     } catch (...) {
-      check_error = std::current_exception();
-      return;
+      error = std::current_exception();
+      return false;
     }
-    if (!problems.empty() || !second) return;
-    try {
-      run_second();
-    } catch (...) {
-      second_error = std::current_exception();
-    }
-  });
-  std::exception_ptr ains_error;
-  try {
-    out.ains = run_method(in, opt, "AINS", run_ains);
-  } catch (...) {
-    ains_error = std::current_exception();
-  }
-  worker.join();
+  };
+  run_concurrently(
+      [&] { guarded(ains_error, [&] { out.ains = run_method(in, opt, "AINS", run_ains); }); },
+      [&] {
+        if (!guarded(check_error, [&] { problems = check_input(in, opt); })) return;
+        if (problems.empty() && second) guarded(second_error, run_second);
+      });
   if (check_error) std::rethrow_exception(check_error);
   if (!problems.empty()) throw DataCheckError(std::move(problems));
   if (ains_error) std::rethrow_exception(ains_error);

@@ -9,6 +9,8 @@
 #include <system_error>
 #include <thread>
 
+#include "calib/core/run_concurrently.hpp"
+
 namespace imucal::archive {
 
 /// Whole file as bytes (read_file_bytes() copied into a string: for the small files). Throws
@@ -58,13 +60,8 @@ class ReadableFile {
   std::size_t size_ = 0;
 };
 
-/// Runs first() on the calling thread and second() on one std::thread at the same time (two
-/// threads at most: the station machines have two cores), then rethrows the exception of first(),
-/// else that of second(): the error a sequential first-then-second would meet first, as long as
-/// the two are independent. Without a thread to start (resource limits), both run on the calling
-/// thread.
-template <typename First, typename Second>
-void run_concurrently(First&& first, Second&& second);
+/// Two independent tasks at once, the first one's error first (calib/core/run_concurrently.hpp).
+using calib::run_concurrently;
 
 /// Writes a file durably: open (O_CREAT|O_EXCL unless overwrite), write all, fsync, close.
 /// Buffered; every error (ENOSPC, EIO, ...) is an ArchiveError naming the path.
@@ -122,33 +119,6 @@ double human_for_si(double si, double approx_human, ToSi to_si);
 #include <cmath>
 
 namespace imucal::archive {
-
-template <typename First, typename Second>
-void run_concurrently(First&& first, Second&& second) {
-  std::exception_ptr second_error;
-  auto guarded_second = [&] {
-    try {
-      second();
-    } catch (...) {
-      second_error = std::current_exception();
-    }
-  };
-  std::thread worker;
-  try {
-    worker = std::thread(guarded_second);
-  } catch (const std::system_error&) {
-    guarded_second();  // no thread to be had: one after the other
-  }
-  std::exception_ptr first_error;
-  try {
-    first();
-  } catch (...) {
-    first_error = std::current_exception();
-  }
-  if (worker.joinable()) worker.join();
-  if (first_error) std::rethrow_exception(first_error);
-  if (second_error) std::rethrow_exception(second_error);
-}
 
 template <typename ToSi>
 double human_for_si(double si, double approx_human, ToSi to_si) {

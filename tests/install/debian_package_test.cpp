@@ -163,6 +163,15 @@ TEST_F(DebianPackage, InstallsAndRunsASimulatedUnitFromTheInstalledFilesOnly) {
         run_command("env -u IMUCAL_SEQUENCE_DIR " + bin + "/stationd --config " +
                     quote(where.root + "/etc/imucal/stationd.toml") + " --check-config 2>&1");
     EXPECT_EQ(check.code, 0) << check.out;
+    {
+      // The installed built-in protocol file (and the DBC it names) reads as a station's protocol.
+      Station ps;
+      ps.write_config(ps.config_text(
+          "", "protocol = \"" + where.root + "/usr/share/imucal/protocols/imucal-imu-1.toml\"\n"));
+      const auto pc = run_command(bin + "/stationd --config " + quote(ps.config_path()) +
+                                  " --check-config 2>&1");
+      EXPECT_EQ(pc.code, 0) << pc.out;
+    }
 
     // A station of installed files: a short unit run ends PASS.
     unsetenv("IMUCAL_SEQUENCE_DIR");
