@@ -184,6 +184,8 @@ void ControlServer::start() {
   if (!options_.database_path.empty())
     exports_ = std::make_unique<ExportStreams>(options_.database_path, options_.max_exports,
                                                options_.idle_timeout);
+  // Two: a second diagnosis is refused by the controller, naming the run being diagnosed.
+  detached_ = std::make_unique<DetachedReplies>(2, options_.idle_timeout);
   thread_ = std::thread([this] { loop(); });
   spdlog::info("control socket listening on {} (mode 0{:o}, control group '{}')", path,
                options_.socket_mode, group_name_);
@@ -197,6 +199,7 @@ void ControlServer::stop() {
   }
   if (thread_.joinable()) thread_.join();
   if (exports_) exports_->stop_all();
+  if (detached_) detached_->stop_all();
   ::close(listen_fd_);
   ::close(wake_fd_);
   listen_fd_ = wake_fd_ = -1;
@@ -217,7 +220,7 @@ bool ControlServer::permitted(const Client& client) const {
   return peer_in_group(client.cred.uid, client.cred.gid, group_id_);
 }
 
-json ControlServer::dispatch(Client& client, const Request& r) {
+void ControlServer::check_allowed(const Client& client, const Request& r) {
   if (needs_control_permission(r.cmd) && !permitted(client)) {
     {
       std::lock_guard<std::mutex> lock(stats_mutex_);
@@ -229,6 +232,10 @@ json ControlServer::dispatch(Client& client, const Request& r) {
                        r.cmd + " needs membership of the control group '" + group_name_ + "' (" +
                            client.user + " is not a member)");
   }
+}
+
+json ControlServer::dispatch(Client& client, const Request& r) {
+  check_allowed(client, r);
   const json& a = r.args;
   if (r.cmd == cmd::kPing) return {{"version", options_.version}};
   if (r.cmd == cmd::kRunStart) {
@@ -262,10 +269,6 @@ json ControlServer::dispatch(Client& client, const Request& r) {
                  client.cred.uid, q.allow_partial ? ", partial archive allowed" : "");
     return handler_.reprocess(q);
   }
-  if (r.cmd == cmd::kDiagnose) {
-    spdlog::info("control: diagnose run {} by {}", a.at("run_id").get<db::RunId>(), client.user);
-    return handler_.diagnose(a.at("run_id").get<db::RunId>());
-  }
   if (r.cmd == cmd::kImport) {
     const std::string dir = a.at("dir").get<std::string>();
     spdlog::info("control: import {} by {} (uid {})", dir, client.user, client.cred.uid);
@@ -298,14 +301,36 @@ void ControlServer::hand_over_export(Client& client, const Request& r) {
   client.close_after_write = true;
 }
 
+/// Like an export: the connection goes to a thread that computes the diagnosis (seconds for an
+/// hour's run) and writes its one reply; the loop serves the other clients meanwhile (issue #22).
+/// The group check is the dispatcher's, done here before the hand-over.
+void ControlServer::hand_over_diagnose(Client& client, const Request& r) {
+  check_allowed(client, r);
+  const auto run_id = r.args.at("run_id").get<db::RunId>();
+  spdlog::info("control: diagnose run {} by {}", run_id, client.user);
+  const int fd = ::fcntl(client.fd, F_DUPFD_CLOEXEC, 0);
+  if (fd < 0) throw ControlError(error_code::kUnavailable, "diagnose: " + errno_text(errno));
+  try {
+    detached_->start(fd, r.id, [this, run_id] { return handler_.diagnose(run_id); });
+  } catch (...) {
+    ::close(fd);
+    throw;
+  }
+  client.in.clear();
+  client.close_after_write = true;
+}
+
 void ControlServer::serve_line(Client& client, std::string_view line) {
   json id = nullptr;
   json reply;
   try {
     const Request r = parse_request(line);
     id = r.id;
-    if (r.cmd == cmd::kExport && r.args.value("stream", false)) {
-      hand_over_export(client, r);
+    if ((r.cmd == cmd::kExport && r.args.value("stream", false)) || r.cmd == cmd::kDiagnose) {
+      if (r.cmd == cmd::kDiagnose)
+        hand_over_diagnose(client, r);
+      else
+        hand_over_export(client, r);
       std::lock_guard<std::mutex> lock(stats_mutex_);
       ++stats_.requests;
       return;

@@ -41,6 +41,7 @@
 
 #include "station/control_handler.hpp"
 #include "station/control_protocol.hpp"
+#include "station/detached_replies.hpp"
 #include "station/export_stream.hpp"
 
 namespace imucal::station {
@@ -106,6 +107,10 @@ class ControlServer {
   void refuse_if_over_limits(const std::list<Client>& clients, Client& client);
   nlohmann::json dispatch(Client& client, const Request& request);
   void hand_over_export(Client& client, const Request& request);
+  /// Refuses (permission denied, counted and logged) a control command from a non-member.
+  void check_allowed(const Client& client, const Request& request);
+  /// A diagnosis is answered by a thread of its own on the handed-over connection.
+  void hand_over_diagnose(Client& client, const Request& request);
   bool permitted(const Client& client) const;
 
   ControlHandler& handler_;
@@ -116,6 +121,7 @@ class ControlServer {
   int wake_fd_ = -1;  ///< eventfd: stop() wakes the poll loop
   std::thread thread_;
   std::unique_ptr<ExportStreams> exports_;
+  std::unique_ptr<DetachedReplies> detached_;
   std::atomic<bool> running_{false};
   mutable std::mutex stats_mutex_;
   ControlServerStats stats_;

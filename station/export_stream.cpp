@@ -16,6 +16,7 @@
 #include "db/export.hpp"
 #include "db/sqlite_repository.hpp"
 #include "station/control_handler.hpp"
+#include "station/detached_replies.hpp"
 #include "station/record_json.hpp"
 
 namespace imucal::station {
@@ -93,16 +94,6 @@ class FrameWriter : public std::streambuf {
   bool failed_ = false;
   std::string why_;
 };
-
-/// The connection as the export thread wants it: blocking sends that give up after send_timeout.
-void make_blocking_with_send_timeout(int fd, std::chrono::milliseconds timeout) {
-  const int flags = ::fcntl(fd, F_GETFL);
-  if (flags >= 0) ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK);
-  timeval tv{};
-  tv.tv_sec = static_cast<time_t>(timeout.count() / 1000);
-  tv.tv_usec = static_cast<suseconds_t>((timeout.count() % 1000) * 1000);
-  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
-}
 
 /// The error reply for what an export threw.
 json error_reply_for(const json& id, const std::exception& e) {

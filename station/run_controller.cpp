@@ -197,6 +197,9 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
 
   std::unique_lock<std::mutex> lk(mu_);
   if (shut_down_) throw ControlError(error_code::kUnavailable, "the daemon is shutting down");
+  if (diagnosing_)
+    throw ControlError(error_code::kBusy, "run " + std::to_string(*diagnosing_) +
+                                              " is being diagnosed; start when it is done");
   if (live_) {
     throw ControlError(error_code::kBusy, "run " + std::to_string(live_->snap.run_id) + " (" +
                                               live_->snap.serial + ") is " +
@@ -243,7 +246,8 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
 }
 
 db::RunDetails RunController::stored_run_with_archive(db::RunId run_id, const char* what,
-                                                      std::string& digest) const {
+                                                      std::string& digest,
+                                                      bool check_digest) const {
   if (shut_down_) throw ControlError(error_code::kUnavailable, "the daemon is shutting down");
   if (live_) {
     throw ControlError(error_code::kBusy, "run " + std::to_string(live_->snap.run_id) + " is " +
@@ -272,25 +276,47 @@ db::RunDetails RunController::stored_run_with_archive(db::RunId run_id, const ch
                                                       " has no recorded archive SHA-256 to check " +
                                                       orig.archive_path + " against");
   }
-  try {
-    digest = archive_digest(orig.archive_path);
-  } catch (const std::exception& e) {
-    throw ControlError(error_code::kUnavailable, e.what());
-  }
-  if (digest != orig.archive_sha256) {
-    throw ControlError(error_code::kInvalidInput,
-                       "archive " + orig.archive_path + " of run " + std::to_string(run_id) +
-                           " has changed since it was recorded (SHA-256 now " + digest +
-                           ", recorded " + orig.archive_sha256 + "); not " + what);
-  }
+  if (check_digest) digest = unchanged_archive_digest(d.run, what);
   return d;
 }
 
-nlohmann::json RunController::diagnose(db::RunId run_id) {
-  // Held throughout: no run starts while the diagnosis takes the CPU (about a second).
-  std::lock_guard<std::mutex> lk(mu_);
+std::string RunController::unchanged_archive_digest(const db::RunRecord& run, const char* what) {
   std::string digest;
-  const db::RunDetails d = stored_run_with_archive(run_id, "diagnosing", digest);
+  try {
+    digest = archive_digest(run.archive_path);
+  } catch (const std::exception& e) {
+    throw ControlError(error_code::kUnavailable, e.what());
+  }
+  if (digest != run.archive_sha256) {
+    throw ControlError(error_code::kInvalidInput,
+                       "archive " + run.archive_path + " of run " + std::to_string(run.run_id) +
+                           " has changed since it was recorded (SHA-256 now " + digest +
+                           ", recorded " + run.archive_sha256 + "); not " + what);
+  }
+  return digest;
+}
+
+nlohmann::json RunController::diagnose(db::RunId run_id) {
+  // The lock is held to check and to store, not while the diagnosis takes the CPU (seconds for an
+  // hour's run; status answers meanwhile, issue #22); no run starts until it is done.
+  db::RunDetails d;
+  {
+    std::lock_guard<std::mutex> lk(mu_);
+    if (diagnosing_)
+      throw ControlError(error_code::kBusy, "run " + std::to_string(*diagnosing_) +
+                                                " is being diagnosed; one diagnosis at a time");
+    std::string unchecked;
+    d = stored_run_with_archive(run_id, "diagnosing", unchecked, /*check_digest=*/false);
+    diagnosing_ = run_id;
+  }
+  struct Done {
+    RunController& rc;
+    ~Done() {
+      std::lock_guard<std::mutex> lk(rc.mu_);
+      rc.diagnosing_.reset();
+    }
+  } done{*this};
+  unchanged_archive_digest(d.run, "diagnosing");  // hashing an hour's archive: off the lock too
   nlohmann::json full;
   try {
     full = diagnose_archive(d.run.archive_path);
@@ -298,7 +324,10 @@ nlohmann::json RunController::diagnose(db::RunId run_id) {
     throw ControlError(error_code::kInvalidInput,
                        "run " + std::to_string(run_id) + ": diagnosis failed: " + e.what());
   }
-  repo_.set_diagnosis(run_id, full.at("stored_summary").dump());
+  {
+    std::lock_guard<std::mutex> lk(mu_);
+    repo_.set_diagnosis(run_id, full.at("stored_summary").dump());
+  }
   full.erase("stored_summary");
   full["run_id"] = run_id;
   spdlog::info("run {}: diagnosed: {}", run_id, full.value("summary", std::string()));

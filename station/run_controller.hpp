@@ -154,8 +154,10 @@ class RunController {
   nlohmann::json promote(db::RunId run_id, const std::string& user, const std::string& reason);
   /// The full gap diagnosis of a finished run's archive (checked against its recorded SHA-256; the
   /// run's NLSQ calibration recomputed as the model), its summary stored with the run
-  /// (Repository::set_diagnosis). kBusy while a run is active, kNotFound for an unknown run or a
-  /// missing archive, kInvalidInput for a changed archive or one the diagnosis cannot use.
+  /// (Repository::set_diagnosis). kBusy while a run is active or another diagnosis runs,
+  /// kNotFound for an unknown run or a missing archive, kInvalidInput for a changed archive or
+  /// one the diagnosis cannot use. Thread-safe; holds no lock while it computes, and no run
+  /// starts meanwhile.
   nlohmann::json diagnose(db::RunId run_id);
   /// Aborts the live run; false if there is none.
   bool abort(const std::string& reason);
@@ -184,9 +186,12 @@ class RunController {
   void on_calibrated(const std::shared_ptr<Live>& live, const CalibrationOutcome& out);
   void set_phase(Live& live, RunPhase phase);
   /// A finished run whose archive is present and unchanged (what reprocess() and diagnose() check);
-  /// `digest` gets the archive's SHA-256. Throws ControlError. Needs mu_.
-  db::RunDetails stored_run_with_archive(db::RunId run_id, const char* what,
-                                         std::string& digest) const;
+  /// `digest` gets the archive's SHA-256 (with check_digest; otherwise the caller checks it with
+  /// unchanged_archive_digest, which needs no lock). Throws ControlError. Needs mu_.
+  db::RunDetails stored_run_with_archive(db::RunId run_id, const char* what, std::string& digest,
+                                         bool check_digest = true) const;
+  /// The archive's SHA-256, refused (ControlError) unless it is the recorded one.
+  static std::string unchanged_archive_digest(const db::RunRecord& run, const char* what);
   /// A new run of this station and software, started now (what start() and reprocess() share).
   db::NewRun new_run(const std::string& serial, const std::string& operator_name,
                      const std::string& sequence_name, const std::string& sequence_sha256,
@@ -205,6 +210,7 @@ class RunController {
   std::optional<RunSnapshot> last_;
   std::thread thread_;
   bool shut_down_ = false;
+  std::optional<db::RunId> diagnosing_;  ///< a diagnosis runs (off the lock): no run starts
 };
 
 }  // namespace imucal::station
