@@ -48,7 +48,8 @@ case $mode in
     tests=(station_capture_test drivers_turntable_client_test drivers_station_sim_test
            station_control_server_test station_export_stream_test station_daemon_test
            station_run_controller_test
-           e2e_station_run_test e2e_station_abort_test e2e_station_faults_test)
+           e2e_station_run_test e2e_station_abort_test e2e_station_faults_test
+           e2e_station_gap_test)  # stationctl diagnose on its own thread (issue #22)
     cmake --build $tree -j2 --target "${tests[@]}" stationd stationsim stationctl
     reports=$(fresh_reports $tree)
     failed=0
