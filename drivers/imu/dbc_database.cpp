@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -484,12 +485,23 @@ DbcDatabase parse_dbc(const std::string& text, const std::string& path) {
   return db;
 }
 
-DbcDatabase read_dbc(const std::string& path) {
+std::string read_small_text_file(const std::string& path, const std::string& what) {
+  constexpr std::uintmax_t kMaxBytes = 16u << 20;
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (!ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status))
+    throw std::invalid_argument(path + ": not a regular file (" + what + ")");
+  if (!ec && std::filesystem::exists(status) && std::filesystem::file_size(path, ec) > kMaxBytes)
+    throw std::invalid_argument(path + ": larger than 16 MiB: no " + what);
   std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::invalid_argument(path + ": cannot read the DBC file");
+  if (!f) throw std::invalid_argument(path + ": cannot read the " + what);
   std::ostringstream os;
   os << f.rdbuf();
-  return parse_dbc(os.str(), path);
+  return os.str();
+}
+
+DbcDatabase read_dbc(const std::string& path) {
+  return parse_dbc(read_small_text_file(path, "DBC file"), path);
 }
 
 }  // namespace imucal::imu

@@ -70,4 +70,9 @@ DbcDatabase parse_dbc(const std::string& text, const std::string& path);
 /// Reads and parses a file (a file that cannot be read: std::invalid_argument naming it).
 DbcDatabase read_dbc(const std::string& path);
 
+/// The text of a small regular file (a DBC or protocol file): std::invalid_argument naming it and
+/// `what` when it cannot be read, is not a regular file (a device, a pipe: never read to its end)
+/// or is larger than 16 MiB.
+std::string read_small_text_file(const std::string& path, const std::string& what);
+
 }  // namespace imucal::imu

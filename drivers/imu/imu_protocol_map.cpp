@@ -346,11 +346,7 @@ ImuProtocolMap parse_protocol_map(const std::string& text, const std::string& pa
 }
 
 ImuProtocolMap read_protocol_map(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::invalid_argument(path + ": cannot read the protocol file");
-  std::ostringstream os;
-  os << f.rdbuf();
-  return parse_protocol_map(os.str(), path);
+  return parse_protocol_map(read_small_text_file(path, "protocol file"), path);
 }
 
 std::shared_ptr<const ImuProtocolMap> builtin_protocol_map() {

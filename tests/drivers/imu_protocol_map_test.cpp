@@ -126,6 +126,21 @@ TEST_F(BadMap, AMissingSignalAZeroScaleAndATooWideCounterAreNamed) {
                  "bad.toml:", "'temperature_unknown' must be an integer");
 }
 
+// A device or a directory named as a protocol or DBC file is refused, never read to its end.
+TEST(ImuProtocolMap, ADeviceOrADirectoryIsNoProtocolFile) {
+  for (const std::string path : {"/dev/zero", "/tmp"}) {
+    try {
+      read_protocol_map(path);
+      ADD_FAILURE() << path << " was read";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(path + ": not a regular file (protocol file)"),
+                std::string::npos)
+          << e.what();
+    }
+    EXPECT_THROW(read_dbc(path), std::invalid_argument);
+  }
+}
+
 // The compiled-in default is the shipped file byte for byte, and parses to the same protocol.
 TEST(ImuProtocolMap, TheCompiledInDefaultIsTheShippedFile) {
   EXPECT_EQ(builtin_protocol_toml_text(),
