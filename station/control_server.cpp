@@ -185,7 +185,7 @@ void ControlServer::start() {
     exports_ = std::make_unique<ExportStreams>(options_.database_path, options_.max_exports,
                                                options_.idle_timeout);
   // Two: a second diagnosis is refused by the controller, naming the run being diagnosed.
-  detached_ = std::make_unique<DetachedReplies>(2, options_.idle_timeout);
+  diagnoses_ = std::make_unique<ConnectionThreads>(2, "diagnoses");
   thread_ = std::thread([this] { loop(); });
   spdlog::info("control socket listening on {} (mode 0{:o}, control group '{}')", path,
                options_.socket_mode, group_name_);
@@ -199,7 +199,7 @@ void ControlServer::stop() {
   }
   if (thread_.joinable()) thread_.join();
   if (exports_) exports_->stop_all();
-  if (detached_) detached_->stop_all();
+  if (diagnoses_) diagnoses_->stop_all();
   ::close(listen_fd_);
   ::close(wake_fd_);
   listen_fd_ = wake_fd_ = -1;
@@ -311,7 +311,10 @@ void ControlServer::hand_over_diagnose(Client& client, const Request& r) {
   const int fd = ::fcntl(client.fd, F_DUPFD_CLOEXEC, 0);
   if (fd < 0) throw ControlError(error_code::kUnavailable, "diagnose: " + errno_text(errno));
   try {
-    detached_->start(fd, r.id, [this, run_id] { return handler_.diagnose(run_id); });
+    diagnoses_->start(fd, [this, id = r.id, run_id](int conn) {
+      send_computed_reply(
+          conn, id, [&] { return handler_.diagnose(run_id); }, options_.idle_timeout);
+    });
   } catch (...) {
     ::close(fd);
     throw;

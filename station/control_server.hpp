@@ -39,9 +39,9 @@
 #include <string>
 #include <thread>
 
+#include "station/connection_threads.hpp"
 #include "station/control_handler.hpp"
 #include "station/control_protocol.hpp"
-#include "station/detached_replies.hpp"
 #include "station/export_stream.hpp"
 
 namespace imucal::station {
@@ -121,7 +121,7 @@ class ControlServer {
   int wake_fd_ = -1;  ///< eventfd: stop() wakes the poll loop
   std::thread thread_;
   std::unique_ptr<ExportStreams> exports_;
-  std::unique_ptr<DetachedReplies> detached_;
+  std::unique_ptr<ConnectionThreads> diagnoses_;
   std::atomic<bool> running_{false};
   mutable std::mutex stats_mutex_;
   ControlServerStats stats_;

@@ -16,7 +16,6 @@
 #include "db/export.hpp"
 #include "db/sqlite_repository.hpp"
 #include "station/control_handler.hpp"
-#include "station/detached_replies.hpp"
 #include "station/record_json.hpp"
 
 namespace imucal::station {
@@ -147,62 +146,13 @@ void stream_export(int fd, const Request& request, const std::string& user,
 ExportStreams::ExportStreams(std::string database_path, std::size_t max_concurrent,
                              std::chrono::milliseconds send_timeout)
     : database_path_(std::move(database_path)),
-      max_concurrent_(max_concurrent),
-      send_timeout_(send_timeout) {}
-
-ExportStreams::~ExportStreams() { stop_all(); }
-
-void ExportStreams::join_finished() {
-  for (auto it = streams_.begin(); it != streams_.end();) {
-    if ((*it)->done) {
-      (*it)->thread.join();
-      it = streams_.erase(it);
-    } else {
-      ++it;
-    }
-  }
-}
+      send_timeout_(send_timeout),
+      threads_(max_concurrent, "exports") {}
 
 void ExportStreams::start(int fd, const Request& request, const std::string& user) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  join_finished();
-  if (stopping_) throw ControlError(error_code::kUnavailable, "the daemon is stopping");
-  if (streams_.size() >= max_concurrent_)
-    throw ControlError(error_code::kBusy, std::to_string(max_concurrent_) +
-                                              " exports are running; retry when one has ended");
-  auto s = std::make_unique<Stream>();
-  Stream* raw = s.get();
-  raw->fd = fd;
-  raw->thread = std::thread([this, raw, request, user] {
-    stream_export(raw->fd, request, user, database_path_, send_timeout_, stopping_);
-    // Closed under the lock: stop_all() shuts down the descriptors of running exports, never a
-    // descriptor number that was closed and reused meanwhile.
-    std::lock_guard<std::mutex> done_lock(mutex_);
-    ::close(raw->fd);
-    raw->fd = -1;
-    raw->done = true;
+  threads_.start(fd, [this, request, user](int conn) {
+    stream_export(conn, request, user, database_path_, send_timeout_, threads_.stopping());
   });
-  streams_.push_back(std::move(s));
-}
-
-void ExportStreams::stop_all() {
-  std::list<std::unique_ptr<Stream>> stopping;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    stopping_ = true;
-    // A send blocked on a client that does not read returns at once when its socket is shut down.
-    for (auto& s : streams_)
-      if (s->fd >= 0) ::shutdown(s->fd, SHUT_RDWR);
-    stopping.swap(streams_);
-  }
-  for (auto& s : stopping) s->thread.join();  // unlocked: each thread takes the lock to finish
-}
-
-std::size_t ExportStreams::active() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  std::size_t n = 0;
-  for (const auto& s : streams_) n += s->done ? 0 : 1;
-  return n;
 }
 
 }  // namespace imucal::station

@@ -7,16 +7,12 @@
 //
 // A client that goes away ends its export at the next frame (EPIPE), one that stops reading is
 // dropped after send_timeout; the daemon goes on either way. At most max_concurrent exports run;
-// one more is refused (busy) without touching its connection.
-#include <atomic>
+// one more is refused (busy) without touching its connection (station/connection_threads.hpp).
 #include <chrono>
 #include <cstddef>
-#include <list>
-#include <memory>
-#include <mutex>
 #include <string>
-#include <thread>
 
+#include "station/connection_threads.hpp"
 #include "station/control_protocol.hpp"
 
 namespace imucal::station {
@@ -27,7 +23,6 @@ class ExportStreams {
 
   ExportStreams(std::string database_path, std::size_t max_concurrent,
                 std::chrono::milliseconds send_timeout);
-  ~ExportStreams();  ///< stop_all()
   ExportStreams(const ExportStreams&) = delete;
   ExportStreams& operator=(const ExportStreams&) = delete;
 
@@ -36,24 +31,14 @@ class ExportStreams {
   /// max_concurrent exports run already; `fd` is then left to the caller.
   void start(int fd, const Request& request, const std::string& user);
   /// Ends every export (their connections shut down mid-frame) and joins the threads.
-  void stop_all();
+  void stop_all() { threads_.stop_all(); }
   /// Exports running now.
-  std::size_t active() const;
+  std::size_t active() const { return threads_.active(); }
 
  private:
-  struct Stream {
-    int fd = -1;
-    std::thread thread;
-    std::atomic<bool> done{false};
-  };
-  void join_finished();  ///< with mutex_ held
-
   std::string database_path_;
-  std::size_t max_concurrent_;
   std::chrono::milliseconds send_timeout_;
-  mutable std::mutex mutex_;
-  std::list<std::unique_ptr<Stream>> streams_;
-  std::atomic<bool> stopping_{false};
+  ConnectionThreads threads_;
 };
 
 }  // namespace imucal::station
