@@ -23,12 +23,6 @@ std::shared_ptr<const ImuProtocolMap> resolve_protocol(
 
 namespace {
 
-uint32_t lowest_id(const ImuProtocolMap& map) {
-  uint32_t lowest = UINT32_MAX;
-  for (const int i : map.messages) lowest = std::min(lowest, map.message(i).id);
-  return lowest;
-}
-
 uint32_t mask_of(int bits) {
   return bits >= 32 ? UINT32_MAX : static_cast<uint32_t>((uint64_t{1} << bits) - 1);
 }
@@ -288,13 +282,11 @@ bool ImuFrameDecoder::verify(const Slot& slot, const std::array<int, kMaxParts>&
   DecodedSample& d = v.sample;
   d.counter = r.sample.counter;
   d.flags = r.sample.flags;
-  d.conditions = static_cast<uint8_t>((r.sample.fault ? condition::kFault : 0) |
-                                      (r.sample.saturation ? condition::kSaturation : 0) |
-                                      (r.sample.startup ? condition::kStartup : 0));
-  for (size_t i = 0; i < map_->flags.size(); ++i)
-    if (map_->flags[i].condition == ImuProtocolMap::Condition::kTemperatureInvalid &&
-        ((d.flags >> i) & 1U))
-      d.conditions |= condition::kTemperatureInvalid;
+  d.conditions =
+      static_cast<uint8_t>((r.sample.fault ? condition::kFault : 0) |
+                           (r.sample.saturation ? condition::kSaturation : 0) |
+                           (r.sample.startup ? condition::kStartup : 0) |
+                           (r.sample.temperature_invalid ? condition::kTemperatureInvalid : 0));
   d.rx_time_ns = c[static_cast<size_t>(parts_ - 1)]->rx_time_ns;
   for (int a = 0; a < 3; ++a) {
     d.increment.dtheta_rad(a) = r.sample.angular[static_cast<size_t>(a)] * to_increment_;

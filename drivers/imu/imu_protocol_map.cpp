@@ -358,9 +358,14 @@ std::shared_ptr<const ImuProtocolMap> builtin_protocol_map() {
   return map;
 }
 
-ImuProtocolMap with_base_id(ImuProtocolMap map, uint32_t base_id) {
+uint32_t lowest_id(const ImuProtocolMap& map) {
   uint32_t lowest = UINT32_MAX;
   for (const int i : map.messages) lowest = std::min(lowest, map.message(i).id);
+  return lowest;
+}
+
+ImuProtocolMap with_base_id(ImuProtocolMap map, uint32_t base_id) {
+  const uint32_t lowest = lowest_id(map);
   for (const int i : map.messages) {
     DbcMessage& m = map.dbc.messages[static_cast<size_t>(i)];
     const uint64_t id = uint64_t{m.id} - lowest + base_id;

@@ -96,6 +96,9 @@ ImuProtocolMap read_protocol_map(const std::string& path);
 /// same bytes are installed under /usr/share/imucal/protocols/). Parsed once.
 std::shared_ptr<const ImuProtocolMap> builtin_protocol_map();
 
+/// The lowest identifier of the sample's messages (what base_id moves).
+uint32_t lowest_id(const ImuProtocolMap& map);
+
 /// The protocol with its identifiers moved so that the lowest of the sample's messages is
 /// `base_id` (the others keep their distances): a second unit of the same kind on the same bus.
 /// Throws std::invalid_argument naming the protocol when an identifier leaves its 11- or 29-bit

@@ -250,16 +250,18 @@ struct Reader {
           out.startup = true;
           break;
         case C::kTemperatureInvalid:
+          out.temperature_invalid = true;
           break;
       }
     }
   }
-  void temperature(ProtocolSample& out, bool invalid) const {
+  void temperature(ProtocolSample& out) const {
     if (map.temperature.message < 0 || !present(map.temperature)) return;
     out.temperature_carried = true;
     const uint64_t r = raw(map.temperature);
     const DbcSignal& s = map.signal(map.temperature);
-    if (invalid || (map.temperature_unknown && dbc_raw_integer(s, r) == *map.temperature_unknown))
+    if (out.temperature_invalid ||
+        (map.temperature_unknown && dbc_raw_integer(s, r) == *map.temperature_unknown))
       return;
     out.temperature_c = dbc_physical(s, r);
   }
@@ -291,12 +293,7 @@ SampleReading decode_sample(const ImuProtocolMap& map, const uint8_t* const* fra
         dbc_physical(map.signal(map.velocity[i]), rd.raw(map.velocity[i])) * map.velocity_scale;
   }
   rd.flags(r.sample);
-  bool invalid = false;
-  for (size_t i = 0; i < map.flags.size(); ++i)
-    invalid =
-        invalid || (map.flags[i].condition == ImuProtocolMap::Condition::kTemperatureInvalid &&
-                    ((r.sample.flags >> i) & 1U));
-  rd.temperature(r.sample, invalid);
+  rd.temperature(r.sample);
   r.ok = true;
   return r;
 }

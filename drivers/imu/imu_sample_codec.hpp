@@ -21,6 +21,7 @@ struct ProtocolSample {
   /// Conditions. Encoding raises each through the first signal of its list in the map (and every
   /// signal whose bit is set in `flags`); decoding reports any signal of the list.
   bool fault = false, saturation = false, startup = false;
+  bool temperature_invalid = false;  ///< decoding: a temperature_invalid flag is set
   uint32_t flags = 0;  ///< bit i: the map's flags[i] is set
   /// °C; NaN = unknown (encoded as temperature_unknown and the temperature_invalid flag).
   double temperature_c = std::numeric_limits<double>::quiet_NaN();
