@@ -162,13 +162,13 @@ std::string base_names(const GapLinearisation& lin, const std::vector<int>& idx)
 /// A fitted candidate's magnitude and its σ. The magnitude is a norm of scaled parameters,
 /// |s ⊙ v|; with two or more fitted components it is debiased for their noise
 /// (calib/diagnosis/effect_magnitude.hpp), with one it is |x| ± σ.
-void set_magnitude(CandidateResult& r, const EffectInfo& e, const CandidateColumns& c,
+void set_magnitude(CandidateResult& r, const EffectInfo& e, const std::vector<int>& param_index,
                    const Eigen::VectorXd& x, const Eigen::MatrixXd& cov_x) {
-  const int n = static_cast<int>(c.param_index.size());
+  const int n = static_cast<int>(param_index.size());
   Eigen::VectorXd scale_h(n);
   for (int k = 0; k < n; ++k) {
     Eigen::VectorXd unit = Eigen::VectorXd::Zero(e.size());
-    unit(c.param_index[static_cast<size_t>(k)]) = 1.0;
+    unit(param_index[static_cast<size_t>(k)]) = 1.0;
     scale_h(k) = e.magnitude(unit);
   }
   const Eigen::VectorXd y = scale_h.cwiseProduct(x);
@@ -195,11 +195,56 @@ std::string partly_separable_note(const Problem& p, const Separability& sep, int
   return os.str();
 }
 
+/// A candidate's fitted columns and how their coefficients map back to the effect's parameters.
+struct Scored {
+  CandidateResult result;
+  Eigen::MatrixXd J_eff;  ///< its fitted columns (whitened)
+  /// SI effect parameters (those in param_index) from the fitted coefficients α: x = B α.
+  Eigen::MatrixXd B;
+  std::vector<int> param_index;
+  double tau_s = 0.0;  ///< shape parameter used (thermal drift), 0 if none
+};
+
+/// An effect's values, parameters and magnitude from its fitted coefficients α (covariance cov_a):
+/// the candidate's own fit, or its share of a joint fit with other effects.
+struct EffectValues {
+  Eigen::VectorXd value_si;
+  std::vector<CandidateParam> params;
+  double magnitude = 0.0, magnitude_sigma = 0.0;
+};
+
+EffectValues effect_values(const Scored& s, const Eigen::VectorXd& alpha,
+                           const Eigen::MatrixXd& cov_a) {
+  const EffectInfo& e = effect_info(s.result.id);
+  const Eigen::VectorXd x = s.B * alpha;
+  const Eigen::MatrixXd cov_x = s.B * cov_a * s.B.transpose();
+  EffectValues v;
+  v.value_si = Eigen::VectorXd::Zero(e.size());
+  Eigen::VectorXd sigma_si = Eigen::VectorXd::Zero(e.size());
+  for (size_t k = 0; k < s.param_index.size(); ++k) {
+    const auto i = static_cast<Eigen::Index>(k);
+    v.value_si(s.param_index[k]) = x(i);
+    sigma_si(s.param_index[k]) = std::sqrt(std::max(0.0, cov_x(i, i)));
+  }
+  if (s.tau_s > 0.0) v.value_si(e.size() - 1) = s.tau_s;
+  for (int j = 0; j < e.size(); ++j) {
+    const EffectParamInfo& pi = e.params[static_cast<size_t>(j)];
+    v.params.push_back({pi.name, pi.human_unit, v.value_si(j) * pi.si_to_human,
+                        pi.shape ? 0.0 : sigma_si(j) * pi.si_to_human});
+  }
+  CandidateResult m;
+  set_magnitude(m, e, s.param_index, x, cov_x);
+  v.magnitude = m.magnitude;
+  v.magnitude_sigma = m.magnitude_sigma;
+  return v;
+}
+
 /// Fit one candidate jointly with the base (in its separable subspace) and score it.
-CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, double chi2_0,
-                                const DiagnosisOptions& opt, Eigen::MatrixXd& J_eff) {
+Scored score_candidate(const Problem& p, const CandidateColumns& c, double chi2_0,
+                       const DiagnosisOptions& opt) {
   const EffectInfo& e = effect_info(c.id);
-  CandidateResult r;
+  Scored s;
+  CandidateResult& r = s.result;
   r.id = c.id;
   r.name = e.name;
   r.unit = e.magnitude_unit();
@@ -222,7 +267,7 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
          << opt.separability_limit << " with " << base_names(p.lin, sep.aliases);
     r.note = os.str();
     r.value_si = Eigen::VectorXd::Zero(e.size());
-    return r;
+    return s;
   }
   if (sep.basis.cols() < n) r.note = partly_separable_note(p, sep, n);
   r.separable = true;
@@ -230,39 +275,28 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
   Eigen::MatrixXd basis(n, sep.basis.cols() + sep.nuisance.cols());
   basis << sep.basis, sep.nuisance;
   r.k = static_cast<int>(basis.cols());
-  J_eff = c.J * basis;
-  const GlsFit fit = gls_fit(p.r0, hcat(p.Jb, J_eff));
+  s.J_eff = c.J * basis;
+  s.B = c.scale.asDiagonal() * basis;  // back to the effect's SI parameters: x = scale ⊙ (basis α)
+  s.param_index = c.param_index;
+  s.tau_s = c.tau_s;
+  const GlsFit fit = gls_fit(p.r0, hcat(p.Jb, s.J_eff));
   r.lr = std::max(0.0, chi2_0 - fit.chi2);
   r.p_value = chi2_survival(r.lr, r.k);
   r.bic_gain = r.lr - r.k * std::log(static_cast<double>(p.r0.size()));
-  // Back to the effect's SI parameters: x = scale ⊙ (basis α).
-  const Eigen::VectorXd alpha = fit.x.tail(r.k);
-  const Eigen::MatrixXd cov_a = fit.cov.bottomRightCorner(r.k, r.k);
-  const Eigen::MatrixXd B = c.scale.asDiagonal() * basis;
-  const Eigen::VectorXd x = B * alpha;
-  const Eigen::MatrixXd cov_x = B * cov_a * B.transpose();
-  r.value_si = Eigen::VectorXd::Zero(e.size());
-  Eigen::VectorXd sigma_si = Eigen::VectorXd::Zero(e.size());
-  for (int k = 0; k < n; ++k) {
-    r.value_si(c.param_index[static_cast<size_t>(k)]) = x(k);
-    sigma_si(c.param_index[static_cast<size_t>(k)]) = std::sqrt(std::max(0.0, cov_x(k, k)));
-  }
-  if (c.tau_s > 0.0) r.value_si(e.size() - 1) = c.tau_s;
-  for (int j = 0; j < e.size(); ++j) {
-    const EffectParamInfo& pi = e.params[static_cast<size_t>(j)];
-    r.params.push_back({pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human,
-                        pi.shape ? 0.0 : sigma_si(j) * pi.si_to_human});
-  }
-  set_magnitude(r, e, c, x, cov_x);
+  EffectValues v = effect_values(s, fit.x.tail(r.k), fit.cov.bottomRightCorner(r.k, r.k));
+  r.value_si = std::move(v.value_si);
+  r.params = std::move(v.params);
+  r.magnitude = v.magnitude;
+  r.magnitude_sigma = v.magnitude_sigma;
   try {
-    r.held_out_gap = held_out_gap(p.r0, hcat(p.Jb, J_eff), p.folds).ratio();
+    r.held_out_gap = held_out_gap(p.r0, hcat(p.Jb, s.J_eff), p.folds).ratio();
   } catch (const std::invalid_argument&) {
     r.held_out_gap = std::numeric_limits<double>::quiet_NaN();
     r.note += std::string(r.note.empty() ? "" : "; ") +
               "no held-out check: with a fold held out its parameters are not separable";
   }
   r.chi2_after = fit.chi2;
-  return r;
+  return s;
 }
 
 // A candidate is fitted only with at least this many residuals to spare (rows - base columns - its
@@ -270,11 +304,6 @@ CandidateResult score_candidate(const Problem& p, const CandidateColumns& c, dou
 constexpr int kMinDofForCandidate = 12;
 // The held-out folds need rests to fit on: below this the run is too short to diagnose.
 constexpr size_t kMinRests = 4;
-
-struct Scored {
-  CandidateResult result;
-  Eigen::MatrixXd J_eff;  ///< its fitted columns (whitened)
-};
 
 Scored not_applicable(const EffectInfo& e, const std::string& note) {
   Scored s;
@@ -331,8 +360,7 @@ std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOp
     Scored best;
     bool have = false;
     for (double tau : taus) {
-      Scored s;
-      s.result = score_candidate(p, p.lin.candidate(id, tau), chi2_0, opt, s.J_eff);
+      Scored s = score_candidate(p, p.lin.candidate(id, tau), chi2_0, opt);
       if (!have || s.result.lr > best.result.lr) best = std::move(s);
       have = true;
     }
@@ -474,44 +502,32 @@ std::vector<std::pair<std::string, double>> remaining_gap(const Problem& p,
   return out;
 }
 
-/// The best pair: the significant candidate that adds most to the best one, if it is significant
-/// given the best.
-std::optional<size_t> find_second(const Problem& p, const std::vector<Scored>& c, size_t best,
-                                  double chi2_best, const DiagnosisOptions& opt) {
-  const double level = opt.alpha / std::max<size_t>(1, c.size());
-  std::optional<size_t> second;
-  double best_lr = 0.0;
-  const Eigen::MatrixXd Jbest = hcat(p.Jb, c[best].J_eff);
-  for (size_t i = 0; i < c.size(); ++i) {
-    if (i == best || !c[i].result.significant || c[i].J_eff.cols() == 0) continue;
-    GlsFit f;
-    try {
-      f = gls_fit(p.r0, hcat(Jbest, c[i].J_eff));
-    } catch (const std::invalid_argument&) {
-      continue;  // not separable from the best one
-    }
-    const double lr = chi2_best - f.chi2;
-    if (chi2_survival(lr, c[i].result.k) < level && lr > best_lr) {
-      best_lr = lr;
-      second = i;
-    }
-  }
-  return second;
-}
-
 /// GLS under a covariance S of the whitened residuals (whitened again by its Cholesky factor).
 GlsFit gls_fit_cov(const Eigen::VectorXd& r0, const Eigen::MatrixXd& J, const Eigen::MatrixXd& S) {
   const Eigen::LLT<Eigen::MatrixXd> llt(S);
   return gls_fit(llt.matrixL().solve(r0), llt.matrixL().solve(J));
 }
 
+/// One step of the explanation as selected: which candidate, its test given the steps before it,
+/// the overall χ² and dof and the held-out gap once it is added.
+struct StepFit {
+  size_t member = 0;
+  double p_value = 1.0;
+  double chi2 = std::numeric_limits<double>::quiet_NaN();
+  int dof = 0;
+  double held_out = std::numeric_limits<double>::quiet_NaN();
+  /// An undeclared Gauss-Markov bias chosen with it would explain it as well (its test given the
+  /// bias and the others fails): the run cannot tell this trend from the bias's wandering.
+  bool like_wandering = false;
+};
+
 /// The explanation chosen for the segment residuals (plus quantisation, which acts on the
-/// per-sample statistics only): the members (candidate indices, most important first), their
+/// per-sample statistics only): its steps (candidate indices, most important first), their
 /// columns, and the residual covariance if a Gauss-Markov bias is among them.
 struct Selection {
-  std::vector<size_t> members;
+  std::vector<StepFit> steps;
   double bic = 0.0;
-  Eigen::MatrixXd J;  ///< [Jb, deterministic members' columns]
+  Eigen::MatrixXd J;  ///< [Jb, deterministic members' columns in step order]
   bool gm = false;
   Eigen::MatrixXd S;  ///< whitened-residual covariance under the Gauss-Markov bias (gm only)
   std::vector<std::string> ambiguous;
@@ -523,10 +539,154 @@ std::optional<size_t> index_of(const std::vector<Scored>& c, EffectId id) {
   return std::nullopt;
 }
 
-/// Model choice by BIC among: the best deterministic effect D1, the best pair D1+D2, an undeclared
-/// Gauss-Markov bias GM, and D1+GM — each only if its members are significant (GM given D1 for the
-/// last). A significant top candidate that another one mimics makes the choice ambiguous: no
-/// finding. Quantisation, independent of the segment residuals, joins when significant.
+// At most this many deterministic effects in one explanation: beyond it the candidates' joint fit
+// has more unknowns than a factory sequence's rests constrain well, and no real unit has needed it.
+constexpr size_t kMaxSteps = 4;
+
+/// Whether a candidate may join a stepwise explanation: a deterministic effect (it has columns),
+/// separable from the base, of plausible size, and not one of a set this sequence cannot tell
+/// apart.
+bool steppable(const Scored& s) {
+  const CandidateResult& r = s.result;
+  return s.J_eff.cols() > 0 && r.separable && r.plausible && !r.in_ambiguous_set;
+}
+
+/// The next step of the forward selection given the columns J (base + the effects chosen, χ²
+/// chi2_now, held-out gap held_now): among the candidates not chosen whose likelihood ratio given J
+/// passes `level` and that shrink the held-out gap, the one that predicts the held-out segments
+/// best (the larger ratio on a tie). Empty when none does.
+std::optional<StepFit> next_step(const std::vector<Scored>& c, const Problem& p,
+                                 const Eigen::MatrixXd& J, const StepFit& now,
+                                 const std::vector<bool>& chosen, double level) {
+  std::optional<StepFit> best;
+  double best_lr = 0.0;
+  for (size_t i = 0; i < c.size(); ++i) {
+    if (chosen[i] || !steppable(c[i])) continue;
+    const Eigen::MatrixXd Ji = hcat(J, c[i].J_eff);
+    StepFit f;
+    f.member = i;
+    double lr = 0.0;
+    try {
+      const GlsFit fit = gls_fit(p.r0, Ji);
+      lr = now.chi2 - fit.chi2;
+      f.p_value = chi2_survival(std::max(0.0, lr), c[i].result.k);
+      if (!(f.p_value < level)) continue;
+      f.chi2 = fit.chi2;
+      f.dof = fit.dof;
+      f.held_out = held_out_gap(p.r0, Ji, p.folds).ratio();
+    } catch (const std::invalid_argument&) {
+      continue;  // not separable from the effects already chosen (or with a fold held out)
+    }
+    if (!(f.held_out < now.held_out)) continue;  // fits the training segments only: no cause
+    if (!best || f.held_out < best->held_out || (f.held_out == best->held_out && lr > best_lr)) {
+      best = f;
+      best_lr = lr;
+    }
+  }
+  return best;
+}
+
+/// Forward selection from the best finding `first` (issue #22 item 2): each step adds next_step's
+/// choice, until none passes (what remains is consistent with the model as far as any candidate
+/// can tell, or nothing separable is left) or kMaxSteps effects are chosen.
+Selection forward_selection(const std::vector<Scored>& c, const Problem& p, size_t first,
+                            double chi2_0, double level) {
+  Selection sel;
+  sel.J = hcat(p.Jb, c[first].J_eff);
+  const GlsFit f1 = gls_fit(p.r0, sel.J);
+  sel.steps.push_back(
+      {first, c[first].result.p_value, f1.chi2, f1.dof, c[first].result.held_out_gap});
+  std::vector<bool> chosen(c.size(), false);
+  chosen[first] = true;
+  int k = c[first].result.k;
+  while (sel.steps.size() < kMaxSteps) {
+    const auto step = next_step(c, p, sel.J, sel.steps.back(), chosen, level);
+    if (!step) break;
+    sel.J = hcat(sel.J, c[step->member].J_eff);
+    chosen[step->member] = true;
+    k += c[step->member].result.k;
+    sel.steps.push_back(*step);
+  }
+  sel.bic = (chi2_0 - sel.steps.back().chi2) - k * std::log(static_cast<double>(p.r0.size()));
+  return sel;
+}
+
+/// The base and the steps' columns, in step order.
+Eigen::MatrixXd step_columns(const std::vector<Scored>& c, const Problem& p,
+                             const std::vector<StepFit>& steps) {
+  Eigen::MatrixXd J = p.Jb;
+  for (const StepFit& f : steps) J = hcat(J, c[f.member].J_eff);
+  return J;
+}
+
+/// Backward elimination under a Gauss-Markov bias: the deterministic members that the wandering
+/// bias would make unnecessary (a slow trend is also a wandering bias), least needed first, while
+/// one's test given the others and the bias fails `level`. Returns their candidate indices. They
+/// stay in the explanation, marked: on a factory run a thermal drift at several times its threshold
+/// is absorbed by an undeclared Gauss-Markov bias as often as a bias's wandering is taken for a
+/// drift (validate-diagnosis triples, issue #22), so the run cannot tell the two apart.
+std::vector<size_t> unneeded_under_gauss_markov(const std::vector<Scored>& c, const Problem& p,
+                                                std::vector<StepFit> steps, double level,
+                                                const DiagnosisOptions& opt) {
+  std::vector<size_t> out;
+  while (!steps.empty()) {
+    const GaussMarkovFit fc =
+        fit_gauss_markov(p.lin, step_columns(c, p, steps), opt.instability_tau_grid_s);
+    std::optional<size_t> drop;
+    double drop_p = level;
+    for (size_t i = 0; i < steps.size(); ++i) {
+      std::vector<StepFit> others = steps;
+      others.erase(others.begin() + static_cast<std::ptrdiff_t>(i));
+      const double lr = gls_fit_cov(p.r0, step_columns(c, p, others), fc.S).chi2 - fc.chi2;
+      const double pv = chi2_survival(std::max(0.0, lr), c[steps[i].member].result.k);
+      if (pv >= drop_p) {
+        drop = i;
+        drop_p = pv;
+      }
+    }
+    if (!drop) break;
+    out.push_back(steps[*drop].member);
+    steps.erase(steps.begin() + static_cast<std::ptrdiff_t>(*drop));
+  }
+  return out;
+}
+
+/// The deterministic set `det` with an undeclared Gauss-Markov bias `g` after it, when both are
+/// needed: the wandering given the set, and the set given the wandering. Members the wandering
+/// alone could stand for are marked (StepFit::like_wandering). Empty when either is not needed.
+std::optional<Selection> with_gauss_markov(const std::vector<Scored>& c, const Problem& p,
+                                           const Selection& det, size_t g, double chi2_0,
+                                           double level, const DiagnosisOptions& opt) {
+  const GaussMarkovFit fc = fit_gauss_markov(p.lin, det.J, opt.instability_tau_grid_s);
+  const int k_det = static_cast<int>(det.J.cols() - p.Jb.cols());
+  const double lr_det_given_g = gls_fit_cov(p.r0, p.Jb, fc.S).chi2 - fc.chi2;
+  if (!(chi2_survival(fc.lr, 2) < level && chi2_survival(lr_det_given_g, k_det) < level))
+    return std::nullopt;
+  Selection s = det;
+  s.gm = true;
+  s.S = fc.S;
+  const std::vector<size_t> like = unneeded_under_gauss_markov(c, p, det.steps, level, opt);
+  for (StepFit& f : s.steps)
+    f.like_wandering = std::find(like.begin(), like.end(), f.member) != like.end();
+  const double lr_det = chi2_0 - det.steps.back().chi2;
+  s.bic = lr_det + fc.lr - (k_det + 2) * std::log(static_cast<double>(p.r0.size()));
+  StepFit gm{g, chi2_survival(fc.lr, 2), fc.chi2, det.steps.back().dof,
+             std::numeric_limits<double>::quiet_NaN()};
+  try {
+    gm.held_out = held_out_gap_correlated(p.r0, det.J, fc.S, p.folds).ratio();
+  } catch (const std::invalid_argument&) {
+    // no held-out figure for this step
+  }
+  s.steps.push_back(gm);
+  return s;
+}
+
+/// Model choice by BIC among: the stepwise set of deterministic effects (forward_selection), an
+/// undeclared Gauss-Markov bias GM alone, and the set followed by GM — each only if its members are
+/// significant (GM given the set for the last). A noise candidate never comes before a
+/// deterministic effect it accompanies. A significant top candidate that another one mimics makes
+/// the choice ambiguous: no finding. Quantisation, independent of the segment residuals, joins last
+/// when significant.
 Selection select_model(const std::vector<Scored>& c, const Problem& p, double chi2_0,
                        const DiagnosisOptions& opt) {
   Selection best;
@@ -539,61 +699,98 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
     return best;
   }
   const double level = opt.alpha / static_cast<double>(c.size());
-  const double log_m = std::log(static_cast<double>(p.r0.size()));
   auto consider = [&](Selection s) {
     if (s.bic > best.bic) best = std::move(s);
   };
   std::optional<size_t> d1;
   for (size_t i = 0; i < c.size() && !d1; ++i)
     if (c[i].result.significant && c[i].J_eff.cols() > 0) d1 = i;
+  std::optional<Selection> det;
   if (d1) {
-    const Eigen::MatrixXd J1 = hcat(p.Jb, c[*d1].J_eff);
-    consider({{*d1}, c[*d1].result.bic_gain, J1, false, {}, {}});
-    const GlsFit f1 = gls_fit(p.r0, J1);
-    if (const auto d2 = find_second(p, c, *d1, f1.chi2, opt)) {
-      const Eigen::MatrixXd J2 = hcat(J1, c[*d2].J_eff);
-      const int k = c[*d1].result.k + c[*d2].result.k;
-      consider({{*d1, *d2}, (chi2_0 - gls_fit(p.r0, J2).chi2) - k * log_m, J2, false, {}, {}});
-    }
+    det = forward_selection(c, p, *d1, chi2_0, level);
+    consider(*det);
   }
   if (const auto g = index_of(c, EffectId::kBiasInstability); g && c[*g].result.significant) {
     const GaussMarkovFit f = fit_gauss_markov(p.lin, p.Jb, opt.instability_tau_grid_s);
-    consider({{*g}, c[*g].result.bic_gain, p.Jb, true, f.S, {}});
-    if (d1) {
-      const Eigen::MatrixXd J1 = hcat(p.Jb, c[*d1].J_eff);
-      const GaussMarkovFit fc = fit_gauss_markov(p.lin, J1, opt.instability_tau_grid_s);
-      // Both must be needed: the bias wandering given D1, and D1 given the wandering (a slow trend
-      // is also a wandering bias).
-      const double lr_d_given_g = gls_fit_cov(p.r0, p.Jb, fc.S).chi2 - fc.chi2;
-      if (chi2_survival(fc.lr, 2) < level && chi2_survival(lr_d_given_g, c[*d1].result.k) < level) {
-        std::vector<size_t> m = {*d1, *g};
-        if (c[*g].result.lr > c[*d1].result.lr) std::swap(m[0], m[1]);
-        consider({m, c[*d1].result.lr + fc.lr - (c[*d1].result.k + 2) * log_m, J1, true, fc.S, {}});
-      }
-    }
+    Selection alone;
+    alone.J = p.Jb;
+    alone.gm = true;
+    alone.S = f.S;
+    alone.bic = c[*g].result.bic_gain;
+    alone.steps.push_back({*g, c[*g].result.p_value, f.chi2,
+                           p.model.rows() - static_cast<int>(p.Jb.cols()),
+                           c[*g].result.held_out_gap});
+    consider(std::move(alone));
+    if (det)
+      if (auto both = with_gauss_markov(c, p, *det, *g, chi2_0, level, opt))
+        consider(std::move(*both));
   }
-  if (const auto q = index_of(c, EffectId::kQuantisation);
-      q && c[*q].result.significant && best.members.size() < 2)
-    best.members.push_back(*q);
+  if (const auto q = index_of(c, EffectId::kQuantisation); q && c[*q].result.significant)
+    best.steps.push_back({*q, c[*q].result.p_value, std::numeric_limits<double>::quiet_NaN(), 0,
+                          c[*q].result.held_out_gap});
   return best;
 }
 
-/// Fill best/second/ambiguous, the held-out figures, the moved parameters, the remaining gap and
-/// the verdict from the selection.
+/// The selection's steps for the result: each deterministic effect's size from the joint fit
+/// `fit` of the whole set (its columns in step order after the base), a noise candidate's from its
+/// own fit; the gaps after each step.
+std::vector<DiagnosisStep> result_steps(const Selection& sel, const std::vector<Scored>& c,
+                                        const Problem& p, const GlsFit& fit) {
+  std::vector<DiagnosisStep> out;
+  Eigen::Index col = p.Jb.cols();
+  for (const StepFit& f : sel.steps) {
+    const Scored& sc = c[f.member];
+    DiagnosisStep st;
+    st.candidate = f.member;
+    st.effect = sc.result.name;
+    st.unit = sc.result.unit;
+    st.p_value = f.p_value;
+    st.gap_after = f.dof > 0 ? f.chi2 / f.dof : std::numeric_limits<double>::quiet_NaN();
+    st.held_out_after = f.held_out;
+    if (f.like_wandering)
+      st.note =
+          "the bias instability named with it would explain it as well: this run cannot "
+          "tell a trend of this shape from the bias's wandering";
+    const auto k = sc.J_eff.cols();
+    if (k > 0 && col + k <= fit.x.size()) {
+      const EffectValues v =
+          effect_values(sc, fit.x.segment(col, k), fit.cov.block(col, col, k, k));
+      st.params = v.params;
+      st.magnitude = v.magnitude;
+      st.magnitude_sigma = v.magnitude_sigma;
+      col += k;
+    } else {
+      st.params = sc.result.params;
+      st.magnitude = sc.result.magnitude;
+      st.magnitude_sigma = sc.result.magnitude_sigma;
+    }
+    out.push_back(std::move(st));
+  }
+  return out;
+}
+
+/// Fill best/second/steps/ambiguous, the held-out figures, the moved parameters, the remaining gap
+/// and the verdict from the selection.
 void apply_selection(DiagnosisResult& d, const Selection& sel, const std::vector<Scored>& c,
                      const Problem& p, const GlsFit& fit0, const DiagnosisOptions& opt) {
   d.ambiguous = sel.ambiguous;
   const bool segment_model = sel.gm || sel.J.cols() > p.Jb.cols();
   const GlsFit fit = sel.gm ? gls_fit_cov(p.r0, sel.J, sel.S) : gls_fit(p.r0, sel.J);
   d.gap_after_best = fit.chi2 / fit.dof;
-  if (!sel.members.empty()) d.best = sel.members[0];
-  if (sel.members.size() > 1) d.second = sel.members[1];
+  d.steps = result_steps(sel, c, p, fit);
+  d.best.reset();
+  d.second.reset();
+  if (!sel.steps.empty()) d.best = sel.steps[0].member;
+  if (sel.steps.size() > 1) d.second = sel.steps[1].member;
   if (segment_model || !sel.ambiguous.empty()) {
     d.held_out.has_after = true;
     const HeldOutGap h = sel.gm ? held_out_gap_correlated(p.r0, sel.J, sel.S, p.folds)
                                 : held_out_gap(p.r0, sel.J, p.folds);
     d.held_out.gap_after = d.best ? c[*d.best].result.held_out_gap : h.ratio();
-    if (sel.members.size() > 1 && c[sel.members[1]].result.id != EffectId::kQuantisation) {
+    size_t segment_members = 0;
+    for (const StepFit& f : sel.steps)
+      segment_members += c[f.member].result.id == EffectId::kQuantisation ? 0 : 1;
+    if (segment_members > 1) {
       d.held_out.has_pair = true;
       d.held_out.gap_after_pair = h.ratio();
     }
@@ -622,7 +819,7 @@ void apply_selection(DiagnosisResult& d, const Selection& sel, const std::vector
   if (!sel.ambiguous.empty()) {
     d.explained_by = sel.ambiguous;
   } else {
-    for (size_t m : sel.members) d.explained_by.push_back(c[m].result.name);
+    for (const StepFit& f : sel.steps) d.explained_by.push_back(c[f.member].result.name);
   }
 }
 
@@ -650,13 +847,12 @@ std::string summarise(const DiagnosisResult& d) {
     os << " (equally well: this sequence cannot tell them apart); held-out gap "
        << d.held_out.gap_before << " -> " << d.held_out.gap_after;
   } else if (d.best) {
-    const CandidateResult& b = d.candidates[*d.best];
-    os << (d.verdict == "explained" ? "explained by " : "partly explained by ") << b.name << " = "
-       << b.magnitude << " +- " << b.magnitude_sigma << " " << b.unit;
-    if (d.second) {
-      const CandidateResult& s = d.candidates[*d.second];
-      os << " and " << s.name << " = " << s.magnitude << " +- " << s.magnitude_sigma << " "
-         << s.unit;
+    os << (d.verdict == "explained" ? "explained by " : "partly explained by ");
+    // Each effect's size from the joint fit of the whole set (the steps), in the order chosen.
+    for (size_t i = 0; i < d.steps.size(); ++i) {
+      const DiagnosisStep& s = d.steps[i];
+      os << (i ? (i + 1 == d.steps.size() ? " and " : ", ") : "") << s.effect << " = "
+         << s.magnitude << " +- " << s.magnitude_sigma << " " << s.unit;
     }
     os << "; held-out gap " << d.held_out.gap_before << " -> "
        << (d.held_out.has_pair ? d.held_out.gap_after_pair : d.held_out.gap_after);
@@ -780,6 +976,7 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
     const double gap_before = d.held_out.gap_before;
     d.best.reset();
     d.second.reset();
+    d.steps.clear();
     d.held_out = {};
     d.held_out.gap_before = gap_before;
     d.moved.clear();

@@ -22,9 +22,15 @@
 //  measures (its relative heading). A sea run has no still rest: its residuals are the navigation
 //  filter's GNSS innovations under each hypothesis (gap_model.hpp, "Sea runs"), the base columns
 //  the 24 sensor parameters.
-//  3. Quantify: the gap on held-out segments (K-fold over rests and the moves after them) before
-//  and
-//     after adding the best effect, and the best pair; the base parameters that move, in σ.
+//  3. Explain stepwise (issue #22 item 2): from the best finding, forward selection adds at each
+//     step the candidate that predicts the held-out segments best among those whose likelihood
+//     ratio, given the effects already chosen, passes the candidates' level and that shrink the
+//     held-out gap; it stops when none does (what is left is consistent with the model as far as
+//     any candidate can tell, or nothing separable is left). A noise candidate (an undeclared
+//     Gauss-Markov bias) joins only after the deterministic effects, and only if the set still
+//     needs it (or alone, if it explains the run better by BIC).
+//  4. Quantify: the gap on held-out segments (K-fold over rests and the moves after them) before
+//     and after each step; the base parameters that move, in σ.
 #include <array>
 #include <cstdint>
 #include <limits>
@@ -128,6 +134,26 @@ struct CandidateResult {
   std::vector<std::string> confounded_with;  ///< other candidates it cannot be told from
 };
 
+/// One step of the stepwise explanation (forward selection, issue #22 item 2): the effect added,
+/// its size in the joint fit of the whole explained set, and the gap once it is added.
+struct DiagnosisStep {
+  size_t candidate = 0;  ///< index into DiagnosisResult::candidates
+  std::string effect;
+  /// Its size and parameters fitted jointly with every other step's effect (and the base); for a
+  /// noise candidate (bias instability, quantisation) its own fit.
+  double magnitude = 0.0, magnitude_sigma = 0.0;
+  std::string unit;
+  std::vector<CandidateParam> params;
+  double p_value = 1.0;  ///< its likelihood-ratio test given the steps before it
+  /// Overall χ²/dof once it is added (NaN for quantisation, which changes no segment residual).
+  double gap_after = std::numeric_limits<double>::quiet_NaN();
+  /// Held-out gap once it is added (quantisation: its own statistic's).
+  double held_out_after = std::numeric_limits<double>::quiet_NaN();
+  /// Empty, or why this finding is less certain than its test says (a trend that the bias
+  /// instability named after it would explain as well).
+  std::string note;
+};
+
 struct ParamShift {
   std::string name, unit;
   double shift_sigma = 0.0;  ///< change when the best effect is added, in σ of the base fit
@@ -156,7 +182,11 @@ struct DiagnosisResult {
   double gap_after_best = 0.0;              ///< χ²/dof with the best effect (pair) added
   std::vector<CandidateResult> candidates;  ///< ranked, best first
   std::optional<size_t> best;               ///< index into candidates
-  std::optional<size_t> second;             ///< the best pair's second member
+  std::optional<size_t> second;             ///< the explained set's second member
+  /// The explained set in the order it was built (best first; noise candidates after every
+  /// deterministic effect), each with its joint size and the gap after it; empty when no effect is
+  /// a finding. best and second are its first two members.
+  std::vector<DiagnosisStep> steps;
   /// Significant candidates that explain the gap equally and that this sequence cannot tell apart
   /// (the top one first); then best is empty and the finding is the set (explained_by).
   std::vector<std::string> ambiguous;
@@ -168,6 +198,8 @@ struct DiagnosisResult {
   /// Never a finding: reported beside the verdict for the engineer, never in the summary.
   std::string weak_candidate;
   double weak_shrinkage = 0.0;
+  /// The held-out gap before any effect, after the best one, and (has_pair) after the whole
+  /// explained set when it has more than one member; shrinkage is the whole set's.
   struct HeldOut {
     double gap_before = 0.0, gap_after = 0.0, gap_after_pair = 0.0, shrinkage = 0.0;
     bool has_after = false, has_pair = false;

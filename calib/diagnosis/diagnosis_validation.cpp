@@ -48,20 +48,27 @@ std::vector<Task> make_tasks(const std::vector<EffectId>& ids,
   for (EffectId id : ids)
     for (int i = 0; i < opt.runs_per_effect; ++i) draw({id});
   for (int i = 0; i < opt.null_runs; ++i) draw({});
-  if (ids.size() >= 2) {
-    std::uniform_int_distribution<size_t> pick(0, ids.size() - 1);
-    for (int i = 0; i < opt.pair_runs; ++i) {
-      const size_t a = pick(rng);
-      size_t b = pick(rng);
-      while (b == a) b = pick(rng);
-      draw({ids[a], ids[b]});
+  // n distinct effects drawn at random (n <= ids.size()).
+  auto distinct = [&](size_t n) {
+    std::vector<EffectId> pool = ids, out;
+    for (size_t k = 0; k < n; ++k) {
+      std::uniform_int_distribution<size_t> pick(0, pool.size() - 1);
+      const size_t i = pick(rng);
+      out.push_back(pool[i]);
+      pool.erase(pool.begin() + static_cast<std::ptrdiff_t>(i));
     }
-  }
+    return out;
+  };
+  if (ids.size() >= 2)
+    for (int i = 0; i < opt.pair_runs; ++i) draw(distinct(2));
+  if (ids.size() >= 3)
+    for (int i = 0; i < opt.triple_runs; ++i) draw(distinct(3));
   return tasks;
 }
 
 ValidationRun run_one(const Task& t, const std::map<EffectId, double>& threshold,
-                      const RunSource& world, const TableGeometry& geometry) {
+                      const RunSource& world, const TableGeometry& geometry,
+                      const DiagnosisOptions& diagnosis) {
   Effects effects;
   ValidationRun r;
   r.seed = t.seed;
@@ -82,7 +89,7 @@ ValidationRun run_one(const Task& t, const std::map<EffectId, double>& threshold
     const CalibrationResult cal = in.cal.setting == Setting::kSea   ? calibrate_ains(in.cal)
                                   : in.cal.has_reference_attitude() ? calibrate_nlsq(in.cal)
                                                                     : calibrate_legacy(in.cal);
-    const DiagnosisResult d = diagnose(in, cal.params);
+    const DiagnosisResult d = diagnose(in, cal.params, diagnosis);
     r.verdict = d.verdict;
     if (d.best) {
       r.named = d.candidates[*d.best].name;
@@ -93,6 +100,7 @@ ValidationRun run_one(const Task& t, const std::map<EffectId, double>& threshold
       r.named = "none";
     }
     if (d.second) r.second = d.candidates[*d.second].name;
+    for (const auto& st : d.steps) r.explained.push_back(st.effect);
     r.has_shrinkage = d.held_out.has_after;
     r.shrinkage = d.held_out.shrinkage;
   } catch (const std::exception& ex) {
@@ -102,9 +110,38 @@ ValidationRun run_one(const Task& t, const std::map<EffectId, double>& threshold
   return r;
 }
 
+bool is_noise_candidate(const std::string& name) {
+  return name == "bias_instability" || name == "quantisation";
+}
+
+/// A run with several effects: whether its first named effect is injected, all are named, and
+/// whether a noise candidate not injected comes before an injected effect.
+struct MultiScore {
+  bool first_injected = false, all_named = false, noise_ahead = false;
+};
+
+MultiScore score_multi(const ValidationRun& r) {
+  auto injected = [&](const std::string& n) {
+    return std::find(r.injected.begin(), r.injected.end(), n) != r.injected.end();
+  };
+  MultiScore s;
+  s.first_injected = !r.explained.empty() && injected(r.explained.front());
+  s.all_named = std::all_of(r.injected.begin(), r.injected.end(), [&](const std::string& n) {
+    return std::find(r.explained.begin(), r.explained.end(), n) != r.explained.end();
+  });
+  bool noise_seen = false;
+  for (const auto& n : r.explained) {
+    if (injected(n) && noise_seen) s.noise_ahead = true;
+    if (!injected(n) && is_noise_candidate(n)) noise_seen = true;
+  }
+  return s;
+}
+
+double share(int k, int n) { return n ? static_cast<double>(k) / n : 0.0; }
+
 void summarise(ValidationReport& rep) {
   std::vector<double> shrink;
-  int single_ok = 0, null_alarm = 0, pair_ok = 0;
+  int single_ok = 0, null_alarm = 0, pair_ok = 0, triple_ok = 0, first_ok = 0;
   for (const auto& r : rep.runs) {
     const std::string injected = r.injected.empty()       ? "none"
                                  : r.injected.size() == 1 ? r.injected[0]
@@ -120,15 +157,18 @@ void summarise(ValidationReport& rep) {
         if (r.has_shrinkage) shrink.push_back(r.shrinkage);
       }
     } else {
-      ++rep.pair_count;
-      const bool a = r.named == r.injected[0] || r.second == r.injected[0];
-      const bool b = r.named == r.injected[1] || r.second == r.injected[1];
-      pair_ok += (a && b) ? 1 : 0;
+      const MultiScore m = score_multi(r);
+      (r.injected.size() == 2 ? rep.pair_count : rep.triple_count) += 1;
+      (r.injected.size() == 2 ? pair_ok : triple_ok) += m.all_named ? 1 : 0;
+      first_ok += m.first_injected ? 1 : 0;
+      rep.multi_noise_ahead += m.noise_ahead ? 1 : 0;
     }
   }
-  rep.top1 = rep.single_runs ? static_cast<double>(single_ok) / rep.single_runs : 0.0;
-  rep.false_alarm = rep.null_count ? static_cast<double>(null_alarm) / rep.null_count : 0.0;
-  rep.pair_both = rep.pair_count ? static_cast<double>(pair_ok) / rep.pair_count : 0.0;
+  rep.top1 = share(single_ok, rep.single_runs);
+  rep.false_alarm = share(null_alarm, rep.null_count);
+  rep.pair_both = share(pair_ok, rep.pair_count);
+  rep.triple_all = share(triple_ok, rep.triple_count);
+  rep.multi_first_injected = share(first_ok, rep.pair_count + rep.triple_count);
   if (!shrink.empty()) {
     std::sort(shrink.begin(), shrink.end());
     const size_t n = shrink.size();
@@ -153,7 +193,7 @@ ValidationReport validate_diagnosis(const RunSource& world, const TableGeometry&
   ValidationReport rep;
   rep.sequence = sequence;
   const CalibrationInput exact = world(Effects{}, 1, /*noise=*/false);
-  rep.detectability = effect_detectability(exact, geometry, base);
+  rep.detectability = effect_detectability(exact, geometry, base, opt.diagnosis);
   std::map<EffectId, double> threshold, max_factor;
   std::vector<EffectId> ids;
   const Grade grade = exact.grade;
@@ -164,7 +204,7 @@ ValidationReport validate_diagnosis(const RunSource& world, const TableGeometry&
     // A size the diagnosis is told to call implausible is no test of it: where the sequence
     // detects an effect only near that limit (a sea run's g-sensitivity: 10× its typical size),
     // draw no higher than kPlausibleShare of it, so a fit a few σ high stays plausible too.
-    const double ceiling = kPlausibleShare * DiagnosisOptions{}.max_plausible_typical *
+    const double ceiling = kPlausibleShare * opt.diagnosis.max_plausible_typical *
                            effect_scale(d.id, grade) * d.typical / d.threshold;
     if (d.typical > 0.0 && ceiling < opt.min_factor) {
       rep.beyond_plausible.push_back(d.name);
@@ -184,7 +224,7 @@ ValidationReport validate_diagnosis(const RunSource& world, const TableGeometry&
   auto worker = [&] {
     for (size_t i = next++; i < tasks.size(); i = next++) {
       try {
-        rep.runs[i] = run_one(tasks[i], threshold, world, geometry);
+        rep.runs[i] = run_one(tasks[i], threshold, world, geometry, opt.diagnosis);
       } catch (const std::exception& ex) {  // a worker must never take the process down
         rep.runs[i].verdict = "error";
         rep.runs[i].named = std::string("error: ") + ex.what();

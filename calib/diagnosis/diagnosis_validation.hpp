@@ -23,9 +23,13 @@ struct ValidationOptions {
   int runs_per_effect = 10;  ///< single-effect runs per separable effect
   int null_runs = 10;        ///< runs with no effect
   int pair_runs = 10;        ///< runs with two effects (random separable pairs)
+  int triple_runs = 0;       ///< runs with three effects (random separable triples)
   uint64_t seed = 1;
   double min_factor = 3.0, max_factor = 10.0;  ///< magnitude range in detection thresholds
   int threads = 0;                             ///< 0: hardware concurrency
+  /// The diagnosis' options (its false-alarm rate: diagnosis_options_for_false_alarm), used for
+  /// every run and for the detection thresholds the effects are drawn at.
+  DiagnosisOptions diagnosis;
   /// Restrict to these effects (default: every effect the sequence separates).
   std::vector<EffectId> effects;
   /// Called after each run with (done, total); may be empty. Called from worker threads,
@@ -39,8 +43,9 @@ struct ValidationRun {
   std::vector<double> factor;         ///< magnitude in thresholds, per injected effect
   uint64_t seed = 0;
   std::string verdict;
-  std::string named;   ///< best effect, "none", or "ambiguous: a|b"
-  std::string second;  ///< the pair's second, or ""
+  std::string named;                   ///< best effect, "none", or "ambiguous: a|b"
+  std::string second;                  ///< the explained set's second, or ""
+  std::vector<std::string> explained;  ///< the explained set in the order chosen (steps)
   double shrinkage = 0.0;
   bool has_shrinkage = false;
 };
@@ -60,8 +65,14 @@ struct ValidationReport {
   double top1 = 0.0;         ///< single-effect runs whose best is the injected effect
   double false_alarm = 0.0;  ///< null runs with a named effect or a verdict other than consistent
   double median_shrinkage = 0.0;  ///< over single-effect runs where the effect was named
-  double pair_both = 0.0;         ///< pair runs naming both effects (best + second, any order)
-  int single_runs = 0, null_count = 0, pair_count = 0;
+  double pair_both = 0.0;         ///< pair runs naming both effects (in the explained set)
+  double triple_all = 0.0;        ///< triple runs naming all three effects
+  /// Runs with 2 or 3 effects whose first named effect is an injected one.
+  double multi_first_injected = 0.0;
+  /// Runs with 2 or 3 effects where a noise candidate (bias instability, quantisation) that was not
+  /// injected is named ahead of an injected effect.
+  int multi_noise_ahead = 0;
+  int single_runs = 0, null_count = 0, pair_count = 0, triple_count = 0;
 };
 
 /// `world` draws the runs (its unit's declared noise with them), `geometry` is its table's, `base`

@@ -29,6 +29,20 @@ json finding(const calib::CandidateResult& c) {
           {"parameters", params_json(c.params)}};
 }
 
+/// One step of the stepwise explanation: the effect, its size in the joint fit of the set, its test
+/// given the steps before it and the gaps once it is added.
+json step_json(const calib::DiagnosisStep& s) {
+  return {{"effect", s.effect},
+          {"magnitude", num(s.magnitude)},
+          {"sigma", num(s.magnitude_sigma)},
+          {"unit", s.unit},
+          {"p_value", num(s.p_value)},
+          {"gap_after", num(s.gap_after)},
+          {"held_out_after", num(s.held_out_after)},
+          {"note", s.note},
+          {"parameters", params_json(s.params)}};
+}
+
 json candidate_json(const calib::CandidateResult& c) {
   return {{"effect", c.name},
           {"score", num(c.bic_gain)},
@@ -87,6 +101,9 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
   j["second"] = d.second ? finding(d.candidates[*d.second]) : json(nullptr);
   j["ambiguous"] = d.ambiguous;
   j["explained_by"] = d.explained_by;
+  json steps = json::array();
+  for (const auto& st : d.steps) steps.push_back(step_json(st));
+  j["steps"] = steps;
   // A significant candidate that removed too little of the held-out gap to be a finding.
   j["weak_candidate"] = d.weak_candidate.empty() ? json(nullptr)
                                                  : json{{"effect", d.weak_candidate},
@@ -144,6 +161,12 @@ nlohmann::json diagnosis_summary_json(const calib::DiagnosisResult& d) {
   for (const char* k : {"verdict", "summary", "best", "second", "ambiguous", "explained_by",
                         "weak_candidate", "held_out"})
     s[k] = full[k];
+  // The explained set's steps without their parameters: effect, size and the gaps after it.
+  s["steps"] = json::array();
+  for (json st : full["steps"]) {
+    st.erase("parameters");
+    s["steps"].push_back(std::move(st));
+  }
   s["overall"] = {{"gap", full["overall"]["gap"]},
                   {"expected", full["overall"]["expected"]},
                   {"sigma", full["overall"]["sigma"]},
@@ -190,9 +213,19 @@ DiagnosedEffects diagnosed_effects(const nlohmann::json& j, const std::string& o
   if (!j.is_object() || !j.contains("verdict"))
     throw std::invalid_argument(origin + ": not a gap diagnosis (no \"verdict\")");
   DiagnosedEffects out;
-  for (const char* k : {"best", "second"}) {
-    if (!j.contains(k) || j[k].is_null()) continue;
-    out.names.push_back(add_finding(j[k], origin + ": " + k, out.effects));
+  // The whole explained set (each effect's size from their joint fit) when the diagnosis has its
+  // steps; a diagnosis written before them (or a summary) by its best effect and the second.
+  if (j.contains("steps") && j["steps"].is_array() && !j["steps"].empty() &&
+      j["steps"][0].contains("parameters")) {
+    for (size_t i = 0; i < j["steps"].size(); ++i) {
+      out.names.push_back(
+          add_finding(j["steps"][i], origin + ": steps[" + std::to_string(i) + "]", out.effects));
+    }
+  } else {
+    for (const char* k : {"best", "second"}) {
+      if (!j.contains(k) || j[k].is_null()) continue;
+      out.names.push_back(add_finding(j[k], origin + ": " + k, out.effects));
+    }
   }
   if (out.names.empty())
     throw std::invalid_argument(origin + ": the diagnosis names no effect to compensate (verdict " +

@@ -3,7 +3,10 @@
 // what the HTML report embeds and what the station keeps with a run. One object:
 //   {"verdict": "consistent"|"explained"|"unexplained", "summary": "...",
 //    "best": null | {"effect", "magnitude", "sigma", "unit", "parameters": [...]},
-//    "second": null | {...}, "ambiguous": [names],
+//    "second": null | {...}, "ambiguous": [names], "explained_by": [names],
+//    "steps": [{"effect", "magnitude", "sigma", "unit", "p_value", "gap_after", "held_out_after",
+//               "note", "parameters"}]   (the explained set in the order chosen, sizes from its
+//               joint fit),
 //    "candidates": [{"effect", "score", "lr", "k", "p_value", "bic_gain", "magnitude", "sigma",
 //                    "unit", "separable", "significant", "note", "held_out_gap",
 //                    "max_correlation", "confounded_with", "parameters"}, ...],   (ranked)
@@ -24,10 +27,12 @@ namespace imucal::archive {
 nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d);
 
 /// The summary kept with a station run (runs.diagnosis_json): {"verdict", "summary", "best",
-/// "second", "ambiguous", "overall": {"gap", "expected", "sigma", "p_value"}, "held_out": {...}}.
+/// "second", "ambiguous", "explained_by", "steps" (without parameters), "overall": {"gap",
+/// "expected", "sigma", "p_value"}, "held_out": {...}}.
 nlohmann::json diagnosis_summary_json(const calib::DiagnosisResult& d);
 
-/// The effects a diagnosis found (its "best" and "second"), back in SI: what `imucal calibrate
+/// The effects a diagnosis found (its steps' deterministic effects, sizes from their joint fit; or,
+/// in a diagnosis without steps, its "best" and "second"), back in SI: what `imucal calibrate
 /// --compensate` removes from a run before calibrating it.
 struct DiagnosedEffects {
   calib::Effects effects;

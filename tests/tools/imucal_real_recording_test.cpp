@@ -254,6 +254,21 @@ TEST(ImucalRealRecording, DiagnosisWithoutATableNamesTheGyrosGSensitivityAndTheT
               g_sens_deg_per_s_per_g, cand.at("gyro_accel_skew").at("magnitude").get<double>(),
               j.at("held_out").at("gap_before").get<double>(),
               j.at("held_out").at("gap_after_pair").get<double>());
+  // Stepwise (issue #22 item 2): the two named first, then whatever else the held-out segments
+  // confirm; each step must shrink the held-out gap.
+  const nlohmann::json& steps = j.at("steps");
+  ASSERT_GE(steps.size(), 2u);
+  EXPECT_EQ(steps.at(0).at("effect"), "gyro_g_sensitivity");
+  EXPECT_EQ(steps.at(1).at("effect"), "gyro_accel_skew");
+  double held = j.at("held_out").at("gap_before").get<double>();
+  for (const auto& st : steps) {
+    std::printf("  step %s = %.4g +- %.2g %s: held-out gap -> %.3f\n",
+                st.at("effect").get<std::string>().c_str(), st.at("magnitude").get<double>(),
+                st.at("sigma").get<double>(), st.at("unit").get<std::string>().c_str(),
+                st.at("held_out_after").get<double>());
+    EXPECT_LT(st.at("held_out_after").get<double>(), held) << st.dump();
+    held = st.at("held_out_after").get<double>();
+  }
   EXPECT_GT(g_sens_deg_per_s_per_g, 0.1);
   EXPECT_LT(g_sens_deg_per_s_per_g, 0.4);
   EXPECT_TRUE(cand.at("gyro_g_sensitivity").at("significant").get<bool>());
@@ -272,7 +287,7 @@ TEST(ImucalRealRecording, DiagnosisWithoutATableNamesTheGyrosGSensitivityAndTheT
   const nlohmann::json c = nlohmann::json::parse(fixed.out);
   EXPECT_TRUE(c.at("ains").at("converged").get<bool>()) << c.at("ains").at("warnings").dump();
   EXPECT_TRUE(c.at("limits").at("pass").get<bool>()) << c.at("limits").dump();
-  ASSERT_EQ(c.at("compensated").at("effects").size(), 2u);
+  ASSERT_EQ(c.at("compensated").at("effects").size(), steps.size());
   EXPECT_EQ(
       c.at("compensated").at("effects").at(0).get<std::string>().rfind("gyro_g_sensitivity", 0),
       0u);

@@ -52,19 +52,38 @@ void print_candidates(const calib::DiagnosisResult& d) {
 }
 
 /// The explaining effects per parameter (the text said only the norm; issue #19 item 6).
+void print_params(const std::vector<calib::CandidateParam>& params) {
+  const char* sep = " ";
+  for (const auto& p : params) {
+    if (!(p.sigma > 0.0)) continue;  // shape parameters (searched on a grid) and unfitted ones
+    std::printf("%s%s = %.3g +- %.2g %s", sep, p.name.c_str(), p.value, p.sigma, p.unit.c_str());
+    sep = ", ";
+  }
+  std::printf("\n");
+}
+
+/// The explained set step by step (sizes from its joint fit) or, for an ambiguous set, each
+/// member's own fit.
 void print_explained_by(const calib::DiagnosisResult& d) {
+  if (d.verdict == "explained" && !d.steps.empty()) {
+    std::printf("explained step by step (sizes fitted jointly):\n");
+    for (size_t i = 0; i < d.steps.size(); ++i) {
+      const calib::DiagnosisStep& s = d.steps[i];
+      std::printf(
+          "  %zu. %s = %.3g +- %.2g %s (p %.2g given the steps before; chi2/dof -> %.3f, "
+          "held-out gap -> %.3f)\n    ",
+          i + 1, s.effect.c_str(), s.magnitude, s.magnitude_sigma, s.unit.c_str(), s.p_value,
+          s.gap_after, s.held_out_after);
+      print_params(s.params);
+      if (!s.note.empty()) std::printf("    (%s)\n", s.note.c_str());
+    }
+    return;
+  }
   for (const std::string& name : d.explained_by)
     for (const auto& c : d.candidates) {
       if (c.name != name) continue;
       std::printf("  %s:", c.name.c_str());
-      const char* sep = " ";
-      for (const auto& p : c.params) {
-        if (!(p.sigma > 0.0)) continue;  // shape parameters (searched on a grid) and unfitted ones
-        std::printf("%s%s = %.3g +- %.2g %s", sep, p.name.c_str(), p.value, p.sigma,
-                    p.unit.c_str());
-        sep = ", ";
-      }
-      std::printf("\n");
+      print_params(c.params);
     }
 }
 
@@ -136,7 +155,7 @@ void print_human(const calib::DiagnosisResult& d, const archive::RunArchive& ar,
   if (d.held_out.has_after) {
     std::printf("held-out gap (fit on the other segments): %.3f -> %.3f", d.held_out.gap_before,
                 d.held_out.gap_after);
-    if (d.held_out.has_pair) std::printf(" -> %.3f with the pair", d.held_out.gap_after_pair);
+    if (d.held_out.has_pair) std::printf(" -> %.3f with the whole set", d.held_out.gap_after_pair);
     std::printf(" (shrinkage %.0f %%; 1 = as the model predicts)\n", 100.0 * d.held_out.shrinkage);
   } else {
     std::printf("held-out gap (fit on the other segments): %.3f (1 = as the model predicts)\n",

@@ -357,7 +357,7 @@ void held_out_chart(std::ostringstream& os, const json& h) {
   std::vector<std::pair<std::string, double>> bars = {{"before", num(h, "gap_before")}};
   if (h["gap_after"].is_number()) bars.push_back({"with the best effect", num(h, "gap_after")});
   if (h["gap_after_pair"].is_number())
-    bars.push_back({"with the best pair", num(h, "gap_after_pair")});
+    bars.push_back({"with the whole explained set", num(h, "gap_after_pair")});
   double vmax = 2.0;
   for (const auto& b : bars) vmax = std::max(vmax, b.second * 1.1);
   const double left = 160, w = 480, bar = 30, top = 10;

@@ -10,7 +10,8 @@
 //     χ² 99 % line (id "nis");
 //   * the candidate ranking as a table (id "candidates") and a bar chart of the scores (id
 //   "scores");
-//   * the held-out gap before and after the best effect and the best pair (id "heldout"), and the
+//   * the held-out gap before and after the best effect and the whole explained set (id "heldout"),
+//   and the
 //     calibration parameters that move when it is added; where the gap remains.
 #include <nlohmann/json.hpp>
 #include <string>
