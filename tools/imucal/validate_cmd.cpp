@@ -12,6 +12,7 @@
 #include "calib/sim/sim_input.hpp"
 #include "calib/sim/unit_draw.hpp"
 #include "sequences/library.hpp"
+#include "tools/imucal/alt_run_source.hpp"
 #include "tools/imucal/progress_line.hpp"
 
 namespace imucal::tools {
@@ -112,6 +113,11 @@ CLI::App* add_validate_command(CLI::App& app, ValidateArgs& a) {
        "navigation-grade unit; with --sequence hand, 38 hand-placed positions of 3-11 s "
        "after a 50 s rest")
       ->check(CLI::IsMember({"navigation", "tactical", "mems"}));
+  c->add_option("--simulator", a.simulator,
+                "factory: the simulator the runs come from, truth (the project's, calib/sim) or "
+                "alt (altsim, an independent one: tools/altsim)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"truth", "alt"}));
   c->add_flag("--json", a.json, "print one JSON object");
   return c;
 }
@@ -130,6 +136,10 @@ World make_world(const ValidateArgs& a) {
   const bool land = a.setting != "factory";  // land or sea: by hand, no table log
   if (!land && (!a.grade.empty() || a.sequence == "hand"))
     throw std::invalid_argument("--grade and --sequence hand need --setting land or sea");
+  if (land && a.simulator == "alt")
+    throw std::invalid_argument(
+        "--simulator alt simulates table runs only: give --setting factory, or --simulator truth "
+        "for land and sea");
   const sequences::MotionProfile profile =
       a.sequence == "hand" ? calib::hand_placed_profile(a.seed)
                            : sequences::load_profile(sequences::resolve_sequence(a.sequence));
@@ -139,8 +149,10 @@ World make_world(const ValidateArgs& a) {
   w.unit = a.grade.empty() ? calib::default_unit() : calib::draw_unit(grade, a.seed);
   w.name = profile.name;
   if (!land) {
-    w.source = calib::truth_run_source(profile, calib::TableGeometry{}, calib::demo_factory_site(),
-                                       w.unit, 100.0);
+    const auto make_source = a.simulator == "alt" ? alt_run_source : calib::truth_run_source;
+    w.source =
+        make_source(profile, calib::TableGeometry{}, calib::demo_factory_site(), w.unit, 100.0);
+    if (a.simulator == "alt") w.name += " (altsim)";
     return w;
   }
   w.unit.params.table_misalignment_rad.setZero();  // no table: no table misalignment

@@ -17,6 +17,9 @@ struct ValidateArgs {
   std::string effects;
   std::string setting = "factory";  ///< factory: table runs; land: table-free hand-placed runs
   std::string grade;                ///< land: a unit drawn from this grade's envelope (--seed)
+  /// factory: the world the runs come from, "truth" (calib/sim) or "alt" (tools/altsim, the
+  /// independent simulator of issue #22).
+  std::string simulator = "truth";
   bool json = false;
 };
 
