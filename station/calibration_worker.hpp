@@ -25,6 +25,7 @@
 #include <string>
 #include <thread>
 
+#include "calib/diagnosis/false_alarm.hpp"
 #include "db/repository.hpp"
 
 namespace imucal::station {
@@ -36,7 +37,7 @@ struct CalibrationJob {
   std::string capture_json;    ///< capture counters (capture_stats.hpp) as JSON text, or ""
   double k_sigma = 4.0;
   /// The gap check's false-alarm rate per run ([calibration] gap_false_alarm).
-  double gap_false_alarm = 1e-4;
+  double gap_false_alarm = calib::kDefaultGapFalseAlarm;
   /// Why the archive is incomplete ("" = complete): the result is then REVIEW at best.
   std::string partial_reason;
   /// The run's end as recorded (an import keeps its archive's times); none: when the job ends.
@@ -45,8 +46,8 @@ struct CalibrationJob {
 
 struct CalibrationOutcome {
   db::RunId run_id = 0;
-  db::RunState state = db::RunState::kFailed;  ///< done, review or failed (as stored)
-  std::optional<db::RunVerdict> verdict;       ///< the run's (db::run_verdict(state))
+  db::RunState state = db::RunState::kFailed;     ///< done, review or failed (as stored)
+  std::optional<db::RunVerdict> verdict;          ///< the run's (db::run_verdict(state))
   std::optional<db::Verdict> crosscheck_verdict;  ///< the cross-check's own, if one was made
   std::string reason;      ///< review: every reason ("; "-joined); failed: the error
   bool stored = true;      ///< false: the run was already terminal, nothing was written

@@ -17,6 +17,7 @@
 
 #include "calib/core/earth.hpp"
 #include "calib/core/unit_grade.hpp"
+#include "calib/diagnosis/false_alarm.hpp"
 #include "drivers/imu/imu_codec.hpp"
 #include "drivers/imu/imu_protocol_map.hpp"
 #include "drivers/turntable/turntable_client.hpp"
@@ -95,7 +96,7 @@ struct StationConfig {
   /// (calib/diagnosis/diagnosis.hpp, diagnosis_options_for_false_alarm). 1e-4: a line of 300 units
   /// a day sees one needless review in about a month; a larger rate detects smaller effects
   /// (README, "The gap check").
-  double gap_false_alarm = 1e-4;
+  double gap_false_alarm = calib::kDefaultGapFalseAlarm;
 
   // [log]
   std::string log_level = "info";  ///< trace, debug, info, warn, error, critical, off

@@ -39,6 +39,7 @@
 #include <vector>
 
 #include "calib/core/param_set.hpp"
+#include "calib/diagnosis/false_alarm.hpp"
 #include "calib/diagnosis/gap_model.hpp"
 #include "calib/diagnosis/whiteness.hpp"
 #include "calib/effects/catalogue.hpp"

@@ -108,3 +108,36 @@ TEST(CrlbEffects, CorrelationsHaveThreeDigits) {
     }
   }
 }
+
+// Issue #22 item 1: the thresholds are those of the station's false-alarm rate per run
+// ([calibration] gap_false_alarm, 1e-4 unless configured), said in the table's first line and the
+// JSON; a laxer rate gives lower thresholds. By the header's rule (threshold ∝ √(χ²_k critical
+// value − k)), going from 2e-3 to 1e-4 per run raises a one-direction effect's threshold by
+// √((χ²₁(1 − 5e-5/N) − 1)/(χ²₁(1 − 1e-3/N) − 1)) ≈ 1.2-1.3 for N of 10-14 candidates, more
+// directions by less.
+TEST(CrlbEffects, ThresholdsAreThoseOfTheStationsFalseAlarmRate) {
+  const auto dflt = run_imucal("crlb --effects --json --sequence short", false);
+  const auto lax = run_imucal("crlb --effects --json --false-alarm 2e-3 --sequence short", false);
+  const auto text = run_imucal("crlb --effects --sequence short", false);
+  ASSERT_EQ(dflt.code, 0) << dflt.out;
+  ASSERT_EQ(lax.code, 0) << lax.out;
+  EXPECT_NE(text.out.find("false-alarm rate of 0.0001 per run (the station's default"),
+            std::string::npos)
+      << text.out.substr(0, 400);
+  const auto d = nlohmann::json::parse(dflt.out), l = nlohmann::json::parse(lax.out);
+  EXPECT_DOUBLE_EQ(d["false_alarm_per_run"].get<double>(), 1e-4);
+  EXPECT_DOUBLE_EQ(l["false_alarm_per_run"].get<double>(), 2e-3);
+  int compared = 0;
+  for (size_t i = 0; i < d["effects"].size(); ++i) {
+    const auto &a = d["effects"][i], &b = l["effects"][i];
+    ASSERT_EQ(a["effect"], b["effect"]);
+    if (!a["threshold"].is_number() || !b["threshold"].is_number()) continue;
+    const double ratio = a["threshold"].get<double>() / b["threshold"].get<double>();
+    EXPECT_GT(ratio, 1.05) << a["effect"];
+    EXPECT_LT(ratio, 1.4) << a["effect"];
+    ++compared;
+  }
+  EXPECT_GE(compared, 5);
+  const auto bad = run_imucal("crlb --effects --false-alarm 0 --sequence short", false);
+  EXPECT_NE(bad.code, 0);
+}

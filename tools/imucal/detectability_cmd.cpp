@@ -131,11 +131,15 @@ void print_too_small(const std::vector<calib::EffectDetectability>& d) {
   }
 }
 
-void print_table(const std::vector<calib::EffectDetectability>& d, const std::string& seq) {
+void print_table(const std::vector<calib::EffectDetectability>& d, const std::string& seq,
+                 double false_alarm) {
   std::printf(
       "effects on sequence %s: detection threshold (the diagnosis names an effect of this size "
-      "about half the time; 3x it essentially always) and separability\n",
-      seq.c_str());
+      "about half the time; 3x it essentially always) and separability, at a false-alarm rate of "
+      "%.3g per run%s\n",
+      seq.c_str(), false_alarm,
+      false_alarm == calib::kDefaultGapFalseAlarm ? " (the station's default gap_false_alarm)"
+                                                  : "");
   std::printf(
       "ratio = threshold / typical: how many times its catalogue typical size an effect must be "
       "to be detected (above 1: not detectable at its typical size on this sequence)\n");
@@ -181,7 +185,7 @@ nlohmann::json to_json(const std::vector<calib::EffectDetectability>& d, const s
 }  // namespace
 
 int cmd_crlb_effects(const std::string& seq, const std::string& unit_path, double rate_hz,
-                     bool json) {
+                     double false_alarm, bool json) {
   const std::string seq_path = sequences::resolve_sequence(seq);
   const sequences::MotionProfile profile = sequences::load_profile(seq_path);
   const calib::UnitModel unit =
@@ -189,11 +193,15 @@ int cmd_crlb_effects(const std::string& seq, const std::string& unit_path, doubl
   const calib::RunSource world = calib::truth_run_source(profile, calib::TableGeometry{},
                                                          calib::demo_factory_site(), unit, rate_hz);
   const auto d = calib::effect_detectability(world(calib::Effects{}, 1, /*noise=*/false),
-                                             calib::TableGeometry{}, unit.params);
-  if (json)
-    std::cout << to_json(d, profile.name).dump(2) << '\n';
-  else
-    print_table(d, profile.name);
+                                             calib::TableGeometry{}, unit.params,
+                                             calib::diagnosis_options_for_false_alarm(false_alarm));
+  if (json) {
+    nlohmann::json j = to_json(d, profile.name);
+    j["false_alarm_per_run"] = false_alarm;
+    std::cout << j.dump(2) << '\n';
+  } else {
+    print_table(d, profile.name, false_alarm);
+  }
   return 0;
 }
 

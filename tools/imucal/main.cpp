@@ -25,6 +25,7 @@
 
 #include "calib/checks/crlb.hpp"
 #include "calib/core/site_presets.hpp"
+#include "calib/diagnosis/false_alarm.hpp"
 #include "calib/effects/effect_compensation.hpp"
 #include "calib/legacy/legacy.hpp"
 #include "calib/pipeline/calibration_pipeline.hpp"
@@ -431,6 +432,7 @@ struct Commands {
   PriorOverride prior;     ///< calibrate --grade, --min-rest-s
   std::string crlb_grade;  ///< crlb --grade
   double rate_hz = 100.0, k_sigma = 4.0;
+  double false_alarm = calib::kDefaultGapFalseAlarm;  ///< crlb --effects
   bool json = false, effects = false, sequential = false, effects_json = false;
   int repeat = 3;
   tools::DiagnoseArgs diag;
@@ -536,6 +538,11 @@ void add_small_commands(CLI::App& app, Commands& c) {
   c.cr->add_flag("--json", c.json, "print one JSON object");
   c.cr->add_flag("--effects", c.effects,
                  "per catalogue effect: detection threshold and separability on the sequence");
+  c.cr->add_option("--false-alarm", c.false_alarm,
+                   "with --effects: the diagnosis' false-alarm rate per run the thresholds are "
+                   "computed at (the station's [calibration] gap_false_alarm)")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-9, 0.5));
 
   c.be = app.add_subcommand("bench", "time and peak memory of calibrate --method all");
   c.be->add_option("dir", c.dir, "run archive directory")->required();
@@ -554,7 +561,8 @@ int dispatch(const Commands& c) {
     return cmd_calibrate(c.dir, c.method, c.json, c.k_sigma, c.plot_path, c.setting_override,
                          c.prior);
   if (*c.ev) return cmd_evaluate(c.dir, c.params, c.json);
-  if (*c.cr && c.effects) return tools::cmd_crlb_effects(c.seq, c.unit, c.rate_hz, c.json);
+  if (*c.cr && c.effects)
+    return tools::cmd_crlb_effects(c.seq, c.unit, c.rate_hz, c.false_alarm, c.json);
   if (*c.cr) return cmd_crlb(c.seq, c.unit, c.rate_hz, c.crlb_grade, c.json);
   if (*c.be) return cmd_bench(c.dir, c.repeat, c.sequential, c.json);
   if (*c.dg) return tools::cmd_diagnose(c.diag);
