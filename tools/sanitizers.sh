@@ -4,15 +4,17 @@
 #                              server, daemon, run controller) and three end-to-end tests whose
 #                              stationd/stationsim/stationctl are TSan builds too; every process
 #                              writes its reports under build-tsan/reports, and any report fails.
-#   tools/sanitizers.sh asan   the whole suite but the slow and QEMU sets under ASan + UBSan
-#                              (clang-16; -fno-sanitize-recover: UB stops the test), with the
-#                              bounded libFuzzer runs; every process's reports go to
-#                              build-asan/reports, and any report fails.
+#   tools/sanitizers.sh asan   the whole suite under ASan + UBSan (clang-16; -fno-sanitize-recover:
+#                              UB stops the test), the slow Monte Carlo sets at reduced counts, with
+#                              the bounded libFuzzer runs; every process's reports go to
+#                              build-asan/reports, and any report fails. Not here: the QEMU guest
+#                              and the install sets (a kernel in an emulator, the Debian package's
+#                              own build trees: neither runs instrumented code).
 #   tools/sanitizers.sh fuzz   only the libFuzzer targets (tree build-fuzz, the calibration core
 #                              linked from build/): 30 s of fuzzing each, which starts with their
 #                              seed corpus and regression inputs.
-# tools/test.sh runs tsan and fuzz always, asan with IMUCAL_ASAN=1 (README, "Reliability", for
-# why and for the times). ccache makes repeated runs cheap.
+# tools/test.sh runs tsan and asan (README, "Reliability", for the times; IMUCAL_SKIP_ASAN=1 runs
+# the fuzz mode instead). ccache makes repeated runs cheap.
 # IMUCAL_SANITIZER_TREE=DIR uses another build tree; IMUCAL_BUILD_ONLY=1 stops after the build.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -71,9 +73,11 @@ case $mode in
     ;;
   asan | fuzz)
     # clang-16 (gcc takes three times as long to compile under ASan), the same flags for both: the
-    # programs under test at -O1, the calibration core at -O2 (the suite spends its time in its
-    # Eigen loops, ~20x Release's time under ASan), the test programs at -O0 (their compile time is
-    # code generation, and no time is spent in them). Only the fuzzed parsers carry coverage.
+    # programs under test at -O1, the calibration core at -O2 without Eigen's own index assertions
+    # (the suite spends its time in its Eigen loops, ~20x Release's time under ASan with them; ASan
+    # itself catches an index out of bounds, and Release runs without them too), the test programs
+    # at -O0 (their compile time is code generation, and no time is spent in them). Only the fuzzed
+    # parsers carry coverage.
     # The fuzz mode has a tree of its own, build-fuzz, that links the Release calibration core like
     # the TSan tree (no parser calls into its math).
     calib=()
@@ -84,7 +88,7 @@ case $mode in
       tree=${IMUCAL_SANITIZER_TREE:-build-asan}
     fi
     CC=clang-16 CXX=clang++-16 cmake -S . -B $tree -DIMUCAL_FUZZ=ON -DCMAKE_BUILD_TYPE=None \
-      -DCMAKE_CXX_FLAGS="-O1 -gline-tables-only" -DIMUCAL_CALIB_OPTIMIZE=-O2 -DIMUCAL_TEST_OPTIMIZE=-O0 \
+      -DCMAKE_CXX_FLAGS="-O1 -gline-tables-only" -DIMUCAL_CALIB_OPTIMIZE="-O2 -DEIGEN_NO_DEBUG" -DIMUCAL_TEST_OPTIMIZE=-O0 \
       "${launcher[@]}" "${calib[@]}" >/dev/null
     if [ "$mode" = fuzz ]; then
       # Each fuzz run starts by executing its whole corpus and regression inputs under ASan + UBSan,
@@ -93,7 +97,12 @@ case $mode in
       selection=(-R "^Fuzz\\.run\\.")
     else
       cmake --build $tree -j2
-      selection=(-LE "slow|qemu|install")
+      selection=(-LE "qemu|install")
+      # The slow Monte Carlo sets at reduced counts: what they check of memory and UB does not
+      # depend on how many seeds they draw.
+      export IMUCAL_MC_SEEDS=${IMUCAL_MC_SEEDS:-3} IMUCAL_MC_RUNS=${IMUCAL_MC_RUNS:-2} \
+        IMUCAL_VALIDATION_RUNS=${IMUCAL_VALIDATION_RUNS:-2} \
+        IMUCAL_CRASH_POINTS=${IMUCAL_CRASH_POINTS:-6} IMUCAL_SOAK_RUNS=${IMUCAL_SOAK_RUNS:-12}
     fi
     [ "${IMUCAL_BUILD_ONLY:-0}" = 1 ] && exit 0
     # Every process (test programs and the stationd/stationsim/stationctl/imucal they start) logs
