@@ -101,7 +101,7 @@ case $mode in
       # The slow Monte Carlo sets at reduced counts: what they check of memory and UB does not
       # depend on how many seeds they draw.
       export IMUCAL_MC_SEEDS=${IMUCAL_MC_SEEDS:-3} IMUCAL_MC_RUNS=${IMUCAL_MC_RUNS:-2} \
-        IMUCAL_VALIDATION_RUNS=${IMUCAL_VALIDATION_RUNS:-2} \
+        IMUCAL_VALIDATION_RUNS=${IMUCAL_VALIDATION_RUNS:-1} \
         IMUCAL_CRASH_POINTS=${IMUCAL_CRASH_POINTS:-6} IMUCAL_SOAK_RUNS=${IMUCAL_SOAK_RUNS:-12}
     fi
     [ "${IMUCAL_BUILD_ONLY:-0}" = 1 ] && exit 0
