@@ -85,6 +85,19 @@ TEST(DiagnosisReport, ChromiumRendersTheReportWithItsPictures) {
   const size_t table = dom.out.find("id=\"candidates\"");
   ASSERT_NE(table, std::string::npos);
   EXPECT_LT(dom.out.find("gyro_g_sensitivity", table), dom.out.find("accel_quadratic_k2", table));
+  // The explained set step by step (issue #22): one row per step after the model's own, the
+  // effect's joint size as the JSON has it.
+  if (j["verdict"] == "explained") {
+    const size_t steps = dom.out.find("id=\"steps\"");
+    ASSERT_NE(steps, std::string::npos);
+    const std::string table_html = dom.out.substr(steps, dom.out.find("</table>", steps) - steps);
+    const std::regex row("<tr class=\"sig\">");
+    EXPECT_EQ(static_cast<size_t>(
+                  std::distance(std::sregex_iterator(table_html.begin(), table_html.end(), row),
+                                std::sregex_iterator())),
+              j["steps"].size());
+    EXPECT_NE(table_html.find("gyro_g_sensitivity"), std::string::npos);
+  }
 
   const fs::path shot = out / "shot.png";
   const Proc s = run(chrome + "--window-size=1300,2400 --screenshot=" + shot.string() + " " + url);
@@ -373,10 +386,12 @@ TEST_F(RenderedReport, TheExplainingEffectsShowTheirPerAxisValues) {
     const std::string cells = html.substr(row, html.find("</tr>", row) - row);
     for (const auto& c : diagnosis_["candidates"]) {
       if (c["effect"] != name) continue;
-      for (const auto& p : c["parameters"])
-        if (p["sigma"].is_number() && p["sigma"].get<double>() > 0.0)
+      for (const auto& p : c["parameters"]) {
+        if (p["sigma"].is_number() && p["sigma"].get<double>() > 0.0) {
           EXPECT_NE(cells.find(p["name"].get<std::string>() + " "), std::string::npos)
               << name << " " << p["name"] << ": " << cells;
+        }
+      }
     }
   }
 }

@@ -1,12 +1,12 @@
 #include "tools/imucal/diagnosis_report.hpp"
 
-#include "tools/imucal/html_escape.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
 #include <vector>
+
+#include "tools/imucal/html_escape.hpp"
 
 namespace imucal::tools {
 
@@ -327,6 +327,31 @@ void candidate_table(std::ostringstream& os, const json& cands) {
   os << "</table>\n";
 }
 
+/// The explained set step by step (issue #22 item 2): each effect as it was added, its size from
+/// the joint fit of the whole set, its test given the steps before it and the gaps after it.
+void steps_table(std::ostringstream& os, const json& d) {
+  if (!d.contains("steps") || !d["steps"].is_array() || d["steps"].empty()) return;
+  os << "<h2>Step by step: the explained set, sizes fitted jointly</h2>\n<table id='steps'><tr>"
+        "<th>step</th><th>effect added</th><th>magnitude ± 1σ</th><th>p given the steps "
+        "before</th><th>χ²/dof after</th><th>held-out gap after</th><th>note</th></tr>\n";
+  os << "<tr><td>0</td><td>(the calibrated model)</td><td>-</td><td>-</td><td>"
+     << f(num(d["overall"], "gap"), "%.3f") << "</td><td>"
+     << f(num(d["held_out"], "gap_before"), "%.3f") << "</td><td></td></tr>\n";
+  int i = 0;
+  for (const auto& st : d["steps"]) {
+    auto cell = [&](const char* k) {
+      return st[k].is_number() ? f(num(st, k), "%.3f") : std::string("-");
+    };
+    os << "<tr class='sig'><td>" << ++i << "</td><td>" << esc(str(st, "effect")) << "</td><td>"
+       << f(num(st, "magnitude")) << " ± " << f(num(st, "sigma"), "%.2g") << " "
+       << esc(str(st, "unit")) << "<br><small class='axes'>" << per_parameter(st)
+       << "</small></td><td>" << f(num(st, "p_value", 1.0), "%.2g") << "</td><td>"
+       << cell("gap_after") << "</td><td>" << cell("held_out_after") << "</td><td>"
+       << esc(str(st, "note")) << "</td></tr>\n";
+  }
+  os << "</table>\n";
+}
+
 void score_chart(std::ostringstream& os, const json& cands) {
   const double left = 190, top = 10, bar = 18, w = 520;
   double smax = 10.0;
@@ -460,6 +485,7 @@ std::string diagnosis_report_html(const json& d) {
   os << "<h2>Which: candidate effects, refitted with the calibration</h2>\n";
   score_chart(os, d["candidates"]);
   candidate_table(os, d["candidates"]);
+  steps_table(os, d);
   os << "<h2>How far: the gap on held-out segments</h2>\n";
   held_out_chart(os, d["held_out"]);
   lists(os, d);

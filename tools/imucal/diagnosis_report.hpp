@@ -9,10 +9,10 @@
 //   * each segment's NIS on a log axis (they span 1 to 10^4) against its expectation and the
 //     χ² 99 % line (id "nis");
 //   * the candidate ranking as a table (id "candidates") and a bar chart of the scores (id
-//   "scores");
-//   * the held-out gap before and after the best effect and the whole explained set (id "heldout"),
-//   and the
-//     calibration parameters that move when it is added; where the gap remains.
+//     "scores"); the explained set step by step (id "steps");
+//   * the held-out gap before and after the best effect and the whole explained set (id
+//     "heldout"), and the calibration parameters that move when it is added; where the gap
+//     remains.
 #include <nlohmann/json.hpp>
 #include <string>
 
