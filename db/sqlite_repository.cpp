@@ -751,6 +751,8 @@ struct SqliteRepository::Impl {
 
 // =================================================================================================
 
+void limit_sqlite_process_memory() { sqlite3_soft_heap_limit64(kSqliteSoftHeapLimitBytes); }
+
 SqliteRepository::SqliteRepository(const std::string& path, const SqliteOptions& options)
     : impl_(std::make_unique<Impl>()) {
   Impl& d = *impl_;
@@ -770,6 +772,11 @@ SqliteRepository::SqliteRepository(const std::string& path, const SqliteOptions&
   sqlite3_extended_result_codes(d.db, 1);
   // Connection settings (no values: constant pragmas; busy_timeout through the C API).
   sqlite3_busy_timeout(d.db, options.busy_timeout_ms);
+  // The memory bounds (sqlite_repository.hpp). PRAGMA arguments cannot be bound; the number is our
+  // own constant, not input.
+  const std::string cache_size = "PRAGMA cache_size = -" + std::to_string(kSqlitePageCacheKiB);
+  schema::exec(d.db, cache_size.c_str(), path, "open: cache_size");
+  schema::exec(d.db, "PRAGMA mmap_size = 0", path, "open: mmap_size");
   schema::exec(d.db, "PRAGMA foreign_keys = ON", path, "open: foreign_keys");
   if (!options.read_only) {
     schema::exec(d.db, "PRAGMA synchronous = FULL", path, "open: synchronous=FULL");

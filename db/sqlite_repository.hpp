@@ -22,6 +22,33 @@
 
 namespace imucal::db {
 
+/// SQLite's memory, bounded in one place (issue #22 item 4). Measured before (soak of 200 runs, the
+/// daemon printing sqlite3_status64 after each run): the page cache of the daemon's connection
+/// followed the growing database, +5.9 kB a run (1.4 pages of 4 KiB with their headers), and each
+/// streamed export's connection filled a cache of its own (SQLite's memory 1.6 MB when a sample
+/// fell during one); nothing else of SQLite's or of the rest of the heap grew. The daemon's RSS
+/// crept 10.6 kB a run (runs 101-200) and would have stopped only at SQLite's built-in default of
+/// 2000 KiB a connection (Debian's build; other builds differ), stated nowhere. Now:
+///   * every connection (the daemon's, each streamed export's, stationctl's): a page cache of at
+///     most kSqlitePageCacheKiB (PRAGMA cache_size = -512: 106 pages of 4 KiB with their headers).
+///     In the soak it is full by run 83, then SQLite's memory stays at 0.81 MB (0.46 MB of cache;
+///     before: 1.52 MB at run 200 and rising). The write path and a unit's recent history fit; a
+///     longer scan reads the rest from the OS page cache (db_history_bench, 100 000 runs: history
+///     of a serial 0.38-0.41 ms against 0.35-0.37 ms with 2000 KiB; params, show unchanged);
+///   * every connection: no memory-mapped I/O (PRAGMA mmap_size = 0; a build that defaults to mmap
+///     would map the database file into the daemon's resident set as the file grows);
+///   * stationd: a soft heap limit of kSqliteSoftHeapLimitBytes for all of SQLite in the process
+///     (limit_sqlite_process_memory()), a backstop over the daemon's connection and up to 4
+///     streamed exports, each with its own cache: past it SQLite recycles cache pages instead of
+///     allocating. No hard limit: at the hard limit SQLite fails with SQLITE_NOMEM, and a run's
+///     results would not be stored.
+inline constexpr int kSqlitePageCacheKiB = 512;
+inline constexpr long long kSqliteSoftHeapLimitBytes = 4LL << 20;
+
+/// Sets SQLite's process-wide soft heap limit (kSqliteSoftHeapLimitBytes). Call once, before the
+/// first connection opens (stationd's main).
+void limit_sqlite_process_memory();
+
 struct SqliteOptions {
   bool read_only = false;  ///< SQLITE_OPEN_READONLY; the file must exist and be at kSchemaVersion
   bool create = true;      ///< read-write: create the file if missing (else NotFound)

@@ -12,6 +12,7 @@
 #include <csignal>
 #include <iostream>
 
+#include "db/sqlite_repository.hpp"
 #include "station/config.hpp"
 #include "station/daemon.hpp"
 #include "station/logging.hpp"
@@ -24,6 +25,9 @@ int main(int argc, char** argv) {
   // the resident size crept up by tens of MB over a soak of 15 runs. Allocation is not on any hot
   // path here (measured: `imucal bench` unchanged with MALLOC_ARENA_MAX=1).
   mallopt(M_ARENA_MAX, 1);
+  // SQLite's heap bounded for the whole process, with the per-connection page cache: the one place
+  // for its limits and their measurement is db/sqlite_repository.hpp.
+  imucal::db::limit_sqlite_process_memory();
   using namespace imucal::station;
   CLI::App app{"stationd " IMUCAL_VERSION " — IMU calibration station daemon"};
   std::string config_path, log_level;
