@@ -1,20 +1,22 @@
 #!/usr/bin/env bash
 # The long soak (issue #22 item 4; figures in README, "Soak"): tests/e2e/station_soak_slow_test with
-# IMUCAL_SOAK_RUNS runs (default 1000: ~45 min at 400x, two cores) and one CSV row per run
+# IMUCAL_SOAK_RUNS runs (default 1000: ~45 min at 400x, two cores) over IMUCAL_SOAK_UNITS units
+# (default 50: a unit's whole history stays plant-sized, see the test) and one CSV row per run
 # (IMUCAL_SOAK_LOG), then a summary of the CSV: the daemon's RSS (first and last run, least-squares
 # slope over the second half, the test's own check), its open descriptors, the latency of the
 # `stationctl history` made right after each run and of the parallel querier's queries, the
 # database size and the wall time. A benchmark, not CI (CI runs the same test with 15 runs).
-# Usage: tools/bench_soak.sh [BUILD_DIR] [--runs N] [--csv FILE]
+# Usage: tools/bench_soak.sh [BUILD_DIR] [--runs N] [--units N] [--csv FILE]
 #   BUILD_DIR default build (needs BUILD_DIR/tests/e2e_station_soak_slow_test and its bin/);
 #   the CSV is kept (default var/soak/soak-<runs>-<date>.csv); run it under nice on a shared machine.
 #   With --summary-only FILE it only summarises an existing CSV.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BUILD=build RUNS=1000 CSV="" ONLY=""
+BUILD=build RUNS=1000 UNITS=50 CSV="" ONLY=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --runs) RUNS=$2; shift 2 ;;
+    --units) UNITS=$2; shift 2 ;;
     --csv) CSV=$2; shift 2 ;;
     --summary-only) ONLY=$2; shift 2 ;;
     -*) echo "bench_soak.sh: unknown option $1" >&2; exit 2 ;;
@@ -68,10 +70,10 @@ TEST=$(realpath "$BUILD")/tests/e2e_station_soak_slow_test
 [ -n "$CSV" ] || CSV=var/soak/soak-$RUNS-$(date +%F).csv
 mkdir -p "$(dirname "$CSV")"
 LOG=${CSV%.csv}.log
-echo "soak: $RUNS runs, CSV $CSV, test output $LOG ($(date '+%F %T'))"
+echo "soak: $RUNS runs over $UNITS units, CSV $CSV, test output $LOG ($(date '+%F %T'))"
 start=$(date +%s)
 set +e
-IMUCAL_SOAK_RUNS=$RUNS IMUCAL_SOAK_LOG=$CSV "$TEST" >"$LOG" 2>&1
+IMUCAL_SOAK_RUNS=$RUNS IMUCAL_SOAK_UNITS=$UNITS IMUCAL_SOAK_LOG=$CSV "$TEST" >"$LOG" 2>&1
 status=$?
 set -e
 end=$(date +%s)
