@@ -5,8 +5,9 @@
 #                              stationd/stationsim/stationctl are TSan builds too; every process
 #                              writes its reports under build-tsan/reports, and any report fails.
 #   tools/sanitizers.sh asan   the whole suite under ASan + UBSan (clang-16; -fno-sanitize-recover:
-#                              UB stops the test), the slow Monte Carlo sets at reduced counts, with
-#                              the bounded libFuzzer runs; every process's reports go to
+#                              UB stops the test) but the slow Monte Carlo sets (IMUCAL_ASAN_SLOW=1
+#                              adds them at reduced counts), with the bounded libFuzzer runs;
+#                              every process's reports go to
 #                              build-asan/reports, and any report fails. Not here: the QEMU guest
 #                              and the install sets (a kernel in an emulator, the Debian package's
 #                              own build trees: neither runs instrumented code).
@@ -97,12 +98,16 @@ case $mode in
       selection=(-R "^Fuzz\\.run\\.")
     else
       cmake --build $tree -j2
-      selection=(-LE "qemu|install")
-      # The slow Monte Carlo sets at reduced counts: what they check of memory and UB does not
-      # depend on how many seeds they draw.
-      export IMUCAL_MC_SEEDS=${IMUCAL_MC_SEEDS:-3} IMUCAL_MC_RUNS=${IMUCAL_MC_RUNS:-2} \
-        IMUCAL_VALIDATION_RUNS=${IMUCAL_VALIDATION_RUNS:-1} \
-        IMUCAL_CRASH_POINTS=${IMUCAL_CRASH_POINTS:-6} IMUCAL_SOAK_RUNS=${IMUCAL_SOAK_RUNS:-12}
+      selection=(-LE "slow|qemu|install")
+      # IMUCAL_ASAN_SLOW=1 adds the slow Monte Carlo sets at reduced counts (what they check of
+      # memory and UB does not depend on how many seeds they draw); not yet in CI: their time and
+      # memory bounds under ASan are unmeasured (issue #22 item 5, README).
+      if [ "${IMUCAL_ASAN_SLOW:-0}" = 1 ]; then
+        selection=(-LE "qemu|install")
+        export IMUCAL_MC_SEEDS=${IMUCAL_MC_SEEDS:-3} IMUCAL_MC_RUNS=${IMUCAL_MC_RUNS:-2} \
+          IMUCAL_VALIDATION_RUNS=${IMUCAL_VALIDATION_RUNS:-1} \
+          IMUCAL_CRASH_POINTS=${IMUCAL_CRASH_POINTS:-6} IMUCAL_SOAK_RUNS=${IMUCAL_SOAK_RUNS:-12}
+      fi
     fi
     [ "${IMUCAL_BUILD_ONLY:-0}" = 1 ] && exit 0
     # Every process (test programs and the stationd/stationsim/stationctl/imucal they start) logs

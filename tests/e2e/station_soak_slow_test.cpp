@@ -33,8 +33,23 @@
 
 #include "tests/e2e/station_harness.hpp"
 
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define IMUCAL_SOAK_UNDER_ASAN 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__)
+#define IMUCAL_SOAK_UNDER_ASAN 1
+#endif
+
 namespace imucal::e2e {
 namespace {
+
+#ifdef IMUCAL_SOAK_UNDER_ASAN
+constexpr bool kUnderAddressSanitizer = true;
+#else
+constexpr bool kUnderAddressSanitizer = false;
+#endif
 
 // The slope check (issue #22 item 4). The creep it must catch: SQLite's page cache following the
 // growing database, 10.6 kB a run over runs 101-200 before it was bounded
@@ -368,9 +383,16 @@ TEST(StationSoak, ConsecutiveRunsWithParallelQueriesAllPassWithFlatMemoryAndNoDe
                at_start.rss_kb, warm, last, 100.0 * (last - warm) / warm, half + 1, samples.size(),
                slope, slope_bound, samples[warm_from].fds, samples.back().fds,
                ms_since(t_start) / 1000.0);
-  EXPECT_LE(last, 1.10 * warm) << "the daemon's resident memory grew over the soak";
-  EXPECT_LE(slope, slope_bound) << "the daemon's resident memory creeps: " << slope
-                                << " kB per run over runs " << half + 1 << "-" << samples.size();
+  if (kUnderAddressSanitizer) {
+    // ASan's allocator keeps freed blocks in quarantine (256 MB) and never returns them at the
+    // daemon's trim: its resident size says nothing about the release build's (the RSS figures are
+    // printed above; the release suite and tools/bench_soak.sh judge them).
+    std::fprintf(stderr, "[soak] under AddressSanitizer: the RSS bounds are not judged\n");
+  } else {
+    EXPECT_LE(last, 1.10 * warm) << "the daemon's resident memory grew over the soak";
+    EXPECT_LE(slope, slope_bound) << "the daemon's resident memory creeps: " << slope
+                                  << " kB per run over runs " << half + 1 << "-" << samples.size();
+  }
   // Descriptors: after the warm-up every run ends with the same open set (idle, no client).
   EXPECT_LE(samples.back().fds, samples[warm_from].fds)
       << "descriptors leak: " << samples[warm_from].fds << " -> " << samples.back().fds;
