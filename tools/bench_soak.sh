@@ -42,10 +42,10 @@ summarise() {  # summarise CSV: the figures the README quotes
       slope = (sxx > 0) ? sxy / sxx : 0
       lo = rss[1]; hi = rss[1]; for (k = 1; k <= n; k++) { if (rss[k] < lo) lo = rss[k]; if (rss[k] > hi) hi = rss[k] }
       printf "runs: %d, %d PASS; %.1f s a run on average (start to verdict)\n", n, pass, run_s / n
-      printf "daemon RSS: run 1 %.1f MB, run %d %.1f MB (min %.1f, max %.1f MB); slope over runs %d-%d %+.2f kB/run\n", \
-        rss[1] / 1024, n, rss[n] / 1024, lo / 1024, hi / 1024, h + 1, n, slope
+      printf "daemon RSS: run 1 %d kB, run %d %d kB (min %d, max %d kB); slope over runs %d-%d %+.2f kB/run\n", \
+        rss[1], n, rss[n], lo, hi, h + 1, n, slope
       printf "daemon descriptors (idle, no client): min %d, max %d\n", fmin, fmax
-      printf "database: %.1f MB file + %.1f MB WAL after run %d\n", db / 1048576, wal / 1048576, n
+      printf "database: %.1f MiB file + %.1f MiB WAL after run %d\n", db / 1048576, wal / 1048576, n
       printf "parallel querier: %d queries; slowest history %.0f ms, slowest export %.0f ms\n", qn, qhmax, qemax
     }' "$csv"
   # Medians and p99 (nearest rank) of the per-run columns.
@@ -56,6 +56,7 @@ summarise() {  # summarise CSV: the figures the README quotes
   echo "history right after each run (through stationd, nothing beside it): $(pct 9)"
   echo "querier's history queries, per-run median: $(pct 11)"
   echo "querier's exports (csv/json, whole history), per-run median: $(pct 14)"
+  awk -F, 'NR > 1 && $3 != "PASS" {print "not PASS: run " $1 " (id " $2 "): " $3 ", RSS " $4 " kB after it"}' "$csv"
   head -2 "$csv" | tail -1 | cut -d, -f1-9 | sed 's/^/first row: /'
   tail -1 "$csv" | cut -d, -f1-9 | sed 's/^/last row:  /'
 }
