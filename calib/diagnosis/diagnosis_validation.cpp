@@ -165,6 +165,7 @@ void summarise(ValidationReport& rep) {
     }
   }
   rep.top1 = share(single_ok, rep.single_runs);
+  rep.null_alarms = null_alarm;
   rep.false_alarm = share(null_alarm, rep.null_count);
   rep.pair_both = share(pair_ok, rep.pair_count);
   rep.triple_all = share(triple_ok, rep.triple_count);

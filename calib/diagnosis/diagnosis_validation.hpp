@@ -73,6 +73,7 @@ struct ValidationReport {
   /// injected is named ahead of an injected effect.
   int multi_noise_ahead = 0;
   int single_runs = 0, null_count = 0, pair_count = 0, triple_count = 0;
+  int null_alarms = 0;  ///< null runs counted in false_alarm
 };
 
 /// `world` draws the runs (its unit's declared noise with them), `geometry` is its table's, `base`

@@ -55,13 +55,9 @@ void print_confusion(const calib::ValidationReport& r) {
   std::printf(")\n");
 }
 
-int null_alarms(const calib::ValidationReport& r) {
-  return static_cast<int>(std::lround(r.false_alarm * r.null_count));
-}
-
 nlohmann::json null_interval_json(const calib::ValidationReport& r) {
   if (r.null_count == 0) return nullptr;
-  const calib::RateInterval ci = calib::clopper_pearson(null_alarms(r), r.null_count);
+  const calib::RateInterval ci = calib::clopper_pearson(r.null_alarms, r.null_count);
   return nlohmann::json::array({ci.lower, ci.upper});
 }
 
@@ -210,10 +206,10 @@ void print_human(const calib::ValidationReport& r, double false_alarm_bar, doubl
     std::printf("%s not validated: detectable only beyond 0.7x its plausible size\n", name.c_str());
   print_confusion(r);
   std::printf("\ntop-1 accuracy      %5.1f %%  (bar >= %.0f %%)\n", 100 * r.top1, 100 * kTop1);
-  std::printf("false alarms (null) %5.2f %%  (%d of %d", 100 * r.false_alarm, null_alarms(r),
+  std::printf("false alarms (null) %5.2f %%  (%d of %d", 100 * r.false_alarm, r.null_alarms,
               r.null_count);
   if (r.null_count) {
-    const calib::RateInterval ci = calib::clopper_pearson(null_alarms(r), r.null_count);
+    const calib::RateInterval ci = calib::clopper_pearson(r.null_alarms, r.null_count);
     std::printf("; 95 %% interval %.2f-%.2f %%", 100 * ci.lower, 100 * ci.upper);
   }
   std::printf("; bar <= %.0f %%)\n", 100 * false_alarm_bar);
