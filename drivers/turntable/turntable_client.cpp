@@ -284,10 +284,18 @@ void TurntableClient::flush_quiet() {
   }
 }
 
+// A request that timed out may still be answered, late, while a retry waits for its own reply:
+// libmodbus refuses that reply (its transaction id is the earlier one's, "Invalid data"). Such a
+// reply is evidence of a slow peer, not of a bad one, so it does not spend one of the request's
+// attempts; each timed-out request owes at most one late reply, which caps these free retries at
+// the timeouts seen in this transaction (issue #22: under load the soak lost a run to a status
+// read that timed out twice and then read the first attempt's reply).
 template <class Op>
 int TurntableClient::transact(const char* what, Op op) {
   ErrorKind last = ErrorKind::kTimeout;
   std::string last_text;
+  int timeouts_here = 0;     // requests of this transaction that timed out
+  int late_replies_met = 0;  // bad replies taken for their late answers
   for (int attempt = 1; attempt <= cfg_.max_attempts; ++attempt) {
     if (!ctx_) open_with_backoff(true, "link closed");
     ++n_.requests;
@@ -298,6 +306,7 @@ int TurntableClient::transact(const char* what, Op op) {
     last_text = modbus_strerror(e);
     if (e == ETIMEDOUT) {
       ++n_.timeouts;
+      ++timeouts_here;
       last = ErrorKind::kTimeout;
       log().warn("turntable {}: {} timed out (attempt {}/{})", cfg_.endpoint.to_string(), what,
                  attempt, cfg_.max_attempts);
@@ -309,9 +318,16 @@ int TurntableClient::transact(const char* what, Op op) {
     } else if (e >= EMBBADCRC && e <= EMBBADSLAVE) {
       ++n_.bad_responses;
       last = ErrorKind::kBadResponse;
-      log().warn("turntable {}: {}: bad reply ({}), flushing (attempt {}/{})",
-                 cfg_.endpoint.to_string(), what, last_text, attempt, cfg_.max_attempts);
+      const bool late_reply = late_replies_met < timeouts_here;
+      log().warn("turntable {}: {}: bad reply ({}{}), flushing (attempt {}/{})",
+                 cfg_.endpoint.to_string(), what, last_text,
+                 late_reply ? ", taken for a timed-out attempt's late reply" : "", attempt,
+                 cfg_.max_attempts);
       flush_quiet();
+      if (late_reply) {
+        ++late_replies_met;
+        --attempt;  // the retry answers for this attempt, not a new one
+      }
     } else {
       ++n_.link_errors;
       last = ErrorKind::kLink;

@@ -340,6 +340,26 @@ TEST(TurntableClient, ALateReplyIsFlushedNotTakenForTheRetrysAnswer) {
   EXPECT_EQ(c.counters().timeouts - before.timeouts, 1u);
 }
 
+// Issue #22: under load a status read timed out twice and its third attempt then read the first
+// attempt's late reply; that spent the last attempt and aborted a soak run. A late reply is owed by
+// a timed-out attempt, so it does not cost an attempt of its own: with 100 ms x 3 attempts, a reply
+// held back 250 ms lands inside the third attempt, and the read still succeeds.
+TEST(TurntableClient, ALateReplyAfterTwoTimeoutsDoesNotSpendTheLastAttempt) {
+  Station st;
+  TurntableClient c(retrying_config(st));
+  make_ready(c);
+  const auto before = c.counters();
+  st.server.delay_replies(250ms, 1);
+  turntable::TableStatus s;
+  ASSERT_NO_THROW(s = c.status());
+  EXPECT_NEAR(s.outer_deg, st.plc_outer(), 1e-4);
+  EXPECT_EQ(c.counters().timeouts - before.timeouts, 2u);
+  EXPECT_GE(c.counters().bad_responses - before.bad_responses, 1u);
+  EXPECT_NE(c.state(), turntable::State::kDisconnected);  // no reconnect was needed
+  for (int i = 0; i < 5; ++i) EXPECT_NO_THROW(c.status());
+  EXPECT_EQ(c.counters().timeouts - before.timeouts, 2u);
+}
+
 TEST(TurntableClient, SeveralClientsAtOnce) {
   Station st;
   TurntableClient commander(st.client_config());
