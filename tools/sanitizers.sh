@@ -14,7 +14,7 @@
 #   tools/sanitizers.sh fuzz   only the libFuzzer targets (tree build-fuzz, the calibration core
 #                              linked from build/): 30 s of fuzzing each, which starts with their
 #                              seed corpus and regression inputs.
-# tools/test.sh runs tsan and asan (fuzz instead of asan with IMUCAL_SKIP_ASAN=1; README,
+# tools/test.sh runs tsan and fuzz always, asan instead of fuzz with IMUCAL_ASAN=1 (README,
 # "A verdict QA can trust", for the times). ccache makes repeated runs cheap.
 # IMUCAL_SANITIZER_TREE=DIR uses another build tree; IMUCAL_BUILD_ONLY=1 stops after the build.
 set -euo pipefail
