@@ -5,8 +5,8 @@
 #                              stationd/stationsim/stationctl are TSan builds too; every process
 #                              writes its reports under build-tsan/reports, and any report fails.
 #   tools/sanitizers.sh asan   the whole suite under ASan + UBSan (clang-16; -fno-sanitize-recover:
-#                              UB stops the test), the slow Monte Carlo sets at reduced counts
-#                              (IMUCAL_ASAN_SLOW=0 leaves them out), with the bounded libFuzzer runs;
+#                              UB stops the test) but the slow Monte Carlo sets (IMUCAL_ASAN_SLOW=1
+#                              adds them at reduced counts), with the bounded libFuzzer runs;
 #                              every process's reports go to
 #                              build-asan/reports, and any report fails. Not here: the QEMU guest
 #                              and the install sets (a kernel in an emulator, the Debian package's
@@ -98,12 +98,13 @@ case $mode in
       selection=(-R "^Fuzz\\.run\\.")
     else
       cmake --build $tree -j2
-      # The slow Monte Carlo sets at reduced counts (what they check of memory and UB does not
-      # depend on how many seeds they draw). IMUCAL_ASAN_SLOW=0 leaves them out.
-      selection=(-LE "qemu|install")
-      if [ "${IMUCAL_ASAN_SLOW:-1}" = 0 ]; then
-        selection=(-LE "slow|qemu|install")
-      else
+      # IMUCAL_ASAN_SLOW=1 adds the slow Monte Carlo sets at reduced counts. Not by default: at
+      # those counts their statistical bounds are not valid (AinsFieldMonteCarlo's RMS(error/sigma)
+      # >= 0.7 over 2 runs failed, 2026-11-27), and they take minutes each under ASan (issue #22
+      # item 5, README).
+      selection=(-LE "slow|qemu|install")
+      if [ "${IMUCAL_ASAN_SLOW:-0}" = 1 ]; then
+        selection=(-LE "qemu|install")
         export IMUCAL_MC_SEEDS=${IMUCAL_MC_SEEDS:-3} IMUCAL_MC_RUNS=${IMUCAL_MC_RUNS:-2} \
           IMUCAL_VALIDATION_RUNS=${IMUCAL_VALIDATION_RUNS:-1} \
           IMUCAL_GAP_NULL_SEEDS=${IMUCAL_GAP_NULL_SEEDS:-6} \
