@@ -88,10 +88,10 @@ struct LsqOutcome {
 /// FieldCli.LegacyConvergesOnALandRunThatStoppedWithinItsNoiseOfTheMinimum).
 constexpr double kStationaryChi2 = 1e-6;
 
-/// `noise_weighted`: the model's residuals are in units of their noise (the stationary test above
-/// applies); otherwise only the relative tests do.
+/// A model whose residuals are in units of their noise says so (`kNoiseWeighted`): the stationary
+/// test above applies to it; to the others only the relative tests do.
 template <typename Model>
-LsqOutcome gauss_newton(Model& model, VectorXd& x, int max_iter = 50, bool noise_weighted = false) {
+LsqOutcome gauss_newton(Model& model, VectorXd& x, int max_iter = 50) {
   LsqOutcome o;
   double lambda = 1e-9;
   VectorXd r;
@@ -107,7 +107,7 @@ LsqOutcome gauss_newton(Model& model, VectorXd& x, int max_iter = 50, bool noise
     // At a stationary point the undamped step predicts no decrease worth having: converged,
     // even when rounding makes the (tiny) step look uphill and it would be rejected below.
     const VectorXd dx_gn = -JtJ.ldlt().solve(g);
-    const double stationary = std::max(1e-10 * rss, noise_weighted ? kStationaryChi2 : 0.0);
+    const double stationary = std::max(1e-10 * rss, Model::kNoiseWeighted ? kStationaryChi2 : 0.0);
     if (dx_gn.allFinite() && -g.dot(dx_gn) <= stationary) {
       o.converged = true;
       break;
@@ -183,6 +183,7 @@ Eigen::Matrix<double, 12, 9> to_params_jacobian(const Matrix3d& T) {
 
 /// Step 2 alone (starting values): bias and triangular T with |T (f_p - b)| = g in every rest.
 struct AccelModel {
+  static constexpr bool kNoiseWeighted = false;  ///< start values only, in m/s²
   const std::vector<Rest>& rests;
   double g;
   void evaluate(const VectorXd& x, VectorXd& r, MatrixXd& J) const {
@@ -246,6 +247,7 @@ struct NoiseWeights {
 
 /// Step 3: gyro bias and the heading of every rest (Earth rate's horizontal direction).
 struct GyroBiasModel {
+  static constexpr bool kNoiseWeighted = true;
   const std::vector<Rest>& rests;
   const std::vector<Vector3d>& down;  ///< compensated down direction per rest (body)
   const std::vector<double>& sigma_w;  ///< noise of each rest's mean rate, rad/s
@@ -294,6 +296,7 @@ struct GyroBiasModel {
 /// alone leave the accelerometer non-orthogonality unobserved (it enters squared); the moves tie
 /// the triad's axes to the gyros' angles. Residuals are weighted by their noise (σ_f, σ_d).
 struct JointModel {
+  static constexpr bool kNoiseWeighted = true;
   const CalibrationInput& in;
   const std::vector<Rest>& rests;
   const std::vector<Vector3d>& earth_rate_b;  ///< per rest, body frame
@@ -440,12 +443,12 @@ LegacyFit fit_alternating(const CalibrationInput& in, const std::vector<Rest>& r
       xb(static_cast<Eigen::Index>(3 + p)) =
           std::atan2(w.dot(bm.basis[p].second), w.dot(bm.basis[p].first));
     }
-    f.bias = gauss_newton(bm, xb, 50, true);
+    f.bias = gauss_newton(bm, xb);
     f.bg = xb.head<3>();
     for (size_t p = 0; p < rests.size(); ++p)
       earth_b[p] = bm.earth_rate(p, xb(static_cast<Eigen::Index>(3 + p)));
     JointModel jm{in, rests, earth_b, f.bg, g, w};
-    f.joint = gauss_newton(jm, f.x, 30, true);
+    f.joint = gauss_newton(jm, f.x, 30);
     Mg = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(f.x.data() + 9);
     f.rounds = round + 1;
     VectorXd r;

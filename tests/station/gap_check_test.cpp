@@ -15,6 +15,7 @@
 #include "calib/nlsq/nlsq.hpp"
 #include "db/archive/run_archive.hpp"
 #include "station/config.hpp"
+#include "tests/support/data_archive.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace imucal::station {
@@ -22,10 +23,7 @@ namespace {
 
 /// The archive of tests/data/soak-null-run.tar.xz, unpacked into `dir`.
 std::string unpack_soak_run(const test_support::ScopedTempDir& dir) {
-  const std::string cmd = std::string("tar -xJf '") + IMUCAL_SOURCE_DIR +
-                          "/tests/data/soak-null-run.tar.xz' -C '" + dir.path() + "'";
-  if (std::system(cmd.c_str()) != 0) throw std::runtime_error("cannot unpack: " + cmd);
-  return dir.sub("soak-null-run");
+  return test_support::unpack_data_archive("soak-null-run", dir.path());
 }
 
 GapCheck check_at(const std::string& run_dir, double false_alarm_per_run) {

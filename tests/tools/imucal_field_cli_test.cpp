@@ -4,7 +4,6 @@
 // setting): one line naming the file and the problem, a non-zero exit, nothing written.
 #include <gtest/gtest.h>
 
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -12,6 +11,7 @@
 #include <sstream>
 #include <string>
 
+#include "tests/support/data_archive.hpp"
 #include "tests/support/imucal_cli.hpp"
 #include "tests/support/temp_dir.hpp"
 
@@ -96,11 +96,9 @@ TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
 // with every damped step uphill: "did not converge" after 12 rounds, in any build. A noise-
 // weighted fit that close is stationary (calib/legacy/legacy.cpp, kStationaryChi2).
 TEST_F(FieldCli, LegacyConvergesOnALandRunThatStoppedWithinItsNoiseOfTheMinimum) {
-  const std::string unpack = std::string("tar -xJf '") + IMUCAL_SOURCE_DIR +
-                             "/tests/data/land-legacy-stall.tar.xz' -C '" + root().string() + "'";
-  ASSERT_EQ(std::system(unpack.c_str()), 0) << unpack;
-  const Proc p = run(
-      "calibrate " + (root() / "land-legacy-stall").string() + " --method legacy --json", false);
+  const std::string run_dir =
+      imucal::test_support::unpack_data_archive("land-legacy-stall", root().string());
+  const Proc p = run("calibrate " + run_dir + " --method legacy --json", false);
   ASSERT_EQ(p.code, 0) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   EXPECT_TRUE(j["legacy"]["converged"].get<bool>()) << j["legacy"].dump();
