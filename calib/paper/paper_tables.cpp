@@ -1,8 +1,10 @@
 #include "calib/paper/paper_tables.hpp"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <exception>
 #include <mutex>
 #include <random>
@@ -12,6 +14,7 @@
 #include "calib/ains/ains.hpp"
 #include "calib/core/calibration_input.hpp"
 #include "calib/core/conventions.hpp"
+#include "calib/core/rotation.hpp"
 #include "calib/legacy/legacy.hpp"
 #include "calib/nlsq/nlsq.hpp"
 #include "calib/sim/field_sim.hpp"
@@ -116,22 +119,94 @@ UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects) {
   return m;
 }
 
+bool PaperSetupErrors::any() const {
+  return uncalibrated_gyro_bias_radps != 0.0 || table_position_error_rad != 0.0 ||
+         fixture_heading_rad != 0.0 || fixture_flex_rad_per_g != 0.0;
+}
+
 namespace {
+
+/// One catalogue effect at `scale` × its typical size onto fx (PaperEffectSize).
+void add_catalogue_effect(Effects& fx, const PaperEffectSize& e, std::mt19937_64& rng) {
+  if (!std::isfinite(e.scale) || e.scale < 0.0)
+    throw std::invalid_argument("paper tables: the scale of " + effect_info(e.id).name +
+                                " must be finite and >= 0");
+  const EffectInfo& info = effect_info(e.id);
+  std::normal_distribution<double> n01;
+  Eigen::VectorXd v = effect_vector(fx, e.id);
+  for (int i = 0; i < info.size(); ++i) {
+    const auto k = static_cast<size_t>(i);
+    if (info.params[k].shape) {
+      v(i) = info.typical[k];
+    } else {
+      const double draw = info.kind == EffectKind::kSensor ? n01(rng) : 1.0;
+      v(i) += info.typical[k] * e.scale * draw;
+    }
+  }
+  set_effect_vector(fx, e.id, v);
+}
+
+}  // namespace
+
+UnitModel paper_unit(int unit, const PaperTablesOptions& options) {
+  UnitModel m = paper_unit(unit, options.seed, options.effects);
+  // A stream of its own, so that the unit's parameters and noise stay those of paper_unit.
+  std::mt19937_64 rng(options.seed * 2000003ULL + static_cast<uint64_t>(unit) * 104729ULL);
+  std::normal_distribution<double> n01;
+  if (options.setup.uncalibrated_gyro_bias_radps > 0.0)
+    for (int i = 0; i < 3; ++i)
+      m.params.gyro_bias_radps(i) = options.setup.uncalibrated_gyro_bias_radps * n01(rng);
+  for (const PaperEffectSize& e : options.catalogue) add_catalogue_effect(m.effects, e, rng);
+  return m;
+}
+
+namespace {
+
+/// The table's log as the set-up's errors make it (PaperSetupErrors): each rest position's
+/// attitude off by a fresh small rotation and by the fixture's flex under gravity there, and all
+/// of it by the fixture's constant heading. Body
+/// side: the log says where the platform is, the unit sits on it.
+void perturb_reference(CalibrationInput& in, const PaperSetupErrors& setup, std::mt19937_64& rng) {
+  if (setup.table_position_error_rad == 0.0 && setup.fixture_heading_rad == 0.0 &&
+      setup.fixture_flex_rad_per_g == 0.0)
+    return;
+  std::normal_distribution<double> n01;
+  const Eigen::Matrix3d C_fixture =
+      Eigen::AngleAxisd(setup.fixture_heading_rad * n01(rng), Eigen::Vector3d::UnitZ())
+          .toRotationMatrix();
+  Eigen::Matrix3d F_flex;
+  for (int i = 0; i < 9; ++i) F_flex(i / 3, i % 3) = setup.fixture_flex_rad_per_g * n01(rng);
+  Eigen::Matrix3d C_position = Eigen::Matrix3d::Identity();
+  bool was_at_rest = false;
+  for (ReferenceSample& r : in.reference) {
+    if (r.at_rest && !was_at_rest) {
+      const Eigen::Vector3d error_rad(n01(rng), n01(rng), n01(rng));
+      // Gravity's direction in the body frame: the NED down axis seen from the body.
+      const Eigen::Vector3d down_b = r.C_bn_ref.transpose() * Eigen::Vector3d::UnitZ();
+      C_position =
+          rotvec_to_matrix<double>(setup.table_position_error_rad * error_rad + F_flex * down_b);
+    }
+    was_at_rest = r.at_rest;
+    r.C_bn_ref = r.C_bn_ref * C_fixture * (r.at_rest ? C_position : Eigen::Matrix3d::Identity());
+  }
+}
 
 /// One unit through the three settings and five calibrations, each judged on the table run.
 PaperUnitResult run_unit(int unit, const sequences::MotionProfile& profile, const Site& site,
                          const PaperTablesOptions& opt) {
   PaperUnitResult out;
   out.unit = unit;
-  out.model = paper_unit(unit, opt.seed, opt.effects);
+  out.model = paper_unit(unit, opt);
   const uint64_t seed = opt.seed * 1000 + static_cast<uint64_t>(unit);
 
   SimOptions so;
   so.rate_hz = opt.rate_hz;
   so.seed = seed;
   const SimResult table_run = simulate(profile, TableGeometry{}, site, out.model, so);
-  const CalibrationInput factory =
+  CalibrationInput factory =
       input_from_simulation(table_run, TableGeometry{}, site, out.model.noise);
+  std::mt19937_64 setup_rng(seed * 7919ULL + 17ULL);
+  perturb_reference(factory, opt.setup, setup_rng);
 
   FieldSimOptions fo;
   fo.rate_hz = opt.rate_hz;
@@ -141,7 +216,14 @@ PaperUnitResult run_unit(int unit, const sequences::MotionProfile& profile, cons
   Site field_site = site;
   field_site.gravity_mps2.reset();
   UnitModel field_unit = out.model;
-  field_unit.params.table_misalignment_rad.setZero();  // no table
+  field_unit.params.table_misalignment_rad.setZero();  // no table, and none of its effects
+  for (const EffectInfo& info : effect_catalogue()) {
+    if (info.kind != EffectKind::kTable) continue;
+    Eigen::VectorXd v = effect_vector(field_unit.effects, info.id);
+    for (int i = 0; i < info.size(); ++i)
+      if (!info.params[static_cast<size_t>(i)].shape) v(i) = 0.0;
+    set_effect_vector(field_unit.effects, info.id, v);
+  }
   const FieldSimResult land_run = simulate_field(profile, field_site, field_unit, fo);
   fo.setting = Setting::kSea;
   fo.seed = seed + 202;
@@ -160,7 +242,10 @@ PaperUnitResult run_unit(int unit, const sequences::MotionProfile& profile, cons
   for (int c = 0; c < kNumPaperColumns; ++c) {
     ParamSet p = cal[static_cast<size_t>(c)].params;
     if (!cal[static_cast<size_t>(c)].observable[24]) p.table_misalignment_rad = station_sigma;
+    // §VI: the gyro biases left in the data (estimated here, but no evaluated set carries them).
+    if (opt.setup.uncalibrated_gyro_bias_radps > 0.0) p.gyro_bias_radps.setZero();
     out.params[static_cast<size_t>(c)] = p;
+    out.sigma[static_cast<size_t>(c)] = cal[static_cast<size_t>(c)].sigma;
     out.converged[static_cast<size_t>(c)] = cal[static_cast<size_t>(c)].converged;
     out.metrics[static_cast<size_t>(c)] = evaluate(factory, p);
   }

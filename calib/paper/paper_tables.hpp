@@ -16,6 +16,7 @@
 
 #include "calib/checks/evaluation.hpp"
 #include "calib/core/param_set.hpp"
+#include "calib/effects/catalogue.hpp"
 #include "calib/sim/truth_sim.hpp"
 #include "sequences/motion_profile.hpp"
 
@@ -42,12 +43,44 @@ struct PaperEffects {
 /// combination with commas). Throws std::invalid_argument naming the unknown word.
 PaperEffects parse_paper_effects(const std::string& text);
 
+/// Error sources of the paper's own set-up and evaluation (§I, §VI–VII) rather than of the unit's
+/// model, for the gap budget (calib/paper/gap_budget.hpp). 0 = off (every field).
+struct PaperSetupErrors {
+  /// §VI: "Gyroscope biases are not calibrated ... due to small biases": each unit's gyro biases
+  /// are drawn with this 1σ per axis (instead of the default unit's 0.01 °/h) and every evaluated
+  /// parameter set leaves them uncompensated. A deficiency of the calibration model.
+  double uncalibrated_gyro_bias_radps = 0.0;
+  /// §I: the table orients to ≈ 0.001°: each rest position's logged attitude is off from the true
+  /// one by a fresh draw (1σ per axis), in the factory calibration's reference and the
+  /// evaluation's.
+  double table_position_error_rad = 0.0;
+  /// §VII: the fixture's small unknown heading misalignment: a constant rotation about the
+  /// platform's down axis between the logged and the true attitude (1σ per unit).
+  double fixture_heading_rad = 0.0;
+  /// §VII / issue #26: the fixture flexes under the unit's weight — at rest the unit sits off the
+  /// logged attitude by F g_b, g_b the unit vector of gravity in the body frame and F a 3×3
+  /// compliance of the unit's mounting drawn per unit (1σ per entry, rad per g).
+  double fixture_flex_rad_per_g = 0.0;
+  bool any() const;
+};
+
+/// A catalogue effect (calib/effects/catalogue.hpp) at `scale` times its typical size: sensor
+/// effects drawn per unit (each amplitude parameter typical × scale × N(0,1)), stochastic ones at
+/// typical × scale, table and site effects — properties of the station — at typical × scale for
+/// every unit.
+struct PaperEffectSize {
+  EffectId id;
+  double scale = 1.0;
+};
+
 struct PaperTablesOptions {
   int units = 6;
   uint64_t seed = 1;
   double rate_hz = 100.0;
-  int threads = 2;       ///< units run in parallel
-  PaperEffects effects;  ///< unmodelled effects every unit carries (paper_unit)
+  int threads = 2;                         ///< units run in parallel
+  PaperEffects effects;                    ///< unmodelled effects every unit carries (paper_unit)
+  PaperSetupErrors setup;                  ///< the set-up's and evaluation's error sources
+  std::vector<PaperEffectSize> catalogue;  ///< further catalogue effects on every unit
   /// Called after each finished unit with (done, total); from worker threads, serialised.
   std::function<void(int, int)> on_progress;
 };
@@ -56,7 +89,8 @@ struct PaperUnitResult {
   int unit = 0;  ///< 1-based, the tables' "IMU#"
   UnitModel model;
   std::array<EvaluationMetrics, kNumPaperColumns> metrics;
-  std::array<ParamSet, kNumPaperColumns> params;
+  std::array<ParamSet, kNumPaperColumns> params;  ///< as evaluated
+  std::array<ParamSet, kNumPaperColumns> sigma;   ///< the method's 1σ of each parameter
   std::array<bool, kNumPaperColumns> converged{};
 };
 
@@ -77,6 +111,11 @@ struct PaperTables {
 /// warm-up (20 µg, 0.005 °/h, τ 900 s), bias instability (10 µg, 0.001 °/h, τ 1000 s) and a
 /// quadratic accelerometer error (20 µg/g²), 1σ draws — those that `effects` selects.
 UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects = PaperEffects::typical());
+
+/// paper_unit with the options' set-up gyro biases and catalogue effects on top, drawn from a
+/// stream of their own (the unit's other draws are those of paper_unit). Throws
+/// std::invalid_argument for a negative or non-finite scale.
+UnitModel paper_unit(int unit, const PaperTablesOptions& options);
 
 /// Throws std::invalid_argument for units < 1 or threads < 1, and whatever a method throws.
 PaperTables run_paper_tables(const sequences::MotionProfile& profile, const Site& site,

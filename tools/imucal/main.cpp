@@ -43,6 +43,7 @@
 #include "tools/imucal/detectability_cmd.hpp"
 #include "tools/imucal/diagnose_cmd.hpp"
 #include "tools/imucal/effects_cmd.hpp"
+#include "tools/imucal/gap_budget_cmd.hpp"
 #include "tools/imucal/import_cmd.hpp"
 #include "tools/imucal/paper_tables_cmd.hpp"
 #include "tools/imucal/plot.hpp"
@@ -438,8 +439,9 @@ struct Commands {
   tools::DiagnoseArgs diag;
   tools::ValidateArgs val;
   tools::PaperTablesArgs paper;
+  tools::GapBudgetArgs budget;
   tools::ImportArgs import;
-  CLI::App* im = nullptr;
+  CLI::App *im = nullptr, *gb = nullptr;
   CLI::App *sim = nullptr, *cal = nullptr, *ev = nullptr, *cr = nullptr, *be = nullptr,
            *dg = nullptr, *ef = nullptr, *vd = nullptr, *pt = nullptr;
 };
@@ -568,6 +570,7 @@ int dispatch(const Commands& c) {
   if (*c.dg) return tools::cmd_diagnose(c.diag);
   if (*c.vd) return tools::cmd_validate(c.val);
   if (*c.pt) return tools::cmd_paper_tables(c.paper);
+  if (*c.gb) return tools::cmd_gap_budget(c.budget);
   if (*c.ef) return tools::cmd_effects(c.effects_json);
   return 0;
 }
@@ -588,6 +591,7 @@ int main(int argc, char** argv) {
   c.ef->add_flag("--json", c.effects_json, "print one JSON array");
   c.vd = tools::add_validate_command(app, c.val);
   c.pt = tools::add_paper_tables_command(app, c.paper);
+  c.gb = tools::add_gap_budget_command(app, c.budget);
   c.im = tools::add_import_command(app, c.import);
 
   const bool json_errors = wants_json(argc, argv);

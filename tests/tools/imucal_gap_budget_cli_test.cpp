@@ -1,0 +1,70 @@
+// `imucal gap-budget --against paper` (issue #26) as a user runs it: the budget as one JSON object
+// with every source's size, interval, prior, shares and where to fix it, the simulated means
+// beside the paper's, a progress line on stderr; an unknown source or target refused by name.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "tests/support/imucal_cli.hpp"
+
+namespace imucal {
+namespace {
+
+using test_support::run_imucal;
+
+TEST(GapBudgetCli, PrintsTheBudgetWithEverySourcesSizeShareAndWhereToFixIt) {
+  const auto r = run_imucal(
+      "gap-budget --units 2 --sequence short --replicates 2 "
+      "--candidates accel_quadratic_k2,fixture_heading --json",
+      false);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["entries"].size(), 2u);
+  for (const auto& e : j["entries"]) {
+    for (const char* key : {"size", "size_lo", "size_hi", "prior", "prior_source", "share_add_one",
+                            "share_leave_one_out", "calibration_shift_sigma", "measurable"})
+      EXPECT_TRUE(e.contains(key)) << key;
+    EXPECT_LE(e["size_lo"].get<double>(), e["size"].get<double>());
+    EXPECT_GE(e["size_hi"].get<double>(), e["size"].get<double>());
+    EXPECT_GE(e["size"].get<double>(), e["prior"][0].get<double>());
+    EXPECT_LE(e["size"].get<double>(), e["prior"][1].get<double>());
+  }
+  // K2 raises the acceleration metric; a constant fixture heading moves no metric (§VII's γ_np).
+  EXPECT_EQ(j["entries"][0]["name"], "accel_quadratic_k2");
+  EXPECT_TRUE(j["entries"][0]["measurable"].get<bool>());
+  EXPECT_FALSE(j["entries"][1]["measurable"].get<bool>());
+  EXPECT_EQ(j["entries"][1]["share_add_one"].get<double>(), 0.0);
+  for (const char* column :
+       {"factory AINS", "factory NLSQ", "factory legacy", "land AINS", "sea AINS"}) {
+    const auto& c = j["columns"][column];
+    EXPECT_GT(c["accel_rmse_ug"]["paper_mean"].get<double>(), 20.0) << column;
+    EXPECT_GT(c["accel_rmse_ug"]["simulated_mean"].get<double>(), 0.0) << column;
+    EXPECT_GT(c["orientation_rmse_mdeg"]["baseline_rms"].get<double>(), 0.0) << column;
+  }
+  // baseline, two probes, re-probes of what the fit kept, two replicates, then the two checks
+  EXPECT_GE(j["simulations"].get<int>(), 7);
+}
+
+TEST(GapBudgetCli, AnUnknownSourceOrTargetIsRefusedByName) {
+  const auto bad = run_imucal("gap-budget --units 1 --candidates accel_quadratic_k2,bogus");
+  EXPECT_EQ(bad.code, 1) << bad.out;
+  EXPECT_NE(bad.out.find("unknown candidate 'bogus'"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("fixture_heading"), std::string::npos) << "lists the known ones";
+  const auto target = run_imucal("gap-budget --against nature");
+  EXPECT_EQ(target.code, 2) << target.out;
+  EXPECT_NE(target.out.find("nature"), std::string::npos) << target.out;
+}
+
+TEST(GapBudgetCli, ShowsItsProgressOnStderr) {
+  // stderr alone (the JSON-free report goes to /dev/null).
+  const auto r = test_support::run_command(
+      std::string(IMUCAL_BIN_DIR) +
+      "/imucal gap-budget --units 1 --sequence short --replicates 0 --candidates fixture_heading "
+      "2>&1 >/dev/null");
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("gap-budget: 1/"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("simulations"), std::string::npos) << r.out;
+}
+
+}  // namespace
+}  // namespace imucal

@@ -1,0 +1,24 @@
+#pragma once
+// `imucal gap-budget --against paper` (issue #26): which error sources, at which sizes, turn the
+// simulated Tables I–IV into the paper's (calib/paper/gap_budget.hpp for the method).
+#include <CLI/CLI.hpp>
+#include <cstdint>
+#include <string>
+
+namespace imucal::tools {
+
+struct GapBudgetArgs {
+  std::string against = "paper";
+  int units = 6;
+  int threads = 0;  ///< 0: hardware concurrency
+  uint64_t seed = 1;
+  std::string sequence = "factory-std";
+  std::string candidates;  ///< comma-separated names; empty: every default candidate
+  int replicates = 10;
+  bool json = false;
+};
+
+CLI::App* add_gap_budget_command(CLI::App& app, GapBudgetArgs& args);
+int cmd_gap_budget(const GapBudgetArgs& args);
+
+}  // namespace imucal::tools
