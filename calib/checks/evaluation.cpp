@@ -185,6 +185,7 @@ struct EvalRun {
     zopt.zupt_sigma_mps = o.zupt_sigma_mps;
     zopt.depth_sigma_m = o.depth_sigma_m;
     zopt.tilt_sigma_after_motion_rad = o.relevel_tilt_sigma_rad;
+    zopt.heading_sigma_after_motion_rad = o.reopen_heading_sigma_rad;
   }
   Eigen::Vector3d dtheta(size_t k) const {
     return model.dtheta(in.imu[k].dtheta_rad, in.imu[k].dt_s);

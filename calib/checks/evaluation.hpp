@@ -35,6 +35,11 @@ struct EvaluationOptions {
   /// re-levels in about a second and the metrics measure the levelled state, not the filter's
   /// tuning (0 = trust the INS tilt after motion as much as its noise model says).
   double relevel_tilt_sigma_rad = 1e-3;
+  /// Heading uncertainty reopened at the same moment (0, the default: heading is held by the
+  /// gyros between rests, so the metric measures the gyro calibration). Non-zero, the INS re-finds
+  /// its heading at every rest by gyrocompassing — how the paper's own ZUPT-aided INS may have
+  /// behaved (§VII does not say); the gap budget's `evaluation_heading_reopen` (issue #26).
+  double reopen_heading_sigma_rad = 0.0;
 };
 
 struct RestPeriodMetric {

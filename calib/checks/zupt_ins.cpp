@@ -34,6 +34,10 @@ ZuptIns::ZuptIns(const EarthModel& earth, const NoiseModel& noise, const ZuptIns
   if (!(std::isfinite(opt_.tilt_sigma_after_motion_rad) && opt_.tilt_sigma_after_motion_rad >= 0.0))
     throw std::invalid_argument(
         "ZuptIns: tilt_sigma_after_motion_rad must be non-negative and finite");
+  if (!(std::isfinite(opt_.heading_sigma_after_motion_rad) &&
+        opt_.heading_sigma_after_motion_rad >= 0.0))
+    throw std::invalid_argument(
+        "ZuptIns: heading_sigma_after_motion_rad must be non-negative and finite");
   require_non_negative(noise.arw_rad_per_sqrt_s, "arw_rad_per_sqrt_s");
   require_non_negative(noise.vrw_mps_per_sqrt_s, "vrw_mps_per_sqrt_s");
   require_non_negative(noise.gyro_bias_instability_radps, "gyro_bias_instability_radps");
@@ -94,9 +98,12 @@ void ZuptIns::step(const Eigen::Vector3d& dtheta_rad, const Eigen::Vector3d& dv_
   if (moved_since_aiding_) {
     // Motion may have tilted the INS by more than its noise model allows (a calibration under
     // test is not the truth): reopen the tilt so the ZUPT re-levels within a second or two
-    // instead of over a tuning-dependent fraction of the rest. Heading stays as the gyros left it.
+    // instead of over a tuning-dependent fraction of the rest. Heading stays as the gyros left it
+    // unless heading_sigma_after_motion_rad reopens it too.
     P_(kPsi, kPsi) += opt_.tilt_sigma_after_motion_rad * opt_.tilt_sigma_after_motion_rad;
     P_(kPsi + 1, kPsi + 1) += opt_.tilt_sigma_after_motion_rad * opt_.tilt_sigma_after_motion_rad;
+    P_(kPsi + 2, kPsi + 2) +=
+        opt_.heading_sigma_after_motion_rad * opt_.heading_sigma_after_motion_rad;
     moved_since_aiding_ = false;
   }
 

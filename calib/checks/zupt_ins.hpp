@@ -28,6 +28,10 @@ struct ZuptInsOptions {
   /// Tilt uncertainty added when the unit comes to rest after motion (0 = off): lets the ZUPT
   /// re-level quickly after a rotation with an imperfect calibration.
   double tilt_sigma_after_motion_rad = 1e-3;
+  /// Heading uncertainty added at the same moment (0 = off: heading stays as the gyros left it).
+  /// Non-zero, the ZUPT-aided INS re-finds its heading at every rest by gyrocompassing, as an INS
+  /// whose heading is aided only through Earth rate does.
+  double heading_sigma_after_motion_rad = 0.0;
 };
 
 class ZuptIns {

@@ -13,11 +13,14 @@
 //     fitted model (the "verification" row: the surrogate's error shows there).
 //  3. Fit: the sizes s_k within their prior ranges minimising Σ_cm ((E[M²_cm] - T_cm) / T_cm)²,
 //     T the published mean square over the six IMUs — a convex problem in s_k², solved by
-//     projected coordinate descent. Every source the fit keeps is probed again at its fitted size
-//     and the fit repeated (the metrics need not grow exactly as the size squared). Intervals
-//     (±1σ): a parametric bootstrap — papers simulated from the fitted model on seeds of their
-//     own, each fitted again with the probes' units resampled (six units' random draws scatter a
-//     mean square by tens of per cent: the paper's IMUs had theirs too).
+//     projected coordinate descent. Sources interact (a heading re-found at every rest turns gyro
+//     drift into heading error), so the fitted model is then simulated whole, what it does beyond
+//     the sum is held as an interaction term and the fit repeated until the sizes settle. Every
+//     source the fit keeps is probed again at its fitted size and the fit repeated (the metrics
+//     need not grow exactly as the size squared). Intervals (±1σ): a parametric bootstrap — papers
+//     simulated from the fitted model on seeds of their own, each fitted again with the probes'
+//     units resampled (six units' random draws scatter a mean square by tens of per cent: the
+//     paper's IMUs had theirs too).
 //  4. Shares: the part of the gap Σ_cm (T_cm - B_cm)/T_cm that each source closes alone (add-one)
 //     and that is lost without it (leave-one-out).
 #include <functional>
@@ -85,6 +88,8 @@ struct GapBudget {
   std::array<std::array<double, 2>, kNumPaperColumns> baseline{};   ///< mean square, no source
   std::array<std::array<double, 2>, kNumPaperColumns> target{};     ///< the paper's mean square
   std::array<std::array<double, 2>, kNumPaperColumns> predicted{};  ///< the surrogate at the fit
+  /// The sources together beyond their sum (whole model simulated minus the additive surrogate).
+  std::array<std::array<double, 2>, kNumPaperColumns> interaction{};
   double explained_share = 0.0;  ///< of the gap, closed by the fitted model (surrogate)
   int simulations = 0;
   double wall_s = 0.0;

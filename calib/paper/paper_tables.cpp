@@ -121,7 +121,8 @@ UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects) {
 
 bool PaperSetupErrors::any() const {
   return uncalibrated_gyro_bias_radps != 0.0 || table_position_error_rad != 0.0 ||
-         fixture_heading_rad != 0.0 || fixture_flex_rad_per_g != 0.0;
+         fixture_heading_rad != 0.0 || fixture_flex_rad_per_g != 0.0 ||
+         evaluation_heading_reopen_rad != 0.0;
 }
 
 namespace {
@@ -239,6 +240,8 @@ PaperUnitResult run_unit(int unit, const sequences::MotionProfile& profile, cons
       input_from_field_data(Setting::kSea, sea_run.imu, sea_run.gnss, field_site, out.model.noise));
   // ς is the table's: where a method cannot know it, evaluate with the factory AINS's estimate.
   const Eigen::Vector3d station_sigma = cal[0].params.table_misalignment_rad;
+  EvaluationOptions evaluation;
+  evaluation.reopen_heading_sigma_rad = opt.setup.evaluation_heading_reopen_rad;
   for (int c = 0; c < kNumPaperColumns; ++c) {
     ParamSet p = cal[static_cast<size_t>(c)].params;
     if (!cal[static_cast<size_t>(c)].observable[24]) p.table_misalignment_rad = station_sigma;
@@ -247,7 +250,7 @@ PaperUnitResult run_unit(int unit, const sequences::MotionProfile& profile, cons
     out.params[static_cast<size_t>(c)] = p;
     out.sigma[static_cast<size_t>(c)] = cal[static_cast<size_t>(c)].sigma;
     out.converged[static_cast<size_t>(c)] = cal[static_cast<size_t>(c)].converged;
-    out.metrics[static_cast<size_t>(c)] = evaluate(factory, p);
+    out.metrics[static_cast<size_t>(c)] = evaluate(factory, p, evaluation);
   }
   return out;
 }

@@ -61,6 +61,9 @@ struct PaperSetupErrors {
   /// logged attitude by F g_b, g_b the unit vector of gravity in the body frame and F a 3×3
   /// compliance of the unit's mounting drawn per unit (1σ per entry, rad per g).
   double fixture_flex_rad_per_g = 0.0;
+  /// §VII: the evaluation's own ZUPT-aided INS re-finds its heading at every rest (heading σ
+  /// reopened after motion, EvaluationOptions::reopen_heading_sigma_rad). 0: held by the gyros.
+  double evaluation_heading_reopen_rad = 0.0;
   bool any() const;
 };
 
