@@ -165,8 +165,8 @@ namespace {
 
 /// The table's log as the set-up's errors make it (PaperSetupErrors): each rest position's
 /// attitude off by a fresh small rotation and by the fixture's flex under gravity there, and all
-/// of it by the fixture's constant heading. Body
-/// side: the log says where the platform is, the unit sits on it.
+/// of it by the fixture's constant heading — on the body side: the log says where the platform
+/// is, the unit sits on it. Samples in motion keep the fixture's heading only.
 void perturb_reference(CalibrationInput& in, const PaperSetupErrors& setup, std::mt19937_64& rng) {
   if (setup.table_position_error_rad == 0.0 && setup.fixture_heading_rad == 0.0 &&
       setup.fixture_flex_rad_per_g == 0.0)
