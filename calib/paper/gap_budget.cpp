@@ -328,6 +328,19 @@ class BudgetRun {
 
   int simulations() const { return simulations_; }
 
+  /// The interaction term: the whole model at `sizes` simulated on the probes' seeds, minus the
+  /// additive surrogate there.
+  void set_interaction(Probes& pr, const std::vector<int>& units,
+                       const std::vector<double>& sizes) {
+    const ColumnMetric whole = mean_over(simulate(sizes, "the fitted model").squares, {}, units);
+    std::vector<double> x(K_);
+    for (size_t k = 0; k < K_; ++k) x[k] = std::pow(sizes[k] / pr.size[k], 2);
+    pr.interaction = ColumnMetric{};
+    const ColumnMetric sum = surrogate(pr.baseline(units), pr.gains(units), x);
+    for (size_t c = 0; c < whole.size(); ++c)
+      for (size_t m = 0; m < 2; ++m) pr.interaction[c][m] = whole[c][m] - sum[c][m];
+  }
+
   /// Step 1: the baseline and one probe per candidate, on the same seeds (the same units).
   Probes probe_all() {
     Probes pr;
@@ -368,26 +381,28 @@ class BudgetRun {
     constexpr int kRounds = 4;
     total_ += kRounds;
     for (int round = 0; round < kRounds; ++round) {
-      const ColumnMetric whole = mean_over(simulate(sizes, "the fitted model").squares, {}, units);
-      std::vector<double> x(K_);
-      for (size_t k = 0; k < K_; ++k) x[k] = std::pow(sizes[k] / pr.size[k], 2);
-      pr.interaction = ColumnMetric{};
-      const ColumnMetric sum = surrogate(pr.baseline(units), pr.gains(units), x);
-      for (size_t c = 0; c < whole.size(); ++c)
-        for (size_t m = 0; m < 2; ++m) pr.interaction[c][m] = whole[c][m] - sum[c][m];
+      set_interaction(pr, units, sizes);
       const std::vector<double> next = fit_sizes(pr, candidates_, units, target, can_matter);
       double moved = 0.0;
       for (size_t k = 0; k < K_; ++k)
         moved = std::max(moved, std::abs(next[k] - sizes[k]) /
                                     std::max(sizes[k], 0.05 * candidates_[k].prior_hi));
-      sizes = next;
       if (moved < 0.05) {
         total_ -= kRounds - 1 - round;
-        break;
+        settled_ = true;
+        return next;
       }
+      sizes = next;
     }
+    // Not settled (the interaction grows with the sizes, so a fixed term overshoots and the fit
+    // swings): keep the last sizes, and the interaction of the whole model at exactly those, so
+    // that what the budget predicts is what the fitted model does on the probes' seeds.
+    total_ += 1;
+    set_interaction(pr, units, sizes);
     return sizes;
   }
+
+  bool interactions_settled() const { return settled_; }
 
   /// The intervals (a parametric bootstrap): "papers" simulated from the fitted model on seeds of
   /// their own, each fitted again with the simulated units resampled — the scatter of six units'
@@ -441,6 +456,7 @@ class BudgetRun {
   size_t K_;
   int total_;
   int simulations_ = 0;
+  bool settled_ = false;
 };
 
 /// Step 4: the budget's entries and shares at the fitted sizes, largest add-one share first.
@@ -500,6 +516,7 @@ GapBudget fit_gap_budget(const sequences::MotionProfile& profile, const Site& si
   out.target = target.mean_square;
   assemble(out, candidates, pr, sizes, sd, can_matter);
   out.simulations = run.simulations();
+  out.interactions_settled = run.interactions_settled();
   out.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

@@ -91,6 +91,9 @@ struct GapBudget {
   /// The sources together beyond their sum (whole model simulated minus the additive surrogate).
   std::array<std::array<double, 2>, kNumPaperColumns> interaction{};
   double explained_share = 0.0;  ///< of the gap, closed by the fitted model (surrogate)
+  /// false: with the interaction term the fit kept swinging for four rounds; the sizes are the
+  /// last round's and `predicted` is the whole model at them (the probes' seeds).
+  bool interactions_settled = false;
   int simulations = 0;
   double wall_s = 0.0;
 };

@@ -118,13 +118,14 @@ TEST(GapBudget, RecoversTheSourcesThatWroteTablesOnItsOwnSeedsAndSaysWhatCannotM
       EXPECT_EQ(e.share_add_one, 0.0);
     } else {
       EXPECT_TRUE(e.measurable) << e.candidate.name;
-      EXPECT_NEAR(e.size, 2.0, 0.2) << e.candidate.name;
+      EXPECT_NEAR(e.size, 2.0, 0.1) << e.candidate.name;
       EXPECT_LT(e.size_lo, e.size) << e.candidate.name;
       EXPECT_GT(e.size_hi, e.size) << e.candidate.name;
       EXPECT_GT(e.share_add_one, 0.1) << e.candidate.name;
     }
   }
   EXPECT_GT(b.explained_share, 0.9);
+  EXPECT_TRUE(b.interactions_settled);
 }
 
 }  // namespace

@@ -91,6 +91,7 @@ nlohmann::json to_json(const calib::GapBudget& b, const Verification& v) {
              {"simulated_mean_without_top", v.without_top[cs][ms]}};
     }
   j["explained_share"] = b.explained_share;
+  j["interactions_settled"] = b.interactions_settled;
   j["worst_mean_ratio_error"] = v.worst_ratio_error;
   j["simulations"] = b.simulations + 2;
   j["wall_s"] = b.wall_s;
@@ -119,6 +120,10 @@ void print_budget(const calib::GapBudget& b, const Verification& v) {
   }
   std::printf("\nThe fitted model closes %.0f %% of the gap (surrogate); unexplained %.0f %%.\n",
               100.0 * b.explained_share, 100.0 * (1.0 - b.explained_share));
+  if (!b.interactions_settled)
+    std::printf(
+        "The sources interact and the fit did not settle in four rounds: these sizes are the "
+        "last round's, the share the whole model's at them.\n");
   std::printf("\n%-16s %26s %26s\n", "means", "orientation (mdeg)", "acceleration (ug)");
   std::printf("%-16s %8s %8s %8s %8s %8s %8s\n", "", "none", "fitted", "paper", "none", "fitted",
               "paper");
