@@ -92,6 +92,19 @@ double gap_size(const ColumnMetric& predicted, const ColumnMetric& target) {
   return d;
 }
 
+ColumnMetric plus(ColumnMetric a, const ColumnMetric& b) {
+  for (size_t c = 0; c < a.size(); ++c)
+    for (size_t m = 0; m < 2; ++m) a[c][m] += b[c][m];
+  return a;
+}
+
+/// 0, 1, …, n - 1: every unit once.
+std::vector<int> every_unit(size_t n) {
+  std::vector<int> units(n);
+  for (size_t u = 0; u < n; ++u) units[u] = static_cast<int>(u);
+  return units;
+}
+
 /// The surrogate (header, step 2) at weights x.
 ColumnMetric surrogate(const ColumnMetric& baseline, const std::vector<ColumnMetric>& gains,
                        const std::vector<double>& x) {
@@ -159,18 +172,14 @@ std::vector<BudgetCandidate> default_budget_candidates() {
   return out;
 }
 
-BudgetTarget budget_target(const PaperPublished& published, const std::vector<int>& rows) {
-  if (rows.empty()) throw std::invalid_argument("gap budget: no IMU row to fit");
+BudgetTarget budget_target(const PaperPublished& published) {
   BudgetTarget t;
-  for (int r : rows) {
-    if (r < 0 || r > 5) throw std::invalid_argument("gap budget: IMU row out of range");
-    for (int c = 0; c < kNumPaperColumns; ++c) {
-      const double o = published.orientation_mdeg[static_cast<size_t>(r)][static_cast<size_t>(c)];
-      const double a = published.accel_ug[static_cast<size_t>(r)][static_cast<size_t>(c)];
-      t.mean_square[static_cast<size_t>(c)][0] += o * o / static_cast<double>(rows.size());
-      t.mean_square[static_cast<size_t>(c)][1] += a * a / static_cast<double>(rows.size());
+  for (size_t r = 0; r < 6; ++r)
+    for (size_t c = 0; c < kNumPaperColumns; ++c) {
+      const double o = published.orientation_mdeg[r][c], a = published.accel_ug[r][c];
+      t.mean_square[c][0] += o * o / 6.0;
+      t.mean_square[c][1] += a * a / 6.0;
     }
-  }
   return t;
 }
 
@@ -243,10 +252,7 @@ struct Probes {
   /// simulation minus the surrogate at the last fit), held fixed in the next fit.
   ColumnMetric interaction{};
   ColumnMetric baseline(const std::vector<int>& units) const {
-    ColumnMetric b = mean_over(base.squares, {}, units);
-    for (size_t c = 0; c < b.size(); ++c)
-      for (size_t m = 0; m < 2; ++m) b[c][m] += interaction[c][m];
-    return b;
+    return plus(mean_over(base.squares, {}, units), interaction);
   }
   std::vector<ColumnMetric> gains(const std::vector<int>& units) const {
     std::vector<ColumnMetric> g(probe.size());
@@ -302,12 +308,9 @@ void set_shares(BudgetEntry& e, size_t k, const GapBudget& b,
   without[k] = 0.0;
   e.share_add_one = 1.0 - gap_size(surrogate(b.baseline, gains, alone), b.target) / gap_none;
   // Without k, the interaction term stays (it is the whole model's, attributed to no one source).
-  ColumnMetric base_and_interaction = b.baseline;
-  for (size_t c = 0; c < base_and_interaction.size(); ++c)
-    for (size_t m = 0; m < 2; ++m) base_and_interaction[c][m] += b.interaction[c][m];
   e.share_leave_one_out =
-      (gap_size(surrogate(base_and_interaction, gains, without), b.target) - gap_full) / gap_none;
-  e.probe_gain = gains[k];
+      (gap_size(surrogate(plus(b.baseline, b.interaction), gains, without), b.target) - gap_full) /
+      gap_none;
 }
 
 }  // namespace
@@ -419,11 +422,10 @@ class BudgetRun {
       o.seed = options_.tables.seed + 5000 + static_cast<uint64_t>(r);
       const std::vector<ColumnMetric> paper =
           count(sim_units(run_paper_tables(profile_, site_, o)), "replicate").squares;
-      std::vector<int> units(n), rows(paper.size());
+      std::vector<int> units(n);
       for (int& u : units) u = pick_unit(rng);
-      for (size_t i = 0; i < rows.size(); ++i) rows[i] = static_cast<int>(i);
       BudgetTarget t;
-      t.mean_square = mean_over(paper, {}, rows);
+      t.mean_square = mean_over(paper, {}, every_unit(paper.size()));
       const std::vector<double> sb = fit_sizes(pr, candidates_, units, t, can_matter);
       for (size_t k = 0; k < K_; ++k) boot[k].push_back(sb[k]);
     }
@@ -463,8 +465,7 @@ class BudgetRun {
 void assemble(GapBudget& out, const std::vector<BudgetCandidate>& candidates, const Probes& pr,
               const std::vector<double>& sizes, const std::vector<double>& sd,
               const std::vector<bool>& can_matter) {
-  std::vector<int> all_units(pr.base.squares.size());
-  for (size_t u = 0; u < all_units.size(); ++u) all_units[u] = static_cast<int>(u);
+  const std::vector<int> all_units = every_unit(pr.base.squares.size());
   const std::vector<ColumnMetric> gains = pr.gains(all_units);
   std::vector<double> x(sizes.size());
   for (size_t k = 0; k < sizes.size(); ++k) x[k] = std::pow(sizes[k] / pr.size[k], 2);
@@ -503,13 +504,12 @@ GapBudget fit_gap_budget(const sequences::MotionProfile& profile, const Site& si
   const auto t0 = std::chrono::steady_clock::now();
   BudgetRun run(profile, site, candidates, options);
   Probes pr = run.probe_all();
-  const BudgetTarget target = budget_target(published, {0, 1, 2, 3, 4, 5});
+  const BudgetTarget target = budget_target(published);
   std::vector<bool> can_matter(candidates.size());
   for (size_t k = 0; k < candidates.size(); ++k)
     can_matter[k] = pr.measurable(k, candidates[k].prior_hi, target);
-  std::vector<int> all_units(pr.base.squares.size());
-  for (size_t u = 0; u < all_units.size(); ++u) all_units[u] = static_cast<int>(u);
-  const std::vector<double> sizes = run.fit_refined(pr, all_units, target, can_matter);
+  const std::vector<double> sizes =
+      run.fit_refined(pr, every_unit(pr.base.squares.size()), target, can_matter);
   const std::vector<double> sd = run.replicate_spread(pr, sizes, can_matter);
 
   GapBudget out;

@@ -51,8 +51,8 @@ std::vector<BudgetCandidate> default_budget_candidates();
 struct BudgetTarget {
   std::array<std::array<double, 2>, kNumPaperColumns> mean_square{};
 };
-/// From per-IMU published values (rows 0–5 of PaperPublished; `rows` picks which, repeats allowed).
-BudgetTarget budget_target(const PaperPublished& published, const std::vector<int>& rows);
+/// From the per-IMU published values (rows 0–5 of PaperPublished, IMU 1–6).
+BudgetTarget budget_target(const PaperPublished& published);
 
 struct BudgetOptions {
   PaperTablesOptions tables;  ///< units, seed, threads, rate (effects and setup are the budget's)
@@ -79,8 +79,6 @@ struct BudgetEntry {
   /// evaluation).
   double calibration_shift_sigma = 0.0;
   bool biases_calibration() const { return calibration_shift_sigma >= 1.0; }
-  /// The probe's mean-square increase over the baseline per column and metric.
-  std::array<std::array<double, 2>, kNumPaperColumns> probe_gain{};
 };
 
 struct GapBudget {

@@ -119,12 +119,6 @@ UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects) {
   return m;
 }
 
-bool PaperSetupErrors::any() const {
-  return uncalibrated_gyro_bias_radps != 0.0 || table_position_error_rad != 0.0 ||
-         fixture_heading_rad != 0.0 || fixture_flex_rad_per_g != 0.0 ||
-         evaluation_heading_reopen_rad != 0.0;
-}
-
 namespace {
 
 /// One catalogue effect at `scale` × its typical size onto fx (PaperEffectSize).
@@ -218,13 +212,9 @@ PaperUnitResult run_unit(int unit, const sequences::MotionProfile& profile, cons
   field_site.gravity_mps2.reset();
   UnitModel field_unit = out.model;
   field_unit.params.table_misalignment_rad.setZero();  // no table, and none of its effects
-  for (const EffectInfo& info : effect_catalogue()) {
-    if (info.kind != EffectKind::kTable) continue;
-    Eigen::VectorXd v = effect_vector(field_unit.effects, info.id);
-    for (int i = 0; i < info.size(); ++i)
-      if (!info.params[static_cast<size_t>(i)].shape) v(i) = 0.0;
-    set_effect_vector(field_unit.effects, info.id, v);
-  }
+  field_unit.effects.table_time_offset_s = 0.0;
+  field_unit.effects.table_nonorthogonality_rad = 0.0;
+  field_unit.effects.table_wobble_rad.setZero();
   const FieldSimResult land_run = simulate_field(profile, field_site, field_unit, fo);
   fo.setting = Setting::kSea;
   fo.seed = seed + 202;

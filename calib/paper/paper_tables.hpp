@@ -64,7 +64,6 @@ struct PaperSetupErrors {
   /// §VII: the evaluation's own ZUPT-aided INS re-finds its heading at every rest (heading σ
   /// reopened after motion, EvaluationOptions::reopen_heading_sigma_rad). 0: held by the gyros.
   double evaluation_heading_reopen_rad = 0.0;
-  bool any() const;
 };
 
 /// A catalogue effect (calib/effects/catalogue.hpp) at `scale` times its typical size: sensor
