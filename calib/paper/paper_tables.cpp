@@ -121,6 +121,20 @@ UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects) {
 
 namespace {
 
+bool starts_with(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
+
+bool in_part(const std::string& param_name, PaperEffectSize::Part part) {
+  switch (part) {
+    case PaperEffectSize::Part::kAccel:
+      return starts_with(param_name, "accel_");
+    case PaperEffectSize::Part::kGyro:
+      return starts_with(param_name, "gyro_");
+    case PaperEffectSize::Part::kAll:
+      break;
+  }
+  return true;
+}
+
 /// One catalogue effect at `scale` × its typical size onto fx (PaperEffectSize).
 void add_catalogue_effect(Effects& fx, const PaperEffectSize& e, std::mt19937_64& rng) {
   if (!std::isfinite(e.scale) || e.scale < 0.0)
@@ -134,8 +148,9 @@ void add_catalogue_effect(Effects& fx, const PaperEffectSize& e, std::mt19937_64
     if (info.params[k].shape) {
       v(i) = info.typical[k];
     } else {
+      // Drawn whatever the part, so that a part's draws are those of the whole effect.
       const double draw = info.kind == EffectKind::kSensor ? n01(rng) : 1.0;
-      v(i) += info.typical[k] * e.scale * draw;
+      if (in_part(info.params[k].name, e.part)) v(i) += info.typical[k] * e.scale * draw;
     }
   }
   set_effect_vector(fx, e.id, v);
@@ -143,15 +158,36 @@ void add_catalogue_effect(Effects& fx, const PaperEffectSize& e, std::mt19937_64
 
 }  // namespace
 
+const char* paper_effect_part_suffix(PaperEffectSize::Part part) {
+  switch (part) {
+    case PaperEffectSize::Part::kAccel:
+      return ".accel";
+    case PaperEffectSize::Part::kGyro:
+      return ".gyro";
+    case PaperEffectSize::Part::kAll:
+      break;
+  }
+  return "";
+}
+
 UnitModel paper_unit(int unit, const PaperTablesOptions& options) {
   UnitModel m = paper_unit(unit, options.seed, options.effects);
   // A stream of its own, so that the unit's parameters and noise stay those of paper_unit.
-  std::mt19937_64 rng(options.seed * 2000003ULL + static_cast<uint64_t>(unit) * 104729ULL);
+  // Every source draws from a stream of its own (unit, source), so that a unit's draws of one
+  // source are the same whichever other sources are on: the gap budget compares models that
+  // differ by one source on common random numbers, and a shared stream would redraw every
+  // source after the one removed (a new unit, not the same unit without it).
+  const uint64_t unit_seed = options.seed * 2000003ULL + static_cast<uint64_t>(unit) * 104729ULL;
   std::normal_distribution<double> n01;
-  if (options.setup.uncalibrated_gyro_bias_radps > 0.0)
+  if (options.setup.uncalibrated_gyro_bias_radps > 0.0) {
+    std::mt19937_64 rng(unit_seed);
     for (int i = 0; i < 3; ++i)
       m.params.gyro_bias_radps(i) = options.setup.uncalibrated_gyro_bias_radps * n01(rng);
-  for (const PaperEffectSize& e : options.catalogue) add_catalogue_effect(m.effects, e, rng);
+  }
+  for (const PaperEffectSize& e : options.catalogue) {
+    std::mt19937_64 rng(unit_seed + 7727ULL * (static_cast<uint64_t>(e.id) + 1ULL));
+    add_catalogue_effect(m.effects, e, rng);
+  }
   return m;
 }
 

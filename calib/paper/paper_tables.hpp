@@ -73,7 +73,14 @@ struct PaperSetupErrors {
 struct PaperEffectSize {
   EffectId id;
   double scale = 1.0;
+  /// Which of the effect's amplitude parameters are scaled: all, or only the accelerometers' or
+  /// the gyros' (parameters named accel_* / gyro_*). A unit's accelerometer drift and its gyro
+  /// drift are separate properties (datasheets state them apart), and the budget must be able to
+  /// size them apart. The draws are the same whichever part is chosen.
+  enum class Part { kAll, kAccel, kGyro } part = Part::kAll;
 };
+/// "", ".accel" or ".gyro": the suffix that names a part in the budget's candidates.
+const char* paper_effect_part_suffix(PaperEffectSize::Part part);
 
 struct PaperTablesOptions {
   int units = 6;

@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "tests/support/imucal_cli.hpp"
 
@@ -21,8 +24,9 @@ TEST(GapBudgetCli, PrintsTheBudgetWithEverySourcesSizeShareAndWhereToFixIt) {
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j["entries"].size(), 2u);
   for (const auto& e : j["entries"]) {
-    for (const char* key : {"size", "size_lo", "size_hi", "prior", "prior_source", "share_add_one",
-                            "share_leave_one_out", "calibration_shift_sigma", "measurable"})
+    for (const char* key :
+         {"size", "size_lo", "size_hi", "prior", "prior_source", "share_add_one",
+          "share_leave_one_out", "share_leave_one_out_sd", "calibration_shift_sigma", "measurable"})
       EXPECT_TRUE(e.contains(key)) << key;
     EXPECT_LE(e["size_lo"].get<double>(), e["size"].get<double>());
     EXPECT_GE(e["size_hi"].get<double>(), e["size"].get<double>());
@@ -41,8 +45,11 @@ TEST(GapBudgetCli, PrintsTheBudgetWithEverySourcesSizeShareAndWhereToFixIt) {
     EXPECT_GT(c["accel_rmse_ug"]["simulated_mean"].get<double>(), 0.0) << column;
     EXPECT_GT(c["orientation_rmse_mdeg"]["baseline_rms"].get<double>(), 0.0) << column;
   }
-  // baseline, two probes, re-probes of what the fit kept, two replicates, then the two checks
-  EXPECT_GE(j["simulations"].get<int>(), 7);
+  // baseline, two probes, the whole model and K2's slope, two share runs, two replicates and
+  // the two checks
+  EXPECT_GE(j["simulations"].get<int>(), 11);
+  EXPECT_TRUE(j.contains("converged"));
+  EXPECT_TRUE(j.contains("top_removal_share_new_seeds"));
 }
 
 TEST(GapBudgetCli, AnUnknownSourceOrTargetIsRefusedByName) {
@@ -53,6 +60,39 @@ TEST(GapBudgetCli, AnUnknownSourceOrTargetIsRefusedByName) {
   const auto target = run_imucal("gap-budget --against nature");
   EXPECT_EQ(target.code, 2) << target.out;
   EXPECT_NE(target.out.find("nature"), std::string::npos) << target.out;
+}
+
+// --model: no fit, one model simulated and set beside the paper, per IMU and in the means.
+TEST(GapBudgetCli, SimulatesAGivenModelPerImuBesideThePaper) {
+  const auto ideal = run_imucal(
+      "gap-budget --units 2 --sequence short --model accel_quadratic_k2=0 --json", false);
+  const auto k2 = run_imucal(
+      "gap-budget --units 2 --sequence short --model accel_quadratic_k2=5 --json", false);
+  ASSERT_EQ(ideal.code, 0) << ideal.out;
+  ASSERT_EQ(k2.code, 0) << k2.out;
+  const auto a = nlohmann::json::parse(ideal.out), b = nlohmann::json::parse(k2.out);
+  ASSERT_EQ(b["units"].size(), 2u);
+  EXPECT_EQ(b["model"]["accel_quadratic_k2"].get<double>(), 5.0);
+  const auto& m = b["means"]["factory AINS"];
+  EXPECT_NEAR(m["paper_accel_rmse_ug"].get<double>(), 27.6689, 1e-9);
+  // The same units with K2 at five times its typical size: the acceleration metric grows.
+  EXPECT_GT(m["accel_rmse_ug"].get<double>(),
+            1.5 * a["means"]["factory AINS"]["accel_rmse_ug"].get<double>());
+  const double u1 = b["units"][0]["factory AINS"]["accel_rmse_ug"].get<double>();
+  const double u2 = b["units"][1]["factory AINS"]["accel_rmse_ug"].get<double>();
+  EXPECT_NEAR(m["accel_rmse_ug"].get<double>(), (u1 + u2) / 2.0, 1e-9);
+}
+
+TEST(GapBudgetCli, ABadModelIsRefusedNamingTheItem) {
+  for (const auto& [model, says] : std::vector<std::pair<std::string, std::string>>{
+           {"accel_quadratic_k2=9", "outside its prior range"},
+           {"accel_quadratic_k2", "is not NAME=SIZE"},
+           {"accel_quadratic_k2=abc", "is not a number"},
+           {"bogus=1", "unknown candidate 'bogus'"}}) {
+    const auto r = run_imucal("gap-budget --units 1 --model " + model);
+    EXPECT_EQ(r.code, 1) << model << ": " << r.out;
+    EXPECT_NE(r.out.find(says), std::string::npos) << model << ": " << r.out;
+  }
 }
 
 TEST(GapBudgetCli, ShowsItsProgressOnStderr) {

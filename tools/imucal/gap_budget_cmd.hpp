@@ -14,7 +14,12 @@ struct GapBudgetArgs {
   uint64_t seed = 1;
   std::string sequence = "factory-std";
   std::string candidates;  ///< comma-separated names; empty: every default candidate
-  int replicates = 10;
+  int replicates = 8;
+  int search_units = 8;  ///< units per simulation of the whole-model search
+  int check_units = 16;  ///< units of the fitted model's check on new seeds
+  /// "NAME=SIZE,...": no fit — simulate this model (candidates' sizes in their human units) and
+  /// print its means and per-IMU values beside the paper's.
+  std::string model;
   bool json = false;
 };
 
