@@ -127,7 +127,7 @@ nlohmann::json to_json(const calib::GapBudget& b, const Verification& v,
       auto& col = j["columns"][calib::paper_column_name(static_cast<PaperColumn>(c))][metric];
       col = {{"baseline_rms", std::sqrt(b.baseline[cs][ms])},
              {"paper_rms", std::sqrt(b.target[cs][ms])},
-             {"surrogate_rms", std::sqrt(b.predicted[cs][ms])},
+             {"fitted_rms_search_units", std::sqrt(b.predicted[cs][ms])},
              {"paper_mean", paper_mean(c, m)},
              {"simulated_mean", v.fitted[cs][ms]},
              {"simulated_mean_without_top", v.without_top[cs][ms]}};
@@ -288,9 +288,12 @@ CLI::App* add_gap_budget_command(CLI::App& app, GapBudgetArgs& a) {
   c->add_option("--threads", a.threads, "units in parallel (0: one per core)")
       ->capture_default_str()
       ->check(CLI::Range(0, 64));
-  c->add_option("--candidates", a.candidates,
-                "comma-separated sources to consider (default: all; uncalibrated_gyro_bias, "
-                "table_position_error, fixture_heading and every catalogue effect)");
+  c->add_option(
+      "--candidates", a.candidates,
+      "comma-separated sources to consider (default: all; uncalibrated_gyro_bias, "
+      "table_position_error, fixture_heading, fixture_flex, evaluation_heading_reopen and every "
+      "catalogue effect, thermal_drift and bias_instability as their .accel and .gyro "
+      "parts)");
   c->add_option("--replicates", a.replicates,
                 "papers simulated from the fitted model for the intervals (parametric bootstrap)")
       ->capture_default_str()
