@@ -141,8 +141,8 @@ namespace {
 std::vector<PaperEffectSize::Part> budget_parts(const EffectInfo& info) {
   bool accel = false, gyro = false;
   for (const EffectParamInfo& p : info.params) {
-    accel = accel || p.name.rfind("accel_", 0) == 0;
-    gyro = gyro || p.name.rfind("gyro_", 0) == 0;
+    accel = accel || paper_effect_param_in_part(p.name, PaperEffectSize::Part::kAccel);
+    gyro = gyro || paper_effect_param_in_part(p.name, PaperEffectSize::Part::kGyro);
   }
   if (accel && gyro) return {PaperEffectSize::Part::kAccel, PaperEffectSize::Part::kGyro};
   return {PaperEffectSize::Part::kAll};

@@ -121,20 +121,6 @@ UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects) {
 
 namespace {
 
-bool starts_with(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
-
-bool in_part(const std::string& param_name, PaperEffectSize::Part part) {
-  switch (part) {
-    case PaperEffectSize::Part::kAccel:
-      return starts_with(param_name, "accel_");
-    case PaperEffectSize::Part::kGyro:
-      return starts_with(param_name, "gyro_");
-    case PaperEffectSize::Part::kAll:
-      break;
-  }
-  return true;
-}
-
 /// One catalogue effect at `scale` × its typical size onto fx (PaperEffectSize).
 void add_catalogue_effect(Effects& fx, const PaperEffectSize& e, std::mt19937_64& rng) {
   if (!std::isfinite(e.scale) || e.scale < 0.0)
@@ -150,13 +136,26 @@ void add_catalogue_effect(Effects& fx, const PaperEffectSize& e, std::mt19937_64
     } else {
       // Drawn whatever the part, so that a part's draws are those of the whole effect.
       const double draw = info.kind == EffectKind::kSensor ? n01(rng) : 1.0;
-      if (in_part(info.params[k].name, e.part)) v(i) += info.typical[k] * e.scale * draw;
+      if (paper_effect_param_in_part(info.params[k].name, e.part))
+        v(i) += info.typical[k] * e.scale * draw;
     }
   }
   set_effect_vector(fx, e.id, v);
 }
 
 }  // namespace
+
+bool paper_effect_param_in_part(const std::string& param_name, PaperEffectSize::Part part) {
+  switch (part) {
+    case PaperEffectSize::Part::kAccel:
+      return param_name.rfind("accel_", 0) == 0;
+    case PaperEffectSize::Part::kGyro:
+      return param_name.rfind("gyro_", 0) == 0;
+    case PaperEffectSize::Part::kAll:
+      break;
+  }
+  return true;
+}
 
 const char* paper_effect_part_suffix(PaperEffectSize::Part part) {
   switch (part) {
@@ -172,11 +171,11 @@ const char* paper_effect_part_suffix(PaperEffectSize::Part part) {
 
 UnitModel paper_unit(int unit, const PaperTablesOptions& options) {
   UnitModel m = paper_unit(unit, options.seed, options.effects);
-  // A stream of its own, so that the unit's parameters and noise stay those of paper_unit.
-  // Every source draws from a stream of its own (unit, source), so that a unit's draws of one
-  // source are the same whichever other sources are on: the gap budget compares models that
-  // differ by one source on common random numbers, and a shared stream would redraw every
-  // source after the one removed (a new unit, not the same unit without it).
+  // Streams of their own, so that the unit's parameters and noise stay those of paper_unit, and
+  // one per source, so that a unit's draws of one source are the same whichever other sources are
+  // on: the gap budget compares models that differ by one source on common random numbers, and a
+  // shared stream would redraw every source after the one removed (a new unit, not the same unit
+  // without it).
   const uint64_t unit_seed = options.seed * 2000003ULL + static_cast<uint64_t>(unit) * 104729ULL;
   std::normal_distribution<double> n01;
   if (options.setup.uncalibrated_gyro_bias_radps > 0.0) {

@@ -79,6 +79,9 @@ struct PaperEffectSize {
   /// size them apart. The draws are the same whichever part is chosen.
   enum class Part { kAll, kAccel, kGyro } part = Part::kAll;
 };
+/// Whether a catalogue parameter (EffectParamInfo::name) belongs to the part: accel_* to kAccel,
+/// gyro_* to kGyro, every one to kAll.
+bool paper_effect_param_in_part(const std::string& param_name, PaperEffectSize::Part part);
 /// "", ".accel" or ".gyro": the suffix that names a part in the budget's candidates.
 const char* paper_effect_part_suffix(PaperEffectSize::Part part);
 
