@@ -145,7 +145,10 @@ PreparedInput prepare_input(const CalibrationInput& in, const AinsOptions& opt) 
     }
   }
   if (pin.schedule[n - 1] == 0) pin.schedule[n - 1] = 1;
-  for (size_t k = pin.k0; k < n; ++k) pin.num_epochs += pin.schedule[k] != 0;
+  // The pass records the start epoch k0 whatever its schedule, then every scheduled sample after
+  // it: one short and the epochs' storage (~14 kB each) is reallocated and copied at the end.
+  pin.num_epochs = 1;
+  for (size_t k = pin.k0 + 1; k < n; ++k) pin.num_epochs += pin.schedule[k] != 0;
   return pin;
 }
 

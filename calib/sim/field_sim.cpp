@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -16,6 +17,8 @@
 namespace imucal::calib {
 
 namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 [[noreturn]] void fail(const std::string& what) {
   throw std::invalid_argument("field simulation: " + what);
@@ -50,29 +53,52 @@ void check_options(const FieldSimOptions& o, const UnitModel& unit) {
 /// component i of ∫ ([ω̇×] + [ω×]²) r_i dt, the ω̇ part exactly (ω(t1) - ω(t0)), the ω² part by
 /// 3-point Gauss-Legendre; ω the body rate relative to the ground from the attitude by central
 /// differences (the Earth's rate adds ~1e-4 of it, and the frame turns by ω dt within a sample:
-/// both far below the effect's own noise).
+/// both far below the effect's own noise). One sample's ω(t1) is the next one's ω(t0), kept.
 template <typename AttitudeAt>
-Eigen::Vector3d lever_dv_b(const std::array<Eigen::Vector3d, 3>& r_m, const AttitudeAt& C_bn_at,
-                           double t0, double t1) {
-  constexpr double h = 1e-4;
-  auto w_b = [&](double t) {
-    const double a = std::max(0.0, t - h);
-    return Eigen::Vector3d(matrix_to_rotvec(C_bn_at(a).transpose() * C_bn_at(t + h)) / (t + h - a));
-  };
-  const Eigen::Vector3d dw = w_b(t1) - w_b(t0);
-  Eigen::Vector3d dv = Eigen::Vector3d::Zero();
-  for (int i = 0; i < 3; ++i) {
-    const Eigen::Vector3d& r = r_m[static_cast<size_t>(i)];
-    if (r.isZero()) continue;
-    double centripetal = 0.0;
-    for (int q = 0; q < 3; ++q) {
-      const Eigen::Vector3d w = w_b(t0 + GaussLegendre3::kNode[q] * (t1 - t0));
-      centripetal += GaussLegendre3::kWeight[q] * (t1 - t0) * w.cross(w.cross(r))(i);
+class LeverArmIncrement {
+ public:
+  LeverArmIncrement(const std::array<Eigen::Vector3d, 3>& r_m, const AttitudeAt& C_bn_at)
+      : r_m_(r_m), C_bn_at_(C_bn_at) {}
+
+  Eigen::Vector3d dv_b(double t0, double t1) {
+    const Eigen::Vector3d w0 = t0 == t_prev_ ? w_prev_ : w_b(t0);
+    const Eigen::Vector3d w1 = w_b(t1);
+    t_prev_ = t1;
+    w_prev_ = w1;
+    const Eigen::Vector3d dw = w1 - w0;
+    Eigen::Vector3d dv = Eigen::Vector3d::Zero();
+    for (int i = 0; i < 3; ++i) {
+      const Eigen::Vector3d& r = r_m_[static_cast<size_t>(i)];
+      if (r.isZero()) continue;
+      double centripetal = 0.0;
+      for (int q = 0; q < 3; ++q) {
+        const Eigen::Vector3d w = w_b(t0 + GaussLegendre3::kNode[q] * (t1 - t0));
+        centripetal += GaussLegendre3::kWeight[q] * (t1 - t0) * w.cross(w.cross(r))(i);
+      }
+      dv(i) = dw.cross(r)(i) + centripetal;
     }
-    dv(i) = dw.cross(r)(i) + centripetal;
+    return dv;
   }
-  return dv;
-}
+
+  /// A sample in which the unit does not turn against the ground (a rest on land): nothing to
+  /// integrate, and ω(t1) is zero for the next sample.
+  void still(double t1) {
+    t_prev_ = t1;
+    w_prev_.setZero();
+  }
+
+ private:
+  static constexpr double kH_s = 1e-4;
+  Eigen::Vector3d w_b(double t) const {
+    const double a = std::max(0.0, t - kH_s);
+    return Eigen::Vector3d(matrix_to_rotvec(C_bn_at_(a).transpose() * C_bn_at_(t + kH_s)) /
+                           (t + kH_s - a));
+  }
+  const std::array<Eigen::Vector3d, 3>& r_m_;
+  const AttitudeAt& C_bn_at_;
+  double t_prev_ = -1.0;
+  Eigen::Vector3d w_prev_ = Eigen::Vector3d::Zero();
+};
 
 /// Smooth 0 -> 1 step (zero slope at both ends).
 double smoothstep(double x) {
@@ -226,8 +252,14 @@ class EarthKinematics {
         cL, 0.0, -sL;
     return C;
   }
+  /// e to i: the Earth turned by ω_ie t about its axis.
   Eigen::Matrix3d C_ie(double t) const {
-    return rotvec_to_matrix<double>(Eigen::Vector3d(w_ie_ * t));
+    const double a = wgs84::kEarthRate_radps * t, c = std::cos(a), s = std::sin(a);
+    Eigen::Matrix3d C;
+    C << c, -s, 0.0,  //
+        s, c, 0.0,    //
+        0.0, 0.0, 1.0;
+    return C;
   }
   /// Geodetic position of a NED displacement p (tangent frame at the site).
   void lla(const Eigen::Vector3d& p, double& lat, double& lon, double& h) const {
@@ -237,29 +269,43 @@ class EarthKinematics {
   }
   Eigen::Vector3d r_e(const Eigen::Vector3d& p) const { return r0_ + C_en0_ * p; }
   Eigen::Vector3d v_e(const Eigen::Vector3d& p_dot) const { return C_en0_ * p_dot; }
-  /// C_bi = C_ie C_en(position) C_bn: body to inertial.
-  Eigen::Matrix3d C_bi(double t, const Eigen::Vector3d& p, const Eigen::Matrix3d& C_bn) const {
+  /// C_bi = C_ie C_en(position) C_bn: body to inertial (C_ie = C_ie(t), computed once a sample).
+  Eigen::Matrix3d C_bi(const Eigen::Matrix3d& C_ie, const Eigen::Vector3d& p,
+                       const Eigen::Matrix3d& C_bn) const {
     double lat, lon, h;
     lla(p, lat, lon, h);
-    return C_ie(t) * C_en(lat, lon) * C_bn;
+    return C_ie * C_en(lat, lon) * C_bn;
   }
-  Eigen::Vector3d v_i(double t, const Eigen::Vector3d& p, const Eigen::Vector3d& p_dot) const {
+  Eigen::Vector3d v_i(const Eigen::Matrix3d& C_ie, const Eigen::Vector3d& p,
+                      const Eigen::Vector3d& p_dot) const {
     const Eigen::Vector3d r = r_e(p);
-    return C_ie(t) * (v_e(p_dot) + w_ie_.cross(r));
+    return C_ie * (v_e(p_dot) + w_ie_.cross(r));
   }
   /// Gravitation (mass attraction only) in i: G = g + ω × (ω × r), g along the local down with the
   /// true magnitude (normal gravity at the position, or the surveyed value with its height
   /// gradient, plus any gravity error).
   Eigen::Vector3d G_i(double t, const Eigen::Vector3d& p, double g_offset) const {
+    return C_ie(t) * G_e(p, g_offset);
+  }
+
+ private:
+  /// The same in e, kept for the last position: on land the unit never moves, and three
+  /// quadrature nodes a sample ask for it.
+  const Eigen::Vector3d& G_e(const Eigen::Vector3d& p, double g_offset) const {
+    if (p == G_e_p_ && g_offset == G_e_offset_) return G_e_;
     double lat, lon, h;
     lla(p, lat, lon, h);
     const double g = EarthModel::normal_gravity_mps2(lat, h) + g_offset;
     const Eigen::Vector3d r = r_e(p);
     const Eigen::Vector3d g_e = C_en(lat, lon) * Eigen::Vector3d(0, 0, g);
-    return C_ie(t) * (g_e + w_ie_.cross(w_ie_.cross(r)));
+    G_e_p_ = p;
+    G_e_offset_ = g_offset;
+    G_e_ = g_e + w_ie_.cross(w_ie_.cross(r));
+    return G_e_;
   }
 
- private:
+  mutable Eigen::Vector3d G_e_p_{kNaN, kNaN, kNaN}, G_e_;
+  mutable double G_e_offset_ = kNaN;
   Site site_;
   Eigen::Vector3d r0_, w_ie_;
   Eigen::Matrix3d C_en0_;
@@ -326,14 +372,29 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
           : 0.0;
   const EarthKinematics earth(truth);
 
+  // The placement's rotation and the table's attitude stay the same over a rest (most of a run)
+  // and the lever term asks for them ten times a sample: each is recomputed only when its input
+  // changes (the same numbers either way).
+  Eigen::Vector3d e_last(kNaN, kNaN, kNaN);
+  Eigen::Matrix3d C_placement;
+  double outer_last = kNaN, inner_last = kNaN;
+  Eigen::Matrix3d C_table;
   auto C_bn_at = [&](double t) {
     double tp;
     Eigen::Vector3d e;
     bool rest;
     hand.at(t, tp, e, rest);
     const sequences::TableState s = profile.at(tp);
-    return Eigen::Matrix3d(plat.C_rock(t) * rotvec_to_matrix<double>(e) *
-                           table.C_bn(s.outer_rad, s.inner_rad));
+    if (e != e_last) {
+      e_last = e;
+      C_placement = rotvec_to_matrix<double>(e);
+    }
+    if (s.outer_rad != outer_last || s.inner_rad != inner_last) {
+      outer_last = s.outer_rad;
+      inner_last = s.inner_rad;
+      C_table = table.C_bn(s.outer_rad, s.inner_rad);
+    }
+    return Eigen::Matrix3d(plat.C_rock(t) * C_placement * C_table);
   };
 
   const double dt = 1.0 / opt.rate_hz;
@@ -347,14 +408,17 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
   TruthSensor sensor(unit, dt, opt.seed, opt.noise);
   bool lever = false;
   for (const auto& r : unit.effects.accel_lever_arm_m) lever = lever || !r.isZero();
-  Eigen::Matrix3d C_bi_prev = earth.C_bi(0.0, plat.p(0.0), C_bn_at(0.0));
-  Eigen::Vector3d v_i_prev = earth.v_i(0.0, plat.p(0.0), plat.p_dot(0.0));
+  LeverArmIncrement lever_arm(unit.effects.accel_lever_arm_m, C_bn_at);
+  const Eigen::Matrix3d C_ie0 = earth.C_ie(0.0);
+  Eigen::Matrix3d C_bi_prev = earth.C_bi(C_ie0, plat.p(0.0), C_bn_at(0.0));
+  Eigen::Vector3d v_i_prev = earth.v_i(C_ie0, plat.p(0.0), plat.p_dot(0.0));
   for (size_t k = 0; k < n; ++k) {
     const double t0 = static_cast<double>(k) * dt, t1 = static_cast<double>(k + 1) * dt;
     const Eigen::Matrix3d C_bn = C_bn_at(t1);
     const Eigen::Vector3d p1 = plat.p(t1);
-    const Eigen::Matrix3d C_bi = earth.C_bi(t1, p1, C_bn);
-    const Eigen::Vector3d v_i = earth.v_i(t1, p1, plat.p_dot(t1));
+    const Eigen::Matrix3d C_ie = earth.C_ie(t1);
+    const Eigen::Matrix3d C_bi = earth.C_bi(C_ie, p1, C_bn);
+    const Eigen::Vector3d v_i = earth.v_i(C_ie, p1, plat.p_dot(t1));
     Eigen::Vector3d int_G = Eigen::Vector3d::Zero();
     for (int q = 0; q < 3; ++q) {
       const double t = t0 + GaussLegendre3::kNode[q] * dt;
@@ -362,7 +426,13 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
     }
     const Eigen::Vector3d dtheta = matrix_to_rotvec(C_bi_prev.transpose() * C_bi);
     Eigen::Vector3d dv = C_bi_prev.transpose() * (v_i - v_i_prev - int_G);
-    if (lever) dv += lever_dv_b(unit.effects.accel_lever_arm_m, C_bn_at, t0, t1);
+    if (lever) {
+      // On land at a rest the attitude is constant over the differences' reach: no lever term.
+      if (!plat.sea && hand.rest_interval(t0 - 1e-4, t1 + 1e-4))
+        lever_arm.still(t1);
+      else
+        dv += lever_arm.dv_b(t0, t1);
+    }
     ImuIncrement& s = out.imu[k];
     s.t_s = t1;
     s.dt_s = dt;
