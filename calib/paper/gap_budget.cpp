@@ -503,12 +503,12 @@ class BudgetRun {
   /// Step 1: the baseline and one probe per candidate, on the same seeds (the same units).
   Probes probe_all() {
     Probes pr;
-    pr.base = simulate(std::vector<double>(K_, 0.0), "baseline", options_.tables.units);
+    pr.base = simulate(std::vector<double>(K_, 0.0), "baseline", options_.probe_units);
     for (size_t k = 0; k < K_; ++k) {
       pr.size.push_back(candidates_[k].probe);
       std::vector<double> sizes(K_, 0.0);
       sizes[k] = candidates_[k].probe;
-      pr.probe.push_back(simulate(sizes, candidates_[k].name, options_.tables.units));
+      pr.probe.push_back(simulate(sizes, candidates_[k].name, options_.probe_units));
     }
     return pr;
   }
@@ -796,6 +796,9 @@ GapBudget fit_gap_budget(const sequences::MotionProfile& profile, const Site& si
                          const std::vector<BudgetCandidate>& candidates,
                          const PaperPublished& published, const BudgetOptions& options) {
   if (candidates.empty()) throw std::invalid_argument("gap budget: no candidate");
+  if (options.probe_units < 1 || options.search_units < 1 || options.replicates < 0)
+    throw std::invalid_argument(
+        "gap budget: probe and search units must be at least 1, replicates at least 0");
   for (const BudgetCandidate& c : candidates)
     if (!(c.probe > 0.0) || !(c.prior_hi > c.prior_lo) || c.prior_lo < 0.0)
       throw std::invalid_argument("gap budget: candidate " + c.name +
@@ -823,6 +826,7 @@ GapBudget fit_gap_budget(const sequences::MotionProfile& profile, const Site& si
   out.target_mean = target.mean;
   out.target_left_out = target.left_out;
   assemble(out, candidates, pr, w, without, sd, can_matter, target, options.tables.seed);
+  out.probe_units = options.probe_units;
   out.search_units = run.search_units();
   out.simulations = run.simulations();
   out.converged = run.converged();

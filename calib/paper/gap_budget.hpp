@@ -3,7 +3,8 @@
 // simulated Tables I–IV (calib/paper/paper_tables.hpp) into the published ones.
 //
 // Method (an approximate simulation-based inference, stated so that it can be checked):
-//  1. Probe: the six simulated units are run once without any candidate (the baseline) and once
+//  1. Probe: `probe_units` simulated units are run once without any candidate (the baseline) and
+//  once
 //     with each candidate alone at a probe size, on the same seeds (common random numbers, so the
 //     difference is the candidate's own contribution and not a new noise draw).
 //  2. Surrogate: independent error sources add in variance, so for each table column c and metric
@@ -80,8 +81,12 @@ struct BudgetOptions {
   PaperTablesOptions tables;  ///< units, seed, threads, rate (effects and setup are the budget's)
   /// Papers simulated from the fitted model for the intervals (a parametric bootstrap).
   int replicates = 8;
+  /// Units per probe (step 1). A probe is paired with the baseline on the same units, so their
+  /// difference is the source's own, not a new draw: four units decide which sources can matter
+  /// and where the search starts; the search's and the shares' units weigh the result.
+  int probe_units = 4;
   /// Units per simulation of the whole-model search and the leave-one-out runs (at least
-  /// tables.units, the probes' and the replicates').
+  /// tables.units, the replicates').
   int search_units = 8;
   /// Called after each simulation with (done, total) and what it was.
   std::function<void(int, int, const std::string&)> on_progress;
@@ -131,6 +136,7 @@ struct GapBudget {
   /// false: the whole-model search stopped after eight steps still improving; the sizes are its
   /// last ones.
   bool converged = false;
+  int probe_units = 0;   ///< units per probe
   int search_units = 0;  ///< units per simulation of the search (predicted, leave-one-out)
   std::vector<BudgetSearchStep> search_path;  ///< the search's start, then every step tried
   int simulations = 0;

@@ -121,8 +121,9 @@ UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects) {
 
 namespace {
 
-/// One catalogue effect at `scale` × its typical size onto fx (PaperEffectSize).
-void add_catalogue_effect(Effects& fx, const PaperEffectSize& e, std::mt19937_64& rng) {
+/// One catalogue effect at `scale` × its typical size onto fx (PaperEffectSize); a sensor
+/// effect's amplitudes drawn N(0, 1) from rng, or at +1 (the typical unit) without one.
+void add_catalogue_effect(Effects& fx, const PaperEffectSize& e, std::mt19937_64* rng) {
   if (!std::isfinite(e.scale) || e.scale < 0.0)
     throw std::invalid_argument("paper tables: the scale of " + effect_info(e.id).name +
                                 " must be finite and >= 0");
@@ -135,7 +136,7 @@ void add_catalogue_effect(Effects& fx, const PaperEffectSize& e, std::mt19937_64
       v(i) = info.typical[k];
     } else {
       // Drawn whatever the part, so that a part's draws are those of the whole effect.
-      const double draw = info.kind == EffectKind::kSensor ? n01(rng) : 1.0;
+      const double draw = info.kind == EffectKind::kSensor && rng ? n01(*rng) : 1.0;
       if (paper_effect_param_in_part(info.params[k].name, e.part))
         v(i) += info.typical[k] * e.scale * draw;
     }
@@ -185,8 +186,29 @@ UnitModel paper_unit(int unit, const PaperTablesOptions& options) {
   }
   for (const PaperEffectSize& e : options.catalogue) {
     std::mt19937_64 rng(unit_seed + 7727ULL * (static_cast<uint64_t>(e.id) + 1ULL));
-    add_catalogue_effect(m.effects, e, rng);
+    add_catalogue_effect(m.effects, e, &rng);
   }
+  return m;
+}
+
+UnitModel paper_typical_unit(const PaperTablesOptions& options) {
+  UnitModel m = default_unit();
+  Effects& fx = m.effects;
+  // paper_unit's built-in effects at their 1σ sizes, with the catalogue's signs.
+  if (options.effects.thermal) {
+    fx.thermal_accel_mps2.setConstant(20.0 * kMicroG_mps2);
+    fx.thermal_gyro_radps.setConstant(0.005 * kDegPerHourToRadPerSec);
+    fx.thermal_tau_s = 900.0;
+  }
+  if (options.effects.instability) {
+    fx.instability_gyro_radps = 0.001 * kDegPerHourToRadPerSec;
+    fx.instability_accel_mps2 = 10.0 * kMicroG_mps2;
+    fx.instability_tau_s = 1000.0;
+  }
+  if (options.effects.k2)
+    fx.accel_k2_per_mps2.setConstant(20.0 * kMicroG_mps2 /
+                                     (kStandardGravity_mps2 * kStandardGravity_mps2));
+  for (const PaperEffectSize& e : options.catalogue) add_catalogue_effect(fx, e, nullptr);
   return m;
 }
 

@@ -129,6 +129,14 @@ UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects = PaperEffect
 /// std::invalid_argument for a negative or non-finite scale.
 UnitModel paper_unit(int unit, const PaperTablesOptions& options);
 
+/// One unit that stands for the options' model, for a unit file (issue #26's paper-like unit):
+/// the default unit's parameters and noise, every effect of `options.effects` and
+/// `options.catalogue` with each amplitude parameter at typical × scale — the size a 1σ draw
+/// has, with the catalogue's signs — instead of a random draw. The set-up's errors
+/// (PaperSetupErrors) belong to the table, the fixture and the evaluation, not to a unit: not in
+/// it. Throws std::invalid_argument as paper_unit.
+UnitModel paper_typical_unit(const PaperTablesOptions& options);
+
 /// Throws std::invalid_argument for units < 1 or threads < 1, and whatever a method throws.
 PaperTables run_paper_tables(const sequences::MotionProfile& profile, const Site& site,
                              const PaperTablesOptions& options);

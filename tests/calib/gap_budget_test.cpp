@@ -169,7 +169,8 @@ TEST(GapBudget, RecoversTheSourcesThatWroteTablesOnItsOwnSeedsAndSaysWhatCannotM
   opt.tables.units = 6;
   opt.tables.seed = 5;
   opt.replicates = 4;
-  opt.search_units = 6;  // the "paper"'s own units: no scatter between it and the search
+  opt.probe_units = 6;   // the "paper"'s own units: no scatter between it and the probes
+  opt.search_units = 6;  // nor the search
   // The "paper": K2 at 2x and bias instability at 2x their typical sizes.
   const std::vector<double> true_sizes = {2.0, 2.0, 0.0};
   const PaperPublished published =

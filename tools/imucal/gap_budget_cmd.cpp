@@ -12,6 +12,9 @@
 
 #include "calib/core/site_presets.hpp"
 #include "calib/paper/gap_budget.hpp"
+#include "calib/paper/paper_spread.hpp"
+#include "db/archive/io_util.hpp"
+#include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
 #include "tools/imucal/progress_line.hpp"
 
@@ -141,6 +144,7 @@ nlohmann::json to_json(const calib::GapBudget& b, const Verification& v,
       if (step.sizes[k] > 0.0) sizes[candidate_names[k]] = step.sizes[k];
     j["search_path"].push_back({{"sizes", sizes}, {"misfit", step.misfit}, {"kept", step.kept}});
   }
+  j["probe_units"] = b.probe_units;
   j["search_units"] = b.search_units;
   j["top_removal_share_new_seeds"] = v.top_removal_share;
   j["worst_mean_ratio_error"] = v.worst_ratio_error;
@@ -217,10 +221,82 @@ void print_budget(const calib::GapBudget& b, const Verification& v) {
     std::printf("  %-24s %s\n", e.candidate.name.c_str(), e.candidate.prior_source.c_str());
 }
 
+nlohmann::json spread_json(const calib::PaperSpread& s) {
+  nlohmann::json j;
+  for (int c = 0; c < kNumPaperColumns; ++c) {
+    const auto cs = static_cast<size_t>(c);
+    const char* name = calib::paper_column_name(static_cast<PaperColumn>(c));
+    for (size_t m = 0; m < 2; ++m) {
+      const char* metric = m == 0 ? "orientation" : "acceleration";
+      j["cv"][name][metric] = s.cv[cs][m];
+      j["rank_with_factory_ains"][name][metric] = s.rank_with_factory_ains[cs][m];
+    }
+  }
+  j["orientation_with_acceleration"] = s.orientation_with_acceleration;
+  return j;
+}
+
+/// The per-IMU spread in kind, the model's beside the paper's (calib/paper/paper_spread.hpp).
+void print_spread(const calib::PaperSpread& model) {
+  const calib::PaperSpread paper = calib::paper_spread(calib::paper_published_rows());
+  std::printf("\nspread over the IMUs, model (paper)\n%-28s", "");
+  for (int c = 0; c < kNumPaperColumns; ++c)
+    std::printf(" %15s", calib::paper_column_name(static_cast<PaperColumn>(c)));
+  for (size_t m = 0; m < 2; ++m) {
+    const char* metric = m == 0 ? "orientation" : "acceleration";
+    std::printf("\n%-13s %-14s", metric, "CV");
+    for (size_t c = 0; c < model.cv.size(); ++c)
+      std::printf("     %4.2f (%4.2f)", model.cv[c][m], paper.cv[c][m]);
+    std::printf("\n%-13s %-14s", "", "rank vs AINS");
+    for (size_t c = 0; c < model.cv.size(); ++c)
+      std::printf("    %5.2f (%5.2f)", model.rank_with_factory_ains[c][m],
+                  paper.rank_with_factory_ains[c][m]);
+  }
+  std::printf(
+      "\norientation against acceleration, factory AINS: rank correlation %.2f (paper %.2f)\n",
+      model.orientation_with_acceleration, paper.orientation_with_acceleration);
+}
+
+/// --write-unit: the model as one unit file (calib::paper_typical_unit), with a header naming
+/// the model and what of it a unit file cannot hold (the set-up's and the evaluation's sources).
+void write_model_unit(const std::string& path, const calib::PaperTablesOptions& tables,
+                      const std::vector<calib::BudgetCandidate>& candidates,
+                      const std::vector<double>& sizes) {
+  const calib::PaperTablesOptions o = calib::budget_model(tables, candidates, sizes);
+  std::string model, outside;
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    if (!(sizes[k] > 0.0)) continue;
+    char item[128];
+    std::snprintf(item, sizeof item, "%s=%.4g", candidates[k].name.c_str(), sizes[k]);
+    model += (model.empty() ? "" : ",") + std::string(item);
+    // A source that moves nothing in the typical unit is the set-up's or the evaluation's.
+    calib::PaperTablesOptions alone = calib::budget_model(tables, {candidates[k]}, {sizes[k]});
+    if (alone.catalogue.empty() && !alone.effects.thermal && !alone.effects.instability &&
+        !alone.effects.k2)
+      outside += "#   " + std::string(item) + " " + candidates[k].unit + "\n";
+  }
+  std::string text =
+      "# A paper-like unit (issue #26): the gap budget's model of the paper's IMUs and table as\n"
+      "# one unit, every effect's amplitudes at the size of a 1 sigma draw with the catalogue's\n"
+      "# signs (calib::paper_typical_unit). The table's effects (wobble, non-orthogonality, time\n"
+      "# offset) and the site's (latitude, gravity) are in [effects] too: stationsim takes them\n"
+      "# from the unit.\n"
+      "# Written by: imucal gap-budget --model " +
+      model + " --write-unit FILE\n";
+  if (!outside.empty())
+    text +=
+        "# Not in this file (the fixture's, the table's positioning or the evaluation's, not the\n"
+        "# unit's; set them where they belong):\n" +
+        outside;
+  text += "\n" + archive::unit_file_text(calib::paper_typical_unit(o));
+  archive::write_file_atomic(path, text);
+}
+
 /// --model: one simulation of the given model, its per-IMU values and means beside the paper's.
 int simulate_model(const GapBudgetArgs& a, const sequences::MotionProfile& profile,
                    const calib::PaperTablesOptions& tables) {
   const auto [chosen, sizes] = parse_model(a.model);
+  if (!a.write_unit.empty()) write_model_unit(a.write_unit, tables, chosen, sizes);
   calib::PaperTablesOptions o = calib::budget_model(tables, chosen, sizes);
   const ProgressLine progress("gap-budget", "units");
   o.on_progress = [&](int done, int total) { progress(done, total); };
@@ -241,6 +317,10 @@ int simulate_model(const GapBudgetArgs& a, const sequences::MotionProfile& profi
           {"accel_rmse_ug", t.mean_accel_ug[static_cast<size_t>(c)]},
           {"paper_orientation_rmse_mdeg", paper_mean(c, 0)},
           {"paper_accel_rmse_ug", paper_mean(c, 1)}};
+    if (t.units.size() >= 2) {
+      j["spread"] = spread_json(calib::paper_spread(calib::paper_rows(t)));
+      j["paper_spread"] = spread_json(calib::paper_spread(calib::paper_published_rows()));
+    }
     std::cout << j.dump(2) << '\n';
     return 0;
   }
@@ -266,6 +346,7 @@ int simulate_model(const GapBudgetArgs& a, const sequences::MotionProfile& profi
   for (int c = 0; c < kNumPaperColumns; ++c)
     std::printf(" %10.2f %10.2f", paper_mean(c, 0), paper_mean(c, 1));
   std::printf("\n");
+  if (t.units.size() >= 2) print_spread(calib::paper_spread(calib::paper_rows(t)));
   return 0;
 }
 
@@ -298,6 +379,10 @@ CLI::App* add_gap_budget_command(CLI::App& app, GapBudgetArgs& a) {
                 "papers simulated from the fitted model for the intervals (parametric bootstrap)")
       ->capture_default_str()
       ->check(CLI::Range(0, 1000));
+  c->add_option("--probe-units", a.probe_units,
+                "units per probe (each source alone, paired with the baseline on the same units)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100));
   c->add_option("--search-units", a.search_units,
                 "units per simulation of the whole-model search and the leave-one-out shares")
       ->capture_default_str()
@@ -309,6 +394,9 @@ CLI::App* add_gap_budget_command(CLI::App& app, GapBudgetArgs& a) {
   c->add_option("--model", a.model,
                 "NAME=SIZE,...: no fit, simulate this model (sizes in the candidates' units) and "
                 "print its per-IMU values and means beside the paper's");
+  c->add_option("--write-unit", a.write_unit,
+                "write the fitted (or --model's) model as a unit file, each effect at its 1-sigma "
+                "size (e.g. db/archive/units/paper-like.toml)");
   c->add_flag("--json", a.json, "print one JSON object");
   return c;
 }
@@ -323,6 +411,7 @@ int cmd_gap_budget(const GapBudgetArgs& a) {
                            ? a.threads
                            : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   opt.replicates = a.replicates;
+  opt.probe_units = a.probe_units;
   opt.search_units = a.search_units;
   if (!a.model.empty()) return simulate_model(a, profile, opt.tables);
   const std::vector<calib::BudgetCandidate> candidates = chosen_candidates(a.candidates);
@@ -339,6 +428,7 @@ int cmd_gap_budget(const GapBudgetArgs& a) {
   for (const calib::BudgetEntry& e : b.entries)
     for (size_t k = 0; k < candidates.size(); ++k)
       if (candidates[k].name == e.candidate.name) sizes[k] = e.size;
+  if (!a.write_unit.empty()) write_model_unit(a.write_unit, opt.tables, candidates, sizes);
   calib::PaperTablesOptions check = opt.tables;
   check.seed = a.seed + 1000;
   check.units = a.check_units;

@@ -15,11 +15,13 @@ struct GapBudgetArgs {
   std::string sequence = "factory-std";
   std::string candidates;  ///< comma-separated names; empty: every default candidate
   int replicates = 8;
+  int probe_units = 4;   ///< units per probe (each source alone)
   int search_units = 8;  ///< units per simulation of the whole-model search
   int check_units = 16;  ///< units of the fitted model's check on new seeds
   /// "NAME=SIZE,...": no fit — simulate this model (candidates' sizes in their human units) and
   /// print its means and per-IMU values beside the paper's.
   std::string model;
+  std::string write_unit;  ///< --write-unit FILE: the model as a unit file
   bool json = false;
 };
 
