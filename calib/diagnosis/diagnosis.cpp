@@ -519,6 +519,9 @@ struct StepFit {
   /// An undeclared Gauss-Markov bias chosen with it would explain it as well (its test given the
   /// bias and the others fails): the run cannot tell this trend from the bias's wandering.
   bool like_wandering = false;
+  /// A noise member's size given the set before it (a Gauss-Markov bias after the set); absent:
+  /// its own fit's.
+  std::optional<CandidateResult> size_given_set = std::nullopt;
 };
 
 /// The explanation chosen for the segment residuals (plus quantisation, which acts on the
@@ -540,15 +543,33 @@ std::optional<size_t> index_of(const std::vector<Scored>& c, EffectId id) {
 }
 
 // At most this many deterministic effects in one explanation: beyond it the candidates' joint fit
-// has more unknowns than a factory sequence's rests constrain well, and no real unit has needed it.
-constexpr size_t kMaxSteps = 4;
+// has more unknowns than a factory sequence's rests constrain well. The paper's units carry six
+// sources that bias a calibration (issue #26, README "The paper's figures: a gap budget").
+constexpr size_t kMaxSteps = 6;
 
 /// Whether a candidate may join a stepwise explanation: a deterministic effect (it has columns),
-/// separable from the base, of plausible size, and not one of a set this sequence cannot tell
-/// apart.
+/// separable from the base, and not one of a set this sequence cannot tell apart. Its size is
+/// judged given the effects chosen before it (next_step): fitted alone, a candidate takes on what
+/// the others do — on a paper-like unit the size effect alone read 2600x its typical lever arms,
+/// beside a 2.5 ms gyro/accelerometer skew that moves the same moves.
 bool steppable(const Scored& s) {
   const CandidateResult& r = s.result;
-  return s.J_eff.cols() > 0 && r.separable && r.plausible && !r.in_ambiguous_set;
+  return s.J_eff.cols() > 0 && r.separable && !r.in_ambiguous_set;
+}
+
+/// Whether a candidate's size in a joint fit (its coefficients at the tail of `fit`) is plausible
+/// (judge_plausibility's rule).
+bool plausible_in(const Scored& s, const GlsFit& fit, double max_typical) {
+  const auto k = s.J_eff.cols();
+  const EffectValues v = effect_values(s, fit.x.tail(k), fit.cov.bottomRightCorner(k, k));
+  CandidateResult r;
+  r.id = s.result.id;
+  r.separable = true;
+  r.unit = s.result.unit;
+  r.magnitude = v.magnitude;
+  r.magnitude_sigma = v.magnitude_sigma;
+  judge_plausibility(r, max_typical);
+  return r.plausible;
 }
 
 /// The next step of the forward selection given the columns J (base + the effects chosen, χ²
@@ -557,7 +578,8 @@ bool steppable(const Scored& s) {
 /// best (the larger ratio on a tie). Empty when none does.
 std::optional<StepFit> next_step(const std::vector<Scored>& c, const Problem& p,
                                  const Eigen::MatrixXd& J, const StepFit& now,
-                                 const std::vector<bool>& chosen, double level) {
+                                 const std::vector<bool>& chosen, double level,
+                                 const DiagnosisOptions& opt) {
   std::optional<StepFit> best;
   double best_lr = 0.0;
   for (size_t i = 0; i < c.size(); ++i) {
@@ -571,6 +593,9 @@ std::optional<StepFit> next_step(const std::vector<Scored>& c, const Problem& p,
       lr = now.chi2 - fit.chi2;
       f.p_value = chi2_survival(std::max(0.0, lr), c[i].result.k);
       if (!(f.p_value < level)) continue;
+      const double limit =
+          opt.max_plausible_typical * effect_scale(c[i].result.id, p.model.input().grade);
+      if (!plausible_in(c[i], fit, limit)) continue;
       f.chi2 = fit.chi2;
       f.dof = fit.dof;
       f.held_out = held_out_gap(p.r0, Ji, p.folds).ratio();
@@ -590,7 +615,7 @@ std::optional<StepFit> next_step(const std::vector<Scored>& c, const Problem& p,
 /// choice, until none passes (what remains is consistent with the model as far as any candidate
 /// can tell, or nothing separable is left) or kMaxSteps effects are chosen.
 Selection forward_selection(const std::vector<Scored>& c, const Problem& p, size_t first,
-                            double chi2_0, double level) {
+                            double chi2_0, double level, const DiagnosisOptions& opt) {
   Selection sel;
   sel.J = hcat(p.Jb, c[first].J_eff);
   const GlsFit f1 = gls_fit(p.r0, sel.J);
@@ -600,7 +625,7 @@ Selection forward_selection(const std::vector<Scored>& c, const Problem& p, size
   chosen[first] = true;
   int k = c[first].result.k;
   while (sel.steps.size() < kMaxSteps) {
-    const auto step = next_step(c, p, sel.J, sel.steps.back(), chosen, level);
+    const auto step = next_step(c, p, sel.J, sel.steps.back(), chosen, level, opt);
     if (!step) break;
     sel.J = hcat(sel.J, c[step->member].J_eff);
     chosen[step->member] = true;
@@ -658,6 +683,14 @@ std::optional<Selection> with_gauss_markov(const std::vector<Scored>& c, const P
                                            const Selection& det, size_t g, double chi2_0,
                                            double level, const DiagnosisOptions& opt) {
   const GaussMarkovFit fc = fit_gauss_markov(p.lin, det.J, opt.instability_tau_grid_s);
+  // Its size given the set, judged as any candidate's: alone it takes on the set's effects too.
+  CandidateResult given = c[g].result;
+  set_gauss_markov_size(given, p.lin, det.J, fc);
+  given.plausible = true;
+  given.separable = true;
+  judge_plausibility(given, opt.max_plausible_typical *
+                                effect_scale(EffectId::kBiasInstability, p.model.input().grade));
+  if (!given.plausible) return std::nullopt;
   const int k_det = static_cast<int>(det.J.cols() - p.Jb.cols());
   const double lr_det_given_g = gls_fit_cov(p.r0, p.Jb, fc.S).chi2 - fc.chi2;
   if (!(chi2_survival(fc.lr, 2) < level && chi2_survival(lr_det_given_g, k_det) < level))
@@ -672,6 +705,7 @@ std::optional<Selection> with_gauss_markov(const std::vector<Scored>& c, const P
   s.bic = lr_det + fc.lr - (k_det + 2) * std::log(static_cast<double>(p.r0.size()));
   StepFit gm{g, chi2_survival(fc.lr, 2), fc.chi2, det.steps.back().dof,
              std::numeric_limits<double>::quiet_NaN()};
+  gm.size_given_set = std::move(given);
   try {
     gm.held_out = held_out_gap_correlated(p.r0, det.J, fc.S, p.folds).ratio();
   } catch (const std::invalid_argument&) {
@@ -707,21 +741,27 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
     if (c[i].result.significant && c[i].J_eff.cols() > 0) d1 = i;
   std::optional<Selection> det;
   if (d1) {
-    det = forward_selection(c, p, *d1, chi2_0, level);
+    det = forward_selection(c, p, *d1, chi2_0, level, opt);
     consider(*det);
   }
-  if (const auto g = index_of(c, EffectId::kBiasInstability); g && c[*g].result.significant) {
-    const GaussMarkovFit f = fit_gauss_markov(p.lin, p.Jb, opt.instability_tau_grid_s);
-    Selection alone;
-    alone.J = p.Jb;
-    alone.gm = true;
-    alone.S = f.S;
-    alone.bic = c[*g].result.bic_gain;
-    alone.steps.push_back({*g, c[*g].result.p_value, f.chi2,
-                           p.model.rows() - static_cast<int>(p.Jb.cols()),
-                           c[*g].result.held_out_gap});
-    consider(std::move(alone));
-    if (det)
+  if (const auto g = index_of(c, EffectId::kBiasInstability)) {
+    if (c[*g].result.significant) {
+      const GaussMarkovFit f = fit_gauss_markov(p.lin, p.Jb, opt.instability_tau_grid_s);
+      Selection alone;
+      alone.J = p.Jb;
+      alone.gm = true;
+      alone.S = f.S;
+      alone.bic = c[*g].result.bic_gain;
+      alone.steps.push_back({*g, c[*g].result.p_value, f.chi2,
+                             p.model.rows() - static_cast<int>(p.Jb.cols()),
+                             c[*g].result.held_out_gap});
+      consider(std::move(alone));
+    }
+    // After the set, the wandering is judged given it (with_gauss_markov), also when alone it
+    // was significant but of implausible size: alone it takes on the set's effects too.
+    const CandidateResult& r = c[*g].result;
+    const bool only_too_large = !r.plausible && r.separable && r.p_value < level;
+    if (det && (r.significant || only_too_large))
       if (auto both = with_gauss_markov(c, p, *det, *g, chi2_0, level, opt))
         consider(std::move(*both));
   }
@@ -760,9 +800,10 @@ std::vector<DiagnosisStep> result_steps(const Selection& sel, const std::vector<
       st.magnitude_sigma = v.magnitude_sigma;
       col += k;
     } else {
-      st.params = sc.result.params;
-      st.magnitude = sc.result.magnitude;
-      st.magnitude_sigma = sc.result.magnitude_sigma;
+      const CandidateResult& own = f.size_given_set ? *f.size_given_set : sc.result;
+      st.params = own.params;
+      st.magnitude = own.magnitude;
+      st.magnitude_sigma = own.magnitude_sigma;
     }
     out.push_back(std::move(st));
   }

@@ -291,6 +291,31 @@ GaussMarkovFit fit_gauss_markov(const GapLinearisation& lin, const Eigen::Matrix
   return out;
 }
 
+void set_gauss_markov_size(CandidateResult& r, const GapLinearisation& lin,
+                           const Eigen::MatrixXd& J, const GaussMarkovFit& f) {
+  const EffectInfo& e = effect_info(EffectId::kBiasInstability);
+  const int m = lin.model().rows();
+  r.value_si = Eigen::Vector3d(f.sigma_gyro_radps, f.sigma_accel_mps2, f.tau_s);
+  r.magnitude = e.magnitude(r.value_si);
+  r.magnitude_sigma = 0.0;
+  // σ of the magnitude from the curvature of the profile along the fitted direction.
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(m, m);
+  if (r.magnitude > 0.0) {
+    const Eigen::MatrixXd D = f.S - I;
+    const double l1 = reml(lin.r0(), J, f.S);
+    const double lm = reml(lin.r0(), J, I + 0.49 * D), lp = reml(lin.r0(), J, I + 1.69 * D);
+    const double curv = -(lp - 2.0 * l1 + lm) / (0.3 * 0.3);
+    r.magnitude_sigma = curv > 0.0 ? r.magnitude / std::sqrt(curv) : r.magnitude;
+  }
+  r.params.clear();
+  for (int j = 0; j < 3; ++j) {
+    const EffectParamInfo& pi = e.params[static_cast<size_t>(j)];
+    const double rel = r.magnitude > 0.0 ? r.magnitude_sigma / r.magnitude : 0.0;
+    r.params.push_back({pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human,
+                        pi.shape ? 0.0 : rel * r.value_si(j) * pi.si_to_human});
+  }
+}
+
 CandidateResult score_bias_instability(const GapLinearisation& lin,
                                        const std::vector<std::vector<int>>& folds,
                                        const std::vector<double>& tau_grid_s) {
@@ -301,24 +326,7 @@ CandidateResult score_bias_instability(const GapLinearisation& lin,
   r.lr = f.lr;
   r.p_value = chi2_survival(r.lr, r.k);
   r.bic_gain = r.lr - r.k * std::log(static_cast<double>(m));
-  r.value_si = Eigen::Vector3d(f.sigma_gyro_radps, f.sigma_accel_mps2, f.tau_s);
-  r.magnitude = e.magnitude(r.value_si);
-  // σ of the magnitude from the curvature of the profile along the fitted direction.
-  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(m, m);
-  if (r.magnitude > 0.0) {
-    const Eigen::MatrixXd D = f.S - I;
-    const double l1 = reml(lin.r0(), lin.Jb(), f.S);
-    const double lm = reml(lin.r0(), lin.Jb(), I + 0.49 * D),
-                 lp = reml(lin.r0(), lin.Jb(), I + 1.69 * D);
-    const double curv = -(lp - 2.0 * l1 + lm) / (0.3 * 0.3);
-    r.magnitude_sigma = curv > 0.0 ? r.magnitude / std::sqrt(curv) : r.magnitude;
-  }
-  for (int j = 0; j < 3; ++j) {
-    const EffectParamInfo& pi = e.params[static_cast<size_t>(j)];
-    const double rel = r.magnitude > 0.0 ? r.magnitude_sigma / r.magnitude : 0.0;
-    r.params.push_back({pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human,
-                        pi.shape ? 0.0 : rel * r.value_si(j) * pi.si_to_human});
-  }
+  set_gauss_markov_size(r, lin, lin.Jb(), f);
   r.chi2_after = f.chi2;
   r.held_out_gap = held_out_gap_correlated(lin.r0(), lin.Jb(), f.S, folds).ratio();
   r.note = "Gauss-Markov bias offsets per segment (tau " +

@@ -39,6 +39,12 @@ struct GaussMarkovFit {
 GaussMarkovFit fit_gauss_markov(const GapLinearisation& lin, const Eigen::MatrixXd& J,
                                 const std::vector<double>& tau_grid_s);
 
+/// A Gauss-Markov bias fit `f` (on the design J: the base, or the base and a set of effects) as a
+/// candidate's size: value_si (σ_gyro, σ_accel, τ), magnitude with its σ (the profile's curvature
+/// along the fitted direction), params.
+void set_gauss_markov_size(CandidateResult& r, const GapLinearisation& lin,
+                           const Eigen::MatrixXd& J, const GaussMarkovFit& f);
+
 CandidateResult score_bias_instability(const GapLinearisation& lin,
                                        const std::vector<std::vector<int>>& folds,
                                        const std::vector<double>& tau_grid_s);
