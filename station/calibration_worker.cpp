@@ -47,7 +47,8 @@ std::string capture_note(const archive::RunArchive& ar) {
 }
 
 /// Factory: AINS + NLSQ, cross-check, and the gap check (a significant sim-to-real gap means an
-/// unmodelled effect that biases the calibration, so the run is never PASS then).
+/// unmodelled effect that biases the calibration, so the run is never PASS then — unless the
+/// product's known effects alone explain it, [calibration] known_effects).
 void store_factory_result(const calib::PipelineResult& r, calib::CalibrationInput in,
                           const archive::RunArchive& ar, const CalibrationJob& job,
                           const std::function<void(const std::string&)>& phase,
@@ -58,10 +59,11 @@ void store_factory_result(const calib::PipelineResult& r, calib::CalibrationInpu
   completion.calibrations.push_back(db::calibration_record(r.nlsq->result, &r.nlsq->metrics));
   completion.crosscheck = db::crosscheck_record(*r.crosscheck, job.k_sigma);
   phase("gap diagnosis");
-  const GapCheck gap = check_gap(std::move(in), ar, r.nlsq->result.params, job.gap_false_alarm);
+  const GapCheck gap =
+      check_gap(std::move(in), ar, r.nlsq->result.params, job.gap_false_alarm, job.known_effects);
   completion.diagnosis_json = gap.summary.dump();
   completion.reasons = review_reasons(r);
-  if (gap.significant)
+  if (gap.significant && !gap.known)
     completion.reasons.push_back({"gap", "sim-to-real gap: " + gap.text + capture_note(ar)});
   completion.state = completion.reasons.empty() ? db::RunState::kDone : db::RunState::kReview;
 }

@@ -24,6 +24,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "calib/diagnosis/false_alarm.hpp"
 #include "db/repository.hpp"
@@ -38,6 +39,9 @@ struct CalibrationJob {
   double k_sigma = 4.0;
   /// The gap check's false-alarm rate per run ([calibration] gap_false_alarm).
   double gap_false_alarm = calib::kDefaultGapFalseAlarm;
+  /// The product's known effects ([calibration] known_effects): a gap they alone explain is no
+  /// REVIEW.
+  std::vector<std::string> known_effects;
   /// Why the archive is incomplete ("" = complete): the result is then REVIEW at best.
   std::string partial_reason;
   /// The run's end as recorded (an import keeps its archive's times); none: when the job ends.

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "calib/core/conventions.hpp"
+#include "calib/effects/catalogue.hpp"
 #include "drivers/imu/imu_protocol.hpp"
 #include "drivers/turntable/register_map.hpp"
 #include "sequences/library.hpp"
@@ -158,6 +159,24 @@ class Section {
     if (!s) wrong_type(key, *n, "a string");
     if (!allow_empty && s->get().empty()) fail_key(key, "must not be empty");
     return s->get();
+  }
+
+  /// An array of non-empty strings (an absent key: none).
+  std::vector<std::string> strings(const std::string& key) const {
+    const toml::node* n = node(key, false);
+    if (!n) return {};
+    const auto* a = n->as_array();
+    if (!a) wrong_type(key, *n, "an array of strings");
+    std::vector<std::string> out;
+    for (const toml::node& item : *a) {
+      const auto* s = item.as_string();
+      if (!s)
+        fail_key(key, std::string("must hold strings only, not ") +
+                          sequences::toml_type_name(item.type()));
+      if (s->get().empty()) fail_key(key, "must not hold an empty string");
+      out.push_back(s->get());
+    }
+    return out;
   }
 
   const toml::table* sub_table(const std::string& key) const {
@@ -397,7 +416,7 @@ void parse_imu(const Section& s, const std::string& base_dir, StationConfig& c) 
 
 /// [calibration]: the sequence library and default, the cross-check bound, the gap false alarm.
 void parse_calibration(const Section& s, const std::string& base_dir, StationConfig& c) {
-  s.only({"default_sequence", "k_sigma", "gap_false_alarm", "sequence_dir"});
+  s.only({"default_sequence", "k_sigma", "gap_false_alarm", "known_effects", "sequence_dir"});
   if (auto v = s.string("sequence_dir", false, false)) {
     c.sequence_dir = resolve(base_dir, *v);
     std::error_code ec;
@@ -413,6 +432,11 @@ void parse_calibration(const Section& s, const std::string& base_dir, StationCon
     c.k_sigma = *v;
   if (auto v = s.number("gap_false_alarm", false, 1e-9, 0.1, "(probability per run)"))
     c.gap_false_alarm = *v;
+  c.known_effects = s.strings("known_effects");
+  for (const std::string& name : c.known_effects)
+    if (!calib::find_effect(name))
+      s.fail_key("known_effects", "\"" + name + "\" is not an effect of the catalogue (" +
+                                      calib::effect_names_list() + "; imucal effects)");
 }
 
 /// [log]: the log level.

@@ -14,6 +14,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "calib/core/earth.hpp"
 #include "calib/core/unit_grade.hpp"
@@ -97,6 +98,11 @@ struct StationConfig {
   /// a day sees one needless review in about a month; a larger rate detects smaller effects
   /// (README, "The gap check").
   double gap_false_alarm = calib::kDefaultGapFalseAlarm;
+  /// The product's known unmodelled effects (catalogue names, e.g. from `imucal gap-budget`): a
+  /// significant gap that the diagnosis explains by these alone is kept with the run but does not
+  /// make it REVIEW. An unexplained gap, or one explained by any other effect, still does.
+  /// Empty (the default): every significant gap is a REVIEW.
+  std::vector<std::string> known_effects;
 
   // [log]
   std::string log_level = "info";  ///< trace, debug, info, warn, error, critical, off

@@ -1,5 +1,7 @@
 #include "station/gap_check.hpp"
 
+#include <algorithm>
+
 #include "calib/diagnosis/diagnosis.hpp"
 #include "calib/nlsq/nlsq.hpp"
 #include "db/archive/diagnosis_json.hpp"
@@ -15,10 +17,20 @@ calib::DiagnosisInput diagnosis_input(calib::CalibrationInput in, const archive:
   return din;
 }
 
+/// Explained, and by the product's known effects alone.
+bool is_known(const calib::DiagnosisResult& d, const std::vector<std::string>& known_effects) {
+  if (d.verdict != "explained" || d.explained_by.empty()) return false;
+  for (const std::string& name : d.explained_by)
+    if (std::find(known_effects.begin(), known_effects.end(), name) == known_effects.end())
+      return false;
+  return true;
+}
+
 }  // namespace
 
 GapCheck check_gap(calib::CalibrationInput in, const archive::RunArchive& ar,
-                   const calib::ParamSet& nlsq_params, double false_alarm_per_run) {
+                   const calib::ParamSet& nlsq_params, double false_alarm_per_run,
+                   const std::vector<std::string>& known_effects) {
   GapCheck g;
   const calib::DiagnosisOptions opt = calib::diagnosis_options_for_false_alarm(false_alarm_per_run);
   try {
@@ -27,6 +39,8 @@ GapCheck check_gap(calib::CalibrationInput in, const archive::RunArchive& ar,
     g.summary = archive::diagnosis_summary_json(d);
     g.significant = d.verdict != "consistent";
     g.text = d.summary;
+    g.known = g.significant && is_known(d, known_effects);
+    if (g.significant) g.summary["known_effects_only"] = g.known;
   } catch (const std::exception& e) {
     g.summary = {{"verdict", "not run"}, {"reason", e.what()}};
   }

@@ -8,6 +8,7 @@
 // magnitude and σ, overall gap, held-out gap).
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "calib/core/calibration_input.hpp"
 #include "calib/core/param_set.hpp"
@@ -17,16 +18,21 @@ namespace imucal::station {
 
 struct GapCheck {
   nlohmann::json summary;    ///< stored with the run
-  bool significant = false;  ///< the run departs from its model: never PASS
-  std::string text;          ///< the diagnosis' one-sentence summary
+  bool significant = false;  ///< the run departs from its model: never PASS, unless known
+  /// Significant, and explained by the product's known effects alone (summary's
+  /// "known_effects_only": true): kept with the run, not a REVIEW.
+  bool known = false;
+  std::string text;  ///< the diagnosis' one-sentence summary
 };
 
 /// A diagnosis that cannot run (a run too short for it) does not fail a calibration that
 /// succeeded: it is stored as {"verdict": "not run", "reason": ...} and the cross-check decides.
 /// `false_alarm_per_run`: the rate at which a run without any unmodelled effect is called
 /// significant ([calibration] gap_false_alarm).
+/// `known_effects`: the product's known effects ([calibration] known_effects).
 GapCheck check_gap(calib::CalibrationInput in, const archive::RunArchive& ar,
-                   const calib::ParamSet& nlsq_params, double false_alarm_per_run);
+                   const calib::ParamSet& nlsq_params, double false_alarm_per_run,
+                   const std::vector<std::string>& known_effects = {});
 
 /// The full diagnosis JSON (archive::diagnosis_to_json) of an archive directory, plus
 /// "stored_summary" (what check_gap stores). Throws on input it cannot use, naming it.

@@ -426,6 +426,7 @@ nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
   job.capture_json = orig.capture_json;
   job.k_sigma = cfg_.k_sigma;
   job.gap_false_alarm = cfg_.gap_false_alarm;
+  job.known_effects = cfg_.known_effects;
   job.partial_reason = partial;
   lk.unlock();
   worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, out); });
@@ -521,6 +522,7 @@ nlohmann::json RunController::import_archive(const std::string& dir, const std::
   job.archive_sha256 = staged->copy_sha256();
   job.k_sigma = cfg_.k_sigma;
   job.gap_false_alarm = cfg_.gap_false_alarm;
+  job.known_effects = cfg_.known_effects;
   job.ended_at_ms = times.ended_at_ms;
   lk.unlock();
   worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, out); });

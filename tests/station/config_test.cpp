@@ -228,6 +228,23 @@ TEST(StationConfig, GapFalseAlarmIsAProbabilityPerRun) {
                "[calibration] gap_false_alarm: 0 is out of range");
 }
 
+// Issue #26: a product's known unmodelled effects, named from the catalogue and checked.
+TEST(StationConfig, KnownEffectsAreCatalogueNames) {
+  EXPECT_TRUE(parse_config(kMinimal, "cfg.toml", "/etc").known_effects.empty());
+  const StationConfig c =
+      parse_config(std::string(kMinimal) +
+                       "[calibration]\nknown_effects = [\"gyro_accel_skew\", \"thermal_drift\"]\n",
+                   "cfg.toml", "/etc");
+  EXPECT_EQ(c.known_effects, (std::vector<std::string>{"gyro_accel_skew", "thermal_drift"}));
+  expect_error(std::string(kMinimal) + "[calibration]\nknown_effects = [\"warp_drive\"]\n", 12, 1,
+               "[calibration] known_effects: \"warp_drive\" is not an effect of the catalogue "
+               "(accel_quadratic_k2");
+  expect_error(std::string(kMinimal) + "[calibration]\nknown_effects = \"size_effect\"\n", 12, 1,
+               "[calibration] known_effects: must be an array of strings, not string");
+  expect_error(std::string(kMinimal) + "[calibration]\nknown_effects = [\"size_effect\", 3]\n", 12,
+               1, "[calibration] known_effects: must hold strings only");
+}
+
 // Issue #21: the station names the product it calibrates; every run's run.toml carries it.
 TEST(StationConfig, TheGradeOfTheProductIsNamedAndChecked) {
   EXPECT_EQ(parse_config(kMinimal, "cfg.toml", "/etc").grade, calib::Grade::kNavigation);

@@ -55,6 +55,20 @@ TEST(GapCheck, AnEffectThatRemovesLittleOfTheHeldOutGapIsNoFindingAndTheReasonNa
             calib::DiagnosisOptions{}.min_shrinkage);
 }
 
+// Issue #26: the product's known effects excuse a gap only when they explain it; an unexplained
+// gap stays a REVIEW whatever the station knows.
+TEST(GapCheck, KnownEffectsDoNotExcuseAnUnexplainedGap) {
+  test_support::ScopedTempDir dir("gap_check_test");
+  const std::string run = unpack_soak_run(dir);
+  archive::RunArchive ar = archive::read_archive(run);
+  calib::CalibrationInput in = archive::to_calibration_input(std::move(ar));
+  const calib::CalibrationResult nlsq = calib::calibrate_nlsq(in);
+  const GapCheck g = check_gap(std::move(in), ar, nlsq.params, 2e-3, {"latitude_error"});
+  EXPECT_TRUE(g.significant) << g.text;
+  EXPECT_FALSE(g.known) << g.summary.dump();
+  EXPECT_EQ(g.summary.value("known_effects_only", true), false) << g.summary.dump();
+}
+
 TEST(GapCheck, AtTheStationsFalseAlarmRateTheUnluckyNullRunIsConsistent) {
   test_support::ScopedTempDir dir("gap_check_test");
   const std::string run = unpack_soak_run(dir);

@@ -1,0 +1,131 @@
+// End to end (issue #26 item 3): the gap budget's paper-like unit
+// (db/archive/units/paper-like.toml, written by `imucal gap-budget --write-unit`) on the station —
+// stationsim --unit, stationd and stationctl as real processes on loopback.
+//  * The paper's methods work on it: AINS and NLSQ agree (the cross-check PASSes) and every
+//    limit holds.
+//  * The station still sees what no single model of it explains: the gap diagnosis names the
+//    budget's sources — the gyro/accelerometer skew first (the budget's largest that biases a
+//    calibration), the table's wobble, the accelerometer warm-up, the site's latitude and the
+//    accelerometer bias instability — so by default the run is REVIEW.
+//  * A product whose effects are known ([calibration] known_effects, the budget's list) ends
+//    PASS, the diagnosis kept with the run.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "tests/e2e/station_harness.hpp"
+
+namespace imucal::e2e {
+namespace {
+
+const std::string kPaperLikeUnit =
+    std::string(IMUCAL_SOURCE_DIR) + "/db/archive/units/paper-like.toml";
+
+// The sources the budget fits into the paper's units that also bias a calibration (README, "The
+// paper's figures: a gap budget"), by their catalogue names.
+const std::vector<std::string> kBudgetSources = {
+    "gyro_accel_skew", "thermal_drift", "bias_instability",      "size_effect",
+    "latitude_error",  "table_wobble",  "table_nonorthogonality"};
+
+// Of them, those a `short` run separates and the diagnosis must name.
+const std::vector<std::string> kMustName = {"gyro_accel_skew", "table_wobble", "thermal_drift",
+                                            "latitude_error", "bias_instability"};
+
+bool contains(const std::vector<std::string>& v, const std::string& s) {
+  return std::find(v.begin(), v.end(), s) != v.end();
+}
+
+/// One `short` run of the paper-like unit; returns its history record.
+json run_paper_like(Station& st, const std::string& serial, int expected_exit) {
+  const CmdResult run = st.ctl(
+      {"run", "start", "--serial", serial, "--sequence", "short", "--operator", "e2e", "--wait"},
+      240s);
+  EXPECT_EQ(run.exit_code, expected_exit) << run.describe() << "\ndaemon log:\n" << st.daemon_log();
+  const CmdResult hist = st.ctl({"history", serial, "--json"});
+  EXPECT_EQ(hist.exit_code, 0) << hist.describe();
+  const json runs = hist.json_out()["runs"];
+  EXPECT_EQ(runs.size(), 1u) << runs.dump(2);
+  return runs.empty() ? json::object() : runs[0];
+}
+
+std::vector<std::string> explained_by(const json& rec) {
+  std::vector<std::string> out;
+  if (rec.contains("diagnosis") && rec["diagnosis"].contains("explained_by"))
+    for (const json& e : rec["diagnosis"]["explained_by"]) out.push_back(e.get<std::string>());
+  return out;
+}
+
+TEST(StationPaperLike, TheMethodsAgreeAndTheDiagnosisNamesTheBudgetsSourcesSoTheRunIsReview) {
+  Station st;
+  SimOptions o;
+  o.extra = {"--unit", kPaperLikeUnit};
+  ASSERT_TRUE(st.start(o));
+  const json truth = json::parse(read_text(st.truth_path()));
+  ASSERT_TRUE(truth["effects"].contains("gyro_accel_skew")) << truth.dump(2);
+
+  const json rec = run_paper_like(st, "PAPER-0001", 1);
+  EXPECT_EQ(rec.value("crosscheck_verdict", ""), "PASS") << rec.dump(2);
+  EXPECT_EQ(rec.value("state", ""), "review") << rec.dump(2);
+  const std::string reason = rec.value("failure_reason", "");
+  EXPECT_NE(reason.find("sim-to-real gap"), std::string::npos) << rec.dump(2);
+  // The gap is the only reason: no limit, no cross-check.
+  EXPECT_EQ(reason.find("limit"), std::string::npos) << reason;
+  EXPECT_EQ(reason.find("cross-check"), std::string::npos) << reason;
+
+  ASSERT_TRUE(rec["diagnosis"].is_object()) << rec.dump(2);
+  EXPECT_EQ(rec["diagnosis"].value("verdict", ""), "explained") << rec["diagnosis"].dump(2);
+  const std::vector<std::string> named = explained_by(rec);
+  ASSERT_FALSE(named.empty()) << rec["diagnosis"].dump(2);
+  std::printf("explained by:");
+  for (const std::string& e : named) std::printf(" %s", e.c_str());
+  std::printf("\n");
+  EXPECT_EQ(named.front(), "gyro_accel_skew") << rec["diagnosis"].dump(2);
+  for (const std::string& e : kMustName)
+    EXPECT_TRUE(contains(named, e)) << e << " not named: " << rec["diagnosis"].dump(2);
+  // What else it names, it names after the budget's sources it found.
+  int budget_named = 0;
+  for (const std::string& e : named) budget_named += contains(kBudgetSources, e) ? 1 : 0;
+  EXPECT_GE(budget_named, static_cast<int>(kMustName.size())) << rec["diagnosis"].dump(2);
+  // The sizes the budget fitted, within the diagnosis' own ±4σ (skew 2.5 ms; latitude 5 arcmin).
+  for (const json& step : rec["diagnosis"]["steps"]) {
+    const std::string effect = step.value("effect", "");
+    const double m = step.value("magnitude", 0.0), s = step.value("magnitude_sigma", 0.0);
+    if (effect == "gyro_accel_skew") {
+      EXPECT_NEAR(m, 2.5, 4.0 * s + 0.05) << step.dump();
+    }
+    if (effect == "latitude_error") {
+      EXPECT_NEAR(m, 5.0, 4.0 * s + 0.5) << step.dump();
+    }
+  }
+}
+
+TEST(StationPaperLike, AProductWhoseEffectsAreKnownEndsPassWithTheDiagnosisKept) {
+  Station st;
+  SimOptions o;
+  o.extra = {"--unit", kPaperLikeUnit};
+  ASSERT_TRUE(st.start_sim(o));
+  std::string cfg = st.config_text();
+  std::string known = "known_effects = [";
+  for (size_t i = 0; i < kBudgetSources.size(); ++i)
+    known += (i ? ", \"" : "\"") + kBudgetSources[i] + "\"";
+  known += "]\n";
+  const size_t at = cfg.find("k_sigma = 4.0\n");
+  ASSERT_NE(at, std::string::npos) << cfg;
+  cfg.insert(at, known);
+  st.write_config(cfg);
+  ASSERT_TRUE(st.start_daemon());
+
+  const json rec = run_paper_like(st, "PAPER-0002", 0);
+  EXPECT_EQ(rec.value("state", ""), "done") << rec.dump(2);
+  EXPECT_EQ(rec.value("verdict", ""), "PASS") << rec.dump(2);
+  EXPECT_EQ(rec.value("crosscheck_verdict", ""), "PASS") << rec.dump(2);
+  ASSERT_TRUE(rec["diagnosis"].is_object()) << rec.dump(2);
+  EXPECT_EQ(rec["diagnosis"].value("verdict", ""), "explained") << rec["diagnosis"].dump(2);
+  EXPECT_EQ(rec["diagnosis"].value("known_effects_only", false), true) << rec["diagnosis"].dump(2);
+}
+
+}  // namespace
+}  // namespace imucal::e2e
