@@ -683,6 +683,10 @@ std::optional<Selection> with_gauss_markov(const std::vector<Scored>& c, const P
                                            const Selection& det, size_t g, double chi2_0,
                                            double level, const DiagnosisOptions& opt) {
   const GaussMarkovFit fc = fit_gauss_markov(p.lin, det.J, opt.instability_tau_grid_s);
+  const int k_det = static_cast<int>(det.J.cols() - p.Jb.cols());
+  const double lr_det_given_g = gls_fit_cov(p.r0, p.Jb, fc.S).chi2 - fc.chi2;
+  if (!(chi2_survival(fc.lr, 2) < level && chi2_survival(lr_det_given_g, k_det) < level))
+    return std::nullopt;
   // Its size given the set, judged as any candidate's: alone it takes on the set's effects too.
   CandidateResult given = c[g].result;
   set_gauss_markov_size(given, p.lin, det.J, fc);
@@ -691,10 +695,6 @@ std::optional<Selection> with_gauss_markov(const std::vector<Scored>& c, const P
   judge_plausibility(given, opt.max_plausible_typical *
                                 effect_scale(EffectId::kBiasInstability, p.model.input().grade));
   if (!given.plausible) return std::nullopt;
-  const int k_det = static_cast<int>(det.J.cols() - p.Jb.cols());
-  const double lr_det_given_g = gls_fit_cov(p.r0, p.Jb, fc.S).chi2 - fc.chi2;
-  if (!(chi2_survival(fc.lr, 2) < level && chi2_survival(lr_det_given_g, k_det) < level))
-    return std::nullopt;
   Selection s = det;
   s.gm = true;
   s.S = fc.S;

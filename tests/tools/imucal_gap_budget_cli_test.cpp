@@ -3,12 +3,18 @@
 // beside the paper's, a progress line on stderr; an unknown source or target refused by name.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "calib/effects/catalogue.hpp"
+#include "db/archive/unit_file.hpp"
 #include "tests/support/imucal_cli.hpp"
+#include "tests/support/temp_dir.hpp"
 
 namespace imucal {
 namespace {
@@ -93,6 +99,40 @@ TEST(GapBudgetCli, ABadModelIsRefusedNamingTheItem) {
     EXPECT_EQ(r.code, 1) << model << ": " << r.out;
     EXPECT_NE(r.out.find(says), std::string::npos) << model << ": " << r.out;
   }
+}
+
+// --write-unit (issue #26 item 3): the model as a unit file that the simulators read back, every
+// effect at the size of a 1σ draw with the catalogue's signs; what a unit cannot hold is named in
+// its head. A file that cannot be written is refused and nothing is left behind.
+TEST(GapBudgetCli, WritesTheModelAsAUnitFileThatReadsBack) {
+  test_support::ScopedTempDir dir("gap_budget_cli_test");
+  const std::string path = dir.path() + "/paper-like.toml";
+  const auto r = run_imucal(
+      "gap-budget --units 1 --sequence short --model "
+      "gyro_accel_skew=5,table_wobble=2,evaluation_heading_reopen=3 --write-unit " +
+      path);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const calib::UnitModel u = archive::read_unit_file(path);
+  EXPECT_NEAR(u.effects.gyro_accel_skew_s, 5.0 * 0.5e-3, 1e-12);  // 5x the typical 0.5 ms
+  const calib::EffectInfo& wobble = calib::effect_info(calib::EffectId::kTableWobble);
+  EXPECT_NEAR(u.effects.table_wobble_rad(0), 2.0 * wobble.typical[0], 1e-15);
+  EXPECT_NEAR(u.effects.table_wobble_rad(1), 2.0 * wobble.typical[1], 1e-15);
+  EXPECT_TRUE(u.effects.thermal_accel_mps2.isZero());  // no warm-up in this model
+  std::ifstream in(path);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("--model gyro_accel_skew=5,table_wobble=2,evaluation_heading_reopen=3"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("#   evaluation_heading_reopen=3 mdeg"), std::string::npos) << text;
+
+  const std::string missing = dir.path() + "/no/such/dir/unit.toml";
+  const auto bad = run_imucal(
+      "gap-budget --units 1 --sequence short --model gyro_accel_skew=1 "
+      "--write-unit " +
+      missing);
+  EXPECT_EQ(bad.code, 1) << bad.out;
+  EXPECT_NE(bad.out.find(missing), std::string::npos) << bad.out;
+  EXPECT_FALSE(std::filesystem::exists(missing));
 }
 
 TEST(GapBudgetCli, ShowsItsProgressOnStderr) {
