@@ -440,6 +440,9 @@ std::string render_show_text(const json& show) {
        << (cell == str(g, "verdict") ? "" : "  (" + cell + ")") << "\n";
     if (!str(g, "summary").empty()) os << "  " << str(g, "summary") << "\n";
     if (!str(g, "reason").empty()) os << "  " << str(g, "reason") << "\n";
+    if (g.value("known_effects_only", false))
+      os << "  explained by the product's known effects alone ([calibration] known_effects): no "
+            "review\n";
   }
 
   const json& cals = show.at("calibrations");

@@ -125,6 +125,9 @@ TEST(StationPaperLike, AProductWhoseEffectsAreKnownEndsPassWithTheDiagnosisKept)
   ASSERT_TRUE(rec["diagnosis"].is_object()) << rec.dump(2);
   EXPECT_EQ(rec["diagnosis"].value("verdict", ""), "explained") << rec["diagnosis"].dump(2);
   EXPECT_EQ(rec["diagnosis"].value("known_effects_only", false), true) << rec["diagnosis"].dump(2);
+  // QA reading the record sees why a run with a named gap passed.
+  const CmdResult show = st.ctl({"show", std::to_string(rec.value("run_id", -1LL))});
+  EXPECT_NE(show.out.find("known effects alone"), std::string::npos) << show.describe();
 }
 
 }  // namespace
