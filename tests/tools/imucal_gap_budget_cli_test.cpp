@@ -101,6 +101,15 @@ TEST(GapBudgetCli, ABadModelIsRefusedNamingTheItem) {
   }
 }
 
+/// An output file that cannot be written: exit 1 naming it, nothing left behind.
+void expect_unwritable_refused(const std::string& option, const std::string& missing) {
+  const auto bad = run_imucal("gap-budget --units 1 --sequence short --model gyro_accel_skew=1 " +
+                              option + " " + missing);
+  EXPECT_EQ(bad.code, 1) << option << ": " << bad.out;
+  EXPECT_NE(bad.out.find(missing), std::string::npos) << option << ": " << bad.out;
+  EXPECT_FALSE(std::filesystem::exists(missing)) << option;
+}
+
 // --write-unit (issue #26 item 3): the model as a unit file that the simulators read back, every
 // effect at the size of a 1σ draw with the catalogue's signs; what a unit cannot hold is named in
 // its head. A file that cannot be written is refused and nothing is left behind.
@@ -125,14 +134,32 @@ TEST(GapBudgetCli, WritesTheModelAsAUnitFileThatReadsBack) {
       << text;
   EXPECT_NE(text.find("#   evaluation_heading_reopen=3 mdeg"), std::string::npos) << text;
 
-  const std::string missing = dir.path() + "/no/such/dir/unit.toml";
-  const auto bad = run_imucal(
-      "gap-budget --units 1 --sequence short --model gyro_accel_skew=1 "
-      "--write-unit " +
-      missing);
-  EXPECT_EQ(bad.code, 1) << bad.out;
-  EXPECT_NE(bad.out.find(missing), std::string::npos) << bad.out;
-  EXPECT_FALSE(std::filesystem::exists(missing));
+  expect_unwritable_refused("--write-unit", dir.path() + "/no/such/dir/unit.toml");
+}
+
+// --plot: the per-IMU picture, one dot per unit and column, the paper's six IMUs beside them, both
+// metrics; a file that cannot be written is refused naming it.
+TEST(GapBudgetCli, PlotsThePapersImusBesideTheSimulatedUnits) {
+  test_support::ScopedTempDir dir("gap_budget_cli_test");
+  const std::string svg = dir.path() + "/units.svg";
+  const auto r =
+      run_imucal("gap-budget --units 3 --sequence short --model gyro_accel_skew=2 --plot " + svg);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream in(svg);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(text.rfind("<svg", 0), 0u) << text.substr(0, 200);
+  EXPECT_NE(text.find("</svg>"), std::string::npos);
+  const auto count = [&](const std::string& what) {
+    size_t n = 0;
+    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(count("class='paper'"), 2u * 5u * 6u);  // two metrics, five columns, six IMUs
+  EXPECT_EQ(count("class='model'"), 2u * 5u * 3u);
+  // The paper's own values are on it (IMU 3's legacy acceleration, Table III).
+  EXPECT_NE(text.find("factory legacy, paper IMU 3: 89.65"), std::string::npos);
+
+  expect_unwritable_refused("--plot", dir.path() + "/no/such/dir/units.svg");
 }
 
 TEST(GapBudgetCli, ShowsItsProgressOnStderr) {

@@ -16,6 +16,7 @@
 #include "db/archive/io_util.hpp"
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
+#include "tools/imucal/paper_plot.hpp"
 #include "tools/imucal/progress_line.hpp"
 
 namespace imucal::tools {
@@ -301,6 +302,12 @@ int simulate_model(const GapBudgetArgs& a, const sequences::MotionProfile& profi
   const ProgressLine progress("gap-budget", "units");
   o.on_progress = [&](int done, int total) { progress(done, total); };
   const calib::PaperTables t = calib::run_paper_tables(profile, calib::demo_factory_site(), o);
+  if (!a.plot.empty())
+    archive::write_file_atomic(
+        a.plot, paper_units_svg(calib::paper_rows(t),
+                                std::to_string(a.units) + " simulated units (seed " +
+                                    std::to_string(a.seed) + ") against the paper's six IMUs",
+                                "the model " + a.model));
   if (a.json) {
     nlohmann::json j;
     for (size_t k = 0; k < chosen.size(); ++k) j["model"][chosen[k].name] = sizes[k];
@@ -397,6 +404,9 @@ CLI::App* add_gap_budget_command(CLI::App& app, GapBudgetArgs& a) {
   c->add_option("--write-unit", a.write_unit,
                 "write the fitted (or --model's) model as a unit file, each effect at its 1-sigma "
                 "size (e.g. db/archive/units/paper-like.toml)");
+  c->add_option("--plot", a.plot,
+                "write an SVG of the paper's IMUs beside the simulated units, per column (the "
+                "fitted model's check units, or --model's)");
   c->add_flag("--json", a.json, "print one JSON object");
   return c;
 }
@@ -437,6 +447,12 @@ int cmd_gap_budget(const GapBudgetArgs& a) {
   const calib::PaperTables fitted =
       calib::run_paper_tables(profile, site, calib::budget_model(check, candidates, sizes));
   v.fitted = means(fitted);
+  if (!a.plot.empty())
+    archive::write_file_atomic(
+        a.plot, paper_units_svg(calib::paper_rows(fitted),
+                                "the fitted model: " + std::to_string(check.units) +
+                                    " simulated units on new seeds against the paper's six IMUs",
+                                "the fitted model"));
   progress(b.simulations + 1, b.simulations + 2);
   std::vector<double> without = sizes;
   for (size_t k = 0; k < candidates.size(); ++k)

@@ -22,6 +22,7 @@ struct GapBudgetArgs {
   /// print its means and per-IMU values beside the paper's.
   std::string model;
   std::string write_unit;  ///< --write-unit FILE: the model as a unit file
+  std::string plot;        ///< --plot FILE.svg: the paper's IMUs beside the simulated units
   bool json = false;
 };
 
