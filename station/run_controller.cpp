@@ -424,9 +424,7 @@ nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
   job.archive_dir = orig.archive_path;
   job.archive_sha256 = digest;
   job.capture_json = orig.capture_json;
-  job.k_sigma = cfg_.k_sigma;
-  job.gap_false_alarm = cfg_.gap_false_alarm;
-  job.known_effects = cfg_.known_effects;
+  apply_calibration_settings(job);
   job.partial_reason = partial;
   lk.unlock();
   worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, out); });
@@ -520,9 +518,7 @@ nlohmann::json RunController::import_archive(const std::string& dir, const std::
   job.run_id = id;
   job.archive_dir = dest;
   job.archive_sha256 = staged->copy_sha256();
-  job.k_sigma = cfg_.k_sigma;
-  job.gap_false_alarm = cfg_.gap_false_alarm;
-  job.known_effects = cfg_.known_effects;
+  apply_calibration_settings(job);
   job.ended_at_ms = times.ended_at_ms;
   lk.unlock();
   worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, out); });
@@ -690,6 +686,12 @@ void RunController::end_live(const std::shared_ptr<Live>& live) {
     // unlock could touch a destroyed condition variable (found by ThreadSanitizer).
     cv_.notify_all();
   }
+}
+
+void RunController::apply_calibration_settings(CalibrationJob& job) const {
+  job.k_sigma = cfg_.k_sigma;
+  job.gap_false_alarm = cfg_.gap_false_alarm;
+  job.known_effects = cfg_.known_effects;
 }
 
 void RunController::on_calibrated(const std::shared_ptr<Live>& live,

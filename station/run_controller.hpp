@@ -184,6 +184,9 @@ class RunController {
   void record_end(Live& live, const db::RunCompletion& completion);
   static constexpr std::chrono::milliseconds kRecordRetry{2000};
   void on_calibrated(const std::shared_ptr<Live>& live, const CalibrationOutcome& out);
+  /// The station's calibration settings into a job (k_sigma, gap_false_alarm, known_effects):
+  /// a run's, a reprocess's and an import's alike.
+  void apply_calibration_settings(CalibrationJob& job) const;
   void set_phase(Live& live, RunPhase phase);
   /// A finished run whose archive is present and unchanged (what reprocess() and diagnose() check);
   /// `digest` gets the archive's SHA-256 (with check_digest; otherwise the caller checks it with

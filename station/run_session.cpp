@@ -402,9 +402,7 @@ bool RunController::Session::hand_over() {
   job.archive_dir = L.snap.archive_path;
   job.archive_sha256 = sha;
   job.capture_json = stats ? to_json(*stats).dump() : std::string();
-  job.k_sigma = rc.cfg_.k_sigma;
-  job.gap_false_alarm = rc.cfg_.gap_false_alarm;
-  job.known_effects = rc.cfg_.known_effects;
+  rc.apply_calibration_settings(job);
   enter_calibrating();
   spdlog::info("run {}: capture complete ({} rows, {} at rest); calibrating", id,
                stats ? stats->rows_written : 0, stats ? stats->rest_samples : 0);

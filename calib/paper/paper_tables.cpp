@@ -75,6 +75,37 @@ PaperEffects parse_paper_effects(const std::string& text) {
   return e;
 }
 
+namespace {
+
+/// paper_unit's built-in effects (PaperEffects) onto fx at DESIGN §7's typical sizes, each
+/// amplitude times draw(): N(0, 1) for a drawn unit, 1 for the typical one. Drawn whether or not
+/// selected (then zeroed), so that a unit's parameters and noise are the same with and without
+/// them.
+template <typename Draw>
+void builtin_effects(Effects& fx, PaperEffects effects, Draw&& draw) {
+  for (int i = 0; i < 3; ++i) {
+    fx.thermal_accel_mps2(i) = 20.0 * kMicroG_mps2 * draw();
+    fx.thermal_gyro_radps(i) = 0.005 * kDegPerHourToRadPerSec * draw();
+    fx.accel_k2_per_mps2(i) =
+        20.0 * kMicroG_mps2 / (kStandardGravity_mps2 * kStandardGravity_mps2) * draw();
+  }
+  fx.thermal_tau_s = 900.0;
+  fx.instability_gyro_radps = 0.001 * kDegPerHourToRadPerSec;
+  fx.instability_accel_mps2 = 10.0 * kMicroG_mps2;
+  fx.instability_tau_s = 1000.0;
+  if (!effects.thermal) {
+    fx.thermal_accel_mps2.setZero();
+    fx.thermal_gyro_radps.setZero();
+  }
+  if (!effects.instability) {
+    fx.instability_gyro_radps = 0.0;
+    fx.instability_accel_mps2 = 0.0;
+  }
+  if (!effects.k2) fx.accel_k2_per_mps2.setZero();
+}
+
+}  // namespace
+
 UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects) {
   std::mt19937_64 rng(seed * 1000003ULL + static_cast<uint64_t>(unit) * 7919ULL);
   std::normal_distribution<double> n01;
@@ -94,28 +125,8 @@ UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects) {
   m.noise.vrw_mps_per_sqrt_s *= u(rng);
   // The paper's IMUs were real: each simulated unit also carries the unmodelled physics of the
   // effects catalogue at DESIGN §7's typical sizes (1σ draws), which no method estimates —
-  // warm-up drift, bias instability, quadratic accelerometer error. (Drawn in any case so that
-  // the parameters and noise of unit u are the same with and without them.)
-  Effects& fx = m.effects;
-  for (int i = 0; i < 3; ++i) {
-    fx.thermal_accel_mps2(i) = 20.0 * kMicroG_mps2 * n01(rng);
-    fx.thermal_gyro_radps(i) = 0.005 * kDegPerHourToRadPerSec * n01(rng);
-    fx.accel_k2_per_mps2(i) =
-        20.0 * kMicroG_mps2 / (kStandardGravity_mps2 * kStandardGravity_mps2) * n01(rng);
-  }
-  fx.thermal_tau_s = 900.0;
-  fx.instability_gyro_radps = 0.001 * kDegPerHourToRadPerSec;
-  fx.instability_accel_mps2 = 10.0 * kMicroG_mps2;
-  fx.instability_tau_s = 1000.0;
-  if (!effects.thermal) {
-    fx.thermal_accel_mps2.setZero();
-    fx.thermal_gyro_radps.setZero();
-  }
-  if (!effects.instability) {
-    fx.instability_gyro_radps = 0.0;
-    fx.instability_accel_mps2 = 0.0;
-  }
-  if (!effects.k2) fx.accel_k2_per_mps2.setZero();
+  // warm-up drift, bias instability, quadratic accelerometer error.
+  builtin_effects(m.effects, effects, [&] { return n01(rng); });
   return m;
 }
 
@@ -194,20 +205,7 @@ UnitModel paper_unit(int unit, const PaperTablesOptions& options) {
 UnitModel paper_typical_unit(const PaperTablesOptions& options) {
   UnitModel m = default_unit();
   Effects& fx = m.effects;
-  // paper_unit's built-in effects at their 1σ sizes, with the catalogue's signs.
-  if (options.effects.thermal) {
-    fx.thermal_accel_mps2.setConstant(20.0 * kMicroG_mps2);
-    fx.thermal_gyro_radps.setConstant(0.005 * kDegPerHourToRadPerSec);
-    fx.thermal_tau_s = 900.0;
-  }
-  if (options.effects.instability) {
-    fx.instability_gyro_radps = 0.001 * kDegPerHourToRadPerSec;
-    fx.instability_accel_mps2 = 10.0 * kMicroG_mps2;
-    fx.instability_tau_s = 1000.0;
-  }
-  if (options.effects.k2)
-    fx.accel_k2_per_mps2.setConstant(20.0 * kMicroG_mps2 /
-                                     (kStandardGravity_mps2 * kStandardGravity_mps2));
+  builtin_effects(fx, options.effects, [] { return 1.0; });
   for (const PaperEffectSize& e : options.catalogue) add_catalogue_effect(fx, e, nullptr);
   return m;
 }
