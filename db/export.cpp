@@ -10,12 +10,29 @@ namespace imucal::db {
 
 using nlohmann::json;
 
-const char* const kCsvRunColumns[21] = {
-    "run_id",           "serial",           "state",        "verdict",        "crosscheck_verdict",
-    "started_at",       "ended_at",         "operator",     "station",        "sequence_name",
-    "sequence_sha256",  "software_version", "archive_path", "archive_sha256", "failure_reason",
-    "reprocessed_from", "setting",          "origin",       "promoted_at",    "promoted_by",
-    "promote_reason"};
+const char* const kCsvRunColumns[23] = {"run_id",
+                                        "serial",
+                                        "state",
+                                        "verdict",
+                                        "crosscheck_verdict",
+                                        "started_at",
+                                        "ended_at",
+                                        "operator",
+                                        "station",
+                                        "sequence_name",
+                                        "sequence_sha256",
+                                        "software_version",
+                                        "archive_path",
+                                        "archive_sha256",
+                                        "failure_reason",
+                                        "reprocessed_from",
+                                        "setting",
+                                        "origin",
+                                        "promoted_at",
+                                        "promoted_by",
+                                        "promote_reason",
+                                        "slot",
+                                        "table_run"};
 
 const char* const kCsvCalibrationColumns[11] = {"method",         "converged",
                                                 "iterations",     "runtime_s",
@@ -199,6 +216,8 @@ std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::
     r.promoted_at_ms ? line.field(format_time_utc(*r.promoted_at_ms)) : line.empty();
     line.field(r.promoted_by);
     line.field(r.promote_reason);
+    line.field(r.slot);
+    r.table_run_id ? line.integer(*r.table_run_id) : line.empty();
     if (row.calibration) {
       const CalibrationRecord& c = *row.calibration;
       line.field(to_string(c.method));
@@ -320,6 +339,8 @@ json run_json(const RunRecord& r) {
   o["promoted_at"] = r.promoted_at_ms ? json(format_time_utc(*r.promoted_at_ms)) : json(nullptr);
   o["promoted_by"] = r.promoted_by;
   o["promote_reason"] = r.promote_reason;
+  o["slot"] = r.slot;
+  o["table_run"] = r.table_run_id ? json(*r.table_run_id) : json(nullptr);
   // Stored only after finish_run validated them as objects; a damaged text is reported, not hidden.
   o["capture"] = stored_object(r.capture_json, r.run_id, "capture_json");
   o["diagnosis"] = stored_object(r.diagnosis_json, r.run_id, "diagnosis_json");

@@ -30,7 +30,7 @@
 namespace imucal::db {
 
 /// Run columns of the CSV export, in order.
-extern const char* const kCsvRunColumns[21];
+extern const char* const kCsvRunColumns[23];
 /// Calibration columns of the CSV export, in order (then parameters and sigmas).
 extern const char* const kCsvCalibrationColumns[11];
 /// The run's cross-check columns, after the sigmas (then the capture counters).

@@ -214,11 +214,13 @@ void append_export_row_json(std::string& out, const ExportRow& row) {
   append_string(o.key("sequence_sha256"), r.sequence_sha256);
   append_string(o.key("serial"), r.serial);
   append_string(o.key("setting"), calib::setting_name(r.setting));
+  append_string(o.key("slot"), r.slot);
   append_string(o.key("software_version"), r.software_version);
   time_utc(o.key("started_at"), r.started_at_ms);
   append_int(o.key("started_at_ms"), r.started_at_ms);
   append_string(o.key("state"), to_string(r.state));
   append_string(o.key("station"), r.station);
+  append_optional(o.key("table_run"), r.table_run_id, integer);
   append_optional(o.key("verdict"), r.verdict,
                   [](std::string& s, RunVerdict v) { append_string(s, to_string(v)); });
 }

@@ -166,6 +166,11 @@ struct NewRun {
       reprocessed_from;  ///< for `reprocess RUN_ID`: the run whose archive is reused
   calib::Setting setting = calib::Setting::kFactory;  ///< where the data were recorded (v4)
   std::string origin;  ///< e.g. "imported from /path" for `stationctl import`; empty for runs
+  /// The fixture slot the unit sat in (schema v6; "" on a one-unit station), and the table run it
+  /// shared with its siblings: the first unit's run id (unset for a run of its own and for the
+  /// first unit itself, whose own id it is).
+  std::string slot;
+  std::optional<RunId> table_run_id;
 };
 
 struct RunRecord {
@@ -195,6 +200,8 @@ struct RunRecord {
   std::optional<TimestampMs> promoted_at_ms;  ///< set when QA promoted this run (field runs)
   std::string promoted_by;                    ///< who promoted it (user name or uid)
   std::string promote_reason;
+  std::string slot;                   ///< fixture slot (schema v6), "" on a one-unit station
+  std::optional<RunId> table_run_id;  ///< the table run shared with siblings (see NewRun)
 };
 
 /// Headline evaluation metrics of one method (paper §VII, calib/checks/evaluation.hpp), per-period

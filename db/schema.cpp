@@ -133,6 +133,14 @@ CREATE INDEX runs_promoted ON runs (unit_id, promoted_at_ms) WHERE promoted_at_m
 // reasons_json keeps every reason by source; a run stored before keeps its one reason text whole,
 // under the source its state or prefix names ("migrated" when neither does). The index serves
 // the import's duplicate check (an archive's SHA-256 already stored).
+// Migration 6: a run's fixture slot ('' for a station with one unit) and its table run (the run
+// id of the first unit captured on the same table motion; NULL for a run of its own).
+const char* const kMigration6 = R"SQL(
+ALTER TABLE runs ADD COLUMN slot TEXT NOT NULL DEFAULT '' CHECK (length(slot) <= 16);
+ALTER TABLE runs ADD COLUMN table_run_id INTEGER REFERENCES runs(id);
+CREATE INDEX runs_table_run ON runs(table_run_id) WHERE table_run_id IS NOT NULL;
+)SQL";
+
 const char* const kMigration5 = R"SQL(
 ALTER TABLE runs ADD COLUMN verdict TEXT GENERATED ALWAYS AS (
   CASE state WHEN 'done' THEN 'PASS' WHEN 'review' THEN 'REVIEW'
@@ -246,6 +254,9 @@ const std::vector<Migration>& migrations() {
        "runs.verdict (generated), runs.reasons_json; archive SHA-256 index; calibrations "
        "body_frame/unobservable/notes; crosschecks.not_compared",
        kMigration5},
+      // Version 6 (issue #23): several units on one table run. Each unit is a run of its own; the
+      // fixture slot it sat in, and the first unit's run as the table run that joins the siblings.
+      {6, "runs.slot, runs.table_run_id: several units per table run", kMigration6},
   };
   return list;
 }

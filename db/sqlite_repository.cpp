@@ -29,8 +29,8 @@ const std::string kRunColumns =
     "r.software_version, r.started_at_ms, r.ended_at_ms, r.state, r.failure_reason, "
     "r.archive_path, r.archive_sha256, r.reprocessed_from, x.verdict, r.capture_json, "
     "r.diagnosis_json, r.setting, r.origin, r.promoted_at_ms, r.promoted_by, r.promote_reason, "
-    "r.verdict, r.reasons_json";
-constexpr int kNumRunColumns = 24;
+    "r.verdict, r.reasons_json, r.slot, r.table_run_id";
+constexpr int kNumRunColumns = 26;
 constexpr int kExportVerdictColumn = 14;  ///< x.verdict among kRunColumns
 const std::string kRunFrom =
     " FROM runs r JOIN units u ON u.id = r.unit_id LEFT JOIN crosschecks x ON x.run_id = r.id ";
@@ -81,8 +81,8 @@ const char* const kSqlInsertUnit =
 const char* const kSqlRunExists = "SELECT 1 FROM runs WHERE id = ?1";
 const char* const kSqlInsertRun =
     "INSERT INTO runs (unit_id, operator, station, sequence_name, sequence_sha256, "
-    "software_version, started_at_ms, state, archive_path, reprocessed_from, setting, origin) "
-    "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)";
+    "software_version, started_at_ms, state, archive_path, reprocessed_from, setting, origin, "
+    "slot, table_run_id) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)";
 const char* const kSqlPromote =
     "UPDATE runs SET promoted_at_ms = ?2, promoted_by = ?3, promote_reason = ?4 WHERE id = ?1";
 const char* const kSqlRunState = "SELECT state FROM runs WHERE id = ?1";
@@ -386,6 +386,8 @@ struct SqliteRepository::Impl {
                     "\" contradicts its state " + to_string(r.state));
     r.reasons = decode([&] { return run_label(r.run_id) + " reasons_json"; },
                        [&] { return reasons_from_json(q.text(23)); });
+    r.slot = q.text(24);
+    if (!q.is_null(25)) r.table_run_id = q.i64(25);
     return r;
   }
 
@@ -851,6 +853,7 @@ RunId SqliteRepository::create_run(const NewRun& run) {
     q.bind(5, run.sequence_sha256).bind(6, run.software_version).bind(7, run.started_at_ms);
     q.bind(8, to_string(run.state)).bind(9, run.archive_path).bind(10, run.reprocessed_from);
     q.bind(11, calib::setting_name(run.setting)).bind(12, run.origin);
+    q.bind(13, run.slot).bind(14, run.table_run_id);
     q.run();
   }
   const RunId id = sqlite3_last_insert_rowid(d.db);

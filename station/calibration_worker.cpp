@@ -3,6 +3,7 @@
 #include <malloc.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <exception>
 
@@ -174,9 +175,9 @@ CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJo
   return out;
 }
 
-CalibrationWorker::CalibrationWorker(db::Repository& repository, Phase on_phase)
+CalibrationWorker::CalibrationWorker(db::Repository& repository, Phase on_phase, unsigned threads)
     : repo_(repository), on_phase_(std::move(on_phase)) {
-  thread_ = std::thread([this] { loop(); });
+  for (unsigned i = 0; i < std::max(1u, threads); ++i) threads_.emplace_back([this] { loop(); });
 }
 
 CalibrationWorker::~CalibrationWorker() { stop(); }
@@ -192,18 +193,18 @@ void CalibrationWorker::submit(CalibrationJob job, Done done) {
 
 bool CalibrationWorker::busy() const {
   std::lock_guard<std::mutex> lk(mu_);
-  return running_job_ || !queue_.empty();
+  return running_jobs_ > 0 || !queue_.empty();
 }
 
 void CalibrationWorker::wait_idle() {
   std::unique_lock<std::mutex> lk(mu_);
-  cv_.wait(lk, [&] { return !running_job_ && (queue_.empty() || stopping_); });
+  cv_.wait(lk, [&] { return running_jobs_ == 0 && (queue_.empty() || stopping_); });
 }
 
 void CalibrationWorker::stop() {
   {
     std::lock_guard<std::mutex> lk(mu_);
-    if (stopping_ && !thread_.joinable()) return;
+    if (stopping_ && threads_.empty()) return;
     stopping_ = true;
     if (!queue_.empty()) {
       spdlog::warn(
@@ -214,7 +215,9 @@ void CalibrationWorker::stop() {
     queue_.clear();
   }
   cv_.notify_all();
-  if (thread_.joinable()) thread_.join();
+  for (std::thread& t : threads_)
+    if (t.joinable()) t.join();
+  threads_.clear();
 }
 
 void CalibrationWorker::loop() {
@@ -226,7 +229,7 @@ void CalibrationWorker::loop() {
       if (queue_.empty()) return;  // stopping
       item = std::move(queue_.front());
       queue_.pop_front();
-      running_job_ = true;
+      ++running_jobs_;
     }
     const CalibrationJob& job = item.first;
     spdlog::info("run {}: calibrating from {}", job.run_id, job.archive_dir);
@@ -260,7 +263,7 @@ void CalibrationWorker::loop() {
     }
     {
       std::lock_guard<std::mutex> lk(mu_);
-      running_job_ = false;
+      --running_jobs_;
     }
     cv_.notify_all();
   }

@@ -3,6 +3,7 @@
 #include <toml++/toml.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -29,11 +30,11 @@ ConfigError::ConfigError(const std::string& file, int line, int column, const st
       column_(column),
       message_(message) {}
 
-double StationConfig::arw_rad_per_sqrt_s() const {
+double ImuSlotConfig::arw_rad_per_sqrt_s() const {
   // deg/√h -> rad/√s: 1 √h = 60 √s.
   return arw_deg_per_sqrt_h * kDegToRad / 60.0;
 }
-double StationConfig::vrw_mps_per_sqrt_s() const {
+double ImuSlotConfig::vrw_mps_per_sqrt_s() const {
   // µg/√Hz is the same quantity as µg·√s; times g0 per µg gives m/s/√s.
   return vrw_ug_per_sqrt_hz * kMicroG_mps2;
 }
@@ -246,7 +247,7 @@ void check_top_level(const toml::table& root, const std::string& origin) {
   const toml::key* first = nullptr;
   for (const auto& [k, v] : root) {
     if (std::find(sections.begin(), sections.end(), std::string(k.str())) != sections.end()) {
-      if (!v.is_table()) {
+      if (!v.is_table() && !(k.str() == "imu" && v.is_array_of_tables())) {
         throw ConfigError(origin, pos_of(k.source()).line, pos_of(k.source()).column,
                           "'" + std::string(k.str()) + "' must be a table ([" +
                               std::string(k.str()) + "]), not " +
@@ -349,14 +350,14 @@ void parse_turntable(const Section& s, const std::string& origin, StationConfig&
 /// times in a factory-std run's 2.3e5 rest samples), and never below 0.05 °/s. A
 /// navigation-grade unit (2.5e-4 °/s a sample at 100 Hz) gets 0.05 °/s; a tactical one
 /// (0.2 °/√h: 0.033 °/s a sample) 0.27 °/s, where 0.05 would never see it still.
-double default_rest_rate_threshold_dps(const StationConfig& c) {
+double default_rest_rate_threshold_dps(const ImuSlotConfig& c) {
   const double sigma_dps = c.arw_rad_per_sqrt_s() * std::sqrt(c.rate_hz) / kDegToRad;
   return std::max(0.05, 8.0 * sigma_dps);
 }
 
 /// [imu] protocol and base_id: the unit's protocol file read and checked now (its DBC too), so
 /// that a bad one stops the daemon before it starts; its errors name the file and line.
-void parse_protocol(const Section& s, const std::string& base_dir, StationConfig& c) {
+void parse_protocol(const Section& s, const std::string& base_dir, ImuSlotConfig& c) {
   std::shared_ptr<const imu::ImuProtocolMap> map;
   if (auto p = s.string("protocol", false, false)) {
     c.protocol_path = resolve(base_dir, *p);
@@ -376,11 +377,54 @@ void parse_protocol(const Section& s, const std::string& base_dir, StationConfig
   }
 }
 
-/// [imu]: the CAN URI, rate, protocol, frame id, noise and the capture's thresholds.
-void parse_imu(const Section& s, const std::string& base_dir, StationConfig& c) {
-  s.only({"can", "rate_hz", "protocol", "base_id", "arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz",
-          "grade", "max_gap_samples", "settle_guard_samples", "rest_rate_threshold_dps",
-          "stream_timeout_ms"});
+/// A slot's name: what an operator types after --slot and what the archive records.
+bool is_slot_name(const std::string& n) {
+  if (n.empty() || n.size() > 16) return false;
+  return std::all_of(n.begin(), n.end(), [](char ch) {
+    return std::isalnum(static_cast<unsigned char>(ch)) || ch == '-' || ch == '_';
+  });
+}
+
+/// A three-number array key ([x, y, z]) within ±limit.
+std::optional<std::array<double, 3>> vector3(const Section& s, const toml::table* t,
+                                             const std::string& key, double limit,
+                                             const char* unit) {
+  const toml::node* n = t ? t->get(key) : nullptr;
+  if (!n) return std::nullopt;
+  const auto* a = n->as_array();
+  if (!a || a->size() != 3)
+    s.fail_key(key, std::string("must be an array of three numbers [x, y, z] (") + unit + ")");
+  std::array<double, 3> v{};
+  for (size_t i = 0; i < 3; ++i) {
+    const toml::node& item = *a->get(i);
+    if (const auto* f = item.as_floating_point())
+      v[i] = f->get();
+    else if (const auto* k = item.as_integer())
+      v[i] = static_cast<double>(k->get());
+    else
+      s.fail_key(key, std::string("must hold numbers only, not ") +
+                          sequences::toml_type_name(item.type()));
+    if (!std::isfinite(v[i]) || std::abs(v[i]) > limit)
+      s.fail_key(key, fmt_double(v[i]) + " is out of range [-" + fmt_double(limit) + ", " +
+                          fmt_double(limit) + "] " + unit);
+  }
+  return v;
+}
+
+/// [imu] / one [[imu]] entry: the slot, the CAN URI, rate, protocol, frame id, noise, the
+/// capture's thresholds and the mounting.
+void parse_imu(const Section& s, const toml::table* t, const std::string& base_dir,
+               ImuSlotConfig& c) {
+  s.only({"slot", "can", "rate_hz", "protocol", "base_id", "arw_deg_per_sqrt_h",
+          "vrw_ug_per_sqrt_hz", "grade", "max_gap_samples", "settle_guard_samples",
+          "rest_rate_threshold_dps", "stream_timeout_ms", "mount_rpy_deg", "lever_arm_m"});
+  if (auto v = s.string("slot", false, false)) {
+    if (!is_slot_name(*v))
+      s.fail_key("slot", "\"" + *v + "\" is not a slot name (1-16 letters, digits, '-', '_')");
+    c.name = *v;
+  }
+  if (auto v = vector3(s, t, "mount_rpy_deg", 180.0, "deg")) c.mount_rpy_deg = *v;
+  if (auto v = vector3(s, t, "lever_arm_m", 2.0, "m")) c.lever_arm_m = *v;
   const std::string can = *s.string("can", true, false);
   const auto colon = can.find(':');
   const std::string scheme = colon == std::string::npos ? "" : can.substr(0, colon);
@@ -412,6 +456,39 @@ void parse_imu(const Section& s, const std::string& base_dir, StationConfig& c) 
     c.rest_rate_threshold_dps = default_rest_rate_threshold_dps(c);
   if (auto v = s.integer("stream_timeout_ms", false, 10, 600000, "ms"))
     c.stream_timeout_ms = static_cast<int>(*v);
+}
+
+/// [imu] (one unit, slot "A") or [[imu]] (1 to kMaxImuSlots slots, named "A", "B", ... unless
+/// they say): distinct slot names, and no two slots reading the same CAN identifiers on one bus.
+void parse_imus(const toml::table& root, const std::string& origin, const std::string& base_dir,
+                StationConfig& c) {
+  const toml::array* list = root.get_as<toml::array>("imu");
+  if (!list) {
+    const Section s = section_of(root, origin, "imu");
+    c.imus.emplace_back();
+    parse_imu(s, root.get_as<toml::table>("imu"), base_dir, c.imus.back());
+    return;
+  }
+  const Pos header = pos_of(root.find("imu")->first.source());
+  if (list->empty() || list->size() > kMaxImuSlots)
+    throw ConfigError(origin, header.line, header.column,
+                      "[[imu]] must hold 1 to " + std::to_string(kMaxImuSlots) + " units, not " +
+                          std::to_string(list->size()));
+  for (size_t i = 0; i < list->size(); ++i) {
+    const toml::table* t = list->get(i)->as_table();
+    if (!t) throw ConfigError(origin, header.line, header.column, "[[imu]] entries must be tables");
+    const Section s(origin, "imu", t, pos_of(t->source()));
+    ImuSlotConfig slot;
+    slot.name = std::string(1, static_cast<char>('A' + i));
+    parse_imu(s, t, base_dir, slot);
+    for (const ImuSlotConfig& other : c.imus) {
+      if (other.name == slot.name) s.fail_key("slot", "\"" + slot.name + "\" is used twice");
+      if (other.can_uri == slot.can_uri && other.base_id == slot.base_id)
+        s.fail_key("can", "slot " + slot.name + " reads the same bus and identifiers as slot " +
+                              other.name + " (give each unit its own bus or base_id)");
+    }
+    c.imus.push_back(std::move(slot));
+  }
 }
 
 /// [calibration]: the sequence library and default, the cross-check bound, the gap false alarm.
@@ -456,12 +533,13 @@ StationConfig parse_root(const toml::table& root, const std::string& origin,
                          const std::string& base_dir) {
   check_top_level(root, origin);
   StationConfig c;
+  c.imus.clear();
   c.source_path = origin;
   c.base_dir = base_dir;
   parse_station(section_of(root, origin, "station"), base_dir, c);
   parse_control(section_of(root, origin, "control"), base_dir, c);
   parse_turntable(section_of(root, origin, "turntable"), origin, c);
-  parse_imu(section_of(root, origin, "imu"), base_dir, c);
+  parse_imus(root, origin, base_dir, c);
   parse_calibration(section_of(root, origin, "calibration"), base_dir, c);
   parse_log(section_of(root, origin, "log"), c);
   return c;
@@ -494,11 +572,21 @@ StationConfig load_config(const std::string& path) {
   return parse_config(ss.str(), path, base.empty() ? "." : base);
 }
 
-imu::DecoderOptions decoder_options(const StationConfig& config) {
+imu::DecoderOptions decoder_options(const ImuSlotConfig& slot) {
   imu::DecoderOptions o;
-  o.protocol = config.protocol;  // base_id applied
-  o.sample_rate_hz = config.rate_hz;
+  o.protocol = slot.protocol;  // base_id applied
+  o.sample_rate_hz = slot.rate_hz;
   return o;
+}
+
+imu::DecoderOptions decoder_options(const StationConfig& config) {
+  return decoder_options(config.imu());
+}
+
+const ImuSlotConfig& slot_named(const StationConfig& config, const std::string& name) {
+  for (const ImuSlotConfig& slot : config.imus)
+    if (slot.name == name) return slot;
+  return config.imu();
 }
 
 }  // namespace imucal::station

@@ -8,6 +8,7 @@
 // unixcan:/candump: URI) are resolved against the directory of the configuration file, so a config
 // works from any working directory. Loading never creates, opens or modifies anything but the
 // config file itself.
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -40,6 +41,48 @@ class ConfigError : public std::runtime_error {
   std::string message_;
 };
 
+/// The most units a fixture holds (issue #23): one table run captures and calibrates them all.
+constexpr std::size_t kMaxImuSlots = 4;
+
+/// One unit's place on the fixture and its link: an [imu] table, or one entry of [[imu]].
+struct ImuSlotConfig {
+  /// slot: the fixture position's name (1–16 characters, letters, digits, '-', '_'); "A" for the
+  /// only unit of an [imu] table, "A", "B", ... in file order when [[imu]] entries omit it.
+  std::string name = "A";
+  std::string can_uri;  ///< can (required): "unixcan:PATH" | "socketcan:IFACE" | "candump:FILE"
+  double rate_hz = 100.0;
+  /// protocol: the unit's protocol file (drivers/imu/PROTOCOLS.md; "" = the built-in protocol,
+  /// /usr/share/imucal/protocols/imucal-imu-1.toml), relative to the config file's directory.
+  std::string protocol_path;
+  /// base_id: moves the protocol's identifiers so that its lowest is this one (unset: as in the
+  /// protocol's DBC file; 0x100 for the built-in one).
+  std::optional<uint32_t> base_id;
+  /// The protocol as read and checked at load time, with base_id applied.
+  std::shared_ptr<const imu::ImuProtocolMap> protocol;
+  double arw_deg_per_sqrt_h =
+      0.0015;                        ///< gyro angle random walk (noise weighting of the estimators)
+  double vrw_ug_per_sqrt_hz = 10.0;  ///< accelerometer velocity random walk
+  /// The product this station calibrates (calib/core/unit_grade.hpp): written to every run's
+  /// run.toml [prior], so the data checks, limits and the filter's prior follow it.
+  calib::Grade grade = calib::Grade::kNavigation;
+  uint64_t max_gap_samples = 10;
+  uint64_t settle_guard_samples = 50;
+  /// Default: 8 σ of a still unit's per-sample rate noise from arw and rate_hz, at least 0.05.
+  double rest_rate_threshold_dps = 0.05;
+  int stream_timeout_ms = 2000;
+
+  /// mount_rpy_deg: the slot's nominal frame against the table's platform frame (ZYX Euler angles,
+  /// deg; the archive's [table] mount, C_bp). lever_arm_m: the unit's centre from the table's
+  /// rotation centre, platform axes, m — recorded with the run and taken out of the accelerometer
+  /// data before calibrating (a rigid offset senses ω×(ω×r) + ω̇×r while the table turns).
+  std::array<double, 3> mount_rpy_deg{0.0, 0.0, 0.0};
+  std::array<double, 3> lever_arm_m{0.0, 0.0, 0.0};
+
+  /// The noise model in SI units (calib::NoiseModel's fields).
+  double arw_rad_per_sqrt_s() const;
+  double vrw_mps_per_sqrt_s() const;
+};
+
 struct StationConfig {
   std::string source_path;  ///< the config file (as given)
   std::string base_dir;     ///< its directory, absolute; relative paths were resolved against it
@@ -63,28 +106,12 @@ struct StationConfig {
   double home_timeout_s = 120.0;
   double max_rate_dps = 20.0;  ///< station limit; sequences are validated against it, rates clipped
 
-  // [imu]
-  std::string can_uri;  ///< can (required): "unixcan:PATH" | "socketcan:IFACE" | "candump:FILE"
-  double rate_hz = 100.0;
-  /// protocol: the unit's protocol file (drivers/imu/PROTOCOLS.md; "" = the built-in protocol,
-  /// /usr/share/imucal/protocols/imucal-imu-1.toml), relative to the config file's directory.
-  std::string protocol_path;
-  /// base_id: moves the protocol's identifiers so that its lowest is this one (unset: as in the
-  /// protocol's DBC file; 0x100 for the built-in one).
-  std::optional<uint32_t> base_id;
-  /// The protocol as read and checked at load time, with base_id applied.
-  std::shared_ptr<const imu::ImuProtocolMap> protocol;
-  double arw_deg_per_sqrt_h =
-      0.0015;                        ///< gyro angle random walk (noise weighting of the estimators)
-  double vrw_ug_per_sqrt_hz = 10.0;  ///< accelerometer velocity random walk
-  /// The product this station calibrates (calib/core/unit_grade.hpp): written to every run's
-  /// run.toml [prior], so the data checks, limits and the filter's prior follow it.
-  calib::Grade grade = calib::Grade::kNavigation;
-  uint64_t max_gap_samples = 10;
-  uint64_t settle_guard_samples = 50;
-  /// Default: 8 σ of a still unit's per-sample rate noise from arw and rate_hz, at least 0.05.
-  double rest_rate_threshold_dps = 0.05;
-  int stream_timeout_ms = 2000;
+  // [imu] (one unit) or [[imu]] (a fixture of up to kMaxImuSlots units on the same table): the
+  // slots in file order; never empty once loaded.
+  std::vector<ImuSlotConfig> imus{ImuSlotConfig{}};
+  /// The first (on a one-unit station the only) slot.
+  const ImuSlotConfig& imu() const { return imus.front(); }
+  ImuSlotConfig& imu() { return imus.front(); }
 
   // [calibration]
   std::string default_sequence = "factory-std";
@@ -106,14 +133,15 @@ struct StationConfig {
 
   // [log]
   std::string log_level = "info";  ///< trace, debug, info, warn, error, critical, off
-
-  /// The noise model in SI units (calib::NoiseModel's fields).
-  double arw_rad_per_sqrt_s() const;
-  double vrw_mps_per_sqrt_s() const;
 };
 
-/// The IMU frame decoder's options of this station ([imu] protocol, base_id, rate_hz).
+/// The IMU frame decoder's options of a slot ([imu] protocol, base_id, rate_hz).
+imu::DecoderOptions decoder_options(const ImuSlotConfig& slot);
+/// The same for the station's first slot (a one-unit station's unit).
 imu::DecoderOptions decoder_options(const StationConfig& config);
+/// The slot of that name; the first slot for "" (a run of a one-unit station) or a name the
+/// configuration no longer has.
+const ImuSlotConfig& slot_named(const StationConfig& config, const std::string& name);
 
 /// Reads and checks the file. Throws ConfigError (a file that cannot be read: line 0, column 0).
 StationConfig load_config(const std::string& path);

@@ -13,6 +13,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "db/repository.hpp"
 
@@ -45,8 +46,17 @@ struct ReprocessRequest {
   bool allow_partial = false;  ///< calibrate an incomplete archive anyway (REVIEW at best)
 };
 
-struct StartRunRequest {
+/// One unit of a table run: the fixture slot it sits in ("" = the next free slot in the
+/// configuration's order) and its serial number.
+struct UnitRequest {
+  std::string slot;
   std::string serial;
+};
+
+struct StartRunRequest {
+  std::string serial;  ///< one unit, in the first slot (when `units` is empty)
+  /// Several units on one table run (issue #23), each its own run, archive and result.
+  std::vector<UnitRequest> units;
   std::optional<std::string> sequence;  ///< library name or path; default: the config's
   std::string operator_name;            ///< default: the peer's user name
 };

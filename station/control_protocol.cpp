@@ -19,6 +19,7 @@ enum class ArgType {
   kName,         ///< a person's name: printable text of 1..kMaxNameChars characters
   kReason,       ///< free text stored with a run: printable, 1..kMaxReasonChars characters
   kBool,         ///< true | false
+  kUnits,        ///< [{"slot": "A", "serial": "SN"}, ...]: the units of one table run (1..16)
 };
 
 struct ArgSpec {
@@ -35,7 +36,8 @@ struct CommandSpec {
 const std::vector<CommandSpec>& specs() {
   static const std::vector<CommandSpec> s = {
       {cmd::kRunStart,
-       {{"serial", ArgType::kString, true},
+       {{"serial", ArgType::kString, false},
+        {"units", ArgType::kUnits, false},
         {"sequence", ArgType::kString, false},
         {"operator", ArgType::kName, false}}},
       {cmd::kRunStatus, {{"run_id", ArgType::kPositiveInt, false}}},
@@ -147,6 +149,19 @@ void check_arg(const json& id, const ArgSpec& spec, const json& v) {
       if (!v.is_string()) fail("a string");
       check_text(id, field, v, spec.type == ArgType::kName ? kMaxNameChars : kMaxReasonChars);
       return;
+    case ArgType::kUnits: {
+      const char* expected = "an array of 1 to 16 {\"slot\": ..., \"serial\": ...} objects";
+      if (!v.is_array() || v.empty() || v.size() > 16) fail(expected);
+      for (const json& u : v) {
+        if (!u.is_object() || !u.contains("serial") || !u.at("serial").is_string() ||
+            (u.contains("slot") && !u.at("slot").is_string()) ||
+            u.size() != (u.contains("slot") ? 2u : 1u))
+          throw BadRequest(id, field,
+                           "field '" + field + "': expected " + expected + ", got " +
+                               u.dump(-1, ' ', false, json::error_handler_t::replace));
+      }
+      return;
+    }
     case ArgType::kTime:
       if (!v.is_string()) fail("a date/time string");
       try {
@@ -286,6 +301,13 @@ Request validate_request(const json& j) {
     if (a.required && !r.args.contains(a.name))
       throw BadRequest(id, std::string("args.") + a.name,
                        std::string("field 'args.") + a.name + "': required by " + name);
+  // run.start names its units one way: a serial (one unit) or units (several, by slot).
+  if (name == cmd::kRunStart && r.args.contains("serial") == r.args.contains("units"))
+    throw BadRequest(id, "args.serial",
+                     r.args.contains("serial")
+                         ? "field 'args.serial': give 'serial' (one unit) or 'units', not both"
+                         : "field 'args.serial': required by run.start (or 'args.units' for "
+                           "several units)");
   return r;
 }
 

@@ -240,12 +240,17 @@ json ControlServer::dispatch(Client& client, const Request& r) {
   if (r.cmd == cmd::kPing) return {{"version", options_.version}};
   if (r.cmd == cmd::kRunStart) {
     StartRunRequest s;
-    s.serial = a.at("serial").get<std::string>();
+    if (a.contains("serial")) s.serial = a.at("serial").get<std::string>();
+    if (a.contains("units"))
+      for (const auto& u : a.at("units"))
+        s.units.push_back({u.value("slot", std::string()), u.at("serial").get<std::string>()});
     if (a.contains("sequence")) s.sequence = a.at("sequence").get<std::string>();
     s.operator_name = a.contains("operator") && !a.at("operator").get<std::string>().empty()
                           ? a.at("operator").get<std::string>()
                           : client.user;
-    spdlog::info("control: run.start serial {} by {} (uid {})", s.serial, client.user,
+    std::string serials = s.serial;
+    for (const auto& u : s.units) serials += (serials.empty() ? "" : ", ") + u.serial;
+    spdlog::info("control: run.start serial {} by {} (uid {})", serials, client.user,
                  client.cred.uid);
     return handler_.start_run(s);
   }

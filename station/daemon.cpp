@@ -6,10 +6,12 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <thread>
 
 #include "sequences/library.hpp"
 #include "station/control_server.hpp"
@@ -95,7 +97,10 @@ void Daemon::start() {
     spdlog::warn("recovery: {} run(s) ended at start-up", recovery_.runs.size());
   }
 
-  worker_ = std::make_unique<CalibrationWorker>(*repo_);
+  // The units of one table run calibrate in parallel, as many at once as there are cores.
+  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  worker_ = std::make_unique<CalibrationWorker>(
+      *repo_, CalibrationWorker::Phase{}, std::min(cores, static_cast<unsigned>(cfg_.imus.size())));
   controller_ = std::make_unique<RunController>(cfg_, *repo_, *worker_, opt_.version);
   ControlServerOptions so;
   so.socket_path = cfg_.control_socket;
@@ -199,7 +204,10 @@ std::string Daemon::status_line() const {
   if (!controller_) return "starting";
   const auto a = controller_->active();
   if (!a) return "idle";
-  std::string s = "run " + std::to_string(a->run_id) + " " + a->serial + ": ";
+  std::string s = "run " + std::to_string(a->run_id) + " " + a->serial;
+  if (!a->siblings.empty())  // a table run of several units: the others by serial
+    for (const RunSnapshot& sib : a->siblings) s += ", " + sib.serial;
+  s += ": ";
   if (a->state == db::RunState::kRunning && a->steps > 0) {
     s += "step " + std::to_string(a->step) + "/" + std::to_string(a->steps) + " ";
   }
@@ -219,6 +227,9 @@ nlohmann::json Daemon::status(std::optional<db::RunId> run_id) {
   const auto active = controller_->active();
   if (run_id) {
     if (active && active->run_id == *run_id) return {{"run", to_json(*active)}};
+    if (active)  // a sibling unit of the live table run: its live snapshot
+      for (const RunSnapshot& sib : active->siblings)
+        if (sib.run_id == *run_id) return {{"run", to_json(sib)}};
     try {
       return {{"run", to_json(snapshot_from_record(repo_->show(*run_id).run))}};
     } catch (const db::NotFound& e) {

@@ -175,6 +175,13 @@ std::string magnitude_text(const json& best) {
 
 }  // namespace
 
+/// The history's SLOT cell: the slot, and the table run it shared with its siblings.
+std::string slot_cell(const json& r) {
+  std::string s = str(r, "slot");
+  if (has(r, "table_run")) s += " of " + str(r, "table_run");
+  return s.empty() ? "-" : s;
+}
+
 std::string gap_cell(const json& run) {
   if (!has(run, "diagnosis") || !run["diagnosis"].is_object()) return "-";
   const json& d = run["diagnosis"];
@@ -234,9 +241,11 @@ std::string render_history_text(const json& history) {
   else
     os << runs.size() << (runs.size() == 1 ? " run" : " runs") << ", newest first";
   os << ")\n";
-  os << pad("RUN", 7) << (all_units ? pad("SERIAL", 16) : "") << pad("STARTED (UTC)", 21)
-     << pad("SETTING", 9) << pad("STATE", 13) << pad("VERDICT", 9) << pad("CROSS-CHECK", 13)
-     << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13)
+  bool any_slot = false;  // a fixture with several slots: which slot and table run
+  for (const auto& r : runs) any_slot = any_slot || !str(r, "slot").empty();
+  os << pad("RUN", 7) << (all_units ? pad("SERIAL", 16) : "") << (any_slot ? pad("SLOT", 10) : "")
+     << pad("STARTED (UTC)", 21) << pad("SETTING", 9) << pad("STATE", 13) << pad("VERDICT", 9)
+     << pad("CROSS-CHECK", 13) << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13)
      << pad("GAP (best effect)", 40) << "REASON\n";
   for (const auto& r : runs) {
     std::string id = str(r, "run_id");
@@ -244,6 +253,7 @@ std::string render_history_text(const json& history) {
     if (has(r, "promoted_at")) id += "^";
     const std::string duration = run_duration(r);
     os << rtrim(pad(id, 7) + (all_units ? pad(str(r, "serial"), 16) : "") +
+                (any_slot ? pad(slot_cell(r), 10) : "") +
                 pad(short_time(str(r, "started_at")), 21) + pad(str(r, "setting", "factory"), 9) +
                 pad(str(r, "state"), 13) + pad(str(r, "verdict", "-"), 9) +
                 pad(str(r, "crosscheck_verdict", "-"), 13) + pad(str(r, "sequence_name"), 16) +
@@ -419,6 +429,10 @@ std::string render_show_text(const json& show) {
   row("sequence", seq);
   row("setting", str(run, "setting", "factory"));
   row("origin", str(run, "origin"));
+  if (!str(run, "slot").empty())
+    row("slot",
+        str(run, "slot") + (has(run, "table_run") ? " (table run " + str(run, "table_run") + ")"
+                                                  : " (first unit of its table run)"));
   if (has(run, "promoted_at"))
     row("promoted", str(run, "promoted_at") + " by " + str(run, "promoted_by") + ": " +
                         str(run, "promote_reason"));
@@ -459,8 +473,24 @@ std::string render_params_text(const json& params) { return params.dump(2) + "\n
 
 namespace {
 std::string run_head(const json& run) {
-  return "run " + str(run, "run_id", "?") + " " + str(run, "serial", "?");
+  const std::string slot = str(run, "slot");
+  return "run " + str(run, "run_id", "?") + " " + str(run, "serial", "?") +
+         (slot.empty() ? "" : " (slot " + slot + ")");
 }
+
+/// A table run's other units in one clause: "; B SN-2 running, C SN-3 failed" ("" alone).
+std::string siblings_clause(const json& run) {
+  if (!has(run, "units") || !run["units"].is_array() || run["units"].size() < 2) return "";
+  std::string s;
+  const json& units = run["units"];
+  for (std::size_t i = 1; i < units.size(); ++i) {
+    const json& u = units[i];
+    s += (s.empty() ? "; " : ", ") + str(u, "slot") + " " + str(u, "serial") + " " +
+         str(u, "state") + (has(u, "verdict") ? " " + str(u, "verdict") : "");
+  }
+  return s;
+}
+
 }  // namespace
 
 std::string progress_line(const json& run) {
@@ -472,12 +502,12 @@ std::string progress_line(const json& run) {
     s += str(run, "phase", state);
     if (has(run, "time_left_s") && run["time_left_s"].is_number())
       s += ", " + format_duration_s(run["time_left_s"].get<double>()) + " left";
-    return s;
+    return s + siblings_clause(run);
   }
   s += state;
   if (has(run, "phase") && str(run, "phase") != state) s += " (" + str(run, "phase") + ")";
   if (has(run, "verdict")) s += ", verdict " + str(run, "verdict");
-  return s;
+  return s + siblings_clause(run);
 }
 
 std::string outcome_line(const json& run) {
@@ -518,6 +548,9 @@ std::string render_status_text(const json& status) {
           counters += std::string(counters.empty() ? "" : ", ") + k + " " + c[k].dump();
       if (!counters.empty()) os << "  capture: " << counters << "\n";
     }
+    if (has(r, "units") && r["units"].is_array())
+      for (std::size_t i = 1; i < r["units"].size(); ++i)
+        os << "  also on the table: " << outcome_line(r["units"][i]) << "\n";
   };
   if (status.contains("run")) {
     if (status["run"].is_object())

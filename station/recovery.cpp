@@ -75,8 +75,8 @@ RecoveryReport recover_at_startup(const StationConfig& config, db::Repository& r
     const std::optional<EndNote> note = read_end_note(note_path);
     if (fs::exists(fs::path(dir) / "run.toml")) {
       try {
-        r.rows_kept =
-            recover_archive(dir, db::format_time_utc(db::now_ms()), decoder_options(config));
+        r.rows_kept = recover_archive(dir, db::format_time_utc(db::now_ms()),
+                                      decoder_options(slot_named(config, run.slot)));
         r.archive_sha256 = archive_digest(dir);
         r.archive_path = dir;
         r.reason = r.rows_kept == 0

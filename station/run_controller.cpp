@@ -26,6 +26,7 @@
 namespace imucal::station {
 
 namespace fs = std::filesystem;
+using nlohmann::json;
 using std::chrono::milliseconds;
 
 const char* to_string(RunPhase p) {
@@ -73,6 +74,15 @@ nlohmann::json to_json(const RunSnapshot& r) {
   o["capture"] = r.capture ? to_json(*r.capture) : json(nullptr);
   o["archive"] = r.archive_path;
   o["reprocessed_from"] = r.reprocessed_from ? json(*r.reprocessed_from) : json(nullptr);
+  o["slot"] = r.slot;
+  o["table_run"] = r.table_run_id ? json(*r.table_run_id) : json(nullptr);
+  if (!r.siblings.empty()) {
+    RunSnapshot self = r;
+    self.siblings.clear();
+    json units = json::array({to_json(self)});
+    for (const RunSnapshot& sib : r.siblings) units.push_back(to_json(sib));
+    o["units"] = std::move(units);
+  }
   return o;
 }
 
@@ -91,6 +101,8 @@ RunSnapshot snapshot_from_record(const db::RunRecord& rec) {
   s.ended_at_ms = rec.ended_at_ms;
   s.archive_path = rec.archive_path;
   s.reprocessed_from = rec.reprocessed_from;
+  s.slot = rec.slot;
+  s.table_run_id = rec.table_run_id;
   if (!rec.capture_json.empty()) {
     try {
       s.capture = capture_stats_from_json(nlohmann::json::parse(rec.capture_json));
@@ -125,13 +137,15 @@ RunPlan plan_run(const std::string& sequence, const StationConfig& cfg) {
   plan.start_outer_deg = seq.start.outer_deg;
   plan.start_inner_deg = seq.start.inner_deg;
 
-  const double guard_s = static_cast<double>(cfg.settle_guard_samples) / cfg.rate_hz;
+  const ImuSlotConfig& imu = cfg.imu();  // the time estimate counts the first slot's samples
+  const double guard_s = static_cast<double>(imu.settle_guard_samples) / imu.rate_hz;
   auto rest = [&](double rest_s, double outer, double inner, int line) {
     PlannedStep p;
     p.kind = PlannedStep::Kind::kRest;
     p.outer_deg = outer;
     p.inner_deg = inner;
-    p.rest_samples = static_cast<uint64_t>(std::llround(rest_s * cfg.rate_hz));
+    p.rest_s = rest_s;
+    p.rest_samples = static_cast<uint64_t>(std::llround(rest_s * imu.rate_hz));
     p.expected_s = rest_s + guard_s;
     p.source_line = line;
     return p;
@@ -175,10 +189,47 @@ std::string RunController::archive_dir_for(db::RunId id, const std::string& seri
   return run_archive_dir(cfg_.data_dir, id, serial);
 }
 
-nlohmann::json RunController::start(const StartRunRequest& request) {
-  if (auto problem = db::serial_problem(request.serial)) {
-    throw ControlError(error_code::kInvalidInput, *problem);
+std::vector<std::pair<const ImuSlotConfig*, std::string>> RunController::units_of(
+    const StartRunRequest& request) const {
+  std::vector<UnitRequest> asked = request.units;
+  if (asked.empty()) asked.push_back({"", request.serial});
+  if (asked.size() > cfg_.imus.size())
+    throw ControlError(error_code::kInvalidInput,
+                       std::to_string(asked.size()) + " units, but the fixture has " +
+                           std::to_string(cfg_.imus.size()) + " slot(s)");
+  std::vector<std::pair<const ImuSlotConfig*, std::string>> out;
+  auto taken = [&](const ImuSlotConfig* slot) {
+    return std::any_of(out.begin(), out.end(), [&](const auto& u) { return u.first == slot; });
+  };
+  for (const UnitRequest& u : asked) {
+    if (auto problem = db::serial_problem(u.serial))
+      throw ControlError(error_code::kInvalidInput, *problem);
+    for (const auto& other : out)
+      if (other.second == u.serial)
+        throw ControlError(error_code::kInvalidInput,
+                           "serial " + u.serial + " is given twice (one unit per slot)");
+    const ImuSlotConfig* slot = nullptr;
+    for (const ImuSlotConfig& c : cfg_.imus) {
+      if (u.slot.empty() ? !taken(&c) : c.name == u.slot) {
+        slot = &c;
+        break;
+      }
+    }
+    if (!slot) {
+      std::string names;
+      for (const ImuSlotConfig& c : cfg_.imus) names += (names.empty() ? "" : ", ") + c.name;
+      throw ControlError(error_code::kInvalidInput,
+                         "no slot \"" + u.slot + "\" on this fixture (slots: " + names + ")");
+    }
+    if (taken(slot))
+      throw ControlError(error_code::kInvalidInput, "slot " + slot->name + " is given twice");
+    out.emplace_back(slot, u.serial);
   }
+  return out;
+}
+
+nlohmann::json RunController::start(const StartRunRequest& request) {
+  const auto units = units_of(request);
   const std::string seq_name = request.sequence.value_or(cfg_.default_sequence);
   std::string seq_path;
   try {
@@ -201,9 +252,9 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
     throw ControlError(error_code::kBusy, "run " + std::to_string(*diagnosing_) +
                                               " is being diagnosed; start when it is done");
   if (live_) {
-    throw ControlError(error_code::kBusy, "run " + std::to_string(live_->snap.run_id) + " (" +
-                                              live_->snap.serial + ") is " +
-                                              db::to_string(live_->snap.state) +
+    const RunSnapshot& a = live_->units.front().snap;
+    throw ControlError(error_code::kBusy, "run " + std::to_string(a.run_id) + " (" + a.serial +
+                                              ") is " + db::to_string(a.state) +
                                               "; one run at a time (abort it or wait)");
   }
   if (thread_.joinable()) thread_.join();  // the previous run's control thread has ended
@@ -215,34 +266,50 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
         "cannot create " + (fs::path(cfg_.data_dir) / "runs").string() + ": " + e.what());
   }
 
-  const db::NewRun nr = new_run(request.serial, request.operator_name, plan.sequence_name,
-                                plan.sequence_sha256, db::RunState::kPreparing);
-  const db::RunId id = repo_.create_run(nr);
-
   auto live = std::make_shared<Live>();
   live->plan = std::move(plan);
-  live->snap.run_id = id;
-  live->snap.serial = nr.serial;
-  live->snap.sequence = nr.sequence_name;
-  live->snap.operator_name = nr.operator_name;
-  live->snap.state = db::RunState::kPreparing;
-  live->snap.phase = RunPhase::kConnecting;
-  live->snap.steps = static_cast<int>(live->plan.steps.size());
-  live->snap.started_at_ms = nr.started_at_ms;
-  live->snap.archive_path = archive_dir_for(id, nr.serial);
-  if (const std::string err = reserve_end_note(end_note_path(cfg_.data_dir, id)); !err.empty())
-    spdlog::warn(
-        "run {}: no end note reserved ({}); if the disk fills up, a restart before "
-        "space returns will not know why the run ended",
-        id, err);
+  const bool several_slots = cfg_.imus.size() > 1;
+  json started_units = json::array();
+  for (const auto& [slot, serial] : units) {
+    db::NewRun nr = new_run(serial, request.operator_name, live->plan.sequence_name,
+                            live->plan.sequence_sha256, db::RunState::kPreparing);
+    if (several_slots) nr.slot = slot->name;
+    if (!live->units.empty()) nr.table_run_id = live->units.front().snap.run_id;
+    const db::RunId id = repo_.create_run(nr);
+    Unit u;
+    u.slot = slot;
+    RunSnapshot& snap = u.snap;
+    snap.run_id = id;
+    snap.serial = nr.serial;
+    snap.slot = nr.slot;
+    snap.table_run_id = nr.table_run_id;
+    snap.sequence = nr.sequence_name;
+    snap.operator_name = nr.operator_name;
+    snap.state = db::RunState::kPreparing;
+    snap.phase = RunPhase::kConnecting;
+    snap.steps = static_cast<int>(live->plan.steps.size());
+    snap.started_at_ms = nr.started_at_ms;
+    snap.archive_path = archive_dir_for(id, nr.serial);
+    if (const std::string err = reserve_end_note(end_note_path(cfg_.data_dir, id)); !err.empty())
+      spdlog::warn(
+          "run {}: no end note reserved ({}); if the disk fills up, a restart before "
+          "space returns will not know why the run ended",
+          id, err);
+    spdlog::info("run {}: serial {}{}, sequence {} ({} steps), operator {}", id, nr.serial,
+                 nr.slot.empty() ? "" : " in slot " + nr.slot, nr.sequence_name, snap.steps,
+                 nr.operator_name);
+    started_units.push_back({{"run_id", id}, {"serial", nr.serial}, {"slot", nr.slot}});
+    live->units.push_back(std::move(u));
+  }
   live_ = live;
-  spdlog::info("run {}: serial {}, sequence {} ({} steps), operator {}", id, nr.serial,
-               nr.sequence_name, live->snap.steps, nr.operator_name);
   thread_ = std::thread([this, live] { control_thread(live); });
-  return {{"run_id", id},
-          {"serial", nr.serial},
-          {"sequence", nr.sequence_name},
-          {"steps", live->snap.steps}};
+  const RunSnapshot& first = live->units.front().snap;
+  json reply = {{"run_id", first.run_id},
+                {"serial", first.serial},
+                {"sequence", first.sequence},
+                {"steps", first.steps}};
+  if (units.size() > 1) reply["units"] = std::move(started_units);
+  return reply;
 }
 
 db::RunDetails RunController::stored_run_with_archive(db::RunId run_id, const char* what,
@@ -250,9 +317,9 @@ db::RunDetails RunController::stored_run_with_archive(db::RunId run_id, const ch
                                                       bool check_digest) const {
   if (shut_down_) throw ControlError(error_code::kUnavailable, "the daemon is shutting down");
   if (live_) {
-    throw ControlError(error_code::kBusy, "run " + std::to_string(live_->snap.run_id) + " is " +
-                                              db::to_string(live_->snap.state) +
-                                              "; one run at a time");
+    throw ControlError(error_code::kBusy,
+                       "run " + std::to_string(live_->units.front().snap.run_id) + " is " +
+                           db::to_string(live_->units.front().snap.state) + "; one run at a time");
   }
   db::RunDetails d;
   try {
@@ -403,18 +470,24 @@ nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
 
   auto live = std::make_shared<Live>();
   live->reprocess = true;
-  live->handed_to_worker = true;
-  live->snap = snapshot_from_record(orig);
-  live->snap.run_id = id;
-  live->snap.state = db::RunState::kCalibrating;
-  live->snap.phase = RunPhase::kCalibrating;
-  live->snap.verdict.reset();
-  live->snap.crosscheck_verdict.reset();
-  live->snap.reason.clear();
-  live->snap.started_at_ms = nr.started_at_ms;
-  live->snap.ended_at_ms.reset();
-  live->snap.reprocessed_from = run_id;
-  live->snap.operator_name = by;
+  live->capture_over = true;
+  Unit u;
+  u.handed_to_worker = true;
+  RunSnapshot& snap = u.snap;
+  snap = snapshot_from_record(orig);
+  snap.run_id = id;
+  snap.state = db::RunState::kCalibrating;
+  snap.phase = RunPhase::kCalibrating;
+  snap.verdict.reset();
+  snap.crosscheck_verdict.reset();
+  snap.reason.clear();
+  snap.started_at_ms = nr.started_at_ms;
+  snap.ended_at_ms.reset();
+  snap.reprocessed_from = run_id;
+  snap.operator_name = by;
+  snap.slot.clear();
+  snap.table_run_id.reset();
+  live->units.push_back(std::move(u));
   live_ = live;
   spdlog::info("run {}: reprocessing run {} from {} for {}{}", id, run_id, orig.archive_path, by,
                partial.empty() ? "" : " (partial archive: " + partial + ")");
@@ -427,7 +500,7 @@ nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
   apply_calibration_settings(job);
   job.partial_reason = partial;
   lk.unlock();
-  worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, out); });
+  worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, 0, out); });
   return {{"run_id", id}, {"reprocessed_from", run_id}};
 }
 
@@ -454,9 +527,9 @@ nlohmann::json RunController::import_archive(const std::string& dir, const std::
   std::unique_lock<std::mutex> lk(mu_);
   if (shut_down_) throw ControlError(error_code::kUnavailable, "the daemon is shutting down");
   if (live_)
-    throw ControlError(error_code::kBusy, "run " + std::to_string(live_->snap.run_id) + " is " +
-                                              db::to_string(live_->snap.state) +
-                                              "; one run at a time");
+    throw ControlError(error_code::kBusy,
+                       "run " + std::to_string(live_->units.front().snap.run_id) + " is " +
+                           db::to_string(live_->units.front().snap.state) + "; one run at a time");
   archive::RunArchive ar = checked_import(dir);
   if (thread_.joinable()) thread_.join();
 
@@ -500,15 +573,18 @@ nlohmann::json RunController::import_archive(const std::string& dir, const std::
 
   auto live = std::make_shared<Live>();
   live->reprocess = true;
-  live->handed_to_worker = true;
-  live->snap.run_id = id;
-  live->snap.serial = ar.info.serial;
-  live->snap.sequence = ar.info.sequence_name;
-  live->snap.operator_name = user;
-  live->snap.archive_path = dest;
-  live->snap.state = db::RunState::kCalibrating;
-  live->snap.phase = RunPhase::kCalibrating;
-  live->snap.started_at_ms = nr.started_at_ms;
+  live->capture_over = true;
+  Unit u;
+  u.handed_to_worker = true;
+  u.snap.run_id = id;
+  u.snap.serial = ar.info.serial;
+  u.snap.sequence = ar.info.sequence_name;
+  u.snap.operator_name = user;
+  u.snap.archive_path = dest;
+  u.snap.state = db::RunState::kCalibrating;
+  u.snap.phase = RunPhase::kCalibrating;
+  u.snap.started_at_ms = nr.started_at_ms;
+  live->units.push_back(std::move(u));
   live_ = live;
   spdlog::info("run {}: imported {} ({} run of {}, recorded {}) into {}", id, dir,
                calib::setting_name(ar.info.setting), ar.info.serial,
@@ -521,7 +597,7 @@ nlohmann::json RunController::import_archive(const std::string& dir, const std::
   apply_calibration_settings(job);
   job.ended_at_ms = times.ended_at_ms;
   lk.unlock();
-  worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, out); });
+  worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, 0, out); });
   return {{"run_id", id},
           {"serial", ar.info.serial},
           {"setting", calib::setting_name(ar.info.setting)},
@@ -550,57 +626,77 @@ bool RunController::abort(const std::string& reason) {
     std::lock_guard<std::mutex> lk(mu_);
     if (!live_) return false;
     live = live_;
-    if (!live->handed_to_worker) {
+    if (!live->capture_over) {
       if (!live->abort) {
         live->abort = true;
         live->abort_reason = reason;
-        spdlog::warn("run {}: abort requested: {}", live->snap.run_id, reason);
+        spdlog::warn("run {}: abort requested: {}", live->units.front().snap.run_id, reason);
       }
       if (live->client) live->client->request_abort();
       cv_.notify_all();  // wakes record_end's retry wait
       return true;
     }
   }
-  // Calibrating: the table is idle; the run ends now and the worker's result will be dropped.
-  db::RunCompletion c;
-  c.state = db::RunState::kAborted;
-  c.ended_at_ms = db::now_ms();
-  c.reason = reason;
+  // Calibrating: the table is idle; every unit still calibrating ends now and the worker's
+  // result for it will be dropped.
   {
     std::lock_guard<std::mutex> lk(mu_);
     if (live_ != live) return true;  // finished meanwhile
-    if (live->snap.capture) c.capture_json = to_json(*live->snap.capture).dump();
-    c.archive_path = live->snap.archive_path;
-    try {
-      c.archive_sha256 = archive_digest(live->snap.archive_path);
-    } catch (const std::exception& e) {
-      spdlog::warn("run {}: {}", live->snap.run_id, e.what());
+    for (Unit& u : live->units) {
+      if (u.ended) continue;
+      db::RunCompletion c;
+      c.state = db::RunState::kAborted;
+      c.ended_at_ms = db::now_ms();
+      c.reason = reason;
+      if (u.snap.capture) c.capture_json = to_json(*u.snap.capture).dump();
+      c.archive_path = u.snap.archive_path;
+      try {
+        c.archive_sha256 = archive_digest(u.snap.archive_path);
+      } catch (const std::exception& e) {
+        spdlog::warn("run {}: {}", u.snap.run_id, e.what());
+      }
+      try {
+        repo_.finish_run(u.snap.run_id, c);
+      } catch (const db::Conflict&) {
+        // The worker stored its result a moment earlier: that outcome stands (its callback
+        // follows).
+        continue;
+      }
+      u.ended = true;
+      u.snap.state = db::RunState::kAborted;
+      u.snap.reason = reason;
+      u.snap.ended_at_ms = c.ended_at_ms;
+      spdlog::warn("run {}: aborted while calibrating: {}", u.snap.run_id, reason);
     }
-    try {
-      repo_.finish_run(live->snap.run_id, c);
-    } catch (const db::Conflict&) {
-      // The worker stored its result a moment earlier: that outcome stands (its callback follows).
-      return true;
-    }
-    live->snap.state = db::RunState::kAborted;
-    live->snap.reason = reason;
-    spdlog::warn("run {}: aborted while calibrating: {}", live->snap.run_id, reason);
+    if (!live->all_ended()) return true;  // the rest end with their callbacks
   }
   end_live(live);
   return true;
+}
+
+RunSnapshot RunController::snapshot_of(const Live& L) const {
+  std::vector<RunSnapshot> units;
+  for (const Unit& u : L.units) {
+    units.push_back(u.snap);
+    if (u.capture) units.back().capture = u.capture->stats();
+  }
+  RunSnapshot s = units.front();
+  s.siblings.assign(units.begin() + 1, units.end());
+  return s;
 }
 
 std::optional<RunSnapshot> RunController::active() const {
   std::lock_guard<std::mutex> lk(mu_);
   if (!live_) return std::nullopt;
   const Live& L = *live_;
-  RunSnapshot s = L.snap;
-  if (L.capture) s.capture = L.capture->stats();
+  RunSnapshot s = snapshot_of(L);
   // Time left: the plan's remaining table time, scaled by how fast the IMU samples really arrive
-  // (a simulator may run faster than real time).
-  if (!L.handed_to_worker && !L.plan.steps.empty() && L.capture) {
+  // (a simulator may run faster than real time); counted on the first unit still capturing.
+  const Unit* u = L.capturing_unit();
+  if (!L.capture_over && !L.plan.steps.empty() && u && u->slot) {
+    const double rate_hz = u->slot->rate_hz;
     const double table_done_s =
-        static_cast<double>(L.capture->rows() - L.rows_at_stream_start) / cfg_.rate_hz;
+        static_cast<double>(u->capture->rows() - u->rows_at_stream_start) / rate_hz;
     const double wall_s = std::chrono::duration<double>(Clock::now() - L.stream_started).count();
     const double speed = wall_s > 0 && table_done_s > 0 ? table_done_s / wall_s : 1.0;
     double left_s = 0.0;
@@ -608,11 +704,11 @@ std::optional<RunSnapshot> RunController::active() const {
     for (int j = std::max(0, L.step_index + 1); j < n; ++j) left_s += L.plan.steps[j].expected_s;
     if (L.step_index >= 0 && L.step_index < n) {
       const PlannedStep& cur = L.plan.steps[L.step_index];
-      if (cur.kind == PlannedStep::Kind::kRest && L.capture) {
-        const uint64_t done = L.capture->rest_rows_done();
-        left_s +=
-            static_cast<double>(cur.rest_samples - std::min(done, cur.rest_samples)) / cfg_.rate_hz;
-        if (done == 0) left_s += static_cast<double>(cfg_.settle_guard_samples) / cfg_.rate_hz;
+      if (cur.kind == PlannedStep::Kind::kRest) {
+        const uint64_t samples = static_cast<uint64_t>(std::llround(cur.rest_s * rate_hz));
+        const uint64_t done = u->capture->rest_rows_done();
+        left_s += static_cast<double>(samples - std::min(done, samples)) / rate_hz;
+        if (done == 0) left_s += static_cast<double>(u->slot->settle_guard_samples) / rate_hz;
       } else {
         const double elapsed =
             std::chrono::duration<double>(Clock::now() - L.step_started).count() * speed;
@@ -620,6 +716,7 @@ std::optional<RunSnapshot> RunController::active() const {
       }
     }
     s.time_left_s = L.time_left.update(left_s, table_done_s, wall_s);
+    for (RunSnapshot& sib : s.siblings) sib.time_left_s = s.time_left_s;
   }
   return s;
 }
@@ -669,17 +766,20 @@ db::NewRun RunController::new_run(const std::string& serial, const std::string& 
 
 void RunController::set_phase(Live& live, RunPhase phase) {
   std::lock_guard<std::mutex> lk(mu_);
-  live.snap.phase = phase;
+  for (Unit& u : live.units)
+    if (!u.ended && !u.handed_to_worker) u.snap.phase = phase;
 }
 
 void RunController::end_live(const std::shared_ptr<Live>& live) {
   {
     std::lock_guard<std::mutex> lk(mu_);
     if (live_ != live) return;
-    live->snap.phase = RunPhase::kNone;
-    live->snap.time_left_s.reset();
-    if (!live->snap.ended_at_ms) live->snap.ended_at_ms = db::now_ms();
-    last_ = live->snap;
+    for (Unit& u : live->units) {
+      u.snap.phase = RunPhase::kNone;
+      u.snap.time_left_s.reset();
+      if (!u.snap.ended_at_ms) u.snap.ended_at_ms = db::now_ms();
+    }
+    last_ = snapshot_of(*live);
     live_.reset();
     // Notified under the lock: the calibration worker's thread ends runs too, and shutdown() (the
     // destructor) may return and destroy cv_ as soon as it sees live_ empty — a notify after the
@@ -694,30 +794,37 @@ void RunController::apply_calibration_settings(CalibrationJob& job) const {
   job.known_effects = cfg_.known_effects;
 }
 
-void RunController::on_calibrated(const std::shared_ptr<Live>& live,
+void RunController::on_calibrated(const std::shared_ptr<Live>& live, size_t unit,
                                   const CalibrationOutcome& out) {
   {
     std::lock_guard<std::mutex> lk(mu_);
     if (live_ != live) return;  // aborted while calibrating: already ended
+    Unit& u = live->units.at(unit);
+    if (u.ended) return;  // aborted while calibrating, its siblings still running
+    RunSnapshot& snap = u.snap;
+    u.ended = true;
+    snap.phase = RunPhase::kNone;
     if (out.stored) {
-      live->snap.state = out.state;
-      live->snap.verdict = out.verdict;
-      live->snap.crosscheck_verdict = out.crosscheck_verdict;
-      live->snap.reason = out.reason;
+      snap.state = out.state;
+      snap.verdict = out.verdict;
+      snap.crosscheck_verdict = out.crosscheck_verdict;
+      snap.reason = out.reason;
+      snap.ended_at_ms = db::now_ms();
     } else {
       // Not stored: either already terminal in the database (take that) or the database failed
       // (the run stays live there; recovery will mark it interrupted).
       try {
-        const db::RunRecord rec = repo_.show(live->snap.run_id).run;
-        live->snap.state = rec.state;
-        live->snap.verdict = rec.verdict;
-        live->snap.crosscheck_verdict = rec.crosscheck_verdict;
-        live->snap.reason = rec.failure_reason;
-        live->snap.ended_at_ms = rec.ended_at_ms;
+        const db::RunRecord rec = repo_.show(snap.run_id).run;
+        snap.state = rec.state;
+        snap.verdict = rec.verdict;
+        snap.crosscheck_verdict = rec.crosscheck_verdict;
+        snap.reason = rec.failure_reason;
+        snap.ended_at_ms = rec.ended_at_ms;
       } catch (const std::exception&) {
-        live->snap.reason = out.reason;
+        snap.reason = out.reason;
       }
     }
+    if (!live->all_ended()) return;  // its siblings are still capturing or calibrating
   }
   end_live(live);
 }
@@ -727,20 +834,37 @@ void RunController::control_thread(std::shared_ptr<Live> live) {
     capture_run(live);
   } catch (const std::exception& e) {
     // capture_run handles every run error itself; this is the database failing at the end.
-    spdlog::error("run {}: {}", live->snap.run_id, e.what());
+    spdlog::error("run {}: {}", live->units.front().snap.run_id, e.what());
   }
-  if (!live->handed_to_worker) end_live(live);
+  bool done = false, aborted = false;
+  std::string abort_reason;
+  {
+    std::lock_guard<std::mutex> lk(mu_);
+    live->capture_over = true;
+    // A unit the worker did not take (the database failed at its end) ends with the table run.
+    for (Unit& u : live->units)
+      if (!u.handed_to_worker) u.ended = true;
+    done = live->all_ended();
+    aborted = live->abort;  // asked for while the last units were handed over
+    abort_reason = live->abort_reason;
+  }
+  if (done)
+    end_live(live);
+  else if (aborted)
+    abort(abort_reason);
 }
 
-void RunController::finish_early(Live& live, db::RunState state, const std::string& reason) {
+void RunController::finish_early(Unit& unit, db::RunState state, const std::string& reason) {
   std::lock_guard<std::mutex> lk(mu_);
-  live.snap.state = state;
-  live.snap.reason = reason;
-  live.snap.ended_at_ms = db::now_ms();
+  unit.snap.state = state;
+  unit.snap.reason = reason;
+  unit.snap.ended_at_ms = db::now_ms();
+  unit.snap.phase = RunPhase::kNone;
+  unit.ended = true;
 }
 
-void RunController::record_end(Live& L, const db::RunCompletion& c) {
-  const db::RunId id = L.snap.run_id;
+void RunController::record_end(Live& L, Unit& unit, const db::RunCompletion& c) {
+  const db::RunId id = unit.snap.run_id;
   const std::string note = end_note_path(cfg_.data_dir, id);
   bool noted = false;
   for (int attempt = 0;; ++attempt) {

@@ -97,11 +97,16 @@ struct RunSnapshot {
   std::optional<CaptureStats> capture;
   std::string archive_path;
   std::optional<db::RunId> reprocessed_from;
+  std::string slot;                       ///< fixture slot ("" on a one-unit station)
+  std::optional<db::RunId> table_run_id;  ///< the first unit's run, for its siblings
+  /// The other units of the same table run (live: their snapshots; empty for a one-unit run).
+  std::vector<RunSnapshot> siblings;
 };
 
 /// The contract's "run" object: run_id, serial, sequence, operator, state, phase, step, steps,
 /// time_left_s, verdict (the run's), crosscheck_verdict, reason, started_at, capture (null where
-/// not applicable), plus ended_at, archive and reprocessed_from.
+/// not applicable), plus ended_at, archive, reprocessed_from, slot and table_run; with siblings,
+/// "units": every unit of the table run (this one first) in the same shape.
 nlohmann::json to_json(const RunSnapshot& run);
 /// A stored run in the same shape (phase/step/time left null; capture from capture_json).
 RunSnapshot snapshot_from_record(const db::RunRecord& record);
@@ -111,7 +116,8 @@ struct PlannedStep {
   enum class Kind { kRest, kMove } kind = Kind::kRest;
   double outer_deg = 0.0, inner_deg = 0.0;  ///< rest pose / move target
   double rate_dps = 0.0;                    ///< move: commanded rate (clipped to max_rate_dps)
-  uint64_t rest_samples = 0;                ///< rest: round(rest_s * rate_hz)
+  double rest_s = 0.0;                      ///< rest: its length in table seconds
+  uint64_t rest_samples = 0;  ///< rest: round(rest_s * rate_hz) at the first slot's rate
   double expected_s = 0.0;                  ///< expected duration in table (sim) seconds
   int source_line = 0;                      ///< line in the sequence file
 };
@@ -173,17 +179,23 @@ class RunController {
 
  private:
   struct Live;
+  struct Unit;
   /// One run's capture as named stages (station/run_session.cpp).
   struct Session;
   friend struct Session;
   void control_thread(std::shared_ptr<Live> live);
   void capture_run(const std::shared_ptr<Live>& live);
-  void finish_early(Live& live, db::RunState state, const std::string& reason);
+  void finish_early(Unit& unit, db::RunState state, const std::string& reason);
   /// Stores the run's end; when the database cannot (disk full), keeps it in the run's end note
   /// and retries every kRecordRetry until it can or the run is aborted / the daemon stops.
-  void record_end(Live& live, const db::RunCompletion& completion);
+  void record_end(Live& live, Unit& unit, const db::RunCompletion& completion);
   static constexpr std::chrono::milliseconds kRecordRetry{2000};
-  void on_calibrated(const std::shared_ptr<Live>& live, const CalibrationOutcome& out);
+  void on_calibrated(const std::shared_ptr<Live>& live, size_t unit, const CalibrationOutcome& out);
+  /// The fixture slots and serials of a start request, checked (ControlError kInvalidInput).
+  std::vector<std::pair<const ImuSlotConfig*, std::string>> units_of(
+      const StartRunRequest& request) const;
+  /// The live runs' snapshot as the status shows it: the first unit's, with its siblings.
+  RunSnapshot snapshot_of(const Live& live) const;
   /// The station's calibration settings into a job (k_sigma, gap_false_alarm, known_effects):
   /// a run's, a reprocess's and an import's alike.
   void apply_calibration_settings(CalibrationJob& job) const;

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "drivers/turntable/turntable_client.hpp"
 #include "station/capture.hpp"
@@ -15,20 +16,42 @@ namespace imucal::station {
 
 using Clock = std::chrono::steady_clock;
 
+/// One unit of a table run: its own run in the database, archive and capture.
+struct RunController::Unit {
+  RunSnapshot snap;                     // guarded by the controller's mutex, as everything below
+  const ImuSlotConfig* slot = nullptr;  // the fixture slot (null: reprocess, import)
+  Capture* capture = nullptr;           // while capturing
+  uint64_t rows_at_stream_start = 0;
+  bool handed_to_worker = false;  // complete and queued for calibration
+  bool ended = false;             // terminal: stored (or being stored) as ended
+};
+
+/// A live table run: one or several units on the same table motion (issue #23), or one stored
+/// run being reprocessed or imported.
 struct RunController::Live {
-  RunSnapshot snap;  // everything below: guarded by the controller's mutex
-  RunPlan plan;
+  std::vector<Unit> units;  // [0]: the table run's first unit, whose run id joins the siblings
+  RunPlan plan;             // everything below: guarded by the controller's mutex
   bool reprocess = false;
   bool abort = false;
   std::string abort_reason;
   turntable::TurntableClient* client = nullptr;
-  Capture* capture = nullptr;
   int step_index = -1;  // into plan.steps; -1 while preparing
   Clock::time_point step_started{};
-  bool handed_to_worker = false;
-  Clock::time_point stream_started{};  // when the first IMU samples arrived
-  uint64_t rows_at_stream_start = 0;
+  bool capture_over = false;            // the table is done: units are calibrating or ended
+  Clock::time_point stream_started{};   // when the first IMU samples arrived
   mutable TimeLeftEstimator time_left;  // active() is const; the estimate only ever shrinks
+
+  bool all_ended() const {
+    for (const Unit& u : units)
+      if (!u.ended) return false;
+    return true;
+  }
+  /// The first unit still capturing (the time-left estimate reads its rows), or null.
+  const Unit* capturing_unit() const {
+    for (const Unit& u : units)
+      if (u.capture && !u.ended) return &u;
+    return nullptr;
+  }
 };
 
 /// Moves longer than this are seen by the IMU (above rest_rate_threshold_dps at any realistic

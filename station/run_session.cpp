@@ -7,13 +7,16 @@
 // and the live snapshot change together there and nowhere else in this file.
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
 #include <thread>
+#include <vector>
 
+#include "calib/core/conventions.hpp"
 #include "db/archive/run_archive.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/turntable/turntable_client.hpp"
@@ -29,59 +32,89 @@ using std::chrono::milliseconds;
 
 struct RunController::Session {
   Session(RunController& controller, const std::shared_ptr<Live>& live)
-      : rc(controller), self(live), L(*live), id(live->snap.run_id), plan(live->plan) {}
+      : rc(controller),
+        self(live),
+        L(*live),
+        id(live->units.front().snap.run_id),
+        plan(live->plan) {
+    units.resize(live->units.size());
+    for (size_t i = 0; i < units.size(); ++i) units[i].index = i;
+  }
 
-  /// The stages in order; ends with the run handed to the worker or recorded as ended.
+  /// The stages in order; ends with every unit handed to the worker or recorded as ended.
   void run();
 
  private:
+  /// One unit's capture: its link, archive and how it ended.
+  struct UnitCapture {
+    size_t index = 0;  // into L.units
+    std::unique_ptr<Capture> cap;
+    std::unique_ptr<ArchiveWriter> writer;
+    archive::RunInfo info;
+    bool live = true;  // still capturing (not dropped alone)
+    std::optional<CaptureStats> stats;
+    std::string sha;
+    std::string archive_error;  // finishing its archive failed: the unit fails
+  };
+
   RunController& rc;
   const std::shared_ptr<Live>& self;
   Live& L;
-  const db::RunId id;
+  const db::RunId id;  // the table run's (its first unit's) run id, for the log
   const RunPlan& plan;
 
   std::unique_ptr<turntable::TurntableClient> client;
-  std::unique_ptr<Capture> cap;
-  std::unique_ptr<ArchiveWriter> writer;
-  archive::RunInfo info;
+  std::vector<UnitCapture> units;
   double at_outer = 0.0, at_inner = 0.0;  // where the table stands (last in-position reading)
 
-  // How the capture ended.
+  // How the capture of the units still live ended.
   bool captured = false;
   db::RunState end_state = db::RunState::kFailed;
   std::string reason;
-  std::optional<CaptureStats> stats;
-  std::string sha;
+
+  Unit& unit(const UnitCapture& u) { return L.units[u.index]; }
+  const ImuSlotConfig& slot(const UnitCapture& u) { return *L.units[u.index].slot; }
+  db::RunId run_id(const UnitCapture& u) { return L.units[u.index].snap.run_id; }
+  size_t live_units() const {
+    return static_cast<size_t>(
+        std::count_if(units.begin(), units.end(), [](const UnitCapture& u) { return u.live; }));
+  }
 
   // --- stages ---
   turntable::TableStatus connect_table();
   turntable::TableStatus home(turntable::TableStatus st);
-  void connect_imu();
-  void open_archive(const turntable::TableStatus& st);
+  void connect_imus();
+  void open_imu(UnitCapture& u);
+  void wait_for_stream(UnitCapture& u);
+  void open_archives(const turntable::TableStatus& st);
   void run_steps();
   turntable::TableStatus move(double outer, double inner, double rate);
-  void rest(double outer, double inner, uint64_t samples);
+  void rest(double outer, double inner, double rest_s);
   void check_rest_table(double outer, double inner, double budget_s, Clock::time_point deadline);
+  // --- one unit failing while the others go on ---
+  void unit_failed(UnitCapture& u, const std::string& why);
+  void drop_unit(UnitCapture& u, const std::string& why);
   // --- the end ---
   void ended(db::RunState state, std::string why);
   void resolve_abort();
-  void end_capture();
-  void close_archive();
+  void end_capture(UnitCapture& u);
+  void close_archive(UnitCapture& u, bool complete);
   void close_table();
-  bool hand_over();
-  void record_failure();
+  void hand_over(UnitCapture& u);
+  void record_failure(UnitCapture& u, db::RunState state, const std::string& why);
   // --- transitions ---
   void enter_running();
-  void enter_calibrating();
+  void enter_calibrating(UnitCapture& u);
 
   void check_abort() {
     std::lock_guard<std::mutex> lk(rc.mu_);
     if (L.abort) throw AbortRequested{};
   }
+  /// A unit whose stream failed ends FAILED alone while others capture; the last one ends the run.
   void check_capture() {
-    if (cap)
-      if (auto f = cap->fault()) throw CaptureFailure(*f);
+    for (UnitCapture& u : units)
+      if (u.live && u.cap)
+        if (auto f = u.cap->fault()) unit_failed(u, *f);
   }
   milliseconds poll() const { return std::max(milliseconds(1), rc.cfg_.turntable.poll_period); }
 };
@@ -91,11 +124,12 @@ void RunController::capture_run(const std::shared_ptr<Live>& self) { Session(*th
 void RunController::Session::run() {
   try {
     turntable::TableStatus st = home(connect_table());
-    connect_imu();
-    open_archive(st);
+    connect_imus();
+    open_archives(st);
     run_steps();
     check_abort();
-    cap->detach();
+    for (UnitCapture& u : units)
+      if (u.live) u.cap->detach();
     check_capture();
     captured = true;
   } catch (const AbortRequested&) {
@@ -117,11 +151,21 @@ void RunController::Session::run() {
     rc.set_phase(L, RunPhase::kStopping);
     if (client && client->connected()) client->safe_stop();
   }
-  end_capture();
-  close_archive();
+  for (UnitCapture& u : units)
+    if (u.live) {
+      end_capture(u);
+      close_archive(u, captured);
+    }
   close_table();
-  if (captured && hand_over()) return;
-  record_failure();
+  for (UnitCapture& u : units) {
+    if (!u.live) continue;
+    if (!u.archive_error.empty())
+      record_failure(u, db::RunState::kFailed, "archive: " + u.archive_error);
+    else if (captured)
+      hand_over(u);
+    else
+      record_failure(u, end_state, reason);
+  }
 }
 
 // ----- stages ------------------------------------------------------------------------------------
@@ -162,58 +206,88 @@ turntable::TableStatus RunController::Session::home(turntable::TableStatus st) {
   return st;
 }
 
-/// Opens the CAN channel and waits for the IMU's stream.
-void RunController::Session::connect_imu() {
+/// Opens every unit's CAN channel, then waits for each stream (the units were powered on together);
+/// a unit without one fails alone (the run goes on with the others) unless it is the last.
+void RunController::Session::connect_imus() {
   rc.set_phase(L, RunPhase::kConnecting);
-  CaptureOptions co;
-  co.decoder = decoder_options(rc.cfg_);
-  co.max_gap_samples = rc.cfg_.max_gap_samples;
-  co.settle_guard_samples = rc.cfg_.settle_guard_samples;
-  co.rest_rate_threshold_dps = rc.cfg_.rest_rate_threshold_dps;
-  co.stream_timeout = milliseconds(rc.cfg_.stream_timeout_ms);
-  cap = std::make_unique<Capture>(imu::CanChannel::open(rc.cfg_.can_uri), co);
-  cap->start();
-  {
-    std::lock_guard<std::mutex> lk(rc.mu_);
-    L.capture = cap.get();
-  }
-  if (!cap->wait_for_stream(co.stream_timeout)) {
-    check_capture();
-    throw CaptureFailure("no IMU samples on " + rc.cfg_.can_uri + " within " +
-                         std::to_string(rc.cfg_.stream_timeout_ms) + " ms");
+  for (bool waiting : {false, true}) {
+    for (UnitCapture& u : units) {
+      if (!u.live) continue;
+      try {
+        waiting ? wait_for_stream(u) : open_imu(u);
+      } catch (const CaptureFailure& e) {
+        unit_failed(u, e.what());
+      } catch (const imu::CanChannelError& e) {
+        unit_failed(u, e.what());
+      }
+    }
   }
   {
     std::lock_guard<std::mutex> lk(rc.mu_);
     L.stream_started = Clock::now();
-    L.rows_at_stream_start = cap->rows();
+    for (UnitCapture& u : units)
+      if (u.live) unit(u).rows_at_stream_start = u.cap->rows();
   }
   check_abort();
 }
 
-/// The run archive opens and the capture starts writing into it: the run is running.
-void RunController::Session::open_archive(const turntable::TableStatus& st) {
-  const StationConfig& cfg = rc.cfg_;
-  info.serial = L.snap.serial;
-  info.station_name = cfg.station_name;
-  info.site = cfg.site;
-  info.imu_rate_hz = cfg.rate_hz;
-  info.sequence_name = plan.sequence_name;
-  info.sequence_sha256 = plan.sequence_sha256;
-  info.software_version = rc.software_version_;
-  info.start_time = db::format_time_utc(L.snap.started_at_ms);
-  info.reference = archive::ReferenceKind::kTable;
-  info.arw_rad_per_sqrt_s = cfg.arw_rad_per_sqrt_s();
-  info.vrw_mps_per_sqrt_s = cfg.vrw_mps_per_sqrt_s();
-  if (cfg.protocol) {  // the protocol's resolution: the gap diagnosis models its quantisation
-    const imu::IncrementResolution q = imu::increment_resolution(*cfg.protocol, 1.0 / cfg.rate_hz);
-    info.dtheta_lsb_rad = q.dtheta_rad;
-    info.dv_lsb_mps = q.dv_mps;
-    info.imu_protocol = cfg.protocol->name;
+void RunController::Session::open_imu(UnitCapture& u) {
+  const ImuSlotConfig& s = slot(u);
+  CaptureOptions co;
+  co.decoder = decoder_options(s);
+  co.max_gap_samples = s.max_gap_samples;
+  co.settle_guard_samples = s.settle_guard_samples;
+  co.rest_rate_threshold_dps = s.rest_rate_threshold_dps;
+  co.stream_timeout = milliseconds(s.stream_timeout_ms);
+  u.cap = std::make_unique<Capture>(imu::CanChannel::open(s.can_uri), co);
+  u.cap->start();
+  std::lock_guard<std::mutex> lk(rc.mu_);
+  unit(u).capture = u.cap.get();
+}
+
+void RunController::Session::wait_for_stream(UnitCapture& u) {
+  const ImuSlotConfig& s = slot(u);
+  if (!u.cap->wait_for_stream(milliseconds(s.stream_timeout_ms))) {
+    if (auto f = u.cap->fault()) throw CaptureFailure(*f);
+    throw CaptureFailure("no IMU samples on " + s.can_uri + " within " +
+                         std::to_string(s.stream_timeout_ms) + " ms");
   }
-  info.grade = cfg.grade;
-  writer = std::make_unique<ArchiveWriter>(L.snap.archive_path, info);
-  cap->table_moving(st.outer_deg, st.inner_deg);
-  cap->attach(writer.get());
+}
+
+/// Every unit's run archive opens and its capture starts writing into it: the run is running.
+void RunController::Session::open_archives(const turntable::TableStatus& st) {
+  const StationConfig& cfg = rc.cfg_;
+  for (UnitCapture& u : units) {
+    if (!u.live) continue;
+    const ImuSlotConfig& s = slot(u);
+    archive::RunInfo& info = u.info;
+    info.serial = unit(u).snap.serial;
+    info.station_name = cfg.station_name;
+    info.site = cfg.site;
+    info.imu_rate_hz = s.rate_hz;
+    info.sequence_name = plan.sequence_name;
+    info.sequence_sha256 = plan.sequence_sha256;
+    info.software_version = rc.software_version_;
+    info.start_time = db::format_time_utc(unit(u).snap.started_at_ms);
+    info.reference = archive::ReferenceKind::kTable;
+    info.arw_rad_per_sqrt_s = s.arw_rad_per_sqrt_s();
+    info.vrw_mps_per_sqrt_s = s.vrw_mps_per_sqrt_s();
+    if (s.protocol) {  // the protocol's resolution: the gap diagnosis models its quantisation
+      const imu::IncrementResolution q = imu::increment_resolution(*s.protocol, 1.0 / s.rate_hz);
+      info.dtheta_lsb_rad = q.dtheta_rad;
+      info.dv_lsb_mps = q.dv_mps;
+      info.imu_protocol = s.protocol->name;
+    }
+    info.grade = s.grade;
+    info.table.slot = unit(u).snap.slot;
+    for (int k = 0; k < 3; ++k) {
+      info.table.mount_rpy_rad(k) = s.mount_rpy_deg[static_cast<size_t>(k)] * kDegToRad;
+      info.table.lever_arm_m(k) = s.lever_arm_m[static_cast<size_t>(k)];
+    }
+    u.writer = std::make_unique<ArchiveWriter>(unit(u).snap.archive_path, info);
+    u.cap->table_moving(st.outer_deg, st.inner_deg);
+    u.cap->attach(u.writer.get());
+  }
   enter_running();
   at_outer = st.outer_deg;
   at_inner = st.inner_deg;
@@ -226,8 +300,9 @@ void RunController::Session::run_steps() {
     {
       std::lock_guard<std::mutex> lk(rc.mu_);
       L.step_index = static_cast<int>(i);
-      L.snap.step = static_cast<int>(i) + 1;
       L.step_started = Clock::now();
+      for (Unit& u : L.units)
+        if (!u.ended) u.snap.step = static_cast<int>(i) + 1;
     }
     check_abort();
     if (p.kind == PlannedStep::Kind::kMove) {
@@ -237,23 +312,22 @@ void RunController::Session::run_steps() {
       at_outer = st.outer_deg;
       at_inner = st.inner_deg;
     } else {
-      spdlog::debug("run {}: step {}/{}: rest {} samples", id, i + 1, plan.steps.size(),
-                    p.rest_samples);
-      rest(at_outer, at_inner, p.rest_samples);
+      spdlog::debug("run {}: step {}/{}: rest {} s", id, i + 1, plan.steps.size(), p.rest_s);
+      rest(at_outer, at_inner, p.rest_s);
     }
     check_capture();
   }
 }
 
 /// Commands a move and polls the table until it is in position, handing every reading to the
-/// capture (sample-and-hold angles while moving); the final check is the client's own
+/// captures (sample-and-hold angles while moving); the final check is the client's own
 /// wait_in_position (fault, e-stop, heartbeat, target reached).
 turntable::TableStatus RunController::Session::move(double outer, double inner, double rate) {
   // The next rest may only count IMU samples that show this move happened (the IMU stream can lag
   // the Modbus readings); a move too short to be seen is not waited for.
-  if (cap && (std::abs(outer - at_outer) > kVisibleMoveDeg ||
-              std::abs(inner - at_inner) > kVisibleMoveDeg))
-    cap->move_commanded();
+  if (std::abs(outer - at_outer) > kVisibleMoveDeg || std::abs(inner - at_inner) > kVisibleMoveDeg)
+    for (UnitCapture& u : units)
+      if (u.live && u.cap) u.cap->move_commanded();
   client->move_to(outer, inner, rate);
   const auto deadline =
       Clock::now() + milliseconds(static_cast<int64_t>(rc.cfg_.move_timeout_s * 1000.0));
@@ -261,7 +335,8 @@ turntable::TableStatus RunController::Session::move(double outer, double inner, 
   for (;;) {
     check_abort();
     const turntable::TableStatus st = client->status();
-    if (cap) cap->table_moving(st.outer_deg, st.inner_deg);
+    for (UnitCapture& u : units)
+      if (u.live && u.cap) u.cap->table_moving(st.outer_deg, st.inner_deg);
     check_capture();
     if (st.fault || st.estop || st.heartbeat_stale) break;
     if (st.in_position && !st.moving) break;
@@ -273,25 +348,35 @@ turntable::TableStatus RunController::Session::move(double outer, double inner, 
   return client->wait_in_position(std::max(milliseconds(1), left));
 }
 
-/// A counted rest: the capture marks `samples` rows at rest once the unit is still; meanwhile the
-/// table is watched (it must hold its position).
-void RunController::Session::rest(double outer, double inner, uint64_t samples) {
-  cap->begin_rest(outer, inner, samples);
+/// A counted rest: each capture marks its rest's samples (rest_s at its unit's rate) at rest once
+/// its unit is still; meanwhile the table is watched (it must hold its position).
+void RunController::Session::rest(double outer, double inner, double rest_s) {
+  double budget_s = 0.0;
+  for (UnitCapture& u : units) {
+    if (!u.live) continue;
+    const ImuSlotConfig& s = slot(u);
+    const auto samples = static_cast<uint64_t>(std::llround(rest_s * s.rate_hz));
+    u.cap->begin_rest(outer, inner, samples);
+    // A unit that never comes to rest: give it the rest's real-time length plus a move timeout.
+    budget_s =
+        std::max(budget_s, static_cast<double>(samples + s.settle_guard_samples) / s.rate_hz +
+                               rc.cfg_.move_timeout_s);
+  }
   rc.set_phase(L, RunPhase::kSettling);
-  // A unit that never comes to rest: give it the rest's real-time length plus a move timeout.
-  const double budget_s =
-      static_cast<double>(samples + rc.cfg_.settle_guard_samples) / rc.cfg_.rate_hz +
-      rc.cfg_.move_timeout_s;
   const auto deadline = Clock::now() + milliseconds(static_cast<int64_t>(budget_s * 1000.0));
-  while (!cap->wait_rest_done(poll())) {
+  for (;;) {
+    bool done = true;
+    for (UnitCapture& u : units)
+      if (u.live && !u.cap->wait_rest_done(done ? poll() : milliseconds(0))) done = false;
+    if (done) return;
     check_capture();
     check_abort();
     check_rest_table(outer, inner, budget_s, deadline);
   }
 }
 
-/// During a rest: the table holds still and fault-free, the IMU has shown the move before it, and
-/// the unit comes to rest in time.
+/// During a rest: the table holds still and fault-free, each unit has shown the move before it,
+/// and comes to rest in time.
 void RunController::Session::check_rest_table(double outer, double inner, double budget_s,
                                               Clock::time_point deadline) {
   const turntable::TableStatus st = client->status();
@@ -304,18 +389,41 @@ void RunController::Session::check_rest_table(double outer, double inner, double
                                      st.fault_code);
   if (st.heartbeat_stale) throw turntable::HeartbeatError(where + ": PLC heartbeat stuck");
   if (st.moving) throw turntable::MoveTimeoutError(where + ": the table moved during a rest");
-  if (cap->rest_rows_done() > 0) rc.set_phase(L, RunPhase::kResting);
-  // The table has arrived; the IMU must have seen the move within a few seconds of samples.
-  if (cap->unseen_move_samples() > static_cast<uint64_t>(kMoveVisibleWithin_s * rc.cfg_.rate_hz))
-    throw CaptureFailure(
-        "the IMU did not show the table's move to outer " + std::to_string(outer) + " deg, inner " +
-        std::to_string(inner) + " deg (" + std::to_string(static_cast<int>(kMoveVisibleWithin_s)) +
-        " s of samples after the table stopped): the unit did not move with the table (loose, or "
-        "not on it), or its gyro axis of that rotation is dead");
-  if (Clock::now() >= deadline)
-    throw CaptureFailure("the unit did not come to rest within " + std::to_string(budget_s) +
-                         " s (rest rate threshold " +
-                         std::to_string(rc.cfg_.rest_rate_threshold_dps) + " deg/s)");
+  for (UnitCapture& u : units)
+    if (u.live && u.cap->rest_rows_done() > 0) rc.set_phase(L, RunPhase::kResting);
+  for (UnitCapture& u : units) {
+    if (!u.live) continue;
+    const ImuSlotConfig& s = slot(u);
+    // The table has arrived; the IMU must have seen the move within a few seconds of samples.
+    if (u.cap->unseen_move_samples() > static_cast<uint64_t>(kMoveVisibleWithin_s * s.rate_hz))
+      unit_failed(u, "the IMU did not show the table's move to outer " + std::to_string(outer) +
+                         " deg, inner " + std::to_string(inner) + " deg (" +
+                         std::to_string(static_cast<int>(kMoveVisibleWithin_s)) +
+                         " s of samples after the table stopped): the unit did not move with the "
+                         "table (loose, or not on it), or its gyro axis of that rotation is dead");
+    else if (Clock::now() >= deadline && !u.cap->wait_rest_done(milliseconds(0)))
+      unit_failed(u, "the unit did not come to rest within " + std::to_string(budget_s) +
+                         " s (rest rate threshold " + std::to_string(s.rest_rate_threshold_dps) +
+                         " deg/s)");
+  }
+}
+
+// ----- one unit failing while the others go on ---------------------------------------------------
+
+/// A unit's capture failed: alone it ends the run (CaptureFailure); beside others it ends FAILED
+/// on its own and the table goes on for them.
+void RunController::Session::unit_failed(UnitCapture& u, const std::string& why) {
+  if (live_units() <= 1) throw CaptureFailure(why);
+  drop_unit(u, "capture: " + why);
+}
+
+void RunController::Session::drop_unit(UnitCapture& u, const std::string& why) {
+  spdlog::warn("run {} (slot {}): failed alone, the table run goes on: {}", run_id(u), slot(u).name,
+               why);
+  u.live = false;
+  end_capture(u);
+  close_archive(u, false);
+  record_failure(u, db::RunState::kFailed, why);
 }
 
 // ----- the end -----------------------------------------------------------------------------------
@@ -348,39 +456,36 @@ void RunController::Session::resolve_abort() {
 }
 
 /// The capture ends on every path: no frame is counted after the archive's last one.
-void RunController::Session::end_capture() {
-  if (!cap) return;
-  cap->detach();
-  cap->stop();
-  stats = cap->stats();
+void RunController::Session::end_capture(UnitCapture& u) {
+  if (!u.cap) return;
+  u.cap->detach();
+  u.cap->stop();
+  u.stats = u.cap->stats();
   {
     std::lock_guard<std::mutex> lk(rc.mu_);
-    L.capture = nullptr;
-    L.snap.capture = stats;
+    unit(u).capture = nullptr;
+    unit(u).snap.capture = u.stats;
   }
-  cap.reset();
+  u.cap.reset();
 }
 
 /// run.toml with the end time and [capture] (complete only when every step ran: an aborted or
 /// failed run's archive says so, and its reprocess is refused unless asked for), and the digest.
-void RunController::Session::close_archive() {
-  if (!writer) return;
+void RunController::Session::close_archive(UnitCapture& u, bool complete) {
+  if (!u.writer) return;
   try {
-    info.end_time = db::format_time_utc(db::now_ms());
-    info.capture = to_capture_info(stats.value_or(CaptureStats{}), captured);
-    writer->finish(info);
+    u.info.end_time = db::format_time_utc(db::now_ms());
+    u.info.capture = to_capture_info(u.stats.value_or(CaptureStats{}), complete);
+    u.writer->finish(u.info);
   } catch (const std::exception& e) {
-    spdlog::error("run {}: finishing the archive: {}", id, e.what());
-    if (captured) {
-      captured = false;
-      ended(db::RunState::kFailed, std::string("archive: ") + e.what());
-    }
+    spdlog::error("run {}: finishing the archive: {}", run_id(u), e.what());
+    if (complete) u.archive_error = e.what();
   }
-  writer.reset();
+  u.writer.reset();
   try {
-    sha = archive_digest(L.snap.archive_path);
+    u.sha = archive_digest(unit(u).snap.archive_path);
   } catch (const std::exception& e) {
-    spdlog::error("run {}: {}", id, e.what());
+    spdlog::error("run {}: {}", run_id(u), e.what());
   }
 }
 
@@ -394,72 +499,81 @@ void RunController::Session::close_table() {
   client.reset();
 }
 
-/// The complete archive to the calibration worker; false when the worker refuses it (the daemon
-/// is shutting down: the archive is complete, reprocess it later).
-bool RunController::Session::hand_over() {
+/// The complete archive to the calibration worker; when the worker refuses it (the daemon is
+/// shutting down) the unit ends interrupted: the archive is complete, reprocess it later.
+void RunController::Session::hand_over(UnitCapture& u) {
+  const db::RunId rid = run_id(u);
   CalibrationJob job;
-  job.run_id = id;
-  job.archive_dir = L.snap.archive_path;
-  job.archive_sha256 = sha;
-  job.capture_json = stats ? to_json(*stats).dump() : std::string();
+  job.run_id = rid;
+  job.archive_dir = unit(u).snap.archive_path;
+  job.archive_sha256 = u.sha;
+  job.capture_json = u.stats ? to_json(*u.stats).dump() : std::string();
   rc.apply_calibration_settings(job);
-  enter_calibrating();
-  spdlog::info("run {}: capture complete ({} rows, {} at rest); calibrating", id,
-               stats ? stats->rows_written : 0, stats ? stats->rest_samples : 0);
+  enter_calibrating(u);
+  spdlog::info("run {}: capture complete ({} rows, {} at rest); calibrating", rid,
+               u.stats ? u.stats->rows_written : 0, u.stats ? u.stats->rest_samples : 0);
   try {
     RunController& controller = rc;
     std::shared_ptr<Live> live = self;
-    rc.worker_.submit(job, [&controller, live](const CalibrationOutcome& out) {
-      controller.on_calibrated(live, out);
+    const size_t index = u.index;
+    rc.worker_.submit(job, [&controller, live, index](const CalibrationOutcome& out) {
+      controller.on_calibrated(live, index, out);
     });
-    return true;
   } catch (const std::exception& e) {
-    std::lock_guard<std::mutex> lk(rc.mu_);
-    L.handed_to_worker = false;
-    ended(db::RunState::kInterrupted,
-          std::string("capture complete but not calibrated: ") + e.what() + "; reprocess the run");
-    return false;
+    {
+      std::lock_guard<std::mutex> lk(rc.mu_);
+      unit(u).handed_to_worker = false;
+    }
+    record_failure(
+        u, db::RunState::kInterrupted,
+        std::string("capture complete but not calibrated: ") + e.what() + "; reprocess the run");
   }
 }
 
-/// A run that ended before calibrating: its terminal state with the reason, the archive (if one
+/// A unit that ended before calibrating: its terminal state with the reason, the archive (if one
 /// was written), its digest and the capture counters.
-void RunController::Session::record_failure() {
-  const bool have_archive = fs::exists(fs::path(L.snap.archive_path) / "run.toml");
+void RunController::Session::record_failure(UnitCapture& u, db::RunState state,
+                                            const std::string& why) {
+  Unit& un = unit(u);
+  const bool have_archive = fs::exists(fs::path(un.snap.archive_path) / "run.toml");
   db::RunCompletion c;
-  c.state = end_state;
+  c.state = state;
   c.ended_at_ms = db::now_ms();
-  c.reason = reason;
-  if (have_archive) c.archive_path = L.snap.archive_path;
-  c.archive_sha256 = sha;
-  c.capture_json = stats ? to_json(*stats).dump() : std::string();
-  rc.finish_early(L, end_state, reason);
+  c.reason = why;
+  if (have_archive) c.archive_path = un.snap.archive_path;
+  c.archive_sha256 = u.sha;
+  c.capture_json = u.stats ? to_json(*u.stats).dump() : std::string();
+  rc.finish_early(un, state, why);
   {
     std::lock_guard<std::mutex> lk(rc.mu_);
-    if (!have_archive) L.snap.archive_path.clear();
+    if (!have_archive) un.snap.archive_path.clear();
   }
-  rc.record_end(L, c);
+  rc.record_end(L, un, c);
 }
 
 // ----- transitions (database and live snapshot together) -----------------------------------------
 
-/// preparing -> running: the archive is open and the capture writes into it.
+/// preparing -> running: the archives are open and the captures write into them.
 void RunController::Session::enter_running() {
-  rc.repo_.update_run_state(id, db::RunState::kRunning);
-  {
-    std::lock_guard<std::mutex> lk(rc.mu_);
-    L.snap.state = db::RunState::kRunning;
+  for (UnitCapture& u : units) {
+    if (!u.live) continue;
+    rc.repo_.update_run_state(run_id(u), db::RunState::kRunning);
+    {
+      std::lock_guard<std::mutex> lk(rc.mu_);
+      unit(u).snap.state = db::RunState::kRunning;
+    }
+    spdlog::info("run {}: running, archive {}", run_id(u), unit(u).snap.archive_path);
   }
-  spdlog::info("run {}: running, archive {}", id, L.snap.archive_path);
 }
 
-/// running -> calibrating: the capture is complete and the worker takes the run over.
-void RunController::Session::enter_calibrating() {
-  rc.repo_.update_run_state(id, db::RunState::kCalibrating);
+/// running -> calibrating: the capture is complete and the worker takes the unit over.
+void RunController::Session::enter_calibrating(UnitCapture& u) {
+  rc.repo_.update_run_state(run_id(u), db::RunState::kCalibrating);
   std::lock_guard<std::mutex> lk(rc.mu_);
-  L.snap.state = db::RunState::kCalibrating;
-  L.snap.phase = RunPhase::kCalibrating;
-  L.handed_to_worker = true;
+  Unit& un = unit(u);
+  un.snap.state = db::RunState::kCalibrating;
+  un.snap.phase = RunPhase::kCalibrating;
+  un.handed_to_worker = true;
 }
 
 }  // namespace imucal::station

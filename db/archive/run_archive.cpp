@@ -17,6 +17,7 @@
 #include "calib/checks/data_check.hpp"
 #include "calib/core/conventions.hpp"
 #include "calib/core/rotation.hpp"
+#include "calib/effects/effect_compensation.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/csv.hpp"
 #include "db/archive/io_util.hpp"
@@ -270,8 +271,8 @@ void read_imu(const TomlSection& root, const std::string& origin, ParsedRunInfo&
 
 /// [table], [sequence], [noise]: optional, each checked where given.
 void read_optional_sections(const TomlSection& root, RunInfo& ri) {
-  if (const auto t =
-          root.section("table", {"outer_axis", "inner_axis", "heading_deg", "mount_rpy_deg"})) {
+  if (const auto t = root.section("table", {"outer_axis", "inner_axis", "heading_deg",
+                                            "mount_rpy_deg", "slot", "lever_arm_m"})) {
     for (const char* k : {"outer_axis", "inner_axis"})
       if (const auto a = t->vec3(k)) {
         if (std::fabs(a->norm() - 1.0) > 1e-3)
@@ -283,6 +284,12 @@ void read_optional_sections(const TomlSection& root, RunInfo& ri) {
       if (std::fabs((*m)(1)) > 90.0)
         t->fail("mount_rpy_deg", "pitch (second element) must be within [-90, 90] deg");
       ri.table.mount_rpy_rad = {deg_to_rad((*m)(0)), deg_to_rad((*m)(1)), deg_to_rad((*m)(2))};
+    }
+    ri.table.slot = t->string("slot").value_or("");
+    if (const auto r = t->vec3("lever_arm_m")) {
+      if (!(r->array().abs() <= 2.0).all())
+        t->fail("lever_arm_m", "must be within 2 m of the rotation centre on every axis");
+      ri.table.lever_arm_m = *r;
     }
   }
   if (const auto s = root.section("sequence", {"name", "sha256"})) {
@@ -429,6 +436,8 @@ std::string run_info_text(const RunInfo& ri) {
   w.key("mount_rpy_deg", Eigen::Vector3d(rad_to_deg_exact(ri.table.mount_rpy_rad(0)),
                                          rad_to_deg_exact(ri.table.mount_rpy_rad(1)),
                                          rad_to_deg_exact(ri.table.mount_rpy_rad(2))));
+  if (!ri.table.slot.empty()) w.key("slot", ri.table.slot);
+  if (!ri.table.lever_arm_m.isZero()) w.key("lever_arm_m", ri.table.lever_arm_m);
   if (!ri.sequence_name.empty() || !ri.sequence_sha256.empty()) {
     w.section("sequence");
     if (!ri.sequence_name.empty()) w.key("name", ri.sequence_name);
@@ -1047,12 +1056,28 @@ calib::CalibrationInput factory_input(const RunArchive& a, RunArchive* owned,
 }
 
 /// Both overloads; `owned` as for factory_input.
+/// A unit mounted off the table's rotation centre (a fixture slot, [table] lever_arm_m): its
+/// accelerometers sense the offset's kinematic acceleration while the table turns, which no method
+/// models. It is the size effect with one lever arm for all three accelerometers, taken out with
+/// the raw rates (the unit's scale and bias errors change it by ppm of µg).
+void remove_slot_lever_arm(calib::CalibrationInput& in, const TableSetup& table) {
+  if (table.lever_arm_m.isZero()) return;
+  const Eigen::Vector3d r_b = table.geometry().C_bp.transpose() * table.lever_arm_m;
+  calib::Effects fx;
+  fx.accel_lever_arm_m = {r_b, r_b, r_b};
+  calib::remove_sensor_effects(in.imu, fx, calib::ParamSet{});
+}
+
 calib::CalibrationInput convert(const RunArchive& a, RunArchive* owned) {
   const std::string imu_file = join_path(a.origin, "imu.csv");
   if (a.imu.empty()) throw ArchiveError(imu_file, "no IMU samples");
   if (!(a.info.imu_rate_hz > 0.0))
     throw ArchiveError::field_error(join_path(a.origin, "run.toml"), "imu.rate_hz", "must be > 0");
-  if (a.info.setting == calib::Setting::kFactory) return factory_input(a, owned, imu_file);
+  if (a.info.setting == calib::Setting::kFactory) {
+    calib::CalibrationInput in = factory_input(a, owned, imu_file);
+    remove_slot_lever_arm(in, a.info.table);
+    return in;
+  }
   // Land and sea: calib::input_from_field_data copies the series either way.
   check_sample_interval(a.imu, a.info, imu_file);
   calib::CalibrationInput in = field_input(a, imu_file);

@@ -36,6 +36,12 @@ struct TableSetup {
   double heading_rad = calib::TableGeometry{}.heading_rad;  ///< C_tn = Rz(heading)
   Eigen::Vector3d mount_rpy_rad =
       Eigen::Vector3d::Zero();  ///< fixture C_bp = euler_to_C_bn(r, p, y)
+  /// slot (optional): the fixture position of a station that holds several units (issue #23).
+  std::string slot;
+  /// lever_arm_m (optional, platform axes, m): the unit's centre from the table's rotation centre.
+  /// A rigid offset senses ω×(ω×r) + ω̇×r while the table turns; to_calibration_input takes it out
+  /// of the accelerometer increments before any method sees them.
+  Eigen::Vector3d lever_arm_m = Eigen::Vector3d::Zero();
 
   calib::TableGeometry geometry() const;
   /// From a geometry (C_bp decomposed into ZYX Euler angles; exact to round-off).

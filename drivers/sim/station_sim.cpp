@@ -102,6 +102,41 @@ class NoiseRestarts {
 
 }  // namespace
 
+/// One unit on the fixture: its configuration, bus and CAN node, and (physics thread) its truth
+/// stream, fault injector and noise restarts.
+struct StationSim::Unit {
+  explicit Unit(StationSimUnit c) : cfg(std::move(c)) {}
+  StationSimUnit cfg;
+  std::unique_ptr<imu::CanChannel> channel;
+  std::unique_ptr<ImuCanNode> node;
+  std::unique_ptr<calib::TruthStream> stream;
+  std::unique_ptr<ImuFaultInjector> fault;
+  std::unique_ptr<NoiseRestarts> noise;
+
+  /// The unit's truth: its own mounting, and the slot's lever arm as the size effect of all
+  /// three accelerometers (a rigid offset from the rotation centre, body axes).
+  calib::TruthStream make_stream(const StationSimConfig& station) const {
+    calib::TableGeometry geometry = station.geometry;
+    geometry.C_bp = cfg.C_bp;
+    calib::UnitModel truth = cfg.unit;
+    const Eigen::Vector3d r_b = cfg.C_bp.transpose() * cfg.lever_arm_m;
+    for (Eigen::Vector3d& r : truth.effects.accel_lever_arm_m) r += r_b;
+    calib::SimOptions o;
+    o.rate_hz = station.rate_hz;
+    o.seed = cfg.seed;
+    o.noise = true;
+    return calib::TruthStream(geometry, station.site, truth, o);
+  }
+  /// The cable is pulled stream_cut_at_s after the first peer (the station) connected to the
+  /// unit's bus: a capture that started, then lost its unit.
+  bool cut(double t_s) {
+    if (!cfg.stream_cut_at_s) return false;
+    if (!peer_since_s && channel->counters().peers_connected > 0) peer_since_s = t_s;
+    return peer_since_s && t_s > *peer_since_s + *cfg.stream_cut_at_s;
+  }
+  std::optional<double> peer_since_s;
+};
+
 StationSim::StationSim(StationSimConfig cfg) : cfg_(std::move(cfg)) {
   if (!(std::isfinite(cfg_.rate_hz) && cfg_.rate_hz > 0.0))
     throw std::invalid_argument("StationSimConfig.rate_hz must be positive, got " +
@@ -140,13 +175,34 @@ StationSim::StationSim(StationSimConfig cfg) : cfg_(std::move(cfg)) {
         "(the "
         "PLC's encoder can lag the motion, not lead it)");
   cfg_.plc.encoder_delay_s = cfg_.unit.effects.table_time_offset_s;
+  if (cfg_.more_units.size() > 3)
+    throw std::invalid_argument("StationSimConfig.more_units: at most 3 (4 units on the fixture)");
+  StationSimUnit first;
+  first.can_path = cfg_.can_path;
+  first.unit = cfg_.unit;
+  first.seed = cfg_.seed;
+  first.C_bp = cfg_.geometry.C_bp;
+  first.lever_arm_m = cfg_.lever_arm_m;
+  first.imu_fault = cfg_.faults.imu_fault;
+  first.stream_cut_at_s = cfg_.stream_cut_at_s;
+  first.protocol = cfg_.protocol;
+  first.base_id = cfg_.base_id;
+  units_.push_back(std::make_unique<Unit>(first));
+  for (const StationSimUnit& u : cfg_.more_units) {
+    if (u.can_path.empty())
+      throw std::invalid_argument("StationSimConfig.more_units: a unit's can_path is empty");
+    for (const auto& other : units_)
+      if (other->cfg.can_path == u.can_path)
+        throw std::invalid_argument("StationSimConfig.more_units: bus " + u.can_path +
+                                    " is used twice");
+    units_.push_back(std::make_unique<Unit>(u));
+  }
   // Built here so that whatever the stream refuses is refused before anything listens (every
   // catalogue effect streams; the time offset is the PLC's, above).
-  calib::SimOptions o;
-  o.rate_hz = cfg_.rate_hz;
-  o.seed = cfg_.seed;
-  calib::TruthStream check(cfg_.geometry, cfg_.site, cfg_.unit, o);
-  (void)check;
+  for (const auto& u : units_) {
+    if (u->cfg.stream_cut_at_s) check_time(*u->cfg.stream_cut_at_s, "stream_cut_at_s");
+    (void)u->make_stream(cfg_);
+  }
 }
 
 StationSim::~StationSim() { stop(); }
@@ -156,18 +212,20 @@ void StationSim::start() {
   imu::CanOpenOptions can_opt;
   can_opt.listen = true;
   can_opt.write_timeout_ms = kCanWriteTimeoutMs;
-  channel_ = imu::CanChannel::open(can_uri(), can_opt);  // throws naming the path
-
-  ImuCanNodeOptions node_opt;
-  node_opt.rate_hz = cfg_.rate_hz;
-  node_opt.speed_factor = 0.0;  // the physics thread paces
-  node_opt.frame_loss_probability = cfg_.faults.can_loss;
-  node_opt.corruption_probability = cfg_.faults.can_corrupt;
-  node_opt.reset_at_s = cfg_.faults.imu_reset_at_s;
-  node_opt.seed = cfg_.seed ^ 0x9e3779b97f4a7c15ULL;  // independent of the sensor noise stream
-  node_opt.protocol = cfg_.protocol;
-  node_opt.base_id = cfg_.base_id;
-  node_ = std::make_unique<ImuCanNode>(*channel_, node_opt);
+  for (size_t i = 0; i < units_.size(); ++i) {
+    Unit& u = *units_[i];
+    u.channel = imu::CanChannel::open(can_uri(i), can_opt);  // throws naming the path
+    ImuCanNodeOptions node_opt;
+    node_opt.rate_hz = cfg_.rate_hz;
+    node_opt.speed_factor = 0.0;  // the physics thread paces
+    node_opt.frame_loss_probability = cfg_.faults.can_loss;
+    node_opt.corruption_probability = cfg_.faults.can_corrupt;
+    if (i == 0) node_opt.reset_at_s = cfg_.faults.imu_reset_at_s;
+    node_opt.seed = u.cfg.seed ^ 0x9e3779b97f4a7c15ULL;  // independent of the sensor noise stream
+    node_opt.protocol = u.cfg.protocol;
+    node_opt.base_id = u.cfg.base_id;
+    u.node = std::make_unique<ImuCanNode>(*u.channel, node_opt);
+  }
 
   // No TimeSource: the physics thread is the only one that advances the PLC.
   server_ = std::make_unique<ModbusTableServer>(cfg_.plc, cfg_.modbus);
@@ -183,9 +241,9 @@ void StationSim::stop() {
   if (thread_.joinable()) thread_.join();
   if (server_) server_->stop();
   running_.store(false);
-  // The channel and node stay until destruction so stats() remains valid; the bus socket is closed
-  // here so that peers see the end.
-  channel_.reset();
+  // The nodes stay until destruction so stats() remains valid; the bus sockets are closed here so
+  // that peers see the end.
+  for (const auto& u : units_) u->channel.reset();
 }
 
 int StationSim::modbus_port() const { return server_ ? server_->port() : 0; }
@@ -195,6 +253,10 @@ std::string StationSim::modbus_endpoint() const {
 }
 
 std::string StationSim::can_uri() const { return "unixcan:" + cfg_.can_path; }
+
+std::string StationSim::can_uri(size_t unit) const {
+  return "unixcan:" + units_.at(unit)->cfg.can_path;
+}
 
 double StationSim::time_s() const { return sim_time_s_.load(); }
 
@@ -230,30 +292,37 @@ StationSimStats StationSim::stats() const {
 
 void StationSim::record_sample_sent(double t_s, double wall_elapsed_s) {
   sim_time_s_.store(t_s);
-  const ImuCanNodeStats& ns = node_->stats();
+  const ImuCanNodeStats& ns = units_.front()->node->stats();
   std::lock_guard<std::mutex> lock(mu_);
   node_stats_.samples_sent = ns.samples_transmitted;
   node_stats_.frames_sent = ns.frames_sent;
   node_stats_.frames_lost = ns.frames_lost;
   node_stats_.frames_corrupted = ns.frames_corrupted;
-  node_stats_.frames_refused = ns.frames_refused + channel_->counters().tx_overflow;
+  node_stats_.frames_refused = ns.frames_refused + units_.front()->channel->counters().tx_overflow;
   node_stats_.imu_resets = ns.resets;
   node_stats_.sim_time_s = t_s;
   wall_elapsed_s_ = wall_elapsed_s;
 }
 
 void StationSim::run() {
-  calib::SimOptions o;
-  o.rate_hz = cfg_.rate_hz;
-  o.seed = cfg_.seed;
-  o.noise = true;
-  calib::TruthStream stream(cfg_.geometry, cfg_.site, cfg_.unit, o);
+  for (const auto& u : units_) {
+    u->stream = std::make_unique<calib::TruthStream>(u->make_stream(cfg_));
+    u->fault = std::make_unique<ImuFaultInjector>(u->cfg.imu_fault);
+    u->noise = std::make_unique<NoiseRestarts>(u->cfg.seed);
+  }
+  // The units whose quadrature samples the table inside an interval go first: the PLC only steps
+  // forward, and the others then read the states they asked for (same interval, same nodes).
+  std::vector<size_t> order(units_.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  auto interior = [&](size_t i) { return units_[i]->stream->needs_interior_states(); };
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return interior(a) && !interior(b); });
+  const bool any_interior = interior(order.front());
+  calib::TruthStream& clock_stream = *units_.front()->stream;  // every unit has the same rate
   const uint16_t move_code = cfg_.plc.map.commands.move;
   const uint16_t home_code = cfg_.plc.map.commands.home;
-  NoiseRestarts noise_restarts(cfg_.seed);
 
   ModbusFaultSchedule modbus_faults(cfg_.faults);
-  ImuFaultInjector fault(cfg_.faults.imu_fault);
   const auto& table_fault = cfg_.faults.table_fault;
   bool fault_armed = false;
   uint64_t commands_seen = 0;
@@ -277,23 +346,31 @@ void StationSim::run() {
         arm_if_due(plc);
       }
       if (plc.last_command() == home_code && plc.ack_result() == AckResult::kAccepted)
-        noise_restarts.home_accepted();
+        for (const auto& u : units_) u->noise->home_accepted();
     }
   };
 
   std::vector<imu::ReceivedFrame> from_peers;
+  // The table states this interval's streams asked for, in time order (the next units read them).
+  std::vector<std::pair<double, sequences::TableState>> states;
   try {
     if (cfg_.wait_for_can_peer) {
-      while (!stop_.load() && channel_->counters().peers_connected == 0) {
-        channel_->read(from_peers);  // accepts peers
+      auto all_connected = [&] {
+        for (const auto& u : units_)
+          if (u->channel->counters().peers_connected == 0) return false;
+        return true;
+      };
+      while (!stop_.load() && !all_connected()) {
+        for (const auto& u : units_) u->channel->read(from_peers);  // accepts peers
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
       }
     }
     clock_ = std::make_unique<ScaledRealTime>(cfg_.speed);
     const ScaledRealTime& clock = *clock_;
     server_->with_plc([&](TablePlc& plc) { arm_if_due(plc); });
+    std::vector<calib::ImuIncrement> incs(units_.size());
     while (!stop_.load()) {
-      const double t_next = stream.next_time_s();
+      const double t_next = clock_stream.next_time_s();
       // Sample k is due when the physics clock reaches its end time. Behind the clock: no sleep
       // (catch up, never skip).
       const double now = clock();
@@ -304,36 +381,43 @@ void StationSim::run() {
         continue;
       }
       modbus_drops_.fetch_add(modbus_faults.apply_due(t_next, *server_));
-      calib::ImuIncrement inc;
       server_->with_plc([&](TablePlc& plc) {
         // Commands written over Modbus since the last sample are acted on at the interval start (a
         // PLC scan), so the motion they start is planned before its acceleration jumps are asked
         // for: the size effect's quadrature is split exactly there (DESIGN §7).
-        advance(plc, stream.interval_start_s());
+        advance(plc, clock_stream.interval_start_s());
         const std::vector<double> breaks =
-            stream.needs_interior_states()
-                ? plc.accel_switch_times(stream.interval_start_s(), stream.next_time_s())
-                : std::vector<double>{};
-        inc = stream.next(
-            [&](double t) {
-              advance(plc, t);
-              return plc.actual_state();
-            },
-            breaks);
-        noise_restarts.sample_done(plc.moving());
+            any_interior ? plc.accel_switch_times(clock_stream.interval_start_s(), t_next)
+                         : std::vector<double>{};
+        auto state_at = [&](double t) {
+          for (auto it = states.rbegin(); it != states.rend(); ++it)
+            if (it->first == t) return it->second;
+          advance(plc, t);
+          states.emplace_back(t, plc.actual_state());
+          return states.back().second;
+        };
+        if (states.size() > 1) states.erase(states.begin(), states.end() - 1);  // keep t_{k-1}
+        for (size_t i : order)
+          incs[i] = interior(i) ? units_[i]->stream->next(state_at, breaks)
+                                : units_[i]->stream->next(state_at);
+        for (const auto& u : units_) u->noise->sample_done(plc.moving());
       });
-      noise_restarts.apply(stream);
-      if (reset_requested_.exchange(false)) node_->reset();
-      if (stream.samples() % 16 == 0) {
+      for (const auto& u : units_) u->noise->apply(*u->stream);
+      if (reset_requested_.exchange(false)) units_.front()->node->reset();
+      if (clock_stream.samples() % 16 == 0) {
         // A bus: what other nodes send reaches the other peers (the listener forwards on read).
-        from_peers.clear();
-        channel_->read(from_peers);
+        for (const auto& u : units_) {
+          from_peers.clear();
+          u->channel->read(from_peers);
+        }
       }
-      const uint16_t fault_flags = fault.apply(inc);
-      node_->send(
-          inc,
-          fault_flags);  // outside the PLC lock: a slow CAN reader must not block Modbus replies
-      record_sample_sent(inc.t_s, clock() / cfg_.speed);
+      // Outside the PLC lock: a slow CAN reader must not block Modbus replies.
+      for (size_t i = 0; i < units_.size(); ++i) {
+        Unit& u = *units_[i];
+        const uint16_t fault_flags = u.fault->apply(incs[i]);
+        if (!u.cut(incs[i].t_s)) u.node->send(incs[i], fault_flags);
+      }
+      record_sample_sent(incs[0].t_s, clock() / cfg_.speed);
     }
   } catch (const std::exception& e) {
     std::lock_guard<std::mutex> lock(mu_);

@@ -24,6 +24,7 @@
 // the motion of δt ago (TablePlcConfig::encoder_delay_s) while the IMU follows the motion itself —
 // the same clock, the encoder reading late. A negative δt (an encoder ahead of the motion) is
 // refused.
+#include <Eigen/Core>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -68,6 +69,25 @@ struct StationSimFaults {
   ImuFault imu_fault;  // a broken or wrongly mounted unit (drivers/sim/imu_fault.hpp)
 };
 
+/// Another unit on the table's fixture (issue #23): its own bus, truth, noise seed, mounting and
+/// faults; the same rate and table as the first unit (the config's own fields).
+struct StationSimUnit {
+  std::string can_path;  // its unixcan bus socket path
+  calib::UnitModel unit = calib::default_unit();
+  uint64_t seed = 2;
+  /// The slot's mounting: body to platform (the first unit's is geometry.C_bp), and the unit's
+  /// centre from the table's rotation centre in platform axes, m (its accelerometers sense the
+  /// offset's ω×(ω×r) + ω̇×r while the table turns).
+  Eigen::Matrix3d C_bp = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d lever_arm_m = Eigen::Vector3d::Zero();
+  ImuFault imu_fault;
+  /// The unit's frames stop this long (sim s) after the station first connected to its bus (a
+  /// cable pulled mid-capture), if set.
+  std::optional<double> stream_cut_at_s;
+  std::shared_ptr<const imu::ImuProtocolMap> protocol;  // null: the built-in one
+  std::optional<uint32_t> base_id;
+};
+
 struct StationSimConfig {
   TablePlcConfig plc;              // default map, limits
   ModbusTableServerConfig modbus;  // address/port (0 = free port)
@@ -89,6 +109,11 @@ struct StationSimConfig {
   /// (unset: the ids of the protocol's DBC file).
   std::shared_ptr<const imu::ImuProtocolMap> protocol;
   std::optional<uint32_t> base_id;
+  /// The first unit's lever arm (platform axes, m) and stream cut (see StationSimUnit).
+  Eigen::Vector3d lever_arm_m = Eigen::Vector3d::Zero();
+  std::optional<double> stream_cut_at_s;
+  /// Units 2..4 on the same table (empty: the one unit above).
+  std::vector<StationSimUnit> more_units;
 };
 
 struct StationSimStats {
@@ -114,7 +139,9 @@ class StationSim {  // one physics thread: steps the PLC and emits each IMU samp
   void stop();
   int modbus_port() const;
   std::string modbus_endpoint() const;  // "tcp:127.0.0.1:PORT"
-  std::string can_uri() const;          // "unixcan:PATH"
+  std::string can_uri() const;          // "unixcan:PATH" (the first unit's)
+  /// Unit i's bus (0: the first unit's, i.e. can_uri()).
+  std::string can_uri(size_t unit) const;
   double time_s() const;                // physics clock
   StationSimStats stats() const;
   ModbusTableServer& table_server();  // for with_plc() inspection / runtime fault injection
@@ -134,8 +161,9 @@ class StationSim {  // one physics thread: steps the PLC and emits each IMU samp
 
   StationSimConfig cfg_;
   std::unique_ptr<ModbusTableServer> server_;
-  std::unique_ptr<imu::CanChannel> channel_;
-  std::unique_ptr<ImuCanNode> node_;
+  struct Unit;  // a unit's configuration, bus, CAN node and streams (station_sim.cpp)
+  std::vector<std::unique_ptr<Unit>> units_;
+  void run_units();
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<bool> running_{false};

@@ -172,7 +172,7 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
     const auto rows = parse_csv(os.str());
     ASSERT_FALSE(rows.empty());
     const auto& header = rows[0];
-    ASSERT_EQ(header.size(), 21u + 11u + 2u * calib::ParamSet::kSize + 2u +
+    ASSERT_EQ(header.size(), 23u + 11u + 2u * calib::ParamSet::kSize + 2u +
                                  archive::CaptureInfo::counters().size() + 11u);
     std::map<std::string, std::size_t> col;
     for (std::size_t c = 0; c < header.size(); ++c) col[header[c]] = c;

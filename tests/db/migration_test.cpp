@@ -330,7 +330,7 @@ TEST(Migration, VersionFourDatabaseFromThePreviousReleaseGainsTheRunVerdictAndRe
   EXPECT_NE(msg.find("open it read-write once"), std::string::npos) << msg;
 
   SqliteRepository repo(path);
-  EXPECT_EQ(repo.schema_version(), 5);
+  EXPECT_EQ(repo.schema_version(), schema::kSchemaVersion);
   EXPECT_EQ(repo.integrity_check(), "ok");
   struct Expected {
     RunId id;

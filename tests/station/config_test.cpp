@@ -89,24 +89,24 @@ TEST(StationConfig, ExampleParsesToTheDocumentedValues) {
   EXPECT_DOUBLE_EQ(c.turntable.position_tolerance_deg, 0.01);
   EXPECT_DOUBLE_EQ(c.max_rate_dps, 20.0);
   EXPECT_TRUE(c.turntable.map == turntable::default_register_map());
-  EXPECT_EQ(c.can_uri, "unixcan:" + dir + "/imu.can");
-  EXPECT_DOUBLE_EQ(c.rate_hz, 100.0);
-  EXPECT_FALSE(c.base_id);  // the protocol's own ids: the built-in protocol's 0x100-0x103
-  ASSERT_TRUE(c.protocol);
-  EXPECT_EQ(c.protocol->name, "imucal-imu-1");
-  EXPECT_EQ(c.protocol->message(c.protocol->messages.front()).id, 0x100u);
-  EXPECT_TRUE(c.protocol_path.empty());
-  EXPECT_EQ(c.max_gap_samples, 10u);
-  EXPECT_EQ(c.settle_guard_samples, 50u);
-  EXPECT_DOUBLE_EQ(c.rest_rate_threshold_dps, 0.05);
-  EXPECT_EQ(c.stream_timeout_ms, 2000);
+  EXPECT_EQ(c.imu().can_uri, "unixcan:" + dir + "/imu.can");
+  EXPECT_DOUBLE_EQ(c.imu().rate_hz, 100.0);
+  EXPECT_FALSE(c.imu().base_id);  // the protocol's own ids: the built-in protocol's 0x100-0x103
+  ASSERT_TRUE(c.imu().protocol);
+  EXPECT_EQ(c.imu().protocol->name, "imucal-imu-1");
+  EXPECT_EQ(c.imu().protocol->message(c.imu().protocol->messages.front()).id, 0x100u);
+  EXPECT_TRUE(c.imu().protocol_path.empty());
+  EXPECT_EQ(c.imu().max_gap_samples, 10u);
+  EXPECT_EQ(c.imu().settle_guard_samples, 50u);
+  EXPECT_DOUBLE_EQ(c.imu().rest_rate_threshold_dps, 0.05);
+  EXPECT_EQ(c.imu().stream_timeout_ms, 2000);
   EXPECT_EQ(c.default_sequence, "short");
   EXPECT_DOUBLE_EQ(c.k_sigma, 4.0);
   EXPECT_DOUBLE_EQ(c.gap_false_alarm, 1e-4);
   EXPECT_EQ(c.log_level, "info");
   // Unit conversions: 0.0015 deg/√h = 0.0015·π/180 rad / 60 √s; 10 µg/√Hz = 10e-6·g0 m/s/√s.
-  EXPECT_NEAR(c.arw_rad_per_sqrt_s(), 0.0015 * M_PI / 180.0 / 60.0, 1e-15);
-  EXPECT_NEAR(c.vrw_mps_per_sqrt_s(), 10e-6 * 9.80665, 1e-12);
+  EXPECT_NEAR(c.imu().arw_rad_per_sqrt_s(), 0.0015 * M_PI / 180.0 / 60.0, 1e-15);
+  EXPECT_NEAR(c.imu().vrw_mps_per_sqrt_s(), 10e-6 * 9.80665, 1e-12);
 }
 
 TEST(StationConfig, ExampleWithItsRegisterMapUncommentedIsTheDefaultMap) {
@@ -130,7 +130,7 @@ TEST(StationConfig, MinimalConfigGetsTheDefaultsAndResolvesRelativePaths) {
   const StationConfig c = parse_config(kMinimal, "cfg.toml", "/etc/imucal");
   EXPECT_EQ(c.data_dir, "/etc/imucal/d");
   EXPECT_EQ(c.database, "/etc/imucal/d/history.sqlite");
-  EXPECT_EQ(c.can_uri, "unixcan:/etc/imucal/bus.sock");
+  EXPECT_EQ(c.imu().can_uri, "unixcan:/etc/imucal/bus.sock");
   EXPECT_EQ(c.control_socket, "/run/imucal/stationd.sock");
   EXPECT_EQ(c.default_sequence, "factory-std");
   EXPECT_NEAR(c.site.lon_rad, 20.0 * kDegToRad, 1e-15);  // an integer is a number too
@@ -139,17 +139,19 @@ TEST(StationConfig, MinimalConfigGetsTheDefaultsAndResolvesRelativePaths) {
       with_line(with_line(kMinimal, 6, "data_dir = \"/srv/x\""), 10, "can = \"socketcan:can0\""),
       "cfg.toml", "/etc/imucal");
   EXPECT_EQ(d.data_dir, "/srv/x");
-  EXPECT_EQ(d.can_uri, "socketcan:can0");
+  EXPECT_EQ(d.imu().can_uri, "socketcan:can0");
 }
 
 // The rest threshold follows the unit's noise unless given: a tactical unit's rate noise (0.2 °/√h
 // at 100 Hz: 0.033 °/s a sample) would never look still under the navigation grade's 0.05 °/s.
 TEST(StationConfig, TheRestThresholdFollowsTheNoiseUnlessGiven) {
-  EXPECT_DOUBLE_EQ(parse_config(kMinimal, "cfg.toml", "/etc/imucal").rest_rate_threshold_dps, 0.05);
+  EXPECT_DOUBLE_EQ(parse_config(kMinimal, "cfg.toml", "/etc/imucal").imu().rest_rate_threshold_dps,
+                   0.05);
   const std::string tactical = std::string(kMinimal) + "arw_deg_per_sqrt_h = 0.2\n";
-  EXPECT_NEAR(parse_config(tactical, "cfg.toml", "/e").rest_rate_threshold_dps, 8 * 0.2 / 60 * 10,
-              1e-12);
+  EXPECT_NEAR(parse_config(tactical, "cfg.toml", "/e").imu().rest_rate_threshold_dps,
+              8 * 0.2 / 60 * 10, 1e-12);
   EXPECT_DOUBLE_EQ(parse_config(tactical + "rest_rate_threshold_dps = 0.3\n", "cfg.toml", "/e")
+                       .imu()
                        .rest_rate_threshold_dps,
                    0.3);
 }
@@ -159,13 +161,13 @@ TEST(StationConfig, TheProtocolIsReadAtLoadTimeAndBaseIdMovesItsIds) {
   const std::string rates16 = std::string(IMUCAL_SOURCE_DIR) + "/tests/data/protocols/rates16.toml";
   const std::string with = std::string(kMinimal) + "protocol = \"" + rates16 + "\"\n";
   const StationConfig c = parse_config(with, "cfg.toml", "/e");
-  ASSERT_TRUE(c.protocol);
-  EXPECT_EQ(c.protocol->name, "rates16");
-  EXPECT_EQ(c.protocol_path, rates16);
-  EXPECT_EQ(c.protocol->message(c.protocol->messages.front()).id, 0x18FF1000u);
+  ASSERT_TRUE(c.imu().protocol);
+  EXPECT_EQ(c.imu().protocol->name, "rates16");
+  EXPECT_EQ(c.imu().protocol_path, rates16);
+  EXPECT_EQ(c.imu().protocol->message(c.imu().protocol->messages.front()).id, 0x18FF1000u);
   const StationConfig moved = parse_config(with + "base_id = 0x18FF2000\n", "cfg.toml", "/e");
-  EXPECT_EQ(moved.protocol->message(moved.protocol->messages.back()).id, 0x18FF2200u);
-  EXPECT_EQ(decoder_options(moved).protocol, moved.protocol);
+  EXPECT_EQ(moved.imu().protocol->message(moved.imu().protocol->messages.back()).id, 0x18FF2200u);
+  EXPECT_EQ(decoder_options(moved).protocol, moved.imu().protocol);
   // The built-in protocol's four 11-bit ids do not fit above 0x7FC.
   const ConfigError e = error_of(std::string(kMinimal) + "base_id = 0x7FE\n");
   EXPECT_EQ(e.line(), 11) << e.what();
@@ -247,11 +249,12 @@ TEST(StationConfig, KnownEffectsAreCatalogueNames) {
 
 // Issue #21: the station names the product it calibrates; every run's run.toml carries it.
 TEST(StationConfig, TheGradeOfTheProductIsNamedAndChecked) {
-  EXPECT_EQ(parse_config(kMinimal, "cfg.toml", "/etc").grade, calib::Grade::kNavigation);
-  EXPECT_EQ(parse_config(read_file(kExample), kExample, "/etc").grade, calib::Grade::kNavigation);
+  EXPECT_EQ(parse_config(kMinimal, "cfg.toml", "/etc").imu().grade, calib::Grade::kNavigation);
+  EXPECT_EQ(parse_config(read_file(kExample), kExample, "/etc").imu().grade,
+            calib::Grade::kNavigation);
   const StationConfig c =
       parse_config(std::string(kMinimal) + "grade = \"mems\"\n", "cfg.toml", "/etc");
-  EXPECT_EQ(c.grade, calib::Grade::kMems);
+  EXPECT_EQ(c.imu().grade, calib::Grade::kMems);
   expect_error(std::string(kMinimal) + "grade = \"consumer\"\n", 11, 1,
                "[imu] grade: \"consumer\" is not a grade (navigation, tactical or mems)");
 }

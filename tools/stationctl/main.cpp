@@ -248,7 +248,10 @@ bool is_terminal_state(const std::string& state) {
 
 /// Polls run.status every ~200 ms until the run is terminal, showing a progress line on stderr
 /// (a TTY: rewritten in place; otherwise a new line only when step, phase or state changes).
-int wait_for_run(const Target& target, ControlClient& client, db::RunId run_id, bool json_out);
+int wait_for_run(const Target& target, ControlClient& client, db::RunId run_id, bool json_out,
+                 json* outcome = nullptr);
+int wait_for_runs(const Target& target, ControlClient& client, const std::vector<db::RunId>& ids,
+                  bool json_out);
 
 /// `stationctl import DIR [--wait]`: the daemon reads the archive itself, so the path is made
 /// absolute here (the daemon's working directory is not the user's).
@@ -302,7 +305,10 @@ std::optional<json> outcome_after_daemon_left(const Target& target, db::RunId ru
   }
 }
 
-int wait_for_run(const Target& target, ControlClient& client, db::RunId run_id, bool json_out) {
+/// Follows one run to its end with the progress line; prints its outcome (or, with `outcome`,
+/// hands it back unprinted). Exit code: 0 only for done + PASS.
+int wait_for_run(const Target& target, ControlClient& client, db::RunId run_id, bool json_out,
+                 json* outcome) {
   const bool tty = ::isatty(STDERR_FILENO) != 0;
   std::string last_key, last_line;
   std::size_t shown_width = 0;
@@ -365,12 +371,34 @@ int wait_for_run(const Target& target, ControlClient& client, db::RunId run_id, 
   }
   // On a TTY the progress line is wiped: the outcome replaces it.
   if (tty && shown_width) std::cerr << "\r" << std::string(shown_width, ' ') << "\r" << std::flush;
-  if (json_out)
+  if (outcome)
+    *outcome = run;
+  else if (json_out)
     print_json(json{{"run", run}});
   else
     std::cout << station::outcome_line(run) << "\n";
   const bool pass = state_done_pass(run);
   return pass ? kOk : kRunNotPassed;
+}
+
+/// The units of one table run followed to their ends (the first one's progress line names the
+/// others); one outcome line per unit, or {"runs": [...]}. 0 only if every unit is done + PASS.
+int wait_for_runs(const Target& target, ControlClient& client, const std::vector<db::RunId>& ids,
+                  bool json_out) {
+  json runs = json::array();
+  int code = kOk;
+  for (const db::RunId id : ids) {
+    json run;
+    const int c = wait_for_run(target, client, id, json_out, &run);
+    if (c == kInterrupted) return c;
+    if (c != kOk) code = c;
+    runs.push_back(run);
+  }
+  if (json_out)
+    print_json(json{{"runs", runs}});
+  else
+    for (const json& run : runs) std::cout << station::outcome_line(run) << "\n";
+  return code;
 }
 
 void check_serial(const std::string& serial) {
@@ -449,6 +477,7 @@ int cmd_export(const Target& t, const json& args, const std::string& output, boo
 
 /// Every option value of every command (CLI11 binds to these; one command runs per call).
 struct Args {
+  std::vector<std::string> serials, slots;  ///< run start: the units, by order or by slot
   std::string serial, sequence, operator_name, reason, since, format, output, import_dir,
       report_dir;
   bool wait = false, partial = false, bare = false;
@@ -480,8 +509,15 @@ void add_run_commands(CLI::App& app, Args& a, Commands& c) {
   run->require_subcommand(1);
   run->fallthrough();
   c.start = run->add_subcommand("start", "start a run of a unit (needs the control group)");
-  c.start->add_option("--serial", a.serial, std::string("serial number: ") + db::kSerialRule)
-      ->required();
+  c.start
+      ->add_option("--serial", a.serials,
+                   std::string("serial number: ") + db::kSerialRule +
+                       "; repeat it for several units on the fixture (slots in the "
+                       "configuration's order)")
+      ->take_all();
+  c.start->add_option("--slot", a.slots,
+                      "SLOT=SERIAL: a unit in a named fixture slot (repeatable; instead of "
+                      "--serial)");
   c.start->add_option("--sequence", a.sequence, "sequence name or file (default: the station's)");
   c.start->add_option("--operator", a.operator_name, "operator name (default: your user name)")
       ->check(text_check(station::kMaxNameChars));
@@ -587,15 +623,56 @@ int started(const Target& t, ControlClient& client, const json& r, const std::st
   return wait_for_run(t, client, r.at("run_id").get<db::RunId>(), as_json);
 }
 
+/// run start's units: --serial SN (repeatable: slots in order) or --slot SLOT=SN, not both.
+json start_units(const Args& a) {
+  if (a.serials.empty() == a.slots.empty())
+    throw Failure{kBadInput,
+                  "run start: give the unit(s) with --serial SN (repeatable) or "
+                  "--slot SLOT=SN (repeatable), not both"};
+  json units = json::array();
+  for (const std::string& sn : a.serials) {
+    check_serial(sn);
+    units.push_back({{"serial", sn}});
+  }
+  for (const std::string& spec : a.slots) {
+    const auto eq = spec.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
+      throw Failure{kBadInput, "--slot " + spec + ": expected SLOT=SERIAL (e.g. --slot B=SN-0042)"};
+    check_serial(spec.substr(eq + 1));
+    units.push_back({{"slot", spec.substr(0, eq)}, {"serial", spec.substr(eq + 1)}});
+  }
+  return units;
+}
+
 int cmd_run_start(const Target& t, const Args& a, bool as_json) {
-  check_serial(a.serial);
-  json args = {{"serial", a.serial}};
+  const json units = start_units(a);
+  json args = json::object();
+  if (units.size() == 1 && !units[0].contains("slot"))
+    args["serial"] = units[0]["serial"];  // one unit: the request every daemon understands
+  else
+    args["units"] = units;
   if (!a.sequence.empty()) args["sequence"] = a.sequence;
   if (!a.operator_name.empty()) args["operator"] = a.operator_name;
   ControlClient client = connect_or_fail(t);
   const json r = call(client, station::cmd::kRunStart, args);
-  if (a.wait || as_json) return started(t, client, r, "started: " + a.serial, a.wait, as_json);
-  std::cout << "run " << text(r, "run_id", "?") << " started: " << a.serial << ", sequence "
+  std::string what = "started: ";
+  std::vector<db::RunId> ids;
+  if (r.contains("units") && r["units"].is_array()) {
+    for (const json& u : r["units"]) {
+      what += (ids.empty() ? "" : ", ") + text(u, "serial") + " (slot " + text(u, "slot") +
+              ", run " + text(u, "run_id") + ")";
+      ids.push_back(u.at("run_id").get<db::RunId>());
+    }
+  } else {
+    what += text(r, "serial");
+    ids.push_back(r.at("run_id").get<db::RunId>());
+  }
+  if (a.wait && ids.size() > 1) {
+    if (!as_json) std::cerr << "table run " << ids.front() << " " << what << "\n";
+    return wait_for_runs(t, client, ids, as_json);
+  }
+  if (a.wait || as_json) return started(t, client, r, what, a.wait, as_json);
+  std::cout << "run " << text(r, "run_id", "?") << " " << what << ", sequence "
             << text(r, "sequence", a.sequence)
             << (r.contains("steps") ? ", " + r["steps"].dump() + " steps" : "") << "\n";
   return kOk;

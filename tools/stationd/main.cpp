@@ -53,9 +53,13 @@ int main(int argc, char** argv) {
   }
   if (!log_level.empty()) cfg.log_level = log_level;
   if (check_only) {
+    std::string imus;  // "IMU unixcan:..." or "IMUs A unixcan:..., B ..."
+    for (const auto& slot : cfg.imus)
+      imus += (imus.empty() ? "" : ", ") + (cfg.imus.size() > 1 ? slot.name + " " : std::string()) +
+              slot.can_uri;
     std::cout << config_path << ": ok (station " << cfg.station_name << ", table "
-              << cfg.turntable.endpoint.to_string() << ", IMU " << cfg.can_uri << ", data "
-              << cfg.data_dir << ", socket " << cfg.control_socket << ")\n";
+              << cfg.turntable.endpoint.to_string() << (cfg.imus.size() > 1 ? ", IMUs " : ", IMU ")
+              << imus << ", data " << cfg.data_dir << ", socket " << cfg.control_socket << ")\n";
     return 0;
   }
 

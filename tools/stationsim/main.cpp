@@ -25,6 +25,7 @@
 
 #include "calib/core/conventions.hpp"
 #include "calib/core/earth.hpp"
+#include "calib/core/rotation.hpp"
 #include "calib/core/site_presets.hpp"
 #include "calib/effects/catalogue.hpp"
 #include "db/archive/unit_file.hpp"
@@ -37,6 +38,7 @@ using imucal::sim::StationSim;
 using imucal::sim::StationSimConfig;
 using imucal::sim::StationSimFaults;
 using imucal::sim::StationSimStats;
+using imucal::sim::StationSimUnit;
 
 /// Bad command-line input: exit 2 with this one-line message.
 struct BadInput : std::runtime_error {
@@ -164,6 +166,9 @@ struct CliArgs {
   std::string table_fault, imu_fault, protocol;
   int64_t base_id = -1;
   bool wait_for_can_peer = false;
+  std::string mount, lever_arm;   ///< the first unit's slot: R/P/Y deg, X/Y/Z m
+  double cut_stream_at = -1.0;    ///< the first unit's frames stop at this sim time (< 0: never)
+  std::vector<std::string> also;  ///< more units on the fixture (--also SPEC)
 };
 
 void add_options(CLI::App& app, CliArgs& a) {
@@ -214,6 +219,18 @@ void add_options(CLI::App& app, CliArgs& a) {
   app.add_option("--stats-file", a.stats_file, "write the final statistics JSON here on exit");
   app.add_option("--duration-s", a.duration_s,
                  "exit after this much sim time (default: run until signalled)");
+  app.add_option("--mount", a.mount,
+                 "R/P/Y: the unit's slot frame against the platform, ZYX Euler angles in deg");
+  app.add_option("--lever-arm", a.lever_arm,
+                 "X/Y/Z: the unit's centre from the rotation centre, platform axes, m");
+  app.add_option("--cut-stream-at", a.cut_stream_at,
+                 "the unit's CAN frames stop this long (sim s) after the station first connected "
+                 "to its bus (a cable pulled mid-capture)");
+  app.add_option("--also", a.also,
+                 "another unit on the fixture (up to 3, repeatable): CAN_PATH[,unit=FILE]"
+                 "[,truth=FILE][,seed=N][,effect=NAME=V/V...][,mount=R/P/Y][,lever=X/Y/Z]"
+                 "[,cut=T] — its own bus, unit, noise seed (default --seed + its number), "
+                 "catalogue effect, mounting and stream cut; the same rate and table");
   app.add_flag("--wait-for-can-peer", a.wait_for_can_peer,
                "start the physics clock when the first CAN peer connects (benchmarks, tests)");
 }
@@ -298,26 +315,121 @@ void apply_faults(const CliArgs& a, StationSimConfig& cfg) {
   }
 }
 
+/// "A/B/C" as three numbers (an --also, --mount or --lever-arm value).
+Eigen::Vector3d vector3(const std::string& text, const std::string& flag) {
+  const auto p = split(text, '/');
+  if (p.size() != 3) throw BadInput(flag + ": '" + text + "' is not three numbers A/B/C");
+  return {to_double(p[0], flag), to_double(p[1], flag), to_double(p[2], flag)};
+}
+
+Eigen::Matrix3d mount_of(const std::string& text, const std::string& flag) {
+  const Eigen::Vector3d rpy_deg = vector3(text, flag);
+  if (std::abs(rpy_deg(1)) > 90.0) throw BadInput(flag + ": pitch must be within [-90, 90] deg");
+  return imucal::calib::euler_to_C_bn(rpy_deg(0) * imucal::kDegToRad,
+                                      rpy_deg(1) * imucal::kDegToRad,
+                                      rpy_deg(2) * imucal::kDegToRad);
+}
+
+Eigen::Vector3d lever_of(const std::string& text, const std::string& flag) {
+  const Eigen::Vector3d r = vector3(text, flag);
+  if (!(r.array().abs() <= 2.0).all()) throw BadInput(flag + ": must be within 2 m on every axis");
+  return r;
+}
+
+/// One --also SPEC: CAN_PATH then key=value items.
+StationSimUnit parse_also(const std::string& spec, uint64_t seed, std::string& truth_out) {
+  const auto items = split(spec, ',');
+  const std::string flag = "--also " + spec;
+  if (items.empty() || items[0].empty() || items[0].find('=') != std::string::npos)
+    throw BadInput(flag + ": expected CAN_PATH first, then key=value items");
+  StationSimUnit u;
+  u.can_path = items[0];
+  u.seed = seed;
+  for (size_t i = 1; i < items.size(); ++i) {
+    const auto eq = items[i].find('=');
+    const std::string key = items[i].substr(0, eq),
+                      value = eq == std::string::npos ? "" : items[i].substr(eq + 1);
+    if (eq == std::string::npos || value.empty())
+      throw BadInput(flag + ": '" + items[i] + "' is not key=value");
+    if (key == "unit") {
+      try {
+        u.unit = imucal::archive::read_unit_file(value);
+      } catch (const std::exception& e) {
+        throw BadInput(flag + ": unit " + value + ": " + e.what());
+      }
+    } else if (key == "truth") {
+      truth_out = value;
+    } else if (key == "seed") {
+      u.seed = static_cast<uint64_t>(to_int(value, flag + " seed", 0, 1L << 62));
+    } else if (key == "effect") {
+      std::string effect = value;
+      std::replace(effect.begin(), effect.end(), '/', ',');
+      try {
+        imucal::calib::apply_effect_spec(u.unit.effects, effect);
+      } catch (const std::exception& e) {
+        throw BadInput(flag + ": effect " + value + ": " + e.what());
+      }
+    } else if (key == "mount") {
+      u.C_bp = mount_of(value, flag + " mount");
+    } else if (key == "lever") {
+      u.lever_arm_m = lever_of(value, flag + " lever");
+    } else if (key == "cut") {
+      u.stream_cut_at_s = to_double(value, flag + " cut");
+      if (*u.stream_cut_at_s < 0) throw BadInput(flag + ": cut must be >= 0");
+    } else {
+      throw BadInput(flag + ": unknown key '" + key +
+                     "' (unit, truth, seed, effect, mount, lever, cut)");
+    }
+  }
+  return u;
+}
+
+/// The fixture: the first unit's slot (--mount, --lever-arm, --cut-stream-at) and the others
+/// (--also); their truth.json paths in `truth_outs` (index 0: the first unit's --truth-out).
+void apply_fixture(const CliArgs& a, StationSimConfig& cfg, std::vector<std::string>& truth_outs) {
+  if (!a.mount.empty()) cfg.geometry.C_bp = mount_of(a.mount, "--mount");
+  if (!a.lever_arm.empty()) cfg.lever_arm_m = lever_of(a.lever_arm, "--lever-arm");
+  if (a.cut_stream_at >= 0) cfg.stream_cut_at_s = a.cut_stream_at;
+  if (a.also.size() > 3) throw BadInput("--also: at most 3 more units (4 on the fixture)");
+  truth_outs = {a.truth_out};
+  for (size_t i = 0; i < a.also.size(); ++i) {
+    std::string truth;
+    cfg.more_units.push_back(parse_also(a.also[i], a.seed + 1000003ULL * (i + 1), truth));
+    truth_outs.push_back(truth);
+  }
+}
+
 /// The simulator's configuration from the command line; BadInput naming the option.
-StationSimConfig config_from(const CliArgs& a) {
+StationSimConfig config_from(const CliArgs& a, std::vector<std::string>& truth_outs) {
   StationSimConfig cfg;
   parse_modbus(a.modbus, cfg);
   cfg.can_path = a.can_path;
   apply_unit(a, cfg);
   apply_clock_and_site(a, cfg);
   apply_faults(a, cfg);
+  apply_fixture(a, cfg, truth_outs);
   return cfg;
 }
 
 /// truth.json, then the ready line on stdout (and in --ready-file) once the simulator listens.
-void announce_ready(StationSim& sim, const CliArgs& a, const StationSimConfig& cfg) {
+void announce_ready(StationSim& sim, const CliArgs& a, const StationSimConfig& cfg,
+                    const std::vector<std::string>& truth_outs) {
   if (!a.truth_out.empty())
     imucal::archive::write_truth_json(a.truth_out, imucal::archive::truth_from_unit(cfg.unit));
+  for (size_t i = 0; i < cfg.more_units.size(); ++i)
+    if (i + 1 < truth_outs.size() && !truth_outs[i + 1].empty())
+      imucal::archive::write_truth_json(truth_outs[i + 1],
+                                        imucal::archive::truth_from_unit(cfg.more_units[i].unit));
   sim.start();
   nlohmann::json ready;
   ready["pid"] = static_cast<int>(::getpid());
   ready["modbus"] = sim.modbus_endpoint();
   ready["can"] = sim.can_uri();
+  if (!cfg.more_units.empty()) {  // every unit's bus, the first one included
+    ready["units"] = nlohmann::json::array();
+    for (size_t i = 0; i <= cfg.more_units.size(); ++i)
+      ready["units"].push_back({{"can", sim.can_uri(i)}});
+  }
   ready["speed"] = a.speed;
   // Beyond the contract's keys: what a harness needs to set up the daemon for this station.
   ready["rate_hz"] = a.rate_hz;
@@ -404,8 +516,9 @@ int main(int argc, char** argv) {
   }
 
   StationSimConfig cfg;
+  std::vector<std::string> truth_outs;  // per unit, "" = none
   try {
-    cfg = config_from(args);
+    cfg = config_from(args, truth_outs);
   } catch (const BadInput& e) {
     std::fprintf(stderr, "stationsim: %s\n", e.what());
     return 2;
@@ -420,7 +533,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    announce_ready(*sim, args, cfg);
+    announce_ready(*sim, args, cfg, truth_outs);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "stationsim: %s\n", e.what());
     return 1;
