@@ -100,10 +100,12 @@ double minimum_time_s(const RestTour& tour, double min_rest_s) {
 sequences::Sequence sequence_of(const RestTour& tour, double total_s, double min_rest_s,
                                 const std::string& name, const std::string& description) {
   const double rest_budget_s = total_s - tour.rotation_time_s();
-  if (!(rest_budget_s >= min_rest_s * static_cast<double>(tour.poses())))
-    throw std::invalid_argument("a tour of " + std::to_string(tour.legs.size()) +
-                                " rotations needs at least " +
-                                std::to_string(minimum_time_s(tour, min_rest_s)) + " s");
+  if (!(rest_budget_s >= min_rest_s * static_cast<double>(tour.poses()))) {
+    char b[128];
+    std::snprintf(b, sizeof b, "a tour of %zu rotations needs at least %.1f s", tour.legs.size(),
+                  minimum_time_s(tour, min_rest_s));
+    throw std::invalid_argument(b);
+  }
   const std::vector<double> rest = shared_rests(tour, rest_budget_s, min_rest_s);
   sequences::Sequence seq;
   seq.name = name;
