@@ -131,7 +131,7 @@ TEST_F(FactoryFast, KeepsEveryEffectFactoryStdSeparatesWithinOneAndAHalfItsThres
   int kept = 0;
   for (size_t k = 0; k < ref.size(); ++k) {
     ASSERT_EQ(ref[k].id, fast[k].id);
-    std::printf("%-24s separable %-3s -> %-3s threshold ratio %.3f\n", ref[k].name.c_str(),
+    std::printf("%-24s separable %-3s -> %-3s threshold ratio %.4f\n", ref[k].name.c_str(),
                 ref[k].separable() ? "yes" : "no", fast[k].separable() ? "yes" : "no",
                 fast[k].threshold / ref[k].threshold);
     if (!ref[k].separable()) continue;

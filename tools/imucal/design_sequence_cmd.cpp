@@ -59,14 +59,13 @@ std::string body_direction(double x, double y, double z) {
 /// default geometry (sequences/FORMAT.md, Geometry).
 std::string pose_comment(const calib::RestTour& tour, size_t leg) {
   const auto [o_deg, i_deg] = tour.pose_deg(leg + 1);
-  const auto [o0_deg, i0_deg] = tour.pose_deg(leg);
+  const double i0_deg = tour.pose_deg(leg).second;  // an outer turn's body axis: the inner angle
   const double d = M_PI / 180.0, sign = tour.legs[leg].by_deg > 0 ? 1.0 : -1.0;
   std::string about;
   if (tour.legs[leg].axis == sequences::Axis::kInner)
     about = body_direction(0, 0, sign);
   else
     about = body_direction(sign * std::cos(i0_deg * d), -sign * std::sin(i0_deg * d), 0.0);
-  (void)o0_deg;
   const double down[3] = {std::sin(o_deg * d) * std::sin(i_deg * d),
                           std::sin(o_deg * d) * std::cos(i_deg * d), std::cos(o_deg * d)};
   std::string pose = "down is body " + body_direction(down[0], down[1], down[2]);
@@ -211,7 +210,8 @@ void print_report(const calib::SequenceDesign& d, const DesignSequenceArgs& a,
   for (const auto& line : d.log) std::printf("  %s\n", line.c_str());
   print_groups(d, noise);
   print_effects(d);
-  const auto lost = calib::effects_lost(d.reference.effects, d.design.effects, 1.5);
+  const auto lost = calib::effects_lost(d.reference.effects, d.design.effects,
+                                        calib::DesignSetting{}.threshold_factor);
   std::printf("\nmax sigma/target %.4f (targets: %s); %s\n", d.objective,
               a.target_from.empty() ? "the obvious cut, the biases also <= 1.05 x N/sqrt(T)"
                                     : "factor x the target sequence's sigma",
