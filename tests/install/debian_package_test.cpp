@@ -89,8 +89,8 @@ TEST_F(DebianPackage, IsLintianCleanAndHoldsEverythingWhereDebianWantsIt) {
   }
   for (const char* f :
        {"./usr/share/imucal/sequences/factory-std.toml", "./usr/share/imucal/sequences/short.toml",
-        "./usr/share/imucal/units/default.toml", "./usr/share/imucal/imu.dbc",
-        "./usr/share/imucal/protocols/imucal-imu-1.toml",
+        "./usr/share/imucal/sequences/factory-fast.toml", "./usr/share/imucal/units/default.toml",
+        "./usr/share/imucal/imu.dbc", "./usr/share/imucal/protocols/imucal-imu-1.toml",
         "./usr/share/imucal/stationd.example.toml", "./etc/imucal/stationd.toml",
         "./lib/systemd/system/stationd.service", "./usr/share/doc/imucal/copyright",
         "./usr/share/doc/imucal/changelog.gz"})

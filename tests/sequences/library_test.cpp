@@ -80,7 +80,7 @@ TEST(Sha256, SequenceHashTracksTheFileBytes) {
 // ---------------------------------------------------------------- resolution
 TEST(Library, ListsTheShippedSequences) {
   const auto names = available_sequences();
-  for (const char* n : {"factory-std", "pos19", "short"})
+  for (const char* n : {"factory-std", "factory-fast", "pos19", "short"})
     EXPECT_NE(std::find(names.begin(), names.end(), n), names.end()) << n;
   EXPECT_TRUE(std::is_sorted(names.begin(), names.end()));
 }
@@ -275,6 +275,7 @@ TEST_P(ShippedSequences, ExerciseEveryBodyAxisWithTheDefaultGeometry) {
 
 INSTANTIATE_TEST_SUITE_P(All, ShippedSequences,
                          ::testing::Values(Shipped{"factory-std", 3600.0, 60.0, 120.0},
+                                           Shipped{"factory-fast", 0.6 * 2277.0, 10.0, 200.0},
                                            Shipped{"short", 600.0, 15.0, 60.0},
                                            Shipped{"pos19", 5400.0, 10.0, 600.0}),
                          [](const auto& info) {

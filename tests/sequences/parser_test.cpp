@@ -231,7 +231,7 @@ TEST(Parser, FileParsesLikeString) {
 // Every truncation of every shipped file either parses or fails with a SequenceError whose line
 // lies inside the truncated text: no crash, no other exception type, no line out of range.
 TEST(Parser, EveryTruncationOfTheShippedFilesFailsCleanly) {
-  for (const char* name : {"factory-std", "short", "pos19"}) {
+  for (const char* name : {"factory-std", "factory-fast", "short", "pos19"}) {
     const std::string path = std::string(IMUCAL_SEQUENCE_DIR) + "/" + name + ".toml";
     std::ifstream in(path, std::ios::binary);
     ASSERT_TRUE(in) << path;

@@ -4,6 +4,7 @@
 //   imucal calibrate DIR --method ains|nlsq|legacy|all [--setting factory|land|sea] [--json]
 //   imucal evaluate  DIR --params FILE [--json]
 //   imucal crlb      --sequence FILE [--unit FILE] [--json]
+//   imucal design-sequence --like SEQ --time-s T | --target-from SEQ --factor K [--out F]
 //   imucal bench     DIR [--repeat N] [--json]   wall time and peak memory of calibrate --method
 //   all
 // Exit codes: 0 success; 1 bad input or failed processing (one-line error on stderr naming the file
@@ -41,6 +42,7 @@
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
 #include "sequences/sequence_error.hpp"
+#include "tools/imucal/design_sequence_cmd.hpp"
 #include "tools/imucal/detectability_cmd.hpp"
 #include "tools/imucal/diagnose_cmd.hpp"
 #include "tools/imucal/effects_cmd.hpp"
@@ -452,7 +454,8 @@ struct Commands {
   tools::PaperTablesArgs paper;
   tools::GapBudgetArgs budget;
   tools::ImportArgs import;
-  CLI::App *im = nullptr, *gb = nullptr;
+  tools::DesignSequenceArgs design;
+  CLI::App *im = nullptr, *gb = nullptr, *ds = nullptr;
   CLI::App *sim = nullptr, *cal = nullptr, *ev = nullptr, *cr = nullptr, *be = nullptr,
            *dg = nullptr, *ef = nullptr, *vd = nullptr, *pt = nullptr;
 };
@@ -583,6 +586,7 @@ int dispatch(const Commands& c) {
   if (*c.pt) return tools::cmd_paper_tables(c.paper);
   if (*c.gb) return tools::cmd_gap_budget(c.budget);
   if (*c.ef) return tools::cmd_effects(c.effects_json);
+  if (*c.ds) return tools::cmd_design_sequence(c.design);
   return 0;
 }
 
@@ -605,6 +609,9 @@ int main(int argc, char** argv) {
   c.pt = tools::add_paper_tables_command(app, c.paper);
   c.gb = tools::add_gap_budget_command(app, c.budget);
   c.im = tools::add_import_command(app, c.import);
+  c.ds = tools::add_design_sequence_command(app, c.design);
+  for (int i = 0; i < argc; ++i)
+    c.design.command_line += (i ? " " : "") + std::string(i ? argv[i] : "imucal");
 
   const bool json_errors = wants_json(argc, argv);
   try {
