@@ -465,7 +465,8 @@ void add_simulate(CLI::App& app, Commands& c) {
   auto* sim = c.sim = app.add_subcommand(
       "simulate", "simulate a unit on a sequence into a run archive (factory table, land or sea)");
   sim->add_option("--sequence", sa.seq,
-                  "sequence name (factory-std, short, pos19) or TOML file; land/sea also 'hand': "
+                  "sequence name (factory-std, factory-fast, factory-60, short, pos19) or TOML "
+                  "file; land/sea also 'hand': "
                   "a 50 s rest and 38 hand-placed positions of 3-11 s")
       ->required();
   sim->add_option("--grade", sa.grade,
