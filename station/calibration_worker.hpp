@@ -73,7 +73,7 @@ class CalibrationWorker {
   /// `threads` jobs run at once (the units of one table run calibrate in parallel; each job is
   /// itself two threads, AINS beside NLSQ): 1 for a one-unit station, at most the machine's
   /// cores otherwise (memory: `imucal bench` of an hour's run at 100 Hz peaks at 88 MB; the
-  /// daemon with four units on factory-std at 179 MiB, README "Several units per table run").
+  /// daemon with four units on factory-std at 188 MiB, README "Several units per table run").
   explicit CalibrationWorker(db::Repository& repository, Phase on_phase = {}, unsigned threads = 1);
   ~CalibrationWorker();  ///< stop()
   CalibrationWorker(const CalibrationWorker&) = delete;

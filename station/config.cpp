@@ -2,6 +2,7 @@
 
 #include <toml++/toml.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "calib/core/conventions.hpp"
+#include "calib/core/rotation.hpp"
 #include "calib/effects/catalogue.hpp"
 #include "drivers/imu/imu_protocol.hpp"
 #include "drivers/turntable/register_map.hpp"
@@ -411,19 +413,61 @@ std::optional<std::array<double, 3>> vector3(const Section& s, const toml::table
   return v;
 }
 
+/// mount_rpy_deg (ZYX Euler angles, pitch within ±90) or mount_matrix (C_bp by rows, e.g. an axis
+/// permutation from the fixture's drawing: it must be a rotation, orthonormal with determinant +1).
+void parse_mount(const Section& s, const toml::table* t, ImuSlotConfig& c) {
+  if (s.has("mount_rpy_deg") && s.has("mount_matrix"))
+    s.fail_key("mount_matrix", "give mount_rpy_deg or mount_matrix, not both");
+  if (auto v = vector3(s, t, "mount_rpy_deg", 180.0, "deg")) {
+    if (std::abs((*v)[1]) > 90.0)
+      s.fail_key("mount_rpy_deg",
+                 "pitch (second element) " + fmt_double((*v)[1]) + " deg is outside [-90, 90]");
+    c.mount_rpy_deg = *v;
+  }
+  const toml::node* n = t ? t->get("mount_matrix") : nullptr;
+  if (!n) return;
+  const auto* rows = n->as_array();
+  Eigen::Matrix3d C_bp;
+  auto bad = [&] { s.fail_key("mount_matrix", "must be three rows of three numbers"); };
+  if (!rows || rows->size() != 3) bad();
+  for (size_t i = 0; i < 3; ++i) {
+    const auto* row = rows->get(i)->as_array();
+    if (!row || row->size() != 3) bad();
+    for (size_t j = 0; j < 3; ++j) {
+      const toml::node& x = *row->get(j);
+      if (const auto* f = x.as_floating_point())
+        C_bp(static_cast<int>(i), static_cast<int>(j)) = f->get();
+      else if (const auto* k = x.as_integer())
+        C_bp(static_cast<int>(i), static_cast<int>(j)) = static_cast<double>(k->get());
+      else
+        bad();
+    }
+  }
+  const double off = (C_bp.transpose() * C_bp - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (!(off <= 1e-6))
+    s.fail_key("mount_matrix", "is not a rotation: its rows are not orthonormal (|C^T C - I| = " +
+                                   fmt_double(off) + ")");
+  if (C_bp.determinant() < 0)
+    s.fail_key("mount_matrix",
+               "is not a rotation: determinant -1, a mirror image (a unit cannot be mounted so)");
+  const Eigen::Vector3d rpy = calib::C_bn_to_euler(C_bp);
+  for (int k = 0; k < 3; ++k) c.mount_rpy_deg[static_cast<size_t>(k)] = rpy(k) / kDegToRad;
+}
+
 /// [imu] / one [[imu]] entry: the slot, the CAN URI, rate, protocol, frame id, noise, the
 /// capture's thresholds and the mounting.
 void parse_imu(const Section& s, const toml::table* t, const std::string& base_dir,
                ImuSlotConfig& c) {
   s.only({"slot", "can", "rate_hz", "protocol", "base_id", "arw_deg_per_sqrt_h",
           "vrw_ug_per_sqrt_hz", "grade", "max_gap_samples", "settle_guard_samples",
-          "rest_rate_threshold_dps", "stream_timeout_ms", "mount_rpy_deg", "lever_arm_m"});
+          "rest_rate_threshold_dps", "stream_timeout_ms", "mount_rpy_deg", "mount_matrix",
+          "lever_arm_m"});
   if (auto v = s.string("slot", false, false)) {
     if (!is_slot_name(*v))
       s.fail_key("slot", "\"" + *v + "\" is not a slot name (1-16 letters, digits, '-', '_')");
     c.name = *v;
   }
-  if (auto v = vector3(s, t, "mount_rpy_deg", 180.0, "deg")) c.mount_rpy_deg = *v;
+  parse_mount(s, t, c);
   if (auto v = vector3(s, t, "lever_arm_m", 2.0, "m")) c.lever_arm_m = *v;
   const std::string can = *s.string("can", true, false);
   const auto colon = can.find(':');

@@ -72,9 +72,11 @@ struct ImuSlotConfig {
   int stream_timeout_ms = 2000;
 
   /// mount_rpy_deg: the slot's nominal frame against the table's platform frame (ZYX Euler angles,
-  /// deg; the archive's [table] mount, C_bp). lever_arm_m: the unit's centre from the table's
-  /// rotation centre, platform axes, m — recorded with the run and taken out of the accelerometer
-  /// data before calibrating (a rigid offset senses ω×(ω×r) + ω̇×r while the table turns).
+  /// deg, pitch within ±90; the archive's [table] mount, C_bp), or given as mount_matrix (C_bp by
+  /// rows, checked to be a rotation) and kept here as its angles. lever_arm_m: the unit's centre
+  /// from the table's rotation centre, platform axes, m — recorded with the run and taken out of
+  /// the accelerometer data before calibrating (a rigid offset senses ω×(ω×r) + ω̇×r while the table
+  /// turns).
   std::array<double, 3> mount_rpy_deg{0.0, 0.0, 0.0};
   std::array<double, 3> lever_arm_m{0.0, 0.0, 0.0};
 

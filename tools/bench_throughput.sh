@@ -7,6 +7,8 @@
 #   calibration wall time               capture end (run.toml end_time) to the last unit's verdict
 #   units per hour at real time         3600 x units / (table time + calibration wall time), one
 #                                       station, loading and unloading the fixture not counted
+#   samples lost                        the daemon's own counters over every unit (samples_lost +
+#                                       frames_error of each run's capture)
 #   daemon CPU and peak memory          utime + stime of stationd over the case, its VmHWM
 # Every unit must end PASS (the script says so otherwise). A benchmark, not CI.
 # Usage: tools/bench_throughput.sh [BUILD_DIR] [--runs N] [--speed X] [--sequences "A B"]
@@ -87,7 +89,7 @@ EOF
   "$BIN/stationd" --config "$WORK/stationd.toml" >"$WORK/d.out" 2>"$WORK/d.err" &
   D_PID=$!
   for _ in $(seq 100); do "$BIN/stationctl" --config "$WORK/stationd.toml" run status >/dev/null 2>&1 && break; sleep 0.1; done
-  local cpu0 t0 r serials table_s=0 calib_s=0 pass=0 units=0
+  local cpu0 t0 r serials table_s=0 calib_s=0 pass=0 units=0 lost_total=0
   cpu0=$(cpu_ticks "$D_PID")
   t0=$(date +%s.%N)
   for ((r = 1; r <= RUNS; r++)); do
@@ -109,9 +111,11 @@ body = [l for l in rows[1:] if l.strip()]
 span = float(body[-1].split(",")[0]) - float(body[0].split(",")[0])
 capture_end = t(info["run"]["end_time"] if "run" in info else info["end_time"])
 last = max(t(x["ended_at"]) for x in runs)
-print(span, last - capture_end, sum(x["verdict"] == "PASS" for x in runs), len(runs))
+lost = sum(x["capture"].get("samples_lost", 0) + x["capture"].get("frames_error", 0) for x in runs)
+print(span, last - capture_end, sum(x["verdict"] == "PASS" for x in runs), len(runs), lost)
 ' "$r" "$n")
-    read -r span calib ok count <<<"$figures"
+    read -r span calib ok count lost <<<"$figures"
+    lost_total=$((lost_total + lost))
     table_s=$(echo "$table_s + $span" | bc -l)
     calib_s=$(echo "$calib_s + $calib" | bc -l)
     pass=$((pass + ok))
@@ -122,18 +126,19 @@ print(span, last - capture_end, sum(x["verdict"] == "PASS" for x in runs), len(r
   cpu=$(echo "($(cpu_ticks "$D_PID") - $cpu0) / $TICK" | bc -l)
   hwm=$(awk '/VmHWM/ {print $2}' "/proc/$D_PID/status")
   awk -v seq="$seq" -v n="$n" -v runs="$RUNS" -v table="$table_s" -v calib="$calib_s" -v pass="$pass" \
-    -v units="$units" -v wall="$wall" -v cpu="$cpu" -v hwm="$hwm" 'BEGIN {
+    -v units="$units" -v wall="$wall" -v cpu="$cpu" -v hwm="$hwm" -v lost="$lost_total" 'BEGIN {
       per_run_table = table / runs; per_run_calib = calib / runs
-      printf "| %s | %d | %.1f | %.2f | %.0f | %.1f | %d/%d | %.0f s | %.0f s (%.0f %%) | %.0f MiB |\n",
+      printf "| %s | %d | %.1f | %.2f | %.0f | %.1f | %d/%d | %d | %.0f s | %.0f s (%.0f %%) | %.0f MiB |\n",
         seq, n, per_run_table / 60, per_run_table / 60 / n, per_run_calib,
-        3600 * n / (per_run_table + per_run_calib), pass, units, wall, cpu, 100 * cpu / wall, hwm / 1024
+        3600 * n / (per_run_table + per_run_calib), pass, units, lost, wall, cpu, 100 * cpu / wall,
+        hwm / 1024
     }'
   cleanup
 }
 
 echo "speed x$SPEED, $RUNS table runs per case, $(nproc) cores ($(date '+%F %T'))"
-echo "| sequence | units | table min a run | table min per unit | calibration wall s | units/h at real time | PASS | wall | daemon CPU | daemon peak RSS |"
-echo "|---|---|---|---|---|---|---|---|---|---|"
+echo "| sequence | units | table min a run | table min per unit | calibration wall s | units/h at real time | PASS | samples lost | wall | daemon CPU | daemon peak RSS |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|"
 for seq in $SEQUENCES; do
   for n in $UNITS; do run_case "$seq" "$n"; done
 done

@@ -171,14 +171,23 @@ std::vector<TourMove> tours_one_pose_shorter(const RestTour& tour) {
   return out;
 }
 
+namespace {
+
+/// An axis without angle limits: a rotation on it may turn a full or half turn more.
+bool turns_freely(Axis axis, const sequences::TableLimits& limits) {
+  return axis == Axis::kOuter
+             ? std::isinf(limits.outer_min_deg) && std::isinf(limits.outer_max_deg)
+             : std::isinf(limits.inner_min_deg) && std::isinf(limits.inner_max_deg);
+}
+
+}  // namespace
+
 std::vector<TourMove> tours_one_turn_longer(const RestTour& tour,
                                             const sequences::TableLimits& limits) {
   std::vector<TourMove> out;
-  const bool outer_free = std::isinf(limits.outer_min_deg) && std::isinf(limits.outer_max_deg);
-  const bool inner_free = std::isinf(limits.inner_min_deg) && std::isinf(limits.inner_max_deg);
   for (size_t i = 0; i < tour.legs.size(); ++i) {
     const TourLeg& leg = tour.legs[i];
-    if (!(leg.axis == Axis::kOuter ? outer_free : inner_free)) continue;
+    if (!turns_freely(leg.axis, limits)) continue;
     TourMove m{tour, "a full turn more on the rotation to " + pose_text(tour.pose_deg(i + 1))};
     m.tour.legs[i].by_deg += leg.by_deg > 0 ? 360.0 : -360.0;
     out.push_back(std::move(m));
@@ -189,11 +198,9 @@ std::vector<TourMove> tours_one_turn_longer(const RestTour& tour,
 std::vector<TourMove> tours_half_turn_changed(const RestTour& tour,
                                               const sequences::TableLimits& limits) {
   std::vector<TourMove> out;
-  const bool outer_free = std::isinf(limits.outer_min_deg) && std::isinf(limits.outer_max_deg);
-  const bool inner_free = std::isinf(limits.inner_min_deg) && std::isinf(limits.inner_max_deg);
   for (size_t i = 0; i < tour.legs.size(); ++i) {
     const TourLeg& leg = tour.legs[i];
-    if (!(leg.axis == Axis::kOuter ? outer_free : inner_free)) continue;
+    if (!turns_freely(leg.axis, limits)) continue;
     for (double half : {180.0, -180.0}) {
       const double by = leg.by_deg + half;
       if (std::abs(by) < 1e-9 || std::abs(by) > 540.0 + 1e-9) continue;

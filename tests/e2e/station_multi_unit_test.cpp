@@ -174,6 +174,11 @@ TEST(StationMultiUnit, FourUnitsOnOneFactoryStdRunEachPassWithinFourSigmaOfItsOw
     EXPECT_FALSE(a.table.empty());
     EXPECT_GT(a.info.table.lever_arm_m.norm(), 0.1);
     if (i == 0) span4_s = archive::data_span_s(a);
+    // No frame lost at four times a unit's frame rate: the counters the daemon kept per unit.
+    ASSERT_TRUE(rec.contains("capture") && rec["capture"].is_object()) << rec.dump(2);
+    for (const char* k : {"samples_lost", "samples_filled", "frames_error", "samples_corrupt"})
+      EXPECT_EQ(num(rec["capture"], k), 0.0) << sns[i] << " " << k << ": " << rec["capture"].dump();
+    EXPECT_GT(num(rec["capture"], "samples_decoded"), 2.2e5) << rec["capture"].dump();
     four.push_back(stored_params(st, sns[i]));
     EXPECT_EQ(outside_four_sigma(four.back(), archive::read_truth_json(m.truth(i)), sns[i]), 0);
   }

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "calib/core/conventions.hpp"
+#include "calib/core/rotation.hpp"
 #include "drivers/turntable/register_map.hpp"
 
 namespace imucal::station {
@@ -345,4 +346,66 @@ TEST(StationConfig, DefaultSequenceAndSequenceDirAreChecked) {
   std::filesystem::remove_all(dir);
 }
 
+}  // namespace imucal::station
+
+namespace imucal::station {
+namespace {
+
+/// kMinimal's first 8 lines (station and turntable) followed by `imus` (from line 9 on).
+std::string with_imus(const std::string& imus) {
+  std::istringstream in(kMinimal);
+  std::string line, head;
+  for (int i = 1; i <= 8 && std::getline(in, line); ++i) head += line + "\n";
+  return head + imus;
+}
+
+// Issue #23: a fixture of up to four units, [[imu]] slots named in order, each its own mounting.
+TEST(StationConfig, ImuSlotsAreReadInOrderWithTheirMountings) {
+  const StationConfig c = parse_config(
+      with_imus("[[imu]]\ncan = \"unixcan:a.sock\"\nlever_arm_m = [0.1, 0, 0.05]\n"
+                "[[imu]]\ncan = \"unixcan:b.sock\"\nmount_rpy_deg = [0, 0, 90]\n"
+                "[[imu]]\nslot = \"left-3\"\ncan = \"unixcan:a.sock\"\nbase_id = 0x200\n"
+                "mount_matrix = [[0, 1, 0], [1, 0, 0], [0, 0, -1]]\n"),
+      "cfg.toml", "/etc/imucal");
+  ASSERT_EQ(c.imus.size(), 3u);
+  EXPECT_EQ(c.imus[0].name, "A");
+  EXPECT_EQ(c.imus[1].name, "B");
+  EXPECT_EQ(c.imus[2].name, "left-3");
+  EXPECT_EQ(c.imus[1].can_uri, "unixcan:/etc/imucal/b.sock");
+  EXPECT_DOUBLE_EQ(c.imus[0].lever_arm_m[2], 0.05);
+  EXPECT_DOUBLE_EQ(c.imus[1].mount_rpy_deg[2], 90.0);
+  // The axis swap with z flipped is a rotation (x <-> y, z down): roll 180, yaw 90.
+  const Eigen::Matrix3d C = calib::euler_to_C_bn(c.imus[2].mount_rpy_deg[0] * kDegToRad,
+                                                 c.imus[2].mount_rpy_deg[1] * kDegToRad,
+                                                 c.imus[2].mount_rpy_deg[2] * kDegToRad);
+  Eigen::Matrix3d want;
+  want << 0, 1, 0, 1, 0, 0, 0, 0, -1;
+  EXPECT_LT((C - want).cwiseAbs().maxCoeff(), 1e-12) << C;
+  EXPECT_EQ(&slot_named(c, "B"), &c.imus[1]);
+  EXPECT_EQ(&slot_named(c, ""), &c.imus[0]);
+}
+
+// Bad fixtures stop the daemon before it starts, naming the slot's key.
+TEST(StationConfig, BadSlotsAreRefusedNamingTheKey) {
+  const std::string a = "[[imu]]\ncan = \"unixcan:a.sock\"\n";  // lines 9-10
+  expect_error(with_imus(a + "[[imu]]\ncan = \"unixcan:a.sock\"\n"), 12, 1,
+               "[imu] can: slot B reads the same bus and identifiers as slot A");
+  expect_error(with_imus(a + "[[imu]]\nslot = \"A\"\ncan = \"unixcan:b.sock\"\n"), 12, 1,
+               "[imu] slot: \"A\" is used twice");
+  expect_error(with_imus(a + "[[imu]]\nslot = \"no space\"\ncan = \"unixcan:b.sock\"\n"), 12, 1,
+               "is not a slot name");
+  expect_error(with_imus(a + "mount_matrix = [[1, 0, 0], [0, 1, 0], [0, 0, -1]]\n"), 11, 1,
+               "[imu] mount_matrix: is not a rotation: determinant -1");
+  expect_error(with_imus(a + "mount_matrix = [[1, 0.1, 0], [0, 1, 0], [0, 0, 1]]\n"), 11, 1,
+               "[imu] mount_matrix: is not a rotation: its rows are not orthonormal");
+  expect_error(with_imus(a + "mount_rpy_deg = [0, 95, 0]\n"), 11, 1,
+               "[imu] mount_rpy_deg: pitch (second element) 95 deg is outside [-90, 90]");
+  expect_error(with_imus(a + "lever_arm_m = [0, 3, 0]\n"), 11, 1,
+               "[imu] lever_arm_m: 3 is out of range");
+  std::string five;
+  for (int i = 0; i < 5; ++i) five += "[[imu]]\ncan = \"unixcan:" + std::to_string(i) + ".sock\"\n";
+  expect_error(with_imus(five), 9, 0, "[[imu]] must hold 1 to 4 units, not 5");
+}
+
+}  // namespace
 }  // namespace imucal::station

@@ -134,6 +134,14 @@ TEST(ControlProtocol, ArgumentsAreCheckedByNameTypeAndRange) {
        "expected a string, got integer"},
       {R"({"id":1,"cmd":"run.start","args":{"serial":"A","sequence":null}})", "args.sequence",
        "expected a string, got null"},
+      {R"({"id":1,"cmd":"run.start","args":{"units":[]}})", "args.units",
+       "expected an array of 1 to 16"},
+      {R"({"id":1,"cmd":"run.start","args":{"units":[{"slot":"A"}]}})", "args.units",
+       "expected an array of 1 to 16"},
+      {R"({"id":1,"cmd":"run.start","args":{"units":[{"serial":"S","speed":1}]}})", "args.units",
+       "got {\"serial\":\"S\",\"speed\":1}"},
+      {R"({"id":1,"cmd":"run.start","args":{"serial":"S","units":[{"serial":"T"}]}})",
+       "args.serial", "not both"},
       {R"({"id":1,"cmd":"run.start","args":{"serial":"A","speed":3}})", "args.speed",
        "unknown argument of run.start"},
       {R"({"id":1,"cmd":"show","args":{"run_id":"7"}})", "args.run_id",
@@ -285,6 +293,22 @@ TEST(ControlProtocol, NamesAndReasonsAreLimitedAndFreeOfControlCharacters) {
       nlohmann::json{{"id", 3}, {"cmd", "promote"}, {"args", {{"run_id", 4}, {"reason", "a\nb"}}}}
           .dump();
   EXPECT_NE(message(promote).find("U+000A"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace imucal::station
+
+namespace imucal::station {
+namespace {
+
+// Issue #23: run.start names several units by slot (or in the fixture's order without one).
+TEST(ControlProtocol, RunStartAcceptsTheUnitsOfOneTableRun) {
+  const Request r = parse_request(
+      R"({"id":3,"cmd":"run.start","args":{"units":[{"slot":"B","serial":"SN-2"},{"serial":"SN-1"}]}})");
+  EXPECT_EQ(r.cmd, "run.start");
+  ASSERT_EQ(r.args.at("units").size(), 2u);
+  EXPECT_EQ(r.args["units"][0].at("slot"), "B");
+  EXPECT_FALSE(r.args["units"][1].contains("slot"));
 }
 
 }  // namespace
