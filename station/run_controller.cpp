@@ -228,6 +228,45 @@ std::vector<std::pair<const ImuSlotConfig*, std::string>> RunController::units_o
   return out;
 }
 
+json RunController::create_unit_runs(
+    Live& live, const std::vector<std::pair<const ImuSlotConfig*, std::string>>& units,
+    const std::string& operator_name) {
+  const bool several_slots = cfg_.imus.size() > 1;
+  json started_units = json::array();
+  for (const auto& [slot, serial] : units) {
+    db::NewRun nr = new_run(serial, operator_name, live.plan.sequence_name,
+                            live.plan.sequence_sha256, db::RunState::kPreparing);
+    if (several_slots) nr.slot = slot->name;
+    if (!live.units.empty()) nr.table_run_id = live.units.front().snap.run_id;
+    const db::RunId id = repo_.create_run(nr);
+    Unit u;
+    u.slot = slot;
+    RunSnapshot& snap = u.snap;
+    snap.run_id = id;
+    snap.serial = nr.serial;
+    snap.slot = nr.slot;
+    snap.table_run_id = nr.table_run_id;
+    snap.sequence = nr.sequence_name;
+    snap.operator_name = nr.operator_name;
+    snap.state = db::RunState::kPreparing;
+    snap.phase = RunPhase::kConnecting;
+    snap.steps = static_cast<int>(live.plan.steps.size());
+    snap.started_at_ms = nr.started_at_ms;
+    snap.archive_path = archive_dir_for(id, nr.serial);
+    if (const std::string err = reserve_end_note(end_note_path(cfg_.data_dir, id)); !err.empty())
+      spdlog::warn(
+          "run {}: no end note reserved ({}); if the disk fills up, a restart before "
+          "space returns will not know why the run ended",
+          id, err);
+    spdlog::info("run {}: serial {}{}, sequence {} ({} steps), operator {}", id, nr.serial,
+                 nr.slot.empty() ? "" : " in slot " + nr.slot, nr.sequence_name, snap.steps,
+                 nr.operator_name);
+    started_units.push_back({{"run_id", id}, {"serial", nr.serial}, {"slot", nr.slot}});
+    live.units.push_back(std::move(u));
+  }
+  return started_units;
+}
+
 nlohmann::json RunController::start(const StartRunRequest& request) {
   const auto units = units_of(request);
   const std::string seq_name = request.sequence.value_or(cfg_.default_sequence);
@@ -268,39 +307,7 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
 
   auto live = std::make_shared<Live>();
   live->plan = std::move(plan);
-  const bool several_slots = cfg_.imus.size() > 1;
-  json started_units = json::array();
-  for (const auto& [slot, serial] : units) {
-    db::NewRun nr = new_run(serial, request.operator_name, live->plan.sequence_name,
-                            live->plan.sequence_sha256, db::RunState::kPreparing);
-    if (several_slots) nr.slot = slot->name;
-    if (!live->units.empty()) nr.table_run_id = live->units.front().snap.run_id;
-    const db::RunId id = repo_.create_run(nr);
-    Unit u;
-    u.slot = slot;
-    RunSnapshot& snap = u.snap;
-    snap.run_id = id;
-    snap.serial = nr.serial;
-    snap.slot = nr.slot;
-    snap.table_run_id = nr.table_run_id;
-    snap.sequence = nr.sequence_name;
-    snap.operator_name = nr.operator_name;
-    snap.state = db::RunState::kPreparing;
-    snap.phase = RunPhase::kConnecting;
-    snap.steps = static_cast<int>(live->plan.steps.size());
-    snap.started_at_ms = nr.started_at_ms;
-    snap.archive_path = archive_dir_for(id, nr.serial);
-    if (const std::string err = reserve_end_note(end_note_path(cfg_.data_dir, id)); !err.empty())
-      spdlog::warn(
-          "run {}: no end note reserved ({}); if the disk fills up, a restart before "
-          "space returns will not know why the run ended",
-          id, err);
-    spdlog::info("run {}: serial {}{}, sequence {} ({} steps), operator {}", id, nr.serial,
-                 nr.slot.empty() ? "" : " in slot " + nr.slot, nr.sequence_name, snap.steps,
-                 nr.operator_name);
-    started_units.push_back({{"run_id", id}, {"serial", nr.serial}, {"slot", nr.slot}});
-    live->units.push_back(std::move(u));
-  }
+  json started_units = create_unit_runs(*live, units, request.operator_name);
   live_ = live;
   thread_ = std::thread([this, live] { control_thread(live); });
   const RunSnapshot& first = live->units.front().snap;

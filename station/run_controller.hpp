@@ -194,6 +194,11 @@ class RunController {
   /// The fixture slots and serials of a start request, checked (ControlError kInvalidInput).
   std::vector<std::pair<const ImuSlotConfig*, std::string>> units_of(
       const StartRunRequest& request) const;
+  /// One preparing run per unit (the siblings naming the first as their table run), added to
+  /// `live`; returns [{run_id, serial, slot}]. Needs mu_.
+  nlohmann::json create_unit_runs(
+      Live& live, const std::vector<std::pair<const ImuSlotConfig*, std::string>>& units,
+      const std::string& operator_name);
   /// The live runs' snapshot as the status shows it: the first unit's, with its siblings.
   RunSnapshot snapshot_of(const Live& live) const;
   /// The station's calibration settings into a job (k_sigma, gap_false_alarm, known_effects):

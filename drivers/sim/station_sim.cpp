@@ -304,7 +304,7 @@ void StationSim::record_sample_sent(double t_s, double wall_elapsed_s) {
   wall_elapsed_s_ = wall_elapsed_s;
 }
 
-void StationSim::run() {
+std::vector<size_t> StationSim::prepare_units() {
   for (const auto& u : units_) {
     u->stream = std::make_unique<calib::TruthStream>(u->make_stream(cfg_));
     u->fault = std::make_unique<ImuFaultInjector>(u->cfg.imu_fault);
@@ -314,9 +314,28 @@ void StationSim::run() {
   // forward, and the others then read the states they asked for (same interval, same nodes).
   std::vector<size_t> order(units_.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return units_[a]->stream->needs_interior_states() &&
+           !units_[b]->stream->needs_interior_states();
+  });
+  return order;
+}
+
+void StationSim::wait_for_peers(std::vector<imu::ReceivedFrame>& scratch) {
+  auto all_connected = [&] {
+    for (const auto& u : units_)
+      if (u->channel->counters().peers_connected == 0) return false;
+    return true;
+  };
+  while (!stop_.load() && !all_connected()) {
+    for (const auto& u : units_) u->channel->read(scratch);  // accepts peers
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+}
+
+void StationSim::run() {
+  const std::vector<size_t> order = prepare_units();
   auto interior = [&](size_t i) { return units_[i]->stream->needs_interior_states(); };
-  std::stable_sort(order.begin(), order.end(),
-                   [&](size_t a, size_t b) { return interior(a) && !interior(b); });
   const bool any_interior = interior(order.front());
   calib::TruthStream& clock_stream = *units_.front()->stream;  // every unit has the same rate
   const uint16_t move_code = cfg_.plc.map.commands.move;
@@ -354,17 +373,7 @@ void StationSim::run() {
   // The table states this interval's streams asked for, in time order (the next units read them).
   std::vector<std::pair<double, sequences::TableState>> states;
   try {
-    if (cfg_.wait_for_can_peer) {
-      auto all_connected = [&] {
-        for (const auto& u : units_)
-          if (u->channel->counters().peers_connected == 0) return false;
-        return true;
-      };
-      while (!stop_.load() && !all_connected()) {
-        for (const auto& u : units_) u->channel->read(from_peers);  // accepts peers
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      }
-    }
+    if (cfg_.wait_for_can_peer) wait_for_peers(from_peers);
     clock_ = std::make_unique<ScaledRealTime>(cfg_.speed);
     const ScaledRealTime& clock = *clock_;
     server_->with_plc([&](TablePlc& plc) { arm_if_due(plc); });

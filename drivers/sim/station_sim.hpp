@@ -44,6 +44,7 @@
 
 namespace imucal::imu {
 class CanChannel;
+struct ReceivedFrame;
 }
 
 namespace imucal::sim {
@@ -163,7 +164,11 @@ class StationSim {  // one physics thread: steps the PLC and emits each IMU samp
   std::unique_ptr<ModbusTableServer> server_;
   struct Unit;  // a unit's configuration, bus, CAN node and streams (station_sim.cpp)
   std::vector<std::unique_ptr<Unit>> units_;
-  void run_units();
+  /// Each unit's truth stream, fault injector and noise restarts (physics thread); the order the
+  /// units take the table's states in.
+  std::vector<size_t> prepare_units();
+  /// wait_for_can_peer: until every unit's bus has a peer (or stop()).
+  void wait_for_peers(std::vector<imu::ReceivedFrame>& scratch);
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<bool> running_{false};
