@@ -623,10 +623,6 @@ imu::DecoderOptions decoder_options(const ImuSlotConfig& slot) {
   return o;
 }
 
-imu::DecoderOptions decoder_options(const StationConfig& config) {
-  return decoder_options(config.imu());
-}
-
 const ImuSlotConfig& slot_named(const StationConfig& config, const std::string& name) {
   for (const ImuSlotConfig& slot : config.imus)
     if (slot.name == name) return slot;

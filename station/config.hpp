@@ -139,8 +139,6 @@ struct StationConfig {
 
 /// The IMU frame decoder's options of a slot ([imu] protocol, base_id, rate_hz).
 imu::DecoderOptions decoder_options(const ImuSlotConfig& slot);
-/// The same for the station's first slot (a one-unit station's unit).
-imu::DecoderOptions decoder_options(const StationConfig& config);
 /// The slot of that name; the first slot for "" (a run of a one-unit station) or a name the
 /// configuration no longer has.
 const ImuSlotConfig& slot_named(const StationConfig& config, const std::string& name);

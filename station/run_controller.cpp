@@ -145,7 +145,6 @@ RunPlan plan_run(const std::string& sequence, const StationConfig& cfg) {
     p.outer_deg = outer;
     p.inner_deg = inner;
     p.rest_s = rest_s;
-    p.rest_samples = static_cast<uint64_t>(std::llround(rest_s * imu.rate_hz));
     p.expected_s = rest_s + guard_s;
     p.source_line = line;
     return p;
@@ -712,7 +711,7 @@ std::optional<RunSnapshot> RunController::active() const {
     if (L.step_index >= 0 && L.step_index < n) {
       const PlannedStep& cur = L.plan.steps[L.step_index];
       if (cur.kind == PlannedStep::Kind::kRest) {
-        const uint64_t samples = static_cast<uint64_t>(std::llround(cur.rest_s * rate_hz));
+        const uint64_t samples = cur.rest_samples(rate_hz);
         const uint64_t done = u->capture->rest_rows_done();
         left_s += static_cast<double>(samples - std::min(done, samples)) / rate_hz;
         if (done == 0) left_s += static_cast<double>(u->slot->settle_guard_samples) / rate_hz;

@@ -42,6 +42,7 @@
 // handler thread); the control thread and the worker's completion callback update the run snapshot
 // under one mutex.
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdint>
 #include <memory>
@@ -117,7 +118,10 @@ struct PlannedStep {
   double outer_deg = 0.0, inner_deg = 0.0;  ///< rest pose / move target
   double rate_dps = 0.0;                    ///< move: commanded rate (clipped to max_rate_dps)
   double rest_s = 0.0;                      ///< rest: its length in table seconds
-  uint64_t rest_samples = 0;  ///< rest: round(rest_s * rate_hz) at the first slot's rate
+  /// A rest's length in samples of a unit at `rate_hz` (each unit counts its rest at its own rate).
+  uint64_t rest_samples(double rate_hz) const {
+    return static_cast<uint64_t>(std::llround(rest_s * rate_hz));
+  }
   double expected_s = 0.0;                  ///< expected duration in table (sim) seconds
   int source_line = 0;                      ///< line in the sequence file
 };

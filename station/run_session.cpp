@@ -89,7 +89,7 @@ struct RunController::Session {
   void open_archives(const turntable::TableStatus& st);
   void run_steps();
   turntable::TableStatus move(double outer, double inner, double rate);
-  void rest(double outer, double inner, double rest_s);
+  void rest(double outer, double inner, const PlannedStep& step);
   void check_rest_table(double outer, double inner, double budget_s, Clock::time_point deadline);
   // --- one unit failing while the others go on ---
   void unit_failed(UnitCapture& u, const std::string& why);
@@ -313,7 +313,7 @@ void RunController::Session::run_steps() {
       at_inner = st.inner_deg;
     } else {
       spdlog::debug("run {}: step {}/{}: rest {} s", id, i + 1, plan.steps.size(), p.rest_s);
-      rest(at_outer, at_inner, p.rest_s);
+      rest(at_outer, at_inner, p);
     }
     check_capture();
   }
@@ -350,12 +350,12 @@ turntable::TableStatus RunController::Session::move(double outer, double inner, 
 
 /// A counted rest: each capture marks its rest's samples (rest_s at its unit's rate) at rest once
 /// its unit is still; meanwhile the table is watched (it must hold its position).
-void RunController::Session::rest(double outer, double inner, double rest_s) {
+void RunController::Session::rest(double outer, double inner, const PlannedStep& step) {
   double budget_s = 0.0;
   for (UnitCapture& u : units) {
     if (!u.live) continue;
     const ImuSlotConfig& s = slot(u);
-    const auto samples = static_cast<uint64_t>(std::llround(rest_s * s.rate_hz));
+    const uint64_t samples = step.rest_samples(s.rate_hz);
     u.cap->begin_rest(outer, inner, samples);
     // A unit that never comes to rest: give it the rest's real-time length plus a move timeout.
     budget_s =
@@ -389,8 +389,9 @@ void RunController::Session::check_rest_table(double outer, double inner, double
                                      st.fault_code);
   if (st.heartbeat_stale) throw turntable::HeartbeatError(where + ": PLC heartbeat stuck");
   if (st.moving) throw turntable::MoveTimeoutError(where + ": the table moved during a rest");
-  for (UnitCapture& u : units)
-    if (u.live && u.cap->rest_rows_done() > 0) rc.set_phase(L, RunPhase::kResting);
+  if (std::any_of(units.begin(), units.end(),
+                  [](const UnitCapture& u) { return u.live && u.cap->rest_rows_done() > 0; }))
+    rc.set_phase(L, RunPhase::kResting);
   for (UnitCapture& u : units) {
     if (!u.live) continue;
     const ImuSlotConfig& s = slot(u);

@@ -168,7 +168,7 @@ TEST(StationConfig, TheProtocolIsReadAtLoadTimeAndBaseIdMovesItsIds) {
   EXPECT_EQ(c.imu().protocol->message(c.imu().protocol->messages.front()).id, 0x18FF1000u);
   const StationConfig moved = parse_config(with + "base_id = 0x18FF2000\n", "cfg.toml", "/e");
   EXPECT_EQ(moved.imu().protocol->message(moved.imu().protocol->messages.back()).id, 0x18FF2200u);
-  EXPECT_EQ(decoder_options(moved).protocol, moved.imu().protocol);
+  EXPECT_EQ(decoder_options(moved.imu()).protocol, moved.imu().protocol);
   // The built-in protocol's four 11-bit ids do not fit above 0x7FC.
   const ConfigError e = error_of(std::string(kMinimal) + "base_id = 0x7FE\n");
   EXPECT_EQ(e.line(), 11) << e.what();

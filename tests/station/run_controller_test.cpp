@@ -134,15 +134,15 @@ TEST(RunPlan, TinySequenceFlattensToRestsAndMovesWithSampleCounts) {
   EXPECT_EQ(p.sequence_sha256.size(), 64u);
   ASSERT_EQ(p.steps.size(), 5u);  // initial rest + 4 [[step]]s
   EXPECT_EQ(p.steps[0].kind, PlannedStep::Kind::kRest);
-  EXPECT_EQ(p.steps[0].rest_samples, 2000u);  // 10 s × 200 Hz
+  EXPECT_EQ(p.steps[0].rest_samples(200.0), 2000u);  // 10 s × 200 Hz
   EXPECT_EQ(p.steps[1].kind, PlannedStep::Kind::kMove);
   EXPECT_DOUBLE_EQ(p.steps[1].outer_deg, 90.0);
   EXPECT_DOUBLE_EQ(p.steps[1].inner_deg, 0.0);
   EXPECT_DOUBLE_EQ(p.steps[1].rate_dps, 10.0);
-  EXPECT_EQ(p.steps[2].rest_samples, 2000u);
+  EXPECT_EQ(p.steps[2].rest_samples(200.0), 2000u);
   EXPECT_DOUBLE_EQ(p.steps[3].outer_deg, 90.0);
   EXPECT_DOUBLE_EQ(p.steps[3].inner_deg, 90.0);
-  EXPECT_EQ(p.steps[4].rest_samples, 2400u);
+  EXPECT_EQ(p.steps[4].rest_samples(200.0), 2400u);
   // 90 deg at 10 deg/s with 10 deg/s²: 90/10 + 10/10 = 10 s; rests add the settle guard (50/200 s).
   EXPECT_NEAR(p.steps[1].expected_s, 10.0, 1e-9);
   EXPECT_NEAR(p.steps[0].expected_s, 10.25, 1e-9);

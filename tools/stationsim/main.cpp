@@ -236,25 +236,33 @@ void add_options(CLI::App& app, CliArgs& a) {
 }
 
 /// The unit file and the catalogue effects on top of it (withheld from the station).
-void apply_unit(const CliArgs& a, StationSimConfig& cfg) {
-  if (!a.unit_path.empty()) {
+/// A unit file (none: the default unit) with catalogue effects on top of it; errors name the
+/// option (`flag` for the file, `effect_flag` for an effect) and the file.
+imucal::calib::UnitModel load_unit(const std::string& path, const std::vector<std::string>& effects,
+                                   const std::string& flag, const std::string& effect_flag) {
+  imucal::calib::UnitModel unit = imucal::calib::default_unit();
+  if (!path.empty()) {
     try {
-      cfg.unit = imucal::archive::read_unit_file(a.unit_path);
+      unit = imucal::archive::read_unit_file(path);
     } catch (const std::exception& e) {
       const std::string what = e.what();
       // The archive reader names the file and line; make sure the file is named either way.
-      throw BadInput(
-          "--unit: " + (what.find(a.unit_path) == std::string::npos ? a.unit_path + ": " : "") +
-          what);
+      throw BadInput(flag + ": " + (what.find(path) == std::string::npos ? path + ": " : "") +
+                     what);
     }
   }
-  for (const std::string& spec : a.effect_specs) {
+  for (const std::string& spec : effects) {
     try {
-      imucal::calib::apply_effect_spec(cfg.unit.effects, spec);
+      imucal::calib::apply_effect_spec(unit.effects, spec);
     } catch (const std::exception& e) {
-      throw BadInput(std::string("--effect ") + spec + ": " + e.what());
+      throw BadInput(effect_flag + " " + spec + ": " + e.what());
     }
   }
+  return unit;
+}
+
+void apply_unit(const CliArgs& a, StationSimConfig& cfg) {
+  cfg.unit = load_unit(a.unit_path, a.effect_specs, "--unit", "--effect");
 }
 
 /// Speed, rate, seed and the site (gravity: surveyed, or normal gravity at the site).
@@ -345,6 +353,8 @@ StationSimUnit parse_also(const std::string& spec, uint64_t seed, std::string& t
   StationSimUnit u;
   u.can_path = items[0];
   u.seed = seed;
+  std::string unit_path;
+  std::vector<std::string> effects;  // applied on top of the unit file, in any order of the keys
   for (size_t i = 1; i < items.size(); ++i) {
     const auto eq = items[i].find('=');
     const std::string key = items[i].substr(0, eq),
@@ -352,23 +362,14 @@ StationSimUnit parse_also(const std::string& spec, uint64_t seed, std::string& t
     if (eq == std::string::npos || value.empty())
       throw BadInput(flag + ": '" + items[i] + "' is not key=value");
     if (key == "unit") {
-      try {
-        u.unit = imucal::archive::read_unit_file(value);
-      } catch (const std::exception& e) {
-        throw BadInput(flag + ": unit " + value + ": " + e.what());
-      }
+      unit_path = value;
     } else if (key == "truth") {
       truth_out = value;
     } else if (key == "seed") {
       u.seed = static_cast<uint64_t>(to_int(value, flag + " seed", 0, 1L << 62));
     } else if (key == "effect") {
-      std::string effect = value;
-      std::replace(effect.begin(), effect.end(), '/', ',');
-      try {
-        imucal::calib::apply_effect_spec(u.unit.effects, effect);
-      } catch (const std::exception& e) {
-        throw BadInput(flag + ": effect " + value + ": " + e.what());
-      }
+      effects.push_back(value);
+      std::replace(effects.back().begin(), effects.back().end(), '/', ',');
     } else if (key == "mount") {
       u.C_bp = mount_of(value, flag + " mount");
     } else if (key == "lever") {
@@ -381,6 +382,7 @@ StationSimUnit parse_also(const std::string& spec, uint64_t seed, std::string& t
                      "' (unit, truth, seed, effect, mount, lever, cut)");
     }
   }
+  u.unit = load_unit(unit_path, effects, flag + ": unit", flag + ": effect");
   return u;
 }
 
