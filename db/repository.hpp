@@ -202,6 +202,11 @@ struct RunRecord {
   std::string promote_reason;
   std::string slot;                   ///< fixture slot (schema v6), "" on a one-unit station
   std::optional<RunId> table_run_id;  ///< the table run shared with siblings (see NewRun)
+  /// Schema v7: the run's UUID (32 lowercase hex digits, random, set when the run is created; with
+  /// the station id it keys the run in the fleet store) and its revision (how many changes it has
+  /// seen; the fleet store keeps the highest).
+  std::string uuid;
+  std::int64_t revision = 0;
 };
 
 /// Headline evaluation metrics of one method (paper §VII, calib/checks/evaluation.hpp), per-period

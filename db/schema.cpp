@@ -141,6 +141,66 @@ ALTER TABLE runs ADD COLUMN table_run_id INTEGER REFERENCES runs(id);
 CREATE INDEX runs_table_run ON runs(table_run_id) WHERE table_run_id IS NOT NULL;
 )SQL";
 
+// Migration 7 (issue #24): replication to the fleet store. Every run gets a UUID (128 random bits,
+// 32 lowercase hex digits): with the station id it keys the run in the fleet store, so a resent
+// run is the same row. `revision` counts the changes of a run (its row, a calibration or the
+// cross-check stored), so the fleet store never lets an older copy of a run replace a newer one
+// (a resync racing the daemon's sender). The outbox records every change in the same transaction
+// as the change itself (triggers: no write path can forget it) while outbox_state.enabled is 1,
+// i.e. while the station names a fleet database; the sender deletes what the fleet store holds.
+// The revision triggers' own UPDATE fires no trigger (recursive_triggers is off).
+const char* const kMigration7 = R"SQL(
+ALTER TABLE runs ADD COLUMN uuid TEXT NOT NULL DEFAULT ''
+  CHECK (uuid = '' OR (length(uuid) = 32 AND uuid NOT GLOB '*[^0-9a-f]*'));
+ALTER TABLE runs ADD COLUMN revision INTEGER NOT NULL DEFAULT 0;
+UPDATE runs SET uuid = lower(hex(randomblob(16)));
+CREATE UNIQUE INDEX runs_by_uuid ON runs (uuid);
+
+CREATE TABLE outbox (
+  seq    INTEGER PRIMARY KEY AUTOINCREMENT,
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  change TEXT    NOT NULL,
+  at_ms  INTEGER NOT NULL
+) STRICT;
+CREATE TABLE outbox_state (
+  id      INTEGER PRIMARY KEY CHECK (id = 1),
+  enabled INTEGER NOT NULL CHECK (enabled IN (0, 1))
+) STRICT;
+INSERT INTO outbox_state (id, enabled) VALUES (1, 0);
+
+CREATE TRIGGER runs_revision_on_update AFTER UPDATE ON runs WHEN NEW.revision = OLD.revision
+BEGIN UPDATE runs SET revision = OLD.revision + 1 WHERE id = NEW.id; END;
+CREATE TRIGGER runs_revision_on_calibration AFTER INSERT ON calibrations
+BEGIN UPDATE runs SET revision = revision + 1 WHERE id = NEW.run_id; END;
+CREATE TRIGGER runs_revision_on_crosscheck AFTER INSERT ON crosschecks
+BEGIN UPDATE runs SET revision = revision + 1 WHERE id = NEW.run_id; END;
+
+CREATE TRIGGER outbox_run_stored AFTER INSERT ON runs
+WHEN (SELECT enabled FROM outbox_state) = 1
+BEGIN INSERT INTO outbox (run_id, change, at_ms) VALUES (NEW.id,
+  CASE WHEN NEW.reprocessed_from IS NOT NULL THEN 'reprocess'
+       WHEN NEW.origin <> '' THEN 'import'
+       WHEN NEW.setting <> 'factory' THEN 'field run'
+       ELSE 'run stored' END,
+  CAST(round((julianday('now') - 2440587.5) * 86400000.0) AS INTEGER)); END;
+CREATE TRIGGER outbox_run_changed AFTER UPDATE ON runs
+WHEN (SELECT enabled FROM outbox_state) = 1 AND NEW.revision = OLD.revision
+BEGIN INSERT INTO outbox (run_id, change, at_ms) VALUES (NEW.id,
+  CASE WHEN NEW.state <> OLD.state THEN 'state ' || NEW.state
+       WHEN NEW.promoted_at_ms IS NOT OLD.promoted_at_ms THEN 'promotion'
+       WHEN NEW.diagnosis_json <> OLD.diagnosis_json THEN 'diagnosis'
+       ELSE 'run changed' END,
+  CAST(round((julianday('now') - 2440587.5) * 86400000.0) AS INTEGER)); END;
+CREATE TRIGGER outbox_calibration AFTER INSERT ON calibrations
+WHEN (SELECT enabled FROM outbox_state) = 1
+BEGIN INSERT INTO outbox (run_id, change, at_ms) VALUES (NEW.run_id, 'calibration ' || NEW.method,
+  CAST(round((julianday('now') - 2440587.5) * 86400000.0) AS INTEGER)); END;
+CREATE TRIGGER outbox_crosscheck AFTER INSERT ON crosschecks
+WHEN (SELECT enabled FROM outbox_state) = 1
+BEGIN INSERT INTO outbox (run_id, change, at_ms) VALUES (NEW.run_id, 'cross-check',
+  CAST(round((julianday('now') - 2440587.5) * 86400000.0) AS INTEGER)); END;
+)SQL";
+
 const char* const kMigration5 = R"SQL(
 ALTER TABLE runs ADD COLUMN verdict TEXT GENERATED ALWAYS AS (
   CASE state WHEN 'done' THEN 'PASS' WHEN 'review' THEN 'REVIEW'
@@ -257,6 +317,7 @@ const std::vector<Migration>& migrations() {
       // Version 6 (issue #23): several units on one table run. Each unit is a run of its own; the
       // fixture slot it sat in, and the first unit's run as the table run that joins the siblings.
       {6, "runs.slot, runs.table_run_id: several units per table run", kMigration6},
+      {7, "runs.uuid, runs.revision, outbox: replication to the fleet store", kMigration7},
   };
   return list;
 }

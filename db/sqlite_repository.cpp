@@ -29,8 +29,8 @@ const std::string kRunColumns =
     "r.software_version, r.started_at_ms, r.ended_at_ms, r.state, r.failure_reason, "
     "r.archive_path, r.archive_sha256, r.reprocessed_from, x.verdict, r.capture_json, "
     "r.diagnosis_json, r.setting, r.origin, r.promoted_at_ms, r.promoted_by, r.promote_reason, "
-    "r.verdict, r.reasons_json, r.slot, r.table_run_id";
-constexpr int kNumRunColumns = 26;
+    "r.verdict, r.reasons_json, r.slot, r.table_run_id, r.uuid, r.revision";
+constexpr int kNumRunColumns = 28;
 constexpr int kExportVerdictColumn = 14;  ///< x.verdict among kRunColumns
 const std::string kRunFrom =
     " FROM runs r JOIN units u ON u.id = r.unit_id LEFT JOIN crosschecks x ON x.run_id = r.id ";
@@ -82,7 +82,8 @@ const char* const kSqlRunExists = "SELECT 1 FROM runs WHERE id = ?1";
 const char* const kSqlInsertRun =
     "INSERT INTO runs (unit_id, operator, station, sequence_name, sequence_sha256, "
     "software_version, started_at_ms, state, archive_path, reprocessed_from, setting, origin, "
-    "slot, table_run_id) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)";
+    "slot, table_run_id, uuid) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, "
+    "?14, lower(hex(randomblob(16))))";
 const char* const kSqlPromote =
     "UPDATE runs SET promoted_at_ms = ?2, promoted_by = ?3, promote_reason = ?4 WHERE id = ?1";
 const char* const kSqlRunState = "SELECT state FROM runs WHERE id = ?1";
@@ -109,6 +110,15 @@ const char* const kSqlLiveRuns =
     "SELECT id, state FROM runs WHERE state IN ('preparing', 'running', 'calibrating') "
     "ORDER BY id";
 const char* const kSqlCountRunsOfUnit = "SELECT count(*) FROM runs WHERE unit_id = ?1";
+const char* const kSqlOutboxEnabled = "SELECT enabled FROM outbox_state WHERE id = 1";
+const char* const kSqlSetOutboxEnabled = "UPDATE outbox_state SET enabled = ?1 WHERE id = 1";
+const char* const kSqlOutboxResync =
+    "INSERT INTO outbox (run_id, change, at_ms) SELECT id, 'resync', ?1 FROM runs ORDER BY id";
+const char* const kSqlOutboxClear = "DELETE FROM outbox";
+const char* const kSqlOutboxBatch =
+    "SELECT seq, run_id, change, at_ms FROM outbox ORDER BY seq LIMIT ?1";
+const char* const kSqlOutboxRemove = "DELETE FROM outbox WHERE seq <= ?1";
+const char* const kSqlOutboxLength = "SELECT count(*) FROM outbox";
 
 int live_rank(RunState s) {
   switch (s) {
@@ -388,6 +398,8 @@ struct SqliteRepository::Impl {
                        [&] { return reasons_from_json(q.text(23)); });
     r.slot = q.text(24);
     if (!q.is_null(25)) r.table_run_id = q.i64(25);
+    r.uuid = q.text(26);
+    r.revision = q.i64(27);
     return r;
   }
 
@@ -1157,6 +1169,76 @@ std::vector<RunRecord> SqliteRepository::runs_in_state(const std::vector<RunStat
   }
   std::sort(out.begin(), out.end(),
             [](const RunRecord& a, const RunRecord& b) { return a.run_id < b.run_id; });
+  return out;
+}
+
+// ----- the replication outbox ------------------------------------------------------------------
+
+void SqliteRepository::set_outbox_enabled(bool enabled) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl& d = *impl_;
+  const char* op = "set_outbox_enabled";
+  d.require_writable(op);
+  Impl::Tx tx(d, op, true);
+  {
+    Impl::Stmt q(d, kSqlOutboxEnabled, op);
+    if (q.step() && (q.i64(0) != 0) == enabled) return;  // unchanged: nothing to enqueue
+  }
+  Impl::Stmt(d, kSqlSetOutboxEnabled, op).bind(1, enabled ? 1 : 0).run();
+  if (enabled)
+    Impl::Stmt(d, kSqlOutboxResync, op).bind(1, now_ms()).run();
+  else
+    Impl::Stmt(d, kSqlOutboxClear, op).run();
+  tx.commit();
+}
+
+bool SqliteRepository::outbox_enabled() const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl::Stmt q(*impl_, kSqlOutboxEnabled, "outbox_enabled");
+  return q.step() && q.i64(0) != 0;
+}
+
+std::vector<OutboxEntry> SqliteRepository::outbox_batch(std::size_t limit) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  std::vector<OutboxEntry> out;
+  Impl::Stmt q(*impl_, kSqlOutboxBatch, "outbox_batch");
+  q.bind(1, static_cast<std::int64_t>(limit));
+  while (q.step()) out.push_back({q.i64(0), q.i64(1), q.text(2), q.i64(3)});
+  return out;
+}
+
+void SqliteRepository::outbox_remove_through(std::int64_t seq) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl& d = *impl_;
+  const char* op = "outbox_remove_through";
+  d.require_writable(op);
+  Impl::Tx tx(d, op, true);
+  Impl::Stmt(d, kSqlOutboxRemove, op).bind(1, seq).run();
+  tx.commit();
+}
+
+std::size_t SqliteRepository::outbox_length() const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl::Stmt q(*impl_, kSqlOutboxLength, "outbox_length");
+  return q.step() ? static_cast<std::size_t>(q.i64(0)) : 0;
+}
+
+std::vector<RunDetails> SqliteRepository::details_of(const std::vector<RunId>& ids) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl& d = *impl_;
+  Impl::Tx tx(d, "details_of", false);
+  std::vector<RunId> sorted = ids;
+  std::sort(sorted.begin(), sorted.end());
+  sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
+  std::vector<RunDetails> out;
+  for (RunId id : sorted) {
+    try {
+      out.push_back(show(id));
+    } catch (const NotFound&) {
+      // a run the outbox names but the file no longer holds (a restored backup): nothing to send
+    }
+  }
+  tx.commit();
   return out;
 }
 

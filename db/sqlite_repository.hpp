@@ -18,6 +18,7 @@
 #include <memory>
 #include <string>
 
+#include "db/outbox.hpp"
 #include "db/repository.hpp"
 
 namespace imucal::db {
@@ -90,6 +91,21 @@ class SqliteRepository final : public Repository {
   /// calls and the write methods inside use savepoints. For bulk imports and for callers that
   /// need several steps to be atomic.
   void transaction(const std::function<void()>& body);
+
+  // ----- the replication outbox (db/outbox.hpp) -----------------------------------------------
+  /// Turns the outbox on (the station names a fleet database) or off. Turning it on enqueues every
+  /// run already stored (change "resync"), so the fleet store receives the station's whole
+  /// history; turning it off empties it (turning it on again resends everything).
+  void set_outbox_enabled(bool enabled);
+  bool outbox_enabled() const;
+  /// The oldest `limit` entries, ascending seq.
+  std::vector<OutboxEntry> outbox_batch(std::size_t limit) const;
+  /// Removes the entries up to and including `seq` (what the fleet store has confirmed).
+  void outbox_remove_through(std::int64_t seq);
+  std::size_t outbox_length() const;
+  /// Runs with ids in `ids` as the fleet store receives them (RunDetails of each, ascending id;
+  /// ids that name no run are left out), read in one snapshot.
+  std::vector<RunDetails> details_of(const std::vector<RunId>& ids) const;
 
   /// PRAGMA integrity_check: "ok" or the problems found, one per line.
   std::string integrity_check() const;

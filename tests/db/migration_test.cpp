@@ -75,7 +75,7 @@ TEST(Migration, FreshDatabaseGetsTheCurrentVersionOurApplicationIdAndWal) {
   EXPECT_EQ(raw.text("PRAGMA journal_mode"), "wal") << "WAL is persistent in the file";
   EXPECT_EQ(raw.text("SELECT group_concat(name, ',') FROM (SELECT name FROM sqlite_schema WHERE "
                      "type = 'table' AND name NOT LIKE 'sqlite_%' ORDER BY name)"),
-            "calibrations,crosschecks,runs,units");
+            "calibrations,crosschecks,outbox,outbox_state,runs,units");
   EXPECT_EQ(raw.text("PRAGMA integrity_check"), "ok");
   EXPECT_EQ(raw.text("PRAGMA foreign_key_check"), "");
 }
