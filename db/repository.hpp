@@ -273,6 +273,8 @@ struct ActiveCalibration {
 struct ExportFilter {
   std::optional<std::string> serial;
   std::optional<TimestampMs> since_ms;  ///< runs with started_at_ms >= since_ms
+  /// Runs of this station only (RunRecord::station; in the fleet store, the station id).
+  std::optional<std::string> station;
 };
 
 /// One exported row: a run with one of its calibrations (no calibration → calibration empty,

@@ -1145,6 +1145,8 @@ void SqliteRepository::export_rows(const ExportFilter& filter,
   ExportRow row;
   while (q.step()) {
     row.run = d.read_run(q);
+    if (filter.station && row.run.station != *filter.station)
+      continue;  // rare: scanned, not indexed
     row.calibration = d.read_calibration(q, kNumRunColumns, row.run.run_id);
     row.crosscheck.reset();
     if (!q.is_null(kExportCrosscheckColumn))

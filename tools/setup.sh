@@ -8,7 +8,8 @@
 # Idempotent: safe to run on a fresh machine and again on a prepared one. Both modes build in
 # build/ (IMUCAL_BUILD_DIR=DIR: elsewhere).
 # The packages only tests need (qemu and a kernel image, chromium, clang-16, the CAN and Modbus peer
-# tools, lintian for the Debian package) are installed in the background while the build runs:
+# tools, lintian for the Debian package, the PostgreSQL server the fleet tests start a throw-away
+# cluster of; the main job needs no server, only libpq to link stationd) are installed in the background while the build runs:
 # their download and unpacking overlap the compilation, and the script waits for them before it
 # returns.
 set -euo pipefail
@@ -24,13 +25,13 @@ case "${1:-}" in
 esac
 MAIN_PKGS=(build-essential cmake ccache pkg-config
            libeigen3-dev libceres-dev libmodbus-dev libsqlite3-dev libspdlog-dev
-           libcli11-dev libtomlplusplus-dev nlohmann-json3-dev libsystemd-dev)
+           libcli11-dev libtomlplusplus-dev nlohmann-json3-dev libsystemd-dev libpq-dev)
 # Needed before the build, so not in the background: the test programs' and benchmarks' libraries,
 # and help2man (CMake looks for it when it configures; the man pages of the Debian package).
 TEST_BUILD_PKGS=(libgtest-dev libgmock-dev libbenchmark-dev help2man)
 TEST_PKGS=(can-utils python3-can python3-canmatrix mbpoll
            qemu-system-x86 linux-image-amd64 busybox-static cpio iproute2 xz-utils binutils
-           chromium clang-16 libclang-rt-16-dev lintian)
+           chromium clang-16 libclang-rt-16-dev lintian postgresql)
 PROGRAMS=(imucal stationd stationsim stationctl)
 SUDO=""
 [ "$(id -u)" -ne 0 ] && SUDO="sudo"

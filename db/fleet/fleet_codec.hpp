@@ -1,0 +1,20 @@
+#pragma once
+// The jsonb forms of a calibration's parts in the fleet store, and their inverse. Values: the
+// export's forms (db/export.hpp); parameter sets: the five keys of DESIGN §3, without sigma.
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "db/repository.hpp"
+
+namespace imucal::db::fleet {
+
+nlohmann::json params_json(const calib::ParamSet& p);
+calib::ParamSet params_from_json(const std::string& text, const std::string& origin);
+nlohmann::json metrics_json(const StoredMetrics& m);
+StoredMetrics metrics_from_json(const std::string& text, const std::string& origin);
+std::vector<std::string> strings_from_json(const std::string& text, const std::string& origin);
+std::vector<RunReason> reasons_from_json(const std::string& text, const std::string& origin);
+std::vector<calib::CrossCheckFailure> failures_from_json(const std::string& text,
+                                                         const std::string& origin);
+
+}  // namespace imucal::db::fleet

@@ -1,0 +1,148 @@
+#include "db/fleet/fleet_schema.hpp"
+
+#include <string>
+#include <vector>
+
+namespace imucal::db::fleet {
+
+namespace {
+
+// An arbitrary constant of ours: the advisory lock under which migrations run.
+constexpr const char* kMigrationLock = "SELECT pg_advisory_xact_lock(494355241)";
+
+// Migration 1. A run is keyed by (station_id, run_uuid); local ids are the station's own and are
+// kept to resolve reprocessed_from and table_run_id within the station. `revision` lets a newer
+// copy replace an older one and never the reverse. Parameter sets are jsonb (the five keys of
+// DESIGN §3) so QA can query them: (params->'gyro_bias_radps'->>2)::float8.
+const char* const kFleetMigration1 = R"SQL(
+CREATE TABLE runs (
+  id                     bigserial PRIMARY KEY,
+  station_id             text   NOT NULL CHECK (length(station_id) BETWEEN 1 AND 64),
+  run_uuid               text   NOT NULL CHECK (run_uuid ~ '^[0-9a-f]{32}$'),
+  local_run_id           bigint NOT NULL,
+  revision               bigint NOT NULL,
+  serial                 text   NOT NULL,
+  operator               text   NOT NULL,
+  station                text   NOT NULL,
+  sequence_name          text   NOT NULL,
+  sequence_sha256        text   NOT NULL,
+  software_version       text   NOT NULL,
+  started_at_ms          bigint NOT NULL,
+  ended_at_ms            bigint,
+  state                  text   NOT NULL CHECK (state IN ('preparing', 'running', 'calibrating',
+                                  'done', 'review', 'failed', 'aborted', 'interrupted')),
+  verdict                text GENERATED ALWAYS AS (
+                           CASE state WHEN 'done' THEN 'PASS' WHEN 'review' THEN 'REVIEW'
+                           WHEN 'failed' THEN 'FAILED' WHEN 'aborted' THEN 'FAILED'
+                           WHEN 'interrupted' THEN 'FAILED' END) STORED,
+  failure_reason         text   NOT NULL,
+  reasons                jsonb  NOT NULL,
+  archive_path           text   NOT NULL,
+  archive_sha256         text   NOT NULL,
+  reprocessed_from_local bigint,
+  table_run_local        bigint,
+  slot                   text   NOT NULL,
+  capture_json           text   NOT NULL,
+  diagnosis_json         text   NOT NULL,
+  setting                text   NOT NULL,
+  origin                 text   NOT NULL,
+  promoted_at_ms         bigint,
+  promoted_by            text   NOT NULL,
+  promote_reason         text   NOT NULL,
+  received_at            timestamptz NOT NULL DEFAULT now(),
+  UNIQUE (station_id, run_uuid),
+  UNIQUE (station_id, local_run_id)
+);
+CREATE INDEX runs_by_serial ON runs (serial, started_at_ms DESC, id DESC);
+CREATE INDEX runs_by_time ON runs (started_at_ms, id);
+CREATE INDEX runs_by_station_time ON runs (station_id, started_at_ms);
+CREATE INDEX runs_by_archive_sha256 ON runs (archive_sha256) WHERE archive_sha256 <> '';
+CREATE INDEX runs_live ON runs (state) WHERE state IN ('preparing', 'running', 'calibrating');
+
+CREATE TABLE calibrations (
+  run_id       bigint  NOT NULL REFERENCES runs(id) ON DELETE CASCADE,
+  method       text    NOT NULL CHECK (method IN ('ains', 'nlsq', 'legacy')),
+  params       jsonb   NOT NULL,
+  sigma        jsonb   NOT NULL,
+  converged    boolean NOT NULL,
+  iterations   integer NOT NULL,
+  runtime_s    double precision NOT NULL,
+  warnings     jsonb   NOT NULL,
+  metrics      jsonb,
+  body_frame   text    NOT NULL,
+  unobservable jsonb   NOT NULL,
+  notes        jsonb   NOT NULL,
+  PRIMARY KEY (run_id, method)
+);
+
+CREATE TABLE crosschecks (
+  run_id       bigint PRIMARY KEY REFERENCES runs(id) ON DELETE CASCADE,
+  verdict      text   NOT NULL CHECK (verdict IN ('PASS', 'REVIEW')),
+  k_sigma      double precision NOT NULL,
+  failures     jsonb  NOT NULL,
+  not_compared jsonb  NOT NULL
+);
+)SQL";
+
+struct FleetMigration {
+  int version;
+  const char* description;
+  const char* sql;
+};
+
+const std::vector<FleetMigration>& fleet_migrations() {
+  static const std::vector<FleetMigration> list = {
+      {1, "runs, calibrations (jsonb parameter sets), crosschecks", kFleetMigration1}};
+  return list;
+}
+
+}  // namespace
+
+int fleet_version(PgConnection& c) {
+  const PgResult has = c.exec("SELECT to_regclass('fleet_schema_version') IS NOT NULL", {},
+                              "read the schema version");
+  if (!has.boolean(0, 0)) return 0;
+  const PgResult v = c.exec("SELECT coalesce(max(version), 0) FROM fleet_schema_version", {},
+                            "read the schema version");
+  return static_cast<int>(v.i64(0, 0));
+}
+
+int migrate_fleet(PgConnection& c) {
+  PgTransaction tx(c, "schema migration");
+  c.exec(kMigrationLock, {}, "schema migration: lock");
+  c.exec_plain(
+      "CREATE TABLE IF NOT EXISTS fleet_schema_version (version integer PRIMARY KEY, "
+      "description text NOT NULL, applied_at timestamptz NOT NULL DEFAULT now())",
+      "schema migration: version table");
+  const int found = fleet_version(c);
+  if (found > kFleetSchemaVersion)
+    throw IncompatibleSchema("fleet store " + c.target().redacted() + ": schema version " +
+                             std::to_string(found) + " is newer than this software's (" +
+                             std::to_string(kFleetSchemaVersion) +
+                             "); update this station's software before it sends to this store");
+  for (const FleetMigration& m : fleet_migrations()) {
+    if (m.version <= found) continue;
+    c.exec_plain(m.sql, "schema migration");
+    c.exec("INSERT INTO fleet_schema_version (version, description) VALUES ($1, $2)",
+           {pg_value(std::int64_t{m.version}), pg_value(m.description)},
+           "schema migration: record the version");
+  }
+  tx.commit();
+  return found;
+}
+
+void check_fleet_version(PgConnection& c) {
+  const int v = fleet_version(c);
+  if (v == kFleetSchemaVersion) return;
+  if (v == 0)
+    throw IncompatibleSchema("fleet store " + c.target().redacted() +
+                             ": no fleet schema (no fleet_schema_version table); a station with "
+                             "[fleet] url creates it, or `stationctl fleet resync`");
+  throw IncompatibleSchema(
+      "fleet store " + c.target().redacted() + ": schema version " + std::to_string(v) +
+      ", this software reads version " + std::to_string(kFleetSchemaVersion) +
+      (v > kFleetSchemaVersion ? ": use a newer version"
+                               : ": let a station of this version migrate it"));
+}
+
+}  // namespace imucal::db::fleet

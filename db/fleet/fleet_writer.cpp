@@ -1,0 +1,169 @@
+#include "db/fleet/fleet_writer.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include "db/export.hpp"
+#include "db/fleet/fleet_codec.hpp"
+
+namespace imucal::db::fleet {
+
+namespace {
+
+using nlohmann::json;
+
+// The upsert: a newer revision replaces every column; an equal or older one changes nothing and
+// returns no row (so the children are left alone too).
+const char* const kSqlUpsertRun = R"SQL(
+INSERT INTO runs (station_id, run_uuid, local_run_id, revision, serial, operator, station,
+  sequence_name, sequence_sha256, software_version, started_at_ms, ended_at_ms, state,
+  failure_reason, reasons, archive_path, archive_sha256, reprocessed_from_local, table_run_local,
+  slot, capture_json, diagnosis_json, setting, origin, promoted_at_ms, promoted_by, promote_reason)
+VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15::jsonb, $16, $17, $18,
+  $19, $20, $21, $22, $23, $24, $25, $26, $27)
+ON CONFLICT (station_id, run_uuid) DO UPDATE SET revision = EXCLUDED.revision,
+  serial = EXCLUDED.serial, operator = EXCLUDED.operator, station = EXCLUDED.station,
+  sequence_name = EXCLUDED.sequence_name, sequence_sha256 = EXCLUDED.sequence_sha256,
+  software_version = EXCLUDED.software_version, started_at_ms = EXCLUDED.started_at_ms,
+  ended_at_ms = EXCLUDED.ended_at_ms, state = EXCLUDED.state,
+  failure_reason = EXCLUDED.failure_reason, reasons = EXCLUDED.reasons,
+  archive_path = EXCLUDED.archive_path, archive_sha256 = EXCLUDED.archive_sha256,
+  reprocessed_from_local = EXCLUDED.reprocessed_from_local,
+  table_run_local = EXCLUDED.table_run_local, slot = EXCLUDED.slot,
+  capture_json = EXCLUDED.capture_json, diagnosis_json = EXCLUDED.diagnosis_json,
+  setting = EXCLUDED.setting, origin = EXCLUDED.origin, promoted_at_ms = EXCLUDED.promoted_at_ms,
+  promoted_by = EXCLUDED.promoted_by, promote_reason = EXCLUDED.promote_reason,
+  received_at = now()
+WHERE runs.revision < EXCLUDED.revision
+RETURNING id
+)SQL";
+const char* const kSqlInsertCal =
+    "INSERT INTO calibrations (run_id, method, params, sigma, converged, iterations, runtime_s, "
+    "warnings, metrics, body_frame, unobservable, notes) VALUES ($1, $2, $3::jsonb, $4::jsonb, "
+    "$5, $6, $7, $8::jsonb, $9::jsonb, $10, $11::jsonb, $12::jsonb)";
+const char* const kSqlInsertCrosscheck =
+    "INSERT INTO crosschecks (run_id, verdict, k_sigma, failures, not_compared) "
+    "VALUES ($1, $2, $3, $4::jsonb, $5::jsonb)";
+
+std::vector<PgParam> run_values(const std::string& station_id, const RunRecord& r) {
+  return {pg_value(station_id),
+          pg_value(r.uuid),
+          pg_value(r.run_id),
+          pg_value(r.revision),
+          pg_value(r.serial),
+          pg_value(r.operator_name),
+          pg_value(r.station),
+          pg_value(r.sequence_name),
+          pg_value(r.sequence_sha256),
+          pg_value(r.software_version),
+          pg_value(r.started_at_ms),
+          pg_value(r.ended_at_ms),
+          pg_value(to_string(r.state)),
+          pg_value(r.failure_reason),
+          pg_value(reasons_json(r.reasons).dump()),
+          pg_value(r.archive_path),
+          pg_value(r.archive_sha256),
+          pg_value(r.reprocessed_from),
+          pg_value(r.table_run_id),
+          pg_value(r.slot),
+          pg_value(r.capture_json),
+          pg_value(r.diagnosis_json),
+          pg_value(calib::setting_name(r.setting)),
+          pg_value(r.origin),
+          pg_value(r.promoted_at_ms),
+          pg_value(r.promoted_by),
+          pg_value(r.promote_reason)};
+}
+
+void replace_children(PgConnection& c, std::int64_t fleet_id, const RunDetails& d) {
+  const PgParam id = pg_value(fleet_id);
+  c.exec("DELETE FROM calibrations WHERE run_id = $1", {id}, "store calibrations");
+  c.exec("DELETE FROM crosschecks WHERE run_id = $1", {id}, "store the cross-check");
+  for (const CalibrationRecord& k : d.calibrations) {
+    const PgParam metrics =
+        k.metrics ? pg_value(metrics_json(*k.metrics).dump()) : PgParam(std::nullopt);
+    c.exec(kSqlInsertCal,
+           {id, pg_value(to_string(k.method)), pg_value(params_json(k.params).dump()),
+            pg_value(params_json(k.sigma).dump()), pg_value(k.converged),
+            pg_value(std::int64_t{k.iterations}), pg_value(k.runtime_s),
+            pg_value(json(k.warnings).dump()), metrics, pg_value(to_string(k.body_frame)),
+            pg_value(json(k.unobservable).dump()), pg_value(json(k.notes).dump())},
+           "store a calibration");
+  }
+  if (d.crosscheck) {
+    const json x = crosscheck_json(*d.crosscheck);
+    c.exec(kSqlInsertCrosscheck,
+           {id, pg_value(to_string(d.crosscheck->verdict)), pg_value(d.crosscheck->k_sigma),
+            pg_value(x["failures"].dump()), pg_value(x["not_compared"].dump())},
+           "store the cross-check");
+  }
+}
+
+/// A PostgreSQL array literal of texts, bound as one value: {"a","b"} with " and \ escaped.
+std::string pg_text_array(const std::vector<std::string>& items) {
+  std::string out = "{";
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    if (i) out += ',';
+    out += '"';
+    for (char ch : items[i]) {
+      if (ch == '"' || ch == '\\') out += '\\';
+      out += ch;
+    }
+    out += '"';
+  }
+  return out + "}";
+}
+
+}  // namespace
+
+void validate_station_id(const std::string& id) {
+  bool ok = !id.empty() && id.size() <= 64;
+  for (char ch : id)
+    ok =
+        ok && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == '-');
+  if (!ok)
+    throw InvalidInput("station id \"" + id +
+                       "\": 1-64 characters of A-Z, a-z, 0-9, '.', '_' and '-'");
+}
+
+UpsertCount upsert_runs(PgConnection& c, const std::string& station_id,
+                        const std::vector<RunDetails>& runs) {
+  validate_station_id(station_id);
+  UpsertCount n;
+  PgTransaction tx(c, "store runs");
+  for (const RunDetails& d : runs) {
+    if (d.run.uuid.size() != 32)
+      throw InvalidInput("station " + station_id + " run " + std::to_string(d.run.run_id) +
+                         ": no run UUID (open the station's database read-write once to migrate)");
+    PgResult r = [&] {
+      try {
+        return c.exec(kSqlUpsertRun, run_values(station_id, d.run), "store a run");
+      } catch (const Conflict& e) {
+        throw Conflict(std::string(e.what()) + " (station " + station_id + ", run " +
+                       std::to_string(d.run.run_id) +
+                       ": the store holds another run under this local id; was the station's "
+                       "database replaced? `stationctl fleet resync` rebuilds its share)");
+      }
+    }();
+    if (r.rows() == 0) {
+      ++n.unchanged;
+      continue;
+    }
+    replace_children(c, r.i64(0, 0), d);
+    ++n.written;
+  }
+  tx.commit();
+  return n;
+}
+
+std::size_t remove_runs_not_in(PgConnection& c, const std::string& station_id,
+                               const std::vector<std::string>& keep) {
+  validate_station_id(station_id);
+  PgTransaction tx(c, "resync: remove runs the station no longer holds");
+  const PgResult r = c.exec(
+      "DELETE FROM runs WHERE station_id = $1 AND NOT (run_uuid = ANY ($2::text[])) RETURNING id",
+      {pg_value(station_id), pg_value(pg_text_array(keep))}, "resync: remove runs");
+  tx.commit();
+  return static_cast<std::size_t>(r.rows());
+}
+
+}  // namespace imucal::db::fleet

@@ -1,0 +1,219 @@
+// The fleet store on a real PostgreSQL server (a throw-away cluster, tests/support/pg_cluster.hpp):
+// a station's runs written by the writer read back field by field equal through the fleet
+// repository; resends are no-ops and an older revision never replaces a newer one; the reader role
+// cannot write; filters are bound values; the password never shows; bad targets are clear errors.
+#include <gtest/gtest.h>
+
+#include <map>
+
+#include "db/fleet/fleet_repository.hpp"
+#include "db/fleet/fleet_schema.hpp"
+#include "db/fleet/fleet_writer.hpp"
+#include "db/sqlite_repository.hpp"
+#include "tests/db/history_fixtures.hpp"
+#include "tests/support/fleet_compare.hpp"
+#include "tests/support/pg_cluster.hpp"
+
+namespace imucal::db::fleet {
+namespace {
+
+using test_support::PgCluster;
+constexpr TimestampMs kT0 = 1714560000000;
+
+FleetTarget writer(const PgCluster& pg) {
+  return parse_fleet_target(pg.url("fleet_writer"), PgCluster::kWriterPassword);
+}
+FleetTarget reader(const PgCluster& pg) {
+  return parse_fleet_target(pg.url("fleet_reader"), PgCluster::kReaderPassword);
+}
+
+/// A station history with every kind of run: PASS, REVIEW, failed, live, a promoted land run, a
+/// reprocess, a table run of two slots, a diagnosis.
+void fill_station(SqliteRepository& repo, const std::string& station, long seed) {
+  auto run = [&](const std::string& serial, TimestampMs t) {
+    NewRun n = test::new_run(serial, t);
+    n.station = station;
+    return n;
+  };
+  const RunId pass = repo.create_run(run("SN-A", kT0 + seed));
+  repo.finish_run(pass, test::pass_completion(seed, kT0 + seed + 100));
+  repo.set_diagnosis(pass, R"({"verdict":"consistent","gap":1.5})");
+  const RunId review = repo.create_run(run("SN-A", kT0 + seed + 200));
+  repo.finish_run(review, test::review_completion(seed + 1, kT0 + seed + 300));
+  NewRun again = run("SN-A", kT0 + seed + 400);
+  again.reprocessed_from = review;
+  const RunId re = repo.create_run(again);
+  repo.update_run_state(re, RunState::kFailed, "archive unreadable: x.csv line 3");
+  NewRun a = run("SN-B", kT0 + seed + 500);
+  a.slot = "A";
+  const RunId first = repo.create_run(a);
+  NewRun b = run("SN-C", kT0 + seed + 500);
+  b.slot = "B";
+  b.table_run_id = first;
+  const RunId second = repo.create_run(b);
+  repo.finish_run(first, test::pass_completion(seed + 2, kT0 + seed + 600));
+  repo.update_run_state(second, RunState::kRunning);
+}
+
+std::map<RunId, std::string> uuids(const std::vector<RunDetails>& runs) {
+  std::map<RunId, std::string> m;
+  for (const RunDetails& d : runs) m[d.run.run_id] = d.run.uuid;
+  return m;
+}
+
+std::vector<RunDetails> all_runs(const SqliteRepository& repo) {
+  std::vector<RunId> ids;
+  for (const RunRecord& r : repo.recent_runs(0)) ids.push_back(r.run_id);
+  return repo.details_of(ids);
+}
+
+TEST(FleetStore, RunsReadBackFieldByFieldAndResendsChangeNothing) {
+  PgCluster pg;
+  test::TempDir dir;
+  SqliteRepository s1(dir.file("s1.db")), s2(dir.file("s2.db"));
+  fill_station(s1, "ST-1", 1);
+  fill_station(s2, "ST-2", 2);
+  PgConnection w(writer(pg));
+  EXPECT_EQ(migrate_fleet(w), 0);
+  EXPECT_EQ(migrate_fleet(w), kFleetSchemaVersion) << "a second migration finds it current";
+  const auto runs1 = all_runs(s1), runs2 = all_runs(s2);
+  EXPECT_EQ(upsert_runs(w, "ST-1", runs1).written, runs1.size());
+  EXPECT_EQ(upsert_runs(w, "ST-2", runs2).written, runs2.size());
+  const UpsertCount again = upsert_runs(w, "ST-1", runs1);
+  EXPECT_EQ(again.written, 0u);
+  EXPECT_EQ(again.unchanged, runs1.size());
+
+  FleetRepository fleet(reader(pg));
+  EXPECT_EQ(fleet.total_run_count(), runs1.size() + runs2.size());
+  std::vector<RunId> fleet_ids;
+  for (const RunRecord& r : fleet.recent_runs(0)) fleet_ids.push_back(r.run_id);
+  std::vector<RunDetails> from_fleet;
+  for (RunId id : fleet_ids) from_fleet.push_back(fleet.show(id));
+  const auto fleet_uuids = uuids(from_fleet);
+  std::map<std::string, nlohmann::json> stored;
+  for (const RunDetails& d : from_fleet)
+    stored[d.run.uuid] = test_support::comparable_run(d, fleet_uuids);
+  for (const auto* runs : {&runs1, &runs2}) {
+    const auto local = uuids(*runs);
+    for (const RunDetails& d : *runs) {
+      ASSERT_TRUE(stored.count(d.run.uuid)) << d.run.uuid;
+      EXPECT_EQ(stored[d.run.uuid], test_support::comparable_run(d, local));
+    }
+  }
+  // history across stations, newest first, and the active set of the fleet.
+  const auto hist = fleet.history("SN-A");
+  ASSERT_EQ(hist.size(), 6u);
+  EXPECT_EQ(hist.front().station, "ST-2");
+  EXPECT_EQ(fleet.run_count("SN-A"), 6u);
+  EXPECT_EQ(fleet.active_params("SN-A").run.station, "ST-2");
+  EXPECT_THROW(fleet.history("SN-NONE"), NotFound);
+  EXPECT_THROW(fleet.show(999999), NotFound);
+  std::size_t rows = 0;
+  ExportFilter only1;
+  only1.station = "ST-1";
+  fleet.export_rows(only1, [&](const ExportRow& r) {
+    EXPECT_EQ(r.run.station, "ST-1");
+    ++rows;
+  });
+  std::size_t sqlite_rows = 0;
+  s1.export_rows({}, [&](const ExportRow&) { ++sqlite_rows; });
+  EXPECT_EQ(rows, sqlite_rows);
+  const auto stations = fleet.stations();
+  ASSERT_EQ(stations.size(), 2u);
+  EXPECT_EQ(stations[0].second, runs1.size());
+}
+
+TEST(FleetStore, AnOlderRevisionNeverReplacesANewerOne) {
+  PgCluster pg;
+  test::TempDir dir;
+  SqliteRepository s(dir.file("s.db"));
+  const RunId id = s.create_run(test::new_run("SN-1", kT0));
+  const std::vector<RunDetails> live = s.details_of({id});
+  s.finish_run(id, test::pass_completion(1, kT0 + 100));
+  const std::vector<RunDetails> done = s.details_of({id});
+  PgConnection w(writer(pg));
+  migrate_fleet(w);
+  EXPECT_EQ(upsert_runs(w, "ST", done).written, 1u);
+  EXPECT_EQ(upsert_runs(w, "ST", live).unchanged, 1u) << "a stale resync copy arrives late";
+  FleetRepository fleet(reader(pg));
+  const RunDetails back = fleet.show(fleet.recent_runs(1).at(0).run_id);
+  EXPECT_EQ(back.run.state, RunState::kDone);
+  EXPECT_EQ(back.calibrations.size(), 2u);
+  // resync: runs the station no longer holds leave the store.
+  EXPECT_EQ(remove_runs_not_in(w, "ST", {}), 1u);
+  EXPECT_EQ(fleet.total_run_count(), 0u);
+}
+
+TEST(FleetStore, TheReaderRoleCannotWriteAndFiltersAreBoundValues) {
+  PgCluster pg;
+  test::TempDir dir;
+  SqliteRepository s(dir.file("s.db"));
+  fill_station(s, "ST-1", 1);
+  PgConnection w(writer(pg));
+  migrate_fleet(w);
+  upsert_runs(w, "ST-1", all_runs(s));
+  PgConnection r(reader(pg));
+  EXPECT_THROW(r.exec_plain("DELETE FROM runs", "try"), ReadOnly);
+  EXPECT_THROW(r.exec_plain("UPDATE runs SET serial = 'X'", "try"), ReadOnly);
+  EXPECT_THROW(r.exec_plain("CREATE TABLE t (x int)", "try"), ReadOnly);
+  EXPECT_THROW(upsert_runs(r, "ST-1", all_runs(s)), ReadOnly);
+  FleetRepository fleet(reader(pg));
+  EXPECT_THROW(fleet.create_run(test::new_run("SN-1", kT0)), ReadOnly);
+
+  const std::string evil = "x'; DROP TABLE runs; --";
+  ExportFilter f;
+  f.station = evil;
+  std::size_t rows = 0;
+  fleet.export_rows(f, [&](const ExportRow&) { ++rows; });
+  EXPECT_EQ(rows, 0u);
+  EXPECT_THROW(fleet.history(evil), InvalidInput) << "a serial is validated before any SQL";
+  EXPECT_THROW(upsert_runs(w, evil, all_runs(s)), InvalidInput);
+  EXPECT_EQ(fleet.total_run_count(), all_runs(s).size()) << "nothing dropped";
+}
+
+TEST(FleetStore, BadTargetsAreClearErrorsThatNeverShowThePassword) {
+  PgCluster pg;
+  EXPECT_THROW(parse_fleet_target("postgresql://u@h:notaport/db"), InvalidInput);
+  EXPECT_THROW(parse_fleet_target("mysql://x"), InvalidInput);
+  EXPECT_THROW(parse_fleet_target(""), InvalidInput);
+  const FleetTarget in_url = parse_fleet_target(
+      "postgresql://fleet_writer:S3cretInUrl@127.0.0.1:" + std::to_string(pg.port()) + "/fleet");
+  EXPECT_EQ(in_url.redacted().find("S3cretInUrl"), std::string::npos);
+  EXPECT_NE(in_url.redacted().find("***"), std::string::npos);
+
+  auto message_of = [](const FleetTarget& t) -> std::string {
+    try {
+      PgConnection c(t);
+      FleetRepository repo(t);
+    } catch (const DbError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  const std::string wrong_password = "Wr0ngPassw0rd";
+  const std::string m1 = message_of(parse_fleet_target(pg.url("fleet_writer"), wrong_password));
+  EXPECT_NE(m1.find("password authentication failed"), std::string::npos) << m1;
+  EXPECT_EQ(m1.find(wrong_password), std::string::npos) << m1;
+  const std::string m2 = message_of(parse_fleet_target(
+      "postgresql://u@127.0.0.1:" + std::to_string(test_support::free_tcp_port()) + "/fleet"));
+  EXPECT_NE(m2.find("cannot connect"), std::string::npos) << m2;
+  // Expired credentials.
+  pg.admin("ALTER ROLE fleet_reader VALID UNTIL '2001-01-01'");
+  const std::string m3 = message_of(reader(pg));
+  EXPECT_NE(m3.find("cannot connect"), std::string::npos) << m3;
+  EXPECT_EQ(m3.find(PgCluster::kReaderPassword), std::string::npos) << m3;
+  pg.admin("ALTER ROLE fleet_reader VALID UNTIL 'infinity'");
+  // No schema yet, then a newer schema than this software's.
+  const std::string m4 = message_of(reader(pg));
+  EXPECT_NE(m4.find("no fleet schema"), std::string::npos) << m4;
+  PgConnection w(writer(pg));
+  migrate_fleet(w);
+  pg.admin("INSERT INTO fleet_schema_version (version, description) VALUES (99, 'future')",
+           "fleet");
+  const std::string m5 = message_of(reader(pg));
+  EXPECT_NE(m5.find("schema version 99"), std::string::npos) << m5;
+  EXPECT_THROW(migrate_fleet(w), IncompatibleSchema);
+}
+
+}  // namespace
+}  // namespace imucal::db::fleet
