@@ -325,4 +325,17 @@ TimestampMs now_ms() {
       .count();
 }
 
+std::vector<RunRecord> Repository::station_runs(const std::string& station,
+                                                const std::optional<std::string>& serial,
+                                                std::size_t limit) const {
+  std::vector<RunRecord> all = serial ? history(*serial) : recent_runs(0);
+  std::vector<RunRecord> out;
+  for (RunRecord& r : all) {
+    if (r.station != station) continue;
+    out.push_back(std::move(r));
+    if (limit != 0 && out.size() == limit) break;
+  }
+  return out;
+}
+
 }  // namespace imucal::db

@@ -333,6 +333,12 @@ class Repository {
   virtual std::vector<RunRecord> recent_runs(std::size_t limit) const = 0;
   /// How many runs the database holds in all.
   virtual std::size_t total_run_count() const = 0;
+  /// The runs of one station (RunRecord::station; in the fleet store its station id), of one
+  /// serial or of every unit, newest first; limit 0 = all. InvalidInput for a malformed serial.
+  /// The default filters history()/recent_runs(); the fleet store answers from its index.
+  virtual std::vector<RunRecord> station_runs(const std::string& station,
+                                              const std::optional<std::string>& serial,
+                                              std::size_t limit) const;
 
   /// Everything stored about a run. NotFound if there is no such run.
   virtual RunDetails show(RunId run_id) const = 0;

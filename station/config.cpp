@@ -15,6 +15,8 @@
 #include "calib/core/conventions.hpp"
 #include "calib/core/rotation.hpp"
 #include "calib/effects/catalogue.hpp"
+#include "db/fleet/fleet_url.hpp"
+#include "db/fleet/fleet_writer.hpp"
 #include "drivers/imu/imu_protocol.hpp"
 #include "drivers/turntable/register_map.hpp"
 #include "sequences/library.hpp"
@@ -244,8 +246,8 @@ void check_default_sequence(const StationConfig& c, const Section& s) {
 
 /// Top level: only the known tables, each a table.
 void check_top_level(const toml::table& root, const std::string& origin) {
-  const std::vector<std::string> sections = {"station", "control",     "turntable",
-                                             "imu",     "calibration", "log"};
+  const std::vector<std::string> sections = {"station", "control",     "turntable", "imu",
+                                             "fleet",   "calibration", "log"};
   const toml::key* first = nullptr;
   for (const auto& [k, v] : root) {
     if (std::find(sections.begin(), sections.end(), std::string(k.str())) != sections.end()) {
@@ -263,7 +265,7 @@ void check_top_level(const toml::table& root, const std::string& origin) {
     throw ConfigError(origin, pos_of(first->source()).line, pos_of(first->source()).column,
                       "unknown key or table '" + std::string(first->str()) +
                           "' (allowed tables: [station], [control], [turntable], [imu], "
-                          "[calibration], [log])");
+                          "[fleet], [calibration], [log])");
   }
 }
 
@@ -560,6 +562,37 @@ void parse_calibration(const Section& s, const std::string& base_dir, StationCon
                                       calib::effect_names_list() + "; imucal effects)");
 }
 
+/// [fleet]: the fleet store (absent: none). The URL is checked by libpq's own parser and the
+/// station id by the store's rule; the password is read when the sender connects (a rotated
+/// password needs no restart), so an unreadable file shows in `status`, not here.
+void parse_fleet(const Section& s, const toml::table* t, const std::string& base_dir,
+                 StationConfig& c) {
+  if (!t) return;
+  s.only({"url", "station_id", "password_file", "password_env", "batch_entries"});
+  FleetConfig f;
+  f.url = *s.string("url", true, false);
+  try {
+    db::fleet::parse_fleet_target(f.url);
+  } catch (const db::DbError& e) {
+    s.fail_key("url", e.what());
+  }
+  f.station_id = c.station_name;
+  if (auto v = s.string("station_id", false, false)) f.station_id = *v;
+  try {
+    db::fleet::validate_station_id(f.station_id);
+  } catch (const db::DbError& e) {
+    s.fail_key(s.has("station_id") ? "station_id" : "url",
+               std::string(e.what()) + (s.has("station_id") ? "" : " (set [fleet] station_id)"));
+  }
+  if (auto v = s.string("password_file", false, false)) f.password_file = resolve(base_dir, *v);
+  if (auto v = s.string("password_env", false, false)) f.password_env = *v;
+  if (!f.password_file.empty() && !f.password_env.empty())
+    s.fail_key("password_env", "give password_file or password_env, not both");
+  if (auto v = s.integer("batch_entries", false, 1, 10000, ""))
+    f.batch_entries = static_cast<std::size_t>(*v);
+  c.fleet = f;
+}
+
 /// [log]: the log level.
 void parse_log(const Section& s, StationConfig& c) {
   s.only({"level"});
@@ -584,6 +617,7 @@ StationConfig parse_root(const toml::table& root, const std::string& origin,
   parse_control(section_of(root, origin, "control"), base_dir, c);
   parse_turntable(section_of(root, origin, "turntable"), origin, c);
   parse_imus(root, origin, base_dir, c);
+  parse_fleet(section_of(root, origin, "fleet"), root.get_as<toml::table>("fleet"), base_dir, c);
   parse_calibration(section_of(root, origin, "calibration"), base_dir, c);
   parse_log(section_of(root, origin, "log"), c);
   return c;

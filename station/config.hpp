@@ -85,6 +85,18 @@ struct ImuSlotConfig {
   double vrw_mps_per_sqrt_s() const;
 };
 
+/// [fleet] (issue #24): the factory's fleet store this station replicates its history to. The
+/// station never waits for it: runs are stored in SQLite first and an outbox carries them over
+/// (station/fleet_sender.hpp).
+struct FleetConfig {
+  std::string url;            ///< url (required in [fleet]): postgresql://USER@HOST:PORT/DB
+  std::string station_id;     ///< station_id (default [station] name): the station's key
+  std::string password_file;  ///< password_file: first line is the password (read at each connect)
+  std::string password_env;   ///< password_env: an environment variable holding it
+  /// How many outbox entries one transaction to the fleet store carries.
+  std::size_t batch_entries = 200;
+};
+
 struct StationConfig {
   std::string source_path;  ///< the config file (as given)
   std::string base_dir;     ///< its directory, absolute; relative paths were resolved against it
@@ -114,6 +126,9 @@ struct StationConfig {
   /// The first (on a one-unit station the only) slot.
   const ImuSlotConfig& imu() const { return imus.front(); }
   ImuSlotConfig& imu() { return imus.front(); }
+
+  // [fleet]: absent = this station keeps its history to itself (no outbox)
+  std::optional<FleetConfig> fleet;
 
   // [calibration]
   std::string default_sequence = "factory-std";

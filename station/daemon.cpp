@@ -97,6 +97,15 @@ void Daemon::start() {
     spdlog::warn("recovery: {} run(s) ended at start-up", recovery_.runs.size());
   }
 
+  if (cfg_.fleet) {
+    // The line never waits for the fleet store: the sender only reads what SQLite committed.
+    fleet_ = std::make_unique<FleetSender>(cfg_.database, *cfg_.fleet);
+    spdlog::info("fleet store {} as station {}: outbox {} entries", fleet_->status().url,
+                 cfg_.fleet->station_id, fleet_->status().outbox_length);
+  } else {
+    repo_->set_outbox_enabled(false);
+  }
+
   // The units of one table run calibrate in parallel, as many at once as there are cores.
   const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
   worker_ = std::make_unique<CalibrationWorker>(
@@ -118,6 +127,7 @@ void Daemon::start() {
     server_.reset();
     controller_.reset();
     worker_.reset();
+    fleet_.reset();
     repo_.reset();
     release_lock();
     throw;
@@ -139,6 +149,14 @@ void Daemon::stop(const std::string& reason) {
   controller_.reset();
   server_.reset();
   worker_.reset();
+  if (fleet_) {
+    // A moment for the last run to reach the fleet store; whatever is left waits in the outbox
+    // for the next start.
+    if (!fleet_->wait_until_drained(std::chrono::seconds(2)))
+      spdlog::info("fleet store: {} outbox entries wait for the next start",
+                   fleet_->status().outbox_length);
+    fleet_.reset();
+  }
   repo_.reset();
   release_lock();
   spdlog::info("stationd stopped");
@@ -246,7 +264,8 @@ nlohmann::json Daemon::status(std::optional<db::RunId> run_id) {
   return {{"daemon", daemon},
           {"state", active ? "busy" : "idle"},
           {"run", active ? to_json(*active) : json(nullptr)},
-          {"last_run", last ? to_json(*last) : json(nullptr)}};
+          {"last_run", last ? to_json(*last) : json(nullptr)},
+          {"fleet", fleet_ ? fleet_->status().to_json() : json(nullptr)}};
 }
 
 nlohmann::json Daemon::abort_run(const std::string& reason) {

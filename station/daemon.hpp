@@ -13,7 +13,8 @@
 //             finished) and waited for -> control socket closed -> worker joined
 //
 // Status JSON (status()): {"daemon": {"version", "pid", "station", "uptime_s"}, "state": "idle" |
-// "busy", "run": RunSnapshot JSON | null, "last_run": the last run this daemon ended | null}.
+// "busy", "run": RunSnapshot JSON | null, "last_run": the last run this daemon ended | null,
+// "fleet": FleetSenderStatus JSON (outbox length, last error, ...) | null without [fleet]}.
 #include <atomic>
 #include <chrono>
 #include <memory>
@@ -26,6 +27,7 @@
 #include "station/calibration_worker.hpp"
 #include "station/config.hpp"
 #include "station/control_handler.hpp"
+#include "station/fleet_sender.hpp"
 #include "station/recovery.hpp"
 #include "station/run_controller.hpp"
 #include "station/sd_notify.hpp"
@@ -81,6 +83,7 @@ class Daemon final : public ControlHandler {
   DaemonOptions opt_;
   std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
   std::unique_ptr<db::SqliteRepository> repo_;
+  std::unique_ptr<FleetSender> fleet_;  ///< [fleet] named: the outbox sender; otherwise none
   std::unique_ptr<CalibrationWorker> worker_;
   std::unique_ptr<RunController> controller_;
   std::unique_ptr<ControlServer> server_;

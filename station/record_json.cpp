@@ -123,11 +123,26 @@ db::ExportFilter export_filter(const db::Repository& repo, const json& args) {
   }
   if (args.contains("since"))
     filter.since_ms = db::parse_time_utc(args.at("since").get<std::string>());
+  if (args.contains("station")) filter.station = args.at("station").get<std::string>();
   return filter;
 }
 
 json answer_repository_read(const db::Repository& repo, const Request& request) {
   const json& a = request.args;
+  if (request.cmd == cmd::kHistory && a.contains("station")) {
+    // One station's runs (in the fleet store: one of many), of a unit or of every unit.
+    std::optional<std::string> serial;
+    if (a.contains("serial")) serial = a.at("serial").get<std::string>();
+    const std::size_t limit = a.contains("limit") ? a.at("limit").get<std::size_t>()
+                              : serial            ? 0
+                                                  : kAllUnitsHistoryLimit;
+    const auto runs = repo.station_runs(a.at("station").get<std::string>(), serial, limit);
+    const std::size_t total = serial ? repo.run_count(*serial) : repo.total_run_count();
+    json h = history_result(serial.value_or(""), runs, total);
+    if (!serial) h["serial"] = nullptr;
+    h["station"] = a.at("station");
+    return h;
+  }
   if (request.cmd == cmd::kHistory) {
     if (!a.contains("serial")) {
       // Every unit's newest runs (issue #19 item 11), a screenful unless asked for more.
@@ -560,6 +575,17 @@ std::string render_status_text(const json& status) {
   }
   if (has(status, "last_run") && status["last_run"].is_object())
     describe("Last ", status["last_run"]);
+  if (has(status, "fleet") && status["fleet"].is_object()) {
+    const json& f = status["fleet"];
+    os << "Fleet store " << str(f, "url", "?") << " as station " << str(f, "station_id", "?")
+       << ": " << (f.value("connected", false) ? "connected" : "not connected") << ", outbox "
+       << str(f, "outbox_length", "?") << " entries";
+    if (!str(f, "last_delivery_at").empty()) os << ", last delivery " << str(f, "last_delivery_at");
+    os << "\n";
+    if (!str(f, "last_error").empty())
+      os << "  last error (" << str(f, "last_error_at", "?") << "): " << str(f, "last_error")
+         << "\n";
+  }
   return os.str();
 }
 

@@ -227,6 +227,20 @@ std::size_t FleetRepository::total_run_count() const {
       impl_->conn.exec("SELECT count(*) FROM runs", {}, "count runs").i64(0, 0));
 }
 
+std::vector<RunRecord> FleetRepository::station_runs(const std::string& station,
+                                                     const std::optional<std::string>& serial,
+                                                     std::size_t limit) const {
+  if (serial) validate_serial(*serial);
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->runs(
+      "SELECT " + kRunColumns + kRunFrom +
+          "WHERE r.station_id = $1 AND ($2::text IS NULL OR r.serial = $2) "
+          "ORDER BY r.started_at_ms DESC, r.id DESC LIMIT $3",
+      {pg_value(station), pg_value(serial),
+       limit == 0 ? PgParam(std::nullopt) : pg_value(static_cast<std::int64_t>(limit))},
+      "station runs");
+}
+
 RunDetails FleetRepository::show(RunId run_id) const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   PgTransaction tx(impl_->conn, "show", true);

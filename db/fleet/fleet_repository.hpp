@@ -45,6 +45,9 @@ class FleetRepository final : public Repository {
   std::size_t run_count(const std::string& serial) const override;
   std::vector<RunRecord> recent_runs(std::size_t limit) const override;
   std::size_t total_run_count() const override;
+  std::vector<RunRecord> station_runs(const std::string& station,
+                                      const std::optional<std::string>& serial,
+                                      std::size_t limit) const override;
   RunDetails show(RunId run_id) const override;
   ActiveCalibration active_params(const std::string& serial) const override;
   void export_rows(const ExportFilter& filter,

@@ -29,11 +29,15 @@
 
 #include "db/archive/io_util.hpp"
 #include "db/export.hpp"
+#include "db/fleet/fleet_repository.hpp"
+#include "db/fleet/fleet_schema.hpp"
+#include "db/fleet/fleet_writer.hpp"
 #include "db/serial_number.hpp"
 #include "db/sqlite_repository.hpp"
 #include "station/config.hpp"
 #include "station/control_client.hpp"
 #include "station/control_protocol.hpp"
+#include "station/fleet_sender.hpp"
 #include "station/record_json.hpp"
 #include "tools/imucal/diagnosis_report.hpp"
 #include "tools/stationctl/export_output.hpp"
@@ -99,6 +103,8 @@ struct Globals {
   std::string config;
   std::string socket;
   std::string db;
+  std::string fleet;                ///< --fleet URL: read the fleet store instead
+  std::string fleet_password_file;  ///< its password (else libpq's PGPASSWORD / ~/.pgpass)
   bool json = false;
 };
 
@@ -106,6 +112,9 @@ struct Target {
   std::string socket;
   std::string db;  ///< "" = none known
   std::string config_used;
+  std::string fleet_url;  ///< --fleet: reads go to the fleet store (no daemon, no SQLite)
+  std::string fleet_password;
+  std::optional<station::FleetConfig> fleet_config;  ///< the config's [fleet], for `fleet resync`
 };
 
 Target resolve_target(const Globals& g) {
@@ -122,12 +131,21 @@ Target resolve_target(const Globals& g) {
       t.socket = c.control_socket;
       t.db = c.database;
       t.config_used = config;
+      t.fleet_config = c.fleet;
     } catch (const station::ConfigError& e) {
       throw Failure{kBadInput, e.what()};
     }
   }
   if (!g.socket.empty()) t.socket = g.socket;
   if (!g.db.empty()) t.db = g.db;
+  t.fleet_url = g.fleet;
+  try {
+    if (!g.fleet_password_file.empty())
+      t.fleet_password = db::fleet::read_password_file(g.fleet_password_file);
+    if (!t.fleet_url.empty()) (void)db::fleet::parse_fleet_target(t.fleet_url, t.fleet_password);
+  } catch (const db::DbError& e) {
+    throw Failure{kBadInput, std::string("--fleet: ") + e.what()};
+  }
   if (t.socket.empty()) t.socket = kDefaultSocket;
   return t;
 }
@@ -170,8 +188,36 @@ std::optional<ControlClient> connect_for_read(const Target& t, std::string& why)
   }
 }
 
+/// The fleet store's read side (db/fleet/fleet_repository.hpp); its errors as stationctl's.
+std::unique_ptr<db::fleet::FleetRepository> open_fleet(const Target& t) {
+  try {
+    return std::make_unique<db::fleet::FleetRepository>(
+        db::fleet::parse_fleet_target(t.fleet_url, t.fleet_password));
+  } catch (const db::DbError& e) {
+    throw Failure{exit_for_db_error(e.kind()), e.what()};
+  }
+}
+
+/// A read of the fleet store (--fleet URL): the same validation and the same answer as the
+/// daemon's, over every station's runs.
+json fleet_read(const Target& t, const std::string& command, const json& args) {
+  if (command == station::cmd::kRunStatus)
+    throw Failure{kBadInput, "run status needs a station's daemon, not the fleet store"};
+  const auto repo = open_fleet(t);
+  try {
+    const station::Request request =
+        station::validate_request(json{{"id", 0}, {"cmd", command}, {"args", args}});
+    return station::answer_repository_read(*repo, request);
+  } catch (const station::BadRequest& e) {
+    throw Failure{kBadInput, e.what()};
+  } catch (const db::DbError& e) {
+    throw Failure{exit_for_db_error(e.kind()), e.what()};
+  }
+}
+
 /// A read: over the socket, or from the database read-only when the daemon is unreachable.
 json read_request(const Target& t, const std::string& command, const json& args) {
+  if (!t.fleet_url.empty()) return fleet_read(t, command, args);
   std::string why;
   using Kind = ControlClientError::Kind;
   std::optional<ControlClient> client = connect_for_read(t, why);
@@ -441,7 +487,19 @@ std::optional<std::size_t> export_from_daemon(const Target& t, const json& args,
 int export_to(const Target& t, const json& args, const std::string& output, bool json_out) {
   ExportOutput out(output);
   std::string why;
-  std::optional<std::size_t> rows = export_from_daemon(t, args, out, why);
+  std::optional<std::size_t> rows;
+  if (!t.fleet_url.empty()) {
+    const auto repo = open_fleet(t);
+    try {
+      rows = db::export_history(*repo, station::export_filter(*repo, args),
+                                args.at("format").get<std::string>(), out.stream());
+    } catch (const db::DbError& e) {
+      out.check();
+      throw Failure{exit_for_db_error(e.kind()), e.what()};
+    }
+  } else {
+    rows = export_from_daemon(t, args, out, why);
+  }
   if (!rows) {
     if (t.db.empty())
       throw Failure{kUnavailable, why + "; no database to read instead (give --db or --config)"};
@@ -479,7 +537,7 @@ int cmd_export(const Target& t, const json& args, const std::string& output, boo
 struct Args {
   std::vector<std::string> serials, slots;  ///< run start: the units, by order or by slot
   std::string serial, sequence, operator_name, reason, since, format, output, import_dir,
-      report_dir;
+      report_dir, station;
   bool wait = false, partial = false, bare = false;
   db::RunId run_id = 0;
   std::size_t limit = 0;
@@ -488,7 +546,7 @@ struct Args {
 /// The subcommands, to find the one given.
 struct Commands {
   CLI::App *start, *status, *abort, *history, *show, *params, *exp, *reprocess, *diagnose, *import,
-      *promote;
+      *promote, *stations, *resync;
 };
 
 void add_global_options(CLI::App& app, Globals& g) {
@@ -501,6 +559,11 @@ void add_global_options(CLI::App& app, Globals& g) {
                      kDefaultSocket + ")");
   app.add_option("--db", g.db,
                  "history database for reads when stationd is down (default: the config's)");
+  app.add_option("--fleet", g.fleet,
+                 "read history, show, params, export and stations from the factory's fleet store "
+                 "(postgresql://USER@HOST:PORT/DB) instead of this station");
+  app.add_option("--fleet-password-file", g.fleet_password_file,
+                 "the fleet store password's file (first line); default: PGPASSWORD or ~/.pgpass");
   app.add_flag("--json", g.json, "print the raw JSON result instead of text");
 }
 
@@ -538,6 +601,7 @@ void add_read_commands(CLI::App& app, Args& a, Commands& c) {
   c.history->add_option("SN", a.serial, "serial number (default: every unit)");
   c.history->add_option("--limit", a.limit,
                         "at most N runs (default: all of a unit, the newest 20 of every unit)");
+  c.history->add_option("--station", a.station, "only this station's runs");
   c.history->fallthrough();
   c.show = app.add_subcommand("show", "everything stored about a run");
   c.show->add_option("RUN_ID", a.run_id, "run id")->required()->check(CLI::PositiveNumber);
@@ -562,6 +626,7 @@ void add_read_commands(CLI::App& app, Args& a, Commands& c) {
       ->required()
       ->check(CLI::IsMember({"csv", "json", "ndjson"}));
   c.exp->add_option("--output", a.output, "write to FILE instead of stdout");
+  c.exp->add_option("--station", a.station, "only this station's runs");
   c.exp->fallthrough();
 }
 
@@ -598,6 +663,19 @@ void add_history_commands(CLI::App& app, Args& a, Commands& c) {
       ->required()
       ->check(text_check(station::kMaxReasonChars));
   c.promote->fallthrough();
+  c.stations = app.add_subcommand("stations", "the stations in the fleet store (--fleet URL)");
+  c.stations->fallthrough();
+  auto* fleet = app.add_subcommand("fleet", "this station's share of the factory's fleet store");
+  fleet->require_subcommand(1);
+  fleet->fallthrough();
+  c.resync = fleet->add_subcommand(
+      "resync",
+      "rebuild this station's share of the fleet store from its SQLite history (the config's "
+      "[fleet], or --fleet URL with --station-id): every run stored, runs it no longer holds "
+      "removed; safe while stationd runs");
+  c.resync->add_option("--station-id", a.station,
+                       "the station's id in the store (default: the config's)");
+  c.resync->fallthrough();
 }
 
 /// A result as JSON, or as the text `render` makes of it.
@@ -695,6 +773,7 @@ int cmd_run_abort(const Target& t, const Args& a, bool as_json) {
 
 int cmd_export_history(const Target& t, const Args& a, bool as_json) {
   json args = {{"format", a.format}};
+  if (!a.station.empty()) args["station"] = a.station;
   if (!a.serial.empty()) {
     check_serial(a.serial);
     args["serial"] = a.serial;
@@ -746,6 +825,81 @@ int cmd_diagnose(const Target& t, const Args& a, bool as_json) {
   return d.value("verdict", "") == "unexplained" ? kGapUnexplained : kOk;
 }
 
+/// `stationctl --fleet URL stations`: the stations with runs in the fleet store.
+int cmd_stations(const Target& t, bool as_json) {
+  if (t.fleet_url.empty())
+    throw Failure{kBadInput, "stations: give the fleet store with --fleet URL"};
+  const auto repo = open_fleet(t);
+  json list = json::array();
+  try {
+    for (const auto& [id, runs] : repo->stations())
+      list.push_back({{"station", id}, {"runs", runs}});
+  } catch (const db::DbError& e) {
+    throw Failure{exit_for_db_error(e.kind()), e.what()};
+  }
+  if (as_json) {
+    print_json({{"stations", list}});
+  } else {
+    for (const json& s : list)
+      std::cout << text(s, "station") << "  " << text(s, "runs") << " runs\n";
+    if (list.empty()) std::cout << "no station has stored runs in the fleet store\n";
+  }
+  return kOk;
+}
+
+/// `stationctl fleet resync`: the station's share of the fleet store made equal to its SQLite.
+int cmd_fleet_resync(const Target& t, const std::string& station_id_option, bool as_json) {
+  if (t.db.empty()) throw Failure{kBadInput, "fleet resync: no database (give --config or --db)"};
+  if (t.fleet_url.empty() && !t.fleet_config)
+    throw Failure{kBadInput,
+                  "fleet resync: the config names no [fleet] store (or give --fleet URL)"};
+  const std::string station_id = !station_id_option.empty() ? station_id_option
+                                 : t.fleet_config
+                                     ? t.fleet_config->station_id
+                                     : throw Failure{kBadInput, "fleet resync: give --station-id"};
+  try {
+    const db::fleet::FleetTarget target =
+        t.fleet_url.empty() ? station::fleet_target(*t.fleet_config)
+                            : db::fleet::parse_fleet_target(t.fleet_url, t.fleet_password);
+    db::SqliteOptions ro;
+    ro.read_only = true;
+    const db::SqliteRepository local(t.db, ro);
+    db::fleet::PgConnection conn(target);
+    db::fleet::migrate_fleet(conn);
+    std::vector<db::RunId> ids;
+    std::vector<std::string> uuids;
+    for (const db::RunRecord& r : local.recent_runs(0)) ids.push_back(r.run_id);
+    std::sort(ids.begin(), ids.end());
+    db::fleet::UpsertCount n;
+    constexpr std::size_t kChunk = 500;
+    for (std::size_t i = 0; i < ids.size(); i += kChunk) {
+      const std::vector<db::RunId> chunk(ids.begin() + i,
+                                         ids.begin() + std::min(ids.size(), i + kChunk));
+      const auto runs = local.details_of(chunk);
+      for (const auto& d : runs) uuids.push_back(d.run.uuid);
+      const auto c = db::fleet::upsert_runs(conn, station_id, runs);
+      n.written += c.written;
+      n.unchanged += c.unchanged;
+      if (!as_json && isatty(STDERR_FILENO))
+        std::cerr << "\rresync " << std::min(ids.size(), i + kChunk) << "/" << ids.size() << " runs"
+                  << std::flush;
+    }
+    if (!as_json && isatty(STDERR_FILENO)) std::cerr << "\n";
+    const std::size_t removed = db::fleet::remove_runs_not_in(conn, station_id, uuids);
+    const json r = {{"station_id", station_id}, {"fleet", target.redacted()}, {"runs", ids.size()},
+                    {"written", n.written},     {"unchanged", n.unchanged},   {"removed", removed}};
+    if (as_json)
+      print_json(r);
+    else
+      std::cout << "fleet store " << target.redacted() << ": station " << station_id
+                << " resynced: " << ids.size() << " runs (" << n.written << " written, "
+                << n.unchanged << " already there), " << removed << " removed\n";
+    return kOk;
+  } catch (const db::DbError& e) {
+    throw Failure{exit_for_db_error(e.kind()), e.what()};
+  }
+}
+
 /// The command given, run.
 int dispatch(const Target& t, const Args& a, const Commands& c, bool as_json) {
   if (*c.start) return cmd_run_start(t, a, as_json);
@@ -763,6 +917,7 @@ int dispatch(const Target& t, const Args& a, const Commands& c, bool as_json) {
       args["serial"] = a.serial;
     }
     if (a.limit > 0) args["limit"] = a.limit;
+    if (!a.station.empty()) args["station"] = a.station;
     return print_result(read_request(t, station::cmd::kHistory, args), as_json,
                         station::render_history_text);
   }
@@ -780,6 +935,8 @@ int dispatch(const Target& t, const Args& a, const Commands& c, bool as_json) {
   if (*c.diagnose) return cmd_diagnose(t, a, as_json);
   if (*c.import) return cmd_import(t, a.import_dir, a.wait, as_json);
   if (*c.promote) return cmd_promote(t, a.run_id, a.reason, as_json);
+  if (*c.stations) return cmd_stations(t, as_json);
+  if (*c.resync) return cmd_fleet_resync(t, a.station, as_json);
   throw Failure{kBadInput, "no command given (see --help)"};
 }
 

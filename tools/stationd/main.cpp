@@ -12,11 +12,41 @@
 #include <csignal>
 #include <iostream>
 
+#include "db/fleet/fleet_schema.hpp"
 #include "db/sqlite_repository.hpp"
 #include "station/config.hpp"
 #include "station/daemon.hpp"
+#include "station/fleet_sender.hpp"
 #include "station/logging.hpp"
 #include "station/sd_notify.hpp"
+
+namespace {
+
+/// --check-config with [fleet]: can this station log in to its fleet store, and is the store's
+/// schema one this software can write? The daemon itself starts either way (the line never stops
+/// for the fleet store); this is the check before deployment. 0 ok, 1 not.
+int check_fleet(const imucal::station::FleetConfig& fleet) {
+  namespace fl = imucal::db::fleet;
+  try {
+    const fl::FleetTarget target = imucal::station::fleet_target(fleet);
+    fl::PgConnection c(target);
+    const int v = fl::fleet_version(c);
+    if (v > fl::kFleetSchemaVersion) fl::check_fleet_version(c);  // throws: newer than ours
+    std::cout << "fleet store " << target.redacted() << ": ok (station id " << fleet.station_id
+              << ", schema "
+              << (v == 0 ? std::string("none yet: the daemon creates it")
+                         : "version " + std::to_string(v) +
+                               (v < fl::kFleetSchemaVersion ? ", the daemon migrates it" : ""))
+              << ")\n";
+    return 0;
+  } catch (const imucal::db::DbError& e) {
+    std::cerr << "fleet store: " << e.what()
+              << "\n(stationd would start anyway and keep the changes in its outbox)\n";
+    return 1;
+  }
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   // One malloc arena for the whole daemon, set before any thread starts: a calibration allocates
@@ -60,7 +90,7 @@ int main(int argc, char** argv) {
     std::cout << config_path << ": ok (station " << cfg.station_name << ", table "
               << cfg.turntable.endpoint.to_string() << (cfg.imus.size() > 1 ? ", IMUs " : ", IMU ")
               << imus << ", data " << cfg.data_dir << ", socket " << cfg.control_socket << ")\n";
-    return 0;
+    return cfg.fleet ? check_fleet(*cfg.fleet) : 0;
   }
 
   setup_logging(cfg.log_level);
