@@ -162,10 +162,10 @@ class ExportTest : public ::testing::Test {
 
 TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
   const std::vector<ExportFilter> filters = {{},
-                                             {std::string("SIM-A"), std::nullopt},
-                                             {std::nullopt, kT0 + 2 * kDay},
-                                             {std::string("SIM-B"), kT0 + kDay + 1},
-                                             {std::string("SIM-A"), kT0 + 10 * kDay}};
+                                             {std::string("SIM-A"), std::nullopt, std::nullopt},
+                                             {std::nullopt, kT0 + 2 * kDay, std::nullopt},
+                                             {std::string("SIM-B"), kT0 + kDay + 1, std::nullopt},
+                                             {std::string("SIM-A"), kT0 + 10 * kDay, std::nullopt}};
   for (const ExportFilter& f : filters) {
     std::ostringstream os;
     const std::size_t n = export_csv(*repo_, f, os);
@@ -256,9 +256,9 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
 
 TEST_F(ExportTest, JsonParsesBackWithStrictParameterSetsForEveryFilter) {
   const std::vector<ExportFilter> filters = {{},
-                                             {std::string("SIM-B"), std::nullopt},
-                                             {std::nullopt, kT0 + 3 * kDay},
-                                             {std::string("SIM-B"), kT0 + 100 * kDay}};
+                                             {std::string("SIM-B"), std::nullopt, std::nullopt},
+                                             {std::nullopt, kT0 + 3 * kDay, std::nullopt},
+                                             {std::string("SIM-B"), kT0 + 100 * kDay, std::nullopt}};
   for (const ExportFilter& f : filters) {
     std::ostringstream os;
     const std::size_t n = export_json(*repo_, f, os);
@@ -307,7 +307,7 @@ TEST_F(ExportTest, JsonParsesBackWithStrictParameterSetsForEveryFilter) {
 // format by name and refuses an unknown one.
 TEST_F(ExportTest, NdjsonIsTheJsonExportOneObjectPerLine) {
   for (const ExportFilter& f :
-       std::vector<ExportFilter>{{}, {std::string("SIM-B"), std::nullopt}}) {
+       std::vector<ExportFilter>{{}, {std::string("SIM-B"), std::nullopt, std::nullopt}}) {
     std::ostringstream js, nd;
     const std::size_t n = export_json(*repo_, f, js);
     ASSERT_EQ(export_ndjson(*repo_, f, nd), n);
@@ -328,15 +328,15 @@ TEST_F(ExportTest, NdjsonIsTheJsonExportOneObjectPerLine) {
 }
 
 TEST_F(ExportTest, EmptyResultIsAHeaderOrAnEmptyArray) {
-  ExportFilter none{std::string("SIM-A"), kT0 + 365 * kDay};
+  ExportFilter none{std::string("SIM-A"), kT0 + 365 * kDay, std::nullopt};
   std::ostringstream csv, js;
   EXPECT_EQ(export_csv(*repo_, none, csv), 0u);
   EXPECT_EQ(parse_csv(csv.str()).size(), 1u);
   EXPECT_EQ(export_json(*repo_, none, js), 0u);
   EXPECT_EQ(json::parse(js.str()), json::array());
   // An unknown (but valid) serial exports nothing; an invalid one is refused.
-  EXPECT_EQ(export_csv(*repo_, {std::string("SIM-ZZZ"), std::nullopt}, csv), 0u);
-  EXPECT_THROW(export_csv(*repo_, {std::string("SIM A"), std::nullopt}, csv), InvalidInput);
+  EXPECT_EQ(export_csv(*repo_, {std::string("SIM-ZZZ"), std::nullopt, std::nullopt}, csv), 0u);
+  EXPECT_THROW(export_csv(*repo_, {std::string("SIM A"), std::nullopt, std::nullopt}, csv), InvalidInput);
 }
 
 TEST_F(ExportTest, AFailingStreamIsAnIoError) {

@@ -99,7 +99,7 @@ SqliteRepository& repo() {
         ro.read_only = true;
         SqliteRepository probe(path, ro);
         long count = 0;
-        probe.export_rows({std::string(serial_of(kSerials - 1)), std::nullopt},
+        probe.export_rows({std::string(serial_of(kSerials - 1)), std::nullopt, std::nullopt},
                           [&](const ExportRow&) { ++count; });
         ok = count == 2 * kRunsPerSerial;
       } catch (const std::exception&) {
@@ -198,12 +198,12 @@ void run_export(benchmark::State& state, const ExportFilter& filter) {
 }
 
 void BM_ExportCsvSerial(benchmark::State& state) {
-  run_export<false>(state, {serial_of(500), std::nullopt});
+  run_export<false>(state, {serial_of(500), std::nullopt, std::nullopt});
 }
 BENCHMARK(BM_ExportCsvSerial)->Unit(benchmark::kMillisecond);
 
 void BM_ExportCsvSinceLast1Percent(benchmark::State& state) {
-  run_export<false>(state, {std::nullopt, start_of(0, kRunsPerSerial - 1)});
+  run_export<false>(state, {std::nullopt, start_of(0, kRunsPerSerial - 1), std::nullopt});
 }
 BENCHMARK(BM_ExportCsvSinceLast1Percent)->Unit(benchmark::kMillisecond);
 
