@@ -188,6 +188,30 @@ void expect_error(const std::string& text, int line, int column, const std::stri
   EXPECT_EQ(std::string(e.what()).rfind(prefix, 0), 0u) << e.what();
 }
 
+TEST(StationConfig, FleetIsOptionalAndItsBadValuesNameTheirKey) {
+  const StationConfig none = parse_config(kMinimal, "cfg.toml", "/etc/imucal");
+  EXPECT_FALSE(none.fleet.has_value());
+  const StationConfig with = parse_config(
+      std::string(kMinimal) +
+          "[fleet]\nurl = \"postgresql://st@fleet:5432/db\"\npassword_file = \"fleet.pw\"\n",
+      "cfg.toml", "/etc/imucal");
+  ASSERT_TRUE(with.fleet.has_value());
+  EXPECT_EQ(with.fleet->station_id, "st") << "the station name by default";
+  EXPECT_EQ(with.fleet->password_file, "/etc/imucal/fleet.pw");
+  EXPECT_EQ(with.fleet->batch_entries, 200u);
+  const std::string f = std::string(kMinimal) + "[fleet]\n";  // [fleet] is line 11
+  expect_error(f + "station_id = \"x\"\n", 11, 0, "url");
+  expect_error(f + "url = \"postgresql://u@h:70000/db\"\n", 12, 1, "[fleet] url");
+  expect_error(f + "url = \"postgresql:///db\"\n", 12, 1, "names no host");
+  expect_error(f + "url = \"postgresql://u@h/db\"\nstation_id = \"a;b\"\n", 13, 1, "station_id");
+  expect_error(f + "url = \"postgresql://u@h/db\"\npassword_file = \"p\"\npassword_env = \"E\"\n",
+               14, 1, "not both");
+  expect_error(f + "url = \"postgresql://u:Pw0rdX@h:x/db\"\n", 12, 1, "port");
+  EXPECT_EQ(std::string(error_of(f + "url = \"postgresql://u:Pw0rdX@h:x/db\"\n").what()).find("Pw0rdX"),
+            std::string::npos)
+      << "the password is never shown";
+}
+
 TEST(StationConfig, UnknownKeyNamesFileLineColumnAndKey) {
   expect_error(with_line(kMinimal, 5, "height_m = 5.0\n  heigth = 3"), 6, 3,
                "unknown key 'heigth'");
