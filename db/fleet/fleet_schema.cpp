@@ -58,6 +58,7 @@ CREATE INDEX runs_by_time ON runs (started_at_ms, id);
 CREATE INDEX runs_by_station_time ON runs (station_id, started_at_ms);
 CREATE INDEX runs_by_archive_sha256 ON runs (archive_sha256) WHERE archive_sha256 <> '';
 CREATE INDEX runs_live ON runs (state) WHERE state IN ('preparing', 'running', 'calibrating');
+CREATE INDEX runs_table_run ON runs (station_id, table_run_local) WHERE table_run_local IS NOT NULL;
 
 CREATE TABLE calibrations (
   run_id       bigint  NOT NULL REFERENCES runs(id) ON DELETE CASCADE,

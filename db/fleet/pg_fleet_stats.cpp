@@ -1,0 +1,123 @@
+#include "db/fleet/pg_fleet_stats.hpp"
+
+#include <mutex>
+
+#include "calib/core/param_set.hpp"
+#include "db/fleet/fleet_schema.hpp"
+#include "db/fleet/pg_connection.hpp"
+
+namespace imucal::db::fleet {
+
+namespace {
+
+// $3 since, $4 until, $5 station, $6 serial: unset ones fold away when the server plans the
+// statement with its values (an unnamed statement is planned per call), so the indexes serve.
+const char* const kWhere =
+    " ($3::bigint IS NULL OR r.started_at_ms >= $3) AND ($4::bigint IS NULL OR r.started_at_ms < "
+    "$4)"
+    " AND ($5::text IS NULL OR r.station_id = $5) AND ($6::text IS NULL OR r.serial = $6) ";
+
+const std::string kDistribution =
+    "SELECT r.station_id, count(*), avg(x.v), coalesce(stddev_samp(x.v), 0), min(x.v), "
+    "percentile_cont(0.25) WITHIN GROUP (ORDER BY x.v), "
+    "percentile_cont(0.5) WITHIN GROUP (ORDER BY x.v), "
+    "percentile_cont(0.75) WITHIN GROUP (ORDER BY x.v), max(x.v) "
+    "FROM runs r JOIN calibrations c ON c.run_id = r.id AND c.method = 'ains' "
+    "CROSS JOIN LATERAL (SELECT (c.params #>> $1::text[])::float8 AS v) x "
+    "WHERE NOT (c.unobservable ? $2) AND" +
+    std::string(kWhere) + "GROUP BY r.station_id ORDER BY r.station_id COLLATE \"C\"";
+
+/// "accel_M[0][1]" → the path {accel_M,0,1} as a PostgreSQL text-array literal.
+std::string json_path(const std::string& name) {
+  std::string out = "{" + name.substr(0, name.find('['));
+  for (std::size_t at = name.find('['); at != std::string::npos; at = name.find('[', at + 1))
+    out += "," + name.substr(at + 1, name.find(']', at) - at - 1);
+  return out + "}";
+}
+
+}  // namespace
+
+struct PgFleetStats::Impl {
+  explicit Impl(const FleetTarget& t) : conn(t) { check_fleet_version(conn); }
+  mutable PgConnection conn;
+  mutable std::mutex mutex;
+
+  std::vector<PgParam> filter_values(const FleetFilter& f, PgParam a, PgParam b) const {
+    validate_filter(f);
+    return {std::move(a),         std::move(b),        pg_value(f.since_ms),
+            pg_value(f.until_ms), pg_value(f.station), pg_value(f.serial)};
+  }
+};
+
+PgFleetStats::PgFleetStats(const FleetTarget& target) : impl_(std::make_unique<Impl>(target)) {}
+PgFleetStats::~PgFleetStats() = default;
+
+std::string PgFleetStats::param_distribution_sql() { return kDistribution; }
+
+std::vector<StationDayCount> PgFleetStats::runs_per_station_day(const FleetFilter& f) const {
+  const auto values = impl_->filter_values(f, std::nullopt, std::nullopt);
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const PgResult q = impl_->conn.exec(
+      "SELECT r.station_id, floor(r.started_at_ms / 86400000.0)::bigint AS day, count(*) "
+      "FROM runs r WHERE $1::text IS NULL AND $2::text IS NULL AND" +
+          std::string(kWhere) + "GROUP BY 1, 2 ORDER BY r.station_id COLLATE \"C\", 2",
+      values, "runs per station and day");
+  std::vector<StationDayCount> out;
+  for (int i = 0; i < q.rows(); ++i) out.push_back({q.text(i, 0), q.i64(i, 1), q.i64(i, 2)});
+  return out;
+}
+
+std::vector<StationVerdictCounts> PgFleetStats::verdict_counts_per_station(
+    const FleetFilter& f) const {
+  const auto values = impl_->filter_values(f, std::nullopt, std::nullopt);
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const PgResult q = impl_->conn.exec(
+      "SELECT r.station_id, count(*) FILTER (WHERE r.verdict = 'PASS'), "
+      "count(*) FILTER (WHERE r.verdict = 'REVIEW'), count(*) FILTER (WHERE r.verdict = 'FAILED'), "
+      "count(*) FILTER (WHERE r.verdict IS NULL) FROM runs r "
+      "WHERE $1::text IS NULL AND $2::text IS NULL AND" +
+          std::string(kWhere) + "GROUP BY 1 ORDER BY r.station_id COLLATE \"C\"",
+      values, "verdicts per station");
+  std::vector<StationVerdictCounts> out;
+  for (int i = 0; i < q.rows(); ++i)
+    out.push_back({q.text(i, 0), q.i64(i, 1), q.i64(i, 2), q.i64(i, 3), q.i64(i, 4)});
+  return out;
+}
+
+std::vector<ParamSummary> PgFleetStats::param_distribution(int param_index,
+                                                           const FleetFilter& f) const {
+  if (param_index < 0 || param_index >= calib::ParamSet::kSize)
+    throw InvalidInput("parameter index " + std::to_string(param_index) + " is not in 0..26");
+  const std::string name = calib::param_info(param_index).name;
+  const auto values = impl_->filter_values(f, pg_value(json_path(name)), pg_value(name));
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const PgResult q = impl_->conn.exec(kDistribution, values, "parameter distribution");
+  std::vector<ParamSummary> out;
+  for (int i = 0; i < q.rows(); ++i) {
+    ParamSummary s;
+    s.station = q.text(i, 0);
+    s.count = q.i64(i, 1);
+    s.mean = q.f64(i, 2);
+    s.std_dev = q.f64(i, 3);
+    s.min = q.f64(i, 4);
+    s.q1 = q.f64(i, 5);
+    s.median = q.f64(i, 6);
+    s.q3 = q.f64(i, 7);
+    s.max = q.f64(i, 8);
+    out.push_back(s);
+  }
+  return out;
+}
+
+std::vector<RunId> PgFleetStats::table_run_members(RunId table_run_id) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const PgResult q = impl_->conn.exec(
+      "SELECT id FROM runs WHERE id = $1 UNION SELECT f.id FROM runs f JOIN runs r ON r.id = $1 "
+      "WHERE f.station_id = r.station_id AND f.table_run_local = r.local_run_id ORDER BY 1",
+      {pg_value(table_run_id)}, "table run members");
+  std::vector<RunId> out;
+  for (int i = 0; i < q.rows(); ++i) out.push_back(q.i64(i, 0));
+  return out;
+}
+
+}  // namespace imucal::db::fleet
