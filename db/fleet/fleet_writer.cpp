@@ -1,7 +1,9 @@
 #include "db/fleet/fleet_writer.hpp"
 
+#include <algorithm>
 #include <nlohmann/json.hpp>
 
+#include "calib/core/param_set.hpp"
 #include "db/export.hpp"
 #include "db/fleet/fleet_codec.hpp"
 
@@ -17,9 +19,10 @@ const char* const kSqlUpsertRun = R"SQL(
 INSERT INTO runs (station_id, run_uuid, local_run_id, revision, serial, operator, station,
   sequence_name, sequence_sha256, software_version, started_at_ms, ended_at_ms, state,
   failure_reason, reasons, archive_path, archive_sha256, reprocessed_from_local, table_run_local,
-  slot, capture_json, diagnosis_json, setting, origin, promoted_at_ms, promoted_by, promote_reason)
+  slot, capture_json, diagnosis_json, setting, origin, promoted_at_ms, promoted_by, promote_reason,
+  ains_values)
 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15::jsonb, $16, $17, $18,
-  $19, $20, $21, $22, $23, $24, $25, $26, $27)
+  $19, $20, $21, $22, $23, $24, $25, $26, $27, $28::double precision[])
 ON CONFLICT (station_id, run_uuid) DO UPDATE SET revision = EXCLUDED.revision,
   serial = EXCLUDED.serial, operator = EXCLUDED.operator, station = EXCLUDED.station,
   sequence_name = EXCLUDED.sequence_name, sequence_sha256 = EXCLUDED.sequence_sha256,
@@ -32,7 +35,7 @@ ON CONFLICT (station_id, run_uuid) DO UPDATE SET revision = EXCLUDED.revision,
   capture_json = EXCLUDED.capture_json, diagnosis_json = EXCLUDED.diagnosis_json,
   setting = EXCLUDED.setting, origin = EXCLUDED.origin, promoted_at_ms = EXCLUDED.promoted_at_ms,
   promoted_by = EXCLUDED.promoted_by, promote_reason = EXCLUDED.promote_reason,
-  received_at = now()
+  ains_values = EXCLUDED.ains_values, received_at = now()
 WHERE runs.revision < EXCLUDED.revision
 RETURNING id
 )SQL";
@@ -44,7 +47,26 @@ const char* const kSqlInsertCrosscheck =
     "INSERT INTO crosschecks (run_id, verdict, k_sigma, failures, not_compared) "
     "VALUES ($1, $2, $3, $4::jsonb, $5::jsonb)";
 
-std::vector<PgParam> run_values(const std::string& station_id, const RunRecord& r) {
+/// The run's AINS values as a PostgreSQL array literal (calib::param_info order, NULL where the
+/// result lists the parameter as unobservable); none without an AINS result.
+PgParam ains_values(const RunDetails& d) {
+  for (const CalibrationRecord& c : d.calibrations) {
+    if (c.method != Method::kAins) continue;
+    const calib::ParamVector x = c.params.to_vector();
+    std::string out = "{";
+    for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+      const std::string& name = calib::param_info(i).name;
+      const bool unknown =
+          std::find(c.unobservable.begin(), c.unobservable.end(), name) != c.unobservable.end();
+      out += (i ? "," : "") + (unknown ? std::string("NULL") : *pg_value(x(i)));
+    }
+    return out + "}";
+  }
+  return std::nullopt;
+}
+
+std::vector<PgParam> run_values(const std::string& station_id, const RunDetails& d) {
+  const RunRecord& r = d.run;
   return {pg_value(station_id),
           pg_value(r.uuid),
           pg_value(r.run_id),
@@ -71,7 +93,8 @@ std::vector<PgParam> run_values(const std::string& station_id, const RunRecord& 
           pg_value(r.origin),
           pg_value(r.promoted_at_ms),
           pg_value(r.promoted_by),
-          pg_value(r.promote_reason)};
+          pg_value(r.promote_reason),
+          ains_values(d)};
 }
 
 void replace_children(PgConnection& c, std::int64_t fleet_id, const RunDetails& d) {
@@ -136,7 +159,7 @@ UpsertCount upsert_runs(PgConnection& c, const std::string& station_id,
                          ": no run UUID (open the station's database read-write once to migrate)");
     PgResult r = [&] {
       try {
-        return c.exec(kSqlUpsertRun, run_values(station_id, d.run), "store a run");
+        return c.exec(kSqlUpsertRun, run_values(station_id, d), "store a run");
       } catch (const Conflict& e) {
         throw Conflict(std::string(e.what()) + " (station " + station_id + ", run " +
                        std::to_string(d.run.run_id) +

@@ -18,22 +18,15 @@ const char* const kWhere =
     " AND ($5::text IS NULL OR r.station_id = $5) AND ($6::text IS NULL OR r.serial = $6) ";
 
 const std::string kDistribution =
-    "SELECT r.station_id, count(*), avg(x.v), coalesce(stddev_samp(x.v), 0), min(x.v), "
-    "percentile_cont(0.25) WITHIN GROUP (ORDER BY x.v), "
-    "percentile_cont(0.5) WITHIN GROUP (ORDER BY x.v), "
-    "percentile_cont(0.75) WITHIN GROUP (ORDER BY x.v), max(x.v) "
-    "FROM runs r JOIN calibrations c ON c.run_id = r.id AND c.method = 'ains' "
-    "CROSS JOIN LATERAL (SELECT (c.params #>> $1::text[])::float8 AS v) x "
-    "WHERE NOT (c.unobservable ? $2) AND" +
-    std::string(kWhere) + "GROUP BY r.station_id ORDER BY r.station_id COLLATE \"C\"";
-
-/// "accel_M[0][1]" → the path {accel_M,0,1} as a PostgreSQL text-array literal.
-std::string json_path(const std::string& name) {
-  std::string out = "{" + name.substr(0, name.find('['));
-  for (std::size_t at = name.find('['); at != std::string::npos; at = name.find('[', at + 1))
-    out += "," + name.substr(at + 1, name.find(']', at) - at - 1);
-  return out + "}";
-}
+    "SELECT station_id, count(*), avg(v), coalesce(stddev_samp(v), 0), min(v), "
+    "percentile_cont(0.25) WITHIN GROUP (ORDER BY v), "
+    "percentile_cont(0.5) WITHIN GROUP (ORDER BY v), "
+    "percentile_cont(0.75) WITHIN GROUP (ORDER BY v), max(v) "
+    "FROM (SELECT r.station_id, r.ains_values[$1::int] AS v FROM runs r "
+    "      WHERE r.ains_values IS NOT NULL AND $2::text IS NULL AND" +
+    std::string(kWhere) +
+    ") s WHERE v IS NOT NULL GROUP BY station_id "
+    "ORDER BY station_id COLLATE \"C\"";
 
 }  // namespace
 
@@ -88,8 +81,9 @@ std::vector<ParamSummary> PgFleetStats::param_distribution(int param_index,
                                                            const FleetFilter& f) const {
   if (param_index < 0 || param_index >= calib::ParamSet::kSize)
     throw InvalidInput("parameter index " + std::to_string(param_index) + " is not in 0..26");
-  const std::string name = calib::param_info(param_index).name;
-  const auto values = impl_->filter_values(f, pg_value(json_path(name)), pg_value(name));
+  // ains_values is 1-based in SQL and in calib::param_info order (db/fleet/fleet_schema.cpp).
+  const auto values =
+      impl_->filter_values(f, pg_value(std::int64_t{param_index + 1}), std::nullopt);
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const PgResult q = impl_->conn.exec(kDistribution, values, "parameter distribution");
   std::vector<ParamSummary> out;

@@ -23,7 +23,7 @@ class PgFleetStats final : public FleetStats {
                                                const FleetFilter& filter) const override;
   std::vector<RunId> table_run_members(RunId table_run_id) const override;
 
-  /// The distribution's statement ($1 the jsonb path, $2 the name, $3-$6 the filter), for
+  /// The distribution's statement ($1 the 1-based parameter index, $2 NULL, $3-$6 the filter), for
   /// EXPLAIN in the benchmark.
   static std::string param_distribution_sql();
 

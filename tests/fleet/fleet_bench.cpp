@@ -13,6 +13,7 @@
 #include <random>
 #include <string>
 
+#include "calib/core/param_set.hpp"
 #include "db/fleet/fleet_repository.hpp"
 #include "db/fleet/fleet_schema.hpp"
 #include "db/fleet/pg_fleet_stats.hpp"
@@ -42,6 +43,20 @@ std::string rand_params(const char* scale) {
   return "jsonb_build_object('accel_bias_mps2', " + rand_array(3, scale) + ", 'accel_M', " +
          rand_matrix(scale) + ", 'gyro_bias_radps', " + rand_array(3, scale) + ", 'gyro_M', " +
          rand_matrix(scale) + ", 'table_misalignment_rad', " + rand_array(3, scale) + ")";
+}
+
+/// The 27 parameters' jsonb paths in calib::param_info order, as an SQL array of path texts:
+/// "accel_M[0][1]" → '{accel_M,0,1}'.
+std::string param_paths() {
+  std::string out = "ARRAY[";
+  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+    const std::string name = calib::param_info(i).name;
+    std::string path = "{" + name.substr(0, name.find('['));
+    for (std::size_t at = name.find('['); at != std::string::npos; at = name.find('[', at + 1))
+      path += "," + name.substr(at + 1, name.find(']', at) - at - 1);
+    out += std::string(i ? "," : "") + "'" + path + "}'";
+  }
+  return out + "]";
 }
 
 void fill(const test_support::PgCluster& pg, long long n) {
@@ -74,6 +89,14 @@ void fill(const test_support::PgCluster& pg, long long n) {
           rand_params("1e-4") + ", " + rand_params("1e-6") +
           ", true, 12, 40.0, '[]', NULL, "
           "'housing', '[]', '[]' FROM runs WHERE state <> 'failed'",
+      "fleet");
+  // The writer's derived column (fleet_writer.cpp ains_values), as it would have stored it.
+  pg.admin(
+      "UPDATE runs r SET ains_values = ARRAY(SELECT (c.params #>> p.path::text[])::float8 FROM "
+      "unnest(" +
+          param_paths() +
+          "::text[]) WITH ORDINALITY p(path, i) ORDER BY p.i) "
+          "FROM calibrations c WHERE c.run_id = r.id AND c.method = 'ains'",
       "fleet");
   pg.admin("VACUUM ANALYZE", "fleet");
 }
@@ -143,11 +166,10 @@ int main(int argc, char** argv) {
                        serials[0] + "' ORDER BY r.started_at_ms DESC, r.id DESC",
                    "fleet");
   std::cout << "\nplan, a week's distribution:\n"
-            << pg.admin("PREPARE week(text[], text, bigint, bigint, text, text) AS " +
+            << pg.admin("PREPARE week(int, text, bigint, bigint, text, text) AS " +
                             db::fleet::PgFleetStats::param_distribution_sql() +
-                            "; EXPLAIN ANALYZE EXECUTE week('{gyro_bias_radps,2}', "
-                            "'gyro_bias_radps[2]', " +
-                            std::to_string(kT0 + 20 * kWeekMs) + ", " +
+                            "; EXPLAIN ANALYZE EXECUTE week(" + std::to_string(gyro_bias_z + 1) +
+                            ", NULL, " + std::to_string(kT0 + 20 * kWeekMs) + ", " +
                             std::to_string(kT0 + 21 * kWeekMs) + ", NULL, NULL)",
                         "fleet");
   return 0;
