@@ -52,7 +52,8 @@ case $mode in
            station_control_server_test station_export_stream_test station_daemon_test
            station_run_controller_test
            e2e_station_run_test e2e_station_abort_test e2e_station_faults_test
-           e2e_station_gap_test)  # stationctl diagnose on its own thread (issue #22)
+           e2e_station_gap_test   # stationctl diagnose on its own thread (issue #22)
+           e2e_station_fleet_test)  # the outbox sender's thread beside the run (issue #24)
     cmake --build $tree -j2 --target "${tests[@]}" stationd stationsim stationctl
     reports=$(fresh_reports $tree)
     failed=0

@@ -17,6 +17,7 @@ const char* const kWhere =
     "$4)"
     " AND ($5::text IS NULL OR r.station_id = $5) AND ($6::text IS NULL OR r.serial = $6) ";
 
+// OFFSET 0 keeps the subquery whole: only (station, value) reach the sort, not each run's array.
 const std::string kDistribution =
     "SELECT station_id, count(*), avg(v), coalesce(stddev_samp(v), 0), min(v), "
     "percentile_cont(0.25) WITHIN GROUP (ORDER BY v), "
@@ -25,7 +26,7 @@ const std::string kDistribution =
     "FROM (SELECT r.station_id, r.ains_values[$1::int] AS v FROM runs r "
     "      WHERE r.ains_values IS NOT NULL AND $2::text IS NULL AND" +
     std::string(kWhere) +
-    ") s WHERE v IS NOT NULL GROUP BY station_id "
+    " OFFSET 0) s WHERE v IS NOT NULL GROUP BY station_id "
     "ORDER BY station_id COLLATE \"C\"";
 
 }  // namespace
