@@ -59,6 +59,9 @@ std::string render_show_text(const nlohmann::json& show);
 std::string render_params_text(const nlohmann::json& params);
 /// `stationctl diagnose`: the full diagnosis (archive::diagnosis_to_json + "run_id") for people.
 std::string render_diagnosis_text(const nlohmann::json& diagnosis);
+/// The history's SLOT cell: the fixture slot and the table run it shared with its siblings
+/// ("B of 12"), or "-" on a one-unit station.
+std::string slot_cell(const nlohmann::json& run);
 /// One short cell for a run's stored gap diagnosis: "-" (none), "consistent", the best effect with
 /// its magnitude ("gyro_g_sensitivity 0.04±0.004 deg/h/g"), or the ambiguous names joined by "|".
 std::string gap_cell(const nlohmann::json& run);

@@ -27,8 +27,9 @@ MAIN_PKGS=(build-essential cmake ccache pkg-config
            libeigen3-dev libceres-dev libmodbus-dev libsqlite3-dev libspdlog-dev
            libcli11-dev libtomlplusplus-dev nlohmann-json3-dev libsystemd-dev libpq-dev)
 # Needed before the build, so not in the background: the test programs' and benchmarks' libraries,
-# and help2man (CMake looks for it when it configures; the man pages of the Debian package).
-TEST_BUILD_PKGS=(libgtest-dev libgmock-dev libbenchmark-dev help2man)
+# help2man (CMake looks for it when it configures; the man pages of the Debian package), and
+# cpp-httplib for stationweb, QA's web view (not a main-job program) and its test.
+TEST_BUILD_PKGS=(libgtest-dev libgmock-dev libbenchmark-dev help2man libcpp-httplib-dev)
 TEST_PKGS=(can-utils python3-can python3-canmatrix mbpoll
            qemu-system-x86 linux-image-amd64 busybox-static cpio iproute2 xz-utils binutils
            chromium clang-16 libclang-rt-16-dev lintian postgresql)

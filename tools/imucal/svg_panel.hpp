@@ -22,6 +22,26 @@ inline std::string num(double v, const char* f = "%.1f") {
 
 inline std::string esc(const std::string& s) { return html_escape(s); }
 
+/// Widens [lo, hi] to four intervals of a round step (1, 2 or 5 × 10^k) from a multiple of it, so
+/// that the five tick labels of Panel::frame are round numbers. An empty range grows around it.
+inline void round_range(double& lo, double& hi) {
+  if (!std::isfinite(lo) || !std::isfinite(hi)) return;
+  if (!(hi > lo)) {
+    const double pad = lo != 0 ? std::abs(lo) * 0.1 : 1.0;
+    lo -= pad;
+    hi += pad;
+  }
+  const double magnitude = std::pow(10.0, std::floor(std::log10((hi - lo) / 4.0)));
+  for (double m : {1.0, 2.0, 5.0, 10.0, 20.0}) {
+    const double step = m * magnitude, start = std::floor(lo / step) * step;
+    if (start + 4 * step >= hi) {
+      lo = start;
+      hi = start + 4 * step;
+      return;
+    }
+  }
+}
+
 /// One panel: y axis from -ymax..ymax (symmetric) or 0..ymax, n slots along x.
 struct Panel {
   std::ostringstream& os;
@@ -37,15 +57,25 @@ struct Panel {
     const double c = std::clamp(v, ymin, ymax);
     return y0 + kPanelH * (ymax - c) / (ymax - ymin);
   }
+  /// Decimals of the y tick labels: none from a span of 10 up, else at least 2 and enough that
+  /// the five labels of a narrow span (0.004 deg/h) differ.
+  int tick_decimals() const {
+    const double span = std::abs(ymax - ymin);
+    if (span >= 10) return 0;
+    const double step = span / 4.0;
+    if (!(step > 0) || !std::isfinite(step)) return 2;
+    return std::clamp(static_cast<int>(-std::floor(std::log10(step))), 2, 12);
+  }
   void frame(const std::string& title, const std::string& ylabel) {
     os << "<text x='" << kLeft << "' y='" << y0 - 8 << "' font-weight='bold'>" << esc(title)
        << "</text>\n";
     os << "<rect x='" << kLeft << "' y='" << y0 << "' width='" << kWidth - kLeft - kRight
        << "' height='" << kPanelH << "' fill='none' stroke='#888'/>\n";
     for (int t = 0; t <= 4; ++t) {
-      const double v = ymin + (ymax - ymin) * t / 4.0;
+      double v = ymin + (ymax - ymin) * t / 4.0;
+      if (std::abs(v) < 1e-9 * std::abs(ymax - ymin)) v = 0.0;  // no "-0.00" from rounding
       os << "<text x='" << kLeft - 6 << "' y='" << y(v) + 4 << "' text-anchor='end' font-size='11'>"
-         << num(v, std::abs(ymax - ymin) < 10 ? "%.2f" : "%.0f") << "</text>\n";
+         << num(v, ("%." + std::to_string(tick_decimals()) + "f").c_str()) << "</text>\n";
       os << "<line x1='" << kLeft << "' x2='" << kWidth - kRight << "' y1='" << y(v) << "' y2='"
          << y(v) << "' stroke='#eee'/>\n";
     }
@@ -62,6 +92,15 @@ struct Panel {
     os << "<rect x='" << x(i) + offset - w / 2 << "' y='" << top << "' width='" << w << "' height='"
        << std::max(bottom - top, 0.5) << "' fill='" << color << "'><title>" << esc(tip)
        << "</title></rect>\n";
+  }
+  /// A box from value `lo` to `hi` in slot i (a stacked bar's share, a quartile box), with a
+  /// tooltip and extra attributes (e.g. data-* for scripts) written into the element.
+  void span(size_t i, double lo, double hi, double offset, double w, const char* color,
+            const std::string& tip, const std::string& attributes = "") {
+    const double top = std::min(y(lo), y(hi)), bottom = std::max(y(lo), y(hi));
+    os << "<rect x='" << x(i) + offset - w / 2 << "' y='" << top << "' width='" << w << "' height='"
+       << std::max(bottom - top, 0.5) << "' fill='" << color << "' " << attributes << "><title>"
+       << esc(tip) << "</title></rect>\n";
   }
   /// A dot in slot i, `offset` px from its centre, with a tooltip; `css_class` names its series.
   void dot(size_t i, double v, double offset, double r, const char* fill, const char* stroke,

@@ -1,0 +1,161 @@
+// Benchmark (not a test): build/bin/stationweb_bench — the latency of each stationweb page with
+// 100 000 runs in the history (issue #24: "each page under 200 ms at 10^5 runs").
+//
+// The history: 1 000 serials x 100 runs, one run every 5 minutes from 2024-01-01 (347 days), on
+// 10 stations (run k of serial s on station (s + k) mod 10); 5 % FAILED (no calibrations), 10 %
+// REVIEW, the rest PASS, each with AINS and NLSQ; every tenth run with a capture record and a gap
+// diagnosis. Built once (timed) at $IMUCAL_BENCH_DB or /tmp/imucal-stationweb-bench.db and reused
+// while it holds 100 000 runs.
+//
+// Then build/bin/stationweb serves it on a free loopback port; each page is fetched once to warm
+// up and then IMUCAL_BENCH_FETCHES times (default 25) over one keep-alive connection; the output
+// is the median, min and max wall time per page as the client sees it, and the page size.
+// Exit status 1 if a page's median is 200 ms or more.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "db/sqlite_repository.hpp"
+#include "tests/db/history_fixtures.hpp"
+#include "tests/tools/stationweb_process.hpp"
+#include "tools/stationweb/httplib.hpp"
+
+namespace {
+
+using namespace imucal::db;
+
+constexpr int kSerials = 1000, kRunsPerSerial = 100, kStations = 10;
+constexpr long kRuns = static_cast<long>(kSerials) * kRunsPerSerial;
+constexpr TimestampMs kT0 = 1704067200000;  // 2024-01-01T00:00:00Z
+constexpr TimestampMs kMinute = 60000;
+constexpr double kLimitMs = 200;
+
+std::string serial_of(int s) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "SIM-%05d", s);
+  return buf;
+}
+
+std::string db_path() {
+  const char* p = std::getenv("IMUCAL_BENCH_DB");
+  return p && *p ? p : "/tmp/imucal-stationweb-bench.db";
+}
+
+RunCompletion completion(long seed, TimestampMs ended_at_ms) {
+  if (seed % 20 == 7) {
+    RunCompletion c;
+    c.state = RunState::kFailed;
+    c.ended_at_ms = ended_at_ms;
+    c.reasons = {{"error", "data check: IMU stream stopped at sample 1234"}};
+    return c;
+  }
+  RunCompletion c = seed % 10 == 3 ? test::review_completion(seed, ended_at_ms)
+                                   : test::pass_completion(seed, ended_at_ms);
+  if (seed % 10 == 0) {
+    c.capture_json = R"({"complete": true, "frames_received": 912345, "samples_lost": 0})";
+    c.diagnosis_json = R"({"verdict": "consistent", "summary": "no significant gap"})";
+  }
+  return c;
+}
+
+void populate(const std::string& path) {
+  for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(path + suffix);
+  SqliteRepository repo(path);
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int k = 0; k < kRunsPerSerial; ++k) {
+    repo.transaction([&] {
+      for (int s = 0; s < kSerials; ++s) {
+        const long seed = static_cast<long>(k) * kSerials + s;
+        const TimestampMs start = kT0 + seed * 5 * kMinute;
+        NewRun run = test::new_run(serial_of(s), start);
+        run.station = "station-" + std::to_string((s + k) % kStations);
+        const RunId id = repo.create_run(run);
+        repo.finish_run(id, completion(seed, start + 45 * kMinute));
+      }
+    });
+  }
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::fprintf(stderr, "populated %ld runs in %.1f s; file %.1f MiB\n", kRuns, secs,
+               std::filesystem::file_size(path) / 1048576.0);
+}
+
+void ensure_history(const std::string& path) {
+  if (std::filesystem::exists(path)) {
+    try {
+      SqliteOptions ro;
+      ro.read_only = true;
+      if (SqliteRepository(path, ro).total_run_count() == static_cast<std::size_t>(kRuns)) return;
+    } catch (const std::exception&) {
+    }
+  }
+  populate(path);
+}
+
+struct Timing {
+  double median_ms, min_ms, max_ms;
+  std::size_t bytes;
+  int status;
+};
+
+Timing time_page(httplib::Client& client, const std::string& target, int fetches) {
+  Timing t{0, 0, 0, 0, 0};
+  const auto warm = client.Get(target.c_str());
+  if (!warm) return t;
+  std::vector<double> ms;
+  for (int i = 0; i < fetches; ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto r = client.Get(target.c_str());
+    ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    if (!r) return t;
+    t.status = r->status;
+    t.bytes = r->body.size();
+  }
+  std::sort(ms.begin(), ms.end());
+  t.median_ms = ms.size() % 2 ? ms[ms.size() / 2] : (ms[ms.size() / 2 - 1] + ms[ms.size() / 2]) / 2;
+  t.min_ms = ms.front();
+  t.max_ms = ms.back();
+  return t;
+}
+
+}  // namespace
+
+int main() {
+  const std::string path = db_path();
+  ensure_history(path);
+  const char* n = std::getenv("IMUCAL_BENCH_FETCHES");
+  const int fetches = std::max(20, n && *n ? std::atoi(n) : 25);
+  imucal::test_support::StationwebProcess web(std::string(IMUCAL_BIN_DIR) + "/stationweb", path,
+                                              path + ".stationweb.log");
+  httplib::Client client("127.0.0.1", web.port());
+  client.set_keep_alive(true);
+  client.set_tcp_nodelay(true);  // as browsers do
+  client.set_read_timeout(30, 0);
+  const std::string mid_run = std::to_string(kRuns / 2);
+  const std::vector<std::string> pages = {
+      "/",
+      "/unit/SIM-00042",
+      "/run/" + mid_run,
+      "/fleet",
+      "/fleet?param=gyro_bias_radps%5B2%5D",
+      "/fleet?param=accel_M%5B0%5D%5B1%5D&station=station-3",
+      "/fleet?param=gyro_bias_radps%5B2%5D&serial=SIM-00042&since=2024-01-01&until=2024-12-31",
+      "/fleet?since=2024-01-01&until=2024-12-31",
+      "/fleet?param=gyro_bias_radps%5B2%5D&since=2024-01-01&until=2024-12-31",
+  };
+  std::printf("%d fetches per page, %ld runs in %s\n", fetches, kRuns, path.c_str());
+  std::printf("%-90s %6s %9s %9s %9s %9s\n", "page", "status", "median", "min", "max", "bytes");
+  bool slow = false;
+  for (const std::string& p : pages) {
+    const Timing t = time_page(client, p, fetches);
+    std::printf("%-90s %6d %6.1f ms %6.1f ms %6.1f ms %9zu%s\n", p.c_str(), t.status, t.median_ms,
+                t.min_ms, t.max_ms, t.bytes,
+                t.median_ms >= kLimitMs || t.status != 200 ? "  SLOW/FAILED" : "");
+    slow = slow || t.median_ms >= kLimitMs || t.status != 200;
+  }
+  return slow ? 1 : 0;
+}

@@ -1,0 +1,234 @@
+// "/fleet": the history's aggregates per station through db::FleetStats — runs per station per
+// UTC day, verdict counts and rates per station, and one AINS parameter's distribution per station
+// — for a window (since/until; default: the 30 days up to the newest run) and optional station and
+// serial filters.
+#include <algorithm>
+#include <map>
+#include <set>
+
+#include "calib/core/param_set.hpp"
+#include "tools/stationweb/fleet_svg.hpp"
+#include "tools/stationweb/html.hpp"
+#include "tools/stationweb/pages.hpp"
+
+namespace imucal::stationweb {
+
+namespace {
+
+constexpr db::TimestampMs kDayMs = 86400000;
+constexpr int kDefaultWindowDays = 30;
+
+struct FleetQuery {
+  db::FleetFilter filter;
+  std::optional<int> param;
+  Params echo;  ///< the form's values as given
+  bool default_window = false;
+};
+
+db::TimestampMs parse_time_field(const std::string& field, const std::string& text, bool end) {
+  db::TimestampMs t = 0;
+  try {
+    t = db::parse_time_utc(text);
+  } catch (const db::InvalidInput& e) {
+    bad_input(field, e.what());
+  }
+  // "until=2024-05-07" means up to the end of that day.
+  const bool date_only = text.size() == 10;
+  return end && date_only ? t + kDayMs : t;
+}
+
+FleetQuery parse_query(const History& history, const Params& query) {
+  FleetQuery q;
+  for (const char* name : {"since", "until", "station", "serial", "param"})
+    q.echo.emplace(name, query_value(query, name));
+  const std::string since = q.echo.find("since")->second, until = q.echo.find("until")->second;
+  if (!since.empty()) q.filter.since_ms = parse_time_field("since", since, false);
+  if (!until.empty()) q.filter.until_ms = parse_time_field("until", until, true);
+  if (q.filter.since_ms && q.filter.until_ms && *q.filter.since_ms >= *q.filter.until_ms)
+    bad_input("until", "the window ends (" + until + ") before it starts (" + since + ")");
+  const std::string station = q.echo.find("station")->second;
+  if (!station.empty()) q.filter.station = station;
+  try {
+    db::validate_filter(q.filter);
+  } catch (const db::InvalidInput& e) {
+    bad_input("station", e.what());
+  }
+  const std::string serial = q.echo.find("serial")->second;
+  if (!serial.empty()) {
+    check_serial(serial, "serial");
+    q.filter.serial = serial;
+  }
+  const std::string param = q.echo.find("param")->second;
+  if (!param.empty()) {
+    try {
+      q.param = db::param_index(param);
+    } catch (const db::InvalidInput& e) {
+      bad_input("param", e.what());
+    }
+  }
+  if (!q.filter.since_ms && !q.filter.until_ms) {
+    const std::vector<db::RunRecord> newest = history.repo->recent_runs(1);
+    if (!newest.empty()) {
+      q.filter.until_ms = (db::utc_day(newest.front().started_at_ms) + 1) * kDayMs;
+      q.filter.since_ms = *q.filter.until_ms - kDefaultWindowDays * kDayMs;
+      q.default_window = true;
+    }
+  }
+  return q;
+}
+
+std::string filter_form(const FleetQuery& q) {
+  auto value = [&](const char* name) { return esc(q.echo.find(name)->second); };
+  std::string s = "<form class='filters' id='fleet-filters' action='/fleet' method='get'>\n";
+  s += "<label>since <input name='since' size='12' placeholder='YYYY-MM-DD' value='" +
+       value("since") + "'></label>";
+  s += "<label>until <input name='until' size='12' placeholder='YYYY-MM-DD' value='" +
+       value("until") + "'></label>";
+  s += "<label>station <input name='station' size='14' value='" + value("station") + "'></label>";
+  s += "<label>serial <input name='serial' size='14' value='" + value("serial") + "'></label>";
+  s += "<label>parameter <select name='param'><option value=''>(none)</option>";
+  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+    const std::string& name = calib::param_info(i).name;
+    s += "<option" + std::string(q.param && *q.param == i ? " selected" : "") + ">" + name +
+         "</option>";
+  }
+  return s + "</select></label> <button type='submit'>Show</button></form>\n";
+}
+
+std::string window_line(const FleetQuery& q) {
+  const auto& f = q.filter;
+  std::string s = "<p id='window' data-since-ms='" +
+                  (f.since_ms ? std::to_string(*f.since_ms) : "") + "' data-until-ms='" +
+                  (f.until_ms ? std::to_string(*f.until_ms) : "") + "'>Runs started ";
+  s += f.since_ms ? "from " + short_time(*f.since_ms) + " UTC " : "at any time ";
+  s += f.until_ms ? "until (before) " + short_time(*f.until_ms) + " UTC" : "until now";
+  if (q.default_window)
+    s += " — the " + std::to_string(kDefaultWindowDays) +
+         " days up to the newest run's day (set since/until for another window)";
+  if (f.station) s += ", station " + esc(*f.station);
+  if (f.serial) s += ", serial " + unit_link(*f.serial);
+  return s + ".</p>\n";
+}
+
+/// The day range the chart spans: the window, narrowed to the days that have runs.
+void chart_days(const FleetQuery& q, const std::vector<db::StationDayCount>& counts,
+                std::int64_t& first, std::int64_t& last) {
+  std::int64_t lo = counts.front().day, hi = lo;
+  for (const auto& c : counts) lo = std::min(lo, c.day), hi = std::max(hi, c.day);
+  first = q.filter.since_ms ? db::utc_day(*q.filter.since_ms) : lo;
+  last = q.filter.until_ms ? db::utc_day(*q.filter.until_ms - 1) : hi;
+  if (last - first > 3 * 366) first = std::max(first, lo), last = std::min(last, hi);
+}
+
+std::string runs_chart_section(const FleetQuery& q, const std::vector<db::StationDayCount>& counts,
+                               const std::vector<std::string>& stations) {
+  std::string s = "<h2>Runs per station per day</h2>\n";
+  if (counts.empty()) return s + "<p>No runs in this window.</p>\n";
+  std::int64_t first = 0, last = 0;
+  chart_days(q, counts, first, last);
+  return s + runs_chart(counts, stations, first, last) +
+         "<p class='muted'>The numbers: <a href='#runs-per-day'>the table below</a>.</p>\n";
+}
+
+std::string runs_table_section(const std::vector<db::StationDayCount>& counts,
+                               const std::vector<std::string>& stations) {
+  std::string s = "<h2>Runs per station per day (table)</h2>\n";
+  if (counts.empty()) return s + "<p id='runs-per-day'>No runs in this window.</p>\n";
+  std::map<std::int64_t, std::map<std::string, std::int64_t>> by_day;
+  for (const auto& c : counts) by_day[c.day][c.station] = c.runs;
+  s += "<table id='runs-per-day'>\n<tr><th>day (UTC)</th>";
+  for (const auto& st : stations) s += "<th class='num'>" + esc(st) + "</th>";
+  s += "<th class='num'>all</th></tr>\n";
+  for (const auto& [day, row] : by_day) {
+    std::int64_t total = 0;
+    s += "<tr><td>" + day_text(day) + "</td>";
+    for (const auto& st : stations) {
+      const auto it = row.find(st);
+      const std::int64_t n = it == row.end() ? 0 : it->second;
+      total += n;
+      s += "<td class='num' data-station='" + esc(st) + "' data-day='" + day_text(day) +
+           "' data-runs='" + std::to_string(n) + "'>" + (n ? std::to_string(n) : "") + "</td>";
+    }
+    s += "<td class='num'>" + std::to_string(total) + "</td></tr>\n";
+  }
+  return s + "</table>\n";
+}
+
+std::string share(std::int64_t n, std::int64_t total) {
+  return std::to_string(n) + " <span class='muted'>(" +
+         fmt("%.1f", total ? 100.0 * static_cast<double>(n) / static_cast<double>(total) : 0.0) +
+         " %)</span>";
+}
+
+std::string verdict_section(const std::vector<db::StationVerdictCounts>& verdicts) {
+  std::string s = "<h2>Verdicts per station</h2>\n";
+  if (verdicts.empty()) return s + "<p id='verdicts'>No runs in this window.</p>\n";
+  s += verdict_chart(verdicts);
+  s += "<table id='verdicts'>\n<tr><th>station</th><th class='num'>PASS</th><th "
+       "class='num'>REVIEW</th><th class='num'>FAILED</th><th class='num'>live</th><th "
+       "class='num'>runs</th></tr>\n";
+  for (const auto& v : verdicts) {
+    const std::int64_t n = v.total();
+    s += "<tr data-station='" + esc(v.station) + "' data-pass='" + std::to_string(v.pass) +
+         "' data-review='" + std::to_string(v.review) + "' data-failed='" +
+         std::to_string(v.failed) + "' data-live='" + std::to_string(v.live) + "' data-total='" +
+         std::to_string(n) + "'><td>" + esc(v.station) + "</td><td class='num'>" +
+         share(v.pass, n) + "</td><td class='num'>" + share(v.review, n) + "</td><td class='num'>" +
+         share(v.failed, n) + "</td><td class='num'>" + share(v.live, n) + "</td><td class='num'>" +
+         std::to_string(n) + "</td></tr>\n";
+  }
+  return s + "</table>\n";
+}
+
+std::string distribution_row(const db::ParamSummary& d, const calib::ParamInfo& info) {
+  const double k = info.si_to_human;
+  std::string s =
+      "<tr data-station='" + esc(d.station) + "' data-count='" + std::to_string(d.count) + "'";
+  const std::pair<const char*, double> stats[] = {
+      {"mean", d.mean},     {"std", d.std_dev}, {"min", d.min}, {"q1", d.q1},
+      {"median", d.median}, {"q3", d.q3},       {"max", d.max}};
+  for (const auto& [name, v] : stats) s += std::string(" data-") + name + "='" + exact(v) + "'";
+  s += "><td>" + esc(d.station) + "</td><td class='num'>" + std::to_string(d.count) + "</td>";
+  for (const auto& [name, v] : stats) s += "<td class='num'>" + fmt("%.4g", v * k) + "</td>";
+  return s + "</tr>\n";
+}
+
+std::string distribution_section(const FleetQuery& q, const std::vector<db::ParamSummary>& dist) {
+  std::string s = "<h2>Parameter distribution per station</h2>\n";
+  if (!q.param) return s + "<p>Choose a parameter above to see its distribution per station.</p>\n";
+  const calib::ParamInfo& info = calib::param_info(*q.param);
+  s += "<p>" + info.name + ": the AINS value of every run in the window that has one, in " +
+       esc(info.human_unit) + " (sample standard deviation; quartiles interpolated).</p>\n";
+  if (dist.empty()) return s + "<p id='distribution'>No AINS calibration in this window.</p>\n";
+  s += box_plot(dist, info);
+  s += "<table id='distribution' data-param='" + info.name +
+       "'>\n<tr><th>station</th><th "
+       "class='num'>runs</th><th class='num'>mean</th><th class='num'>std</th><th "
+       "class='num'>min</th><th class='num'>Q1</th><th class='num'>median</th><th "
+       "class='num'>Q3</th><th class='num'>max</th></tr>\n";
+  for (const auto& d : dist) s += distribution_row(d, info);
+  return s + "</table>\n";
+}
+
+}  // namespace
+
+std::string fleet_page(const History& history, const Params& query) {
+  const FleetQuery q = parse_query(history, query);
+  const auto counts = history.stats->runs_per_station_day(q.filter);
+  const auto verdicts = history.stats->verdict_counts_per_station(q.filter);
+  const std::vector<db::ParamSummary> dist =
+      q.param ? history.stats->param_distribution(*q.param, q.filter)
+              : std::vector<db::ParamSummary>{};
+  std::vector<std::string> stations;
+  for (const auto& v : verdicts) stations.push_back(v.station);
+  std::string b = "<h1>Fleet: runs, verdicts and parameters per station</h1>\n";
+  b += "<p class='muted'>" + esc(history.label) + ", read-only.</p>\n";
+  b += filter_form(q) + window_line(q);
+  b += runs_chart_section(q, counts, stations);
+  b += verdict_section(verdicts);
+  b += distribution_section(q, dist);
+  b += runs_table_section(counts, stations);
+  return page("Fleet", b);
+}
+
+}  // namespace imucal::stationweb

@@ -1,0 +1,162 @@
+#include "tools/stationweb/fleet_svg.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+#include "tools/imucal/svg_panel.hpp"
+#include "tools/stationweb/html.hpp"
+
+namespace imucal::stationweb {
+
+namespace {
+
+using tools::svg::kLeft;
+using tools::svg::kPanelH;
+using tools::svg::kRight;
+using tools::svg::kTop;
+using tools::svg::kWidth;
+using tools::svg::Panel;
+
+constexpr const char* kStationColours[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
+                                           "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"};
+
+constexpr const char* kVerdictNames[] = {"PASS", "REVIEW", "FAILED", "live"};
+constexpr const char* kVerdictColours[] = {"#2ca02c", "#ff9f1c", "#d62728", "#aaaaaa"};
+
+std::string svg_open(const char* id, double height) {
+  std::ostringstream os;
+  os << "<svg id='" << id << "' xmlns='http://www.w3.org/2000/svg' width='" << kWidth
+     << "' height='" << height << "' viewBox='0 0 " << kWidth << ' ' << height
+     << "' font-family='sans-serif'>\n";
+  return os.str();
+}
+
+/// Station names under their slots (rotated when there are many).
+void slot_labels(std::ostringstream& os, const Panel& p, const std::vector<std::string>& labels) {
+  const bool rotate = labels.size() > 8;
+  for (std::size_t i = 0; i < labels.size(); ++i) {
+    const double x = p.x(i), y = kTop + kPanelH + 14;
+    if (rotate)
+      os << "<text transform='translate(" << x + 3 << ',' << y - 6
+         << ") rotate(60)' font-size='11'>" << esc(labels[i]) << "</text>\n";
+    else
+      os << "<text x='" << x << "' y='" << y << "' text-anchor='middle' font-size='11'>"
+         << esc(labels[i]) << "</text>\n";
+  }
+}
+
+void station_legend(std::ostringstream& os, const std::vector<std::string>& stations) {
+  double x = kLeft;
+  const double y = kTop + kPanelH + 78;
+  for (std::size_t k = 0; k < stations.size(); ++k) {
+    os << "<rect x='" << x << "' y='" << y - 10 << "' width='10' height='10' fill='"
+       << station_colour(k) << "'/><text x='" << x + 13 << "' y='" << y << "' font-size='11'>"
+       << esc(stations[k]) << "</text>\n";
+    x += 24 + 7.0 * static_cast<double>(stations[k].size());
+  }
+}
+
+}  // namespace
+
+const char* station_colour(std::size_t index) {
+  return kStationColours[index % (sizeof kStationColours / sizeof *kStationColours)];
+}
+
+std::string runs_chart(const std::vector<db::StationDayCount>& counts,
+                       const std::vector<std::string>& stations, std::int64_t first_day,
+                       std::int64_t last_day) {
+  const auto n_days = static_cast<std::size_t>(std::max<std::int64_t>(last_day - first_day + 1, 1));
+  std::vector<double> total(n_days, 0.0);
+  for (const auto& c : counts)
+    if (c.day >= first_day && c.day <= last_day)
+      total[static_cast<std::size_t>(c.day - first_day)] += static_cast<double>(c.runs);
+  double bottom = 0, top = std::max(10.0, *std::max_element(total.begin(), total.end()));
+  tools::svg::round_range(bottom, top);
+  std::ostringstream os;
+  os << svg_open("runs-chart", kTop + kPanelH + 96);
+  Panel p{os, kTop, bottom, top, n_days};
+  p.frame("Runs per UTC day, stacked by station", "runs");
+  std::map<std::string, std::size_t> colour_of;
+  for (std::size_t k = 0; k < stations.size(); ++k) colour_of[stations[k]] = k;
+  std::vector<double> stacked(n_days, 0.0);
+  for (const auto& c : counts) {  // sorted by station, then day: stations stack in legend order
+    if (c.day < first_day || c.day > last_day) continue;
+    const auto i = static_cast<std::size_t>(c.day - first_day);
+    const double lo = stacked[i], hi = lo + static_cast<double>(c.runs);
+    p.span(i, lo, hi, 0.0, std::max(p.slot() * 0.8, 1.0), station_colour(colour_of[c.station]),
+           c.station + " " + day_text(c.day) + ": " + std::to_string(c.runs) + " runs");
+    stacked[i] = hi;
+  }
+  const std::size_t every = std::max<std::size_t>(1, n_days / 12);
+  for (std::size_t i = 0; i < n_days; i += every)
+    os << "<text transform='translate(" << p.x(i) - 3 << ',' << kTop + kPanelH + 8
+       << ") rotate(60)' font-size='10'>" << day_text(first_day + static_cast<std::int64_t>(i))
+       << "</text>\n";
+  station_legend(os, stations);
+  return os.str() + "</svg>\n";
+}
+
+std::string verdict_chart(const std::vector<db::StationVerdictCounts>& verdicts) {
+  std::ostringstream os;
+  os << svg_open("verdict-chart", kTop + kPanelH + 70);
+  if (verdicts.empty()) return os.str() + "</svg>\n";
+  Panel p{os, kTop, 0.0, 100.0, verdicts.size()};
+  p.frame("Verdicts per station (share of its runs)", "% of runs");
+  std::vector<std::string> labels;
+  for (std::size_t i = 0; i < verdicts.size(); ++i) {
+    const auto& v = verdicts[i];
+    const double n = static_cast<double>(std::max<std::int64_t>(v.total(), 1));
+    double lo = 0;
+    const std::int64_t parts[] = {v.pass, v.review, v.failed, v.live};
+    for (std::size_t k = 0; k < 4; ++k) {
+      const double share = 100.0 * static_cast<double>(parts[k]) / n;
+      if (parts[k] == 0) continue;
+      p.span(i, lo, lo + share, 0.0, p.slot() * 0.6, kVerdictColours[k],
+             v.station + " " + kVerdictNames[k] + ": " + std::to_string(parts[k]) + " (" +
+                 fmt("%.1f", share) + " %)");
+      lo += share;
+    }
+    labels.push_back(v.station);
+  }
+  slot_labels(os, p, labels);
+  double x = kWidth - kRight - 300;
+  for (std::size_t k = 0; k < 4; ++k, x += 75)
+    os << "<rect x='" << x << "' y='" << kTop - 18 << "' width='10' height='10' fill='"
+       << kVerdictColours[k] << "'/><text x='" << x + 13 << "' y='" << kTop - 8
+       << "' font-size='11'>" << kVerdictNames[k] << "</text>\n";
+  return os.str() + "</svg>\n";
+}
+
+std::string box_plot(const std::vector<db::ParamSummary>& summaries, const calib::ParamInfo& info) {
+  std::ostringstream os;
+  os << svg_open("distribution-chart", kTop + kPanelH + 70);
+  if (summaries.empty()) return os.str() + "</svg>\n";
+  const double s = info.si_to_human;
+  double lo = INFINITY, hi = -INFINITY;
+  for (const auto& d : summaries) lo = std::min(lo, d.min * s), hi = std::max(hi, d.max * s);
+  tools::svg::round_range(lo, hi);
+  Panel p{os, kTop, lo, hi, summaries.size()};
+  p.frame(info.name + " (AINS) per station: min–max, quartiles, median, mean ◆", info.human_unit);
+  std::vector<std::string> labels;
+  for (std::size_t i = 0; i < summaries.size(); ++i) {
+    const auto& d = summaries[i];
+    const std::string tip = d.station + ": n " + std::to_string(d.count) + ", median " +
+                            fmt("%.4g", d.median * s) + ", mean " + fmt("%.4g", d.mean * s) +
+                            " ± " + fmt("%.3g", d.std_dev * s) + " " + info.human_unit;
+    const char* colour = station_colour(i);
+    p.span(i, d.min * s, d.max * s, 0.0, 1.5, "#555", tip);
+    p.span(i, d.q1 * s, d.q3 * s, 0.0, std::min(p.slot() * 0.45, 60.0), colour, tip,
+           "fill-opacity='0.55' stroke='#333'");
+    p.tick(i, d.median * s, 0.0, std::min(p.slot() * 0.45, 60.0), "#000");
+    os << "<rect x='" << p.x(i) - 4 << "' y='" << p.y(d.mean * s) - 4
+       << "' width='8' height='8' transform='rotate(45 " << p.x(i) << ' ' << p.y(d.mean * s)
+       << ")' fill='#fff' stroke='#000'><title>" << esc(tip) << "</title></rect>\n";
+    labels.push_back(d.station + " (" + std::to_string(d.count) + ")");
+  }
+  slot_labels(os, p, labels);
+  return os.str() + "</svg>\n";
+}
+
+}  // namespace imucal::stationweb

@@ -1,0 +1,26 @@
+#pragma once
+// The fleet page's pictures (tools/imucal/svg_panel.hpp panels, one slot per day or station):
+//   runs_chart      <svg id='runs-chart'>: runs per UTC day, stacked by station
+//   verdict_chart   <svg id='verdict-chart'>: each station's PASS/REVIEW/FAILED/live shares
+//   box_plot        <svg id='distribution-chart'>: one parameter per station — min–max whisker,
+//                   quartile box, median line, mean dot — in human units
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "calib/core/param_set.hpp"
+#include "db/fleet_stats.hpp"
+
+namespace imucal::stationweb {
+
+/// `stations` in legend order (their colour is their index); days first_day..last_day inclusive.
+std::string runs_chart(const std::vector<db::StationDayCount>& counts,
+                       const std::vector<std::string>& stations, std::int64_t first_day,
+                       std::int64_t last_day);
+std::string verdict_chart(const std::vector<db::StationVerdictCounts>& verdicts);
+std::string box_plot(const std::vector<db::ParamSummary>& summaries, const calib::ParamInfo& info);
+
+/// A station's colour by its index in the page's station list.
+const char* station_colour(std::size_t index);
+
+}  // namespace imucal::stationweb

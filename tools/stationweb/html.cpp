@@ -1,0 +1,104 @@
+#include "tools/stationweb/html.hpp"
+
+#include <cstdio>
+
+#include "tools/imucal/html_escape.hpp"
+
+namespace imucal::stationweb {
+
+namespace {
+
+constexpr std::int64_t kDayMs = 86400000;
+
+// Plain, printable, and legible in a screenshot: system fonts, a table style, verdict colours.
+constexpr const char* kStyle = R"(
+body { font-family: sans-serif; margin: 0 24px 24px; color: #222; max-width: 1400px; }
+nav { background: #f1f3f5; padding: 8px 12px; margin: 0 -24px 16px; border-bottom: 1px solid #ccc; }
+nav a { margin-right: 16px; font-weight: bold; color: #1a4f8b; text-decoration: none; }
+nav form { display: inline; float: right; }
+h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; }
+table { border-collapse: collapse; margin: 8px 0; font-size: 0.9em; }
+th, td { border: 1px solid #ccc; padding: 3px 8px; text-align: left; vertical-align: top; }
+th { background: #f1f3f5; } td.num, th.num { text-align: right; font-variant-numeric: tabular-nums; }
+.PASS { color: #176b2c; font-weight: bold; } .REVIEW { color: #a35d00; font-weight: bold; }
+.FAILED { color: #b3261e; font-weight: bold; } .muted { color: #666; }
+#error { font-size: 1.1em; padding: 12px; background: #fff4f4; border: 1px solid #e0a0a0; }
+svg { display: block; margin: 8px 0; } pre { background: #f8f9fa; padding: 8px; overflow-x: auto; }
+form.filters label { margin-right: 12px; }
+)";
+
+}  // namespace
+
+void bad_input(const std::string& field, const std::string& message) {
+  throw PageError(400, field, field + ": " + message);
+}
+
+std::string esc(const std::string& text) { return tools::html_escape(text); }
+
+std::string fmt(const char* format, double value) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, format, value);
+  return buf;
+}
+
+std::string exact(double value) { return fmt("%.17g", value); }
+
+std::string short_time(db::TimestampMs t_ms) {
+  std::string s = db::format_time_utc(t_ms).substr(0, 19);
+  s[10] = ' ';
+  return s;
+}
+
+std::string utc_date(db::TimestampMs t_ms) { return db::format_time_utc(t_ms).substr(0, 10); }
+
+std::string day_text(std::int64_t day) { return utc_date(day * kDayMs); }
+
+std::string url_encode(const std::string& value) {
+  std::string out;
+  for (unsigned char c : value) {
+    const bool plain = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
+                       c == '-' || c == '_' || c == '.' || c == '~';
+    if (plain) {
+      out += static_cast<char>(c);
+    } else {
+      char buf[4];
+      std::snprintf(buf, sizeof buf, "%%%02X", c);
+      out += buf;
+    }
+  }
+  return out;
+}
+
+std::string run_link(db::RunId id) {
+  return "<a href='/run/" + std::to_string(id) + "'>" + std::to_string(id) + "</a>";
+}
+
+std::string unit_link(const std::string& serial) {
+  return "<a href='/unit/" + url_encode(serial) + "'>" + esc(serial) + "</a>";
+}
+
+std::string page(const std::string& title, const std::string& body) {
+  std::string s;
+  s.reserve(body.size() + 2048);
+  s += "<!DOCTYPE html>\n<html lang='en'>\n<head>\n<meta charset='utf-8'>\n";
+  s += "<meta name='viewport' content='width=device-width, initial-scale=1'>\n";
+  s += "<link rel='icon' href='data:,'>\n";  // no favicon request (no 404 in the console)
+  s += "<title>" + esc(title) + " · stationweb</title>\n<style>" + kStyle + "</style>\n</head>\n";
+  s += "<body>\n<nav><a href='/'>Recent runs</a><a href='/fleet'>Fleet</a>";
+  s += "<form action='/unit' method='get'><label>Serial <input name='serial' size='18' "
+       "required></label> <button type='submit'>Show unit</button></form></nav>\n";
+  s += body;
+  s += "\n</body>\n</html>\n";
+  return s;
+}
+
+std::string error_page(int status, const std::string& reason, const std::string& field,
+                       const std::string& message) {
+  const std::string code = std::to_string(status);
+  return page(code + " " + reason, "<h1>" + code + " " + esc(reason) +
+                                       "</h1>\n<p id='error' data-status='" + code +
+                                       "' data-field='" + esc(field) + "'>" + esc(message) +
+                                       "</p>\n<p><a href='/'>Back to the recent runs</a></p>\n");
+}
+
+}  // namespace imucal::stationweb

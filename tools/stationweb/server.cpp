@@ -1,0 +1,121 @@
+#include "tools/stationweb/server.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <functional>
+
+#include "tools/stationweb/html.hpp"
+#include "tools/stationweb/pages.hpp"
+
+namespace imucal::stationweb {
+
+namespace {
+
+constexpr const char* kHtml = "text/html; charset=utf-8";
+
+const char* reason_phrase(int status) {
+  switch (status) {
+    case 400:
+      return "Bad Request";
+    case 404:
+      return "Not Found";
+    case 405:
+      return "Method Not Allowed";
+    case 503:
+      return "Service Unavailable";
+    default:
+      return "Internal Server Error";
+  }
+}
+
+void fail(httplib::Response& res, int status, const std::string& field,
+          const std::string& message) {
+  res.status = status;
+  res.set_content(error_page(status, reason_phrase(status), field, message), kHtml);
+}
+
+/// Renders a page into `res`, mapping its failures to statuses; logs the request and its time.
+void respond(const httplib::Request& req, httplib::Response& res,
+             const std::function<std::string()>& render) {
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    res.set_content(render(), kHtml);
+    res.status = 200;
+  } catch (const PageError& e) {
+    fail(res, e.status, e.field, e.what());
+  } catch (const db::Busy& e) {
+    spdlog::warn("{} {}: {}", req.method, req.path, e.what());
+    fail(res, 503, "", "The history is busy; try again in a moment.");
+  } catch (const std::exception& e) {
+    spdlog::error("{} {}: {}", req.method, req.path, e.what());
+    fail(res, 500, "", std::string("The history could not be read: ") + e.what());
+  }
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  spdlog::debug("{} {} {} {:.1f} ms", req.method, req.target, res.status, ms);
+}
+
+using Render = std::function<std::string(const httplib::Request&)>;
+
+httplib::Server::Handler page_handler(Render render) {
+  return [render = std::move(render)](const httplib::Request& req, httplib::Response& res) {
+    respond(req, res, [&] { return render(req); });
+  };
+}
+
+void method_not_allowed(const httplib::Request& req, httplib::Response& res) {
+  spdlog::debug("{} {} refused: read-only view", req.method, req.path);
+  res.set_header("Allow", "GET, HEAD");
+  fail(res, 405, "",
+       "stationweb is a read-only view: only GET and HEAD are served, not " + req.method + ".");
+}
+
+}  // namespace
+
+void install_routes(httplib::Server& server, const History& history) {
+  const History* h = &history;
+  server.Get("/",
+             page_handler([h](const httplib::Request& req) { return index_page(*h, req.params); }));
+  server.Get("/unit", [](const httplib::Request& req, httplib::Response& res) {
+    std::string serial;
+    respond(req, res, [&] {
+      serial = unit_search(req.params);
+      return std::string();
+    });
+    if (res.status == 200) res.set_redirect("/unit/" + url_encode(serial), 303);
+  });
+  server.Get(R"(/unit/([^/]*))", page_handler([h](const httplib::Request& req) {
+               return unit_page(*h, req.matches[1].str());
+             }));
+  server.Get(R"(/run/([^/]*))", page_handler([h](const httplib::Request& req) {
+               return run_page(*h, req.matches[1].str());
+             }));
+  server.Get("/fleet",
+             page_handler([h](const httplib::Request& req) { return fleet_page(*h, req.params); }));
+  server.Post(".*", method_not_allowed);
+  server.Put(".*", method_not_allowed);
+  server.Patch(".*", method_not_allowed);
+  server.Delete(".*", method_not_allowed);
+  server.Options(".*", method_not_allowed);
+  // Unknown paths (and our own error pages, which already have a body) end here.
+  server.set_error_handler(httplib::Server::HandlerWithResponse([](const httplib::Request& req,
+                                                                   httplib::Response& res) {
+    if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+    spdlog::debug("{} {} {}", req.method, req.path, res.status);
+    fail(res, res.status, "", res.status == 404 ? "No page at " + req.path + "." : "Bad request.");
+    return httplib::Server::HandlerResponse::Handled;
+  }));
+  server.set_payload_max_length(64 * 1024);  // nothing is uploaded to a read-only view
+  // Headers and body go out in separate writes: without TCP_NODELAY the body waits for the
+  // client's delayed ACK (40 ms on Linux) on a kept-alive connection.
+  server.set_tcp_nodelay(true);
+  // SO_REUSEADDR (a restart need not wait for TIME_WAIT) but not httplib's default SO_REUSEPORT,
+  // with which a second process could bind the same port and take a share of the connections.
+  server.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
+}
+
+}  // namespace imucal::stationweb

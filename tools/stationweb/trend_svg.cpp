@@ -1,0 +1,197 @@
+#include "tools/stationweb/trend_svg.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "tools/imucal/svg_panel.hpp"
+#include "tools/stationweb/html.hpp"
+
+namespace imucal::stationweb {
+
+namespace {
+
+using tools::svg::kLeft;
+using tools::svg::kPanelH;
+using tools::svg::kRight;
+using tools::svg::kTop;
+using tools::svg::kWidth;
+using tools::svg::Panel;
+
+constexpr const char* kColours[] = {"#1f77b4", "#ff7f0e", "#2ca02c",
+                                    "#d62728", "#9467bd", "#8c564b"};
+constexpr double kHeight = kTop + kPanelH + 56;
+constexpr double kInset = 12;  ///< px between the frame and the first/last run
+constexpr double kHourMs = 3600e3;
+
+std::vector<int> members(calib::ParamGroup g) {
+  std::vector<int> out;
+  for (int i = 0; i < calib::ParamSet::kSize; ++i)
+    if (calib::param_info(i).group == g) out.push_back(i);
+  return out;
+}
+
+/// "accel_M[0][1]" -> "xy", "gyro_bias_radps[2]" -> "z".
+std::string component_label(int i) {
+  const std::string& name = calib::param_info(i).name;
+  std::string out;
+  for (std::size_t p = name.find('['); p != std::string::npos; p = name.find('[', p + 1))
+    out += "xyz"[name[p + 1] - '0'];
+  return out;
+}
+
+/// Calibration time to page x, the runs spread between the frame's edges.
+struct TimeAxis {
+  double t0_ms, t1_ms;
+  double x(double t_ms) const {
+    return kLeft + kInset +
+           (kWidth - kLeft - kRight - 2 * kInset) * (t_ms - t0_ms) / (t1_ms - t0_ms);
+  }
+};
+
+TimeAxis time_axis(const std::vector<TrendPoint>& points) {
+  double t0 = static_cast<double>(points.front().t_ms), t1 = t0;
+  for (const TrendPoint& p : points) {
+    t0 = std::min(t0, static_cast<double>(p.t_ms));
+    t1 = std::max(t1, static_cast<double>(p.t_ms));
+  }
+  if (t1 - t0 < kHourMs) {  // one run, or runs within the hour: an hour's width around them
+    const double mid = (t0 + t1) / 2;
+    t0 = mid - kHourMs / 2;
+    t1 = mid + kHourMs / 2;
+  }
+  return {t0, t1};
+}
+
+/// The y range in human units covering every drawn value ± 3σ, widened to round ticks.
+void y_range(const std::vector<TrendPoint>& points, const std::vector<int>& idx, double& lo,
+             double& hi) {
+  lo = INFINITY;
+  hi = -INFINITY;
+  for (const TrendPoint& p : points)
+    for (int i : idx) {
+      if (!p.observable[static_cast<std::size_t>(i)]) continue;
+      const double s = calib::param_info(i).si_to_human;
+      lo = std::min(lo, (p.value(i) - 3 * p.sigma(i)) * s);
+      hi = std::max(hi, (p.value(i) + 3 * p.sigma(i)) * s);
+    }
+  if (!(lo <= hi)) lo = -1, hi = 1;  // nothing observable
+  tools::svg::round_range(lo, hi);
+}
+
+void time_ticks(std::ostringstream& os, const TimeAxis& axis) {
+  const bool short_span = axis.t1_ms - axis.t0_ms < 3 * 24 * kHourMs;
+  for (int k = 0; k <= 4; ++k) {
+    const double t = axis.t0_ms + (axis.t1_ms - axis.t0_ms) * k / 4.0;
+    const auto t_ms = static_cast<db::TimestampMs>(std::llround(t));
+    const double x = axis.x(t), y = kTop + kPanelH;
+    os << "<line x1='" << x << "' x2='" << x << "' y1='" << y << "' y2='" << y + 5
+       << "' stroke='#888'/><text x='" << x << "' y='" << y + 18
+       << "' text-anchor='middle' font-size='11'>"
+       << (short_span ? short_time(t_ms).substr(0, 16) : utc_date(t_ms)) << "</text>\n";
+  }
+  os << "<text x='" << kWidth / 2 << "' y='" << kTop + kPanelH + 36
+     << "' text-anchor='middle' font-size='12'>calibration time (run start, UTC)</text>\n";
+}
+
+/// The band value ± k σ of one component through its runs (a bar for a single run).
+void band(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
+          const std::vector<const TrendPoint*>& pts, int i, double k, const char* colour,
+          double opacity) {
+  const double s = calib::param_info(i).si_to_human;
+  auto upper = [&](const TrendPoint* q) { return p.y((q->value(i) + k * q->sigma(i)) * s); };
+  auto lower = [&](const TrendPoint* q) { return p.y((q->value(i) - k * q->sigma(i)) * s); };
+  if (pts.size() == 1) {
+    const double x = axis.x(static_cast<double>(pts[0]->t_ms));
+    os << "<rect x='" << x - 5 << "' y='" << upper(pts[0]) << "' width='10' height='"
+       << std::max(lower(pts[0]) - upper(pts[0]), 0.5) << "' fill='" << colour << "' fill-opacity='"
+       << opacity << "'/>\n";
+    return;
+  }
+  os << "<polygon fill='" << colour << "' fill-opacity='" << opacity << "' stroke='none' points='";
+  for (const TrendPoint* q : pts)
+    os << axis.x(static_cast<double>(q->t_ms)) << ',' << upper(q) << ' ';
+  for (auto it = pts.rbegin(); it != pts.rend(); ++it)
+    os << axis.x(static_cast<double>((*it)->t_ms)) << ',' << lower(*it) << ' ';
+  os << "'/>\n";
+}
+
+void component(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
+               const std::vector<TrendPoint>& points, int i, const char* colour,
+               std::optional<db::RunId> active) {
+  std::vector<const TrendPoint*> pts;
+  for (const TrendPoint& q : points)
+    if (q.observable[static_cast<std::size_t>(i)]) pts.push_back(&q);
+  if (pts.empty()) return;
+  band(os, p, axis, pts, i, 3.0, colour, 0.10);
+  band(os, p, axis, pts, i, 1.0, colour, 0.28);
+  const calib::ParamInfo& info = calib::param_info(i);
+  const double s = info.si_to_human;
+  os << "<polyline fill='none' stroke='" << colour << "' stroke-width='1.2' points='";
+  for (const TrendPoint* q : pts)
+    os << axis.x(static_cast<double>(q->t_ms)) << ',' << p.y(q->value(i) * s) << ' ';
+  os << "'/>\n";
+  for (const TrendPoint* q : pts) {
+    const bool is_active = active && *active == q->run_id;
+    os << "<circle class='pt" << (is_active ? " active" : "") << "' cx='"
+       << axis.x(static_cast<double>(q->t_ms)) << "' cy='" << p.y(q->value(i) * s) << "' r='"
+       << (is_active ? 5 : 3) << "' fill='" << colour << "' stroke='"
+       << (is_active ? "#000" : colour) << "' stroke-width='" << (is_active ? 2 : 1)
+       << "' data-run-id='" << q->run_id << "' data-param='" << info.name << "' data-value-si='"
+       << exact(q->value(i)) << "' data-sigma-si='" << exact(q->sigma(i)) << "'><title>run "
+       << q->run_id << " " << short_time(q->t_ms) << ": " << info.name << " = "
+       << fmt("%.4g", q->value(i) * s) << " ± " << fmt("%.2g", q->sigma(i) * s) << " "
+       << esc(info.human_unit) << " (1σ)</title></circle>\n";
+  }
+}
+
+void active_marker(std::ostringstream& os, const TimeAxis& axis,
+                   const std::vector<TrendPoint>& points, std::optional<db::RunId> active) {
+  if (!active) return;
+  for (const TrendPoint& q : points) {
+    if (q.run_id != *active) continue;
+    const double x = axis.x(static_cast<double>(q.t_ms));
+    os << "<line class='active-marker' x1='" << x << "' x2='" << x << "' y1='" << kTop << "' y2='"
+       << kTop + kPanelH << "' stroke='#000' stroke-dasharray='4,3'/>"
+       << "<text x='" << x + 4 << "' y='" << kTop + 12 << "' font-size='11'>active set (run "
+       << q.run_id << ")</text>\n";
+  }
+}
+
+void legend(std::ostringstream& os, const std::vector<int>& idx) {
+  double x = kWidth - kRight - 48.0 * static_cast<double>(idx.size()) - 120;
+  os << "<text x='" << x << "' y='" << kTop - 8 << "' font-size='11'>band ±1σ, light ±3σ:</text>";
+  x += 120;
+  for (std::size_t k = 0; k < idx.size(); ++k, x += 48)
+    os << "<rect x='" << x << "' y='" << kTop - 18 << "' width='10' height='10' fill='"
+       << kColours[k] << "'/><text x='" << x + 13 << "' y='" << kTop - 8 << "' font-size='11'>"
+       << component_label(idx[k]) << "</text>";
+  os << "\n";
+}
+
+}  // namespace
+
+std::string trend_svg(calib::ParamGroup group, const std::vector<TrendPoint>& points,
+                      std::optional<db::RunId> active_run) {
+  const std::vector<int> idx = members(group);
+  const calib::ParamInfo& first = calib::param_info(idx.front());
+  std::ostringstream os;
+  os << "<svg id='trend-" << calib::group_name(group) << "' xmlns='http://www.w3.org/2000/svg' "
+     << "width='" << kWidth << "' height='" << kHeight << "' viewBox='0 0 " << kWidth << ' '
+     << kHeight << "' font-family='sans-serif'>\n";
+  if (points.empty()) return os.str() + "</svg>\n";
+  double lo = 0, hi = 0;
+  y_range(points, idx, lo, hi);
+  Panel p{os, kTop, lo, hi, 1};
+  p.frame(calib::group_name(group) + " (AINS)", first.human_unit);
+  const TimeAxis axis = time_axis(points);
+  time_ticks(os, axis);
+  for (std::size_t k = 0; k < idx.size(); ++k)
+    component(os, p, axis, points, idx[k], kColours[k], active_run);
+  active_marker(os, axis, points, active_run);
+  legend(os, idx);
+  os << "</svg>\n";
+  return os.str();
+}
+
+}  // namespace imucal::stationweb
