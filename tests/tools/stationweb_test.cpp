@@ -23,6 +23,7 @@
 #include "db/sqlite_repository.hpp"
 #include "station/record_json.hpp"
 #include "tests/db/fleet_history.hpp"
+#include "tests/support/html_tags.hpp"
 #include "tests/support/run_command.hpp"
 #include "tests/tools/stationweb_process.hpp"
 #include "tools/imucal/html_escape.hpp"
@@ -32,57 +33,11 @@ namespace imucal {
 namespace {
 
 namespace fs = std::filesystem;
-/// An element's attributes; reading one it does not have is a test failure (not a silent "").
-struct Attrs : std::map<std::string, std::string> {
-  const std::string& operator[](const std::string& key) const {
-    static const std::string none;
-    const auto it = find(key);
-    if (it != end()) return it->second;
-    ADD_FAILURE() << "the element has no attribute " << key;
-    return none;
-  }
-};
 using db::test::FleetRow;
-
-// ----- reading the pages
-// ---------------------------------------------------------------------------
-
-std::string unescape(std::string s) {
-  const std::pair<const char*, const char*> entities[] = {
-      {"&#39;", "'"}, {"&quot;", "\""}, {"&lt;", "<"}, {"&gt;", ">"}, {"&amp;", "&"}};
-  for (const auto& [from, to] : entities)
-    for (std::size_t p = s.find(from); p != std::string::npos; p = s.find(from, p + 1))
-      s.replace(p, std::string(from).size(), to);
-  return s;
-}
-
-/// The attributes of every tag that starts with `open` (e.g. "<tr class='run'"), in page order.
-std::vector<Attrs> tags(const std::string& html, const std::string& open) {
-  std::vector<Attrs> out;
-  static const std::regex attr("([a-z0-9-]+)='([^']*)'");
-  for (std::size_t p = html.find(open); p != std::string::npos; p = html.find(open, p + 1)) {
-    const std::string tag = html.substr(p, html.find('>', p) - p);
-    Attrs a;
-    for (std::sregex_iterator it(tag.begin(), tag.end(), attr), end; it != end; ++it)
-      a.insert_or_assign((*it)[1], unescape((*it)[2]));
-    out.push_back(a);
-  }
-  return out;
-}
-
-/// The part of the page from the element with id `id` to the next `end` (e.g. "</table>").
-std::string section(const std::string& html, const std::string& id, const std::string& end) {
-  const std::size_t p = html.find("id='" + id + "'");
-  if (p == std::string::npos) return "";
-  return html.substr(p, html.find(end, p) - p);
-}
-
-double number(const std::string& text) {
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  EXPECT_TRUE(!text.empty() && *end == '\0') << "not a number: \"" << text << "\"";
-  return v;
-}
+using test_support::Attrs;
+using test_support::number;
+using test_support::section;
+using test_support::tags;
 
 // ----- the history and the server
 // --------------------------------------------------------------------
@@ -598,7 +553,8 @@ TEST_F(StationwebTest, StartsThatCannotServeAreRefusedWithAMessage) {
       {"--db " + db_ + " --listen 127.0.0.1:70000", 2, "port must be 0..65535"},
       {"--db " + db_ + " --listen 127.0.0.1:" + std::to_string(web_->port()), 1,
        "cannot listen on 127.0.0.1:" + std::to_string(web_->port())},
-      {"--db postgresql://qa:secret@fleet.example/history", 1, "not supported by this build yet"},
+      {"--db postgresql://qa:secret@127.0.0.1:1/history", 1, "cannot connect"},
+      {"--db postgresql://qa:secret@127.0.0.1:notaport/history", 1, "not a number"},
   };
   for (const Case& c : cases) {
     const auto r = test_support::run_command("timeout 20 " + bin + " " + c.args + " 2>&1");

@@ -1,9 +1,8 @@
 #pragma once
-// Where stationweb reads from, behind one function: open_history(source). Today a source is the
-// path of a station's SQLite history, opened read-only (db::SqliteRepository in QA mode and
-// db::SqliteFleetStats, each its own read-only connection). The PostgreSQL fleet store plugs in
-// here (a "postgresql://" URL) by returning its own db::Repository and db::FleetStats: the pages
-// only see the two interfaces.
+// Where stationweb reads from, behind one function: open_history(source). A source is the path of
+// a station's SQLite history, opened read-only (db::SqliteRepository in QA mode and
+// db::SqliteFleetStats, each its own read-only connection), or the PostgreSQL fleet store's URL
+// (db::fleet::FleetRepository and db::fleet::PgFleetStats): the pages only see the two interfaces.
 #include <memory>
 #include <string>
 
@@ -18,8 +17,10 @@ struct History {
   std::string label;  ///< what the pages say they show ("SQLite history /path/to/history.db")
 };
 
-/// Opens `source` read-only. Throws db::DbError (NotFound for a missing file, IncompatibleSchema,
-/// Corrupt, ...) naming it, or std::invalid_argument for a source of a kind not supported yet.
-History open_history(const std::string& source);
+/// Opens `source` read-only: the path of a station's SQLite history, or the fleet store's
+/// postgresql:// URL (with `password`, else libpq's PGPASSWORD / ~/.pgpass). Throws db::DbError
+/// (NotFound for a missing file, IncompatibleSchema, Corrupt, IoError for a store it cannot log in
+/// to, InvalidInput for a bad URL, ...) naming it — a URL always redacted.
+History open_history(const std::string& source, const std::string& password = {});
 
 }  // namespace imucal::stationweb

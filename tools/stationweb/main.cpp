@@ -18,6 +18,7 @@
 #include <string>
 #include <thread>
 
+#include "db/fleet/fleet_url.hpp"
 #include "station/logging.hpp"
 #include "tools/stationweb/history_source.hpp"
 #include "tools/stationweb/server.hpp"
@@ -64,8 +65,8 @@ std::thread stop_on_signal(httplib::Server& server, const sigset_t& signals) {
   });
 }
 
-int serve(const std::string& source, const Listen& listen) {
-  stationweb::History history = stationweb::open_history(source);
+int serve(const std::string& source, const std::string& password, const Listen& listen) {
+  stationweb::History history = stationweb::open_history(source, password);
   httplib::Server server;
   stationweb::install_routes(server, history);
   const int port = listen.port == 0
@@ -97,8 +98,13 @@ int serve(const std::string& source, const Listen& listen) {
 
 int main(int argc, char** argv) {
   CLI::App app{"stationweb: read-only QA web view of a calibration history"};
-  std::string db, listen_text = "127.0.0.1:8090", level = "info";
-  app.add_option("--db", db, "the station's SQLite history (opened read-only)")->required();
+  std::string db, password_file, listen_text = "127.0.0.1:8090", level = "info";
+  app.add_option("--db", db,
+                 "the station's SQLite history (opened read-only), or the fleet store's "
+                 "postgresql://USER@HOST:PORT/DB (log in as a read-only role)")
+      ->required();
+  app.add_option("--password-file", password_file,
+                 "the fleet store password's file (first line); default PGPASSWORD or ~/.pgpass");
   app.add_option("--listen", listen_text,
                  "HOST:PORT to serve on (loopback by default; port 0: any)")
       ->capture_default_str();
@@ -124,8 +130,15 @@ int main(int argc, char** argv) {
     std::cerr << "stationweb: " << e.what() << "\n";
     return 2;
   }
+  std::string password;
   try {
-    return serve(db, listen);
+    if (!password_file.empty()) password = db::fleet::read_password_file(password_file);
+  } catch (const std::exception& e) {
+    std::cerr << "stationweb: " << e.what() << "\n";
+    return 2;
+  }
+  try {
+    return serve(db, password, listen);
   } catch (const std::exception& e) {
     std::cerr << "stationweb: " << e.what() << "\n";
     return 1;
