@@ -1,5 +1,6 @@
 #include "db/fleet/pg_fleet_stats.hpp"
 
+#include <cstdlib>
 #include <mutex>
 
 #include "calib/core/param_set.hpp"
@@ -20,9 +21,7 @@ const char* const kWhere =
 // OFFSET 0 keeps the subquery whole: only (station, value) reach the sort, not each run's array.
 const std::string kDistribution =
     "SELECT station_id, count(*), avg(v), coalesce(stddev_samp(v), 0), min(v), "
-    "percentile_cont(0.25) WITHIN GROUP (ORDER BY v), "
-    "percentile_cont(0.5) WITHIN GROUP (ORDER BY v), "
-    "percentile_cont(0.75) WITHIN GROUP (ORDER BY v), max(v) "
+    "percentile_cont(ARRAY[0.25, 0.5, 0.75]) WITHIN GROUP (ORDER BY v), max(v) "
     "FROM (SELECT r.station_id, r.ains_values[$1::int] AS v FROM runs r "
     "      WHERE r.ains_values IS NOT NULL AND $2::text IS NULL AND" +
     std::string(kWhere) +
@@ -95,10 +94,13 @@ std::vector<ParamSummary> PgFleetStats::param_distribution(int param_index,
     s.mean = q.f64(i, 2);
     s.std_dev = q.f64(i, 3);
     s.min = q.f64(i, 4);
-    s.q1 = q.f64(i, 5);
-    s.median = q.f64(i, 6);
-    s.q3 = q.f64(i, 7);
-    s.max = q.f64(i, 8);
+    // The three quartiles from one sort: "{q1,median,q3}".
+    std::string quartiles = q.text(i, 5);
+    char* at = quartiles.data() + 1;
+    s.q1 = std::strtod(at, &at);
+    s.median = std::strtod(at + 1, &at);
+    s.q3 = std::strtod(at + 1, &at);
+    s.max = q.f64(i, 6);
     out.push_back(s);
   }
   return out;

@@ -16,11 +16,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
+#include "db/fleet/fleet_schema.hpp"
+#include "db/fleet/fleet_writer.hpp"
 #include "db/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
+#include "tests/support/pg_cluster.hpp"
 #include "tests/tools/stationweb_process.hpp"
 #include "tools/stationweb/httplib.hpp"
 
@@ -122,20 +126,17 @@ Timing time_page(httplib::Client& client, const std::string& target, int fetches
   return t;
 }
 
-}  // namespace
-
-int main() {
-  const std::string path = db_path();
-  ensure_history(path);
+/// Times every page of a stationweb serving `source`; true if one is slow or fails.
+bool time_pages(const std::string& source, const std::vector<std::string>& extra_args,
+                const std::string& mid_run, const std::string& log) {
   const char* n = std::getenv("IMUCAL_BENCH_FETCHES");
   const int fetches = std::max(20, n && *n ? std::atoi(n) : 25);
-  imucal::test_support::StationwebProcess web(std::string(IMUCAL_BIN_DIR) + "/stationweb", path,
-                                              path + ".stationweb.log");
+  imucal::test_support::StationwebProcess web(std::string(IMUCAL_BIN_DIR) + "/stationweb", source,
+                                              log, extra_args);
   httplib::Client client("127.0.0.1", web.port());
   client.set_keep_alive(true);
   client.set_tcp_nodelay(true);  // as browsers do
   client.set_read_timeout(30, 0);
-  const std::string mid_run = std::to_string(kRuns / 2);
   const std::vector<std::string> pages = {
       "/",
       "/unit/SIM-00042",
@@ -147,7 +148,7 @@ int main() {
       "/fleet?since=2024-01-01&until=2024-12-31",
       "/fleet?param=gyro_bias_radps%5B2%5D&since=2024-01-01&until=2024-12-31",
   };
-  std::printf("%d fetches per page, %ld runs in %s\n", fetches, kRuns, path.c_str());
+  std::printf("%d fetches per page, %ld runs in %s\n", fetches, kRuns, source.c_str());
   std::printf("%-90s %6s %9s %9s %9s %9s\n", "page", "status", "median", "min", "max", "bytes");
   bool slow = false;
   for (const std::string& p : pages) {
@@ -157,5 +158,56 @@ int main() {
                 t.median_ms >= kLimitMs || t.status != 200 ? "  SLOW/FAILED" : "");
     slow = slow || t.median_ms >= kLimitMs || t.status != 200;
   }
-  return slow ? 1 : 0;
+  return slow;
+}
+
+/// --fleet: the same history replicated into a throw-away PostgreSQL fleet store (the writer the
+/// stations' senders use, one station id per station), served by stationweb from there.
+bool time_fleet(const std::string& path) {
+  using imucal::test_support::PgCluster;
+  PgCluster pg;
+  const auto t0 = std::chrono::steady_clock::now();
+  {
+    namespace fl = imucal::db::fleet;
+    fl::PgConnection w(fl::parse_fleet_target(pg.url("fleet_writer"), PgCluster::kWriterPassword));
+    fl::migrate_fleet(w);
+    SqliteOptions ro;
+    ro.read_only = true;
+    const SqliteRepository repo(path, ro);
+    std::map<std::string, std::vector<RunId>> by_station;
+    for (const RunRecord& r : repo.recent_runs(0)) by_station[r.station].push_back(r.run_id);
+    for (auto& [station, ids] : by_station)
+      for (std::size_t i = 0; i < ids.size(); i += 1000)
+        fl::upsert_runs(w, station,
+                        repo.details_of(std::vector<RunId>(
+                            ids.begin() + static_cast<long>(i),
+                            ids.begin() + static_cast<long>(std::min(ids.size(), i + 1000)))));
+  }
+  pg.admin("VACUUM ANALYZE", "fleet");
+  std::printf("replicated into the fleet store in %.1f s\n",
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  const std::string mid =
+      pg.admin("SELECT id FROM runs WHERE local_run_id = " + std::to_string(kRuns / 2), "fleet");
+  const std::string pw = path + ".reader.pw";
+  std::FILE* f = std::fopen(pw.c_str(), "w");
+  std::fprintf(f, "%s\n", PgCluster::kReaderPassword);
+  std::fclose(f);
+  return time_pages(pg.url("fleet_reader"), {"--password-file", pw}, mid.substr(0, mid.find('\n')),
+                    path + ".stationweb-fleet.log");
+}
+
+}  // namespace
+
+/// stationweb_bench [--fleet]: over the SQLite history, or (--fleet) over the same history in a
+/// fleet store.
+int main(int argc, char** argv) {
+  const std::string path = db_path();
+  ensure_history(path);
+  try {
+    if (argc > 1 && std::string(argv[1]) == "--fleet") return time_fleet(path) ? 1 : 0;
+    return time_pages(path, {}, std::to_string(kRuns / 2), path + ".stationweb.log") ? 1 : 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "stationweb_bench: %s\n", e.what());
+    return 1;
+  }
 }
