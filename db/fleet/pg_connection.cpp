@@ -44,10 +44,28 @@ std::optional<std::int64_t> PgResult::opt_i64(int row, int col) const {
 PgConnection::PgConnection(const FleetTarget& target) : target_(target) {
   // The URL as libpq's dbname (expanded), the password as its own keyword: it never has to be
   // written into a URL, and libpq's other sources (PGPASSWORD, ~/.pgpass) still apply when empty.
-  const char* keys[] = {"dbname", "password", "connect_timeout", "application_name", nullptr};
+  // A network that silently drops packets (no reset) must end a statement too, or the sender
+  // would wait on it forever: TCP keepalives and a 30 s limit on unacknowledged data.
+  const char* keys[] = {"dbname",
+                        "password",
+                        "connect_timeout",
+                        "application_name",
+                        "keepalives",
+                        "keepalives_idle",
+                        "keepalives_interval",
+                        "keepalives_count",
+                        "tcp_user_timeout",
+                        nullptr};
   const char* values[] = {target.url.c_str(),
-                          target.password.empty() ? nullptr : target.password.c_str(), "5",
-                          "imucal", nullptr};
+                          target.password.empty() ? nullptr : target.password.c_str(),
+                          "5",
+                          "imucal",
+                          "1",
+                          "10",
+                          "5",
+                          "3",
+                          "30000",
+                          nullptr};
   conn_ = PQconnectdbParams(keys, values, /*expand_dbname=*/1);
   if (!conn_ || PQstatus(conn_) != CONNECTION_OK) {
     const std::string why = trimmed(conn_ ? PQerrorMessage(conn_) : "out of memory");
