@@ -95,20 +95,35 @@ void PgConnection::fail(PGresult* r, const char* op) {
   throw IoError(msg);
 }
 
+PGresult* PgConnection::send(const std::string& sql, const std::vector<PgParam>* params) {
+  auto once = [&]() -> PGresult* {
+    if (!params) return PQexec(conn_, sql.c_str());
+    std::vector<const char*> values;
+    values.reserve(params->size());
+    for (const PgParam& p : *params) values.push_back(p ? p->c_str() : nullptr);
+    return PQexecParams(conn_, sql.c_str(), static_cast<int>(values.size()), nullptr, values.data(),
+                        nullptr, nullptr, 0);
+  };
+  if (tx_depth_ == 0 && lost()) PQreset(conn_);
+  PGresult* r = once();
+  const ExecStatusType s = r ? PQresultStatus(r) : PGRES_FATAL_ERROR;
+  if (s != PGRES_FATAL_ERROR || tx_depth_ != 0 || !lost()) return r;
+  // The connection went away under this statement, outside any transaction: once more anew.
+  if (r) PQclear(r);
+  PQreset(conn_);
+  return once();
+}
+
 PgResult PgConnection::exec(const std::string& sql, const std::vector<PgParam>& params,
                             const char* op) {
-  std::vector<const char*> values;
-  values.reserve(params.size());
-  for (const PgParam& p : params) values.push_back(p ? p->c_str() : nullptr);
-  PGresult* r = PQexecParams(conn_, sql.c_str(), static_cast<int>(values.size()), nullptr,
-                             values.data(), nullptr, nullptr, 0);
+  PGresult* r = send(sql, &params);
   const ExecStatusType s = r ? PQresultStatus(r) : PGRES_FATAL_ERROR;
   if (s != PGRES_COMMAND_OK && s != PGRES_TUPLES_OK) fail(r, op);
   return PgResult(r);
 }
 
 void PgConnection::exec_plain(const std::string& sql, const char* op) {
-  PGresult* r = PQexec(conn_, sql.c_str());
+  PGresult* r = send(sql, nullptr);
   const ExecStatusType s = r ? PQresultStatus(r) : PGRES_FATAL_ERROR;
   if (s != PGRES_COMMAND_OK && s != PGRES_TUPLES_OK) fail(r, op);
   PQclear(r);
@@ -116,9 +131,11 @@ void PgConnection::exec_plain(const std::string& sql, const char* op) {
 
 PgTransaction::PgTransaction(PgConnection& c, const char* op, bool read_only) : c_(c), op_(op) {
   c_.exec_plain(read_only ? "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY" : "BEGIN", op);
+  ++c_.tx_depth_;
 }
 
 PgTransaction::~PgTransaction() {
+  --c_.tx_depth_;
   if (done_ || !c_.ok()) return;
   try {
     c_.exec_plain("ROLLBACK", op_);

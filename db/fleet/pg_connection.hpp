@@ -63,12 +63,20 @@ class PgConnection {
   void exec_plain(const std::string& sql, const char* op);
   /// True while the socket is still good (after an error it may not be).
   bool ok() const;
+  /// Outside a transaction, a connection found lost (the server restarted, the network reset) is
+  /// opened again and the statement sent once more: a reader (stationweb, stationctl) outlives a
+  /// server restart. Inside one it never is (the rest of a transaction must not run without its
+  /// beginning): the caller sees the error.
   const FleetTarget& target() const { return target_; }
 
  private:
   [[noreturn]] void fail(PGresult* r, const char* op);
+  PGresult* send(const std::string& sql, const std::vector<PgParam>* params);
+  bool lost() const { return PQstatus(conn_) != CONNECTION_OK; }
+  friend class PgTransaction;
   FleetTarget target_;
   PGconn* conn_ = nullptr;
+  int tx_depth_ = 0;
 };
 
 /// One transaction on a connection: BEGIN at construction, COMMIT by commit(), ROLLBACK otherwise.

@@ -200,6 +200,14 @@ TEST_F(FleetView, StationwebOverTheStoreShowsWhatItShowsOverTheStationsFile) {
     EXPECT_TRUE(s2 == 200 || s2 == 400 || s2 == 404) << q << " " << s2;
   }
   EXPECT_EQ(repo.total_run_count(), before);
+  // The server restarted under it (SIGKILL): the next page is served from a new connection.
+  pg_->kill9();
+  pg_->start();
+  get(store.port(), "/unit/SN-3", s2);
+  EXPECT_EQ(s2, 200) << "stationweb outlives a restart of the fleet store";
+  get(store.port(), "/fleet?param=gyro_bias_radps%5B2%5D", s2);
+  EXPECT_EQ(s2, 200);
+  EXPECT_EQ(repo.history("SN-3").size(), rows.size());
   // Its log names the store without the password.
   std::ifstream log(dir_->file("store.log"));
   const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
