@@ -53,6 +53,14 @@ int user_version(sqlite3* db, const std::string& path);
 [[noreturn]] void throw_sqlite(sqlite3* db, int rc, const std::string& path,
                                const std::string& context);
 
+/// Column `c` of the current row as text ("" for NULL), with its exact length (embedded NULs kept).
+inline std::string column_text(sqlite3_stmt* st, int c) {
+  const unsigned char* p = sqlite3_column_text(st, c);
+  return p ? std::string(reinterpret_cast<const char*>(p),
+                         static_cast<std::size_t>(sqlite3_column_bytes(st, c)))
+           : std::string();
+}
+
 /// sqlite3_exec of constant SQL (no values); throws via throw_sqlite.
 void exec(sqlite3* db, const char* sql, const std::string& path, const std::string& context);
 

@@ -84,12 +84,7 @@ struct SqliteFleetStats::Impl {
     std::int64_t i64(int c) const { return sqlite3_column_int64(st_, c); }
     int type(int c) const { return sqlite3_column_type(st_, c); }
     double f64(int c) const { return sqlite3_column_double(st_, c); }
-    std::string text(int c) const {
-      const unsigned char* p = sqlite3_column_text(st_, c);
-      return p ? std::string(reinterpret_cast<const char*>(p),
-                             static_cast<std::size_t>(sqlite3_column_bytes(st_, c)))
-               : std::string();
-    }
+    std::string text(int c) const { return schema::column_text(st_, c); }
 
    private:
     void check(int rc) {
