@@ -164,8 +164,13 @@ void FleetSender::notify() {
 }
 
 FleetSenderStatus FleetSender::status() const {
+  // The outbox's length as committed now, not as the thread last counted it: a run that has just
+  // ended has entries the thread has not read yet (up to idle_poll), and `status` must not say 0.
+  const std::size_t length = impl_->repo.outbox_length();
   std::lock_guard<std::mutex> lk(impl_->mu);
-  return impl_->st;
+  FleetSenderStatus s = impl_->st;
+  s.outbox_length = length;
+  return s;
 }
 
 bool FleetSender::wait_until_drained(std::chrono::milliseconds timeout) {

@@ -64,6 +64,7 @@ class FleetSender {
 
   /// Something was written: look at the outbox now instead of at the next poll.
   void notify();
+  /// The sender's state; outbox_length read from the database at the call.
   FleetSenderStatus status() const;
   /// Waits until the outbox is empty (true) or `timeout` passes (false).
   bool wait_until_drained(std::chrono::milliseconds timeout);
