@@ -337,13 +337,10 @@ std::vector<RunRecord> FleetRepository::runs_with_archive_sha256(const std::stri
 std::vector<RunRecord> FleetRepository::runs_in_state(const std::vector<RunState>& states) const {
   std::vector<std::string> names;
   for (RunState s : states) names.push_back(to_string(s));
-  std::string list = "{";
-  for (std::size_t i = 0; i < names.size(); ++i) list += (i ? "," : "") + names[i];
-  list += "}";
   std::lock_guard<std::mutex> lock(impl_->mutex);
   return impl_->runs(
       "SELECT " + kRunColumns + kRunFrom + "WHERE r.state = ANY ($1::text[]) ORDER BY r.id",
-      {pg_value(list)}, "runs in state");
+      {pg_text_array(names)}, "runs in state");
 }
 
 std::vector<std::pair<std::string, std::size_t>> FleetRepository::stations() const {

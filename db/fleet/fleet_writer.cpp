@@ -121,21 +121,6 @@ void replace_children(PgConnection& c, std::int64_t fleet_id, const RunDetails& 
   }
 }
 
-/// A PostgreSQL array literal of texts, bound as one value: {"a","b"} with " and \ escaped.
-std::string pg_text_array(const std::vector<std::string>& items) {
-  std::string out = "{";
-  for (std::size_t i = 0; i < items.size(); ++i) {
-    if (i) out += ',';
-    out += '"';
-    for (char ch : items[i]) {
-      if (ch == '"' || ch == '\\') out += '\\';
-      out += ch;
-    }
-    out += '"';
-  }
-  return out + "}";
-}
-
 }  // namespace
 
 void validate_station_id(const std::string& id) {
@@ -184,7 +169,7 @@ std::size_t remove_runs_not_in(PgConnection& c, const std::string& station_id,
   PgTransaction tx(c, "resync: remove runs the station no longer holds");
   const PgResult r = c.exec(
       "DELETE FROM runs WHERE station_id = $1 AND NOT (run_uuid = ANY ($2::text[])) RETURNING id",
-      {pg_value(station_id), pg_value(pg_text_array(keep))}, "resync: remove runs");
+      {pg_value(station_id), pg_text_array(keep)}, "resync: remove runs");
   tx.commit();
   return static_cast<std::size_t>(r.rows());
 }

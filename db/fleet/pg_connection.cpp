@@ -25,6 +25,19 @@ PgParam pg_value(double v) {
 PgParam pg_value(bool v) { return std::string(v ? "t" : "f"); }
 PgParam pg_value(const std::string& v) { return v; }
 PgParam pg_value(const char* v) { return std::string(v); }
+PgParam pg_text_array(const std::vector<std::string>& items) {
+  std::string out = "{";
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    if (i) out += ',';
+    out += '"';
+    for (char ch : items[i]) {
+      if (ch == '"' || ch == '\\') out += '\\';
+      out += ch;
+    }
+    out += '"';
+  }
+  return out + "}";
+}
 
 std::string PgResult::text(int row, int col) const {
   return std::string(PQgetvalue(r_.get(), row, col),

@@ -27,6 +27,9 @@ PgParam pg_value(double v);
 PgParam pg_value(bool v);
 PgParam pg_value(const std::string& v);
 PgParam pg_value(const char* v);
+/// A PostgreSQL array literal of texts, bound as one value ($n::text[]): {"a","b"}, " and
+/// \ escaped.
+PgParam pg_text_array(const std::vector<std::string>& items);
 template <typename T>
 PgParam pg_value(const std::optional<T>& v) {
   return v ? pg_value(*v) : std::nullopt;

@@ -106,6 +106,8 @@ TEST(FleetStore, RunsReadBackFieldByFieldAndResendsChangeNothing) {
   EXPECT_EQ(hist.front().station, "ST-2");
   EXPECT_EQ(fleet.run_count("SN-A"), 6u);
   EXPECT_EQ(fleet.active_params("SN-A").run.station, "ST-2");
+  EXPECT_EQ(fleet.runs_in_state({RunState::kRunning, RunState::kPreparing}).size(), 2u)
+      << "one live run per station";
   EXPECT_THROW(fleet.history("SN-NONE"), NotFound);
   EXPECT_THROW(fleet.show(999999), NotFound);
   std::size_t rows = 0;
