@@ -201,6 +201,121 @@ BEGIN INSERT INTO outbox (run_id, change, at_ms) VALUES (NEW.run_id, 'cross-chec
   CAST(round((julianday('now') - 2440587.5) * 86400000.0) AS INTEGER)); END;
 )SQL";
 
+// Version 8 (issue #24, the fleet pages at 10^5 runs): what QA's aggregates read, kept narrow.
+// runs_by_time_station covers the counts per station and day and per verdict (the state) without
+// touching the wide runs rows; ains_values holds every AINS result's 27 values as numbers in
+// calib::param_info order (p00 = accel_bias_mps2[0] ... p26 = table_misalignment_rad[2]; NULL where
+// the result does not determine the parameter, CalibrationRecord::unobservable), so a parameter's
+// distribution reads 27 REALs per run instead of parsing the parameter-set JSON. The view
+// ains_values_computed is the one definition: the migration fills the table from it for the
+// results already stored, and the triggers refresh a run's row from it when its AINS result is
+// stored, changed or removed, in the same transaction.
+const char* const kMigration8 = R"SQL(
+CREATE INDEX runs_by_time_station ON runs (started_at_ms, station, state, unit_id);
+
+CREATE VIEW ains_values_computed AS SELECT run_id,
+  CASE WHEN unobservable_json <> '[]' AND 'accel_bias_mps2[0]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.accel_bias_mps2[0]') END AS p00,
+  CASE WHEN unobservable_json <> '[]' AND 'accel_bias_mps2[1]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.accel_bias_mps2[1]') END AS p01,
+  CASE WHEN unobservable_json <> '[]' AND 'accel_bias_mps2[2]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.accel_bias_mps2[2]') END AS p02,
+  CASE WHEN unobservable_json <> '[]' AND 'accel_M[0][0]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.accel_M[0][0]') END AS p03,
+  CASE WHEN unobservable_json <> '[]' AND 'accel_M[0][1]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.accel_M[0][1]') END AS p04,
+  CASE WHEN unobservable_json <> '[]' AND 'accel_M[0][2]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.accel_M[0][2]') END AS p05,
+  CASE WHEN unobservable_json <> '[]' AND 'accel_M[1][0]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.accel_M[1][0]') END AS p06,
+  CASE WHEN unobservable_json <> '[]' AND 'accel_M[1][1]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.accel_M[1][1]') END AS p07,
+  CASE WHEN unobservable_json <> '[]' AND 'accel_M[1][2]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.accel_M[1][2]') END AS p08,
+  CASE WHEN unobservable_json <> '[]' AND 'accel_M[2][0]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.accel_M[2][0]') END AS p09,
+  CASE WHEN unobservable_json <> '[]' AND 'accel_M[2][1]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.accel_M[2][1]') END AS p10,
+  CASE WHEN unobservable_json <> '[]' AND 'accel_M[2][2]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.accel_M[2][2]') END AS p11,
+  CASE WHEN unobservable_json <> '[]' AND 'gyro_bias_radps[0]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.gyro_bias_radps[0]') END AS p12,
+  CASE WHEN unobservable_json <> '[]' AND 'gyro_bias_radps[1]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.gyro_bias_radps[1]') END AS p13,
+  CASE WHEN unobservable_json <> '[]' AND 'gyro_bias_radps[2]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.gyro_bias_radps[2]') END AS p14,
+  CASE WHEN unobservable_json <> '[]' AND 'gyro_M[0][0]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.gyro_M[0][0]') END AS p15,
+  CASE WHEN unobservable_json <> '[]' AND 'gyro_M[0][1]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.gyro_M[0][1]') END AS p16,
+  CASE WHEN unobservable_json <> '[]' AND 'gyro_M[0][2]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.gyro_M[0][2]') END AS p17,
+  CASE WHEN unobservable_json <> '[]' AND 'gyro_M[1][0]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.gyro_M[1][0]') END AS p18,
+  CASE WHEN unobservable_json <> '[]' AND 'gyro_M[1][1]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.gyro_M[1][1]') END AS p19,
+  CASE WHEN unobservable_json <> '[]' AND 'gyro_M[1][2]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.gyro_M[1][2]') END AS p20,
+  CASE WHEN unobservable_json <> '[]' AND 'gyro_M[2][0]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.gyro_M[2][0]') END AS p21,
+  CASE WHEN unobservable_json <> '[]' AND 'gyro_M[2][1]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.gyro_M[2][1]') END AS p22,
+  CASE WHEN unobservable_json <> '[]' AND 'gyro_M[2][2]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.gyro_M[2][2]') END AS p23,
+  CASE WHEN unobservable_json <> '[]' AND 'table_misalignment_rad[0]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.table_misalignment_rad[0]') END AS p24,
+  CASE WHEN unobservable_json <> '[]' AND 'table_misalignment_rad[1]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.table_misalignment_rad[1]') END AS p25,
+  CASE WHEN unobservable_json <> '[]' AND 'table_misalignment_rad[2]' IN (SELECT value FROM json_each(unobservable_json))
+       THEN NULL ELSE json_extract(params_json, '$.table_misalignment_rad[2]') END AS p26
+FROM calibrations WHERE method = 'ains';
+
+CREATE TABLE ains_values (
+  run_id INTEGER PRIMARY KEY REFERENCES runs(id),
+  p00 REAL,
+  p01 REAL,
+  p02 REAL,
+  p03 REAL,
+  p04 REAL,
+  p05 REAL,
+  p06 REAL,
+  p07 REAL,
+  p08 REAL,
+  p09 REAL,
+  p10 REAL,
+  p11 REAL,
+  p12 REAL,
+  p13 REAL,
+  p14 REAL,
+  p15 REAL,
+  p16 REAL,
+  p17 REAL,
+  p18 REAL,
+  p19 REAL,
+  p20 REAL,
+  p21 REAL,
+  p22 REAL,
+  p23 REAL,
+  p24 REAL,
+  p25 REAL,
+  p26 REAL
+) STRICT;
+INSERT INTO ains_values SELECT * FROM ains_values_computed;
+
+CREATE TRIGGER ains_values_on_insert AFTER INSERT ON calibrations WHEN NEW.method = 'ains'
+BEGIN INSERT OR REPLACE INTO ains_values SELECT * FROM ains_values_computed
+  WHERE run_id = NEW.run_id; END;
+CREATE TRIGGER ains_values_on_update
+AFTER UPDATE OF run_id, method, params_json, unobservable_json ON calibrations
+BEGIN
+  DELETE FROM ains_values WHERE run_id IN (OLD.run_id, NEW.run_id);
+  INSERT INTO ains_values SELECT * FROM ains_values_computed
+    WHERE run_id IN (OLD.run_id, NEW.run_id);
+END;
+CREATE TRIGGER ains_values_on_delete AFTER DELETE ON calibrations WHEN OLD.method = 'ains'
+BEGIN DELETE FROM ains_values WHERE run_id = OLD.run_id; END;
+)SQL";
+
 const char* const kMigration5 = R"SQL(
 ALTER TABLE runs ADD COLUMN verdict TEXT GENERATED ALWAYS AS (
   CASE state WHEN 'done' THEN 'PASS' WHEN 'review' THEN 'REVIEW'
@@ -318,6 +433,7 @@ const std::vector<Migration>& migrations() {
       // fixture slot it sat in, and the first unit's run as the table run that joins the siblings.
       {6, "runs.slot, runs.table_run_id: several units per table run", kMigration6},
       {7, "runs.uuid, runs.revision, outbox: replication to the fleet store", kMigration7},
+      {8, "runs_by_time_station index, ains_values: the fleet pages' aggregates", kMigration8},
   };
   return list;
 }

@@ -3,8 +3,11 @@
 #include <sqlite3.h>
 #include <sys/stat.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <map>
 #include <mutex>
+#include <string_view>
 
 #include "calib/core/param_set.hpp"
 #include "db/schema.hpp"
@@ -17,25 +20,49 @@ namespace {
 // ----- SQL: constant fragments only; every value is a bound named parameter
 // -----------------------
 
-/// The UTC day of r.started_at_ms, floor division also before 1970 (utc_day()).
-const char* const kDayExpr =
-    "CASE WHEN r.started_at_ms >= 0 THEN r.started_at_ms / 86400000 "
-    "ELSE -((86399999 - r.started_at_ms) / 86400000) END";
 const char* const kWhereSerial = "r.unit_id = (SELECT id FROM units WHERE serial = :serial)";
 const char* const kWhereSince = "r.started_at_ms >= :since";
 const char* const kWhereUntil = "r.started_at_ms < :until";
 const char* const kWhereStation = "r.station = :station";
 
-/// " WHERE a AND b ..." for the filters given ("" for none).
-std::string where_clause(const FleetFilter& f) {
+/// " WHERE a AND b ..." for the filters given and `also` ("" for none).
+std::string where_clause(const FleetFilter& f, const std::string& also = "") {
   std::string w;
-  auto add = [&w](const char* cond) { w += (w.empty() ? " WHERE " : " AND ") + std::string(cond); };
+  auto add = [&w](const std::string& cond) { w += (w.empty() ? " WHERE " : " AND ") + cond; };
+  if (!also.empty()) add(also);
   if (f.serial) add(kWhereSerial);
   if (f.since_ms) add(kWhereSince);
   if (f.until_ms) add(kWhereUntil);
   if (f.station) add(kWhereStation);
   return w;
 }
+
+/// The station texts of a scan as small numbers, without a copy per row: a history has few
+/// stations, and a scan in time order sees them interleaved.
+class StationNames {
+ public:
+  std::size_t index_of(std::string_view text) {
+    if (last_ < names_.size() && names_[last_] == text) return last_;
+    for (last_ = 0; last_ < names_.size(); ++last_)
+      if (names_[last_] == text) return last_;
+    names_.emplace_back(text);
+    return last_;
+  }
+  const std::string& name(std::size_t i) const { return names_[i]; }
+  std::size_t size() const { return names_.size(); }
+  /// The indexes in byte order of their names (the order results come in).
+  std::vector<std::size_t> sorted() const {
+    std::vector<std::size_t> order(names_.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(),
+              [this](std::size_t a, std::size_t b) { return names_[a] < names_[b]; });
+    return order;
+  }
+
+ private:
+  std::vector<std::string> names_;
+  std::size_t last_ = 0;
+};
 
 }  // namespace
 
@@ -85,6 +112,11 @@ struct SqliteFleetStats::Impl {
     int type(int c) const { return sqlite3_column_type(st_, c); }
     double f64(int c) const { return sqlite3_column_double(st_, c); }
     std::string text(int c) const { return schema::column_text(st_, c); }
+    std::string_view view(int c) const {
+      const auto* p = reinterpret_cast<const char*>(sqlite3_column_text(st_, c));
+      return p ? std::string_view(p, static_cast<std::size_t>(sqlite3_column_bytes(st_, c)))
+               : std::string_view();
+    }
 
    private:
     void check(int rc) {
@@ -136,13 +168,20 @@ std::vector<StationDayCount> SqliteFleetStats::runs_per_station_day(const FleetF
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const char* op = "runs per station and day";
   Impl::Snapshot snapshot(*impl_, op);
-  Impl::Query q(*impl_,
-                std::string("SELECT r.station, ") + kDayExpr + " AS day, count(*) FROM runs r" +
-                    where_clause(f) + " GROUP BY r.station, day ORDER BY r.station, day",
-                op);
+  // Counted here, not by GROUP BY: the rows come from runs_by_time_station alone (schema v8), and
+  // SQLite's GROUP BY would sort them all (in a temporary file beyond the bounded page cache).
+  Impl::Query q(*impl_, "SELECT r.station, r.started_at_ms FROM runs r" + where_clause(f), op);
   q.bind_filter(f);
+  StationNames stations;
+  std::vector<std::map<std::int64_t, std::int64_t>> per_day;
+  while (q.step()) {
+    const std::size_t s = stations.index_of(q.view(0));
+    if (s == per_day.size()) per_day.emplace_back();
+    ++per_day[s][utc_day(q.i64(1))];
+  }
   std::vector<StationDayCount> out;
-  while (q.step()) out.push_back({q.text(0), q.i64(1), q.i64(2)});
+  for (const std::size_t s : stations.sorted())
+    for (const auto& [day, runs] : per_day[s]) out.push_back({stations.name(s), day, runs});
   return out;
 }
 
@@ -152,28 +191,44 @@ std::vector<StationVerdictCounts> SqliteFleetStats::verdict_counts_per_station(
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const char* op = "verdict counts per station";
   Impl::Snapshot snapshot(*impl_, op);
-  Impl::Query q(*impl_,
-                "SELECT r.station, r.verdict, count(*) FROM runs r" + where_clause(f) +
-                    " GROUP BY r.station, r.verdict ORDER BY r.station",
-                op);
+  // By state, not the generated verdict column, and counted here: runs_by_time_station covers
+  // the state (schema v8), so the count reads no run row and sorts nothing; run_verdict() is the
+  // verdict's definition.
+  Impl::Query q(*impl_, "SELECT r.station, r.state FROM runs r" + where_clause(f), op);
   q.bind_filter(f);
-  std::vector<StationVerdictCounts> out;
+  StationNames stations;
+  std::vector<std::map<std::string, std::int64_t, std::less<>>> per_state;
   while (q.step()) {
-    const std::string station = q.text(0);
-    if (out.empty() || out.back().station != station) out.push_back({station});
-    StationVerdictCounts& c = out.back();
-    const std::string verdict = q.type(1) == SQLITE_NULL ? "" : q.text(1);
-    const std::int64_t n = q.i64(2);
-    if (verdict == "PASS")
-      c.pass += n;
-    else if (verdict == "REVIEW")
-      c.review += n;
-    else if (verdict == "FAILED")
-      c.failed += n;
-    else if (verdict.empty())
-      c.live += n;
+    const std::size_t s = stations.index_of(q.view(0));
+    if (s == per_state.size()) per_state.emplace_back();
+    auto& counts = per_state[s];
+    const std::string_view state = q.view(1);
+    if (const auto it = counts.find(state); it != counts.end())
+      ++it->second;
     else
-      throw Corrupt(impl_->path + ": " + op + ": stored verdict \"" + verdict + "\" is unknown");
+      counts.emplace(std::string(state), 1);
+  }
+  std::vector<StationVerdictCounts> out;
+  for (const std::size_t s : stations.sorted()) {
+    StationVerdictCounts c{stations.name(s)};
+    for (const auto& [text, n] : per_state[s]) {
+      RunState state{};
+      try {
+        state = run_state_from_string(text);
+      } catch (const InvalidInput&) {
+        throw Corrupt(impl_->path + ": " + op + ": stored run state \"" + text + "\" is unknown");
+      }
+      const std::optional<RunVerdict> verdict = run_verdict(state);
+      if (!verdict)
+        c.live += n;
+      else if (*verdict == RunVerdict::kPass)
+        c.pass += n;
+      else if (*verdict == RunVerdict::kReview)
+        c.review += n;
+      else
+        c.failed += n;
+    }
+    out.push_back(c);
   }
   return out;
 }
@@ -183,32 +238,31 @@ std::vector<ParamSummary> SqliteFleetStats::param_distribution(int param_index,
   if (param_index < 0 || param_index >= calib::ParamSet::kSize)
     throw InvalidInput("parameter index " + std::to_string(param_index) + " is not in 0..26");
   validate_filter(f);
-  const std::string name = calib::param_info(param_index).name;
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const char* op = "parameter distribution";
   Impl::Snapshot snapshot(*impl_, op);
+  // ains_values (schema v8): the AINS result's values as numbers, NULL where the result does not
+  // determine the parameter. The column name is ours (p00..p26 from the checked index), not input.
+  char column[8];
+  std::snprintf(column, sizeof column, "a.p%02d", param_index);
   Impl::Query q(*impl_,
-                "SELECT r.station, json_extract(c.params_json, :path) FROM runs r "
-                "JOIN calibrations c ON c.run_id = r.id AND c.method = 'ains' "
-                "AND (c.unobservable_json = '[]' OR NOT EXISTS "
-                "(SELECT 1 FROM json_each(c.unobservable_json) WHERE value = :name))" +
-                    where_clause(f),
+                std::string("SELECT r.station, ") + column +
+                    " FROM runs r JOIN ains_values a ON a.run_id = r.id" +
+                    where_clause(f, std::string(column) + " IS NOT NULL"),
                 op);
   q.bind_filter(f);
-  q.bind_text(":path", "$." + name);
-  q.bind_text(":name", name);
-  std::map<std::string, std::vector<double>> by_station;
+  StationNames stations;
+  std::vector<std::vector<double>> values;
   while (q.step()) {
-    const int t = q.type(1);
-    if (t != SQLITE_FLOAT && t != SQLITE_INTEGER)
-      throw Corrupt(impl_->path + ": " + op + ": an AINS parameter set has no number at " + name);
-    by_station[q.text(0)].push_back(q.f64(1));
+    const std::size_t s = stations.index_of(q.view(0));
+    if (s == values.size()) values.emplace_back();
+    values[s].push_back(q.f64(1));
   }
   std::vector<ParamSummary> out;
-  for (auto& [station, values] : by_station) {
-    ParamSummary s = summarize(values);
-    s.station = station;
-    out.push_back(s);
+  for (const std::size_t s : stations.sorted()) {
+    ParamSummary summary = summarize(values[s]);
+    summary.station = stations.name(s);
+    out.push_back(summary);
   }
   return out;
 }

@@ -54,7 +54,8 @@ std::optional<std::int64_t> PgResult::opt_i64(int row, int col) const {
   return i64(row, col);
 }
 
-PgConnection::PgConnection(const FleetTarget& target) : target_(target) {
+PgConnection::PgConnection(const FleetTarget& target, const std::string& server_options)
+    : target_(target) {
   // The URL as libpq's dbname (expanded), the password as its own keyword: it never has to be
   // written into a URL, and libpq's other sources (PGPASSWORD, ~/.pgpass) still apply when empty.
   // A network that silently drops packets (no reset) must end a statement too, or the sender
@@ -68,6 +69,7 @@ PgConnection::PgConnection(const FleetTarget& target) : target_(target) {
                         "keepalives_interval",
                         "keepalives_count",
                         "tcp_user_timeout",
+                        server_options.empty() ? nullptr : "options",
                         nullptr};
   const char* values[] = {target.url.c_str(),
                           target.password.empty() ? nullptr : target.password.c_str(),
@@ -78,6 +80,7 @@ PgConnection::PgConnection(const FleetTarget& target) : target_(target) {
                           "5",
                           "3",
                           "30000",
+                          server_options.c_str(),
                           nullptr};
   conn_ = PQconnectdbParams(keys, values, /*expand_dbname=*/1);
   if (!conn_ || PQstatus(conn_) != CONNECTION_OK) {

@@ -55,7 +55,9 @@ class PgConnection {
  public:
   /// Connects (connect_timeout from the URL, default 5 s). Throws IoError naming the redacted
   /// address and the server's reason.
-  explicit PgConnection(const FleetTarget& target);
+  /// `server_options`: libpq's `options` (e.g. "-c work_mem=64MB"), the session settings of
+  /// every connection it opens, also after a reconnect; empty for the server's own.
+  explicit PgConnection(const FleetTarget& target, const std::string& server_options = "");
   ~PgConnection();
   PgConnection(const PgConnection&) = delete;
   PgConnection& operator=(const PgConnection&) = delete;

@@ -18,6 +18,12 @@ const char* const kWhere =
     "$4)"
     " AND ($5::text IS NULL OR r.station_id = $5) AND ($6::text IS NULL OR r.serial = $6) ";
 
+// The UTC day (utc_day()) in integer arithmetic: floor() of a numeric quotient cost 20 ms more
+// over a year of 10^5 runs.
+const char* const kDayExpr =
+    "CASE WHEN r.started_at_ms >= 0 THEN r.started_at_ms / 86400000 "
+    "ELSE -((86399999 - r.started_at_ms) / 86400000) END";
+
 // OFFSET 0 keeps the subquery whole: only (station, value) reach the sort, not each run's array.
 const std::string kDistribution =
     "SELECT station_id, count(*), avg(v), coalesce(stddev_samp(v), 0), min(v), "
@@ -31,7 +37,12 @@ const std::string kDistribution =
 }  // namespace
 
 struct PgFleetStats::Impl {
-  explicit Impl(const FleetTarget& t) : conn(t) { check_fleet_version(conn); }
+  // No parallel plans for these aggregates: measured on the 2-core reference machine at 10^5
+  // runs, a year's verdict counts took 18 ms serially and 64-125 ms with two workers (their start
+  // costs more than the scan they share). A site with a large server can set it back in the URL.
+  explicit Impl(const FleetTarget& t) : conn(t, "-c max_parallel_workers_per_gather=0") {
+    check_fleet_version(conn);
+  }
   mutable PgConnection conn;
   mutable std::mutex mutex;
 
@@ -51,8 +62,9 @@ std::vector<StationDayCount> PgFleetStats::runs_per_station_day(const FleetFilte
   const auto values = impl_->filter_values(f, std::nullopt, std::nullopt);
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const PgResult q = impl_->conn.exec(
-      "SELECT r.station_id, floor(r.started_at_ms / 86400000.0)::bigint AS day, count(*) "
-      "FROM runs r WHERE $1::text IS NULL AND $2::text IS NULL AND" +
+      "SELECT r.station_id, " + std::string(kDayExpr) +
+          " AS day, count(*) "
+          "FROM runs r WHERE $1::text IS NULL AND $2::text IS NULL AND" +
           std::string(kWhere) + "GROUP BY 1, 2 ORDER BY r.station_id COLLATE \"C\", 2",
       values, "runs per station and day");
   std::vector<StationDayCount> out;

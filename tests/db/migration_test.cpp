@@ -5,10 +5,14 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <optional>
 
+#include "calib/core/param_set.hpp"
 #include "db/schema.hpp"
 #include "db/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
@@ -51,6 +55,19 @@ class RawDb {
     sqlite3_finalize(st);
     return out;
   }
+  /// The first column of the first row as a double; none for NULL or no row.
+  std::optional<double> real(const std::string& sql) {
+    sqlite3_stmt* st = nullptr;
+    std::optional<double> out;
+    if (sqlite3_prepare_v2(db_, sql.c_str(), -1, &st, nullptr) != SQLITE_OK) {
+      ADD_FAILURE() << sql << ": " << sqlite3_errmsg(db_);
+      return out;
+    }
+    if (sqlite3_step(st) == SQLITE_ROW && sqlite3_column_type(st, 0) != SQLITE_NULL)
+      out = sqlite3_column_double(st, 0);
+    sqlite3_finalize(st);
+    return out;
+  }
 
  private:
   sqlite3* db_ = nullptr;
@@ -75,7 +92,7 @@ TEST(Migration, FreshDatabaseGetsTheCurrentVersionOurApplicationIdAndWal) {
   EXPECT_EQ(raw.text("PRAGMA journal_mode"), "wal") << "WAL is persistent in the file";
   EXPECT_EQ(raw.text("SELECT group_concat(name, ',') FROM (SELECT name FROM sqlite_schema WHERE "
                      "type = 'table' AND name NOT LIKE 'sqlite_%' ORDER BY name)"),
-            "calibrations,crosschecks,outbox,outbox_state,runs,units");
+            "ains_values,calibrations,crosschecks,outbox,outbox_state,runs,units");
   EXPECT_EQ(raw.text("PRAGMA integrity_check"), "ok");
   EXPECT_EQ(raw.text("PRAGMA foreign_key_check"), "");
 }
@@ -404,6 +421,58 @@ TEST(Migration, VersionFourDatabaseFromThePreviousReleaseGainsTheRunVerdictAndRe
   sqlite3_free(err);
   EXPECT_EQ(raw.text("SELECT verdict FROM runs WHERE id = 2"), "REVIEW");
   EXPECT_EQ(raw.text("SELECT count(*) FROM runs WHERE verdict = 'PASS'"), "3");
+}
+
+// Schema v8 (issue #24, the fleet pages): ains_values holds every stored AINS result's values as
+// numbers — filled by the migration for the results already stored (here the previous releases'
+// file, migrated 4 -> 8), kept by triggers afterwards — and NULL where the result does not
+// determine the parameter. Compared with the repository's own reading of the parameter-set JSON.
+TEST(Migration, VersionEightHoldsEveryAinsResultAsNumbersAndKeepsThemWithTheirJson) {
+  TempDir dir;
+  const std::string path = dir.file("history.sqlite");
+  std::filesystem::copy_file(IMUCAL_SOURCE_DIR "/tests/data/history-v4.sqlite", path);
+  SqliteRepository repo(path);
+  ASSERT_EQ(repo.schema_version(), schema::kSchemaVersion);
+  RawDb raw(path);
+  auto value_of = [&](RunId id, int i) {
+    char sql[96];
+    std::snprintf(sql, sizeof sql, "SELECT p%02d FROM ains_values WHERE run_id = %lld", i,
+                  static_cast<long long>(id));
+    return raw.real(sql);
+  };
+  int results = 0, undetermined = 0;
+  for (RunId id = 1; id <= 11; ++id) {
+    for (const CalibrationRecord& c : repo.show(id).calibrations) {
+      if (c.method != Method::kAins) continue;
+      ++results;
+      const calib::ParamVector x = c.params.to_vector();
+      for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+        const std::string& name = calib::param_info(i).name;
+        SCOPED_TRACE("run " + std::to_string(id) + " " + name);
+        const std::optional<double> got = value_of(id, i);
+        if (std::find(c.unobservable.begin(), c.unobservable.end(), name) != c.unobservable.end()) {
+          EXPECT_FALSE(got) << "a placeholder value was kept";
+          ++undetermined;
+        } else {
+          ASSERT_TRUE(got);
+          EXPECT_EQ(*got, x(i));
+        }
+      }
+    }
+  }
+  EXPECT_GE(results, 5) << "the fixture holds AINS results";
+  EXPECT_GT(undetermined, 0) << "the fixture holds field results that leave terms undetermined";
+  EXPECT_EQ(raw.text("SELECT count(*) FROM ains_values"), std::to_string(results));
+
+  // The triggers: a result changed or removed by hand carries its numbers along.
+  raw.exec(
+      "UPDATE calibrations SET params_json = json_set(params_json, '$.gyro_bias_radps[2]', 1.5) "
+      "WHERE run_id = 1 AND method = 'ains'");
+  EXPECT_EQ(value_of(1, 14), 1.5);
+  raw.exec("DELETE FROM calibrations WHERE run_id = 1 AND method = 'ains'");
+  EXPECT_EQ(raw.text("SELECT count(*) FROM ains_values WHERE run_id = 1"), "0");
+  EXPECT_EQ(raw.text("SELECT count(*) FROM ains_values"), std::to_string(results - 1));
+  EXPECT_EQ(repo.integrity_check(), "ok");
 }
 
 }  // namespace imucal::db

@@ -22,6 +22,7 @@
 
 #include "db/fleet/fleet_schema.hpp"
 #include "db/fleet/fleet_writer.hpp"
+#include "db/fleet/pg_fleet_stats.hpp"
 #include "db/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 #include "tests/support/pg_cluster.hpp"
@@ -90,9 +91,8 @@ void populate(const std::string& path) {
 void ensure_history(const std::string& path) {
   if (std::filesystem::exists(path)) {
     try {
-      SqliteOptions ro;
-      ro.read_only = true;
-      if (SqliteRepository(path, ro).total_run_count() == static_cast<std::size_t>(kRuns)) return;
+      // Opened read-write once: a history of an older schema is migrated, as stationd would.
+      if (SqliteRepository(path).total_run_count() == static_cast<std::size_t>(kRuns)) return;
     } catch (const std::exception&) {
     }
   }
@@ -192,8 +192,17 @@ bool time_fleet(const std::string& path) {
   std::FILE* f = std::fopen(pw.c_str(), "w");
   std::fprintf(f, "%s\n", PgCluster::kReaderPassword);
   std::fclose(f);
-  return time_pages(pg.url("fleet_reader"), {"--password-file", pw}, mid.substr(0, mid.find('\n')),
-                    path + ".stationweb-fleet.log");
+  const bool slow = time_pages(pg.url("fleet_reader"), {"--password-file", pw},
+                               mid.substr(0, mid.find('\n')), path + ".stationweb-fleet.log");
+  // The slowest page's plans: the whole year's distribution and counts per station and day.
+  const std::string year = std::to_string(kT0) + ", " + std::to_string(kT0 + 366 * 86400000LL);
+  std::printf("\nplan, the whole year's distribution of gyro_bias_radps[2]:\n%s\n",
+              pg.admin("PREPARE year(int, text, bigint, bigint, text, text) AS " +
+                           imucal::db::fleet::PgFleetStats::param_distribution_sql() +
+                           "; EXPLAIN ANALYZE EXECUTE year(15, NULL, " + year + ", NULL, NULL)",
+                       "fleet")
+                  .c_str());
+  return slow;
 }
 
 }  // namespace
