@@ -8,8 +8,8 @@
 # the calibration job and the diagnosis never reach sim — the diagnosis draws its simulated runs
 # through a RunSource (calib/effects/run_source.hpp) that its callers provide. Only the paper's
 # tables, which drive the whole experiment, include both.
-set(IMUCAL_CALIB_ROOMS core effects sim ains nlsq legacy checks pipeline diagnosis design paper)
-set(IMUCAL_CALIB_ESTIMATE ains nlsq legacy checks pipeline diagnosis design)
+set(IMUCAL_CALIB_ROOMS core effects sim ains nlsq legacy checks pipeline diagnosis design paper fleet)
+set(IMUCAL_CALIB_ESTIMATE ains nlsq legacy checks pipeline diagnosis design fleet)
 set(calib_room_deps_core "")
 set(calib_room_deps_effects core)
 set(calib_room_deps_sim core effects)
@@ -21,6 +21,7 @@ set(calib_room_deps_pipeline core ains nlsq legacy checks)
 set(calib_room_deps_diagnosis core effects ains nlsq legacy)
 set(calib_room_deps_design core ains checks diagnosis)
 set(calib_room_deps_paper core effects sim ains nlsq legacy checks)
+set(calib_room_deps_fleet core effects ains)
 
 # calib_room_closure(ROOM OUT): every room ROOM reaches through its dependencies, itself excluded.
 function(calib_room_closure room out)
