@@ -27,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "calib/core/param_set.hpp"
 #include "db/repository.hpp"
 
 namespace imucal::db {
@@ -60,6 +61,17 @@ struct ParamSummary {
   double mean = 0, std_dev = 0, min = 0, q1 = 0, median = 0, q3 = 0, max = 0;
 };
 
+/// One AINS result for the station signatures (issue #25, calib/fleet/station_signature.hpp).
+struct AinsResultRow {
+  RunId run_id = 0;
+  std::string station;
+  std::string serial;
+  std::string sequence_name;
+  TimestampMs started_at_ms = 0;
+  calib::ParamSet value;  ///< the AINS estimate, SI
+  calib::ParamSet sigma;  ///< its 1-σ
+};
+
 class FleetStats {
  public:
   virtual ~FleetStats() = default;
@@ -76,6 +88,11 @@ class FleetStats {
   /// `table_run_id` itself and every run naming it as its table run, ascending id. A run of its
   /// own gives just itself; an unknown id gives nothing.
   virtual std::vector<RunId> table_run_members(RunId table_run_id) const = 0;
+  /// The AINS results of the matching factory table runs that determine every parameter, as
+  /// stored, ascending run id — what a station error would have moved. Left out: field runs (no
+  /// table, no surveyed gravity), results with an undetermined term, and reprocessed runs (the
+  /// same data again; their originals stand for them).
+  virtual std::vector<AinsResultRow> ains_results(const FleetFilter& filter) const = 0;
 };
 
 /// The parameter's flat index (calib::param_info) from its name in the parameter-set JSON, e.g.

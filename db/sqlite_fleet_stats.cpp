@@ -10,6 +10,7 @@
 #include <string_view>
 
 #include "calib/core/param_set.hpp"
+#include "db/compact_param_text.hpp"
 #include "db/schema.hpp"
 #include "db/sqlite_repository.hpp"
 
@@ -278,6 +279,51 @@ std::vector<RunId> SqliteFleetStats::table_run_members(RunId table_run_id) const
   q.bind_int(":id", table_run_id);
   std::vector<RunId> out;
   while (q.step()) out.push_back(q.i64(0));
+  return out;
+}
+
+std::vector<AinsResultRow> SqliteFleetStats::ains_results(const FleetFilter& f) const {
+  validate_filter(f);
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const char* op = "AINS results";
+  Impl::Snapshot snapshot(*impl_, op);
+  std::string sql =
+      "SELECT r.id, r.station, u.serial, r.sequence_name, r.started_at_ms, c.sigma_json";
+  char column[8];
+  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+    std::snprintf(column, sizeof column, ", a.p%02d", i);
+    sql += column;
+  }
+  sql +=
+      " FROM runs r JOIN units u ON u.id = r.unit_id JOIN ains_values a ON a.run_id = r.id "
+      "JOIN calibrations c ON c.run_id = r.id AND c.method = 'ains'" +
+      where_clause(f,
+                   "r.setting = 'factory' AND r.reprocessed_from IS NULL AND "
+                   "c.unobservable_json = '[]'") +
+      " ORDER BY r.id";
+  Impl::Query q(*impl_, sql, op);
+  q.bind_filter(f);
+  std::vector<AinsResultRow> out;
+  while (q.step()) {
+    AinsResultRow row;
+    row.run_id = q.i64(0);
+    row.station = q.text(1);
+    row.serial = q.text(2);
+    row.sequence_name = q.text(3);
+    row.started_at_ms = q.i64(4);
+    if (!read_compact_param_set(q.view(5), /*non_negative=*/true, row.sigma))
+      throw Corrupt(impl_->path + ": " + op + ": run " + std::to_string(row.run_id) +
+                    ": its AINS sigma_json is not a parameter set of non-negative numbers");
+    calib::ParamVector x;
+    for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+      if (q.type(6 + i) == SQLITE_NULL)
+        throw Corrupt(impl_->path + ": " + op + ": run " + std::to_string(row.run_id) +
+                      ": ains_values misses " + calib::param_info(i).name);
+      x(i) = q.f64(6 + i);
+    }
+    row.value = calib::ParamSet::from_vector(x);
+    out.push_back(std::move(row));
+  }
   return out;
 }
 

@@ -32,6 +32,7 @@ class SqliteFleetStats final : public FleetStats {
   std::vector<ParamSummary> param_distribution(int param_index,
                                                const FleetFilter& filter) const override;
   std::vector<RunId> table_run_members(RunId table_run_id) const override;
+  std::vector<AinsResultRow> ains_results(const FleetFilter& filter) const override;
 
  private:
   struct Impl;

@@ -26,4 +26,23 @@ UnitModel draw_unit(Grade grade, uint64_t seed) {
   return unit;
 }
 
+UnitModel draw_production_unit(Grade grade, uint64_t seed) {
+  if (grade != Grade::kNavigation) return draw_unit(grade, seed);
+  std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ULL);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  UnitModel unit = default_unit();
+  ParamSet& p = unit.params;
+  for (int i = 0; i < 3; ++i) {
+    p.accel_bias_mps2(i) = 100.0 * kMicroG_mps2 * u(rng);
+    p.gyro_bias_radps(i) = 0.02 * kDegPerHourToRadPerSec * u(rng);
+  }
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      p.accel_M(i, j) = 500e-6 * u(rng);
+      p.gyro_M(i, j) = 500e-6 * u(rng);
+    }
+  p.table_misalignment_rad.setZero();
+  return unit;
+}
+
 }  // namespace imucal::calib

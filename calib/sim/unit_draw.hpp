@@ -13,4 +13,11 @@ namespace imucal::calib {
 
 UnitModel draw_unit(Grade grade, uint64_t seed);
 
+/// A unit of a production population (issue #25, simulated fleets): navigation grade with the
+/// default unit's noise and every parameter drawn uniformly within DESIGN §7's sizes before
+/// calibration — accelerometer bias ±100 µg, gyro bias ±0.02 °/h, scale factors ±500 ppm,
+/// misalignments ±500 µrad — so units differ as a line's do; other grades as draw_unit. ς (the
+/// table's) is left zero: a station sets its own.
+UnitModel draw_production_unit(Grade grade, uint64_t seed);
+
 }  // namespace imucal::calib

@@ -4,6 +4,7 @@
 #include <mutex>
 
 #include "calib/core/param_set.hpp"
+#include "db/fleet/fleet_codec.hpp"
 #include "db/fleet/fleet_schema.hpp"
 #include "db/fleet/pg_connection.hpp"
 
@@ -126,6 +127,45 @@ std::vector<RunId> PgFleetStats::table_run_members(RunId table_run_id) const {
       {pg_value(table_run_id)}, "table run members");
   std::vector<RunId> out;
   for (int i = 0; i < q.rows(); ++i) out.push_back(q.i64(i, 0));
+  return out;
+}
+
+std::vector<AinsResultRow> PgFleetStats::ains_results(const FleetFilter& f) const {
+  const auto values = impl_->filter_values(f, std::nullopt, std::nullopt);
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const PgResult q = impl_->conn.exec(
+      "SELECT r.id, r.station_id, r.serial, r.sequence_name, r.started_at_ms, c.sigma::text, "
+      "r.ains_values::text FROM runs r JOIN calibrations c ON c.run_id = r.id AND "
+      "c.method = 'ains' WHERE $1::text IS NULL AND $2::text IS NULL AND r.setting = 'factory' "
+      "AND r.reprocessed_from_local IS NULL AND c.unobservable = '[]'::jsonb AND "
+      "r.ains_values IS NOT NULL AND" +
+          std::string(kWhere) + "ORDER BY r.id",
+      values, "AINS results");
+  std::vector<AinsResultRow> out;
+  for (int i = 0; i < q.rows(); ++i) {
+    AinsResultRow row;
+    row.run_id = q.i64(i, 0);
+    row.station = q.text(i, 1);
+    row.serial = q.text(i, 2);
+    row.sequence_name = q.text(i, 3);
+    row.started_at_ms = q.i64(i, 4);
+    const std::string origin =
+        impl_->conn.target().redacted() + ": run " + std::to_string(row.run_id) + " ains";
+    row.sigma = params_from_json(q.text(i, 5), origin + " sigma");
+    // "{v1,v2,...}": the 27 values in calib::param_info order (db/fleet/fleet_schema.cpp).
+    const std::string array = q.text(i, 6);
+    calib::ParamVector x;
+    const char* at = array.c_str() + 1;
+    for (int k = 0; k < calib::ParamSet::kSize; ++k) {
+      char* end = nullptr;
+      x(k) = std::strtod(at, &end);
+      if (end == at)
+        throw Corrupt(origin + ": ains_values has no number for " + calib::param_info(k).name);
+      at = end + 1;
+    }
+    row.value = calib::ParamSet::from_vector(x);
+    out.push_back(std::move(row));
+  }
   return out;
 }
 

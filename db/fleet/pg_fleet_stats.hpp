@@ -22,6 +22,7 @@ class PgFleetStats final : public FleetStats {
   std::vector<ParamSummary> param_distribution(int param_index,
                                                const FleetFilter& filter) const override;
   std::vector<RunId> table_run_members(RunId table_run_id) const override;
+  std::vector<AinsResultRow> ains_results(const FleetFilter& filter) const override;
 
   /// The distribution's statement ($1 the 1-based parameter index, $2 NULL, $3-$6 the filter), for
   /// EXPLAIN in the benchmark.

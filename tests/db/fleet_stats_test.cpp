@@ -169,6 +169,51 @@ TEST_F(FleetStatsTest, ARunStillLiveCountsInTheDistributionWithItsStoredAinsResu
   EXPECT_EQ(d[0].std_dev, 0.0);
 }
 
+TEST_F(FleetStatsTest, AinsResultsAreTheFullyDeterminedFactoryResultsAsStored) {
+  {  // a field run and a reprocessing with AINS results: neither is a station's table result
+    SqliteRepository repo(path_);
+    NewRun land = test::new_run("SN-1", test::fleet_t0() + 3600000);
+    land.station = "st-A";
+    land.setting = calib::Setting::kLand;
+    const RunId l = repo.create_run(land);
+    RunCompletion land_done = test::pass_completion(3, test::fleet_t0() + 7200000);
+    // Its AINS result as a table run's (every term determined): only its setting leaves it out.
+    land_done.calibrations = {test::seeded_calibration(3, Method::kAins),
+                              test::seeded_calibration(3, Method::kLegacy, false)};
+    repo.finish_run(l, land_done);
+    NewRun again = test::new_run("SN-2", test::fleet_t0() + 3600000);
+    again.station = "st-A";
+    again.reprocessed_from = rows_[1].run_id;
+    const RunId a = repo.create_run(again);
+    repo.finish_run(a, test::pass_completion(4, test::fleet_t0() + 7200000));
+  }
+  SqliteFleetStats stats(path_);
+  int undetermined = 0;
+  for (const FleetFilter& f : filters()) {
+    std::vector<const FleetRow*> expected;
+    for (const FleetRow& r : rows_) {
+      if (!r.ains || !matches(r, f)) continue;
+      if (!r.unobservable.empty()) {
+        ++undetermined;
+        continue;
+      }
+      expected.push_back(&r);
+    }
+    const std::vector<AinsResultRow> got = stats.ains_results(f);
+    ASSERT_EQ(got.size(), expected.size()) << describe(f);
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      SCOPED_TRACE("run " + std::to_string(got[i].run_id) + " " + describe(f));
+      EXPECT_EQ(got[i].run_id, expected[i]->run_id);
+      EXPECT_EQ(got[i].station, expected[i]->station);
+      EXPECT_EQ(got[i].serial, expected[i]->serial);
+      EXPECT_EQ(got[i].started_at_ms, expected[i]->started_at_ms);
+      EXPECT_EQ(got[i].value.to_vector(), *expected[i]->ains) << "the numbers exactly as stored";
+      EXPECT_EQ(got[i].sigma.to_vector(), *expected[i]->ains_sigma);
+    }
+  }
+  EXPECT_GT(undetermined, 0) << "the data hold results that are left out";
+}
+
 TEST_F(FleetStatsTest, FilterValuesAreBoundNeverSpliced) {
   const std::string evil = "x'; DROP TABLE runs; --";
   std::size_t runs_before = 0;

@@ -7,7 +7,9 @@
 // and quotes and semicolons in every filter as data.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <map>
+#include <tuple>
 
 #include "db/fleet/fleet_repository.hpp"
 #include "db/fleet/fleet_schema.hpp"
@@ -122,6 +124,26 @@ TEST_F(FleetView, TheStoresAggregatesEqualTheStationsForTheSameRows) {
       }
     }
   }
+  // The AINS results for the station signatures: the same results, ids aside.
+  for (const db::FleetFilter& f : filters()) {
+    auto a = sqlite.ains_results(f), b = fleet.ains_results(f);
+    ASSERT_EQ(a.size(), b.size());
+    // Each in its own ids' order; compared by what the runs are.
+    auto by_run = [](const db::AinsResultRow& x, const db::AinsResultRow& y) {
+      return std::tie(x.station, x.started_at_ms, x.serial) <
+             std::tie(y.station, y.started_at_ms, y.serial);
+    };
+    std::sort(a.begin(), a.end(), by_run);
+    std::sort(b.begin(), b.end(), by_run);
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(a[i].station, b[i].station);
+      EXPECT_EQ(a[i].serial, b[i].serial);
+      EXPECT_EQ(a[i].started_at_ms, b[i].started_at_ms);
+      EXPECT_EQ(a[i].value.to_vector(), b[i].value.to_vector());
+      EXPECT_EQ(a[i].sigma.to_vector(), b[i].sigma.to_vector());
+    }
+  }
+  EXPECT_FALSE(sqlite.ains_results({}).empty());
   // A table run's members, by the store's ids.
   const db::fleet::FleetRepository repo(reader());
   const auto b = repo.station_runs("st-B", std::string("SN-T1"), 0);

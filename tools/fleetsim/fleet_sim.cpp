@@ -1,0 +1,192 @@
+#include "tools/fleetsim/fleet_sim.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <mutex>
+#include <random>
+#include <thread>
+
+#include "calib/core/site_presets.hpp"
+#include "calib/sim/sim_input.hpp"
+#include "calib/sim/unit_draw.hpp"
+#include "sequences/library.hpp"
+
+namespace imucal::fleetsim {
+
+namespace {
+
+/// One seed per (fleet, station, unit, visit), well mixed (splitmix64).
+std::uint64_t mix(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+
+std::uint64_t run_seed(const FleetSpec& spec, std::size_t station, int unit, int visit) {
+  return mix(mix(mix(spec.seed) ^ station) ^ static_cast<std::uint64_t>(unit + 7)) ^
+         static_cast<std::uint64_t>(visit);
+}
+
+/// The unit: one of the station's own, or the golden unit (the same at every station).
+calib::UnitModel unit_model(const FleetSpec& spec, std::size_t station, int unit) {
+  const std::uint64_t seed =
+      unit < 0 ? mix(spec.seed ^ 0x601D) : mix(mix(spec.seed) ^ (station * 100003 + 17) ^ unit);
+  calib::UnitModel u = calib::draw_production_unit(calib::Grade::kNavigation, seed);
+  u.params.table_misalignment_rad = spec.stations[station].levelling_rad;
+  return u;
+}
+
+std::string serial(const FleetSpec& spec, std::size_t station, int unit) {
+  if (unit < 0) return "GOLDEN-1";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "F%llu-S%02zu-U%03d",
+                static_cast<unsigned long long>(spec.seed % 1000), station, unit);
+  return buf;
+}
+
+struct Job {
+  std::size_t station;
+  int unit, visit;
+};
+
+std::vector<Job> jobs_of(const FleetSpec& spec) {
+  std::vector<Job> jobs;
+  for (std::size_t s = 0; s < spec.stations.size(); ++s) {
+    for (int u = 0; u < spec.units_per_station; ++u) jobs.push_back({s, u, 0});
+    for (int v = 0; v < spec.golden_visits; ++v) jobs.push_back({s, -1, v});
+  }
+  return jobs;
+}
+
+}  // namespace
+
+FleetSpec sound_fleet(int stations, double levelling_rad, std::uint64_t seed) {
+  FleetSpec spec;
+  spec.seed = seed;
+  std::mt19937_64 rng(mix(seed ^ 0x1E7E1));
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int s = 0; s < stations; ++s) {
+    StationSpec st;
+    char buf[16];
+    std::snprintf(buf, sizeof buf, "st-%02d", s);
+    st.name = buf;
+    st.levelling_rad = levelling_rad * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    spec.stations.push_back(st);
+  }
+  return spec;
+}
+
+calib::AinsOptions fleet_ains_options() { return calib::AinsOptions{}; }
+
+calib::CalibrationInput run_input(const FleetSpec& spec, std::size_t station, int unit, int visit) {
+  const StationSpec& st = spec.stations.at(station);
+  calib::Effects fx;
+  fx.gravity_error_mps2 = st.gravity_error_mps2;
+  fx.table_nonorthogonality_rad = st.nonorthogonality_rad;
+  const calib::RunSource source =
+      calib::truth_run_source(sequences::load_profile(spec.sequence), calib::TableGeometry{},
+                              calib::demo_factory_site(), unit_model(spec, station, unit), 100.0);
+  return source(fx, run_seed(spec, station, unit, visit), /*noise=*/true);
+}
+
+std::vector<FleetRun> simulate_fleet(const FleetSpec& spec,
+                                     const std::function<void(int, int)>& progress) {
+  const std::vector<Job> jobs = jobs_of(spec);
+  std::vector<FleetRun> out(jobs.size());
+  std::atomic<std::size_t> next{0};
+  std::atomic<int> done{0};
+  std::mutex progress_mutex;
+  auto worker = [&] {
+    for (std::size_t i = next++; i < jobs.size(); i = next++) {
+      const Job& j = jobs[i];
+      const calib::CalibrationResult r =
+          calib::calibrate_ains(run_input(spec, j.station, j.unit, j.visit), fleet_ains_options());
+      FleetRun& f = out[i];
+      f.station = j.station;
+      f.unit = j.unit;
+      f.visit = j.visit;
+      f.truth = unit_model(spec, j.station, j.unit).params.to_vector();
+      f.converged = r.converged;
+      f.run.station = spec.stations[j.station].name;
+      f.run.serial = serial(spec, j.station, j.unit);
+      f.run.run_id = static_cast<std::int64_t>(i) + 1;
+      f.run.value = r.params.to_vector();
+      f.run.sigma = r.sigma.to_vector();
+      const int n = ++done;
+      if (progress) {
+        std::lock_guard<std::mutex> lock(progress_mutex);
+        progress(n, static_cast<int>(jobs.size()));
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < std::max(1, spec.threads); ++t) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  return out;
+}
+
+std::vector<calib::StationError> fleet_station_errors(const FleetSpec& spec) {
+  std::vector<calib::StationError> errors = calib::station_error_catalogue();
+  calib::measure_responses(
+      errors,
+      calib::truth_run_source(sequences::load_profile(spec.sequence), calib::TableGeometry{},
+                              calib::demo_factory_site(), calib::default_unit(), 100.0),
+      fleet_ains_options());
+  return errors;
+}
+
+FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& runs,
+                          const std::vector<calib::StationError>& errors,
+                          const calib::SignatureOptions& options, bool population_only) {
+  std::vector<calib::SignatureRun> input;
+  for (const FleetRun& r : runs)
+    if (!population_only || r.unit >= 0) input.push_back(r.run);
+  FleetOutcome o;
+  o.signatures = calib::station_signatures(input, errors, options);
+  for (const calib::StationSignature& sig : o.signatures.stations) {
+    std::size_t s = 0;
+    while (spec.stations[s].name != sig.station) ++s;
+    const StationSpec& st = spec.stations[s];
+    const char* truth = st.gravity_error_mps2 != 0     ? "gravity_error"
+                        : st.nonorthogonality_rad != 0 ? "table_nonorthogonality"
+                                                       : nullptr;
+    if (!truth) {
+      ++o.sound;
+      o.false_alarms += sig.alarm ? 1 : 0;
+    } else {
+      ++o.faulty;
+      if (sig.alarm && sig.alarm->effect == truth) ++o.detected;
+      if (sig.alarm && sig.alarm->effect != truth) ++o.wrong_cause;
+    }
+  }
+  return o;
+}
+
+std::vector<double> reprocess_with_gravity(const FleetSpec& spec, std::size_t station,
+                                           double gravity_correction_mps2) {
+  std::vector<double> z(3 * static_cast<std::size_t>(spec.units_per_station));
+  std::atomic<int> next{0};
+  auto worker = [&] {
+    for (int u = next++; u < spec.units_per_station; u = next++) {
+      calib::CalibrationInput in = run_input(spec, station, u, 0);
+      const double surveyed = in.site.gravity_mps2.value_or(
+          calib::EarthModel::normal_gravity_mps2(in.site.lat_rad, in.site.height_m));
+      in.site.gravity_mps2 = surveyed + gravity_correction_mps2;
+      const calib::CalibrationResult r = calib::calibrate_ains(in, fleet_ains_options());
+      const calib::ParamSet truth = unit_model(spec, station, u).params;
+      for (int i = 0; i < 3; ++i)
+        z[3 * static_cast<std::size_t>(u) + static_cast<std::size_t>(i)] =
+            (r.params.accel_M(i, i) - truth.accel_M(i, i)) / r.sigma.accel_M(i, i);
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < std::max(1, spec.threads); ++t) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  return z;
+}
+
+}  // namespace imucal::fleetsim
