@@ -17,6 +17,7 @@
 #include "calib/core/calibration_input.hpp"
 #include "calib/fleet/station_signature.hpp"
 #include "calib/sim/truth_sim.hpp"
+#include "db/sqlite_repository.hpp"
 
 namespace imucal::fleetsim {
 
@@ -81,5 +82,13 @@ FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& ru
 /// every run's three axes.
 std::vector<double> reprocess_with_gravity(const FleetSpec& spec, std::size_t station,
                                            double gravity_correction_mps2);
+
+/// The fleet's runs as the stations would have stored them, into one history (`repo`, each run
+/// with its station's name, sequence and a start time within the week from `t0_ms`): every run
+/// calibrated by the station's pipeline (AINS, NLSQ, cross-check, limits; no gap check), done or
+/// review by its verdict. Returns the run ids in job order (the station's units, then the golden
+/// unit's visits, station by station).
+std::vector<db::RunId> write_history(const FleetSpec& spec, db::SqliteRepository& repo,
+                                     db::TimestampMs t0_ms);
 
 }  // namespace imucal::fleetsim

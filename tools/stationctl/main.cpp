@@ -32,13 +32,16 @@
 #include "db/fleet/fleet_repository.hpp"
 #include "db/fleet/fleet_schema.hpp"
 #include "db/fleet/fleet_writer.hpp"
+#include "db/fleet/pg_fleet_stats.hpp"
 #include "db/serial_number.hpp"
+#include "db/sqlite_fleet_stats.hpp"
 #include "db/sqlite_repository.hpp"
 #include "station/config.hpp"
 #include "station/control_client.hpp"
 #include "station/control_protocol.hpp"
 #include "station/fleet_sender.hpp"
 #include "station/record_json.hpp"
+#include "station/station_signatures.hpp"
 #include "tools/imucal/diagnosis_report.hpp"
 #include "tools/stationctl/export_output.hpp"
 
@@ -538,7 +541,9 @@ struct Args {
   std::vector<std::string> serials, slots;  ///< run start: the units, by order or by slot
   std::string serial, sequence, operator_name, reason, since, format, output, import_dir,
       report_dir, station;
-  bool wait = false, partial = false, bare = false;
+  std::string until;  ///< stations --signatures: the window's end
+  bool wait = false, partial = false, bare = false, signatures = false;
+  double false_alarm = 1e-3;
   db::RunId run_id = 0;
   std::size_t limit = 0;
 };
@@ -663,7 +668,22 @@ void add_history_commands(CLI::App& app, Args& a, Commands& c) {
       ->required()
       ->check(text_check(station::kMaxReasonChars));
   c.promote->fallthrough();
-  c.stations = app.add_subcommand("stations", "the stations in the fleet store (--fleet URL)");
+  c.stations = app.add_subcommand(
+      "stations", "the stations in the fleet store (--fleet URL), or their signatures");
+  c.stations->add_flag("--signatures", a.signatures,
+                       "each station's departure from the fleet and the station errors it fits "
+                       "(issue #25), from the fleet store or --db; exit 1 if one is flagged");
+  c.stations->add_option("--since", a.since,
+                         "signatures: runs started at or after (UTC date or time; default: 7 "
+                         "days before --until)");
+  c.stations->add_option("--until", a.until,
+                         "signatures: runs started before (UTC date: up to the end of that day; "
+                         "default: the end of the newest run's day)");
+  c.stations
+      ->add_option("--false-alarm", a.false_alarm,
+                   "signatures: false-alarm rate per station and period")
+      ->check(CLI::Range(1e-6, 0.2))
+      ->default_val(1e-3);
   c.stations->fallthrough();
   auto* fleet = app.add_subcommand("fleet", "this station's share of the factory's fleet store");
   fleet->require_subcommand(1);
@@ -847,6 +867,66 @@ int cmd_stations(const Target& t, bool as_json) {
   return kOk;
 }
 
+/// The signatures' window: --since/--until, else the 7 days up to the end of the newest run's day.
+db::FleetFilter signature_window(const db::Repository& repo, const Args& a) {
+  constexpr db::TimestampMs kDayMs = 86400000;
+  db::FleetFilter f;
+  try {
+    if (!a.until.empty())
+      f.until_ms = db::parse_time_utc(a.until) + (a.until.size() == 10 ? kDayMs : 0);
+    if (!a.since.empty()) f.since_ms = db::parse_time_utc(a.since);
+  } catch (const db::InvalidInput& e) {
+    throw Failure{kBadInput, std::string("stations --signatures: ") + e.what()};
+  }
+  if (!f.until_ms) {
+    const auto newest = repo.recent_runs(1);
+    if (newest.empty()) return f;
+    f.until_ms = (db::utc_day(newest.front().started_at_ms) + 1) * kDayMs;
+  }
+  if (!f.since_ms) f.since_ms = *f.until_ms - 7 * kDayMs;
+  if (*f.since_ms >= *f.until_ms)
+    throw Failure{kBadInput, "stations --signatures: --since is not before --until"};
+  return f;
+}
+
+/// `stationctl [--fleet URL | --db FILE] stations --signatures`: station signatures (issue #25).
+int cmd_station_signatures(const Target& t, const Args& a, bool as_json) {
+  if (t.fleet_url.empty() && t.db.empty())
+    throw Failure{kBadInput, "stations --signatures: give the fleet store (--fleet URL) or --db"};
+  try {
+    std::unique_ptr<db::Repository> repo;
+    std::unique_ptr<db::FleetStats> stats;
+    if (!t.fleet_url.empty()) {
+      const auto target = db::fleet::parse_fleet_target(t.fleet_url, t.fleet_password);
+      repo = std::make_unique<db::fleet::FleetRepository>(target);
+      stats = std::make_unique<db::fleet::PgFleetStats>(target);
+    } else {
+      db::SqliteOptions ro;
+      ro.read_only = true;
+      repo = std::make_unique<db::SqliteRepository>(t.db, ro);
+      stats = std::make_unique<db::SqliteFleetStats>(t.db);
+    }
+    const db::FleetFilter window = signature_window(*repo, a);
+    calib::SignatureOptions options;
+    options.false_alarm = a.false_alarm;
+    json report = station::station_signature_report(
+        *stats, window, options, [](const std::string& line) { std::cerr << line << "...\n"; });
+    report["since"] = window.since_ms ? db::format_time_utc(*window.since_ms) : "";
+    report["until"] = window.until_ms ? db::format_time_utc(*window.until_ms) : "";
+    bool flagged = false;
+    for (const json& st : report["stations"]) flagged = flagged || st.value("flagged", false);
+    if (as_json)
+      print_json(report);
+    else
+      std::cout << "runs started " << text(report, "since") << " until " << text(report, "until")
+                << "\n"
+                << station::render_signatures_text(report);
+    return flagged ? kRunNotPassed : kOk;
+  } catch (const db::DbError& e) {
+    throw Failure{exit_for_db_error(e.kind()), e.what()};
+  }
+}
+
 /// `stationctl fleet resync`: the station's share of the fleet store made equal to its SQLite.
 int cmd_fleet_resync(const Target& t, const std::string& station_id_option, bool as_json) {
   if (t.db.empty()) throw Failure{kBadInput, "fleet resync: no database (give --config or --db)"};
@@ -935,7 +1015,8 @@ int dispatch(const Target& t, const Args& a, const Commands& c, bool as_json) {
   if (*c.diagnose) return cmd_diagnose(t, a, as_json);
   if (*c.import) return cmd_import(t, a.import_dir, a.wait, as_json);
   if (*c.promote) return cmd_promote(t, a.run_id, a.reason, as_json);
-  if (*c.stations) return cmd_stations(t, as_json);
+  if (*c.stations)
+    return a.signatures ? cmd_station_signatures(t, a, as_json) : cmd_stations(t, as_json);
   if (*c.resync) return cmd_fleet_resync(t, a.station, as_json);
   throw Failure{kBadInput, "no command given (see --help)"};
 }

@@ -1,0 +1,156 @@
+#include "station/station_signatures.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+#include "calib/core/site_presets.hpp"
+#include "calib/sim/sim_input.hpp"
+#include "sequences/library.hpp"
+
+namespace imucal::station {
+
+namespace {
+
+using nlohmann::json;
+
+/// The sequence most runs followed.
+std::string main_sequence(const std::vector<db::AinsResultRow>& rows) {
+  std::map<std::string, int> n;
+  for (const auto& r : rows) ++n[r.sequence_name];
+  std::string best;
+  for (const auto& [name, count] : n)
+    if (best.empty() || count > n[best]) best = name;
+  return best;
+}
+
+std::vector<calib::StationError> measured_errors(const std::string& sequence) {
+  sequences::MotionProfile profile;
+  try {
+    profile = sequences::load_profile(sequence);
+  } catch (const std::exception& e) {
+    throw db::InvalidInput("station signatures: the runs' sequence \"" + sequence +
+                           "\" cannot be simulated for the station errors' responses: " + e.what());
+  }
+  std::vector<calib::StationError> errors = calib::station_error_catalogue();
+  calib::measure_responses(
+      errors, calib::truth_run_source(profile, calib::TableGeometry{}, calib::demo_factory_site(),
+                                      calib::default_unit(), 100.0));
+  return errors;
+}
+
+json fit_json(const calib::StationFit& f, const calib::StationError& e) {
+  json j = {{"effect", f.effect},
+            {"term", e.term},
+            {"size_si", f.size_si},
+            {"sigma_si", f.sigma_si},
+            {"z", f.z()},
+            {"unit", e.unit},
+            {"size", f.size_si * e.si_to_human},
+            {"sigma", f.sigma_si * e.si_to_human}};
+  if (!e.alt_unit.empty())
+    j["also"] = {{"unit", e.alt_unit},
+                 {"size", f.size_si * e.si_to_alt},
+                 {"sigma", f.sigma_si * e.si_to_alt}};
+  return j;
+}
+
+/// "common accelerometer scale +52 ± 6 ppm against the fleet: check the surveyed gravity of this
+/// site" (the size in its second unit where it has one: what moved).
+std::string cause_text(const json& fit, const calib::StationError& e) {
+  const json& shown = fit.contains("also") ? fit["also"] : fit;
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%s %+.3g ± %.2g %s", e.term.c_str(), shown["size"].get<double>(),
+                shown["sigma"].get<double>(), shown["unit"].get<std::string>().c_str());
+  std::string s = buf;
+  if (fit.contains("also")) {
+    std::snprintf(buf, sizeof buf, " (%s %+.3g %s)", e.effect.c_str(), fit["size"].get<double>(),
+                  fit["unit"].get<std::string>().c_str());
+    s += buf;
+  }
+  return s + " against the fleet: " + e.advice;
+}
+
+}  // namespace
+
+json station_signature_report(const db::FleetStats& stats, const db::FleetFilter& window,
+                              const calib::SignatureOptions& options,
+                              const std::function<void(const std::string&)>& progress) {
+  const std::vector<db::AinsResultRow> rows = stats.ains_results(window);
+  json report = {{"runs", rows.size()}, {"false_alarm", options.false_alarm}};
+  if (rows.empty()) {
+    report["stations"] = json::array();
+    return report;
+  }
+  const std::string sequence = main_sequence(rows);
+  if (progress) progress("measuring the station errors' responses on " + sequence);
+  const std::vector<calib::StationError> errors = measured_errors(sequence);
+  std::vector<calib::SignatureRun> runs;
+  for (const auto& r : rows)
+    runs.push_back({r.station, r.serial, r.run_id, r.value.to_vector(), r.sigma.to_vector()});
+  const calib::FleetSignatures fs = calib::station_signatures(runs, errors, options);
+  report["sequence"] = sequence;
+  report["z_threshold"] = fs.z_threshold;
+  json stations = json::array();
+  for (const calib::StationSignature& sig : fs.stations) {
+    json s = {{"station", sig.station},
+              {"runs", sig.runs},
+              {"population_units", sig.population_units},
+              {"repeat_units", sig.repeat_units},
+              {"assessed", sig.assessed}};
+    if (!sig.assessed) s["why_not"] = sig.why_not;
+    json fits = json::array();
+    for (std::size_t k = 0; k < sig.fits.size(); ++k)
+      fits.push_back(fit_json(sig.fits[k], errors[k]));
+    s["fits"] = fits;
+    s["flagged"] = sig.alarm.has_value();
+    if (sig.alarm) {
+      std::size_t k = 0;
+      while (errors[k].effect != sig.alarm->effect) ++k;
+      s["alarm"] = fit_json(*sig.alarm, errors[k]);
+      s["alarm"]["cause"] = cause_text(s["alarm"], errors[k]);
+      s["run_ids"] = sig.run_ids;
+    }
+    stations.push_back(s);
+  }
+  report["stations"] = stations;
+  return report;
+}
+
+std::string render_signatures_text(const json& report) {
+  if (report["stations"].empty()) return "no factory AINS results in this window\n";
+  char buf[256];
+  std::snprintf(buf, sizeof buf,
+                "%d runs, responses on %s; flagged at |z| >= %.2f (false alarms %.3g per station "
+                "and period)\n",
+                report["runs"].get<int>(), report["sequence"].get<std::string>().c_str(),
+                report["z_threshold"].get<double>(), report["false_alarm"].get<double>());
+  std::string out = buf;
+  for (const json& s : report["stations"]) {
+    std::snprintf(buf, sizeof buf, "%-16s %4d runs, %3d units, %2d seen elsewhere",
+                  s["station"].get<std::string>().c_str(), s["runs"].get<int>(),
+                  s["population_units"].get<int>(), s["repeat_units"].get<int>());
+    out += buf;
+    if (!s["assessed"].get<bool>()) {
+      out += "  not assessed: " + s["why_not"].get<std::string>() + "\n";
+      continue;
+    }
+    for (const json& f : s["fits"]) {
+      std::snprintf(buf, sizeof buf, "  %s z %+.1f", f["effect"].get<std::string>().c_str(),
+                    f["z"].get<double>());
+      out += buf;
+    }
+    if (!s["flagged"].get<bool>()) {
+      out += "  ok\n";
+      continue;
+    }
+    const auto& ids = s["run_ids"];
+    out += "  FLAGGED\n    " + s["alarm"]["cause"].get<std::string>() + "\n    runs it touches (" +
+           std::to_string(ids.size()) + "):";
+    for (const json& id : ids) out += " " + std::to_string(id.get<long long>());
+    out += "\n";
+  }
+  return out;
+}
+
+}  // namespace imucal::station

@@ -1,0 +1,27 @@
+#pragma once
+// Station signatures over a calibration history (issue #25): the period's AINS results read
+// through db::FleetStats (a station's SQLite or the fleet store), the station errors' responses
+// measured on the period's sequence with the truth simulator, and calib::station_signatures —
+// reported as JSON (what stationctl --json prints) and as text for QA, each flagged station with
+// its likely cause, size ± σ, the advice and the runs it touches.
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "calib/fleet/station_signature.hpp"
+#include "db/fleet_stats.hpp"
+
+namespace imucal::station {
+
+/// The signatures of the runs in `window` (every field of it applies). The responses are measured
+/// on the sequence most of the runs followed (named in the report); a sequence the library does
+/// not hold is db::InvalidInput naming it. `progress` gets a line before the slow steps.
+nlohmann::json station_signature_report(
+    const db::FleetStats& stats, const db::FleetFilter& window,
+    const calib::SignatureOptions& options,
+    const std::function<void(const std::string&)>& progress = {});
+
+/// The report as text: one line per station, and per flagged station its cause, advice and runs.
+std::string render_signatures_text(const nlohmann::json& report);
+
+}  // namespace imucal::station

@@ -1,0 +1,133 @@
+// `stationctl stations --signatures` (issue #25) as QA runs it: a simulated fleet's week stored
+// in a history as its stations would have stored it (tools/fleetsim write_history: the real
+// simulator, the station's pipeline with both methods and the cross-check), read from the SQLite
+// file (--db) and from the fleet store it is replicated to (--fleet): the gravity station and the
+// non-orthogonal table flagged with their cause and advice and the runs they touch, no other
+// station; exit 1 when one is flagged; bad windows refused.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "calib/core/conventions.hpp"
+#include "db/fleet/fleet_schema.hpp"
+#include "db/fleet/fleet_url.hpp"
+#include "db/fleet/fleet_writer.hpp"
+#include "tests/db/history_fixtures.hpp"
+#include "tests/support/pg_cluster.hpp"
+#include "tests/support/run_command.hpp"
+#include "tools/fleetsim/fleet_sim.hpp"
+
+using namespace imucal;
+using nlohmann::json;
+using test_support::run_command;
+
+namespace {
+
+constexpr std::size_t kGravity = 2, kNonorth = 8;
+
+class SignaturesCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new db::test::TempDir();
+    db_ = dir_->file("fleet-week.sqlite");
+    fleetsim::FleetSpec spec = fleetsim::sound_fleet(10, 20.0 * kArcsecToRad, 77);
+    spec.units_per_station = 6;
+    spec.stations[kGravity].gravity_error_mps2 = 50.0 * kMicroG_mps2;
+    spec.stations[kNonorth].nonorthogonality_rad = 10.0 * kArcsecToRad;
+    db::SqliteRepository repo(db_);
+    ids_ = fleetsim::write_history(spec, repo, db::parse_time_utc("2026-11-16T06:00:00Z"));
+  }
+  static void TearDownTestSuite() { delete dir_; }
+
+  static json signatures(const std::string& source, int& code) {
+    const auto r = run_command(std::string(IMUCAL_BIN_DIR) + "/stationctl " + source +
+                               " stations --signatures --json 2>/dev/null");
+    code = r.code;
+    return json::parse(r.out);
+  }
+
+  static void expect_the_two_flagged(const json& report) {
+    ASSERT_EQ(report["stations"].size(), 10u) << report.dump(1);
+    for (std::size_t s = 0; s < 10; ++s) {
+      const json& st = report["stations"][s];
+      SCOPED_TRACE(st["station"].get<std::string>());
+      if (s != kGravity && s != kNonorth) {
+        EXPECT_FALSE(st["flagged"].get<bool>()) << st.dump(1);
+        continue;
+      }
+      ASSERT_TRUE(st["flagged"].get<bool>()) << st.dump(1);
+      const json& alarm = st["alarm"];
+      const bool gravity = s == kGravity;
+      EXPECT_EQ(alarm["effect"], gravity ? "gravity_error" : "table_nonorthogonality");
+      const std::string cause = alarm["cause"];
+      EXPECT_NE(cause.find(gravity ? "check the surveyed gravity of this site"
+                                   : "check the squareness of this table's axes"),
+                std::string::npos)
+          << cause;
+      const double truth = gravity ? 50.0 : 10.0;  // µg, arcsec
+      EXPECT_LT(std::abs(alarm["size"].get<double>() - truth), 4 * alarm["sigma"].get<double>());
+      EXPECT_EQ(st["run_ids"].size(), 7u) << "the station's six units and the golden unit's visit";
+    }
+  }
+
+  static inline db::test::TempDir* dir_ = nullptr;
+  static inline std::string db_;
+  static inline std::vector<db::RunId> ids_;
+};
+
+}  // namespace
+
+TEST_F(SignaturesCli, FromTheStationsHistoryTheTwoFaultyStationsAreFlaggedWithTheirCause) {
+  ASSERT_EQ(ids_.size(), 70u);
+  int code = 0;
+  const json report = signatures("--db " + db_, code);
+  EXPECT_EQ(code, 1) << "a flagged station is exit 1";
+  expect_the_two_flagged(report);
+  const json& g = report["stations"][kGravity];
+  std::vector<db::RunId> expected(ids_.begin() + 14, ids_.begin() + 21);  // station 2's jobs
+  EXPECT_EQ(g["run_ids"].get<std::vector<db::RunId>>(), expected);
+  // The text QA reads: the cause with its size, the advice, the runs.
+  const auto text = run_command(std::string(IMUCAL_BIN_DIR) + "/stationctl --db " + db_ +
+                                " stations --signatures 2>&1");
+  EXPECT_NE(text.out.find("FLAGGED\n    common accelerometer scale +"), std::string::npos)
+      << text.out;
+  EXPECT_NE(text.out.find("runs it touches (7):"), std::string::npos) << text.out;
+}
+
+TEST_F(SignaturesCli, FromTheFleetStoreTheSameStationsAreFlagged) {
+  test_support::PgCluster pg;
+  {
+    namespace fl = db::fleet;
+    fl::PgConnection w(
+        fl::parse_fleet_target(pg.url("fleet_writer"), test_support::PgCluster::kWriterPassword));
+    fl::migrate_fleet(w);
+    db::SqliteOptions ro;
+    ro.read_only = true;
+    const db::SqliteRepository repo(db_, ro);
+    std::map<std::string, std::vector<db::RunId>> by_station;
+    for (const db::RunRecord& r : repo.recent_runs(0)) by_station[r.station].push_back(r.run_id);
+    for (const auto& [station, ids] : by_station) fl::upsert_runs(w, station, repo.details_of(ids));
+  }
+  const std::string pw = dir_->file("reader.pw");
+  std::ofstream(pw) << test_support::PgCluster::kReaderPassword << "\n";
+  int code = 0;
+  const json report =
+      signatures("--fleet " + pg.url("fleet_reader") + " --fleet-password-file " + pw, code);
+  EXPECT_EQ(code, 1);
+  expect_the_two_flagged(report);
+}
+
+TEST_F(SignaturesCli, AWindowThatEndsBeforeItStartsOrHasNoRunsIsClear) {
+  const std::string bin = std::string(IMUCAL_BIN_DIR) + "/stationctl --db " + db_;
+  const auto bad =
+      run_command(bin + " stations --signatures --since 2026-11-20 --until 2026-11-10 2>&1");
+  EXPECT_EQ(bad.code, 2) << bad.out;
+  EXPECT_NE(bad.out.find("--since is not before --until"), std::string::npos) << bad.out;
+  const auto empty =
+      run_command(bin + " stations --signatures --since 2020-01-01 --until 2020-01-07 2>&1");
+  EXPECT_EQ(empty.code, 0) << empty.out;
+  EXPECT_NE(empty.out.find("no factory AINS results in this window"), std::string::npos)
+      << empty.out;
+}
