@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <mutex>
 
 #include "calib/core/site_presets.hpp"
 #include "calib/sim/sim_input.hpp"
@@ -24,7 +25,7 @@ std::string main_sequence(const std::vector<db::AinsResultRow>& rows) {
   return best;
 }
 
-std::vector<calib::StationError> measured_errors(const std::string& sequence) {
+std::vector<calib::StationError> measure_errors(const std::string& sequence) {
   sequences::MotionProfile profile;
   try {
     profile = sequences::load_profile(sequence);
@@ -37,6 +38,19 @@ std::vector<calib::StationError> measured_errors(const std::string& sequence) {
       errors, calib::truth_run_source(profile, calib::TableGeometry{}, calib::demo_factory_site(),
                                       calib::default_unit(), 100.0));
   return errors;
+}
+
+/// The responses of a sequence, measured once per process (a web view asks for them on every
+/// page; they depend on the sequence alone).
+std::vector<calib::StationError> measured_errors(
+    const std::string& sequence, const std::function<void(const std::string&)>& progress) {
+  static std::mutex mutex;
+  static std::map<std::string, std::vector<calib::StationError>> cache;
+  std::lock_guard<std::mutex> lock(mutex);
+  const auto it = cache.find(sequence);
+  if (it != cache.end()) return it->second;
+  if (progress) progress("measuring the station errors' responses on " + sequence);
+  return cache[sequence] = measure_errors(sequence);
 }
 
 json fit_json(const calib::StationFit& f, const calib::StationError& e) {
@@ -83,8 +97,7 @@ json station_signature_report(const db::FleetStats& stats, const db::FleetFilter
     return report;
   }
   const std::string sequence = main_sequence(rows);
-  if (progress) progress("measuring the station errors' responses on " + sequence);
-  const std::vector<calib::StationError> errors = measured_errors(sequence);
+  const std::vector<calib::StationError> errors = measured_errors(sequence, progress);
   std::vector<calib::SignatureRun> runs;
   for (const auto& r : rows)
     runs.push_back({r.station, r.serial, r.run_id, r.value.to_vector(), r.sigma.to_vector()});

@@ -3,7 +3,9 @@
 // simulator, the station's pipeline with both methods and the cross-check), read from the SQLite
 // file (--db) and from the fleet store it is replicated to (--fleet): the gravity station and the
 // non-orthogonal table flagged with their cause and advice and the runs they touch, no other
-// station; exit 1 when one is flagged; bad windows refused.
+// station; exit 1 when one is flagged; bad windows refused. And stationweb's /signatures page over
+// the same file: the same two stations flagged, the page rendered by headless Chromium without a
+// console message (its screenshot is the README's).
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -17,7 +19,9 @@
 #include "tests/db/history_fixtures.hpp"
 #include "tests/support/pg_cluster.hpp"
 #include "tests/support/run_command.hpp"
+#include "tests/tools/stationweb_process.hpp"
 #include "tools/fleetsim/fleet_sim.hpp"
+#include "tools/stationweb/httplib.hpp"
 
 using namespace imucal;
 using nlohmann::json;
@@ -130,4 +134,47 @@ TEST_F(SignaturesCli, AWindowThatEndsBeforeItStartsOrHasNoRunsIsClear) {
   EXPECT_EQ(empty.code, 0) << empty.out;
   EXPECT_NE(empty.out.find("no factory AINS results in this window"), std::string::npos)
       << empty.out;
+}
+
+TEST_F(SignaturesCli, TheWebViewFlagsTheSameStationsWithTheirCauseAndRendersCleanly) {
+  test_support::StationwebProcess web(std::string(IMUCAL_BIN_DIR) + "/stationweb", db_,
+                                      dir_->file("stationweb.log"));
+  httplib::Client client("127.0.0.1", web.port());
+  client.set_read_timeout(60, 0);
+  const auto r = client.Get("/signatures");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  for (const char* st : {"st-02", "st-08"})
+    EXPECT_NE(r->body.find(std::string("data-station='") + st + "' data-flagged='1'"),
+              std::string::npos)
+        << st;
+  std::size_t flagged = 0;
+  for (std::size_t at = 0; (at = r->body.find("data-flagged='1'", at)) != std::string::npos; ++at)
+    ++flagged;
+  EXPECT_EQ(flagged, 2u);
+  EXPECT_NE(r->body.find("data-station='st-02' data-effect='gravity_error'"), std::string::npos);
+  EXPECT_NE(r->body.find("check the surveyed gravity of this site"), std::string::npos);
+  EXPECT_NE(r->body.find("<a href='/run/15'>15</a>"), std::string::npos) << "the runs it touches";
+  const auto bad = client.Get("/signatures?since=2026-11-20&until=2026-11-10");
+  ASSERT_TRUE(bad);
+  EXPECT_EQ(bad->status, 400);
+
+  ASSERT_EQ(run_command("command -v chromium >/dev/null").code, 0)
+      << "chromium is not installed (tools/setup.sh installs it)";
+  const std::string url = "http://127.0.0.1:" + std::to_string(web.port()) + "/signatures";
+  const std::string chromium =
+      "timeout 120 chromium --headless --no-sandbox --disable-gpu --hide-scrollbars "
+      "--enable-logging=stderr --v=0 ";
+  const std::string log = dir_->file("chromium.log");
+  const auto dom = run_command(chromium + "--dump-dom '" + url + "' 2>" + log);
+  ASSERT_EQ(dom.code, 0);
+  EXPECT_NE(dom.out.find("id=\"signatures\""), std::string::npos);
+  std::ifstream f(log);
+  for (std::string line; std::getline(f, line);)
+    EXPECT_EQ(line.find(":CONSOLE"), std::string::npos) << line;
+  const std::string shot = std::string(IMUCAL_BIN_DIR) + "/../tests/stationweb-signatures.png";
+  EXPECT_EQ(run_command(chromium + "--window-size=1200,1000 --screenshot=" + shot + " '" + url +
+                        "' 2>/dev/null")
+                .code,
+            0);
 }

@@ -22,6 +22,7 @@ th, td { border: 1px solid #ccc; padding: 3px 8px; text-align: left; vertical-al
 th { background: #f1f3f5; } td.num, th.num { text-align: right; font-variant-numeric: tabular-nums; }
 .PASS { color: #176b2c; font-weight: bold; } .REVIEW { color: #a35d00; font-weight: bold; }
 .FAILED { color: #b3261e; font-weight: bold; } .muted { color: #666; }
+.alarm { border-left: 4px solid #b3261e; background: #fdf1f0; padding: 2px 12px; margin: 8px 0; }
 #error { font-size: 1.1em; padding: 12px; background: #fff4f4; border: 1px solid #e0a0a0; }
 svg { display: block; margin: 8px 0; } pre { background: #f8f9fa; padding: 8px; overflow-x: auto; }
 form.filters label { margin-right: 12px; }
@@ -84,7 +85,8 @@ std::string page(const std::string& title, const std::string& body) {
   s += "<meta name='viewport' content='width=device-width, initial-scale=1'>\n";
   s += "<link rel='icon' href='data:,'>\n";  // no favicon request (no 404 in the console)
   s += "<title>" + esc(title) + " · stationweb</title>\n<style>" + kStyle + "</style>\n</head>\n";
-  s += "<body>\n<nav><a href='/'>Recent runs</a><a href='/fleet'>Fleet</a>";
+  s += "<body>\n<nav><a href='/'>Recent runs</a><a href='/fleet'>Fleet</a><a "
+       "href='/signatures'>Station signatures</a>";
   s += "<form action='/unit' method='get'><label>Serial <input name='serial' size='18' "
        "required></label> <button type='submit'>Show unit</button></form></nav>\n";
   s += body;

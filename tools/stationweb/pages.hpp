@@ -11,6 +11,8 @@
 //   /fleet?...         fleet_page: runs per station per day, verdicts per station, and the
 //                      distribution of one parameter per station (since, until, station, serial,
 //                      param)
+//   /signatures?...    signatures_page: station signatures of a period (since, until; default the
+//                      7 days up to the newest run's day), flagged stations with cause and runs
 #include <map>
 #include <string>
 
@@ -27,6 +29,7 @@ std::string unit_search(const Params& query);
 std::string unit_page(const History& history, const std::string& serial);
 std::string run_page(const History& history, const std::string& run_id_text);
 std::string fleet_page(const History& history, const Params& query);
+std::string signatures_page(const History& history, const Params& query);
 
 /// The value of query parameter `name`, or "" when absent; 400 if it is given twice.
 std::string query_value(const Params& query, const std::string& name);
