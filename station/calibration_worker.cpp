@@ -131,6 +131,7 @@ CalibrationOutcome run_calibration_job(db::Repository& repo, const CalibrationJo
     // The samples move into the input (no copy held through the calibration); ar keeps its info,
     // all that is used below.
     calib::CalibrationInput in = archive::to_calibration_input(std::move(ar));
+    if (job.site_gravity_mps2) in.site.gravity_mps2 = *job.site_gravity_mps2;
     calib::PipelineOptions opt;
     opt.methods = calib::MethodSelection::kAll;
     opt.crosscheck.k_sigma = job.k_sigma;

@@ -46,6 +46,9 @@ struct CalibrationJob {
   std::string partial_reason;
   /// The run's end as recorded (an import keeps its archive's times); none: when the job ends.
   std::optional<db::TimestampMs> ended_at_ms;
+  /// Calibrate with this surveyed gravity instead of the archive's (a reprocess with a corrected
+  /// station setting, issue #25), m/s².
+  std::optional<double> site_gravity_mps2;
 };
 
 struct CalibrationOutcome {

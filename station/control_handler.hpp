@@ -44,6 +44,9 @@ struct ReprocessRequest {
   db::RunId run_id = 0;
   std::string user;            ///< who asked (recorded as the new run's operator)
   bool allow_partial = false;  ///< calibrate an incomplete archive anyway (REVIEW at best)
+  /// The site's surveyed gravity to calibrate with instead of the archive's (issue #25: a station
+  /// whose signature showed a wrong gravity, corrected), m/s²; the new run's origin says so.
+  std::optional<double> gravity_mps2;
 };
 
 /// One unit of a table run: the fixture slot it sits in ("" = the next free slot in the

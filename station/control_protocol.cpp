@@ -20,6 +20,7 @@ enum class ArgType {
   kReason,       ///< free text stored with a run: printable, 1..kMaxReasonChars characters
   kBool,         ///< true | false
   kUnits,        ///< [{"slot": "A", "serial": "SN"}, ...]: the units of one table run (1..16)
+  kGravity,      ///< a surveyed local gravity in m/s²: a number in [9.7, 9.9] (Earth's range)
 };
 
 struct ArgSpec {
@@ -43,7 +44,9 @@ const std::vector<CommandSpec>& specs() {
       {cmd::kRunStatus, {{"run_id", ArgType::kPositiveInt, false}}},
       {cmd::kRunAbort, {{"reason", ArgType::kReason, false}}},
       {cmd::kReprocess,
-       {{"run_id", ArgType::kPositiveInt, true}, {"partial", ArgType::kBool, false}}},
+       {{"run_id", ArgType::kPositiveInt, true},
+        {"partial", ArgType::kBool, false},
+        {"gravity_mps2", ArgType::kGravity, false}}},
       {cmd::kHistory,
        {{"serial", ArgType::kString, false},
         {"limit", ArgType::kCount, false},
@@ -147,6 +150,12 @@ void check_arg(const json& id, const ArgSpec& spec, const json& v) {
       return;
     case ArgType::kBool:
       if (!v.is_boolean()) fail("true or false");
+      return;
+    case ArgType::kGravity:
+      // Earth's surface gravity lies within 9.76..9.84 m/s²; a value outside 9.7..9.9 is a typo
+      // (a unit mix-up, a missing digit), never a correction.
+      if (!v.is_number() || !(v.get<double>() >= 9.7 && v.get<double>() <= 9.9))
+        fail("a surveyed gravity in m/s² between 9.7 and 9.9");
       return;
     case ArgType::kName:
     case ArgType::kReason:

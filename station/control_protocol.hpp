@@ -7,7 +7,7 @@
 //
 // Commands and their arguments ("?" = optional):
 //   run.start  {serial, sequence?, operator?}     run.status {run_id?}     run.abort {reason?}
-//   reprocess  {run_id, partial?}                 history {serial, limit?}  show {run_id}
+//   reprocess  {run_id, partial?, gravity_mps2?}  history {serial, limit?}  show {run_id}
 //   params     {serial}                           export {serial?, since?, format, stream?}
 //   diagnose   {run_id}                           ping       {}
 //   import     {dir}                              promote    {run_id, reason}

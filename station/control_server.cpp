@@ -270,8 +270,10 @@ json ControlServer::dispatch(Client& client, const Request& r) {
     q.run_id = a.at("run_id").get<db::RunId>();
     q.user = client.user;
     q.allow_partial = a.value("partial", false);
-    spdlog::info("control: reprocess run {} by {} (uid {}){}", q.run_id, client.user,
-                 client.cred.uid, q.allow_partial ? ", partial archive allowed" : "");
+    if (a.contains("gravity_mps2")) q.gravity_mps2 = a.at("gravity_mps2").get<double>();
+    spdlog::info("control: reprocess run {} by {} (uid {}){}{}", q.run_id, client.user,
+                 client.cred.uid, q.allow_partial ? ", partial archive allowed" : "",
+                 q.gravity_mps2 ? ", surveyed gravity " + std::to_string(*q.gravity_mps2) : "");
     return handler_.reprocess(q);
   }
   if (r.cmd == cmd::kImport) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -449,6 +450,10 @@ bool archive_has_data(const std::string& dir) {
 
 nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
   const db::RunId run_id = request.run_id;
+  if (request.gravity_mps2 && !(*request.gravity_mps2 >= 9.7 && *request.gravity_mps2 <= 9.9))
+    throw ControlError(error_code::kInvalidInput,
+                       "reprocess: gravity_mps2 " + std::to_string(*request.gravity_mps2) +
+                           " is no surveyed gravity (m/s², between 9.7 and 9.9)");
   std::unique_lock<std::mutex> lk(mu_);
   std::string digest;
   const db::RunDetails d = stored_run_with_archive(run_id, "reprocessing", digest);
@@ -472,6 +477,13 @@ nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
                           db::RunState::kCalibrating);
   nr.archive_path = orig.archive_path;
   nr.reprocessed_from = run_id;
+  if (request.gravity_mps2) {
+    char corrected[160];
+    std::snprintf(corrected, sizeof corrected,
+                  "reprocessed with the site's surveyed gravity corrected to %.7f m/s^2",
+                  *request.gravity_mps2);
+    nr.origin = corrected;
+  }
   const db::RunId id = repo_.create_run(nr);
 
   auto live = std::make_shared<Live>();
@@ -505,6 +517,7 @@ nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
   job.capture_json = orig.capture_json;
   apply_calibration_settings(job);
   job.partial_reason = partial;
+  job.site_gravity_mps2 = request.gravity_mps2;
   lk.unlock();
   worker_.submit(job, [this, live](const CalibrationOutcome& out) { on_calibrated(live, 0, out); });
   return {{"run_id", id}, {"reprocessed_from", run_id}};

@@ -46,6 +46,9 @@ TEST(ControlProtocol, ValidRequestsOfEveryCommand) {
   EXPECT_TRUE(parse_request(R"({"id":2,"cmd":"run.abort","args":{}})").args.empty());
   EXPECT_EQ(parse_request(R"({"id":3,"cmd":"reprocess","args":{"run_id":9}})").args.at("run_id"),
             9);
+  EXPECT_EQ(parse_request(R"({"id":3,"cmd":"reprocess","args":{"run_id":9,"gravity_mps2":9.8156}})")
+                .args.at("gravity_mps2"),
+            9.8156);
   EXPECT_EQ(
       parse_request(R"({"id":4,"cmd":"history","args":{"serial":"A","limit":0}})").args.at("limit"),
       0);
@@ -152,6 +155,10 @@ TEST(ControlProtocol, ArgumentsAreCheckedByNameTypeAndRange) {
       {R"({"id":1,"cmd":"show","args":{"run_id":2.5}})", "args.run_id", "got number"},
       {R"({"id":1,"cmd":"show"})", "args.run_id", "required by show"},
       {R"({"id":1,"cmd":"reprocess","args":{}})", "args.run_id", "required by reprocess"},
+      {R"({"id":1,"cmd":"reprocess","args":{"run_id":3,"gravity_mps2":98.1}})", "args.gravity_mps2",
+       "between 9.7 and 9.9"},
+      {R"({"id":1,"cmd":"reprocess","args":{"run_id":3,"gravity_mps2":"9.81"}})",
+       "args.gravity_mps2", "between 9.7 and 9.9"},
       {R"({"id":1,"cmd":"history","args":{"serial":"A","limit":-1}})", "args.limit",
        "non-negative integer"},
       {R"({"id":1,"cmd":"history","args":{"serial":"A","limit":true}})", "args.limit",

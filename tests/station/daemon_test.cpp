@@ -145,7 +145,7 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
 
   // reprocess of the cut archive: refused unless asked for explicitly, naming why.
   try {
-    d.reprocess({running_id, "qa-anna", false});
+    d.reprocess({running_id, "qa-anna", false, std::nullopt});
     FAIL() << "a partial archive was reprocessed without being asked for";
   } catch (const ControlError& e) {
     EXPECT_EQ(e.code(), error_code::kInvalidInput);
@@ -154,10 +154,11 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
   }
   // Asked for: a new run from the kept archive, calibrated by the worker, REVIEW at best and
   // recorded as the requester's.
-  const json r = d.reprocess({running_id, "qa-anna", true});
+  const json r = d.reprocess({running_id, "qa-anna", true, std::nullopt});
   const db::RunId new_id = r.at("run_id").get<db::RunId>();
   EXPECT_EQ(r.at("reprocessed_from").get<db::RunId>(), running_id);
-  EXPECT_THROW(d.reprocess({running_id, "qa-anna", true}), ControlError);  // busy meanwhile
+  EXPECT_THROW(d.reprocess({running_id, "qa-anna", true, std::nullopt}),
+               ControlError);  // busy meanwhile
   ASSERT_TRUE(d.controller().wait_idle(60s));
   const json s = d.status(new_id).at("run");
   EXPECT_EQ(s.at("state"), "review") << s.dump();
@@ -170,10 +171,39 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
   EXPECT_THROW(d.repository().active_params("REC-1"), db::NotFound)
       << "a partial archive became the unit's active parameters";
 
+  // Reprocessed with a corrected surveyed gravity (issue #25: a station's signature showed its
+  // gravity wrong): 50 µg more than the archive's moves every accelerometer scale by -50 ppm
+  // against the same archive calibrated as it was, and the new run says what was corrected.
+  const double archive_g = *calib::demo_factory_site().gravity_mps2;
+  const double corrected_g = archive_g + 50.0 * kMicroG_mps2;
+  const json r2 = d.reprocess({running_id, "qa-anna", true, corrected_g});
+  const db::RunId corrected_id = r2.at("run_id").get<db::RunId>();
+  ASSERT_TRUE(d.controller().wait_idle(60s));
+  const db::RunDetails as_was = d.repository().show(new_id);
+  const db::RunDetails corrected = d.repository().show(corrected_id);
+  EXPECT_NE(corrected.run.origin.find("surveyed gravity corrected to"), std::string::npos)
+      << corrected.run.origin;
+  EXPECT_EQ(as_was.run.origin, "");
+  ASSERT_FALSE(as_was.calibrations.empty());
+  ASSERT_FALSE(corrected.calibrations.empty());
+  ASSERT_EQ(as_was.calibrations[0].method, db::Method::kAins);
+  ASSERT_EQ(corrected.calibrations[0].method, db::Method::kAins);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(corrected.calibrations[0].params.accel_M(i, i) -
+                    as_was.calibrations[0].params.accel_M(i, i),
+                -50e-6, 1e-6)
+        << "axis " << i;
+  try {
+    d.reprocess({running_id, "qa-anna", true, 98.1});
+    FAIL() << "a gravity ten times Earth's was taken";
+  } catch (const ControlError& e) {
+    EXPECT_EQ(e.code(), error_code::kInvalidInput);
+  }
+
   // A changed archive is refused before anything is written.
   std::ofstream(rec.archive_path + "/capture.log", std::ios::app) << "x";
   try {
-    d.reprocess({running_id, "qa-anna", true});
+    d.reprocess({running_id, "qa-anna", true, std::nullopt});
     FAIL() << "a changed archive was reprocessed";
   } catch (const ControlError& e) {
     EXPECT_EQ(e.code(), error_code::kInvalidInput);

@@ -122,7 +122,7 @@ TEST_F(ExportStreamTest, StreamedBytesAreExactlyTheRepositorysExportInEveryForma
       c.call_streamed("export", {{"format", "ndjson"}, {"serial", "SN-7"}, {"stream", true}},
                       [&](std::string_view bytes) { got.append(bytes); });
   ASSERT_TRUE(r.ok) << r.error_message;
-  EXPECT_EQ(got, direct("ndjson", {std::string("SN-7"), std::nullopt}));
+  EXPECT_EQ(got, direct("ndjson", {std::string("SN-7"), std::nullopt, std::nullopt}));
   std::istringstream lines(got);
   int n = 0;
   for (std::string line; std::getline(lines, line); ++n)
@@ -189,7 +189,7 @@ TEST_F(ExportStreamTest, OverTheCapAStreamedExportIsRefusedBusy) {
   const Reply whole = d.call("export", {{"format", "csv"}, {"serial", "SN-3"}});
   ASSERT_TRUE(whole.ok) << whole.error_message;
   EXPECT_EQ(whole.result.at("content").get<std::string>(),
-            direct("csv", {std::string("SN-3"), std::nullopt}));
+            direct("csv", {std::string("SN-3"), std::nullopt, std::nullopt}));
 }
 
 }  // namespace

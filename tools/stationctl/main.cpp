@@ -544,6 +544,7 @@ struct Args {
   std::string until;  ///< stations --signatures: the window's end
   bool wait = false, partial = false, bare = false, signatures = false;
   double false_alarm = 1e-3;
+  std::optional<double> gravity_mps2;  ///< reprocess: the corrected surveyed gravity
   db::RunId run_id = 0;
   std::size_t limit = 0;
 };
@@ -643,6 +644,11 @@ void add_history_commands(CLI::App& app, Args& a, Commands& c) {
   c.reprocess->add_flag("--partial", a.partial,
                         "calibrate an incomplete archive (aborted, interrupted or failed capture) "
                         "anyway: stored REVIEW at best, never the unit's active parameters");
+  c.reprocess->add_option("--gravity-mps2", a.gravity_mps2,
+                          "calibrate with this surveyed gravity (m/s², 9.7-9.9) instead of the "
+                          "archive's: a station whose signature showed a wrong gravity, corrected "
+                          "(issue #25); the new run says so and, like an import, becomes the "
+                          "unit's active parameters only when QA promotes it");
   c.reprocess->fallthrough();
   c.diagnose = app.add_subcommand(
       "diagnose", "sim-to-real gap diagnosis of a stored run, kept with the run (needs the group)");
@@ -813,6 +819,7 @@ int cmd_reprocess(const Target& t, const Args& a, bool as_json) {
   ControlClient client = connect_or_fail(t);
   json args = {{"run_id", a.run_id}};
   if (a.partial) args["partial"] = true;
+  if (a.gravity_mps2) args["gravity_mps2"] = *a.gravity_mps2;
   const json r = call(client, station::cmd::kReprocess, args);
   return started(t, client, r, "reprocesses run " + std::to_string(a.run_id), a.wait, as_json);
 }
