@@ -152,9 +152,7 @@ void check_arg(const json& id, const ArgSpec& spec, const json& v) {
       if (!v.is_boolean()) fail("true or false");
       return;
     case ArgType::kGravity:
-      // Earth's surface gravity lies within 9.76..9.84 m/s²; a value outside 9.7..9.9 is a typo
-      // (a unit mix-up, a missing digit), never a correction.
-      if (!v.is_number() || !(v.get<double>() >= 9.7 && v.get<double>() <= 9.9))
+      if (!v.is_number() || !plausible_surveyed_gravity(v.get<double>()))
         fail("a surveyed gravity in m/s² between 9.7 and 9.9");
       return;
     case ArgType::kName:

@@ -44,6 +44,12 @@ constexpr std::size_t kMaxLineBytes = 1024 * 1024;
 /// abort and promotion reasons), in characters.
 constexpr std::size_t kMaxNameChars = 64;
 constexpr std::size_t kMaxReasonChars = 500;
+/// A surveyed gravity a reprocess may be given (m/s²): Earth's surface lies within 9.76..9.84, so
+/// anything outside this is a typo (a unit mix-up, a missing digit), never a correction.
+constexpr double kMinSurveyedGravity_mps2 = 9.7, kMaxSurveyedGravity_mps2 = 9.9;
+inline bool plausible_surveyed_gravity(double g_mps2) {
+  return g_mps2 >= kMinSurveyedGravity_mps2 && g_mps2 <= kMaxSurveyedGravity_mps2;
+}
 
 /// Why `s` is not acceptable as a name or reason of at most max_chars characters ("" when it is):
 /// empty or blank, too long, or containing a control character (newline, tab, ESC, C1, ...).

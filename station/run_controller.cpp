@@ -18,6 +18,7 @@
 #include "sequences/validator.hpp"
 #include "station/archive_writer.hpp"
 #include "station/capture.hpp"
+#include "station/control_protocol.hpp"
 #include "station/end_note.hpp"
 #include "station/gap_check.hpp"
 #include "station/import_staging.hpp"
@@ -450,7 +451,7 @@ bool archive_has_data(const std::string& dir) {
 
 nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
   const db::RunId run_id = request.run_id;
-  if (request.gravity_mps2 && !(*request.gravity_mps2 >= 9.7 && *request.gravity_mps2 <= 9.9))
+  if (request.gravity_mps2 && !plausible_surveyed_gravity(*request.gravity_mps2))
     throw ControlError(error_code::kInvalidInput,
                        "reprocess: gravity_mps2 " + std::to_string(*request.gravity_mps2) +
                            " is no surveyed gravity (m/s², between 9.7 and 9.9)");

@@ -87,6 +87,32 @@ std::string cause_text(const json& fit, const calib::StationError& e) {
 
 }  // namespace
 
+db::FleetFilter signature_window(const db::Repository& history, const std::string& since,
+                                 const std::string& until) {
+  constexpr db::TimestampMs kDayMs = 86400000;
+  db::FleetFilter f;
+  auto parse = [](const std::string& field, const std::string& text) {
+    try {
+      return db::parse_time_utc(text);
+    } catch (const db::InvalidInput& e) {
+      throw WindowError(field, e.what());
+    }
+  };
+  if (!until.empty()) f.until_ms = parse("until", until) + (until.size() == 10 ? kDayMs : 0);
+  if (!since.empty()) f.since_ms = parse("since", since);
+  if (!f.until_ms) {
+    const auto newest = history.recent_runs(1);
+    if (newest.empty()) return f;
+    f.until_ms = (db::utc_day(newest.front().started_at_ms) + 1) * kDayMs;
+  }
+  if (!f.since_ms) f.since_ms = *f.until_ms - 7 * kDayMs;
+  if (*f.since_ms >= *f.until_ms)
+    throw WindowError("until", "the window ends (" + db::format_time_utc(*f.until_ms) +
+                                   ") before it starts (" + db::format_time_utc(*f.since_ms) +
+                                   "): --since is not before --until");
+  return f;
+}
+
 json station_signature_report(const db::FleetStats& stats, const db::FleetFilter& window,
                               const calib::SignatureOptions& options,
                               const std::function<void(const std::string&)>& progress) {

@@ -13,6 +13,22 @@
 
 namespace imucal::station {
 
+/// A bad signature window: which field ("since" or "until") and why.
+struct WindowError : db::InvalidInput {
+  WindowError(std::string field_name, std::string why)
+      : db::InvalidInput(field_name + ": " + why),
+        field(std::move(field_name)),
+        reason(std::move(why)) {}
+  std::string field, reason;
+};
+
+/// The period the signatures look at: `since` and `until` as given (UTC dates or times; a date
+/// `until` means the end of that day), else the 7 days up to the end of the newest run's day.
+/// WindowError for unreadable text or a window that ends before it starts; no bounds at all when
+/// the history holds no run.
+db::FleetFilter signature_window(const db::Repository& history, const std::string& since,
+                                 const std::string& until);
+
 /// The signatures of the runs in `window` (every field of it applies). The responses are measured
 /// on the sequence most of the runs followed (named in the report); a sequence the library does
 /// not hold is db::InvalidInput naming it. `progress` gets a line before the slow steps.

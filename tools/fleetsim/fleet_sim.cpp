@@ -81,20 +81,31 @@ FleetSpec sound_fleet(int stations, double levelling_rad, std::uint64_t seed) {
 
 calib::AinsOptions fleet_ains_options() { return calib::AinsOptions{}; }
 
-calib::CalibrationInput run_input(const FleetSpec& spec, std::size_t station, int unit, int visit) {
+namespace {
+
+/// One run's input on the fleet's sequence, already loaded (once per fleet, not per run).
+calib::CalibrationInput input_of(const FleetSpec& spec, const sequences::MotionProfile& profile,
+                                 std::size_t station, int unit, int visit) {
   const StationSpec& st = spec.stations.at(station);
   calib::Effects fx;
   fx.gravity_error_mps2 = st.gravity_error_mps2;
   fx.table_nonorthogonality_rad = st.nonorthogonality_rad;
   const calib::RunSource source =
-      calib::truth_run_source(sequences::load_profile(spec.sequence), calib::TableGeometry{},
-                              calib::demo_factory_site(), unit_model(spec, station, unit), 100.0);
+      calib::truth_run_source(profile, calib::TableGeometry{}, calib::demo_factory_site(),
+                              unit_model(spec, station, unit), 100.0);
   return source(fx, run_seed(spec, station, unit, visit), /*noise=*/true);
+}
+
+}  // namespace
+
+calib::CalibrationInput run_input(const FleetSpec& spec, std::size_t station, int unit, int visit) {
+  return input_of(spec, sequences::load_profile(spec.sequence), station, unit, visit);
 }
 
 std::vector<FleetRun> simulate_fleet(const FleetSpec& spec,
                                      const std::function<void(int, int)>& progress) {
   const std::vector<Job> jobs = jobs_of(spec);
+  const sequences::MotionProfile profile = sequences::load_profile(spec.sequence);
   std::vector<FleetRun> out(jobs.size());
   std::atomic<std::size_t> next{0};
   std::atomic<int> done{0};
@@ -102,8 +113,8 @@ std::vector<FleetRun> simulate_fleet(const FleetSpec& spec,
   auto worker = [&] {
     for (std::size_t i = next++; i < jobs.size(); i = next++) {
       const Job& j = jobs[i];
-      const calib::CalibrationResult r =
-          calib::calibrate_ains(run_input(spec, j.station, j.unit, j.visit), fleet_ains_options());
+      const calib::CalibrationResult r = calib::calibrate_ains(
+          input_of(spec, profile, j.station, j.unit, j.visit), fleet_ains_options());
       FleetRun& f = out[i];
       f.station = j.station;
       f.unit = j.unit;
@@ -169,10 +180,11 @@ FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& ru
 std::vector<double> reprocess_with_gravity(const FleetSpec& spec, std::size_t station,
                                            double gravity_correction_mps2) {
   std::vector<double> z(3 * static_cast<std::size_t>(spec.units_per_station));
+  const sequences::MotionProfile profile = sequences::load_profile(spec.sequence);
   std::atomic<int> next{0};
   auto worker = [&] {
     for (int u = next++; u < spec.units_per_station; u = next++) {
-      calib::CalibrationInput in = run_input(spec, station, u, 0);
+      calib::CalibrationInput in = input_of(spec, profile, station, u, 0);
       const double surveyed = in.site.gravity_mps2.value_or(
           calib::EarthModel::normal_gravity_mps2(in.site.lat_rad, in.site.height_m));
       in.site.gravity_mps2 = surveyed + gravity_correction_mps2;
@@ -193,6 +205,7 @@ std::vector<double> reprocess_with_gravity(const FleetSpec& spec, std::size_t st
 std::vector<db::RunId> write_history(const FleetSpec& spec, db::SqliteRepository& repo,
                                      db::TimestampMs t0_ms) {
   const std::vector<Job> jobs = jobs_of(spec);
+  const sequences::MotionProfile profile = sequences::load_profile(spec.sequence);
   std::vector<calib::PipelineResult> results(jobs.size());
   std::atomic<std::size_t> next{0};
   auto worker = [&] {
@@ -200,7 +213,7 @@ std::vector<db::RunId> write_history(const FleetSpec& spec, db::SqliteRepository
       calib::PipelineOptions opt;
       opt.ains = fleet_ains_options();
       results[i] = calib::run_calibration(
-          run_input(spec, jobs[i].station, jobs[i].unit, jobs[i].visit), opt);
+          input_of(spec, profile, jobs[i].station, jobs[i].unit, jobs[i].visit), opt);
     }
   };
   std::vector<std::thread> pool;

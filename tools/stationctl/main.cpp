@@ -874,28 +874,6 @@ int cmd_stations(const Target& t, bool as_json) {
   return kOk;
 }
 
-/// The signatures' window: --since/--until, else the 7 days up to the end of the newest run's day.
-db::FleetFilter signature_window(const db::Repository& repo, const Args& a) {
-  constexpr db::TimestampMs kDayMs = 86400000;
-  db::FleetFilter f;
-  try {
-    if (!a.until.empty())
-      f.until_ms = db::parse_time_utc(a.until) + (a.until.size() == 10 ? kDayMs : 0);
-    if (!a.since.empty()) f.since_ms = db::parse_time_utc(a.since);
-  } catch (const db::InvalidInput& e) {
-    throw Failure{kBadInput, std::string("stations --signatures: ") + e.what()};
-  }
-  if (!f.until_ms) {
-    const auto newest = repo.recent_runs(1);
-    if (newest.empty()) return f;
-    f.until_ms = (db::utc_day(newest.front().started_at_ms) + 1) * kDayMs;
-  }
-  if (!f.since_ms) f.since_ms = *f.until_ms - 7 * kDayMs;
-  if (*f.since_ms >= *f.until_ms)
-    throw Failure{kBadInput, "stations --signatures: --since is not before --until"};
-  return f;
-}
-
 /// `stationctl [--fleet URL | --db FILE] stations --signatures`: station signatures (issue #25).
 int cmd_station_signatures(const Target& t, const Args& a, bool as_json) {
   if (t.fleet_url.empty() && t.db.empty())
@@ -913,7 +891,7 @@ int cmd_station_signatures(const Target& t, const Args& a, bool as_json) {
       repo = std::make_unique<db::SqliteRepository>(t.db, ro);
       stats = std::make_unique<db::SqliteFleetStats>(t.db);
     }
-    const db::FleetFilter window = signature_window(*repo, a);
+    const db::FleetFilter window = station::signature_window(*repo, a.since, a.until);
     calib::SignatureOptions options;
     options.false_alarm = a.false_alarm;
     json report = station::station_signature_report(
@@ -929,6 +907,8 @@ int cmd_station_signatures(const Target& t, const Args& a, bool as_json) {
                 << "\n"
                 << station::render_signatures_text(report);
     return flagged ? kRunNotPassed : kOk;
+  } catch (const station::WindowError& e) {
+    throw Failure{kBadInput, std::string("stations --signatures: ") + e.what()};
   } catch (const db::DbError& e) {
     throw Failure{exit_for_db_error(e.kind()), e.what()};
   }

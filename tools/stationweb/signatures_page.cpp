@@ -10,30 +10,13 @@ namespace imucal::stationweb {
 
 namespace {
 
-constexpr db::TimestampMs kDayMs = 86400000;
-
 db::FleetFilter window_of(const History& history, const Params& query) {
-  db::FleetFilter f;
-  const std::string since = query_value(query, "since"), until = query_value(query, "until");
   try {
-    if (!until.empty()) f.until_ms = db::parse_time_utc(until) + (until.size() == 10 ? kDayMs : 0);
-  } catch (const db::InvalidInput& e) {
-    bad_input("until", e.what());
+    return station::signature_window(*history.repo, query_value(query, "since"),
+                                     query_value(query, "until"));
+  } catch (const station::WindowError& e) {
+    bad_input(e.field, e.reason);
   }
-  try {
-    if (!since.empty()) f.since_ms = db::parse_time_utc(since);
-  } catch (const db::InvalidInput& e) {
-    bad_input("since", e.what());
-  }
-  if (!f.until_ms) {
-    const auto newest = history.repo->recent_runs(1);
-    if (newest.empty()) return f;
-    f.until_ms = (db::utc_day(newest.front().started_at_ms) + 1) * kDayMs;
-  }
-  if (!f.since_ms) f.since_ms = *f.until_ms - 7 * kDayMs;
-  if (*f.since_ms >= *f.until_ms)
-    bad_input("until", "the window ends (" + until + ") before it starts (" + since + ")");
-  return f;
 }
 
 std::string fit_cell(const nlohmann::json& fit) {
