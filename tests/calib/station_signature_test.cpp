@@ -12,6 +12,7 @@
 
 #include <cmath>
 #include <random>
+#include <stdexcept>
 
 #include "calib/core/conventions.hpp"
 
@@ -22,9 +23,14 @@ namespace {
 
 constexpr int kGravityStation = 3, kNonorthStation = 7;
 
-/// Responses as measured on `short` (tests/calib/station_error_test.cpp checks the real ones).
+/// Responses as measured on `short` (tests/fleet/station_signature_sim_test.cpp checks the real
+/// ones); the fixture's are the catalogue's algebra; the wobble's, measured only, are left out.
 std::vector<StationError> errors() {
-  std::vector<StationError> e = station_error_catalogue();
+  std::vector<StationError> e;
+  for (const StationError& c : station_error_catalogue())
+    if (c.effect.rfind("table_wobble_", 0) != 0) e.push_back(c);
+  if (e[0].effect != "gravity_error" || e[1].effect != "table_nonorthogonality")
+    throw std::logic_error("the catalogue's order changed");
   e[0].response.setZero();
   for (int i : {3, 7, 11}) e[0].response(i) = 1.0 / kStandardGravity_mps2;
   ParamVector& r = e[1].response;

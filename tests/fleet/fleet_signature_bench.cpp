@@ -1,10 +1,12 @@
 // Benchmark (not a test): build/bin/fleet_signature_bench [--fleets N] [--units N] — issue #25's
 // figures. N simulated fleets (default 20) of 10 stations × 50 units of a production population
 // (calib/sim/unit_draw.hpp) plus one golden-unit visit per station, the real simulator and AINS on
-// `short`, tables levelled within ±20″; in fleet f the station f mod 10 has a 50 µg gravity error
-// and (f + 5) mod 10 a 10″ table non-orthogonality. Prints, over all fleets:
-//   * detection (faulty stations flagged with their cause) and false alarms (sound stations
-//     flagged), with the golden unit and with units alone, each with its 95 % interval;
+// `short`, tables levelled within ±20″; in fleet f the station f mod 10 has a 50 µg gravity error,
+// (f + 5) mod 10 a 10″ table non-orthogonality, (f + 2) mod 10 a fixture turned 60″ about the
+// platform axis f mod 3 and (f + 7) mod 10 a table wobbling 10″ about axis f mod 2. Prints, over
+// all fleets:
+//   * detection (faulty stations flagged with their cause, per cause) and false alarms (sound
+//     stations flagged), with the golden unit and with units alone, each with its 95 % interval;
 //   * the gravity station's runs reprocessed with the fitted correction: the largest
 //     |accelerometer scale - truth| / σ;
 //   * the smallest station error detectable with N units (95 % power at the threshold): from the
@@ -15,6 +17,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <map>
 #include <string>
 
 #include "calib/core/conventions.hpp"
@@ -41,11 +44,33 @@ void rate(const char* what, int k, int n) {
               100.0 * k / std::max(1, n), 100 * lo, 100 * hi);
 }
 
+/// The station error's kind, for per-cause rates: "fixture_rotation_y" -> "fixture rotation".
+std::string kind_of(const std::string& cause) {
+  if (cause.rfind("fixture_rotation_", 0) == 0) return "fixture rotation";
+  if (cause.rfind("table_wobble_", 0) == 0) return "table wobble";
+  return cause == "gravity_error" ? "gravity error" : "table non-orthogonality";
+}
+
 struct Totals {
   int faulty = 0, detected = 0, wrong = 0, sound = 0, false_alarms = 0;
-  void add(const FleetOutcome& o) {
+  std::map<std::string, std::pair<int, int>> by_kind;  ///< kind -> (detected, faulty)
+  void add(const FleetSpec& spec, const FleetOutcome& o) {
     faulty += o.faulty, detected += o.detected, wrong += o.wrong_cause;
     sound += o.sound, false_alarms += o.false_alarms;
+    for (std::size_t s = 0; s < spec.stations.size(); ++s) {
+      const std::string cause = true_cause(spec.stations[s]);
+      if (cause.empty()) continue;
+      auto& [k, n] = by_kind[kind_of(cause)];
+      const auto& alarm = o.signatures.stations[s].alarm;
+      k += alarm && alarm->effect == cause ? 1 : 0;
+      ++n;
+    }
+  }
+  void print() const {
+    rate("faulty stations flagged with their cause", detected, faulty);
+    for (const auto& [kind, kn] : by_kind) rate(("  " + kind).c_str(), kn.first, kn.second);
+    rate("faulty stations flagged with another cause", wrong, faulty);
+    rate("sound stations flagged (false alarms)", false_alarms, sound);
   }
 };
 
@@ -54,6 +79,10 @@ FleetSpec fleet(int f, int units) {
   spec.units_per_station = units;
   spec.stations[static_cast<std::size_t>(f % 10)].gravity_error_mps2 = 50.0 * kMicroG_mps2;
   spec.stations[static_cast<std::size_t>((f + 5) % 10)].nonorthogonality_rad = 10.0 * kArcsecToRad;
+  spec.stations[static_cast<std::size_t>((f + 2) % 10)].fixture_rad =
+      60.0 * kArcsecToRad * Eigen::Vector3d::Unit(f % 3);
+  spec.stations[static_cast<std::size_t>((f + 7) % 10)].wobble_rad =
+      10.0 * kArcsecToRad * Eigen::Vector2d::Unit(f % 2);
   return spec;
 }
 
@@ -85,16 +114,21 @@ int main(int argc, char** argv) {
   int within = 0, reprocessed = 0;
   double sum_z2 = 0, worst_after = 0, best_before = 1e9;
   const std::vector<int> ns = {5, 10, 20, 50};
-  // Per N: the sum of squared σ of the gravity and non-orthogonality fits on sound stations.
-  std::vector<std::array<double, 4>> sigma2(ns.size(), {0, 0, 0, 0});
+  // Per N, kind and golden (0/1): the sum of squared σ of the fitted sizes on sound stations
+  // (a kind's axes averaged) and the count of stations.
+  std::vector<std::map<std::string, std::array<double, 2>>> sigma2(ns.size());
   std::vector<int> count(ns.size(), 0);
+  std::vector<std::string> kinds;  // catalogue order
+  std::map<std::string, const StationError*> first_of_kind;
+  for (const StationError& e : errors)
+    if (first_of_kind.emplace(kind_of(e.effect), &e).second) kinds.push_back(kind_of(e.effect));
   for (int f = 0; f < fleets; ++f) {
     const FleetSpec spec = fleet(f, units);
     const std::vector<FleetRun> runs = simulate_fleet(spec);
     const FleetOutcome og = assess_fleet(spec, runs, errors, options, false);
     const FleetOutcome oa = assess_fleet(spec, runs, errors, options, true);
-    golden.add(og);
-    alone.add(oa);
+    golden.add(spec, og);
+    alone.add(spec, oa);
     const std::size_t gs = static_cast<std::size_t>(f % 10);
     const auto& alarm = og.signatures.stations[gs].alarm;
     if (alarm && alarm->effect == "gravity_error") {
@@ -114,12 +148,13 @@ int main(int argc, char** argv) {
         const FleetOutcome o =
             assess_fleet(spec, first_units(runs, ns[k], with_golden != 0), errors, options, false);
         for (std::size_t s = 0; s < spec.stations.size(); ++s) {
-          if (spec.stations[s].gravity_error_mps2 != 0 ||
-              spec.stations[s].nonorthogonality_rad != 0)
-            continue;
+          if (!true_cause(spec.stations[s]).empty()) continue;
           const auto& fits = o.signatures.stations[s].fits;
-          sigma2[k][2 * with_golden] += fits[0].sigma_si * fits[0].sigma_si;
-          sigma2[k][2 * with_golden + 1] += fits[1].sigma_si * fits[1].sigma_si;
+          std::map<std::string, int> axes;
+          for (const StationFit& fit : fits) ++axes[kind_of(fit.effect)];
+          for (const StationFit& fit : fits)
+            sigma2[k][kind_of(fit.effect)][static_cast<std::size_t>(with_golden)] +=
+                fit.sigma_si * fit.sigma_si / axes[kind_of(fit.effect)];
           if (with_golden) ++count[k];
         }
       }
@@ -129,13 +164,9 @@ int main(int argc, char** argv) {
                  oa.false_alarms);
   }
   std::printf("\nwith the golden unit:\n");
-  rate("faulty stations flagged with their cause", golden.detected, golden.faulty);
-  rate("faulty stations flagged with another cause", golden.wrong, golden.faulty);
-  rate("sound stations flagged (false alarms)", golden.false_alarms, golden.sound);
+  golden.print();
   std::printf("units alone (the golden unit's runs left out):\n");
-  rate("faulty stations flagged with their cause", alone.detected, alone.faulty);
-  rate("faulty stations flagged with another cause", alone.wrong, alone.faulty);
-  rate("sound stations flagged (false alarms)", alone.false_alarms, alone.sound);
+  alone.print();
   std::printf(
       "\nreprocessing the gravity station's runs with the fitted correction: "
       "(accelerometer scale - truth)/σ within ±4 in %d of %d (rms %.2f, largest %.2f; "
@@ -143,15 +174,24 @@ int main(int argc, char** argv) {
       within, reprocessed, std::sqrt(sum_z2 / std::max(1, reprocessed)), worst_after, best_before);
   std::printf("\nsmallest station error detectable (95 %% power at |z| >= %.2f: (z + 1.645) σ):\n",
               z_thr);
-  std::printf("  %-8s %-22s %-22s %-22s %-22s\n", "units", "gravity, alone", "gravity, + golden",
-              "non-orth., alone", "non-orth., + golden");
+  std::printf("  %-6s", "units");
+  for (const std::string& kind : kinds) std::printf(" | %-36s", kind.c_str());
+  std::printf("\n  %-6s", "");
+  for (std::size_t i = 0; i < kinds.size(); ++i) std::printf(" | %-17s %-18s", "alone", "+ golden");
+  std::printf("\n");
   for (std::size_t k = 0; k < ns.size(); ++k) {
     if (count[k] == 0) continue;
-    const double m = z_thr + 1.645;
-    auto g = [&](int i) { return m * std::sqrt(sigma2[k][i] / count[k]); };
-    std::printf("  %-8d %8.1f µg (%5.1f ppm) %8.2f µg (%5.2f ppm) %10.1f arcsec %12.2f arcsec\n",
-                ns[k], g(0) / kMicroG_mps2, g(0) / kStandardGravity_mps2 * 1e6, g(2) / kMicroG_mps2,
-                g(2) / kStandardGravity_mps2 * 1e6, g(1) / kArcsecToRad, g(3) / kArcsecToRad);
+    std::printf("  %-6d", ns[k]);
+    for (const std::string& kind : kinds) {
+      const StationError& e = *first_of_kind.at(kind);
+      for (std::size_t g = 0; g < 2; ++g) {
+        const double size = (z_thr + 1.645) * std::sqrt(sigma2[k][kind][g] / count[k]);
+        char cell[64];
+        std::snprintf(cell, sizeof cell, "%.3g %s", size * e.si_to_human, e.unit.c_str());
+        std::printf(g == 0 ? " | %-17s" : " %-18s", cell);
+      }
+    }
+    std::printf("\n");
   }
   std::printf("\n%.0f s\n",
               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());

@@ -7,6 +7,7 @@
 #include <random>
 #include <thread>
 
+#include "calib/core/rotation.hpp"
 #include "calib/core/site_presets.hpp"
 #include "calib/pipeline/calibration_pipeline.hpp"
 #include "calib/sim/sim_input.hpp"
@@ -90,10 +91,20 @@ calib::CalibrationInput input_of(const FleetSpec& spec, const sequences::MotionP
   calib::Effects fx;
   fx.gravity_error_mps2 = st.gravity_error_mps2;
   fx.table_nonorthogonality_rad = st.nonorthogonality_rad;
-  const calib::RunSource source =
-      calib::truth_run_source(profile, calib::TableGeometry{}, calib::demo_factory_site(),
-                              unit_model(spec, station, unit), 100.0);
-  return source(fx, run_seed(spec, station, unit, visit), /*noise=*/true);
+  fx.table_wobble_rad = st.wobble_rad;
+  calib::UnitModel u = unit_model(spec, station, unit);
+  u.effects = fx;
+  // The table as built (its fixture turned, if it is) simulates; the station's reference assumes
+  // the nominal one.
+  calib::TableGeometry as_built;
+  as_built.C_bp = calib::rotvec_to_matrix<double>(st.fixture_rad);
+  calib::SimOptions so;
+  so.rate_hz = 100.0;
+  so.seed = run_seed(spec, station, unit, visit);
+  so.noise = true;
+  const calib::Site site = calib::demo_factory_site();
+  return calib::input_from_simulation(calib::simulate(profile, as_built, site, u, so),
+                                      calib::TableGeometry{}, site, u.noise);
 }
 
 }  // namespace
@@ -150,6 +161,18 @@ std::vector<calib::StationError> fleet_station_errors(const FleetSpec& spec) {
   return errors;
 }
 
+std::string true_cause(const StationSpec& st) {
+  if (st.gravity_error_mps2 != 0) return "gravity_error";
+  if (st.nonorthogonality_rad != 0) return "table_nonorthogonality";
+  if (st.wobble_rad.squaredNorm() != 0)
+    return std::string("table_wobble_") +
+           (std::abs(st.wobble_rad(0)) >= std::abs(st.wobble_rad(1)) ? "x" : "y");
+  if (st.fixture_rad.squaredNorm() == 0) return "";
+  int axis = 0;
+  st.fixture_rad.cwiseAbs().maxCoeff(&axis);
+  return std::string("fixture_rotation_") + "xyz"[axis];
+}
+
 FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& runs,
                           const std::vector<calib::StationError>& errors,
                           const calib::SignatureOptions& options, bool population_only) {
@@ -162,10 +185,8 @@ FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& ru
     std::size_t s = 0;
     while (spec.stations[s].name != sig.station) ++s;
     const StationSpec& st = spec.stations[s];
-    const char* truth = st.gravity_error_mps2 != 0     ? "gravity_error"
-                        : st.nonorthogonality_rad != 0 ? "table_nonorthogonality"
-                                                       : nullptr;
-    if (!truth) {
+    const std::string truth = true_cause(st);
+    if (truth.empty()) {
       ++o.sound;
       o.false_alarms += sig.alarm ? 1 : 0;
     } else {

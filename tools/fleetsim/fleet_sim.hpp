@@ -1,9 +1,10 @@
 #pragma once
 // A simulated fleet (issue #25): stations that calibrate units of one production population with
 // the real simulator and the real AINS, some stations with an error of their own (a wrong surveyed
-// gravity, a table out of square), every table levelled a little differently, and a golden unit
-// that visits every station on its schedule. What the station signatures are shown on, in the
-// benchmark (20 fleets and more) and in CI (one, smaller).
+// gravity, a table out of square or wobbling, a fixture turned on its platform), every table
+// levelled a little differently, and a golden unit that visits every station on its schedule. What
+// the station signatures are shown on, in the benchmark (20 fleets and more) and in CI (one,
+// smaller).
 //
 // Every run is reproducible from (fleet seed, station, unit, visit): run_input() re-creates one run
 // exactly, which is how the flagged station's runs are reprocessed with a corrected setting
@@ -25,6 +26,10 @@ struct StationSpec {
   std::string name;
   double gravity_error_mps2 = 0.0;  ///< true local gravity minus the station's surveyed value
   double nonorthogonality_rad = 0.0;
+  Eigen::Vector2d wobble_rad = Eigen::Vector2d::Zero();  ///< the table's once-per-rev tilt
+  /// The fixture as it sits on the platform, turned by this rotation vector (the station assumes
+  /// it square): true C_bp = exp([fixture_rad ×]).
+  Eigen::Vector3d fixture_rad = Eigen::Vector3d::Zero();
   Eigen::Vector3d levelling_rad = Eigen::Vector3d::Zero();  ///< the table's ς
 };
 
@@ -62,6 +67,10 @@ calib::AinsOptions fleet_ains_options();
 
 /// The station errors with responses measured on the fleet's sequence.
 std::vector<calib::StationError> fleet_station_errors(const FleetSpec& spec);
+
+/// The station error the spec gave the station (the first of gravity, non-orthogonality, the
+/// wobble's larger axis, the fixture's largest axis), "" for a sound station.
+std::string true_cause(const StationSpec& st);
 
 /// What the signatures made of one fleet, station by station.
 struct FleetOutcome {
