@@ -63,7 +63,8 @@ struct ParamSummary {
 
 /// One AINS result for the station signatures (issue #25, calib/fleet/station_signature.hpp).
 struct AinsResultRow {
-  RunId run_id = 0;
+  RunId run_id = 0;        ///< in the history read (the store's own id in the fleet store)
+  RunId local_run_id = 0;  ///< the station's own id of the run (what its stationctl names)
   std::string station;
   std::string serial;
   std::string sequence_name;

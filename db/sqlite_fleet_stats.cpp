@@ -307,6 +307,7 @@ std::vector<AinsResultRow> SqliteFleetStats::ains_results(const FleetFilter& f) 
   while (q.step()) {
     AinsResultRow row;
     row.run_id = q.i64(0);
+    row.local_run_id = row.run_id;  // a station's own database
     row.station = q.text(1);
     row.serial = q.text(2);
     row.sequence_name = q.text(3);

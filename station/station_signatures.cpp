@@ -5,6 +5,7 @@
 #include <map>
 #include <mutex>
 
+#include "calib/core/conventions.hpp"
 #include "calib/core/site_presets.hpp"
 #include "calib/sim/sim_input.hpp"
 #include "sequences/library.hpp"
@@ -85,6 +86,30 @@ std::string cause_text(const json& fit, const calib::StationError& e) {
   return s + " against the fleet: " + e.advice;
 }
 
+/// What QA does with a flagged station's runs once the cause is fixed. A wrong surveyed gravity is
+/// a station setting, so reprocessing the archives with the re-surveyed value corrects every run
+/// (stationctl reprocess takes the station's own run ids, several at once); a table or fixture
+/// fault is in the recorded data, so no setting corrects them: the units are calibrated again
+/// after the service.
+json remedy(const calib::StationFit& alarm, const std::string& station, const json& local_ids) {
+  if (alarm.effect != "gravity_error")
+    return {{"reprocess", false},
+            {"text",
+             "reprocessing cannot correct these runs (the fault is in their data): once "
+             "the station is serviced, calibrate the units again"}};
+  std::string command = "stationctl reprocess";
+  for (const json& id : local_ids) command += " " + std::to_string(id.get<long long>());
+  command += " --gravity-mps2 G";
+  char fit[96];
+  std::snprintf(fit, sizeof fit, "%+.2g m/s² (%+.3g µg)", alarm.size_si,
+                alarm.size_si / kMicroG_mps2);
+  return {{"reprocess", true},
+          {"command", command},
+          {"text", "once the site's gravity is re-surveyed (the fleet puts it " + std::string(fit) +
+                       " from the configured value), reprocess the runs at " + station +
+                       " with G the new survey, and promote the new results: " + command}};
+}
+
 }  // namespace
 
 db::FleetFilter signature_window(const db::Repository& history, const std::string& since,
@@ -125,8 +150,11 @@ json station_signature_report(const db::FleetStats& stats, const db::FleetFilter
   const std::string sequence = main_sequence(rows);
   const std::vector<calib::StationError> errors = measured_errors(sequence, progress);
   std::vector<calib::SignatureRun> runs;
-  for (const auto& r : rows)
+  std::map<std::int64_t, std::int64_t> local_id;  // the history's id -> the station's own
+  for (const auto& r : rows) {
     runs.push_back({r.station, r.serial, r.run_id, r.value.to_vector(), r.sigma.to_vector()});
+    local_id[r.run_id] = r.local_run_id;
+  }
   const calib::FleetSignatures fs = calib::station_signatures(runs, errors, options);
   report["sequence"] = sequence;
   report["z_threshold"] = fs.z_threshold;
@@ -149,6 +177,10 @@ json station_signature_report(const db::FleetStats& stats, const db::FleetFilter
       s["alarm"] = fit_json(*sig.alarm, errors[k]);
       s["alarm"]["cause"] = cause_text(s["alarm"], errors[k]);
       s["run_ids"] = sig.run_ids;
+      json local = json::array();
+      for (const std::int64_t id : sig.run_ids) local.push_back(local_id.at(id));
+      s["local_run_ids"] = local;
+      s["remedy"] = remedy(*sig.alarm, sig.station, local);
     }
     stations.push_back(s);
   }
@@ -187,7 +219,12 @@ std::string render_signatures_text(const json& report) {
     out += "  FLAGGED\n    " + s["alarm"]["cause"].get<std::string>() + "\n    runs it touches (" +
            std::to_string(ids.size()) + "):";
     for (const json& id : ids) out += " " + std::to_string(id.get<long long>());
-    out += "\n";
+    if (s["local_run_ids"] != ids) {
+      out += "\n    (the station's own ids:";
+      for (const json& id : s["local_run_ids"]) out += " " + std::to_string(id.get<long long>());
+      out += ")";
+    }
+    out += "\n    " + s["remedy"]["text"].get<std::string>() + "\n";
   }
   return out;
 }

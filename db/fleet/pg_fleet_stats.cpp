@@ -135,7 +135,7 @@ std::vector<AinsResultRow> PgFleetStats::ains_results(const FleetFilter& f) cons
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const PgResult q = impl_->conn.exec(
       "SELECT r.id, r.station_id, r.serial, r.sequence_name, r.started_at_ms, c.sigma::text, "
-      "r.ains_values::text FROM runs r JOIN calibrations c ON c.run_id = r.id AND "
+      "r.ains_values::text, r.local_run_id FROM runs r JOIN calibrations c ON c.run_id = r.id AND "
       "c.method = 'ains' WHERE $1::text IS NULL AND $2::text IS NULL AND r.setting = 'factory' "
       "AND r.reprocessed_from_local IS NULL AND c.unobservable = '[]'::jsonb AND "
       "r.ains_values IS NOT NULL AND" +
@@ -149,6 +149,7 @@ std::vector<AinsResultRow> PgFleetStats::ains_results(const FleetFilter& f) cons
     row.serial = q.text(i, 2);
     row.sequence_name = q.text(i, 3);
     row.started_at_ms = q.i64(i, 4);
+    row.local_run_id = q.i64(i, 7);
     const std::string origin =
         impl_->conn.target().redacted() + ": run " + std::to_string(row.run_id) + " ains";
     row.sigma = params_from_json(q.text(i, 5), origin + " sigma");

@@ -204,6 +204,7 @@ TEST_F(FleetStatsTest, AinsResultsAreTheFullyDeterminedFactoryResultsAsStored) {
     for (std::size_t i = 0; i < got.size(); ++i) {
       SCOPED_TRACE("run " + std::to_string(got[i].run_id) + " " + describe(f));
       EXPECT_EQ(got[i].run_id, expected[i]->run_id);
+      EXPECT_EQ(got[i].local_run_id, expected[i]->run_id);
       EXPECT_EQ(got[i].station, expected[i]->station);
       EXPECT_EQ(got[i].serial, expected[i]->serial);
       EXPECT_EQ(got[i].started_at_ms, expected[i]->started_at_ms);

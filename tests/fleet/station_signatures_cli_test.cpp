@@ -1,11 +1,13 @@
 // `stationctl stations --signatures` (issue #25) as QA runs it: a simulated fleet's week stored
 // in a history as its stations would have stored it (tools/fleetsim write_history: the real
 // simulator, the station's pipeline with both methods and the cross-check), read from the SQLite
-// file (--db) and from the fleet store it is replicated to (--fleet): the gravity station and the
-// non-orthogonal table flagged with their cause and advice and the runs they touch, no other
-// station; exit 1 when one is flagged; bad windows refused. And stationweb's /signatures page over
-// the same file: the same two stations flagged, the page rendered by headless Chromium without a
-// console message (its screenshot is the README's).
+// file (--db) and from the fleet store it is replicated to (--fleet): the gravity station, the
+// non-orthogonal table and the turned fixture flagged with their cause and advice, the runs they
+// touch (by the station's own ids too) and what to do with them (the gravity station's: the
+// reprocess command), no other station; exit 1 when one is flagged; bad windows refused. And
+// stationweb over the same file: the /fleet page opens with the same three flagged, /signatures
+// shows them with the command, rendered by headless Chromium without a console message (its
+// screenshot is the README's).
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -29,7 +31,7 @@ using test_support::run_command;
 
 namespace {
 
-constexpr std::size_t kGravity = 2, kNonorth = 8;
+constexpr std::size_t kGravity = 2, kFixture = 5, kNonorth = 8;
 
 class SignaturesCli : public ::testing::Test {
  protected:
@@ -40,6 +42,7 @@ class SignaturesCli : public ::testing::Test {
     spec.units_per_station = 6;
     spec.stations[kGravity].gravity_error_mps2 = 50.0 * kMicroG_mps2;
     spec.stations[kNonorth].nonorthogonality_rad = 10.0 * kArcsecToRad;
+    spec.stations[kFixture].fixture_rad = Eigen::Vector3d(180.0 * kArcsecToRad, 0, 0);
     db::SqliteRepository repo(db_);
     ids_ = fleetsim::write_history(spec, repo, db::parse_time_utc("2026-11-16T06:00:00Z"));
   }
@@ -52,27 +55,33 @@ class SignaturesCli : public ::testing::Test {
     return json::parse(r.out);
   }
 
-  static void expect_the_two_flagged(const json& report) {
+  static void expect_the_three_flagged(const json& report) {
     ASSERT_EQ(report["stations"].size(), 10u) << report.dump(1);
     for (std::size_t s = 0; s < 10; ++s) {
       const json& st = report["stations"][s];
       SCOPED_TRACE(st["station"].get<std::string>());
-      if (s != kGravity && s != kNonorth) {
+      if (s != kGravity && s != kNonorth && s != kFixture) {
         EXPECT_FALSE(st["flagged"].get<bool>()) << st.dump(1);
         continue;
       }
       ASSERT_TRUE(st["flagged"].get<bool>()) << st.dump(1);
       const json& alarm = st["alarm"];
       const bool gravity = s == kGravity;
-      EXPECT_EQ(alarm["effect"], gravity ? "gravity_error" : "table_nonorthogonality");
+      EXPECT_EQ(alarm["effect"], gravity         ? "gravity_error"
+                                 : s == kNonorth ? "table_nonorthogonality"
+                                                 : "fixture_rotation_x");
       const std::string cause = alarm["cause"];
-      EXPECT_NE(cause.find(gravity ? "check the surveyed gravity of this site"
-                                   : "check the squareness of this table's axes"),
+      EXPECT_NE(cause.find(gravity         ? "check the surveyed gravity of this site"
+                           : s == kNonorth ? "check the squareness of this table's axes"
+                                           : "check how the fixture sits on the platform"),
                 std::string::npos)
           << cause;
-      const double truth = gravity ? 50.0 : 10.0;  // µg, arcsec
+      const double truth = gravity ? 50.0 : s == kNonorth ? 10.0 : 180.0;  // µg, arcsec
       EXPECT_LT(std::abs(alarm["size"].get<double>() - truth), 4 * alarm["sigma"].get<double>());
       EXPECT_EQ(st["run_ids"].size(), 7u) << "the station's six units and the golden unit's visit";
+      EXPECT_EQ(st["local_run_ids"].size(), 7u);
+      // Only a wrong setting is corrected by reprocessing; a fault in the data is not.
+      EXPECT_EQ(st["remedy"]["reprocess"].get<bool>(), gravity) << st["remedy"].dump();
     }
   }
 
@@ -88,16 +97,20 @@ TEST_F(SignaturesCli, FromTheStationsHistoryTheTwoFaultyStationsAreFlaggedWithTh
   int code = 0;
   const json report = signatures("--db " + db_, code);
   EXPECT_EQ(code, 1) << "a flagged station is exit 1";
-  expect_the_two_flagged(report);
+  expect_the_three_flagged(report);
   const json& g = report["stations"][kGravity];
   std::vector<db::RunId> expected(ids_.begin() + 14, ids_.begin() + 21);  // station 2's jobs
   EXPECT_EQ(g["run_ids"].get<std::vector<db::RunId>>(), expected);
+  EXPECT_EQ(g["local_run_ids"], g["run_ids"]) << "a station's own history: its own ids";
+  EXPECT_EQ(g["remedy"]["command"], "stationctl reprocess 15 16 17 18 19 20 21 --gravity-mps2 G");
   // The text QA reads: the cause with its size, the advice, the runs.
   const auto text = run_command(std::string(IMUCAL_BIN_DIR) + "/stationctl --db " + db_ +
                                 " stations --signatures 2>&1");
   EXPECT_NE(text.out.find("FLAGGED\n    common accelerometer scale +"), std::string::npos)
       << text.out;
   EXPECT_NE(text.out.find("runs it touches (7):"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("reprocess the runs at st-02 with G the new survey"), std::string::npos)
+      << text.out;
 }
 
 TEST_F(SignaturesCli, FromTheFleetStoreTheSameStationsAreFlagged) {
@@ -120,7 +133,12 @@ TEST_F(SignaturesCli, FromTheFleetStoreTheSameStationsAreFlagged) {
   const json report =
       signatures("--fleet " + pg.url("fleet_reader") + " --fleet-password-file " + pw, code);
   EXPECT_EQ(code, 1);
-  expect_the_two_flagged(report);
+  expect_the_three_flagged(report);
+  // The store numbers runs its own way; the reprocess command names the station's ids.
+  const json& g = report["stations"][kGravity];
+  const std::vector<db::RunId> expected(ids_.begin() + 14, ids_.begin() + 21);
+  EXPECT_EQ(g["local_run_ids"].get<std::vector<db::RunId>>(), expected);
+  EXPECT_EQ(g["remedy"]["command"], "stationctl reprocess 15 16 17 18 19 20 21 --gravity-mps2 G");
 }
 
 TEST_F(SignaturesCli, AWindowThatEndsBeforeItStartsOrHasNoRunsIsClear) {
@@ -144,14 +162,26 @@ TEST_F(SignaturesCli, TheWebViewFlagsTheSameStationsWithTheirCauseAndRendersClea
   const auto r = client.Get("/signatures");
   ASSERT_TRUE(r);
   ASSERT_EQ(r->status, 200) << r->body;
-  for (const char* st : {"st-02", "st-08"})
+  for (const char* st : {"st-02", "st-05", "st-08"})
     EXPECT_NE(r->body.find(std::string("data-station='") + st + "' data-flagged='1'"),
               std::string::npos)
         << st;
   std::size_t flagged = 0;
   for (std::size_t at = 0; (at = r->body.find("data-flagged='1'", at)) != std::string::npos; ++at)
     ++flagged;
-  EXPECT_EQ(flagged, 2u);
+  EXPECT_EQ(flagged, 3u);
+  EXPECT_NE(r->body.find("stationctl reprocess 15 16 17 18 19 20 21 --gravity-mps2 G"),
+            std::string::npos);
+  // The fleet page opens with the same three, each with its cause.
+  const auto fleet = client.Get("/fleet");
+  ASSERT_TRUE(fleet);
+  ASSERT_EQ(fleet->status, 200);
+  EXPECT_NE(fleet->body.find("id='signature-banner' class='alarm' data-flagged='3'"),
+            std::string::npos)
+      << fleet->body.substr(0, 3000);
+  for (const char* st : {"st-02", "st-05", "st-08"})
+    EXPECT_NE(fleet->body.find(std::string("<li data-station='") + st + "'>"), std::string::npos)
+        << st;
   EXPECT_NE(r->body.find("data-station='st-02' data-effect='gravity_error'"), std::string::npos);
   EXPECT_NE(r->body.find("check the surveyed gravity of this site"), std::string::npos);
   EXPECT_NE(r->body.find("<a href='/run/15'>15</a>"), std::string::npos) << "the runs it touches";

@@ -124,7 +124,7 @@ TEST_F(FleetView, TheStoresAggregatesEqualTheStationsForTheSameRows) {
       }
     }
   }
-  // The AINS results for the station signatures: the same results, ids aside.
+  // The AINS results for the station signatures: the same results, the store's ids aside.
   for (const db::FleetFilter& f : filters()) {
     auto a = sqlite.ains_results(f), b = fleet.ains_results(f);
     ASSERT_EQ(a.size(), b.size());
@@ -141,6 +141,9 @@ TEST_F(FleetView, TheStoresAggregatesEqualTheStationsForTheSameRows) {
       EXPECT_EQ(a[i].started_at_ms, b[i].started_at_ms);
       EXPECT_EQ(a[i].value.to_vector(), b[i].value.to_vector());
       EXPECT_EQ(a[i].sigma.to_vector(), b[i].sigma.to_vector());
+      // The station's own id, which its stationctl reprocesses by: the SQLite id it came from.
+      EXPECT_EQ(a[i].local_run_id, a[i].run_id);
+      EXPECT_EQ(b[i].local_run_id, a[i].run_id);
     }
   }
   EXPECT_FALSE(sqlite.ains_results({}).empty());

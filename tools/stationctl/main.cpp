@@ -24,6 +24,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 
@@ -546,6 +547,7 @@ struct Args {
   double false_alarm = 1e-3;
   std::optional<double> gravity_mps2;  ///< reprocess: the corrected surveyed gravity
   db::RunId run_id = 0;
+  std::vector<db::RunId> run_ids;  ///< reprocess: one or several
   std::size_t limit = 0;
 };
 
@@ -638,9 +640,12 @@ void add_read_commands(CLI::App& app, Args& a, Commands& c) {
 
 void add_history_commands(CLI::App& app, Args& a, Commands& c) {
   c.reprocess = app.add_subcommand(
-      "reprocess", "recalibrate a stored run from its archive into a new run (needs the group)");
-  c.reprocess->add_option("RUN_ID", a.run_id, "run id")->required()->check(CLI::PositiveNumber);
-  c.reprocess->add_flag("--wait", a.wait, "follow the new run to its end");
+      "reprocess",
+      "recalibrate stored runs from their archives into new runs (needs the group); several "
+      "RUN_IDs (a station signature's runs) are reprocessed one after another, each followed to "
+      "its end");
+  c.reprocess->add_option("RUN_ID", a.run_ids, "run id(s)")->required()->check(CLI::PositiveNumber);
+  c.reprocess->add_flag("--wait", a.wait, "follow the new run to its end (always, for several)");
   c.reprocess->add_flag("--partial", a.partial,
                         "calibrate an incomplete archive (aborted, interrupted or failed capture) "
                         "anyway: stored REVIEW at best, never the unit's active parameters");
@@ -815,13 +820,80 @@ int cmd_export_history(const Target& t, const Args& a, bool as_json) {
   return cmd_export(t, args, a.output, as_json);
 }
 
-int cmd_reprocess(const Target& t, const Args& a, bool as_json) {
-  ControlClient client = connect_or_fail(t);
-  json args = {{"run_id", a.run_id}};
+json reprocess_args(db::RunId run_id, const Args& a) {
+  json args = {{"run_id", run_id}};
   if (a.partial) args["partial"] = true;
   if (a.gravity_mps2) args["gravity_mps2"] = *a.gravity_mps2;
-  const json r = call(client, station::cmd::kReprocess, args);
-  return started(t, client, r, "reprocesses run " + std::to_string(a.run_id), a.wait, as_json);
+  return args;
+}
+
+/// The command that reprocesses `rest` with the same options: what a stopped batch leaves to do.
+std::string reprocess_command(const std::vector<db::RunId>& rest, const Args& a) {
+  std::string cmd = "stationctl reprocess";
+  for (const db::RunId id : rest) cmd += " " + std::to_string(id);
+  if (a.partial) cmd += " --partial";
+  if (a.gravity_mps2) {
+    char g[32];
+    std::snprintf(g, sizeof g, "%.7g", *a.gravity_mps2);
+    cmd += std::string(" --gravity-mps2 ") + g;
+  }
+  return cmd;
+}
+
+/// Several runs (a flagged station's, issue #25): the daemon calibrates one at a time, so each is
+/// started once the one before has ended. One line per run, old -> new and its outcome; a refusal
+/// or an interruption stops the batch and says which runs are left, with the command that goes on.
+/// Exit code: 0 only when every new run is done + PASS.
+int reprocess_batch(const Target& t, const Args& a, bool as_json) {
+  std::set<db::RunId> seen;
+  for (const db::RunId id : a.run_ids)
+    if (!seen.insert(id).second)
+      throw Failure{kBadInput, "reprocess: run " + std::to_string(id) + " is given twice"};
+  ControlClient client = connect_or_fail(t);
+  json done = json::array();
+  int code = kOk;
+  for (std::size_t i = 0; i < a.run_ids.size(); ++i) {
+    const db::RunId old_id = a.run_ids[i];
+    const std::vector<db::RunId> rest(a.run_ids.begin() + static_cast<std::ptrdiff_t>(i),
+                                      a.run_ids.end());
+    const std::string left = " (reprocessed " + std::to_string(i) + " of " +
+                             std::to_string(a.run_ids.size()) +
+                             "; to go on: " + reprocess_command(rest, a) + ")";
+    json r;
+    try {
+      r = call(client, station::cmd::kReprocess, reprocess_args(old_id, a));
+    } catch (Failure& f) {
+      f.message = "run " + std::to_string(old_id) + ": " + f.message + left;
+      throw;
+    }
+    if (!as_json)
+      std::cerr << "[" << i + 1 << "/" << a.run_ids.size() << "] run " << old_id
+                << " reprocessing as run " << text(r, "run_id", "?") << "\n";
+    json run;
+    const int c = wait_for_run(t, client, r.at("run_id").get<db::RunId>(), as_json, &run);
+    if (c == kInterrupted) {
+      std::cerr << "stationctl: the batch stopped" << left << "\n";
+      return c;
+    }
+    if (c != kOk) code = c;
+    done.push_back({{"reprocessed", old_id}, {"run", run}});
+    if (!as_json)
+      std::cout << "run " << old_id << " -> " << station::outcome_line(run) << "\n" << std::flush;
+  }
+  if (as_json)
+    print_json(json{{"runs", done}});
+  else if (a.gravity_mps2)
+    std::cerr << "the new runs become their units' active parameters only once QA promotes them "
+                 "(stationctl promote RUN_ID --reason TEXT)\n";
+  return code;
+}
+
+int cmd_reprocess(const Target& t, const Args& a, bool as_json) {
+  if (a.run_ids.size() > 1) return reprocess_batch(t, a, as_json);
+  const db::RunId run_id = a.run_ids.at(0);
+  ControlClient client = connect_or_fail(t);
+  const json r = call(client, station::cmd::kReprocess, reprocess_args(run_id, a));
+  return started(t, client, r, "reprocesses run " + std::to_string(run_id), a.wait, as_json);
 }
 
 /// --report OUTDIR must be a directory or not exist yet (checked before the daemon works).

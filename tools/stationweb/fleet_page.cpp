@@ -223,6 +223,7 @@ std::string fleet_page(const History& history, const Params& query) {
   for (const auto& v : verdicts) stations.push_back(v.station);
   std::string b = "<h1>Fleet: runs, verdicts and parameters per station</h1>\n";
   b += "<p class='muted'>" + esc(history.label) + ", read-only.</p>\n";
+  b += signatures_banner(history);
   b += filter_form(q) + window_line(q);
   b += runs_chart_section(q, counts, stations);
   b += verdict_section(verdicts);

@@ -10,7 +10,7 @@
 //   /run/ID            run_page: what `stationctl show ID` shows, as a page
 //   /fleet?...         fleet_page: runs per station per day, verdicts per station, and the
 //                      distribution of one parameter per station (since, until, station, serial,
-//                      param)
+//                      param), opening with the flagged stations of the signature week
 //   /signatures?...    signatures_page: station signatures of a period (since, until; default the
 //                      7 days up to the newest run's day), flagged stations with cause and runs
 #include <map>
@@ -30,6 +30,9 @@ std::string unit_page(const History& history, const std::string& serial);
 std::string run_page(const History& history, const std::string& run_id_text);
 std::string fleet_page(const History& history, const Params& query);
 std::string signatures_page(const History& history, const Params& query);
+/// The flagged stations of the default signature window (the week up to the newest run's day), as
+/// the banner the fleet page opens with ("" for an empty history).
+std::string signatures_banner(const History& history);
 
 /// The value of query parameter `name`, or "" when absent; 400 if it is given twice.
 std::string query_value(const Params& query, const std::string& name);

@@ -2,6 +2,9 @@
 // fleet fitted by every station error (size ± σ, z), and the flagged stations with their likely
 // cause, the advice and the runs they touch (station/station_signatures.hpp computes it, as for
 // `stationctl stations --signatures`).
+#include <map>
+#include <mutex>
+
 #include "station/station_signatures.hpp"
 #include "tools/stationweb/html.hpp"
 #include "tools/stationweb/pages.hpp"
@@ -24,11 +27,11 @@ std::string fit_cell(const nlohmann::json& fit) {
   return "<td class='num' data-effect='" + esc(fit["effect"].get<std::string>()) + "' data-z='" +
          exact(z) + "' data-size-si='" + exact(fit["size_si"].get<double>()) + "'>" +
          fmt("%+.3g", fit["size"].get<double>()) + " ± " + fmt("%.2g", fit["sigma"].get<double>()) +
-         " " + esc(fit["unit"].get<std::string>()) + " <span class='muted'>(z " + fmt("%+.1f", z) +
-         ")</span></td>";
+         " " + esc(fit["unit"].get<std::string>()) + "<br><span class='muted'>z " +
+         fmt("%+.1f", z) + "</span></td>";
 }
 
-std::string station_row(const nlohmann::json& st) {
+std::string station_row(const nlohmann::json& st, std::size_t candidates) {
   const bool flagged = st.value("flagged", false);
   std::string s = "<tr data-station='" + esc(st["station"].get<std::string>()) +
                   "' data-flagged='" + (flagged ? "1" : "0") + "'><td>" +
@@ -37,8 +40,8 @@ std::string station_row(const nlohmann::json& st) {
                   std::to_string(st["population_units"].get<int>()) + "</td><td class='num'>" +
                   std::to_string(st["repeat_units"].get<int>()) + "</td>";
   if (!st["assessed"].get<bool>())
-    return s + "<td colspan='3'>not assessed: " + esc(st["why_not"].get<std::string>()) +
-           "</td></tr>\n";
+    return s + "<td colspan='" + std::to_string(candidates + 1) +
+           "'>not assessed: " + esc(st["why_not"].get<std::string>()) + "</td></tr>\n";
   for (const auto& fit : st["fits"]) s += fit_cell(fit);
   return s + "<td>" + (flagged ? "<span class='FAILED'>FLAGGED</span>" : "ok") + "</td></tr>\n";
 }
@@ -50,10 +53,73 @@ std::string alarm_section(const nlohmann::json& st) {
                   esc(st["alarm"]["cause"].get<std::string>()) + ".</p><p>Runs it touches (" +
                   std::to_string(st["run_ids"].size()) + "):";
   for (const auto& id : st["run_ids"]) s += " " + run_link(id.get<db::RunId>());
-  return s + "</p></div>\n";
+  s += "</p>";
+  const auto& remedy = st["remedy"];
+  if (remedy.value("reprocess", false))
+    s += "<p class='remedy'>Once the site's gravity is re-surveyed, at " +
+         esc(st["station"].get<std::string>()) +
+         " (G the new survey, m/s²):</p><pre class='command'>" +
+         esc(remedy["command"].get<std::string>()) +
+         "</pre><p class='muted'>The new runs stand beside the old ones; QA promotes them.</p>";
+  else
+    s += "<p class='remedy'>" + esc(remedy["text"].get<std::string>()) + ".</p>";
+  return s + "</div>\n";
+}
+
+/// The default window's report, computed once per (history, window, newest run): the fleet page
+/// shows its flags on every load, and a week's AINS results need not be read again until a run
+/// arrives. Pages are served from several threads.
+nlohmann::json cached_default_report(const History& history, const db::FleetFilter& window) {
+  static std::mutex mutex;
+  static std::map<std::string, nlohmann::json> cache;
+  const auto newest = history.repo->recent_runs(1);
+  const std::string key = history.label + "|" + std::to_string(*window.since_ms) + "|" +
+                          std::to_string(*window.until_ms) + "|" +
+                          (newest.empty() ? "" : std::to_string(newest.front().run_id));
+  {
+    const std::lock_guard<std::mutex> lock(mutex);
+    if (const auto it = cache.find(key); it != cache.end()) return it->second;
+  }
+  nlohmann::json report =
+      station::station_signature_report(*history.stats, window, calib::SignatureOptions{});
+  const std::lock_guard<std::mutex> lock(mutex);
+  if (cache.size() > 16) cache.clear();  // old windows and old newest runs
+  return cache[key] = std::move(report);
 }
 
 }  // namespace
+
+std::string signatures_banner(const History& history) {
+  db::FleetFilter window;
+  nlohmann::json report;
+  try {
+    window = station::signature_window(*history.repo, "", "");
+    if (!window.until_ms) return "";
+    report = cached_default_report(history, window);
+  } catch (const db::InvalidInput& e) {
+    // A history whose main sequence the library does not hold: the page stands without it.
+    return "<p id='signature-banner' class='muted'>Station signatures unavailable: " +
+           esc(e.what()) + "</p>\n";
+  }
+  std::string flagged;
+  int n = 0;
+  for (const auto& st : report["stations"])
+    if (st.value("flagged", false)) {
+      flagged += "<li data-station='" + esc(st["station"].get<std::string>()) + "'><b>" +
+                 esc(st["station"].get<std::string>()) +
+                 "</b>: " + esc(st["alarm"]["cause"].get<std::string>()) + " (" +
+                 std::to_string(st["run_ids"].size()) + " runs)</li>";
+      ++n;
+    }
+  const std::string week = "the week to " + short_time(*window.until_ms) + " UTC";
+  if (n == 0)
+    return "<p id='signature-banner' class='muted' data-flagged='0'>Station signatures over " +
+           week + ": no station flagged (<a href='/signatures'>signatures</a>).</p>\n";
+  return "<div id='signature-banner' class='alarm' data-flagged='" + std::to_string(n) + "'><p>" +
+         std::to_string(n) + (n == 1 ? " station departs" : " stations depart") +
+         " from the fleet over " + week + " (<a href='/signatures'>signatures</a>):</p><ul>" +
+         flagged + "</ul></div>\n";
+}
 
 std::string signatures_page(const History& history, const Params& query) {
   const db::FleetFilter window = window_of(history, query);
@@ -86,10 +152,19 @@ std::string signatures_page(const History& history, const Params& query) {
   b += "<h2>Flagged stations</h2>\n" + (alarms.empty() ? "<p>None.</p>\n" : alarms);
   b += "<h2>Every station</h2>\n<table id='signatures'>\n<tr><th>station</th><th "
        "class='num'>runs</th><th class='num'>units</th><th class='num'>seen elsewhere</th>";
-  for (const auto& fit : report["stations"][0]["fits"])
-    b += "<th class='num'>" + esc(fit["effect"].get<std::string>()) + "</th>";
+  // Every assessed station has a fit per candidate; one not assessed has none.
+  nlohmann::json header_fits = nlohmann::json::array();
+  for (const auto& st : report["stations"])
+    if (st["fits"].size() > header_fits.size()) header_fits = st["fits"];
+  for (const auto& fit : header_fits) {
+    std::string name = fit["effect"].get<std::string>();  // "table_wobble_x": may wrap
+    for (char& c : name)
+      if (c == '_') c = ' ';
+    b += "<th class='num'>" + esc(name) + "</th>";
+  }
+  const std::size_t candidates = header_fits.size();
   b += "<th></th></tr>\n";
-  for (const auto& st : report["stations"]) b += station_row(st);
+  for (const auto& st : report["stations"]) b += station_row(st, candidates);
   return page("Station signatures", b + "</table>\n");
 }
 
