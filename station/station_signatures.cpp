@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <map>
 #include <mutex>
+#include <set>
 
 #include "calib/core/conventions.hpp"
 #include "calib/core/site_presets.hpp"
@@ -113,7 +114,7 @@ json remedy(const calib::StationFit& alarm, const std::string& station, const js
 }  // namespace
 
 db::FleetFilter signature_window(const db::Repository& history, const std::string& since,
-                                 const std::string& until) {
+                                 const std::string& until, int default_days) {
   constexpr db::TimestampMs kDayMs = 86400000;
   db::FleetFilter f;
   auto parse = [](const std::string& field, const std::string& text) {
@@ -130,7 +131,7 @@ db::FleetFilter signature_window(const db::Repository& history, const std::strin
     if (newest.empty()) return f;
     f.until_ms = (db::utc_day(newest.front().started_at_ms) + 1) * kDayMs;
   }
-  if (!f.since_ms) f.since_ms = *f.until_ms - 7 * kDayMs;
+  if (!f.since_ms) f.since_ms = *f.until_ms - default_days * kDayMs;
   if (*f.since_ms >= *f.until_ms)
     throw WindowError("until", "the window ends (" + db::format_time_utc(*f.until_ms) +
                                    ") before it starts (" + db::format_time_utc(*f.since_ms) +
@@ -226,6 +227,117 @@ std::string render_signatures_text(const json& report) {
     }
     out += "\n    " + s["remedy"]["text"].get<std::string>() + "\n";
   }
+  return out;
+}
+
+namespace {
+
+/// One station of one period, condensed: its strongest fit and, when flagged, the cause.
+json trend_cell(const json& st) {
+  json cell = {{"station", st["station"]},
+               {"assessed", st["assessed"]},
+               {"flagged", st.value("flagged", false)}};
+  const json* strongest = nullptr;
+  for (const json& f : st["fits"])
+    if (!strongest || std::abs(f["z"].get<double>()) > std::abs((*strongest)["z"].get<double>()))
+      strongest = &f;
+  if (strongest)
+    cell["strongest"] = {{"effect", (*strongest)["effect"]},
+                         {"z", (*strongest)["z"]},
+                         {"size", (*strongest)["size"]},
+                         {"sigma", (*strongest)["sigma"]},
+                         {"unit", (*strongest)["unit"]}};
+  if (cell["flagged"].get<bool>()) {
+    cell["alarm"] = st["alarm"];
+    cell["cause"] = st["alarm"]["cause"];
+  }
+  return cell;
+}
+
+}  // namespace
+
+json station_signature_trend(const db::FleetStats& stats, const db::FleetFilter& window,
+                             int period_days, const calib::SignatureOptions& options,
+                             const std::function<void(const std::string&)>& progress) {
+  constexpr db::TimestampMs kDayMs = 86400000;
+  if (period_days < 1 || period_days > 366)
+    throw db::InvalidInput("period_days: " + std::to_string(period_days) +
+                           " is not a period of 1 to 366 days");
+  json trend = {{"period_days", period_days},
+                {"false_alarm", options.false_alarm},
+                {"periods", json::array()}};
+  if (!window.since_ms || !window.until_ms) {
+    trend["stations"] = json::array();
+    return trend;
+  }
+  const db::TimestampMs period_ms = period_days * kDayMs;
+  const db::TimestampMs span = *window.until_ms - *window.since_ms;
+  const db::TimestampMs n = std::max<db::TimestampMs>(1, (span + period_ms - 1) / period_ms);
+  std::set<std::string> names;
+  for (db::TimestampMs k = 0; k < n; ++k) {
+    db::FleetFilter f = window;
+    f.since_ms = *window.until_ms - (n - k) * period_ms;
+    f.until_ms = *f.since_ms + period_ms;
+    if (progress)
+      progress("period " + std::to_string(k + 1) + " of " + std::to_string(n) + " (from " +
+               db::format_time_utc(*f.since_ms) + ")");
+    const json r = station_signature_report(stats, f, options);
+    json period = {{"since_ms", *f.since_ms},
+                   {"until_ms", *f.until_ms},
+                   {"runs", r["runs"]},
+                   {"stations", json::array()}};
+    if (r.contains("z_threshold")) trend["z_threshold"] = r["z_threshold"];
+    for (const json& st : r["stations"]) {
+      period["stations"].push_back(trend_cell(st));
+      names.insert(st["station"].get<std::string>());
+    }
+    trend["periods"].push_back(period);
+  }
+  trend["stations"] = std::vector<std::string>(names.begin(), names.end());
+  return trend;
+}
+
+std::string render_signature_trend_text(const json& trend) {
+  if (trend["stations"].empty()) return "no factory AINS results in this window\n";
+  char buf[256];
+  std::string out;
+  if (trend.contains("z_threshold")) {
+    std::snprintf(buf, sizeof buf,
+                  "strongest |z| of each station per %d-day period ('*' flagged at |z| >= %.2f, "
+                  "false alarms %.3g per station and period; '-' no assessment)\n",
+                  trend["period_days"].get<int>(), trend["z_threshold"].get<double>(),
+                  trend["false_alarm"].get<double>());
+    out += buf;
+  }
+  std::snprintf(buf, sizeof buf, "%-16s", "period from");
+  out += buf;
+  for (const json& p : trend["periods"])
+    out += " " + db::format_time_utc(p["since_ms"].get<db::TimestampMs>()).substr(5, 5) + " ";
+  out += "\n";
+  std::map<std::string, std::string> causes;  // station -> its flagged periods' lines
+  for (const json& name : trend["stations"]) {
+    std::snprintf(buf, sizeof buf, "%-16s", name.get<std::string>().c_str());
+    out += buf;
+    for (const json& p : trend["periods"]) {
+      const json* cell = nullptr;
+      for (const json& c : p["stations"])
+        if (c["station"] == name) cell = &c;
+      if (!cell || !cell->contains("strongest")) {
+        out += "     -  ";
+        continue;
+      }
+      const bool flagged = (*cell)["flagged"].get<bool>();
+      std::snprintf(buf, sizeof buf, " %5.1f%s ", std::abs((*cell)["strongest"]["z"].get<double>()),
+                    flagged ? "*" : " ");
+      out += buf;
+      if (flagged)
+        causes[name.get<std::string>()] +=
+            "    " + db::format_time_utc(p["since_ms"].get<db::TimestampMs>()).substr(0, 10) +
+            ": " + (*cell)["cause"].get<std::string>() + "\n";
+    }
+    out += "\n";
+  }
+  for (const auto& [name, lines] : causes) out += name + " flagged:\n" + lines;
   return out;
 }
 

@@ -23,11 +23,12 @@ struct WindowError : db::InvalidInput {
 };
 
 /// The period the signatures look at: `since` and `until` as given (UTC dates or times; a date
-/// `until` means the end of that day), else the 7 days up to the end of the newest run's day.
+/// `until` means the end of that day), else the `default_days` days up to the end of the newest
+/// run's day.
 /// WindowError for unreadable text or a window that ends before it starts; no bounds at all when
 /// the history holds no run.
 db::FleetFilter signature_window(const db::Repository& history, const std::string& since,
-                                 const std::string& until);
+                                 const std::string& until, int default_days = 7);
 
 /// The signatures of the runs in `window` (every field of it applies). The responses are measured
 /// on the sequence most of the runs followed (named in the report); a sequence the library does
@@ -39,5 +40,20 @@ nlohmann::json station_signature_report(
 
 /// The report as text: one line per station, and per flagged station its cause, advice and runs.
 std::string render_signatures_text(const nlohmann::json& report);
+
+/// Signatures period by period (a station drifting out of square between services shows as a
+/// growing fit): `window` cut into consecutive periods of `period_days` ending at its end (the
+/// first may reach before its start), each assessed on its own as station_signature_report does.
+/// JSON {period_days, z_threshold, false_alarm, stations: [names], periods: [{since_ms, until_ms,
+/// runs, stations: [{station, assessed, flagged, strongest: {effect, z, size, sigma, unit},
+/// cause?}]}]}. db::InvalidInput for period_days outside 1..366.
+nlohmann::json station_signature_trend(
+    const db::FleetStats& stats, const db::FleetFilter& window, int period_days,
+    const calib::SignatureOptions& options,
+    const std::function<void(const std::string&)>& progress = {});
+
+/// The trend as text: each station's strongest |z| per period ('*' flagged, '-' not assessed or no
+/// runs), then each flagged station's causes period by period.
+std::string render_signature_trend_text(const nlohmann::json& trend);
 
 }  // namespace imucal::station

@@ -543,7 +543,8 @@ struct Args {
   std::string serial, sequence, operator_name, reason, since, format, output, import_dir,
       report_dir, station;
   std::string until;  ///< stations --signatures: the window's end
-  bool wait = false, partial = false, bare = false, signatures = false;
+  bool wait = false, partial = false, bare = false, signatures = false, trend = false;
+  int period_days = 7;  ///< stations --signatures --trend
   double false_alarm = 1e-3;
   std::optional<double> gravity_mps2;  ///< reprocess: the corrected surveyed gravity
   db::RunId run_id = 0;
@@ -690,6 +691,12 @@ void add_history_commands(CLI::App& app, Args& a, Commands& c) {
   c.stations->add_option("--until", a.until,
                          "signatures: runs started before (UTC date: up to the end of that day; "
                          "default: the end of the newest run's day)");
+  c.stations->add_flag("--trend", a.trend,
+                       "signatures period by period (default window: the 12 periods up to the "
+                       "newest run's day); exit 1 if one is flagged in the newest period");
+  c.stations->add_option("--period-days", a.period_days, "trend: the length of a period in days")
+      ->check(CLI::Range(1, 366))
+      ->default_val(7);
   c.stations
       ->add_option("--false-alarm", a.false_alarm,
                    "signatures: false-alarm rate per station and period")
@@ -946,6 +953,26 @@ int cmd_stations(const Target& t, bool as_json) {
   return kOk;
 }
 
+/// `stations --signatures --trend`: the signatures period by period; exit 1 if a station is
+/// flagged in the newest period (an old flag is history).
+int signature_trend(const db::Repository& repo, const db::FleetStats& stats, const Args& a,
+                    const calib::SignatureOptions& options, bool as_json) {
+  const db::FleetFilter window =
+      station::signature_window(repo, a.since, a.until, 12 * a.period_days);
+  json trend = station::station_signature_trend(
+      stats, window, a.period_days, options,
+      [](const std::string& line) { std::cerr << line << "...\n"; });
+  bool flagged_now = false;
+  if (!trend["periods"].empty())
+    for (const json& st : trend["periods"].back()["stations"])
+      flagged_now = flagged_now || st.value("flagged", false);
+  if (as_json)
+    print_json(trend);
+  else
+    std::cout << station::render_signature_trend_text(trend);
+  return flagged_now ? kRunNotPassed : kOk;
+}
+
 /// `stationctl [--fleet URL | --db FILE] stations --signatures`: station signatures (issue #25).
 int cmd_station_signatures(const Target& t, const Args& a, bool as_json) {
   if (t.fleet_url.empty() && t.db.empty())
@@ -963,9 +990,10 @@ int cmd_station_signatures(const Target& t, const Args& a, bool as_json) {
       repo = std::make_unique<db::SqliteRepository>(t.db, ro);
       stats = std::make_unique<db::SqliteFleetStats>(t.db);
     }
-    const db::FleetFilter window = station::signature_window(*repo, a.since, a.until);
     calib::SignatureOptions options;
     options.false_alarm = a.false_alarm;
+    if (a.trend) return signature_trend(*repo, *stats, a, options, as_json);
+    const db::FleetFilter window = station::signature_window(*repo, a.since, a.until);
     json report = station::station_signature_report(
         *stats, window, options, [](const std::string& line) { std::cerr << line << "...\n"; });
     report["since"] = window.since_ms ? db::format_time_utc(*window.since_ms) : "";
@@ -1075,7 +1103,8 @@ int dispatch(const Target& t, const Args& a, const Commands& c, bool as_json) {
   if (*c.import) return cmd_import(t, a.import_dir, a.wait, as_json);
   if (*c.promote) return cmd_promote(t, a.run_id, a.reason, as_json);
   if (*c.stations)
-    return a.signatures ? cmd_station_signatures(t, a, as_json) : cmd_stations(t, as_json);
+    return a.signatures || a.trend ? cmd_station_signatures(t, a, as_json)
+                                   : cmd_stations(t, as_json);
   if (*c.resync) return cmd_fleet_resync(t, a.station, as_json);
   throw Failure{kBadInput, "no command given (see --help)"};
 }

@@ -159,4 +159,73 @@ std::string box_plot(const std::vector<db::ParamSummary>& summaries, const calib
   return os.str() + "</svg>\n";
 }
 
+namespace {
+
+/// The cell of `station` in one period of a trend, or nullptr.
+const nlohmann::json* trend_cell(const nlohmann::json& period, const std::string& station) {
+  for (const auto& c : period["stations"])
+    if (c["station"] == station) return &c;
+  return nullptr;
+}
+
+std::string period_label(const nlohmann::json& period) {
+  return db::format_time_utc(period["since_ms"].get<db::TimestampMs>()).substr(0, 10);
+}
+
+}  // namespace
+
+std::string signature_trend_svg(const nlohmann::json& trend) {
+  const auto& periods = trend["periods"];
+  const std::vector<std::string> stations = trend["stations"].get<std::vector<std::string>>();
+  const double threshold = trend.value("z_threshold", 0.0);
+  double top = 1.5 * threshold;
+  for (const auto& period : periods)
+    for (const auto& c : period["stations"])
+      if (c.contains("strongest"))
+        top = std::max(top, 1.1 * std::abs(c["strongest"]["z"].get<double>()));
+  double bottom = 0;
+  tools::svg::round_range(bottom, top);
+  std::ostringstream os;
+  os << svg_open("signature-trend", kTop + kPanelH + 96);
+  Panel p{os, kTop, bottom, top, std::max<std::size_t>(periods.size(), 1)};
+  p.frame("Each station's strongest station-error fit per period", "|z|");
+  if (threshold > 0) {
+    p.hline(threshold, "#b3261e", "6 4");
+    os << "<text x='" << kWidth - kRight - 4 << "' y='" << p.y(threshold) - 4
+       << "' text-anchor='end' font-size='11' fill='#b3261e'>flagged at |z| ≥ "
+       << fmt("%.2f", threshold) << "</text>\n";
+  }
+  for (std::size_t k = 0; k < stations.size(); ++k) {
+    std::string points;
+    for (std::size_t i = 0; i < periods.size(); ++i)
+      if (const auto* c = trend_cell(periods[i], stations[k]); c && c->contains("strongest"))
+        points += fmt("%.1f", p.x(i)) + "," +
+                  fmt("%.1f", p.y(std::abs((*c)["strongest"]["z"].get<double>()))) + " ";
+    os << "<polyline fill='none' stroke='" << station_colour(k) << "' stroke-width='1.5' points='"
+       << points << "'/>\n";
+    for (std::size_t i = 0; i < periods.size(); ++i) {
+      const auto* c = trend_cell(periods[i], stations[k]);
+      if (!c || !c->contains("strongest")) continue;
+      const auto& f = (*c)["strongest"];
+      const bool flagged = (*c)["flagged"].get<bool>();
+      const double z = f["z"].get<double>();
+      os << "<circle class='pt" << (flagged ? " flagged" : "") << "' data-station='"
+         << esc(stations[k]) << "' data-period='" << period_label(periods[i]) << "' cx='" << p.x(i)
+         << "' cy='" << p.y(std::abs(z)) << "' r='" << (flagged ? 6 : 3) << "' fill='"
+         << station_colour(k) << "' stroke='" << (flagged ? "#b3261e" : "none")
+         << "' stroke-width='2'><title>"
+         << esc(stations[k] + ", period from " + period_label(periods[i]) + ": " +
+                f["effect"].get<std::string>() + " " + fmt("%+.3g", f["size"].get<double>()) +
+                " ± " + fmt("%.2g", f["sigma"].get<double>()) + " " + f["unit"].get<std::string>() +
+                " (z " + fmt("%+.1f", z) + ")" + (flagged ? ", FLAGGED" : ""))
+         << "</title></circle>\n";
+    }
+  }
+  std::vector<std::string> labels;
+  for (const auto& period : periods) labels.push_back(period_label(period).substr(5));
+  slot_labels(os, p, labels);
+  station_legend(os, stations);
+  return os.str() + "</svg>\n";
+}
+
 }  // namespace imucal::stationweb

@@ -4,7 +4,10 @@
 //   verdict_chart   <svg id='verdict-chart'>: each station's PASS/REVIEW/FAILED/live shares
 //   box_plot        <svg id='distribution-chart'>: one parameter per station — min–max whisker,
 //                   quartile box, median line, mean dot — in human units
+//   signature_trend_svg  <svg id='signature-trend'>: each station's strongest |z| per period
+//                   (station_signature_trend), the flag threshold dashed, flagged points ringed
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -19,6 +22,10 @@ std::string runs_chart(const std::vector<db::StationDayCount>& counts,
                        std::int64_t last_day);
 std::string verdict_chart(const std::vector<db::StationVerdictCounts>& verdicts);
 std::string box_plot(const std::vector<db::ParamSummary>& summaries, const calib::ParamInfo& info);
+
+/// One line per station (colour by its index in trend["stations"]), one slot per period; every
+/// point a <circle class='pt'> ('pt flagged' when flagged) with data-station and data-period.
+std::string signature_trend_svg(const nlohmann::json& trend);
 
 /// A station's colour by its index in the page's station list.
 const char* station_colour(std::size_t index);

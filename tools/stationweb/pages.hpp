@@ -13,6 +13,8 @@
 //                      param), opening with the flagged stations of the signature week
 //   /signatures?...    signatures_page: station signatures of a period (since, until; default the
 //                      7 days up to the newest run's day), flagged stations with cause and runs
+//   /signatures/trend?... signature_trend_page: the signatures period by period (since, until,
+//                      period_days; default 12 weeks up to the newest run's day), as a picture
 #include <map>
 #include <string>
 
@@ -30,6 +32,7 @@ std::string unit_page(const History& history, const std::string& serial);
 std::string run_page(const History& history, const std::string& run_id_text);
 std::string fleet_page(const History& history, const Params& query);
 std::string signatures_page(const History& history, const Params& query);
+std::string signature_trend_page(const History& history, const Params& query);
 /// The flagged stations of the default signature window (the week up to the newest run's day), as
 /// the banner the fleet page opens with ("" for an empty history).
 std::string signatures_banner(const History& history);

@@ -93,6 +93,9 @@ void install_routes(httplib::Server& server, const History& history) {
              }));
   server.Get("/fleet",
              page_handler([h](const httplib::Request& req) { return fleet_page(*h, req.params); }));
+  server.Get("/signatures/trend", page_handler([h](const httplib::Request& req) {
+               return signature_trend_page(*h, req.params);
+             }));
   server.Get("/signatures", page_handler([h](const httplib::Request& req) {
                return signatures_page(*h, req.params);
              }));

@@ -6,6 +6,7 @@
 #include <mutex>
 
 #include "station/station_signatures.hpp"
+#include "tools/stationweb/fleet_svg.hpp"
 #include "tools/stationweb/html.hpp"
 #include "tools/stationweb/pages.hpp"
 
@@ -13,10 +14,10 @@ namespace imucal::stationweb {
 
 namespace {
 
-db::FleetFilter window_of(const History& history, const Params& query) {
+db::FleetFilter window_of(const History& history, const Params& query, int default_days = 7) {
   try {
     return station::signature_window(*history.repo, query_value(query, "since"),
-                                     query_value(query, "until"));
+                                     query_value(query, "until"), default_days);
   } catch (const station::WindowError& e) {
     bad_input(e.field, e.reason);
   }
@@ -150,6 +151,7 @@ std::string signatures_page(const History& history, const Params& query) {
   for (const auto& st : report["stations"])
     if (st.value("flagged", false)) alarms += alarm_section(st);
   b += "<h2>Flagged stations</h2>\n" + (alarms.empty() ? "<p>None.</p>\n" : alarms);
+  b += "<p><a href='/signatures/trend'>Period by period</a>: the last 12 weeks' signatures.</p>\n";
   b += "<h2>Every station</h2>\n<table id='signatures'>\n<tr><th>station</th><th "
        "class='num'>runs</th><th class='num'>units</th><th class='num'>seen elsewhere</th>";
   // Every assessed station has a fit per candidate; one not assessed has none.
@@ -166,6 +168,85 @@ std::string signatures_page(const History& history, const Params& query) {
   b += "<th></th></tr>\n";
   for (const auto& st : report["stations"]) b += station_row(st, candidates);
   return page("Station signatures", b + "</table>\n");
+}
+
+namespace {
+
+int period_days_of(const Params& query) {
+  const std::string text = query_value(query, "period_days");
+  if (text.empty()) return 7;
+  std::size_t used = 0;
+  int days = 0;
+  try {
+    days = std::stoi(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != text.size() || days < 1 || days > 366)
+    bad_input("period_days", "'" + text + "' is not a whole number of days from 1 to 366");
+  return days;
+}
+
+/// Station × period: the strongest |z| ('*' and the cause's effect when flagged).
+std::string trend_table(const nlohmann::json& trend) {
+  std::string b = "<table id='trend'>\n<tr><th>station</th>";
+  for (const auto& p : trend["periods"])
+    b += "<th class='num'>" +
+         db::format_time_utc(p["since_ms"].get<db::TimestampMs>()).substr(5, 5) + "</th>";
+  b += "</tr>\n";
+  for (const auto& name : trend["stations"]) {
+    b += "<tr><td>" + esc(name.get<std::string>()) + "</td>";
+    for (const auto& p : trend["periods"]) {
+      const std::string period =
+          db::format_time_utc(p["since_ms"].get<db::TimestampMs>()).substr(0, 10);
+      const nlohmann::json* cell = nullptr;
+      for (const auto& c : p["stations"])
+        if (c["station"] == name) cell = &c;
+      if (!cell || !cell->contains("strongest")) {
+        b += "<td class='num muted'>–</td>";
+        continue;
+      }
+      const bool flagged = (*cell)["flagged"].get<bool>();
+      b += "<td class='num' data-station='" + esc(name.get<std::string>()) + "' data-period='" +
+           period + "' data-flagged='" + (flagged ? "1" : "0") + "'" +
+           (flagged ? " title='" + esc((*cell)["cause"].get<std::string>()) + "'" : "") + ">" +
+           fmt("%.1f", std::abs((*cell)["strongest"]["z"].get<double>())) +
+           (flagged ? " <span class='FAILED'>" +
+                          esc((*cell)["alarm"]["effect"].get<std::string>()) + "</span>"
+                    : "") +
+           "</td>";
+    }
+    b += "</tr>\n";
+  }
+  return b + "</table>\n";
+}
+
+}  // namespace
+
+std::string signature_trend_page(const History& history, const Params& query) {
+  const int period_days = period_days_of(query);
+  const db::FleetFilter window = window_of(history, query, 12 * period_days);
+  std::string b = "<h1>Station signatures period by period</h1>\n";
+  b += "<form class='filters' action='/signatures/trend' method='get'><label>since <input "
+       "name='since' size='12' value='" +
+       esc(query_value(query, "since")) +
+       "'></label><label>until <input name='until' size='12' "
+       "value='" +
+       esc(query_value(query, "until")) +
+       "'></label><label>period (days) <input name='period_days' size='4' value='" +
+       std::to_string(period_days) + "'></label> <button type='submit'>Show</button></form>\n";
+  if (!window.until_ms) return page("Signature trend", b + "<p>No runs stored yet.</p>\n");
+  const nlohmann::json trend = station::station_signature_trend(*history.stats, window, period_days,
+                                                                calib::SignatureOptions{});
+  if (trend["stations"].empty())
+    return page("Signature trend", b + "<p>No factory AINS results in this window.</p>\n");
+  b += "<p>Each period's signatures on their own (<a href='/signatures'>one period</a>): a "
+       "station error that grows between services — a table drifting out of square, a fixture "
+       "working loose — rises period by period; a flagged point is ringed red, its cause in the "
+       "table's tooltip.</p>\n";
+  b += signature_trend_svg(trend);
+  b += "<h2>Strongest |z| per station and period</h2>\n" + trend_table(trend);
+  return page("Signature trend", b);
 }
 
 }  // namespace imucal::stationweb
