@@ -5,6 +5,7 @@
 #include <map>
 #include <mutex>
 #include <set>
+#include <stdexcept>
 
 #include "calib/core/conventions.hpp"
 #include "calib/core/site_presets.hpp"
@@ -87,28 +88,46 @@ std::string cause_text(const json& fit, const calib::StationError& e) {
   return s + " against the fleet: " + e.advice;
 }
 
-/// What QA does with a flagged station's runs once the cause is fixed. A wrong surveyed gravity is
-/// a station setting, so reprocessing the archives with the re-surveyed value corrects every run
-/// (stationctl reprocess takes the station's own run ids, several at once); a table or fixture
-/// fault is in the recorded data, so no setting corrects them: the units are calibrated again
-/// after the service.
-json remedy(const calib::StationFit& alarm, const std::string& station, const json& local_ids) {
-  if (alarm.effect != "gravity_error")
-    return {{"reprocess", false},
-            {"text",
-             "reprocessing cannot correct these runs (the fault is in their data): once "
-             "the station is serviced, calibrate the units again"}};
+/// What QA does with a flagged station's runs once the causes are fixed. A wrong surveyed gravity
+/// is a station setting, so reprocessing the archives with the re-surveyed value corrects every
+/// run (stationctl reprocess takes the station's own run ids, several at once); a table or fixture
+/// fault is in the recorded data, so no setting corrects it: the units are calibrated again after
+/// the service.
+json remedy(const std::vector<calib::StationFit>& alarms, const std::string& station,
+            const json& local_ids) {
+  const std::string recalibrate =
+      "once the station is serviced, calibrate the units again (the fault is in these runs' "
+      "data: no setting corrects it)";
+  const calib::StationFit* gravity = nullptr;
+  for (const calib::StationFit& a : alarms)
+    if (a.effect == "gravity_error") gravity = &a;
+  if (!gravity) return {{"reprocess", false}, {"text", recalibrate}};
   std::string command = "stationctl reprocess";
   for (const json& id : local_ids) command += " " + std::to_string(id.get<long long>());
   command += " --gravity-mps2 G";
   char fit[96];
-  std::snprintf(fit, sizeof fit, "%+.2g m/s² (%+.3g µg)", alarm.size_si,
-                alarm.size_si / kMicroG_mps2);
-  return {{"reprocess", true},
-          {"command", command},
-          {"text", "once the site's gravity is re-surveyed (the fleet puts it " + std::string(fit) +
-                       " from the configured value), reprocess the runs at " + station +
-                       " with G the new survey, and promote the new results: " + command}};
+  std::snprintf(fit, sizeof fit, "%+.2g m/s² (%+.3g µg)", gravity->size_si,
+                gravity->size_si / kMicroG_mps2);
+  std::string text = "once the site's gravity is re-surveyed (the fleet puts it " +
+                     std::string(fit) + " from the configured value), reprocess the runs at " +
+                     station + " with G the new survey, and promote the new results: " + command;
+  if (alarms.size() > 1) text += "; for the other fault, " + recalibrate;
+  return {{"reprocess", true}, {"command", command}, {"text", text}};
+}
+
+const calib::StationError& error_named(const std::vector<calib::StationError>& errors,
+                                       const std::string& effect) {
+  for (const calib::StationError& e : errors)
+    if (e.effect == effect) return e;
+  throw std::logic_error("station error " + effect + " is not in the catalogue");
+}
+
+/// A named error as JSON: its fit and the cause QA reads.
+json alarm_json(const calib::StationFit& fit, const std::vector<calib::StationError>& errors) {
+  const calib::StationError& e = error_named(errors, fit.effect);
+  json j = fit_json(fit, e);
+  j["cause"] = cause_text(j, e);
+  return j;
 }
 
 }  // namespace
@@ -173,15 +192,18 @@ json station_signature_report(const db::FleetStats& stats, const db::FleetFilter
     s["fits"] = fits;
     s["flagged"] = sig.alarm.has_value();
     if (sig.alarm) {
-      std::size_t k = 0;
-      while (errors[k].effect != sig.alarm->effect) ++k;
-      s["alarm"] = fit_json(*sig.alarm, errors[k]);
-      s["alarm"]["cause"] = cause_text(s["alarm"], errors[k]);
+      json alarms = json::array(), others = json::array();
+      for (const calib::StationFit& f : sig.alarms) alarms.push_back(alarm_json(f, errors));
+      for (const calib::StationFit& f : sig.fits_given_alarms)
+        others.push_back(fit_json(f, error_named(errors, f.effect)));
+      s["alarm"] = alarms.front();
+      s["alarms"] = alarms;
+      s["fits_given_alarms"] = others;
       s["run_ids"] = sig.run_ids;
       json local = json::array();
       for (const std::int64_t id : sig.run_ids) local.push_back(local_id.at(id));
       s["local_run_ids"] = local;
-      s["remedy"] = remedy(*sig.alarm, sig.station, local);
+      s["remedy"] = remedy(sig.alarms, sig.station, local);
     }
     stations.push_back(s);
   }
@@ -207,18 +229,22 @@ std::string render_signatures_text(const json& report) {
       out += "  not assessed: " + s["why_not"].get<std::string>() + "\n";
       continue;
     }
-    for (const json& f : s["fits"]) {
+    const bool flagged = s["flagged"].get<bool>();
+    // A flagged station's other candidates are shown given its named errors (each alone, they
+    // would echo the named error's size through their overlapping responses).
+    for (const json& f : flagged ? s["fits_given_alarms"] : s["fits"]) {
       std::snprintf(buf, sizeof buf, "  %s z %+.1f", f["effect"].get<std::string>().c_str(),
                     f["z"].get<double>());
       out += buf;
     }
-    if (!s["flagged"].get<bool>()) {
+    if (!flagged) {
       out += "  ok\n";
       continue;
     }
     const auto& ids = s["run_ids"];
-    out += "  FLAGGED\n    " + s["alarm"]["cause"].get<std::string>() + "\n    runs it touches (" +
-           std::to_string(ids.size()) + "):";
+    out += "  FLAGGED (the others' z given the errors named)\n";
+    for (const json& alarm : s["alarms"]) out += "    " + alarm["cause"].get<std::string>() + "\n";
+    out += "    runs it touches (" + std::to_string(ids.size()) + "):";
     for (const json& id : ids) out += " " + std::to_string(id.get<long long>());
     if (s["local_run_ids"] != ids) {
       out += "\n    (the station's own ids:";
@@ -249,7 +275,10 @@ json trend_cell(const json& st) {
                          {"unit", (*strongest)["unit"]}};
   if (cell["flagged"].get<bool>()) {
     cell["alarm"] = st["alarm"];
-    cell["cause"] = st["alarm"]["cause"];
+    std::string causes;
+    for (const json& alarm : st["alarms"])
+      causes += (causes.empty() ? "" : "; ") + alarm["cause"].get<std::string>();
+    cell["cause"] = causes;
   }
   return cell;
 }

@@ -167,10 +167,68 @@ std::vector<StationFit> fit_errors(const ParamCovariance& info, const ParamVecto
   return fits;
 }
 
+/// The candidates `set` fitted jointly to N(d, info⁻¹) by GLS: sizes and σ in `set` order; empty
+/// when their responses are (numerically) dependent.
+std::vector<StationFit> joint_fit(const ParamCovariance& info, const ParamVector& d,
+                                  const std::vector<StationError>& errors,
+                                  const std::vector<std::size_t>& set) {
+  const auto k = static_cast<Eigen::Index>(set.size());
+  Eigen::MatrixXd R(kN, k);
+  for (Eigen::Index j = 0; j < k; ++j) R.col(j) = errors[set[static_cast<std::size_t>(j)]].response;
+  const Eigen::MatrixXd A = R.transpose() * info * R;
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(A);
+  if (ldlt.info() != Eigen::Success ||
+      !(ldlt.vectorD().minCoeff() > 1e-12 * A.diagonal().maxCoeff()))
+    return {};
+  const Eigen::MatrixXd cov = ldlt.solve(Eigen::MatrixXd::Identity(k, k));
+  const Eigen::VectorXd size = cov * (R.transpose() * (info * d));
+  std::vector<StationFit> fits;
+  for (Eigen::Index j = 0; j < k; ++j)
+    fits.push_back(
+        {errors[set[static_cast<std::size_t>(j)]].effect, size(j), std::sqrt(cov(j, j))});
+  return fits;
+}
+
+/// Forward selection on a flagged station (see the header): names `first`, then while another
+/// candidate's |z| given the named ones (their model error counted) reaches the threshold, the
+/// strongest of them. Sets alarms (sized jointly, statistical σ) and fits_given_alarms.
+void name_errors(StationSignature& sig, const ParamCovariance& V, const ParamVector& d,
+                 const std::vector<StationError>& errors, std::size_t first,
+                 const SignatureOptions& opt, double z_threshold) {
+  const ParamCovariance info = V.ldlt().solve(ParamCovariance::Identity());
+  std::vector<std::size_t> named{first};
+  for (;;) {
+    const std::vector<StationFit> sized = joint_fit(info, d, errors, named);
+    ParamVector explained = ParamVector::Zero();
+    for (std::size_t j = 0; j < named.size() && !sized.empty(); ++j)
+      explained += sized[j].size_si * errors[named[j]].response;
+    const ParamVector model_sd = opt.response_tolerance * explained.cwiseAbs();
+    const ParamCovariance info_m =
+        (V + diag(model_sd.cwiseAbs2())).ldlt().solve(ParamCovariance::Identity());
+    sig.fits_given_alarms.clear();
+    std::optional<std::pair<std::size_t, double>> best;
+    for (std::size_t c = 0; c < errors.size(); ++c) {
+      if (std::find(named.begin(), named.end(), c) != named.end()) continue;
+      std::vector<std::size_t> with = named;
+      with.push_back(c);
+      const std::vector<StationFit> f = joint_fit(info_m, d, errors, with);
+      if (f.empty()) continue;
+      sig.fits_given_alarms.push_back(f.back());
+      if (!best || std::abs(f.back().z()) > best->second) best = {{c, std::abs(f.back().z())}};
+    }
+    if (!best || best->second < z_threshold || static_cast<int>(named.size()) >= opt.max_errors) {
+      sig.alarms = sized.empty() ? std::vector<StationFit>{sig.fits[first]} : sized;
+      sig.alarm = sig.alarms.front();
+      return;
+    }
+    named.push_back(best->first);
+  }
+}
+
 /// The station's signature from its evidence, with Ω added to the departure's covariance.
 StationSignature assess(const Arranged& a, std::size_t s, const Evidence& e,
                         const ParamVector& omega, const std::vector<StationError>& errors,
-                        double z_threshold) {
+                        double z_threshold, const SignatureOptions& opt) {
   StationSignature sig;
   sig.station = a.stations[s];
   sig.runs = static_cast<int>(a.run_ids[s].size());
@@ -190,10 +248,12 @@ StationSignature assess(const Arranged& a, std::size_t s, const Evidence& e,
   sig.departure = d;
   sig.departure_sigma = V.diagonal().cwiseSqrt();
   sig.fits = fit_errors(info, info * d, errors);
-  for (const StationFit& f : sig.fits)
-    if (std::abs(f.z()) >= z_threshold &&
-        (!sig.alarm || std::abs(f.z()) > std::abs(sig.alarm->z())))
-      sig.alarm = f;
+  std::optional<std::size_t> first;
+  for (std::size_t c = 0; c < sig.fits.size(); ++c)
+    if (std::abs(sig.fits[c].z()) >= z_threshold &&
+        (!first || std::abs(sig.fits[c].z()) > std::abs(sig.fits[*first].z())))
+      first = c;
+  if (first && z_threshold > 0) name_errors(sig, V, d, errors, *first, opt, z_threshold);
   return sig;
 }
 
@@ -230,6 +290,9 @@ void check(const std::vector<StationError>& errors, const SignatureOptions& opt)
   if (!(opt.false_alarm > 0 && opt.false_alarm < 0.5))
     throw std::invalid_argument("signature false_alarm must lie in (0, 0.5)");
   if (opt.min_units < 2) throw std::invalid_argument("signature min_units must be at least 2");
+  if (!(opt.response_tolerance >= 0 && opt.response_tolerance < 1))
+    throw std::invalid_argument("signature response_tolerance must lie in [0, 1)");
+  if (opt.max_errors < 1) throw std::invalid_argument("signature max_errors must be at least 1");
   if (errors.empty()) throw std::invalid_argument("no station error to look for");
   for (const StationError& e : errors)
     if (e.response.squaredNorm() == 0)
@@ -259,14 +322,14 @@ FleetSignatures station_signatures(const std::vector<SignatureRun>& runs,
     out.stations.clear();
     for (std::size_t s = 0; s < K; ++s) {
       evidence.push_back(departure_evidence(a, p, s, sound, ParamVector::Zero(), opt));
-      out.stations.push_back(assess(a, s, evidence[s], ParamVector::Zero(), errors, 0.0));
+      out.stations.push_back(assess(a, s, evidence[s], ParamVector::Zero(), errors, 0.0, opt));
     }
     omega = station_spread(out.stations, evidence, sound);
     std::vector<bool> next(K, true);
     out.stations.clear();
     for (std::size_t s = 0; s < K; ++s) {
       const Evidence e = departure_evidence(a, p, s, sound, omega, opt);
-      out.stations.push_back(assess(a, s, e, omega, errors, out.z_threshold));
+      out.stations.push_back(assess(a, s, e, omega, errors, out.z_threshold, opt));
       next[s] = !out.stations.back().alarm.has_value();
     }
     if (next == sound) break;

@@ -23,8 +23,14 @@
 // The test: each station error's size is fitted to the station's departure by generalised least
 // squares against its response (size, σ, z); a station is flagged when the largest |z| reaches the
 // threshold that keeps the false-alarm rate per station and period at `false_alarm` (Bonferroni
-// over the candidates, two-sided). The fleet's reference for a station leaves that station out,
-// and flagged stations are left out of every reference and of Ω (passes until the flags settle).
+// over the candidates, two-sided). A flagged station may have more than one error (a table out of
+// square at a site with a wrong gravity): forward selection — every other candidate is fitted
+// jointly with those already named, and the strongest is named too while its |z| given them
+// reaches the threshold. The responses are known to `response_tolerance` (measured: linear to
+// 2 %), so what a named error of size a leaves unexplained is counted as noise of sd tolerance·a·r
+// in that test; otherwise a large error's second-order remainder would name a second cause. The
+// fleet's reference for a station leaves that station out, and flagged stations are left out of
+// every reference and of Ω (passes until the flags settle).
 #include <array>
 #include <cstdint>
 #include <optional>
@@ -52,6 +58,10 @@ struct SignatureOptions {
   int min_units = 3;
   /// Passes of "flag, leave the flagged out of the references, refit" at most.
   int max_passes = 4;
+  /// Relative accuracy of the responses (model error of a named station error, see above).
+  double response_tolerance = 0.02;
+  /// Station errors named on one station at most.
+  int max_errors = 3;
 };
 
 /// One station error fitted to one station's departure.
@@ -68,8 +78,13 @@ struct StationSignature {
   int repeat_units = 0;                         ///< units also seen at another (reference) station
   ParamVector departure = ParamVector::Zero();  ///< δ_s - δ_fleet estimate, SI
   ParamVector departure_sigma = ParamVector::Zero();  ///< its σ (Ω included)
-  std::vector<StationFit> fits;                       ///< every candidate, catalogue order
-  std::optional<StationFit> alarm;                    ///< the best fit when flagged
+  std::vector<StationFit> fits;                       ///< every candidate alone, catalogue order
+  std::optional<StationFit> alarm;                    ///< alarms.front() when flagged
+  /// The errors named, in the order selected, sized jointly (empty: not flagged).
+  std::vector<StationFit> alarms;
+  /// Every candidate not named, each fitted jointly with the named ones (z given them, the model
+  /// error of the named ones counted); empty when not flagged.
+  std::vector<StationFit> fits_given_alarms;
   std::vector<std::int64_t> run_ids;                  ///< the runs it touches
   bool assessed = false;  ///< false: too little evidence (no reference, no units)
   std::string why_not;    ///< when not assessed

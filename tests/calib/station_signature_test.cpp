@@ -67,6 +67,10 @@ struct FleetSpec {
   int stations = 10, units = 50;
   bool golden = true;
   double gravity_error_mps2 = 0, nonorth_rad = 0;
+  double gravity_at_nonorth_station_mps2 = 0;  ///< a second error at the non-orthogonal table
+  /// The true responses differ from the ones the model is given by this fraction of each term,
+  /// alternately more and less (a shape error: a common scale would only rescale the size).
+  double response_error = 0.0;
 };
 
 std::vector<SignatureRun> synthetic_fleet(const FleetSpec& f, std::uint64_t seed) {
@@ -79,8 +83,12 @@ std::vector<SignatureRun> synthetic_fleet(const FleetSpec& f, std::uint64_t seed
   for (int s = 0; s < f.stations; ++s) {
     ParamVector add = ParamVector::Zero();
     for (int i = 24; i < 27; ++i) add(i) = 20e-6 * u(rng);  // the table's levelling
-    if (s == kGravityStation) add += e[0].response * f.gravity_error_mps2;
-    if (s == kNonorthStation) add += e[1].response * f.nonorth_rad;
+    ParamVector shape;
+    for (int i = 0; i < ParamSet::kSize; ++i) shape(i) = 1.0 + (i % 2 ? 1 : -1) * f.response_error;
+    if (s == kGravityStation) add += e[0].response.cwiseProduct(shape) * f.gravity_error_mps2;
+    if (s == kNonorthStation)
+      add += (e[1].response * f.nonorth_rad + e[0].response * f.gravity_at_nonorth_station_mps2)
+                 .cwiseProduct(shape);
     station_adds.push_back(add);
   }
   std::vector<SignatureRun> runs;
@@ -138,6 +146,58 @@ TEST(StationSignature, TheTwoFaultyStationsAreFlaggedWithTheirCauseAndSizeAndNoO
   }
 }
 
+TEST(StationSignature, TwoErrorsAtOneStationAreBothNamedWithTheirSizes) {
+  FleetSpec spec;
+  spec.nonorth_rad = 10.0 * kArcsecToRad;
+  spec.gravity_at_nonorth_station_mps2 = 50.0 * kMicroG_mps2;
+  for (std::uint64_t seed : {21u, 22u, 23u}) {
+    const FleetSignatures fs = station_signatures(synthetic_fleet(spec, seed), errors());
+    for (std::size_t s = 0; s < fs.stations.size(); ++s) {
+      const StationSignature& sig = fs.stations[s];
+      SCOPED_TRACE(sig.station + " seed " + std::to_string(seed));
+      if (s != kNonorthStation) {
+        EXPECT_FALSE(sig.alarm);
+        continue;
+      }
+      ASSERT_EQ(sig.alarms.size(), 2u);
+      for (const StationFit& a : sig.alarms) {
+        const bool gravity = a.effect == "gravity_error";
+        EXPECT_TRUE(gravity || a.effect == "table_nonorthogonality") << a.effect;
+        const double truth = gravity ? spec.gravity_at_nonorth_station_mps2 : spec.nonorth_rad;
+        EXPECT_LT(std::abs(a.size_si - truth), 4 * a.sigma_si) << a.effect;
+      }
+      EXPECT_EQ(sig.fits_given_alarms.size(), errors().size() - 2);
+      for (const StationFit& f : sig.fits_given_alarms) EXPECT_LT(std::abs(f.z()), 3.8) << f.effect;
+    }
+  }
+}
+
+TEST(StationSignature, ALargeErrorWhoseResponseIsOffByItsToleranceNamesNoSecondCause) {
+  // 300″ of non-orthogonality and 2 mg of gravity error, seen by the golden unit at z ~ 10³, with
+  // responses whose terms are 1.5 % off the model's: what the named error leaves is the responses'
+  // own inaccuracy, not a second station error. Without the tolerance it would be named as one.
+  FleetSpec spec;
+  spec.nonorth_rad = 300.0 * kArcsecToRad;
+  spec.gravity_error_mps2 = 2000.0 * kMicroG_mps2;
+  spec.response_error = 0.015;
+  SignatureOptions exact;
+  exact.response_tolerance = 0.0;
+  int second_causes_without = 0;
+  for (std::uint64_t seed : {31u, 32u, 33u}) {
+    const auto runs = synthetic_fleet(spec, seed);
+    const FleetSignatures fs = station_signatures(runs, errors());
+    for (const std::size_t s : {std::size_t{kGravityStation}, std::size_t{kNonorthStation}}) {
+      const StationSignature& sig = fs.stations[s];
+      ASSERT_TRUE(sig.alarm) << sig.station;
+      EXPECT_EQ(sig.alarms.size(), 1u) << sig.station << " also named " << sig.alarms.back().effect;
+    }
+    const FleetSignatures without = station_signatures(runs, errors(), exact);
+    for (const std::size_t s : {std::size_t{kGravityStation}, std::size_t{kNonorthStation}})
+      second_causes_without += without.stations[s].alarms.size() > 1 ? 1 : 0;
+  }
+  EXPECT_GT(second_causes_without, 0) << "the tolerance made no difference: the test shows nothing";
+}
+
 TEST(StationSignature, FleetsWithoutAnErrorRaiseFalseAlarmsAtTheRateAskedAndHonestSizes) {
   const double alpha = 0.01;  // a rate high enough to count in 3000 station-periods
   SignatureOptions opt;
@@ -188,6 +248,12 @@ TEST(StationSignature, BadOptionsAndUnmeasuredErrorsAreRefused) {
   SignatureOptions bad;
   bad.false_alarm = 0.0;
   EXPECT_THROW(station_signatures({}, errors(), bad), std::invalid_argument);
+  SignatureOptions loose;
+  loose.response_tolerance = 1.0;
+  EXPECT_THROW(station_signatures({}, errors(), loose), std::invalid_argument);
+  SignatureOptions none;
+  none.max_errors = 0;
+  EXPECT_THROW(station_signatures({}, errors(), none), std::invalid_argument);
   EXPECT_NEAR(bonferroni_z(0.05, 1), 1.95996, 1e-4);
   EXPECT_NEAR(bonferroni_z(0.001, 2), 3.4808, 1e-3);
 }

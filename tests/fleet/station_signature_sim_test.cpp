@@ -1,9 +1,9 @@
 // Station signatures on a simulated fleet (issue #25), the reduced version CI runs: 10 stations,
 // 12 units of a production population each plus one golden-unit visit each, the real simulator
 // and AINS on `short`; st-03 has a 50 µg gravity error, st-07 a 10″ table non-orthogonality, st-05
-// a fixture turned 60″ about the platform's z axis, st-01 a table wobbling 10″ about y, all tables
-// levelled within ±20″. The benchmark (build/bin/fleet_signature_bench) runs ≥ 20 fleets of
-// 10 × 50 for the rates in the README.
+// a fixture turned 60″ about the platform's z axis, st-01 a table wobbling 10″ about y, st-09 both
+// a 50 µg gravity error and a 10″ non-orthogonality, all tables levelled within ±20″. The benchmark
+// (build/bin/fleet_signature_bench) runs ≥ 20 fleets of 10 × 50 for the rates in the README.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -29,6 +29,8 @@ FleetSpec ci_fleet() {
   spec.stations[7].nonorthogonality_rad = 10.0 * kArcsecToRad;
   spec.stations[5].fixture_rad = Eigen::Vector3d(0, 0, 60.0 * kArcsecToRad);
   spec.stations[1].wobble_rad = Eigen::Vector2d(0, 10.0 * kArcsecToRad);
+  spec.stations[9].gravity_error_mps2 = 50.0 * kMicroG_mps2;
+  spec.stations[9].nonorthogonality_rad = 10.0 * kArcsecToRad;
   return spec;
 }
 
@@ -114,8 +116,21 @@ TEST(StationSignatureSim, EveryFaultyStationIsFlaggedWithItsCauseAndReprocessing
   for (const FleetRun& r : runs) ASSERT_TRUE(r.converged) << r.run.serial;
   const auto errors = fleet_station_errors(spec);
   const FleetOutcome o = assess_fleet(spec, runs, errors, {}, /*population_only=*/false);
-  EXPECT_EQ(o.faulty, 4);
-  EXPECT_EQ(o.detected, 4);
+  EXPECT_EQ(o.faulty, 5);
+  EXPECT_EQ(o.detected, 5);
+  // One error each is named once; the station with two has both, each within 4σ of its size.
+  for (const std::size_t s : {1, 3, 5, 7})
+    EXPECT_EQ(o.signatures.stations[s].alarms.size(), 1u)
+        << s << " also named " << o.signatures.stations[s].alarms.back().effect;
+  const StationSignature& both = o.signatures.stations[9];
+  ASSERT_EQ(both.alarms.size(), 2u);
+  for (const StationFit& a : both.alarms) {
+    const bool gravity = a.effect == "gravity_error";
+    ASSERT_TRUE(gravity || a.effect == "table_nonorthogonality") << a.effect;
+    EXPECT_LT(std::abs(a.size_si - (gravity ? 50.0 * kMicroG_mps2 : 10.0 * kArcsecToRad)),
+              4 * a.sigma_si)
+        << a.effect;
+  }
   EXPECT_EQ(o.false_alarms, 0);
   const StationSignature& gs = o.signatures.stations[3];
   ASSERT_TRUE(gs.alarm);

@@ -92,7 +92,7 @@ class SignaturesCli : public ::testing::Test {
 
 }  // namespace
 
-TEST_F(SignaturesCli, FromTheStationsHistoryTheTwoFaultyStationsAreFlaggedWithTheirCause) {
+TEST_F(SignaturesCli, FromTheStationsHistoryTheThreeFaultyStationsAreFlaggedWithTheirCause) {
   ASSERT_EQ(ids_.size(), 70u);
   int code = 0;
   const json report = signatures("--db " + db_, code);
@@ -106,8 +106,16 @@ TEST_F(SignaturesCli, FromTheStationsHistoryTheTwoFaultyStationsAreFlaggedWithTh
   // The text QA reads: the cause with its size, the advice, the runs.
   const auto text = run_command(std::string(IMUCAL_BIN_DIR) + "/stationctl --db " + db_ +
                                 " stations --signatures 2>&1");
-  EXPECT_NE(text.out.find("FLAGGED\n    common accelerometer scale +"), std::string::npos)
+  EXPECT_NE(text.out.find("FLAGGED (the others' z given the errors named)\n    common "
+                          "accelerometer scale +"),
+            std::string::npos)
       << text.out;
+  // The fixture station's other candidates, given the fixture: nothing left (each alone would
+  // echo the 180″ through overlapping responses).
+  const json& fx = report["stations"][kFixture];
+  EXPECT_EQ(fx["alarms"].size(), 1u) << fx.dump(1);
+  for (const json& f : fx["fits_given_alarms"])
+    EXPECT_LT(std::abs(f["z"].get<double>()), report["z_threshold"].get<double>()) << f.dump();
   EXPECT_NE(text.out.find("runs it touches (7):"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("reprocess the runs at st-02 with G the new survey"), std::string::npos)
       << text.out;

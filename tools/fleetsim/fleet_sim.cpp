@@ -161,16 +161,19 @@ std::vector<calib::StationError> fleet_station_errors(const FleetSpec& spec) {
   return errors;
 }
 
-std::string true_cause(const StationSpec& st) {
-  if (st.gravity_error_mps2 != 0) return "gravity_error";
-  if (st.nonorthogonality_rad != 0) return "table_nonorthogonality";
+std::vector<std::string> true_causes(const StationSpec& st) {
+  std::vector<std::string> causes;
+  if (st.gravity_error_mps2 != 0) causes.push_back("gravity_error");
+  if (st.nonorthogonality_rad != 0) causes.push_back("table_nonorthogonality");
   if (st.wobble_rad.squaredNorm() != 0)
-    return std::string("table_wobble_") +
-           (std::abs(st.wobble_rad(0)) >= std::abs(st.wobble_rad(1)) ? "x" : "y");
-  if (st.fixture_rad.squaredNorm() == 0) return "";
-  int axis = 0;
-  st.fixture_rad.cwiseAbs().maxCoeff(&axis);
-  return std::string("fixture_rotation_") + "xyz"[axis];
+    causes.push_back(std::string("table_wobble_") +
+                     (std::abs(st.wobble_rad(0)) >= std::abs(st.wobble_rad(1)) ? "x" : "y"));
+  if (st.fixture_rad.squaredNorm() != 0) {
+    int axis = 0;
+    st.fixture_rad.cwiseAbs().maxCoeff(&axis);
+    causes.push_back(std::string("fixture_rotation_") + "xyz"[axis]);
+  }
+  return causes;
 }
 
 FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& runs,
@@ -185,15 +188,25 @@ FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& ru
     std::size_t s = 0;
     while (spec.stations[s].name != sig.station) ++s;
     const StationSpec& st = spec.stations[s];
-    const std::string truth = true_cause(st);
+    const std::vector<std::string> truth = true_causes(st);
     if (truth.empty()) {
       ++o.sound;
       o.false_alarms += sig.alarm ? 1 : 0;
-    } else {
-      ++o.faulty;
-      if (sig.alarm && sig.alarm->effect == truth) ++o.detected;
-      if (sig.alarm && sig.alarm->effect != truth) ++o.wrong_cause;
+      continue;
     }
+    ++o.faulty;
+    // Detected: every error named and nothing else; a wrong cause: something named that is not.
+    std::vector<std::string> named;
+    for (const calib::StationFit& a : sig.alarms) named.push_back(a.effect);
+    const auto is_true = [&](const std::string& e) {
+      return std::find(truth.begin(), truth.end(), e) != truth.end();
+    };
+    const bool all_named = std::all_of(truth.begin(), truth.end(), [&](const std::string& e) {
+      return std::find(named.begin(), named.end(), e) != named.end();
+    });
+    const bool only_true = std::all_of(named.begin(), named.end(), is_true);
+    if (all_named && only_true) ++o.detected;
+    if (!only_true) ++o.wrong_cause;
   }
   return o;
 }

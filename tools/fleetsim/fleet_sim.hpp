@@ -68,15 +68,15 @@ calib::AinsOptions fleet_ains_options();
 /// The station errors with responses measured on the fleet's sequence.
 std::vector<calib::StationError> fleet_station_errors(const FleetSpec& spec);
 
-/// The station error the spec gave the station (the first of gravity, non-orthogonality, the
-/// wobble's larger axis, the fixture's largest axis), "" for a sound station.
-std::string true_cause(const StationSpec& st);
+/// The station errors the spec gave the station (gravity, non-orthogonality, the wobble's larger
+/// axis, the fixture's largest axis, in that order); empty for a sound station.
+std::vector<std::string> true_causes(const StationSpec& st);
 
 /// What the signatures made of one fleet, station by station.
 struct FleetOutcome {
   calib::FleetSignatures signatures;
-  int faulty = 0, detected = 0;  ///< stations with an error; those flagged with the right cause
-  int wrong_cause = 0;           ///< faulty stations flagged with another cause
+  int faulty = 0, detected = 0;  ///< stations with errors; those with every error named, no other
+  int wrong_cause = 0;           ///< faulty stations with an error named that they do not have
   int sound = 0, false_alarms = 0;
 };
 

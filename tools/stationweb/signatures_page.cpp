@@ -50,9 +50,11 @@ std::string station_row(const nlohmann::json& st, std::size_t candidates) {
 std::string alarm_section(const nlohmann::json& st) {
   std::string s = "<div class='alarm' data-station='" + esc(st["station"].get<std::string>()) +
                   "' data-effect='" + esc(st["alarm"]["effect"].get<std::string>()) + "'><h3>" +
-                  esc(st["station"].get<std::string>()) + "</h3><p>" +
-                  esc(st["alarm"]["cause"].get<std::string>()) + ".</p><p>Runs it touches (" +
-                  std::to_string(st["run_ids"].size()) + "):";
+                  esc(st["station"].get<std::string>()) + "</h3>";
+  for (const auto& alarm : st["alarms"])
+    s += "<p data-cause='" + esc(alarm["effect"].get<std::string>()) + "'>" +
+         esc(alarm["cause"].get<std::string>()) + ".</p>";
+  s += "<p>Runs it touches (" + std::to_string(st["run_ids"].size()) + "):";
   for (const auto& id : st["run_ids"]) s += " " + run_link(id.get<db::RunId>());
   s += "</p>";
   const auto& remedy = st["remedy"];
@@ -106,9 +108,11 @@ std::string signatures_banner(const History& history) {
   int n = 0;
   for (const auto& st : report["stations"])
     if (st.value("flagged", false)) {
+      std::string causes;
+      for (const auto& alarm : st["alarms"])
+        causes += (causes.empty() ? "" : "; ") + alarm["cause"].get<std::string>();
       flagged += "<li data-station='" + esc(st["station"].get<std::string>()) + "'><b>" +
-                 esc(st["station"].get<std::string>()) +
-                 "</b>: " + esc(st["alarm"]["cause"].get<std::string>()) + " (" +
+                 esc(st["station"].get<std::string>()) + "</b>: " + esc(causes) + " (" +
                  std::to_string(st["run_ids"].size()) + " runs)</li>";
       ++n;
     }
