@@ -153,11 +153,11 @@ TEST(StationSignatureSim, EveryFaultyStationIsFlaggedWithItsCauseAndReprocessing
 
   // Reprocessed with the surveyed gravity corrected by the fitted error, every accelerometer
   // scale of the station's units lies within 4σ of its truth; as stored, none did.
-  const std::vector<double> before = reprocess_with_gravity(spec, 3, 0.0);
-  const std::vector<double> after = reprocess_with_gravity(spec, 3, gs.alarm->size_si);
+  const auto before = reprocess_with_gravity(spec, 3, 0.0);
+  const auto after = reprocess_with_gravity(spec, 3, gs.alarm->size_si);
   ASSERT_EQ(after.size(), 36u);
   for (std::size_t i = 0; i < after.size(); ++i) {
-    EXPECT_GT(before[i], 20.0) << "as stored, the scale carries the station's 50 ppm";
-    EXPECT_LT(std::abs(after[i]), 4.0);
+    EXPECT_GT(before[i].z(), 20.0) << "as stored, the scale carries the station's 50 ppm";
+    EXPECT_LT(std::abs(after[i].z()), 4.0);
   }
 }

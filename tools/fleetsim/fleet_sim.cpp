@@ -211,9 +211,9 @@ FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& ru
   return o;
 }
 
-std::vector<double> reprocess_with_gravity(const FleetSpec& spec, std::size_t station,
-                                           double gravity_correction_mps2) {
-  std::vector<double> z(3 * static_cast<std::size_t>(spec.units_per_station));
+std::vector<ReprocessedScale> reprocess_with_gravity(const FleetSpec& spec, std::size_t station,
+                                                     double gravity_correction_mps2) {
+  std::vector<ReprocessedScale> out(3 * static_cast<std::size_t>(spec.units_per_station));
   const sequences::MotionProfile profile = sequences::load_profile(spec.sequence);
   std::atomic<int> next{0};
   auto worker = [&] {
@@ -225,15 +225,15 @@ std::vector<double> reprocess_with_gravity(const FleetSpec& spec, std::size_t st
       const calib::CalibrationResult r = calib::calibrate_ains(in, fleet_ains_options());
       const calib::ParamSet truth = unit_model(spec, station, u).params;
       for (int i = 0; i < 3; ++i)
-        z[3 * static_cast<std::size_t>(u) + static_cast<std::size_t>(i)] =
-            (r.params.accel_M(i, i) - truth.accel_M(i, i)) / r.sigma.accel_M(i, i);
+        out[3 * static_cast<std::size_t>(u) + static_cast<std::size_t>(i)] = {
+            r.params.accel_M(i, i) - truth.accel_M(i, i), r.sigma.accel_M(i, i)};
     }
   };
   std::vector<std::thread> pool;
   for (int t = 1; t < std::max(1, spec.threads); ++t) pool.emplace_back(worker);
   worker();
   for (auto& t : pool) t.join();
-  return z;
+  return out;
 }
 
 std::vector<db::RunId> write_history(const FleetSpec& spec, db::SqliteRepository& repo,

@@ -86,11 +86,16 @@ FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& ru
                           const std::vector<calib::StationError>& errors,
                           const calib::SignatureOptions& options, bool population_only);
 
+/// One reprocessed accelerometer scale: its error against the truth and the AINS σ of the run.
+struct ReprocessedScale {
+  double error = 0.0, sigma = 0.0;
+  double z() const { return error / sigma; }
+};
+
 /// Reprocessing with a corrected setting: the station's own units' runs calibrated again with its
-/// surveyed gravity corrected by `gravity_correction_mps2`; (accelerometer scale - truth) / σ of
-/// every run's three axes.
-std::vector<double> reprocess_with_gravity(const FleetSpec& spec, std::size_t station,
-                                           double gravity_correction_mps2);
+/// surveyed gravity corrected by `gravity_correction_mps2`; every run's three accelerometer scales.
+std::vector<ReprocessedScale> reprocess_with_gravity(const FleetSpec& spec, std::size_t station,
+                                                     double gravity_correction_mps2);
 
 /// The fleet's runs as the stations would have stored them, into one history (`repo`, each run
 /// with its station's name, sequence and a start time within the week from `t0_ms`): every run
