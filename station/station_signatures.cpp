@@ -326,6 +326,12 @@ json station_signature_trend(const db::FleetStats& stats, const db::FleetFilter&
   return trend;
 }
 
+const json* signature_trend_cell(const json& period, const std::string& station) {
+  for (const json& c : period["stations"])
+    if (c["station"] == station) return &c;
+  return nullptr;
+}
+
 std::string render_signature_trend_text(const json& trend) {
   if (trend["stations"].empty()) return "no factory AINS results in this window\n";
   char buf[256];
@@ -348,9 +354,7 @@ std::string render_signature_trend_text(const json& trend) {
     std::snprintf(buf, sizeof buf, "%-16s", name.get<std::string>().c_str());
     out += buf;
     for (const json& p : trend["periods"]) {
-      const json* cell = nullptr;
-      for (const json& c : p["stations"])
-        if (c["station"] == name) cell = &c;
+      const json* cell = signature_trend_cell(p, name.get<std::string>());
       if (!cell || !cell->contains("strongest")) {
         out += "     -  ";
         continue;

@@ -52,6 +52,10 @@ nlohmann::json station_signature_trend(
     const calib::SignatureOptions& options,
     const std::function<void(const std::string&)>& progress = {});
 
+/// The cell of `station` in one period of a trend (nullptr: no runs of it in that period).
+const nlohmann::json* signature_trend_cell(const nlohmann::json& period,
+                                           const std::string& station);
+
 /// The trend as text: each station's strongest |z| per period ('*' flagged, '-' not assessed or no
 /// runs), then each flagged station's causes period by period.
 std::string render_signature_trend_text(const nlohmann::json& trend);

@@ -13,6 +13,7 @@
 
 #include "calib/core/conventions.hpp"
 #include "tests/db/history_fixtures.hpp"
+#include "tests/support/headless_chromium.hpp"
 #include "tests/support/run_command.hpp"
 #include "tests/tools/stationweb_process.hpp"
 #include "tools/fleetsim/fleet_sim.hpp"
@@ -106,23 +107,15 @@ TEST_F(SignatureTrend, TheWebPageDrawsTheSameFlags) {
   EXPECT_EQ(bad->status, 400);
   EXPECT_NE(bad->body.find("period_days"), std::string::npos);
 
-  ASSERT_EQ(run_command("command -v chromium >/dev/null").code, 0)
+  ASSERT_TRUE(test_support::chromium_installed())
       << "chromium is not installed (tools/setup.sh installs it)";
   const std::string url = "http://127.0.0.1:" + std::to_string(web.port()) +
                           "/signatures/trend?since=2026-11-02&until=2026-11-29";
-  const std::string chromium =
-      "timeout 120 chromium --headless --no-sandbox --disable-gpu --hide-scrollbars "
-      "--enable-logging=stderr --v=0 ";
-  const std::string log = dir_->file("chromium.log");
-  const auto dom = run_command(chromium + "--dump-dom '" + url + "' 2>" + log);
-  ASSERT_EQ(dom.code, 0);
-  EXPECT_NE(dom.out.find("id=\"signature-trend\""), std::string::npos);
-  std::ifstream f(log);
-  for (std::string line; std::getline(f, line);)
-    EXPECT_EQ(line.find(":CONSOLE"), std::string::npos) << line;
+  const test_support::RenderedPage shown =
+      test_support::render_in_chromium(url, dir_->file("chromium.log"));
+  ASSERT_EQ(shown.code, 0);
+  EXPECT_NE(shown.dom.find("id=\"signature-trend\""), std::string::npos);
+  for (const std::string& line : shown.console) ADD_FAILURE() << "console: " << line;
   const std::string shot = std::string(IMUCAL_BIN_DIR) + "/../tests/stationweb-signature-trend.png";
-  EXPECT_EQ(run_command(chromium + "--window-size=1200,900 --screenshot=" + shot + " '" + url +
-                        "' 2>/dev/null")
-                .code,
-            0);
+  EXPECT_EQ(test_support::chromium_screenshot(url, shot, 1200, 900), 0);
 }

@@ -5,6 +5,7 @@
 #include <map>
 #include <sstream>
 
+#include "station/station_signatures.hpp"
 #include "tools/imucal/svg_panel.hpp"
 #include "tools/stationweb/html.hpp"
 
@@ -161,13 +162,6 @@ std::string box_plot(const std::vector<db::ParamSummary>& summaries, const calib
 
 namespace {
 
-/// The cell of `station` in one period of a trend, or nullptr.
-const nlohmann::json* trend_cell(const nlohmann::json& period, const std::string& station) {
-  for (const auto& c : period["stations"])
-    if (c["station"] == station) return &c;
-  return nullptr;
-}
-
 std::string period_label(const nlohmann::json& period) {
   return db::format_time_utc(period["since_ms"].get<db::TimestampMs>()).substr(0, 10);
 }
@@ -198,13 +192,14 @@ std::string signature_trend_svg(const nlohmann::json& trend) {
   for (std::size_t k = 0; k < stations.size(); ++k) {
     std::string points;
     for (std::size_t i = 0; i < periods.size(); ++i)
-      if (const auto* c = trend_cell(periods[i], stations[k]); c && c->contains("strongest"))
+      if (const auto* c = station::signature_trend_cell(periods[i], stations[k]);
+          c && c->contains("strongest"))
         points += fmt("%.1f", p.x(i)) + "," +
                   fmt("%.1f", p.y(std::abs((*c)["strongest"]["z"].get<double>()))) + " ";
     os << "<polyline fill='none' stroke='" << station_colour(k) << "' stroke-width='1.5' points='"
        << points << "'/>\n";
     for (std::size_t i = 0; i < periods.size(); ++i) {
-      const auto* c = trend_cell(periods[i], stations[k]);
+      const auto* c = station::signature_trend_cell(periods[i], stations[k]);
       if (!c || !c->contains("strongest")) continue;
       const auto& f = (*c)["strongest"];
       const bool flagged = (*c)["flagged"].get<bool>();

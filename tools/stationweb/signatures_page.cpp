@@ -203,9 +203,7 @@ std::string trend_table(const nlohmann::json& trend) {
     for (const auto& p : trend["periods"]) {
       const std::string period =
           db::format_time_utc(p["since_ms"].get<db::TimestampMs>()).substr(0, 10);
-      const nlohmann::json* cell = nullptr;
-      for (const auto& c : p["stations"])
-        if (c["station"] == name) cell = &c;
+      const nlohmann::json* cell = station::signature_trend_cell(p, name.get<std::string>());
       if (!cell || !cell->contains("strongest")) {
         b += "<td class='num muted'>–</td>";
         continue;
