@@ -23,7 +23,10 @@
 // The test: each station error's size is fitted to the station's departure by generalised least
 // squares against its response (size, σ, z); a station is flagged when the largest |z| reaches the
 // threshold that keeps the false-alarm rate per station and period at `false_alarm` (Bonferroni
-// over the candidates, two-sided). A flagged station may have more than one error (a table out of
+// over the candidates, two-sided). Once no more stations are flagged, the strongest unflagged one
+// is tested again against an Ω estimated without it (two stations with the same error would
+// otherwise pass for the stations' spread and hide each other). A flagged station may have more
+// than one error (a table out of
 // square at a site with a wrong gravity): forward selection — every other candidate is fitted
 // jointly with those already named, and the strongest is named too while its |z| given them
 // reaches the threshold. The responses are known to `response_tolerance` (measured: linear to
@@ -57,7 +60,7 @@ struct SignatureOptions {
   /// Fewest population units for a station's population evidence (fewer: only its repeat units).
   int min_units = 3;
   /// Passes of "flag, leave the flagged out of the references, refit" at most.
-  int max_passes = 4;
+  int max_passes = 8;
   /// Relative accuracy of the responses (model error of a named station error, see above).
   double response_tolerance = 0.02;
   /// Station errors named on one station at most.

@@ -172,6 +172,31 @@ TEST(StationSignature, TwoErrorsAtOneStationAreBothNamedWithTheirSizes) {
   }
 }
 
+TEST(StationSignature, TwoStationsWithTheSameErrorDoNotPassForTheStationsSpread) {
+  // Two of ten stations with a 50 µg gravity error (one site's stations sharing a wrong survey):
+  // by moments over all ten their departures make a spread of the scales large enough to hide
+  // both (the deleted-station test finds them; without it, seed 41 already missed one).
+  FleetSpec spec;
+  spec.gravity_error_mps2 = 50.0 * kMicroG_mps2;
+  spec.gravity_at_nonorth_station_mps2 = 50.0 * kMicroG_mps2;
+  for (std::uint64_t seed : {41u, 42u, 43u, 44u, 45u}) {
+    const FleetSignatures fs = station_signatures(synthetic_fleet(spec, seed), errors());
+    for (std::size_t s = 0; s < fs.stations.size(); ++s) {
+      const StationSignature& sig = fs.stations[s];
+      SCOPED_TRACE(sig.station + " seed " + std::to_string(seed));
+      if (s == kGravityStation || s == kNonorthStation) {
+        ASSERT_EQ(sig.alarms.size(), 1u);
+        EXPECT_EQ(sig.alarms[0].effect, "gravity_error");
+        EXPECT_LT(std::abs(sig.alarms[0].size_si - spec.gravity_error_mps2),
+                  4 * sig.alarms[0].sigma_si);
+      } else {
+        EXPECT_FALSE(sig.alarm) << sig.alarm->effect;
+      }
+    }
+    EXPECT_LT(fs.station_spread_sd(3), 2e-6) << "no station spread in a scale";
+  }
+}
+
 TEST(StationSignature, ALargeErrorWhoseResponseIsOffByItsToleranceNamesNoSecondCause) {
   // 300″ of non-orthogonality and 2 mg of gravity error, seen by the golden unit at z ~ 10³, with
   // responses whose terms are 1.5 % off the model's: what the named error leaves is the responses'
