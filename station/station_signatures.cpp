@@ -110,7 +110,8 @@ json remedy(const std::vector<calib::StationFit>& alarms, const std::string& sta
                 gravity->size_si / kMicroG_mps2);
   std::string text = "once the site's gravity is re-surveyed (the fleet puts it " +
                      std::string(fit) + " from the configured value), reprocess the runs at " +
-                     station + " with G the new survey, and promote the new results: " + command;
+                     station + " with G the new survey, and promote the new results: " + command +
+                     " (earlier periods' runs too, if it was wrong then: --trend shows since when)";
   if (alarms.size() > 1) text += "; for the other fault, " + recalibrate;
   return {{"reprocess", true}, {"command", command}, {"text", text}};
 }

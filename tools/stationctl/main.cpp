@@ -841,7 +841,7 @@ std::string reprocess_command(const std::vector<db::RunId>& rest, const Args& a)
   if (a.partial) cmd += " --partial";
   if (a.gravity_mps2) {
     char g[32];
-    std::snprintf(g, sizeof g, "%.7g", *a.gravity_mps2);
+    std::snprintf(g, sizeof g, "%.10g", *a.gravity_mps2);
     cmd += std::string(" --gravity-mps2 ") + g;
   }
   return cmd;
