@@ -116,6 +116,14 @@ void add(Evidence& e, const ParamVector& d, const ParamCovariance& V) {
 
 ParamCovariance diag(const ParamVector& v) { return ParamCovariance(v.asDiagonal()); }
 
+/// Adds N(d, diag var) to the evidence: a repeat unit's (thousands per period in a large fleet:
+/// no 27×27 factorisation for a diagonal).
+void add_diagonal(Evidence& e, const ParamVector& d, const ParamVector& var) {
+  const ParamVector w = var.cwiseInverse();
+  e.info.diagonal() += w;
+  e.info_d += w.cwiseProduct(d);
+}
+
 Evidence departure_evidence(const Arranged& a, const Population& p, std::size_t s,
                             const std::vector<bool>& reference, const ParamVector& omega,
                             const SignatureOptions& opt) {
@@ -144,7 +152,7 @@ Evidence departure_evidence(const Arranged& a, const Population& p, std::size_t 
       if (k != s && reference[k]) elsewhere += at.mean, var += at.var, ++m;
     if (m == 0) continue;
     const ParamVector d = here->second.mean - elsewhere / m;
-    add(e, d, diag(here->second.var + var / (static_cast<double>(m) * m) + omega / m));
+    add_diagonal(e, d, here->second.var + var / (static_cast<double>(m) * m) + omega / m);
     ++e.repeat_units;
   }
   return e;
