@@ -359,7 +359,11 @@ FleetSignatures station_signatures(const std::vector<SignatureRun>& runs,
         without[*top] = false;
         const ParamVector omega_without = spread_of(without);
         const Evidence e = departure_evidence(a, p, *top, without, omega_without, opt);
-        next[*top] = !assess(a, *top, e, omega_without, errors, out.z_threshold, opt).alarm;
+        StationSignature deleted = assess(a, *top, e, omega_without, errors, out.z_threshold, opt);
+        if (deleted.alarm) {
+          next[*top] = false;
+          out.stations[*top] = std::move(deleted);  // shown even if no pass is left
+        }
       }
       if (next == sound) break;
     }
