@@ -14,6 +14,7 @@
 #include "calib/core/conventions.hpp"
 #include "tests/db/history_fixtures.hpp"
 #include "tests/support/headless_chromium.hpp"
+#include "tests/support/html_tags.hpp"
 #include "tests/support/run_command.hpp"
 #include "tests/tools/stationweb_process.hpp"
 #include "tools/fleetsim/fleet_sim.hpp"
@@ -94,10 +95,9 @@ TEST_F(SignatureTrend, TheWebPageDrawsTheSameFlags) {
   ASSERT_TRUE(r);
   ASSERT_EQ(r->status, 200) << r->body;
   EXPECT_NE(r->body.find("<svg id='signature-trend'"), std::string::npos);
-  std::size_t flagged = 0;
-  for (std::size_t at = 0; (at = r->body.find("class='pt flagged'", at)) != std::string::npos; ++at)
-    ++flagged;
-  EXPECT_EQ(flagged, 3u) << "st-02 in weeks 2-4";
+  const auto flagged = test_support::tags(r->body, "<circle class='pt flagged'");
+  ASSERT_EQ(flagged.size(), 3u) << "st-02 in weeks 2-4";
+  for (const auto& point : flagged) EXPECT_EQ(point["data-station"], "st-02");
   EXPECT_NE(r->body.find("data-station='st-02' data-period='2026-11-09' data-flagged='1'"),
             std::string::npos);
   EXPECT_EQ(r->body.find("data-station='st-02' data-period='2026-11-02' data-flagged='1'"),

@@ -20,6 +20,7 @@
 #include "db/fleet/fleet_writer.hpp"
 #include "tests/db/history_fixtures.hpp"
 #include "tests/support/headless_chromium.hpp"
+#include "tests/support/html_tags.hpp"
 #include "tests/support/pg_cluster.hpp"
 #include "tests/support/run_command.hpp"
 #include "tests/tools/stationweb_process.hpp"
@@ -176,8 +177,8 @@ TEST_F(SignaturesCli, TheWebViewFlagsTheSameStationsWithTheirCauseAndRendersClea
               std::string::npos)
         << st;
   std::size_t flagged = 0;
-  for (std::size_t at = 0; (at = r->body.find("data-flagged='1'", at)) != std::string::npos; ++at)
-    ++flagged;
+  for (const auto& row : test_support::tags(r->body, "<tr data-station="))
+    flagged += row["data-flagged"] == "1" ? 1 : 0;
   EXPECT_EQ(flagged, 3u);
   EXPECT_NE(r->body.find("stationctl reprocess 15 16 17 18 19 20 21 --gravity-mps2 G"),
             std::string::npos);
