@@ -793,6 +793,16 @@ SqliteRepository::SqliteRepository(const std::string& path, const SqliteOptions&
     // file is left exactly as it was.
     schema::migrate(d.db, path);
     schema::exec(d.db, "PRAGMA journal_mode = WAL", path, "open: journal_mode=WAL");
+    // Keep the -wal and -shm files when the last connection closes: a reader that may not create
+    // files beside the database (QA and operators reading the daemon's data directory while it is
+    // stopped) can open a WAL database read-only only where they exist ("attempt to write a
+    // readonly database" otherwise; SQLite's wal.html, "Read-Only Databases").
+    // With a journal size limit, the last close truncates the checkpointed -wal to zero bytes, so
+    // no stale frame is left beside the file (a restored backup, a copied history); while running,
+    // a reset -wal is cut back to 4 MiB.
+    int persist_wal = 1;
+    sqlite3_file_control(d.db, "main", SQLITE_FCNTL_PERSIST_WAL, &persist_wal);
+    schema::exec(d.db, "PRAGMA journal_size_limit = 4194304", path, "open: journal_size_limit");
   } else {
     schema::exec(d.db, "PRAGMA synchronous = FULL", path, "open: synchronous=FULL");
     schema::check_version_readable(d.db, path);

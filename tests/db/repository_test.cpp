@@ -5,12 +5,18 @@
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
+#include <functional>
 #include <thread>
 
 #include "db/serial_number.hpp"
+#include "db/sqlite_fleet_stats.hpp"
 #include "db/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 
@@ -531,6 +537,76 @@ TEST(Repository, ReadOnlyOpenWithTheDaemonDownAndOfAMissingFile) {
   SqliteOptions no_create;
   no_create.create = false;
   EXPECT_THROW(SqliteRepository r(missing, no_create), NotFound);
+}
+
+/// Runs `read` as an account that cannot write `dir`, as QA and operators read the daemon's
+/// /var/lib/imucal (0755, the daemon's account): as root in a child process switched to nobody,
+/// otherwise here with the directory made read-only. Returns what `read` returned, or "error: "
+/// and the exception's message.
+std::string read_without_write_access(const std::string& dir,
+                                      const std::function<std::string()>& read) {
+  const auto guarded = [&read]() -> std::string {
+    try {
+      return read();
+    } catch (const std::exception& e) {
+      return std::string("error: ") + e.what();
+    }
+  };
+  if (::geteuid() != 0) {
+    ::chmod(dir.c_str(), 0555);
+    const std::string out = guarded();
+    ::chmod(dir.c_str(), 0755);
+    return out;
+  }
+  ::chmod(dir.c_str(), 0755);  // mkdtemp's 0700 would keep nobody out altogether
+  int fds[2];
+  if (::pipe(fds) != 0) return "error: pipe";
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::close(fds[0]);
+    std::string out = "error: cannot become nobody";
+    if (::setgid(65534) == 0 && ::setuid(65534) == 0) out = guarded();
+    const ssize_t written = ::write(fds[1], out.data(), out.size());
+    ::_exit(written == static_cast<ssize_t>(out.size()) ? 0 : 1);
+  }
+  ::close(fds[1]);
+  std::string out;
+  char buf[512];
+  for (ssize_t n; (n = ::read(fds[0], buf, sizeof buf)) > 0;)
+    out.append(buf, static_cast<size_t>(n));
+  ::close(fds[0]);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return out;
+}
+
+// The daemon stopped, its history read by an account that may not create files beside it (QA's
+// stationweb, an operator's `stationctl history` falling back to the file): a WAL database can be
+// read so only where its -wal and -shm files exist, so the writer keeps them when it closes. Before
+// it did, every such read failed "attempt to write a readonly database".
+TEST(Repository, ReadOnlyOpenWithTheDaemonDownByAnAccountThatCannotWriteTheDirectory) {
+  TempDir dir;
+  const std::string path = dir.file("history.sqlite");
+  {
+    SqliteRepository writer(path);
+    writer.create_run(test::new_run("SIM-QA", kT0));
+  }
+  EXPECT_TRUE(std::filesystem::exists(path + "-shm")) << "the writer removed its -shm on close";
+  ASSERT_TRUE(std::filesystem::exists(path + "-wal")) << "the writer removed its -wal on close";
+  EXPECT_EQ(std::filesystem::file_size(path + "-wal"), 0u) << "frames left beside the closed file";
+  const std::string out = read_without_write_access(dir.path(), [&] {
+    SqliteOptions ro;
+    ro.read_only = true;
+    SqliteRepository reader(path, ro);
+    SqliteFleetStats stats(path);
+    return std::to_string(reader.history("SIM-QA").size()) + " run, " +
+           std::to_string(stats.verdict_counts_per_station(FleetFilter{}).size()) + " station";
+  });
+  EXPECT_EQ(out, "1 run, 1 station");
+  // The writer opens the file again as before (the kept files are its own WAL).
+  SqliteRepository writer(path);
+  EXPECT_EQ(writer.history("SIM-QA").size(), 1u);
+  EXPECT_EQ(writer.integrity_check(), "ok");
 }
 
 TEST(Repository, TransactionGroupsWritesAndRollsBackOnException) {
