@@ -2,7 +2,8 @@
 // error, its contents and conffiles are where the issue and Debian say, and a simulated unit runs
 // through a station made of the installed files only: stationsim, stationd and stationctl from the
 // package's /usr/bin, the sequence from its /usr/share/imucal/sequences (IMUCAL_SEQUENCE_DIR unset,
-// so the source tree compiled in is not consulted). Where the test runs as root and the package is
+// so the source tree compiled in is not consulted), and the installed stationweb serves that run's
+// page from the station's history. Where the test runs as root and the package is
 // not installed yet, it is installed for real (`apt-get install ./imucal_….deb`: the account, the
 // operators' group and /var/lib/imucal from the maintainer scripts) and purged afterwards;
 // otherwise it is unpacked into a temporary root.
@@ -20,6 +21,8 @@
 
 #include "tests/e2e/station_harness.hpp"
 #include "tests/support/run_command.hpp"
+#include "tests/tools/stationweb_process.hpp"
+#include "tools/stationweb/httplib.hpp"
 
 namespace {
 
@@ -34,7 +37,9 @@ using imucal::test_support::run_command;
 
 const std::string kVersion = IMUCAL_VERSION;
 const std::string kDeb = "imucal_" + kVersion + "_amd64.deb";
-const std::vector<std::string> kPrograms = {"imucal", "stationd", "stationctl", "stationsim"};
+const std::vector<std::string> kPrograms = {"imucal", "stationd", "stationctl", "stationsim",
+                                            "stationweb"};
+const std::vector<std::string> kUnits = {"stationd.service", "stationweb.service"};
 
 std::string quote(const std::string& s) { return "'" + s + "'"; }
 
@@ -92,8 +97,8 @@ TEST_F(DebianPackage, IsLintianCleanAndHoldsEverythingWhereDebianWantsIt) {
         "./usr/share/imucal/sequences/factory-fast.toml", "./usr/share/imucal/units/default.toml",
         "./usr/share/imucal/imu.dbc", "./usr/share/imucal/protocols/imucal-imu-1.toml",
         "./usr/share/imucal/stationd.example.toml", "./etc/imucal/stationd.toml",
-        "./lib/systemd/system/stationd.service", "./usr/share/doc/imucal/copyright",
-        "./usr/share/doc/imucal/changelog.gz"})
+        "./lib/systemd/system/stationd.service", "./lib/systemd/system/stationweb.service",
+        "./usr/share/doc/imucal/copyright", "./usr/share/doc/imucal/changelog.gz"})
     EXPECT_NE(list.find(std::string(f) + "\n"), std::string::npos) << f << "\n" << list;
   // No test program and nothing from the build tree.
   EXPECT_EQ(list.find("_test"), std::string::npos) << list;
@@ -105,6 +110,7 @@ TEST_F(DebianPackage, IsLintianCleanAndHoldsEverythingWhereDebianWantsIt) {
   EXPECT_NE(control.out.find("Version: " + kVersion), std::string::npos) << control.out;
   EXPECT_NE(control.out.find("adduser"), std::string::npos) << control.out;     // postinst needs it
   EXPECT_NE(control.out.find("libmodbus5"), std::string::npos) << control.out;  // dpkg-shlibdeps
+  EXPECT_NE(control.out.find("libcpp-httplib"), std::string::npos) << control.out;  // stationweb
 
   // Man pages: name, the --help text, exit status, version.
   const imucal::e2e::TempDir tmp;
@@ -117,11 +123,51 @@ TEST_F(DebianPackage, IsLintianCleanAndHoldsEverythingWhereDebianWantsIt) {
     EXPECT_NE(page.out.find(".SH OPTIONS"), std::string::npos) << p << ": the --help text";
     EXPECT_NE(page.out.find(kVersion), std::string::npos) << p;
   }
-  // The unit runs the installed daemon on the packaged config.
+  // The units run the installed programs: the daemon on the packaged config, the web view on the
+  // history the daemon writes there (station/config.cpp: <data_dir>/history.sqlite), on loopback.
   const std::string text = imucal::e2e::read_text(tmp / "lib/systemd/system/stationd.service");
   EXPECT_NE(text.find("ExecStart=/usr/bin/stationd --config /etc/imucal/stationd.toml"),
             std::string::npos)
       << text;
+  const std::string web = imucal::e2e::read_text(tmp / "lib/systemd/system/stationweb.service");
+  EXPECT_NE(web.find("ExecStart=/usr/bin/stationweb --db /var/lib/imucal/history.sqlite "
+                     "--listen 127.0.0.1:8090\n"),
+            std::string::npos)
+      << web;
+  const std::string config = imucal::e2e::read_text(tmp / "etc/imucal/stationd.toml");
+  EXPECT_NE(config.find("data_dir = \"/var/lib/imucal\""), std::string::npos) << config;
+  EXPECT_NE(web.find("User=imucal\n"), std::string::npos) << web;
+}
+
+/// systemd's own check of a unit file: no error and nothing to remark (an unknown key or section,
+/// a bad value, an ExecStart that is not an absolute path to an executable).
+void expect_unit_verifies(const std::string& unit) {
+  const auto r = run_command("systemd-analyze verify --man=no " + unit + " 2>&1");
+  EXPECT_EQ(r.code, 0) << unit << ":\n" << r.out;
+  EXPECT_EQ(r.out, "") << unit;
+}
+
+/// The installed stationweb, as QA's view of the station's history: the index lists the run and
+/// its page shows it (serial, verdict) as stationctl does.
+void expect_web_view_serves(const std::string& bin, const Station& st, const std::string& run_id) {
+  std::unique_ptr<imucal::test_support::StationwebProcess> web;
+  try {
+    web = std::make_unique<imucal::test_support::StationwebProcess>(
+        bin + "/stationweb", st.db_path(), st.db_path() + ".stationweb.log");
+  } catch (const std::exception& e) {
+    FAIL() << e.what() << "\n" << imucal::e2e::read_text(st.db_path() + ".stationweb.log");
+  }
+  httplib::Client client("127.0.0.1", web->port());
+  const auto index = client.Get("/");
+  ASSERT_TRUE(index) << "no answer from the installed stationweb";
+  EXPECT_EQ(index->status, 200);
+  EXPECT_NE(index->body.find("PKG-0001"), std::string::npos) << index->body;
+  const auto page = client.Get("/run/" + run_id);
+  ASSERT_TRUE(page);
+  EXPECT_EQ(page->status, 200) << page->body;
+  EXPECT_NE(page->body.find("PKG-0001"), std::string::npos) << page->body;
+  EXPECT_NE(page->body.find("PASS"), std::string::npos) << page->body;
+  EXPECT_EQ(web->stop(), 0) << "stationweb did not stop cleanly on SIGTERM";
 }
 
 /// The root the package's files are in: "/" after a real install, else a temporary unpack.
@@ -192,7 +238,11 @@ TEST_F(DebianPackage, InstallsAndRunsASimulatedUnitFromTheInstalledFilesOnly) {
     const auto history = st.ctl({"--json", "history", "PKG-0001"});
     EXPECT_EQ(history.exit_code, 0) << history.describe();
     EXPECT_NE(history.out.find("\"done\""), std::string::npos) << history.describe();
+    const long long run_id = imucal::e2e::newest_run(st, "PKG-0001").value("run_id", -1LL);
+    expect_web_view_serves(bin, st, std::to_string(run_id));
   }
+  if (where.system)  // the programs the units start exist only after a real install
+    for (const auto& unit : kUnits) expect_unit_verifies("/lib/systemd/system/" + unit);
 
   if (where.system) {  // leave the machine as it was (records and account stay on purge by design)
     const auto purge = run_command("apt-get purge -y -qq imucal 2>&1 </dev/null");
