@@ -76,6 +76,7 @@ struct FleetSender::Impl {
     set_length(repo.outbox_length());
     if (batch.empty()) {
       ensure_connected();  // an idle station still shows whether its store is reachable
+      probe_if_due();
       return false;
     }
     ensure_connected();
@@ -107,6 +108,15 @@ struct FleetSender::Impl {
     conn = std::move(c);
     set_connected(true);
     spdlog::info("fleet store {}: connected as station {}", st.url, config.station_id);
+  }
+
+  /// An idle connection is asked now and then whether the store still answers (a failure
+  /// throws, and the loop records it: "connected" false, the error, the back-off).
+  void probe_if_due() {
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_probe < options.idle_probe) return;
+    last_probe = now;
+    conn->exec_plain("SELECT 1", "idle probe");
   }
 
   void record_error(const std::string& what) {
@@ -141,6 +151,7 @@ struct FleetSender::Impl {
   FleetSenderOptions options;
   db::SqliteRepository repo;
   std::unique_ptr<db::fleet::PgConnection> conn;
+  std::chrono::steady_clock::time_point last_probe = std::chrono::steady_clock::now();
   mutable std::mutex mu;
   std::condition_variable cv;
   bool stopping = false;

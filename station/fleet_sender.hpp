@@ -32,6 +32,10 @@ namespace imucal::station {
 
 struct FleetSenderOptions {
   std::chrono::milliseconds idle_poll{500};  ///< how often an empty outbox is looked at again
+  /// How often an idle sender asks the store whether it is still there (`SELECT 1`): libpq learns
+  /// of a server that went away only when it next talks to it, so without it an idle station went
+  /// on showing "connected" to a store that was down.
+  std::chrono::milliseconds idle_probe{5000};
   std::chrono::milliseconds min_backoff{250};
   std::chrono::milliseconds max_backoff{5000};
 };

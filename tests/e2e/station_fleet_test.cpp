@@ -72,8 +72,13 @@ TEST(StationFleet, RunsReplicateAndTheLineGoesOnWhileTheServerIsDown) {
   EXPECT_EQ(h.json_out()["runs"][0]["verdict"], "PASS");
   EXPECT_EQ(h.json_out()["runs"][0]["station"], "e2e-station");
 
-  // The server goes away: the next run still ends PASS, and its changes wait in the outbox.
+  // The server goes away while the station is idle: its status says so without a run to send
+  // (the sender's idle probe; before it, "connected" stayed true until the next run's changes).
   pg.kill9();
+  const json idle_down = wait_fleet(st, [](const json& f) { return f["connected"] == false; });
+  EXPECT_EQ(idle_down["outbox_length"], 0) << idle_down.dump();
+  EXPECT_TRUE(idle_down["last_error"].is_string()) << idle_down.dump();
+  // The next run still ends PASS, and its changes wait in the outbox.
   ASSERT_EQ(run_unit(st, "FLT-2").exit_code, 0) << st.daemon_log();
   const json down = wait_fleet(st, [](const json& f) {
     return f["outbox_length"].get<int>() > 0 && f["last_error"].is_string();
