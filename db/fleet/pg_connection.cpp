@@ -56,30 +56,32 @@ std::optional<std::int64_t> PgResult::opt_i64(int row, int col) const {
 
 PgConnection::PgConnection(const FleetTarget& target, const std::string& server_options)
     : target_(target) {
-  // The URL as libpq's dbname (expanded), the password as its own keyword: it never has to be
-  // written into a URL, and libpq's other sources (PGPASSWORD, ~/.pgpass) still apply when empty.
+  // Defaults first, then the URL as libpq's dbname (expanded): libpq lets a keyword override
+  // those before it, so the URL's own parameters (?connect_timeout=…, ?application_name=…) win.
   // A network that silently drops packets (no reset) must end a statement too, or the sender
-  // would wait on it forever: TCP keepalives and a 30 s limit on unacknowledged data.
-  const char* keys[] = {"dbname",
-                        "password",
-                        "connect_timeout",
+  // would wait on it forever: TCP keepalives and a 30 s limit on unacknowledged data. The password
+  // as its own keyword after the URL: it never has to be written into one, and libpq's other
+  // sources (PGPASSWORD, ~/.pgpass) still apply when it is empty.
+  const char* keys[] = {"connect_timeout",
                         "application_name",
                         "keepalives",
                         "keepalives_idle",
                         "keepalives_interval",
                         "keepalives_count",
                         "tcp_user_timeout",
+                        "dbname",
+                        "password",
                         server_options.empty() ? nullptr : "options",
                         nullptr};
-  const char* values[] = {target.url.c_str(),
-                          target.password.empty() ? nullptr : target.password.c_str(),
-                          "5",
+  const char* values[] = {"5",
                           "imucal",
                           "1",
                           "10",
                           "5",
                           "3",
                           "30000",
+                          target.url.c_str(),
+                          target.password.empty() ? nullptr : target.password.c_str(),
                           server_options.c_str(),
                           nullptr};
   conn_ = PQconnectdbParams(keys, values, /*expand_dbname=*/1);

@@ -173,6 +173,21 @@ TEST(FleetStore, TheReaderRoleCannotWriteAndFiltersAreBoundValues) {
   EXPECT_EQ(fleet.total_run_count(), all_runs(s).size()) << "nothing dropped";
 }
 
+// A site's own connection parameters in the URL (?application_name=…, ?connect_timeout=…) win over
+// the connection's defaults; without them the defaults hold. Before, the defaults were given after
+// the URL and libpq let them override it.
+TEST(FleetStore, TheUrlsOwnParametersWinOverTheConnectionsDefaults) {
+  PgCluster pg;
+  auto setting = [](PgConnection& c, const std::string& name) {
+    return c.exec("SELECT current_setting($1)", {name}, "setting").text(0, 0);
+  };
+  PgConnection plain(writer(pg));
+  EXPECT_EQ(setting(plain, "application_name"), "imucal");
+  PgConnection named(parse_fleet_target(pg.url("fleet_writer") + "?application_name=qa-line-3",
+                                        PgCluster::kWriterPassword));
+  EXPECT_EQ(setting(named, "application_name"), "qa-line-3");
+}
+
 TEST(FleetStore, BadTargetsAreClearErrorsThatNeverShowThePassword) {
   PgCluster pg;
   EXPECT_THROW(parse_fleet_target("postgresql://u@h:notaport/db"), InvalidInput);
