@@ -37,6 +37,10 @@ db::fleet::FleetTarget fleet_target(const FleetConfig& config) {
 struct FleetSender::Impl {
   Impl(const std::string& path, const FleetConfig& c, FleetSenderOptions o)
       : config(c), options(o), repo(path) {
+    if (!config.password_file.empty()) {
+      const std::string exposed = db::fleet::password_file_exposure(config.password_file);
+      if (!exposed.empty()) spdlog::warn("{}", exposed);
+    }
     repo.set_outbox_enabled(true);
     st.url = db::fleet::parse_fleet_target(c.url).redacted();
     st.station_id = c.station_id;

@@ -1,7 +1,9 @@
 #include "db/fleet/fleet_url.hpp"
 
 #include <libpq-fe.h>
+#include <sys/stat.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 
@@ -89,6 +91,16 @@ std::string read_password_file(const std::string& path) {
   if (!line.empty() && line.back() == '\r') line.pop_back();
   if (line.empty()) throw InvalidInput("fleet password_file " + path + ": the first line is empty");
   return line;
+}
+
+std::string password_file_exposure(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0 || (st.st_mode & 077) == 0) return "";
+  char mode[8];
+  std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
+  return "fleet password_file " + path + ": mode " + mode +
+         " lets its group or others read the password; only its owner should (chmod 600 " + path +
+         ")";
 }
 
 std::string read_password_env(const std::string& variable) {

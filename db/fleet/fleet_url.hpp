@@ -28,4 +28,10 @@ FleetTarget parse_fleet_target(const std::string& url, const std::string& passwo
 std::string read_password_file(const std::string& path);
 std::string read_password_env(const std::string& variable);
 
+/// "" if only its owner may read or write the password file, else a warning naming the file, its
+/// mode and the remedy (chmod 600): group or others could read the fleet store's password (libpq
+/// ignores a ~/.pgpass so exposed). Also "" for a file that cannot be examined (reading it
+/// reports).
+std::string password_file_exposure(const std::string& path);
+
 }  // namespace imucal::db::fleet

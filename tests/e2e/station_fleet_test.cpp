@@ -56,6 +56,23 @@ TEST(StationFleet, RunsReplicateAndTheLineGoesOnWhileTheServerIsDown) {
                   st.dir().path(), 30s);
   EXPECT_EQ(check.exit_code, 0) << check.out << check.err;
   EXPECT_NE(check.out.find("schema none yet"), std::string::npos) << check.out;
+  // A password file others may read is named with its mode and the remedy (a warning: the check
+  // still passes); once only its owner may, nothing is said.
+  fs::permissions(pw_file, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+  const CmdResult exposed =
+      run_command({st.program("stationd"), "--config", st.config_path(), "--check-config"},
+                  st.dir().path(), 30s);
+  EXPECT_EQ(exposed.exit_code, 0) << exposed.err;
+  EXPECT_NE(exposed.err.find("warning: fleet password_file " + pw_file + ": mode 0640"),
+            std::string::npos)
+      << exposed.err;
+  EXPECT_NE(exposed.err.find("(chmod 600 " + pw_file + ")"), std::string::npos) << exposed.err;
+  EXPECT_EQ(exposed.err.find(PgCluster::kWriterPassword), std::string::npos) << exposed.err;
+  fs::permissions(pw_file, fs::perms::owner_read | fs::perms::owner_write);
+  const CmdResult owner_only =
+      run_command({st.program("stationd"), "--config", st.config_path(), "--check-config"},
+                  st.dir().path(), 30s);
+  EXPECT_EQ(owner_only.err.find("password_file"), std::string::npos) << owner_only.err;
   ASSERT_TRUE(st.start_daemon());
 
   ASSERT_EQ(run_unit(st, "FLT-1").exit_code, 0);

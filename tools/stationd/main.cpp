@@ -27,6 +27,10 @@ namespace {
 /// for the fleet store); this is the check before deployment. 0 ok, 1 not.
 int check_fleet(const imucal::station::FleetConfig& fleet) {
   namespace fl = imucal::db::fleet;
+  if (!fleet.password_file.empty()) {
+    const std::string exposed = fl::password_file_exposure(fleet.password_file);
+    if (!exposed.empty()) std::cerr << "warning: " << exposed << "\n";
+  }
   try {
     const fl::FleetTarget target = imucal::station::fleet_target(fleet);
     fl::PgConnection c(target);
