@@ -7,12 +7,17 @@
 //   fleet_writer  owns the database `fleet` (the stations' senders: create the schema, write)
 //   fleet_reader  pg_read_all_data only (stationctl --fleet, stationweb): no write grant at all
 // kill9() and start() let a test kill the server the hard way and bring it back.
+// A test process that dies without its destructor (ctest's timeout kills it with SIGKILL) leaves no
+// server behind: a watchdog process of its own session waits on a pipe from the test and, when the
+// pipe closes unannounced, stops the server and removes its directory.
+#include <errno.h>
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <pwd.h>
 #include <signal.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -62,6 +67,7 @@ class PgCluster {
         if (::chown(d.c_str(), pw->pw_uid, pw->pw_gid) != 0)
           throw std::runtime_error("chown " + d + " failed");
     }
+    start_watchdog();
     must(as_user_ + bin_ + "/initdb -D " + data_dir() +
              " -U imucal_admin -A trust -E UTF8 --no-sync -N >/dev/null 2>&1",
          "initdb");
@@ -77,11 +83,14 @@ class PgCluster {
   ~PgCluster() {
     run_command(as_user_ + bin_ + "/pg_ctl -D " + data_dir() +
                 " -m immediate stop >/dev/null 2>&1");
+    stop_watchdog();
   }
   PgCluster(const PgCluster&) = delete;
   PgCluster& operator=(const PgCluster&) = delete;
 
   int port() const { return port_; }
+  /// The cluster's directory (data, socket, log): removed with it.
+  const std::string& directory() const { return dir_.path(); }
   /// postgresql://ROLE@127.0.0.1:PORT/fleet (the password comes separately).
   std::string url(const std::string& role) const {
     return "postgresql://" + role + "@127.0.0.1:" + std::to_string(port_) + "/fleet";
@@ -145,6 +154,46 @@ class PgCluster {
     const CommandResult r = run_command(cmd);
     if (r.code != 0) throw std::runtime_error(std::string(what) + " failed: " + r.out);
   }
+  /// Forks the watchdog: its own session (a kill of the test's process group spares it), every
+  /// descriptor but the pipe's read end closed; one byte from the pipe: the test ended normally,
+  /// exit; end of file: the test died, stop the server and remove the directory.
+  void start_watchdog() {
+    int fds[2];
+    if (::pipe2(fds, O_CLOEXEC) != 0) throw std::runtime_error("pipe failed");
+    const std::string cleanup = as_user_ + bin_ + "/pg_ctl -D " + data_dir() +
+                                " -m immediate stop >/dev/null 2>&1; rm -rf '" + dir_.path() + "'";
+    const pid_t pid = ::fork();
+    if (pid < 0) throw std::runtime_error("fork failed");
+    if (pid == 0) {  // only async-signal-safe calls from here
+      ::setsid();
+      for (int fd = 3; fd < 1024; ++fd)
+        if (fd != fds[0]) ::close(fd);
+      char byte = 0;
+      ssize_t n = 0;
+      do n = ::read(fds[0], &byte, 1);
+      while (n < 0 && errno == EINTR);
+      if (n == 1) ::_exit(0);
+      ::execl("/bin/sh", "sh", "-c", cleanup.c_str(), static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    ::close(fds[0]);
+    watchdog_fd_ = fds[1];
+    watchdog_pid_ = pid;
+  }
+  void stop_watchdog() {
+    if (watchdog_pid_ <= 0) return;
+    // A watchdog already gone (killed) must not turn the write into a SIGPIPE.
+    if (::waitpid(watchdog_pid_, nullptr, WNOHANG) == 0) {
+      const char byte = 'q';
+      if (::write(watchdog_fd_, &byte, 1) != 1) {
+        // Nothing to do: without the byte the watchdog cleans up what is already stopped.
+      }
+      ::waitpid(watchdog_pid_, nullptr, 0);
+    }
+    ::close(watchdog_fd_);
+    watchdog_pid_ = -1;
+  }
+
   std::string data_dir() const { return dir_.sub("data"); }
   std::string socket_dir() const { return dir_.sub("sock"); }
 
@@ -152,6 +201,8 @@ class PgCluster {
   std::string bin_;
   std::string as_user_;
   int port_ = 0;
+  int watchdog_fd_ = -1;
+  pid_t watchdog_pid_ = -1;
 };
 
 }  // namespace imucal::test_support

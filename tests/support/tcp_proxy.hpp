@@ -140,9 +140,11 @@ class TcpProxy {
     ::close(b);
   }
 
+  /// MSG_NOSIGNAL: a peer gone (the server killed, a client closed) is a failed send, not a SIGPIPE
+  /// that ends the test process (seen once idle senders began probing through the proxy).
   static bool write_all(int fd, const char* p, std::size_t n) {
     while (n > 0) {
-      const ssize_t w = ::write(fd, p, n);
+      const ssize_t w = ::send(fd, p, n, MSG_NOSIGNAL);
       if (w <= 0) return false;
       p += w;
       n -= static_cast<std::size_t>(w);
