@@ -38,12 +38,6 @@ double pearson(const std::vector<double>& x, const std::vector<double>& y) {
   return sxx > 0.0 && syy > 0.0 ? sxy / std::sqrt(sxx * syy) : 0.0;
 }
 
-std::vector<double> column(const std::vector<PaperRow>& rows, size_t c, size_t m) {
-  std::vector<double> out;
-  for (const PaperRow& r : rows) out.push_back(r[c][m]);
-  return out;
-}
-
 double coefficient_of_variation(const std::vector<double>& v) {
   const double n = static_cast<double>(v.size());
   const double mean = std::accumulate(v.begin(), v.end(), 0.0) / n;
@@ -53,6 +47,13 @@ double coefficient_of_variation(const std::vector<double>& v) {
 }
 
 }  // namespace
+
+std::vector<double> paper_column_values(const std::vector<PaperRow>& rows, size_t column,
+                                        size_t metric) {
+  std::vector<double> out;
+  for (const PaperRow& r : rows) out.push_back(r[column][metric]);
+  return out;
+}
 
 double rank_correlation(const std::vector<double>& x, const std::vector<double>& y) {
   if (x.size() != y.size() || x.size() < 2)
@@ -66,10 +67,12 @@ PaperSpread paper_spread(const std::vector<PaperRow>& rows) {
   const auto ains = static_cast<size_t>(PaperColumn::kFactoryAins);
   for (size_t c = 0; c < s.cv.size(); ++c)
     for (size_t m = 0; m < 2; ++m) {
-      s.cv[c][m] = coefficient_of_variation(column(rows, c, m));
-      s.rank_with_factory_ains[c][m] = rank_correlation(column(rows, ains, m), column(rows, c, m));
+      s.cv[c][m] = coefficient_of_variation(paper_column_values(rows, c, m));
+      s.rank_with_factory_ains[c][m] =
+          rank_correlation(paper_column_values(rows, ains, m), paper_column_values(rows, c, m));
     }
-  s.orientation_with_acceleration = rank_correlation(column(rows, ains, 0), column(rows, ains, 1));
+  s.orientation_with_acceleration =
+      rank_correlation(paper_column_values(rows, ains, 0), paper_column_values(rows, ains, 1));
   return s;
 }
 

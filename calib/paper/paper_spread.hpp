@@ -30,6 +30,10 @@ struct PaperSpread {
 /// std::invalid_argument for sizes that differ or fewer than two values.
 double rank_correlation(const std::vector<double>& x, const std::vector<double>& y);
 
+/// One column's values over the units: rows[i][column][metric].
+std::vector<double> paper_column_values(const std::vector<PaperRow>& rows, size_t column,
+                                        size_t metric);
+
 /// The spread of `rows` (at least two units). Throws std::invalid_argument otherwise.
 PaperSpread paper_spread(const std::vector<PaperRow>& rows);
 
