@@ -1120,8 +1120,9 @@ void SqliteRepository::promote(RunId run_id, const std::string& by, const std::s
   }
   if (r.setting == calib::Setting::kFactory && r.origin.empty())
     throw Conflict(who +
-                   " is a factory run of this station: its PASS is active by itself; only field "
-                   "(land/sea) and imported runs are promoted");
+                   " is a factory run of this station: its PASS is active by itself; only runs "
+                   "that are not are promoted: field (land/sea) runs, imported runs and runs "
+                   "reprocessed with a corrected gravity");
   if (!is_terminal(r.state)) throw Conflict(who + " is still " + to_string(r.state));
   const bool sea_alone =
       r.setting == calib::Setting::kSea && r.state == RunState::kReview && !r.crosscheck_verdict;

@@ -149,7 +149,8 @@ UpsertCount upsert_runs(PgConnection& c, const std::string& station_id,
         throw Conflict(std::string(e.what()) + " (station " + station_id + ", run " +
                        std::to_string(d.run.run_id) +
                        ": the store holds another run under this local id; was the station's "
-                       "database replaced? `stationctl fleet resync` rebuilds its share)");
+                       "database replaced? `stationctl fleet resync` sets the store's older runs "
+                       "apart, kept, and sends this database's)");
       }
     }();
     if (r.rows() == 0) {
@@ -163,13 +164,37 @@ UpsertCount upsert_runs(PgConnection& c, const std::string& station_id,
   return n;
 }
 
-std::size_t remove_runs_not_in(PgConnection& c, const std::string& station_id,
-                               const std::vector<std::string>& keep) {
+ResyncMark begin_resync(PgConnection& c, const std::string& station_id) {
   validate_station_id(station_id);
-  PgTransaction tx(c, "resync: remove runs the station no longer holds");
-  const PgResult r = c.exec(
-      "DELETE FROM runs WHERE station_id = $1 AND NOT (run_uuid = ANY ($2::text[])) RETURNING id",
-      {pg_value(station_id), pg_text_array(keep)}, "resync: remove runs");
+  const PgResult r =
+      c.exec("SELECT now()::text, to_char(now() AT TIME ZONE 'UTC', 'YYYYMMDD\"T\"HH24MISS\"Z\"')",
+             {}, "resync: the store's time");
+  const std::string suffix = ".previous-" + r.text(0, 1);
+  ResyncMark m;
+  m.store_time = r.text(0, 0);
+  m.apart_id = station_id.substr(0, 64 - suffix.size()) + suffix;
+  validate_station_id(m.apart_id);
+  return m;
+}
+
+std::size_t set_apart_runs_not_in(PgConnection& c, const std::string& station_id,
+                                  const std::vector<std::string>& keep, const ResyncMark& mark) {
+  validate_station_id(station_id);
+  validate_station_id(mark.apart_id);
+  PgTransaction tx(c, "resync: set apart the runs the station no longer holds");
+  const PgResult r = [&] {
+    try {
+      return c.exec(
+          "UPDATE runs SET station_id = $4 WHERE station_id = $1 AND received_at < "
+          "$3::timestamptz AND NOT (run_uuid = ANY ($2::text[])) RETURNING id",
+          {pg_value(station_id), pg_text_array(keep), pg_value(mark.store_time),
+           pg_value(mark.apart_id)},
+          "resync: set runs apart");
+    } catch (const Conflict& e) {
+      throw Conflict(std::string(e.what()) + " (station " + mark.apart_id +
+                     " already holds runs under the same local ids: resync again in a second)");
+    }
+  }();
   tx.commit();
   return static_cast<std::size_t>(r.rows());
 }

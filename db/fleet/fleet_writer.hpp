@@ -24,13 +24,26 @@ void validate_station_id(const std::string& station_id);
 
 /// Stores `runs` (as SqliteRepository::details_of reads them: local ids, UUID, revision) for the
 /// station, in one transaction. Conflict if the station already holds another run under one of
-/// these local ids with a different UUID (its database was replaced: `stationctl fleet resync`).
+/// these local ids with a different UUID (its database was replaced: `stationctl fleet resync` sets
+/// the store's older runs apart).
 UpsertCount upsert_runs(PgConnection& c, const std::string& station_id,
                         const std::vector<RunDetails>& runs);
 
-/// Removes the station's runs whose UUID is not in `keep` (resync: the store's share of the
-/// station becomes exactly its SQLite). Returns how many were removed.
-std::size_t remove_runs_not_in(PgConnection& c, const std::string& station_id,
-                               const std::vector<std::string>& keep);
+/// A resync's mark, taken before the station's database is read: the store's time then (a run
+/// the store received before it was committed in the station's database before it too, so the
+/// read sees it if the database still holds it) and the station id that the store's runs the
+/// database does not hold are set apart under: `<station id>.previous-<UTC time>`.
+struct ResyncMark {
+  std::string store_time;  ///< the store's now(), as PostgreSQL prints a timestamptz
+  std::string apart_id;
+};
+ResyncMark begin_resync(PgConnection& c, const std::string& station_id);
+
+/// Resync: the station's runs received before the mark whose UUID is not in `keep` (its database
+/// was replaced, or restored from an older copy) move to `mark.apart_id`, in one transaction —
+/// kept, never deleted: a calibration record outlives its station's disk, and the station's new
+/// database may then reuse their local ids. Returns how many moved.
+std::size_t set_apart_runs_not_in(PgConnection& c, const std::string& station_id,
+                                  const std::vector<std::string>& keep, const ResyncMark& mark);
 
 }  // namespace imucal::db::fleet

@@ -1,8 +1,9 @@
 // Issue #24 end to end: stationd with a [fleet] store replicates every run through its outbox; the
 // line goes on with the server down (status shows the outbox growing and the last error, without
 // the password) and the outbox drains when it returns; stationctl reads the fleet store
-// (--fleet URL) with bound filters only; `fleet resync` rebuilds the station's share; bad fleet
-// settings are clear errors at --check-config and never stop the daemon.
+// (--fleet URL) with bound filters only; `fleet resync` rebuilds the station's share and, after
+// its database was replaced, keeps the old runs apart instead of refusing or deleting them; bad
+// fleet settings are clear errors at --check-config and never stop the daemon.
 #include <gtest/gtest.h>
 
 #include "tests/e2e/station_harness.hpp"
@@ -152,6 +153,35 @@ TEST(StationFleet, RunsReplicateAndTheLineGoesOnWhileTheServerIsDown) {
     EXPECT_EQ(text.find(PgCluster::kWriterPassword), std::string::npos);
     EXPECT_EQ(text.find(PgCluster::kReaderPassword), std::string::npos);
   }
+
+  // The station's disk is replaced: a new, empty history whose run ids restart at 1. Its first
+  // run still ends PASS; the store refuses it (the old run 1 is another run) and the status names
+  // the way out. Resync sets the old runs apart, kept, and the outbox drains.
+  st.daemon().terminate(10s);
+  for (const char* suffix : {"", "-wal", "-shm"})
+    if (fs::exists(st.db_path() + suffix))
+      fs::rename(st.db_path() + suffix, st.db_path() + ".replaced" + suffix);
+  ASSERT_TRUE(st.start_daemon());
+  ASSERT_EQ(run_unit(st, "FLT-3").exit_code, 0) << st.daemon_log();
+  const json refused = wait_fleet(st, [](const json& f) {
+    return f["last_error"].is_string() &&
+           f["last_error"].get<std::string>().find("fleet resync") != std::string::npos;
+  });
+  EXPECT_GT(refused["outbox_length"].get<int>(), 0) << refused.dump();
+  const CmdResult apart = st.ctl({"--json", "fleet", "resync"});
+  ASSERT_EQ(apart.exit_code, 0) << apart.err;
+  EXPECT_EQ(apart.json_out()["set_apart"], 2);
+  const std::string apart_id = apart.json_out()["set_apart_as"].get<std::string>();
+  EXPECT_EQ(apart_id.rfind("e2e-station.previous-", 0), 0u) << apart_id;
+  EXPECT_EQ(apart.json_out()["written"], 1);
+  wait_fleet(st, [](const json& f) { return f["outbox_length"] == 0; });
+  EXPECT_EQ(pg.admin("SELECT count(*) FROM runs", "fleet"), "3\n") << "nothing deleted";
+  const CmdResult old_unit = fleet_ctl({"--json", "history", "FLT-1"});
+  ASSERT_EQ(old_unit.exit_code, 0) << old_unit.err;
+  EXPECT_EQ(old_unit.json_out()["runs"].size(), 1u) << "the old disk's record is still there";
+  const CmdResult both = fleet_ctl({"--json", "stations"});
+  ASSERT_EQ(both.exit_code, 0) << both.err;
+  EXPECT_EQ(both.json_out()["stations"].size(), 2u) << both.out;
 }
 
 TEST(StationFleet, BadFleetSettingsAreClearAtCheckConfigAndNeverStopTheLine) {

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <map>
+#include <nlohmann/json.hpp>
 
 #include "db/fleet/fleet_repository.hpp"
 #include "db/fleet/fleet_schema.hpp"
@@ -141,9 +142,76 @@ TEST(FleetStore, AnOlderRevisionNeverReplacesANewerOne) {
   const RunDetails back = fleet.show(fleet.recent_runs(1).at(0).run_id);
   EXPECT_EQ(back.run.state, RunState::kDone);
   EXPECT_EQ(back.calibrations.size(), 2u);
-  // resync: runs the station no longer holds leave the store.
-  EXPECT_EQ(remove_runs_not_in(w, "ST", {}), 1u);
-  EXPECT_EQ(fleet.total_run_count(), 0u);
+}
+
+/// The store's runs read back, keyed by run UUID (references as the other runs' UUIDs).
+std::map<std::string, nlohmann::json> stored_runs(const FleetRepository& fleet) {
+  std::vector<RunDetails> from_fleet;
+  for (const RunRecord& r : fleet.recent_runs(0)) from_fleet.push_back(fleet.show(r.run_id));
+  const auto fleet_uuids = uuids(from_fleet);
+  std::map<std::string, nlohmann::json> stored;
+  for (const RunDetails& d : from_fleet)
+    stored[d.run.uuid] = test_support::comparable_run(d, fleet_uuids);
+  return stored;
+}
+
+// A station whose disk was replaced starts a new database: its local ids restart at 1 under new
+// run UUIDs. The store refuses them (another run under the same local id) and names the way out.
+// Resync then sets the old runs apart under `<id>.previous-<time>`, every one kept as it was (its
+// references to its reprocess origin and its table run still resolving), and stores the new
+// database's runs beside them. Nothing is deleted: the store is the only copy of the old disk's
+// quality records. A run the store receives after the mark is never set apart.
+TEST(FleetStore, AReplacedStationDatabaseIsRefusedAndResyncKeepsTheOldRunsApart) {
+  PgCluster pg;
+  test::TempDir dir;
+  SqliteRepository old_db(dir.file("old.db")), new_db(dir.file("new.db"));
+  fill_station(old_db, "ST-1", 1);
+  PgConnection w(writer(pg));
+  migrate_fleet(w);
+  const auto old_runs = all_runs(old_db);
+  ASSERT_EQ(upsert_runs(w, "ST-1", old_runs).written, old_runs.size());
+  FleetRepository fleet(reader(pg));
+  const auto before = stored_runs(fleet);
+
+  NewRun fresh = test::new_run("SN-NEW", kT0 + 100000);
+  fresh.station = "ST-1";
+  const RunId first = new_db.create_run(fresh);
+  new_db.finish_run(first, test::pass_completion(7, kT0 + 100100));
+  const auto new_runs = all_runs(new_db);
+  ASSERT_EQ(new_runs.front().run.run_id, old_runs.front().run.run_id) << "ids restart";
+  try {
+    upsert_runs(w, "ST-1", new_runs);
+    FAIL() << "a replaced database's run was stored under an old run's local id";
+  } catch (const Conflict& e) {
+    EXPECT_NE(std::string(e.what()).find("fleet resync"), std::string::npos) << e.what();
+  }
+
+  const ResyncMark mark = begin_resync(w, "ST-1");
+  EXPECT_EQ(mark.apart_id.rfind("ST-1.previous-", 0), 0u) << mark.apart_id;
+  std::vector<std::string> keep;
+  for (const RunDetails& d : new_runs) keep.push_back(d.run.uuid);
+  EXPECT_EQ(set_apart_runs_not_in(w, "ST-1", keep, mark), old_runs.size());
+  EXPECT_EQ(upsert_runs(w, "ST-1", new_runs).written, new_runs.size());
+  EXPECT_EQ(fleet.total_run_count(), old_runs.size() + new_runs.size()) << "nothing deleted";
+  const auto after = stored_runs(fleet);
+  for (const auto& [uuid, run] : before) {
+    ASSERT_TRUE(after.count(uuid)) << uuid;
+    EXPECT_EQ(after.at(uuid), run) << "an old run changed when set apart";
+  }
+  std::map<std::string, std::size_t> per_station;
+  for (const auto& [id, count] : fleet.stations()) per_station[id] = count;
+  EXPECT_EQ(per_station["ST-1"], new_runs.size());
+  EXPECT_EQ(per_station[mark.apart_id], old_runs.size());
+  EXPECT_EQ(fleet.history("SN-A").size(), 3u) << "the old unit's history stays queryable";
+
+  // A run of this database that the sender delivers after the mark: not set apart, even though
+  // the keep list (read before it) does not name it.
+  NewRun later = test::new_run("SN-NEW", kT0 + 200000);
+  later.station = "ST-1";
+  const RunId late = new_db.create_run(later);
+  upsert_runs(w, "ST-1", new_db.details_of({late}));
+  EXPECT_EQ(set_apart_runs_not_in(w, "ST-1", keep, mark), 0u);
+  EXPECT_EQ(fleet.stations().size(), 2u);
 }
 
 TEST(FleetStore, TheReaderRoleCannotWriteAndFiltersAreBoundValues) {

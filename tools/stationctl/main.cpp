@@ -709,8 +709,9 @@ void add_history_commands(CLI::App& app, Args& a, Commands& c) {
   c.resync = fleet->add_subcommand(
       "resync",
       "rebuild this station's share of the fleet store from its SQLite history (the config's "
-      "[fleet], or --fleet URL with --station-id): every run stored, runs it no longer holds "
-      "removed; safe while stationd runs");
+      "[fleet], or --fleet URL with --station-id): every run stored; runs the store holds and "
+      "this database does not (a replaced or restored database) are kept, set apart as station "
+      "ID.previous-TIME, never deleted; safe while stationd runs");
   c.resync->add_option("--station-id", a.station,
                        "the station's id in the store (default: the config's)");
   c.resync->fallthrough();
@@ -1033,17 +1034,24 @@ int cmd_fleet_resync(const Target& t, const std::string& station_id_option, bool
     const db::SqliteRepository local(t.db, ro);
     db::fleet::PgConnection conn(target);
     db::fleet::migrate_fleet(conn);
+    // The mark before the read: a run the sender delivers meanwhile is never set apart.
+    const db::fleet::ResyncMark mark = db::fleet::begin_resync(conn, station_id);
     std::vector<db::RunId> ids;
     std::vector<std::string> uuids;
-    for (const db::RunRecord& r : local.recent_runs(0)) ids.push_back(r.run_id);
+    for (const db::RunRecord& r : local.recent_runs(0)) {
+      ids.push_back(r.run_id);
+      uuids.push_back(r.uuid);
+    }
     std::sort(ids.begin(), ids.end());
+    // First set apart what the store holds and this database does not (a replaced database
+    // reuses their local ids), then store every run of this one.
+    const std::size_t apart = db::fleet::set_apart_runs_not_in(conn, station_id, uuids, mark);
     db::fleet::UpsertCount n;
     constexpr std::size_t kChunk = 500;
     for (std::size_t i = 0; i < ids.size(); i += kChunk) {
       const std::vector<db::RunId> chunk(ids.begin() + i,
                                          ids.begin() + std::min(ids.size(), i + kChunk));
       const auto runs = local.details_of(chunk);
-      for (const auto& d : runs) uuids.push_back(d.run.uuid);
       const auto c = db::fleet::upsert_runs(conn, station_id, runs);
       n.written += c.written;
       n.unchanged += c.unchanged;
@@ -1052,15 +1060,24 @@ int cmd_fleet_resync(const Target& t, const std::string& station_id_option, bool
                   << std::flush;
     }
     if (!as_json && isatty(STDERR_FILENO)) std::cerr << "\n";
-    const std::size_t removed = db::fleet::remove_runs_not_in(conn, station_id, uuids);
-    const json r = {{"station_id", station_id}, {"fleet", target.redacted()}, {"runs", ids.size()},
-                    {"written", n.written},     {"unchanged", n.unchanged},   {"removed", removed}};
-    if (as_json)
+    const json r = {{"station_id", station_id},
+                    {"fleet", target.redacted()},
+                    {"runs", ids.size()},
+                    {"written", n.written},
+                    {"unchanged", n.unchanged},
+                    {"set_apart", apart},
+                    {"set_apart_as", apart > 0 ? mark.apart_id : std::string()}};
+    if (as_json) {
       print_json(r);
-    else
+    } else {
       std::cout << "fleet store " << target.redacted() << ": station " << station_id
                 << " resynced: " << ids.size() << " runs (" << n.written << " written, "
-                << n.unchanged << " already there), " << removed << " removed\n";
+                << n.unchanged << " already there)\n";
+      if (apart > 0)
+        std::cout << apart << " runs the store held and this database does not (a replaced or "
+                  << "restored database) were set apart, kept, as station " << mark.apart_id
+                  << "\n";
+    }
     return kOk;
   } catch (const db::DbError& e) {
     throw Failure{exit_for_db_error(e.kind()), e.what()};
