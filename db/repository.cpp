@@ -338,4 +338,9 @@ std::vector<RunRecord> Repository::station_runs(const std::string& station,
   return out;
 }
 
+std::size_t Repository::station_run_count(const std::string& station,
+                                          const std::optional<std::string>& serial) const {
+  return station_runs(station, serial, 0).size();
+}
+
 }  // namespace imucal::db

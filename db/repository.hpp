@@ -339,6 +339,10 @@ class Repository {
   virtual std::vector<RunRecord> station_runs(const std::string& station,
                                               const std::optional<std::string>& serial,
                                               std::size_t limit) const;
+  /// How many runs station_runs(station, serial, 0) returns (what `history --station` shows N
+  /// of). The default counts them; the fleet store counts in its index.
+  virtual std::size_t station_run_count(const std::string& station,
+                                        const std::optional<std::string>& serial) const;
 
   /// Everything stored about a run. NotFound if there is no such run.
   virtual RunDetails show(RunId run_id) const = 0;

@@ -136,9 +136,10 @@ json answer_repository_read(const db::Repository& repo, const Request& request) 
     const std::size_t limit = a.contains("limit") ? a.at("limit").get<std::size_t>()
                               : serial            ? 0
                                                   : kAllUnitsHistoryLimit;
-    const auto runs = repo.station_runs(a.at("station").get<std::string>(), serial, limit);
-    const std::size_t total = serial ? repo.run_count(*serial) : repo.total_run_count();
-    json h = history_result(serial.value_or(""), runs, total);
+    const std::string station = a.at("station").get<std::string>();
+    const auto runs = repo.station_runs(station, serial, limit);
+    // N of the station's runs, not of every station's.
+    json h = history_result(serial.value_or(""), runs, repo.station_run_count(station, serial));
     if (!serial) h["serial"] = nullptr;
     h["station"] = a.at("station");
     return h;

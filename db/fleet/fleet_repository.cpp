@@ -241,6 +241,18 @@ std::vector<RunRecord> FleetRepository::station_runs(const std::string& station,
       "station runs");
 }
 
+std::size_t FleetRepository::station_run_count(const std::string& station,
+                                               const std::optional<std::string>& serial) const {
+  if (serial) validate_serial(*serial);
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return static_cast<std::size_t>(
+      impl_->conn
+          .exec("SELECT count(*) FROM runs r WHERE r.station_id = $1 AND "
+                "($2::text IS NULL OR r.serial = $2)",
+                {pg_value(station), pg_value(serial)}, "count station runs")
+          .i64(0, 0));
+}
+
 RunDetails FleetRepository::show(RunId run_id) const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   PgTransaction tx(impl_->conn, "show", true);

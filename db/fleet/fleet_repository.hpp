@@ -48,6 +48,8 @@ class FleetRepository final : public Repository {
   std::vector<RunRecord> station_runs(const std::string& station,
                                       const std::optional<std::string>& serial,
                                       std::size_t limit) const override;
+  std::size_t station_run_count(const std::string& station,
+                                const std::optional<std::string>& serial) const override;
   RunDetails show(RunId run_id) const override;
   ActiveCalibration active_params(const std::string& serial) const override;
   void export_rows(const ExportFilter& filter,

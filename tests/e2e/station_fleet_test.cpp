@@ -182,6 +182,14 @@ TEST(StationFleet, RunsReplicateAndTheLineGoesOnWhileTheServerIsDown) {
   const CmdResult both = fleet_ctl({"--json", "stations"});
   ASSERT_EQ(both.exit_code, 0) << both.err;
   EXPECT_EQ(both.json_out()["stations"].size(), 2u) << both.out;
+  // `history --station` shows N of that station's runs, not of the whole store's three.
+  const CmdResult mine = fleet_ctl({"--json", "history", "--station", "e2e-station"});
+  ASSERT_EQ(mine.exit_code, 0) << mine.err;
+  EXPECT_EQ(mine.json_out()["runs"].size(), 1u) << mine.out;
+  EXPECT_EQ(mine.json_out()["total"], 1) << mine.out;
+  const CmdResult theirs = fleet_ctl({"--json", "history", "--station", apart_id, "FLT-1"});
+  ASSERT_EQ(theirs.exit_code, 0) << theirs.err;
+  EXPECT_EQ(theirs.json_out()["total"], 1) << theirs.out;
 }
 
 TEST(StationFleet, BadFleetSettingsAreClearAtCheckConfigAndNeverStopTheLine) {

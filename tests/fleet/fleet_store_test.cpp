@@ -106,6 +106,11 @@ TEST(FleetStore, RunsReadBackFieldByFieldAndResendsChangeNothing) {
   ASSERT_EQ(hist.size(), 6u);
   EXPECT_EQ(hist.front().station, "ST-2");
   EXPECT_EQ(fleet.run_count("SN-A"), 6u);
+  // One station's share, counted where it is kept (what `history --station` shows N of).
+  EXPECT_EQ(fleet.station_run_count("ST-1", std::nullopt), runs1.size());
+  EXPECT_EQ(fleet.station_run_count("ST-1", std::string("SN-A")), 3u);
+  EXPECT_EQ(fleet.station_run_count("ST-9", std::nullopt), 0u);
+  EXPECT_EQ(s1.station_run_count("ST-1", std::string("SN-A")), 3u);
   EXPECT_EQ(fleet.active_params("SN-A").run.station, "ST-2");
   EXPECT_EQ(fleet.runs_in_state({RunState::kRunning, RunState::kPreparing}).size(), 2u)
       << "one live run per station";
