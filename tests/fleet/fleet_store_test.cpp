@@ -193,6 +193,12 @@ TEST(FleetStore, AReplacedStationDatabaseIsRefusedAndResyncKeepsTheOldRunsApart)
 
   const ResyncMark mark = begin_resync(w, "ST-1");
   EXPECT_EQ(mark.apart_id.rfind("ST-1.previous-", 0), 0u) << mark.apart_id;
+  // The longest station id leaves room for the suffix: the apart id is still a valid one.
+  const std::string longest(64, 's');
+  const std::string long_apart = begin_resync(w, longest).apart_id;
+  EXPECT_EQ(long_apart.size(), 64u) << long_apart;
+  EXPECT_NO_THROW(validate_station_id(long_apart));
+  EXPECT_NE(long_apart.find(".previous-"), std::string::npos) << long_apart;
   std::vector<std::string> keep;
   for (const RunDetails& d : new_runs) keep.push_back(d.run.uuid);
   EXPECT_EQ(set_apart_runs_not_in(w, "ST-1", keep, mark), old_runs.size());
