@@ -54,6 +54,8 @@ const std::string kSqlActive = "SELECT " + kRunColumns + kRunFrom +
 const std::string kSqlLatestPromoted = "SELECT " + kRunColumns + kRunFrom +
                                        "WHERE r.unit_id = ?1 AND r.promoted_at_ms IS NOT NULL "
                                        "ORDER BY r.promoted_at_ms DESC, r.id DESC LIMIT 1";
+constexpr const char* kSqlHighestRunIdIssued =
+    "SELECT coalesce((SELECT max(seq) FROM sqlite_sequence WHERE name = 'runs'), 0)";
 const std::string kSqlRunsWithArchiveSha =
     "SELECT " + kRunColumns + kRunFrom + "WHERE r.archive_sha256 = ?1 ORDER BY r.id";
 const std::string kSqlRunsInState =
@@ -1085,6 +1087,31 @@ std::size_t SqliteRepository::total_run_count() const {
   Impl::Stmt q(d, kSqlCountRuns, "total_run_count");
   q.step();
   return static_cast<std::size_t>(q.i64(0));
+}
+
+RunId SqliteRepository::highest_run_id_issued() const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  const Impl& d = *impl_;
+  Impl::Tx tx(d, "highest_run_id_issued", false);
+  Impl::Stmt q(d, kSqlHighestRunIdIssued, "highest_run_id_issued");
+  q.step();
+  return q.i64(0);
+}
+
+bool SqliteRepository::continue_run_ids_after(RunId id) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mutex);
+  Impl& d = *impl_;
+  const char* op = "continue_run_ids_after";
+  d.require_writable(op);
+  Impl::Tx tx(d, op, true);
+  if (highest_run_id_issued() >= id) return false;
+  // AUTOINCREMENT numbers after sqlite_sequence's row (absent before the first run).
+  Impl::Stmt(d, "DELETE FROM sqlite_sequence WHERE name = 'runs'", op).run();
+  Impl::Stmt q(d, "INSERT INTO sqlite_sequence (name, seq) VALUES ('runs', ?1)", op);
+  q.bind(1, id);
+  q.run();
+  tx.commit();
+  return true;
 }
 
 std::vector<RunRecord> SqliteRepository::runs_with_archive_sha256(const std::string& sha256) const {

@@ -77,6 +77,14 @@ class SqliteRepository final : public Repository {
   std::size_t run_count(const std::string& serial) const override;
   std::vector<RunRecord> recent_runs(std::size_t limit) const override;
   std::size_t total_run_count() const override;
+  /// The highest run id this database has issued (0 for none): new runs are numbered after it.
+  RunId highest_run_id_issued() const;
+  /// New runs are numbered after `id` from now on, unless they already were: for a station whose
+  /// data directory holds archives of runs this database does not know (it was replaced, or
+  /// restored from an older copy), so that their ids, their archive directories' names and the
+  /// fleet store's copies of them are never issued again. Returns whether the numbering moved.
+  /// ReadOnly on a read-only repository.
+  bool continue_run_ids_after(RunId id);
   RunDetails show(RunId run_id) const override;
   ActiveCalibration active_params(const std::string& serial) const override;
   void export_rows(const ExportFilter& filter,

@@ -93,6 +93,7 @@ void Daemon::start() {
   repo_ = std::make_unique<db::SqliteRepository>(cfg_.database);
   spdlog::info("history database {}", cfg_.database);
   recovery_ = recover_at_startup(cfg_, *repo_, opt_.stop_table_at_start);
+  continue_run_ids_after_archives(cfg_, *repo_);
   if (!recovery_.runs.empty()) {
     spdlog::warn("recovery: {} run(s) ended at start-up", recovery_.runs.size());
   }

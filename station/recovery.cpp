@@ -112,4 +112,37 @@ RecoveryReport recover_at_startup(const StationConfig& config, db::Repository& r
   return report;
 }
 
+db::RunId highest_archived_run_id(const std::string& data_dir) {
+  db::RunId highest = 0;
+  std::error_code ec;
+  for (const fs::directory_entry& e : fs::directory_iterator(fs::path(data_dir) / "runs", ec)) {
+    // run_archive_dir's names: the run id, '-', the serial. Anything else is not a run archive.
+    const std::string name = e.path().filename().string();
+    const std::size_t dash = name.find('-');
+    if (dash == 0 || dash == std::string::npos || !e.is_directory(ec)) continue;
+    if (!std::all_of(name.begin(), name.begin() + static_cast<std::ptrdiff_t>(dash),
+                     [](char c) { return c >= '0' && c <= '9'; }))
+      continue;
+    try {
+      highest = std::max<db::RunId>(highest, std::stoll(name.substr(0, dash)));
+    } catch (const std::out_of_range&) {
+      continue;  // more digits than a run id has: not one of ours
+    }
+  }
+  return highest;
+}
+
+db::RunId continue_run_ids_after_archives(const StationConfig& config,
+                                          db::SqliteRepository& repository) {
+  const db::RunId archived = highest_archived_run_id(config.data_dir);
+  const db::RunId issued = repository.highest_run_id_issued();
+  if (archived <= issued || !repository.continue_run_ids_after(archived)) return 0;
+  spdlog::warn(
+      "history {} has numbered runs up to {} only, but {}/runs holds archives up to run {}: "
+      "the database was replaced or restored from an older copy. New runs are numbered from {} "
+      "so that no archive, and no copy in a fleet store, meets its id again",
+      config.database, issued, config.data_dir, archived, archived + 1);
+  return archived;
+}
+
 }  // namespace imucal::station

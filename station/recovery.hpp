@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "db/repository.hpp"
+#include "db/sqlite_repository.hpp"
 #include "station/config.hpp"
 
 namespace imucal::station {
@@ -40,5 +41,17 @@ struct RecoveryReport {
 /// Throws only if the repository fails; a damaged archive is reported in the run's reason.
 RecoveryReport recover_at_startup(const StationConfig& config, db::Repository& repository,
                                   bool stop_table = true);
+
+/// The highest run id among the run archives in `data_dir`/runs (directories `<id>-<serial>`),
+/// 0 if there are none.
+db::RunId highest_archived_run_id(const std::string& data_dir);
+
+/// Start-up: new runs are numbered after every archive in the data directory. A database that was
+/// replaced (a new, empty one) or restored from an older copy would issue those ids again: the
+/// station would refuse to write a run's archive over the old one (the run failed), and the fleet
+/// store would refuse the run as another under a known local id. Returns the id the numbering now
+/// continues after, 0 if it already did (logged as a warning when it moves).
+db::RunId continue_run_ids_after_archives(const StationConfig& config,
+                                          db::SqliteRepository& repository);
 
 }  // namespace imucal::station

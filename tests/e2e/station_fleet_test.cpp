@@ -154,15 +154,32 @@ TEST(StationFleet, RunsReplicateAndTheLineGoesOnWhileTheServerIsDown) {
     EXPECT_EQ(text.find(PgCluster::kReaderPassword), std::string::npos);
   }
 
-  // The station's disk is replaced: a new, empty history whose run ids restart at 1. Its first
-  // run still ends PASS; the store refuses it (the old run 1 is another run) and the status names
-  // the way out. Resync sets the old runs apart, kept, and the outbox drains.
+  // The history database is replaced while the data directory keeps the archives (a restore, a
+  // new file): the new database numbers its runs after the archives, so the next run neither meets
+  // an old archive directory nor an old local id in the store. It is delivered as any run.
+  auto move_aside = [&](const std::string& path, const std::string& to) {
+    for (const char* suffix : {"", "-wal", "-shm"})
+      if (fs::exists(path + suffix)) fs::rename(path + suffix, to + suffix);
+  };
   st.daemon().terminate(10s);
-  for (const char* suffix : {"", "-wal", "-shm"})
-    if (fs::exists(st.db_path() + suffix))
-      fs::rename(st.db_path() + suffix, st.db_path() + ".replaced" + suffix);
+  move_aside(st.db_path(), st.db_path() + ".restored-over");
   ASSERT_TRUE(st.start_daemon());
-  ASSERT_EQ(run_unit(st, "FLT-3").exit_code, 0) << st.daemon_log();
+  EXPECT_NE(st.daemon_log().find("New runs are numbered from 3"), std::string::npos)
+      << st.daemon_log();
+  const CmdResult third = run_unit(st, "FLT-3");
+  ASSERT_EQ(third.exit_code, 0) << third.err << st.daemon_log();
+  EXPECT_NE(third.out.find("run 3 "), std::string::npos) << third.out;
+  wait_fleet(st, [](const json& f) { return f["outbox_length"] == 0; });
+  EXPECT_EQ(pg.admin("SELECT count(*) FROM runs", "fleet"), "3\n");
+
+  // The station's disk is replaced: a new, empty history and no archives, whose run ids restart
+  // at 1. Its first run still ends PASS; the store refuses it (the old run 1 is another run) and
+  // the status names the way out. Resync sets the old runs apart, kept, and the outbox drains.
+  st.daemon().terminate(10s);
+  move_aside(st.db_path(), st.db_path() + ".replaced");
+  fs::rename(st.data_dir() + "/runs", st.data_dir() + "/runs.replaced");
+  ASSERT_TRUE(st.start_daemon());
+  ASSERT_EQ(run_unit(st, "FLT-4").exit_code, 0) << st.daemon_log();
   const json refused = wait_fleet(st, [](const json& f) {
     return f["last_error"].is_string() &&
            f["last_error"].get<std::string>().find("fleet resync") != std::string::npos;
@@ -170,19 +187,19 @@ TEST(StationFleet, RunsReplicateAndTheLineGoesOnWhileTheServerIsDown) {
   EXPECT_GT(refused["outbox_length"].get<int>(), 0) << refused.dump();
   const CmdResult apart = st.ctl({"--json", "fleet", "resync"});
   ASSERT_EQ(apart.exit_code, 0) << apart.err;
-  EXPECT_EQ(apart.json_out()["set_apart"], 2);
+  EXPECT_EQ(apart.json_out()["set_apart"], 3);
   const std::string apart_id = apart.json_out()["set_apart_as"].get<std::string>();
   EXPECT_EQ(apart_id.rfind("e2e-station.previous-", 0), 0u) << apart_id;
   EXPECT_EQ(apart.json_out()["written"], 1);
   wait_fleet(st, [](const json& f) { return f["outbox_length"] == 0; });
-  EXPECT_EQ(pg.admin("SELECT count(*) FROM runs", "fleet"), "3\n") << "nothing deleted";
+  EXPECT_EQ(pg.admin("SELECT count(*) FROM runs", "fleet"), "4\n") << "nothing deleted";
   const CmdResult old_unit = fleet_ctl({"--json", "history", "FLT-1"});
   ASSERT_EQ(old_unit.exit_code, 0) << old_unit.err;
   EXPECT_EQ(old_unit.json_out()["runs"].size(), 1u) << "the old disk's record is still there";
   const CmdResult both = fleet_ctl({"--json", "stations"});
   ASSERT_EQ(both.exit_code, 0) << both.err;
   EXPECT_EQ(both.json_out()["stations"].size(), 2u) << both.out;
-  // `history --station` shows N of that station's runs, not of the whole store's three.
+  // `history --station` shows N of that station's runs, not of the whole store's four.
   const CmdResult mine = fleet_ctl({"--json", "history", "--station", "e2e-station"});
   ASSERT_EQ(mine.exit_code, 0) << mine.err;
   EXPECT_EQ(mine.json_out()["runs"].size(), 1u) << mine.out;
