@@ -3,13 +3,14 @@
 # library per room, linked only to the rooms listed here, so code that reaches across the rule does
 # not link (tests/calib/CMakeLists.txt links each room alone, whole-archive).
 #
-# The rule that matters (DESIGN §2): the world and the estimate stay apart. The simulator (sim)
+# The rule that matters (ARCHITECTURE §2): the world and the estimate stay apart. The simulator (sim)
 # includes core and the effects catalogue only; the estimators (ains, nlsq, legacy), the checks,
 # the calibration job and the diagnosis never reach sim — the diagnosis draws its simulated runs
 # through a RunSource (calib/effects/run_source.hpp) that its callers provide. Only the paper's
 # tables, which drive the whole experiment, include both.
-set(IMUCAL_CALIB_ROOMS core effects sim ains nlsq legacy checks pipeline diagnosis design paper fleet)
-set(IMUCAL_CALIB_ESTIMATE ains nlsq legacy checks pipeline diagnosis design fleet)
+set(IMUCAL_CALIB_ROOMS core effects sim ains nlsq legacy checks input pipeline diagnosis studies/design studies/paper
+    studies/fleet)
+set(IMUCAL_CALIB_ESTIMATE ains nlsq legacy checks input pipeline diagnosis studies/design studies/fleet)
 set(calib_room_deps_core "")
 set(calib_room_deps_effects core)
 set(calib_room_deps_sim core effects)
@@ -17,11 +18,12 @@ set(calib_room_deps_ains core)
 set(calib_room_deps_nlsq core)
 set(calib_room_deps_legacy core)
 set(calib_room_deps_checks core ains)
+set(calib_room_deps_input core effects checks)
 set(calib_room_deps_pipeline core ains nlsq legacy checks)
 set(calib_room_deps_diagnosis core effects ains nlsq legacy)
-set(calib_room_deps_design core ains checks diagnosis)
-set(calib_room_deps_paper core effects sim ains nlsq legacy checks)
-set(calib_room_deps_fleet core effects ains)
+set(calib_room_deps_studies/design core ains checks diagnosis)
+set(calib_room_deps_studies/paper core effects sim ains nlsq legacy checks)
+set(calib_room_deps_studies/fleet core effects ains)
 
 # calib_room_closure(ROOM OUT): every room ROOM reaches through its dependencies, itself excluded.
 function(calib_room_closure room out)

@@ -81,7 +81,7 @@ done
 MODBUS=$(sed -n 's/.*"modbus" *: *"\([^"]*\)".*/\1/p' "$DEMO/sim-ready.json")
 echo "   $(cat "$DEMO/sim-ready.json")"
 
-# The station config (documented key by key in station/stationd.example.toml). Relative paths are
+# The station config (documented key by key in station/config/stationd.example.toml). Relative paths are
 # relative to this file's directory, var/demo/.
 cat >"$CONFIG" <<EOF
 # Written by tools/demo.sh: the station on loopback against stationsim.

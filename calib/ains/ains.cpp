@@ -12,7 +12,8 @@
 #include "calib/core/conventions.hpp"
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::ains {
+using namespace calib::core;
 
 ParamSet default_prior_sigma() {
   ParamSet p;
@@ -230,4 +231,4 @@ CalibrationResult calibrate_ains(const CalibrationInput& in, const AinsOptions& 
   return run_ains(in, opt, /*smooth=*/false).calibration;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::ains

@@ -1,5 +1,5 @@
 #pragma once
-// AINS calibration (paper §IV, DESIGN §6): a 36-state error-state Kalman filter aided at rest by
+// AINS calibration (paper §IV, ARCHITECTURE §6): a 36-state error-state Kalman filter aided at rest by
 // the table orientation (eq. 28-35), zero velocity (eq. 36-39) and mean depth (eq. 40-43), with a
 // Rauch-Tung-Striebel smoother over the whole run, run as an *iterated linearised smoother*:
 //   1. run the INS with the current parameter estimate as nominal (raw increments compensated by
@@ -19,7 +19,8 @@
 #include "calib/core/param_set.hpp"
 #include "calib/core/strapdown.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::ains {
+using namespace calib::core;
 
 /// Kept for source compatibility: the aiding now follows CalibrationInput::setting.
 using AinsSetting = Setting;
@@ -116,4 +117,4 @@ AinsResult calibrate_ains_detailed(const CalibrationInput& in, const AinsOptions
 /// The calibration part of calibrate_ains_detailed (method "ains").
 CalibrationResult calibrate_ains(const CalibrationInput& in, const AinsOptions& opt = {});
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::ains

@@ -1,6 +1,6 @@
 #pragma once
 // One forward pass of the AINS error-state Kalman filter and the RTS smoother over its epochs
-// (DESIGN §6). Shared by calibrate_ains (iterated over passes) and compute_crlb (one
+// (ARCHITECTURE §6). Shared by calibrate_ains (iterated over passes) and compute_crlb (one
 // covariance pass along the true trajectory). Internal to calib/: callers use ains.hpp/crlb.hpp.
 #include <cstdint>
 #include <vector>
@@ -9,6 +9,7 @@
 #include "calib/ains/ains_model.hpp"
 
 namespace imucal::calib::ains {
+using namespace calib::core;
 
 /// The input checked once and the epoch schedule fixed once for all passes.
 struct PreparedInput {

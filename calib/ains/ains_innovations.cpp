@@ -3,13 +3,8 @@
 #include "calib/ains/ains_filter.hpp"
 #include "calib/core/coarse_alignment.hpp"
 
-namespace imucal::calib {
-
-const char* innovation_kind_name(int kind) {
-  static const char* names[] = {"attitude x", "attitude y", "attitude z", "zupt north", "zupt east",
-                                "zupt down",  "depth",      "gnss north", "gnss east"};
-  return kind >= 0 && kind <= AinsInnovation::kGnssEast ? names[kind] : "?";
-}
+namespace imucal::calib::ains {
+using namespace calib::core;
 
 AinsInnovations ains_innovations(const CalibrationInput& in, const ParamSet& params,
                                  const AinsOptions& opt) {
@@ -37,4 +32,4 @@ AinsInnovations ains_innovations(const CalibrationInput& in, const ParamSet& par
   return out;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::ains

@@ -16,7 +16,8 @@
 #include "calib/core/calibration_input.hpp"
 #include "calib/core/param_set.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::ains {
+using namespace calib::core;
 
 struct AinsInnovation {
   enum Kind : int {
@@ -33,9 +34,6 @@ struct AinsInnovation {
   double s = 0.0;   ///< its predicted variance (same unit squared)
 };
 
-/// "gnss north", "depth", "zupt east", ...
-const char* innovation_kind_name(int kind);
-
 struct AinsInnovations {
   Eigen::Matrix3d C_bn0 = Eigen::Matrix3d::Identity();  ///< the attitude the INS started from
   std::vector<AinsInnovation> rows;                     ///< every aiding update, in time order
@@ -48,4 +46,4 @@ struct AinsInnovations {
 AinsInnovations ains_innovations(const CalibrationInput& in, const ParamSet& params,
                                  const AinsOptions& opt = {});
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::ains

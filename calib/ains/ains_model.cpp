@@ -5,6 +5,7 @@
 #include "calib/core/rotation.hpp"
 
 namespace imucal::calib::ains {
+using namespace calib::core;
 
 using Eigen::Matrix3d;
 using Eigen::Vector3d;

@@ -1,5 +1,5 @@
 #pragma once
-// AINS error-state model (paper §IV, DESIGN §6): the 36-state layout, the mapping between the
+// AINS error-state model (paper §IV, ARCHITECTURE §6): the 36-state layout, the mapping between the
 // filter's sensor states and the ParamSet's flat order, and the linearised dynamics (eq. 6-8,
 // 21-22, 26-27) in KF-GINS style — one F.block(...) line per term of the paper's equations.
 //
@@ -18,6 +18,7 @@
 #include "calib/core/param_set.hpp"
 
 namespace imucal::calib::ains {
+using namespace calib::core;
 
 /// Block offsets of the 36-element error state (paper: 9 nav + 24 sensor + 3 table misalignment).
 /// dM blocks are stored column-major (dM(0,c), dM(1,c), dM(2,c) for c = 0..2) so that the block for

@@ -8,7 +8,9 @@
 #include "calib/core/rotation.hpp"
 #include "calib/core/strapdown.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::checks {
+using namespace calib::ains;
+using namespace calib::core;
 
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
@@ -119,4 +121,4 @@ std::vector<std::string> unobservable_parameters(const CrlbResult& crlb, const A
   return out;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::checks

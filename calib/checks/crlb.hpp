@@ -1,6 +1,6 @@
 #pragma once
 // Cramér-Rao lower bound and observability of the calibration parameters for a rotation sequence
-// (DESIGN §6): a covariance run of the AINS linearised model (same states, aiding, epochs and
+// (ARCHITECTURE §6): a covariance run of the AINS linearised model (same states, aiding, epochs and
 // noise as calibrate_ains) along the *true* trajectory given by the motion profile and the table
 // model. No data needed. For this linear-Gaussian model the smoother's posterior covariance is the
 // Bayesian CRLB (with the AINS prior), so it is both the efficiency yardstick of the estimators and
@@ -15,7 +15,9 @@
 #include "calib/core/table_model.hpp"
 #include "sequences/motion_profile.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::checks {
+using namespace calib::ains;
+using namespace calib::core;
 
 struct CrlbResult {
   ParamSet sigma;       ///< achievable 1-σ per parameter
@@ -45,4 +47,4 @@ std::vector<std::string> unobservable_parameters(const CrlbResult& crlb,
 /// σ_post / σ_prior per parameter (flat order), for reports and sequence design.
 ParamVector crlb_prior_ratio(const CrlbResult& crlb, const AinsOptions& opt = {});
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::checks

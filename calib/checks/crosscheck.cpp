@@ -7,7 +7,8 @@
 #include "calib/core/body_frame.hpp"
 #include "calib/core/param_set.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::checks {
+using namespace calib::core;
 
 namespace {
 
@@ -90,4 +91,4 @@ CrossCheckResult cross_check(const CalibrationResult& a_in, const EvaluationMetr
   return r;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::checks

@@ -1,5 +1,5 @@
 #pragma once
-// Cross-check of two independent calibrations (DESIGN §6): every parameter must agree within
+// Cross-check of two independent calibrations (ARCHITECTURE §6): every parameter must agree within
 // k·sqrt(σ_A² + σ_B²) and both methods' evaluation metrics (calib/checks/evaluation.hpp) must be
 // under their limits. Anything else sends the run to human REVIEW with the failing terms, stated in
 // human units so an operator can read them.
@@ -9,7 +9,8 @@
 #include "calib/checks/evaluation.hpp"
 #include "calib/core/calibration_input.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::checks {
+using namespace calib::core;
 
 struct CrossCheckOptions {
   double k_sigma = 4.0;                     ///< agreement bound in combined standard deviations
@@ -38,4 +39,4 @@ CrossCheckResult cross_check(const CalibrationResult& a, const EvaluationMetrics
                              const CalibrationResult& b, const EvaluationMetrics& mb,
                              const CrossCheckOptions& options = {});
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::checks

@@ -8,7 +8,8 @@
 #include "calib/core/earth.hpp"
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::checks {
+using namespace calib::core;
 
 namespace {
 
@@ -302,4 +303,4 @@ DataCheckError::DataCheckError(std::vector<DataProblem> problems)
       }()),
       problems_(std::move(problems)) {}
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::checks

@@ -24,7 +24,8 @@
 
 #include "calib/core/calibration_input.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::checks {
+using namespace calib::core;
 
 struct DataProblem {
   std::string symptom;  ///< "stuck channel", "saturation", "gravity direction", ...
@@ -70,4 +71,4 @@ class DataCheckError : public std::invalid_argument {
   std::vector<DataProblem> problems_;
 };
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::checks

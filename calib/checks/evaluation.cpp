@@ -10,7 +10,8 @@
 #include "calib/core/imu_error_model.hpp"
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::checks {
+using namespace calib::core;
 
 namespace {
 
@@ -361,4 +362,4 @@ EvaluationMetrics evaluate(const CalibrationInput& in, const ParamSet& params,
   return metrics_from(run, periods, evaluation_pass(run, periods, nav0, init));
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::checks

@@ -1,5 +1,5 @@
 #pragma once
-// Calibration evaluation (paper §VII, DESIGN §6): how well a parameter set navigates, judged
+// Calibration evaluation (paper §VII, ARCHITECTURE §6): how well a parameter set navigates, judged
 // against the table reference and surveyed gravity in the navigation frame, so that AINS, NLSQ
 // and any other method are compared on the same footing whatever their body-frame definition.
 //
@@ -19,7 +19,8 @@
 #include "calib/core/conventions.hpp"
 #include "calib/core/param_set.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::checks {
+using namespace calib::core;
 
 struct EvaluationOptions {
   size_t min_rest_samples = 100;  ///< shorter rest runs are not evaluated (still ZUPT-aided)
@@ -71,4 +72,4 @@ Eigen::Matrix3d attitude_residual(const Eigen::Matrix3d& C_bn_ins,
                                   const Eigen::Matrix3d& C_bn_ref_true, double gamma_np_rad,
                                   const Eigen::Vector3d& theta_bp_rad);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::checks

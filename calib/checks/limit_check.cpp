@@ -5,7 +5,8 @@
 #include <cstdio>
 #include <stdexcept>
 
-namespace imucal::calib {
+namespace imucal::calib::checks {
+using namespace calib::core;
 
 namespace {
 
@@ -119,4 +120,4 @@ MetricLimits metric_limits_for_grade(const MetricLimits& limits, Grade grade) {
           limits.accel_rmse_ug * g.vrw_mps_per_sqrt_s / nav.vrw_mps_per_sqrt_s};
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::checks

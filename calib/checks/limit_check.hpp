@@ -12,10 +12,11 @@
 #include "calib/core/conventions.hpp"
 #include "calib/core/param_set.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::checks {
+using namespace calib::core;
 
 /// The envelope a healthy navigation-grade unit's parameters lie in before calibration, per
-/// group, in SI: DESIGN §7's default unit is 10–100× inside it, the far-from-nominal test unit
+/// group, in SI: ARCHITECTURE §7's default unit is 10–100× inside it, the far-from-nominal test unit
 /// (db/archive/units/far.toml: 2 mg, 0.1 °/h, 2000 ppm) 2.5× inside. The table misalignment ς is
 /// the fixture's mounting error.
 struct DatasheetLimits {
@@ -69,4 +70,4 @@ struct LimitCheckResult {
 void check_limits(const CalibrationResult& r, const EvaluationMetrics& metrics, bool check_metrics,
                   const LimitCheckOptions& options, LimitCheckResult& out);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::checks

@@ -6,7 +6,8 @@
 
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::checks {
+using namespace calib::core;
 
 namespace {
 
@@ -185,4 +186,4 @@ void ZuptIns::reset_nav() {
   x_.head<9>().setZero();
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::checks

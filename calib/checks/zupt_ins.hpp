@@ -17,7 +17,8 @@
 #include "calib/core/noise_model.hpp"
 #include "calib/core/strapdown.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::checks {
+using namespace calib::core;
 
 struct ZuptInsOptions {
   double filter_hz = 10.0;       ///< covariance propagation + aiding rate
@@ -85,4 +86,4 @@ class ZuptIns {
   bool initialized_ = false;
 };
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::checks

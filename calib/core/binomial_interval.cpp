@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 namespace {
 
@@ -49,4 +49,4 @@ RateInterval clopper_pearson(int k, int n, double level) {
   return r;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

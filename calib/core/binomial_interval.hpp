@@ -2,7 +2,7 @@
 // An exact (Clopper–Pearson) confidence interval for a rate from k events in n trials: the false-
 // alarm rate of the gap check measured on null runs (issue #22), where k is often 0 or 1 and the
 // normal approximation says nothing useful.
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 struct RateInterval {
   double rate = 0.0;   ///< k / n
@@ -14,4 +14,4 @@ struct RateInterval {
 /// std::invalid_argument otherwise.
 RateInterval clopper_pearson(int k, int n, double level = 0.95);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

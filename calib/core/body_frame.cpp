@@ -5,7 +5,7 @@
 
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 BodyFrameChange to_accel_symmetric_frame(const ParamSet& params) {
   const Eigen::Matrix3d A = Eigen::Matrix3d::Identity() + params.accel_M;
@@ -52,4 +52,4 @@ CalibrationResult in_accel_symmetric_frame(const CalibrationResult& result) {
   return out;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -17,7 +17,7 @@
 #include "calib/core/calibration_input.hpp"
 #include "calib/core/param_set.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 struct BodyFrameChange {
   ParamSet params;    ///< in the accel-symmetric frame (biases and ς unchanged)
@@ -37,4 +37,4 @@ CalibrationResult in_accel_symmetric_frame(const CalibrationResult& result);
 /// rotation vector of R): what a factory calibration knows and a field calibration cannot.
 Eigen::Vector3d housing_rotation_rad(const ParamSet& params);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

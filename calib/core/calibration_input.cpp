@@ -7,7 +7,7 @@
 #include "calib/core/rest_detector.hpp"
 #include "calib/core/variation_rest_detector.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 const char* setting_name(Setting s) {
   switch (s) {
@@ -132,4 +132,4 @@ void check_input_samples(const CalibrationInput& in, const std::string& who) {
   }
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

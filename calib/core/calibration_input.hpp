@@ -15,7 +15,7 @@
 #include "calib/core/param_set.hpp"
 #include "calib/core/unit_grade.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 /// Where a run was recorded, which decides the observations that exist (paper §IV-B/C/D):
 ///  * kFactory — a turntable: reference attitude (table.csv/attitude.csv), zero velocity at rest,
@@ -142,4 +142,4 @@ CalibrationInput input_from_field_data(Setting setting, const ImuSeries& imu,
                                        const NoiseModel& noise, Grade grade = Grade::kNavigation,
                                        double min_rest_s = 0.0);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <limits>
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 namespace {
 
@@ -58,4 +58,4 @@ double chi2_quantile_upper(double p, double k) {
   return 0.5 * (lo + hi);
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -8,7 +8,7 @@
 #include "calib/core/imu_error_model.hpp"
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 namespace {
 
@@ -77,4 +77,4 @@ CoarseAlignment coarse_align(const ImuSeries& imu, size_t begin, size_t end, con
   return out;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

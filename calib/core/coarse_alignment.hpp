@@ -19,7 +19,7 @@
 #include "calib/core/imu_increment.hpp"
 #include "calib/core/param_set.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 struct CoarseAlignment {
   Eigen::Matrix3d C_bn = Eigen::Matrix3d::Identity();  ///< at imu[begin].t_s
@@ -35,4 +35,4 @@ struct CoarseAlignment {
 CoarseAlignment coarse_align(const ImuSeries& imu, size_t begin, size_t end, const Site& site,
                              const ParamSet& nominal, double vrw_mps_per_sqrt_s);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

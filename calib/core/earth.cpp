@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 EarthModel::EarthModel(const Site& site)
     : site_(site),
@@ -43,4 +43,4 @@ Eigen::Vector3d EarthModel::w_en_n(const Eigen::Vector3d& v_n, double lat_rad, d
   return {v_n(1) / RE, -v_n(0) / RN, -v_n(1) * std::tan(lat_rad) / RE};
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -5,7 +5,7 @@
 #include <Eigen/Geometry>
 #include <optional>
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 namespace wgs84 {
 constexpr double kSemiMajor_m = 6378137.0;
@@ -51,4 +51,4 @@ class EarthModel {
   Eigen::Vector3d w_ie_n_;
 };
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -6,7 +6,7 @@
 
 #include "calib/core/param_set.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 template <typename T>
 struct ImuErrorModel {
@@ -67,4 +67,4 @@ struct ImuCompensator {
   }
 };
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -4,7 +4,7 @@
 #include <Eigen/Geometry>
 #include <vector>
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 struct ImuIncrement {
   double t_s = 0.0;                                      ///< end of the interval
@@ -25,4 +25,4 @@ struct TableSample {
 /// A recorded or simulated run in memory, independent of its on-disk archive.
 using ImuSeries = std::vector<ImuIncrement>;
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

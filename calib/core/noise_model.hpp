@@ -1,10 +1,10 @@
 #pragma once
 // A unit's stochastic model: what the truth simulator draws its noise from and what the
-// estimators weight their observations with (a datasheet or the unit file, DESIGN §3). Shared by
+// estimators weight their observations with (a datasheet or the unit file, ARCHITECTURE §3). Shared by
 // both sides, so it lives with the conventions rather than in either.
 #include "calib/core/conventions.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 /// Stochastic model of a unit (SI units; see unit-file parsing for human units).
 struct NoiseModel {
@@ -18,4 +18,4 @@ struct NoiseModel {
   double dv_lsb_mps = 1e-7;
 };
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -2,7 +2,7 @@
 
 #include "calib/core/conventions.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 ParamVector ParamSet::to_vector() const {
   ParamVector x;
@@ -79,4 +79,4 @@ std::string group_name(ParamGroup g) {
   return "?";
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

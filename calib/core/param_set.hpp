@@ -1,11 +1,11 @@
 #pragma once
-// The calibration parameter set (DESIGN §3): one schema for truth, estimates and the database.
+// The calibration parameter set (ARCHITECTURE §3): one schema for truth, estimates and the database.
 #include <Eigen/Core>
 #include <array>
 #include <string>
 #include <vector>
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 struct ParamSet {
   Eigen::Vector3d accel_bias_mps2 = Eigen::Vector3d::Zero();
@@ -46,4 +46,4 @@ struct ParamInfo {
 const ParamInfo& param_info(int i);
 std::string group_name(ParamGroup g);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -6,7 +6,7 @@
 
 #include "calib/core/conventions.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 namespace {
 
@@ -100,4 +100,4 @@ std::vector<bool> rests_from_quiet(const ImuSeries& imu, const std::vector<bool>
   return rest;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -14,7 +14,7 @@
 
 #include "calib/core/imu_increment.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 struct RestDetectorOptions {
   double window_s = 1.0;             ///< centred window of the rate and force statistics
@@ -37,4 +37,4 @@ void check_rest_detector_input(const ImuSeries& imu);
 /// that are not positive and finite, naming the option.
 std::vector<bool> detect_rest(const ImuSeries& imu, const RestDetectorOptions& options = {});
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

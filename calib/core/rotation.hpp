@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 template <typename T>
 using Vec3 = Eigen::Matrix<T, 3, 1>;
@@ -102,4 +102,4 @@ inline Eigen::Matrix3d orthonormalize(const Eigen::Matrix3d& C) {
   return 1.5 * C - 0.5 * C * C.transpose() * C;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

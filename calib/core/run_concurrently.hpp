@@ -8,7 +8,7 @@
 #include <system_error>
 #include <thread>
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 template <typename First, typename Second>
 void run_concurrently(First&& first, Second&& second) {
@@ -37,4 +37,4 @@ void run_concurrently(First&& first, Second&& second) {
   if (second_error) std::rethrow_exception(second_error);
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

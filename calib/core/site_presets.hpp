@@ -5,7 +5,7 @@
 #include "calib/core/conventions.hpp"
 #include "calib/core/earth.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 inline Site demo_factory_site() {
   Site s;
@@ -16,4 +16,4 @@ inline Site demo_factory_site() {
   return s;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -2,7 +2,7 @@
 
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 Strapdown::Strapdown(const EarthModel& earth) : earth_(earth) {
   const Site& site = earth_.site();
@@ -70,4 +70,4 @@ void Strapdown::step(NavState& s, const Eigen::Vector3d& dtheta_rad, const Eigen
   }
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -5,7 +5,7 @@
 #include "calib/core/earth.hpp"
 #include "calib/core/imu_increment.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 struct NavState {
   Eigen::Matrix3d C_bn = Eigen::Matrix3d::Identity();
@@ -50,4 +50,4 @@ class Strapdown {
   mutable LatTerms cache_;
 };
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

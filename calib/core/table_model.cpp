@@ -2,7 +2,7 @@
 
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 TableModel::TableModel(const TableGeometry& g) : g_(g) {
   g_.outer_axis_t.normalize();
@@ -35,4 +35,4 @@ Eigen::Vector3d TableModel::wdot_nb_b(const sequences::TableState& s) const {
   return g_.C_bp.transpose() * wdot_p;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

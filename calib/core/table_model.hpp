@@ -18,7 +18,7 @@
 
 #include "sequences/motion_profile.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 /// How far inside a table's rest segment its at_rest flag begins and ends (s): the simulator
 /// flags rest this way and the CRLB places its aiding epochs the same, so both see the same epochs.
@@ -50,4 +50,4 @@ class TableModel {
   Eigen::Matrix3d C_tn_;
 };
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

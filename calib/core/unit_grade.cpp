@@ -2,7 +2,7 @@
 
 #include "calib/core/conventions.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 const char* grade_name(Grade g) {
   switch (g) {
@@ -80,4 +80,4 @@ EnvelopeRange envelope_range() {
   return {100.0 * kDegToRad, 2.0 * kStandardGravity_mps2, 0.5, 0.2};
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

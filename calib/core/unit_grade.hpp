@@ -1,5 +1,5 @@
 #pragma once
-// A unit's grade and the prior that comes with it (issue #21 item 1, DESIGN §2 core: "unit grades
+// A unit's grade and the prior that comes with it (issue #21 item 1, ARCHITECTURE §2 core: "unit grades
 // and priors"). The station was written for navigation-grade units (fibre-optic gyros, pendulous
 // accelerometers, near nominal after assembly); a factory also builds tactical and MEMS units,
 // and field units come back aged. Everything that assumes a unit before seeing its data should
@@ -19,7 +19,7 @@
 #include <optional>
 #include <string>
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 enum class Grade { kNavigation, kTactical, kMems };
 
@@ -82,4 +82,4 @@ struct EnvelopeRange {
 };
 EnvelopeRange envelope_range();
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -9,7 +9,7 @@
 #include "calib/core/calibration_input.hpp"
 #include "calib/core/rest_detector.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 namespace {
 
@@ -159,4 +159,4 @@ VariationRestResult detect_rest_by_variation(const ImuSeries& imu, const Variati
   return r;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

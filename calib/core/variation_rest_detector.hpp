@@ -22,7 +22,7 @@
 #include "calib/core/imu_increment.hpp"
 #include "calib/core/unit_grade.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::core {
 
 struct VariationRestOptions {
   double window_s = 0.2;          ///< centred window of the variation statistics
@@ -52,4 +52,4 @@ struct VariationRestResult {
 VariationRestResult detect_rest_by_variation(const ImuSeries& imu,
                                              const VariationRestOptions& options);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::core

@@ -17,7 +17,9 @@
 #include "calib/diagnosis/simulated_twin.hpp"
 #include "calib/diagnosis/stochastic_candidates.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 namespace {
 
@@ -1043,4 +1045,4 @@ DiagnosisOptions diagnosis_options_for_false_alarm(double per_run) {
   return o;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -1,5 +1,5 @@
 #pragma once
-// Sim-to-real gap diagnosis (DESIGN §8, issue #8): where a recorded run departs from the model
+// Sim-to-real gap diagnosis (ARCHITECTURE §8, issue #8): where a recorded run departs from the model
 // (calibrated parameters + declared noise), which unmodelled effect of the catalogue
 // (calib/effects/catalogue.hpp) explains it, and how far the gap shrinks once that effect is
 // modelled, on held-out segments.
@@ -44,7 +44,9 @@
 #include "calib/diagnosis/whiteness.hpp"
 #include "calib/effects/catalogue.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 struct DiagnosisOptions {
   /// Candidate effects (default: the whole catalogue).
@@ -226,4 +228,4 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
 /// candidates' tests (Bonferroni over the candidates) each get half of it.
 DiagnosisOptions diagnosis_options_for_false_alarm(double per_run);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -13,7 +13,12 @@
 #include "calib/legacy/legacy.hpp"
 #include "calib/nlsq/nlsq.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::ains;
+using namespace calib::core;
+using namespace calib::effects;
+using namespace calib::legacy;
+using namespace calib::nlsq;
 
 namespace {
 
@@ -246,4 +251,4 @@ ValidationReport validate_diagnosis(const RunSource& world, const TableGeometry&
   return rep;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -1,5 +1,5 @@
 #pragma once
-// Blind validation of the gap diagnosis (DESIGN §8 step 4, issue #8 item 4): draw runs of a
+// Blind validation of the gap diagnosis (ARCHITECTURE §8 step 4, issue #8 item 4): draw runs of a
 // sequence from a RunSource (calib/effects/run_source.hpp: the truth simulator, or another) with
 // one effect (and, separately, pairs) injected at magnitudes drawn between 3× and 10× the effect's
 // detection threshold on that sequence (at most 0.7 × the size the diagnosis still calls plausible)
@@ -17,7 +17,9 @@
 #include "calib/diagnosis/effect_detectability.hpp"
 #include "calib/effects/run_source.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 struct ValidationOptions {
   int runs_per_effect = 10;  ///< single-effect runs per separable effect
@@ -85,4 +87,4 @@ ValidationReport validate_diagnosis(const RunSource& world, const TableGeometry&
 /// The effect's typical pattern scaled to `magnitude` (its magnitude unit) with a sign, SI vector.
 Eigen::VectorXd scaled_typical(const EffectInfo& e, double magnitude, double sign);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -11,7 +11,9 @@
 #include "calib/diagnosis/gap_linearisation.hpp"
 #include "calib/diagnosis/stochastic_candidates.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 namespace {
 
@@ -169,4 +171,4 @@ std::vector<EffectDetectability> effect_detectability(const CalibrationInput& ex
   return out;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -23,7 +23,9 @@
 #include "calib/diagnosis/diagnosis.hpp"
 #include "calib/effects/catalogue.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 struct EffectDetectability {
   EffectId id{};
@@ -51,4 +53,4 @@ std::vector<EffectDetectability> effect_detectability(const CalibrationInput& ex
                                                       const ParamSet& base,
                                                       const DiagnosisOptions& opt = {});
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

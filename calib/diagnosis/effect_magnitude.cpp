@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
 
 NormEstimate debiased_norm(const Eigen::VectorXd& x, const Eigen::MatrixXd& S) {
   const double q = x.squaredNorm(), t = S.trace();
@@ -20,4 +20,4 @@ NormEstimate debiased_norm(const Eigen::VectorXd& x, const Eigen::MatrixXd& S) {
   return e;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

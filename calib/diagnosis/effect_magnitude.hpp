@@ -6,7 +6,7 @@
 // an isotropic 9-parameter null reads ≈ 3σ.
 #include <Eigen/Dense>
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
 
 struct NormEstimate {
   double value = 0.0;  ///< sqrt(max(0, |x|² − tr Σ)): unbiased in the square, 0 when noise-level
@@ -16,4 +16,4 @@ struct NormEstimate {
 /// x: the estimate in the magnitude's units (already scaled), S: its covariance (same units).
 NormEstimate debiased_norm(const Eigen::VectorXd& x, const Eigen::MatrixXd& S);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -10,7 +10,7 @@
 #include <numeric>
 #include <stdexcept>
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
 
 namespace {
 
@@ -211,4 +211,4 @@ std::string correlation_text(double r) {
   return buf;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

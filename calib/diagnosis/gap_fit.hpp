@@ -1,5 +1,5 @@
 #pragma once
-// Linear-Gaussian fitting on whitened segment residuals (the diagnosis' workhorse, DESIGN §8):
+// Linear-Gaussian fitting on whitened segment residuals (the diagnosis' workhorse, ARCHITECTURE §8):
 // around the calibrated point the residuals are r(θ0 + δ) ≈ r0 + J δ, whitened so that under the
 // model r0 ~ N(0, I) after the fit. Everything the diagnosis asks — the base refit, a candidate's
 // joint refit, its likelihood ratio, the separability of its parameters from the base ones, the gap
@@ -12,7 +12,9 @@
 #include "calib/core/unit_grade.hpp"
 #include "calib/effects/catalogue.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 struct GlsFit {
   Eigen::VectorXd x;    ///< the step δ minimising ||r0 + J δ||² on the rows used
@@ -46,7 +48,7 @@ HeldOutGap held_out_gap_correlated(const Eigen::VectorXd& r0, const Eigen::Matri
                                    const Eigen::MatrixXd& S,
                                    const std::vector<std::vector<int>>& folds);
 
-/// Separability of a block of candidate columns Jc from base columns Jb (DESIGN §8: a candidate
+/// Separability of a block of candidate columns Jc from base columns Jb (ARCHITECTURE §8: a candidate
 /// correlating > 0.95 with the base parameters is not separable). Works in the candidate's own
 /// parameter space: directions u with (Jc u) of negligible size have no signature at all; of the
 /// others, the fraction of information left after the base parameters are marginalised is
@@ -96,4 +98,4 @@ std::string correlation_text(double r);
 double canonical_correlation(const Eigen::MatrixXd& Jb, const Eigen::MatrixXd& A,
                              const Eigen::MatrixXd& B);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

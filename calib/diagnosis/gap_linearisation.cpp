@@ -4,7 +4,9 @@
 #include <cmath>
 #include <string>
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 namespace {
 
@@ -106,4 +108,4 @@ CandidateColumns GapLinearisation::candidate(EffectId id, double tau_s) const {
   return c;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -1,5 +1,5 @@
 #pragma once
-// The gap model linearised at the calibrated point (DESIGN §8): whitened residuals r0 of the data
+// The gap model linearised at the calibrated point (ARCHITECTURE §8): whitened residuals r0 of the data
 // against the base parameters with no effect, the whitened Jacobian of the 27 base parameters, and,
 // on request, a candidate effect's columns — all by differences of the one residual model
 // (calib/diagnosis/gap_model.hpp), so the diagnosis fits exactly the model the simulator injects.
@@ -12,7 +12,9 @@
 #include "calib/diagnosis/gap_model.hpp"
 #include "calib/effects/catalogue.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 /// A candidate's columns: one per non-shape parameter, in units of the parameter's scale.
 struct CandidateColumns {
@@ -63,4 +65,4 @@ class GapLinearisation {
 /// pattern) the largest typical value among its parameters with the same unit.
 double effect_param_scale(const EffectInfo& e, int j);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -13,7 +13,9 @@
 #include "calib/effects/site_errors.hpp"
 #include "calib/effects/table_imperfections.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 namespace {
 
@@ -389,4 +391,4 @@ void GapModel::move_residual(const GapSegment& seg, const ParamSet& base, const 
   }
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

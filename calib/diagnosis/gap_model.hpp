@@ -1,5 +1,5 @@
 #pragma once
-// The segment residual model of the sim-to-real gap diagnosis (DESIGN §8, issue #8).
+// The segment residual model of the sim-to-real gap diagnosis (ARCHITECTURE §8, issue #8).
 //
 // A run is cut into segments that tile it: every rest period R (the table holds still) and every
 // move between two consecutive rests A -> B. Each segment yields six residuals of the real data
@@ -54,7 +54,9 @@
 #include "calib/core/table_model.hpp"
 #include "calib/effects/catalogue.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 /// What the diagnosis reads: the calibration input (table angles in the reference samples for table
 /// archives) and, for table archives, the table geometry (needed by the table effects).
@@ -225,4 +227,4 @@ class GapModel {
   std::vector<double> row_sqrt_s_;
 };
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

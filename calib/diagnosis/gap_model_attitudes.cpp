@@ -8,7 +8,9 @@
 #include "calib/core/rotation.hpp"
 #include "calib/diagnosis/gap_model.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 namespace {
 
@@ -151,4 +153,4 @@ void GapModel::refine_rest_attitudes(const ParamSet& calibrated) {
   }
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -7,7 +7,10 @@
 #include "calib/effects/effect_compensation.hpp"
 #include "calib/effects/site_errors.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::ains;
+using namespace calib::core;
+using namespace calib::effects;
 
 namespace {
 
@@ -71,4 +74,4 @@ Eigen::VectorXd GapModel::innovation_residuals(const ParamSet& base, const Effec
   return r;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

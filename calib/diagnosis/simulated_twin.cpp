@@ -7,7 +7,9 @@
 #include "calib/core/rotation.hpp"
 #include "calib/effects/quantisation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 DiagnosisInput simulated_twin(const DiagnosisInput& real, const ParamSet& calibrated,
                               uint64_t seed) {
@@ -41,4 +43,4 @@ DiagnosisInput simulated_twin(const DiagnosisInput& real, const ParamSet& calibr
   return twin;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

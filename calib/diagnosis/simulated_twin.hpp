@@ -1,5 +1,5 @@
 #pragma once
-// The simulated twin of a recorded run (DESIGN §8 step 1, "simulate the same trajectory with the
+// The simulated twin of a recorded run (ARCHITECTURE §8 step 1, "simulate the same trajectory with the
 // calibrated model"): the increments a unit with exactly the calibrated parameters and the declared
 // white noise would have delivered along the run's own reference attitudes (table or attitude log),
 // on the run's own time axis. Its residual statistics are what the model predicts for this run; the
@@ -15,9 +15,10 @@
 #include "calib/core/param_set.hpp"
 #include "calib/diagnosis/gap_model.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
 
 DiagnosisInput simulated_twin(const DiagnosisInput& real, const ParamSet& calibrated,
                               uint64_t seed);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -11,7 +11,9 @@
 #include "calib/diagnosis/gap_fit.hpp"
 #include "calib/effects/bias_instability.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
+using namespace calib::effects;
 
 namespace {
 
@@ -364,4 +366,4 @@ double bias_instability_noncentrality(const GapLinearisation& lin, double m) {
   return 0.5 * std::pow(m, 4) * MGM.squaredNorm();  // tr(A²) = ||A||_F² for symmetric A
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -1,5 +1,5 @@
 #pragma once
-// The two stochastic effects of the catalogue as diagnosis candidates (DESIGN §7-8). They have no
+// The two stochastic effects of the catalogue as diagnosis candidates (ARCHITECTURE §7-8). They have no
 // deterministic signature to refit; each is estimated through the statistics it changes.
 //
 //  * quantisation: an accumulating output register rounds each increment with the remainder
@@ -22,7 +22,8 @@
 #include "calib/diagnosis/gap_linearisation.hpp"
 #include "calib/diagnosis/whiteness.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
 
 CandidateResult score_quantisation(const CalibrationInput& in, const std::vector<RestPeriod>& rests,
                                    int folds);
@@ -57,4 +58,4 @@ CandidateResult score_bias_instability(const GapLinearisation& lin,
 double quantisation_noncentrality(const GapModel& model, double m);
 double bias_instability_noncentrality(const GapLinearisation& lin, double m);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -1,5 +1,5 @@
 #pragma once
-// The "over time" part of localising a gap (DESIGN §8): per-sample statistics of the rest samples
+// The "over time" part of localising a gap (ARCHITECTURE §8): per-sample statistics of the rest samples
 // (each rest's mean removed) against what the declared noise predicts — whiteness (lag-1
 // autocorrelation, which quantisation with a carried remainder makes negative) and the Allan
 // deviation of the rate residual at τ = 1, 10, 100, 1000 samples (white noise falls as 1/√τ, a bias
@@ -9,7 +9,8 @@
 
 #include "calib/core/calibration_input.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::diagnosis {
+using namespace calib::core;
 
 /// Per-sample statistics of the rest residuals per sensor axis (the "over time" part of localising
 /// the gap): lag-1 autocorrelation with its z against the declared noise, and the Allan deviation
@@ -24,4 +25,4 @@ struct WhitenessStats {
 
 WhitenessStats whiteness_stats(const CalibrationInput& in, const std::vector<RestPeriod>& rests);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::diagnosis

@@ -1,12 +1,13 @@
 #pragma once
-// accel_asymmetry (DESIGN §7): scale factor different for positive and negative input,
+// accel_asymmetry (ARCHITECTURE §7): scale factor different for positive and negative input,
 // δf_i = Kap_i |f_i| (dimensionless). Like K2 it aliases into bias at ±1 g; at tilts it grows as
 // |cos| rather than cos².
 #include <cmath>
 
 #include "calib/effects/sensor_kinematics.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::effects {
+using namespace calib::core;
 
 template <typename T>
 Vec3<T> asymmetry_delta_dv(const Vec3<T>& kap, const SensorKinematics& s) {
@@ -15,4 +16,4 @@ Vec3<T> asymmetry_delta_dv(const Vec3<T>& kap, const SensorKinematics& s) {
   return d;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::effects

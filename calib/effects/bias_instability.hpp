@@ -1,5 +1,5 @@
 #pragma once
-// bias_instability (DESIGN §7) and the noise model's own Gauss-Markov terms: a first-order
+// bias_instability (ARCHITECTURE §7) and the noise model's own Gauss-Markov terms: a first-order
 // Gauss-Markov bias per axis (paper eq. 16-17), exact discretisation x_k = φ x_{k-1} + w_k,
 // φ = exp(-dt/τ), var(w) = σ² (1 - φ²), x_0 ~ N(0, σ²) (stationary from the start).
 #include <cmath>
@@ -7,7 +7,8 @@
 
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::effects {
+using namespace calib::core;
 
 struct GaussMarkov3 {
   double sigma = 0.0, phi = 0.0, drive = 0.0;
@@ -30,4 +31,4 @@ struct GaussMarkov3 {
   static double correlation(double dt_s, double tau_s) { return std::exp(-std::abs(dt_s) / tau_s); }
 };
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::effects

@@ -4,7 +4,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace imucal::calib {
+namespace imucal::calib::effects {
 
 namespace {
 
@@ -437,4 +437,4 @@ void apply_effect_spec(Effects& fx, const std::string& spec) {
   set_effect_vector(fx, e->id, v);
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::effects

@@ -1,5 +1,5 @@
 #pragma once
-// The effects catalogue (DESIGN §7): unmodelled physics that the truth simulator injects and the
+// The effects catalogue (ARCHITECTURE §7): unmodelled physics that the truth simulator injects and the
 // gap diagnosis hypothesises. One name per effect, used everywhere (unit files, truth.json, command
 // lines, reports, JSON). Every effect has a flat parameter vector in SI units (EffectInfo lists its
 // parameters with their human units and a typical navigation-grade magnitude); `Effects` holds the
@@ -18,7 +18,7 @@
 
 #include "calib/core/conventions.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::effects {
 
 enum class EffectId {
   kAccelQuadraticK2,
@@ -60,7 +60,7 @@ struct EffectInfo {
   std::string name;  ///< the catalogue name, e.g. "accel_quadratic_k2"
   EffectKind kind;
   std::string model;      ///< the formula, one line
-  std::string signature;  ///< how it shows in the data (DESIGN §7)
+  std::string signature;  ///< how it shows in the data (ARCHITECTURE §7)
   std::vector<EffectParamInfo> params;
   /// A typical navigation-grade value of every parameter (SI, same order): the magnitude the
   /// catalogue quotes and the pattern (direction) used for detection thresholds.
@@ -148,4 +148,4 @@ void set_effect_vector(Effects& fx, EffectId id, const Eigen::VectorXd& si);
 /// listing the catalogue names for an unknown effect.
 void apply_effect_spec(Effects& fx, const std::string& spec);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::effects

@@ -4,7 +4,8 @@
 #include <string>
 #include <vector>
 
-namespace imucal::calib {
+namespace imucal::calib::effects {
+using namespace calib::core;
 
 IncrementDelta sensor_effects_at(const ImuSeries& imu, size_t k, const ImuCompensator& comp,
                                  const Effects& fx, double t_first_s) {
@@ -48,4 +49,4 @@ void remove_sensor_effects(ImuSeries& imu, const Effects& fx, const ParamSet& ca
   }
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::effects

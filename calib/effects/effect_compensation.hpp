@@ -9,7 +9,8 @@
 #include "calib/effects/catalogue.hpp"
 #include "calib/effects/sensor_effects.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::effects {
+using namespace calib::core;
 
 /// The effects' perturbation of sample k's increments at its own kinematics as the calibrated
 /// error model sees them: f and ω from the sample's compensated increments, ω̇ by central
@@ -27,4 +28,4 @@ void remove_sensor_effects(ImuSeries& imu, const Effects& fx, const ParamSet& ca
 /// The check remove_sensor_effects makes first (callers may make it before any other work).
 void check_removable(const Effects& fx);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::effects

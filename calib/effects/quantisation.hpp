@@ -1,5 +1,5 @@
 #pragma once
-// quantisation (DESIGN §7) and the noise model's declared LSBs: the output register rounds each
+// quantisation (ARCHITECTURE §7) and the noise model's declared LSBs: the output register rounds each
 // axis to its LSB and carries the remainder into the next sample (an accumulating register), so
 // quantisation never accumulates into a drift. The error of one output is e_k - e_{k-1} with e
 // uniform on ±LSB/2: white over long spans (Allan slope -1), variance LSB²/6 per sample and lag-1
@@ -8,7 +8,8 @@
 
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::effects {
+using namespace calib::core;
 
 struct Quantiser {
   double lsb = 0.0;
@@ -27,4 +28,4 @@ struct Quantiser {
 /// Lag-1 autocovariance of the per-sample quantisation error for a given LSB.
 inline double quantisation_lag1_autocov(double lsb) { return -lsb * lsb / 12.0; }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::effects

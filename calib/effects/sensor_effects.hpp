@@ -13,7 +13,8 @@
 #include "calib/effects/size_effect.hpp"
 #include "calib/effects/thermal_drift.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::effects {
+using namespace calib::core;
 
 struct IncrementDelta {
   Vec3<double> dv = Vec3<double>::Zero();
@@ -36,4 +37,4 @@ inline IncrementDelta sensor_effects_delta(const Effects& fx, const SensorKinema
   return d;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::effects

@@ -1,5 +1,5 @@
 #pragma once
-// size_effect (DESIGN §7): the three accelerometers sit at different points r_i of the unit (lever
+// size_effect (ARCHITECTURE §7): the three accelerometers sit at different points r_i of the unit (lever
 // arms from the rotation centre, body axes, m). Accelerometer i senses component i of the kinematic
 // acceleration at its own point, ([ω̇×] + [ω×]²) r_i, on top of the specific force at the centre.
 // Only while the table turns: ∝ ω² in cruise, spikes ∝ ω̇ at the ramps.
@@ -7,7 +7,8 @@
 
 #include "calib/effects/sensor_kinematics.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::effects {
+using namespace calib::core;
 
 /// Lever-arm specific force sensed by the accelerometers, body axes (component i from r_i).
 template <typename T>
@@ -29,4 +30,4 @@ Vec3<T> size_effect_delta_dv(const std::array<Vec3<T>, 3>& r_m, const SensorKine
   return size_effect_f_b<T>(r_m, s.w_b, s.wdot_b) * T(s.dt_s);
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::effects

@@ -1,5 +1,5 @@
 #pragma once
-// The table as it really is (DESIGN §7 table effects): the nominal two-axis geometry of
+// The table as it really is (ARCHITECTURE §7 table effects): the nominal two-axis geometry of
 // calib/core/table_model.hpp with the inner axis leaning towards the outer one
 // (table_nonorthogonality) and the platform tilting once per revolution (table_wobble):
 //   C_bn = C_tn R(a_outer, outer) exp([δ_o(inner)×]) R(a_inner', inner) C_bp.
@@ -8,7 +8,8 @@
 #include "calib/effects/table_nonorthogonality.hpp"
 #include "calib/effects/table_wobble.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::effects {
+using namespace calib::core;
 
 template <typename T>
 Mat3<T> table_C_bn(const TableGeometry& g, double outer_rad, double inner_rad, const T& nonorth_rad,
@@ -24,4 +25,4 @@ Mat3<T> table_C_bn(const TableGeometry& g, double outer_rad, double inner_rad, c
   return (C_tn * C_ot).cast<T>() * tilt * C_po * g.C_bp.cast<T>();
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::effects

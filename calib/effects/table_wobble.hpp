@@ -1,5 +1,5 @@
 #pragma once
-// table_wobble (DESIGN §7): a once-per-revolution tilt of the platform against the outer gimbal.
+// table_wobble (ARCHITECTURE §7): a once-per-revolution tilt of the platform against the outer gimbal.
 // A first-harmonic tilt δ_o(θ) = A cos θ + B sin θ (perpendicular to the inner axis) splits into a
 // part turning with the platform, which is a fixed mounting rotation (absorbed by the
 // misalignments, never observable), and a part turning against it: δ_o(θ) = R(a_inner, -θ) w,
@@ -7,7 +7,8 @@
 // × u1 (default geometry: Rz(-θ) (w_x, w_y, 0)). The platform is C_op = exp([δ_o×]) R(a_inner, θ).
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::effects {
+using namespace calib::core;
 
 /// Tilt rotation vector of the platform in the outer-gimbal frame at inner angle `inner_rad`.
 template <typename T>
@@ -20,4 +21,4 @@ Vec3<T> wobble_tilt_o(const Eigen::Vector3d& inner_o, const Eigen::Vector3d& out
   return (R * u1).cast<T>() * w_rad(0) + (R * u2).cast<T>() * w_rad(1);
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::effects

@@ -1,12 +1,13 @@
 #pragma once
-// thermal_drift (DESIGN §7): the warm-up of the biases after power-on, b(t) = b + A exp(-t/τ), t
+// thermal_drift (ARCHITECTURE §7): the warm-up of the biases after power-on, b(t) = b + A exp(-t/τ), t
 // from the run's first sample. A time trend, not locked to the orientation. Integrated exactly
 // over the interval: ∫ A exp(-t/τ) dt = A τ (exp(-t0/τ) - exp(-t1/τ)).
 #include <cmath>
 
 #include "calib/effects/sensor_kinematics.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::effects {
+using namespace calib::core;
 
 /// ∫ exp(-t/τ) dt over the interval (s).
 inline double thermal_weight_s(double tau_s, const SensorKinematics& s) {
@@ -19,4 +20,4 @@ Vec3<T> thermal_delta(const Vec3<T>& amplitude, double tau_s, const SensorKinema
   return amplitude * T(thermal_weight_s(tau_s, s));
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::effects

@@ -14,7 +14,8 @@
 #include "calib/core/earth.hpp"
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::legacy {
+using namespace calib::core;
 
 namespace {
 
@@ -518,4 +519,4 @@ CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptio
   return out;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::legacy

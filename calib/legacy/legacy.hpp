@@ -1,5 +1,5 @@
 #pragma once
-// The legacy baseline (issue #9; the role of the paper's "proprietary" column, DESIGN §6): a
+// The legacy baseline (issue #9; the role of the paper's "proprietary" column, ARCHITECTURE §6): a
 // textbook multi-position static + rate calibration that needs no attitude reference.
 //  1. Rest periods (the reference's at_rest flags, which on land/sea come from the IMU data); the
 //     mean specific force and rate of each, trimmed at both ends.
@@ -22,7 +22,8 @@
 // the noise (variance components), the whole inflated by the reduced χ² when above 1.
 #include "calib/core/calibration_input.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::legacy {
+using namespace calib::core;
 
 struct LegacyOptions {
   size_t min_rest_samples = 100;  ///< shorter rest runs are not used
@@ -34,4 +35,4 @@ struct LegacyOptions {
 /// does not converge).
 CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptions& options = {});
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::legacy

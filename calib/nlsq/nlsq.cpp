@@ -18,7 +18,8 @@
 #include "calib/nlsq/nlsq_preprocess.hpp"
 #include "calib/nlsq/nlsq_residuals.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::nlsq {
+using namespace calib::core;
 
 namespace {
 
@@ -354,4 +355,4 @@ CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& 
   return res;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::nlsq

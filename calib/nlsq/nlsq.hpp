@@ -1,5 +1,5 @@
 #pragma once
-// NLSQ factory calibration (paper §V, eq. 48-50; DESIGN §6): batch nonlinear least squares with
+// NLSQ factory calibration (paper §V, eq. 48-50; ARCHITECTURE §6): batch nonlinear least squares with
 // Ceres over the 27 parameters of ParamSet (accel bias, dM_a, gyro bias, dM_g, table
 // misalignment ς).
 //
@@ -52,7 +52,8 @@
 
 #include "calib/core/calibration_input.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::nlsq {
+using namespace calib::core;
 
 struct NlsqOptions {
   int max_outer_iterations = 10;            ///< re-linearisations of the gyro propagation
@@ -77,4 +78,4 @@ struct NlsqOptions {
 /// sequence.
 CalibrationResult calibrate_nlsq(const CalibrationInput& in, const NlsqOptions& opt = {});
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::nlsq

@@ -8,7 +8,8 @@
 #include "calib/core/imu_error_model.hpp"
 #include "calib/core/rotation.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::nlsq {
+using namespace calib::core;
 
 namespace {
 
@@ -145,4 +146,4 @@ NlsqRotation nlsq_linearise_rotation(const CalibrationInput& in,
   return rot;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::nlsq

@@ -1,5 +1,5 @@
 #pragma once
-// NLSQ data reduction (paper §V, DESIGN §6): rest periods to mean specific forces (once per run)
+// NLSQ data reduction (paper §V, ARCHITECTURE §6): rest periods to mean specific forces (once per run)
 // and rotations to a linearised gyro propagation (once per re-linearisation). Everything the Ceres
 // residuals of calib/nlsq/nlsq_residuals.hpp need, and nothing per sample.
 #include <Eigen/Core>
@@ -10,7 +10,8 @@
 #include "calib/core/noise_model.hpp"
 #include "calib/core/param_set.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::nlsq {
+using namespace calib::core;
 
 /// One rest period reduced to its mean raw specific force.
 ///
@@ -86,4 +87,4 @@ NlsqRotation nlsq_linearise_rotation(const CalibrationInput& in,
 Eigen::Matrix3d nlsq_propagate_body(const ImuSeries& imu, size_t begin, size_t end,
                                     const ParamSet& theta);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::nlsq

@@ -12,7 +12,8 @@
 #include "calib/core/rotation.hpp"
 #include "calib/nlsq/nlsq_preprocess.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::nlsq {
+using namespace calib::core;
 
 /// Accelerometer part of the error model from raw parameter-block pointers.
 template <typename T>
@@ -144,4 +145,4 @@ struct NlsqRotationResidual {
   }
 };
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::nlsq

@@ -11,7 +11,12 @@
 #include "calib/checks/data_check.hpp"
 #include "calib/core/run_concurrently.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::pipeline {
+using namespace calib::ains;
+using namespace calib::checks;
+using namespace calib::core;
+using namespace calib::legacy;
+using namespace calib::nlsq;
 
 namespace {
 
@@ -232,4 +237,4 @@ PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions
   return out;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::pipeline

@@ -1,6 +1,6 @@
 #pragma once
 // The station's calibration job in one call: two independent methods, each evaluated (paper
-// §VII), then the cross-check (DESIGN §6). Used by `imucal calibrate` and by stationd's worker, so
+// §VII), then the cross-check (ARCHITECTURE §6). Used by `imucal calibrate` and by stationd's worker, so
 // the two can never drift apart.
 //   factory: AINS + NLSQ (both need the table reference), evaluated against it;
 //   land:     AINS (zero velocity, depth) + the legacy method (no reference needed); below
@@ -21,7 +21,12 @@
 #include "calib/legacy/legacy.hpp"
 #include "calib/nlsq/nlsq.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::pipeline {
+using namespace calib::ains;
+using namespace calib::checks;
+using namespace calib::core;
+using namespace calib::legacy;
+using namespace calib::nlsq;
 
 /// kAll: the setting's methods (factory: AINS + NLSQ; land: AINS + legacy; sea: AINS).
 enum class MethodSelection { kAins, kNlsq, kLegacy, kAll };
@@ -76,4 +81,4 @@ struct PipelineResult {
 /// paper §V) and whatever the methods throw for bad input.
 PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions& opt = {});
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::pipeline

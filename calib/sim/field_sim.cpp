@@ -14,7 +14,9 @@
 #include "calib/effects/site_errors.hpp"
 #include "calib/sim/truth_physics.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::sim {
+using namespace calib::core;
+using namespace calib::effects;
 
 namespace {
 
@@ -448,4 +450,4 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
   return out;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::sim

@@ -31,7 +31,9 @@
 #include "calib/sim/truth_sim.hpp"
 #include "sequences/motion_profile.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::sim {
+using namespace calib::core;
+using namespace calib::effects;
 
 struct FieldSimOptions {
   Setting setting = Setting::kLand;  ///< kLand or kSea (kFactory is refused: use simulate())
@@ -66,4 +68,4 @@ struct FieldSimResult {
 FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Site& site,
                               const UnitModel& unit, const FieldSimOptions& options);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::sim

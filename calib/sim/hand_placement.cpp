@@ -5,7 +5,7 @@
 
 #include "sequences/profile_generator.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::sim {
 
 sequences::MotionProfile hand_placed_profile(uint64_t seed, const HandPlacementOptions& o) {
   if (o.positions < 1) throw std::invalid_argument("hand placement: positions must be >= 1");
@@ -48,4 +48,4 @@ sequences::MotionProfile hand_placed_profile(uint64_t seed, const HandPlacementO
   return sequences::generate_profile(seq);
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::sim

@@ -10,7 +10,7 @@
 
 #include "sequences/motion_profile.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::sim {
 
 struct HandPlacementOptions {
   int positions = 38;
@@ -25,4 +25,4 @@ struct HandPlacementOptions {
 /// Throws std::invalid_argument for a count < 1 or rests that are not 0 < min ≤ max.
 sequences::MotionProfile hand_placed_profile(uint64_t seed, const HandPlacementOptions& o = {});
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::sim

@@ -2,7 +2,9 @@
 
 #include <memory>
 
-namespace imucal::calib {
+namespace imucal::calib::sim {
+using namespace calib::core;
+using namespace calib::effects;
 
 CalibrationInput input_from_simulation(const SimResult& sim, const TableGeometry& geometry,
                                        const Site& site, const NoiseModel& noise) {
@@ -47,4 +49,4 @@ RunSource field_run_source(const sequences::MotionProfile& profile, const Site& 
   };
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::sim

@@ -10,7 +10,9 @@
 #include "calib/sim/truth_sim.hpp"
 #include "sequences/motion_profile.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::sim {
+using namespace calib::core;
+using namespace calib::effects;
 
 /// Build a CalibrationInput from a simulation (the table reference from encoder angles).
 CalibrationInput input_from_simulation(const SimResult& sim, const TableGeometry& geometry,
@@ -28,4 +30,4 @@ RunSource field_run_source(const sequences::MotionProfile& profile, const Site& 
                            const UnitModel& unit, const FieldSimOptions& options,
                            Grade grade = Grade::kNavigation);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::sim

@@ -7,7 +7,9 @@
 #include "calib/effects/site_errors.hpp"
 #include "calib/effects/table_imperfections.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::sim {
+using namespace calib::core;
+using namespace calib::effects;
 
 TruthKinematics::TruthKinematics(const TableGeometry& geometry, const Site& site,
                                  const UnitModel& unit, double dt_s)
@@ -17,7 +19,7 @@ TruthKinematics::TruthKinematics(const TableGeometry& geometry, const Site& site
       wobble_rad_(unit.effects.table_wobble_rad),
       misalignment_rad_(unit.params.table_misalignment_rad),
       lever_arm_m_(unit.effects.accel_lever_arm_m) {
-  // The physics happens at the true site; the station's configured one may be off (DESIGN §7).
+  // The physics happens at the true site; the station's configured one may be off (ARCHITECTURE §7).
   const EarthModel earth(
       true_site(site, unit.effects.gravity_error_mps2, unit.effects.latitude_error_rad));
   w_ie_n_ = earth.w_ie_n();
@@ -107,7 +109,7 @@ void TruthSensor::reseed_noise(uint64_t seed) {
 void TruthSensor::measure(const Eigen::Vector3d& dtheta, const Eigen::Vector3d& dv, double t0_s,
                           ImuIncrement& out) {
   const double dt_s = dt_s_;
-  // Sensor-level effects (DESIGN §7, calib/effects/) at the interval-mean kinematics; the size
+  // Sensor-level effects (ARCHITECTURE §7, calib/effects/) at the interval-mean kinematics; the size
   // effect is already in dv (integrated exactly by TruthKinematics::dv_lever).
   SensorKinematics kin;
   kin.f_b = dv / dt_s;
@@ -132,4 +134,4 @@ void TruthSensor::measure(const Eigen::Vector3d& dtheta, const Eigen::Vector3d& 
   out.dv_mps = q_dv_.apply(dv_meas);
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::sim

@@ -9,7 +9,7 @@
 //    the lever-arm specific force by Gauss-Legendre quadrature;
 //  * TruthSensor — what the unit makes of them: error model (paper eq. 18, 23), sensor-level
 //  effects
-//    (DESIGN §7), noise (ARW, VRW, Gauss-Markov eq. 16-17) and quantisation with carried remainder.
+//    (ARCHITECTURE §7), noise (ARW, VRW, Gauss-Markov eq. 16-17) and quantisation with carried remainder.
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
@@ -25,7 +25,9 @@
 #include "calib/sim/truth_sim.hpp"
 #include "sequences/motion_profile.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::sim {
+using namespace calib::core;
+using namespace calib::effects;
 
 /// 3-point Gauss-Legendre on [0, 1]: exact for polynomials up to degree 5.
 struct GaussLegendre3 {
@@ -100,4 +102,4 @@ class TruthSensor {
   double sd_dth_, sd_dv_;
 };
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::sim

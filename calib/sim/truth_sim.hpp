@@ -1,6 +1,6 @@
 #pragma once
 // Truth simulator: from a motion profile, a table model, the station site and a unit model, the
-// IMU increments a real unit would deliver — exact to the physics (DESIGN §3, issue #2):
+// IMU increments a real unit would deliver — exact to the physics (ARCHITECTURE §3, issue #2):
 //  * attitude w.r.t. inertial space is analytic: C_bi(t) = C_ni(0) exp([ω_ie_n t x]) C_bn(t), so
 //    dθ_k = log(C_bi(t_{k-1})^T C_bi(t_k)) exactly (no sampling of rates);
 //  * dv_k = C_bi(t_{k-1})^T ∫ C_bi(t) f_b(t) dt by Gauss-Legendre quadrature split at the profile's
@@ -19,20 +19,12 @@
 #include "calib/core/table_model.hpp"
 #include "calib/core/unit_grade.hpp"
 #include "calib/effects/catalogue.hpp"
+#include "calib/effects/unit_model.hpp"
 #include "sequences/motion_profile.hpp"
 
-namespace imucal::calib {
-
-struct UnitModel {
-  ParamSet params;  ///< true calibration parameters (table_misalignment = the station's ς)
-  NoiseModel noise;
-  Effects effects;  ///< unmodelled physics (DESIGN §7); empty = none
-  /// The product the unit is (calib/core/unit_grade.hpp): what a run of it states in [prior].
-  Grade grade = Grade::kNavigation;
-};
-
-/// The default unit of DESIGN §7 (fixed, deterministic values within the stated sizes).
-UnitModel default_unit();
+namespace imucal::calib::sim {
+using namespace calib::core;
+using namespace calib::effects;
 
 struct SimOptions {
   double rate_hz = 100.0;
@@ -54,4 +46,4 @@ SimResult simulate(const sequences::MotionProfile& profile, const TableGeometry&
 Eigen::Matrix3d true_C_bn(const sequences::MotionProfile& profile, const TableModel& table,
                           const UnitModel& unit, double t_s);
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::sim

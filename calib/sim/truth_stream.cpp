@@ -6,7 +6,9 @@
 
 #include "calib/sim/truth_physics.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::sim {
+using namespace calib::core;
+using namespace calib::effects;
 
 TruthStream::TruthStream(const TableGeometry& geometry, const Site& site, const UnitModel& unit,
                          const SimOptions& options)
@@ -64,4 +66,4 @@ ImuIncrement TruthStream::next(const StateAt& state_at, const std::vector<double
 
 void TruthStream::reseed_noise(uint64_t seed) { sensor_->reseed_noise(seed); }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::sim

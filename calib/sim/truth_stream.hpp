@@ -1,5 +1,5 @@
 #pragma once
-// Streaming truth simulator: the increments of calib::simulate() (truth_sim.hpp) for a table whose
+// Streaming truth simulator: the increments of calib::sim::simulate() (truth_sim.hpp) for a table whose
 // motion is only known as it happens — a simulated PLC can only step forward in time. The caller
 // hands next() a function giving the table state at a time; it is called with non-decreasing times
 // inside [t_{k-1}, t_k]: the interval start (first sample only), the Gauss-Legendre nodes (size
@@ -23,7 +23,9 @@
 #include "calib/sim/truth_sim.hpp"
 #include "sequences/motion_profile.hpp"
 
-namespace imucal::calib {
+namespace imucal::calib::sim {
+using namespace calib::core;
+using namespace calib::effects;
 
 class TruthKinematics;
 class TruthSensor;
@@ -64,4 +66,4 @@ class TruthStream {
   Eigen::Matrix3d C_prev_ = Eigen::Matrix3d::Identity();
 };
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::sim

@@ -2,7 +2,9 @@
 
 #include <random>
 
-namespace imucal::calib {
+namespace imucal::calib::sim {
+using namespace calib::core;
+using namespace calib::effects;
 
 UnitModel draw_unit(Grade grade, uint64_t seed) {
   if (grade == Grade::kNavigation) return default_unit();
@@ -45,4 +47,4 @@ UnitModel draw_production_unit(Grade grade, uint64_t seed) {
   return unit;
 }
 
-}  // namespace imucal::calib
+}  // namespace imucal::calib::sim

@@ -1,5 +1,5 @@
 #pragma once
-// The one exception type of the run-archive boundary (DESIGN §5). Data from other stations and
+// The one exception type of the run-archive boundary (ARCHITECTURE §5). Data from other stations and
 // simulators enter here, so every error names the file and the line and/or field a user must fix.
 //   what() = "<file>:<line>: <message>"                    (line known)
 //          | "<file>: field '<name>': <message>"           (field known)
@@ -11,7 +11,7 @@
 #include <string>
 #include <utility>
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 class ArchiveError : public std::runtime_error {
  public:
@@ -64,4 +64,4 @@ class ArchiveError : public std::runtime_error {
   std::string message_;
 };
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

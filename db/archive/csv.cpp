@@ -10,7 +10,7 @@
 
 #include "db/archive/archive_error.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 namespace {
 
@@ -92,17 +92,6 @@ void check_header(const std::vector<std::string>& hdr, const CsvSpec& spec,
 }
 
 }  // namespace
-
-bool CsvTable::has_column(std::string_view name) const {
-  return std::find(columns.begin(), columns.end(), name) != columns.end();
-}
-
-size_t CsvTable::column_index(std::string_view name) const {
-  const auto it = std::find(columns.begin(), columns.end(), name);
-  if (it == columns.end())
-    throw ArchiveError::column_error(file, 1, std::string(name), "missing column");
-  return static_cast<size_t>(it - columns.begin());
-}
 
 namespace {
 
@@ -512,4 +501,4 @@ void CsvWriter::write_row(const double* values, size_t n) {
 
 void CsvWriter::close() { file_.close(); }
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

@@ -1,5 +1,5 @@
 #pragma once
-// Strict numeric CSV, the table format of the run archive (DESIGN §5, db/archive/FORMAT.md).
+// Strict numeric CSV, the table format of the run archive (ARCHITECTURE §5, db/archive/FORMAT.md).
 //
 // Reader rules (each violation is an ArchiveError naming file, 1-based line — header = line 1 —
 // and, for a cell, the column):
@@ -23,7 +23,7 @@
 
 #include "db/archive/io_util.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 struct CsvSpec {
   std::vector<std::string> columns;  ///< required, in this order
@@ -40,9 +40,6 @@ struct CsvTable {
 
   std::size_t num_cols() const { return columns.size(); }
   double at(std::size_t row, std::size_t col) const { return values[row * columns.size() + col]; }
-  bool has_column(std::string_view name) const;
-  /// Index of a column; ArchiveError naming the file and column if absent.
-  std::size_t column_index(std::string_view name) const;
   /// File line of data row `row` (0-based): the header is line 1 and blank lines are not allowed.
   static std::size_t line_of_row(std::size_t row) { return row + 2; }
 };
@@ -110,4 +107,4 @@ class CsvWriter {
   double last_t_ = 0.0;
 };
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

@@ -4,7 +4,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 namespace {
 
@@ -13,7 +13,7 @@ using nlohmann::json;
 /// JSON has no NaN/Inf: a non-finite figure (e.g. a χ² ratio of nothing) becomes null.
 json num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 
-json params_json(const std::vector<calib::CandidateParam>& ps) {
+json params_json(const std::vector<calib::diagnosis::CandidateParam>& ps) {
   json a = json::array();
   for (const auto& p : ps)
     a.push_back(
@@ -21,7 +21,7 @@ json params_json(const std::vector<calib::CandidateParam>& ps) {
   return a;
 }
 
-json finding(const calib::CandidateResult& c) {
+json finding(const calib::diagnosis::CandidateResult& c) {
   return {{"effect", c.name},
           {"magnitude", num(c.magnitude)},
           {"sigma", num(c.magnitude_sigma)},
@@ -31,7 +31,7 @@ json finding(const calib::CandidateResult& c) {
 
 /// One step of the stepwise explanation: the effect, its size in the joint fit of the set, its test
 /// given the steps before it and the gaps once it is added.
-json step_json(const calib::DiagnosisStep& s) {
+json step_json(const calib::diagnosis::DiagnosisStep& s) {
   return {{"effect", s.effect},
           {"magnitude", num(s.magnitude)},
           {"sigma", num(s.magnitude_sigma)},
@@ -43,7 +43,7 @@ json step_json(const calib::DiagnosisStep& s) {
           {"parameters", params_json(s.params)}};
 }
 
-json candidate_json(const calib::CandidateResult& c) {
+json candidate_json(const calib::diagnosis::CandidateResult& c) {
   return {{"effect", c.name},
           {"score", num(c.bic_gain)},
           {"lr", num(c.lr)},
@@ -69,13 +69,13 @@ json candidate_json(const calib::CandidateResult& c) {
           {"parameters", params_json(c.params)}};
 }
 
-json segment_json(const calib::SegmentGap& g, const std::vector<std::string>& keys) {
+json segment_json(const calib::diagnosis::SegmentGap& g, const std::vector<std::string>& keys) {
   json z = json::object(), r = json::object();
   for (size_t c = 0; c < keys.size(); ++c) {
     z[keys[c]] = num(g.z[c]);
     r[keys[c]] = num(g.residual_si[c]);
   }
-  const bool rest = g.segment.kind == calib::GapSegment::Kind::kRest;
+  const bool rest = g.segment.kind == calib::diagnosis::GapSegment::Kind::kRest;
   return {{"label", g.segment.label()},
           {"kind", rest ? "rest" : "move"},
           {"number", g.segment.number},
@@ -93,7 +93,7 @@ json segment_json(const calib::SegmentGap& g, const std::vector<std::string>& ke
 
 }  // namespace
 
-nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
+nlohmann::json diagnosis_to_json(const calib::diagnosis::DiagnosisResult& d) {
   json j;
   j["verdict"] = d.verdict;
   j["summary"] = d.summary;
@@ -125,11 +125,11 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
                   {"gap_after_best", num(d.gap_after_best)},
                   {"simulated_gap", num(d.twin_gap)}};
   json axes = json::object();
-  for (int c = 0; c < calib::kGapRowsPerSegment; ++c) {
+  for (int c = 0; c < calib::diagnosis::kGapRowsPerSegment; ++c) {
     json adev = json::array(), exp = json::array();
     for (double v : d.whiteness.adev[static_cast<size_t>(c)]) adev.push_back(num(v));
     for (double v : d.whiteness.adev_expected[static_cast<size_t>(c)]) exp.push_back(num(v));
-    axes[calib::gap_component_key(c)] = {
+    axes[calib::diagnosis::gap_component_key(c)] = {
         {"lag1_autocorr", num(d.whiteness.lag1_autocorr[static_cast<size_t>(c)])},
         {"lag1_z", num(d.whiteness.lag1_z[static_cast<size_t>(c)])},
         {"adev", adev},
@@ -155,7 +155,7 @@ nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d) {
   return j;
 }
 
-nlohmann::json diagnosis_summary_json(const calib::DiagnosisResult& d) {
+nlohmann::json diagnosis_summary_json(const calib::diagnosis::DiagnosisResult& d) {
   const json full = diagnosis_to_json(d);
   json s;
   for (const char* k : {"verdict", "summary", "best", "second", "ambiguous", "explained_by",
@@ -177,17 +177,17 @@ nlohmann::json diagnosis_summary_json(const calib::DiagnosisResult& d) {
 namespace {
 
 /// One finding ({"effect", "parameters": [{"name", "value", "unit"}]}) into `fx`, in SI.
-std::string add_finding(const nlohmann::json& f, const std::string& where, calib::Effects& fx) {
+std::string add_finding(const nlohmann::json& f, const std::string& where, calib::effects::Effects& fx) {
   auto bad = [&](const std::string& what) { return std::invalid_argument(where + ": " + what); };
   if (!f.is_object() || !f.contains("effect") || !f["effect"].is_string())
     throw bad("not a finding (an object with \"effect\" and \"parameters\")");
   const std::string name = f["effect"].get<std::string>();
-  const calib::EffectInfo* e = calib::find_effect(name);
+  const calib::effects::EffectInfo* e = calib::effects::find_effect(name);
   if (!e) throw bad("unknown effect \"" + name + "\"");
   if (!f.contains("parameters") || !f["parameters"].is_array()) throw bad("no \"parameters\"");
-  Eigen::VectorXd v = calib::effect_vector(fx, e->id);
+  Eigen::VectorXd v = calib::effects::effect_vector(fx, e->id);
   for (int i = 0; i < e->size(); ++i) {
-    const calib::EffectParamInfo& pi = e->params[static_cast<size_t>(i)];
+    const calib::effects::EffectParamInfo& pi = e->params[static_cast<size_t>(i)];
     bool found = false;
     for (const auto& p : f["parameters"]) {
       if (!p.is_object() || p.value("name", "") != pi.name) continue;
@@ -198,7 +198,7 @@ std::string add_finding(const nlohmann::json& f, const std::string& where, calib
     }
     if (!found) throw bad(name + ": parameter " + pi.name + " missing");
   }
-  calib::set_effect_vector(fx, e->id, v);
+  calib::effects::set_effect_vector(fx, e->id, v);
   std::ostringstream os;
   os.precision(3);
   os << name;
@@ -233,4 +233,4 @@ DiagnosedEffects diagnosed_effects(const nlohmann::json& j, const std::string& o
   return out;
 }
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

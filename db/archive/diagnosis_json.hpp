@@ -22,20 +22,20 @@
 
 #include "calib/diagnosis/diagnosis.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
-nlohmann::json diagnosis_to_json(const calib::DiagnosisResult& d);
+nlohmann::json diagnosis_to_json(const calib::diagnosis::DiagnosisResult& d);
 
 /// The summary kept with a station run (runs.diagnosis_json): {"verdict", "summary", "best",
 /// "second", "ambiguous", "explained_by", "steps" (without parameters), "overall": {"gap",
 /// "expected", "sigma", "p_value"}, "held_out": {...}}.
-nlohmann::json diagnosis_summary_json(const calib::DiagnosisResult& d);
+nlohmann::json diagnosis_summary_json(const calib::diagnosis::DiagnosisResult& d);
 
 /// The effects a diagnosis found (its steps' deterministic effects, sizes from their joint fit; or,
 /// in a diagnosis without steps, its "best" and "second"), back in SI: what `imucal calibrate
 /// --compensate` removes from a run before calibrating it.
 struct DiagnosedEffects {
-  calib::Effects effects;
+  calib::effects::Effects effects;
   std::vector<std::string> names;  ///< "gyro_g_sensitivity = 686 deg/h/g", one per effect
 };
 /// Reads them from a diagnosis JSON (diagnose --json, or --report's diagnosis.json); `origin`
@@ -43,4 +43,4 @@ struct DiagnosedEffects {
 /// diagnosis, names no effect, or a parameter is missing.
 DiagnosedEffects diagnosed_effects(const nlohmann::json& j, const std::string& origin);
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

@@ -15,7 +15,7 @@
 
 #include "db/archive/archive_error.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 namespace {
 
@@ -195,4 +195,4 @@ std::string format_double(double v) {
   return s;
 }
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

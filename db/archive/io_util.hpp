@@ -11,7 +11,7 @@
 
 #include "calib/core/run_concurrently.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 /// Whole file as bytes (read_file_bytes() copied into a string: for the small files). Throws
 /// ArchiveError("<path>: cannot open: <reason>") on failure.
@@ -61,7 +61,7 @@ class ReadableFile {
 };
 
 /// Two independent tasks at once, the first one's error first (calib/core/run_concurrently.hpp).
-using calib::run_concurrently;
+using calib::core::run_concurrently;
 
 /// Writes a file durably: open (O_CREAT|O_EXCL unless overwrite), write all, fsync, close.
 /// Buffered; every error (ENOSPC, EIO, ...) is an ArchiveError naming the path.
@@ -114,11 +114,11 @@ void append_double(std::string& out, double v);
 template <typename ToSi>
 double human_for_si(double si, double approx_human, ToSi to_si);
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive
 
 #include <cmath>
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 template <typename ToSi>
 double human_for_si(double si, double approx_human, ToSi to_si) {
@@ -157,4 +157,4 @@ double human_for_si(double si, double approx_human, ToSi to_si) {
   return best_h;
 }
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

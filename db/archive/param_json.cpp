@@ -6,7 +6,7 @@
 #include "db/archive/archive_error.hpp"
 #include "db/archive/io_util.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 namespace {
 
@@ -32,7 +32,7 @@ json mat_to_json(const Eigen::Matrix3d& m, const std::string& field) {
   return a;
 }
 
-json params_object(const calib::ParamSet& p, const std::string& prefix) {
+json params_object(const calib::core::ParamSet& p, const std::string& prefix) {
   json o = json::object();
   o["accel_bias_mps2"] = vec_to_json(p.accel_bias_mps2, prefix + "accel_bias_mps2");
   o["accel_M"] = mat_to_json(p.accel_M, prefix + "accel_M");
@@ -77,7 +77,7 @@ Eigen::Matrix3d mat_from(const json& j, const std::string& origin, const std::st
   return m;
 }
 
-calib::ParamSet params_from_object(const json& j, const std::string& origin,
+calib::core::ParamSet params_from_object(const json& j, const std::string& origin,
                                    const std::string& prefix, bool allow_sigma_key) {
   if (!j.is_object())
     throw ArchiveError::field_error(origin,
@@ -95,7 +95,7 @@ calib::ParamSet params_from_object(const json& j, const std::string& origin,
   }
   for (const char* k : kParamSetKeys)
     if (!j.contains(k)) throw ArchiveError::field_error(origin, prefix + k, "missing");
-  calib::ParamSet p;
+  calib::core::ParamSet p;
   p.accel_bias_mps2 = vec_from(j["accel_bias_mps2"], origin, prefix + "accel_bias_mps2");
   p.accel_M = mat_from(j["accel_M"], origin, prefix + "accel_M");
   p.gyro_bias_radps = vec_from(j["gyro_bias_radps"], origin, prefix + "gyro_bias_radps");
@@ -107,31 +107,31 @@ calib::ParamSet params_from_object(const json& j, const std::string& origin,
 
 }  // namespace
 
-json param_set_to_json(const calib::ParamSet& params, const calib::ParamSet* sigma) {
+json param_set_to_json(const calib::core::ParamSet& params, const calib::core::ParamSet* sigma) {
   json o = params_object(params, "");
   if (sigma) {
-    const calib::ParamVector s = sigma->to_vector();
-    for (int i = 0; i < calib::ParamSet::kSize; ++i)
+    const calib::core::ParamVector s = sigma->to_vector();
+    for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
       if (s(i) < 0.0)
-        throw ArchiveError::field_error("<param set>", "sigma." + calib::param_info(i).name,
+        throw ArchiveError::field_error("<param set>", "sigma." + calib::core::param_info(i).name,
                                         "a 1-sigma uncertainty cannot be negative");
     o["sigma"] = params_object(*sigma, "sigma.");
   }
   return o;
 }
 
-calib::ParamSet param_set_from_json(const json& j, const std::string& origin,
-                                    calib::ParamSet* sigma_out) {
-  calib::ParamSet p = params_from_object(j, origin, "", /*allow_sigma_key=*/true);
+calib::core::ParamSet param_set_from_json(const json& j, const std::string& origin,
+                                    calib::core::ParamSet* sigma_out) {
+  calib::core::ParamSet p = params_from_object(j, origin, "", /*allow_sigma_key=*/true);
   if (j.contains("source") && !j["source"].is_object())
     throw ArchiveError::field_error(
         origin, "source", std::string("expected a JSON object, got ") + kind_name(j["source"]));
   if (j.contains("sigma")) {
-    const calib::ParamSet s = params_from_object(j["sigma"], origin, "sigma.", false);
-    const calib::ParamVector sv = s.to_vector();
-    for (int i = 0; i < calib::ParamSet::kSize; ++i)
+    const calib::core::ParamSet s = params_from_object(j["sigma"], origin, "sigma.", false);
+    const calib::core::ParamVector sv = s.to_vector();
+    for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
       if (sv(i) < 0.0)
-        throw ArchiveError::field_error(origin, "sigma." + calib::param_info(i).name,
+        throw ArchiveError::field_error(origin, "sigma." + calib::core::param_info(i).name,
                                         "a 1-sigma uncertainty cannot be negative");
     if (sigma_out) *sigma_out = s;
   } else if (sigma_out) {
@@ -163,13 +163,13 @@ json parse_json_text(const std::string& text, const std::string& origin) {
   }
 }
 
-calib::ParamSet read_param_file(const std::string& path, calib::ParamSet* sigma_out) {
+calib::core::ParamSet read_param_file(const std::string& path, calib::core::ParamSet* sigma_out) {
   return param_set_from_json(parse_json_text(read_text_file(path), path), path, sigma_out);
 }
 
-void write_param_file(const std::string& path, const calib::ParamSet& params,
-                      const calib::ParamSet* sigma) {
+void write_param_file(const std::string& path, const calib::core::ParamSet& params,
+                      const calib::core::ParamSet* sigma) {
   write_file_atomic(path, param_set_to_json(params, sigma).dump(2) + "\n");
 }
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

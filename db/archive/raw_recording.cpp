@@ -11,7 +11,7 @@
 
 #include "db/archive/archive_error.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 namespace {
 
@@ -204,7 +204,7 @@ RawRecording assemble(const Rows& g, const std::size_t gcols[3], const Rows& a,
   const double per_sample = o.quantity == RawQuantity::kRates ? grid.T : 1.0;
   out.imu.resize(g.size());
   for (std::size_t k = 0; k < g.size(); ++k) {
-    calib::ImuIncrement& s = out.imu[k];
+    calib::core::ImuIncrement& s = out.imu[k];
     s.t_s = grid.t0 + grid.T * static_cast<double>(k);
     s.dt_s = grid.T;
     s.temp_c = std::nan("");  // a raw recording has no temperature column
@@ -309,4 +309,4 @@ RawRecording read_raw_recording_pair(const std::string& gyro_path, const std::st
   return out;
 }
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

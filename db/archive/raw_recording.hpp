@@ -21,7 +21,7 @@
 
 #include "calib/core/imu_increment.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 /// SI value = (raw - offset) * scale, per axis.
 struct RawAxisScale {
@@ -41,7 +41,7 @@ struct RawImportOptions {
 };
 
 struct RawRecording {
-  calib::ImuSeries imu;  ///< on the uniform grid, t from 0 at the first sample
+  calib::core::ImuSeries imu;  ///< on the uniform grid, t from 0 at the first sample
   double rate_hz = 0.0;
   double jitter_rms_s = 0.0;  ///< host stamps about the grid
   double jitter_max_s = 0.0;
@@ -65,4 +65,4 @@ RawRecording read_raw_recording_pair(const std::string& gyro_path, const std::st
 /// what is wrong.
 std::vector<std::string> parse_raw_columns(const std::string& text);
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

@@ -14,17 +14,15 @@
 #include <filesystem>
 #include <mutex>
 
-#include "calib/checks/data_check.hpp"
 #include "calib/core/conventions.hpp"
 #include "calib/core/rotation.hpp"
-#include "calib/effects/effect_compensation.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/csv.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/toml_util.hpp"
 #include "sequences/toml_support.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 namespace fs = std::filesystem;
 
@@ -45,12 +43,12 @@ double arw_to_si(double h) { return h * kDegToRad / 60.0; }  // deg/√h -> rad/
 double vrw_to_si(double h) { return h * kMicroG_mps2; }      // µg/√Hz -> (m/s)/√s
 
 /// run.toml [prior]'s envelope overrides: key, human unit, SI conversion, the override it sets
-/// and its admissible maximum (calib::envelope_range()).
+/// and its admissible maximum (calib::core::envelope_range()).
 struct EnvelopeKey {
   const char* key;
   const char* unit;
   double (*to_si)(double);
-  std::optional<double> calib::EnvelopeOverrides::*member;
+  std::optional<double> calib::core::EnvelopeOverrides::*member;
   double max_si;
   const char* range;  ///< as the error states it
 };
@@ -59,15 +57,15 @@ double mg_to_si(double h) { return h * 1e3 * kMicroG_mps2; }
 double ppm_to_si(double h) { return h * 1e-6; }
 double mrad_to_si(double h) { return h * 1e-3; }
 const std::vector<EnvelopeKey>& envelope_keys() {
-  static const calib::EnvelopeRange r = calib::envelope_range();
+  static const calib::core::EnvelopeRange r = calib::core::envelope_range();
   static const std::vector<EnvelopeKey> keys = {
-      {"gyro_bias_deg_per_s", "deg/s", deg_per_s_to_si, &calib::EnvelopeOverrides::gyro_bias_radps,
+      {"gyro_bias_deg_per_s", "deg/s", deg_per_s_to_si, &calib::core::EnvelopeOverrides::gyro_bias_radps,
        r.max_gyro_bias_radps, "(0, 100] deg/s"},
-      {"accel_bias_mg", "mg", mg_to_si, &calib::EnvelopeOverrides::accel_bias_mps2,
+      {"accel_bias_mg", "mg", mg_to_si, &calib::core::EnvelopeOverrides::accel_bias_mps2,
        r.max_accel_bias_mps2, "(0, 2000] mg"},
-      {"scale_ppm", "ppm", ppm_to_si, &calib::EnvelopeOverrides::scale, r.max_scale,
+      {"scale_ppm", "ppm", ppm_to_si, &calib::core::EnvelopeOverrides::scale, r.max_scale,
        "(0, 500000] ppm"},
-      {"misalignment_mrad", "mrad", mrad_to_si, &calib::EnvelopeOverrides::misalignment_rad,
+      {"misalignment_mrad", "mrad", mrad_to_si, &calib::core::EnvelopeOverrides::misalignment_rad,
        r.max_misalignment_rad, "(0, 200] mrad"}};
   return keys;
 }
@@ -197,7 +195,7 @@ void read_identity(const TomlSection& root, const std::string& origin, ParsedRun
     (std::string(k) == "start_time" ? ri.start_time : ri.end_time) = v;
   }
   if (const auto setting = root.string("setting")) {
-    const auto s = calib::parse_setting(*setting);
+    const auto s = calib::core::parse_setting(*setting);
     if (!s)
       root.fail("setting", "must be \"factory\", \"land\" or \"sea\", got \"" + *setting + "\"");
     ri.setting = *s;
@@ -309,7 +307,7 @@ void read_optional_sections(const TomlSection& root, RunInfo& ri) {
         ri.prior_overrides.*k.member = si;
       }
     if (const auto g = p->string("grade")) {
-      const auto grade = calib::parse_grade(*g);
+      const auto grade = calib::core::parse_grade(*g);
       if (!grade)
         p->fail("grade", "must be \"navigation\", \"tactical\" or \"mems\", got \"" + *g + "\"");
       ri.grade = *grade;
@@ -386,16 +384,16 @@ void check_has_rows(const CsvTable& t) {
 
 }  // namespace
 
-calib::TableGeometry TableSetup::geometry() const {
-  calib::TableGeometry g;
+calib::core::TableGeometry TableSetup::geometry() const {
+  calib::core::TableGeometry g;
   g.outer_axis_t = outer_axis_t.normalized();
   g.inner_axis_o = inner_axis_o.normalized();
   g.heading_rad = heading_rad;
-  g.C_bp = calib::euler_to_C_bn(mount_rpy_rad(0), mount_rpy_rad(1), mount_rpy_rad(2));
+  g.C_bp = calib::core::euler_to_C_bn(mount_rpy_rad(0), mount_rpy_rad(1), mount_rpy_rad(2));
   return g;
 }
 
-TableSetup TableSetup::from_geometry(const calib::TableGeometry& g) {
+TableSetup TableSetup::from_geometry(const calib::core::TableGeometry& g) {
   TableSetup s;
   s.outer_axis_t = g.outer_axis_t;
   s.inner_axis_o = g.inner_axis_o;
@@ -403,7 +401,7 @@ TableSetup TableSetup::from_geometry(const calib::TableGeometry& g) {
   if (!((g.C_bp.transpose() * g.C_bp - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-9 &&
         g.C_bp.determinant() > 0.0))
     throw ArchiveError::field_error("<table geometry>", "C_bp", "is not a rotation matrix");
-  s.mount_rpy_rad = calib::C_bn_to_euler(g.C_bp);
+  s.mount_rpy_rad = calib::core::C_bn_to_euler(g.C_bp);
   return s;
 }
 
@@ -418,7 +416,7 @@ std::string run_info_text(const RunInfo& ri) {
   if (!ri.software_version.empty()) w.key("software_version", ri.software_version);
   if (!ri.start_time.empty()) w.key("start_time", ri.start_time);
   if (!ri.end_time.empty()) w.key("end_time", ri.end_time);
-  if (ri.setting != calib::Setting::kFactory) w.key("setting", calib::setting_name(ri.setting));
+  if (ri.setting != calib::core::Setting::kFactory) w.key("setting", calib::core::setting_name(ri.setting));
   w.key("reference", reference_name(ri.reference));
   w.section("station");
   if (!ri.station_name.empty()) w.key("name", ri.station_name);
@@ -444,9 +442,9 @@ std::string run_info_text(const RunInfo& ri) {
     if (!ri.sequence_sha256.empty()) w.key("sha256", ri.sequence_sha256);
   }
   // Written only when it says something: a navigation-grade archive stays as it always was.
-  if (ri.grade != calib::Grade::kNavigation || ri.min_rest_s > 0.0 || ri.prior_overrides.any()) {
+  if (ri.grade != calib::core::Grade::kNavigation || ri.min_rest_s > 0.0 || ri.prior_overrides.any()) {
     w.section("prior");
-    w.key("grade", calib::grade_name(ri.grade));
+    w.key("grade", calib::core::grade_name(ri.grade));
     if (ri.min_rest_s > 0.0) w.key("min_rest_s", ri.min_rest_s);
     for (const EnvelopeKey& k : envelope_keys())
       if (const auto& v = ri.prior_overrides.*k.member)
@@ -457,8 +455,8 @@ std::string run_info_text(const RunInfo& ri) {
         human_for_si(ri.arw_rad_per_sqrt_s, ri.arw_rad_per_sqrt_s / arw_to_si(1.0), arw_to_si));
   w.key("vrw_ug_per_sqrt_hz",
         human_for_si(ri.vrw_mps_per_sqrt_s, ri.vrw_mps_per_sqrt_s / vrw_to_si(1.0), vrw_to_si));
-  if (ri.dtheta_lsb_rad != calib::NoiseModel{}.dtheta_lsb_rad ||
-      ri.dv_lsb_mps != calib::NoiseModel{}.dv_lsb_mps) {
+  if (ri.dtheta_lsb_rad != calib::core::NoiseModel{}.dtheta_lsb_rad ||
+      ri.dv_lsb_mps != calib::core::NoiseModel{}.dv_lsb_mps) {
     w.key("dtheta_lsb_rad", ri.dtheta_lsb_rad);
     w.key("dv_lsb_mps", ri.dv_lsb_mps);
   }
@@ -517,19 +515,19 @@ namespace {
 /// before, which may be the other thread's.
 class ImuRowSink final : public CsvRowSink {
  public:
-  ImuRowSink(calib::ImuSeries& imu, bool dv_raw_integral)
+  ImuRowSink(calib::core::ImuSeries& imu, bool dv_raw_integral)
       : imu_(imu), dv_raw_integral_(dv_raw_integral) {}
   void begin(const std::vector<std::string>& columns, size_t num_rows) override {
     has_temp_ = columns.size() == 8;
     imu_.resize(num_rows);
   }
   void row(size_t k, const double* v) override {
-    calib::ImuIncrement& s = imu_[k];
+    calib::core::ImuIncrement& s = imu_[k];
     s.t_s = v[0];
     s.dtheta_rad = {v[1], v[2], v[3]};
     s.dv_mps = {v[4], v[5], v[6]};
     s.temp_c = has_temp_ ? v[7] : nan_;
-    // Raw integral ∫ f_b dt -> the body frame at the interval start (DESIGN §3, conventions.hpp):
+    // Raw integral ∫ f_b dt -> the body frame at the interval start (ARCHITECTURE §3, conventions.hpp):
     // first-order rotation compensation; sculling inside one sample is not recoverable here.
     if (dv_raw_integral_) {
       const Eigen::Vector3d v_raw = s.dv_mps;
@@ -538,7 +536,7 @@ class ImuRowSink final : public CsvRowSink {
   }
 
  private:
-  calib::ImuSeries& imu_;
+  calib::core::ImuSeries& imu_;
   bool dv_raw_integral_;
   bool has_temp_ = false;
   const double nan_ = std::nan("");  // temp_c when imu.csv has no temp_c column
@@ -557,7 +555,7 @@ void read_imu(const std::string& path, bool dv_raw_integral, RunArchive& a) {
 /// (the first in file order) and reported after the parse, as the check after a CsvTable was.
 class TableRowSink final : public CsvRowSink {
  public:
-  explicit TableRowSink(std::vector<calib::TableSample>& table) : table_(table) {}
+  explicit TableRowSink(std::vector<calib::core::TableSample>& table) : table_(table) {}
   void begin(const std::vector<std::string>&, size_t num_rows) override { table_.resize(num_rows); }
   void row(size_t k, const double* v) override {
     table_[k] = {v[0], deg_to_rad(v[1]), deg_to_rad(v[2]), v[3] == 1.0};
@@ -577,7 +575,7 @@ class TableRowSink final : public CsvRowSink {
 
  private:
   static constexpr size_t kNone = static_cast<size_t>(-1);
-  std::vector<calib::TableSample>& table_;
+  std::vector<calib::core::TableSample>& table_;
   std::mutex bad_mutex_;
   size_t bad_row_ = kNone;
   double bad_value_ = 0.0;
@@ -597,7 +595,7 @@ void read_gnss(const std::string& dir, RunArchive& a) {
   std::error_code ec;
   const std::string gnss_csv = join_path(dir, "gnss.csv");
   if (!fs::exists(gnss_csv, ec)) {
-    if (a.info.setting == calib::Setting::kSea)
+    if (a.info.setting == calib::core::Setting::kSea)
       throw ArchiveError(gnss_csv,
                          "missing: a sea run needs GNSS position fixes (there is no zero "
                          "velocity at sea; paper §IV-D)");
@@ -658,7 +656,7 @@ RunArchive read_archive(const std::string& dir_in) {
     throw ArchiveError(dir,
                        "both table.csv and attitude.csv are present; an archive carries exactly "
                        "one reference (remove one)");
-  const bool field = a.info.setting != calib::Setting::kFactory;
+  const bool field = a.info.setting != calib::core::Setting::kFactory;
   if (!has_table && !has_attitude && !field)
     throw ArchiveError(dir,
                        "neither table.csv nor attitude.csv is present; a factory run needs "
@@ -724,7 +722,7 @@ void write_contents(const std::string& tmp, const RunArchive& a, const std::stri
     double row[8];
     const double dt0 = 1.0 / a.info.imu_rate_hz;
     for (size_t k = 0; k < a.imu.size(); ++k) {
-      const calib::ImuIncrement& s = a.imu[k];
+      const calib::core::ImuIncrement& s = a.imu[k];
       // dt is not stored: the reader derives it from t_s. Refuse an archive that would read back a
       // different interval than the one in memory.
       const double dt_file = k == 0 ? dt0 : s.t_s - a.imu[k - 1].t_s;
@@ -794,9 +792,9 @@ void write_archive(const std::string& dir_in, const RunArchive& a, bool overwrit
                                 "empty (table: " +
                                 std::to_string(a.table.size()) +
                                 " rows, attitude: " + std::to_string(a.attitude.size()) + " rows)");
-  if (ref == ReferenceKind::kNone && a.info.setting == calib::Setting::kFactory)
+  if (ref == ReferenceKind::kNone && a.info.setting == calib::core::Setting::kFactory)
     throw ArchiveError(dir, "a factory run needs a reference (table or attitude log)");
-  if (a.info.setting == calib::Setting::kSea && a.gnss.empty())
+  if (a.info.setting == calib::core::Setting::kSea && a.gnss.empty())
     throw ArchiveError(dir, "a sea run needs GNSS fixes (gnss.csv)");
 
   check_archive_target(dir, overwrite);
@@ -853,249 +851,9 @@ void write_archive(const std::string& dir_in, const RunArchive& a, bool overwrit
   fsync_directory(parent_dir);
 }
 
-namespace {
-
-/// The sample interval against the declared rate: catches t_s in ms or a wrong [imu] rate_hz.
-void check_sample_interval(const calib::ImuSeries& imu, const RunInfo& info,
-                           const std::string& imu_file) {
-  const size_t n = imu.size();
-  const double dt_nominal = 1.0 / info.imu_rate_hz;
-  if (n < 2) return;
-  std::vector<double> dts(n - 1);
-  for (size_t k = 1; k < n; ++k) dts[k - 1] = imu[k].dt_s;
-  std::nth_element(dts.begin(), dts.begin() + static_cast<long>(dts.size() / 2), dts.end());
-  const double median = dts[dts.size() / 2];
-  if (std::fabs(median - dt_nominal) > 0.05 * dt_nominal)
-    throw ArchiveError(imu_file, "median sample interval " + format_double(median) +
-                                     " s does not match run.toml [imu] rate_hz = " +
-                                     format_double(info.imu_rate_hz) +
-                                     " (1/rate = " + format_double(dt_nominal) +
-                                     " s); is t_s in seconds and rate_hz right?");
-}
-
-/// Magnitude plausibility per sample, and the mean specific force at rest against gravity.
-/// is_rest(k): the rest flag of sample k (the reference's, or the rest detector's).
-template <typename IsRest>
-void check_magnitudes(const calib::ImuSeries& imu, IsRest is_rest, const calib::Site& site,
-                      const std::string& imu_file, const std::string& rest_source,
-                      calib::Grade grade) {
-  const double kMaxAccel_mps2 = 20.0 * kStandardGravity_mps2;
-  const double kMaxRate_radps = 1000.0 * kDegToRad;
-  double rest_f_sum = 0.0;
-  size_t n_rest = 0;
-  for (size_t k = 0; k < imu.size(); ++k) {
-    const calib::ImuIncrement& s = imu[k];
-    const double f = s.dv_mps.norm() / s.dt_s;
-    const double w = s.dtheta_rad.norm() / s.dt_s;
-    if (!(f < kMaxAccel_mps2))
-      throw ArchiveError(imu_file, CsvTable::line_of_row(k),
-                         "|dv|/dt = " + format_double(f) +
-                             " m/s^2 exceeds 20 g (dt = " + format_double(s.dt_s) +
-                             " s); dv_*_mps must be velocity increments in m/s over one sample");
-    if (!(w < kMaxRate_radps))
-      throw ArchiveError(imu_file, CsvTable::line_of_row(k),
-                         "|dtheta|/dt = " + format_double(w * kRadToDeg) +
-                             " deg/s exceeds 1000 deg/s (dt = " + format_double(s.dt_s) +
-                             " s); dtheta_*_rad must be angle increments in rad over one sample");
-    if (is_rest(k)) {
-      rest_f_sum += f;
-      ++n_rest;
-    }
-  }
-  if (n_rest == 0) return;
-  const double g = calib::EarthModel(site).gravity_mps2();
-  const double f_rest = rest_f_sum / static_cast<double>(n_rest);
-  // A units check (m/s per sample, not m/s²): 10 %, or as wide as the grade's own envelope lets
-  // gravity read (a MEMS unit 30 % off scale is that unit; the data checks then look per rest).
-  const double tol = std::max(0.1, calib::data_check_options(grade).gravity_magnitude_tol);
-  if (std::fabs(f_rest - g) > tol * g)
-    throw ArchiveError(
-        imu_file, "mean |dv|/dt over the " + std::to_string(n_rest) + " rest samples is " +
-                      format_double(f_rest) + " m/s^2 but local gravity is " + format_double(g) +
-                      " m/s^2; check the dv units (m/s per sample) and the at_rest flags in " +
-                      rest_source);
-}
-
-/// Land and sea: rest periods from the IMU data; the first must open the run (alignment).
-calib::CalibrationInput field_input(const RunArchive& a, const std::string& imu_file) {
-  calib::CalibrationInput in = calib::input_from_field_data(
-      a.info.setting, a.imu,
-      a.info.setting == calib::Setting::kSea ? a.gnss : std::vector<calib::GnssFix>{}, a.info.site,
-      [&] {
-        calib::NoiseModel nm;
-        nm.arw_rad_per_sqrt_s = a.info.arw_rad_per_sqrt_s;
-        nm.vrw_mps_per_sqrt_s = a.info.vrw_mps_per_sqrt_s;
-        nm.dtheta_lsb_rad = a.info.dtheta_lsb_rad;
-        nm.dv_lsb_mps = a.info.dv_lsb_mps;
-        return nm;
-      }(),
-      a.info.grade, a.info.min_rest_s);
-  in.prior_overrides = a.info.prior_overrides;
-  const double t0 = a.imu.front().t_s;
-  const double latest_start = kMaxFirstRestStart_s;
-  const std::vector<calib::RestPeriod> rests = calib::find_rest_periods(in, 2);
-  const calib::RestPeriod* first = rests.empty() ? nullptr : &rests.front();
-  const auto span_s = [&](const calib::RestPeriod& r) {
-    return a.imu[r.end - 1].t_s - a.imu[r.begin].t_s;
-  };
-  if (!first || a.imu[first->begin].t_s - t0 > latest_start || span_s(*first) < kMinFirstRest_s)
-    throw ArchiveError(
-        imu_file, std::string("no rest period at the start of this ") +
-                      calib::setting_name(a.info.setting) +
-                      " run: the initial alignment needs the unit standing still for at least " +
-                      format_double(kMinFirstRest_s) + " s within the first " +
-                      format_double(latest_start) + " s" +
-                      (first ? " (the first rest found in the IMU data starts at t = " +
-                                   format_double(a.imu[first->begin].t_s) + " s and lasts " +
-                                   format_double(span_s(*first)) + " s)"
-                             : " (no rest found in the IMU data at all)"));
-  return in;
-}
-
-/// The factory reference: the attitude on the IMU time axis and the rest flag, sample by sample in
-/// one pass (reserve + push_back: every page is written once, where resize() would first write
-/// the default samples). Throws at the first sample whose time does not match imu.csv.
-std::vector<calib::ReferenceSample> factory_reference(const RunArchive& a,
-                                                      const calib::ImuSeries& imu,
-                                                      const std::string& ref_file) {
-  const bool table = a.info.reference == ReferenceKind::kTable;
-  const calib::TableModel model(a.info.table.geometry());
-  std::vector<calib::ReferenceSample> reference;
-  reference.reserve(imu.size());
-  // The table stands still most of the time (93 % of a factory-60 run): the same encoder angles
-  // give the same C_bn bit for bit, so it is computed once per change (bits compared: -0 != +0).
-  Eigen::Matrix3d C_bn;
-  double C_outer = 0.0, C_inner = 0.0;
-  bool have_C = false;
-  auto same_bits = [](double x, double y) { return std::memcmp(&x, &y, sizeof x) == 0; };
-  for (size_t k = 0; k < imu.size(); ++k) {
-    const double t_ref = table ? a.table[k].t_s : a.attitude[k].t_s;
-    if (!(std::fabs(t_ref - imu[k].t_s) <= kTimeMatchTolerance_s))
-      throw ArchiveError(ref_file, CsvTable::line_of_row(k),
-                         "t_s = " + format_double(t_ref) + " does not match imu.csv line " +
-                             std::to_string(CsvTable::line_of_row(k)) +
-                             " t_s = " + format_double(imu[k].t_s) +
-                             " (tolerance 1 µs); the reference must be on the IMU time axis "
-                             "(interpolation is not supported yet)");
-    calib::ReferenceSample r;
-    r.t_s = imu[k].t_s;
-    if (table) {
-      const calib::TableSample& s = a.table[k];
-      if (!have_C || !same_bits(s.outer_rad, C_outer) || !same_bits(s.inner_rad, C_inner)) {
-        C_bn = model.C_bn(s.outer_rad, s.inner_rad);
-        C_outer = s.outer_rad;
-        C_inner = s.inner_rad;
-        have_C = true;
-      }
-      r.C_bn_ref = C_bn;
-      r.at_rest = s.at_rest;
-      r.outer_rad = s.outer_rad;
-      r.inner_rad = s.inner_rad;
-    } else {
-      const AttitudeSample& s = a.attitude[k];
-      r.C_bn_ref = calib::euler_to_C_bn(s.roll_rad, s.pitch_rad, s.yaw_rad);
-      r.at_rest = s.at_rest;
-    }
-    reference.push_back(r);
-  }
-  return reference;
-}
-
-/// Factory runs: the reference on the IMU time axis, then the checks. `owned` is the archive
-/// itself when the caller gave it up: its IMU series is moved into the input instead of copied
-/// and its reference samples are freed as soon as the reference is built.
-calib::CalibrationInput factory_input(const RunArchive& a, RunArchive* owned,
-                                      const std::string& imu_file) {
-  if (a.info.reference == ReferenceKind::kNone)
-    throw ArchiveError(a.origin, "a factory run needs a reference (table.csv or attitude.csv)");
-  const bool table = a.info.reference == ReferenceKind::kTable;
-  const std::string ref_file = join_path(a.origin, table ? "table.csv" : "attitude.csv");
-  const char* ref_name = table ? "table.csv" : "attitude.csv";
-  const size_t n = a.imu.size();
-  const size_t n_ref = table ? a.table.size() : a.attitude.size();
-  if (n_ref != n)
-    throw ArchiveError(ref_file,
-                       std::to_string(n_ref) + " data rows but imu.csv has " + std::to_string(n) +
-                           "; the reference must be logged on the IMU time axis (one row per "
-                           "IMU sample; interpolation is not supported yet)");
-
-  calib::CalibrationInput in;
-  in.site = a.info.site;
-  in.noise = calib::NoiseModel{};
-  in.noise.arw_rad_per_sqrt_s = a.info.arw_rad_per_sqrt_s;
-  in.noise.vrw_mps_per_sqrt_s = a.info.vrw_mps_per_sqrt_s;
-  in.noise.dtheta_lsb_rad = a.info.dtheta_lsb_rad;
-  in.noise.dv_lsb_mps = a.info.dv_lsb_mps;
-  in.grade = a.info.grade;
-  in.prior_overrides = a.info.prior_overrides;
-  if (owned) in.imu = std::move(owned->imu);
-  const calib::ImuSeries& imu = owned ? in.imu : a.imu;
-  auto is_rest = [&](size_t k) { return table ? a.table[k].at_rest : a.attitude[k].at_rest; };
-  // Two independent jobs, each mostly first writes to fresh memory (an hour at 100 Hz: a 37 MB
-  // reference; a 26 MB copy of the series): the reference and its rest check on this thread, the
-  // copy and the data checks on the other. run_concurrently reports this thread's error first,
-  // which is the order of the checks one after the other.
-  run_concurrently(
-      [&] {
-        in.reference = factory_reference(a, imu, ref_file);
-        if (std::none_of(in.reference.begin(), in.reference.end(),
-                         [](const calib::ReferenceSample& r) { return r.at_rest; }))
-          throw ArchiveError(
-              ref_file, std::string("no rest periods in ") + ref_name + ": at_rest is never 1");
-      },
-      [&] {
-        if (!owned) in.imu = a.imu;
-        check_sample_interval(imu, a.info, imu_file);
-        check_magnitudes(imu, is_rest, a.info.site, imu_file, ref_name, a.info.grade);
-      });
-  if (owned) {  // the reference holds them now (the angles and rest flags too)
-    std::vector<calib::TableSample>().swap(owned->table);
-    std::vector<AttitudeSample>().swap(owned->attitude);
-  }
-  return in;
-}
-
-/// Both overloads; `owned` as for factory_input.
-/// A unit mounted off the table's rotation centre (a fixture slot, [table] lever_arm_m): its
-/// accelerometers sense the offset's kinematic acceleration while the table turns, which no method
-/// models. It is the size effect with one lever arm for all three accelerometers, taken out with
-/// the raw rates (the unit's scale and bias errors change it by ppm of µg).
-void remove_slot_lever_arm(calib::CalibrationInput& in, const TableSetup& table) {
-  if (table.lever_arm_m.isZero()) return;
-  const Eigen::Vector3d r_b = table.geometry().C_bp.transpose() * table.lever_arm_m;
-  calib::Effects fx;
-  fx.accel_lever_arm_m = {r_b, r_b, r_b};
-  calib::remove_sensor_effects(in.imu, fx, calib::ParamSet{});
-}
-
-calib::CalibrationInput convert(const RunArchive& a, RunArchive* owned) {
-  const std::string imu_file = join_path(a.origin, "imu.csv");
-  if (a.imu.empty()) throw ArchiveError(imu_file, "no IMU samples");
-  if (!(a.info.imu_rate_hz > 0.0))
-    throw ArchiveError::field_error(join_path(a.origin, "run.toml"), "imu.rate_hz", "must be > 0");
-  if (a.info.setting == calib::Setting::kFactory) {
-    calib::CalibrationInput in = factory_input(a, owned, imu_file);
-    remove_slot_lever_arm(in, a.info.table);
-    return in;
-  }
-  // Land and sea: calib::input_from_field_data copies the series either way.
-  check_sample_interval(a.imu, a.info, imu_file);
-  calib::CalibrationInput in = field_input(a, imu_file);
-  check_magnitudes(
-      a.imu, [&](size_t k) { return in.reference[k].at_rest; }, a.info.site, imu_file,
-      "the rest periods detected in imu.csv", a.info.grade);
-  return in;
-}
-
-}  // namespace
-
-calib::CalibrationInput to_calibration_input(const RunArchive& a) { return convert(a, nullptr); }
-
-calib::CalibrationInput to_calibration_input(RunArchive&& a) { return convert(a, &a); }
-
 double data_span_s(const RunArchive& ar) {
   if (ar.imu.empty()) return 0.0;
   return ar.imu.back().t_s - ar.imu.front().t_s + ar.imu.front().dt_s;
 }
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

@@ -1,5 +1,5 @@
 #pragma once
-// The run archive (DESIGN §5): the interchange format every tool reads and through which data from
+// The run archive (ARCHITECTURE §5): the interchange format every tool reads and through which data from
 // other stations and simulators enter. A run is a directory:
 //   run.toml                  RunInfo (below)
 //   imu.csv t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps[,temp_c]
@@ -20,39 +20,40 @@
 #include "calib/core/earth.hpp"
 #include "calib/core/imu_increment.hpp"
 #include "calib/core/table_model.hpp"
-#include "calib/sim/truth_sim.hpp"
+#include "calib/input/run_input.hpp"
 #include "db/archive/unit_file.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 /// Table geometry as run.toml states it ([table] section). Kept in the file's own terms (axes,
 /// heading, fixture Euler angles) so that write-then-read is exact; geometry() builds the
-/// calib::TableGeometry.
+/// calib::core::TableGeometry.
 struct TableSetup {
-  /// Defaults follow calib::TableGeometry{} (the station's table).
-  Eigen::Vector3d outer_axis_t = calib::TableGeometry{}.outer_axis_t;  ///< in the base frame, unit
+  /// Defaults follow calib::core::TableGeometry{} (the station's table).
+  Eigen::Vector3d outer_axis_t = calib::core::TableGeometry{}.outer_axis_t;  ///< in the base frame, unit
   Eigen::Vector3d inner_axis_o =
-      calib::TableGeometry{}.inner_axis_o;                  ///< in the outer-gimbal frame
-  double heading_rad = calib::TableGeometry{}.heading_rad;  ///< C_tn = Rz(heading)
+      calib::core::TableGeometry{}.inner_axis_o;                  ///< in the outer-gimbal frame
+  double heading_rad = calib::core::TableGeometry{}.heading_rad;  ///< C_tn = Rz(heading)
   Eigen::Vector3d mount_rpy_rad =
       Eigen::Vector3d::Zero();  ///< fixture C_bp = euler_to_C_bn(r, p, y)
   /// slot (optional): the fixture position of a station that holds several units (issue #23).
   std::string slot;
   /// lever_arm_m (optional, platform axes, m): the unit's centre from the table's rotation centre.
-  /// A rigid offset senses ω×(ω×r) + ω̇×r while the table turns; to_calibration_input takes it out
+  /// A rigid offset senses ω×(ω×r) + ω̇×r while the table turns; calib/input takes it out
   /// of the accelerometer increments before any method sees them.
   Eigen::Vector3d lever_arm_m = Eigen::Vector3d::Zero();
 
-  calib::TableGeometry geometry() const;
+  calib::core::TableGeometry geometry() const;
   /// From a geometry (C_bp decomposed into ZYX Euler angles; exact to round-off).
-  static TableSetup from_geometry(const calib::TableGeometry& g);
+  static TableSetup from_geometry(const calib::core::TableGeometry& g);
 };
 
-/// The attitude reference file of a run: table.csv, attitude.csv, or none (land and sea runs).
-enum class ReferenceKind { kTable, kAttitude, kNone };
+/// The attitude reference file of a run: table.csv (kTable), attitude.csv (kAttitude), or none
+/// (kNone: land and sea runs) — calib/input's reference kinds.
+using ReferenceKind = calib::input::ReferenceKind;
 
 /// run.toml [capture] (daemon runs only): how the live capture went. The counters have the names
-/// and meanings of station::CaptureStats (station/capture_stats.hpp); this copy keeps the archive
+/// and meanings of station::run::CaptureStats (station/run/capture_stats.hpp); this copy keeps the archive
 /// library independent of the daemon.
 struct CaptureInfo {
   /// true: the capture ended normally (the daemon finished the archive). false: the archive was
@@ -81,12 +82,12 @@ struct CaptureInfo {
 struct RunInfo {
   std::string serial;  ///< required
   /// setting: factory (default), land or sea — which observations the run has (FORMAT.md).
-  calib::Setting setting = calib::Setting::kFactory;
+  calib::core::Setting setting = calib::core::Setting::kFactory;
   std::string station_name;
-  calib::Site site;  ///< [station] lat_deg, lon_deg, height_m required; gravity_mps2 optional
+  calib::core::Site site;  ///< [station] lat_deg, lon_deg, height_m required; gravity_mps2 optional
   double imu_rate_hz = 0.0;     ///< [imu] rate_hz, required
   /// [imu] protocol, optional: the name of the unit's CAN protocol the station read it through
-  /// (drivers/imu/PROTOCOLS.md; "imucal-imu-1" is the built-in one).
+  /// (drivers/imu/PROTOCOL.md; "imucal-imu-1" is the built-in one).
   std::string imu_protocol;
   TableSetup table;             ///< [table], all keys optional (defaults above)
   std::string sequence_name;    ///< [sequence] name
@@ -95,41 +96,35 @@ struct RunInfo {
   std::string start_time;  ///< ISO 8601, empty if unknown
   std::string end_time;
   ReferenceKind reference = ReferenceKind::kTable;  ///< must match the reference file present
-  /// [noise] used to weight the estimators; defaults = calib::NoiseModel{} (DESIGN §7).
-  double arw_rad_per_sqrt_s = calib::NoiseModel{}.arw_rad_per_sqrt_s;
-  double vrw_mps_per_sqrt_s = calib::NoiseModel{}.vrw_mps_per_sqrt_s;
+  /// [noise] used to weight the estimators; defaults = calib::core::NoiseModel{} (ARCHITECTURE §7).
+  double arw_rad_per_sqrt_s = calib::core::NoiseModel{}.arw_rad_per_sqrt_s;
+  double vrw_mps_per_sqrt_s = calib::core::NoiseModel{}.vrw_mps_per_sqrt_s;
   /// [noise] dtheta_lsb_rad, dv_lsb_mps: the resolution of one sample's increments as the unit's
   /// protocol carries them (written by the daemon when they differ from the built-in protocol's
   /// 1e-9 rad and 1e-7 m/s); the gap diagnosis models the quantisation with them.
-  double dtheta_lsb_rad = calib::NoiseModel{}.dtheta_lsb_rad;
-  double dv_lsb_mps = calib::NoiseModel{}.dv_lsb_mps;
+  double dtheta_lsb_rad = calib::core::NoiseModel{}.dtheta_lsb_rad;
+  double dv_lsb_mps = calib::core::NoiseModel{}.dv_lsb_mps;
   /// [prior] grade: what the unit is expected to be (calib/core/unit_grade.hpp); navigation by
   /// default. Chooses the field runs' rest detector so far (issue #21).
-  calib::Grade grade = calib::Grade::kNavigation;
+  calib::core::Grade grade = calib::core::Grade::kNavigation;
   /// [prior] min_rest_s: the shortest rest the field runs' detector keeps (0: its default).
   double min_rest_s = 0.0;
   /// [prior] gyro_bias_deg_per_s, accel_bias_mg, scale_ppm, misalignment_mrad: overrides of the
   /// grade's envelopes (a product whose datasheet differs from its class's).
-  calib::EnvelopeOverrides prior_overrides;
+  calib::core::EnvelopeOverrides prior_overrides;
   /// [capture], optional: written by the daemon when it finishes (or recovers) the archive.
   std::optional<CaptureInfo> capture;
 };
 
-/// attitude.csv row (angles converted to rad).
-struct AttitudeSample {
-  double t_s = 0.0;
-  double roll_rad = 0.0;
-  double pitch_rad = 0.0;
-  double yaw_rad = 0.0;
-  bool at_rest = false;
-};
+/// attitude.csv row (angles converted to rad): calib/input's attitude-log sample.
+using AttitudeSample = calib::input::AttitudeSample;
 
 struct RunArchive {
   RunInfo info;
-  calib::ImuSeries imu;                   ///< temp_c = NaN when imu.csv has no temp_c column
-  std::vector<calib::TableSample> table;  ///< non-empty iff info.reference == kTable
+  calib::core::ImuSeries imu;                   ///< temp_c = NaN when imu.csv has no temp_c column
+  std::vector<calib::core::TableSample> table;  ///< non-empty iff info.reference == kTable
   std::vector<AttitudeSample> attitude;   ///< non-empty iff info.reference == kAttitude
-  std::vector<calib::GnssFix> gnss;       ///< gnss.csv (required at sea), angles in rad
+  std::vector<calib::core::GnssFix> gnss;       ///< gnss.csv (required at sea), angles in rad
   std::optional<Truth> truth;
   std::string
       origin;  ///< directory it was read from (names files in later errors); "" if in memory
@@ -159,30 +154,7 @@ void check_archive_target(const std::string& dir, bool overwrite,
 RunInfo parse_run_info(const std::string& text, const std::string& origin);
 std::string run_info_text(const RunInfo& info);
 
-/// Build the calibration input. Land and sea (run.toml setting): no attitude reference is used,
-/// rest periods come from the IMU data (calib/core/rest_detector.hpp) and the first must start the
-/// run (the initial alignment needs the unit at rest for kMinFirstRest_s first); at sea the GNSS
-/// fixes are passed on. Factory: reference attitude on the IMU time axis (the reference file must
-/// have the same row count and times within 1 µs — no interpolation yet), at least one rest sample,
-/// a sample interval consistent with [imu] rate_hz, and plausible increment magnitudes
-/// (|dv|/dt < 20 g, |dθ|/dt < 1000 °/s, mean |dv|/dt at rest within 10 % of local gravity).
-/// Errors name the files under archive.origin.
-calib::CalibrationInput to_calibration_input(const RunArchive& archive);
-/// The same input, bit for bit, from an archive the caller no longer needs whole: a factory run's
-/// IMU series is moved into the input (not copied) and its table/attitude samples are freed once
-/// the reference is built, which saves a copy of the series and lowers the peak memory by about
-/// a quarter. Afterwards `archive` keeps info, gnss, truth and origin; imu, table and attitude are
-/// empty (land and sea runs: left as they were, calib::input_from_field_data copies the series).
-/// After an error the samples may be gone as well.
-calib::CalibrationInput to_calibration_input(RunArchive&& archive);
+/// IMU time axis tolerance between imu.csv and the reference file (calib/input's).
+using calib::input::kTimeMatchTolerance_s;
 
-/// Land/sea: a field run starts with the unit at rest — the first rest found in the IMU data must
-/// begin within kMaxFirstRestStart_s of the first sample (handling before the recording settles)
-/// and last kMinFirstRest_s (levelling and gyrocompassing).
-constexpr double kMinFirstRest_s = 20.0;
-constexpr double kMaxFirstRestStart_s = 10.0;
-
-/// IMU time axis tolerance between imu.csv and the reference file.
-constexpr double kTimeMatchTolerance_s = 1e-6;
-
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

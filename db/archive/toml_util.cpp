@@ -8,7 +8,7 @@
 #include "db/archive/io_util.hpp"
 #include "sequences/toml_support.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 namespace {
 
@@ -253,4 +253,4 @@ void TomlWriter::key(std::string_view k, const Eigen::Matrix3d& m) {
   out_ += "]\n";
 }
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

@@ -12,7 +12,7 @@
 #include <string_view>
 #include <vector>
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 /// Parse TOML text; syntax errors become ArchiveError("<file>:<line>: <description>").
 toml::table parse_toml_text(const std::string& text, const std::string& file);
@@ -76,4 +76,4 @@ class TomlWriter {
 /// TOML basic-string literal with escapes.
 std::string toml_quote(std::string_view s);
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

@@ -10,7 +10,7 @@
 #include "db/archive/param_json.hpp"
 #include "db/archive/toml_util.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 
 namespace {
 
@@ -53,23 +53,23 @@ Eigen::Matrix3d to_si(const Eigen::Matrix3d& h, Conv f) {
 struct NoiseField {
   const char* unit_key;
   const char* json_key;
-  double calib::NoiseModel::*member;
+  double calib::core::NoiseModel::*member;
   Conv to_si;
   bool strictly_positive;
 };
 const NoiseField kNoiseFields[] = {
-    {"arw_deg_per_sqrt_h", "arw_rad_per_sqrt_s", &calib::NoiseModel::arw_rad_per_sqrt_s, arw_to_si,
+    {"arw_deg_per_sqrt_h", "arw_rad_per_sqrt_s", &calib::core::NoiseModel::arw_rad_per_sqrt_s, arw_to_si,
      false},
-    {"vrw_ug_per_sqrt_hz", "vrw_mps_per_sqrt_s", &calib::NoiseModel::vrw_mps_per_sqrt_s, vrw_to_si,
+    {"vrw_ug_per_sqrt_hz", "vrw_mps_per_sqrt_s", &calib::core::NoiseModel::vrw_mps_per_sqrt_s, vrw_to_si,
      false},
     {"gyro_bias_instability_deg_per_h", "gyro_bias_instability_radps",
-     &calib::NoiseModel::gyro_bias_instability_radps, deg_per_h_to_radps, false},
-    {"gyro_bias_tau_s", "gyro_bias_tau_s", &calib::NoiseModel::gyro_bias_tau_s, identity, true},
+     &calib::core::NoiseModel::gyro_bias_instability_radps, deg_per_h_to_radps, false},
+    {"gyro_bias_tau_s", "gyro_bias_tau_s", &calib::core::NoiseModel::gyro_bias_tau_s, identity, true},
     {"accel_bias_instability_ug", "accel_bias_instability_mps2",
-     &calib::NoiseModel::accel_bias_instability_mps2, ug_to_mps2, false},
-    {"accel_bias_tau_s", "accel_bias_tau_s", &calib::NoiseModel::accel_bias_tau_s, identity, true},
-    {"dtheta_lsb_rad", "dtheta_lsb_rad", &calib::NoiseModel::dtheta_lsb_rad, identity, false},
-    {"dv_lsb_mps", "dv_lsb_mps", &calib::NoiseModel::dv_lsb_mps, identity, false},
+     &calib::core::NoiseModel::accel_bias_instability_mps2, ug_to_mps2, false},
+    {"accel_bias_tau_s", "accel_bias_tau_s", &calib::core::NoiseModel::accel_bias_tau_s, identity, true},
+    {"dtheta_lsb_rad", "dtheta_lsb_rad", &calib::core::NoiseModel::dtheta_lsb_rad, identity, false},
+    {"dv_lsb_mps", "dv_lsb_mps", &calib::core::NoiseModel::dv_lsb_mps, identity, false},
 };
 
 void check_noise_value(const NoiseField& f, double v, const std::string& origin, std::size_t line,
@@ -92,9 +92,9 @@ const std::vector<std::string_view> kHumanEffectKeys = {
 /// [effects]: every catalogue effect by its name with its SI parameter vector (the order of
 /// `--effect NAME=V,...`, trailing shape parameters optional), plus the older human-unit keys. One
 /// effect given both ways is refused.
-void parse_effects_section(const TomlSection& root, calib::UnitModel& u) {
+void parse_effects_section(const TomlSection& root, calib::effects::UnitModel& u) {
   std::vector<std::string_view> allowed = kHumanEffectKeys;
-  for (const auto& e : calib::effect_catalogue()) allowed.push_back(e.name);
+  for (const auto& e : calib::effects::effect_catalogue()) allowed.push_back(e.name);
   const auto s = root.section("effects", allowed);
   if (!s) return;
   if (auto v = s->vec3("k2_ug_per_g2")) u.effects.accel_k2_per_mps2 = to_si(*v, k2_to_si);
@@ -104,13 +104,13 @@ void parse_effects_section(const TomlSection& root, calib::UnitModel& u) {
     for (int i = 0; i < 3; ++i)
       u.effects.accel_lever_arm_m[static_cast<size_t>(i)] = m->row(i).transpose();
   if (auto t = s->number("table_time_offset_s")) u.effects.table_time_offset_s = *t;
-  const std::pair<const char*, calib::EffectId> same[] = {
-      {"k2_ug_per_g2", calib::EffectId::kAccelQuadraticK2},
-      {"asym_ppm", calib::EffectId::kAccelAsymmetry},
-      {"g_sens_deg_per_h_per_g", calib::EffectId::kGyroGSensitivity},
-      {"lever_arm_m", calib::EffectId::kSizeEffect},
-      {"table_time_offset_s", calib::EffectId::kTableTimeOffset}};
-  for (const auto& e : calib::effect_catalogue()) {
+  const std::pair<const char*, calib::effects::EffectId> same[] = {
+      {"k2_ug_per_g2", calib::effects::EffectId::kAccelQuadraticK2},
+      {"asym_ppm", calib::effects::EffectId::kAccelAsymmetry},
+      {"g_sens_deg_per_h_per_g", calib::effects::EffectId::kGyroGSensitivity},
+      {"lever_arm_m", calib::effects::EffectId::kSizeEffect},
+      {"table_time_offset_s", calib::effects::EffectId::kTableTimeOffset}};
+  for (const auto& e : calib::effects::effect_catalogue()) {
     const auto v = s->numbers(e.name);
     if (!v) continue;
     for (const auto& [key, id] : same)
@@ -119,7 +119,7 @@ void parse_effects_section(const TomlSection& root, calib::UnitModel& u) {
     std::string spec = e.name + "=";
     for (size_t i = 0; i < v->size(); ++i) spec += (i ? "," : "") + format_double((*v)[i]);
     try {
-      calib::apply_effect_spec(u.effects, spec);
+      calib::effects::apply_effect_spec(u.effects, spec);
     } catch (const std::invalid_argument& ex) {
       s->fail(e.name, ex.what());
     }
@@ -128,18 +128,18 @@ void parse_effects_section(const TomlSection& root, calib::UnitModel& u) {
 
 }  // namespace
 
-calib::UnitModel parse_unit_file(const std::string& text, const std::string& origin) {
+calib::effects::UnitModel parse_unit_file(const std::string& text, const std::string& origin) {
   const toml::table tbl = parse_toml_text(text, origin);
   const TomlSection root(tbl, origin, "", {"grade", "accel", "gyro", "table", "noise", "effects"});
-  calib::UnitModel u;
+  calib::effects::UnitModel u;
   if (const auto g = root.string("grade")) {
-    const std::optional<calib::Grade> grade = calib::parse_grade(*g);
+    const std::optional<calib::core::Grade> grade = calib::core::parse_grade(*g);
     if (!grade) root.fail("grade", "\"" + *g + "\" is not a grade (navigation, tactical or mems)");
     u.grade = *grade;
   }
-  u.params = calib::ParamSet{};  // missing keys mean zero
-  u.effects = calib::Effects{};
-  u.noise = calib::NoiseModel{};  // missing noise keys take these defaults
+  u.params = calib::core::ParamSet{};  // missing keys mean zero
+  u.effects = calib::effects::Effects{};
+  u.noise = calib::core::NoiseModel{};  // missing noise keys take these defaults
 
   if (auto s = root.section("accel", {"bias_ug", "M_ppm"})) {
     if (auto v = s->vec3("bias_ug")) u.params.accel_bias_mps2 = to_si(*v, ug_to_mps2);
@@ -168,15 +168,15 @@ calib::UnitModel parse_unit_file(const std::string& text, const std::string& ori
   return u;
 }
 
-calib::UnitModel read_unit_file(const std::string& path) {
+calib::effects::UnitModel read_unit_file(const std::string& path) {
   return parse_unit_file(read_text_file(path), path);
 }
 
-std::string unit_file_text(const calib::UnitModel& u) {
+std::string unit_file_text(const calib::effects::UnitModel& u) {
   TomlWriter w;
   w.comment("IMU unit model (db/archive/FORMAT.md). Human units; M_ppm: diagonal = scale-factor");
   w.comment("error in ppm, off-diagonal = misalignment in µrad (both 1e-6).");
-  if (u.grade != calib::Grade::kNavigation) w.key("grade", calib::grade_name(u.grade));
+  if (u.grade != calib::core::Grade::kNavigation) w.key("grade", calib::core::grade_name(u.grade));
   w.section("accel");
   w.key("bias_ug", to_human(u.params.accel_bias_mps2, ug_to_mps2));
   w.key("M_ppm", to_human(u.params.accel_M, ppm_to_1));
@@ -196,24 +196,24 @@ std::string unit_file_text(const calib::UnitModel& u) {
     lever.row(i) = u.effects.accel_lever_arm_m[static_cast<size_t>(i)].transpose();
   w.key("lever_arm_m", lever);
   w.key("table_time_offset_s", u.effects.table_time_offset_s);
-  for (const auto& e : calib::effect_catalogue()) {
+  for (const auto& e : calib::effects::effect_catalogue()) {
     bool human = false;
-    for (auto id : {calib::EffectId::kAccelQuadraticK2, calib::EffectId::kAccelAsymmetry,
-                    calib::EffectId::kGyroGSensitivity, calib::EffectId::kSizeEffect,
-                    calib::EffectId::kTableTimeOffset})
+    for (auto id : {calib::effects::EffectId::kAccelQuadraticK2, calib::effects::EffectId::kAccelAsymmetry,
+                    calib::effects::EffectId::kGyroGSensitivity, calib::effects::EffectId::kSizeEffect,
+                    calib::effects::EffectId::kTableTimeOffset})
       human = human || id == e.id;
     if (human || !u.effects.active(e.id)) continue;
-    const Eigen::VectorXd v = calib::effect_vector(u.effects, e.id);
+    const Eigen::VectorXd v = calib::effects::effect_vector(u.effects, e.id);
     w.key(e.name, std::vector<double>(v.data(), v.data() + v.size()));
   }
   return w.text();
 }
 
-void write_unit_file(const std::string& path, const calib::UnitModel& unit) {
+void write_unit_file(const std::string& path, const calib::effects::UnitModel& unit) {
   write_file_atomic(path, unit_file_text(unit));
 }
 
-Truth truth_from_unit(const calib::UnitModel& unit) {
+Truth truth_from_unit(const calib::effects::UnitModel& unit) {
   Truth t;
   t.params = unit.params;
   t.effects = unit.effects;
@@ -226,9 +226,9 @@ namespace {
 nlohmann::json effects_json(const Truth& truth) {
   if (!truth.effect_values_known) return truth.legacy_effect_names;
   nlohmann::json e = nlohmann::json::object();
-  for (const auto& info : calib::effect_catalogue()) {
+  for (const auto& info : calib::effects::effect_catalogue()) {
     if (!truth.effects.active(info.id)) continue;
-    const Eigen::VectorXd v = calib::effect_vector(truth.effects, info.id);
+    const Eigen::VectorXd v = calib::effects::effect_vector(truth.effects, info.id);
     nlohmann::json o = nlohmann::json::object();
     for (int i = 0; i < info.size(); ++i) {
       if (!std::isfinite(v(i)))
@@ -244,10 +244,10 @@ nlohmann::json effects_json(const Truth& truth) {
 void parse_effect_values(const nlohmann::json& eff, const std::string& origin, Truth& t) {
   for (auto it = eff.begin(); it != eff.end(); ++it) {
     const std::string base = "effects." + it.key();
-    const calib::EffectInfo* info = calib::find_effect(it.key());
+    const calib::effects::EffectInfo* info = calib::effects::find_effect(it.key());
     if (!info)
       throw ArchiveError::field_error(origin, base,
-                                      "unknown effect (known: " + calib::effect_names_list() + ")");
+                                      "unknown effect (known: " + calib::effects::effect_names_list() + ")");
     if (!it->is_object())
       throw ArchiveError::field_error(origin, base,
                                       std::string("expected an object, got ") + it->type_name());
@@ -268,7 +268,7 @@ void parse_effect_values(const nlohmann::json& eff, const std::string& origin, T
       v(i) = x.get<double>();
     }
     try {
-      calib::set_effect_vector(t.effects, info->id, v);
+      calib::effects::set_effect_vector(t.effects, info->id, v);
     } catch (const std::invalid_argument& e) {
       throw ArchiveError::field_error(origin, base, e.what());
     }
@@ -286,9 +286,9 @@ void parse_effect_names(const nlohmann::json& eff, const std::string& origin, Tr
                                       std::string("expected a string, got ") + eff[i].type_name());
     const std::string name = eff[i].get<std::string>();
     if (name.empty()) throw ArchiveError::field_error(origin, field, "empty effect name");
-    if (!calib::find_effect(name))
+    if (!calib::effects::find_effect(name))
       throw ArchiveError::field_error(origin, field, "unknown effect '" + name + "' (known: " +
-                                                         calib::effect_names_list() + ")");
+                                                         calib::effects::effect_names_list() + ")");
     if (!seen.insert(name).second)
       throw ArchiveError::field_error(origin, field, "duplicate effect '" + name + "'");
     t.legacy_effect_names.push_back(name);
@@ -373,4 +373,4 @@ Truth read_truth_json(const std::string& path) {
   return parse_truth_json(read_text_file(path), path);
 }
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

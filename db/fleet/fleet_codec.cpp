@@ -4,6 +4,7 @@
 #include "db/archive/param_json.hpp"
 
 namespace imucal::db::fleet {
+using namespace db::history;
 
 using nlohmann::json;
 
@@ -19,12 +20,12 @@ json parse(const std::string& text, const std::string& origin) {
 
 }  // namespace
 
-json params_json(const calib::ParamSet& p) { return archive::param_set_to_json(p); }
+json params_json(const calib::core::ParamSet& p) { return db::archive::param_set_to_json(p); }
 
-calib::ParamSet params_from_json(const std::string& text, const std::string& origin) {
+calib::core::ParamSet params_from_json(const std::string& text, const std::string& origin) {
   try {
-    return archive::param_set_from_json(parse(text, origin), origin);
-  } catch (const archive::ArchiveError& e) {
+    return db::archive::param_set_from_json(parse(text, origin), origin);
+  } catch (const db::archive::ArchiveError& e) {
     throw Corrupt(std::string("stored value is invalid: ") + e.what());
   }
 }
@@ -72,9 +73,9 @@ std::vector<RunReason> reasons_from_json(const std::string& text, const std::str
   return out;
 }
 
-std::vector<calib::CrossCheckFailure> failures_from_json(const std::string& text,
+std::vector<calib::checks::CrossCheckFailure> failures_from_json(const std::string& text,
                                                          const std::string& origin) {
-  std::vector<calib::CrossCheckFailure> out;
+  std::vector<calib::checks::CrossCheckFailure> out;
   try {
     for (const json& f : parse(text, origin))
       out.push_back({f.at("term").get<std::string>(), f.at("detail").get<std::string>()});

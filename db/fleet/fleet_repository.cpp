@@ -4,9 +4,10 @@
 
 #include "db/fleet/fleet_codec.hpp"
 #include "db/fleet/fleet_schema.hpp"
-#include "db/serial_number.hpp"
+#include "db/history/serial_number.hpp"
 
 namespace imucal::db::fleet {
+using namespace db::history;
 
 namespace {
 
@@ -69,7 +70,7 @@ struct FleetRepository::Impl {
                                     [&] { return verdict_from_string(q.text(row, 14)); });
     r.capture_json = q.text(row, 15);
     r.diagnosis_json = q.text(row, 16);
-    const auto setting = calib::parse_setting(q.text(row, 17));
+    const auto setting = calib::core::parse_setting(q.text(row, 17));
     if (!setting) throw Corrupt(origin + ": unknown setting \"" + q.text(row, 17) + "\"");
     r.setting = *setting;
     r.origin = q.text(row, 18);

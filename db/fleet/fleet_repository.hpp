@@ -1,18 +1,18 @@
 #pragma once
-// The fleet store as a db::Repository (issue #24 items 1 and 3): the read side of the interface
+// The fleet store as a db::history::Repository (issue #24 items 1 and 3): the read side of the interface
 // over PostgreSQL, so `stationctl --fleet URL history|show|params|export` and stationweb print
 // exactly what they print for a station's SQLite. Runs of every station: a run's id here is the
 // store's own (RunRecord::run_id); its station is RunRecord::station; reprocessed_from and
 // table_run_id are translated to the store's ids (within the same station).
 //
 // Writes: the store is written only by each station's outbox sender (db/fleet/fleet_writer.hpp);
-// every write method of the interface throws db::ReadOnly saying so. Readers should log in with a
+// every write method of the interface throws db::history::ReadOnly saying so. Readers should log in with a
 // role that has no write grant at all (db/fleet/README.md): the server, not this class, is what
 // keeps the QA view from writing.
 //
 // The active calibration of a serial across the fleet: the latest done+PASS factory run of any
 // station (origin ''), unless a promotion made after it ended wins — the station's rule
-// (db/repository.hpp) with every station's runs.
+// (db/history/repository.hpp) with every station's runs.
 //
 // Thread safety: calls are serialised on one connection (mutex).
 #include <memory>
@@ -20,9 +20,10 @@
 #include <optional>
 
 #include "db/fleet/pg_connection.hpp"
-#include "db/repository.hpp"
+#include "db/history/repository.hpp"
 
 namespace imucal::db::fleet {
+using namespace db::history;
 
 class FleetRepository final : public Repository {
  public:

@@ -4,6 +4,7 @@
 #include <vector>
 
 namespace imucal::db::fleet {
+using namespace db::history;
 
 namespace {
 
@@ -13,7 +14,7 @@ constexpr const char* kMigrationLock = "SELECT pg_advisory_xact_lock(494355241)"
 // Migration 1. A run is keyed by (station_id, run_uuid); local ids are the station's own and are
 // kept to resolve reprocessed_from and table_run_id within the station. `revision` lets a newer
 // copy replace an older one and never the reverse. Parameter sets are jsonb (the five keys of
-// DESIGN §3) so QA can query them: (params->'gyro_bias_radps'->>2)::float8.
+// ARCHITECTURE §3) so QA can query them: (params->'gyro_bias_radps'->>2)::float8.
 const char* const kFleetMigration1 = R"SQL(
 CREATE TABLE runs (
   id                     bigserial PRIMARY KEY,
@@ -49,7 +50,7 @@ CREATE TABLE runs (
   promoted_at_ms         bigint,
   promoted_by            text   NOT NULL,
   promote_reason         text   NOT NULL,
-  -- The AINS parameter values in calib::param_info order (27, SI), NULL where that result does
+  -- The AINS parameter values in calib::core::param_info order (27, SI), NULL where that result does
   -- not determine the parameter; NULL without an AINS result. Derived from calibrations.params
   -- by the writer: the fleet pages' distributions read one array per run in time order instead
   -- of a jsonb document per run by key (10^6 runs: a week in 14 ms instead of 128 ms).

@@ -7,9 +7,10 @@
 #include <cstdlib>
 #include <fstream>
 
-#include "db/repository.hpp"
+#include "db/history/repository.hpp"
 
 namespace imucal::db::fleet {
+using namespace db::history;
 
 namespace {
 

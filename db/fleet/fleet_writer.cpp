@@ -4,10 +4,11 @@
 #include <nlohmann/json.hpp>
 
 #include "calib/core/param_set.hpp"
-#include "db/export.hpp"
+#include "db/history/export.hpp"
 #include "db/fleet/fleet_codec.hpp"
 
 namespace imucal::db::fleet {
+using namespace db::history;
 
 namespace {
 
@@ -47,15 +48,15 @@ const char* const kSqlInsertCrosscheck =
     "INSERT INTO crosschecks (run_id, verdict, k_sigma, failures, not_compared) "
     "VALUES ($1, $2, $3, $4::jsonb, $5::jsonb)";
 
-/// The run's AINS values as a PostgreSQL array literal (calib::param_info order, NULL where the
+/// The run's AINS values as a PostgreSQL array literal (calib::core::param_info order, NULL where the
 /// result lists the parameter as unobservable); none without an AINS result.
 PgParam ains_values(const RunDetails& d) {
   for (const CalibrationRecord& c : d.calibrations) {
     if (c.method != Method::kAins) continue;
-    const calib::ParamVector x = c.params.to_vector();
+    const calib::core::ParamVector x = c.params.to_vector();
     std::string out = "{";
-    for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-      const std::string& name = calib::param_info(i).name;
+    for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+      const std::string& name = calib::core::param_info(i).name;
       const bool unknown =
           std::find(c.unobservable.begin(), c.unobservable.end(), name) != c.unobservable.end();
       out += (i ? "," : "") + (unknown ? std::string("NULL") : *pg_value(x(i)));
@@ -89,7 +90,7 @@ std::vector<PgParam> run_values(const std::string& station_id, const RunDetails&
           pg_value(r.slot),
           pg_value(r.capture_json),
           pg_value(r.diagnosis_json),
-          pg_value(calib::setting_name(r.setting)),
+          pg_value(calib::core::setting_name(r.setting)),
           pg_value(r.origin),
           pg_value(r.promoted_at_ms),
           pg_value(r.promoted_by),

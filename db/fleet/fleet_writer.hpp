@@ -1,6 +1,6 @@
 #pragma once
 // Writes a station's runs into the fleet store (issue #24 item 2): the one write path of the store,
-// used by the outbox sender (station/fleet_sender.hpp) and by `stationctl fleet resync`.
+// used by the outbox sender (station/daemon/fleet_sender.hpp) and by `stationctl fleet resync`.
 //
 // Idempotent: a run is keyed by (station id, run UUID); a copy whose revision is not newer than the
 // stored one changes nothing (a resend after a lost acknowledgement is a no-op, and a resync racing
@@ -10,9 +10,10 @@
 #include <vector>
 
 #include "db/fleet/pg_connection.hpp"
-#include "db/repository.hpp"
+#include "db/history/repository.hpp"
 
 namespace imucal::db::fleet {
+using namespace db::history;
 
 struct UpsertCount {
   std::size_t written = 0;    ///< inserted, or replaced by a newer revision

@@ -5,6 +5,7 @@
 #include <cstring>
 
 namespace imucal::db::fleet {
+using namespace db::history;
 
 namespace {
 

@@ -1,6 +1,6 @@
 #pragma once
 // One libpq connection to the fleet store (issue #24), with every statement sent as text plus bound
-// values (PQexecParams: no value ever becomes SQL text) and every failure a db::DbError that names
+// values (PQexecParams: no value ever becomes SQL text) and every failure a db::history::DbError that names
 // the server by its redacted address (db/fleet/fleet_url.hpp) — never the password.
 //
 // SQLSTATE → DbError: 42501 insufficient privilege / 25006 read-only transaction → ReadOnly;
@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "db/fleet/fleet_url.hpp"
-#include "db/repository.hpp"
+#include "db/history/repository.hpp"
 
 namespace imucal::db::fleet {
 

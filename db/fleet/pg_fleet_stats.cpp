@@ -9,6 +9,7 @@
 #include "db/fleet/pg_connection.hpp"
 
 namespace imucal::db::fleet {
+using namespace db::history;
 
 namespace {
 
@@ -92,9 +93,9 @@ std::vector<StationVerdictCounts> PgFleetStats::verdict_counts_per_station(
 
 std::vector<ParamSummary> PgFleetStats::param_distribution(int param_index,
                                                            const FleetFilter& f) const {
-  if (param_index < 0 || param_index >= calib::ParamSet::kSize)
+  if (param_index < 0 || param_index >= calib::core::ParamSet::kSize)
     throw InvalidInput("parameter index " + std::to_string(param_index) + " is not in 0..26");
-  // ains_values is 1-based in SQL and in calib::param_info order (db/fleet/fleet_schema.cpp).
+  // ains_values is 1-based in SQL and in calib::core::param_info order (db/fleet/fleet_schema.cpp).
   const auto values =
       impl_->filter_values(f, pg_value(std::int64_t{param_index + 1}), std::nullopt);
   std::lock_guard<std::mutex> lock(impl_->mutex);
@@ -153,18 +154,18 @@ std::vector<AinsResultRow> PgFleetStats::ains_results(const FleetFilter& f) cons
     const std::string origin =
         impl_->conn.target().redacted() + ": run " + std::to_string(row.run_id) + " ains";
     row.sigma = params_from_json(q.text(i, 5), origin + " sigma");
-    // "{v1,v2,...}": the 27 values in calib::param_info order (db/fleet/fleet_schema.cpp).
+    // "{v1,v2,...}": the 27 values in calib::core::param_info order (db/fleet/fleet_schema.cpp).
     const std::string array = q.text(i, 6);
-    calib::ParamVector x;
+    calib::core::ParamVector x;
     const char* at = array.c_str() + 1;
-    for (int k = 0; k < calib::ParamSet::kSize; ++k) {
+    for (int k = 0; k < calib::core::ParamSet::kSize; ++k) {
       char* end = nullptr;
       x(k) = std::strtod(at, &end);
       if (end == at)
-        throw Corrupt(origin + ": ains_values has no number for " + calib::param_info(k).name);
+        throw Corrupt(origin + ": ains_values has no number for " + calib::core::param_info(k).name);
       at = end + 1;
     }
-    row.value = calib::ParamSet::from_vector(x);
+    row.value = calib::core::ParamSet::from_vector(x);
     out.push_back(std::move(row));
   }
   return out;

@@ -1,14 +1,15 @@
 #pragma once
-// The fleet pages' aggregates (db/fleet_stats.hpp) over the fleet store: computed by the server
+// The fleet pages' aggregates (db/history/fleet_stats.hpp) over the fleet store: computed by the server
 // (GROUP BY, percentile_cont, stddev_samp), so a week of a million-run store sends one row per
-// station. "Station" is the store's station id. Same definitions as db::SqliteFleetStats; every
+// station. "Station" is the store's station id. Same definitions as db::history::SqliteFleetStats; every
 // value bound. Thread safety: calls serialised on one connection.
 #include <memory>
 
 #include "db/fleet/fleet_url.hpp"
-#include "db/fleet_stats.hpp"
+#include "db/history/fleet_stats.hpp"
 
 namespace imucal::db::fleet {
+using namespace db::history;
 
 class PgFleetStats final : public FleetStats {
  public:

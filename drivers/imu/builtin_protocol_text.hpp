@@ -4,9 +4,9 @@
 // drivers/CMakeLists.txt), so that the default protocol never depends on a file being installed.
 #include <string>
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 std::string builtin_protocol_toml_text();
 std::string builtin_protocol_dbc_text();
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

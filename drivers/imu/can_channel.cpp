@@ -23,7 +23,7 @@
 
 #include "drivers/imu/candump_log.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 int64_t receive_clock_now_ns() {
   timespec ts{};
@@ -375,12 +375,6 @@ class UnixCanListener final : public CanChannel {
     return count;
   }
 
-  bool wait_writable(int timeout_ms) const override {
-    for (const Fd& p : peers_)
-      if (!poll_fd(p.get(), POLLOUT, timeout_ms)) return false;
-    return true;
-  }
-
  private:
   void add_to_epoll(int fd) {
     epoll_event ev{};
@@ -516,8 +510,6 @@ class CandumpChannel final : public CanChannel {
 
 bool CanChannel::wait_readable(int timeout_ms) const { return poll_fd(fd(), POLLIN, timeout_ms); }
 
-bool CanChannel::wait_writable(int timeout_ms) const { return poll_fd(fd(), POLLOUT, timeout_ms); }
-
 std::unique_ptr<CanChannel> CanChannel::open(const std::string& uri, const CanOpenOptions& options) {
   const std::size_t colon = uri.find(':');
   const std::string scheme = colon == std::string::npos ? std::string() : uri.substr(0, colon);
@@ -555,4 +547,4 @@ std::pair<std::unique_ptr<CanChannel>, std::unique_ptr<CanChannel>> CanChannel::
                                                 options.write_timeout_ms)};
 }
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

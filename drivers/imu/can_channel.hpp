@@ -1,5 +1,5 @@
 #pragma once
-// CanChannel: one fd-based interface to a CAN bus, whatever carries it (DESIGN §4). Like
+// CanChannel: one fd-based interface to a CAN bus, whatever carries it (ARCHITECTURE §4). Like
 // mavlink-router's Pollable, a channel only moves frames: it exposes fd() for the caller's poll/epoll
 // loop and non-blocking read()/write(); protocol logic (imu_codec.hpp) lives elsewhere.
 //
@@ -19,7 +19,7 @@
 //                    CanOpenOptions::replay_speed (fd() is then a timerfd).
 //
 // Counters are cumulative for the channel's life. read() never blocks; wait_readable()
-// and wait_writable() are conveniences over poll(2) on fd(); write() waits only if
+// is a convenience over poll(2) on fd(); write() waits only if
 // CanOpenOptions::write_timeout_ms > 0.
 #include <cstddef>
 #include <cstdint>
@@ -31,7 +31,7 @@
 
 #include "drivers/imu/can_frame.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 /// Failure to open or use a channel; what() names the URI and the system error.
 class CanChannelError : public std::runtime_error {
@@ -96,8 +96,6 @@ class CanChannel {
 
   /// poll(2) on fd() for POLLIN; true if readable within timeout_ms (-1 = forever).
   bool wait_readable(int timeout_ms) const;
-  /// poll(2) for POLLOUT on the transmit descriptor; true if writable within timeout_ms.
-  virtual bool wait_writable(int timeout_ms) const;
 
   const CanChannelCounters& counters() const { return counters_; }
   const std::string& uri() const { return uri_; }
@@ -114,4 +112,4 @@ class CanChannel {
   std::string interface_name_;
 };
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

@@ -8,11 +8,11 @@
 //   bit 29     kCanErrFlag  error frame (bus/controller error, delivered by CAN_RAW_ERR_FILTER)
 //   bit 30     kCanRtrFlag  remote transmission request
 //   bit 31     kCanEffFlag  29-bit extended identifier
-// Only classic CAN (at most 8 data bytes) is supported; CAN FD is optional in DESIGN §4 and unused.
+// Only classic CAN (at most 8 data bytes) is supported; CAN FD is optional in ARCHITECTURE §4 and unused.
 #include <array>
 #include <cstdint>
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 constexpr uint32_t kCanEffFlag = 0x80000000U;
 constexpr uint32_t kCanRtrFlag = 0x40000000U;
@@ -55,4 +55,4 @@ struct ReceivedFrame {
 /// Now on the clock of ReceivedFrame::rx_time_ns (CLOCK_REALTIME, ns).
 int64_t receive_clock_now_ns();
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

@@ -8,7 +8,7 @@
 #include <limits>
 #include <utility>
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 namespace {
 
 constexpr char kHex[] = "0123456789ABCDEF";
@@ -276,4 +276,4 @@ void CandumpWriter::close() {
   if (::close(fd) != 0) throw std::runtime_error(sys_error("cannot close candump log", path_));
 }
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

@@ -9,7 +9,7 @@
 //     error frame   8 hex digits incl. 0x20000000 (CAN_ERR_FLAG), 8 data bytes
 //     remote frame  "123#R" or "123#R4" (the DLC digit only when non-zero)
 //     data          2 upper-case hex digits per byte, no separator, 0..8 bytes
-// The run archive's capture.log is written in this format (DESIGN §5).
+// The run archive's capture.log is written in this format (ARCHITECTURE §5).
 //
 // The parser also accepts what other writers add: any number of fraction digits (1-9) in the
 // timestamp, '.' separators between data bytes, and a trailing " R" / " T" (rx/tx) token as
@@ -24,7 +24,7 @@
 
 #include "drivers/imu/can_frame.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 /// A malformed log; what() = "<file>:<line>: <reason>" (line 0 = the file as a whole).
 class CandumpParseError : public std::runtime_error {
@@ -105,4 +105,4 @@ class CandumpWriter {
   uint64_t frames_ = 0;
 };
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

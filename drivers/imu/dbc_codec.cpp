@@ -2,7 +2,7 @@
 
 #include <cstring>
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 std::vector<int> dbc_signal_bits(const DbcSignal& s) {
   std::vector<int> bits;
@@ -107,4 +107,4 @@ double dbc_physical(const DbcSignal& s, uint64_t raw) {
   return v * s.factor + s.offset;
 }
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

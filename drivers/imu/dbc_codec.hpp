@@ -8,7 +8,7 @@
 
 #include "drivers/imu/dbc_database.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 /// The bits the signal occupies as linear positions (byte × 8 + bit), from its least significant
 /// bit (Intel) or its most significant bit (Motorola), in the order the format walks them.
@@ -27,4 +27,4 @@ int64_t dbc_raw_integer(const DbcSignal& s, uint64_t raw);
 /// The physical value: raw (as integer or IEEE float) × factor + offset.
 double dbc_physical(const DbcSignal& s, uint64_t raw);
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

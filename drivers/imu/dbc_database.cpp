@@ -11,7 +11,7 @@
 
 #include "drivers/imu/dbc_codec.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 const DbcSignal* DbcMessage::signal(const std::string& n) const {
   for (const DbcSignal& s : signals)
@@ -504,4 +504,4 @@ DbcDatabase read_dbc(const std::string& path) {
   return parse_dbc(read_small_text_file(path, "DBC file"), path);
 }
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

@@ -21,7 +21,7 @@
 #include <string>
 #include <vector>
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 struct DbcSignal {
   enum class ByteOrder { kIntel, kMotorola };
@@ -75,4 +75,4 @@ DbcDatabase read_dbc(const std::string& path);
 /// or is larger than 16 MiB.
 std::string read_small_text_file(const std::string& path, const std::string& what);
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

@@ -10,7 +10,7 @@
 #include "drivers/imu/dbc_codec.hpp"
 #include "drivers/imu/imu_sample_codec.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 std::shared_ptr<const ImuProtocolMap> resolve_protocol(
     std::shared_ptr<const ImuProtocolMap> protocol, std::optional<uint32_t> base_id) {
@@ -88,7 +88,7 @@ uint32_t ImuFrameEncoder::flags_for(uint16_t st, bool gyro_clip, bool accel_clip
   return flags;
 }
 
-std::vector<CanFrame> ImuFrameEncoder::encode(const calib::ImuIncrement& inc,
+std::vector<CanFrame> ImuFrameEncoder::encode(const calib::core::ImuIncrement& inc,
                                               uint16_t status_flags) {
   for (int i = 0; i < 3; ++i)
     if (!std::isfinite(inc.dtheta_rad(i)) || !std::isfinite(inc.dv_mps(i)))
@@ -428,4 +428,4 @@ void ImuFrameDecoder::flush(std::vector<DecodedSample>& out) {
   release(out, true);
 }
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

@@ -27,7 +27,7 @@
 #include "drivers/imu/imu_protocol.hpp"
 #include "drivers/imu/imu_protocol_map.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 /// The protocol a codec uses: `protocol` (the built-in one when null) with its identifiers moved
 /// to `base_id` when one is given (imu_protocol_map.hpp, with_base_id). Throws
@@ -49,7 +49,7 @@ class ImuFrameEncoder {
   /// first when there is one), a failed built-in test the third (likewise).
   /// inc.t_s is not transmitted; inc.dt_s only turns increments into rates for such a protocol.
   /// Throws std::invalid_argument for a non-finite dθ or dv component.
-  std::vector<CanFrame> encode(const calib::ImuIncrement& inc, uint16_t status_flags = 0);
+  std::vector<CanFrame> encode(const calib::core::ImuIncrement& inc, uint16_t status_flags = 0);
 
   /// Power-up or reset of the IMU: the counter restarts at 0, the carried remainders are dropped
   /// and the next kStartupSamples samples carry the startup condition.
@@ -88,7 +88,7 @@ struct DecodedSample {
   /// nominal interval; t_s = (sample_index + 1) × dt_s is the end of the interval on the stream's
   /// time axis (lost samples keep their slot); temp_c is NaN when the IMU reports it unknown or
   /// does not send it (a multiplexed temperature holds its last value between its pages).
-  calib::ImuIncrement increment;
+  calib::core::ImuIncrement increment;
   uint32_t counter = 0;        ///< the IMU's sample counter (modulo 2^counter_bits)
   uint8_t conditions = 0;      ///< condition:: bits
   uint32_t flags = 0;          ///< bit i: the protocol's status flag i (ImuProtocolMap::flags) set
@@ -214,4 +214,4 @@ class ImuFrameDecoder {
   uint64_t max_arrival_out_ = 0;
 };
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

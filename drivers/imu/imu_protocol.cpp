@@ -1,6 +1,6 @@
 #include "drivers/imu/imu_protocol.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 namespace {
 
 uint64_t load_le64(const std::array<uint8_t, 8>& d) {
@@ -85,12 +85,4 @@ StatusFields unpack_status(const std::array<uint8_t, 8>& data) {
   return f;
 }
 
-uint16_t sample_crc(const std::array<uint8_t, 8>& x, const std::array<uint8_t, 8>& y,
-                    const std::array<uint8_t, 8>& z, const std::array<uint8_t, 8>& status) {
-  uint16_t crc = crc16_ccitt_false(x.data(), 8);
-  crc = crc16_ccitt_false(y.data(), 8, crc);
-  crc = crc16_ccitt_false(z.data(), 8, crc);
-  return crc16_ccitt_false(status.data(), 6, crc);
-}
-
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

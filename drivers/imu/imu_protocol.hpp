@@ -1,5 +1,5 @@
 #pragma once
-// The IMU CAN frame protocol (our own; DESIGN §4). Normative description: drivers/imu/PROTOCOL.md and
+// The IMU CAN frame protocol (our own; ARCHITECTURE §4). Normative description: drivers/imu/PROTOCOL.md and
 // drivers/imu/imu.dbc — this header is its single source in code.
 //
 // One IMU sample = 4 classic CAN frames, 11-bit identifiers base_id + 0..3 (default base 0x100),
@@ -23,7 +23,7 @@
 
 #include "drivers/imu/can_frame.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 constexpr uint32_t kDefaultImuBaseId = 0x100;
 constexpr int kFramesPerSample = 4;
@@ -75,12 +75,8 @@ uint16_t crc16_ccitt_false(const uint8_t* bytes, std::size_t len, uint16_t crc =
 
 std::array<uint8_t, 8> pack_axis(const AxisFields& f);
 AxisFields unpack_axis(const std::array<uint8_t, 8>& data);
-/// Packs the status frame; crc is written as given (use sample_crc to compute it).
+/// Packs the status frame; crc is written as given.
 std::array<uint8_t, 8> pack_status(const StatusFields& f);
 StatusFields unpack_status(const std::array<uint8_t, 8>& data);
 
-/// The integrity check of a sample: CRC over X, Y, Z data and status bytes 0-5.
-uint16_t sample_crc(const std::array<uint8_t, 8>& x, const std::array<uint8_t, 8>& y,
-                    const std::array<uint8_t, 8>& z, const std::array<uint8_t, 8>& status);
-
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

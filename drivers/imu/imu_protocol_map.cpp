@@ -12,7 +12,7 @@
 #include "drivers/imu/builtin_protocol_text.hpp"
 #include "drivers/imu/dbc_codec.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 namespace {
 
@@ -407,4 +407,4 @@ std::string station_unsupported(const ImuProtocolMap& map) {
   return "";
 }
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

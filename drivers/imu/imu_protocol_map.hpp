@@ -1,6 +1,6 @@
 #pragma once
 // An IMU's CAN protocol as data (issue #27 item 2): a TOML file that names the unit's DBC file and
-// maps its signals to what the station needs of one sample. Format (drivers/imu/PROTOCOLS.md):
+// maps its signals to what the station needs of one sample. Format (drivers/imu/PROTOCOL.md):
 //
 //   [protocol]  name, dbc (path relative to this file), quantity = "increments" | "rates"
 //               (rad/s and m/s² integrated over the sample interval), completes_sample = the
@@ -31,7 +31,7 @@
 
 #include "drivers/imu/dbc_database.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 /// A signal of the protocol's DBC: indices into DbcDatabase::messages and that message's signals.
 struct DbcSignalRef {
@@ -117,4 +117,4 @@ IncrementResolution increment_resolution(const ImuProtocolMap& map, double dt_s)
 constexpr int kMaxSampleMessages = 8;
 std::string station_unsupported(const ImuProtocolMap& map);
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

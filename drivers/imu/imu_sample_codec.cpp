@@ -7,7 +7,7 @@
 #include "drivers/imu/dbc_codec.hpp"
 #include "drivers/imu/imu_protocol.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 namespace {
 
@@ -298,4 +298,4 @@ SampleReading decode_sample(const ImuProtocolMap& map, const uint8_t* const* fra
   return r;
 }
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

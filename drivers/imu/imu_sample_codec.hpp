@@ -12,7 +12,7 @@
 
 #include "drivers/imu/imu_protocol_map.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 
 struct ProtocolSample {
   /// SI, as the protocol carries them: increments (rad, m/s) or rates (rad/s, m/s²).
@@ -70,4 +70,4 @@ uint8_t crc8_sae_j1850(const uint8_t* bytes, size_t len);
 /// The same over several pieces: start with crc = 0xFF, feed each, finish with ^ 0xFF.
 uint8_t crc8_sae_j1850_update(uint8_t crc, const uint8_t* bytes, size_t len);
 
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

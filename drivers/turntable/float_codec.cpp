@@ -2,7 +2,7 @@
 
 #include <cstring>
 
-namespace imucal::turntable {
+namespace imucal::drivers::turntable {
 namespace {
 
 uint16_t swap_bytes(uint16_t w) { return static_cast<uint16_t>((w >> 8) | (w << 8)); }
@@ -72,4 +72,4 @@ void encode_float(float value, WordOrder order, uint16_t* regs) {
 
 float decode_float(const uint16_t* regs, WordOrder order) { return decode_float(regs[0], regs[1], order); }
 
-}  // namespace imucal::turntable
+}  // namespace imucal::drivers::turntable

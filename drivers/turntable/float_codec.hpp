@@ -9,7 +9,7 @@
 //   kBADC  high word first, bytes swapped in each word:      reg[0] = 0xBBAA, reg[1] = 0xDDCC
 //   kDCBA  fully little-endian:                              reg[0] = 0xDDCC, reg[1] = 0xBBAA
 // These helpers are written here on purpose instead of libmodbus' modbus_get/set_float_*: in
-// bookworm's libmodbus 3.1.6 those names do not match the byte orders they implement (DESIGN §4).
+// bookworm's libmodbus 3.1.6 those names do not match the byte orders they implement (ARCHITECTURE §4).
 //
 // The bit pattern is carried unchanged in both directions, so NaN payloads and signed zeros survive a
 // round trip; deciding whether a non-finite value is acceptable is the caller's job.
@@ -18,7 +18,7 @@
 #include <optional>
 #include <string_view>
 
-namespace imucal::turntable {
+namespace imucal::drivers::turntable {
 
 enum class WordOrder { kABCD, kCDAB, kBADC, kDCBA };
 
@@ -36,4 +36,4 @@ float decode_float(uint16_t reg0, uint16_t reg1, WordOrder order);
 void encode_float(float value, WordOrder order, uint16_t* regs);
 float decode_float(const uint16_t* regs, WordOrder order);
 
-}  // namespace imucal::turntable
+}  // namespace imucal::drivers::turntable

@@ -8,7 +8,7 @@
 #include <tuple>
 #include <vector>
 
-namespace imucal::turntable {
+namespace imucal::drivers::turntable {
 
 bool HoldingRegisters::operator==(const HoldingRegisters& o) const {
   return std::tie(target_outer_deg, target_inner_deg, max_rate_dps, command, command_seq) ==
@@ -265,4 +265,4 @@ std::string describe(const RegisterMap& m) {
   return s.str();
 }
 
-}  // namespace imucal::turntable
+}  // namespace imucal::drivers::turntable

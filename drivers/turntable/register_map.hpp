@@ -1,5 +1,5 @@
 #pragma once
-// Turntable Modbus register map: DATA, not code (DESIGN §4). Real tables differ, so every address,
+// Turntable Modbus register map: DATA, not code (ARCHITECTURE §4). Real tables differ, so every address,
 // bit number, command code and the float word order comes from a TOML table in the station config;
 // `register_map.example.toml` next to this header is the simulator's default map and
 // `default_register_map()` returns the same values (a test keeps them equal).
@@ -21,7 +21,7 @@
 
 #include "drivers/turntable/float_codec.hpp"
 
-namespace imucal::turntable {
+namespace imucal::drivers::turntable {
 
 /// Holding registers (function 3 read, 16 write): what the master commands.
 struct HoldingRegisters {
@@ -114,4 +114,4 @@ RegisterMap load_register_map(const std::string& path);
 /// One-line human description, e.g. for the start-up log.
 std::string describe(const RegisterMap& map);
 
-}  // namespace imucal::turntable
+}  // namespace imucal::drivers::turntable

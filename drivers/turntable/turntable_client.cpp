@@ -9,7 +9,7 @@
 #include <cstdlib>
 #include <thread>
 
-namespace imucal::turntable {
+namespace imucal::drivers::turntable {
 
 using Clock = std::chrono::steady_clock;
 using std::chrono::milliseconds;
@@ -629,4 +629,4 @@ TableStatus TurntableClient::wait_stopped(milliseconds timeout) {
   }
 }
 
-}  // namespace imucal::turntable
+}  // namespace imucal::drivers::turntable

@@ -1,5 +1,5 @@
 #pragma once
-// Modbus master for a PLC-driven two-axis turntable (DESIGN §4), over TCP or RTU (libmodbus).
+// Modbus master for a PLC-driven two-axis turntable (ARCHITECTURE §4), over TCP or RTU (libmodbus).
 //
 // Link handling: libmodbus error recovery is NONE; errno is handled here. A timeout flushes the
 // link and retries the request; a malformed or mismatched reply (e.g. a late reply to a request
@@ -44,7 +44,7 @@ namespace spdlog {
 class logger;
 }
 
-namespace imucal::turntable {
+namespace imucal::drivers::turntable {
 
 /// Where the table is: "tcp:HOST:PORT" or "rtu:DEVICE:BAUD:FORMAT" with FORMAT like 8N1 / 8E1 /
 /// 8O2.
@@ -207,4 +207,4 @@ class TurntableClient {
       false;  ///< set while destroying: a best-effort stop must not block on backoff
 };
 
-}  // namespace imucal::turntable
+}  // namespace imucal::drivers::turntable

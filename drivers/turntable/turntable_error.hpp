@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace imucal::turntable {
+namespace imucal::drivers::turntable {
 
 enum class ErrorKind {
   kLink,             ///< link down and reconnection gave up (or connect failed)
@@ -73,4 +73,4 @@ class TableFaultError : public TurntableError {
   uint16_t fault_code_;
 };
 
-}  // namespace imucal::turntable
+}  // namespace imucal::drivers::turntable

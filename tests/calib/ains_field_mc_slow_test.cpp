@@ -15,6 +15,10 @@
 #include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::ains;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 namespace {
 
 using testing::factory_site;

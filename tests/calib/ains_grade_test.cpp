@@ -14,6 +14,11 @@
 #include "tests/support/sigma_honesty.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::ains;
+using namespace imucal::calib::core;
+using namespace imucal::calib::legacy;
+using namespace imucal::calib::pipeline;
+using namespace imucal::calib::sim;
 namespace {
 
 using testing::mems_input;

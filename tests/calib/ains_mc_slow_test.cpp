@@ -1,4 +1,4 @@
-// Monte Carlo consistency of the AINS (DESIGN §9): over N noise seeds (env IMUCAL_MC_SEEDS,
+// Monte Carlo consistency of the AINS (ARCHITECTURE §9): over N noise seeds (env IMUCAL_MC_SEEDS,
 // default 20) the normalised error (estimate - truth)/σ must have RMS in [0.7, 1.4] per parameter
 // group, and the RMS error must reach the CRLB (≤ 1.2 × CRLB per group). Also reports runtime and
 // memory of one 60-minute 100 Hz calibration.
@@ -19,6 +19,11 @@
 #include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::ains;
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 namespace {
 
 int mc_seeds() {

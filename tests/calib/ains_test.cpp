@@ -1,4 +1,4 @@
-// AINS calibration against the truth simulator (paper §IV, DESIGN §6). Expected values come from
+// AINS calibration against the truth simulator (paper §IV, ARCHITECTURE §6). Expected values come from
 // the simulator's truth (and, for the smoother, from the simulator's true attitude), never from
 // the estimator's own output.
 #include "calib/ains/ains.hpp"
@@ -17,6 +17,10 @@
 #include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::ains;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 namespace {
 
 using testing::factory_site;

@@ -16,6 +16,9 @@
 #include "sequences/motion_profile.hpp"
 
 namespace imucal::calib::testing {
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 
 inline Site factory_site() { return demo_factory_site(); }
 

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 namespace imucal::calib {
+using namespace imucal::calib::core;
 namespace {
 
 TEST(BinomialInterval, NoEventsGivesTheClosedFormUpperBound) {

@@ -11,6 +11,8 @@
 #include "calib/sim/truth_sim.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
 namespace {
 
 TEST(BodyFrame, SameSensorOutputsInTheRotatedFrameAndMaSymmetric) {

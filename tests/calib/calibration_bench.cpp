@@ -21,6 +21,7 @@
 #include "calib/checks/evaluation.hpp"
 #include "calib/nlsq/nlsq.hpp"
 #include "calib/pipeline/calibration_pipeline.hpp"
+#include "db/archive/archive_input.hpp"
 #include "db/archive/run_archive.hpp"
 
 namespace {
@@ -33,58 +34,58 @@ std::string archive_dir() {
 }
 
 /// The input, read once for the benchmarks of the parts.
-const calib::CalibrationInput& input() {
-  static const calib::CalibrationInput in =
-      archive::to_calibration_input(archive::read_archive(archive_dir()));
+const calib::core::CalibrationInput& input() {
+  static const calib::core::CalibrationInput in =
+      db::archive::to_calibration_input(db::archive::read_archive(archive_dir()));
   return in;
 }
 
 /// Parameters to evaluate: NLSQ's estimate (the evaluation's cost does not depend on which).
-const calib::ParamSet& estimate() {
-  static const calib::ParamSet p = calib::calibrate_nlsq(input()).params;
+const calib::core::ParamSet& estimate() {
+  static const calib::core::ParamSet p = calib::nlsq::calibrate_nlsq(input()).params;
   return p;
 }
 
 void BM_ReadArchive(benchmark::State& state) {
   for (auto _ : state) {
-    calib::CalibrationInput in =
-        archive::to_calibration_input(archive::read_archive(archive_dir()));
+    calib::core::CalibrationInput in =
+        db::archive::to_calibration_input(db::archive::read_archive(archive_dir()));
     benchmark::DoNotOptimize(in.imu.data());
   }
   state.counters["samples"] = static_cast<double>(input().imu.size());
 }
 
 void BM_CheckData(benchmark::State& state) {
-  for (auto _ : state) benchmark::DoNotOptimize(calib::check_data(input()));
+  for (auto _ : state) benchmark::DoNotOptimize(calib::checks::check_data(input()));
 }
 
 void BM_Ains(benchmark::State& state) {
-  for (auto _ : state) benchmark::DoNotOptimize(calib::calibrate_ains(input()));
+  for (auto _ : state) benchmark::DoNotOptimize(calib::ains::calibrate_ains(input()));
 }
 
 void BM_Nlsq(benchmark::State& state) {
-  for (auto _ : state) benchmark::DoNotOptimize(calib::calibrate_nlsq(input()));
+  for (auto _ : state) benchmark::DoNotOptimize(calib::nlsq::calibrate_nlsq(input()));
 }
 
 void BM_Evaluate(benchmark::State& state) {
-  for (auto _ : state) benchmark::DoNotOptimize(calib::evaluate(input(), estimate()));
+  for (auto _ : state) benchmark::DoNotOptimize(calib::checks::evaluate(input(), estimate()));
 }
 
 /// The pipeline on the input in memory; range(0): 1 concurrent, 0 one method after the other.
 void BM_Pipeline(benchmark::State& state) {
-  calib::PipelineOptions options;
+  calib::pipeline::PipelineOptions options;
   options.concurrent = state.range(0) != 0;
-  for (auto _ : state) benchmark::DoNotOptimize(calib::run_calibration(input(), options));
+  for (auto _ : state) benchmark::DoNotOptimize(calib::pipeline::run_calibration(input(), options));
 }
 
 /// What `imucal calibrate --method all` and `imucal bench` do: archive to verdict.
 void BM_ArchiveToVerdict(benchmark::State& state) {
-  calib::PipelineOptions options;
+  calib::pipeline::PipelineOptions options;
   options.concurrent = state.range(0) != 0;
   for (auto _ : state) {
-    const calib::CalibrationInput in =
-        archive::to_calibration_input(archive::read_archive(archive_dir()));
-    benchmark::DoNotOptimize(calib::run_calibration(in, options).pass());
+    const calib::core::CalibrationInput in =
+        db::archive::to_calibration_input(db::archive::read_archive(archive_dir()));
+    benchmark::DoNotOptimize(calib::pipeline::run_calibration(in, options).pass());
   }
 }
 

@@ -14,6 +14,10 @@
 #include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::pipeline;
+using namespace imucal::calib::sim;
 namespace {
 
 CalibrationInput short_run_input(uint64_t seed) {

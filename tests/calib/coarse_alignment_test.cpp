@@ -11,6 +11,9 @@
 #include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 namespace {
 
 using testing::factory_site;

@@ -1,4 +1,4 @@
-// CRLB / observability (DESIGN §6): the covariance-only run of the AINS model along the true
+// CRLB / observability (ARCHITECTURE §6): the covariance-only run of the AINS model along the true
 // trajectory. Checked against the AINS on simulated data and against what the physics of a
 // rank-deficient sequence says must be unobservable.
 #include "calib/checks/crlb.hpp"
@@ -14,6 +14,11 @@
 #include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::ains;
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 namespace {
 
 using testing::factory_site;

@@ -1,4 +1,4 @@
-// Cross-check (DESIGN §6): per-parameter agreement within k·sqrt(σA² + σB²) and both methods'
+// Cross-check (ARCHITECTURE §6): per-parameter agreement within k·sqrt(σA² + σB²) and both methods'
 // metrics under their limits. Expected numbers in the messages are computed here from the
 // inputs and the unit definitions, not read back from the code.
 #include "calib/checks/crosscheck.hpp"
@@ -13,6 +13,8 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
 
 namespace {
 

@@ -14,6 +14,11 @@
 #include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::pipeline;
+using namespace imucal::calib::sim;
 namespace {
 
 const CalibrationInput& clean_factory() {

@@ -24,6 +24,11 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::core;
+using namespace imucal::calib::diagnosis;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::legacy;
+using namespace imucal::calib::sim;
 
 namespace {
 

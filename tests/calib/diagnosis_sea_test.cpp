@@ -23,6 +23,11 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::ains;
+using namespace imucal::calib::core;
+using namespace imucal::calib::diagnosis;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 
 namespace {
 

@@ -1,4 +1,4 @@
-// Sim-to-real gap diagnosis (DESIGN §8) against the truth simulator. Expectations come from physics
+// Sim-to-real gap diagnosis (ARCHITECTURE §8) against the truth simulator. Expectations come from physics
 // and the simulator's injected truth: noise-free data at the true parameters leave no residual; a
 // null run (no effect) is consistent with χ²/dof near 1; a run with an effect injected and withheld
 // from the diagnoser names that effect with its magnitude within its σ.
@@ -22,6 +22,11 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::core;
+using namespace imucal::calib::diagnosis;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::nlsq;
+using namespace imucal::calib::sim;
 
 namespace {
 

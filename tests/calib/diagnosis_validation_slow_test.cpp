@@ -17,6 +17,10 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::core;
+using namespace imucal::calib::diagnosis;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 
 TEST(DiagnosisValidation, FactoryStdMeetsTheBarWithMargins) {
   const char* env = std::getenv("IMUCAL_VALIDATION_RUNS");

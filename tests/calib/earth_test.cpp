@@ -10,6 +10,7 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::core;
 
 TEST(Earth, NormalGravityMatchesWgs84ReferenceValues) {
   // TR8350.2: γ_e = 9.7803253359, γ_p = 9.8321849378 m/s².

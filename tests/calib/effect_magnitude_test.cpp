@@ -11,6 +11,7 @@
 #include <random>
 
 namespace imucal::calib {
+using namespace imucal::calib::diagnosis;
 namespace {
 
 struct Draws {

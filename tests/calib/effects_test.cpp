@@ -1,4 +1,4 @@
-// The effects catalogue (DESIGN §7): every effect's forward model, as the simulator injects it,
+// The effects catalogue (ARCHITECTURE §7): every effect's forward model, as the simulator injects it,
 // against a case derived by hand here (independent formulas: Eigen's AngleAxis for rotations, the
 // textbook form of each effect) — not only a round trip. Runs use a perfect sensor (zero
 // calibration parameters) and, where noise is not the point, no noise, so the simulator's output is
@@ -17,6 +17,9 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 using test_support::HandProfile;
 
 namespace {

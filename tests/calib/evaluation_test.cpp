@@ -18,6 +18,10 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 
 namespace {
 

@@ -25,6 +25,11 @@
 #include "sequences/profile_generator.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
+using namespace imucal::calib::diagnosis;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 namespace {
 
 struct CrlbOf {  // a sequence and its CRLB σ

@@ -19,6 +19,12 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::ains;
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::nlsq;
+using namespace imucal::calib::sim;
 
 namespace {
 

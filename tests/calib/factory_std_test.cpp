@@ -15,6 +15,11 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::pipeline;
+using namespace imucal::calib::sim;
 
 namespace {
 
@@ -95,7 +100,7 @@ TEST(FactoryStd, MiscalibratedParametersAreVisibleInTheMetrics) {
 
 TEST(FactoryStd, FarFromNominalUnitStillCalibratesBothWays) {
   const UnitModel far =
-      archive::read_unit_file(std::string(IMUCAL_SOURCE_DIR) + "/db/archive/units/far.toml");
+      db::archive::read_unit_file(std::string(IMUCAL_SOURCE_DIR) + "/db/archive/units/far.toml");
   // The unit file really is far from nominal (guards against an edited file silently shrinking).
   EXPECT_GE(far.params.accel_M.diagonal().cwiseAbs().maxCoeff(), 1999e-6);
   EXPECT_GE(far.params.accel_bias_mps2.cwiseAbs().maxCoeff(), 1.99e-3 * kStandardGravity_mps2);

@@ -17,6 +17,10 @@
 #include "sequences/library.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::ains;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 namespace {
 
 int mc_runs(int fallback) {

@@ -1,10 +1,10 @@
-// The gap budget against the paper (issue #26, calib/paper/gap_budget.hpp).
+// The gap budget against the paper (issue #26, calib/studies/paper/gap_budget.hpp).
 //  * The fit (step 3) recovers the weights that made a target, and holds them to their priors.
 //  * The whole method on "published" tables that a simulation with known sources wrote (six units
 //    on `short`, other seeds than the budget's own): the sources put in are found near their true
 //    sizes, and a source that cannot move the metrics (the fixture's constant heading, fitted away
 //    by the evaluation's γ_np, §VII) is given no share of the gap.
-#include "calib/paper/gap_budget.hpp"
+#include "calib/studies/paper/gap_budget.hpp"
 
 #include <gtest/gtest.h>
 
@@ -15,6 +15,10 @@
 #include "sequences/library.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::studies::paper;
 namespace {
 
 using ColumnMetric = std::array<std::array<double, 2>, kNumPaperColumns>;

@@ -10,6 +10,8 @@
 
 using namespace imucal::calib;
 
+using namespace imucal::calib::diagnosis;
+
 namespace {
 
 /// 200 rows, orthonormal columns: three base directions and three free ones.

@@ -14,6 +14,10 @@
 #include "tests/support/sigma_honesty.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
+using namespace imucal::calib::legacy;
+using namespace imucal::calib::sim;
 namespace {
 
 using testing::mems_input;

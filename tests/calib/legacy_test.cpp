@@ -13,6 +13,10 @@
 #include "calib/sim/sim_input.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::legacy;
+using namespace imucal::calib::sim;
 namespace {
 
 using testing::factory_site;

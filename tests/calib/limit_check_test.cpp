@@ -13,6 +13,8 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
 
 namespace {
 

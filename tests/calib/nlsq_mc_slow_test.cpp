@@ -1,4 +1,4 @@
-// Monte Carlo consistency of the NLSQ calibration (DESIGN §9): over N independent noise
+// Monte Carlo consistency of the NLSQ calibration (ARCHITECTURE §9): over N independent noise
 // realisations of the factory-standard sequence, the estimation error divided by the reported σ
 // must have RMS in [0.7, 1.4] for every parameter group, with and without the table heading. Too
 // small means σ is pessimistic, too large means σ lies (missing noise source, wrong whitening, bias
@@ -21,6 +21,10 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::nlsq;
+using namespace imucal::calib::sim;
 
 namespace {
 

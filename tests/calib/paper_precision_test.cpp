@@ -1,7 +1,7 @@
-// How precisely the paper's own six IMUs fix each column's mean (calib/paper/paper_precision.hpp,
+// How precisely the paper's own six IMUs fix each column's mean (calib/studies/paper/paper_precision.hpp,
 // issue #26). The figures on small sets are worked out by hand; the paper's are its published
 // values (Tables I-IV), summed here without the code under test.
-#include "calib/paper/paper_precision.hpp"
+#include "calib/studies/paper/paper_precision.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,6 +10,7 @@
 #include <vector>
 
 namespace imucal::calib {
+using namespace imucal::calib::studies::paper;
 namespace {
 
 TEST(MeanPrecision, StandardErrorLeaveOneOutAndTheExactBootstrapOnSmallSets) {

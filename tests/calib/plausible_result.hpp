@@ -8,6 +8,8 @@
 #include "calib/sim/truth_sim.hpp"
 
 namespace imucal::calib::testing {
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
 
 inline CalibrationResult plausible_result(const std::string& method) {
   CalibrationResult r;

@@ -18,6 +18,7 @@
 #include "tests/support/imu_tk_xsens.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::core;
 namespace {
 
 TEST(RealRecordingRest, ImuTkXsensRestsAreFoundAndStill) {

@@ -10,6 +10,9 @@
 #include "sequences/library.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 namespace {
 
 struct Score {

@@ -47,9 +47,9 @@ sed -i 's|^#pragma once$|&\n#include "calib/sim/truth_sim.hpp"|' "$work/calib/ef
 expect_breach "an effect includes the simulator" 'calib/effects/size_effect.hpp:[0-9]+: includes calib/sim/truth_sim.hpp'
 
 fresh  # the graph itself lets an estimator reach the simulator (README kept in step)
-sed -i 's/^set(calib_room_deps_legacy core)/set(calib_room_deps_legacy core paper)/' "$work/calib/rooms.cmake"
-sed -i 's|^May include: `calib/core/`|May include: `calib/core/`, `calib/paper/`|' "$work/calib/legacy/README.md"
-expect_breach "legacy may reach sim through paper" 'calib/legacy is on the estimate side and reaches the simulator \(calib/sim\) through core, paper'
+sed -i "s|^set(calib_room_deps_legacy core)|set(calib_room_deps_legacy core studies/paper)|" "$work/calib/rooms.cmake"
+sed -i 's|^May include: `calib/core/`|May include: `calib/core/`, `calib/studies/paper/`|' "$work/calib/legacy/README.md"
+expect_breach "legacy may reach sim through paper" 'calib/legacy is on the estimate side and reaches the simulator \(calib/sim\) through core, studies/paper'
 
 fresh  # the simulator's graph widened
 sed -i 's/^set(calib_room_deps_sim core effects)/set(calib_room_deps_sim core effects checks)/' "$work/calib/rooms.cmake"

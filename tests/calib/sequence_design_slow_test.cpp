@@ -10,7 +10,7 @@
 #include <cstdio>
 
 #include "calib/core/site_presets.hpp"
-#include "calib/design/sequence_design.hpp"
+#include "calib/studies/design/sequence_design.hpp"
 #include "calib/diagnosis/false_alarm.hpp"
 #include "calib/sim/sim_input.hpp"
 #include "sequences/library.hpp"
@@ -18,6 +18,11 @@
 #include "sequences/profile_generator.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::core;
+using namespace imucal::calib::diagnosis;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
+using namespace imucal::calib::studies::design;
 namespace {
 
 TEST(SequenceDesignAtItsOwnTime, NoGroupWorseThanFactoryStd) {

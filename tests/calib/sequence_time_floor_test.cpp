@@ -22,6 +22,8 @@
 #include "sequences/profile_generator.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
 namespace {
 
 std::string read_file(const std::string& path) {

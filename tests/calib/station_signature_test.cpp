@@ -1,4 +1,4 @@
-// calib/fleet/station_signature.hpp on synthetic fleets whose truth the test draws itself: units
+// calib/studies/fleet/station_signature.hpp on synthetic fleets whose truth the test draws itself: units
 // from a production population (scales ±333 ppm, misalignments ±1 mrad, biases within the
 // navigation envelope), every run's estimate = the unit's truth + what its station adds + noise of
 // the run's σ; sound stations differ in their table's levelling (ς, ±20 µrad: the part of the
@@ -6,7 +6,7 @@
 // non-orthogonality (each added through its response), one golden unit visiting every station.
 // The flags and their causes must follow, and on fleets without an error the false-alarm rate
 // must be the one asked for and the fitted sizes N(0, σ).
-#include "calib/fleet/station_signature.hpp"
+#include "calib/studies/fleet/station_signature.hpp"
 
 #include <gtest/gtest.h>
 
@@ -18,6 +18,8 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::core;
+using namespace imucal::calib::studies::fleet;
 
 namespace {
 

@@ -17,6 +17,9 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 
 namespace {
 
@@ -99,7 +102,7 @@ TEST(TruthSim, RotatingIncrementsMatchFineIntegrationOfTableRates) {
 }
 
 TEST(TruthSim, StrapdownOnTrueIncrementsStaysAtRestThroughRotations) {
-  // The sculling/rotation convention test of DESIGN §3: ignoring the start-of-interval convention
+  // The sculling/rotation convention test of ARCHITECTURE §3: ignoring the start-of-interval convention
   // costs ~900 µg while turning at 10 °/s at 100 Hz. With exact increments and the shared
   // strapdown, the velocity stays ~0 through a full-rank profile.
   const auto profile = test_support::HandProfile::full_rank(5.0);

@@ -17,6 +17,9 @@
 
 using namespace imucal;
 using namespace imucal::calib;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 
 namespace {
 
@@ -40,7 +43,7 @@ UnitModel unit_with_effects() {
   return u;
 }
 
-/// Every catalogue effect on at once (DESIGN §7, typical sizes or larger), the stochastic ones only
+/// Every catalogue effect on at once (ARCHITECTURE §7, typical sizes or larger), the stochastic ones only
 /// acting with noise on. The table time offset changes only the batch form's encoder log.
 UnitModel unit_with_every_effect() {
   UnitModel u = unit_with_effects();

@@ -16,6 +16,9 @@
 #include "tests/support/mems_runs.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
 namespace {
 
 using testing::simulate_mems;

@@ -14,6 +14,8 @@
 #include "calib/core/site_presets.hpp"
 
 namespace imucal::calib {
+using namespace imucal::calib::checks;
+using namespace imucal::calib::core;
 namespace {
 
 /// The heading variance before the motion and after the first aided epoch of the next rest.

@@ -26,6 +26,7 @@
 #include <utility>
 #include <vector>
 
+#include "db/archive/archive_input.hpp"
 #include "db/archive/run_archive.hpp"
 
 namespace {
@@ -61,7 +62,7 @@ struct Fnv {
   }
 };
 
-uint64_t checksum(const calib::CalibrationInput& in) {
+uint64_t checksum(const calib::core::CalibrationInput& in) {
   Fnv f;
   f.word(static_cast<uint64_t>(in.setting));
   f.d(in.site.lat_rad);
@@ -137,10 +138,10 @@ int main(int argc, char** argv) {
   for (int i = 0; i < o.repeat; ++i) {
     const double cpu0 = cpu_s();
     const auto t0 = clock::now();
-    archive::RunArchive ar = archive::read_archive(o.dir);
+    db::archive::RunArchive ar = db::archive::read_archive(o.dir);
     const auto t1 = clock::now();
-    const calib::CalibrationInput in =
-        o.move ? archive::to_calibration_input(std::move(ar)) : archive::to_calibration_input(ar);
+    const calib::core::CalibrationInput in =
+        o.move ? db::archive::to_calibration_input(std::move(ar)) : db::archive::to_calibration_input(ar);
     const auto t2 = clock::now();
     const double cpu = cpu_s() - cpu0;
     const double read_s = std::chrono::duration<double>(t1 - t0).count();

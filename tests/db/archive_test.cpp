@@ -1,4 +1,4 @@
-// Run archive (DESIGN §5): bit-exact write/read round trip of a simulated run, the calibration
+// Run archive (ARCHITECTURE §5): bit-exact write/read round trip of a simulated run, the calibration
 // input it yields vs. the in-memory path, one test per class of bad archive (each error must name
 // the file and the line or field), atomic writes, and the attitude.csv reference checked by hand.
 #include <gtest/gtest.h>
@@ -17,11 +17,12 @@
 #include "calib/core/rotation.hpp"
 #include "calib/sim/sim_input.hpp"
 #include "db/archive/archive_error.hpp"
+#include "db/archive/archive_input.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/run_archive.hpp"
 #include "tests/support/temp_dir.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 namespace {
 
 namespace fs = std::filesystem;
@@ -52,7 +53,7 @@ void replace_in_file(const std::string& p, const std::string& from, const std::s
 
 bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
-const calib::Site kSite{55.78 * kDegToRad, 12.52 * kDegToRad, 25.0, std::nullopt};
+const calib::core::Site kSite{55.78 * kDegToRad, 12.52 * kDegToRad, 25.0, std::nullopt};
 
 // 2 s rest, 90 deg outer-axis turn in 2 s (bang-bang), 2 s rest: enough for every check.
 sequences::MotionProfile short_profile() {
@@ -69,20 +70,20 @@ sequences::MotionProfile short_profile() {
 
 struct SimRun {
   RunArchive archive;
-  calib::SimResult sim;
-  calib::TableGeometry geometry;
+  calib::sim::SimResult sim;
+  calib::core::TableGeometry geometry;
 };
 
 SimRun simulated_run() {
   SimRun r;
   r.geometry.heading_rad = 1.5 * kDegToRad;
-  r.geometry.C_bp = calib::euler_to_C_bn(0.5 * kDegToRad, -0.25 * kDegToRad, 180.0 * kDegToRad);
-  calib::UnitModel unit = calib::default_unit();
+  r.geometry.C_bp = calib::core::euler_to_C_bn(0.5 * kDegToRad, -0.25 * kDegToRad, 180.0 * kDegToRad);
+  calib::effects::UnitModel unit = calib::effects::default_unit();
   unit.effects.accel_k2_per_mps2 = {1e-6, 0.0, 0.0};
-  calib::SimOptions opt;
+  calib::sim::SimOptions opt;
   opt.rate_hz = 100.0;
   opt.seed = 7;
-  r.sim = calib::simulate(short_profile(), r.geometry, kSite, unit, opt);
+  r.sim = calib::sim::simulate(short_profile(), r.geometry, kSite, unit, opt);
 
   RunInfo& ri = r.archive.info;
   ri.serial = "FOG-2024-0042";
@@ -188,12 +189,12 @@ TEST(Archive, CalibrationInputMatchesTheInMemoryPath) {
   TempDir tmp("imucal_archive_test");
   const SimRun run = simulated_run();
   write_archive(tmp.sub("run"), run.archive);
-  const calib::CalibrationInput from_disk = to_calibration_input(read_archive(tmp.sub("run")));
-  calib::NoiseModel noise;
+  const calib::core::CalibrationInput from_disk = to_calibration_input(read_archive(tmp.sub("run")));
+  calib::core::NoiseModel noise;
   noise.arw_rad_per_sqrt_s = run.archive.info.arw_rad_per_sqrt_s;
   noise.vrw_mps_per_sqrt_s = run.archive.info.vrw_mps_per_sqrt_s;
-  const calib::CalibrationInput mem =
-      calib::input_from_simulation(run.sim, run.geometry, run.archive.info.site, noise);
+  const calib::core::CalibrationInput mem =
+      calib::sim::input_from_simulation(run.sim, run.geometry, run.archive.info.site, noise);
   ASSERT_EQ(from_disk.reference.size(), mem.reference.size());
   size_t rest = 0;
   for (size_t k = 0; k < mem.reference.size(); ++k) {
@@ -209,15 +210,15 @@ TEST(Archive, CalibrationInputMatchesTheInMemoryPath) {
   EXPECT_EQ(from_disk.site.lat_rad, kSite.lat_rad);
   EXPECT_EQ(*from_disk.site.gravity_mps2, 9.815432);
   EXPECT_EQ(from_disk.noise.arw_rad_per_sqrt_s, noise.arw_rad_per_sqrt_s);
-  EXPECT_EQ(from_disk.noise.dtheta_lsb_rad, calib::NoiseModel{}.dtheta_lsb_rad);
+  EXPECT_EQ(from_disk.noise.dtheta_lsb_rad, calib::core::NoiseModel{}.dtheta_lsb_rad);
   // The 90 deg outer turn is a rotation about the outer axis, fixed in n: a_n = Rz(heading) a_t.
   const Eigen::Matrix3d C0 = from_disk.reference.front().C_bn_ref;
   const Eigen::Matrix3d C1 = from_disk.reference.back().C_bn_ref;
   const Eigen::Matrix3d R_n = C1 * C0.transpose();
   const Eigen::Vector3d a_n =
-      calib::euler_to_C_bn(0, 0, run.geometry.heading_rad) * run.geometry.outer_axis_t.normalized();
+      calib::core::euler_to_C_bn(0, 0, run.geometry.heading_rad) * run.geometry.outer_axis_t.normalized();
   EXPECT_LT((R_n * a_n - a_n).norm(), 1e-12);
-  EXPECT_NEAR(calib::matrix_to_rotvec(R_n).norm(), 90.0 * kDegToRad, 1e-12);
+  EXPECT_NEAR(calib::core::matrix_to_rotvec(R_n).norm(), 90.0 * kDegToRad, 1e-12);
 }
 
 // Writes a valid table-referenced archive: n samples at 100 Hz, level and at rest except where
@@ -227,9 +228,9 @@ std::string write_simple(const TempDir& tmp, const std::string& name, size_t n =
   a.info.serial = "S1";
   a.info.site = kSite;
   a.info.imu_rate_hz = 100.0;
-  const double g = calib::EarthModel(kSite).gravity_mps2();
+  const double g = calib::core::EarthModel(kSite).gravity_mps2();
   for (size_t k = 0; k < n; ++k) {
-    calib::ImuIncrement s;
+    calib::core::ImuIncrement s;
     s.t_s = static_cast<double>(k + 1) / 100.0;  // correctly rounded: shortest text "0.03"
     s.dt_s = k == 0 ? 0.01 : s.t_s - a.imu.back().t_s;
     s.dv_mps = {0.0, 0.0, -g * 0.01};
@@ -278,16 +279,16 @@ TEST(Archive, PriorGradeReadsWritesBackAndIsRefusedWhenWrong) {
   const std::string dir = write_simple(tmp, "r");
   const std::string orig = slurp(dir + "/run.toml");
   EXPECT_EQ(orig.find("[prior]"), std::string::npos);  // navigation grade: not written
-  EXPECT_EQ(read_archive(dir).info.grade, calib::Grade::kNavigation);
+  EXPECT_EQ(read_archive(dir).info.grade, calib::core::Grade::kNavigation);
   replace_in_file(dir + "/run.toml", "[imu]\n",
                   "[prior]\ngrade = \"mems\"\nmin_rest_s = 2.5\n[imu]\n");
   RunArchive a = read_archive(dir);
-  EXPECT_EQ(a.info.grade, calib::Grade::kMems);
+  EXPECT_EQ(a.info.grade, calib::core::Grade::kMems);
   EXPECT_EQ(a.info.min_rest_s, 2.5);
   const std::string again = tmp.path() + "/again";
   write_archive(again, a, false);
   const RunArchive b = read_archive(again);
-  EXPECT_EQ(b.info.grade, calib::Grade::kMems);
+  EXPECT_EQ(b.info.grade, calib::core::Grade::kMems);
   EXPECT_EQ(b.info.min_rest_s, 2.5);
   struct Case {
     std::string prior, field, says;
@@ -325,7 +326,7 @@ TEST(Archive, TheProtocolAndItsResolutionReadWriteBackAndReachTheInput) {
   EXPECT_EQ(a.info.imu_protocol, "rates16");
   EXPECT_EQ(a.info.dtheta_lsb_rad, 1.75e-6);
   EXPECT_EQ(a.info.dv_lsb_mps, 9.8e-5);
-  const calib::CalibrationInput in = to_calibration_input(a);
+  const calib::core::CalibrationInput in = to_calibration_input(a);
   EXPECT_EQ(in.noise.dtheta_lsb_rad, 1.75e-6);
   EXPECT_EQ(in.noise.dv_lsb_mps, 9.8e-5);
   const std::string again = tmp.path() + "/again";
@@ -355,11 +356,11 @@ TEST(Archive, PriorEnvelopeOverridesReadWriteBackAndReachTheInput) {
   EXPECT_DOUBLE_EQ(*a.info.prior_overrides.accel_bias_mps2, 12.5e-3 * 9.80665);
   EXPECT_DOUBLE_EQ(*a.info.prior_overrides.gyro_bias_radps, 0.01 * kDegToRad);
   EXPECT_DOUBLE_EQ(*a.info.prior_overrides.misalignment_rad, 7e-3);
-  const calib::CalibrationInput in = to_calibration_input(a);
-  const calib::GradePrior env = in.unit_prior().envelope();
+  const calib::core::CalibrationInput in = to_calibration_input(a);
+  const calib::core::GradePrior env = in.unit_prior().envelope();
   EXPECT_DOUBLE_EQ(env.scale, 0.02);  // not the tactical class's 1 %
   EXPECT_DOUBLE_EQ(env.arw_rad_per_sqrt_s,
-                   calib::grade_prior(calib::Grade::kTactical).arw_rad_per_sqrt_s);
+                   calib::core::grade_prior(calib::core::Grade::kTactical).arw_rad_per_sqrt_s);
   const std::string again = tmp.path() + "/again";
   write_archive(again, a, false);
   const RunArchive b = read_archive(again);
@@ -590,7 +591,7 @@ TEST(Archive, AttitudeReferenceBuildsCbnFromNedEuler) {
   ASSERT_EQ(a.info.reference, ReferenceKind::kAttitude);
   ASSERT_EQ(a.attitude.size(), 50u);
   EXPECT_EQ(a.attitude[5].yaw_rad, 90.0 * kDegToRad);
-  const calib::CalibrationInput in = to_calibration_input(a);
+  const calib::core::CalibrationInput in = to_calibration_input(a);
   const Eigen::Vector3d x_b(1, 0, 0), y_b(0, 1, 0);
   // Yaw 90 deg (heading east): body x points east, body y points south.
   EXPECT_LT((in.reference[5].C_bn_ref * x_b - Eigen::Vector3d(0, 1, 0)).norm(), 1e-15);
@@ -665,7 +666,7 @@ TEST(Archive, RawIntegralDvIsRotationCompensatedOnImport) {
 }
 
 // Bit-for-bit equality of two calibration inputs (NaN payloads included).
-void expect_identical(const calib::CalibrationInput& a, const calib::CalibrationInput& b) {
+void expect_identical(const calib::core::CalibrationInput& a, const calib::core::CalibrationInput& b) {
   auto same = [](const auto& x, const auto& y) { return std::memcmp(&x, &y, sizeof x) == 0; };
   EXPECT_EQ(a.setting, b.setting);
   EXPECT_TRUE(same(a.site.lat_rad, b.site.lat_rad) && same(a.site.lon_rad, b.site.lon_rad) &&
@@ -674,14 +675,14 @@ void expect_identical(const calib::CalibrationInput& a, const calib::Calibration
               same(a.noise.vrw_mps_per_sqrt_s, b.noise.vrw_mps_per_sqrt_s));
   ASSERT_EQ(a.imu.size(), b.imu.size());
   for (size_t k = 0; k < a.imu.size(); ++k) {
-    const calib::ImuIncrement &x = a.imu[k], &y = b.imu[k];
+    const calib::core::ImuIncrement &x = a.imu[k], &y = b.imu[k];
     ASSERT_TRUE(same(x.t_s, y.t_s) && same(x.dt_s, y.dt_s) && same(x.temp_c, y.temp_c) &&
                 x.dtheta_rad == y.dtheta_rad && x.dv_mps == y.dv_mps)
         << "imu sample " << k;
   }
   ASSERT_EQ(a.reference.size(), b.reference.size());
   for (size_t k = 0; k < a.reference.size(); ++k) {
-    const calib::ReferenceSample &x = a.reference[k], &y = b.reference[k];
+    const calib::core::ReferenceSample &x = a.reference[k], &y = b.reference[k];
     ASSERT_TRUE(same(x.t_s, y.t_s) && same(x.C_bn_ref, y.C_bn_ref) && x.at_rest == y.at_rest &&
                 same(x.outer_rad, y.outer_rad) && same(x.inner_rad, y.inner_rad))
         << "reference sample " << k;
@@ -695,8 +696,8 @@ TEST(Archive, ConvertingAGivenUpArchiveGivesTheSameInputBitForBit) {
   write_archive(tmp.sub("run"), run.archive);
   const RunArchive kept = read_archive(tmp.sub("run"));
   RunArchive given = read_archive(tmp.sub("run"));
-  const calib::CalibrationInput from_const = to_calibration_input(kept);
-  const calib::CalibrationInput from_moved = to_calibration_input(std::move(given));
+  const calib::core::CalibrationInput from_const = to_calibration_input(kept);
+  const calib::core::CalibrationInput from_moved = to_calibration_input(std::move(given));
   expect_identical(from_const, from_moved);
   EXPECT_EQ(from_moved.imu.size(), run.archive.imu.size());
   // The samples went into the input; what describes the run stays.
@@ -716,7 +717,7 @@ TEST(Archive, ConvertingAGivenUpArchiveGivesTheSameInputBitForBit) {
     csv << format_double((k + 1) / 100.0) << ",1.5,-2.25," << k << "," << (k >= 10 ? 1 : 0) << "\n";
   put(dir + "/attitude.csv", csv.str());
   RunArchive att = read_archive(dir);
-  const calib::CalibrationInput att_const = to_calibration_input(att);
+  const calib::core::CalibrationInput att_const = to_calibration_input(att);
   expect_identical(att_const, to_calibration_input(std::move(att)));
   EXPECT_TRUE(att.attitude.empty());
 }
@@ -751,7 +752,7 @@ TEST(Archive, LargeArchiveReadOnTwoThreadsReportsTheFirstErrorInTheFile) {
     ASSERT_EQ(a.table.size(), n);
     EXPECT_EQ(a.imu[n - 1].t_s, 300.0);
     EXPECT_EQ(a.imu[n / 2].dt_s, a.imu[n / 2].t_s - a.imu[n / 2 - 1].t_s);
-    const calib::CalibrationInput in = to_calibration_input(a);
+    const calib::core::CalibrationInput in = to_calibration_input(a);
     expect_identical(in, to_calibration_input(std::move(a)));
   }
   // A bad rest flag in each half of table.csv: the first one (data row 100, line 102) is named.
@@ -790,4 +791,4 @@ TEST(Archive, MissingPiecesNamed) {
 }
 
 }  // namespace
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

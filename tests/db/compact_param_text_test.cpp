@@ -1,7 +1,7 @@
-// The fast reader of stored parameter-set text (db/compact_param_text.hpp) against the strict
+// The fast reader of stored parameter-set text (db/history/compact_param_text.hpp) against the strict
 // path: on what the repository writes it gives exactly the values a JSON parser gives, and it
 // refuses (so that the strict reader reports the error) everything that is not that shape.
-#include "db/compact_param_text.hpp"
+#include "db/history/compact_param_text.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,8 +11,8 @@
 
 #include "db/archive/param_json.hpp"
 
-using imucal::calib::ParamSet;
-using imucal::db::read_compact_param_set;
+using imucal::calib::core::ParamSet;
+using imucal::db::history::read_compact_param_set;
 using json = nlohmann::json;
 
 namespace {
@@ -29,7 +29,7 @@ ParamSet random_set(std::mt19937_64& rng, bool non_negative) {
 }
 
 /// What the repository stores: the compact dump of the five keys.
-std::string stored_text(const ParamSet& p) { return imucal::archive::param_set_to_json(p).dump(); }
+std::string stored_text(const ParamSet& p) { return imucal::db::archive::param_set_to_json(p).dump(); }
 
 }  // namespace
 
@@ -40,7 +40,7 @@ TEST(CompactParamText, ReadsWhatTheRepositoryWritesBitForBitLikeAJsonParser) {
     const std::string text = stored_text(random_set(rng, sigma));
     ParamSet fast;
     ASSERT_TRUE(read_compact_param_set(text, sigma, fast)) << text;
-    const ParamSet strict = imucal::archive::param_set_from_json(json::parse(text), "test");
+    const ParamSet strict = imucal::db::archive::param_set_from_json(json::parse(text), "test");
     for (int i = 0; i < ParamSet::kSize; ++i)
       ASSERT_EQ(fast.to_vector()(i), strict.to_vector()(i)) << i << " in " << text;
   }

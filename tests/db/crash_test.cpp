@@ -1,4 +1,4 @@
-// Crash safety (DESIGN §10, station issue "kill -9 integrity"): a child process writes runs in a
+// Crash safety (ARCHITECTURE §10, station issue "kill -9 integrity"): a child process writes runs in a
 // loop — each write a transaction — and is SIGKILLed at a random moment, several times over the
 // same file. After every kill: PRAGMA integrity_check is ok, foreign keys hold, every run the
 // child reported as committed is there, every done run is complete (both calibrations with the
@@ -18,10 +18,11 @@
 #include <set>
 #include <thread>
 
-#include "db/sqlite_repository.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal::db {
+using namespace imucal::db::history;
 namespace {
 
 using test::TempDir;
@@ -78,7 +79,7 @@ void send(int fd, const Report& r) {
   }
 }
 
-bool params_equal(const calib::ParamSet& a, const calib::ParamSet& b) {
+bool params_equal(const calib::core::ParamSet& a, const calib::core::ParamSet& b) {
   return a.to_vector() == b.to_vector();
 }
 

@@ -25,7 +25,7 @@
 #include "db/archive/io_util.hpp"
 #include "tests/support/temp_dir.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 namespace {
 
 namespace fs = std::filesystem;
@@ -385,4 +385,4 @@ TEST(RunConcurrently, RunsBothAndReportsTheFirstFunctionsErrorFirst) {
 }
 
 }  // namespace
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

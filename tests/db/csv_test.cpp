@@ -15,7 +15,7 @@
 #include "db/archive/archive_error.hpp"
 #include "tests/support/temp_dir.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 namespace {
 
 namespace fs = std::filesystem;
@@ -226,4 +226,4 @@ TEST(Csv, WriterRefusesWhatTheReaderWouldReject) {
 }
 
 }  // namespace
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

@@ -1,9 +1,9 @@
-// The direct JSON row writer of the export (db/export_row_writer.hpp) against nlohmann's dump of
+// The direct JSON row writer of the export (db/history/export_row_writer.hpp) against nlohmann's dump of
 // the same row built from the public record functions (run_json, calibration_json,
 // crosscheck_json): byte for byte on hand-picked rows (every optional present and absent,
 // strings that need escaping, numbers nlohmann prints in its own way) and on random ones, and the
 // same errors for what cannot be written.
-#include "db/export_row_writer.hpp"
+#include "db/history/export_row_writer.hpp"
 
 #include <gtest/gtest.h>
 
@@ -13,9 +13,10 @@
 #include <random>
 #include <string>
 
-#include "db/export.hpp"
+#include "db/history/export.hpp"
 
 namespace imucal::db {
+using namespace imucal::db::history;
 namespace {
 
 /// What the export printed before the direct writer: the nlohmann object, dumped compactly.
@@ -33,10 +34,10 @@ std::string direct(const ExportRow& row) {
   return s.substr(7);
 }
 
-calib::ParamSet params_from(double base) {
-  calib::ParamVector v;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) v(i) = base * (i + 1) * (i % 2 ? -1.0 : 1.0);
-  return calib::ParamSet::from_vector(v);
+calib::core::ParamSet params_from(double base) {
+  calib::core::ParamVector v;
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) v(i) = base * (i + 1) * (i % 2 ? -1.0 : 1.0);
+  return calib::core::ParamSet::from_vector(v);
 }
 
 ExportRow full_row() {
@@ -62,7 +63,7 @@ ExportRow full_row() {
   r.capture_json =
       R"({ "frames_received" : 359700, "crc_errors":0, "nested": {"b":1.5,"a":[1,2]} })";
   r.diagnosis_json = R"({"verdict":"PASS","gap":1e-7,"unicode":"\u00e9\ud83d\ude00"})";
-  r.setting = calib::Setting::kLand;
+  r.setting = calib::core::Setting::kLand;
   r.origin = "imported from /mnt/usb/run 1";
   r.promoted_at_ms = 1764118000000;
   r.promoted_by = "qa-lead";
@@ -70,7 +71,7 @@ ExportRow full_row() {
   CalibrationRecord c;
   c.method = Method::kNlsq;
   c.params = params_from(1.2345678901234567e-4);
-  c.sigma = calib::ParamSet::from_vector(params_from(3e-7).to_vector().cwiseAbs());
+  c.sigma = calib::core::ParamSet::from_vector(params_from(3e-7).to_vector().cwiseAbs());
   c.params.accel_M(1, 2) = -0.0;
   c.params.gyro_bias_radps(0) = 1.0;  // nlohmann prints an integral double as "1.0"
   c.sigma.table_misalignment_rad(2) = 1e300;
@@ -132,13 +133,13 @@ TEST(ExportRowWriter, RandomRowsMatchByteForByte) {
   };
   for (int k = 0; k < 500; ++k) {
     ExportRow row = full_row();
-    calib::ParamVector p, s;
-    for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+    calib::core::ParamVector p, s;
+    for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
       p(i) = finite();
       s(i) = std::abs(finite());
     }
-    row.calibration->params = calib::ParamSet::from_vector(p);
-    row.calibration->sigma = calib::ParamSet::from_vector(s);
+    row.calibration->params = calib::core::ParamSet::from_vector(p);
+    row.calibration->sigma = calib::core::ParamSet::from_vector(s);
     row.calibration->runtime_s = finite();
     row.calibration->metrics->heading_offset_gamma_np_rad = finite();
     row.crosscheck->k_sigma = finite();

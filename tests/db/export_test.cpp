@@ -2,7 +2,7 @@
 // back (with an independent little reader below) to exactly the stored values; the JSON parses
 // with nlohmann and its parameter sets load with the strict parameter-set reader; filters select
 // the right rows; a failing stream is an error, not a silent truncation.
-#include "db/export.hpp"
+#include "db/history/export.hpp"
 
 #include <gtest/gtest.h>
 
@@ -13,10 +13,11 @@
 
 #include "db/archive/param_json.hpp"
 #include "db/archive/run_archive.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal::db {
+using namespace imucal::db::history;
 namespace {
 
 using nlohmann::json;
@@ -172,8 +173,8 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
     const auto rows = parse_csv(os.str());
     ASSERT_FALSE(rows.empty());
     const auto& header = rows[0];
-    ASSERT_EQ(header.size(), 23u + 11u + 2u * calib::ParamSet::kSize + 2u +
-                                 archive::CaptureInfo::counters().size() + 11u);
+    ASSERT_EQ(header.size(), 23u + 11u + 2u * calib::core::ParamSet::kSize + 2u +
+                                 db::archive::CaptureInfo::counters().size() + 11u);
     std::map<std::string, std::size_t> col;
     for (std::size_t c = 0; c < header.size(); ++c) col[header[c]] = c;
     ASSERT_EQ(col.size(), header.size()) << "duplicate column names";
@@ -238,10 +239,10 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
       }
       EXPECT_EQ(parse_time_utc(row[col["ended_at"]]), s.t + 1000);
       const int mi = row[col["method"]] == "ains" ? 0 : 1;
-      const calib::ParamVector p = test::seeded_params(s.seed, mi).to_vector();
-      const calib::ParamVector sg = test::seeded_sigma(s.seed, mi).to_vector();
-      for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-        const std::string& name = calib::param_info(i).name;
+      const calib::core::ParamVector p = test::seeded_params(s.seed, mi).to_vector();
+      const calib::core::ParamVector sg = test::seeded_sigma(s.seed, mi).to_vector();
+      for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+        const std::string& name = calib::core::param_info(i).name;
         EXPECT_EQ(to_double(row[col[name]]), p(i)) << name << " bit-exact";
         EXPECT_EQ(to_double(row[col["sigma." + name]]), sg(i)) << name;
       }
@@ -292,8 +293,8 @@ TEST_F(ExportTest, JsonParsesBackWithStrictParameterSetsForEveryFilter) {
       const json& c = o.at("calibration");
       EXPECT_EQ(c.at("method"), expected[r].second);
       const int mi = expected[r].second == "ains" ? 0 : 1;
-      calib::ParamSet sigma;
-      const calib::ParamSet p = archive::param_set_from_json(c.at("params"), "export", &sigma);
+      calib::core::ParamSet sigma;
+      const calib::core::ParamSet p = db::archive::param_set_from_json(c.at("params"), "export", &sigma);
       EXPECT_EQ(p.to_vector(), test::seeded_params(s.seed, mi).to_vector());
       EXPECT_EQ(sigma.to_vector(), test::seeded_sigma(s.seed, mi).to_vector());
       EXPECT_EQ(
@@ -350,8 +351,8 @@ TEST_F(ExportTest, AFailingStreamIsAnIoError) {
 TEST_F(ExportTest, ActiveParamsJsonLoadsWithTheStrictParameterSetReader) {
   const ActiveCalibration a = repo_->active_params("SIM-A");
   const json j = active_params_json(a);
-  calib::ParamSet sigma;
-  const calib::ParamSet p = archive::param_set_from_json(j, "params SIM-A", &sigma);
+  calib::core::ParamSet sigma;
+  const calib::core::ParamSet p = db::archive::param_set_from_json(j, "params SIM-A", &sigma);
   EXPECT_EQ(p.to_vector(), test::seeded_params(4, 0).to_vector()) << "latest PASS is seed 4, AINS";
   EXPECT_EQ(sigma.to_vector(), test::seeded_sigma(4, 0).to_vector());
 

@@ -4,11 +4,12 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
-#include "db/schema.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/schema.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal::db {
+using namespace imucal::db::history;
 namespace {
 
 using test::expect_throw_message;
@@ -16,7 +17,7 @@ using test::TempDir;
 
 constexpr TimestampMs kT0 = 1714560000000;
 
-NewRun field_run(const std::string& serial, TimestampMs t, calib::Setting s) {
+NewRun field_run(const std::string& serial, TimestampMs t, calib::core::Setting s) {
   NewRun r = test::new_run(serial, t);
   r.setting = s;
   r.origin = "imported from /media/usb/" + serial;
@@ -44,10 +45,10 @@ RunCompletion sea_alone(long seed, TimestampMs end) {
 TEST(FieldRuns, SettingOriginAndLegacyAreStoredAndRead) {
   TempDir dir;
   SqliteRepository repo(dir.file("h.db"));
-  const RunId land = repo.create_run(field_run("FOG-1", kT0, calib::Setting::kLand));
+  const RunId land = repo.create_run(field_run("FOG-1", kT0, calib::core::Setting::kLand));
   repo.finish_run(land, land_pass(1, kT0 + 1000));
   const RunDetails d = repo.show(land);
-  EXPECT_EQ(d.run.setting, calib::Setting::kLand);
+  EXPECT_EQ(d.run.setting, calib::core::Setting::kLand);
   EXPECT_EQ(d.run.origin, "imported from /media/usb/FOG-1");
   ASSERT_EQ(d.calibrations.size(), 2u);
   EXPECT_EQ(d.calibrations[0].method, Method::kAins);
@@ -55,7 +56,7 @@ TEST(FieldRuns, SettingOriginAndLegacyAreStoredAndRead) {
   EXPECT_EQ(d.calibrations[1].params.to_vector(),
             test::seeded_calibration(1, Method::kLegacy, false).params.to_vector());
   const RunId fac = repo.create_run(test::new_run("FOG-1", kT0 + 5000));
-  EXPECT_EQ(repo.show(fac).run.setting, calib::Setting::kFactory);
+  EXPECT_EQ(repo.show(fac).run.setting, calib::core::Setting::kFactory);
   EXPECT_EQ(repo.integrity_check(), "ok");
 }
 
@@ -63,12 +64,12 @@ TEST(FieldRuns, DoneNeedsTheSettingsSecondMethodAndASeaRunIsNeverDone) {
   TempDir dir;
   SqliteRepository repo(dir.file("h.db"));
   // Land with AINS + NLSQ (the factory's pair) is not done: the land pair is AINS + legacy.
-  const RunId land = repo.create_run(field_run("FOG-2", kT0, calib::Setting::kLand));
+  const RunId land = repo.create_run(field_run("FOG-2", kT0, calib::core::Setting::kLand));
   const std::string m1 = expect_throw_message<Conflict>(
       [&] { repo.finish_run(land, test::pass_completion(2, kT0 + 1)); });
   EXPECT_NE(m1.find("legacy calibration"), std::string::npos) << m1;
   // A sea run has AINS alone: done is refused, review with the reason is fine.
-  const RunId sea = repo.create_run(field_run("FOG-2", kT0 + 10, calib::Setting::kSea));
+  const RunId sea = repo.create_run(field_run("FOG-2", kT0 + 10, calib::core::Setting::kSea));
   RunCompletion done = sea_alone(3, kT0 + 20);
   done.state = RunState::kDone;
   const std::string m2 = expect_throw_message<Conflict>([&] { repo.finish_run(sea, done); });
@@ -83,7 +84,7 @@ TEST(FieldRuns, ActiveStaysTheFactoryPassUntilQaPromotesAFieldRun) {
   const RunId fac1 = repo.create_run(test::new_run("FOG-3", kT0));
   repo.finish_run(fac1, test::pass_completion(10, kT0 + 1000));
   // A later land PASS does not replace it on its own.
-  const RunId land = repo.create_run(field_run("FOG-3", kT0 + 2000, calib::Setting::kLand));
+  const RunId land = repo.create_run(field_run("FOG-3", kT0 + 2000, calib::core::Setting::kLand));
   repo.finish_run(land, land_pass(11, kT0 + 3000));
   EXPECT_EQ(repo.active_params("FOG-3").run.run_id, fac1);
   // QA promotes it: recorded with who, when, why; it becomes active.
@@ -101,7 +102,7 @@ TEST(FieldRuns, ActiveStaysTheFactoryPassUntilQaPromotesAFieldRun) {
   repo.finish_run(fac2, test::pass_completion(12, kT0 + 6000));
   EXPECT_EQ(repo.active_params("FOG-3").run.run_id, fac2);
   // A sea run reviewed only for having AINS alone may be promoted; then it is active.
-  const RunId sea = repo.create_run(field_run("FOG-3", kT0 + 7000, calib::Setting::kSea));
+  const RunId sea = repo.create_run(field_run("FOG-3", kT0 + 7000, calib::core::Setting::kSea));
   repo.finish_run(sea, sea_alone(13, kT0 + 8000));
   repo.promote(sea, "qa.jensen", "vessel unit, no table within reach", kT0 + 9000);
   EXPECT_EQ(repo.active_params("FOG-3").run.run_id, sea);
@@ -116,7 +117,7 @@ TEST(FieldRuns, PromotionIsRefusedWhereItMakesNoSense) {
               repo.promote(fac, "qa", "x", kT0 + 2);
             }).find("factory run"),
             std::string::npos);
-  const RunId live = repo.create_run(field_run("FOG-4", kT0 + 10, calib::Setting::kLand));
+  const RunId live = repo.create_run(field_run("FOG-4", kT0 + 10, calib::core::Setting::kLand));
   EXPECT_NE(expect_throw_message<Conflict>([&] {
               repo.promote(live, "qa", "x", kT0 + 20);
             }).find("still preparing"),
@@ -165,7 +166,7 @@ TEST(FieldRuns, VersionThreeDatabaseMigratesKeepingItsCalibrations) {
   EXPECT_EQ(repo.schema_version(), schema::kSchemaVersion);
   const auto runs = repo.history("OLD-3");
   ASSERT_EQ(runs.size(), 1u);
-  EXPECT_EQ(runs[0].setting, calib::Setting::kFactory);
+  EXPECT_EQ(runs[0].setting, calib::core::Setting::kFactory);
   EXPECT_FALSE(runs[0].promoted_at_ms.has_value());
   EXPECT_EQ(repo.integrity_check(), "ok");
   // The old calibration row survived the table rebuild (read back through the raw file).
@@ -187,7 +188,7 @@ TEST(FieldRuns, AnImportedFactoryRunIsActiveOnlyWhenPromotedAndIsFoundByItsArchi
   SqliteRepository repo(dir.file("h.db"));
   const RunId station = repo.create_run(test::new_run("NAV-1", kT0));
   repo.finish_run(station, test::pass_completion(1, kT0 + 1000));
-  const RunId imported = repo.create_run(field_run("NAV-1", kT0 + 5000, calib::Setting::kFactory));
+  const RunId imported = repo.create_run(field_run("NAV-1", kT0 + 5000, calib::core::Setting::kFactory));
   RunCompletion c = test::pass_completion(2, kT0 + 6000);
   repo.finish_run(imported, c);
   EXPECT_EQ(repo.active_params("NAV-1").run.run_id, station)

@@ -1,5 +1,5 @@
 #pragma once
-// A calibration history for the fleet questions (db/fleet_stats.hpp), written through the
+// A calibration history for the fleet questions (db/history/fleet_stats.hpp), written through the
 // repository, with every row also returned to the test so that it can compute the expected
 // answers on its own: three stations, six serials, five days of March 2024 (and one run before
 // 1970 when asked), verdicts PASS, REVIEW and FAILED, two live runs (one with its AINS result
@@ -12,19 +12,20 @@
 #include <string>
 #include <vector>
 
-#include "db/fleet_stats.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/fleet_stats.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal::db::test {
+using namespace imucal::db::history;
 
 struct FleetRow {
   RunId run_id = 0;
   std::string station, serial;
   TimestampMs started_at_ms = 0;
   std::string verdict;                     ///< "PASS", "REVIEW", "FAILED", "" (live)
-  std::optional<calib::ParamVector> ains;  ///< the AINS values stored, if any
-  std::optional<calib::ParamVector> ains_sigma;
+  std::optional<calib::core::ParamVector> ains;  ///< the AINS values stored, if any
+  std::optional<calib::core::ParamVector> ains_sigma;
   std::vector<std::string> unobservable;  ///< parameters the AINS result does not determine
 };
 
@@ -41,14 +42,14 @@ inline TimestampMs fleet_t0() { return parse_time_utc("2024-03-01T00:00:00Z"); }
 inline CalibrationRecord fleet_ains(std::mt19937& rng, int serial, std::size_t station) {
   CalibrationRecord c = seeded_calibration(static_cast<long>(station), Method::kAins);
   std::normal_distribution<double> n01(0.0, 1.0);
-  calib::ParamVector v, s;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+  calib::core::ParamVector v, s;
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
     const double scale = i < 3 ? 5e-4 : (i >= 12 && i < 15) ? 5e-8 : 1e-4;
     v(i) = scale * (1.0 + 0.15 * serial + 0.05 * static_cast<double>(station) + 0.03 * n01(rng));
     s(i) = scale * 0.015 * (1.0 + 0.1 * std::abs(n01(rng)));
   }
-  c.params = calib::ParamSet::from_vector(v);
-  c.sigma = calib::ParamSet::from_vector(s);
+  c.params = calib::core::ParamSet::from_vector(v);
+  c.sigma = calib::core::ParamSet::from_vector(s);
   return c;
 }
 
@@ -68,12 +69,12 @@ inline RunCompletion fleet_completion(int i, TimestampMs end, std::mt19937& rng,
   if (i % 13 == 4) {  // a result that leaves ς undetermined: placeholders 0 ± 0, not compared
     row.unobservable = {"table_misalignment_rad[0]", "table_misalignment_rad[1]",
                         "table_misalignment_rad[2]"};
-    calib::ParamVector v = c.calibrations[0].params.to_vector(),
+    calib::core::ParamVector v = c.calibrations[0].params.to_vector(),
                        s = c.calibrations[0].sigma.to_vector();
     v.tail<3>().setZero();
     s.tail<3>().setZero();
-    c.calibrations[0].params = calib::ParamSet::from_vector(v);
-    c.calibrations[0].sigma = calib::ParamSet::from_vector(s);
+    c.calibrations[0].params = calib::core::ParamSet::from_vector(v);
+    c.calibrations[0].sigma = calib::core::ParamSet::from_vector(s);
     c.calibrations[0].unobservable = row.unobservable;
     c.crosscheck->not_compared = row.unobservable;
   }
@@ -135,21 +136,21 @@ inline std::vector<FleetRow> write_fleet_history(SqliteRepository& repo, bool be
 
 /// The AINS value of parameter `param` the row contributes to a distribution, if any.
 inline std::optional<double> fleet_value(const FleetRow& r, int param) {
-  const std::string& name = calib::param_info(param).name;
+  const std::string& name = calib::core::param_info(param).name;
   if (!r.ains ||
       std::find(r.unobservable.begin(), r.unobservable.end(), name) != r.unobservable.end())
     return std::nullopt;
   return (*r.ains)(param);
 }
 
-/// Whether the row belongs to the filter, by db/fleet_stats.hpp's definition.
+/// Whether the row belongs to the filter, by db/history/fleet_stats.hpp's definition.
 inline bool fleet_row_matches(const FleetRow& r, const FleetFilter& f) {
   return (!f.since_ms || r.started_at_ms >= *f.since_ms) &&
          (!f.until_ms || r.started_at_ms < *f.until_ms) &&
          (!f.station || r.station == *f.station) && (!f.serial || r.serial == *f.serial);
 }
 
-/// The statistics of db/fleet_stats.hpp computed here, apart from the code under test: sums in
+/// The statistics of db/history/fleet_stats.hpp computed here, apart from the code under test: sums in
 /// long double, quantiles by the rank formula on a sorted copy.
 struct ExpectedSummary {
   std::int64_t n = 0;

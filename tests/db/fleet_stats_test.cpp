@@ -1,9 +1,9 @@
-// db::SqliteFleetStats (db/fleet_stats.hpp) against answers the test computes itself from the rows
+// db::history::SqliteFleetStats (db/history/fleet_stats.hpp) against answers the test computes itself from the rows
 // it wrote (tests/db/fleet_history.hpp): runs per station and UTC day, verdict counts per station,
 // a parameter's distribution per station (count, mean, sample std, min, quartiles, max), each
 // with every filter (since, until, station, serial) alone and together; table runs; the values of
 // a filter bound, never spliced (quotes and semicolons leave the database as it was); bad input.
-#include "db/fleet_stats.hpp"
+#include "db/history/fleet_stats.hpp"
 
 #include <gtest/gtest.h>
 
@@ -13,10 +13,11 @@
 #include <map>
 #include <tuple>
 
-#include "db/sqlite_fleet_stats.hpp"
+#include "db/history/sqlite_fleet_stats.hpp"
 #include "tests/db/fleet_history.hpp"
 
 namespace imucal::db {
+using namespace imucal::db::history;
 namespace {
 
 using test::FleetRow;
@@ -119,7 +120,7 @@ TEST_F(FleetStatsTest, ParamDistributionEqualsStatisticsOfTheStoredAinsValues) {
       const auto got = stats.param_distribution(param, f);
       ASSERT_EQ(got.size(), values.size()) << describe(f);
       for (const ParamSummary& s : got) {
-        SCOPED_TRACE(calib::param_info(param).name + " " + s.station + " " + describe(f));
+        SCOPED_TRACE(calib::core::param_info(param).name + " " + s.station + " " + describe(f));
         ASSERT_TRUE(values.count(s.station));
         const test::ExpectedSummary e = test::expected_summary(values[s.station]);
         const double tol = 1e-12 * std::max(std::abs(e.max), std::abs(e.min));
@@ -174,7 +175,7 @@ TEST_F(FleetStatsTest, AinsResultsAreTheFullyDeterminedFactoryResultsAsStored) {
     SqliteRepository repo(path_);
     NewRun land = test::new_run("SN-1", test::fleet_t0() + 3600000);
     land.station = "st-A";
-    land.setting = calib::Setting::kLand;
+    land.setting = calib::core::Setting::kLand;
     const RunId l = repo.create_run(land);
     RunCompletion land_done = test::pass_completion(3, test::fleet_t0() + 7200000);
     // Its AINS result as a table run's (every term determined): only its setting leaves it out.

@@ -7,7 +7,7 @@
 // /tmp/imucal-history-bench.db and reused while it holds the expected number of runs.
 //
 // Not built by CMake (only *_test.cpp files are globbed). Build by hand against a build tree:
-//   see db/SCHEMA.md, section "Benchmark", for the command line.
+//   see db/history/SCHEMA.md, section "Benchmark", for the command line.
 #include <benchmark/benchmark.h>
 
 #include <chrono>
@@ -17,13 +17,15 @@
 #include <ostream>
 #include <streambuf>
 
-#include "db/export.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/export.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace {
 
 using namespace imucal::db;
+
+using namespace imucal::db::history;
 
 constexpr int kSerials = 1000;
 constexpr int kRunsPerSerial = 100;

@@ -10,9 +10,10 @@
 #include <stdexcept>
 #include <string>
 
-#include "db/repository.hpp"
+#include "db/history/repository.hpp"
 
 namespace imucal::db::test {
+using namespace imucal::db::history;
 
 /// Runs f, expects it to throw E and returns the message (a test failure otherwise).
 template <typename E, typename F>
@@ -53,16 +54,16 @@ class TempDir {
 
 /// Parameters unique to (seed, method): entry i = (seed * 1000 + 10 * method + i + 1) * 1e-7,
 /// with a sign pattern, so no two stored sets coincide and values are not "round".
-inline calib::ParamSet seeded_params(long seed, int method_index) {
-  calib::ParamVector x;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i)
+inline calib::core::ParamSet seeded_params(long seed, int method_index) {
+  calib::core::ParamVector x;
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
     x(i) = ((i % 3 == 1) ? -1.0 : 1.0) *
            (static_cast<double>(seed) * 1000.0 + 10.0 * method_index + i + 1) * 1.0e-7 / 3.0;
-  return calib::ParamSet::from_vector(x);
+  return calib::core::ParamSet::from_vector(x);
 }
 
-inline calib::ParamSet seeded_sigma(long seed, int method_index) {
-  return calib::ParamSet::from_vector(seeded_params(seed, method_index).to_vector().cwiseAbs() *
+inline calib::core::ParamSet seeded_sigma(long seed, int method_index) {
+  return calib::core::ParamSet::from_vector(seeded_params(seed, method_index).to_vector().cwiseAbs() *
                                       0.01);
 }
 

@@ -13,11 +13,12 @@
 #include <optional>
 
 #include "calib/core/param_set.hpp"
-#include "db/schema.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/schema.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal::db {
+using namespace imucal::db::history;
 namespace {
 
 using test::expect_throw_message;
@@ -395,7 +396,7 @@ TEST(Migration, VersionFourDatabaseFromThePreviousReleaseGainsTheRunVerdictAndRe
   // Field results stored before v5 say what they could not observe, as new ones do.
   for (const RunId field : {8, 9}) {
     for (const CalibrationRecord& c : repo.show(field).calibrations) {
-      EXPECT_EQ(c.body_frame, calib::BodyFrame::kAccelSymmetric) << "run " << field;
+      EXPECT_EQ(c.body_frame, calib::core::BodyFrame::kAccelSymmetric) << "run " << field;
       EXPECT_EQ(c.unobservable.size(), 3u) << "run " << field;
       ASSERT_EQ(c.notes.size(), 2u) << "run " << field;
       EXPECT_NE(c.notes[0].find(field == 9 ? "at sea" : "on land"), std::string::npos)
@@ -404,7 +405,7 @@ TEST(Migration, VersionFourDatabaseFromThePreviousReleaseGainsTheRunVerdictAndRe
   }
   EXPECT_EQ(repo.show(8).crosscheck->not_compared.size(), 3u);
   EXPECT_TRUE(repo.show(1).crosscheck->not_compared.empty());
-  EXPECT_EQ(repo.show(1).calibrations[0].body_frame, calib::BodyFrame::kHousing);
+  EXPECT_EQ(repo.show(1).calibrations[0].body_frame, calib::core::BodyFrame::kHousing);
   // Every view reads the same verdict: export rows as show.
   std::size_t rows = 0;
   repo.export_rows({}, [&](const ExportRow& row) {
@@ -445,9 +446,9 @@ TEST(Migration, VersionEightHoldsEveryAinsResultAsNumbersAndKeepsThemWithTheirJs
     for (const CalibrationRecord& c : repo.show(id).calibrations) {
       if (c.method != Method::kAins) continue;
       ++results;
-      const calib::ParamVector x = c.params.to_vector();
-      for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-        const std::string& name = calib::param_info(i).name;
+      const calib::core::ParamVector x = c.params.to_vector();
+      for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+        const std::string& name = calib::core::param_info(i).name;
         SCOPED_TRACE("run " + std::to_string(id) + " " + name);
         const std::optional<double> got = value_of(id, i);
         if (std::find(c.unobservable.begin(), c.unobservable.end(), name) != c.unobservable.end()) {

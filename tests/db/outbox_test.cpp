@@ -5,10 +5,11 @@
 
 #include <set>
 
-#include "db/sqlite_repository.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal::db {
+using namespace imucal::db::history;
 namespace {
 
 using test::TempDir;

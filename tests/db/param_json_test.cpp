@@ -1,4 +1,4 @@
-// Parameter-set JSON (DESIGN §3): exact schema keys and shapes, row-major matrices, bit-exact round
+// Parameter-set JSON (ARCHITECTURE §3): exact schema keys and shapes, row-major matrices, bit-exact round
 // trip, field-named errors.
 #include "db/archive/param_json.hpp"
 
@@ -14,22 +14,22 @@
 #include "db/archive/archive_error.hpp"
 #include "db/archive/io_util.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 namespace {
 
 using nlohmann::json;
 namespace fs = std::filesystem;
 
-calib::ParamSet random_params(uint64_t seed, double scale) {
+calib::core::ParamSet random_params(uint64_t seed, double scale) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> n(0.0, scale);
-  calib::ParamVector x;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) x(i) = n(rng);
-  return calib::ParamSet::from_vector(x);
+  calib::core::ParamVector x;
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) x(i) = n(rng);
+  return calib::core::ParamSet::from_vector(x);
 }
 
-calib::ParamSet abs_params(uint64_t seed, double scale) {
-  return calib::ParamSet::from_vector(random_params(seed, scale).to_vector().cwiseAbs());
+calib::core::ParamSet abs_params(uint64_t seed, double scale) {
+  return calib::core::ParamSet::from_vector(random_params(seed, scale).to_vector().cwiseAbs());
 }
 
 std::set<std::string> keys(const json& j) {
@@ -38,7 +38,7 @@ std::set<std::string> keys(const json& j) {
   return s;
 }
 
-ArchiveError from_json_error(const json& j, calib::ParamSet* sigma = nullptr) {
+ArchiveError from_json_error(const json& j, calib::core::ParamSet* sigma = nullptr) {
   try {
     param_set_from_json(j, "unit42.json", sigma);
   } catch (const ArchiveError& e) {
@@ -49,7 +49,7 @@ ArchiveError from_json_error(const json& j, calib::ParamSet* sigma = nullptr) {
 }
 
 TEST(ParamJson, SchemaKeysAndShapesExactlyAsDesign) {
-  const calib::ParamSet p = random_params(1, 1e-4);
+  const calib::core::ParamSet p = random_params(1, 1e-4);
   const json j = param_set_to_json(p);
   const std::set<std::string> design = {"accel_bias_mps2", "accel_M", "gyro_bias_radps", "gyro_M",
                                         "table_misalignment_rad"};
@@ -62,7 +62,7 @@ TEST(ParamJson, SchemaKeysAndShapesExactlyAsDesign) {
     ASSERT_EQ(j[m].size(), 3u);
     for (const auto& row : j[m]) EXPECT_EQ(row.size(), 3u);
   }
-  const calib::ParamSet s = abs_params(2, 1e-6);
+  const calib::core::ParamSet s = abs_params(2, 1e-6);
   const json js = param_set_to_json(p, &s);
   std::set<std::string> with_sigma = design;
   with_sigma.insert("sigma");
@@ -71,7 +71,7 @@ TEST(ParamJson, SchemaKeysAndShapesExactlyAsDesign) {
 }
 
 TEST(ParamJson, MatricesAreRowsAndValuesLandInTheirFields) {
-  calib::ParamSet p;
+  calib::core::ParamSet p;
   p.accel_bias_mps2 = {1, 2, 3};
   p.accel_M(0, 1) = 7.0;  // row 0, column 1
   p.accel_M(2, 0) = -4.0;
@@ -89,19 +89,19 @@ TEST(ParamJson, MatricesAreRowsAndValuesLandInTheirFields) {
   // Parse hand-written JSON (integers are numbers too).
   const json hand = json::parse(R"({"accel_bias_mps2":[1,2,3],"accel_M":[[0,7,0],[0,0,0],[-4,0,0]],
       "gyro_bias_radps":[4,5,6],"gyro_M":[[0,0,0],[0,0,9],[0,0,0]],"table_misalignment_rad":[7,8,9]})");
-  const calib::ParamSet q = param_set_from_json(hand, "hand.json");
+  const calib::core::ParamSet q = param_set_from_json(hand, "hand.json");
   EXPECT_EQ(q.to_vector(), p.to_vector());
 }
 
 TEST(ParamJson, TextRoundTripIsBitExact) {
-  const calib::ParamSet p = random_params(3, 1e-3);
-  const calib::ParamSet s = abs_params(4, 1e-7);
+  const calib::core::ParamSet p = random_params(3, 1e-3);
+  const calib::core::ParamSet s = abs_params(4, 1e-7);
   const std::string text = param_set_to_json(p, &s).dump(2);
-  calib::ParamSet s2;
-  const calib::ParamSet p2 = param_set_from_json(json::parse(text), "rt.json", &s2);
+  calib::core::ParamSet s2;
+  const calib::core::ParamSet p2 = param_set_from_json(json::parse(text), "rt.json", &s2);
   const auto a = p.to_vector(), b = p2.to_vector(), c = s.to_vector(), d = s2.to_vector();
-  EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * calib::ParamSet::kSize), 0);
-  EXPECT_EQ(std::memcmp(c.data(), d.data(), sizeof(double) * calib::ParamSet::kSize), 0);
+  EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * calib::core::ParamSet::kSize), 0);
+  EXPECT_EQ(std::memcmp(c.data(), d.data(), sizeof(double) * calib::core::ParamSet::kSize), 0);
 }
 
 TEST(ParamJson, FieldNamedErrors) {
@@ -153,7 +153,7 @@ TEST(ParamJson, FieldNamedErrors) {
   { EXPECT_EQ(from_json_error(json::array()).field(), "<root>"); }
   {
     // sigma required by the caller but absent; negative sigma.
-    calib::ParamSet s;
+    calib::core::ParamSet s;
     EXPECT_EQ(from_json_error(good, &s).field(), "sigma");
     json j = param_set_to_json(random_params(6, 1e-4), &s);
     j["sigma"]["gyro_M"][2][1] = -1e-6;
@@ -165,10 +165,10 @@ TEST(ParamJson, FieldNamedErrors) {
 }
 
 TEST(ParamJson, WriterRefusesNanAndNegativeSigma) {
-  calib::ParamSet p;
+  calib::core::ParamSet p;
   p.gyro_M(1, 1) = std::nan("");
   EXPECT_THROW(param_set_to_json(p), ArchiveError);
-  calib::ParamSet ok, s;
+  calib::core::ParamSet ok, s;
   s.accel_bias_mps2(0) = -1.0;
   EXPECT_THROW(param_set_to_json(ok, &s), ArchiveError);
 }
@@ -177,11 +177,11 @@ TEST(ParamJson, FileRoundTripAndSyntaxErrorLine) {
   std::string d = (fs::temp_directory_path() / "imucal_pj_XXXXXX").string();
   ASSERT_NE(::mkdtemp(d.data()), nullptr);
   const std::string path = d + "/est.json";
-  const calib::ParamSet p = random_params(7, 1e-4);
-  const calib::ParamSet s = abs_params(8, 1e-6);
+  const calib::core::ParamSet p = random_params(7, 1e-4);
+  const calib::core::ParamSet s = abs_params(8, 1e-6);
   write_param_file(path, p, &s);
-  calib::ParamSet s2;
-  const calib::ParamSet p2 = read_param_file(path, &s2);
+  calib::core::ParamSet s2;
+  const calib::core::ParamSet p2 = read_param_file(path, &s2);
   EXPECT_EQ(p2.to_vector(), p.to_vector());
   EXPECT_EQ(s2.to_vector(), s.to_vector());
   // A syntax error on line 3 is reported on line 3.
@@ -198,4 +198,4 @@ TEST(ParamJson, FileRoundTripAndSyntaxErrorLine) {
 }
 
 }  // namespace
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

@@ -1,7 +1,7 @@
 // Calibration-history repository on real SQLite files: history order, the active calibration rule
 // (latest done+PASS run, AINS set), show() round trip, the run life cycle, start-up recovery,
 // serial-number rules, read-only mode and the time text helpers.
-#include "db/repository.hpp"
+#include "db/history/repository.hpp"
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>
@@ -15,12 +15,13 @@
 #include <functional>
 #include <thread>
 
-#include "db/serial_number.hpp"
-#include "db/sqlite_fleet_stats.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/serial_number.hpp"
+#include "db/history/sqlite_fleet_stats.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal::db {
+using namespace imucal::db::history;
 namespace {
 
 using test::TempDir;
@@ -29,10 +30,10 @@ using test::expect_throw_message;
 constexpr TimestampMs kT0 = 1714560000000;  // 2024-05-01T10:40:00Z
 constexpr TimestampMs kMinute = 60000;
 
-void expect_params_equal(const calib::ParamSet& a, const calib::ParamSet& b) {
-  const calib::ParamVector va = a.to_vector(), vb = b.to_vector();
-  for (int i = 0; i < calib::ParamSet::kSize; ++i)
-    EXPECT_EQ(va(i), vb(i)) << "parameter " << calib::param_info(i).name;
+void expect_params_equal(const calib::core::ParamSet& a, const calib::core::ParamSet& b) {
+  const calib::core::ParamVector va = a.to_vector(), vb = b.to_vector();
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
+    EXPECT_EQ(va(i), vb(i)) << "parameter " << calib::core::param_info(i).name;
 }
 
 std::vector<RunId> ids_of(const std::vector<RunRecord>& runs) {

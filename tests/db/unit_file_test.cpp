@@ -1,5 +1,5 @@
 // Unit files (TOML, human units) and truth.json: unit conversions checked against hand-derived
-// values, default.toml == calib::default_unit() field by field, far.toml within its stated sizes,
+// values, default.toml == calib::effects::default_unit() field by field, far.toml within its stated sizes,
 // strict errors with line and field.
 #include "db/archive/unit_file.hpp"
 
@@ -14,7 +14,7 @@
 
 #include "db/archive/archive_error.hpp"
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 namespace {
 
 namespace fs = std::filesystem;
@@ -32,7 +32,7 @@ ArchiveError unit_error(const std::string& text) {
   return ArchiveError("none", "none");
 }
 
-void expect_noise_eq(const calib::NoiseModel& a, const calib::NoiseModel& b) {
+void expect_noise_eq(const calib::core::NoiseModel& a, const calib::core::NoiseModel& b) {
   EXPECT_EQ(a.arw_rad_per_sqrt_s, b.arw_rad_per_sqrt_s);
   EXPECT_EQ(a.vrw_mps_per_sqrt_s, b.vrw_mps_per_sqrt_s);
   EXPECT_EQ(a.gyro_bias_instability_radps, b.gyro_bias_instability_radps);
@@ -43,7 +43,7 @@ void expect_noise_eq(const calib::NoiseModel& a, const calib::NoiseModel& b) {
   EXPECT_EQ(a.dv_lsb_mps, b.dv_lsb_mps);
 }
 
-void expect_effects_eq(const calib::Effects& a, const calib::Effects& b) {
+void expect_effects_eq(const calib::effects::Effects& a, const calib::effects::Effects& b) {
   EXPECT_EQ(a.accel_k2_per_mps2, b.accel_k2_per_mps2);
   EXPECT_EQ(a.accel_asym, b.accel_asym);
   EXPECT_EQ(a.gyro_g_sens, b.gyro_g_sens);
@@ -52,8 +52,8 @@ void expect_effects_eq(const calib::Effects& a, const calib::Effects& b) {
 }
 
 TEST(UnitFile, DefaultTomlEqualsDefaultUnitFieldByField) {
-  const calib::UnitModel f = read_unit_file(kUnitsDir + "default.toml");
-  const calib::UnitModel d = calib::default_unit();
+  const calib::effects::UnitModel f = read_unit_file(kUnitsDir + "default.toml");
+  const calib::effects::UnitModel d = calib::effects::default_unit();
   EXPECT_EQ(f.params.accel_bias_mps2, d.params.accel_bias_mps2);
   EXPECT_EQ(f.params.accel_M, d.params.accel_M);
   EXPECT_EQ(f.params.gyro_bias_radps, d.params.gyro_bias_radps);
@@ -64,7 +64,7 @@ TEST(UnitFile, DefaultTomlEqualsDefaultUnitFieldByField) {
 }
 
 TEST(UnitFile, FarTomlReachesButStaysWithinItsStatedSizes) {
-  const calib::UnitModel u = read_unit_file(kUnitsDir + "far.toml");
+  const calib::effects::UnitModel u = read_unit_file(kUnitsDir + "far.toml");
   const double g0 = 9.80665;
   auto check = [](const char* what, double max_abs, double limit) {
     EXPECT_LE(max_abs, limit * (1 + 1e-12)) << what;
@@ -82,7 +82,7 @@ TEST(UnitFile, FarTomlReachesButStaysWithinItsStatedSizes) {
 }
 
 TEST(UnitFile, HumanUnitsConvertAsDerivedByHand) {
-  const calib::UnitModel u = parse_unit_file(R"(
+  const calib::effects::UnitModel u = parse_unit_file(R"(
 [accel]
 bias_ug = [1000.0, -2000, 0]
 M_ppm = [[100, 1, 0], [0, 0, 0], [0, 0, -250]]
@@ -124,12 +124,12 @@ table_time_offset_s = 0.005
   EXPECT_EQ(u.effects.accel_lever_arm_m[2], Eigen::Vector3d(0, 0, -0.03));
   EXPECT_EQ(u.effects.table_time_offset_s, 0.005);
   // Unset noise keys keep their NoiseModel{} defaults.
-  EXPECT_EQ(u.noise.gyro_bias_tau_s, calib::NoiseModel{}.gyro_bias_tau_s);
-  EXPECT_EQ(u.noise.dtheta_lsb_rad, calib::NoiseModel{}.dtheta_lsb_rad);
+  EXPECT_EQ(u.noise.gyro_bias_tau_s, calib::core::NoiseModel{}.gyro_bias_tau_s);
+  EXPECT_EQ(u.noise.dtheta_lsb_rad, calib::core::NoiseModel{}.dtheta_lsb_rad);
 }
 
 TEST(UnitFile, MissingKeysMeanZeroExceptNoiseDefaults) {
-  const calib::UnitModel u =
+  const calib::effects::UnitModel u =
       parse_unit_file("[gyro]\nbias_deg_per_h = [0.01, 0, 0]\n", "sparse.toml");
   EXPECT_TRUE(u.params.accel_bias_mps2.isZero());
   EXPECT_TRUE(u.params.accel_M.isZero());
@@ -137,33 +137,33 @@ TEST(UnitFile, MissingKeysMeanZeroExceptNoiseDefaults) {
   EXPECT_TRUE(u.params.table_misalignment_rad.isZero());
   EXPECT_GT(u.params.gyro_bias_radps(0), 0.0);
   EXPECT_FALSE(u.effects.any());
-  expect_noise_eq(u.noise, calib::NoiseModel{});
-  const calib::UnitModel empty = parse_unit_file("", "empty.toml");
+  expect_noise_eq(u.noise, calib::core::NoiseModel{});
+  const calib::effects::UnitModel empty = parse_unit_file("", "empty.toml");
   EXPECT_TRUE(empty.params.to_vector().isZero());
 }
 
 TEST(UnitFile, TextRoundTripReproducesSiValues) {
   // default_unit round-trips bit-exactly; a random unit within an ulp (most values exactly).
-  const calib::UnitModel d = calib::default_unit();
-  const calib::UnitModel d2 = parse_unit_file(unit_file_text(d), "rt.toml");
+  const calib::effects::UnitModel d = calib::effects::default_unit();
+  const calib::effects::UnitModel d2 = parse_unit_file(unit_file_text(d), "rt.toml");
   EXPECT_EQ(d2.params.to_vector(), d.params.to_vector());
   expect_noise_eq(d2.noise, d.noise);
 
   std::mt19937_64 rng(11);
   std::normal_distribution<double> n(0.0, 1.0);
-  calib::UnitModel u;
-  calib::ParamVector x;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) x(i) = 1e-4 * n(rng);
-  u.params = calib::ParamSet::from_vector(x);
+  calib::effects::UnitModel u;
+  calib::core::ParamVector x;
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) x(i) = 1e-4 * n(rng);
+  u.params = calib::core::ParamSet::from_vector(x);
   u.noise.gyro_bias_instability_radps = 1e-9 * std::fabs(n(rng));
   u.effects.accel_k2_per_mps2 = Eigen::Vector3d(n(rng), n(rng), n(rng)) * 1e-6;
   u.effects.gyro_g_sens = Eigen::Matrix3d::Random() * 1e-8;
   u.effects.accel_lever_arm_m[1] = Eigen::Vector3d(0.01, -0.02, 0.03);
   u.effects.table_time_offset_s = 0.003;
-  const calib::UnitModel u2 = parse_unit_file(unit_file_text(u), "rt.toml");
+  const calib::effects::UnitModel u2 = parse_unit_file(unit_file_text(u), "rt.toml");
   const auto a = u.params.to_vector(), b = u2.params.to_vector();
   int exact = 0;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
     EXPECT_LE(std::fabs(a(i) - b(i)),
               2 * std::nextafter(std::fabs(a(i)), 1.0) - 2 * std::fabs(a(i)))
         << i;
@@ -216,11 +216,11 @@ TEST(UnitFile, WrongShapesTypesAndValuesRejected) {
 
 // Issue #21: a unit file may name its product's grade; written back only when not navigation.
 TEST(UnitFile, GradeIsReadCheckedAndRoundTrips) {
-  EXPECT_EQ(parse_unit_file("", "units/x.toml").grade, calib::Grade::kNavigation);
-  const calib::UnitModel mems = parse_unit_file("grade = \"mems\"\n", "units/x.toml");
-  EXPECT_EQ(mems.grade, calib::Grade::kMems);
-  EXPECT_EQ(parse_unit_file(unit_file_text(mems), "units/y.toml").grade, calib::Grade::kMems);
-  EXPECT_EQ(unit_file_text(calib::default_unit()).find("grade"), std::string::npos);
+  EXPECT_EQ(parse_unit_file("", "units/x.toml").grade, calib::core::Grade::kNavigation);
+  const calib::effects::UnitModel mems = parse_unit_file("grade = \"mems\"\n", "units/x.toml");
+  EXPECT_EQ(mems.grade, calib::core::Grade::kMems);
+  EXPECT_EQ(parse_unit_file(unit_file_text(mems), "units/y.toml").grade, calib::core::Grade::kMems);
+  EXPECT_EQ(unit_file_text(calib::effects::default_unit()).find("grade"), std::string::npos);
   const ArchiveError bad = unit_error("\ngrade = \"consumer\"\n");
   EXPECT_EQ(bad.line(), 2u);
   EXPECT_EQ(bad.field(), "grade");
@@ -228,7 +228,7 @@ TEST(UnitFile, GradeIsReadCheckedAndRoundTrips) {
 }
 
 TEST(TruthJson, RoundTripIsBitExact) {
-  calib::UnitModel u = calib::default_unit();
+  calib::effects::UnitModel u = calib::effects::default_unit();
   u.effects.accel_k2_per_mps2 = {1e-6, 0, 0};
   u.effects.table_time_offset_s = 0.004;
   u.noise.gyro_bias_instability_radps = 1.234567890123e-9;
@@ -237,7 +237,7 @@ TEST(TruthJson, RoundTripIsBitExact) {
             (std::vector<std::string>{"accel_quadratic_k2", "table_time_offset"}));
   const Truth r = parse_truth_json(truth_json_text(t), "truth.json");
   const auto a = t.params.to_vector(), b = r.params.to_vector();
-  EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * calib::ParamSet::kSize), 0);
+  EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * calib::core::ParamSet::kSize), 0);
   EXPECT_TRUE(r.effects == t.effects);
   EXPECT_EQ(r.effect_names(), t.effect_names());
   expect_noise_eq(r.noise, t.noise);
@@ -246,34 +246,34 @@ TEST(TruthJson, RoundTripIsBitExact) {
 // truth.json carries every injected effect with its values (issue #8), for all 13 effects of the
 // catalogue, bit-exactly; the values are written in SI under the catalogue's parameter names.
 TEST(TruthJson, EveryCatalogueEffectRoundTripsWithItsValues) {
-  calib::UnitModel u = calib::default_unit();
+  calib::effects::UnitModel u = calib::effects::default_unit();
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> f(0.5, 2.0);
-  for (const auto& e : calib::effect_catalogue()) {
+  for (const auto& e : calib::effects::effect_catalogue()) {
     Eigen::VectorXd v(e.size());
     for (int i = 0; i < e.size(); ++i)
       v(i) = e.typical[static_cast<size_t>(i)] * f(rng) +
              (e.typical[static_cast<size_t>(i)] == 0.0 ? 1e-3 * f(rng) : 0.0);
-    calib::set_effect_vector(u.effects, e.id, v);
+    calib::effects::set_effect_vector(u.effects, e.id, v);
   }
   const Truth t = truth_from_unit(u);
-  ASSERT_EQ(t.effect_names().size(), calib::effect_catalogue().size());
+  ASSERT_EQ(t.effect_names().size(), calib::effects::effect_catalogue().size());
   const std::string text = truth_json_text(t);
   const nlohmann::json j = nlohmann::json::parse(text);
   EXPECT_DOUBLE_EQ(j["effects"]["accel_quadratic_k2"]["k2_x"].get<double>(),
                    u.effects.accel_k2_per_mps2(0));
   EXPECT_DOUBLE_EQ(j["effects"]["thermal_drift"]["tau"].get<double>(), u.effects.thermal_tau_s);
   const Truth r = parse_truth_json(text, "truth.json");
-  for (const auto& e : calib::effect_catalogue()) {
-    const Eigen::VectorXd a = calib::effect_vector(t.effects, e.id),
-                          b = calib::effect_vector(r.effects, e.id);
+  for (const auto& e : calib::effects::effect_catalogue()) {
+    const Eigen::VectorXd a = calib::effects::effect_vector(t.effects, e.id),
+                          b = calib::effects::effect_vector(r.effects, e.id);
     EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(e.size())), 0)
         << e.name;
   }
 }
 
 TEST(TruthJson, OlderListOfNamesIsStillReadWithValuesUnknown) {
-  nlohmann::json j = nlohmann::json::parse(truth_json_text(truth_from_unit(calib::default_unit())));
+  nlohmann::json j = nlohmann::json::parse(truth_json_text(truth_from_unit(calib::effects::default_unit())));
   j["effects"] = {"accel_quadratic_k2", "table_time_offset"};
   const Truth r = parse_truth_json(j.dump(), "old/truth.json");
   EXPECT_FALSE(r.effect_values_known);
@@ -284,7 +284,7 @@ TEST(TruthJson, OlderListOfNamesIsStillReadWithValuesUnknown) {
 
 TEST(TruthJson, StrictFieldErrors) {
   const nlohmann::json good =
-      nlohmann::json::parse(truth_json_text(truth_from_unit(calib::default_unit())));
+      nlohmann::json::parse(truth_json_text(truth_from_unit(calib::effects::default_unit())));
   auto err = [](const nlohmann::json& j) {
     try {
       parse_truth_json(j.dump(), "run/truth.json");
@@ -342,9 +342,9 @@ TEST(TruthJson, StrictFieldErrors) {
 TEST(UnitFile, WriteReadFile) {
   std::string d = (fs::temp_directory_path() / "imucal_uf_XXXXXX").string();
   ASSERT_NE(::mkdtemp(d.data()), nullptr);
-  const calib::UnitModel far = read_unit_file(kUnitsDir + "far.toml");
+  const calib::effects::UnitModel far = read_unit_file(kUnitsDir + "far.toml");
   write_unit_file(d + "/far2.toml", far);
-  const calib::UnitModel back = read_unit_file(d + "/far2.toml");
+  const calib::effects::UnitModel back = read_unit_file(d + "/far2.toml");
   EXPECT_EQ(back.params.to_vector(), far.params.to_vector());
   write_truth_json(d + "/truth.json", truth_from_unit(far));
   EXPECT_EQ(read_truth_json(d + "/truth.json").params.to_vector(), far.params.to_vector());
@@ -352,9 +352,9 @@ TEST(UnitFile, WriteReadFile) {
 }
 
 }  // namespace
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive
 
-namespace imucal::archive {
+namespace imucal::db::archive {
 namespace {
 
 // Every catalogue effect is switchable in a unit file by its name with its SI vector (the order of
@@ -368,7 +368,7 @@ TEST(UnitFile, EveryCatalogueEffectBySiVector) {
       "table_wobble = [1.5e-5, -1e-5]\n"
       "quantisation = [1e-8, 1e-6]\n"
       "bias_instability = [5e-9, 1e-4]\n";  // τ left out: keeps its default
-  const calib::UnitModel u = parse_unit_file(text, "u.toml");
+  const calib::effects::UnitModel u = parse_unit_file(text, "u.toml");
   EXPECT_EQ(u.effects.thermal_accel_mps2, Eigen::Vector3d(1e-4, 0, -2e-4));
   EXPECT_EQ(u.effects.thermal_gyro_radps(2), 2.5e-8);
   EXPECT_EQ(u.effects.thermal_tau_s, 600.0);
@@ -376,8 +376,8 @@ TEST(UnitFile, EveryCatalogueEffectBySiVector) {
   EXPECT_EQ(u.effects.table_wobble_rad, Eigen::Vector2d(1.5e-5, -1e-5));
   EXPECT_EQ(u.effects.quant_dv_mps, 1e-6);
   EXPECT_EQ(u.effects.instability_accel_mps2, 1e-4);
-  EXPECT_EQ(u.effects.instability_tau_s, calib::Effects{}.instability_tau_s);
-  const calib::UnitModel r = parse_unit_file(unit_file_text(u), "round.toml");
+  EXPECT_EQ(u.effects.instability_tau_s, calib::effects::Effects{}.instability_tau_s);
+  const calib::effects::UnitModel r = parse_unit_file(unit_file_text(u), "round.toml");
   EXPECT_TRUE(r.effects == u.effects);
   EXPECT_EQ(r.effects.active_names(), u.effects.active_names());
 }
@@ -416,4 +416,4 @@ TEST(UnitFile, TruthJsonNumberOutOfRangeIsABadInputError) {
   }
 }
 
-}  // namespace imucal::archive
+}  // namespace imucal::db::archive

@@ -18,7 +18,7 @@
 #include "drivers/imu/imu_codec.hpp"
 #include "tests/support/run_command.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 namespace {
 
 const std::string kPython = "/usr/bin/python3";  // Debian's interpreter: python3-can lives there
@@ -194,7 +194,7 @@ std::vector<ReceivedFrame> capture_like(std::size_t samples) {
   std::normal_distribution<double> n(0.0, 1.0);
   int64_t t = 1'712'345'678'000'000'000;
   for (std::size_t k = 0; k < samples; ++k) {
-    calib::ImuIncrement inc;
+    calib::core::ImuIncrement inc;
     for (int i = 0; i < 3; ++i) {
       inc.dtheta_rad(i) = 1e-3 * n(rng);
       inc.dv_mps(i) = 0.05 * n(rng);
@@ -336,4 +336,4 @@ TEST(CandumpInterop, CanUtilsLog2ascAndAsc2logAcceptOurLog) {
 }
 
 }  // namespace
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

@@ -26,7 +26,7 @@
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/imu/candump_log.hpp"
 #include "drivers/imu/imu_codec.hpp"
-#include "drivers/sim/imu_can_node.hpp"
+#include "drivers/simulated/imu_can_node.hpp"
 
 namespace {
 
@@ -35,9 +35,9 @@ using namespace imucal;
 constexpr double kFramesPerSecond = 8000.0;
 constexpr double kSimulated_s = 60.0;
 
-std::shared_ptr<const imu::ImuProtocolMap> protocol_of(int64_t which) {
-  if (which == 0) return imu::builtin_protocol_map();
-  return std::make_shared<const imu::ImuProtocolMap>(imu::read_protocol_map(
+std::shared_ptr<const drivers::imu::ImuProtocolMap> protocol_of(int64_t which) {
+  if (which == 0) return drivers::imu::builtin_protocol_map();
+  return std::make_shared<const drivers::imu::ImuProtocolMap>(drivers::imu::read_protocol_map(
       std::string(IMUCAL_SOURCE_DIR) + "/tests/data/protocols/rates16.toml"));
 }
 
@@ -47,11 +47,11 @@ double thread_cpu_s() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
-calib::ImuSeries synthetic_series(std::size_t n, double rate_hz) {
+calib::core::ImuSeries synthetic_series(std::size_t n, double rate_hz) {
   // A unit at rest with noise (values change every sample, as real data do).
   std::mt19937_64 rng(1);
   std::normal_distribution<double> g(0.0, 1.0);
-  calib::ImuSeries s(n);
+  calib::core::ImuSeries s(n);
   for (std::size_t k = 0; k < n; ++k) {
     s[k].t_s = static_cast<double>(k + 1) / rate_hz;
     s[k].dt_s = 1.0 / rate_hz;
@@ -77,22 +77,22 @@ PathResult run_path(double speed, bool write_log, int64_t protocol = 0) {
   const auto map = protocol_of(protocol);
   const double rate_hz = kFramesPerSecond / static_cast<double>(map->messages.size());
   const std::size_t n = static_cast<std::size_t>(rate_hz * kSimulated_s);
-  const calib::ImuSeries series = synthetic_series(n, rate_hz);
+  const calib::core::ImuSeries series = synthetic_series(n, rate_hz);
   const std::string path = "/tmp/imucal-bench-can-" + std::to_string(::getpid()) + ".sock";
   const std::string log_path = "/tmp/imucal-bench-can-" + std::to_string(::getpid()) + ".log";
-  imu::CanOpenOptions lo;
+  drivers::imu::CanOpenOptions lo;
   lo.listen = true;
   lo.write_timeout_ms = speed <= 0.0 ? 5000 : 0;  // unpaced: back-pressure; paced: a bus loses frames
-  auto bus = imu::CanChannel::open("unixcan:" + path, lo);
-  auto reader = imu::CanChannel::open("unixcan:" + path);
-  std::vector<imu::ReceivedFrame> none;
+  auto bus = drivers::imu::CanChannel::open("unixcan:" + path, lo);
+  auto reader = drivers::imu::CanChannel::open("unixcan:" + path);
+  std::vector<drivers::imu::ReceivedFrame> none;
   bus->read(none);
 
-  sim::ImuCanNodeOptions o;
+  drivers::simulated::ImuCanNodeOptions o;
   o.rate_hz = rate_hz;
   o.speed_factor = speed;
   o.protocol = map;
-  sim::ImuCanNode node(*bus, o);
+  drivers::simulated::ImuCanNode node(*bus, o);
   std::atomic<bool> node_done{false};
   PathResult r;
   const auto wall0 = std::chrono::steady_clock::now();
@@ -105,14 +105,14 @@ PathResult run_path(double speed, bool write_log, int64_t protocol = 0) {
 
   // The capture side, as stationd's capture thread would do it: poll, read a batch, decode, log.
   const double c0 = thread_cpu_s();
-  imu::DecoderOptions dopt;
+  drivers::imu::DecoderOptions dopt;
   dopt.sample_rate_hz = rate_hz;
   dopt.protocol = map;
-  imu::ImuFrameDecoder dec(dopt);
-  std::unique_ptr<imu::CandumpWriter> log;
-  if (write_log) log = std::make_unique<imu::CandumpWriter>(log_path);
-  std::vector<imu::ReceivedFrame> batch;
-  std::vector<imu::DecodedSample> out;
+  drivers::imu::ImuFrameDecoder dec(dopt);
+  std::unique_ptr<drivers::imu::CandumpWriter> log;
+  if (write_log) log = std::make_unique<drivers::imu::CandumpWriter>(log_path);
+  std::vector<drivers::imu::ReceivedFrame> batch;
+  std::vector<drivers::imu::DecodedSample> out;
   batch.reserve(512);
   out.reserve(256);
   for (;;) {
@@ -123,7 +123,7 @@ PathResult run_path(double speed, bool write_log, int64_t protocol = 0) {
     }
     batch.clear();
     reader->read(batch, 512);
-    for (const imu::ReceivedFrame& f : batch) {
+    for (const drivers::imu::ReceivedFrame& f : batch) {
       dec.push(f, out);
       if (log) log->write(f, "can0");
     }

@@ -15,10 +15,10 @@
 #include "calib/sim/truth_sim.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/imu/imu_codec.hpp"
-#include "drivers/sim/imu_can_node.hpp"
+#include "drivers/simulated/imu_can_node.hpp"
 #include "tests/support/hand_profile.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 namespace {
 
 int64_t now_ns() {
@@ -170,7 +170,7 @@ TEST(SocketCan, OpensOrFailsWithAClearMessage) {
 }
 
 /// 10 000 samples of a truth-simulated unit on a hand-made profile (100 Hz, 100 s).
-calib::ImuSeries simulated_series() {
+calib::core::ImuSeries simulated_series() {
   const sequences::MotionProfile profile = test_support::HandProfile()
                                                 .rest(20.0)
                                                 .rotate(true, 90.0)
@@ -178,20 +178,20 @@ calib::ImuSeries simulated_series() {
                                                 .rotate(false, -90.0)
                                                 .rest(100.0)
                                                 .build();
-  calib::Site site;
+  calib::core::Site site;
   site.lat_rad = 55.7 * kDegToRad;
-  calib::SimOptions so;
+  calib::sim::SimOptions so;
   so.rate_hz = 100.0;
   so.seed = 4;
-  calib::SimResult r = calib::simulate(profile, calib::TableGeometry{}, site, calib::default_unit(), so);
+  calib::sim::SimResult r = calib::sim::simulate(profile, calib::core::TableGeometry{}, site, calib::effects::default_unit(), so);
   r.imu.resize(10000);
   return r.imu;
 }
 
 TEST(ImuCanNode, TenThousandSimulatedSamplesArriveWithoutLoss) {
-  const calib::ImuSeries series = simulated_series();
+  const calib::core::ImuSeries series = simulated_series();
   ASSERT_EQ(series.size(), 10000U);
-  sim::ImuCanNodeOptions o;
+  drivers::simulated::ImuCanNodeOptions o;
   o.speed_factor = 0.0;
   const std::string path = temp_socket_path("lossless");
   CanOpenOptions lo;
@@ -201,7 +201,7 @@ TEST(ImuCanNode, TenThousandSimulatedSamplesArriveWithoutLoss) {
   auto reader = CanChannel::open("unixcan:" + path);
   std::vector<ReceivedFrame> none;
   bus->read(none);
-  sim::ImuCanNode node(*bus, o);
+  drivers::simulated::ImuCanNode node(*bus, o);
   std::thread sender([&] { node.run(series); });
   ImuFrameDecoder dec;
   std::vector<DecodedSample> out;
@@ -244,8 +244,8 @@ TEST(ImuCanNode, TenThousandSimulatedSamplesArriveWithoutLoss) {
 }
 
 TEST(ImuCanNode, InjectedFrameLossIsCountedExactly) {
-  const calib::ImuSeries series = simulated_series();
-  sim::ImuCanNodeOptions o;
+  const calib::core::ImuSeries series = simulated_series();
+  drivers::simulated::ImuCanNodeOptions o;
   o.speed_factor = 0.0;
   o.frame_loss_probability = 0.01;
   o.seed = 99;
@@ -257,9 +257,9 @@ TEST(ImuCanNode, InjectedFrameLossIsCountedExactly) {
   auto reader = CanChannel::open("unixcan:" + path);
   std::vector<ReceivedFrame> none;
   bus->read(none);
-  sim::ImuCanNode node(*bus, o);
-  std::vector<sim::SampleFate> fates(series.size());
-  std::thread sender([&] { node.run(series, nullptr, [&](std::size_t k, const sim::SampleFate& f) { fates[k] = f; }); });
+  drivers::simulated::ImuCanNode node(*bus, o);
+  std::vector<drivers::simulated::SampleFate> fates(series.size());
+  std::thread sender([&] { node.run(series, nullptr, [&](std::size_t k, const drivers::simulated::SampleFate& f) { fates[k] = f; }); });
   ImuFrameDecoder dec;
   std::vector<DecodedSample> out;
   std::vector<ReceivedFrame> batch;
@@ -289,7 +289,7 @@ TEST(ImuCanNode, InjectedFrameLossIsCountedExactly) {
     if (fates[k].intact()) last_intact = k;
   bool seen_intact = false;
   for (std::size_t k = 0; k < fates.size(); ++k) {
-    const sim::SampleFate& f = fates[k];
+    const drivers::simulated::SampleFate& f = fates[k];
     ASSERT_TRUE(f.transmitted);
     lost_frames += static_cast<uint64_t>(f.frames_lost);
     if (f.intact()) {
@@ -315,7 +315,7 @@ TEST(ImuCanNode, InjectedFrameLossIsCountedExactly) {
   EXPECT_EQ(dec.counters().samples_corrupt, 0U);
   // Every decoded sample is exactly the one the node encoded under that counter.
   for (const DecodedSample& d : out) {
-    const sim::SampleFate& f = fates[d.counter];
+    const drivers::simulated::SampleFate& f = fates[d.counter];
     ASSERT_TRUE(f.intact());
     for (int a = 0; a < 3; ++a) {
       EXPECT_EQ(d.increment.dtheta_rad(a), unpack_axis(f.clean[static_cast<std::size_t>(a)].data).dtheta_count * 1e-9);
@@ -326,18 +326,18 @@ TEST(ImuCanNode, InjectedFrameLossIsCountedExactly) {
 }
 
 TEST(ImuCanNode, CorruptionAndResetAreCountedAndNeverDecodeWrong) {
-  const calib::ImuSeries series = simulated_series();
+  const calib::core::ImuSeries series = simulated_series();
   auto [tx, rx] = CanChannel::unix_pair();
-  sim::ImuCanNodeOptions o;
+  drivers::simulated::ImuCanNodeOptions o;
   o.speed_factor = 0.0;
   o.corruption_probability = 0.005;
   o.reset_at_s = {50.0};
   o.reset_lost_samples = 7;
   o.seed = 5;
-  sim::ImuCanNode node(*tx, o);
+  drivers::simulated::ImuCanNode node(*tx, o);
   ImuFrameDecoder dec;
   std::vector<DecodedSample> out;
-  std::vector<sim::SampleFate> fates;
+  std::vector<drivers::simulated::SampleFate> fates;
   std::vector<ReceivedFrame> batch;
   std::size_t read = 0;
   auto drain = [&] {
@@ -373,4 +373,4 @@ TEST(ImuCanNode, CorruptionAndResetAreCountedAndNeverDecodeWrong) {
 }
 
 }  // namespace
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

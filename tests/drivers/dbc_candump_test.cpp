@@ -20,7 +20,7 @@
 #include "tests/support/run_command.hpp"
 #include "tests/support/temp_dir.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 namespace {
 
 const std::string kSource = IMUCAL_SOURCE_DIR;
@@ -98,7 +98,7 @@ TEST(DbcCandump, TheBuiltInProtocolsLogDecodesAsCanmatrixDecodesIt) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::vector<CanFrame> frames;
   for (int k = 0; k < 150; ++k) {
-    calib::ImuIncrement inc;
+    calib::core::ImuIncrement inc;
     for (int i = 0; i < 3; ++i) {
       inc.dtheta_rad(i) = 0.01 * u(rng);
       inc.dv_mps(i) = 0.1 * u(rng);
@@ -140,4 +140,4 @@ TEST(DbcCandump, TheSecondProtocolsLogDecodesAsCanmatrixDecodesIt) {
 }
 
 }  // namespace
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

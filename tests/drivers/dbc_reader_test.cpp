@@ -21,7 +21,7 @@
 #include "drivers/imu/dbc_database.hpp"
 #include "tests/support/run_command.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 namespace {
 
 const std::string kCases = std::string(IMUCAL_SOURCE_DIR) + "/tests/data/dbc/reader_cases.dbc";
@@ -254,4 +254,4 @@ TEST(DbcReader, TheShippedImuDbcReads) {
 }
 
 }  // namespace
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

@@ -22,9 +22,9 @@ namespace {
 using namespace imucal;
 
 #ifndef IMUCAL_BENCH_OLD_DECODER
-std::shared_ptr<const imu::ImuProtocolMap> protocol_arg(int argc, char** argv, int at) {
+std::shared_ptr<const drivers::imu::ImuProtocolMap> protocol_arg(int argc, char** argv, int at) {
   if (argc <= at) return nullptr;
-  return std::make_shared<const imu::ImuProtocolMap>(imu::read_protocol_map(argv[at]));
+  return std::make_shared<const drivers::imu::ImuProtocolMap>(drivers::imu::read_protocol_map(argv[at]));
 }
 #endif
 
@@ -32,10 +32,10 @@ int write_stream(const std::string& path, double seconds, int argc, char** argv)
 #ifdef IMUCAL_BENCH_OLD_DECODER
   (void)argc;
   (void)argv;
-  imu::ImuFrameEncoder enc;
+  drivers::imu::ImuFrameEncoder enc;
   const double frames_per_sample = 4.0;
 #else
-  imu::ImuFrameEncoder enc(protocol_arg(argc, argv, 4), std::nullopt);
+  drivers::imu::ImuFrameEncoder enc(protocol_arg(argc, argv, 4), std::nullopt);
   const double frames_per_sample = enc.frames_per_sample();
 #endif
   const double rate_hz = 8000.0 / frames_per_sample;
@@ -44,14 +44,14 @@ int write_stream(const std::string& path, double seconds, int argc, char** argv)
   std::normal_distribution<double> g(0.0, 1.0);
   std::ofstream out(path, std::ios::binary);
   for (size_t k = 0; k < n; ++k) {
-    calib::ImuIncrement inc;  // a unit at rest with noise, as the capture benchmark's
+    calib::core::ImuIncrement inc;  // a unit at rest with noise, as the capture benchmark's
     inc.dt_s = 1.0 / rate_hz;
     inc.dtheta_rad =
         Eigen::Vector3d(4e-8, 0.0, -6e-8) + 2e-7 * Eigen::Vector3d(g(rng), g(rng), g(rng));
     inc.dv_mps =
         Eigen::Vector3d(0.0, 0.0, -9.81 / rate_hz) + 1e-5 * Eigen::Vector3d(g(rng), g(rng), g(rng));
     inc.temp_c = 30.0;
-    for (const imu::CanFrame& f : enc.encode(inc)) {
+    for (const drivers::imu::CanFrame& f : enc.encode(inc)) {
       out.write(reinterpret_cast<const char*>(&f.can_id), 4);
       out.put(static_cast<char>(f.len));
       out.write(reinterpret_cast<const char*>(f.data.data()), 8);
@@ -63,16 +63,16 @@ int write_stream(const std::string& path, double seconds, int argc, char** argv)
 
 int decode_stream(const std::string& path, int repeats, int argc, char** argv) {
   std::ifstream in(path, std::ios::binary);
-  std::vector<imu::ReceivedFrame> frames;
+  std::vector<drivers::imu::ReceivedFrame> frames;
   char rec[13];
   while (in.read(rec, 13)) {
-    imu::ReceivedFrame f;
+    drivers::imu::ReceivedFrame f;
     std::memcpy(&f.frame.can_id, rec, 4);
     f.frame.len = static_cast<uint8_t>(rec[4]);
     std::memcpy(f.frame.data.data(), rec + 5, 8);
     frames.push_back(f);
   }
-  imu::DecoderOptions o;
+  drivers::imu::DecoderOptions o;
 #ifdef IMUCAL_BENCH_OLD_DECODER
   (void)argc;
   (void)argv;
@@ -80,11 +80,11 @@ int decode_stream(const std::string& path, int repeats, int argc, char** argv) {
   o.protocol = protocol_arg(argc, argv, 4);
 #endif
   uint64_t decoded = 0, lost = 0;
-  std::vector<imu::DecodedSample> out;
+  std::vector<drivers::imu::DecodedSample> out;
   out.reserve(64);
   for (int r = 0; r < repeats; ++r) {
-    imu::ImuFrameDecoder dec(o);
-    for (const imu::ReceivedFrame& f : frames) {
+    drivers::imu::ImuFrameDecoder dec(o);
+    for (const drivers::imu::ReceivedFrame& f : frames) {
       dec.push(f, out);
       decoded += out.size();
       out.clear();

@@ -1,4 +1,4 @@
-// IMU CAN codec: LSB/range bounds of DESIGN §4, bit layout, round trips, quantisation carry, and the
+// IMU CAN codec: LSB/range bounds of ARCHITECTURE §4, bit layout, round trips, quantisation carry, and the
 // decoder's reassembly and counters under loss, corruption, reordering, duplication and resets.
 #include "drivers/imu/imu_codec.hpp"
 
@@ -12,14 +12,14 @@
 
 #include "calib/core/conventions.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 namespace {
 
 constexpr double kRate_hz = 100.0;
 
-calib::ImuIncrement random_increment(std::mt19937_64& rng, double dth_max = 0.17, double dv_max = 1.9) {
+calib::core::ImuIncrement random_increment(std::mt19937_64& rng, double dth_max = 0.17, double dv_max = 1.9) {
   std::uniform_real_distribution<double> a(-dth_max, dth_max), v(-dv_max, dv_max), t(-40.0, 85.0);
-  calib::ImuIncrement inc;
+  calib::core::ImuIncrement inc;
   inc.dt_s = 1.0 / kRate_hz;
   for (int i = 0; i < 3; ++i) {
     inc.dtheta_rad(i) = a(rng);
@@ -43,7 +43,7 @@ Stream make_stream(int n, uint64_t seed = 7) {
   Stream s;
   std::array<double, 6> carry{};
   for (int k = 0; k < n; ++k) {
-    const calib::ImuIncrement inc = random_increment(rng);
+    const calib::core::ImuIncrement inc = random_increment(rng);
     s.samples.push_back(enc.encode(inc));
     std::array<int64_t, 6> c{};
     for (int i = 0; i < 6; ++i) {
@@ -115,7 +115,7 @@ TEST(ImuProtocol, LsbAndRangeMeetTheDesignBounds) {
   EXPECT_GE(-static_cast<double>(kDvMinCount) * kDvLsb_mps, dv_needed);
   // Those extremes go through without the saturation bits.
   ImuFrameEncoder enc(kDefaultImuBaseId, false);
-  calib::ImuIncrement inc;
+  calib::core::ImuIncrement inc;
   inc.dtheta_rad = Eigen::Vector3d(dth_needed, -dth_needed, dth_needed);
   inc.dv_mps = Eigen::Vector3d(-dv_needed, dv_needed, dv_needed);
   inc.temp_c = 25.0;
@@ -172,7 +172,7 @@ TEST(ImuCodec, RoundTripIsExactToTheLsb) {
   std::vector<DecodedSample> out;
   for (int k = 0; k < 2000; ++k) {
     ImuFrameEncoder enc(kDefaultImuBaseId, false);  // no carry: each value is round(x / LSB)
-    calib::ImuIncrement inc = random_increment(rng, 0.5, 3.3);
+    calib::core::ImuIncrement inc = random_increment(rng, 0.5, 3.3);
     const uint16_t flags = static_cast<uint16_t>(k % 2 ? status::kBitFail : 0);
     for (const CanFrame& f : enc.encode(inc, flags)) dec.push({f, 0}, out);
     // A fresh encoder restarts the counter at 0: the decoder sees a reset every time except the first.
@@ -191,7 +191,7 @@ TEST(ImuCodec, RoundTripIsExactToTheLsb) {
 
 TEST(ImuCodec, SaturationClipsAndFlags) {
   ImuFrameEncoder enc;
-  calib::ImuIncrement inc;
+  calib::core::ImuIncrement inc;
   inc.dtheta_rad = Eigen::Vector3d(1.0, 0.0, 0.0);  // beyond ±0.5369 rad
   inc.dv_mps = Eigen::Vector3d(0.0, -5.0, 0.0);     // beyond ±3.355 m/s
   inc.temp_c = std::nan("");
@@ -223,7 +223,7 @@ TEST(ImuCodec, QuantisationCarryKeepsTheSumWithinOneLsb) {
     Eigen::Vector3d true_dth = Eigen::Vector3d::Zero(), true_dv = Eigen::Vector3d::Zero();
     Eigen::Vector3d sum_dth = Eigen::Vector3d::Zero(), sum_dv = Eigen::Vector3d::Zero();
     for (int k = 0; k < 10000; ++k) {
-      calib::ImuIncrement inc;
+      calib::core::ImuIncrement inc;
       for (int i = 0; i < 3; ++i) {
         inc.dtheta_rad(i) = 7.3e-7 + 3e-8 * u(rng);  // ~150 °/h with noise, a few hundred LSB
         inc.dv_mps(i) = 0.0980665 + 4e-6 * u(rng);   // ~1 g with noise
@@ -274,7 +274,7 @@ TEST(ImuDecoder, SixteenBitCounterWrapIsNotALoss) {
   ImuFrameEncoder enc;
   ImuFrameDecoder dec;
   std::vector<DecodedSample> out;
-  calib::ImuIncrement inc;
+  calib::core::ImuIncrement inc;
   inc.dtheta_rad.setConstant(1e-6);
   inc.dv_mps.setConstant(0.01);
   inc.temp_c = 30.0;
@@ -401,7 +401,7 @@ TEST(ImuDecoder, ImuResetIsDetectedAndTimeAdvancesByTheGap) {
   o.sample_rate_hz = kRate_hz;
   ImuFrameDecoder dec(o);
   std::vector<DecodedSample> out;
-  calib::ImuIncrement inc;
+  calib::core::ImuIncrement inc;
   inc.dtheta_rad.setConstant(2e-7);
   inc.dv_mps.setConstant(0.098);
   const int64_t dt_ns = 10'000'000;
@@ -427,7 +427,7 @@ TEST(ImuDecoder, ResetStillDetectedWhenTheFirstSamplesAfterItAreLost) {
   ImuFrameEncoder enc;
   ImuFrameDecoder dec;
   std::vector<DecodedSample> out;
-  calib::ImuIncrement inc;
+  calib::core::ImuIncrement inc;
   for (int k = 0; k < 1000; ++k)
     for (const CanFrame& f : enc.encode(inc)) dec.push({f, 0}, out);
   enc.restart();
@@ -478,4 +478,4 @@ TEST(ImuDecoder, RejectsBadOptions) {
 }
 
 }  // namespace
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

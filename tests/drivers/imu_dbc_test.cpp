@@ -14,7 +14,7 @@
 #include "drivers/imu/imu_codec.hpp"
 #include "tests/support/run_command.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 namespace {
 
 std::pair<int, std::string> run(const std::string& cmd) {
@@ -36,7 +36,7 @@ TEST(ImuDbc, CanmatrixDecodesOurFramesToTheDocumentedFields) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::vector<CanFrame> frames;
   for (int k = 0; k < 300; ++k) {
-    calib::ImuIncrement inc;
+    calib::core::ImuIncrement inc;
     for (int i = 0; i < 3; ++i) {
       inc.dtheta_rad(i) = 0.6 * u(rng);  // sometimes beyond the range: saturates
       inc.dv_mps(i) = 3.5 * u(rng);
@@ -111,4 +111,4 @@ TEST(ImuDbc, CanmatrixDecodesOurFramesToTheDocumentedFields) {
 }
 
 }  // namespace
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

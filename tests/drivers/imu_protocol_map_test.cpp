@@ -13,7 +13,7 @@
 #include "drivers/imu/builtin_protocol_text.hpp"
 #include "tests/support/temp_dir.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 namespace {
 
 const std::string kSource = IMUCAL_SOURCE_DIR;
@@ -174,4 +174,4 @@ TEST_F(BadMap, ADbcWithOverlappingSignalsIsRefusedNamingTheDbcLine) {
 }
 
 }  // namespace
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

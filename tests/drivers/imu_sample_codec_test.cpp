@@ -13,7 +13,7 @@
 #include "drivers/imu/imu_codec.hpp"
 #include "drivers/imu/imu_protocol.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 namespace {
 
 const std::string kSource = IMUCAL_SOURCE_DIR;
@@ -33,7 +33,7 @@ TEST(ImuSampleCodec, TheBuiltInFileReadsTheHardWiredEncodersFrames) {
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (int k = 0; k < 300; ++k) {
-    calib::ImuIncrement inc;
+    calib::core::ImuIncrement inc;
     for (int i = 0; i < 3; ++i) {
       inc.dtheta_rad(i) = 0.6 * u(rng);  // sometimes beyond the 30-bit range: saturates
       inc.dv_mps(i) = 3.5 * u(rng);
@@ -161,4 +161,4 @@ TEST(ImuSampleCodec, ClippingSetsSaturationAndAnotherPageHidesTheFlags) {
 }
 
 }  // namespace
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

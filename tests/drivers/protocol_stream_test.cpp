@@ -15,7 +15,7 @@
 
 #include "drivers/imu/imu_codec.hpp"
 
-namespace imucal::imu {
+namespace imucal::drivers::imu {
 namespace {
 
 const std::string kSource = IMUCAL_SOURCE_DIR;
@@ -25,9 +25,9 @@ std::shared_ptr<const ImuProtocolMap> rates16() {
       read_protocol_map(kSource + "/tests/data/protocols/rates16.toml"));
 }
 
-calib::ImuIncrement increment(std::mt19937_64& rng, int k) {
+calib::core::ImuIncrement increment(std::mt19937_64& rng, int k) {
   std::normal_distribution<double> n(0.0, 1.0);
-  calib::ImuIncrement inc;
+  calib::core::ImuIncrement inc;
   inc.dt_s = 0.01;
   for (int i = 0; i < 3; ++i) {
     inc.dtheta_rad(i) = (0.05 * std::sin(0.01 * k + i) + 1e-3 * n(rng)) * inc.dt_s;  // rad/s × dt
@@ -39,7 +39,7 @@ calib::ImuIncrement increment(std::mt19937_64& rng, int k) {
 
 struct Sent {
   std::vector<std::vector<CanFrame>> frames;  ///< per sample
-  std::vector<calib::ImuIncrement> truth;
+  std::vector<calib::core::ImuIncrement> truth;
 };
 
 Sent send(const std::shared_ptr<const ImuProtocolMap>& map, int n, uint64_t seed = 1) {
@@ -174,7 +174,7 @@ TEST(ProtocolStream, AResetIsSeenAndTheFlagsAreNamedFromTheProtocol) {
 TEST(ProtocolStream, BaseIdMovesTheIdsAndTheBuiltInFileIsTheDefault) {
   const auto map = rates16();
   ImuFrameEncoder moved(map, 0x1234000u);
-  calib::ImuIncrement inc;
+  calib::core::ImuIncrement inc;
   inc.dt_s = 0.01;
   const std::vector<CanFrame> f = moved.encode(inc);
   EXPECT_EQ(f[0].id(), 0x1234000u);
@@ -192,7 +192,7 @@ TEST(ProtocolStream, BaseIdMovesTheIdsAndTheBuiltInFileIsTheDefault) {
   ImuFrameEncoder a(shipped, std::nullopt), b;
   std::mt19937_64 rng(4);
   for (int k = 0; k < 200; ++k) {
-    calib::ImuIncrement i = increment(rng, k);
+    calib::core::ImuIncrement i = increment(rng, k);
     if (k == 50) i.temp_c = std::nan("");
     EXPECT_EQ(a.encode(i, k == 70 ? status::kAccelFault : 0),
               b.encode(i, k == 70 ? status::kAccelFault : 0));
@@ -230,4 +230,4 @@ TEST(ProtocolStream, ACanFdProtocolIsRefusedNamingTheMessage) {
 }
 
 }  // namespace
-}  // namespace imucal::imu
+}  // namespace imucal::drivers::imu

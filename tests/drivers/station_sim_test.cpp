@@ -2,7 +2,7 @@
 // receiver decodes the IMU the simulator streams from the table's actual motion. Expectations come
 // from physics (the attitude change of a 90° turn seen from inertial space, the unit's known error
 // model, its noise), from the simulator's own injected-fault counters, and from the table's contract.
-#include "drivers/sim/station_sim.hpp"
+#include "drivers/simulated/station_sim.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -21,7 +21,7 @@
 #include "calib/core/rotation.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/imu/imu_codec.hpp"
-#include "drivers/sim/imu_can_node.hpp"
+#include "drivers/simulated/imu_can_node.hpp"
 #include "drivers/turntable/turntable_client.hpp"
 #include "drivers/turntable/turntable_error.hpp"
 
@@ -37,10 +37,10 @@ int next_instance() {
   return ++n;
 }
 
-sim::StationSimConfig base_config(double speed) {
+drivers::simulated::StationSimConfig base_config(double speed) {
   const unsigned pid = static_cast<unsigned>(::getpid());
   const int n = next_instance();
-  sim::StationSimConfig c;
+  drivers::simulated::StationSimConfig c;
   c.modbus.address = "127." + std::to_string((pid >> 8) & 0xffu) + "." + std::to_string(pid & 0xffu) + "." +
                      std::to_string(n % 254 + 1);
   c.modbus.port = 0;
@@ -50,9 +50,9 @@ sim::StationSimConfig base_config(double speed) {
   return c;
 }
 
-turntable::TurntableClientConfig client_config(sim::StationSim& s) {
-  turntable::TurntableClientConfig c;
-  c.endpoint = turntable::Endpoint::parse(s.modbus_endpoint());
+drivers::turntable::TurntableClientConfig client_config(drivers::simulated::StationSim& s) {
+  drivers::turntable::TurntableClientConfig c;
+  c.endpoint = drivers::turntable::Endpoint::parse(s.modbus_endpoint());
   c.response_timeout = 300ms;
   c.backoff_initial = 20ms;
   c.backoff_max = 200ms;
@@ -65,7 +65,7 @@ turntable::TurntableClientConfig client_config(sim::StationSim& s) {
 /// Reads the bus in its own thread and decodes every IMU sample.
 class Receiver {
  public:
-  explicit Receiver(const std::string& uri) : channel_(imu::CanChannel::open(uri)), decoder_(imu::DecoderOptions{}) {
+  explicit Receiver(const std::string& uri) : channel_(drivers::imu::CanChannel::open(uri)), decoder_(drivers::imu::DecoderOptions{}) {
     thread_ = std::thread([this] { loop(); });
   }
   ~Receiver() {
@@ -76,7 +76,7 @@ class Receiver {
   void finish() {
     if (thread_.joinable()) thread_.join();
   }
-  std::vector<imu::DecodedSample> samples() {
+  std::vector<drivers::imu::DecodedSample> samples() {
     std::lock_guard<std::mutex> l(mu_);
     return samples_;
   }
@@ -84,7 +84,7 @@ class Receiver {
     std::lock_guard<std::mutex> l(mu_);
     return samples_.size();
   }
-  imu::DecoderCounters counters() {
+  drivers::imu::DecoderCounters counters() {
     std::lock_guard<std::mutex> l(mu_);
     return decoder_.counters();
   }
@@ -103,8 +103,8 @@ class Receiver {
 
  private:
   void loop() {
-    std::vector<imu::ReceivedFrame> frames;
-    std::vector<imu::DecodedSample> out;
+    std::vector<drivers::imu::ReceivedFrame> frames;
+    std::vector<drivers::imu::DecodedSample> out;
     while (!channel_->at_end() && !quit_.load()) {
       if (!channel_->wait_readable(100)) continue;
       frames.clear();
@@ -116,48 +116,48 @@ class Receiver {
     decoder_.flush(samples_);
   }
 
-  std::unique_ptr<imu::CanChannel> channel_;
-  imu::ImuFrameDecoder decoder_;
+  std::unique_ptr<drivers::imu::CanChannel> channel_;
+  drivers::imu::ImuFrameDecoder decoder_;
   std::mutex mu_;
-  std::vector<imu::DecodedSample> samples_;
+  std::vector<drivers::imu::DecodedSample> samples_;
   std::atomic<bool> quit_{false};
   std::thread thread_;
 };
 
-std::unique_ptr<sim::StationSim> started(const sim::StationSimConfig& cfg) {
-  auto s = std::make_unique<sim::StationSim>(cfg);
+std::unique_ptr<drivers::simulated::StationSim> started(const drivers::simulated::StationSimConfig& cfg) {
+  auto s = std::make_unique<drivers::simulated::StationSim>(cfg);
   s->start();
   return s;
 }
 
 /// A started simulator with a receiver on its bus (from sample 0 on).
 struct Bench {
-  explicit Bench(const sim::StationSimConfig& cfg) : sim(started(cfg)), rx(sim->can_uri()) {}
+  explicit Bench(const drivers::simulated::StationSimConfig& cfg) : sim(started(cfg)), rx(sim->can_uri()) {}
   /// Waits (bounded) until the physics clock has passed t_s.
   bool run_until(double t_s) {
     const auto deadline = std::chrono::steady_clock::now() + 20s;
     while (sim->time_s() < t_s && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(5ms);
     return sim->time_s() >= t_s;
   }
-  std::unique_ptr<sim::StationSim> sim;
+  std::unique_ptr<drivers::simulated::StationSim> sim;
   Receiver rx;
 };
 
 /// ... plus a Modbus client that has enabled and homed the table.
 struct Rig : Bench {
-  explicit Rig(const sim::StationSimConfig& cfg) : Bench(cfg), client(client_config(*sim)) {
+  explicit Rig(const drivers::simulated::StationSimConfig& cfg) : Bench(cfg), client(client_config(*sim)) {
     client.connect();
     client.enable();
     homed = client.home(5000ms).homed;
   }
-  turntable::TurntableClient client;
+  drivers::turntable::TurntableClient client;
   bool homed = false;
 };
 
 /// The decoded samples whose intervals lie inside [t_a, t_b] of sim time.
-std::vector<calib::ImuIncrement> window(const std::vector<imu::DecodedSample>& s, double t_a, double t_b,
+std::vector<calib::core::ImuIncrement> window(const std::vector<drivers::imu::DecodedSample>& s, double t_a, double t_b,
                                         double dt) {
-  std::vector<calib::ImuIncrement> w;
+  std::vector<calib::core::ImuIncrement> w;
   for (const auto& d : s) {
     const double t1 = static_cast<double>(d.sample_index + 1) * dt;
     if (t1 - dt >= t_a - 1e-9 && t1 <= t_b + 1e-9) w.push_back(d.increment);
@@ -168,12 +168,12 @@ std::vector<calib::ImuIncrement> window(const std::vector<imu::DecodedSample>& s
 }  // namespace
 
 TEST(StationSim, OuterQuarterTurnSeenByTheImuIsTheTableRotation) {
-  sim::StationSimConfig cfg = base_config(40.0);
+  drivers::simulated::StationSimConfig cfg = base_config(40.0);
   cfg.plc.initial_outer_deg = 4.0;  // homing is a real motion
   Rig rig(cfg);
   ASSERT_TRUE(rig.homed);
-  sim::StationSim& s = *rig.sim;
-  turntable::TurntableClient& c = rig.client;
+  drivers::simulated::StationSim& s = *rig.sim;
+  drivers::turntable::TurntableClient& c = rig.client;
   // In position after home: at rest at (0, 0). The move, then in position at (90, 0).
   const double t_a = s.time_s();
   c.move_to(90.0, 0.0, 20.0);
@@ -189,29 +189,29 @@ TEST(StationSim, OuterQuarterTurnSeenByTheImuIsTheTableRotation) {
 
   // Measured attitude change w.r.t. inertial space: the product of the increments, each corrected
   // by the unit's known gyro model (dθ~ = (I + dM) dθ + b dt, eq. 18) — and uncorrected.
-  const calib::ImuErrorModel<double> err = calib::ImuErrorModel<double>::from_params(cfg.unit.params);
+  const calib::core::ImuErrorModel<double> err = calib::core::ImuErrorModel<double>::from_params(cfg.unit.params);
   Eigen::Matrix3d C_meas = Eigen::Matrix3d::Identity(), C_raw = Eigen::Matrix3d::Identity();
   const Eigen::Matrix3d M_inv = (Eigen::Matrix3d::Identity() + err.M_g).inverse();
   for (const auto& inc : w) {
     const Eigen::Vector3d dth = M_inv * (inc.dtheta_rad - cfg.unit.params.gyro_bias_radps * dt);
-    C_meas = C_meas * calib::rotvec_to_matrix<double>(dth);
-    C_raw = C_raw * calib::rotvec_to_matrix<double>(inc.dtheta_rad);
+    C_meas = C_meas * calib::core::rotvec_to_matrix<double>(dth);
+    C_raw = C_raw * calib::core::rotvec_to_matrix<double>(inc.dtheta_rad);
   }
   // Expected from the table angles and the Earth alone: C_b(a)^b(b) = C_bn(a)^T exp([ω_ie_n x] T) C_bn(b)
   // with C_bn = exp([ς x]) C_bn_table (conventions.hpp); here (0, 0) -> (90°, 0).
-  const calib::TableModel table(cfg.geometry);
-  const Eigen::Matrix3d S = calib::rotvec_to_matrix<double>(cfg.unit.params.table_misalignment_rad);
+  const calib::core::TableModel table(cfg.geometry);
+  const Eigen::Matrix3d S = calib::core::rotvec_to_matrix<double>(cfg.unit.params.table_misalignment_rad);
   const Eigen::Matrix3d C_a = S * table.C_bn(0.0, 0.0), C_b = S * table.C_bn(90.0 * kDegToRad, 0.0);
-  const calib::EarthModel earth(cfg.site);
+  const calib::core::EarthModel earth(cfg.site);
   const Eigen::Matrix3d C_exp =
-      C_a.transpose() * calib::rotvec_to_matrix<double>(Eigen::Vector3d(earth.w_ie_n() * T)) * C_b;
-  const double err_comp = calib::matrix_to_rotvec(C_exp.transpose() * C_meas).norm();
-  const double err_raw = calib::matrix_to_rotvec(C_exp.transpose() * C_raw).norm();
+      C_a.transpose() * calib::core::rotvec_to_matrix<double>(Eigen::Vector3d(earth.w_ie_n() * T)) * C_b;
+  const double err_comp = calib::core::matrix_to_rotvec(C_exp.transpose() * C_meas).norm();
+  const double err_raw = calib::core::matrix_to_rotvec(C_exp.transpose() * C_raw).norm();
   // Tolerance: angle random walk over T (5σ, three axes), the output quantisation of the simulator
   // and of the CAN codec (both carry their remainder: at most one LSB each per axis in the sum),
   // and the window's time alignment (one sample of Earth rate).
   const double tol = 5.0 * std::sqrt(3.0) * cfg.unit.noise.arw_rad_per_sqrt_s * std::sqrt(T) +
-                     2.0 * std::sqrt(3.0) * (cfg.unit.noise.dtheta_lsb_rad + imu::kDthetaLsb_rad) +
+                     2.0 * std::sqrt(3.0) * (cfg.unit.noise.dtheta_lsb_rad + drivers::imu::kDthetaLsb_rad) +
                      earth.w_ie_n().norm() * dt;
   EXPECT_LT(err_comp, tol) << "compensated residual rotation, rad";
   // The unit's scale/misalignment (several 1e-4) on a quarter turn is far above that tolerance: the
@@ -242,13 +242,13 @@ TEST(StationSim, OuterQuarterTurnSeenByTheImuIsTheTableRotation) {
 /// The samples of one simulator run that idles `idle_s` of sim time, then homes the table (a real
 /// motion from 4°) and lets it rest: the samples from the home's first visible one on, `count` of
 /// them.
-std::vector<calib::ImuIncrement> samples_after_home(double idle_s, size_t count) {
-  sim::StationSimConfig cfg = base_config(200.0);
+std::vector<calib::core::ImuIncrement> samples_after_home(double idle_s, size_t count) {
+  drivers::simulated::StationSimConfig cfg = base_config(200.0);
   cfg.seed = 41;
   cfg.plc.initial_outer_deg = 4.0;
   Bench bench(cfg);
   EXPECT_TRUE(bench.run_until(idle_s));
-  turntable::TurntableClient client(client_config(*bench.sim));
+  drivers::turntable::TurntableClient client(client_config(*bench.sim));
   client.connect();
   client.enable();
   EXPECT_TRUE(client.home(5000ms).homed);
@@ -261,7 +261,7 @@ std::vector<calib::ImuIncrement> samples_after_home(double idle_s, size_t count)
   while (k < all.size() && (static_cast<double>(all[k].sample_index) * dt < idle_s - 1.0 ||
                             all[k].increment.dtheta_rad.norm() / dt < 0.05 * kDegToRad))
     ++k;
-  std::vector<calib::ImuIncrement> out;
+  std::vector<calib::core::ImuIncrement> out;
   for (size_t j = k; j < all.size() && out.size() < count; ++j) out.push_back(all[j].increment);
   return out;
 }
@@ -281,8 +281,8 @@ TEST(StationSim, ARunsNoiseAfterItsHomeDoesNotDependOnTheIdleTimeBeforeIt) {
   // The first visible sample of the motion may fall one sample apart (the home starts at a PLC
   // scan); its noise starts with the sample after the home command either way: align by the best
   // offset.
-  const double dth_tol = 2.0 * (1e-9 + imu::kDthetaLsb_rad),
-               dv_tol = 2.0 * (1e-7 + imu::kDvLsb_mps);
+  const double dth_tol = 2.0 * (1e-9 + drivers::imu::kDthetaLsb_rad),
+               dv_tol = 2.0 * (1e-7 + drivers::imu::kDvLsb_mps);
   double best = std::numeric_limits<double>::infinity();
   int best_offset = 0;
   for (int off = -2; off <= 2; ++off) {
@@ -300,7 +300,7 @@ TEST(StationSim, ARunsNoiseAfterItsHomeDoesNotDependOnTheIdleTimeBeforeIt) {
 }
 
 TEST(StationSim, InjectedCanLossAndCorruptionAreWhatTheDecoderCounts) {
-  sim::StationSimConfig cfg = base_config(200.0);
+  drivers::simulated::StationSimConfig cfg = base_config(200.0);
   cfg.faults.can_loss = 0.01;
   cfg.faults.can_corrupt = 0.004;
   cfg.seed = 11;
@@ -337,35 +337,35 @@ TEST(StationSim, InjectedCanLossAndCorruptionAreWhatTheDecoderCounts) {
 }
 
 TEST(StationSim, TableFaultOnTheSecondMoveFailsTheClientsWait) {
-  sim::StationSimConfig cfg = base_config(40.0);
-  cfg.faults.table_fault = sim::StationSimFaults::TableFault{2, 0.5, 23};
+  drivers::simulated::StationSimConfig cfg = base_config(40.0);
+  cfg.faults.table_fault = drivers::simulated::StationSimFaults::TableFault{2, 0.5, 23};
   Rig rig(cfg);
   ASSERT_TRUE(rig.homed);
-  sim::StationSim& s = *rig.sim;
-  turntable::TurntableClient& c = rig.client;
+  drivers::simulated::StationSim& s = *rig.sim;
+  drivers::turntable::TurntableClient& c = rig.client;
   c.move_to(20.0, 0.0, 20.0);
   EXPECT_NEAR(c.wait_in_position(10000ms).outer_deg, 20.0, 0.01);  // move 1: no fault
   c.move_to(80.0, 10.0, 20.0);
   try {
     c.wait_in_position(10000ms);
     FAIL() << "no fault during move 2";
-  } catch (const turntable::TableFaultError& e) {
+  } catch (const drivers::turntable::TableFaultError& e) {
     EXPECT_EQ(e.fault_code(), 23) << e.what();
   }
   EXPECT_EQ(s.moves_accepted(), 2u);
   // Stopped short of the target: the fault came 0.5 s into a 3 s move.
-  const double outer = s.table_server().with_plc([](sim::TablePlc& p) { return p.outer_deg(); });
+  const double outer = s.table_server().with_plc([](drivers::simulated::TablePlc& p) { return p.outer_deg(); });
   EXPECT_LT(outer, 60.0);
   EXPECT_GT(outer, 20.0);
 }
 
 TEST(StationSim, ScheduledModbusDropMakesTheClientReconnect) {
-  sim::StationSimConfig cfg = base_config(10.0);
+  drivers::simulated::StationSimConfig cfg = base_config(10.0);
   cfg.faults.modbus_drop_at_s = {5.0};
   Rig rig(cfg);
   ASSERT_TRUE(rig.homed);
-  sim::StationSim& s = *rig.sim;
-  turntable::TurntableClient& c = rig.client;
+  drivers::simulated::StationSim& s = *rig.sim;
+  drivers::turntable::TurntableClient& c = rig.client;
   const double t_cmd = s.time_s();
   ASSERT_LT(t_cmd, 4.0) << "setup too slow for the scheduled drop at 5 s";
   c.move_to(100.0, 0.0, 10.0);  // 10+ s of sim time: the drop comes mid-move
@@ -376,9 +376,9 @@ TEST(StationSim, ScheduledModbusDropMakesTheClientReconnect) {
 }
 
 TEST(StationSim, ScheduledModbusDelayMakesTheClientTimeOutAndRecover) {
-  sim::StationSimConfig cfg = base_config(10.0);
+  drivers::simulated::StationSimConfig cfg = base_config(10.0);
   // One reply held back longer than the client's 300 ms response timeout (the client retries).
-  cfg.faults.modbus_delay = {sim::StationSimFaults::Delay{5.0, 400, 1}};
+  cfg.faults.modbus_delay = {drivers::simulated::StationSimFaults::Delay{5.0, 400, 1}};
   Rig rig(cfg);
   ASSERT_TRUE(rig.homed);
   ASSERT_LT(rig.sim->time_s(), 4.0) << "setup too slow for the scheduled delay at 5 s";
@@ -394,7 +394,7 @@ namespace {
 
 /// Mean specific force (body axes) over the samples of an inner half turn that cruise at 20 °/s,
 /// found in the IMU's own rates (no timing assumptions).
-Eigen::Vector3d cruise_specific_force(const sim::StationSimConfig& cfg, int* count) {
+Eigen::Vector3d cruise_specific_force(const drivers::simulated::StationSimConfig& cfg, int* count) {
   Rig rig(cfg);
   EXPECT_TRUE(rig.homed);
   const double t_a = rig.sim->time_s();
@@ -414,10 +414,10 @@ Eigen::Vector3d cruise_specific_force(const sim::StationSimConfig& cfg, int* cou
 
 // The size effect through the station: accelerometer x sits 5 cm out along x; an inner half turn
 // spins the unit about body z (vertical at outer 0), so while it cruises at ω accelerometer x reads
-// the centripetal -ω² r on top of everything else (DESIGN §7). The same run without the lever arm
+// the centripetal -ω² r on top of everything else (ARCHITECTURE §7). The same run without the lever arm
 // gives everything else (bias, scale, the table tilt averaged over the same angles).
 TEST(StationSim, SizeEffectStreamsTheCentripetalAcceleration) {
-  sim::StationSimConfig cfg = base_config(40.0);
+  drivers::simulated::StationSimConfig cfg = base_config(40.0);
   int n0 = 0, n1 = 0;
   const Eigen::Vector3d f0 = cruise_specific_force(cfg, &n0);
   cfg.unit.effects.accel_lever_arm_m[0] = Eigen::Vector3d(0.05, 0.0, 0.0);
@@ -433,13 +433,13 @@ TEST(StationSim, SizeEffectStreamsTheCentripetalAcceleration) {
   EXPECT_NEAR(f1.y() - f0.y(), 0.0, tol);  // accelerometer y has no lever arm
 }
 
-// The table time offset through the station (DESIGN §7): the encoder registers the station polls lag
+// The table time offset through the station (ARCHITECTURE §7): the encoder registers the station polls lag
 // the physics by δt, while the IMU streams the motion itself. Mid-cruise of an outer quarter turn at
 // 20 °/s, the actual-angle register (read atomically with the physics clock) trails the PLC's true
 // angle by ω δt = 1°, and the angle the IMU has turned by then (its increments up to the same
 // instant, compensated with the unit's known gyro model) is the true angle, ahead of the register.
 TEST(StationSim, TableTimeOffsetMakesTheEncoderRegistersLagTheStreamedMotion) {
-  sim::StationSimConfig cfg = base_config(40.0);
+  drivers::simulated::StationSimConfig cfg = base_config(40.0);
   const double lag_s = 0.05, rate_dps = 20.0;
   cfg.unit.effects.table_time_offset_s = lag_s;
   Rig rig(cfg);
@@ -454,9 +454,9 @@ TEST(StationSim, TableTimeOffsetMakesTheEncoderRegistersLagTheStreamedMotion) {
   const auto deadline = std::chrono::steady_clock::now() + 10s;
   while (!snap.cruising && std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(5ms);
-    snap = rig.sim->table_server().with_plc([](sim::TablePlc& plc) {
+    snap = rig.sim->table_server().with_plc([](drivers::simulated::TablePlc& plc) {
       const auto& map = plc.config().map;
-      const auto reg = [&](uint16_t a) { return turntable::decode_float(&plc.input_image()[a], map.word_order); };
+      const auto reg = [&](uint16_t a) { return drivers::turntable::decode_float(&plc.input_image()[a], map.word_order); };
       const sequences::TableState st = plc.actual_state();
       Snapshot x;
       x.t_s = plc.time_s();
@@ -476,16 +476,16 @@ TEST(StationSim, TableTimeOffsetMakesTheEncoderRegistersLagTheStreamedMotion) {
   ASSERT_TRUE(rig.rx.wait_index(static_cast<uint64_t>(std::llround(snap.t_s / dt)), 5000ms));
   const auto w = window(rig.rx.samples(), t_a, snap.t_s, dt);
   ASSERT_NEAR(static_cast<double>(w.size()) * dt, snap.t_s - t_a, 0.5 * dt);
-  const calib::ImuErrorModel<double> err = calib::ImuErrorModel<double>::from_params(cfg.unit.params);
+  const calib::core::ImuErrorModel<double> err = calib::core::ImuErrorModel<double>::from_params(cfg.unit.params);
   const Eigen::Matrix3d M_inv = (Eigen::Matrix3d::Identity() + err.M_g).inverse();
   double turned_rad = 0.0;  // about body x = the outer axis at inner 0
   for (const auto& inc : w) turned_rad += (M_inv * (inc.dtheta_rad - cfg.unit.params.gyro_bias_radps * dt)).x();
   // Plus the Earth rate about the outer axis (north) over the window; tolerance: the ARW (5σ), the
   // LSBs of the simulator and the CAN codec, and ς tilting the axis (arcseconds of the Earth rate).
   const double T = static_cast<double>(w.size()) * dt;
-  const double imu_deg = (turned_rad - calib::EarthModel(cfg.site).w_ie_n().x() * T) / kDegToRad;
+  const double imu_deg = (turned_rad - calib::core::EarthModel(cfg.site).w_ie_n().x() * T) / kDegToRad;
   const double tol_deg = (5.0 * cfg.unit.noise.arw_rad_per_sqrt_s * std::sqrt(T) +
-                          2.0 * (cfg.unit.noise.dtheta_lsb_rad + imu::kDthetaLsb_rad) + 1e-4 * 7.3e-5 * T) /
+                          2.0 * (cfg.unit.noise.dtheta_lsb_rad + drivers::imu::kDthetaLsb_rad) + 1e-4 * 7.3e-5 * T) /
                          kDegToRad;
   EXPECT_NEAR(imu_deg, snap.true_deg, tol_deg);  // measured: ~4e-7 rad (2e-5°) off
   EXPECT_NEAR(imu_deg - snap.register_deg, rate_dps * lag_s, tol_deg + 1e-4);
@@ -496,7 +496,7 @@ TEST(StationSim, TableTimeOffsetMakesTheEncoderRegistersLagTheStreamedMotion) {
 }
 
 TEST(StationSim, ScheduledAndRuntimeImuResetsRestartTheCounter) {
-  sim::StationSimConfig cfg = base_config(100.0);
+  drivers::simulated::StationSimConfig cfg = base_config(100.0);
   cfg.faults.imu_reset_at_s = {3.0};
   Bench b(cfg);
   ASSERT_TRUE(b.run_until(6.0));
@@ -508,7 +508,7 @@ TEST(StationSim, ScheduledAndRuntimeImuResetsRestartTheCounter) {
   EXPECT_EQ(st.imu_resets, 2u);
   EXPECT_EQ(b.rx.counters().imu_resets, 2u);
   // Each reset swallows the unit's boot time worth of increments; the physics clock runs on.
-  const uint64_t swallowed = 2u * static_cast<uint64_t>(sim::ImuCanNodeOptions{}.reset_lost_samples);
+  const uint64_t swallowed = 2u * static_cast<uint64_t>(drivers::simulated::ImuCanNodeOptions{}.reset_lost_samples);
   EXPECT_EQ(st.samples_sent + swallowed, static_cast<uint64_t>(std::llround(st.sim_time_s * cfg.rate_hz)));
   int restarts = 0;
   for (const auto& d : b.rx.samples()) restarts += d.discontinuity ? 1 : 0;
@@ -516,9 +516,9 @@ TEST(StationSim, ScheduledAndRuntimeImuResetsRestartTheCounter) {
 }
 
 TEST(StationSim, BadConfigurationIsRefusedNamingTheField) {
-  auto expect_refused = [](sim::StationSimConfig c, const std::string& field) {
+  auto expect_refused = [](drivers::simulated::StationSimConfig c, const std::string& field) {
     try {
-      sim::StationSim s(c);
+      drivers::simulated::StationSim s(c);
       FAIL() << "accepted bad " << field;
     } catch (const std::invalid_argument& e) {
       EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
@@ -531,7 +531,7 @@ TEST(StationSim, BadConfigurationIsRefusedNamingTheField) {
   c.speed = 0.0;
   expect_refused(c, "speed");
   c = base_config(100.0);
-  c.faults.table_fault = sim::StationSimFaults::TableFault{0, 1.0, 17};
+  c.faults.table_fault = drivers::simulated::StationSimFaults::TableFault{0, 1.0, 17};
   expect_refused(c, "move_number");
   c = base_config(100.0);
   c.unit.effects.table_time_offset_s = -0.01;  // an encoder ahead of the motion
@@ -539,7 +539,7 @@ TEST(StationSim, BadConfigurationIsRefusedNamingTheField) {
   // A path nobody can bind: start() names it.
   c = base_config(100.0);
   c.can_path = "/nonexistent_dir_for_station_sim/bus.sock";
-  sim::StationSim s(c);
+  drivers::simulated::StationSim s(c);
   try {
     s.start();
     FAIL() << "started on an impossible CAN path";

@@ -5,13 +5,13 @@
 
 #include <cmath>
 
-#include "drivers/sim/table_plc.hpp"
+#include "drivers/simulated/table_plc.hpp"
 
-namespace imucal::sim {
+namespace imucal::drivers::simulated {
 namespace {
 
-using turntable::decode_float;
-using turntable::encode_float;
+using drivers::turntable::decode_float;
+using drivers::turntable::encode_float;
 constexpr double kPi = 3.14159265358979323846;
 
 TablePlcConfig test_config() {
@@ -64,7 +64,7 @@ class Master {
   }
 
   TablePlc& plc_;
-  const turntable::RegisterMap map_;
+  const drivers::turntable::RegisterMap map_;
   uint16_t seq_ = 0;
 };
 
@@ -319,7 +319,7 @@ TEST(TablePlc, HeartbeatCountsPlcTimeUnlessFrozen) {
 
 TEST(TablePlc, CustomMapLayoutIsHonoured) {
   TablePlcConfig c = test_config();
-  c.map.word_order = turntable::WordOrder::kCDAB;
+  c.map.word_order = drivers::turntable::WordOrder::kCDAB;
   c.map.status_bits.moving = 9;
   c.map.input.status = 40;
   c.map.commands.move = 0x100;
@@ -333,16 +333,16 @@ TEST(TablePlc, CustomMapLayoutIsHonoured) {
   // CDAB: low word first.
   const float outer = plc.outer_deg();
   const auto& in = plc.input_image();
-  EXPECT_EQ(in[c.map.input.actual_outer_deg + 1], encode_float(outer, turntable::WordOrder::kABCD)[0]);
+  EXPECT_EQ(in[c.map.input.actual_outer_deg + 1], encode_float(outer, drivers::turntable::WordOrder::kABCD)[0]);
 }
 
 }  // namespace
-}  // namespace imucal::sim
+}  // namespace imucal::drivers::simulated
 
-namespace imucal::sim {
+namespace imucal::drivers::simulated {
 namespace {
 
-// table_time_offset (DESIGN §7) in the station simulator: the encoder registers show the motion of
+// table_time_offset (ARCHITECTURE §7) in the station simulator: the encoder registers show the motion of
 // encoder_delay_s ago; the physics (actual_state) is not delayed. Outer 0 -> 90 at 20 °/s with
 // 10 °/s² (the trapezoid above): at t = 3 s the axis is at 40° cruising at 20 °/s, so an encoder
 // 0.25 s late reads 40 - 20·0.25 = 35°.
@@ -436,4 +436,4 @@ TEST(TablePlc, AccelerationSwitchTimesFollowAPendingFault) {
 }
 
 }  // namespace
-}  // namespace imucal::sim
+}  // namespace imucal::drivers::simulated

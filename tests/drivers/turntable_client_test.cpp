@@ -11,19 +11,19 @@
 
 #include <unistd.h>
 
-#include "drivers/sim/modbus_table_server.hpp"
+#include "drivers/simulated/modbus_table_server.hpp"
 #include "drivers/turntable/turntable_client.hpp"
 
 namespace imucal {
 namespace {
 
 using namespace std::chrono_literals;
-using sim::AckResult;
-using sim::ModbusTableServer;
-using sim::TablePlc;
-using sim::TablePlcConfig;
-using turntable::TurntableClient;
-using turntable::TurntableClientConfig;
+using drivers::simulated::AckResult;
+using drivers::simulated::ModbusTableServer;
+using drivers::simulated::TablePlc;
+using drivers::simulated::TablePlcConfig;
+using drivers::turntable::TurntableClient;
+using drivers::turntable::TurntableClientConfig;
 
 constexpr double kSpeed = 10.0;  // PLC seconds per wall second
 
@@ -60,15 +60,15 @@ std::string loopback_address() {
          std::to_string(counter);
 }
 
-sim::ModbusTableServerConfig server_config() {
-  sim::ModbusTableServerConfig c;
+drivers::simulated::ModbusTableServerConfig server_config() {
+  drivers::simulated::ModbusTableServerConfig c;
   c.address = loopback_address();
   return c;
 }
 
 struct Station {
   explicit Station(TablePlcConfig plc = plc_config())
-      : server(plc, server_config(), sim::ScaledRealTime(kSpeed)) {
+      : server(plc, server_config(), drivers::simulated::ScaledRealTime(kSpeed)) {
     server.start();
   }
   TurntableClientConfig client_config() const {
@@ -113,30 +113,30 @@ void make_ready(TurntableClient& c) {
 }
 
 TEST(TurntableEndpoint, ParsesTcpAndRtu) {
-  const auto tcp = turntable::Endpoint::parse("tcp:10.0.0.7:1502");
-  EXPECT_EQ(tcp.kind, turntable::Endpoint::Kind::kTcp);
+  const auto tcp = drivers::turntable::Endpoint::parse("tcp:10.0.0.7:1502");
+  EXPECT_EQ(tcp.kind, drivers::turntable::Endpoint::Kind::kTcp);
   EXPECT_EQ(tcp.host, "10.0.0.7");
   EXPECT_EQ(tcp.port, 1502);
-  const auto rtu = turntable::Endpoint::parse("rtu:/dev/ttyUSB0:38400:8N2");
-  EXPECT_EQ(rtu.kind, turntable::Endpoint::Kind::kRtu);
+  const auto rtu = drivers::turntable::Endpoint::parse("rtu:/dev/ttyUSB0:38400:8N2");
+  EXPECT_EQ(rtu.kind, drivers::turntable::Endpoint::Kind::kRtu);
   EXPECT_EQ(rtu.device, "/dev/ttyUSB0");
   EXPECT_EQ(rtu.baud, 38400);
   EXPECT_EQ(rtu.parity, 'N');
   EXPECT_EQ(rtu.stop_bits, 2);
   EXPECT_EQ(rtu.to_string(), "rtu:/dev/ttyUSB0:38400:8N2");
-  EXPECT_THROW(turntable::Endpoint::parse("tcp:host:0"), std::invalid_argument);
-  EXPECT_THROW(turntable::Endpoint::parse("tcp:host:70000"), std::invalid_argument);
-  EXPECT_THROW(turntable::Endpoint::parse("tcp:host"), std::invalid_argument);
-  EXPECT_THROW(turntable::Endpoint::parse("rtu:/dev/ttyS0:19200:9X1"), std::invalid_argument);
-  EXPECT_THROW(turntable::Endpoint::parse("udp:host:502"), std::invalid_argument);
+  EXPECT_THROW(drivers::turntable::Endpoint::parse("tcp:host:0"), std::invalid_argument);
+  EXPECT_THROW(drivers::turntable::Endpoint::parse("tcp:host:70000"), std::invalid_argument);
+  EXPECT_THROW(drivers::turntable::Endpoint::parse("tcp:host"), std::invalid_argument);
+  EXPECT_THROW(drivers::turntable::Endpoint::parse("rtu:/dev/ttyS0:19200:9X1"), std::invalid_argument);
+  EXPECT_THROW(drivers::turntable::Endpoint::parse("udp:host:502"), std::invalid_argument);
 }
 
 TEST(TurntableClient, EnableHomeMoveReachesTargetWithinThePhysics) {
   Station st;
   TurntableClient c(st.client_config());
-  EXPECT_EQ(c.state(), turntable::State::kDisconnected);
+  EXPECT_EQ(c.state(), drivers::turntable::State::kDisconnected);
   c.connect();
-  EXPECT_EQ(c.state(), turntable::State::kDisabled);
+  EXPECT_EQ(c.state(), drivers::turntable::State::kDisabled);
   c.enable();
   // Homing from (6, -3) deg at 60 deg/s, 60 deg/s^2: triangle 2 sqrt(6/60) s = 0.632 s PLC.
   const double t_home0 = st.plc_time();
@@ -149,13 +149,13 @@ TEST(TurntableClient, EnableHomeMoveReachesTargetWithinThePhysics) {
   ASSERT_NEAR(expected_s, 3.7, 1e-12);
   c.move_to(90.0, -45.0, 30.0);
   const double t_ack = st.plc_time();
-  EXPECT_EQ(c.state(), turntable::State::kMoving);
+  EXPECT_EQ(c.state(), drivers::turntable::State::kMoving);
   const auto s = c.wait_in_position(3000ms);
   const double elapsed = st.plc_time() - t_ack;
   EXPECT_NEAR(s.outer_deg, 90.0, 1e-4);
   EXPECT_NEAR(s.inner_deg, -45.0, 1e-4);
   EXPECT_TRUE(s.in_position && !s.moving && s.enabled && !s.fault);
-  EXPECT_EQ(c.state(), turntable::State::kInPosition);
+  EXPECT_EQ(c.state(), drivers::turntable::State::kInPosition);
   // Not before the physics allows; not much later than one poll period (10 ms wall = 0.1 s PLC).
   EXPECT_GE(elapsed, expected_s - 0.1);
   EXPECT_LE(elapsed, expected_s + 0.5);
@@ -186,7 +186,7 @@ TEST(TurntableClient, StopMidMoveStopsShortOfTheTarget) {
   EXPECT_GT(s.outer_deg, outer_at_stop);
   EXPECT_LT(s.outer_deg, outer_at_stop + 7.5 + 15.0);
   EXPECT_LT(s.outer_deg, 80.0);
-  EXPECT_EQ(c.state(), turntable::State::kReady);
+  EXPECT_EQ(c.state(), drivers::turntable::State::kReady);
 }
 
 TEST(TurntableClient, FaultMidMoveIsATypedErrorAndTheClientStopsTheTable) {
@@ -199,19 +199,19 @@ TEST(TurntableClient, FaultMidMoveIsATypedErrorAndTheClientStopsTheTable) {
   try {
     c.wait_in_position(3000ms);
     FAIL() << "no fault reported";
-  } catch (const turntable::TableFaultError& e) {
+  } catch (const drivers::turntable::TableFaultError& e) {
     EXPECT_EQ(e.fault_code(), 0x2A);
-    EXPECT_EQ(e.kind(), turntable::ErrorKind::kFault);
+    EXPECT_EQ(e.kind(), drivers::turntable::ErrorKind::kFault);
     EXPECT_NE(std::string(e.what()).find("code 42"), std::string::npos) << e.what();
   }
-  EXPECT_EQ(c.state(), turntable::State::kFault);
+  EXPECT_EQ(c.state(), drivers::turntable::State::kFault);
   EXPECT_EQ(c.counters().commands, stops_before + 1);  // the safe stop, acknowledged
   EXPECT_EQ(st.plc_last_command(), c.config().map.commands.stop);
   // Fault 1 s PLC into the move: 7.5 deg accelerating + 0.5 s at 30 deg/s = 22.5 deg; the ramp-down at
   // 60 deg/s^2 adds 30^2 / 120 = 7.5 deg: standstill at 30 deg.
   const auto s = c.wait_stopped(2000ms);
   EXPECT_NEAR(s.outer_deg, 30.0, 1e-4);
-  EXPECT_THROW(c.move_to(0.0, 0.0, 30.0), turntable::TableFaultError);
+  EXPECT_THROW(c.move_to(0.0, 0.0, 30.0), drivers::turntable::TableFaultError);
   c.clear_fault();
   c.enable();
   c.move_to(0.0, 0.0, 30.0);
@@ -225,9 +225,9 @@ TEST(TurntableClient, EstopIsATypedErrorAndBlocksMoves) {
   c.move_to(90.0, 0.0, 30.0);
   st.wait_outer_past(10.0);
   st.server.with_plc([](TablePlc& p) { p.set_estop(true); });
-  EXPECT_THROW(c.wait_in_position(3000ms), turntable::EstopError);
-  EXPECT_EQ(c.state(), turntable::State::kEstop);
-  EXPECT_THROW(c.move_to(0.0, 0.0, 30.0), turntable::EstopError);
+  EXPECT_THROW(c.wait_in_position(3000ms), drivers::turntable::EstopError);
+  EXPECT_EQ(c.state(), drivers::turntable::State::kEstop);
+  EXPECT_THROW(c.move_to(0.0, 0.0, 30.0), drivers::turntable::EstopError);
   EXPECT_LT(c.wait_stopped(1000ms).outer_deg, 50.0);
   st.server.with_plc([](TablePlc& p) { p.set_estop(false); });
   c.enable();
@@ -271,12 +271,12 @@ TEST(TurntableClient, LinkLossBeyondGiveUpIsAClearError) {
   try {
     c.status();
     FAIL() << "status() succeeded with the server gone";
-  } catch (const turntable::LinkError& e) {
+  } catch (const drivers::turntable::LinkError& e) {
     EXPECT_NE(std::string(e.what()).find("cannot reconnect"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find(cfg.endpoint.to_string()), std::string::npos) << e.what();
   }
   EXPECT_LT(std::chrono::steady_clock::now() - t0, 2s);
-  EXPECT_EQ(c.state(), turntable::State::kDisconnected);
+  EXPECT_EQ(c.state(), drivers::turntable::State::kDisconnected);
   EXPECT_FALSE(c.safe_stop());  // cannot be delivered, says so, does not throw
 }
 
@@ -296,9 +296,9 @@ TEST(TurntableClient, ReplyDelayBeyondTimeoutIsCountedAndRecovered) {
   // A reply held back longer than all attempts: a timeout error, the link is re-opened on the next call.
   before = c.counters();
   st.server.delay_replies(500ms, 1);
-  EXPECT_THROW(c.status(), turntable::RequestTimeoutError);
+  EXPECT_THROW(c.status(), drivers::turntable::RequestTimeoutError);
   EXPECT_EQ(c.counters().timeouts - before.timeouts, 3u);
-  EXPECT_EQ(c.state(), turntable::State::kDisconnected);
+  EXPECT_EQ(c.state(), drivers::turntable::State::kDisconnected);
   std::this_thread::sleep_for(300ms);  // the server finishes its stalled reply
   EXPECT_NO_THROW(c.status());
   EXPECT_EQ(c.counters().reconnects - before.reconnects, 1u);
@@ -350,12 +350,12 @@ TEST(TurntableClient, ALateReplyAfterTwoTimeoutsDoesNotSpendTheLastAttempt) {
   make_ready(c);
   const auto before = c.counters();
   st.server.delay_replies(250ms, 1);
-  turntable::TableStatus s;
+  drivers::turntable::TableStatus s;
   ASSERT_NO_THROW(s = c.status());
   EXPECT_NEAR(s.outer_deg, st.plc_outer(), 1e-4);
   EXPECT_EQ(c.counters().timeouts - before.timeouts, 2u);
   EXPECT_GE(c.counters().bad_responses - before.bad_responses, 1u);
-  EXPECT_NE(c.state(), turntable::State::kDisconnected);  // no reconnect was needed
+  EXPECT_NE(c.state(), drivers::turntable::State::kDisconnected);  // no reconnect was needed
   for (int i = 0; i < 5; ++i) EXPECT_NO_THROW(c.status());
   EXPECT_EQ(c.counters().timeouts - before.timeouts, 2u);
 }
@@ -389,7 +389,7 @@ TEST(TurntableClient, SeveralClientsAtOnce) {
       }
     });
   }
-  turntable::TableStatus s;
+  drivers::turntable::TableStatus s;
   try {
     s = commander.wait_in_position(3000ms);
   } catch (const std::exception& e) {
@@ -411,10 +411,10 @@ TEST(TurntableClient, StaleHeartbeatIsAFault) {
   c.move_to(90.0, 0.0, 30.0);
   st.server.with_plc([](TablePlc& p) { p.set_heartbeat_frozen(true); });
   const auto t0 = std::chrono::steady_clock::now();
-  EXPECT_THROW(c.wait_in_position(3000ms), turntable::HeartbeatError);
+  EXPECT_THROW(c.wait_in_position(3000ms), drivers::turntable::HeartbeatError);
   EXPECT_GE(std::chrono::steady_clock::now() - t0, 300ms);
   EXPECT_EQ(c.counters().heartbeat_stale, 1u);
-  EXPECT_EQ(c.state(), turntable::State::kFault);
+  EXPECT_EQ(c.state(), drivers::turntable::State::kFault);
   EXPECT_EQ(st.plc_last_command(), cfg.map.commands.stop);
 }
 
@@ -425,22 +425,22 @@ TEST(TurntableClient, RejectedCommandsAndBadArguments) {
   try {
     c.move_to(10.0, 0.0, 10.0);
     FAIL() << "move accepted while disabled";
-  } catch (const turntable::CommandRejectedError& e) {
+  } catch (const drivers::turntable::CommandRejectedError& e) {
     EXPECT_EQ(e.result(), static_cast<uint16_t>(AckResult::kNotEnabled));
   }
   c.enable();
   try {
     c.move_to(10.0, 0.0, 10.0);
     FAIL() << "move accepted before homing";
-  } catch (const turntable::CommandRejectedError& e) {
+  } catch (const drivers::turntable::CommandRejectedError& e) {
     EXPECT_EQ(e.result(), static_cast<uint16_t>(AckResult::kNotHomed));
   }
   EXPECT_EQ(c.counters().rejected, 2u);
   const auto requests = c.counters().requests;
-  EXPECT_THROW(c.move_to(std::nan(""), 0.0, 10.0), turntable::InvalidArgumentError);
-  EXPECT_THROW(c.move_to(0.0, INFINITY, 10.0), turntable::InvalidArgumentError);
-  EXPECT_THROW(c.move_to(0.0, 0.0, 0.0), turntable::InvalidArgumentError);
-  EXPECT_THROW(c.move_to(0.0, 0.0, -1.0), turntable::InvalidArgumentError);
+  EXPECT_THROW(c.move_to(std::nan(""), 0.0, 10.0), drivers::turntable::InvalidArgumentError);
+  EXPECT_THROW(c.move_to(0.0, INFINITY, 10.0), drivers::turntable::InvalidArgumentError);
+  EXPECT_THROW(c.move_to(0.0, 0.0, 0.0), drivers::turntable::InvalidArgumentError);
+  EXPECT_THROW(c.move_to(0.0, 0.0, -1.0), drivers::turntable::InvalidArgumentError);
   EXPECT_EQ(c.counters().requests, requests);  // refused before anything was sent
 }
 
@@ -453,7 +453,7 @@ TEST(TurntableClient, AbortFromAnotherThreadStopsTheTable) {
     std::this_thread::sleep_for(100ms);
     c.request_abort();
   });
-  EXPECT_THROW(c.wait_in_position(3000ms), turntable::AbortedError);
+  EXPECT_THROW(c.wait_in_position(3000ms), drivers::turntable::AbortedError);
   aborter.join();
   EXPECT_EQ(st.plc_last_command(), c.config().map.commands.stop);
   EXPECT_LT(c.wait_stopped(2000ms).outer_deg, 80.0);
@@ -479,7 +479,7 @@ TEST(TurntableClient, UnmappedRegistersGiveAModbusException) {
   auto cfg = st.client_config();
   cfg.map.input.ack_result = 40;  // the server maps input registers 0..12 only
   TurntableClient c(cfg);
-  EXPECT_THROW(c.connect(), turntable::ModbusExceptionError);
+  EXPECT_THROW(c.connect(), drivers::turntable::ModbusExceptionError);
   EXPECT_EQ(c.counters().exceptions, 1u);
 }
 
@@ -492,9 +492,9 @@ TEST(TurntableClient, ConnectFailsClearlyWhenNothingListens) {
   cfg.backoff_initial = 20ms;
   cfg.reconnect_give_up = 100ms;
   TurntableClient c(cfg);
-  EXPECT_THROW(c.connect(), turntable::LinkError);
+  EXPECT_THROW(c.connect(), drivers::turntable::LinkError);
   EXPECT_GE(c.counters().connect_failures, 2u);
-  EXPECT_EQ(c.state(), turntable::State::kDisconnected);
+  EXPECT_EQ(c.state(), drivers::turntable::State::kDisconnected);
 }
 
 }  // namespace

@@ -10,7 +10,7 @@
 
 #include "drivers/turntable/float_codec.hpp"
 
-namespace imucal::turntable {
+namespace imucal::drivers::turntable {
 namespace {
 
 using Regs = std::array<uint16_t, 2>;
@@ -102,4 +102,4 @@ TEST(FloatCodec, WordOrderNames) {
 }
 
 }  // namespace
-}  // namespace imucal::turntable
+}  // namespace imucal::drivers::turntable

@@ -12,12 +12,12 @@
 #include <regex>
 #include <string>
 
-#include "drivers/sim/modbus_table_server.hpp"
+#include "drivers/simulated/modbus_table_server.hpp"
 
 namespace imucal {
 namespace {
 
-using sim::TablePlc;
+using drivers::simulated::TablePlc;
 
 const bool kQuietLogs = [] {
   spdlog::set_level(spdlog::level::err);
@@ -71,7 +71,7 @@ class MbpollInterop : public ::testing::Test {
       command(plc, m.commands.home, 2);
       plc.step(5.0);
       auto put = [&](uint16_t address, float v) {
-        const auto r = turntable::encode_float(v, m.word_order);
+        const auto r = drivers::turntable::encode_float(v, m.word_order);
         plc.write_holding(address, r.data(), 2);
       };
       put(m.holding.target_outer_deg, 12.5f);
@@ -85,7 +85,7 @@ class MbpollInterop : public ::testing::Test {
   std::string mbpoll(const std::string& args) {
     return "mbpoll -m tcp -a 1 -0 -o 2 -p " + std::to_string(server_.port()) + " " + args;
   }
-  sim::ModbusTableServer server_{sim::TablePlcConfig{}, sim::ModbusTableServerConfig{}};
+  drivers::simulated::ModbusTableServer server_{drivers::simulated::TablePlcConfig{}, drivers::simulated::ModbusTableServerConfig{}};
 };
 
 TEST_F(MbpollInterop, ReadsTheAnglesAndStatus) {
@@ -96,7 +96,7 @@ TEST_F(MbpollInterop, ReadsTheAnglesAndStatus) {
   EXPECT_DOUBLE_EQ(std::stod(v[0]), 12.5) << floats.output;
   EXPECT_DOUBLE_EQ(std::stod(v[2]), -33.25) << floats.output;
 
-  const auto& m = turntable::default_register_map();
+  const auto& m = drivers::turntable::default_register_map();
   const ProcessResult words = run(mbpoll("-1 -t 3 -r 8 -c 5 127.0.0.1"));
   ASSERT_EQ(words.exit_code, 0) << words.output;
   v = values(words.output);
@@ -111,7 +111,7 @@ TEST_F(MbpollInterop, ReadsTheAnglesAndStatus) {
 }
 
 TEST_F(MbpollInterop, CommandsAMove) {
-  const auto& m = turntable::default_register_map();
+  const auto& m = drivers::turntable::default_register_map();
   // Targets and rate as three big-endian floats at holding 0, 2, 4; then command word + sequence.
   const ProcessResult targets = run(mbpoll("-t 4:float -B -r 0 127.0.0.1 -- 45 -20 15"));
   ASSERT_EQ(targets.exit_code, 0) << targets.output;
@@ -123,13 +123,13 @@ TEST_F(MbpollInterop, CommandsAMove) {
     // The targets mbpoll wrote decode with our codec.
     uint16_t h[6];
     plc.read_holding(0, 6, h);
-    EXPECT_EQ(turntable::decode_float(&h[0], m.word_order), 45.0f);
-    EXPECT_EQ(turntable::decode_float(&h[2], m.word_order), -20.0f);
-    EXPECT_EQ(turntable::decode_float(&h[4], m.word_order), 15.0f);
+    EXPECT_EQ(drivers::turntable::decode_float(&h[0], m.word_order), 45.0f);
+    EXPECT_EQ(drivers::turntable::decode_float(&h[2], m.word_order), -20.0f);
+    EXPECT_EQ(drivers::turntable::decode_float(&h[4], m.word_order), 15.0f);
     const double outer0 = plc.outer_deg();
     plc.step(0.5);
     EXPECT_EQ(plc.ack_seq(), 77);
-    EXPECT_EQ(plc.ack_result(), sim::AckResult::kAccepted);
+    EXPECT_EQ(plc.ack_result(), drivers::simulated::AckResult::kAccepted);
     EXPECT_TRUE(plc.moving());
     EXPECT_GT(plc.outer_deg(), outer0);   // 12.5 -> 45: increasing
     EXPECT_GT(plc.inner_deg(), -33.25);  // -33.25 -> -20: increasing

@@ -7,7 +7,7 @@
 
 #include "drivers/turntable/register_map.hpp"
 
-namespace imucal::turntable {
+namespace imucal::drivers::turntable {
 namespace {
 
 const std::string kExamplePath = std::string(IMUCAL_SOURCE_DIR) + "/drivers/turntable/register_map.example.toml";
@@ -64,7 +64,7 @@ TEST(RegisterMap, ExampleFileEqualsDefault) {
 }
 
 TEST(RegisterMap, DefaultMatchesTheDocumentedLayout) {
-  // DESIGN §4: targets and rate are float32 high word first; the handshake pair is adjacent.
+  // ARCHITECTURE §4: targets and rate are float32 high word first; the handshake pair is adjacent.
   const RegisterMap m = default_register_map();
   EXPECT_EQ(m.word_order, WordOrder::kABCD);
   EXPECT_EQ(m.holding.command_seq, m.holding.command + 1);
@@ -150,4 +150,4 @@ TEST(RegisterMap, SyntaxErrorsAndMissingTable) {
 }
 
 }  // namespace
-}  // namespace imucal::turntable
+}  // namespace imucal::drivers::turntable

@@ -14,7 +14,7 @@
 #include <mutex>
 #include <thread>
 
-#include "drivers/sim/table_plc.hpp"
+#include "drivers/simulated/table_plc.hpp"
 #include "drivers/turntable/turntable_client.hpp"
 
 namespace imucal {
@@ -30,7 +30,7 @@ const bool kQuietLogs = [] {
 /// Serves a TablePlc over Modbus RTU on a pty master, advancing it at `speed` x real time.
 class RtuResponder {
  public:
-  explicit RtuResponder(sim::TablePlcConfig plc_config, double speed) : plc_(plc_config), speed_(speed) {
+  explicit RtuResponder(drivers::simulated::TablePlcConfig plc_config, double speed) : plc_(plc_config), speed_(speed) {
     master_ = posix_openpt(O_RDWR | O_NOCTTY);
     if (master_ < 0 || grantpt(master_) != 0 || unlockpt(master_) != 0) throw std::runtime_error("no pty");
     device_ = ptsname(master_);
@@ -91,7 +91,7 @@ class RtuResponder {
     }
   }
 
-  sim::TablePlc plc_;
+  drivers::simulated::TablePlc plc_;
   double speed_;
   std::mutex mu_;
   int master_ = -1, keep_open_ = -1;
@@ -104,18 +104,18 @@ class RtuResponder {
 };
 
 TEST(TurntableRtu, MovesOverASerialLink) {
-  sim::TablePlcConfig plc;
+  drivers::simulated::TablePlcConfig plc;
   plc.rate_limit_dps = 60.0;
   plc.accel_limit_dps2 = 60.0;
   plc.settle_time_s = 0.2;
   plc.heartbeat_period_s = 0.02;
   RtuResponder responder(plc, 10.0);
 
-  turntable::TurntableClientConfig cfg;
-  cfg.endpoint = turntable::Endpoint::parse("rtu:" + responder.device() + ":115200:8N1");
+  drivers::turntable::TurntableClientConfig cfg;
+  cfg.endpoint = drivers::turntable::Endpoint::parse("rtu:" + responder.device() + ":115200:8N1");
   cfg.response_timeout = 300ms;
   cfg.poll_period = 10ms;
-  turntable::TurntableClient c(cfg);
+  drivers::turntable::TurntableClient c(cfg);
   c.connect();
   c.enable();
   EXPECT_TRUE(c.home(3000ms).homed);
@@ -123,7 +123,7 @@ TEST(TurntableRtu, MovesOverASerialLink) {
   const auto s = c.wait_in_position(3000ms);
   EXPECT_NEAR(s.outer_deg, -30.0, 1e-5);
   EXPECT_NEAR(s.inner_deg, 15.0, 1e-5);
-  EXPECT_NEAR(responder.with_plc([](sim::TablePlc& p) { return p.outer_deg(); }), -30.0, 1e-9);
+  EXPECT_NEAR(responder.with_plc([](drivers::simulated::TablePlc& p) { return p.outer_deg(); }), -30.0, 1e-9);
   const auto n = c.counters();
   EXPECT_EQ(n.timeouts + n.bad_responses + n.link_errors, 0u);
   EXPECT_GE(responder.requests(), n.requests);

@@ -9,7 +9,7 @@
 #include <grp.h>
 #include <sys/stat.h>
 
-#include "db/serial_number.hpp"
+#include "db/history/serial_number.hpp"
 #include "tests/e2e/station_harness.hpp"
 
 namespace imucal::e2e {
@@ -112,7 +112,7 @@ TEST(StationBadInput, UnknownSequenceAndInvalidSerialAreRefusedAndNothingIsStore
     const CmdResult r = st.ctl({"run", "start", "--serial", bad, "--sequence", "short"});
     EXPECT_EQ(r.exit_code, 2) << r.describe();
     const std::string msg = r.out + r.err;
-    // The rule (db/serial_number.hpp): 1 to 32 characters, letters, digits, '-', '_', '.'.
+    // The rule (db/history/serial_number.hpp): 1 to 32 characters, letters, digits, '-', '_', '.'.
     EXPECT_NE(msg.find("32"), std::string::npos) << "the length rule is not stated:\n" << r.describe();
     EXPECT_TRUE(contains_ci(msg, "letter") && contains_ci(msg, "digit")) << "the character rule is not stated:\n"
                                                                         << r.describe();

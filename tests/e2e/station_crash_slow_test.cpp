@@ -20,7 +20,7 @@
 #include <set>
 
 #include "db/archive/run_archive.hpp"
-#include "station/archive_writer.hpp"
+#include "station/run/archive_writer.hpp"
 #include "tests/e2e/station_harness.hpp"
 
 namespace imucal::e2e {
@@ -35,15 +35,15 @@ int env_int(const char* name, int fallback) {
 // What the database holds, read straight from the file (never through the daemon).
 // ---------------------------------------------------------------------------------------------
 struct StoredRun {
-  db::RunRecord run;
+  db::history::RunRecord run;
   std::vector<std::string> calibrations;  ///< "method:params,sigmas" (exact), in stored order
   std::string crosscheck;                 ///< verdict, or empty
 };
 using Snapshot = std::map<long long, StoredRun>;
 
-std::string calibration_key(const db::CalibrationRecord& c) {
+std::string calibration_key(const db::history::CalibrationRecord& c) {
   std::ostringstream o;
-  o << db::to_string(c.method) << ":" << std::hexfloat;
+  o << db::history::to_string(c.method) << ":" << std::hexfloat;
   for (double v : c.params.to_vector()) o << v << ",";
   for (double v : c.sigma.to_vector()) o << v << ",";
   return o.str();
@@ -53,42 +53,42 @@ std::string calibration_key(const db::CalibrationRecord& c) {
 Snapshot read_snapshot(const std::string& db_path) {
   Snapshot s;
   if (!fs::exists(db_path)) return s;
-  db::SqliteOptions o;
+  db::history::SqliteOptions o;
   o.read_only = true;
-  db::SqliteRepository repo(db_path, o);
+  db::history::SqliteRepository repo(db_path, o);
   EXPECT_EQ(repo.integrity_check(), "ok") << db_path;
-  std::vector<db::RunId> ids;
-  repo.export_rows({}, [&](const db::ExportRow& row) {
+  std::vector<db::history::RunId> ids;
+  repo.export_rows({}, [&](const db::history::ExportRow& row) {
     if (ids.empty() || ids.back() != row.run.run_id) ids.push_back(row.run.run_id);
   });
-  for (db::RunId id : ids) {
-    const db::RunDetails d = repo.show(id);
+  for (db::history::RunId id : ids) {
+    const db::history::RunDetails d = repo.show(id);
     StoredRun r;
     r.run = d.run;
     for (const auto& c : d.calibrations) r.calibrations.push_back(calibration_key(c));
-    if (d.crosscheck) r.crosscheck = db::to_string(d.crosscheck->verdict);
+    if (d.crosscheck) r.crosscheck = db::history::to_string(d.crosscheck->verdict);
     s.emplace(id, std::move(r));
   }
   return s;
 }
 
-bool is_live(db::RunState s) {
-  const auto live = db::live_states();
+bool is_live(db::history::RunState s) {
+  const auto live = db::history::live_states();
   return std::find(live.begin(), live.end(), s) != live.end();
 }
 
-std::string describe(const db::RunRecord& r) {
+std::string describe(const db::history::RunRecord& r) {
   std::ostringstream o;
-  o << "run " << r.run_id << " " << r.serial << " state " << db::to_string(r.state) << " sha "
+  o << "run " << r.run_id << " " << r.serial << " state " << db::history::to_string(r.state) << " sha "
     << r.archive_sha256 << " reason \"" << r.failure_reason << "\" archive " << r.archive_path;
   return o.str();
 }
 
 /// A terminal run is final: every field the record has must be the same after a restart.
 void expect_same_record(const StoredRun& was, const StoredRun& now) {
-  const db::RunRecord& a = was.run;
-  const db::RunRecord& b = now.run;
-  EXPECT_EQ(db::to_string(a.state), db::to_string(b.state)) << describe(a) << "\nbecame\n"
+  const db::history::RunRecord& a = was.run;
+  const db::history::RunRecord& b = now.run;
+  EXPECT_EQ(db::history::to_string(a.state), db::history::to_string(b.state)) << describe(a) << "\nbecame\n"
                                                             << describe(b);
   EXPECT_EQ(a.ended_at_ms, b.ended_at_ms) << describe(a);
   EXPECT_EQ(a.failure_reason, b.failure_reason) << describe(a);
@@ -143,7 +143,7 @@ void expect_archives_sound(const Snapshot& s, const std::set<long long>* changed
     const std::string& dir = r.run.archive_path;
     if (!r.run.archive_sha256.empty()) {
       try {
-        EXPECT_EQ(station::archive_digest(dir), r.run.archive_sha256)
+        EXPECT_EQ(station::run::archive_digest(dir), r.run.archive_sha256)
             << "archive differs from the digest the database holds: " << describe(r.run);
       } catch (const std::exception& e) {
         ADD_FAILURE() << "archive of a run with a recorded digest is unreadable: " << e.what()
@@ -151,32 +151,32 @@ void expect_archives_sound(const Snapshot& s, const std::set<long long>* changed
                       << describe(r.run);
       }
     }
-    if (r.run.state == db::RunState::kDone) {
+    if (r.run.state == db::history::RunState::kDone) {
       EXPECT_EQ(r.run.archive_sha256.size(), 64u)
           << "a done run without an archive digest: " << describe(r.run);
     }
     if (dir.empty() || !fs::exists(fs::path(dir) / "run.toml")) {
       // Only a run killed before its capture began may lack an archive, and it says so.
-      if (r.run.state == db::RunState::kInterrupted)
+      if (r.run.state == db::history::RunState::kInterrupted)
         EXPECT_TRUE(contains_ci(r.run.failure_reason, "no archive")) << describe(r.run);
       else
-        EXPECT_NE(r.run.state, db::RunState::kDone) << describe(r.run);
+        EXPECT_NE(r.run.state, db::history::RunState::kDone) << describe(r.run);
       continue;
     }
     for (const auto& e : fs::directory_iterator(dir))
       EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos)
           << "temporary file left in the archive: " << e.path();
-    if (r.run.state != db::RunState::kInterrupted) continue;
+    if (r.run.state != db::history::RunState::kInterrupted) continue;
     if (contains_ci(r.run.failure_reason, "no data rows")) {
       // Killed before the first sample was written: nothing to reprocess, and the reason says so.
-      EXPECT_NO_THROW(archive::parse_run_info(read_text(dir + "/run.toml"), dir + "/run.toml"))
+      EXPECT_NO_THROW(db::archive::parse_run_info(read_text(dir + "/run.toml"), dir + "/run.toml"))
           << describe(r.run);
-      EXPECT_THROW(archive::read_archive(dir), std::exception)
+      EXPECT_THROW(db::archive::read_archive(dir), std::exception)
           << "the reason says no data: " << describe(r.run);
       continue;
     }
     try {
-      const archive::RunArchive a = archive::read_archive(dir);
+      const db::archive::RunArchive a = db::archive::read_archive(dir);
       EXPECT_EQ(a.imu.size(), a.table.size()) << describe(r.run);
       EXPECT_EQ(a.info.serial, r.run.serial) << describe(r.run);
       EXPECT_FALSE(a.info.end_time.empty())
@@ -241,17 +241,17 @@ std::vector<double> kill_delays(const Life& life, int n, std::mt19937_64& rng) {
 std::string kill_point(const json& live, const Snapshot& before, long long run_id) {
   const auto it = before.find(run_id);
   if (it == before.end()) return "before the run was stored";
-  const db::RunRecord& r = it->second.run;
+  const db::history::RunRecord& r = it->second.run;
   if (!is_live(r.state)) return "after the commit";
-  if (r.state == db::RunState::kCalibrating) {
+  if (r.state == db::history::RunState::kCalibrating) {
     return it->second.calibrations.empty() ? "calibrating" : "storing results";
   }
   const std::string phase = live.is_object() ? live.value("phase", "") : "";
   const std::string toml = (fs::path(r.archive_path) / "run.toml").string();
-  if (r.state == db::RunState::kRunning && fs::exists(toml) &&
+  if (r.state == db::history::RunState::kRunning && fs::exists(toml) &&
       std::regex_search(read_text(toml), std::regex(R"(complete\s*=\s*true)")))
     return "archive finalised, state not yet calibrating";
-  if (r.state == db::RunState::kPreparing)
+  if (r.state == db::history::RunState::kPreparing)
     return "preparing" + (phase.empty() ? "" : " (" + phase + ")");
   return phase.empty() ? "running" : phase;
 }
@@ -264,7 +264,7 @@ struct Reprocessable {
 
 void note_reprocessable(const Snapshot& after, long long run_id, Reprocessable& r) {
   const auto it = after.find(run_id);
-  if (it == after.end() || it->second.run.state != db::RunState::kInterrupted) return;
+  if (it == after.end() || it->second.run.state != db::history::RunState::kInterrupted) return;
   const std::string dir = it->second.run.archive_path;
   if (dir.empty() || !fs::exists(fs::path(dir) / "run.toml")) return;
   const bool complete =

@@ -8,7 +8,7 @@
 #include <atomic>
 #include <thread>
 
-#include "station/control_client.hpp"
+#include "station/control/control_client.hpp"
 #include "tests/e2e/station_harness.hpp"
 
 namespace imucal::e2e {
@@ -31,21 +31,21 @@ TEST(StationDiagnose, AnHoursDiagnosisLeavesStatusAnsweredWithin50ms) {
     diag = st.ctl({"diagnose", run_id, "--json"}, 300s);
     done = true;
   });
-  station::ControlClient poller(st.socket_path());
+  station::control::ControlClient poller(st.socket_path());
   std::vector<double> latency_ms;
   bool refused_second = false, refused_start = false;
   while (!done) {
     const auto t0 = Clock::now();
-    const station::Reply r = poller.call("run.status");
+    const station::control::Reply r = poller.call("run.status");
     latency_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
     EXPECT_TRUE(r.ok) << r.error_message;
     if (latency_ms.size() == 5) {  // the diagnosis is under way by now
-      station::ControlClient other(st.socket_path());
-      const station::Reply second = other.call("diagnose", {{"run_id", std::stoll(run_id)}});
+      station::control::ControlClient other(st.socket_path());
+      const station::control::Reply second = other.call("diagnose", {{"run_id", std::stoll(run_id)}});
       refused_second = !second.ok && second.error_code == "busy" &&
                        second.error_message.find("being diagnosed") != std::string::npos;
-      station::ControlClient starter(st.socket_path());
-      const station::Reply start = starter.call("run.start", {{"serial", "DIAG-0002"}});
+      station::control::ControlClient starter(st.socket_path());
+      const station::control::Reply start = starter.call("run.start", {{"serial", "DIAG-0002"}});
       refused_start = !start.ok && start.error_message.find("being diagnosed") != std::string::npos;
       EXPECT_TRUE(refused_second) << second.error_code << ": " << second.error_message;
       EXPECT_TRUE(refused_start) << start.error_code << ": " << start.error_message;

@@ -13,7 +13,7 @@
 // IMUCAL_E2E_KEEP=1 to keep the directories (their paths are printed) for post-mortems; a failing
 // test keeps its own unless IMUCAL_E2E_KEEP=0. IMUCAL_E2E_PROTOCOL=FILE runs the simulator and the
 // daemon of every test that does not choose one on that IMU protocol file (issue #27; its
-// resolution must suit the default navigation-grade unit: drivers/imu/PROTOCOLS.md).
+// resolution must suit the default navigation-grade unit: drivers/imu/PROTOCOL.md).
 //
 // Binaries come from IMUCAL_BIN_DIR (the build tree's bin/). A missing binary is a test failure,
 // never a skip.
@@ -55,8 +55,8 @@
 #include "calib/core/earth.hpp"
 #include "calib/core/site_presets.hpp"
 #include "db/archive/run_archive.hpp"
-#include "db/repository.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/repository.hpp"
+#include "db/history/sqlite_repository.hpp"
 
 #ifndef IMUCAL_BIN_DIR
 #error "IMUCAL_BIN_DIR must name the build tree's bin directory"
@@ -559,7 +559,7 @@ class Station {
   /// The daemon configuration for this station (every path inside the temporary directory).
   /// `extra` is appended (more keys / sections); `imu_extra` goes into [imu].
   std::string config_text(const std::string& extra = "", const std::string& imu_extra = "") const {
-    const calib::Site site = calib::demo_factory_site();
+    const calib::core::Site site = calib::core::demo_factory_site();
     std::ostringstream c;
     c << std::setprecision(17);
     c << "# e2e test station (tests/e2e/station_harness.hpp)\n"
@@ -868,12 +868,12 @@ inline json newest_run(const Station& st, const std::string& serial) {
 /// stationctl): -1 if there is no database file, else the count (0 if the serial is unknown).
 inline long long stored_run_count(const std::string& db_path, const std::string& serial) {
   if (!fs::exists(db_path)) return -1;
-  db::SqliteOptions o;
+  db::history::SqliteOptions o;
   o.read_only = true;
-  db::SqliteRepository repo(db_path, o);
+  db::history::SqliteRepository repo(db_path, o);
   try {
     return static_cast<long long>(repo.history(serial).size());
-  } catch (const db::NotFound&) {
+  } catch (const db::history::NotFound&) {
     return 0;
   }
 }
@@ -881,11 +881,11 @@ inline long long stored_run_count(const std::string& db_path, const std::string&
 /// Every run in the database, any serial (through export), -1 if there is no database file.
 inline long long stored_run_total(const std::string& db_path) {
   if (!fs::exists(db_path)) return -1;
-  db::SqliteOptions o;
+  db::history::SqliteOptions o;
   o.read_only = true;
-  db::SqliteRepository repo(db_path, o);
-  std::vector<db::RunId> ids;
-  repo.export_rows({}, [&](const db::ExportRow& row) {
+  db::history::SqliteRepository repo(db_path, o);
+  std::vector<db::history::RunId> ids;
+  repo.export_rows({}, [&](const db::history::ExportRow& row) {
     if (ids.empty() || ids.back() != row.run.run_id) ids.push_back(row.run.run_id);
   });
   return static_cast<long long>(ids.size());
@@ -908,7 +908,7 @@ struct RestCheck {
   size_t mislabelled = 0;
   std::string first;  ///< description of the first mislabelled row
 };
-inline RestCheck check_rest_rows(const archive::RunArchive& a, double g_mps2) {
+inline RestCheck check_rest_rows(const db::archive::RunArchive& a, double g_mps2) {
   RestCheck r;
   const size_t n = std::min(a.imu.size(), a.table.size());
   for (size_t k = 0; k < n; ++k) {

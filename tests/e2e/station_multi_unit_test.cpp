@@ -37,10 +37,10 @@ std::string toml_vector(const std::string& slashed) {
 
 /// Unit i: the default unit with its sensor errors permuted, rescaled and sign-flipped, so that no
 /// two units on the fixture share a truth (the table's misalignment is the table's: common).
-calib::UnitModel unit_of(int i) {
-  calib::UnitModel u = calib::default_unit();
+calib::effects::UnitModel unit_of(int i) {
+  calib::effects::UnitModel u = calib::effects::default_unit();
   const double k = 1.0 + 0.35 * i, sign = i % 2 ? -1.0 : 1.0;
-  calib::ParamSet& p = u.params;
+  calib::core::ParamSet& p = u.params;
   p.accel_bias_mps2 = sign * k *
                       Eigen::Vector3d(p.accel_bias_mps2(i % 3), p.accel_bias_mps2((i + 1) % 3),
                                       p.accel_bias_mps2((i + 2) % 3));
@@ -61,7 +61,7 @@ class MultiUnitStation {
     o.seed = 31;
     for (int i = 0; i < n; ++i) {
       const std::string unit_file = st.path("unit-" + kSlots[i].name + ".toml");
-      archive::write_unit_file(unit_file, unit_of(i));
+      db::archive::write_unit_file(unit_file, unit_of(i));
       const std::string more = i < static_cast<int>(extra.size()) ? extra[i] : "";
       if (i == 0) {
         o.extra.insert(o.extra.end(), {"--unit", unit_file, "--mount", kSlots[0].mount_rpy,
@@ -103,27 +103,27 @@ class MultiUnitStation {
 
 /// The stored active parameters of `serial` with their σ.
 struct Stored {
-  calib::ParamVector x, sigma;
+  calib::core::ParamVector x, sigma;
 };
 Stored stored_params(const Station& st, const std::string& serial) {
   const CmdResult r = st.ctl({"--json", "params", serial});
   EXPECT_EQ(r.exit_code, 0) << r.describe();
   const std::string file = st.path("params-" + serial + ".json");
   write_text(file, r.out);
-  calib::ParamSet sigma;
-  const calib::ParamSet est = archive::read_param_file(file, &sigma);
+  calib::core::ParamSet sigma;
+  const calib::core::ParamSet est = db::archive::read_param_file(file, &sigma);
   return {est.to_vector(), sigma.to_vector()};
 }
 
 /// Parameters outside 4 σ of the truth (each printed).
-int outside_four_sigma(const Stored& s, const archive::Truth& truth, const std::string& who) {
-  const calib::ParamVector x_true = truth.params.to_vector();
+int outside_four_sigma(const Stored& s, const db::archive::Truth& truth, const std::string& who) {
+  const calib::core::ParamVector x_true = truth.params.to_vector();
   int outside = 0;
-  for (int k = 0; k < calib::ParamSet::kSize; ++k) {
+  for (int k = 0; k < calib::core::ParamSet::kSize; ++k) {
     const double z = (s.x[k] - x_true[k]) / s.sigma[k];
     if (!(std::abs(z) <= 4.0)) {
       ++outside;
-      ADD_FAILURE() << who << " " << calib::param_info(k).name << ": " << z
+      ADD_FAILURE() << who << " " << calib::core::param_info(k).name << ": " << z
                     << " sigma from its truth";
     }
   }
@@ -168,23 +168,23 @@ TEST(StationMultiUnit, FourUnitsOnOneFactoryStdRunEachPassWithinFourSigmaOfItsOw
       EXPECT_EQ(rec["table_run"], json(ids.front())) << "siblings name the table run";
     }
     // Each archive is complete on its own: its serial, slot, mounting, the shared table log.
-    const archive::RunArchive a = archive::read_archive(rec.value("archive_path", ""));
+    const db::archive::RunArchive a = db::archive::read_archive(rec.value("archive_path", ""));
     EXPECT_EQ(a.info.serial, sns[i]);
     EXPECT_EQ(a.info.table.slot, kSlots[i].name);
     EXPECT_FALSE(a.table.empty());
     EXPECT_GT(a.info.table.lever_arm_m.norm(), 0.1);
-    if (i == 0) span4_s = archive::data_span_s(a);
+    if (i == 0) span4_s = db::archive::data_span_s(a);
     // No frame lost at four times a unit's frame rate: the counters the daemon kept per unit.
     ASSERT_TRUE(rec.contains("capture") && rec["capture"].is_object()) << rec.dump(2);
     for (const char* k : {"samples_lost", "samples_filled", "frames_error", "samples_corrupt"})
       EXPECT_EQ(num(rec["capture"], k), 0.0) << sns[i] << " " << k << ": " << rec["capture"].dump();
     EXPECT_GT(num(rec["capture"], "samples_decoded"), 2.2e5) << rec["capture"].dump();
     four.push_back(stored_params(st, sns[i]));
-    EXPECT_EQ(outside_four_sigma(four.back(), archive::read_truth_json(m.truth(i)), sns[i]), 0);
+    EXPECT_EQ(outside_four_sigma(four.back(), db::archive::read_truth_json(m.truth(i)), sns[i]), 0);
   }
   // The truths differ: a unit calibrated as its neighbour would fail the check above.
-  EXPECT_GT((archive::read_truth_json(m.truth(0)).params.to_vector() -
-             archive::read_truth_json(m.truth(1)).params.to_vector())
+  EXPECT_GT((db::archive::read_truth_json(m.truth(0)).params.to_vector() -
+             db::archive::read_truth_json(m.truth(1)).params.to_vector())
                 .cwiseAbs()
                 .maxCoeff(),
             1e-5);
@@ -199,12 +199,12 @@ TEST(StationMultiUnit, FourUnitsOnOneFactoryStdRunEachPassWithinFourSigmaOfItsOw
                                  600s);
     ASSERT_EQ(one.exit_code, 0) << one.describe();
     const Stored alone = stored_params(st, sn);
-    for (int k = 0; k < calib::ParamSet::kSize; ++k)
+    for (int k = 0; k < calib::core::ParamSet::kSize; ++k)
       worst = std::max(worst, std::abs(four[i].sigma[k] / alone.sigma[k] - 1.0));
     if (i == 0) {
       const json rec1 = newest_run(st, sn);
       EXPECT_EQ(rec1.value("table_run", json()), json()) << "a unit alone has no table run";
-      span1_s = archive::data_span_s(archive::read_archive(rec1.value("archive_path", "")));
+      span1_s = db::archive::data_span_s(db::archive::read_archive(rec1.value("archive_path", "")));
     }
   }
   std::fprintf(stderr,
@@ -231,13 +231,13 @@ TEST(StationMultiUnit, AStreamCutMidRunFailsThatUnitAloneTheOthersPass) {
       EXPECT_EQ(rec.value("state", ""), "failed") << rec.dump(2);
       EXPECT_NE(rec.value("failure_reason", "").find("capture:"), std::string::npos) << rec.dump(2);
       // Its archive is kept and says it is incomplete.
-      const archive::RunArchive a = archive::read_archive(rec.value("archive_path", ""));
+      const db::archive::RunArchive a = db::archive::read_archive(rec.value("archive_path", ""));
       ASSERT_TRUE(a.info.capture.has_value());
       EXPECT_FALSE(a.info.capture->complete);
     } else {
       EXPECT_EQ(rec.value("state", ""), "done") << rec.dump(2);
       EXPECT_EQ(rec["verdict"], json("PASS")) << rec.dump(2);
-      EXPECT_EQ(outside_four_sigma(stored_params(st, sns[i]), archive::read_truth_json(m.truth(i)),
+      EXPECT_EQ(outside_four_sigma(stored_params(st, sns[i]), db::archive::read_truth_json(m.truth(i)),
                                    sns[i]),
                 0);
     }

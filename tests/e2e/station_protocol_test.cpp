@@ -14,7 +14,7 @@
 // The unit is a tactical-grade one (calib/sim/unit_draw.hpp): a protocol of 16-bit rates at
 // 0.01 °/s and 1 mg is what such units send, and their noise is far above that resolution. A
 // navigation-grade unit's is not (0.0015 °/h/√Hz: 2.5e-4 °/s a sample at 100 Hz), and there the
-// same protocol moves the calibration by 0.23σ (drivers/imu/PROTOCOLS.md, "Resolution").
+// same protocol moves the calibration by 0.23σ (drivers/imu/PROTOCOL.md, "Resolution").
 #include <cmath>
 
 #include "calib/core/unit_grade.hpp"
@@ -30,7 +30,7 @@ const std::string kSource = IMUCAL_SOURCE_DIR;
 
 struct ProtocolRun {
   std::string name;
-  calib::ParamSet params, sigma, truth;
+  calib::core::ParamSet params, sigma, truth;
   std::string verdict;
 };
 
@@ -40,8 +40,8 @@ ProtocolRun run_on(const std::string& name, const std::string& protocol) {
   ProtocolRun out;
   out.name = name;
   Station st;
-  const calib::UnitModel unit = calib::draw_unit(calib::Grade::kTactical, 3);
-  archive::write_unit_file(st.path("unit.toml"), unit);
+  const calib::effects::UnitModel unit = calib::sim::draw_unit(calib::core::Grade::kTactical, 3);
+  db::archive::write_unit_file(st.path("unit.toml"), unit);
   SimOptions so;
   so.speed = 400.0;
   so.seed = 27;
@@ -71,8 +71,8 @@ ProtocolRun run_on(const std::string& name, const std::string& protocol) {
     return out;
   }
   write_text(st.path("params.json"), params.out);
-  out.params = archive::read_param_file(st.path("params.json"), &out.sigma);
-  out.truth = archive::read_truth_json(st.truth_path()).params;
+  out.params = db::archive::read_param_file(st.path("params.json"), &out.sigma);
+  out.truth = db::archive::read_truth_json(st.truth_path()).params;
   return out;
 }
 
@@ -83,24 +83,24 @@ TEST(StationProtocols, AFactoryStdRunPassesOnTheBuiltInAndOnASecondProtocol) {
   const ProtocolRun rates16 = run_on("rates16", kSource + "/tests/data/protocols/rates16.toml");
   for (const ProtocolRun* r : {&builtin, &shipped, &rates16}) {
     EXPECT_EQ(r->verdict, "PASS") << r->name;
-    const calib::ParamVector e = r->params.to_vector() - r->truth.to_vector();
-    const calib::ParamVector s = r->sigma.to_vector();
-    for (int i = 0; i < calib::ParamSet::kSize; ++i)
-      EXPECT_LE(std::abs(e[i]), 4.0 * s[i]) << r->name << " " << calib::param_info(i).name;
+    const calib::core::ParamVector e = r->params.to_vector() - r->truth.to_vector();
+    const calib::core::ParamVector s = r->sigma.to_vector();
+    for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
+      EXPECT_LE(std::abs(e[i]), 4.0 * s[i]) << r->name << " " << calib::core::param_info(i).name;
   }
   for (const ProtocolRun* r : {&shipped, &rates16}) {
-    const calib::ParamVector d = r->params.to_vector() - builtin.params.to_vector();
-    const calib::ParamVector s = builtin.sigma.to_vector();
+    const calib::core::ParamVector d = r->params.to_vector() - builtin.params.to_vector();
+    const calib::core::ParamVector s = builtin.sigma.to_vector();
     double worst = 0.0;
     int at = 0;
-    for (int i = 0; i < calib::ParamSet::kSize; ++i)
+    for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
       if (std::abs(d[i]) / s[i] > worst) {
         worst = std::abs(d[i]) / s[i];
         at = i;
       }
     std::fprintf(stderr,
                  "[e2e] %s vs built-in (another live run): largest difference %.4f sigma (%s)\n",
-                 r->name.c_str(), worst, calib::param_info(at).name.c_str());
+                 r->name.c_str(), worst, calib::core::param_info(at).name.c_str());
   }
 }
 

@@ -1,6 +1,6 @@
 // Crash recovery (issue #3): `kill -9` of stationd mid-run, then a restart. The run must be marked
 // `interrupted` (never silently resumed), the database must pass PRAGMA integrity_check, the run's
-// archive must be intact (readable by archive::read_archive, imu.csv and table.csv of equal length)
+// archive must be intact (readable by db::archive::read_archive, imu.csv and table.csv of equal length)
 // and `reprocess` must work on it. Two moments: while the table runs the sequence (the archive is a
 // prefix of the sequence) and while the daemon calibrates (the archive is complete: reprocessing
 // must PASS).
@@ -48,18 +48,18 @@ json check_interrupted(Station& st, long long run_id, bool capture_complete) {
   EXPECT_EQ(run.value("archive_sha256", "").size(), 64u) << "no archive digest after recovery:\n" << run.dump(2);
 
   {  // PRAGMA integrity_check through the repository library, not through the daemon.
-    db::SqliteOptions o;
+    db::history::SqliteOptions o;
     o.read_only = true;
-    db::SqliteRepository repo(st.db_path(), o);
+    db::history::SqliteRepository repo(st.db_path(), o);
     EXPECT_EQ(repo.integrity_check(), "ok");
-    EXPECT_EQ(repo.show(run_id).run.state, db::RunState::kInterrupted);
+    EXPECT_EQ(repo.show(run_id).run.state, db::history::RunState::kInterrupted);
   }
 
   const std::string dir = run.value("archive_path", "");
   for (const char* f : {"run.toml", "imu.csv", "table.csv", "capture.log"})
     EXPECT_TRUE(fs::exists(dir + "/" + f)) << dir << "/" << f << " missing after recovery";
   try {
-    const archive::RunArchive a = archive::read_archive(dir);
+    const db::archive::RunArchive a = db::archive::read_archive(dir);
     EXPECT_EQ(a.info.serial, run.value("serial", ""));
     EXPECT_EQ(a.imu.size(), a.table.size());
     EXPECT_GT(a.imu.size(), 1000u) << "the recovered archive lost its data";

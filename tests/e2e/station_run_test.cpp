@@ -59,8 +59,8 @@ TEST(StationEndToEnd, ShortSequencePassesAndStoresParametersWithinFourSigmaOfTru
   EXPECT_EQ(fs::path(archive_dir).filename().string(), std::to_string(run_id) + "-SIM-0001");
   EXPECT_TRUE(fs::exists(archive_dir + "/capture.log"));
   {
-    const archive::RunArchive a = archive::read_archive(archive_dir);
-    const RestCheck rc = check_rest_rows(a, *calib::demo_factory_site().gravity_mps2);
+    const db::archive::RunArchive a = db::archive::read_archive(archive_dir);
+    const RestCheck rc = check_rest_rows(a, *calib::core::demo_factory_site().gravity_mps2);
     EXPECT_GT(rc.rest_rows, 10000u);
     EXPECT_EQ(rc.mislabelled, 0u) << rc.first;
   }
@@ -70,19 +70,19 @@ TEST(StationEndToEnd, ShortSequencePassesAndStoresParametersWithinFourSigmaOfTru
   ASSERT_EQ(params.exit_code, 0) << params.describe();
   const std::string params_file = st.path("params.json");
   write_text(params_file, params.out);
-  calib::ParamSet sigma;
-  calib::ParamSet estimate;
-  ASSERT_NO_THROW(estimate = archive::read_param_file(params_file, &sigma)) << params.describe();
+  calib::core::ParamSet sigma;
+  calib::core::ParamSet estimate;
+  ASSERT_NO_THROW(estimate = db::archive::read_param_file(params_file, &sigma)) << params.describe();
 
   // Truth: what the simulator injected (its --truth-out file).
-  archive::Truth truth;
-  ASSERT_NO_THROW(truth = archive::read_truth_json(st.truth_path())) << read_text(st.truth_path());
-  const calib::ParamVector x_est = estimate.to_vector();
-  const calib::ParamVector x_true = truth.params.to_vector();
-  const calib::ParamVector x_sigma = sigma.to_vector();
+  db::archive::Truth truth;
+  ASSERT_NO_THROW(truth = db::archive::read_truth_json(st.truth_path())) << read_text(st.truth_path());
+  const calib::core::ParamVector x_est = estimate.to_vector();
+  const calib::core::ParamVector x_true = truth.params.to_vector();
+  const calib::core::ParamVector x_sigma = sigma.to_vector();
   int outside = 0;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-    const auto& info = calib::param_info(i);
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+    const auto& info = calib::core::param_info(i);
     const double err = x_est[i] - x_true[i];
     EXPECT_GT(x_sigma[i], 0.0) << info.name << ": a stored sigma must be positive";
     EXPECT_LE(std::abs(err), 4.0 * x_sigma[i])
@@ -104,7 +104,7 @@ TEST(StationEndToEnd, ShortSequencePassesAndStoresParametersWithinFourSigmaOfTru
   for (const auto& c : shown["calibrations"]) {
     if (c.value("method", "") != "ains") continue;
     found_ains = true;
-    const calib::ParamSet stored = archive::param_set_from_json(c.at("params"), "show ains", nullptr);
+    const calib::core::ParamSet stored = db::archive::param_set_from_json(c.at("params"), "show ains", nullptr);
     EXPECT_TRUE(stored.to_vector() == x_est) << "params differs from the run's stored AINS set";
   }
   EXPECT_TRUE(found_ains) << shown.dump(2);
@@ -129,8 +129,8 @@ TEST(StationEndToEnd, ShortSequencePassesWithTheDaemonOnABusyCpu) {
   ASSERT_TRUE(rec.is_object());
   EXPECT_EQ(rec.value("state", ""), "done") << rec.dump(2);
   EXPECT_EQ(rec["verdict"], json("PASS")) << rec.dump(2);
-  const archive::RunArchive a = archive::read_archive(rec.value("archive_path", ""));
-  const RestCheck rc = check_rest_rows(a, *calib::demo_factory_site().gravity_mps2);
+  const db::archive::RunArchive a = db::archive::read_archive(rec.value("archive_path", ""));
+  const RestCheck rc = check_rest_rows(a, *calib::core::demo_factory_site().gravity_mps2);
   EXPECT_EQ(rc.mislabelled, 0u) << rc.mislabelled << " of " << rc.rest_rows << " rest rows mislabelled; first: "
                                 << rc.first;
 }

@@ -45,12 +45,12 @@ std::string rand_params(const char* scale) {
          rand_matrix(scale) + ", 'table_misalignment_rad', " + rand_array(3, scale) + ")";
 }
 
-/// The 27 parameters' jsonb paths in calib::param_info order, as an SQL array of path texts:
+/// The 27 parameters' jsonb paths in calib::core::param_info order, as an SQL array of path texts:
 /// "accel_M[0][1]" → '{accel_M,0,1}'.
 std::string param_paths() {
   std::string out = "ARRAY[";
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-    const std::string name = calib::param_info(i).name;
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+    const std::string name = calib::core::param_info(i).name;
     std::string path = "{" + name.substr(0, name.find('['));
     for (std::size_t at = name.find('['); at != std::string::npos; at = name.find('[', at + 1))
       path += "," + name.substr(at + 1, name.find(']', at) - at - 1);
@@ -163,10 +163,10 @@ int bench(int argc, char** argv) {
   time_it("history of one serial across stations", 200,
           [&](int i) { seen += repo.history(serials[static_cast<std::size_t>(i)]).size(); });
   std::cout << "  (" << seen / 200.0 << " runs per serial on average)\n";
-  const int gyro_bias_z = db::param_index("gyro_bias_radps[2]");
+  const int gyro_bias_z = db::history::param_index("gyro_bias_radps[2]");
   std::size_t per_week = 0;
   time_it("a week's gyro bias z distribution by station", 50, [&](int) {
-    db::FleetFilter f;
+    db::history::FleetFilter f;
     f.since_ms =
         kT0 + static_cast<long long>(rng() % static_cast<unsigned long long>(kYearMs - kWeekMs));
     f.until_ms = *f.since_ms + kWeekMs;

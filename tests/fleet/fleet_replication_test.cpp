@@ -15,7 +15,7 @@
 #include <thread>
 
 #include "db/fleet/fleet_repository.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/support/fleet_compare.hpp"
 #include "tests/support/pg_cluster.hpp"
 #include "tests/support/tcp_proxy.hpp"
@@ -23,6 +23,7 @@
 extern char** environ;
 
 namespace imucal::db::fleet {
+using namespace imucal::db::history;
 namespace {
 
 using namespace std::chrono_literals;

@@ -31,7 +31,9 @@ namespace {
 
 using namespace imucal;
 using namespace imucal::calib;
-using namespace imucal::fleetsim;
+using namespace imucal::calib::core;
+using namespace imucal::calib::studies::fleet;
+using namespace imucal::tools::fleetsim;
 
 /// k of n with its exact (Clopper-Pearson) 95 % interval: k is often 0 or 1 here.
 void rate(const char* what, int k, int n) {

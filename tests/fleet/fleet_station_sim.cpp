@@ -1,7 +1,7 @@
 // fleet_station_sim: one simulated station for the fleet replication test (issue #24). It writes
 // runs into its own SQLite history exactly as stationd's run controller does (create → running →
 // calibrating → finish PASS / REVIEW / failed, a diagnosis kept afterwards, a reprocess now and
-// then, a table run of two units), while the real outbox sender (station/fleet_sender.hpp) carries
+// then, a table run of two units), while the real outbox sender (station/daemon/fleet_sender.hpp) carries
 // them to the fleet store. At the end it waits for its outbox to drain and prints its sender's
 // status as JSON. Exit 0: drained; 1: not drained in --drain-timeout-s; 2: bad arguments.
 //   fleet_station_sim --db FILE --url URL --password-file FILE --station-id ID
@@ -12,8 +12,8 @@
 #include <string>
 #include <thread>
 
-#include "db/sqlite_repository.hpp"
-#include "station/fleet_sender.hpp"
+#include "db/history/sqlite_repository.hpp"
+#include "station/daemon/fleet_sender.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace {
@@ -56,34 +56,34 @@ Options parse(int argc, char** argv) {
 
 /// Run i of the station, through its life cycle; every tenth a REVIEW, every tenth (offset) a
 /// failure, a reprocess of the previous run, a two-unit table run.
-void one_run(db::SqliteRepository& repo, const Options& o, int i, bool pair, db::RunId& previous) {
-  const db::TimestampMs t = db::now_ms();
-  db::NewRun n =
+void one_run(db::history::SqliteRepository& repo, const Options& o, int i, bool pair, db::history::RunId& previous) {
+  const db::history::TimestampMs t = db::history::now_ms();
+  db::history::NewRun n =
       db::test::new_run("SN-" + std::to_string(o.seed) + "-" + std::to_string(i % 37), t);
   n.station = o.station_id;
   if (i % 10 == 5 && previous > 0) n.reprocessed_from = previous;
-  const db::RunId id = repo.create_run(n);
-  db::RunId sibling = 0;
+  const db::history::RunId id = repo.create_run(n);
+  db::history::RunId sibling = 0;
   if (pair) {
-    db::NewRun s = n;
+    db::history::NewRun s = n;
     s.serial = "SN-" + std::to_string(o.seed) + "-B" + std::to_string(i);
     s.slot = "B";
     s.table_run_id = id;
     sibling = repo.create_run(s);
   }
-  repo.update_run_state(id, db::RunState::kRunning);
-  repo.update_run_state(id, db::RunState::kCalibrating);
+  repo.update_run_state(id, db::history::RunState::kRunning);
+  repo.update_run_state(id, db::history::RunState::kCalibrating);
   const long seed = o.seed * 1000 + i;
   if (i % 10 == 7) {
-    repo.update_run_state(id, db::RunState::kFailed, "capture: IMU stream lost at step 3");
+    repo.update_run_state(id, db::history::RunState::kFailed, "capture: IMU stream lost at step 3");
   } else if (i % 10 == 3) {
-    repo.finish_run(id, db::test::review_completion(seed, db::now_ms()));
+    repo.finish_run(id, db::test::review_completion(seed, db::history::now_ms()));
   } else {
-    repo.finish_run(id, db::test::pass_completion(seed, db::now_ms()));
+    repo.finish_run(id, db::test::pass_completion(seed, db::history::now_ms()));
     if (i % 4 == 0)
       repo.set_diagnosis(id, R"({"verdict":"consistent","run":)" + std::to_string(i) + "}");
   }
-  if (sibling > 0) repo.finish_run(sibling, db::test::pass_completion(seed + 500, db::now_ms()));
+  if (sibling > 0) repo.finish_run(sibling, db::test::pass_completion(seed + 500, db::history::now_ms()));
   previous = id;
 }
 
@@ -97,13 +97,13 @@ int main(int argc, char** argv) {
     std::cerr << "fleet_station_sim: " << e.what() << "\n";
     return 2;
   }
-  station::FleetConfig fleet;
+  station::config::FleetConfig fleet;
   fleet.url = o.url;
   fleet.station_id = o.station_id;
   fleet.password_file = o.password_file;
-  db::SqliteRepository repo(o.db);
-  station::FleetSender sender(o.db, fleet);
-  db::RunId previous = 0;
+  db::history::SqliteRepository repo(o.db);
+  station::daemon::FleetSender sender(o.db, fleet);
+  db::history::RunId previous = 0;
   for (int i = 0, made = 0; made < o.runs; ++i) {
     const bool pair = i % 10 == 8 && made + 2 <= o.runs;  // a two-unit table run
     one_run(repo, o, i, pair, previous);

@@ -10,12 +10,13 @@
 #include "db/fleet/fleet_repository.hpp"
 #include "db/fleet/fleet_schema.hpp"
 #include "db/fleet/fleet_writer.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 #include "tests/support/fleet_compare.hpp"
 #include "tests/support/pg_cluster.hpp"
 
 namespace imucal::db::fleet {
+using namespace imucal::db::history;
 namespace {
 
 using test_support::PgCluster;

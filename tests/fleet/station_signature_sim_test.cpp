@@ -18,7 +18,12 @@
 
 using namespace imucal;
 using namespace imucal::calib;
-using namespace imucal::fleetsim;
+using namespace imucal::calib::ains;
+using namespace imucal::calib::core;
+using namespace imucal::calib::effects;
+using namespace imucal::calib::sim;
+using namespace imucal::calib::studies::fleet;
+using namespace imucal::tools::fleetsim;
 
 namespace {
 

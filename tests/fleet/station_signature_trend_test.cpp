@@ -35,15 +35,15 @@ class SignatureTrend : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = new db::test::TempDir();
     db_ = dir_->file("four-weeks.sqlite");
-    db::SqliteRepository repo(db_);
-    const db::TimestampMs t0 = db::parse_time_utc("2026-11-02T00:00:00Z");
+    db::history::SqliteRepository repo(db_);
+    const db::history::TimestampMs t0 = db::history::parse_time_utc("2026-11-02T00:00:00Z");
     for (int w = 0; w < kWeeks; ++w) {
       // Each week its own units (the seed names them), the same stations and golden unit.
-      fleetsim::FleetSpec spec = fleetsim::sound_fleet(6, 20.0 * kArcsecToRad, 31);
+      tools::fleetsim::FleetSpec spec = tools::fleetsim::sound_fleet(6, 20.0 * kArcsecToRad, 31);
       spec.seed = 310 + static_cast<std::uint64_t>(w);
       spec.units_per_station = 4;
       spec.stations[kDrifting].nonorthogonality_rad = kDriftArcsecPerWeek * w * kArcsecToRad;
-      fleetsim::write_history(spec, repo, t0 + w * 7 * 86400000LL + 3600000);
+      tools::fleetsim::write_history(spec, repo, t0 + w * 7 * 86400000LL + 3600000);
     }
   }
   static void TearDownTestSuite() { delete dir_; }

@@ -40,13 +40,13 @@ class SignaturesCli : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = new db::test::TempDir();
     db_ = dir_->file("fleet-week.sqlite");
-    fleetsim::FleetSpec spec = fleetsim::sound_fleet(10, 20.0 * kArcsecToRad, 77);
+    tools::fleetsim::FleetSpec spec = tools::fleetsim::sound_fleet(10, 20.0 * kArcsecToRad, 77);
     spec.units_per_station = 6;
     spec.stations[kGravity].gravity_error_mps2 = 50.0 * kMicroG_mps2;
     spec.stations[kNonorth].nonorthogonality_rad = 10.0 * kArcsecToRad;
     spec.stations[kFixture].fixture_rad = Eigen::Vector3d(180.0 * kArcsecToRad, 0, 0);
-    db::SqliteRepository repo(db_);
-    ids_ = fleetsim::write_history(spec, repo, db::parse_time_utc("2026-11-16T06:00:00Z"));
+    db::history::SqliteRepository repo(db_);
+    ids_ = tools::fleetsim::write_history(spec, repo, db::history::parse_time_utc("2026-11-16T06:00:00Z"));
   }
   static void TearDownTestSuite() { delete dir_; }
 
@@ -89,7 +89,7 @@ class SignaturesCli : public ::testing::Test {
 
   static inline db::test::TempDir* dir_ = nullptr;
   static inline std::string db_;
-  static inline std::vector<db::RunId> ids_;
+  static inline std::vector<db::history::RunId> ids_;
 };
 
 }  // namespace
@@ -101,8 +101,8 @@ TEST_F(SignaturesCli, FromTheStationsHistoryTheThreeFaultyStationsAreFlaggedWith
   EXPECT_EQ(code, 1) << "a flagged station is exit 1";
   expect_the_three_flagged(report);
   const json& g = report["stations"][kGravity];
-  std::vector<db::RunId> expected(ids_.begin() + 14, ids_.begin() + 21);  // station 2's jobs
-  EXPECT_EQ(g["run_ids"].get<std::vector<db::RunId>>(), expected);
+  std::vector<db::history::RunId> expected(ids_.begin() + 14, ids_.begin() + 21);  // station 2's jobs
+  EXPECT_EQ(g["run_ids"].get<std::vector<db::history::RunId>>(), expected);
   EXPECT_EQ(g["local_run_ids"], g["run_ids"]) << "a station's own history: its own ids";
   EXPECT_EQ(g["remedy"]["command"], "stationctl reprocess 15 16 17 18 19 20 21 --gravity-mps2 G");
   // The text QA reads: the cause with its size, the advice, the runs.
@@ -130,11 +130,11 @@ TEST_F(SignaturesCli, FromTheFleetStoreTheSameStationsAreFlagged) {
     fl::PgConnection w(
         fl::parse_fleet_target(pg.url("fleet_writer"), test_support::PgCluster::kWriterPassword));
     fl::migrate_fleet(w);
-    db::SqliteOptions ro;
+    db::history::SqliteOptions ro;
     ro.read_only = true;
-    const db::SqliteRepository repo(db_, ro);
-    std::map<std::string, std::vector<db::RunId>> by_station;
-    for (const db::RunRecord& r : repo.recent_runs(0)) by_station[r.station].push_back(r.run_id);
+    const db::history::SqliteRepository repo(db_, ro);
+    std::map<std::string, std::vector<db::history::RunId>> by_station;
+    for (const db::history::RunRecord& r : repo.recent_runs(0)) by_station[r.station].push_back(r.run_id);
     for (const auto& [station, ids] : by_station) fl::upsert_runs(w, station, repo.details_of(ids));
   }
   const std::string pw = dir_->file("reader.pw");
@@ -146,8 +146,8 @@ TEST_F(SignaturesCli, FromTheFleetStoreTheSameStationsAreFlagged) {
   expect_the_three_flagged(report);
   // The store numbers runs its own way; the reprocess command names the station's ids.
   const json& g = report["stations"][kGravity];
-  const std::vector<db::RunId> expected(ids_.begin() + 14, ids_.begin() + 21);
-  EXPECT_EQ(g["local_run_ids"].get<std::vector<db::RunId>>(), expected);
+  const std::vector<db::history::RunId> expected(ids_.begin() + 14, ids_.begin() + 21);
+  EXPECT_EQ(g["local_run_ids"].get<std::vector<db::history::RunId>>(), expected);
   EXPECT_EQ(g["remedy"]["command"], "stationctl reprocess 15 16 17 18 19 20 21 --gravity-mps2 G");
 }
 

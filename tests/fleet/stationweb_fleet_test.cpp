@@ -1,7 +1,7 @@
 // The QA view and its aggregates over the fleet store (issue #24 item 4 with items 1 and 3): the
 // same rows (tests/db/fleet_history.hpp, written into a station's SQLite and replicated station by
 // station into a throw-away PostgreSQL) give the same numbers through db::fleet::PgFleetStats as
-// through db::SqliteFleetStats (whose numbers tests/db/fleet_stats_test.cpp checks against the rows
+// through db::history::SqliteFleetStats (whose numbers tests/db/fleet_stats_test.cpp checks against the rows
 // themselves), and stationweb over the fleet store shows the same fleet pages as over the SQLite
 // file, the unit's history and trend with the store's values, a 404 for an unknown serial or run,
 // and quotes and semicolons in every filter as data.
@@ -15,8 +15,8 @@
 #include "db/fleet/fleet_schema.hpp"
 #include "db/fleet/fleet_writer.hpp"
 #include "db/fleet/pg_fleet_stats.hpp"
-#include "db/sqlite_fleet_stats.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/sqlite_fleet_stats.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/db/fleet_history.hpp"
 #include "tests/support/html_tags.hpp"
 #include "tests/support/pg_cluster.hpp"
@@ -30,12 +30,12 @@ using test_support::PgCluster;
 using test_support::tags;
 
 /// The station's runs replicated into the store, one station id per station name.
-void replicate(const db::SqliteRepository& repo, const PgCluster& pg) {
+void replicate(const db::history::SqliteRepository& repo, const PgCluster& pg) {
   db::fleet::PgConnection w(
       db::fleet::parse_fleet_target(pg.url("fleet_writer"), PgCluster::kWriterPassword));
   db::fleet::migrate_fleet(w);
-  std::map<std::string, std::vector<db::RunId>> by_station;
-  for (const db::RunRecord& r : repo.recent_runs(0)) by_station[r.station].push_back(r.run_id);
+  std::map<std::string, std::vector<db::history::RunId>> by_station;
+  for (const db::history::RunRecord& r : repo.recent_runs(0)) by_station[r.station].push_back(r.run_id);
   for (const auto& [station, ids] : by_station)
     db::fleet::upsert_runs(w, station, repo.details_of(ids));
 }
@@ -46,13 +46,13 @@ class FleetView : public ::testing::Test {
     pg_ = std::make_unique<PgCluster>();
     dir_ = std::make_unique<db::test::TempDir>();
     db_ = dir_->file("history.sqlite");
-    db::SqliteRepository repo(db_);
+    db::history::SqliteRepository repo(db_);
     db::test::write_fleet_history(repo, true);
-    db::NewRun first = db::test::new_run("SN-T1", db::test::fleet_t0() + 3600000);
+    db::history::NewRun first = db::test::new_run("SN-T1", db::test::fleet_t0() + 3600000);
     first.station = "st-B";
     first.slot = "A";
     table_first_ = repo.create_run(first);
-    db::NewRun second = first;
+    db::history::NewRun second = first;
     second.serial = "SN-T2";
     second.slot = "B";
     second.table_run_id = table_first_;
@@ -70,12 +70,12 @@ class FleetView : public ::testing::Test {
   static inline std::unique_ptr<PgCluster> pg_;
   static inline std::unique_ptr<db::test::TempDir> dir_;
   static inline std::string db_;
-  static inline db::RunId table_first_ = 0;
+  static inline db::history::RunId table_first_ = 0;
 };
 
-std::vector<db::FleetFilter> filters() {
-  const db::TimestampMs day = 86400000, t0 = db::test::fleet_t0();
-  std::vector<db::FleetFilter> out(7);
+std::vector<db::history::FleetFilter> filters() {
+  const db::history::TimestampMs day = 86400000, t0 = db::test::fleet_t0();
+  std::vector<db::history::FleetFilter> out(7);
   out[1].since_ms = t0 + day;
   out[1].until_ms = t0 + 4 * day;
   out[2].station = "st-B";
@@ -89,10 +89,10 @@ std::vector<db::FleetFilter> filters() {
 }
 
 TEST_F(FleetView, TheStoresAggregatesEqualTheStationsForTheSameRows) {
-  const db::SqliteFleetStats sqlite(db_);
+  const db::history::SqliteFleetStats sqlite(db_);
   const db::fleet::PgFleetStats fleet(reader());
   EXPECT_EQ(sqlite.runs_per_station_day({}).size(), 16u) << "the rows are there to compare";
-  for (const db::FleetFilter& f : filters()) {
+  for (const db::history::FleetFilter& f : filters()) {
     const auto a = sqlite.runs_per_station_day(f), b = fleet.runs_per_station_day(f);
     ASSERT_EQ(a.size(), b.size());
     for (std::size_t i = 0; i < a.size(); ++i) {
@@ -107,13 +107,13 @@ TEST_F(FleetView, TheStoresAggregatesEqualTheStationsForTheSameRows) {
       EXPECT_EQ(std::vector<std::int64_t>({va[i].pass, va[i].review, va[i].failed, va[i].live}),
                 std::vector<std::int64_t>({vb[i].pass, vb[i].review, vb[i].failed, vb[i].live}));
     }
-    for (int p = 0; p < calib::ParamSet::kSize; ++p) {
+    for (int p = 0; p < calib::core::ParamSet::kSize; ++p) {
       const auto da = sqlite.param_distribution(p, f), dp = fleet.param_distribution(p, f);
-      ASSERT_EQ(da.size(), dp.size()) << calib::param_info(p).name;
+      ASSERT_EQ(da.size(), dp.size()) << calib::core::param_info(p).name;
       for (std::size_t i = 0; i < da.size(); ++i) {
         const double tol = 1e-12 * std::max(std::abs(da[i].min), std::abs(da[i].max));
         EXPECT_EQ(da[i].station, dp[i].station);
-        EXPECT_EQ(da[i].count, dp[i].count) << calib::param_info(p).name;
+        EXPECT_EQ(da[i].count, dp[i].count) << calib::core::param_info(p).name;
         EXPECT_NEAR(da[i].mean, dp[i].mean, tol);
         EXPECT_NEAR(da[i].std_dev, dp[i].std_dev, tol);
         EXPECT_EQ(da[i].min, dp[i].min);
@@ -125,11 +125,11 @@ TEST_F(FleetView, TheStoresAggregatesEqualTheStationsForTheSameRows) {
     }
   }
   // The AINS results for the station signatures: the same results, the store's ids aside.
-  for (const db::FleetFilter& f : filters()) {
+  for (const db::history::FleetFilter& f : filters()) {
     auto a = sqlite.ains_results(f), b = fleet.ains_results(f);
     ASSERT_EQ(a.size(), b.size());
     // Each in its own ids' order; compared by what the runs are.
-    auto by_run = [](const db::AinsResultRow& x, const db::AinsResultRow& y) {
+    auto by_run = [](const db::history::AinsResultRow& x, const db::history::AinsResultRow& y) {
       return std::tie(x.station, x.started_at_ms, x.serial) <
              std::tie(y.station, y.started_at_ms, y.serial);
     };
@@ -207,7 +207,7 @@ TEST_F(FleetView, StationwebOverTheStoreShowsWhatItShowsOverTheStationsFile) {
   ASSERT_EQ(s2, 200);
   const auto rows = tags(test_support::section(unit, "history", "</table>"), "<tr class='run'");
   EXPECT_EQ(rows.size(), repo.history("SN-3").size());
-  const db::RunId newest = repo.history("SN-3").front().run_id;
+  const db::history::RunId newest = repo.history("SN-3").front().run_id;
   const std::string run = get(store.port(), "/run/" + std::to_string(newest), s2);
   EXPECT_EQ(s2, 200);
   EXPECT_NE(run.find("SN-3"), std::string::npos);

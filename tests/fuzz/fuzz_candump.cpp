@@ -4,7 +4,7 @@
 #include "tests/fuzz/fuzz_support.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  using namespace imucal::imu;
+  using namespace imucal::drivers::imu;
   const std::string text = imucal::fuzz::text_of(data, size);
   size_t start = 0;
   while (start <= text.size()) {

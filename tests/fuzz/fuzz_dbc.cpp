@@ -6,7 +6,7 @@
 #include "tests/fuzz/fuzz_support.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  using namespace imucal::imu;
+  using namespace imucal::drivers::imu;
   return imucal::fuzz::refused_cleanly_or_ok([&] {
     const DbcDatabase db = parse_dbc(imucal::fuzz::text_of(data, size), "fuzz.dbc");
     for (const DbcMessage& m : db.messages) {

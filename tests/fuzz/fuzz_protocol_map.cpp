@@ -12,7 +12,7 @@
 #include "tests/fuzz/fuzz_support.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  using namespace imucal::imu;
+  using namespace imucal::drivers::imu;
   return imucal::fuzz::refused_cleanly_or_ok([&] {
     const std::string text = imucal::fuzz::text_of(data, size);
     const size_t cut = text.find("\n#@dbc\n");
@@ -25,7 +25,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     o.protocol = map;
     ImuFrameDecoder dec(o);
     std::vector<DecodedSample> out;
-    imucal::calib::ImuIncrement inc;
+    imucal::calib::core::ImuIncrement inc;
     inc.dt_s = 0.01;
     inc.temp_c = 21.5;
     for (int k = 0; k < 40; ++k) {

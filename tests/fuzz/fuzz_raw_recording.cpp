@@ -5,13 +5,13 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string text = imucal::fuzz::text_of(data, size);
-  imucal::archive::RawImportOptions plain;
+  imucal::db::archive::RawImportOptions plain;
   imucal::fuzz::refused_cleanly_or_ok(
-      [&] { (void)imucal::archive::parse_raw_recording(text, "rec.txt", plain); });
-  imucal::archive::RawImportOptions logger;
+      [&] { (void)imucal::db::archive::parse_raw_recording(text, "rec.txt", plain); });
+  imucal::db::archive::RawImportOptions logger;
   logger.columns = {"-", "t", "ax", "ay", "az", "gx", "gy", "gz"};
   logger.seconds_per_time_unit = 1e-3;
-  logger.quantity = imucal::archive::RawQuantity::kIncrements;
+  logger.quantity = imucal::db::archive::RawQuantity::kIncrements;
   return imucal::fuzz::refused_cleanly_or_ok(
-      [&] { (void)imucal::archive::parse_raw_recording(text, "log.csv", logger); });
+      [&] { (void)imucal::db::archive::parse_raw_recording(text, "log.csv", logger); });
 }

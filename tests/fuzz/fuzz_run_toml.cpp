@@ -4,6 +4,6 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   return imucal::fuzz::refused_cleanly_or_ok([&] {
-    (void)imucal::archive::parse_run_info(imucal::fuzz::text_of(data, size), "run.toml");
+    (void)imucal::db::archive::parse_run_info(imucal::fuzz::text_of(data, size), "run.toml");
   });
 }

@@ -5,7 +5,7 @@
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string text = imucal::fuzz::text_of(data, size);
   imucal::fuzz::refused_cleanly_or_ok(
-      [&] { (void)imucal::archive::parse_unit_file(text, "unit.toml"); });
+      [&] { (void)imucal::db::archive::parse_unit_file(text, "unit.toml"); });
   return imucal::fuzz::refused_cleanly_or_ok(
-      [&] { (void)imucal::archive::parse_truth_json(text, "truth.json"); });
+      [&] { (void)imucal::db::archive::parse_truth_json(text, "truth.json"); });
 }

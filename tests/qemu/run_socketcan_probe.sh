@@ -1,7 +1,7 @@
 #!/bin/bash
 # Runs socketcan_probe inside a QEMU guest (TCG) on the host's Debian kernel, with the SocketCAN
 # modules loaded and a vcan0 interface up: a real-kernel test of the socketcan: transport on a host
-# whose own kernel has no AF_CAN (DESIGN §4). See README.md in this directory.
+# whose own kernel has no AF_CAN (ARCHITECTURE §4). See README.md in this directory.
 #
 # Usage: run_socketcan_probe.sh PROBE [--workdir DIR] [--timeout SECONDS] [--kernel VMLINUZ] [--bzimage]
 #                               [-- PROBE_ARGS...]

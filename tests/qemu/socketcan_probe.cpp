@@ -1,12 +1,12 @@
-// socketcan_probe: the SocketCAN transport (imu::CanChannel "socketcan:IFACE") against a real Linux
+// socketcan_probe: the SocketCAN transport (drivers::imu::CanChannel "socketcan:IFACE") against a real Linux
 // kernel's CAN stack. Meant to run as root inside the QEMU guest that run_socketcan_probe.sh boots
-// (this host's kernel has no AF_CAN, DESIGN §4), on a vcan interface that already exists and is up.
+// (this host's kernel has no AF_CAN, ARCHITECTURE §4), on a vcan interface that already exists and is up.
 //
 // Phases, each checked against what the sender itself recorded (SampleFate, the series' truth):
-//   1. round trip   a simulated IMU node (sim::ImuCanNode) sends N samples on one socketcan
+//   1. round trip   a simulated IMU node (drivers::simulated::ImuCanNode) sends N samples on one socketcan
 //   channel,
 //                   another channel on the same interface receives them: every frame bit-exact and
-//                   in order, every sample decoded (imu::ImuFrameDecoder) with its counter, status
+//                   in order, every sample decoded (drivers::imu::ImuFrameDecoder) with its counter, status
 //                   and the encoder's exact counts, within one LSB of the true increment (and the
 //                   sum of all increments within one LSB: quantisation carry survives the bus).
 //   2. timestamps   SO_TIMESTAMP receive times lie between the send and the read, never decrease,
@@ -23,7 +23,7 @@
 //   the
 //                   first R frames, and after a marker sample its rx_overflow (SO_RXQ_OVFL) equals
 //                   the burst size minus R, while a deep-buffered reader got the whole burst.
-//   5. capture      the daemon's own station::Capture (the code stationd runs) on a socketcan
+//   5. capture      the daemon's own station::run::Capture (the code stationd runs) on a socketcan
 //                   channel, writing a run archive: every sample the node sent becomes a row whose
 //                   increments are the transmitted counts; an error flood (protocol errors,
 //                   error-passive, interleaved with samples) is counted and logged but stops
@@ -68,16 +68,16 @@
 #include "drivers/imu/candump_log.hpp"
 #include "drivers/imu/imu_codec.hpp"
 #include "drivers/imu/imu_protocol.hpp"
-#include "drivers/sim/imu_can_node.hpp"
-#include "station/archive_writer.hpp"
-#include "station/capture.hpp"
+#include "drivers/simulated/imu_can_node.hpp"
+#include "station/run/archive_writer.hpp"
+#include "station/run/capture.hpp"
 
 namespace {
 
 using namespace imucal;
-using imu::CanChannel;
-using imu::CanFrame;
-using imu::ReceivedFrame;
+using drivers::imu::CanChannel;
+using drivers::imu::CanFrame;
+using drivers::imu::ReceivedFrame;
 using nlohmann::json;
 
 constexpr double kRate_hz = 100.0;
@@ -102,13 +102,13 @@ struct Failures {
 /// A deterministic series that exercises the whole field ranges: every 4th sample is uniform over
 /// ±0.5 rad / ±3.3 m/s (near the ±0.537 rad / ±3.355 m/s limits, both signs), the others are a unit
 /// at rest with noise; temperatures vary, every 97th is unknown (NaN).
-calib::ImuSeries make_series(std::size_t n, uint64_t seed) {
+calib::core::ImuSeries make_series(std::size_t n, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::normal_distribution<double> g(0.0, 1.0);
-  calib::ImuSeries s(n);
+  calib::core::ImuSeries s(n);
   for (std::size_t k = 0; k < n; ++k) {
-    calib::ImuIncrement& inc = s[k];
+    calib::core::ImuIncrement& inc = s[k];
     inc.t_s = static_cast<double>(k + 1) / kRate_hz;
     inc.dt_s = 1.0 / kRate_hz;
     if (k % 4 == 0) {
@@ -206,10 +206,10 @@ Args parse_args(int argc, char** argv) {
 }
 
 /// Phases 1 and 2: the lossless round trip with timestamp checks.
-json round_trip(CanChannel& tx, CanChannel& rx, sim::ImuCanNode& node,
-                const calib::ImuSeries& series, Failures& fail) {
+json round_trip(CanChannel& tx, CanChannel& rx, drivers::simulated::ImuCanNode& node,
+                const calib::core::ImuSeries& series, Failures& fail) {
   const std::size_t n = series.size();
-  std::vector<sim::SampleFate> fates(n);
+  std::vector<drivers::simulated::SampleFate> fates(n);
   std::vector<ReceivedFrame> got;
   got.reserve(4 * n);
   std::vector<int64_t> sent_before_ns(n);  // realtime just before each sample's frames were written
@@ -251,13 +251,13 @@ json round_trip(CanChannel& tx, CanChannel& rx, sim::ImuCanNode& node,
   fail.check(ts_backwards == 0, "timestamps: " + std::to_string(ts_backwards) + " times decrease");
 
   // Decode: every sample, in order, exactly the encoder's counts; within 1 LSB of the truth.
-  imu::ImuFrameDecoder dec;
-  std::vector<imu::DecodedSample> out;
+  drivers::imu::ImuFrameDecoder dec;
+  std::vector<drivers::imu::DecodedSample> out;
   for (const ReceivedFrame& f : got) dec.push(f, out);
   dec.flush(out);
   fail.check(out.size() == n,
              "decoder: " + std::to_string(out.size()) + " samples decoded of " + std::to_string(n));
-  const imu::DecoderCounters& c = dec.counters();
+  const drivers::imu::DecoderCounters& c = dec.counters();
   fail.check(c.samples_lost + c.samples_incomplete + c.samples_corrupt + c.samples_late +
                      c.duplicate_frames + c.out_of_order_frames + c.discarded_frames +
                      c.error_frames + c.foreign_frames ==
@@ -267,19 +267,19 @@ json round_trip(CanChannel& tx, CanChannel& rx, sim::ImuCanNode& node,
   double max_err_dtheta_lsb = 0.0, max_err_dv_lsb = 0.0;
   Eigen::Vector3d sum_err_dtheta = Eigen::Vector3d::Zero(), sum_err_dv = Eigen::Vector3d::Zero();
   for (std::size_t k = 0; k < out.size() && k < n; ++k) {
-    const imu::DecodedSample& d = out[k];
-    const sim::SampleFate& f = fates[k];
-    const imu::StatusFields st = imu::unpack_status(f.clean[3].data);
+    const drivers::imu::DecodedSample& d = out[k];
+    const drivers::simulated::SampleFate& f = fates[k];
+    const drivers::imu::StatusFields st = drivers::imu::unpack_status(f.clean[3].data);
     bool same = d.counter == f.counter && d.counter == static_cast<uint16_t>(k) &&
                 d.sample_index == k &&
-                ((d.conditions & imu::condition::kStartup) != 0) ==
-                    ((st.status & imu::status::kStartup) != 0) &&
+                ((d.conditions & drivers::imu::condition::kStartup) != 0) ==
+                    ((st.status & drivers::imu::status::kStartup) != 0) &&
                 4 * k + 3 < got.size() && d.rx_time_ns == got[4 * k + 3].rx_time_ns &&
                 std::abs(d.increment.t_s - series[k].t_s) < 1e-9;
     for (int a = 0; a < 3; ++a) {
-      const imu::AxisFields ax = imu::unpack_axis(f.clean[static_cast<std::size_t>(a)].data);
-      same = same && d.increment.dtheta_rad(a) == ax.dtheta_count * imu::kDthetaLsb_rad &&
-             d.increment.dv_mps(a) == ax.dv_count * imu::kDvLsb_mps;
+      const drivers::imu::AxisFields ax = drivers::imu::unpack_axis(f.clean[static_cast<std::size_t>(a)].data);
+      same = same && d.increment.dtheta_rad(a) == ax.dtheta_count * drivers::imu::kDthetaLsb_rad &&
+             d.increment.dv_mps(a) == ax.dv_count * drivers::imu::kDvLsb_mps;
     }
     if (!same) ++count_mismatch;
     const Eigen::Vector3d e_dth = d.increment.dtheta_rad - series[k].dtheta_rad;
@@ -287,18 +287,18 @@ json round_trip(CanChannel& tx, CanChannel& rx, sim::ImuCanNode& node,
     sum_err_dtheta += e_dth;
     sum_err_dv += e_dv;
     max_err_dtheta_lsb =
-        std::max(max_err_dtheta_lsb, e_dth.cwiseAbs().maxCoeff() / imu::kDthetaLsb_rad);
-    max_err_dv_lsb = std::max(max_err_dv_lsb, e_dv.cwiseAbs().maxCoeff() / imu::kDvLsb_mps);
+        std::max(max_err_dtheta_lsb, e_dth.cwiseAbs().maxCoeff() / drivers::imu::kDthetaLsb_rad);
+    max_err_dv_lsb = std::max(max_err_dv_lsb, e_dv.cwiseAbs().maxCoeff() / drivers::imu::kDvLsb_mps);
     // Quantisation with carry: each increment within one LSB of the truth (plus rounding of the
     // double arithmetic).
-    if (e_dth.cwiseAbs().maxCoeff() > imu::kDthetaLsb_rad * (1 + 1e-6) ||
-        e_dv.cwiseAbs().maxCoeff() > imu::kDvLsb_mps * (1 + 1e-6))
+    if (e_dth.cwiseAbs().maxCoeff() > drivers::imu::kDthetaLsb_rad * (1 + 1e-6) ||
+        e_dv.cwiseAbs().maxCoeff() > drivers::imu::kDvLsb_mps * (1 + 1e-6))
       ++truth_violations;
     const double t_true = series[k].temp_c;
     const bool temp_ok =
         std::isnan(t_true)
-            ? std::isnan(d.increment.temp_c) && (d.conditions & imu::condition::kTemperatureInvalid)
-            : std::abs(d.increment.temp_c - t_true) <= 0.5 * imu::kTemperatureLsb_degc + 1e-9;
+            ? std::isnan(d.increment.temp_c) && (d.conditions & drivers::imu::condition::kTemperatureInvalid)
+            : std::abs(d.increment.temp_c - t_true) <= 0.5 * drivers::imu::kTemperatureLsb_degc + 1e-9;
     if (!temp_ok) ++temp_mismatch;
   }
   fail.check(count_mismatch == 0, "decoder: " + std::to_string(count_mismatch) +
@@ -307,8 +307,8 @@ json round_trip(CanChannel& tx, CanChannel& rx, sim::ImuCanNode& node,
                                         " increments off the truth by > 1 LSB");
   fail.check(temp_mismatch == 0,
              "decoder: " + std::to_string(temp_mismatch) + " temperatures wrong");
-  const double sum_dth_lsb = sum_err_dtheta.cwiseAbs().maxCoeff() / imu::kDthetaLsb_rad;
-  const double sum_dv_lsb = sum_err_dv.cwiseAbs().maxCoeff() / imu::kDvLsb_mps;
+  const double sum_dth_lsb = sum_err_dtheta.cwiseAbs().maxCoeff() / drivers::imu::kDthetaLsb_rad;
+  const double sum_dv_lsb = sum_err_dv.cwiseAbs().maxCoeff() / drivers::imu::kDvLsb_mps;
   // The remainder carry keeps the summed error within half an LSB (plus double rounding on n sums
   // of values up to 0.5 rad: ~n × 1e-16 rad, far below 1e-9).
   fail.check(sum_dth_lsb <= 0.5 + 1e-3 && sum_dv_lsb <= 0.5 + 1e-3,
@@ -327,7 +327,7 @@ json round_trip(CanChannel& tx, CanChannel& rx, sim::ImuCanNode& node,
   int64_t min_age_us = std::numeric_limits<int64_t>::max();
   for (int rep = 0; rep < 3; ++rep) {
     const int64_t t_send = realtime_ns();
-    calib::ImuIncrement inc = series[static_cast<std::size_t>(rep)];
+    calib::core::ImuIncrement inc = series[static_cast<std::size_t>(rep)];
     node.send(inc);
     const int64_t t_sent = realtime_ns();
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -380,7 +380,7 @@ json error_frames(const Args& args, CanChannel& tx, CanChannel& rx, Failures& fa
   std::vector<ReceivedFrame> none;
   drain(rx, none, 20);  // nothing pending before the test frames
   CanFrame err;
-  err.can_id = imu::kCanErrFlag | CAN_ERR_BUSOFF;
+  err.can_id = drivers::imu::kCanErrFlag | CAN_ERR_BUSOFF;
   err.len = CAN_ERR_DLC;
   CanFrame data;
   data.can_id = 0x7A5;
@@ -416,9 +416,9 @@ json error_frames(const Args& args, CanChannel& tx, CanChannel& rx, Failures& fa
 }
 
 /// Phase 4: kernel receive-queue overflow on a tiny SO_RCVBUF.
-json overflow(const Args& args, CanChannel& rx, sim::ImuCanNode& node,
-              const calib::ImuSeries& series, Failures& fail) {
-  imu::CanOpenOptions small_opt;
+json overflow(const Args& args, CanChannel& rx, drivers::simulated::ImuCanNode& node,
+              const calib::core::ImuSeries& series, Failures& fail) {
+  drivers::imu::CanOpenOptions small_opt;
   small_opt.socket_buffer_bytes = 4096;  // the kernel doubles it and enforces its minimum
   auto small = CanChannel::open("socketcan:" + args.iface, small_opt);
   int rcvbuf = 0;
@@ -429,7 +429,7 @@ json overflow(const Args& args, CanChannel& rx, sim::ImuCanNode& node,
   std::vector<CanFrame> sent;
   std::vector<ReceivedFrame> deep;  // the deep-buffered reader, read between chunks
   for (std::size_t k = 0; k < b; ++k) {
-    const sim::SampleFate f = node.send(series[k % series.size()]);
+    const drivers::simulated::SampleFate f = node.send(series[k % series.size()]);
     sent.insert(sent.end(), f.clean.begin(), f.clean.end());
     if (k % 8 == 7) read_until(rx, deep, sent.size(), 2000);
   }
@@ -439,7 +439,7 @@ json overflow(const Args& args, CanChannel& rx, sim::ImuCanNode& node,
   const std::size_t r = kept.size();
   const uint64_t ovfl_before_marker = small->counters().rx_overflow;
   // The drop count travels with frames queued after the drops: send a marker sample.
-  const sim::SampleFate marker = node.send(series[0]);
+  const drivers::simulated::SampleFate marker = node.send(series[0]);
   std::vector<ReceivedFrame> after;
   read_until(*small, after, 4, 2000);
   read_until(rx, deep, sent.size() + 4, 2000);
@@ -469,8 +469,8 @@ json overflow(const Args& args, CanChannel& rx, sim::ImuCanNode& node,
                                            " != frames missed " + std::to_string(burst_frames - r));
   // The decoder's view of the small reader: floor(R/4) whole samples, then the marker after a gap
   // of exactly the samples it never completed.
-  imu::ImuFrameDecoder dec;
-  std::vector<imu::DecodedSample> out;
+  drivers::imu::ImuFrameDecoder dec;
+  std::vector<drivers::imu::DecodedSample> out;
   for (const ReceivedFrame& f : kept) dec.push(f, out);
   for (const ReceivedFrame& f : after) dec.push(f, out);
   dec.flush(out);
@@ -504,27 +504,27 @@ json daemon_capture(const Args& args, Failures& fail) {
   using namespace std::chrono_literals;
   const std::string dir = "/tmp/imucal-capture-run";
   std::filesystem::remove_all(dir);
-  archive::RunInfo info;
+  db::archive::RunInfo info;
   info.serial = "QEMU-0001";
-  info.site = calib::demo_factory_site();
+  info.site = calib::core::demo_factory_site();
   info.imu_rate_hz = kRate_hz;
-  station::ArchiveWriter writer(dir, info);
-  station::CaptureOptions co;
+  station::run::ArchiveWriter writer(dir, info);
+  station::run::CaptureOptions co;
   co.decoder.sample_rate_hz = kRate_hz;
   co.flush_period = 50ms;
-  station::Capture cap(CanChannel::open("socketcan:" + args.iface), co);
+  station::run::Capture cap(CanChannel::open("socketcan:" + args.iface), co);
   cap.start();
   auto tx = CanChannel::open("socketcan:" + args.iface);
-  sim::ImuCanNodeOptions no;
+  drivers::simulated::ImuCanNodeOptions no;
   no.rate_hz = kRate_hz;
   no.speed_factor = 0.0;
-  sim::ImuCanNode node(*tx, no);
-  const calib::ImuSeries series = make_series(args.capture_samples + 20, 20261125);
+  drivers::simulated::ImuCanNode node(*tx, no);
+  const calib::core::ImuSeries series = make_series(args.capture_samples + 20, 20261125);
   std::vector<std::vector<CanFrame>> sent;
   auto send = [&](std::size_t k) { sent.push_back(node.send(series[k]).clean); };
   auto error_frame = [](uint32_t cls) {
     CanFrame e;
-    e.can_id = imu::kCanErrFlag | cls;
+    e.can_id = drivers::imu::kCanErrFlag | cls;
     e.len = 8;
     return e;
   };
@@ -537,7 +537,7 @@ json daemon_capture(const Args& args, Failures& fail) {
   for (std::size_t k = 0; k < n; ++k) {
     send(k);
     for (int i = 0; i < per_sample; ++i, ++errors)
-      fail.check(tx->write(error_frame(i % 2 ? imu::kCanErrProt : imu::kCanErrCrtl)),
+      fail.check(tx->write(error_frame(i % 2 ? drivers::imu::kCanErrProt : drivers::imu::kCanErrCrtl)),
                  "capture: error frame write");
     if (k % 50 == 49)
       wait_for([&] { return cap.rows() >= k + 1; }, 5s);  // no kernel queue overflow
@@ -547,7 +547,7 @@ json daemon_capture(const Args& args, Failures& fail) {
   const uint64_t frames_before_bus_off = 4 * n + errors;
   const bool all_rows = wait_for(
       [&] { return cap.rows() >= n && cap.stats().frames_received >= frames_before_bus_off; }, 10s);
-  const station::CaptureStats during = cap.stats();
+  const station::run::CaptureStats during = cap.stats();
   fail.check(all_rows && cap.rows() == n, "capture: " + std::to_string(cap.rows()) + " rows of " +
                                               std::to_string(n) +
                                               " samples sent through the error flood");
@@ -562,7 +562,7 @@ json daemon_capture(const Args& args, Failures& fail) {
                  std::to_string(during.rx_overflow));
 
   // Bus-off, then more samples: a fault naming it, and no row after it.
-  fail.check(tx->write(error_frame(imu::kCanErrBusOff)), "capture: bus-off frame write");
+  fail.check(tx->write(error_frame(drivers::imu::kCanErrBusOff)), "capture: bus-off frame write");
   const bool faulted = wait_for([&] { return cap.fault().has_value(); }, 5s);
   const std::string fault = cap.fault().value_or("");
   fail.check(faulted && fault.find("bus-off") != std::string::npos &&
@@ -574,31 +574,31 @@ json daemon_capture(const Args& args, Failures& fail) {
   wait_for([&] { return cap.stats().frames_received >= frames_total; }, 5s);
   fail.check(cap.rows() == rows_at_fault, "capture: rows written after bus-off");
   cap.detach();
-  const station::CaptureStats end = cap.stats();
+  const station::run::CaptureStats end = cap.stats();
   cap.stop();
   fail.check(end.frames_received == frames_total && end.frames_logged == frames_total,
              "capture: received " + std::to_string(end.frames_received) + ", logged " +
                  std::to_string(end.frames_logged) + ", sent " + std::to_string(frames_total));
 
   // The archive: rows equal to the transmitted counts of every sample, the log holds every frame.
-  archive::RunInfo fin = info;
-  fin.capture = station::to_capture_info(end, false);
+  db::archive::RunInfo fin = info;
+  fin.capture = station::run::to_capture_info(end, false);
   writer.finish(fin);
-  const archive::RunArchive a = archive::read_archive(dir);
+  const db::archive::RunArchive a = db::archive::read_archive(dir);
   std::size_t row_mismatch = 0;
   for (std::size_t k = 0; k < std::min<std::size_t>(a.imu.size(), n); ++k) {
     for (int ax = 0; ax < 3; ++ax) {
-      const imu::AxisFields f = imu::unpack_axis(sent[k][static_cast<std::size_t>(ax)].data);
-      if (a.imu[k].dtheta_rad(ax) != static_cast<double>(f.dtheta_count) * imu::kDthetaLsb_rad ||
-          a.imu[k].dv_mps(ax) != static_cast<double>(f.dv_count) * imu::kDvLsb_mps)
+      const drivers::imu::AxisFields f = drivers::imu::unpack_axis(sent[k][static_cast<std::size_t>(ax)].data);
+      if (a.imu[k].dtheta_rad(ax) != static_cast<double>(f.dtheta_count) * drivers::imu::kDthetaLsb_rad ||
+          a.imu[k].dv_mps(ax) != static_cast<double>(f.dv_count) * drivers::imu::kDvLsb_mps)
         ++row_mismatch;
     }
   }
   fail.check(a.imu.size() == n && row_mismatch == 0,
              "capture: archive has " + std::to_string(a.imu.size()) + " rows, " +
                  std::to_string(row_mismatch) + " axis values differ from the transmitted counts");
-  imu::CandumpReader log(dir + "/capture.log");
-  imu::CandumpRecord rec;
+  drivers::imu::CandumpReader log(dir + "/capture.log");
+  drivers::imu::CandumpRecord rec;
   std::size_t logged = 0, logged_errors = 0;
   while (log.next(rec)) {
     ++logged;
@@ -627,11 +627,11 @@ int main(int argc, char** argv) {
     summary["iface"] = args.iface;
     auto tx = CanChannel::open("socketcan:" + args.iface);
     auto rx = CanChannel::open("socketcan:" + args.iface);
-    const calib::ImuSeries series = make_series(args.samples, 20240611);
-    sim::ImuCanNodeOptions no;
+    const calib::core::ImuSeries series = make_series(args.samples, 20240611);
+    drivers::simulated::ImuCanNodeOptions no;
     no.rate_hz = kRate_hz;
     no.speed_factor = 0.0;
-    sim::ImuCanNode node(*tx, no);
+    drivers::simulated::ImuCanNode node(*tx, no);
     summary["round_trip"] = round_trip(*tx, *rx, node, series, fail);
     summary["error_frames"] = error_frames(args, *tx, *rx, fail);
     summary["overflow"] = overflow(args, *rx, node, series, fail);

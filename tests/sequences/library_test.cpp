@@ -186,13 +186,13 @@ TEST(Library, LoadProfileRejectsInvalidSequencesWithFileAndLine) {
 Eigen::Matrix3d rot(const Eigen::Vector3d& axis, double angle) {
   return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
 }
-Eigen::Matrix3d C_bn_of(const calib::TableGeometry& g, double outer, double inner) {
+Eigen::Matrix3d C_bn_of(const calib::core::TableGeometry& g, double outer, double inner) {
   return rot(Eigen::Vector3d::UnitZ(), g.heading_rad) * rot(g.outer_axis_t, outer) *
          rot(g.inner_axis_o, inner) * g.C_bp;
 }
 // Body rate w.r.t. n, in body axes: outer rate about a_outer (in n), inner rate about the inner
 // axis carried by the outer gimbal.
-Eigen::Vector3d w_nb_b_of(const calib::TableGeometry& g, const TableState& s) {
+Eigen::Vector3d w_nb_b_of(const calib::core::TableGeometry& g, const TableState& s) {
   const Eigen::Matrix3d C_tn = rot(Eigen::Vector3d::UnitZ(), g.heading_rad);
   const Eigen::Vector3d w_n =
       C_tn * g.outer_axis_t.normalized() * s.outer_rate_radps +
@@ -207,7 +207,7 @@ struct Coverage {
   double min_rest_s = 1e300, max_rest_s = 0.0;
 };
 
-Coverage coverage(const MotionProfile& p, const calib::TableGeometry& g) {
+Coverage coverage(const MotionProfile& p, const calib::core::TableGeometry& g) {
   Coverage c;
   for (const ProfileSegment& s : p.segments) {
     const TableState mid = p.at(0.5 * (s.t0_s + s.t1_s));
@@ -251,7 +251,7 @@ TEST_P(ShippedSequences, ParseValidateAndFitTheirBudget) {
   for (const auto& i : issues) ADD_FAILURE() << path << ":" << i.line << ": " << i.message;
   const MotionProfile p = load_profile(sh.name);
   EXPECT_LE(p.duration_s(), sh.max_duration_s);
-  const Coverage c = coverage(p, calib::TableGeometry{});
+  const Coverage c = coverage(p, calib::core::TableGeometry{});
   EXPECT_GE(c.min_rest_s, sh.min_rest_s);
   EXPECT_LE(c.max_rest_s, sh.max_rest_s);
   std::printf("[ %s ] duration %.1f s (%.1f min), %d rests, %zu segments\n", sh.name,
@@ -259,7 +259,7 @@ TEST_P(ShippedSequences, ParseValidateAndFitTheirBudget) {
 }
 
 TEST_P(ShippedSequences, ExerciseEveryBodyAxisWithTheDefaultGeometry) {
-  const Coverage c = coverage(load_profile(GetParam().name), calib::TableGeometry{});
+  const Coverage c = coverage(load_profile(GetParam().name), calib::core::TableGeometry{});
   const char* axis[3] = {"x", "y", "z"};
   for (int k = 0; k < 3; ++k) {
     // Gyro scale factors and misalignments: rotations about each body axis, both senses.
@@ -290,7 +290,7 @@ TEST(ShippedSequencesPos19, HasNineteenDistinctStaticPositions) {
   for (const ProfileSegment& s : p.segments) {
     if (s.kind != SegmentKind::kRest) continue;
     const Eigen::Matrix3d C =
-        C_bn_of(calib::TableGeometry{}, s.outer.angle0_rad, s.inner.angle0_rad);
+        C_bn_of(calib::core::TableGeometry{}, s.outer.angle0_rad, s.inner.angle0_rad);
     for (const auto& q : poses) EXPECT_GT((C - q).norm(), 0.1) << "repeated position";
     poses.push_back(C);
   }
@@ -305,11 +305,11 @@ TEST(ShippedSequencesPos19, HasNineteenDistinctStaticPositions) {
 // The geometry formula used above, evaluated independently of calib/, agrees with calib's
 // TableModel (which the simulator and estimators use) for the default and a rotated geometry.
 TEST(Geometry, IndependentFormulaMatchesTableModel) {
-  calib::TableGeometry tilted;
+  calib::core::TableGeometry tilted;
   tilted.heading_rad = 0.3;
   tilted.C_bp = rot(Eigen::Vector3d(1.0, 2.0, 3.0), 0.2);
-  for (const calib::TableGeometry& g : {calib::TableGeometry{}, tilted}) {
-    const calib::TableModel model(g);
+  for (const calib::core::TableGeometry& g : {calib::core::TableGeometry{}, tilted}) {
+    const calib::core::TableModel model(g);
     for (double o = -200.0; o <= 200.0; o += 37.0) {
       for (double i = -200.0; i <= 200.0; i += 41.0) {
         TableState s;

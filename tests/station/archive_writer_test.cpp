@@ -1,9 +1,9 @@
-// station::ArchiveWriter, recover_archive, archive_digest and run.toml [capture]: the archive
+// station::run::ArchiveWriter, recover_archive, archive_digest and run.toml [capture]: the archive
 // written as the run goes reads back bit-exactly with db/archive's reader; a writer killed with
 // SIGKILL at an arbitrary moment leaves an archive that recover_archive() turns into a readable one
 // holding exactly a prefix of what was written; torn and garbage tails are cut; the digest sees
 // every byte; the [capture] section round-trips and is parsed strictly.
-#include "station/archive_writer.hpp"
+#include "station/run/archive_writer.hpp"
 
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -20,15 +20,17 @@
 #include "calib/core/conventions.hpp"
 #include "calib/core/site_presets.hpp"
 #include "db/archive/archive_error.hpp"
+#include "db/archive/archive_input.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/run_archive.hpp"
 #include "drivers/imu/candump_log.hpp"
 #include "drivers/imu/imu_codec.hpp"
 #include "sequences/library.hpp"
-#include "station/capture_stats.hpp"
+#include "station/run/capture_stats.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace imucal::station {
+using namespace imucal::station::run;
 namespace {
 
 namespace fs = std::filesystem;
@@ -41,11 +43,11 @@ class TempDir : public test_support::ScopedTempDir {
 
 constexpr double kRate_hz = 100.0;
 
-archive::RunInfo make_info() {
-  archive::RunInfo ri;
+db::archive::RunInfo make_info() {
+  db::archive::RunInfo ri;
   ri.serial = "SIM-0001";
   ri.station_name = "test bay";
-  ri.site = calib::demo_factory_site();
+  ri.site = calib::core::demo_factory_site();
   ri.imu_rate_hz = kRate_hz;
   ri.software_version = "0.1.0";
   ri.start_time = "2026-11-22T03:00:00Z";
@@ -56,8 +58,8 @@ archive::RunInfo make_info() {
 // Row k of a synthetic run: the unit resting level (f_b = (0, 0, -g), NED down = body z at zero
 // angles) with small, irregular increments so that every digit of the text matters; every 5th
 // block of 40 rows is moving (at_rest = 0).
-calib::ImuIncrement imu_row(uint64_t k) {
-  calib::ImuIncrement s;
+calib::core::ImuIncrement imu_row(uint64_t k) {
+  calib::core::ImuIncrement s;
   s.t_s = static_cast<double>(k + 1) / kRate_hz;
   s.dt_s = 1.0 / kRate_hz;
   const double x = static_cast<double>(k % 97) - 48.0;
@@ -65,15 +67,15 @@ calib::ImuIncrement imu_row(uint64_t k) {
   s.dv_mps = Eigen::Vector3d(x * 1e-7 / 3.0, 1e-6 + x * 3e-8, -9.815 / kRate_hz + x * 1e-9 / 7.0);
   return s;
 }
-calib::TableSample table_row(uint64_t k) {
+calib::core::TableSample table_row(uint64_t k) {
   const double outer_deg = static_cast<double>(k % 360) + 0.125 / 3.0;
   const double inner_deg = -static_cast<double>(k % 180) / 7.0;
   return {static_cast<double>(k + 1) / kRate_hz, outer_deg * kDegToRad, inner_deg * kDegToRad,
           (k / 40) % 5 != 4};
 }
 // Frame j of the synthetic capture.log.
-imu::ReceivedFrame frame_of(uint64_t j) {
-  imu::ReceivedFrame f;
+drivers::imu::ReceivedFrame frame_of(uint64_t j) {
+  drivers::imu::ReceivedFrame f;
   f.frame.can_id = 0x100 + static_cast<uint32_t>(j % 4);
   f.frame.len = 8;
   for (int b = 0; b < 8; ++b)
@@ -84,16 +86,16 @@ imu::ReceivedFrame frame_of(uint64_t j) {
 
 bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
-void expect_row_equal(const archive::RunArchive& a, uint64_t k) {
-  const calib::ImuIncrement e = imu_row(k);
-  const calib::ImuIncrement& s = a.imu[k];
+void expect_row_equal(const db::archive::RunArchive& a, uint64_t k) {
+  const calib::core::ImuIncrement e = imu_row(k);
+  const calib::core::ImuIncrement& s = a.imu[k];
   ASSERT_TRUE(same_bits(s.t_s, e.t_s)) << "row " << k;
   for (int i = 0; i < 3; ++i) {
     ASSERT_TRUE(same_bits(s.dtheta_rad(i), e.dtheta_rad(i))) << "row " << k << " dtheta " << i;
     ASSERT_TRUE(same_bits(s.dv_mps(i), e.dv_mps(i))) << "row " << k << " dv " << i;
   }
-  const calib::TableSample et = table_row(k);
-  const calib::TableSample& t = a.table[k];
+  const calib::core::TableSample et = table_row(k);
+  const calib::core::TableSample& t = a.table[k];
   ASSERT_TRUE(same_bits(t.t_s, et.t_s)) << "row " << k;
   ASSERT_TRUE(same_bits(t.outer_rad, et.outer_rad)) << "row " << k;
   ASSERT_TRUE(same_bits(t.inner_rad, et.inner_rad)) << "row " << k;
@@ -101,7 +103,7 @@ void expect_row_equal(const archive::RunArchive& a, uint64_t k) {
 }
 
 std::size_t count_lines(const std::string& path) {
-  const std::string s = archive::read_text_file(path);
+  const std::string s = db::archive::read_text_file(path);
   return static_cast<std::size_t>(std::count(s.begin(), s.end(), '\n'));
 }
 
@@ -111,11 +113,11 @@ uint64_t expected_rest(uint64_t n) {
   return r;
 }
 
-archive::CaptureInfo distinct_capture(bool complete) {
-  archive::CaptureInfo ci;
+db::archive::CaptureInfo distinct_capture(bool complete) {
+  db::archive::CaptureInfo ci;
   ci.complete = complete;
   uint64_t v = 1;
-  for (const auto& c : archive::CaptureInfo::counters()) {
+  for (const auto& c : db::archive::CaptureInfo::counters()) {
     ci.*(c.second) = v * 1000 + v;  // every counter a different value
     ++v;
   }
@@ -139,13 +141,13 @@ TEST(ArchiveWriter, WrittenArchiveReadsBackBitExactAndCalibrationInputBuilds) {
     EXPECT_EQ(w.rows(), n);
     EXPECT_EQ(w.frames(), 4 * n);
     EXPECT_EQ(w.rest_rows(), expected_rest(n));
-    archive::RunInfo fin = make_info();
+    db::archive::RunInfo fin = make_info();
     fin.end_time = "2026-11-22T03:00:10Z";
     fin.capture = distinct_capture(true);
     w.finish(fin);
     EXPECT_THROW(w.append_row(imu_row(n), table_row(n)), std::logic_error);
   }
-  const archive::RunArchive a = archive::read_archive(dir);
+  const db::archive::RunArchive a = db::archive::read_archive(dir);
   ASSERT_EQ(a.imu.size(), n);
   ASSERT_EQ(a.table.size(), n);
   for (uint64_t k = 0; k < n; ++k) expect_row_equal(a, k);
@@ -154,18 +156,18 @@ TEST(ArchiveWriter, WrittenArchiveReadsBackBitExactAndCalibrationInputBuilds) {
   EXPECT_EQ(a.info.end_time, "2026-11-22T03:00:10Z");
   ASSERT_TRUE(a.info.capture.has_value());
   EXPECT_EQ(*a.info.capture, distinct_capture(true));
-  const calib::CalibrationInput in = archive::to_calibration_input(a);
+  const calib::core::CalibrationInput in = db::archive::to_calibration_input(a);
   EXPECT_EQ(in.imu.size(), n);
   EXPECT_EQ(static_cast<uint64_t>(std::count_if(in.reference.begin(), in.reference.end(),
                                                 [](const auto& r) { return r.at_rest; })),
             expected_rest(n));
 
   // capture.log: every frame, in order, as given.
-  imu::CandumpReader r(dir + "/capture.log");
-  imu::CandumpRecord rec;
+  drivers::imu::CandumpReader r(dir + "/capture.log");
+  drivers::imu::CandumpRecord rec;
   uint64_t j = 0;
   while (r.next(rec)) {
-    const imu::ReceivedFrame e = frame_of(j);
+    const drivers::imu::ReceivedFrame e = frame_of(j);
     ASSERT_EQ(rec.frame.frame, e.frame) << "frame " << j;
     ASSERT_EQ(rec.frame.rx_time_ns, e.rx_time_ns) << "frame " << j;  // µs-exact times
     EXPECT_EQ(rec.interface, "can0");
@@ -182,8 +184,8 @@ TEST(ArchiveWriter, FlushKeepsImuAndTableInLockstep) {
   // The skeleton is on disk at once: headers only, a run.toml without end time or [capture].
   EXPECT_EQ(count_lines(dir + "/imu.csv"), 1u);
   EXPECT_EQ(count_lines(dir + "/table.csv"), 1u);
-  const archive::RunInfo start =
-      archive::parse_run_info(archive::read_text_file(dir + "/run.toml"), "run.toml");
+  const db::archive::RunInfo start =
+      db::archive::parse_run_info(db::archive::read_text_file(dir + "/run.toml"), "run.toml");
   EXPECT_TRUE(start.end_time.empty());
   EXPECT_FALSE(start.capture.has_value());
   for (uint64_t k = 0; k < 10; ++k) w.append_row(imu_row(k), table_row(k));
@@ -198,7 +200,7 @@ TEST(ArchiveWriter, FlushKeepsImuAndTableInLockstep) {
   EXPECT_EQ(count_lines(dir + "/imu.csv"), 16u);
   EXPECT_EQ(count_lines(dir + "/table.csv"), 16u);
   // An unfinished but flushed archive is already readable.
-  const archive::RunArchive a = archive::read_archive(dir);
+  const db::archive::RunArchive a = db::archive::read_archive(dir);
   ASSERT_EQ(a.imu.size(), 15u);
   for (uint64_t k = 0; k < 15; ++k) expect_row_equal(a, k);
 }
@@ -208,12 +210,12 @@ TEST(ArchiveWriter, RefusesBadRowsAndOccupiedDirectories) {
   const std::string dir = tmp.sub("run");
   {
     ArchiveWriter w(dir, make_info());
-    calib::TableSample t = table_row(0);
+    calib::core::TableSample t = table_row(0);
     t.t_s += 1e-3;
     EXPECT_THROW(w.append_row(imu_row(0), t), std::invalid_argument);
     w.append_row(imu_row(1), table_row(1));
     EXPECT_THROW(w.append_row(imu_row(0), table_row(0)), std::invalid_argument);  // time back
-    calib::ImuIncrement bad = imu_row(2);
+    calib::core::ImuIncrement bad = imu_row(2);
     bad.dv_mps(1) = std::nan("");
     EXPECT_THROW(w.append_row(bad, table_row(2)), std::invalid_argument);
     EXPECT_EQ(w.rows(), 1u);
@@ -232,8 +234,8 @@ TEST(ArchiveWriter, RefusesBadRowsAndOccupiedDirectories) {
   EXPECT_NO_THROW(ArchiveWriter(tmp.sub("empty"), make_info()));
   // An attitude-referenced RunInfo cannot be written by the station (it logs table.csv); nothing
   // is left behind.
-  archive::RunInfo att = make_info();
-  att.reference = archive::ReferenceKind::kAttitude;
+  db::archive::RunInfo att = make_info();
+  att.reference = db::archive::ReferenceKind::kAttitude;
   EXPECT_THROW(ArchiveWriter(tmp.sub("att"), att), std::runtime_error);
   EXPECT_FALSE(fs::exists(tmp.sub("att")));
 }
@@ -278,7 +280,7 @@ TEST(ArchiveWriter, SigkilledWriterIsRecoveredToACommonPrefix) {
 
     const uint64_t n = recover_archive(d, "2026-11-22T04:00:00Z");
     ASSERT_GT(n, 1000u) << "attempt " << attempt;
-    const archive::RunArchive a = archive::read_archive(d);
+    const db::archive::RunArchive a = db::archive::read_archive(d);
     ASSERT_EQ(a.imu.size(), n);
     ASSERT_EQ(a.table.size(), n);
     for (uint64_t k = 0; k < n; ++k) expect_row_equal(a, k);
@@ -287,11 +289,11 @@ TEST(ArchiveWriter, SigkilledWriterIsRecoveredToACommonPrefix) {
     EXPECT_FALSE(a.info.capture->complete);
     EXPECT_EQ(a.info.capture->rows_written, n);
     EXPECT_EQ(a.info.capture->rest_samples, expected_rest(n));
-    EXPECT_NO_THROW(archive::to_calibration_input(a));
+    EXPECT_NO_THROW(db::archive::to_calibration_input(a));
 
     // capture.log: a prefix of the frames given, a torn last line tolerated.
-    imu::CandumpReader r(d + "/capture.log");
-    imu::CandumpRecord rec;
+    drivers::imu::CandumpReader r(d + "/capture.log");
+    drivers::imu::CandumpRecord rec;
     uint64_t j = 0;
     while (r.next(rec)) {
       ASSERT_EQ(rec.frame.frame, frame_of(j).frame) << "frame " << j;
@@ -330,7 +332,7 @@ TEST(RecoverArchive, CutsTornAndGarbageTailsToTheCommonPrefix) {
 
   const uint64_t n = recover_archive(dir, "2026-11-22T05:00:00Z");
   EXPECT_EQ(n, 101u);
-  const archive::RunArchive a = archive::read_archive(dir);
+  const db::archive::RunArchive a = db::archive::read_archive(dir);
   ASSERT_EQ(a.imu.size(), 101u);
   for (uint64_t k = 0; k < 100; ++k) expect_row_equal(a, k);
   EXPECT_EQ(a.imu[100].t_s, 1.01);
@@ -342,7 +344,7 @@ TEST(RecoverArchive, CutsTornAndGarbageTailsToTheCommonPrefix) {
   EXPECT_EQ(a.info.capture->frames_logged, 10u);  // the torn 11th line is not a frame
   EXPECT_EQ(a.info.capture->rest_samples, expected_rest(100) + 1);
   // capture.log is raw data: left exactly as it was (torn line included).
-  EXPECT_EQ(archive::read_text_file(dir + "/capture.log").back(), '0');
+  EXPECT_EQ(db::archive::read_text_file(dir + "/capture.log").back(), '0');
 }
 
 TEST(RecoverArchive, SkeletonWithoutRowsAndMissingRunToml) {
@@ -355,19 +357,19 @@ TEST(RecoverArchive, SkeletonWithoutRowsAndMissingRunToml) {
     f << "t_s,out";
   }
   EXPECT_EQ(recover_archive(dir, "2026-11-22T05:00:00Z"), 0u);
-  EXPECT_EQ(archive::read_text_file(dir + "/table.csv"), "t_s,outer_deg,inner_deg,at_rest\n");
+  EXPECT_EQ(db::archive::read_text_file(dir + "/table.csv"), "t_s,outer_deg,inner_deg,at_rest\n");
   // No rows: the reader refuses it with a clear message (nothing to calibrate), naming imu.csv.
   try {
-    archive::read_archive(dir);
+    db::archive::read_archive(dir);
     FAIL() << "empty archive accepted";
-  } catch (const archive::ArchiveError& e) {
+  } catch (const db::archive::ArchiveError& e) {
     EXPECT_NE(e.file().find("imu.csv"), std::string::npos) << e.what();
   }
   fs::remove(dir + "/run.toml");
   try {
     recover_archive(dir, "2026-11-22T05:00:00Z");
     FAIL() << "recovered an archive without run.toml";
-  } catch (const archive::ArchiveError& e) {
+  } catch (const db::archive::ArchiveError& e) {
     EXPECT_NE(std::string(e.what()).find("run.toml"), std::string::npos) << e.what();
   }
 }
@@ -378,9 +380,9 @@ TEST(RecoverArchive, LeavesAFinishedArchiveUntouched) {
   {
     ArchiveWriter w(dir, make_info());
     for (uint64_t k = 0; k < 50; ++k) w.append_row(imu_row(k), table_row(k));
-    archive::RunInfo fin = make_info();
+    db::archive::RunInfo fin = make_info();
     fin.end_time = "2026-11-22T03:00:01Z";
-    archive::CaptureInfo ci = distinct_capture(true);
+    db::archive::CaptureInfo ci = distinct_capture(true);
     ci.rows_written = 50;
     fin.capture = ci;
     w.finish(fin);
@@ -390,9 +392,9 @@ TEST(RecoverArchive, LeavesAFinishedArchiveUntouched) {
     std::ofstream f(dir + "/run.toml.tmp-AbC123");
     f << "serial = \"x\"\n";
   }
-  const std::string run_toml = archive::read_text_file(dir + "/run.toml");
+  const std::string run_toml = db::archive::read_text_file(dir + "/run.toml");
   EXPECT_EQ(recover_archive(dir, "2026-11-22T09:00:00Z"), 50u);
-  EXPECT_EQ(archive::read_text_file(dir + "/run.toml"), run_toml);
+  EXPECT_EQ(db::archive::read_text_file(dir + "/run.toml"), run_toml);
   EXPECT_FALSE(fs::exists(dir + "/run.toml.tmp-AbC123"));
 }
 
@@ -417,7 +419,7 @@ TEST(ArchiveDigest, MatchesItsDefinitionAndSeesEveryByte) {
       w.append_row(imu_row(k), table_row(k));
       w.append_frame(frame_of(k), "can0");
     }
-    archive::RunInfo fin = make_info();
+    db::archive::RunInfo fin = make_info();
     fin.capture = distinct_capture(true);
     w.finish(fin);
   }
@@ -434,7 +436,7 @@ TEST(ArchiveDigest, MatchesItsDefinitionAndSeesEveryByte) {
 
   for (const char* name : {"capture.log", "imu.csv", "run.toml", "table.csv"}) {
     const std::string path = dir + "/" + name;
-    const std::string orig = archive::read_text_file(path);
+    const std::string orig = db::archive::read_text_file(path);
     for (std::size_t pos : {std::size_t{0}, orig.size() / 2, orig.size() - 1}) {
       std::string changed = orig;
       changed[pos] = static_cast<char>(changed[pos] ^ 0x01);
@@ -464,7 +466,7 @@ const char* kBaseToml =
 
 std::string capture_toml(const std::string& replace_key = "", const std::string& with = "") {
   std::string s = std::string(kBaseToml) + "[capture]\ncomplete = true\n";
-  for (const auto& c : archive::CaptureInfo::counters()) {
+  for (const auto& c : db::archive::CaptureInfo::counters()) {
     if (replace_key == c.first) {
       s += with;
       continue;
@@ -478,32 +480,32 @@ std::string capture_toml(const std::string& replace_key = "", const std::string&
 void expect_capture_error(const std::string& text, const std::string& field,
                           const std::string& words) {
   try {
-    archive::parse_run_info(text, "run.toml");
+    db::archive::parse_run_info(text, "run.toml");
     FAIL() << "accepted: " << text;
-  } catch (const archive::ArchiveError& e) {
+  } catch (const db::archive::ArchiveError& e) {
     EXPECT_EQ(e.field(), field) << e.what();
     EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
   }
 }
 
 TEST(CaptureSection, RoundTripsExactly) {
-  archive::RunInfo ri = make_info();
-  EXPECT_FALSE(archive::parse_run_info(archive::run_info_text(ri), "x").capture.has_value());
+  db::archive::RunInfo ri = make_info();
+  EXPECT_FALSE(db::archive::parse_run_info(db::archive::run_info_text(ri), "x").capture.has_value());
   for (bool complete : {true, false}) {
     ri.capture = distinct_capture(complete);
-    const std::string text = archive::run_info_text(ri);
+    const std::string text = db::archive::run_info_text(ri);
     EXPECT_NE(text.find("[capture]"), std::string::npos);
     EXPECT_NE(text.find("frames_received = 9007199254740993\n"), std::string::npos) << text;
-    const archive::RunInfo back = archive::parse_run_info(text, "run.toml");
+    const db::archive::RunInfo back = db::archive::parse_run_info(text, "run.toml");
     ASSERT_TRUE(back.capture.has_value());
     EXPECT_EQ(*back.capture, *ri.capture);
     EXPECT_EQ(back.capture->complete, complete);
     // Every counter is there under its own name with its own value.
-    for (const auto& c : archive::CaptureInfo::counters())
+    for (const auto& c : db::archive::CaptureInfo::counters())
       EXPECT_EQ((*back.capture).*(c.second), (*ri.capture).*(c.second)) << c.first;
   }
   // Hand-written section with all keys parses.
-  const archive::RunInfo hand = archive::parse_run_info(capture_toml(), "run.toml");
+  const db::archive::RunInfo hand = db::archive::parse_run_info(capture_toml(), "run.toml");
   ASSERT_TRUE(hand.capture.has_value());
   EXPECT_TRUE(hand.capture->complete);
   EXPECT_EQ(hand.capture->max_gap_samples, 5u);
@@ -527,9 +529,9 @@ TEST(CaptureSection, IsParsedStrictly) {
   expect_capture_error(int_complete, "capture.complete", "expected a boolean");
   // The error names the line of the offending key.
   try {
-    archive::parse_run_info(capture_toml("", "bogus = 1\n"), "run.toml");
+    db::archive::parse_run_info(capture_toml("", "bogus = 1\n"), "run.toml");
     FAIL();
-  } catch (const archive::ArchiveError& e) {
+  } catch (const db::archive::ArchiveError& e) {
     const std::string text = capture_toml("", "bogus = 1\n");
     const std::size_t line = static_cast<std::size_t>(
         std::count(text.begin(), text.begin() + static_cast<long>(text.find("bogus")), '\n') + 1);
@@ -539,7 +541,7 @@ TEST(CaptureSection, IsParsedStrictly) {
 }
 
 TEST(CaptureSection, StatsConvertBothWays) {
-  const archive::CaptureInfo ci = distinct_capture(false);
+  const db::archive::CaptureInfo ci = distinct_capture(false);
   const CaptureStats s = capture_stats_from_info(ci);
   EXPECT_EQ(s.frames_received, ci.frames_received);
   EXPECT_EQ(s.rest_samples, ci.rest_samples);
@@ -553,20 +555,20 @@ TEST(CaptureSection, StatsConvertBothWays) {
 TEST(RecoverArchive, RecountsTheDecoderCountersFromTheCaptureLog) {
   TempDir tmp;
   const std::string dir = tmp.sub("run");
-  imu::ImuFrameEncoder enc;
+  drivers::imu::ImuFrameEncoder enc;
   uint64_t logged = 0;
   {
     ArchiveWriter w(dir, make_info());
     int64_t t_ns = 1'700'000'000'000'000'000LL;
     for (uint64_t k = 0; k < 50; ++k) {
       w.append_row(imu_row(k), table_row(k));
-      calib::ImuIncrement inc;
+      calib::core::ImuIncrement inc;
       inc.dt_s = 0.01;
       inc.dv_mps = Eigen::Vector3d(0, 0, -0.098);
       const auto frames = enc.encode(inc);
       if (k == 20) continue;  // sample 20 lost on the bus: a gap of one
       for (std::size_t p = 0; p < frames.size(); ++p) {
-        imu::ReceivedFrame f;
+        drivers::imu::ReceivedFrame f;
         f.frame = frames[p];
         f.rx_time_ns = (t_ns += 2'500'000);
         w.append_frame(f, "can0");
@@ -581,9 +583,9 @@ TEST(RecoverArchive, RecountsTheDecoderCountersFromTheCaptureLog) {
   }  // destroyed unfinished, like a daemon that died
 
   ASSERT_EQ(recover_archive(dir, "2026-11-25T05:00:00Z"), 50u);
-  const archive::RunArchive a = archive::read_archive(dir);
+  const db::archive::RunArchive a = db::archive::read_archive(dir);
   ASSERT_TRUE(a.info.capture.has_value());
-  const archive::CaptureInfo& c = *a.info.capture;
+  const db::archive::CaptureInfo& c = *a.info.capture;
   EXPECT_FALSE(c.complete);
   EXPECT_EQ(c.frames_logged, logged);
   EXPECT_EQ(c.frames_received, logged);

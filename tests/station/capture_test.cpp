@@ -1,11 +1,11 @@
-// station::Capture over a real unixcan socket pair, fed by the simulated IMU CAN node (or by the
+// station::run::Capture over a real unixcan socket pair, fed by the simulated IMU CAN node (or by the
 // protocol encoder directly where the test needs exact control of which frames are lost):
 // rows equal the transmitted increments to the LSB on the archive's time axis; lost samples are
 // filled by linear interpolation between the decoded neighbours and counted; longer gaps, IMU
 // resets, stream timeouts, IMU failure bits and motion inside a counted rest are faults that stop
 // the rows but not the frame log; rest marking is guard-then-exactly-N rows; capture.log holds
 // every frame received and parses with the candump reader.
-#include "station/capture.hpp"
+#include "station/run/capture.hpp"
 
 #include <gtest/gtest.h>
 #include <stdlib.h>
@@ -24,12 +24,13 @@
 #include "drivers/imu/candump_log.hpp"
 #include "drivers/imu/imu_codec.hpp"
 #include "drivers/imu/imu_protocol.hpp"
-#include "drivers/sim/imu_can_node.hpp"
-#include "station/archive_writer.hpp"
-#include "station/capture_stats.hpp"
+#include "drivers/simulated/imu_can_node.hpp"
+#include "station/run/archive_writer.hpp"
+#include "station/run/capture_stats.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace imucal::station {
+using namespace imucal::station::run;
 namespace {
 
 namespace fs = std::filesystem;
@@ -44,10 +45,10 @@ class TempDir : public test_support::ScopedTempDir {
   TempDir() : ScopedTempDir("imucal_capture_test") {}
 };
 
-archive::RunInfo make_info() {
-  archive::RunInfo ri;
+db::archive::RunInfo make_info() {
+  db::archive::RunInfo ri;
   ri.serial = "SIM-0001";
-  ri.site = calib::demo_factory_site();
+  ri.site = calib::core::demo_factory_site();
   ri.imu_rate_hz = kRate_hz;
   return ri;
 }
@@ -73,15 +74,15 @@ bool wait_until(const std::function<bool()>& pred, std::chrono::milliseconds tim
 // go away.
 struct Rig {
   TempDir tmp;
-  std::unique_ptr<imu::CanChannel> tx;
+  std::unique_ptr<drivers::imu::CanChannel> tx;
   std::unique_ptr<ArchiveWriter> writer;
   std::unique_ptr<Capture> cap;
   std::string dir;
 
   explicit Rig(CaptureOptions opt = default_options()) : dir(tmp.sub("run")) {
-    imu::CanOpenOptions co;
+    drivers::imu::CanOpenOptions co;
     co.write_timeout_ms = 5000;  // lossless back-pressure: injected loss is the only loss
-    auto pair = imu::CanChannel::unix_pair(co);
+    auto pair = drivers::imu::CanChannel::unix_pair(co);
     tx = std::move(pair.first);
     writer = std::make_unique<ArchiveWriter>(dir, make_info());
     cap = std::make_unique<Capture>(std::move(pair.second), opt);
@@ -94,18 +95,18 @@ struct Rig {
     return wait_until([&] { return cap->rows() >= n; });
   }
   /// Detach, finish the archive with the capture's counters, read it back.
-  archive::RunArchive finish() {
+  db::archive::RunArchive finish() {
     cap->detach();
-    archive::RunInfo fin = make_info();
+    db::archive::RunInfo fin = make_info();
     fin.capture = to_capture_info(cap->stats(), true);
     writer->finish(fin);
-    return archive::read_archive(dir);
+    return db::archive::read_archive(dir);
   }
   /// All records of capture.log.
-  std::vector<imu::CandumpRecord> log() const {
-    std::vector<imu::CandumpRecord> v;
-    imu::CandumpReader r(dir + "/capture.log");
-    imu::CandumpRecord rec;
+  std::vector<drivers::imu::CandumpRecord> log() const {
+    std::vector<drivers::imu::CandumpRecord> v;
+    drivers::imu::CandumpReader r(dir + "/capture.log");
+    drivers::imu::CandumpRecord rec;
     while (r.next(rec)) v.push_back(rec);
     EXPECT_EQ(r.truncated_lines(), 0u);
     return v;
@@ -113,21 +114,21 @@ struct Rig {
 };
 
 // Increments: a unit resting level (gravity up on body z, earth rate) or turning about z.
-calib::ImuIncrement still_increment(uint64_t k) {
-  calib::ImuIncrement s;
+calib::core::ImuIncrement still_increment(uint64_t k) {
+  calib::core::ImuIncrement s;
   s.dt_s = kDt_s;
   s.dtheta_rad = Eigen::Vector3d(4.1e-7, 1.3e-8, -6.03e-7 + 1e-10 * static_cast<double>(k % 5));
   s.dv_mps = Eigen::Vector3d(2e-5, -3e-5, -9.8153 * kDt_s);
   return s;
 }
-calib::ImuIncrement moving_increment(double rate_dps) {
-  calib::ImuIncrement s = still_increment(0);
+calib::core::ImuIncrement moving_increment(double rate_dps) {
+  calib::core::ImuIncrement s = still_increment(0);
   s.dtheta_rad(2) = rate_dps * kDegToRad * kDt_s;
   return s;
 }
 
-sim::ImuCanNodeOptions node_options() {
-  sim::ImuCanNodeOptions o;
+drivers::simulated::ImuCanNodeOptions node_options() {
+  drivers::simulated::ImuCanNodeOptions o;
   o.rate_hz = kRate_hz;
   o.speed_factor = 0.0;
   return o;
@@ -137,12 +138,12 @@ sim::ImuCanNodeOptions node_options() {
 struct Transmitted {
   Eigen::Vector3d dtheta_rad, dv_mps;
 };
-Transmitted transmitted(const std::vector<imu::CanFrame>& frames) {
+Transmitted transmitted(const std::vector<drivers::imu::CanFrame>& frames) {
   Transmitted t;
   for (int a = 0; a < 3; ++a) {
-    const imu::AxisFields f = imu::unpack_axis(frames[static_cast<std::size_t>(a)].data);
-    t.dtheta_rad(a) = static_cast<double>(f.dtheta_count) * imu::kDthetaLsb_rad;
-    t.dv_mps(a) = static_cast<double>(f.dv_count) * imu::kDvLsb_mps;
+    const drivers::imu::AxisFields f = drivers::imu::unpack_axis(frames[static_cast<std::size_t>(a)].data);
+    t.dtheta_rad(a) = static_cast<double>(f.dtheta_count) * drivers::imu::kDthetaLsb_rad;
+    t.dv_mps(a) = static_cast<double>(f.dv_count) * drivers::imu::kDvLsb_mps;
   }
   return t;
 }
@@ -151,7 +152,7 @@ Transmitted transmitted(const std::vector<imu::CanFrame>& frames) {
 
 TEST(Capture, RowsEqualTheSentIncrementsToTheLsb) {
   Rig rig;
-  sim::ImuCanNode node(*rig.tx, node_options());
+  drivers::simulated::ImuCanNode node(*rig.tx, node_options());
   // Before attach: decoded (the stream is live) but nothing written.
   for (uint64_t k = 0; k < 20; ++k) node.send(still_increment(k));
   ASSERT_TRUE(wait_until([&] { return rig.cap->stats().samples_decoded == 20; }));
@@ -162,32 +163,32 @@ TEST(Capture, RowsEqualTheSentIncrementsToTheLsb) {
   std::mt19937_64 rng(42);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const uint64_t n = 400;
-  std::vector<calib::ImuIncrement> sent;
-  std::vector<imu::CanFrame> frames;
+  std::vector<calib::core::ImuIncrement> sent;
+  std::vector<drivers::imu::CanFrame> frames;
   for (uint64_t k = 0; k < n; ++k) {
-    calib::ImuIncrement s;
+    calib::core::ImuIncrement s;
     s.dt_s = kDt_s;
     s.dtheta_rad = Eigen::Vector3d(u(rng), u(rng), u(rng)) * 1e-3;  // up to ~6 deg/s per axis
     s.dv_mps = Eigen::Vector3d(u(rng), u(rng), u(rng)) * 0.15;
     sent.push_back(s);
-    const sim::SampleFate fate = node.send(s);
+    const drivers::simulated::SampleFate fate = node.send(s);
     ASSERT_TRUE(fate.intact());
     frames.insert(frames.end(), fate.clean.begin(), fate.clean.end());
   }
   ASSERT_TRUE(rig.wait_rows(n));
-  const archive::RunArchive a = rig.finish();
+  const db::archive::RunArchive a = rig.finish();
   ASSERT_EQ(a.imu.size(), n);
   Eigen::Vector3d sum_row_dth = Eigen::Vector3d::Zero(), sum_sent_dth = Eigen::Vector3d::Zero();
   Eigen::Vector3d sum_row_dv = Eigen::Vector3d::Zero(), sum_sent_dv = Eigen::Vector3d::Zero();
   for (uint64_t k = 0; k < n; ++k) {
-    const calib::ImuIncrement& r = a.imu[k];
+    const calib::core::ImuIncrement& r = a.imu[k];
     EXPECT_EQ(r.t_s, static_cast<double>(k + 1) / kRate_hz) << "row " << k;
     for (int i = 0; i < 3; ++i) {
       // Quantised with the remainder carried: each sample within 1 LSB of what was sent, and an
       // integer number of LSBs.
-      EXPECT_LE(std::fabs(r.dtheta_rad(i) - sent[k].dtheta_rad(i)), imu::kDthetaLsb_rad * 1.000001);
-      EXPECT_LE(std::fabs(r.dv_mps(i) - sent[k].dv_mps(i)), imu::kDvLsb_mps * 1.000001);
-      const double cth = r.dtheta_rad(i) / imu::kDthetaLsb_rad, cdv = r.dv_mps(i) / imu::kDvLsb_mps;
+      EXPECT_LE(std::fabs(r.dtheta_rad(i) - sent[k].dtheta_rad(i)), drivers::imu::kDthetaLsb_rad * 1.000001);
+      EXPECT_LE(std::fabs(r.dv_mps(i) - sent[k].dv_mps(i)), drivers::imu::kDvLsb_mps * 1.000001);
+      const double cth = r.dtheta_rad(i) / drivers::imu::kDthetaLsb_rad, cdv = r.dv_mps(i) / drivers::imu::kDvLsb_mps;
       EXPECT_NEAR(cth, std::round(cth), 1e-4);
       EXPECT_NEAR(cdv, std::round(cdv), 1e-4);
     }
@@ -201,8 +202,8 @@ TEST(Capture, RowsEqualTheSentIncrementsToTheLsb) {
   }
   // The carried remainder keeps the sums within one LSB (the carry at attach plus at the end).
   for (int i = 0; i < 3; ++i) {
-    EXPECT_LE(std::fabs(sum_row_dth(i) - sum_sent_dth(i)), 1.01 * imu::kDthetaLsb_rad);
-    EXPECT_LE(std::fabs(sum_row_dv(i) - sum_sent_dv(i)), 1.01 * imu::kDvLsb_mps);
+    EXPECT_LE(std::fabs(sum_row_dth(i) - sum_sent_dth(i)), 1.01 * drivers::imu::kDthetaLsb_rad);
+    EXPECT_LE(std::fabs(sum_row_dv(i) - sum_sent_dv(i)), 1.01 * drivers::imu::kDvLsb_mps);
   }
   const CaptureStats st = rig.cap->stats();
   EXPECT_EQ(st.samples_decoded, n);
@@ -227,7 +228,7 @@ TEST(Capture, RowsEqualTheSentIncrementsToTheLsb) {
 TEST(Capture, LostSamplesAreFilledByLinearInterpolationAndCounted) {
   Rig rig;
   rig.cap->attach(rig.writer.get());
-  imu::ImuFrameEncoder enc;
+  drivers::imu::ImuFrameEncoder enc;
   const uint64_t n = 120;
   std::vector<Transmitted> tx(n);
   std::mt19937_64 rng(7);
@@ -235,19 +236,19 @@ TEST(Capture, LostSamplesAreFilledByLinearInterpolationAndCounted) {
   // Lost: samples 40-42 (3 in a row), 70, and one frame of 55 (incomplete: lost as a sample).
   auto lost = [](uint64_t k) { return (k >= 40 && k <= 42) || k == 70; };
   for (uint64_t k = 0; k < n; ++k) {
-    calib::ImuIncrement s;
+    calib::core::ImuIncrement s;
     s.dtheta_rad = Eigen::Vector3d(u(rng), u(rng), u(rng)) * 1e-4;
     s.dv_mps = Eigen::Vector3d(u(rng), u(rng), -9.81 * kDt_s);
     const auto frames = enc.encode(s);
     tx[k] = transmitted(frames);
     if (lost(k)) continue;
-    for (int p = 0; p < imu::kFramesPerSample; ++p) {
+    for (int p = 0; p < drivers::imu::kFramesPerSample; ++p) {
       if (k == 55 && p == 1) continue;
       ASSERT_TRUE(rig.tx->write(frames[static_cast<std::size_t>(p)]));
     }
   }
   ASSERT_TRUE(rig.wait_rows(n));
-  const archive::RunArchive a = rig.finish();
+  const db::archive::RunArchive a = rig.finish();
   ASSERT_EQ(a.imu.size(), n);
   auto interp = [&](uint64_t before, uint64_t after, uint64_t k, int axis, bool dth) {
     const double va = dth ? tx[before].dtheta_rad(axis) : tx[before].dv_mps(axis);
@@ -289,11 +290,11 @@ TEST(Capture, LostSamplesAreFilledByLinearInterpolationAndCounted) {
 TEST(Capture, RandomLossAndCorruptionAreFilledAndCounted) {
   Rig rig;
   rig.cap->attach(rig.writer.get());
-  sim::ImuCanNodeOptions no = node_options();
+  drivers::simulated::ImuCanNodeOptions no = node_options();
   no.frame_loss_probability = 0.01;
   no.corruption_probability = 0.005;
   no.seed = 3;
-  sim::ImuCanNode node(*rig.tx, no);
+  drivers::simulated::ImuCanNode node(*rig.tx, no);
   const uint64_t n = 3000;
   for (uint64_t k = 0; k < n; ++k) node.send(still_increment(k));
   ASSERT_TRUE(
@@ -316,7 +317,7 @@ TEST(Capture, GapLongerThanTheLimitIsAFaultButFramesAreStillLogged) {
   opt.max_gap_samples = 10;
   Rig rig(opt);
   rig.cap->attach(rig.writer.get());
-  imu::ImuFrameEncoder enc;
+  drivers::imu::ImuFrameEncoder enc;
   uint64_t frames_sent = 0;
   for (uint64_t k = 0; k < 80; ++k) {
     const auto frames = enc.encode(still_increment(k));
@@ -340,7 +341,7 @@ TEST(Capture, GapLongerThanTheLimitIsAFaultButFramesAreStillLogged) {
 TEST(Capture, ImuResetIsAFault) {
   Rig rig;
   rig.cap->attach(rig.writer.get());
-  sim::ImuCanNode node(*rig.tx, node_options());
+  drivers::simulated::ImuCanNode node(*rig.tx, node_options());
   for (uint64_t k = 0; k < 50; ++k) node.send(still_increment(k));
   ASSERT_TRUE(rig.wait_rows(50));
   node.reset();
@@ -360,9 +361,9 @@ TEST(Capture, ImuResetIsAFault) {
 TEST(Capture, ImuFailureBitsAreAFault) {
   Rig rig;
   rig.cap->attach(rig.writer.get());
-  sim::ImuCanNode node(*rig.tx, node_options());
+  drivers::simulated::ImuCanNode node(*rig.tx, node_options());
   for (uint64_t k = 0; k < 10; ++k) node.send(still_increment(k));
-  node.send(still_increment(10), imu::status::kGyroFault);
+  node.send(still_increment(10), drivers::imu::status::kGyroFault);
   ASSERT_TRUE(wait_until([&] { return rig.cap->fault().has_value(); }));
   EXPECT_NE(rig.cap->fault()->find("IMU reports fault (IMU_STATUS.GyroFault) at row 11"),
             std::string::npos)
@@ -373,7 +374,7 @@ TEST(Capture, ImuFailureBitsAreAFault) {
 TEST(Capture, RestIsGuardThenExactlyTheCountedSamples) {
   Rig rig;  // settle_guard_samples = 20
   rig.cap->attach(rig.writer.get());
-  sim::ImuCanNode node(*rig.tx, node_options());
+  drivers::simulated::ImuCanNode node(*rig.tx, node_options());
   rig.cap->table_moving(0.0, 0.0);
   for (int k = 0; k < 30; ++k) node.send(moving_increment(10.0));
   ASSERT_TRUE(rig.wait_rows(30));
@@ -387,7 +388,7 @@ TEST(Capture, RestIsGuardThenExactlyTheCountedSamples) {
   EXPECT_TRUE(rig.cap->wait_rest_done(10s));
   ASSERT_TRUE(rig.wait_rows(246));
   EXPECT_EQ(rig.cap->rest_rows_done(), 100u);
-  const archive::RunArchive a = rig.finish();
+  const db::archive::RunArchive a = rig.finish();
   ASSERT_EQ(a.table.size(), 246u);
   // rows 0-29 moving at (0, 0); 30-45 settling; 46-65 guard; 66-165 counted rest; 166-245 after.
   for (std::size_t k = 0; k < a.table.size(); ++k) {
@@ -409,7 +410,7 @@ TEST(Capture, RestAfterACommandedMoveWaitsForTheMoveInTheImuStream) {
   // They must not be counted as the new rest; counting starts only after the move was seen.
   Rig rig;  // settle_guard_samples = 20
   rig.cap->attach(rig.writer.get());
-  sim::ImuCanNode node(*rig.tx, node_options());
+  drivers::simulated::ImuCanNode node(*rig.tx, node_options());
   rig.cap->move_commanded();
   rig.cap->table_moving(0.0, 0.0);
   rig.cap->begin_rest(90.0, 0.0, 50);
@@ -419,7 +420,7 @@ TEST(Capture, RestAfterACommandedMoveWaitsForTheMoveInTheImuStream) {
   for (int k = 0; k < 100; ++k) node.send(still_increment(static_cast<uint64_t>(k)));
   EXPECT_TRUE(rig.cap->wait_rest_done(10s));
   ASSERT_TRUE(rig.wait_rows(185));
-  const archive::RunArchive a = rig.finish();
+  const db::archive::RunArchive a = rig.finish();
   ASSERT_EQ(a.table.size(), 185u);
   // rows 0-59 backlog, 60-84 the move, 85-104 guard, 105-154 counted rest, 155-184 after.
   for (std::size_t k = 0; k < a.table.size(); ++k)
@@ -432,7 +433,7 @@ TEST(Capture, MotionInsideACountedRestIsAFault) {
   opt.settle_guard_samples = 5;
   Rig rig(opt);
   rig.cap->attach(rig.writer.get());
-  sim::ImuCanNode node(*rig.tx, node_options());
+  drivers::simulated::ImuCanNode node(*rig.tx, node_options());
   rig.cap->begin_rest(0.0, 180.0, 100);
   for (int k = 0; k < 15; ++k) node.send(still_increment(static_cast<uint64_t>(k)));
   node.send(moving_increment(1.0));  // row 16 = 11th counted rest sample
@@ -457,7 +458,7 @@ TEST(Capture, StreamTimeoutIsAFaultOnlyWhileAttached) {
   std::this_thread::sleep_for(500ms);
   EXPECT_FALSE(rig.cap->fault().has_value());
   rig.cap->attach(rig.writer.get());
-  sim::ImuCanNode node(*rig.tx, node_options());
+  drivers::simulated::ImuCanNode node(*rig.tx, node_options());
   for (uint64_t k = 0; k < 10; ++k) node.send(still_increment(k));
   ASSERT_TRUE(rig.wait_rows(10));
   const auto t0 = std::chrono::steady_clock::now();
@@ -473,13 +474,13 @@ TEST(Capture, StreamTimeoutIsAFaultOnlyWhileAttached) {
 TEST(Capture, WaitForStreamRateAndPromptStop) {
   Rig rig;
   EXPECT_FALSE(rig.cap->wait_for_stream(100ms));
-  sim::ImuCanNodeOptions no = node_options();
+  drivers::simulated::ImuCanNodeOptions no = node_options();
   no.rate_hz = 200.0;
   no.speed_factor = 1.0;  // paced: 200 samples per wall second
   std::atomic<bool> stop{false};
-  calib::ImuSeries series(1000, still_increment(0));
+  calib::core::ImuSeries series(1000, still_increment(0));
   std::thread sender([&] {
-    sim::ImuCanNode node(*rig.tx, no);
+    drivers::simulated::ImuCanNode node(*rig.tx, no);
     node.run(series, &stop);
   });
   EXPECT_TRUE(rig.cap->wait_for_stream(2s));
@@ -496,9 +497,9 @@ TEST(Capture, WaitForStreamRateAndPromptStop) {
 TEST(Capture, ForeignFramesAreCountedAndLogged) {
   Rig rig;
   rig.cap->attach(rig.writer.get());
-  sim::ImuCanNode node(*rig.tx, node_options());
+  drivers::simulated::ImuCanNode node(*rig.tx, node_options());
   for (uint64_t k = 0; k < 5; ++k) node.send(still_increment(k));
-  imu::CanFrame foreign;
+  drivers::imu::CanFrame foreign;
   foreign.can_id = 0x200;
   foreign.len = 2;
   ASSERT_TRUE(rig.tx->write(foreign));
@@ -520,7 +521,7 @@ TEST(Capture, ForeignFramesAreCountedAndLogged) {
 TEST(Capture, CountersEndWithTheArchiveFramesAfterDetachAreNoRunsFrames) {
   Rig rig;
   rig.cap->attach(rig.writer.get());
-  sim::ImuCanNode node(*rig.tx, node_options());
+  drivers::simulated::ImuCanNode node(*rig.tx, node_options());
   for (uint64_t k = 0; k < 10; ++k) node.send(still_increment(k));
   ASSERT_TRUE(rig.wait_rows(10));
   rig.cap->detach();
@@ -540,17 +541,17 @@ TEST(Capture, CountersEndWithTheArchiveFramesAfterDetachAreNoRunsFrames) {
 TEST(Capture, ErrorFloodIsCountedBusOffIsAFault) {
   Rig rig;
   rig.cap->attach(rig.writer.get());
-  sim::ImuCanNode node(*rig.tx, node_options());
+  drivers::simulated::ImuCanNode node(*rig.tx, node_options());
   auto error_frame = [](uint32_t cls) {
-    imu::CanFrame e;
-    e.can_id = imu::kCanErrFlag | cls;
+    drivers::imu::CanFrame e;
+    e.can_id = drivers::imu::kCanErrFlag | cls;
     e.len = 8;
     return e;
   };
   uint64_t k = 0;
   for (; k < 20; ++k) node.send(still_increment(k));
   for (int i = 0; i < 300; ++i) {  // the flood, interleaved with the IMU's samples
-    ASSERT_TRUE(rig.tx->write(error_frame(i % 2 ? imu::kCanErrProt : imu::kCanErrCrtl)));
+    ASSERT_TRUE(rig.tx->write(error_frame(i % 2 ? drivers::imu::kCanErrProt : drivers::imu::kCanErrCrtl)));
     if (i % 10 == 0) node.send(still_increment(k++));
   }
   ASSERT_TRUE(rig.wait_rows(k));
@@ -560,7 +561,7 @@ TEST(Capture, ErrorFloodIsCountedBusOffIsAFault) {
   EXPECT_FALSE(rig.cap->fault().has_value()) << *rig.cap->fault();
   EXPECT_EQ(rig.cap->stats().frames_error, 300u);
 
-  ASSERT_TRUE(rig.tx->write(error_frame(imu::kCanErrBusOff)));
+  ASSERT_TRUE(rig.tx->write(error_frame(drivers::imu::kCanErrBusOff)));
   ASSERT_TRUE(wait_until([&] { return rig.cap->fault().has_value(); }));
   const std::string fault = *rig.cap->fault();
   EXPECT_NE(fault.find("bus-off"), std::string::npos) << fault;
@@ -582,7 +583,7 @@ TEST(CaptureStatsJson, RoundTripAndStrictParsing) {
   s.rest_samples = 42;
   s.max_gap_samples = 3;
   const nlohmann::json j = to_json(s);
-  EXPECT_EQ(j.size(), archive::CaptureInfo::counters().size());
+  EXPECT_EQ(j.size(), db::archive::CaptureInfo::counters().size());
   EXPECT_EQ(j.at("frames_received").get<uint64_t>(), 123456789012ULL);
   EXPECT_EQ(j.at("rest_samples").get<uint64_t>(), 42u);
   EXPECT_EQ(capture_stats_from_json(j), s);

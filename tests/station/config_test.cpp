@@ -1,6 +1,6 @@
 // stationd configuration: the shipped example parses to the values it documents; every class of
 // error names FILE:LINE:COL and the key; relative paths resolve against the config's directory.
-#include "station/config.hpp"
+#include "station/config/config.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -16,11 +16,12 @@
 #include "drivers/turntable/register_map.hpp"
 
 namespace imucal::station {
+using namespace imucal::station::config;
 namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kExample = std::string(IMUCAL_SOURCE_DIR) + "/station/stationd.example.toml";
+const std::string kExample = std::string(IMUCAL_SOURCE_DIR) + "/station/config/stationd.example.toml";
 
 std::string read_file(const std::string& path) {
   std::ifstream in(path);
@@ -77,7 +78,7 @@ TEST(StationConfig, ExampleParsesToTheDocumentedValues) {
   EXPECT_EQ(c.control_socket_mode, 0660u);
   EXPECT_EQ(c.control_idle_timeout_s, 60.0);
   EXPECT_EQ(c.control_max_connections_per_user, 16u);
-  EXPECT_EQ(c.turntable.endpoint.kind, turntable::Endpoint::Kind::kTcp);
+  EXPECT_EQ(c.turntable.endpoint.kind, drivers::turntable::Endpoint::Kind::kTcp);
   EXPECT_EQ(c.turntable.endpoint.host, "127.0.0.1");
   EXPECT_EQ(c.turntable.endpoint.port, 1502);
   EXPECT_EQ(c.turntable.response_timeout.count(), 250);
@@ -89,7 +90,7 @@ TEST(StationConfig, ExampleParsesToTheDocumentedValues) {
   EXPECT_DOUBLE_EQ(c.home_timeout_s, 120.0);
   EXPECT_DOUBLE_EQ(c.turntable.position_tolerance_deg, 0.01);
   EXPECT_DOUBLE_EQ(c.max_rate_dps, 20.0);
-  EXPECT_TRUE(c.turntable.map == turntable::default_register_map());
+  EXPECT_TRUE(c.turntable.map == drivers::turntable::default_register_map());
   EXPECT_EQ(c.imu().can_uri, "unixcan:" + dir + "/imu.can");
   EXPECT_DOUBLE_EQ(c.imu().rate_hz, 100.0);
   EXPECT_FALSE(c.imu().base_id);  // the protocol's own ids: the built-in protocol's 0x100-0x103
@@ -124,7 +125,7 @@ TEST(StationConfig, ExampleWithItsRegisterMapUncommentedIsTheDefaultMap) {
     out << line << '\n';
   }
   const StationConfig c = parse_config(out.str(), "example-uncommented", "/tmp");
-  EXPECT_TRUE(c.turntable.map == turntable::default_register_map());
+  EXPECT_TRUE(c.turntable.map == drivers::turntable::default_register_map());
 }
 
 TEST(StationConfig, MinimalConfigGetsTheDefaultsAndResolvesRelativePaths) {
@@ -274,12 +275,12 @@ TEST(StationConfig, KnownEffectsAreCatalogueNames) {
 
 // Issue #21: the station names the product it calibrates; every run's run.toml carries it.
 TEST(StationConfig, TheGradeOfTheProductIsNamedAndChecked) {
-  EXPECT_EQ(parse_config(kMinimal, "cfg.toml", "/etc").imu().grade, calib::Grade::kNavigation);
+  EXPECT_EQ(parse_config(kMinimal, "cfg.toml", "/etc").imu().grade, calib::core::Grade::kNavigation);
   EXPECT_EQ(parse_config(read_file(kExample), kExample, "/etc").imu().grade,
-            calib::Grade::kNavigation);
+            calib::core::Grade::kNavigation);
   const StationConfig c =
       parse_config(std::string(kMinimal) + "grade = \"mems\"\n", "cfg.toml", "/etc");
-  EXPECT_EQ(c.imu().grade, calib::Grade::kMems);
+  EXPECT_EQ(c.imu().grade, calib::core::Grade::kMems);
   expect_error(std::string(kMinimal) + "grade = \"consumer\"\n", 11, 1,
                "[imu] grade: \"consumer\" is not a grade (navigation, tactical or mems)");
 }
@@ -321,7 +322,7 @@ TEST(StationConfig, RegisterMapErrorsPointAtTheKeyInTheConfig) {
       parse_config(std::string(kMinimal) +
                        std::regex_replace(regs, std::regex("command_seq = 9"), "command_seq = 7"),
                    "cfg.toml", "/etc");
-  EXPECT_TRUE(c.turntable.map == turntable::default_register_map());
+  EXPECT_TRUE(c.turntable.map == drivers::turntable::default_register_map());
 }
 
 TEST(StationConfig, UnreadableFileIsAnError) {
@@ -373,6 +374,7 @@ TEST(StationConfig, DefaultSequenceAndSequenceDirAreChecked) {
 }  // namespace imucal::station
 
 namespace imucal::station {
+using namespace imucal::station::config;
 namespace {
 
 /// kMinimal's first 8 lines (station and turntable) followed by `imus` (from line 9 on).
@@ -399,7 +401,7 @@ TEST(StationConfig, ImuSlotsAreReadInOrderWithTheirMountings) {
   EXPECT_DOUBLE_EQ(c.imus[0].lever_arm_m[2], 0.05);
   EXPECT_DOUBLE_EQ(c.imus[1].mount_rpy_deg[2], 90.0);
   // The axis swap with z flipped is a rotation (x <-> y, z down): roll 180, yaw 90.
-  const Eigen::Matrix3d C = calib::euler_to_C_bn(c.imus[2].mount_rpy_deg[0] * kDegToRad,
+  const Eigen::Matrix3d C = calib::core::euler_to_C_bn(c.imus[2].mount_rpy_deg[0] * kDegToRad,
                                                  c.imus[2].mount_rpy_deg[1] * kDegToRad,
                                                  c.imus[2].mount_rpy_deg[2] * kDegToRad);
   Eigen::Matrix3d want;

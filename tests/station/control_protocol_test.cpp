@@ -1,13 +1,14 @@
-// The control protocol's request validation and reply shapes (station/control_protocol.hpp): every
+// The control protocol's request validation and reply shapes (station/control/control_protocol.hpp): every
 // malformed request is a BadRequest that names the offending field and carries the id back when
 // one could be read; valid requests come out with their arguments intact.
-#include "station/control_protocol.hpp"
+#include "station/control/control_protocol.hpp"
 
 #include <gtest/gtest.h>
 
 #include <string>
 
 namespace imucal::station {
+using namespace imucal::station::control;
 namespace {
 
 using nlohmann::json;
@@ -251,11 +252,11 @@ TEST(ControlProtocol, PermissionsAndReadsAndErrorCodes) {
   for (const char* c : {"history", "show", "params", "export"}) EXPECT_TRUE(is_repository_read(c));
   for (const char* c : {"run.start", "run.status", "ping"}) EXPECT_FALSE(is_repository_read(c));
 
-  EXPECT_STREQ(error_code_for(db::DbErrorKind::kNotFound), "not_found");
-  EXPECT_STREQ(error_code_for(db::DbErrorKind::kInvalidInput), "invalid_input");
-  EXPECT_STREQ(error_code_for(db::DbErrorKind::kBusy), "busy");
-  EXPECT_STREQ(error_code_for(db::DbErrorKind::kIo), "unavailable");
-  EXPECT_STREQ(error_code_for(db::DbErrorKind::kCorrupt), "unavailable");
+  EXPECT_STREQ(error_code_for(db::history::DbErrorKind::kNotFound), "not_found");
+  EXPECT_STREQ(error_code_for(db::history::DbErrorKind::kInvalidInput), "invalid_input");
+  EXPECT_STREQ(error_code_for(db::history::DbErrorKind::kBusy), "busy");
+  EXPECT_STREQ(error_code_for(db::history::DbErrorKind::kIo), "unavailable");
+  EXPECT_STREQ(error_code_for(db::history::DbErrorKind::kCorrupt), "unavailable");
 }
 
 // Operator names and reasons go into the history and the log: a newline would forge a log line
@@ -306,6 +307,7 @@ TEST(ControlProtocol, NamesAndReasonsAreLimitedAndFreeOfControlCharacters) {
 }  // namespace imucal::station
 
 namespace imucal::station {
+using namespace imucal::station::control;
 namespace {
 
 // Issue #23: run.start names several units by slot (or in the fixture's order without one).

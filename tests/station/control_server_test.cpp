@@ -1,9 +1,9 @@
-// The control server (station/control_server.hpp) over a real Unix socket, with a fake
+// The control server (station/control/control_server.hpp) over a real Unix socket, with a fake
 // ControlHandler that counts its calls and a real SQLite history in a temporary directory:
 // dispatch, reads identical to the repository's answer, malformed and oversize lines isolated to
 // their client, many concurrent clients, peer-credential permission (a forked child running as
 // nobody), error-code mapping and socket file handling.
-#include "station/control_server.hpp"
+#include "station/control/control_server.hpp"
 
 #include <grp.h>
 #include <gtest/gtest.h>
@@ -23,12 +23,13 @@
 #include <thread>
 #include <vector>
 
-#include "db/sqlite_repository.hpp"
-#include "station/control_client.hpp"
-#include "station/record_json.hpp"
+#include "db/history/sqlite_repository.hpp"
+#include "station/control/control_client.hpp"
+#include "station/control/record_json.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal::station {
+using namespace imucal::station::control;
 namespace {
 
 using nlohmann::json;
@@ -39,7 +40,7 @@ constexpr gid_t kNogroupGid = 65534;
 
 class FakeHandler : public ControlHandler {
  public:
-  explicit FakeHandler(const db::Repository& repo) : repo_(repo) {}
+  explicit FakeHandler(const db::history::Repository& repo) : repo_(repo) {}
 
   json start_run(const StartRunRequest& r) override {
     enter();
@@ -50,16 +51,16 @@ class FakeHandler : public ControlHandler {
     }
     leave();
     if (r.serial == "BUSY-1") throw ControlError(error_code::kBusy, "run 4 is active (SIM-0004)");
-    if (r.serial == "BAD") throw db::InvalidInput("serial number \"BAD\" is reserved");
+    if (r.serial == "BAD") throw db::history::InvalidInput("serial number \"BAD\" is reserved");
     if (r.serial == "BOOM") throw std::runtime_error("division by zero in the fake");
     if (r.sequence && *r.sequence == "nope")
-      throw db::NotFound("sequence \"nope\": not in the library");
+      throw db::history::NotFound("sequence \"nope\": not in the library");
     return {{"run_id", 77},
             {"serial", r.serial},
             {"sequence", r.sequence.value_or("short")},
             {"steps", 18}};
   }
-  json status(std::optional<db::RunId> run_id) override {
+  json status(std::optional<db::history::RunId> run_id) override {
     enter();
     ++status_calls;
     // Long enough that two overlapping calls would be seen.
@@ -74,7 +75,7 @@ class FakeHandler : public ControlHandler {
     last_reason_ = reason;
     return {{"run_id", 77}};
   }
-  json diagnose(db::RunId run_id) override {
+  json diagnose(db::history::RunId run_id) override {
     return {{"run_id", run_id}, {"verdict", "consistent"}};
   }
   json reprocess(const ReprocessRequest& q) override {
@@ -83,7 +84,7 @@ class FakeHandler : public ControlHandler {
     last_reprocess_ = q;
     return {{"run_id", 78}, {"reprocessed_from", q.run_id}};
   }
-  const db::Repository& repository() const override { return repo_; }
+  const db::history::Repository& repository() const override { return repo_; }
 
   std::atomic<int> start_calls{0}, status_calls{0}, abort_calls{0}, reprocess_calls{0};
   std::atomic<int> overlaps{0};
@@ -110,7 +111,7 @@ class FakeHandler : public ControlHandler {
     if (in_call_.exchange(true)) ++overlaps;
   }
   void leave() { in_call_ = false; }
-  const db::Repository& repo_;
+  const db::history::Repository& repo_;
   std::atomic<bool> in_call_{false};
   std::mutex mutex_;
 };
@@ -121,10 +122,10 @@ class ControlServerTest : public ::testing::Test {
     // nobody must be able to reach the socket inside the temp dir: these tests are about the
     // protocol's own permission check, so the socket admits everyone (0666, not the default).
     ::chmod(dir_.path().c_str(), 0755);
-    repo_ = std::make_unique<db::SqliteRepository>(dir_.file("history.sqlite"));
-    const db::TimestampMs t0 = db::parse_time_utc("2024-05-01T10:00:00Z");
+    repo_ = std::make_unique<db::history::SqliteRepository>(dir_.file("history.sqlite"));
+    const db::history::TimestampMs t0 = db::history::parse_time_utc("2024-05-01T10:00:00Z");
     for (int k = 0; k < 3; ++k) {
-      const db::RunId id = repo_->create_run(db::test::new_run("SIM-0001", t0 + k * 3600000));
+      const db::history::RunId id = repo_->create_run(db::test::new_run("SIM-0001", t0 + k * 3600000));
       repo_->finish_run(id, db::test::pass_completion(k + 1, t0 + k * 3600000 + 60000));
     }
     handler_ = std::make_unique<FakeHandler>(*repo_);
@@ -140,7 +141,7 @@ class ControlServerTest : public ::testing::Test {
   std::string socket_path() const { return dir_.file("ctl.sock"); }
 
   db::test::TempDir dir_;
-  std::unique_ptr<db::SqliteRepository> repo_;
+  std::unique_ptr<db::history::SqliteRepository> repo_;
   std::unique_ptr<FakeHandler> handler_;
   std::unique_ptr<ControlServer> server_;
 };

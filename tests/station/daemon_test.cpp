@@ -2,7 +2,7 @@
 // intact and reprocessable; the status JSON carries the contract's fields before, during and after
 // a run (through the real control socket); run() notifies systemd (READY=1, WATCHDOG=1, STOPPING=1)
 // and shuts down cleanly.
-#include "station/daemon.hpp"
+#include "station/daemon/daemon.hpp"
 
 #include <gtest/gtest.h>
 #include <poll.h>
@@ -22,13 +22,17 @@
 #include "calib/core/site_presets.hpp"
 #include "calib/sim/truth_sim.hpp"
 #include "db/archive/run_archive.hpp"
-#include "drivers/sim/station_sim.hpp"
+#include "drivers/simulated/station_sim.hpp"
 #include "sequences/library.hpp"
-#include "station/archive_writer.hpp"
-#include "station/control_client.hpp"
-#include "station/logging.hpp"
+#include "station/run/archive_writer.hpp"
+#include "station/control/control_client.hpp"
+#include "station/daemon/logging.hpp"
 
 namespace imucal::station {
+using namespace imucal::station::config;
+using namespace imucal::station::control;
+using namespace imucal::station::daemon;
+using namespace imucal::station::run;
 namespace {
 
 namespace fs = std::filesystem;
@@ -72,14 +76,14 @@ class TempDir {
 /// without end time, no [capture], and half a line at the end of imu.csv. Returns the rows written.
 size_t write_killed_archive(const std::string& dir, const std::string& serial) {
   const auto profile = sequences::load_profile("short");
-  calib::SimOptions so;
+  calib::sim::SimOptions so;
   so.seed = 3;
-  const calib::SimResult sim = calib::simulate(
-      profile, calib::TableGeometry{}, calib::demo_factory_site(), calib::default_unit(), so);
-  archive::RunInfo info;
+  const calib::sim::SimResult sim = calib::sim::simulate(
+      profile, calib::core::TableGeometry{}, calib::core::demo_factory_site(), calib::effects::default_unit(), so);
+  db::archive::RunInfo info;
   info.serial = serial;
   info.station_name = "daemon-test";
-  info.site = calib::demo_factory_site();
+  info.site = calib::core::demo_factory_site();
   info.imu_rate_hz = so.rate_hz;
   info.sequence_name = "short";
   info.start_time = "2024-05-01T10:00:00.000Z";
@@ -96,22 +100,22 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
   TempDir tmp;
   StationConfig cfg = config_for(tmp.path, "tcp:127.0.0.1:1", "unixcan:" + tmp.path + "/none.sock");
   fs::create_directories(cfg.data_dir);
-  db::RunId running_id = 0, preparing_id = 0;
+  db::history::RunId running_id = 0, preparing_id = 0;
   size_t rows = 0;
   {
-    db::SqliteRepository repo(cfg.database);
-    db::NewRun nr;
+    db::history::SqliteRepository repo(cfg.database);
+    db::history::NewRun nr;
     nr.serial = "REC-1";
     nr.operator_name = "op";
     nr.station = "daemon-test";
     nr.sequence_name = "short";
     nr.software_version = "test";
-    nr.started_at_ms = db::now_ms();
-    nr.state = db::RunState::kRunning;
+    nr.started_at_ms = db::history::now_ms();
+    nr.state = db::history::RunState::kRunning;
     running_id = repo.create_run(nr);
     rows = write_killed_archive(run_archive_dir(cfg.data_dir, running_id, "REC-1"), "REC-1");
     nr.serial = "REC-2";
-    nr.state = db::RunState::kPreparing;
+    nr.state = db::history::RunState::kPreparing;
     preparing_id = repo.create_run(nr);
   }
 
@@ -121,13 +125,13 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
   d.start();
   ASSERT_EQ(d.recovery().runs.size(), 2u);
 
-  const db::RunRecord rec = d.repository().show(running_id).run;
-  EXPECT_EQ(rec.state, db::RunState::kInterrupted);
+  const db::history::RunRecord rec = d.repository().show(running_id).run;
+  EXPECT_EQ(rec.state, db::history::RunState::kInterrupted);
   EXPECT_NE(rec.failure_reason.find("running"), std::string::npos) << rec.failure_reason;
   EXPECT_NE(rec.failure_reason.find(std::to_string(rows) + " rows"), std::string::npos)
       << rec.failure_reason;
   // Intact: every complete row kept, the torn line gone, readable, hash recorded.
-  const archive::RunArchive ar = archive::read_archive(rec.archive_path);
+  const db::archive::RunArchive ar = db::archive::read_archive(rec.archive_path);
   EXPECT_EQ(ar.imu.size(), rows);
   EXPECT_EQ(ar.table.size(), rows);
   ASSERT_TRUE(ar.info.capture.has_value());
@@ -137,8 +141,8 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
   ASSERT_FALSE(rec.capture_json.empty());
   EXPECT_EQ(json::parse(rec.capture_json).at("rows_written").get<uint64_t>(), rows);
 
-  const db::RunRecord prep = d.repository().show(preparing_id).run;
-  EXPECT_EQ(prep.state, db::RunState::kInterrupted);
+  const db::history::RunRecord prep = d.repository().show(preparing_id).run;
+  EXPECT_EQ(prep.state, db::history::RunState::kInterrupted);
   EXPECT_NE(prep.failure_reason.find("no archive"), std::string::npos) << prep.failure_reason;
   // Nothing is resumed: the daemon is idle.
   EXPECT_EQ(d.status(std::nullopt).at("state"), "idle");
@@ -155,8 +159,8 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
   // Asked for: a new run from the kept archive, calibrated by the worker, REVIEW at best and
   // recorded as the requester's.
   const json r = d.reprocess({running_id, "qa-anna", true, std::nullopt});
-  const db::RunId new_id = r.at("run_id").get<db::RunId>();
-  EXPECT_EQ(r.at("reprocessed_from").get<db::RunId>(), running_id);
+  const db::history::RunId new_id = r.at("run_id").get<db::history::RunId>();
+  EXPECT_EQ(r.at("reprocessed_from").get<db::history::RunId>(), running_id);
   EXPECT_THROW(d.reprocess({running_id, "qa-anna", true, std::nullopt}),
                ControlError);  // busy meanwhile
   ASSERT_TRUE(d.controller().wait_idle(60s));
@@ -165,29 +169,29 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
   // (The verdict is the cross-check's: the two methods may well agree on the prefix.)
   EXPECT_NE(s.at("reason").get<std::string>().find("partial archive"), std::string::npos)
       << s.dump();
-  EXPECT_EQ(s.at("reprocessed_from").get<db::RunId>(), running_id);
+  EXPECT_EQ(s.at("reprocessed_from").get<db::history::RunId>(), running_id);
   EXPECT_EQ(d.repository().show(new_id).run.operator_name, "qa-anna");
   EXPECT_EQ(d.repository().show(new_id).run.archive_sha256, rec.archive_sha256);
-  EXPECT_THROW(d.repository().active_params("REC-1"), db::NotFound)
+  EXPECT_THROW(d.repository().active_params("REC-1"), db::history::NotFound)
       << "a partial archive became the unit's active parameters";
 
   // Reprocessed with a corrected surveyed gravity (issue #25: a station's signature showed its
   // gravity wrong): 50 µg more than the archive's moves every accelerometer scale by -50 ppm
   // against the same archive calibrated as it was, and the new run says what was corrected.
-  const double archive_g = *calib::demo_factory_site().gravity_mps2;
+  const double archive_g = *calib::core::demo_factory_site().gravity_mps2;
   const double corrected_g = archive_g + 50.0 * kMicroG_mps2;
   const json r2 = d.reprocess({running_id, "qa-anna", true, corrected_g});
-  const db::RunId corrected_id = r2.at("run_id").get<db::RunId>();
+  const db::history::RunId corrected_id = r2.at("run_id").get<db::history::RunId>();
   ASSERT_TRUE(d.controller().wait_idle(60s));
-  const db::RunDetails as_was = d.repository().show(new_id);
-  const db::RunDetails corrected = d.repository().show(corrected_id);
+  const db::history::RunDetails as_was = d.repository().show(new_id);
+  const db::history::RunDetails corrected = d.repository().show(corrected_id);
   EXPECT_NE(corrected.run.origin.find("surveyed gravity corrected to"), std::string::npos)
       << corrected.run.origin;
   EXPECT_EQ(as_was.run.origin, "");
   ASSERT_FALSE(as_was.calibrations.empty());
   ASSERT_FALSE(corrected.calibrations.empty());
-  ASSERT_EQ(as_was.calibrations[0].method, db::Method::kAins);
-  ASSERT_EQ(corrected.calibrations[0].method, db::Method::kAins);
+  ASSERT_EQ(as_was.calibrations[0].method, db::history::Method::kAins);
+  ASSERT_EQ(corrected.calibrations[0].method, db::history::Method::kAins);
   for (int i = 0; i < 3; ++i)
     EXPECT_NEAR(corrected.calibrations[0].params.accel_M(i, i) -
                     as_was.calibrations[0].params.accel_M(i, i),
@@ -210,7 +214,7 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
     EXPECT_NE(std::string(e.what()).find("changed"), std::string::npos) << e.what();
   }
   try {
-    d.status(db::RunId{999});
+    d.status(db::history::RunId{999});
     FAIL() << "unknown run answered";
   } catch (const ControlError& e) {
     EXPECT_EQ(e.code(), error_code::kNotFound);
@@ -220,10 +224,10 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
 
 TEST(Daemon, StatusJsonThroughTheControlSocketBeforeDuringAndAfterARun) {
   TempDir tmp;
-  sim::StationSimConfig sc;
+  drivers::simulated::StationSimConfig sc;
   sc.can_path = tmp.path + "/bus.sock";
   sc.speed = 50.0;
-  sim::StationSim sim(sc);
+  drivers::simulated::StationSim sim(sc);
   sim.start();
   std::ofstream(tmp.path + "/tiny.toml") << "name = \"tiny\"\n[start]\nrest_s = 10.0\n"
                                             "[[step]]\nrotate = \"inner\"\nby_deg = 90.0\n"
@@ -248,7 +252,7 @@ TEST(Daemon, StatusJsonThroughTheControlSocketBeforeDuringAndAfterARun) {
   r = c.call("run.start",
              {{"serial", "STAT-1"}, {"sequence", tmp.path + "/tiny.toml"}, {"operator", "alice"}});
   ASSERT_TRUE(r.ok) << r.error_message;
-  const db::RunId id = r.result.at("run_id").get<db::RunId>();
+  const db::history::RunId id = r.result.at("run_id").get<db::history::RunId>();
   EXPECT_EQ(r.result.at("steps"), 3);
   // A second start is refused while the first is live.
   Reply busy = c.call("run.start", {{"serial", "STAT-2"}});
@@ -279,7 +283,7 @@ TEST(Daemon, StatusJsonThroughTheControlSocketBeforeDuringAndAfterARun) {
   ASSERT_TRUE(live.is_object()) << "never saw the run on the table";
   EXPECT_EQ(live.at("state"), "busy");
   const json& run = live.at("run");
-  EXPECT_EQ(run.at("run_id").get<db::RunId>(), id);
+  EXPECT_EQ(run.at("run_id").get<db::history::RunId>(), id);
   EXPECT_EQ(run.at("serial"), "STAT-1");
   EXPECT_EQ(run.at("sequence"), "tiny");
   EXPECT_EQ(run.at("operator"), "alice");
@@ -302,7 +306,7 @@ TEST(Daemon, StatusJsonThroughTheControlSocketBeforeDuringAndAfterARun) {
   EXPECT_TRUE(r.result.at("run").is_null());
   const json& last = r.result.at("last_run");
   ASSERT_TRUE(last.is_object());
-  EXPECT_EQ(last.at("run_id").get<db::RunId>(), id);
+  EXPECT_EQ(last.at("run_id").get<db::history::RunId>(), id);
   const std::string state = last.at("state");
   EXPECT_TRUE(state == "failed" || state == "review") << last.dump();  // 2 poses cannot calibrate
   EXPECT_TRUE(last.at("phase").is_null());
@@ -331,13 +335,13 @@ TEST(Daemon, SecondDaemonOnTheSameDataDirectoryIsRefusedBeforeTouchingAnything) 
   Daemon first(cfg, opt);
   first.start();
   // A live run of the first daemon (as if it were running one).
-  db::RunId id = 0;
+  db::history::RunId id = 0;
   {
-    db::SqliteRepository repo(cfg.database);
-    db::NewRun nr;
+    db::history::SqliteRepository repo(cfg.database);
+    db::history::NewRun nr;
     nr.serial = "LOCK-1";
-    nr.started_at_ms = db::now_ms();
-    nr.state = db::RunState::kRunning;
+    nr.started_at_ms = db::history::now_ms();
+    nr.state = db::history::RunState::kRunning;
     id = repo.create_run(nr);
   }
   // A second daemon (another socket, same data directory) must not run recovery on it.
@@ -352,13 +356,13 @@ TEST(Daemon, SecondDaemonOnTheSameDataDirectoryIsRefusedBeforeTouchingAnything) 
               std::string::npos)
         << e.what();
   }
-  EXPECT_EQ(first.repository().show(id).run.state, db::RunState::kRunning);
+  EXPECT_EQ(first.repository().show(id).run.state, db::history::RunState::kRunning);
   EXPECT_FALSE(fs::exists(cfg2.control_socket));
   first.stop("test over");
   // Once the first is gone, a new daemon starts and recovers the run.
   Daemon third(cfg2, opt);
   third.start();
-  EXPECT_EQ(third.repository().show(id).run.state, db::RunState::kInterrupted);
+  EXPECT_EQ(third.repository().show(id).run.state, db::history::RunState::kInterrupted);
   third.stop("test over");
 }
 

@@ -1,6 +1,6 @@
-// The run's end note (station/end_note.hpp): reserved while there is space, overwritten in place
+// The run's end note (station/run/end_note.hpp): reserved while there is space, overwritten in place
 // when the database cannot take the run's end, read back by start-up recovery.
-#include "station/end_note.hpp"
+#include "station/run/end_note.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,6 +10,7 @@
 #include "tests/support/temp_dir.hpp"
 
 namespace imucal::station {
+using namespace imucal::station::run;
 namespace {
 
 namespace fs = std::filesystem;
@@ -22,11 +23,11 @@ TEST(EndNote, ReservedEmptyThenRecordedAndReadBack) {
   ASSERT_EQ(reserve_end_note(path), "");
   EXPECT_EQ(fs::file_size(path), kEndNoteBytes);
   EXPECT_FALSE(read_end_note(path).has_value()) << "a reservation is not a note";
-  ASSERT_EQ(record_end_note(path, db::RunState::kFailed, "archive: No space left on device"), "");
+  ASSERT_EQ(record_end_note(path, db::history::RunState::kFailed, "archive: No space left on device"), "");
   EXPECT_EQ(fs::file_size(path), kEndNoteBytes) << "recorded in place, not grown";
   const auto note = read_end_note(path);
   ASSERT_TRUE(note.has_value());
-  EXPECT_EQ(note->state, db::RunState::kFailed);
+  EXPECT_EQ(note->state, db::history::RunState::kFailed);
   EXPECT_EQ(note->reason, "archive: No space left on device");
   remove_end_note(path);
   EXPECT_FALSE(fs::exists(path));
@@ -36,10 +37,10 @@ TEST(EndNote, LongReasonIsCutToTheReservation) {
   test_support::ScopedTempDir dir("end-note");
   const std::string path = dir.sub("n.end");
   ASSERT_EQ(reserve_end_note(path), "");
-  ASSERT_EQ(record_end_note(path, db::RunState::kAborted, std::string(10000, 'r')), "");
+  ASSERT_EQ(record_end_note(path, db::history::RunState::kAborted, std::string(10000, 'r')), "");
   const auto note = read_end_note(path);
   ASSERT_TRUE(note.has_value());
-  EXPECT_EQ(note->state, db::RunState::kAborted);
+  EXPECT_EQ(note->state, db::history::RunState::kAborted);
   EXPECT_GT(note->reason.size(), kEndNoteBytes / 2);
   EXPECT_LT(note->reason.size(), kEndNoteBytes);
   EXPECT_EQ(fs::file_size(path), kEndNoteBytes);
@@ -48,7 +49,7 @@ TEST(EndNote, LongReasonIsCutToTheReservation) {
 TEST(EndNote, NoReservationOrGarbageIsNoNote) {
   test_support::ScopedTempDir dir("end-note");
   const std::string path = dir.sub("missing.end");
-  EXPECT_NE(record_end_note(path, db::RunState::kFailed, "x"), "") << "no O_CREAT: only in place";
+  EXPECT_NE(record_end_note(path, db::history::RunState::kFailed, "x"), "") << "no O_CREAT: only in place";
   EXPECT_FALSE(fs::exists(path));
   EXPECT_FALSE(read_end_note(path).has_value());
   std::ofstream(dir.sub("garbage.end")) << "failed\nnot a note";

@@ -1,4 +1,4 @@
-// Streamed exports over the control socket (station/export_stream.hpp, issue #11 item 3), with a
+// Streamed exports over the control socket (station/control/export_stream.hpp, issue #11 item 3), with a
 // real SQLite history of 400 runs (800 rows, ~1.1 MB of CSV: more than the socket buffers hold):
 // the streamed bytes are exactly the export the repository writes, in each format; a client that
 // goes away in the middle leaves the server serving and its export thread ended; errors before the
@@ -13,13 +13,14 @@
 #include <thread>
 
 #include "calib/core/param_set.hpp"
-#include "db/export.hpp"
-#include "db/sqlite_repository.hpp"
-#include "station/control_client.hpp"
-#include "station/control_server.hpp"
+#include "db/history/export.hpp"
+#include "db/history/sqlite_repository.hpp"
+#include "station/control/control_client.hpp"
+#include "station/control/control_server.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal::station {
+using namespace imucal::station::control;
 namespace {
 
 using nlohmann::json;
@@ -28,16 +29,16 @@ using namespace std::chrono_literals;
 /// Reads only: the control commands are not what these tests are about.
 class ReadOnlyHandler : public ControlHandler {
  public:
-  explicit ReadOnlyHandler(const db::Repository& repo) : repo_(repo) {}
+  explicit ReadOnlyHandler(const db::history::Repository& repo) : repo_(repo) {}
   json start_run(const StartRunRequest&) override { throw ControlError("internal", "not here"); }
-  json status(std::optional<db::RunId>) override { return {{"state", "idle"}}; }
+  json status(std::optional<db::history::RunId>) override { return {{"state", "idle"}}; }
   json abort_run(const std::string&) override { throw ControlError("internal", "not here"); }
   json reprocess(const ReprocessRequest&) override { throw ControlError("internal", "not here"); }
-  json diagnose(db::RunId) override { throw ControlError("internal", "not here"); }
-  const db::Repository& repository() const override { return repo_; }
+  json diagnose(db::history::RunId) override { throw ControlError("internal", "not here"); }
+  const db::history::Repository& repository() const override { return repo_; }
 
  private:
-  const db::Repository& repo_;
+  const db::history::Repository& repo_;
 };
 
 constexpr int kRuns = 400;  // 800 rows, ~1.1 MB of CSV: far more than the socket buffers hold
@@ -49,13 +50,13 @@ class ExportStreamTest : public ::testing::Test {
     // thread: the TSan tree links the calibration core uninstrumented (tools/sanitizers.sh), so
     // TSan cannot see the guard of its lazy construction and would report the first reads from two
     // threads as a race.
-    (void)calib::param_info(0);
+    (void)calib::core::param_info(0);
     dir_ = new db::test::TempDir();
-    db::SqliteRepository repo(dir_->file("history.sqlite"));
-    const db::TimestampMs t0 = db::parse_time_utc("2024-05-01T10:00:00Z");
+    db::history::SqliteRepository repo(dir_->file("history.sqlite"));
+    const db::history::TimestampMs t0 = db::history::parse_time_utc("2024-05-01T10:00:00Z");
     for (int k = 0; k < kRuns; ++k) {
       const std::string serial = "SN-" + std::to_string(k % 50);
-      const db::RunId id = repo.create_run(db::test::new_run(serial, t0 + k * 60000));
+      const db::history::RunId id = repo.create_run(db::test::new_run(serial, t0 + k * 60000));
       repo.finish_run(id, k % 7 == 3 ? db::test::review_completion(k, t0 + k * 60000 + 30000)
                                      : db::test::pass_completion(k, t0 + k * 60000 + 30000));
     }
@@ -66,7 +67,7 @@ class ExportStreamTest : public ::testing::Test {
   }
 
   void start_server(std::size_t max_exports = 4) {
-    repo_ = std::make_unique<db::SqliteRepository>(db_path());
+    repo_ = std::make_unique<db::history::SqliteRepository>(db_path());
     handler_ = std::make_unique<ReadOnlyHandler>(*repo_);
     ControlServerOptions o;
     o.socket_path = dir_->file("ctl-" + std::to_string(++servers_) + ".sock");
@@ -81,15 +82,15 @@ class ExportStreamTest : public ::testing::Test {
   std::string socket_path() const { return server_->socket_path(); }
 
   /// What the repository itself writes for this export.
-  std::string direct(const std::string& format, const db::ExportFilter& filter = {}) const {
+  std::string direct(const std::string& format, const db::history::ExportFilter& filter = {}) const {
     std::ostringstream out;
-    db::export_history(*repo_, filter, format, out);
+    db::history::export_history(*repo_, filter, format, out);
     return out.str();
   }
 
   static db::test::TempDir* dir_;
   static int servers_;
-  std::unique_ptr<db::SqliteRepository> repo_;
+  std::unique_ptr<db::history::SqliteRepository> repo_;
   std::unique_ptr<ReadOnlyHandler> handler_;
   std::unique_ptr<ControlServer> server_;
 };

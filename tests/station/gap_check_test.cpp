@@ -1,9 +1,9 @@
-// The station's gap check (station/gap_check.hpp) on the run that made CI fail at random (issue
+// The station's gap check (station/run/gap_check.hpp) on the run that made CI fail at random (issue
 // #28, tests/data/README.md): a null run from the station simulator whose noise stretch is unlucky.
 // Two rules hold on it: an effect that removes only a small part of a significant gap is no finding
 // (the run is "unexplained" and the REVIEW reason names no effect), and at the station's
 // false-alarm rate per run the run is consistent.
-#include "station/gap_check.hpp"
+#include "station/run/gap_check.hpp"
 
 #include <gtest/gtest.h>
 
@@ -13,12 +13,15 @@
 
 #include "calib/diagnosis/diagnosis.hpp"
 #include "calib/nlsq/nlsq.hpp"
+#include "db/archive/archive_input.hpp"
 #include "db/archive/run_archive.hpp"
-#include "station/config.hpp"
+#include "station/config/config.hpp"
 #include "tests/support/data_archive.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace imucal::station {
+using namespace imucal::station::config;
+using namespace imucal::station::run;
 namespace {
 
 /// The archive of tests/data/soak-null-run.tar.xz, unpacked into `dir`.
@@ -27,10 +30,10 @@ std::string unpack_soak_run(const test_support::ScopedTempDir& dir) {
 }
 
 GapCheck check_at(const std::string& run_dir, double false_alarm_per_run) {
-  archive::RunArchive ar = archive::read_archive(run_dir);
+  db::archive::RunArchive ar = db::archive::read_archive(run_dir);
   // The samples move into the input; ar keeps its info, all check_gap reads of it.
-  calib::CalibrationInput in = archive::to_calibration_input(std::move(ar));
-  const calib::CalibrationResult nlsq = calib::calibrate_nlsq(in);
+  calib::core::CalibrationInput in = db::archive::to_calibration_input(std::move(ar));
+  const calib::core::CalibrationResult nlsq = calib::nlsq::calibrate_nlsq(in);
   return check_gap(std::move(in), ar, nlsq.params, false_alarm_per_run);
 }
 
@@ -52,7 +55,7 @@ TEST(GapCheck, AnEffectThatRemovesLittleOfTheHeldOutGapIsNoFindingAndTheReasonNa
   ASSERT_TRUE(g.summary["weak_candidate"].is_object()) << g.summary.dump();
   EXPECT_EQ(g.summary["weak_candidate"].value("effect", ""), "latitude_error");
   EXPECT_LT(g.summary["weak_candidate"].value("shrinkage", 1.0),
-            calib::DiagnosisOptions{}.min_shrinkage);
+            calib::diagnosis::DiagnosisOptions{}.min_shrinkage);
 }
 
 // Issue #26: the product's known effects excuse a gap only when they explain it; an unexplained
@@ -60,9 +63,9 @@ TEST(GapCheck, AnEffectThatRemovesLittleOfTheHeldOutGapIsNoFindingAndTheReasonNa
 TEST(GapCheck, KnownEffectsDoNotExcuseAnUnexplainedGap) {
   test_support::ScopedTempDir dir("gap_check_test");
   const std::string run = unpack_soak_run(dir);
-  archive::RunArchive ar = archive::read_archive(run);
-  calib::CalibrationInput in = archive::to_calibration_input(std::move(ar));
-  const calib::CalibrationResult nlsq = calib::calibrate_nlsq(in);
+  db::archive::RunArchive ar = db::archive::read_archive(run);
+  calib::core::CalibrationInput in = db::archive::to_calibration_input(std::move(ar));
+  const calib::core::CalibrationResult nlsq = calib::nlsq::calibrate_nlsq(in);
   const GapCheck g = check_gap(std::move(in), ar, nlsq.params, 2e-3, {"latitude_error"});
   EXPECT_TRUE(g.significant) << g.text;
   EXPECT_FALSE(g.known) << g.summary.dump();
@@ -80,9 +83,9 @@ TEST(GapCheck, AtTheStationsFalseAlarmRateTheUnluckyNullRunIsConsistent) {
 }
 
 TEST(GapCheck, FalseAlarmRateOutsideZeroToOneIsRefused) {
-  EXPECT_THROW(calib::diagnosis_options_for_false_alarm(0.0), std::invalid_argument);
-  EXPECT_THROW(calib::diagnosis_options_for_false_alarm(1.0), std::invalid_argument);
-  EXPECT_DOUBLE_EQ(calib::diagnosis_options_for_false_alarm(1e-4).alpha, 5e-5);
+  EXPECT_THROW(calib::diagnosis::diagnosis_options_for_false_alarm(0.0), std::invalid_argument);
+  EXPECT_THROW(calib::diagnosis::diagnosis_options_for_false_alarm(1.0), std::invalid_argument);
+  EXPECT_DOUBLE_EQ(calib::diagnosis::diagnosis_options_for_false_alarm(1e-4).alpha, 5e-5);
 }
 
 }  // namespace

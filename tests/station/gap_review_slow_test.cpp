@@ -1,5 +1,5 @@
 // The station's consistency test on factory-length runs (issue #8, "What it must show"): through
-// the daemon's own calibration job (station/calibration_worker.hpp: AINS, NLSQ, cross-check, gap
+// the daemon's own calibration job (station/run/calibration_worker.hpp: AINS, NLSQ, cross-check, gap
 // diagnosis, SQLite), on simulated factory-std runs of the default unit:
 //  * every catalogue effect that the factory sequence can detect (imucal crlb --effects: a finite
 //    detection threshold), injected at 3x its threshold, no longer ends a run PASS — it ends REVIEW
@@ -21,9 +21,9 @@
 #include "calib/diagnosis/effect_detectability.hpp"
 #include "calib/sim/sim_input.hpp"
 #include "db/archive/run_archive.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "sequences/library.hpp"
-#include "station/calibration_worker.hpp"
+#include "station/run/calibration_worker.hpp"
 #include "tests/support/temp_dir.hpp"
 
 using namespace imucal;
@@ -38,12 +38,12 @@ int null_seeds() {
 
 struct Case {
   std::string name;  ///< "null" or the effect
-  calib::Effects effects;
+  calib::effects::Effects effects;
   uint64_t seed = 0;
 };
 
 struct Outcome {
-  db::RunState state = db::RunState::kFailed;
+  db::history::RunState state = db::history::RunState::kFailed;
   std::string reason;
 };
 
@@ -53,25 +53,25 @@ const sequences::MotionProfile& factory_std() {
 }
 
 /// Simulate the case into an archive and run the daemon's calibration job on it.
-Outcome run_case(const Case& c, const std::string& dir, db::Repository& repo) {
-  calib::UnitModel unit = calib::default_unit();
+Outcome run_case(const Case& c, const std::string& dir, db::history::Repository& repo) {
+  calib::effects::UnitModel unit = calib::effects::default_unit();
   unit.effects = c.effects;
-  calib::SimOptions so;
+  calib::sim::SimOptions so;
   so.seed = c.seed;
-  const calib::TableGeometry geom;
-  calib::SimResult sim = calib::simulate(factory_std(), geom, calib::demo_factory_site(), unit, so);
-  archive::RunArchive ar;
+  const calib::core::TableGeometry geom;
+  calib::sim::SimResult sim = calib::sim::simulate(factory_std(), geom, calib::core::demo_factory_site(), unit, so);
+  db::archive::RunArchive ar;
   ar.info.serial = "GAP-" + std::to_string(c.seed);
-  ar.info.site = calib::demo_factory_site();
+  ar.info.site = calib::core::demo_factory_site();
   ar.info.imu_rate_hz = so.rate_hz;
-  ar.info.table = archive::TableSetup::from_geometry(geom);
+  ar.info.table = db::archive::TableSetup::from_geometry(geom);
   ar.info.sequence_name = "factory-std";
   ar.info.arw_rad_per_sqrt_s = unit.noise.arw_rad_per_sqrt_s;
   ar.info.vrw_mps_per_sqrt_s = unit.noise.vrw_mps_per_sqrt_s;
   ar.imu = std::move(sim.imu);
   ar.table = std::move(sim.table);
-  archive::write_archive(dir, ar);
-  db::NewRun nr;
+  db::archive::write_archive(dir, ar);
+  db::history::NewRun nr;
   nr.serial = ar.info.serial;
   nr.operator_name = "test";
   nr.station = "gap-test";
@@ -79,17 +79,17 @@ Outcome run_case(const Case& c, const std::string& dir, db::Repository& repo) {
   nr.software_version = "test";
   nr.started_at_ms = 1714560000000;
   nr.archive_path = dir;
-  nr.state = db::RunState::kCalibrating;
-  station::CalibrationJob job;
+  nr.state = db::history::RunState::kCalibrating;
+  station::run::CalibrationJob job;
   job.run_id = repo.create_run(nr);
   job.archive_dir = dir;
-  const station::CalibrationOutcome out = station::run_calibration_job(repo, job);
+  const station::run::CalibrationOutcome out = station::run::run_calibration_job(repo, job);
   return {out.state, out.reason};
 }
 
 std::vector<Outcome> run_all(const std::vector<Case>& cases) {
   const test_support::ScopedTempDir tmp("gap-review");
-  db::SqliteRepository repo(tmp.sub("history.sqlite"));
+  db::history::SqliteRepository repo(tmp.sub("history.sqlite"));
   std::vector<Outcome> out(cases.size());
   std::atomic<size_t> next{0};
   auto worker = [&] {
@@ -106,10 +106,10 @@ std::vector<Outcome> run_all(const std::vector<Case>& cases) {
 }  // namespace
 
 TEST(GapReview, EveryDetectableEffectAtThreeTimesItsThresholdIsNeverPass) {
-  const auto det = calib::effect_detectability(
-      calib::truth_run_source(factory_std(), calib::TableGeometry{}, calib::demo_factory_site(),
-                              calib::default_unit(), 100.0)(calib::Effects{}, 1, /*noise=*/false),
-      calib::TableGeometry{}, calib::default_unit().params);
+  const auto det = calib::diagnosis::effect_detectability(
+      calib::sim::truth_run_source(factory_std(), calib::core::TableGeometry{}, calib::core::demo_factory_site(),
+                              calib::effects::default_unit(), 100.0)(calib::effects::Effects{}, 1, /*noise=*/false),
+      calib::core::TableGeometry{}, calib::effects::default_unit().params);
   std::vector<Case> cases;
   for (const auto& d : det) {
     if (!std::isfinite(d.threshold))
@@ -117,8 +117,8 @@ TEST(GapReview, EveryDetectableEffectAtThreeTimesItsThresholdIsNeverPass) {
     Case c;
     c.name = d.name;
     c.seed = 500 + cases.size();
-    calib::set_effect_vector(
-        c.effects, d.id, calib::scaled_typical(calib::effect_info(d.id), 3.0 * d.threshold, 1.0));
+    calib::effects::set_effect_vector(
+        c.effects, d.id, calib::diagnosis::scaled_typical(calib::effects::effect_info(d.id), 3.0 * d.threshold, 1.0));
     cases.push_back(c);
   }
   ASSERT_GE(cases.size(), 11u) << "K2, asymmetry, size, g-sensitivity, skew, thermal, instability, "
@@ -126,8 +126,8 @@ TEST(GapReview, EveryDetectableEffectAtThreeTimesItsThresholdIsNeverPass) {
   const auto out = run_all(cases);
   for (size_t i = 0; i < cases.size(); ++i) {
     std::printf("  %-24s 3x threshold -> %s: %s\n", cases[i].name.c_str(),
-                db::to_string(out[i].state), out[i].reason.substr(0, 160).c_str());
-    EXPECT_EQ(out[i].state, db::RunState::kReview) << cases[i].name << ": " << out[i].reason;
+                db::history::to_string(out[i].state), out[i].reason.substr(0, 160).c_str());
+    EXPECT_EQ(out[i].state, db::history::RunState::kReview) << cases[i].name << ": " << out[i].reason;
     EXPECT_NE(out[i].reason.find("sim-to-real gap"), std::string::npos) << cases[i].name;
   }
 }
@@ -136,14 +136,14 @@ TEST(GapReview, NullRunsStillPass) {
   const int n = null_seeds();
   std::vector<Case> cases;
   for (int i = 0; i < n; ++i)
-    cases.push_back({"null", calib::Effects{}, 1000u + static_cast<uint64_t>(i)});
+    cases.push_back({"null", calib::effects::Effects{}, 1000u + static_cast<uint64_t>(i)});
   const auto out = run_all(cases);
   int review = 0;
   for (size_t i = 0; i < out.size(); ++i) {
-    if (out[i].state != db::RunState::kDone)
+    if (out[i].state != db::history::RunState::kDone)
       std::printf("  null seed %llu -> %s: %s\n", static_cast<unsigned long long>(cases[i].seed),
-                  db::to_string(out[i].state), out[i].reason.c_str());
-    review += out[i].state == db::RunState::kDone ? 0 : 1;
+                  db::history::to_string(out[i].state), out[i].reason.c_str());
+    review += out[i].state == db::history::RunState::kDone ? 0 : 1;
   }
   std::printf("  %d of %d null runs not PASS\n", review, n);
   EXPECT_LE(review, static_cast<int>(0.05 * n)) << review << " of " << n << " null runs not PASS";

@@ -9,7 +9,7 @@
 //
 // The protocol's resolution must be below the unit's noise: a navigation-grade unit
 // (2.5e-4 °/s of noise a sample) on the same 16-bit protocol moves by more than 0.1σ (measured
-// 0.23σ on gyro_M[0][1]); drivers/imu/PROTOCOLS.md, "Resolution".
+// 0.23σ on gyro_M[0][1]); drivers/imu/PROTOCOL.md, "Resolution".
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -29,67 +29,67 @@ namespace {
 
 const std::string kSource = IMUCAL_SOURCE_DIR;
 
-std::shared_ptr<const imu::ImuProtocolMap> protocol(const std::string& rel) {
-  return std::make_shared<const imu::ImuProtocolMap>(imu::read_protocol_map(kSource + rel));
+std::shared_ptr<const drivers::imu::ImuProtocolMap> protocol(const std::string& rel) {
+  return std::make_shared<const drivers::imu::ImuProtocolMap>(drivers::imu::read_protocol_map(kSource + rel));
 }
 
 /// The input as the station would see it after `map`: every sample encoded and decoded (none may
 /// be lost), the resolution declared in the noise model.
-calib::CalibrationInput through(const calib::CalibrationInput& in,
-                                const std::shared_ptr<const imu::ImuProtocolMap>& map) {
-  imu::ImuFrameEncoder enc(map, std::nullopt);
-  imu::DecoderOptions o;
+calib::core::CalibrationInput through(const calib::core::CalibrationInput& in,
+                                const std::shared_ptr<const drivers::imu::ImuProtocolMap>& map) {
+  drivers::imu::ImuFrameEncoder enc(map, std::nullopt);
+  drivers::imu::DecoderOptions o;
   o.protocol = map;
   o.sample_rate_hz = 100.0;
-  imu::ImuFrameDecoder dec(o);
-  std::vector<imu::DecodedSample> out;
-  for (const calib::ImuIncrement& inc : in.imu)
-    for (const imu::CanFrame& f : enc.encode(inc)) dec.push({f, 0}, out);
+  drivers::imu::ImuFrameDecoder dec(o);
+  std::vector<drivers::imu::DecodedSample> out;
+  for (const calib::core::ImuIncrement& inc : in.imu)
+    for (const drivers::imu::CanFrame& f : enc.encode(inc)) dec.push({f, 0}, out);
   dec.flush(out);
   EXPECT_EQ(out.size(), in.imu.size()) << map->name;
   EXPECT_EQ(dec.counters().samples_lost + dec.counters().samples_corrupt, 0u) << map->name;
-  calib::CalibrationInput r = in;
+  calib::core::CalibrationInput r = in;
   for (size_t k = 0; k < r.imu.size() && k < out.size(); ++k) {
     r.imu[k].dtheta_rad = out[k].increment.dtheta_rad;
     r.imu[k].dv_mps = out[k].increment.dv_mps;
   }
-  const imu::IncrementResolution q = imu::increment_resolution(*map, 0.01);
+  const drivers::imu::IncrementResolution q = drivers::imu::increment_resolution(*map, 0.01);
   r.noise.dtheta_lsb_rad = q.dtheta_rad;
   r.noise.dv_lsb_mps = q.dv_mps;
   return r;
 }
 
 /// The largest |difference| in units of the reference's σ, and where.
-std::pair<double, std::string> largest(const calib::CalibrationResult& a,
-                                       const calib::CalibrationResult& ref) {
-  const calib::ParamVector d = a.params.to_vector() - ref.params.to_vector();
-  const calib::ParamVector s = ref.sigma.to_vector();
+std::pair<double, std::string> largest(const calib::core::CalibrationResult& a,
+                                       const calib::core::CalibrationResult& ref) {
+  const calib::core::ParamVector d = a.params.to_vector() - ref.params.to_vector();
+  const calib::core::ParamVector s = ref.sigma.to_vector();
   std::pair<double, std::string> worst{0.0, ""};
-  for (int i = 0; i < calib::ParamSet::kSize; ++i)
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
     if (std::abs(d[i]) / s[i] > worst.first)
-      worst = {std::abs(d[i]) / s[i], calib::param_info(i).name};
+      worst = {std::abs(d[i]) / s[i], calib::core::param_info(i).name};
   return worst;
 }
 
-calib::CalibrationInput factory_run(const calib::UnitModel& unit, calib::Grade grade) {
-  calib::SimOptions opt;
+calib::core::CalibrationInput factory_run(const calib::effects::UnitModel& unit, calib::core::Grade grade) {
+  calib::sim::SimOptions opt;
   opt.seed = 27;
-  const calib::SimResult sim =
-      calib::simulate(sequences::load_profile("factory-std"), calib::TableGeometry{},
-                      calib::demo_factory_site(), unit, opt);
-  calib::CalibrationInput in = calib::input_from_simulation(sim, calib::TableGeometry{},
-                                                            calib::demo_factory_site(), unit.noise);
+  const calib::sim::SimResult sim =
+      calib::sim::simulate(sequences::load_profile("factory-std"), calib::core::TableGeometry{},
+                      calib::core::demo_factory_site(), unit, opt);
+  calib::core::CalibrationInput in = calib::sim::input_from_simulation(sim, calib::core::TableGeometry{},
+                                                            calib::core::demo_factory_site(), unit.noise);
   in.grade = grade;
   return in;
 }
 
 TEST(ProtocolParameters, ATacticalUnitGetsTheSameParametersOnBothProtocolsWithinATenthOfSigma) {
-  const calib::CalibrationInput in =
-      factory_run(calib::draw_unit(calib::Grade::kTactical, 3), calib::Grade::kTactical);
-  const calib::PipelineResult builtin =
-      calib::run_calibration(through(in, protocol("/drivers/imu/protocols/imucal-imu-1.toml")));
-  const calib::PipelineResult rates16 =
-      calib::run_calibration(through(in, protocol("/tests/data/protocols/rates16.toml")));
+  const calib::core::CalibrationInput in =
+      factory_run(calib::sim::draw_unit(calib::core::Grade::kTactical, 3), calib::core::Grade::kTactical);
+  const calib::pipeline::PipelineResult builtin =
+      calib::pipeline::run_calibration(through(in, protocol("/drivers/imu/protocols/imucal-imu-1.toml")));
+  const calib::pipeline::PipelineResult rates16 =
+      calib::pipeline::run_calibration(through(in, protocol("/tests/data/protocols/rates16.toml")));
   ASSERT_TRUE(builtin.ains && builtin.nlsq && rates16.ains && rates16.nlsq);
   EXPECT_TRUE(builtin.pass());
   EXPECT_TRUE(rates16.pass());
@@ -106,13 +106,13 @@ TEST(ProtocolParameters, ATacticalUnitGetsTheSameParametersOnBothProtocolsWithin
 // its resolution, moves the calibration by more than 0.1σ (AINS alone: this is a figure, not the
 // station's use).
 TEST(ProtocolParameters, ANavigationGradeUnitIsMovedByA16BitProtocolsResolution) {
-  const calib::CalibrationInput in = factory_run(calib::default_unit(), calib::Grade::kNavigation);
-  calib::PipelineOptions po;
-  po.methods = calib::MethodSelection::kAins;
+  const calib::core::CalibrationInput in = factory_run(calib::effects::default_unit(), calib::core::Grade::kNavigation);
+  calib::pipeline::PipelineOptions po;
+  po.methods = calib::pipeline::MethodSelection::kAins;
   po.check_data = false;  // a constant 10 °/s in 0.01 °/s steps repeats exactly: looks clipped
-  const calib::PipelineResult builtin = calib::run_calibration(in, po);
-  const calib::PipelineResult rates16 =
-      calib::run_calibration(through(in, protocol("/tests/data/protocols/rates16.toml")), po);
+  const calib::pipeline::PipelineResult builtin = calib::pipeline::run_calibration(in, po);
+  const calib::pipeline::PipelineResult rates16 =
+      calib::pipeline::run_calibration(through(in, protocol("/tests/data/protocols/rates16.toml")), po);
   ASSERT_TRUE(builtin.ains && rates16.ains);
   const auto [worst, name] = largest(rates16.ains->result, builtin.ains->result);
   std::fprintf(stderr, "[protocol] navigation grade: largest difference %.4f sigma (%s)\n", worst,

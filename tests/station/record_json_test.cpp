@@ -1,6 +1,6 @@
-// JSON shapes and text renderings of the read commands (station/record_json.hpp), against a real
+// JSON shapes and text renderings of the read commands (station/control/record_json.hpp), against a real
 // SQLite history filled through the repository with seeded values the test recomputes.
-#include "station/record_json.hpp"
+#include "station/control/record_json.hpp"
 
 #include <gtest/gtest.h>
 
@@ -12,10 +12,11 @@
 
 #include "calib/core/param_set.hpp"
 #include "db/archive/param_json.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal::station {
+using namespace imucal::station::control;
 namespace {
 
 using db::test::TempDir;
@@ -45,19 +46,19 @@ std::string fixed3(double v) {
 class RecordJson : public ::testing::Test {
  protected:
   void SetUp() override {
-    repo_ = std::make_unique<db::SqliteRepository>(dir_.file("history.sqlite"));
-    t10_ = db::parse_time_utc("2024-05-01T10:00:00Z");
-    t11_ = db::parse_time_utc("2024-05-01T11:00:00Z");
-    t12_ = db::parse_time_utc("2024-05-01T12:00:00Z");
+    repo_ = std::make_unique<db::history::SqliteRepository>(dir_.file("history.sqlite"));
+    t10_ = db::history::parse_time_utc("2024-05-01T10:00:00Z");
+    t11_ = db::history::parse_time_utc("2024-05-01T11:00:00Z");
+    t12_ = db::history::parse_time_utc("2024-05-01T12:00:00Z");
     r1_ = repo_->create_run(db::test::new_run("SN-A", t10_));
-    db::RunCompletion c1 = db::test::pass_completion(1, t10_ + 754000);  // 12 min 34 s
+    db::history::RunCompletion c1 = db::test::pass_completion(1, t10_ + 754000);  // 12 min 34 s
     c1.capture_json = kCapture;
     repo_->finish_run(r1_, c1);
     r2_ = repo_->create_run(db::test::new_run("SN-A", t12_));
     repo_->finish_run(r2_, db::test::review_completion(2, t12_ + 60000));
     r3_ = repo_->create_run(db::test::new_run("SN-A", t11_));
-    db::RunCompletion c3;
-    c3.state = db::RunState::kFailed;
+    db::history::RunCompletion c3;
+    c3.state = db::history::RunState::kFailed;
     c3.ended_at_ms = t11_ + 5000;
     c3.reason = "capture: IMU reset at sample 412";
     repo_->finish_run(r3_, c3);
@@ -66,9 +67,9 @@ class RecordJson : public ::testing::Test {
   }
 
   TempDir dir_;
-  std::unique_ptr<db::SqliteRepository> repo_;
-  db::TimestampMs t10_ = 0, t11_ = 0, t12_ = 0;
-  db::RunId r1_ = 0, r2_ = 0, r3_ = 0, r4_ = 0;
+  std::unique_ptr<db::history::SqliteRepository> repo_;
+  db::history::TimestampMs t10_ = 0, t11_ = 0, t12_ = 0;
+  db::history::RunId r1_ = 0, r2_ = 0, r3_ = 0, r4_ = 0;
 };
 
 Request read(const std::string& cmd, const json& args) {
@@ -111,9 +112,9 @@ TEST_F(RecordJson, HistoryIsNewestFirstWithCaptureAndReasons) {
 // Issue #19 item 2: a run whose cross-check passed but which the gap check and a partial archive
 // sent to review showed "PASS" in history, show, export and the run's end line.
 TEST_F(RecordJson, EveryViewShowsTheRunVerdictWithItsReasonsAndTheCrossCheckLabelled) {
-  const db::RunId id = repo_->create_run(db::test::new_run("SN-C", t10_));
-  db::RunCompletion c = db::test::pass_completion(5, t10_ + 60000);
-  c.state = db::RunState::kReview;
+  const db::history::RunId id = repo_->create_run(db::test::new_run("SN-C", t10_));
+  db::history::RunCompletion c = db::test::pass_completion(5, t10_ + 60000);
+  c.state = db::history::RunState::kReview;
   c.reasons = {{"partial archive", "partial archive: aborted at step 9 of 18 — REVIEW at best"},
                {"gap", "sim-to-real gap: explained by gyro_g_sensitivity"}};
   repo_->finish_run(id, c);
@@ -158,24 +159,24 @@ TEST_F(RecordJson, EveryViewShowsTheRunVerdictWithItsReasonsAndTheCrossCheckLabe
       answer_repository_read(*repo_, read("export", {{"serial", "SN-C"}, {"format", "json"}}));
   for (const json& row : json::parse(e.at("content").get<std::string>()))
     EXPECT_EQ(row.at("verdict"), "REVIEW");
-  EXPECT_THROW(repo_->active_params("SN-C"), db::NotFound) << "REVIEW is never active";
+  EXPECT_THROW(repo_->active_params("SN-C"), db::history::NotFound) << "REVIEW is never active";
 }
 
 // Issue #19 item 4: a land run's show said "AINS and NLSQ agree on every parameter" (the second
 // method was legacy, three terms were not compared), printed the table misalignment it cannot see
 // as "0.000 ± 0.000", left out the housing-orientation note and ran "legacyconverged" together.
 TEST_F(RecordJson, AFieldRunShowsItsMethodsWhatWasNotComparedAndWhatIsNotObservable) {
-  db::NewRun nr = db::test::new_run("SN-L", t10_);
-  nr.setting = calib::Setting::kLand;
+  db::history::NewRun nr = db::test::new_run("SN-L", t10_);
+  nr.setting = calib::core::Setting::kLand;
   nr.origin = "imported from /media/land-01";
-  const db::RunId id = repo_->create_run(nr);
-  db::RunCompletion c = db::test::pass_completion(6, t10_ + 60000);
-  c.calibrations = {db::test::seeded_calibration(6, db::Method::kAins, false),
-                    db::test::seeded_calibration(6, db::Method::kLegacy, false)};
+  const db::history::RunId id = repo_->create_run(nr);
+  db::history::RunCompletion c = db::test::pass_completion(6, t10_ + 60000);
+  c.calibrations = {db::test::seeded_calibration(6, db::history::Method::kAins, false),
+                    db::test::seeded_calibration(6, db::history::Method::kLegacy, false)};
   const std::vector<std::string> table = {"table_misalignment_rad[0]", "table_misalignment_rad[1]",
                                           "table_misalignment_rad[2]"};
   for (auto& cal : c.calibrations) {
-    cal.body_frame = calib::BodyFrame::kAccelSymmetric;
+    cal.body_frame = calib::core::BodyFrame::kAccelSymmetric;
     cal.params.table_misalignment_rad.setZero();
     cal.sigma.table_misalignment_rad.setZero();
     cal.unobservable = table;
@@ -227,11 +228,11 @@ TEST_F(RecordJson, ShowCarriesBothParameterSetsBitExact) {
   for (int mi = 0; mi < 2; ++mi) {
     const json& c = s["calibrations"][static_cast<std::size_t>(mi)];
     EXPECT_EQ(c.at("method"), mi == 0 ? "ains" : "nlsq");
-    calib::ParamSet sigma;
-    const calib::ParamSet p = archive::param_set_from_json(c.at("params"), "show", &sigma);
-    const calib::ParamVector want = db::test::seeded_params(1, mi).to_vector();
-    const calib::ParamVector want_sigma = db::test::seeded_sigma(1, mi).to_vector();
-    for (int i = 0; i < calib::ParamSet::kSize; ++i) {
+    calib::core::ParamSet sigma;
+    const calib::core::ParamSet p = db::archive::param_set_from_json(c.at("params"), "show", &sigma);
+    const calib::core::ParamVector want = db::test::seeded_params(1, mi).to_vector();
+    const calib::core::ParamVector want_sigma = db::test::seeded_sigma(1, mi).to_vector();
+    for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
       EXPECT_EQ(p.to_vector()(i), want(i)) << i;
       EXPECT_EQ(sigma.to_vector()(i), want_sigma(i)) << i;
     }
@@ -243,8 +244,8 @@ TEST_F(RecordJson, ShowCarriesBothParameterSetsBitExact) {
 TEST_F(RecordJson, ShowTextUsesHumanUnits) {
   const json s = answer_repository_read(*repo_, read("show", {{"run_id", r2_}}));
   const std::string text = render_show_text(s);
-  const calib::ParamVector ains = db::test::seeded_params(2, 0).to_vector();
-  const calib::ParamVector nlsq = db::test::seeded_params(2, 1).to_vector();
+  const calib::core::ParamVector ains = db::test::seeded_params(2, 0).to_vector();
+  const calib::core::ParamVector nlsq = db::test::seeded_params(2, 1).to_vector();
   // Converted here from first principles, not with the code's factors.
   const std::string accel_bias_ug = fixed3(ains(1) / (1e-6 * kG0));
   const std::string nlsq_accel_bias_ug = fixed3(nlsq(1) / (1e-6 * kG0));
@@ -302,8 +303,8 @@ TEST_F(RecordJson, ParamsIsTheActiveSetLoadableByReadParamFile) {
     std::fwrite(text.data(), 1, text.size(), f);
     std::fclose(f);
   }
-  calib::ParamSet sigma;
-  const calib::ParamSet loaded = archive::read_param_file(path, &sigma);
+  calib::core::ParamSet sigma;
+  const calib::core::ParamSet loaded = db::archive::read_param_file(path, &sigma);
   EXPECT_EQ(loaded.to_vector(), db::test::seeded_params(1, 0).to_vector());
   EXPECT_EQ(sigma.to_vector(), db::test::seeded_sigma(1, 0).to_vector());
   // The schema's keys, sigma and "source": the run the set comes from (issue #19 item 3), which
@@ -316,7 +317,7 @@ TEST_F(RecordJson, ParamsIsTheActiveSetLoadableByReadParamFile) {
   EXPECT_EQ(source.at("started_at"), "2024-05-01T10:00:00.000Z");
   for (auto it = p.begin(); it != p.end(); ++it) {
     bool known = it.key() == "sigma" || it.key() == "source";
-    for (const char* k : archive::kParamSetKeys) known = known || it.key() == k;
+    for (const char* k : db::archive::kParamSetKeys) known = known || it.key() == k;
     EXPECT_TRUE(known) << it.key();
   }
 }
@@ -345,13 +346,13 @@ TEST_F(RecordJson, RepositoryErrorsKeepTheirKind) {
   auto kind_of = [&](const Request& r) {
     try {
       (void)answer_repository_read(*repo_, r);
-    } catch (const db::DbError& e) {
-      return std::string(db::to_string(e.kind()));
+    } catch (const db::history::DbError& e) {
+      return std::string(db::history::to_string(e.kind()));
     }
     return std::string("no error");
   };
-  const std::string not_found = db::to_string(db::DbErrorKind::kNotFound);
-  const std::string invalid = db::to_string(db::DbErrorKind::kInvalidInput);
+  const std::string not_found = db::history::to_string(db::history::DbErrorKind::kNotFound);
+  const std::string invalid = db::history::to_string(db::history::DbErrorKind::kInvalidInput);
   EXPECT_EQ(kind_of(read("history", {{"serial", "SN-Z"}})), not_found);
   EXPECT_EQ(kind_of(read("history", {{"serial", "bad serial"}})), invalid);
   EXPECT_EQ(kind_of(read("show", {{"run_id", 999}})), not_found);

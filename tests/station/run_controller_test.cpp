@@ -1,9 +1,9 @@
-// The run state machine against the in-process simulated station (sim::StationSim: a Modbus PLC
+// The run state machine against the in-process simulated station (drivers::simulated::StationSim: a Modbus PLC
 // table and the IMU CAN node on it, one physics clock, accelerated): a run executes every step of its
 // sequence with rests counted in IMU samples, is calibrated by the worker and stored; an abort stops
 // the table and marks the run aborted; a table fault mid-move aborts the run with the fault in the
 // reason. Expectations come from the sequence (poses, rest lengths × rate) and the simulator's truth.
-#include "station/run_controller.hpp"
+#include "station/run/run_controller.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -17,12 +17,15 @@
 
 #include "calib/core/param_set.hpp"
 #include "db/archive/run_archive.hpp"
-#include "db/sqlite_repository.hpp"
-#include "drivers/sim/station_sim.hpp"
+#include "db/history/sqlite_repository.hpp"
+#include "drivers/simulated/station_sim.hpp"
 #include "sequences/sequence_error.hpp"
-#include "station/archive_writer.hpp"
+#include "station/run/archive_writer.hpp"
 
 namespace imucal::station {
+using namespace imucal::station::config;
+using namespace imucal::station::control;
+using namespace imucal::station::run;
 namespace {
 
 namespace fs = std::filesystem;
@@ -58,14 +61,14 @@ std::string make_temp_dir() {
 /// Temp dir + simulator + config + repository + worker + controller.
 class Station {
  public:
-  explicit Station(double speed, std::optional<sim::StationSimFaults::TableFault> fault = std::nullopt) {
+  explicit Station(double speed, std::optional<drivers::simulated::StationSimFaults::TableFault> fault = std::nullopt) {
     dir_ = make_temp_dir();
-    sim::StationSimConfig sc;
+    drivers::simulated::StationSimConfig sc;
     sc.can_path = dir_ + "/bus.sock";
     sc.speed = speed;
     sc.seed = 7;
     sc.faults.table_fault = fault;
-    sim_ = std::make_unique<sim::StationSim>(sc);
+    sim_ = std::make_unique<drivers::simulated::StationSim>(sc);
     sim_->start();
     std::ofstream(dir_ + "/tiny.toml") << kTinySequence;
     const std::string text = "[station]\nname = \"test-station\"\nlat_deg = 55.7856\nlon_deg = 12.5213\n"
@@ -77,7 +80,7 @@ class Station {
                              "[calibration]\ndefault_sequence = \"" + dir_ + "/tiny.toml\"\n";
     cfg_ = parse_config(text, dir_ + "/stationd.toml", dir_);
     fs::create_directories(cfg_.data_dir);
-    repo_ = std::make_unique<db::SqliteRepository>(cfg_.database);
+    repo_ = std::make_unique<db::history::SqliteRepository>(cfg_.database);
     worker_ = std::make_unique<CalibrationWorker>(*repo_);
     ctl_ = std::make_unique<RunController>(cfg_, *repo_, *worker_, "test");
   }
@@ -90,12 +93,12 @@ class Station {
     fs::remove_all(dir_, ec);
   }
 
-  db::RunId start(const std::string& serial, std::optional<std::string> sequence = std::nullopt) {
+  db::history::RunId start(const std::string& serial, std::optional<std::string> sequence = std::nullopt) {
     StartRunRequest r;
     r.serial = serial;
     r.sequence = std::move(sequence);
     r.operator_name = "tester";
-    return ctl_->start(r).at("run_id").get<db::RunId>();
+    return ctl_->start(r).at("run_id").get<db::history::RunId>();
   }
   /// Polls the live snapshot until pred holds (true) or timeout (false).
   template <class P>
@@ -108,13 +111,13 @@ class Station {
     return false;
   }
   bool table_moving() {
-    return sim_->table_server().with_plc([](sim::TablePlc& plc) { return plc.moving(); });
+    return sim_->table_server().with_plc([](drivers::simulated::TablePlc& plc) { return plc.moving(); });
   }
 
   std::string dir_;
-  std::unique_ptr<sim::StationSim> sim_;
+  std::unique_ptr<drivers::simulated::StationSim> sim_;
   StationConfig cfg_;
-  std::unique_ptr<db::SqliteRepository> repo_;
+  std::unique_ptr<db::history::SqliteRepository> repo_;
   std::unique_ptr<CalibrationWorker> worker_;
   std::unique_ptr<RunController> ctl_;
 };
@@ -150,9 +153,9 @@ TEST(RunPlan, TinySequenceFlattensToRestsAndMovesWithSampleCounts) {
 
 TEST(RunController, TinyRunExecutesEveryStepAndCountsRestsInSamples) {
   Station st(100.0);
-  const db::RunId id = st.start("TINY-1");
+  const db::history::RunId id = st.start("TINY-1");
   // Observed live: preparing/running states with step i/5 and a phase word.
-  EXPECT_TRUE(st.wait_for([](const RunSnapshot& s) { return s.state == db::RunState::kRunning && s.step >= 1; }, 20s));
+  EXPECT_TRUE(st.wait_for([](const RunSnapshot& s) { return s.state == db::history::RunState::kRunning && s.step >= 1; }, 20s));
   ASSERT_TRUE(st.ctl_->wait_idle(60s));
   const auto last = st.ctl_->last_finished();
   ASSERT_TRUE(last.has_value());
@@ -161,16 +164,16 @@ TEST(RunController, TinyRunExecutesEveryStepAndCountsRestsInSamples) {
   EXPECT_EQ(last->step, 5);
   // Four rests' worth of motion cannot calibrate 27 parameters: the worker must say so (failed),
   // not abort, and the capture itself must be complete.
-  const db::RunRecord rec = st.repo_->show(id).run;
-  EXPECT_TRUE(rec.state == db::RunState::kFailed || rec.state == db::RunState::kReview) << db::to_string(rec.state);
-  if (rec.state == db::RunState::kFailed) {
+  const db::history::RunRecord rec = st.repo_->show(id).run;
+  EXPECT_TRUE(rec.state == db::history::RunState::kFailed || rec.state == db::history::RunState::kReview) << db::history::to_string(rec.state);
+  if (rec.state == db::history::RunState::kFailed) {
     EXPECT_NE(rec.failure_reason.find("calibration failed"), std::string::npos) << rec.failure_reason;
   }
   EXPECT_EQ(rec.archive_path, run_archive_dir(st.cfg_.data_dir, id, "TINY-1"));
   EXPECT_EQ(rec.archive_sha256, archive_digest(rec.archive_path));
   ASSERT_FALSE(rec.capture_json.empty());
 
-  const archive::RunArchive ar = archive::read_archive(rec.archive_path);
+  const db::archive::RunArchive ar = db::archive::read_archive(rec.archive_path);
   ASSERT_TRUE(ar.info.capture.has_value());
   EXPECT_TRUE(ar.info.capture->complete);
   EXPECT_EQ(ar.info.serial, "TINY-1");
@@ -212,36 +215,36 @@ TEST(RunController, TinyRunExecutesEveryStepAndCountsRestsInSamples) {
 
 TEST(RunController, ShortSequenceEndsDonePassWithParametersNearTheTruth) {
   Station st(100.0);
-  const db::RunId id = st.start("SIM-0001", "short");
+  const db::history::RunId id = st.start("SIM-0001", "short");
   ASSERT_TRUE(st.ctl_->wait_idle(60s));
-  const db::RunDetails d = st.repo_->show(id);
-  ASSERT_EQ(d.run.state, db::RunState::kDone) << d.run.failure_reason;
+  const db::history::RunDetails d = st.repo_->show(id);
+  ASSERT_EQ(d.run.state, db::history::RunState::kDone) << d.run.failure_reason;
   ASSERT_TRUE(d.run.verdict.has_value());
-  EXPECT_EQ(*d.run.verdict, db::RunVerdict::kPass);
+  EXPECT_EQ(*d.run.verdict, db::history::RunVerdict::kPass);
   ASSERT_EQ(d.calibrations.size(), 2u);
   // The AINS estimate against the simulator's true unit, parameter by parameter within 4σ.
-  const calib::ParamSet truth = st.sim_->config().unit.params;
+  const calib::core::ParamSet truth = st.sim_->config().unit.params;
   const auto& ains = d.calibrations[0];
-  ASSERT_EQ(ains.method, db::Method::kAins);
+  ASSERT_EQ(ains.method, db::history::Method::kAins);
   const auto est = ains.params.to_vector(), sig = ains.sigma.to_vector(), tru = truth.to_vector();
   for (int i = 0; i < static_cast<int>(est.size()); ++i) {
-    EXPECT_LE(std::abs(est[i] - tru[i]), 4.0 * sig[i] + 1e-12) << "parameter " << calib::param_info(i).name;
+    EXPECT_LE(std::abs(est[i] - tru[i]), 4.0 * sig[i] + 1e-12) << "parameter " << calib::core::param_info(i).name;
   }
   // Steps of "short": initial rest + 26 [[step]]s.
   EXPECT_EQ(st.ctl_->last_finished()->steps, 27);
-  EXPECT_EQ(*st.ctl_->last_finished()->verdict, db::RunVerdict::kPass);
+  EXPECT_EQ(*st.ctl_->last_finished()->verdict, db::history::RunVerdict::kPass);
 }
 
 TEST(RunController, AbortMidRunStopsTheTableAndMarksTheRunAborted) {
   Station st(20.0);  // slow enough to catch the table mid-move
-  const db::RunId id = st.start("ABORT-1");
+  const db::history::RunId id = st.start("ABORT-1");
   ASSERT_TRUE(st.wait_for([](const RunSnapshot& s) { return s.step == 2 && s.phase == RunPhase::kMoving; }, 30s));
   std::this_thread::sleep_for(50ms);
   EXPECT_TRUE(st.table_moving());
   EXPECT_TRUE(st.ctl_->abort("operator pressed abort"));
   ASSERT_TRUE(st.ctl_->wait_idle(30s));
-  const db::RunRecord rec = st.repo_->show(id).run;
-  EXPECT_EQ(rec.state, db::RunState::kAborted);
+  const db::history::RunRecord rec = st.repo_->show(id).run;
+  EXPECT_EQ(rec.state, db::history::RunState::kAborted);
   EXPECT_EQ(rec.failure_reason, "operator pressed abort");
   // Safe stop: the table decelerates to a standstill short of the 90 deg target.
   bool stopped = false;
@@ -250,10 +253,10 @@ TEST(RunController, AbortMidRunStopsTheTableAndMarksTheRunAborted) {
     std::this_thread::sleep_for(10ms);
   }
   EXPECT_TRUE(stopped);
-  const double outer = st.sim_->table_server().with_plc([](sim::TablePlc& p) { return p.outer_deg(); });
+  const double outer = st.sim_->table_server().with_plc([](drivers::simulated::TablePlc& p) { return p.outer_deg(); });
   EXPECT_LT(outer, 89.0);
   // The archive holds what was captured and is finished and readable.
-  const archive::RunArchive ar = archive::read_archive(rec.archive_path);
+  const db::archive::RunArchive ar = db::archive::read_archive(rec.archive_path);
   EXPECT_EQ(rec.archive_sha256, archive_digest(rec.archive_path));
   EXPECT_FALSE(ar.info.end_time.empty());
   EXPECT_GE(ar.imu.size(), 1000u);  // the whole first rest at least
@@ -261,16 +264,16 @@ TEST(RunController, AbortMidRunStopsTheTableAndMarksTheRunAborted) {
 }
 
 TEST(RunController, TableFaultMidMoveAbortsWithTheFaultInTheReason) {
-  Station st(100.0, sim::StationSimFaults::TableFault{2, 1.0, 17});  // 1 s into the second move
-  const db::RunId id = st.start("FAULT-1");
+  Station st(100.0, drivers::simulated::StationSimFaults::TableFault{2, 1.0, 17});  // 1 s into the second move
+  const db::history::RunId id = st.start("FAULT-1");
   ASSERT_TRUE(st.ctl_->wait_idle(30s));
-  const db::RunRecord rec = st.repo_->show(id).run;
-  EXPECT_EQ(rec.state, db::RunState::kAborted);
+  const db::history::RunRecord rec = st.repo_->show(id).run;
+  EXPECT_EQ(rec.state, db::history::RunState::kAborted);
   EXPECT_NE(rec.failure_reason.find("fault"), std::string::npos) << rec.failure_reason;
   EXPECT_NE(rec.failure_reason.find("17"), std::string::npos) << rec.failure_reason;
   EXPECT_FALSE(st.table_moving());
   EXPECT_EQ(st.ctl_->last_finished()->step, 4);  // the second move is step 4 of 5
-  const archive::RunArchive ar = archive::read_archive(rec.archive_path);
+  const db::archive::RunArchive ar = db::archive::read_archive(rec.archive_path);
   size_t rest_rows = 0;
   for (const auto& r : ar.table) rest_rows += r.at_rest ? 1 : 0;
   EXPECT_EQ(rest_rows, 2000u);  // the two rests before the faulted move
@@ -300,8 +303,8 @@ TEST(RunController, RefusesBadRequestsWithoutWritingAnything) {
   fast.serial = "OK-1";
   fast.sequence = st.dir_ + "/fast.toml";
   EXPECT_EQ(code_of(fast), error_code::kInvalidInput);
-  EXPECT_TRUE(st.repo_->runs_in_state({db::RunState::kPreparing, db::RunState::kRunning, db::RunState::kCalibrating,
-                                       db::RunState::kFailed, db::RunState::kAborted}).empty());
+  EXPECT_TRUE(st.repo_->runs_in_state({db::history::RunState::kPreparing, db::history::RunState::kRunning, db::history::RunState::kCalibrating,
+                                       db::history::RunState::kFailed, db::history::RunState::kAborted}).empty());
   // One at a time.
   st.start("OK-1");
   fast.sequence.reset();

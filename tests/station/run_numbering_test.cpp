@@ -1,21 +1,23 @@
 // A station whose history database was replaced (a new, empty one) or restored from an older copy
 // while its data directory kept the run archives: new runs are numbered after every archive, so
 // that a run never fails on an old archive directory of the same id and serial, and the fleet
-// store never meets an old local id again (station/recovery.hpp, continue_run_ids_after_archives).
+// store never meets an old local id again (station/run/recovery.hpp, continue_run_ids_after_archives).
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
 
-#include "db/sqlite_repository.hpp"
-#include "station/recovery.hpp"
+#include "db/history/sqlite_repository.hpp"
+#include "station/run/recovery.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal::station {
+using namespace imucal::station::config;
+using namespace imucal::station::run;
 namespace {
 
 namespace fs = std::filesystem;
-constexpr db::TimestampMs kT0 = 1714560000000;
+constexpr db::history::TimestampMs kT0 = 1714560000000;
 
 void make_archive(const std::string& data_dir, const std::string& name) {
   fs::create_directories(fs::path(data_dir) / "runs" / name);
@@ -44,7 +46,7 @@ TEST(RunNumbering, AReplacedDatabaseNumbersItsRunsAfterTheArchivesItFinds) {
   make_archive(cfg.data_dir, "1-SN-A");
   make_archive(cfg.data_dir, "12-SN-A");
   {
-    db::SqliteRepository repo(cfg.database);  // the new, empty database
+    db::history::SqliteRepository repo(cfg.database);  // the new, empty database
     EXPECT_EQ(repo.highest_run_id_issued(), 0);
     EXPECT_EQ(continue_run_ids_after_archives(cfg, repo), 12);
     EXPECT_EQ(continue_run_ids_after_archives(cfg, repo), 0) << "once is enough";
@@ -52,17 +54,17 @@ TEST(RunNumbering, AReplacedDatabaseNumbersItsRunsAfterTheArchivesItFinds) {
   }
   {
     // Reopened (the next start): the numbering held, and runs beyond the archives go on.
-    db::SqliteRepository repo(cfg.database);
+    db::history::SqliteRepository repo(cfg.database);
     EXPECT_EQ(repo.highest_run_id_issued(), 13);
     EXPECT_EQ(continue_run_ids_after_archives(cfg, repo), 0);
     EXPECT_EQ(repo.create_run(db::test::new_run("SN-A", kT0 + 1000)), 14);
     EXPECT_FALSE(repo.continue_run_ids_after(3)) << "numbering never moves back";
     EXPECT_EQ(repo.create_run(db::test::new_run("SN-A", kT0 + 2000)), 15);
   }
-  db::SqliteOptions ro;
+  db::history::SqliteOptions ro;
   ro.read_only = true;
-  db::SqliteRepository reader(cfg.database, ro);
-  EXPECT_THROW(reader.continue_run_ids_after(100), db::ReadOnly);
+  db::history::SqliteRepository reader(cfg.database, ro);
+  EXPECT_THROW(reader.continue_run_ids_after(100), db::history::ReadOnly);
 }
 
 }  // namespace

@@ -1,7 +1,7 @@
 // Own sd_notify: a datagram socket standing in for systemd's notify socket receives exactly what the
 // daemon sends (READY=1, STATUS=, WATCHDOG=1, STOPPING=1), over a path socket and an abstract one;
 // the watchdog interval is half of $WATCHDOG_USEC and only ours when $WATCHDOG_PID matches.
-#include "station/sd_notify.hpp"
+#include "station/daemon/sd_notify.hpp"
 
 #include <gtest/gtest.h>
 #include <poll.h>
@@ -15,6 +15,7 @@
 #include <string>
 
 namespace imucal::station {
+using namespace imucal::station::daemon;
 namespace {
 
 /// A bound AF_UNIX datagram socket (what systemd listens on).

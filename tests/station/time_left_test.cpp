@@ -2,13 +2,14 @@
 // length ("8 min 44 s"), jumped to "2 s", and read "30 s left" at the last step. The estimator is
 // fed what the controller sees: the plan's remaining table time, the table time captured and the
 // wall time since the stream began.
-#include "station/time_left.hpp"
+#include "station/run/time_left.hpp"
 
 #include <gtest/gtest.h>
 
 #include <vector>
 
 namespace imucal::station {
+using namespace imucal::station::run;
 namespace {
 
 /// A run of `plan_s` table seconds played at `speed`×, with the data arriving in bursts (moves
@@ -44,8 +45,12 @@ TEST(TimeLeft, IsWallTimeAtTheMeasuredSpeedNeverGrowsAndReachesZeroOnlyAtTheEnd)
   std::optional<double> prev;
   for (std::size_t i = 0; i < left.size(); ++i) {
     if (!left[i]) continue;
-    if (prev) EXPECT_LE(*left[i], *prev) << "poll " << i << " grew";
-    if (i + 1 < left.size()) EXPECT_GE(*left[i], TimeLeftEstimator::kFloorS) << "poll " << i;
+    if (prev) {
+      EXPECT_LE(*left[i], *prev) << "poll " << i << " grew";
+    }
+    if (i + 1 < left.size()) {
+      EXPECT_GE(*left[i], TimeLeftEstimator::kFloorS) << "poll " << i;
+    }
     prev = left[i];
   }
   ASSERT_TRUE(left.back().has_value());

@@ -5,8 +5,8 @@
 
 namespace imucal::test_support {
 
-inline calib::UnitModel field_unit() {
-  calib::UnitModel u = calib::default_unit();
+inline calib::effects::UnitModel field_unit() {
+  calib::effects::UnitModel u = calib::effects::default_unit();
   u.params.table_misalignment_rad.setZero();
   return u;
 }

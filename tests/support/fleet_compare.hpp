@@ -6,16 +6,16 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "db/export.hpp"
-#include "db/repository.hpp"
+#include "db/history/export.hpp"
+#include "db/history/repository.hpp"
 
 namespace imucal::test_support {
 
 /// `uuid_of`: run id → UUID within the same database (SQLite or fleet).
-inline nlohmann::json comparable_run(const db::RunDetails& d,
-                                     const std::map<db::RunId, std::string>& uuid_of) {
-  nlohmann::json j = db::run_details_json(d);
-  auto uuid = [&](const std::optional<db::RunId>& id) -> nlohmann::json {
+inline nlohmann::json comparable_run(const db::history::RunDetails& d,
+                                     const std::map<db::history::RunId, std::string>& uuid_of) {
+  nlohmann::json j = db::history::run_details_json(d);
+  auto uuid = [&](const std::optional<db::history::RunId>& id) -> nlohmann::json {
     if (!id) return nullptr;
     const auto it = uuid_of.find(*id);
     return it == uuid_of.end() ? nlohmann::json("unknown run " + std::to_string(*id))

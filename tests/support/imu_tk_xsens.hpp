@@ -32,14 +32,14 @@ inline std::vector<std::array<double, 4>> read_mat(const std::string& name) {
   return rows;
 }
 
-inline calib::ImuSeries read_imu_tk_xsens() {
+inline calib::core::ImuSeries read_imu_tk_xsens() {
   const auto acc = read_mat("xsens_acc.mat.xz");
   const auto gyro = read_mat("xsens_gyro.mat.xz");
   EXPECT_EQ(acc.size(), gyro.size());
-  calib::ImuSeries imu;
+  calib::core::ImuSeries imu;
   for (size_t k = 0; k < std::min(acc.size(), gyro.size()); ++k) {
     EXPECT_EQ(acc[k][0], gyro[k][0]) << "row " << k;
-    calib::ImuIncrement s;
+    calib::core::ImuIncrement s;
     s.t_s = gyro[k][0];
     s.dt_s = k == 0 ? 0.01 : gyro[k][0] - gyro[k - 1][0];
     for (int ax = 0; ax < 3; ++ax) {

@@ -14,6 +14,8 @@
 #include "calib/sim/unit_draw.hpp"
 
 namespace imucal::calib::testing {
+using namespace imucal::calib::core;
+using namespace imucal::calib::sim;
 
 /// The run as a MEMS unit's land calibration reads it: the grade's noise, rests by variation.
 inline CalibrationInput mems_input(const FieldSimResult& sim) {

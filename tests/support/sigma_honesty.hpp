@@ -11,6 +11,7 @@
 #include "calib/core/param_set.hpp"
 
 namespace imucal::calib::testing {
+using namespace imucal::calib::core;
 
 class GroupSigmaCheck {
  public:

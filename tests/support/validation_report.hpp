@@ -6,6 +6,7 @@
 #include "calib/diagnosis/diagnosis_validation.hpp"
 
 namespace imucal::calib::testing {
+using namespace imucal::calib::diagnosis;
 
 inline void print_validation(const ValidationReport& r) {
   std::printf(

@@ -39,7 +39,7 @@ using imucal::kArcsecToRad;
 using imucal::kDegPerHourToRadPerSec;
 using imucal::kStandardGravity_mps2;
 namespace calib = imucal::calib;
-namespace altsim = imucal::altsim;
+namespace altsim = imucal::tools::altsim;
 namespace sequences = imucal::sequences;
 
 // Numerical agreement of two exact-physics schemes (test a). The truth simulator is exact to
@@ -62,20 +62,20 @@ const sequences::MotionProfile& short_profile() {
   return p;
 }
 
-calib::RunSource truth_source() {
-  return calib::truth_run_source(short_profile(), calib::TableGeometry{},
-                                 calib::demo_factory_site(), calib::default_unit(), 100.0);
+calib::effects::RunSource truth_source() {
+  return calib::sim::truth_run_source(short_profile(), calib::core::TableGeometry{},
+                                 calib::core::demo_factory_site(), calib::effects::default_unit(), 100.0);
 }
-calib::RunSource alt_source() {
-  return imucal::tools::alt_run_source(short_profile(), calib::TableGeometry{},
-                                       calib::demo_factory_site(), calib::default_unit(), 100.0);
+calib::effects::RunSource alt_source() {
+  return imucal::tools::imucal::alt_run_source(short_profile(), calib::core::TableGeometry{},
+                                       calib::core::demo_factory_site(), calib::effects::default_unit(), 100.0);
 }
 
 /// Largest per-sample difference of the increments of two runs (same length and times).
 struct IncrementDiff {
   double dtheta_rad = 0.0, dv_mps = 0.0;
 };
-IncrementDiff max_diff(const calib::CalibrationInput& a, const calib::CalibrationInput& b) {
+IncrementDiff max_diff(const calib::core::CalibrationInput& a, const calib::core::CalibrationInput& b) {
   IncrementDiff d;
   for (size_t k = 0; k < a.imu.size(); ++k) {
     d.dtheta_rad = std::max(d.dtheta_rad, (a.imu[k].dtheta_rad - b.imu[k].dtheta_rad).norm());
@@ -85,8 +85,8 @@ IncrementDiff max_diff(const calib::CalibrationInput& a, const calib::Calibratio
 }
 
 TEST(AltSim, NoiseFreeIncrementsAgreeWithTheTruthSimulator) {
-  const calib::CalibrationInput truth = truth_source()(calib::Effects{}, 1, false);
-  const calib::CalibrationInput alt = alt_source()(calib::Effects{}, 1, false);
+  const calib::core::CalibrationInput truth = truth_source()(calib::effects::Effects{}, 1, false);
+  const calib::core::CalibrationInput alt = alt_source()(calib::effects::Effects{}, 1, false);
   ASSERT_EQ(alt.imu.size(), truth.imu.size());
   ASSERT_EQ(alt.reference.size(), truth.reference.size());
   double max_rate_radps = 0.0;
@@ -108,18 +108,18 @@ TEST(AltSim, NoiseFreeIncrementsAgreeWithTheTruthSimulator) {
   EXPECT_GT(max_rate_radps, 9.0 * imucal::kDegToRad);  // the comparison covered the rotations
   EXPECT_LT(d.dtheta_rad, kTolDtheta_rad);
   EXPECT_LT(d.dv_mps, kTolDv_mps);
-  EXPECT_EQ(alt.noise.arw_rad_per_sqrt_s, calib::default_unit().noise.arw_rad_per_sqrt_s);
-  EXPECT_EQ(alt.site.lat_rad, calib::demo_factory_site().lat_rad);
+  EXPECT_EQ(alt.noise.arw_rad_per_sqrt_s, calib::effects::default_unit().noise.arw_rad_per_sqrt_s);
+  EXPECT_EQ(alt.site.lat_rad, calib::core::demo_factory_site().lat_rad);
 }
 
 TEST(AltSim, RunSourceIsCallableFromSeveralThreadsAtOnce) {
-  const calib::RunSource src = alt_source();
-  calib::Effects fx;
+  const calib::effects::RunSource src = alt_source();
+  calib::effects::Effects fx;
   fx.gyro_accel_skew_s = 1e-3;
   auto job = [&src, &fx](uint64_t seed) { return src(fx, seed, true); };
   auto a = std::async(std::launch::async, job, 5);
   auto b = std::async(std::launch::async, job, 6);
-  const calib::CalibrationInput ra = a.get(), rb = b.get();
+  const calib::core::CalibrationInput ra = a.get(), rb = b.get();
   const IncrementDiff same_a = max_diff(ra, src(fx, 5, true));
   EXPECT_EQ(same_a.dtheta_rad, 0.0);  // deterministic per seed, undisturbed by the other thread
   EXPECT_EQ(same_a.dv_mps, 0.0);
@@ -127,15 +127,15 @@ TEST(AltSim, RunSourceIsCallableFromSeveralThreadsAtOnce) {
 }
 
 /// An effect set at `factor` times the catalogue's typical value (shape parameters kept).
-calib::Effects scaled_typical(calib::EffectId id, double factor) {
-  const calib::EffectInfo& e = calib::effect_info(id);
+calib::effects::Effects scaled_typical(calib::effects::EffectId id, double factor) {
+  const calib::effects::EffectInfo& e = calib::effects::effect_info(id);
   Eigen::VectorXd v(e.size());
   for (int i = 0; i < e.size(); ++i) {
     const auto u = static_cast<size_t>(i);
     v(i) = e.params[u].shape ? e.typical[u] : factor * e.typical[u];
   }
-  calib::Effects fx;
-  calib::set_effect_vector(fx, id, v);
+  calib::effects::Effects fx;
+  calib::effects::set_effect_vector(fx, id, v);
   return fx;
 }
 
@@ -151,24 +151,24 @@ calib::Effects scaled_typical(calib::EffectId id, double factor) {
 // 10 °/s × 7.3e-5 rad/s = 1.3e-5 rad/s² against the ramps' 0.17 rad/s², 7e-5 of the change:
 // 2e-4. A wrong sign, axis, frame or transposition is an error of order 1 of the change.
 struct EffectCase {
-  calib::EffectId id;
+  calib::effects::EffectId id;
   double rel_tol;
 };
 
 TEST(AltSim, EveryDeterministicEffectChangesTheIncrementsAsInTheTruthSimulator) {
-  const calib::RunSource truth = truth_source(), alt = alt_source();
-  const calib::CalibrationInput truth0 = truth(calib::Effects{}, 1, false);
-  const calib::CalibrationInput alt0 = alt(calib::Effects{}, 1, false);
-  using Id = calib::EffectId;
+  const calib::effects::RunSource truth = truth_source(), alt = alt_source();
+  const calib::core::CalibrationInput truth0 = truth(calib::effects::Effects{}, 1, false);
+  const calib::core::CalibrationInput alt0 = alt(calib::effects::Effects{}, 1, false);
+  using Id = calib::effects::EffectId;
   const std::vector<EffectCase> cases = {
       {Id::kAccelQuadraticK2, 1e-6},      {Id::kAccelAsymmetry, 1e-6}, {Id::kSizeEffect, 2e-4},
       {Id::kGyroGSensitivity, 1e-6},      {Id::kGyroAccelSkew, 1e-6},  {Id::kThermalDrift, 1e-6},
       {Id::kTableNonorthogonality, 1e-9}, {Id::kTableWobble, 1e-9},    {Id::kGravityError, 1e-9},
       {Id::kLatitudeError, 1e-9}};
   for (const EffectCase& c : cases) {
-    const std::string name = calib::effect_info(c.id).name;
-    const calib::Effects fx = scaled_typical(c.id, 10.0);
-    const calib::CalibrationInput t1 = truth(fx, 1, false), a1 = alt(fx, 1, false);
+    const std::string name = calib::effects::effect_info(c.id).name;
+    const calib::effects::Effects fx = scaled_typical(c.id, 10.0);
+    const calib::core::CalibrationInput t1 = truth(fx, 1, false), a1 = alt(fx, 1, false);
     double scale_th = 0.0, scale_dv = 0.0, err_th = 0.0, err_dv = 0.0;
     for (size_t k = 0; k < t1.imu.size(); ++k) {
       const Eigen::Vector3d dt_th = t1.imu[k].dtheta_rad - truth0.imu[k].dtheta_rad;
@@ -193,11 +193,11 @@ TEST(AltSim, EveryDeterministicEffectChangesTheIncrementsAsInTheTruthSimulator) 
 }
 
 TEST(AltSim, TableTimeOffsetDelaysTheEncoderLogAsInTheTruthSimulator) {
-  const calib::RunSource truth = truth_source(), alt = alt_source();
-  calib::Effects fx;
+  const calib::effects::RunSource truth = truth_source(), alt = alt_source();
+  calib::effects::Effects fx;
   fx.table_time_offset_s = 0.005;
-  const calib::CalibrationInput t0 = truth(calib::Effects{}, 1, false), t1 = truth(fx, 1, false);
-  const calib::CalibrationInput a0 = alt(calib::Effects{}, 1, false), a1 = alt(fx, 1, false);
+  const calib::core::CalibrationInput t0 = truth(calib::effects::Effects{}, 1, false), t1 = truth(fx, 1, false);
+  const calib::core::CalibrationInput a0 = alt(calib::effects::Effects{}, 1, false), a1 = alt(fx, 1, false);
   double scale = 0.0, err = 0.0;
   for (size_t k = 0; k < t1.reference.size(); ++k) {
     const double dt_o = t1.reference[k].outer_rad - t0.reference[k].outer_rad;

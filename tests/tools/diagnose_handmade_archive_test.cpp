@@ -2,7 +2,7 @@
 // formulas, not by the project's simulator — with a gyro g-sensitivity injected and not declared.
 // `imucal diagnose` must name it with its size.
 //
-// The test's own physics (DESIGN §3 conventions, written out here independently):
+// The test's own physics (ARCHITECTURE §3 conventions, written out here independently):
 //   table: C_bn_table(outer, inner) = Rx(outer) Rz(inner) (outer axis north, inner axis the
 //   platform normal), truth C_bn = exp([ς×]) C_bn_table; angles move at a constant 10 °/s between
 //   rests; inertial attitude C_bi(t) = exp([ω_ie_n t×]) C_bn(t) so dθ_k = log(C_bn(k-1)ᵀ

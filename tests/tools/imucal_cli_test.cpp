@@ -136,9 +136,9 @@ TEST_F(ImucalCli, HandMadeAttitudeArchiveCalibratesLikeTheSimulatedOne) {
     ASSERT_EQ(std::sscanf(l.c_str(), "%lf,%lf,%lf,%d", &t, &outer, &inner, &rest), 4) << l;
     // Default geometry: outer about north (x), inner about the platform normal (z).
     const Eigen::Matrix3d C =
-        imucal::calib::axis_angle(Eigen::Vector3d::UnitX(), outer * M_PI / 180) *
-        imucal::calib::axis_angle(Eigen::Vector3d::UnitZ(), inner * M_PI / 180);
-    const Eigen::Vector3d e = imucal::calib::C_bn_to_euler(C) * 180.0 / M_PI;
+        imucal::calib::core::axis_angle(Eigen::Vector3d::UnitX(), outer * M_PI / 180) *
+        imucal::calib::core::axis_angle(Eigen::Vector3d::UnitZ(), inner * M_PI / 180);
+    const Eigen::Vector3d e = imucal::calib::core::C_bn_to_euler(C) * 180.0 / M_PI;
     att << t << ',' << e(0) << ',' << e(1) << ',' << e(2) << ',' << rest << '\n';
   }
   att.close();

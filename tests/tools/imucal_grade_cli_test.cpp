@@ -28,8 +28,8 @@ namespace {
 namespace fs = std::filesystem;
 using test_support::run_imucal;
 
-calib::ParamSet params_of(const nlohmann::json& p) {
-  return archive::param_set_from_json(p, "imucal calibrate --json");
+calib::core::ParamSet params_of(const nlohmann::json& p) {
+  return db::archive::param_set_from_json(p, "imucal calibrate --json");
 }
 
 /// `imucal simulate` of a MEMS unit drawn by `seed`, hand-placed on land, into `dir`.
@@ -43,18 +43,18 @@ TEST(ImucalGradeCli, AHandPlacedMemsRunIsCalibratedFromScratch) {
   test_support::ScopedTempDir tmp("imucal-grade");
   const std::string dir = tmp.path() + "/mems";
   ASSERT_NO_FATAL_FAILURE(simulate_hand_mems(4, dir));
-  const archive::RunArchive a = archive::read_archive(dir);
-  EXPECT_EQ(a.info.grade, calib::Grade::kMems);
+  const db::archive::RunArchive a = db::archive::read_archive(dir);
+  EXPECT_EQ(a.info.grade, calib::core::Grade::kMems);
   ASSERT_TRUE(a.truth.has_value());
-  const calib::ParamSet truth = a.truth->params;
+  const calib::core::ParamSet truth = a.truth->params;
   // The unit is far from nominal: offsets of several °/s.
   EXPECT_GT(truth.gyro_bias_radps.cwiseAbs().minCoeff(), 2.0 * kDegToRad);
   const auto cal = run_imucal("calibrate " + dir + " --method legacy --json", false);
   ASSERT_EQ(cal.code, 0) << cal.out;
   const nlohmann::json j = nlohmann::json::parse(cal.out);
   EXPECT_EQ(j.at("verdict"), "PASS") << j.at("limits").dump();
-  const calib::ParamSet est = params_of(j.at("legacy").at("params"));
-  const calib::ParamSet ref = calib::to_accel_symmetric_frame(truth).params;
+  const calib::core::ParamSet est = params_of(j.at("legacy").at("params"));
+  const calib::core::ParamSet ref = calib::core::to_accel_symmetric_frame(truth).params;
   EXPECT_LT((est.accel_bias_mps2 - ref.accel_bias_mps2).cwiseAbs().maxCoeff(),
             1e-3 * kStandardGravity_mps2);
   EXPECT_LT((est.accel_M - ref.accel_M).cwiseAbs().maxCoeff(), 1000e-6);
@@ -72,8 +72,8 @@ TEST(ImucalGradeCli, AMemsUnitOnTheTableIsCalibratedAndJudgedAtItsGrade) {
   const std::string dir = tmp.path() + "/mems";
   const auto sim = run_imucal("simulate --sequence factory-std --grade mems --seed 2 --out " + dir);
   ASSERT_EQ(sim.code, 0) << sim.out;
-  const archive::RunArchive a = archive::read_archive(dir);
-  const calib::ParamVector truth = a.truth->params.to_vector();
+  const db::archive::RunArchive a = db::archive::read_archive(dir);
+  const calib::core::ParamVector truth = a.truth->params.to_vector();
   const auto cal = run_imucal("calibrate " + dir + " --json", false);
   ASSERT_EQ(cal.code, 0) << cal.out;
   const nlohmann::json j = nlohmann::json::parse(cal.out);
@@ -81,10 +81,10 @@ TEST(ImucalGradeCli, AMemsUnitOnTheTableIsCalibratedAndJudgedAtItsGrade) {
   for (const char* m : {"ains", "nlsq"}) {
     const nlohmann::json& r = j.at(m);
     EXPECT_TRUE(r.at("converged").get<bool>()) << m;
-    const calib::ParamVector est = params_of(r.at("params")).to_vector();
-    const calib::ParamVector sd = params_of(r.at("sigma")).to_vector();
-    for (int i = 0; i < calib::ParamSet::kSize - 1; ++i)  // ς_z: not observable at this grade
-      EXPECT_LT(std::abs(est(i) - truth(i)), 4.0 * sd(i)) << m << " " << calib::param_info(i).name;
+    const calib::core::ParamVector est = params_of(r.at("params")).to_vector();
+    const calib::core::ParamVector sd = params_of(r.at("sigma")).to_vector();
+    for (int i = 0; i < calib::core::ParamSet::kSize - 1; ++i)  // ς_z: not observable at this grade
+      EXPECT_LT(std::abs(est(i) - truth(i)), 4.0 * sd(i)) << m << " " << calib::core::param_info(i).name;
     EXPECT_NE(r.at("unobservable_notes").dump().find("table heading misalignment"),
               std::string::npos)
         << m;
@@ -161,7 +161,7 @@ TEST(ImucalGradeCli, APriorOverrideOutOfRangeIsRefusedAndInRangeDecidesTheLimits
   const std::string dir = tmp.path() + "/mems";
   ASSERT_NO_FATAL_FAILURE(simulate_hand_mems(4, dir));
   const double worst_scale =
-      archive::read_archive(dir).truth->params.gyro_M.diagonal().cwiseAbs().maxCoeff();
+      db::archive::read_archive(dir).truth->params.gyro_M.diagonal().cwiseAbs().maxCoeff();
   const std::string toml = test_support::slurp(dir + "/run.toml");
   const size_t at = toml.find("grade = \"mems\"\n");
   ASSERT_NE(at, std::string::npos);
@@ -194,17 +194,17 @@ TEST(ImucalGradeCli, APriorOverrideOutOfRangeIsRefusedAndInRangeDecidesTheLimits
 TEST(ImucalGradeCli, AUnitFilesGradeReachesTheRunUnlessOverridden) {
   test_support::ScopedTempDir tmp("imucal-grade-unit");
   const std::string unit = tmp.path() + "/mems.toml";
-  archive::write_unit_file(unit, calib::draw_unit(calib::Grade::kMems, 3));
+  db::archive::write_unit_file(unit, calib::sim::draw_unit(calib::core::Grade::kMems, 3));
   ASSERT_EQ(run_imucal("simulate --sequence hand --setting land --unit " + unit + " --out " +
                        tmp.path() + "/a")
                 .code,
             0);
-  EXPECT_EQ(archive::read_archive(tmp.path() + "/a").info.grade, calib::Grade::kMems);
+  EXPECT_EQ(db::archive::read_archive(tmp.path() + "/a").info.grade, calib::core::Grade::kMems);
   ASSERT_EQ(run_imucal("simulate --sequence hand --setting land --grade tactical --unit " + unit +
                        " --out " + tmp.path() + "/b")
                 .code,
             0);
-  EXPECT_EQ(archive::read_archive(tmp.path() + "/b").info.grade, calib::Grade::kTactical);
+  EXPECT_EQ(db::archive::read_archive(tmp.path() + "/b").info.grade, calib::core::Grade::kTactical);
 }
 
 // crlb --grade (issue #21): the achievable σ of a unit of the grade (its class's worst noise, the

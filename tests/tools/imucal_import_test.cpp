@@ -39,7 +39,7 @@ std::string exact(double v) {
 }
 
 /// The archive's samples as a logger's CSV: "counter;t_ms;ax;ay;az;gx;gy;gz" in g and deg/s.
-void write_logger_csv(const archive::RunArchive& a, const std::string& path, uint64_t seed) {
+void write_logger_csv(const db::archive::RunArchive& a, const std::string& path, uint64_t seed) {
   std::ofstream f(path);
   f << "counter;t_ms;ax_g;ay_g;az_g;gx_dps;gy_dps;gz_dps\n";
   f.precision(17);
@@ -54,8 +54,8 @@ void write_logger_csv(const archive::RunArchive& a, const std::string& path, uin
   }
 }
 
-calib::ParamSet params_of(const nlohmann::json& p) {
-  return archive::param_set_from_json(p, "imucal calibrate --json");
+calib::core::ParamSet params_of(const nlohmann::json& p) {
+  return db::archive::param_set_from_json(p, "imucal calibrate --json");
 }
 
 nlohmann::json legacy_params(const std::string& dir) {
@@ -73,7 +73,7 @@ TEST(ImucalImport, ALoggersCsvWithJitterCalibratesLikeTheSimulatorsOwnArchive) {
   ASSERT_EQ(
       run_imucal("simulate --sequence hand --setting land --grade mems --seed 5 --out " + sim).code,
       0);
-  const archive::RunArchive a = archive::read_archive(sim);
+  const db::archive::RunArchive a = db::archive::read_archive(sim);
   write_logger_csv(a, csv, 5);
   // The logger's own site: the simulator's (normal gravity there, no surveyed value).
   const std::string site =
@@ -91,7 +91,7 @@ TEST(ImucalImport, ALoggersCsvWithJitterCalibratesLikeTheSimulatorsOwnArchive) {
   // on the sensor's grid: every time within 5 µs of the simulator's (0.05 % of a period: the
   // period fitted to 35 000 jittered stamps), every increment the simulator's to 1e-7.
   EXPECT_NEAR(rep.at("jitter_rms_s").get<double>(), kJitter_s, 0.1 * kJitter_s);
-  const archive::RunArchive b = archive::read_archive(out);
+  const db::archive::RunArchive b = db::archive::read_archive(out);
   ASSERT_EQ(b.imu.size(), a.imu.size());
   double worst_t = 0.0, worst_rel = 0.0;
   for (size_t k = 0; k < a.imu.size(); ++k) {
@@ -103,20 +103,20 @@ TEST(ImucalImport, ALoggersCsvWithJitterCalibratesLikeTheSimulatorsOwnArchive) {
   }
   EXPECT_LT(worst_t, 5e-6);
   EXPECT_LT(worst_rel, 1e-7);
-  EXPECT_EQ(b.info.grade, calib::Grade::kMems);
-  EXPECT_EQ(b.info.setting, calib::Setting::kLand);
+  EXPECT_EQ(b.info.grade, calib::core::Grade::kMems);
+  EXPECT_EQ(b.info.setting, calib::core::Setting::kLand);
   // Calibrated, the two archives agree within a quarter σ on every term — what one sample more or
   // less at a rest's edge moves (the rests are cut at stamps that now differ by a microsecond) —
   // and both within 4σ of the truth.
   const nlohmann::json pa = legacy_params(sim), pb = legacy_params(out);
-  const calib::ParamSet truth = calib::to_accel_symmetric_frame(a.truth->params).params;
-  const calib::ParamVector t = truth.to_vector();
-  const calib::ParamVector va = params_of(pa.at("params")).to_vector(),
+  const calib::core::ParamSet truth = calib::core::to_accel_symmetric_frame(a.truth->params).params;
+  const calib::core::ParamVector t = truth.to_vector();
+  const calib::core::ParamVector va = params_of(pa.at("params")).to_vector(),
                            vb = params_of(pb.at("params")).to_vector(),
                            sa = params_of(pa.at("sigma")).to_vector();
   for (int i = 0; i < 24; ++i) {
-    EXPECT_LT(std::abs(va(i) - vb(i)), 0.3 * sa(i)) << calib::param_info(i).name;
-    EXPECT_LT(std::abs(vb(i) - t(i)), 4.0 * sa(i)) << calib::param_info(i).name;
+    EXPECT_LT(std::abs(va(i) - vb(i)), 0.3 * sa(i)) << calib::core::param_info(i).name;
+    EXPECT_LT(std::abs(vb(i) - t(i)), 4.0 * sa(i)) << calib::core::param_info(i).name;
   }
 }
 
@@ -215,7 +215,7 @@ TEST(ImucalImport, OneFilePerSensorMustHoldTheSameSamplesAndTheConfigIsStrict) {
   const auto fine = run_imucal("import --gyro " + tmp.path() + "/g.txt --accel " + tmp.path() +
                                "/a.txt --out " + out + kSite);
   EXPECT_EQ(fine.code, 0) << fine.out;
-  const archive::RunArchive ar = archive::read_archive(out);
+  const db::archive::RunArchive ar = db::archive::read_archive(out);
   ASSERT_EQ(ar.imu.size(), 40u);
   EXPECT_NEAR(ar.imu[3].dtheta_rad(1), 0.02 * 0.01, 1e-12);  // rate × period
   EXPECT_NEAR(ar.imu[3].dv_mps(2), 9.8 * 0.01, 1e-12);

@@ -28,7 +28,7 @@
 namespace imucal {
 namespace {
 
-using calib::ImuSeries;
+using calib::core::ImuSeries;
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
 
@@ -62,7 +62,7 @@ Vector3d vector(const nlohmann::json& j) {
 
 /// A calibration as what it does to one raw sample: compensated specific force and rate.
 struct Compensation {
-  std::function<Vector3d(const calib::ImuIncrement&)> f_mps2, w_radps;
+  std::function<Vector3d(const calib::core::ImuIncrement&)> f_mps2, w_radps;
 };
 
 /// The multi-position method's own residuals under a calibration: at every rest span, |f̄| - g;
@@ -104,7 +104,7 @@ Figures residual_figures(const ImuSeries& imu, const std::vector<bool>& at_rest,
   for (size_t i = 0; i + 1 < spans.size(); ++i) {
     Matrix3d C = Matrix3d::Identity();  // body there w.r.t. body here, compensated gyros
     for (size_t k = spans[i].end; k <= spans[i + 1].begin; ++k)
-      C = C * calib::rotvec_to_matrix<double>(Vector3d(c.w_radps(imu[k]) * imu[k].dt_s));
+      C = C * calib::core::rotvec_to_matrix<double>(Vector3d(c.w_radps(imu[k]) * imu[k].dt_s));
     const Vector3d carried = C.transpose() * spans[i].f;
     c2 +=
         std::pow(std::atan2(carried.cross(spans[i + 1].f).norm(), carried.dot(spans[i + 1].f)), 2);
@@ -146,12 +146,12 @@ Compensation imu_tk_compensation() {
   const Vector3d Ba = vec("acc_bias"), Bg = vec("gyro_bias");
   using test_support::kAccel_mps2_per_count, test_support::kGyro_radps_per_count,
       test_support::kZero_counts;  // the nominal values of import.toml
-  return {[=](const calib::ImuIncrement& s) {
+  return {[=](const calib::core::ImuIncrement& s) {
             const Vector3d counts =
                 (s.dv_mps / s.dt_s / kAccel_mps2_per_count).array() + kZero_counts;
             return Vector3d(TKa * (counts - Ba));
           },
-          [=](const calib::ImuIncrement& s) {
+          [=](const calib::core::ImuIncrement& s) {
             const Vector3d counts =
                 (s.dtheta_rad / s.dt_s / kGyro_radps_per_count).array() + kZero_counts;
             return Vector3d(TKg * (counts - Bg));
@@ -161,7 +161,7 @@ Compensation imu_tk_compensation() {
 TEST(ImucalRealRecording, LegacyCalibratesTheImuTkXsensUnitFromScratch) {
   test_support::ScopedTempDir dir("imucal-xsens");
   const std::string run = import_xsens(dir);
-  const ImuSeries imu = archive::read_archive(run).imu;  // as imported: re-stamped, rates × T
+  const ImuSeries imu = db::archive::read_archive(run).imu;  // as imported: re-stamped, rates × T
   ASSERT_EQ(imu.size(), 51175u);
   const auto r = test_support::run_imucal("calibrate " + run + " --method legacy --json",
                                           /*merge_stderr=*/false);
@@ -184,12 +184,12 @@ TEST(ImucalRealRecording, LegacyCalibratesTheImuTkXsensUnitFromScratch) {
   const Matrix3d Ma_inv = (Matrix3d::Identity() + M_a).inverse();
   const Matrix3d Mg_inv = (Matrix3d::Identity() + M_g).inverse();
   const Compensation ours{
-      [&](const calib::ImuIncrement& s) { return Vector3d(Ma_inv * (s.dv_mps / s.dt_s - b_a)); },
-      [&](const calib::ImuIncrement& s) {
+      [&](const calib::core::ImuIncrement& s) { return Vector3d(Ma_inv * (s.dv_mps / s.dt_s - b_a)); },
+      [&](const calib::core::ImuIncrement& s) {
         return Vector3d(Mg_inv * (s.dtheta_rad / s.dt_s - b_g));
       }};
   const auto rest =
-      calib::detect_rest_by_variation(imu, calib::variation_rest_options(calib::Grade::kMems));
+      calib::core::detect_rest_by_variation(imu, calib::core::variation_rest_options(calib::core::Grade::kMems));
   const Figures mine = residual_figures(imu, rest.at_rest, ours);
   const Figures peer = residual_figures(imu, rest.at_rest, imu_tk_compensation());
   std::printf(

@@ -25,8 +25,8 @@
 #include <vector>
 
 #include "db/archive/param_json.hpp"
-#include "db/sqlite_repository.hpp"
-#include "station/control_server.hpp"
+#include "db/history/sqlite_repository.hpp"
+#include "station/control/control_server.hpp"
 #include "tests/db/history_fixtures.hpp"
 
 namespace imucal {
@@ -62,17 +62,17 @@ class StationctlTest : public ::testing::Test {
  protected:
   void SetUp() override {
     db_ = dir_.file("history.sqlite");
-    db::SqliteRepository repo(db_);
-    const db::TimestampMs t = db::parse_time_utc("2024-05-01T00:00:00Z");
-    const db::TimestampMs h = 3600000;
-    auto pass = [&](const char* sn, db::TimestampMs at, long seed) {
-      const db::RunId id = repo.create_run(db::test::new_run(sn, at));
+    db::history::SqliteRepository repo(db_);
+    const db::history::TimestampMs t = db::history::parse_time_utc("2024-05-01T00:00:00Z");
+    const db::history::TimestampMs h = 3600000;
+    auto pass = [&](const char* sn, db::history::TimestampMs at, long seed) {
+      const db::history::RunId id = repo.create_run(db::test::new_run(sn, at));
       repo.finish_run(id, db::test::pass_completion(seed, at + 600000));
       return id;
     };
-    auto ended = [&](const char* sn, db::TimestampMs at, db::RunState state, const char* reason) {
-      const db::RunId id = repo.create_run(db::test::new_run(sn, at));
-      db::RunCompletion c;
+    auto ended = [&](const char* sn, db::history::TimestampMs at, db::history::RunState state, const char* reason) {
+      const db::history::RunId id = repo.create_run(db::test::new_run(sn, at));
+      db::history::RunCompletion c;
       c.state = state;
       c.ended_at_ms = at + 30000;
       c.reason = reason;
@@ -81,11 +81,11 @@ class StationctlTest : public ::testing::Test {
     };
     EXPECT_EQ(pass("SN-A", t + 10 * h, 1), 1);
     EXPECT_EQ(pass("SN-A", t + 12 * h, 2), 2);
-    const db::RunId r3 = repo.create_run(db::test::new_run("SN-A", t + 11 * h));
+    const db::history::RunId r3 = repo.create_run(db::test::new_run("SN-A", t + 11 * h));
     repo.finish_run(r3, db::test::review_completion(3, t + 11 * h + 600000));
-    EXPECT_EQ(ended("SN-A", t + 13 * h, db::RunState::kAborted, "operator: wrong fixture"), 4);
+    EXPECT_EQ(ended("SN-A", t + 13 * h, db::history::RunState::kAborted, "operator: wrong fixture"), 4);
     EXPECT_EQ(pass("SN-B", t + 9 * h, 5), 5);
-    EXPECT_EQ(ended("SN-B", t + 9 * h + h / 2, db::RunState::kFailed, "table fault 17"), 6);
+    EXPECT_EQ(ended("SN-B", t + 9 * h + h / 2, db::history::RunState::kFailed, "table fault 17"), 6);
   }
 
   /// stationctl with the absent socket and the database, unless `extra` says otherwise.
@@ -177,9 +177,9 @@ TEST_F(StationctlTest, ShowPrintsTheRunAndItsParameters) {
   const json s = json::parse(j.out);
   EXPECT_EQ(s.at("run").at("serial"), "SN-A");
   ASSERT_EQ(s.at("calibrations").size(), 2u);
-  calib::ParamSet sigma;
-  const calib::ParamSet nlsq =
-      archive::param_set_from_json(s["calibrations"][1].at("params"), "show 2", &sigma);
+  calib::core::ParamSet sigma;
+  const calib::core::ParamSet nlsq =
+      db::archive::param_set_from_json(s["calibrations"][1].at("params"), "show 2", &sigma);
   EXPECT_EQ(nlsq.to_vector(), db::test::seeded_params(2, 1).to_vector());
   EXPECT_EQ(sigma.to_vector(), db::test::seeded_sigma(2, 1).to_vector());
 }
@@ -201,8 +201,8 @@ TEST_F(StationctlTest, ParamsOutputLoadsAsTheStoredActiveSet) {
     ASSERT_EQ(p.code, 0) << p.err;
     const std::string file = dir_.file("params.json");
     std::ofstream(file) << p.out;
-    calib::ParamSet sigma;
-    const calib::ParamSet loaded = archive::read_param_file(file, &sigma);
+    calib::core::ParamSet sigma;
+    const calib::core::ParamSet loaded = db::archive::read_param_file(file, &sigma);
     EXPECT_EQ(loaded.to_vector(), db::test::seeded_params(2, 0).to_vector()) << flags;
     EXPECT_EQ(sigma.to_vector(), db::test::seeded_sigma(2, 0).to_vector()) << flags;
   }
@@ -383,7 +383,7 @@ TEST_F(StationctlTest, ConfigFileGivesSocketAndDatabase) {
   // The shipped example config; its relative database path resolves against the config's dir.
   const std::string conf_dir = dir_.file("conf");
   fs::create_directories(conf_dir + "/data");
-  fs::copy_file(std::string(IMUCAL_SOURCE_DIR) + "/station/stationd.example.toml",
+  fs::copy_file(std::string(IMUCAL_SOURCE_DIR) + "/station/config/stationd.example.toml",
                 conf_dir + "/stationd.toml");
   fs::copy_file(db_, conf_dir + "/data/history.sqlite");
   const Proc p = ctl("history SN-B --json", "--config " + conf_dir + "/stationd.toml");
@@ -401,17 +401,17 @@ TEST_F(StationctlTest, ConfigFileGivesSocketAndDatabase) {
 // ----- against a live control server -------------------------------------------------------------
 
 /// A daemon stand-in: run.start answers run 41; its status walks through a scripted life.
-class ScriptedHandler : public station::ControlHandler {
+class ScriptedHandler : public station::control::ControlHandler {
  public:
-  ScriptedHandler(const db::Repository& repo, std::vector<json> script)
+  ScriptedHandler(const db::history::Repository& repo, std::vector<json> script)
       : repo_(repo), script_(std::move(script)) {}
-  json start_run(const station::StartRunRequest& r) override {
+  json start_run(const station::control::StartRunRequest& r) override {
     if (r.serial == "SIM-BUSY")
-      throw station::ControlError(station::error_code::kBusy,
+      throw station::control::ControlError(station::control::error_code::kBusy,
                                   "run 40 (SIM-0040) is running; one run at a time");
     return {{"run_id", 41}, {"serial", r.serial}, {"sequence", "short"}, {"steps", 3}};
   }
-  json status(std::optional<db::RunId> run_id) override {
+  json status(std::optional<db::history::RunId> run_id) override {
     if (!run_id) return {{"state", "idle"}, {"run", nullptr}, {"last_run", nullptr}};
     const std::size_t i = std::min(calls_++, script_.size() - 1);
     json run = script_[i];
@@ -420,14 +420,14 @@ class ScriptedHandler : public station::ControlHandler {
     return {{"run", run}};
   }
   json abort_run(const std::string&) override { return {{"run_id", 41}}; }
-  json reprocess(const station::ReprocessRequest& q) override {
+  json reprocess(const station::control::ReprocessRequest& q) override {
     return {{"run_id", 42}, {"reprocessed_from", q.run_id}};
   }
-  json diagnose(db::RunId id) override { return {{"run_id", id}, {"verdict", "consistent"}}; }
-  const db::Repository& repository() const override { return repo_; }
+  json diagnose(db::history::RunId id) override { return {{"run_id", id}, {"verdict", "consistent"}}; }
+  const db::history::Repository& repository() const override { return repo_; }
 
  private:
-  const db::Repository& repo_;
+  const db::history::Repository& repo_;
   std::vector<json> script_;
   std::size_t calls_ = 0;
 };
@@ -449,19 +449,19 @@ std::vector<json> script_ending(const char* state, const char* verdict, const ch
 class StationctlLive : public StationctlTest {
  protected:
   void serve(std::vector<json> script) {
-    ro_ = std::make_unique<db::SqliteRepository>(db_);
+    ro_ = std::make_unique<db::history::SqliteRepository>(db_);
     handler_ = std::make_unique<ScriptedHandler>(*ro_, std::move(script));
-    station::ControlServerOptions o;
+    station::control::ControlServerOptions o;
     o.socket_path = dir_.file("live.sock");
     o.database_path = db_;  // streamed exports read it, as the daemon's do
-    server_ = std::make_unique<station::ControlServer>(*handler_, o);
+    server_ = std::make_unique<station::control::ControlServer>(*handler_, o);
     server_->start();
   }
   std::string live_target() const { return "--socket " + dir_.file("live.sock") + " --db " + db_; }
 
-  std::unique_ptr<db::SqliteRepository> ro_;
+  std::unique_ptr<db::history::SqliteRepository> ro_;
   std::unique_ptr<ScriptedHandler> handler_;
-  std::unique_ptr<station::ControlServer> server_;
+  std::unique_ptr<station::control::ControlServer> server_;
 };
 
 TEST_F(StationctlLive, SocketAndFallbackPrintTheSame) {

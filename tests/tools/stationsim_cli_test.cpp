@@ -164,7 +164,7 @@ TEST(StationsimCli, MbpollReadsTheTableAndCommandsAMoveOverTheHandshake) {
   const std::string out = sim.out();
   EXPECT_EQ(nlohmann::json::parse(out.substr(0, out.find('\n'))), ready) << out;
 
-  const auto& map = imucal::turntable::default_register_map();
+  const auto& map = imucal::drivers::turntable::default_register_map();
   // mbpoll OPTIONS HOST [VALUES...]: values to write follow the host.
   auto mbpoll = [&](const std::string& options, const std::string& write_values = "") {
     std::vector<std::string> args = {"-m", "tcp", "-a", "1", "-0", "-o", "2", "-p", port};
@@ -247,8 +247,8 @@ TEST(StationsimCli, DurationAndTruthOut) {
   // scheduling slack).
   EXPECT_GE(st["sim_time_s"].get<double>(), 20.0);
   EXPECT_LT(st["sim_time_s"].get<double>(), 22.0);
-  const auto truth = imucal::archive::read_truth_json(s.path("truth.json"));
-  const auto unit = imucal::calib::default_unit();
+  const auto truth = imucal::db::archive::read_truth_json(s.path("truth.json"));
+  const auto unit = imucal::calib::effects::default_unit();
   EXPECT_TRUE(truth.params.gyro_M.isApprox(unit.params.gyro_M, 1e-12));
   EXPECT_TRUE(truth.params.accel_bias_mps2.isApprox(unit.params.accel_bias_mps2, 1e-12));
   EXPECT_DOUBLE_EQ(truth.noise.arw_rad_per_sqrt_s, unit.noise.arw_rad_per_sqrt_s);

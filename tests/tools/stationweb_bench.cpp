@@ -23,7 +23,7 @@
 #include "db/fleet/fleet_schema.hpp"
 #include "db/fleet/fleet_writer.hpp"
 #include "db/fleet/pg_fleet_stats.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 #include "tests/support/pg_cluster.hpp"
 #include "tests/tools/stationweb_process.hpp"
@@ -32,6 +32,8 @@
 namespace {
 
 using namespace imucal::db;
+
+using namespace imucal::db::history;
 
 constexpr int kSerials = 1000, kRunsPerSerial = 100, kStations = 10;
 constexpr long kRuns = static_cast<long>(kSerials) * kRunsPerSerial;

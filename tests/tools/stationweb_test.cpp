@@ -19,14 +19,14 @@
 #include <regex>
 #include <sstream>
 
-#include "db/fleet_stats.hpp"
-#include "db/sqlite_repository.hpp"
-#include "station/record_json.hpp"
+#include "db/history/fleet_stats.hpp"
+#include "db/history/sqlite_repository.hpp"
+#include "station/control/record_json.hpp"
 #include "tests/db/fleet_history.hpp"
 #include "tests/support/html_tags.hpp"
 #include "tests/support/run_command.hpp"
 #include "tests/tools/stationweb_process.hpp"
-#include "tools/imucal/html_escape.hpp"
+#include "tools/report/html_escape.hpp"
 #include "tools/stationweb/httplib.hpp"
 
 namespace imucal {
@@ -44,15 +44,15 @@ using test_support::tags;
 
 /// Runs beyond tests/db/fleet_history.hpp's, for the run page's sections.
 struct Extra {
-  db::RunId table_first = 0, table_second = 0, diagnosed = 0, unobservable = 0;
+  db::history::RunId table_first = 0, table_second = 0, diagnosed = 0, unobservable = 0;
 };
 
 /// Finishes `id` with `c` and adds it to `rows` as the fleet tests count it.
-void finish(db::SqliteRepository& repo, db::RunId id, const db::RunCompletion& c,
+void finish(db::history::SqliteRepository& repo, db::history::RunId id, const db::history::RunCompletion& c,
             std::vector<FleetRow>& rows) {
   repo.finish_run(id, c);
-  const db::RunRecord r = repo.show(id).run;
-  FleetRow row{id, r.station, r.serial, r.started_at_ms, db::to_string(*r.verdict), {}, {}, {}};
+  const db::history::RunRecord r = repo.show(id).run;
+  FleetRow row{id, r.station, r.serial, r.started_at_ms, db::history::to_string(*r.verdict), {}, {}, {}};
   row.ains = c.calibrations.at(0).params.to_vector();
   row.ains_sigma = c.calibrations.at(0).sigma.to_vector();
   row.unobservable = c.calibrations.at(0).unobservable;
@@ -60,7 +60,7 @@ void finish(db::SqliteRepository& repo, db::RunId id, const db::RunCompletion& c
 }
 
 /// `c` with plausible AINS values (tests/db/fleet_history.hpp) for `serial_level`.
-db::RunCompletion plausible(db::RunCompletion c, int serial_level, std::size_t station) {
+db::history::RunCompletion plausible(db::history::RunCompletion c, int serial_level, std::size_t station) {
   static std::mt19937 rng(7);
   const auto unobservable = c.calibrations[0].unobservable;
   c.calibrations[0] = db::test::fleet_ains(rng, serial_level, station);
@@ -68,14 +68,14 @@ db::RunCompletion plausible(db::RunCompletion c, int serial_level, std::size_t s
   return c;
 }
 
-Extra write_extra_runs(db::SqliteRepository& repo, std::vector<FleetRow>& rows) {
+Extra write_extra_runs(db::history::SqliteRepository& repo, std::vector<FleetRow>& rows) {
   Extra e;
-  const db::TimestampMs t = db::parse_time_utc("2024-03-03T08:00:00Z");
-  db::NewRun first = db::test::new_run("SN-T1", t);
+  const db::history::TimestampMs t = db::history::parse_time_utc("2024-03-03T08:00:00Z");
+  db::history::NewRun first = db::test::new_run("SN-T1", t);
   first.station = "st-A";
   first.slot = "A";
   e.table_first = repo.create_run(first);
-  db::NewRun second = db::test::new_run("SN-T2", t);
+  db::history::NewRun second = db::test::new_run("SN-T2", t);
   second.station = "st-A";
   second.slot = "B";
   second.table_run_id = e.table_first;
@@ -84,11 +84,11 @@ Extra write_extra_runs(db::SqliteRepository& repo, std::vector<FleetRow>& rows) 
   finish(repo, e.table_second, plausible(db::test::review_completion(102, t + 3000000), 2, 0),
          rows);
 
-  db::NewRun gap = db::test::new_run("SN-DIAG", t + 7200000);
+  db::history::NewRun gap = db::test::new_run("SN-DIAG", t + 7200000);
   gap.station = "st-B";
   e.diagnosed = repo.create_run(gap);
-  db::RunCompletion c = db::test::pass_completion(103, t + 9000000);
-  c.state = db::RunState::kReview;
+  db::history::RunCompletion c = db::test::pass_completion(103, t + 9000000);
+  c.state = db::history::RunState::kReview;
   c.reasons = {{"gap", "sim-to-real gap: explained by gyro_g_sensitivity"}};
   c.capture_json = R"({"complete": true, "frames_received": 912345, "samples_lost": 2})";
   c.diagnosis_json =
@@ -97,10 +97,10 @@ Extra write_extra_runs(db::SqliteRepository& repo, std::vector<FleetRow>& rows) 
       R"( "overall": {"gap": 3.2, "expected": 1, "sigma": 0.1, "p_value": 1e-9}})";
   finish(repo, e.diagnosed, plausible(c, 3, 1), rows);
 
-  db::NewRun field = db::test::new_run("SN-DIAG", t + 14400000);
+  db::history::NewRun field = db::test::new_run("SN-DIAG", t + 14400000);
   field.station = "st-B";
   e.unobservable = repo.create_run(field);
-  db::RunCompletion u = db::test::review_completion(104, t + 16000000);
+  db::history::RunCompletion u = db::test::review_completion(104, t + 16000000);
   const std::vector<std::string> varsigma = {
       "table_misalignment_rad[0]", "table_misalignment_rad[1]", "table_misalignment_rad[2]"};
   u.calibrations[0].unobservable = varsigma;
@@ -115,7 +115,7 @@ class StationwebTest : public ::testing::Test {
     dir_ = std::make_unique<db::test::TempDir>();
     db_ = dir_->file("history.sqlite");
     {
-      db::SqliteRepository repo(db_);
+      db::history::SqliteRepository repo(db_);
       rows_ = db::test::write_fleet_history(repo);
       extra_ = write_extra_runs(repo, rows_);
     }
@@ -152,7 +152,7 @@ class StationwebTest : public ::testing::Test {
     EXPECT_EQ(status, 200) << target << "\n" << body.substr(0, 2000);
     return body;
   }
-  static db::SqliteRepository repo() { return db::SqliteRepository(db_, {true, false, 5000}); }
+  static db::history::SqliteRepository repo() { return db::history::SqliteRepository(db_, {true, false, 5000}); }
 
   static inline std::unique_ptr<db::test::TempDir> dir_;
   static inline std::string db_, start_error_;
@@ -177,7 +177,7 @@ TEST_F(StationwebTest, IndexListsTheNewestRunsOfTheRepository) {
     EXPECT_EQ(rows[i]["data-run-id"], std::to_string(newest[i].run_id));
     EXPECT_EQ(rows[i]["data-serial"], newest[i].serial);
     EXPECT_EQ(rows[i]["data-station"], newest[i].station);
-    EXPECT_EQ(rows[i]["data-verdict"], newest[i].verdict ? db::to_string(*newest[i].verdict) : "");
+    EXPECT_EQ(rows[i]["data-verdict"], newest[i].verdict ? db::history::to_string(*newest[i].verdict) : "");
     EXPECT_NE(html.find("href='/run/" + std::to_string(newest[i].run_id) + "'"), std::string::npos);
     EXPECT_NE(html.find("href='/unit/" + newest[i].serial + "'"), std::string::npos);
   }
@@ -195,13 +195,13 @@ TEST_F(StationwebTest, UnitPageHistoryAndTrendEqualTheRepository) {
     ASSERT_EQ(rows.size(), history.size());
     for (std::size_t i = 0; i < rows.size(); ++i) {
       EXPECT_EQ(rows[i]["data-run-id"], std::to_string(history[i].run_id));
-      EXPECT_EQ(rows[i]["data-state"], db::to_string(history[i].state));
+      EXPECT_EQ(rows[i]["data-state"], db::history::to_string(history[i].state));
       EXPECT_EQ(rows[i]["data-started-ms"], std::to_string(history[i].started_at_ms));
     }
     std::string active;
     try {
       active = std::to_string(r.active_params(serial).run.run_id);
-    } catch (const db::NotFound&) {
+    } catch (const db::history::NotFound&) {
     }
     EXPECT_EQ(tags(html, "<p id='active-set'")[0]["data-run-id"], active);
     // Every drawn point is a stored AINS value with its sigma; every observable one is drawn.
@@ -209,10 +209,10 @@ TEST_F(StationwebTest, UnitPageHistoryAndTrendEqualTheRepository) {
     std::map<std::pair<std::string, std::string>, std::pair<double, double>> stored;
     for (const auto& run : history)
       for (const auto& c : r.show(run.run_id).calibrations) {
-        if (c.method != db::Method::kAins) continue;
+        if (c.method != db::history::Method::kAins) continue;
         const auto v = c.params.to_vector(), s = c.sigma.to_vector();
-        for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-          const std::string& name = calib::param_info(i).name;
+        for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+          const std::string& name = calib::core::param_info(i).name;
           if (std::find(c.unobservable.begin(), c.unobservable.end(), name) != c.unobservable.end())
             continue;
           stored[{std::to_string(run.run_id), name}] = {v(i), s(i)};
@@ -243,17 +243,17 @@ TEST_F(StationwebTest, TheSerialSearchRedirectsToTheUnitPage) {
 // ----- the run page
 // ----------------------------------------------------------------------------------
 
-void expect_calibrations_equal(const std::string& html, const db::RunDetails& d) {
+void expect_calibrations_equal(const std::string& html, const db::history::RunDetails& d) {
   const auto cells = tags(section(html, "calibrations", "</table>"), "<td class='num' data-method");
   std::size_t expected = 0;
   for (const auto& c : d.calibrations) {
     const auto v = c.params.to_vector(), s = c.sigma.to_vector();
-    for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-      const std::string& name = calib::param_info(i).name;
+    for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+      const std::string& name = calib::core::param_info(i).name;
       if (std::find(c.unobservable.begin(), c.unobservable.end(), name) != c.unobservable.end())
         continue;
       ++expected;
-      const std::string m = db::to_string(c.method);
+      const std::string m = db::history::to_string(c.method);
       const auto it = std::find_if(cells.begin(), cells.end(), [&](const Attrs& a) {
         return a.at("data-method") == m && a.at("data-param") == name;
       });
@@ -265,17 +265,17 @@ void expect_calibrations_equal(const std::string& html, const db::RunDetails& d)
   EXPECT_EQ(cells.size(), expected);
 }
 
-void expect_crosscheck_equal(const std::string& html, const db::RunDetails& d) {
+void expect_crosscheck_equal(const std::string& html, const db::history::RunDetails& d) {
   const auto div = tags(html, "<div id='crosscheck'");
   ASSERT_EQ(div.size(), 1u);
   ASSERT_TRUE(d.crosscheck);
-  EXPECT_EQ(div[0]["data-verdict"], db::to_string(d.crosscheck->verdict));
+  EXPECT_EQ(div[0]["data-verdict"], db::history::to_string(d.crosscheck->verdict));
   EXPECT_EQ(number(div[0]["data-k-sigma"]), d.crosscheck->k_sigma);
   const auto rows = tags(section(html, "crosscheck-table", "</table>"), "<tr data-param");
   ASSERT_EQ(rows.size(), 27u);
   const auto a = d.calibrations[0], b = d.calibrations[1];
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-    const std::string& name = calib::param_info(i).name;
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+    const std::string& name = calib::core::param_info(i).name;
     Attrs row = rows[static_cast<std::size_t>(i)];
     EXPECT_EQ(row["data-param"], name);
     const auto& nc = d.crosscheck->not_compared;
@@ -292,17 +292,17 @@ void expect_crosscheck_equal(const std::string& html, const db::RunDetails& d) {
 
 TEST_F(StationwebTest, RunPageShowsWhatStationctlShowShowsWithTheRepositorysNumbers) {
   auto r = repo();
-  const db::RunId review = rows_[7].run_id;  // fleet_history: run 7 is REVIEW
-  for (db::RunId id :
+  const db::history::RunId review = rows_[7].run_id;  // fleet_history: run 7 is REVIEW
+  for (db::history::RunId id :
        {rows_[1].run_id, review, extra_.diagnosed, extra_.unobservable, extra_.table_second}) {
     SCOPED_TRACE("run " + std::to_string(id));
     const std::string html = get_ok("/run/" + std::to_string(id));
-    const db::RunDetails d = r.show(id);
+    const db::history::RunDetails d = r.show(id);
     Attrs head = tags(html, "<p id='run-head'")[0];
     EXPECT_EQ(head["data-run-id"], std::to_string(id));
     EXPECT_EQ(head["data-serial"], d.run.serial);
-    EXPECT_EQ(head["data-state"], db::to_string(d.run.state));
-    EXPECT_EQ(head["data-verdict"], d.run.verdict ? db::to_string(*d.run.verdict) : "");
+    EXPECT_EQ(head["data-state"], db::history::to_string(d.run.state));
+    EXPECT_EQ(head["data-verdict"], d.run.verdict ? db::history::to_string(*d.run.verdict) : "");
     Attrs archive = tags(html, "<p id='archive'")[0];
     EXPECT_EQ(archive["data-path"], d.run.archive_path);
     EXPECT_EQ(archive["data-sha256"], d.run.archive_sha256);
@@ -313,8 +313,8 @@ TEST_F(StationwebTest, RunPageShowsWhatStationctlShowShowsWithTheRepositorysNumb
     expect_calibrations_equal(html, d);
     expect_crosscheck_equal(html, d);
     // The text of `stationctl show`, whole, at the end of the page.
-    const std::string text = station::render_show_text(station::show_result(d));
-    EXPECT_NE(html.find(tools::html_escape(text)), std::string::npos);
+    const std::string text = station::control::render_show_text(station::control::show_result(d));
+    EXPECT_NE(html.find(tools::report::html_escape(text)), std::string::npos);
   }
 }
 
@@ -347,7 +347,7 @@ TEST_F(StationwebTest, RunPageShowsTheCaptureTheDiagnosisAndTheTableRunsUnits) {
 
 /// The fleet page's tables against the test's own answers from the rows it wrote.
 void expect_fleet_equal(const std::string& html, const std::vector<FleetRow>& rows,
-                        const db::FleetFilter& f, int param) {
+                        const db::history::FleetFilter& f, int param) {
   Attrs window = tags(html, "<p id='window'")[0];
   EXPECT_EQ(window["data-since-ms"], f.since_ms ? std::to_string(*f.since_ms) : "");
   EXPECT_EQ(window["data-until-ms"], f.until_ms ? std::to_string(*f.until_ms) : "");
@@ -356,7 +356,7 @@ void expect_fleet_equal(const std::string& html, const std::vector<FleetRow>& ro
   std::map<std::string, std::vector<double>> values;
   for (const FleetRow& r : rows) {
     if (!db::test::fleet_row_matches(r, f)) continue;
-    ++per_day[r.station + " " + db::format_time_utc(r.started_at_ms).substr(0, 10)];
+    ++per_day[r.station + " " + db::history::format_time_utc(r.started_at_ms).substr(0, 10)];
     auto& v = verdicts[r.station];
     ++v[r.verdict == "PASS" ? 0 : r.verdict == "REVIEW" ? 1 : r.verdict == "FAILED" ? 2 : 3];
     if (const auto v = db::test::fleet_value(r, param)) values[r.station].push_back(*v);
@@ -388,10 +388,10 @@ void expect_fleet_equal(const std::string& html, const std::vector<FleetRow>& ro
 }
 
 TEST_F(StationwebTest, FleetPageNumbersEqualTheRowsWritten) {
-  const db::TimestampMs day = 86400000;
-  db::FleetFilter window;  // until=2024-03-04 is the whole of that day
-  window.since_ms = db::parse_time_utc("2024-03-02");
-  window.until_ms = db::parse_time_utc("2024-03-05");
+  const db::history::TimestampMs day = 86400000;
+  db::history::FleetFilter window;  // until=2024-03-04 is the whole of that day
+  window.since_ms = db::history::parse_time_utc("2024-03-02");
+  window.until_ms = db::history::parse_time_utc("2024-03-05");
   expect_fleet_equal(
       get_ok("/fleet?since=2024-03-02&until=2024-03-04&param=gyro_bias_radps%5B2%5D"), rows_,
       window, 14);
@@ -399,18 +399,18 @@ TEST_F(StationwebTest, FleetPageNumbersEqualTheRowsWritten) {
   expect_fleet_equal(
       get_ok("/fleet?since=2024-03-02&until=2024-03-04&param=table_misalignment_rad%5B1%5D"), rows_,
       window, 25);
-  db::FleetFilter narrow = window;
+  db::history::FleetFilter narrow = window;
   narrow.station = "st-B";
   narrow.serial = "SN-2";
-  narrow.since_ms = db::parse_time_utc("2024-03-01T06:00Z");
+  narrow.since_ms = db::history::parse_time_utc("2024-03-01T06:00Z");
   expect_fleet_equal(
       get_ok("/fleet?since=2024-03-01T06:00Z&until=2024-03-04&station=st-B&serial=SN-2"
              "&param=accel_M%5B0%5D%5B1%5D"),
       rows_, narrow, 4);
   // Without since/until: the 30 days up to the newest run's day (the extra runs are older).
   auto r = repo();
-  db::FleetFilter recent;
-  recent.until_ms = (db::utc_day(r.recent_runs(1)[0].started_at_ms) + 1) * day;
+  db::history::FleetFilter recent;
+  recent.until_ms = (db::history::utc_day(r.recent_runs(1)[0].started_at_ms) + 1) * day;
   recent.since_ms = *recent.until_ms - 30 * day;
   const std::string html = get_ok("/fleet?param=table_misalignment_rad%5B1%5D");
   Attrs w = tags(html, "<p id='window'")[0];

@@ -15,7 +15,7 @@
 
 namespace fs = std::filesystem;
 
-namespace imucal::altsim {
+namespace imucal::tools::altsim {
 
 namespace {
 
@@ -156,4 +156,4 @@ void write_alt_archive(const std::string& dir_text, const AltRunInfo& info,
   }
 }
 
-}  // namespace imucal::altsim
+}  // namespace imucal::tools::altsim

@@ -7,7 +7,7 @@
 
 #include "tools/altsim/alt_sim.hpp"
 
-namespace imucal::altsim {
+namespace imucal::tools::altsim {
 
 /// What run.toml and truth.json say about the run besides the samples.
 struct AltRunInfo {
@@ -27,4 +27,4 @@ struct AltRunInfo {
 void write_alt_archive(const std::string& dir, const AltRunInfo& info,
                        const std::vector<AltSample>& samples);
 
-}  // namespace imucal::altsim
+}  // namespace imucal::tools::altsim

@@ -5,7 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace imucal::altsim {
+namespace imucal::tools::altsim {
 
 namespace {
 
@@ -154,4 +154,4 @@ void apply_alt_effect_spec(AltEffects& fx, const std::string& spec) {
   for (size_t i = 0; i < vals.size(); ++i) *f[i] = vals[i];
 }
 
-}  // namespace imucal::altsim
+}  // namespace imucal::tools::altsim

@@ -9,7 +9,7 @@
 
 #include "tools/altsim/alt_sim.hpp"
 
-namespace imucal::altsim {
+namespace imucal::tools::altsim {
 
 struct AltEffectParams {
   std::string name;                 ///< catalogue name, e.g. "gyro_g_sensitivity"
@@ -33,4 +33,4 @@ bool alt_effect_active(const AltEffects& fx, const std::string& name);
 /// it keeps its value). Throws std::invalid_argument naming the effect and its parameters.
 void apply_alt_effect_spec(AltEffects& fx, const std::string& spec);
 
-}  // namespace imucal::altsim
+}  // namespace imucal::tools::altsim

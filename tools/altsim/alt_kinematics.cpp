@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-namespace imucal::altsim {
+namespace imucal::tools::altsim {
 
 Eigen::Matrix3d skew3(const Eigen::Vector3d& v) {
   Eigen::Matrix3d S;
@@ -140,4 +140,4 @@ BodyKinematics TableKinematics::at(const sequences::TableState& s, bool with_wdo
   return k;
 }
 
-}  // namespace imucal::altsim
+}  // namespace imucal::tools::altsim

@@ -14,7 +14,7 @@
 #include "sequences/motion_profile.hpp"
 #include "tools/altsim/alt_sim.hpp"
 
-namespace imucal::altsim {
+namespace imucal::tools::altsim {
 
 /// [v×]: skew(v) * u == v.cross(u).
 Eigen::Matrix3d skew3(const Eigen::Vector3d& v);
@@ -60,4 +60,4 @@ class TableKinematics {
   Eigen::Vector3d w_ie_n_, f_n_;
 };
 
-}  // namespace imucal::altsim
+}  // namespace imucal::tools::altsim

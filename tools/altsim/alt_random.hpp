@@ -7,7 +7,7 @@
 #include <cmath>
 #include <cstdint>
 
-namespace imucal::altsim {
+namespace imucal::tools::altsim {
 
 /// splitmix64: turns one 64-bit seed into a well-mixed sequence (used only to fill xoshiro's
 /// state, which must not be all zero and should not be correlated between nearby seeds).
@@ -98,4 +98,4 @@ class GaussMarkov3 {
   std::array<double, 3> x_{0.0, 0.0, 0.0};
 };
 
-}  // namespace imucal::altsim
+}  // namespace imucal::tools::altsim

@@ -7,7 +7,7 @@
 #include "tools/altsim/alt_kinematics.hpp"
 #include "tools/altsim/alt_random.hpp"
 
-namespace imucal::altsim {
+namespace imucal::tools::altsim {
 
 namespace {
 
@@ -287,4 +287,4 @@ std::vector<AltSample> simulate_alt(const sequences::MotionProfile& profile, con
   return out;
 }
 
-}  // namespace imucal::altsim
+}  // namespace imucal::tools::altsim

@@ -14,7 +14,7 @@
 //    truth simulator evaluates them once at the interval's mean;
 //  * noise from xoshiro256** / Marsaglia polar (alt_random.hpp), not <random>.
 //
-// Conventions (the project's DESIGN §3, reproduced, not included): n = NED, b = IMU housing,
+// Conventions (the project's ARCHITECTURE §3, reproduced, not included): n = NED, b = IMU housing,
 // C_bn maps b to n. Increments: dθ_k = rotation vector of the body attitude change w.r.t.
 // inertial space over [t_{k-1}, t_k]; dv_k in the body frame at t_{k-1}. Error model on the
 // increments: dθ~ = dθ + b_g dt + M_g dθ, dv~ = dv + b_a dt + M_a dv. Table:
@@ -31,7 +31,7 @@
 
 #include "sequences/motion_profile.hpp"
 
-namespace imucal::altsim {
+namespace imucal::tools::altsim {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kEarthRate_radps = 7.292115e-5;  ///< WGS-84
@@ -71,7 +71,7 @@ struct AltNoise {
   double dtheta_lsb_rad = 0.0, dv_lsb_mps = 0.0;  ///< output resolution, 0 = unquantised
 };
 
-/// The effects catalogue's unmodelled physics (the project's DESIGN §7), SI, all off by default.
+/// The effects catalogue's unmodelled physics (the project's ARCHITECTURE §7), SI, all off by default.
 /// Each field is defined as the catalogue defines it:
 struct AltEffects {
   /// accel_quadratic_k2: δf_i = K2_i f_i², 1/(m/s²).
@@ -143,4 +143,4 @@ std::vector<AltSample> simulate_alt(const sequences::MotionProfile& profile, con
                                     const AltSite& site, const AltUnit& unit,
                                     const AltOptions& options);
 
-}  // namespace imucal::altsim
+}  // namespace imucal::tools::altsim

@@ -21,7 +21,7 @@ using namespace imucal;
 
 namespace {
 
-constexpr double kDeg = altsim::kPi / 180.0;
+constexpr double kDeg = tools::altsim::kPi / 180.0;
 constexpr double kMicroG_mps2 = 9.80665e-6;
 constexpr double kDegPerHour_radps = kDeg / 3600.0;
 constexpr double kArcsec_rad = kDeg / 3600.0;
@@ -30,12 +30,12 @@ constexpr double kArcsec_rad = kDeg / 3600.0;
 constexpr double kLat_deg = 55.7856, kLon_deg = 12.5213, kHeight_m = 30.0;
 constexpr double kGravity_mps2 = 9.81565;
 
-/// altsim's own navigation-grade unit (DESIGN §7 sizes, values of its own): biases ~50 µg and
+/// altsim's own navigation-grade unit (ARCHITECTURE §7 sizes, values of its own): biases ~50 µg and
 /// ~0.01 °/h, scale factors and misalignments a few hundred ppm, ARW 0.0015 °/√h, VRW 10 µg/√Hz,
 /// the built-in protocol's resolution (1e-9 rad, 1e-7 m/s).
-altsim::AltUnit default_alt_unit() {
-  altsim::AltUnit u;
-  altsim::AltErrorModel& e = u.errors;
+tools::altsim::AltUnit default_alt_unit() {
+  tools::altsim::AltUnit u;
+  tools::altsim::AltErrorModel& e = u.errors;
   e.b_a_mps2 = Eigen::Vector3d(-45.0, 35.0, 55.0) * kMicroG_mps2;
   e.M_a << 250e-6, -90e-6, 60e-6,  //
       110e-6, -180e-6, -70e-6,     //
@@ -60,17 +60,17 @@ struct Args {
 };
 
 int run(const Args& a) {
-  altsim::AltUnit unit = default_alt_unit();
+  tools::altsim::AltUnit unit = default_alt_unit();
   for (const std::string& spec : a.effects) {
     try {
-      altsim::apply_alt_effect_spec(unit.effects, spec);
+      tools::altsim::apply_alt_effect_spec(unit.effects, spec);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument("--effect " + spec + ": " + e.what());
     }
   }
   const std::string seq_path = sequences::resolve_sequence(a.sequence);
   const sequences::MotionProfile profile = sequences::load_profile(seq_path);
-  altsim::AltRunInfo info;
+  tools::altsim::AltRunInfo info;
   info.serial = "ALTSIM-" + std::to_string(a.seed);
   info.software_version = std::string("altsim ") + IMUCAL_VERSION;
   info.lat_deg = kLat_deg;
@@ -82,18 +82,18 @@ int run(const Args& a) {
   info.sequence_sha256 = sequences::sequence_hash(seq_path);
   info.table.misalignment_rad = Eigen::Vector3d(-12.0, 18.0, 25.0) * kArcsec_rad;
   info.unit = unit;
-  altsim::AltSite site;
+  tools::altsim::AltSite site;
   site.lat_rad = kLat_deg * kDeg;
   site.gravity_mps2 = kGravity_mps2;
-  altsim::AltOptions opt;
+  tools::altsim::AltOptions opt;
   opt.rate_hz = a.rate_hz;
   opt.seed = a.seed;
   opt.noise = !a.no_noise;
   const auto t0 = std::chrono::steady_clock::now();
-  const std::vector<altsim::AltSample> samples =
-      altsim::simulate_alt(profile, info.table, site, unit, opt);
+  const std::vector<tools::altsim::AltSample> samples =
+      tools::altsim::simulate_alt(profile, info.table, site, unit, opt);
   const double sim_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  altsim::write_alt_archive(a.out_dir, info, samples);
+  tools::altsim::write_alt_archive(a.out_dir, info, samples);
   std::printf("wrote %s: %zu samples, %.2f s, sequence %s, seed %llu%s (simulated in %.2f s)\n",
               a.out_dir.c_str(), samples.size(), samples.back().t_s, profile.name.c_str(),
               static_cast<unsigned long long>(a.seed), a.no_noise ? ", no noise" : "", sim_s);
@@ -112,7 +112,7 @@ int main(int argc, char** argv) {
   app.add_option("--effect", a.effects,
                  "inject a catalogue effect, NAME=V[,V...] in SI, the catalogue's parameter order "
                  "(repeatable; known: " +
-                     altsim::alt_effect_names() + ")")
+                     tools::altsim::alt_effect_names() + ")")
       ->take_all();
   app.add_flag("--no-noise", a.no_noise, "deterministic increments (no noise, no quantisation)");
   app.add_option("--rate", a.rate_hz, "IMU rate, Hz")

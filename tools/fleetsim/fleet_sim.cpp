@@ -14,7 +14,7 @@
 #include "calib/sim/unit_draw.hpp"
 #include "sequences/library.hpp"
 
-namespace imucal::fleetsim {
+namespace imucal::tools::fleetsim {
 
 namespace {
 
@@ -32,10 +32,10 @@ std::uint64_t run_seed(const FleetSpec& spec, std::size_t station, int unit, int
 }
 
 /// The unit: one of the station's own, or the golden unit (the same at every station).
-calib::UnitModel unit_model(const FleetSpec& spec, std::size_t station, int unit) {
+calib::effects::UnitModel unit_model(const FleetSpec& spec, std::size_t station, int unit) {
   const std::uint64_t seed =
       unit < 0 ? mix(spec.seed ^ 0x601D) : mix(mix(spec.seed) ^ (station * 100003 + 17) ^ unit);
-  calib::UnitModel u = calib::draw_production_unit(calib::Grade::kNavigation, seed);
+  calib::effects::UnitModel u = calib::sim::draw_production_unit(calib::core::Grade::kNavigation, seed);
   u.params.table_misalignment_rad = spec.stations[station].levelling_rad;
   return u;
 }
@@ -80,36 +80,36 @@ FleetSpec sound_fleet(int stations, double levelling_rad, std::uint64_t seed) {
   return spec;
 }
 
-calib::AinsOptions fleet_ains_options() { return calib::AinsOptions{}; }
+calib::ains::AinsOptions fleet_ains_options() { return calib::ains::AinsOptions{}; }
 
 namespace {
 
 /// One run's input on the fleet's sequence, already loaded (once per fleet, not per run).
-calib::CalibrationInput input_of(const FleetSpec& spec, const sequences::MotionProfile& profile,
+calib::core::CalibrationInput input_of(const FleetSpec& spec, const sequences::MotionProfile& profile,
                                  std::size_t station, int unit, int visit) {
   const StationSpec& st = spec.stations.at(station);
-  calib::Effects fx;
+  calib::effects::Effects fx;
   fx.gravity_error_mps2 = st.gravity_error_mps2;
   fx.table_nonorthogonality_rad = st.nonorthogonality_rad;
   fx.table_wobble_rad = st.wobble_rad;
-  calib::UnitModel u = unit_model(spec, station, unit);
+  calib::effects::UnitModel u = unit_model(spec, station, unit);
   u.effects = fx;
   // The table as built (its fixture turned, if it is) simulates; the station's reference assumes
   // the nominal one.
-  calib::TableGeometry as_built;
-  as_built.C_bp = calib::rotvec_to_matrix<double>(st.fixture_rad);
-  calib::SimOptions so;
+  calib::core::TableGeometry as_built;
+  as_built.C_bp = calib::core::rotvec_to_matrix<double>(st.fixture_rad);
+  calib::sim::SimOptions so;
   so.rate_hz = 100.0;
   so.seed = run_seed(spec, station, unit, visit);
   so.noise = true;
-  const calib::Site site = calib::demo_factory_site();
-  return calib::input_from_simulation(calib::simulate(profile, as_built, site, u, so),
-                                      calib::TableGeometry{}, site, u.noise);
+  const calib::core::Site site = calib::core::demo_factory_site();
+  return calib::sim::input_from_simulation(calib::sim::simulate(profile, as_built, site, u, so),
+                                      calib::core::TableGeometry{}, site, u.noise);
 }
 
 }  // namespace
 
-calib::CalibrationInput run_input(const FleetSpec& spec, std::size_t station, int unit, int visit) {
+calib::core::CalibrationInput run_input(const FleetSpec& spec, std::size_t station, int unit, int visit) {
   return input_of(spec, sequences::load_profile(spec.sequence), station, unit, visit);
 }
 
@@ -124,7 +124,7 @@ std::vector<FleetRun> simulate_fleet(const FleetSpec& spec,
   auto worker = [&] {
     for (std::size_t i = next++; i < jobs.size(); i = next++) {
       const Job& j = jobs[i];
-      const calib::CalibrationResult r = calib::calibrate_ains(
+      const calib::core::CalibrationResult r = calib::ains::calibrate_ains(
           input_of(spec, profile, j.station, j.unit, j.visit), fleet_ains_options());
       FleetRun& f = out[i];
       f.station = j.station;
@@ -151,12 +151,12 @@ std::vector<FleetRun> simulate_fleet(const FleetSpec& spec,
   return out;
 }
 
-std::vector<calib::StationError> fleet_station_errors(const FleetSpec& spec) {
-  std::vector<calib::StationError> errors = calib::station_error_catalogue();
-  calib::measure_responses(
+std::vector<calib::studies::fleet::StationError> fleet_station_errors(const FleetSpec& spec) {
+  std::vector<calib::studies::fleet::StationError> errors = calib::studies::fleet::station_error_catalogue();
+  calib::studies::fleet::measure_responses(
       errors,
-      calib::truth_run_source(sequences::load_profile(spec.sequence), calib::TableGeometry{},
-                              calib::demo_factory_site(), calib::default_unit(), 100.0),
+      calib::sim::truth_run_source(sequences::load_profile(spec.sequence), calib::core::TableGeometry{},
+                              calib::core::demo_factory_site(), calib::effects::default_unit(), 100.0),
       fleet_ains_options());
   return errors;
 }
@@ -177,14 +177,14 @@ std::vector<std::string> true_causes(const StationSpec& st) {
 }
 
 FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& runs,
-                          const std::vector<calib::StationError>& errors,
-                          const calib::SignatureOptions& options, bool population_only) {
-  std::vector<calib::SignatureRun> input;
+                          const std::vector<calib::studies::fleet::StationError>& errors,
+                          const calib::studies::fleet::SignatureOptions& options, bool population_only) {
+  std::vector<calib::studies::fleet::SignatureRun> input;
   for (const FleetRun& r : runs)
     if (!population_only || r.unit >= 0) input.push_back(r.run);
   FleetOutcome o;
-  o.signatures = calib::station_signatures(input, errors, options);
-  for (const calib::StationSignature& sig : o.signatures.stations) {
+  o.signatures = calib::studies::fleet::station_signatures(input, errors, options);
+  for (const calib::studies::fleet::StationSignature& sig : o.signatures.stations) {
     std::size_t s = 0;
     while (spec.stations[s].name != sig.station) ++s;
     const StationSpec& st = spec.stations[s];
@@ -197,7 +197,7 @@ FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& ru
     ++o.faulty;
     // Detected: every error named and nothing else; a wrong cause: something named that is not.
     std::vector<std::string> named;
-    for (const calib::StationFit& a : sig.alarms) named.push_back(a.effect);
+    for (const calib::studies::fleet::StationFit& a : sig.alarms) named.push_back(a.effect);
     const auto is_true = [&](const std::string& e) {
       return std::find(truth.begin(), truth.end(), e) != truth.end();
     };
@@ -218,12 +218,12 @@ std::vector<ReprocessedScale> reprocess_with_gravity(const FleetSpec& spec, std:
   std::atomic<int> next{0};
   auto worker = [&] {
     for (int u = next++; u < spec.units_per_station; u = next++) {
-      calib::CalibrationInput in = input_of(spec, profile, station, u, 0);
+      calib::core::CalibrationInput in = input_of(spec, profile, station, u, 0);
       const double surveyed = in.site.gravity_mps2.value_or(
-          calib::EarthModel::normal_gravity_mps2(in.site.lat_rad, in.site.height_m));
+          calib::core::EarthModel::normal_gravity_mps2(in.site.lat_rad, in.site.height_m));
       in.site.gravity_mps2 = surveyed + gravity_correction_mps2;
-      const calib::CalibrationResult r = calib::calibrate_ains(in, fleet_ains_options());
-      const calib::ParamSet truth = unit_model(spec, station, u).params;
+      const calib::core::CalibrationResult r = calib::ains::calibrate_ains(in, fleet_ains_options());
+      const calib::core::ParamSet truth = unit_model(spec, station, u).params;
       for (int i = 0; i < 3; ++i)
         out[3 * static_cast<std::size_t>(u) + static_cast<std::size_t>(i)] = {
             r.params.accel_M(i, i) - truth.accel_M(i, i), r.sigma.accel_M(i, i)};
@@ -236,17 +236,17 @@ std::vector<ReprocessedScale> reprocess_with_gravity(const FleetSpec& spec, std:
   return out;
 }
 
-std::vector<db::RunId> write_history(const FleetSpec& spec, db::SqliteRepository& repo,
-                                     db::TimestampMs t0_ms) {
+std::vector<db::history::RunId> write_history(const FleetSpec& spec, db::history::SqliteRepository& repo,
+                                     db::history::TimestampMs t0_ms) {
   const std::vector<Job> jobs = jobs_of(spec);
   const sequences::MotionProfile profile = sequences::load_profile(spec.sequence);
-  std::vector<calib::PipelineResult> results(jobs.size());
+  std::vector<calib::pipeline::PipelineResult> results(jobs.size());
   std::atomic<std::size_t> next{0};
   auto worker = [&] {
     for (std::size_t i = next++; i < jobs.size(); i = next++) {
-      calib::PipelineOptions opt;
+      calib::pipeline::PipelineOptions opt;
       opt.ains = fleet_ains_options();
-      results[i] = calib::run_calibration(
+      results[i] = calib::pipeline::run_calibration(
           input_of(spec, profile, jobs[i].station, jobs[i].unit, jobs[i].visit), opt);
     }
   };
@@ -254,26 +254,26 @@ std::vector<db::RunId> write_history(const FleetSpec& spec, db::SqliteRepository
   for (int t = 1; t < std::max(1, spec.threads); ++t) pool.emplace_back(worker);
   worker();
   for (auto& t : pool) t.join();
-  constexpr db::TimestampMs kRunMs = 600000;  // one run every 10 minutes per station
-  std::vector<db::RunId> ids;
+  constexpr db::history::TimestampMs kRunMs = 600000;  // one run every 10 minutes per station
+  std::vector<db::history::RunId> ids;
   std::vector<int> at_station(spec.stations.size(), 0);
   for (std::size_t i = 0; i < jobs.size(); ++i) {
     const Job& j = jobs[i];
-    db::NewRun run;
+    db::history::NewRun run;
     run.serial = serial(spec, j.station, j.unit);
     run.operator_name = "fleetsim";
     run.station = spec.stations[j.station].name;
     run.sequence_name = spec.sequence;
     run.software_version = "fleetsim";
     run.started_at_ms = t0_ms + kRunMs * at_station[j.station]++;
-    const db::RunId id = repo.create_run(run);
-    const calib::PipelineResult& r = results[i];
-    db::RunCompletion done;
+    const db::history::RunId id = repo.create_run(run);
+    const calib::pipeline::PipelineResult& r = results[i];
+    db::history::RunCompletion done;
     done.ended_at_ms = run.started_at_ms + kRunMs - 60000;
-    done.calibrations = {db::calibration_record(r.ains->result, &r.ains->metrics),
-                         db::calibration_record(r.nlsq->result, &r.nlsq->metrics)};
-    done.crosscheck = db::crosscheck_record(*r.crosscheck, 4.0);
-    done.state = r.pass() ? db::RunState::kDone : db::RunState::kReview;
+    done.calibrations = {db::history::calibration_record(r.ains->result, &r.ains->metrics),
+                         db::history::calibration_record(r.nlsq->result, &r.nlsq->metrics)};
+    done.crosscheck = db::history::crosscheck_record(*r.crosscheck, 4.0);
+    done.state = r.pass() ? db::history::RunState::kDone : db::history::RunState::kReview;
     if (!r.pass()) done.reasons = {{"cross-check", "cross-check or limits: not PASS"}};
     repo.finish_run(id, done);
     ids.push_back(id);
@@ -281,4 +281,4 @@ std::vector<db::RunId> write_history(const FleetSpec& spec, db::SqliteRepository
   return ids;
 }
 
-}  // namespace imucal::fleetsim
+}  // namespace imucal::tools::fleetsim

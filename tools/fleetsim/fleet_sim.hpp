@@ -16,11 +16,11 @@
 
 #include "calib/ains/ains.hpp"
 #include "calib/core/calibration_input.hpp"
-#include "calib/fleet/station_signature.hpp"
+#include "calib/studies/fleet/station_signature.hpp"
 #include "calib/sim/truth_sim.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/sqlite_repository.hpp"
 
-namespace imucal::fleetsim {
+namespace imucal::tools::fleetsim {
 
 struct StationSpec {
   std::string name;
@@ -47,11 +47,11 @@ struct FleetSpec {
 FleetSpec sound_fleet(int stations, double levelling_rad, std::uint64_t seed);
 
 struct FleetRun {
-  calib::SignatureRun run;  ///< station, serial, run id, AINS value and σ
+  calib::studies::fleet::SignatureRun run;  ///< station, serial, run id, AINS value and σ
   std::size_t station = 0;  ///< index into FleetSpec::stations
   int unit = 0;             ///< unit index at the station; -1: the golden unit
   int visit = 0;
-  calib::ParamVector truth = calib::ParamVector::Zero();  ///< the unit's true parameters + ς
+  calib::core::ParamVector truth = calib::core::ParamVector::Zero();  ///< the unit's true parameters + ς
   bool converged = false;
 };
 
@@ -60,13 +60,13 @@ std::vector<FleetRun> simulate_fleet(const FleetSpec& spec,
                                      const std::function<void(int, int)>& progress = {});
 
 /// The input of one run exactly as simulate_fleet calibrated it (its station's surveyed site).
-calib::CalibrationInput run_input(const FleetSpec& spec, std::size_t station, int unit, int visit);
+calib::core::CalibrationInput run_input(const FleetSpec& spec, std::size_t station, int unit, int visit);
 
 /// The AINS options the fleet calibrates with.
-calib::AinsOptions fleet_ains_options();
+calib::ains::AinsOptions fleet_ains_options();
 
 /// The station errors with responses measured on the fleet's sequence.
-std::vector<calib::StationError> fleet_station_errors(const FleetSpec& spec);
+std::vector<calib::studies::fleet::StationError> fleet_station_errors(const FleetSpec& spec);
 
 /// The station errors the spec gave the station (gravity, non-orthogonality, the wobble's larger
 /// axis, the fixture's largest axis, in that order); empty for a sound station.
@@ -74,7 +74,7 @@ std::vector<std::string> true_causes(const StationSpec& st);
 
 /// What the signatures made of one fleet, station by station.
 struct FleetOutcome {
-  calib::FleetSignatures signatures;
+  calib::studies::fleet::FleetSignatures signatures;
   int faulty = 0, detected = 0;  ///< stations with errors; those with every error named, no other
   int wrong_cause = 0;           ///< faulty stations with an error named that they do not have
   int sound = 0, false_alarms = 0;
@@ -83,8 +83,8 @@ struct FleetOutcome {
 /// The fleet's signatures (population_only: the golden unit's runs left out) and how they
 /// compare with the spec's truth.
 FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& runs,
-                          const std::vector<calib::StationError>& errors,
-                          const calib::SignatureOptions& options, bool population_only);
+                          const std::vector<calib::studies::fleet::StationError>& errors,
+                          const calib::studies::fleet::SignatureOptions& options, bool population_only);
 
 /// One reprocessed accelerometer scale: its error against the truth and the AINS σ of the run.
 struct ReprocessedScale {
@@ -102,7 +102,7 @@ std::vector<ReprocessedScale> reprocess_with_gravity(const FleetSpec& spec, std:
 /// calibrated by the station's pipeline (AINS, NLSQ, cross-check, limits; no gap check), done or
 /// review by its verdict. Returns the run ids in job order (the station's units, then the golden
 /// unit's visits, station by station).
-std::vector<db::RunId> write_history(const FleetSpec& spec, db::SqliteRepository& repo,
-                                     db::TimestampMs t0_ms);
+std::vector<db::history::RunId> write_history(const FleetSpec& spec, db::history::SqliteRepository& repo,
+                                     db::history::TimestampMs t0_ms);
 
-}  // namespace imucal::fleetsim
+}  // namespace imucal::tools::fleetsim

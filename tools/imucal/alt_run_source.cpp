@@ -6,10 +6,10 @@
 
 #include "calib/core/earth.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
-altsim::AltEffects to_alt_effects(const calib::Effects& fx) {
-  altsim::AltEffects a;
+tools::altsim::AltEffects to_alt_effects(const calib::effects::Effects& fx) {
+  tools::altsim::AltEffects a;
   a.accel_k2_per_mps2 = fx.accel_k2_per_mps2;
   a.accel_asym = fx.accel_asym;
   a.accel_lever_arm_m = fx.accel_lever_arm_m;
@@ -31,13 +31,13 @@ altsim::AltEffects to_alt_effects(const calib::Effects& fx) {
   return a;
 }
 
-altsim::AltUnit to_alt_unit(const calib::UnitModel& unit) {
-  altsim::AltUnit u;
+tools::altsim::AltUnit to_alt_unit(const calib::effects::UnitModel& unit) {
+  tools::altsim::AltUnit u;
   u.errors.b_a_mps2 = unit.params.accel_bias_mps2;
   u.errors.M_a = unit.params.accel_M;
   u.errors.b_g_radps = unit.params.gyro_bias_radps;
   u.errors.M_g = unit.params.gyro_M;
-  const calib::NoiseModel& n = unit.noise;
+  const calib::core::NoiseModel& n = unit.noise;
   u.noise.arw_rad_per_sqrt_s = n.arw_rad_per_sqrt_s;
   u.noise.vrw_mps_per_sqrt_s = n.vrw_mps_per_sqrt_s;
   u.noise.gyro_gm_sigma_radps = n.gyro_bias_instability_radps;
@@ -50,8 +50,8 @@ altsim::AltUnit to_alt_unit(const calib::UnitModel& unit) {
   return u;
 }
 
-altsim::AltTable to_alt_table(const calib::TableGeometry& g, const Eigen::Vector3d& sigma) {
-  altsim::AltTable t;
+tools::altsim::AltTable to_alt_table(const calib::core::TableGeometry& g, const Eigen::Vector3d& sigma) {
+  tools::altsim::AltTable t;
   t.outer_axis_t = g.outer_axis_t;
   t.inner_axis_o = g.inner_axis_o;
   t.heading_rad = g.heading_rad;
@@ -60,27 +60,27 @@ altsim::AltTable to_alt_table(const calib::TableGeometry& g, const Eigen::Vector
   return t;
 }
 
-altsim::AltSite to_alt_site(const calib::Site& site, const calib::Effects& fx) {
-  altsim::AltSite s;
+tools::altsim::AltSite to_alt_site(const calib::core::Site& site, const calib::effects::Effects& fx) {
+  tools::altsim::AltSite s;
   s.lat_rad = site.lat_rad;
   s.gravity_mps2 = site.gravity_mps2 ? *site.gravity_mps2
-                                     : calib::EarthModel::normal_gravity_mps2(
+                                     : calib::core::EarthModel::normal_gravity_mps2(
                                            site.lat_rad + fx.latitude_error_rad, site.height_m);
-  s.earth_rate_radps = calib::wgs84::kEarthRate_radps;
+  s.earth_rate_radps = calib::core::wgs84::kEarthRate_radps;
   return s;
 }
 
-calib::CalibrationInput input_from_alt(const std::vector<altsim::AltSample>& run,
-                                       const calib::TableGeometry& geometry,
-                                       const calib::Site& site, const calib::NoiseModel& noise) {
-  calib::CalibrationInput in;
+calib::core::CalibrationInput input_from_alt(const std::vector<tools::altsim::AltSample>& run,
+                                       const calib::core::TableGeometry& geometry,
+                                       const calib::core::Site& site, const calib::core::NoiseModel& noise) {
+  calib::core::CalibrationInput in;
   in.site = site;
   in.noise = noise;
   in.imu.reserve(run.size());
   in.reference.reserve(run.size());
-  const calib::TableModel table(geometry);
-  for (const altsim::AltSample& s : run) {
-    calib::ImuIncrement inc;
+  const calib::core::TableModel table(geometry);
+  for (const tools::altsim::AltSample& s : run) {
+    calib::core::ImuIncrement inc;
     inc.t_s = s.t_s;
     inc.dt_s = s.dt_s;
     inc.dtheta_rad = s.dtheta_rad;
@@ -95,24 +95,24 @@ calib::CalibrationInput input_from_alt(const std::vector<altsim::AltSample>& run
   return in;
 }
 
-calib::RunSource alt_run_source(const sequences::MotionProfile& profile,
-                                const calib::TableGeometry& geometry, const calib::Site& site,
-                                const calib::UnitModel& unit, double rate_hz) {
+calib::effects::RunSource alt_run_source(const sequences::MotionProfile& profile,
+                                const calib::core::TableGeometry& geometry, const calib::core::Site& site,
+                                const calib::effects::UnitModel& unit, double rate_hz) {
   auto world = std::make_shared<const sequences::MotionProfile>(profile);
-  return [world, geometry, site, unit, rate_hz](const calib::Effects& effects, uint64_t seed,
+  return [world, geometry, site, unit, rate_hz](const calib::effects::Effects& effects, uint64_t seed,
                                                 bool noise) {
-    calib::UnitModel u = unit;
+    calib::effects::UnitModel u = unit;
     u.effects = effects;
-    altsim::AltOptions o;
+    tools::altsim::AltOptions o;
     o.rate_hz = rate_hz;
     o.seed = seed;
     o.noise = noise;
-    o.rest_guard_s = calib::kTableRestGuard_s;
-    const std::vector<altsim::AltSample> run =
-        altsim::simulate_alt(*world, to_alt_table(geometry, u.params.table_misalignment_rad),
+    o.rest_guard_s = calib::core::kTableRestGuard_s;
+    const std::vector<tools::altsim::AltSample> run =
+        tools::altsim::simulate_alt(*world, to_alt_table(geometry, u.params.table_misalignment_rad),
                              to_alt_site(site, effects), to_alt_unit(u), o);
     return input_from_alt(run, geometry, site, unit.noise);
   };
 }
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

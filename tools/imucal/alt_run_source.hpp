@@ -1,6 +1,6 @@
 #pragma once
-// altsim (tools/altsim/, issue #22) as a calib::RunSource: the same contract as
-// calib::truth_run_source (calib/sim/sim_input.hpp) — runs of one sequence on one table by one
+// altsim (tools/altsim/, issue #22) as a calib::effects::RunSource: the same contract as
+// calib::sim::truth_run_source (calib/sim/sim_input.hpp) — runs of one sequence on one table by one
 // unit with chosen effects, the reference attitude from the recorded encoder angles, the unit's
 // declared noise model — but drawn from the independent simulator, so that `imucal
 // validate-diagnosis --simulator alt` measures the diagnosis on data its own world did not make.
@@ -12,29 +12,29 @@
 #include "sequences/motion_profile.hpp"
 #include "tools/altsim/alt_sim.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 /// The catalogue's effects in altsim's struct (field by field, same SI definitions).
-altsim::AltEffects to_alt_effects(const calib::Effects& fx);
+tools::altsim::AltEffects to_alt_effects(const calib::effects::Effects& fx);
 /// The unit's parameters, declared noise and effects.
-altsim::AltUnit to_alt_unit(const calib::UnitModel& unit);
+tools::altsim::AltUnit to_alt_unit(const calib::effects::UnitModel& unit);
 /// The table geometry with the station's misalignment ς (the unit's table_misalignment_rad).
-altsim::AltTable to_alt_table(const calib::TableGeometry& geometry, const Eigen::Vector3d& sigma);
+tools::altsim::AltTable to_alt_table(const calib::core::TableGeometry& geometry, const Eigen::Vector3d& sigma);
 /// The configured site. Without a surveyed gravity the physics has normal gravity at the TRUE
 /// latitude (calib/effects/site_errors.hpp), so that value is passed (altsim adds dg on top).
-altsim::AltSite to_alt_site(const calib::Site& site, const calib::Effects& fx);
+tools::altsim::AltSite to_alt_site(const calib::core::Site& site, const calib::effects::Effects& fx);
 
 /// What the methods consume from an altsim run: the increments, the table reference
 /// C_bn_ref = TableModel(geometry).C_bn(encoder angles) without ς, the rest flags, the declared
 /// noise model, the configured site.
-calib::CalibrationInput input_from_alt(const std::vector<altsim::AltSample>& run,
-                                       const calib::TableGeometry& geometry,
-                                       const calib::Site& site, const calib::NoiseModel& noise);
+calib::core::CalibrationInput input_from_alt(const std::vector<tools::altsim::AltSample>& run,
+                                       const calib::core::TableGeometry& geometry,
+                                       const calib::core::Site& site, const calib::core::NoiseModel& noise);
 
 /// altsim as a RunSource (callable from several threads at once: every call simulates into its
 /// own storage; the profile is shared read-only).
-calib::RunSource alt_run_source(const sequences::MotionProfile& profile,
-                                const calib::TableGeometry& geometry, const calib::Site& site,
-                                const calib::UnitModel& unit, double rate_hz);
+calib::effects::RunSource alt_run_source(const sequences::MotionProfile& profile,
+                                const calib::core::TableGeometry& geometry, const calib::core::Site& site,
+                                const calib::effects::UnitModel& unit, double rate_hz);
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

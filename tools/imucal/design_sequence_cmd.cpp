@@ -8,7 +8,7 @@
 #include <stdexcept>
 
 #include "calib/core/site_presets.hpp"
-#include "calib/design/sequence_design.hpp"
+#include "calib/studies/design/sequence_design.hpp"
 #include "calib/diagnosis/false_alarm.hpp"
 #include "calib/sim/sim_input.hpp"
 #include "db/archive/io_util.hpp"
@@ -18,7 +18,7 @@
 #include "sequences/profile_generator.hpp"
 #include "sequences/sequence_error.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 namespace {
 
@@ -57,7 +57,7 @@ std::string body_direction(double x, double y, double z) {
 
 /// "(90, 0): about body +x, y down" — the pose reached and what the rotation did, with the
 /// default geometry (sequences/FORMAT.md, Geometry).
-std::string pose_comment(const calib::RestTour& tour, size_t leg) {
+std::string pose_comment(const calib::studies::design::RestTour& tour, size_t leg) {
   const auto [o_deg, i_deg] = tour.pose_deg(leg + 1);
   const double i0_deg = tour.pose_deg(leg).second;  // an outer turn's body axis: the inner angle
   const double d = M_PI / 180.0, sign = tour.legs[leg].by_deg > 0 ? 1.0 : -1.0;
@@ -96,12 +96,12 @@ void write_limits(std::ostringstream& os, const sequences::DeclaredLimits& l) {
   }
 }
 
-std::string toml_text(const calib::SequenceDesign& d, const DesignSequenceArgs& a) {
+std::string toml_text(const calib::studies::design::SequenceDesign& d, const DesignSequenceArgs& a) {
   const sequences::Sequence& seq = d.sequence;
   std::ostringstream os;
   os << "# Rotation sequence for the two-axis calibration turntable (format: "
         "sequences/FORMAT.md).\n"
-     << "# Made by the sequence designer (calib/design/sequence_design.hpp) with:\n"
+     << "# Made by the sequence designer (calib/studies/design/sequence_design.hpp) with:\n"
      << "#   " << a.command_line << "\n"
      << "# Default geometry (calib/core/table_model.hpp): outer axis horizontal (north), inner "
         "axis "
@@ -130,11 +130,11 @@ std::string toml_text(const calib::SequenceDesign& d, const DesignSequenceArgs& 
 
 // ------------------------------------------------------------------ the report
 
-double group_rms(const calib::ParamVector& v, calib::ParamGroup g) {
+double group_rms(const calib::core::ParamVector& v, calib::core::ParamGroup g) {
   double s = 0.0;
   int n = 0;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i)
-    if (calib::param_info(i).group == g) {
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
+    if (calib::core::param_info(i).group == g) {
       s += v(i) * v(i);
       ++n;
     }
@@ -142,30 +142,30 @@ double group_rms(const calib::ParamVector& v, calib::ParamGroup g) {
 }
 
 /// The group's worst parameter: max over it of num_i / den_i.
-double group_worst(const calib::ParamVector& num, const calib::ParamVector& den,
-                   calib::ParamGroup g) {
+double group_worst(const calib::core::ParamVector& num, const calib::core::ParamVector& den,
+                   calib::core::ParamGroup g) {
   double worst = 0.0;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i)
-    if (calib::param_info(i).group == g && den(i) > 0) worst = std::max(worst, num(i) / den(i));
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
+    if (calib::core::param_info(i).group == g && den(i) > 0) worst = std::max(worst, num(i) / den(i));
   return worst;
 }
 
-void print_groups(const calib::SequenceDesign& d, const calib::NoiseModel& noise) {
+void print_groups(const calib::studies::design::SequenceDesign& d, const calib::core::NoiseModel& noise) {
   std::printf(
       "\nper parameter group (CRLB 1-sigma, RMS over the group; ratios: the group's worst "
       "parameter)\n");
   std::printf("  %-16s %-7s %12s %12s %10s %10s %10s\n", "group", "unit", "sigma ref",
               "sigma design", "design/ref", "design/cut", "/floor");
-  calib::ParamVector floor = calib::ParamVector::Zero();
-  for (int i = 0; i < calib::ParamSet::kSize; ++i)
-    floor(i) = calib::white_noise_floor(i, noise, d.design.duration_s);
-  for (int gi = 0; gi < calib::kNumParamGroups; ++gi) {
-    const auto g = static_cast<calib::ParamGroup>(gi);
+  calib::core::ParamVector floor = calib::core::ParamVector::Zero();
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
+    floor(i) = calib::studies::design::white_noise_floor(i, noise, d.design.duration_s);
+  for (int gi = 0; gi < calib::core::kNumParamGroups; ++gi) {
+    const auto g = static_cast<calib::core::ParamGroup>(gi);
     int first = 0;
-    while (calib::param_info(first).group != g) ++first;
-    const auto& info = calib::param_info(first);
+    while (calib::core::param_info(first).group != g) ++first;
+    const auto& info = calib::core::param_info(first);
     const double fr = group_worst(d.design.sigma, floor, g);
-    std::printf("  %-16s %-7s %12.4g %12.4g %10.3f %10.3f %10s\n", calib::group_name(g).c_str(),
+    std::printf("  %-16s %-7s %12.4g %12.4g %10.3f %10.3f %10s\n", calib::core::group_name(g).c_str(),
                 info.human_unit.c_str(), group_rms(d.reference.sigma, g) * info.si_to_human,
                 group_rms(d.design.sigma, g) * info.si_to_human,
                 group_worst(d.design.sigma, d.reference.sigma, g),
@@ -174,7 +174,7 @@ void print_groups(const calib::SequenceDesign& d, const calib::NoiseModel& noise
   }
 }
 
-void print_effects(const calib::SequenceDesign& d) {
+void print_effects(const calib::studies::design::SequenceDesign& d) {
   if (d.reference.effects.empty()) {
     std::printf("\neffects: not analysed (--no-effects)\n");
     return;
@@ -197,8 +197,8 @@ void print_effects(const calib::SequenceDesign& d) {
   }
 }
 
-void print_report(const calib::SequenceDesign& d, const DesignSequenceArgs& a,
-                  const calib::NoiseModel& noise, double run_s) {
+void print_report(const calib::studies::design::SequenceDesign& d, const DesignSequenceArgs& a,
+                  const calib::core::NoiseModel& noise, double run_s) {
   std::printf(
       "designed %s: %.1f s of table time (%s: %.1f s, ratio %.3f), %zu rotations at "
       "%g deg/s and %g deg/s^2, %zu rests\n",
@@ -210,8 +210,8 @@ void print_report(const calib::SequenceDesign& d, const DesignSequenceArgs& a,
   for (const auto& line : d.log) std::printf("  %s\n", line.c_str());
   print_groups(d, noise);
   print_effects(d);
-  const auto lost = calib::effects_lost(d.reference.effects, d.design.effects,
-                                        calib::DesignSetting{}.threshold_factor);
+  const auto lost = calib::studies::design::effects_lost(d.reference.effects, d.design.effects,
+                                        calib::studies::design::DesignSetting{}.threshold_factor);
   std::printf("\nmax sigma/target %.4f (targets: %s); %s\n", d.objective,
               a.target_from.empty() ? "the obvious cut, the biases also <= 1.05 x N/sqrt(T)"
                                     : "factor x the target sequence's sigma",
@@ -272,21 +272,21 @@ int cmd_design_sequence(const DesignSequenceArgs& a) {
   check_args(a);
   const auto t0 = std::chrono::steady_clock::now();
   const sequences::Sequence like = read_sequence("--like", a.like);
-  const calib::UnitModel unit =
-      a.unit.empty() ? calib::default_unit() : archive::read_unit_file(a.unit);
+  const calib::effects::UnitModel unit =
+      a.unit.empty() ? calib::effects::default_unit() : db::archive::read_unit_file(a.unit);
 
-  calib::DesignSetting s;
-  s.site = calib::demo_factory_site();
+  calib::studies::design::DesignSetting s;
+  s.site = calib::core::demo_factory_site();
   s.noise = unit.noise;
   s.base = unit.params;
   s.limits = sequences::effective_limits(sequences::TableLimits{}, like.limits);
   s.rate_hz = a.rate_hz;
   s.search_rate_hz = a.search_rate_hz;
-  s.diagnosis = calib::diagnosis_options_for_false_alarm(calib::kDefaultGapFalseAlarm);
+  s.diagnosis = calib::diagnosis::diagnosis_options_for_false_alarm(calib::diagnosis::kDefaultGapFalseAlarm);
   if (!a.no_effects)
     s.exact_run = [geometry = s.geometry, site = s.site, unit](
                       const sequences::MotionProfile& profile, double rate_hz) {
-      return calib::truth_run_source(profile, geometry, site, unit, rate_hz)(calib::Effects{}, 1,
+      return calib::sim::truth_run_source(profile, geometry, site, unit, rate_hz)(calib::effects::Effects{}, 1,
                                                                              false);
     };
   s.progress = [t0](const std::string& line) {
@@ -295,13 +295,13 @@ int cmd_design_sequence(const DesignSequenceArgs& a) {
                  line.c_str());
   };
 
-  calib::SequenceDesign d;
+  calib::studies::design::SequenceDesign d;
   try {
     if (a.target_from.empty()) {
-      d = calib::design_for_time(like, a.time_s, s);
+      d = calib::studies::design::design_for_time(like, a.time_s, s);
     } else {
       const sequences::Sequence target = read_sequence("--target-from", a.target_from);
-      d = calib::design_for_target(like, target, a.factor, s);
+      d = calib::studies::design::design_for_target(like, target, a.factor, s);
     }
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(std::string(a.target_from.empty() ? "--time-s" : "--factor") +
@@ -324,7 +324,7 @@ int cmd_design_sequence(const DesignSequenceArgs& a) {
   const double run_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   print_report(d, a, s.noise, run_s);
   if (!a.out.empty()) {
-    archive::write_file_atomic(a.out, text);
+    db::archive::write_file_atomic(a.out, text);
     std::printf("wrote %s\n", a.out.c_str());
   } else {
     std::printf("\n%s", text.c_str());
@@ -332,4 +332,4 @@ int cmd_design_sequence(const DesignSequenceArgs& a) {
   return d.targets_met ? 0 : kExitReview;
 }
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

@@ -13,14 +13,14 @@
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 namespace {
 
 /// What would separate an effect that a sequence cannot: the physics of each catalogue effect's
-/// signature (DESIGN §7). Shown next to the effects the analysis finds not separable.
-std::string remedy(calib::EffectId id) {
-  using calib::EffectId;
+/// signature (ARCHITECTURE §7). Shown next to the effects the analysis finds not separable.
+std::string remedy(calib::effects::EffectId id) {
+  using calib::effects::EffectId;
   switch (id) {
     case EffectId::kAccelQuadraticK2:
     case EffectId::kAccelAsymmetry:
@@ -71,11 +71,11 @@ std::string joined(const std::vector<std::string>& names) {
 /// limit from the limit, short enough to read in a table.
 std::string correlation(double rho) { return fmt("%.3f", rho); }
 
-/// Why an effect is not separable: the analysis' reason (calib::EffectDetectability::reason) with
+/// Why an effect is not separable: the analysis' reason (calib::diagnosis::EffectDetectability::reason) with
 /// its correlations to three digits; the analysis writes them at full precision ("0.994933").
-std::string reason_text(const calib::EffectDetectability& e) {
+std::string reason_text(const calib::diagnosis::EffectDetectability& e) {
   // The limit effect_detectability applied: cmd_crlb_effects passes the default options.
-  const double limit = calib::DiagnosisOptions{}.separability_limit;
+  const double limit = calib::diagnosis::DiagnosisOptions{}.separability_limit;
   if (e.separable_directions == 0 && e.no_signature < e.directions && !e.aliases.empty())
     return "correlates " + correlation(std::max(e.max_correlation, limit)) + " > " +
            fmt("%.2f", limit) + " with the base parameters (" + joined(e.aliases) + ")";
@@ -87,17 +87,17 @@ std::string reason_text(const calib::EffectDetectability& e) {
 
 /// threshold / typical: how many times its catalogue typical size an effect must be to be named
 /// about half the time; NaN where there is no threshold or no typical size.
-double ratio_to_typical(const calib::EffectDetectability& e) {
+double ratio_to_typical(const calib::diagnosis::EffectDetectability& e) {
   return std::isfinite(e.threshold) && e.typical > 0 ? e.threshold / e.typical : std::nan("");
 }
 
 /// Separated from everything else on this sequence, yet at its typical size below the detection
 /// threshold: a real unit's effect of this kind would go unnoticed.
-bool separable_but_too_small(const calib::EffectDetectability& e) {
+bool separable_but_too_small(const calib::diagnosis::EffectDetectability& e) {
   return e.separable() && ratio_to_typical(e) > 1.0;
 }
 
-void print_rows(const std::vector<calib::EffectDetectability>& d) {
+void print_rows(const std::vector<calib::diagnosis::EffectDetectability>& d) {
   std::printf("  %-24s %-11s %15s %15s  %-6s  %s\n", "effect", "directions", "threshold", "typical",
               "ratio", "separable?");
   for (const auto& e : d) {
@@ -117,7 +117,7 @@ void print_rows(const std::vector<calib::EffectDetectability>& d) {
   }
 }
 
-void print_too_small(const std::vector<calib::EffectDetectability>& d) {
+void print_too_small(const std::vector<calib::diagnosis::EffectDetectability>& d) {
   bool any = false;
   for (const auto& e : d) {
     if (!separable_but_too_small(e)) continue;
@@ -131,14 +131,14 @@ void print_too_small(const std::vector<calib::EffectDetectability>& d) {
   }
 }
 
-void print_table(const std::vector<calib::EffectDetectability>& d, const std::string& seq,
+void print_table(const std::vector<calib::diagnosis::EffectDetectability>& d, const std::string& seq,
                  double false_alarm) {
   std::printf(
       "effects on sequence %s: detection threshold (the diagnosis names an effect of this size "
       "about half the time; 3x it essentially always) and separability, at a false-alarm rate of "
       "%.3g per run%s\n",
       seq.c_str(), false_alarm,
-      false_alarm == calib::kDefaultGapFalseAlarm ? " (the station's default gap_false_alarm)"
+      false_alarm == calib::diagnosis::kDefaultGapFalseAlarm ? " (the station's default gap_false_alarm)"
                                                   : "");
   std::printf(
       "ratio = threshold / typical: how many times its catalogue typical size an effect must be "
@@ -147,15 +147,15 @@ void print_table(const std::vector<calib::EffectDetectability>& d, const std::st
   print_too_small(d);
   bool any = false;
   for (const auto& e : d)
-    if (!e.separable() && e.id != calib::EffectId::kBiasInstability &&
-        e.id != calib::EffectId::kQuantisation) {
+    if (!e.separable() && e.id != calib::effects::EffectId::kBiasInstability &&
+        e.id != calib::effects::EffectId::kQuantisation) {
       if (!any) std::printf("\nto separate what this sequence cannot:\n");
       any = true;
       std::printf("  %-24s %s\n", e.name.c_str(), remedy(e.id).c_str());
     }
 }
 
-nlohmann::json to_json(const std::vector<calib::EffectDetectability>& d, const std::string& seq) {
+nlohmann::json to_json(const std::vector<calib::diagnosis::EffectDetectability>& d, const std::string& seq) {
   nlohmann::json a = nlohmann::json::array();
   for (const auto& e : d) {
     const double ratio = ratio_to_typical(e);
@@ -188,13 +188,13 @@ int cmd_crlb_effects(const std::string& seq, const std::string& unit_path, doubl
                      double false_alarm, bool json) {
   const std::string seq_path = sequences::resolve_sequence(seq);
   const sequences::MotionProfile profile = sequences::load_profile(seq_path);
-  const calib::UnitModel unit =
-      unit_path.empty() ? calib::default_unit() : archive::read_unit_file(unit_path);
-  const calib::RunSource world = calib::truth_run_source(profile, calib::TableGeometry{},
-                                                         calib::demo_factory_site(), unit, rate_hz);
-  const auto d = calib::effect_detectability(world(calib::Effects{}, 1, /*noise=*/false),
-                                             calib::TableGeometry{}, unit.params,
-                                             calib::diagnosis_options_for_false_alarm(false_alarm));
+  const calib::effects::UnitModel unit =
+      unit_path.empty() ? calib::effects::default_unit() : db::archive::read_unit_file(unit_path);
+  const calib::effects::RunSource world = calib::sim::truth_run_source(profile, calib::core::TableGeometry{},
+                                                         calib::core::demo_factory_site(), unit, rate_hz);
+  const auto d = calib::diagnosis::effect_detectability(world(calib::effects::Effects{}, 1, /*noise=*/false),
+                                             calib::core::TableGeometry{}, unit.params,
+                                             calib::diagnosis::diagnosis_options_for_false_alarm(false_alarm));
   if (json) {
     nlohmann::json j = to_json(d, profile.name);
     j["false_alarm_per_run"] = false_alarm;
@@ -205,4 +205,4 @@ int cmd_crlb_effects(const std::string& seq, const std::string& unit_path, doubl
   return 0;
 }
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

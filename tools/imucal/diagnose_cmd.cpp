@@ -12,26 +12,28 @@
 #include "calib/diagnosis/gap_model.hpp"
 #include "calib/legacy/legacy.hpp"
 #include "calib/nlsq/nlsq.hpp"
+#include "db/archive/archive_input.hpp"
 #include "db/archive/diagnosis_json.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/run_archive.hpp"
-#include "tools/imucal/diagnosis_report.hpp"
+#include "tools/report/diagnosis_report.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
+using namespace tools::report;
 
 namespace {
 
 constexpr int kExitReview = 3;
 
-std::vector<calib::EffectId> parse_candidates(const std::string& list) {
+std::vector<calib::effects::EffectId> parse_candidates(const std::string& list) {
   try {
-    return calib::parse_effect_list(list);
+    return calib::effects::parse_effect_list(list);
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(std::string("--candidates: ") + e.what());
   }
 }
 
-void print_candidates(const calib::DiagnosisResult& d) {
+void print_candidates(const calib::diagnosis::DiagnosisResult& d) {
   std::printf("\ncandidate effects, ranked (score = BIC gain; LR = chi2 drop when added):\n");
   std::printf("  %-24s %10s %10s %3s %9s  %-28s %9s  %s\n", "effect", "score", "LR", "k", "p",
               "magnitude +- 1 sigma", "held-out", "note");
@@ -52,7 +54,7 @@ void print_candidates(const calib::DiagnosisResult& d) {
 }
 
 /// The explaining effects per parameter (the text said only the norm; issue #19 item 6).
-void print_params(const std::vector<calib::CandidateParam>& params) {
+void print_params(const std::vector<calib::diagnosis::CandidateParam>& params) {
   const char* sep = " ";
   for (const auto& p : params) {
     if (!(p.sigma > 0.0)) continue;  // shape parameters (searched on a grid) and unfitted ones
@@ -64,11 +66,11 @@ void print_params(const std::vector<calib::CandidateParam>& params) {
 
 /// The explained set step by step (sizes from its joint fit) or, for an ambiguous set, each
 /// member's own fit.
-void print_explained_by(const calib::DiagnosisResult& d) {
+void print_explained_by(const calib::diagnosis::DiagnosisResult& d) {
   if (d.verdict == "explained" && !d.steps.empty()) {
     std::printf("explained step by step (sizes fitted jointly):\n");
     for (size_t i = 0; i < d.steps.size(); ++i) {
-      const calib::DiagnosisStep& s = d.steps[i];
+      const calib::diagnosis::DiagnosisStep& s = d.steps[i];
       std::printf(
           "  %zu. %s = %.3g +- %.2g %s (p %.2g given the steps before; chi2/dof -> %.3f, "
           "held-out gap -> %.3f)\n    ",
@@ -87,15 +89,15 @@ void print_explained_by(const calib::DiagnosisResult& d) {
     }
 }
 
-void print_segments(const calib::DiagnosisResult& d) {
-  std::vector<const calib::SegmentGap*> s;
+void print_segments(const calib::diagnosis::DiagnosisResult& d) {
+  std::vector<const calib::diagnosis::SegmentGap*> s;
   for (const auto& g : d.segments) s.push_back(&g);
   std::sort(s.begin(), s.end(), [](auto* a, auto* b) { return a->nis > b->nis; });
   if (d.innovation_residuals)
     std::printf("\nsegments with the largest gap (NIS over their GNSS fixes; about their rows):\n");
   else
     std::printf("\nsegments with the largest gap (NIS; about %d expected under the model):\n",
-                calib::kGapRowsPerSegment);
+                calib::diagnosis::kGapRowsPerSegment);
   std::printf("  %-26s %8s %8s %8s %9s %9s  %s\n", "segment", "t0 [s]", "NIS", "NIS sim", "p",
               "outer/inner",
               d.innovation_residuals ? "largest |z| (GNSS axis)" : "largest |z| (sensor axis)");
@@ -118,7 +120,7 @@ void print_segments(const calib::DiagnosisResult& d) {
   }
 }
 
-void print_human(const calib::DiagnosisResult& d, const archive::RunArchive& ar, size_t samples) {
+void print_human(const calib::diagnosis::DiagnosisResult& d, const db::archive::RunArchive& ar, size_t samples) {
   std::printf("run %s (serial %s, sequence %s, %zu samples, %zu segments)\n", ar.origin.c_str(),
               ar.info.serial.c_str(), ar.info.sequence_name.c_str(), samples, d.segments.size());
   std::printf("verdict: %s -- %s\n", d.verdict.c_str(), d.summary.c_str());
@@ -146,8 +148,8 @@ void print_human(const calib::DiagnosisResult& d, const archive::RunArchive& ar,
     std::printf("rest samples: not judged at sea (the deck turns the unit during its rests)\n");
   } else {
     std::printf("rest samples, lag-1 autocorrelation (z vs declared noise):");
-    for (int c = 0; c < calib::kGapRowsPerSegment; ++c)
-      std::printf(" %s %+.3f (%+.1f)", calib::gap_component_name(c),
+    for (int c = 0; c < calib::diagnosis::kGapRowsPerSegment; ++c)
+      std::printf(" %s %+.3f (%+.1f)", calib::diagnosis::gap_component_name(c),
                   d.whiteness.lag1_autocorr[static_cast<size_t>(c)],
                   d.whiteness.lag1_z[static_cast<size_t>(c)]);
     std::printf("\n");
@@ -215,44 +217,44 @@ void write_report(const std::string& dir, const nlohmann::json& j) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw std::runtime_error("--report " + dir + ": cannot create it: " + ec.message());
-  archive::write_file_atomic(dir + "/diagnosis.json", j.dump(2) + "\n");
-  archive::write_file_atomic(dir + "/report.html", diagnosis_report_html(j));
+  db::archive::write_file_atomic(dir + "/diagnosis.json", j.dump(2) + "\n");
+  db::archive::write_file_atomic(dir + "/report.html", diagnosis_report_html(j));
 }
 
 }  // namespace
 
 int cmd_diagnose(const DiagnoseArgs& a) {
-  const std::vector<calib::EffectId> ids = parse_candidates(a.candidates);  // before any work
+  const std::vector<calib::effects::EffectId> ids = parse_candidates(a.candidates);  // before any work
   check_report_dir(a.report_dir);
-  archive::RunArchive ar = archive::read_archive(a.dir);
-  if (!a.grade.empty()) ar.info.grade = *calib::parse_grade(a.grade);
+  db::archive::RunArchive ar = db::archive::read_archive(a.dir);
+  if (!a.grade.empty()) ar.info.grade = *calib::core::parse_grade(a.grade);
   if (a.min_rest_s > 0.0) ar.info.min_rest_s = a.min_rest_s;
-  calib::DiagnosisInput in;
-  in.cal = archive::to_calibration_input(ar);
+  calib::diagnosis::DiagnosisInput in;
+  in.cal = db::archive::to_calibration_input(ar);
   try {
-    calib::GapModel::check_setting(in.cal);  // before calibrating it
+    calib::diagnosis::GapModel::check_setting(in.cal);  // before calibrating it
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(a.dir + ": " + e.what());
   }
-  if (ar.info.reference == archive::ReferenceKind::kTable) in.geometry = ar.info.table.geometry();
+  if (ar.info.reference == db::archive::ReferenceKind::kTable) in.geometry = ar.info.table.geometry();
   // The model under test: a table run's NLSQ calibration; a land run's multi-position one, which
   // needs no prior beyond the grade's; a sea run's AINS (a rocking deck has no still rest for the
   // multi-position method). The diagnosis refits the base either way.
   const bool table_free = !in.cal.has_reference_attitude();
-  const bool sea = in.cal.setting == calib::Setting::kSea;
+  const bool sea = in.cal.setting == calib::core::Setting::kSea;
   const char* method = sea ? "ains" : table_free ? "legacy" : "nlsq";
-  const calib::CalibrationResult cal = sea          ? calib::calibrate_ains(in.cal)
-                                       : table_free ? calib::calibrate_legacy(in.cal)
-                                                    : calib::calibrate_nlsq(in.cal);
-  calib::DiagnosisOptions opt;
+  const calib::core::CalibrationResult cal = sea          ? calib::ains::calibrate_ains(in.cal)
+                                       : table_free ? calib::legacy::calibrate_legacy(in.cal)
+                                                    : calib::nlsq::calibrate_nlsq(in.cal);
+  calib::diagnosis::DiagnosisOptions opt;
   opt.candidates = ids;
-  const calib::DiagnosisResult d = calib::diagnose(in, cal.params, opt);
-  nlohmann::json j = archive::diagnosis_to_json(d);
+  const calib::diagnosis::DiagnosisResult d = calib::diagnosis::diagnose(in, cal.params, opt);
+  nlohmann::json j = db::archive::diagnosis_to_json(d);
   j["archive"] = a.dir;
   j["serial"] = ar.info.serial;
   j["sequence"] = ar.info.sequence_name;
-  j["setting"] = calib::setting_name(in.cal.setting);
-  j["grade"] = calib::grade_name(in.cal.grade);
+  j["setting"] = calib::core::setting_name(in.cal.setting);
+  j["grade"] = calib::core::grade_name(in.cal.grade);
   j["table_free"] = table_free;
   j["base_calibration"] = method;
   if (!a.report_dir.empty()) write_report(a.report_dir, j);
@@ -264,4 +266,4 @@ int cmd_diagnose(const DiagnoseArgs& a) {
   return d.verdict == "unexplained" ? kExitReview : 0;
 }
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

@@ -7,7 +7,7 @@
 #include <CLI/CLI.hpp>
 #include <string>
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 struct DiagnoseArgs {
   std::string dir;
@@ -24,4 +24,4 @@ CLI::App* add_diagnose_command(CLI::App& app, DiagnoseArgs& args);
 /// 1 bad input (std::exception propagates to main, which prints it).
 int cmd_diagnose(const DiagnoseArgs& args);
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

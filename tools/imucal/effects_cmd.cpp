@@ -6,19 +6,19 @@
 
 #include "calib/effects/catalogue.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 namespace {
 
-const char* kind_name(calib::EffectKind k) {
+const char* kind_name(calib::effects::EffectKind k) {
   switch (k) {
-    case calib::EffectKind::kSensor:
+    case calib::effects::EffectKind::kSensor:
       return "sensor";
-    case calib::EffectKind::kTable:
+    case calib::effects::EffectKind::kTable:
       return "table";
-    case calib::EffectKind::kSite:
+    case calib::effects::EffectKind::kSite:
       return "site";
-    case calib::EffectKind::kStochastic:
+    case calib::effects::EffectKind::kStochastic:
       return "stochastic";
   }
   return "?";
@@ -29,7 +29,7 @@ const char* kind_name(calib::EffectKind k) {
 int cmd_effects(bool json) {
   if (json) {
     nlohmann::json a = nlohmann::json::array();
-    for (const auto& e : calib::effect_catalogue()) {
+    for (const auto& e : calib::effects::effect_catalogue()) {
       nlohmann::json ps = nlohmann::json::array();
       for (int i = 0; i < e.size(); ++i) {
         const auto& p = e.params[static_cast<size_t>(i)];
@@ -51,10 +51,10 @@ int cmd_effects(bool json) {
     return 0;
   }
   std::printf(
-      "effects catalogue (DESIGN §7): inject with  imucal simulate|stationsim --effect "
+      "effects catalogue (ARCHITECTURE §7): inject with  imucal simulate|stationsim --effect "
       "NAME=V[,V...]\n"
       "(SI values in the order below; a trailing (shape) parameter may be left out)\n");
-  for (const auto& e : calib::effect_catalogue()) {
+  for (const auto& e : calib::effects::effect_catalogue()) {
     std::printf("\n%s  [%s]\n  model:     %s\n  signature: %s\n  --effect %s=", e.name.c_str(),
                 kind_name(e.kind), e.model.c_str(), e.signature.c_str(), e.name.c_str());
     for (int i = 0; i < e.size(); ++i)
@@ -71,4 +71,4 @@ int cmd_effects(bool json) {
   return 0;
 }
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

@@ -11,32 +11,32 @@
 #include <utility>
 
 #include "calib/core/site_presets.hpp"
-#include "calib/paper/gap_budget.hpp"
-#include "calib/paper/paper_precision.hpp"
-#include "calib/paper/paper_spread.hpp"
+#include "calib/studies/paper/gap_budget.hpp"
+#include "calib/studies/paper/paper_precision.hpp"
+#include "calib/studies/paper/paper_spread.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
 #include "tools/imucal/paper_plot.hpp"
 #include "tools/imucal/progress_line.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 namespace {
 
-using calib::kNumPaperColumns;
-using calib::PaperColumn;
+using calib::studies::paper::kNumPaperColumns;
+using calib::studies::paper::PaperColumn;
 
 /// The candidates named on the command line, in the given order; every default one when empty.
-std::vector<calib::BudgetCandidate> chosen_candidates(const std::string& names) {
-  std::vector<calib::BudgetCandidate> all = calib::default_budget_candidates();
+std::vector<calib::studies::paper::BudgetCandidate> chosen_candidates(const std::string& names) {
+  std::vector<calib::studies::paper::BudgetCandidate> all = calib::studies::paper::default_budget_candidates();
   if (names.empty()) return all;
-  std::vector<calib::BudgetCandidate> out;
+  std::vector<calib::studies::paper::BudgetCandidate> out;
   std::stringstream ss(names);
   std::string name;
   while (std::getline(ss, name, ',')) {
     const auto it = std::find_if(all.begin(), all.end(),
-                                 [&](const calib::BudgetCandidate& c) { return c.name == name; });
+                                 [&](const calib::studies::paper::BudgetCandidate& c) { return c.name == name; });
     if (it == all.end()) {
       std::string known;
       for (const auto& c : all) known += (known.empty() ? "" : ", ") + c.name;
@@ -50,9 +50,9 @@ std::vector<calib::BudgetCandidate> chosen_candidates(const std::string& names) 
 
 /// "NAME=SIZE,..." to the candidates named and their sizes (human units, within their priors).
 /// Throws std::invalid_argument naming the bad item.
-std::pair<std::vector<calib::BudgetCandidate>, std::vector<double>> parse_model(
+std::pair<std::vector<calib::studies::paper::BudgetCandidate>, std::vector<double>> parse_model(
     const std::string& text) {
-  std::vector<calib::BudgetCandidate> chosen;
+  std::vector<calib::studies::paper::BudgetCandidate> chosen;
   std::vector<double> sizes;
   std::stringstream ss(text);
   std::string item;
@@ -60,7 +60,7 @@ std::pair<std::vector<calib::BudgetCandidate>, std::vector<double>> parse_model(
     const size_t eq = item.find('=');
     if (eq == std::string::npos)
       throw std::invalid_argument("gap-budget --model: '" + item + "' is not NAME=SIZE");
-    const calib::BudgetCandidate c = chosen_candidates(item.substr(0, eq)).front();
+    const calib::studies::paper::BudgetCandidate c = chosen_candidates(item.substr(0, eq)).front();
     double size = 0.0;
     try {
       size_t used = 0;
@@ -83,7 +83,7 @@ std::pair<std::vector<calib::BudgetCandidate>, std::vector<double>> parse_model(
 using ColumnMetric = std::array<std::array<double, 2>, kNumPaperColumns>;
 
 /// The simulated means of a paper-tables run, per column and metric (0 orientation, 1 accel).
-ColumnMetric means(const calib::PaperTables& t) {
+ColumnMetric means(const calib::studies::paper::PaperTables& t) {
   ColumnMetric m{};
   for (int c = 0; c < kNumPaperColumns; ++c) {
     m[static_cast<size_t>(c)][0] = t.mean_orientation_mdeg[static_cast<size_t>(c)];
@@ -93,27 +93,27 @@ ColumnMetric means(const calib::PaperTables& t) {
 }
 
 /// The standard errors of a simulation's means, per column and metric (0 below two units).
-ColumnMetric standard_errors(const calib::PaperTables& t) {
+ColumnMetric standard_errors(const calib::studies::paper::PaperTables& t) {
   ColumnMetric se{};
   if (t.units.size() < 2) return se;
-  const std::vector<calib::PaperRow> rows = calib::paper_rows(t);
+  const std::vector<calib::studies::paper::PaperRow> rows = calib::studies::paper::paper_rows(t);
   for (size_t c = 0; c < se.size(); ++c)
     for (size_t m = 0; m < 2; ++m)
-      se[c][m] = calib::mean_standard_error(calib::paper_column_values(rows, c, m));
+      se[c][m] = calib::studies::paper::mean_standard_error(calib::studies::paper::paper_column_values(rows, c, m));
   return se;
 }
 
 /// The issue's bar on every simulated mean: within 25 % of the paper's (issue #26).
 constexpr double kMeanBar = 0.25;
 
-const calib::PaperPrecision& paper_precision() {
-  static const calib::PaperPrecision p =
-      calib::paper_precision(calib::paper_published_rows(), kMeanBar);
+const calib::studies::paper::PaperPrecision& paper_precision() {
+  static const calib::studies::paper::PaperPrecision p =
+      calib::studies::paper::paper_precision(calib::studies::paper::paper_published_rows(), kMeanBar);
   return p;
 }
 
 /// How well the paper's own IMUs fix one of its means, and how far a model's mean lies from it.
-void add_precision_json(nlohmann::json& j, const calib::MeanPrecision& p, double model_mean,
+void add_precision_json(nlohmann::json& j, const calib::studies::paper::MeanPrecision& p, double model_mean,
                         double model_se) {
   j["paper_mean_standard_error"] = p.standard_error;
   j["paper_most_influential_imu"] = p.most_influential + 1;
@@ -123,14 +123,14 @@ void add_precision_json(nlohmann::json& j, const calib::MeanPrecision& p, double
   j["bar_held_by_papers_own_imus"] = p.bar_held_by_own_units;
   j["simulated_mean_standard_error"] = model_se;
   j["distance_in_standard_errors"] =
-      calib::mean_distance_in_standard_errors(model_mean, model_se, p);
+      calib::studies::paper::mean_distance_in_standard_errors(model_mean, model_se, p);
 }
 
 /// Each simulated mean against the paper's: off by how much against the bar, and how well the
-/// paper's six IMUs fix that mean themselves (calib/paper/paper_precision.hpp). A mean outside
+/// paper's six IMUs fix that mean themselves (calib/studies/paper/paper_precision.hpp). A mean outside
 /// the bar is said to be one of two things: a miss, or a bar the paper's own IMUs do not hold.
 void print_against_paper(const ColumnMetric& model, const ColumnMetric& model_se) {
-  const calib::PaperPrecision& paper = paper_precision();
+  const calib::studies::paper::PaperPrecision& paper = paper_precision();
   std::printf(
       "\nagainst the paper's means (bar %.0f %%), and how well its six IMUs fix each of them:\n"
       "%-15s %-12s %8s %6s %9s %18s %10s %9s\n",
@@ -138,16 +138,16 @@ void print_against_paper(const ColumnMetric& model, const ColumnMetric& model_se
       "resamples", "distance");
   for (size_t c = 0; c < paper.size(); ++c)
     for (size_t m = 0; m < 2; ++m) {
-      const calib::MeanPrecision& p = paper[c][m];
+      const calib::studies::paper::MeanPrecision& p = paper[c][m];
       char without[40];
       std::snprintf(without, sizeof without, "%.2f (IMU %zu)", p.mean_without_it,
                     p.most_influential + 1);
       std::printf("%-15s %-12s %8.2f %5.0f%% %+8.0f%% %18s %9.0f%% %+6.1f se\n",
-                  calib::paper_column_name(static_cast<PaperColumn>(c)),
+                  calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c)),
                   m == 0 ? "orientation" : "acceleration", p.mean,
                   100.0 * p.standard_error / p.mean, 100.0 * (model[c][m] / p.mean - 1.0), without,
                   100.0 * p.resamples_within_bar,
-                  calib::mean_distance_in_standard_errors(model[c][m], model_se[c][m], p));
+                  calib::studies::paper::mean_distance_in_standard_errors(model[c][m], model_se[c][m], p));
     }
   std::printf(
       "(s.e.: the paper's mean's standard error; without one IMU: its mean without the IMU that "
@@ -156,11 +156,11 @@ void print_against_paper(const ColumnMetric& model, const ColumnMetric& model_se
       "standard errors)\n");
   for (size_t c = 0; c < paper.size(); ++c)
     for (size_t m = 0; m < 2; ++m) {
-      const calib::MeanPrecision& p = paper[c][m];
+      const calib::studies::paper::MeanPrecision& p = paper[c][m];
       const double off = model[c][m] / p.mean - 1.0;
       if (std::abs(off) <= kMeanBar) continue;
-      const double d = calib::mean_distance_in_standard_errors(model[c][m], model_se[c][m], p);
-      const char* name = calib::paper_column_name(static_cast<PaperColumn>(c));
+      const double d = calib::studies::paper::mean_distance_in_standard_errors(model[c][m], model_se[c][m], p);
+      const char* name = calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c));
       const char* metric = m == 0 ? "orientation" : "acceleration";
       if (p.bar_held_by_own_units)
         std::printf(
@@ -191,14 +191,14 @@ struct Verification {
 };
 
 double paper_mean(int c, int m) {
-  const auto& p = calib::paper_published();
+  const auto& p = calib::studies::paper::paper_published();
   return (m == 0 ? p.orientation_mdeg : p.accel_ug)[6][static_cast<size_t>(c)];
 }
 
-nlohmann::json to_json(const calib::GapBudget& b, const Verification& v,
+nlohmann::json to_json(const calib::studies::paper::GapBudget& b, const Verification& v,
                        const std::vector<std::string>& candidate_names) {
   nlohmann::json j;
-  for (const calib::BudgetEntry& e : b.entries)
+  for (const calib::studies::paper::BudgetEntry& e : b.entries)
     j["entries"].push_back({{"name", e.candidate.name},
                             {"unit", e.candidate.unit},
                             {"size", e.size},
@@ -217,7 +217,7 @@ nlohmann::json to_json(const calib::GapBudget& b, const Verification& v,
       const char* metric = m == 0 ? "orientation_rmse_mdeg" : "accel_rmse_ug";
       const auto cs = static_cast<size_t>(c);
       const auto ms = static_cast<size_t>(m);
-      auto& col = j["columns"][calib::paper_column_name(static_cast<PaperColumn>(c))][metric];
+      auto& col = j["columns"][calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c))][metric];
       col = {{"baseline_rms", std::sqrt(b.baseline[cs][ms])},
              {"paper_rms", std::sqrt(b.target[cs][ms])},
              {"fitted_rms_search_units", std::sqrt(b.predicted[cs][ms])},
@@ -229,7 +229,7 @@ nlohmann::json to_json(const calib::GapBudget& b, const Verification& v,
   j["explained_share"] = b.explained_share;
   j["converged"] = b.converged;
   j["target_left_out"] = b.target_left_out;
-  for (const calib::BudgetSearchStep& step : b.search_path) {
+  for (const calib::studies::paper::BudgetSearchStep& step : b.search_path) {
     nlohmann::json sizes;
     for (size_t k = 0; k < step.sizes.size(); ++k)
       if (step.sizes[k] > 0.0) sizes[candidate_names[k]] = step.sizes[k];
@@ -245,7 +245,7 @@ nlohmann::json to_json(const calib::GapBudget& b, const Verification& v,
 }
 
 /// Where to fix a source: in the calibration model when it shifts a calibration by a σ or more.
-std::string fix_in(const calib::BudgetEntry& e) {
+std::string fix_in(const calib::studies::paper::BudgetEntry& e) {
   if (!e.measurable) return "- (cannot matter within its prior)";
   char text[80];
   std::snprintf(text, sizeof text, "%s (shifts the calibration %.1f sigma)",
@@ -253,10 +253,10 @@ std::string fix_in(const calib::BudgetEntry& e) {
   return text;
 }
 
-void print_budget(const calib::GapBudget& b, const Verification& v) {
+void print_budget(const calib::studies::paper::GapBudget& b, const Verification& v) {
   std::printf("%-26s %-30s %-10s %8s %16s %s\n", "effect", "fitted size [16-84 %]", "prior",
               "add-one", "leave-one-out", "fix in");
-  for (const calib::BudgetEntry& e : b.entries) {
+  for (const calib::studies::paper::BudgetEntry& e : b.entries) {
     char size[64], prior[32], loo[32];
     std::snprintf(size, sizeof size, "%.3g [%.3g, %.3g] %s", e.size, e.size_lo, e.size_hi,
                   e.candidate.unit.c_str());
@@ -286,7 +286,7 @@ void print_budget(const calib::GapBudget& b, const Verification& v) {
   for (int c = 0; c < kNumPaperColumns; ++c) {
     const auto cs = static_cast<size_t>(c);
     std::printf("%-16s %8.2f %8.2f %8.2f %8.2f %8.2f %8.2f\n",
-                calib::paper_column_name(static_cast<PaperColumn>(c)), std::sqrt(b.baseline[cs][0]),
+                calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c)), std::sqrt(b.baseline[cs][0]),
                 v.fitted[cs][0], paper_mean(c, 0), std::sqrt(b.baseline[cs][1]), v.fitted[cs][1],
                 paper_mean(c, 1));
   }
@@ -298,17 +298,17 @@ void print_budget(const calib::GapBudget& b, const Verification& v) {
   for (const std::string& text : b.target_left_out)
     std::printf(
         "Left out of the fit's target (one unit's event, > %.1fx its column's median): %s\n",
-        calib::kBudgetOutlierFactor, text.c_str());
+        calib::studies::paper::kBudgetOutlierFactor, text.c_str());
   std::printf("\nPrior ranges:\n");
-  for (const calib::BudgetEntry& e : b.entries)
+  for (const calib::studies::paper::BudgetEntry& e : b.entries)
     std::printf("  %-24s %s\n", e.candidate.name.c_str(), e.candidate.prior_source.c_str());
 }
 
-nlohmann::json spread_json(const calib::PaperSpread& s) {
+nlohmann::json spread_json(const calib::studies::paper::PaperSpread& s) {
   nlohmann::json j;
   for (int c = 0; c < kNumPaperColumns; ++c) {
     const auto cs = static_cast<size_t>(c);
-    const char* name = calib::paper_column_name(static_cast<PaperColumn>(c));
+    const char* name = calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c));
     for (size_t m = 0; m < 2; ++m) {
       const char* metric = m == 0 ? "orientation" : "acceleration";
       j["cv"][name][metric] = s.cv[cs][m];
@@ -319,12 +319,12 @@ nlohmann::json spread_json(const calib::PaperSpread& s) {
   return j;
 }
 
-/// The per-IMU spread in kind, the model's beside the paper's (calib/paper/paper_spread.hpp).
-void print_spread(const calib::PaperSpread& model) {
-  const calib::PaperSpread paper = calib::paper_spread(calib::paper_published_rows());
+/// The per-IMU spread in kind, the model's beside the paper's (calib/studies/paper/paper_spread.hpp).
+void print_spread(const calib::studies::paper::PaperSpread& model) {
+  const calib::studies::paper::PaperSpread paper = calib::studies::paper::paper_spread(calib::studies::paper::paper_published_rows());
   std::printf("\nspread over the IMUs, model (paper)\n%-28s", "");
   for (int c = 0; c < kNumPaperColumns; ++c)
-    std::printf(" %15s", calib::paper_column_name(static_cast<PaperColumn>(c)));
+    std::printf(" %15s", calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c)));
   for (size_t m = 0; m < 2; ++m) {
     const char* metric = m == 0 ? "orientation" : "acceleration";
     std::printf("\n%-13s %-14s", metric, "CV");
@@ -340,12 +340,12 @@ void print_spread(const calib::PaperSpread& model) {
       model.orientation_with_acceleration, paper.orientation_with_acceleration);
 }
 
-/// --write-unit: the model as one unit file (calib::paper_typical_unit), with a header naming
+/// --write-unit: the model as one unit file (calib::studies::paper::paper_typical_unit), with a header naming
 /// the model and what of it a unit file cannot hold (the set-up's and the evaluation's sources).
-void write_model_unit(const std::string& path, const calib::PaperTablesOptions& tables,
-                      const std::vector<calib::BudgetCandidate>& candidates,
+void write_model_unit(const std::string& path, const calib::studies::paper::PaperTablesOptions& tables,
+                      const std::vector<calib::studies::paper::BudgetCandidate>& candidates,
                       const std::vector<double>& sizes) {
-  const calib::PaperTablesOptions o = calib::budget_model(tables, candidates, sizes);
+  const calib::studies::paper::PaperTablesOptions o = calib::studies::paper::budget_model(tables, candidates, sizes);
   std::string model, outside;
   for (size_t k = 0; k < candidates.size(); ++k) {
     if (!(sizes[k] > 0.0)) continue;
@@ -353,7 +353,7 @@ void write_model_unit(const std::string& path, const calib::PaperTablesOptions& 
     std::snprintf(item, sizeof item, "%s=%.4g", candidates[k].name.c_str(), sizes[k]);
     model += (model.empty() ? "" : ",") + std::string(item);
     // A source that moves nothing in the typical unit is the set-up's or the evaluation's.
-    calib::PaperTablesOptions alone = calib::budget_model(tables, {candidates[k]}, {sizes[k]});
+    calib::studies::paper::PaperTablesOptions alone = calib::studies::paper::budget_model(tables, {candidates[k]}, {sizes[k]});
     if (alone.catalogue.empty() && !alone.effects.thermal && !alone.effects.instability &&
         !alone.effects.k2)
       outside += "#   " + std::string(item) + " " + candidates[k].unit + "\n";
@@ -361,7 +361,7 @@ void write_model_unit(const std::string& path, const calib::PaperTablesOptions& 
   std::string text =
       "# A paper-like unit (issue #26): the gap budget's model of the paper's IMUs and table as\n"
       "# one unit, every effect's amplitudes at the size of a 1 sigma draw with the catalogue's\n"
-      "# signs (calib::paper_typical_unit). The table's effects (wobble, non-orthogonality, time\n"
+      "# signs (calib::studies::paper::paper_typical_unit). The table's effects (wobble, non-orthogonality, time\n"
       "# offset) and the site's (latitude, gravity) are in [effects] too: stationsim takes them\n"
       "# from the unit.\n"
       "# Written by: imucal gap-budget --model " +
@@ -371,39 +371,39 @@ void write_model_unit(const std::string& path, const calib::PaperTablesOptions& 
         "# Not in this file (the fixture's, the table's positioning or the evaluation's, not the\n"
         "# unit's; set them where they belong):\n" +
         outside;
-  text += "\n" + archive::unit_file_text(calib::paper_typical_unit(o));
-  archive::write_file_atomic(path, text);
+  text += "\n" + db::archive::unit_file_text(calib::studies::paper::paper_typical_unit(o));
+  db::archive::write_file_atomic(path, text);
 }
 
 /// --model: one simulation of the given model, its per-IMU values and means beside the paper's.
 int simulate_model(const GapBudgetArgs& a, const sequences::MotionProfile& profile,
-                   const calib::PaperTablesOptions& tables) {
+                   const calib::studies::paper::PaperTablesOptions& tables) {
   const auto [chosen, sizes] = parse_model(a.model);
   if (!a.write_unit.empty()) write_model_unit(a.write_unit, tables, chosen, sizes);
-  calib::PaperTablesOptions o = calib::budget_model(tables, chosen, sizes);
+  calib::studies::paper::PaperTablesOptions o = calib::studies::paper::budget_model(tables, chosen, sizes);
   const ProgressLine progress("gap-budget", "units");
   o.on_progress = [&](int done, int total) { progress(done, total); };
-  const calib::PaperTables t = calib::run_paper_tables(profile, calib::demo_factory_site(), o);
+  const calib::studies::paper::PaperTables t = calib::studies::paper::run_paper_tables(profile, calib::core::demo_factory_site(), o);
   if (!a.plot.empty())
-    archive::write_file_atomic(
-        a.plot, paper_units_svg(calib::paper_rows(t),
+    db::archive::write_file_atomic(
+        a.plot, paper_units_svg(calib::studies::paper::paper_rows(t),
                                 std::to_string(a.units) + " simulated units (seed " +
                                     std::to_string(a.seed) + ") against the paper's six IMUs",
                                 "the model " + a.model));
   if (a.json) {
     nlohmann::json j;
     for (size_t k = 0; k < chosen.size(); ++k) j["model"][chosen[k].name] = sizes[k];
-    for (const calib::PaperUnitResult& u : t.units)
+    for (const calib::studies::paper::PaperUnitResult& u : t.units)
       for (int c = 0; c < kNumPaperColumns; ++c) {
         const auto& m = u.metrics[static_cast<size_t>(c)];
-        j["units"][static_cast<size_t>(u.unit - 1)][calib::paper_column_name(
+        j["units"][static_cast<size_t>(u.unit - 1)][calib::studies::paper::paper_column_name(
             static_cast<PaperColumn>(c))] = {{"orientation_rmse_mdeg", m.orientation_rmse_mdeg},
                                              {"accel_rmse_ug", m.accel_rmse_ug}};
       }
     const ColumnMetric model = means(t), model_se = standard_errors(t);
     for (int c = 0; c < kNumPaperColumns; ++c) {
       const auto cs = static_cast<size_t>(c);
-      nlohmann::json& col = j["means"][calib::paper_column_name(static_cast<PaperColumn>(c))];
+      nlohmann::json& col = j["means"][calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c))];
       col = {{"orientation_rmse_mdeg", t.mean_orientation_mdeg[cs]},
              {"accel_rmse_ug", t.mean_accel_ug[cs]},
              {"paper_orientation_rmse_mdeg", paper_mean(c, 0)},
@@ -413,8 +413,8 @@ int simulate_model(const GapBudgetArgs& a, const sequences::MotionProfile& profi
                            paper_precision()[cs][m], model[cs][m], model_se[cs][m]);
     }
     if (t.units.size() >= 2) {
-      j["spread"] = spread_json(calib::paper_spread(calib::paper_rows(t)));
-      j["paper_spread"] = spread_json(calib::paper_spread(calib::paper_published_rows()));
+      j["spread"] = spread_json(calib::studies::paper::paper_spread(calib::studies::paper::paper_rows(t)));
+      j["paper_spread"] = spread_json(calib::studies::paper::paper_spread(calib::studies::paper::paper_published_rows()));
     }
     std::cout << j.dump(2) << '\n';
     return 0;
@@ -423,11 +423,11 @@ int simulate_model(const GapBudgetArgs& a, const sequences::MotionProfile& profi
               a.units, profile.name.c_str(), static_cast<unsigned long long>(a.seed), t.wall_s);
   std::printf("%-6s", "IMU");
   for (int c = 0; c < kNumPaperColumns; ++c)
-    std::printf(" %21s", calib::paper_column_name(static_cast<PaperColumn>(c)));
+    std::printf(" %21s", calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c)));
   std::printf("\n%-6s", "");
   for (int c = 0; c < kNumPaperColumns; ++c) std::printf(" %10s %10s", "mdeg", "ug");
   std::printf("\n");
-  for (const calib::PaperUnitResult& u : t.units) {
+  for (const calib::studies::paper::PaperUnitResult& u : t.units) {
     std::printf("%-6d", u.unit);
     for (const auto& m : u.metrics)
       std::printf(" %10.2f %10.2f", m.orientation_rmse_mdeg, m.accel_rmse_ug);
@@ -442,7 +442,7 @@ int simulate_model(const GapBudgetArgs& a, const sequences::MotionProfile& profi
     std::printf(" %10.2f %10.2f", paper_mean(c, 0), paper_mean(c, 1));
   std::printf("\n");
   print_against_paper(means(t), standard_errors(t));
-  if (t.units.size() >= 2) print_spread(calib::paper_spread(calib::paper_rows(t)));
+  if (t.units.size() >= 2) print_spread(calib::studies::paper::paper_spread(calib::studies::paper::paper_rows(t)));
   return 0;
 }
 
@@ -503,7 +503,7 @@ CLI::App* add_gap_budget_command(CLI::App& app, GapBudgetArgs& a) {
 int cmd_gap_budget(const GapBudgetArgs& a) {
   const sequences::MotionProfile profile =
       sequences::load_profile(sequences::resolve_sequence(a.sequence));
-  calib::BudgetOptions opt;
+  calib::studies::paper::BudgetOptions opt;
   opt.tables.units = a.units;
   opt.tables.seed = a.seed;
   opt.tables.threads = a.threads > 0
@@ -513,33 +513,33 @@ int cmd_gap_budget(const GapBudgetArgs& a) {
   opt.probe_units = a.probe_units;
   opt.search_units = a.search_units;
   if (!a.model.empty()) return simulate_model(a, profile, opt.tables);
-  const std::vector<calib::BudgetCandidate> candidates = chosen_candidates(a.candidates);
+  const std::vector<calib::studies::paper::BudgetCandidate> candidates = chosen_candidates(a.candidates);
   const ProgressLine progress("gap-budget", "simulations");
   // The budget's own simulations, then two more here (the fitted model, and without its top).
   opt.on_progress = [&](int done, int total, const std::string&) { progress(done, total + 2); };
-  const calib::Site site = calib::demo_factory_site();
-  const calib::GapBudget b =
-      calib::fit_gap_budget(profile, site, candidates, calib::paper_published(), opt);
+  const calib::core::Site site = calib::core::demo_factory_site();
+  const calib::studies::paper::GapBudget b =
+      calib::studies::paper::fit_gap_budget(profile, site, candidates, calib::studies::paper::paper_published(), opt);
 
   // The fitted model simulated on new seeds and more units (its expected means, the budget's
   // check), and without its top source.
   std::vector<double> sizes(candidates.size(), 0.0);
-  for (const calib::BudgetEntry& e : b.entries)
+  for (const calib::studies::paper::BudgetEntry& e : b.entries)
     for (size_t k = 0; k < candidates.size(); ++k)
       if (candidates[k].name == e.candidate.name) sizes[k] = e.size;
   if (!a.write_unit.empty()) write_model_unit(a.write_unit, opt.tables, candidates, sizes);
-  calib::PaperTablesOptions check = opt.tables;
+  calib::studies::paper::PaperTablesOptions check = opt.tables;
   check.seed = a.seed + 1000;
   check.units = a.check_units;
   Verification v;
   v.units = check.units;
-  const calib::PaperTables fitted =
-      calib::run_paper_tables(profile, site, calib::budget_model(check, candidates, sizes));
+  const calib::studies::paper::PaperTables fitted =
+      calib::studies::paper::run_paper_tables(profile, site, calib::studies::paper::budget_model(check, candidates, sizes));
   v.fitted = means(fitted);
   v.fitted_se = standard_errors(fitted);
   if (!a.plot.empty())
-    archive::write_file_atomic(
-        a.plot, paper_units_svg(calib::paper_rows(fitted),
+    db::archive::write_file_atomic(
+        a.plot, paper_units_svg(calib::studies::paper::paper_rows(fitted),
                                 "the fitted model: " + std::to_string(check.units) +
                                     " simulated units on new seeds against the paper's six IMUs",
                                 "the fitted model"));
@@ -547,14 +547,14 @@ int cmd_gap_budget(const GapBudgetArgs& a) {
   std::vector<double> without = sizes;
   for (size_t k = 0; k < candidates.size(); ++k)
     if (candidates[k].name == b.entries.front().candidate.name) without[k] = 0.0;
-  const calib::PaperTables without_top =
-      calib::run_paper_tables(profile, site, calib::budget_model(check, candidates, without));
+  const calib::studies::paper::PaperTables without_top =
+      calib::studies::paper::run_paper_tables(profile, site, calib::studies::paper::budget_model(check, candidates, without));
   v.without_top = means(without_top);
   progress(b.simulations + 2, b.simulations + 2);
-  calib::BudgetTarget target;
+  calib::studies::paper::BudgetTarget target;
   target.mean_square = b.target;
   target.mean = b.target_mean;
-  v.top_removal_share = calib::budget_share(v.fitted, v.without_top, b.baseline_mean, target);
+  v.top_removal_share = calib::studies::paper::budget_share(v.fitted, v.without_top, b.baseline_mean, target);
   for (int c = 0; c < kNumPaperColumns; ++c)
     for (int m = 0; m < 2; ++m)
       v.worst_ratio_error = std::max(
@@ -563,7 +563,7 @@ int cmd_gap_budget(const GapBudgetArgs& a) {
                    1.0));
   if (a.json) {
     std::vector<std::string> names;
-    for (const calib::BudgetCandidate& c : candidates) names.push_back(c.name);
+    for (const calib::studies::paper::BudgetCandidate& c : candidates) names.push_back(c.name);
     std::cout << to_json(b, v, names).dump(2) << '\n';
     return 0;
   }
@@ -576,4 +576,4 @@ int cmd_gap_budget(const GapBudgetArgs& a) {
   return 0;
 }
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

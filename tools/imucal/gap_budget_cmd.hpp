@@ -1,11 +1,11 @@
 #pragma once
 // `imucal gap-budget --against paper` (issue #26): which error sources, at which sizes, turn the
-// simulated Tables I–IV into the paper's (calib/paper/gap_budget.hpp for the method).
+// simulated Tables I–IV into the paper's (calib/studies/paper/gap_budget.hpp for the method).
 #include <CLI/CLI.hpp>
 #include <cstdint>
 #include <string>
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 struct GapBudgetArgs {
   std::string against = "paper";
@@ -29,4 +29,4 @@ struct GapBudgetArgs {
 CLI::App* add_gap_budget_command(CLI::App& app, GapBudgetArgs& args);
 int cmd_gap_budget(const GapBudgetArgs& args);
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

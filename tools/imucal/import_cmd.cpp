@@ -14,7 +14,7 @@
 #include "db/archive/run_archive.hpp"
 #include "db/archive/toml_util.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 namespace {
 
@@ -28,7 +28,7 @@ Eigen::Vector3d axes(const std::vector<double>& v, const char* flag) {
 }
 
 /// [gyro] / [accel] of the config: scale and offset, each a number or [x, y, z].
-void read_axis_section(const archive::TomlSection& root, const char* name,
+void read_axis_section(const db::archive::TomlSection& root, const char* name,
                        std::vector<double>& scale, std::vector<double>& offset) {
   const auto s = root.section(name, {"scale", "offset"});
   if (!s) return;
@@ -53,11 +53,11 @@ void take(double& dst, const std::optional<double>& v) {
 /// The options the command line left out, from the TOML config.
 void merge_config(ImportArgs& a) {
   std::ifstream f(a.config);
-  if (!f) throw archive::ArchiveError(a.config, "cannot open");
+  if (!f) throw db::archive::ArchiveError(a.config, "cannot open");
   std::stringstream text;
   text << f.rdbuf();
-  const toml::table t = archive::parse_toml_text(text.str(), a.config);
-  const archive::TomlSection root(t, a.config, "",
+  const toml::table t = db::archive::parse_toml_text(text.str(), a.config);
+  const db::archive::TomlSection root(t, a.config, "",
                                   {"input", "gyro", "accel", "run", "station", "noise"});
   if (const auto in = root.section("input", {"columns", "time_unit", "quantity"})) {
     take(a.columns, in->string("columns"));
@@ -92,12 +92,12 @@ double seconds_per(const std::string& unit) {
   throw std::invalid_argument("time unit '" + unit + "': give s, ms, us or ns");
 }
 
-archive::RawImportOptions raw_options(const ImportArgs& a) {
-  archive::RawImportOptions o;
-  if (!a.columns.empty()) o.columns = archive::parse_raw_columns(a.columns);
+db::archive::RawImportOptions raw_options(const ImportArgs& a) {
+  db::archive::RawImportOptions o;
+  if (!a.columns.empty()) o.columns = db::archive::parse_raw_columns(a.columns);
   o.seconds_per_time_unit = seconds_per(a.time_unit);
   if (a.quantity == "increments")
-    o.quantity = archive::RawQuantity::kIncrements;
+    o.quantity = db::archive::RawQuantity::kIncrements;
   else if (!a.quantity.empty() && a.quantity != "rates")
     throw std::invalid_argument("quantity '" + a.quantity + "': give rates or increments");
   if (!a.gyro_scale.empty()) o.gyro.scale = axes(a.gyro_scale, "--gyro-scale");
@@ -108,21 +108,21 @@ archive::RawImportOptions raw_options(const ImportArgs& a) {
 }
 
 /// run.toml of the imported run: a land run of the grade, at the station given.
-archive::RunInfo run_info(const ImportArgs& a, double rate_hz) {
+db::archive::RunInfo run_info(const ImportArgs& a, double rate_hz) {
   if (a.serial.empty()) throw std::invalid_argument("give the unit's --serial (or [run] serial)");
   for (auto [v, name] : {std::pair{a.lat_deg, "--lat-deg"}, std::pair{a.lon_deg, "--lon-deg"},
                          std::pair{a.height_m, "--height-m"}})
     if (unset(v))
       throw std::invalid_argument(std::string("give ") + name +
                                   " (or [station] in --config): where the recording was made");
-  const std::optional<calib::Grade> grade =
-      calib::parse_grade(a.grade.empty() ? "navigation" : a.grade);
+  const std::optional<calib::core::Grade> grade =
+      calib::core::parse_grade(a.grade.empty() ? "navigation" : a.grade);
   if (!grade)
     throw std::invalid_argument("grade '" + a.grade + "': give navigation, tactical or mems");
-  archive::RunInfo info;
+  db::archive::RunInfo info;
   info.serial = a.serial;
-  info.setting = calib::Setting::kLand;
-  info.reference = archive::ReferenceKind::kNone;
+  info.setting = calib::core::Setting::kLand;
+  info.reference = db::archive::ReferenceKind::kNone;
   info.station_name = a.station_name.empty() ? "imported" : a.station_name;
   info.site.lat_rad = a.lat_deg * kDegToRad;
   info.site.lon_rad = a.lon_deg * kDegToRad;
@@ -130,7 +130,7 @@ archive::RunInfo run_info(const ImportArgs& a, double rate_hz) {
   if (!unset(a.gravity_mps2)) info.site.gravity_mps2 = a.gravity_mps2;
   info.imu_rate_hz = rate_hz;
   info.grade = *grade;
-  const calib::GradePrior prior = calib::grade_prior(*grade);
+  const calib::core::GradePrior prior = calib::core::grade_prior(*grade);
   info.arw_rad_per_sqrt_s = unset(a.arw_deg_per_sqrt_h) ? prior.arw_rad_per_sqrt_s
                                                         : a.arw_deg_per_sqrt_h * kDegToRad / 60.0;
   info.vrw_mps_per_sqrt_s =
@@ -139,7 +139,7 @@ archive::RunInfo run_info(const ImportArgs& a, double rate_hz) {
   return info;
 }
 
-void report(const ImportArgs& a, const archive::RawRecording& rec) {
+void report(const ImportArgs& a, const db::archive::RawRecording& rec) {
   const double span_s = rec.imu.back().t_s - rec.imu.front().t_s + rec.imu.front().dt_s;
   if (a.json) {
     std::cout << nlohmann::json{{"out", a.out_dir},
@@ -212,17 +212,17 @@ int cmd_import(const ImportArgs& args) {
         "--accel (one file per sensor)");
   if (pair && (a.gyro_file.empty() || a.accel_file.empty()))
     throw std::invalid_argument("one file per sensor needs both --gyro and --accel");
-  archive::check_archive_target(a.out_dir, a.overwrite,
+  db::archive::check_archive_target(a.out_dir, a.overwrite,
                                 "remove it, or give --overwrite to replace it");
-  const archive::RawImportOptions o = raw_options(a);
-  archive::RawRecording rec = pair ? archive::read_raw_recording_pair(a.gyro_file, a.accel_file, o)
-                                   : archive::read_raw_recording(a.file, o);
-  archive::RunArchive ar;
+  const db::archive::RawImportOptions o = raw_options(a);
+  db::archive::RawRecording rec = pair ? db::archive::read_raw_recording_pair(a.gyro_file, a.accel_file, o)
+                                   : db::archive::read_raw_recording(a.file, o);
+  db::archive::RunArchive ar;
   ar.info = run_info(a, rec.rate_hz);
   ar.imu = rec.imu;
-  archive::write_archive(a.out_dir, ar, a.overwrite);
+  db::archive::write_archive(a.out_dir, ar, a.overwrite);
   report(a, rec);
   return 0;
 }
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 struct ImportArgs {
   std::string file, gyro_file, accel_file, out_dir, config;
@@ -33,4 +33,4 @@ struct ImportArgs {
 CLI::App* add_import_command(CLI::App& app, ImportArgs& args);
 int cmd_import(const ImportArgs& args);
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

@@ -1,4 +1,4 @@
-// imucal — offline calibration tool on run archives (DESIGN §5):
+// imucal — offline calibration tool on run archives (ARCHITECTURE §5):
 //   imucal simulate  --sequence FILE --out DIR [--unit FILE] [--seed N] [--setting land|sea]
 //   imucal import    --file F | --gyro F --accel F --out DIR [--config TOML] ...  a raw recording
 //   imucal calibrate DIR --method ains|nlsq|legacy|all [--setting factory|land|sea] [--json]
@@ -36,6 +36,7 @@
 #include "calib/sim/truth_sim.hpp"
 #include "calib/sim/unit_draw.hpp"
 #include "db/archive/archive_error.hpp"
+#include "db/archive/archive_input.hpp"
 #include "db/archive/diagnosis_json.hpp"
 #include "db/archive/param_json.hpp"
 #include "db/archive/run_archive.hpp"
@@ -85,7 +86,7 @@ int json_error(const std::string& message, int exit_code) {
   return exit_code;
 }
 
-calib::Site default_site() { return calib::demo_factory_site(); }
+calib::core::Site default_site() { return calib::core::demo_factory_site(); }
 
 std::string iso_utc(std::chrono::system_clock::time_point at) {
   const auto t = std::chrono::system_clock::to_time_t(at);
@@ -105,14 +106,14 @@ void progress(const std::string& msg) {
                  msg.c_str());
 }
 
-calib::UnitModel load_unit(const std::string& path) {
-  return path.empty() ? calib::default_unit() : archive::read_unit_file(path);
+calib::effects::UnitModel load_unit(const std::string& path) {
+  return path.empty() ? calib::effects::default_unit() : db::archive::read_unit_file(path);
 }
 
 /// Reject a sequence that leaves a parameter unobservable, naming the parameters.
-void require_full_rank(const calib::CrlbResult& crlb, const std::string& seq_path,
-                       const calib::AinsOptions& opt = {}, bool heading_by_gyrocompass = true) {
-  auto unobs = calib::unobservable_parameters(crlb, opt);
+void require_full_rank(const calib::checks::CrlbResult& crlb, const std::string& seq_path,
+                       const calib::ains::AinsOptions& opt = {}, bool heading_by_gyrocompass = true) {
+  auto unobs = calib::checks::unobservable_parameters(crlb, opt);
   // Below navigation grade no sequence observes the fixture's heading misalignment ς_z: only
   // gyrocompassing does, and the gyros cannot resolve the Earth rate. The calibration says so.
   if (!heading_by_gyrocompass)
@@ -141,10 +142,10 @@ struct SimulateArgs {
 constexpr const char* kHandSequence = "hand";
 
 /// The archive's metadata common to every setting.
-archive::RunArchive simulated_archive(const SimulateArgs& a, const calib::UnitModel& unit,
+db::archive::RunArchive simulated_archive(const SimulateArgs& a, const calib::effects::UnitModel& unit,
                                       const sequences::MotionProfile& profile,
-                                      const std::string& seq_path, const calib::Site& site) {
-  archive::RunArchive ar;
+                                      const std::string& seq_path, const calib::core::Site& site) {
+  db::archive::RunArchive ar;
   ar.info.serial = "SIM-" + std::to_string(a.seed);
   ar.info.station_name = "imucal-sim";
   ar.info.site = site;
@@ -155,30 +156,30 @@ archive::RunArchive simulated_archive(const SimulateArgs& a, const calib::UnitMo
   ar.info.software_version = IMUCAL_VERSION;
   ar.info.arw_rad_per_sqrt_s = unit.noise.arw_rad_per_sqrt_s;
   ar.info.vrw_mps_per_sqrt_s = unit.noise.vrw_mps_per_sqrt_s;
-  ar.truth = archive::truth_from_unit(unit);
+  ar.truth = db::archive::truth_from_unit(unit);
   return ar;
 }
 
 /// Land or sea: hand-placed rotations through the sequence's rest positions, no table log, at sea
 /// a drifting, rocking deck and GNSS fixes (calib/sim/field_sim.hpp). No surveyed gravity.
-archive::RunArchive simulate_field_archive(const SimulateArgs& a, const calib::UnitModel& unit,
+db::archive::RunArchive simulate_field_archive(const SimulateArgs& a, const calib::effects::UnitModel& unit,
                                            const sequences::MotionProfile& profile,
                                            const std::string& seq_path) {
-  calib::Site site = default_site();
+  calib::core::Site site = default_site();
   site.gravity_mps2.reset();
-  calib::FieldSimOptions fo;
-  fo.setting = *calib::parse_setting(a.setting);
+  calib::sim::FieldSimOptions fo;
+  fo.setting = *calib::core::parse_setting(a.setting);
   fo.rate_hz = a.rate_hz;
   fo.seed = a.seed;
   fo.gnss_sigma_m = a.gnss_sigma_m;
   fo.placement_sigma_deg = a.placement_sigma_deg;
-  calib::UnitModel field_unit = unit;
+  calib::effects::UnitModel field_unit = unit;
   field_unit.params.table_misalignment_rad.setZero();  // no table
   progress("simulating " + a.setting + " run on " + profile.name);
-  calib::FieldSimResult sim = calib::simulate_field(profile, site, field_unit, fo);
-  archive::RunArchive ar = simulated_archive(a, field_unit, profile, seq_path, site);
+  calib::sim::FieldSimResult sim = calib::sim::simulate_field(profile, site, field_unit, fo);
+  db::archive::RunArchive ar = simulated_archive(a, field_unit, profile, seq_path, site);
   ar.info.setting = fo.setting;
-  ar.info.reference = archive::ReferenceKind::kNone;
+  ar.info.reference = db::archive::ReferenceKind::kNone;
   ar.imu = std::move(sim.imu);
   ar.gnss = std::move(sim.gnss);
   return ar;
@@ -186,19 +187,19 @@ archive::RunArchive simulate_field_archive(const SimulateArgs& a, const calib::U
 
 int cmd_simulate(const SimulateArgs& a) {
   // Refused before any simulation work.
-  archive::check_archive_target(a.out_dir, a.overwrite,
+  db::archive::check_archive_target(a.out_dir, a.overwrite,
                                 "remove it, or give --overwrite to replace it");
-  const calib::Grade grade = *calib::parse_grade(a.grade.empty() ? "navigation" : a.grade);
+  const calib::core::Grade grade = *calib::core::parse_grade(a.grade.empty() ? "navigation" : a.grade);
   if (a.seq == kHandSequence && a.setting == "factory")
     throw std::invalid_argument(
         "--sequence hand is a hand-placed run: give --setting land or sea (a table runs a "
         "sequence file)");
-  calib::UnitModel unit = a.unit.empty() ? calib::draw_unit(grade, a.seed) : load_unit(a.unit);
+  calib::effects::UnitModel unit = a.unit.empty() ? calib::sim::draw_unit(grade, a.seed) : load_unit(a.unit);
   if (!a.grade.empty()) unit.grade = grade;  // the command line over the unit file
   // Catalogue effects on top of the unit (checked before any work: nothing is written on error).
   for (const std::string& spec : a.effect_specs) {
     try {
-      calib::apply_effect_spec(unit.effects, spec);
+      calib::effects::apply_effect_spec(unit.effects, spec);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument("--effect " + spec + ": " + e.what());
     }
@@ -207,40 +208,40 @@ int cmd_simulate(const SimulateArgs& a) {
   const std::string seq_path = hand ? "" : sequences::resolve_sequence(a.seq);
   if (!hand) progress("loading sequence " + seq_path);
   const sequences::MotionProfile profile =
-      hand ? calib::hand_placed_profile(a.seed) : sequences::load_profile(seq_path);
-  archive::RunArchive ar;
+      hand ? calib::sim::hand_placed_profile(a.seed) : sequences::load_profile(seq_path);
+  db::archive::RunArchive ar;
   if (a.setting != "factory") {
     ar = simulate_field_archive(a, unit, profile, seq_path);
   } else {
-    const calib::Site site = default_site();
-    const calib::TableGeometry geometry{};
+    const calib::core::Site site = default_site();
+    const calib::core::TableGeometry geometry{};
     progress("checking observability");
     // Against the prior of the unit's grade (as `crlb --grade` does): a MEMS unit's gyro terms
     // are seen to a small fraction of its wide envelope, not of a navigation unit's.
-    calib::AinsOptions prior;
-    if (unit.grade != calib::Grade::kNavigation)
-      prior.prior_sigma = calib::prior_sigma_for_grade(unit.grade);
-    require_full_rank(calib::compute_crlb(profile, geometry, site, unit.noise, a.rate_hz, prior),
-                      seq_path, prior, unit.grade == calib::Grade::kNavigation);
+    calib::ains::AinsOptions prior;
+    if (unit.grade != calib::core::Grade::kNavigation)
+      prior.prior_sigma = calib::ains::prior_sigma_for_grade(unit.grade);
+    require_full_rank(calib::checks::compute_crlb(profile, geometry, site, unit.noise, a.rate_hz, prior),
+                      seq_path, prior, unit.grade == calib::core::Grade::kNavigation);
     progress("simulating " + std::to_string(static_cast<int>(profile.duration_s())) + " s at " +
              std::to_string(static_cast<int>(a.rate_hz)) + " Hz");
-    calib::SimOptions opt;
+    calib::sim::SimOptions opt;
     opt.rate_hz = a.rate_hz;
     opt.seed = a.seed;
-    calib::SimResult sim = calib::simulate(profile, geometry, site, unit, opt);
+    calib::sim::SimResult sim = calib::sim::simulate(profile, geometry, site, unit, opt);
     ar = simulated_archive(a, unit, profile, seq_path, site);
-    ar.info.table = archive::TableSetup::from_geometry(geometry);
-    ar.info.reference = archive::ReferenceKind::kTable;
+    ar.info.table = db::archive::TableSetup::from_geometry(geometry);
+    ar.info.reference = db::archive::ReferenceKind::kTable;
     ar.imu = std::move(sim.imu);
     ar.table = std::move(sim.table);
   }
   // A simulated recording ends now and lasts as long as its data (an import keeps these times).
   const auto end = std::chrono::system_clock::now();
-  const double span_s = archive::data_span_s(ar);
+  const double span_s = db::archive::data_span_s(ar);
   ar.info.end_time = iso_utc(end);
   ar.info.start_time = iso_utc(end - std::chrono::seconds(std::llround(span_s)));
   progress("writing " + a.out_dir);
-  archive::write_archive(a.out_dir, ar, a.overwrite);
+  db::archive::write_archive(a.out_dir, ar, a.overwrite);
   std::cout << "wrote " << a.out_dir << ": " << ar.imu.size() << " samples, " << ar.imu.back().t_s
             << " s, sequence " << profile.name << ", setting " << a.setting
             << (ar.gnss.empty() ? "" : ", " + std::to_string(ar.gnss.size()) + " GNSS fixes")
@@ -256,7 +257,7 @@ struct PriorOverride {
 };
 
 /// --compensate FILE: the effects a diagnosis found (its best and second), read before any work.
-std::optional<archive::DiagnosedEffects> read_compensation(const std::string& path) {
+std::optional<db::archive::DiagnosedEffects> read_compensation(const std::string& path) {
   if (path.empty()) return std::nullopt;
   std::ifstream f(path);
   if (!f) throw std::invalid_argument("--compensate " + path + ": cannot read it");
@@ -266,9 +267,9 @@ std::optional<archive::DiagnosedEffects> read_compensation(const std::string& pa
   } catch (const nlohmann::json::parse_error& e) {
     throw std::invalid_argument("--compensate " + path + ": not JSON: " + e.what());
   }
-  archive::DiagnosedEffects fx = archive::diagnosed_effects(j, "--compensate " + path);
+  db::archive::DiagnosedEffects fx = db::archive::diagnosed_effects(j, "--compensate " + path);
   try {
-    calib::check_removable(fx.effects);
+    calib::effects::check_removable(fx.effects);
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument("--compensate " + path + ": " + e.what());
   }
@@ -278,27 +279,27 @@ std::optional<archive::DiagnosedEffects> read_compensation(const std::string& pa
 /// Removes the diagnosed effects from the run before the methods see it, evaluated with the
 /// multi-position calibration of the run as it is (the effects act on the true rates and forces,
 /// which need a calibration to be known, and that one needs no prior beyond the grade's).
-void compensate(calib::CalibrationInput& in, const archive::DiagnosedEffects& fx) {
+void compensate(calib::core::CalibrationInput& in, const db::archive::DiagnosedEffects& fx) {
   progress("removing the diagnosed effects");
-  const calib::CalibrationResult base = calib::calibrate_legacy(in);
-  calib::remove_sensor_effects(in.imu, fx.effects, base.params);
+  const calib::core::CalibrationResult base = calib::legacy::calibrate_legacy(in);
+  calib::effects::remove_sensor_effects(in.imu, fx.effects, base.params);
 }
 
-calib::MethodSelection parse_method(const std::string& m) {
-  if (m == "ains") return calib::MethodSelection::kAins;
-  if (m == "nlsq") return calib::MethodSelection::kNlsq;
-  if (m == "legacy") return calib::MethodSelection::kLegacy;
-  return calib::MethodSelection::kAll;
+calib::pipeline::MethodSelection parse_method(const std::string& m) {
+  if (m == "ains") return calib::pipeline::MethodSelection::kAins;
+  if (m == "nlsq") return calib::pipeline::MethodSelection::kNlsq;
+  if (m == "legacy") return calib::pipeline::MethodSelection::kLegacy;
+  return calib::pipeline::MethodSelection::kAll;
 }
 
 /// The archive's calibration input, optionally processed as another setting: a table run "as
 /// land" withholds its reference attitude (rest flags come from the IMU data, as in the field); a
 /// table run "as sea" needs GNSS fixes, which a table run does not have. The samples move into the
 /// input (no copy of the series next to it); `ar` keeps its info and truth.
-calib::CalibrationInput calibration_input(archive::RunArchive& ar, const std::string& setting) {
-  const calib::Setting recorded = ar.info.setting;
-  if (!setting.empty()) ar.info.setting = *calib::parse_setting(setting);
-  calib::CalibrationInput in = archive::to_calibration_input(std::move(ar));
+calib::core::CalibrationInput calibration_input(db::archive::RunArchive& ar, const std::string& setting) {
+  const calib::core::Setting recorded = ar.info.setting;
+  if (!setting.empty()) ar.info.setting = *calib::core::parse_setting(setting);
+  calib::core::CalibrationInput in = db::archive::to_calibration_input(std::move(ar));
   ar.info.setting = recorded;
   return in;
 }
@@ -307,21 +308,21 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
                   const std::string& plot_path, const std::string& setting,
                   const PriorOverride& prior) {
   progress("reading " + dir);
-  archive::RunArchive ar = archive::read_archive(dir);
-  if (!prior.grade.empty()) ar.info.grade = *calib::parse_grade(prior.grade);
+  db::archive::RunArchive ar = db::archive::read_archive(dir);
+  if (!prior.grade.empty()) ar.info.grade = *calib::core::parse_grade(prior.grade);
   if (prior.min_rest_s > 0.0) ar.info.min_rest_s = prior.min_rest_s;
-  const std::optional<archive::DiagnosedEffects> fx = read_compensation(prior.compensate);
+  const std::optional<db::archive::DiagnosedEffects> fx = read_compensation(prior.compensate);
   progress("checking the archive");
-  calib::CalibrationInput in = calibration_input(ar, setting);
+  calib::core::CalibrationInput in = calibration_input(ar, setting);
   if (fx) compensate(in, *fx);
-  calib::PipelineOptions opt;
+  calib::pipeline::PipelineOptions opt;
   opt.methods = parse_method(method);
   opt.crosscheck.k_sigma = k_sigma;
   opt.on_phase = progress;
-  const calib::PipelineResult r = calib::run_calibration(in, opt);
+  const calib::pipeline::PipelineResult r = calib::pipeline::run_calibration(in, opt);
   if (!plot_path.empty()) {
     std::ofstream f(plot_path);
-    f << tools::calibration_svg(r, ar.truth ? &ar.truth->params : nullptr, k_sigma,
+    f << tools::imucal::calibration_svg(r, ar.truth ? &ar.truth->params : nullptr, k_sigma,
                                 "run " + ar.info.serial + " (" + ar.info.sequence_name + ")");
     if (!f) throw std::runtime_error(plot_path + ": cannot write the picture");
   }
@@ -331,35 +332,35 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
   const char* partial_note =
       "archive: capture incomplete (run.toml [capture] complete = false): REVIEW at best";
   if (json) {
-    nlohmann::json j = tools::pipeline_to_json(r);
+    nlohmann::json j = tools::imucal::pipeline_to_json(r);
     j["partial_archive"] = partial;
     if (fx) j["compensated"] = {{"file", prior.compensate}, {"effects", fx->names}};
     if (partial) j["verdict"] = "REVIEW";
     std::cout << j.dump(2) << '\n';
   } else {
     std::cout << "run " << dir << " (serial " << ar.info.serial << ", sequence "
-              << ar.info.sequence_name << ", setting " << calib::setting_name(in.setting) << ", "
+              << ar.info.sequence_name << ", setting " << calib::core::setting_name(in.setting) << ", "
               << in.imu.size() << " samples)\n";
     if (fx) {
       std::cout << "compensated before calibrating (from " << prior.compensate << "):";
       for (const std::string& n : fx->names) std::cout << ' ' << n << ';';
       std::cout << '\n';
     }
-    tools::print_parameter_table(std::cout, r, ar.truth ? &ar.truth->params : nullptr);
-    tools::print_metrics_and_verdict(std::cout, r);
+    tools::imucal::print_parameter_table(std::cout, r, ar.truth ? &ar.truth->params : nullptr);
+    tools::imucal::print_metrics_and_verdict(std::cout, r);
     if (partial) std::cout << partial_note << '\n';
   }
   return r.pass() && !partial ? 0 : kExitReview;
 }
 
 int cmd_evaluate(const std::string& dir, const std::string& params_path, bool json) {
-  const calib::CalibrationInput in = archive::to_calibration_input(archive::read_archive(dir));
-  const calib::ParamSet params = archive::read_param_file(params_path);
-  const calib::EvaluationMetrics m = calib::evaluate(in, params);
+  const calib::core::CalibrationInput in = db::archive::to_calibration_input(db::archive::read_archive(dir));
+  const calib::core::ParamSet params = db::archive::read_param_file(params_path);
+  const calib::checks::EvaluationMetrics m = calib::checks::evaluate(in, params);
   if (json)
-    std::cout << tools::metrics_to_json(m).dump(2) << '\n';
+    std::cout << tools::imucal::metrics_to_json(m).dump(2) << '\n';
   else
-    tools::print_evaluation(std::cout, m);
+    tools::imucal::print_evaluation(std::cout, m);
   return 0;
 }
 
@@ -367,32 +368,32 @@ int cmd_crlb(const std::string& seq, const std::string& unit_path, double rate_h
              const std::string& grade_name, bool json) {
   const std::string seq_path = sequences::resolve_sequence(seq);
   const sequences::MotionProfile profile = sequences::load_profile(seq_path);
-  calib::UnitModel unit = load_unit(unit_path);
+  calib::effects::UnitModel unit = load_unit(unit_path);
   // --grade: the prior of such a unit (the filter's initial covariance) and, without --unit, the
   // noise of the class's worst (issue #21).
-  calib::AinsOptions opt;
+  calib::ains::AinsOptions opt;
   if (!grade_name.empty()) {
-    const calib::Grade grade = *calib::parse_grade(grade_name);
-    opt.prior_sigma = calib::prior_sigma_for_grade(grade);
+    const calib::core::Grade grade = *calib::core::parse_grade(grade_name);
+    opt.prior_sigma = calib::ains::prior_sigma_for_grade(grade);
     if (unit_path.empty()) {
-      unit.noise.arw_rad_per_sqrt_s = calib::grade_prior(grade).arw_rad_per_sqrt_s;
-      unit.noise.vrw_mps_per_sqrt_s = calib::grade_prior(grade).vrw_mps_per_sqrt_s;
+      unit.noise.arw_rad_per_sqrt_s = calib::core::grade_prior(grade).arw_rad_per_sqrt_s;
+      unit.noise.vrw_mps_per_sqrt_s = calib::core::grade_prior(grade).vrw_mps_per_sqrt_s;
     }
   }
   progress("covariance analysis of " + profile.name);
-  const calib::CrlbResult crlb = calib::compute_crlb(profile, calib::TableGeometry{},
+  const calib::checks::CrlbResult crlb = calib::checks::compute_crlb(profile, calib::core::TableGeometry{},
                                                      default_site(), unit.noise, rate_hz, opt);
-  const auto unobs = calib::unobservable_parameters(crlb, opt);
+  const auto unobs = calib::checks::unobservable_parameters(crlb, opt);
   if (json) {
     std::cout << nlohmann::json{{"sequence", profile.name},
                                 {"duration_s", profile.duration_s()},
-                                {"sigma", archive::param_set_to_json(crlb.sigma)},
+                                {"sigma", db::archive::param_set_to_json(crlb.sigma)},
                                 {"unobservable", unobs}}
                      .dump(2)
               << '\n';
   } else {
     std::cout << "sequence " << profile.name << " (" << profile.duration_s() << " s)\n";
-    tools::print_crlb(std::cout, crlb, unobs);
+    tools::imucal::print_crlb(std::cout, crlb, unobs);
   }
   return unobs.empty() ? 0 : kExitReview;
 }
@@ -405,10 +406,10 @@ int cmd_bench(const std::string& dir, int repeat, bool sequential, bool json) {
   std::string verdict;
   for (int i = 0; i < repeat; ++i) {
     const auto t0 = std::chrono::steady_clock::now();
-    const calib::CalibrationInput in = archive::to_calibration_input(archive::read_archive(dir));
-    calib::PipelineOptions options;
+    const calib::core::CalibrationInput in = db::archive::to_calibration_input(db::archive::read_archive(dir));
+    calib::pipeline::PipelineOptions options;
     options.concurrent = !sequential;
-    const calib::PipelineResult r = calib::run_calibration(in, options);
+    const calib::pipeline::PipelineResult r = calib::pipeline::run_calibration(in, options);
     wall_s.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     samples = in.imu.size();
     verdict = r.pass() ? "PASS" : "REVIEW";
@@ -446,15 +447,15 @@ struct Commands {
   PriorOverride prior;     ///< calibrate --grade, --min-rest-s
   std::string crlb_grade;  ///< crlb --grade
   double rate_hz = 100.0, k_sigma = 4.0;
-  double false_alarm = calib::kDefaultGapFalseAlarm;  ///< crlb --effects
+  double false_alarm = calib::diagnosis::kDefaultGapFalseAlarm;  ///< crlb --effects
   bool json = false, effects = false, sequential = false, effects_json = false;
   int repeat = 3;
-  tools::DiagnoseArgs diag;
-  tools::ValidateArgs val;
-  tools::PaperTablesArgs paper;
-  tools::GapBudgetArgs budget;
-  tools::ImportArgs import;
-  tools::DesignSequenceArgs design;
+  tools::imucal::DiagnoseArgs diag;
+  tools::imucal::ValidateArgs val;
+  tools::imucal::PaperTablesArgs paper;
+  tools::imucal::GapBudgetArgs budget;
+  tools::imucal::ImportArgs import;
+  tools::imucal::DesignSequenceArgs design;
   CLI::App *im = nullptr, *gb = nullptr, *ds = nullptr;
   CLI::App *sim = nullptr, *cal = nullptr, *ev = nullptr, *cr = nullptr, *be = nullptr,
            *dg = nullptr, *ef = nullptr, *vd = nullptr, *pt = nullptr;
@@ -573,21 +574,21 @@ void add_small_commands(CLI::App& app, Commands& c) {
 
 int dispatch(const Commands& c) {
   if (*c.sim) return cmd_simulate(c.sa);
-  if (*c.im) return tools::cmd_import(c.import);
+  if (*c.im) return tools::imucal::cmd_import(c.import);
   if (*c.cal)
     return cmd_calibrate(c.dir, c.method, c.json, c.k_sigma, c.plot_path, c.setting_override,
                          c.prior);
   if (*c.ev) return cmd_evaluate(c.dir, c.params, c.json);
   if (*c.cr && c.effects)
-    return tools::cmd_crlb_effects(c.seq, c.unit, c.rate_hz, c.false_alarm, c.json);
+    return tools::imucal::cmd_crlb_effects(c.seq, c.unit, c.rate_hz, c.false_alarm, c.json);
   if (*c.cr) return cmd_crlb(c.seq, c.unit, c.rate_hz, c.crlb_grade, c.json);
   if (*c.be) return cmd_bench(c.dir, c.repeat, c.sequential, c.json);
-  if (*c.dg) return tools::cmd_diagnose(c.diag);
-  if (*c.vd) return tools::cmd_validate(c.val);
-  if (*c.pt) return tools::cmd_paper_tables(c.paper);
-  if (*c.gb) return tools::cmd_gap_budget(c.budget);
-  if (*c.ef) return tools::cmd_effects(c.effects_json);
-  if (*c.ds) return tools::cmd_design_sequence(c.design);
+  if (*c.dg) return tools::imucal::cmd_diagnose(c.diag);
+  if (*c.vd) return tools::imucal::cmd_validate(c.val);
+  if (*c.pt) return tools::imucal::cmd_paper_tables(c.paper);
+  if (*c.gb) return tools::imucal::cmd_gap_budget(c.budget);
+  if (*c.ef) return tools::imucal::cmd_effects(c.effects_json);
+  if (*c.ds) return tools::imucal::cmd_design_sequence(c.design);
   return 0;
 }
 
@@ -602,15 +603,15 @@ int main(int argc, char** argv) {
   add_simulate(app, c);
   add_calibrate(app, c);
   add_small_commands(app, c);
-  c.dg = tools::add_diagnose_command(app, c.diag);
+  c.dg = tools::imucal::add_diagnose_command(app, c.diag);
   c.ef = app.add_subcommand("effects",
                             "the effects catalogue: names, models, parameters, typical sizes");
   c.ef->add_flag("--json", c.effects_json, "print one JSON array");
-  c.vd = tools::add_validate_command(app, c.val);
-  c.pt = tools::add_paper_tables_command(app, c.paper);
-  c.gb = tools::add_gap_budget_command(app, c.budget);
-  c.im = tools::add_import_command(app, c.import);
-  c.ds = tools::add_design_sequence_command(app, c.design);
+  c.vd = tools::imucal::add_validate_command(app, c.val);
+  c.pt = tools::imucal::add_paper_tables_command(app, c.paper);
+  c.gb = tools::imucal::add_gap_budget_command(app, c.budget);
+  c.im = tools::imucal::add_import_command(app, c.import);
+  c.ds = tools::imucal::add_design_sequence_command(app, c.design);
   for (int i = 0; i < argc; ++i)
     c.design.command_line += (i ? " " : "") + std::string(i ? argv[i] : "imucal");
 

@@ -3,42 +3,42 @@
 #include <algorithm>
 #include <sstream>
 
-#include "tools/imucal/svg_panel.hpp"
+#include "tools/report/svg_panel.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 namespace {
 
-using svg::esc;
-using svg::kPanelH;
-using svg::kTop;
-using svg::kWidth;
-using svg::num;
-using svg::Panel;
+using report::esc;
+using report::kPanelH;
+using report::kTop;
+using report::kWidth;
+using report::num;
+using report::Panel;
 
 const char* const kPaperColor = "#222";
 const char* const kModelColor = "#1f77b4";
 
-double mean_of(const std::vector<calib::PaperRow>& rows, size_t c, size_t m) {
+double mean_of(const std::vector<calib::studies::paper::PaperRow>& rows, size_t c, size_t m) {
   double s = 0.0;
-  for (const calib::PaperRow& r : rows) s += r[c][m];
+  for (const calib::studies::paper::PaperRow& r : rows) s += r[c][m];
   return s / static_cast<double>(rows.size());
 }
 
 /// One metric's panel: per column the paper's IMUs left of centre, the model's units right of it.
 void metric_panel(std::ostringstream& os, double y0, size_t m,
-                  const std::vector<calib::PaperRow>& paper,
-                  const std::vector<calib::PaperRow>& model) {
+                  const std::vector<calib::studies::paper::PaperRow>& paper,
+                  const std::vector<calib::studies::paper::PaperRow>& model) {
   double top = 0.0;
   for (const auto* rows : {&paper, &model})
-    for (const calib::PaperRow& r : *rows)
+    for (const calib::studies::paper::PaperRow& r : *rows)
       for (const auto& col : r) top = std::max(top, col[m]);
-  Panel p{os, y0, 0.0, 1.1 * top, calib::kNumPaperColumns};
+  Panel p{os, y0, 0.0, 1.1 * top, calib::studies::paper::kNumPaperColumns};
   const std::string unit = m == 0 ? "mdeg" : "µg";
   p.frame(m == 0 ? "orientation RMSE per IMU" : "acceleration RMSE per IMU",
           (m == 0 ? "orientation [" : "acceleration [") + unit + "]");
-  for (size_t c = 0; c < static_cast<size_t>(calib::kNumPaperColumns); ++c) {
-    const std::string column = calib::paper_column_name(static_cast<calib::PaperColumn>(c));
+  for (size_t c = 0; c < static_cast<size_t>(calib::studies::paper::kNumPaperColumns); ++c) {
+    const std::string column = calib::studies::paper::paper_column_name(static_cast<calib::studies::paper::PaperColumn>(c));
     for (size_t u = 0; u < paper.size(); ++u)
       p.dot(c, paper[u][c][m], -0.18 * p.slot(), 4.5, "none", kPaperColor, "paper",
             column + ", paper IMU " + std::to_string(u + 1) + ": " + num(paper[u][c][m], "%.2f") +
@@ -56,9 +56,9 @@ void metric_panel(std::ostringstream& os, double y0, size_t m,
 
 }  // namespace
 
-std::string paper_units_svg(const std::vector<calib::PaperRow>& model, const std::string& title,
+std::string paper_units_svg(const std::vector<calib::studies::paper::PaperRow>& model, const std::string& title,
                             const std::string& description) {
-  const std::vector<calib::PaperRow> paper = calib::paper_published_rows();
+  const std::vector<calib::studies::paper::PaperRow> paper = calib::studies::paper::paper_published_rows();
   const double height = kTop + 2 * (kPanelH + 60);
   std::ostringstream os;
   os << "<svg xmlns='http://www.w3.org/2000/svg' width='" << kWidth << "' height='" << height
@@ -78,4 +78,4 @@ std::string paper_units_svg(const std::vector<calib::PaperRow>& model, const std
   return os.str();
 }
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

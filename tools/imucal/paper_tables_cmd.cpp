@@ -8,21 +8,21 @@
 #include <thread>
 
 #include "calib/core/site_presets.hpp"
-#include "calib/paper/paper_tables.hpp"
+#include "calib/studies/paper/paper_tables.hpp"
 #include "sequences/library.hpp"
 #include "tools/imucal/progress_line.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 namespace {
 
-using calib::PaperColumn;
+using calib::studies::paper::PaperColumn;
 constexpr double kSettingSpread = 0.25;  ///< the issue's "within 25 % of each other"
 
 size_t col(PaperColumn c) { return static_cast<size_t>(c); }
 
 /// Largest relative spread (max/min - 1) of the AINS means over the three settings.
-double ains_spread(const std::array<double, calib::kNumPaperColumns>& mean) {
+double ains_spread(const std::array<double, calib::studies::paper::kNumPaperColumns>& mean) {
   const double vals[3] = {mean[col(PaperColumn::kFactoryAins)], mean[col(PaperColumn::kLandAins)],
                           mean[col(PaperColumn::kSeaAins)]};
   const double lo = *std::min_element(vals, vals + 3), hi = *std::max_element(vals, vals + 3);
@@ -31,7 +31,7 @@ double ains_spread(const std::array<double, calib::kNumPaperColumns>& mean) {
 
 /// The paper's mean of one column over its IMUs 1..n (n ≤ 6; the published mean for n ≥ 6), so a
 /// run of fewer units is compared with the same IMU numbers, not the six-unit mean.
-double paper_mean(const std::array<std::array<double, calib::kNumPaperColumns>, 7>& paper,
+double paper_mean(const std::array<std::array<double, calib::studies::paper::kNumPaperColumns>, 7>& paper,
                   PaperColumn c, size_t n) {
   if (n >= 6 || n == 0) return paper[6][col(c)];
   double sum = 0.0;
@@ -59,7 +59,7 @@ struct Findings {
   }
 };
 
-Findings findings(const calib::PaperTables& t) {
+Findings findings(const calib::studies::paper::PaperTables& t) {
   Findings f;
   f.units = t.units.size();
   f.orientation_spread = ains_spread(t.mean_orientation_mdeg);
@@ -77,7 +77,7 @@ Findings findings(const calib::PaperTables& t) {
   }
   const double n = static_cast<double>(t.units.size());
   if (n >= 2) f.ratio_se = std::sqrt(std::max(0.0, (sum2 - sum * sum / n) / (n - 1)) / n);
-  const auto& pub = calib::paper_published().orientation_mdeg;
+  const auto& pub = calib::studies::paper::paper_published().orientation_mdeg;
   f.paper_ratio = paper_mean(pub, PaperColumn::kFactoryLegacy, f.units) /
                   paper_mean(pub, PaperColumn::kFactoryAins, f.units);
   return f;
@@ -88,15 +88,15 @@ void print_mean_note(size_t n) {
   if (n < 6) std::printf("(Mean: over IMUs 1-%zu, the paper's over the same IMU numbers)\n", n);
 }
 
-double metric(const calib::PaperUnitResult& u, PaperColumn c, bool orientation) {
+double metric(const calib::studies::paper::PaperUnitResult& u, PaperColumn c, bool orientation) {
   const auto& m = u.metrics[col(c)];
   return orientation ? m.orientation_rmse_mdeg : m.accel_rmse_ug;
 }
 
 /// One factory table (I: orientation, II: acceleration): IMU#, AINS, NLSQ, legacy — each beside
 /// the paper's column (its "Proprietary" is our legacy).
-void print_factory_table(const calib::PaperTables& t, bool orientation) {
-  const auto& pub = calib::paper_published();
+void print_factory_table(const calib::studies::paper::PaperTables& t, bool orientation) {
+  const auto& pub = calib::studies::paper::paper_published();
   const auto& paper = orientation ? pub.orientation_mdeg : pub.accel_ug;
   std::printf("\nTABLE %s  %s performance for factory setting — %s (simulated | paper)\n",
               orientation ? "I" : "II", orientation ? "Attitude and heading" : "Acceleration",
@@ -121,9 +121,9 @@ void print_factory_table(const calib::PaperTables& t, bool orientation) {
 }
 
 /// Tables III (land) and IV (sea): IMU#, orientation, acceleration.
-void print_field_table(const calib::PaperTables& t, PaperColumn c, const char* number,
+void print_field_table(const calib::studies::paper::PaperTables& t, PaperColumn c, const char* number,
                        const char* setting) {
-  const auto& pub = calib::paper_published();
+  const auto& pub = calib::studies::paper::paper_published();
   std::printf("\nTABLE %s  Calibration performance for %s setting (simulated | paper)\n", number,
               setting);
   std::printf("%-6s %25s %25s\n", "IMU#", "Orientation (milli-°)", "Acceleration (µg)");
@@ -140,21 +140,21 @@ void print_field_table(const calib::PaperTables& t, PaperColumn c, const char* n
   print_mean_note(n);
 }
 
-nlohmann::json to_json(const calib::PaperTables& t, const Findings& f) {
+nlohmann::json to_json(const calib::studies::paper::PaperTables& t, const Findings& f) {
   nlohmann::json units = nlohmann::json::array();
   for (const auto& u : t.units) {
     nlohmann::json cols = nlohmann::json::object();
-    for (int c = 0; c < calib::kNumPaperColumns; ++c)
-      cols[calib::paper_column_name(static_cast<PaperColumn>(c))] = {
+    for (int c = 0; c < calib::studies::paper::kNumPaperColumns; ++c)
+      cols[calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c))] = {
           {"orientation_rmse_mdeg", u.metrics[static_cast<size_t>(c)].orientation_rmse_mdeg},
           {"accel_rmse_ug", u.metrics[static_cast<size_t>(c)].accel_rmse_ug},
           {"converged", u.converged[static_cast<size_t>(c)]}};
     units.push_back({{"imu", u.unit}, {"columns", cols}});
   }
   nlohmann::json mean = nlohmann::json::object(), paper = nlohmann::json::object();
-  const auto& pub = calib::paper_published();
-  for (int c = 0; c < calib::kNumPaperColumns; ++c) {
-    const char* name = calib::paper_column_name(static_cast<PaperColumn>(c));
+  const auto& pub = calib::studies::paper::paper_published();
+  for (int c = 0; c < calib::studies::paper::kNumPaperColumns; ++c) {
+    const char* name = calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c));
     mean[name] = {{"orientation_rmse_mdeg", t.mean_orientation_mdeg[static_cast<size_t>(c)]},
                   {"accel_rmse_ug", t.mean_accel_ug[static_cast<size_t>(c)]}};
     const auto pc = static_cast<PaperColumn>(c);
@@ -217,7 +217,7 @@ CLI::App* add_paper_tables_command(CLI::App& app, PaperTablesArgs& a) {
       ->capture_default_str()
       ->check([](const std::string& v) {
         try {
-          calib::parse_paper_effects(v);
+          calib::studies::paper::parse_paper_effects(v);
           return std::string();
         } catch (const std::invalid_argument& e) {
           return std::string(e.what());
@@ -230,14 +230,14 @@ CLI::App* add_paper_tables_command(CLI::App& app, PaperTablesArgs& a) {
 int cmd_paper_tables(const PaperTablesArgs& a) {
   const sequences::MotionProfile profile =
       sequences::load_profile(sequences::resolve_sequence(a.sequence));
-  calib::PaperTablesOptions opt;
+  calib::studies::paper::PaperTablesOptions opt;
   opt.units = a.units;
   opt.seed = a.seed;
-  opt.effects = calib::parse_paper_effects(a.effects);
+  opt.effects = calib::studies::paper::parse_paper_effects(a.effects);
   opt.threads = a.threads > 0 ? a.threads
                               : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   opt.on_progress = ProgressLine("paper-tables", "units");
-  const calib::PaperTables t = calib::run_paper_tables(profile, calib::demo_factory_site(), opt);
+  const calib::studies::paper::PaperTables t = calib::studies::paper::run_paper_tables(profile, calib::core::demo_factory_site(), opt);
   const Findings f = findings(t);
   if (a.json) {
     std::cout << to_json(t, f).dump(2) << '\n';
@@ -259,4 +259,4 @@ int cmd_paper_tables(const PaperTablesArgs& a) {
   return f.hold() ? 0 : 3;
 }
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

@@ -2,7 +2,7 @@
 // `imucal paper-tables [--units 6] [--seed S] [--sequence factory-std] [--effects
 // none|typical|LIST]
 // [--threads N] [--json]`:
-// the paper's Tables I–IV (calib/paper/paper_tables.hpp) on simulated units, in the paper's layout
+// the paper's Tables I–IV (calib/studies/paper/paper_tables.hpp) on simulated units, in the paper's layout
 // and beside its published figures, with a progress line on stderr. Exit 0 when the paper's
 // findings hold in kind (AINS within 25 % across the three settings on both metrics; the legacy
 // method worse on orientation than the factory AINS), 3 otherwise.
@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <string>
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 struct PaperTablesArgs {
   int units = 6;
@@ -24,4 +24,4 @@ struct PaperTablesArgs {
 CLI::App* add_paper_tables_command(CLI::App& app, PaperTablesArgs& args);
 int cmd_paper_tables(const PaperTablesArgs& args);
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

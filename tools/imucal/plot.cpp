@@ -6,20 +6,20 @@
 #include <sstream>
 #include <vector>
 
-#include "tools/imucal/svg_panel.hpp"
+#include "tools/report/svg_panel.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 namespace {
 
-using svg::esc;
-using svg::kLeft;
-using svg::kPanelH;
-using svg::kRight;
-using svg::kTop;
-using svg::kWidth;
-using svg::num;
-using svg::Panel;
+using report::esc;
+using report::kLeft;
+using report::kPanelH;
+using report::kRight;
+using report::kTop;
+using report::kWidth;
+using report::num;
+using report::Panel;
 
 void legend(std::ostringstream& os, double y, bool ains, bool nlsq,
             const std::string& second_name = "NLSQ") {
@@ -55,11 +55,11 @@ const char* const kOrange = "#ff7f0e";
 
 /// Per parameter: AINS against the second method in combined σ (or an estimate against the truth
 /// in σ); a parameter not observable in this setting (ς without a table) has no bar.
-void parameter_panel(std::ostringstream& os, double y0, const calib::PipelineResult& r,
-                     const calib::MethodOutcome* second, const std::string& second_name,
-                     const calib::ParamSet* truth, double k_sigma) {
+void parameter_panel(std::ostringstream& os, double y0, const calib::pipeline::PipelineResult& r,
+                     const calib::pipeline::MethodOutcome* second, const std::string& second_name,
+                     const calib::core::ParamSet* truth, double k_sigma) {
   const bool both = r.ains && second;
-  const int n = calib::ParamSet::kSize;
+  const int n = calib::core::ParamSet::kSize;
   Panel p{os, y0, -std::max(k_sigma * 1.5, 1.0), std::max(k_sigma * 1.5, 1.0),
           static_cast<size_t>(n)};
   p.frame(both ? "AINS − " + second_name + " per parameter, in combined σ (bound ±" +
@@ -70,8 +70,8 @@ void parameter_panel(std::ostringstream& os, double y0, const calib::PipelineRes
   p.hline(-k_sigma, "#d62728", "6,3");
   p.hline(0.0, "#444");
   for (int i = 0; i < n; ++i) {
-    const auto& info = calib::param_info(i);
-    auto z_of = [&](const calib::CalibrationResult& a) {
+    const auto& info = calib::core::param_info(i);
+    auto z_of = [&](const calib::core::CalibrationResult& a) {
       const double s = a.sigma.to_vector()(i);
       return s > 0 ? (a.params.to_vector()(i) - truth->to_vector()(i)) / s : 0.0;
     };
@@ -102,13 +102,13 @@ struct RestPanel {
   const char* title;
   const char* axis;
   double min_top;
-  double (*value)(const calib::RestPeriodMetric&);
+  double (*value)(const calib::checks::RestPeriodMetric&);
   const char* format;
   const char* unit;
 };
 
 void rest_panel(std::ostringstream& os, double y0, const RestPanel& spec,
-                const calib::EvaluationMetrics* ma, const calib::EvaluationMetrics* mb,
+                const calib::checks::EvaluationMetrics* ma, const calib::checks::EvaluationMetrics* mb,
                 size_t periods, const std::string& second_name, bool with_legend) {
   double top = 0;
   for (const auto* mm : {ma, mb})
@@ -137,11 +137,11 @@ void rest_panel(std::ostringstream& os, double y0, const RestPanel& spec,
 
 }  // namespace
 
-std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSet* truth,
+std::string calibration_svg(const calib::pipeline::PipelineResult& r, const calib::core::ParamSet* truth,
                             double k_sigma, const std::string& title) {
   std::ostringstream os;
   // The second method: NLSQ in the factory, the legacy method on land and at sea.
-  const calib::MethodOutcome* second = r.nlsq ? &*r.nlsq : r.legacy ? &*r.legacy : nullptr;
+  const calib::pipeline::MethodOutcome* second = r.nlsq ? &*r.nlsq : r.legacy ? &*r.legacy : nullptr;
   const std::string second_name = r.nlsq ? "NLSQ" : "legacy";
   const bool panel1 = (r.ains && second) || truth;
   const int panels = (panel1 ? 1 : 0) + 2;
@@ -156,14 +156,14 @@ std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSe
     parameter_panel(os, y0, r, second, second_name, truth, k_sigma);
     y0 += kPanelH + 90;
   }
-  const calib::EvaluationMetrics* ma = r.ains ? &r.ains->metrics : nullptr;
-  const calib::EvaluationMetrics* mb = second ? &second->metrics : nullptr;
+  const calib::checks::EvaluationMetrics* ma = r.ains ? &r.ains->metrics : nullptr;
+  const calib::checks::EvaluationMetrics* mb = second ? &second->metrics : nullptr;
   const size_t periods = std::max(ma ? ma->periods.size() : 0, mb ? mb->periods.size() : 0);
   if (periods > 0) {
     const RestPanel accel{"acceleration error of each rest period (eq. 53–54)",
                           "|mean δa_n| (µg)",
                           1.0,
-                          [](const calib::RestPeriodMetric& q) { return q.accel_err_n_ug.norm(); },
+                          [](const calib::checks::RestPeriodMetric& q) { return q.accel_err_n_ug.norm(); },
                           "%.2f",
                           " µg"};
     rest_panel(os, y0, accel, ma, mb, periods, second_name, true);
@@ -171,7 +171,7 @@ std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSe
     const RestPanel orient{"orientation residual of each rest period (eq. 51–52)",
                            "RMS (mdeg)",
                            0.01,
-                           [](const calib::RestPeriodMetric& q) { return q.orientation_rms_mdeg; },
+                           [](const calib::checks::RestPeriodMetric& q) { return q.orientation_rms_mdeg; },
                            "%.3f",
                            " mdeg"};
     rest_panel(os, y0, orient, ma, mb, periods, second_name, false);
@@ -180,4 +180,4 @@ std::string calibration_svg(const calib::PipelineResult& r, const calib::ParamSe
   return os.str();
 }
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

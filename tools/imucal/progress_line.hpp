@@ -7,7 +7,7 @@
 #include <cstdio>
 #include <string>
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 class ProgressLine {
  public:
@@ -30,4 +30,4 @@ class ProgressLine {
   std::chrono::steady_clock::time_point t0_;
 };
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

@@ -7,7 +7,7 @@
 #include "calib/core/body_frame.hpp"
 #include "db/archive/param_json.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 namespace {
 
@@ -23,32 +23,32 @@ std::string fmt(const char* f, const char* v) {
   return buf;
 }
 
-const char* frame_name(calib::BodyFrame f) {
-  return f == calib::BodyFrame::kHousing ? "housing" : "accel_symmetric";
+const char* frame_name(calib::core::BodyFrame f) {
+  return f == calib::core::BodyFrame::kHousing ? "housing" : "accel_symmetric";
 }
 
-std::vector<std::string> unobservable_names(const calib::CalibrationResult& r) {
+std::vector<std::string> unobservable_names(const calib::core::CalibrationResult& r) {
   std::vector<std::string> out;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i)
-    if (!r.observable[static_cast<size_t>(i)]) out.push_back(calib::param_info(i).name);
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
+    if (!r.observable[static_cast<size_t>(i)]) out.push_back(calib::core::param_info(i).name);
   return out;
 }
 
 /// The truth in the frame a result is expressed in (what its error is measured against).
-calib::ParamVector truth_in_frame(const calib::ParamSet& truth, calib::BodyFrame f) {
-  return f == calib::BodyFrame::kHousing
+calib::core::ParamVector truth_in_frame(const calib::core::ParamSet& truth, calib::core::BodyFrame f) {
+  return f == calib::core::BodyFrame::kHousing
              ? truth.to_vector()
-             : calib::to_accel_symmetric_frame(truth).params.to_vector();
+             : calib::core::to_accel_symmetric_frame(truth).params.to_vector();
 }
 
-nlohmann::json outcome_json(const calib::MethodOutcome& m) {
+nlohmann::json outcome_json(const calib::pipeline::MethodOutcome& m) {
   return {{"method", m.result.method},
-          {"setting", calib::setting_name(m.result.setting)},
+          {"setting", calib::core::setting_name(m.result.setting)},
           {"body_frame", frame_name(m.result.body_frame)},
           {"unobservable", unobservable_names(m.result)},
           {"unobservable_notes", m.result.unobservable_notes},
-          {"params", archive::param_set_to_json(m.result.params)},
-          {"sigma", archive::param_set_to_json(m.result.sigma)},
+          {"params", db::archive::param_set_to_json(m.result.params)},
+          {"sigma", db::archive::param_set_to_json(m.result.sigma)},
           {"metrics", metrics_to_json(m.metrics)},
           {"runtime_s", m.result.runtime_s},
           {"iterations", m.result.iterations},
@@ -58,7 +58,7 @@ nlohmann::json outcome_json(const calib::MethodOutcome& m) {
 
 }  // namespace
 
-nlohmann::json metrics_to_json(const calib::EvaluationMetrics& m) {
+nlohmann::json metrics_to_json(const calib::checks::EvaluationMetrics& m) {
   if (!m.evaluated) return {{"evaluated", false}, {"reason", m.not_evaluated_reason}};
   return {{"evaluated", true},
           {"orientation_rmse_mdeg", m.orientation_rmse_mdeg},
@@ -70,7 +70,7 @@ nlohmann::json metrics_to_json(const calib::EvaluationMetrics& m) {
           {"rest_periods", m.periods.size()}};
 }
 
-nlohmann::json pipeline_to_json(const calib::PipelineResult& r) {
+nlohmann::json pipeline_to_json(const calib::pipeline::PipelineResult& r) {
   nlohmann::json j = nlohmann::json::object();
   if (r.ains) j["ains"] = outcome_json(*r.ains);
   if (r.nlsq) j["nlsq"] = outcome_json(*r.nlsq);
@@ -93,16 +93,16 @@ nlohmann::json pipeline_to_json(const calib::PipelineResult& r) {
   return j;
 }
 
-void print_parameter_table(std::ostream& os, const calib::PipelineResult& r,
-                           const calib::ParamSet* truth) {
-  std::vector<std::pair<std::string, const calib::CalibrationResult*>> cols;
+void print_parameter_table(std::ostream& os, const calib::pipeline::PipelineResult& r,
+                           const calib::core::ParamSet* truth) {
+  std::vector<std::pair<std::string, const calib::core::CalibrationResult*>> cols;
   if (r.ains) cols.emplace_back("AINS", &r.ains->result);
   if (r.nlsq) cols.emplace_back("NLSQ", &r.nlsq->result);
   if (r.legacy) cols.emplace_back("legacy", &r.legacy->result);
-  std::vector<calib::ParamVector> col_truth;
+  std::vector<calib::core::ParamVector> col_truth;
   for (const auto& c : cols)
     col_truth.push_back(truth ? truth_in_frame(*truth, c.second->body_frame)
-                              : calib::ParamVector::Zero());
+                              : calib::core::ParamVector::Zero());
   char line[512];
   std::snprintf(line, sizeof line, "%-26s %-7s", "parameter", "unit");
   os << line;
@@ -114,14 +114,14 @@ void print_parameter_table(std::ostream& os, const calib::PipelineResult& r,
   os << '\n';
   // The truth printed is the one err/σ is measured against: in the first method's frame (all
   // methods of one setting share it; a different one is named below).
-  const calib::ParamVector tv = col_truth.empty() ? calib::ParamVector::Zero() : col_truth[0];
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-    const auto& info = calib::param_info(i);
+  const calib::core::ParamVector tv = col_truth.empty() ? calib::core::ParamVector::Zero() : col_truth[0];
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+    const auto& info = calib::core::param_info(i);
     std::snprintf(line, sizeof line, "%-26s %-7s", info.name.c_str(), info.human_unit.c_str());
     os << line;
     if (truth) os << fmt("%12.3f", tv(i) * info.si_to_human);
     for (size_t c = 0; c < cols.size(); ++c) {
-      const calib::CalibrationResult& res = *cols[c].second;
+      const calib::core::CalibrationResult& res = *cols[c].second;
       if (!res.observable[static_cast<size_t>(i)]) {
         os << fmt("%14s", "n/a") << fmt("%11s", "") << (truth ? fmt("%8s", "") : "");
         continue;
@@ -133,7 +133,7 @@ void print_parameter_table(std::ostream& os, const calib::PipelineResult& r,
     os << '\n';
   }
   for (const auto& c : cols)
-    if (c.second->body_frame == calib::BodyFrame::kAccelSymmetric)
+    if (c.second->body_frame == calib::core::BodyFrame::kAccelSymmetric)
       os << c.first
          << ": misalignments in the accelerometer triad's own orthogonal frame (accel_M "
             "symmetric)"
@@ -145,7 +145,7 @@ void print_parameter_table(std::ostream& os, const calib::PipelineResult& r,
            << frame_name(cols[c].second->body_frame) << "), not the truth column's\n";
 }
 
-void print_evaluation(std::ostream& os, const calib::EvaluationMetrics& m) {
+void print_evaluation(std::ostream& os, const calib::checks::EvaluationMetrics& m) {
   if (!m.evaluated) {
     os << "not evaluated: " << m.not_evaluated_reason << '\n';
     return;
@@ -156,7 +156,7 @@ void print_evaluation(std::ostream& os, const calib::EvaluationMetrics& m) {
      << fmt("; fitted heading offset %.2f arcsec\n", m.heading_offset_gamma_np_rad * 206264.806);
 }
 
-void print_metrics_and_verdict(std::ostream& os, const calib::PipelineResult& r) {
+void print_metrics_and_verdict(std::ostream& os, const calib::pipeline::PipelineResult& r) {
   for (const auto* m : {r.ains ? &*r.ains : nullptr, r.nlsq ? &*r.nlsq : nullptr,
                         r.legacy ? &*r.legacy : nullptr}) {
     if (!m) continue;
@@ -168,7 +168,7 @@ void print_metrics_and_verdict(std::ostream& os, const calib::PipelineResult& r)
     for (const auto& n : m->result.unobservable_notes) os << "  not observable: " << n << '\n';
   }
   if (!r.crosscheck && r.ains && !r.nlsq && !r.legacy &&
-      r.ains->result.setting == calib::Setting::kSea)
+      r.ains->result.setting == calib::core::Setting::kSea)
     os << "cross-check: none at sea (the legacy method needs a still platform; AINS stands "
           "alone)\n";
   if (r.crosscheck) {
@@ -185,14 +185,14 @@ void print_metrics_and_verdict(std::ostream& os, const calib::PipelineResult& r)
   os << '\n';
 }
 
-void print_crlb(std::ostream& os, const calib::CrlbResult& crlb,
+void print_crlb(std::ostream& os, const calib::checks::CrlbResult& crlb,
                 const std::vector<std::string>& unobservable) {
-  const calib::ParamVector s = crlb.sigma.to_vector();
+  const calib::core::ParamVector s = crlb.sigma.to_vector();
   char line[256];
   std::snprintf(line, sizeof line, "%-26s %-7s %14s\n", "parameter", "unit", "CRLB 1σ");
   os << line;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-    const auto& info = calib::param_info(i);
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+    const auto& info = calib::core::param_info(i);
     std::snprintf(line, sizeof line, "%-26s %-7s %14.4f\n", info.name.c_str(),
                   info.human_unit.c_str(), s(i) * info.si_to_human);
     os << line;
@@ -206,4 +206,4 @@ void print_crlb(std::ostream& os, const calib::CrlbResult& crlb,
   }
 }
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

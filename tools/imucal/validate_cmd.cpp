@@ -16,7 +16,7 @@
 #include "tools/imucal/alt_run_source.hpp"
 #include "tools/imucal/progress_line.hpp"
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 namespace {
 
@@ -27,15 +27,15 @@ constexpr double kFirstInjected = 0.9, kPairs = 0.8, kTriples = 0.6;
 // Table-free runs (issue #21): null runs may end anything but consistent at most this often.
 constexpr double kFalseAlarmLand = 0.05;
 
-std::vector<calib::EffectId> parse_effects(const std::string& list) {
+std::vector<calib::effects::EffectId> parse_effects(const std::string& list) {
   try {
-    return calib::parse_effect_list(list);
+    return calib::effects::parse_effect_list(list);
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(std::string("--effects: ") + e.what());
   }
 }
 
-void print_confusion(const calib::ValidationReport& r) {
+void print_confusion(const calib::diagnosis::ValidationReport& r) {
   std::set<std::string> cols;
   for (const auto& [inj, row] : r.confusion)
     for (const auto& [named, n] : row) cols.insert(named);
@@ -55,13 +55,13 @@ void print_confusion(const calib::ValidationReport& r) {
   std::printf(")\n");
 }
 
-nlohmann::json null_interval_json(const calib::ValidationReport& r) {
+nlohmann::json null_interval_json(const calib::diagnosis::ValidationReport& r) {
   if (r.null_count == 0) return nullptr;
-  const calib::RateInterval ci = calib::clopper_pearson(r.null_alarms, r.null_count);
+  const calib::core::RateInterval ci = calib::core::clopper_pearson(r.null_alarms, r.null_count);
   return nlohmann::json::array({ci.lower, ci.upper});
 }
 
-nlohmann::json to_json(const calib::ValidationReport& r, bool pass) {
+nlohmann::json to_json(const calib::diagnosis::ValidationReport& r, bool pass) {
   nlohmann::json runs = nlohmann::json::array();
   for (const auto& x : r.runs)
     runs.push_back(
@@ -152,8 +152,8 @@ namespace {
 /// The runs to validate on: table runs of the default unit; on land the default unit or one drawn
 /// from --grade's envelope, the sequence's positions (or the hand-placed 'hand' set) by hand.
 struct World {
-  calib::RunSource source;
-  calib::UnitModel unit;
+  calib::effects::RunSource source;
+  calib::effects::UnitModel unit;
   std::string name;
 };
 
@@ -166,25 +166,25 @@ World make_world(const ValidateArgs& a) {
         "--simulator alt simulates table runs only: give --setting factory, or --simulator truth "
         "for land and sea");
   const sequences::MotionProfile profile =
-      a.sequence == "hand" ? calib::hand_placed_profile(a.seed)
+      a.sequence == "hand" ? calib::sim::hand_placed_profile(a.seed)
                            : sequences::load_profile(sequences::resolve_sequence(a.sequence));
   World w;
-  const calib::Grade grade =
-      a.grade.empty() ? calib::Grade::kNavigation : *calib::parse_grade(a.grade);
-  w.unit = a.grade.empty() ? calib::default_unit() : calib::draw_unit(grade, a.seed);
+  const calib::core::Grade grade =
+      a.grade.empty() ? calib::core::Grade::kNavigation : *calib::core::parse_grade(a.grade);
+  w.unit = a.grade.empty() ? calib::effects::default_unit() : calib::sim::draw_unit(grade, a.seed);
   w.name = profile.name;
   if (!land) {
-    const auto make_source = a.simulator == "alt" ? alt_run_source : calib::truth_run_source;
+    const auto make_source = a.simulator == "alt" ? alt_run_source : calib::sim::truth_run_source;
     w.source =
-        make_source(profile, calib::TableGeometry{}, calib::demo_factory_site(), w.unit, 100.0);
+        make_source(profile, calib::core::TableGeometry{}, calib::core::demo_factory_site(), w.unit, 100.0);
     if (a.simulator == "alt") w.name += " (altsim)";
     return w;
   }
   w.unit.params.table_misalignment_rad.setZero();  // no table: no table misalignment
-  calib::FieldSimOptions field;
-  field.setting = a.setting == "sea" ? calib::Setting::kSea : calib::Setting::kLand;
-  w.source = calib::field_run_source(profile, calib::demo_factory_site(), w.unit, field, grade);
-  w.name += " (" + a.setting + ", " + calib::grade_name(grade) + ")";
+  calib::sim::FieldSimOptions field;
+  field.setting = a.setting == "sea" ? calib::core::Setting::kSea : calib::core::Setting::kLand;
+  w.source = calib::sim::field_run_source(profile, calib::core::demo_factory_site(), w.unit, field, grade);
+  w.name += " (" + a.setting + ", " + calib::core::grade_name(grade) + ")";
   return w;
 }
 
@@ -192,7 +192,7 @@ World make_world(const ValidateArgs& a) {
 
 namespace {
 
-void print_human(const calib::ValidationReport& r, double false_alarm_bar, double rate) {
+void print_human(const calib::diagnosis::ValidationReport& r, double false_alarm_bar, double rate) {
   std::printf(
       "validate-diagnosis on %s: %zu effects the sequence separates, %d single-effect runs "
       "(3-10x threshold at a false-alarm rate of %.3g per run), %d null runs, %d pair runs, %d "
@@ -209,7 +209,7 @@ void print_human(const calib::ValidationReport& r, double false_alarm_bar, doubl
   std::printf("false alarms (null) %5.2f %%  (%d of %d", 100 * r.false_alarm, r.null_alarms,
               r.null_count);
   if (r.null_count) {
-    const calib::RateInterval ci = calib::clopper_pearson(r.null_alarms, r.null_count);
+    const calib::core::RateInterval ci = calib::core::clopper_pearson(r.null_alarms, r.null_count);
     std::printf("; 95 %% interval %.2f-%.2f %%", 100 * ci.lower, 100 * ci.upper);
   }
   std::printf("; bar <= %.0f %%)\n", 100 * false_alarm_bar);
@@ -232,17 +232,17 @@ void print_human(const calib::ValidationReport& r, double false_alarm_bar, doubl
 
 int cmd_validate(const ValidateArgs& a) {
   const World world = make_world(a);
-  calib::ValidationOptions opt;
+  calib::diagnosis::ValidationOptions opt;
   opt.runs_per_effect = a.runs;
   opt.null_runs = a.nulls < 0 ? a.runs : a.nulls;
   opt.pair_runs = a.pairs < 0 ? a.runs : a.pairs;
   opt.triple_runs = a.triples;
-  opt.diagnosis = calib::diagnosis_options_for_false_alarm(a.false_alarm);
+  opt.diagnosis = calib::diagnosis::diagnosis_options_for_false_alarm(a.false_alarm);
   opt.seed = a.seed;
   opt.threads = a.threads;
   opt.effects = parse_effects(a.effects);
   opt.on_progress = ProgressLine("validate-diagnosis", "runs");
-  const calib::ValidationReport r = calib::validate_diagnosis(world.source, calib::TableGeometry{},
+  const calib::diagnosis::ValidationReport r = calib::diagnosis::validate_diagnosis(world.source, calib::core::TableGeometry{},
                                                               world.unit.params, world.name, opt);
   const double false_alarm_bar = a.setting != "factory" ? kFalseAlarmLand : kFalseAlarm;
   const int multi = r.pair_count + r.triple_count;
@@ -260,4 +260,4 @@ int cmd_validate(const ValidateArgs& a) {
   return pass ? 0 : 3;
 }
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <string>
 
-namespace imucal::tools {
+namespace imucal::tools::imucal {
 
 struct ValidateArgs {
   int runs = 10, nulls = -1, pairs = -1, threads = 0;  ///< nulls/pairs -1: same as runs
@@ -34,4 +34,4 @@ CLI::App* add_validate_command(CLI::App& app, ValidateArgs& args);
 /// injected effect), 3 otherwise.
 int cmd_validate(const ValidateArgs& args);
 
-}  // namespace imucal::tools
+}  // namespace imucal::tools::imucal

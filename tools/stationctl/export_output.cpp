@@ -10,7 +10,7 @@
 #include <streambuf>
 #include <vector>
 
-namespace imucal::stationctl {
+namespace imucal::tools::stationctl {
 
 namespace fs = std::filesystem;
 
@@ -209,4 +209,4 @@ void ExportOutput::commit() {
   committed_ = true;
 }
 
-}  // namespace imucal::stationctl
+}  // namespace imucal::tools::stationctl

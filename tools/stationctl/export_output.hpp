@@ -19,7 +19,7 @@
 #include <string>
 #include <string_view>
 
-namespace imucal::stationctl {
+namespace imucal::tools::stationctl {
 
 /// Why the output cannot be opened or written; what() names the user's path and the reason.
 class ExportOutputError : public std::runtime_error {
@@ -36,7 +36,7 @@ class ExportOutput {
   ExportOutput(const ExportOutput&) = delete;
   ExportOutput& operator=(const ExportOutput&) = delete;
 
-  /// The bytes so far go through this stream too (db::export_history writes to a std::ostream).
+  /// The bytes so far go through this stream too (db::history::export_history writes to a std::ostream).
   std::ostream& stream();
   /// Writes `bytes`; throws ExportOutputError on a write error.
   void write(std::string_view bytes);
@@ -65,4 +65,4 @@ class ExportOutput {
   std::unique_ptr<std::ostream> stream_;
 };
 
-}  // namespace imucal::stationctl
+}  // namespace imucal::tools::stationctl

@@ -1,8 +1,8 @@
 // stationctl: the operator's and QA engineer's tool for the calibration station (station contract
-// §C). It talks to stationd over the control socket (JSON lines, station/control_protocol.hpp);
+// §C). It talks to stationd over the control socket (JSON lines, station/control/control_protocol.hpp);
 // the read commands (history, show, params, export, run status --run ID) fall back to reading the
 // history database read-only when the daemon cannot be reached, through the same functions the
-// daemon uses (station/record_json.hpp), so the output is the same either way.
+// daemon uses (station/control/record_json.hpp), so the output is the same either way.
 //
 // Exit codes: 0 ok (with --wait: the run is done with verdict PASS); 1 the run ended review,
 // failed, aborted or interrupted; 2 bad input (usage, invalid serial, unknown sequence or run);
@@ -29,44 +29,44 @@
 #include <thread>
 
 #include "db/archive/io_util.hpp"
-#include "db/export.hpp"
+#include "db/history/export.hpp"
 #include "db/fleet/fleet_repository.hpp"
 #include "db/fleet/fleet_schema.hpp"
 #include "db/fleet/fleet_writer.hpp"
 #include "db/fleet/pg_fleet_stats.hpp"
-#include "db/serial_number.hpp"
-#include "db/sqlite_fleet_stats.hpp"
-#include "db/sqlite_repository.hpp"
-#include "station/config.hpp"
-#include "station/control_client.hpp"
-#include "station/control_protocol.hpp"
-#include "station/fleet_sender.hpp"
-#include "station/record_json.hpp"
-#include "station/station_signatures.hpp"
-#include "tools/imucal/diagnosis_report.hpp"
+#include "db/history/serial_number.hpp"
+#include "db/history/sqlite_fleet_stats.hpp"
+#include "db/history/sqlite_repository.hpp"
+#include "station/config/config.hpp"
+#include "station/control/control_client.hpp"
+#include "station/control/control_protocol.hpp"
+#include "station/daemon/fleet_sender.hpp"
+#include "station/control/record_json.hpp"
+#include "tools/report/station_signatures.hpp"
+#include "tools/report/diagnosis_report.hpp"
 #include "tools/stationctl/export_output.hpp"
 
 namespace {
 
 using nlohmann::json;
 using namespace imucal;
-using station::ControlClient;
-using station::ControlClientError;
-using stationctl::ExportOutput;
-using stationctl::ExportOutputError;
+using station::control::ControlClient;
+using station::control::ControlClientError;
+using tools::stationctl::ExportOutput;
+using tools::stationctl::ExportOutputError;
 
 enum Exit : int { kOk = 0, kRunNotPassed = 1, kBadInput = 2, kRefused = 3, kUnavailable = 4 };
 /// `diagnose` of a run whose gap no candidate explains: the exit code of imucal diagnose.
 constexpr int kGapUnexplained = 3;
 
-/// Where stationd looks when no config is given (the systemd unit, station/stationd.service.in, passes this file).
+/// Where stationd looks when no config is given (the systemd unit, station/daemon/stationd.service.in, passes this file).
 constexpr const char* kDefaultConfig = "/etc/imucal/stationd.toml";
 constexpr const char* kDefaultSocket = "/run/imucal/stationd.sock";
 constexpr auto kPollPeriod = std::chrono::milliseconds(200);
-/// The daemon's own rule for names and reasons (station/control_protocol.hpp), checked before
+/// The daemon's own rule for names and reasons (station/control/control_protocol.hpp), checked before
 /// connecting so that the operator sees the problem at once.
 std::function<std::string(const std::string&)> text_check(std::size_t max_chars) {
-  return [max_chars](const std::string& v) { return station::text_field_error(v, max_chars); };
+  return [max_chars](const std::string& v) { return station::control::text_field_error(v, max_chars); };
 }
 
 /// Exit code when the operator stops following a run with Ctrl-C (128 + SIGINT, the shell's).
@@ -90,15 +90,15 @@ struct Failure {
 };
 
 int exit_for_error_code(const std::string& code) {
-  namespace ec = station::error_code;
+  namespace ec = station::control::error_code;
   if (code == ec::kBadRequest || code == ec::kInvalidInput || code == ec::kNotFound)
     return kBadInput;
   if (code == ec::kBusy || code == ec::kPermissionDenied) return kRefused;
   return kUnavailable;
 }
 
-int exit_for_db_error(db::DbErrorKind kind) {
-  if (kind == db::DbErrorKind::kNotFound || kind == db::DbErrorKind::kInvalidInput)
+int exit_for_db_error(db::history::DbErrorKind kind) {
+  if (kind == db::history::DbErrorKind::kNotFound || kind == db::history::DbErrorKind::kInvalidInput)
     return kBadInput;
   return kUnavailable;
 }
@@ -118,7 +118,7 @@ struct Target {
   std::string config_used;
   std::string fleet_url;  ///< --fleet: reads go to the fleet store (no daemon, no SQLite)
   std::string fleet_password;
-  std::optional<station::FleetConfig> fleet_config;  ///< the config's [fleet], for `fleet resync`
+  std::optional<station::config::FleetConfig> fleet_config;  ///< the config's [fleet], for `fleet resync`
 };
 
 Target resolve_target(const Globals& g) {
@@ -131,12 +131,12 @@ Target resolve_target(const Globals& g) {
     try {
       // The daemon's own loader: a config stationd accepts is one stationctl reads the same way
       // (relative paths against the file's directory). Only the socket and database are used.
-      const station::StationConfig c = station::load_config(config);
+      const station::config::StationConfig c = station::config::load_config(config);
       t.socket = c.control_socket;
       t.db = c.database;
       t.config_used = config;
       t.fleet_config = c.fleet;
-    } catch (const station::ConfigError& e) {
+    } catch (const station::config::ConfigError& e) {
       throw Failure{kBadInput, e.what()};
     }
   }
@@ -147,7 +147,7 @@ Target resolve_target(const Globals& g) {
     if (!g.fleet_password_file.empty())
       t.fleet_password = db::fleet::read_password_file(g.fleet_password_file);
     if (!t.fleet_url.empty()) (void)db::fleet::parse_fleet_target(t.fleet_url, t.fleet_password);
-  } catch (const db::DbError& e) {
+  } catch (const db::history::DbError& e) {
     throw Failure{kBadInput, std::string("--fleet: ") + e.what()};
   }
   if (t.socket.empty()) t.socket = kDefaultSocket;
@@ -155,7 +155,7 @@ Target resolve_target(const Globals& g) {
 }
 
 /// The result of an ok reply; an error reply becomes a Failure with the reply's message.
-json result_or_fail(const station::Reply& r) {
+json result_or_fail(const station::control::Reply& r) {
   if (!r.ok) throw Failure{exit_for_error_code(r.error_code), r.error_message};
   return r.result;
 }
@@ -197,7 +197,7 @@ std::unique_ptr<db::fleet::FleetRepository> open_fleet(const Target& t) {
   try {
     return std::make_unique<db::fleet::FleetRepository>(
         db::fleet::parse_fleet_target(t.fleet_url, t.fleet_password));
-  } catch (const db::DbError& e) {
+  } catch (const db::history::DbError& e) {
     throw Failure{exit_for_db_error(e.kind()), e.what()};
   }
 }
@@ -205,16 +205,16 @@ std::unique_ptr<db::fleet::FleetRepository> open_fleet(const Target& t) {
 /// A read of the fleet store (--fleet URL): the same validation and the same answer as the
 /// daemon's, over every station's runs.
 json fleet_read(const Target& t, const std::string& command, const json& args) {
-  if (command == station::cmd::kRunStatus)
+  if (command == station::control::cmd::kRunStatus)
     throw Failure{kBadInput, "run status needs a station's daemon, not the fleet store"};
   const auto repo = open_fleet(t);
   try {
-    const station::Request request =
-        station::validate_request(json{{"id", 0}, {"cmd", command}, {"args", args}});
-    return station::answer_repository_read(*repo, request);
-  } catch (const station::BadRequest& e) {
+    const station::control::Request request =
+        station::control::validate_request(json{{"id", 0}, {"cmd", command}, {"args", args}});
+    return station::control::answer_repository_read(*repo, request);
+  } catch (const station::control::BadRequest& e) {
     throw Failure{kBadInput, e.what()};
-  } catch (const db::DbError& e) {
+  } catch (const db::history::DbError& e) {
     throw Failure{exit_for_db_error(e.kind()), e.what()};
   }
 }
@@ -229,8 +229,8 @@ json read_request(const Target& t, const std::string& command, const json& args)
   // the database is there.
   if (client) {
     try {
-      const station::Reply r = client->call(command, args, kReadTimeout);
-      if (r.ok || r.error_code != station::error_code::kUnavailable || t.db.empty())
+      const station::control::Reply r = client->call(command, args, kReadTimeout);
+      if (r.ok || r.error_code != station::control::error_code::kUnavailable || t.db.empty())
         return result_or_fail(r);
       why = "stationd: " + r.error_message;  // e.g. its connections are exhausted
     } catch (const ControlClientError& e) {
@@ -244,34 +244,34 @@ json read_request(const Target& t, const std::string& command, const json& args)
     throw Failure{kUnavailable, why + "; no database to read instead (give --db or --config)"};
   std::cerr << "stationctl: note: " << why << "; reading the database " << t.db
             << " read-only instead\n";
-  std::unique_ptr<db::SqliteRepository> opened;
+  std::unique_ptr<db::history::SqliteRepository> opened;
   try {
-    db::SqliteOptions options;
+    db::history::SqliteOptions options;
     options.read_only = true;
-    opened = std::make_unique<db::SqliteRepository>(t.db, options);
-  } catch (const db::DbError& e) {
+    opened = std::make_unique<db::history::SqliteRepository>(t.db, options);
+  } catch (const db::history::DbError& e) {
     // No database (or not a usable one) is a database error, not bad input.
     throw Failure{kUnavailable, e.what()};
   }
-  const db::SqliteRepository& repo = *opened;
+  const db::history::SqliteRepository& repo = *opened;
   try {
     // The same validation and the same answer as the daemon's control server.
-    const station::Request request =
-        station::validate_request(json{{"id", 0}, {"cmd", command}, {"args", args}});
-    if (command == station::cmd::kRunStatus) {
+    const station::control::Request request =
+        station::control::validate_request(json{{"id", 0}, {"cmd", command}, {"args", args}});
+    if (command == station::control::cmd::kRunStatus) {
       if (!request.args.contains("run_id"))
         throw Failure{kUnavailable, why +
                                         " (the status of the daemon needs the daemon; "
                                         "`run status --run ID` reads a run's state from the "
                                         "database)"};
-      json run = station::run_record_json(repo.show(request.args["run_id"].get<db::RunId>()).run);
+      json run = station::control::run_record_json(repo.show(request.args["run_id"].get<db::history::RunId>()).run);
       run["reason"] = run["failure_reason"];
       return json{{"run", run}};
     }
-    return station::answer_repository_read(repo, request);
-  } catch (const station::BadRequest& e) {
+    return station::control::answer_repository_read(repo, request);
+  } catch (const station::control::BadRequest& e) {
     throw Failure{kBadInput, e.what()};
-  } catch (const db::DbError& e) {
+  } catch (const db::history::DbError& e) {
     throw Failure{exit_for_db_error(e.kind()), e.what()};
   }
 }
@@ -298,9 +298,9 @@ bool is_terminal_state(const std::string& state) {
 
 /// Polls run.status every ~200 ms until the run is terminal, showing a progress line on stderr
 /// (a TTY: rewritten in place; otherwise a new line only when step, phase or state changes).
-int wait_for_run(const Target& target, ControlClient& client, db::RunId run_id, bool json_out,
+int wait_for_run(const Target& target, ControlClient& client, db::history::RunId run_id, bool json_out,
                  json* outcome = nullptr);
-int wait_for_runs(const Target& target, ControlClient& client, const std::vector<db::RunId>& ids,
+int wait_for_runs(const Target& target, ControlClient& client, const std::vector<db::history::RunId>& ids,
                   bool json_out);
 
 /// `stationctl import DIR [--wait]`: the daemon reads the archive itself, so the path is made
@@ -311,7 +311,7 @@ int cmd_import(const Target& target, const std::string& dir, bool wait, bool jso
   if (ec || !std::filesystem::is_directory(abs))
     throw Failure{kBadInput, dir + ": no such run archive directory"};
   ControlClient client = connect_or_fail(target);
-  const json r = call(client, station::cmd::kImport, {{"dir", abs}});
+  const json r = call(client, station::control::cmd::kImport, {{"dir", abs}});
   const std::string head = "run " + text(r, "run_id", "?") + ": imported " + text(r, "setting") +
                            " run of " + text(r, "serial") + " from " + abs;
   if (!wait) {
@@ -322,13 +322,13 @@ int cmd_import(const Target& target, const std::string& dir, bool wait, bool jso
     return kOk;
   }
   if (!json_out) std::cerr << head << "\n";
-  return wait_for_run(target, client, r.at("run_id").get<db::RunId>(), json_out);
+  return wait_for_run(target, client, r.at("run_id").get<db::history::RunId>(), json_out);
 }
 
 /// `stationctl promote RUN_ID --reason TEXT`: recorded with the caller's user name.
-int cmd_promote(const Target& target, db::RunId run_id, const std::string& reason, bool json_out) {
+int cmd_promote(const Target& target, db::history::RunId run_id, const std::string& reason, bool json_out) {
   ControlClient client = connect_or_fail(target);
-  const json r = call(client, station::cmd::kPromote, {{"run_id", run_id}, {"reason", reason}});
+  const json r = call(client, station::control::cmd::kPromote, {{"run_id", run_id}, {"reason", reason}});
   if (json_out)
     print_json(r);
   else
@@ -340,11 +340,11 @@ int cmd_promote(const Target& target, db::RunId run_id, const std::string& reaso
 /// The daemon went away while a run was followed (SIGTERM, a crash): what the database says of
 /// the run once it is terminal — the daemon records an abort as it stops, recovery a crash when
 /// it starts again. Waits up to kOutcomeGrace for that; nullopt if there is still no outcome.
-std::optional<json> outcome_after_daemon_left(const Target& target, db::RunId run_id) {
+std::optional<json> outcome_after_daemon_left(const Target& target, db::history::RunId run_id) {
   const auto deadline = std::chrono::steady_clock::now() + kOutcomeGrace;
   for (;;) {
     try {
-      const json status = read_request(target, station::cmd::kRunStatus, {{"run_id", run_id}});
+      const json status = read_request(target, station::control::cmd::kRunStatus, {{"run_id", run_id}});
       if (status.contains("run") && is_terminal_state(text(status["run"], "state")))
         return status["run"];
     } catch (const Failure&) {
@@ -357,7 +357,7 @@ std::optional<json> outcome_after_daemon_left(const Target& target, db::RunId ru
 
 /// Follows one run to its end with the progress line; prints its outcome (or, with `outcome`,
 /// hands it back unprinted). Exit code: 0 only for done + PASS.
-int wait_for_run(const Target& target, ControlClient& client, db::RunId run_id, bool json_out,
+int wait_for_run(const Target& target, ControlClient& client, db::history::RunId run_id, bool json_out,
                  json* outcome) {
   const bool tty = ::isatty(STDERR_FILENO) != 0;
   std::string last_key, last_line;
@@ -377,7 +377,7 @@ int wait_for_run(const Target& target, ControlClient& client, db::RunId run_id, 
     }
     json status;
     try {
-      status = call(client, station::cmd::kRunStatus, {{"run_id", run_id}});
+      status = call(client, station::control::cmd::kRunStatus, {{"run_id", run_id}});
     } catch (Failure& f) {
       if (tty && shown_width) std::cerr << "\n";  // keep the last progress shown
       shown_width = 0;
@@ -397,7 +397,7 @@ int wait_for_run(const Target& target, ControlClient& client, db::RunId run_id, 
     run = status["run"];
     const std::string state = text(run, "state");
     if (is_terminal_state(state)) break;  // the outcome line below says it once
-    const std::string line = station::progress_line(run);
+    const std::string line = station::control::progress_line(run);
     if (tty) {
       if (line != last_line) {
         std::string out = "\r" + line;
@@ -426,18 +426,18 @@ int wait_for_run(const Target& target, ControlClient& client, db::RunId run_id, 
   else if (json_out)
     print_json(json{{"run", run}});
   else
-    std::cout << station::outcome_line(run) << "\n";
+    std::cout << station::control::outcome_line(run) << "\n";
   const bool pass = state_done_pass(run);
   return pass ? kOk : kRunNotPassed;
 }
 
 /// The units of one table run followed to their ends (the first one's progress line names the
 /// others); one outcome line per unit, or {"runs": [...]}. 0 only if every unit is done + PASS.
-int wait_for_runs(const Target& target, ControlClient& client, const std::vector<db::RunId>& ids,
+int wait_for_runs(const Target& target, ControlClient& client, const std::vector<db::history::RunId>& ids,
                   bool json_out) {
   json runs = json::array();
   int code = kOk;
-  for (const db::RunId id : ids) {
+  for (const db::history::RunId id : ids) {
     json run;
     const int c = wait_for_run(target, client, id, json_out, &run);
     if (c == kInterrupted) return c;
@@ -447,12 +447,12 @@ int wait_for_runs(const Target& target, ControlClient& client, const std::vector
   if (json_out)
     print_json(json{{"runs", runs}});
   else
-    for (const json& run : runs) std::cout << station::outcome_line(run) << "\n";
+    for (const json& run : runs) std::cout << station::control::outcome_line(run) << "\n";
   return code;
 }
 
 void check_serial(const std::string& serial) {
-  if (const auto problem = db::serial_problem(serial)) throw Failure{kBadInput, *problem};
+  if (const auto problem = db::history::serial_problem(serial)) throw Failure{kBadInput, *problem};
 }
 
 /// The export streamed from the daemon into `out`; the rows, or nullopt (with `why`) when the
@@ -466,15 +466,15 @@ std::optional<std::size_t> export_from_daemon(const Target& t, const json& args,
   try {
     json streamed = args;
     streamed["stream"] = true;
-    const station::Reply r = client->call_streamed(
-        station::cmd::kExport, streamed,
+    const station::control::Reply r = client->call_streamed(
+        station::control::cmd::kExport, streamed,
         [&](std::string_view bytes) {
           wrote = true;
           out.write(bytes);
         },
         kExportFrameTimeout);
     if (r.ok) return r.result.at("rows").get<std::size_t>();
-    if (r.error_code != station::error_code::kUnavailable || t.db.empty() || wrote)
+    if (r.error_code != station::control::error_code::kUnavailable || t.db.empty() || wrote)
       result_or_fail(r);
     why = "stationd: " + r.error_message;
   } catch (const ControlClientError& e) {
@@ -495,9 +495,9 @@ int export_to(const Target& t, const json& args, const std::string& output, bool
   if (!t.fleet_url.empty()) {
     const auto repo = open_fleet(t);
     try {
-      rows = db::export_history(*repo, station::export_filter(*repo, args),
+      rows = db::history::export_history(*repo, station::control::export_filter(*repo, args),
                                 args.at("format").get<std::string>(), out.stream());
-    } catch (const db::DbError& e) {
+    } catch (const db::history::DbError& e) {
       out.check();
       throw Failure{exit_for_db_error(e.kind()), e.what()};
     }
@@ -510,12 +510,12 @@ int export_to(const Target& t, const json& args, const std::string& output, bool
     std::cerr << "stationctl: note: " << why << "; reading the database " << t.db
               << " read-only instead\n";
     try {
-      db::SqliteOptions options;
+      db::history::SqliteOptions options;
       options.read_only = true;
-      const db::SqliteRepository repo(t.db, options);
-      rows = db::export_history(repo, station::export_filter(repo, args),
+      const db::history::SqliteRepository repo(t.db, options);
+      rows = db::history::export_history(repo, station::control::export_filter(repo, args),
                                 args.at("format").get<std::string>(), out.stream());
-    } catch (const db::DbError& e) {
+    } catch (const db::history::DbError& e) {
       out.check();  // the output's own failure, with the system's reason, before the export's words
       throw Failure{exit_for_db_error(e.kind()), e.what()};
     }
@@ -547,8 +547,8 @@ struct Args {
   int period_days = 7;  ///< stations --signatures --trend
   double false_alarm = 1e-3;
   std::optional<double> gravity_mps2;  ///< reprocess: the corrected surveyed gravity
-  db::RunId run_id = 0;
-  std::vector<db::RunId> run_ids;  ///< reprocess: one or several
+  db::history::RunId run_id = 0;
+  std::vector<db::history::RunId> run_ids;  ///< reprocess: one or several
   std::size_t limit = 0;
 };
 
@@ -583,7 +583,7 @@ void add_run_commands(CLI::App& app, Args& a, Commands& c) {
   c.start = run->add_subcommand("start", "start a run of a unit (needs the control group)");
   c.start
       ->add_option("--serial", a.serials,
-                   std::string("serial number: ") + db::kSerialRule +
+                   std::string("serial number: ") + db::history::kSerialRule +
                        "; repeat it for several units on the fixture (slots in the "
                        "configuration's order)")
       ->take_all();
@@ -592,7 +592,7 @@ void add_run_commands(CLI::App& app, Args& a, Commands& c) {
                       "--serial)");
   c.start->add_option("--sequence", a.sequence, "sequence name or file (default: the station's)");
   c.start->add_option("--operator", a.operator_name, "operator name (default: your user name)")
-      ->check(text_check(station::kMaxNameChars));
+      ->check(text_check(station::control::kMaxNameChars));
   c.start->add_flag("--wait", a.wait, "follow the run to its end; exit 0 only for done + PASS");
   c.start->fallthrough();
   c.status = run->add_subcommand("status", "the daemon's state, or one run's (--run)");
@@ -600,7 +600,7 @@ void add_run_commands(CLI::App& app, Args& a, Commands& c) {
   c.status->fallthrough();
   c.abort = run->add_subcommand("abort", "abort the active run (needs the control group)");
   c.abort->add_option("--reason", a.reason, "why (stored with the run)")
-      ->check(text_check(station::kMaxReasonChars));
+      ->check(text_check(station::control::kMaxReasonChars));
   c.abort->fallthrough();
 }
 
@@ -678,7 +678,7 @@ void add_history_commands(CLI::App& app, Args& a, Commands& c) {
   c.promote->add_option("RUN_ID", a.run_id, "run id")->required()->check(CLI::PositiveNumber);
   c.promote->add_option("--reason", a.reason, "why (stored with the run, required)")
       ->required()
-      ->check(text_check(station::kMaxReasonChars));
+      ->check(text_check(station::control::kMaxReasonChars));
   c.promote->fallthrough();
   c.stations = app.add_subcommand(
       "stations", "the stations in the fleet store (--fleet URL), or their signatures");
@@ -737,7 +737,7 @@ int started(const Target& t, ControlClient& client, const json& r, const std::st
     return kOk;
   }
   if (!as_json) std::cerr << "run " << text(r, "run_id", "?") << " " << what << "\n";
-  return wait_for_run(t, client, r.at("run_id").get<db::RunId>(), as_json);
+  return wait_for_run(t, client, r.at("run_id").get<db::history::RunId>(), as_json);
 }
 
 /// run start's units: --serial SN (repeatable: slots in order) or --slot SLOT=SN, not both.
@@ -771,18 +771,18 @@ int cmd_run_start(const Target& t, const Args& a, bool as_json) {
   if (!a.sequence.empty()) args["sequence"] = a.sequence;
   if (!a.operator_name.empty()) args["operator"] = a.operator_name;
   ControlClient client = connect_or_fail(t);
-  const json r = call(client, station::cmd::kRunStart, args);
+  const json r = call(client, station::control::cmd::kRunStart, args);
   std::string what = "started: ";
-  std::vector<db::RunId> ids;
+  std::vector<db::history::RunId> ids;
   if (r.contains("units") && r["units"].is_array()) {
     for (const json& u : r["units"]) {
       what += (ids.empty() ? "" : ", ") + text(u, "serial") + " (slot " + text(u, "slot") +
               ", run " + text(u, "run_id") + ")";
-      ids.push_back(u.at("run_id").get<db::RunId>());
+      ids.push_back(u.at("run_id").get<db::history::RunId>());
     }
   } else {
     what += text(r, "serial");
-    ids.push_back(r.at("run_id").get<db::RunId>());
+    ids.push_back(r.at("run_id").get<db::history::RunId>());
   }
   if (a.wait && ids.size() > 1) {
     if (!as_json) std::cerr << "table run " << ids.front() << " " << what << "\n";
@@ -799,11 +799,11 @@ int cmd_run_abort(const Target& t, const Args& a, bool as_json) {
   json args = json::object();
   if (!a.reason.empty()) args["reason"] = a.reason;
   ControlClient client = connect_or_fail(t);
-  const json r = call(client, station::cmd::kRunAbort, args);
+  const json r = call(client, station::control::cmd::kRunAbort, args);
   if (as_json)
     print_json(r);
   else if (r.contains("run") && r["run"].is_object())
-    std::cout << station::outcome_line(r["run"]) << "\n";
+    std::cout << station::control::outcome_line(r["run"]) << "\n";
   else
     std::cout << "abort requested"
               << (r.contains("run_id") ? " for run " + r["run_id"].dump() : std::string()) << "\n";
@@ -819,8 +819,8 @@ int cmd_export_history(const Target& t, const Args& a, bool as_json) {
   }
   if (!a.since.empty()) {
     try {
-      (void)db::parse_time_utc(a.since);
-    } catch (const db::DbError& e) {
+      (void)db::history::parse_time_utc(a.since);
+    } catch (const db::history::DbError& e) {
       throw Failure{kBadInput, std::string("--since: ") + e.what()};
     }
     args["since"] = a.since;
@@ -828,7 +828,7 @@ int cmd_export_history(const Target& t, const Args& a, bool as_json) {
   return cmd_export(t, args, a.output, as_json);
 }
 
-json reprocess_args(db::RunId run_id, const Args& a) {
+json reprocess_args(db::history::RunId run_id, const Args& a) {
   json args = {{"run_id", run_id}};
   if (a.partial) args["partial"] = true;
   if (a.gravity_mps2) args["gravity_mps2"] = *a.gravity_mps2;
@@ -836,9 +836,9 @@ json reprocess_args(db::RunId run_id, const Args& a) {
 }
 
 /// The command that reprocesses `rest` with the same options: what a stopped batch leaves to do.
-std::string reprocess_command(const std::vector<db::RunId>& rest, const Args& a) {
+std::string reprocess_command(const std::vector<db::history::RunId>& rest, const Args& a) {
   std::string cmd = "stationctl reprocess";
-  for (const db::RunId id : rest) cmd += " " + std::to_string(id);
+  for (const db::history::RunId id : rest) cmd += " " + std::to_string(id);
   if (a.partial) cmd += " --partial";
   if (a.gravity_mps2) {
     char g[32];
@@ -853,23 +853,23 @@ std::string reprocess_command(const std::vector<db::RunId>& rest, const Args& a)
 /// or an interruption stops the batch and says which runs are left, with the command that goes on.
 /// Exit code: 0 only when every new run is done + PASS.
 int reprocess_batch(const Target& t, const Args& a, bool as_json) {
-  std::set<db::RunId> seen;
-  for (const db::RunId id : a.run_ids)
+  std::set<db::history::RunId> seen;
+  for (const db::history::RunId id : a.run_ids)
     if (!seen.insert(id).second)
       throw Failure{kBadInput, "reprocess: run " + std::to_string(id) + " is given twice"};
   ControlClient client = connect_or_fail(t);
   json done = json::array();
   int code = kOk;
   for (std::size_t i = 0; i < a.run_ids.size(); ++i) {
-    const db::RunId old_id = a.run_ids[i];
-    const std::vector<db::RunId> rest(a.run_ids.begin() + static_cast<std::ptrdiff_t>(i),
+    const db::history::RunId old_id = a.run_ids[i];
+    const std::vector<db::history::RunId> rest(a.run_ids.begin() + static_cast<std::ptrdiff_t>(i),
                                       a.run_ids.end());
     const std::string left = " (reprocessed " + std::to_string(i) + " of " +
                              std::to_string(a.run_ids.size()) +
                              "; to go on: " + reprocess_command(rest, a) + ")";
     json r;
     try {
-      r = call(client, station::cmd::kReprocess, reprocess_args(old_id, a));
+      r = call(client, station::control::cmd::kReprocess, reprocess_args(old_id, a));
     } catch (Failure& f) {
       f.message = "run " + std::to_string(old_id) + ": " + f.message + left;
       throw;
@@ -878,7 +878,7 @@ int reprocess_batch(const Target& t, const Args& a, bool as_json) {
       std::cerr << "[" << i + 1 << "/" << a.run_ids.size() << "] run " << old_id
                 << " reprocessing as run " << text(r, "run_id", "?") << "\n";
     json run;
-    const int c = wait_for_run(t, client, r.at("run_id").get<db::RunId>(), as_json, &run);
+    const int c = wait_for_run(t, client, r.at("run_id").get<db::history::RunId>(), as_json, &run);
     if (c == kInterrupted) {
       std::cerr << "stationctl: the batch stopped" << left << "\n";
       return c;
@@ -886,7 +886,7 @@ int reprocess_batch(const Target& t, const Args& a, bool as_json) {
     if (c != kOk) code = c;
     done.push_back({{"reprocessed", old_id}, {"run", run}});
     if (!as_json)
-      std::cout << "run " << old_id << " -> " << station::outcome_line(run) << "\n" << std::flush;
+      std::cout << "run " << old_id << " -> " << station::control::outcome_line(run) << "\n" << std::flush;
   }
   if (as_json)
     print_json(json{{"runs", done}});
@@ -898,9 +898,9 @@ int reprocess_batch(const Target& t, const Args& a, bool as_json) {
 
 int cmd_reprocess(const Target& t, const Args& a, bool as_json) {
   if (a.run_ids.size() > 1) return reprocess_batch(t, a, as_json);
-  const db::RunId run_id = a.run_ids.at(0);
+  const db::history::RunId run_id = a.run_ids.at(0);
   ControlClient client = connect_or_fail(t);
-  const json r = call(client, station::cmd::kReprocess, reprocess_args(run_id, a));
+  const json r = call(client, station::control::cmd::kReprocess, reprocess_args(run_id, a));
   return started(t, client, r, "reprocesses run " + std::to_string(run_id), a.wait, as_json);
 }
 
@@ -916,19 +916,19 @@ void check_report_dir(const std::string& dir) {
 int cmd_diagnose(const Target& t, const Args& a, bool as_json) {
   check_report_dir(a.report_dir);
   ControlClient client = connect_or_fail(t);
-  const json d = call(client, station::cmd::kDiagnose, {{"run_id", a.run_id}});
+  const json d = call(client, station::control::cmd::kDiagnose, {{"run_id", a.run_id}});
   if (!a.report_dir.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(a.report_dir, ec);
     if (ec) throw Failure{kUnavailable, "--report " + a.report_dir + ": " + ec.message()};
     try {
-      archive::write_file_atomic(a.report_dir + "/diagnosis.json", d.dump(2) + "\n");
-      archive::write_file_atomic(a.report_dir + "/report.html", tools::diagnosis_report_html(d));
+      db::archive::write_file_atomic(a.report_dir + "/diagnosis.json", d.dump(2) + "\n");
+      db::archive::write_file_atomic(a.report_dir + "/report.html", tools::report::diagnosis_report_html(d));
     } catch (const std::exception& e) {
       throw Failure{kUnavailable, std::string("--report: ") + e.what()};
     }
   }
-  print_result(d, as_json, station::render_diagnosis_text);
+  print_result(d, as_json, station::control::render_diagnosis_text);
   return d.value("verdict", "") == "unexplained" ? kGapUnexplained : kOk;
 }
 
@@ -941,7 +941,7 @@ int cmd_stations(const Target& t, bool as_json) {
   try {
     for (const auto& [id, runs] : repo->stations())
       list.push_back({{"station", id}, {"runs", runs}});
-  } catch (const db::DbError& e) {
+  } catch (const db::history::DbError& e) {
     throw Failure{exit_for_db_error(e.kind()), e.what()};
   }
   if (as_json) {
@@ -956,11 +956,11 @@ int cmd_stations(const Target& t, bool as_json) {
 
 /// `stations --signatures --trend`: the signatures period by period; exit 1 if a station is
 /// flagged in the newest period (an old flag is history).
-int signature_trend(const db::Repository& repo, const db::FleetStats& stats, const Args& a,
-                    const calib::SignatureOptions& options, bool as_json) {
-  const db::FleetFilter window =
-      station::signature_window(repo, a.since, a.until, 12 * a.period_days);
-  json trend = station::station_signature_trend(
+int signature_trend(const db::history::Repository& repo, const db::history::FleetStats& stats, const Args& a,
+                    const calib::studies::fleet::SignatureOptions& options, bool as_json) {
+  const db::history::FleetFilter window =
+      tools::report::signature_window(repo, a.since, a.until, 12 * a.period_days);
+  json trend = tools::report::station_signature_trend(
       stats, window, a.period_days, options,
       [](const std::string& line) { std::cerr << line << "...\n"; });
   bool flagged_now = false;
@@ -970,7 +970,7 @@ int signature_trend(const db::Repository& repo, const db::FleetStats& stats, con
   if (as_json)
     print_json(trend);
   else
-    std::cout << station::render_signature_trend_text(trend);
+    std::cout << tools::report::render_signature_trend_text(trend);
   return flagged_now ? kRunNotPassed : kOk;
 }
 
@@ -979,26 +979,26 @@ int cmd_station_signatures(const Target& t, const Args& a, bool as_json) {
   if (t.fleet_url.empty() && t.db.empty())
     throw Failure{kBadInput, "stations --signatures: give the fleet store (--fleet URL) or --db"};
   try {
-    std::unique_ptr<db::Repository> repo;
-    std::unique_ptr<db::FleetStats> stats;
+    std::unique_ptr<db::history::Repository> repo;
+    std::unique_ptr<db::history::FleetStats> stats;
     if (!t.fleet_url.empty()) {
       const auto target = db::fleet::parse_fleet_target(t.fleet_url, t.fleet_password);
       repo = std::make_unique<db::fleet::FleetRepository>(target);
       stats = std::make_unique<db::fleet::PgFleetStats>(target);
     } else {
-      db::SqliteOptions ro;
+      db::history::SqliteOptions ro;
       ro.read_only = true;
-      repo = std::make_unique<db::SqliteRepository>(t.db, ro);
-      stats = std::make_unique<db::SqliteFleetStats>(t.db);
+      repo = std::make_unique<db::history::SqliteRepository>(t.db, ro);
+      stats = std::make_unique<db::history::SqliteFleetStats>(t.db);
     }
-    calib::SignatureOptions options;
+    calib::studies::fleet::SignatureOptions options;
     options.false_alarm = a.false_alarm;
     if (a.trend) return signature_trend(*repo, *stats, a, options, as_json);
-    const db::FleetFilter window = station::signature_window(*repo, a.since, a.until);
-    json report = station::station_signature_report(
+    const db::history::FleetFilter window = tools::report::signature_window(*repo, a.since, a.until);
+    json report = tools::report::station_signature_report(
         *stats, window, options, [](const std::string& line) { std::cerr << line << "...\n"; });
-    report["since"] = window.since_ms ? db::format_time_utc(*window.since_ms) : "";
-    report["until"] = window.until_ms ? db::format_time_utc(*window.until_ms) : "";
+    report["since"] = window.since_ms ? db::history::format_time_utc(*window.since_ms) : "";
+    report["until"] = window.until_ms ? db::history::format_time_utc(*window.until_ms) : "";
     bool flagged = false;
     for (const json& st : report["stations"]) flagged = flagged || st.value("flagged", false);
     if (as_json)
@@ -1006,11 +1006,11 @@ int cmd_station_signatures(const Target& t, const Args& a, bool as_json) {
     else
       std::cout << "runs started " << text(report, "since") << " until " << text(report, "until")
                 << "\n"
-                << station::render_signatures_text(report);
+                << tools::report::render_signatures_text(report);
     return flagged ? kRunNotPassed : kOk;
-  } catch (const station::WindowError& e) {
+  } catch (const tools::report::WindowError& e) {
     throw Failure{kBadInput, std::string("stations --signatures: ") + e.what()};
-  } catch (const db::DbError& e) {
+  } catch (const db::history::DbError& e) {
     throw Failure{exit_for_db_error(e.kind()), e.what()};
   }
 }
@@ -1027,18 +1027,18 @@ int cmd_fleet_resync(const Target& t, const std::string& station_id_option, bool
                                      : throw Failure{kBadInput, "fleet resync: give --station-id"};
   try {
     const db::fleet::FleetTarget target =
-        t.fleet_url.empty() ? station::fleet_target(*t.fleet_config)
+        t.fleet_url.empty() ? station::daemon::fleet_target(*t.fleet_config)
                             : db::fleet::parse_fleet_target(t.fleet_url, t.fleet_password);
-    db::SqliteOptions ro;
+    db::history::SqliteOptions ro;
     ro.read_only = true;
-    const db::SqliteRepository local(t.db, ro);
+    const db::history::SqliteRepository local(t.db, ro);
     db::fleet::PgConnection conn(target);
     db::fleet::migrate_fleet(conn);
     // The mark before the read: a run the sender delivers meanwhile is never set apart.
     const db::fleet::ResyncMark mark = db::fleet::begin_resync(conn, station_id);
-    std::vector<db::RunId> ids;
+    std::vector<db::history::RunId> ids;
     std::vector<std::string> uuids;
-    for (const db::RunRecord& r : local.recent_runs(0)) {
+    for (const db::history::RunRecord& r : local.recent_runs(0)) {
       ids.push_back(r.run_id);
       uuids.push_back(r.uuid);
     }
@@ -1049,7 +1049,7 @@ int cmd_fleet_resync(const Target& t, const std::string& station_id_option, bool
     db::fleet::UpsertCount n;
     constexpr std::size_t kChunk = 500;
     for (std::size_t i = 0; i < ids.size(); i += kChunk) {
-      const std::vector<db::RunId> chunk(ids.begin() + i,
+      const std::vector<db::history::RunId> chunk(ids.begin() + i,
                                          ids.begin() + std::min(ids.size(), i + kChunk));
       const auto runs = local.details_of(chunk);
       const auto c = db::fleet::upsert_runs(conn, station_id, runs);
@@ -1079,7 +1079,7 @@ int cmd_fleet_resync(const Target& t, const std::string& station_id_option, bool
                   << "\n";
     }
     return kOk;
-  } catch (const db::DbError& e) {
+  } catch (const db::history::DbError& e) {
     throw Failure{exit_for_db_error(e.kind()), e.what()};
   }
 }
@@ -1090,8 +1090,8 @@ int dispatch(const Target& t, const Args& a, const Commands& c, bool as_json) {
   if (*c.status) {
     json args = json::object();
     if (a.run_id > 0) args["run_id"] = a.run_id;
-    return print_result(read_request(t, station::cmd::kRunStatus, args), as_json,
-                        station::render_status_text);
+    return print_result(read_request(t, station::control::cmd::kRunStatus, args), as_json,
+                        station::control::render_status_text);
   }
   if (*c.abort) return cmd_run_abort(t, a, as_json);
   if (*c.history) {
@@ -1102,17 +1102,17 @@ int dispatch(const Target& t, const Args& a, const Commands& c, bool as_json) {
     }
     if (a.limit > 0) args["limit"] = a.limit;
     if (!a.station.empty()) args["station"] = a.station;
-    return print_result(read_request(t, station::cmd::kHistory, args), as_json,
-                        station::render_history_text);
+    return print_result(read_request(t, station::control::cmd::kHistory, args), as_json,
+                        station::control::render_history_text);
   }
   if (*c.show)
-    return print_result(read_request(t, station::cmd::kShow, {{"run_id", a.run_id}}), as_json,
-                        station::render_show_text);
+    return print_result(read_request(t, station::control::cmd::kShow, {{"run_id", a.run_id}}), as_json,
+                        station::control::render_show_text);
   if (*c.params) {
     check_serial(a.serial);
-    json params = read_request(t, station::cmd::kParams, {{"serial", a.serial}});
+    json params = read_request(t, station::control::cmd::kParams, {{"serial", a.serial}});
     if (a.bare) params.erase("source");
-    return print_result(params, as_json, station::render_params_text);
+    return print_result(params, as_json, station::control::render_params_text);
   }
   if (*c.exp) return cmd_export_history(t, a, as_json);
   if (*c.reprocess) return cmd_reprocess(t, a, as_json);

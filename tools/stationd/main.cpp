@@ -13,26 +13,26 @@
 #include <iostream>
 
 #include "db/fleet/fleet_schema.hpp"
-#include "db/sqlite_repository.hpp"
-#include "station/config.hpp"
-#include "station/daemon.hpp"
-#include "station/fleet_sender.hpp"
-#include "station/logging.hpp"
-#include "station/sd_notify.hpp"
+#include "db/history/sqlite_repository.hpp"
+#include "station/config/config.hpp"
+#include "station/daemon/daemon.hpp"
+#include "station/daemon/fleet_sender.hpp"
+#include "station/daemon/logging.hpp"
+#include "station/daemon/sd_notify.hpp"
 
 namespace {
 
 /// --check-config with [fleet]: can this station log in to its fleet store, and is the store's
 /// schema one this software can write? The daemon itself starts either way (the line never stops
 /// for the fleet store); this is the check before deployment. 0 ok, 1 not.
-int check_fleet(const imucal::station::FleetConfig& fleet) {
+int check_fleet(const imucal::station::config::FleetConfig& fleet) {
   namespace fl = imucal::db::fleet;
   if (!fleet.password_file.empty()) {
     const std::string exposed = fl::password_file_exposure(fleet.password_file);
     if (!exposed.empty()) std::cerr << "warning: " << exposed << "\n";
   }
   try {
-    const fl::FleetTarget target = imucal::station::fleet_target(fleet);
+    const fl::FleetTarget target = imucal::station::daemon::fleet_target(fleet);
     fl::PgConnection c(target);
     const int v = fl::fleet_version(c);
     if (v > fl::kFleetSchemaVersion) fl::check_fleet_version(c);  // throws: newer than ours
@@ -43,7 +43,7 @@ int check_fleet(const imucal::station::FleetConfig& fleet) {
                                (v < fl::kFleetSchemaVersion ? ", the daemon migrates it" : ""))
               << ")\n";
     return 0;
-  } catch (const imucal::db::DbError& e) {
+  } catch (const imucal::db::history::DbError& e) {
     std::cerr << "fleet store: " << e.what()
               << "\n(stationd would start anyway and keep the changes in its outbox)\n";
     return 1;
@@ -60,9 +60,11 @@ int main(int argc, char** argv) {
   // path here (measured: `imucal bench` unchanged with MALLOC_ARENA_MAX=1).
   mallopt(M_ARENA_MAX, 1);
   // SQLite's heap bounded for the whole process, with the per-connection page cache: the one place
-  // for its limits and their measurement is db/sqlite_repository.hpp.
-  imucal::db::limit_sqlite_process_memory();
+  // for its limits and their measurement is db/history/sqlite_repository.hpp.
+  imucal::db::history::limit_sqlite_process_memory();
   using namespace imucal::station;
+  using namespace imucal::station::config;
+  using namespace imucal::station::daemon;
   CLI::App app{"stationd " IMUCAL_VERSION " — IMU calibration station daemon"};
   std::string config_path, log_level;
   bool check_only = false;

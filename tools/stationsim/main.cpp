@@ -30,15 +30,15 @@
 #include "calib/effects/catalogue.hpp"
 #include "db/archive/unit_file.hpp"
 #include "drivers/imu/imu_codec.hpp"
-#include "drivers/sim/station_sim.hpp"
+#include "drivers/simulated/station_sim.hpp"
 
 namespace {
 
-using imucal::sim::StationSim;
-using imucal::sim::StationSimConfig;
-using imucal::sim::StationSimFaults;
-using imucal::sim::StationSimStats;
-using imucal::sim::StationSimUnit;
+using imucal::drivers::simulated::StationSim;
+using imucal::drivers::simulated::StationSimConfig;
+using imucal::drivers::simulated::StationSimFaults;
+using imucal::drivers::simulated::StationSimStats;
+using imucal::drivers::simulated::StationSimUnit;
 
 /// Bad command-line input: exit 2 with this one-line message.
 struct BadInput : std::runtime_error {
@@ -172,7 +172,7 @@ struct CliArgs {
 };
 
 void add_options(CLI::App& app, CliArgs& a) {
-  const imucal::calib::Site demo = imucal::calib::demo_factory_site();
+  const imucal::calib::core::Site demo = imucal::calib::core::demo_factory_site();
   a.lat_deg = demo.lat_rad / imucal::kDegToRad;
   a.lon_deg = demo.lon_rad / imucal::kDegToRad;
   a.height_m = demo.height_m;
@@ -187,7 +187,7 @@ void add_options(CLI::App& app, CliArgs& a) {
          "inject a catalogue effect, NAME=V[,V...] in SI (repeatable; imucal effects lists them)")
       ->take_all();
   app.add_option("--protocol", a.protocol,
-                 "the IMU's CAN protocol file (drivers/imu/PROTOCOLS.md); default: the built-in "
+                 "the IMU's CAN protocol file (drivers/imu/PROTOCOL.md); default: the built-in "
                  "protocol");
   app.add_option("--base-id", a.base_id,
                  "move the protocol's CAN ids so that the lowest is this one (default: as in its "
@@ -238,12 +238,12 @@ void add_options(CLI::App& app, CliArgs& a) {
 /// The unit file and the catalogue effects on top of it (withheld from the station).
 /// A unit file (none: the default unit) with catalogue effects on top of it; errors name the
 /// option (`flag` for the file, `effect_flag` for an effect) and the file.
-imucal::calib::UnitModel load_unit(const std::string& path, const std::vector<std::string>& effects,
+imucal::calib::effects::UnitModel load_unit(const std::string& path, const std::vector<std::string>& effects,
                                    const std::string& flag, const std::string& effect_flag) {
-  imucal::calib::UnitModel unit = imucal::calib::default_unit();
+  imucal::calib::effects::UnitModel unit = imucal::calib::effects::default_unit();
   if (!path.empty()) {
     try {
-      unit = imucal::archive::read_unit_file(path);
+      unit = imucal::db::archive::read_unit_file(path);
     } catch (const std::exception& e) {
       const std::string what = e.what();
       // The archive reader names the file and line; make sure the file is named either way.
@@ -253,7 +253,7 @@ imucal::calib::UnitModel load_unit(const std::string& path, const std::vector<st
   }
   for (const std::string& spec : effects) {
     try {
-      imucal::calib::apply_effect_spec(unit.effects, spec);
+      imucal::calib::effects::apply_effect_spec(unit.effects, spec);
     } catch (const std::exception& e) {
       throw BadInput(effect_flag + " " + spec + ": " + e.what());
     }
@@ -278,10 +278,10 @@ void apply_clock_and_site(const CliArgs& a, StationSimConfig& cfg) {
   cfg.wait_for_can_peer = a.wait_for_can_peer;
   try {
     if (!a.protocol.empty())
-      cfg.protocol = std::make_shared<const imucal::imu::ImuProtocolMap>(
-          imucal::imu::read_protocol_map(a.protocol));
+      cfg.protocol = std::make_shared<const imucal::drivers::imu::ImuProtocolMap>(
+          imucal::drivers::imu::read_protocol_map(a.protocol));
     if (a.base_id >= 0) cfg.base_id = static_cast<uint32_t>(a.base_id);
-    cfg.protocol = imucal::imu::resolve_protocol(cfg.protocol, cfg.base_id);
+    cfg.protocol = imucal::drivers::imu::resolve_protocol(cfg.protocol, cfg.base_id);
   } catch (const std::invalid_argument& e) {
     throw BadInput(std::string(a.protocol.empty() ? "--base-id" : "--protocol") + ": " + e.what());
   }
@@ -290,7 +290,7 @@ void apply_clock_and_site(const CliArgs& a, StationSimConfig& cfg) {
   cfg.site.height_m = a.height_m;
   if (std::isnan(a.gravity)) {
     cfg.site.gravity_mps2 =
-        imucal::calib::EarthModel::normal_gravity_mps2(cfg.site.lat_rad, a.height_m);
+        imucal::calib::core::EarthModel::normal_gravity_mps2(cfg.site.lat_rad, a.height_m);
   } else {
     if (!(a.gravity > 9.7 && a.gravity < 9.9))
       throw BadInput("--gravity-mps2: must be in (9.7, 9.9)");
@@ -316,7 +316,7 @@ void apply_faults(const CliArgs& a, StationSimConfig& cfg) {
   if (!a.table_fault.empty()) cfg.faults.table_fault = parse_table_fault(a.table_fault);
   if (!a.imu_fault.empty()) {
     try {
-      cfg.faults.imu_fault = imucal::sim::parse_imu_fault(a.imu_fault);
+      cfg.faults.imu_fault = imucal::drivers::simulated::parse_imu_fault(a.imu_fault);
     } catch (const std::invalid_argument& e) {
       throw BadInput(e.what());
     }
@@ -333,7 +333,7 @@ Eigen::Vector3d vector3(const std::string& text, const std::string& flag) {
 Eigen::Matrix3d mount_of(const std::string& text, const std::string& flag) {
   const Eigen::Vector3d rpy_deg = vector3(text, flag);
   if (std::abs(rpy_deg(1)) > 90.0) throw BadInput(flag + ": pitch must be within [-90, 90] deg");
-  return imucal::calib::euler_to_C_bn(rpy_deg(0) * imucal::kDegToRad,
+  return imucal::calib::core::euler_to_C_bn(rpy_deg(0) * imucal::kDegToRad,
                                       rpy_deg(1) * imucal::kDegToRad,
                                       rpy_deg(2) * imucal::kDegToRad);
 }
@@ -417,11 +417,11 @@ StationSimConfig config_from(const CliArgs& a, std::vector<std::string>& truth_o
 void announce_ready(StationSim& sim, const CliArgs& a, const StationSimConfig& cfg,
                     const std::vector<std::string>& truth_outs) {
   if (!a.truth_out.empty())
-    imucal::archive::write_truth_json(a.truth_out, imucal::archive::truth_from_unit(cfg.unit));
+    imucal::db::archive::write_truth_json(a.truth_out, imucal::db::archive::truth_from_unit(cfg.unit));
   for (size_t i = 0; i < cfg.more_units.size(); ++i)
     if (i + 1 < truth_outs.size() && !truth_outs[i + 1].empty())
-      imucal::archive::write_truth_json(truth_outs[i + 1],
-                                        imucal::archive::truth_from_unit(cfg.more_units[i].unit));
+      imucal::db::archive::write_truth_json(truth_outs[i + 1],
+                                        imucal::db::archive::truth_from_unit(cfg.more_units[i].unit));
   sim.start();
   nlohmann::json ready;
   ready["pid"] = static_cast<int>(::getpid());
@@ -438,7 +438,7 @@ void announce_ready(StationSim& sim, const CliArgs& a, const StationSimConfig& c
   ready["site"] = {{"lat_deg", a.lat_deg},
                    {"lon_deg", a.lon_deg},
                    {"height_m", a.height_m},
-                   {"gravity_mps2", imucal::calib::EarthModel(cfg.site).gravity_mps2()}};
+                   {"gravity_mps2", imucal::calib::core::EarthModel(cfg.site).gravity_mps2()}};
   if (!a.ready_file.empty()) write_atomically(a.ready_file, ready.dump() + "\n");
   std::cout << ready.dump() << std::endl;
 }

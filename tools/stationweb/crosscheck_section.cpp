@@ -1,5 +1,5 @@
 // The run page's cross-check: the stored verdict and failures, and per parameter the difference
-// AINS − second method with its combined σ against the bound k·σ (DESIGN §6), as the station
+// AINS − second method with its combined σ against the bound k·σ (ARCHITECTURE §6), as the station
 // judged it (the status is the stored one: a parameter named in the stored failures is REVIEW).
 #include <algorithm>
 #include <cmath>
@@ -8,14 +8,14 @@
 #include "tools/stationweb/html.hpp"
 #include "tools/stationweb/run_page_parts.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 namespace {
 
-const db::CalibrationRecord* find_method(const std::vector<db::CalibrationRecord>& cals,
+const db::history::CalibrationRecord* find_method(const std::vector<db::history::CalibrationRecord>& cals,
                                          bool ains) {
   for (const auto& c : cals)
-    if ((c.method == db::Method::kAins) == ains) return &c;
+    if ((c.method == db::history::Method::kAins) == ains) return &c;
   return nullptr;
 }
 
@@ -23,8 +23,8 @@ bool listed(const std::vector<std::string>& names, const std::string& name) {
   return std::find(names.begin(), names.end(), name) != names.end();
 }
 
-std::string status_of(const db::CrosscheckRecord& x, const db::CalibrationRecord& a,
-                      const db::CalibrationRecord& b, const std::string& name) {
+std::string status_of(const db::history::CrosscheckRecord& x, const db::history::CalibrationRecord& a,
+                      const db::history::CalibrationRecord& b, const std::string& name) {
   if (listed(x.not_compared, name) || listed(a.unobservable, name) || listed(b.unobservable, name))
     return "not compared";
   for (const auto& f : x.failures)
@@ -32,14 +32,14 @@ std::string status_of(const db::CrosscheckRecord& x, const db::CalibrationRecord
   return "PASS";
 }
 
-std::string parameter_rows(const db::CrosscheckRecord& x, const db::CalibrationRecord& a,
-                           const db::CalibrationRecord& b) {
-  const calib::ParamVector va = a.params.to_vector(), vb = b.params.to_vector();
-  const calib::ParamVector sa = a.sigma.to_vector(), sb = b.sigma.to_vector();
+std::string parameter_rows(const db::history::CrosscheckRecord& x, const db::history::CalibrationRecord& a,
+                           const db::history::CalibrationRecord& b) {
+  const calib::core::ParamVector va = a.params.to_vector(), vb = b.params.to_vector();
+  const calib::core::ParamVector sa = a.sigma.to_vector(), sb = b.sigma.to_vector();
   const bool same_frame = a.body_frame == b.body_frame;
   std::string s;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-    const calib::ParamInfo& info = calib::param_info(i);
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+    const calib::core::ParamInfo& info = calib::core::param_info(i);
     const std::string status = status_of(x, a, b, info.name);
     const double diff = va(i) - vb(i), sigma = std::sqrt(sa(i) * sa(i) + sb(i) * sb(i));
     const bool numbers = same_frame && status != "not compared";
@@ -59,7 +59,7 @@ std::string parameter_rows(const db::CrosscheckRecord& x, const db::CalibrationR
   return s;
 }
 
-std::string stored_findings(const db::CrosscheckRecord& x) {
+std::string stored_findings(const db::history::CrosscheckRecord& x) {
   std::string s;
   if (!x.failures.empty()) {
     s += "<ul id='crosscheck-failures'>\n";
@@ -77,15 +77,15 @@ std::string stored_findings(const db::CrosscheckRecord& x) {
 
 }  // namespace
 
-std::string crosscheck_section(const db::RunDetails& d) {
+std::string crosscheck_section(const db::history::RunDetails& d) {
   std::string s = "<h2>Cross-check</h2>\n";
   if (!d.crosscheck)
     return s + "<div id='crosscheck' data-verdict=''><p>No cross-check stored.</p></div>\n";
-  const db::CrosscheckRecord& x = *d.crosscheck;
-  const db::CalibrationRecord* a = find_method(d.calibrations, true);
-  const db::CalibrationRecord* b = find_method(d.calibrations, false);
-  const std::string verdict = db::to_string(x.verdict);
-  const std::string second = b ? (b->method == db::Method::kNlsq ? "NLSQ" : "legacy") : "?";
+  const db::history::CrosscheckRecord& x = *d.crosscheck;
+  const db::history::CalibrationRecord* a = find_method(d.calibrations, true);
+  const db::history::CalibrationRecord* b = find_method(d.calibrations, false);
+  const std::string verdict = db::history::to_string(x.verdict);
+  const std::string second = b ? (b->method == db::history::Method::kNlsq ? "NLSQ" : "legacy") : "?";
   s += "<div id='crosscheck' data-verdict='" + verdict + "' data-k-sigma='" + exact(x.k_sigma) +
        "'>\n<p>Cross-check <span class='" + verdict + "'>" + verdict + "</span> (AINS against " +
        second + ", bound " + fmt("%g", x.k_sigma) + "σ of the combined σ = √(σA² + σB²))" +
@@ -103,4 +103,4 @@ std::string crosscheck_section(const db::RunDetails& d) {
   return s + "</table>\n</div>\n";
 }
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

@@ -1,4 +1,4 @@
-// "/fleet": the history's aggregates per station through db::FleetStats — runs per station per
+// "/fleet": the history's aggregates per station through db::history::FleetStats — runs per station per
 // UTC day, verdict counts and rates per station, and one AINS parameter's distribution per station
 // — for a window (since/until; default: the 30 days up to the newest run) and optional station and
 // serial filters.
@@ -11,25 +11,25 @@
 #include "tools/stationweb/html.hpp"
 #include "tools/stationweb/pages.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 namespace {
 
-constexpr db::TimestampMs kDayMs = 86400000;
+constexpr db::history::TimestampMs kDayMs = 86400000;
 constexpr int kDefaultWindowDays = 30;
 
 struct FleetQuery {
-  db::FleetFilter filter;
+  db::history::FleetFilter filter;
   std::optional<int> param;
   Params echo;  ///< the form's values as given
   bool default_window = false;
 };
 
-db::TimestampMs parse_time_field(const std::string& field, const std::string& text, bool end) {
-  db::TimestampMs t = 0;
+db::history::TimestampMs parse_time_field(const std::string& field, const std::string& text, bool end) {
+  db::history::TimestampMs t = 0;
   try {
-    t = db::parse_time_utc(text);
-  } catch (const db::InvalidInput& e) {
+    t = db::history::parse_time_utc(text);
+  } catch (const db::history::InvalidInput& e) {
     bad_input(field, e.what());
   }
   // "until=2024-05-07" means up to the end of that day.
@@ -49,8 +49,8 @@ FleetQuery parse_query(const History& history, const Params& query) {
   const std::string station = q.echo.find("station")->second;
   if (!station.empty()) q.filter.station = station;
   try {
-    db::validate_filter(q.filter);
-  } catch (const db::InvalidInput& e) {
+    db::history::validate_filter(q.filter);
+  } catch (const db::history::InvalidInput& e) {
     bad_input("station", e.what());
   }
   const std::string serial = q.echo.find("serial")->second;
@@ -61,15 +61,15 @@ FleetQuery parse_query(const History& history, const Params& query) {
   const std::string param = q.echo.find("param")->second;
   if (!param.empty()) {
     try {
-      q.param = db::param_index(param);
-    } catch (const db::InvalidInput& e) {
+      q.param = db::history::param_index(param);
+    } catch (const db::history::InvalidInput& e) {
       bad_input("param", e.what());
     }
   }
   if (!q.filter.since_ms && !q.filter.until_ms) {
-    const std::vector<db::RunRecord> newest = history.repo->recent_runs(1);
+    const std::vector<db::history::RunRecord> newest = history.repo->recent_runs(1);
     if (!newest.empty()) {
-      q.filter.until_ms = (db::utc_day(newest.front().started_at_ms) + 1) * kDayMs;
+      q.filter.until_ms = (db::history::utc_day(newest.front().started_at_ms) + 1) * kDayMs;
       q.filter.since_ms = *q.filter.until_ms - kDefaultWindowDays * kDayMs;
       q.default_window = true;
     }
@@ -87,8 +87,8 @@ std::string filter_form(const FleetQuery& q) {
   s += "<label>station <input name='station' size='14' value='" + value("station") + "'></label>";
   s += "<label>serial <input name='serial' size='14' value='" + value("serial") + "'></label>";
   s += "<label>parameter <select name='param'><option value=''>(none)</option>";
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-    const std::string& name = calib::param_info(i).name;
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+    const std::string& name = calib::core::param_info(i).name;
     s += "<option" + std::string(q.param && *q.param == i ? " selected" : "") + ">" + name +
          "</option>";
   }
@@ -111,16 +111,16 @@ std::string window_line(const FleetQuery& q) {
 }
 
 /// The day range the chart spans: the window, narrowed to the days that have runs.
-void chart_days(const FleetQuery& q, const std::vector<db::StationDayCount>& counts,
+void chart_days(const FleetQuery& q, const std::vector<db::history::StationDayCount>& counts,
                 std::int64_t& first, std::int64_t& last) {
   std::int64_t lo = counts.front().day, hi = lo;
   for (const auto& c : counts) lo = std::min(lo, c.day), hi = std::max(hi, c.day);
-  first = q.filter.since_ms ? db::utc_day(*q.filter.since_ms) : lo;
-  last = q.filter.until_ms ? db::utc_day(*q.filter.until_ms - 1) : hi;
+  first = q.filter.since_ms ? db::history::utc_day(*q.filter.since_ms) : lo;
+  last = q.filter.until_ms ? db::history::utc_day(*q.filter.until_ms - 1) : hi;
   if (last - first > 3 * 366) first = std::max(first, lo), last = std::min(last, hi);
 }
 
-std::string runs_chart_section(const FleetQuery& q, const std::vector<db::StationDayCount>& counts,
+std::string runs_chart_section(const FleetQuery& q, const std::vector<db::history::StationDayCount>& counts,
                                const std::vector<std::string>& stations) {
   std::string s = "<h2>Runs per station per day</h2>\n";
   if (counts.empty()) return s + "<p>No runs in this window.</p>\n";
@@ -130,7 +130,7 @@ std::string runs_chart_section(const FleetQuery& q, const std::vector<db::Statio
          "<p class='muted'>The numbers: <a href='#runs-per-day'>the table below</a>.</p>\n";
 }
 
-std::string runs_table_section(const std::vector<db::StationDayCount>& counts,
+std::string runs_table_section(const std::vector<db::history::StationDayCount>& counts,
                                const std::vector<std::string>& stations) {
   std::string s = "<h2>Runs per station per day (table)</h2>\n";
   if (counts.empty()) return s + "<p id='runs-per-day'>No runs in this window.</p>\n";
@@ -160,7 +160,7 @@ std::string share(std::int64_t n, std::int64_t total) {
          " %)</span>";
 }
 
-std::string verdict_section(const std::vector<db::StationVerdictCounts>& verdicts) {
+std::string verdict_section(const std::vector<db::history::StationVerdictCounts>& verdicts) {
   std::string s = "<h2>Verdicts per station</h2>\n";
   if (verdicts.empty()) return s + "<p id='verdicts'>No runs in this window.</p>\n";
   s += verdict_chart(verdicts);
@@ -180,7 +180,7 @@ std::string verdict_section(const std::vector<db::StationVerdictCounts>& verdict
   return s + "</table>\n";
 }
 
-std::string distribution_row(const db::ParamSummary& d, const calib::ParamInfo& info) {
+std::string distribution_row(const db::history::ParamSummary& d, const calib::core::ParamInfo& info) {
   const double k = info.si_to_human;
   std::string s =
       "<tr data-station='" + esc(d.station) + "' data-count='" + std::to_string(d.count) + "'";
@@ -193,10 +193,10 @@ std::string distribution_row(const db::ParamSummary& d, const calib::ParamInfo& 
   return s + "</tr>\n";
 }
 
-std::string distribution_section(const FleetQuery& q, const std::vector<db::ParamSummary>& dist) {
+std::string distribution_section(const FleetQuery& q, const std::vector<db::history::ParamSummary>& dist) {
   std::string s = "<h2>Parameter distribution per station</h2>\n";
   if (!q.param) return s + "<p>Choose a parameter above to see its distribution per station.</p>\n";
-  const calib::ParamInfo& info = calib::param_info(*q.param);
+  const calib::core::ParamInfo& info = calib::core::param_info(*q.param);
   s += "<p>" + info.name + ": the AINS value of every run in the window that has one, in " +
        esc(info.human_unit) + " (sample standard deviation; quartiles interpolated).</p>\n";
   if (dist.empty()) return s + "<p id='distribution'>No AINS calibration in this window.</p>\n";
@@ -216,9 +216,9 @@ std::string fleet_page(const History& history, const Params& query) {
   const FleetQuery q = parse_query(history, query);
   const auto counts = history.stats->runs_per_station_day(q.filter);
   const auto verdicts = history.stats->verdict_counts_per_station(q.filter);
-  const std::vector<db::ParamSummary> dist =
+  const std::vector<db::history::ParamSummary> dist =
       q.param ? history.stats->param_distribution(*q.param, q.filter)
-              : std::vector<db::ParamSummary>{};
+              : std::vector<db::history::ParamSummary>{};
   std::vector<std::string> stations;
   for (const auto& v : verdicts) stations.push_back(v.station);
   std::string b = "<h1>Fleet: runs, verdicts and parameters per station</h1>\n";
@@ -232,4 +232,4 @@ std::string fleet_page(const History& history, const Params& query) {
   return page("Fleet", b);
 }
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

@@ -5,20 +5,20 @@
 #include <map>
 #include <sstream>
 
-#include "station/station_signatures.hpp"
-#include "tools/imucal/svg_panel.hpp"
+#include "tools/report/station_signatures.hpp"
+#include "tools/report/svg_panel.hpp"
 #include "tools/stationweb/html.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 namespace {
 
-using tools::svg::kLeft;
-using tools::svg::kPanelH;
-using tools::svg::kRight;
-using tools::svg::kTop;
-using tools::svg::kWidth;
-using tools::svg::Panel;
+using tools::report::kLeft;
+using tools::report::kPanelH;
+using tools::report::kRight;
+using tools::report::kTop;
+using tools::report::kWidth;
+using tools::report::Panel;
 
 constexpr const char* kStationColours[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
                                            "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"};
@@ -65,7 +65,7 @@ const char* station_colour(std::size_t index) {
   return kStationColours[index % (sizeof kStationColours / sizeof *kStationColours)];
 }
 
-std::string runs_chart(const std::vector<db::StationDayCount>& counts,
+std::string runs_chart(const std::vector<db::history::StationDayCount>& counts,
                        const std::vector<std::string>& stations, std::int64_t first_day,
                        std::int64_t last_day) {
   const auto n_days = static_cast<std::size_t>(std::max<std::int64_t>(last_day - first_day + 1, 1));
@@ -74,7 +74,7 @@ std::string runs_chart(const std::vector<db::StationDayCount>& counts,
     if (c.day >= first_day && c.day <= last_day)
       total[static_cast<std::size_t>(c.day - first_day)] += static_cast<double>(c.runs);
   double bottom = 0, top = std::max(10.0, *std::max_element(total.begin(), total.end()));
-  tools::svg::round_range(bottom, top);
+  tools::report::round_range(bottom, top);
   std::ostringstream os;
   os << svg_open("runs-chart", kTop + kPanelH + 96);
   Panel p{os, kTop, bottom, top, n_days};
@@ -99,7 +99,7 @@ std::string runs_chart(const std::vector<db::StationDayCount>& counts,
   return os.str() + "</svg>\n";
 }
 
-std::string verdict_chart(const std::vector<db::StationVerdictCounts>& verdicts) {
+std::string verdict_chart(const std::vector<db::history::StationVerdictCounts>& verdicts) {
   std::ostringstream os;
   os << svg_open("verdict-chart", kTop + kPanelH + 70);
   if (verdicts.empty()) return os.str() + "</svg>\n";
@@ -130,14 +130,14 @@ std::string verdict_chart(const std::vector<db::StationVerdictCounts>& verdicts)
   return os.str() + "</svg>\n";
 }
 
-std::string box_plot(const std::vector<db::ParamSummary>& summaries, const calib::ParamInfo& info) {
+std::string box_plot(const std::vector<db::history::ParamSummary>& summaries, const calib::core::ParamInfo& info) {
   std::ostringstream os;
   os << svg_open("distribution-chart", kTop + kPanelH + 70);
   if (summaries.empty()) return os.str() + "</svg>\n";
   const double s = info.si_to_human;
   double lo = INFINITY, hi = -INFINITY;
   for (const auto& d : summaries) lo = std::min(lo, d.min * s), hi = std::max(hi, d.max * s);
-  tools::svg::round_range(lo, hi);
+  tools::report::round_range(lo, hi);
   Panel p{os, kTop, lo, hi, summaries.size()};
   p.frame(info.name + " (AINS) per station: min–max, quartiles, median, mean ◆", info.human_unit);
   std::vector<std::string> labels;
@@ -163,7 +163,7 @@ std::string box_plot(const std::vector<db::ParamSummary>& summaries, const calib
 namespace {
 
 std::string period_label(const nlohmann::json& period) {
-  return db::format_time_utc(period["since_ms"].get<db::TimestampMs>()).substr(0, 10);
+  return db::history::format_time_utc(period["since_ms"].get<db::history::TimestampMs>()).substr(0, 10);
 }
 
 }  // namespace
@@ -178,7 +178,7 @@ std::string signature_trend_svg(const nlohmann::json& trend) {
       if (c.contains("strongest"))
         top = std::max(top, 1.1 * std::abs(c["strongest"]["z"].get<double>()));
   double bottom = 0;
-  tools::svg::round_range(bottom, top);
+  tools::report::round_range(bottom, top);
   std::ostringstream os;
   os << svg_open("signature-trend", kTop + kPanelH + 96);
   Panel p{os, kTop, bottom, top, std::max<std::size_t>(periods.size(), 1)};
@@ -192,14 +192,14 @@ std::string signature_trend_svg(const nlohmann::json& trend) {
   for (std::size_t k = 0; k < stations.size(); ++k) {
     std::string points;
     for (std::size_t i = 0; i < periods.size(); ++i)
-      if (const auto* c = station::signature_trend_cell(periods[i], stations[k]);
+      if (const auto* c = tools::report::signature_trend_cell(periods[i], stations[k]);
           c && c->contains("strongest"))
         points += fmt("%.1f", p.x(i)) + "," +
                   fmt("%.1f", p.y(std::abs((*c)["strongest"]["z"].get<double>()))) + " ";
     os << "<polyline fill='none' stroke='" << station_colour(k) << "' stroke-width='1.5' points='"
        << points << "'/>\n";
     for (std::size_t i = 0; i < periods.size(); ++i) {
-      const auto* c = station::signature_trend_cell(periods[i], stations[k]);
+      const auto* c = tools::report::signature_trend_cell(periods[i], stations[k]);
       if (!c || !c->contains("strongest")) continue;
       const auto& f = (*c)["strongest"];
       const bool flagged = (*c)["flagged"].get<bool>();
@@ -223,4 +223,4 @@ std::string signature_trend_svg(const nlohmann::json& trend) {
   return os.str() + "</svg>\n";
 }
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

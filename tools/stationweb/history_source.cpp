@@ -4,10 +4,10 @@
 
 #include "db/fleet/fleet_repository.hpp"
 #include "db/fleet/pg_fleet_stats.hpp"
-#include "db/sqlite_fleet_stats.hpp"
-#include "db/sqlite_repository.hpp"
+#include "db/history/sqlite_fleet_stats.hpp"
+#include "db/history/sqlite_repository.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 History open_history(const std::string& source, const std::string& password) {
   if (source.empty()) throw std::invalid_argument("no history given (--db FILE or URL)");
@@ -21,12 +21,12 @@ History open_history(const std::string& source, const std::string& password) {
     h.label = "fleet store " + target.redacted();
     return h;
   }
-  db::SqliteOptions options;
+  db::history::SqliteOptions options;
   options.read_only = true;
-  h.repo = std::make_unique<db::SqliteRepository>(source, options);
-  h.stats = std::make_unique<db::SqliteFleetStats>(source);
+  h.repo = std::make_unique<db::history::SqliteRepository>(source, options);
+  h.stats = std::make_unique<db::history::SqliteFleetStats>(source);
   h.label = "SQLite history " + source;
   return h;
 }
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

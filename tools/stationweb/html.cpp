@@ -2,9 +2,9 @@
 
 #include <cstdio>
 
-#include "tools/imucal/html_escape.hpp"
+#include "tools/report/html_escape.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 namespace {
 
@@ -34,7 +34,7 @@ void bad_input(const std::string& field, const std::string& message) {
   throw PageError(400, field, field + ": " + message);
 }
 
-std::string esc(const std::string& text) { return tools::html_escape(text); }
+std::string esc(const std::string& text) { return tools::report::html_escape(text); }
 
 std::string fmt(const char* format, double value) {
   char buf[64];
@@ -44,13 +44,13 @@ std::string fmt(const char* format, double value) {
 
 std::string exact(double value) { return fmt("%.17g", value); }
 
-std::string short_time(db::TimestampMs t_ms) {
-  std::string s = db::format_time_utc(t_ms).substr(0, 19);
+std::string short_time(db::history::TimestampMs t_ms) {
+  std::string s = db::history::format_time_utc(t_ms).substr(0, 19);
   s[10] = ' ';
   return s;
 }
 
-std::string utc_date(db::TimestampMs t_ms) { return db::format_time_utc(t_ms).substr(0, 10); }
+std::string utc_date(db::history::TimestampMs t_ms) { return db::history::format_time_utc(t_ms).substr(0, 10); }
 
 std::string day_text(std::int64_t day) { return utc_date(day * kDayMs); }
 
@@ -70,7 +70,7 @@ std::string url_encode(const std::string& value) {
   return out;
 }
 
-std::string run_link(db::RunId id) {
+std::string run_link(db::history::RunId id) {
   return "<a href='/run/" + std::to_string(id) + "'>" + std::to_string(id) + "</a>";
 }
 
@@ -103,4 +103,4 @@ std::string error_page(int status, const std::string& reason, const std::string&
                                        "</p>\n<p><a href='/'>Back to the recent runs</a></p>\n");
 }
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

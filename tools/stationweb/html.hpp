@@ -8,9 +8,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "db/repository.hpp"
+#include "db/history/repository.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 /// A page's refusal: HTTP status (400 bad input, 404 no such record), the query or path field it
 /// is about ("" when none), and a message for people.
@@ -31,16 +31,16 @@ std::string fmt(const char* format, double value);
 /// Full precision for data attributes: the shortest "%.17g" text.
 std::string exact(double value);
 /// "2024-05-01 12:34:56" (UTC, no milliseconds) of a time.
-std::string short_time(db::TimestampMs t_ms);
+std::string short_time(db::history::TimestampMs t_ms);
 /// "2024-05-01" of a time (its UTC day).
-std::string utc_date(db::TimestampMs t_ms);
-/// The ISO text of a UTC day number (db::utc_day): "2024-05-01".
+std::string utc_date(db::history::TimestampMs t_ms);
+/// The ISO text of a UTC day number (db::history::utc_day): "2024-05-01".
 std::string day_text(std::int64_t day);
 /// Percent-encoding of a query value (RFC 3986 unreserved characters kept).
 std::string url_encode(const std::string& value);
 
 /// <a href='/run/ID'>ID</a> and <a href='/unit/SN'>SN</a>.
-std::string run_link(db::RunId id);
+std::string run_link(db::history::RunId id);
 std::string unit_link(const std::string& serial);
 
 /// The whole document: <title>, the navigation bar (index, fleet, serial search) and `body`.
@@ -50,4 +50,4 @@ std::string page(const std::string& title, const std::string& body);
 std::string error_page(int status, const std::string& reason, const std::string& field,
                        const std::string& message);
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

@@ -5,7 +5,7 @@
 #include "tools/stationweb/pages.hpp"
 #include "tools/stationweb/run_table.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 namespace {
 
@@ -26,7 +26,7 @@ std::size_t parse_limit(const std::string& text) {
 
 std::string index_page(const History& history, const Params& query) {
   const std::size_t limit = parse_limit(query_value(query, "limit"));
-  const std::vector<db::RunRecord> runs = history.repo->recent_runs(limit);
+  const std::vector<db::history::RunRecord> runs = history.repo->recent_runs(limit);
   const std::size_t total = history.repo->total_run_count();
   std::string b = "<h1>Calibration history</h1>\n<p class='muted'>" + esc(history.label) +
                   ", read-only: <span id='total-runs' data-value='" + std::to_string(total) + "'>" +
@@ -44,4 +44,4 @@ std::string index_page(const History& history, const Params& query) {
   return page("Recent runs", b);
 }
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

@@ -19,7 +19,7 @@
 #include <thread>
 
 #include "db/fleet/fleet_url.hpp"
-#include "station/logging.hpp"
+#include "station/daemon/logging.hpp"
 #include "tools/stationweb/history_source.hpp"
 #include "tools/stationweb/server.hpp"
 
@@ -66,9 +66,9 @@ std::thread stop_on_signal(httplib::Server& server, const sigset_t& signals) {
 }
 
 int serve(const std::string& source, const std::string& password, const Listen& listen) {
-  stationweb::History history = stationweb::open_history(source, password);
+  tools::stationweb::History history = tools::stationweb::open_history(source, password);
   httplib::Server server;
-  stationweb::install_routes(server, history);
+  tools::stationweb::install_routes(server, history);
   const int port = listen.port == 0
                        ? server.bind_to_any_port(listen.host)
                        : (server.bind_to_port(listen.host, listen.port) ? listen.port : -1);
@@ -125,7 +125,7 @@ int main(int argc, char** argv) {
   Listen listen;
   try {
     listen = parse_listen(listen_text);
-    station::setup_logging(level, "stationweb");
+    station::daemon::setup_logging(level, "stationweb");
   } catch (const std::invalid_argument& e) {
     std::cerr << "stationweb: " << e.what() << "\n";
     return 2;

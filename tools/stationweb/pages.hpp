@@ -1,7 +1,7 @@
 #pragma once
 // stationweb's pages, each a function of the history and the request's path or query (no HTTP
 // types here: tools/stationweb/server.cpp maps URLs to them). A page throws PageError for bad
-// input (400, naming the field) or an unknown serial or run (404); db::DbError escapes only for
+// input (400, naming the field) or an unknown serial or run (404); db::history::DbError escapes only for
 // the database's own failures.
 //
 //   /                  index_page: the newest runs of every unit (?limit=N, 1..500, default 50)
@@ -20,7 +20,7 @@
 
 #include "tools/stationweb/history_source.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 /// A request's query parameters (httplib::Params has this type).
 using Params = std::multimap<std::string, std::string>;
@@ -39,7 +39,7 @@ std::string signatures_banner(const History& history);
 
 /// The value of query parameter `name`, or "" when absent; 400 if it is given twice.
 std::string query_value(const Params& query, const std::string& name);
-/// The serial rule (db/serial_number.hpp) as a 400 naming `field`.
+/// The serial rule (db/history/serial_number.hpp) as a 400 naming `field`.
 void check_serial(const std::string& serial, const std::string& field);
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

@@ -1,9 +1,9 @@
 // Query parameters and the checks every page shares.
-#include "db/serial_number.hpp"
+#include "db/history/serial_number.hpp"
 #include "tools/stationweb/html.hpp"
 #include "tools/stationweb/pages.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 std::string query_value(const Params& query, const std::string& name) {
   const auto range = query.equal_range(name);
@@ -13,7 +13,7 @@ std::string query_value(const Params& query, const std::string& name) {
 }
 
 void check_serial(const std::string& serial, const std::string& field) {
-  if (const auto problem = db::serial_problem(serial)) bad_input(field, *problem);
+  if (const auto problem = db::history::serial_problem(serial)) bad_input(field, *problem);
 }
 
 std::string unit_search(const Params& query) {
@@ -23,4 +23,4 @@ std::string unit_search(const Params& query) {
   return serial;
 }
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

@@ -1,42 +1,42 @@
-// "/run/ID": everything `stationctl show ID` shows (station/record_json.hpp's show_result is the
+// "/run/ID": everything `stationctl show ID` shows (station/control/record_json.hpp's show_result is the
 // content, its render_show_text the text at the page's end), laid out as a page: state, verdict,
 // reasons, the run's facts and archive, capture counters, the gap diagnosis, the other units of
 // its table run, both methods' parameters with 1-σ, and the cross-check per parameter.
 #include <cctype>
 
-#include "db/fleet_stats.hpp"
-#include "station/record_json.hpp"
+#include "db/history/fleet_stats.hpp"
+#include "station/control/record_json.hpp"
 #include "tools/stationweb/html.hpp"
 #include "tools/stationweb/pages.hpp"
 #include "tools/stationweb/run_page_parts.hpp"
 #include "tools/stationweb/run_table.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 namespace {
 
 using nlohmann::json;
 
-db::RunId parse_run_id(const std::string& text) {
+db::history::RunId parse_run_id(const std::string& text) {
   bool digits = !text.empty() && text.size() <= 18;
   for (char c : text) digits = digits && std::isdigit(static_cast<unsigned char>(c));
-  const db::RunId id = digits ? std::stoll(text) : 0;
+  const db::history::RunId id = digits ? std::stoll(text) : 0;
   if (id < 1)
     bad_input("run id", "\"" + text.substr(0, 40) + "\" is not a run number (a whole number >= 1)");
   return id;
 }
 
-std::string head(const db::RunRecord& r) {
-  const std::string cv = r.crosscheck_verdict ? db::to_string(*r.crosscheck_verdict) : "";
+std::string head(const db::history::RunRecord& r) {
+  const std::string cv = r.crosscheck_verdict ? db::history::to_string(*r.crosscheck_verdict) : "";
   std::string s = "<h1>Run " + std::to_string(r.run_id) + " · " + unit_link(r.serial) + "</h1>\n";
   s += "<p id='run-head' data-run-id='" + std::to_string(r.run_id) + "' data-serial='" +
-       esc(r.serial) + "' data-state='" + db::to_string(r.state) + "' data-verdict='" +
-       (r.verdict ? db::to_string(*r.verdict) : "") + "' data-crosscheck-verdict='" + cv +
-       "'>State <b>" + db::to_string(r.state) + "</b>, verdict " + verdict_html(r.verdict) +
+       esc(r.serial) + "' data-state='" + db::history::to_string(r.state) + "' data-verdict='" +
+       (r.verdict ? db::history::to_string(*r.verdict) : "") + "' data-crosscheck-verdict='" + cv +
+       "'>State <b>" + db::history::to_string(r.state) + "</b>, verdict " + verdict_html(r.verdict) +
        (cv.empty() ? "" : " (cross-check " + cv + ")") + "</p>\n";
   if (!r.reasons.empty()) {
     s += "<ul id='reasons'>\n";
-    for (const db::RunReason& reason : r.reasons)
+    for (const db::history::RunReason& reason : r.reasons)
       s += "<li data-source='" + esc(reason.source) + "'>[" + esc(reason.source) + "] " +
            esc(reason.text) + "</li>\n";
     s += "</ul>\n";
@@ -45,12 +45,12 @@ std::string head(const db::RunRecord& r) {
 }
 
 /// The other units of the run's table run (several units on one fixture), if any.
-std::string siblings(const History& history, const db::RunRecord& r) {
-  const db::RunId table_run = r.table_run_id ? *r.table_run_id : r.run_id;
-  const std::vector<db::RunId> ids = history.stats->table_run_members(table_run);
+std::string siblings(const History& history, const db::history::RunRecord& r) {
+  const db::history::RunId table_run = r.table_run_id ? *r.table_run_id : r.run_id;
+  const std::vector<db::history::RunId> ids = history.stats->table_run_members(table_run);
   if (ids.size() < 2) return "";
-  std::vector<db::RunRecord> runs;
-  for (db::RunId id : ids) runs.push_back(history.repo->show(id).run);
+  std::vector<db::history::RunRecord> runs;
+  for (db::history::RunId id : ids) runs.push_back(history.repo->show(id).run);
   return "<h2>Units of table run " + std::to_string(table_run) + "</h2>\n" +
          run_table(runs, true, "siblings");
 }
@@ -58,15 +58,15 @@ std::string siblings(const History& history, const db::RunRecord& r) {
 }  // namespace
 
 std::string run_page(const History& history, const std::string& run_id_text) {
-  const db::RunId id = parse_run_id(run_id_text);
-  db::RunDetails details;
+  const db::history::RunId id = parse_run_id(run_id_text);
+  db::history::RunDetails details;
   try {
     details = history.repo->show(id);
-  } catch (const db::NotFound&) {
+  } catch (const db::history::NotFound&) {
     throw PageError(404, "run id", "No run " + std::to_string(id) + " in this history.");
   }
-  const json show = station::show_result(details);
-  const db::RunRecord& r = details.run;
+  const json show = station::control::show_result(details);
+  const db::history::RunRecord& r = details.run;
   std::string b = head(r);
   b += "<h2>Run</h2>\n" + facts_table(r);
   b += siblings(history, r);
@@ -76,9 +76,9 @@ std::string run_page(const History& history, const std::string& run_id_text) {
   b += method_lines(details.calibrations);
   b += crosscheck_section(details);
   b += "<details id='show-text'><summary>As <code>stationctl show " + std::to_string(id) +
-       "</code> prints it</summary>\n<pre>" + esc(station::render_show_text(show)) +
+       "</code> prints it</summary>\n<pre>" + esc(station::control::render_show_text(show)) +
        "</pre></details>\n";
   return page("Run " + std::to_string(id), b);
 }
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

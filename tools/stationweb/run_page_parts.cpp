@@ -4,10 +4,10 @@
 #include <cmath>
 
 #include "calib/core/param_set.hpp"
-#include "station/record_json.hpp"
+#include "station/control/record_json.hpp"
 #include "tools/stationweb/html.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 namespace {
 
@@ -21,8 +21,8 @@ bool listed(const std::vector<std::string>& names, const std::string& name) {
   return std::find(names.begin(), names.end(), name) != names.end();
 }
 
-std::string method_label(db::Method m) {
-  return m == db::Method::kAins ? "AINS" : m == db::Method::kNlsq ? "NLSQ" : "legacy";
+std::string method_label(db::history::Method m) {
+  return m == db::history::Method::kAins ? "AINS" : m == db::history::Method::kNlsq ? "NLSQ" : "legacy";
 }
 
 /// A JSON value for people: nested objects as nested tables, lists joined, numbers to 6 digits.
@@ -45,7 +45,7 @@ std::string json_html(const json& v) {
   return esc(v.dump());
 }
 
-std::string optional_rows(const db::RunRecord& r) {
+std::string optional_rows(const db::history::RunRecord& r) {
   std::string s;
   if (!r.origin.empty()) s += row("origin", esc(r.origin));
   if (!r.slot.empty())
@@ -61,13 +61,13 @@ std::string optional_rows(const db::RunRecord& r) {
 
 }  // namespace
 
-std::string facts_table(const db::RunRecord& r) {
+std::string facts_table(const db::history::RunRecord& r) {
   std::string s = "<table id='run-facts'>\n";
   s += row("sequence", esc(r.sequence_name) + (r.sequence_sha256.empty()
                                                    ? ""
                                                    : " <span class='muted'>(sha256 " +
                                                          esc(r.sequence_sha256) + ")</span>"));
-  s += row("setting", esc(calib::setting_name(r.setting)));
+  s += row("setting", esc(calib::core::setting_name(r.setting)));
   s += optional_rows(r);
   s += row("operator", esc(r.operator_name)) + row("station", esc(r.station));
   s += row("software", esc(r.software_version));
@@ -76,7 +76,7 @@ std::string facts_table(const db::RunRecord& r) {
   if (r.ended_at_ms)
     s += row("ended", "<span data-ms='" + std::to_string(*r.ended_at_ms) + "'>" +
                           short_time(*r.ended_at_ms) + " UTC</span> (" +
-                          station::format_duration_s((*r.ended_at_ms - r.started_at_ms) / 1000.0) +
+                          station::control::format_duration_s((*r.ended_at_ms - r.started_at_ms) / 1000.0) +
                           ")");
   s += "</table>\n<p id='archive' data-path='" + esc(r.archive_path) + "' data-sha256='" +
        esc(r.archive_sha256) + "'>Archive <code>" +
@@ -105,7 +105,7 @@ std::string diagnosis_section(const json& run) {
   if (!run.contains("diagnosis") || !run["diagnosis"].is_object()) return "";
   const json& g = run["diagnosis"];
   const std::string verdict = g.value("verdict", std::string("?"));
-  const std::string cell = station::gap_cell(run);
+  const std::string cell = station::control::gap_cell(run);
   std::string s = "<h2>Gap diagnosis</h2>\n<div id='diagnosis' data-verdict='" + esc(verdict) +
                   "'>\n<p>Verdict <b>" + esc(verdict) + "</b>" +
                   (cell == verdict ? "" : " (" + esc(cell) + ")") + "</p>\n";
@@ -117,22 +117,22 @@ std::string diagnosis_section(const json& run) {
   return s + json_html(g) + "\n</div>\n";
 }
 
-std::string calibration_table(const std::vector<db::CalibrationRecord>& cals) {
+std::string calibration_table(const std::vector<db::history::CalibrationRecord>& cals) {
   if (cals.empty()) return "<p id='calibrations'>No calibration results.</p>\n";
   std::string s = "<table id='calibrations'>\n<tr><th>parameter</th><th>unit</th>";
   for (const auto& c : cals)
     s += "<th class='num'>" + method_label(c.method) + "</th><th class='num'>± 1σ</th>";
   s += "</tr>\n";
-  std::vector<calib::ParamVector> value, sigma;
+  std::vector<calib::core::ParamVector> value, sigma;
   for (const auto& c : cals) {
     value.push_back(c.params.to_vector());
     sigma.push_back(c.sigma.to_vector());
   }
-  for (int i = 0; i < calib::ParamSet::kSize; ++i) {
-    const calib::ParamInfo& info = calib::param_info(i);
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+    const calib::core::ParamInfo& info = calib::core::param_info(i);
     s += "<tr><td>" + info.name + "</td><td>" + esc(info.human_unit) + "</td>";
     for (std::size_t k = 0; k < cals.size(); ++k) {
-      const std::string attrs = " data-method='" + std::string(db::to_string(cals[k].method)) +
+      const std::string attrs = " data-method='" + std::string(db::history::to_string(cals[k].method)) +
                                 "' data-param='" + info.name + "'";
       if (listed(cals[k].unobservable, info.name)) {
         s += "<td colspan='2' class='muted'" + attrs + ">not observable</td>";
@@ -148,16 +148,16 @@ std::string calibration_table(const std::vector<db::CalibrationRecord>& cals) {
   return s + "</table>\n";
 }
 
-std::string method_lines(const std::vector<db::CalibrationRecord>& cals) {
+std::string method_lines(const std::vector<db::history::CalibrationRecord>& cals) {
   std::string s = "<ul id='methods'>\n";
   for (const auto& c : cals) {
-    s += "<li data-method='" + std::string(db::to_string(c.method)) + "'><b>" +
+    s += "<li data-method='" + std::string(db::history::to_string(c.method)) + "'><b>" +
          method_label(c.method) + "</b>: " + (c.converged ? "converged" : "NOT converged") + ", " +
          std::to_string(c.iterations) + " iterations, " + fmt("%.2f", c.runtime_s) + " s";
     if (c.metrics)
       s += "; orientation RMSE " + fmt("%.3f", c.metrics->orientation_rmse_mdeg) +
            " mdeg, acceleration RMSE " + fmt("%.2f", c.metrics->accel_rmse_ug) + " µg";
-    if (c.body_frame == calib::BodyFrame::kAccelSymmetric)
+    if (c.body_frame == calib::core::BodyFrame::kAccelSymmetric)
       s += "; misalignments in the accelerometer triad's own orthogonal frame";
     for (const auto& n : c.notes) s += "<br>not observable: " + esc(n);
     for (const auto& w : c.warnings) s += "<br>warning: " + esc(w);
@@ -166,4 +166,4 @@ std::string method_lines(const std::vector<db::CalibrationRecord>& cals) {
   return s + "</ul>\n";
 }
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

@@ -6,15 +6,15 @@
 #include <string>
 #include <vector>
 
-#include "db/repository.hpp"
+#include "db/history/repository.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 /// <table id='`id`'> of `runs` in the given order; `with_serial` adds the serial column.
-std::string run_table(const std::vector<db::RunRecord>& runs, bool with_serial,
+std::string run_table(const std::vector<db::history::RunRecord>& runs, bool with_serial,
                       const std::string& id);
 
 /// <span class='PASS'>PASS</span> (REVIEW, FAILED), or "-" for a live run.
-std::string verdict_html(const std::optional<db::RunVerdict>& verdict);
+std::string verdict_html(const std::optional<db::history::RunVerdict>& verdict);
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

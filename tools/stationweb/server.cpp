@@ -8,7 +8,7 @@
 #include "tools/stationweb/html.hpp"
 #include "tools/stationweb/pages.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 namespace {
 
@@ -44,7 +44,7 @@ void respond(const httplib::Request& req, httplib::Response& res,
     res.status = 200;
   } catch (const PageError& e) {
     fail(res, e.status, e.field, e.what());
-  } catch (const db::Busy& e) {
+  } catch (const db::history::Busy& e) {
     spdlog::warn("{} {}: {}", req.method, req.path, e.what());
     fail(res, 503, "", "The history is busy; try again in a moment.");
   } catch (const std::exception& e) {
@@ -124,4 +124,4 @@ void install_routes(httplib::Server& server, const History& history) {
   });
 }
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

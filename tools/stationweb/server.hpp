@@ -7,10 +7,10 @@
 #include "tools/stationweb/history_source.hpp"
 #include "tools/stationweb/httplib.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 /// Installs the routes and the server's socket options (TCP_NODELAY; SO_REUSEADDR, never
 /// SO_REUSEPORT: a port in use is refused); `history` must outlive the server.
 void install_routes(httplib::Server& server, const History& history);
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

@@ -1,24 +1,24 @@
 // "/signatures": station signatures (issue #25) of one period — each station's departure from the
 // fleet fitted by every station error (size ± σ, z), and the flagged stations with their likely
-// cause, the advice and the runs they touch (station/station_signatures.hpp computes it, as for
+// cause, the advice and the runs they touch (tools/report/station_signatures.hpp computes it, as for
 // `stationctl stations --signatures`).
 #include <map>
 #include <mutex>
 
-#include "station/station_signatures.hpp"
+#include "tools/report/station_signatures.hpp"
 #include "tools/stationweb/fleet_svg.hpp"
 #include "tools/stationweb/html.hpp"
 #include "tools/stationweb/pages.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 namespace {
 
-db::FleetFilter window_of(const History& history, const Params& query, int default_days = 7) {
+db::history::FleetFilter window_of(const History& history, const Params& query, int default_days = 7) {
   try {
-    return station::signature_window(*history.repo, query_value(query, "since"),
+    return tools::report::signature_window(*history.repo, query_value(query, "since"),
                                      query_value(query, "until"), default_days);
-  } catch (const station::WindowError& e) {
+  } catch (const tools::report::WindowError& e) {
     bad_input(e.field, e.reason);
   }
 }
@@ -55,7 +55,7 @@ std::string alarm_section(const nlohmann::json& st) {
     s += "<p data-cause='" + esc(alarm["effect"].get<std::string>()) + "'>" +
          esc(alarm["cause"].get<std::string>()) + ".</p>";
   s += "<p>Runs it touches (" + std::to_string(st["run_ids"].size()) + "):";
-  for (const auto& id : st["run_ids"]) s += " " + run_link(id.get<db::RunId>());
+  for (const auto& id : st["run_ids"]) s += " " + run_link(id.get<db::history::RunId>());
   s += "</p>";
   const auto& remedy = st["remedy"];
   if (remedy.value("reprocess", false))
@@ -72,7 +72,7 @@ std::string alarm_section(const nlohmann::json& st) {
 /// The default window's report, computed once per (history, window, newest run): the fleet page
 /// shows its flags on every load, and a week's AINS results need not be read again until a run
 /// arrives. Pages are served from several threads.
-nlohmann::json cached_default_report(const History& history, const db::FleetFilter& window) {
+nlohmann::json cached_default_report(const History& history, const db::history::FleetFilter& window) {
   static std::mutex mutex;
   static std::map<std::string, nlohmann::json> cache;
   const auto newest = history.repo->recent_runs(1);
@@ -84,7 +84,7 @@ nlohmann::json cached_default_report(const History& history, const db::FleetFilt
     if (const auto it = cache.find(key); it != cache.end()) return it->second;
   }
   nlohmann::json report =
-      station::station_signature_report(*history.stats, window, calib::SignatureOptions{});
+      tools::report::station_signature_report(*history.stats, window, calib::studies::fleet::SignatureOptions{});
   const std::lock_guard<std::mutex> lock(mutex);
   if (cache.size() > 16) cache.clear();  // old windows and old newest runs
   return cache[key] = std::move(report);
@@ -93,13 +93,13 @@ nlohmann::json cached_default_report(const History& history, const db::FleetFilt
 }  // namespace
 
 std::string signatures_banner(const History& history) {
-  db::FleetFilter window;
+  db::history::FleetFilter window;
   nlohmann::json report;
   try {
-    window = station::signature_window(*history.repo, "", "");
+    window = tools::report::signature_window(*history.repo, "", "");
     if (!window.until_ms) return "";
     report = cached_default_report(history, window);
-  } catch (const db::InvalidInput& e) {
+  } catch (const db::history::InvalidInput& e) {
     // A history whose main sequence the library does not hold: the page stands without it.
     return "<p id='signature-banner' class='muted'>Station signatures unavailable: " +
            esc(e.what()) + "</p>\n";
@@ -127,7 +127,7 @@ std::string signatures_banner(const History& history) {
 }
 
 std::string signatures_page(const History& history, const Params& query) {
-  const db::FleetFilter window = window_of(history, query);
+  const db::history::FleetFilter window = window_of(history, query);
   std::string b = "<h1>Station signatures: what one run cannot see</h1>\n";
   b += "<form class='filters' action='/signatures' method='get'><label>since <input name='since' "
        "size='12' value='" +
@@ -141,7 +141,7 @@ std::string signatures_page(const History& history, const Params& query) {
        short_time(*window.since_ms) + " until (before) " + short_time(*window.until_ms) +
        " UTC.</p>\n";
   const nlohmann::json report =
-      station::station_signature_report(*history.stats, window, calib::SignatureOptions{});
+      tools::report::station_signature_report(*history.stats, window, calib::studies::fleet::SignatureOptions{});
   if (report["stations"].empty())
     return page("Station signatures", b + "<p>No factory AINS results in this window.</p>\n");
   b += "<p>Each station's units against the other stations' (against the units' own spread), and "
@@ -196,14 +196,14 @@ std::string trend_table(const nlohmann::json& trend) {
   std::string b = "<table id='trend'>\n<tr><th>station</th>";
   for (const auto& p : trend["periods"])
     b += "<th class='num'>" +
-         db::format_time_utc(p["since_ms"].get<db::TimestampMs>()).substr(5, 5) + "</th>";
+         db::history::format_time_utc(p["since_ms"].get<db::history::TimestampMs>()).substr(5, 5) + "</th>";
   b += "</tr>\n";
   for (const auto& name : trend["stations"]) {
     b += "<tr><td>" + esc(name.get<std::string>()) + "</td>";
     for (const auto& p : trend["periods"]) {
       const std::string period =
-          db::format_time_utc(p["since_ms"].get<db::TimestampMs>()).substr(0, 10);
-      const nlohmann::json* cell = station::signature_trend_cell(p, name.get<std::string>());
+          db::history::format_time_utc(p["since_ms"].get<db::history::TimestampMs>()).substr(0, 10);
+      const nlohmann::json* cell = tools::report::signature_trend_cell(p, name.get<std::string>());
       if (!cell || !cell->contains("strongest")) {
         b += "<td class='num muted'>–</td>";
         continue;
@@ -227,7 +227,7 @@ std::string trend_table(const nlohmann::json& trend) {
 
 std::string signature_trend_page(const History& history, const Params& query) {
   const int period_days = period_days_of(query);
-  const db::FleetFilter window = window_of(history, query, 12 * period_days);
+  const db::history::FleetFilter window = window_of(history, query, 12 * period_days);
   std::string b = "<h1>Station signatures period by period</h1>\n";
   b += "<form class='filters' action='/signatures/trend' method='get'><label>since <input "
        "name='since' size='12' value='" +
@@ -238,8 +238,8 @@ std::string signature_trend_page(const History& history, const Params& query) {
        "'></label><label>period (days) <input name='period_days' size='4' value='" +
        std::to_string(period_days) + "'></label> <button type='submit'>Show</button></form>\n";
   if (!window.until_ms) return page("Signature trend", b + "<p>No runs stored yet.</p>\n");
-  const nlohmann::json trend = station::station_signature_trend(*history.stats, window, period_days,
-                                                                calib::SignatureOptions{});
+  const nlohmann::json trend = tools::report::station_signature_trend(*history.stats, window, period_days,
+                                                                calib::studies::fleet::SignatureOptions{});
   if (trend["stations"].empty())
     return page("Signature trend", b + "<p>No factory AINS results in this window.</p>\n");
   b += "<p>Each period's signatures on their own (<a href='/signatures'>one period</a>): a "
@@ -251,4 +251,4 @@ std::string signature_trend_page(const History& history, const Params& query) {
   return page("Signature trend", b);
 }
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

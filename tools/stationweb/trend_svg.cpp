@@ -4,19 +4,19 @@
 #include <cmath>
 #include <sstream>
 
-#include "tools/imucal/svg_panel.hpp"
+#include "tools/report/svg_panel.hpp"
 #include "tools/stationweb/html.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 namespace {
 
-using tools::svg::kLeft;
-using tools::svg::kPanelH;
-using tools::svg::kRight;
-using tools::svg::kTop;
-using tools::svg::kWidth;
-using tools::svg::Panel;
+using tools::report::kLeft;
+using tools::report::kPanelH;
+using tools::report::kRight;
+using tools::report::kTop;
+using tools::report::kWidth;
+using tools::report::Panel;
 
 constexpr const char* kColours[] = {"#1f77b4", "#ff7f0e", "#2ca02c",
                                     "#d62728", "#9467bd", "#8c564b"};
@@ -24,16 +24,16 @@ constexpr double kHeight = kTop + kPanelH + 56;
 constexpr double kInset = 12;  ///< px between the frame and the first/last run
 constexpr double kHourMs = 3600e3;
 
-std::vector<int> members(calib::ParamGroup g) {
+std::vector<int> members(calib::core::ParamGroup g) {
   std::vector<int> out;
-  for (int i = 0; i < calib::ParamSet::kSize; ++i)
-    if (calib::param_info(i).group == g) out.push_back(i);
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
+    if (calib::core::param_info(i).group == g) out.push_back(i);
   return out;
 }
 
 /// "accel_M[0][1]" -> "xy", "gyro_bias_radps[2]" -> "z".
 std::string component_label(int i) {
-  const std::string& name = calib::param_info(i).name;
+  const std::string& name = calib::core::param_info(i).name;
   std::string out;
   for (std::size_t p = name.find('['); p != std::string::npos; p = name.find('[', p + 1))
     out += "xyz"[name[p + 1] - '0'];
@@ -71,19 +71,19 @@ void y_range(const std::vector<TrendPoint>& points, const std::vector<int>& idx,
   for (const TrendPoint& p : points)
     for (int i : idx) {
       if (!p.observable[static_cast<std::size_t>(i)]) continue;
-      const double s = calib::param_info(i).si_to_human;
+      const double s = calib::core::param_info(i).si_to_human;
       lo = std::min(lo, (p.value(i) - 3 * p.sigma(i)) * s);
       hi = std::max(hi, (p.value(i) + 3 * p.sigma(i)) * s);
     }
   if (!(lo <= hi)) lo = -1, hi = 1;  // nothing observable
-  tools::svg::round_range(lo, hi);
+  tools::report::round_range(lo, hi);
 }
 
 void time_ticks(std::ostringstream& os, const TimeAxis& axis) {
   const bool short_span = axis.t1_ms - axis.t0_ms < 3 * 24 * kHourMs;
   for (int k = 0; k <= 4; ++k) {
     const double t = axis.t0_ms + (axis.t1_ms - axis.t0_ms) * k / 4.0;
-    const auto t_ms = static_cast<db::TimestampMs>(std::llround(t));
+    const auto t_ms = static_cast<db::history::TimestampMs>(std::llround(t));
     const double x = axis.x(t), y = kTop + kPanelH;
     os << "<line x1='" << x << "' x2='" << x << "' y1='" << y << "' y2='" << y + 5
        << "' stroke='#888'/><text x='" << x << "' y='" << y + 18
@@ -98,7 +98,7 @@ void time_ticks(std::ostringstream& os, const TimeAxis& axis) {
 void band(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
           const std::vector<const TrendPoint*>& pts, int i, double k, const char* colour,
           double opacity) {
-  const double s = calib::param_info(i).si_to_human;
+  const double s = calib::core::param_info(i).si_to_human;
   auto upper = [&](const TrendPoint* q) { return p.y((q->value(i) + k * q->sigma(i)) * s); };
   auto lower = [&](const TrendPoint* q) { return p.y((q->value(i) - k * q->sigma(i)) * s); };
   if (pts.size() == 1) {
@@ -118,14 +118,14 @@ void band(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
 
 void component(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
                const std::vector<TrendPoint>& points, int i, const char* colour,
-               std::optional<db::RunId> active) {
+               std::optional<db::history::RunId> active) {
   std::vector<const TrendPoint*> pts;
   for (const TrendPoint& q : points)
     if (q.observable[static_cast<std::size_t>(i)]) pts.push_back(&q);
   if (pts.empty()) return;
   band(os, p, axis, pts, i, 3.0, colour, 0.10);
   band(os, p, axis, pts, i, 1.0, colour, 0.28);
-  const calib::ParamInfo& info = calib::param_info(i);
+  const calib::core::ParamInfo& info = calib::core::param_info(i);
   const double s = info.si_to_human;
   os << "<polyline fill='none' stroke='" << colour << "' stroke-width='1.2' points='";
   for (const TrendPoint* q : pts)
@@ -146,7 +146,7 @@ void component(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
 }
 
 void active_marker(std::ostringstream& os, const TimeAxis& axis,
-                   const std::vector<TrendPoint>& points, std::optional<db::RunId> active) {
+                   const std::vector<TrendPoint>& points, std::optional<db::history::RunId> active) {
   if (!active) return;
   for (const TrendPoint& q : points) {
     if (q.run_id != *active) continue;
@@ -171,19 +171,19 @@ void legend(std::ostringstream& os, const std::vector<int>& idx) {
 
 }  // namespace
 
-std::string trend_svg(calib::ParamGroup group, const std::vector<TrendPoint>& points,
-                      std::optional<db::RunId> active_run) {
+std::string trend_svg(calib::core::ParamGroup group, const std::vector<TrendPoint>& points,
+                      std::optional<db::history::RunId> active_run) {
   const std::vector<int> idx = members(group);
-  const calib::ParamInfo& first = calib::param_info(idx.front());
+  const calib::core::ParamInfo& first = calib::core::param_info(idx.front());
   std::ostringstream os;
-  os << "<svg id='trend-" << calib::group_name(group) << "' xmlns='http://www.w3.org/2000/svg' "
+  os << "<svg id='trend-" << calib::core::group_name(group) << "' xmlns='http://www.w3.org/2000/svg' "
      << "width='" << kWidth << "' height='" << kHeight << "' viewBox='0 0 " << kWidth << ' '
      << kHeight << "' font-family='sans-serif'>\n";
   if (points.empty()) return os.str() + "</svg>\n";
   double lo = 0, hi = 0;
   y_range(points, idx, lo, hi);
   Panel p{os, kTop, lo, hi, 1};
-  p.frame(calib::group_name(group) + " (AINS)", first.human_unit);
+  p.frame(calib::core::group_name(group) + " (AINS)", first.human_unit);
   const TimeAxis axis = time_axis(points);
   time_ticks(os, axis);
   for (std::size_t k = 0; k < idx.size(); ++k)
@@ -194,4 +194,4 @@ std::string trend_svg(calib::ParamGroup group, const std::vector<TrendPoint>& po
   return os.str();
 }
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

@@ -2,7 +2,7 @@
 // The unit page's pictures: one SVG panel per parameter group (accelerometer bias, scale factors,
 // misalignments, gyro ..., table misalignment), x = calibration time (the run's start), y = each
 // run's AINS value in human units (µg, ppm, µrad, deg/h, arcsec) with a ±1σ band and a lighter
-// ±3σ band; the active set's run marked. Drawn with the panels of tools/imucal/svg_panel.hpp.
+// ±3σ band; the active set's run marked. Drawn with the panels of tools/report/svg_panel.hpp.
 //
 // Every point is a <circle class='pt'> with data-run-id, data-param (the parameter-set JSON name),
 // data-value-si and data-sigma-si (as stored, full precision) and a tooltip.
@@ -12,20 +12,20 @@
 #include <vector>
 
 #include "calib/core/param_set.hpp"
-#include "db/repository.hpp"
+#include "db/history/repository.hpp"
 
-namespace imucal::stationweb {
+namespace imucal::tools::stationweb {
 
 struct TrendPoint {
-  db::RunId run_id = 0;
-  db::TimestampMs t_ms = 0;
-  calib::ParamVector value = calib::ParamVector::Zero();
-  calib::ParamVector sigma = calib::ParamVector::Zero();
-  std::array<bool, calib::ParamSet::kSize> observable{};  ///< false: not determined, not drawn
+  db::history::RunId run_id = 0;
+  db::history::TimestampMs t_ms = 0;
+  calib::core::ParamVector value = calib::core::ParamVector::Zero();
+  calib::core::ParamVector sigma = calib::core::ParamVector::Zero();
+  std::array<bool, calib::core::ParamSet::kSize> observable{};  ///< false: not determined, not drawn
 };
 
 /// <svg id='trend-GROUP'> for one group, points in time order.
-std::string trend_svg(calib::ParamGroup group, const std::vector<TrendPoint>& points,
-                      std::optional<db::RunId> active_run);
+std::string trend_svg(calib::core::ParamGroup group, const std::vector<TrendPoint>& points,
+                      std::optional<db::history::RunId> active_run);
 
-}  // namespace imucal::stationweb
+}  // namespace imucal::tools::stationweb

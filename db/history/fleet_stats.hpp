@@ -1,0 +1,113 @@
+#pragma once
+// QA's aggregate questions over a calibration history (issue #24 item 4, the fleet pages of
+// stationweb): runs per station per day, verdict counts per station, and the distribution of one
+// AINS parameter per station. Backend-neutral like db/history/repository.hpp: db/history/sqlite_fleet_stats.hpp
+// answers them over a station's SQLite file, and the PostgreSQL fleet store implements the same
+// interface; stationweb's pages only see this header.
+//
+// Every implementation must give the same numbers for the same rows, so the definitions are here:
+//   * a run belongs to a filter when since_ms <= started_at_ms < until_ms (each bound optional),
+//     its station equals `station` exactly (if given) and its unit's serial equals `serial` (if
+//     given). A serial that names no unit matches nothing (no error);
+//   * a run's day is its UTC calendar day: floor(started_at_ms / 86 400 000) days since
+//     1970-01-01 (utc_day());
+//   * verdicts are the run's (RunRecord::verdict): PASS, REVIEW, FAILED; a run still live has none
+//     and is counted as live;
+//   * a parameter's distribution takes the AINS calibration of every matching run that has one
+//     (whatever its verdict), the value in SI units as stored in the parameter-set JSON — except
+//     where that result does not determine the parameter (CalibrationRecord::unobservable lists
+//     it: its stored value is a placeholder, e.g. ς of a field run). count,
+//     mean, sample standard deviation (n - 1; 0 for one value), min, max and the quartiles by
+//     linear interpolation between order statistics (R's type 7, PostgreSQL's percentile_cont):
+//     q(p) = x[floor(h)] + (h - floor(h)) (x[floor(h) + 1] - x[floor(h)]), h = (n - 1) p, x sorted
+//     ascending from index 0 (summarize()).
+// Results come sorted: by station (byte order), then day.
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calib/core/param_set.hpp"
+#include "db/history/repository.hpp"
+
+namespace imucal::db::history {
+
+struct FleetFilter {
+  std::optional<TimestampMs> since_ms;  ///< started_at_ms >= since_ms
+  std::optional<TimestampMs> until_ms;  ///< started_at_ms < until_ms
+  std::optional<std::string> station;   ///< exact station name
+  std::optional<std::string> serial;    ///< exact serial (db/history/serial_number.hpp rule)
+};
+
+struct StationDayCount {
+  std::string station;
+  std::int64_t day = 0;  ///< UTC days since 1970-01-01 (utc_day)
+  std::int64_t runs = 0;
+};
+
+struct StationVerdictCounts {
+  std::string station;
+  std::int64_t pass = 0;
+  std::int64_t review = 0;
+  std::int64_t failed = 0;
+  std::int64_t live = 0;  ///< runs without a verdict yet
+  std::int64_t total() const { return pass + review + failed + live; }
+};
+
+/// One station's values of one parameter (SI units), see the file comment for the definitions.
+struct ParamSummary {
+  std::string station;
+  std::int64_t count = 0;
+  double mean = 0, std_dev = 0, min = 0, q1 = 0, median = 0, q3 = 0, max = 0;
+};
+
+/// One AINS result for the station signatures (issue #25, calib/studies/fleet/station_signature.hpp).
+struct AinsResultRow {
+  RunId run_id = 0;        ///< in the history read (the store's own id in the fleet store)
+  RunId local_run_id = 0;  ///< the station's own id of the run (what its stationctl names)
+  std::string station;
+  std::string serial;
+  std::string sequence_name;
+  TimestampMs started_at_ms = 0;
+  calib::core::ParamSet value;  ///< the AINS estimate, SI
+  calib::core::ParamSet sigma;  ///< its 1-σ
+};
+
+class FleetStats {
+ public:
+  virtual ~FleetStats() = default;
+  /// Matching runs counted per (station, UTC day); only pairs with runs appear.
+  virtual std::vector<StationDayCount> runs_per_station_day(const FleetFilter& filter) const = 0;
+  /// Matching runs counted per station and verdict; only stations with runs appear.
+  virtual std::vector<StationVerdictCounts> verdict_counts_per_station(
+      const FleetFilter& filter) const = 0;
+  /// The AINS value of parameter `param_index` (calib::core::param_info order, 0..26) per station, over
+  /// the matching runs with an AINS calibration; stations without one do not appear.
+  virtual std::vector<ParamSummary> param_distribution(int param_index,
+                                                       const FleetFilter& filter) const = 0;
+  /// The runs of one table run (several units on one fixture, schema v6): the run
+  /// `table_run_id` itself and every run naming it as its table run, ascending id. A run of its
+  /// own gives just itself; an unknown id gives nothing.
+  virtual std::vector<RunId> table_run_members(RunId table_run_id) const = 0;
+  /// The AINS results of the matching factory table runs that determine every parameter, as
+  /// stored, ascending run id — what a station error would have moved. Left out: field runs (no
+  /// table, no surveyed gravity), results with an undetermined term, and reprocessed runs (the
+  /// same data again; their originals stand for them).
+  virtual std::vector<AinsResultRow> ains_results(const FleetFilter& filter) const = 0;
+};
+
+/// The parameter's flat index (calib::core::param_info) from its name in the parameter-set JSON, e.g.
+/// "gyro_bias_radps[2]" or "accel_M[0][1]"; InvalidInput naming the accepted form otherwise.
+int param_index(const std::string& name);
+
+/// floor(t_ms / 86 400 000): the UTC day of a time, also before 1970.
+std::int64_t utc_day(TimestampMs t_ms);
+
+/// The statistics of the file comment over `values` (sorted in place); count 0 for none.
+ParamSummary summarize(std::vector<double>& values);
+
+/// InvalidInput naming the field if a filter value breaks a rule: since after until, a malformed
+/// serial, a station name longer than 200 bytes or with control characters.
+void validate_filter(const FleetFilter& filter);
+
+}  // namespace imucal::db::history
