@@ -31,11 +31,19 @@ mkdir -p "$WORK/old" "$WORK/new"
 # software's version line, the work directory's own path.
 normalise() {  # FILE SIDE_DIR
   sed -E -e "s#$2#WORK#g" \
-    -e 's/"(runtime_s|[a-z_]*wall[a-z_]*|[a-z_]*elapsed[a-z_]*|[a-z_]*_seconds|duration_s|started_at|finished_at|created_at|start_time|end_time|time_utc|[a-z_]*_time)": *("[^"]*"|[-0-9.e+]+)/"\1": T/g' \
+    -e 's/"(runtime_s|[a-z_]*wall[a-z_]*|[a-z_]*elapsed[a-z_]*|[a-z_]*_seconds|duration_s|[a-z_]*_at|[a-z_]*_at_ms|archive_sha256|start_time|end_time|time_utc|[a-z_]*_time)": *("[^"]*"|[-0-9.e+]+)/"\1": T/g' \
     -e 's/^(start_time|end_time|software_version) = .*/\1 = T/' \
+    -e 's/^(  archive sha  ).*/\1T/' \
     -e 's/[0-9]{4}-[0-9]{2}-[0-9]{2}[T ][0-9]{2}:[0-9]{2}:[0-9]{2}(\.[0-9]+)?Z?/TIMESTAMP/g' \
     -e 's/\b(in|took|runtime|time) [0-9.]+ ?(s|ms)\b/\1 T/g' \
-    -e 's/(iterations?), [0-9.]+ s;/\1, T s;/g' -e 's/, [0-9]+ s(, about [0-9]+ s left)?/, T s/g' "$1"
+    -e 's/(iterations?), [0-9.]+ s\b/\1, T s/g' -e 's/, [0-9]+ s(, about [0-9]+ s left)?/, T s/g' "$1" |
+    case "$1" in
+      # CSV exports: the columns of times, run times and the archive's hash (an imported archive's
+      # copy records when it was imported), found by their header names.
+      *.csv) awk -F, -v OFS=, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i ~ /(_at|runtime_s|archive_sha256)$/) m[i] = 1 }
+                               NR > 1 { for (i in m) $i = "T" } { print }' ;;
+      *) cat ;;
+    esac
 }
 
 # The station: stationsim and stationd as processes on loopback (as tools/demo.sh starts them); two
