@@ -109,11 +109,15 @@ TEST(CrashSafety, SigkillAtRandomMomentsLeavesAConsistentDatabase) {
       writer_child(path, fds[1], round);
     }
     ::close(fds[1]);
-    // Wait for the child's first committed run, then let it write for a random while.
-    Report first{};
-    ASSERT_EQ(::read(fds[0], &first, sizeof first), static_cast<ssize_t>(sizeof first))
-        << "child died before writing (see stderr)";
-    std::vector<Report> reports = {first};
+    // Wait for the child's first finished run (its pace is the machine's: fsync times under load),
+    // then let it write for a random while.
+    std::vector<Report> reports;
+    do {
+      Report r{};
+      ASSERT_EQ(::read(fds[0], &r, sizeof r), static_cast<ssize_t>(sizeof r))
+          << "child died before finishing a run (see stderr)";
+      reports.push_back(r);
+    } while (reports.back().kind != 'F');
     std::this_thread::sleep_for(std::chrono::microseconds(2000 + rng() % 60000));
     ASSERT_EQ(::kill(pid, SIGKILL), 0);
     ++kills;
