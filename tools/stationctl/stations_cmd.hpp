@@ -1,0 +1,24 @@
+#pragma once
+// `stationctl --fleet URL stations`: the stations with runs in the fleet store;
+// `stationctl [--fleet URL | --db FILE] stations --signatures [--trend]`: station signatures
+// (issue #25), each station's departure from the fleet and the station errors it fits, for one
+// window or period by period; exit 1 if a station is flagged (with --trend: in the newest period).
+#include <CLI/CLI.hpp>
+#include <string>
+
+#include "tools/stationctl/connection.hpp"
+
+namespace imucal::tools::stationctl {
+
+struct StationsArgs {
+  bool signatures = false, trend = false;
+  std::string since, until;  ///< signatures: the window
+  int period_days = 7;       ///< --trend
+  double false_alarm = 1e-3;
+};
+
+CLI::App* add_stations_command(CLI::App& app, StationsArgs& args);
+/// The station list, or with --signatures or --trend the signatures.
+int cmd_stations(const Target& t, const StationsArgs& a, bool as_json);
+
+}  // namespace imucal::tools::stationctl
