@@ -1,5 +1,5 @@
 #pragma once
-// The control socket's wire protocol (station contract §C): JSON lines over a Unix stream socket.
+// The control socket's wire protocol (ARCHITECTURE §2.1): JSON lines over a Unix stream socket.
 //
 //   request  {"id":N,"cmd":"...","args":{...}}                      one line, '\n'-terminated
 //   reply    {"id":N,"ok":true,"result":{...}}

@@ -1,6 +1,6 @@
 #pragma once
 // The daemon's control socket: a listening AF_UNIX stream socket served by one thread with a poll
-// loop over all clients (station contract §C; protocol in control_protocol.hpp).
+// loop over all clients (ARCHITECTURE §2.1, step 2; protocol in control_protocol.hpp).
 //
 // Per request line: validate (bad_request naming the field), check permission for run.start,
 // run.abort and reprocess, then dispatch — to the ControlHandler for the run commands and

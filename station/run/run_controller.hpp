@@ -1,5 +1,5 @@
 #pragma once
-// The run state machine of stationd (issue #3 item 4; station contract §B2).
+// The run state machine of stationd (issue #3 item 4; ARCHITECTURE §2.1, docs/operator.md).
 //
 // One run at a time. A run's life, with the db::history::RunState stored at each stage and the "phase" word
 // the status shows:

@@ -1,5 +1,5 @@
-// stationctl: the operator's and QA engineer's tool for the calibration station (station contract
-// §C). It talks to stationd over the control socket (JSON lines,
+// stationctl: the operator's and QA engineer's tool for the calibration station (docs/operator.md,
+// docs/qa.md). It talks to stationd over the control socket (JSON lines,
 // station/control/control_protocol.hpp); the read commands (history, show, params, export, run
 // status --run ID) fall back to reading the history database read-only when the daemon cannot be
 // reached, through the same functions the daemon uses (station/control/record_json.hpp), so the

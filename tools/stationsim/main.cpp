@@ -1,6 +1,6 @@
 // stationsim: the simulated station hardware (turntable PLC on Modbus TCP + IMU on a unixcan bus)
-// in one process with one physics clock. CLI: station contract §A (helpers/station_contract.md);
-// run `stationsim --help`. Exit codes: 0 clean exit (SIGTERM/SIGINT, --duration-s reached), 1
+// in one process with one physics clock (ARCHITECTURE §4; docs/integrator.md, "Commissioning with
+// the simulator"); run `stationsim --help`. Exit codes: 0 clean exit (SIGTERM/SIGINT, --duration-s reached), 1
 // runtime failure (cannot listen, the physics thread failed), 2 bad input (flag or unit file).
 #include <signal.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
