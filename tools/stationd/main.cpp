@@ -1,4 +1,4 @@
-// stationd: the calibration station daemon (station/README.md is the operator's guide).
+// stationd: the calibration station daemon (its guides: docs/integrator.md, docs/operator.md).
 //
 //   stationd --config FILE [--check-config] [--log-level L]
 //
