@@ -1,7 +1,7 @@
 #pragma once
-// AINS calibration (paper §IV, ARCHITECTURE §6): a 36-state error-state Kalman filter aided at rest by
-// the table orientation (eq. 28-35), zero velocity (eq. 36-39) and mean depth (eq. 40-43), with a
-// Rauch-Tung-Striebel smoother over the whole run, run as an *iterated linearised smoother*:
+// AINS calibration (paper §IV, ARCHITECTURE §6): a 36-state error-state Kalman filter aided at rest
+// by the table orientation (eq. 28-35), zero velocity (eq. 36-39) and mean depth (eq. 40-43), with
+// a Rauch-Tung-Striebel smoother over the whole run, run as an *iterated linearised smoother*:
 //   1. run the INS with the current parameter estimate as nominal (raw increments compensated by
 //      the shared ImuErrorModel), the navigation errors fed back into the nominal at every update
 //      (keeps the unstable vertical channel and the attitude linear), parameters fixed in a pass;

@@ -16,9 +16,9 @@ namespace imucal::calib::checks {
 using namespace calib::core;
 
 /// The envelope a healthy navigation-grade unit's parameters lie in before calibration, per
-/// group, in SI: ARCHITECTURE §7's default unit is 10–100× inside it, the far-from-nominal test unit
-/// (db/archive/units/far.toml: 2 mg, 0.1 °/h, 2000 ppm) 2.5× inside. The table misalignment ς is
-/// the fixture's mounting error.
+/// group, in SI: ARCHITECTURE §7's default unit is 10–100× inside it, the far-from-nominal test
+/// unit (db/archive/units/far.toml: 2 mg, 0.1 °/h, 2000 ppm) 2.5× inside. The table misalignment ς
+/// is the fixture's mounting error.
 struct DatasheetLimits {
   double accel_bias_mps2 = 5000.0 * kMicroG_mps2;         ///< 5 mg
   double accel_scale = 5000e-6;                           ///< 5000 ppm

@@ -1,5 +1,6 @@
 #pragma once
-// The project's conventions, written down once (ARCHITECTURE §3). Every other header relies on them.
+// The project's conventions, written down once (ARCHITECTURE §3). Every other header relies on
+// them.
 //
 // Frames
 //   n  navigation frame, North-East-Down (NED), attached to the station on the WGS-84 ellipsoid.

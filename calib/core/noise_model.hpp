@@ -1,7 +1,7 @@
 #pragma once
 // A unit's stochastic model: what the truth simulator draws its noise from and what the
-// estimators weight their observations with (a datasheet or the unit file, ARCHITECTURE §3). Shared by
-// both sides, so it lives with the conventions rather than in either.
+// estimators weight their observations with (a datasheet or the unit file, ARCHITECTURE §3). Shared
+// by both sides, so it lives with the conventions rather than in either.
 #include "calib/core/conventions.hpp"
 
 namespace imucal::calib::core {

@@ -1,5 +1,6 @@
 #pragma once
-// The calibration parameter set (ARCHITECTURE §3): one schema for truth, estimates and the database.
+// The calibration parameter set (ARCHITECTURE §3): one schema for truth, estimates and the
+// database.
 #include <Eigen/Core>
 #include <array>
 #include <string>

@@ -1,9 +1,9 @@
 #pragma once
-// A unit's grade and the prior that comes with it (issue #21 item 1, ARCHITECTURE §2 core: "unit grades
-// and priors"). The station was written for navigation-grade units (fibre-optic gyros, pendulous
-// accelerometers, near nominal after assembly); a factory also builds tactical and MEMS units,
-// and field units come back aged. Everything that assumes a unit before seeing its data should
-// take it from here: so far the rest detection that needs no calibration
+// A unit's grade and the prior that comes with it (issue #21 item 1, ARCHITECTURE §2 core: "unit
+// grades and priors"). The station was written for navigation-grade units (fibre-optic gyros,
+// pendulous accelerometers, near nominal after assembly); a factory also builds tactical and MEMS
+// units, and field units come back aged. Everything that assumes a unit before seeing its data
+// should take it from here: so far the rest detection that needs no calibration
 // (calib/core/variation_rest_detector.hpp).
 //
 // The envelopes are datasheet classes, the spread of uncalibrated units of each class (the

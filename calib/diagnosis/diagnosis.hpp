@@ -1,6 +1,6 @@
 #pragma once
-// Sim-to-real gap diagnosis (ARCHITECTURE §8, issue #8): where a recorded run departs from the model
-// (calibrated parameters + declared noise), which unmodelled effect of the catalogue
+// Sim-to-real gap diagnosis (ARCHITECTURE §8, issue #8): where a recorded run departs from the
+// model (calibrated parameters + declared noise), which unmodelled effect of the catalogue
 // (calib/effects/catalogue.hpp) explains it, and how far the gap shrinks once that effect is
 // modelled, on held-out segments.
 //

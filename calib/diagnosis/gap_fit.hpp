@@ -1,10 +1,10 @@
 #pragma once
-// Linear-Gaussian fitting on whitened segment residuals (the diagnosis' workhorse, ARCHITECTURE §8):
-// around the calibrated point the residuals are r(θ0 + δ) ≈ r0 + J δ, whitened so that under the
-// model r0 ~ N(0, I) after the fit. Everything the diagnosis asks — the base refit, a candidate's
-// joint refit, its likelihood ratio, the separability of its parameters from the base ones, the gap
-// on held-out segments — is a least-squares question on (r0, J) restricted to some rows and
-// columns.
+// Linear-Gaussian fitting on whitened segment residuals (the diagnosis' workhorse, ARCHITECTURE
+// §8): around the calibrated point the residuals are r(θ0 + δ) ≈ r0 + J δ, whitened so that under
+// the model r0 ~ N(0, I) after the fit. Everything the diagnosis asks — the base refit, a
+// candidate's joint refit, its likelihood ratio, the separability of its parameters from the base
+// ones, the gap on held-out segments — is a least-squares question on (r0, J) restricted to some
+// rows and columns.
 #include <Eigen/Core>
 #include <string>
 #include <vector>
@@ -48,11 +48,11 @@ HeldOutGap held_out_gap_correlated(const Eigen::VectorXd& r0, const Eigen::Matri
                                    const Eigen::MatrixXd& S,
                                    const std::vector<std::vector<int>>& folds);
 
-/// Separability of a block of candidate columns Jc from base columns Jb (ARCHITECTURE §8: a candidate
-/// correlating > 0.95 with the base parameters is not separable). Works in the candidate's own
-/// parameter space: directions u with (Jc u) of negligible size have no signature at all; of the
-/// others, the fraction of information left after the base parameters are marginalised is
-/// λ(u) = 1 - ρ(u)², ρ the multiple correlation with the base parameters.
+/// Separability of a block of candidate columns Jc from base columns Jb (ARCHITECTURE §8: a
+/// candidate correlating > 0.95 with the base parameters is not separable). Works in the
+/// candidate's own parameter space: directions u with (Jc u) of negligible size have no signature
+/// at all; of the others, the fraction of information left after the base parameters are
+/// marginalised is λ(u) = 1 - ρ(u)², ρ the multiple correlation with the base parameters.
 struct Separability {
   /// Candidate-parameter directions (columns) that are separable: fit the candidate in this basis.
   Eigen::MatrixXd basis;

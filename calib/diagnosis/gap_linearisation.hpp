@@ -1,7 +1,7 @@
 #pragma once
-// The gap model linearised at the calibrated point (ARCHITECTURE §8): whitened residuals r0 of the data
-// against the base parameters with no effect, the whitened Jacobian of the 27 base parameters, and,
-// on request, a candidate effect's columns — all by differences of the one residual model
+// The gap model linearised at the calibrated point (ARCHITECTURE §8): whitened residuals r0 of the
+// data against the base parameters with no effect, the whitened Jacobian of the 27 base parameters,
+// and, on request, a candidate effect's columns — all by differences of the one residual model
 // (calib/diagnosis/gap_model.hpp), so the diagnosis fits exactly the model the simulator injects.
 // Shared by the diagnosis (a recorded run) and the detectability analysis (a sequence, noise-free).
 #include <Eigen/Core>

@@ -1,9 +1,9 @@
 #pragma once
-// The simulated twin of a recorded run (ARCHITECTURE §8 step 1, "simulate the same trajectory with the
-// calibrated model"): the increments a unit with exactly the calibrated parameters and the declared
-// white noise would have delivered along the run's own reference attitudes (table or attitude log),
-// on the run's own time axis. Its residual statistics are what the model predicts for this run; the
-// diagnosis puts them beside the real ones (per segment and overall).
+// The simulated twin of a recorded run (ARCHITECTURE §8 step 1, "simulate the same trajectory with
+// the calibrated model"): the increments a unit with exactly the calibrated parameters and the
+// declared white noise would have delivered along the run's own reference attitudes (table or
+// attitude log), on the run's own time axis. Its residual statistics are what the model predicts
+// for this run; the diagnosis puts them beside the real ones (per segment and overall).
 //
 // Physics (conventions.hpp), written for any reference, including a station's encoder log that
 // holds its last reading during moves: the attitude is exp([ς×]) C_bn_ref per sample; dθ_k is the

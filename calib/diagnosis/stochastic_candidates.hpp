@@ -1,6 +1,6 @@
 #pragma once
-// The two stochastic effects of the catalogue as diagnosis candidates (ARCHITECTURE §7-8). They have no
-// deterministic signature to refit; each is estimated through the statistics it changes.
+// The two stochastic effects of the catalogue as diagnosis candidates (ARCHITECTURE §7-8). They
+// have no deterministic signature to refit; each is estimated through the statistics it changes.
 //
 //  * quantisation: an accumulating output register rounds each increment with the remainder
 //  carried,

@@ -1,6 +1,6 @@
 #pragma once
-// The "over time" part of localising a gap (ARCHITECTURE §8): per-sample statistics of the rest samples
-// (each rest's mean removed) against what the declared noise predicts — whiteness (lag-1
+// The "over time" part of localising a gap (ARCHITECTURE §8): per-sample statistics of the rest
+// samples (each rest's mean removed) against what the declared noise predicts — whiteness (lag-1
 // autocorrelation, which quantisation with a carried remainder makes negative) and the Allan
 // deviation of the rate residual at τ = 1, 10, 100, 1000 samples (white noise falls as 1/√τ, a bias
 // instability flattens it, quantisation steepens it to 1/τ at short τ).

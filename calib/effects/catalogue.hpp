@@ -1,11 +1,11 @@
 #pragma once
-// The effects catalogue (ARCHITECTURE §7): unmodelled physics that the truth simulator injects and the
-// gap diagnosis hypothesises. One name per effect, used everywhere (unit files, truth.json, command
-// lines, reports, JSON). Every effect has a flat parameter vector in SI units (EffectInfo lists its
-// parameters with their human units and a typical navigation-grade magnitude); `Effects` holds the
-// values of all of them in typed fields, and effect_vector()/set_effect_vector() convert between
-// the two, so generic code (CLI parsing, truth.json, the diagnosis) and the physics (the forward
-// models in calib/effects/*.hpp, shared by the simulator and the diagnosis) see the same
+// The effects catalogue (ARCHITECTURE §7): unmodelled physics that the truth simulator injects and
+// the gap diagnosis hypothesises. One name per effect, used everywhere (unit files, truth.json,
+// command lines, reports, JSON). Every effect has a flat parameter vector in SI units (EffectInfo
+// lists its parameters with their human units and a typical navigation-grade magnitude); `Effects`
+// holds the values of all of them in typed fields, and effect_vector()/set_effect_vector() convert
+// between the two, so generic code (CLI parsing, truth.json, the diagnosis) and the physics (the
+// forward models in calib/effects/*.hpp, shared by the simulator and the diagnosis) see the same
 // numbers.
 //
 // Every field defaults to "off" (zero). An effect is active when any of its parameters is non-zero

@@ -1,6 +1,6 @@
 #pragma once
-// gyro_g_sensitivity (ARCHITECTURE §7): a gyro rate error proportional to the specific force, δω = G f
-// (G 3x3, (rad/s)/(m/s²); row i = output axis i). The static gyro bias then changes with the
+// gyro_g_sensitivity (ARCHITECTURE §7): a gyro rate error proportional to the specific force, δω =
+// G f (G 3x3, (rad/s)/(m/s²); row i = output axis i). The static gyro bias then changes with the
 // orientation of the unit against gravity.
 #include "calib/effects/sensor_kinematics.hpp"
 

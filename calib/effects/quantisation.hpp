@@ -1,7 +1,7 @@
 #pragma once
-// quantisation (ARCHITECTURE §7) and the noise model's declared LSBs: the output register rounds each
-// axis to its LSB and carries the remainder into the next sample (an accumulating register), so
-// quantisation never accumulates into a drift. The error of one output is e_k - e_{k-1} with e
+// quantisation (ARCHITECTURE §7) and the noise model's declared LSBs: the output register rounds
+// each axis to its LSB and carries the remainder into the next sample (an accumulating register),
+// so quantisation never accumulates into a drift. The error of one output is e_k - e_{k-1} with e
 // uniform on ±LSB/2: white over long spans (Allan slope -1), variance LSB²/6 per sample and lag-1
 // autocovariance -LSB²/12 — which is how the diagnosis tells it from a larger white noise.
 #include <cmath>

@@ -1,8 +1,9 @@
 #pragma once
 // The seam between the world and the studies that need runs of it. The diagnosis' detectability
 // and its blind validation draw runs of one sequence by one unit with chosen effects injected;
-// they take them from a RunSource and never include a simulator (ARCHITECTURE §2). calib/sim/ provides
-// the truth simulator's (truth_run_source); any other simulator of the same table may serve.
+// they take them from a RunSource and never include a simulator (ARCHITECTURE §2). calib/sim/
+// provides the truth simulator's (truth_run_source); any other simulator of the same table may
+// serve.
 #include <cstdint>
 #include <functional>
 

@@ -1,9 +1,9 @@
 #pragma once
-// gravity_error and latitude_error (ARCHITECTURE §7): the station's Earth model is wrong. The true site
-// is the configured one with latitude + dlat and gravity + dg (the configured surveyed gravity, or
-// normal gravity at the true latitude when none is configured). A gravity error looks like a common
-// accelerometer scale factor on every axis; a latitude error splits the Earth rate wrongly between
-// north and down, an orientation-dependent gyro residual.
+// gravity_error and latitude_error (ARCHITECTURE §7): the station's Earth model is wrong. The true
+// site is the configured one with latitude + dlat and gravity + dg (the configured surveyed
+// gravity, or normal gravity at the true latitude when none is configured). A gravity error looks
+// like a common accelerometer scale factor on every axis; a latitude error splits the Earth rate
+// wrongly between north and down, an orientation-dependent gyro residual.
 #include "calib/core/earth.hpp"
 
 namespace imucal::calib::effects {

@@ -1,8 +1,8 @@
 #pragma once
-// size_effect (ARCHITECTURE §7): the three accelerometers sit at different points r_i of the unit (lever
-// arms from the rotation centre, body axes, m). Accelerometer i senses component i of the kinematic
-// acceleration at its own point, ([ω̇×] + [ω×]²) r_i, on top of the specific force at the centre.
-// Only while the table turns: ∝ ω² in cruise, spikes ∝ ω̇ at the ramps.
+// size_effect (ARCHITECTURE §7): the three accelerometers sit at different points r_i of the unit
+// (lever arms from the rotation centre, body axes, m). Accelerometer i senses component i of the
+// kinematic acceleration at its own point, ([ω̇×] + [ω×]²) r_i, on top of the specific force at the
+// centre. Only while the table turns: ∝ ω² in cruise, spikes ∝ ω̇ at the ramps.
 #include <array>
 
 #include "calib/effects/sensor_kinematics.hpp"

@@ -1,9 +1,9 @@
 #pragma once
-// table_nonorthogonality (ARCHITECTURE §7): the table's inner axis is not at 90° to its outer axis. It
-// leans towards the outer axis by δ: rotated about n = a_inner × a_outer (normalised) by δ in the
-// outer-gimbal frame (default geometry: inner = Ry(δ) e_z, 90° - δ from the outer axis x). A lean
-// about the outer axis itself is not modelled: it is a table misalignment ς plus a fixed mounting
-// rotation, which the calibration absorbs.
+// table_nonorthogonality (ARCHITECTURE §7): the table's inner axis is not at 90° to its outer axis.
+// It leans towards the outer axis by δ: rotated about n = a_inner × a_outer (normalised) by δ in
+// the outer-gimbal frame (default geometry: inner = Ry(δ) e_z, 90° - δ from the outer axis x). A
+// lean about the outer axis itself is not modelled: it is a table misalignment ς plus a fixed
+// mounting rotation, which the calibration absorbs.
 #include "calib/core/rotation.hpp"
 
 namespace imucal::calib::effects {

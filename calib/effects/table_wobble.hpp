@@ -1,7 +1,7 @@
 #pragma once
-// table_wobble (ARCHITECTURE §7): a once-per-revolution tilt of the platform against the outer gimbal.
-// A first-harmonic tilt δ_o(θ) = A cos θ + B sin θ (perpendicular to the inner axis) splits into a
-// part turning with the platform, which is a fixed mounting rotation (absorbed by the
+// table_wobble (ARCHITECTURE §7): a once-per-revolution tilt of the platform against the outer
+// gimbal. A first-harmonic tilt δ_o(θ) = A cos θ + B sin θ (perpendicular to the inner axis) splits
+// into a part turning with the platform, which is a fixed mounting rotation (absorbed by the
 // misalignments, never observable), and a part turning against it: δ_o(θ) = R(a_inner, -θ) w,
 // w = w_x u1 + w_y u2, u1 = the outer axis' component perpendicular to the inner axis, u2 = a_inner
 // × u1 (default geometry: Rz(-θ) (w_x, w_y, 0)). The platform is C_op = exp([δ_o×]) R(a_inner, θ).

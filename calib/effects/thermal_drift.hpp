@@ -1,7 +1,7 @@
 #pragma once
-// thermal_drift (ARCHITECTURE §7): the warm-up of the biases after power-on, b(t) = b + A exp(-t/τ), t
-// from the run's first sample. A time trend, not locked to the orientation. Integrated exactly
-// over the interval: ∫ A exp(-t/τ) dt = A τ (exp(-t0/τ) - exp(-t1/τ)).
+// thermal_drift (ARCHITECTURE §7): the warm-up of the biases after power-on, b(t) = b + A
+// exp(-t/τ), t from the run's first sample. A time trend, not locked to the orientation. Integrated
+// exactly over the interval: ∫ A exp(-t/τ) dt = A τ (exp(-t0/τ) - exp(-t1/τ)).
 #include <cmath>
 
 #include "calib/effects/sensor_kinematics.hpp"

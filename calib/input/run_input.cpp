@@ -106,8 +106,8 @@ CalibrationInput field_input(const RunDescription& run, const ImuSeries& imu,
             " run: the initial alignment needs the unit standing still for at least " +
             number(kMinFirstRest_s) + " s within the first " + number(latest_start) + " s" +
             (first ? " (the first rest found in the IMU data starts at t = " +
-                         number(imu[first->begin].t_s) + " s and lasts " +
-                         number(span_s(*first)) + " s)"
+                         number(imu[first->begin].t_s) + " s and lasts " + number(span_s(*first)) +
+                         " s)"
                    : " (no rest found in the IMU data at all)"));
   return in;
 }
@@ -133,8 +133,7 @@ std::vector<ReferenceSample> factory_reference(const RunDescription& run, const 
     if (!(std::fabs(t_ref - imu[k].t_s) <= kTimeMatchTolerance_s))
       throw InputError(InputError::Where::kReference,
                        names.time + " = " + number(t_ref) + " does not match " +
-                           names.imu_sample(k) + " " + names.time + " = " +
-                           number(imu[k].t_s) +
+                           names.imu_sample(k) + " " + names.time + " = " + number(imu[k].t_s) +
                            " (tolerance 1 µs); the reference must be on the IMU time axis "
                            "(interpolation is not supported yet)",
                        k);
@@ -171,8 +170,8 @@ CalibrationInput factory_input(const RunDescription& run, const ImuSeries& given
                      "a factory run needs a reference (" + names.reference_choice + ")");
   const bool table = run.reference == ReferenceKind::kTable;
   const size_t n = given.size();
-  const size_t n_ref = table ? (logs.table ? logs.table->size() : 0)
-                             : (logs.attitude ? logs.attitude->size() : 0);
+  const size_t n_ref =
+      table ? (logs.table ? logs.table->size() : 0) : (logs.attitude ? logs.attitude->size() : 0);
   if (n_ref != n)
     throw InputError(InputError::Where::kReference,
                      std::to_string(n_ref) + " data rows but " + names.imu + " has " +
@@ -199,9 +198,8 @@ CalibrationInput factory_input(const RunDescription& run, const ImuSeries& given
         in.reference = factory_reference(run, imu, logs, names);
         if (std::none_of(in.reference.begin(), in.reference.end(),
                          [](const ReferenceSample& r) { return r.at_rest; }))
-          throw InputError(InputError::Where::kReference,
-                           "no rest periods in " + names.reference + ": " + names.at_rest +
-                               " is never 1");
+          throw InputError(InputError::Where::kReference, "no rest periods in " + names.reference +
+                                                              ": " + names.at_rest + " is never 1");
       },
       [&] {
         if (!owned) in.imu = given;

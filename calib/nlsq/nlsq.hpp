@@ -1,6 +1,6 @@
 #pragma once
-// NLSQ factory calibration (paper §V, eq. 48-50; ARCHITECTURE §6): batch nonlinear least squares with
-// Ceres over the 27 parameters of ParamSet (accel bias, dM_a, gyro bias, dM_g, table
+// NLSQ factory calibration (paper §V, eq. 48-50; ARCHITECTURE §6): batch nonlinear least squares
+// with Ceres over the 27 parameters of ParamSet (accel bias, dM_a, gyro bias, dM_g, table
 // misalignment ς).
 //
 // Data reduction (done once per run, or once per re-linearisation for the gyro part):

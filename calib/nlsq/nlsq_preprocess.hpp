@@ -1,7 +1,7 @@
 #pragma once
-// NLSQ data reduction (paper §V, ARCHITECTURE §6): rest periods to mean specific forces (once per run)
-// and rotations to a linearised gyro propagation (once per re-linearisation). Everything the Ceres
-// residuals of calib/nlsq/nlsq_residuals.hpp need, and nothing per sample.
+// NLSQ data reduction (paper §V, ARCHITECTURE §6): rest periods to mean specific forces (once per
+// run) and rotations to a linearised gyro propagation (once per re-linearisation). Everything the
+// Ceres residuals of calib/nlsq/nlsq_residuals.hpp need, and nothing per sample.
 #include <Eigen/Core>
 #include <cstddef>
 #include <vector>

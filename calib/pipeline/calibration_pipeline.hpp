@@ -1,7 +1,7 @@
 #pragma once
 // The station's calibration job in one call: two independent methods, each evaluated (paper
-// §VII), then the cross-check (ARCHITECTURE §6). Used by `imucal calibrate` and by stationd's worker, so
-// the two can never drift apart.
+// §VII), then the cross-check (ARCHITECTURE §6). Used by `imucal calibrate` and by stationd's
+// worker, so the two can never drift apart.
 //   factory: AINS + NLSQ (both need the table reference), evaluated against it;
 //   land:     AINS (zero velocity, depth) + the legacy method (no reference needed); below
 //             navigation grade legacy runs first and AINS linearises about its result (a unit far

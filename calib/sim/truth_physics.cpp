@@ -19,7 +19,8 @@ TruthKinematics::TruthKinematics(const TableGeometry& geometry, const Site& site
       wobble_rad_(unit.effects.table_wobble_rad),
       misalignment_rad_(unit.params.table_misalignment_rad),
       lever_arm_m_(unit.effects.accel_lever_arm_m) {
-  // The physics happens at the true site; the station's configured one may be off (ARCHITECTURE §7).
+  // The physics happens at the true site; the station's configured one may be off (ARCHITECTURE
+  // §7).
   const EarthModel earth(
       true_site(site, unit.effects.gravity_error_mps2, unit.effects.latitude_error_rad));
   w_ie_n_ = earth.w_ie_n();
@@ -109,8 +110,8 @@ void TruthSensor::reseed_noise(uint64_t seed) {
 void TruthSensor::measure(const Eigen::Vector3d& dtheta, const Eigen::Vector3d& dv, double t0_s,
                           ImuIncrement& out) {
   const double dt_s = dt_s_;
-  // Sensor-level effects (ARCHITECTURE §7, calib/effects/) at the interval-mean kinematics; the size
-  // effect is already in dv (integrated exactly by TruthKinematics::dv_lever).
+  // Sensor-level effects (ARCHITECTURE §7, calib/effects/) at the interval-mean kinematics; the
+  // size effect is already in dv (integrated exactly by TruthKinematics::dv_lever).
   SensorKinematics kin;
   kin.f_b = dv / dt_s;
   kin.w_b = dtheta / dt_s;

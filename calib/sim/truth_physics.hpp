@@ -9,7 +9,8 @@
 //    the lever-arm specific force by Gauss-Legendre quadrature;
 //  * TruthSensor — what the unit makes of them: error model (paper eq. 18, 23), sensor-level
 //  effects
-//    (ARCHITECTURE §7), noise (ARW, VRW, Gauss-Markov eq. 16-17) and quantisation with carried remainder.
+//    (ARCHITECTURE §7), noise (ARW, VRW, Gauss-Markov eq. 16-17) and quantisation with carried
+//    remainder.
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>

@@ -1,10 +1,10 @@
 #pragma once
-// Streaming truth simulator: the increments of calib::sim::simulate() (truth_sim.hpp) for a table whose
-// motion is only known as it happens — a simulated PLC can only step forward in time. The caller
-// hands next() a function giving the table state at a time; it is called with non-decreasing times
-// inside [t_{k-1}, t_k]: the interval start (first sample only), the Gauss-Legendre nodes (size
-// effect only) and the interval end. Same physics as the batch form (truth_physics.hpp): exact dθ
-// from the endpoint attitudes, dv by quadrature, then the error model, effects, noise and
+// Streaming truth simulator: the increments of calib::sim::simulate() (truth_sim.hpp) for a table
+// whose motion is only known as it happens — a simulated PLC can only step forward in time. The
+// caller hands next() a function giving the table state at a time; it is called with non-decreasing
+// times inside [t_{k-1}, t_k]: the interval start (first sample only), the Gauss-Legendre nodes
+// (size effect only) and the interval end. Same physics as the batch form (truth_physics.hpp):
+// exact dθ from the endpoint attitudes, dv by quadrature, then the error model, effects, noise and
 // quantisation. With the same options and seed, driving the stream with a MotionProfile's at()
 // reproduces simulate().
 //

@@ -1,6 +1,7 @@
 #pragma once
-// The one exception type of the run-archive boundary (ARCHITECTURE §5). Data from other stations and
-// simulators enter here, so every error names the file and the line and/or field a user must fix.
+// The one exception type of the run-archive boundary (ARCHITECTURE §5). Data from other stations
+// and simulators enter here, so every error names the file and the line and/or field a user must
+// fix.
 //   what() = "<file>:<line>: <message>"                    (line known)
 //          | "<file>: field '<name>': <message>"           (field known)
 //          | "<file>:<line>: field '<name>': <message>"    (both known, e.g. a TOML key)

@@ -177,7 +177,8 @@ nlohmann::json diagnosis_summary_json(const calib::diagnosis::DiagnosisResult& d
 namespace {
 
 /// One finding ({"effect", "parameters": [{"name", "value", "unit"}]}) into `fx`, in SI.
-std::string add_finding(const nlohmann::json& f, const std::string& where, calib::effects::Effects& fx) {
+std::string add_finding(const nlohmann::json& f, const std::string& where,
+                        calib::effects::Effects& fx) {
   auto bad = [&](const std::string& what) { return std::invalid_argument(where + ": " + what); };
   if (!f.is_object() || !f.contains("effect") || !f["effect"].is_string())
     throw bad("not a finding (an object with \"effect\" and \"parameters\")");

@@ -78,7 +78,7 @@ Eigen::Matrix3d mat_from(const json& j, const std::string& origin, const std::st
 }
 
 calib::core::ParamSet params_from_object(const json& j, const std::string& origin,
-                                   const std::string& prefix, bool allow_sigma_key) {
+                                         const std::string& prefix, bool allow_sigma_key) {
   if (!j.is_object())
     throw ArchiveError::field_error(origin,
                                     prefix.empty() ? "<root>" : prefix.substr(0, prefix.size() - 1),
@@ -121,7 +121,7 @@ json param_set_to_json(const calib::core::ParamSet& params, const calib::core::P
 }
 
 calib::core::ParamSet param_set_from_json(const json& j, const std::string& origin,
-                                    calib::core::ParamSet* sigma_out) {
+                                          calib::core::ParamSet* sigma_out) {
   calib::core::ParamSet p = params_from_object(j, origin, "", /*allow_sigma_key=*/true);
   if (j.contains("source") && !j["source"].is_object())
     throw ArchiveError::field_error(

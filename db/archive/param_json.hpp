@@ -1,5 +1,6 @@
 #pragma once
-// The calibration parameter set as JSON (ARCHITECTURE §3) — the one schema for truth, estimates and DB:
+// The calibration parameter set as JSON (ARCHITECTURE §3) — the one schema for truth, estimates and
+// DB:
 //   {"accel_bias_mps2":[3], "accel_M":[[3],[3],[3]],
 //    "gyro_bias_radps":[3], "gyro_M":[[3],[3],[3]],
 //    "table_misalignment_rad":[3],
@@ -28,13 +29,14 @@ nlohmann::json param_set_to_json(const calib::core::ParamSet& params,
 /// validated but discarded. An optional "source" object at the root (where the set came from:
 /// `stationctl params` names its run there, issue #19) is allowed and not read.
 calib::core::ParamSet param_set_from_json(const nlohmann::json& j, const std::string& origin,
-                                    calib::core::ParamSet* sigma_out = nullptr);
+                                          calib::core::ParamSet* sigma_out = nullptr);
 
 /// Parse JSON text; a syntax error becomes ArchiveError("<origin>:<line>: <message>").
 nlohmann::json parse_json_text(const std::string& text, const std::string& origin);
 
 /// Read a parameter-set JSON file (see param_set_from_json for sigma_out).
-calib::core::ParamSet read_param_file(const std::string& path, calib::core::ParamSet* sigma_out = nullptr);
+calib::core::ParamSet read_param_file(const std::string& path,
+                                      calib::core::ParamSet* sigma_out = nullptr);
 /// Write a parameter-set JSON file (pretty-printed, durable; replaces an existing file atomically).
 void write_param_file(const std::string& path, const calib::core::ParamSet& params,
                       const calib::core::ParamSet* sigma = nullptr);

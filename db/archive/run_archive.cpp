@@ -59,8 +59,8 @@ double mrad_to_si(double h) { return h * 1e-3; }
 const std::vector<EnvelopeKey>& envelope_keys() {
   static const calib::core::EnvelopeRange r = calib::core::envelope_range();
   static const std::vector<EnvelopeKey> keys = {
-      {"gyro_bias_deg_per_s", "deg/s", deg_per_s_to_si, &calib::core::EnvelopeOverrides::gyro_bias_radps,
-       r.max_gyro_bias_radps, "(0, 100] deg/s"},
+      {"gyro_bias_deg_per_s", "deg/s", deg_per_s_to_si,
+       &calib::core::EnvelopeOverrides::gyro_bias_radps, r.max_gyro_bias_radps, "(0, 100] deg/s"},
       {"accel_bias_mg", "mg", mg_to_si, &calib::core::EnvelopeOverrides::accel_bias_mps2,
        r.max_accel_bias_mps2, "(0, 2000] mg"},
       {"scale_ppm", "ppm", ppm_to_si, &calib::core::EnvelopeOverrides::scale, r.max_scale,
@@ -416,7 +416,8 @@ std::string run_info_text(const RunInfo& ri) {
   if (!ri.software_version.empty()) w.key("software_version", ri.software_version);
   if (!ri.start_time.empty()) w.key("start_time", ri.start_time);
   if (!ri.end_time.empty()) w.key("end_time", ri.end_time);
-  if (ri.setting != calib::core::Setting::kFactory) w.key("setting", calib::core::setting_name(ri.setting));
+  if (ri.setting != calib::core::Setting::kFactory)
+    w.key("setting", calib::core::setting_name(ri.setting));
   w.key("reference", reference_name(ri.reference));
   w.section("station");
   if (!ri.station_name.empty()) w.key("name", ri.station_name);
@@ -442,7 +443,8 @@ std::string run_info_text(const RunInfo& ri) {
     if (!ri.sequence_sha256.empty()) w.key("sha256", ri.sequence_sha256);
   }
   // Written only when it says something: a navigation-grade archive stays as it always was.
-  if (ri.grade != calib::core::Grade::kNavigation || ri.min_rest_s > 0.0 || ri.prior_overrides.any()) {
+  if (ri.grade != calib::core::Grade::kNavigation || ri.min_rest_s > 0.0 ||
+      ri.prior_overrides.any()) {
     w.section("prior");
     w.key("grade", calib::core::grade_name(ri.grade));
     if (ri.min_rest_s > 0.0) w.key("min_rest_s", ri.min_rest_s);
@@ -527,8 +529,9 @@ class ImuRowSink final : public CsvRowSink {
     s.dtheta_rad = {v[1], v[2], v[3]};
     s.dv_mps = {v[4], v[5], v[6]};
     s.temp_c = has_temp_ ? v[7] : nan_;
-    // Raw integral ∫ f_b dt -> the body frame at the interval start (ARCHITECTURE §3, conventions.hpp):
-    // first-order rotation compensation; sculling inside one sample is not recoverable here.
+    // Raw integral ∫ f_b dt -> the body frame at the interval start (ARCHITECTURE §3,
+    // conventions.hpp): first-order rotation compensation; sculling inside one sample is not
+    // recoverable here.
     if (dv_raw_integral_) {
       const Eigen::Vector3d v_raw = s.dv_mps;
       s.dv_mps = v_raw + 0.5 * s.dtheta_rad.cross(v_raw);

@@ -1,6 +1,6 @@
 #pragma once
-// The run archive (ARCHITECTURE §5): the interchange format every tool reads and through which data from
-// other stations and simulators enter. A run is a directory:
+// The run archive (ARCHITECTURE §5): the interchange format every tool reads and through which data
+// from other stations and simulators enter. A run is a directory:
 //   run.toml                  RunInfo (below)
 //   imu.csv t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps[,temp_c]
 //   table.csv                 t_s,outer_deg,inner_deg,at_rest              (encoder log)
@@ -30,7 +30,8 @@ namespace imucal::db::archive {
 /// calib::core::TableGeometry.
 struct TableSetup {
   /// Defaults follow calib::core::TableGeometry{} (the station's table).
-  Eigen::Vector3d outer_axis_t = calib::core::TableGeometry{}.outer_axis_t;  ///< in the base frame, unit
+  Eigen::Vector3d outer_axis_t =
+      calib::core::TableGeometry{}.outer_axis_t;  ///< in the base frame, unit
   Eigen::Vector3d inner_axis_o =
       calib::core::TableGeometry{}.inner_axis_o;                  ///< in the outer-gimbal frame
   double heading_rad = calib::core::TableGeometry{}.heading_rad;  ///< C_tn = Rz(heading)
@@ -53,8 +54,8 @@ struct TableSetup {
 using ReferenceKind = calib::input::ReferenceKind;
 
 /// run.toml [capture] (daemon runs only): how the live capture went. The counters have the names
-/// and meanings of station::run::CaptureStats (station/run/capture_stats.hpp); this copy keeps the archive
-/// library independent of the daemon.
+/// and meanings of station::run::CaptureStats (station/run/capture_stats.hpp); this copy keeps the
+/// archive library independent of the daemon.
 struct CaptureInfo {
   /// true: the capture ended normally (the daemon finished the archive). false: the archive was
   /// cut short (aborted, failed) or recovered after the daemon died; a recovered archive's counters
@@ -124,7 +125,7 @@ struct RunArchive {
   calib::core::ImuSeries imu;                   ///< temp_c = NaN when imu.csv has no temp_c column
   std::vector<calib::core::TableSample> table;  ///< non-empty iff info.reference == kTable
   std::vector<AttitudeSample> attitude;   ///< non-empty iff info.reference == kAttitude
-  std::vector<calib::core::GnssFix> gnss;       ///< gnss.csv (required at sea), angles in rad
+  std::vector<calib::core::GnssFix> gnss;  ///< gnss.csv (required at sea), angles in rad
   std::optional<Truth> truth;
   std::string
       origin;  ///< directory it was read from (names files in later errors); "" if in memory

@@ -58,16 +58,18 @@ struct NoiseField {
   bool strictly_positive;
 };
 const NoiseField kNoiseFields[] = {
-    {"arw_deg_per_sqrt_h", "arw_rad_per_sqrt_s", &calib::core::NoiseModel::arw_rad_per_sqrt_s, arw_to_si,
-     false},
-    {"vrw_ug_per_sqrt_hz", "vrw_mps_per_sqrt_s", &calib::core::NoiseModel::vrw_mps_per_sqrt_s, vrw_to_si,
-     false},
+    {"arw_deg_per_sqrt_h", "arw_rad_per_sqrt_s", &calib::core::NoiseModel::arw_rad_per_sqrt_s,
+     arw_to_si, false},
+    {"vrw_ug_per_sqrt_hz", "vrw_mps_per_sqrt_s", &calib::core::NoiseModel::vrw_mps_per_sqrt_s,
+     vrw_to_si, false},
     {"gyro_bias_instability_deg_per_h", "gyro_bias_instability_radps",
      &calib::core::NoiseModel::gyro_bias_instability_radps, deg_per_h_to_radps, false},
-    {"gyro_bias_tau_s", "gyro_bias_tau_s", &calib::core::NoiseModel::gyro_bias_tau_s, identity, true},
+    {"gyro_bias_tau_s", "gyro_bias_tau_s", &calib::core::NoiseModel::gyro_bias_tau_s, identity,
+     true},
     {"accel_bias_instability_ug", "accel_bias_instability_mps2",
      &calib::core::NoiseModel::accel_bias_instability_mps2, ug_to_mps2, false},
-    {"accel_bias_tau_s", "accel_bias_tau_s", &calib::core::NoiseModel::accel_bias_tau_s, identity, true},
+    {"accel_bias_tau_s", "accel_bias_tau_s", &calib::core::NoiseModel::accel_bias_tau_s, identity,
+     true},
     {"dtheta_lsb_rad", "dtheta_lsb_rad", &calib::core::NoiseModel::dtheta_lsb_rad, identity, false},
     {"dv_lsb_mps", "dv_lsb_mps", &calib::core::NoiseModel::dv_lsb_mps, identity, false},
 };
@@ -198,9 +200,10 @@ std::string unit_file_text(const calib::effects::UnitModel& u) {
   w.key("table_time_offset_s", u.effects.table_time_offset_s);
   for (const auto& e : calib::effects::effect_catalogue()) {
     bool human = false;
-    for (auto id : {calib::effects::EffectId::kAccelQuadraticK2, calib::effects::EffectId::kAccelAsymmetry,
-                    calib::effects::EffectId::kGyroGSensitivity, calib::effects::EffectId::kSizeEffect,
-                    calib::effects::EffectId::kTableTimeOffset})
+    for (auto id :
+         {calib::effects::EffectId::kAccelQuadraticK2, calib::effects::EffectId::kAccelAsymmetry,
+          calib::effects::EffectId::kGyroGSensitivity, calib::effects::EffectId::kSizeEffect,
+          calib::effects::EffectId::kTableTimeOffset})
       human = human || id == e.id;
     if (human || !u.effects.active(e.id)) continue;
     const Eigen::VectorXd v = calib::effects::effect_vector(u.effects, e.id);
@@ -246,8 +249,8 @@ void parse_effect_values(const nlohmann::json& eff, const std::string& origin, T
     const std::string base = "effects." + it.key();
     const calib::effects::EffectInfo* info = calib::effects::find_effect(it.key());
     if (!info)
-      throw ArchiveError::field_error(origin, base,
-                                      "unknown effect (known: " + calib::effects::effect_names_list() + ")");
+      throw ArchiveError::field_error(
+          origin, base, "unknown effect (known: " + calib::effects::effect_names_list() + ")");
     if (!it->is_object())
       throw ArchiveError::field_error(origin, base,
                                       std::string("expected an object, got ") + it->type_name());
@@ -287,8 +290,9 @@ void parse_effect_names(const nlohmann::json& eff, const std::string& origin, Tr
     const std::string name = eff[i].get<std::string>();
     if (name.empty()) throw ArchiveError::field_error(origin, field, "empty effect name");
     if (!calib::effects::find_effect(name))
-      throw ArchiveError::field_error(origin, field, "unknown effect '" + name + "' (known: " +
-                                                         calib::effects::effect_names_list() + ")");
+      throw ArchiveError::field_error(
+          origin, field,
+          "unknown effect '" + name + "' (known: " + calib::effects::effect_names_list() + ")");
     if (!seen.insert(name).second)
       throw ArchiveError::field_error(origin, field, "duplicate effect '" + name + "'");
     t.legacy_effect_names.push_back(name);

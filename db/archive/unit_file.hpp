@@ -1,8 +1,8 @@
 #pragma once
-// Unit files (TOML, human units) -> calib::effects::UnitModel, and truth.json (SI) of simulated runs.
-// Keys and units are listed in db/archive/FORMAT.md. Missing keys mean zero (a perfect sensor,
-// no effect), except [noise] whose missing keys take the calib::core::NoiseModel{} defaults. Unknown
-// keys are rejected with their line.
+// Unit files (TOML, human units) -> calib::effects::UnitModel, and truth.json (SI) of simulated
+// runs. Keys and units are listed in db/archive/FORMAT.md. Missing keys mean zero (a perfect
+// sensor, no effect), except [noise] whose missing keys take the calib::core::NoiseModel{}
+// defaults. Unknown keys are rejected with their line.
 #include <string>
 #include <vector>
 

@@ -74,7 +74,7 @@ std::vector<RunReason> reasons_from_json(const std::string& text, const std::str
 }
 
 std::vector<calib::checks::CrossCheckFailure> failures_from_json(const std::string& text,
-                                                         const std::string& origin) {
+                                                                 const std::string& origin) {
   std::vector<calib::checks::CrossCheckFailure> out;
   try {
     for (const json& f : parse(text, origin))

@@ -1,6 +1,7 @@
 #pragma once
 // The jsonb forms of a calibration's parts in the fleet store, and their inverse. Values: the
-// export's forms (db/history/export.hpp); parameter sets: the five keys of ARCHITECTURE §3, without sigma.
+// export's forms (db/history/export.hpp); parameter sets: the five keys of ARCHITECTURE §3, without
+// sigma.
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -16,6 +17,6 @@ StoredMetrics metrics_from_json(const std::string& text, const std::string& orig
 std::vector<std::string> strings_from_json(const std::string& text, const std::string& origin);
 std::vector<RunReason> reasons_from_json(const std::string& text, const std::string& origin);
 std::vector<calib::checks::CrossCheckFailure> failures_from_json(const std::string& text,
-                                                         const std::string& origin);
+                                                                 const std::string& origin);
 
 }  // namespace imucal::db::fleet

@@ -1,14 +1,14 @@
 #pragma once
-// The fleet store as a db::history::Repository (issue #24 items 1 and 3): the read side of the interface
-// over PostgreSQL, so `stationctl --fleet URL history|show|params|export` and stationweb print
-// exactly what they print for a station's SQLite. Runs of every station: a run's id here is the
-// store's own (RunRecord::run_id); its station is RunRecord::station; reprocessed_from and
+// The fleet store as a db::history::Repository (issue #24 items 1 and 3): the read side of the
+// interface over PostgreSQL, so `stationctl --fleet URL history|show|params|export` and stationweb
+// print exactly what they print for a station's SQLite. Runs of every station: a run's id here is
+// the store's own (RunRecord::run_id); its station is RunRecord::station; reprocessed_from and
 // table_run_id are translated to the store's ids (within the same station).
 //
 // Writes: the store is written only by each station's outbox sender (db/fleet/fleet_writer.hpp);
-// every write method of the interface throws db::history::ReadOnly saying so. Readers should log in with a
-// role that has no write grant at all (db/fleet/README.md): the server, not this class, is what
-// keeps the QA view from writing.
+// every write method of the interface throws db::history::ReadOnly saying so. Readers should log in
+// with a role that has no write grant at all (db/fleet/README.md): the server, not this class, is
+// what keeps the QA view from writing.
 //
 // The active calibration of a serial across the fleet: the latest done+PASS factory run of any
 // station (origin ''), unless a promotion made after it ended wins — the station's rule

@@ -1,8 +1,9 @@
 #pragma once
 // The fleet store's PostgreSQL schema and its migrations (issue #24 item 1; db/fleet/README.md
-// has the tables). Like the station's SQLite (db/history/schema.hpp): numbered migrations, each applied
-// with its row in `fleet_schema_version` inside one transaction; a store newer than this software
-// is refused, never written. Concurrent stations migrating at once serialise on an advisory lock.
+// has the tables). Like the station's SQLite (db/history/schema.hpp): numbered migrations, each
+// applied with its row in `fleet_schema_version` inside one transaction; a store newer than this
+// software is refused, never written. Concurrent stations migrating at once serialise on an
+// advisory lock.
 #include "db/fleet/pg_connection.hpp"
 
 namespace imucal::db::fleet {

@@ -18,13 +18,14 @@ struct FleetTarget {
 };
 
 /// Checks the URL with libpq's own parser (postgresql:// or postgres:// URIs, or key=value
-/// connection strings) and returns its target. Throws db::history::InvalidInput "fleet url: <reason>" (the
-/// reason redacted) for anything libpq would refuse, and for a URL with no host (a fleet store is
-/// a server, never a local default).
+/// connection strings) and returns its target. Throws db::history::InvalidInput "fleet url:
+/// <reason>" (the reason redacted) for anything libpq would refuse, and for a URL with no host (a
+/// fleet store is a server, never a local default).
 FleetTarget parse_fleet_target(const std::string& url, const std::string& password = {});
 
 /// The password from a file (its first line, without the newline) or an environment variable.
-/// Throws db::history::InvalidInput naming the file or variable (never its content) if unreadable or empty.
+/// Throws db::history::InvalidInput naming the file or variable (never its content) if unreadable
+/// or empty.
 std::string read_password_file(const std::string& path);
 std::string read_password_env(const std::string& variable);
 

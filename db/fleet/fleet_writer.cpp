@@ -4,8 +4,8 @@
 #include <nlohmann/json.hpp>
 
 #include "calib/core/param_set.hpp"
-#include "db/history/export.hpp"
 #include "db/fleet/fleet_codec.hpp"
+#include "db/history/export.hpp"
 
 namespace imucal::db::fleet {
 using namespace db::history;
@@ -48,8 +48,8 @@ const char* const kSqlInsertCrosscheck =
     "INSERT INTO crosschecks (run_id, verdict, k_sigma, failures, not_compared) "
     "VALUES ($1, $2, $3, $4::jsonb, $5::jsonb)";
 
-/// The run's AINS values as a PostgreSQL array literal (calib::core::param_info order, NULL where the
-/// result lists the parameter as unobservable); none without an AINS result.
+/// The run's AINS values as a PostgreSQL array literal (calib::core::param_info order, NULL where
+/// the result lists the parameter as unobservable); none without an AINS result.
 PgParam ains_values(const RunDetails& d) {
   for (const CalibrationRecord& c : d.calibrations) {
     if (c.method != Method::kAins) continue;

@@ -1,7 +1,7 @@
 #pragma once
 // One libpq connection to the fleet store (issue #24), with every statement sent as text plus bound
-// values (PQexecParams: no value ever becomes SQL text) and every failure a db::history::DbError that names
-// the server by its redacted address (db/fleet/fleet_url.hpp) — never the password.
+// values (PQexecParams: no value ever becomes SQL text) and every failure a db::history::DbError
+// that names the server by its redacted address (db/fleet/fleet_url.hpp) — never the password.
 //
 // SQLSTATE → DbError: 42501 insufficient privilege / 25006 read-only transaction → ReadOnly;
 // 23xxx integrity → Conflict; 22xxx data → InvalidInput; 28xxx authentication (wrong or expired

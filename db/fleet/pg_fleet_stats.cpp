@@ -162,7 +162,8 @@ std::vector<AinsResultRow> PgFleetStats::ains_results(const FleetFilter& f) cons
       char* end = nullptr;
       x(k) = std::strtod(at, &end);
       if (end == at)
-        throw Corrupt(origin + ": ains_values has no number for " + calib::core::param_info(k).name);
+        throw Corrupt(origin + ": ains_values has no number for " +
+                      calib::core::param_info(k).name);
       at = end + 1;
     }
     row.value = calib::core::ParamSet::from_vector(x);

@@ -1,8 +1,9 @@
 #pragma once
-// The fleet pages' aggregates (db/history/fleet_stats.hpp) over the fleet store: computed by the server
-// (GROUP BY, percentile_cont, stddev_samp), so a week of a million-run store sends one row per
-// station. "Station" is the store's station id. Same definitions as db::history::SqliteFleetStats; every
-// value bound. Thread safety: calls serialised on one connection.
+// The fleet pages' aggregates (db/history/fleet_stats.hpp) over the fleet store: computed by the
+// server (GROUP BY, percentile_cont, stddev_samp), so a week of a million-run store sends one row
+// per station. "Station" is the store's station id. Same definitions as
+// db::history::SqliteFleetStats; every value bound. Thread safety: calls serialised on one
+// connection.
 #include <memory>
 
 #include "db/fleet/fleet_url.hpp"

@@ -184,8 +184,10 @@ std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::
   CsvLine line;
   for (const char* c : kCsvRunColumns) line.field(c);
   for (const char* c : kCsvCalibrationColumns) line.field(c);
-  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) line.field(calib::core::param_info(i).name);
-  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) line.field("sigma." + calib::core::param_info(i).name);
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
+    line.field(calib::core::param_info(i).name);
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
+    line.field("sigma." + calib::core::param_info(i).name);
   for (const char* c : kCsvCrosscheckColumns) line.field(c);
   for (const auto& counter : db::archive::CaptureInfo::counters())
     line.field(std::string("capture.") + counter.first);

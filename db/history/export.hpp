@@ -8,8 +8,8 @@
 // failed, aborted — has one row with an empty method). Records end in CRLF; a field containing a
 // comma, a double quote, CR or LF is enclosed in double quotes with inner quotes doubled. Columns,
 // in order: kCsvRunColumns, then kCsvCalibrationColumns, then the 27 parameters named as in the
-// parameter-set JSON (calib::core::param_info(i).name, e.g. "accel_M[0][1]") in SI units, then their
-// 1-σ as "sigma.<name>", then the run's cross-check (kCsvCrosscheckColumns: k_sigma and the
+// parameter-set JSON (calib::core::param_info(i).name, e.g. "accel_M[0][1]") in SI units, then
+// their 1-σ as "sigma.<name>", then the run's cross-check (kCsvCrosscheckColumns: k_sigma and the
 // failing terms as "term: detail" joined by "; ") and its capture counters as "capture.<counter>"
 // (db::archive::CaptureInfo::counters(), the names of db/archive/FORMAT.md), then its gap diagnosis
 // (kCsvDiagnosisColumns). "verdict" is the run's
@@ -70,10 +70,10 @@ nlohmann::json calibration_json(const CalibrationRecord& calibration);
 nlohmann::json crosscheck_json(const CrosscheckRecord& crosscheck);
 /// {"run": run_json, "calibrations": [...], "crosscheck": {...} or null}
 nlohmann::json run_details_json(const RunDetails& details);
-/// The active parameter set in the ARCHITECTURE §3 schema (five keys + "sigma") plus "source": the run
-/// it comes from {run_id, serial, method, setting, station, started_at, verdict, [origin],
-/// [promoted_at, promoted_by, promote_reason]}; db::archive::param_set_from_json / read_param_file load
-/// it for the INS.
+/// The active parameter set in the ARCHITECTURE §3 schema (five keys + "sigma") plus "source": the
+/// run it comes from {run_id, serial, method, setting, station, started_at, verdict, [origin],
+/// [promoted_at, promoted_by, promote_reason]}; db::archive::param_set_from_json / read_param_file
+/// load it for the INS.
 nlohmann::json active_params_json(const ActiveCalibration& active);
 
 }  // namespace imucal::db::history

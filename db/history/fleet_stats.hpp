@@ -1,9 +1,9 @@
 #pragma once
 // QA's aggregate questions over a calibration history (issue #24 item 4, the fleet pages of
 // stationweb): runs per station per day, verdict counts per station, and the distribution of one
-// AINS parameter per station. Backend-neutral like db/history/repository.hpp: db/history/sqlite_fleet_stats.hpp
-// answers them over a station's SQLite file, and the PostgreSQL fleet store implements the same
-// interface; stationweb's pages only see this header.
+// AINS parameter per station. Backend-neutral like db/history/repository.hpp:
+// db/history/sqlite_fleet_stats.hpp answers them over a station's SQLite file, and the PostgreSQL
+// fleet store implements the same interface; stationweb's pages only see this header.
 //
 // Every implementation must give the same numbers for the same rows, so the definitions are here:
 //   * a run belongs to a filter when since_ms <= started_at_ms < until_ms (each bound optional),
@@ -61,7 +61,8 @@ struct ParamSummary {
   double mean = 0, std_dev = 0, min = 0, q1 = 0, median = 0, q3 = 0, max = 0;
 };
 
-/// One AINS result for the station signatures (issue #25, calib/studies/fleet/station_signature.hpp).
+/// One AINS result for the station signatures (issue #25,
+/// calib/studies/fleet/station_signature.hpp).
 struct AinsResultRow {
   RunId run_id = 0;        ///< in the history read (the store's own id in the fleet store)
   RunId local_run_id = 0;  ///< the station's own id of the run (what its stationctl names)
@@ -81,8 +82,8 @@ class FleetStats {
   /// Matching runs counted per station and verdict; only stations with runs appear.
   virtual std::vector<StationVerdictCounts> verdict_counts_per_station(
       const FleetFilter& filter) const = 0;
-  /// The AINS value of parameter `param_index` (calib::core::param_info order, 0..26) per station, over
-  /// the matching runs with an AINS calibration; stations without one do not appear.
+  /// The AINS value of parameter `param_index` (calib::core::param_info order, 0..26) per station,
+  /// over the matching runs with an AINS calibration; stations without one do not appear.
   virtual std::vector<ParamSummary> param_distribution(int param_index,
                                                        const FleetFilter& filter) const = 0;
   /// The runs of one table run (several units on one fixture, schema v6): the run
@@ -96,8 +97,8 @@ class FleetStats {
   virtual std::vector<AinsResultRow> ains_results(const FleetFilter& filter) const = 0;
 };
 
-/// The parameter's flat index (calib::core::param_info) from its name in the parameter-set JSON, e.g.
-/// "gyro_bias_radps[2]" or "accel_M[0][1]"; InvalidInput naming the accepted form otherwise.
+/// The parameter's flat index (calib::core::param_info) from its name in the parameter-set JSON,
+/// e.g. "gyro_bias_radps[2]" or "accel_M[0][1]"; InvalidInput naming the accepted form otherwise.
 int param_index(const std::string& name);
 
 /// floor(t_ms / 86 400 000): the UTC day of a time, also before 1970.

@@ -1,8 +1,8 @@
 #pragma once
-// The calibration-history repository (ARCHITECTURE §2, station issue item 5): what the daemon stores per
-// serial number and what QA reads back. This header is the backend-neutral interface plus its
-// plain record structs; db/history/sqlite_repository.hpp is the embedded default, and a fleet-wide
-// PostgreSQL backend can implement the same interface without touching the daemon.
+// The calibration-history repository (ARCHITECTURE §2, station issue item 5): what the daemon
+// stores per serial number and what QA reads back. This header is the backend-neutral interface
+// plus its plain record structs; db/history/sqlite_repository.hpp is the embedded default, and a
+// fleet-wide PostgreSQL backend can implement the same interface without touching the daemon.
 //
 // Model (db/history/SCHEMA.md has the tables):
 //   unit (serial) 1──n run ──1 crosscheck (PASS | REVIEW)
@@ -118,9 +118,9 @@ const std::vector<RunState>& live_states();
 
 enum class Method { kAins, kNlsq, kLegacy };
 const char* to_string(Method m);                  ///< "ains", "nlsq", "legacy"
-const char* to_string(calib::core::BodyFrame f);        ///< "housing", "accel_symmetric"
+const char* to_string(calib::core::BodyFrame f);  ///< "housing", "accel_symmetric"
 calib::core::BodyFrame body_frame_from_string(const std::string& s);  ///< InvalidInput otherwise
-Method method_from_string(const std::string& s);  ///< InvalidInput otherwise
+Method method_from_string(const std::string& s);                      ///< InvalidInput otherwise
 
 /// The cross-check's own verdict (AINS against the second method), one input of the run verdict.
 enum class Verdict { kPass, kReview };
@@ -160,11 +160,13 @@ struct NewRun {
   std::string sequence_sha256;  ///< 64 lowercase hex digits, or empty if unknown
   std::string software_version;
   TimestampMs started_at_ms = 0;
-  std::string archive_path;  ///< run archive directory (ARCHITECTURE §5); may be set now or at finish
+  std::string
+      archive_path;  ///< run archive directory (ARCHITECTURE §5); may be set now or at finish
   RunState state = RunState::kPreparing;  ///< must be a live state
   std::optional<RunId>
       reprocessed_from;  ///< for `reprocess RUN_ID`: the run whose archive is reused
-  calib::core::Setting setting = calib::core::Setting::kFactory;  ///< where the data were recorded (v4)
+  calib::core::Setting setting =
+      calib::core::Setting::kFactory;  ///< where the data were recorded (v4)
   std::string origin;  ///< e.g. "imported from /path" for `stationctl import`; empty for runs
   /// The fixture slot the unit sat in (schema v6; "" on a one-unit station), and the table run it
   /// shared with its siblings: the first unit's run id (unset for a run of its own and for the
@@ -191,12 +193,12 @@ struct RunRecord {
   std::optional<RunId> reprocessed_from;
   std::optional<RunVerdict> verdict;  ///< the run's verdict (run_verdict(state)); none while live
   std::optional<Verdict> crosscheck_verdict;  ///< the cross-check's own, if one is stored
-  std::string capture_json;        ///< capture counters (station/run/capture_stats.hpp) as a JSON
-                                   ///< object text; empty if the run stored none (schema v2)
-  std::string diagnosis_json;      ///< gap diagnosis summary (db::archive::diagnosis_summary_json) as a
-                                   ///< JSON object text; empty if none was made (schema v3)
+  std::string capture_json;    ///< capture counters (station/run/capture_stats.hpp) as a JSON
+                               ///< object text; empty if the run stored none (schema v2)
+  std::string diagnosis_json;  ///< gap diagnosis summary (db::archive::diagnosis_summary_json) as a
+                               ///< JSON object text; empty if none was made (schema v3)
   calib::core::Setting setting = calib::core::Setting::kFactory;  ///< schema v4
-  std::string origin;                                 ///< "imported from DIR", or empty
+  std::string origin;                                             ///< "imported from DIR", or empty
   std::optional<TimestampMs> promoted_at_ms;  ///< set when QA promoted this run (field runs)
   std::string promoted_by;                    ///< who promoted it (user name or uid)
   std::string promote_reason;
@@ -238,7 +240,7 @@ struct CrosscheckRecord {
   Verdict verdict = Verdict::kReview;
   double k_sigma = 4.0;
   std::vector<calib::checks::CrossCheckFailure> failures;  ///< empty for PASS
-  std::vector<std::string> not_compared;           ///< parameters one method cannot observe (v5)
+  std::vector<std::string> not_compared;  ///< parameters one method cannot observe (v5)
 };
 
 /// What finish_run stores, all in one transaction (a run is never "done" without its results).

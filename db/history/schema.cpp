@@ -204,10 +204,10 @@ BEGIN INSERT INTO outbox (run_id, change, at_ms) VALUES (NEW.run_id, 'cross-chec
 // Version 8 (issue #24, the fleet pages at 10^5 runs): what QA's aggregates read, kept narrow.
 // runs_by_time_station covers the counts per station and day and per verdict (the state) without
 // touching the wide runs rows; ains_values holds every AINS result's 27 values as numbers in
-// calib::core::param_info order (p00 = accel_bias_mps2[0] ... p26 = table_misalignment_rad[2]; NULL where
-// the result does not determine the parameter, CalibrationRecord::unobservable), so a parameter's
-// distribution reads 27 REALs per run instead of parsing the parameter-set JSON. The view
-// ains_values_computed is the one definition: the migration fills the table from it for the
+// calib::core::param_info order (p00 = accel_bias_mps2[0] ... p26 = table_misalignment_rad[2]; NULL
+// where the result does not determine the parameter, CalibrationRecord::unobservable), so a
+// parameter's distribution reads 27 REALs per run instead of parsing the parameter-set JSON. The
+// view ains_values_computed is the one definition: the migration fills the table from it for the
 // results already stored, and the triggers refresh a run's row from it when its AINS result is
 // stored, changed or removed, in the same transaction.
 const char* const kMigration8 = R"SQL(

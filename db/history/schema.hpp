@@ -1,6 +1,6 @@
 #pragma once
-// The SQLite schema of the calibration history and its migrations (db/history/SCHEMA.md describes the
-// tables). The schema version lives in `PRAGMA user_version`; `PRAGMA application_id` marks the
+// The SQLite schema of the calibration history and its migrations (db/history/SCHEMA.md describes
+// the tables). The schema version lives in `PRAGMA user_version`; `PRAGMA application_id` marks the
 // file as ours. Migration N turns a version N-1 database into version N inside one write
 // transaction together with the user_version bump, so a crash leaves either the old or the new
 // version, never a half-migrated file. Software refuses a database whose version is newer than it

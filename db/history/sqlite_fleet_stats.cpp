@@ -155,7 +155,8 @@ SqliteFleetStats::SqliteFleetStats(const std::string& path) : impl_(std::make_un
   if (rc != SQLITE_OK) schema::throw_sqlite(d.db, rc, path, "open read-only");
   sqlite3_extended_result_codes(d.db, 1);
   sqlite3_busy_timeout(d.db, 5000);
-  // The memory bound of every history connection (db/history/sqlite_repository.hpp); our own constant.
+  // The memory bound of every history connection (db/history/sqlite_repository.hpp); our own
+  // constant.
   const std::string cache_size = "PRAGMA cache_size = -" + std::to_string(kSqlitePageCacheKiB);
   schema::exec(d.db, cache_size.c_str(), path, "open: cache_size");
   schema::exec(d.db, "PRAGMA mmap_size = 0", path, "open: mmap_size");

@@ -1,5 +1,6 @@
 #pragma once
-// db::history::FleetStats over one station's SQLite history (db/history/SCHEMA.md), for stationweb's fleet pages.
+// db::history::FleetStats over one station's SQLite history (db/history/SCHEMA.md), for
+// stationweb's fleet pages.
 //
 // Its own connection, always read-only (SQLITE_OPEN_READONLY): it never creates, migrates or
 // writes, and refuses a file whose schema version is not this software's (as SqliteRepository in

@@ -404,7 +404,7 @@ struct SqliteRepository::Impl {
   /// shape without building any message; anything unexpected is handed to the strict archive
   /// reader for its field-named error (export reads 200 000 of these for 100 000 runs).
   calib::core::ParamSet decode_params(const std::string& text, bool is_sigma,
-                                const std::function<std::string()>& origin) const {
+                                      const std::function<std::string()>& origin) const {
     calib::core::ParamSet p;
     if (read_compact_param_set(text, is_sigma, p)) return p;  // the text as stored
     json j;
@@ -1151,8 +1151,8 @@ void SqliteRepository::promote(RunId run_id, const std::string& by, const std::s
                    "that are not are promoted: field (land/sea) runs, imported runs and runs "
                    "reprocessed with a corrected gravity");
   if (!is_terminal(r.state)) throw Conflict(who + " is still " + to_string(r.state));
-  const bool sea_alone =
-      r.setting == calib::core::Setting::kSea && r.state == RunState::kReview && !r.crosscheck_verdict;
+  const bool sea_alone = r.setting == calib::core::Setting::kSea && r.state == RunState::kReview &&
+                         !r.crosscheck_verdict;
   if (r.state != RunState::kDone && !sea_alone)
     throw Conflict(who + " is " + to_string(r.state) +
                    (r.failure_reason.empty() ? "" : " (" + r.failure_reason + ")") +

@@ -100,7 +100,8 @@ class SqliteRepository final : public Repository {
   /// need several steps to be atomic.
   void transaction(const std::function<void()>& body);
 
-  // ----- the replication outbox (db/history/outbox.hpp) -----------------------------------------------
+  // ----- the replication outbox (db/history/outbox.hpp)
+  // -----------------------------------------------
   /// Turns the outbox on (the station names a fleet database) or off. Turning it on enqueues every
   /// run already stored (change "resync"), so the fleet store receives the station's whole
   /// history; turning it off empties it (turning it on again resends everything).

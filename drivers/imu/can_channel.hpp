@@ -1,20 +1,22 @@
 #pragma once
 // CanChannel: one fd-based interface to a CAN bus, whatever carries it (ARCHITECTURE §4). Like
-// mavlink-router's Pollable, a channel only moves frames: it exposes fd() for the caller's poll/epoll
-// loop and non-blocking read()/write(); protocol logic (imu_codec.hpp) lives elsewhere.
+// mavlink-router's Pollable, a channel only moves frames: it exposes fd() for the caller's
+// poll/epoll loop and non-blocking read()/write(); protocol logic (imu_codec.hpp) lives elsewhere.
 //
 // Transports, selected by the URI given to CanChannel::open():
-//   socketcan:IFACE  raw CAN_RAW socket on a kernel CAN interface (can0, vcan0): SO_TIMESTAMP receive
-//                    times, error frames (CAN_RAW_ERR_FILTER = all classes) delivered as frames with
-//                    kCanErrFlag, SO_RXQ_OVFL kernel drop counter -> counters().rx_overflow.
+//   socketcan:IFACE  raw CAN_RAW socket on a kernel CAN interface (can0, vcan0): SO_TIMESTAMP
+//   receive
+//                    times, error frames (CAN_RAW_ERR_FILTER = all classes) delivered as frames
+//                    with kCanErrFlag, SO_RXQ_OVFL kernel drop counter -> counters().rx_overflow.
 //                    A kernel without AF_CAN makes open() throw a message saying so.
 //   unixcan:PATH     AF_UNIX SOCK_SEQPACKET socket carrying one `struct can_frame` (16 bytes) per
 //                    record, read and written by the same code as SocketCAN (recvmmsg with
-//                    SO_TIMESTAMP / sendmmsg). CanOpenOptions::listen = true creates PATH and acts as
-//                    the bus: it accepts any number of peers, delivers what any peer writes and
+//                    SO_TIMESTAMP / sendmmsg). CanOpenOptions::listen = true creates PATH and acts
+//                    as the bus: it accepts any number of peers, delivers what any peer writes and
 //                    writes every frame to all peers (the simulator's side); otherwise the channel
 //                    connects to PATH (the daemon's side).
-//   candump:FILE     replay of a candump log file (candump_log.hpp): each frame's receive time is the
+//   candump:FILE     replay of a candump log file (candump_log.hpp): each frame's receive time is
+//   the
 //                    logged time. Read as fast as the caller reads, or paced at the logged rate ×
 //                    CanOpenOptions::replay_speed (fd() is then a timerfd).
 //

@@ -8,7 +8,8 @@
 //   bit 29     kCanErrFlag  error frame (bus/controller error, delivered by CAN_RAW_ERR_FILTER)
 //   bit 30     kCanRtrFlag  remote transmission request
 //   bit 31     kCanEffFlag  29-bit extended identifier
-// Only classic CAN (at most 8 data bytes) is supported; CAN FD is optional in ARCHITECTURE §4 and unused.
+// Only classic CAN (at most 8 data bytes) is supported; CAN FD is optional in ARCHITECTURE §4 and
+// unused.
 #include <array>
 #include <cstdint>
 

@@ -1,6 +1,7 @@
 #pragma once
-// The candump log format ("compact CAN frame logfile"), as can-utils 2020.11 `candump -l` writes and
-// `canplayer`, `log2asc`, python-can's CanutilsLogReader and SavvyCAN read it. One frame per line:
+// The candump log format ("compact CAN frame logfile"), as can-utils 2020.11 `candump -l` writes
+// and `canplayer`, `log2asc`, python-can's CanutilsLogReader and SavvyCAN read it. One frame per
+// line:
 //   (SSSSSSSSSS.UUUUUU) IFACE FRAME
 //   seconds zero-padded to 10 digits, microseconds to 6 (CLOCK_REALTIME receive time), IFACE the
 //   interface name, FRAME as can-utils' lib.c prints it:

@@ -1,6 +1,6 @@
 #pragma once
-// The IMU CAN frame protocol (our own; ARCHITECTURE §4). Normative description: drivers/imu/PROTOCOL.md and
-// drivers/imu/imu.dbc — this header is its single source in code.
+// The IMU CAN frame protocol (our own; ARCHITECTURE §4). Normative description:
+// drivers/imu/PROTOCOL.md and drivers/imu/imu.dbc — this header is its single source in code.
 //
 // One IMU sample = 4 classic CAN frames, 11-bit identifiers base_id + 0..3 (default base 0x100),
 // 8 data bytes each, all signals little-endian (DBC "@1", Intel), sent in this order:

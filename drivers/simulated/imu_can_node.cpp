@@ -13,7 +13,8 @@ namespace {
 
 void check_probability(double p, const char* name) {
   if (!(p >= 0.0 && p <= 1.0))
-    throw std::invalid_argument(std::string("ImuCanNode: ") + name + " must be in [0, 1], got " + std::to_string(p));
+    throw std::invalid_argument(std::string("ImuCanNode: ") + name + " must be in [0, 1], got " +
+                                std::to_string(p));
 }
 
 }  // namespace
@@ -29,7 +30,8 @@ ImuCanNode::ImuCanNode(drivers::imu::CanChannel& channel, const ImuCanNodeOption
     throw std::invalid_argument("ImuCanNode: rate_hz must be positive");
   if (!(options.speed_factor >= 0.0) || !std::isfinite(options.speed_factor))
     throw std::invalid_argument("ImuCanNode: speed_factor must be >= 0 (0 = unpaced)");
-  if (options.reset_lost_samples < 0) throw std::invalid_argument("ImuCanNode: reset_lost_samples must be >= 0");
+  if (options.reset_lost_samples < 0)
+    throw std::invalid_argument("ImuCanNode: reset_lost_samples must be >= 0");
   std::sort(options_.reset_at_s.begin(), options_.reset_at_s.end());
 }
 
@@ -42,7 +44,8 @@ int64_t ImuCanNode::monotonic_ns() {
 void ImuCanNode::pace(std::size_t k, int64_t start_ns) const {
   if (options_.speed_factor <= 0.0) return;
   const int64_t due =
-      start_ns + static_cast<int64_t>(std::llround(static_cast<double>(k) * 1e9 / (options_.rate_hz * options_.speed_factor)));
+      start_ns + static_cast<int64_t>(std::llround(static_cast<double>(k) * 1e9 /
+                                                   (options_.rate_hz * options_.speed_factor)));
   timespec ts{};
   ts.tv_sec = static_cast<time_t>(due / 1000000000);
   ts.tv_nsec = static_cast<long>(due % 1000000000);
@@ -53,7 +56,8 @@ void ImuCanNode::pace(std::size_t k, int64_t start_ns) const {
 SampleFate ImuCanNode::send(const calib::core::ImuIncrement& inc, uint16_t status_flags) {
   ++stats_.increments_in;
   SampleFate fate;
-  while (next_scheduled_reset_ < options_.reset_at_s.size() && inc.t_s >= options_.reset_at_s[next_scheduled_reset_]) {
+  while (next_scheduled_reset_ < options_.reset_at_s.size() &&
+         inc.t_s >= options_.reset_at_s[next_scheduled_reset_]) {
     reset_requested_.store(true);
     ++next_scheduled_reset_;
   }

@@ -1,10 +1,10 @@
 #pragma once
-// Simulated IMU CAN node: turns increments (from the truth simulator, calib::sim::simulate) into the
-// frames of the IMU protocol (drivers/imu/PROTOCOL.md) on a CanChannel, with fault injection:
+// Simulated IMU CAN node: turns increments (from the truth simulator, calib::sim::simulate) into
+// the frames of the IMU protocol (drivers/imu/PROTOCOL.md) on a CanChannel, with fault injection:
 //   frame loss        each frame independently lost with probability frame_loss_probability;
 //   corruption        each frame independently gets one random data bit flipped with probability
-//                     corruption_probability (an error the bus CRC did not catch: the sample's CRC-16
-//                     must);
+//                     corruption_probability (an error the bus CRC did not catch: the sample's
+//                     CRC-16 must);
 //   IMU reset         reset() or a scheduled reset_at_s: the IMU swallows the next
 //                     reset_lost_samples increments (booting), then restarts its counter at 0 with
 //                     status::kStartup on the first kStartupSamples samples.
@@ -30,8 +30,8 @@
 namespace imucal::drivers::simulated {
 
 struct ImuCanNodeOptions {
-  double rate_hz = 100.0;               ///< the unit's sample rate (run() pacing)
-  double speed_factor = 1.0;            ///< run(): simulated seconds per wall second; 0 = unpaced
+  double rate_hz = 100.0;     ///< the unit's sample rate (run() pacing)
+  double speed_factor = 1.0;  ///< run(): simulated seconds per wall second; 0 = unpaced
   /// The unit's protocol (null: the built-in one) and where its identifiers start (unset: as in
   /// the protocol's DBC file).
   std::shared_ptr<const drivers::imu::ImuProtocolMap> protocol;
@@ -52,17 +52,19 @@ struct SampleFate {
   int frames_refused = 0;    ///< refused by a full transmit queue
   /// The frames as encoded, before any fault (what a perfect bus would carry).
   std::vector<drivers::imu::CanFrame> clean;
-  bool intact() const { return transmitted && frames_lost + frames_corrupted + frames_refused == 0; }
+  bool intact() const {
+    return transmitted && frames_lost + frames_corrupted + frames_refused == 0;
+  }
 };
 
 struct ImuCanNodeStats {
-  uint64_t increments_in = 0;          ///< increments given to send()
-  uint64_t samples_transmitted = 0;    ///< samples put on the bus (any frame may have been faulted)
-  uint64_t samples_faulted = 0;        ///< transmitted samples with a lost, corrupted or refused frame
-  uint64_t frames_sent = 0;            ///< frames accepted by the channel (corrupted ones included)
-  uint64_t frames_lost = 0;            ///< injected losses
-  uint64_t frames_corrupted = 0;       ///< injected bit flips
-  uint64_t frames_refused = 0;         ///< refused by a full transmit queue
+  uint64_t increments_in = 0;        ///< increments given to send()
+  uint64_t samples_transmitted = 0;  ///< samples put on the bus (any frame may have been faulted)
+  uint64_t samples_faulted = 0;   ///< transmitted samples with a lost, corrupted or refused frame
+  uint64_t frames_sent = 0;       ///< frames accepted by the channel (corrupted ones included)
+  uint64_t frames_lost = 0;       ///< injected losses
+  uint64_t frames_corrupted = 0;  ///< injected bit flips
+  uint64_t frames_refused = 0;    ///< refused by a full transmit queue
   uint64_t resets = 0;
   uint64_t increments_lost_in_reset = 0;
 };
@@ -82,7 +84,8 @@ class ImuCanNode {
   /// Sends the series paced at rate_hz × speed_factor; returns early when *stop becomes true.
   /// `on_sample` (optional) is called after each send with the sample index and its fate.
   template <typename OnSample>
-  void run(const calib::core::ImuSeries& series, const std::atomic<bool>* stop, OnSample&& on_sample);
+  void run(const calib::core::ImuSeries& series, const std::atomic<bool>* stop,
+           OnSample&& on_sample);
   void run(const calib::core::ImuSeries& series, const std::atomic<bool>* stop = nullptr) {
     run(series, stop, [](std::size_t, const SampleFate&) {});
   }
@@ -107,7 +110,8 @@ class ImuCanNode {
 };
 
 template <typename OnSample>
-void ImuCanNode::run(const calib::core::ImuSeries& series, const std::atomic<bool>* stop, OnSample&& on_sample) {
+void ImuCanNode::run(const calib::core::ImuSeries& series, const std::atomic<bool>* stop,
+                     OnSample&& on_sample) {
   const int64_t start = monotonic_ns();
   for (std::size_t k = 0; k < series.size(); ++k) {
     if (stop && stop->load()) return;

@@ -20,17 +20,21 @@ namespace imucal::drivers::simulated {
 using Clock = std::chrono::steady_clock;
 
 ScaledRealTime::ScaledRealTime(double speed_factor) : speed_(speed_factor), start_(Clock::now()) {
-  if (!(speed_factor > 0.0)) throw std::invalid_argument("ScaledRealTime: speed factor must be positive");
+  if (!(speed_factor > 0.0))
+    throw std::invalid_argument("ScaledRealTime: speed factor must be positive");
 }
 
 double ScaledRealTime::operator()() const {
   return speed_ * std::chrono::duration<double>(Clock::now() - start_).count();
 }
 
-ModbusTableServer::ModbusTableServer(const TablePlcConfig& plc_config, ModbusTableServerConfig config, TimeSource time)
+ModbusTableServer::ModbusTableServer(const TablePlcConfig& plc_config,
+                                     ModbusTableServerConfig config, TimeSource time)
     : cfg_(std::move(config)), time_(std::move(time)), plc_(plc_config) {
-  if (cfg_.max_clients < 1) throw std::invalid_argument("ModbusTableServerConfig.max_clients must be >= 1");
-  if (cfg_.port < 0 || cfg_.port > 65535) throw std::invalid_argument("ModbusTableServerConfig.port out of range");
+  if (cfg_.max_clients < 1)
+    throw std::invalid_argument("ModbusTableServerConfig.max_clients must be >= 1");
+  if (cfg_.port < 0 || cfg_.port > 65535)
+    throw std::invalid_argument("ModbusTableServerConfig.port out of range");
 }
 
 ModbusTableServer::~ModbusTableServer() { stop(); }
@@ -60,7 +64,8 @@ void ModbusTableServer::open_listener() {
   // A fresh context per listen: after a refusal period the port is fixed (the one first reported).
   if (ctx_) modbus_free(ctx_);
   ctx_ = modbus_new_tcp(cfg_.address.c_str(), port_.load());
-  if (!ctx_) throw std::runtime_error("modbus table server: cannot create context for " + cfg_.address);
+  if (!ctx_)
+    throw std::runtime_error("modbus table server: cannot create context for " + cfg_.address);
   modbus_set_slave(ctx_, plc_.config().map.unit_id);
   listen_fd_ = modbus_tcp_listen(ctx_, cfg_.max_clients);
   if (listen_fd_ == -1)
@@ -68,7 +73,8 @@ void ModbusTableServer::open_listener() {
                              std::to_string(port_.load()) + ": " + modbus_strerror(errno));
   sockaddr_in addr{};
   socklen_t len = sizeof addr;
-  if (getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&addr), &len) == 0) port_.store(ntohs(addr.sin_port));
+  if (getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&addr), &len) == 0)
+    port_.store(ntohs(addr.sin_port));
 }
 
 void ModbusTableServer::close_listener() {
@@ -80,8 +86,11 @@ void ModbusTableServer::start() {
   if (running_.load()) return;
   port_.store(cfg_.port);
   const auto& map = plc_.config().map;
-  mapping_ = modbus_mapping_new_start_address(0, 0, 0, 0, 0, map.holding_extent(), 0, map.input_extent());
-  if (!mapping_) throw std::runtime_error(std::string("modbus table server: mapping: ") + modbus_strerror(errno));
+  mapping_ =
+      modbus_mapping_new_start_address(0, 0, 0, 0, 0, map.holding_extent(), 0, map.input_extent());
+  if (!mapping_)
+    throw std::runtime_error(std::string("modbus table server: mapping: ") +
+                             modbus_strerror(errno));
   try {
     open_listener();
   } catch (...) {

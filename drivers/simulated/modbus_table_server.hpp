@@ -1,18 +1,20 @@
 #pragma once
 #include <sys/select.h>
-// Simulated turntable PLC behind a Modbus TCP server (libmodbus server API), for stationsim and tests.
+// Simulated turntable PLC behind a Modbus TCP server (libmodbus server API), for stationsim and
+// tests.
 //
 // One server thread runs a select() loop over the listening socket and up to max_clients client
 // sockets: each request is read with modbus_receive and answered with modbus_reply from a
 // modbus_mapping that mirrors the TablePlc's register image (input registers refreshed from the PLC
-// before every reply; holding registers handed to the PLC under the same lock hold as the reply to a
-// write, so whoever has seen the confirmation finds the write in the PLC). Between requests the loop
-// wakes every loop_period to advance the PLC.
+// before every reply; holding registers handed to the PLC under the same lock hold as the reply to
+// a write, so whoever has seen the confirmation finds the write in the PLC). Between requests the
+// loop wakes every loop_period to advance the PLC.
 //
-// Time: the PLC clock follows a caller-provided TimeSource (seconds, monotonic); the server steps the
-// PLC by the source's increments. ScaledRealTime is real time times a speed factor, so a station
-// simulator can run the table accelerated. With no TimeSource the server never steps the PLC: the
-// caller advances it through with_plc() (one physics clock shared with, e.g., an IMU simulator).
+// Time: the PLC clock follows a caller-provided TimeSource (seconds, monotonic); the server steps
+// the PLC by the source's increments. ScaledRealTime is real time times a speed factor, so a
+// station simulator can run the table accelerated. With no TimeSource the server never steps the
+// PLC: the caller advances it through with_plc() (one physics clock shared with, e.g., an IMU
+// simulator).
 //
 // Fault injection: drop_clients() (connection reset on every connected master), delay_replies()
 // (replies held back, so masters time out), refuse_connections_for() (listening socket closed: new
@@ -55,18 +57,19 @@ struct ModbusTableServerConfig {
 };
 
 struct ModbusTableServerStats {
-  uint64_t requests = 0;         ///< requests received
-  uint64_t write_requests = 0;   ///< of which writes (holding registers handed to the PLC)
-  uint64_t accepted = 0;         ///< connections accepted
-  uint64_t rejected_full = 0;    ///< connections closed because max_clients were connected
-  uint64_t dropped = 0;          ///< connections closed by drop_clients()
-  uint64_t delayed = 0;          ///< replies held back by delay_replies()
-  int clients = 0;               ///< currently connected
+  uint64_t requests = 0;        ///< requests received
+  uint64_t write_requests = 0;  ///< of which writes (holding registers handed to the PLC)
+  uint64_t accepted = 0;        ///< connections accepted
+  uint64_t rejected_full = 0;   ///< connections closed because max_clients were connected
+  uint64_t dropped = 0;         ///< connections closed by drop_clients()
+  uint64_t delayed = 0;         ///< replies held back by delay_replies()
+  int clients = 0;              ///< currently connected
 };
 
 class ModbusTableServer {
  public:
-  ModbusTableServer(const TablePlcConfig& plc_config, ModbusTableServerConfig config, TimeSource time = {});
+  ModbusTableServer(const TablePlcConfig& plc_config, ModbusTableServerConfig config,
+                    TimeSource time = {});
   ~ModbusTableServer();
   ModbusTableServer(const ModbusTableServer&) = delete;
   ModbusTableServer& operator=(const ModbusTableServer&) = delete;
@@ -90,7 +93,8 @@ class ModbusTableServer {
   // --- fault injection (thread-safe) ---
   /// Closes every connected client socket at the next loop iteration.
   void drop_clients() { drop_requested_.store(true); }
-  /// Holds back each of the next `count` replies (count < 0: every reply until called with 0) by `delay`.
+  /// Holds back each of the next `count` replies (count < 0: every reply until called with 0) by
+  /// `delay`.
   void delay_replies(std::chrono::milliseconds delay, int count = -1);
   /// Closes the listening socket for `duration`; connects during that time are refused.
   void refuse_connections_for(std::chrono::milliseconds duration);
@@ -129,7 +133,8 @@ class ModbusTableServer {
   std::atomic<int64_t> refuse_ms_{0};  ///< pending refusal request (ms), consumed by the loop
 
   struct {
-    std::atomic<uint64_t> requests{0}, write_requests{0}, accepted{0}, rejected_full{0}, dropped{0}, delayed{0};
+    std::atomic<uint64_t> requests{0}, write_requests{0}, accepted{0}, rejected_full{0}, dropped{0},
+        delayed{0};
     std::atomic<int> clients{0};
   } stats_;
 };

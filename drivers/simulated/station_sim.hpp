@@ -7,16 +7,16 @@
 // physics thread owns the clock: the physics time is ScaledRealTime(speed) and, for every IMU
 // sample that is due, the thread steps the PLC to the sample's quadrature nodes (under
 // table_server().with_plc()) and reads the table's ACTUAL state there, so the increments
-// (calib::sim::TruthStream) follow the motion the PLC really performed — including moves commanded over
-// Modbus a moment ago, stops and faults. Frames are sent outside the PLC lock. Samples behind the
-// clock (a slow consumer, back-pressure on the bus) are caught up, never skipped: table and IMU
+// (calib::sim::TruthStream) follow the motion the PLC really performed — including moves commanded
+// over Modbus a moment ago, stops and faults. Frames are sent outside the PLC lock. Samples behind
+// the clock (a slow consumer, back-pressure on the bus) are caught up, never skipped: table and IMU
 // always share the physics time.
 //
 // The IMU streams continuously from start() on (at rest or moving), like a unit powered on the
 // table. Faults are scheduled on the physics clock (StationSimFaults) or injected at run time.
 //
-// The unit's catalogue effects (ARCHITECTURE §7, config.unit.effects) are withheld from the station and
-// streamed like calib::sim::simulate() injects them: the sensor, stochastic and site effects by
+// The unit's catalogue effects (ARCHITECTURE §7, config.unit.effects) are withheld from the station
+// and streamed like calib::sim::simulate() injects them: the sensor, stochastic and site effects by
 // TruthStream (config.site is the site the station believes; the physics runs at the true one); the
 // table's imperfections in the true attitude; the size effect with its quadrature split where the
 // PLC's acceleration jumps (TablePlc::accel_switch_times, after a scan at the interval start); the
@@ -45,7 +45,7 @@
 namespace imucal::drivers::imu {
 class CanChannel;
 struct ReceivedFrame;
-}
+}  // namespace imucal::drivers::imu
 
 namespace imucal::drivers::simulated {
 
@@ -143,7 +143,7 @@ class StationSim {  // one physics thread: steps the PLC and emits each IMU samp
   std::string can_uri() const;          // "unixcan:PATH" (the first unit's)
   /// Unit i's bus (0: the first unit's, i.e. can_uri()).
   std::string can_uri(size_t unit) const;
-  double time_s() const;                // physics clock
+  double time_s() const;  // physics clock
   StationSimStats stats() const;
   ModbusTableServer& table_server();  // for with_plc() inspection / runtime fault injection
   void inject_imu_reset();            // runtime knobs (thread-safe)

@@ -29,7 +29,8 @@ std::vector<double> TablePlc::AxisProfile::boundaries() const {
   return b;
 }
 
-void TablePlc::AxisProfile::eval(double t_s, double* angle_deg, double* rate_dps, double* accel_dps2) const {
+void TablePlc::AxisProfile::eval(double t_s, double* angle_deg, double* rate_dps,
+                                 double* accel_dps2) const {
   double tau = std::max(0.0, t_s - t0_s);
   double pos = angle0_deg, vel = rate0_dps, acc = 0.0;
   bool inside = false;
@@ -54,8 +55,8 @@ void TablePlc::AxisProfile::eval(double t_s, double* angle_deg, double* rate_dps
   *accel_dps2 = acc;
 }
 
-TablePlc::AxisProfile TablePlc::plan_move(double t0_s, double angle_deg, double rate_dps, double target_deg,
-                                          double vmax_dps, double amax_dps2) {
+TablePlc::AxisProfile TablePlc::plan_move(double t0_s, double angle_deg, double rate_dps,
+                                          double target_deg, double vmax_dps, double amax_dps2) {
   AxisProfile pr;
   pr.t0_s = t0_s;
   pr.angle0_deg = angle_deg;
@@ -75,19 +76,20 @@ TablePlc::AxisProfile TablePlc::plan_move(double t0_s, double angle_deg, double 
     const double d = target_deg - pos;
     if (std::abs(d) <= kPlanEpsDeg && vel == 0.0) break;
     const double s = d > kPlanEpsDeg ? 1.0 : d < -kPlanEpsDeg ? -1.0 : (vel > 0.0 ? 1.0 : -1.0);
-    const double u = s * vel;                   // rate towards the target
-    const double D = std::max(0.0, s * d);      // distance to go
-    if (u < 0.0) {                              // moving away: brake to rest first
+    const double u = s * vel;               // rate towards the target
+    const double D = std::max(0.0, s * d);  // distance to go
+    if (u < 0.0) {                          // moving away: brake to rest first
       add(-u / a, s * a);
       vel = 0.0;
       continue;
     }
-    if (u > vmax_dps) {                         // faster than the new limit: brake down to it
+    if (u > vmax_dps) {  // faster than the new limit: brake down to it
       add((u - vmax_dps) / a, -s * a);
       vel = s * vmax_dps;
       continue;
     }
-    if (u * u / (2.0 * a) > D + kPlanEpsDeg) {  // cannot stop in time: stop past the target, come back
+    if (u * u / (2.0 * a) >
+        D + kPlanEpsDeg) {  // cannot stop in time: stop past the target, come back
       add(u / a, -s * a);
       vel = 0.0;
       continue;
@@ -100,7 +102,9 @@ TablePlc::AxisProfile TablePlc::plan_move(double t0_s, double angle_deg, double 
       add(vp / a, -s * a);
     } else {
       add((vmax_dps - u) / a, s * a);
-      add((D - (vmax_dps * vmax_dps - u * u) / (2.0 * a) - vmax_dps * vmax_dps / (2.0 * a)) / vmax_dps, 0.0);
+      add((D - (vmax_dps * vmax_dps - u * u) / (2.0 * a) - vmax_dps * vmax_dps / (2.0 * a)) /
+              vmax_dps,
+          0.0);
       add(vmax_dps / a, -s * a);
     }
     break;
@@ -108,13 +112,15 @@ TablePlc::AxisProfile TablePlc::plan_move(double t0_s, double angle_deg, double 
   return pr;
 }
 
-TablePlc::AxisProfile TablePlc::plan_stop(double t0_s, double angle_deg, double rate_dps, double decel_dps2) {
+TablePlc::AxisProfile TablePlc::plan_stop(double t0_s, double angle_deg, double rate_dps,
+                                          double decel_dps2) {
   AxisProfile pr;
   pr.t0_s = t0_s;
   pr.angle0_deg = angle_deg;
   pr.rate0_dps = rate_dps;
   if (rate_dps != 0.0) {
-    pr.pieces.push_back({std::abs(rate_dps) / decel_dps2, rate_dps > 0.0 ? -decel_dps2 : decel_dps2});
+    pr.pieces.push_back(
+        {std::abs(rate_dps) / decel_dps2, rate_dps > 0.0 ? -decel_dps2 : decel_dps2});
     pr.final_angle_deg = angle_deg + rate_dps * std::abs(rate_dps) / (2.0 * decel_dps2);
   }
   return pr;
@@ -129,14 +135,16 @@ double TablePlc::rest_to_rest_time_s(double distance_deg, double rate_dps, doubl
 TablePlc::TablePlc(const TablePlcConfig& config) : cfg_(config) {
   auto positive = [](double v, const char* name) {
     if (!(v > 0.0) || !std::isfinite(v))
-      throw std::invalid_argument(std::string("TablePlcConfig.") + name + " must be positive and finite");
+      throw std::invalid_argument(std::string("TablePlcConfig.") + name +
+                                  " must be positive and finite");
   };
   positive(cfg_.rate_limit_dps, "rate_limit_dps");
   positive(cfg_.accel_limit_dps2, "accel_limit_dps2");
   positive(cfg_.estop_decel_dps2, "estop_decel_dps2");
   positive(cfg_.home_rate_dps, "home_rate_dps");
   positive(cfg_.heartbeat_period_s, "heartbeat_period_s");
-  if (!(cfg_.settle_time_s >= 0.0)) throw std::invalid_argument("TablePlcConfig.settle_time_s must be >= 0");
+  if (!(cfg_.settle_time_s >= 0.0))
+    throw std::invalid_argument("TablePlcConfig.settle_time_s must be >= 0");
   holding_.assign(cfg_.map.holding_extent(), 0);
   input_.assign(cfg_.map.input_extent(), 0);
   outer_.angle0_deg = cfg_.initial_outer_deg;
@@ -146,9 +154,10 @@ TablePlc::TablePlc(const TablePlcConfig& config) : cfg_(config) {
 
 void TablePlc::write_holding(uint16_t address, const uint16_t* values, size_t count) {
   if (size_t(address) + count > holding_.size())
-    throw std::out_of_range("TablePlc::write_holding: registers [" + std::to_string(address) + ", " +
-                            std::to_string(address + count) + ") outside the holding map (size " +
-                            std::to_string(holding_.size()) + ")");
+    throw std::out_of_range("TablePlc::write_holding: registers [" + std::to_string(address) +
+                            ", " + std::to_string(address + count) +
+                            ") outside the holding map (size " + std::to_string(holding_.size()) +
+                            ")");
   std::copy(values, values + count, holding_.begin() + address);
 }
 
@@ -175,7 +184,8 @@ sequences::TableState TablePlc::actual_state() const {
 
 std::vector<double> TablePlc::accel_switch_times(double t0_s, double t1_s) const {
   // A pending fault cuts the plan short: the corners after it never happen; its ramp-down's do.
-  const double cut_s = pending_fault_ ? pending_fault_->second : std::numeric_limits<double>::infinity();
+  const double cut_s =
+      pending_fault_ ? pending_fault_->second : std::numeric_limits<double>::infinity();
   std::vector<double> out;
   auto add_corners = [&](const AxisProfile& p, double until_s) {
     if (p.pieces.empty()) return;
@@ -211,13 +221,15 @@ double TablePlc::inner_deg() const {
 uint16_t TablePlc::status_word() const {
   const auto& b = cfg_.map.status_bits;
   auto bit = [](bool on, uint8_t n) { return static_cast<uint16_t>(on ? (1u << n) : 0u); };
-  return static_cast<uint16_t>(bit(enabled_, b.enabled) | bit(homed_, b.homed) | bit(moving(), b.moving) |
-                               bit(in_position_, b.in_position) | bit(fault_, b.fault) | bit(estop_, b.estop));
+  return static_cast<uint16_t>(bit(enabled_, b.enabled) | bit(homed_, b.homed) |
+                               bit(moving(), b.moving) | bit(in_position_, b.in_position) |
+                               bit(fault_, b.fault) | bit(estop_, b.estop));
 }
 
 void TablePlc::step(double dt_s) {
   if (!(dt_s >= 0.0) || !std::isfinite(dt_s))
-    throw std::invalid_argument("TablePlc::step: dt_s must be finite and >= 0, got " + std::to_string(dt_s));
+    throw std::invalid_argument("TablePlc::step: dt_s must be finite and >= 0, got " +
+                                std::to_string(dt_s));
   scan_commands();
   const double t_end = t_s_ + dt_s;
   if (pending_fault_ && pending_fault_->second <= t_end) {
@@ -229,10 +241,12 @@ void TablePlc::step(double dt_s) {
   advance_to(t_end);
   if (!heartbeat_frozen_) {
     heartbeat_phase_s_ += dt_s;
-    // The small tolerance keeps e.g. 25 steps of 0.04 s at a 0.1 s period at 10 ticks despite round-off.
+    // The small tolerance keeps e.g. 25 steps of 0.04 s at a 0.1 s period at 10 ticks despite
+    // round-off.
     const double ticks = std::floor(heartbeat_phase_s_ / cfg_.heartbeat_period_s + 1e-9);
     if (ticks > 0.0) {
-      heartbeat_ = static_cast<uint16_t>(heartbeat_ + static_cast<uint64_t>(std::fmod(ticks, 65536.0)));
+      heartbeat_ =
+          static_cast<uint16_t>(heartbeat_ + static_cast<uint64_t>(std::fmod(ticks, 65536.0)));
       heartbeat_phase_s_ = std::max(0.0, heartbeat_phase_s_ - ticks * cfg_.heartbeat_period_s);
     }
   }
@@ -258,7 +272,8 @@ AckResult TablePlc::execute(uint16_t code) {
     pending_fault_.reset();
     return AckResult::kAccepted;
   }
-  if (code != c.enable && code != c.move && code != c.home && code != c.clear_fault) return AckResult::kUnknownCommand;
+  if (code != c.enable && code != c.move && code != c.home && code != c.clear_fault)
+    return AckResult::kUnknownCommand;
   if (estop_) return AckResult::kEstopActive;
   if (code == c.clear_fault) {
     fault_ = false;
@@ -286,7 +301,8 @@ AckResult TablePlc::execute(uint16_t code) {
   return AckResult::kAccepted;
 }
 
-void TablePlc::start_motion(Motion kind, double outer_target_deg, double inner_target_deg, double rate_dps) {
+void TablePlc::start_motion(Motion kind, double outer_target_deg, double inner_target_deg,
+                            double rate_dps) {
   double a_o, r_o, a_i, r_i, acc;
   outer_.eval(t_s_, &a_o, &r_o, &acc);
   inner_.eval(t_s_, &a_i, &r_i, &acc);
@@ -317,7 +333,8 @@ void TablePlc::replan(AxisProfile outer, AxisProfile inner) {
   inner_ = std::move(inner);
 }
 
-std::pair<const TablePlc::AxisProfile*, const TablePlc::AxisProfile*> TablePlc::profiles_at(double t_s) const {
+std::pair<const TablePlc::AxisProfile*, const TablePlc::AxisProfile*> TablePlc::profiles_at(
+    double t_s) const {
   // Both axes are always replanned together, so the outer profile's start dates the pair.
   if (t_s >= outer_.t0_s || replaced_.empty()) return {&outer_, &inner_};
   for (auto it = replaced_.rbegin(); it != replaced_.rend(); ++it)
@@ -336,11 +353,13 @@ void TablePlc::advance_to(double t_s) {
       motion_ = Motion::kNone;
     }
   }
-  in_position_ = settling_ && motion_ == Motion::kNone && t_s_ - motion_end_s_ >= cfg_.settle_time_s;
+  in_position_ =
+      settling_ && motion_ == Motion::kNone && t_s_ - motion_end_s_ >= cfg_.settle_time_s;
 }
 
 void TablePlc::inject_fault(uint16_t code) {
-  if (code == 0) throw std::invalid_argument("TablePlc::inject_fault: fault code 0 means 'no fault'");
+  if (code == 0)
+    throw std::invalid_argument("TablePlc::inject_fault: fault code 0 means 'no fault'");
   fault_ = true;
   fault_code_ = code;
   enabled_ = false;
@@ -350,8 +369,11 @@ void TablePlc::inject_fault(uint16_t code) {
 }
 
 void TablePlc::arm_fault_during_next_move(uint16_t code, double after_s) {
-  if (code == 0) throw std::invalid_argument("TablePlc::arm_fault_during_next_move: fault code 0 means 'no fault'");
-  if (!(after_s >= 0.0)) throw std::invalid_argument("TablePlc::arm_fault_during_next_move: after_s must be >= 0");
+  if (code == 0)
+    throw std::invalid_argument(
+        "TablePlc::arm_fault_during_next_move: fault code 0 means 'no fault'");
+  if (!(after_s >= 0.0))
+    throw std::invalid_argument("TablePlc::arm_fault_during_next_move: after_s must be >= 0");
   armed_fault_ = std::make_pair(code, after_s);
 }
 
@@ -372,7 +394,8 @@ float TablePlc::holding_float(uint16_t address) const {
 }
 
 void TablePlc::put_float(uint16_t address, double value) {
-  drivers::turntable::encode_float(static_cast<float>(value), cfg_.map.word_order, &input_[address]);
+  drivers::turntable::encode_float(static_cast<float>(value), cfg_.map.word_order,
+                                   &input_[address]);
 }
 
 void TablePlc::publish_inputs() {
@@ -383,7 +406,8 @@ void TablePlc::publish_inputs() {
   const double t_enc = t_s_ - cfg_.encoder_delay_s;
   size_t obsolete = 0;
   while (obsolete < replaced_.size() &&
-         (obsolete + 1 < replaced_.size() ? replaced_[obsolete + 1].first.t0_s : outer_.t0_s) <= t_enc)
+         (obsolete + 1 < replaced_.size() ? replaced_[obsolete + 1].first.t0_s : outer_.t0_s) <=
+             t_enc)
     ++obsolete;
   replaced_.erase(replaced_.begin(), replaced_.begin() + static_cast<std::ptrdiff_t>(obsolete));
   const auto [outer, inner] = profiles_at(t_enc);

@@ -1,28 +1,32 @@
 #pragma once
-// Simulated PLC-driven two-axis turntable: pure logic, no I/O, one physics clock advanced by step(dt_s).
+// Simulated PLC-driven two-axis turntable: pure logic, no I/O, one physics clock advanced by
+// step(dt_s).
 //
-// The PLC is seen through its Modbus register image (drivers::turntable::RegisterMap): the master writes holding
-// registers (targets, rate, command + sequence number), the PLC scans them at the start of each step(),
-// acts on a new sequence number once, echoes it in ack_seq with an AckResult, and publishes actual
-// angles, rates, status bits, fault code and heartbeat in the input registers at the end of each step().
+// The PLC is seen through its Modbus register image (drivers::turntable::RegisterMap): the master
+// writes holding registers (targets, rate, command + sequence number), the PLC scans them at the
+// start of each step(), acts on a new sequence number once, echoes it in ack_seq with an AckResult,
+// and publishes actual angles, rates, status bits, fault code and heartbeat in the input registers
+// at the end of each step().
 //
-// Motion: each axis follows a time-optimal trapezoidal profile (triangular when the rate limit is not
-// reached) under the rate limit (the commanded max rate, clipped to the table's rate_limit_dps) and the
-// table's acceleration limit. A new move replans from the current angle AND rate, so moves can be
-// chained or redirected mid-flight. The profile is piecewise-constant acceleration evaluated in closed
-// form at any instant (like sequences::MotionProfile), so step() size never changes the trajectory and
-// actual_state() is exact: the IMU simulator can be driven by the table's ACTUAL motion.
-// Angles are absolute (no wrapping): a target of 360 from 0 is one full turn.
+// Motion: each axis follows a time-optimal trapezoidal profile (triangular when the rate limit is
+// not reached) under the rate limit (the commanded max rate, clipped to the table's rate_limit_dps)
+// and the table's acceleration limit. A new move replans from the current angle AND rate, so moves
+// can be chained or redirected mid-flight. The profile is piecewise-constant acceleration evaluated
+// in closed form at any instant (like sequences::MotionProfile), so step() size never changes the
+// trajectory and actual_state() is exact: the IMU simulator can be driven by the table's ACTUAL
+// motion. Angles are absolute (no wrapping): a target of 360 from 0 is one full turn.
 //
 // Status semantics:
 //   enabled     drives under control; set by `enable`, cleared by a fault or e-stop.
 //   homed       set when a `home` motion completes; never cleared (simulated absolute encoders).
 //   moving      a profile (move, home, or deceleration after stop/fault/e-stop) is running.
-//   in_position the last move/home target was reached and settle_time_s has elapsed since; cleared by
+//   in_position the last move/home target was reached and settle_time_s has elapsed since; cleared
+//   by
 //               any new motion command, stop, fault or e-stop.
 //   fault       latched by a fault (injected); the axes decelerate at the acceleration limit; needs
 //               clear_fault, then enable.
-//   estop       e-stop circuit open; the axes decelerate at estop_decel_dps2, the drives are disabled;
+//   estop       e-stop circuit open; the axes decelerate at estop_decel_dps2, the drives are
+//   disabled;
 //               commands other than stop are rejected until it is released.
 #include <cstddef>
 #include <cstdint>
@@ -39,24 +43,24 @@ namespace imucal::drivers::simulated {
 enum class AckResult : uint16_t {
   kAccepted = 0,
   kUnknownCommand = 1,
-  kNotEnabled = 2,     ///< move/home need `enable` first
-  kNotHomed = 3,       ///< move needs a completed `home`
-  kFaultActive = 4,    ///< enable/move/home while a fault is latched
-  kEstopActive = 5,    ///< anything but stop while the e-stop is open
-  kBadParameter = 6,   ///< non-finite target, or max rate <= 0 / non-finite
+  kNotEnabled = 2,    ///< move/home need `enable` first
+  kNotHomed = 3,      ///< move needs a completed `home`
+  kFaultActive = 4,   ///< enable/move/home while a fault is latched
+  kEstopActive = 5,   ///< anything but stop while the e-stop is open
+  kBadParameter = 6,  ///< non-finite target, or max rate <= 0 / non-finite
 };
 
 struct TablePlcConfig {
   drivers::turntable::RegisterMap map = drivers::turntable::default_register_map();
-  double rate_limit_dps = 30.0;       ///< hardware rate limit; commanded rates are clipped to it
-  double accel_limit_dps2 = 20.0;     ///< acceleration limit (moves, stop, fault ramp-down)
-  double estop_decel_dps2 = 120.0;    ///< deceleration when the e-stop opens
-  double home_rate_dps = 10.0;        ///< rate of the homing motion
-  double home_outer_deg = 0.0;        ///< angles the homing motion ends at
+  double rate_limit_dps = 30.0;     ///< hardware rate limit; commanded rates are clipped to it
+  double accel_limit_dps2 = 20.0;   ///< acceleration limit (moves, stop, fault ramp-down)
+  double estop_decel_dps2 = 120.0;  ///< deceleration when the e-stop opens
+  double home_rate_dps = 10.0;      ///< rate of the homing motion
+  double home_outer_deg = 0.0;      ///< angles the homing motion ends at
   double home_inner_deg = 0.0;
-  double settle_time_s = 0.3;         ///< standstill time before in_position is reported
-  double heartbeat_period_s = 0.05;   ///< heartbeat increments once per period of PLC time
-  double initial_outer_deg = 0.0;     ///< power-up angles
+  double settle_time_s = 0.3;        ///< standstill time before in_position is reported
+  double heartbeat_period_s = 0.05;  ///< heartbeat increments once per period of PLC time
+  double initial_outer_deg = 0.0;    ///< power-up angles
   double initial_inner_deg = 0.0;
   /// The encoder readings (actual angle and rate registers) lag the physical motion by this much, s
   /// (>= 0): the effects catalogue's table_time_offset. The motion itself (actual_state()) is not
@@ -70,7 +74,8 @@ class TablePlc {
 
   const TablePlcConfig& config() const { return cfg_; }
 
-  /// Advances the PLC clock by dt_s >= 0: scans for a new command, moves the axes, publishes inputs.
+  /// Advances the PLC clock by dt_s >= 0: scans for a new command, moves the axes, publishes
+  /// inputs.
   void step(double dt_s);
   /// PLC clock, s since construction.
   double time_s() const { return t_s_; }
@@ -83,7 +88,8 @@ class TablePlc {
   const std::vector<uint16_t>& input_image() const { return input_; }
 
   // --- actual motion ---
-  /// Exact angles (rad), rates and accelerations at the current PLC time; at_rest = no profile running.
+  /// Exact angles (rad), rates and accelerations at the current PLC time; at_rest = no profile
+  /// running.
   sequences::TableState actual_state() const;
   /// The times strictly inside (t0_s, t1_s) where either axis' planned acceleration jumps (profile
   /// piece boundaries, and a pending fault's ramp-down), ascending: where a quadrature over the
@@ -110,7 +116,8 @@ class TablePlc {
   AckResult ack_result() const { return static_cast<AckResult>(ack_result_); }
 
   // --- fault injection ---
-  /// Latches a fault with `code` (non-zero) now: drives disabled, axes ramp down at the accel limit.
+  /// Latches a fault with `code` (non-zero) now: drives disabled, axes ramp down at the accel
+  /// limit.
   void inject_fault(uint16_t code);
   /// Latches a fault with `code` `after_s` of PLC time after the next accepted move starts (a fault
   /// mid-move). Fires at that instant even if step() straddles it.
@@ -120,8 +127,8 @@ class TablePlc {
   /// Freezes the heartbeat counter (a hung PLC program) while true.
   void set_heartbeat_frozen(bool frozen) { heartbeat_frozen_ = frozen; }
 
-  /// Duration of a rest-to-rest move of `distance_deg` at the given rate and accel limits (trapezoid or
-  /// triangle): d/v + v/a if d >= v^2/a, else 2 sqrt(d/a). For tests and planners.
+  /// Duration of a rest-to-rest move of `distance_deg` at the given rate and accel limits
+  /// (trapezoid or triangle): d/v + v/a if d >= v^2/a, else 2 sqrt(d/a). For tests and planners.
   static double rest_to_rest_time_s(double distance_deg, double rate_dps, double accel_dps2);
 
  private:
@@ -144,12 +151,12 @@ class TablePlc {
   };
   enum class Motion { kNone, kMove, kHome, kStopping };
 
-  static AxisProfile plan_move(double t0_s, double angle_deg, double rate_dps, double target_deg, double vmax_dps,
-                               double amax_dps2);
+  static AxisProfile plan_move(double t0_s, double angle_deg, double rate_dps, double target_deg,
+                               double vmax_dps, double amax_dps2);
   static AxisProfile plan_stop(double t0_s, double angle_deg, double rate_dps, double decel_dps2);
 
-  /// Replaces both axes' profiles (a new motion from now), keeping the replaced ones while a lagging
-  /// encoder still shows them.
+  /// Replaces both axes' profiles (a new motion from now), keeping the replaced ones while a
+  /// lagging encoder still shows them.
   void replan(AxisProfile outer, AxisProfile inner);
   /// The profiles that were running at t_s (t_s <= now): the current ones or a replaced pair.
   std::pair<const AxisProfile*, const AxisProfile*> profiles_at(double t_s) const;
@@ -187,7 +194,7 @@ class TablePlc {
   bool heartbeat_frozen_ = false;
   double heartbeat_phase_s_ = 0.0;
 
-  std::optional<std::pair<uint16_t, double>> armed_fault_;  ///< (code, delay after move start)
+  std::optional<std::pair<uint16_t, double>> armed_fault_;    ///< (code, delay after move start)
   std::optional<std::pair<uint16_t, double>> pending_fault_;  ///< (code, absolute PLC time)
 };
 

@@ -9,10 +9,11 @@
 //   kBADC  high word first, bytes swapped in each word:      reg[0] = 0xBBAA, reg[1] = 0xDDCC
 //   kDCBA  fully little-endian:                              reg[0] = 0xDDCC, reg[1] = 0xBBAA
 // These helpers are written here on purpose instead of libmodbus' modbus_get/set_float_*: in
-// bookworm's libmodbus 3.1.6 those names do not match the byte orders they implement (ARCHITECTURE §4).
+// bookworm's libmodbus 3.1.6 those names do not match the byte orders they implement (ARCHITECTURE
+// §4).
 //
-// The bit pattern is carried unchanged in both directions, so NaN payloads and signed zeros survive a
-// round trip; deciding whether a non-finite value is acceptable is the caller's job.
+// The bit pattern is carried unchanged in both directions, so NaN payloads and signed zeros survive
+// a round trip; deciding whether a non-finite value is acceptable is the caller's job.
 #include <array>
 #include <cstdint>
 #include <optional>

@@ -1,11 +1,11 @@
 #pragma once
-// Turntable Modbus register map: DATA, not code (ARCHITECTURE §4). Real tables differ, so every address,
-// bit number, command code and the float word order comes from a TOML table in the station config;
-// `register_map.example.toml` next to this header is the simulator's default map and
+// Turntable Modbus register map: DATA, not code (ARCHITECTURE §4). Real tables differ, so every
+// address, bit number, command code and the float word order comes from a TOML table in the station
+// config; `register_map.example.toml` next to this header is the simulator's default map and
 // `default_register_map()` returns the same values (a test keeps them equal).
 //
-// Addresses are 0-based PDU addresses (what goes on the wire; mbpoll's `-0`). A float32 field occupies
-// two consecutive registers, a uint16 field one.
+// Addresses are 0-based PDU addresses (what goes on the wire; mbpoll's `-0`). A float32 field
+// occupies two consecutive registers, a uint16 field one.
 //
 // Command/acknowledge handshake: the master writes `command` (a command code) and `command_seq` (a
 // sequence number, never 0) in ONE write-multiple-registers request (so `command_seq` must directly

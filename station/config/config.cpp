@@ -366,7 +366,8 @@ void parse_protocol(const Section& s, const std::string& base_dir, ImuSlotConfig
   if (auto p = s.string("protocol", false, false)) {
     c.protocol_path = resolve(base_dir, *p);
     try {
-      map = std::make_shared<const drivers::imu::ImuProtocolMap>(drivers::imu::read_protocol_map(c.protocol_path));
+      map = std::make_shared<const drivers::imu::ImuProtocolMap>(
+          drivers::imu::read_protocol_map(c.protocol_path));
     } catch (const std::invalid_argument& e) {
       s.fail_key("protocol", e.what());
     }

@@ -1,6 +1,7 @@
 #pragma once
-// stationd's configuration file (TOML; station/config/stationd.example.toml documents every key with its
-// unit and default). Read once at start-up; a bad file stops the daemon before it touches anything.
+// stationd's configuration file (TOML; station/config/stationd.example.toml documents every key
+// with its unit and default). Read once at start-up; a bad file stops the daemon before it touches
+// anything.
 //
 // Every error is a ConfigError whose what() reads "FILE:LINE:COL: message", the message naming the
 // key ("[imu] rate_hz ..."): unknown key or table, wrong type, value out of range, missing required
@@ -103,7 +104,7 @@ struct StationConfig {
 
   // [station]
   std::string station_name;  ///< name (required): recorded with every run
-  calib::core::Site site;          ///< lat_deg, lon_deg, height_m (required), gravity_mps2 (optional)
+  calib::core::Site site;    ///< lat_deg, lon_deg, height_m (required), gravity_mps2 (optional)
   std::string data_dir;      ///< data_dir (required): run archives go to <data_dir>/runs/
   std::string database;      ///< database (default <data_dir>/history.sqlite)
 
@@ -115,8 +116,9 @@ struct StationConfig {
   std::size_t control_max_connections_per_user = 16;  ///< max_connections_per_user
 
   // [turntable] (+ [turntable.registers])
-  drivers::turntable::TurntableClientConfig turntable;  ///< endpoint (required), timeouts, tolerance, map
-  double move_timeout_s = 120.0;               ///< per move, wall time
+  drivers::turntable::TurntableClientConfig
+      turntable;                  ///< endpoint (required), timeouts, tolerance, map
+  double move_timeout_s = 120.0;  ///< per move, wall time
   double home_timeout_s = 120.0;
   double max_rate_dps = 20.0;  ///< station limit; sequences are validated against it, rates clipped
 

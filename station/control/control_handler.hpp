@@ -80,8 +80,9 @@ class ControlHandler {
   /// kInvalidInput for an incomplete archive (aborted, interrupted, failed capture) unless
   /// allow_partial — then the result is REVIEW at best, never the unit's active parameters.
   virtual nlohmann::json reprocess(const ReprocessRequest& request) = 0;
-  /// The sim-to-real gap diagnosis of a finished run (station/run/gap_check.hpp), its summary stored
-  /// with the run; returns the full diagnosis JSON plus "run_id". kBusy while a run is active.
+  /// The sim-to-real gap diagnosis of a finished run (station/run/gap_check.hpp), its summary
+  /// stored with the run; returns the full diagnosis JSON plus "run_id". kBusy while a run is
+  /// active.
   virtual nlohmann::json diagnose(db::history::RunId run_id) = 0;
   /// Imports a field (or another station's) run archive into the history for its serial and
   /// calibrates it with the setting run.toml names; returns {"run_id", "serial", "setting"}.
@@ -92,8 +93,9 @@ class ControlHandler {
     (void)user;
     throw ControlError(error_code::kInternal, "import is not supported by this handler");
   }
-  /// QA's promotion of a field run to the unit's active parameters (db::history::Repository::promote),
-  /// recorded with `user`; returns {"run_id", "promoted_by", "promoted_at"}.
+  /// QA's promotion of a field run to the unit's active parameters
+  /// (db::history::Repository::promote), recorded with `user`; returns {"run_id", "promoted_by",
+  /// "promoted_at"}.
   virtual nlohmann::json promote(db::history::RunId run_id, const std::string& user,
                                  const std::string& reason) {
     (void)run_id;

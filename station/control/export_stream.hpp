@@ -7,7 +7,8 @@
 //
 // A client that goes away ends its export at the next frame (EPIPE), one that stops reading is
 // dropped after send_timeout; the daemon goes on either way. At most max_concurrent exports run;
-// one more is refused (busy) without touching its connection (station/control/connection_threads.hpp).
+// one more is refused (busy) without touching its connection
+// (station/control/connection_threads.hpp).
 #include <chrono>
 #include <cstddef>
 #include <string>

@@ -76,8 +76,8 @@ std::string short_time(const std::string& iso) {
 // ----- JSON shapes ------------------------------------------------------------------------------
 
 json run_record_json(const db::history::RunRecord& run) {
-  // db::history::run_json carries "capture" (RunRecord::capture_json parsed, null when empty) since schema
-  // v2; one definition of the run's JSON for the export and the control socket.
+  // db::history::run_json carries "capture" (RunRecord::capture_json parsed, null when empty) since
+  // schema v2; one definition of the run's JSON for the export and the control socket.
   return db::history::run_json(run);
 }
 
@@ -94,7 +94,9 @@ json show_result(const db::history::RunDetails& details) {
   return o;
 }
 
-json params_result(const db::history::ActiveCalibration& active) { return db::history::active_params_json(active); }
+json params_result(const db::history::ActiveCalibration& active) {
+  return db::history::active_params_json(active);
+}
 
 json export_result(const db::history::Repository& repo, const db::history::ExportFilter& filter,
                    const std::string& format) {
@@ -157,7 +159,8 @@ json answer_repository_read(const db::history::Repository& repo, const Request& 
     const std::size_t limit = a.contains("limit") ? a.at("limit").get<std::size_t>() : 0;
     return history_result(serial, repo.history(serial, limit), repo.run_count(serial));
   }
-  if (request.cmd == cmd::kShow) return show_result(repo.show(a.at("run_id").get<db::history::RunId>()));
+  if (request.cmd == cmd::kShow)
+    return show_result(repo.show(a.at("run_id").get<db::history::RunId>()));
   if (request.cmd == cmd::kParams)
     return params_result(repo.active_params(a.at("serial").get<std::string>()));
   if (request.cmd == cmd::kExport)

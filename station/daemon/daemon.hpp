@@ -24,13 +24,13 @@
 #include <string>
 
 #include "db/history/sqlite_repository.hpp"
-#include "station/run/calibration_worker.hpp"
 #include "station/config/config.hpp"
 #include "station/control/control_handler.hpp"
 #include "station/daemon/fleet_sender.hpp"
+#include "station/daemon/sd_notify.hpp"
+#include "station/run/calibration_worker.hpp"
 #include "station/run/recovery.hpp"
 #include "station/run/run_controller.hpp"
-#include "station/daemon/sd_notify.hpp"
 
 namespace imucal::station::control {
 class ControlServer;

@@ -1,7 +1,7 @@
 #pragma once
 // The outbox sender (issue #24 item 2): a thread of stationd that carries the station's changes
-// from its SQLite outbox (db/history/outbox.hpp) to the fleet store (db/fleet/), so the line never waits
-// for a network or a server.
+// from its SQLite outbox (db/history/outbox.hpp) to the fleet store (db/fleet/), so the line never
+// waits for a network or a server.
 //
 // Loop: connect (and migrate the store if it is older; refuse one that is newer) → read the
 // oldest batch of outbox entries → read the runs they name, as they are now, in one snapshot →

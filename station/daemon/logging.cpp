@@ -1,5 +1,7 @@
 #include "station/daemon/logging.hpp"
 
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -8,9 +10,6 @@
 #include <cstring>
 #include <memory>
 #include <stdexcept>
-
-#include <spdlog/sinks/stdout_color_sinks.h>
-#include <spdlog/spdlog.h>
 #ifdef IMUCAL_HAVE_LIBSYSTEMD
 #include <spdlog/sinks/systemd_sink.h>
 #endif

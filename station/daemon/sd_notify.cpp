@@ -33,7 +33,8 @@ SdNotifier SdNotifier::from_environment() {
   if (auto usec = parse_unsigned(std::getenv("WATCHDOG_USEC")); usec && *usec > 0) {
     const char* pid_text = std::getenv("WATCHDOG_PID");
     const auto pid = parse_unsigned(pid_text);
-    const bool ours = !pid_text || !*pid_text || (pid && *pid == static_cast<unsigned long long>(getpid()));
+    const bool ours =
+        !pid_text || !*pid_text || (pid && *pid == static_cast<unsigned long long>(getpid()));
     if (ours) wd = std::chrono::microseconds(static_cast<long long>(*usec));
   }
   return SdNotifier(sock ? sock : "", wd);
@@ -47,14 +48,15 @@ bool SdNotifier::notify(const std::string& state, std::string* error) const {
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
   if (socket_.size() >= sizeof(addr.sun_path) || (socket_[0] != '/' && socket_[0] != '@')) {
-    if (error) *error = "NOTIFY_SOCKET \"" + socket_ + "\" is neither an absolute path nor '@'abstract";
+    if (error)
+      *error = "NOTIFY_SOCKET \"" + socket_ + "\" is neither an absolute path nor '@'abstract";
     return false;
   }
   std::memcpy(addr.sun_path, socket_.data(), socket_.size());
   // Abstract namespace: leading NUL, and the address length counts exactly the name's bytes.
   if (socket_[0] == '@') addr.sun_path[0] = '\0';
-  const socklen_t len =
-      static_cast<socklen_t>(offsetof(sockaddr_un, sun_path) + socket_.size() + (socket_[0] == '@' ? 0 : 1));
+  const socklen_t len = static_cast<socklen_t>(offsetof(sockaddr_un, sun_path) + socket_.size() +
+                                               (socket_[0] == '@' ? 0 : 1));
   const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
   if (fd < 0) {
     if (error) *error = std::string("socket: ") + std::strerror(errno);
@@ -74,7 +76,9 @@ bool SdNotifier::notify(const std::string& state, std::string* error) const {
 bool SdNotifier::ready(const std::string& status_text) const {
   return notify(status_text.empty() ? "READY=1" : "READY=1\nSTATUS=" + status_text);
 }
-bool SdNotifier::status(const std::string& status_text) const { return notify("STATUS=" + status_text); }
+bool SdNotifier::status(const std::string& status_text) const {
+  return notify("STATUS=" + status_text);
+}
 bool SdNotifier::watchdog() const { return notify("WATCHDOG=1"); }
 bool SdNotifier::stopping() const { return notify("STOPPING=1"); }
 

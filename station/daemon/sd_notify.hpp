@@ -5,9 +5,9 @@
 // Without $NOTIFY_SOCKET (not started by systemd with Type=notify) every call is a no-op that
 // returns false, so the daemon runs the same way from a shell.
 //
-// Watchdog: with WatchdogSec= systemd sets $WATCHDOG_USEC (and $WATCHDOG_PID); the service must send
-// WATCHDOG=1 more often than that. sd_watchdog_enabled(3) recommends half the interval, which is
-// what watchdog_interval() returns.
+// Watchdog: with WatchdogSec= systemd sets $WATCHDOG_USEC (and $WATCHDOG_PID); the service must
+// send WATCHDOG=1 more often than that. sd_watchdog_enabled(3) recommends half the interval, which
+// is what watchdog_interval() returns.
 #include <chrono>
 #include <optional>
 #include <string>

@@ -52,7 +52,9 @@ std::string join(const std::string& dir, const char* name) { return dir + "/" + 
 // The reader turns degrees into radians with deg * kDegToRad (db/archive/run_archive.cpp); the
 // degree text written is the one that maps back to exactly this radian value (human_for_si).
 double deg_to_rad(double d) { return d * kDegToRad; }
-double rad_to_deg_exact(double r) { return db::archive::human_for_si(r, r * kRadToDeg, deg_to_rad); }
+double rad_to_deg_exact(double r) {
+  return db::archive::human_for_si(r, r * kRadToDeg, deg_to_rad);
+}
 
 void fsync_path(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
@@ -163,7 +165,8 @@ void ArchiveWriter::close_files() {
 
 uint64_t ArchiveWriter::frames() const { return capture_ ? capture_->frames_written() : 0; }
 
-void ArchiveWriter::append_row(const calib::core::ImuIncrement& inc, const calib::core::TableSample& table) {
+void ArchiveWriter::append_row(const calib::core::ImuIncrement& inc,
+                               const calib::core::TableSample& table) {
   if (finished_) throw std::logic_error(dir_ + ": append_row after finish()");
   const std::string where = dir_ + ": row " + std::to_string(rows_ + 1);
   if (!std::isfinite(inc.t_s) || inc.t_s != table.t_s)
@@ -203,7 +206,8 @@ void ArchiveWriter::append_row(const calib::core::ImuIncrement& inc, const calib
   if (imu_.buf.size() + table_.buf.size() >= kAutoFlushBytes) flush();
 }
 
-void ArchiveWriter::append_frame(const drivers::imu::ReceivedFrame& frame, std::string_view interface) {
+void ArchiveWriter::append_frame(const drivers::imu::ReceivedFrame& frame,
+                                 std::string_view interface) {
   if (finished_) throw std::logic_error(dir_ + ": append_frame after finish()");
   capture_->write(frame, interface);
 }
@@ -273,8 +277,8 @@ CsvPrefix usable_prefix(const std::string& path, const std::vector<std::string>&
   const db::archive::CsvSpec spec{cols, {}, true};
   for (;;) {
     try {
-      p.table =
-          db::archive::parse_csv(std::string_view(text.data(), p.line_end[n_lines - 1]), path, spec);
+      p.table = db::archive::parse_csv(std::string_view(text.data(), p.line_end[n_lines - 1]), path,
+                                       spec);
       break;
     } catch (const db::archive::ArchiveError& e) {
       // A bad data line (torn or zero-filled by a crash): keep the lines before it.
@@ -307,7 +311,7 @@ void cut_file(const std::string& path, const std::vector<std::string>& cols, boo
 /// was logged) replayed through the IMU frame decoder, as the live capture decoded them. A torn
 /// last line is skipped by the reader; a damaged line ends the count (raw data stays as it is).
 db::archive::CaptureInfo recount_capture_log(const std::string& log,
-                                         const drivers::imu::DecoderOptions& decoder) {
+                                             const drivers::imu::DecoderOptions& decoder) {
   CaptureStats stats;
   std::error_code ec;
   if (!fs::exists(log, ec)) return to_capture_info(stats, false);
@@ -349,7 +353,8 @@ uint64_t recover_archive(const std::string& dir_in, const std::string& end_time_
   std::string dir = dir_in;
   while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) throw db::archive::ArchiveError(dir, "no such run archive directory");
+  if (!fs::is_directory(dir, ec))
+    throw db::archive::ArchiveError(dir, "no such run archive directory");
 
   // Leftovers of an interrupted atomic rewrite (write_file_atomic's "<name>.tmp-XXXXXX").
   for (const auto& e : fs::directory_iterator(dir, ec)) {
@@ -362,7 +367,8 @@ uint64_t recover_archive(const std::string& dir_in, const std::string& end_time_
   const std::string run_toml = join(dir, "run.toml");
   if (!fs::exists(run_toml, ec))
     throw db::archive::ArchiveError(run_toml, "missing: cannot recover the run archive");
-  db::archive::RunInfo info = db::archive::parse_run_info(db::archive::read_text_file(run_toml), run_toml);
+  db::archive::RunInfo info =
+      db::archive::parse_run_info(db::archive::read_text_file(run_toml), run_toml);
 
   const std::string imu_path = join(dir, "imu.csv");
   const std::string table_path = join(dir, "table.csv");

@@ -1,14 +1,14 @@
 #pragma once
-// The run archive of ARCHITECTURE §5 (db/archive/FORMAT.md), written while the run goes: run.toml at the
-// start, imu.csv / table.csv / capture.log appended row by row and frame by frame, run.toml
+// The run archive of ARCHITECTURE §5 (db/archive/FORMAT.md), written while the run goes: run.toml
+// at the start, imu.csv / table.csv / capture.log appended row by row and frame by frame, run.toml
 // rewritten atomically at the end. Whatever moment the daemon dies, the directory holds a usable
 // prefix of the run: recover_archive() cuts it to whole, matching rows and marks it incomplete, and
 // db/archive's read_archive() then reads it like any other archive.
 //
-// Row text uses db/archive's own number formatting (db::archive::append_double: shortest round-trip;
-// table angles via db::archive::human_for_si), so what read_archive() returns is bit-identical to what
-// was appended. imu.csv has no temp_c column (the archive allows it only when every sample has a
-// temperature, which a live stream cannot promise).
+// Row text uses db/archive's own number formatting (db::archive::append_double: shortest
+// round-trip; table angles via db::archive::human_for_si), so what read_archive() returns is
+// bit-identical to what was appended. imu.csv has no temp_c column (the archive allows it only when
+// every sample has a temperature, which a live stream cannot promise).
 //
 // Not thread-safe: one owner (station::run::Capture serialises its own use).
 #include <cstdint>
@@ -90,7 +90,8 @@ class ArchiveWriter {
 /// rx_overflow cannot be recounted: 0). capture.log is left as it is (raw data). An archive that
 /// was finished ([capture] complete = true and the files agree with it) is left untouched.
 /// Temporary files of an interrupted atomic rewrite are removed. Returns rows kept. Throws
-/// db::archive::ArchiveError if run.toml is missing or unreadable or a CSV header is not the archive's.
+/// db::archive::ArchiveError if run.toml is missing or unreadable or a CSV header is not the
+/// archive's.
 uint64_t recover_archive(const std::string& dir, const std::string& end_time_iso,
                          const drivers::imu::DecoderOptions& decoder = {});
 

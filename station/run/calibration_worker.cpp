@@ -30,7 +30,8 @@ db::history::RunReason limits_reason(const calib::checks::LimitCheckResult& limi
 std::vector<db::history::RunReason> review_reasons(const calib::pipeline::PipelineResult& r) {
   std::vector<db::history::RunReason> reasons;
   if (r.crosscheck && !r.crosscheck->pass)
-    reasons.push_back(db::history::crosscheck_reason(db::history::crosscheck_record(*r.crosscheck, 0.0)));
+    reasons.push_back(
+        db::history::crosscheck_reason(db::history::crosscheck_record(*r.crosscheck, 0.0)));
   if (!r.limits.pass) reasons.push_back(limits_reason(r.limits));
   return reasons;
 }
@@ -51,14 +52,17 @@ std::string capture_note(const db::archive::RunArchive& ar) {
 /// Factory: AINS + NLSQ, cross-check, and the gap check (a significant sim-to-real gap means an
 /// unmodelled effect that biases the calibration, so the run is never PASS then — unless the
 /// product's known effects alone explain it, [calibration] known_effects).
-void store_factory_result(const calib::pipeline::PipelineResult& r, calib::core::CalibrationInput in,
-                          const db::archive::RunArchive& ar, const CalibrationJob& job,
+void store_factory_result(const calib::pipeline::PipelineResult& r,
+                          calib::core::CalibrationInput in, const db::archive::RunArchive& ar,
+                          const CalibrationJob& job,
                           const std::function<void(const std::string&)>& phase,
                           db::history::RunCompletion& completion) {
   if (!r.ains || !r.nlsq || !r.crosscheck)
     throw std::runtime_error("the calibration pipeline returned without both methods");
-  completion.calibrations.push_back(db::history::calibration_record(r.ains->result, &r.ains->metrics));
-  completion.calibrations.push_back(db::history::calibration_record(r.nlsq->result, &r.nlsq->metrics));
+  completion.calibrations.push_back(
+      db::history::calibration_record(r.ains->result, &r.ains->metrics));
+  completion.calibrations.push_back(
+      db::history::calibration_record(r.nlsq->result, &r.nlsq->metrics));
   completion.crosscheck = db::history::crosscheck_record(*r.crosscheck, job.k_sigma);
   phase("gap diagnosis");
   const GapCheck gap =
@@ -67,14 +71,15 @@ void store_factory_result(const calib::pipeline::PipelineResult& r, calib::core:
   completion.reasons = review_reasons(r);
   if (gap.significant && !gap.known)
     completion.reasons.push_back({"gap", "sim-to-real gap: " + gap.text + capture_note(ar)});
-  completion.state = completion.reasons.empty() ? db::history::RunState::kDone : db::history::RunState::kReview;
+  completion.state =
+      completion.reasons.empty() ? db::history::RunState::kDone : db::history::RunState::kReview;
 }
 
 /// Land: AINS + legacy and their cross-check (no metrics: no attitude reference; no gap check:
 /// it models a table run). Sea: AINS alone, which no second method can check — review, for QA to
 /// promote explicitly.
-void store_field_result(const calib::pipeline::PipelineResult& r, calib::core::Setting setting, double k_sigma,
-                        db::history::RunCompletion& completion) {
+void store_field_result(const calib::pipeline::PipelineResult& r, calib::core::Setting setting,
+                        double k_sigma, db::history::RunCompletion& completion) {
   if (!r.ains) throw std::runtime_error("the calibration pipeline returned without AINS");
   completion.calibrations.push_back(db::history::calibration_record(r.ains->result, nullptr));
   const std::string frame_note =
@@ -93,7 +98,8 @@ void store_field_result(const calib::pipeline::PipelineResult& r, calib::core::S
   completion.calibrations.push_back(db::history::calibration_record(r.legacy->result, nullptr));
   completion.crosscheck = db::history::crosscheck_record(*r.crosscheck, k_sigma);
   completion.reasons = review_reasons(r);
-  completion.state = completion.reasons.empty() ? db::history::RunState::kDone : db::history::RunState::kReview;
+  completion.state =
+      completion.reasons.empty() ? db::history::RunState::kDone : db::history::RunState::kReview;
 }
 
 /// An incomplete archive (the reprocess of an aborted or interrupted run, asked for explicitly, or
@@ -177,7 +183,8 @@ CalibrationOutcome run_calibration_job(db::history::Repository& repo, const Cali
   return out;
 }
 
-CalibrationWorker::CalibrationWorker(db::history::Repository& repository, Phase on_phase, unsigned threads)
+CalibrationWorker::CalibrationWorker(db::history::Repository& repository, Phase on_phase,
+                                     unsigned threads)
     : repo_(repository), on_phase_(std::move(on_phase)) {
   for (unsigned i = 0; i < std::max(1u, threads); ++i) threads_.emplace_back([this] { loop(); });
 }

@@ -4,9 +4,10 @@
 //
 // A job does exactly what `imucal calibrate` and `reprocess` do (one code path, calib/
 // calibration_pipeline.hpp): db::archive::read_archive -> db::archive::to_calibration_input ->
-// calib::pipeline::run_calibration (AINS and NLSQ, each evaluated, then the cross-check at k_sigma) ->
-// calib::diagnosis::diagnose (the sim-to-real gap of the run against its NLSQ calibration) ->
-// db::history::calibration_record / db::history::crosscheck_record -> Repository::finish_run in one transaction:
+// calib::pipeline::run_calibration (AINS and NLSQ, each evaluated, then the cross-check at k_sigma)
+// -> calib::diagnosis::diagnose (the sim-to-real gap of the run against its NLSQ calibration) ->
+// db::history::calibration_record / db::history::crosscheck_record -> Repository::finish_run in one
+// transaction:
 //   cross-check PASS, limits kept, gap consistent, archive complete -> done (verdict PASS)
 //   otherwise -> review (verdict REVIEW) with one reason per source (db::history::RunReason): the
 //     cross-check's failures, the limits', "sim-to-real gap: " + the diagnosis summary, a
@@ -53,9 +54,11 @@ struct CalibrationJob {
 
 struct CalibrationOutcome {
   db::history::RunId run_id = 0;
-  db::history::RunState state = db::history::RunState::kFailed;     ///< done, review or failed (as stored)
-  std::optional<db::history::RunVerdict> verdict;          ///< the run's (db::history::run_verdict(state))
-  std::optional<db::history::Verdict> crosscheck_verdict;  ///< the cross-check's own, if one was made
+  db::history::RunState state =
+      db::history::RunState::kFailed;              ///< done, review or failed (as stored)
+  std::optional<db::history::RunVerdict> verdict;  ///< the run's (db::history::run_verdict(state))
+  std::optional<db::history::Verdict>
+      crosscheck_verdict;  ///< the cross-check's own, if one was made
   std::string reason;      ///< review: every reason ("; "-joined); failed: the error
   bool stored = true;      ///< false: the run was already terminal, nothing was written
   double runtime_s = 0.0;  ///< wall time of the job
@@ -77,7 +80,8 @@ class CalibrationWorker {
   /// itself two threads, AINS beside NLSQ): 1 for a one-unit station, at most the machine's
   /// cores otherwise (memory: `imucal bench` of an hour's run at 100 Hz peaks at 88 MB; the
   /// daemon with four units on factory-std at 188 MiB, README "Several units per table run").
-  explicit CalibrationWorker(db::history::Repository& repository, Phase on_phase = {}, unsigned threads = 1);
+  explicit CalibrationWorker(db::history::Repository& repository, Phase on_phase = {},
+                             unsigned threads = 1);
   ~CalibrationWorker();  ///< stop()
   CalibrationWorker(const CalibrationWorker&) = delete;
   CalibrationWorker& operator=(const CalibrationWorker&) = delete;

@@ -16,10 +16,12 @@ namespace imucal::station::run {
 namespace {
 
 // IMU conditions that make the data unusable for a calibration.
-constexpr uint8_t kFailureConditions = drivers::imu::condition::kFault | drivers::imu::condition::kSaturation;
+constexpr uint8_t kFailureConditions =
+    drivers::imu::condition::kFault | drivers::imu::condition::kSaturation;
 
 /// "fault (IMU_STATUS.GyroFault), saturation (...)": the conditions and the protocol's signals.
-std::string failure_names(const drivers::imu::ImuFrameDecoder& dec, const drivers::imu::DecodedSample& s) {
+std::string failure_names(const drivers::imu::ImuFrameDecoder& dec,
+                          const drivers::imu::DecodedSample& s) {
   std::string out;
   auto add = [&](uint8_t c, const char* name) {
     if (!(s.conditions & c)) return;
@@ -82,7 +84,8 @@ void Capture::run() {
         pollfd p{channel_->fd(), POLLIN, 0};
         const int rc = ::poll(&p, 1, poll_ms);
         if (rc < 0 && errno != EINTR)
-          throw drivers::imu::CanChannelError(channel_->uri() + ": poll failed: " + std::strerror(errno));
+          throw drivers::imu::CanChannelError(channel_->uri() +
+                                              ": poll failed: " + std::strerror(errno));
         if (rc > 0) channel_->read(frames, 512);
       }
     } catch (const std::exception& e) {
@@ -122,7 +125,8 @@ void Capture::run() {
   }
 }
 
-void Capture::on_frames(const std::vector<drivers::imu::ReceivedFrame>& frames, Clock::time_point now) {
+void Capture::on_frames(const std::vector<drivers::imu::ReceivedFrame>& frames,
+                        Clock::time_point now) {
   std::vector<drivers::imu::DecodedSample> samples;
   for (const drivers::imu::ReceivedFrame& f : frames) {
     ++frames_received_;
@@ -261,7 +265,8 @@ bool Capture::emit_row(const calib::core::ImuIncrement& in) {
   inc.t_s =
       static_cast<double>(row + 1) / options_.decoder.sample_rate_hz;  // contract: (row+1)/rate
   inc.dt_s = dt_s_;
-  const calib::core::TableSample table{inc.t_s, outer_deg_ * kDegToRad, inner_deg_ * kDegToRad, at_rest};
+  const calib::core::TableSample table{inc.t_s, outer_deg_ * kDegToRad, inner_deg_ * kDegToRad,
+                                       at_rest};
   try {
     writer_->append_row(inc, table);
   } catch (const std::exception& e) {
@@ -294,7 +299,8 @@ void Capture::writer_failed(const std::exception& e) {
 
 std::string Capture::row_label(uint64_t row) const {
   return "row " + std::to_string(row + 1) + " (t = " +
-         db::archive::format_double(static_cast<double>(row + 1) / options_.decoder.sample_rate_hz) +
+         db::archive::format_double(static_cast<double>(row + 1) /
+                                    options_.decoder.sample_rate_hz) +
          " s)";
 }
 

@@ -1,8 +1,8 @@
 #pragma once
 // The daemon's IMU capture: its own thread reads the IMU's CanChannel (poll on its fd), decodes the
-// samples (drivers::imu::ImuFrameDecoder) and, while an ArchiveWriter is attached, writes the run archive as
-// it goes: every received frame into capture.log, one imu.csv + table.csv row per IMU sample slot.
-// It is independent of the control thread, which only tells it what the table does
+// samples (drivers::imu::ImuFrameDecoder) and, while an ArchiveWriter is attached, writes the run
+// archive as it goes: every received frame into capture.log, one imu.csv + table.csv row per IMU
+// sample slot. It is independent of the control thread, which only tells it what the table does
 // (table_moving / begin_rest) and waits for rests to complete (wait_rest_done).
 //
 // Rows (ARCHITECTURE §5, db/archive/FORMAT.md), counted from attach():
@@ -49,7 +49,7 @@
 namespace imucal::station::run {
 
 struct CaptureOptions {
-  drivers::imu::DecoderOptions decoder;            ///< base_id, rate
+  drivers::imu::DecoderOptions decoder;   ///< base_id, rate
   uint64_t max_gap_samples = 10;          ///< longer gap -> fault
   uint64_t settle_guard_samples = 50;     ///< still samples before a rest's counted samples begin
   double rest_rate_threshold_dps = 0.05;  ///< |dθ|/dt above this = the unit is moving

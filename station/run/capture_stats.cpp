@@ -44,13 +44,14 @@ const std::vector<std::pair<Member, uint64_t db::archive::CaptureInfo::*>>& coun
     const auto& ours = counters();
     const auto& theirs = db::archive::CaptureInfo::counters();
     if (ours.size() != theirs.size())
-      throw std::logic_error("CaptureStats and db::archive::CaptureInfo counter lists differ in size");
+      throw std::logic_error(
+          "CaptureStats and db::archive::CaptureInfo counter lists differ in size");
     std::vector<std::pair<Member, uint64_t db::archive::CaptureInfo::*>> p;
     for (std::size_t i = 0; i < ours.size(); ++i) {
       if (std::string(ours[i].first) != theirs[i].first)
         throw std::logic_error(std::string("CaptureStats counter '") + ours[i].first +
-                               "' does not match db::archive::CaptureInfo counter '" + theirs[i].first +
-                               "'");
+                               "' does not match db::archive::CaptureInfo counter '" +
+                               theirs[i].first + "'");
       p.emplace_back(ours[i].second, theirs[i].second);
     }
     return p;

@@ -1,7 +1,7 @@
 #pragma once
-// Counters of the daemon's IMU capture (station/run/capture.hpp): what the CAN channel and the frame
-// decoder saw, how many archive rows were written, filled or marked at rest. Reported live in the
-// daemon's status JSON, stored per run in the database (RunRecord::capture_json) and in the run
+// Counters of the daemon's IMU capture (station/run/capture.hpp): what the CAN channel and the
+// frame decoder saw, how many archive rows were written, filled or marked at rest. Reported live in
+// the daemon's status JSON, stored per run in the database (RunRecord::capture_json) and in the run
 // archive's run.toml [capture] section (db/archive/FORMAT.md), all under the same names.
 #include <cstdint>
 #include <nlohmann/json.hpp>

@@ -23,7 +23,8 @@ std::string reserve_end_note(const std::string& path);
 
 /// Overwrites the reserved note with `state` and `reason` (cut to fit) and syncs it. Returns ""
 /// or why not (no reservation, I/O error).
-std::string record_end_note(const std::string& path, db::history::RunState state, const std::string& reason);
+std::string record_end_note(const std::string& path, db::history::RunState state,
+                            const std::string& reason);
 
 struct EndNote {
   db::history::RunState state = db::history::RunState::kFailed;

@@ -11,15 +11,18 @@ namespace imucal::station::run {
 
 namespace {
 
-calib::diagnosis::DiagnosisInput diagnosis_input(calib::core::CalibrationInput in, const db::archive::RunArchive& ar) {
+calib::diagnosis::DiagnosisInput diagnosis_input(calib::core::CalibrationInput in,
+                                                 const db::archive::RunArchive& ar) {
   calib::diagnosis::DiagnosisInput din;
   din.cal = std::move(in);
-  if (ar.info.reference == db::archive::ReferenceKind::kTable) din.geometry = ar.info.table.geometry();
+  if (ar.info.reference == db::archive::ReferenceKind::kTable)
+    din.geometry = ar.info.table.geometry();
   return din;
 }
 
 /// Explained, and by the product's known effects alone.
-bool is_known(const calib::diagnosis::DiagnosisResult& d, const std::vector<std::string>& known_effects) {
+bool is_known(const calib::diagnosis::DiagnosisResult& d,
+              const std::vector<std::string>& known_effects) {
   if (d.verdict != "explained" || d.explained_by.empty()) return false;
   for (const std::string& name : d.explained_by)
     if (std::find(known_effects.begin(), known_effects.end(), name) == known_effects.end())
@@ -33,7 +36,8 @@ GapCheck check_gap(calib::core::CalibrationInput in, const db::archive::RunArchi
                    const calib::core::ParamSet& nlsq_params, double false_alarm_per_run,
                    const std::vector<std::string>& known_effects) {
   GapCheck g;
-  const calib::diagnosis::DiagnosisOptions opt = calib::diagnosis::diagnosis_options_for_false_alarm(false_alarm_per_run);
+  const calib::diagnosis::DiagnosisOptions opt =
+      calib::diagnosis::diagnosis_options_for_false_alarm(false_alarm_per_run);
   try {
     const calib::diagnosis::DiagnosisResult d =
         calib::diagnosis::diagnose(diagnosis_input(std::move(in), ar), nlsq_params, opt);
@@ -53,7 +57,8 @@ nlohmann::json diagnose_archive(const std::string& dir) {
   // The samples move into the input; ar keeps its info, all that is used below.
   calib::core::CalibrationInput in = db::archive::to_calibration_input(std::move(ar));
   const calib::core::CalibrationResult cal = calib::nlsq::calibrate_nlsq(in);
-  const calib::diagnosis::DiagnosisResult d = calib::diagnosis::diagnose(diagnosis_input(std::move(in), ar), cal.params);
+  const calib::diagnosis::DiagnosisResult d =
+      calib::diagnosis::diagnose(diagnosis_input(std::move(in), ar), cal.params);
   nlohmann::json j = db::archive::diagnosis_to_json(d);
   j["stored_summary"] = db::archive::diagnosis_summary_json(d);
   j["archive"] = dir;

@@ -13,7 +13,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-/// A run.toml time as UTC ms, or nullopt when absent or not a form db::history::parse_time_utc reads.
+/// A run.toml time as UTC ms, or nullopt when absent or not a form db::history::parse_time_utc
+/// reads.
 std::optional<db::history::TimestampMs> parse_recorded(const std::string& iso) {
   if (iso.empty()) return std::nullopt;
   try {
@@ -25,16 +26,17 @@ std::optional<db::history::TimestampMs> parse_recorded(const std::string& iso) {
 
 }  // namespace
 
-RecordedTimes recorded_times(const db::archive::RunArchive& ar, db::history::TimestampMs import_ms) {
+RecordedTimes recorded_times(const db::archive::RunArchive& ar,
+                             db::history::TimestampMs import_ms) {
   RecordedTimes t;
   const auto start = parse_recorded(ar.info.start_time);
   t.recorded = start.has_value();
   t.started_at_ms = start.value_or(import_ms);
   const auto end = parse_recorded(ar.info.end_time);
-  t.ended_at_ms =
-      end && *end > t.started_at_ms
-          ? *end
-          : t.started_at_ms + static_cast<db::history::TimestampMs>(db::archive::data_span_s(ar) * 1000.0 + 0.5);
+  t.ended_at_ms = end && *end > t.started_at_ms
+                      ? *end
+                      : t.started_at_ms + static_cast<db::history::TimestampMs>(
+                                              db::archive::data_span_s(ar) * 1000.0 + 0.5);
   return t;
 }
 
@@ -88,8 +90,8 @@ std::optional<std::string> duplicate_import(const db::history::Repository& repo,
     const db::history::RunRecord& r = runs.front();
     std::string where = r.origin.empty() ? "recorded at this station" : r.origin;
     return "this archive (SHA-256 " + sha.substr(0, 16) + "...) is already stored as run " +
-           std::to_string(r.run_id) + " of " + r.serial + " (" + db::history::to_string(r.state) + ", " +
-           where + "); not imported again — `stationctl show " + std::to_string(r.run_id) +
+           std::to_string(r.run_id) + " of " + r.serial + " (" + db::history::to_string(r.state) +
+           ", " + where + "); not imported again — `stationctl show " + std::to_string(r.run_id) +
            "` shows it";
   }
   return std::nullopt;

@@ -51,6 +51,7 @@ class StagedImport {
 
 /// The message refusing an archive already in the history (its SHA-256, source or copy, stored
 /// with a run), naming that run, its serial, state and origin; nullopt when it is new.
-std::optional<std::string> duplicate_import(const db::history::Repository& repo, const StagedImport& staged);
+std::optional<std::string> duplicate_import(const db::history::Repository& repo,
+                                            const StagedImport& staged);
 
 }  // namespace imucal::station::run

@@ -56,7 +56,8 @@ void stop_table(const StationConfig& config, RecoveryReport& report) {
 
 }  // namespace
 
-RecoveryReport recover_at_startup(const StationConfig& config, db::history::Repository& repo, bool stop) {
+RecoveryReport recover_at_startup(const StationConfig& config, db::history::Repository& repo,
+                                  bool stop) {
   RecoveryReport report;
   if (stop) stop_table(config, report);
 
@@ -68,7 +69,8 @@ RecoveryReport recover_at_startup(const StationConfig& config, db::history::Repo
                                 ? run_archive_dir(config.data_dir, run.run_id, run.serial)
                                 : run.archive_path;
     const std::string found = std::string("the daemon stopped while the run was ") +
-                              db::history::to_string(run.state) + " (found at start-up; not resumed)";
+                              db::history::to_string(run.state) +
+                              " (found at start-up; not resumed)";
     db::history::RunCompletion c;
     c.state = db::history::RunState::kInterrupted;
     // The run ended while the database could not record it (disk full): its own end and reason.
@@ -106,8 +108,8 @@ RecoveryReport recover_at_startup(const StationConfig& config, db::history::Repo
     c.ended_at_ms = db::history::now_ms();
     repo.finish_run(run.run_id, c);
     remove_end_note(note_path);
-    spdlog::warn("recovery: run {} ({}) {}: {}", run.run_id, run.serial, db::history::to_string(c.state),
-                 r.reason);
+    spdlog::warn("recovery: run {} ({}) {}: {}", run.run_id, run.serial,
+                 db::history::to_string(c.state), r.reason);
     report.runs.push_back(std::move(r));
   }
   return report;
@@ -134,7 +136,7 @@ db::history::RunId highest_archived_run_id(const std::string& data_dir) {
 }
 
 db::history::RunId continue_run_ids_after_archives(const StationConfig& config,
-                                          db::history::SqliteRepository& repository) {
+                                                   db::history::SqliteRepository& repository) {
   const db::history::RunId archived = highest_archived_run_id(config.data_dir);
   const db::history::RunId issued = repository.highest_run_id_issued();
   if (archived <= issued || !repository.continue_run_ids_after(archived)) return 0;

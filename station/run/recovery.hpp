@@ -1,11 +1,12 @@
 #pragma once
-// Start-up recovery of stationd (issue #3 item 4: "an interrupted run is marked interrupted, its raw
-// data kept and reprocessable; never silently resumed").
+// Start-up recovery of stationd (issue #3 item 4: "an interrupted run is marked interrupted, its
+// raw data kept and reprocessable; never silently resumed").
 //
-// A daemon that died (kill -9, power cut, crash) leaves the table possibly moving and runs in a live
-// state (preparing, running, calibrating) in the database. Before it accepts any request the new
-// daemon:
-//   1. commands the table to a safe stop if it is reachable (a short connect attempt; an unreachable
+// A daemon that died (kill -9, power cut, crash) leaves the table possibly moving and runs in a
+// live state (preparing, running, calibrating) in the database. Before it accepts any request the
+// new daemon:
+//   1. commands the table to a safe stop if it is reachable (a short connect attempt; an
+//   unreachable
 //      table is logged, not fatal: it may be switched off);
 //   2. for every live run: cuts its archive to whole, matching rows (recover_archive, which marks
 //      run.toml [capture] complete = false and leaves capture.log as raw data; a finished archive
@@ -53,6 +54,6 @@ db::history::RunId highest_archived_run_id(const std::string& data_dir);
 /// store would refuse the run as another under a known local id. Returns the id the numbering now
 /// continues after, 0 if it already did (logged as a warning when it moves).
 db::history::RunId continue_run_ids_after_archives(const StationConfig& config,
-                                          db::history::SqliteRepository& repository);
+                                                   db::history::SqliteRepository& repository);
 
 }  // namespace imucal::station::run

@@ -17,9 +17,9 @@
 #include "sequences/library.hpp"
 #include "sequences/parser.hpp"
 #include "sequences/validator.hpp"
+#include "station/control/control_protocol.hpp"
 #include "station/run/archive_writer.hpp"
 #include "station/run/capture.hpp"
-#include "station/control/control_protocol.hpp"
 #include "station/run/end_note.hpp"
 #include "station/run/gap_check.hpp"
 #include "station/run/import_staging.hpp"
@@ -74,8 +74,10 @@ nlohmann::json to_json(const RunSnapshot& r) {
   o["crosscheck_verdict"] =
       r.crosscheck_verdict ? json(db::history::to_string(*r.crosscheck_verdict)) : json(nullptr);
   o["reason"] = r.reason;
-  o["started_at"] = r.started_at_ms ? json(db::history::format_time_utc(r.started_at_ms)) : json(nullptr);
-  o["ended_at"] = r.ended_at_ms ? json(db::history::format_time_utc(*r.ended_at_ms)) : json(nullptr);
+  o["started_at"] =
+      r.started_at_ms ? json(db::history::format_time_utc(r.started_at_ms)) : json(nullptr);
+  o["ended_at"] =
+      r.ended_at_ms ? json(db::history::format_time_utc(*r.ended_at_ms)) : json(nullptr);
   o["capture"] = r.capture ? to_json(*r.capture) : json(nullptr);
   o["archive"] = r.archive_path;
   o["reprocessed_from"] = r.reprocessed_from ? json(*r.reprocessed_from) : json(nullptr);
@@ -98,7 +100,8 @@ RunSnapshot snapshot_from_record(const db::history::RunRecord& rec) {
   s.sequence = rec.sequence_name;
   s.operator_name = rec.operator_name;
   s.state = rec.state;
-  s.phase = rec.state == db::history::RunState::kCalibrating ? RunPhase::kCalibrating : RunPhase::kNone;
+  s.phase =
+      rec.state == db::history::RunState::kCalibrating ? RunPhase::kCalibrating : RunPhase::kNone;
   s.verdict = rec.verdict;
   s.crosscheck_verdict = rec.crosscheck_verdict;
   s.reason = rec.failure_reason;
@@ -185,7 +188,8 @@ RunController::RunController(const StationConfig& config, db::history::Repositor
 
 RunController::~RunController() { shutdown("daemon shutting down"); }
 
-std::string run_archive_dir(const std::string& data_dir, db::history::RunId id, const std::string& serial) {
+std::string run_archive_dir(const std::string& data_dir, db::history::RunId id,
+                            const std::string& serial) {
   return (fs::path(data_dir) / "runs" / (std::to_string(id) + "-" + serial)).string();
 }
 
@@ -239,7 +243,7 @@ json RunController::create_unit_runs(
   json started_units = json::array();
   for (const auto& [slot, serial] : units) {
     db::history::NewRun nr = new_run(serial, operator_name, live.plan.sequence_name,
-                            live.plan.sequence_sha256, db::history::RunState::kPreparing);
+                                     live.plan.sequence_sha256, db::history::RunState::kPreparing);
     if (several_slots) nr.slot = slot->name;
     if (!live.units.empty()) nr.table_run_id = live.units.front().snap.run_id;
     const db::history::RunId id = repo_.create_run(nr);
@@ -323,14 +327,16 @@ nlohmann::json RunController::start(const StartRunRequest& request) {
   return reply;
 }
 
-db::history::RunDetails RunController::stored_run_with_archive(db::history::RunId run_id, const char* what,
-                                                      std::string& digest,
-                                                      bool check_digest) const {
+db::history::RunDetails RunController::stored_run_with_archive(db::history::RunId run_id,
+                                                               const char* what,
+                                                               std::string& digest,
+                                                               bool check_digest) const {
   if (shut_down_) throw ControlError(error_code::kUnavailable, "the daemon is shutting down");
   if (live_) {
     throw ControlError(error_code::kBusy,
                        "run " + std::to_string(live_->units.front().snap.run_id) + " is " +
-                           db::history::to_string(live_->units.front().snap.state) + "; one run at a time");
+                           db::history::to_string(live_->units.front().snap.state) +
+                           "; one run at a time");
   }
   db::history::RunDetails d;
   try {
@@ -340,8 +346,8 @@ db::history::RunDetails RunController::stored_run_with_archive(db::history::RunI
   }
   const db::history::RunRecord& orig = d.run;
   if (!db::history::is_terminal(orig.state)) {
-    throw ControlError(error_code::kBusy,
-                       "run " + std::to_string(run_id) + " is still " + db::history::to_string(orig.state));
+    throw ControlError(error_code::kBusy, "run " + std::to_string(run_id) + " is still " +
+                                              db::history::to_string(orig.state));
   }
   if (orig.archive_path.empty() || !fs::is_directory(orig.archive_path)) {
     throw ControlError(
@@ -358,7 +364,8 @@ db::history::RunDetails RunController::stored_run_with_archive(db::history::RunI
   return d;
 }
 
-std::string RunController::unchanged_archive_digest(const db::history::RunRecord& run, const char* what) {
+std::string RunController::unchanged_archive_digest(const db::history::RunRecord& run,
+                                                    const char* what) {
   std::string digest;
   try {
     digest = archive_digest(run.archive_path);
@@ -478,7 +485,7 @@ nlohmann::json RunController::reprocess(const ReprocessRequest& request) {
   // The new run is recorded as the requester's, not the original operator's.
   const std::string by = request.user.empty() ? orig.operator_name : request.user;
   db::history::NewRun nr = new_run(orig.serial, by, orig.sequence_name, orig.sequence_sha256,
-                          db::history::RunState::kCalibrating);
+                                   db::history::RunState::kCalibrating);
   nr.archive_path = orig.archive_path;
   nr.reprocessed_from = run_id;
   if (request.gravity_mps2) {
@@ -552,7 +559,8 @@ nlohmann::json RunController::import_archive(const std::string& dir, const std::
   if (live_)
     throw ControlError(error_code::kBusy,
                        "run " + std::to_string(live_->units.front().snap.run_id) + " is " +
-                           db::history::to_string(live_->units.front().snap.state) + "; one run at a time");
+                           db::history::to_string(live_->units.front().snap.state) +
+                           "; one run at a time");
   db::archive::RunArchive ar = checked_import(dir);
   if (thread_.joinable()) thread_.join();
 
@@ -571,8 +579,8 @@ nlohmann::json RunController::import_archive(const std::string& dir, const std::
 
   const db::history::TimestampMs now = db::history::now_ms();
   const RecordedTimes times = recorded_times(ar, now);
-  db::history::NewRun nr = new_run(ar.info.serial, user, ar.info.sequence_name, ar.info.sequence_sha256,
-                          db::history::RunState::kCalibrating);
+  db::history::NewRun nr = new_run(ar.info.serial, user, ar.info.sequence_name,
+                                   ar.info.sequence_sha256, db::history::RunState::kCalibrating);
   nr.setting = ar.info.setting;
   nr.started_at_ms = times.started_at_ms;
   nr.origin = import_origin(dir, now, times);
@@ -640,7 +648,9 @@ nlohmann::json RunController::promote(db::history::RunId run_id, const std::stri
     throw ControlError(error_code::kInvalidInput, e.what());
   }
   spdlog::info("run {}: promoted to the active parameters by {}: {}", run_id, user, reason);
-  return {{"run_id", run_id}, {"promoted_by", user}, {"promoted_at", db::history::format_time_utc(now)}};
+  return {{"run_id", run_id},
+          {"promoted_by", user},
+          {"promoted_at", db::history::format_time_utc(now)}};
 }
 
 bool RunController::abort(const std::string& reason) {
@@ -772,9 +782,11 @@ void RunController::shutdown(const std::string& reason) {
   if (thread_.joinable()) thread_.join();
 }
 
-db::history::NewRun RunController::new_run(const std::string& serial, const std::string& operator_name,
-                                  const std::string& sequence_name,
-                                  const std::string& sequence_sha256, db::history::RunState state) const {
+db::history::NewRun RunController::new_run(const std::string& serial,
+                                           const std::string& operator_name,
+                                           const std::string& sequence_name,
+                                           const std::string& sequence_sha256,
+                                           db::history::RunState state) const {
   db::history::NewRun nr;
   nr.serial = serial;
   nr.operator_name = operator_name;
@@ -877,7 +889,8 @@ void RunController::control_thread(std::shared_ptr<Live> live) {
     abort(abort_reason);
 }
 
-void RunController::finish_early(Unit& unit, db::history::RunState state, const std::string& reason) {
+void RunController::finish_early(Unit& unit, db::history::RunState state,
+                                 const std::string& reason) {
   std::lock_guard<std::mutex> lk(mu_);
   unit.snap.state = state;
   unit.snap.reason = reason;

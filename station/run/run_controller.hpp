@@ -1,8 +1,8 @@
 #pragma once
 // The run state machine of stationd (issue #3 item 4; ARCHITECTURE §2.1, docs/operator.md).
 //
-// One run at a time. A run's life, with the db::history::RunState stored at each stage and the "phase" word
-// the status shows:
+// One run at a time. A run's life, with the db::history::RunState stored at each stage and the
+// "phase" word the status shows:
 //
 //   start()  -> create_run                                  preparing
 //     control thread:  connect the table                       phase connecting
@@ -54,10 +54,10 @@
 #include <vector>
 
 #include "db/history/repository.hpp"
-#include "station/run/calibration_worker.hpp"
-#include "station/run/capture_stats.hpp"
 #include "station/config/config.hpp"
 #include "station/control/control_handler.hpp"
+#include "station/run/calibration_worker.hpp"
+#include "station/run/capture_stats.hpp"
 
 namespace imucal::drivers::turntable {
 class TurntableClient;
@@ -92,15 +92,16 @@ struct RunSnapshot {
   RunPhase phase = RunPhase::kNone;
   int step = 0, steps = 0;            ///< 0 / 0 when not applicable (reprocess, from the DB)
   std::optional<double> time_left_s;  ///< estimate while capturing
-  std::optional<db::history::RunVerdict> verdict;          ///< the run's: PASS / REVIEW / FAILED
-  std::optional<db::history::Verdict> crosscheck_verdict;  ///< the cross-check's own, if one was made
+  std::optional<db::history::RunVerdict> verdict;  ///< the run's: PASS / REVIEW / FAILED
+  std::optional<db::history::Verdict>
+      crosscheck_verdict;  ///< the cross-check's own, if one was made
   std::string reason;
   db::history::TimestampMs started_at_ms = 0;
   std::optional<db::history::TimestampMs> ended_at_ms;
   std::optional<CaptureStats> capture;
   std::string archive_path;
   std::optional<db::history::RunId> reprocessed_from;
-  std::string slot;                       ///< fixture slot ("" on a one-unit station)
+  std::string slot;                                ///< fixture slot ("" on a one-unit station)
   std::optional<db::history::RunId> table_run_id;  ///< the first unit's run, for its siblings
   /// The other units of the same table run (live: their snapshots; empty for a one-unit run).
   std::vector<RunSnapshot> siblings;
@@ -124,8 +125,8 @@ struct PlannedStep {
   uint64_t rest_samples(double rate_hz) const {
     return static_cast<uint64_t>(std::llround(rest_s * rate_hz));
   }
-  double expected_s = 0.0;                  ///< expected duration in table (sim) seconds
-  int source_line = 0;                      ///< line in the sequence file
+  double expected_s = 0.0;  ///< expected duration in table (sim) seconds
+  int source_line = 0;      ///< line in the sequence file
 };
 
 struct RunPlan {
@@ -141,13 +142,14 @@ struct RunPlan {
 RunPlan plan_run(const std::string& sequence, const StationConfig& config);
 
 /// The archive directory of run `id`: <data_dir>/runs/<id>-<serial>.
-std::string run_archive_dir(const std::string& data_dir, db::history::RunId id, const std::string& serial);
+std::string run_archive_dir(const std::string& data_dir, db::history::RunId id,
+                            const std::string& serial);
 
 class RunController {
  public:
   /// `repository` and `worker` must outlive the controller.
-  RunController(const StationConfig& config, db::history::Repository& repository, CalibrationWorker& worker,
-                std::string software_version = IMUCAL_VERSION);
+  RunController(const StationConfig& config, db::history::Repository& repository,
+                CalibrationWorker& worker, std::string software_version = IMUCAL_VERSION);
   ~RunController();  ///< shutdown("daemon shutting down")
   RunController(const RunController&) = delete;
   RunController& operator=(const RunController&) = delete;
@@ -163,7 +165,8 @@ class RunController {
   /// the station's store and calibrated with its own setting (ControlHandler::import_archive).
   nlohmann::json import_archive(const std::string& dir, const std::string& user);
   /// `stationctl promote RUN --reason`: QA makes a field run the unit's active parameters.
-  nlohmann::json promote(db::history::RunId run_id, const std::string& user, const std::string& reason);
+  nlohmann::json promote(db::history::RunId run_id, const std::string& user,
+                         const std::string& reason);
   /// The full gap diagnosis of a finished run's archive (checked against its recorded SHA-256; the
   /// run's NLSQ calibration recomputed as the model), its summary stored with the run
   /// (Repository::set_diagnosis). kBusy while a run is active or another diagnosis runs,
@@ -214,14 +217,15 @@ class RunController {
   /// A finished run whose archive is present and unchanged (what reprocess() and diagnose() check);
   /// `digest` gets the archive's SHA-256 (with check_digest; otherwise the caller checks it with
   /// unchanged_archive_digest, which needs no lock). Throws ControlError. Needs mu_.
-  db::history::RunDetails stored_run_with_archive(db::history::RunId run_id, const char* what, std::string& digest,
-                                         bool check_digest = true) const;
+  db::history::RunDetails stored_run_with_archive(db::history::RunId run_id, const char* what,
+                                                  std::string& digest,
+                                                  bool check_digest = true) const;
   /// The archive's SHA-256, refused (ControlError) unless it is the recorded one.
   static std::string unchanged_archive_digest(const db::history::RunRecord& run, const char* what);
   /// A new run of this station and software, started now (what start() and reprocess() share).
   db::history::NewRun new_run(const std::string& serial, const std::string& operator_name,
-                     const std::string& sequence_name, const std::string& sequence_sha256,
-                     db::history::RunState state) const;
+                              const std::string& sequence_name, const std::string& sequence_sha256,
+                              db::history::RunState state) const;
   void end_live(const std::shared_ptr<Live>& live);
   std::string archive_dir_for(db::history::RunId id, const std::string& serial) const;
 
@@ -236,7 +240,8 @@ class RunController {
   std::optional<RunSnapshot> last_;
   std::thread thread_;
   bool shut_down_ = false;
-  std::optional<db::history::RunId> diagnosing_;  ///< a diagnosis runs (off the lock): no run starts
+  std::optional<db::history::RunId>
+      diagnosing_;  ///< a diagnosis runs (off the lock): no run starts
 };
 
 }  // namespace imucal::station::run

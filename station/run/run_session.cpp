@@ -186,7 +186,7 @@ drivers::turntable::TableStatus RunController::Session::connect_table() {
   const drivers::turntable::TableStatus st = client->status();
   if (st.estop)
     throw drivers::turntable::EstopError("turntable " + rc.cfg_.turntable.endpoint.to_string() +
-                                ": e-stop open");
+                                         ": e-stop open");
   if (st.fault) {
     spdlog::warn("run {}: table reports fault code {}; clearing it", id, st.fault_code);
     client->clear_fault();
@@ -274,7 +274,8 @@ void RunController::Session::open_archives(const drivers::turntable::TableStatus
     info.arw_rad_per_sqrt_s = s.arw_rad_per_sqrt_s();
     info.vrw_mps_per_sqrt_s = s.vrw_mps_per_sqrt_s();
     if (s.protocol) {  // the protocol's resolution: the gap diagnosis models its quantisation
-      const drivers::imu::IncrementResolution q = drivers::imu::increment_resolution(*s.protocol, 1.0 / s.rate_hz);
+      const drivers::imu::IncrementResolution q =
+          drivers::imu::increment_resolution(*s.protocol, 1.0 / s.rate_hz);
       info.dtheta_lsb_rad = q.dtheta_rad;
       info.dv_lsb_mps = q.dv_mps;
       info.imu_protocol = s.protocol->name;
@@ -323,7 +324,8 @@ void RunController::Session::run_steps() {
 /// Commands a move and polls the table until it is in position, handing every reading to the
 /// captures (sample-and-hold angles while moving); the final check is the client's own
 /// wait_in_position (fault, e-stop, heartbeat, target reached).
-drivers::turntable::TableStatus RunController::Session::move(double outer, double inner, double rate) {
+drivers::turntable::TableStatus RunController::Session::move(double outer, double inner,
+                                                             double rate) {
   // The next rest may only count IMU samples that show this move happened (the IMU stream can lag
   // the Modbus readings); a move too short to be seen is not waited for.
   if (std::abs(outer - at_outer) > kVisibleMoveDeg || std::abs(inner - at_inner) > kVisibleMoveDeg)
@@ -386,10 +388,11 @@ void RunController::Session::check_rest_table(double outer, double inner, double
                             " deg, inner " + std::to_string(st.inner_deg) + " deg";
   if (st.estop) throw drivers::turntable::EstopError(where + ": e-stop open");
   if (st.fault)
-    throw drivers::turntable::TableFaultError(where + ": table fault, code " + std::to_string(st.fault_code),
-                                     st.fault_code);
+    throw drivers::turntable::TableFaultError(
+        where + ": table fault, code " + std::to_string(st.fault_code), st.fault_code);
   if (st.heartbeat_stale) throw drivers::turntable::HeartbeatError(where + ": PLC heartbeat stuck");
-  if (st.moving) throw drivers::turntable::MoveTimeoutError(where + ": the table moved during a rest");
+  if (st.moving)
+    throw drivers::turntable::MoveTimeoutError(where + ": the table moved during a rest");
   if (std::any_of(units.begin(), units.end(),
                   [](const UnitCapture& u) { return u.live && u.cap->rest_rows_done() > 0; }))
     rc.set_phase(L, RunPhase::kResting);

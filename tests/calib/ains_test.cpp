@@ -1,6 +1,6 @@
-// AINS calibration against the truth simulator (paper §IV, ARCHITECTURE §6). Expected values come from
-// the simulator's truth (and, for the smoother, from the simulator's true attitude), never from
-// the estimator's own output.
+// AINS calibration against the truth simulator (paper §IV, ARCHITECTURE §6). Expected values come
+// from the simulator's truth (and, for the smoother, from the simulator's true attitude), never
+// from the estimator's own output.
 #include "calib/ains/ains.hpp"
 
 #include <gtest/gtest.h>

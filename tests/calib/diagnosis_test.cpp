@@ -1,7 +1,7 @@
-// Sim-to-real gap diagnosis (ARCHITECTURE §8) against the truth simulator. Expectations come from physics
-// and the simulator's injected truth: noise-free data at the true parameters leave no residual; a
-// null run (no effect) is consistent with χ²/dof near 1; a run with an effect injected and withheld
-// from the diagnoser names that effect with its magnitude within its σ.
+// Sim-to-real gap diagnosis (ARCHITECTURE §8) against the truth simulator. Expectations come from
+// physics and the simulator's injected truth: noise-free data at the true parameters leave no
+// residual; a null run (no effect) is consistent with χ²/dof near 1; a run with an effect injected
+// and withheld from the diagnoser names that effect with its magnitude within its σ.
 #include "calib/diagnosis/diagnosis.hpp"
 
 #include <gtest/gtest.h>

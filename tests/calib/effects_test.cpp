@@ -1,6 +1,6 @@
-// The effects catalogue (ARCHITECTURE §7): every effect's forward model, as the simulator injects it,
-// against a case derived by hand here (independent formulas: Eigen's AngleAxis for rotations, the
-// textbook form of each effect) — not only a round trip. Runs use a perfect sensor (zero
+// The effects catalogue (ARCHITECTURE §7): every effect's forward model, as the simulator injects
+// it, against a case derived by hand here (independent formulas: Eigen's AngleAxis for rotations,
+// the textbook form of each effect) — not only a round trip. Runs use a perfect sensor (zero
 // calibration parameters) and, where noise is not the point, no noise, so the simulator's output is
 // the true increments plus the effect.
 #include <gtest/gtest.h>

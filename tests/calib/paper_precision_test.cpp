@@ -1,6 +1,7 @@
-// How precisely the paper's own six IMUs fix each column's mean (calib/studies/paper/paper_precision.hpp,
-// issue #26). The figures on small sets are worked out by hand; the paper's are its published
-// values (Tables I-IV), summed here without the code under test.
+// How precisely the paper's own six IMUs fix each column's mean
+// (calib/studies/paper/paper_precision.hpp, issue #26). The figures on small sets are worked out by
+// hand; the paper's are its published values (Tables I-IV), summed here without the code under
+// test.
 #include "calib/studies/paper/paper_precision.hpp"
 
 #include <gtest/gtest.h>

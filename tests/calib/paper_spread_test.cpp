@@ -1,6 +1,6 @@
-// The per-IMU spread in kind (calib/studies/paper/paper_spread.hpp): rank correlations and coefficients
-// of variation against values worked out by hand, and the paper's own figures against an
-// independent computation (a Python script of issue #26's sixteenth session, quoted in the
+// The per-IMU spread in kind (calib/studies/paper/paper_spread.hpp): rank correlations and
+// coefficients of variation against values worked out by hand, and the paper's own figures against
+// an independent computation (a Python script of issue #26's sixteenth session, quoted in the
 // README: factory AINS orientation ranks against NLSQ / legacy / land / sea 0.94, 0.83, 0.14,
 // 0.83; orientation against acceleration 0.03).
 #include "calib/studies/paper/paper_spread.hpp"

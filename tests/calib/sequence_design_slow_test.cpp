@@ -10,9 +10,9 @@
 #include <cstdio>
 
 #include "calib/core/site_presets.hpp"
-#include "calib/studies/design/sequence_design.hpp"
 #include "calib/diagnosis/false_alarm.hpp"
 #include "calib/sim/sim_input.hpp"
+#include "calib/studies/design/sequence_design.hpp"
 #include "sequences/library.hpp"
 #include "sequences/parser.hpp"
 #include "sequences/profile_generator.hpp"

@@ -1,6 +1,7 @@
-// The sequence designer's parts (calib/studies/design/): a sequence as a tour of rest poses and back, the
-// tours one pose shorter or a turn longer, and the search on a short reference — its result a
-// sequence of exactly the time asked, within the table's limits, no worse than where it started.
+// The sequence designer's parts (calib/studies/design/): a sequence as a tour of rest poses and
+// back, the tours one pose shorter or a turn longer, and the search on a short reference — its
+// result a sequence of exactly the time asked, within the table's limits, no worse than where it
+// started.
 #include "calib/studies/design/sequence_design.hpp"
 
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
-// calib/studies/fleet/station_signature.hpp on synthetic fleets whose truth the test draws itself: units
-// from a production population (scales ±333 ppm, misalignments ±1 mrad, biases within the
+// calib/studies/fleet/station_signature.hpp on synthetic fleets whose truth the test draws itself:
+// units from a production population (scales ±333 ppm, misalignments ±1 mrad, biases within the
 // navigation envelope), every run's estimate = the unit's truth + what its station adds + noise of
 // the run's σ; sound stations differ in their table's levelling (ς, ±20 µrad: the part of the
 // spread that belongs to stations). One station with a 50 µg gravity error, one with a 10″ table

@@ -102,9 +102,9 @@ TEST(TruthSim, RotatingIncrementsMatchFineIntegrationOfTableRates) {
 }
 
 TEST(TruthSim, StrapdownOnTrueIncrementsStaysAtRestThroughRotations) {
-  // The sculling/rotation convention test of ARCHITECTURE §3: ignoring the start-of-interval convention
-  // costs ~900 µg while turning at 10 °/s at 100 Hz. With exact increments and the shared
-  // strapdown, the velocity stays ~0 through a full-rank profile.
+  // The sculling/rotation convention test of ARCHITECTURE §3: ignoring the start-of-interval
+  // convention costs ~900 µg while turning at 10 °/s at 100 Hz. With exact increments and the
+  // shared strapdown, the velocity stays ~0 through a full-rank profile.
   const auto profile = test_support::HandProfile::full_rank(5.0);
   const Site site = factory_site();
   const TableGeometry geom;

@@ -43,8 +43,8 @@ UnitModel unit_with_effects() {
   return u;
 }
 
-/// Every catalogue effect on at once (ARCHITECTURE §7, typical sizes or larger), the stochastic ones only
-/// acting with noise on. The table time offset changes only the batch form's encoder log.
+/// Every catalogue effect on at once (ARCHITECTURE §7, typical sizes or larger), the stochastic
+/// ones only acting with noise on. The table time offset changes only the batch form's encoder log.
 UnitModel unit_with_every_effect() {
   UnitModel u = unit_with_effects();
   Effects& fx = u.effects;

@@ -140,8 +140,9 @@ int main(int argc, char** argv) {
     const auto t0 = clock::now();
     db::archive::RunArchive ar = db::archive::read_archive(o.dir);
     const auto t1 = clock::now();
-    const calib::core::CalibrationInput in =
-        o.move ? db::archive::to_calibration_input(std::move(ar)) : db::archive::to_calibration_input(ar);
+    const calib::core::CalibrationInput in = o.move
+                                                 ? db::archive::to_calibration_input(std::move(ar))
+                                                 : db::archive::to_calibration_input(ar);
     const auto t2 = clock::now();
     const double cpu = cpu_s() - cpu0;
     const double read_s = std::chrono::duration<double>(t1 - t0).count();

@@ -1,6 +1,7 @@
-// Run archive (ARCHITECTURE §5): bit-exact write/read round trip of a simulated run, the calibration
-// input it yields vs. the in-memory path, one test per class of bad archive (each error must name
-// the file and the line or field), atomic writes, and the attitude.csv reference checked by hand.
+// Run archive (ARCHITECTURE §5): bit-exact write/read round trip of a simulated run, the
+// calibration input it yields vs. the in-memory path, one test per class of bad archive (each error
+// must name the file and the line or field), atomic writes, and the attitude.csv reference checked
+// by hand.
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
@@ -77,7 +78,8 @@ struct SimRun {
 SimRun simulated_run() {
   SimRun r;
   r.geometry.heading_rad = 1.5 * kDegToRad;
-  r.geometry.C_bp = calib::core::euler_to_C_bn(0.5 * kDegToRad, -0.25 * kDegToRad, 180.0 * kDegToRad);
+  r.geometry.C_bp =
+      calib::core::euler_to_C_bn(0.5 * kDegToRad, -0.25 * kDegToRad, 180.0 * kDegToRad);
   calib::effects::UnitModel unit = calib::effects::default_unit();
   unit.effects.accel_k2_per_mps2 = {1e-6, 0.0, 0.0};
   calib::sim::SimOptions opt;
@@ -189,7 +191,8 @@ TEST(Archive, CalibrationInputMatchesTheInMemoryPath) {
   TempDir tmp("imucal_archive_test");
   const SimRun run = simulated_run();
   write_archive(tmp.sub("run"), run.archive);
-  const calib::core::CalibrationInput from_disk = to_calibration_input(read_archive(tmp.sub("run")));
+  const calib::core::CalibrationInput from_disk =
+      to_calibration_input(read_archive(tmp.sub("run")));
   calib::core::NoiseModel noise;
   noise.arw_rad_per_sqrt_s = run.archive.info.arw_rad_per_sqrt_s;
   noise.vrw_mps_per_sqrt_s = run.archive.info.vrw_mps_per_sqrt_s;
@@ -215,8 +218,8 @@ TEST(Archive, CalibrationInputMatchesTheInMemoryPath) {
   const Eigen::Matrix3d C0 = from_disk.reference.front().C_bn_ref;
   const Eigen::Matrix3d C1 = from_disk.reference.back().C_bn_ref;
   const Eigen::Matrix3d R_n = C1 * C0.transpose();
-  const Eigen::Vector3d a_n =
-      calib::core::euler_to_C_bn(0, 0, run.geometry.heading_rad) * run.geometry.outer_axis_t.normalized();
+  const Eigen::Vector3d a_n = calib::core::euler_to_C_bn(0, 0, run.geometry.heading_rad) *
+                              run.geometry.outer_axis_t.normalized();
   EXPECT_LT((R_n * a_n - a_n).norm(), 1e-12);
   EXPECT_NEAR(calib::core::matrix_to_rotvec(R_n).norm(), 90.0 * kDegToRad, 1e-12);
 }
@@ -666,7 +669,8 @@ TEST(Archive, RawIntegralDvIsRotationCompensatedOnImport) {
 }
 
 // Bit-for-bit equality of two calibration inputs (NaN payloads included).
-void expect_identical(const calib::core::CalibrationInput& a, const calib::core::CalibrationInput& b) {
+void expect_identical(const calib::core::CalibrationInput& a,
+                      const calib::core::CalibrationInput& b) {
   auto same = [](const auto& x, const auto& y) { return std::memcmp(&x, &y, sizeof x) == 0; };
   EXPECT_EQ(a.setting, b.setting);
   EXPECT_TRUE(same(a.site.lat_rad, b.site.lat_rad) && same(a.site.lon_rad, b.site.lon_rad) &&

@@ -1,6 +1,6 @@
-// The fast reader of stored parameter-set text (db/history/compact_param_text.hpp) against the strict
-// path: on what the repository writes it gives exactly the values a JSON parser gives, and it
-// refuses (so that the strict reader reports the error) everything that is not that shape.
+// The fast reader of stored parameter-set text (db/history/compact_param_text.hpp) against the
+// strict path: on what the repository writes it gives exactly the values a JSON parser gives, and
+// it refuses (so that the strict reader reports the error) everything that is not that shape.
 #include "db/history/compact_param_text.hpp"
 
 #include <gtest/gtest.h>
@@ -29,7 +29,9 @@ ParamSet random_set(std::mt19937_64& rng, bool non_negative) {
 }
 
 /// What the repository stores: the compact dump of the five keys.
-std::string stored_text(const ParamSet& p) { return imucal::db::archive::param_set_to_json(p).dump(); }
+std::string stored_text(const ParamSet& p) {
+  return imucal::db::archive::param_set_to_json(p).dump();
+}
 
 }  // namespace
 

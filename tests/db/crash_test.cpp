@@ -1,6 +1,6 @@
-// Crash safety (ARCHITECTURE §10, station issue "kill -9 integrity"): a child process writes runs in a
-// loop — each write a transaction — and is SIGKILLed at a random moment, several times over the
-// same file. After every kill: PRAGMA integrity_check is ok, foreign keys hold, every run the
+// Crash safety (ARCHITECTURE §10, station issue "kill -9 integrity"): a child process writes runs
+// in a loop — each write a transaction — and is SIGKILLed at a random moment, several times over
+// the same file. After every kill: PRAGMA integrity_check is ok, foreign keys hold, every run the
 // child reported as committed is there, every done run is complete (both calibrations with the
 // exact parameters written, PASS cross-check), and mark_interrupted_runs() marks the run that
 // was in progress — and only live runs.

@@ -1,5 +1,5 @@
-// The direct JSON row writer of the export (db/history/export_row_writer.hpp) against nlohmann's dump of
-// the same row built from the public record functions (run_json, calibration_json,
+// The direct JSON row writer of the export (db/history/export_row_writer.hpp) against nlohmann's
+// dump of the same row built from the public record functions (run_json, calibration_json,
 // crosscheck_json): byte for byte on hand-picked rows (every optional present and absent,
 // strings that need escaping, numbers nlohmann prints in its own way) and on random ones, and the
 // same errors for what cannot be written.
@@ -36,7 +36,8 @@ std::string direct(const ExportRow& row) {
 
 calib::core::ParamSet params_from(double base) {
   calib::core::ParamVector v;
-  for (int i = 0; i < calib::core::ParamSet::kSize; ++i) v(i) = base * (i + 1) * (i % 2 ? -1.0 : 1.0);
+  for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
+    v(i) = base * (i + 1) * (i % 2 ? -1.0 : 1.0);
   return calib::core::ParamSet::from_vector(v);
 }
 

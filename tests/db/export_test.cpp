@@ -294,7 +294,8 @@ TEST_F(ExportTest, JsonParsesBackWithStrictParameterSetsForEveryFilter) {
       EXPECT_EQ(c.at("method"), expected[r].second);
       const int mi = expected[r].second == "ains" ? 0 : 1;
       calib::core::ParamSet sigma;
-      const calib::core::ParamSet p = db::archive::param_set_from_json(c.at("params"), "export", &sigma);
+      const calib::core::ParamSet p =
+          db::archive::param_set_from_json(c.at("params"), "export", &sigma);
       EXPECT_EQ(p.to_vector(), test::seeded_params(s.seed, mi).to_vector());
       EXPECT_EQ(sigma.to_vector(), test::seeded_sigma(s.seed, mi).to_vector());
       EXPECT_EQ(

@@ -188,7 +188,8 @@ TEST(FieldRuns, AnImportedFactoryRunIsActiveOnlyWhenPromotedAndIsFoundByItsArchi
   SqliteRepository repo(dir.file("h.db"));
   const RunId station = repo.create_run(test::new_run("NAV-1", kT0));
   repo.finish_run(station, test::pass_completion(1, kT0 + 1000));
-  const RunId imported = repo.create_run(field_run("NAV-1", kT0 + 5000, calib::core::Setting::kFactory));
+  const RunId imported =
+      repo.create_run(field_run("NAV-1", kT0 + 5000, calib::core::Setting::kFactory));
   RunCompletion c = test::pass_completion(2, kT0 + 6000);
   repo.finish_run(imported, c);
   EXPECT_EQ(repo.active_params("NAV-1").run.run_id, station)

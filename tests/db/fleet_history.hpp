@@ -70,7 +70,7 @@ inline RunCompletion fleet_completion(int i, TimestampMs end, std::mt19937& rng,
     row.unobservable = {"table_misalignment_rad[0]", "table_misalignment_rad[1]",
                         "table_misalignment_rad[2]"};
     calib::core::ParamVector v = c.calibrations[0].params.to_vector(),
-                       s = c.calibrations[0].sigma.to_vector();
+                             s = c.calibrations[0].sigma.to_vector();
     v.tail<3>().setZero();
     s.tail<3>().setZero();
     c.calibrations[0].params = calib::core::ParamSet::from_vector(v);
@@ -150,8 +150,8 @@ inline bool fleet_row_matches(const FleetRow& r, const FleetFilter& f) {
          (!f.station || r.station == *f.station) && (!f.serial || r.serial == *f.serial);
 }
 
-/// The statistics of db/history/fleet_stats.hpp computed here, apart from the code under test: sums in
-/// long double, quantiles by the rank formula on a sorted copy.
+/// The statistics of db/history/fleet_stats.hpp computed here, apart from the code under test: sums
+/// in long double, quantiles by the rank formula on a sorted copy.
 struct ExpectedSummary {
   std::int64_t n = 0;
   double mean = 0, sd = 0, min = 0, q1 = 0, median = 0, q3 = 0, max = 0;

@@ -1,8 +1,9 @@
-// db::history::SqliteFleetStats (db/history/fleet_stats.hpp) against answers the test computes itself from the rows
-// it wrote (tests/db/fleet_history.hpp): runs per station and UTC day, verdict counts per station,
-// a parameter's distribution per station (count, mean, sample std, min, quartiles, max), each
-// with every filter (since, until, station, serial) alone and together; table runs; the values of
-// a filter bound, never spliced (quotes and semicolons leave the database as it was); bad input.
+// db::history::SqliteFleetStats (db/history/fleet_stats.hpp) against answers the test computes
+// itself from the rows it wrote (tests/db/fleet_history.hpp): runs per station and UTC day, verdict
+// counts per station, a parameter's distribution per station (count, mean, sample std, min,
+// quartiles, max), each with every filter (since, until, station, serial) alone and together; table
+// runs; the values of a filter bound, never spliced (quotes and semicolons leave the database as it
+// was); bad input.
 #include "db/history/fleet_stats.hpp"
 
 #include <gtest/gtest.h>

@@ -63,8 +63,8 @@ inline calib::core::ParamSet seeded_params(long seed, int method_index) {
 }
 
 inline calib::core::ParamSet seeded_sigma(long seed, int method_index) {
-  return calib::core::ParamSet::from_vector(seeded_params(seed, method_index).to_vector().cwiseAbs() *
-                                      0.01);
+  return calib::core::ParamSet::from_vector(
+      seeded_params(seed, method_index).to_vector().cwiseAbs() * 0.01);
 }
 
 inline CalibrationRecord seeded_calibration(long seed, Method method, bool with_metrics = true) {

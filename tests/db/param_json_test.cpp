@@ -1,5 +1,5 @@
-// Parameter-set JSON (ARCHITECTURE §3): exact schema keys and shapes, row-major matrices, bit-exact round
-// trip, field-named errors.
+// Parameter-set JSON (ARCHITECTURE §3): exact schema keys and shapes, row-major matrices, bit-exact
+// round trip, field-named errors.
 #include "db/archive/param_json.hpp"
 
 #include <gtest/gtest.h>

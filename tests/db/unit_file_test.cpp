@@ -1,6 +1,6 @@
 // Unit files (TOML, human units) and truth.json: unit conversions checked against hand-derived
-// values, default.toml == calib::effects::default_unit() field by field, far.toml within its stated sizes,
-// strict errors with line and field.
+// values, default.toml == calib::effects::default_unit() field by field, far.toml within its stated
+// sizes, strict errors with line and field.
 #include "db/archive/unit_file.hpp"
 
 #include <gtest/gtest.h>
@@ -101,7 +101,7 @@ g_sens_deg_per_h_per_g = [[3600, 0, 0], [0, 0, 0], [0, 0, 0]]
 lever_arm_m = [[0.01, 0, 0], [0, 0.02, 0], [0, 0, -0.03]]
 table_time_offset_s = 0.005
 )",
-                                             "hand.toml");
+                                                      "hand.toml");
   const double g0 = 9.80665, deg = kPiHere / 180.0;
   // Relative agreement to a few ulps: the conversion is one or two roundings away from the
   // exact product.
@@ -273,7 +273,8 @@ TEST(TruthJson, EveryCatalogueEffectRoundTripsWithItsValues) {
 }
 
 TEST(TruthJson, OlderListOfNamesIsStillReadWithValuesUnknown) {
-  nlohmann::json j = nlohmann::json::parse(truth_json_text(truth_from_unit(calib::effects::default_unit())));
+  nlohmann::json j =
+      nlohmann::json::parse(truth_json_text(truth_from_unit(calib::effects::default_unit())));
   j["effects"] = {"accel_quadratic_k2", "table_time_offset"};
   const Truth r = parse_truth_json(j.dump(), "old/truth.json");
   EXPECT_FALSE(r.effect_values_known);

@@ -183,7 +183,8 @@ calib::core::ImuSeries simulated_series() {
   calib::sim::SimOptions so;
   so.rate_hz = 100.0;
   so.seed = 4;
-  calib::sim::SimResult r = calib::sim::simulate(profile, calib::core::TableGeometry{}, site, calib::effects::default_unit(), so);
+  calib::sim::SimResult r = calib::sim::simulate(profile, calib::core::TableGeometry{}, site,
+                                                 calib::effects::default_unit(), so);
   r.imu.resize(10000);
   return r.imu;
 }
@@ -259,7 +260,10 @@ TEST(ImuCanNode, InjectedFrameLossIsCountedExactly) {
   bus->read(none);
   drivers::simulated::ImuCanNode node(*bus, o);
   std::vector<drivers::simulated::SampleFate> fates(series.size());
-  std::thread sender([&] { node.run(series, nullptr, [&](std::size_t k, const drivers::simulated::SampleFate& f) { fates[k] = f; }); });
+  std::thread sender([&] {
+    node.run(series, nullptr,
+             [&](std::size_t k, const drivers::simulated::SampleFate& f) { fates[k] = f; });
+  });
   ImuFrameDecoder dec;
   std::vector<DecodedSample> out;
   std::vector<ReceivedFrame> batch;

@@ -24,7 +24,8 @@ using namespace imucal;
 #ifndef IMUCAL_BENCH_OLD_DECODER
 std::shared_ptr<const drivers::imu::ImuProtocolMap> protocol_arg(int argc, char** argv, int at) {
   if (argc <= at) return nullptr;
-  return std::make_shared<const drivers::imu::ImuProtocolMap>(drivers::imu::read_protocol_map(argv[at]));
+  return std::make_shared<const drivers::imu::ImuProtocolMap>(
+      drivers::imu::read_protocol_map(argv[at]));
 }
 #endif
 

@@ -1,5 +1,6 @@
-// IMU CAN codec: LSB/range bounds of ARCHITECTURE §4, bit layout, round trips, quantisation carry, and the
-// decoder's reassembly and counters under loss, corruption, reordering, duplication and resets.
+// IMU CAN codec: LSB/range bounds of ARCHITECTURE §4, bit layout, round trips, quantisation carry,
+// and the decoder's reassembly and counters under loss, corruption, reordering, duplication and
+// resets.
 #include "drivers/imu/imu_codec.hpp"
 
 #include <gtest/gtest.h>
@@ -17,7 +18,8 @@ namespace {
 
 constexpr double kRate_hz = 100.0;
 
-calib::core::ImuIncrement random_increment(std::mt19937_64& rng, double dth_max = 0.17, double dv_max = 1.9) {
+calib::core::ImuIncrement random_increment(std::mt19937_64& rng, double dth_max = 0.17,
+                                           double dv_max = 1.9) {
   std::uniform_real_distribution<double> a(-dth_max, dth_max), v(-dv_max, dv_max), t(-40.0, 85.0);
   calib::core::ImuIncrement inc;
   inc.dt_s = 1.0 / kRate_hz;

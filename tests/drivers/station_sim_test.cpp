@@ -65,7 +65,8 @@ drivers::turntable::TurntableClientConfig client_config(drivers::simulated::Stat
 /// Reads the bus in its own thread and decodes every IMU sample.
 class Receiver {
  public:
-  explicit Receiver(const std::string& uri) : channel_(drivers::imu::CanChannel::open(uri)), decoder_(drivers::imu::DecoderOptions{}) {
+  explicit Receiver(const std::string& uri)
+      : channel_(drivers::imu::CanChannel::open(uri)), decoder_(drivers::imu::DecoderOptions{}) {
     thread_ = std::thread([this] { loop(); });
   }
   ~Receiver() {
@@ -124,7 +125,8 @@ class Receiver {
   std::thread thread_;
 };
 
-std::unique_ptr<drivers::simulated::StationSim> started(const drivers::simulated::StationSimConfig& cfg) {
+std::unique_ptr<drivers::simulated::StationSim> started(
+    const drivers::simulated::StationSimConfig& cfg) {
   auto s = std::make_unique<drivers::simulated::StationSim>(cfg);
   s->start();
   return s;
@@ -132,7 +134,8 @@ std::unique_ptr<drivers::simulated::StationSim> started(const drivers::simulated
 
 /// A started simulator with a receiver on its bus (from sample 0 on).
 struct Bench {
-  explicit Bench(const drivers::simulated::StationSimConfig& cfg) : sim(started(cfg)), rx(sim->can_uri()) {}
+  explicit Bench(const drivers::simulated::StationSimConfig& cfg)
+      : sim(started(cfg)), rx(sim->can_uri()) {}
   /// Waits (bounded) until the physics clock has passed t_s.
   bool run_until(double t_s) {
     const auto deadline = std::chrono::steady_clock::now() + 20s;
@@ -145,7 +148,8 @@ struct Bench {
 
 /// ... plus a Modbus client that has enabled and homed the table.
 struct Rig : Bench {
-  explicit Rig(const drivers::simulated::StationSimConfig& cfg) : Bench(cfg), client(client_config(*sim)) {
+  explicit Rig(const drivers::simulated::StationSimConfig& cfg)
+      : Bench(cfg), client(client_config(*sim)) {
     client.connect();
     client.enable();
     homed = client.home(5000ms).homed;
@@ -155,8 +159,8 @@ struct Rig : Bench {
 };
 
 /// The decoded samples whose intervals lie inside [t_a, t_b] of sim time.
-std::vector<calib::core::ImuIncrement> window(const std::vector<drivers::imu::DecodedSample>& s, double t_a, double t_b,
-                                        double dt) {
+std::vector<calib::core::ImuIncrement> window(const std::vector<drivers::imu::DecodedSample>& s,
+                                              double t_a, double t_b, double dt) {
   std::vector<calib::core::ImuIncrement> w;
   for (const auto& d : s) {
     const double t1 = static_cast<double>(d.sample_index + 1) * dt;
@@ -189,7 +193,8 @@ TEST(StationSim, OuterQuarterTurnSeenByTheImuIsTheTableRotation) {
 
   // Measured attitude change w.r.t. inertial space: the product of the increments, each corrected
   // by the unit's known gyro model (dθ~ = (I + dM) dθ + b dt, eq. 18) — and uncorrected.
-  const calib::core::ImuErrorModel<double> err = calib::core::ImuErrorModel<double>::from_params(cfg.unit.params);
+  const calib::core::ImuErrorModel<double> err =
+      calib::core::ImuErrorModel<double>::from_params(cfg.unit.params);
   Eigen::Matrix3d C_meas = Eigen::Matrix3d::Identity(), C_raw = Eigen::Matrix3d::Identity();
   const Eigen::Matrix3d M_inv = (Eigen::Matrix3d::Identity() + err.M_g).inverse();
   for (const auto& inc : w) {
@@ -200,19 +205,22 @@ TEST(StationSim, OuterQuarterTurnSeenByTheImuIsTheTableRotation) {
   // Expected from the table angles and the Earth alone: C_b(a)^b(b) = C_bn(a)^T exp([ω_ie_n x] T) C_bn(b)
   // with C_bn = exp([ς x]) C_bn_table (conventions.hpp); here (0, 0) -> (90°, 0).
   const calib::core::TableModel table(cfg.geometry);
-  const Eigen::Matrix3d S = calib::core::rotvec_to_matrix<double>(cfg.unit.params.table_misalignment_rad);
+  const Eigen::Matrix3d S =
+      calib::core::rotvec_to_matrix<double>(cfg.unit.params.table_misalignment_rad);
   const Eigen::Matrix3d C_a = S * table.C_bn(0.0, 0.0), C_b = S * table.C_bn(90.0 * kDegToRad, 0.0);
   const calib::core::EarthModel earth(cfg.site);
   const Eigen::Matrix3d C_exp =
-      C_a.transpose() * calib::core::rotvec_to_matrix<double>(Eigen::Vector3d(earth.w_ie_n() * T)) * C_b;
+      C_a.transpose() * calib::core::rotvec_to_matrix<double>(Eigen::Vector3d(earth.w_ie_n() * T)) *
+      C_b;
   const double err_comp = calib::core::matrix_to_rotvec(C_exp.transpose() * C_meas).norm();
   const double err_raw = calib::core::matrix_to_rotvec(C_exp.transpose() * C_raw).norm();
   // Tolerance: angle random walk over T (5σ, three axes), the output quantisation of the simulator
   // and of the CAN codec (both carry their remainder: at most one LSB each per axis in the sum),
   // and the window's time alignment (one sample of Earth rate).
-  const double tol = 5.0 * std::sqrt(3.0) * cfg.unit.noise.arw_rad_per_sqrt_s * std::sqrt(T) +
-                     2.0 * std::sqrt(3.0) * (cfg.unit.noise.dtheta_lsb_rad + drivers::imu::kDthetaLsb_rad) +
-                     earth.w_ie_n().norm() * dt;
+  const double tol =
+      5.0 * std::sqrt(3.0) * cfg.unit.noise.arw_rad_per_sqrt_s * std::sqrt(T) +
+      2.0 * std::sqrt(3.0) * (cfg.unit.noise.dtheta_lsb_rad + drivers::imu::kDthetaLsb_rad) +
+      earth.w_ie_n().norm() * dt;
   EXPECT_LT(err_comp, tol) << "compensated residual rotation, rad";
   // The unit's scale/misalignment (several 1e-4) on a quarter turn is far above that tolerance: the
   // check above would catch an uncompensated or wrongly modelled gyro.
@@ -354,7 +362,8 @@ TEST(StationSim, TableFaultOnTheSecondMoveFailsTheClientsWait) {
   }
   EXPECT_EQ(s.moves_accepted(), 2u);
   // Stopped short of the target: the fault came 0.5 s into a 3 s move.
-  const double outer = s.table_server().with_plc([](drivers::simulated::TablePlc& p) { return p.outer_deg(); });
+  const double outer =
+      s.table_server().with_plc([](drivers::simulated::TablePlc& p) { return p.outer_deg(); });
   EXPECT_LT(outer, 60.0);
   EXPECT_GT(outer, 20.0);
 }
@@ -414,8 +423,8 @@ Eigen::Vector3d cruise_specific_force(const drivers::simulated::StationSimConfig
 
 // The size effect through the station: accelerometer x sits 5 cm out along x; an inner half turn
 // spins the unit about body z (vertical at outer 0), so while it cruises at ω accelerometer x reads
-// the centripetal -ω² r on top of everything else (ARCHITECTURE §7). The same run without the lever arm
-// gives everything else (bias, scale, the table tilt averaged over the same angles).
+// the centripetal -ω² r on top of everything else (ARCHITECTURE §7). The same run without the lever
+// arm gives everything else (bias, scale, the table tilt averaged over the same angles).
 TEST(StationSim, SizeEffectStreamsTheCentripetalAcceleration) {
   drivers::simulated::StationSimConfig cfg = base_config(40.0);
   int n0 = 0, n1 = 0;
@@ -433,11 +442,12 @@ TEST(StationSim, SizeEffectStreamsTheCentripetalAcceleration) {
   EXPECT_NEAR(f1.y() - f0.y(), 0.0, tol);  // accelerometer y has no lever arm
 }
 
-// The table time offset through the station (ARCHITECTURE §7): the encoder registers the station polls lag
-// the physics by δt, while the IMU streams the motion itself. Mid-cruise of an outer quarter turn at
-// 20 °/s, the actual-angle register (read atomically with the physics clock) trails the PLC's true
-// angle by ω δt = 1°, and the angle the IMU has turned by then (its increments up to the same
-// instant, compensated with the unit's known gyro model) is the true angle, ahead of the register.
+// The table time offset through the station (ARCHITECTURE §7): the encoder registers the station
+// polls lag the physics by δt, while the IMU streams the motion itself. Mid-cruise of an outer
+// quarter turn at 20 °/s, the actual-angle register (read atomically with the physics clock) trails
+// the PLC's true angle by ω δt = 1°, and the angle the IMU has turned by then (its increments up to
+// the same instant, compensated with the unit's known gyro model) is the true angle, ahead of the
+// register.
 TEST(StationSim, TableTimeOffsetMakesTheEncoderRegistersLagTheStreamedMotion) {
   drivers::simulated::StationSimConfig cfg = base_config(40.0);
   const double lag_s = 0.05, rate_dps = 20.0;
@@ -456,7 +466,9 @@ TEST(StationSim, TableTimeOffsetMakesTheEncoderRegistersLagTheStreamedMotion) {
     std::this_thread::sleep_for(5ms);
     snap = rig.sim->table_server().with_plc([](drivers::simulated::TablePlc& plc) {
       const auto& map = plc.config().map;
-      const auto reg = [&](uint16_t a) { return drivers::turntable::decode_float(&plc.input_image()[a], map.word_order); };
+      const auto reg = [&](uint16_t a) {
+        return drivers::turntable::decode_float(&plc.input_image()[a], map.word_order);
+      };
       const sequences::TableState st = plc.actual_state();
       Snapshot x;
       x.t_s = plc.time_s();
@@ -476,17 +488,20 @@ TEST(StationSim, TableTimeOffsetMakesTheEncoderRegistersLagTheStreamedMotion) {
   ASSERT_TRUE(rig.rx.wait_index(static_cast<uint64_t>(std::llround(snap.t_s / dt)), 5000ms));
   const auto w = window(rig.rx.samples(), t_a, snap.t_s, dt);
   ASSERT_NEAR(static_cast<double>(w.size()) * dt, snap.t_s - t_a, 0.5 * dt);
-  const calib::core::ImuErrorModel<double> err = calib::core::ImuErrorModel<double>::from_params(cfg.unit.params);
+  const calib::core::ImuErrorModel<double> err =
+      calib::core::ImuErrorModel<double>::from_params(cfg.unit.params);
   const Eigen::Matrix3d M_inv = (Eigen::Matrix3d::Identity() + err.M_g).inverse();
   double turned_rad = 0.0;  // about body x = the outer axis at inner 0
   for (const auto& inc : w) turned_rad += (M_inv * (inc.dtheta_rad - cfg.unit.params.gyro_bias_radps * dt)).x();
   // Plus the Earth rate about the outer axis (north) over the window; tolerance: the ARW (5σ), the
   // LSBs of the simulator and the CAN codec, and ς tilting the axis (arcseconds of the Earth rate).
   const double T = static_cast<double>(w.size()) * dt;
-  const double imu_deg = (turned_rad - calib::core::EarthModel(cfg.site).w_ie_n().x() * T) / kDegToRad;
-  const double tol_deg = (5.0 * cfg.unit.noise.arw_rad_per_sqrt_s * std::sqrt(T) +
-                          2.0 * (cfg.unit.noise.dtheta_lsb_rad + drivers::imu::kDthetaLsb_rad) + 1e-4 * 7.3e-5 * T) /
-                         kDegToRad;
+  const double imu_deg =
+      (turned_rad - calib::core::EarthModel(cfg.site).w_ie_n().x() * T) / kDegToRad;
+  const double tol_deg =
+      (5.0 * cfg.unit.noise.arw_rad_per_sqrt_s * std::sqrt(T) +
+       2.0 * (cfg.unit.noise.dtheta_lsb_rad + drivers::imu::kDthetaLsb_rad) + 1e-4 * 7.3e-5 * T) /
+      kDegToRad;
   EXPECT_NEAR(imu_deg, snap.true_deg, tol_deg);  // measured: ~4e-7 rad (2e-5°) off
   EXPECT_NEAR(imu_deg - snap.register_deg, rate_dps * lag_s, tol_deg + 1e-4);
 
@@ -508,7 +523,8 @@ TEST(StationSim, ScheduledAndRuntimeImuResetsRestartTheCounter) {
   EXPECT_EQ(st.imu_resets, 2u);
   EXPECT_EQ(b.rx.counters().imu_resets, 2u);
   // Each reset swallows the unit's boot time worth of increments; the physics clock runs on.
-  const uint64_t swallowed = 2u * static_cast<uint64_t>(drivers::simulated::ImuCanNodeOptions{}.reset_lost_samples);
+  const uint64_t swallowed =
+      2u * static_cast<uint64_t>(drivers::simulated::ImuCanNodeOptions{}.reset_lost_samples);
   EXPECT_EQ(st.samples_sent + swallowed, static_cast<uint64_t>(std::llround(st.sim_time_s * cfg.rate_hz)));
   int restarts = 0;
   for (const auto& d : b.rx.samples()) restarts += d.discontinuity ? 1 : 0;

@@ -1,11 +1,11 @@
 // Simulated PLC table, driven only through its register image like a Modbus master would.
 // Expected trajectories are worked out by hand from the trapezoid (rate 20 deg/s, accel 10 deg/s^2):
 // accel phase 2 s / 20 deg, cruise at 20 deg/s, decel phase 2 s / 20 deg.
+#include "drivers/simulated/table_plc.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
-
-#include "drivers/simulated/table_plc.hpp"
 
 namespace imucal::drivers::simulated {
 namespace {
@@ -333,7 +333,8 @@ TEST(TablePlc, CustomMapLayoutIsHonoured) {
   // CDAB: low word first.
   const float outer = plc.outer_deg();
   const auto& in = plc.input_image();
-  EXPECT_EQ(in[c.map.input.actual_outer_deg + 1], encode_float(outer, drivers::turntable::WordOrder::kABCD)[0]);
+  EXPECT_EQ(in[c.map.input.actual_outer_deg + 1],
+            encode_float(outer, drivers::turntable::WordOrder::kABCD)[0]);
 }
 
 }  // namespace
@@ -342,10 +343,10 @@ TEST(TablePlc, CustomMapLayoutIsHonoured) {
 namespace imucal::drivers::simulated {
 namespace {
 
-// table_time_offset (ARCHITECTURE §7) in the station simulator: the encoder registers show the motion of
-// encoder_delay_s ago; the physics (actual_state) is not delayed. Outer 0 -> 90 at 20 °/s with
-// 10 °/s² (the trapezoid above): at t = 3 s the axis is at 40° cruising at 20 °/s, so an encoder
-// 0.25 s late reads 40 - 20·0.25 = 35°.
+// table_time_offset (ARCHITECTURE §7) in the station simulator: the encoder registers show the
+// motion of encoder_delay_s ago; the physics (actual_state) is not delayed. Outer 0 -> 90 at 20 °/s
+// with 10 °/s² (the trapezoid above): at t = 3 s the axis is at 40° cruising at 20 °/s, so an
+// encoder 0.25 s late reads 40 - 20·0.25 = 35°.
 TEST(TablePlc, ALaggingEncoderReportsTheAnglesOfItsDelayAgo) {
   TablePlcConfig cfg = test_config();
   cfg.encoder_delay_s = 0.25;

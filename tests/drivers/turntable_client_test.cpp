@@ -1,7 +1,10 @@
 // TurntableClient against the simulated PLC's Modbus TCP server on a loopback address (real libmodbus on both
 // ends). The PLC runs 10x accelerated; expected timings come from the PLC's rate/accel limits.
+#include "drivers/turntable/turntable_client.hpp"
+
 #include <gtest/gtest.h>
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cmath>
@@ -9,10 +12,7 @@
 #include <string>
 #include <thread>
 
-#include <unistd.h>
-
 #include "drivers/simulated/modbus_table_server.hpp"
-#include "drivers/turntable/turntable_client.hpp"
 
 namespace imucal {
 namespace {
@@ -127,7 +127,8 @@ TEST(TurntableEndpoint, ParsesTcpAndRtu) {
   EXPECT_THROW(drivers::turntable::Endpoint::parse("tcp:host:0"), std::invalid_argument);
   EXPECT_THROW(drivers::turntable::Endpoint::parse("tcp:host:70000"), std::invalid_argument);
   EXPECT_THROW(drivers::turntable::Endpoint::parse("tcp:host"), std::invalid_argument);
-  EXPECT_THROW(drivers::turntable::Endpoint::parse("rtu:/dev/ttyS0:19200:9X1"), std::invalid_argument);
+  EXPECT_THROW(drivers::turntable::Endpoint::parse("rtu:/dev/ttyS0:19200:9X1"),
+               std::invalid_argument);
   EXPECT_THROW(drivers::turntable::Endpoint::parse("udp:host:502"), std::invalid_argument);
 }
 

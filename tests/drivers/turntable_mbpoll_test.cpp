@@ -85,7 +85,8 @@ class MbpollInterop : public ::testing::Test {
   std::string mbpoll(const std::string& args) {
     return "mbpoll -m tcp -a 1 -0 -o 2 -p " + std::to_string(server_.port()) + " " + args;
   }
-  drivers::simulated::ModbusTableServer server_{drivers::simulated::TablePlcConfig{}, drivers::simulated::ModbusTableServerConfig{}};
+  drivers::simulated::ModbusTableServer server_{drivers::simulated::TablePlcConfig{},
+                                                drivers::simulated::ModbusTableServerConfig{}};
 };
 
 TEST_F(MbpollInterop, ReadsTheAnglesAndStatus) {

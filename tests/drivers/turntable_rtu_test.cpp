@@ -1,10 +1,10 @@
 // The client's RTU transport, end to end over a pseudo-terminal: the client opens the pty's slave side
 // as its serial device (libmodbus RTU: termios, CRC, unit id); a small libmodbus RTU responder on the
 // master side serves a TablePlc's register image. No hardware and no network needed.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <modbus/modbus.h>
 #include <spdlog/spdlog.h>
-#include <fcntl.h>
 #include <sys/select.h>
 #include <unistd.h>
 
@@ -30,7 +30,8 @@ const bool kQuietLogs = [] {
 /// Serves a TablePlc over Modbus RTU on a pty master, advancing it at `speed` x real time.
 class RtuResponder {
  public:
-  explicit RtuResponder(drivers::simulated::TablePlcConfig plc_config, double speed) : plc_(plc_config), speed_(speed) {
+  explicit RtuResponder(drivers::simulated::TablePlcConfig plc_config, double speed)
+      : plc_(plc_config), speed_(speed) {
     master_ = posix_openpt(O_RDWR | O_NOCTTY);
     if (master_ < 0 || grantpt(master_) != 0 || unlockpt(master_) != 0) throw std::runtime_error("no pty");
     device_ = ptsname(master_);
@@ -123,7 +124,8 @@ TEST(TurntableRtu, MovesOverASerialLink) {
   const auto s = c.wait_in_position(3000ms);
   EXPECT_NEAR(s.outer_deg, -30.0, 1e-5);
   EXPECT_NEAR(s.inner_deg, 15.0, 1e-5);
-  EXPECT_NEAR(responder.with_plc([](drivers::simulated::TablePlc& p) { return p.outer_deg(); }), -30.0, 1e-9);
+  EXPECT_NEAR(responder.with_plc([](drivers::simulated::TablePlc& p) { return p.outer_deg(); }),
+              -30.0, 1e-9);
   const auto n = c.counters();
   EXPECT_EQ(n.timeouts + n.bad_responses + n.link_errors, 0u);
   EXPECT_GE(responder.requests(), n.requests);

@@ -79,8 +79,9 @@ bool is_live(db::history::RunState s) {
 
 std::string describe(const db::history::RunRecord& r) {
   std::ostringstream o;
-  o << "run " << r.run_id << " " << r.serial << " state " << db::history::to_string(r.state) << " sha "
-    << r.archive_sha256 << " reason \"" << r.failure_reason << "\" archive " << r.archive_path;
+  o << "run " << r.run_id << " " << r.serial << " state " << db::history::to_string(r.state)
+    << " sha " << r.archive_sha256 << " reason \"" << r.failure_reason << "\" archive "
+    << r.archive_path;
   return o.str();
 }
 
@@ -88,8 +89,9 @@ std::string describe(const db::history::RunRecord& r) {
 void expect_same_record(const StoredRun& was, const StoredRun& now) {
   const db::history::RunRecord& a = was.run;
   const db::history::RunRecord& b = now.run;
-  EXPECT_EQ(db::history::to_string(a.state), db::history::to_string(b.state)) << describe(a) << "\nbecame\n"
-                                                            << describe(b);
+  EXPECT_EQ(db::history::to_string(a.state), db::history::to_string(b.state))
+      << describe(a) << "\nbecame\n"
+      << describe(b);
   EXPECT_EQ(a.ended_at_ms, b.ended_at_ms) << describe(a);
   EXPECT_EQ(a.failure_reason, b.failure_reason) << describe(a);
   EXPECT_EQ(a.archive_path, b.archive_path) << describe(a);

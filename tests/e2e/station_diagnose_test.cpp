@@ -41,7 +41,8 @@ TEST(StationDiagnose, AnHoursDiagnosisLeavesStatusAnsweredWithin50ms) {
     EXPECT_TRUE(r.ok) << r.error_message;
     if (latency_ms.size() == 5) {  // the diagnosis is under way by now
       station::control::ControlClient other(st.socket_path());
-      const station::control::Reply second = other.call("diagnose", {{"run_id", std::stoll(run_id)}});
+      const station::control::Reply second =
+          other.call("diagnose", {{"run_id", std::stoll(run_id)}});
       refused_second = !second.ok && second.error_code == "busy" &&
                        second.error_message.find("being diagnosed") != std::string::npos;
       station::control::ControlClient starter(st.socket_path());

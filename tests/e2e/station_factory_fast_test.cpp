@@ -35,15 +35,17 @@ TEST(StationFactoryFast, ARunOnTheDesignedSequencePassesWithinFourSigmaOfTruth) 
   ASSERT_EQ(params.exit_code, 0) << params.describe();
   write_text(st.path("params.json"), params.out);
   calib::core::ParamSet sigma;
-  const calib::core::ParamSet estimate = db::archive::read_param_file(st.path("params.json"), &sigma);
+  const calib::core::ParamSet estimate =
+      db::archive::read_param_file(st.path("params.json"), &sigma);
   const db::archive::Truth truth = db::archive::read_truth_json(st.truth_path());
   const auto profile = sequences::load_profile("factory-fast");
   const calib::core::ParamVector crlb =
-      calib::checks::compute_crlb(profile, calib::core::TableGeometry{}, calib::core::demo_factory_site(),
-                          calib::core::NoiseModel{}, 100.0)
+      calib::checks::compute_crlb(profile, calib::core::TableGeometry{},
+                                  calib::core::demo_factory_site(), calib::core::NoiseModel{},
+                                  100.0)
           .sigma.to_vector();
   const calib::core::ParamVector x = estimate.to_vector(), x_true = truth.params.to_vector(),
-                           s = sigma.to_vector();
+                                 s = sigma.to_vector();
   for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
     const auto& info = calib::core::param_info(i);
     EXPECT_LE(std::abs(x(i) - x_true(i)), 4.0 * s(i))

@@ -237,8 +237,8 @@ TEST(StationMultiUnit, AStreamCutMidRunFailsThatUnitAloneTheOthersPass) {
     } else {
       EXPECT_EQ(rec.value("state", ""), "done") << rec.dump(2);
       EXPECT_EQ(rec["verdict"], json("PASS")) << rec.dump(2);
-      EXPECT_EQ(outside_four_sigma(stored_params(st, sns[i]), db::archive::read_truth_json(m.truth(i)),
-                                   sns[i]),
+      EXPECT_EQ(outside_four_sigma(stored_params(st, sns[i]),
+                                   db::archive::read_truth_json(m.truth(i)), sns[i]),
                 0);
     }
   }

@@ -1,9 +1,9 @@
 // Crash recovery (issue #3): `kill -9` of stationd mid-run, then a restart. The run must be marked
 // `interrupted` (never silently resumed), the database must pass PRAGMA integrity_check, the run's
-// archive must be intact (readable by db::archive::read_archive, imu.csv and table.csv of equal length)
-// and `reprocess` must work on it. Two moments: while the table runs the sequence (the archive is a
-// prefix of the sequence) and while the daemon calibrates (the archive is complete: reprocessing
-// must PASS).
+// archive must be intact (readable by db::archive::read_archive, imu.csv and table.csv of equal
+// length) and `reprocess` must work on it. Two moments: while the table runs the sequence (the
+// archive is a prefix of the sequence) and while the daemon calibrates (the archive is complete:
+// reprocessing must PASS).
 #include <cmath>
 
 #include "db/archive/run_archive.hpp"

@@ -46,7 +46,8 @@ TEST(StationReprocess, SeveralRunsWithACorrectedGravityOneAfterAnotherThroughSta
   EXPECT_NE(twice.err.find("is given twice"), std::string::npos) << twice.describe();
 
   char g[32];
-  std::snprintf(g, sizeof g, "%.9f", *calib::core::demo_factory_site().gravity_mps2 + 50 * kMicroG_mps2);
+  std::snprintf(g, sizeof g, "%.9f",
+                *calib::core::demo_factory_site().gravity_mps2 + 50 * kMicroG_mps2);
   const CmdResult batch = st.ctl({"reprocess", a, b, "--gravity-mps2", g}, 600s);
   ASSERT_EQ(batch.exit_code, 0) << batch.describe() << "\ndaemon log:\n" << st.daemon_log();
   EXPECT_NE(batch.out.find("run " + a + " -> "), std::string::npos) << batch.describe();

@@ -72,11 +72,13 @@ TEST(StationEndToEnd, ShortSequencePassesAndStoresParametersWithinFourSigmaOfTru
   write_text(params_file, params.out);
   calib::core::ParamSet sigma;
   calib::core::ParamSet estimate;
-  ASSERT_NO_THROW(estimate = db::archive::read_param_file(params_file, &sigma)) << params.describe();
+  ASSERT_NO_THROW(estimate = db::archive::read_param_file(params_file, &sigma))
+      << params.describe();
 
   // Truth: what the simulator injected (its --truth-out file).
   db::archive::Truth truth;
-  ASSERT_NO_THROW(truth = db::archive::read_truth_json(st.truth_path())) << read_text(st.truth_path());
+  ASSERT_NO_THROW(truth = db::archive::read_truth_json(st.truth_path()))
+      << read_text(st.truth_path());
   const calib::core::ParamVector x_est = estimate.to_vector();
   const calib::core::ParamVector x_true = truth.params.to_vector();
   const calib::core::ParamVector x_sigma = sigma.to_vector();
@@ -104,7 +106,8 @@ TEST(StationEndToEnd, ShortSequencePassesAndStoresParametersWithinFourSigmaOfTru
   for (const auto& c : shown["calibrations"]) {
     if (c.value("method", "") != "ains") continue;
     found_ains = true;
-    const calib::core::ParamSet stored = db::archive::param_set_from_json(c.at("params"), "show ains", nullptr);
+    const calib::core::ParamSet stored =
+        db::archive::param_set_from_json(c.at("params"), "show ains", nullptr);
     EXPECT_TRUE(stored.to_vector() == x_est) << "params differs from the run's stored AINS set";
   }
   EXPECT_TRUE(found_ains) << shown.dump(2);

@@ -53,12 +53,12 @@ constexpr bool kUnderAddressSanitizer = false;
 
 // The slope check (issue #22 item 4). The creep it must catch: SQLite's page cache following the
 // growing database, 10.6 kB a run over runs 101-200 before it was bounded
-// (db/history/sqlite_repository.hpp; bounded, the cache is full by run ~85 and stays). The bound is 2 kB a
-// run (2 MB over 1000 runs) plus one step of kStepAllowanceKb anywhere in the fitted half (the
-// allocator's; a step of S in the middle of L runs gives a slope of 1.5 S / L): over 1000 runs (500
-// fitted) 3.5 kB a run, well under the creep; over CI's 15 runs (8 fitted) 98 kB a run — there the
-// 10 % check and the descriptors carry the test: a creep of a few kB a run cannot show above the
-// allocator's noise in 15 runs.
+// (db/history/sqlite_repository.hpp; bounded, the cache is full by run ~85 and stays). The bound is
+// 2 kB a run (2 MB over 1000 runs) plus one step of kStepAllowanceKb anywhere in the fitted half
+// (the allocator's; a step of S in the middle of L runs gives a slope of 1.5 S / L): over 1000 runs
+// (500 fitted) 3.5 kB a run, well under the creep; over CI's 15 runs (8 fitted) 98 kB a run — there
+// the 10 % check and the descriptors carry the test: a creep of a few kB a run cannot show above
+// the allocator's noise in 15 runs.
 constexpr double kSlopeBoundKbPerRun = 2.0;
 constexpr double kStepAllowanceKb = 512.0;
 

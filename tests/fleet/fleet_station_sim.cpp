@@ -1,9 +1,9 @@
 // fleet_station_sim: one simulated station for the fleet replication test (issue #24). It writes
 // runs into its own SQLite history exactly as stationd's run controller does (create → running →
 // calibrating → finish PASS / REVIEW / failed, a diagnosis kept afterwards, a reprocess now and
-// then, a table run of two units), while the real outbox sender (station/daemon/fleet_sender.hpp) carries
-// them to the fleet store. At the end it waits for its outbox to drain and prints its sender's
-// status as JSON. Exit 0: drained; 1: not drained in --drain-timeout-s; 2: bad arguments.
+// then, a table run of two units), while the real outbox sender (station/daemon/fleet_sender.hpp)
+// carries them to the fleet store. At the end it waits for its outbox to drain and prints its
+// sender's status as JSON. Exit 0: drained; 1: not drained in --drain-timeout-s; 2: bad arguments.
 //   fleet_station_sim --db FILE --url URL --password-file FILE --station-id ID
 //                     [--runs 100] [--period-ms 700] [--seed 1] [--drain-timeout-s 240]
 #include <chrono>
@@ -56,7 +56,8 @@ Options parse(int argc, char** argv) {
 
 /// Run i of the station, through its life cycle; every tenth a REVIEW, every tenth (offset) a
 /// failure, a reprocess of the previous run, a two-unit table run.
-void one_run(db::history::SqliteRepository& repo, const Options& o, int i, bool pair, db::history::RunId& previous) {
+void one_run(db::history::SqliteRepository& repo, const Options& o, int i, bool pair,
+             db::history::RunId& previous) {
   const db::history::TimestampMs t = db::history::now_ms();
   db::history::NewRun n =
       db::test::new_run("SN-" + std::to_string(o.seed) + "-" + std::to_string(i % 37), t);
@@ -83,7 +84,8 @@ void one_run(db::history::SqliteRepository& repo, const Options& o, int i, bool 
     if (i % 4 == 0)
       repo.set_diagnosis(id, R"({"verdict":"consistent","run":)" + std::to_string(i) + "}");
   }
-  if (sibling > 0) repo.finish_run(sibling, db::test::pass_completion(seed + 500, db::history::now_ms()));
+  if (sibling > 0)
+    repo.finish_run(sibling, db::test::pass_completion(seed + 500, db::history::now_ms()));
   previous = id;
 }
 

@@ -46,7 +46,8 @@ class SignaturesCli : public ::testing::Test {
     spec.stations[kNonorth].nonorthogonality_rad = 10.0 * kArcsecToRad;
     spec.stations[kFixture].fixture_rad = Eigen::Vector3d(180.0 * kArcsecToRad, 0, 0);
     db::history::SqliteRepository repo(db_);
-    ids_ = tools::fleetsim::write_history(spec, repo, db::history::parse_time_utc("2026-11-16T06:00:00Z"));
+    ids_ = tools::fleetsim::write_history(spec, repo,
+                                          db::history::parse_time_utc("2026-11-16T06:00:00Z"));
   }
   static void TearDownTestSuite() { delete dir_; }
 
@@ -101,7 +102,8 @@ TEST_F(SignaturesCli, FromTheStationsHistoryTheThreeFaultyStationsAreFlaggedWith
   EXPECT_EQ(code, 1) << "a flagged station is exit 1";
   expect_the_three_flagged(report);
   const json& g = report["stations"][kGravity];
-  std::vector<db::history::RunId> expected(ids_.begin() + 14, ids_.begin() + 21);  // station 2's jobs
+  std::vector<db::history::RunId> expected(ids_.begin() + 14,
+                                           ids_.begin() + 21);  // station 2's jobs
   EXPECT_EQ(g["run_ids"].get<std::vector<db::history::RunId>>(), expected);
   EXPECT_EQ(g["local_run_ids"], g["run_ids"]) << "a station's own history: its own ids";
   EXPECT_EQ(g["remedy"]["command"], "stationctl reprocess 15 16 17 18 19 20 21 --gravity-mps2 G");
@@ -134,7 +136,8 @@ TEST_F(SignaturesCli, FromTheFleetStoreTheSameStationsAreFlagged) {
     ro.read_only = true;
     const db::history::SqliteRepository repo(db_, ro);
     std::map<std::string, std::vector<db::history::RunId>> by_station;
-    for (const db::history::RunRecord& r : repo.recent_runs(0)) by_station[r.station].push_back(r.run_id);
+    for (const db::history::RunRecord& r : repo.recent_runs(0))
+      by_station[r.station].push_back(r.run_id);
     for (const auto& [station, ids] : by_station) fl::upsert_runs(w, station, repo.details_of(ids));
   }
   const std::string pw = dir_->file("reader.pw");

@@ -1,10 +1,10 @@
 // The QA view and its aggregates over the fleet store (issue #24 item 4 with items 1 and 3): the
 // same rows (tests/db/fleet_history.hpp, written into a station's SQLite and replicated station by
 // station into a throw-away PostgreSQL) give the same numbers through db::fleet::PgFleetStats as
-// through db::history::SqliteFleetStats (whose numbers tests/db/fleet_stats_test.cpp checks against the rows
-// themselves), and stationweb over the fleet store shows the same fleet pages as over the SQLite
-// file, the unit's history and trend with the store's values, a 404 for an unknown serial or run,
-// and quotes and semicolons in every filter as data.
+// through db::history::SqliteFleetStats (whose numbers tests/db/fleet_stats_test.cpp checks against
+// the rows themselves), and stationweb over the fleet store shows the same fleet pages as over the
+// SQLite file, the unit's history and trend with the store's values, a 404 for an unknown serial or
+// run, and quotes and semicolons in every filter as data.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -35,7 +35,8 @@ void replicate(const db::history::SqliteRepository& repo, const PgCluster& pg) {
       db::fleet::parse_fleet_target(pg.url("fleet_writer"), PgCluster::kWriterPassword));
   db::fleet::migrate_fleet(w);
   std::map<std::string, std::vector<db::history::RunId>> by_station;
-  for (const db::history::RunRecord& r : repo.recent_runs(0)) by_station[r.station].push_back(r.run_id);
+  for (const db::history::RunRecord& r : repo.recent_runs(0))
+    by_station[r.station].push_back(r.run_id);
   for (const auto& [station, ids] : by_station)
     db::fleet::upsert_runs(w, station, repo.details_of(ids));
 }

@@ -1,5 +1,5 @@
-// One control-socket request line (station/control/control_protocol.hpp), as the daemon's control server
-// parses it from any local user; and the name/reason rule on arbitrary text.
+// One control-socket request line (station/control/control_protocol.hpp), as the daemon's control
+// server parses it from any local user; and the name/reason rule on arbitrary text.
 #include "station/control/control_protocol.hpp"
 #include "tests/fuzz/fuzz_support.hpp"
 

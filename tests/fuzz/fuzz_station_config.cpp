@@ -4,6 +4,7 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   return imucal::fuzz::refused_cleanly_or_ok([&] {
-    (void)imucal::station::config::parse_config(imucal::fuzz::text_of(data, size), "fuzz.toml", "/tmp");
+    (void)imucal::station::config::parse_config(imucal::fuzz::text_of(data, size), "fuzz.toml",
+                                                "/tmp");
   });
 }

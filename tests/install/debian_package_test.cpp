@@ -124,7 +124,8 @@ TEST_F(DebianPackage, IsLintianCleanAndHoldsEverythingWhereDebianWantsIt) {
     EXPECT_NE(page.out.find(kVersion), std::string::npos) << p;
   }
   // The units run the installed programs: the daemon on the packaged config, the web view on the
-  // history the daemon writes there (station/config/config.cpp: <data_dir>/history.sqlite), on loopback.
+  // history the daemon writes there (station/config/config.cpp: <data_dir>/history.sqlite), on
+  // loopback.
   const std::string text = imucal::e2e::read_text(tmp / "lib/systemd/system/stationd.service");
   EXPECT_NE(text.find("ExecStart=/usr/bin/stationd --config /etc/imucal/stationd.toml"),
             std::string::npos)

@@ -1,14 +1,16 @@
-// socketcan_probe: the SocketCAN transport (drivers::imu::CanChannel "socketcan:IFACE") against a real Linux
-// kernel's CAN stack. Meant to run as root inside the QEMU guest that run_socketcan_probe.sh boots
-// (this host's kernel has no AF_CAN, ARCHITECTURE §4), on a vcan interface that already exists and is up.
+// socketcan_probe: the SocketCAN transport (drivers::imu::CanChannel "socketcan:IFACE") against a
+// real Linux kernel's CAN stack. Meant to run as root inside the QEMU guest that
+// run_socketcan_probe.sh boots (this host's kernel has no AF_CAN, ARCHITECTURE §4), on a vcan
+// interface that already exists and is up.
 //
 // Phases, each checked against what the sender itself recorded (SampleFate, the series' truth):
-//   1. round trip   a simulated IMU node (drivers::simulated::ImuCanNode) sends N samples on one socketcan
-//   channel,
+//   1. round trip   a simulated IMU node (drivers::simulated::ImuCanNode) sends N samples on one
+//   socketcan channel,
 //                   another channel on the same interface receives them: every frame bit-exact and
-//                   in order, every sample decoded (drivers::imu::ImuFrameDecoder) with its counter, status
-//                   and the encoder's exact counts, within one LSB of the true increment (and the
-//                   sum of all increments within one LSB: quantisation carry survives the bus).
+//                   in order, every sample decoded (drivers::imu::ImuFrameDecoder) with its
+//                   counter, status and the encoder's exact counts, within one LSB of the true
+//                   increment (and the sum of all increments within one LSB: quantisation carry
+//                   survives the bus).
 //   2. timestamps   SO_TIMESTAMP receive times lie between the send and the read, never decrease,
 //   and
 //                   come from the kernel: frames read 50 ms after they were sent carry their
@@ -277,7 +279,8 @@ json round_trip(CanChannel& tx, CanChannel& rx, drivers::simulated::ImuCanNode& 
                 4 * k + 3 < got.size() && d.rx_time_ns == got[4 * k + 3].rx_time_ns &&
                 std::abs(d.increment.t_s - series[k].t_s) < 1e-9;
     for (int a = 0; a < 3; ++a) {
-      const drivers::imu::AxisFields ax = drivers::imu::unpack_axis(f.clean[static_cast<std::size_t>(a)].data);
+      const drivers::imu::AxisFields ax =
+          drivers::imu::unpack_axis(f.clean[static_cast<std::size_t>(a)].data);
       same = same && d.increment.dtheta_rad(a) == ax.dtheta_count * drivers::imu::kDthetaLsb_rad &&
              d.increment.dv_mps(a) == ax.dv_count * drivers::imu::kDvLsb_mps;
     }
@@ -288,17 +291,19 @@ json round_trip(CanChannel& tx, CanChannel& rx, drivers::simulated::ImuCanNode& 
     sum_err_dv += e_dv;
     max_err_dtheta_lsb =
         std::max(max_err_dtheta_lsb, e_dth.cwiseAbs().maxCoeff() / drivers::imu::kDthetaLsb_rad);
-    max_err_dv_lsb = std::max(max_err_dv_lsb, e_dv.cwiseAbs().maxCoeff() / drivers::imu::kDvLsb_mps);
+    max_err_dv_lsb =
+        std::max(max_err_dv_lsb, e_dv.cwiseAbs().maxCoeff() / drivers::imu::kDvLsb_mps);
     // Quantisation with carry: each increment within one LSB of the truth (plus rounding of the
     // double arithmetic).
     if (e_dth.cwiseAbs().maxCoeff() > drivers::imu::kDthetaLsb_rad * (1 + 1e-6) ||
         e_dv.cwiseAbs().maxCoeff() > drivers::imu::kDvLsb_mps * (1 + 1e-6))
       ++truth_violations;
     const double t_true = series[k].temp_c;
-    const bool temp_ok =
-        std::isnan(t_true)
-            ? std::isnan(d.increment.temp_c) && (d.conditions & drivers::imu::condition::kTemperatureInvalid)
-            : std::abs(d.increment.temp_c - t_true) <= 0.5 * drivers::imu::kTemperatureLsb_degc + 1e-9;
+    const bool temp_ok = std::isnan(t_true)
+                             ? std::isnan(d.increment.temp_c) &&
+                                   (d.conditions & drivers::imu::condition::kTemperatureInvalid)
+                             : std::abs(d.increment.temp_c - t_true) <=
+                                   0.5 * drivers::imu::kTemperatureLsb_degc + 1e-9;
     if (!temp_ok) ++temp_mismatch;
   }
   fail.check(count_mismatch == 0, "decoder: " + std::to_string(count_mismatch) +
@@ -537,8 +542,9 @@ json daemon_capture(const Args& args, Failures& fail) {
   for (std::size_t k = 0; k < n; ++k) {
     send(k);
     for (int i = 0; i < per_sample; ++i, ++errors)
-      fail.check(tx->write(error_frame(i % 2 ? drivers::imu::kCanErrProt : drivers::imu::kCanErrCrtl)),
-                 "capture: error frame write");
+      fail.check(
+          tx->write(error_frame(i % 2 ? drivers::imu::kCanErrProt : drivers::imu::kCanErrCrtl)),
+          "capture: error frame write");
     if (k % 50 == 49)
       wait_for([&] { return cap.rows() >= k + 1; }, 5s);  // no kernel queue overflow
   }
@@ -588,8 +594,10 @@ json daemon_capture(const Args& args, Failures& fail) {
   std::size_t row_mismatch = 0;
   for (std::size_t k = 0; k < std::min<std::size_t>(a.imu.size(), n); ++k) {
     for (int ax = 0; ax < 3; ++ax) {
-      const drivers::imu::AxisFields f = drivers::imu::unpack_axis(sent[k][static_cast<std::size_t>(ax)].data);
-      if (a.imu[k].dtheta_rad(ax) != static_cast<double>(f.dtheta_count) * drivers::imu::kDthetaLsb_rad ||
+      const drivers::imu::AxisFields f =
+          drivers::imu::unpack_axis(sent[k][static_cast<std::size_t>(ax)].data);
+      if (a.imu[k].dtheta_rad(ax) !=
+              static_cast<double>(f.dtheta_count) * drivers::imu::kDthetaLsb_rad ||
           a.imu[k].dv_mps(ax) != static_cast<double>(f.dv_count) * drivers::imu::kDvLsb_mps)
         ++row_mismatch;
     }

@@ -490,7 +490,8 @@ void expect_capture_error(const std::string& text, const std::string& field,
 
 TEST(CaptureSection, RoundTripsExactly) {
   db::archive::RunInfo ri = make_info();
-  EXPECT_FALSE(db::archive::parse_run_info(db::archive::run_info_text(ri), "x").capture.has_value());
+  EXPECT_FALSE(
+      db::archive::parse_run_info(db::archive::run_info_text(ri), "x").capture.has_value());
   for (bool complete : {true, false}) {
     ri.capture = distinct_capture(complete);
     const std::string text = db::archive::run_info_text(ri);

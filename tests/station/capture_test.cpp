@@ -1,10 +1,10 @@
-// station::run::Capture over a real unixcan socket pair, fed by the simulated IMU CAN node (or by the
-// protocol encoder directly where the test needs exact control of which frames are lost):
-// rows equal the transmitted increments to the LSB on the archive's time axis; lost samples are
-// filled by linear interpolation between the decoded neighbours and counted; longer gaps, IMU
-// resets, stream timeouts, IMU failure bits and motion inside a counted rest are faults that stop
-// the rows but not the frame log; rest marking is guard-then-exactly-N rows; capture.log holds
-// every frame received and parses with the candump reader.
+// station::run::Capture over a real unixcan socket pair, fed by the simulated IMU CAN node (or by
+// the protocol encoder directly where the test needs exact control of which frames are lost): rows
+// equal the transmitted increments to the LSB on the archive's time axis; lost samples are filled
+// by linear interpolation between the decoded neighbours and counted; longer gaps, IMU resets,
+// stream timeouts, IMU failure bits and motion inside a counted rest are faults that stop the rows
+// but not the frame log; rest marking is guard-then-exactly-N rows; capture.log holds every frame
+// received and parses with the candump reader.
 #include "station/run/capture.hpp"
 
 #include <gtest/gtest.h>
@@ -141,7 +141,8 @@ struct Transmitted {
 Transmitted transmitted(const std::vector<drivers::imu::CanFrame>& frames) {
   Transmitted t;
   for (int a = 0; a < 3; ++a) {
-    const drivers::imu::AxisFields f = drivers::imu::unpack_axis(frames[static_cast<std::size_t>(a)].data);
+    const drivers::imu::AxisFields f =
+        drivers::imu::unpack_axis(frames[static_cast<std::size_t>(a)].data);
     t.dtheta_rad(a) = static_cast<double>(f.dtheta_count) * drivers::imu::kDthetaLsb_rad;
     t.dv_mps(a) = static_cast<double>(f.dv_count) * drivers::imu::kDvLsb_mps;
   }
@@ -186,9 +187,11 @@ TEST(Capture, RowsEqualTheSentIncrementsToTheLsb) {
     for (int i = 0; i < 3; ++i) {
       // Quantised with the remainder carried: each sample within 1 LSB of what was sent, and an
       // integer number of LSBs.
-      EXPECT_LE(std::fabs(r.dtheta_rad(i) - sent[k].dtheta_rad(i)), drivers::imu::kDthetaLsb_rad * 1.000001);
+      EXPECT_LE(std::fabs(r.dtheta_rad(i) - sent[k].dtheta_rad(i)),
+                drivers::imu::kDthetaLsb_rad * 1.000001);
       EXPECT_LE(std::fabs(r.dv_mps(i) - sent[k].dv_mps(i)), drivers::imu::kDvLsb_mps * 1.000001);
-      const double cth = r.dtheta_rad(i) / drivers::imu::kDthetaLsb_rad, cdv = r.dv_mps(i) / drivers::imu::kDvLsb_mps;
+      const double cth = r.dtheta_rad(i) / drivers::imu::kDthetaLsb_rad,
+                   cdv = r.dv_mps(i) / drivers::imu::kDvLsb_mps;
       EXPECT_NEAR(cth, std::round(cth), 1e-4);
       EXPECT_NEAR(cdv, std::round(cdv), 1e-4);
     }
@@ -551,7 +554,8 @@ TEST(Capture, ErrorFloodIsCountedBusOffIsAFault) {
   uint64_t k = 0;
   for (; k < 20; ++k) node.send(still_increment(k));
   for (int i = 0; i < 300; ++i) {  // the flood, interleaved with the IMU's samples
-    ASSERT_TRUE(rig.tx->write(error_frame(i % 2 ? drivers::imu::kCanErrProt : drivers::imu::kCanErrCrtl)));
+    ASSERT_TRUE(
+        rig.tx->write(error_frame(i % 2 ? drivers::imu::kCanErrProt : drivers::imu::kCanErrCrtl)));
     if (i % 10 == 0) node.send(still_increment(k++));
   }
   ASSERT_TRUE(rig.wait_rows(k));

@@ -21,7 +21,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kExample = std::string(IMUCAL_SOURCE_DIR) + "/station/config/stationd.example.toml";
+const std::string kExample =
+    std::string(IMUCAL_SOURCE_DIR) + "/station/config/stationd.example.toml";
 
 std::string read_file(const std::string& path) {
   std::ifstream in(path);
@@ -275,7 +276,8 @@ TEST(StationConfig, KnownEffectsAreCatalogueNames) {
 
 // Issue #21: the station names the product it calibrates; every run's run.toml carries it.
 TEST(StationConfig, TheGradeOfTheProductIsNamedAndChecked) {
-  EXPECT_EQ(parse_config(kMinimal, "cfg.toml", "/etc").imu().grade, calib::core::Grade::kNavigation);
+  EXPECT_EQ(parse_config(kMinimal, "cfg.toml", "/etc").imu().grade,
+            calib::core::Grade::kNavigation);
   EXPECT_EQ(parse_config(read_file(kExample), kExample, "/etc").imu().grade,
             calib::core::Grade::kNavigation);
   const StationConfig c =
@@ -402,8 +404,8 @@ TEST(StationConfig, ImuSlotsAreReadInOrderWithTheirMountings) {
   EXPECT_DOUBLE_EQ(c.imus[1].mount_rpy_deg[2], 90.0);
   // The axis swap with z flipped is a rotation (x <-> y, z down): roll 180, yaw 90.
   const Eigen::Matrix3d C = calib::core::euler_to_C_bn(c.imus[2].mount_rpy_deg[0] * kDegToRad,
-                                                 c.imus[2].mount_rpy_deg[1] * kDegToRad,
-                                                 c.imus[2].mount_rpy_deg[2] * kDegToRad);
+                                                       c.imus[2].mount_rpy_deg[1] * kDegToRad,
+                                                       c.imus[2].mount_rpy_deg[2] * kDegToRad);
   Eigen::Matrix3d want;
   want << 0, 1, 0, 1, 0, 0, 0, 0, -1;
   EXPECT_LT((C - want).cwiseAbs().maxCoeff(), 1e-12) << C;

@@ -1,6 +1,7 @@
-// The control protocol's request validation and reply shapes (station/control/control_protocol.hpp): every
-// malformed request is a BadRequest that names the offending field and carries the id back when
-// one could be read; valid requests come out with their arguments intact.
+// The control protocol's request validation and reply shapes
+// (station/control/control_protocol.hpp): every malformed request is a BadRequest that names the
+// offending field and carries the id back when one could be read; valid requests come out with
+// their arguments intact.
 #include "station/control/control_protocol.hpp"
 
 #include <gtest/gtest.h>

@@ -125,7 +125,8 @@ class ControlServerTest : public ::testing::Test {
     repo_ = std::make_unique<db::history::SqliteRepository>(dir_.file("history.sqlite"));
     const db::history::TimestampMs t0 = db::history::parse_time_utc("2024-05-01T10:00:00Z");
     for (int k = 0; k < 3; ++k) {
-      const db::history::RunId id = repo_->create_run(db::test::new_run("SIM-0001", t0 + k * 3600000));
+      const db::history::RunId id =
+          repo_->create_run(db::test::new_run("SIM-0001", t0 + k * 3600000));
       repo_->finish_run(id, db::test::pass_completion(k + 1, t0 + k * 3600000 + 60000));
     }
     handler_ = std::make_unique<FakeHandler>(*repo_);

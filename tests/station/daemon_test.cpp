@@ -24,9 +24,9 @@
 #include "db/archive/run_archive.hpp"
 #include "drivers/simulated/station_sim.hpp"
 #include "sequences/library.hpp"
-#include "station/run/archive_writer.hpp"
 #include "station/control/control_client.hpp"
 #include "station/daemon/logging.hpp"
+#include "station/run/archive_writer.hpp"
 
 namespace imucal::station {
 using namespace imucal::station::config;
@@ -78,8 +78,9 @@ size_t write_killed_archive(const std::string& dir, const std::string& serial) {
   const auto profile = sequences::load_profile("short");
   calib::sim::SimOptions so;
   so.seed = 3;
-  const calib::sim::SimResult sim = calib::sim::simulate(
-      profile, calib::core::TableGeometry{}, calib::core::demo_factory_site(), calib::effects::default_unit(), so);
+  const calib::sim::SimResult sim =
+      calib::sim::simulate(profile, calib::core::TableGeometry{}, calib::core::demo_factory_site(),
+                           calib::effects::default_unit(), so);
   db::archive::RunInfo info;
   info.serial = serial;
   info.station_name = "daemon-test";

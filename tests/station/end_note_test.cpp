@@ -1,5 +1,5 @@
-// The run's end note (station/run/end_note.hpp): reserved while there is space, overwritten in place
-// when the database cannot take the run's end, read back by start-up recovery.
+// The run's end note (station/run/end_note.hpp): reserved while there is space, overwritten in
+// place when the database cannot take the run's end, read back by start-up recovery.
 #include "station/run/end_note.hpp"
 
 #include <gtest/gtest.h>
@@ -23,7 +23,9 @@ TEST(EndNote, ReservedEmptyThenRecordedAndReadBack) {
   ASSERT_EQ(reserve_end_note(path), "");
   EXPECT_EQ(fs::file_size(path), kEndNoteBytes);
   EXPECT_FALSE(read_end_note(path).has_value()) << "a reservation is not a note";
-  ASSERT_EQ(record_end_note(path, db::history::RunState::kFailed, "archive: No space left on device"), "");
+  ASSERT_EQ(
+      record_end_note(path, db::history::RunState::kFailed, "archive: No space left on device"),
+      "");
   EXPECT_EQ(fs::file_size(path), kEndNoteBytes) << "recorded in place, not grown";
   const auto note = read_end_note(path);
   ASSERT_TRUE(note.has_value());
@@ -49,7 +51,8 @@ TEST(EndNote, LongReasonIsCutToTheReservation) {
 TEST(EndNote, NoReservationOrGarbageIsNoNote) {
   test_support::ScopedTempDir dir("end-note");
   const std::string path = dir.sub("missing.end");
-  EXPECT_NE(record_end_note(path, db::history::RunState::kFailed, "x"), "") << "no O_CREAT: only in place";
+  EXPECT_NE(record_end_note(path, db::history::RunState::kFailed, "x"), "")
+      << "no O_CREAT: only in place";
   EXPECT_FALSE(fs::exists(path));
   EXPECT_FALSE(read_end_note(path).has_value());
   std::ofstream(dir.sub("garbage.end")) << "failed\nnot a note";

@@ -1,8 +1,8 @@
-// Streamed exports over the control socket (station/control/export_stream.hpp, issue #11 item 3), with a
-// real SQLite history of 400 runs (800 rows, ~1.1 MB of CSV: more than the socket buffers hold):
-// the streamed bytes are exactly the export the repository writes, in each format; a client that
-// goes away in the middle leaves the server serving and its export thread ended; errors before the
-// first byte are ordinary error replies; the concurrency cap refuses with busy.
+// Streamed exports over the control socket (station/control/export_stream.hpp, issue #11 item 3),
+// with a real SQLite history of 400 runs (800 rows, ~1.1 MB of CSV: more than the socket buffers
+// hold): the streamed bytes are exactly the export the repository writes, in each format; a client
+// that goes away in the middle leaves the server serving and its export thread ended; errors before
+// the first byte are ordinary error replies; the concurrency cap refuses with busy.
 #include <gtest/gtest.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -82,7 +82,8 @@ class ExportStreamTest : public ::testing::Test {
   std::string socket_path() const { return server_->socket_path(); }
 
   /// What the repository itself writes for this export.
-  std::string direct(const std::string& format, const db::history::ExportFilter& filter = {}) const {
+  std::string direct(const std::string& format,
+                     const db::history::ExportFilter& filter = {}) const {
     std::ostringstream out;
     db::history::export_history(*repo_, filter, format, out);
     return out.str();

@@ -1,6 +1,6 @@
 // The station's consistency test on factory-length runs (issue #8, "What it must show"): through
-// the daemon's own calibration job (station/run/calibration_worker.hpp: AINS, NLSQ, cross-check, gap
-// diagnosis, SQLite), on simulated factory-std runs of the default unit:
+// the daemon's own calibration job (station/run/calibration_worker.hpp: AINS, NLSQ, cross-check,
+// gap diagnosis, SQLite), on simulated factory-std runs of the default unit:
 //  * every catalogue effect that the factory sequence can detect (imucal crlb --effects: a finite
 //    detection threshold), injected at 3x its threshold, no longer ends a run PASS — it ends REVIEW
 //    and the reason names the gap;
@@ -59,7 +59,8 @@ Outcome run_case(const Case& c, const std::string& dir, db::history::Repository&
   calib::sim::SimOptions so;
   so.seed = c.seed;
   const calib::core::TableGeometry geom;
-  calib::sim::SimResult sim = calib::sim::simulate(factory_std(), geom, calib::core::demo_factory_site(), unit, so);
+  calib::sim::SimResult sim =
+      calib::sim::simulate(factory_std(), geom, calib::core::demo_factory_site(), unit, so);
   db::archive::RunArchive ar;
   ar.info.serial = "GAP-" + std::to_string(c.seed);
   ar.info.site = calib::core::demo_factory_site();
@@ -107,8 +108,9 @@ std::vector<Outcome> run_all(const std::vector<Case>& cases) {
 
 TEST(GapReview, EveryDetectableEffectAtThreeTimesItsThresholdIsNeverPass) {
   const auto det = calib::diagnosis::effect_detectability(
-      calib::sim::truth_run_source(factory_std(), calib::core::TableGeometry{}, calib::core::demo_factory_site(),
-                              calib::effects::default_unit(), 100.0)(calib::effects::Effects{}, 1, /*noise=*/false),
+      calib::sim::truth_run_source(factory_std(), calib::core::TableGeometry{},
+                                   calib::core::demo_factory_site(), calib::effects::default_unit(),
+                                   100.0)(calib::effects::Effects{}, 1, /*noise=*/false),
       calib::core::TableGeometry{}, calib::effects::default_unit().params);
   std::vector<Case> cases;
   for (const auto& d : det) {
@@ -118,7 +120,9 @@ TEST(GapReview, EveryDetectableEffectAtThreeTimesItsThresholdIsNeverPass) {
     c.name = d.name;
     c.seed = 500 + cases.size();
     calib::effects::set_effect_vector(
-        c.effects, d.id, calib::diagnosis::scaled_typical(calib::effects::effect_info(d.id), 3.0 * d.threshold, 1.0));
+        c.effects, d.id,
+        calib::diagnosis::scaled_typical(calib::effects::effect_info(d.id), 3.0 * d.threshold,
+                                         1.0));
     cases.push_back(c);
   }
   ASSERT_GE(cases.size(), 11u) << "K2, asymmetry, size, g-sensitivity, skew, thermal, instability, "
@@ -127,7 +131,8 @@ TEST(GapReview, EveryDetectableEffectAtThreeTimesItsThresholdIsNeverPass) {
   for (size_t i = 0; i < cases.size(); ++i) {
     std::printf("  %-24s 3x threshold -> %s: %s\n", cases[i].name.c_str(),
                 db::history::to_string(out[i].state), out[i].reason.substr(0, 160).c_str());
-    EXPECT_EQ(out[i].state, db::history::RunState::kReview) << cases[i].name << ": " << out[i].reason;
+    EXPECT_EQ(out[i].state, db::history::RunState::kReview)
+        << cases[i].name << ": " << out[i].reason;
     EXPECT_NE(out[i].reason.find("sim-to-real gap"), std::string::npos) << cases[i].name;
   }
 }

@@ -30,13 +30,15 @@ namespace {
 const std::string kSource = IMUCAL_SOURCE_DIR;
 
 std::shared_ptr<const drivers::imu::ImuProtocolMap> protocol(const std::string& rel) {
-  return std::make_shared<const drivers::imu::ImuProtocolMap>(drivers::imu::read_protocol_map(kSource + rel));
+  return std::make_shared<const drivers::imu::ImuProtocolMap>(
+      drivers::imu::read_protocol_map(kSource + rel));
 }
 
 /// The input as the station would see it after `map`: every sample encoded and decoded (none may
 /// be lost), the resolution declared in the noise model.
-calib::core::CalibrationInput through(const calib::core::CalibrationInput& in,
-                                const std::shared_ptr<const drivers::imu::ImuProtocolMap>& map) {
+calib::core::CalibrationInput through(
+    const calib::core::CalibrationInput& in,
+    const std::shared_ptr<const drivers::imu::ImuProtocolMap>& map) {
   drivers::imu::ImuFrameEncoder enc(map, std::nullopt);
   drivers::imu::DecoderOptions o;
   o.protocol = map;
@@ -71,23 +73,24 @@ std::pair<double, std::string> largest(const calib::core::CalibrationResult& a,
   return worst;
 }
 
-calib::core::CalibrationInput factory_run(const calib::effects::UnitModel& unit, calib::core::Grade grade) {
+calib::core::CalibrationInput factory_run(const calib::effects::UnitModel& unit,
+                                          calib::core::Grade grade) {
   calib::sim::SimOptions opt;
   opt.seed = 27;
   const calib::sim::SimResult sim =
       calib::sim::simulate(sequences::load_profile("factory-std"), calib::core::TableGeometry{},
-                      calib::core::demo_factory_site(), unit, opt);
-  calib::core::CalibrationInput in = calib::sim::input_from_simulation(sim, calib::core::TableGeometry{},
-                                                            calib::core::demo_factory_site(), unit.noise);
+                           calib::core::demo_factory_site(), unit, opt);
+  calib::core::CalibrationInput in = calib::sim::input_from_simulation(
+      sim, calib::core::TableGeometry{}, calib::core::demo_factory_site(), unit.noise);
   in.grade = grade;
   return in;
 }
 
 TEST(ProtocolParameters, ATacticalUnitGetsTheSameParametersOnBothProtocolsWithinATenthOfSigma) {
-  const calib::core::CalibrationInput in =
-      factory_run(calib::sim::draw_unit(calib::core::Grade::kTactical, 3), calib::core::Grade::kTactical);
-  const calib::pipeline::PipelineResult builtin =
-      calib::pipeline::run_calibration(through(in, protocol("/drivers/imu/protocols/imucal-imu-1.toml")));
+  const calib::core::CalibrationInput in = factory_run(
+      calib::sim::draw_unit(calib::core::Grade::kTactical, 3), calib::core::Grade::kTactical);
+  const calib::pipeline::PipelineResult builtin = calib::pipeline::run_calibration(
+      through(in, protocol("/drivers/imu/protocols/imucal-imu-1.toml")));
   const calib::pipeline::PipelineResult rates16 =
       calib::pipeline::run_calibration(through(in, protocol("/tests/data/protocols/rates16.toml")));
   ASSERT_TRUE(builtin.ains && builtin.nlsq && rates16.ains && rates16.nlsq);
@@ -106,13 +109,14 @@ TEST(ProtocolParameters, ATacticalUnitGetsTheSameParametersOnBothProtocolsWithin
 // its resolution, moves the calibration by more than 0.1σ (AINS alone: this is a figure, not the
 // station's use).
 TEST(ProtocolParameters, ANavigationGradeUnitIsMovedByA16BitProtocolsResolution) {
-  const calib::core::CalibrationInput in = factory_run(calib::effects::default_unit(), calib::core::Grade::kNavigation);
+  const calib::core::CalibrationInput in =
+      factory_run(calib::effects::default_unit(), calib::core::Grade::kNavigation);
   calib::pipeline::PipelineOptions po;
   po.methods = calib::pipeline::MethodSelection::kAins;
   po.check_data = false;  // a constant 10 °/s in 0.01 °/s steps repeats exactly: looks clipped
   const calib::pipeline::PipelineResult builtin = calib::pipeline::run_calibration(in, po);
-  const calib::pipeline::PipelineResult rates16 =
-      calib::pipeline::run_calibration(through(in, protocol("/tests/data/protocols/rates16.toml")), po);
+  const calib::pipeline::PipelineResult rates16 = calib::pipeline::run_calibration(
+      through(in, protocol("/tests/data/protocols/rates16.toml")), po);
   ASSERT_TRUE(builtin.ains && rates16.ains);
   const auto [worst, name] = largest(rates16.ains->result, builtin.ains->result);
   std::fprintf(stderr, "[protocol] navigation grade: largest difference %.4f sigma (%s)\n", worst,

@@ -1,5 +1,5 @@
-// JSON shapes and text renderings of the read commands (station/control/record_json.hpp), against a real
-// SQLite history filled through the repository with seeded values the test recomputes.
+// JSON shapes and text renderings of the read commands (station/control/record_json.hpp), against a
+// real SQLite history filled through the repository with seeded values the test recomputes.
 #include "station/control/record_json.hpp"
 
 #include <gtest/gtest.h>
@@ -229,7 +229,8 @@ TEST_F(RecordJson, ShowCarriesBothParameterSetsBitExact) {
     const json& c = s["calibrations"][static_cast<std::size_t>(mi)];
     EXPECT_EQ(c.at("method"), mi == 0 ? "ains" : "nlsq");
     calib::core::ParamSet sigma;
-    const calib::core::ParamSet p = db::archive::param_set_from_json(c.at("params"), "show", &sigma);
+    const calib::core::ParamSet p =
+        db::archive::param_set_from_json(c.at("params"), "show", &sigma);
     const calib::core::ParamVector want = db::test::seeded_params(1, mi).to_vector();
     const calib::core::ParamVector want_sigma = db::test::seeded_sigma(1, mi).to_vector();
     for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {

@@ -1,8 +1,9 @@
-// The run state machine against the in-process simulated station (drivers::simulated::StationSim: a Modbus PLC
-// table and the IMU CAN node on it, one physics clock, accelerated): a run executes every step of its
-// sequence with rests counted in IMU samples, is calibrated by the worker and stored; an abort stops
-// the table and marks the run aborted; a table fault mid-move aborts the run with the fault in the
-// reason. Expectations come from the sequence (poses, rest lengths × rate) and the simulator's truth.
+// The run state machine against the in-process simulated station (drivers::simulated::StationSim: a
+// Modbus PLC table and the IMU CAN node on it, one physics clock, accelerated): a run executes
+// every step of its sequence with rests counted in IMU samples, is calibrated by the worker and
+// stored; an abort stops the table and marks the run aborted; a table fault mid-move aborts the run
+// with the fault in the reason. Expectations come from the sequence (poses, rest lengths × rate)
+// and the simulator's truth.
 #include "station/run/run_controller.hpp"
 
 #include <gtest/gtest.h>
@@ -61,7 +62,9 @@ std::string make_temp_dir() {
 /// Temp dir + simulator + config + repository + worker + controller.
 class Station {
  public:
-  explicit Station(double speed, std::optional<drivers::simulated::StationSimFaults::TableFault> fault = std::nullopt) {
+  explicit Station(
+      double speed,
+      std::optional<drivers::simulated::StationSimFaults::TableFault> fault = std::nullopt) {
     dir_ = make_temp_dir();
     drivers::simulated::StationSimConfig sc;
     sc.can_path = dir_ + "/bus.sock";
@@ -93,7 +96,8 @@ class Station {
     fs::remove_all(dir_, ec);
   }
 
-  db::history::RunId start(const std::string& serial, std::optional<std::string> sequence = std::nullopt) {
+  db::history::RunId start(const std::string& serial,
+                           std::optional<std::string> sequence = std::nullopt) {
     StartRunRequest r;
     r.serial = serial;
     r.sequence = std::move(sequence);
@@ -111,7 +115,8 @@ class Station {
     return false;
   }
   bool table_moving() {
-    return sim_->table_server().with_plc([](drivers::simulated::TablePlc& plc) { return plc.moving(); });
+    return sim_->table_server().with_plc(
+        [](drivers::simulated::TablePlc& plc) { return plc.moving(); });
   }
 
   std::string dir_;
@@ -155,7 +160,11 @@ TEST(RunController, TinyRunExecutesEveryStepAndCountsRestsInSamples) {
   Station st(100.0);
   const db::history::RunId id = st.start("TINY-1");
   // Observed live: preparing/running states with step i/5 and a phase word.
-  EXPECT_TRUE(st.wait_for([](const RunSnapshot& s) { return s.state == db::history::RunState::kRunning && s.step >= 1; }, 20s));
+  EXPECT_TRUE(st.wait_for(
+      [](const RunSnapshot& s) {
+        return s.state == db::history::RunState::kRunning && s.step >= 1;
+      },
+      20s));
   ASSERT_TRUE(st.ctl_->wait_idle(60s));
   const auto last = st.ctl_->last_finished();
   ASSERT_TRUE(last.has_value());
@@ -165,7 +174,9 @@ TEST(RunController, TinyRunExecutesEveryStepAndCountsRestsInSamples) {
   // Four rests' worth of motion cannot calibrate 27 parameters: the worker must say so (failed),
   // not abort, and the capture itself must be complete.
   const db::history::RunRecord rec = st.repo_->show(id).run;
-  EXPECT_TRUE(rec.state == db::history::RunState::kFailed || rec.state == db::history::RunState::kReview) << db::history::to_string(rec.state);
+  EXPECT_TRUE(rec.state == db::history::RunState::kFailed ||
+              rec.state == db::history::RunState::kReview)
+      << db::history::to_string(rec.state);
   if (rec.state == db::history::RunState::kFailed) {
     EXPECT_NE(rec.failure_reason.find("calibration failed"), std::string::npos) << rec.failure_reason;
   }
@@ -228,7 +239,8 @@ TEST(RunController, ShortSequenceEndsDonePassWithParametersNearTheTruth) {
   ASSERT_EQ(ains.method, db::history::Method::kAins);
   const auto est = ains.params.to_vector(), sig = ains.sigma.to_vector(), tru = truth.to_vector();
   for (int i = 0; i < static_cast<int>(est.size()); ++i) {
-    EXPECT_LE(std::abs(est[i] - tru[i]), 4.0 * sig[i] + 1e-12) << "parameter " << calib::core::param_info(i).name;
+    EXPECT_LE(std::abs(est[i] - tru[i]), 4.0 * sig[i] + 1e-12)
+        << "parameter " << calib::core::param_info(i).name;
   }
   // Steps of "short": initial rest + 26 [[step]]s.
   EXPECT_EQ(st.ctl_->last_finished()->steps, 27);
@@ -253,7 +265,8 @@ TEST(RunController, AbortMidRunStopsTheTableAndMarksTheRunAborted) {
     std::this_thread::sleep_for(10ms);
   }
   EXPECT_TRUE(stopped);
-  const double outer = st.sim_->table_server().with_plc([](drivers::simulated::TablePlc& p) { return p.outer_deg(); });
+  const double outer = st.sim_->table_server().with_plc(
+      [](drivers::simulated::TablePlc& p) { return p.outer_deg(); });
   EXPECT_LT(outer, 89.0);
   // The archive holds what was captured and is finished and readable.
   const db::archive::RunArchive ar = db::archive::read_archive(rec.archive_path);
@@ -264,7 +277,8 @@ TEST(RunController, AbortMidRunStopsTheTableAndMarksTheRunAborted) {
 }
 
 TEST(RunController, TableFaultMidMoveAbortsWithTheFaultInTheReason) {
-  Station st(100.0, drivers::simulated::StationSimFaults::TableFault{2, 1.0, 17});  // 1 s into the second move
+  Station st(100.0, drivers::simulated::StationSimFaults::TableFault{
+                        2, 1.0, 17});  // 1 s into the second move
   const db::history::RunId id = st.start("FAULT-1");
   ASSERT_TRUE(st.ctl_->wait_idle(30s));
   const db::history::RunRecord rec = st.repo_->show(id).run;
@@ -303,8 +317,12 @@ TEST(RunController, RefusesBadRequestsWithoutWritingAnything) {
   fast.serial = "OK-1";
   fast.sequence = st.dir_ + "/fast.toml";
   EXPECT_EQ(code_of(fast), error_code::kInvalidInput);
-  EXPECT_TRUE(st.repo_->runs_in_state({db::history::RunState::kPreparing, db::history::RunState::kRunning, db::history::RunState::kCalibrating,
-                                       db::history::RunState::kFailed, db::history::RunState::kAborted}).empty());
+  EXPECT_TRUE(
+      st.repo_
+          ->runs_in_state({db::history::RunState::kPreparing, db::history::RunState::kRunning,
+                           db::history::RunState::kCalibrating, db::history::RunState::kFailed,
+                           db::history::RunState::kAborted})
+          .empty());
   // One at a time.
   st.start("OK-1");
   fast.sequence.reset();

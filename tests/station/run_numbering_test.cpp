@@ -1,7 +1,8 @@
 // A station whose history database was replaced (a new, empty one) or restored from an older copy
 // while its data directory kept the run archives: new runs are numbered after every archive, so
 // that a run never fails on an old archive directory of the same id and serial, and the fleet
-// store never meets an old local id again (station/run/recovery.hpp, continue_run_ids_after_archives).
+// store never meets an old local id again (station/run/recovery.hpp,
+// continue_run_ids_after_archives).
 #include <gtest/gtest.h>
 
 #include <filesystem>

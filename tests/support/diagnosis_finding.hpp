@@ -12,9 +12,9 @@
 namespace imucal::test_support {
 
 /// The finding (nullptr, with a failure recorded, when the diagnosis named none).
-inline const calib::diagnosis::CandidateResult* expect_finding(const calib::diagnosis::DiagnosisResult& d,
-                                                    calib::effects::EffectId id,
-                                                    const calib::effects::Effects& injected) {
+inline const calib::diagnosis::CandidateResult* expect_finding(
+    const calib::diagnosis::DiagnosisResult& d, calib::effects::EffectId id,
+    const calib::effects::Effects& injected) {
   const calib::effects::EffectInfo& e = calib::effects::effect_info(id);
   std::printf("%s: %s\n", e.name.c_str(), d.summary.c_str());
   EXPECT_TRUE(d.best) << d.summary;

@@ -64,18 +64,21 @@ const sequences::MotionProfile& short_profile() {
 
 calib::effects::RunSource truth_source() {
   return calib::sim::truth_run_source(short_profile(), calib::core::TableGeometry{},
-                                 calib::core::demo_factory_site(), calib::effects::default_unit(), 100.0);
+                                      calib::core::demo_factory_site(),
+                                      calib::effects::default_unit(), 100.0);
 }
 calib::effects::RunSource alt_source() {
   return imucal::tools::imucal::alt_run_source(short_profile(), calib::core::TableGeometry{},
-                                       calib::core::demo_factory_site(), calib::effects::default_unit(), 100.0);
+                                               calib::core::demo_factory_site(),
+                                               calib::effects::default_unit(), 100.0);
 }
 
 /// Largest per-sample difference of the increments of two runs (same length and times).
 struct IncrementDiff {
   double dtheta_rad = 0.0, dv_mps = 0.0;
 };
-IncrementDiff max_diff(const calib::core::CalibrationInput& a, const calib::core::CalibrationInput& b) {
+IncrementDiff max_diff(const calib::core::CalibrationInput& a,
+                       const calib::core::CalibrationInput& b) {
   IncrementDiff d;
   for (size_t k = 0; k < a.imu.size(); ++k) {
     d.dtheta_rad = std::max(d.dtheta_rad, (a.imu[k].dtheta_rad - b.imu[k].dtheta_rad).norm());
@@ -196,8 +199,10 @@ TEST(AltSim, TableTimeOffsetDelaysTheEncoderLogAsInTheTruthSimulator) {
   const calib::effects::RunSource truth = truth_source(), alt = alt_source();
   calib::effects::Effects fx;
   fx.table_time_offset_s = 0.005;
-  const calib::core::CalibrationInput t0 = truth(calib::effects::Effects{}, 1, false), t1 = truth(fx, 1, false);
-  const calib::core::CalibrationInput a0 = alt(calib::effects::Effects{}, 1, false), a1 = alt(fx, 1, false);
+  const calib::core::CalibrationInput t0 = truth(calib::effects::Effects{}, 1, false),
+                                      t1 = truth(fx, 1, false);
+  const calib::core::CalibrationInput a0 = alt(calib::effects::Effects{}, 1, false),
+                                      a1 = alt(fx, 1, false);
   double scale = 0.0, err = 0.0;
   for (size_t k = 0; k < t1.reference.size(); ++k) {
     const double dt_o = t1.reference[k].outer_rad - t0.reference[k].outer_rad;

@@ -157,7 +157,8 @@ TEST(GapBudgetCli, WritesTheModelAsAUnitFileThatReadsBack) {
   ASSERT_EQ(r.code, 0) << r.out;
   const calib::effects::UnitModel u = db::archive::read_unit_file(path);
   EXPECT_NEAR(u.effects.gyro_accel_skew_s, 5.0 * 0.5e-3, 1e-12);  // 5x the typical 0.5 ms
-  const calib::effects::EffectInfo& wobble = calib::effects::effect_info(calib::effects::EffectId::kTableWobble);
+  const calib::effects::EffectInfo& wobble =
+      calib::effects::effect_info(calib::effects::EffectId::kTableWobble);
   EXPECT_NEAR(u.effects.table_wobble_rad(0), 2.0 * wobble.typical[0], 1e-15);
   EXPECT_NEAR(u.effects.table_wobble_rad(1), 2.0 * wobble.typical[1], 1e-15);
   EXPECT_TRUE(u.effects.thermal_accel_mps2.isZero());  // no warm-up in this model

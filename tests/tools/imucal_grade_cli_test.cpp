@@ -84,7 +84,8 @@ TEST(ImucalGradeCli, AMemsUnitOnTheTableIsCalibratedAndJudgedAtItsGrade) {
     const calib::core::ParamVector est = params_of(r.at("params")).to_vector();
     const calib::core::ParamVector sd = params_of(r.at("sigma")).to_vector();
     for (int i = 0; i < calib::core::ParamSet::kSize - 1; ++i)  // ς_z: not observable at this grade
-      EXPECT_LT(std::abs(est(i) - truth(i)), 4.0 * sd(i)) << m << " " << calib::core::param_info(i).name;
+      EXPECT_LT(std::abs(est(i) - truth(i)), 4.0 * sd(i))
+          << m << " " << calib::core::param_info(i).name;
     EXPECT_NE(r.at("unobservable_notes").dump().find("table heading misalignment"),
               std::string::npos)
         << m;

@@ -112,8 +112,8 @@ TEST(ImucalImport, ALoggersCsvWithJitterCalibratesLikeTheSimulatorsOwnArchive) {
   const calib::core::ParamSet truth = calib::core::to_accel_symmetric_frame(a.truth->params).params;
   const calib::core::ParamVector t = truth.to_vector();
   const calib::core::ParamVector va = params_of(pa.at("params")).to_vector(),
-                           vb = params_of(pb.at("params")).to_vector(),
-                           sa = params_of(pa.at("sigma")).to_vector();
+                                 vb = params_of(pb.at("params")).to_vector(),
+                                 sa = params_of(pa.at("sigma")).to_vector();
   for (int i = 0; i < 24; ++i) {
     EXPECT_LT(std::abs(va(i) - vb(i)), 0.3 * sa(i)) << calib::core::param_info(i).name;
     EXPECT_LT(std::abs(vb(i) - t(i)), 4.0 * sa(i)) << calib::core::param_info(i).name;

@@ -183,13 +183,14 @@ TEST(ImucalRealRecording, LegacyCalibratesTheImuTkXsensUnitFromScratch) {
   // tests/data/imu_tk_xsens/reproduce_imu_tk.sh), on the same rests and moves.
   const Matrix3d Ma_inv = (Matrix3d::Identity() + M_a).inverse();
   const Matrix3d Mg_inv = (Matrix3d::Identity() + M_g).inverse();
-  const Compensation ours{
-      [&](const calib::core::ImuIncrement& s) { return Vector3d(Ma_inv * (s.dv_mps / s.dt_s - b_a)); },
-      [&](const calib::core::ImuIncrement& s) {
-        return Vector3d(Mg_inv * (s.dtheta_rad / s.dt_s - b_g));
-      }};
-  const auto rest =
-      calib::core::detect_rest_by_variation(imu, calib::core::variation_rest_options(calib::core::Grade::kMems));
+  const Compensation ours{[&](const calib::core::ImuIncrement& s) {
+                            return Vector3d(Ma_inv * (s.dv_mps / s.dt_s - b_a));
+                          },
+                          [&](const calib::core::ImuIncrement& s) {
+                            return Vector3d(Mg_inv * (s.dtheta_rad / s.dt_s - b_g));
+                          }};
+  const auto rest = calib::core::detect_rest_by_variation(
+      imu, calib::core::variation_rest_options(calib::core::Grade::kMems));
   const Figures mine = residual_figures(imu, rest.at_rest, ours);
   const Figures peer = residual_figures(imu, rest.at_rest, imu_tk_compensation());
   std::printf(

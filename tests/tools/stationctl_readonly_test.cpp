@@ -70,7 +70,8 @@ class StationctlTest : public ::testing::Test {
       repo.finish_run(id, db::test::pass_completion(seed, at + 600000));
       return id;
     };
-    auto ended = [&](const char* sn, db::history::TimestampMs at, db::history::RunState state, const char* reason) {
+    auto ended = [&](const char* sn, db::history::TimestampMs at, db::history::RunState state,
+                     const char* reason) {
       const db::history::RunId id = repo.create_run(db::test::new_run(sn, at));
       db::history::RunCompletion c;
       c.state = state;
@@ -83,9 +84,11 @@ class StationctlTest : public ::testing::Test {
     EXPECT_EQ(pass("SN-A", t + 12 * h, 2), 2);
     const db::history::RunId r3 = repo.create_run(db::test::new_run("SN-A", t + 11 * h));
     repo.finish_run(r3, db::test::review_completion(3, t + 11 * h + 600000));
-    EXPECT_EQ(ended("SN-A", t + 13 * h, db::history::RunState::kAborted, "operator: wrong fixture"), 4);
+    EXPECT_EQ(ended("SN-A", t + 13 * h, db::history::RunState::kAborted, "operator: wrong fixture"),
+              4);
     EXPECT_EQ(pass("SN-B", t + 9 * h, 5), 5);
-    EXPECT_EQ(ended("SN-B", t + 9 * h + h / 2, db::history::RunState::kFailed, "table fault 17"), 6);
+    EXPECT_EQ(ended("SN-B", t + 9 * h + h / 2, db::history::RunState::kFailed, "table fault 17"),
+              6);
   }
 
   /// stationctl with the absent socket and the database, unless `extra` says otherwise.
@@ -408,7 +411,7 @@ class ScriptedHandler : public station::control::ControlHandler {
   json start_run(const station::control::StartRunRequest& r) override {
     if (r.serial == "SIM-BUSY")
       throw station::control::ControlError(station::control::error_code::kBusy,
-                                  "run 40 (SIM-0040) is running; one run at a time");
+                                           "run 40 (SIM-0040) is running; one run at a time");
     return {{"run_id", 41}, {"serial", r.serial}, {"sequence", "short"}, {"steps", 3}};
   }
   json status(std::optional<db::history::RunId> run_id) override {
@@ -423,7 +426,9 @@ class ScriptedHandler : public station::control::ControlHandler {
   json reprocess(const station::control::ReprocessRequest& q) override {
     return {{"run_id", 42}, {"reprocessed_from", q.run_id}};
   }
-  json diagnose(db::history::RunId id) override { return {{"run_id", id}, {"verdict", "consistent"}}; }
+  json diagnose(db::history::RunId id) override {
+    return {{"run_id", id}, {"verdict", "consistent"}};
+  }
   const db::history::Repository& repository() const override { return repo_; }
 
  private:

@@ -48,11 +48,12 @@ struct Extra {
 };
 
 /// Finishes `id` with `c` and adds it to `rows` as the fleet tests count it.
-void finish(db::history::SqliteRepository& repo, db::history::RunId id, const db::history::RunCompletion& c,
-            std::vector<FleetRow>& rows) {
+void finish(db::history::SqliteRepository& repo, db::history::RunId id,
+            const db::history::RunCompletion& c, std::vector<FleetRow>& rows) {
   repo.finish_run(id, c);
   const db::history::RunRecord r = repo.show(id).run;
-  FleetRow row{id, r.station, r.serial, r.started_at_ms, db::history::to_string(*r.verdict), {}, {}, {}};
+  FleetRow row{id, r.station, r.serial, r.started_at_ms, db::history::to_string(*r.verdict),
+               {}, {},        {}};
   row.ains = c.calibrations.at(0).params.to_vector();
   row.ains_sigma = c.calibrations.at(0).sigma.to_vector();
   row.unobservable = c.calibrations.at(0).unobservable;
@@ -60,7 +61,8 @@ void finish(db::history::SqliteRepository& repo, db::history::RunId id, const db
 }
 
 /// `c` with plausible AINS values (tests/db/fleet_history.hpp) for `serial_level`.
-db::history::RunCompletion plausible(db::history::RunCompletion c, int serial_level, std::size_t station) {
+db::history::RunCompletion plausible(db::history::RunCompletion c, int serial_level,
+                                     std::size_t station) {
   static std::mt19937 rng(7);
   const auto unobservable = c.calibrations[0].unobservable;
   c.calibrations[0] = db::test::fleet_ains(rng, serial_level, station);
@@ -152,7 +154,9 @@ class StationwebTest : public ::testing::Test {
     EXPECT_EQ(status, 200) << target << "\n" << body.substr(0, 2000);
     return body;
   }
-  static db::history::SqliteRepository repo() { return db::history::SqliteRepository(db_, {true, false, 5000}); }
+  static db::history::SqliteRepository repo() {
+    return db::history::SqliteRepository(db_, {true, false, 5000});
+  }
 
   static inline std::unique_ptr<db::test::TempDir> dir_;
   static inline std::string db_, start_error_;
@@ -177,7 +181,8 @@ TEST_F(StationwebTest, IndexListsTheNewestRunsOfTheRepository) {
     EXPECT_EQ(rows[i]["data-run-id"], std::to_string(newest[i].run_id));
     EXPECT_EQ(rows[i]["data-serial"], newest[i].serial);
     EXPECT_EQ(rows[i]["data-station"], newest[i].station);
-    EXPECT_EQ(rows[i]["data-verdict"], newest[i].verdict ? db::history::to_string(*newest[i].verdict) : "");
+    EXPECT_EQ(rows[i]["data-verdict"],
+              newest[i].verdict ? db::history::to_string(*newest[i].verdict) : "");
     EXPECT_NE(html.find("href='/run/" + std::to_string(newest[i].run_id) + "'"), std::string::npos);
     EXPECT_NE(html.find("href='/unit/" + newest[i].serial + "'"), std::string::npos);
   }

@@ -71,8 +71,8 @@ struct AltNoise {
   double dtheta_lsb_rad = 0.0, dv_lsb_mps = 0.0;  ///< output resolution, 0 = unquantised
 };
 
-/// The effects catalogue's unmodelled physics (the project's ARCHITECTURE §7), SI, all off by default.
-/// Each field is defined as the catalogue defines it:
+/// The effects catalogue's unmodelled physics (the project's ARCHITECTURE §7), SI, all off by
+/// default. Each field is defined as the catalogue defines it:
 struct AltEffects {
   /// accel_quadratic_k2: δf_i = K2_i f_i², 1/(m/s²).
   Eigen::Vector3d accel_k2_per_mps2 = Eigen::Vector3d::Zero();

@@ -35,7 +35,8 @@ std::uint64_t run_seed(const FleetSpec& spec, std::size_t station, int unit, int
 calib::effects::UnitModel unit_model(const FleetSpec& spec, std::size_t station, int unit) {
   const std::uint64_t seed =
       unit < 0 ? mix(spec.seed ^ 0x601D) : mix(mix(spec.seed) ^ (station * 100003 + 17) ^ unit);
-  calib::effects::UnitModel u = calib::sim::draw_production_unit(calib::core::Grade::kNavigation, seed);
+  calib::effects::UnitModel u =
+      calib::sim::draw_production_unit(calib::core::Grade::kNavigation, seed);
   u.params.table_misalignment_rad = spec.stations[station].levelling_rad;
   return u;
 }
@@ -85,8 +86,9 @@ calib::ains::AinsOptions fleet_ains_options() { return calib::ains::AinsOptions{
 namespace {
 
 /// One run's input on the fleet's sequence, already loaded (once per fleet, not per run).
-calib::core::CalibrationInput input_of(const FleetSpec& spec, const sequences::MotionProfile& profile,
-                                 std::size_t station, int unit, int visit) {
+calib::core::CalibrationInput input_of(const FleetSpec& spec,
+                                       const sequences::MotionProfile& profile, std::size_t station,
+                                       int unit, int visit) {
   const StationSpec& st = spec.stations.at(station);
   calib::effects::Effects fx;
   fx.gravity_error_mps2 = st.gravity_error_mps2;
@@ -104,12 +106,13 @@ calib::core::CalibrationInput input_of(const FleetSpec& spec, const sequences::M
   so.noise = true;
   const calib::core::Site site = calib::core::demo_factory_site();
   return calib::sim::input_from_simulation(calib::sim::simulate(profile, as_built, site, u, so),
-                                      calib::core::TableGeometry{}, site, u.noise);
+                                           calib::core::TableGeometry{}, site, u.noise);
 }
 
 }  // namespace
 
-calib::core::CalibrationInput run_input(const FleetSpec& spec, std::size_t station, int unit, int visit) {
+calib::core::CalibrationInput run_input(const FleetSpec& spec, std::size_t station, int unit,
+                                        int visit) {
   return input_of(spec, sequences::load_profile(spec.sequence), station, unit, visit);
 }
 
@@ -152,11 +155,13 @@ std::vector<FleetRun> simulate_fleet(const FleetSpec& spec,
 }
 
 std::vector<calib::studies::fleet::StationError> fleet_station_errors(const FleetSpec& spec) {
-  std::vector<calib::studies::fleet::StationError> errors = calib::studies::fleet::station_error_catalogue();
+  std::vector<calib::studies::fleet::StationError> errors =
+      calib::studies::fleet::station_error_catalogue();
   calib::studies::fleet::measure_responses(
       errors,
-      calib::sim::truth_run_source(sequences::load_profile(spec.sequence), calib::core::TableGeometry{},
-                              calib::core::demo_factory_site(), calib::effects::default_unit(), 100.0),
+      calib::sim::truth_run_source(sequences::load_profile(spec.sequence),
+                                   calib::core::TableGeometry{}, calib::core::demo_factory_site(),
+                                   calib::effects::default_unit(), 100.0),
       fleet_ains_options());
   return errors;
 }
@@ -178,7 +183,8 @@ std::vector<std::string> true_causes(const StationSpec& st) {
 
 FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& runs,
                           const std::vector<calib::studies::fleet::StationError>& errors,
-                          const calib::studies::fleet::SignatureOptions& options, bool population_only) {
+                          const calib::studies::fleet::SignatureOptions& options,
+                          bool population_only) {
   std::vector<calib::studies::fleet::SignatureRun> input;
   for (const FleetRun& r : runs)
     if (!population_only || r.unit >= 0) input.push_back(r.run);
@@ -222,7 +228,8 @@ std::vector<ReprocessedScale> reprocess_with_gravity(const FleetSpec& spec, std:
       const double surveyed = in.site.gravity_mps2.value_or(
           calib::core::EarthModel::normal_gravity_mps2(in.site.lat_rad, in.site.height_m));
       in.site.gravity_mps2 = surveyed + gravity_correction_mps2;
-      const calib::core::CalibrationResult r = calib::ains::calibrate_ains(in, fleet_ains_options());
+      const calib::core::CalibrationResult r =
+          calib::ains::calibrate_ains(in, fleet_ains_options());
       const calib::core::ParamSet truth = unit_model(spec, station, u).params;
       for (int i = 0; i < 3; ++i)
         out[3 * static_cast<std::size_t>(u) + static_cast<std::size_t>(i)] = {
@@ -236,8 +243,9 @@ std::vector<ReprocessedScale> reprocess_with_gravity(const FleetSpec& spec, std:
   return out;
 }
 
-std::vector<db::history::RunId> write_history(const FleetSpec& spec, db::history::SqliteRepository& repo,
-                                     db::history::TimestampMs t0_ms) {
+std::vector<db::history::RunId> write_history(const FleetSpec& spec,
+                                              db::history::SqliteRepository& repo,
+                                              db::history::TimestampMs t0_ms) {
   const std::vector<Job> jobs = jobs_of(spec);
   const sequences::MotionProfile profile = sequences::load_profile(spec.sequence);
   std::vector<calib::pipeline::PipelineResult> results(jobs.size());

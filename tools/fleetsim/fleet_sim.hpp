@@ -16,8 +16,8 @@
 
 #include "calib/ains/ains.hpp"
 #include "calib/core/calibration_input.hpp"
-#include "calib/studies/fleet/station_signature.hpp"
 #include "calib/sim/truth_sim.hpp"
+#include "calib/studies/fleet/station_signature.hpp"
 #include "db/history/sqlite_repository.hpp"
 
 namespace imucal::tools::fleetsim {
@@ -51,7 +51,8 @@ struct FleetRun {
   std::size_t station = 0;  ///< index into FleetSpec::stations
   int unit = 0;             ///< unit index at the station; -1: the golden unit
   int visit = 0;
-  calib::core::ParamVector truth = calib::core::ParamVector::Zero();  ///< the unit's true parameters + ς
+  calib::core::ParamVector truth =
+      calib::core::ParamVector::Zero();  ///< the unit's true parameters + ς
   bool converged = false;
 };
 
@@ -60,7 +61,8 @@ std::vector<FleetRun> simulate_fleet(const FleetSpec& spec,
                                      const std::function<void(int, int)>& progress = {});
 
 /// The input of one run exactly as simulate_fleet calibrated it (its station's surveyed site).
-calib::core::CalibrationInput run_input(const FleetSpec& spec, std::size_t station, int unit, int visit);
+calib::core::CalibrationInput run_input(const FleetSpec& spec, std::size_t station, int unit,
+                                        int visit);
 
 /// The AINS options the fleet calibrates with.
 calib::ains::AinsOptions fleet_ains_options();
@@ -84,7 +86,8 @@ struct FleetOutcome {
 /// compare with the spec's truth.
 FleetOutcome assess_fleet(const FleetSpec& spec, const std::vector<FleetRun>& runs,
                           const std::vector<calib::studies::fleet::StationError>& errors,
-                          const calib::studies::fleet::SignatureOptions& options, bool population_only);
+                          const calib::studies::fleet::SignatureOptions& options,
+                          bool population_only);
 
 /// One reprocessed accelerometer scale: its error against the truth and the AINS σ of the run.
 struct ReprocessedScale {
@@ -102,7 +105,8 @@ std::vector<ReprocessedScale> reprocess_with_gravity(const FleetSpec& spec, std:
 /// calibrated by the station's pipeline (AINS, NLSQ, cross-check, limits; no gap check), done or
 /// review by its verdict. Returns the run ids in job order (the station's units, then the golden
 /// unit's visits, station by station).
-std::vector<db::history::RunId> write_history(const FleetSpec& spec, db::history::SqliteRepository& repo,
-                                     db::history::TimestampMs t0_ms);
+std::vector<db::history::RunId> write_history(const FleetSpec& spec,
+                                              db::history::SqliteRepository& repo,
+                                              db::history::TimestampMs t0_ms);
 
 }  // namespace imucal::tools::fleetsim

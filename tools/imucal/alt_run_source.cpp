@@ -50,7 +50,8 @@ tools::altsim::AltUnit to_alt_unit(const calib::effects::UnitModel& unit) {
   return u;
 }
 
-tools::altsim::AltTable to_alt_table(const calib::core::TableGeometry& g, const Eigen::Vector3d& sigma) {
+tools::altsim::AltTable to_alt_table(const calib::core::TableGeometry& g,
+                                     const Eigen::Vector3d& sigma) {
   tools::altsim::AltTable t;
   t.outer_axis_t = g.outer_axis_t;
   t.inner_axis_o = g.inner_axis_o;
@@ -60,7 +61,8 @@ tools::altsim::AltTable to_alt_table(const calib::core::TableGeometry& g, const 
   return t;
 }
 
-tools::altsim::AltSite to_alt_site(const calib::core::Site& site, const calib::effects::Effects& fx) {
+tools::altsim::AltSite to_alt_site(const calib::core::Site& site,
+                                   const calib::effects::Effects& fx) {
   tools::altsim::AltSite s;
   s.lat_rad = site.lat_rad;
   s.gravity_mps2 = site.gravity_mps2 ? *site.gravity_mps2
@@ -71,8 +73,9 @@ tools::altsim::AltSite to_alt_site(const calib::core::Site& site, const calib::e
 }
 
 calib::core::CalibrationInput input_from_alt(const std::vector<tools::altsim::AltSample>& run,
-                                       const calib::core::TableGeometry& geometry,
-                                       const calib::core::Site& site, const calib::core::NoiseModel& noise) {
+                                             const calib::core::TableGeometry& geometry,
+                                             const calib::core::Site& site,
+                                             const calib::core::NoiseModel& noise) {
   calib::core::CalibrationInput in;
   in.site = site;
   in.noise = noise;
@@ -96,11 +99,12 @@ calib::core::CalibrationInput input_from_alt(const std::vector<tools::altsim::Al
 }
 
 calib::effects::RunSource alt_run_source(const sequences::MotionProfile& profile,
-                                const calib::core::TableGeometry& geometry, const calib::core::Site& site,
-                                const calib::effects::UnitModel& unit, double rate_hz) {
+                                         const calib::core::TableGeometry& geometry,
+                                         const calib::core::Site& site,
+                                         const calib::effects::UnitModel& unit, double rate_hz) {
   auto world = std::make_shared<const sequences::MotionProfile>(profile);
-  return [world, geometry, site, unit, rate_hz](const calib::effects::Effects& effects, uint64_t seed,
-                                                bool noise) {
+  return [world, geometry, site, unit, rate_hz](const calib::effects::Effects& effects,
+                                                uint64_t seed, bool noise) {
     calib::effects::UnitModel u = unit;
     u.effects = effects;
     tools::altsim::AltOptions o;
@@ -110,7 +114,7 @@ calib::effects::RunSource alt_run_source(const sequences::MotionProfile& profile
     o.rest_guard_s = calib::core::kTableRestGuard_s;
     const std::vector<tools::altsim::AltSample> run =
         tools::altsim::simulate_alt(*world, to_alt_table(geometry, u.params.table_misalignment_rad),
-                             to_alt_site(site, effects), to_alt_unit(u), o);
+                                    to_alt_site(site, effects), to_alt_unit(u), o);
     return input_from_alt(run, geometry, site, unit.noise);
   };
 }

@@ -19,22 +19,26 @@ tools::altsim::AltEffects to_alt_effects(const calib::effects::Effects& fx);
 /// The unit's parameters, declared noise and effects.
 tools::altsim::AltUnit to_alt_unit(const calib::effects::UnitModel& unit);
 /// The table geometry with the station's misalignment ς (the unit's table_misalignment_rad).
-tools::altsim::AltTable to_alt_table(const calib::core::TableGeometry& geometry, const Eigen::Vector3d& sigma);
+tools::altsim::AltTable to_alt_table(const calib::core::TableGeometry& geometry,
+                                     const Eigen::Vector3d& sigma);
 /// The configured site. Without a surveyed gravity the physics has normal gravity at the TRUE
 /// latitude (calib/effects/site_errors.hpp), so that value is passed (altsim adds dg on top).
-tools::altsim::AltSite to_alt_site(const calib::core::Site& site, const calib::effects::Effects& fx);
+tools::altsim::AltSite to_alt_site(const calib::core::Site& site,
+                                   const calib::effects::Effects& fx);
 
 /// What the methods consume from an altsim run: the increments, the table reference
 /// C_bn_ref = TableModel(geometry).C_bn(encoder angles) without ς, the rest flags, the declared
 /// noise model, the configured site.
 calib::core::CalibrationInput input_from_alt(const std::vector<tools::altsim::AltSample>& run,
-                                       const calib::core::TableGeometry& geometry,
-                                       const calib::core::Site& site, const calib::core::NoiseModel& noise);
+                                             const calib::core::TableGeometry& geometry,
+                                             const calib::core::Site& site,
+                                             const calib::core::NoiseModel& noise);
 
 /// altsim as a RunSource (callable from several threads at once: every call simulates into its
 /// own storage; the profile is shared read-only).
 calib::effects::RunSource alt_run_source(const sequences::MotionProfile& profile,
-                                const calib::core::TableGeometry& geometry, const calib::core::Site& site,
-                                const calib::effects::UnitModel& unit, double rate_hz);
+                                         const calib::core::TableGeometry& geometry,
+                                         const calib::core::Site& site,
+                                         const calib::effects::UnitModel& unit, double rate_hz);
 
 }  // namespace imucal::tools::imucal

@@ -8,9 +8,9 @@
 #include <stdexcept>
 
 #include "calib/core/site_presets.hpp"
-#include "calib/studies/design/sequence_design.hpp"
 #include "calib/diagnosis/false_alarm.hpp"
 #include "calib/sim/sim_input.hpp"
+#include "calib/studies/design/sequence_design.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
@@ -96,7 +96,8 @@ void write_limits(std::ostringstream& os, const sequences::DeclaredLimits& l) {
   }
 }
 
-std::string toml_text(const calib::studies::design::SequenceDesign& d, const DesignSequenceArgs& a) {
+std::string toml_text(const calib::studies::design::SequenceDesign& d,
+                      const DesignSequenceArgs& a) {
   const sequences::Sequence& seq = d.sequence;
   std::ostringstream os;
   os << "# Rotation sequence for the two-axis calibration turntable (format: "
@@ -146,11 +147,13 @@ double group_worst(const calib::core::ParamVector& num, const calib::core::Param
                    calib::core::ParamGroup g) {
   double worst = 0.0;
   for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
-    if (calib::core::param_info(i).group == g && den(i) > 0) worst = std::max(worst, num(i) / den(i));
+    if (calib::core::param_info(i).group == g && den(i) > 0)
+      worst = std::max(worst, num(i) / den(i));
   return worst;
 }
 
-void print_groups(const calib::studies::design::SequenceDesign& d, const calib::core::NoiseModel& noise) {
+void print_groups(const calib::studies::design::SequenceDesign& d,
+                  const calib::core::NoiseModel& noise) {
   std::printf(
       "\nper parameter group (CRLB 1-sigma, RMS over the group; ratios: the group's worst "
       "parameter)\n");
@@ -165,12 +168,12 @@ void print_groups(const calib::studies::design::SequenceDesign& d, const calib::
     while (calib::core::param_info(first).group != g) ++first;
     const auto& info = calib::core::param_info(first);
     const double fr = group_worst(d.design.sigma, floor, g);
-    std::printf("  %-16s %-7s %12.4g %12.4g %10.3f %10.3f %10s\n", calib::core::group_name(g).c_str(),
-                info.human_unit.c_str(), group_rms(d.reference.sigma, g) * info.si_to_human,
-                group_rms(d.design.sigma, g) * info.si_to_human,
-                group_worst(d.design.sigma, d.reference.sigma, g),
-                group_worst(d.design.sigma, d.cut.sigma, g),
-                fr > 0 ? fmt("%.3f", fr).c_str() : "-");
+    std::printf(
+        "  %-16s %-7s %12.4g %12.4g %10.3f %10.3f %10s\n", calib::core::group_name(g).c_str(),
+        info.human_unit.c_str(), group_rms(d.reference.sigma, g) * info.si_to_human,
+        group_rms(d.design.sigma, g) * info.si_to_human,
+        group_worst(d.design.sigma, d.reference.sigma, g),
+        group_worst(d.design.sigma, d.cut.sigma, g), fr > 0 ? fmt("%.3f", fr).c_str() : "-");
   }
 }
 
@@ -210,8 +213,9 @@ void print_report(const calib::studies::design::SequenceDesign& d, const DesignS
   for (const auto& line : d.log) std::printf("  %s\n", line.c_str());
   print_groups(d, noise);
   print_effects(d);
-  const auto lost = calib::studies::design::effects_lost(d.reference.effects, d.design.effects,
-                                        calib::studies::design::DesignSetting{}.threshold_factor);
+  const auto lost = calib::studies::design::effects_lost(
+      d.reference.effects, d.design.effects,
+      calib::studies::design::DesignSetting{}.threshold_factor);
   std::printf("\nmax sigma/target %.4f (targets: %s); %s\n", d.objective,
               a.target_from.empty() ? "the obvious cut, the biases also <= 1.05 x N/sqrt(T)"
                                     : "factor x the target sequence's sigma",
@@ -282,12 +286,13 @@ int cmd_design_sequence(const DesignSequenceArgs& a) {
   s.limits = sequences::effective_limits(sequences::TableLimits{}, like.limits);
   s.rate_hz = a.rate_hz;
   s.search_rate_hz = a.search_rate_hz;
-  s.diagnosis = calib::diagnosis::diagnosis_options_for_false_alarm(calib::diagnosis::kDefaultGapFalseAlarm);
+  s.diagnosis =
+      calib::diagnosis::diagnosis_options_for_false_alarm(calib::diagnosis::kDefaultGapFalseAlarm);
   if (!a.no_effects)
     s.exact_run = [geometry = s.geometry, site = s.site, unit](
                       const sequences::MotionProfile& profile, double rate_hz) {
-      return calib::sim::truth_run_source(profile, geometry, site, unit, rate_hz)(calib::effects::Effects{}, 1,
-                                                                             false);
+      return calib::sim::truth_run_source(profile, geometry, site, unit, rate_hz)(
+          calib::effects::Effects{}, 1, false);
     };
   s.progress = [t0](const std::string& line) {
     std::fprintf(stderr, "design-sequence [%5.0f s] %s\n",

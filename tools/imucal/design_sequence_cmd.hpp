@@ -1,10 +1,10 @@
 #pragma once
 // `imucal design-sequence --like SEQ --time-s T [--out F]` and
 // `imucal design-sequence [--like SEQ] --target-from SEQ --factor K [--out F]` (issue #23 item 2):
-// the sequence designer (calib/studies/design/sequence_design.hpp) on the station's limits tightened by the
-// reference's [limits], the default unit (or --unit's) and the demo factory site; prints what the
-// design traded against the reference (per parameter group and per catalogue effect) and writes
-// the sequence file atomically, its header naming the command that made it.
+// the sequence designer (calib/studies/design/sequence_design.hpp) on the station's limits
+// tightened by the reference's [limits], the default unit (or --unit's) and the demo factory site;
+// prints what the design traded against the reference (per parameter group and per catalogue
+// effect) and writes the sequence file atomically, its header naming the command that made it.
 #include <CLI/CLI.hpp>
 #include <string>
 

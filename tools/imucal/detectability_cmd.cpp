@@ -71,8 +71,9 @@ std::string joined(const std::vector<std::string>& names) {
 /// limit from the limit, short enough to read in a table.
 std::string correlation(double rho) { return fmt("%.3f", rho); }
 
-/// Why an effect is not separable: the analysis' reason (calib::diagnosis::EffectDetectability::reason) with
-/// its correlations to three digits; the analysis writes them at full precision ("0.994933").
+/// Why an effect is not separable: the analysis' reason
+/// (calib::diagnosis::EffectDetectability::reason) with its correlations to three digits; the
+/// analysis writes them at full precision ("0.994933").
 std::string reason_text(const calib::diagnosis::EffectDetectability& e) {
   // The limit effect_detectability applied: cmd_crlb_effects passes the default options.
   const double limit = calib::diagnosis::DiagnosisOptions{}.separability_limit;
@@ -131,15 +132,16 @@ void print_too_small(const std::vector<calib::diagnosis::EffectDetectability>& d
   }
 }
 
-void print_table(const std::vector<calib::diagnosis::EffectDetectability>& d, const std::string& seq,
-                 double false_alarm) {
+void print_table(const std::vector<calib::diagnosis::EffectDetectability>& d,
+                 const std::string& seq, double false_alarm) {
   std::printf(
       "effects on sequence %s: detection threshold (the diagnosis names an effect of this size "
       "about half the time; 3x it essentially always) and separability, at a false-alarm rate of "
       "%.3g per run%s\n",
       seq.c_str(), false_alarm,
-      false_alarm == calib::diagnosis::kDefaultGapFalseAlarm ? " (the station's default gap_false_alarm)"
-                                                  : "");
+      false_alarm == calib::diagnosis::kDefaultGapFalseAlarm
+          ? " (the station's default gap_false_alarm)"
+          : "");
   std::printf(
       "ratio = threshold / typical: how many times its catalogue typical size an effect must be "
       "to be detected (above 1: not detectable at its typical size on this sequence)\n");
@@ -155,7 +157,8 @@ void print_table(const std::vector<calib::diagnosis::EffectDetectability>& d, co
     }
 }
 
-nlohmann::json to_json(const std::vector<calib::diagnosis::EffectDetectability>& d, const std::string& seq) {
+nlohmann::json to_json(const std::vector<calib::diagnosis::EffectDetectability>& d,
+                       const std::string& seq) {
   nlohmann::json a = nlohmann::json::array();
   for (const auto& e : d) {
     const double ratio = ratio_to_typical(e);
@@ -190,11 +193,11 @@ int cmd_crlb_effects(const std::string& seq, const std::string& unit_path, doubl
   const sequences::MotionProfile profile = sequences::load_profile(seq_path);
   const calib::effects::UnitModel unit =
       unit_path.empty() ? calib::effects::default_unit() : db::archive::read_unit_file(unit_path);
-  const calib::effects::RunSource world = calib::sim::truth_run_source(profile, calib::core::TableGeometry{},
-                                                         calib::core::demo_factory_site(), unit, rate_hz);
-  const auto d = calib::diagnosis::effect_detectability(world(calib::effects::Effects{}, 1, /*noise=*/false),
-                                             calib::core::TableGeometry{}, unit.params,
-                                             calib::diagnosis::diagnosis_options_for_false_alarm(false_alarm));
+  const calib::effects::RunSource world = calib::sim::truth_run_source(
+      profile, calib::core::TableGeometry{}, calib::core::demo_factory_site(), unit, rate_hz);
+  const auto d = calib::diagnosis::effect_detectability(
+      world(calib::effects::Effects{}, 1, /*noise=*/false), calib::core::TableGeometry{},
+      unit.params, calib::diagnosis::diagnosis_options_for_false_alarm(false_alarm));
   if (json) {
     nlohmann::json j = to_json(d, profile.name);
     j["false_alarm_per_run"] = false_alarm;

@@ -120,7 +120,8 @@ void print_segments(const calib::diagnosis::DiagnosisResult& d) {
   }
 }
 
-void print_human(const calib::diagnosis::DiagnosisResult& d, const db::archive::RunArchive& ar, size_t samples) {
+void print_human(const calib::diagnosis::DiagnosisResult& d, const db::archive::RunArchive& ar,
+                 size_t samples) {
   std::printf("run %s (serial %s, sequence %s, %zu samples, %zu segments)\n", ar.origin.c_str(),
               ar.info.serial.c_str(), ar.info.sequence_name.c_str(), samples, d.segments.size());
   std::printf("verdict: %s -- %s\n", d.verdict.c_str(), d.summary.c_str());
@@ -224,7 +225,8 @@ void write_report(const std::string& dir, const nlohmann::json& j) {
 }  // namespace
 
 int cmd_diagnose(const DiagnoseArgs& a) {
-  const std::vector<calib::effects::EffectId> ids = parse_candidates(a.candidates);  // before any work
+  const std::vector<calib::effects::EffectId> ids =
+      parse_candidates(a.candidates);  // before any work
   check_report_dir(a.report_dir);
   db::archive::RunArchive ar = db::archive::read_archive(a.dir);
   if (!a.grade.empty()) ar.info.grade = *calib::core::parse_grade(a.grade);
@@ -236,7 +238,8 @@ int cmd_diagnose(const DiagnoseArgs& a) {
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(a.dir + ": " + e.what());
   }
-  if (ar.info.reference == db::archive::ReferenceKind::kTable) in.geometry = ar.info.table.geometry();
+  if (ar.info.reference == db::archive::ReferenceKind::kTable)
+    in.geometry = ar.info.table.geometry();
   // The model under test: a table run's NLSQ calibration; a land run's multi-position one, which
   // needs no prior beyond the grade's; a sea run's AINS (a rocking deck has no still rest for the
   // multi-position method). The diagnosis refits the base either way.
@@ -244,8 +247,8 @@ int cmd_diagnose(const DiagnoseArgs& a) {
   const bool sea = in.cal.setting == calib::core::Setting::kSea;
   const char* method = sea ? "ains" : table_free ? "legacy" : "nlsq";
   const calib::core::CalibrationResult cal = sea          ? calib::ains::calibrate_ains(in.cal)
-                                       : table_free ? calib::legacy::calibrate_legacy(in.cal)
-                                                    : calib::nlsq::calibrate_nlsq(in.cal);
+                                             : table_free ? calib::legacy::calibrate_legacy(in.cal)
+                                                          : calib::nlsq::calibrate_nlsq(in.cal);
   calib::diagnosis::DiagnosisOptions opt;
   opt.candidates = ids;
   const calib::diagnosis::DiagnosisResult d = calib::diagnosis::diagnose(in, cal.params, opt);

@@ -29,14 +29,16 @@ using calib::studies::paper::PaperColumn;
 
 /// The candidates named on the command line, in the given order; every default one when empty.
 std::vector<calib::studies::paper::BudgetCandidate> chosen_candidates(const std::string& names) {
-  std::vector<calib::studies::paper::BudgetCandidate> all = calib::studies::paper::default_budget_candidates();
+  std::vector<calib::studies::paper::BudgetCandidate> all =
+      calib::studies::paper::default_budget_candidates();
   if (names.empty()) return all;
   std::vector<calib::studies::paper::BudgetCandidate> out;
   std::stringstream ss(names);
   std::string name;
   while (std::getline(ss, name, ',')) {
-    const auto it = std::find_if(all.begin(), all.end(),
-                                 [&](const calib::studies::paper::BudgetCandidate& c) { return c.name == name; });
+    const auto it = std::find_if(
+        all.begin(), all.end(),
+        [&](const calib::studies::paper::BudgetCandidate& c) { return c.name == name; });
     if (it == all.end()) {
       std::string known;
       for (const auto& c : all) known += (known.empty() ? "" : ", ") + c.name;
@@ -99,7 +101,8 @@ ColumnMetric standard_errors(const calib::studies::paper::PaperTables& t) {
   const std::vector<calib::studies::paper::PaperRow> rows = calib::studies::paper::paper_rows(t);
   for (size_t c = 0; c < se.size(); ++c)
     for (size_t m = 0; m < 2; ++m)
-      se[c][m] = calib::studies::paper::mean_standard_error(calib::studies::paper::paper_column_values(rows, c, m));
+      se[c][m] = calib::studies::paper::mean_standard_error(
+          calib::studies::paper::paper_column_values(rows, c, m));
   return se;
 }
 
@@ -107,14 +110,14 @@ ColumnMetric standard_errors(const calib::studies::paper::PaperTables& t) {
 constexpr double kMeanBar = 0.25;
 
 const calib::studies::paper::PaperPrecision& paper_precision() {
-  static const calib::studies::paper::PaperPrecision p =
-      calib::studies::paper::paper_precision(calib::studies::paper::paper_published_rows(), kMeanBar);
+  static const calib::studies::paper::PaperPrecision p = calib::studies::paper::paper_precision(
+      calib::studies::paper::paper_published_rows(), kMeanBar);
   return p;
 }
 
 /// How well the paper's own IMUs fix one of its means, and how far a model's mean lies from it.
-void add_precision_json(nlohmann::json& j, const calib::studies::paper::MeanPrecision& p, double model_mean,
-                        double model_se) {
+void add_precision_json(nlohmann::json& j, const calib::studies::paper::MeanPrecision& p,
+                        double model_mean, double model_se) {
   j["paper_mean_standard_error"] = p.standard_error;
   j["paper_most_influential_imu"] = p.most_influential + 1;
   j["paper_mean_without_it"] = p.mean_without_it;
@@ -127,8 +130,9 @@ void add_precision_json(nlohmann::json& j, const calib::studies::paper::MeanPrec
 }
 
 /// Each simulated mean against the paper's: off by how much against the bar, and how well the
-/// paper's six IMUs fix that mean themselves (calib/studies/paper/paper_precision.hpp). A mean outside
-/// the bar is said to be one of two things: a miss, or a bar the paper's own IMUs do not hold.
+/// paper's six IMUs fix that mean themselves (calib/studies/paper/paper_precision.hpp). A mean
+/// outside the bar is said to be one of two things: a miss, or a bar the paper's own IMUs do not
+/// hold.
 void print_against_paper(const ColumnMetric& model, const ColumnMetric& model_se) {
   const calib::studies::paper::PaperPrecision& paper = paper_precision();
   std::printf(
@@ -142,12 +146,12 @@ void print_against_paper(const ColumnMetric& model, const ColumnMetric& model_se
       char without[40];
       std::snprintf(without, sizeof without, "%.2f (IMU %zu)", p.mean_without_it,
                     p.most_influential + 1);
-      std::printf("%-15s %-12s %8.2f %5.0f%% %+8.0f%% %18s %9.0f%% %+6.1f se\n",
-                  calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c)),
-                  m == 0 ? "orientation" : "acceleration", p.mean,
-                  100.0 * p.standard_error / p.mean, 100.0 * (model[c][m] / p.mean - 1.0), without,
-                  100.0 * p.resamples_within_bar,
-                  calib::studies::paper::mean_distance_in_standard_errors(model[c][m], model_se[c][m], p));
+      std::printf(
+          "%-15s %-12s %8.2f %5.0f%% %+8.0f%% %18s %9.0f%% %+6.1f se\n",
+          calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c)),
+          m == 0 ? "orientation" : "acceleration", p.mean, 100.0 * p.standard_error / p.mean,
+          100.0 * (model[c][m] / p.mean - 1.0), without, 100.0 * p.resamples_within_bar,
+          calib::studies::paper::mean_distance_in_standard_errors(model[c][m], model_se[c][m], p));
     }
   std::printf(
       "(s.e.: the paper's mean's standard error; without one IMU: its mean without the IMU that "
@@ -159,7 +163,8 @@ void print_against_paper(const ColumnMetric& model, const ColumnMetric& model_se
       const calib::studies::paper::MeanPrecision& p = paper[c][m];
       const double off = model[c][m] / p.mean - 1.0;
       if (std::abs(off) <= kMeanBar) continue;
-      const double d = calib::studies::paper::mean_distance_in_standard_errors(model[c][m], model_se[c][m], p);
+      const double d =
+          calib::studies::paper::mean_distance_in_standard_errors(model[c][m], model_se[c][m], p);
       const char* name = calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c));
       const char* metric = m == 0 ? "orientation" : "acceleration";
       if (p.bar_held_by_own_units)
@@ -217,7 +222,8 @@ nlohmann::json to_json(const calib::studies::paper::GapBudget& b, const Verifica
       const char* metric = m == 0 ? "orientation_rmse_mdeg" : "accel_rmse_ug";
       const auto cs = static_cast<size_t>(c);
       const auto ms = static_cast<size_t>(m);
-      auto& col = j["columns"][calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c))][metric];
+      auto& col = j["columns"]
+                   [calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c))][metric];
       col = {{"baseline_rms", std::sqrt(b.baseline[cs][ms])},
              {"paper_rms", std::sqrt(b.target[cs][ms])},
              {"fitted_rms_search_units", std::sqrt(b.predicted[cs][ms])},
@@ -286,9 +292,9 @@ void print_budget(const calib::studies::paper::GapBudget& b, const Verification&
   for (int c = 0; c < kNumPaperColumns; ++c) {
     const auto cs = static_cast<size_t>(c);
     std::printf("%-16s %8.2f %8.2f %8.2f %8.2f %8.2f %8.2f\n",
-                calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c)), std::sqrt(b.baseline[cs][0]),
-                v.fitted[cs][0], paper_mean(c, 0), std::sqrt(b.baseline[cs][1]), v.fitted[cs][1],
-                paper_mean(c, 1));
+                calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c)),
+                std::sqrt(b.baseline[cs][0]), v.fitted[cs][0], paper_mean(c, 0),
+                std::sqrt(b.baseline[cs][1]), v.fitted[cs][1], paper_mean(c, 1));
   }
   std::printf(
       "(none: RMS over the units without any source; fitted: the fitted model's means over %d "
@@ -319,9 +325,11 @@ nlohmann::json spread_json(const calib::studies::paper::PaperSpread& s) {
   return j;
 }
 
-/// The per-IMU spread in kind, the model's beside the paper's (calib/studies/paper/paper_spread.hpp).
+/// The per-IMU spread in kind, the model's beside the paper's
+/// (calib/studies/paper/paper_spread.hpp).
 void print_spread(const calib::studies::paper::PaperSpread& model) {
-  const calib::studies::paper::PaperSpread paper = calib::studies::paper::paper_spread(calib::studies::paper::paper_published_rows());
+  const calib::studies::paper::PaperSpread paper =
+      calib::studies::paper::paper_spread(calib::studies::paper::paper_published_rows());
   std::printf("\nspread over the IMUs, model (paper)\n%-28s", "");
   for (int c = 0; c < kNumPaperColumns; ++c)
     std::printf(" %15s", calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c)));
@@ -340,12 +348,15 @@ void print_spread(const calib::studies::paper::PaperSpread& model) {
       model.orientation_with_acceleration, paper.orientation_with_acceleration);
 }
 
-/// --write-unit: the model as one unit file (calib::studies::paper::paper_typical_unit), with a header naming
-/// the model and what of it a unit file cannot hold (the set-up's and the evaluation's sources).
-void write_model_unit(const std::string& path, const calib::studies::paper::PaperTablesOptions& tables,
+/// --write-unit: the model as one unit file (calib::studies::paper::paper_typical_unit), with a
+/// header naming the model and what of it a unit file cannot hold (the set-up's and the
+/// evaluation's sources).
+void write_model_unit(const std::string& path,
+                      const calib::studies::paper::PaperTablesOptions& tables,
                       const std::vector<calib::studies::paper::BudgetCandidate>& candidates,
                       const std::vector<double>& sizes) {
-  const calib::studies::paper::PaperTablesOptions o = calib::studies::paper::budget_model(tables, candidates, sizes);
+  const calib::studies::paper::PaperTablesOptions o =
+      calib::studies::paper::budget_model(tables, candidates, sizes);
   std::string model, outside;
   for (size_t k = 0; k < candidates.size(); ++k) {
     if (!(sizes[k] > 0.0)) continue;
@@ -353,7 +364,8 @@ void write_model_unit(const std::string& path, const calib::studies::paper::Pape
     std::snprintf(item, sizeof item, "%s=%.4g", candidates[k].name.c_str(), sizes[k]);
     model += (model.empty() ? "" : ",") + std::string(item);
     // A source that moves nothing in the typical unit is the set-up's or the evaluation's.
-    calib::studies::paper::PaperTablesOptions alone = calib::studies::paper::budget_model(tables, {candidates[k]}, {sizes[k]});
+    calib::studies::paper::PaperTablesOptions alone =
+        calib::studies::paper::budget_model(tables, {candidates[k]}, {sizes[k]});
     if (alone.catalogue.empty() && !alone.effects.thermal && !alone.effects.instability &&
         !alone.effects.k2)
       outside += "#   " + std::string(item) + " " + candidates[k].unit + "\n";
@@ -361,7 +373,8 @@ void write_model_unit(const std::string& path, const calib::studies::paper::Pape
   std::string text =
       "# A paper-like unit (issue #26): the gap budget's model of the paper's IMUs and table as\n"
       "# one unit, every effect's amplitudes at the size of a 1 sigma draw with the catalogue's\n"
-      "# signs (calib::studies::paper::paper_typical_unit). The table's effects (wobble, non-orthogonality, time\n"
+      "# signs (calib::studies::paper::paper_typical_unit). The table's effects (wobble, "
+      "non-orthogonality, time\n"
       "# offset) and the site's (latitude, gravity) are in [effects] too: stationsim takes them\n"
       "# from the unit.\n"
       "# Written by: imucal gap-budget --model " +
@@ -380,10 +393,12 @@ int simulate_model(const GapBudgetArgs& a, const sequences::MotionProfile& profi
                    const calib::studies::paper::PaperTablesOptions& tables) {
   const auto [chosen, sizes] = parse_model(a.model);
   if (!a.write_unit.empty()) write_model_unit(a.write_unit, tables, chosen, sizes);
-  calib::studies::paper::PaperTablesOptions o = calib::studies::paper::budget_model(tables, chosen, sizes);
+  calib::studies::paper::PaperTablesOptions o =
+      calib::studies::paper::budget_model(tables, chosen, sizes);
   const ProgressLine progress("gap-budget", "units");
   o.on_progress = [&](int done, int total) { progress(done, total); };
-  const calib::studies::paper::PaperTables t = calib::studies::paper::run_paper_tables(profile, calib::core::demo_factory_site(), o);
+  const calib::studies::paper::PaperTables t =
+      calib::studies::paper::run_paper_tables(profile, calib::core::demo_factory_site(), o);
   if (!a.plot.empty())
     db::archive::write_file_atomic(
         a.plot, paper_units_svg(calib::studies::paper::paper_rows(t),
@@ -403,7 +418,8 @@ int simulate_model(const GapBudgetArgs& a, const sequences::MotionProfile& profi
     const ColumnMetric model = means(t), model_se = standard_errors(t);
     for (int c = 0; c < kNumPaperColumns; ++c) {
       const auto cs = static_cast<size_t>(c);
-      nlohmann::json& col = j["means"][calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c))];
+      nlohmann::json& col =
+          j["means"][calib::studies::paper::paper_column_name(static_cast<PaperColumn>(c))];
       col = {{"orientation_rmse_mdeg", t.mean_orientation_mdeg[cs]},
              {"accel_rmse_ug", t.mean_accel_ug[cs]},
              {"paper_orientation_rmse_mdeg", paper_mean(c, 0)},
@@ -413,8 +429,10 @@ int simulate_model(const GapBudgetArgs& a, const sequences::MotionProfile& profi
                            paper_precision()[cs][m], model[cs][m], model_se[cs][m]);
     }
     if (t.units.size() >= 2) {
-      j["spread"] = spread_json(calib::studies::paper::paper_spread(calib::studies::paper::paper_rows(t)));
-      j["paper_spread"] = spread_json(calib::studies::paper::paper_spread(calib::studies::paper::paper_published_rows()));
+      j["spread"] =
+          spread_json(calib::studies::paper::paper_spread(calib::studies::paper::paper_rows(t)));
+      j["paper_spread"] = spread_json(
+          calib::studies::paper::paper_spread(calib::studies::paper::paper_published_rows()));
     }
     std::cout << j.dump(2) << '\n';
     return 0;
@@ -442,7 +460,8 @@ int simulate_model(const GapBudgetArgs& a, const sequences::MotionProfile& profi
     std::printf(" %10.2f %10.2f", paper_mean(c, 0), paper_mean(c, 1));
   std::printf("\n");
   print_against_paper(means(t), standard_errors(t));
-  if (t.units.size() >= 2) print_spread(calib::studies::paper::paper_spread(calib::studies::paper::paper_rows(t)));
+  if (t.units.size() >= 2)
+    print_spread(calib::studies::paper::paper_spread(calib::studies::paper::paper_rows(t)));
   return 0;
 }
 
@@ -513,13 +532,14 @@ int cmd_gap_budget(const GapBudgetArgs& a) {
   opt.probe_units = a.probe_units;
   opt.search_units = a.search_units;
   if (!a.model.empty()) return simulate_model(a, profile, opt.tables);
-  const std::vector<calib::studies::paper::BudgetCandidate> candidates = chosen_candidates(a.candidates);
+  const std::vector<calib::studies::paper::BudgetCandidate> candidates =
+      chosen_candidates(a.candidates);
   const ProgressLine progress("gap-budget", "simulations");
   // The budget's own simulations, then two more here (the fitted model, and without its top).
   opt.on_progress = [&](int done, int total, const std::string&) { progress(done, total + 2); };
   const calib::core::Site site = calib::core::demo_factory_site();
-  const calib::studies::paper::GapBudget b =
-      calib::studies::paper::fit_gap_budget(profile, site, candidates, calib::studies::paper::paper_published(), opt);
+  const calib::studies::paper::GapBudget b = calib::studies::paper::fit_gap_budget(
+      profile, site, candidates, calib::studies::paper::paper_published(), opt);
 
   // The fitted model simulated on new seeds and more units (its expected means, the budget's
   // check), and without its top source.
@@ -533,8 +553,8 @@ int cmd_gap_budget(const GapBudgetArgs& a) {
   check.units = a.check_units;
   Verification v;
   v.units = check.units;
-  const calib::studies::paper::PaperTables fitted =
-      calib::studies::paper::run_paper_tables(profile, site, calib::studies::paper::budget_model(check, candidates, sizes));
+  const calib::studies::paper::PaperTables fitted = calib::studies::paper::run_paper_tables(
+      profile, site, calib::studies::paper::budget_model(check, candidates, sizes));
   v.fitted = means(fitted);
   v.fitted_se = standard_errors(fitted);
   if (!a.plot.empty())
@@ -547,14 +567,15 @@ int cmd_gap_budget(const GapBudgetArgs& a) {
   std::vector<double> without = sizes;
   for (size_t k = 0; k < candidates.size(); ++k)
     if (candidates[k].name == b.entries.front().candidate.name) without[k] = 0.0;
-  const calib::studies::paper::PaperTables without_top =
-      calib::studies::paper::run_paper_tables(profile, site, calib::studies::paper::budget_model(check, candidates, without));
+  const calib::studies::paper::PaperTables without_top = calib::studies::paper::run_paper_tables(
+      profile, site, calib::studies::paper::budget_model(check, candidates, without));
   v.without_top = means(without_top);
   progress(b.simulations + 2, b.simulations + 2);
   calib::studies::paper::BudgetTarget target;
   target.mean_square = b.target;
   target.mean = b.target_mean;
-  v.top_removal_share = calib::studies::paper::budget_share(v.fitted, v.without_top, b.baseline_mean, target);
+  v.top_removal_share =
+      calib::studies::paper::budget_share(v.fitted, v.without_top, b.baseline_mean, target);
   for (int c = 0; c < kNumPaperColumns; ++c)
     for (int m = 0; m < 2; ++m)
       v.worst_ratio_error = std::max(

@@ -58,7 +58,7 @@ void merge_config(ImportArgs& a) {
   text << f.rdbuf();
   const toml::table t = db::archive::parse_toml_text(text.str(), a.config);
   const db::archive::TomlSection root(t, a.config, "",
-                                  {"input", "gyro", "accel", "run", "station", "noise"});
+                                      {"input", "gyro", "accel", "run", "station", "noise"});
   if (const auto in = root.section("input", {"columns", "time_unit", "quantity"})) {
     take(a.columns, in->string("columns"));
     take(a.time_unit, in->string("time_unit"));
@@ -213,10 +213,11 @@ int cmd_import(const ImportArgs& args) {
   if (pair && (a.gyro_file.empty() || a.accel_file.empty()))
     throw std::invalid_argument("one file per sensor needs both --gyro and --accel");
   db::archive::check_archive_target(a.out_dir, a.overwrite,
-                                "remove it, or give --overwrite to replace it");
+                                    "remove it, or give --overwrite to replace it");
   const db::archive::RawImportOptions o = raw_options(a);
-  db::archive::RawRecording rec = pair ? db::archive::read_raw_recording_pair(a.gyro_file, a.accel_file, o)
-                                   : db::archive::read_raw_recording(a.file, o);
+  db::archive::RawRecording rec =
+      pair ? db::archive::read_raw_recording_pair(a.gyro_file, a.accel_file, o)
+           : db::archive::read_raw_recording(a.file, o);
   db::archive::RunArchive ar;
   ar.info = run_info(a, rec.rate_hz);
   ar.imu = rec.imu;

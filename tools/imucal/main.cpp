@@ -112,7 +112,8 @@ calib::effects::UnitModel load_unit(const std::string& path) {
 
 /// Reject a sequence that leaves a parameter unobservable, naming the parameters.
 void require_full_rank(const calib::checks::CrlbResult& crlb, const std::string& seq_path,
-                       const calib::ains::AinsOptions& opt = {}, bool heading_by_gyrocompass = true) {
+                       const calib::ains::AinsOptions& opt = {},
+                       bool heading_by_gyrocompass = true) {
   auto unobs = calib::checks::unobservable_parameters(crlb, opt);
   // Below navigation grade no sequence observes the fixture's heading misalignment ς_z: only
   // gyrocompassing does, and the gyros cannot resolve the Earth rate. The calibration says so.
@@ -142,9 +143,11 @@ struct SimulateArgs {
 constexpr const char* kHandSequence = "hand";
 
 /// The archive's metadata common to every setting.
-db::archive::RunArchive simulated_archive(const SimulateArgs& a, const calib::effects::UnitModel& unit,
-                                      const sequences::MotionProfile& profile,
-                                      const std::string& seq_path, const calib::core::Site& site) {
+db::archive::RunArchive simulated_archive(const SimulateArgs& a,
+                                          const calib::effects::UnitModel& unit,
+                                          const sequences::MotionProfile& profile,
+                                          const std::string& seq_path,
+                                          const calib::core::Site& site) {
   db::archive::RunArchive ar;
   ar.info.serial = "SIM-" + std::to_string(a.seed);
   ar.info.station_name = "imucal-sim";
@@ -162,9 +165,10 @@ db::archive::RunArchive simulated_archive(const SimulateArgs& a, const calib::ef
 
 /// Land or sea: hand-placed rotations through the sequence's rest positions, no table log, at sea
 /// a drifting, rocking deck and GNSS fixes (calib/sim/field_sim.hpp). No surveyed gravity.
-db::archive::RunArchive simulate_field_archive(const SimulateArgs& a, const calib::effects::UnitModel& unit,
-                                           const sequences::MotionProfile& profile,
-                                           const std::string& seq_path) {
+db::archive::RunArchive simulate_field_archive(const SimulateArgs& a,
+                                               const calib::effects::UnitModel& unit,
+                                               const sequences::MotionProfile& profile,
+                                               const std::string& seq_path) {
   calib::core::Site site = default_site();
   site.gravity_mps2.reset();
   calib::sim::FieldSimOptions fo;
@@ -188,13 +192,15 @@ db::archive::RunArchive simulate_field_archive(const SimulateArgs& a, const cali
 int cmd_simulate(const SimulateArgs& a) {
   // Refused before any simulation work.
   db::archive::check_archive_target(a.out_dir, a.overwrite,
-                                "remove it, or give --overwrite to replace it");
-  const calib::core::Grade grade = *calib::core::parse_grade(a.grade.empty() ? "navigation" : a.grade);
+                                    "remove it, or give --overwrite to replace it");
+  const calib::core::Grade grade =
+      *calib::core::parse_grade(a.grade.empty() ? "navigation" : a.grade);
   if (a.seq == kHandSequence && a.setting == "factory")
     throw std::invalid_argument(
         "--sequence hand is a hand-placed run: give --setting land or sea (a table runs a "
         "sequence file)");
-  calib::effects::UnitModel unit = a.unit.empty() ? calib::sim::draw_unit(grade, a.seed) : load_unit(a.unit);
+  calib::effects::UnitModel unit =
+      a.unit.empty() ? calib::sim::draw_unit(grade, a.seed) : load_unit(a.unit);
   if (!a.grade.empty()) unit.grade = grade;  // the command line over the unit file
   // Catalogue effects on top of the unit (checked before any work: nothing is written on error).
   for (const std::string& spec : a.effect_specs) {
@@ -221,8 +227,9 @@ int cmd_simulate(const SimulateArgs& a) {
     calib::ains::AinsOptions prior;
     if (unit.grade != calib::core::Grade::kNavigation)
       prior.prior_sigma = calib::ains::prior_sigma_for_grade(unit.grade);
-    require_full_rank(calib::checks::compute_crlb(profile, geometry, site, unit.noise, a.rate_hz, prior),
-                      seq_path, prior, unit.grade == calib::core::Grade::kNavigation);
+    require_full_rank(
+        calib::checks::compute_crlb(profile, geometry, site, unit.noise, a.rate_hz, prior),
+        seq_path, prior, unit.grade == calib::core::Grade::kNavigation);
     progress("simulating " + std::to_string(static_cast<int>(profile.duration_s())) + " s at " +
              std::to_string(static_cast<int>(a.rate_hz)) + " Hz");
     calib::sim::SimOptions opt;
@@ -296,7 +303,8 @@ calib::pipeline::MethodSelection parse_method(const std::string& m) {
 /// land" withholds its reference attitude (rest flags come from the IMU data, as in the field); a
 /// table run "as sea" needs GNSS fixes, which a table run does not have. The samples move into the
 /// input (no copy of the series next to it); `ar` keeps its info and truth.
-calib::core::CalibrationInput calibration_input(db::archive::RunArchive& ar, const std::string& setting) {
+calib::core::CalibrationInput calibration_input(db::archive::RunArchive& ar,
+                                                const std::string& setting) {
   const calib::core::Setting recorded = ar.info.setting;
   if (!setting.empty()) ar.info.setting = *calib::core::parse_setting(setting);
   calib::core::CalibrationInput in = db::archive::to_calibration_input(std::move(ar));
@@ -322,8 +330,9 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
   const calib::pipeline::PipelineResult r = calib::pipeline::run_calibration(in, opt);
   if (!plot_path.empty()) {
     std::ofstream f(plot_path);
-    f << tools::imucal::calibration_svg(r, ar.truth ? &ar.truth->params : nullptr, k_sigma,
-                                "run " + ar.info.serial + " (" + ar.info.sequence_name + ")");
+    f << tools::imucal::calibration_svg(
+        r, ar.truth ? &ar.truth->params : nullptr, k_sigma,
+        "run " + ar.info.serial + " (" + ar.info.sequence_name + ")");
     if (!f) throw std::runtime_error(plot_path + ": cannot write the picture");
   }
   // An archive whose capture did not complete (an aborted or interrupted run) holds a prefix of
@@ -339,8 +348,8 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
     std::cout << j.dump(2) << '\n';
   } else {
     std::cout << "run " << dir << " (serial " << ar.info.serial << ", sequence "
-              << ar.info.sequence_name << ", setting " << calib::core::setting_name(in.setting) << ", "
-              << in.imu.size() << " samples)\n";
+              << ar.info.sequence_name << ", setting " << calib::core::setting_name(in.setting)
+              << ", " << in.imu.size() << " samples)\n";
     if (fx) {
       std::cout << "compensated before calibrating (from " << prior.compensate << "):";
       for (const std::string& n : fx->names) std::cout << ' ' << n << ';';
@@ -354,7 +363,8 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
 }
 
 int cmd_evaluate(const std::string& dir, const std::string& params_path, bool json) {
-  const calib::core::CalibrationInput in = db::archive::to_calibration_input(db::archive::read_archive(dir));
+  const calib::core::CalibrationInput in =
+      db::archive::to_calibration_input(db::archive::read_archive(dir));
   const calib::core::ParamSet params = db::archive::read_param_file(params_path);
   const calib::checks::EvaluationMetrics m = calib::checks::evaluate(in, params);
   if (json)
@@ -381,8 +391,8 @@ int cmd_crlb(const std::string& seq, const std::string& unit_path, double rate_h
     }
   }
   progress("covariance analysis of " + profile.name);
-  const calib::checks::CrlbResult crlb = calib::checks::compute_crlb(profile, calib::core::TableGeometry{},
-                                                     default_site(), unit.noise, rate_hz, opt);
+  const calib::checks::CrlbResult crlb = calib::checks::compute_crlb(
+      profile, calib::core::TableGeometry{}, default_site(), unit.noise, rate_hz, opt);
   const auto unobs = calib::checks::unobservable_parameters(crlb, opt);
   if (json) {
     std::cout << nlohmann::json{{"sequence", profile.name},
@@ -406,7 +416,8 @@ int cmd_bench(const std::string& dir, int repeat, bool sequential, bool json) {
   std::string verdict;
   for (int i = 0; i < repeat; ++i) {
     const auto t0 = std::chrono::steady_clock::now();
-    const calib::core::CalibrationInput in = db::archive::to_calibration_input(db::archive::read_archive(dir));
+    const calib::core::CalibrationInput in =
+        db::archive::to_calibration_input(db::archive::read_archive(dir));
     calib::pipeline::PipelineOptions options;
     options.concurrent = !sequential;
     const calib::pipeline::PipelineResult r = calib::pipeline::run_calibration(in, options);

@@ -38,7 +38,8 @@ void metric_panel(std::ostringstream& os, double y0, size_t m,
   p.frame(m == 0 ? "orientation RMSE per IMU" : "acceleration RMSE per IMU",
           (m == 0 ? "orientation [" : "acceleration [") + unit + "]");
   for (size_t c = 0; c < static_cast<size_t>(calib::studies::paper::kNumPaperColumns); ++c) {
-    const std::string column = calib::studies::paper::paper_column_name(static_cast<calib::studies::paper::PaperColumn>(c));
+    const std::string column = calib::studies::paper::paper_column_name(
+        static_cast<calib::studies::paper::PaperColumn>(c));
     for (size_t u = 0; u < paper.size(); ++u)
       p.dot(c, paper[u][c][m], -0.18 * p.slot(), 4.5, "none", kPaperColor, "paper",
             column + ", paper IMU " + std::to_string(u + 1) + ": " + num(paper[u][c][m], "%.2f") +
@@ -56,9 +57,10 @@ void metric_panel(std::ostringstream& os, double y0, size_t m,
 
 }  // namespace
 
-std::string paper_units_svg(const std::vector<calib::studies::paper::PaperRow>& model, const std::string& title,
-                            const std::string& description) {
-  const std::vector<calib::studies::paper::PaperRow> paper = calib::studies::paper::paper_published_rows();
+std::string paper_units_svg(const std::vector<calib::studies::paper::PaperRow>& model,
+                            const std::string& title, const std::string& description) {
+  const std::vector<calib::studies::paper::PaperRow> paper =
+      calib::studies::paper::paper_published_rows();
   const double height = kTop + 2 * (kPanelH + 60);
   std::ostringstream os;
   os << "<svg xmlns='http://www.w3.org/2000/svg' width='" << kWidth << "' height='" << height

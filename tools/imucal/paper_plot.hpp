@@ -12,7 +12,7 @@ namespace imucal::tools::imucal {
 
 /// SVG text: the paper's rows (paper_published_rows) against `model` (at least one unit); `title`
 /// shown, `description` (the model, however long) kept as the picture's <desc>.
-std::string paper_units_svg(const std::vector<calib::studies::paper::PaperRow>& model, const std::string& title,
-                            const std::string& description);
+std::string paper_units_svg(const std::vector<calib::studies::paper::PaperRow>& model,
+                            const std::string& title, const std::string& description);
 
 }  // namespace imucal::tools::imucal

@@ -31,8 +31,9 @@ double ains_spread(const std::array<double, calib::studies::paper::kNumPaperColu
 
 /// The paper's mean of one column over its IMUs 1..n (n ≤ 6; the published mean for n ≥ 6), so a
 /// run of fewer units is compared with the same IMU numbers, not the six-unit mean.
-double paper_mean(const std::array<std::array<double, calib::studies::paper::kNumPaperColumns>, 7>& paper,
-                  PaperColumn c, size_t n) {
+double paper_mean(
+    const std::array<std::array<double, calib::studies::paper::kNumPaperColumns>, 7>& paper,
+    PaperColumn c, size_t n) {
   if (n >= 6 || n == 0) return paper[6][col(c)];
   double sum = 0.0;
   for (size_t i = 0; i < n; ++i) sum += paper[i][col(c)];
@@ -121,8 +122,8 @@ void print_factory_table(const calib::studies::paper::PaperTables& t, bool orien
 }
 
 /// Tables III (land) and IV (sea): IMU#, orientation, acceleration.
-void print_field_table(const calib::studies::paper::PaperTables& t, PaperColumn c, const char* number,
-                       const char* setting) {
+void print_field_table(const calib::studies::paper::PaperTables& t, PaperColumn c,
+                       const char* number, const char* setting) {
   const auto& pub = calib::studies::paper::paper_published();
   std::printf("\nTABLE %s  Calibration performance for %s setting (simulated | paper)\n", number,
               setting);
@@ -237,7 +238,8 @@ int cmd_paper_tables(const PaperTablesArgs& a) {
   opt.threads = a.threads > 0 ? a.threads
                               : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   opt.on_progress = ProgressLine("paper-tables", "units");
-  const calib::studies::paper::PaperTables t = calib::studies::paper::run_paper_tables(profile, calib::core::demo_factory_site(), opt);
+  const calib::studies::paper::PaperTables t =
+      calib::studies::paper::run_paper_tables(profile, calib::core::demo_factory_site(), opt);
   const Findings f = findings(t);
   if (a.json) {
     std::cout << to_json(t, f).dump(2) << '\n';

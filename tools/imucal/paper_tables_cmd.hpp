@@ -2,8 +2,8 @@
 // `imucal paper-tables [--units 6] [--seed S] [--sequence factory-std] [--effects
 // none|typical|LIST]
 // [--threads N] [--json]`:
-// the paper's Tables I–IV (calib/studies/paper/paper_tables.hpp) on simulated units, in the paper's layout
-// and beside its published figures, with a progress line on stderr. Exit 0 when the paper's
+// the paper's Tables I–IV (calib/studies/paper/paper_tables.hpp) on simulated units, in the paper's
+// layout and beside its published figures, with a progress line on stderr. Exit 0 when the paper's
 // findings hold in kind (AINS within 25 % across the three settings on both metrics; the legacy
 // method worse on orientation than the factory AINS), 3 otherwise.
 #include <CLI/CLI.hpp>

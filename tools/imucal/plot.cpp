@@ -108,8 +108,9 @@ struct RestPanel {
 };
 
 void rest_panel(std::ostringstream& os, double y0, const RestPanel& spec,
-                const calib::checks::EvaluationMetrics* ma, const calib::checks::EvaluationMetrics* mb,
-                size_t periods, const std::string& second_name, bool with_legend) {
+                const calib::checks::EvaluationMetrics* ma,
+                const calib::checks::EvaluationMetrics* mb, size_t periods,
+                const std::string& second_name, bool with_legend) {
   double top = 0;
   for (const auto* mm : {ma, mb})
     if (mm)
@@ -137,11 +138,14 @@ void rest_panel(std::ostringstream& os, double y0, const RestPanel& spec,
 
 }  // namespace
 
-std::string calibration_svg(const calib::pipeline::PipelineResult& r, const calib::core::ParamSet* truth,
-                            double k_sigma, const std::string& title) {
+std::string calibration_svg(const calib::pipeline::PipelineResult& r,
+                            const calib::core::ParamSet* truth, double k_sigma,
+                            const std::string& title) {
   std::ostringstream os;
   // The second method: NLSQ in the factory, the legacy method on land and at sea.
-  const calib::pipeline::MethodOutcome* second = r.nlsq ? &*r.nlsq : r.legacy ? &*r.legacy : nullptr;
+  const calib::pipeline::MethodOutcome* second = r.nlsq     ? &*r.nlsq
+                                                 : r.legacy ? &*r.legacy
+                                                            : nullptr;
   const std::string second_name = r.nlsq ? "NLSQ" : "legacy";
   const bool panel1 = (r.ains && second) || truth;
   const int panels = (panel1 ? 1 : 0) + 2;
@@ -160,20 +164,22 @@ std::string calibration_svg(const calib::pipeline::PipelineResult& r, const cali
   const calib::checks::EvaluationMetrics* mb = second ? &second->metrics : nullptr;
   const size_t periods = std::max(ma ? ma->periods.size() : 0, mb ? mb->periods.size() : 0);
   if (periods > 0) {
-    const RestPanel accel{"acceleration error of each rest period (eq. 53–54)",
-                          "|mean δa_n| (µg)",
-                          1.0,
-                          [](const calib::checks::RestPeriodMetric& q) { return q.accel_err_n_ug.norm(); },
-                          "%.2f",
-                          " µg"};
+    const RestPanel accel{
+        "acceleration error of each rest period (eq. 53–54)",
+        "|mean δa_n| (µg)",
+        1.0,
+        [](const calib::checks::RestPeriodMetric& q) { return q.accel_err_n_ug.norm(); },
+        "%.2f",
+        " µg"};
     rest_panel(os, y0, accel, ma, mb, periods, second_name, true);
     y0 += kPanelH + 90;
-    const RestPanel orient{"orientation residual of each rest period (eq. 51–52)",
-                           "RMS (mdeg)",
-                           0.01,
-                           [](const calib::checks::RestPeriodMetric& q) { return q.orientation_rms_mdeg; },
-                           "%.3f",
-                           " mdeg"};
+    const RestPanel orient{
+        "orientation residual of each rest period (eq. 51–52)",
+        "RMS (mdeg)",
+        0.01,
+        [](const calib::checks::RestPeriodMetric& q) { return q.orientation_rms_mdeg; },
+        "%.3f",
+        " mdeg"};
     rest_panel(os, y0, orient, ma, mb, periods, second_name, false);
   }
   os << "</svg>\n";

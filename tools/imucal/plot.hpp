@@ -11,7 +11,8 @@ namespace imucal::tools::imucal {
 
 /// SVG text for a pipeline result (works with one method too: then panel 1 shows err/σ against the
 /// truth if `truth` is given, else is omitted).
-std::string calibration_svg(const calib::pipeline::PipelineResult& r, const calib::core::ParamSet* truth,
-                            double k_sigma, const std::string& title);
+std::string calibration_svg(const calib::pipeline::PipelineResult& r,
+                            const calib::core::ParamSet* truth, double k_sigma,
+                            const std::string& title);
 
 }  // namespace imucal::tools::imucal

@@ -35,7 +35,8 @@ std::vector<std::string> unobservable_names(const calib::core::CalibrationResult
 }
 
 /// The truth in the frame a result is expressed in (what its error is measured against).
-calib::core::ParamVector truth_in_frame(const calib::core::ParamSet& truth, calib::core::BodyFrame f) {
+calib::core::ParamVector truth_in_frame(const calib::core::ParamSet& truth,
+                                        calib::core::BodyFrame f) {
   return f == calib::core::BodyFrame::kHousing
              ? truth.to_vector()
              : calib::core::to_accel_symmetric_frame(truth).params.to_vector();
@@ -114,7 +115,8 @@ void print_parameter_table(std::ostream& os, const calib::pipeline::PipelineResu
   os << '\n';
   // The truth printed is the one err/σ is measured against: in the first method's frame (all
   // methods of one setting share it; a different one is named below).
-  const calib::core::ParamVector tv = col_truth.empty() ? calib::core::ParamVector::Zero() : col_truth[0];
+  const calib::core::ParamVector tv =
+      col_truth.empty() ? calib::core::ParamVector::Zero() : col_truth[0];
   for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
     const auto& info = calib::core::param_info(i);
     std::snprintf(line, sizeof line, "%-26s %-7s", info.name.c_str(), info.human_unit.c_str());

@@ -175,15 +175,16 @@ World make_world(const ValidateArgs& a) {
   w.name = profile.name;
   if (!land) {
     const auto make_source = a.simulator == "alt" ? alt_run_source : calib::sim::truth_run_source;
-    w.source =
-        make_source(profile, calib::core::TableGeometry{}, calib::core::demo_factory_site(), w.unit, 100.0);
+    w.source = make_source(profile, calib::core::TableGeometry{}, calib::core::demo_factory_site(),
+                           w.unit, 100.0);
     if (a.simulator == "alt") w.name += " (altsim)";
     return w;
   }
   w.unit.params.table_misalignment_rad.setZero();  // no table: no table misalignment
   calib::sim::FieldSimOptions field;
   field.setting = a.setting == "sea" ? calib::core::Setting::kSea : calib::core::Setting::kLand;
-  w.source = calib::sim::field_run_source(profile, calib::core::demo_factory_site(), w.unit, field, grade);
+  w.source =
+      calib::sim::field_run_source(profile, calib::core::demo_factory_site(), w.unit, field, grade);
   w.name += " (" + a.setting + ", " + calib::core::grade_name(grade) + ")";
   return w;
 }
@@ -242,8 +243,8 @@ int cmd_validate(const ValidateArgs& a) {
   opt.threads = a.threads;
   opt.effects = parse_effects(a.effects);
   opt.on_progress = ProgressLine("validate-diagnosis", "runs");
-  const calib::diagnosis::ValidationReport r = calib::diagnosis::validate_diagnosis(world.source, calib::core::TableGeometry{},
-                                                              world.unit.params, world.name, opt);
+  const calib::diagnosis::ValidationReport r = calib::diagnosis::validate_diagnosis(
+      world.source, calib::core::TableGeometry{}, world.unit.params, world.name, opt);
   const double false_alarm_bar = a.setting != "factory" ? kFalseAlarmLand : kFalseAlarm;
   const int multi = r.pair_count + r.triple_count;
   const bool pass =

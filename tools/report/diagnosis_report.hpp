@@ -18,7 +18,8 @@
 
 namespace imucal::tools::report {
 
-/// `diagnosis` is the JSON of db::archive::diagnosis_to_json (with "archive", "serial", "sequence").
+/// `diagnosis` is the JSON of db::archive::diagnosis_to_json (with "archive", "serial",
+/// "sequence").
 std::string diagnosis_report_html(const nlohmann::json& diagnosis);
 
 }  // namespace imucal::tools::report

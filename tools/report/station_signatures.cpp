@@ -33,13 +33,16 @@ std::vector<calib::studies::fleet::StationError> measure_errors(const std::strin
   try {
     profile = sequences::load_profile(sequence);
   } catch (const std::exception& e) {
-    throw db::history::InvalidInput("station signatures: the runs' sequence \"" + sequence +
-                           "\" cannot be simulated for the station errors' responses: " + e.what());
+    throw db::history::InvalidInput(
+        "station signatures: the runs' sequence \"" + sequence +
+        "\" cannot be simulated for the station errors' responses: " + e.what());
   }
-  std::vector<calib::studies::fleet::StationError> errors = calib::studies::fleet::station_error_catalogue();
+  std::vector<calib::studies::fleet::StationError> errors =
+      calib::studies::fleet::station_error_catalogue();
   calib::studies::fleet::measure_responses(
-      errors, calib::sim::truth_run_source(profile, calib::core::TableGeometry{}, calib::core::demo_factory_site(),
-                                      calib::effects::default_unit(), 100.0));
+      errors, calib::sim::truth_run_source(profile, calib::core::TableGeometry{},
+                                           calib::core::demo_factory_site(),
+                                           calib::effects::default_unit(), 100.0));
   return errors;
 }
 
@@ -56,7 +59,8 @@ std::vector<calib::studies::fleet::StationError> measured_errors(
   return cache[sequence] = measure_errors(sequence);
 }
 
-json fit_json(const calib::studies::fleet::StationFit& f, const calib::studies::fleet::StationError& e) {
+json fit_json(const calib::studies::fleet::StationFit& f,
+              const calib::studies::fleet::StationError& e) {
   json j = {{"effect", f.effect},
             {"term", e.term},
             {"size_si", f.size_si},
@@ -93,8 +97,8 @@ std::string cause_text(const json& fit, const calib::studies::fleet::StationErro
 /// run (stationctl reprocess takes the station's own run ids, several at once); a table or fixture
 /// fault is in the recorded data, so no setting corrects it: the units are calibrated again after
 /// the service.
-json remedy(const std::vector<calib::studies::fleet::StationFit>& alarms, const std::string& station,
-            const json& local_ids) {
+json remedy(const std::vector<calib::studies::fleet::StationFit>& alarms,
+            const std::string& station, const json& local_ids) {
   const std::string recalibrate =
       "once the station is serviced, calibrate the units again (the fault is in these runs' "
       "data: no setting corrects it)";
@@ -116,15 +120,16 @@ json remedy(const std::vector<calib::studies::fleet::StationFit>& alarms, const 
   return {{"reprocess", true}, {"command", command}, {"text", text}};
 }
 
-const calib::studies::fleet::StationError& error_named(const std::vector<calib::studies::fleet::StationError>& errors,
-                                       const std::string& effect) {
+const calib::studies::fleet::StationError& error_named(
+    const std::vector<calib::studies::fleet::StationError>& errors, const std::string& effect) {
   for (const calib::studies::fleet::StationError& e : errors)
     if (e.effect == effect) return e;
   throw std::logic_error("station error " + effect + " is not in the catalogue");
 }
 
 /// A named error as JSON: its fit and the cause QA reads.
-json alarm_json(const calib::studies::fleet::StationFit& fit, const std::vector<calib::studies::fleet::StationError>& errors) {
+json alarm_json(const calib::studies::fleet::StationFit& fit,
+                const std::vector<calib::studies::fleet::StationError>& errors) {
   const calib::studies::fleet::StationError& e = error_named(errors, fit.effect);
   json j = fit_json(fit, e);
   j["cause"] = cause_text(j, e);
@@ -133,8 +138,9 @@ json alarm_json(const calib::studies::fleet::StationFit& fit, const std::vector<
 
 }  // namespace
 
-db::history::FleetFilter signature_window(const db::history::Repository& history, const std::string& since,
-                                 const std::string& until, int default_days) {
+db::history::FleetFilter signature_window(const db::history::Repository& history,
+                                          const std::string& since, const std::string& until,
+                                          int default_days) {
   constexpr db::history::TimestampMs kDayMs = 86400000;
   db::history::FleetFilter f;
   auto parse = [](const std::string& field, const std::string& text) {
@@ -154,7 +160,8 @@ db::history::FleetFilter signature_window(const db::history::Repository& history
   if (!f.since_ms) f.since_ms = *f.until_ms - default_days * kDayMs;
   if (*f.since_ms >= *f.until_ms)
     throw WindowError("until", "the window ends (" + db::history::format_time_utc(*f.until_ms) +
-                                   ") before it starts (" + db::history::format_time_utc(*f.since_ms) +
+                                   ") before it starts (" +
+                                   db::history::format_time_utc(*f.since_ms) +
                                    "): --since is not before --until");
   return f;
 }
@@ -166,7 +173,8 @@ json report_of_rows(const std::vector<db::history::AinsResultRow>& rows,
                     const std::function<void(const std::string&)>& progress);
 }  // namespace
 
-json station_signature_report(const db::history::FleetStats& stats, const db::history::FleetFilter& window,
+json station_signature_report(const db::history::FleetStats& stats,
+                              const db::history::FleetFilter& window,
                               const calib::studies::fleet::SignatureOptions& options,
                               const std::function<void(const std::string&)>& progress) {
   return report_of_rows(stats.ains_results(window), options, progress);
@@ -183,14 +191,16 @@ json report_of_rows(const std::vector<db::history::AinsResultRow>& rows,
     return report;
   }
   const std::string sequence = main_sequence(rows);
-  const std::vector<calib::studies::fleet::StationError> errors = measured_errors(sequence, progress);
+  const std::vector<calib::studies::fleet::StationError> errors =
+      measured_errors(sequence, progress);
   std::vector<calib::studies::fleet::SignatureRun> runs;
   std::map<std::int64_t, std::int64_t> local_id;  // the history's id -> the station's own
   for (const auto& r : rows) {
     runs.push_back({r.station, r.serial, r.run_id, r.value.to_vector(), r.sigma.to_vector()});
     local_id[r.run_id] = r.local_run_id;
   }
-  const calib::studies::fleet::FleetSignatures fs = calib::studies::fleet::station_signatures(runs, errors, options);
+  const calib::studies::fleet::FleetSignatures fs =
+      calib::studies::fleet::station_signatures(runs, errors, options);
   report["sequence"] = sequence;
   report["z_threshold"] = fs.z_threshold;
   json stations = json::array();
@@ -208,7 +218,8 @@ json report_of_rows(const std::vector<db::history::AinsResultRow>& rows,
     s["flagged"] = sig.alarm.has_value();
     if (sig.alarm) {
       json alarms = json::array(), others = json::array();
-      for (const calib::studies::fleet::StationFit& f : sig.alarms) alarms.push_back(alarm_json(f, errors));
+      for (const calib::studies::fleet::StationFit& f : sig.alarms)
+        alarms.push_back(alarm_json(f, errors));
       for (const calib::studies::fleet::StationFit& f : sig.fits_given_alarms)
         others.push_back(fit_json(f, error_named(errors, f.effect)));
       s["alarm"] = alarms.front();
@@ -302,13 +313,14 @@ json trend_cell(const json& st) {
 
 }  // namespace
 
-json station_signature_trend(const db::history::FleetStats& stats, const db::history::FleetFilter& window,
-                             int period_days, const calib::studies::fleet::SignatureOptions& options,
+json station_signature_trend(const db::history::FleetStats& stats,
+                             const db::history::FleetFilter& window, int period_days,
+                             const calib::studies::fleet::SignatureOptions& options,
                              const std::function<void(const std::string&)>& progress) {
   constexpr db::history::TimestampMs kDayMs = 86400000;
   if (period_days < 1 || period_days > 366)
     throw db::history::InvalidInput("period_days: " + std::to_string(period_days) +
-                           " is not a period of 1 to 366 days");
+                                    " is not a period of 1 to 366 days");
   json trend = {{"period_days", period_days},
                 {"false_alarm", options.false_alarm},
                 {"periods", json::array()}};
@@ -318,7 +330,8 @@ json station_signature_trend(const db::history::FleetStats& stats, const db::his
   }
   const db::history::TimestampMs period_ms = period_days * kDayMs;
   const db::history::TimestampMs span = *window.until_ms - *window.since_ms;
-  const db::history::TimestampMs n = std::max<db::history::TimestampMs>(1, (span + period_ms - 1) / period_ms);
+  const db::history::TimestampMs n =
+      std::max<db::history::TimestampMs>(1, (span + period_ms - 1) / period_ms);
   std::set<std::string> names;
   // One read for the whole window, cut into periods here (twelve reads cost twelve queries).
   db::history::FleetFilter all = window;
@@ -371,7 +384,10 @@ std::string render_signature_trend_text(const json& trend) {
   std::snprintf(buf, sizeof buf, "%-16s", "period from");
   out += buf;
   for (const json& p : trend["periods"])
-    out += " " + db::history::format_time_utc(p["since_ms"].get<db::history::TimestampMs>()).substr(5, 5) + " ";
+    out +=
+        " " +
+        db::history::format_time_utc(p["since_ms"].get<db::history::TimestampMs>()).substr(5, 5) +
+        " ";
   out += "\n";
   std::map<std::string, std::string> causes;  // station -> its flagged periods' lines
   for (const json& name : trend["stations"]) {
@@ -389,7 +405,9 @@ std::string render_signature_trend_text(const json& trend) {
       out += buf;
       if (flagged)
         causes[name.get<std::string>()] +=
-            "    " + db::history::format_time_utc(p["since_ms"].get<db::history::TimestampMs>()).substr(0, 10) +
+            "    " +
+            db::history::format_time_utc(p["since_ms"].get<db::history::TimestampMs>())
+                .substr(0, 10) +
             ": " + (*cell)["cause"].get<std::string>() + "\n";
     }
     out += "\n";

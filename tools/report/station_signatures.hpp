@@ -1,9 +1,10 @@
 #pragma once
 // Station signatures over a calibration history (issue #25): the period's AINS results read
-// through db::history::FleetStats (a station's SQLite or the fleet store), the station errors' responses
-// measured on the period's sequence with the truth simulator, and calib::studies::fleet::station_signatures —
-// reported as JSON (what stationctl --json prints) and as text for QA, each flagged station with
-// its likely cause, size ± σ, the advice and the runs it touches.
+// through db::history::FleetStats (a station's SQLite or the fleet store), the station errors'
+// responses measured on the period's sequence with the truth simulator, and
+// calib::studies::fleet::station_signatures — reported as JSON (what stationctl --json prints) and
+// as text for QA, each flagged station with its likely cause, size ± σ, the advice and the runs it
+// touches.
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -27,8 +28,9 @@ struct WindowError : db::history::InvalidInput {
 /// run's day.
 /// WindowError for unreadable text or a window that ends before it starts; no bounds at all when
 /// the history holds no run.
-db::history::FleetFilter signature_window(const db::history::Repository& history, const std::string& since,
-                                 const std::string& until, int default_days = 7);
+db::history::FleetFilter signature_window(const db::history::Repository& history,
+                                          const std::string& since, const std::string& until,
+                                          int default_days = 7);
 
 /// The signatures of the runs in `window` (every field of it applies). The responses are measured
 /// on the sequence most of the runs followed (named in the report); a sequence the library does

@@ -36,7 +36,8 @@ class ExportOutput {
   ExportOutput(const ExportOutput&) = delete;
   ExportOutput& operator=(const ExportOutput&) = delete;
 
-  /// The bytes so far go through this stream too (db::history::export_history writes to a std::ostream).
+  /// The bytes so far go through this stream too (db::history::export_history writes to a
+  /// std::ostream).
   std::ostream& stream();
   /// Writes `bytes`; throws ExportOutputError on a write error.
   void write(std::string_view bytes);

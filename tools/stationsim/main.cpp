@@ -1,7 +1,8 @@
 // stationsim: the simulated station hardware (turntable PLC on Modbus TCP + IMU on a unixcan bus)
 // in one process with one physics clock (ARCHITECTURE §4; docs/integrator.md, "Commissioning with
-// the simulator"); run `stationsim --help`. Exit codes: 0 clean exit (SIGTERM/SIGINT, --duration-s reached), 1
-// runtime failure (cannot listen, the physics thread failed), 2 bad input (flag or unit file).
+// the simulator"); run `stationsim --help`. Exit codes: 0 clean exit (SIGTERM/SIGINT, --duration-s
+// reached), 1 runtime failure (cannot listen, the physics thread failed), 2 bad input (flag or unit
+// file).
 #include <signal.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -238,8 +239,10 @@ void add_options(CLI::App& app, CliArgs& a) {
 /// The unit file and the catalogue effects on top of it (withheld from the station).
 /// A unit file (none: the default unit) with catalogue effects on top of it; errors name the
 /// option (`flag` for the file, `effect_flag` for an effect) and the file.
-imucal::calib::effects::UnitModel load_unit(const std::string& path, const std::vector<std::string>& effects,
-                                   const std::string& flag, const std::string& effect_flag) {
+imucal::calib::effects::UnitModel load_unit(const std::string& path,
+                                            const std::vector<std::string>& effects,
+                                            const std::string& flag,
+                                            const std::string& effect_flag) {
   imucal::calib::effects::UnitModel unit = imucal::calib::effects::default_unit();
   if (!path.empty()) {
     try {
@@ -334,8 +337,8 @@ Eigen::Matrix3d mount_of(const std::string& text, const std::string& flag) {
   const Eigen::Vector3d rpy_deg = vector3(text, flag);
   if (std::abs(rpy_deg(1)) > 90.0) throw BadInput(flag + ": pitch must be within [-90, 90] deg");
   return imucal::calib::core::euler_to_C_bn(rpy_deg(0) * imucal::kDegToRad,
-                                      rpy_deg(1) * imucal::kDegToRad,
-                                      rpy_deg(2) * imucal::kDegToRad);
+                                            rpy_deg(1) * imucal::kDegToRad,
+                                            rpy_deg(2) * imucal::kDegToRad);
 }
 
 Eigen::Vector3d lever_of(const std::string& text, const std::string& flag) {
@@ -417,11 +420,12 @@ StationSimConfig config_from(const CliArgs& a, std::vector<std::string>& truth_o
 void announce_ready(StationSim& sim, const CliArgs& a, const StationSimConfig& cfg,
                     const std::vector<std::string>& truth_outs) {
   if (!a.truth_out.empty())
-    imucal::db::archive::write_truth_json(a.truth_out, imucal::db::archive::truth_from_unit(cfg.unit));
+    imucal::db::archive::write_truth_json(a.truth_out,
+                                          imucal::db::archive::truth_from_unit(cfg.unit));
   for (size_t i = 0; i < cfg.more_units.size(); ++i)
     if (i + 1 < truth_outs.size() && !truth_outs[i + 1].empty())
-      imucal::db::archive::write_truth_json(truth_outs[i + 1],
-                                        imucal::db::archive::truth_from_unit(cfg.more_units[i].unit));
+      imucal::db::archive::write_truth_json(
+          truth_outs[i + 1], imucal::db::archive::truth_from_unit(cfg.more_units[i].unit));
   sim.start();
   nlohmann::json ready;
   ready["pid"] = static_cast<int>(::getpid());

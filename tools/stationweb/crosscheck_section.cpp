@@ -12,8 +12,8 @@ namespace imucal::tools::stationweb {
 
 namespace {
 
-const db::history::CalibrationRecord* find_method(const std::vector<db::history::CalibrationRecord>& cals,
-                                         bool ains) {
+const db::history::CalibrationRecord* find_method(
+    const std::vector<db::history::CalibrationRecord>& cals, bool ains) {
   for (const auto& c : cals)
     if ((c.method == db::history::Method::kAins) == ains) return &c;
   return nullptr;
@@ -23,7 +23,8 @@ bool listed(const std::vector<std::string>& names, const std::string& name) {
   return std::find(names.begin(), names.end(), name) != names.end();
 }
 
-std::string status_of(const db::history::CrosscheckRecord& x, const db::history::CalibrationRecord& a,
+std::string status_of(const db::history::CrosscheckRecord& x,
+                      const db::history::CalibrationRecord& a,
                       const db::history::CalibrationRecord& b, const std::string& name) {
   if (listed(x.not_compared, name) || listed(a.unobservable, name) || listed(b.unobservable, name))
     return "not compared";
@@ -32,7 +33,8 @@ std::string status_of(const db::history::CrosscheckRecord& x, const db::history:
   return "PASS";
 }
 
-std::string parameter_rows(const db::history::CrosscheckRecord& x, const db::history::CalibrationRecord& a,
+std::string parameter_rows(const db::history::CrosscheckRecord& x,
+                           const db::history::CalibrationRecord& a,
                            const db::history::CalibrationRecord& b) {
   const calib::core::ParamVector va = a.params.to_vector(), vb = b.params.to_vector();
   const calib::core::ParamVector sa = a.sigma.to_vector(), sb = b.sigma.to_vector();
@@ -85,7 +87,8 @@ std::string crosscheck_section(const db::history::RunDetails& d) {
   const db::history::CalibrationRecord* a = find_method(d.calibrations, true);
   const db::history::CalibrationRecord* b = find_method(d.calibrations, false);
   const std::string verdict = db::history::to_string(x.verdict);
-  const std::string second = b ? (b->method == db::history::Method::kNlsq ? "NLSQ" : "legacy") : "?";
+  const std::string second =
+      b ? (b->method == db::history::Method::kNlsq ? "NLSQ" : "legacy") : "?";
   s += "<div id='crosscheck' data-verdict='" + verdict + "' data-k-sigma='" + exact(x.k_sigma) +
        "'>\n<p>Cross-check <span class='" + verdict + "'>" + verdict + "</span> (AINS against " +
        second + ", bound " + fmt("%g", x.k_sigma) + "σ of the combined σ = √(σA² + σB²))" +

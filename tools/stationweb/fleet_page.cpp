@@ -1,7 +1,7 @@
-// "/fleet": the history's aggregates per station through db::history::FleetStats — runs per station per
-// UTC day, verdict counts and rates per station, and one AINS parameter's distribution per station
-// — for a window (since/until; default: the 30 days up to the newest run) and optional station and
-// serial filters.
+// "/fleet": the history's aggregates per station through db::history::FleetStats — runs per station
+// per UTC day, verdict counts and rates per station, and one AINS parameter's distribution per
+// station — for a window (since/until; default: the 30 days up to the newest run) and optional
+// station and serial filters.
 #include <algorithm>
 #include <map>
 #include <set>
@@ -25,7 +25,8 @@ struct FleetQuery {
   bool default_window = false;
 };
 
-db::history::TimestampMs parse_time_field(const std::string& field, const std::string& text, bool end) {
+db::history::TimestampMs parse_time_field(const std::string& field, const std::string& text,
+                                          bool end) {
   db::history::TimestampMs t = 0;
   try {
     t = db::history::parse_time_utc(text);
@@ -120,7 +121,8 @@ void chart_days(const FleetQuery& q, const std::vector<db::history::StationDayCo
   if (last - first > 3 * 366) first = std::max(first, lo), last = std::min(last, hi);
 }
 
-std::string runs_chart_section(const FleetQuery& q, const std::vector<db::history::StationDayCount>& counts,
+std::string runs_chart_section(const FleetQuery& q,
+                               const std::vector<db::history::StationDayCount>& counts,
                                const std::vector<std::string>& stations) {
   std::string s = "<h2>Runs per station per day</h2>\n";
   if (counts.empty()) return s + "<p>No runs in this window.</p>\n";
@@ -180,7 +182,8 @@ std::string verdict_section(const std::vector<db::history::StationVerdictCounts>
   return s + "</table>\n";
 }
 
-std::string distribution_row(const db::history::ParamSummary& d, const calib::core::ParamInfo& info) {
+std::string distribution_row(const db::history::ParamSummary& d,
+                             const calib::core::ParamInfo& info) {
   const double k = info.si_to_human;
   std::string s =
       "<tr data-station='" + esc(d.station) + "' data-count='" + std::to_string(d.count) + "'";
@@ -193,7 +196,8 @@ std::string distribution_row(const db::history::ParamSummary& d, const calib::co
   return s + "</tr>\n";
 }
 
-std::string distribution_section(const FleetQuery& q, const std::vector<db::history::ParamSummary>& dist) {
+std::string distribution_section(const FleetQuery& q,
+                                 const std::vector<db::history::ParamSummary>& dist) {
   std::string s = "<h2>Parameter distribution per station</h2>\n";
   if (!q.param) return s + "<p>Choose a parameter above to see its distribution per station.</p>\n";
   const calib::core::ParamInfo& info = calib::core::param_info(*q.param);

@@ -130,7 +130,8 @@ std::string verdict_chart(const std::vector<db::history::StationVerdictCounts>& 
   return os.str() + "</svg>\n";
 }
 
-std::string box_plot(const std::vector<db::history::ParamSummary>& summaries, const calib::core::ParamInfo& info) {
+std::string box_plot(const std::vector<db::history::ParamSummary>& summaries,
+                     const calib::core::ParamInfo& info) {
   std::ostringstream os;
   os << svg_open("distribution-chart", kTop + kPanelH + 70);
   if (summaries.empty()) return os.str() + "</svg>\n";
@@ -163,7 +164,8 @@ std::string box_plot(const std::vector<db::history::ParamSummary>& summaries, co
 namespace {
 
 std::string period_label(const nlohmann::json& period) {
-  return db::history::format_time_utc(period["since_ms"].get<db::history::TimestampMs>()).substr(0, 10);
+  return db::history::format_time_utc(period["since_ms"].get<db::history::TimestampMs>())
+      .substr(0, 10);
 }
 
 }  // namespace

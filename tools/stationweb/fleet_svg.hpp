@@ -21,7 +21,8 @@ std::string runs_chart(const std::vector<db::history::StationDayCount>& counts,
                        const std::vector<std::string>& stations, std::int64_t first_day,
                        std::int64_t last_day);
 std::string verdict_chart(const std::vector<db::history::StationVerdictCounts>& verdicts);
-std::string box_plot(const std::vector<db::history::ParamSummary>& summaries, const calib::core::ParamInfo& info);
+std::string box_plot(const std::vector<db::history::ParamSummary>& summaries,
+                     const calib::core::ParamInfo& info);
 
 /// One line per station (colour by its index in trend["stations"]), one slot per period; every
 /// point a <circle class='pt'> ('pt flagged' when flagged) with data-station and data-period.

@@ -1,8 +1,9 @@
 #pragma once
 // Where stationweb reads from, behind one function: open_history(source). A source is the path of
 // a station's SQLite history, opened read-only (db::history::SqliteRepository in QA mode and
-// db::history::SqliteFleetStats, each its own read-only connection), or the PostgreSQL fleet store's URL
-// (db::fleet::FleetRepository and db::fleet::PgFleetStats): the pages only see the two interfaces.
+// db::history::SqliteFleetStats, each its own read-only connection), or the PostgreSQL fleet
+// store's URL (db::fleet::FleetRepository and db::fleet::PgFleetStats): the pages only see the two
+// interfaces.
 #include <memory>
 #include <string>
 
@@ -18,9 +19,9 @@ struct History {
 };
 
 /// Opens `source` read-only: the path of a station's SQLite history, or the fleet store's
-/// postgresql:// URL (with `password`, else libpq's PGPASSWORD / ~/.pgpass). Throws db::history::DbError
-/// (NotFound for a missing file, IncompatibleSchema, Corrupt, IoError for a store it cannot log in
-/// to, InvalidInput for a bad URL, ...) naming it — a URL always redacted.
+/// postgresql:// URL (with `password`, else libpq's PGPASSWORD / ~/.pgpass). Throws
+/// db::history::DbError (NotFound for a missing file, IncompatibleSchema, Corrupt, IoError for a
+/// store it cannot log in to, InvalidInput for a bad URL, ...) naming it — a URL always redacted.
 History open_history(const std::string& source, const std::string& password = {});
 
 }  // namespace imucal::tools::stationweb

@@ -50,7 +50,9 @@ std::string short_time(db::history::TimestampMs t_ms) {
   return s;
 }
 
-std::string utc_date(db::history::TimestampMs t_ms) { return db::history::format_time_utc(t_ms).substr(0, 10); }
+std::string utc_date(db::history::TimestampMs t_ms) {
+  return db::history::format_time_utc(t_ms).substr(0, 10);
+}
 
 std::string day_text(std::int64_t day) { return utc_date(day * kDayMs); }
 

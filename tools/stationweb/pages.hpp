@@ -1,8 +1,8 @@
 #pragma once
 // stationweb's pages, each a function of the history and the request's path or query (no HTTP
 // types here: tools/stationweb/server.cpp maps URLs to them). A page throws PageError for bad
-// input (400, naming the field) or an unknown serial or run (404); db::history::DbError escapes only for
-// the database's own failures.
+// input (400, naming the field) or an unknown serial or run (404); db::history::DbError escapes
+// only for the database's own failures.
 //
 //   /                  index_page: the newest runs of every unit (?limit=N, 1..500, default 50)
 //   /unit?serial=SN    unit_search: the serial checked, then a redirect to /unit/SN

@@ -1,7 +1,7 @@
-// "/run/ID": everything `stationctl show ID` shows (station/control/record_json.hpp's show_result is the
-// content, its render_show_text the text at the page's end), laid out as a page: state, verdict,
-// reasons, the run's facts and archive, capture counters, the gap diagnosis, the other units of
-// its table run, both methods' parameters with 1-σ, and the cross-check per parameter.
+// "/run/ID": everything `stationctl show ID` shows (station/control/record_json.hpp's show_result
+// is the content, its render_show_text the text at the page's end), laid out as a page: state,
+// verdict, reasons, the run's facts and archive, capture counters, the gap diagnosis, the other
+// units of its table run, both methods' parameters with 1-σ, and the cross-check per parameter.
 #include <cctype>
 
 #include "db/history/fleet_stats.hpp"
@@ -32,8 +32,8 @@ std::string head(const db::history::RunRecord& r) {
   s += "<p id='run-head' data-run-id='" + std::to_string(r.run_id) + "' data-serial='" +
        esc(r.serial) + "' data-state='" + db::history::to_string(r.state) + "' data-verdict='" +
        (r.verdict ? db::history::to_string(*r.verdict) : "") + "' data-crosscheck-verdict='" + cv +
-       "'>State <b>" + db::history::to_string(r.state) + "</b>, verdict " + verdict_html(r.verdict) +
-       (cv.empty() ? "" : " (cross-check " + cv + ")") + "</p>\n";
+       "'>State <b>" + db::history::to_string(r.state) + "</b>, verdict " +
+       verdict_html(r.verdict) + (cv.empty() ? "" : " (cross-check " + cv + ")") + "</p>\n";
   if (!r.reasons.empty()) {
     s += "<ul id='reasons'>\n";
     for (const db::history::RunReason& reason : r.reasons)

@@ -22,7 +22,9 @@ bool listed(const std::vector<std::string>& names, const std::string& name) {
 }
 
 std::string method_label(db::history::Method m) {
-  return m == db::history::Method::kAins ? "AINS" : m == db::history::Method::kNlsq ? "NLSQ" : "legacy";
+  return m == db::history::Method::kAins   ? "AINS"
+         : m == db::history::Method::kNlsq ? "NLSQ"
+                                           : "legacy";
 }
 
 /// A JSON value for people: nested objects as nested tables, lists joined, numbers to 6 digits.
@@ -74,10 +76,11 @@ std::string facts_table(const db::history::RunRecord& r) {
   s += row("started", "<span data-ms='" + std::to_string(r.started_at_ms) + "'>" +
                           short_time(r.started_at_ms) + " UTC</span>");
   if (r.ended_at_ms)
-    s += row("ended", "<span data-ms='" + std::to_string(*r.ended_at_ms) + "'>" +
-                          short_time(*r.ended_at_ms) + " UTC</span> (" +
-                          station::control::format_duration_s((*r.ended_at_ms - r.started_at_ms) / 1000.0) +
-                          ")");
+    s += row("ended",
+             "<span data-ms='" + std::to_string(*r.ended_at_ms) + "'>" +
+                 short_time(*r.ended_at_ms) + " UTC</span> (" +
+                 station::control::format_duration_s((*r.ended_at_ms - r.started_at_ms) / 1000.0) +
+                 ")");
   s += "</table>\n<p id='archive' data-path='" + esc(r.archive_path) + "' data-sha256='" +
        esc(r.archive_sha256) + "'>Archive <code>" +
        (r.archive_path.empty() ? "(none)" : esc(r.archive_path)) + "</code><br>SHA-256 <code>" +
@@ -132,7 +135,8 @@ std::string calibration_table(const std::vector<db::history::CalibrationRecord>&
     const calib::core::ParamInfo& info = calib::core::param_info(i);
     s += "<tr><td>" + info.name + "</td><td>" + esc(info.human_unit) + "</td>";
     for (std::size_t k = 0; k < cals.size(); ++k) {
-      const std::string attrs = " data-method='" + std::string(db::history::to_string(cals[k].method)) +
+      const std::string attrs = " data-method='" +
+                                std::string(db::history::to_string(cals[k].method)) +
                                 "' data-param='" + info.name + "'";
       if (listed(cals[k].unobservable, info.name)) {
         s += "<td colspan='2' class='muted'" + attrs + ">not observable</td>";

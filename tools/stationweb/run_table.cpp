@@ -16,17 +16,21 @@ namespace {
 std::string run_row(const db::history::RunRecord& r, bool with_serial) {
   const nlohmann::json j = station::control::run_record_json(r);
   std::string s = "<tr class='run' data-run-id='" + std::to_string(r.run_id) + "' data-serial='" +
-                  esc(r.serial) + "' data-state='" + db::history::to_string(r.state) + "' data-verdict='" +
-                  (r.verdict ? db::history::to_string(*r.verdict) : "") + "' data-station='" +
-                  esc(r.station) + "' data-started-ms='" + std::to_string(r.started_at_ms) + "'>";
+                  esc(r.serial) + "' data-state='" + db::history::to_string(r.state) +
+                  "' data-verdict='" + (r.verdict ? db::history::to_string(*r.verdict) : "") +
+                  "' data-station='" + esc(r.station) + "' data-started-ms='" +
+                  std::to_string(r.started_at_ms) + "'>";
   s += "<td class='num'>" + run_link(r.run_id) + "</td>";
   if (with_serial) s += "<td>" + unit_link(r.serial) + "</td>";
-  s += "<td>" + short_time(r.started_at_ms) + "</td><td>" + db::history::to_string(r.state) + "</td>";
+  s += "<td>" + short_time(r.started_at_ms) + "</td><td>" + db::history::to_string(r.state) +
+       "</td>";
   s += "<td>" + verdict_html(r.verdict) + "</td>";
-  s += "<td>" + std::string(r.crosscheck_verdict ? db::history::to_string(*r.crosscheck_verdict) : "-") +
+  s += "<td>" +
+       std::string(r.crosscheck_verdict ? db::history::to_string(*r.crosscheck_verdict) : "-") +
        "</td>";
   s += "<td>" + esc(r.station) + "</td><td>" + esc(station::control::slot_cell(j)) + "</td>";
-  s += "<td>" + esc(r.sequence_name) + "</td><td>" + esc(station::control::gap_cell(j)) + "</td></tr>\n";
+  s += "<td>" + esc(r.sequence_name) + "</td><td>" + esc(station::control::gap_cell(j)) +
+       "</td></tr>\n";
   return s;
 }
 

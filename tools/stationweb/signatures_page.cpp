@@ -1,7 +1,7 @@
 // "/signatures": station signatures (issue #25) of one period — each station's departure from the
 // fleet fitted by every station error (size ± σ, z), and the flagged stations with their likely
-// cause, the advice and the runs they touch (tools/report/station_signatures.hpp computes it, as for
-// `stationctl stations --signatures`).
+// cause, the advice and the runs they touch (tools/report/station_signatures.hpp computes it, as
+// for `stationctl stations --signatures`).
 #include <map>
 #include <mutex>
 
@@ -14,10 +14,11 @@ namespace imucal::tools::stationweb {
 
 namespace {
 
-db::history::FleetFilter window_of(const History& history, const Params& query, int default_days = 7) {
+db::history::FleetFilter window_of(const History& history, const Params& query,
+                                   int default_days = 7) {
   try {
     return tools::report::signature_window(*history.repo, query_value(query, "since"),
-                                     query_value(query, "until"), default_days);
+                                           query_value(query, "until"), default_days);
   } catch (const tools::report::WindowError& e) {
     bad_input(e.field, e.reason);
   }
@@ -72,7 +73,8 @@ std::string alarm_section(const nlohmann::json& st) {
 /// The default window's report, computed once per (history, window, newest run): the fleet page
 /// shows its flags on every load, and a week's AINS results need not be read again until a run
 /// arrives. Pages are served from several threads.
-nlohmann::json cached_default_report(const History& history, const db::history::FleetFilter& window) {
+nlohmann::json cached_default_report(const History& history,
+                                     const db::history::FleetFilter& window) {
   static std::mutex mutex;
   static std::map<std::string, nlohmann::json> cache;
   const auto newest = history.repo->recent_runs(1);
@@ -83,8 +85,8 @@ nlohmann::json cached_default_report(const History& history, const db::history::
     const std::lock_guard<std::mutex> lock(mutex);
     if (const auto it = cache.find(key); it != cache.end()) return it->second;
   }
-  nlohmann::json report =
-      tools::report::station_signature_report(*history.stats, window, calib::studies::fleet::SignatureOptions{});
+  nlohmann::json report = tools::report::station_signature_report(
+      *history.stats, window, calib::studies::fleet::SignatureOptions{});
   const std::lock_guard<std::mutex> lock(mutex);
   if (cache.size() > 16) cache.clear();  // old windows and old newest runs
   return cache[key] = std::move(report);
@@ -140,8 +142,8 @@ std::string signatures_page(const History& history, const Params& query) {
        std::to_string(*window.until_ms) + "'>Factory AINS results of runs started from " +
        short_time(*window.since_ms) + " until (before) " + short_time(*window.until_ms) +
        " UTC.</p>\n";
-  const nlohmann::json report =
-      tools::report::station_signature_report(*history.stats, window, calib::studies::fleet::SignatureOptions{});
+  const nlohmann::json report = tools::report::station_signature_report(
+      *history.stats, window, calib::studies::fleet::SignatureOptions{});
   if (report["stations"].empty())
     return page("Station signatures", b + "<p>No factory AINS results in this window.</p>\n");
   b += "<p>Each station's units against the other stations' (against the units' own spread), and "
@@ -196,7 +198,8 @@ std::string trend_table(const nlohmann::json& trend) {
   std::string b = "<table id='trend'>\n<tr><th>station</th>";
   for (const auto& p : trend["periods"])
     b += "<th class='num'>" +
-         db::history::format_time_utc(p["since_ms"].get<db::history::TimestampMs>()).substr(5, 5) + "</th>";
+         db::history::format_time_utc(p["since_ms"].get<db::history::TimestampMs>()).substr(5, 5) +
+         "</th>";
   b += "</tr>\n";
   for (const auto& name : trend["stations"]) {
     b += "<tr><td>" + esc(name.get<std::string>()) + "</td>";
@@ -238,8 +241,8 @@ std::string signature_trend_page(const History& history, const Params& query) {
        "'></label><label>period (days) <input name='period_days' size='4' value='" +
        std::to_string(period_days) + "'></label> <button type='submit'>Show</button></form>\n";
   if (!window.until_ms) return page("Signature trend", b + "<p>No runs stored yet.</p>\n");
-  const nlohmann::json trend = tools::report::station_signature_trend(*history.stats, window, period_days,
-                                                                calib::studies::fleet::SignatureOptions{});
+  const nlohmann::json trend = tools::report::station_signature_trend(
+      *history.stats, window, period_days, calib::studies::fleet::SignatureOptions{});
   if (trend["stations"].empty())
     return page("Signature trend", b + "<p>No factory AINS results in this window.</p>\n");
   b += "<p>Each period's signatures on their own (<a href='/signatures'>one period</a>): a "

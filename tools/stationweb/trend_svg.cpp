@@ -146,7 +146,8 @@ void component(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
 }
 
 void active_marker(std::ostringstream& os, const TimeAxis& axis,
-                   const std::vector<TrendPoint>& points, std::optional<db::history::RunId> active) {
+                   const std::vector<TrendPoint>& points,
+                   std::optional<db::history::RunId> active) {
   if (!active) return;
   for (const TrendPoint& q : points) {
     if (q.run_id != *active) continue;
@@ -176,7 +177,8 @@ std::string trend_svg(calib::core::ParamGroup group, const std::vector<TrendPoin
   const std::vector<int> idx = members(group);
   const calib::core::ParamInfo& first = calib::core::param_info(idx.front());
   std::ostringstream os;
-  os << "<svg id='trend-" << calib::core::group_name(group) << "' xmlns='http://www.w3.org/2000/svg' "
+  os << "<svg id='trend-" << calib::core::group_name(group)
+     << "' xmlns='http://www.w3.org/2000/svg' "
      << "width='" << kWidth << "' height='" << kHeight << "' viewBox='0 0 " << kWidth << ' '
      << kHeight << "' font-family='sans-serif'>\n";
   if (points.empty()) return os.str() + "</svg>\n";

@@ -21,7 +21,8 @@ struct TrendPoint {
   db::history::TimestampMs t_ms = 0;
   calib::core::ParamVector value = calib::core::ParamVector::Zero();
   calib::core::ParamVector sigma = calib::core::ParamVector::Zero();
-  std::array<bool, calib::core::ParamSet::kSize> observable{};  ///< false: not determined, not drawn
+  std::array<bool, calib::core::ParamSet::kSize>
+      observable{};  ///< false: not determined, not drawn
 };
 
 /// <svg id='trend-GROUP'> for one group, points in time order.

@@ -18,7 +18,8 @@ constexpr calib::core::ParamGroup kGroups[] = {
     calib::core::ParamGroup::kTableMisalign};
 
 /// Every AINS calibration of the serial, oldest first (one export pass, no query per run).
-std::vector<TrendPoint> ains_points(const db::history::Repository& repo, const std::string& serial) {
+std::vector<TrendPoint> ains_points(const db::history::Repository& repo,
+                                    const std::string& serial) {
   std::vector<TrendPoint> points;
   db::history::ExportFilter filter;
   filter.serial = serial;
@@ -40,7 +41,7 @@ std::vector<TrendPoint> ains_points(const db::history::Repository& repo, const s
 }
 
 std::optional<db::history::ActiveCalibration> active_of(const db::history::Repository& repo,
-                                               const std::string& serial) {
+                                                        const std::string& serial) {
   try {
     return repo.active_params(serial);
   } catch (const db::history::NotFound&) {

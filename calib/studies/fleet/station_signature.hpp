@@ -89,9 +89,9 @@ struct StationSignature {
   /// Every candidate not named, each fitted jointly with the named ones (z given them, the model
   /// error of the named ones counted); empty when not flagged.
   std::vector<StationFit> fits_given_alarms;
-  std::vector<std::int64_t> run_ids;                  ///< the runs it touches
-  bool assessed = false;  ///< false: too little evidence (no reference, no units)
-  std::string why_not;    ///< when not assessed
+  std::vector<std::int64_t> run_ids;  ///< the runs it touches
+  bool assessed = false;              ///< false: too little evidence (no reference, no units)
+  std::string why_not;                ///< when not assessed
 };
 
 struct FleetSignatures {

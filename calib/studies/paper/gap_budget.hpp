@@ -127,10 +127,10 @@ struct BudgetSearchStep {
 struct GapBudget {
   std::vector<std::string> target_left_out;  ///< BudgetTarget::left_out
   std::vector<BudgetEntry> entries;          ///< sorted by share_leave_one_out, largest first
-  std::array<std::array<double, 2>, kNumPaperColumns> baseline{};   ///< mean square, no source
+  std::array<std::array<double, 2>, kNumPaperColumns> baseline{};       ///< mean square, no source
   std::array<std::array<double, 2>, kNumPaperColumns> baseline_mean{};  ///< its means
-  std::array<std::array<double, 2>, kNumPaperColumns> target{};     ///< the paper's mean square
-  std::array<std::array<double, 2>, kNumPaperColumns> target_mean{};  ///< and mean (fitted IMUs)
+  std::array<std::array<double, 2>, kNumPaperColumns> target{};         ///< the paper's mean square
+  std::array<std::array<double, 2>, kNumPaperColumns> target_mean{};    ///< and mean (fitted IMUs)
   /// The whole model at the fitted sizes, simulated on the search's units (the probes' seeds).
   std::array<std::array<double, 2>, kNumPaperColumns> predicted{};
   double explained_share = 0.0;  ///< of the gap, closed by the fitted model (simulated)

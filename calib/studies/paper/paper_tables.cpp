@@ -360,7 +360,8 @@ PaperTables run_paper_tables(const sequences::MotionProfile& profile, const Site
 
 const PaperPublished& paper_published() {
   // Tables I–IV of the paper (its §VIII: Jørgensen et al., "IMU Calibration and Validation in
-  // a Factory, Remote on Land and at Sea"), columns as PaperColumn: factory AINS, NLSQ, proprietary; land AINS; sea AINS. Rows IMU 1–6, then mean.
+  // a Factory, Remote on Land and at Sea"), columns as PaperColumn: factory AINS, NLSQ,
+  // proprietary; land AINS; sea AINS. Rows IMU 1–6, then mean.
   static const PaperPublished p = {{{{10.7668, 11.0004, 12.8470, 30.1818, 17.6468},
                                      {20.3281, 20.9816, 21.9415, 20.4200, 20.0357},
                                      {26.6626, 26.1676, 27.4034, 26.4714, 25.8094},

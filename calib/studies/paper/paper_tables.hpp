@@ -120,11 +120,11 @@ struct PaperTables {
   double wall_s = 0.0;
 };
 
-/// Unit u's true model: parameters drawn within ARCHITECTURE §7's default-unit sizes (biases 50 µg /
-/// 0.01 °/h, scale and misalignment 300 ppm/µrad, 1σ), its noise within ±20 % of the default,
-/// and — as a real unit has — unmodelled effects at the catalogue's typical sizes: thermal
-/// warm-up (20 µg, 0.005 °/h, τ 900 s), bias instability (10 µg, 0.001 °/h, τ 1000 s) and a
-/// quadratic accelerometer error (20 µg/g²), 1σ draws — those that `effects` selects.
+/// Unit u's true model: parameters drawn within ARCHITECTURE §7's default-unit sizes (biases 50 µg
+/// / 0.01 °/h, scale and misalignment 300 ppm/µrad, 1σ), its noise within ±20 % of the default, and
+/// — as a real unit has — unmodelled effects at the catalogue's typical sizes: thermal warm-up (20
+/// µg, 0.005 °/h, τ 900 s), bias instability (10 µg, 0.001 °/h, τ 1000 s) and a quadratic
+/// accelerometer error (20 µg/g²), 1σ draws — those that `effects` selects.
 UnitModel paper_unit(int unit, uint64_t seed, PaperEffects effects = PaperEffects::typical());
 
 /// paper_unit with the options' set-up gyro biases and catalogue effects on top, drawn from a
