@@ -81,11 +81,11 @@ EOF
   for _ in $(seq 300); do "${ctl[@]}" run status >/dev/null 2>&1 && break; sleep 0.1; done
   "${ctl[@]}" import "$2/short7" --wait >import_short7.txt 2>&1 || true
   "${ctl[@]}" import "$2/land3" --wait >import_land3.txt 2>&1 || true
-  "${ctl[@]}" --json history SIM-0001 >history.json 2>&1 || true
+  "${ctl[@]}" --json history SIM-7 >history.json 2>&1 || true
   "${ctl[@]}" history >history.txt 2>&1 || true
   "${ctl[@]}" --json show 1 >show_1.json 2>&1 || true
   "${ctl[@]}" show 2 >show_2.txt 2>&1 || true
-  "${ctl[@]}" params SIM-0001 >params.txt 2>&1 || true
+  "${ctl[@]}" params SIM-7 >params.txt 2>&1 || true
   "${ctl[@]}" export --format json >export.json 2>&1 || true
   "${ctl[@]}" export --format csv >export.csv 2>&1 || true
   kill -TERM "$daemon" 2>/dev/null || true
