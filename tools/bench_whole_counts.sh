@@ -42,6 +42,8 @@ TESTS=(
   "e2e_station_crash_slow_test StationCrash.*"
   "fleet_fleet_replication_test FleetReplication.TwentyStationsLoseNothingThroughKillsAndACut"
   "e2e_station_speed_test StationSpeed.TheSameRunsGiveTheSameVerdictsAt100x200xAnd400xOnABusyCpu"
+  "tools_imucal_gap_budget_cli_test GapBudgetCli.PrintsTheBudgetWithEverySourcesSizeShareAndWhereToFixIt"
+  "tools_imucal_gap_budget_cli_test GapBudgetCli.ShowsItsProgressOnStderr"
   "calib_factory_fast_mc_slow_test FactoryFastMonteCarlo.*"
   "calib_field_calibration_slow_test *FieldCalibration.*"
 )
