@@ -5,7 +5,7 @@
 # (IMUCAL_SOAK_LOG), then a summary of the CSV: the daemon's RSS (first and last run, least-squares
 # slope over the second half, the test's own check), its open descriptors, the latency of the
 # `stationctl history` made right after each run and of the parallel querier's queries, the
-# database size and the wall time. A benchmark, not CI (CI runs the same test with 15 runs).
+# database size and the wall time. A benchmark, not CI (CI runs the same test with 12 runs).
 # Usage: tools/bench_soak.sh [BUILD_DIR] [--runs N] [--units N] [--csv FILE]
 #   BUILD_DIR default build (needs BUILD_DIR/tests/e2e_station_soak_slow_test and its bin/);
 #   the CSV is kept (default var/soak/soak-<runs>-<date>.csv); run it under nice on a shared machine.

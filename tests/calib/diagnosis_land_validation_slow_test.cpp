@@ -3,9 +3,12 @@
 // where the setting can separate them — top-1 >= 90 %, nulls <= 5 %). factory-std's positions taken
 // by hand on land (calib/sim/field_sim.hpp: placement errors, rest and move times jittered, no
 // table log), calibrated by the multi-position method and diagnosed with each rest's attitude
-// unknown. The full-size figures come from `imucal validate-diagnosis --setting land --runs 10
-// --nulls 40` (README); this count (IMUCAL_VALIDATION_RUNS per effect, default 3) asserts them with
-// margins.
+// unknown. The whole count (IMUCAL_WHOLE_COUNTS=1; `imucal validate-diagnosis --setting land
+// --runs 10 --nulls 40`, docs/validation/field.md): 10 runs per effect and 40 nulls, held to the
+// issue's bar: it measures the rates. The CI count: 3 runs per effect and 12 nulls, held to the bar
+// with margins (top-1 >= 85 %, at most one null of 12 flagged): every separable effect named in
+// nearly every run. Not cut below 3: at 2 runs no null could be flagged (10 % of 8 is 0), which a
+// process at the issue's 5 % would fail one time in three. IMUCAL_VALIDATION_RUNS overrides.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -19,6 +22,7 @@
 #include "calib/sim/sim_input.hpp"
 #include "calib/sim/unit_draw.hpp"
 #include "sequences/library.hpp"
+#include "tests/support/ci_count.hpp"
 #include "tests/support/field_unit.hpp"
 #include "tests/support/validation_report.hpp"
 
@@ -46,8 +50,9 @@ bool validated(const ValidationReport& r, const char* name) {
 }  // namespace
 
 TEST(LandDiagnosisValidation, FactoryStdByHandMeetsTheBarWithMargins) {
-  const char* env = std::getenv("IMUCAL_VALIDATION_RUNS");
-  const int runs = env && std::atoi(env) > 0 ? std::atoi(env) : 3;
+  constexpr int kRunsWhole = 10;
+  const int runs = test_support::test_count("IMUCAL_VALIDATION_RUNS", 3, kRunsWhole);
+  const bool issue_bar = runs >= kRunsWhole;  // enough runs to hold the rates to the bar itself
   ValidationOptions opt;
   opt.runs_per_effect = runs;
   opt.null_runs = 4 * runs;
@@ -64,8 +69,8 @@ TEST(LandDiagnosisValidation, FactoryStdByHandMeetsTheBarWithMargins) {
   EXPECT_TRUE(validated(r, "thermal_drift"));
   EXPECT_TRUE(validated(r, "size_effect"));
   EXPECT_GE(r.effects.size(), 6u);
-  EXPECT_GE(r.top1, 0.85);
-  EXPECT_LE(r.false_alarm, 0.1);
+  EXPECT_GE(r.top1, issue_bar ? 0.9 : 0.85);
+  EXPECT_LE(r.false_alarm, issue_bar ? 0.05 : 0.1);
   EXPECT_GE(r.median_shrinkage, 0.7);
 }
 

@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
 #include "calib/core/site_presets.hpp"
 #include "calib/diagnosis/false_alarm.hpp"
@@ -16,6 +17,7 @@
 #include "sequences/library.hpp"
 #include "sequences/parser.hpp"
 #include "sequences/profile_generator.hpp"
+#include "tests/support/ci_count.hpp"
 
 namespace imucal::calib {
 using namespace imucal::calib::core;
@@ -24,6 +26,16 @@ using namespace imucal::calib::effects;
 using namespace imucal::calib::sim;
 using namespace imucal::calib::studies::design;
 namespace {
+
+/// The rate of the target search's CRLB runs: the product's 20 Hz at the whole count
+/// (IMUCAL_WHOLE_COUNTS=1), 10 Hz in ctest (a run costs ∝ rate: 111 s on a busy machine against
+/// 196 s in the last ctest run). The final figures the test asserts on stay at 100 Hz, so a search
+/// misled by its rate still fails it. IMUCAL_DESIGN_SEARCH_RATE_HZ overrides.
+double search_rate_hz() {
+  const char* env = std::getenv("IMUCAL_DESIGN_SEARCH_RATE_HZ");
+  if (env && std::atof(env) > 0) return std::atof(env);
+  return test_support::whole_counts() ? 20.0 : 10.0;
+}
 
 TEST(SequenceDesignAtItsOwnTime, NoGroupWorseThanFactoryStd) {
   const sequences::Sequence reference =
@@ -52,14 +64,17 @@ TEST(SequenceDesignAtItsOwnTime, NoGroupWorseThanFactoryStd) {
 }
 
 // The inverse question (--target-from SEQ --factor K): the least time with every σ ≤ K × SEQ's.
-// On short with K = 1.2 (effects not analysed, to keep it to a minute): a design shorter than
-// short, every parameter within 1.2× short's, and no time under the floor bound T ≥ (N/Kσ)².
+// On short with K = 1.2 (effects not analysed, to keep it short): a design shorter than short,
+// every parameter within 1.2× short's, and no time under the floor bound T ≥ (N/Kσ)². The search
+// at 10 Hz in ctest, 20 Hz at the whole count (search_rate_hz above): the same bisection, the
+// same bounds; a 10 Hz search found 366 s (0.708 of short) with every bound held.
 TEST(SequenceDesignForATarget, FindsAShorterSequenceWithinTheFactorOfShort) {
   const sequences::Sequence s_seq =
       sequences::parse_sequence_file(sequences::resolve_sequence("short"));
   DesignSetting s;
   s.site = demo_factory_site();
   s.limits = sequences::effective_limits(sequences::TableLimits{}, s_seq.limits);
+  s.search_rate_hz = search_rate_hz();
   const SequenceDesign d = design_for_target(s_seq, s_seq, 1.2, s);
   const double t_short_s = sequences::generate_profile(s_seq).duration_s();
   std::printf("short %.0f s; sigma <= 1.2 x short's in %.0f s (%.3f of it)\n", t_short_s,
@@ -67,7 +82,7 @@ TEST(SequenceDesignForATarget, FindsAShorterSequenceWithinTheFactorOfShort) {
   EXPECT_LT(d.design.duration_s, t_short_s);
   EXPECT_LE(d.objective, 1.0);
   for (int i = 0; i < ParamSet::kSize; ++i) {
-    // The search judged at its rate (20 Hz), the figures at 100 Hz: equal to 0.1 %.
+    // The search judged at its rate (10 or 20 Hz), the figures at 100 Hz: equal to 0.1 %.
     EXPECT_LE(d.design.sigma(i), 1.2 * 1.001 * d.reference.sigma(i)) << param_info(i).name;
     const double floor = white_noise_floor(i, s.noise, 1.0);
     if (floor > 0) {

@@ -43,7 +43,15 @@ TEST(StationAccess, IdleClientsCannotLockOutTheOperator) {
   st.write_config(text);
   ASSERT_TRUE(st.start_daemon());
   const pid_t attacker = hold_idle_connections(st.socket_path(), 150, 8s);
-  std::this_thread::sleep_for(1s);  // all 150 connect() calls done
+  // The attack in place before the operator tries: nobody holds its 16 connections and is being
+  // refused more (awaited in the daemon's log, not a fixed second).
+  ASSERT_TRUE(wait_until(
+      [&] {
+        return st.daemon_log().find("too many control connections from nobody") !=
+               std::string::npos;
+      },
+      20s))
+      << st.daemon_log();
   // The operator is not locked out: a read over the socket and a run start.
   const CmdResult live = st.ctl({"--json", "run", "status"}, 20s);
   EXPECT_EQ(live.exit_code, 0) << live.describe();

@@ -4,8 +4,14 @@
 //  * every catalogue effect that the factory sequence can detect (imucal crlb --effects: a finite
 //    detection threshold), injected at 3x its threshold, no longer ends a run PASS — it ends REVIEW
 //    and the reason names the gap;
-//  * null runs (no effect) still PASS: at most 5 % REVIEW over IMUCAL_GAP_NULL_SEEDS seeds (default
-//    40, the issue's count).
+//  * null runs (no effect) still PASS: at most 5 % REVIEW. The whole count (IMUCAL_WHOLE_COUNTS=1,
+//    the issue's) is 40 seeds with at most 2 REVIEW, the issue's figure as it stands: it measures
+//    the rate to about ±5 %. The CI count is 10 seeds with at most 2 REVIEW: a station exactly at
+//    the issue's 5 % fails it with probability P(Bin(10, 0.05) > 2) = 1.2 %, one at the gap check's
+//    design rate (1e-4 per run) never in practice (2e-10); a station whose null runs end REVIEW
+//    one time in three fails it 70 % of the time, one that reviews every run always. It proves that
+//    the null runs are not commonly flagged; the whole count that they are flagged at most 5 %.
+//    IMUCAL_GAP_NULL_SEEDS overrides both counts (the bound then as at the CI count).
 // Before issue #8 a 30 µg/g² K2, a warm-up, a Gauss-Markov bias or a 10" table non-orthogonality
 // ended PASS with parameters 7-180 σ off.
 #include <gtest/gtest.h>
@@ -24,17 +30,18 @@
 #include "db/history/sqlite_repository.hpp"
 #include "sequences/library.hpp"
 #include "station/run/calibration_worker.hpp"
+#include "tests/support/ci_count.hpp"
 #include "tests/support/temp_dir.hpp"
 
 using namespace imucal;
 
 namespace {
 
-int null_seeds() {
-  const char* env = std::getenv("IMUCAL_GAP_NULL_SEEDS");
-  const int n = env ? std::atoi(env) : 40;
-  return n > 0 ? n : 40;
-}
+constexpr int kNullSeedsCi = 10, kNullSeedsWhole = 40;
+/// The issue's ceiling on the rate of null runs that do not PASS.
+constexpr double kNullReviewRate = 0.05;
+/// The false-fail probability the CI count's bound is chosen for (at exactly kNullReviewRate).
+constexpr double kNullFalseFail = 0.02;
 
 struct Case {
   std::string name;  ///< "null" or the effect
@@ -138,7 +145,7 @@ TEST(GapReview, EveryDetectableEffectAtThreeTimesItsThresholdIsNeverPass) {
 }
 
 TEST(GapReview, NullRunsStillPass) {
-  const int n = null_seeds();
+  const int n = test_support::test_count("IMUCAL_GAP_NULL_SEEDS", kNullSeedsCi, kNullSeedsWhole);
   std::vector<Case> cases;
   for (int i = 0; i < n; ++i)
     cases.push_back({"null", calib::effects::Effects{}, 1000u + static_cast<uint64_t>(i)});
@@ -150,6 +157,15 @@ TEST(GapReview, NullRunsStillPass) {
                   db::history::to_string(out[i].state), out[i].reason.c_str());
     review += out[i].state == db::history::RunState::kDone ? 0 : 1;
   }
-  std::printf("  %d of %d null runs not PASS\n", review, n);
-  EXPECT_LE(review, static_cast<int>(0.05 * n)) << review << " of " << n << " null runs not PASS";
+  // At the whole count the issue's figure (5 % of 40: 2); at any other count the fewest allowed
+  // whose false-fail probability at the issue's rate is at most kNullFalseFail (2 of 10: 1.2 %).
+  const int allowed = n == kNullSeedsWhole
+                          ? static_cast<int>(kNullReviewRate * n)
+                          : test_support::allowed_events(n, kNullReviewRate, kNullFalseFail);
+  std::printf(
+      "  %d of %d null runs not PASS (at most %d allowed: false-fail probability %.4f at a %.0f "
+      "%% rate)\n",
+      review, n, allowed, test_support::binomial_tail_above(allowed, n, kNullReviewRate),
+      100 * kNullReviewRate);
+  EXPECT_LE(review, allowed) << review << " of " << n << " null runs not PASS";
 }

@@ -4,9 +4,11 @@
 // integration scheme and noise generator), calibrated and diagnosed blind by `imucal
 // validate-diagnosis`. The issue's bar — the first named effect injected in >= 90 % of runs, every
 // injected effect named in >= 80 % of pairs and >= 60 % of triples, no noise candidate named ahead
-// of an injected effect — is measured at full size in the README; this smaller count
-// (IMUCAL_VALIDATION_RUNS x 4 pairs and triples per simulator, default 3) asserts it with margins
-// for the sampling noise of so few runs, and the null runs beside them at the station's rate.
+// of an injected effect — is held at the whole count (IMUCAL_WHOLE_COUNTS=1: 20 pairs, 20 triples
+// and 20 nulls per simulator, docs/validation/diagnosis.md). The CI count (8 of each per simulator)
+// holds it with margins for the sampling noise of so few runs (first named injected >= 80 %, both
+// of a pair >= 65 %: 6 of 8, all of a triple >= 45 %: 4 of 8), and the null runs beside them at
+// the station's rate (none flagged). IMUCAL_VALIDATION_RUNS x 4 overrides the count.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -14,14 +16,15 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "tests/support/ci_count.hpp"
 #include "tests/support/imucal_cli.hpp"
 
 namespace {
 
+constexpr int kRunsWhole = 5;  // x 4: the 20 pairs, triples and nulls of the whole count
+
 int multi_runs() {
-  const char* env = std::getenv("IMUCAL_VALIDATION_RUNS");
-  const int runs = env && std::atoi(env) > 0 ? std::atoi(env) : 3;
-  return 4 * runs;
+  return 4 * imucal::test_support::test_count("IMUCAL_VALIDATION_RUNS", 2, kRunsWhole);
 }
 
 nlohmann::json validate(const std::string& simulator, int n, int seed) {
@@ -47,11 +50,13 @@ void expect_the_bar(const nlohmann::json& j, const std::string& simulator) {
       std::printf("  %-70s -> %s\n", r["injected"].dump().c_str(), r["explained"].dump().c_str());
   EXPECT_GE(j["pair_runs"].get<int>(), 4);
   EXPECT_GE(j["triple_runs"].get<int>(), 4);
-  EXPECT_GE(j["multi_first_injected"].get<double>(), 0.8) << simulator;
-  EXPECT_GE(j["pair_both"].get<double>(), 0.65) << simulator;
-  EXPECT_GE(j["triple_all"].get<double>(), 0.45) << simulator;
+  // Enough runs to hold the rates to the bar itself.
+  const bool issue_bar = j["pair_runs"].get<int>() >= 4 * kRunsWhole;
+  EXPECT_GE(j["multi_first_injected"].get<double>(), issue_bar ? 0.9 : 0.8) << simulator;
+  EXPECT_GE(j["pair_both"].get<double>(), issue_bar ? 0.8 : 0.65) << simulator;
+  EXPECT_GE(j["triple_all"].get<double>(), issue_bar ? 0.6 : 0.45) << simulator;
   EXPECT_EQ(j["multi_noise_ahead"].get<int>(), 0) << simulator;
-  // At 1e-4 per run, one false alarm in a dozen null runs would be a 1 % event.
+  // At 1e-4 per run, one false alarm in 8 to 20 null runs would be a 0.1-0.2 % event.
   EXPECT_EQ(j["false_alarm"].get<double>(), 0.0) << simulator;
 }
 
