@@ -18,6 +18,7 @@
 #include "calib/core/rotation.hpp"
 #include "db/archive/archive_error.hpp"
 #include "db/archive/csv.hpp"
+#include "db/archive/human_units.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/toml_util.hpp"
 #include "sequences/toml_support.hpp"
@@ -39,8 +40,6 @@ const std::vector<std::string> kAttitudeColumns = {"t_s", "roll_deg", "pitch_deg
 // Degrees -> rad with one fixed expression; the writer inverts it exactly (human_for_si).
 double deg_to_rad(double d) { return d * kDegToRad; }
 double rad_to_deg_exact(double r) { return human_for_si(r, r * kRadToDeg, deg_to_rad); }
-double arw_to_si(double h) { return h * kDegToRad / 60.0; }  // deg/√h -> rad/√s
-double vrw_to_si(double h) { return h * kMicroG_mps2; }      // µg/√Hz -> (m/s)/√s
 
 /// run.toml [prior]'s envelope overrides: key, human unit, SI conversion, the override it sets
 /// and its admissible maximum (calib::core::envelope_range()).

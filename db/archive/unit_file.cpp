@@ -6,6 +6,7 @@
 #include "calib/core/conventions.hpp"
 #include "calib/effects/catalogue.hpp"
 #include "db/archive/archive_error.hpp"
+#include "db/archive/human_units.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/param_json.hpp"
 #include "db/archive/toml_util.hpp"
@@ -20,8 +21,6 @@ double ug_to_mps2(double h) { return h * kMicroG_mps2; }
 double ppm_to_1(double h) { return h / 1e6; }  // division by an exact 1e6: correctly rounded
 double deg_per_h_to_radps(double h) { return h * kDegPerHourToRadPerSec; }
 double arcsec_to_rad(double h) { return h * kArcsecToRad; }
-double arw_to_si(double h) { return h * kDegToRad / 60.0; }             // deg/√h -> rad/√s
-double vrw_to_si(double h) { return h * kMicroG_mps2; }                 // µg/√Hz -> (m/s)/√s
 double k2_to_si(double h) { return h * 1e-6 / kStandardGravity_mps2; }  // µg/g² -> 1/(m/s²)
 double gsens_to_si(double h) { return h * kDegPerHourToRadPerSec / kStandardGravity_mps2; }
 double identity(double h) { return h; }

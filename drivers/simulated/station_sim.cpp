@@ -13,7 +13,7 @@ namespace imucal::drivers::simulated {
 
 namespace {
 
-void check_probability(double p, const char* name) {
+void check_fault_probability(double p, const char* name) {
   if (!(p >= 0.0 && p <= 1.0))
     throw std::invalid_argument(std::string("StationSimConfig.faults.") + name +
                                 " must be in [0, 1], got " + std::to_string(p));
@@ -65,6 +65,12 @@ class ModbusFaultSchedule {
   size_t next_drop_ = 0, next_delay_ = 0;
 };
 
+}  // namespace
+
+// Outside the anonymous namespace: StationSim::Unit (declared in the header) holds one, and in a
+// unity build (CMakeLists.txt) gcc warns of a member whose type has internal linkage.
+namespace detail {
+
 /// When the sensor noise restarts: from a stream of its own at each accepted home command (a
 /// station starts every run with one) and at the end of each motion after it — stream (seed, homes,
 /// motions ended since the home). A run's noise then does not depend on how long the station idled
@@ -100,7 +106,7 @@ class NoiseRestarts {
   bool due_ = false, was_moving_ = false;
 };
 
-}  // namespace
+}  // namespace detail
 
 /// One unit on the fixture: its configuration, bus and CAN node, and (physics thread) its truth
 /// stream, fault injector and noise restarts.
@@ -111,7 +117,7 @@ struct StationSim::Unit {
   std::unique_ptr<ImuCanNode> node;
   std::unique_ptr<calib::sim::TruthStream> stream;
   std::unique_ptr<ImuFaultInjector> fault;
-  std::unique_ptr<NoiseRestarts> noise;
+  std::unique_ptr<detail::NoiseRestarts> noise;
 
   /// The unit's truth: its own mounting, and the slot's lever arm as the size effect of all
   /// three accelerometers (a rigid offset from the rotation centre, body axes).
@@ -146,8 +152,8 @@ StationSim::StationSim(StationSimConfig cfg) : cfg_(std::move(cfg)) {
                                 std::to_string(cfg_.speed));
   if (cfg_.can_path.empty()) throw std::invalid_argument("StationSimConfig.can_path is empty");
   const StationSimFaults& f = cfg_.faults;
-  check_probability(f.can_loss, "can_loss");
-  check_probability(f.can_corrupt, "can_corrupt");
+  check_fault_probability(f.can_loss, "can_loss");
+  check_fault_probability(f.can_corrupt, "can_corrupt");
   for (double t : f.imu_reset_at_s) check_time(t, "imu_reset_at_s");
   for (double t : f.modbus_drop_at_s) check_time(t, "modbus_drop_at_s");
   for (const auto& d : f.modbus_delay) {
@@ -308,7 +314,7 @@ std::vector<size_t> StationSim::prepare_units() {
   for (const auto& u : units_) {
     u->stream = std::make_unique<calib::sim::TruthStream>(u->make_stream(cfg_));
     u->fault = std::make_unique<ImuFaultInjector>(u->cfg.imu_fault);
-    u->noise = std::make_unique<NoiseRestarts>(u->cfg.seed);
+    u->noise = std::make_unique<detail::NoiseRestarts>(u->cfg.seed);
   }
   // The units whose quadrature samples the table inside an interval go first: the PLC only steps
   // forward, and the others then read the states they asked for (same interval, same nodes).

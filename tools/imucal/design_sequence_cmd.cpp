@@ -17,18 +17,12 @@
 #include "sequences/parser.hpp"
 #include "sequences/profile_generator.hpp"
 #include "sequences/sequence_error.hpp"
+#include "tools/imucal/exit_codes.hpp"
+#include "tools/imucal/format.hpp"
 
 namespace imucal::tools::imucal {
 
 namespace {
-
-constexpr int kExitReview = 3;
-
-std::string fmt(const char* format, double a) {
-  char b[64];
-  std::snprintf(b, sizeof b, format, a);
-  return b;
-}
 
 /// A parsed, validated library sequence or file; errors name the option.
 sequences::Sequence read_sequence(const std::string& option, const std::string& name_or_path) {

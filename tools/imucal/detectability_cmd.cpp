@@ -12,6 +12,7 @@
 #include "calib/sim/sim_input.hpp"
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
+#include "tools/imucal/format.hpp"
 
 namespace imucal::tools::imucal {
 
@@ -53,12 +54,6 @@ std::string remedy(calib::effects::EffectId id) {
     default:
       return "longer rests";
   }
-}
-
-std::string fmt(const char* format, double v) {
-  char b[64];
-  std::snprintf(b, sizeof b, format, v);
-  return b;
 }
 
 std::string joined(const std::vector<std::string>& names) {

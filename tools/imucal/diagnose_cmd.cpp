@@ -16,14 +16,13 @@
 #include "db/archive/diagnosis_json.hpp"
 #include "db/archive/io_util.hpp"
 #include "db/archive/run_archive.hpp"
+#include "tools/imucal/exit_codes.hpp"
 #include "tools/report/diagnosis_report.hpp"
 
 namespace imucal::tools::imucal {
 using namespace tools::report;
 
 namespace {
-
-constexpr int kExitReview = 3;
 
 std::vector<calib::effects::EffectId> parse_candidates(const std::string& list) {
   try {

@@ -139,7 +139,7 @@ db::archive::RunInfo run_info(const ImportArgs& a, double rate_hz) {
   return info;
 }
 
-void report(const ImportArgs& a, const db::archive::RawRecording& rec) {
+void print_import_report(const ImportArgs& a, const db::archive::RawRecording& rec) {
   const double span_s = rec.imu.back().t_s - rec.imu.front().t_s + rec.imu.front().dt_s;
   if (a.json) {
     std::cout << nlohmann::json{{"out", a.out_dir},
@@ -222,7 +222,7 @@ int cmd_import(const ImportArgs& args) {
   ar.info = run_info(a, rec.rate_hz);
   ar.imu = rec.imu;
   db::archive::write_archive(a.out_dir, ar, a.overwrite);
-  report(a, rec);
+  print_import_report(a, rec);
   return 0;
 }
 

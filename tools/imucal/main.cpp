@@ -47,6 +47,7 @@
 #include "tools/imucal/detectability_cmd.hpp"
 #include "tools/imucal/diagnose_cmd.hpp"
 #include "tools/imucal/effects_cmd.hpp"
+#include "tools/imucal/exit_codes.hpp"
 #include "tools/imucal/gap_budget_cmd.hpp"
 #include "tools/imucal/import_cmd.hpp"
 #include "tools/imucal/paper_tables_cmd.hpp"
@@ -58,9 +59,9 @@ using namespace imucal;
 
 namespace {
 
-constexpr int kExitBadInput = 1;
-constexpr int kExitReview = 3;
-constexpr int kExitUsage = 2;
+using tools::imucal::kExitBadInput;
+using tools::imucal::kExitReview;
+using tools::imucal::kExitUsage;
 
 /// Keep freed memory in the process. Every simulated unit allocates and frees tens of megabytes
 /// of samples and filter epochs; by default glibc hands blocks that large back to the kernel and

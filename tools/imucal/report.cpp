@@ -6,22 +6,11 @@
 
 #include "calib/core/body_frame.hpp"
 #include "db/archive/param_json.hpp"
+#include "tools/imucal/format.hpp"
 
 namespace imucal::tools::imucal {
 
 namespace {
-
-std::string fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, v);
-  return buf;
-}
-
-std::string fmt(const char* f, const char* v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, v);
-  return buf;
-}
 
 const char* frame_name(calib::core::BodyFrame f) {
   return f == calib::core::BodyFrame::kHousing ? "housing" : "accel_symmetric";

@@ -6,6 +6,7 @@
 
 #include "calib/core/param_set.hpp"
 #include "tools/stationweb/html.hpp"
+#include "tools/stationweb/page_util.hpp"
 #include "tools/stationweb/run_page_parts.hpp"
 
 namespace imucal::tools::stationweb {
@@ -17,10 +18,6 @@ const db::history::CalibrationRecord* find_method(
   for (const auto& c : cals)
     if ((c.method == db::history::Method::kAins) == ains) return &c;
   return nullptr;
-}
-
-bool listed(const std::vector<std::string>& names, const std::string& name) {
-  return std::find(names.begin(), names.end(), name) != names.end();
 }
 
 std::string status_of(const db::history::CrosscheckRecord& x,

@@ -9,13 +9,13 @@
 #include "calib/core/param_set.hpp"
 #include "tools/stationweb/fleet_svg.hpp"
 #include "tools/stationweb/html.hpp"
+#include "tools/stationweb/page_util.hpp"
 #include "tools/stationweb/pages.hpp"
 
 namespace imucal::tools::stationweb {
 
 namespace {
 
-constexpr db::history::TimestampMs kDayMs = 86400000;
 constexpr int kDefaultWindowDays = 30;
 
 struct FleetQuery {

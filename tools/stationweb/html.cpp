@@ -3,12 +3,11 @@
 #include <cstdio>
 
 #include "tools/report/html_escape.hpp"
+#include "tools/stationweb/page_util.hpp"
 
 namespace imucal::tools::stationweb {
 
 namespace {
-
-constexpr std::int64_t kDayMs = 86400000;
 
 // Plain, printable, and legible in a screenshot: system fonts, a table style, verdict colours.
 constexpr const char* kStyle = R"(

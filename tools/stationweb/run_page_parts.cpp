@@ -6,6 +6,7 @@
 #include "calib/core/param_set.hpp"
 #include "station/control/record_json.hpp"
 #include "tools/stationweb/html.hpp"
+#include "tools/stationweb/page_util.hpp"
 
 namespace imucal::tools::stationweb {
 
@@ -15,10 +16,6 @@ using nlohmann::json;
 
 std::string row(const std::string& label, const std::string& value_html) {
   return "<tr><th>" + esc(label) + "</th><td>" + value_html + "</td></tr>\n";
-}
-
-bool listed(const std::vector<std::string>& names, const std::string& name) {
-  return std::find(names.begin(), names.end(), name) != names.end();
 }
 
 std::string method_label(db::history::Method m) {
