@@ -21,7 +21,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 mode=${1:-}
 launcher=()
-command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER="$(bash tools/ccache_launcher.sh)")
+generator() {  # generator TREE: Ninja for a new tree (issue #51), nothing for one configured before
+  [ -f "$1/CMakeCache.txt" ] || echo "-GNinja"
+}
 
 # The calibration core (single-threaded math, which neither the threaded tests nor the parsers
 # need instrumented) linked from the Release tree when it exists, for the tsan and fuzz modes:
@@ -46,7 +49,7 @@ case $mode in
   tsan)
     tree=${IMUCAL_SANITIZER_TREE:-build-tsan}
     # Line tables only (-g1) are all the reports need; the test programs at -O0 (compile time).
-    cmake -S . -B $tree -DIMUCAL_TSAN=ON -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1 -g1" \
+    cmake -S . -B $tree $(generator $tree) -DIMUCAL_TSAN=ON -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1 -g1" \
       -DIMUCAL_TEST_OPTIMIZE=-O0 "${launcher[@]}" "${release_calib[@]}" >/dev/null
     tests=(station_capture_test drivers_turntable_client_test drivers_station_sim_test
            station_control_server_test station_export_stream_test station_daemon_test
@@ -89,7 +92,7 @@ case $mode in
     else
       tree=${IMUCAL_SANITIZER_TREE:-build-asan}
     fi
-    CC=clang-16 CXX=clang++-16 cmake -S . -B $tree -DIMUCAL_FUZZ=ON -DCMAKE_BUILD_TYPE=None \
+    CC=clang-16 CXX=clang++-16 cmake -S . -B $tree $(generator $tree) -DIMUCAL_FUZZ=ON -DCMAKE_BUILD_TYPE=None \
       -DCMAKE_CXX_FLAGS="-O1 -gline-tables-only" -DIMUCAL_CALIB_OPTIMIZE="-O2 -DEIGEN_NO_DEBUG" -DIMUCAL_TEST_OPTIMIZE=-O0 \
       "${launcher[@]}" "${calib[@]}" >/dev/null
     if [ "$mode" = fuzz ]; then

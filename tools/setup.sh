@@ -23,7 +23,7 @@ case "${1:-}" in
     exit 2
     ;;
 esac
-MAIN_PKGS=(build-essential cmake ccache pkg-config
+MAIN_PKGS=(build-essential cmake ninja-build ccache pkg-config
            libeigen3-dev libceres-dev libmodbus-dev libsqlite3-dev libspdlog-dev
            libcli11-dev libtomlplusplus-dev nlohmann-json3-dev libsystemd-dev libpq-dev)
 # Needed before the build, so not in the background: the test programs' and benchmarks' libraries,
@@ -77,7 +77,13 @@ if [ $MODE = main ]; then
 fi
 build_status=0
 BUILD_DIR=${IMUCAL_BUILD_DIR:-build}
-{ cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
+# Ninja for a new tree (issue #51): it schedules the whole graph at -j2 where make waits directory by
+# directory, and its .ninja_log is what tools/build_profile.py reads. A tree configured before
+# keeps its generator (CMake refuses to change it).
+generator=()
+[ -f "$BUILD_DIR/CMakeCache.txt" ] || generator=(-G Ninja)
+{ cmake -S . -B "$BUILD_DIR" "${generator[@]}" -DCMAKE_BUILD_TYPE="$BUILD_TYPE" \
+    -DCMAKE_CXX_COMPILER_LAUNCHER="$(bash tools/ccache_launcher.sh)" \
     -DCMAKE_INSTALL_PREFIX=/usr -DIMUCAL_BUILD_TESTS=$tests -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=gold \
     -DIMUCAL_TEST_OPTIMIZE="${IMUCAL_TEST_OPTIMIZE--O1}" >/dev/null &&
   cmake --build "$BUILD_DIR" -j2 "${targets[@]}"; } || build_status=$?
