@@ -18,9 +18,15 @@ case "${1:-}" in
   --save)
     costs="$2/Testing/Temporary/CTestCostData.txt"
     [ -s "$costs" ] || { echo "refresh_ctest_costs: $costs: no costs (run ctest in $2 first)" >&2; exit 1; }
-    # The tests' lines only (name, runs, seconds), sorted by name so a refresh diffs well; the
-    # failed-tests section after "---" is the tree's own business.
-    { sed '/^---$/q' "$costs" | grep -v '^---$' | sort; echo "---"; } >"$committed"
+    # The lines of the tests the tree has now (name, runs, seconds; a seed's tests since renamed
+    # dropped), sorted by name so a refresh diffs well; the failed-tests section after "---" is the
+    # tree's own business.
+    names=$(cd "$2" && ctest --show-only=json-v1 | python3 -c \
+      'import json, sys; print("\n".join(t["name"] for t in json.load(sys.stdin)["tests"]))')
+    { sed '/^---$/q' "$costs" | grep -v '^---$' |
+        awk -v names="$names" 'BEGIN { n = split(names, list, "\n"); for (i = 1; i <= n; i++) known[list[i]] = 1 }
+          { name = $0; sub(/ [0-9]+ [0-9.e+-]+$/, "", name); if (name in known) print }' | sort
+      echo "---"; } >"$committed"
     echo "refresh_ctest_costs: $(grep -vc '^---$' "$committed") tests' costs written to $committed"
     ;;
   *)

@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """Where the suite's time goes (issue #51): per test program and per test, from a tree's ctest costs.
 
-  tools/suite_profile.py BUILD_DIR [--top N] [--markdown]
+  tools/suite_profile.py BUILD_DIR [--log CTEST_OUTPUT] [--top N] [--markdown]
 
 Reads BUILD_DIR/Testing/Temporary/CTestCostData.txt (each test's mean seconds over the tree's
-runs, which ctest keeps) and `ctest --show-only=json-v1` (which program runs each test) and prints
+runs, which ctest keeps; a tree seeded by tools/refresh_ctest_costs.sh counts the seed as a run),
+or with --log one run's times from what ctest printed (its "Test #N: NAME ... Passed X sec" lines), and `ctest --show-only=json-v1` (which program runs each test) and prints
 the suite's total, per label, per test program and the slowest tests. With -j2 the suite's length
 is about half its total when the slowest tests start first (tools/refresh_ctest_costs.sh).
 """
@@ -12,6 +13,7 @@ import argparse
 import collections
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -35,6 +37,22 @@ def read_costs(path):
     return costs
 
 
+LOG_LINE = re.compile(r"Test +#\d+: (?P<name>.+?) \.{3,}.*?(?P<secs>[0-9.]+) sec$")
+
+
+def read_log(path):
+    """Each test's seconds in one ctest run, from its printed output."""
+    costs = {}
+    with open(path, encoding="utf-8", errors="replace") as log:
+        for line in log:
+            match = LOG_LINE.search(line.rstrip())
+            if match:
+                costs[match["name"].strip()] = float(match["secs"])
+    if not costs:
+        sys.exit(f"{path}: no 'Test #N: NAME ... sec' lines (ctest's output?)")
+    return costs
+
+
 def read_tests(tree):
     listing = subprocess.run(["ctest", "--show-only=json-v1"], cwd=tree, check=True,
                              capture_output=True, text=True).stdout
@@ -55,13 +73,17 @@ def read_tests(tree):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("build_dir")
+    parser.add_argument("--log", help="one run's times from ctest's printed output")
     parser.add_argument("--top", type=int, default=20)
     parser.add_argument("--markdown", action="store_true")
     args = parser.parse_args()
-    cost_path = os.path.join(args.build_dir, "Testing", "Temporary", "CTestCostData.txt")
-    if not os.path.exists(cost_path):
-        sys.exit(f"{cost_path}: no such file (run ctest in {args.build_dir} first)")
-    costs = read_costs(cost_path)
+    if args.log:
+        costs = read_log(args.log)
+    else:
+        cost_path = os.path.join(args.build_dir, "Testing", "Temporary", "CTestCostData.txt")
+        if not os.path.exists(cost_path):
+            sys.exit(f"{cost_path}: no such file (run ctest in {args.build_dir} first)")
+        costs = read_costs(cost_path)
     tests = read_tests(args.build_dir)
     known = {name: cost for name, cost in costs.items() if name in tests}
     total = sum(known.values())
