@@ -17,6 +17,8 @@ import os
 import re
 import sys
 
+from profile_table import table
+
 
 def read_log(path):
     """The newest (start_ms, end_ms) of every output in a .ninja_log (format v5 or v6)."""
@@ -143,19 +145,6 @@ def main():
             tests.sort()
             print(f"test programs: {len(tests)} translation units, median {seconds(tests[len(tests) // 2])} s,"
                   f" sum {seconds(sum(tests))} s")
-
-
-def table(markdown, title, header, rows):
-    print(f"\n{title}\n")
-    if markdown:
-        print("| " + " | ".join(header) + " |")
-        print("|" + "---|" * len(header))
-        for row in rows:
-            print("| " + " | ".join(str(c) for c in row) + " |")
-        return
-    widths = [max(len(str(c)) for c in col) for col in zip(header, *rows)]
-    for row in [header] + rows:
-        print("  ".join(str(c).ljust(w) for c, w in zip(row, widths)).rstrip())
 
 
 if __name__ == "__main__":

@@ -17,6 +17,8 @@ import re
 import subprocess
 import sys
 
+from profile_table import table
+
 
 def read_costs(path):
     costs = {}
@@ -111,19 +113,6 @@ def main():
     table(args.markdown, f"The {args.top} slowest tests", ["s", "test", "program"],
           [[f"{c:.0f}", name, tests[name][0]]
            for name, c in sorted(known.items(), key=lambda kv: -kv[1])[:args.top]])
-
-
-def table(markdown, title, header, rows):
-    print(f"\n{title}\n")
-    if markdown:
-        print("| " + " | ".join(header) + " |")
-        print("|" + "---|" * len(header))
-        for row in rows:
-            print("| " + " | ".join(str(c) for c in row) + " |")
-        return
-    widths = [max(len(str(c)) for c in col) for col in zip(header, *rows)]
-    for row in [header] + rows:
-        print("  ".join(str(c).ljust(w) for c, w in zip(row, widths)).rstrip())
 
 
 if __name__ == "__main__":
