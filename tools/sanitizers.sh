@@ -48,22 +48,25 @@ found_reports() {  # found_reports MODE GLOB: prints the reports matching GLOB; 
 case $mode in
   tsan)
     tree=${IMUCAL_SANITIZER_TREE:-build-tsan}
+    # The threaded test files (room/file): capture, turntable client, simulator, control server,
+    # export stream, daemon, run controller, and the end-to-end runs (stationctl diagnose on its own
+    # thread, issue #22; the outbox sender's thread beside the run, issue #24). The tree builds them
+    # alone (IMUCAL_TEST_SELECTION), in their rooms' programs.
+    files=(station/capture drivers/turntable_client drivers/station_sim station/control_server
+           station/export_stream station/daemon station/run_controller
+           e2e/station_run e2e/station_abort e2e/station_faults e2e/station_gap e2e/station_fleet)
     # Line tables only (-g1) are all the reports need; the test programs at -O0 (compile time).
     cmake -S . -B $tree $(generator $tree) -DIMUCAL_TSAN=ON -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1 -g1" \
-      -DIMUCAL_TEST_OPTIMIZE=-O0 "${launcher[@]}" "${release_calib[@]}" >/dev/null
-    tests=(station_capture_test drivers_turntable_client_test drivers_station_sim_test
-           station_control_server_test station_export_stream_test station_daemon_test
-           station_run_controller_test
-           e2e_station_run_test e2e_station_abort_test e2e_station_faults_test
-           e2e_station_gap_test   # stationctl diagnose on its own thread (issue #22)
-           e2e_station_fleet_test)  # the outbox sender's thread beside the run (issue #24)
-    cmake --build $tree -j2 --target "${tests[@]}" stationd stationsim stationctl
+      -DIMUCAL_TEST_OPTIMIZE=-O0 -DIMUCAL_TEST_SELECTION="$(IFS=';'; echo "${files[*]}")" \
+      "${launcher[@]}" "${release_calib[@]}" >/dev/null
+    cmake --build $tree -j2 --target station_tests drivers_tests e2e_tests stationd stationsim stationctl
     reports=$(fresh_reports $tree)
     failed=0
     # The busy-CPU run is a timing test (the daemon sharing a core with busy loops): under TSan it
     # only costs 40 s and says nothing about races that the other runs do not.
     skip="-StationEndToEnd.ShortSequencePassesWithTheDaemonOnABusyCpu"
-    for t in "${tests[@]}"; do
+    for f in "${files[@]}"; do
+      t=${f/\//_}_test  # build/tests/<room>_<file>_test runs that file's tests (tools/run_test_file.sh)
       if TSAN_OPTIONS="halt_on_error=0 second_deadlock_stack=1 log_path=$reports/$t" \
         "$tree/tests/$t" --gtest_filter="$skip" >"$reports/$t.out" 2>&1; then
         echo "tsan: $t passed"

@@ -34,7 +34,7 @@ CalibrationInput make_input(const sequences::MotionProfile& profile, const UnitM
   return input_from_simulation(sim, geom, factory_site(), unit.noise);
 }
 
-void expect_within(const CalibrationResult& r, const ParamSet& truth, double k) {
+void expect_within_ains(const CalibrationResult& r, const ParamSet& truth, double k) {
   const ParamVector e = r.params.to_vector() - truth.to_vector();
   const ParamVector s = r.sigma.to_vector();
   for (int i = 0; i < ParamSet::kSize; ++i)
@@ -74,7 +74,7 @@ TEST(Ains, NoiseFreeRecoversEveryParameterTightly) {
   const AinsResult r = calibrate_ains_detailed(in, opt);
   EXPECT_TRUE(r.calibration.converged);
   EXPECT_EQ(r.calibration.method, "ains");
-  expect_within(r.calibration, unit.params, 0.05);
+  expect_within_ains(r.calibration, unit.params, 0.05);
   // Absolute sanity against the truth in human units (independent of the reported σ).
   const ParamSet e =
       ParamSet::from_vector(r.calibration.params.to_vector() - unit.params.to_vector());
@@ -89,7 +89,7 @@ TEST(Ains, WithNoiseEveryParameterWithinFourSigma) {
   const AinsResult r = calibrate_ains_detailed(in);
   EXPECT_TRUE(r.calibration.converged);
   EXPECT_LE(r.calibration.iterations, 6);
-  expect_within(r.calibration, unit.params, 4.0);
+  expect_within_ains(r.calibration, unit.params, 4.0);
   // The estimate must actually carry information: σ far below the prior everywhere but ς_z.
   const ParamVector s = r.calibration.sigma.to_vector();
   const ParamVector prior = default_prior_sigma().to_vector();
@@ -112,7 +112,7 @@ TEST(Ains, FarFromNominalStillConvergesWithinFourSigma) {
   const CalibrationInput in = make_input(short_profile(), unit, 5, true);
   const AinsResult r = calibrate_ains_detailed(in);
   EXPECT_TRUE(r.calibration.converged) << "passes: " << r.calibration.iterations;
-  expect_within(r.calibration, unit.params, 4.0);
+  expect_within_ains(r.calibration, unit.params, 4.0);
   // The first pass linearises about zero: far from the truth, so more than one pass is needed and
   // the updates shrink.
   ASSERT_GE(r.update_norm_sigma.size(), 2u);

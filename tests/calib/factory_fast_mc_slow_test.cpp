@@ -38,7 +38,7 @@ namespace {
 constexpr int kFullCount = 400;
 
 /// 20 seeds in ctest, the full count under IMUCAL_WHOLE_COUNTS=1; IMUCAL_MC_SEEDS overrides.
-int mc_seeds() { return test_support::test_count("IMUCAL_MC_SEEDS", 20, kFullCount); }
+int mc_seeds_factory_fast_mc() { return test_support::test_count("IMUCAL_MC_SEEDS", 20, kFullCount); }
 
 struct GroupStats {
   std::array<double, kNumParamGroups> z2{};
@@ -60,7 +60,7 @@ TEST(FactoryFastMonteCarlo, BothMethodsReportHonestSigmaWithinTenPercent) {
   const auto profile = sequences::load_profile("factory-fast");
   const Site site = demo_factory_site();
   const UnitModel unit = default_unit();
-  const int seeds = mc_seeds();
+  const int seeds = mc_seeds_factory_fast_mc();
   const ParamVector truth = unit.params.to_vector();
   GroupStats ains, nlsq;
   std::mutex m;

@@ -37,7 +37,7 @@ struct CrlbOf {  // a sequence and its CRLB σ
   ParamVector sigma;
 };
 
-CrlbOf crlb_of(const sequences::MotionProfile& p) {
+CrlbOf crlb_of_factory_fast(const sequences::MotionProfile& p) {
   return {
       p,
       compute_crlb(p, TableGeometry{}, demo_factory_site(), NoiseModel{}, 100.0).sigma.to_vector()};
@@ -61,9 +61,9 @@ sequences::MotionProfile uniform_cut(double total_s) {
 class FactoryFast : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    std_ = new CrlbOf(crlb_of(sequences::load_profile("factory-std")));
-    fast_ = new CrlbOf(crlb_of(sequences::load_profile("factory-fast")));
-    cut_ = new CrlbOf(crlb_of(uniform_cut(fast_->profile.duration_s())));
+    std_ = new CrlbOf(crlb_of_factory_fast(sequences::load_profile("factory-std")));
+    fast_ = new CrlbOf(crlb_of_factory_fast(sequences::load_profile("factory-fast")));
+    cut_ = new CrlbOf(crlb_of_factory_fast(uniform_cut(fast_->profile.duration_s())));
   }
   static void TearDownTestSuite() {
     delete std_;

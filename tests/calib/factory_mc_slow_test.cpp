@@ -28,13 +28,13 @@ using namespace imucal::calib::sim;
 
 namespace {
 
-int mc_seeds() {
+int mc_seeds_factory_mc() {
   const char* env = std::getenv("IMUCAL_MC_SEEDS");
   const int n = env ? std::atoi(env) : 20;
   return n > 0 ? n : 20;
 }
 
-struct GroupStats {
+struct GroupStatsFactoryMc {
   std::array<double, kNumParamGroups> z2{}, c2{};
   std::array<int, kNumParamGroups> n{};
   void add(const CalibrationResult& r, const ParamVector& truth, const ParamVector& crlb) {
@@ -56,10 +56,10 @@ TEST(FactoryMonteCarlo, BothMethodsHonestAndEfficient) {
   const auto profile = sequences::load_profile("factory-std");
   const Site site = demo_factory_site();
   const UnitModel unit = default_unit();
-  const int seeds = mc_seeds();
+  const int seeds = mc_seeds_factory_mc();
   const CrlbResult crlb = compute_crlb(profile, TableGeometry{}, site, unit.noise, 100.0);
   const ParamVector truth = unit.params.to_vector(), crlb_sigma = crlb.sigma.to_vector();
-  GroupStats ains, nlsq;
+  GroupStatsFactoryMc ains, nlsq;
   double t_ains = 0, t_nlsq = 0;
   for (int k = 0; k < seeds; ++k) {
     SimOptions opt;

@@ -25,7 +25,7 @@ using namespace imucal::calib::effects;
 using namespace imucal::calib::sim;
 namespace {
 
-int mc_runs(int fallback) {
+int mc_runs_field_calibration(int fallback) {
   const char* s = std::getenv("IMUCAL_MC_RUNS");
   return s ? std::max(2, std::atoi(s)) : fallback;
 }
@@ -33,7 +33,7 @@ int mc_runs(int fallback) {
 class FieldCalibration : public ::testing::TestWithParam<Setting> {};
 
 TEST_P(FieldCalibration, ObservableParametersWithinFourSigmaAndConsistent) {
-  const int runs = mc_runs(test_support::whole_counts() ? 60 : 12);
+  const int runs = mc_runs_field_calibration(test_support::whole_counts() ? 60 : 12);
   Site site = demo_factory_site();
   site.gravity_mps2.reset();
   UnitModel unit = default_unit();

@@ -22,13 +22,13 @@ namespace {
 
 using testing::mems_input;
 
-std::string symptoms(const std::vector<DataProblem>& problems) {
+std::string symptoms_grade(const std::vector<DataProblem>& problems) {
   std::string s;
   for (const auto& p : problems) s += "[" + p.symptom + "] " + p.detail + " ";
   return s;
 }
 
-bool has(const std::vector<DataProblem>& problems, const std::string& symptom) {
+bool has_grade(const std::vector<DataProblem>& problems, const std::string& symptom) {
   for (const auto& p : problems)
     if (p.symptom == symptom) return true;
   return false;
@@ -38,11 +38,11 @@ TEST(GradeDataChecks, AMemsUnitFarFromNominalIsSaneAtItsGradeOnly) {
   const CalibrationInput in = mems_input(testing::simulate_mems(1));
   EXPECT_EQ(in.grade, Grade::kMems);
   const auto at_grade = check_data(in, data_check_options(Grade::kMems));
-  EXPECT_TRUE(at_grade.empty()) << symptoms(at_grade);
+  EXPECT_TRUE(at_grade.empty()) << symptoms_grade(at_grade);
   // Held to navigation grade the same unit looks broken (what issue #21 met on a real unit).
   const auto at_navigation = check_data(in, data_check_options(Grade::kNavigation));
-  EXPECT_TRUE(has(at_navigation, "gyro vs gravity") || has(at_navigation, "gravity magnitude"))
-      << symptoms(at_navigation);
+  EXPECT_TRUE(has_grade(at_navigation, "gyro vs gravity") || has_grade(at_navigation, "gravity magnitude"))
+      << symptoms_grade(at_navigation);
 }
 
 TEST(GradeDataChecks, SwappedFlippedAndDeadAxesAreStillCaughtAtMemsGrade) {
@@ -50,17 +50,17 @@ TEST(GradeDataChecks, SwappedFlippedAndDeadAxesAreStillCaughtAtMemsGrade) {
   const DataCheckOptions o = data_check_options(Grade::kMems);
   CalibrationInput in = good;
   for (auto& s : in.imu) std::swap(s.dtheta_rad(0), s.dtheta_rad(1));
-  EXPECT_TRUE(has(check_data(in, o), "gyro vs gravity")) << "gyro x/y swapped";
+  EXPECT_TRUE(has_grade(check_data(in, o), "gyro vs gravity")) << "gyro x/y swapped";
   in = good;
   for (auto& s : in.imu) s.dtheta_rad(2) = -s.dtheta_rad(2);
-  EXPECT_TRUE(has(check_data(in, o), "gyro vs gravity")) << "gyro z sign-flipped";
+  EXPECT_TRUE(has_grade(check_data(in, o), "gyro vs gravity")) << "gyro z sign-flipped";
   in = good;
   for (auto& s : in.imu) std::swap(s.dv_mps(1), s.dv_mps(2));
-  EXPECT_TRUE(has(check_data(in, o), "gyro vs gravity")) << "accelerometer y/z swapped";
+  EXPECT_TRUE(has_grade(check_data(in, o), "gyro vs gravity")) << "accelerometer y/z swapped";
   in = good;
   for (auto& s : in.imu) s.dv_mps(0) = 0.0;  // a dead accelerometer
   const auto dead = check_data(in, o);
-  EXPECT_TRUE(has(dead, "gravity magnitude") || has(dead, "stuck channel")) << symptoms(dead);
+  EXPECT_TRUE(has_grade(dead, "gravity magnitude") || has_grade(dead, "stuck channel")) << symptoms_grade(dead);
 }
 
 /// Errors against truth, in the accel-symmetric frame legacy reports in.

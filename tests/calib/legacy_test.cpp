@@ -27,7 +27,7 @@ CalibrationInput table_input(const sequences::MotionProfile& p, const UnitModel&
   return input_from_simulation(sim, TableGeometry{}, factory_site(), unit.noise);
 }
 
-ParamVector errors(const CalibrationResult& r, const ParamSet& truth) {
+ParamVector errors_legacy(const CalibrationResult& r, const ParamSet& truth) {
   return r.params.to_vector() - to_accel_symmetric_frame(truth).params.to_vector();
 }
 
@@ -39,7 +39,7 @@ TEST(Legacy, NoiseFreeRecoversTheUnitInItsOwnFrame) {
   EXPECT_EQ(r.method, "legacy");
   EXPECT_EQ(r.body_frame, BodyFrame::kAccelSymmetric);
   EXPECT_FALSE(r.observable[24]);
-  const ParamSet e = ParamSet::from_vector(errors(r, unit.params));
+  const ParamSet e = ParamSet::from_vector(errors_legacy(r, unit.params));
   EXPECT_LT(e.accel_bias_mps2.cwiseAbs().maxCoeff(), 0.05 * kMicroG_mps2) << e.accel_bias_mps2;
   EXPECT_LT(e.accel_M.cwiseAbs().maxCoeff(), 0.05e-6) << e.accel_M;
   EXPECT_LT(e.gyro_bias_radps.cwiseAbs().maxCoeff(), 1e-4 * kDegPerHourToRadPerSec)
@@ -57,7 +57,7 @@ TEST(Legacy, FromScratchOnAUnitFarFromNominal) {
   const CalibrationResult r =
       calibrate_legacy(table_input(testing::short_profile(), unit, 2, false));
   EXPECT_TRUE(r.converged);
-  const ParamSet e = ParamSet::from_vector(errors(r, unit.params));
+  const ParamSet e = ParamSet::from_vector(errors_legacy(r, unit.params));
   EXPECT_LT(e.accel_bias_mps2.cwiseAbs().maxCoeff(), 0.1 * kMicroG_mps2);
   EXPECT_LT(e.accel_M.cwiseAbs().maxCoeff(), 0.1e-6);
   EXPECT_LT(e.gyro_bias_radps.cwiseAbs().maxCoeff(), 1e-3 * kDegPerHourToRadPerSec);
@@ -74,7 +74,7 @@ TEST(Legacy, NoisyRunErrorsWithinAFewSigma) {
     // Converged is what the pipeline's limit check trusts: a noisy fit at its minimum must say so
     // (it used to say "not converged" when rounding made the last tiny step look uphill).
     EXPECT_TRUE(r.converged) << "seed " << seed;
-    const ParamVector e = errors(r, unit.params), s = r.sigma.to_vector();
+    const ParamVector e = errors_legacy(r, unit.params), s = r.sigma.to_vector();
     for (int i = 0; i < 24; ++i) {
       const double z = e(i) / s(i);
       EXPECT_LT(std::abs(z), 5.0) << param_info(i).name << " seed " << seed;

@@ -22,14 +22,14 @@ CalibrationResult healthy(const std::string& method) {
   return calib::testing::plausible_result(method);
 }
 
-EvaluationMetrics metrics(double orientation_mdeg, double accel_ug) {
+EvaluationMetrics metrics_limit_check(double orientation_mdeg, double accel_ug) {
   EvaluationMetrics m;
   m.orientation_rmse_mdeg = orientation_mdeg;
   m.accel_rmse_ug = accel_ug;
   return m;
 }
 
-LimitCheckResult check(const CalibrationResult& r, const EvaluationMetrics& m = metrics(5, 5),
+LimitCheckResult check(const CalibrationResult& r, const EvaluationMetrics& m = metrics_limit_check(5, 5),
                        bool with_metrics = true, const LimitCheckOptions& o = {}) {
   LimitCheckResult out;
   check_limits(r, m, with_metrics, o, out);
@@ -101,7 +101,7 @@ TEST(LimitCheck, UnobservableTermsAreNotJudged) {
 }
 
 TEST(LimitCheck, MetricsOnlyWhenAskedAndEvaluated) {
-  const EvaluationMetrics bad = metrics(31.0, 41.0);
+  const EvaluationMetrics bad = metrics_limit_check(31.0, 41.0);
   EXPECT_EQ(check(healthy("ains"), bad, true).failures.size(), 2u);
   EXPECT_TRUE(check(healthy("ains"), bad, false).pass);  // the cross-check holds them
   EvaluationMetrics none = bad;
@@ -112,7 +112,7 @@ TEST(LimitCheck, MetricsOnlyWhenAskedAndEvaluated) {
 TEST(LimitCheck, RefusesNonPositiveLimits) {
   LimitCheckOptions o;
   o.datasheet.accel_scale = 0.0;
-  EXPECT_THROW(check(healthy("ains"), metrics(5, 5), true, o), std::invalid_argument);
+  EXPECT_THROW(check(healthy("ains"), metrics_limit_check(5, 5), true, o), std::invalid_argument);
 }
 
 }  // namespace

@@ -28,7 +28,7 @@ using namespace imucal::calib::sim;
 
 namespace {
 
-int mc_seeds() {
+int mc_seeds_nlsq_mc() {
   const char* s = std::getenv("IMUCAL_MC_SEEDS");
   if (s == nullptr || *s == '\0') return 20;
   const int n = std::atoi(s);
@@ -37,7 +37,7 @@ int mc_seeds() {
 
 Site factory_site() { return demo_factory_site(); }
 
-struct GroupStats {
+struct GroupStatsNlsqMc {
   double sum_sq = 0.0;
   int count = 0;
   double max_abs = 0.0;
@@ -47,8 +47,8 @@ void run_monte_carlo(const std::string& sequence, const UnitModel& unit, uint64_
                      const NlsqOptions& opt = {}) {
   const sequences::MotionProfile profile = sequences::load_profile(sequence);
   const TableGeometry geom;
-  const int n = mc_seeds();
-  std::array<GroupStats, kNumParamGroups> groups{};
+  const int n = mc_seeds_nlsq_mc();
+  std::array<GroupStatsNlsqMc, kNumParamGroups> groups{};
   std::array<double, ParamSet::kSize> per_param_sq{};
   double runtime_sum = 0.0, runtime_max = 0.0;
   size_t samples = 0;
@@ -71,7 +71,7 @@ void run_monte_carlo(const std::string& sequence, const UnitModel& unit, uint64_
     for (int i = 0; i < ParamSet::kSize; ++i) {
       ASSERT_GT(s(i), 0.0) << param_info(i).name;
       const double z = (x(i) - t(i)) / s(i);
-      GroupStats& g = groups[static_cast<size_t>(param_info(i).group)];
+      GroupStatsNlsqMc& g = groups[static_cast<size_t>(param_info(i).group)];
       g.sum_sq += z * z;
       g.count += 1;
       g.max_abs = std::max(g.max_abs, std::abs(z));
@@ -85,7 +85,7 @@ void run_monte_carlo(const std::string& sequence, const UnitModel& unit, uint64_
               runtime_sum / n, runtime_max, iterations_max);
   std::printf("  %-22s %10s %8s %10s\n", "group", "RMS(e/s)", "count", "max|e/s|");
   for (int gi = 0; gi < kNumParamGroups; ++gi) {
-    const GroupStats& g = groups[static_cast<size_t>(gi)];
+    const GroupStatsNlsqMc& g = groups[static_cast<size_t>(gi)];
     const double rms = std::sqrt(g.sum_sq / g.count);
     std::printf("  %-22s %10.3f %8d %10.3f\n", group_name(static_cast<ParamGroup>(gi)).c_str(), rms,
                 g.count, g.max_abs);
@@ -95,7 +95,7 @@ void run_monte_carlo(const std::string& sequence, const UnitModel& unit, uint64_
     std::printf("    %-28s %6.3f\n", param_info(i).name.c_str(),
                 std::sqrt(per_param_sq[static_cast<size_t>(i)] / n));
   for (int gi = 0; gi < kNumParamGroups; ++gi) {
-    const GroupStats& g = groups[static_cast<size_t>(gi)];
+    const GroupStatsNlsqMc& g = groups[static_cast<size_t>(gi)];
     const double rms = std::sqrt(g.sum_sq / g.count);
     EXPECT_GE(rms, 0.7) << group_name(static_cast<ParamGroup>(gi)) << ": sigma too pessimistic";
     EXPECT_LE(rms, 1.4) << group_name(static_cast<ParamGroup>(gi)) << ": sigma too optimistic";

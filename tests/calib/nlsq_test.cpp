@@ -35,28 +35,28 @@ using namespace imucal::calib::sim;
 
 namespace {
 
-Site factory_site() { return demo_factory_site(); }
+Site factory_site_nlsq() { return demo_factory_site(); }
 
-const sequences::MotionProfile& short_profile() {
+const sequences::MotionProfile& short_profile_nlsq() {
   static const sequences::MotionProfile p = sequences::load_profile("short");
   return p;
 }
 
-struct SimRun {
+struct SimRunNlsq {
   SimResult sim;
   CalibrationInput in;
 };
 
 /// Simulate the short sequence. The calibration input always carries the unit's datasheet noise
 /// model (it weights the residuals), even when the simulation itself is noise-free.
-SimRun simulate_short(const UnitModel& unit, bool noise, uint64_t seed) {
+SimRunNlsq simulate_short(const UnitModel& unit, bool noise, uint64_t seed) {
   SimOptions so;
   so.noise = noise;
   so.seed = seed;
-  SimRun r;
+  SimRunNlsq r;
   const TableGeometry geom;
-  r.sim = simulate(short_profile(), geom, factory_site(), unit, so);
-  r.in = input_from_simulation(r.sim, geom, factory_site(), unit.noise);
+  r.sim = simulate(short_profile_nlsq(), geom, factory_site_nlsq(), unit, so);
+  r.in = input_from_simulation(r.sim, geom, factory_site_nlsq(), unit.noise);
   return r;
 }
 
@@ -93,11 +93,11 @@ void expect_within_sigma(const CalibrationResult& res, const ParamSet& truth, do
 // true attitude of the rest it ends in, and equals the shared Strapdown integration step by step.
 TEST(NlsqPreprocess, TruthParametersReproduceRestGravityAndAttitude) {
   const UnitModel unit = default_unit();
-  const SimRun run = simulate_short(unit, /*noise=*/false, 1);
+  const SimRunNlsq run = simulate_short(unit, /*noise=*/false, 1);
   const auto periods = find_rest_periods(run.in, 100);
   ASSERT_GE(periods.size(), 10u);
   const auto rests = nlsq_rest_means(run.in, periods);
-  const EarthModel earth(factory_site());
+  const EarthModel earth(factory_site_nlsq());
   const ImuErrorModel<double> em = ImuErrorModel<double>::from_params(unit.params);
   const Eigen::Matrix3d S = rotvec_to_matrix<double>(unit.params.table_misalignment_rad);
   for (const auto& rest : rests) {
@@ -146,8 +146,8 @@ TEST(NlsqPreprocess, TruthParametersReproduceRestGravityAndAttitude) {
     Strapdown sd(earth);
     NavState st;
     st.C_bn = C_a;
-    st.lat_rad = factory_site().lat_rad;
-    st.height_m = factory_site().height_m;
+    st.lat_rad = factory_site_nlsq().lat_rad;
+    st.height_m = factory_site_nlsq().height_m;
     for (size_t k = rot.begin; k < rot.end; ++k) {
       const auto& s = run.in.imu[k];
       sd.step(st, em.compensate_dtheta(s.dtheta_rad, s.dt_s), em.compensate_dv(s.dv_mps, s.dt_s),
@@ -187,7 +187,7 @@ TEST(NlsqResiduals, RotationLogInvertsExpWithExactDerivative) {
 // second order: shrinking the perturbation 10x shrinks it ~100x.
 TEST(NlsqPreprocess, GyroSensitivityMatchesRepropagation) {
   const UnitModel unit = default_unit();
-  const SimRun run = simulate_short(unit, /*noise=*/false, 1);
+  const SimRunNlsq run = simulate_short(unit, /*noise=*/false, 1);
   const auto rests = nlsq_rest_means(run.in, find_rest_periods(run.in, 100));
   const ParamSet theta0;  // nominal: zero errors
   double worst_ratio = 0.0;
@@ -229,7 +229,7 @@ TEST(Nlsq, NoiseFreeDefaultUnitRecoveredExactly) {
   UnitModel unit = default_unit();
   unit.noise.dtheta_lsb_rad = 0.0;
   unit.noise.dv_lsb_mps = 0.0;
-  const SimRun run = simulate_short(unit, /*noise=*/false, 1);
+  const SimRunNlsq run = simulate_short(unit, /*noise=*/false, 1);
   NlsqOptions opt;
   opt.convergence_sigma_ratio = 1e-9;
   opt.max_outer_iterations = 20;
@@ -250,7 +250,7 @@ TEST(Nlsq, NoiseFreeDefaultUnitRecoveredExactly) {
 // 2. With noise: every parameter within 4σ of truth, converged, χ²/dof unremarkable.
 TEST(Nlsq, NoisyDefaultUnitWithinFourSigma) {
   const UnitModel unit = default_unit();
-  const SimRun run = simulate_short(unit, /*noise=*/true, 7);
+  const SimRunNlsq run = simulate_short(unit, /*noise=*/true, 7);
   const CalibrationResult res = calibrate_nlsq(run.in);
   print_errors(res, run.sim.truth);
   std::printf("  iterations %d, runtime %.3f s\n", res.iterations, res.runtime_s);
@@ -277,7 +277,7 @@ TEST(Nlsq, FarFromNominalConvergesWithinFourSigma) {
       -2e-3, 2000e-6, 1.6e-3,         //
       2e-3, -1.9e-3, -2000e-6;
   p.table_misalignment_rad = Eigen::Vector3d(60.0, -45.0, 120.0) * kArcsecToRad;
-  const SimRun run = simulate_short(unit, /*noise=*/true, 11);
+  const SimRunNlsq run = simulate_short(unit, /*noise=*/true, 11);
   const CalibrationResult res = calibrate_nlsq(run.in);
   print_errors(res, run.sim.truth);
   EXPECT_TRUE(res.converged);
@@ -289,7 +289,7 @@ TEST(Nlsq, FarFromNominalConvergesWithinFourSigma) {
 TEST(Nlsq, TableMisalignmentCanBeHeldFixed) {
   UnitModel unit = default_unit();
   unit.params.table_misalignment_rad.setZero();
-  const SimRun run = simulate_short(unit, /*noise=*/true, 3);
+  const SimRunNlsq run = simulate_short(unit, /*noise=*/true, 3);
   NlsqOptions opt;
   opt.estimate_table_misalignment = false;
   const CalibrationResult res = calibrate_nlsq(run.in, opt);
@@ -306,7 +306,7 @@ TEST(Nlsq, TableMisalignmentCanBeHeldFixed) {
 // by its square root, so that the errors are again covered by the reported σ.
 TEST(Nlsq, UnderstatedNoiseIsDetectedAndSigmaScaled) {
   const UnitModel unit = default_unit();
-  SimRun run = simulate_short(unit, /*noise=*/true, 21);
+  SimRunNlsq run = simulate_short(unit, /*noise=*/true, 21);
   const CalibrationResult honest = calibrate_nlsq(run.in);
   run.in.noise.arw_rad_per_sqrt_s /= 4.0;
   run.in.noise.vrw_mps_per_sqrt_s /= 4.0;
@@ -339,7 +339,7 @@ TEST(Nlsq, UnderstatedNoiseIsDetectedAndSigmaScaled) {
 // Both forms must be honest: every parameter within 4σ of truth.
 TEST(Nlsq, TableHeadingSharpensGyroTermsAndGravityOnlyFormStaysHonest) {
   const UnitModel unit = default_unit();
-  const SimRun run = simulate_short(unit, /*noise=*/true, 7);
+  const SimRunNlsq run = simulate_short(unit, /*noise=*/true, 7);
   const CalibrationResult with_heading = calibrate_nlsq(run.in);
   NlsqOptions opt;
   opt.use_table_heading = false;
@@ -383,7 +383,7 @@ std::string error_of(const CalibrationInput& in, const NlsqOptions& opt = {}) {
 }  // namespace
 
 TEST(Nlsq, FewerThanTwoRestPeriodsIsRejected) {
-  const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
+  const SimRunNlsq run = simulate_short(default_unit(), /*noise=*/true, 1);
   // Keep only the first rest period (and the move after it).
   const auto periods = find_rest_periods(run.in, 100);
   ASSERT_GE(periods.size(), 2u);
@@ -399,7 +399,7 @@ TEST(Nlsq, FewerThanTwoRestPeriodsIsRejected) {
 }
 
 TEST(Nlsq, NoRotationBetweenRestsIsRejected) {
-  const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
+  const SimRunNlsq run = simulate_short(default_unit(), /*noise=*/true, 1);
   CalibrationInput in = run.in;
   // The table never moves: every reference sample says "the first attitude".
   for (auto& r : in.reference) r.C_bn_ref = in.reference.front().C_bn_ref;
@@ -408,7 +408,7 @@ TEST(Nlsq, NoRotationBetweenRestsIsRejected) {
 }
 
 TEST(Nlsq, NonFiniteImuIsRejectedWithItsIndex) {
-  const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
+  const SimRunNlsq run = simulate_short(default_unit(), /*noise=*/true, 1);
   CalibrationInput in = run.in;
   in.imu[1234].dv_mps(1) = std::numeric_limits<double>::quiet_NaN();
   std::string msg = error_of(in);
@@ -422,7 +422,7 @@ TEST(Nlsq, NonFiniteImuIsRejectedWithItsIndex) {
 // The per-sample checks are AINS's too (calib/core check_input_samples): the reference must be a
 // rotation and the times increasing, which NLSQ's own loop did not hold before.
 TEST(Nlsq, ReferenceThatIsNoRotationAndTimeGoingBackAreRejectedLikeAins) {
-  const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
+  const SimRunNlsq run = simulate_short(default_unit(), /*noise=*/true, 1);
   CalibrationInput in = run.in;
   in.reference[77].C_bn_ref(0, 0) = 2.0;
   std::string msg = error_of(in);
@@ -435,7 +435,7 @@ TEST(Nlsq, ReferenceThatIsNoRotationAndTimeGoingBackAreRejectedLikeAins) {
 }
 
 TEST(Nlsq, SizeMismatchAndMissingNoiseModelAreRejected) {
-  const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
+  const SimRunNlsq run = simulate_short(default_unit(), /*noise=*/true, 1);
   CalibrationInput in = run.in;
   in.reference.pop_back();
   EXPECT_NE(error_of(in).find("must be equal"), std::string::npos);
@@ -457,8 +457,8 @@ TEST(Nlsq, UnobservableSequenceIsRejected) {
   SimOptions so;
   so.seed = 4;
   const TableGeometry geom;
-  const SimResult sim = simulate(h.build(), geom, factory_site(), unit, so);
-  const CalibrationInput in = input_from_simulation(sim, geom, factory_site(), unit.noise);
+  const SimResult sim = simulate(h.build(), geom, factory_site_nlsq(), unit, so);
+  const CalibrationInput in = input_from_simulation(sim, geom, factory_site_nlsq(), unit.noise);
   ASSERT_EQ(find_rest_periods(in, 100).size(), 13u);  // 39 + 39 + 36 residuals: enough in number
   const std::string msg = error_of(in);
   EXPECT_NE(msg.find("not observable"), std::string::npos) << msg;
@@ -476,7 +476,7 @@ TEST(Nlsq, UnobservableSequenceIsRejected) {
 // heading a run of R rests gives 3R accelerometer, 3R rest-attitude and 3(R-1) rotation-attitude
 // residuals: 24 for R = 3. The gravity-only form gives 3R + 2(R-1): 23 for R = 5.
 TEST(Nlsq, TooFewResidualsAreRejected) {
-  const SimRun run = simulate_short(default_unit(), /*noise=*/true, 1);
+  const SimRunNlsq run = simulate_short(default_unit(), /*noise=*/true, 1);
   const auto periods = find_rest_periods(run.in, 100);
   ASSERT_GE(periods.size(), 5u);
   CalibrationInput in = run.in;

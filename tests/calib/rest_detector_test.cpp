@@ -32,7 +32,7 @@ Score score(const FieldSimResult& r, const std::vector<bool>& rest) {
   return s;
 }
 
-FieldSimResult run(Setting s, uint64_t seed, double rock_deg = 0.05) {
+FieldSimResult run_rest_detector(Setting s, uint64_t seed, double rock_deg = 0.05) {
   FieldSimOptions o;
   o.setting = s;
   o.seed = seed;
@@ -44,7 +44,7 @@ FieldSimResult run(Setting s, uint64_t seed, double rock_deg = 0.05) {
 
 TEST(RestDetector, SeaWithDriftAndRockingNoFalseRestAndNearlyAllRestFound) {
   for (uint64_t seed : {1, 2, 3}) {
-    const FieldSimResult r = run(Setting::kSea, seed);
+    const FieldSimResult r = run_rest_detector(Setting::kSea, seed);
     const Score s = score(r, detect_rest(r.imu));
     EXPECT_EQ(s.false_rest, 0u) << "seed " << seed;
     EXPECT_GE(s.found, 0.95) << "seed " << seed;
@@ -55,14 +55,14 @@ TEST(RestDetector, SeaWithDriftAndRockingNoFalseRestAndNearlyAllRestFound) {
 
 TEST(RestDetector, RougherSeaStillNoFalseRest) {
   // Four times the calm-water rocking (0.2°, peak rate ≈ 0.16 °/s): still far below a hand turn.
-  const FieldSimResult r = run(Setting::kSea, 4, 0.2);
+  const FieldSimResult r = run_rest_detector(Setting::kSea, 4, 0.2);
   const Score s = score(r, detect_rest(r.imu));
   EXPECT_EQ(s.false_rest, 0u);
   EXPECT_GE(s.found, 0.95);
 }
 
 TEST(RestDetector, LandRun) {
-  const FieldSimResult r = run(Setting::kLand, 5);
+  const FieldSimResult r = run_rest_detector(Setting::kLand, 5);
   const Score s = score(r, detect_rest(r.imu));
   EXPECT_EQ(s.false_rest, 0u);
   EXPECT_GE(s.found, 0.95);

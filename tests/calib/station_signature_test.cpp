@@ -27,7 +27,7 @@ constexpr int kGravityStation = 3, kNonorthStation = 7;
 
 /// Responses as measured on `short` (tests/fleet/station_signature_sim_test.cpp checks the real
 /// ones); the fixture's are the catalogue's algebra; the wobble's, measured only, are left out.
-std::vector<StationError> errors() {
+std::vector<StationError> errors_station_signature() {
   std::vector<StationError> e;
   for (const StationError& c : station_error_catalogue())
     if (c.effect.rfind("table_wobble_", 0) != 0) e.push_back(c);
@@ -79,7 +79,7 @@ std::vector<SignatureRun> synthetic_fleet(const FleetSpec& f, std::uint64_t seed
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> n01;
   std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const auto e = errors();
+  const auto e = errors_station_signature();
   const ParamVector sigma = run_sigma();
   std::vector<ParamVector> station_adds;
   for (int s = 0; s < f.stations; ++s) {
@@ -121,7 +121,7 @@ TEST(StationSignature, TheTwoFaultyStationsAreFlaggedWithTheirCauseAndSizeAndNoO
   spec.gravity_error_mps2 = 50.0 * kMicroG_mps2;
   spec.nonorth_rad = 10.0 * kArcsecToRad;
   for (std::uint64_t seed : {1u, 2u, 3u}) {
-    const FleetSignatures fs = station_signatures(synthetic_fleet(spec, seed), errors());
+    const FleetSignatures fs = station_signatures(synthetic_fleet(spec, seed), errors_station_signature());
     ASSERT_EQ(fs.stations.size(), 10u);
     for (std::size_t s = 0; s < fs.stations.size(); ++s) {
       const StationSignature& sig = fs.stations[s];
@@ -153,7 +153,7 @@ TEST(StationSignature, TwoErrorsAtOneStationAreBothNamedWithTheirSizes) {
   spec.nonorth_rad = 10.0 * kArcsecToRad;
   spec.gravity_at_nonorth_station_mps2 = 50.0 * kMicroG_mps2;
   for (std::uint64_t seed : {21u, 22u, 23u}) {
-    const FleetSignatures fs = station_signatures(synthetic_fleet(spec, seed), errors());
+    const FleetSignatures fs = station_signatures(synthetic_fleet(spec, seed), errors_station_signature());
     for (std::size_t s = 0; s < fs.stations.size(); ++s) {
       const StationSignature& sig = fs.stations[s];
       SCOPED_TRACE(sig.station + " seed " + std::to_string(seed));
@@ -168,7 +168,7 @@ TEST(StationSignature, TwoErrorsAtOneStationAreBothNamedWithTheirSizes) {
         const double truth = gravity ? spec.gravity_at_nonorth_station_mps2 : spec.nonorth_rad;
         EXPECT_LT(std::abs(a.size_si - truth), 4 * a.sigma_si) << a.effect;
       }
-      EXPECT_EQ(sig.fits_given_alarms.size(), errors().size() - 2);
+      EXPECT_EQ(sig.fits_given_alarms.size(), errors_station_signature().size() - 2);
       for (const StationFit& f : sig.fits_given_alarms) EXPECT_LT(std::abs(f.z()), 3.8) << f.effect;
     }
   }
@@ -186,10 +186,10 @@ TEST(StationSignature, TwoStationsWithTheSameErrorDoNotPassForTheStationsSpread)
   for (std::uint64_t seed : {41u, 42u, 43u, 44u, 45u}) {
     const auto runs = synthetic_fleet(spec, seed);
     // With no pass left after it, the deleted-station test's flag still shows.
-    const FleetSignatures first = station_signatures(runs, errors(), one_pass);
+    const FleetSignatures first = station_signatures(runs, errors_station_signature(), one_pass);
     EXPECT_TRUE(first.stations[kGravityStation].alarm || first.stations[kNonorthStation].alarm)
         << "seed " << seed;
-    const FleetSignatures fs = station_signatures(runs, errors());
+    const FleetSignatures fs = station_signatures(runs, errors_station_signature());
     for (std::size_t s = 0; s < fs.stations.size(); ++s) {
       const StationSignature& sig = fs.stations[s];
       SCOPED_TRACE(sig.station + " seed " + std::to_string(seed));
@@ -219,13 +219,13 @@ TEST(StationSignature, ALargeErrorWhoseResponseIsOffByItsToleranceNamesNoSecondC
   int second_causes_without = 0;
   for (std::uint64_t seed : {31u, 32u, 33u}) {
     const auto runs = synthetic_fleet(spec, seed);
-    const FleetSignatures fs = station_signatures(runs, errors());
+    const FleetSignatures fs = station_signatures(runs, errors_station_signature());
     for (const std::size_t s : {std::size_t{kGravityStation}, std::size_t{kNonorthStation}}) {
       const StationSignature& sig = fs.stations[s];
       ASSERT_TRUE(sig.alarm) << sig.station;
       EXPECT_EQ(sig.alarms.size(), 1u) << sig.station << " also named " << sig.alarms.back().effect;
     }
-    const FleetSignatures without = station_signatures(runs, errors(), exact);
+    const FleetSignatures without = station_signatures(runs, errors_station_signature(), exact);
     for (const std::size_t s : {std::size_t{kGravityStation}, std::size_t{kNonorthStation}})
       second_causes_without += without.stations[s].alarms.size() > 1 ? 1 : 0;
   }
@@ -240,7 +240,7 @@ TEST(StationSignature, FleetsWithoutAnErrorRaiseFalseAlarmsAtTheRateAskedAndHone
   double sum_z2 = 0;
   int nz = 0;
   for (std::uint64_t seed = 100; seed < 400; ++seed) {
-    const FleetSignatures fs = station_signatures(synthetic_fleet({}, seed), errors(), opt);
+    const FleetSignatures fs = station_signatures(synthetic_fleet({}, seed), errors_station_signature(), opt);
     for (const StationSignature& sig : fs.stations) {
       ++assessed;
       alarms += sig.alarm ? 1 : 0;
@@ -266,7 +266,7 @@ TEST(StationSignature, WithoutARepeatUnitAGravityErrorCompetesWithTheUnitSpread)
   double sum_sigma_ppm = 0;
   int n = 0;
   for (std::uint64_t seed : {11u, 12u, 13u, 14u}) {
-    const FleetSignatures fs = station_signatures(synthetic_fleet(spec, seed), errors());
+    const FleetSignatures fs = station_signatures(synthetic_fleet(spec, seed), errors_station_signature());
     const StationFit& g = fs.stations[kGravityStation].fits[0];
     EXPECT_EQ(fs.stations[kGravityStation].repeat_units, 0);
     sum_sigma_ppm += g.sigma_si / kStandardGravity_mps2 * 1e6;
@@ -281,13 +281,13 @@ TEST(StationSignature, BadOptionsAndUnmeasuredErrorsAreRefused) {
   EXPECT_THROW(station_signatures({}, station_error_catalogue()), std::invalid_argument);
   SignatureOptions bad;
   bad.false_alarm = 0.0;
-  EXPECT_THROW(station_signatures({}, errors(), bad), std::invalid_argument);
+  EXPECT_THROW(station_signatures({}, errors_station_signature(), bad), std::invalid_argument);
   SignatureOptions loose;
   loose.response_tolerance = 1.0;
-  EXPECT_THROW(station_signatures({}, errors(), loose), std::invalid_argument);
+  EXPECT_THROW(station_signatures({}, errors_station_signature(), loose), std::invalid_argument);
   SignatureOptions none;
   none.max_errors = 0;
-  EXPECT_THROW(station_signatures({}, errors(), none), std::invalid_argument);
+  EXPECT_THROW(station_signatures({}, errors_station_signature(), none), std::invalid_argument);
   EXPECT_NEAR(bonferroni_z(0.05, 1), 1.95996, 1e-4);
   EXPECT_NEAR(bonferroni_z(0.001, 2), 3.4808, 1e-3);
 }

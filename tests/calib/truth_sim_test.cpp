@@ -23,9 +23,9 @@ using namespace imucal::calib::sim;
 
 namespace {
 
-Site factory_site() { return demo_factory_site(); }
+Site factory_site_truth_sim() { return demo_factory_site(); }
 
-UnitModel perfect_unit() {
+UnitModel perfect_unit_truth_sim() {
   UnitModel u;
   u.noise.dtheta_lsb_rad = 0.0;
   u.noise.dv_lsb_mps = 0.0;
@@ -42,9 +42,9 @@ SimOptions noiseless() {
 
 TEST(TruthSim, RestIncrementsMatchClosedForm) {
   const auto profile = test_support::HandProfile(0.0, 30.0).rest(20.0).build();
-  const Site site = factory_site();
+  const Site site = factory_site_truth_sim();
   const TableGeometry geom;
-  const SimResult r = simulate(profile, geom, site, perfect_unit(), noiseless());
+  const SimResult r = simulate(profile, geom, site, perfect_unit_truth_sim(), noiseless());
   ASSERT_EQ(r.imu.size(), 2000u);
   const EarthModel earth(site);
   const Eigen::Matrix3d C_bn = TableModel(geom).C_bn(0.0, 30.0 * kDegToRad);
@@ -68,10 +68,10 @@ TEST(TruthSim, RotatingIncrementsMatchFineIntegrationOfTableRates) {
                            .rotate(false, 30.0)
                            .rotate(true, -45.0)
                            .build();
-  const Site site = factory_site();
+  const Site site = factory_site_truth_sim();
   const TableGeometry geom;
   const TableModel table(geom);
-  const UnitModel unit = perfect_unit();
+  const UnitModel unit = perfect_unit_truth_sim();
   const SimResult r = simulate(profile, geom, site, unit, noiseless());
   const EarthModel earth(site);
   const Eigen::Vector3d f_n = -earth.g_n();
@@ -106,10 +106,10 @@ TEST(TruthSim, StrapdownOnTrueIncrementsStaysAtRestThroughRotations) {
   // convention costs ~900 µg while turning at 10 °/s at 100 Hz. With exact increments and the
   // shared strapdown, the velocity stays ~0 through a full-rank profile.
   const auto profile = test_support::HandProfile::full_rank(5.0);
-  const Site site = factory_site();
+  const Site site = factory_site_truth_sim();
   const TableGeometry geom;
   const TableModel table(geom);
-  const UnitModel unit = perfect_unit();
+  const UnitModel unit = perfect_unit_truth_sim();
   const SimResult r = simulate(profile, geom, site, unit, noiseless());
   Strapdown sd{EarthModel(site)};
   NavState s;
@@ -131,11 +131,11 @@ TEST(TruthSim, StrapdownOnTrueIncrementsStaysAtRestThroughRotations) {
 
 TEST(TruthSim, ErrorModelIsInvertedExactlyByCompensation) {
   const auto profile = test_support::HandProfile::full_rank(2.0);
-  const Site site = factory_site();
+  const Site site = factory_site_truth_sim();
   UnitModel unit = default_unit();
   unit.noise.dtheta_lsb_rad = unit.noise.dv_lsb_mps = 0.0;
-  const SimResult truth = simulate(profile, TableGeometry{}, site, perfect_unit(), noiseless());
-  UnitModel perfect_with_sigma = perfect_unit();
+  const SimResult truth = simulate(profile, TableGeometry{}, site, perfect_unit_truth_sim(), noiseless());
+  UnitModel perfect_with_sigma = perfect_unit_truth_sim();
   perfect_with_sigma.params.table_misalignment_rad = unit.params.table_misalignment_rad;
   const SimResult ref = simulate(profile, TableGeometry{}, site, perfect_with_sigma, noiseless());
   const SimResult meas = simulate(profile, TableGeometry{}, site, unit, noiseless());
@@ -153,11 +153,11 @@ TEST(TruthSim, ErrorModelIsInvertedExactlyByCompensation) {
 
 TEST(TruthSim, NoiseHasTheConfiguredSpectralDensity) {
   const auto profile = test_support::HandProfile().rest(600.0).build();
-  UnitModel unit = perfect_unit();
+  UnitModel unit = perfect_unit_truth_sim();
   SimOptions opt;
   opt.seed = 7;
-  const SimResult r = simulate(profile, TableGeometry{}, factory_site(), unit, opt);
-  const SimResult clean = simulate(profile, TableGeometry{}, factory_site(), unit, noiseless());
+  const SimResult r = simulate(profile, TableGeometry{}, factory_site_truth_sim(), unit, opt);
+  const SimResult clean = simulate(profile, TableGeometry{}, factory_site_truth_sim(), unit, noiseless());
   double s_th = 0, s_v = 0;
   for (size_t k = 0; k < r.imu.size(); ++k) {
     s_th += (r.imu[k].dtheta_rad - clean.imu[k].dtheta_rad).squaredNorm();
@@ -172,13 +172,13 @@ TEST(TruthSim, NoiseHasTheConfiguredSpectralDensity) {
 
 TEST(TruthSim, QuantisationCarriesTheRemainder) {
   const auto profile = test_support::HandProfile().rest(100.0).build();
-  UnitModel unit = perfect_unit();
+  UnitModel unit = perfect_unit_truth_sim();
   unit.noise.arw_rad_per_sqrt_s = unit.noise.vrw_mps_per_sqrt_s = 0.0;
   unit.noise.dv_lsb_mps = 1e-3;  // coarse on purpose
   unit.noise.dtheta_lsb_rad = 1e-7;
-  const SimResult q = simulate(profile, TableGeometry{}, factory_site(), unit, SimOptions{});
+  const SimResult q = simulate(profile, TableGeometry{}, factory_site_truth_sim(), unit, SimOptions{});
   const SimResult c =
-      simulate(profile, TableGeometry{}, factory_site(), perfect_unit(), noiseless());
+      simulate(profile, TableGeometry{}, factory_site_truth_sim(), perfect_unit_truth_sim(), noiseless());
   Eigen::Vector3d sum_q = Eigen::Vector3d::Zero(), sum_c = Eigen::Vector3d::Zero();
   for (size_t k = 0; k < q.imu.size(); ++k) {
     sum_q += q.imu[k].dv_mps;
@@ -195,11 +195,11 @@ TEST(TruthSim, QuantisationCarriesTheRemainder) {
 TEST(TruthSim, SizeEffectAppearsOnlyWhileRotating) {
   const auto profile =
       test_support::HandProfile().rest(3.0).rotate(false, 90.0, 20.0, 20.0).rest(3.0).build();
-  UnitModel unit = perfect_unit();
+  UnitModel unit = perfect_unit_truth_sim();
   unit.effects.accel_lever_arm_m[0] = Eigen::Vector3d(0.05, 0.0, 0.0);
-  const SimResult a = simulate(profile, TableGeometry{}, factory_site(), unit, noiseless());
+  const SimResult a = simulate(profile, TableGeometry{}, factory_site_truth_sim(), unit, noiseless());
   const SimResult b =
-      simulate(profile, TableGeometry{}, factory_site(), perfect_unit(), noiseless());
+      simulate(profile, TableGeometry{}, factory_site_truth_sim(), perfect_unit_truth_sim(), noiseless());
   double at_rest = 0, moving = 0;
   for (size_t k = 0; k < a.imu.size(); ++k) {
     const double d = std::abs(a.imu[k].dv_mps(0) - b.imu[k].dv_mps(0)) / 0.01;
@@ -247,15 +247,15 @@ TEST(TruthSim, EffectFreeOutputMatchesTheSimulatorBeforeTheEffectsCatalogue) {
   ASSERT_FALSE(unit.effects.any());
   SimOptions o;
   o.seed = 20261125;
-  const auto noisy = weighted_sums(simulate(profile, TableGeometry{}, factory_site(), unit, o));
+  const auto noisy = weighted_sums(simulate(profile, TableGeometry{}, factory_site_truth_sim(), unit, o));
   o.noise = false;
-  const auto clean = weighted_sums(simulate(profile, TableGeometry{}, factory_site(), unit, o));
+  const auto clean = weighted_sums(simulate(profile, TableGeometry{}, factory_site_truth_sim(), unit, o));
   o.noise = true;
   unit.noise.gyro_bias_instability_radps = 0.003 * kDegPerHourToRadPerSec;
   unit.noise.accel_bias_instability_mps2 = 5e-6 * kStandardGravity_mps2;
   unit.noise.gyro_bias_tau_s = 300.0;
   unit.noise.accel_bias_tau_s = 600.0;
-  const auto gm = weighted_sums(simulate(profile, TableGeometry{}, factory_site(), unit, o));
+  const auto gm = weighted_sums(simulate(profile, TableGeometry{}, factory_site_truth_sim(), unit, o));
   EXPECT_EQ(noisy.first, -175874827.48477355);
   EXPECT_EQ(noisy.second, -242443.13883377827);
   EXPECT_EQ(clean.first, -175874794.31154943);

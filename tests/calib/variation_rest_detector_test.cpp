@@ -23,14 +23,14 @@ namespace {
 
 using testing::simulate_mems;
 
-struct Score {
+struct ScoreVariationRestDetector {
   double found = 0.0;        ///< detected ∧ true rest, over true rest (time fraction)
   size_t false_samples = 0;  ///< detected samples while the hand turns the unit
   size_t true_rest_samples = 0;
 };
 
-Score score(const std::vector<bool>& detected, const std::vector<bool>& truth) {
-  Score s;
+ScoreVariationRestDetector score_variation_rest_detector(const std::vector<bool>& detected, const std::vector<bool>& truth) {
+  ScoreVariationRestDetector s;
   size_t hit = 0;
   for (size_t k = 0; k < truth.size(); ++k) {
     s.true_rest_samples += truth[k];
@@ -47,7 +47,7 @@ TEST_P(VariationRestMems, FindsTheRestsOfAHandPlacedRunWithLargeGyroOffsets) {
   const FieldSimResult sim = simulate_mems(GetParam());
   const VariationRestResult r =
       detect_rest_by_variation(sim.imu, variation_rest_options(Grade::kMems));
-  const Score s = score(r.at_rest, sim.true_rest);
+  const ScoreVariationRestDetector s = score_variation_rest_detector(r.at_rest, sim.true_rest);
   std::printf(
       "seed %llu: offset (%.2f, %.2f, %.2f) deg/s, %d rests of 39, found %.1f %% of %.0f s "
       "rest, %zu false samples, noise %.3f deg/s %.4f m/s^2\n",
@@ -61,7 +61,7 @@ TEST_P(VariationRestMems, FindsTheRestsOfAHandPlacedRunWithLargeGyroOffsets) {
   // The common offset is the unit's gyro bias (plus Earth rate and the scale's share of it).
   EXPECT_LT((r.gyro_offset_radps - sim.truth.gyro_bias_radps).norm(), 0.05 * kDegToRad);
   // The magnitude detector, tuned to navigation grade, sees no rest at all in the same run.
-  const Score old = score(detect_rest(sim.imu), sim.true_rest);
+  const ScoreVariationRestDetector old = score_variation_rest_detector(detect_rest(sim.imu), sim.true_rest);
   EXPECT_LT(old.found, 0.05);
 }
 
@@ -92,7 +92,7 @@ TEST(VariationRest, AConstantRateTurnIsNotRest) {
   EXPECT_LE(false_samples, 10u);
   // Without the offset check the cruise is taken for rest.
   o.rest_rate_spread_radps = 0.0;
-  EXPECT_GT(score(detect_rest_by_variation(sim.imu, o).at_rest, sim.true_rest).false_samples,
+  EXPECT_GT(score_variation_rest_detector(detect_rest_by_variation(sim.imu, o).at_rest, sim.true_rest).false_samples,
             2000u);
 }
 
@@ -107,8 +107,8 @@ TEST(VariationRest, NavigationGradeLandRunOnShort) {
       simulate_field(sequences::load_profile("short"), demo_factory_site(), default_unit(), o);
   const VariationRestResult r =
       detect_rest_by_variation(sim.imu, variation_rest_options(Grade::kNavigation));
-  const Score s = score(r.at_rest, sim.true_rest);
-  const Score magnitude = score(detect_rest(sim.imu), sim.true_rest);
+  const ScoreVariationRestDetector s = score_variation_rest_detector(r.at_rest, sim.true_rest);
+  const ScoreVariationRestDetector magnitude = score_variation_rest_detector(detect_rest(sim.imu), sim.true_rest);
   std::printf(
       "navigation on short: found %.1f %% (magnitude detector %.1f %%), %zu false, %d "
       "rotations rejected\n",

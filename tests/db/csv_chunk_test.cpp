@@ -114,7 +114,7 @@ CsvChunking file_split_at(size_t offset, size_t block_bytes) {
   return CsvChunking{0, offset, block_bytes};
 }
 
-bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
+bool same_bits_csv_chunk(const std::vector<double>& a, const std::vector<double>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
 }
 
@@ -159,7 +159,7 @@ TEST(CsvChunks, SameRowsWhereverTheTextIsSplit) {
             const Collected split = parse_with(text, split_at(at));
             ASSERT_EQ(split.num_rows, whole.num_rows);
             ASSERT_EQ(split.columns, whole.columns);
-            ASSERT_TRUE(same_bits(split.values, whole.values));
+            ASSERT_TRUE(same_bits_csv_chunk(split.values, whole.values));
             ASSERT_EQ(split.calls, std::vector<int>(rows, 1));  // every row once
           }
         }
@@ -178,7 +178,7 @@ TEST(CsvChunks, LargeTextIsParsedOnTwoThreadsWithTheSameResult) {
   ASSERT_GT(data_bytes(text), CsvChunking{}.min_parallel_bytes);
   const Collected whole = parse_with(text, kWhole);
   const Collected two = parse_with(text, CsvChunking{});
-  EXPECT_TRUE(same_bits(two.values, whole.values));
+  EXPECT_TRUE(same_bits_csv_chunk(two.values, whole.values));
   EXPECT_EQ(two.calls, std::vector<int>(20000, 1));
   const std::set<std::thread::id> ids(two.threads.begin(), two.threads.end());
   EXPECT_EQ(ids.size(), 2u) << "the default chunking should use two threads for " << text.size()
@@ -187,7 +187,7 @@ TEST(CsvChunks, LargeTextIsParsedOnTwoThreadsWithTheSameResult) {
   // parse_csv (CsvTable) goes the same way.
   const CsvTable t = parse_csv(text, "dir/imu.csv", kImuSpec);
   EXPECT_EQ(t.num_rows, 20000u);
-  EXPECT_TRUE(same_bits(t.values, whole.values));
+  EXPECT_TRUE(same_bits_csv_chunk(t.values, whole.values));
 }
 
 // Replaces the text of data row `row` (0-based) with `line`.
@@ -251,7 +251,7 @@ TEST(CsvChunks, EveryKindOfErrorIsTheSameWhereverTheSplitFalls) {
   const std::string back = with_row(lf, 6, "0.001,1,2,3,4,5,6");
   const Collected whole = parse_with(back, kWhole, no_time);
   for (size_t at = 0; at <= data_bytes(back); ++at)
-    ASSERT_TRUE(same_bits(parse_with(back, split_at(at), no_time).values, whole.values)) << at;
+    ASSERT_TRUE(same_bits_csv_chunk(parse_with(back, split_at(at), no_time).values, whole.values)) << at;
 }
 
 void write_file(const std::string& path, const std::string& text) {
@@ -273,11 +273,11 @@ TEST(CsvChunks, FileReadBlockByBlockGivesTheSameRows) {
         const Collected c = read_with(path, file_split_at(at, block));
         ASSERT_EQ(c.num_rows, whole.num_rows);
         ASSERT_EQ(c.columns, whole.columns);
-        ASSERT_TRUE(same_bits(c.values, whole.values));
+        ASSERT_TRUE(same_bits_csv_chunk(c.values, whole.values));
         ASSERT_EQ(c.calls, std::vector<int>(whole.num_rows, 1));
       }
     // The defaults: one block, one thread for a small file.
-    EXPECT_TRUE(same_bits(read_with(path, CsvChunking{}).values, whole.values));
+    EXPECT_TRUE(same_bits_csv_chunk(read_with(path, CsvChunking{}).values, whole.values));
   }
 }
 

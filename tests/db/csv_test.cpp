@@ -20,7 +20,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const CsvSpec kImuSpec{
+const CsvSpec kImuSpecCsv{
     {"t_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_mps", "dv_y_mps", "dv_z_mps"},
     {"temp_c"},
     true};
@@ -28,7 +28,7 @@ const std::string kHeader =
     "t_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps\n";
 
 // Expect parse_csv to fail; returns the error for further checks.
-ArchiveError parse_error(const std::string& text, const CsvSpec& spec = kImuSpec) {
+ArchiveError parse_error(const std::string& text, const CsvSpec& spec = kImuSpecCsv) {
   try {
     parse_csv(text, "dir/imu.csv", spec);
   } catch (const ArchiveError& e) {
@@ -38,7 +38,7 @@ ArchiveError parse_error(const std::string& text, const CsvSpec& spec = kImuSpec
   return ArchiveError("none", "none");
 }
 
-bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+bool same_bits_csv(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
 TEST(Csv, WriteReadRoundTripIsBitExact) {
   test_support::ScopedTempDir dir("imucal_csv_test");
@@ -66,26 +66,26 @@ TEST(Csv, WriteReadRoundTripIsBitExact) {
     for (const auto& r : rows) w.write_row(r.data(), r.size());
     w.close();
   }
-  const CsvTable tab = read_csv(path, kImuSpec);
+  const CsvTable tab = read_csv(path, kImuSpecCsv);
   ASSERT_EQ(tab.num_rows, rows.size());
   ASSERT_EQ(tab.num_cols(), 8u);
   EXPECT_EQ(tab.columns.back(), "temp_c");
   for (size_t k = 0; k < rows.size(); ++k)
     for (size_t c = 0; c < 8; ++c)
-      ASSERT_TRUE(same_bits(tab.at(k, c), rows[k][c])) << "row " << k << " col " << c;
+      ASSERT_TRUE(same_bits_csv(tab.at(k, c), rows[k][c])) << "row " << k << " col " << c;
 }
 
 TEST(Csv, AcceptsValidVariants) {
   // Optional trailing column absent, CRLF line endings, last line complete without newline.
   const CsvTable a =
-      parse_csv(kHeader + "0.01,1,2,3,4,5,6\r\n0.02,1e-9,-2.5,.5,4,5,6", "x.csv", kImuSpec);
+      parse_csv(kHeader + "0.01,1,2,3,4,5,6\r\n0.02,1e-9,-2.5,.5,4,5,6", "x.csv", kImuSpecCsv);
   ASSERT_EQ(a.num_rows, 2u);
   EXPECT_EQ(a.num_cols(), 7u);
   EXPECT_EQ(a.at(1, 1), 1e-9);
   EXPECT_EQ(a.at(1, 3), 0.5);
   EXPECT_EQ(a.at(1, 6), 6.0);
   // Header only: zero rows is a valid CSV (the archive decides whether that is acceptable).
-  EXPECT_EQ(parse_csv(kHeader, "x.csv", kImuSpec).num_rows, 0u);
+  EXPECT_EQ(parse_csv(kHeader, "x.csv", kImuSpecCsv).num_rows, 0u);
   EXPECT_EQ(CsvTable::line_of_row(0), 2u);
 }
 
@@ -150,7 +150,7 @@ TEST(Csv, NonMonotonicTimeRejected) {
   const ArchiveError back = parse_error(kHeader + "0.01,1,2,3,4,5,6\n0.005,1,2,3,4,5,6\n");
   EXPECT_EQ(back.line(), 3u);
   // Without the time rule the same data is fine.
-  CsvSpec no_time = kImuSpec;
+  CsvSpec no_time = kImuSpecCsv;
   no_time.increasing_first_column = false;
   EXPECT_EQ(parse_csv(kHeader + "0.01,1,2,3,4,5,6\n0.005,1,2,3,4,5,6\n", "x", no_time).num_rows,
             2u);
@@ -196,7 +196,7 @@ TEST(Csv, BlankLineEmptyFileAndBomRejected) {
 
 TEST(Csv, MissingFileNamesPath) {
   try {
-    read_csv("/nonexistent/dir/imu.csv", kImuSpec);
+    read_csv("/nonexistent/dir/imu.csv", kImuSpecCsv);
     FAIL() << "no error";
   } catch (const ArchiveError& e) {
     EXPECT_EQ(e.file(), "/nonexistent/dir/imu.csv");

@@ -23,7 +23,7 @@ namespace {
 using nlohmann::json;
 using test::TempDir;
 
-constexpr TimestampMs kT0 = 1714560000000;  // 2024-05-01T10:40:00Z
+constexpr TimestampMs kT0Export = 1714560000000;  // 2024-05-01T10:40:00Z
 constexpr TimestampMs kDay = 86400000;
 
 /// Minimal RFC 4180 reader written for this test: records end in CRLF, quoted fields may hold
@@ -105,11 +105,11 @@ class ExportTest : public ::testing::Test {
  protected:
   void SetUp() override {
     repo_ = std::make_unique<SqliteRepository>(dir_.file("export.db"));
-    add("SIM-A", kT0, 1, RunState::kDone);
-    add("SIM-B", kT0 + kDay, 2, RunState::kReview);
-    add("SIM-A", kT0 + 2 * kDay, 0, RunState::kFailed);
-    add("SIM-B", kT0 + 2 * kDay, 3, RunState::kDone);  // same time as the failed run: id order
-    add("SIM-A", kT0 + 3 * kDay, 4, RunState::kDone);
+    add("SIM-A", kT0Export, 1, RunState::kDone);
+    add("SIM-B", kT0Export + kDay, 2, RunState::kReview);
+    add("SIM-A", kT0Export + 2 * kDay, 0, RunState::kFailed);
+    add("SIM-B", kT0Export + 2 * kDay, 3, RunState::kDone);  // same time as the failed run: id order
+    add("SIM-A", kT0Export + 3 * kDay, 4, RunState::kDone);
   }
 
   void add(const std::string& serial, TimestampMs t, long seed, RunState state) {
@@ -164,9 +164,9 @@ class ExportTest : public ::testing::Test {
 TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
   const std::vector<ExportFilter> filters = {{},
                                              {std::string("SIM-A"), std::nullopt, std::nullopt},
-                                             {std::nullopt, kT0 + 2 * kDay, std::nullopt},
-                                             {std::string("SIM-B"), kT0 + kDay + 1, std::nullopt},
-                                             {std::string("SIM-A"), kT0 + 10 * kDay, std::nullopt}};
+                                             {std::nullopt, kT0Export + 2 * kDay, std::nullopt},
+                                             {std::string("SIM-B"), kT0Export + kDay + 1, std::nullopt},
+                                             {std::string("SIM-A"), kT0Export + 10 * kDay, std::nullopt}};
   for (const ExportFilter& f : filters) {
     std::ostringstream os;
     const std::size_t n = export_csv(*repo_, f, os);
@@ -258,8 +258,8 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
 TEST_F(ExportTest, JsonParsesBackWithStrictParameterSetsForEveryFilter) {
   const std::vector<ExportFilter> filters = {{},
                                              {std::string("SIM-B"), std::nullopt, std::nullopt},
-                                             {std::nullopt, kT0 + 3 * kDay, std::nullopt},
-                                             {std::string("SIM-B"), kT0 + 100 * kDay, std::nullopt}};
+                                             {std::nullopt, kT0Export + 3 * kDay, std::nullopt},
+                                             {std::string("SIM-B"), kT0Export + 100 * kDay, std::nullopt}};
   for (const ExportFilter& f : filters) {
     std::ostringstream os;
     const std::size_t n = export_json(*repo_, f, os);
@@ -330,7 +330,7 @@ TEST_F(ExportTest, NdjsonIsTheJsonExportOneObjectPerLine) {
 }
 
 TEST_F(ExportTest, EmptyResultIsAHeaderOrAnEmptyArray) {
-  ExportFilter none{std::string("SIM-A"), kT0 + 365 * kDay, std::nullopt};
+  ExportFilter none{std::string("SIM-A"), kT0Export + 365 * kDay, std::nullopt};
   std::ostringstream csv, js;
   EXPECT_EQ(export_csv(*repo_, none, csv), 0u);
   EXPECT_EQ(parse_csv(csv.str()).size(), 1u);
@@ -368,8 +368,8 @@ TEST_F(ExportTest, ActiveParamsJsonLoadsWithTheStrictParameterSetReader) {
 TEST(ExportDiagnosis, CsvCarriesTheStoredDiagnosisAsTheJsonDoes) {
   TempDir dir;
   SqliteRepository repo(dir.file("d.db"));
-  const RunId id = repo.create_run(test::new_run("SIM-D", kT0));
-  RunCompletion c = test::pass_completion(1, kT0 + kDay / 100);
+  const RunId id = repo.create_run(test::new_run("SIM-D", kT0Export));
+  RunCompletion c = test::pass_completion(1, kT0Export + kDay / 100);
   c.state = RunState::kReview;
   c.reasons = {{"gap", "sim-to-real gap: explained by accel_quadratic_k2 or accel_asymmetry"}};
   c.diagnosis_json =

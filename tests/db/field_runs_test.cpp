@@ -15,7 +15,7 @@ namespace {
 using test::expect_throw_message;
 using test::TempDir;
 
-constexpr TimestampMs kT0 = 1714560000000;
+constexpr TimestampMs kT0FieldRuns = 1714560000000;
 
 NewRun field_run(const std::string& serial, TimestampMs t, calib::core::Setting s) {
   NewRun r = test::new_run(serial, t);
@@ -45,8 +45,8 @@ RunCompletion sea_alone(long seed, TimestampMs end) {
 TEST(FieldRuns, SettingOriginAndLegacyAreStoredAndRead) {
   TempDir dir;
   SqliteRepository repo(dir.file("h.db"));
-  const RunId land = repo.create_run(field_run("FOG-1", kT0, calib::core::Setting::kLand));
-  repo.finish_run(land, land_pass(1, kT0 + 1000));
+  const RunId land = repo.create_run(field_run("FOG-1", kT0FieldRuns, calib::core::Setting::kLand));
+  repo.finish_run(land, land_pass(1, kT0FieldRuns + 1000));
   const RunDetails d = repo.show(land);
   EXPECT_EQ(d.run.setting, calib::core::Setting::kLand);
   EXPECT_EQ(d.run.origin, "imported from /media/usb/FOG-1");
@@ -55,7 +55,7 @@ TEST(FieldRuns, SettingOriginAndLegacyAreStoredAndRead) {
   EXPECT_EQ(d.calibrations[1].method, Method::kLegacy);
   EXPECT_EQ(d.calibrations[1].params.to_vector(),
             test::seeded_calibration(1, Method::kLegacy, false).params.to_vector());
-  const RunId fac = repo.create_run(test::new_run("FOG-1", kT0 + 5000));
+  const RunId fac = repo.create_run(test::new_run("FOG-1", kT0FieldRuns + 5000));
   EXPECT_EQ(repo.show(fac).run.setting, calib::core::Setting::kFactory);
   EXPECT_EQ(repo.integrity_check(), "ok");
 }
@@ -64,74 +64,74 @@ TEST(FieldRuns, DoneNeedsTheSettingsSecondMethodAndASeaRunIsNeverDone) {
   TempDir dir;
   SqliteRepository repo(dir.file("h.db"));
   // Land with AINS + NLSQ (the factory's pair) is not done: the land pair is AINS + legacy.
-  const RunId land = repo.create_run(field_run("FOG-2", kT0, calib::core::Setting::kLand));
+  const RunId land = repo.create_run(field_run("FOG-2", kT0FieldRuns, calib::core::Setting::kLand));
   const std::string m1 = expect_throw_message<Conflict>(
-      [&] { repo.finish_run(land, test::pass_completion(2, kT0 + 1)); });
+      [&] { repo.finish_run(land, test::pass_completion(2, kT0FieldRuns + 1)); });
   EXPECT_NE(m1.find("legacy calibration"), std::string::npos) << m1;
   // A sea run has AINS alone: done is refused, review with the reason is fine.
-  const RunId sea = repo.create_run(field_run("FOG-2", kT0 + 10, calib::core::Setting::kSea));
-  RunCompletion done = sea_alone(3, kT0 + 20);
+  const RunId sea = repo.create_run(field_run("FOG-2", kT0FieldRuns + 10, calib::core::Setting::kSea));
+  RunCompletion done = sea_alone(3, kT0FieldRuns + 20);
   done.state = RunState::kDone;
   const std::string m2 = expect_throw_message<Conflict>([&] { repo.finish_run(sea, done); });
   EXPECT_NE(m2.find("a second method"), std::string::npos) << m2;
-  repo.finish_run(sea, sea_alone(3, kT0 + 20));
+  repo.finish_run(sea, sea_alone(3, kT0FieldRuns + 20));
   EXPECT_EQ(repo.show(sea).run.state, RunState::kReview);
 }
 
 TEST(FieldRuns, ActiveStaysTheFactoryPassUntilQaPromotesAFieldRun) {
   TempDir dir;
   SqliteRepository repo(dir.file("h.db"));
-  const RunId fac1 = repo.create_run(test::new_run("FOG-3", kT0));
-  repo.finish_run(fac1, test::pass_completion(10, kT0 + 1000));
+  const RunId fac1 = repo.create_run(test::new_run("FOG-3", kT0FieldRuns));
+  repo.finish_run(fac1, test::pass_completion(10, kT0FieldRuns + 1000));
   // A later land PASS does not replace it on its own.
-  const RunId land = repo.create_run(field_run("FOG-3", kT0 + 2000, calib::core::Setting::kLand));
-  repo.finish_run(land, land_pass(11, kT0 + 3000));
+  const RunId land = repo.create_run(field_run("FOG-3", kT0FieldRuns + 2000, calib::core::Setting::kLand));
+  repo.finish_run(land, land_pass(11, kT0FieldRuns + 3000));
   EXPECT_EQ(repo.active_params("FOG-3").run.run_id, fac1);
   // QA promotes it: recorded with who, when, why; it becomes active.
-  repo.promote(land, "qa.jensen", "field recalibration after shipping damage check", kT0 + 4000);
+  repo.promote(land, "qa.jensen", "field recalibration after shipping damage check", kT0FieldRuns + 4000);
   const ActiveCalibration a = repo.active_params("FOG-3");
   EXPECT_EQ(a.run.run_id, land);
   EXPECT_EQ(a.run.promoted_by, "qa.jensen");
   EXPECT_EQ(a.run.promote_reason, "field recalibration after shipping damage check");
-  EXPECT_EQ(a.run.promoted_at_ms, kT0 + 4000);
+  EXPECT_EQ(a.run.promoted_at_ms, kT0FieldRuns + 4000);
   EXPECT_EQ(a.active.method, Method::kAins);
   EXPECT_EQ(a.active.params.to_vector(),
             test::seeded_calibration(11, Method::kAins, false).params.to_vector());
   // A newer factory PASS wins again.
-  const RunId fac2 = repo.create_run(test::new_run("FOG-3", kT0 + 5000));
-  repo.finish_run(fac2, test::pass_completion(12, kT0 + 6000));
+  const RunId fac2 = repo.create_run(test::new_run("FOG-3", kT0FieldRuns + 5000));
+  repo.finish_run(fac2, test::pass_completion(12, kT0FieldRuns + 6000));
   EXPECT_EQ(repo.active_params("FOG-3").run.run_id, fac2);
   // A sea run reviewed only for having AINS alone may be promoted; then it is active.
-  const RunId sea = repo.create_run(field_run("FOG-3", kT0 + 7000, calib::core::Setting::kSea));
-  repo.finish_run(sea, sea_alone(13, kT0 + 8000));
-  repo.promote(sea, "qa.jensen", "vessel unit, no table within reach", kT0 + 9000);
+  const RunId sea = repo.create_run(field_run("FOG-3", kT0FieldRuns + 7000, calib::core::Setting::kSea));
+  repo.finish_run(sea, sea_alone(13, kT0FieldRuns + 8000));
+  repo.promote(sea, "qa.jensen", "vessel unit, no table within reach", kT0FieldRuns + 9000);
   EXPECT_EQ(repo.active_params("FOG-3").run.run_id, sea);
 }
 
 TEST(FieldRuns, PromotionIsRefusedWhereItMakesNoSense) {
   TempDir dir;
   SqliteRepository repo(dir.file("h.db"));
-  const RunId fac = repo.create_run(test::new_run("FOG-4", kT0));
-  repo.finish_run(fac, test::pass_completion(20, kT0 + 1000));
+  const RunId fac = repo.create_run(test::new_run("FOG-4", kT0FieldRuns));
+  repo.finish_run(fac, test::pass_completion(20, kT0FieldRuns + 1000));
   EXPECT_NE(expect_throw_message<Conflict>([&] {
-              repo.promote(fac, "qa", "x", kT0 + 2);
+              repo.promote(fac, "qa", "x", kT0FieldRuns + 2);
             }).find("factory run"),
             std::string::npos);
-  const RunId live = repo.create_run(field_run("FOG-4", kT0 + 10, calib::core::Setting::kLand));
+  const RunId live = repo.create_run(field_run("FOG-4", kT0FieldRuns + 10, calib::core::Setting::kLand));
   EXPECT_NE(expect_throw_message<Conflict>([&] {
-              repo.promote(live, "qa", "x", kT0 + 20);
+              repo.promote(live, "qa", "x", kT0FieldRuns + 20);
             }).find("still preparing"),
             std::string::npos);
-  RunCompletion rev = land_pass(21, kT0 + 30);
+  RunCompletion rev = land_pass(21, kT0FieldRuns + 30);
   rev.state = RunState::kReview;
   rev.crosscheck = CrosscheckRecord{Verdict::kReview, 4.0, {{"gyro_M[1][1]", "too far apart"}}, {}};
   repo.finish_run(live, rev);
   EXPECT_NE(expect_throw_message<Conflict>([&] {
-              repo.promote(live, "qa", "x", kT0 + 40);
+              repo.promote(live, "qa", "x", kT0FieldRuns + 40);
             }).find("only a done (PASS) field run"),
             std::string::npos);
-  EXPECT_THROW(repo.promote(live, "qa", "", kT0 + 40), InvalidInput);
-  EXPECT_THROW(repo.promote(99999, "qa", "x", kT0 + 40), NotFound);
+  EXPECT_THROW(repo.promote(live, "qa", "", kT0FieldRuns + 40), InvalidInput);
+  EXPECT_THROW(repo.promote(99999, "qa", "x", kT0FieldRuns + 40), NotFound);
   // Nothing was promoted: the factory run is still active.
   EXPECT_EQ(repo.active_params("FOG-4").run.run_id, fac);
 }
@@ -186,18 +186,18 @@ TEST(FieldRuns, VersionThreeDatabaseMigratesKeepingItsCalibrations) {
 TEST(FieldRuns, AnImportedFactoryRunIsActiveOnlyWhenPromotedAndIsFoundByItsArchiveHash) {
   TempDir dir;
   SqliteRepository repo(dir.file("h.db"));
-  const RunId station = repo.create_run(test::new_run("NAV-1", kT0));
-  repo.finish_run(station, test::pass_completion(1, kT0 + 1000));
+  const RunId station = repo.create_run(test::new_run("NAV-1", kT0FieldRuns));
+  repo.finish_run(station, test::pass_completion(1, kT0FieldRuns + 1000));
   const RunId imported =
-      repo.create_run(field_run("NAV-1", kT0 + 5000, calib::core::Setting::kFactory));
-  RunCompletion c = test::pass_completion(2, kT0 + 6000);
+      repo.create_run(field_run("NAV-1", kT0FieldRuns + 5000, calib::core::Setting::kFactory));
+  RunCompletion c = test::pass_completion(2, kT0FieldRuns + 6000);
   repo.finish_run(imported, c);
   EXPECT_EQ(repo.active_params("NAV-1").run.run_id, station)
       << "a later imported PASS is not active";
   const std::string msg =
-      expect_throw_message<Conflict>([&] { repo.promote(station, "qa", "why not", kT0 + 7000); });
+      expect_throw_message<Conflict>([&] { repo.promote(station, "qa", "why not", kT0FieldRuns + 7000); });
   EXPECT_NE(msg.find("factory run of this station"), std::string::npos) << msg;
-  repo.promote(imported, "qa", "golden unit", kT0 + 8000);
+  repo.promote(imported, "qa", "golden unit", kT0FieldRuns + 8000);
   EXPECT_EQ(repo.active_params("NAV-1").run.run_id, imported);
 
   const auto found = repo.runs_with_archive_sha256(c.archive_sha256);

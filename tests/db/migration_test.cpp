@@ -24,7 +24,7 @@ namespace {
 using test::expect_throw_message;
 using test::TempDir;
 
-constexpr TimestampMs kT0 = 1714560000000;
+constexpr TimestampMs kT0Migration = 1714560000000;
 
 /// A raw connection for inspecting or preparing files around the repository.
 class RawDb {
@@ -104,8 +104,8 @@ TEST(Migration, ReopeningIsIdempotentAndKeepsData) {
   RunId id = 0;
   {
     SqliteRepository repo(path);
-    id = repo.create_run(test::new_run("SIM-0001", kT0));
-    repo.finish_run(id, test::pass_completion(3, kT0 + 1000));
+    id = repo.create_run(test::new_run("SIM-0001", kT0Migration));
+    repo.finish_run(id, test::pass_completion(3, kT0Migration + 1000));
   }
   const std::string schema_before = RawDb(path).text("SELECT sql FROM sqlite_schema ORDER BY name");
   for (int i = 0; i < 3; ++i) {
@@ -122,7 +122,7 @@ TEST(Migration, NewerSchemaVersionIsRefusedAndTheFileLeftUntouched) {
   const std::string path = dir.file("future.db");
   {
     SqliteRepository repo(path);
-    repo.create_run(test::new_run("SIM-0001", kT0));
+    repo.create_run(test::new_run("SIM-0001", kT0Migration));
   }
   RawDb(path).exec("PRAGMA user_version = 99");
   const std::string before = file_bytes(path);
@@ -258,14 +258,14 @@ TEST(Migration, CaptureJsonIsStoredWithTheRunAndMalformedTextIsRefused) {
   TempDir dir;
   const std::string path = dir.file("capture.db");
   SqliteRepository repo(path);
-  const RunId id = repo.create_run(test::new_run("SIM-0002", kT0));
-  RunCompletion bad = test::pass_completion(5, kT0 + 1000);
+  const RunId id = repo.create_run(test::new_run("SIM-0002", kT0Migration));
+  RunCompletion bad = test::pass_completion(5, kT0Migration + 1000);
   bad.capture_json = "[1, 2]";
   const std::string msg = expect_throw_message<InvalidInput>([&] { repo.finish_run(id, bad); });
   EXPECT_NE(msg.find("capture_json must be a JSON object"), std::string::npos) << msg;
   EXPECT_TRUE(repo.show(id).calibrations.empty()) << "a refused finish writes nothing";
 
-  RunCompletion ok = test::pass_completion(5, kT0 + 1000);
+  RunCompletion ok = test::pass_completion(5, kT0Migration + 1000);
   ok.capture_json = R"({"frames_received":4000,"samples_filled":3})";
   repo.finish_run(id, ok);
   EXPECT_EQ(repo.show(id).run.capture_json, ok.capture_json);
@@ -308,15 +308,15 @@ TEST(Migration, VersionTwoDatabaseGainsDiagnosisJsonKeepingItsCaptureCounters) {
 TEST(Migration, DiagnosisJsonIsStoredWithTheRunAndOnlyAnObjectIsAccepted) {
   TempDir dir;
   SqliteRepository repo(dir.file("diag.db"));
-  const RunId id = repo.create_run(test::new_run("SIM-0003", kT0));
+  const RunId id = repo.create_run(test::new_run("SIM-0003", kT0Migration));
   EXPECT_THROW(repo.set_diagnosis(id, R"({"verdict":"consistent"})"), Conflict)
       << "a live run is diagnosed when it has finished";
-  RunCompletion bad = test::pass_completion(5, kT0 + 1000);
+  RunCompletion bad = test::pass_completion(5, kT0Migration + 1000);
   bad.diagnosis_json = "\"consistent\"";
   const std::string msg = expect_throw_message<InvalidInput>([&] { repo.finish_run(id, bad); });
   EXPECT_NE(msg.find("diagnosis_json must be a JSON object"), std::string::npos) << msg;
   // A PASS cross-check with a significant gap goes to review, with its reason.
-  RunCompletion gap = test::pass_completion(5, kT0 + 1000);
+  RunCompletion gap = test::pass_completion(5, kT0Migration + 1000);
   gap.state = RunState::kReview;
   gap.reason = "sim-to-real gap: explained by gyro_g_sensitivity";
   gap.diagnosis_json = R"({"verdict":"explained","best":{"effect":"gyro_g_sensitivity"}})";

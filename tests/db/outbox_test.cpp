@@ -13,7 +13,7 @@ using namespace imucal::db::history;
 namespace {
 
 using test::TempDir;
-constexpr TimestampMs kT0 = 1714560000000;
+constexpr TimestampMs kT0Outbox = 1714560000000;
 
 std::vector<std::string> changes(const SqliteRepository& repo) {
   std::vector<std::string> out;
@@ -25,9 +25,9 @@ TEST(Outbox, DisabledRecordsNothingAndEnablingEnqueuesTheWholeHistory) {
   TempDir dir;
   SqliteRepository repo(dir.file("h.db"));
   EXPECT_FALSE(repo.outbox_enabled());
-  const RunId a = repo.create_run(test::new_run("SN-1", kT0));
-  repo.finish_run(a, test::pass_completion(1, kT0 + 10));
-  const RunId b = repo.create_run(test::new_run("SN-2", kT0 + 20));
+  const RunId a = repo.create_run(test::new_run("SN-1", kT0Outbox));
+  repo.finish_run(a, test::pass_completion(1, kT0Outbox + 10));
+  const RunId b = repo.create_run(test::new_run("SN-2", kT0Outbox + 20));
   EXPECT_EQ(repo.outbox_length(), 0u);
 
   repo.set_outbox_enabled(true);
@@ -49,13 +49,13 @@ TEST(Outbox, EveryKindOfChangeIsRecordedWithTheRunAndItsRevisionGrows) {
   TempDir dir;
   SqliteRepository repo(dir.file("h.db"));
   repo.set_outbox_enabled(true);
-  const RunId id = repo.create_run(test::new_run("SN-1", kT0));
+  const RunId id = repo.create_run(test::new_run("SN-1", kT0Outbox));
   const RunRecord created = repo.show(id).run;
   EXPECT_EQ(created.uuid.size(), 32u);
   repo.update_run_state(id, RunState::kRunning);
-  repo.finish_run(id, test::pass_completion(1, kT0 + 100));
+  repo.finish_run(id, test::pass_completion(1, kT0Outbox + 100));
   repo.set_diagnosis(id, R"({"verdict":"consistent"})");
-  NewRun again = test::new_run("SN-1", kT0 + 200);
+  NewRun again = test::new_run("SN-1", kT0Outbox + 200);
   again.reprocessed_from = id;
   const RunId re = repo.create_run(again);
 
@@ -65,7 +65,7 @@ TEST(Outbox, EveryKindOfChangeIsRecordedWithTheRunAndItsRevisionGrows) {
   EXPECT_EQ(changes(repo), expected);
   for (const OutboxEntry& e : repo.outbox_batch(1000)) {
     EXPECT_EQ(e.run_id, e.change == "reprocess" ? re : id);
-    EXPECT_GT(e.at_ms, kT0);
+    EXPECT_GT(e.at_ms, kT0Outbox);
   }
   const RunRecord done = repo.show(id).run;
   EXPECT_EQ(done.uuid, created.uuid) << "the UUID never changes";
@@ -77,12 +77,12 @@ TEST(Outbox, AFailedWriteLeavesNoEntryAndRemovalIsByConfirmedSeq) {
   TempDir dir;
   SqliteRepository repo(dir.file("h.db"));
   repo.set_outbox_enabled(true);
-  const RunId id = repo.create_run(test::new_run("SN-1", kT0));
-  repo.finish_run(id, test::pass_completion(1, kT0 + 100));
+  const RunId id = repo.create_run(test::new_run("SN-1", kT0Outbox));
+  repo.finish_run(id, test::pass_completion(1, kT0Outbox + 100));
   const std::size_t before = repo.outbox_length();
   const std::int64_t revision = repo.show(id).run.revision;
   // A second finish is refused: its transaction (and any entry it would have made) rolls back.
-  EXPECT_THROW(repo.finish_run(id, test::pass_completion(2, kT0 + 200)), Conflict);
+  EXPECT_THROW(repo.finish_run(id, test::pass_completion(2, kT0Outbox + 200)), Conflict);
   EXPECT_THROW(repo.store_calibration(id, test::seeded_calibration(3, Method::kNlsq)), Conflict);
   EXPECT_EQ(repo.outbox_length(), before);
   EXPECT_EQ(repo.show(id).run.revision, revision);
@@ -99,7 +99,7 @@ TEST(Outbox, RunUuidsAreDistinctAndDetailsOfSkipsUnknownIds) {
   SqliteRepository repo(dir.file("h.db"));
   std::set<std::string> uuids;
   std::vector<RunId> ids;
-  for (int i = 0; i < 50; ++i) ids.push_back(repo.create_run(test::new_run("SN-1", kT0 + i)));
+  for (int i = 0; i < 50; ++i) ids.push_back(repo.create_run(test::new_run("SN-1", kT0Outbox + i)));
   for (RunId id : ids) uuids.insert(repo.show(id).run.uuid);
   EXPECT_EQ(uuids.size(), ids.size());
   const std::vector<RunDetails> d = repo.details_of({ids[3], 999999, ids[1], ids[3]});

@@ -27,7 +27,7 @@ namespace {
 using test::TempDir;
 using test::expect_throw_message;
 
-constexpr TimestampMs kT0 = 1714560000000;  // 2024-05-01T10:40:00Z
+constexpr TimestampMs kT0Repository = 1714560000000;  // 2024-05-01T10:40:00Z
 constexpr TimestampMs kMinute = 60000;
 
 void expect_params_equal(const calib::core::ParamSet& a, const calib::core::ParamSet& b) {
@@ -54,9 +54,9 @@ TEST(Repository, HistoryOfTwoSerialsIsNewestFirstWithIdTieBreak) {
   // Interleaved serials, start times deliberately not in creation order, and one tie (A: two
   // runs at kT0 + 5 min, which must come out by id, newest id first).
   const std::vector<std::pair<std::string, TimestampMs>> plan = {
-      {"SIM-A", kT0 + 5 * kMinute}, {"SIM-B", kT0 + 1 * kMinute}, {"SIM-A", kT0 + 2 * kMinute},
-      {"SIM-A", kT0 + 9 * kMinute}, {"SIM-B", kT0 + 7 * kMinute}, {"SIM-A", kT0 + 5 * kMinute},
-      {"SIM-B", kT0 + 3 * kMinute}, {"SIM-A", kT0 + 0 * kMinute}};
+      {"SIM-A", kT0Repository + 5 * kMinute}, {"SIM-B", kT0Repository + 1 * kMinute}, {"SIM-A", kT0Repository + 2 * kMinute},
+      {"SIM-A", kT0Repository + 9 * kMinute}, {"SIM-B", kT0Repository + 7 * kMinute}, {"SIM-A", kT0Repository + 5 * kMinute},
+      {"SIM-B", kT0Repository + 3 * kMinute}, {"SIM-A", kT0Repository + 0 * kMinute}};
   long seed = 1;
   for (const auto& [serial, t] : plan) {
     const RunId id = repo.create_run(test::new_run(serial, t));
@@ -105,19 +105,19 @@ TEST(Repository, ActiveParamsIsLatestPassAndALaterReviewDoesNotReplaceIt) {
   SqliteRepository repo(dir.file("active.db"));
   // SIM-A: PASS(seed 11) at t0, PASS(seed 12) at t0+10, REVIEW(seed 13) at t0+20, failed at
   // t0+30, interrupted at t0+40, and a PASS(seed 14) created last but started at t0+5 (older).
-  const RunId r11 = repo.create_run(test::new_run("SIM-A", kT0));
-  repo.finish_run(r11, test::pass_completion(11, kT0 + kMinute));
-  const RunId r12 = repo.create_run(test::new_run("SIM-A", kT0 + 10 * kMinute));
-  repo.finish_run(r12, test::pass_completion(12, kT0 + 11 * kMinute));
-  const RunId r13 = repo.create_run(test::new_run("SIM-A", kT0 + 20 * kMinute));
-  repo.finish_run(r13, test::review_completion(13, kT0 + 21 * kMinute));
-  const RunId rf = repo.create_run(test::new_run("SIM-A", kT0 + 30 * kMinute));
+  const RunId r11 = repo.create_run(test::new_run("SIM-A", kT0Repository));
+  repo.finish_run(r11, test::pass_completion(11, kT0Repository + kMinute));
+  const RunId r12 = repo.create_run(test::new_run("SIM-A", kT0Repository + 10 * kMinute));
+  repo.finish_run(r12, test::pass_completion(12, kT0Repository + 11 * kMinute));
+  const RunId r13 = repo.create_run(test::new_run("SIM-A", kT0Repository + 20 * kMinute));
+  repo.finish_run(r13, test::review_completion(13, kT0Repository + 21 * kMinute));
+  const RunId rf = repo.create_run(test::new_run("SIM-A", kT0Repository + 30 * kMinute));
   repo.update_run_state(rf, RunState::kRunning);
   repo.update_run_state(rf, RunState::kFailed, "turntable fault 17 during step 3/12");
-  const RunId ri = repo.create_run(test::new_run("SIM-A", kT0 + 40 * kMinute, RunState::kRunning));
-  repo.mark_interrupted_runs(kT0 + 50 * kMinute);
-  const RunId r14 = repo.create_run(test::new_run("SIM-A", kT0 + 5 * kMinute));
-  repo.finish_run(r14, test::pass_completion(14, kT0 + 6 * kMinute));
+  const RunId ri = repo.create_run(test::new_run("SIM-A", kT0Repository + 40 * kMinute, RunState::kRunning));
+  repo.mark_interrupted_runs(kT0Repository + 50 * kMinute);
+  const RunId r14 = repo.create_run(test::new_run("SIM-A", kT0Repository + 5 * kMinute));
+  repo.finish_run(r14, test::pass_completion(14, kT0Repository + 6 * kMinute));
   (void)r11;
   (void)ri;
 
@@ -132,16 +132,16 @@ TEST(Repository, ActiveParamsIsLatestPassAndALaterReviewDoesNotReplaceIt) {
   expect_params_equal(a.all[1].params, test::seeded_params(12, 1));
 
   // SIM-B has only a REVIEW run: no active calibration, and the message says so.
-  const RunId rb = repo.create_run(test::new_run("SIM-B", kT0));
-  repo.finish_run(rb, test::review_completion(21, kT0 + kMinute));
+  const RunId rb = repo.create_run(test::new_run("SIM-B", kT0Repository));
+  repo.finish_run(rb, test::review_completion(21, kT0Repository + kMinute));
   const std::string msg = expect_throw_message<NotFound>([&] { repo.active_params("SIM-B"); });
   EXPECT_NE(msg.find("has no active calibration"), std::string::npos) << msg;
   EXPECT_NE(msg.find("1 run(s)"), std::string::npos) << msg;
   EXPECT_THROW(repo.active_params("SIM-NONE"), NotFound);
 
   // A new PASS run becomes active at once.
-  const RunId r15 = repo.create_run(test::new_run("SIM-A", kT0 + 60 * kMinute));
-  repo.finish_run(r15, test::pass_completion(15, kT0 + 61 * kMinute));
+  const RunId r15 = repo.create_run(test::new_run("SIM-A", kT0Repository + 60 * kMinute));
+  repo.finish_run(r15, test::pass_completion(15, kT0Repository + 61 * kMinute));
   EXPECT_EQ(repo.active_params("SIM-A").run.run_id, r15);
   expect_params_equal(repo.active_params("SIM-A").active.params, test::seeded_params(15, 0));
 }
@@ -149,10 +149,10 @@ TEST(Repository, ActiveParamsIsLatestPassAndALaterReviewDoesNotReplaceIt) {
 TEST(Repository, ShowReturnsEverythingStored) {
   TempDir dir;
   SqliteRepository repo(dir.file("show.db"));
-  NewRun nr = test::new_run("UNIT_7.b-2", kT0 + 123);
+  NewRun nr = test::new_run("UNIT_7.b-2", kT0Repository + 123);
   nr.operator_name = "Ærø Jensen";  // UTF-8 survives
   nr.sequence_sha256 = "0123456789abcdef0123456789abcdef0123456789abcdef0123456789abcdef";
-  const RunId origin = repo.create_run(test::new_run("UNIT_7.b-2", kT0 - kMinute));
+  const RunId origin = repo.create_run(test::new_run("UNIT_7.b-2", kT0Repository - kMinute));
   repo.update_run_state(origin, RunState::kAborted, "operator abort");
   nr.reprocessed_from = origin;
   const RunId id = repo.create_run(nr);
@@ -171,7 +171,7 @@ TEST(Repository, ShowReturnsEverythingStored) {
   repo.store_crosscheck(id, x);
   RunCompletion c;
   c.state = RunState::kReview;
-  c.ended_at_ms = kT0 + 999;
+  c.ended_at_ms = kT0Repository + 999;
   c.archive_path = "/data/runs/42";
   c.archive_sha256 = std::string(64, 'f');
   repo.finish_run(id, c);
@@ -186,7 +186,7 @@ TEST(Repository, ShowReturnsEverythingStored) {
   EXPECT_EQ(d.run.software_version, nr.software_version);
   EXPECT_EQ(d.run.started_at_ms, nr.started_at_ms);
   ASSERT_TRUE(d.run.ended_at_ms.has_value());
-  EXPECT_EQ(*d.run.ended_at_ms, kT0 + 999);
+  EXPECT_EQ(*d.run.ended_at_ms, kT0Repository + 999);
   EXPECT_EQ(d.run.state, RunState::kReview);
   // In review by the cross-check alone: its failures are the run's reason (issue #19 item 2).
   EXPECT_EQ(d.run.failure_reason,
@@ -236,17 +236,17 @@ TEST(Repository, TheRunVerdictFollowsTheStateWithEveryReasonNotTheCrossCheckAlon
   TempDir dir;
   SqliteRepository repo(dir.file("verdict.db"));
   // Cross-check PASS, but the limits and the gap say review.
-  const RunId review = repo.create_run(test::new_run("SIM-V", kT0));
-  RunCompletion c = test::pass_completion(1, kT0 + kMinute);
+  const RunId review = repo.create_run(test::new_run("SIM-V", kT0Repository));
+  RunCompletion c = test::pass_completion(1, kT0Repository + kMinute);
   c.state = RunState::kReview;
   c.reasons = {{"limits", "limits: gyro bias z 0.31 deg/h > 0.2 deg/h"},
                {"gap", "sim-to-real gap: explained by gyro_g_sensitivity"}};
   repo.finish_run(review, c);
-  const RunId failed = repo.create_run(test::new_run("SIM-V", kT0 + 2 * kMinute));
+  const RunId failed = repo.create_run(test::new_run("SIM-V", kT0Repository + 2 * kMinute));
   repo.update_run_state(failed, RunState::kAborted, "aborted by operator");
-  const RunId done = repo.create_run(test::new_run("SIM-V", kT0 + 4 * kMinute));
-  repo.finish_run(done, test::pass_completion(2, kT0 + 5 * kMinute));
-  const RunId live = repo.create_run(test::new_run("SIM-V", kT0 + 6 * kMinute));
+  const RunId done = repo.create_run(test::new_run("SIM-V", kT0Repository + 4 * kMinute));
+  repo.finish_run(done, test::pass_completion(2, kT0Repository + 5 * kMinute));
+  const RunId live = repo.create_run(test::new_run("SIM-V", kT0Repository + 6 * kMinute));
 
   const RunRecord r = repo.show(review).run;
   EXPECT_EQ(r.verdict, RunVerdict::kReview);
@@ -271,7 +271,7 @@ TEST(Repository, TheRunVerdictFollowsTheStateWithEveryReasonNotTheCrossCheckAlon
   });
   // Only the PASS run is active, and a done run cannot carry reasons against it.
   EXPECT_EQ(repo.active_params("SIM-V").run.run_id, done);
-  RunCompletion contradictory = test::pass_completion(3, kT0 + 7 * kMinute);
+  RunCompletion contradictory = test::pass_completion(3, kT0Repository + 7 * kMinute);
   contradictory.reasons = {{"gap", "sim-to-real gap"}};
   EXPECT_THROW(repo.finish_run(live, contradictory), InvalidInput);
 }
@@ -279,7 +279,7 @@ TEST(Repository, TheRunVerdictFollowsTheStateWithEveryReasonNotTheCrossCheckAlon
 TEST(Repository, LifeCycleRulesAreEnforcedAndARefusedFinishWritesNothing) {
   TempDir dir;
   SqliteRepository repo(dir.file("life.db"));
-  const RunId id = repo.create_run(test::new_run("SIM-0001", kT0));
+  const RunId id = repo.create_run(test::new_run("SIM-0001", kT0Repository));
   repo.update_run_state(id, RunState::kCalibrating);
   EXPECT_THROW(repo.update_run_state(id, RunState::kRunning), Conflict);  // backwards
   repo.update_run_state(id, RunState::kCalibrating);                      // same: no-op
@@ -287,7 +287,7 @@ TEST(Repository, LifeCycleRulesAreEnforcedAndARefusedFinishWritesNothing) {
   // done with only one method and no cross-check: refused, and the ains row rolled back.
   RunCompletion partial;
   partial.state = RunState::kDone;
-  partial.ended_at_ms = kT0 + kMinute;
+  partial.ended_at_ms = kT0Repository + kMinute;
   partial.calibrations = {test::seeded_calibration(1, Method::kAins)};
   const std::string msg = expect_throw_message<Conflict>([&] { repo.finish_run(id, partial); });
   EXPECT_NE(msg.find("nlsq calibration"), std::string::npos) << msg;
@@ -297,16 +297,16 @@ TEST(Repository, LifeCycleRulesAreEnforcedAndARefusedFinishWritesNothing) {
   EXPECT_TRUE(d.calibrations.empty()) << "refused finish_run must not leave rows behind";
 
   // A REVIEW verdict cannot make a done run; a PASS verdict cannot go to review.
-  RunCompletion wrong = test::review_completion(2, kT0 + kMinute);
+  RunCompletion wrong = test::review_completion(2, kT0Repository + kMinute);
   wrong.state = RunState::kDone;
   EXPECT_THROW(repo.finish_run(id, wrong), Conflict);
-  RunCompletion wrong2 = test::pass_completion(2, kT0 + kMinute);
+  RunCompletion wrong2 = test::pass_completion(2, kT0Repository + kMinute);
   wrong2.state = RunState::kReview;
   EXPECT_THROW(repo.finish_run(id, wrong2), Conflict);
   // failed needs a reason; a non-terminal completion state is invalid.
   RunCompletion failed;
   failed.state = RunState::kFailed;
-  failed.ended_at_ms = kT0 + kMinute;
+  failed.ended_at_ms = kT0Repository + kMinute;
   EXPECT_THROW(repo.finish_run(id, failed), InvalidInput);
   RunCompletion live;
   live.state = RunState::kRunning;
@@ -318,7 +318,7 @@ TEST(Repository, LifeCycleRulesAreEnforcedAndARefusedFinishWritesNothing) {
   CalibrationRecord neg_sigma = test::seeded_calibration(3, Method::kAins);
   neg_sigma.sigma.accel_bias_mps2(0) = -1e-6;
   EXPECT_THROW(repo.store_calibration(id, neg_sigma), InvalidInput);
-  RunCompletion bad_sha = test::pass_completion(3, kT0 + kMinute);
+  RunCompletion bad_sha = test::pass_completion(3, kT0Repository + kMinute);
   bad_sha.archive_sha256 = "ABC";
   EXPECT_THROW(repo.finish_run(id, bad_sha), InvalidInput);
   EXPECT_TRUE(repo.show(id).calibrations.empty());
@@ -328,7 +328,7 @@ TEST(Repository, LifeCycleRulesAreEnforcedAndARefusedFinishWritesNothing) {
   EXPECT_THROW(repo.store_calibration(id, test::seeded_calibration(6, Method::kNlsq)), Conflict);
 
   // Finish properly (the nlsq stored before counts), then the run is final.
-  RunCompletion ok = test::pass_completion(5, kT0 + 2 * kMinute);
+  RunCompletion ok = test::pass_completion(5, kT0Repository + 2 * kMinute);
   ok.calibrations = {test::seeded_calibration(5, Method::kAins)};
   repo.finish_run(id, ok);
   d = repo.show(id);
@@ -342,11 +342,11 @@ TEST(Repository, LifeCycleRulesAreEnforcedAndARefusedFinishWritesNothing) {
   // Unknown runs and bad new runs.
   EXPECT_THROW(repo.update_run_state(9999, RunState::kRunning), NotFound);
   EXPECT_THROW(repo.store_calibration(9999, test::seeded_calibration(1, Method::kAins)), NotFound);
-  NewRun dangling = test::new_run("SIM-0001", kT0);
+  NewRun dangling = test::new_run("SIM-0001", kT0Repository);
   dangling.reprocessed_from = 9999;
   EXPECT_THROW(repo.create_run(dangling), NotFound);
-  EXPECT_THROW(repo.create_run(test::new_run("SIM-0001", kT0, RunState::kDone)), InvalidInput);
-  NewRun bad_seq = test::new_run("SIM-0001", kT0);
+  EXPECT_THROW(repo.create_run(test::new_run("SIM-0001", kT0Repository, RunState::kDone)), InvalidInput);
+  NewRun bad_seq = test::new_run("SIM-0001", kT0Repository);
   bad_seq.sequence_sha256 = std::string(64, 'G');
   EXPECT_THROW(repo.create_run(bad_seq), InvalidInput);
   EXPECT_EQ(repo.history("SIM-0001").size(), 1u) << "refused create_run must not add a run";
@@ -359,24 +359,24 @@ TEST(Repository, MarkInterruptedRunsTurnsEveryLiveRunIntoInterrupted) {
   RunId done = 0;
   {
     SqliteRepository repo(path);
-    live.push_back(repo.create_run(test::new_run("SIM-1", kT0)));                      // preparing
-    live.push_back(repo.create_run(test::new_run("SIM-2", kT0, RunState::kRunning)));  // running
-    const RunId cal = repo.create_run(test::new_run("SIM-3", kT0, RunState::kRunning));
+    live.push_back(repo.create_run(test::new_run("SIM-1", kT0Repository)));                      // preparing
+    live.push_back(repo.create_run(test::new_run("SIM-2", kT0Repository, RunState::kRunning)));  // running
+    const RunId cal = repo.create_run(test::new_run("SIM-3", kT0Repository, RunState::kRunning));
     repo.update_run_state(cal, RunState::kCalibrating);
     repo.store_calibration(cal, test::seeded_calibration(8, Method::kAins));  // partial results
     live.push_back(cal);
-    done = repo.create_run(test::new_run("SIM-1", kT0 + kMinute));
-    repo.finish_run(done, test::pass_completion(9, kT0 + 2 * kMinute));
+    done = repo.create_run(test::new_run("SIM-1", kT0Repository + kMinute));
+    repo.finish_run(done, test::pass_completion(9, kT0Repository + 2 * kMinute));
     EXPECT_EQ(ids_of(repo.runs_in_state(live_states())), live);
   }  // "daemon dies": the connection closes without any cleanup
   SqliteRepository repo(path);
-  const std::vector<RunId> marked = repo.mark_interrupted_runs(kT0 + 10 * kMinute);
+  const std::vector<RunId> marked = repo.mark_interrupted_runs(kT0Repository + 10 * kMinute);
   EXPECT_EQ(marked, live);
   for (RunId id : live) {
     const RunDetails d = repo.show(id);
     EXPECT_EQ(d.run.state, RunState::kInterrupted);
     ASSERT_TRUE(d.run.ended_at_ms.has_value());
-    EXPECT_EQ(*d.run.ended_at_ms, kT0 + 10 * kMinute);
+    EXPECT_EQ(*d.run.ended_at_ms, kT0Repository + 10 * kMinute);
     EXPECT_NE(d.run.failure_reason.find("found at start-up"), std::string::npos);
   }
   EXPECT_NE(repo.show(live[2]).run.failure_reason.find("calibrating"), std::string::npos);
@@ -385,7 +385,7 @@ TEST(Repository, MarkInterruptedRunsTurnsEveryLiveRunIntoInterrupted) {
   EXPECT_TRUE(repo.runs_in_state(live_states()).empty());
   EXPECT_EQ(ids_of(repo.runs_in_state({RunState::kInterrupted, RunState::kDone})),
             (std::vector<RunId>{live[0], live[1], live[2], done}));
-  EXPECT_TRUE(repo.mark_interrupted_runs(kT0 + 11 * kMinute).empty()) << "idempotent";
+  EXPECT_TRUE(repo.mark_interrupted_runs(kT0Repository + 11 * kMinute).empty()) << "idempotent";
 }
 
 struct BadSerial {
@@ -401,7 +401,7 @@ TEST_P(InvalidSerialTest, RefusedWithTheRuleAndNothingWritten) {
   const BadSerial& bad = GetParam();
   ASSERT_TRUE(serial_problem(bad.serial).has_value());
   const std::string msg =
-      expect_throw_message<InvalidInput>([&] { repo.create_run(test::new_run(bad.serial, kT0)); });
+      expect_throw_message<InvalidInput>([&] { repo.create_run(test::new_run(bad.serial, kT0Repository)); });
   EXPECT_NE(msg.find(bad.hint), std::string::npos) << msg;
   EXPECT_NE(msg.find(kSerialRule), std::string::npos) << msg;
   EXPECT_EQ(msg.find('\n'), std::string::npos) << "control characters are escaped: " << msg;
@@ -432,7 +432,7 @@ TEST(SerialNumber, AcceptsTheDocumentedAlphabetAndLength) {
   SqliteRepository repo(dir.file("ok.db"));
   // The database's own CHECK constraint agrees with the code on the edge cases.
   for (const std::string& s : {std::string("abcXYZ0189-_."), std::string(32, 'Z')}) {
-    repo.create_run(test::new_run(s, kT0));
+    repo.create_run(test::new_run(s, kT0Repository));
     EXPECT_EQ(repo.history(s).size(), 1u);
   }
   EXPECT_EQ(kSerialMaxLength, 32u);
@@ -460,8 +460,8 @@ TEST(Repository, ReadOnlyModeRefusesWritesAndSeesCommittedDataWhileAWriterHoldsT
   TempDir dir;
   const std::string path = dir.file("ro.db");
   SqliteRepository writer(path);
-  const RunId committed = writer.create_run(test::new_run("SIM-RO", kT0));
-  writer.finish_run(committed, test::pass_completion(31, kT0 + kMinute));
+  const RunId committed = writer.create_run(test::new_run("SIM-RO", kT0Repository));
+  writer.finish_run(committed, test::pass_completion(31, kT0Repository + kMinute));
 
   // Another process-like connection holds an open write transaction with an uncommitted run.
   sqlite3* raw = nullptr;
@@ -489,15 +489,15 @@ TEST(Repository, ReadOnlyModeRefusesWritesAndSeesCommittedDataWhileAWriterHoldsT
 
   // Writes through the read-only repository: a clear ReadOnly error, whatever the method.
   const std::string msg =
-      expect_throw_message<ReadOnly>([&] { reader.create_run(test::new_run("SIM-RO", kT0 + 1)); });
+      expect_throw_message<ReadOnly>([&] { reader.create_run(test::new_run("SIM-RO", kT0Repository + 1)); });
   EXPECT_NE(msg.find("read-only"), std::string::npos) << msg;
   EXPECT_NE(msg.find(path), std::string::npos) << msg;
   EXPECT_THROW(reader.update_run_state(committed, RunState::kRunning), ReadOnly);
-  EXPECT_THROW(reader.finish_run(committed, test::pass_completion(1, kT0)), ReadOnly);
+  EXPECT_THROW(reader.finish_run(committed, test::pass_completion(1, kT0Repository)), ReadOnly);
   EXPECT_THROW(reader.store_calibration(committed, test::seeded_calibration(1, Method::kAins)),
                ReadOnly);
   EXPECT_THROW(reader.store_crosscheck(committed, CrosscheckRecord{}), ReadOnly);
-  EXPECT_THROW(reader.mark_interrupted_runs(kT0), ReadOnly);
+  EXPECT_THROW(reader.mark_interrupted_runs(kT0Repository), ReadOnly);
   EXPECT_THROW(reader.transaction([] {}), ReadOnly);
 
   // A second writer cannot get the lock: Busy after its busy_timeout, not a hang.
@@ -505,7 +505,7 @@ TEST(Repository, ReadOnlyModeRefusesWritesAndSeesCommittedDataWhileAWriterHoldsT
   quick.busy_timeout_ms = 100;
   SqliteRepository writer2(path, quick);
   const auto t1 = std::chrono::steady_clock::now();
-  EXPECT_THROW(writer2.create_run(test::new_run("SIM-RO", kT0 + 2)), Busy);
+  EXPECT_THROW(writer2.create_run(test::new_run("SIM-RO", kT0Repository + 2)), Busy);
   const double busy_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   EXPECT_GE(busy_s, 0.09);
@@ -523,7 +523,7 @@ TEST(Repository, ReadOnlyOpenWithTheDaemonDownAndOfAMissingFile) {
   const std::string path = dir.file("down.db");
   {
     SqliteRepository writer(path);
-    writer.create_run(test::new_run("SIM-DOWN", kT0));
+    writer.create_run(test::new_run("SIM-DOWN", kT0Repository));
   }  // last connection closed: WAL checkpointed and removed
   SqliteOptions ro;
   ro.read_only = true;
@@ -590,7 +590,7 @@ TEST(Repository, ReadOnlyOpenWithTheDaemonDownByAnAccountThatCannotWriteTheDirec
   const std::string path = dir.file("history.sqlite");
   {
     SqliteRepository writer(path);
-    writer.create_run(test::new_run("SIM-QA", kT0));
+    writer.create_run(test::new_run("SIM-QA", kT0Repository));
   }
   EXPECT_TRUE(std::filesystem::exists(path + "-shm")) << "the writer removed its -shm on close";
   ASSERT_TRUE(std::filesystem::exists(path + "-wal")) << "the writer removed its -wal on close";
@@ -614,17 +614,17 @@ TEST(Repository, TransactionGroupsWritesAndRollsBackOnException) {
   TempDir dir;
   SqliteRepository repo(dir.file("tx.db"));
   EXPECT_THROW(repo.transaction([&] {
-    repo.create_run(test::new_run("SIM-TX", kT0));
-    repo.create_run(test::new_run("SIM-TX", kT0 + 1));
+    repo.create_run(test::new_run("SIM-TX", kT0Repository));
+    repo.create_run(test::new_run("SIM-TX", kT0Repository + 1));
     throw std::runtime_error("abandon import");
   }),
                std::runtime_error);
   EXPECT_THROW(repo.history("SIM-TX"), NotFound) << "not even the unit was kept";
   repo.transaction([&] {
-    const RunId a = repo.create_run(test::new_run("SIM-TX", kT0));
-    repo.finish_run(a, test::pass_completion(1, kT0 + 1));
+    const RunId a = repo.create_run(test::new_run("SIM-TX", kT0Repository));
+    repo.finish_run(a, test::pass_completion(1, kT0Repository + 1));
     // An inner failure (savepoint) does not abort the outer transaction.
-    const RunId b = repo.create_run(test::new_run("SIM-TX", kT0 + 2));
+    const RunId b = repo.create_run(test::new_run("SIM-TX", kT0Repository + 2));
     EXPECT_THROW(repo.update_run_state(b, RunState::kFailed), InvalidInput);  // no reason
   });
   EXPECT_EQ(repo.history("SIM-TX").size(), 2u);
@@ -638,8 +638,8 @@ TEST(Repository, ConcurrentThreadsShareOneRepository) {
     threads.emplace_back([&repo, t] {
       for (int i = 0; i < 10; ++i) {
         const std::string serial = "SIM-T" + std::to_string(t);
-        const RunId id = repo.create_run(test::new_run(serial, kT0 + i));
-        repo.finish_run(id, test::pass_completion(t * 100 + i, kT0 + i + 1));
+        const RunId id = repo.create_run(test::new_run(serial, kT0Repository + i));
+        repo.finish_run(id, test::pass_completion(t * 100 + i, kT0Repository + i + 1));
         repo.history(serial);
       }
     });
@@ -659,8 +659,8 @@ TEST(Repository, CorruptStoredValuesAreReportedNotReturned) {
   RunId id = 0;
   {
     SqliteRepository repo(path);
-    id = repo.create_run(test::new_run("SIM-C", kT0));
-    repo.finish_run(id, test::pass_completion(7, kT0 + 1));
+    id = repo.create_run(test::new_run("SIM-C", kT0Repository));
+    repo.finish_run(id, test::pass_completion(7, kT0Repository + 1));
   }
   auto tamper = [&](const char* sql) {
     sqlite3* raw = nullptr;
@@ -696,7 +696,7 @@ TEST(Time, FormatAndParseAgainstKnownEpochValues) {
             parse_time_utc("2024-05-01T10:34:56.789Z"));
   EXPECT_EQ(parse_time_utc("2024-05-01 10:34"), parse_time_utc("2024-05-01T10:34:00.000Z"));
   EXPECT_EQ(parse_time_utc("2024-05-01T10:34:56.7891"), parse_time_utc("2024-05-01T10:34:56.789"));
-  for (TimestampMs t : {kT0, kT0 + 123, TimestampMs{951782400000}, TimestampMs{-86400001}})
+  for (TimestampMs t : {kT0Repository, kT0Repository + 123, TimestampMs{951782400000}, TimestampMs{-86400001}})
     EXPECT_EQ(parse_time_utc(format_time_utc(t)), t) << t;
   for (const char* bad : {"2024-02-30", "2023-02-29", "2024-13-01", "24-05-01", "2024-05-01T25:00",
                           "2024-05-01T10:00:00X", "yesterday", "", "2024-05-01T10:00+2"}) {

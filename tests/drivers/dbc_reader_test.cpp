@@ -26,7 +26,7 @@ namespace {
 
 const std::string kCases = std::string(IMUCAL_SOURCE_DIR) + "/tests/data/dbc/reader_cases.dbc";
 
-std::pair<int, std::string> run(const std::string& cmd) {
+std::pair<int, std::string> run_dbc_reader(const std::string& cmd) {
   const test_support::CommandResult r = test_support::run_command(cmd);
   return {r.code, r.out};
 }
@@ -112,7 +112,7 @@ TEST(DbcReader, InsertThenExtractGivesTheValueBackAndLeavesTheOtherBits) {
 }
 
 /// The signals a frame carries: all but the multiplexed ones whose value the multiplexor lacks.
-std::map<std::string, std::string> decode_ours(const DbcMessage& m, const uint8_t* data) {
+std::map<std::string, std::string> decode_ours_dbc_reader(const DbcMessage& m, const uint8_t* data) {
   std::map<std::string, std::string> out;
   const DbcSignal* mux = m.multiplexor();
   const int64_t page =
@@ -132,7 +132,7 @@ std::map<std::string, std::string> decode_ours(const DbcMessage& m, const uint8_
 
 TEST(DbcReader, DecodesRandomFramesAsCanmatrixDoes) {
   const std::string py = "/usr/bin/python3";
-  ASSERT_EQ(run(py + " -c 'import canmatrix.formats' >/dev/null 2>&1; echo $?").second, "0\n")
+  ASSERT_EQ(run_dbc_reader(py + " -c 'import canmatrix.formats' >/dev/null 2>&1; echo $?").second, "0\n")
       << "required tool missing: install the Debian package python3-canmatrix";
   const DbcDatabase db = read_dbc(kCases);
   std::mt19937_64 rng(11);
@@ -171,7 +171,7 @@ TEST(DbcReader, DecodesRandomFramesAsCanmatrixDoes) {
   }
   const std::string script =
       std::string(IMUCAL_SOURCE_DIR) + "/tests/drivers/python/dbc_decode_frames.py";
-  const auto [rc, out] = run(py + " " + script + " " + kCases + " " + path + " 2>/dev/null");
+  const auto [rc, out] = run_dbc_reader(py + " " + script + " " + kCases + " " + path + " 2>/dev/null");
   ::unlink(path.c_str());
   ASSERT_EQ(rc, 0) << out;
   std::vector<std::map<std::string, std::string>> theirs(frames.size());
@@ -181,7 +181,7 @@ TEST(DbcReader, DecodesRandomFramesAsCanmatrixDoes) {
   while (in >> index >> name >> value) theirs.at(index)[name] = value;
   int compared = 0;
   for (size_t i = 0; i < frames.size(); ++i) {
-    const auto ours = decode_ours(*frames[i].m, frames[i].data.data());
+    const auto ours = decode_ours_dbc_reader(*frames[i].m, frames[i].data.data());
     EXPECT_EQ(ours, theirs[i]) << "frame " << i << " (" << frames[i].m->name << ")";
     compared += static_cast<int>(ours.size());
   }

@@ -17,14 +17,14 @@
 namespace imucal::drivers::imu {
 namespace {
 
-std::pair<int, std::string> run(const std::string& cmd) {
+std::pair<int, std::string> run_imu_dbc(const std::string& cmd) {
   const test_support::CommandResult r = test_support::run_command(cmd);
   return {r.code, r.out};
 }
 
 TEST(ImuDbc, CanmatrixDecodesOurFramesToTheDocumentedFields) {
   const std::string py = "/usr/bin/python3";
-  ASSERT_EQ(run(py + " -c 'import canmatrix.formats' >/dev/null 2>&1; echo $?").second, "0\n")
+  ASSERT_EQ(run_imu_dbc(py + " -c 'import canmatrix.formats' >/dev/null 2>&1; echo $?").second, "0\n")
       << "required tool missing: install the Debian package python3-canmatrix";
   const std::string dbc = std::string(IMUCAL_SOURCE_DIR) + "/drivers/imu/imu.dbc";
   const std::string script = std::string(IMUCAL_SOURCE_DIR) + "/tests/drivers/python/dbc_decode.py";
@@ -58,7 +58,7 @@ TEST(ImuDbc, CanmatrixDecodesOurFramesToTheDocumentedFields) {
       out << '\n';
     }
   }
-  const auto [rc, out] = run(py + " " + script + " " + dbc + " " + frames_path + " 2>/dev/null");
+  const auto [rc, out] = run_imu_dbc(py + " " + script + " " + dbc + " " + frames_path + " 2>/dev/null");
   ASSERT_EQ(rc, 0) << out;
   ::unlink(frames_path.c_str());
 

@@ -16,7 +16,7 @@
 namespace imucal::drivers::imu {
 namespace {
 
-const std::string kSource = IMUCAL_SOURCE_DIR;
+const std::string kSourceImuProtocolMap = IMUCAL_SOURCE_DIR;
 
 std::string slurp(const std::string& path) {
   std::ifstream f(path);
@@ -26,7 +26,7 @@ std::string slurp(const std::string& path) {
 }
 
 TEST(ImuProtocolMap, TheBuiltInProtocolFileReadsAsItsProtocol) {
-  const ImuProtocolMap m = read_protocol_map(kSource + "/drivers/imu/protocols/imucal-imu-1.toml");
+  const ImuProtocolMap m = read_protocol_map(kSourceImuProtocolMap + "/drivers/imu/protocols/imucal-imu-1.toml");
   EXPECT_EQ(m.name, "imucal-imu-1");
   EXPECT_EQ(m.quantity, ImuProtocolMap::Quantity::kIncrements);
   ASSERT_EQ(m.messages.size(), 4u);
@@ -44,7 +44,7 @@ TEST(ImuProtocolMap, TheBuiltInProtocolFileReadsAsItsProtocol) {
 }
 
 TEST(ImuProtocolMap, ASecondProtocolWithRatesExtendedIdsAndAMultiplexedStatusReads) {
-  const ImuProtocolMap m = read_protocol_map(kSource + "/tests/data/protocols/rates16.toml");
+  const ImuProtocolMap m = read_protocol_map(kSourceImuProtocolMap + "/tests/data/protocols/rates16.toml");
   EXPECT_EQ(m.quantity, ImuProtocolMap::Quantity::kRates);
   ASSERT_EQ(m.messages.size(), 3u);
   for (int i : m.messages) EXPECT_TRUE(m.message(i).extended) << m.message(i).name;
@@ -61,8 +61,8 @@ TEST(ImuProtocolMap, ASecondProtocolWithRatesExtendedIdsAndAMultiplexedStatusRea
 class BadMap : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::ofstream(dir_.sub("rates16.dbc")) << slurp(kSource + "/tests/data/protocols/rates16.dbc");
-    text_ = slurp(kSource + "/tests/data/protocols/rates16.toml");
+    std::ofstream(dir_.sub("rates16.dbc")) << slurp(kSourceImuProtocolMap + "/tests/data/protocols/rates16.dbc");
+    text_ = slurp(kSourceImuProtocolMap + "/tests/data/protocols/rates16.toml");
   }
   void expect_refused(const std::string& from, const std::string& to, const std::string& where,
                       const std::string& what) {
@@ -144,8 +144,8 @@ TEST(ImuProtocolMap, ADeviceOrADirectoryIsNoProtocolFile) {
 // The compiled-in default is the shipped file byte for byte, and parses to the same protocol.
 TEST(ImuProtocolMap, TheCompiledInDefaultIsTheShippedFile) {
   EXPECT_EQ(builtin_protocol_toml_text(),
-            slurp(kSource + "/drivers/imu/protocols/imucal-imu-1.toml"));
-  EXPECT_EQ(builtin_protocol_dbc_text(), slurp(kSource + "/drivers/imu/imu.dbc"));
+            slurp(kSourceImuProtocolMap + "/drivers/imu/protocols/imucal-imu-1.toml"));
+  EXPECT_EQ(builtin_protocol_dbc_text(), slurp(kSourceImuProtocolMap + "/drivers/imu/imu.dbc"));
   const auto m = builtin_protocol_map();
   EXPECT_EQ(m->name, "imucal-imu-1");
   EXPECT_EQ(m->flags.size(), 7u);  // 3 fault, 2 saturation, startup, temperature invalid

@@ -16,10 +16,10 @@
 namespace imucal::drivers::imu {
 namespace {
 
-const std::string kSource = IMUCAL_SOURCE_DIR;
+const std::string kSourceImuSampleCodec = IMUCAL_SOURCE_DIR;
 
 ImuProtocolMap builtin() {
-  return read_protocol_map(kSource + "/drivers/imu/protocols/imucal-imu-1.toml");
+  return read_protocol_map(kSourceImuSampleCodec + "/drivers/imu/protocols/imucal-imu-1.toml");
 }
 
 TEST(ImuSampleCodec, Crc8SaeJ1850HasItsCheckValue) {
@@ -100,7 +100,7 @@ TEST(ImuSampleCodec, TheHardWiredDecoderAcceptsWhatTheBuiltInFileWrites) {
 }
 
 TEST(ImuSampleCodec, TheSecondProtocolRoundTripsToItsResolution) {
-  const ImuProtocolMap map = read_protocol_map(kSource + "/tests/data/protocols/rates16.toml");
+  const ImuProtocolMap map = read_protocol_map(kSourceImuSampleCodec + "/tests/data/protocols/rates16.toml");
   std::mt19937_64 rng(9);
   std::uniform_real_distribution<double> w(-5.0, 5.0), f(-150.0, 150.0);
   for (int k = 0; k < 200; ++k) {
@@ -136,7 +136,7 @@ TEST(ImuSampleCodec, TheSecondProtocolRoundTripsToItsResolution) {
 }
 
 TEST(ImuSampleCodec, ClippingSetsSaturationAndAnotherPageHidesTheFlags) {
-  const ImuProtocolMap map = read_protocol_map(kSource + "/tests/data/protocols/rates16.toml");
+  const ImuProtocolMap map = read_protocol_map(kSourceImuSampleCodec + "/tests/data/protocols/rates16.toml");
   ProtocolSample s;
   s.angular = {100.0, 0.0, 0.0};  // far beyond ±5.7 rad/s
   s.fault = true;

@@ -18,11 +18,11 @@
 namespace imucal::drivers::imu {
 namespace {
 
-const std::string kSource = IMUCAL_SOURCE_DIR;
+const std::string kSourceProtocolStream = IMUCAL_SOURCE_DIR;
 
 std::shared_ptr<const ImuProtocolMap> rates16() {
   return std::make_shared<const ImuProtocolMap>(
-      read_protocol_map(kSource + "/tests/data/protocols/rates16.toml"));
+      read_protocol_map(kSourceProtocolStream + "/tests/data/protocols/rates16.toml"));
 }
 
 calib::core::ImuIncrement increment(std::mt19937_64& rng, int k) {
@@ -188,7 +188,7 @@ TEST(ProtocolStream, BaseIdMovesTheIdsAndTheBuiltInFileIsTheDefault) {
 
   // The shipped built-in file and the compiled-in default write the same frames.
   const auto shipped = std::make_shared<const ImuProtocolMap>(
-      read_protocol_map(kSource + "/drivers/imu/protocols/imucal-imu-1.toml"));
+      read_protocol_map(kSourceProtocolStream + "/drivers/imu/protocols/imucal-imu-1.toml"));
   ImuFrameEncoder a(shipped, std::nullopt), b;
   std::mt19937_64 rng(4);
   for (int k = 0; k < 200; ++k) {

@@ -19,7 +19,7 @@ namespace {
 
 using drivers::simulated::TablePlc;
 
-const bool kQuietLogs = [] {
+const bool kQuietLogsTurntableMbpoll = [] {
   spdlog::set_level(spdlog::level::err);
   return true;
 }();
@@ -30,7 +30,7 @@ struct ProcessResult {
 };
 
 /// Runs a shell command (bounded by `timeout`), capturing stdout and stderr.
-ProcessResult run(const std::string& command) {
+ProcessResult run_turntable_mbpoll(const std::string& command) {
   ProcessResult r{-1, ""};
   FILE* p = popen(("timeout 10 " + command + " 2>&1").c_str(), "r");
   if (!p) return r;
@@ -90,7 +90,7 @@ class MbpollInterop : public ::testing::Test {
 };
 
 TEST_F(MbpollInterop, ReadsTheAnglesAndStatus) {
-  const ProcessResult floats = run(mbpoll("-1 -t 3:float -B -r 0 -c 2 127.0.0.1"));
+  const ProcessResult floats = run_turntable_mbpoll(mbpoll("-1 -t 3:float -B -r 0 -c 2 127.0.0.1"));
   ASSERT_EQ(floats.exit_code, 0) << floats.output;
   auto v = values(floats.output);
   ASSERT_TRUE(v.count(0) && v.count(2)) << floats.output;
@@ -98,7 +98,7 @@ TEST_F(MbpollInterop, ReadsTheAnglesAndStatus) {
   EXPECT_DOUBLE_EQ(std::stod(v[2]), -33.25) << floats.output;
 
   const auto& m = drivers::turntable::default_register_map();
-  const ProcessResult words = run(mbpoll("-1 -t 3 -r 8 -c 5 127.0.0.1"));
+  const ProcessResult words = run_turntable_mbpoll(mbpoll("-1 -t 3 -r 8 -c 5 127.0.0.1"));
   ASSERT_EQ(words.exit_code, 0) << words.output;
   v = values(words.output);
   ASSERT_TRUE(v.count(m.input.status) && v.count(m.input.ack_seq)) << words.output;
@@ -114,9 +114,9 @@ TEST_F(MbpollInterop, ReadsTheAnglesAndStatus) {
 TEST_F(MbpollInterop, CommandsAMove) {
   const auto& m = drivers::turntable::default_register_map();
   // Targets and rate as three big-endian floats at holding 0, 2, 4; then command word + sequence.
-  const ProcessResult targets = run(mbpoll("-t 4:float -B -r 0 127.0.0.1 -- 45 -20 15"));
+  const ProcessResult targets = run_turntable_mbpoll(mbpoll("-t 4:float -B -r 0 127.0.0.1 -- 45 -20 15"));
   ASSERT_EQ(targets.exit_code, 0) << targets.output;
-  const ProcessResult cmd = run(mbpoll("-t 4 -r " + std::to_string(m.holding.command) + " 127.0.0.1 " +
+  const ProcessResult cmd = run_turntable_mbpoll(mbpoll("-t 4 -r " + std::to_string(m.holding.command) + " 127.0.0.1 " +
                              std::to_string(m.commands.move) + " 77"));
   ASSERT_EQ(cmd.exit_code, 0) << cmd.output;
 
@@ -140,7 +140,7 @@ TEST_F(MbpollInterop, CommandsAMove) {
     EXPECT_EQ(plc.inner_deg(), -20.0);
   });
   // And mbpoll reads the new angles back.
-  const ProcessResult floats = run(mbpoll("-1 -t 3:float -B -r 0 -c 2 127.0.0.1"));
+  const ProcessResult floats = run_turntable_mbpoll(mbpoll("-1 -t 3:float -B -r 0 -c 2 127.0.0.1"));
   auto v = values(floats.output);
   ASSERT_TRUE(v.count(0) && v.count(2)) << floats.output;
   EXPECT_DOUBLE_EQ(std::stod(v[0]), 45.0);

@@ -22,7 +22,7 @@ namespace {
 
 using namespace std::chrono_literals;
 
-const bool kQuietLogs = [] {
+const bool kQuietLogsTurntableRtu = [] {
   spdlog::set_level(spdlog::level::err);
   return true;
 }();

@@ -14,7 +14,7 @@ namespace imucal::e2e {
 namespace {
 
 /// Starts a run and waits for it; returns the CmdResult (the caller checks the exit code).
-CmdResult run_unit(Station& st, const std::string& serial) {
+CmdResult run_unit_station_run(Station& st, const std::string& serial) {
   return st.ctl({"run", "start", "--serial", serial, "--sequence", "short", "--operator", "e2e", "--wait"},
                 180s);
 }
@@ -24,7 +24,7 @@ TEST(StationEndToEnd, ShortSequencePassesAndStoresParametersWithinFourSigmaOfTru
   ASSERT_TRUE(st.start());
 
   const auto t0 = Clock::now();
-  const CmdResult run = run_unit(st, "SIM-0001");
+  const CmdResult run = run_unit_station_run(st, "SIM-0001");
   const double wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
   std::fprintf(stderr, "[e2e] short sequence run: %.1f s wall\n", wall_s);
   ASSERT_EQ(run.exit_code, 0) << run.describe() << "\ndaemon log:\n" << st.daemon_log();
@@ -126,7 +126,7 @@ TEST(StationEndToEnd, ShortSequencePassesWithTheDaemonOnABusyCpu) {
   st.pin_daemon(0);
   st.start_cpu_hogs(0, 3);
   ASSERT_TRUE(st.start(SimOptions{200.0, 5, {}}));
-  const CmdResult run = run_unit(st, "SIM-0003");
+  const CmdResult run = run_unit_station_run(st, "SIM-0003");
   EXPECT_EQ(run.exit_code, 0) << run.describe();
   const json rec = newest_run(st, "SIM-0003");
   ASSERT_TRUE(rec.is_object());
@@ -144,7 +144,7 @@ TEST(StationEndToEnd, TwoSerialsSeveralRunsHistoryIsPerSerialAndNewestFirst) {
   const std::vector<std::string> order = {"SIM-0001", "SIM-0002", "SIM-0001", "SIM-0002"};
   std::map<std::string, std::vector<long long>> ids;  // in start order
   for (const auto& serial : order) {
-    const CmdResult r = run_unit(st, serial);
+    const CmdResult r = run_unit_station_run(st, serial);
     // Each run must finish (PASS is checked in the test above; here the history is the point).
     ASSERT_TRUE(r.exit_code == 0 || r.exit_code == 1) << r.describe() << "\n" << st.daemon_log();
     const json newest = newest_run(st, serial);

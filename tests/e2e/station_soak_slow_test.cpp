@@ -66,7 +66,7 @@ constexpr bool kUnderAddressSanitizer = false;
 constexpr double kSlopeBoundKbPerRun = 2.0;
 constexpr double kStepAllowanceKb = 512.0;
 
-int env_int(const char* name, int fallback) {
+int env_int_station_soak(const char* name, int fallback) {
   const char* v = std::getenv(name);
   return (v && *v) ? std::atoi(v) : fallback;
 }
@@ -302,7 +302,7 @@ TEST(StationSoak, ConsecutiveRunsWithParallelQueriesAllPassWithFlatMemoryAndNoDe
   const auto t_start = Clock::now();
   Station st;
   ASSERT_TRUE(st.start(SimOptions{env_double("IMUCAL_SOAK_SPEED", 400.0),
-                                  static_cast<uint64_t>(env_int("IMUCAL_SOAK_SEED", 41)),
+                                  static_cast<uint64_t>(env_int_station_soak("IMUCAL_SOAK_SEED", 41)),
                                   {}}));
   const pid_t daemon = st.daemon().pid();
   std::vector<Sample> samples;

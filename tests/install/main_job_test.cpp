@@ -76,8 +76,12 @@ TEST(MainJob, FromNothingInstallsNoTestPackageBuildsOnlyTheFourProgramsAndReache
   int test_programs = 0;
   for (const auto& e : fs::recursive_directory_iterator(build)) {
     const std::string name = e.path().filename();
-    if (e.is_regular_file() && (name.size() > 5 && (name.rfind("_test") == name.size() - 5 ||
-                                                    name.find("bench") != std::string::npos)))
+    // A room's test program (<room>_tests), a test file's script (<room>_<file>_test), a benchmark.
+    const auto ends_with = [&name](const std::string& tail) {
+      return name.size() > tail.size() && name.compare(name.size() - tail.size(), tail.size(), tail) == 0;
+    };
+    if (e.is_regular_file() && (ends_with("_test") || ends_with("_tests") ||
+                                name.find("bench") != std::string::npos))
       ++test_programs;
   }
   EXPECT_EQ(test_programs, 0);

@@ -23,7 +23,7 @@ const std::string kHead =
     "rest_s = 30\n"    // 5
     "[defaults]\n";    // 6
 
-std::string rot(const char* axis, const std::string& angle_kv, const std::string& extra = "") {
+std::string rot_validator(const char* axis, const std::string& angle_kv, const std::string& extra = "") {
   return std::string("[[step]]\nrotate = \"") + axis + "\"\n" + angle_kv + "\n" + extra;
 }
 std::string rest(double s) { return "[[step]]\nrest_s = " + std::to_string(s) + "\n"; }
@@ -35,8 +35,8 @@ bool any_contains(const std::vector<ValidationIssue>& v, const std::string& need
 }
 
 TEST(Validator, AcceptsAWellFormedSequence) {
-  const Sequence s = parse(kHead + rot("inner", "by_deg = 90") + rest(30) +
-                           rot("outer", "to_deg = -90") + rest(30));
+  const Sequence s = parse(kHead + rot_validator("inner", "by_deg = 90") + rest(30) +
+                           rot_validator("outer", "to_deg = -90") + rest(30));
   const auto issues = validate(s, TableLimits{});
   EXPECT_TRUE(issues.empty()) << issues.front().message;
   EXPECT_NO_THROW(validate_or_throw(s, TableLimits{}));
@@ -44,7 +44,7 @@ TEST(Validator, AcceptsAWellFormedSequence) {
 
 TEST(Validator, RateOverLimitBlamesTheRateKey) {
   // line 7 [[step]], 8 rotate, 9 by_deg, 10 rate_dps
-  const Sequence s = parse(kHead + rot("inner", "by_deg = 90", "rate_dps = 25\n") + rest(30));
+  const Sequence s = parse(kHead + rot_validator("inner", "by_deg = 90", "rate_dps = 25\n") + rest(30));
   const auto issues = validate(s, TableLimits{});
   ASSERT_EQ(issues.size(), 1u);
   EXPECT_EQ(issues[0].line, 10);
@@ -56,14 +56,14 @@ TEST(Validator, RateOverLimitBlamesTheRateKey) {
 }
 
 TEST(Validator, DefaultRateOverLimitBlamesTheDefaultsKey) {
-  const Sequence s = parse(kHead + "rate_dps = 21\n" + rot("inner", "by_deg = 90") + rest(30));
+  const Sequence s = parse(kHead + "rate_dps = 21\n" + rot_validator("inner", "by_deg = 90") + rest(30));
   const auto issues = validate(s, TableLimits{});
   ASSERT_EQ(issues.size(), 1u);
   EXPECT_EQ(issues[0].line, 7);  // "rate_dps = 21" under [defaults]
 }
 
 TEST(Validator, AccelerationOverLimit) {
-  const Sequence s = parse(kHead + rot("outer", "by_deg = 90", "accel_dps2 = 12\n") + rest(30));
+  const Sequence s = parse(kHead + rot_validator("outer", "by_deg = 90", "accel_dps2 = 12\n") + rest(30));
   const auto issues = validate(s, TableLimits{});
   ASSERT_EQ(issues.size(), 1u);
   EXPECT_EQ(issues[0].line, 10);
@@ -71,7 +71,7 @@ TEST(Validator, AccelerationOverLimit) {
 }
 
 TEST(Validator, ShortRestsAreRejectedIncludingTheInitialOne) {
-  std::string text = kHead + rot("outer", "by_deg = 90") + rest(9.5);  // rest_s at line 11
+  std::string text = kHead + rot_validator("outer", "by_deg = 90") + rest(9.5);  // rest_s at line 11
   text.replace(text.find("rest_s = 30"), 11, "rest_s = 5.0");
   const Sequence s = parse(text);
   const auto issues = validate(s, TableLimits{});
@@ -94,11 +94,11 @@ TEST(Validator, TracksCommandedAnglesAgainstAxisLimits) {
   // A rotation step takes 3 lines, a rest 2: step 2k+1 starts at line 7 + 5k.
   // inner: 0 -> 90 (ok) -> 180 (out, step 3, by_deg at line 14) -> to 0 (ok, tracking reset)
   // outer: 0 -> to 190 (ok) -> by 20 = 210 (out, step 9, by_deg at line 29)
-  const Sequence s = parse(kHead + rot("inner", "by_deg = 90") + rest(30) +  // steps 1,2
-                           rot("inner", "by_deg = 90") + rest(30) +          // steps 3,4
-                           rot("inner", "to_deg = 0") + rest(30) +           // steps 5,6
-                           rot("outer", "to_deg = 190") + rest(30) +         // steps 7,8
-                           rot("outer", "by_deg = 20") + rest(30));          // steps 9,10
+  const Sequence s = parse(kHead + rot_validator("inner", "by_deg = 90") + rest(30) +  // steps 1,2
+                           rot_validator("inner", "by_deg = 90") + rest(30) +          // steps 3,4
+                           rot_validator("inner", "to_deg = 0") + rest(30) +           // steps 5,6
+                           rot_validator("outer", "to_deg = 190") + rest(30) +         // steps 7,8
+                           rot_validator("outer", "by_deg = 20") + rest(30));          // steps 9,10
   const auto issues = validate(s, lim);
   ASSERT_EQ(issues.size(), 2u);
   EXPECT_EQ(issues[0].step_index, 2);
@@ -110,7 +110,7 @@ TEST(Validator, TracksCommandedAnglesAgainstAxisLimits) {
 }
 
 TEST(Validator, StartOutsideLimits) {
-  std::string text = kHead + rot("inner", "by_deg = -90") + rest(30);
+  std::string text = kHead + rot_validator("inner", "by_deg = -90") + rest(30);
   text.replace(text.find("inner_deg = 0"), 13, "inner_deg = 300");
   TableLimits lim;
   lim.inner_max_deg = 180.0;
@@ -126,7 +126,7 @@ TEST(Validator, StartOutsideLimits) {
 TEST(Validator, FileLimitsTightenButNeverRelax) {
   const std::string limits = "[limits]\ninner_max_deg = 45\nmax_rate_dps = 50\nmin_rest_s = 20\n";
   const Sequence s =
-      parse(kHead + limits + rot("inner", "by_deg = 90", "rate_dps = 25\n") + rest(15));
+      parse(kHead + limits + rot_validator("inner", "by_deg = 90", "rate_dps = 25\n") + rest(15));
   const TableLimits eff = effective_limits(TableLimits{}, s.limits);
   EXPECT_EQ(eff.inner_max_deg, 45.0);
   EXPECT_EQ(eff.max_rate_dps, 20.0);  // station's 20 wins over the file's 50
@@ -142,7 +142,7 @@ TEST(Validator, FileLimitsTightenButNeverRelax) {
 TEST(Validator, TotalDurationFromTrapezoidTiming) {
   // 30 s + (90 deg at 10 deg/s, 10 deg/s^2: 1 s ramp up (5 deg), 8 s cruise (80 deg), 1 s ramp
   // down) + 30 s = 70 s.
-  const Sequence s = parse(kHead + rot("outer", "by_deg = 90") + rest(30));
+  const Sequence s = parse(kHead + rot_validator("outer", "by_deg = 90") + rest(30));
   TableLimits lim;
   lim.max_duration_s = 70.01;
   EXPECT_TRUE(validate(s, lim).empty());
@@ -153,7 +153,7 @@ TEST(Validator, TotalDurationFromTrapezoidTiming) {
   EXPECT_EQ(issues[0].line, 10);
   EXPECT_NE(issues[0].message.find("duration"), std::string::npos);
   // Triangular: 4 deg at 10 deg/s^2 peaks at sqrt(40) deg/s after sqrt(0.4) s; total 2 sqrt(0.4).
-  const Sequence tri = parse(kHead + rot("outer", "by_deg = 4") + rest(30));
+  const Sequence tri = parse(kHead + rot_validator("outer", "by_deg = 4") + rest(30));
   lim.max_duration_s = 60.0 + 2.0 * std::sqrt(0.4) + 1e-6;
   EXPECT_TRUE(validate(tri, lim).empty());
   lim.max_duration_s = 60.0 + 2.0 * std::sqrt(0.4) - 1e-6;
@@ -162,10 +162,10 @@ TEST(Validator, TotalDurationFromTrapezoidTiming) {
 
 TEST(Validator, EveryRotationNeedsARestAfterIt) {
   // Two rotations back to back, and a final rotation with nothing after it.
-  const Sequence s = parse(kHead + rot("outer", "by_deg = 90") +  // step 1 at line 7
-                           rot("inner", "by_deg = 90") +          // step 2 at line 10
+  const Sequence s = parse(kHead + rot_validator("outer", "by_deg = 90") +  // step 1 at line 7
+                           rot_validator("inner", "by_deg = 90") +          // step 2 at line 10
                            rest(30) +                             // step 3 at line 13
-                           rot("inner", "by_deg = -90"));         // step 4 at line 15
+                           rot_validator("inner", "by_deg = -90"));         // step 4 at line 15
   const auto issues = validate(s, TableLimits{});
   ASSERT_EQ(issues.size(), 2u);
   EXPECT_EQ(issues[0].line, 7);
@@ -183,9 +183,9 @@ TEST(Validator, ASequenceWithoutRotationIsRejected) {
 }
 
 TEST(Validator, ZeroAngleRotations) {
-  const Sequence s = parse(kHead + rot("outer", "by_deg = 0") + rest(30) +  // by_deg: line 9
-                           rot("inner", "to_deg = 0") + rest(30) +          // to_deg: line 14
-                           rot("inner", "by_deg = 45") + rest(30));
+  const Sequence s = parse(kHead + rot_validator("outer", "by_deg = 0") + rest(30) +  // by_deg: line 9
+                           rot_validator("inner", "to_deg = 0") + rest(30) +          // to_deg: line 14
+                           rot_validator("inner", "by_deg = 45") + rest(30));
   const auto issues = validate(s, TableLimits{});
   ASSERT_EQ(issues.size(), 2u);
   EXPECT_EQ(issues[0].line, 9);
@@ -194,7 +194,7 @@ TEST(Validator, ZeroAngleRotations) {
 }
 
 TEST(Validator, ProgrammaticGarbageGivesIssuesNotCrashes) {
-  Sequence s = parse(kHead + rot("outer", "by_deg = 90") + rest(30));
+  Sequence s = parse(kHead + rot_validator("outer", "by_deg = 90") + rest(30));
   s.steps[0].rate_dps = std::numeric_limits<double>::quiet_NaN();
   s.steps[1].duration_s = -1.0;
   const auto issues = validate(s, TableLimits{});
@@ -203,7 +203,7 @@ TEST(Validator, ProgrammaticGarbageGivesIssuesNotCrashes) {
 }
 
 TEST(Validator, ThrowsTheFirstIssueWithFileAndLine) {
-  const Sequence s = parse(kHead + rot("outer", "by_deg = 90", "rate_dps = 25\n") + rest(3));
+  const Sequence s = parse(kHead + rot_validator("outer", "by_deg = 90", "rate_dps = 25\n") + rest(3));
   try {
     validate_or_throw(s, TableLimits{});
     FAIL() << "expected SequenceError";

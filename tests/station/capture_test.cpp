@@ -36,26 +36,26 @@ namespace {
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-constexpr double kRate_hz = 100.0;
-constexpr double kDt_s = 1.0 / kRate_hz;
+constexpr double kRate_hzCapture = 100.0;
+constexpr double kDt_s = 1.0 / kRate_hzCapture;
 
 /// This file's temporary directories.
-class TempDir : public test_support::ScopedTempDir {
+class TempDirCapture : public test_support::ScopedTempDir {
  public:
-  TempDir() : ScopedTempDir("imucal_capture_test") {}
+  TempDirCapture() : ScopedTempDir("imucal_capture_test") {}
 };
 
-db::archive::RunInfo make_info() {
+db::archive::RunInfo make_info_capture() {
   db::archive::RunInfo ri;
   ri.serial = "SIM-0001";
   ri.site = calib::core::demo_factory_site();
-  ri.imu_rate_hz = kRate_hz;
+  ri.imu_rate_hz = kRate_hzCapture;
   return ri;
 }
 
 CaptureOptions default_options() {
   CaptureOptions o;
-  o.decoder.sample_rate_hz = kRate_hz;
+  o.decoder.sample_rate_hz = kRate_hzCapture;
   o.settle_guard_samples = 20;
   o.flush_period = 50ms;
   return o;
@@ -73,7 +73,7 @@ bool wait_until(const std::function<bool()>& pred, std::chrono::milliseconds tim
 // Member order matters: the capture (declared last) stops before the writer and the sending side
 // go away.
 struct Rig {
-  TempDir tmp;
+  TempDirCapture tmp;
   std::unique_ptr<drivers::imu::CanChannel> tx;
   std::unique_ptr<ArchiveWriter> writer;
   std::unique_ptr<Capture> cap;
@@ -84,7 +84,7 @@ struct Rig {
     co.write_timeout_ms = 5000;  // lossless back-pressure: injected loss is the only loss
     auto pair = drivers::imu::CanChannel::unix_pair(co);
     tx = std::move(pair.first);
-    writer = std::make_unique<ArchiveWriter>(dir, make_info());
+    writer = std::make_unique<ArchiveWriter>(dir, make_info_capture());
     cap = std::make_unique<Capture>(std::move(pair.second), opt);
     cap->start();
   }
@@ -97,7 +97,7 @@ struct Rig {
   /// Detach, finish the archive with the capture's counters, read it back.
   db::archive::RunArchive finish() {
     cap->detach();
-    db::archive::RunInfo fin = make_info();
+    db::archive::RunInfo fin = make_info_capture();
     fin.capture = to_capture_info(cap->stats(), true);
     writer->finish(fin);
     return db::archive::read_archive(dir);
@@ -129,7 +129,7 @@ calib::core::ImuIncrement moving_increment(double rate_dps) {
 
 drivers::simulated::ImuCanNodeOptions node_options() {
   drivers::simulated::ImuCanNodeOptions o;
-  o.rate_hz = kRate_hz;
+  o.rate_hz = kRate_hzCapture;
   o.speed_factor = 0.0;
   return o;
 }
@@ -183,7 +183,7 @@ TEST(Capture, RowsEqualTheSentIncrementsToTheLsb) {
   Eigen::Vector3d sum_row_dv = Eigen::Vector3d::Zero(), sum_sent_dv = Eigen::Vector3d::Zero();
   for (uint64_t k = 0; k < n; ++k) {
     const calib::core::ImuIncrement& r = a.imu[k];
-    EXPECT_EQ(r.t_s, static_cast<double>(k + 1) / kRate_hz) << "row " << k;
+    EXPECT_EQ(r.t_s, static_cast<double>(k + 1) / kRate_hzCapture) << "row " << k;
     for (int i = 0; i < 3; ++i) {
       // Quantised with the remainder carried: each sample within 1 LSB of what was sent, and an
       // integer number of LSBs.
@@ -276,7 +276,7 @@ TEST(Capture, LostSamplesAreFilledByLinearInterpolationAndCounted) {
         EXPECT_NEAR(a.imu[k].dv_mps(i), interp(before, after, k, i, false), 1e-15) << "row " << k;
       }
     }
-    EXPECT_EQ(a.imu[k].t_s, static_cast<double>(k + 1) / kRate_hz);
+    EXPECT_EQ(a.imu[k].t_s, static_cast<double>(k + 1) / kRate_hzCapture);
   }
   const CaptureStats st = rig.cap->stats();
   EXPECT_EQ(st.samples_filled, 5u);

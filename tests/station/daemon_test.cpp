@@ -62,10 +62,10 @@ StationConfig config_for(const std::string& dir, const std::string& endpoint,
   return parse_config(text, dir + "/stationd.toml", dir);
 }
 
-class TempDir {
+class TempDirDaemon {
  public:
-  TempDir() : path(make_temp_dir()) {}
-  ~TempDir() {
+  TempDirDaemon() : path(make_temp_dir()) {}
+  ~TempDirDaemon() {
     std::error_code ec;
     fs::remove_all(path, ec);
   }
@@ -98,7 +98,7 @@ size_t write_killed_archive(const std::string& dir, const std::string& serial) {
 }
 
 TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
-  TempDir tmp;
+  TempDirDaemon tmp;
   StationConfig cfg = config_for(tmp.path, "tcp:127.0.0.1:1", "unixcan:" + tmp.path + "/none.sock");
   fs::create_directories(cfg.data_dir);
   db::history::RunId running_id = 0, preparing_id = 0;
@@ -224,7 +224,7 @@ TEST(Daemon, RecoveryMarksLiveRunsInterruptedKeepsTheArchiveAndReprocessWorks) {
 }
 
 TEST(Daemon, StatusJsonThroughTheControlSocketBeforeDuringAndAfterARun) {
-  TempDir tmp;
+  TempDirDaemon tmp;
   drivers::simulated::StationSimConfig sc;
   sc.can_path = tmp.path + "/bus.sock";
   sc.speed = 50.0;
@@ -329,7 +329,7 @@ TEST(Daemon, StatusJsonThroughTheControlSocketBeforeDuringAndAfterARun) {
 }
 
 TEST(Daemon, SecondDaemonOnTheSameDataDirectoryIsRefusedBeforeTouchingAnything) {
-  TempDir tmp;
+  TempDirDaemon tmp;
   StationConfig cfg = config_for(tmp.path, "tcp:127.0.0.1:1", "unixcan:" + tmp.path + "/none.sock");
   DaemonOptions opt;
   opt.stop_table_at_start = false;
@@ -423,7 +423,7 @@ class FakeSystemd {
 };
 
 TEST(Daemon, RunNotifiesSystemdAndStopsCleanly) {
-  TempDir tmp;
+  TempDirDaemon tmp;
   StationConfig cfg = config_for(tmp.path, "tcp:127.0.0.1:1", "unixcan:" + tmp.path + "/none.sock");
   FakeSystemd systemd(tmp.path + "/notify.sock");
   DaemonOptions opt;

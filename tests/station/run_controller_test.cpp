@@ -53,7 +53,7 @@ by_deg = 90.0
 rest_s = 12.0
 )";
 
-std::string make_temp_dir() {
+std::string make_temp_dir_run_controller() {
   std::string tmpl = (fs::temp_directory_path() / "imucal-runctl-XXXXXX").string();
   if (!mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
   return tmpl;
@@ -65,7 +65,7 @@ class Station {
   explicit Station(
       double speed,
       std::optional<drivers::simulated::StationSimFaults::TableFault> fault = std::nullopt) {
-    dir_ = make_temp_dir();
+    dir_ = make_temp_dir_run_controller();
     drivers::simulated::StationSimConfig sc;
     sc.can_path = dir_ + "/bus.sock";
     sc.speed = speed;
@@ -128,7 +128,7 @@ class Station {
 };
 
 TEST(RunPlan, TinySequenceFlattensToRestsAndMovesWithSampleCounts) {
-  const std::string dir = make_temp_dir();
+  const std::string dir = make_temp_dir_run_controller();
   std::ofstream(dir + "/tiny.toml") << kTinySequence;
   const std::string base = "[station]\nname=\"s\"\nlat_deg=0\nlon_deg=0\nheight_m=0\ndata_dir=\"d\"\n"
                            "[imu]\ncan=\"unixcan:x\"\nrate_hz=200\n"

@@ -19,9 +19,9 @@ using namespace imucal::station::daemon;
 namespace {
 
 /// A bound AF_UNIX datagram socket (what systemd listens on).
-class FakeSystemd {
+class FakeSystemdSdNotify {
  public:
-  explicit FakeSystemd(const std::string& name) : name_(name) {
+  explicit FakeSystemdSdNotify(const std::string& name) : name_(name) {
     fd_ = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
     EXPECT_GE(fd_, 0);
     sockaddr_un a{};
@@ -35,7 +35,7 @@ class FakeSystemd {
     const socklen_t len = static_cast<socklen_t>(offsetof(sockaddr_un, sun_path) + name.size());
     EXPECT_EQ(::bind(fd_, reinterpret_cast<sockaddr*>(&a), len), 0) << std::strerror(errno);
   }
-  ~FakeSystemd() {
+  ~FakeSystemdSdNotify() {
     ::close(fd_);
     if (name_[0] != '@') ::unlink(name_.c_str());
   }
@@ -55,7 +55,7 @@ class FakeSystemd {
 
 TEST(SdNotify, PathSocketReceivesReadyStatusWatchdogStopping) {
   const std::string path = "/tmp/imucal-sdnotify-" + std::to_string(getpid()) + ".sock";
-  FakeSystemd systemd(path);
+  FakeSystemdSdNotify systemd(path);
   const SdNotifier n(path, std::nullopt);
   ASSERT_TRUE(n.enabled());
   EXPECT_TRUE(n.ready("idle"));
@@ -70,7 +70,7 @@ TEST(SdNotify, PathSocketReceivesReadyStatusWatchdogStopping) {
 
 TEST(SdNotify, AbstractSocketFromTheEnvironment) {
   const std::string name = "@imucal-sdnotify-test-" + std::to_string(getpid());
-  FakeSystemd systemd(name);
+  FakeSystemdSdNotify systemd(name);
   ::setenv("NOTIFY_SOCKET", name.c_str(), 1);
   ::setenv("WATCHDOG_USEC", "3000000", 1);
   ::unsetenv("WATCHDOG_PID");

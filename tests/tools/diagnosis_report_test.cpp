@@ -32,7 +32,7 @@ Proc run(const std::string& cmd) { return imucal::test_support::run_command(cmd 
 
 std::string imucal_bin() { return std::string(IMUCAL_BIN_DIR) + "/imucal"; }
 
-std::string slurp(const fs::path& p) {
+std::string slurp_diagnosis_report(const fs::path& p) {
   std::ifstream f(p, std::ios::binary);
   std::stringstream ss;
   ss << f.rdbuf();
@@ -65,7 +65,7 @@ TEST(DiagnosisReport, ChromiumRendersTheReportWithItsPictures) {
   const Proc d = run(imucal_bin() + " diagnose " + dir.string() + " --report " + out.string());
   ASSERT_TRUE(d.code == 0 || d.code == 3) << d.out;
   ASSERT_TRUE(fs::exists(out / "report.html"));
-  const nlohmann::json j = nlohmann::json::parse(slurp(out / "diagnosis.json"));
+  const nlohmann::json j = nlohmann::json::parse(slurp_diagnosis_report(out / "diagnosis.json"));
   for (const char* k : {"verdict", "best", "candidates", "held_out", "segments", "serial"})
     EXPECT_TRUE(j.contains(k)) << k;
 
@@ -102,7 +102,7 @@ TEST(DiagnosisReport, ChromiumRendersTheReportWithItsPictures) {
   const fs::path shot = out / "shot.png";
   const Proc s = run(chrome + "--window-size=1300,2400 --screenshot=" + shot.string() + " " + url);
   ASSERT_EQ(s.code, 0) << s.out.substr(0, 2000);
-  const std::string png = slurp(shot);
+  const std::string png = slurp_diagnosis_report(shot);
   EXPECT_EQ(png_size(png), (std::pair<int, int>{1300, 2400}));
   // A blank page compresses to a few kB; the rendered report with its charts is far larger.
   EXPECT_GT(png.size(), 60000u);
@@ -117,7 +117,7 @@ TEST(DiagnosisReport, ABadReportTargetIsRefusedAndNothingIsWritten) {
   const Proc p = run(imucal_bin() + " diagnose " + dir.string() + " --report " + file.string());
   EXPECT_EQ(p.code, 1);
   EXPECT_NE(p.out.find("not a directory"), std::string::npos) << p.out;
-  EXPECT_EQ(slurp(file), "x");
+  EXPECT_EQ(slurp_diagnosis_report(file), "x");
   // A diagnosis that fails (unknown candidate) creates no report directory.
   const fs::path out = fs::path(tmp.path()) / "never";
   EXPECT_EQ(run(imucal_bin() + " diagnose " + dir.string() + " --candidates nope --report " +
@@ -253,8 +253,8 @@ std::string RenderedReport::render() {
   if (sim.code != 0) return "simulate: " + sim.out;
   const Proc d = run(imucal_bin() + " diagnose " + dir.string() + " --report " + out.string());
   if (d.code != 0 && d.code != 3) return "diagnose: " + d.out;
-  diagnosis_ = nlohmann::json::parse(slurp(out / "diagnosis.json"));
-  std::string html = slurp(out / "report.html");
+  diagnosis_ = nlohmann::json::parse(slurp_diagnosis_report(out / "diagnosis.json"));
+  std::string html = slurp_diagnosis_report(out / "report.html");
   const size_t body = html.rfind("</body>");
   if (body == std::string::npos) return "report.html has no </body>";
   html.insert(body, kMeasureScript);
@@ -378,7 +378,7 @@ TEST_F(RenderedReport, EveryHeatMapColumnIsLabelledWithSegmentTimeAndAttitude) {
 // Issue #19 item 6: the per-axis values were only in the JSON. The explaining effects' rows show
 // each fitted parameter with its value and σ.
 TEST_F(RenderedReport, TheExplainingEffectsShowTheirPerAxisValues) {
-  const std::string html = slurp(fs::path(tmp_->path()) / "report" / "report.html");
+  const std::string html = slurp_diagnosis_report(fs::path(tmp_->path()) / "report" / "report.html");
   ASSERT_FALSE(diagnosis_["explained_by"].empty()) << diagnosis_["summary"];
   for (const auto& name : diagnosis_["explained_by"]) {
     const size_t row = html.find("<td>" + name.get<std::string>() + "</td>");

@@ -37,11 +37,11 @@ ProcResult run_shell(const std::string& cmd) {
   return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out};
 }
 
-ProcResult run_imucal(const std::string& args) {
+ProcResult run_imucal_cli(const std::string& args) {
   return run_shell(std::string(IMUCAL_BIN_DIR) + "/imucal " + args + " 2>&1");
 }
 
-std::string slurp(const fs::path& p) {
+std::string slurp_imucal_cli(const fs::path& p) {
   std::ifstream f(p);
   std::stringstream ss;
   ss << f.rdbuf();
@@ -56,7 +56,7 @@ class ImucalCli : public ::testing::Test {
     base_ = fs::temp_directory_path() / ("imucal_cli_" + std::to_string(getpid()));
     fs::create_directories(base_);
     const ProcResult r =
-        run_imucal("simulate --sequence short --seed 3 --out " + (base_ / "sim").string());
+        run_imucal_cli("simulate --sequence short --seed 3 --out " + (base_ / "sim").string());
     ASSERT_EQ(r.code, 0) << r.out;
   }
   static void TearDownTestSuite() { fs::remove_all(base_); }
@@ -67,7 +67,7 @@ class ImucalCli : public ::testing::Test {
     const fs::path d = base_ / name;
     fs::remove_all(d);
     fs::copy(base_ / "sim", d);
-    spit(d / file, edit(slurp(d / file)));
+    spit(d / file, edit(slurp_imucal_cli(d / file)));
     return d;
   }
 
@@ -94,7 +94,7 @@ std::string line_of(const std::string& text, int n) {
 }  // namespace
 
 TEST_F(ImucalCli, CalibrateJsonHasTheDocumentedShapeAndPasses) {
-  const ProcResult r = run_imucal("calibrate " + (base_ / "sim").string() + " --method all --json");
+  const ProcResult r = run_imucal_cli("calibrate " + (base_ / "sim").string() + " --method all --json");
   ASSERT_EQ(r.code, 0) << r.out;
   const auto j = nlohmann::json::parse(r.out);
   for (const char* m : {"ains", "nlsq"}) {
@@ -110,7 +110,7 @@ TEST_F(ImucalCli, CalibrateJsonHasTheDocumentedShapeAndPasses) {
 }
 
 TEST_F(ImucalCli, HumanOutputCarriesUnitsAndVerdict) {
-  const ProcResult r = run_imucal("calibrate " + (base_ / "sim").string());
+  const ProcResult r = run_imucal_cli("calibrate " + (base_ / "sim").string());
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("µg"), std::string::npos);
   EXPECT_NE(r.out.find("deg/h"), std::string::npos);
@@ -124,7 +124,7 @@ TEST_F(ImucalCli, HandMadeAttitudeArchiveCalibratesLikeTheSimulatedOne) {
   fs::remove_all(d);
   fs::create_directories(d);
   fs::copy_file(base_ / "sim" / "imu.csv", d / "imu.csv");
-  std::stringstream tab(slurp(base_ / "sim" / "table.csv"));
+  std::stringstream tab(slurp_imucal_cli(base_ / "sim" / "table.csv"));
   std::ofstream att(d / "attitude.csv");
   att << "t_s,roll_deg,pitch_deg,yaw_deg,at_rest\n";
   std::string l;
@@ -142,15 +142,15 @@ TEST_F(ImucalCli, HandMadeAttitudeArchiveCalibratesLikeTheSimulatedOne) {
     att << t << ',' << e(0) << ',' << e(1) << ',' << e(2) << ',' << rest << '\n';
   }
   att.close();
-  std::string toml = slurp(base_ / "sim" / "run.toml");
+  std::string toml = slurp_imucal_cli(base_ / "sim" / "run.toml");
   const auto pos = toml.find("reference = \"table\"");
   ASSERT_NE(pos, std::string::npos) << toml;
   toml.replace(pos, 19, "reference = \"attitude\"");
   spit(d / "run.toml", toml);
 
   const ProcResult a =
-      run_imucal("calibrate " + (base_ / "sim").string() + " --method nlsq --json");
-  const ProcResult b = run_imucal("calibrate " + d.string() + " --method nlsq --json");
+      run_imucal_cli("calibrate " + (base_ / "sim").string() + " --method nlsq --json");
+  const ProcResult b = run_imucal_cli("calibrate " + d.string() + " --method nlsq --json");
   ASSERT_EQ(a.code, 0) << a.out;
   ASSERT_EQ(b.code, 0) << b.out;
   const auto ja = nlohmann::json::parse(a.out)["nlsq"], jb = nlohmann::json::parse(b.out)["nlsq"];
@@ -209,7 +209,7 @@ TEST_F(ImucalCli, BadInputGivesOneLineErrorNamingFileAndLine) {
   };
   for (const auto& c : cases) {
     const fs::path d = variant(c.name, c.file, c.edit);
-    const ProcResult r = run_imucal("calibrate " + d.string() + " --method nlsq");
+    const ProcResult r = run_imucal_cli("calibrate " + d.string() + " --method nlsq");
     EXPECT_EQ(r.code, 1) << c.name << ": " << r.out;
     EXPECT_NE(r.out.find("imucal: error: "), std::string::npos) << c.name << ": " << r.out;
     EXPECT_NE(r.out.find(c.expect), std::string::npos) << c.name << ": " << r.out;
@@ -224,7 +224,7 @@ TEST_F(ImucalCli, BadSequencesAreRejectedNamingTheProblem) {
       "name = \"too-fast\"\n[start]\nrest_s = 30.0\n\n[[step]]\nrotate = \"inner\"\nby_deg = 90.0\n"
       "rate_dps = 500.0\n\n[[step]]\nrest_s = 30.0\n");
   ProcResult r =
-      run_imucal("simulate --sequence " + seq.string() + " --out " + (base_ / "x").string());
+      run_imucal_cli("simulate --sequence " + seq.string() + " --out " + (base_ / "x").string());
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("too_fast.toml:"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(base_ / "x"));
@@ -235,21 +235,21 @@ TEST_F(ImucalCli, BadSequencesAreRejectedNamingTheProblem) {
        "name = \"flat\"\n[start]\nrest_s = 30.0\n\n[[step]]\nrotate = \"inner\"\nby_deg = 90.0\n\n"
        "[[step]]\nrest_s = 30.0\n\n[[step]]\nrotate = \"inner\"\nby_deg = -180.0\n\n[[step]]\n"
        "rest_s = 30.0\n");
-  r = run_imucal("simulate --sequence " + flat.string() + " --out " + (base_ / "y").string());
+  r = run_imucal_cli("simulate --sequence " + flat.string() + " --out " + (base_ / "y").string());
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("unobservable"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("accel_M[2][2]"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(base_ / "y"));
-  r = run_imucal("crlb --sequence " + flat.string());
+  r = run_imucal_cli("crlb --sequence " + flat.string());
   EXPECT_EQ(r.code, 3) << r.out;
 
-  r = run_imucal("simulate --sequence no-such-sequence --out " + (base_ / "z").string());
+  r = run_imucal_cli("simulate --sequence no-such-sequence --out " + (base_ / "z").string());
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("factory-std"), std::string::npos)
       << "should list the available names: " << r.out;
   // Issue #19 item 9: a typo reads as one (was "imucal: error: shrot:0: no such sequence file or
   // library name; ...").
-  r = run_imucal("simulate --sequence shrot --out " + (base_ / "z").string());
+  r = run_imucal_cli("simulate --sequence shrot --out " + (base_ / "z").string());
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("imucal: error: unknown sequence 'shrot' (library "), std::string::npos)
       << r.out;
@@ -261,27 +261,27 @@ TEST_F(ImucalCli, BadSequencesAreRejectedNamingTheProblem) {
 TEST_F(ImucalCli, SimulateIntoAnExistingArchiveNamesTheOverwriteFlag) {
   const std::string dir = (base_ / "sim").string();
   const auto before = fs::last_write_time(base_ / "sim" / "imu.csv");
-  ProcResult r = run_imucal("simulate --sequence short --seed 4 --out " + dir);
+  ProcResult r = run_imucal_cli("simulate --sequence short --seed 4 --out " + dir);
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find(dir + ": exists and is not empty"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("--overwrite"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("overwrite=true"), std::string::npos) << r.out;
   EXPECT_TRUE(fs::last_write_time(base_ / "sim" / "imu.csv") == before);
   const fs::path other = base_ / "replaced";
-  r = run_imucal("simulate --sequence short --seed 4 --out " + other.string());
+  r = run_imucal_cli("simulate --sequence short --seed 4 --out " + other.string());
   ASSERT_EQ(r.code, 0) << r.out;
-  r = run_imucal("simulate --sequence short --seed 5 --out " + other.string() + " --overwrite");
+  r = run_imucal_cli("simulate --sequence short --seed 5 --out " + other.string() + " --overwrite");
   EXPECT_EQ(r.code, 0) << r.out;
 }
 
 TEST_F(ImucalCli, EvaluateReproducesTheCalibrateMetricsAndRejectsBadParameterFiles) {
   const ProcResult c =
-      run_imucal("calibrate " + (base_ / "sim").string() + " --method ains --json");
+      run_imucal_cli("calibrate " + (base_ / "sim").string() + " --method ains --json");
   ASSERT_EQ(c.code, 0) << c.out;
   const auto cj = nlohmann::json::parse(c.out)["ains"];
   const fs::path params = base_ / "ains_params.json";
   spit(params, cj["params"].dump());
-  const ProcResult e = run_imucal("evaluate " + (base_ / "sim").string() + " --params " +
+  const ProcResult e = run_imucal_cli("evaluate " + (base_ / "sim").string() + " --params " +
                                   params.string() + " --json");
   ASSERT_EQ(e.code, 0) << e.out;
   const auto ej = nlohmann::json::parse(e.out);
@@ -294,14 +294,14 @@ TEST_F(ImucalCli, EvaluateReproducesTheCalibrateMetricsAndRejectsBadParameterFil
   bad["accel_M"][1] = {1.0, 2.0};
   spit(params, bad.dump());
   const ProcResult b =
-      run_imucal("evaluate " + (base_ / "sim").string() + " --params " + params.string());
+      run_imucal_cli("evaluate " + (base_ / "sim").string() + " --params " + params.string());
   EXPECT_EQ(b.code, 1) << b.out;
   EXPECT_NE(b.out.find("accel_M[1]"), std::string::npos) << b.out;
 }
 
 TEST_F(ImucalCli, CrlbReportsEveryParameterForTheShippedSequences) {
   for (const char* seq : {"short", "factory-std", "pos19"}) {
-    const ProcResult r = run_imucal(std::string("crlb --json --sequence ") + seq);
+    const ProcResult r = run_imucal_cli(std::string("crlb --json --sequence ") + seq);
     ASSERT_EQ(r.code, 0) << seq << ": " << r.out;
     const auto j = nlohmann::json::parse(r.out);
     EXPECT_TRUE(j["unobservable"].empty()) << seq;
@@ -313,9 +313,9 @@ TEST_F(ImucalCli, CrlbReportsEveryParameterForTheShippedSequences) {
 TEST_F(ImucalCli, PlotWritesAnSvgWithEveryParameterAndEveryRestPeriod) {
   const fs::path svg = base_ / "run.svg";
   const ProcResult r =
-      run_imucal("calibrate " + (base_ / "sim").string() + " --json --plot " + svg.string());
+      run_imucal_cli("calibrate " + (base_ / "sim").string() + " --json --plot " + svg.string());
   ASSERT_EQ(r.code, 0) << r.out;
-  const std::string text = slurp(svg);
+  const std::string text = slurp_imucal_cli(svg);
   ASSERT_EQ(text.rfind("<svg", 0), 0u) << text.substr(0, 80);
   EXPECT_NE(text.find("cross-check PASS"), std::string::npos);
   const auto j = nlohmann::json::parse(r.out);
@@ -341,12 +341,12 @@ namespace {
 TEST(ImucalUsage, UsageErrorsExitTwo) {
   for (const char* args : {"", "calibrate", "calibrate --method bogus x", "frobnicate",
                            "simulate --sequence short", "paper-tables --units 0"}) {
-    const ProcResult r = run_imucal(args);
+    const ProcResult r = run_imucal_cli(args);
     EXPECT_EQ(r.code, 2) << "imucal " << args << "\n" << r.out;
     EXPECT_FALSE(r.out.empty()) << args;
   }
-  EXPECT_EQ(run_imucal("--help").code, 0);
-  EXPECT_EQ(run_imucal("--version").code, 0);
+  EXPECT_EQ(run_imucal_cli("--help").code, 0);
+  EXPECT_EQ(run_imucal_cli("--version").code, 0);
 }
 
 // Issue #19 item 11: `imucal --help` began "(simulate, calibrate, evaluate, crlb)", 4 of its 9
@@ -361,7 +361,7 @@ TEST(ImucalUsage, HelpListsEveryDocumentedCommand) {
   while (std::getline(readme, line))
     if (std::regex_search(line, m, usage)) documented.insert(m[1]);
   ASSERT_GE(documented.size(), 9u) << "the README's imucal usage block";
-  const ProcResult help = run_imucal("--help");
+  const ProcResult help = run_imucal_cli("--help");
   ASSERT_EQ(help.code, 0);
   const std::size_t sub = help.out.find("Subcommands:");
   ASSERT_NE(sub, std::string::npos) << help.out;
@@ -369,7 +369,7 @@ TEST(ImucalUsage, HelpListsEveryDocumentedCommand) {
   std::size_t named = 0;
   for (const std::string& cmd : documented) {
     EXPECT_NE(help.out.find("\n  " + cmd + " ", sub), std::string::npos) << cmd << "\n" << help.out;
-    EXPECT_EQ(run_imucal(cmd + " --help").code, 0) << cmd;
+    EXPECT_EQ(run_imucal_cli(cmd + " --help").code, 0) << cmd;
     named += description.find(cmd) != std::string::npos ? 1 : 0;
   }
   EXPECT_TRUE(named == 0 || named == documented.size()) << description;
@@ -392,7 +392,7 @@ TEST(ImucalUsage, JsonErrorsAreJson) {
 TEST_F(ImucalCli, PlotRefusesANameThatIsNotSvg) {
   const fs::path png = base_ / "run.png";
   const ProcResult r =
-      run_imucal("calibrate " + (base_ / "sim").string() + " --plot " + png.string());
+      run_imucal_cli("calibrate " + (base_ / "sim").string() + " --plot " + png.string());
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_NE(r.out.find("name it .svg"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(png));
@@ -433,10 +433,10 @@ TEST_F(ImucalCli, PartialArchiveIsReviewAtBest) {
                "samples_filled = 0\nimu_resets = 0\nrx_overflow = 0\nrows_written = 0\n"
                "rest_samples = 0\nmax_gap_samples = 0\n";
   });
-  const ProcResult r = run_imucal("calibrate " + dir.string());
+  const ProcResult r = run_imucal_cli("calibrate " + dir.string());
   EXPECT_EQ(r.code, 3) << r.out;
   EXPECT_NE(r.out.find("capture incomplete"), std::string::npos) << r.out;
-  const ProcResult j = run_imucal("calibrate " + dir.string() + " --json");
+  const ProcResult j = run_imucal_cli("calibrate " + dir.string() + " --json");
   EXPECT_EQ(j.code, 3);
   const auto json = nlohmann::json::parse(j.out.substr(j.out.find('{')));
   EXPECT_EQ(json["verdict"], "REVIEW");

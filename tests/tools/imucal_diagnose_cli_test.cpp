@@ -17,9 +17,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using Proc = imucal::test_support::CommandResult;
+using ProcImucalDiagnoseCli = imucal::test_support::CommandResult;
 
-Proc run(const std::string& args, bool merge_stderr = true) {
+ProcImucalDiagnoseCli run_imucal_diagnose_cli(const std::string& args, bool merge_stderr = true) {
   return imucal::test_support::run_imucal(args, merge_stderr);
 }
 using imucal::test_support::listing;
@@ -35,7 +35,7 @@ class DiagnoseCli : public ::testing::Test {
         << slurp(fs::path(IMUCAL_SOURCE_DIR) / "db/archive/units/default.toml")
         << "\n[effects]\ng_sens_deg_per_h_per_g = [[0.1, 0.0, 0.0], [0.0, -0.1, 0.0], [0.0, 0.0, "
            "0.08]]\n";
-    ASSERT_EQ(run("simulate --sequence short --seed 4 --out " +
+    ASSERT_EQ(run_imucal_diagnose_cli("simulate --sequence short --seed 4 --out " +
                   (fs::path(dir_->path()) / "gsens").string() + " --unit " +
                   (fs::path(dir_->path()) / "gsens.toml").string())
                   .code,
@@ -50,7 +50,7 @@ imucal::test_support::ScopedTempDir* DiagnoseCli::dir_ = nullptr;
 }  // namespace
 
 TEST_F(DiagnoseCli, JsonHasTheIssuesShapeAndNamesTheWithheldEffect) {
-  const Proc p = run("diagnose " + archive().string() + " --json", false);
+  const ProcImucalDiagnoseCli p = run_imucal_diagnose_cli("diagnose " + archive().string() + " --json", false);
   ASSERT_TRUE(p.code == 0 || p.code == 3) << p.out;
   const nlohmann::json j = nlohmann::json::parse(p.out);
   for (const char* k : {"verdict", "best", "candidates", "held_out", "segments", "overall"})
@@ -79,11 +79,11 @@ TEST_F(DiagnoseCli, JsonHasTheIssuesShapeAndNamesTheWithheldEffect) {
 // 4.6 m size effect; the per-axis values were only in the JSON.
 TEST_F(DiagnoseCli, AnAmbiguousSetIsAnExplanationAndOnlyPlausibleHeldOutConfirmedCandidatesFlag) {
   const fs::path k2 = fs::path(dir_->path()) / "k2";
-  ASSERT_EQ(run("simulate --sequence short --seed 9 --out " + k2.string() +
+  ASSERT_EQ(run_imucal_diagnose_cli("simulate --sequence short --seed 9 --out " + k2.string() +
                 " --effect accel_quadratic_k2=6.118e-6,-4.589e-6,7.648e-6")
                 .code,
             0);
-  const Proc p = run("diagnose " + k2.string() + " --json", false);
+  const ProcImucalDiagnoseCli p = run_imucal_diagnose_cli("diagnose " + k2.string() + " --json", false);
   EXPECT_EQ(p.code, 0) << "an explained run exits 0";
   const nlohmann::json j = nlohmann::json::parse(p.out);
   EXPECT_EQ(j["verdict"], "explained");
@@ -108,13 +108,13 @@ TEST_F(DiagnoseCli, AnAmbiguousSetIsAnExplanationAndOnlyPlausibleHeldOutConfirme
       EXPECT_LE(value.size(), 5u) << note;
     }
   }
-  const Proc t = run("diagnose " + k2.string());
+  const ProcImucalDiagnoseCli t = run_imucal_diagnose_cli("diagnose " + k2.string());
   EXPECT_NE(t.out.find("verdict: explained -- explained by "), std::string::npos) << t.out;
   EXPECT_NE(t.out.find("  accel_quadratic_k2: k2_x = "), std::string::npos) << t.out;
 }
 
 TEST_F(DiagnoseCli, HumanReportSaysWhereWhichAndHowFar) {
-  const Proc p = run("diagnose " + archive().string());
+  const ProcImucalDiagnoseCli p = run_imucal_diagnose_cli("diagnose " + archive().string());
   EXPECT_EQ(p.code, 0) << p.out;
   EXPECT_NE(p.out.find("verdict: explained"), std::string::npos) << p.out;
   EXPECT_NE(p.out.find("held-out gap"), std::string::npos);
@@ -125,19 +125,19 @@ TEST_F(DiagnoseCli, HumanReportSaysWhereWhichAndHowFar) {
 TEST_F(DiagnoseCli, BadInputIsNamedAndNothingIsWritten) {
   const std::string before = listing(archive());
   // Unknown effect name: the known ones are listed.
-  Proc p = run("diagnose " + archive().string() + " --candidates accel_quadratic_k2,warp_drive");
+  ProcImucalDiagnoseCli p = run_imucal_diagnose_cli("diagnose " + archive().string() + " --candidates accel_quadratic_k2,warp_drive");
   EXPECT_EQ(p.code, 1);
   EXPECT_NE(p.out.find("unknown effect 'warp_drive'"), std::string::npos) << p.out;
   EXPECT_NE(p.out.find("table_wobble"), std::string::npos) << p.out;
   // Missing archive and missing file.
-  p = run("diagnose " + (fs::path(dir_->path()) / "nowhere").string());
+  p = run_imucal_diagnose_cli("diagnose " + (fs::path(dir_->path()) / "nowhere").string());
   EXPECT_EQ(p.code, 1);
   EXPECT_NE(p.out.find("nowhere"), std::string::npos) << p.out;
   const fs::path noimu = fs::path(dir_->path()) / "noimu";
   fs::create_directories(noimu);
   fs::copy_file(archive() / "run.toml", noimu / "run.toml", fs::copy_options::overwrite_existing);
   fs::copy_file(archive() / "table.csv", noimu / "table.csv", fs::copy_options::overwrite_existing);
-  p = run("diagnose " + noimu.string());
+  p = run_imucal_diagnose_cli("diagnose " + noimu.string());
   EXPECT_EQ(p.code, 1);
   EXPECT_NE(p.out.find("imu.csv"), std::string::npos) << p.out;
   // No rest periods.
@@ -150,7 +150,7 @@ TEST_F(DiagnoseCli, BadInputIsNamedAndNothingIsWritten) {
     for (size_t i = 0; (i = t.find(",1\n", i)) != std::string::npos;) t.replace(i, 3, ",0\n");
     std::ofstream(norest / "table.csv") << t;
   }
-  p = run("diagnose " + norest.string());
+  p = run_imucal_diagnose_cli("diagnose " + norest.string());
   EXPECT_EQ(p.code, 1);
   EXPECT_NE(p.out.find("rest"), std::string::npos) << p.out;
   // Too short for a candidate: cut the run after its 4th rest (>= 100 at_rest rows). 4 rests and 3
@@ -182,7 +182,7 @@ TEST_F(DiagnoseCli, BadInputIsNamedAndNothingIsWritten) {
     std::string line;
     for (size_t i = 0; i < keep && std::getline(in, line); ++i) out << line << '\n';
   }
-  p = run("diagnose " + shortrun.string() + " --candidates size_effect");
+  p = run_imucal_diagnose_cli("diagnose " + shortrun.string() + " --candidates size_effect");
   EXPECT_EQ(p.code, 1) << p.out;
   EXPECT_NE(p.out.find("size_effect"), std::string::npos) << p.out;
   EXPECT_NE(p.out.find("too short"), std::string::npos) << p.out;

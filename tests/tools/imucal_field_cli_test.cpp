@@ -19,9 +19,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using Proc = imucal::test_support::CommandResult;
+using ProcImucalFieldCli = imucal::test_support::CommandResult;
 
-Proc run(const std::string& args, bool merge_stderr = true) {
+ProcImucalFieldCli run_imucal_field_cli(const std::string& args, bool merge_stderr = true) {
   return imucal::test_support::run_imucal(args, merge_stderr);
 }
 using imucal::test_support::listing;
@@ -32,7 +32,7 @@ class FieldCli : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = new imucal::test_support::ScopedTempDir("field-cli");
     for (const char* s : {"land", "sea"})
-      ASSERT_EQ(run(std::string("simulate --sequence short --seed 7 --setting ") + s + " --out " +
+      ASSERT_EQ(run_imucal_field_cli(std::string("simulate --sequence short --seed 7 --setting ") + s + " --out " +
                     (root() / s).string())
                     .code,
                 0);
@@ -48,7 +48,7 @@ class FieldCli : public ::testing::Test {
   /// Runs calibrate on a bad archive: exit 1, one line naming `needle`, nothing written.
   static void expect_refused(const fs::path& dir, const std::string& needle) {
     const std::string before = listing(dir);
-    const Proc p = run("calibrate " + dir.string());
+    const ProcImucalFieldCli p = run_imucal_field_cli("calibrate " + dir.string());
     EXPECT_EQ(p.code, 1) << p.out;
     EXPECT_NE(p.out.find(needle), std::string::npos) << p.out;
     EXPECT_EQ(std::count(p.out.begin(), p.out.end(), '\n'), 1) << p.out;
@@ -68,7 +68,7 @@ TEST_F(FieldCli, SimulatedArchivesCarryTheSettingAndNoTableLog) {
 }
 
 TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
-  const Proc p = run("calibrate " + (root() / "land").string() + " --json", false);
+  const ProcImucalFieldCli p = run_imucal_field_cli("calibrate " + (root() / "land").string() + " --json", false);
   ASSERT_EQ(p.code, 0) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   EXPECT_EQ(j["ains"]["setting"], "land");
@@ -84,9 +84,9 @@ TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
         n.get<std::string>().find("housing orientation: not observable") != std::string::npos;
   EXPECT_TRUE(housing);
   // The human report says it too, and NLSQ is refused on land with the reason.
-  const Proc h = run("calibrate " + (root() / "land").string());
+  const ProcImucalFieldCli h = run_imucal_field_cli("calibrate " + (root() / "land").string());
   EXPECT_NE(h.out.find("not observable: housing orientation"), std::string::npos) << h.out;
-  const Proc n = run("calibrate " + (root() / "land").string() + " --method nlsq");
+  const ProcImucalFieldCli n = run_imucal_field_cli("calibrate " + (root() / "land").string() + " --method nlsq");
   EXPECT_EQ(n.code, 1);
   EXPECT_NE(n.out.find("NLSQ needs the table's attitude reference"), std::string::npos) << n.out;
 }
@@ -98,7 +98,7 @@ TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
 TEST_F(FieldCli, LegacyConvergesOnALandRunThatStoppedWithinItsNoiseOfTheMinimum) {
   const std::string run_dir =
       imucal::test_support::unpack_data_archive("land-legacy-stall", root().string());
-  const Proc p = run("calibrate " + run_dir + " --method legacy --json", false);
+  const ProcImucalFieldCli p = run_imucal_field_cli("calibrate " + run_dir + " --method legacy --json", false);
   ASSERT_EQ(p.code, 0) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   EXPECT_TRUE(j["legacy"]["converged"].get<bool>()) << j["legacy"].dump();
@@ -110,16 +110,16 @@ TEST_F(FieldCli, EvaluateRefusesARunWithoutReferenceAndDiagnoseWorksOnLandAndSea
   const fs::path params = root() / "land-params.json";
   std::ofstream(params)
       << nlohmann::json::parse(
-             run("calibrate " + (root() / "land").string() + " --json", false).out)
+             run_imucal_field_cli("calibrate " + (root() / "land").string() + " --json", false).out)
              .at("ains")
              .at("params")
              .dump();
-  const Proc e = run("evaluate " + (root() / "land").string() + " --params " + params.string());
+  const ProcImucalFieldCli e = run_imucal_field_cli("evaluate " + (root() / "land").string() + " --params " + params.string());
   EXPECT_EQ(e.code, 1) << e.out;
   EXPECT_NE(e.out.find("no attitude reference"), std::string::npos) << e.out;
   // The diagnosis works without a table on land (issue #21 item 4: each rest's attitude an
   // unknown) and at sea (the navigation filter's GNSS innovations, the deck moving the unit).
-  const Proc d = run("diagnose " + (root() / "land").string() + " --json", false);
+  const ProcImucalFieldCli d = run_imucal_field_cli("diagnose " + (root() / "land").string() + " --json", false);
   ASSERT_EQ(d.code, 0) << d.out;
   const nlohmann::json j = nlohmann::json::parse(d.out);
   EXPECT_EQ(j.at("verdict"), "consistent") << j.at("summary");
@@ -127,8 +127,8 @@ TEST_F(FieldCli, EvaluateRefusesARunWithoutReferenceAndDiagnoseWorksOnLandAndSea
   EXPECT_EQ(j.at("base_calibration"), "legacy");
   EXPECT_TRUE(j.at("overall").at("simulated_gap").is_null());  // no reference trajectory: no twin
   const fs::path report = root() / "sea-report";
-  const Proc sea =
-      run("diagnose " + (root() / "sea").string() + " --json --report " + report.string(), false);
+  const ProcImucalFieldCli sea =
+      run_imucal_field_cli("diagnose " + (root() / "sea").string() + " --json --report " + report.string(), false);
   ASSERT_EQ(sea.code, 0) << sea.out;
   const nlohmann::json s = nlohmann::json::parse(sea.out);
   EXPECT_EQ(s.at("verdict"), "consistent") << s.at("summary");
@@ -146,7 +146,7 @@ TEST_F(FieldCli, EvaluateRefusesARunWithoutReferenceAndDiagnoseWorksOnLandAndSea
 // Issue #19 item 4: the truth column was in the housing frame while err/σ was computed against the
 // truth in the triad's frame, so a reader checking (est − truth)/σ got a different number.
 TEST_F(FieldCli, LandTruthColumnIsTheOneErrOverSigmaIsMeasuredAgainst) {
-  const Proc p = run("calibrate " + (root() / "land").string(), false);
+  const ProcImucalFieldCli p = run_imucal_field_cli("calibrate " + (root() / "land").string(), false);
   ASSERT_EQ(p.code, 0) << p.out;
   std::istringstream in(p.out);
   std::string line;
@@ -165,18 +165,18 @@ TEST_F(FieldCli, LandTruthColumnIsTheOneErrOverSigmaIsMeasuredAgainst) {
 
 TEST_F(FieldCli, SeaCalibratesWithAinsAlone) {
   // One rule with the station: nothing independent checks a sea result, so it is REVIEW (exit 3).
-  const Proc p = run("calibrate " + (root() / "sea").string() + " --json", false);
+  const ProcImucalFieldCli p = run_imucal_field_cli("calibrate " + (root() / "sea").string() + " --json", false);
   ASSERT_EQ(p.code, 3) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   EXPECT_EQ(j["verdict"], "REVIEW");
   EXPECT_NE(j["unchecked_reason"].get<std::string>().find("AINS alone"), std::string::npos);
-  const Proc t = run("calibrate " + (root() / "sea").string());
+  const ProcImucalFieldCli t = run_imucal_field_cli("calibrate " + (root() / "sea").string());
   EXPECT_NE(t.out.find("verdict: REVIEW — sea: AINS alone"), std::string::npos) << t.out;
   EXPECT_EQ(j["ains"]["setting"], "sea");
   EXPECT_TRUE(j["ains"]["converged"].get<bool>());
   EXPECT_FALSE(j.contains("legacy"));
   EXPECT_FALSE(j.contains("crosscheck"));
-  const Proc l = run("calibrate " + (root() / "sea").string() + " --method legacy");
+  const ProcImucalFieldCli l = run_imucal_field_cli("calibrate " + (root() / "sea").string() + " --method legacy");
   EXPECT_EQ(l.code, 1);
   EXPECT_NE(l.out.find("still platform"), std::string::npos) << l.out;
 }
@@ -191,7 +191,7 @@ TEST_F(FieldCli, GnssTimesOutsideTheImus) {
   const fs::path d = copy("sea", "sea-late-fix");
   std::ofstream(d / "gnss.csv", std::ios::app) << "99999,55.7856,12.5213,0.3\n";
   expect_refused(d, "is outside the IMU's time span");
-  const std::string out = run("calibrate " + d.string()).out;
+  const std::string out = run_imucal_field_cli("calibrate " + d.string()).out;
   EXPECT_NE(out.find("gnss.csv"), std::string::npos) << out;
   EXPECT_NE(out.find("t_s"), std::string::npos) << out;
 }
@@ -216,7 +216,7 @@ TEST_F(FieldCli, UnknownSettingAndFactoryWithoutReference) {
   toml.replace(toml.find("\"land\""), 6, "\"lake\"");
   std::ofstream(d / "run.toml") << toml;
   expect_refused(d, "setting");
-  EXPECT_NE(run("calibrate " + d.string()).out.find("\"factory\", \"land\" or \"sea\""),
+  EXPECT_NE(run_imucal_field_cli("calibrate " + d.string()).out.find("\"factory\", \"land\" or \"sea\""),
             std::string::npos);
   d = copy("land", "factory-noref");
   toml = slurp(d / "run.toml");
@@ -229,7 +229,7 @@ TEST_F(FieldCli, UnknownSettingAndFactoryWithoutReference) {
 // Issue #19 item 5: with two units the "Mean" row set our two-unit mean beside the paper's six-unit
 // one, and the run ended "NOT as in the paper" (exit 3) on a ratio two units cannot judge.
 TEST_F(FieldCli, PaperTablesOnTwoUnitsComparesTheSameImusAndJudgesOnlyWhatItCan) {
-  const Proc p = run("paper-tables --units 2 --seed 3 --json", false);
+  const ProcImucalFieldCli p = run_imucal_field_cli("paper-tables --units 2 --seed 3 --json", false);
   EXPECT_EQ(p.code, 0) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   // The paper's Table I, IMUs 1 and 2: AINS 10.7668 and 20.3281 milli-degrees.
@@ -238,7 +238,7 @@ TEST_F(FieldCli, PaperTablesOnTwoUnitsComparesTheSameImusAndJudgesOnlyWhatItCan)
   EXPECT_EQ(j["paper_mean"]["factory AINS"]["imus"], 2);
   EXPECT_FALSE(j["findings"]["ratio_judged"].get<bool>());
   EXPECT_TRUE(j["findings"]["hold"].get<bool>());
-  const Proc t = run("paper-tables --units 2 --seed 3", false);
+  const ProcImucalFieldCli t = run_imucal_field_cli("paper-tables --units 2 --seed 3", false);
   EXPECT_NE(t.out.find("(Mean: over IMUs 1-2, the paper's over the same IMU numbers)"),
             std::string::npos)
       << t.out;
@@ -247,7 +247,7 @@ TEST_F(FieldCli, PaperTablesOnTwoUnitsComparesTheSameImusAndJudgesOnlyWhatItCan)
 }
 
 TEST_F(FieldCli, PaperTablesOnTwoUnits) {
-  const Proc p = run("paper-tables --units 2 --seed 3 --json", false);
+  const ProcImucalFieldCli p = run_imucal_field_cli("paper-tables --units 2 --seed 3 --json", false);
   ASSERT_TRUE(p.code == 0 || p.code == 3) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   ASSERT_EQ(j["units"].size(), 2u);
@@ -260,7 +260,7 @@ TEST_F(FieldCli, PaperTablesOnTwoUnits) {
   // AINS performs almost identically in the three settings (the paper's finding).
   EXPECT_LE(j["findings"]["ains_orientation_spread"].get<double>(), 0.25);
   EXPECT_LE(j["findings"]["ains_accel_spread"].get<double>(), 0.25);
-  const Proc t = run("paper-tables --units 1 --seed 3");
+  const ProcImucalFieldCli t = run_imucal_field_cli("paper-tables --units 1 --seed 3");
   for (const char* table : {"TABLE I ", "TABLE II ", "TABLE III ", "TABLE IV "})
     EXPECT_NE(t.out.find(table), std::string::npos) << table;
 }
@@ -269,12 +269,12 @@ TEST_F(FieldCli, PaperTablesOnTwoUnits) {
 // a tilt: with it the legacy method is clearly worse on orientation than the factory AINS (and so
 // are the field AINS runs, README § the paper's tables). An unknown effect is refused by name.
 TEST_F(FieldCli, PaperTablesWithOneChosenEffect) {
-  const Proc p = run("paper-tables --units 2 --seed 3 --effects k2 --json", false);
+  const ProcImucalFieldCli p = run_imucal_field_cli("paper-tables --units 2 --seed 3 --effects k2 --json", false);
   ASSERT_TRUE(p.code == 0 || p.code == 3) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   EXPECT_EQ(j["unmodelled_effects"], "k2");
   EXPECT_GT(j["findings"]["legacy_over_ains_orientation"].get<double>(), 1.5);
-  const Proc bad = run("paper-tables --units 1 --effects thermal,bogus");
+  const ProcImucalFieldCli bad = run_imucal_field_cli("paper-tables --units 1 --effects thermal,bogus");
   EXPECT_NE(bad.code, 0);
   EXPECT_NE(bad.out.find("unknown effect 'bogus'"), std::string::npos) << bad.out;
 }

@@ -54,7 +54,7 @@ void write_logger_csv(const db::archive::RunArchive& a, const std::string& path,
   }
 }
 
-calib::core::ParamSet params_of(const nlohmann::json& p) {
+calib::core::ParamSet params_of_imucal_import(const nlohmann::json& p) {
   return db::archive::param_set_from_json(p, "imucal calibrate --json");
 }
 
@@ -111,9 +111,9 @@ TEST(ImucalImport, ALoggersCsvWithJitterCalibratesLikeTheSimulatorsOwnArchive) {
   const nlohmann::json pa = legacy_params(sim), pb = legacy_params(out);
   const calib::core::ParamSet truth = calib::core::to_accel_symmetric_frame(a.truth->params).params;
   const calib::core::ParamVector t = truth.to_vector();
-  const calib::core::ParamVector va = params_of(pa.at("params")).to_vector(),
-                                 vb = params_of(pb.at("params")).to_vector(),
-                                 sa = params_of(pa.at("sigma")).to_vector();
+  const calib::core::ParamVector va = params_of_imucal_import(pa.at("params")).to_vector(),
+                                 vb = params_of_imucal_import(pb.at("params")).to_vector(),
+                                 sa = params_of_imucal_import(pa.at("sigma")).to_vector();
   for (int i = 0; i < 24; ++i) {
     EXPECT_LT(std::abs(va(i) - vb(i)), 0.3 * sa(i)) << calib::core::param_info(i).name;
     EXPECT_LT(std::abs(vb(i) - t(i)), 4.0 * sa(i)) << calib::core::param_info(i).name;

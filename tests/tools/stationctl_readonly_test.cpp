@@ -36,20 +36,20 @@ namespace fs = std::filesystem;
 using db::test::TempDir;
 using nlohmann::json;
 
-struct Proc {
+struct ProcStationctlReadonly {
   int code;
   std::string out;
   std::string err;
 };
 
-std::string slurp(const std::string& path) {
+std::string slurp_stationctl_readonly(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   std::stringstream ss;
   ss << f.rdbuf();
   return ss.str();
 }
 
-std::vector<std::string> lines_of(const std::string& text) {
+std::vector<std::string> lines_of_stationctl_readonly(const std::string& text) {
   std::vector<std::string> out;
   std::stringstream ss(text);
   for (std::string l; std::getline(ss, l);) out.push_back(l);
@@ -92,7 +92,7 @@ class StationctlTest : public ::testing::Test {
   }
 
   /// stationctl with the absent socket and the database, unless `extra` says otherwise.
-  Proc ctl(const std::string& args, const std::string& target = "") {
+  ProcStationctlReadonly ctl(const std::string& args, const std::string& target = "") {
     const std::string err_file = dir_.file("stderr.txt");
     const std::string t =
         target.empty() ? "--socket " + dir_.file("absent.sock") + " --db " + db_ : target;
@@ -104,7 +104,7 @@ class StationctlTest : public ::testing::Test {
     size_t n;
     while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
     const int st = pclose(p);
-    return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out, slurp(err_file)};
+    return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out, slurp_stationctl_readonly(err_file)};
   }
 
   TempDir dir_;
@@ -114,9 +114,9 @@ class StationctlTest : public ::testing::Test {
 // Issue #19 item 11: `history` without a serial was refused ("SN is required"); QA wants the line's
 // newest runs whatever the unit.
 TEST_F(StationctlTest, HistoryWithoutASerialListsEveryUnitsNewestRuns) {
-  const Proc p = ctl("history");
+  const ProcStationctlReadonly p = ctl("history");
   ASSERT_EQ(p.code, 0) << p.err;
-  const auto lines = lines_of(p.out);
+  const auto lines = lines_of_stationctl_readonly(p.out);
   ASSERT_EQ(lines.size(), 8u) << p.out;  // title, header, 6 runs
   EXPECT_NE(lines[0].find("all units"), std::string::npos) << lines[0];
   EXPECT_NE(lines[1].find("SERIAL"), std::string::npos) << lines[1];
@@ -132,11 +132,11 @@ TEST_F(StationctlTest, HistoryWithoutASerialListsEveryUnitsNewestRuns) {
 }
 
 TEST_F(StationctlTest, HistoryFromTheDatabaseIsNewestFirst) {
-  const Proc p = ctl("history SN-A");
+  const ProcStationctlReadonly p = ctl("history SN-A");
   ASSERT_EQ(p.code, 0) << p.err;
   EXPECT_NE(p.err.find("reading the database " + db_ + " read-only"), std::string::npos) << p.err;
   EXPECT_NE(p.err.find("absent.sock"), std::string::npos) << "the note names the socket";
-  const auto lines = lines_of(p.out);
+  const auto lines = lines_of_stationctl_readonly(p.out);
   ASSERT_EQ(lines.size(), 6u) << p.out;               // title, header, 4 runs
   const char* expected[] = {"4 ", "2 ", "3 ", "1 "};  // 13:00, 12:00, 11:00, 10:00
   for (int i = 0; i < 4; ++i)
@@ -146,7 +146,7 @@ TEST_F(StationctlTest, HistoryFromTheDatabaseIsNewestFirst) {
   EXPECT_NE(lines[2].find("operator: wrong fixture"), std::string::npos);
   EXPECT_NE(lines[4].find("REVIEW"), std::string::npos);
 
-  const Proc j = ctl("--json history SN-B");
+  const ProcStationctlReadonly j = ctl("--json history SN-B");
   ASSERT_EQ(j.code, 0) << j.err;
   const json h = json::parse(j.out);
   ASSERT_EQ(h.at("runs").size(), 2u);
@@ -154,28 +154,28 @@ TEST_F(StationctlTest, HistoryFromTheDatabaseIsNewestFirst) {
   EXPECT_EQ(h["runs"][0].at("failure_reason"), "table fault 17");
   EXPECT_EQ(h["runs"][1].at("run_id"), 5);
 
-  const Proc limited = ctl("history SN-A --limit 2 --json");
+  const ProcStationctlReadonly limited = ctl("history SN-A --limit 2 --json");
   ASSERT_EQ(limited.code, 0) << limited.err;
   EXPECT_EQ(json::parse(limited.out).at("runs").size(), 2u);
   const std::size_t total = json::parse(ctl("--json history SN-A").out).at("runs").size();
   ASSERT_GT(total, 2u);
   EXPECT_EQ(json::parse(limited.out).at("total"), total);
   // The text says how many of how many it shows (it said "1 run" of many).
-  const Proc one = ctl("history SN-A --limit 1");
+  const ProcStationctlReadonly one = ctl("history SN-A --limit 1");
   ASSERT_EQ(one.code, 0) << one.err;
   EXPECT_NE(one.out.find("(newest 1 of " + std::to_string(total) + " runs)"), std::string::npos)
       << one.out;
 }
 
 TEST_F(StationctlTest, ShowPrintsTheRunAndItsParameters) {
-  const Proc p = ctl("show 3");
+  const ProcStationctlReadonly p = ctl("show 3");
   ASSERT_EQ(p.code, 0) << p.err;
   EXPECT_EQ(p.out.rfind("Run 3  SN-A  review  verdict REVIEW  (cross-check REVIEW)", 0), 0u)
       << p.out;
   EXPECT_NE(p.out.find("accel_bias_mps2[1]: |Δ| = 12.3 µg"), std::string::npos) << p.out;
   EXPECT_NE(p.out.find("gyro_M[2][2]"), std::string::npos);
 
-  const Proc j = ctl("--json show 2");
+  const ProcStationctlReadonly j = ctl("--json show 2");
   ASSERT_EQ(j.code, 0) << j.err;
   const json s = json::parse(j.out);
   EXPECT_EQ(s.at("run").at("serial"), "SN-A");
@@ -190,7 +190,7 @@ TEST_F(StationctlTest, ShowPrintsTheRunAndItsParameters) {
 // Issue #19 item 9: no internal operation names in messages (was "history.sqlite: show: no run
 // 99").
 TEST_F(StationctlTest, ShowOfAnUnknownRunNamesTheRunAndTheDatabase) {
-  const Proc r = ctl("show 99");
+  const ProcStationctlReadonly r = ctl("show 99");
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("no run 99 in " + db_), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("show:"), std::string::npos) << r.err;
@@ -200,7 +200,7 @@ TEST_F(StationctlTest, ParamsOutputLoadsAsTheStoredActiveSet) {
   // SN-A's latest done+PASS run is run 2 (12:00): the REVIEW at 11:00 and the abort at 13:00 do
   // not count. Its AINS set (seed 2, method 0) is the active one.
   for (const char* flags : {"", "--json "}) {
-    const Proc p = ctl(std::string(flags) + "params SN-A");
+    const ProcStationctlReadonly p = ctl(std::string(flags) + "params SN-A");
     ASSERT_EQ(p.code, 0) << p.err;
     const std::string file = dir_.file("params.json");
     std::ofstream(file) << p.out;
@@ -213,15 +213,15 @@ TEST_F(StationctlTest, ParamsOutputLoadsAsTheStoredActiveSet) {
 
 TEST_F(StationctlTest, ExportCsvAndJson) {
   // All: PASS/REVIEW runs have 2 rows (ains, nlsq), aborted/failed runs 1 -> 4*2 + 2 = 10 rows.
-  const Proc csv = ctl("export --format csv");
+  const ProcStationctlReadonly csv = ctl("export --format csv");
   ASSERT_EQ(csv.code, 0) << csv.err;
-  auto lines = lines_of(csv.out);
+  auto lines = lines_of_stationctl_readonly(csv.out);
   ASSERT_EQ(lines.size(), 11u);
   EXPECT_EQ(lines[0].rfind("run_id,serial,state,verdict,", 0), 0u);
   // Oldest first: SN-B's 09:00 run.
   EXPECT_EQ(lines[1].rfind("5,SN-B,done,PASS,", 0), 0u) << lines[1];
 
-  const Proc js = ctl("export --serial SN-A --since 2024-05-01T11:30:00Z --format json");
+  const ProcStationctlReadonly js = ctl("export --serial SN-A --since 2024-05-01T11:30:00Z --format json");
   ASSERT_EQ(js.code, 0) << js.err;
   const json arr = json::parse(js.out);
   ASSERT_EQ(arr.size(), 3u);  // run 2 (two methods) and run 4
@@ -230,11 +230,11 @@ TEST_F(StationctlTest, ExportCsvAndJson) {
   EXPECT_TRUE(arr[2].at("calibration").is_null());
 
   const std::string out_file = dir_.file("export.csv");
-  const Proc to_file = ctl("export --serial SN-B --format csv --output " + out_file);
+  const ProcStationctlReadonly to_file = ctl("export --serial SN-B --format csv --output " + out_file);
   ASSERT_EQ(to_file.code, 0) << to_file.err;
   EXPECT_TRUE(to_file.out.empty());
   EXPECT_NE(to_file.err.find("3 rows written to " + out_file), std::string::npos) << to_file.err;
-  EXPECT_EQ(lines_of(slurp(out_file)).size(), 4u);
+  EXPECT_EQ(lines_of_stationctl_readonly(slurp_stationctl_readonly(out_file)).size(), 4u);
 }
 
 /// The file type of a path, not following a final symbolic link.
@@ -247,7 +247,7 @@ mode_t lstat_type(const std::string& path) {
 // a regular file ("12 rows written", exit 0) and a named pipe and a symbolic link were replaced.
 TEST_F(StationctlTest, ExportOutputWritesDevicesAndPipesInPlaceAndFollowsLinks) {
   const std::string rows = ctl("export --serial SN-B --format csv").out;
-  ASSERT_EQ(lines_of(rows).size(), 4u);
+  ASSERT_EQ(lines_of_stationctl_readonly(rows).size(), 4u);
 
   // A full device: the write error with its reason, exit non-zero, the device still a device. As
   // root (CI) a device node of our own (the same major/minor as /dev/full) keeps /dev untouched.
@@ -256,7 +256,7 @@ TEST_F(StationctlTest, ExportOutputWritesDevicesAndPipesInPlaceAndFollowsLinks) 
     full = dir_.file("full");
     ASSERT_EQ(::mknod(full.c_str(), S_IFCHR | 0666, makedev(1, 7)), 0) << std::strerror(errno);
   }
-  const Proc to_full = ctl("export --serial SN-B --format csv --output " + full);
+  const ProcStationctlReadonly to_full = ctl("export --serial SN-B --format csv --output " + full);
   EXPECT_NE(to_full.code, 0) << to_full.err;
   EXPECT_NE(to_full.err.find("cannot write " + full + ": No space left on device"),
             std::string::npos)
@@ -272,7 +272,7 @@ TEST_F(StationctlTest, ExportOutputWritesDevicesAndPipesInPlaceAndFollowsLinks) 
     std::ifstream in(fifo, std::ios::binary);  // blocks until stationctl opens the pipe
     from_pipe.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
   });
-  const Proc to_fifo = ctl("export --serial SN-B --format csv --output " + fifo);
+  const ProcStationctlReadonly to_fifo = ctl("export --serial SN-B --format csv --output " + fifo);
   reader.join();
   EXPECT_EQ(to_fifo.code, 0) << to_fifo.err;
   EXPECT_EQ(from_pipe, rows);
@@ -284,37 +284,37 @@ TEST_F(StationctlTest, ExportOutputWritesDevicesAndPipesInPlaceAndFollowsLinks) 
   { std::ofstream(target) << "old content\n"; }
   ASSERT_EQ(::chmod(target.c_str(), 0640), 0);
   fs::create_symlink("target.csv", link);
-  const Proc to_link = ctl("export --serial SN-B --format csv --output " + link);
+  const ProcStationctlReadonly to_link = ctl("export --serial SN-B --format csv --output " + link);
   EXPECT_EQ(to_link.code, 0) << to_link.err;
   EXPECT_EQ(lstat_type(link), static_cast<mode_t>(S_IFLNK));
-  EXPECT_EQ(slurp(target), rows);
+  EXPECT_EQ(slurp_stationctl_readonly(target), rows);
   EXPECT_EQ(fs::status(target).permissions() & fs::perms::all,
             fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
   const std::string dangling = dir_.file("dangling.csv");
   fs::create_symlink("created.csv", dangling);
-  const Proc to_dangling = ctl("export --serial SN-B --format csv --output " + dangling);
+  const ProcStationctlReadonly to_dangling = ctl("export --serial SN-B --format csv --output " + dangling);
   EXPECT_EQ(to_dangling.code, 0) << to_dangling.err;
   EXPECT_EQ(lstat_type(dangling), static_cast<mode_t>(S_IFLNK));
-  EXPECT_EQ(slurp(dir_.file("created.csv")), rows);
+  EXPECT_EQ(slurp_stationctl_readonly(dir_.file("created.csv")), rows);
 
   // /dev/stdout is the process's own standard output (here the test's pipe).
-  const Proc to_stdout = ctl("export --serial SN-B --format csv --output /dev/stdout");
+  const ProcStationctlReadonly to_stdout = ctl("export --serial SN-B --format csv --output /dev/stdout");
   EXPECT_EQ(to_stdout.code, 0) << to_stdout.err;
   EXPECT_EQ(to_stdout.out, rows);
 
   // Refused before anything is written, naming the user's path (never a temporary file) and the
   // system's reason; nothing left beside it.
-  const Proc to_dir = ctl("export --serial SN-B --format csv --output " + dir_.path());
+  const ProcStationctlReadonly to_dir = ctl("export --serial SN-B --format csv --output " + dir_.path());
   EXPECT_NE(to_dir.code, 0);
   EXPECT_NE(to_dir.err.find("cannot write " + dir_.path() + ": it is a directory"),
             std::string::npos)
       << to_dir.err;
-  const Proc to_proc = ctl("export --serial SN-B --format csv --output /proc/nope.csv");
+  const ProcStationctlReadonly to_proc = ctl("export --serial SN-B --format csv --output /proc/nope.csv");
   EXPECT_NE(to_proc.code, 0);
   EXPECT_NE(to_proc.err.find("cannot write /proc/nope.csv: "), std::string::npos) << to_proc.err;
   EXPECT_EQ(to_proc.err.find("tmp"), std::string::npos) << to_proc.err;
   const std::string missing_dir = dir_.file("no-such-dir") + "/x.csv";
-  const Proc to_missing = ctl("export --serial SN-B --format csv --output " + missing_dir);
+  const ProcStationctlReadonly to_missing = ctl("export --serial SN-B --format csv --output " + missing_dir);
   EXPECT_NE(to_missing.code, 0);
   EXPECT_NE(to_missing.err.find("cannot write " + missing_dir + ": No such file or directory"),
             std::string::npos)
@@ -325,7 +325,7 @@ TEST_F(StationctlTest, ExportOutputWritesDevicesAndPipesInPlaceAndFollowsLinks) 
 }
 
 TEST_F(StationctlTest, BadInputExitsWithTwo) {
-  Proc p = ctl("history 'bad serial'");
+  ProcStationctlReadonly p = ctl("history 'bad serial'");
   EXPECT_EQ(p.code, 2) << p.err;
   EXPECT_NE(p.err.find("serial number \"bad serial\""), std::string::npos) << p.err;
   EXPECT_NE(p.err.find("1 to 32 characters"), std::string::npos) << "states the rule: " << p.err;
@@ -359,24 +359,24 @@ TEST_F(StationctlTest, ControlCommandsWithoutTheDaemonExitWithFour) {
   const std::string sock = dir_.file("absent.sock");
   for (const char* args : {"run start --serial SIM-0001", "run abort", "reprocess 1",
                            "run start --serial SIM-0001 --wait", "run status"}) {
-    const Proc p = ctl(args);
+    const ProcStationctlReadonly p = ctl(args);
     EXPECT_EQ(p.code, 4) << args << ": " << p.err;
     EXPECT_NE(p.err.find("cannot connect to stationd at " + sock), std::string::npos)
         << args << ": " << p.err;
     EXPECT_TRUE(p.out.empty()) << args;
   }
   // A run's state is a read: it comes from the database.
-  const Proc s = ctl("run status --run 4");
+  const ProcStationctlReadonly s = ctl("run status --run 4");
   ASSERT_EQ(s.code, 0) << s.err;
   EXPECT_NE(s.out.find("run 4 SN-A: aborted"), std::string::npos) << s.out;
   EXPECT_NE(s.out.find("operator: wrong fixture"), std::string::npos) << s.out;
 
   // Neither daemon nor database: a read cannot be answered.
-  const Proc none = ctl("history SN-A", "--socket " + sock + " --db ''");
+  const ProcStationctlReadonly none = ctl("history SN-A", "--socket " + sock + " --db ''");
   EXPECT_EQ(none.code, 4) << none.err;
   EXPECT_NE(none.err.find("give --db or --config"), std::string::npos) << none.err;
   // A database that is not there is an error, never created by a read.
-  const Proc missing = ctl("history SN-A", "--socket " + sock + " --db " + dir_.file("no.sqlite"));
+  const ProcStationctlReadonly missing = ctl("history SN-A", "--socket " + sock + " --db " + dir_.file("no.sqlite"));
   EXPECT_EQ(missing.code, 4) << missing.err;
   EXPECT_NE(missing.err.find("no.sqlite"), std::string::npos) << missing.err;
   EXPECT_FALSE(fs::exists(dir_.file("no.sqlite")));
@@ -389,14 +389,14 @@ TEST_F(StationctlTest, ConfigFileGivesSocketAndDatabase) {
   fs::copy_file(std::string(IMUCAL_SOURCE_DIR) + "/station/config/stationd.example.toml",
                 conf_dir + "/stationd.toml");
   fs::copy_file(db_, conf_dir + "/data/history.sqlite");
-  const Proc p = ctl("history SN-B --json", "--config " + conf_dir + "/stationd.toml");
+  const ProcStationctlReadonly p = ctl("history SN-B --json", "--config " + conf_dir + "/stationd.toml");
   ASSERT_EQ(p.code, 0) << p.err;
   EXPECT_EQ(json::parse(p.out).at("runs").size(), 2u);
   EXPECT_NE(p.err.find(conf_dir + "/stationd.sock"), std::string::npos) << p.err;
   EXPECT_NE(p.err.find(conf_dir + "/data/history.sqlite"), std::string::npos) << p.err;
 
   std::ofstream(conf_dir + "/broken.toml") << "[station]\nname = 5\n";
-  const Proc bad = ctl("history SN-B", "--config " + conf_dir + "/broken.toml");
+  const ProcStationctlReadonly bad = ctl("history SN-B", "--config " + conf_dir + "/broken.toml");
   EXPECT_EQ(bad.code, 2) << bad.err;
   EXPECT_NE(bad.err.find("broken.toml:2"), std::string::npos) << bad.err;
 }
@@ -474,8 +474,8 @@ TEST_F(StationctlLive, SocketAndFallbackPrintTheSame) {
   for (const char* args :
        {"history SN-A", "--json history SN-A", "show 3", "--json show 1", "params SN-A",
         "export --format csv", "export --format json", "history SN-B --limit 1"}) {
-    const Proc via_socket = ctl(args, live_target());
-    const Proc via_db = ctl(args);
+    const ProcStationctlReadonly via_socket = ctl(args, live_target());
+    const ProcStationctlReadonly via_db = ctl(args);
     ASSERT_EQ(via_socket.code, 0) << args << ": " << via_socket.err;
     ASSERT_EQ(via_db.code, 0) << args << ": " << via_db.err;
     EXPECT_EQ(via_socket.out, via_db.out) << args;
@@ -489,11 +489,11 @@ TEST_F(StationctlLive, SocketAndFallbackPrintTheSame) {
 
 TEST_F(StationctlLive, WaitFollowsTheRunToPass) {
   serve(script_ending("done", "PASS", ""));
-  const Proc p = ctl("run start --serial SIM-0001 --sequence short --wait", live_target());
+  const ProcStationctlReadonly p = ctl("run start --serial SIM-0001 --sequence short --wait", live_target());
   EXPECT_EQ(p.code, 0) << p.err;
   EXPECT_EQ(p.out, "run 41 SIM-0001: done, verdict PASS\n");
   // Not a TTY: one line per change of state, phase or step (the 19 s repeat is not shown).
-  const auto lines = lines_of(p.err);
+  const auto lines = lines_of_stationctl_readonly(p.err);
   const std::vector<std::string> expected = {
       "run 41 started: SIM-0001",
       "run 41 SIM-0001: step 0/3 homing, 30 s left",
@@ -506,7 +506,7 @@ TEST_F(StationctlLive, WaitFollowsTheRunToPass) {
 
 TEST_F(StationctlLive, WaitExitsOneWhenTheRunDoesNotPass) {
   serve(script_ending("review", "REVIEW", "gyro_M[0][0]: |Δ| = 90 ppm > 4σ bound 40 ppm"));
-  const Proc p = ctl("--json run start --serial SIM-0001 --wait", live_target());
+  const ProcStationctlReadonly p = ctl("--json run start --serial SIM-0001 --wait", live_target());
   EXPECT_EQ(p.code, 1) << p.err;
   const json r = json::parse(p.out);
   EXPECT_EQ(r.at("run").at("state"), "review");
@@ -515,17 +515,17 @@ TEST_F(StationctlLive, WaitExitsOneWhenTheRunDoesNotPass) {
 
 TEST_F(StationctlLive, RefusalsExitWithThree) {
   serve(script_ending("done", "PASS", ""));
-  const Proc p = ctl("run start --serial SIM-BUSY", live_target());
+  const ProcStationctlReadonly p = ctl("run start --serial SIM-BUSY", live_target());
   EXPECT_EQ(p.code, 3) << p.err;
   EXPECT_NE(p.err.find("run 40 (SIM-0040) is running; one run at a time"), std::string::npos)
       << p.err;
-  const Proc s = ctl("run start --serial SIM-0002", live_target());
+  const ProcStationctlReadonly s = ctl("run start --serial SIM-0002", live_target());
   EXPECT_EQ(s.code, 0) << s.err;
   EXPECT_EQ(s.out, "run 41 started: SIM-0002, sequence short, 3 steps\n");
-  const Proc r = ctl("reprocess 2", live_target());
+  const ProcStationctlReadonly r = ctl("reprocess 2", live_target());
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.out, "run 42 reprocesses run 2\n");
-  const Proc st = ctl("run status", live_target());
+  const ProcStationctlReadonly st = ctl("run status", live_target());
   EXPECT_EQ(st.code, 0) << st.err;
   EXPECT_NE(st.out.find("No active run."), std::string::npos) << st.out;
 }
@@ -539,7 +539,7 @@ TEST_F(StationctlLive, LosingTheDaemonWhileWaitingExitsFour) {
     std::this_thread::sleep_for(std::chrono::milliseconds(700));
     server_->stop();
   });
-  const Proc p = ctl("run start --serial SIM-0001 --wait", live_target());
+  const ProcStationctlReadonly p = ctl("run start --serial SIM-0001 --wait", live_target());
   stopper.join();
   EXPECT_EQ(p.code, 4) << p.err;
   EXPECT_NE(p.err.find("while waiting for run 41: stationd closed the connection"),
@@ -566,15 +566,15 @@ TEST_F(StationctlLive, CtrlCStopsFollowingNotTheRun) {
   ASSERT_EQ(posix_spawn(&pid, bin.c_str(), &actions, nullptr, argv.data(), environ), 0);
   posix_spawn_file_actions_destroy(&actions);
   // Wait until it follows (its first progress line), then interrupt.
-  for (int i = 0; i < 200 && slurp(err_file).find("resting") == std::string::npos; ++i)
+  for (int i = 0; i < 200 && slurp_stationctl_readonly(err_file).find("resting") == std::string::npos; ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   ::kill(pid, SIGINT);
   int status = 0;
   ASSERT_EQ(::waitpid(pid, &status, 0), pid);
   ASSERT_TRUE(WIFEXITED(status)) << "killed by the signal instead of handling it";
   EXPECT_EQ(WEXITSTATUS(status), 130);
-  EXPECT_NE(slurp(err_file).find("stopped following run 41; the run goes on"), std::string::npos)
-      << slurp(err_file);
+  EXPECT_NE(slurp_stationctl_readonly(err_file).find("stopped following run 41; the run goes on"), std::string::npos)
+      << slurp_stationctl_readonly(err_file);
 }
 
 }  // namespace

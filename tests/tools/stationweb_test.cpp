@@ -589,7 +589,7 @@ std::string console_of(const std::string& url, const std::string& log, std::stri
   return console;
 }
 
-std::pair<int, int> png_size(const std::string& png) {
+std::pair<int, int> png_size_stationweb(const std::string& png) {
   if (png.size() < 24 || png.compare(1, 3, "PNG") != 0) return {0, 0};
   auto be = [&](std::size_t o) {
     return (static_cast<unsigned char>(png[o]) << 24) |
@@ -635,7 +635,7 @@ TEST_F(StationwebTest, ChromiumRendersTheUnitAndFleetPagesWithoutConsoleMessages
     std::ifstream f(shot, std::ios::binary);
     std::stringstream png;
     png << f.rdbuf();
-    EXPECT_EQ(png_size(png.str()), (std::pair<int, int>{1200, 1600})) << shot;
+    EXPECT_EQ(png_size_stationweb(png.str()), (std::pair<int, int>{1200, 1600})) << shot;
     // A blank page compresses to a few kB; the rendered tables and pictures are far larger.
     EXPECT_GT(png.str().size(), 60000u) << shot;
   }
