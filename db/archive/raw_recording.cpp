@@ -1,10 +1,13 @@
 #include "db/archive/raw_recording.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <functional>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string_view>
@@ -20,7 +23,10 @@ struct Rows {
   std::vector<double> values;
   std::vector<std::size_t> line;
   std::size_t num_cols = 0;
-  std::size_t header_lines = 0;
+  std::size_t header_lines = 0;      ///< lines before the data skipped (preamble and header)
+  std::vector<std::string> columns;  ///< what each column is (from the decision at the first row)
+  std::string columns_from;
+  bool decimal_comma = false;
   std::string source;  ///< the file, for errors found after reading
   std::size_t size() const { return line.size(); }
   double at(std::size_t r, std::size_t c) const { return values[r * num_cols + c]; }
@@ -32,6 +38,21 @@ bool parse_number(std::string_view s, double& out) {
   return ec == std::errc() && end == s.data() + s.size() && std::isfinite(out);
 }
 
+/// A cell of a line split at semicolons may carry one decimal comma ("9,81"); `used` says so.
+bool parse_cell(std::string_view s, bool semicolon_line, double& out, bool& used) {
+  if (parse_number(s, out)) return true;
+  const std::size_t comma = s.find(',');
+  if (!semicolon_line || comma == std::string_view::npos ||
+      s.find_first_of(".,", comma + 1) != std::string_view::npos ||
+      s.find('.') != std::string_view::npos)
+    return false;
+  std::string dotted(s);
+  dotted[comma] = '.';
+  if (!parse_number(dotted, out)) return false;
+  used = true;
+  return true;
+}
+
 std::string_view trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
   while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r'))
@@ -39,13 +60,17 @@ std::string_view trim(std::string_view s) {
   return s;
 }
 
-/// Cells of one line: split at commas or semicolons if it has any, else at runs of whitespace.
+/// Cells of one line: split at semicolons if it has any (its cells may then hold decimal commas),
+/// else at commas if it has any, else at runs of whitespace.
 std::vector<std::string_view> split_cells(std::string_view line) {
   std::vector<std::string_view> cells;
-  if (line.find_first_of(",;") != std::string_view::npos) {
+  const char sep = line.find(';') != std::string_view::npos   ? ';'
+                   : line.find(',') != std::string_view::npos ? ','
+                                                              : '\0';
+  if (sep != '\0') {
     std::size_t start = 0;
     for (std::size_t i = 0; i <= line.size(); ++i)
-      if (i == line.size() || line[i] == ',' || line[i] == ';') {
+      if (i == line.size() || line[i] == sep) {
         cells.push_back(trim(line.substr(start, i - start)));
         start = i + 1;
       }
@@ -61,55 +86,143 @@ std::vector<std::string_view> split_cells(std::string_view line) {
   return cells;
 }
 
+/// One line's cells, read as numbers where they are.
+struct ParsedLine {
+  std::vector<std::string_view> cells;
+  std::vector<double> values;
+  std::size_t first_bad =
+      0;  ///< index of the first cell that is not a number; cells.size() if none
+  std::size_t numbers = 0;
+  bool comma_used = false;
+  bool all_numbers() const { return first_bad == cells.size(); }
+  bool all_text() const { return numbers == 0; }
+};
+
+ParsedLine parse_line(std::string_view line) {
+  ParsedLine p;
+  p.cells = split_cells(line);
+  p.values.resize(p.cells.size());
+  p.first_bad = p.cells.size();
+  const bool semicolons = line.find(';') != std::string_view::npos;
+  for (std::size_t c = 0; c < p.cells.size(); ++c) {
+    if (parse_cell(p.cells[c], semicolons, p.values[c], p.comma_used))
+      ++p.numbers;
+    else if (p.first_bad == p.cells.size())
+      p.first_bad = c;
+  }
+  return p;
+}
+
+std::string joined(const std::vector<std::string>& names) {
+  std::string list;
+  for (const auto& n : names) list += (list.empty() ? "" : ",") + n;
+  return list;
+}
+
 std::string column_label(std::size_t c, const std::vector<std::string>& names) {
   return std::to_string(c + 1) + (c < names.size() && names[c] != "-" ? " (" + names[c] + ")" : "");
 }
 
-/// The rows of `f`; `path` names it in errors.
-Rows read_rows(std::istream& f, const std::string& path, std::size_t num_cols,
-               const std::vector<std::string>& names) {
+[[noreturn]] void throw_bad_cell(const std::string& path, std::size_t line_no, const ParsedLine& p,
+                                 const std::vector<std::string>& names) {
+  const std::string_view cell = p.cells[p.first_bad];
+  throw ArchiveError::column_error(
+      path, line_no, column_label(p.first_bad, names),
+      cell.empty() ? "empty cell" : "'" + std::string(cell) + "' is not a finite decimal number");
+}
+
+/// What the columns are, decided at the first data row from the header (its cells; empty if none)
+/// and that row's cell count; throws naming `line_no` if they cannot be.
+struct ColumnDecision {
+  std::vector<std::string> columns;
+  std::string from;
+};
+using DecideColumns =
+    std::function<ColumnDecision(const std::vector<std::string>& header, std::size_t header_line,
+                                 std::size_t cells, std::size_t line_no)>;
+
+/// A line before the first data row that may still turn out to be a bad data row.
+struct PendingLine {
+  std::size_t line_no = 0;
+  ParsedLine parsed;
+  std::string text;  ///< the line's own text (parsed's cells view into it)
+};
+
+/// The lines before the first data row: preamble and header lines are skipped; one with the
+/// data's cell count and some cells numbers is a bad data row.
+void settle_preamble(std::vector<PendingLine>& pending, std::size_t data_cells,
+                     const std::string& path, Rows& rows, std::vector<std::string>& header,
+                     std::size_t& header_line) {
+  for (PendingLine& p : pending) {
+    p.parsed = parse_line(trim(p.text));
+    if (p.parsed.cells.size() == data_cells && !p.parsed.all_text())
+      throw_bad_cell(path, p.line_no, p.parsed, {});
+    if (p.parsed.cells.size() == data_cells) {
+      header.assign(p.parsed.cells.begin(), p.parsed.cells.end());
+      header_line = p.line_no;
+    }
+  }
+  rows.header_lines += pending.size();
+}
+
+/// The rows of `f`; `path` names it in errors. A data row holds at least `min_cells` cells (a
+/// preamble's "key,value" line of numbers holds fewer).
+Rows read_rows(std::istream& f, const std::string& path, std::size_t skip_lines,
+               std::size_t min_cells, const DecideColumns& decide) {
   Rows rows;
-  rows.num_cols = num_cols;
   rows.source = path;
+  std::vector<PendingLine> pending;
   std::string text;
   std::size_t line_no = 0;
   while (std::getline(f, text)) {
     ++line_no;
-    const std::string_view line = trim(text);
-    if (line.empty() || line.front() == '#' || line.front() == '%') continue;
-    const std::vector<std::string_view> cells = split_cells(line);
-    std::vector<double> row(cells.size());
-    std::size_t bad = cells.size();
-    for (std::size_t c = 0; c < cells.size() && bad == cells.size(); ++c)
-      if (!parse_number(cells[c], row[c])) bad = c;
-    if (bad < cells.size() && rows.size() == 0 && rows.header_lines == 0) {
-      rows.header_lines = 1;  // a header: the first line with a cell that is not a number
+    if (line_no <= skip_lines) {
+      ++rows.header_lines;
       continue;
     }
-    if (cells.size() != num_cols)
+    const std::string_view line = trim(text);
+    if (line.empty() || line.front() == '#' || line.front() == '%') continue;
+    const ParsedLine p = parse_line(line);
+    if (rows.size() == 0 && !(p.all_numbers() && p.cells.size() >= min_cells)) {
+      pending.push_back({line_no, {}, text});
+      continue;
+    }
+    if (rows.size() == 0) {
+      std::vector<std::string> header;
+      std::size_t header_line = 0;
+      settle_preamble(pending, p.cells.size(), path, rows, header, header_line);
+      ColumnDecision d = decide(header, header_line, p.cells.size(), line_no);
+      rows.columns = std::move(d.columns);
+      rows.columns_from = std::move(d.from);
+      rows.num_cols = rows.columns.size();
+    }
+    if (p.cells.size() != rows.num_cols)
       throw ArchiveError(
           path, line_no,
-          std::to_string(cells.size()) + " columns, expected " + std::to_string(num_cols));
-    if (bad < cells.size())
-      throw ArchiveError::column_error(
-          path, line_no, column_label(bad, names),
-          cells[bad].empty() ? "empty cell"
-                             : "'" + std::string(cells[bad]) + "' is not a finite decimal number");
-    rows.values.insert(rows.values.end(), row.begin(), row.end());
+          std::to_string(p.cells.size()) + " columns, expected " + std::to_string(rows.num_cols));
+    if (!p.all_numbers()) throw_bad_cell(path, line_no, p, rows.columns);
+    rows.decimal_comma = rows.decimal_comma || p.comma_used;
+    rows.values.insert(rows.values.end(), p.values.begin(), p.values.end());
     rows.line.push_back(line_no);
   }
   if (f.bad()) throw ArchiveError(path, "read error");
+  if (rows.size() == 0)  // no data row at all: the first line that looks like a bad one says why
+    for (PendingLine& p : pending) {
+      p.parsed = parse_line(trim(p.text));
+      if (p.parsed.cells.size() >= min_cells && !p.parsed.all_text())
+        throw_bad_cell(path, p.line_no, p.parsed, {});
+    }
   if (rows.size() < 2)
     throw ArchiveError(
         path, std::to_string(rows.size()) + " data rows: a recording needs at least two samples");
   return rows;
 }
 
-Rows read_rows(const std::string& path, std::size_t num_cols,
-               const std::vector<std::string>& names) {
+Rows read_rows(const std::string& path, std::size_t skip_lines, std::size_t min_cells,
+               const DecideColumns& decide) {
   std::ifstream f(path);
   if (!f) throw ArchiveError(path, std::string("cannot open: ") + std::strerror(errno));
-  return read_rows(f, path, num_cols, names);
+  return read_rows(f, path, skip_lines, min_cells, decide);
 }
 
 /// The uniform grid t_k = t0 + k T fitted to the stamps (least squares), after checking that
@@ -189,6 +302,8 @@ Eigen::Vector3d scaled(const Rows& rows, std::size_t r, const std::size_t cols[3
 void check_options(const RawImportOptions& o) {
   if (!(std::isfinite(o.seconds_per_time_unit) && o.seconds_per_time_unit > 0.0))
     throw std::invalid_argument("the time unit must be a positive number of seconds");
+  if (!(std::isfinite(o.rate_hz) && o.rate_hz >= 0.0))
+    throw std::invalid_argument("the sample rate must be a positive number of Hz");
   for (const RawAxisScale* s : {&o.gyro, &o.accel})
     if (!s->scale.allFinite() || !s->offset.allFinite() || (s->scale.array() == 0.0).any())
       throw std::invalid_argument("scales must be finite and non-zero, offsets finite");
@@ -222,21 +337,84 @@ RawRecording assemble(const Rows& g, const std::size_t gcols[3], const Rows& a,
 
 namespace {
 
-/// Each of t, gx, gy, gz, ax, ay, az exactly once, "-" for the columns to ignore, nothing else.
+/// Each sensor name exactly once, "t" at most once, "-" for the columns to ignore, nothing else.
 void check_raw_columns(const std::vector<std::string>& cols) {
   auto fail = [&](const std::string& what) {
-    std::string list;
-    for (const auto& c : cols) list += (list.empty() ? "" : ",") + c;
-    throw std::invalid_argument("columns \"" + list + "\": " + what +
+    throw std::invalid_argument("columns \"" + joined(cols) + "\": " + what +
                                 " (names: t, gx, gy, gz, ax, ay, az, - to ignore a column)");
   };
-  for (const char* need : {"t", "gx", "gy", "gz", "ax", "ay", "az"})
+  for (const char* need : {"gx", "gy", "gz", "ax", "ay", "az"})
     if (std::count(cols.begin(), cols.end(), need) != 1)
       fail(std::string("'") + need + "' must appear exactly once");
+  if (std::count(cols.begin(), cols.end(), "t") > 1) fail("'t' must appear at most once");
   const std::vector<std::string> known = {"-", "t", "gx", "gy", "gz", "ax", "ay", "az"};
   for (const std::string& name : cols)
     if (std::find(known.begin(), known.end(), name) == known.end())
       fail("unknown name '" + name + "'");
+}
+
+/// A header cell's column name if it is a recognisable one ("" if not): case aside, a unit in
+/// brackets or after a last '_' ("gx_dps", "acc_x [g]", "t_ms") aside.
+std::string recognised_name(std::string_view cell) {
+  static const std::vector<std::pair<std::string, std::vector<std::string>>> kAliases = {
+      {"t", {"t", "time", "timestamp", "stamp", "ts"}},
+      {"gx", {"gx", "gyro_x", "gyr_x", "gyrox", "gyrx", "wx", "w_x", "omega_x", "gyroscope_x"}},
+      {"gy", {"gy", "gyro_y", "gyr_y", "gyroy", "gyry", "wy", "w_y", "omega_y", "gyroscope_y"}},
+      {"gz", {"gz", "gyro_z", "gyr_z", "gyroz", "gyrz", "wz", "w_z", "omega_z", "gyroscope_z"}},
+      {"ax", {"ax", "acc_x", "accel_x", "accx", "a_x", "accelerometer_x"}},
+      {"ay", {"ay", "acc_y", "accel_y", "accy", "a_y", "accelerometer_y"}},
+      {"az", {"az", "acc_z", "accel_z", "accz", "a_z", "accelerometer_z"}}};
+  std::string name;
+  for (char c : cell.substr(0, cell.find_first_of("[( ")))
+    name += static_cast<char>(std::tolower(c));
+  for (int pass = 0; pass < 2; ++pass) {
+    for (const auto& [column, aliases] : kAliases)
+      if (std::find(aliases.begin(), aliases.end(), name) != aliases.end()) return column;
+    const std::size_t last = name.rfind('_');
+    if (last == std::string::npos) break;
+    name.resize(last);  // a unit suffix: "gx_dps" -> "gx"
+  }
+  return "";
+}
+
+/// The columns a header names, if it names every sensor channel once ("-" for the others).
+std::optional<std::vector<std::string>> header_columns(const std::vector<std::string>& header) {
+  std::vector<std::string> cols;
+  for (const std::string& cell : header) {
+    const std::string name = recognised_name(cell);
+    cols.push_back(name.empty() || std::count(cols.begin(), cols.end(), name) ? "-" : name);
+  }
+  for (const char* need : {"gx", "gy", "gz", "ax", "ay", "az"})
+    if (std::count(cols.begin(), cols.end(), need) != 1) return std::nullopt;
+  return cols;
+}
+
+/// One file's columns at its first data row: given, else the header's, else the default; a
+/// recognisable header that contradicts the given columns is an error naming both.
+ColumnDecision decide_columns(const RawImportOptions& o, const std::string& path,
+                              const std::vector<std::string>& header, std::size_t header_line,
+                              std::size_t cells, std::size_t line_no) {
+  const auto named = header_columns(header);
+  ColumnDecision d;
+  if (!o.columns.empty()) {
+    d = {o.columns, "given"};
+    if (named && *named != o.columns)
+      throw ArchiveError(path, header_line,
+                         "the header names the columns " + joined(*named) +
+                             " but the columns given are " + joined(o.columns) +
+                             ": drop the given columns to follow the header, or correct one");
+  } else if (named) {
+    d = {*named, "header"};
+  } else {
+    d.columns = {"t", "gx", "gy", "gz", "ax", "ay", "az"};
+    if (o.rate_hz > 0.0 && cells == 6) d.columns.erase(d.columns.begin());
+    d.from = "default";
+  }
+  if (cells != d.columns.size())
+    throw ArchiveError(path, line_no,
+                       std::to_string(cells) + " columns, expected " +
+                           std::to_string(d.columns.size()) + " (" + joined(d.columns) + ")");
+  return d;
 }
 
 }  // namespace
@@ -251,50 +429,101 @@ std::vector<std::string> parse_raw_columns(const std::string& text) {
 
 namespace {
 
-RawRecording one_file(const Rows& rows, const std::vector<std::string>& cols,
-                      const std::string& path, const RawImportOptions& o) {
+/// The grid of a recording without a time column: its sample rate alone.
+Grid rate_grid(double rate_hz) {
+  Grid g;
+  g.T = 1.0 / rate_hz;
+  return g;
+}
+
+/// The stamps' grid, checked against a given sample rate (2 %).
+Grid stamped_grid(const std::vector<double>& t, const Rows& rows, const std::string& path,
+                  double rate_hz) {
+  const Grid g = fit_grid(t, rows, path);
+  if (rate_hz > 0.0 && std::abs(1.0 / g.T - rate_hz) > 0.02 * rate_hz)
+    throw ArchiveError(path, "the time stamps give " + fmt_s(1.0 / g.T) +
+                                 " Hz, the rate given is " + fmt_s(rate_hz) +
+                                 " Hz: check the time unit or the rate");
+  return g;
+}
+
+RawRecording one_file(const Rows& rows, const std::string& path, const RawImportOptions& o) {
+  const std::vector<std::string>& cols = rows.columns;
   auto index = [&](const char* name) {
     return static_cast<std::size_t>(std::find(cols.begin(), cols.end(), name) - cols.begin());
   };
   const std::size_t tc = index("t");
-  std::vector<double> t(rows.size());
-  for (std::size_t k = 0; k < rows.size(); ++k) t[k] = rows.at(k, tc) * o.seconds_per_time_unit;
-  const Grid grid = fit_grid(t, rows, path);
+  Grid grid;
+  if (tc == cols.size()) {
+    if (!(o.rate_hz > 0.0))
+      throw ArchiveError(path, "no time column (columns " + joined(cols) +
+                                   "): give the sensor's sample rate (--rate HZ)");
+    grid = rate_grid(o.rate_hz);
+  } else {
+    std::vector<double> t(rows.size());
+    for (std::size_t k = 0; k < rows.size(); ++k) t[k] = rows.at(k, tc) * o.seconds_per_time_unit;
+    grid = stamped_grid(t, rows, path, o.rate_hz);
+  }
   const std::size_t gcols[3] = {index("gx"), index("gy"), index("gz")};
   const std::size_t acols[3] = {index("ax"), index("ay"), index("az")};
   RawRecording out = assemble(rows, gcols, rows, acols, grid, o);
   out.header_lines = rows.header_lines;
+  out.columns = rows.columns;
+  out.columns_from = rows.columns_from;
+  out.decimal_comma = rows.decimal_comma;
   return out;
+}
+
+/// One file's reading, its columns decided at the first data row.
+template <typename Source>
+RawRecording one_file_from(Source& source, const std::string& path, const RawImportOptions& o) {
+  check_options(o);
+  if (!o.columns.empty()) check_raw_columns(o.columns);
+  const std::size_t min_cells = o.columns.empty() ? 4 : o.columns.size();
+  const DecideColumns decide = [&](const std::vector<std::string>& header, std::size_t header_line,
+                                   std::size_t cells, std::size_t line_no) {
+    return decide_columns(o, path, header, header_line, cells, line_no);
+  };
+  return one_file(read_rows(source, path, o.skip_lines, min_cells, decide), path, o);
+}
+
+/// One sensor's file of a pair: time x y z.
+Rows sensor_rows(const std::string& path, const RawImportOptions& o) {
+  const DecideColumns decide = [&](const std::vector<std::string>&, std::size_t, std::size_t cells,
+                                   std::size_t line_no) {
+    if (cells != 4)
+      throw ArchiveError(path, line_no, std::to_string(cells) + " columns, expected 4");
+    return ColumnDecision{{"t", "x", "y", "z"}, "given"};
+  };
+  return read_rows(path, o.skip_lines, 4, decide);
 }
 
 }  // namespace
 
 RawRecording parse_raw_recording(const std::string& text, const std::string& origin,
                                  const RawImportOptions& o) {
-  check_options(o);
-  check_raw_columns(o.columns);
   std::istringstream in(text);
-  return one_file(read_rows(in, origin, o.columns.size(), o.columns), o.columns, origin, o);
+  return one_file_from(in, origin, o);
 }
 
 RawRecording read_raw_recording(const std::string& path, const RawImportOptions& o) {
-  check_options(o);
-  check_raw_columns(o.columns);
-  return one_file(read_rows(path, o.columns.size(), o.columns), o.columns, path, o);
+  std::ifstream f(path);
+  if (!f) throw ArchiveError(path, std::string("cannot open: ") + std::strerror(errno));
+  return one_file_from(f, path, o);
 }
 
 RawRecording read_raw_recording_pair(const std::string& gyro_path, const std::string& accel_path,
                                      const RawImportOptions& o) {
   check_options(o);
-  const Rows g = read_rows(gyro_path, 4, {"t", "x", "y", "z"});
-  const Rows a = read_rows(accel_path, 4, {"t", "x", "y", "z"});
+  const Rows g = sensor_rows(gyro_path, o);
+  const Rows a = sensor_rows(accel_path, o);
   if (a.size() != g.size())
     throw ArchiveError(accel_path, std::to_string(a.size()) + " data rows, the gyro file " +
                                        gyro_path + " has " + std::to_string(g.size()) +
                                        ": one file per sensor needs the same samples");
   std::vector<double> t(g.size());
   for (std::size_t k = 0; k < g.size(); ++k) t[k] = g.at(k, 0) * o.seconds_per_time_unit;
-  const Grid grid = fit_grid(t, g, gyro_path);
+  const Grid grid = stamped_grid(t, g, gyro_path, o.rate_hz);
   for (std::size_t k = 0; k < a.size(); ++k) {
     const double ta = a.at(k, 0) * o.seconds_per_time_unit;
     if (std::abs(ta - t[k]) > 0.5 * grid.T)
@@ -306,6 +535,7 @@ RawRecording read_raw_recording_pair(const std::string& gyro_path, const std::st
   const std::size_t cols[3] = {1, 2, 3};
   RawRecording out = assemble(g, cols, a, cols, grid, o);
   out.header_lines = g.header_lines + a.header_lines;
+  out.decimal_comma = g.decimal_comma || a.decimal_comma;
   return out;
 }
 

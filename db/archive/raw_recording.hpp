@@ -4,17 +4,22 @@
 // commas, semicolons, tabs or spaces, in counts or in SI, as rates or as increments. What
 // `imucal import` turns into a run archive.
 //
-// Reading: lines starting with '#' or '%' and blank lines are skipped; the first other line may
-// be a header (it is, if any of its cells is not a number); every later cell must be a finite
-// decimal number, and a bad one is an ArchiveError naming the file, line and column.
+// Reading, as loggers write (issue #48 item 4): lines starting with '#' or '%' and blank lines are
+// skipped, and the first `skip_lines` lines whatever they hold. Before the first data row (every
+// cell a finite decimal number) may stand a preamble — lines of another cell count, such as a
+// logger's "key,value" lines — and header lines whose cells are all text; they are skipped and
+// counted. A line with the data's cell count and some but not all cells numbers is a bad data row,
+// wherever it stands: an ArchiveError naming the file, line and column. Cells are separated by
+// commas, semicolons, tabs or spaces; a line with semicolons is split at them alone, and its cells
+// may carry a decimal comma ("9,81").
 //
-// Time: a fixed-rate sensor's samples stamped by a host clock with jitter. The period is the
-// least-squares slope of the stamps against the sample index, and each sample is re-stamped onto
-// that uniform grid (t_k = t_0 + k·T). Nothing is interpolated: the samples are the sensor's, only
-// their stamps are the host's. Rates become increments over the grid's period (rate·T); given
-// increments are kept. A stamp farther than half a period from the grid is a gap (dropped
-// samples) or a clock jump, and is refused naming its line: the importer does not invent data.
-// The report says how far the stamps were from the grid (RMS and worst).
+// Columns: given (`columns`), or else read from a header whose names are recognisable (t, time,
+// timestamp; gx, gyro_x, wx, ...; ax, acc_x, accel_x, ...; a unit suffix such as "_dps" or
+// " [g]" is ignored; other names are columns to ignore), or else t,gx,gy,gz,ax,ay,az. A
+// recognisable header that contradicts the given columns is an error naming both: header names
+// are never silently overruled. A recording without a time column takes its sample rate
+// (`rate_hz`): sample k at k / rate_hz.
+//
 #include <Eigen/Core>
 #include <string>
 #include <vector>
@@ -33,9 +38,14 @@ enum class RawQuantity { kRates, kIncrements };
 
 struct RawImportOptions {
   /// One file: the meaning of each column, in order — "t", "gx", "gy", "gz", "ax", "ay", "az",
-  /// or "-" for a column to ignore. Each of the seven names exactly once.
-  std::vector<std::string> columns = {"t", "gx", "gy", "gz", "ax", "ay", "az"};
+  /// or "-" for a column to ignore; each sensor name exactly once, "t" at most once (without it,
+  /// rate_hz). Empty: from a recognisable header, else t,gx,gy,gz,ax,ay,az.
+  std::vector<std::string> columns;
   double seconds_per_time_unit = 1.0;
+  /// The sensor's sample rate, Hz: required without a time column; with one, the stamps' rate
+  /// must agree within 2 %.
+  double rate_hz = 0.0;
+  std::size_t skip_lines = 0;  ///< lines skipped at the top of each file, whatever they hold
   RawQuantity quantity = RawQuantity::kRates;  ///< rad/s, m/s² (or rad, m/s) after scaling
   RawAxisScale gyro, accel;
 };
@@ -45,7 +55,10 @@ struct RawRecording {
   double rate_hz = 0.0;
   double jitter_rms_s = 0.0;  ///< host stamps about the grid
   double jitter_max_s = 0.0;
-  std::size_t header_lines = 0;  ///< 0 or 1 per file
+  std::size_t header_lines = 0;  ///< lines before the data skipped (preamble, header), all files
+  std::vector<std::string> columns;  ///< one file: the columns used
+  std::string columns_from;          ///< "given", "header" or "default" (one file)
+  bool decimal_comma = false;        ///< some cell was read with a decimal comma
 };
 
 /// One file with every channel (options.columns says which is which).

@@ -1,5 +1,6 @@
 #include "tools/imucal/import_cmd.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <iostream>
@@ -59,10 +60,18 @@ void merge_config(ImportArgs& a) {
   const toml::table t = db::archive::parse_toml_text(text.str(), a.config);
   const db::archive::TomlSection root(t, a.config, "",
                                       {"input", "gyro", "accel", "run", "station", "noise"});
-  if (const auto in = root.section("input", {"columns", "time_unit", "quantity"})) {
+  if (const auto in =
+          root.section("input", {"columns", "time_unit", "quantity", "rate_hz", "skip_lines"})) {
     take(a.columns, in->string("columns"));
     take(a.time_unit, in->string("time_unit"));
     take(a.quantity, in->string("quantity"));
+    take(a.rate_hz, in->number("rate_hz"));
+    if (a.skip_lines < 0 && in->has("skip_lines")) {
+      const double n = *in->number("skip_lines");
+      if (!(n >= 0 && n == std::floor(n) && n < 1e6))
+        in->fail("skip_lines", "give a whole number of lines, 0 or more");
+      a.skip_lines = static_cast<int>(n);
+    }
   }
   read_axis_section(root, "gyro", a.gyro_scale, a.gyro_offset);
   read_axis_section(root, "accel", a.accel_scale, a.accel_offset);
@@ -104,6 +113,12 @@ db::archive::RawImportOptions raw_options(const ImportArgs& a) {
   if (!a.gyro_offset.empty()) o.gyro.offset = axes(a.gyro_offset, "--gyro-offset");
   if (!a.accel_scale.empty()) o.accel.scale = axes(a.accel_scale, "--accel-scale");
   if (!a.accel_offset.empty()) o.accel.offset = axes(a.accel_offset, "--accel-offset");
+  if (!unset(a.rate_hz)) {
+    if (!(std::isfinite(a.rate_hz) && a.rate_hz > 0.0))
+      throw std::invalid_argument("--rate: give the sensor's sample rate in Hz (> 0)");
+    o.rate_hz = a.rate_hz;
+  }
+  if (a.skip_lines > 0) o.skip_lines = static_cast<std::size_t>(a.skip_lines);
   return o;
 }
 
@@ -139,6 +154,19 @@ db::archive::RunInfo run_info(const ImportArgs& a, double rate_hz) {
   return info;
 }
 
+/// How the file was read where a reader would want to know: columns from its header, lines
+/// skipped before the data, decimal commas, a time grid from the rate alone.
+void print_reading_notes(const db::archive::RawRecording& rec, bool rate_given) {
+  std::string cols;
+  for (const std::string& c : rec.columns) cols += (cols.empty() ? "" : ",") + c;
+  if (rec.columns_from == "header") std::printf("columns from the header: %s\n", cols.c_str());
+  if (rec.header_lines > 0)
+    std::printf("%zu line(s) before the data skipped (preamble, header)\n", rec.header_lines);
+  if (rec.decimal_comma) std::printf("decimal commas read as decimal points\n");
+  if (rate_given && std::find(rec.columns.begin(), rec.columns.end(), "t") == rec.columns.end())
+    std::printf("no time column: samples stamped at the given rate\n");
+}
+
 void print_import_report(const ImportArgs& a, const db::archive::RawRecording& rec) {
   const double span_s = rec.imu.back().t_s - rec.imu.front().t_s + rec.imu.front().dt_s;
   if (a.json) {
@@ -148,7 +176,10 @@ void print_import_report(const ImportArgs& a, const db::archive::RawRecording& r
                                 {"span_s", span_s},
                                 {"jitter_rms_s", rec.jitter_rms_s},
                                 {"jitter_max_s", rec.jitter_max_s},
-                                {"header_lines", rec.header_lines}}
+                                {"header_lines", rec.header_lines},
+                                {"columns", rec.columns},
+                                {"columns_from", rec.columns_from},
+                                {"decimal_comma", rec.decimal_comma}}
                      .dump()
               << '\n';
     return;
@@ -161,6 +192,7 @@ void print_import_report(const ImportArgs& a, const db::archive::RawRecording& r
       a.out_dir.c_str(), rec.imu.size(), span_s, rec.rate_hz, rec.jitter_rms_s * 1e6,
       rec.jitter_max_s * 1e6,
       a.quantity == "increments" ? "" : "; rates integrated over the period");
+  print_reading_notes(rec, !unset(a.rate_hz));
 }
 
 }  // namespace
@@ -177,6 +209,13 @@ CLI::App* add_import_command(CLI::App& app, ImportArgs& a) {
                  "--file's columns in order: t,gx,gy,gz,ax,ay,az, - to ignore one "
                  "(default t,gx,gy,gz,ax,ay,az)");
   im->add_option("--time-unit", a.time_unit, "s (default), ms, us or ns");
+  im->add_option("--rate", a.rate_hz,
+                 "the sensor's sample rate, Hz: required when there is no time column "
+                 "(columns without t); with one, the stamps must agree within 2 %");
+  im->add_option("--skip-lines", a.skip_lines,
+                 "lines to skip at the top of each file (a logger's preamble; key,value lines "
+                 "and a header before the data are skipped without it)")
+      ->check(CLI::NonNegativeNumber);
   im->add_option("--quantity", a.quantity,
                  "rates (default: rad/s, m/s² after scaling) or "
                  "increments (rad, m/s per sample)");

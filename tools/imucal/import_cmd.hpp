@@ -6,7 +6,7 @@
 // stamps re-stamped onto the sensor's own uniform grid (db/archive/raw_recording.hpp says how).
 // Every option may also come from a TOML file (--config; the command line wins):
 //   [input]   columns = "t,gx,gy,gz,ax,ay,az", time_unit = "s"|"ms"|"us"|"ns",
-//             quantity = "rates"|"increments"
+//             quantity = "rates"|"increments", rate_hz = R (no time column), skip_lines = N
 //   [gyro]    scale = S or [Sx, Sy, Sz], offset = O or [Ox, Oy, Oz]
 //   [accel]   scale, offset (as [gyro])
 //   [run]     serial = "...", grade = "navigation"|"tactical"|"mems"
@@ -26,6 +26,8 @@ struct ImportArgs {
   std::string serial, grade, station_name;
   double lat_deg = kUnset, lon_deg = kUnset, height_m = kUnset, gravity_mps2 = kUnset;
   double arw_deg_per_sqrt_h = kUnset, vrw_ug_per_sqrt_hz = kUnset;
+  double rate_hz = kUnset;  ///< the sensor's sample rate (required without a time column)
+  int skip_lines = -1;      ///< lines to skip at the top of each file (-1: none given)
   bool overwrite = false, json = false;
   static constexpr double kUnset = -1e300;
 };
