@@ -4,14 +4,19 @@
 // error naming both, never silently overruled (a gyro and accelerometer swapped that way used to
 // import with exit 0 and come back from `calibrate` as "no rest found"). Each case's recording is
 // one whose values are known, and the test reads them back from the archive.
+// Plausibility at import (issue #48 item 5): a unit read as another (g as m/s², counts without a
+// scale, deg/s as rad/s, ms as s, increments as rates) is refused naming the factor and the option
+// that fixes it, and the same file with that option imports.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "db/archive/run_archive.hpp"
 #include "tests/support/imucal_cli.hpp"
@@ -170,6 +175,71 @@ TEST(ImucalImportLoggers, TheHeadersNamesPlaceTheColumnsAndAContradictionIsAnErr
             std::string::npos)
       << swapped.result.out;
   EXPECT_FALSE(fs::exists(swapped.out));
+}
+
+/// A unit at rest 5 s, turned about z at 90 °/s for 2 s, at rest again: "t gx gy gz ax ay az" in
+/// the units given (time factor, gyro and accelerometer factors applied to SI) or as increments.
+std::string turned_unit(double time_factor, double gyro_factor, double accel_factor,
+                        bool increments = false) {
+  std::string s;
+  const double dt = 0.01;
+  for (int k = 0; k < 1500; ++k) {
+    const double t = dt * k;
+    const double wz = (t >= 5.0 && t < 7.0) ? 90.0 * 0.017453292519943295 : 0.0;
+    const double w[3] = {2e-4, -1e-4, wz + 5e-5};
+    const double f[3] = {0.02 * std::sin(0.7 * t), -0.03, 9.807};
+    char buf[200];
+    const double per = increments ? dt : 1.0;
+    std::snprintf(buf, sizeof buf, "%.10g %.10g %.10g %.10g %.10g %.10g %.10g\n", t * time_factor,
+                  w[0] * gyro_factor * per, w[1] * gyro_factor * per, w[2] * gyro_factor * per,
+                  f[0] * accel_factor * per, f[1] * accel_factor * per, f[2] * accel_factor * per);
+    s += buf;
+  }
+  return s;
+}
+
+TEST(ImucalImportPlausibility, EachUnitMixUpIsRefusedNamingTheFixAndImportsWithIt) {
+  test_support::ScopedTempDir tmp("imucal-import-plausible");
+  constexpr double kDeg = 0.017453292519943295, kG = 9.80665;
+  struct MixUp {
+    const char* name;
+    std::string text;
+    std::string must_name;  ///< in the refusal
+    std::string fix;        ///< the option that makes it import
+  };
+  const std::vector<MixUp> cases = {
+      {"g_as_si", turned_unit(1, 1, 1 / kG), "--accel-scale 9.80665", " --accel-scale 9.80665"},
+      {"mg", turned_unit(1, 1, 1000 / kG), "--accel-scale 0.00980665", " --accel-scale 0.00980665"},
+      {"counts", turned_unit(1, 1 / (kDeg / 131.0), 16384 / kG), "raw counts without their scale",
+       " --accel-scale 5.98550415e-4 --gyro-scale 1.33231240e-4"},  // 9.80665/16384, kDeg/131
+      {"deg_as_rad", turned_unit(1, 1 / kDeg, 1), "deg/s read as rad/s",
+       " --gyro-scale 0.0174532925"},
+      {"ms_as_s", turned_unit(1000, 1, 1),
+       "ms read as s? They would give 100 Hz — give --time-unit", " --time-unit ms"},
+      {"increments", turned_unit(1, 1, 1, true), "--quantity increments", " --quantity increments"},
+  };
+  // The same unit in SI imports as it is (so each refusal is its mix-up's).
+  const Imported si = import_text(tmp, "si", turned_unit(1, 1, 1), "");
+  ASSERT_EQ(si.result.code, 0) << si.result.out;
+  for (const MixUp& c : cases) {
+    const Imported refused = import_text(tmp, c.name, c.text, "");
+    EXPECT_NE(refused.result.code, 0) << c.name << ": " << refused.result.out;
+    EXPECT_NE(refused.result.out.find(c.must_name), std::string::npos)
+        << c.name << ": " << refused.result.out;
+    EXPECT_EQ(std::count(refused.result.out.begin(), refused.result.out.end(), '\n'), 1)
+        << c.name << ": " << refused.result.out;
+    EXPECT_FALSE(fs::exists(refused.out)) << c.name;
+    const Imported fixed = import_text(tmp, std::string(c.name) + "_fixed", c.text, c.fix);
+    EXPECT_EQ(fixed.result.code, 0) << c.name << " with" << c.fix << ": " << fixed.result.out;
+    if (fixed.result.code == 0) {
+      const db::archive::RunArchive ar = db::archive::read_archive(fixed.out);
+      const auto& s = ar.imu[100];  // at rest: gravity along z, in SI again
+      EXPECT_NEAR(s.dv_mps(2) / s.dt_s, 9.807, 0.01) << c.name;
+    }
+  }
+  // Whoever knows better imports it as read.
+  const Imported forced = import_text(tmp, "forced", cases[0].text, " --skip-plausibility");
+  EXPECT_EQ(forced.result.code, 0) << forced.result.out;
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include "calib/core/conventions.hpp"
 #include "calib/core/unit_grade.hpp"
 #include "db/archive/archive_error.hpp"
+#include "db/archive/import_plausibility.hpp"
 #include "db/archive/raw_recording.hpp"
 #include "db/archive/run_archive.hpp"
 #include "db/archive/toml_util.hpp"
@@ -195,6 +196,19 @@ void print_import_report(const ImportArgs& a, const db::archive::RawRecording& r
   print_reading_notes(rec, !unset(a.rate_hz));
 }
 
+/// A recording whose values cannot be what the options say (a unit mix-up) is refused, naming
+/// the factor and the option that fixes it (db/archive/import_plausibility.hpp).
+void refuse_implausible(const ImportArgs& a, const db::archive::RawRecording& rec) {
+  if (a.skip_plausibility) return;
+  const double gravity_mps2 = unset(a.gravity_mps2) ? 9.80665 : a.gravity_mps2;
+  const std::vector<std::string> findings = db::archive::implausible_reading(rec, gravity_mps2);
+  if (findings.empty()) return;
+  std::string message = a.file.empty() ? a.gyro_file + ", " + a.accel_file : a.file;
+  message += ": ";
+  for (std::size_t i = 0; i < findings.size(); ++i) message += (i ? "; and " : "") + findings[i];
+  throw std::invalid_argument(message + " (--skip-plausibility imports it as read)");
+}
+
 }  // namespace
 
 CLI::App* add_import_command(CLI::App& app, ImportArgs& a) {
@@ -237,6 +251,8 @@ CLI::App* add_import_command(CLI::App& app, ImportArgs& a) {
                  "velocity random walk, µg/√Hz (default: the "
                  "grade's)");
   im->add_flag("--overwrite", a.overwrite, "replace an existing archive");
+  im->add_flag("--skip-plausibility", a.skip_plausibility,
+               "import even when the rate, |f| at rest or the gyros' rates say a unit is wrong");
   im->add_flag("--json", a.json, "print one JSON object");
   return im;
 }
@@ -257,6 +273,7 @@ int cmd_import(const ImportArgs& args) {
   db::archive::RawRecording rec =
       pair ? db::archive::read_raw_recording_pair(a.gyro_file, a.accel_file, o)
            : db::archive::read_raw_recording(a.file, o);
+  refuse_implausible(a, rec);
   db::archive::RunArchive ar;
   ar.info = run_info(a, rec.rate_hz);
   ar.imu = rec.imu;

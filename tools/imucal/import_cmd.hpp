@@ -12,7 +12,9 @@
 //   [run]     serial = "...", grade = "navigation"|"tactical"|"mems"
 //   [station] name, lat_deg, lon_deg, height_m (required), gravity_mps2 (optional)
 //   [noise]   arw_deg_per_sqrt_h, vrw_ug_per_sqrt_hz (default: the grade's worst of class)
-// Bad input is one line naming the file, line and column or key; nothing is written.
+// Bad input is one line naming the file, line and column or key; nothing is written. A recording
+// whose values cannot be what the options say (a unit mix-up: db/archive/import_plausibility.hpp)
+// is refused naming the factor and the option that fixes it (--skip-plausibility imports it).
 #include <CLI/CLI.hpp>
 #include <string>
 #include <vector>
@@ -29,6 +31,7 @@ struct ImportArgs {
   double rate_hz = kUnset;  ///< the sensor's sample rate (required without a time column)
   int skip_lines = -1;      ///< lines to skip at the top of each file (-1: none given)
   bool overwrite = false, json = false;
+  bool skip_plausibility = false;  ///< import even a recording whose units look wrong
   static constexpr double kUnset = -1e300;
 };
 

@@ -1,0 +1,131 @@
+#include "db/archive/import_plausibility.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+namespace imucal::db::archive {
+
+namespace {
+
+constexpr double kMinRate_hz = 1.0, kMaxRate_hz = 1e5;
+/// |f| at rest within a factor 2 of gravity: a unit read with its nominal values only may be tens
+/// of per cent off (IMU-TK's Xsens unit: 12.6 m/s², its zero offsets), a unit mix-up is a factor
+/// 9.8 or more off. A mix-up is named when |f| is within 35 % of its factor.
+constexpr double kPlausibleFactor = 2.0;
+constexpr double kMixUpTolerance = 0.35;
+constexpr double kMaxGyroRate_radps = 34.9;  ///< 2 000 °/s: beyond any gyro's full scale
+constexpr double kRadPerDeg = 0.017453292519943295;
+constexpr double kStandardGravity_mps2 = 9.80665;
+
+std::string rounded(double v, int digits = 3) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
+  return buf;
+}
+
+/// |mean f| over the one-second window whose |f| varies least (relative to its mean).
+double stillest_specific_force(const RawRecording& rec) {
+  const std::size_t n = rec.imu.size();
+  const std::size_t w =
+      std::max<std::size_t>(2, static_cast<std::size_t>(std::lround(rec.rate_hz)));
+  double best_spread = std::numeric_limits<double>::infinity(), best_norm = 0.0;
+  for (std::size_t start = 0; start + w <= n || start == 0; start += w) {
+    const std::size_t end = std::min(n, start + w);
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    double s = 0.0, ss = 0.0;
+    for (std::size_t k = start; k < end; ++k) {
+      const Eigen::Vector3d f = rec.imu[k].dv_mps / rec.imu[k].dt_s;
+      mean += f;
+      s += f.norm();
+      ss += f.squaredNorm();
+    }
+    const double m = static_cast<double>(end - start);
+    const double norm_mean = s / m;
+    const double spread = std::sqrt(std::max(0.0, ss / m - norm_mean * norm_mean)) /
+                          std::max(norm_mean, std::numeric_limits<double>::min());
+    if (spread < best_spread) {
+      best_spread = spread;
+      best_norm = (mean / m).norm();
+    }
+    if (end == n) break;
+  }
+  return best_norm;
+}
+
+/// The rate check: a finding, or "".
+std::string rate_finding(double rate_hz) {
+  if (rate_hz >= kMinRate_hz && rate_hz <= kMaxRate_hz) return "";
+  const std::string finding =
+      "the time stamps give " + rounded(rate_hz) + " Hz, no IMU's rate (1 Hz to 100 kHz)";
+  // Stamps read in a unit 10^3, 10^6 or 10^9 off: what they would give, and the likely mix-up.
+  const std::pair<double, const char*> factors[] = {
+      {1e3, "ms read as s?"},  {1e6, "us read as s?"},  {1e9, "ns read as s?"},
+      {1e-3, "s read as ms?"}, {1e-6, "s read as us?"}, {1e-9, "s read as ns?"}};
+  for (const auto& [factor, mix_up] : factors) {
+    const double r = rate_hz * factor;
+    if (r >= 10.0 && r <= 1e4)
+      return finding + ": " + mix_up + " They would give " + rounded(r) +
+             " Hz — give --time-unit (s, ms, us, ns)";
+  }
+  return finding + " — check the time column and --time-unit";
+}
+
+/// The accelerometer check at the stillest second: a finding, or "".
+std::string force_finding(double f_mps2, double gravity_mps2, double rate_hz) {
+  const double ratio = f_mps2 / gravity_mps2;
+  if (ratio >= 1.0 / kPlausibleFactor && ratio <= kPlausibleFactor) return "";
+  const std::string what = "|f| over the stillest second is " + rounded(f_mps2, 4) +
+                           " m/s² against the site's gravity " + rounded(gravity_mps2, 6) + " m/s²";
+  if (std::abs(ratio * kStandardGravity_mps2 - 1.0) <= kMixUpTolerance)
+    return what + ": the accelerometers read g, not m/s² — give --accel-scale 9.80665";
+  if (std::abs(ratio * kStandardGravity_mps2 / 1000.0 - 1.0) <= kMixUpTolerance)
+    return what + ": the accelerometers read mg — give --accel-scale 0.00980665";
+  if (std::abs(ratio * rate_hz - 1.0) <= kMixUpTolerance)
+    return what +
+           ": the values are increments per sample (|f| × period ≈ gravity) — give "
+           "--quantity increments";
+  if (ratio > 50.0)
+    return what +
+           ": raw counts without their scale — give --accel-scale (m/s² per count, "
+           "e.g. 9.80665/16384 for a ±2 g 16-bit unit) and --accel-offset";
+  return what + ": check --accel-scale and --accel-offset";
+}
+
+/// The gyro check over the whole recording: a finding, or "".
+std::string rate_of_turn_finding(const RawRecording& rec) {
+  std::vector<double> w;
+  w.reserve(rec.imu.size());
+  for (const auto& s : rec.imu) w.push_back(s.dtheta_rad.norm() / s.dt_s);
+  // The 99.9th percentile: a few corrupt samples are the calibration's matter, not the units'.
+  const std::size_t i = std::min(w.size() - 1, w.size() * 999 / 1000);
+  std::nth_element(w.begin(), w.begin() + static_cast<long>(i), w.end());
+  const double w_max = w[i];
+  if (w_max <= kMaxGyroRate_radps) return "";
+  const std::string what = "the gyros turn at up to " + rounded(w_max / kRadPerDeg, 4) +
+                           " °/s, beyond any gyro's range (" +
+                           rounded(kMaxGyroRate_radps / kRadPerDeg, 4) + " °/s)";
+  if (w_max * kRadPerDeg <= kMaxGyroRate_radps)
+    return what +
+           ": deg/s read as rad/s — give --gyro-scale 0.0174533 (or the counts' scale in "
+           "rad/s per count)";
+  return what +
+         ": raw counts without their scale — give --gyro-scale (rad/s per count) and "
+         "--gyro-offset";
+}
+
+}  // namespace
+
+std::vector<std::string> implausible_reading(const RawRecording& rec, double gravity_mps2) {
+  std::vector<std::string> findings;
+  if (rec.imu.size() < 2) return findings;
+  for (const std::string& f :
+       {rate_finding(rec.rate_hz),
+        force_finding(stillest_specific_force(rec), gravity_mps2, rec.rate_hz),
+        rate_of_turn_finding(rec)})
+    if (!f.empty()) findings.push_back(f);
+  return findings;
+}
+
+}  // namespace imucal::db::archive
