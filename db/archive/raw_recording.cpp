@@ -98,14 +98,18 @@ struct ParsedLine {
   bool all_text() const { return numbers == 0; }
 };
 
-ParsedLine parse_line(std::string_view line) {
+/// `skipped`: the columns marked "-" (not read, so a text column there is no bad cell).
+ParsedLine parse_line(std::string_view line, const std::vector<std::string>& skipped = {}) {
   ParsedLine p;
   p.cells = split_cells(line);
   p.values.resize(p.cells.size());
   p.first_bad = p.cells.size();
   const bool semicolons = line.find(';') != std::string_view::npos;
   for (std::size_t c = 0; c < p.cells.size(); ++c) {
-    if (parse_cell(p.cells[c], semicolons, p.values[c], p.comma_used))
+    if (c < skipped.size() && skipped[c] == "-" && skipped.size() == p.cells.size()) {
+      p.values[c] = 0.0;
+      ++p.numbers;
+    } else if (parse_cell(p.cells[c], semicolons, p.values[c], p.comma_used))
       ++p.numbers;
     else if (p.first_bad == p.cells.size())
       p.first_bad = c;
@@ -168,7 +172,8 @@ void settle_preamble(std::vector<PendingLine>& pending, std::size_t data_cells,
 /// The rows of `f`; `path` names it in errors. A data row holds at least `min_cells` cells (a
 /// preamble's "key,value" line of numbers holds fewer).
 Rows read_rows(std::istream& f, const std::string& path, std::size_t skip_lines,
-               std::size_t min_cells, const DecideColumns& decide) {
+               std::size_t min_cells, const DecideColumns& decide,
+               const std::vector<std::string>& given = {}) {
   Rows rows;
   rows.source = path;
   std::vector<PendingLine> pending;
@@ -182,7 +187,7 @@ Rows read_rows(std::istream& f, const std::string& path, std::size_t skip_lines,
     }
     const std::string_view line = trim(text);
     if (line.empty() || line.front() == '#' || line.front() == '%') continue;
-    const ParsedLine p = parse_line(line);
+    const ParsedLine p = parse_line(line, rows.size() == 0 ? given : rows.columns);
     if (rows.size() == 0 && !(p.all_numbers() && p.cells.size() >= min_cells)) {
       pending.push_back({line_no, {}, text});
       continue;
@@ -210,7 +215,7 @@ Rows read_rows(std::istream& f, const std::string& path, std::size_t skip_lines,
     for (PendingLine& p : pending) {
       p.parsed = parse_line(trim(p.text));
       if (p.parsed.cells.size() >= min_cells && !p.parsed.all_text())
-        throw_bad_cell(path, p.line_no, p.parsed, {});
+        throw_bad_cell(path, p.line_no, p.parsed, given);
     }
   if (rows.size() < 2)
     throw ArchiveError(
@@ -222,7 +227,7 @@ Rows read_rows(const std::string& path, std::size_t skip_lines, std::size_t min_
                const DecideColumns& decide) {
   std::ifstream f(path);
   if (!f) throw ArchiveError(path, std::string("cannot open: ") + std::strerror(errno));
-  return read_rows(f, path, skip_lines, min_cells, decide);
+  return read_rows(f, path, skip_lines, min_cells, decide, {});
 }
 
 /// The uniform grid t_k = t0 + k T fitted to the stamps (least squares), after checking that
@@ -484,7 +489,7 @@ RawRecording one_file_from(Source& source, const std::string& path, const RawImp
                                    std::size_t cells, std::size_t line_no) {
     return decide_columns(o, path, header, header_line, cells, line_no);
   };
-  return one_file(read_rows(source, path, o.skip_lines, min_cells, decide), path, o);
+  return one_file(read_rows(source, path, o.skip_lines, min_cells, decide, o.columns), path, o);
 }
 
 /// One sensor's file of a pair: time x y z.

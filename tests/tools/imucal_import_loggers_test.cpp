@@ -177,6 +177,27 @@ TEST(ImucalImportLoggers, TheHeadersNamesPlaceTheColumnsAndAContradictionIsAnErr
   EXPECT_FALSE(fs::exists(swapped.out));
 }
 
+// A column the user marks "-" is not read: a text label there (mad-lab-fau/imucal's Ferraris
+// sessions carry the section's name, "x_a", on every row) is no bad cell.
+TEST(ImucalImportLoggers, AColumnMarkedToIgnoreMayHoldText) {
+  test_support::ScopedTempDir tmp("imucal-import-label");
+  std::string text;
+  const std::string data = rows(200, {"t", "gx", "gy", "gz", "ax", "ay", "az"}, ",");
+  for (size_t pos = 0; pos < data.size();) {
+    const size_t end = data.find('\n', pos);
+    text += "x_a," + data.substr(pos, end - pos + 1);
+    pos = end + 1;
+  }
+  const Imported ok = import_text(tmp, "label", text, " --columns -,t,gx,gy,gz,ax,ay,az");
+  ASSERT_EQ(ok.result.code, 0) << ok.result.out;
+  expect_known_values(ok.out, 200);
+  // Read as a channel, the label is a bad cell named as ever.
+  const Imported bad = import_text(tmp, "labelread", text, " --columns t,-,gx,gy,gz,ax,ay,az");
+  EXPECT_NE(bad.result.code, 0);
+  EXPECT_NE(bad.result.out.find("labelread.txt:1: column '1 (t)'"), std::string::npos)
+      << bad.result.out;
+}
+
 /// A unit at rest 5 s, turned about z at 90 °/s for 2 s, at rest again: "t gx gy gz ax ay az" in
 /// the units given (time factor, gyro and accelerometer factors applied to SI) or as increments.
 std::string turned_unit(double time_factor, double gyro_factor, double accel_factor,
