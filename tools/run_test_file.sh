@@ -18,9 +18,9 @@ done
 [ -n "$user" ] || exec "$prog" --gtest_filter="$file_filter" "${args[@]}"
 
 matches() {  # matches NAME PATTERNS: true if NAME matches one of the ':'-separated glob PATTERNS
-  local name=$1 p
-  local IFS=:
-  for p in $2; do
+  local name=$1 p patterns
+  IFS=: read -ra patterns <<<"$2"  # read, not word splitting: no pattern expands to file names
+  for p in "${patterns[@]}"; do
     # shellcheck disable=SC2053
     [[ -n $p && $name == $p ]] && return 0
   done
