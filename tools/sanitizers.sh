@@ -69,7 +69,13 @@ case $mode in
       t=${f/\//_}_test  # build/tests/<room>_<file>_test runs that file's tests (tools/run_test_file.sh)
       if TSAN_OPTIONS="halt_on_error=0 second_deadlock_stack=1 log_path=$reports/$t" \
         "$tree/tests/$t" --gtest_filter="$skip" >"$reports/$t.out" 2>&1; then
-        echo "tsan: $t passed"
+        # A file script that selected no test exits 0 too: that is no pass.
+        if ! grep -qE '^\[  PASSED  \] [1-9]' "$reports/$t.out"; then
+          echo "tsan: $t ran no test (output: $reports/$t.out)"
+          failed=1
+          continue
+        fi
+        echo "tsan: $t passed ($(grep -oE '^\[  PASSED  \] [0-9]+' "$reports/$t.out" | grep -oE '[0-9]+$') tests)"
       else
         echo "tsan: $t FAILED (output: $reports/$t.out); its failures:"
         grep -B2 -A12 -E "Failure|FAILED|terminate|Segmentation" "$reports/$t.out" | head -80 || true
