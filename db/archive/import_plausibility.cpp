@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <limits>
 
+#include "calib/core/conventions.hpp"
+
 namespace imucal::db::archive {
 
 namespace {
@@ -15,9 +17,7 @@ constexpr double kMinRate_hz = 1.0, kMaxRate_hz = 1e5;
 /// 9.8 or more off. A mix-up is named when |f| is within 35 % of its factor.
 constexpr double kPlausibleFactor = 2.0;
 constexpr double kMixUpTolerance = 0.35;
-constexpr double kMaxGyroRate_radps = 34.9;  ///< 2 000 °/s: beyond any gyro's full scale
-constexpr double kRadPerDeg = 0.017453292519943295;
-constexpr double kStandardGravity_mps2 = 9.80665;
+constexpr double kMaxGyroRate_radps = 2000.0 * kDegToRad;  ///< beyond any gyro's full scale
 
 std::string rounded(double v, int digits = 3) {
   char buf[48];
@@ -103,10 +103,10 @@ std::string rate_of_turn_finding(const RawRecording& rec) {
   std::nth_element(w.begin(), w.begin() + static_cast<long>(i), w.end());
   const double w_max = w[i];
   if (w_max <= kMaxGyroRate_radps) return "";
-  const std::string what = "the gyros turn at up to " + rounded(w_max / kRadPerDeg, 4) +
+  const std::string what = "the gyros turn at up to " + rounded(w_max / kDegToRad, 4) +
                            " °/s, beyond any gyro's range (" +
-                           rounded(kMaxGyroRate_radps / kRadPerDeg, 4) + " °/s)";
-  if (w_max * kRadPerDeg <= kMaxGyroRate_radps)
+                           rounded(kMaxGyroRate_radps / kDegToRad, 4) + " °/s)";
+  if (w_max * kDegToRad <= kMaxGyroRate_radps)
     return what +
            ": deg/s read as rad/s — give --gyro-scale 0.0174533 (or the counts' scale in "
            "rad/s per count)";

@@ -145,11 +145,11 @@ using DecideColumns =
     std::function<ColumnDecision(const std::vector<std::string>& header, std::size_t header_line,
                                  std::size_t cells, std::size_t line_no)>;
 
-/// A line before the first data row that may still turn out to be a bad data row.
+/// A line before the first data row that may still turn out to be a bad data row (its text:
+/// parsed once the data's cell count is known).
 struct PendingLine {
   std::size_t line_no = 0;
-  ParsedLine parsed;
-  std::string text;  ///< the line's own text (parsed's cells view into it)
+  std::string text;
 };
 
 /// The lines before the first data row: preamble and header lines are skipped; one with the
@@ -157,14 +157,12 @@ struct PendingLine {
 void settle_preamble(std::vector<PendingLine>& pending, std::size_t data_cells,
                      const std::string& path, Rows& rows, std::vector<std::string>& header,
                      std::size_t& header_line) {
-  for (PendingLine& p : pending) {
-    p.parsed = parse_line(trim(p.text));
-    if (p.parsed.cells.size() == data_cells && !p.parsed.all_text())
-      throw_bad_cell(path, p.line_no, p.parsed, {});
-    if (p.parsed.cells.size() == data_cells) {
-      header.assign(p.parsed.cells.begin(), p.parsed.cells.end());
-      header_line = p.line_no;
-    }
+  for (const PendingLine& line : pending) {
+    const ParsedLine p = parse_line(trim(line.text));
+    if (p.cells.size() != data_cells) continue;  // a preamble line
+    if (!p.all_text()) throw_bad_cell(path, line.line_no, p, {});
+    header.assign(p.cells.begin(), p.cells.end());
+    header_line = line.line_no;
   }
   rows.header_lines += pending.size();
 }
@@ -189,7 +187,7 @@ Rows read_rows(std::istream& f, const std::string& path, std::size_t skip_lines,
     if (line.empty() || line.front() == '#' || line.front() == '%') continue;
     const ParsedLine p = parse_line(line, rows.size() == 0 ? given : rows.columns);
     if (rows.size() == 0 && !(p.all_numbers() && p.cells.size() >= min_cells)) {
-      pending.push_back({line_no, {}, text});
+      pending.push_back({line_no, text});
       continue;
     }
     if (rows.size() == 0) {
@@ -212,10 +210,10 @@ Rows read_rows(std::istream& f, const std::string& path, std::size_t skip_lines,
   }
   if (f.bad()) throw ArchiveError(path, "read error");
   if (rows.size() == 0)  // no data row at all: the first line that looks like a bad one says why
-    for (PendingLine& p : pending) {
-      p.parsed = parse_line(trim(p.text));
-      if (p.parsed.cells.size() >= min_cells && !p.parsed.all_text())
-        throw_bad_cell(path, p.line_no, p.parsed, given);
+    for (const PendingLine& line : pending) {
+      const ParsedLine p = parse_line(trim(line.text));
+      if (p.cells.size() >= min_cells && !p.all_text())
+        throw_bad_cell(path, line.line_no, p, given);
     }
   if (rows.size() < 2)
     throw ArchiveError(
@@ -342,13 +340,16 @@ RawRecording assemble(const Rows& g, const std::size_t gcols[3], const Rows& a,
 
 namespace {
 
+/// The six channel names a one-file recording's columns must each hold once.
+constexpr const char* kSensorColumns[] = {"gx", "gy", "gz", "ax", "ay", "az"};
+
 /// Each sensor name exactly once, "t" at most once, "-" for the columns to ignore, nothing else.
 void check_raw_columns(const std::vector<std::string>& cols) {
   auto fail = [&](const std::string& what) {
     throw std::invalid_argument("columns \"" + joined(cols) + "\": " + what +
                                 " (names: t, gx, gy, gz, ax, ay, az, - to ignore a column)");
   };
-  for (const char* need : {"gx", "gy", "gz", "ax", "ay", "az"})
+  for (const char* need : kSensorColumns)
     if (std::count(cols.begin(), cols.end(), need) != 1)
       fail(std::string("'") + need + "' must appear exactly once");
   if (std::count(cols.begin(), cols.end(), "t") > 1) fail("'t' must appear at most once");
@@ -389,7 +390,7 @@ std::optional<std::vector<std::string>> header_columns(const std::vector<std::st
     const std::string name = recognised_name(cell);
     cols.push_back(name.empty() || std::count(cols.begin(), cols.end(), name) ? "-" : name);
   }
-  for (const char* need : {"gx", "gy", "gz", "ax", "ay", "az"})
+  for (const char* need : kSensorColumns)
     if (std::count(cols.begin(), cols.end(), need) != 1) return std::nullopt;
   return cols;
 }

@@ -200,7 +200,7 @@ void print_import_report(const ImportArgs& a, const db::archive::RawRecording& r
 /// the factor and the option that fixes it (db/archive/import_plausibility.hpp).
 void refuse_implausible(const ImportArgs& a, const db::archive::RawRecording& rec) {
   if (a.skip_plausibility) return;
-  const double gravity_mps2 = unset(a.gravity_mps2) ? 9.80665 : a.gravity_mps2;
+  const double gravity_mps2 = unset(a.gravity_mps2) ? kStandardGravity_mps2 : a.gravity_mps2;
   const std::vector<std::string> findings = db::archive::implausible_reading(rec, gravity_mps2);
   if (findings.empty()) return;
   std::string message = a.file.empty() ? a.gyro_file + ", " + a.accel_file : a.file;
