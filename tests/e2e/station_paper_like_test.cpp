@@ -98,7 +98,9 @@ TEST(StationPaperLike, TheMethodsAgreeAndTheDiagnosisNamesTheBudgetsSourcesSoThe
   // The sizes the budget fitted, within the diagnosis' own ±4σ (skew 2.5 ms; latitude 5 arcmin).
   for (const json& step : rec["diagnosis"]["steps"]) {
     const std::string effect = step.value("effect", "");
-    const double m = step.value("magnitude", 0.0), s = step.value("magnitude_sigma", 0.0);
+    // at(): a key renamed in the record fails here instead of reading 0 (the σ was read from
+    // "magnitude_sigma", a key the record does not have, so every bound was the bare margin).
+    const double m = step.at("magnitude").get<double>(), s = step.at("sigma").get<double>();
     if (effect == "gyro_accel_skew") {
       EXPECT_NEAR(m, 2.5, 4.0 * s + 0.05) << step.dump();
     }
