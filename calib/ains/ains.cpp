@@ -11,6 +11,7 @@
 #include "calib/core/coarse_alignment.hpp"
 #include "calib/core/conventions.hpp"
 #include "calib/core/rotation.hpp"
+#include "calib/core/unit_grade.hpp"
 
 namespace imucal::calib::ains {
 using namespace calib::core;
@@ -191,7 +192,8 @@ AinsResult run_ains(const CalibrationInput& in, const AinsOptions& opt, bool smo
     // Levelling and gyrocompassing on the first rest, from scratch (no reference, no prior).
     out.coarse_C_bn =
         coarse_align(in.imu, pin.first_rest.begin, pin.first_rest.end, ains::alignment_site(in),
-                     cfg.nominal, in.noise.vrw_mps_per_sqrt_s)
+                     cfg.nominal, in.noise.vrw_mps_per_sqrt_s,
+                     grade_prior(in.grade).alignment_min_window_s)
             .C_bn;
     if (opt.initial_C_bn)
       out.coarse_C_bn = *opt.initial_C_bn;

@@ -2,6 +2,7 @@
 
 #include "calib/ains/ains_filter.hpp"
 #include "calib/core/coarse_alignment.hpp"
+#include "calib/core/unit_grade.hpp"
 
 namespace imucal::calib::ains {
 using namespace calib::core;
@@ -18,7 +19,8 @@ AinsInnovations ains_innovations(const CalibrationInput& in, const ParamSet& par
     cfg.C_bn0 = opt.initial_C_bn
                     ? *opt.initial_C_bn
                     : coarse_align(in.imu, pin.first_rest.begin, pin.first_rest.end,
-                                   ains::alignment_site(in), params, in.noise.vrw_mps_per_sqrt_s)
+                                   ains::alignment_site(in), params, in.noise.vrw_mps_per_sqrt_s,
+                                   grade_prior(in.grade).alignment_min_window_s)
                           .C_bn;
     out.C_bn0 = cfg.C_bn0;
   }

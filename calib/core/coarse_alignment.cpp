@@ -6,6 +6,7 @@
 
 #include "calib/core/conventions.hpp"
 #include "calib/core/imu_error_model.hpp"
+#include "calib/core/readable_number.hpp"
 #include "calib/core/rotation.hpp"
 
 namespace imucal::calib::core {
@@ -29,12 +30,14 @@ Eigen::Matrix3d triad(const Eigen::Vector3d& p, const Eigen::Vector3d& s) {
 }  // namespace
 
 CoarseAlignment coarse_align(const ImuSeries& imu, size_t begin, size_t end, const Site& site,
-                             const ParamSet& nominal, double vrw_mps_per_sqrt_s) {
+                             const ParamSet& nominal, double vrw_mps_per_sqrt_s,
+                             double min_window_s) {
   if (!(begin < end && end <= imu.size())) fail("empty or invalid sample window");
   const double T = imu[end - 1].t_s - imu[begin].t_s;
-  if (!(T >= 10.0))
-    fail("the first rest period lasts " + std::to_string(T) +
-         " s; levelling and gyrocompassing need at least 10 s at rest");
+  if (!(T >= min_window_s))
+    fail("the first rest period lasts " + seconds_text(T) + "; " +
+         (min_window_s >= 10.0 ? "levelling and gyrocompassing need" : "levelling needs") +
+         " at least " + seconds_text(min_window_s) + " at rest");
   if (std::abs(site.lat_rad) > 0.5 * kPi - kDegToRad)
     fail("latitude within 1 deg of a pole: no horizontal Earth rate to find north");
 

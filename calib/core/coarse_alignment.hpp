@@ -30,9 +30,12 @@ struct CoarseAlignment {
 
 /// Align on samples (begin, end) of imu (the attitude refers to the end of sample `begin`).
 /// Increments are compensated with `nominal`. vrw_mps_per_sqrt_s feeds heading_noise_sigma_rad.
-/// Throws std::invalid_argument for a window shorter than 10 s, a latitude within 1° of a pole
-/// (no horizontal Earth rate) or degenerate vectors (the unit was not at rest).
+/// Throws std::invalid_argument for a window shorter than min_window_s (10 s: gyrocompassing; a
+/// grade that cannot find north levels in about a second, GradePrior::alignment_min_window_s), a
+/// latitude within 1° of a pole (no horizontal Earth rate) or degenerate vectors (the unit was not
+/// at rest).
 CoarseAlignment coarse_align(const ImuSeries& imu, size_t begin, size_t end, const Site& site,
-                             const ParamSet& nominal, double vrw_mps_per_sqrt_s);
+                             const ParamSet& nominal, double vrw_mps_per_sqrt_s,
+                             double min_window_s = 10.0);
 
 }  // namespace imucal::calib::core

@@ -1,5 +1,7 @@
 #include "calib/core/unit_grade.hpp"
 
+#include <limits>
+
 #include "calib/core/conventions.hpp"
 
 namespace imucal::calib::core {
@@ -38,6 +40,9 @@ GradePrior grade_prior(Grade g) {
       p.still_rate_radps = 0.05 * kDegToRad;
       p.still_force_mps2 = 0.005;
       p.rest_rate_spread_radps = 0.02 * kDegToRad;
+      p.first_rest_min_s = 20.0;
+      p.first_rest_latest_start_s = 10.0;
+      p.alignment_min_window_s = 10.0;
       break;
     case Grade::kTactical:
       p.gyro_bias_radps = 10.0 * kDegPerHour;
@@ -50,6 +55,10 @@ GradePrior grade_prior(Grade g) {
       p.still_force_mps2 = 0.005;
       p.rest_rate_spread_radps = 0.1 * kDegToRad;
       p.effect_scale = 100.0;
+      p.first_rest_min_s = 0.0;
+      p.first_rest_latest_start_s = std::numeric_limits<double>::infinity();
+      p.alignment_min_window_s = 1.0;
+      p.tremor_rate_radps = 2.0 * kDegToRad;
       break;
     case Grade::kMems:
       p.gyro_bias_radps = 5.0 * kDegToRad;
@@ -62,6 +71,10 @@ GradePrior grade_prior(Grade g) {
       p.still_force_mps2 = 0.01;
       p.rest_rate_spread_radps = 0.5 * kDegToRad;
       p.effect_scale = 1e4;
+      p.first_rest_min_s = 0.0;
+      p.first_rest_latest_start_s = std::numeric_limits<double>::infinity();
+      p.alignment_min_window_s = 1.0;
+      p.tremor_rate_radps = 2.0 * kDegToRad;
       break;
   }
   return p;

@@ -50,6 +50,21 @@ struct GradePrior {
   /// catalogue's typical 0.009 °/h/g, a tactical one's (~1 °/h/g) ~10²; navigation 1, tactical 100,
   /// MEMS 10⁴.
   double effect_scale = 1.0;
+  /// Field runs' initial rest (issue #48 item 2). Navigation grade levels and gyrocompasses on it:
+  /// at least first_rest_min_s of stillness, starting within first_rest_latest_start_s of the
+  /// first sample. Tactical and MEMS gyros cannot find north (bias ≥ Earth rate × cos φ: the AINS
+  /// searches the heading instead), so their first still position of any length serves, wherever
+  /// it starts (0 and infinity); a run whose recording needs more says so ([prior] first_rest_s).
+  double first_rest_min_s = 0.0;
+  double first_rest_latest_start_s = 0.0;
+  /// The shortest window the coarse alignment accepts: gyrocompassing needs 10 s (navigation),
+  /// levelling alone needs about a second (tactical, MEMS).
+  double alignment_min_window_s = 10.0;
+  /// Rest detection by variation (calib/core/variation_rest_detector.hpp): the gyro's second
+  /// opinion. A window whose rate varies less than this (RMS per axis) is still as far as the gyro
+  /// can tell: a hand holding a unit on a surface shakes it by 0.3–1 °/s (the corpus' hand-held
+  /// starts), a turn by tens of °/s. 0: the detector's noise threshold alone.
+  double tremor_rate_radps = 0.0;
 };
 
 GradePrior grade_prior(Grade g);

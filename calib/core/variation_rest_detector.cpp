@@ -31,6 +31,7 @@ void check_options(const VariationRestOptions& o) {
   non_negative(o.still_rate_radps, "still_rate_radps");
   non_negative(o.still_force_mps2, "still_force_mps2");
   non_negative(o.rest_rate_spread_radps, "rest_rate_spread_radps");
+  non_negative(o.tremor_rate_radps, "tremor_rate_radps");
   if (!(o.noise_quantile > 0.0 && o.noise_quantile < 1.0))
     throw std::invalid_argument("rest detector: option noise_quantile must be in (0, 1), got " +
                                 std::to_string(o.noise_quantile));
@@ -113,6 +114,7 @@ VariationRestOptions variation_rest_options(Grade grade) {
   o.still_rate_radps = p.still_rate_radps;
   o.still_force_mps2 = p.still_force_mps2;
   o.rest_rate_spread_radps = p.rest_rate_spread_radps;
+  o.tremor_rate_radps = p.tremor_rate_radps;
   return o;
 }
 
@@ -133,7 +135,8 @@ VariationRestResult detect_rest_by_variation(const ImuSeries& imu, const Variati
   r.rate_noise_radps = quantile(dw, o.noise_quantile);
   r.force_noise_mps2 = quantile(df, o.noise_quantile);
   const double root = std::sqrt(o.variance_factor);
-  const double max_dw = std::max(root * r.rate_noise_radps, o.still_rate_radps);
+  const double max_dw =
+      std::max({root * r.rate_noise_radps, o.still_rate_radps, o.tremor_rate_radps});
   const double max_df = std::max(root * r.force_noise_mps2, o.still_force_mps2);
   std::vector<bool> quiet(imu.size());
   for (size_t k = 0; k < imu.size(); ++k) quiet[k] = dw[k] < max_dw && df[k] < max_df;
@@ -149,8 +152,14 @@ VariationRestResult detect_rest_by_variation(const ImuSeries& imu, const Variati
       if ((mean_rate_radps(imu, c) - r.gyro_offset_radps).norm() > o.rest_rate_spread_radps)
         ++r.rotations_rejected;
     const std::vector<Eigen::Vector3d> mean_w = windowed_mean(imu, w, o.window_s);
-    for (size_t k = 0; k < imu.size(); ++k)
-      quiet[k] = quiet[k] && (mean_w[k] - r.gyro_offset_radps).norm() <= o.rest_rate_spread_radps;
+    for (size_t k = 0; k < imu.size(); ++k) {
+      // A tremor's short-window mean is not zero (a fraction of a cycle of 6–11 Hz): up to the
+      // window's own variation (three axes) is the hand's, capped at the tremor rate; a turn's
+      // steady rate varies little and keeps the grade's spread.
+      const double spread =
+          std::max(o.rest_rate_spread_radps, std::min(std::sqrt(3.0) * dw[k], o.tremor_rate_radps));
+      quiet[k] = quiet[k] && (mean_w[k] - r.gyro_offset_radps).norm() <= spread;
+    }
   }
   for (const auto& s : quiet_spans(imu, quiet, o)) {
     ++r.rests;

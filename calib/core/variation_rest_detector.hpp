@@ -11,11 +11,17 @@
 //     statistic — the record must be at least that fraction at rest, a hand-placed run is most of
 //     it); a window is quiet when both statistics are below max(√variance_factor × that noise, the
 //     grade's still floor) — the floor keeps a very quiet unit on a bench or a calm deck "still";
+//     the gyro's threshold is at least the grade's tremor rate (issue #48 item 2): a unit held
+//     still by hand shakes by 0.3–1 °/s, ten times its bench noise, while its specific force
+//     barely varies, so the accelerometer decides and the gyro is a second opinion that a turn
+//     (tens of °/s) still fails;
 //  3. quiet spans of at least min_rest_s, less edge_guard_s at both ends, are rest candidates;
 //  4. a constant-rate rotation (a turntable's cruise about the vertical) varies neither signal: the
 //     unit's common gyro offset is the median of the candidates' mean rates, and a sample whose
 //     window's mean rate departs from it by more than the grade's rest_rate_spread is turning, not
-//     at rest; the spans are then cut again as in step 3.
+//     at rest (a hand's tremor moves a short window's mean by up to the window's own variation, up
+//     to the tremor rate: that much more is allowed where the rate varies); the spans are then cut
+//     again as in step 3.
 #include <Eigen/Core>
 #include <vector>
 
@@ -33,6 +39,7 @@ struct VariationRestOptions {
   double still_rate_radps = 0.0;  ///< the grade's floors (variation_rest_options)
   double still_force_mps2 = 0.0;
   double rest_rate_spread_radps = 0.0;  ///< > 0: see step 4
+  double tremor_rate_radps = 0.0;       ///< the gyro's threshold is at least this (step 2)
 };
 
 /// The defaults with the grade's floors and rest-rate spread (calib/core/unit_grade.hpp).

@@ -8,6 +8,7 @@
 
 #include "calib/checks/data_check.hpp"
 #include "calib/core/conventions.hpp"
+#include "calib/core/readable_number.hpp"
 #include "calib/core/rotation.hpp"
 #include "calib/core/run_concurrently.hpp"
 #include "calib/effects/effect_compensation.hpp"
@@ -87,29 +88,35 @@ void check_magnitudes(const ImuSeries& imu, IsRest is_rest, const RunDescription
                          " flags in " + rest_source);
 }
 
-/// Land and sea: rest periods from the IMU data; the first must open the run (alignment).
+/// Land and sea: rest periods from the IMU data; the first must serve the alignment
+/// (first_rest_rule).
 CalibrationInput field_input(const RunDescription& run, const ImuSeries& imu,
                              const std::vector<GnssFix>& gnss) {
   CalibrationInput in = input_from_field_data(
       run.setting, imu, run.setting == Setting::kSea ? gnss : std::vector<GnssFix>{}, run.site,
       run.noise, run.grade, run.min_rest_s);
   in.prior_overrides = run.prior_overrides;
+  const FirstRestRule rule = first_rest_rule(run);
   const double t0 = imu.front().t_s;
-  const double latest_start = kMaxFirstRestStart_s;
   const std::vector<RestPeriod> rests = find_rest_periods(in, 2);
   const RestPeriod* first = rests.empty() ? nullptr : &rests.front();
   const auto span_s = [&](const RestPeriod& r) { return imu[r.end - 1].t_s - imu[r.begin].t_s; };
-  if (!first || imu[first->begin].t_s - t0 > latest_start || span_s(*first) < kMinFirstRest_s)
-    throw InputError(
-        InputError::Where::kImu,
-        std::string("no rest period at the start of this ") + setting_name(run.setting) +
-            " run: the initial alignment needs the unit standing still for at least " +
-            number(kMinFirstRest_s) + " s within the first " + number(latest_start) + " s" +
-            (first ? " (the first rest found in the IMU data starts at t = " +
-                         number(imu[first->begin].t_s) + " s and lasts " + number(span_s(*first)) +
-                         " s)"
-                   : " (no rest found in the IMU data at all)"));
-  return in;
+  if (first && imu[first->begin].t_s - t0 <= rule.latest_start_s && span_s(*first) >= rule.min_s)
+    return in;
+  const bool navigation = run.grade == Grade::kNavigation;
+  std::string need = navigation ? "a navigation-grade unit levels and gyrocompasses on its first "
+                                  "rest: it must stand still for at least " +
+                                      seconds_text(rule.min_s) + ", beginning within " +
+                                      seconds_text(rule.latest_start_s) + " of the first sample"
+                                : "the first rest must last at least " + seconds_text(rule.min_s) +
+                                      " (the run's first_rest_s)";
+  throw InputError(InputError::Where::kImu,
+                   std::string("no usable first rest in this ") + setting_name(run.setting) +
+                       " run: " + need +
+                       (first ? " (the first rest found in the IMU data begins at " +
+                                    instant_text(imu[first->begin].t_s) + " and lasts " +
+                                    seconds_text(span_s(*first)) + ")"
+                              : " (no rest found in the IMU data at all)"));
 }
 
 /// The factory reference: the attitude on the IMU time axis and the rest flag, sample by sample in
@@ -241,6 +248,13 @@ CalibrationInput build(const RunDescription& run, const ImuSeries& imu, ImuSerie
 }
 
 }  // namespace
+
+FirstRestRule first_rest_rule(const RunDescription& run) {
+  const GradePrior p = grade_prior(run.grade);
+  FirstRestRule rule{p.first_rest_min_s, p.first_rest_latest_start_s};
+  if (run.first_rest_s > 0.0) rule.min_s = run.first_rest_s;
+  return rule;
+}
 
 CalibrationInput build_calibration_input(const RunDescription& run, const ImuSeries& imu,
                                          const ReferenceLogs& reference,

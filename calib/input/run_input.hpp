@@ -44,6 +44,8 @@ struct RunDescription {
   Grade grade = Grade::kNavigation;
   EnvelopeOverrides prior_overrides;
   double min_rest_s = 0.0;  ///< field runs: the shortest rest kept (0: the detector's default)
+  /// Field runs: the first rest must last this long (0: the grade's rule, first_rest_rule).
+  double first_rest_s = 0.0;
   ReferenceKind reference = ReferenceKind::kTable;
   TableGeometry table;  ///< factory runs with an encoder log: the model that turns angles into C_bn
   /// A unit mounted off the table's rotation centre (platform axes, m): taken out of the
@@ -93,11 +95,16 @@ class InputError : public std::runtime_error {
   std::size_t sample_;
 };
 
-/// Field runs: the first rest found in the IMU data must begin within kMaxFirstRestStart_s of the
-/// first sample (handling before the recording settles) and last kMinFirstRest_s (levelling and
-/// gyrocompassing).
-constexpr double kMinFirstRest_s = 20.0;
-constexpr double kMaxFirstRestStart_s = 10.0;
+/// Field runs: what the first rest found in the IMU data must be (issue #48 item 2). A
+/// navigation-grade unit levels and gyrocompasses on it: at least 20 s, beginning within 10 s of
+/// the first sample (handling before the recording settles). A tactical or MEMS unit cannot find
+/// north and only levels: its first still position of any length serves, wherever it begins (the
+/// samples before it are not used). RunDescription::first_rest_s > 0 asks for a longer one.
+struct FirstRestRule {
+  double min_s = 0.0;           ///< the shortest first rest
+  double latest_start_s = 0.0;  ///< how long after the first sample it may begin
+};
+FirstRestRule first_rest_rule(const RunDescription& run);
 /// How far a reference sample's time may lie from its IMU sample's.
 constexpr double kTimeMatchTolerance_s = 1e-6;
 

@@ -33,6 +33,7 @@ calib::input::RunDescription run_description(const RunInfo& info) {
   run.grade = info.grade;
   run.prior_overrides = info.prior_overrides;
   run.min_rest_s = info.min_rest_s;
+  run.first_rest_s = info.first_rest_s;
   run.reference = info.reference;
   run.table = info.table.geometry();
   run.lever_arm_p_m = info.table.lever_arm_m;

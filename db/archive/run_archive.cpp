@@ -295,8 +295,9 @@ void read_optional_sections(const TomlSection& root, RunInfo& ri) {
     if (!ri.sequence_sha256.empty() && !is_hex64(ri.sequence_sha256))
       s->fail("sha256", "must be 64 hexadecimal digits");
   }
-  if (const auto p = root.section("prior", {"grade", "min_rest_s", "gyro_bias_deg_per_s",
-                                            "accel_bias_mg", "scale_ppm", "misalignment_mrad"})) {
+  if (const auto p =
+          root.section("prior", {"grade", "min_rest_s", "first_rest_s", "gyro_bias_deg_per_s",
+                                 "accel_bias_mg", "scale_ppm", "misalignment_mrad"})) {
     for (const EnvelopeKey& k : envelope_keys())
       if (const auto v = p->number(k.key)) {
         const double si = k.to_si(*v);
@@ -314,6 +315,10 @@ void read_optional_sections(const TomlSection& root, RunInfo& ri) {
     if (const auto m = p->number("min_rest_s")) {
       if (!(*m >= 0.5 && *m <= 600.0)) p->fail("min_rest_s", "must be in [0.5, 600] s");
       ri.min_rest_s = *m;
+    }
+    if (const auto m = p->number("first_rest_s")) {
+      if (!(*m >= 0.5 && *m <= 600.0)) p->fail("first_rest_s", "must be in [0.5, 600] s");
+      ri.first_rest_s = *m;
     }
   }
   if (const auto n = root.section(
@@ -442,11 +447,12 @@ std::string run_info_text(const RunInfo& ri) {
     if (!ri.sequence_sha256.empty()) w.key("sha256", ri.sequence_sha256);
   }
   // Written only when it says something: a navigation-grade archive stays as it always was.
-  if (ri.grade != calib::core::Grade::kNavigation || ri.min_rest_s > 0.0 ||
+  if (ri.grade != calib::core::Grade::kNavigation || ri.min_rest_s > 0.0 || ri.first_rest_s > 0.0 ||
       ri.prior_overrides.any()) {
     w.section("prior");
     w.key("grade", calib::core::grade_name(ri.grade));
     if (ri.min_rest_s > 0.0) w.key("min_rest_s", ri.min_rest_s);
+    if (ri.first_rest_s > 0.0) w.key("first_rest_s", ri.first_rest_s);
     for (const EnvelopeKey& k : envelope_keys())
       if (const auto& v = ri.prior_overrides.*k.member)
         w.key(k.key, human_for_si(*v, *v / k.to_si(1.0), k.to_si));

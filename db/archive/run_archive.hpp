@@ -86,7 +86,7 @@ struct RunInfo {
   calib::core::Setting setting = calib::core::Setting::kFactory;
   std::string station_name;
   calib::core::Site site;  ///< [station] lat_deg, lon_deg, height_m required; gravity_mps2 optional
-  double imu_rate_hz = 0.0;     ///< [imu] rate_hz, required
+  double imu_rate_hz = 0.0;  ///< [imu] rate_hz, required
   /// [imu] protocol, optional: the name of the unit's CAN protocol the station read it through
   /// (drivers/imu/PROTOCOL.md; "imucal-imu-1" is the built-in one).
   std::string imu_protocol;
@@ -110,6 +110,9 @@ struct RunInfo {
   calib::core::Grade grade = calib::core::Grade::kNavigation;
   /// [prior] min_rest_s: the shortest rest the field runs' detector keeps (0: its default).
   double min_rest_s = 0.0;
+  /// [prior] first_rest_s: field runs' first rest must last this long (0: the grade's rule —
+  /// navigation 20 s within the first 10 s, tactical and MEMS any length anywhere).
+  double first_rest_s = 0.0;
   /// [prior] gyro_bias_deg_per_s, accel_bias_mg, scale_ppm, misalignment_mrad: overrides of the
   /// grade's envelopes (a product whose datasheet differs from its class's).
   calib::core::EnvelopeOverrides prior_overrides;
@@ -124,8 +127,8 @@ struct RunArchive {
   RunInfo info;
   calib::core::ImuSeries imu;                   ///< temp_c = NaN when imu.csv has no temp_c column
   std::vector<calib::core::TableSample> table;  ///< non-empty iff info.reference == kTable
-  std::vector<AttitudeSample> attitude;   ///< non-empty iff info.reference == kAttitude
-  std::vector<calib::core::GnssFix> gnss;  ///< gnss.csv (required at sea), angles in rad
+  std::vector<AttitudeSample> attitude;         ///< non-empty iff info.reference == kAttitude
+  std::vector<calib::core::GnssFix> gnss;       ///< gnss.csv (required at sea), angles in rad
   std::optional<Truth> truth;
   std::string
       origin;  ///< directory it was read from (names files in later errors); "" if in memory

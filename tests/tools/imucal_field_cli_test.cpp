@@ -32,8 +32,8 @@ class FieldCli : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = new imucal::test_support::ScopedTempDir("field-cli");
     for (const char* s : {"land", "sea"})
-      ASSERT_EQ(run_imucal_field_cli(std::string("simulate --sequence short --seed 7 --setting ") + s + " --out " +
-                    (root() / s).string())
+      ASSERT_EQ(run_imucal_field_cli(std::string("simulate --sequence short --seed 7 --setting ") +
+                                     s + " --out " + (root() / s).string())
                     .code,
                 0);
   }
@@ -68,7 +68,8 @@ TEST_F(FieldCli, SimulatedArchivesCarryTheSettingAndNoTableLog) {
 }
 
 TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
-  const ProcImucalFieldCli p = run_imucal_field_cli("calibrate " + (root() / "land").string() + " --json", false);
+  const ProcImucalFieldCli p =
+      run_imucal_field_cli("calibrate " + (root() / "land").string() + " --json", false);
   ASSERT_EQ(p.code, 0) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   EXPECT_EQ(j["ains"]["setting"], "land");
@@ -86,7 +87,8 @@ TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
   // The human report says it too, and NLSQ is refused on land with the reason.
   const ProcImucalFieldCli h = run_imucal_field_cli("calibrate " + (root() / "land").string());
   EXPECT_NE(h.out.find("not observable: housing orientation"), std::string::npos) << h.out;
-  const ProcImucalFieldCli n = run_imucal_field_cli("calibrate " + (root() / "land").string() + " --method nlsq");
+  const ProcImucalFieldCli n =
+      run_imucal_field_cli("calibrate " + (root() / "land").string() + " --method nlsq");
   EXPECT_EQ(n.code, 1);
   EXPECT_NE(n.out.find("NLSQ needs the table's attitude reference"), std::string::npos) << n.out;
 }
@@ -98,7 +100,8 @@ TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
 TEST_F(FieldCli, LegacyConvergesOnALandRunThatStoppedWithinItsNoiseOfTheMinimum) {
   const std::string run_dir =
       imucal::test_support::unpack_data_archive("land-legacy-stall", root().string());
-  const ProcImucalFieldCli p = run_imucal_field_cli("calibrate " + run_dir + " --method legacy --json", false);
+  const ProcImucalFieldCli p =
+      run_imucal_field_cli("calibrate " + run_dir + " --method legacy --json", false);
   ASSERT_EQ(p.code, 0) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   EXPECT_TRUE(j["legacy"]["converged"].get<bool>()) << j["legacy"].dump();
@@ -114,12 +117,14 @@ TEST_F(FieldCli, EvaluateRefusesARunWithoutReferenceAndDiagnoseWorksOnLandAndSea
              .at("ains")
              .at("params")
              .dump();
-  const ProcImucalFieldCli e = run_imucal_field_cli("evaluate " + (root() / "land").string() + " --params " + params.string());
+  const ProcImucalFieldCli e = run_imucal_field_cli("evaluate " + (root() / "land").string() +
+                                                    " --params " + params.string());
   EXPECT_EQ(e.code, 1) << e.out;
   EXPECT_NE(e.out.find("no attitude reference"), std::string::npos) << e.out;
   // The diagnosis works without a table on land (issue #21 item 4: each rest's attitude an
   // unknown) and at sea (the navigation filter's GNSS innovations, the deck moving the unit).
-  const ProcImucalFieldCli d = run_imucal_field_cli("diagnose " + (root() / "land").string() + " --json", false);
+  const ProcImucalFieldCli d =
+      run_imucal_field_cli("diagnose " + (root() / "land").string() + " --json", false);
   ASSERT_EQ(d.code, 0) << d.out;
   const nlohmann::json j = nlohmann::json::parse(d.out);
   EXPECT_EQ(j.at("verdict"), "consistent") << j.at("summary");
@@ -127,8 +132,8 @@ TEST_F(FieldCli, EvaluateRefusesARunWithoutReferenceAndDiagnoseWorksOnLandAndSea
   EXPECT_EQ(j.at("base_calibration"), "legacy");
   EXPECT_TRUE(j.at("overall").at("simulated_gap").is_null());  // no reference trajectory: no twin
   const fs::path report = root() / "sea-report";
-  const ProcImucalFieldCli sea =
-      run_imucal_field_cli("diagnose " + (root() / "sea").string() + " --json --report " + report.string(), false);
+  const ProcImucalFieldCli sea = run_imucal_field_cli(
+      "diagnose " + (root() / "sea").string() + " --json --report " + report.string(), false);
   ASSERT_EQ(sea.code, 0) << sea.out;
   const nlohmann::json s = nlohmann::json::parse(sea.out);
   EXPECT_EQ(s.at("verdict"), "consistent") << s.at("summary");
@@ -146,7 +151,8 @@ TEST_F(FieldCli, EvaluateRefusesARunWithoutReferenceAndDiagnoseWorksOnLandAndSea
 // Issue #19 item 4: the truth column was in the housing frame while err/σ was computed against the
 // truth in the triad's frame, so a reader checking (est − truth)/σ got a different number.
 TEST_F(FieldCli, LandTruthColumnIsTheOneErrOverSigmaIsMeasuredAgainst) {
-  const ProcImucalFieldCli p = run_imucal_field_cli("calibrate " + (root() / "land").string(), false);
+  const ProcImucalFieldCli p =
+      run_imucal_field_cli("calibrate " + (root() / "land").string(), false);
   ASSERT_EQ(p.code, 0) << p.out;
   std::istringstream in(p.out);
   std::string line;
@@ -165,7 +171,8 @@ TEST_F(FieldCli, LandTruthColumnIsTheOneErrOverSigmaIsMeasuredAgainst) {
 
 TEST_F(FieldCli, SeaCalibratesWithAinsAlone) {
   // One rule with the station: nothing independent checks a sea result, so it is REVIEW (exit 3).
-  const ProcImucalFieldCli p = run_imucal_field_cli("calibrate " + (root() / "sea").string() + " --json", false);
+  const ProcImucalFieldCli p =
+      run_imucal_field_cli("calibrate " + (root() / "sea").string() + " --json", false);
   ASSERT_EQ(p.code, 3) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   EXPECT_EQ(j["verdict"], "REVIEW");
@@ -176,7 +183,8 @@ TEST_F(FieldCli, SeaCalibratesWithAinsAlone) {
   EXPECT_TRUE(j["ains"]["converged"].get<bool>());
   EXPECT_FALSE(j.contains("legacy"));
   EXPECT_FALSE(j.contains("crosscheck"));
-  const ProcImucalFieldCli l = run_imucal_field_cli("calibrate " + (root() / "sea").string() + " --method legacy");
+  const ProcImucalFieldCli l =
+      run_imucal_field_cli("calibrate " + (root() / "sea").string() + " --method legacy");
   EXPECT_EQ(l.code, 1);
   EXPECT_NE(l.out.find("still platform"), std::string::npos) << l.out;
 }
@@ -207,7 +215,42 @@ TEST_F(FieldCli, LandArchiveWithNoRestAtTheStart) {
   while (std::getline(in, line))
     if (std::stod(line.substr(0, line.find(','))) > 26.0) out << line << '\n';
   std::ofstream(d / "imu.csv") << out.str();
-  expect_refused(d, "no rest period at the start of this land run");
+  expect_refused(d, "no usable first rest in this land run");
+}
+
+// Issue #48 item 2: a tactical or MEMS unit's first still position of any length serves; whoever
+// needs a longer one says so on the command line or in run.toml, and is told what the run has.
+TEST_F(FieldCli, AFirstRestRuleIsTheGradesUnlessTheRunAsksForALongerOne) {
+  const fs::path d = copy("land", "land-late-start");
+  std::istringstream in(slurp(d / "imu.csv"));
+  std::ostringstream out;
+  std::string line;
+  std::getline(in, line);
+  out << line << '\n';
+  while (std::getline(in, line))
+    if (std::stod(line.substr(0, line.find(','))) > 26.0) out << line << '\n';
+  std::ofstream(d / "imu.csv") << out.str();
+  const std::string args = "calibrate --method legacy --grade mems " + d.string();
+  const ProcImucalFieldCli any = run_imucal_field_cli(args);
+  EXPECT_EQ(any.out.find("first rest"), std::string::npos) << any.out;
+  const ProcImucalFieldCli longer = run_imucal_field_cli(args + " --first-rest-s 600");
+  EXPECT_EQ(longer.code, 1) << longer.out;
+  EXPECT_NE(longer.out.find("the first rest must last at least 600 s"), std::string::npos)
+      << longer.out;
+  // The same from run.toml, and a value out of range named by its key.
+  std::string toml = slurp(d / "run.toml");
+  const bool has_prior = toml.find("[prior]") != std::string::npos;
+  ASSERT_FALSE(has_prior) << toml;
+  std::ofstream(d / "run.toml") << toml << "\n[prior]\ngrade = \"mems\"\nfirst_rest_s = 600\n";
+  const ProcImucalFieldCli from_toml =
+      run_imucal_field_cli("calibrate --method legacy " + d.string());
+  EXPECT_EQ(from_toml.code, 1) << from_toml.out;
+  EXPECT_NE(from_toml.out.find("at least 600 s"), std::string::npos) << from_toml.out;
+  std::ofstream(d / "run.toml") << toml << "\n[prior]\ngrade = \"mems\"\nfirst_rest_s = 0.1\n";
+  const ProcImucalFieldCli bad = run_imucal_field_cli("calibrate --method legacy " + d.string());
+  EXPECT_EQ(bad.code, 1) << bad.out;
+  EXPECT_NE(bad.out.find("first_rest_s"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("[0.5, 600]"), std::string::npos) << bad.out;
 }
 
 TEST_F(FieldCli, UnknownSettingAndFactoryWithoutReference) {
@@ -216,8 +259,9 @@ TEST_F(FieldCli, UnknownSettingAndFactoryWithoutReference) {
   toml.replace(toml.find("\"land\""), 6, "\"lake\"");
   std::ofstream(d / "run.toml") << toml;
   expect_refused(d, "setting");
-  EXPECT_NE(run_imucal_field_cli("calibrate " + d.string()).out.find("\"factory\", \"land\" or \"sea\""),
-            std::string::npos);
+  EXPECT_NE(
+      run_imucal_field_cli("calibrate " + d.string()).out.find("\"factory\", \"land\" or \"sea\""),
+      std::string::npos);
   d = copy("land", "factory-noref");
   toml = slurp(d / "run.toml");
   toml.erase(toml.find("setting = \"land\"\n"), std::string("setting = \"land\"\n").size());
@@ -229,7 +273,8 @@ TEST_F(FieldCli, UnknownSettingAndFactoryWithoutReference) {
 // Issue #19 item 5: with two units the "Mean" row set our two-unit mean beside the paper's six-unit
 // one, and the run ended "NOT as in the paper" (exit 3) on a ratio two units cannot judge.
 TEST_F(FieldCli, PaperTablesOnTwoUnitsComparesTheSameImusAndJudgesOnlyWhatItCan) {
-  const ProcImucalFieldCli p = run_imucal_field_cli("paper-tables --units 2 --seed 3 --json", false);
+  const ProcImucalFieldCli p =
+      run_imucal_field_cli("paper-tables --units 2 --seed 3 --json", false);
   EXPECT_EQ(p.code, 0) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   // The paper's Table I, IMUs 1 and 2: AINS 10.7668 and 20.3281 milli-degrees.
@@ -247,7 +292,8 @@ TEST_F(FieldCli, PaperTablesOnTwoUnitsComparesTheSameImusAndJudgesOnlyWhatItCan)
 }
 
 TEST_F(FieldCli, PaperTablesOnTwoUnits) {
-  const ProcImucalFieldCli p = run_imucal_field_cli("paper-tables --units 2 --seed 3 --json", false);
+  const ProcImucalFieldCli p =
+      run_imucal_field_cli("paper-tables --units 2 --seed 3 --json", false);
   ASSERT_TRUE(p.code == 0 || p.code == 3) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   ASSERT_EQ(j["units"].size(), 2u);
@@ -269,12 +315,14 @@ TEST_F(FieldCli, PaperTablesOnTwoUnits) {
 // a tilt: with it the legacy method is clearly worse on orientation than the factory AINS (and so
 // are the field AINS runs, README § the paper's tables). An unknown effect is refused by name.
 TEST_F(FieldCli, PaperTablesWithOneChosenEffect) {
-  const ProcImucalFieldCli p = run_imucal_field_cli("paper-tables --units 2 --seed 3 --effects k2 --json", false);
+  const ProcImucalFieldCli p =
+      run_imucal_field_cli("paper-tables --units 2 --seed 3 --effects k2 --json", false);
   ASSERT_TRUE(p.code == 0 || p.code == 3) << p.out;
   const auto j = nlohmann::json::parse(p.out);
   EXPECT_EQ(j["unmodelled_effects"], "k2");
   EXPECT_GT(j["findings"]["legacy_over_ains_orientation"].get<double>(), 1.5);
-  const ProcImucalFieldCli bad = run_imucal_field_cli("paper-tables --units 1 --effects thermal,bogus");
+  const ProcImucalFieldCli bad =
+      run_imucal_field_cli("paper-tables --units 1 --effects thermal,bogus");
   EXPECT_NE(bad.code, 0);
   EXPECT_NE(bad.out.find("unknown effect 'bogus'"), std::string::npos) << bad.out;
 }

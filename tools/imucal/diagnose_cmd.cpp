@@ -198,6 +198,10 @@ CLI::App* add_diagnose_command(CLI::App& app, DiagnoseArgs& a) {
   c->add_option("--min-rest-s", a.min_rest_s,
                 "field runs: the shortest rest kept, s (default: the detector's)")
       ->check(CLI::Range(0.5, 600.0));
+  c->add_option("--first-rest-s", a.first_rest_s,
+                "field runs: the first rest must last this long, s (default: the grade's rule, "
+                "as calibrate)")
+      ->check(CLI::Range(0.5, 600.0));
   return c;
 }
 
@@ -230,6 +234,7 @@ int cmd_diagnose(const DiagnoseArgs& a) {
   db::archive::RunArchive ar = db::archive::read_archive(a.dir);
   if (!a.grade.empty()) ar.info.grade = *calib::core::parse_grade(a.grade);
   if (a.min_rest_s > 0.0) ar.info.min_rest_s = a.min_rest_s;
+  if (a.first_rest_s > 0.0) ar.info.first_rest_s = a.first_rest_s;
   calib::diagnosis::DiagnosisInput in;
   in.cal = db::archive::to_calibration_input(ar);
   try {

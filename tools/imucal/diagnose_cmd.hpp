@@ -12,10 +12,11 @@ namespace imucal::tools::imucal {
 struct DiagnoseArgs {
   std::string dir;
   bool json = false;
-  std::string candidates;  ///< comma-separated catalogue names; empty = all
-  std::string report_dir;  ///< --report OUTDIR; empty = none
-  std::string grade;       ///< --grade: instead of run.toml's [prior] grade; empty = run.toml's
-  double min_rest_s = 0.0;  ///< --min-rest-s (field runs); 0 = run.toml's
+  std::string candidates;     ///< comma-separated catalogue names; empty = all
+  std::string report_dir;     ///< --report OUTDIR; empty = none
+  std::string grade;          ///< --grade: instead of run.toml's [prior] grade; empty = run.toml's
+  double min_rest_s = 0.0;    ///< --min-rest-s (field runs); 0 = run.toml's
+  double first_rest_s = 0.0;  ///< --first-rest-s (field runs); 0 = run.toml's
 };
 
 /// Adds the subcommand to `app`, binding its options to `args`.

@@ -259,9 +259,10 @@ int cmd_simulate(const SimulateArgs& a) {
 
 /// What `calibrate` may say about the unit instead of run.toml's [prior].
 struct PriorOverride {
-  std::string grade;        ///< empty: run.toml's
-  double min_rest_s = 0.0;  ///< 0: run.toml's
-  std::string compensate;   ///< --compensate: a diagnosis JSON whose effects are removed first
+  std::string grade;          ///< empty: run.toml's
+  double min_rest_s = 0.0;    ///< 0: run.toml's
+  double first_rest_s = 0.0;  ///< 0: run.toml's
+  std::string compensate;     ///< --compensate: a diagnosis JSON whose effects are removed first
 };
 
 /// --compensate FILE: the effects a diagnosis found (its best and second), read before any work.
@@ -320,6 +321,7 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
   db::archive::RunArchive ar = db::archive::read_archive(dir);
   if (!prior.grade.empty()) ar.info.grade = *calib::core::parse_grade(prior.grade);
   if (prior.min_rest_s > 0.0) ar.info.min_rest_s = prior.min_rest_s;
+  if (prior.first_rest_s > 0.0) ar.info.first_rest_s = prior.first_rest_s;
   const std::optional<db::archive::DiagnosedEffects> fx = read_compensation(prior.compensate);
   progress("checking the archive");
   calib::core::CalibrationInput in = calibration_input(ar, setting);
@@ -532,6 +534,11 @@ void add_calibrate(CLI::App& app, Commands& c) {
   cal->add_option("--min-rest-s", c.prior.min_rest_s,
                   "field runs: the shortest rest kept, s (default: the detector's, 10 s for "
                   "navigation grade, 2 s otherwise)")
+      ->check(CLI::Range(0.5, 600.0));
+  cal->add_option("--first-rest-s", c.prior.first_rest_s,
+                  "field runs: the first rest must last this long, s (default: navigation grade "
+                  "20 s beginning within the first 10 s, for levelling and gyrocompassing; "
+                  "tactical and MEMS the first still position of any length, wherever it begins)")
       ->check(CLI::Range(0.5, 600.0));
   cal->add_option("--compensate", c.prior.compensate,
                   "a gap diagnosis (imucal diagnose --json, or --report's diagnosis.json): remove "
