@@ -103,20 +103,29 @@ CalibrationInput field_input(const RunDescription& run, const ImuSeries& imu,
   const auto span_s = [&](const RestPeriod& r) { return imu[r.end - 1].t_s - imu[r.begin].t_s; };
   if (first && imu[first->begin].t_s - t0 <= rule.latest_start_s && span_s(*first) >= rule.min_s)
     return in;
-  const bool navigation = run.grade == Grade::kNavigation;
-  std::string need = navigation ? "a navigation-grade unit levels and gyrocompasses on its first "
-                                  "rest: it must stand still for at least " +
-                                      seconds_text(rule.min_s) + ", beginning within " +
-                                      seconds_text(rule.latest_start_s) + " of the first sample"
-                                : "the first rest must last at least " + seconds_text(rule.min_s) +
-                                      " (the run's first_rest_s)";
+  const std::string what =
+      std::string("no usable first rest in this ") + setting_name(run.setting) + " run: ";
+  if (!first)
+    throw InputError(InputError::Where::kImu,
+                     what +
+                         "no rest found in the IMU data at all (the unit must stand still at "
+                         "least once: the alignment and the calibration need it)");
+  const std::string need =
+      run.grade == Grade::kNavigation && run.first_rest_s <= 0.0
+          ? "a navigation-grade unit levels and gyrocompasses on its first rest: it must stand "
+            "still for at least " +
+                seconds_text(rule.min_s) + ", beginning within " +
+                seconds_text(rule.latest_start_s) + " of the first sample"
+          : "the first rest must last at least " + seconds_text(rule.min_s) +
+                " (the run's first_rest_s)" +
+                (std::isfinite(rule.latest_start_s)
+                     ? ", beginning within " + seconds_text(rule.latest_start_s) +
+                           " of the first sample"
+                     : std::string());
   throw InputError(InputError::Where::kImu,
-                   std::string("no usable first rest in this ") + setting_name(run.setting) +
-                       " run: " + need +
-                       (first ? " (the first rest found in the IMU data begins at " +
-                                    instant_text(imu[first->begin].t_s) + " and lasts " +
-                                    seconds_text(span_s(*first)) + ")"
-                              : " (no rest found in the IMU data at all)"));
+                   what + need + " (the first rest found in the IMU data begins at " +
+                       instant_text(imu[first->begin].t_s) + " and lasts " +
+                       seconds_text(span_s(*first)) + ")");
 }
 
 /// The factory reference: the attitude on the IMU time axis and the rest flag, sample by sample in

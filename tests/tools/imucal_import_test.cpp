@@ -240,7 +240,7 @@ TEST(ImucalImport, ARecordingWithNoRestAtAllIsRefusedByTheCalibrationAtMemsGrade
   const std::string before = test_support::listing(out);
   const auto r = run_imucal("calibrate " + out);
   EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("imu.csv: no rest period"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("imu.csv: no usable first rest"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("no rest found in the IMU data at all"), std::string::npos) << r.out;
   EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
   EXPECT_EQ(test_support::listing(out), before);
