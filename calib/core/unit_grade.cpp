@@ -24,6 +24,19 @@ std::optional<Grade> parse_grade(const std::string& name) {
   return std::nullopt;
 }
 
+namespace {
+
+/// Tactical and MEMS gyros cannot find north: the first still position of any length serves,
+/// wherever it begins, levelling needs about a second, and a hand's tremor is still rest.
+void levels_only(GradePrior& p) {
+  p.first_rest_min_s = 0.0;
+  p.first_rest_latest_start_s = std::numeric_limits<double>::infinity();
+  p.alignment_min_window_s = 1.0;
+  p.tremor_rate_radps = 2.0 * kDegToRad;
+}
+
+}  // namespace
+
 GradePrior grade_prior(Grade g) {
   constexpr double kDegPerHour = kDegToRad / 3600.0;
   constexpr double kDegPerSqrtHour = kDegToRad / 60.0;
@@ -55,10 +68,7 @@ GradePrior grade_prior(Grade g) {
       p.still_force_mps2 = 0.005;
       p.rest_rate_spread_radps = 0.1 * kDegToRad;
       p.effect_scale = 100.0;
-      p.first_rest_min_s = 0.0;
-      p.first_rest_latest_start_s = std::numeric_limits<double>::infinity();
-      p.alignment_min_window_s = 1.0;
-      p.tremor_rate_radps = 2.0 * kDegToRad;
+      levels_only(p);
       break;
     case Grade::kMems:
       p.gyro_bias_radps = 5.0 * kDegToRad;
@@ -71,10 +81,7 @@ GradePrior grade_prior(Grade g) {
       p.still_force_mps2 = 0.01;
       p.rest_rate_spread_radps = 0.5 * kDegToRad;
       p.effect_scale = 1e4;
-      p.first_rest_min_s = 0.0;
-      p.first_rest_latest_start_s = std::numeric_limits<double>::infinity();
-      p.alignment_min_window_s = 1.0;
-      p.tremor_rate_radps = 2.0 * kDegToRad;
+      levels_only(p);
       break;
   }
   return p;

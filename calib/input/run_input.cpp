@@ -110,18 +110,16 @@ CalibrationInput field_input(const RunDescription& run, const ImuSeries& imu,
                      what +
                          "no rest found in the IMU data at all (the unit must stand still at "
                          "least once: the alignment and the calibration need it)");
+  const bool grades_rule = run.grade == Grade::kNavigation && run.first_rest_s <= 0.0;
   const std::string need =
-      run.grade == Grade::kNavigation && run.first_rest_s <= 0.0
-          ? "a navigation-grade unit levels and gyrocompasses on its first rest: it must stand "
-            "still for at least " +
-                seconds_text(rule.min_s) + ", beginning within " +
-                seconds_text(rule.latest_start_s) + " of the first sample"
-          : "the first rest must last at least " + seconds_text(rule.min_s) +
-                " (the run's first_rest_s)" +
-                (std::isfinite(rule.latest_start_s)
-                     ? ", beginning within " + seconds_text(rule.latest_start_s) +
-                           " of the first sample"
-                     : std::string());
+      (grades_rule ? "a navigation-grade unit levels and gyrocompasses on its first rest: it must "
+                     "stand still for at least " +
+                         seconds_text(rule.min_s)
+                   : "the first rest must last at least " + seconds_text(rule.min_s) +
+                         " (the run's first_rest_s)") +
+      (std::isfinite(rule.latest_start_s)
+           ? ", beginning within " + seconds_text(rule.latest_start_s) + " of the first sample"
+           : std::string());
   throw InputError(InputError::Where::kImu,
                    what + need + " (the first rest found in the IMU data begins at " +
                        instant_text(imu[first->begin].t_s) + " and lasts " +

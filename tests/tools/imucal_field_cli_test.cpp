@@ -45,6 +45,17 @@ class FieldCli : public ::testing::Test {
     fs::copy(root() / from, dst, fs::copy_options::recursive);
     return dst;
   }
+  /// The archive's imu.csv from `t_s` on: the recording as if it had begun then.
+  static void drop_samples_before(const fs::path& dir, double t_s) {
+    std::istringstream in(slurp(dir / "imu.csv"));
+    std::ostringstream out;
+    std::string line;
+    std::getline(in, line);
+    out << line << '\n';
+    while (std::getline(in, line))
+      if (std::stod(line.substr(0, line.find(','))) > t_s) out << line << '\n';
+    std::ofstream(dir / "imu.csv") << out.str();
+  }
   /// Runs calibrate on a bad archive: exit 1, one line naming `needle`, nothing written.
   static void expect_refused(const fs::path& dir, const std::string& needle) {
     const std::string before = listing(dir);
@@ -207,14 +218,7 @@ TEST_F(FieldCli, GnssTimesOutsideTheImus) {
 TEST_F(FieldCli, LandArchiveWithNoRestAtTheStart) {
   // Drop the first 26 s of the run: the unit is then already turning, or still for only a few s.
   const fs::path d = copy("land", "land-nostart");
-  std::istringstream in(slurp(d / "imu.csv"));
-  std::ostringstream out;
-  std::string line;
-  std::getline(in, line);
-  out << line << '\n';
-  while (std::getline(in, line))
-    if (std::stod(line.substr(0, line.find(','))) > 26.0) out << line << '\n';
-  std::ofstream(d / "imu.csv") << out.str();
+  drop_samples_before(d, 26.0);
   expect_refused(d, "no usable first rest in this land run");
 }
 
@@ -222,14 +226,7 @@ TEST_F(FieldCli, LandArchiveWithNoRestAtTheStart) {
 // needs a longer one says so on the command line or in run.toml, and is told what the run has.
 TEST_F(FieldCli, AFirstRestRuleIsTheGradesUnlessTheRunAsksForALongerOne) {
   const fs::path d = copy("land", "land-late-start");
-  std::istringstream in(slurp(d / "imu.csv"));
-  std::ostringstream out;
-  std::string line;
-  std::getline(in, line);
-  out << line << '\n';
-  while (std::getline(in, line))
-    if (std::stod(line.substr(0, line.find(','))) > 26.0) out << line << '\n';
-  std::ofstream(d / "imu.csv") << out.str();
+  drop_samples_before(d, 26.0);
   const std::string args = "calibrate --method legacy --grade mems " + d.string();
   const ProcImucalFieldCli any = run_imucal_field_cli(args);
   EXPECT_EQ(any.out.find("first rest"), std::string::npos) << any.out;
