@@ -10,6 +10,7 @@
 #include "calib/ains/ains_filter.hpp"
 #include "calib/core/coarse_alignment.hpp"
 #include "calib/core/conventions.hpp"
+#include "calib/core/readable_number.hpp"
 #include "calib/core/rotation.hpp"
 #include "calib/core/unit_grade.hpp"
 
@@ -171,6 +172,15 @@ void add_warnings(const CalibrationInput& in, const AinsOptions& opt, AinsResult
        << " (expected <= 1); sigma may be optimistic";
     res.warnings.push_back(os.str());
   }
+  // A logger that drops samples now and then would fill the list: the first few, then a count.
+  constexpr size_t kListed = 3;
+  for (size_t i = 0; i < std::min(in.unusable.size(), kListed); ++i)
+    res.warnings.push_back("attitude and velocity released after " +
+                           instant_text(in.imu[in.unusable[i].begin].t_s) +
+                           " (the next rest decides them): " + in.unusable[i].reason);
+  if (in.unusable.size() > kListed)
+    res.warnings.push_back("and at " + std::to_string(in.unusable.size() - kListed) +
+                           " further clipped or dropped stretches");
   if (in.noise.gyro_bias_instability_radps > 0.0 || in.noise.accel_bias_instability_mps2 > 0.0)
     res.warnings.push_back(
         "noise model has bias instability; AINS models biases as random constants (paper §IV-A)");

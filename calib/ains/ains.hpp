@@ -51,7 +51,14 @@ struct AinsOptions {
   double initial_tilt_sigma_rad = 1e-2;
   double initial_heading_sigma_rad = 0.1;
   double sea_initial_velocity_sigma_mps = 0.2;  ///< a drifting vessel's speed
-  double update_interval_s = 1.0;               ///< aiding rate while at rest
+  /// Field settings: after a clipped or dropped stretch (CalibrationInput::unusable) the attitude
+  /// and velocity it carried are released by this 1-σ (process noise added once): the next rest
+  /// levels the unit again, and the stretch's rotation teaches the gyro states nothing — the
+  /// filter's way of leaving the move out. A MEMS gyro clipped at 250 °/s for 0.1 s, turning at
+  /// 300, loses 5°.
+  double unusable_attitude_sigma_rad = 0.15;
+  double unusable_velocity_sigma_mps = 1.0;
+  double update_interval_s = 1.0;       ///< aiding rate while at rest
   double propagation_interval_s = 1.0;  ///< Φ accumulated over the samples of this interval
   size_t min_rest_samples = 100;        ///< shorter at_rest runs are not used for aiding
   /// 1-σ prior of the sensor states (centred on zero). Elements <= 0 take the built-in default

@@ -146,6 +146,9 @@ PreparedInput prepare_input(const CalibrationInput& in, const AinsOptions& opt) 
     }
   }
   if (pin.schedule[n - 1] == 0) pin.schedule[n - 1] = 1;
+  pin.unusable.assign(n, 0);
+  for (const UnusableSpan& s : in.unusable)
+    for (size_t k = s.begin; k < std::min(s.end, n); ++k) pin.unusable[k] = 1;
   // The pass records the start epoch k0 whatever its schedule, then every scheduled sample after
   // it: one short and the epochs' storage (~14 kB each) is reallocated and copied at the end.
   pin.num_epochs = 1;
@@ -204,7 +207,11 @@ class PassRunner {
       ins_.step(nav_, dth, dv, s.dt_s);
       acc_.add(C_start, nav_.C_bn, dth, dv, s.dt_s);
       const uint8_t kind = pin_.schedule[k];
-      if (kind != 0 || acc_.duration_s() >= opt_.propagation_interval_s - 0.5 * s.dt_s)
+      // Released once, at the stretch's last sample.
+      const bool stretch_ends = pin_.unusable[k] != 0 && (k + 1 == n || pin_.unusable[k + 1] == 0);
+      release_pending_ = release_pending_ || stretch_ends;
+      if (kind != 0 || stretch_ends ||
+          acc_.duration_s() >= opt_.propagation_interval_s - 0.5 * s.dt_s)
         close_subinterval();
       if (kind == 0) continue;
       predict();
@@ -317,7 +324,8 @@ class PassRunner {
     const double T = acc_.duration_s();
     linearise();
     const NavMat Phi_sub_nn = nav_transition(F_, T);
-    const NavMat Q_sub = process_noise(T);
+    NavMat Q_sub = process_noise(T);
+    if (release_pending_) release_carried_state(Q_sub);
     const NavSensorMat Phi_sub_ns = acc_.transition(F_, F2_, Ag_inv_, Aa_inv_);
     acc_.reset();
     if (epoch_start_) {  // Φ_ep = I, Q_ep = 0 so far: nothing to compose
@@ -338,6 +346,15 @@ class PassRunner {
     Phi_nn_ = Phi_nn_new;
     const NavMat PQ = Phi_sub_nn.lazyProduct(Q_);
     Q_ = PQ.lazyProduct(Phi_sub_nn.transpose()) + Q_sub;
+  }
+
+  /// A clipped or dropped stretch ends in this sub-interval: what it carried (attitude, velocity)
+  /// is released by AinsOptions' unusable σ, so the next rest, not the stretch, decides them.
+  void release_carried_state(NavMat& Q_sub) {
+    const double sa = opt_.unusable_attitude_sigma_rad, sv = opt_.unusable_velocity_sigma_mps;
+    Q_sub.block<3, 3>(kPsi, kPsi) += sa * sa * Matrix3d::Identity();
+    Q_sub.block<3, 3>(kVel, kVel) += sv * sv * Matrix3d::Identity();
+    release_pending_ = false;
   }
 
   /// Q_sub = ∫ Φ(s) Qc Φ(s)^T ds with Φ(s) = I + F s + F² s²/2, term by term: exact for the
@@ -507,8 +524,9 @@ class PassRunner {
   NavSensorMat Phi_ns_ = NavSensorMat::Zero();
   NavMat Q_ = NavMat::Zero();
   SensorCouplingAccumulator acc_;
-  size_t k_ = 0;             ///< sample of the update in progress (for the innovation records)
-  bool epoch_start_ = true;  ///< no sub-interval composed into Φ_nn_, Φ_ns_, Q_ yet
+  size_t k_ = 0;                  ///< sample of the update in progress (for the innovation records)
+  bool epoch_start_ = true;       ///< no sub-interval composed into Φ_nn_, Φ_ns_, Q_ yet
+  bool release_pending_ = false;  ///< an unusable sample since the last sub-interval closed
   NavMat F_ = NavMat::Zero(), F2_ = NavMat::Zero();
 };
 

@@ -22,6 +22,8 @@ struct PreparedInput {
   RestPeriod first_rest;  ///< the rest period the INS starts in (field: the alignment window)
   size_t num_epochs = 0;
   size_t num_rest_periods = 0;
+  /// Per sample: 1 where CalibrationInput::unusable says a clipped or dropped sample is.
+  std::vector<uint8_t> unusable;
 };
 
 /// Validate the input and options (std::invalid_argument with the offending field/sample) and

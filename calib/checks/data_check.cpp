@@ -213,6 +213,8 @@ void check_rotations(const CalibrationInput& in, const std::vector<RestPeriod>& 
   for (size_t k = 0; k + 1 < rests.size(); ++k) {
     const size_t a = (rests[k].begin + rests[k].end) / 2,
                  b = (rests[k + 1].begin + rests[k + 1].end) / 2;
+    // A clipped or dropped sample spoils this move alone: the methods leave it out.
+    if (!spans_within(in.unusable, a, b + 1).empty()) continue;
     const Matrix3d C_imu = integrate(in.imu, a + 1, b + 1, offset);  // body at b w.r.t. at a
     // Gravity seen at rest k, carried by the gyros to rest k+1 (Earth rate ≪ the tolerance).
     // Beyond what a scale factor within a few per cent could do over this rotation.
@@ -278,9 +280,11 @@ DataCheckOptions data_check_options(const UnitPrior& prior) {
 std::vector<DataProblem> check_data(const CalibrationInput& in, const DataCheckOptions& o) {
   std::vector<DataProblem> out;
   if (in.imu.size() < 2 || in.reference.size() != in.imu.size()) return out;
-  check_clock(in.imu, out);
+  // A field recording's clipped and dropped samples are judged where they are (in.unusable: the
+  // move that holds one is left out); a table run is captured by the station, which runs it again.
+  if (in.has_reference_attitude()) check_clock(in.imu, out);
   check_stuck(in.imu, o, out);
-  check_saturation(in.imu, o, out);
+  if (in.has_reference_attitude()) check_saturation(in.imu, o, out);
   const std::vector<RestPeriod> rests = find_rest_periods(in, o.min_rest_samples);
   if (rests.empty()) return out;
   const std::vector<Vector3d> f = rest_means(in, rests);

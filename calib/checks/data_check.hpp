@@ -3,9 +3,11 @@
 // or a wrong set-up is refused with the symptom named — instead of calibrated into nonsense, or
 // blamed on the sequence ("not observable"). Issue #10: "never store a wrong calibration as good".
 //
-//   clock jump        the IMU's time steps by other than its sample interval;
+//   clock jump        the IMU's time steps by other than its sample interval (factory only);
 //   stuck channel     a gyro or accelerometer channel holds one value for most of the run;
-//   saturation        a channel reaches the same extreme value again and again (clipped);
+//   saturation        a channel reaches the same extreme value again and again (clipped;
+//                     factory only: a field run's clipped and dropped samples spoil the move
+//                     they fall in, which the methods leave out — CalibrationInput::unusable);
 //   gravity magnitude the accelerometers at rest do not measure |g| (±5 %);
 //   gyro vs gravity   the gyros' rotation between two rests does not carry the measured gravity
 //                     direction of one rest to the next (axes swapped, a sign flipped, a dead gyro)

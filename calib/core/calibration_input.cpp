@@ -98,6 +98,9 @@ CalibrationInput input_from_field_data(Setting setting, const ImuSeries& imu,
     in.reference[k].t_s = imu[k].t_s;
     in.reference[k].at_rest = rest[k];
   }
+  in.unusable = find_unusable_spans(imu);
+  for (const UnusableSpan& s : in.unusable)
+    for (size_t k = s.begin; k < s.end; ++k) in.reference[k].at_rest = false;
   return in;
 }
 

@@ -14,6 +14,7 @@
 #include "calib/core/noise_model.hpp"
 #include "calib/core/param_set.hpp"
 #include "calib/core/unit_grade.hpp"
+#include "calib/core/unusable_span.hpp"
 
 namespace imucal::calib::core {
 
@@ -58,10 +59,14 @@ struct CalibrationInput {
   /// Same length and times as imu. Factory: the reference attitude and the table's at_rest flag.
   /// Land/sea: at_rest only (from calib/core/rest_detector.hpp); C_bn_ref is identity and unused.
   std::vector<ReferenceSample> reference;
-  std::vector<GnssFix> gnss;  ///< sea: position fixes inside the IMU's time span; else empty
-  NoiseModel noise;           ///< sensor noise spec (datasheet or unit file)
+  std::vector<GnssFix> gnss;         ///< sea: position fixes inside the IMU's time span; else empty
+  NoiseModel noise;                  ///< sensor noise spec (datasheet or unit file)
   Grade grade = Grade::kNavigation;  ///< the unit's grade: what may be assumed before its data
   EnvelopeOverrides prior_overrides;  ///< run.toml [prior] overrides of the grade's envelopes
+  /// Field runs: clipped or dropped samples (calib/core/unusable_span.hpp), never inside a rest
+  /// (at_rest is false there); each method leaves out the move that holds one and says so.
+  /// Factory runs: empty (the data checks refuse a clipped or gapped table run as a whole).
+  std::vector<UnusableSpan> unusable;
 
   /// The grade with its overrides: what the data checks, limits and the filter's prior assume.
   UnitPrior unit_prior() const { return {grade, prior_overrides}; }
@@ -136,7 +141,8 @@ ParamSet sigma_from_covariance(const ParamCovariance& cov);
 /// `grade` chooses the rest detector: navigation grade the magnitude detector
 /// (calib/core/rest_detector.hpp, as before the grades existed), the others the variation detector
 /// that needs no calibration (calib/core/variation_rest_detector.hpp) with the grade's floors;
-/// `min_rest_s` > 0 overrides the detector's shortest rest.
+/// `min_rest_s` > 0 overrides the detector's shortest rest. Clipped and dropped samples are found
+/// (`unusable`) and no rest holds one: a rest with one in it ends there and goes on after it.
 CalibrationInput input_from_field_data(Setting setting, const ImuSeries& imu,
                                        const std::vector<GnssFix>& gnss, const Site& site,
                                        const NoiseModel& noise, Grade grade = Grade::kNavigation,

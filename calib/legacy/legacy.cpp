@@ -12,6 +12,7 @@
 #include "calib/core/body_frame.hpp"
 #include "calib/core/conventions.hpp"
 #include "calib/core/earth.hpp"
+#include "calib/core/readable_number.hpp"
 #include "calib/core/rotation.hpp"
 
 namespace imucal::calib::legacy {
@@ -250,7 +251,7 @@ struct NoiseWeights {
 struct GyroBiasModel {
   static constexpr bool kNoiseWeighted = true;
   const std::vector<Rest>& rests;
-  const std::vector<Vector3d>& down;  ///< compensated down direction per rest (body)
+  const std::vector<Vector3d>& down;   ///< compensated down direction per rest (body)
   const std::vector<double>& sigma_w;  ///< noise of each rest's mean rate, rad/s
   Matrix3d Ag_inv;
   double Om_s, Om_c;                                 ///< Ω sin φ, Ω cos φ
@@ -300,6 +301,7 @@ struct JointModel {
   static constexpr bool kNoiseWeighted = true;
   const CalibrationInput& in;
   const std::vector<Rest>& rests;
+  const std::vector<size_t>& moves;           ///< p of every usable move p → p+1 (usable_moves)
   const std::vector<Vector3d>& earth_rate_b;  ///< per rest, body frame
   Vector3d b_g;
   double g;
@@ -319,7 +321,7 @@ struct JointModel {
 
   void evaluate(const VectorXd& x, VectorXd& r, MatrixXd& J) const {
     const size_t n = rests.size();
-    const auto rows = static_cast<Eigen::Index>(n + 3 * (n - 1));
+    const auto rows = static_cast<Eigen::Index>(n + 3 * moves.size());
     r.resize(rows);
     J.setZero(rows, 18);
     const Matrix3d T = tri::T_of(x);
@@ -333,7 +335,8 @@ struct JointModel {
     std::vector<Vector3d> d(n);
     std::vector<Eigen::Matrix<double, 3, 9>> Jd(n);
     for (size_t p = 0; p < n; ++p) down(x, p, d[p], Jd[p]);
-    for (size_t p = 0; p + 1 < n; ++p) {  // moves
+    for (size_t m = 0; m < moves.size(); ++m) {
+      const size_t p = moves[m];
       // C = C_{I0←b1} = Π exp([θ_k x]) from the middle of rest p to the middle of rest p+1;
       // W_j = Σ_k θ_k(j) P_k with P_k the product up to and including sample k.
       Matrix3d C = Matrix3d::Identity();
@@ -348,7 +351,7 @@ struct JointModel {
       const double dt = in.imu[k1].t_s - in.imu[k0].t_s;
       const Matrix3d R = C.transpose() * rotvec_to_matrix<double>(Vector3d(earth_rate_b[p] * dt));
       const Vector3d d_pred = R * d[p];
-      const auto i = static_cast<Eigen::Index>(n + 3 * p);
+      const auto i = static_cast<Eigen::Index>(n + 3 * m);
       const double sigma_d = w.sigma_d[p];
       r.segment<3>(i) = (d[p + 1] - d_pred) / sigma_d;
       J.block<3, 9>(i, 0) = (Jd[p + 1] - R * Jd[p]) / sigma_d;
@@ -383,11 +386,49 @@ MatrixXd scaled_covariance(const LsqOutcome& o, double floor_var) {
 
 namespace {
 
-void check_input(const std::vector<Rest>& rests) {
+/// The moves p → p+1 whose gyro data can be trusted: none with a clipped or dropped sample between
+/// the two rests' middles (CalibrationInput::unusable). Each one left out is said in `notes`,
+/// numbered as a person counts the rests ("move 6, between rests 6 and 7").
+std::vector<size_t> usable_moves(const CalibrationInput& in, const std::vector<Rest>& rests,
+                                 std::vector<std::string>& notes) {
+  std::vector<size_t> moves;
+  for (size_t p = 0; p + 1 < rests.size(); ++p) {
+    const auto spans = spans_within(in.unusable, rests[p].mid, rests[p + 1].mid + 1);
+    if (spans.empty()) {
+      moves.push_back(p);
+      continue;
+    }
+    notes.push_back("move " + std::to_string(p + 1) + " (between rests " + std::to_string(p + 1) +
+                    " and " + std::to_string(p + 2) + ", " +
+                    instant_text(in.imu[rests[p].end].t_s) + " to " +
+                    instant_text(in.imu[rests[p + 1].begin].t_s) +
+                    ") left out of the gyro fit: " + reasons_text(spans));
+  }
+  return moves;
+}
+
+/// What was left out, for a refusal: " (2 moves left out: ...)" or "".
+std::string left_out_clause(const std::vector<std::string>& notes) {
+  if (notes.empty()) return "";
+  std::string s = "; " + std::to_string(notes.size()) + " left out for clipped or dropped samples:";
+  for (const std::string& n : notes) s += " " + n + ";";
+  s.pop_back();
+  return s;
+}
+
+void check_input(const std::vector<Rest>& rests, const std::vector<size_t>& moves,
+                 const std::vector<std::string>& notes) {
   if (rests.size() < 9)
     fail("only " + std::to_string(rests.size()) +
          " usable rest positions; the multi-position test needs at least 9 (9 accelerometer "
-         "unknowns)");
+         "unknowns)" +
+         left_out_clause(notes));
+  // Each move fixes two angles of the gyros' 9 scale and misalignment terms.
+  if (moves.size() < 5)
+    fail("only " + std::to_string(moves.size()) + " usable moves of " +
+         std::to_string(rests.size() - 1) +
+         "; the gyros' scale and misalignment (9 unknowns, 2 per move) need at least 5" +
+         left_out_clause(notes));
   // Raw gravity directions must span three dimensions: every axis must see gravity.
   MatrixXd D(static_cast<Eigen::Index>(rests.size()), 3);
   for (size_t p = 0; p < rests.size(); ++p)
@@ -424,8 +465,8 @@ struct LegacyFit {
 /// settle a unit near nominal; one far from it (a MEMS gyro 24 % off scale, issue #21) goes on
 /// until both fits converge, up to kMaxRounds.
 constexpr int kMinRounds = 3, kMaxRounds = 12;
-LegacyFit fit_alternating(const CalibrationInput& in, const std::vector<Rest>& rests, double g,
-                          const VectorXd& xa) {
+LegacyFit fit_alternating(const CalibrationInput& in, const std::vector<Rest>& rests,
+                          const std::vector<size_t>& moves, double g, const VectorXd& xa) {
   NoiseWeights w(in, rests, g);
   LegacyFit f;
   f.x = VectorXd::Zero(18);
@@ -448,7 +489,7 @@ LegacyFit fit_alternating(const CalibrationInput& in, const std::vector<Rest>& r
     f.bg = xb.head<3>();
     for (size_t p = 0; p < rests.size(); ++p)
       earth_b[p] = bm.earth_rate(p, xb(static_cast<Eigen::Index>(3 + p)));
-    JointModel jm{in, rests, earth_b, f.bg, g, w};
+    JointModel jm{in, rests, moves, earth_b, f.bg, g, w};
     f.joint = gauss_newton(jm, f.x, 30);
     Mg = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(f.x.data() + 9);
     f.rounds = round + 1;
@@ -510,11 +551,14 @@ CalibrationResult calibrate_legacy(const CalibrationInput& in, const LegacyOptio
   if (opt.min_rest_samples < 4) fail("option min_rest_samples must be >= 4");
   if (!(std::isfinite(opt.trim_s) && opt.trim_s >= 0.0)) fail("option trim_s must be >= 0");
   const std::vector<Rest> rests = usable_rests(in, opt);
-  check_input(rests);
+  std::vector<std::string> left_out;
+  const std::vector<size_t> moves = usable_moves(in, rests, left_out);
+  check_input(rests, moves, left_out);
   const double g = EarthModel(in.site).gravity_mps2();
-  const LegacyFit fit = fit_alternating(in, rests, g, accelerometer_start(rests, g));
+  const LegacyFit fit = fit_alternating(in, rests, moves, g, accelerometer_start(rests, g));
   // From the accelerometer triad's triangular frame into the accel-symmetric one.
   CalibrationResult out = in_accel_symmetric_frame(legacy_result(in, fit));
+  out.warnings.insert(out.warnings.end(), left_out.begin(), left_out.end());
   out.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return out;
 }

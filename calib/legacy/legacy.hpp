@@ -20,6 +20,8 @@
 // covariance: residuals weighted by the unit's white noise over each rest's own length and each
 // move's duration, each class (magnitudes, moves) scaled up to its own scatter where it exceeds
 // the noise (variance components), the whole inflated by the reduced χ² when above 1.
+// A move that holds a clipped or dropped sample (CalibrationInput::unusable) is left out of step 4
+// and named in the result's warnings; fewer than 5 usable moves are refused (issue #48 item 3).
 #include "calib/core/calibration_input.hpp"
 
 namespace imucal::calib::legacy {

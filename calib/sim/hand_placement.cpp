@@ -41,8 +41,8 @@ sequences::MotionProfile hand_placed_profile(uint64_t seed, const HandPlacementO
   }
   const double angles_deg[] = {90.0, 45.0, -135.0, 180.0, 60.0, -90.0};
   for (int i = 0; i < o.positions; ++i) {
-    rotate(i % 2 ? sequences::Axis::kInner : sequences::Axis::kOuter, angles_deg[i % 6], 60.0,
-           200.0);
+    rotate(i % 2 ? sequences::Axis::kInner : sequences::Axis::kOuter, angles_deg[i % 6],
+           o.move_rate_dps, o.move_accel_dps2);
     pause(rest(rng));
   }
   return sequences::generate_profile(seq);

@@ -20,6 +20,10 @@ struct HandPlacementOptions {
   /// > 0: a slow constant-rate turn (10 °/s) about the vertical after the first rest, as a table's
   /// cruise would be (for the rest detector's tests).
   double cruise_deg = 0.0;
+  /// The turns' rate and angular acceleration. A hand turns a unit at up to several hundred °/s
+  /// (the corpus' MPU-6050 recording clips its ±250 °/s gyro in three moves).
+  double move_rate_dps = 60.0;
+  double move_accel_dps2 = 200.0;
 };
 
 /// Throws std::invalid_argument for a count < 1 or rests that are not 0 < min ≤ max.
