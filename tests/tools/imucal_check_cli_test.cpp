@@ -142,6 +142,7 @@ TEST_F(CheckCli, ACalibrationOnASecondRecordingOfTheUnitLeavesItsNoise) {
   const nlohmann::json j = check_json(file("legacy.json"), run(2));
   EXPECT_EQ(j.at("calibration").at("form"), "calibrate_json");
   EXPECT_EQ(j.at("calibration").at("method"), "legacy");
+  EXPECT_EQ(j.at("calibration").at("verdict"), "PASS");  // the calibration's, carried along
   EXPECT_EQ(j.at("uncalibrated"), "nominal values");
   EXPECT_EQ(j.at("grade"), "mems");
   ASSERT_GE(j.at("rests").size(), 30u);  // a 50 s start and 38 hand-placed positions

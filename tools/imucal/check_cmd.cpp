@@ -27,6 +27,7 @@ struct LoadedCalibration {
   std::string form;     ///< "parameter_set" or "calibrate_json"
   std::string method;   ///< calibrate_json: the method taken
   std::string because;  ///< calibrate_json: why that one
+  std::string verdict;  ///< calibrate_json: the run's verdict (PASS or REVIEW), as it said
 };
 
 const char* const kMethods[] = {"ains", "nlsq", "legacy"};
@@ -66,6 +67,7 @@ LoadedCalibration from_calibrate_json(const nlohmann::json& j, const std::string
     c.because = passed.size() == 1 ? "the method that passed"
                                    : "of the methods that passed, the station's active set";
   }
+  if (j.contains("verdict") && j["verdict"].is_string()) c.verdict = j["verdict"];
   const nlohmann::json& r = j.at(c.method);
   if (!r.is_object() || !r.contains("params"))
     throw std::invalid_argument(path + ": field '" + c.method + ".params': missing");
@@ -94,7 +96,7 @@ LoadedCalibration read_calibration(const std::string& path, const std::string& m
     if (!method.empty())
       throw std::invalid_argument(path + ": a parameter set holds one result: --method " + method +
                                   " chooses among imucal calibrate --json's");
-    return {db::archive::param_set_from_json(j, path), "parameter_set", "", ""};
+    return {db::archive::param_set_from_json(j, path), "parameter_set", "", "", ""};
   }
   if (j.is_object())
     for (const char* m : kMethods)
@@ -109,9 +111,9 @@ LoadedCalibration read_calibration(const std::string& path, const std::string& m
 }
 
 std::string calibration_text(const CheckArgs& a, const LoadedCalibration& c) {
-  return c.form == "parameter_set" ? a.calibration + " (parameter set)"
-                                   : a.calibration + " (imucal calibrate --json, method " +
-                                         c.method + ": " + c.because + ")";
+  if (c.form == "parameter_set") return a.calibration + " (parameter set)";
+  return a.calibration + " (imucal calibrate --json, method " + c.method + ": " + c.because +
+         (c.verdict.empty() ? "" : "; the calibration's verdict " + c.verdict) + ")";
 }
 
 /// DIR's archive with --grade and --min-rest-s applied.
@@ -142,6 +144,7 @@ nlohmann::json check_json(const CheckArgs& a, const LoadedCalibration& c,
                      {"corrected_rad", m.corrected_rad}});
   nlohmann::json cal = {{"file", a.calibration}, {"form", c.form}};
   if (!c.method.empty()) cal["method"] = c.method, cal["chosen"] = c.because;
+  if (!c.verdict.empty()) cal["verdict"] = c.verdict;
   return {{"calibration", cal},
           {"archive", a.dir},
           {"serial", ar.info.serial},
