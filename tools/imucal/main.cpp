@@ -3,6 +3,8 @@
 //   imucal import    --file F | --gyro F --accel F --out DIR [--config TOML] ...  a raw recording
 //   imucal calibrate DIR --method ains|nlsq|legacy|all [--setting factory|land|sea] [--json]
 //   imucal evaluate  DIR --params FILE [--json]
+//   imucal check     CALIBRATION DIR [--json]   a calibration on another recording of the unit
+//   imucal apply     CALIBRATION DIR --out OUTDIR   the recording corrected by a calibration
 //   imucal crlb      --sequence FILE [--unit FILE] [--json]
 //   imucal design-sequence --like SEQ --time-s T | --target-from SEQ --factor K [--out F]
 //   imucal bench     DIR [--repeat N] [--json]   wall time and peak memory of calibrate --method
@@ -43,6 +45,7 @@
 #include "db/archive/unit_file.hpp"
 #include "sequences/library.hpp"
 #include "sequences/sequence_error.hpp"
+#include "tools/imucal/check_cmd.hpp"
 #include "tools/imucal/design_sequence_cmd.hpp"
 #include "tools/imucal/detectability_cmd.hpp"
 #include "tools/imucal/diagnose_cmd.hpp"
@@ -470,7 +473,8 @@ struct Commands {
   tools::imucal::GapBudgetArgs budget;
   tools::imucal::ImportArgs import;
   tools::imucal::DesignSequenceArgs design;
-  CLI::App *im = nullptr, *gb = nullptr, *ds = nullptr;
+  tools::imucal::CheckArgs check;
+  CLI::App *im = nullptr, *gb = nullptr, *ds = nullptr, *ck = nullptr, *ap = nullptr;
   CLI::App *sim = nullptr, *cal = nullptr, *ev = nullptr, *cr = nullptr, *be = nullptr,
            *dg = nullptr, *ef = nullptr, *vd = nullptr, *pt = nullptr;
 };
@@ -598,6 +602,8 @@ int dispatch(const Commands& c) {
     return cmd_calibrate(c.dir, c.method, c.json, c.k_sigma, c.plot_path, c.setting_override,
                          c.prior);
   if (*c.ev) return cmd_evaluate(c.dir, c.params, c.json);
+  if (*c.ck) return tools::imucal::cmd_check(c.check);
+  if (*c.ap) return tools::imucal::cmd_apply(c.check);
   if (*c.cr && c.effects)
     return tools::imucal::cmd_crlb_effects(c.seq, c.unit, c.rate_hz, c.false_alarm, c.json);
   if (*c.cr) return cmd_crlb(c.seq, c.unit, c.rate_hz, c.crlb_grade, c.json);
@@ -631,6 +637,8 @@ int main(int argc, char** argv) {
   c.gb = tools::imucal::add_gap_budget_command(app, c.budget);
   c.im = tools::imucal::add_import_command(app, c.import);
   c.ds = tools::imucal::add_design_sequence_command(app, c.design);
+  c.ck = tools::imucal::add_check_command(app, c.check);
+  c.ap = tools::imucal::add_apply_command(app, c.check);
   for (int i = 0; i < argc; ++i)
     c.design.command_line += (i ? " " : "") + std::string(i ? argv[i] : "imucal");
 
