@@ -127,14 +127,21 @@ HeldOutCheck assemble(const CalibrationInput& in, const std::vector<HeldOutRest>
     out.rests.push_back({in.imu[rests[p].begin].t_s - in.imu[rests[p].begin].dt_s,
                          in.imu[rests[p].end - 1].t_s, raw.magnitude_mps2[p],
                          cor.magnitude_mps2[p]});
-  for (size_t p = 0; p + 1 < rests.size(); ++p)
+  std::vector<double> judged_raw, judged_cor;
+  for (size_t p = 0; p + 1 < rests.size(); ++p) {
+    const std::string spoilt =
+        reasons_text(spans_within(in.unusable, rests[p].mid, rests[p + 1].mid + 1));
     out.moves.push_back({in.imu[rests[p].mid].t_s, in.imu[rests[p + 1].mid].t_s,
                          angle_between(cor.down[p], cor.down[p + 1]), raw.carried_rad[p],
-                         cor.carried_rad[p]});
+                         cor.carried_rad[p], spoilt});
+    if (!spoilt.empty()) continue;
+    judged_raw.push_back(raw.carried_rad[p]);
+    judged_cor.push_back(cor.carried_rad[p]);
+  }
   out.rest_rms_raw_mps2 = rms(raw.magnitude_mps2);
   out.rest_rms_corrected_mps2 = rms(cor.magnitude_mps2);
-  out.move_rms_raw_rad = rms(raw.carried_rad);
-  out.move_rms_corrected_rad = rms(cor.carried_rad);
+  out.move_rms_raw_rad = rms(judged_raw);
+  out.move_rms_corrected_rad = rms(judged_cor);
   return out;
 }
 

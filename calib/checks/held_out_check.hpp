@@ -22,6 +22,7 @@
 // grade only the vertical part is known — which does not move gravity at all — and the horizontal
 // part is left in: the result gives its largest effect on any move (earth_rate_bound_rad), which
 // at MEMS grade is below the angle random walk over the same move (1 °/√h: 0.05° in 10 s).
+#include <string>
 #include <vector>
 
 #include "calib/core/calibration_input.hpp"
@@ -48,13 +49,16 @@ struct MoveFigure {
   double t_from_s = 0.0, t_to_s = 0.0;
   double tilt_rad = 0.0;
   double raw_rad = 0.0, corrected_rad = 0.0;
+  /// Why the move is not judged ("" when it is): a clipped or dropped sample in it
+  /// (CalibrationInput::unusable) — its figures are shown but stay out of the RMS.
+  std::string left_out;
 };
 
 struct HeldOutCheck {
   double gravity_mps2 = 0.0;  ///< local gravity the magnitudes are compared with
   std::vector<RestFigure> rests;
   std::vector<MoveFigure> moves;
-  /// RMS over rests (m/s²) and over moves (rad), each column.
+  /// RMS over rests (m/s²) and over the moves not left out (rad), each column.
   double rest_rms_raw_mps2 = 0.0, rest_rms_corrected_mps2 = 0.0;
   double move_rms_raw_rad = 0.0, move_rms_corrected_rad = 0.0;
   /// true: the Earth rate's horizontal part was removed (navigation grade, north from the gyros);

@@ -4,6 +4,7 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <fstream>
 #include <functional>
@@ -228,10 +229,19 @@ Rows read_rows(const std::string& path, std::size_t skip_lines, std::size_t min_
   return read_rows(f, path, skip_lines, min_cells, decide, {});
 }
 
-/// The uniform grid t_k = t0 + k T fitted to the stamps (least squares), after checking that
-/// they increase and leave no gap.
+/// The uniform grid t = t0 + slot · T fitted to the stamps (least squares). Each sample's slot
+/// is its place on the grid: one more than the previous sample's, or as many more as a
+/// dropped-sample gap spans.
 struct Grid {
   double t0 = 0.0, T = 0.0, rms = 0.0, max = 0.0;
+  std::vector<std::size_t> row;    ///< the row of each sample; empty: sample k is row k
+  std::vector<std::int64_t> slot;  ///< each sample's place on the grid; empty: k
+  std::size_t repeated_rows = 0, gaps = 0, samples_missing = 0;
+  std::size_t row_of(std::size_t k) const { return row.empty() ? k : row[k]; }
+  double slot_of(std::size_t k) const {
+    return static_cast<double>(slot.empty() ? static_cast<std::int64_t>(k) : slot[k]);
+  }
+  std::size_t samples(std::size_t rows) const { return row.empty() ? rows : row.size(); }
 };
 
 std::string fmt_s(double s) {
@@ -241,36 +251,91 @@ std::string fmt_s(double s) {
   return os.str();
 }
 
-Grid fit_grid(const std::vector<double>& t, const Rows& rows, const std::string& path) {
-  const std::size_t n = t.size();
-  std::vector<double> dt;
-  for (std::size_t k = 1; k < n; ++k) {
-    if (!(t[k] > t[k - 1]))
-      throw ArchiveError(path, rows.line[k],
-                         "time " + fmt_s(t[k]) + " s does not increase (previous sample " +
-                             fmt_s(t[k - 1]) + " s)");
-    dt.push_back(t[k] - t[k - 1]);
+/// Every value of rows a and b equal (a column not read holds NaN in both).
+bool same_row(const Rows& rows, std::size_t a, std::size_t b) {
+  for (std::size_t c = 0; c < rows.num_cols; ++c) {
+    const double x = rows.at(a, c), y = rows.at(b, c);
+    if (!(x == y || (std::isnan(x) && std::isnan(y)))) return false;
   }
-  std::vector<double> sorted = dt;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2),
-                   sorted.end());
-  const double median = sorted[sorted.size() / 2];
-  for (std::size_t k = 1; k < n; ++k)
-    if (dt[k - 1] > 1.5 * median)
-      throw ArchiveError(path, rows.line[k],
-                         "a gap of " + fmt_s(dt[k - 1]) + " s after a typical step of " +
-                             fmt_s(median) +
-                             " s: dropped samples; the importer does not invent data (cut the "
-                             "recording here, or fill the gap at its source)");
-  double kbar = 0.5 * static_cast<double>(n - 1), tbar = 0.0;
-  for (double v : t) tbar += v;
+  return true;
+}
+
+/// The rows kept: each stamp after the previous one; a verbatim repeat dropped unless `strict`.
+std::vector<std::size_t> increasing_rows(const std::vector<double>& t, const Rows& rows,
+                                         const std::string& path, bool strict,
+                                         std::size_t& repeats) {
+  std::vector<std::size_t> kept = {0};
+  for (std::size_t k = 1; k < t.size(); ++k) {
+    const std::size_t prev = kept.back();
+    if (t[k] > t[prev]) {
+      kept.push_back(k);
+      continue;
+    }
+    if (!strict && t[k] == t[prev] && same_row(rows, k, prev)) {
+      ++repeats;
+      continue;
+    }
+    throw ArchiveError(
+        path, rows.line[k],
+        "time " + fmt_s(t[k]) + " s does not increase (previous sample " + fmt_s(t[prev]) + " s" +
+            (t[k] == t[prev]
+                 ? (strict ? "; --strict-time refuses a repeated row" : ", with other values")
+                 : "") +
+            ")");
+  }
+  return kept;
+}
+
+double median_of(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+/// Each kept sample's slot: a step over 1.5 × the median is a gap of round(step / median) − 1
+/// samples, refused under `strict`.
+void place_on_grid(const std::vector<double>& t, const Rows& rows, const std::string& path,
+                   bool strict, Grid& g) {
+  std::vector<double> dt;
+  for (std::size_t i = 1; i < g.row.size(); ++i) dt.push_back(t[g.row[i]] - t[g.row[i - 1]]);
+  const double median = dt.empty() ? 0.0 : median_of(dt);
+  g.slot.assign(g.row.size(), 0);
+  for (std::size_t i = 1; i < g.row.size(); ++i) {
+    const double step = dt[i - 1];
+    std::int64_t advance = 1;
+    if (step > 1.5 * median) {
+      if (strict)
+        throw ArchiveError(path, rows.line[g.row[i]],
+                           "a gap of " + fmt_s(step) + " s after a typical step of " +
+                               fmt_s(median) +
+                               " s: dropped samples (--strict-time refuses them; without it the "
+                               "gap is kept and the calibration leaves out what it falls in)");
+      advance = std::max<std::int64_t>(2, std::llround(step / median));
+      ++g.gaps;
+      g.samples_missing += static_cast<std::size_t>(advance - 1);
+    }
+    g.slot[i] = g.slot[i - 1] + advance;
+  }
+}
+
+/// The grid fitted to the stamps of the kept rows; every stamp within half a period of it.
+Grid fit_grid(const std::vector<double>& t, const Rows& rows, const std::string& path,
+              bool strict_repeats, bool strict_gaps) {
+  Grid g;
+  g.row = increasing_rows(t, rows, path, strict_repeats, g.repeated_rows);
+  place_on_grid(t, rows, path, strict_gaps, g);
+  const std::size_t n = g.row.size();
+  double kbar = 0.0, tbar = 0.0;
+  for (std::size_t k = 0; k < n; ++k) {
+    kbar += g.slot_of(k);
+    tbar += t[g.row[k]];
+  }
+  kbar /= static_cast<double>(n);
   tbar /= static_cast<double>(n);
   double sxy = 0.0, sxx = 0.0;
   for (std::size_t k = 0; k < n; ++k) {
-    sxy += (static_cast<double>(k) - kbar) * (t[k] - tbar);
-    sxx += (static_cast<double>(k) - kbar) * (static_cast<double>(k) - kbar);
+    sxy += (g.slot_of(k) - kbar) * (t[g.row[k]] - tbar);
+    sxx += (g.slot_of(k) - kbar) * (g.slot_of(k) - kbar);
   }
-  Grid g;
   g.T = sxy / sxx;
   if (!(std::isfinite(g.T) && g.T > 0.0))
     throw ArchiveError(path, "the time stamps give no finite sampling period");
@@ -278,11 +343,11 @@ Grid fit_grid(const std::vector<double>& t, const Rows& rows, const std::string&
   std::size_t worst = 0;
   double ss = 0.0;
   for (std::size_t k = 0; k < n; ++k) {
-    const double r = std::abs(t[k] - (g.t0 + g.T * static_cast<double>(k)));
+    const double r = std::abs(t[g.row[k]] - (g.t0 + g.T * g.slot_of(k)));
     ss += r * r;
     if (r > g.max) {
       g.max = r;
-      worst = k;
+      worst = g.row[k];
     }
   }
   g.rms = std::sqrt(ss / static_cast<double>(n));
@@ -319,19 +384,25 @@ RawRecording assemble(const Rows& g, const std::size_t gcols[3], const Rows& a,
   out.rate_hz = 1.0 / grid.T;
   out.jitter_rms_s = grid.rms;
   out.jitter_max_s = grid.max;
+  out.repeated_rows = grid.repeated_rows;
+  out.gaps = grid.gaps;
+  out.samples_missing = grid.samples_missing;
   const double per_sample = o.quantity == RawQuantity::kRates ? grid.T : 1.0;
-  out.imu.resize(g.size());
-  for (std::size_t k = 0; k < g.size(); ++k) {
+  out.imu.resize(grid.samples(g.size()));
+  for (std::size_t k = 0; k < out.imu.size(); ++k) {
+    const std::size_t r = grid.row_of(k);
     calib::core::ImuIncrement& s = out.imu[k];
-    s.t_s = grid.t0 + grid.T * static_cast<double>(k);
-    s.dt_s = grid.T;
+    s.t_s = grid.t0 + grid.T * grid.slot_of(k);
+    // After a gap the interval covers the samples lost (the increment is its own sample's): what
+    // the archive's reader computes from the stamps, and what marks the gap for the calibration.
+    s.dt_s = k > 0 ? s.t_s - out.imu[k - 1].t_s : grid.T;
     s.temp_c = std::nan("");  // a raw recording has no temperature column
-    s.dtheta_rad = scaled(g, k, gcols, o.gyro) * per_sample;
-    s.dv_mps = scaled(a, k, acols, o.accel) * per_sample;
+    s.dtheta_rad = scaled(g, r, gcols, o.gyro) * per_sample;
+    s.dv_mps = scaled(a, r, acols, o.accel) * per_sample;
     if (!s.dtheta_rad.allFinite() || !std::isfinite(s.t_s))
-      throw ArchiveError(g.source, g.line[k], "a value overflows once scaled to SI");
+      throw ArchiveError(g.source, g.line[r], "a value overflows once scaled to SI");
     if (!s.dv_mps.allFinite())
-      throw ArchiveError(a.source, a.line[k], "a value overflows once scaled to SI");
+      throw ArchiveError(a.source, a.line[r], "a value overflows once scaled to SI");
   }
   return out;
 }
@@ -444,8 +515,8 @@ Grid rate_grid(double rate_hz) {
 
 /// The stamps' grid, checked against a given sample rate (2 %).
 Grid stamped_grid(const std::vector<double>& t, const Rows& rows, const std::string& path,
-                  double rate_hz) {
-  const Grid g = fit_grid(t, rows, path);
+                  double rate_hz, bool strict_repeats, bool strict_gaps) {
+  const Grid g = fit_grid(t, rows, path, strict_repeats, strict_gaps);
   if (rate_hz > 0.0 && std::abs(1.0 / g.T - rate_hz) > 0.02 * rate_hz)
     throw ArchiveError(path, "the time stamps give " + fmt_s(1.0 / g.T) +
                                  " Hz, the rate given is " + fmt_s(rate_hz) +
@@ -468,7 +539,7 @@ RawRecording one_file(const Rows& rows, const std::string& path, const RawImport
   } else {
     std::vector<double> t(rows.size());
     for (std::size_t k = 0; k < rows.size(); ++k) t[k] = rows.at(k, tc) * o.seconds_per_time_unit;
-    grid = stamped_grid(t, rows, path, o.rate_hz);
+    grid = stamped_grid(t, rows, path, o.rate_hz, o.strict_time, o.strict_time);
   }
   const std::size_t gcols[3] = {index("gx"), index("gy"), index("gz")};
   const std::size_t acols[3] = {index("ax"), index("ay"), index("az")};
@@ -529,7 +600,8 @@ RawRecording read_raw_recording_pair(const std::string& gyro_path, const std::st
                                        ": one file per sensor needs the same samples");
   std::vector<double> t(g.size());
   for (std::size_t k = 0; k < g.size(); ++k) t[k] = g.at(k, 0) * o.seconds_per_time_unit;
-  const Grid grid = stamped_grid(t, g, gyro_path, o.rate_hz);
+  // A repeated row would have to be repeated in both files alike: refused (strict) here.
+  const Grid grid = stamped_grid(t, g, gyro_path, o.rate_hz, true, o.strict_time);
   for (std::size_t k = 0; k < a.size(); ++k) {
     const double ta = a.at(k, 0) * o.seconds_per_time_unit;
     if (std::abs(ta - t[k]) > 0.5 * grid.T)

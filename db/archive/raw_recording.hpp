@@ -48,6 +48,12 @@ struct RawImportOptions {
   std::size_t skip_lines = 0;  ///< lines skipped at the top of each file, whatever they hold
   RawQuantity quantity = RawQuantity::kRates;  ///< rad/s, m/s² (or rad, m/s) after scaling
   RawAxisScale gyro, accel;
+  /// Refuse any irregular time stamp (as the daemon's own captures must be). Without it a logger's
+  /// habits are taken as they come: a row repeated verbatim (same stamp, same values) is dropped,
+  /// and a dropped-sample gap (a step over 1.5 × the typical one) is kept as a gap on the grid —
+  /// the calibration leaves out the move or the part of a rest it falls in
+  /// (calib/core/unusable_span.hpp). One file per sensor: repeated stamps are always refused.
+  bool strict_time = false;
 };
 
 struct RawRecording {
@@ -59,6 +65,9 @@ struct RawRecording {
   std::vector<std::string> columns;  ///< one file: the columns used
   std::string columns_from;          ///< "given", "header" or "default" (one file)
   bool decimal_comma = false;        ///< some cell was read with a decimal comma
+  std::size_t repeated_rows = 0;     ///< rows dropped as verbatim repeats of the one before
+  std::size_t gaps = 0;              ///< dropped-sample gaps kept on the grid
+  std::size_t samples_missing = 0;   ///< samples those gaps lack, in all
 };
 
 /// One file with every channel (options.columns says which is which).

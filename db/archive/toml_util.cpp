@@ -105,6 +105,14 @@ std::optional<std::string> TomlSection::string(std::string_view key) const {
   return s->get();
 }
 
+std::optional<bool> TomlSection::boolean(std::string_view key) const {
+  const toml::node* n = table_->get(key);
+  if (!n) return std::nullopt;
+  const auto* b = n->as_boolean();
+  if (!b) fail(key, std::string("expected true or false, got ") + type_name(*n));
+  return b->get();
+}
+
 std::optional<std::string> TomlSection::string_or_datetime(std::string_view key) const {
   const toml::node* n = table_->get(key);
   if (!n) return std::nullopt;

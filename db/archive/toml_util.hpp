@@ -37,6 +37,7 @@ class TomlSection {
   std::optional<double> number(std::string_view key) const;  ///< integer or float, finite
   double required_number(std::string_view key) const;
   std::optional<std::string> string(std::string_view key) const;
+  std::optional<bool> boolean(std::string_view key) const;
   /// A string, or a TOML date-time converted to ISO 8601 text.
   std::optional<std::string> string_or_datetime(std::string_view key) const;
   std::optional<Eigen::Vector3d> vec3(std::string_view key) const;

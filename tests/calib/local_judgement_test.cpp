@@ -21,6 +21,7 @@
 
 #include "calib/ains/ains.hpp"
 #include "calib/checks/data_check.hpp"
+#include "calib/checks/held_out_check.hpp"
 #include "calib/core/calibration_input.hpp"
 #include "calib/core/conventions.hpp"
 #include "calib/core/site_presets.hpp"
@@ -280,6 +281,44 @@ TEST(LocalJudgement, TheAinsSaysWhereItReleasedTheAttitudeAClippedMoveCarried) {
   EXPECT_TRUE(says(r, "clipped at")) << all_warnings(r);
   EXPECT_TRUE(r.params.to_vector().allFinite());
   EXPECT_FALSE(says(ains_from_legacy(mems_input_of(sim.imu)), "released"));
+}
+
+}  // namespace
+}  // namespace imucal::calib
+
+namespace imucal::calib {
+namespace {
+
+// `imucal check` shows a clipped move's figures but keeps them out of its RMS: the clip, not the
+// calibration, spoils that move.
+TEST(LocalJudgement, TheHeldOutCheckShowsAClippedMoveButKeepsItOutOfItsRms) {
+  const FieldSimResult sim = fast_hand_run(27);
+  int axis = 0;
+  double peak = 0.0;
+  for (const ImuIncrement& s : sim.imu)
+    for (int a = 0; a < 3; ++a)
+      if (std::abs(s.dtheta_rad(a)) > peak) peak = std::abs(s.dtheta_rad(axis = a));
+  ImuSeries clipped = sim.imu;
+  for (ImuIncrement& s : clipped)
+    s.dtheta_rad(axis) = std::clamp(s.dtheta_rad(axis), -0.9 * peak, 0.9 * peak);
+  const checks::HeldOutCheck clean = checks::check_held_out(mems_input_of(sim.imu), sim.truth);
+  const checks::HeldOutCheck r = checks::check_held_out(mems_input_of(clipped), sim.truth);
+  double worst_left_out = 0.0;
+  size_t left_out = 0;
+  for (const checks::MoveFigure& m : r.moves)
+    if (!m.left_out.empty()) {
+      ++left_out;
+      EXPECT_NE(m.left_out.find("clipped at"), std::string::npos) << m.left_out;
+      worst_left_out = std::max(worst_left_out, m.corrected_rad);
+    }
+  std::printf(
+      "held-out check: %zu clipped move(s), worst %.2f° off; RMS of the others %.3f° "
+      "(unclipped run %.3f°)\n",
+      left_out, worst_left_out * kRadToDeg, r.move_rms_corrected_rad * kRadToDeg,
+      clean.move_rms_corrected_rad * kRadToDeg);
+  ASSERT_GE(left_out, 1u);
+  EXPECT_GT(worst_left_out, 5.0 * clean.move_rms_corrected_rad) << "the clip spoils its move";
+  EXPECT_LT(r.move_rms_corrected_rad, 1.5 * clean.move_rms_corrected_rad);
 }
 
 }  // namespace

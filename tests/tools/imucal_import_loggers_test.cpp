@@ -7,6 +7,9 @@
 // Plausibility at import (issue #48 item 5): a unit read as another (g as m/s², counts without a
 // scale, deg/s as rad/s, ms as s, increments as rates) is refused naming the factor and the option
 // that fixes it, and the same file with that option imports.
+// Time as loggers keep it (issue #48 items 3 and 4): a row written twice is dropped, a gap of lost
+// samples kept as a gap (not closed up, not refused) — and a calibration of such a recording leaves
+// out the move the gap fell in and says so; --strict-time refuses both.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -15,9 +18,11 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <vector>
 
+#include "calib/core/conventions.hpp"
 #include "db/archive/run_archive.hpp"
 #include "tests/support/imucal_cli.hpp"
 #include "tests/support/temp_dir.hpp"
@@ -120,7 +125,11 @@ TEST(ImucalImportLoggers, APreambleOfNumbersIsSkippedByCountAndOtherwiseRefused)
                            rows(200, {"t", "gx", "gy", "gz", "ax", "ay", "az"}, " ");
   const Imported refused = import_text(tmp, "plain", text, "");
   EXPECT_NE(refused.result.code, 0);
-  EXPECT_NE(refused.result.out.find("plain.txt:2: time 12 s does not increase"), std::string::npos)
+  // (Its second line repeats the first verbatim: dropped as a logger's repeated row, so the first
+  // data row is what stops it.)
+  EXPECT_NE(
+      refused.result.out.find("plain.txt:3: time 0 s does not increase (previous sample 12 s)"),
+      std::string::npos)
       << refused.result.out;
   const Imported ok = import_text(tmp, "skipped", text, " --skip-lines 2");
   ASSERT_EQ(ok.result.code, 0) << ok.result.out;
@@ -261,6 +270,88 @@ TEST(ImucalImportPlausibility, EachUnitMixUpIsRefusedNamingTheFixAndImportsWithI
   // Whoever knows better imports it as read.
   const Imported forced = import_text(tmp, "forced", cases[0].text, " --skip-plausibility");
   EXPECT_EQ(forced.result.code, 0) << forced.result.out;
+}
+
+/// Lines of `text` without lines [from, to) (0-based) and with line `twice` written twice.
+std::string edit_lines(const std::string& text, size_t from, size_t to, size_t twice) {
+  std::string out, line;
+  std::istringstream in(text);
+  for (size_t k = 0; std::getline(in, line); ++k) {
+    if (k >= from && k < to) continue;
+    out += line + "\n";
+    if (k == twice) out += line + "\n";
+  }
+  return out;
+}
+
+TEST(ImucalImportTime, ARepeatedRowIsDroppedAndAGapKeptUnlessStrictTime) {
+  test_support::ScopedTempDir tmp("imucal-import-time");
+  const std::string text =
+      edit_lines(rows(300, {"t", "gx", "gy", "gz", "ax", "ay", "az"}, " "), 120, 124, 50);
+  const Imported ok = import_text(tmp, "logger", text, "");
+  ASSERT_EQ(ok.result.code, 0) << ok.result.out;
+  EXPECT_EQ(ok.report.at("repeated_rows_dropped"), 1);
+  EXPECT_EQ(ok.report.at("gaps"), 1);
+  EXPECT_EQ(ok.report.at("samples_missing"), 4);
+  const db::archive::RunArchive ar = db::archive::read_archive(ok.out);
+  ASSERT_EQ(ar.imu.size(), 296u);
+  // Sample 120 of the archive is the recording's sample 124, 50 ms after the one before it.
+  EXPECT_NEAR(ar.imu[120].t_s - ar.imu[119].t_s, 0.05, 1e-9);
+  EXPECT_NEAR(ar.imu[120].dtheta_rad(0) / 0.01, gyro_at(124, 0), 1e-9);
+  EXPECT_NEAR(ar.imu[51].t_s - ar.imu[50].t_s, 0.01, 1e-9);
+  EXPECT_NEAR(ar.imu[51].dtheta_rad(0) / 0.01, gyro_at(51, 0), 1e-9);
+  // --strict-time: the repeated row refused by its line (the header-less file's line 52).
+  const Imported strict = import_text(tmp, "strict", text, " --strict-time");
+  EXPECT_NE(strict.result.code, 0);
+  EXPECT_NE(strict.result.out.find("strict.txt:52: time 0.5 s does not increase"),
+            std::string::npos)
+      << strict.result.out;
+  EXPECT_FALSE(fs::exists(strict.out));
+  // The same stamp with other values is no repeat: refused, whatever the option.
+  std::string other = rows(100, {"t", "gx", "gy", "gz", "ax", "ay", "az"}, " ");
+  other.insert(other.find("\n", other.find("\n") + 1) + 1, "0.01 1 2 3 4 5 6\n");
+  const Imported clash = import_text(tmp, "clash", other, "");
+  EXPECT_NE(clash.result.code, 0);
+  EXPECT_NE(clash.result.out.find("with other values"), std::string::npos) << clash.result.out;
+}
+
+TEST(ImucalImportTime, ARecordingThatLostSamplesInAMoveCalibratesWithoutThatMove) {
+  test_support::ScopedTempDir tmp("imucal-import-gap-move");
+  const std::string sim_dir = tmp.path() + "/sim";
+  const auto sim =
+      run_imucal("simulate --sequence hand --setting land --grade mems --seed 4 --out " + sim_dir);
+  ASSERT_EQ(sim.code, 0) << sim.out;
+  const db::archive::RunArchive ar = db::archive::read_archive(sim_dir);
+  // The logger's text: rates, and 8 samples lost around the fastest turn after the first minute.
+  size_t fastest = 0;
+  for (size_t k = 0; k < ar.imu.size(); ++k)
+    if (ar.imu[k].t_s > 60.0 && ar.imu[k].dtheta_rad.norm() > ar.imu[fastest].dtheta_rad.norm())
+      fastest = k;
+  std::string text;
+  for (size_t k = 0; k < ar.imu.size(); ++k) {
+    if (k >= fastest - 4 && k < fastest + 4) continue;
+    const auto& s = ar.imu[k];
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "%.6f %.12g %.12g %.12g %.12g %.12g %.12g\n", s.t_s,
+                  s.dtheta_rad(0) / s.dt_s, s.dtheta_rad(1) / s.dt_s, s.dtheta_rad(2) / s.dt_s,
+                  s.dv_mps(0) / s.dt_s, s.dv_mps(1) / s.dt_s, s.dv_mps(2) / s.dt_s);
+    text += buf;
+  }
+  const std::string file = tmp.path() + "/logger.txt", out = tmp.path() + "/imported";
+  std::ofstream(file) << text;
+  char site[160];
+  std::snprintf(site, sizeof site, " --lat-deg %.9f --lon-deg %.9f --height-m %.3f",
+                ar.info.site.lat_rad * kRadToDeg, ar.info.site.lon_rad * kRadToDeg,
+                ar.info.site.height_m);
+  const auto im =
+      run_imucal("import --file " + file + " --out " + out + " --grade mems --serial GAP-1" + site);
+  ASSERT_EQ(im.code, 0) << im.out;
+  EXPECT_NE(im.out.find("1 gap(s) of dropped samples (8 samples in all) kept"), std::string::npos)
+      << im.out;
+  const auto cal = run_imucal("calibrate " + out + " --method legacy");
+  EXPECT_EQ(cal.code, 0) << cal.out;
+  EXPECT_NE(cal.out.find("left out of the gyro fit: 8 samples missing"), std::string::npos)
+      << cal.out;
 }
 
 }  // namespace

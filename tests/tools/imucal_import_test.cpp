@@ -158,7 +158,7 @@ TEST(ImucalImport, BadInputNamesFileLineAndColumnAndWritesNothing) {
        "rec.txt:6: 6 columns, expected 7"},
       {"time", replace_line(7, "0.02 0.001 0.002 0.003 0.1 0.2 9.8"), kSite,
        "rec.txt:7: time 0.02 s does not increase"},
-      {"gap", drop_lines(10, 19), kSite, "rec.txt:10: a gap of"},
+      {"gap", drop_lines(10, 19), std::string(kSite) + " --strict-time", "rec.txt:10: a gap of"},
       {"nan", replace_line(4, "0.02 nan 0.002 0.003 0.1 0.2 9.8"), kSite,
        "rec.txt:4: column '2 (gx)'"},
       {"site", good, " --serial X", "--lat-deg"},

@@ -137,11 +137,13 @@ nlohmann::json check_json(const CheckArgs& a, const LoadedCalibration& c,
                      {"raw_mps2", x.raw_mps2},
                      {"corrected_mps2", x.corrected_mps2}});
   for (const auto& m : r.moves)
-    moves.push_back({{"t_from_s", m.t_from_s},
-                     {"t_to_s", m.t_to_s},
-                     {"tilt_rad", m.tilt_rad},
-                     {"raw_rad", m.raw_rad},
-                     {"corrected_rad", m.corrected_rad}});
+    moves.push_back(
+        {{"t_from_s", m.t_from_s},
+         {"t_to_s", m.t_to_s},
+         {"tilt_rad", m.tilt_rad},
+         {"raw_rad", m.raw_rad},
+         {"corrected_rad", m.corrected_rad},
+         {"left_out", m.left_out.empty() ? nlohmann::json(nullptr) : nlohmann::json(m.left_out)}});
   nlohmann::json cal = {{"file", a.calibration}, {"form", c.form}};
   if (!c.method.empty()) cal["method"] = c.method, cal["chosen"] = c.because;
   if (!c.verdict.empty()) cal["verdict"] = c.verdict;
@@ -182,14 +184,19 @@ void print_check(const CheckArgs& a, const LoadedCalibration& c, const db::archi
               "gravity carried raw [deg]", "corrected [deg]");
   for (size_t p = 0; p < r.moves.size(); ++p) {
     const auto& m = r.moves[p];
-    std::printf("%3zu-%-3zu %10.2f %10.2f %11.1f %28.3f %18.4f\n", p + 1, p + 2, m.t_from_s,
+    std::printf("%3zu-%-3zu %10.2f %10.2f %11.1f %28.3f %18.4f%s\n", p + 1, p + 2, m.t_from_s,
                 m.t_to_s, m.tilt_rad * kRadToDeg, m.raw_rad * kRadToDeg,
-                m.corrected_rad * kRadToDeg);
+                m.corrected_rad * kRadToDeg, m.left_out.empty() ? "" : "  (not in the RMS)");
   }
+  size_t left_out = 0;
+  for (size_t p = 0; p < r.moves.size(); ++p)
+    if (!r.moves[p].left_out.empty() && ++left_out)
+      std::printf("move %zu-%zu not judged: %s\n", p + 1, p + 2, r.moves[p].left_out.c_str());
   std::printf("\nRMS over %zu rests: |f|-g raw %.3f mg, corrected %.3f mg\n", r.rests.size(),
               mg(r.rest_rms_raw_mps2), mg(r.rest_rms_corrected_mps2));
   std::printf("RMS over %zu moves: gravity carried raw %.3f deg, corrected %.4f deg\n",
-              r.moves.size(), r.move_rms_raw_rad * kRadToDeg, r.move_rms_corrected_rad * kRadToDeg);
+              r.moves.size() - left_out, r.move_rms_raw_rad * kRadToDeg,
+              r.move_rms_corrected_rad * kRadToDeg);
   if (r.earth_rate_heading)
     std::printf("Earth rate: removed (north from each rest's gyros, navigation grade)\n");
   else

@@ -61,8 +61,9 @@ void merge_config(ImportArgs& a) {
   const toml::table t = db::archive::parse_toml_text(text.str(), a.config);
   const db::archive::TomlSection root(t, a.config, "",
                                       {"input", "gyro", "accel", "run", "station", "noise"});
-  if (const auto in =
-          root.section("input", {"columns", "time_unit", "quantity", "rate_hz", "skip_lines"})) {
+  if (const auto in = root.section(
+          "input", {"columns", "time_unit", "quantity", "rate_hz", "skip_lines", "strict_time"})) {
+    if (!a.strict_time && in->has("strict_time")) a.strict_time = *in->boolean("strict_time");
     take(a.columns, in->string("columns"));
     take(a.time_unit, in->string("time_unit"));
     take(a.quantity, in->string("quantity"));
@@ -120,6 +121,7 @@ db::archive::RawImportOptions raw_options(const ImportArgs& a) {
     o.rate_hz = a.rate_hz;
   }
   if (a.skip_lines > 0) o.skip_lines = static_cast<std::size_t>(a.skip_lines);
+  o.strict_time = a.strict_time;
   return o;
 }
 
@@ -166,6 +168,15 @@ void print_reading_notes(const db::archive::RawRecording& rec, bool rate_given) 
   if (rec.decimal_comma) std::printf("decimal commas read as decimal points\n");
   if (rate_given && std::find(rec.columns.begin(), rec.columns.end(), "t") == rec.columns.end())
     std::printf("no time column: samples stamped at the given rate\n");
+  if (rec.repeated_rows > 0)
+    std::printf("%zu row(s) repeated verbatim (same stamp, same values) dropped\n",
+                rec.repeated_rows);
+  if (rec.gaps > 0)
+    std::printf(
+        "%zu gap(s) of dropped samples (%zu samples in all) kept as gaps: the calibration leaves "
+        "out the moves they fall in and uses the rests on both sides (--strict-time refuses "
+        "them)\n",
+        rec.gaps, rec.samples_missing);
 }
 
 void print_import_report(const ImportArgs& a, const db::archive::RawRecording& rec) {
@@ -180,7 +191,10 @@ void print_import_report(const ImportArgs& a, const db::archive::RawRecording& r
                                 {"header_lines", rec.header_lines},
                                 {"columns", rec.columns},
                                 {"columns_from", rec.columns_from},
-                                {"decimal_comma", rec.decimal_comma}}
+                                {"decimal_comma", rec.decimal_comma},
+                                {"repeated_rows_dropped", rec.repeated_rows},
+                                {"gaps", rec.gaps},
+                                {"samples_missing", rec.samples_missing}}
                      .dump()
               << '\n';
     return;
@@ -250,6 +264,9 @@ CLI::App* add_import_command(CLI::App& app, ImportArgs& a) {
   im->add_option("--vrw", a.vrw_ug_per_sqrt_hz,
                  "velocity random walk, µg/√Hz (default: the "
                  "grade's)");
+  im->add_flag("--strict-time", a.strict_time,
+               "refuse a row repeated verbatim and a dropped-sample gap (by default the one is "
+               "dropped, the other kept as a gap the calibration works around)");
   im->add_flag("--overwrite", a.overwrite, "replace an existing archive");
   im->add_flag("--skip-plausibility", a.skip_plausibility,
                "import even when the rate, |f| at rest or the gyros' rates say a unit is wrong");

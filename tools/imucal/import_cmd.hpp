@@ -32,6 +32,7 @@ struct ImportArgs {
   int skip_lines = -1;      ///< lines to skip at the top of each file (-1: none given)
   bool overwrite = false, json = false;
   bool skip_plausibility = false;  ///< import even a recording whose units look wrong
+  bool strict_time = false;        ///< refuse repeated rows and dropped-sample gaps
   static constexpr double kUnset = -1e300;
 };
 
