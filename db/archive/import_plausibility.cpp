@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "calib/core/conventions.hpp"
+#include "calib/core/earth.hpp"
 
 namespace imucal::db::archive {
 
@@ -115,15 +116,67 @@ std::string rate_of_turn_finding(const RawRecording& rec) {
          "--gyro-offset";
 }
 
+/// The smallest mean rate (norm) over the one-second windows whose |f| is as still as the stillest
+/// one's (within twice its spread): every rest shows the gyros' bias, so the smallest is a rest's
+/// even where a constant-rate turn about the vertical keeps |f| as still as a rest.
+double rest_rate_radps(const RawRecording& rec) {
+  const std::size_t n = rec.imu.size();
+  const std::size_t w =
+      std::max<std::size_t>(2, static_cast<std::size_t>(std::lround(rec.rate_hz)));
+  std::vector<std::pair<double, double>> windows;  // (|f| spread, |mean ω|)
+  for (std::size_t start = 0; start + w <= n; start += w) {
+    Eigen::Vector3d f_mean = Eigen::Vector3d::Zero(), w_mean = Eigen::Vector3d::Zero();
+    double ss = 0.0;
+    for (std::size_t k = start; k < start + w; ++k) {
+      const Eigen::Vector3d f = rec.imu[k].dv_mps / rec.imu[k].dt_s;
+      f_mean += f;
+      ss += f.squaredNorm();
+      w_mean += rec.imu[k].dtheta_rad / rec.imu[k].dt_s;
+    }
+    f_mean /= static_cast<double>(w);
+    const double spread =
+        std::sqrt(std::max(0.0, ss / static_cast<double>(w) - f_mean.squaredNorm()));
+    windows.emplace_back(spread, (w_mean / static_cast<double>(w)).norm());
+  }
+  if (windows.empty()) return 0.0;
+  double stillest = std::numeric_limits<double>::infinity();
+  for (const auto& [spread, rate] : windows) stillest = std::min(stillest, spread);
+  double smallest = std::numeric_limits<double>::infinity();
+  for (const auto& [spread, rate] : windows)
+    if (spread <= 2.0 * stillest) smallest = std::min(smallest, rate);
+  return smallest;
+}
+
+/// The rest-rate check: a finding, or "". The limit: three times the grade's bias envelope on
+/// every axis at once, plus twice the Earth's rate.
+std::string rest_rate_finding(const RawRecording& rec, calib::core::Grade grade) {
+  const double bias = calib::core::grade_prior(grade).gyro_bias_radps;
+  const double limit = 3.0 * std::sqrt(3.0) * bias + 2.0 * calib::core::wgs84::kEarthRate_radps;
+  const double w = rest_rate_radps(rec);
+  if (!(w > limit)) return "";
+  const std::string what = "the gyros read " + rounded(w / kDegToRad, 3) +
+                           " °/s where the unit is stillest, beyond what a " +
+                           calib::core::grade_name(grade) + " unit's bias may be (" +
+                           rounded(limit / kDegToRad, 2) + " °/s with the Earth's rate)";
+  const double mems_limit =
+      3.0 * std::sqrt(3.0) * calib::core::grade_prior(calib::core::Grade::kMems).gyro_bias_radps;
+  if (w * kDegToRad <= mems_limit)
+    return what +
+           ": deg/s read as rad/s? — give --gyro-scale 0.0174533; or a unit of another grade "
+           "(--grade), or a zero not removed (--gyro-offset)";
+  return what + ": a unit of another grade (--grade), or a zero not removed (--gyro-offset)";
+}
+
 }  // namespace
 
-std::vector<std::string> implausible_reading(const RawRecording& rec, double gravity_mps2) {
+std::vector<std::string> implausible_reading(const RawRecording& rec, double gravity_mps2,
+                                             calib::core::Grade grade) {
   std::vector<std::string> findings;
   if (rec.imu.size() < 2) return findings;
   for (const std::string& f :
        {rate_finding(rec.rate_hz),
         force_finding(stillest_specific_force(rec), gravity_mps2, rec.rate_hz),
-        rate_of_turn_finding(rec)})
+        rate_of_turn_finding(rec), rest_rate_finding(rec, grade)})
     if (!f.empty()) findings.push_back(f);
   return findings;
 }

@@ -33,7 +33,9 @@ namespace {
 namespace fs = std::filesystem;
 using test_support::run_imucal;
 
-const char* const kLoggerSite = " --lat-deg 48.1 --lon-deg 11.6 --height-m 520 --serial LOG-2";
+// MEMS grade: the made-up rates (up to 0.003 rad/s at rest) are beyond a navigation unit's bias.
+const char* const kLoggerSite =
+    " --lat-deg 48.1 --lon-deg 11.6 --height-m 520 --serial LOG-2 --grade mems";
 
 /// Sample k's values: a gyro rate (rad/s) and a specific force (m/s²) per axis, all distinct.
 double gyro_at(int k, int axis) { return 0.001 * (axis + 1) + 1e-5 * k; }
@@ -226,6 +228,52 @@ std::string turned_unit(double time_factor, double gyro_factor, double accel_fac
     s += buf;
   }
   return s;
+}
+
+/// A MEMS unit with gyro offsets of about 1 °/s, at rest 5 s, turned about z at 20 °/s for 4.5 s,
+/// at rest again; its gyros written in deg/s (`gyro_deg`) or rad/s.
+std::string offset_unit(bool gyro_deg) {
+  constexpr double kDeg = 0.017453292519943295;
+  std::string s;
+  for (int k = 0; k < 1500; ++k) {
+    const double t = 0.01 * k;
+    const double w[3] = {1.0 * kDeg, -0.6 * kDeg,
+                         0.8 * kDeg + (t >= 5.0 && t < 9.5 ? 20.0 * kDeg : 0.0)};
+    const double g = gyro_deg ? 1.0 / kDeg : 1.0;
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "%.10g %.10g %.10g %.10g %.10g %.10g %.10g\n", t, w[0] * g,
+                  w[1] * g, w[2] * g, 0.02, -0.03, 9.807);
+    s += buf;
+  }
+  return s;
+}
+
+TEST(ImucalImportPlausibility, AGyroRestRateBeyondTheGradesBiasIsRefusedNamingTheGradeOrTheScale) {
+  test_support::ScopedTempDir tmp("imucal-import-rest-rate");
+  // deg/s read as rad/s: 1.4 °/s of offset reads as 80 °/s at rest, while the turn (1 146 °/s)
+  // stays below any gyro's range — only the rest rate tells.
+  const Imported deg = import_text(tmp, "deg", offset_unit(true), "");
+  EXPECT_NE(deg.result.code, 0);
+  EXPECT_NE(deg.result.out.find("deg/s read as rad/s? — give --gyro-scale 0.0174533"),
+            std::string::npos)
+      << deg.result.out;
+  EXPECT_FALSE(fs::exists(deg.out));
+  const Imported scaled =
+      import_text(tmp, "scaled", offset_unit(true), " --gyro-scale 0.0174532925");
+  EXPECT_EQ(scaled.result.code, 0) << scaled.result.out;
+  // The same unit in rad/s said to be of navigation grade (the import's default): its 1.4 °/s is
+  // no such unit's bias (0.05 °/h) — named, before a calibration would find "no rest".
+  const std::string nav_site = " --lat-deg 48.1 --lon-deg 11.6 --height-m 520 --serial LOG-3";
+  const std::string file = tmp.path() + "/nav.txt";
+  std::ofstream(file) << offset_unit(false);
+  const auto nav = run_imucal("import --file " + file + " --out " + tmp.path() + "/nav" + nav_site);
+  EXPECT_NE(nav.code, 0);
+  EXPECT_NE(nav.out.find("beyond what a navigation unit's bias may be"), std::string::npos)
+      << nav.out;
+  EXPECT_NE(nav.out.find("another grade (--grade)"), std::string::npos) << nav.out;
+  const auto mems = run_imucal("import --file " + file + " --out " + tmp.path() + "/mems" +
+                               nav_site + " --grade mems");
+  EXPECT_EQ(mems.code, 0) << mems.out;
 }
 
 TEST(ImucalImportPlausibility, EachUnitMixUpIsRefusedNamingTheFixAndImportsWithIt) {

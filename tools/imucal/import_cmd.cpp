@@ -215,7 +215,10 @@ void print_import_report(const ImportArgs& a, const db::archive::RawRecording& r
 void refuse_implausible(const ImportArgs& a, const db::archive::RawRecording& rec) {
   if (a.skip_plausibility) return;
   const double gravity_mps2 = unset(a.gravity_mps2) ? kStandardGravity_mps2 : a.gravity_mps2;
-  const std::vector<std::string> findings = db::archive::implausible_reading(rec, gravity_mps2);
+  const std::optional<calib::core::Grade> grade =
+      calib::core::parse_grade(a.grade.empty() ? "navigation" : a.grade);
+  const std::vector<std::string> findings = db::archive::implausible_reading(
+      rec, gravity_mps2, grade.value_or(calib::core::Grade::kNavigation));
   if (findings.empty()) return;
   std::string message = a.file.empty() ? a.gyro_file + ", " + a.accel_file : a.file;
   message += ": ";
