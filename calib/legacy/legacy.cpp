@@ -410,7 +410,9 @@ std::vector<size_t> usable_moves(const CalibrationInput& in, const std::vector<R
 /// What was left out, for a refusal: " (2 moves left out: ...)" or "".
 std::string left_out_clause(const std::vector<std::string>& notes) {
   if (notes.empty()) return "";
-  std::string s = "; " + std::to_string(notes.size()) + " left out for clipped or dropped samples:";
+  std::string s = "; " + std::to_string(notes.size()) +
+                  (notes.size() == 1 ? " move" : " moves") +
+                  " left out for clipped or dropped samples:";
   for (const std::string& n : notes) s += " " + n + ";";
   s.pop_back();
   return s;
