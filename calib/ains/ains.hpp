@@ -105,6 +105,9 @@ struct AinsResult {
   std::vector<SmoothedNav> smoothed;  ///< one per KF epoch of the final pass
   size_t num_updates = 0;             ///< aiding epochs in the final pass
   double mean_nis = 0.0;              ///< mean normalised innovation squared per scalar update
+  /// > 1: the σ were scaled by it, √(mean NIS) (field runs below navigation grade whose
+  /// innovations exceed the noise model: scale_sigma_to_innovations).
+  double sigma_scale = 1.0;
   /// Max over parameters of |smoothed(first epoch) - filtered(last epoch)| / σ: zero for random
   /// constants in exact arithmetic, so a check of the RTS recursion.
   double smoother_param_mismatch_sigma = 0.0;
