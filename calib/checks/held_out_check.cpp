@@ -17,35 +17,12 @@ namespace {
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
 
-/// A rest as averaged: its samples after trimming and its middle sample.
-struct HeldOutRest {
-  size_t begin = 0, end = 0, mid = 0;
-};
-
-/// The input's rests, each trimmed by trim_s at both ends; a rest left with fewer than half of
-/// min_rest_samples is not used (the legacy method's rule, calib/legacy/legacy.cpp).
-std::vector<HeldOutRest> usable_rests(const CalibrationInput& in, const HeldOutCheckOptions& o) {
-  std::vector<HeldOutRest> out;
-  for (const RestPeriod& rp : find_rest_periods(in, o.min_rest_samples)) {
-    const double t0 = in.imu[rp.begin].t_s + o.trim_s, t1 = in.imu[rp.end - 1].t_s - o.trim_s;
-    HeldOutRest r;
-    r.begin = rp.begin;
-    while (r.begin < rp.end && in.imu[r.begin].t_s < t0) ++r.begin;
-    r.end = r.begin;
-    while (r.end < rp.end && in.imu[r.end].t_s <= t1) ++r.end;
-    if (r.end - r.begin < o.min_rest_samples / 2) continue;
-    r.mid = (r.begin + r.end) / 2;
-    out.push_back(r);
-  }
-  return out;
-}
-
 /// The compensated mean specific force and rate over one rest.
 struct RestMeans {
   Vector3d f_mps2 = Vector3d::Zero(), w_radps = Vector3d::Zero();
 };
 
-RestMeans rest_means(const ImuSeries& imu, const HeldOutRest& r, const ImuCompensator& comp) {
+RestMeans rest_means(const ImuSeries& imu, const TrimmedRest& r, const ImuCompensator& comp) {
   RestMeans m;
   double T = 0.0;
   for (size_t k = r.begin; k < r.end; ++k) {
@@ -91,12 +68,12 @@ struct HeldOutColumn {
   std::vector<double> carried_rad;     ///< per move: carried against seen
 };
 
-HeldOutColumn column(const CalibrationInput& in, const std::vector<HeldOutRest>& rests,
+HeldOutColumn column(const CalibrationInput& in, const std::vector<TrimmedRest>& rests,
                      const ParamSet& params, double g, bool north_known) {
   const ImuCompensator comp(params);
   HeldOutColumn c;
   std::vector<Vector3d> w_ie_b;
-  for (const HeldOutRest& r : rests) {
+  for (const TrimmedRest& r : rests) {
     const RestMeans m = rest_means(in.imu, r, comp);
     c.magnitude_mps2.push_back(m.f_mps2.norm() - g);
     c.down.push_back(-m.f_mps2.normalized());
@@ -120,7 +97,7 @@ double rms(const std::vector<double>& v) {
 }
 
 /// The two columns side by side, with the spans they were taken over.
-HeldOutCheck assemble(const CalibrationInput& in, const std::vector<HeldOutRest>& rests,
+HeldOutCheck assemble(const CalibrationInput& in, const std::vector<TrimmedRest>& rests,
                       const HeldOutColumn& raw, const HeldOutColumn& cor) {
   HeldOutCheck out;
   for (size_t p = 0; p < rests.size(); ++p)
@@ -150,7 +127,8 @@ HeldOutCheck assemble(const CalibrationInput& in, const std::vector<HeldOutRest>
 HeldOutCheck check_held_out(const CalibrationInput& in, const ParamSet& params,
                             const HeldOutCheckOptions& options) {
   check_input_samples(in, "held-out check: ");
-  const std::vector<HeldOutRest> rests = usable_rests(in, options);
+  const std::vector<TrimmedRest> rests =
+      trimmed_rests(in, options.min_rest_samples, options.trim_s);
   if (rests.size() < 2)
     throw std::invalid_argument(
         "held-out check: found " + std::to_string(rests.size()) + " usable rest" +

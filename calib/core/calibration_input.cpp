@@ -44,6 +44,23 @@ std::vector<RestPeriod> find_rest_periods(const CalibrationInput& in, size_t min
   return out;
 }
 
+std::vector<TrimmedRest> trimmed_rests(const CalibrationInput& in, size_t min_samples,
+                                       double trim_s) {
+  std::vector<TrimmedRest> out;
+  for (const RestPeriod& rp : find_rest_periods(in, min_samples)) {
+    const double t0 = in.imu[rp.begin].t_s + trim_s, t1 = in.imu[rp.end - 1].t_s - trim_s;
+    TrimmedRest r;
+    r.begin = rp.begin;
+    while (r.begin < rp.end && in.imu[r.begin].t_s < t0) ++r.begin;
+    r.end = r.begin;
+    while (r.end < rp.end && in.imu[r.end].t_s <= t1) ++r.end;
+    if (r.end - r.begin < min_samples / 2) continue;
+    r.mid = (r.begin + r.end) / 2;
+    out.push_back(r);
+  }
+  return out;
+}
+
 Eigen::Vector3d mean_rate_radps(const ImuSeries& imu, const RestPeriod& rest) {
   Eigen::Vector3d dtheta = Eigen::Vector3d::Zero();
   double T = 0.0;

@@ -85,6 +85,17 @@ struct RestPeriod {
 /// Maximal runs of at_rest samples with at least min_samples samples.
 std::vector<RestPeriod> find_rest_periods(const CalibrationInput& in, size_t min_samples);
 
+/// A rest as the multi-position methods average it: [begin, end) after trimming, and its middle.
+struct TrimmedRest {
+  size_t begin = 0, end = 0, mid = 0;
+};
+
+/// The rest periods of at least min_samples samples, each trimmed by trim_s at both ends (the unit
+/// settling after a move, starting the next), kept when at least min_samples / 2 samples remain:
+/// the legacy fit's rests and the held-out check's.
+std::vector<TrimmedRest> trimmed_rests(const CalibrationInput& in, size_t min_samples,
+                                       double trim_s);
+
 /// The raw mean angular rate over a rest period (rad/s): the gyro bias plus Earth rate there.
 Eigen::Vector3d mean_rate_radps(const ImuSeries& imu, const RestPeriod& rest);
 

@@ -48,14 +48,10 @@ std::vector<Rest> usable_rests(const CalibrationInput& in, const LegacyOptions& 
       fail("imu[" + std::to_string(k) + "] has a non-finite increment or a non-positive dt_s");
   }
   std::vector<Rest> out;
-  for (const RestPeriod& rp : find_rest_periods(in, opt.min_rest_samples)) {
+  for (const TrimmedRest& tr : trimmed_rests(in, opt.min_rest_samples, opt.trim_s)) {
     Rest r;
-    const double t0 = in.imu[rp.begin].t_s + opt.trim_s, t1 = in.imu[rp.end - 1].t_s - opt.trim_s;
-    r.begin = rp.begin;
-    while (r.begin < rp.end && in.imu[r.begin].t_s < t0) ++r.begin;
-    r.end = r.begin;
-    while (r.end < rp.end && in.imu[r.end].t_s <= t1) ++r.end;
-    if (r.end - r.begin < opt.min_rest_samples / 2) continue;
+    r.begin = tr.begin;
+    r.end = tr.end;
     double T = 0.0;
     for (size_t k = r.begin; k < r.end; ++k) {
       r.f_mean += in.imu[k].dv_mps;
@@ -65,7 +61,7 @@ std::vector<Rest> usable_rests(const CalibrationInput& in, const LegacyOptions& 
     r.f_mean /= T;
     r.w_mean /= T;
     r.T_s = T;
-    r.mid = (r.begin + r.end) / 2;
+    r.mid = tr.mid;
     out.push_back(r);
   }
   return out;
@@ -410,8 +406,7 @@ std::vector<size_t> usable_moves(const CalibrationInput& in, const std::vector<R
 /// What was left out, for a refusal: " (2 moves left out: ...)" or "".
 std::string left_out_clause(const std::vector<std::string>& notes) {
   if (notes.empty()) return "";
-  std::string s = "; " + std::to_string(notes.size()) +
-                  (notes.size() == 1 ? " move" : " moves") +
+  std::string s = "; " + std::to_string(notes.size()) + (notes.size() == 1 ? " move" : " moves") +
                   " left out for clipped or dropped samples:";
   for (const std::string& n : notes) s += " " + n + ";";
   s.pop_back();
