@@ -28,22 +28,7 @@ using namespace imucal::calib::sim;
 namespace {
 
 using testing::simulate_mems;
-
-/// The true rest spans [begin, end) of a run, in samples.
-std::vector<std::pair<size_t, size_t>> true_rest_spans(const std::vector<bool>& rest) {
-  std::vector<std::pair<size_t, size_t>> spans;
-  for (size_t k = 0; k < rest.size();) {
-    if (!rest[k]) {
-      ++k;
-      continue;
-    }
-    size_t e = k;
-    while (e < rest.size() && rest[e]) ++e;
-    spans.emplace_back(k, e);
-    k = e;
-  }
-  return spans;
-}
+using testing::true_rest_spans;
 
 /// A hand's physiological tremor added to the gyro over samples [begin, end): per axis three
 /// sinusoids between 6 and 11 Hz of random phase, `rms_degps` RMS per axis, zero mean. (The

@@ -56,22 +56,6 @@ CalibrationInput mems_input_of(const ImuSeries& imu) {
   return input_from_field_data(Setting::kLand, imu, {}, demo_factory_site(), noise, Grade::kMems);
 }
 
-/// The true rest spans [begin, end) of a run, in samples.
-std::vector<std::pair<size_t, size_t>> rest_spans(const std::vector<bool>& rest) {
-  std::vector<std::pair<size_t, size_t>> spans;
-  for (size_t k = 0; k < rest.size();) {
-    if (!rest[k]) {
-      ++k;
-      continue;
-    }
-    size_t e = k;
-    while (e < rest.size() && rest[e]) ++e;
-    spans.emplace_back(k, e);
-    k = e;
-  }
-  return spans;
-}
-
 /// The recording without samples [begin, end), as a logger that lost them writes it: the next
 /// sample's interval covers the lost time, its increment its own sample's.
 ImuSeries without_samples(const ImuSeries& imu, size_t begin, size_t end) {
@@ -95,6 +79,29 @@ CalibrationInput blind(CalibrationInput in) {
   return in;
 }
 
+/// The recording as a gyro whose range is 90 % of the busiest axis' fastest rate records it.
+struct ClippedRun {
+  ImuSeries imu;
+  int axis = 0;
+  double range = 0.0;  ///< increment per sample
+  size_t samples = 0;  ///< clipped
+};
+
+ClippedRun clipped_at_busiest_axis(const ImuSeries& imu) {
+  ClippedRun c;
+  double peak = 0.0;
+  for (const ImuIncrement& s : imu)
+    for (int a = 0; a < 3; ++a)
+      if (std::abs(s.dtheta_rad(a)) > peak) peak = std::abs(s.dtheta_rad(c.axis = a));
+  c.range = 0.9 * peak;
+  c.imu = imu;
+  for (ImuIncrement& s : c.imu) {
+    c.samples += std::abs(s.dtheta_rad(c.axis)) > c.range;
+    s.dtheta_rad(c.axis) = std::clamp(s.dtheta_rad(c.axis), -c.range, c.range);
+  }
+  return c;
+}
+
 bool says(const CalibrationResult& r, const std::string& what) {
   for (const std::string& w : r.warnings)
     if (w.find(what) != std::string::npos) return true;
@@ -111,19 +118,12 @@ TEST(LocalJudgement, AGyroClippedInAMoveLeavesThatMoveOutAndSaysSo) {
   const FieldSimResult sim = fast_hand_run(21);
   const CalibrationResult clean = legacy::calibrate_legacy(mems_input_of(sim.imu));
   // The gyro's range just below the fastest move's peak on its busiest axis.
-  int axis = 0;
-  double peak = 0.0;
-  for (const ImuIncrement& s : sim.imu)
-    for (int a = 0; a < 3; ++a)
-      if (std::abs(s.dtheta_rad(a)) > peak) peak = std::abs(s.dtheta_rad(axis = a));
-  const double range = 0.9 * peak;
+  const ClippedRun c = clipped_at_busiest_axis(sim.imu);
+  const int axis = c.axis;
+  const double range = c.range;
+  const ImuSeries& clipped = c.imu;
+  const size_t n_clipped = c.samples;
   ASSERT_GT(range / 0.01, kMinGyroRange_degps * kDegToRad) << "a range real gyros have";
-  ImuSeries clipped = sim.imu;
-  size_t n_clipped = 0;
-  for (ImuIncrement& s : clipped) {
-    n_clipped += std::abs(s.dtheta_rad(axis)) > range;
-    s.dtheta_rad(axis) = std::clamp(s.dtheta_rad(axis), -range, range);
-  }
   ASSERT_GE(n_clipped, 2u);
   const CalibrationInput in = mems_input_of(clipped);
   ASSERT_FALSE(in.unusable.empty());
@@ -143,7 +143,7 @@ TEST(LocalJudgement, AGyroClippedInAMoveLeavesThatMoveOutAndSaysSo) {
 
 TEST(LocalJudgement, SamplesDroppedInAMoveLeaveThatMoveOut) {
   const FieldSimResult sim = fast_hand_run(22);
-  const auto rests = rest_spans(sim.true_rest);
+  const auto rests = testing::true_rest_spans(sim.true_rest);
   ASSERT_GE(rests.size(), 12u);
   const CalibrationResult clean = legacy::calibrate_legacy(mems_input_of(sim.imu));
   // 8 samples lost in the middle of the sixth move.
@@ -164,7 +164,7 @@ TEST(LocalJudgement, SamplesDroppedInAMoveLeaveThatMoveOut) {
 
 TEST(LocalJudgement, SamplesDroppedInARestSplitItAndBothHalvesServe) {
   const FieldSimResult sim = fast_hand_run(23);
-  const auto rests = rest_spans(sim.true_rest);
+  const auto rests = testing::true_rest_spans(sim.true_rest);
   // The longest later rest, 5 samples lost in its middle.
   size_t r = 1;
   for (size_t i = 1; i < rests.size(); ++i)
@@ -213,7 +213,7 @@ TEST(LocalJudgement, SamplesDroppedInARestSplitItAndBothHalvesServe) {
 
 TEST(LocalJudgement, AKnockThatClipsTheAccelerometerInARestCostsOnlyTheKnock) {
   const FieldSimResult sim = fast_hand_run(24);
-  const auto rests = rest_spans(sim.true_rest);
+  const auto rests = testing::true_rest_spans(sim.true_rest);
   const size_t r = 8, mid = (rests[r].first + rests[r].second) / 2;
   ImuSeries knocked = sim.imu;
   // ±2 g accelerometer: three samples of a knock pinned at +2 g on x.
@@ -266,14 +266,7 @@ CalibrationResult ains_from_legacy(const CalibrationInput& in) {
 // times too small even on clean runs — issue #48 item 7.)
 TEST(LocalJudgement, TheAinsSaysWhereItReleasedTheAttitudeAClippedMoveCarried) {
   const FieldSimResult sim = fast_hand_run(26);
-  int axis = 0;
-  double peak = 0.0;
-  for (const ImuIncrement& s : sim.imu)
-    for (int a = 0; a < 3; ++a)
-      if (std::abs(s.dtheta_rad(a)) > peak) peak = std::abs(s.dtheta_rad(axis = a));
-  ImuSeries clipped = sim.imu;
-  for (ImuIncrement& s : clipped)
-    s.dtheta_rad(axis) = std::clamp(s.dtheta_rad(axis), -0.9 * peak, 0.9 * peak);
+  const ImuSeries clipped = clipped_at_busiest_axis(sim.imu).imu;
   const CalibrationInput in = mems_input_of(clipped);
   ASSERT_FALSE(in.unusable.empty());
   const CalibrationResult r = ains_from_legacy(in);
@@ -293,14 +286,7 @@ namespace {
 // calibration, spoils that move.
 TEST(LocalJudgement, TheHeldOutCheckShowsAClippedMoveButKeepsItOutOfItsRms) {
   const FieldSimResult sim = fast_hand_run(27);
-  int axis = 0;
-  double peak = 0.0;
-  for (const ImuIncrement& s : sim.imu)
-    for (int a = 0; a < 3; ++a)
-      if (std::abs(s.dtheta_rad(a)) > peak) peak = std::abs(s.dtheta_rad(axis = a));
-  ImuSeries clipped = sim.imu;
-  for (ImuIncrement& s : clipped)
-    s.dtheta_rad(axis) = std::clamp(s.dtheta_rad(axis), -0.9 * peak, 0.9 * peak);
+  const ImuSeries clipped = clipped_at_busiest_axis(sim.imu).imu;
   const checks::HeldOutCheck clean = checks::check_held_out(mems_input_of(sim.imu), sim.truth);
   const checks::HeldOutCheck r = checks::check_held_out(mems_input_of(clipped), sim.truth);
   double worst_left_out = 0.0;

@@ -5,6 +5,9 @@
 // 200 mg, the grade's noise) by hand through 38 positions with rests of 3–11 s after a 50 s rest
 // (calib/sim/hand_placement.hpp), as the public recording of issue #21 was taken
 // (tests/data/imu_tk_xsens).
+#include <utility>
+#include <vector>
+
 #include "calib/core/calibration_input.hpp"
 #include "calib/core/conventions.hpp"
 #include "calib/core/site_presets.hpp"
@@ -25,6 +28,22 @@ inline CalibrationInput mems_input(const FieldSimResult& sim) {
   noise.vrw_mps_per_sqrt_s = mems.vrw_mps_per_sqrt_s;
   return input_from_field_data(Setting::kLand, sim.imu, {}, demo_factory_site(), noise,
                                Grade::kMems);
+}
+
+/// The true rest spans [begin, end) of a simulated run (FieldSimResult::true_rest), in samples.
+inline std::vector<std::pair<size_t, size_t>> true_rest_spans(const std::vector<bool>& rest) {
+  std::vector<std::pair<size_t, size_t>> spans;
+  for (size_t k = 0; k < rest.size();) {
+    if (!rest[k]) {
+      ++k;
+      continue;
+    }
+    size_t e = k;
+    while (e < rest.size() && rest[e]) ++e;
+    spans.emplace_back(k, e);
+    k = e;
+  }
+  return spans;
 }
 
 inline FieldSimResult simulate_mems(uint64_t seed, double cruise_deg = 0.0) {
