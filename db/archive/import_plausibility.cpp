@@ -26,32 +26,54 @@ std::string rounded(double v, int digits = 3) {
   return buf;
 }
 
-/// |mean f| over the one-second window whose |f| varies least (relative to its mean).
-double stillest_specific_force(const RawRecording& rec) {
+/// One second of the recording (fewer samples when the whole recording is shorter): its mean
+/// specific force and rate, and how much the specific force varies in it.
+struct Window {
+  Eigen::Vector3d f_mean = Eigen::Vector3d::Zero(), w_mean = Eigen::Vector3d::Zero();
+  double norm_spread = 0.0;  ///< RMS of |f| about its mean, relative to that mean
+  double f_spread = 0.0;     ///< RMS of f about its mean vector, m/s²
+  bool full = false;         ///< a whole second
+};
+
+/// The recording in one-second windows, read once for every check that looks for stillness.
+std::vector<Window> one_second_windows(const RawRecording& rec) {
   const std::size_t n = rec.imu.size();
   const std::size_t w =
       std::max<std::size_t>(2, static_cast<std::size_t>(std::lround(rec.rate_hz)));
-  double best_spread = std::numeric_limits<double>::infinity(), best_norm = 0.0;
+  std::vector<Window> out;
   for (std::size_t start = 0; start + w <= n || start == 0; start += w) {
     const std::size_t end = std::min(n, start + w);
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    Window win;
     double s = 0.0, ss = 0.0;
     for (std::size_t k = start; k < end; ++k) {
       const Eigen::Vector3d f = rec.imu[k].dv_mps / rec.imu[k].dt_s;
-      mean += f;
+      win.f_mean += f;
+      win.w_mean += rec.imu[k].dtheta_rad / rec.imu[k].dt_s;
       s += f.norm();
       ss += f.squaredNorm();
     }
     const double m = static_cast<double>(end - start);
+    win.f_mean /= m;
+    win.w_mean /= m;
     const double norm_mean = s / m;
-    const double spread = std::sqrt(std::max(0.0, ss / m - norm_mean * norm_mean)) /
-                          std::max(norm_mean, std::numeric_limits<double>::min());
-    if (spread < best_spread) {
-      best_spread = spread;
-      best_norm = (mean / m).norm();
-    }
+    win.norm_spread = std::sqrt(std::max(0.0, ss / m - norm_mean * norm_mean)) /
+                      std::max(norm_mean, std::numeric_limits<double>::min());
+    win.f_spread = std::sqrt(std::max(0.0, ss / m - win.f_mean.squaredNorm()));
+    win.full = end - start == w;
+    out.push_back(win);
     if (end == n) break;
   }
+  return out;
+}
+
+/// |mean f| over the window whose |f| varies least (relative to its mean).
+double stillest_specific_force(const std::vector<Window>& windows) {
+  double best_spread = std::numeric_limits<double>::infinity(), best_norm = 0.0;
+  for (const Window& w : windows)
+    if (w.norm_spread < best_spread) {
+      best_spread = w.norm_spread;
+      best_norm = w.f_mean.norm();
+    }
   return best_norm;
 }
 
@@ -116,43 +138,25 @@ std::string rate_of_turn_finding(const RawRecording& rec) {
          "--gyro-offset";
 }
 
-/// The smallest mean rate (norm) over the one-second windows whose |f| is as still as the stillest
-/// one's (within twice its spread): every rest shows the gyros' bias, so the smallest is a rest's
-/// even where a constant-rate turn about the vertical keeps |f| as still as a rest.
-double rest_rate_radps(const RawRecording& rec) {
-  const std::size_t n = rec.imu.size();
-  const std::size_t w =
-      std::max<std::size_t>(2, static_cast<std::size_t>(std::lround(rec.rate_hz)));
-  std::vector<std::pair<double, double>> windows;  // (|f| spread, |mean ω|)
-  for (std::size_t start = 0; start + w <= n; start += w) {
-    Eigen::Vector3d f_mean = Eigen::Vector3d::Zero(), w_mean = Eigen::Vector3d::Zero();
-    double ss = 0.0;
-    for (std::size_t k = start; k < start + w; ++k) {
-      const Eigen::Vector3d f = rec.imu[k].dv_mps / rec.imu[k].dt_s;
-      f_mean += f;
-      ss += f.squaredNorm();
-      w_mean += rec.imu[k].dtheta_rad / rec.imu[k].dt_s;
-    }
-    f_mean /= static_cast<double>(w);
-    const double spread =
-        std::sqrt(std::max(0.0, ss / static_cast<double>(w) - f_mean.squaredNorm()));
-    windows.emplace_back(spread, (w_mean / static_cast<double>(w)).norm());
-  }
-  if (windows.empty()) return 0.0;
+/// The smallest mean rate (norm) over the whole one-second windows whose f is as still as the
+/// stillest one's (within twice its spread): every rest shows the gyros' bias, so the smallest is
+/// a rest's even where a constant-rate turn about the vertical keeps f as still as a rest.
+double rest_rate_radps(const std::vector<Window>& windows) {
   double stillest = std::numeric_limits<double>::infinity();
-  for (const auto& [spread, rate] : windows) stillest = std::min(stillest, spread);
+  for (const Window& w : windows)
+    if (w.full) stillest = std::min(stillest, w.f_spread);
   double smallest = std::numeric_limits<double>::infinity();
-  for (const auto& [spread, rate] : windows)
-    if (spread <= 2.0 * stillest) smallest = std::min(smallest, rate);
-  return smallest;
+  for (const Window& w : windows)
+    if (w.full && w.f_spread <= 2.0 * stillest) smallest = std::min(smallest, w.w_mean.norm());
+  return std::isfinite(smallest) ? smallest : 0.0;
 }
 
 /// The rest-rate check: a finding, or "". The limit: three times the grade's bias envelope on
 /// every axis at once, plus twice the Earth's rate.
-std::string rest_rate_finding(const RawRecording& rec, calib::core::Grade grade) {
+std::string rest_rate_finding(const std::vector<Window>& windows, calib::core::Grade grade) {
   const double bias = calib::core::grade_prior(grade).gyro_bias_radps;
   const double limit = 3.0 * std::sqrt(3.0) * bias + 2.0 * calib::core::wgs84::kEarthRate_radps;
-  const double w = rest_rate_radps(rec);
+  const double w = rest_rate_radps(windows);
   if (!(w > limit)) return "";
   const std::string what = "the gyros read " + rounded(w / kDegToRad, 3) +
                            " °/s where the unit is stillest, beyond what a " +
@@ -173,10 +177,11 @@ std::vector<std::string> implausible_reading(const RawRecording& rec, double gra
                                              calib::core::Grade grade) {
   std::vector<std::string> findings;
   if (rec.imu.size() < 2) return findings;
+  const std::vector<Window> windows = one_second_windows(rec);
   for (const std::string& f :
        {rate_finding(rec.rate_hz),
-        force_finding(stillest_specific_force(rec), gravity_mps2, rec.rate_hz),
-        rate_of_turn_finding(rec), rest_rate_finding(rec, grade)})
+        force_finding(stillest_specific_force(windows), gravity_mps2, rec.rate_hz),
+        rate_of_turn_finding(rec), rest_rate_finding(windows, grade)})
     if (!f.empty()) findings.push_back(f);
   return findings;
 }
