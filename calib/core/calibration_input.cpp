@@ -48,7 +48,9 @@ std::vector<TrimmedRest> trimmed_rests(const CalibrationInput& in, size_t min_sa
                                        double trim_s) {
   std::vector<TrimmedRest> out;
   for (const RestPeriod& rp : find_rest_periods(in, min_samples)) {
-    const double t0 = in.imu[rp.begin].t_s + trim_s, t1 = in.imu[rp.end - 1].t_s - trim_s;
+    const double length_s = in.imu[rp.end - 1].t_s - in.imu[rp.begin].t_s;
+    const double trim = std::min(trim_s, 0.25 * length_s);
+    const double t0 = in.imu[rp.begin].t_s + trim, t1 = in.imu[rp.end - 1].t_s - trim;
     TrimmedRest r;
     r.begin = rp.begin;
     while (r.begin < rp.end && in.imu[r.begin].t_s < t0) ++r.begin;

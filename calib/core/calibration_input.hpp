@@ -90,9 +90,10 @@ struct TrimmedRest {
   size_t begin = 0, end = 0, mid = 0;
 };
 
-/// The rest periods of at least min_samples samples, each trimmed by trim_s at both ends (the unit
-/// settling after a move, starting the next), kept when at least min_samples / 2 samples remain:
-/// the legacy fit's rests and the held-out check's.
+/// The rest periods of at least min_samples samples, each trimmed at both ends by trim_s or a
+/// quarter of its length, whichever is less (the unit settling after a move, starting the next:
+/// a hand-held position of 2 s keeps its middle second, a table's long rest loses trim_s), kept
+/// when at least min_samples / 2 samples remain: the legacy fit's rests and the held-out check's.
 std::vector<TrimmedRest> trimmed_rests(const CalibrationInput& in, size_t min_samples,
                                        double trim_s);
 

@@ -33,6 +33,8 @@ void levels_only(GradePrior& p) {
   p.first_rest_latest_start_s = std::numeric_limits<double>::infinity();
   p.alignment_min_window_s = 1.0;
   p.tremor_rate_radps = 2.0 * kDegToRad;
+  p.tremor_force_noise_ratio = 2.5;
+  p.min_rest_s = 1.5;
 }
 
 }  // namespace

@@ -65,6 +65,17 @@ struct GradePrior {
   /// can tell: a hand holding a unit on a surface shakes it by 0.3–1 °/s (the corpus' hand-held
   /// starts), a turn by tens of °/s. 0: the detector's noise threshold alone.
   double tremor_rate_radps = 0.0;
+  /// The accelerometer's share of the same: a hand holding a unit still shakes its specific force
+  /// over a short window by up to 2.5 times the unit's bench noise (the MPU-6050 corpus recording's
+  /// hand-held positions: 4–7 mg against 3.3 mg on the bench), a hand turning it by tens to
+  /// hundreds of mg. The accelerometer's threshold is at least this multiple of the unit's own
+  /// noise (a fixed floor of 10 mg took a quiet unit's settling after a set-down for rest: IMU-TK's
+  /// Xsens, gravity turning 0.39° within a rest); 0: the detector's variance factor alone.
+  double tremor_force_noise_ratio = 0.0;
+  /// Rest detection by variation: quiet spans shorter than this are not rests. A hand-held
+  /// calibration's positions last 2–4 s (the MPU-6050 authors': 3 s), and the hand settles into
+  /// them: 1.5 s at the tremor grades, 2 s otherwise.
+  double min_rest_s = 2.0;
 };
 
 GradePrior grade_prior(Grade g);

@@ -11,17 +11,20 @@
 //     statistic — the record must be at least that fraction at rest, a hand-placed run is most of
 //     it); a window is quiet when both statistics are below max(√variance_factor × that noise, the
 //     grade's still floor) — the floor keeps a very quiet unit on a bench or a calm deck "still";
-//     the gyro's threshold is at least the grade's tremor rate (issue #48 item 2): a unit held
-//     still by hand shakes by 0.3–1 °/s, ten times its bench noise, while its specific force
-//     barely varies, so the accelerometer decides and the gyro is a second opinion that a turn
-//     (tens of °/s) still fails;
+//     the thresholds are at least the grade's tremor rate and tremor force (issue #48 item 2): a
+//     unit held still by hand shakes by 0.3–1 °/s, ten times its bench noise, and its specific
+//     force by up to 2.5 times its bench noise, where a turn varies the specific force by tens to
+//     hundreds of mg and the rate by tens of °/s, so the accelerometer decides and the gyro is a
+//     second opinion;
 //  3. quiet spans of at least min_rest_s, less edge_guard_s at both ends, are rest candidates;
 //  4. a constant-rate rotation (a turntable's cruise about the vertical) varies neither signal: the
 //     unit's common gyro offset is the median of the candidates' mean rates, and a sample whose
-//     window's mean rate departs from it by more than the grade's rest_rate_spread is turning, not
-//     at rest (a hand's tremor moves a short window's mean by up to the window's own variation, up
-//     to the tremor rate: that much more is allowed where the rate varies); the spans are then cut
-//     again as in step 3.
+//     window's mean rate departs from it by more than the grade's rest_rate_spread, or where a hand
+//     may hold the unit the tremor rate (a hand drifts as well as shakes: a short window's mean
+//     reaches 1–2 °/s), is turning, not at rest; the spans are then cut again as in step 3. At
+//     the tremor grades a turn slower than the tremor rate is therefore rest unless the
+//     accelerometer sees it: a constant-rate turn about the vertical is (the price of hand-held
+//     rests; a factory table's cruise is 10 °/s or more).
 #include <Eigen/Core>
 #include <vector>
 
@@ -34,15 +37,17 @@ struct VariationRestOptions {
   double window_s = 0.2;          ///< centred window of the variation statistics
   double noise_quantile = 0.05;   ///< quietest fraction of windows that sets the unit's noise
   double variance_factor = 4.0;   ///< quiet: variance below this × the noise variance (or floor)
-  double min_rest_s = 2.0;        ///< shorter quiet spans are not rest
+  double min_rest_s = 2.0;        ///< shorter quiet spans are not rest (the grade's: min_rest_s)
   double edge_guard_s = 0.05;     ///< trimmed from both ends of every rest span
   double still_rate_radps = 0.0;  ///< the grade's floors (variation_rest_options)
   double still_force_mps2 = 0.0;
   double rest_rate_spread_radps = 0.0;  ///< > 0: see step 4
-  double tremor_rate_radps = 0.0;       ///< the gyro's threshold is at least this (step 2)
+  double tremor_rate_radps = 0.0;  ///< the gyro's threshold (step 2) and spread (step 4) at least
+  double tremor_force_noise_ratio = 0.0;  ///< the accelerometer's threshold, × its noise, at least
 };
 
-/// The defaults with the grade's floors and rest-rate spread (calib/core/unit_grade.hpp).
+/// The defaults with the grade's floors, rest-rate spread, tremor allowances and shortest rest
+/// (calib/core/unit_grade.hpp).
 VariationRestOptions variation_rest_options(Grade grade);
 
 struct VariationRestResult {
