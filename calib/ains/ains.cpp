@@ -114,9 +114,9 @@ Eigen::Matrix3d search_initial_heading(const ains::PreparedInput& pin, const Ain
 /// next pass's attitude track (PassConfig::attitude_track: the smoothed attitude of every epoch).
 /// Once a track exists only the initial tilt is re-centred, not the heading: a MEMS heading is a
 /// flat valley (σ of tens of degrees), and re-centring it while a track follows the last pass
-/// walked it by degrees a pass and the parameters by 0.01-0.04σ a pass without end (10 of 20
+/// walked it by degrees a pass and the parameters by 0.01-0.04σ a pass without end (6 of 10
 /// hand-placed runs unconverged after 8 passes, one still stepping 0.03σ after 40 and its heading
-/// 70° off; docs/validation/ains_mems_land.md). The heading stays a state of the filter,
+/// 73° off; docs/validation/ains_mems_land.md). The heading stays a state of the filter,
 /// estimated about the heading the first pass smoothed.
 void recentre_on_smoothed(const std::vector<SmoothedNav>& sm, bool track_attitude,
                           const Eigen::Matrix3d& coarse_C_bn, ains::PassConfig& cfg,
