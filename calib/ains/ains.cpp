@@ -110,10 +110,10 @@ Eigen::Matrix3d search_initial_heading(const ains::PreparedInput& pin, const Ain
 }
 
 /// Between passes in the field settings: the nominal's initial attitude re-centred on the
-/// smoothed one (the prior stays centred on the coarse alignment), and below navigation grade the
-/// next pass's attitude track (PassConfig::attitude_track: the smoothed attitude of every epoch).
-/// Once a track exists only the initial tilt is re-centred, not the heading: a MEMS heading is a
-/// flat valley (σ of tens of degrees), and re-centring it while a track follows the last pass
+/// smoothed one (the prior stays centred on the coarse alignment), and on land below navigation
+/// grade the next pass's attitude track (PassConfig::attitude_track: the smoothed attitude of every
+/// epoch). Once a track exists only the initial tilt is re-centred, not the heading: a MEMS heading
+/// is a flat valley (σ of tens of degrees), and re-centring it while a track follows the last pass
 /// walked it by degrees a pass and the parameters by 0.01-0.04σ a pass without end (6 of 10
 /// hand-placed runs unconverged after 8 passes, one still stepping 0.03σ after 40 and its heading
 /// 73° off; docs/validation/ains_mems_land.md). The heading stays a state of the filter,
@@ -150,9 +150,12 @@ ains::PassResult iterate_passes(const ains::PreparedInput& pin, const AinsOption
   // (search_initial_heading), and the parameters alone decide convergence; navigation grade
   // holds the initial attitude to the same bar as the parameters.
   const bool attitude_decides = pin.in->grade == Grade::kNavigation;
-  // Below navigation grade each pass's nominal tilt follows the last pass's smoothed attitude
-  // (PassConfig::attitude_track): a MEMS tilt σ stays near the filter's feedback gate for minutes.
-  const bool track_attitude = field && !attitude_decides;
+  // On land below navigation grade each pass's nominal tilt follows the last pass's smoothed
+  // attitude (PassConfig::attitude_track): a MEMS tilt σ stays near the filter's feedback gate for
+  // minutes. Not at sea: on tactical hand-placed sea runs the heading then settled up to 42° off
+  // and the gyro biases' RMS(error/σ) rose from 0.99 to 2.1 (6 runs; land: docs/validation/
+  // ains_mems_land.md).
+  const bool track_attitude = pin.in->setting == Setting::kLand && !attitude_decides;
   std::vector<Eigen::Matrix3d> track;
   CalibrationResult& res = out.calibration;
   ains::PassResult pass;

@@ -497,11 +497,11 @@ class PassRunner {
   /// much and biases the result (measured: gyro biases off by 5-40σ on land). The heading error
   /// stays in the state instead — the model is linear in it — and the iterated smoother re-centres
   /// the initial attitude on its smoothed value between passes.
-  /// With an attitude track (below navigation grade, after the first pass) the nominal's tilt is
-  /// moved onto the track's instead: a MEMS unit's tilt σ hovers about the gate for minutes, and
-  /// left alone the nominal's tilt wandered with the gyro noise (1 °/√h) to 14-29 mrad on the
-  /// 38-minute factory-std run; the linear model misses the vertical specific force it costs,
-  /// g(1 - cos θ) ≈ gθ²/2 ≈ 400 µg, which the filter took for accelerometer scale errors of
+  /// With an attitude track (on land below navigation grade, after the first pass) the nominal's
+  /// tilt is moved onto the track's instead: a MEMS unit's tilt σ hovers about the gate for
+  /// minutes, and left alone the nominal's tilt wandered with the gyro noise (1 °/√h) to 14-29 mrad
+  /// on the 38-minute factory-std run; the linear model misses the vertical specific force it
+  /// costs, g(1 - cos θ) ≈ gθ²/2 ≈ 400 µg, which the filter took for accelerometer scale errors of
   /// 300 ppm at σ 12 ppm (docs/validation/ains_mems_land.md).
   Vector3d attitude_feedback() const {
     Vector3d psi = x_.segment<3>(kPsi);

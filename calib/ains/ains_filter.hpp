@@ -70,7 +70,7 @@ struct PassConfig {
   /// (the coarse alignment's attitude relative to it). Unused in the factory setting.
   Eigen::Matrix3d C_bn0 = Eigen::Matrix3d::Identity();
   Eigen::Vector3d psi0_prior_mean = Eigen::Vector3d::Zero();
-  /// Field settings below navigation grade, every pass but the first: the attitude (b to n) whose
+  /// Land below navigation grade, every pass but the first: the attitude (b to n) whose
   /// tilt the nominal is moved onto at each epoch, one per epoch — the previous pass's smoothed
   /// attitude. The navigation states are then linearised about the last smoothed trajectory as the
   /// parameters are about the last estimate (the iterated Kalman smoother as Gauss-Newton: B. M.
