@@ -506,7 +506,8 @@ class PassRunner {
   Vector3d attitude_feedback() const {
     Vector3d psi = x_.segment<3>(kPsi);
     if (!field()) return psi;
-    if (cfg_.attitude_track) {
+    // (The epoch schedule is fixed for all passes, so the track has an attitude for every epoch.)
+    if (cfg_.attitude_track && epoch_index_ < cfg_.attitude_track->size()) {
       psi = matrix_to_rotvec((*cfg_.attitude_track)[epoch_index_] * nav_.C_bn.transpose());
       psi(2) = 0.0;  // the tilt only: the heading stays in the state, as without a track
       return psi;
