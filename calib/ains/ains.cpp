@@ -109,6 +109,32 @@ Eigen::Matrix3d search_initial_heading(const ains::PreparedInput& pin, const Ain
   return chi2(dpsi_rad) <= mid ? turned(dpsi_rad) : turned(best * kStep_rad);
 }
 
+/// Between passes in the field settings: the nominal's initial attitude re-centred on the
+/// smoothed one (the prior stays centred on the coarse alignment), and on land below navigation
+/// grade the next pass's attitude track (PassConfig::attitude_track: the smoothed attitude of every
+/// epoch). Once a track exists only the initial tilt is re-centred, not the heading: a MEMS heading
+/// is a flat valley (σ of tens of degrees), and re-centring it while a track follows the last pass
+/// walked it by degrees a pass and the parameters by 0.01-0.04σ a pass without end (6 of 10
+/// hand-placed runs unconverged after 8 passes, one still stepping 0.03σ after 40 and its heading
+/// 73° off; docs/validation/ains_mems_land.md). The heading stays a state of the filter,
+/// estimated about the heading the first pass smoothed.
+void recentre_on_smoothed(const std::vector<SmoothedNav>& sm, bool track_attitude,
+                          const Eigen::Matrix3d& coarse_C_bn, ains::PassConfig& cfg,
+                          std::vector<Eigen::Matrix3d>& track) {
+  if (track.empty()) {
+    cfg.C_bn0 = sm.front().nav.C_bn;
+  } else {
+    Eigen::Vector3d tilt_rad = matrix_to_rotvec(sm.front().nav.C_bn * cfg.C_bn0.transpose());
+    tilt_rad(2) = 0.0;  // ψ is an n-frame angle: its down component is the heading
+    cfg.C_bn0 = orthonormalize(rotvec_to_matrix<double>(tilt_rad) * cfg.C_bn0);
+  }
+  cfg.psi0_prior_mean = matrix_to_rotvec(coarse_C_bn * cfg.C_bn0.transpose());
+  if (!track_attitude) return;
+  track.resize(sm.size());
+  for (size_t i = 0; i < sm.size(); ++i) track[i] = sm[i].nav.C_bn;
+  cfg.attitude_track = &track;
+}
+
 /// The iterated passes (steps 1-4 of ains.hpp): each pass linearises about the last estimate
 /// until every update is below convergence_sigma_ratio·σ. `epochs` receives the last pass's
 /// epochs when `keep_epochs` (the field settings need them in every pass: the smoother re-centres
@@ -124,6 +150,13 @@ ains::PassResult iterate_passes(const ains::PreparedInput& pin, const AinsOption
   // (search_initial_heading), and the parameters alone decide convergence; navigation grade
   // holds the initial attitude to the same bar as the parameters.
   const bool attitude_decides = pin.in->grade == Grade::kNavigation;
+  // On land below navigation grade each pass's nominal tilt follows the last pass's smoothed
+  // attitude (PassConfig::attitude_track): a MEMS tilt σ stays near the filter's feedback gate for
+  // minutes. Not at sea: on tactical hand-placed sea runs the heading then settled up to 42° off
+  // and the gyro biases' RMS(error/σ) rose from 0.99 to 2.1 (6 runs; land: docs/validation/
+  // ains_mems_land.md).
+  const bool track_attitude = pin.in->setting == Setting::kLand && !attitude_decides;
+  std::vector<Eigen::Matrix3d> track;
   CalibrationResult& res = out.calibration;
   ains::PassResult pass;
   for (int it = 1; it <= opt.max_iterations; ++it) {
@@ -135,12 +168,10 @@ ains::PassResult iterate_passes(const ains::PreparedInput& pin, const AinsOption
     const ParamVector sigma = cov.diagonal().cwiseMax(1e-300).cwiseSqrt();
     double ratio = delta.cwiseAbs().cwiseQuotient(sigma).maxCoeff();
     if (field) {
-      // The initial attitude is a state like the parameters: re-centre the nominal on its
-      // smoothed value (the prior stays centred on the coarse alignment).
+      // The initial attitude is a state like the parameters: re-centre the nominal on it.
       const std::vector<SmoothedNav> sm = ains::rts_smooth(epochs, nullptr);
       if (attitude_decides) ratio = std::max(ratio, initial_attitude_update_sigma(sm.front()));
-      cfg.C_bn0 = sm.front().nav.C_bn;
-      cfg.psi0_prior_mean = matrix_to_rotvec(out.coarse_C_bn * cfg.C_bn0.transpose());
+      recentre_on_smoothed(sm, track_attitude, out.coarse_C_bn, cfg, track);
     }
     out.update_norm_sigma.push_back(ratio);
     cfg.nominal = ParamSet::from_vector(cfg.nominal.to_vector() + delta);

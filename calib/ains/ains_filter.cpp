@@ -474,20 +474,7 @@ class PassRunner {
     }
     // Feedback of the navigation errors into the nominal (parameters stay fixed in a pass).
     // Ĉ = (I - [ψ x]) C  =>  C = exp([ψ x]) Ĉ; v = v̂ - δv; p = p̂ - δp.
-    // Field settings: the heading (ψ_D) is never fed back within a pass, and the tilt only once it
-    // is determined (σ < kTiltFeedbackMaxSigma_rad). Without attitude aiding the filtered heading
-    // stays uncertain by ~1 mrad for the whole run and early on by the prior's spread; feeding such
-    // estimates into the nominal moves the linearisation point by as much and biases the result
-    // (measured: gyro biases off by 5-40σ on land). The heading error stays in the state instead —
-    // the model is linear in it — and the iterated smoother re-centres the initial attitude on its
-    // smoothed value between passes, so the heading the nominal carries is the best one there is.
-    Vector3d psi = x_.segment<3>(kPsi);
-    if (field()) {
-      psi(2) = 0.0;
-      for (int i = 0; i < 2; ++i)
-        if (P_(kPsi + i, kPsi + i) > kTiltFeedbackMaxSigma_rad * kTiltFeedbackMaxSigma_rad)
-          psi(i) = 0.0;
-    }
+    const Vector3d psi = attitude_feedback();
     const Vector3d dv = x_.segment<3>(kVel);
     const Vector3d dp = x_.segment<3>(kPos);
     nav_.C_bn = orthonormalize(rotvec_to_matrix<double>(psi) * nav_.C_bn);
@@ -499,6 +486,37 @@ class PassRunner {
     nav_.height_m += dp(2);
     x_.segment<3>(kPsi) -= psi;
     x_.segment<6>(kVel).setZero();
+    ++epoch_index_;
+  }
+
+  /// The rotation ψ that moves the nominal attitude at this epoch (the error state keeps the rest).
+  /// Factory: the filtered ψ. Field settings: the heading (ψ_D) is never fed back from the filter,
+  /// and the tilt only once it is determined (σ < kTiltFeedbackMaxSigma_rad). Without attitude
+  /// aiding the filtered heading stays uncertain by ~1 mrad for the whole run and early on by the
+  /// prior's spread; feeding such estimates into the nominal moves the linearisation point by as
+  /// much and biases the result (measured: gyro biases off by 5-40σ on land). The heading error
+  /// stays in the state instead — the model is linear in it — and the iterated smoother re-centres
+  /// the initial attitude on its smoothed value between passes.
+  /// With an attitude track (on land below navigation grade, after the first pass) the nominal's
+  /// tilt is moved onto the track's instead: a MEMS unit's tilt σ hovers about the gate for
+  /// minutes, and left alone the nominal's tilt wandered with the gyro noise (1 °/√h) to 14-29 mrad
+  /// on the 38-minute factory-std run; the linear model misses the vertical specific force it
+  /// costs, g(1 - cos θ) ≈ gθ²/2 ≈ 400 µg, which the filter took for accelerometer scale errors of
+  /// 300 ppm at σ 12 ppm (docs/validation/ains_mems_land.md).
+  Vector3d attitude_feedback() const {
+    Vector3d psi = x_.segment<3>(kPsi);
+    if (!field()) return psi;
+    // (The epoch schedule is fixed for all passes, so the track has an attitude for every epoch.)
+    if (cfg_.attitude_track && epoch_index_ < cfg_.attitude_track->size()) {
+      psi = matrix_to_rotvec((*cfg_.attitude_track)[epoch_index_] * nav_.C_bn.transpose());
+      psi(2) = 0.0;  // the tilt only: the heading stays in the state, as without a track
+      return psi;
+    }
+    psi(2) = 0.0;
+    for (int i = 0; i < 2; ++i)
+      if (P_(kPsi + i, kPsi + i) > kTiltFeedbackMaxSigma_rad * kTiltFeedbackMaxSigma_rad)
+        psi(i) = 0.0;
+    return psi;
   }
 
   static constexpr double kTiltFeedbackMaxSigma_rad = 1e-4;
@@ -525,6 +543,7 @@ class PassRunner {
   NavMat Q_ = NavMat::Zero();
   SensorCouplingAccumulator acc_;
   size_t k_ = 0;                  ///< sample of the update in progress (for the innovation records)
+  size_t epoch_index_ = 0;        ///< epochs recorded so far (index into cfg_.attitude_track)
   bool epoch_start_ = true;       ///< no sub-interval composed into Φ_nn_, Φ_ns_, Q_ yet
   bool release_pending_ = false;  ///< an unusable sample since the last sub-interval closed
   NavMat F_ = NavMat::Zero(), F2_ = NavMat::Zero();

@@ -70,6 +70,12 @@ struct PassConfig {
   /// (the coarse alignment's attitude relative to it). Unused in the factory setting.
   Eigen::Matrix3d C_bn0 = Eigen::Matrix3d::Identity();
   Eigen::Vector3d psi0_prior_mean = Eigen::Vector3d::Zero();
+  /// Land below navigation grade, every pass but the first: the attitude (b to n) whose
+  /// tilt the nominal is moved onto at each epoch, one per epoch — the previous pass's smoothed
+  /// attitude. The navigation states are then linearised about the last smoothed trajectory as the
+  /// parameters are about the last estimate (the iterated Kalman smoother as Gauss-Newton: B. M.
+  /// Bell, SIAM J. Optim. 4(3), 1994). Null: the filter's own tilt is fed back once determined.
+  const std::vector<Eigen::Matrix3d>* attitude_track = nullptr;
   ParamVector prior_mean = ParamVector::Zero();  ///< prior mean of θ (ParamSet order)
   ParamSet prior_sigma;                          ///< prior 1-σ of θ (> 0; 0 holds θ fixed)
   /// When set, receives every aiding update's scalar innovation and its predicted variance.
