@@ -149,12 +149,7 @@ TEST(HandHeldStart, ShortPositionsHeldByADriftingShakingHandCalibrate) {
     hand.max_rest_s = 3.0;
     hand.move_rate_dps = 150.0;
     hand.move_accel_dps2 = 600.0;
-    FieldSimOptions o;
-    o.setting = Setting::kLand;
-    o.seed = seed;
-    o.rate_hz = 100.0;
-    const FieldSimResult bench = simulate_field(
-        hand_placed_profile(seed, hand), demo_factory_site(), draw_unit(Grade::kMems, seed), o);
+    const FieldSimResult bench = simulate_mems(seed, hand);
     FieldSimResult held = bench;
     const auto spans = true_rest_spans(held.true_rest);
     ASSERT_EQ(spans.size(), 12u);

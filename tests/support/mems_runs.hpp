@@ -46,15 +46,20 @@ inline std::vector<std::pair<size_t, size_t>> true_rest_spans(const std::vector<
   return spans;
 }
 
-inline FieldSimResult simulate_mems(uint64_t seed, double cruise_deg = 0.0) {
+/// A MEMS unit drawn with `seed` turned by hand through `hand`'s positions, on land at 100 Hz.
+inline FieldSimResult simulate_mems(uint64_t seed, const HandPlacementOptions& hand) {
   FieldSimOptions o;
   o.setting = Setting::kLand;
   o.seed = seed;
   o.rate_hz = 100.0;
-  HandPlacementOptions hand;
-  hand.cruise_deg = cruise_deg;
   return simulate_field(hand_placed_profile(seed, hand), demo_factory_site(),
                         draw_unit(Grade::kMems, seed), o);
+}
+
+inline FieldSimResult simulate_mems(uint64_t seed, double cruise_deg = 0.0) {
+  HandPlacementOptions hand;
+  hand.cruise_deg = cruise_deg;
+  return simulate_mems(seed, hand);
 }
 
 }  // namespace imucal::calib::testing
