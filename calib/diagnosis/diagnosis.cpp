@@ -334,6 +334,12 @@ std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOp
       out.push_back(std::move(s));
       continue;
     }
+    if (id == EffectId::kOutputFilter) {
+      Scored s;
+      s.result = score_output_filter(p.model.input(), p.model.rests(), opt.folds);
+      out.push_back(std::move(s));
+      continue;
+    }
     if (id == EffectId::kBiasInstability) {
       Scored s;
       s.result = score_bias_instability(p.lin, p.folds, opt.instability_tau_grid_s);
@@ -538,6 +544,12 @@ struct Selection {
   std::vector<std::string> ambiguous;
 };
 
+/// A candidate judged on a per-sample statistic of its own (the rest samples' lag-1
+/// autocovariance), not on the segment residuals.
+bool judged_per_sample(EffectId id) {
+  return id == EffectId::kQuantisation || id == EffectId::kOutputFilter;
+}
+
 std::optional<size_t> index_of(const std::vector<Scored>& c, EffectId id) {
   for (size_t i = 0; i < c.size(); ++i)
     if (c[i].result.id == id) return i;
@@ -721,8 +733,8 @@ std::optional<Selection> with_gauss_markov(const std::vector<Scored>& c, const P
 /// undeclared Gauss-Markov bias GM alone, and the set followed by GM — each only if its members are
 /// significant (GM given the set for the last). A noise candidate never comes before a
 /// deterministic effect it accompanies. A significant top candidate that another one mimics makes
-/// the choice ambiguous: no finding. Quantisation, independent of the segment residuals, joins last
-/// when significant.
+/// the choice ambiguous: no finding. Quantisation and the output filter, independent of the segment
+/// residuals, join last when significant.
 Selection select_model(const std::vector<Scored>& c, const Problem& p, double chi2_0,
                        const DiagnosisOptions& opt) {
   Selection best;
@@ -767,9 +779,12 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
       if (auto both = with_gauss_markov(c, p, *det, *g, chi2_0, level, opt))
         consider(std::move(*both));
   }
-  if (const auto q = index_of(c, EffectId::kQuantisation); q && c[*q].result.significant)
-    best.steps.push_back({*q, c[*q].result.p_value, std::numeric_limits<double>::quiet_NaN(), 0,
-                          c[*q].result.held_out_gap});
+  // The per-sample noise candidates (quantisation, the output filter), independent of the segment
+  // residuals, join last when significant.
+  for (EffectId id : {EffectId::kQuantisation, EffectId::kOutputFilter})
+    if (const auto q = index_of(c, id); q && c[*q].result.significant)
+      best.steps.push_back({*q, c[*q].result.p_value, std::numeric_limits<double>::quiet_NaN(), 0,
+                            c[*q].result.held_out_gap});
   return best;
 }
 
@@ -832,13 +847,13 @@ void apply_selection(DiagnosisResult& d, const Selection& sel, const std::vector
     d.held_out.gap_after = d.best ? c[*d.best].result.held_out_gap : h.ratio();
     size_t segment_members = 0;
     for (const StepFit& f : sel.steps)
-      segment_members += c[f.member].result.id == EffectId::kQuantisation ? 0 : 1;
+      segment_members += judged_per_sample(c[f.member].result.id) ? 0 : 1;
     if (segment_members > 1) {
       d.held_out.has_pair = true;
       d.held_out.gap_after_pair = h.ratio();
     }
     d.moved = moved_params(p.lin, fit0, fit);
-  } else if (d.best) {  // quantisation alone: judged on its own statistic
+  } else if (d.best) {  // quantisation or the output filter alone: judged on its own statistic
     d.held_out.has_after = true;
     d.held_out.gap_before = c[*d.best].result.held_out_gap_before;
     d.held_out.gap_after = c[*d.best].result.held_out_gap;
@@ -864,6 +879,29 @@ void apply_selection(DiagnosisResult& d, const Selection& sel, const std::vector
   } else {
     for (const StepFit& f : sel.steps) d.explained_by.push_back(c[f.member].result.name);
   }
+}
+
+/// What is left of a selection whose segment explanation removes too little of the held-out gap
+/// (explains_enough): its per-sample members (quantisation, the output filter) that each remove
+/// enough of their own statistic's held-out gap. They act on no segment residual, so the segments'
+/// failure says nothing of them: a filter whose unequal lags make a skew far beyond any plausible
+/// size is still the filter. Empty when the selection had no segment member (the per-sample ones
+/// were then judged themselves).
+Selection per_sample_findings(const Selection& sel, const std::vector<Scored>& c, const Problem& p,
+                              const DiagnosisOptions& opt) {
+  Selection kept;
+  kept.J = p.Jb;
+  const bool had_segment_member =
+      std::any_of(sel.steps.begin(), sel.steps.end(),
+                  [&](const StepFit& f) { return !judged_per_sample(c[f.member].result.id); });
+  if (!had_segment_member || !sel.ambiguous.empty()) return kept;
+  for (const StepFit& f : sel.steps) {
+    const CandidateResult& r = c[f.member].result;
+    if (!judged_per_sample(r.id) || !(r.held_out_gap_before > 1.0)) continue;
+    const double shrink = (r.held_out_gap_before - r.held_out_gap) / (r.held_out_gap_before - 1.0);
+    if (shrink >= opt.min_shrinkage) kept.steps.push_back(f);
+  }
+  return kept;
 }
 
 /// Whether the selected finding (best effect, pair or ambiguous set) removes enough of the held-out
@@ -1023,9 +1061,7 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
     d.held_out = {};
     d.held_out.gap_before = gap_before;
     d.moved.clear();
-    Selection none;
-    none.J = p.Jb;
-    apply_selection(d, none, cands, p, fit0, opt);
+    apply_selection(d, per_sample_findings(sel, cands, p, opt), cands, p, fit0, opt);
   }
   for (auto& s : cands) d.candidates.push_back(std::move(s.result));
   d.summary = summarise(d);

@@ -98,8 +98,9 @@ Analysed analyse_stochastic(const GapLinearisation& lin, EffectId id, size_t can
   a.d.typical = 1.0;
   a.d.directions = a.d.separable_directions = 2;
   auto lambda = [&](double m) {
-    return id == EffectId::kQuantisation ? quantisation_noncentrality(lin.model(), m)
-                                         : bias_instability_noncentrality(lin, m);
+    if (id == EffectId::kQuantisation) return quantisation_noncentrality(lin.model(), m);
+    if (id == EffectId::kOutputFilter) return output_filter_noncentrality(lin.model(), m);
+    return bias_instability_noncentrality(lin, m);
   };
   const double need = chi2_quantile_upper(opt.alpha / static_cast<double>(candidates), 2) - 2.0;
   double lo = 1e-3, hi = 1e3;
@@ -113,6 +114,14 @@ Analysed analyse_stochastic(const GapLinearisation& lin, EffectId id, size_t can
     (lambda(mid) < need ? lo : hi) = mid;
   }
   a.d.threshold = std::sqrt(lo * hi);
+  if (!e.magnitude_params.empty()) {
+    // A magnitude in a unit of its own (output_filter: the coefficients' norm): the threshold in
+    // that unit, as the validation scales the typical pattern to it.
+    const Eigen::VectorXd typ = Eigen::Map<const Eigen::VectorXd>(
+        e.typical.data(), static_cast<Eigen::Index>(e.typical.size()));
+    a.d.typical = e.magnitude(typ);
+    a.d.threshold *= a.d.typical;
+  }
   return a;
 }
 

@@ -10,6 +10,7 @@
 #include "calib/core/chi2.hpp"
 #include "calib/diagnosis/gap_fit.hpp"
 #include "calib/effects/bias_instability.hpp"
+#include "calib/effects/output_filter.hpp"
 
 namespace imucal::calib::diagnosis {
 using namespace calib::core;
@@ -191,6 +192,109 @@ CandidateResult score_quantisation(const CalibrationInput& in, const std::vector
 }
 
 // ---------------------------------------------------------------------------------------------
+// Output filter: the pooled lag-1 autocorrelation of the rest samples, one-sided positive.
+
+namespace {
+
+/// The filter coefficient a of one sensor's pooled rest sums, unclamped (a held-out fold may read
+/// below 0). Under a filter of coefficient a over white noise plus the declared carried rounding
+/// (quantisation.hpp), γ0 = γ0_f + q²/6 and γ1 = a γ0_f - q²/12, so a = (γ1 + q²/12)/(γ0 - q²/6).
+/// Removing each rest's mean biases the sums by the mean's variance, which the filter inflates by
+/// f = (1+a)/(1-a) (output_filter.hpp): E s0 = n0 γ0 - R γ0 f, and rest_axis_sums' white-noise
+/// correction (+s0/n per rest) leaves E s1 = n1 γ1 - R γ0 (f - 1), R = n0 - n1 the (rest, axis)
+/// pairs; solved by fixed-point iteration from a = 0.
+double filter_coefficient(const Lag1Sums& s, double lsb) {
+  const double R = s.n0 - s.n1, q2 = lsb * lsb;
+  double a = 0.0;
+  for (int it = 0; it < 30; ++it) {
+    const double ac = std::clamp(a, 0.0, 0.99);  // the bias terms only for a filter's a
+    const double f = (1.0 + ac) / (1.0 - ac);
+    const double gamma0 = s.s0 / std::max(1.0, s.n0 - R * f);
+    const double gamma1 = (s.s1 + R * gamma0 * (f - 1.0)) / std::max(1.0, s.n1);
+    const double denom = gamma0 - q2 / 6.0;
+    a = denom > 0.0 ? (gamma1 + q2 / 12.0) / denom : 0.0;
+  }
+  return a;
+}
+
+/// σ of the lag-1 autocorrelation estimate of an AR(1) of coefficient a over n1 pairs (Bartlett:
+/// var r1 ≈ (1 - a²)/n).
+double sigma_filter_coefficient(double a, double n1) {
+  return n1 > 0.0 ? std::sqrt(std::max(1e-6, 1.0 - a * a) / n1) : 0.0;
+}
+
+}  // namespace
+
+CandidateResult score_output_filter(const CalibrationInput& in,
+                                    const std::vector<RestPeriod>& rests, int folds) {
+  const EffectInfo& e = effect_info(EffectId::kOutputFilter);
+  CandidateResult r = stochastic_candidate(e);
+  const int K = std::max(2, std::min<int>(folds, static_cast<int>(rests.size())));
+  // Per sensor (sensor 0 = dv, 1 = dθ; param 0 = gyro_a, 1 = accel_a) and per fold.
+  std::array<std::vector<Lag1Sums>, 2> fold_sums{std::vector<Lag1Sums>(static_cast<size_t>(K)),
+                                                 std::vector<Lag1Sums>(static_cast<size_t>(K))};
+  for (size_t i = 0; i < rests.size(); ++i)
+    for (int sensor = 0; sensor < 2; ++sensor)
+      for (int axis = 0; axis < 3; ++axis)
+        fold_sums[static_cast<size_t>(sensor)][i % static_cast<size_t>(K)].add(
+            rest_axis_sums(in, rests[i], sensor, axis));
+  r.value_si = Eigen::VectorXd::Zero(2);
+  Eigen::Vector2d sigma = Eigen::Vector2d::Zero();
+  double before = 0.0, after = 0.0;
+  for (int sensor = 0; sensor < 2; ++sensor) {
+    const auto& fs = fold_sums[static_cast<size_t>(sensor)];
+    Lag1Sums all;
+    for (const auto& f : fs) all.add(f);
+    const double lsb0 = declared_lsb(in.noise, sensor);
+    // The same z as the whiteness line's: departure from white noise with the declared rounding.
+    const double z = lag1_z(all, lsb0);
+    if (z > 0.0) r.lr += z * z;  // a filter only makes γ1 positive (quantisation: negative)
+    const int p = sensor == 0 ? 1 : 0;
+    r.value_si(p) = std::clamp(filter_coefficient(all, lsb0), 0.0, 0.99);
+    sigma(p) = sigma_filter_coefficient(r.value_si(p), all.n1);
+    for (int f = 0; f < K; ++f) {
+      Lag1Sums train;
+      for (int g = 0; g < K; ++g)
+        if (g != f) train.add(fs[static_cast<size_t>(g)]);
+      const double a_train = std::clamp(filter_coefficient(train, lsb0), 0.0, 0.99);
+      const Lag1Sums& held = fs[static_cast<size_t>(f)];
+      const double a_held = filter_coefficient(held, lsb0);
+      before += std::pow(lag1_z(held, lsb0), 2);
+      after += std::pow((a_held - a_train) / sigma_filter_coefficient(a_train, held.n1), 2);
+    }
+  }
+  r.p_value = chi2_survival(r.lr, r.k);
+  Lag1Sums count;
+  for (const auto& f : fold_sums[0]) count.add(f);
+  r.bic_gain = r.lr - r.k * std::log(std::max(2.0, count.n1));
+  r.held_out_gap = after / (2.0 * K);
+  r.held_out_gap_before = before / (2.0 * K);
+  r.magnitude = e.magnitude(r.value_si);
+  // σ of the norm by the delta method along the fitted direction (the two sensors independent);
+  // with nothing fitted, the norm of the σ's.
+  const double a_g = r.value_si(0), a_a = r.value_si(1), n2 = a_g * a_g + a_a * a_a;
+  r.magnitude_sigma =
+      n2 > 0.0 ? std::sqrt((a_g * a_g * sigma(0) * sigma(0) + a_a * a_a * sigma(1) * sigma(1)) / n2)
+               : std::hypot(sigma(0), sigma(1));
+  for (int j = 0; j < 2; ++j) {
+    const EffectParamInfo& pi = e.params[static_cast<size_t>(j)];
+    r.params.push_back(
+        {pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human, sigma(j) * pi.si_to_human});
+  }
+  const double dt = in.imu.front().dt_s;
+  char note[240];
+  std::snprintf(note, sizeof note,
+                "from the lag-1 autocorrelation of the rest samples (corner %.3g Hz gyro, %.3g Hz "
+                "accel; a rest mean's variance against the per-sample scatter x%.3g, x%.3g)",
+                output_filter_corner_hz(r.value_si(0), dt),
+                output_filter_corner_hz(r.value_si(1), dt),
+                output_filter_mean_variance_inflation(r.value_si(0)),
+                output_filter_mean_variance_inflation(r.value_si(1)));
+  r.note = note;
+  return r;
+}
+
+// ---------------------------------------------------------------------------------------------
 // Bias instability: REML over the Gauss-Markov σ's.
 
 namespace {
@@ -364,6 +468,20 @@ double bias_instability_noncentrality(const GapLinearisation& lin, double m) {
   const Eigen::MatrixXd MG = G - Q * (Q.transpose() * G);
   const Eigen::MatrixXd MGM = MG - (MG * Q) * Q.transpose();
   return 0.5 * std::pow(m, 4) * MGM.squaredNorm();  // tr(A²) = ||A||_F² for symmetric A
+}
+
+double output_filter_noncentrality(const GapModel& model, double m) {
+  const EffectInfo& e = effect_info(EffectId::kOutputFilter);
+  double pairs = 0.0;
+  for (const RestPeriod& p : model.rests()) pairs += 3.0 * static_cast<double>(p.size() - 1);
+  double lambda = 0.0;
+  for (int j = 0; j < 2; ++j) {
+    // E z = a √pairs: the lag-1 z against white noise of an AR(1) with coefficient a (the declared
+    // rounding's share of γ1 is negligible beside it).
+    const double a = std::min(0.99, m * e.typical[static_cast<size_t>(j)]);
+    lambda += a * a * pairs;
+  }
+  return lambda;
 }
 
 }  // namespace imucal::calib::diagnosis

@@ -1,5 +1,5 @@
 #pragma once
-// The two stochastic effects of the catalogue as diagnosis candidates (ARCHITECTURE §7-8). They
+// The stochastic effects of the catalogue as diagnosis candidates (ARCHITECTURE §7-8). They
 // have no deterministic signature to refit; each is estimated through the statistics it changes.
 //
 //  * quantisation: an accumulating output register rounds each increment with the remainder
@@ -27,6 +27,21 @@ using namespace calib::core;
 
 CandidateResult score_quantisation(const CalibrationInput& in, const std::vector<RestPeriod>& rests,
                                    int folds);
+
+/// output_filter (calib/effects/output_filter.hpp): a first-order filter y_k = a y_{k-1} + (1-a)
+/// x_k on the output makes the rest samples' lag-1 autocorrelation a > 0, where white noise with
+/// the declared carried rounding gives -LSB²/12/γ0 <= 0. Per sensor the pooled lag-1 sums (rest
+/// means removed) give z against white noise (the whiteness line's z); LR = Σ z² over the sensors
+/// with z > 0 (one-sided: quantisation, the other lag-1 effect, has the opposite sign). Its size is
+/// a per sensor (the mean-removal bias corrected for the filter), σ(a) = √((1-a²)/pairs). The
+/// held-out gap: per fold of rests, z² of the held fold against white noise (before) and against a
+/// fitted on the other folds (after), averaged over folds and sensors.
+/// What it does not do: change the segment residuals. The filter's DC gain is 1, so a rest's mean
+/// keeps the input's noise; the (1+a)/(1-a) inflation of a mean's variance is against the
+/// per-sample scatter, and explains a segment excess only when the declared noise was read from
+/// that scatter (the note states the factor; the gap model keeps the declared noise).
+CandidateResult score_output_filter(const CalibrationInput& in,
+                                    const std::vector<RestPeriod>& rests, int folds);
 
 /// An undeclared Gauss-Markov bias fitted by restricted maximum likelihood on the whitened
 /// residuals with fixed-effect design J (the base columns, possibly with deterministic effects
@@ -56,6 +71,8 @@ CandidateResult score_bias_instability(const GapLinearisation& lin,
 ///  * bias instability (small-signal): λ(m) = ½ m⁴ tr((M G M)²), M the projection off the base
 ///    columns, G = typ_a² G_a + typ_g² G_g at the typical τ.
 double quantisation_noncentrality(const GapModel& model, double m);
+///  * output filter: λ(m) = Σ_sensors a² × pairs, a = min(0.99, m a_typ) (E z = a √pairs).
+double output_filter_noncentrality(const GapModel& model, double m);
 double bias_instability_noncentrality(const GapLinearisation& lin, double m);
 
 }  // namespace imucal::calib::diagnosis

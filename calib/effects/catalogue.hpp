@@ -34,8 +34,9 @@ enum class EffectId {
   kGravityError,
   kLatitudeError,
   kQuantisation,
+  kOutputFilter,
 };
-constexpr int kNumEffects = 13;
+constexpr int kNumEffects = 14;
 
 /// Where an effect acts, which decides how the diagnosis can see it.
 enum class EffectKind {
@@ -74,7 +75,7 @@ struct EffectInfo {
   double magnitude(const Eigen::VectorXd& si) const;
 };
 
-/// All 13 effects, in EffectId order.
+/// All 14 effects, in EffectId order.
 const std::vector<EffectInfo>& effect_catalogue();
 const EffectInfo& effect_info(EffectId id);
 /// nullptr if the name is not in the catalogue.
@@ -112,6 +113,10 @@ struct Effects {
   /// quantisation: the unit's real output LSBs (coarser than the noise model declares); 0 = off.
   double quant_dtheta_rad = 0.0;
   double quant_dv_mps = 0.0;
+  /// output_filter: the first-order output filter's coefficient per sensor, y_k = a y_{k-1} +
+  /// (1 - a) x_k, 0 <= a < 1 (calib/effects/output_filter.hpp); 0 = off.
+  double output_filter_gyro = 0.0;
+  double output_filter_accel = 0.0;
   // --- table ---
   /// table_time_offset: the encoder log lags the IMU clock by this much, s.
   double table_time_offset_s = 0.0;

@@ -83,6 +83,9 @@ TruthSensor::TruthSensor(const UnitModel& unit, double dt_s, uint64_t seed, bool
       dt_s_(dt_s),
       noise_(noise),
       rng_(seed),
+      // The output_filter effect acts on the signal whether or not noise is drawn: it is a lag.
+      f_dth_{unit.effects.output_filter_gyro},
+      f_dv_{unit.effects.output_filter_accel},
       // The quantisation effect: the unit's real LSBs replace the declared ones.
       q_dth_{noise ? (unit.effects.quant_dtheta_rad > 0.0 ? unit.effects.quant_dtheta_rad
                                                           : unit.noise.dtheta_lsb_rad)
@@ -131,8 +134,9 @@ void TruthSensor::measure(const Eigen::Vector3d& dtheta, const Eigen::Vector3d& 
       dv_meas(i) += sd_dv_ * normal_(rng_) + (gm_a_.x(i) + fx_gm_a_.x(i)) * dt_s;
     }
   }
-  out.dtheta_rad = q_dth_.apply(dth_meas);
-  out.dv_mps = q_dv_.apply(dv_meas);
+  // The sensor's output filter smooths the noisy increments; the register then rounds its output.
+  out.dtheta_rad = q_dth_.apply(f_dth_.apply(dth_meas));
+  out.dv_mps = q_dv_.apply(f_dv_.apply(dv_meas));
 }
 
 }  // namespace imucal::calib::sim

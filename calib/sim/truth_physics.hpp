@@ -22,6 +22,7 @@
 #include "calib/core/imu_error_model.hpp"
 #include "calib/core/table_model.hpp"
 #include "calib/effects/bias_instability.hpp"
+#include "calib/effects/output_filter.hpp"
 #include "calib/effects/quantisation.hpp"
 #include "calib/sim/truth_sim.hpp"
 #include "sequences/motion_profile.hpp"
@@ -99,6 +100,7 @@ class TruthSensor {
   std::normal_distribution<double> normal_{0.0, 1.0};
   GaussMarkov3 gm_g_, gm_a_;        ///< the noise model's declared bias instability
   GaussMarkov3 fx_gm_g_, fx_gm_a_;  ///< the bias_instability effect (undeclared)
+  OutputFilter f_dth_, f_dv_;       ///< the output_filter effect (before the register)
   Quantiser q_dth_, q_dv_;
   double sd_dth_, sd_dv_;
 };

@@ -64,6 +64,9 @@ json candidate_json(const calib::diagnosis::CandidateResult& c) {
           {"typical_ratio", num(c.typical_ratio)},
           {"note", c.note},
           {"held_out_gap", c.separable ? num(c.held_out_gap) : json(nullptr)},
+          // A candidate judged on a statistic of its own (quantisation, the output filter): that
+          // statistic's held-out gap without it (null for the others: the segments' applies).
+          {"held_out_gap_before", num(c.held_out_gap_before)},
           {"max_correlation", num(c.max_correlation)},
           {"confounded_with", c.confounded_with},
           {"parameters", params_json(c.params)}};
@@ -218,10 +221,28 @@ DiagnosedEffects diagnosed_effects(const nlohmann::json& j, const std::string& o
   // steps; a diagnosis written before them (or a summary) by its best effect and the second.
   if (j.contains("steps") && j["steps"].is_array() && !j["steps"].empty() &&
       j["steps"][0].contains("parameters")) {
+    // A noise member of the set (bias instability, quantisation, the output filter) is a property
+    // of the unit's noise, not a signal to subtract: the deterministic members are removed, the
+    // noise ones left to the noise model. A set of noise members only is refused below (as a
+    // best finding that is noise is, by remove_sensor_effects).
+    std::string noise_only;
     for (size_t i = 0; i < j["steps"].size(); ++i) {
+      const nlohmann::json& st = j["steps"][i];
+      const calib::effects::EffectInfo* e =
+          st.is_object() && st.contains("effect") && st["effect"].is_string()
+              ? calib::effects::find_effect(st["effect"].get<std::string>())
+              : nullptr;
+      if (e && e->kind == calib::effects::EffectKind::kStochastic) {
+        noise_only += (noise_only.empty() ? "" : ", ") + e->name;
+        continue;
+      }
       out.names.push_back(
-          add_finding(j["steps"][i], origin + ": steps[" + std::to_string(i) + "]", out.effects));
+          add_finding(st, origin + ": steps[" + std::to_string(i) + "]", out.effects));
     }
+    if (out.names.empty() && !noise_only.empty())
+      throw std::invalid_argument(origin + ": the diagnosis names only noise (" + noise_only +
+                                  "): it is noise, it cannot be removed from the data (declare it "
+                                  "in the noise model)");
   } else {
     for (const char* k : {"best", "second"}) {
       if (!j.contains(k) || j[k].is_null()) continue;

@@ -57,6 +57,8 @@ UnitModel unit_with_every_effect() {
   fx.instability_tau_s = 1.0;
   fx.quant_dtheta_rad = 1e-7;
   fx.quant_dv_mps = 1e-5;
+  fx.output_filter_gyro = 0.3;
+  fx.output_filter_accel = 0.5;
   fx.table_time_offset_s = 0.005;
   fx.table_nonorthogonality_rad = 8.0 * kArcsecToRad;
   fx.table_wobble_rad << 4.0 * kArcsecToRad, -3.0 * kArcsecToRad;

@@ -243,7 +243,7 @@ TEST(TruthJson, RoundTripIsBitExact) {
   expect_noise_eq(r.noise, t.noise);
 }
 
-// truth.json carries every injected effect with its values (issue #8), for all 13 effects of the
+// truth.json carries every injected effect with its values (issue #8), for every effect of the
 // catalogue, bit-exactly; the values are written in SI under the catalogue's parameter names.
 TEST(TruthJson, EveryCatalogueEffectRoundTripsWithItsValues) {
   calib::effects::UnitModel u = calib::effects::default_unit();

@@ -195,6 +195,32 @@ TEST(AltSim, EveryDeterministicEffectChangesTheIncrementsAsInTheTruthSimulator) 
   }
 }
 
+// The output filter (a lag, so it acts without noise too) smooths the increments as in the truth
+// simulator: altsim's exponential smoother and calib/sim's recursive filter are the same
+// y_k = a y_{k-1} + (1-a) x_k written two ways, and the change it makes is well above the rounding.
+TEST(AltSim, OutputFilterSmoothsTheIncrementsAsInTheTruthSimulator) {
+  const calib::effects::RunSource truth = truth_source(), alt = alt_source();
+  calib::effects::Effects fx;
+  fx.output_filter_gyro = 0.6;
+  fx.output_filter_accel = 0.3;
+  const calib::core::CalibrationInput t0 = truth(calib::effects::Effects{}, 1, false);
+  const calib::core::CalibrationInput t1 = truth(fx, 1, false), a1 = alt(fx, 1, false);
+  double change_th = 0.0, change_dv = 0.0, err_th = 0.0, err_dv = 0.0;
+  for (size_t k = 0; k < t1.imu.size(); ++k) {
+    change_th = std::max(change_th, (t1.imu[k].dtheta_rad - t0.imu[k].dtheta_rad).norm());
+    change_dv = std::max(change_dv, (t1.imu[k].dv_mps - t0.imu[k].dv_mps).norm());
+    err_th = std::max(err_th, (a1.imu[k].dtheta_rad - t1.imu[k].dtheta_rad).norm());
+    err_dv = std::max(err_dv, (a1.imu[k].dv_mps - t1.imu[k].dv_mps).norm());
+  }
+  std::printf(
+      "output_filter change max |dtheta| %.3g rad, |dv| %.3g m/s; altsim - truth %.3g, %.3g\n",
+      change_th, change_dv, err_th, err_dv);
+  EXPECT_GT(change_th, 1e3 * kTolDtheta_rad);
+  EXPECT_GT(change_dv, 1e3 * kTolDv_mps);
+  EXPECT_LE(err_th, 2.0 * kTolDtheta_rad + 1e-6 * change_th);
+  EXPECT_LE(err_dv, 2.0 * kTolDv_mps + 1e-6 * change_dv);
+}
+
 TEST(AltSim, TableTimeOffsetDelaysTheEncoderLogAsInTheTruthSimulator) {
   const calib::effects::RunSource truth = truth_source(), alt = alt_source();
   calib::effects::Effects fx;

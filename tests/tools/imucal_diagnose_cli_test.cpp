@@ -62,8 +62,9 @@ TEST_F(DiagnoseCli, JsonHasTheIssuesShapeAndNamesTheWithheldEffect) {
   for (const char* k : {"gap_before", "gap_after", "shrinkage"})
     EXPECT_TRUE(j["held_out"][k].is_number()) << k;
   EXPECT_GT(j["held_out"]["gap_before"].get<double>(), j["held_out"]["gap_after"].get<double>());
-  // 13 candidates, ranked: the best first; each with score, magnitude, sigma and "separable".
-  ASSERT_EQ(j["candidates"].size(), 13u);
+  // 14 candidates (one per catalogue effect), ranked: the best first; each with score, magnitude,
+  // sigma and "separable".
+  ASSERT_EQ(j["candidates"].size(), 14u);
   EXPECT_EQ(j["candidates"][0]["effect"], "gyro_g_sensitivity");
   for (const auto& c : j["candidates"])
     for (const char* k : {"effect", "score", "magnitude", "sigma", "separable"})

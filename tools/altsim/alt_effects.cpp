@@ -37,6 +37,7 @@ std::vector<AltEffectParams> build_table() {
       {"gravity_error", {"dg"}, false},
       {"latitude_error", {"dlat"}, false},
       {"quantisation", {"dtheta_lsb", "dv_lsb"}, false},
+      {"output_filter", {"gyro_a", "accel_a"}, false},
   };
 }
 
@@ -78,6 +79,7 @@ std::vector<double*> fields(AltEffects& fx, const std::string& name) {
   if (name == "gravity_error") return {&fx.gravity_error_mps2};
   if (name == "latitude_error") return {&fx.latitude_error_rad};
   if (name == "quantisation") return {&fx.quant_dtheta_rad, &fx.quant_dv_mps};
+  if (name == "output_filter") return {&fx.output_filter_gyro, &fx.output_filter_accel};
   throw std::invalid_argument("unknown effect '" + name + "' (known: " + alt_effect_names() + ")");
 }
 
@@ -150,6 +152,9 @@ void apply_alt_effect_spec(AltEffects& fx, const std::string& spec) {
   if ((e.name == "bias_instability" || e.name == "quantisation") &&
       (vals[0] < 0.0 || vals[1] < 0.0))
     throw std::invalid_argument("effect " + e.name + ": sigmas and LSBs must be >= 0");
+  if (e.name == "output_filter" &&
+      !(vals[0] >= 0.0 && vals[0] < 1.0 && vals[1] >= 0.0 && vals[1] < 1.0))
+    throw std::invalid_argument("effect output_filter: coefficients must be in [0, 1)");
   const std::vector<double*> f = fields(fx, e.name);
   for (size_t i = 0; i < vals.size(); ++i) *f[i] = vals[i];
 }

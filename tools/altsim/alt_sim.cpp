@@ -186,8 +186,22 @@ struct Quantiser {
   }
 };
 
+/// The output filter: each output moves (1 - a) of the way from the last output towards the new
+/// input (an exponential smoother, started at the first input).
+struct Smoother {
+  double a = 0.0;
+  Eigen::Vector3d last = Eigen::Vector3d::Zero();
+  bool started = false;
+  Eigen::Vector3d operator()(const Eigen::Vector3d& x) {
+    if (a <= 0.0) return x;
+    last = started ? Eigen::Vector3d(last + (1.0 - a) * (x - last)) : x;
+    started = true;
+    return last;
+  }
+};
+
 /// The unit's stochastic output stage: white noise, the declared and the undeclared Gauss-Markov
-/// biases, quantisation.
+/// biases, the output filter (a lag: also without noise), quantisation.
 class NoiseStage {
  public:
   NoiseStage(const AltUnit& u, double dt_s, uint64_t seed, bool on)
@@ -200,7 +214,9 @@ class NoiseStage {
                                                       : u.noise.dtheta_lsb_rad)
                   : 0.0},
         q_dv_{on ? (u.effects.quant_dv_mps > 0.0 ? u.effects.quant_dv_mps : u.noise.dv_lsb_mps)
-                 : 0.0} {
+                 : 0.0},
+        f_dth_{u.effects.output_filter_gyro},
+        f_dv_{u.effects.output_filter_accel} {
     if (!on_) return;
     const AltNoise& n = u.noise;
     const AltEffects& fx = u.effects;
@@ -211,14 +227,18 @@ class NoiseStage {
   }
 
   void apply(Eigen::Vector3d& dth, Eigen::Vector3d& dv) {
-    if (!on_) return;
+    if (!on_) {
+      dth = f_dth_(dth);
+      dv = f_dv_(dv);
+      return;
+    }
     for (GaussMarkov3* g : {&gm_g_, &gm_a_, &fx_gm_g_, &fx_gm_a_}) g->step(normal_);
     for (int i = 0; i < 3; ++i) {
       dth(i) += sd_dth_ * normal_() + (gm_g_.x(i) + fx_gm_g_.x(i)) * dt_s_;
       dv(i) += sd_dv_ * normal_() + (gm_a_.x(i) + fx_gm_a_.x(i)) * dt_s_;
     }
-    dth = q_dth_(dth);
-    dv = q_dv_(dv);
+    dth = q_dth_(f_dth_(dth));
+    dv = q_dv_(f_dv_(dv));
   }
 
  private:
@@ -227,6 +247,7 @@ class NoiseStage {
   PolarNormal normal_;
   double sd_dth_, sd_dv_;
   Quantiser q_dth_, q_dv_;
+  Smoother f_dth_, f_dv_;
   GaussMarkov3 gm_g_, gm_a_, fx_gm_g_, fx_gm_a_;
 };
 

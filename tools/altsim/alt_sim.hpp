@@ -96,6 +96,9 @@ struct AltEffects {
   double instability_tau_s = 1000.0;
   /// quantisation: the real output LSBs, replacing the declared ones (0 = as declared).
   double quant_dtheta_rad = 0.0, quant_dv_mps = 0.0;
+  /// output_filter: a first-order low-pass on the output before the register, per sensor: each
+  /// output moves the fraction (1 - a) of the way from the previous output to the new input.
+  double output_filter_gyro = 0.0, output_filter_accel = 0.0;
   /// table_time_offset: the encoder log at IMU time t shows the angles of t - offset, s.
   double table_time_offset_s = 0.0;
   /// table_nonorthogonality: the inner axis leans by δ towards the outer axis (rotated about

@@ -23,6 +23,8 @@ tools::altsim::AltEffects to_alt_effects(const calib::effects::Effects& fx) {
   a.instability_tau_s = fx.instability_tau_s;
   a.quant_dtheta_rad = fx.quant_dtheta_rad;
   a.quant_dv_mps = fx.quant_dv_mps;
+  a.output_filter_gyro = fx.output_filter_gyro;
+  a.output_filter_accel = fx.output_filter_accel;
   a.table_time_offset_s = fx.table_time_offset_s;
   a.table_nonorthogonality_rad = fx.table_nonorthogonality_rad;
   a.table_wobble_rad = fx.table_wobble_rad;

@@ -145,7 +145,8 @@ void print_table(const std::vector<calib::diagnosis::EffectDetectability>& d,
   bool any = false;
   for (const auto& e : d)
     if (!e.separable() && e.id != calib::effects::EffectId::kBiasInstability &&
-        e.id != calib::effects::EffectId::kQuantisation) {
+        e.id != calib::effects::EffectId::kQuantisation &&
+        e.id != calib::effects::EffectId::kOutputFilter) {
       if (!any) std::printf("\nto separate what this sequence cannot:\n");
       any = true;
       std::printf("  %-24s %s\n", e.name.c_str(), remedy(e.id).c_str());
