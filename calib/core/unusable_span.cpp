@@ -1,8 +1,10 @@
 #include "calib/core/unusable_span.hpp"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
 #include "calib/core/conventions.hpp"
 
@@ -81,10 +83,53 @@ std::vector<UnusableSpan> find_time_gaps(const ImuSeries& imu) {
   return out;
 }
 
+std::vector<UnusableSpan> find_splices(const ImuSeries& imu) {
+  std::vector<UnusableSpan> out;
+  const double dt_s = median_interval_s(imu);
+  if (!(dt_s > 0.0)) return out;
+  const size_t w = std::max<size_t>(3, static_cast<size_t>(std::lround(kSpliceWindow_s / dt_s)));
+  if (imu.size() < 2 * w + 1) return out;
+  const double quiet_mps2 = kSpliceQuiet_g * kStandardGravity_mps2;
+  // The window's mean specific force, or nothing when a sample strays from it (the body was
+  // accelerating: its mean is not gravity).
+  auto quiet_mean = [&](size_t begin, size_t end) -> std::optional<Eigen::Vector3d> {
+    Eigen::Vector3d dv = Eigen::Vector3d::Zero();
+    double T_s = 0.0;
+    for (size_t k = begin; k < end; ++k) {
+      dv += imu[k].dv_mps;
+      T_s += imu[k].dt_s;
+    }
+    const Eigen::Vector3d f_mps2 = dv / T_s;
+    for (size_t k = begin; k < end; ++k)
+      if ((imu[k].dv_mps / imu[k].dt_s - f_mps2).norm() > quiet_mps2) return std::nullopt;
+    return f_mps2;
+  };
+  for (size_t k = w; k + w <= imu.size(); ++k) {
+    // Cheap first: the join is one step of the specific force, larger than a quiet window allows.
+    const Eigen::Vector3d step = imu[k].dv_mps / imu[k].dt_s - imu[k - 1].dv_mps / imu[k - 1].dt_s;
+    if (step.norm() <= quiet_mps2) continue;
+    const auto before = quiet_mean(k - w, k), after = quiet_mean(k, k + w);
+    if (!before || !after) continue;
+    const double turn_deg =
+        std::acos(std::clamp(before->normalized().dot(after->normalized()), -1.0, 1.0)) / kDegToRad;
+    double gyro_deg = 0.0;  // an upper bound of the body's turn: the increments' lengths summed
+    for (size_t j = k - w; j < k + w; ++j) gyro_deg += imu[j].dtheta_rad.norm() / kDegToRad;
+    if (!(turn_deg > kMinSpliceTurn_deg && gyro_deg < turn_deg / kSpliceGyroRatio)) continue;
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  "a splice before t = %.2f s (gravity turned %.0f° in the body in one sample, the "
+                  "gyros %.1f°: two pieces of recording joined)",
+                  imu[k].t_s, turn_deg, gyro_deg);
+    out.push_back({k, k + 1, buf});
+    k += w;
+  }
+  return out;
+}
+
 std::vector<UnusableSpan> find_unusable_spans(const ImuSeries& imu) {
   std::vector<UnusableSpan> out = find_clipped_spans(imu);
-  std::vector<UnusableSpan> gaps = find_time_gaps(imu);
-  out.insert(out.end(), gaps.begin(), gaps.end());
+  for (auto more : {find_time_gaps(imu), find_splices(imu)})
+    out.insert(out.end(), more.begin(), more.end());
   std::stable_sort(out.begin(), out.end(),
                    [](const UnusableSpan& a, const UnusableSpan& b) { return a.begin < b.begin; });
   return out;

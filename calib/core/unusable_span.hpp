@@ -1,10 +1,10 @@
 #pragma once
 // Stretches of a field recording no method may rely on (issue #48 item 3): a channel clipped at
-// the sensor's range, or samples dropped by the logger. A real recording has them here and there;
-// they spoil the move or the rest they fall in, not the run. The input carries them
-// (CalibrationInput::unusable), the rest detection ends a rest at them, and each method leaves
-// out what they touch (the legacy fit the move, the AINS the attitude it carried across) and says
-// so, instead of the whole run being refused.
+// the sensor's range, samples dropped by the logger, or a splice where two pieces were joined. A
+// real recording has them here and there; they spoil the move or the rest they fall in, not the
+// run. The input carries them (CalibrationInput::unusable), the rest detection ends a rest at them,
+// and each method leaves out what they touch (the legacy fit the move, the AINS the attitude it
+// carried across) and says so, instead of the whole run being refused.
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -36,7 +36,25 @@ std::vector<UnusableSpan> find_clipped_spans(const ImuSeries& imu);
 /// span is that one sample (its increment does not describe the time it covers).
 std::vector<UnusableSpan> find_time_gaps(const ImuSeries& imu);
 
-/// Both kinds, ordered by their first sample.
+/// Splices: where two stretches of a recording were joined (an annotated session whose sections
+/// were cut out and concatenated, a logger restarted into the same file). The accelerometers' mean
+/// over a window of kSpliceWindow_s before a sample and one after it point more than
+/// kMinSpliceTurn_deg apart, with both windows quiet (each sample within kSpliceQuiet_g of its
+/// window's mean), while the gyros turned less than 1/kSpliceGyroRatio of that across both
+/// windows: gravity moved in the body and nothing turned the body. The span is the first sample
+/// after the join. A knock (a one-sample spike of several g) leaves gravity where it was; a turn,
+/// however fast, is on the gyros; a hand's push tilts the specific force by its acceleration while
+/// the body turns a few degrees with it (measured on the corpus' hand-turned recordings: up to 18°
+/// against at least 1/10 of it on the gyros, where the joins of MaD Lab's annotated session turn
+/// gravity 89–178° with the gyros at 0.0–0.1°). The floor of 10° keeps an uncalibrated gyro's
+/// offset (3.3 °/s over the two windows: 0.66°) from hiding a join.
+std::vector<UnusableSpan> find_splices(const ImuSeries& imu);
+inline constexpr double kMinSpliceTurn_deg = 10.0;
+inline constexpr double kSpliceGyroRatio = 20.0;
+inline constexpr double kSpliceQuiet_g = 0.15;
+inline constexpr double kSpliceWindow_s = 0.1;
+
+/// The three kinds, ordered by their first sample.
 std::vector<UnusableSpan> find_unusable_spans(const ImuSeries& imu);
 
 /// The spans that share a sample with [begin, end).

@@ -9,7 +9,9 @@
 //    (the gap's one increment covers six samples' time with one sample's data);
 //  * a knock that clips the accelerometer in a rest: the rest's two halves serve;
 //  * a gyro whose range most moves exceed: refused, saying how many moves were usable, how many
-//    are needed and which were left out.
+//    are needed and which were left out;
+//  * a splice (two pieces of recording joined, nothing in the stamps saying where): named, and
+//    what it touches left out; a fast turn or a real hand-turned recording is no splice.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -26,7 +28,9 @@
 #include "calib/core/conventions.hpp"
 #include "calib/core/site_presets.hpp"
 #include "calib/core/unit_grade.hpp"
+#include "calib/core/unusable_span.hpp"
 #include "calib/legacy/legacy.hpp"
+#include "tests/support/imu_tk_xsens.hpp"
 #include "tests/support/mems_runs.hpp"
 
 namespace imucal::calib {
@@ -305,6 +309,91 @@ TEST(LocalJudgement, TheHeldOutCheckShowsAClippedMoveButKeepsItOutOfItsRms) {
   ASSERT_GE(left_out, 1u);
   EXPECT_GT(worst_left_out, 5.0 * clean.move_rms_corrected_rad) << "the clip spoils its move";
   EXPECT_LT(r.move_rms_corrected_rad, 1.5 * clean.move_rms_corrected_rad);
+}
+
+}  // namespace
+}  // namespace imucal::calib
+
+namespace imucal::calib {
+namespace {
+
+/// The recording with samples [begin, end) cut out and the rest joined on one clock, as an
+/// annotated session whose sections were concatenated (the corpus' MaD Lab file): nothing in the
+/// stamps says where.
+ImuSeries spliced(const ImuSeries& imu, size_t begin, size_t end) {
+  ImuSeries out = without_samples(imu, begin, end);
+  for (size_t k = begin; k < out.size(); ++k) out[k].t_s = out[k - 1].t_s + out[k].dt_s;
+  out[begin].dt_s = out[begin - 1].dt_s;
+  return out;
+}
+
+Eigen::Vector3d mean_f_mps2(const ImuSeries& imu, size_t begin, size_t end) {
+  Eigen::Vector3d dv = Eigen::Vector3d::Zero();
+  double T_s = 0.0;
+  for (size_t k = begin; k < end; ++k) {
+    dv += imu[k].dv_mps;
+    T_s += imu[k].dt_s;
+  }
+  return dv / T_s;
+}
+
+// Two rests joined where the move between them was cut out: gravity turns in the body in one
+// sample and the gyros turned nothing. Before, the data checks refused the run ("the gyros'
+// rotation between rests carries gravity ... away from where the accelerometers see it"); now the
+// splice is named and what it touches is left out, as a clip or a gap is.
+TEST(LocalJudgement, ASpliceWhereTwoPiecesWereJoinedIsNamedAndCostsOnlyWhatItTouches) {
+  const FieldSimResult sim = fast_hand_run(28);
+  const auto rests = testing::true_rest_spans(sim.true_rest);
+  ASSERT_GE(rests.size(), 12u);
+  // The first later pair of rests whose gravity directions lie at least 30° apart.
+  size_t r = 6;
+  auto apart_deg = [&](size_t i) {
+    const Eigen::Vector3d a = mean_f_mps2(sim.imu, rests[i].first, rests[i].second).normalized();
+    const Eigen::Vector3d b =
+        mean_f_mps2(sim.imu, rests[i + 1].first, rests[i + 1].second).normalized();
+    return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * kRadToDeg;
+  };
+  while (r + 2 < rests.size() && apart_deg(r) < 30.0) ++r;
+  ASSERT_GE(apart_deg(r), 30.0);
+  const size_t cut_begin = (rests[r].first + rests[r].second) / 2;
+  const size_t cut_end = (rests[r + 1].first + rests[r + 1].second) / 2;
+  const CalibrationInput in = mems_input_of(spliced(sim.imu, cut_begin, cut_end));
+  ASSERT_EQ(in.unusable.size(), 1u);
+  EXPECT_EQ(in.unusable[0].begin, cut_begin);
+  EXPECT_NE(in.unusable[0].reason.find("a splice before t = "), std::string::npos)
+      << in.unusable[0].reason;
+  EXPECT_TRUE(checks::check_data(in, checks::data_check_options(in.unit_prior())).empty());
+  const auto refused = checks::check_data(blind(in), checks::data_check_options(in.unit_prior()));
+  EXPECT_FALSE(refused.empty()) << "the splice must matter to the checks that do not see it";
+  // Judged as the same cut is when the stamps show it (a gap): the same data, the join known; only
+  // the rest detector's edges about the join differ (the gap's long interval reads as variation).
+  const CalibrationResult as_gap =
+      legacy::calibrate_legacy(mems_input_of(without_samples(sim.imu, cut_begin, cut_end)));
+  const double judged_apart = worst_sigma_apart(legacy::calibrate_legacy(in), as_gap);
+  std::printf("a splice joining two rests %.0f° apart: %.3f σ from the fit with the cut a gap\n",
+              apart_deg(r), judged_apart);
+  EXPECT_LT(judged_apart, 0.5);
+}
+
+// No splice is found where none is: MEMS units turned by hand at 200 °/s (1000 °/s²) and set down,
+// six runs of 24 moves each.
+TEST(LocalJudgement, FastTurnsAreNoSplice) {
+  for (uint64_t seed = 21; seed <= 26; ++seed)
+    EXPECT_TRUE(find_splices(fast_hand_run(seed).imu).empty()) << "seed " << seed;
+}
+
+}  // namespace
+}  // namespace imucal::calib
+
+namespace imucal::calib {
+namespace {
+
+// A real recording turned and set down by hand (IMU-TK's Xsens, tests/data): knocks, fast turns,
+// no joins — no splice.
+TEST(LocalJudgement, TheRealXsensRecordingHasNoSplice) {
+  const ImuSeries imu = test_support::read_imu_tk_xsens();
+  ASSERT_EQ(imu.size(), 51175u);
+  EXPECT_TRUE(find_splices(imu).empty()) << find_splices(imu).front().reason;
 }
 
 }  // namespace
