@@ -62,15 +62,8 @@ std::string reason_text(const HoldingMethod& h, const CalibrationInput& in) {
 }  // namespace
 
 const char* method_name(Method m) {
-  switch (m) {
-    case Method::kAins:
-      return "ains";
-    case Method::kNlsq:
-      return "nlsq";
-    case Method::kLegacy:
-      return "legacy";
-  }
-  return "?";
+  static const char* const kNames[] = {"ains", "nlsq", "legacy"};  // in Method's order
+  return kNames[static_cast<int>(m)];
 }
 
 std::optional<HoldingMethod> judge_holding_method(const CalibrationInput& in,

@@ -13,13 +13,11 @@
 
 #include "calib/core/conventions.hpp"
 #include "calib/pipeline/calibration_pipeline.hpp"
-#include "sequences/library.hpp"
 #include "tests/support/mems_runs.hpp"
 
 namespace imucal::calib {
 using namespace imucal::calib::core;
 using namespace imucal::calib::pipeline;
-using namespace imucal::calib::sim;
 namespace {
 
 using Eigen::Vector3d;
@@ -52,18 +50,6 @@ PipelineResult land_all(const CalibrationInput& in, const PipelineOptions& base 
   return run_calibration(in, o);
 }
 
-/// `imucal simulate --setting land --grade mems --sequence factory-std --seed SEED`: the factory's
-/// standard sequence turned by hand (90-120 s rests).
-FieldSimResult factory_std_by_hand(uint64_t seed) {
-  FieldSimOptions o;
-  o.setting = Setting::kLand;
-  o.seed = seed;
-  o.rate_hz = 100.0;
-  UnitModel unit = draw_unit(Grade::kMems, seed);
-  unit.params.table_misalignment_rad.setZero();  // no table
-  return simulate_field(sequences::load_profile("factory-std"), demo_factory_site(), unit, o);
-}
-
 double mg(double mps2) { return mps2 / kStandardGravity_mps2 * 1e3; }
 
 /// A simulated land run through the pipeline as `imucal calibrate --method all` runs it, on which
@@ -90,7 +76,7 @@ TEST(HoldingMethod, OnSimulatedMemsLandRunsAinsHoldsAndTheVerdictIsAsBefore) {
     expect_ains_holds(testing::mems_input(testing::simulate_mems(seed)),
                       "hand-placed, seed " + std::to_string(seed));
   for (uint64_t seed : {11u, 12u})
-    expect_ains_holds(testing::mems_input(factory_std_by_hand(seed)),
+    expect_ains_holds(testing::mems_input(testing::factory_std_by_hand(seed)),
                       "factory-std by hand, seed " + std::to_string(seed));
 }
 
