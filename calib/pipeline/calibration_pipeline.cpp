@@ -20,7 +20,7 @@ using namespace calib::nlsq;
 
 namespace {
 
-using Method = std::function<CalibrationResult(const CalibrationInput&, const PipelineOptions&)>;
+using MethodFn = std::function<CalibrationResult(const CalibrationInput&, const PipelineOptions&)>;
 
 CalibrationResult run_ains(const CalibrationInput& in, const PipelineOptions& o) {
   return calibrate_ains(in, o.ains);
@@ -35,7 +35,7 @@ CalibrationResult run_legacy(const CalibrationInput& in, const PipelineOptions& 
 /// One method and its evaluation (paper §VII) — or, without an attitude reference, the statement
 /// that there is none to evaluate against.
 MethodOutcome run_method(const CalibrationInput& in, const PipelineOptions& opt, const char* label,
-                         const Method& method) {
+                         const MethodFn& method) {
   auto phase = [&](const std::string& p) {
     if (opt.on_phase) opt.on_phase(p);
   };
@@ -193,6 +193,12 @@ void run_methods(const CalibrationInput& in, const PipelineOptions& opt, bool ai
 
 }  // namespace
 
+bool PipelineResult::limits_hold_for(Method m) const {
+  for (const LimitFailure& f : limits.failures)
+    if (f.method == method_name(m)) return false;
+  return true;
+}
+
 PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions& opt) {
   const bool field = in.setting != Setting::kFactory;
   const MethodSelection sel = opt.methods;
@@ -230,6 +236,9 @@ PipelineResult run_calibration(const CalibrationInput& in, const PipelineOptions
   limits.max_accel_rmse_ug = crosscheck.max_accel_rmse_ug;
   for (const auto* m : {&out.ains, &out.nlsq, &out.legacy})
     if (*m) check_limits((*m)->result, (*m)->metrics, !out.crosscheck, limits, out.limits);
+  if (out.ains && out.legacy)
+    out.holding =
+        judge_holding_method(in, out.ains->result, out.legacy->result, opt.legacy, opt.holding);
   if (in.setting == Setting::kSea)
     out.unchecked_reason =
         "sea: AINS alone, no independent method to cross-check it (the legacy method needs a "

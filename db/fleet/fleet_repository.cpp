@@ -22,8 +22,8 @@ const std::string kRunColumns =
     "r.promoted_by, r.promote_reason, r.reasons::text, r.slot, "
     "(SELECT f.id FROM runs f WHERE f.station_id = r.station_id "
     "   AND f.local_run_id = r.table_run_local), "
-    "r.run_uuid, r.revision";
-constexpr int kNumRunColumns = 27;
+    "r.run_uuid, r.revision, r.holding_method, r.holding_reason";
+constexpr int kNumRunColumns = 29;
 const std::string kRunFrom = " FROM runs r LEFT JOIN crosschecks x ON x.run_id = r.id ";
 const std::string kCalColumns =
     "c.method, c.params::text, c.sigma::text, c.converged, c.iterations, c.runtime_s, "
@@ -82,6 +82,9 @@ struct FleetRepository::Impl {
     r.table_run_id = q.opt_i64(row, 24);
     r.uuid = q.text(row, 25);
     r.revision = q.i64(row, 26);
+    r.holding_method =
+        decode(origin + " holding_method", [&] { return method_from_string(q.text(row, 27)); });
+    r.holding_reason = q.text(row, 28);
     r.verdict = run_verdict(r.state);
     return r;
   }
@@ -289,13 +292,7 @@ ActiveCalibration FleetRepository::active_params(const std::string& serial) cons
                                                    factory.front().ended_at_ms.value_or(0));
   out.run = use_promoted ? promoted.front() : factory.front();
   out.all = d.calibrations_of(out.run.run_id);
-  const auto ains = std::find_if(out.all.begin(), out.all.end(), [](const CalibrationRecord& c) {
-    return c.method == Method::kAins;
-  });
-  if (ains == out.all.end())
-    throw Corrupt(d.where() + ": " + run_label(out.run.run_id) +
-                  " is active but has no ains calibration");
-  out.active = *ains;
+  out.active = active_calibration(out, d.where());
   tx.commit();
   return out;
 }

@@ -99,6 +99,14 @@ const char* const kFleetMigration2 = R"SQL(
 CREATE INDEX runs_by_time_counts ON runs (started_at_ms) INCLUDE (station_id, verdict);
 )SQL";
 
+// Version 3 (issue #48 item 7): which of a run's calibrations is its active set, and why, as the
+// station's history keeps them (db/history/schema.cpp, migration 9); runs stored before keep AINS.
+const char* const kFleetMigration3 = R"SQL(
+ALTER TABLE runs ADD COLUMN holding_method text NOT NULL DEFAULT 'ains'
+  CHECK (holding_method IN ('ains', 'legacy'));
+ALTER TABLE runs ADD COLUMN holding_reason text NOT NULL DEFAULT '';
+)SQL";
+
 struct FleetMigration {
   int version;
   const char* description;
@@ -108,7 +116,9 @@ struct FleetMigration {
 const std::vector<FleetMigration>& fleet_migrations() {
   static const std::vector<FleetMigration> list = {
       {1, "runs, calibrations (jsonb parameter sets), crosschecks", kFleetMigration1},
-      {2, "runs_by_time_counts: the fleet pages' counts read no run row", kFleetMigration2}};
+      {2, "runs_by_time_counts: the fleet pages' counts read no run row", kFleetMigration2},
+      {3, "runs.holding_method, runs.holding_reason: the method a run's active set is",
+       kFleetMigration3}};
   return list;
 }
 

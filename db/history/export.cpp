@@ -343,6 +343,8 @@ json run_json(const RunRecord& r) {
   o["promote_reason"] = r.promote_reason;
   o["slot"] = r.slot;
   o["table_run"] = r.table_run_id ? json(*r.table_run_id) : json(nullptr);
+  o["holding_method"] = to_string(r.holding_method);
+  o["holding_reason"] = r.holding_reason;
   // Stored only after finish_run validated them as objects; a damaged text is reported, not hidden.
   o["capture"] = stored_object(r.capture_json, r.run_id, "capture_json");
   o["diagnosis"] = stored_object(r.diagnosis_json, r.run_id, "diagnosis_json");
@@ -406,6 +408,7 @@ json active_params_json(const ActiveCalibration& a) {
                  {"body_frame", to_string(a.active.body_frame)},
                  {"not_observable", a.active.unobservable}};
   if (!r.origin.empty()) source["origin"] = r.origin;
+  if (!r.holding_reason.empty()) source["holding_reason"] = r.holding_reason;
   if (r.promoted_at_ms) {
     source["promoted_at"] = format_time_utc(*r.promoted_at_ms);
     source["promoted_by"] = r.promoted_by;

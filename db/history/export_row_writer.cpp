@@ -202,6 +202,8 @@ void append_export_row_json(std::string& out, const ExportRow& row) {
   append_optional(o.key("ended_at"), r.ended_at_ms, time_utc);
   append_optional(o.key("ended_at_ms"), r.ended_at_ms, integer);
   append_string(o.key("failure_reason"), r.failure_reason);
+  append_string(o.key("holding_method"), to_string(r.holding_method));
+  append_string(o.key("holding_reason"), r.holding_reason);
   append_string(o.key("operator"), r.operator_name);
   append_string(o.key("origin"), r.origin);
   append_string(o.key("promote_reason"), r.promote_reason);

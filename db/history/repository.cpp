@@ -188,6 +188,13 @@ RunReason crosscheck_reason(const CrosscheckRecord& x) {
   return {"cross-check", s.empty() ? "cross-check REVIEW" : "cross-check REVIEW: " + s};
 }
 
+CalibrationRecord active_calibration(const ActiveCalibration& active, const std::string& where) {
+  for (const CalibrationRecord& c : active.all)
+    if (c.method == active.run.holding_method) return c;
+  throw Corrupt(where + ": run " + std::to_string(active.run.run_id) + " is active but has no " +
+                to_string(active.run.holding_method) + " calibration");
+}
+
 // ----- time ------------------------------------------------------------------------------------
 // Proleptic Gregorian calendar <-> days since 1970-01-01 (H. Hinnant's civil algorithms), so no
 // dependence on the process time zone (timegm/gmtime are not needed).

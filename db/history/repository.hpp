@@ -17,7 +17,10 @@
 // latest promoted run. A field or imported run never becomes active on its own, even with PASS.
 // AINS is "the" set because it estimates the full model (paper §IV, 27 parameters incl. table
 // misalignment ς, with smoothed covariance) and is the paper's primary method; NLSQ is the
-// independent check that made the verdict PASS. Both sets of that run stay retrievable
+// independent check that made the verdict PASS. The one exception (schema v9): a land run below
+// navigation grade on which AINS cannot hold the rests the legacy fit holds
+// (calib/pipeline/holding_method.hpp) names legacy as its holding method, and its legacy set is the
+// one that becomes active (RunRecord::holding_method). Every set of that run stays retrievable
 // (ActiveCalibration::all). A later REVIEW, failed, aborted or interrupted run never replaces the
 // active set.
 //
@@ -209,6 +212,11 @@ struct RunRecord {
   /// seen; the fleet store keeps the highest).
   std::string uuid;
   std::int64_t revision = 0;
+  /// Schema v9: the method whose set is the run's active one when the run is active — AINS, or
+  /// legacy where AINS could not hold a land run's rests the legacy fit holds — and why, with both
+  /// figures (calib/pipeline/holding_method.hpp; "" for runs that were not judged so).
+  Method holding_method = Method::kAins;
+  std::string holding_reason;
 };
 
 /// Headline evaluation metrics of one method (paper §VII, calib/checks/evaluation.hpp), per-period
@@ -258,6 +266,10 @@ struct RunCompletion {
   std::optional<CrosscheckRecord> crosscheck;
   std::string capture_json;    ///< capture counters as a JSON object text, or empty
   std::string diagnosis_json;  ///< gap diagnosis summary as a JSON object text, or empty
+  /// The run's holding method and why (RunRecord::holding_method). Legacy only on a land run that
+  /// stores a legacy calibration; then a REVIEW cross-check (AINS's disagreement) may end done.
+  Method holding_method = Method::kAins;
+  std::string holding_reason;
 };
 
 struct RunDetails {
@@ -267,8 +279,8 @@ struct RunDetails {
 };
 
 struct ActiveCalibration {
-  RunRecord run;                       ///< the latest done+PASS run of the serial
-  CalibrationRecord active;            ///< its AINS result: the active parameter set
+  RunRecord run;             ///< the latest done+PASS run of the serial
+  CalibrationRecord active;  ///< its holding method's result (AINS but where legacy holds): the set
   std::vector<CalibrationRecord> all;  ///< every method of that run (ains, nlsq)
 };
 
@@ -305,9 +317,11 @@ class Repository {
   virtual void update_run_state(RunId run_id, RunState state, const std::string& reason = {}) = 0;
 
   /// Terminal state, end time, archive hash and (optionally) the results, atomically. Rules:
-  /// done needs both ains and nlsq calibrations and a PASS cross-check (stored now or before);
-  /// a PASS cross-check needs state done and a REVIEW one state review; failed, aborted,
-  /// interrupted need a reason. Conflict if the run is already terminal or a result exists twice.
+  /// done needs the setting's two calibrations and a PASS cross-check (stored now or before) —
+  /// or, where the completion names legacy as the holding method, a cross-check of either verdict;
+  /// a PASS cross-check needs state done and a REVIEW one state review (but where legacy holds);
+  /// failed, aborted, interrupted need a reason. Conflict if the run is already terminal, a result
+  /// exists twice, or legacy is named holding on a run that is not land or stores no legacy set.
   virtual void finish_run(RunId run_id, const RunCompletion& completion) = 0;
 
   /// Store one method's result for a live run. Conflict if the run is terminal or this method
@@ -373,6 +387,10 @@ class Repository {
   virtual void promote(RunId run_id, const std::string& by, const std::string& reason,
                        TimestampMs at_ms) = 0;
 };
+
+/// The active set among an active run's calibrations (`active.all`): its holding method's
+/// (RunRecord::holding_method). Corrupt naming `where` and the run if it stores none.
+CalibrationRecord active_calibration(const ActiveCalibration& active, const std::string& where);
 
 // ---------------------------------------------------------------------------------------------
 // Conversions from the calibration core's result types.

@@ -316,6 +316,15 @@ CREATE TRIGGER ains_values_on_delete AFTER DELETE ON calibrations WHEN OLD.metho
 BEGIN DELETE FROM ains_values WHERE run_id = OLD.run_id; END;
 )SQL";
 
+// Version 9 (issue #48 item 7): which of a run's calibrations is its active set, and why. AINS
+// but on a land run below navigation grade whose rests AINS cannot hold as the legacy fit does
+// (calib/pipeline/holding_method.hpp); every run stored before keeps AINS, as it was active then.
+const char* const kMigration9 = R"SQL(
+ALTER TABLE runs ADD COLUMN holding_method TEXT NOT NULL DEFAULT 'ains'
+  CHECK (holding_method IN ('ains', 'legacy'));
+ALTER TABLE runs ADD COLUMN holding_reason TEXT NOT NULL DEFAULT '';
+)SQL";
+
 const char* const kMigration5 = R"SQL(
 ALTER TABLE runs ADD COLUMN verdict TEXT GENERATED ALWAYS AS (
   CASE state WHEN 'done' THEN 'PASS' WHEN 'review' THEN 'REVIEW'
@@ -434,6 +443,8 @@ const std::vector<Migration>& migrations() {
       {6, "runs.slot, runs.table_run_id: several units per table run", kMigration6},
       {7, "runs.uuid, runs.revision, outbox: replication to the fleet store", kMigration7},
       {8, "runs_by_time_station index, ains_values: the fleet pages' aggregates", kMigration8},
+      {9, "runs.holding_method, runs.holding_reason: the method a run's active set is",
+       kMigration9},
   };
   return list;
 }

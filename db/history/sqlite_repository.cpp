@@ -29,8 +29,9 @@ const std::string kRunColumns =
     "r.software_version, r.started_at_ms, r.ended_at_ms, r.state, r.failure_reason, "
     "r.archive_path, r.archive_sha256, r.reprocessed_from, x.verdict, r.capture_json, "
     "r.diagnosis_json, r.setting, r.origin, r.promoted_at_ms, r.promoted_by, r.promote_reason, "
-    "r.verdict, r.reasons_json, r.slot, r.table_run_id, r.uuid, r.revision";
-constexpr int kNumRunColumns = 28;
+    "r.verdict, r.reasons_json, r.slot, r.table_run_id, r.uuid, r.revision, r.holding_method, "
+    "r.holding_reason";
+constexpr int kNumRunColumns = 30;
 constexpr int kExportVerdictColumn = 14;  ///< x.verdict among kRunColumns
 const std::string kRunFrom =
     " FROM runs r JOIN units u ON u.id = r.unit_id LEFT JOIN crosschecks x ON x.run_id = r.id ";
@@ -93,7 +94,8 @@ const char* const kSqlSetLiveState = "UPDATE runs SET state = ?2 WHERE id = ?1";
 const char* const kSqlFinishRun =
     "UPDATE runs SET state = ?2, ended_at_ms = ?3, failure_reason = ?4, "
     "archive_path = coalesce(?5, archive_path), archive_sha256 = ?6, capture_json = ?7, "
-    "diagnosis_json = ?8, reasons_json = ?9 WHERE id = ?1";
+    "diagnosis_json = ?8, reasons_json = ?9, holding_method = coalesce(?10, holding_method), "
+    "holding_reason = coalesce(?11, holding_reason) WHERE id = ?1";
 const char* const kSqlSetDiagnosis = "UPDATE runs SET diagnosis_json = ?2 WHERE id = ?1";
 const char* const kSqlHasMethod = "SELECT 1 FROM calibrations WHERE run_id = ?1 AND method = ?2";
 const char* const kSqlInsertCal =
@@ -397,6 +399,9 @@ struct SqliteRepository::Impl {
     if (!q.is_null(25)) r.table_run_id = q.i64(25);
     r.uuid = q.text(26);
     r.revision = q.i64(27);
+    r.holding_method = decode([&] { return run_label(r.run_id) + " holding_method"; },
+                              [&] { return method_from_string(q.text(28)); });
+    r.holding_reason = q.text(29);
     return r;
   }
 
@@ -716,7 +721,15 @@ struct SqliteRepository::Impl {
       q.bind(1, run_id);
       if (q.step()) verdict = verdict_from_string(q.text(0));
     }
-    if (reasons.empty() && c.state == RunState::kReview && verdict == Verdict::kReview) {
+    // Legacy holds only a land run's rests, and only with its legacy set stored: then the
+    // cross-check's disagreement is AINS's and does not decide the run (holding_method.hpp).
+    const bool legacy_holds = c.holding_method == Method::kLegacy;
+    if (legacy_holds && (setting != calib::core::Setting::kLand || !has("legacy")))
+      throw Conflict(who + ": legacy can hold only a land run that stores a legacy calibration");
+    if (c.holding_method == Method::kNlsq)
+      throw InvalidInput(who + ": the holding method is ains or legacy, not nlsq");
+    if (reasons.empty() && c.state == RunState::kReview && verdict == Verdict::kReview &&
+        !legacy_holds) {
       // In review by the cross-check alone: its failures are the reason every view lists.
       reasons.push_back(crosscheck_reason(*crosscheck_of(run_id)));
       reason = reasons.back().text;
@@ -728,8 +741,10 @@ struct SqliteRepository::Impl {
       if (!has_ains) missing += " ains calibration;";
       if (setting != calib::core::Setting::kSea && !has_second)
         missing += std::string(" ") + second + " calibration;";
-      if (verdict != Verdict::kPass)
-        missing += verdict ? " a PASS cross-check (it is REVIEW);" : " a cross-check verdict;";
+      if (!verdict)
+        missing += " a cross-check verdict;";
+      else if (verdict != Verdict::kPass && !legacy_holds)
+        missing += " a PASS cross-check (it is REVIEW);";
       if (!missing.empty()) {
         missing.pop_back();
         throw Conflict(who + " cannot be done without:" + missing);
@@ -740,11 +755,12 @@ struct SqliteRepository::Impl {
     if (verdict == Verdict::kPass && c.state == RunState::kReview && reason.empty())
       throw Conflict(who +
                      ": cross-check is PASS, so the run cannot go to review without a reason");
-    if (verdict == Verdict::kReview && c.state == RunState::kDone)
+    if (verdict == Verdict::kReview && c.state == RunState::kDone && !legacy_holds)
       throw Conflict(who + ": cross-check is REVIEW, so the run cannot be done");
-    const bool needs_reason = c.state == RunState::kFailed || c.state == RunState::kAborted ||
-                              c.state == RunState::kInterrupted ||
-                              (c.state == RunState::kReview && verdict != Verdict::kReview);
+    const bool needs_reason =
+        c.state == RunState::kFailed || c.state == RunState::kAborted ||
+        c.state == RunState::kInterrupted ||
+        (c.state == RunState::kReview && (verdict != Verdict::kReview || legacy_holds));
     if (needs_reason && reason.empty())
       throw InvalidInput(who + ": state " + to_string(c.state) + " needs a reason");
     if (c.state == RunState::kDone && !reasons.empty())
@@ -755,6 +771,7 @@ struct SqliteRepository::Impl {
     q.bind(1, run_id).bind(2, to_string(c.state)).bind(3, c.ended_at_ms).bind(4, reason);
     q.bind(5, c.archive_path).bind(6, c.archive_sha256).bind(7, c.capture_json);
     q.bind(8, c.diagnosis_json).bind(9, reasons_to_json(reasons));
+    q.bind(10, to_string(c.holding_method)).bind(11, c.holding_reason);
     q.run();
     tx.commit();
   }
@@ -971,6 +988,7 @@ std::vector<RunId> SqliteRepository::mark_interrupted_runs(TimestampMs now) {
     // Keep whatever capture summary was stored (none: runs get it at finish).
     q.bind_null(5).bind(6, std::string()).bind(7, std::string()).bind(8, std::string());
     q.bind(9, reasons_to_json({{default_reason_source(RunState::kInterrupted), reason}}));
+    q.bind_null(10).bind_null(11);  // no calibration judged: the holding method stays as stored
     q.run();
     ids.push_back(id);
   }
@@ -1057,15 +1075,7 @@ ActiveCalibration SqliteRepository::active_params(const std::string& serial) con
     }
   }
   out.all = d.calibrations_of(out.run.run_id);
-  bool found = false;
-  for (const auto& c : out.all)
-    if (c.method == Method::kAins) {
-      out.active = c;
-      found = true;
-    }
-  if (!found)
-    throw Corrupt(d.path + ": " + run_label(out.run.run_id) +
-                  " is active but has no ains calibration");
+  out.active = active_calibration(out, d.path);
   return out;
 }
 

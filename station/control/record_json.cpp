@@ -452,6 +452,8 @@ std::string render_show_text(const json& show) {
     row("slot",
         str(run, "slot") + (has(run, "table_run") ? " (table run " + str(run, "table_run") + ")"
                                                   : " (first unit of its table run)"));
+  if (!str(run, "holding_reason").empty())
+    row("holds", str(run, "holding_method") + ": " + str(run, "holding_reason"));
   if (has(run, "promoted_at"))
     row("promoted", str(run, "promoted_at") + " by " + str(run, "promoted_by") + ": " +
                         str(run, "promote_reason"));

@@ -33,7 +33,8 @@ nlohmann::json run_record_json(const db::history::RunRecord& run);
 nlohmann::json history_result(const std::string& serial,
                               const std::vector<db::history::RunRecord>& runs, std::size_t total);
 nlohmann::json show_result(const db::history::RunDetails& details);
-/// Exactly the parameter-set JSON of the active (AINS) set with "sigma".
+/// Exactly the parameter-set JSON of the active set (its run's holding method's: AINS but where
+/// legacy holds a land run) with "sigma".
 nlohmann::json params_result(const db::history::ActiveCalibration& active);
 /// format "csv", "json" or "ndjson" (db::history::InvalidInput otherwise); the whole export in
 /// "content".

@@ -26,9 +26,19 @@ db::history::RunReason limits_reason(const calib::checks::LimitCheckResult& limi
   return {"limits", "limits: " + s};
 }
 
-/// Why a pipeline result is not PASS (none when it is): cross-check failures, then limits.
+/// Why a pipeline result is not PASS (none when it is): cross-check failures, then limits — or,
+/// where the legacy fit holds the rests and AINS does not, its own limits alone (the pipeline's
+/// PipelineResult::pass(), calib/pipeline/holding_method.hpp).
 std::vector<db::history::RunReason> review_reasons(const calib::pipeline::PipelineResult& r) {
   std::vector<db::history::RunReason> reasons;
+  if (r.rests_on_legacy()) {
+    calib::checks::LimitCheckResult legacy;
+    for (const auto& f : r.limits.failures)
+      if (f.method == calib::pipeline::method_name(calib::pipeline::Method::kLegacy))
+        legacy.failures.push_back(f);
+    if (!legacy.failures.empty()) reasons.push_back(limits_reason(legacy));
+    return reasons;
+  }
   if (r.crosscheck && !r.crosscheck->pass)
     reasons.push_back(
         db::history::crosscheck_reason(db::history::crosscheck_record(*r.crosscheck, 0.0)));
@@ -76,7 +86,8 @@ void store_factory_result(const calib::pipeline::PipelineResult& r,
 }
 
 /// Land: AINS + legacy and their cross-check (no metrics: no attitude reference; no gap check:
-/// it models a table run). Sea: AINS alone, which no second method can check — review, for QA to
+/// it models a table run), and which of the two holds the rests: the run's active set should QA
+/// promote it. Sea: AINS alone, which no second method can check — review, for QA to
 /// promote explicitly.
 void store_field_result(const calib::pipeline::PipelineResult& r, calib::core::Setting setting,
                         double k_sigma, db::history::RunCompletion& completion) {
@@ -97,6 +108,11 @@ void store_field_result(const calib::pipeline::PipelineResult& r, calib::core::S
   }
   completion.calibrations.push_back(db::history::calibration_record(r.legacy->result, nullptr));
   completion.crosscheck = db::history::crosscheck_record(*r.crosscheck, k_sigma);
+  if (r.holding) {
+    completion.holding_method =
+        r.rests_on_legacy() ? db::history::Method::kLegacy : db::history::Method::kAins;
+    completion.holding_reason = r.holding->reason;
+  }
   completion.reasons = review_reasons(r);
   completion.state =
       completion.reasons.empty() ? db::history::RunState::kDone : db::history::RunState::kReview;

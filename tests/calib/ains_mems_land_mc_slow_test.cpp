@@ -20,7 +20,6 @@
 
 #include "calib/core/body_frame.hpp"
 #include "calib/pipeline/calibration_pipeline.hpp"
-#include "sequences/library.hpp"
 #include "tests/support/ci_count.hpp"
 #include "tests/support/mems_runs.hpp"
 
@@ -100,22 +99,11 @@ CalibrationResult ains_as_calibrate_does(const CalibrationInput& in) {
   return p.ains->result;
 }
 
-/// `imucal simulate --setting land --grade mems --sequence factory-std --seed SEED`.
-FieldSimResult factory_std_by_hand(uint64_t seed) {
-  FieldSimOptions o;
-  o.setting = Setting::kLand;
-  o.seed = seed;
-  o.rate_hz = 100.0;
-  UnitModel unit = draw_unit(Grade::kMems, seed);
-  unit.params.table_misalignment_rad.setZero();  // no table
-  return simulate_field(sequences::load_profile("factory-std"), demo_factory_site(), unit, o);
-}
-
 TEST(AinsMemsLand, FactoryStdByHandSigmaIsHonest) {
   const int runs = test_support::test_count("IMUCAL_MC_RUNS", 10, 40);
   Normalised n;
   for (uint64_t seed = 11; seed < 11 + static_cast<uint64_t>(runs); ++seed) {
-    const FieldSimResult sim = factory_std_by_hand(seed);
+    const FieldSimResult sim = testing::factory_std_by_hand(seed);
     n.add(ains_as_calibrate_does(testing::mems_input(sim)), sim.truth);
   }
   n.expect_honest("land AINS, MEMS, factory-std by hand");

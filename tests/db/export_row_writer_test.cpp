@@ -69,6 +69,8 @@ ExportRow full_row() {
   r.promoted_at_ms = 1764118000000;
   r.promoted_by = "qa-lead";
   r.promote_reason = "reviewed, 🙂";
+  r.holding_method = Method::kLegacy;
+  r.holding_reason = "AINS leaves 0.20 mg (1.8×, limit 1.5×): \"legacy\"\t";
   CalibrationRecord c;
   c.method = Method::kNlsq;
   c.params = params_from(1.2345678901234567e-4);

@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
+#include <nlohmann/json.hpp>
+
+#include "db/history/export.hpp"
 #include "db/history/schema.hpp"
 #include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
@@ -69,7 +72,8 @@ TEST(FieldRuns, DoneNeedsTheSettingsSecondMethodAndASeaRunIsNeverDone) {
       [&] { repo.finish_run(land, test::pass_completion(2, kT0FieldRuns + 1)); });
   EXPECT_NE(m1.find("legacy calibration"), std::string::npos) << m1;
   // A sea run has AINS alone: done is refused, review with the reason is fine.
-  const RunId sea = repo.create_run(field_run("FOG-2", kT0FieldRuns + 10, calib::core::Setting::kSea));
+  const RunId sea =
+      repo.create_run(field_run("FOG-2", kT0FieldRuns + 10, calib::core::Setting::kSea));
   RunCompletion done = sea_alone(3, kT0FieldRuns + 20);
   done.state = RunState::kDone;
   const std::string m2 = expect_throw_message<Conflict>([&] { repo.finish_run(sea, done); });
@@ -84,11 +88,13 @@ TEST(FieldRuns, ActiveStaysTheFactoryPassUntilQaPromotesAFieldRun) {
   const RunId fac1 = repo.create_run(test::new_run("FOG-3", kT0FieldRuns));
   repo.finish_run(fac1, test::pass_completion(10, kT0FieldRuns + 1000));
   // A later land PASS does not replace it on its own.
-  const RunId land = repo.create_run(field_run("FOG-3", kT0FieldRuns + 2000, calib::core::Setting::kLand));
+  const RunId land =
+      repo.create_run(field_run("FOG-3", kT0FieldRuns + 2000, calib::core::Setting::kLand));
   repo.finish_run(land, land_pass(11, kT0FieldRuns + 3000));
   EXPECT_EQ(repo.active_params("FOG-3").run.run_id, fac1);
   // QA promotes it: recorded with who, when, why; it becomes active.
-  repo.promote(land, "qa.jensen", "field recalibration after shipping damage check", kT0FieldRuns + 4000);
+  repo.promote(land, "qa.jensen", "field recalibration after shipping damage check",
+               kT0FieldRuns + 4000);
   const ActiveCalibration a = repo.active_params("FOG-3");
   EXPECT_EQ(a.run.run_id, land);
   EXPECT_EQ(a.run.promoted_by, "qa.jensen");
@@ -102,10 +108,98 @@ TEST(FieldRuns, ActiveStaysTheFactoryPassUntilQaPromotesAFieldRun) {
   repo.finish_run(fac2, test::pass_completion(12, kT0FieldRuns + 6000));
   EXPECT_EQ(repo.active_params("FOG-3").run.run_id, fac2);
   // A sea run reviewed only for having AINS alone may be promoted; then it is active.
-  const RunId sea = repo.create_run(field_run("FOG-3", kT0FieldRuns + 7000, calib::core::Setting::kSea));
+  const RunId sea =
+      repo.create_run(field_run("FOG-3", kT0FieldRuns + 7000, calib::core::Setting::kSea));
   repo.finish_run(sea, sea_alone(13, kT0FieldRuns + 8000));
   repo.promote(sea, "qa.jensen", "vessel unit, no table within reach", kT0FieldRuns + 9000);
   EXPECT_EQ(repo.active_params("FOG-3").run.run_id, sea);
+}
+
+/// A land run below navigation grade on which AINS cannot hold the rests (issue #48 item 7): AINS
+/// and legacy stored, their cross-check REVIEW (AINS's disagreement), legacy holding, done.
+RunCompletion land_held_by_legacy(long seed, TimestampMs end) {
+  RunCompletion c = land_pass(seed, end);
+  c.crosscheck = CrosscheckRecord{
+      Verdict::kReview, 4.0, {{"accel_bias_mps2[2]", "accel_bias_mps2[2]: too far apart"}}, {}};
+  c.holding_method = Method::kLegacy;
+  c.holding_reason =
+      "AINS leaves 0.20 mg over the 40 rests against legacy's 0.11 mg (1.8×, "
+      "limit 1.5×): the verdict and the active set rest on legacy";
+  return c;
+}
+
+TEST(FieldRuns, WhereLegacyHoldsARunItsSetIsTheActiveOneAndReadsBack) {
+  TempDir dir;
+  const std::string path = dir.file("h.db");
+  const RunCompletion held = land_held_by_legacy(31, kT0FieldRuns + 1000);
+  RunId land = 0;
+  {
+    SqliteRepository repo(path);
+    land = repo.create_run(field_run("MEMS-1", kT0FieldRuns, calib::core::Setting::kLand));
+    repo.finish_run(land, held);
+    repo.promote(land, "qa.jensen", "hand-placed field calibration", kT0FieldRuns + 2000);
+  }
+  SqliteOptions ro;
+  ro.read_only = true;
+  const SqliteRepository repo(path, ro);  // read back through a new connection
+  const RunDetails d = repo.show(land);
+  EXPECT_EQ(d.run.state, RunState::kDone);
+  EXPECT_EQ(d.run.verdict, RunVerdict::kPass);
+  EXPECT_EQ(d.run.crosscheck_verdict, Verdict::kReview);
+  EXPECT_EQ(d.run.holding_method, Method::kLegacy);
+  EXPECT_EQ(d.run.holding_reason, held.holding_reason);
+  const ActiveCalibration a = repo.active_params("MEMS-1");
+  EXPECT_EQ(a.run.run_id, land);
+  EXPECT_EQ(a.active.method, Method::kLegacy);
+  EXPECT_EQ(a.active.params.to_vector(),
+            test::seeded_calibration(31, Method::kLegacy, false).params.to_vector());
+  EXPECT_EQ(a.all.size(), 2u);
+  const nlohmann::json params = active_params_json(a);
+  EXPECT_EQ(params.at("source").at("method"), "legacy");
+  EXPECT_EQ(params.at("source").at("holding_reason"), held.holding_reason);
+  EXPECT_EQ(run_json(d.run).at("holding_method"), "legacy");
+  EXPECT_EQ(repo.integrity_check(), "ok");
+}
+
+TEST(FieldRuns, OnlyALandRunWithItsLegacySetCanRestOnLegacy) {
+  TempDir dir;
+  SqliteRepository repo(dir.file("h.db"));
+  // A factory run cannot: its pair is AINS + NLSQ.
+  const RunId fac = repo.create_run(test::new_run("MEMS-2", kT0FieldRuns));
+  RunCompletion f = test::pass_completion(40, kT0FieldRuns + 1);
+  f.holding_method = Method::kLegacy;
+  EXPECT_NE(expect_throw_message<Conflict>([&] {
+              repo.finish_run(fac, f);
+            }).find("legacy can hold only a land run"),
+            std::string::npos);
+  // A land run without its legacy set cannot.
+  const RunId land =
+      repo.create_run(field_run("MEMS-2", kT0FieldRuns + 10, calib::core::Setting::kLand));
+  RunCompletion no_legacy = land_held_by_legacy(41, kT0FieldRuns + 20);
+  no_legacy.calibrations.pop_back();
+  no_legacy.state = RunState::kReview;
+  no_legacy.reason = "limits: legacy missing";
+  EXPECT_THROW(repo.finish_run(land, no_legacy), Conflict);
+  // Where AINS holds, a REVIEW cross-check still cannot end done, as before.
+  RunCompletion ains_holds = land_held_by_legacy(42, kT0FieldRuns + 20);
+  ains_holds.holding_method = Method::kAins;
+  EXPECT_NE(expect_throw_message<Conflict>([&] {
+              repo.finish_run(land, ains_holds);
+            }).find("a PASS cross-check (it is REVIEW)"),
+            std::string::npos);
+  // Nothing was stored by the refusals; the run can still end, on legacy.
+  EXPECT_EQ(repo.show(land).run.state, RunState::kPreparing);
+  repo.finish_run(land, land_held_by_legacy(43, kT0FieldRuns + 30));
+  EXPECT_EQ(repo.show(land).run.holding_method, Method::kLegacy);
+  // On legacy, review needs a reason of its own (its limits): the cross-check's is not one.
+  const RunId land2 =
+      repo.create_run(field_run("MEMS-2", kT0FieldRuns + 40, calib::core::Setting::kLand));
+  RunCompletion review = land_held_by_legacy(44, kT0FieldRuns + 50);
+  review.state = RunState::kReview;
+  EXPECT_THROW(repo.finish_run(land2, review), InvalidInput);
+  review.reasons = {{"limits", "limits: legacy: gyro_M[0][0] outside its envelope"}};
+  repo.finish_run(land2, review);
+  EXPECT_EQ(repo.show(land2).run.reasons.size(), 1u);
 }
 
 TEST(FieldRuns, PromotionIsRefusedWhereItMakesNoSense) {
@@ -117,7 +211,8 @@ TEST(FieldRuns, PromotionIsRefusedWhereItMakesNoSense) {
               repo.promote(fac, "qa", "x", kT0FieldRuns + 2);
             }).find("factory run"),
             std::string::npos);
-  const RunId live = repo.create_run(field_run("FOG-4", kT0FieldRuns + 10, calib::core::Setting::kLand));
+  const RunId live =
+      repo.create_run(field_run("FOG-4", kT0FieldRuns + 10, calib::core::Setting::kLand));
   EXPECT_NE(expect_throw_message<Conflict>([&] {
               repo.promote(live, "qa", "x", kT0FieldRuns + 20);
             }).find("still preparing"),
@@ -194,8 +289,8 @@ TEST(FieldRuns, AnImportedFactoryRunIsActiveOnlyWhenPromotedAndIsFoundByItsArchi
   repo.finish_run(imported, c);
   EXPECT_EQ(repo.active_params("NAV-1").run.run_id, station)
       << "a later imported PASS is not active";
-  const std::string msg =
-      expect_throw_message<Conflict>([&] { repo.promote(station, "qa", "why not", kT0FieldRuns + 7000); });
+  const std::string msg = expect_throw_message<Conflict>(
+      [&] { repo.promote(station, "qa", "why not", kT0FieldRuns + 7000); });
   EXPECT_NE(msg.find("factory run of this station"), std::string::npos) << msg;
   repo.promote(imported, "qa", "golden unit", kT0FieldRuns + 8000);
   EXPECT_EQ(repo.active_params("NAV-1").run.run_id, imported);

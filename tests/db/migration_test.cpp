@@ -375,6 +375,9 @@ TEST(Migration, VersionFourDatabaseFromThePreviousReleaseGainsTheRunVerdictAndRe
     EXPECT_EQ(d.run.state, e.state) << "run " << e.id;
     EXPECT_EQ(d.run.verdict, e.verdict) << "run " << e.id;
     EXPECT_EQ(d.run.crosscheck_verdict, e.crosscheck) << "run " << e.id;
+    // v9: every run stored before keeps AINS as the set it makes active, with no judgement.
+    EXPECT_EQ(d.run.holding_method, Method::kAins) << "run " << e.id;
+    EXPECT_EQ(d.run.holding_reason, "") << "run " << e.id;
     if (e.source) {
       ASSERT_EQ(d.run.reasons.size(), 1u) << "run " << e.id;
       EXPECT_EQ(d.run.reasons[0].source, e.source) << "run " << e.id;
@@ -393,6 +396,8 @@ TEST(Migration, VersionFourDatabaseFromThePreviousReleaseGainsTheRunVerdictAndRe
   EXPECT_EQ(*repo.show(9).run.promoted_at_ms, 1780000000000 + 8 * 3600000LL + 30 * 60000LL);
   EXPECT_EQ(repo.active_params("V4-A").run.run_id, 1) << "the later REVIEW runs never replace it";
   EXPECT_EQ(repo.active_params("V4-C").run.run_id, 9) << "QA's promotion stands";
+  EXPECT_EQ(repo.active_params("V4-A").active.method, Method::kAins);
+  EXPECT_EQ(repo.active_params("V4-C").active.method, Method::kAins);
   // Field results stored before v5 say what they could not observe, as new ones do.
   for (const RunId field : {8, 9}) {
     for (const CalibrationRecord& c : repo.show(field).calibrations) {

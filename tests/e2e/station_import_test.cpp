@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <string>
 
 #include "tests/e2e/station_harness.hpp"
@@ -91,6 +92,51 @@ TEST(StationImport, FieldRunsJoinTheHistoryWithTheirSettingAndBecomeActiveOnlyWh
   const CmdResult bad_prom =
       st.ctl({"promote", std::to_string(fr.value("run_id", -1LL)), "--reason", "x"});
   EXPECT_NE(bad_prom.exit_code, 0) << bad_prom.describe();
+}
+
+// Issue #48 item 7, through the real station: IMU-TK's Xsens recording (tests/data/imu_tk_xsens,
+// a real MEMS unit turned by hand) imported as `imucal import` reads it, then `stationctl import`.
+// On it land AINS cannot hold the rests as the legacy fit does: the run is done on the legacy fit's
+// own limits, `show` says which method holds and why, and once QA promotes it the unit's active
+// set is the legacy result — the same parameters `imucal calibrate --method legacy` gives.
+TEST(StationImport, AMemsLandRunOnWhichAinsCannotHoldTheRestsIsActiveOnLegacy) {
+  Station st;
+  ASSERT_TRUE(st.start());
+  const std::string data = std::string(IMUCAL_SOURCE_DIR) + "/tests/data/imu_tk_xsens/";
+  for (const char* f : {"xsens_gyro.mat", "xsens_acc.mat"})
+    ASSERT_EQ(std::system(("xz -dc '" + data + f + ".xz' > '" + (st.dir() / f) + "'").c_str()), 0);
+  const std::string land = st.dir() / "xsens";
+  const CmdResult imp0 =
+      imucal(st, {"import", "--config", data + "import.toml", "--gyro", st.dir() / "xsens_gyro.mat",
+                  "--accel", st.dir() / "xsens_acc.mat", "--out", land});
+  ASSERT_EQ(imp0.exit_code, 0) << imp0.describe();
+  const CmdResult legacy = imucal(st, {"calibrate", land, "--method", "legacy", "--json"});
+  ASSERT_EQ(legacy.exit_code, 0) << legacy.describe();
+  const json legacy_params = legacy.json_out().at("legacy").at("params");
+
+  const CmdResult imp = st.ctl({"import", land, "--wait"}, 120s);
+  EXPECT_EQ(imp.exit_code, 0) << imp.describe() << "\n" << st.daemon_log();
+  const json runs = st.ctl({"history", "XSENS-IMUTK", "--json"}).json_out()["runs"];
+  ASSERT_EQ(runs.size(), 1u) << runs.dump(2);
+  const long long id = runs[0].value("run_id", -1LL);
+  EXPECT_EQ(runs[0].value("verdict", ""), "PASS") << runs[0].dump(2);
+  const json show = st.ctl({"show", std::to_string(id), "--json"}).json_out();
+  const json& run = show.at("run");
+  EXPECT_EQ(run.value("holding_method", ""), "legacy") << run.dump(2);
+  const std::string why = run.value("holding_reason", "");
+  EXPECT_NE(why.find("AINS leaves"), std::string::npos) << why;
+  EXPECT_NE(why.find("rest on legacy"), std::string::npos) << why;
+  const CmdResult text = st.ctl({"show", std::to_string(id)});
+  EXPECT_NE(text.out.find("holds        legacy: AINS leaves"), std::string::npos) << text.out;
+
+  ASSERT_EQ(
+      st.ctl({"promote", std::to_string(id), "--reason", "hand-placed MEMS calibration"}).exit_code,
+      0);
+  const json params = st.ctl({"params", "XSENS-IMUTK", "--json"}).json_out();
+  EXPECT_EQ(params.at("source").value("method", ""), "legacy") << params.dump(2);
+  EXPECT_EQ(params.at("source").value("holding_reason", ""), why);
+  for (const char* key : {"accel_bias_mps2", "accel_M", "gyro_bias_radps", "gyro_M"})
+    EXPECT_EQ(params.at(key), legacy_params.at(key)) << key;
 }
 
 /// Sets run.toml's start_time and end_time of an archive directory.

@@ -132,6 +132,42 @@ TEST(FleetStore, RunsReadBackFieldByFieldAndResendsChangeNothing) {
   EXPECT_EQ(stations[0].second, runs1.size());
 }
 
+// Issue #48 item 7: a land run whose rests the legacy fit holds and AINS does not reaches the
+// fleet store with its holding method and why, and the fleet's active set of the unit is that
+// run's legacy set, as the station's is.
+TEST(FleetStore, ALandRunThatRestsOnLegacyIsActiveOnLegacyInTheFleetToo) {
+  PgCluster pg;
+  test::TempDir dir;
+  SqliteRepository station(dir.file("s.db"));
+  NewRun n = test::new_run("SN-L", kT0);
+  n.setting = calib::core::Setting::kLand;
+  const RunId land = station.create_run(n);
+  RunCompletion c = test::pass_completion(7, kT0 + 100);
+  c.calibrations = {test::seeded_calibration(7, Method::kAins, false),
+                    test::seeded_calibration(7, Method::kLegacy, false)};
+  c.crosscheck = CrosscheckRecord{Verdict::kReview, 4.0, {{"accel_bias_mps2[2]", "apart"}}, {}};
+  c.holding_method = Method::kLegacy;
+  c.holding_reason = "AINS leaves 0.20 mg over the 40 rests against legacy's 0.11 mg";
+  station.finish_run(land, c);
+  station.promote(land, "qa", "field calibration", kT0 + 200);
+  ASSERT_EQ(station.active_params("SN-L").active.method, Method::kLegacy);
+
+  PgConnection w(writer(pg));
+  migrate_fleet(w);
+  const auto runs = all_runs(station);
+  EXPECT_EQ(upsert_runs(w, "ST-L", runs).written, 1u);
+  FleetRepository fleet(reader(pg));
+  const ActiveCalibration a = fleet.active_params("SN-L");
+  EXPECT_EQ(a.run.holding_method, Method::kLegacy);
+  EXPECT_EQ(a.run.holding_reason, c.holding_reason);
+  EXPECT_EQ(a.active.method, Method::kLegacy);
+  EXPECT_EQ(a.active.params.to_vector(),
+            test::seeded_calibration(7, Method::kLegacy, false).params.to_vector());
+  const RunDetails stored = fleet.show(a.run.run_id);
+  EXPECT_EQ(test_support::comparable_run(stored, uuids({stored})),
+            test_support::comparable_run(runs.front(), uuids(runs)));
+}
+
 TEST(FleetStore, AnOlderRevisionNeverReplacesANewerOne) {
   PgCluster pg;
   test::TempDir dir;

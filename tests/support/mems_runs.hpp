@@ -4,7 +4,7 @@
 // axis, gyro scales within ±24 %, misalignments within 50 mrad, accelerometer biases within
 // 200 mg, the grade's noise) by hand through 38 positions with rests of 3–11 s after a 50 s rest
 // (calib/sim/hand_placement.hpp), as the public recording of issue #21 was taken
-// (tests/data/imu_tk_xsens).
+// (tests/data/imu_tk_xsens); and the factory's standard sequence turned by hand.
 #include <utility>
 #include <vector>
 
@@ -15,6 +15,7 @@
 #include "calib/sim/field_sim.hpp"
 #include "calib/sim/hand_placement.hpp"
 #include "calib/sim/unit_draw.hpp"
+#include "sequences/library.hpp"
 
 namespace imucal::calib::testing {
 using namespace imucal::calib::core;
@@ -60,6 +61,18 @@ inline FieldSimResult simulate_mems(uint64_t seed, double cruise_deg = 0.0) {
   HandPlacementOptions hand;
   hand.cruise_deg = cruise_deg;
   return simulate_mems(seed, hand);
+}
+
+/// `imucal simulate --setting land --grade mems --sequence factory-std --seed SEED`: the factory's
+/// standard sequence turned by hand (90-120 s rests, 38 minutes), no table.
+inline FieldSimResult factory_std_by_hand(uint64_t seed) {
+  FieldSimOptions o;
+  o.setting = Setting::kLand;
+  o.seed = seed;
+  o.rate_hz = 100.0;
+  UnitModel unit = draw_unit(Grade::kMems, seed);
+  unit.params.table_misalignment_rad.setZero();  // no table
+  return simulate_field(sequences::load_profile("factory-std"), demo_factory_site(), unit, o);
 }
 
 }  // namespace imucal::calib::testing

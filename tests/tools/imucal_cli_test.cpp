@@ -94,7 +94,8 @@ std::string line_of(const std::string& text, int n) {
 }  // namespace
 
 TEST_F(ImucalCli, CalibrateJsonHasTheDocumentedShapeAndPasses) {
-  const ProcResult r = run_imucal_cli("calibrate " + (base_ / "sim").string() + " --method all --json");
+  const ProcResult r =
+      run_imucal_cli("calibrate " + (base_ / "sim").string() + " --method all --json");
   ASSERT_EQ(r.code, 0) << r.out;
   const auto j = nlohmann::json::parse(r.out);
   for (const char* m : {"ains", "nlsq"}) {
@@ -107,6 +108,7 @@ TEST_F(ImucalCli, CalibrateJsonHasTheDocumentedShapeAndPasses) {
   }
   EXPECT_EQ(j["crosscheck"]["verdict"], "PASS");
   EXPECT_TRUE(j["crosscheck"]["failures"].empty());
+  EXPECT_FALSE(j.contains("holding")) << "the factory: AINS and NLSQ, no method holds alone";
 }
 
 TEST_F(ImucalCli, HumanOutputCarriesUnitsAndVerdict) {
@@ -282,7 +284,7 @@ TEST_F(ImucalCli, EvaluateReproducesTheCalibrateMetricsAndRejectsBadParameterFil
   const fs::path params = base_ / "ains_params.json";
   spit(params, cj["params"].dump());
   const ProcResult e = run_imucal_cli("evaluate " + (base_ / "sim").string() + " --params " +
-                                  params.string() + " --json");
+                                      params.string() + " --json");
   ASSERT_EQ(e.code, 0) << e.out;
   const auto ej = nlohmann::json::parse(e.out);
   EXPECT_DOUBLE_EQ(ej["accel_rmse_ug"].get<double>(), cj["metrics"]["accel_rmse_ug"].get<double>());
@@ -426,12 +428,13 @@ TEST(ImucalInstalled, FindsTheSequencesUnderItsOwnPrefix) {
 // REVIEW at best: `imucal calibrate` exits 3 and says why, even when both methods agree.
 TEST_F(ImucalCli, PartialArchiveIsReviewAtBest) {
   const fs::path dir = variant("partial", "run.toml", [](std::string t) {
-    return t + "\n[capture]\ncomplete = false\nframes_received = 0\nframes_logged = 0\n"
-               "frames_foreign = 0\nframes_error = 0\nframes_malformed = 0\nframes_duplicate = 0\n"
-               "frames_out_of_order = 0\nframes_discarded = 0\nsamples_decoded = 0\n"
-               "samples_lost = 0\nsamples_corrupt = 0\nsamples_incomplete = 0\nsamples_late = 0\n"
-               "samples_filled = 0\nimu_resets = 0\nrx_overflow = 0\nrows_written = 0\n"
-               "rest_samples = 0\nmax_gap_samples = 0\n";
+    return t +
+           "\n[capture]\ncomplete = false\nframes_received = 0\nframes_logged = 0\n"
+           "frames_foreign = 0\nframes_error = 0\nframes_malformed = 0\nframes_duplicate = 0\n"
+           "frames_out_of_order = 0\nframes_discarded = 0\nsamples_decoded = 0\n"
+           "samples_lost = 0\nsamples_corrupt = 0\nsamples_incomplete = 0\nsamples_late = 0\n"
+           "samples_filled = 0\nimu_resets = 0\nrx_overflow = 0\nrows_written = 0\n"
+           "rest_samples = 0\nmax_gap_samples = 0\n";
   });
   const ProcResult r = run_imucal_cli("calibrate " + dir.string());
   EXPECT_EQ(r.code, 3) << r.out;

@@ -90,6 +90,8 @@ TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
   EXPECT_FALSE(j.contains("nlsq"));
   EXPECT_EQ(j["crosscheck"]["verdict"], "PASS");
   EXPECT_EQ(j["crosscheck"]["not_compared"].size(), 3u);
+  // Navigation grade: which method holds is not asked (issue #48 item 7 is MEMS and tactical).
+  EXPECT_FALSE(j.contains("holding")) << j["holding"].dump();
   bool housing = false;
   for (const auto& n : j["ains"]["unobservable_notes"])
     housing |=
@@ -98,6 +100,7 @@ TEST_F(FieldCli, LandCalibratesWithAinsAndLegacyAndSaysWhatIsNotObservable) {
   // The human report says it too, and NLSQ is refused on land with the reason.
   const ProcImucalFieldCli h = run_imucal_field_cli("calibrate " + (root() / "land").string());
   EXPECT_NE(h.out.find("not observable: housing orientation"), std::string::npos) << h.out;
+  EXPECT_EQ(h.out.find("holds:"), std::string::npos) << h.out;
   const ProcImucalFieldCli n =
       run_imucal_field_cli("calibrate " + (root() / "land").string() + " --method nlsq");
   EXPECT_EQ(n.code, 1);
@@ -194,6 +197,7 @@ TEST_F(FieldCli, SeaCalibratesWithAinsAlone) {
   EXPECT_TRUE(j["ains"]["converged"].get<bool>());
   EXPECT_FALSE(j.contains("legacy"));
   EXPECT_FALSE(j.contains("crosscheck"));
+  EXPECT_FALSE(j.contains("holding"));
   const ProcImucalFieldCli l =
       run_imucal_field_cli("calibrate " + (root() / "sea").string() + " --method legacy");
   EXPECT_EQ(l.code, 1);

@@ -42,8 +42,17 @@ bool method_passed(const nlohmann::json& j, const std::string& m) {
   return true;
 }
 
-/// The method to take from a calibrate --json object: --method's, else the one that passed (AINS
-/// first when several did: the station's active set, db/history/SCHEMA.md).
+/// The method that holds the run's rests when the calibration said so ("holding", a land run below
+/// navigation grade) and it passed: the verdict and the station's active set rest on it. "" else.
+std::string holding_method(const nlohmann::json& j) {
+  if (!j.contains("holding") || !j["holding"].is_object()) return "";
+  const std::string m = j["holding"].value("method", "");
+  return j.contains(m) && method_passed(j, m) ? m : "";
+}
+
+/// The method to take from a calibrate --json object: --method's, else the one that holds the
+/// rests, else the one that passed (AINS first when several did: the station's active set,
+/// db/history/SCHEMA.md).
 LoadedCalibration from_calibrate_json(const nlohmann::json& j, const std::string& path,
                                       const std::string& method) {
   std::string present;
@@ -56,6 +65,9 @@ LoadedCalibration from_calibrate_json(const nlohmann::json& j, const std::string
       throw std::invalid_argument(path + ": no '" + method + "' result (it holds " + present + ")");
     c.method = method;
     c.because = "chosen with --method";
+  } else if (const std::string holding = holding_method(j); !holding.empty()) {
+    c.method = holding;
+    c.because = "the method that holds the run's rests, the station's active set";
   } else {
     std::vector<std::string> passed;
     for (const char* m : kMethods)
@@ -219,7 +231,8 @@ CLI::App* add_check_command(CLI::App& app, CheckArgs& a) {
   c->add_option("dir", a.dir, "run archive directory (another recording of the unit)")->required();
   c->add_option("--method", a.method,
                 "ains|nlsq|legacy: the result to take from a calibrate --json file (default: the "
-                "one that passed its limits; AINS when several did)")
+                "one that holds the rests, else the one that passed its limits; AINS when several "
+                "did)")
       ->check(CLI::IsMember({"ains", "nlsq", "legacy"}));
   c->add_option("--grade", a.grade,
                 "navigation|tactical|mems: the unit's grade instead of run.toml's [prior] grade "
@@ -243,7 +256,8 @@ CLI::App* add_apply_command(CLI::App& app, CheckArgs& a) {
       ->required();
   c->add_option("--method", a.method,
                 "ains|nlsq|legacy: the result to take from a calibrate --json file (default: the "
-                "one that passed its limits; AINS when several did)")
+                "one that holds the rests, else the one that passed its limits; AINS when several "
+                "did)")
       ->check(CLI::IsMember({"ains", "nlsq", "legacy"}));
   c->add_flag("--json", a.json, "print one JSON object");
   return c;

@@ -77,6 +77,13 @@ nlohmann::json pipeline_to_json(const calib::pipeline::PipelineResult& r) {
   for (const auto& f : r.limits.failures)
     limit_failures.push_back({{"method", f.method}, {"term", f.term}, {"detail", f.detail}});
   j["limits"] = {{"pass", r.limits.pass}, {"failures", limit_failures}};
+  if (r.holding)
+    j["holding"] = {{"method", calib::pipeline::method_name(r.holding->method)},
+                    {"reason", r.holding->reason},
+                    {"rests", r.holding->rests},
+                    {"ains_rest_rms_mps2", r.holding->ains_rest_rms_mps2},
+                    {"legacy_rest_rms_mps2", r.holding->legacy_rest_rms_mps2},
+                    {"max_ratio", r.holding->max_ratio}};
   j["verdict"] = r.pass() ? "PASS" : "REVIEW";
   j["unchecked_reason"] =
       r.unchecked_reason.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.unchecked_reason);
@@ -171,7 +178,14 @@ void print_metrics_and_verdict(std::ostream& os, const calib::pipeline::Pipeline
   }
   os << "limits: " << (r.limits.pass ? "all hold" : "FAILED") << '\n';
   for (const auto& f : r.limits.failures) os << "  " << f.detail << '\n';
+  if (r.holding)
+    os << "holds: " << calib::pipeline::method_name(r.holding->method) << " — " << r.holding->reason
+       << '\n';
   os << "verdict: " << (r.pass() ? "PASS" : "REVIEW");
+  if (r.rests_on_legacy())
+    os << " — on legacy alone: its limits "
+       << (r.limits_hold_for(calib::pipeline::Method::kLegacy) ? "hold" : "fail")
+       << "; AINS's results and the cross-check are shown, not counted";
   if (!r.unchecked_reason.empty()) os << " — " << r.unchecked_reason << " (as in the station)";
   os << '\n';
 }

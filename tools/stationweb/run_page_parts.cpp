@@ -18,12 +18,6 @@ std::string row(const std::string& label, const std::string& value_html) {
   return "<tr><th>" + esc(label) + "</th><td>" + value_html + "</td></tr>\n";
 }
 
-std::string method_label(db::history::Method m) {
-  return m == db::history::Method::kAins   ? "AINS"
-         : m == db::history::Method::kNlsq ? "NLSQ"
-                                           : "legacy";
-}
-
 /// A JSON value for people: nested objects as nested tables, lists joined, numbers to 6 digits.
 std::string json_html(const json& v) {
   if (v.is_object()) {
@@ -51,6 +45,8 @@ std::string optional_rows(const db::history::RunRecord& r) {
     s +=
         row("slot", esc(r.slot) + (r.table_run_id ? " (table run " + run_link(*r.table_run_id) + ")"
                                                   : " (first unit of its table run)"));
+  if (!r.holding_reason.empty())
+    s += row("holds", esc(method_label(r.holding_method)) + ": " + esc(r.holding_reason));
   if (r.promoted_at_ms)
     s += row("promoted", short_time(*r.promoted_at_ms) + " UTC by " + esc(r.promoted_by) + ": " +
                              esc(r.promote_reason));
@@ -59,6 +55,12 @@ std::string optional_rows(const db::history::RunRecord& r) {
 }
 
 }  // namespace
+
+std::string method_label(db::history::Method m) {
+  return m == db::history::Method::kAins   ? "AINS"
+         : m == db::history::Method::kNlsq ? "NLSQ"
+                                           : "legacy";
+}
 
 std::string facts_table(const db::history::RunRecord& r) {
   std::string s = "<table id='run-facts'>\n";

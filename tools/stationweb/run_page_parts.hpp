@@ -9,8 +9,10 @@
 
 namespace imucal::tools::stationweb {
 
-/// <table id='run-facts'>: sequence, setting, origin, slot, promotion, operator, station,
-/// software, times, reprocessing; and <p id='archive' data-path data-sha256>.
+/// "AINS", "NLSQ", "legacy": a method as people read it.
+std::string method_label(db::history::Method m);
+/// <table id='run-facts'>: sequence, setting, origin, slot, the method that holds, promotion,
+/// operator, station, software, times, reprocessing; and <p id='archive' data-path data-sha256>.
 std::string facts_table(const db::history::RunRecord& run);
 /// <table id='capture'> of run_json's "capture" object (nothing if the run stored none).
 std::string capture_section(const nlohmann::json& run);

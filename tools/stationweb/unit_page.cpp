@@ -4,6 +4,7 @@
 
 #include "tools/stationweb/html.hpp"
 #include "tools/stationweb/pages.hpp"
+#include "tools/stationweb/run_page_parts.hpp"
 #include "tools/stationweb/run_table.hpp"
 #include "tools/stationweb/trend_svg.hpp"
 
@@ -55,10 +56,10 @@ std::string active_line(const std::optional<db::history::ActiveCalibration>& act
            "factory run (and no promoted field run).</p>\n";
   const db::history::RunRecord& r = active->run;
   return "<p id='active-set' data-run-id='" + std::to_string(r.run_id) +
-         "'>Active parameter set: the AINS set of run " + run_link(r.run_id) + " (" +
-         esc(calib::core::setting_name(r.setting)) + ", started " + short_time(r.started_at_ms) +
-         " UTC, station " + esc(r.station) + (r.promoted_at_ms ? ", promoted by QA" : "") +
-         ").</p>\n";
+         "'>Active parameter set: the " + esc(method_label(active->active.method)) +
+         " set of run " + run_link(r.run_id) + " (" + esc(calib::core::setting_name(r.setting)) +
+         ", started " + short_time(r.started_at_ms) + " UTC, station " + esc(r.station) +
+         (r.promoted_at_ms ? ", promoted by QA" : "") + ").</p>\n";
 }
 
 }  // namespace
