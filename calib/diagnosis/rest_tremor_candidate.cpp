@@ -312,11 +312,12 @@ CandidateResult score_rest_tremor(const CalibrationInput& in, const std::vector<
     r.params.push_back(
         {pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human, sig[j] * pi.si_to_human});
   }
-  char note[256];
+  char note[320];
   std::snprintf(note, sizeof note,
                 "the accelerometers follow the gyro-integrated tilt with slope %.3g +- %.2g (0 "
                 "under sensor noise, 1 under motion) over %.0f blocks of 0.2 s in %zu windows; "
-                "the pivot is not estimated",
+                "sizes are the gyros' beyond the declared noise (a noise declared too low reads "
+                "as rate); the pivot is not estimated",
                 s.beta, std::isfinite(s.sigma) ? s.sigma : 0.0, all.blocks, windows.size());
   r.note = note;
   return r;

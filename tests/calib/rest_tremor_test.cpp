@@ -285,3 +285,37 @@ TEST(RestTremor, BenchRunsDoNotNameIt) {
     EXPECT_FALSE(named(d, "rest_tremor")) << seed;
   }
 }
+
+// A run held by hand (0.3 °/s, 0.03°) in its first 19 positions and set down for the other 19, its
+// sensors behind an output filter (a = 0.3 both): the hand is named, and the filter — whose lag-1
+// statistic the hand's rests would raise as a filter does — is judged on the still rests alone and
+// named with its coefficients within 3σ. (The run is spliced from two simulations of the same
+// timeline and noise, with and without the hand: the hand fades out before each rest's end.)
+TEST(RestTremor, TheOutputFilterIsJudgedOnTheRestsTheHandLeavesStill) {
+  const uint64_t seed = 35;
+  UnitModel unit = draw_unit(Grade::kMems, seed);
+  unit.effects.output_filter_gyro = 0.3;
+  unit.effects.output_filter_accel = 0.3;
+  FieldSimOptions o;
+  o.setting = Setting::kLand;
+  o.seed = seed;
+  const sequences::MotionProfile p = hand_placed_profile(seed);
+  const FieldSimResult bench = simulate_field(p, demo_factory_site(), unit, o);
+  unit.effects.tremor_rate_rms_radps = 0.3 * kDegToRad;
+  unit.effects.tremor_tilt_rms_rad = 0.03 * kDegToRad;
+  const FieldSimResult held = simulate_field(p, demo_factory_site(), unit, o);
+  FieldSimResult mixed = bench;
+  const double t_split = held.rest_spans[held.rest_spans.size() / 2].first;
+  for (size_t k = 0; k < mixed.imu.size() && mixed.imu[k].t_s <= t_split; ++k)
+    mixed.imu[k] = held.imu[k];
+  DiagnosisInput in;
+  in.cal = input_from_field_data(Setting::kLand, mixed.imu, {}, demo_factory_site(), unit.noise,
+                                 Grade::kMems);
+  const DiagnosisResult d = diagnose(in, legacy::calibrate_legacy(in.cal).params);
+  print_tremor("half held, filtered", d);
+  EXPECT_TRUE(named(d, "rest_tremor")) << d.summary;
+  const CandidateResult& f = candidate(d, "output_filter");
+  std::printf("output_filter: %s\n", f.note.c_str());
+  EXPECT_NE(f.note.find("rests whose gyros show no motion"), std::string::npos) << f.note;
+  test_support::expect_per_sample_finding(d, "output_filter", 0.3, 0.3, 3.0, "half held");
+}
