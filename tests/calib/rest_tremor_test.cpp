@@ -26,6 +26,7 @@
 #include "calib/sim/truth_stream.hpp"
 #include "calib/sim/unit_draw.hpp"
 #include "sequences/library.hpp"
+#include "tests/support/ci_count.hpp"
 #include "tests/support/diagnosis_finding.hpp"
 
 using namespace imucal;
@@ -256,7 +257,9 @@ TEST(RestTremor, TableSimulatorTurnsGyrosAndAccelerometersTogether) {
 }
 
 // Hand-held MEMS runs (38 positions by hand, calib/sim/hand_placement.hpp) whose rests are held by
-// a hand of the corpus' size and larger (0.2-1 °/s, 0.02-0.1°): the diagnosis names rest_tremor
+// a hand of the corpus' size and larger (0.2-1 °/s, 0.02-0.1°). CI count: the two extremes (0.2 and
+// 1 °/s, ~22 s each); whole count (IMUCAL_WHOLE_COUNTS=1 or IMUCAL_TREMOR_RUNS=4): all four. The
+// diagnosis names rest_tremor
 // with its RMS rate and its sway's RMS angle each within 2σ of the truth; its held-out gap (the
 // slope on held-out rests) shrinks by more than the documented fraction; and the output filter,
 // whose lag-1 statistic a trembling hand raises as a filter would, is not named: every rest moves,
@@ -265,8 +268,10 @@ TEST(RestTremor, DiagnosisNamesAHandHoldingTheUnitInItsRests) {
   const struct {
     double rate_dps, tilt_deg;
     uint64_t seed;
-  } runs[] = {{0.3, 0.03, 31}, {0.5, 0.05, 32}, {1.0, 0.1, 33}, {0.2, 0.02, 34}};
-  for (const auto& run : runs) {
+  } runs[] = {{1.0, 0.1, 33}, {0.2, 0.02, 34}, {0.3, 0.03, 31}, {0.5, 0.05, 32}};
+  const int count = test_support::test_count("IMUCAL_TREMOR_RUNS", 2, 4);
+  for (int i = 0; i < count && i < 4; ++i) {
+    const auto& run = runs[i];
     const DiagnosisResult d = diagnose_hand_run(tremor(run.rate_dps, run.tilt_deg), run.seed);
     print_tremor("hand seed " + std::to_string(run.seed), d);
     test_support::expect_per_sample_finding(d, "rest_tremor", run.rate_dps, run.tilt_deg, 2.0,
@@ -276,9 +281,12 @@ TEST(RestTremor, DiagnosisNamesAHandHoldingTheUnitInItsRests) {
 }
 
 // The same runs on the bench (no hand): rest_tremor is never named (its one-sided test at the
-// diagnosis' Bonferroni level, 10⁻³ / 15 per candidate).
+// diagnosis' Bonferroni level, 10⁻³ / 15 per candidate). CI count 4 seeds, whole count 10
+// (IMUCAL_TREMOR_BENCH_SEEDS overrides): at a per-run false-alarm rate of 10⁻³/15 the chance of one
+// in 10 is 7·10⁻⁴, so "none" is the bound at either count.
 TEST(RestTremor, BenchRunsDoNotNameIt) {
-  for (uint64_t seed = 41; seed <= 50; ++seed) {
+  const int count = test_support::test_count("IMUCAL_TREMOR_BENCH_SEEDS", 4, 10);
+  for (uint64_t seed = 41; seed < 41 + static_cast<uint64_t>(count); ++seed) {
     const DiagnosisResult d = diagnose_hand_run(Effects{}, seed);
     print_tremor("bench seed " + std::to_string(seed), d);
     EXPECT_FALSE(candidate(d, "rest_tremor").significant) << seed;
