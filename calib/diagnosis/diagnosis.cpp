@@ -14,6 +14,7 @@
 #include "calib/diagnosis/effect_magnitude.hpp"
 #include "calib/diagnosis/gap_fit.hpp"
 #include "calib/diagnosis/gap_linearisation.hpp"
+#include "calib/diagnosis/rest_tremor_candidate.hpp"
 #include "calib/diagnosis/simulated_twin.hpp"
 #include "calib/diagnosis/stochastic_candidates.hpp"
 
@@ -316,11 +317,59 @@ Scored not_applicable(const EffectInfo& e, const std::string& note) {
   return s;
 }
 
+/// Where the per-sample candidates are judged. The hand's tremor on every rest. The lag-1 ones
+/// (quantisation, the output filter) assume a still unit: on every rest too, unless the tremor is
+/// significant — then a hand's motion correlates the samples as a low-pass filter would (the
+/// corpus' hand-held rests: gyro lag-1 0.5-0.9, the same unit on the bench 0.0), and they are
+/// judged on the rests as quiet as the quietest (still_rests), if the tremor's test finds no
+/// motion there either; else on none.
+struct PerSampleRests {
+  std::optional<CandidateResult> tremor;
+  std::vector<RestPeriod> lag1;
+  std::string lag1_note;  ///< why lag1 holds fewer than the run's rests; "" when it holds all
+};
+
+PerSampleRests per_sample_rests(const Problem& p, const std::vector<EffectId>& ids,
+                                const DiagnosisOptions& opt) {
+  PerSampleRests ps;
+  ps.lag1 = p.model.rests();
+  if (std::find(ids.begin(), ids.end(), EffectId::kRestTremor) == ids.end() ||
+      !p.model.not_applicable(EffectId::kRestTremor).empty())
+    return ps;
+  ps.tremor = score_rest_tremor(p.model.input(), p.model.rests(), p.lin.base(), opt.folds);
+  const double level = opt.alpha / static_cast<double>(ids.size());
+  if (!(ps.tremor->p_value < level)) return ps;
+  ps.lag1 = still_rests(p.model.input(), p.model.rests());
+  if (score_rest_tremor(p.model.input(), ps.lag1, p.lin.base(), opt.folds).p_value < level)
+    ps.lag1.clear();  // the quietest rests move too: no rest is still
+  ps.lag1_note = "judged on the " + std::to_string(ps.lag1.size()) + " of " +
+                 std::to_string(p.model.rests().size()) +
+                 " rests whose gyros show no motion (rest_tremor: a hand's motion correlates the "
+                 "samples)";
+  return ps;
+}
+
+/// Quantisation or the output filter on the rests per_sample_rests chose.
+Scored score_lag1(EffectId id, const Problem& p, const PerSampleRests& ps,
+                  const DiagnosisOptions& opt) {
+  if (ps.lag1.size() < 2)
+    return not_applicable(effect_info(id),
+                          "not assessed: the rests move (rest_tremor), and a moving unit's samples "
+                          "are correlated by the hand, not by the sensor");
+  Scored s;
+  s.result = id == EffectId::kQuantisation
+                 ? score_quantisation(p.model.input(), ps.lag1, opt.folds)
+                 : score_output_filter(p.model.input(), ps.lag1, opt.folds);
+  if (!ps.lag1_note.empty()) s.result.note += "; " + ps.lag1_note;
+  return s;
+}
+
 /// All candidates scored (thermal drift: the best τ of the grid), unranked.
 std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOptions& opt) {
   std::vector<EffectId> ids = opt.candidates;
   if (ids.empty())
     for (const auto& e : effect_catalogue()) ids.push_back(e.id);
+  const PerSampleRests per_sample = per_sample_rests(p, ids, opt);
   std::vector<Scored> out;
   for (EffectId id : ids) {
     const EffectInfo& e = effect_info(id);
@@ -328,15 +377,13 @@ std::vector<Scored> score_all(const Problem& p, double chi2_0, const DiagnosisOp
       out.push_back(not_applicable(e, why));
       continue;
     }
-    if (id == EffectId::kQuantisation) {
-      Scored s;
-      s.result = score_quantisation(p.model.input(), p.model.rests(), opt.folds);
-      out.push_back(std::move(s));
+    if (id == EffectId::kQuantisation || id == EffectId::kOutputFilter) {
+      out.push_back(score_lag1(id, p, per_sample, opt));
       continue;
     }
-    if (id == EffectId::kOutputFilter) {
+    if (id == EffectId::kRestTremor) {
       Scored s;
-      s.result = score_output_filter(p.model.input(), p.model.rests(), opt.folds);
+      s.result = *per_sample.tremor;
       out.push_back(std::move(s));
       continue;
     }
@@ -545,9 +592,11 @@ struct Selection {
 };
 
 /// A candidate judged on a per-sample statistic of its own (the rest samples' lag-1
-/// autocovariance), not on the segment residuals.
+/// autocovariance; for the hand's tremor the accelerometers against the gyro-integrated tilt within
+/// the rests), not on the segment residuals.
 bool judged_per_sample(EffectId id) {
-  return id == EffectId::kQuantisation || id == EffectId::kOutputFilter;
+  return id == EffectId::kQuantisation || id == EffectId::kOutputFilter ||
+         id == EffectId::kRestTremor;
 }
 
 std::optional<size_t> index_of(const std::vector<Scored>& c, EffectId id) {
@@ -779,9 +828,9 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
       if (auto both = with_gauss_markov(c, p, *det, *g, chi2_0, level, opt))
         consider(std::move(*both));
   }
-  // The per-sample noise candidates (quantisation, the output filter), independent of the segment
-  // residuals, join last when significant.
-  for (EffectId id : {EffectId::kQuantisation, EffectId::kOutputFilter})
+  // The per-sample candidates (quantisation, the output filter, the hand's tremor), independent of
+  // the segment residuals, join last when significant.
+  for (EffectId id : {EffectId::kQuantisation, EffectId::kOutputFilter, EffectId::kRestTremor})
     if (const auto q = index_of(c, id); q && c[*q].result.significant)
       best.steps.push_back({*q, c[*q].result.p_value, std::numeric_limits<double>::quiet_NaN(), 0,
                             c[*q].result.held_out_gap});

@@ -116,7 +116,8 @@ ValidationRun run_one(const Task& t, const std::map<EffectId, double>& threshold
 }
 
 bool is_noise_candidate(const std::string& name) {
-  return name == "bias_instability" || name == "quantisation" || name == "output_filter";
+  return name == "bias_instability" || name == "quantisation" || name == "output_filter" ||
+         name == "rest_tremor";
 }
 
 /// A run with several effects: whether its first named effect is injected, all are named, and

@@ -9,6 +9,7 @@
 #include "calib/core/chi2.hpp"
 #include "calib/diagnosis/gap_fit.hpp"
 #include "calib/diagnosis/gap_linearisation.hpp"
+#include "calib/diagnosis/rest_tremor_candidate.hpp"
 #include "calib/diagnosis/stochastic_candidates.hpp"
 
 namespace imucal::calib::diagnosis {
@@ -96,14 +97,18 @@ Analysed analyse_stochastic(const GapLinearisation& lin, EffectId id, size_t can
   a.d.name = e.name;
   a.d.unit = e.magnitude_unit();
   a.d.typical = 1.0;
-  a.d.directions = a.d.separable_directions = 2;
+  // The hand's tremor is judged on one slope (k = 1), the others on two statistics.
+  const int k = id == EffectId::kRestTremor ? 1 : 2;
+  a.d.directions = a.d.separable_directions = k;
   auto lambda = [&](double m) {
     if (id == EffectId::kQuantisation) return quantisation_noncentrality(lin.model(), m);
     if (id == EffectId::kOutputFilter) return output_filter_noncentrality(lin.model(), m);
+    if (id == EffectId::kRestTremor) return rest_tremor_noncentrality(lin.model(), m);
     return bias_instability_noncentrality(lin, m);
   };
-  const double need = chi2_quantile_upper(opt.alpha / static_cast<double>(candidates), 2) - 2.0;
-  double lo = 1e-3, hi = 1e3;
+  const double need = chi2_quantile_upper(opt.alpha / static_cast<double>(candidates), k) - k;
+  // A hand's sway on a navigation unit's long table rests shows at a millionth of its typical size.
+  double lo = 1e-6, hi = 1e3;
   if (lambda(hi) < need) {
     a.d.separable_directions = 0;
     a.d.reason = "not detectable: even 1000x its typical size stays below the detection level";

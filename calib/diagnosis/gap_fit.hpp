@@ -83,8 +83,10 @@ inline double signature_floor(double effect_scale) { return 1e-4 / (effect_scale
 
 /// How much larger than its catalogue typical size an effect may be on a unit of `grade`: the
 /// grade's effect_scale (calib/core/unit_grade.hpp) for the unit's own effects (sensor and
-/// stochastic); 1 for the table's and the site's, which do not follow the unit's grade.
+/// stochastic); 1 for the table's and the site's, which do not follow the unit's grade, and for
+/// a hand's tremor (rest_tremor), which is the hand's.
 inline double effect_scale(EffectId id, Grade grade) {
+  if (id == EffectId::kRestTremor) return 1.0;
   const EffectKind k = effect_info(id).kind;
   return k == EffectKind::kSensor || k == EffectKind::kStochastic ? grade_prior(grade).effect_scale
                                                                   : 1.0;

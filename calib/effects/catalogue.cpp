@@ -182,6 +182,21 @@ void add_remaining_effects(std::vector<EffectInfo>& c) {
                {p("gyro_a", "1", "1", 1.0), p("accel_a", "1", "1", 1.0)},
                {0.2, 0.2},
                {0, 1}});
+  // A hand's tremor does not follow the unit's grade (calib/diagnosis/gap_fit.hpp effect_scale).
+  // Typical: the corpus' hand-held recordings as the diagnosis measures them (0.19-0.24 °/s,
+  // 0.016-0.026°; docs/validation/diagnosis.md, "Tremor in a rest"); physiological tremor reaches
+  // 1.5 °/s, a hand's sway a few tenths of a degree.
+  c.push_back({EffectId::kRestTremor,
+               "rest_tremor",
+               EffectKind::kStochastic,
+               "a hand holds the unit in its rests: tremor (6-11 Hz, RMS rate per axis) and sway "
+               "(0.3-1.2 Hz, RMS angle per axis) about a pivot",
+               "the accelerometers' excursions within a rest follow the gyro-integrated tilt "
+               "(slope 1, none under sensor noise); rest means carry the hand's turn",
+               {p("rate_rms", "rad/s", "deg/s", kRadToDeg), p("tilt_rms", "rad", "deg", kRadToDeg),
+                p("pivot", "m", "mm", 1e3, true)},
+               {0.3 * kDegToRad, 0.03 * kDegToRad, 0.1},
+               {0}});
 }
 
 std::vector<EffectInfo> build_catalogue() {
@@ -301,6 +316,9 @@ Eigen::VectorXd effect_vector(const Effects& fx, EffectId id) {
     case EffectId::kOutputFilter:
       v << fx.output_filter_gyro, fx.output_filter_accel;
       break;
+    case EffectId::kRestTremor:
+      v << fx.tremor_rate_rms_radps, fx.tremor_tilt_rms_rad, fx.tremor_pivot_m;
+      break;
   }
   return v;
 }
@@ -336,6 +354,8 @@ void set_effect_vector(Effects& fx, EffectId id, const Eigen::VectorXd& v) {
     throw std::invalid_argument("effect quantisation: LSBs must be >= 0");
   if (id == EffectId::kOutputFilter && !(v(0) >= 0.0 && v(0) < 1.0 && v(1) >= 0.0 && v(1) < 1.0))
     throw std::invalid_argument("effect output_filter: coefficients must be in [0, 1)");
+  if (id == EffectId::kRestTremor && (v(0) < 0.0 || v(1) < 0.0))
+    throw std::invalid_argument("effect rest_tremor: the RMS rate and angle must be >= 0");
   if (id == EffectId::kBiasInstability && (v(0) < 0.0 || v(1) < 0.0))
     throw std::invalid_argument("effect bias_instability: sigmas must be >= 0");
   switch (id) {
@@ -388,6 +408,11 @@ void set_effect_vector(Effects& fx, EffectId id, const Eigen::VectorXd& v) {
     case EffectId::kOutputFilter:
       fx.output_filter_gyro = v(0);
       fx.output_filter_accel = v(1);
+      break;
+    case EffectId::kRestTremor:
+      fx.tremor_rate_rms_radps = v(0);
+      fx.tremor_tilt_rms_rad = v(1);
+      fx.tremor_pivot_m = v(2);
       break;
   }
 }

@@ -35,8 +35,9 @@ enum class EffectId {
   kLatitudeError,
   kQuantisation,
   kOutputFilter,
+  kRestTremor,
 };
-constexpr int kNumEffects = 14;
+constexpr int kNumEffects = 15;
 
 /// Where an effect acts, which decides how the diagnosis can see it.
 enum class EffectKind {
@@ -75,7 +76,7 @@ struct EffectInfo {
   double magnitude(const Eigen::VectorXd& si) const;
 };
 
-/// All 14 effects, in EffectId order.
+/// All 15 effects, in EffectId order.
 const std::vector<EffectInfo>& effect_catalogue();
 const EffectInfo& effect_info(EffectId id);
 /// nullptr if the name is not in the catalogue.
@@ -117,6 +118,12 @@ struct Effects {
   /// (1 - a) x_k, 0 <= a < 1 (calib/effects/output_filter.hpp); 0 = off.
   double output_filter_gyro = 0.0;
   double output_filter_accel = 0.0;
+  /// rest_tremor: a hand holds the unit in its rests (calib/effects/rest_tremor.hpp): the RMS rate
+  /// per axis of its tremor (6-11 Hz), the RMS angle per axis of its sway (0.3-1.2 Hz), and the
+  /// distance from the unit to the pivot it turns the unit about (a shape parameter); 0 = off.
+  double tremor_rate_rms_radps = 0.0;
+  double tremor_tilt_rms_rad = 0.0;
+  double tremor_pivot_m = 0.1;
   // --- table ---
   /// table_time_offset: the encoder log lags the IMU clock by this much, s.
   double table_time_offset_s = 0.0;

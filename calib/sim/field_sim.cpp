@@ -11,6 +11,7 @@
 #include "calib/core/conventions.hpp"
 #include "calib/core/rotation.hpp"
 #include "calib/core/table_model.hpp"
+#include "calib/effects/rest_tremor.hpp"
 #include "calib/effects/site_errors.hpp"
 #include "calib/sim/truth_physics.hpp"
 
@@ -49,6 +50,10 @@ void check_options(const FieldSimOptions& o, const UnitModel& unit) {
   if (fx.table_time_offset_s != 0.0 || fx.table_nonorthogonality_rad != 0.0 ||
       !fx.table_wobble_rad.isZero())
     fail("table effects have no meaning without a table (land/sea)");
+  if (o.setting == Setting::kSea && fx.active(EffectId::kRestTremor))
+    fail(
+        "rest_tremor (a hand holding the unit in its rests) is simulated on land only: at sea the "
+        "deck moves the unit in its rests, and the diagnosis assesses no noise there");
 }
 
 /// The size effect's velocity increment over [t0, t1] (calib/effects/size_effect.hpp), body axes:
@@ -169,6 +174,21 @@ class HandTimeline {
   bool rest_interval(double t0, double t1) const {
     const Warped& w = warped_[index(0.5 * (t0 + t1))];
     return w.rest && t0 >= w.t0 && t1 <= w.t1;
+  }
+
+  /// The rest holding t: its segment index and the time since it began; false outside rests.
+  bool rest_at(double t, size_t& segment, double& tau_s) const {
+    segment = index(t);
+    const Warped& w = warped_[segment];
+    tau_s = t - w.t0;
+    return w.rest && t >= w.t0 && t <= w.t1;
+  }
+
+  /// Per segment: the rest's duration, 0 for a move (draw_rest_tremor's input).
+  std::vector<double> rest_durations_s() const {
+    std::vector<double> out;
+    for (const auto& w : warped_) out.push_back(w.rest ? w.t1 - w.t0 : 0.0);
+    return out;
   }
 
   std::vector<std::pair<double, double>> rest_spans() const {
@@ -381,7 +401,7 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
   Eigen::Matrix3d C_placement;
   double outer_last = kNaN, inner_last = kNaN;
   Eigen::Matrix3d C_table;
-  auto C_bn_at = [&](double t) {
+  auto C_nominal_at = [&](double t) {
     double tp;
     Eigen::Vector3d e;
     bool rest;
@@ -398,6 +418,43 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
     }
     return Eigen::Matrix3d(plat.C_rock(t) * C_placement * C_table);
   };
+  // rest_tremor (calib/effects/rest_tremor.hpp; land only): in each rest the hand turns the unit,
+  // C_bn = C_nominal exp([θ×]), about its pivot, so the unit's origin moves by
+  // d = C_nominal (exp([θ×]) − I) ρ at the velocity C_bn (ω × ρ) (C_nominal holds still in a rest
+  // on land); the physics below integrates both like any motion.
+  const Effects& fx = unit.effects;
+  const bool tremor = fx.active(EffectId::kRestTremor);
+  const std::vector<RestTremorMotion> held =
+      tremor ? draw_rest_tremor(fx.tremor_rate_rms_radps, fx.tremor_tilt_rms_rad, fx.tremor_pivot_m,
+                                hand.rest_durations_s(), opt.seed)
+             : std::vector<RestTremorMotion>{};
+  auto held_at = [&](double t, double& tau) -> const RestTremorMotion* {
+    size_t i;
+    return tremor && hand.rest_at(t, i, tau) ? &held[i] : nullptr;
+  };
+  auto C_bn_at = [&](double t) {
+    double tau;
+    const RestTremorMotion* m = held_at(t, tau);
+    const Eigen::Matrix3d C = C_nominal_at(t);
+    return m ? Eigen::Matrix3d(C * rotvec_to_matrix<double>(m->angle_rad(tau))) : C;
+  };
+  // The platform's position and velocity (NED from the site), with the hand's displacement.
+  auto position = [&](double t) {
+    double tau;
+    const RestTremorMotion* m = held_at(t, tau);
+    if (!m) return plat.p(t);
+    const Eigen::Matrix3d C = C_nominal_at(t);
+    const Eigen::Vector3d& rho = m->pivot_to_unit_b_m();
+    return Eigen::Vector3d(plat.p(t) +
+                           C * (rotvec_to_matrix<double>(m->angle_rad(tau)) * rho - rho));
+  };
+  auto velocity = [&](double t) {
+    double tau;
+    const RestTremorMotion* m = held_at(t, tau);
+    if (!m) return plat.p_dot(t);
+    return Eigen::Vector3d(plat.p_dot(t) +
+                           C_bn_at(t) * m->rate_b_radps(tau).cross(m->pivot_to_unit_b_m()));
+  };
 
   const double dt = 1.0 / opt.rate_hz;
   const size_t n = static_cast<size_t>(std::floor(hand.duration_s() * opt.rate_hz + 1e-9));
@@ -412,25 +469,26 @@ FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Sit
   for (const auto& r : unit.effects.accel_lever_arm_m) lever = lever || !r.isZero();
   LeverArmIncrement lever_arm(unit.effects.accel_lever_arm_m, C_bn_at);
   const Eigen::Matrix3d C_ie0 = earth.C_ie(0.0);
-  Eigen::Matrix3d C_bi_prev = earth.C_bi(C_ie0, plat.p(0.0), C_bn_at(0.0));
-  Eigen::Vector3d v_i_prev = earth.v_i(C_ie0, plat.p(0.0), plat.p_dot(0.0));
+  Eigen::Matrix3d C_bi_prev = earth.C_bi(C_ie0, position(0.0), C_bn_at(0.0));
+  Eigen::Vector3d v_i_prev = earth.v_i(C_ie0, position(0.0), velocity(0.0));
   for (size_t k = 0; k < n; ++k) {
     const double t0 = static_cast<double>(k) * dt, t1 = static_cast<double>(k + 1) * dt;
     const Eigen::Matrix3d C_bn = C_bn_at(t1);
-    const Eigen::Vector3d p1 = plat.p(t1);
+    const Eigen::Vector3d p1 = position(t1);
     const Eigen::Matrix3d C_ie = earth.C_ie(t1);
     const Eigen::Matrix3d C_bi = earth.C_bi(C_ie, p1, C_bn);
-    const Eigen::Vector3d v_i = earth.v_i(C_ie, p1, plat.p_dot(t1));
+    const Eigen::Vector3d v_i = earth.v_i(C_ie, p1, velocity(t1));
     Eigen::Vector3d int_G = Eigen::Vector3d::Zero();
     for (int q = 0; q < 3; ++q) {
       const double t = t0 + GaussLegendre3::kNode[q] * dt;
-      int_G += GaussLegendre3::kWeight[q] * dt * earth.G_i(t, plat.p(t), g_offset);
+      int_G += GaussLegendre3::kWeight[q] * dt * earth.G_i(t, position(t), g_offset);
     }
     const Eigen::Vector3d dtheta = matrix_to_rotvec(C_bi_prev.transpose() * C_bi);
     Eigen::Vector3d dv = C_bi_prev.transpose() * (v_i - v_i_prev - int_G);
     if (lever) {
-      // On land at a rest the attitude is constant over the differences' reach: no lever term.
-      if (!plat.sea && hand.rest_interval(t0 - 1e-4, t1 + 1e-4))
+      // On land at a rest the attitude is constant over the differences' reach: no lever term
+      // (unless a hand turns the unit there).
+      if (!plat.sea && !tremor && hand.rest_interval(t0 - 1e-4, t1 + 1e-4))
         lever_arm.still(t1);
       else
         dv += lever_arm.dv_b(t0, t1);

@@ -15,6 +15,9 @@
 //    w.r.t. inertial space at the sample ends, dv = C_bi(t0)ᵀ [Δv_i − ∫ G_i dt] (inertial velocity
 //    change minus gravitation, Gauss–Legendre), so translation, transport rate and Earth rate are
 //    all in; then the unit's error model, sensor effects and noise (TruthSensor).
+// rest_tremor (calib/effects/rest_tremor.hpp, land only): the hand that placed the unit holds it
+// in each rest, turning it by its tremor and sway about its pivot — attitude and position move
+// together, so gyros and accelerometers sense one motion through the physics above.
 // The size effect (the accelerometers' lever arms) acts on the hand's rotations as on the table's;
 // latitude_error puts the unit at the true latitude while the site keeps the configured one (the
 // GNSS fixes report the true position). Table effects (non-orthogonality, wobble, time offset)
@@ -64,7 +67,8 @@ struct FieldSimResult {
   std::vector<std::pair<double, double>> rest_spans;
 };
 
-/// Throws std::invalid_argument for a factory setting, a table effect, or options out of range.
+/// Throws std::invalid_argument for a factory setting, a table effect, rest_tremor at sea, or
+/// options out of range.
 FieldSimResult simulate_field(const sequences::MotionProfile& profile, const Site& site,
                               const UnitModel& unit, const FieldSimOptions& options);
 

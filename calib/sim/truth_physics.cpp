@@ -77,6 +77,21 @@ Eigen::Vector3d TruthKinematics::dv_lever(const Eigen::Matrix3d& C_bn_prev,
   return C_bn_prev.transpose() * acc;
 }
 
+Eigen::Vector3d TruthKinematics::dv_hand(
+    const Eigen::Matrix3d& C_bn_prev, double t0, double t1,
+    const std::function<HandState(double t_s)>& hand_at) const {
+  const double h = t1 - t0;
+  Eigen::Vector3d acc = Eigen::Vector3d::Zero();
+  for (int q = 0; q < 3; ++q) {
+    const double t = t0 + GaussLegendre3::kNode[q] * h;
+    const HandState s = hand_at(t);
+    const Eigen::Vector3d a_n = s.C_bn * s.f_b + 2.0 * w_ie_n_.cross(s.v_n);
+    acc += GaussLegendre3::kWeight[q] * h *
+           (rotvec_to_matrix<double>(Eigen::Vector3d(w_ie_n_ * (t - t0))) * a_n);
+  }
+  return C_bn_prev.transpose() * acc;
+}
+
 TruthSensor::TruthSensor(const UnitModel& unit, double dt_s, uint64_t seed, bool noise)
     : fx_(unit.effects),
       err_(ImuErrorModel<double>::from_params(unit.params)),

@@ -61,6 +61,18 @@ class TruthKinematics {
   /// inside, t1 — ascending). state_at is called at the nodes in ascending time order.
   Eigen::Vector3d dv_lever(const Eigen::Matrix3d& C_bn_prev, const std::vector<double>& edges,
                            const TableStateAt& state_at) const;
+  /// A hand holding the unit at an instant (rest_tremor): its attitude, the hand's specific force
+  /// on the accelerometers (body axes) and the unit's velocity about the pivot (n axes).
+  struct HandState {
+    Eigen::Matrix3d C_bn;
+    Eigen::Vector3d f_b = Eigen::Vector3d::Zero(), v_n = Eigen::Vector3d::Zero();
+  };
+  /// The hand's part of dv over [t0, t1]: C_nb(t0) ∫ exp([ω_ie_n ×](t - t0)) (C_bn f_hand_b +
+  /// 2 ω_ie_n × v_hand_n) dt, 3-point Gauss-Legendre (the tremor turns by < 0.7 rad of its phase
+  /// within a 100 Hz sample: 3e-8 of the term). The centripetal ω_ie × (ω_ie × d) of the hand's
+  /// sub-millimetre displacement d (5e-9 m/s²) is left out.
+  Eigen::Vector3d dv_hand(const Eigen::Matrix3d& C_bn_prev, double t0, double t1,
+                          const std::function<HandState(double t_s)>& hand_at) const;
   const TableModel& table() const { return table_; }
 
  private:

@@ -5,7 +5,10 @@
 //    dθ_k = log(C_bi(t_{k-1})^T C_bi(t_k)) exactly (no sampling of rates);
 //  * dv_k = C_bi(t_{k-1})^T ∫ C_bi(t) f_b(t) dt by Gauss-Legendre quadrature split at the profile's
 //    breakpoints (the integrand is smooth between them);
-//  * then the error model (eq. 18, 23), effects, noise (ARW, VRW, Gauss-Markov), quantisation.
+//  * then the error model (eq. 18, 23), effects, noise (ARW, VRW, Gauss-Markov), quantisation;
+//  * rest_tremor (calib/effects/rest_tremor.hpp) is motion, not a sensor error: a hand turns the
+//    unit in each rest segment, C_bn = C_bn_table exp([θ×]), and carries it about its pivot (the
+//    hand's specific force integrated with dv); it acts without noise too.
 #include <Eigen/Core>
 #include <cstdint>
 #include <memory>
@@ -42,7 +45,8 @@ struct SimResult {
 SimResult simulate(const sequences::MotionProfile& profile, const TableGeometry& geometry,
                    const Site& site, const UnitModel& unit, const SimOptions& options);
 
-/// True body attitude (with ς and any table-geometry effects) at time t — exposed for tests.
+/// True body attitude (with ς and any table-geometry effects) at time t — exposed for tests. A
+/// hand's motion in the rests (rest_tremor) is not in it: it is drawn per run inside simulate().
 Eigen::Matrix3d true_C_bn(const sequences::MotionProfile& profile, const TableModel& table,
                           const UnitModel& unit, double t_s);
 

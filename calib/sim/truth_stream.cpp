@@ -16,6 +16,12 @@ TruthStream::TruthStream(const TableGeometry& geometry, const Site& site, const 
   if (!(std::isfinite(options.rate_hz) && options.rate_hz > 0.0))
     throw std::invalid_argument("TruthStream: rate_hz must be positive and finite, got " +
                                 std::to_string(options.rate_hz));
+  // A hand's motion fades out before its rest ends (calib/effects/rest_tremor.hpp): a stream does
+  // not know when the table will move next.
+  if (unit.effects.active(EffectId::kRestTremor))
+    throw std::invalid_argument(
+        "TruthStream: effect rest_tremor (a hand holding the unit in its rests) needs each rest's "
+        "end in advance, which a stream does not know: simulate the run with the batch simulator");
   kin_ = std::make_unique<TruthKinematics>(geometry, site, unit, dt_s_);
   sensor_ = std::make_unique<TruthSensor>(unit, dt_s_, options.seed, options.noise);
 }

@@ -12,7 +12,8 @@
 // times where the table's angular acceleration jumps inside an interval (give them to next(), or
 // the quadrature is not exact across them); the table-time-offset effect acts on the encoder log,
 // which a stream does not produce: the caller that reports encoder angles (the station simulator's
-// PLC) must report the angles of t - offset (calib/effects/table_time_offset.hpp).
+// PLC) must report the angles of t - offset (calib/effects/table_time_offset.hpp). rest_tremor (a
+// hand's motion, faded out before each rest's end) is refused: a stream does not know that end.
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -34,7 +35,7 @@ class TruthStream {
  public:
   using StateAt = std::function<sequences::TableState(double t_s)>;
 
-  /// Throws std::invalid_argument for a non-positive or non-finite rate.
+  /// Throws std::invalid_argument for a non-positive or non-finite rate, or rest_tremor.
   TruthStream(const TableGeometry& geometry, const Site& site, const UnitModel& unit,
               const SimOptions& options);
   ~TruthStream();

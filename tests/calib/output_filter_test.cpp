@@ -20,6 +20,7 @@
 #include "calib/sim/sim_input.hpp"
 #include "calib/sim/truth_sim.hpp"
 #include "sequences/library.hpp"
+#include "tests/support/diagnosis_finding.hpp"
 
 using namespace imucal;
 using namespace imucal::calib;
@@ -52,17 +53,8 @@ DiagnosisResult diagnose_filtered_run(const Effects& fx, uint64_t seed) {
   return diagnose(in, calibrate_nlsq(in.cal).params);
 }
 
-const CandidateResult& candidate(const DiagnosisResult& d, const std::string& name) {
-  for (const auto& c : d.candidates)
-    if (c.name == name) return c;
-  throw std::runtime_error("no candidate " + name);
-}
-
-bool named(const DiagnosisResult& d, const std::string& name) {
-  for (const auto& s : d.steps)
-    if (s.effect == name) return true;
-  return false;
-}
+using test_support::candidate;
+using test_support::named;
 
 void print_filter(const char* what, const DiagnosisResult& d) {
   const CandidateResult& f = candidate(d, "output_filter");
@@ -122,22 +114,15 @@ TEST(OutputFilter, DiagnosisNamesAFilteredOutputWithItsCoefficient) {
     fx.output_filter_accel = run.accel_a;
     const DiagnosisResult d = diagnose_filtered_run(fx, run.seed);
     print_filter(("filtered seed " + std::to_string(run.seed)).c_str(), d);
-    const CandidateResult& f = candidate(d, "output_filter");
-    EXPECT_TRUE(f.significant) << run.seed << ": " << f.note;
-    EXPECT_TRUE(named(d, "output_filter")) << run.seed << ": " << d.summary;
-    std::printf("  error/sigma: gyro %+.2f, accel %+.2f\n",
-                (f.params[0].value - run.gyro_a) / f.params[0].sigma,
-                (f.params[1].value - run.accel_a) / f.params[1].sigma);
-    EXPECT_NEAR(f.params[0].value, run.gyro_a, 3.0 * f.params[0].sigma) << run.seed;
-    EXPECT_NEAR(f.params[1].value, run.accel_a, 3.0 * f.params[1].sigma) << run.seed;
-    EXPECT_GT((f.held_out_gap_before - f.held_out_gap) / (f.held_out_gap_before - 1.0), 0.5);
+    test_support::expect_per_sample_finding(d, "output_filter", run.gyro_a, run.accel_a, 3.0,
+                                            "seed " + std::to_string(run.seed));
     EXPECT_FALSE(candidate(d, "quantisation").significant) << run.seed;
     EXPECT_FALSE(named(d, "quantisation")) << run.seed;
   }
 }
 
 // Null runs (no effect): output_filter is never named (its one-sided test at the diagnosis'
-// Bonferroni level, 10⁻³ / 14 per candidate: expected false alarms over 10 runs ~ 10⁻³).
+// Bonferroni level, 10⁻³ / 15 per candidate: expected false alarms over 10 runs ~ 10⁻³).
 TEST(OutputFilter, NullRunsDoNotNameIt) {
   for (uint64_t seed = 51; seed <= 60; ++seed) {
     const DiagnosisResult d = diagnose_filtered_run(Effects{}, seed);

@@ -45,6 +45,8 @@ UnitModel unit_with_effects() {
 
 /// Every catalogue effect on at once (ARCHITECTURE §7, typical sizes or larger), the stochastic
 /// ones only acting with noise on. The table time offset changes only the batch form's encoder log.
+/// All but rest_tremor, which a stream refuses (a hand's motion fades out before its rest's end,
+/// which a stream does not know in advance; RestTremor.TableSimulatorTurnsGyrosAndAccelerometers*).
 UnitModel unit_with_every_effect() {
   UnitModel u = unit_with_effects();
   Effects& fx = u.effects;
@@ -64,7 +66,8 @@ UnitModel unit_with_every_effect() {
   fx.table_wobble_rad << 4.0 * kArcsecToRad, -3.0 * kArcsecToRad;
   fx.gravity_error_mps2 = 40e-6 * kStandardGravity_mps2;
   fx.latitude_error_rad = 1.0 / 60.0 * kDegToRad;
-  for (const EffectInfo& e : effect_catalogue()) EXPECT_TRUE(fx.active(e.id)) << e.name;
+  for (const EffectInfo& e : effect_catalogue())
+    EXPECT_EQ(fx.active(e.id), e.id != EffectId::kRestTremor) << e.name;
   return u;
 }
 

@@ -1,11 +1,13 @@
 #pragma once
 // A diagnosis that names a withheld effect: the verdict "explained", the effect named first, and
 // every fitted parameter within 4σ of the injected value (printed beside it). Shared by the tests
-// of the table-free and sea diagnoses.
+// of the table-free and sea diagnoses; and the look-ups the per-sample candidates' tests share.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
+#include <string>
 
 #include "calib/diagnosis/diagnosis.hpp"
 
@@ -32,6 +34,40 @@ inline const calib::diagnosis::CandidateResult* expect_finding(
     EXPECT_LT(std::abs(p.value - t), 4.0 * p.sigma) << p.name;
   }
   return &best;
+}
+
+/// The candidate of that name (every diagnosis scores each catalogue effect).
+inline const calib::diagnosis::CandidateResult& candidate(
+    const calib::diagnosis::DiagnosisResult& d, const std::string& name) {
+  for (const auto& c : d.candidates)
+    if (c.name == name) return c;
+  throw std::runtime_error("no candidate " + name);
+}
+
+/// Whether the explanation (its steps) names the effect.
+inline bool named(const calib::diagnosis::DiagnosisResult& d, const std::string& name) {
+  for (const auto& s : d.steps)
+    if (s.effect == name) return true;
+  return false;
+}
+
+/// A per-sample candidate (judged on a statistic of its own) named with its first two parameters
+/// within k_sigma of the truth (human units; error/σ printed) and its own statistic's held-out gap
+/// shrunk by more than half its excess.
+inline void expect_per_sample_finding(const calib::diagnosis::DiagnosisResult& d,
+                                      const std::string& name, double truth0, double truth1,
+                                      double k_sigma, const std::string& run) {
+  const calib::diagnosis::CandidateResult& c = candidate(d, name);
+  EXPECT_TRUE(c.significant) << run << ": " << c.note;
+  EXPECT_TRUE(named(d, name)) << run << ": " << d.summary;
+  ASSERT_GE(c.params.size(), 2u);
+  const double truth[2] = {truth0, truth1};
+  for (size_t j = 0; j < 2; ++j) {
+    const calib::diagnosis::CandidateParam& p = c.params[j];
+    std::printf("  %s error/sigma %+.2f\n", p.name.c_str(), (p.value - truth[j]) / p.sigma);
+    EXPECT_NEAR(p.value, truth[j], k_sigma * p.sigma) << run << " " << p.name;
+  }
+  EXPECT_GT((c.held_out_gap_before - c.held_out_gap) / (c.held_out_gap_before - 1.0), 0.5) << run;
 }
 
 }  // namespace imucal::test_support

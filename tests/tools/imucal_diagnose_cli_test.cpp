@@ -36,8 +36,8 @@ class DiagnoseCli : public ::testing::Test {
         << "\n[effects]\ng_sens_deg_per_h_per_g = [[0.1, 0.0, 0.0], [0.0, -0.1, 0.0], [0.0, 0.0, "
            "0.08]]\n";
     ASSERT_EQ(run_imucal_diagnose_cli("simulate --sequence short --seed 4 --out " +
-                  (fs::path(dir_->path()) / "gsens").string() + " --unit " +
-                  (fs::path(dir_->path()) / "gsens.toml").string())
+                                      (fs::path(dir_->path()) / "gsens").string() + " --unit " +
+                                      (fs::path(dir_->path()) / "gsens.toml").string())
                   .code,
               0);
   }
@@ -50,7 +50,8 @@ imucal::test_support::ScopedTempDir* DiagnoseCli::dir_ = nullptr;
 }  // namespace
 
 TEST_F(DiagnoseCli, JsonHasTheIssuesShapeAndNamesTheWithheldEffect) {
-  const ProcImucalDiagnoseCli p = run_imucal_diagnose_cli("diagnose " + archive().string() + " --json", false);
+  const ProcImucalDiagnoseCli p =
+      run_imucal_diagnose_cli("diagnose " + archive().string() + " --json", false);
   ASSERT_TRUE(p.code == 0 || p.code == 3) << p.out;
   const nlohmann::json j = nlohmann::json::parse(p.out);
   for (const char* k : {"verdict", "best", "candidates", "held_out", "segments", "overall"})
@@ -62,9 +63,9 @@ TEST_F(DiagnoseCli, JsonHasTheIssuesShapeAndNamesTheWithheldEffect) {
   for (const char* k : {"gap_before", "gap_after", "shrinkage"})
     EXPECT_TRUE(j["held_out"][k].is_number()) << k;
   EXPECT_GT(j["held_out"]["gap_before"].get<double>(), j["held_out"]["gap_after"].get<double>());
-  // 14 candidates (one per catalogue effect), ranked: the best first; each with score, magnitude,
+  // 15 candidates (one per catalogue effect), ranked: the best first; each with score, magnitude,
   // sigma and "separable".
-  ASSERT_EQ(j["candidates"].size(), 14u);
+  ASSERT_EQ(j["candidates"].size(), 15u);
   EXPECT_EQ(j["candidates"][0]["effect"], "gyro_g_sensitivity");
   for (const auto& c : j["candidates"])
     for (const char* k : {"effect", "score", "magnitude", "sigma", "separable"})
@@ -81,10 +82,11 @@ TEST_F(DiagnoseCli, JsonHasTheIssuesShapeAndNamesTheWithheldEffect) {
 TEST_F(DiagnoseCli, AnAmbiguousSetIsAnExplanationAndOnlyPlausibleHeldOutConfirmedCandidatesFlag) {
   const fs::path k2 = fs::path(dir_->path()) / "k2";
   ASSERT_EQ(run_imucal_diagnose_cli("simulate --sequence short --seed 9 --out " + k2.string() +
-                " --effect accel_quadratic_k2=6.118e-6,-4.589e-6,7.648e-6")
+                                    " --effect accel_quadratic_k2=6.118e-6,-4.589e-6,7.648e-6")
                 .code,
             0);
-  const ProcImucalDiagnoseCli p = run_imucal_diagnose_cli("diagnose " + k2.string() + " --json", false);
+  const ProcImucalDiagnoseCli p =
+      run_imucal_diagnose_cli("diagnose " + k2.string() + " --json", false);
   EXPECT_EQ(p.code, 0) << "an explained run exits 0";
   const nlohmann::json j = nlohmann::json::parse(p.out);
   EXPECT_EQ(j["verdict"], "explained");
@@ -126,7 +128,8 @@ TEST_F(DiagnoseCli, HumanReportSaysWhereWhichAndHowFar) {
 TEST_F(DiagnoseCli, BadInputIsNamedAndNothingIsWritten) {
   const std::string before = listing(archive());
   // Unknown effect name: the known ones are listed.
-  ProcImucalDiagnoseCli p = run_imucal_diagnose_cli("diagnose " + archive().string() + " --candidates accel_quadratic_k2,warp_drive");
+  ProcImucalDiagnoseCli p = run_imucal_diagnose_cli("diagnose " + archive().string() +
+                                                    " --candidates accel_quadratic_k2,warp_drive");
   EXPECT_EQ(p.code, 1);
   EXPECT_NE(p.out.find("unknown effect 'warp_drive'"), std::string::npos) << p.out;
   EXPECT_NE(p.out.find("table_wobble"), std::string::npos) << p.out;

@@ -443,6 +443,34 @@ TEST(ImucalRealRecording, DiagnosisNamesTheXsensOutputFilterFromItsCorrelatedRes
   EXPECT_GT((before - after) / (before - 1.0), 0.5);
 }
 
+// IMU-TK's Xsens unit was placed on a surface for each position, not held (issue #48 item 8): a
+// real null for the hand's tremor. Its accelerometers do not follow its gyro-integrated tilt
+// within the rests — the slope of rest_tremor's regression is 0 within its σ — so rest_tremor is
+// neither significant nor named, and the output filter stays judged on every rest (the hand's
+// motion would have narrowed it to the still ones).
+TEST(ImucalRealRecording, DiagnosisFindsNoHandInTheXsensRests) {
+  test_support::ScopedTempDir dir("imucal-xsens-tremor");
+  const std::string run = import_xsens(dir);
+  const auto r = test_support::run_imucal("diagnose " + run + " --json", /*merge_stderr=*/false);
+  EXPECT_EQ(r.code, 3) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  nlohmann::json t, f;
+  for (const auto& c : j.at("candidates")) {
+    if (c.at("effect") == "rest_tremor") t = c;
+    if (c.at("effect") == "output_filter") f = c;
+  }
+  ASSERT_TRUE(t.is_object());
+  std::printf("xsens rest_tremor: lr %.2f, p %.3g; %s\n", t.at("lr").get<double>(),
+              t.at("p_value").get<double>(), t.at("note").get<std::string>().c_str());
+  EXPECT_FALSE(t.at("significant").get<bool>()) << t.dump();
+  EXPECT_GT(t.at("p_value").get<double>(), 1e-3 / 15.0);
+  for (const auto& st : j.at("steps")) EXPECT_NE(st.at("effect"), "rest_tremor") << j.at("summary");
+  ASSERT_TRUE(f.is_object());
+  EXPECT_EQ(f.at("note").get<std::string>().find("rests whose gyros show no motion"),
+            std::string::npos)
+      << f.at("note");
+}
+
 // --compensate takes a diagnosis and nothing else: each bad input named, nothing calibrated.
 TEST(ImucalRealRecording, CompensateRefusesWhatIsNotADiagnosisFinding) {
   test_support::ScopedTempDir dir("imucal-xsens-comp");

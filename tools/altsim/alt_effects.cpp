@@ -38,6 +38,7 @@ std::vector<AltEffectParams> build_table() {
       {"latitude_error", {"dlat"}, false},
       {"quantisation", {"dtheta_lsb", "dv_lsb"}, false},
       {"output_filter", {"gyro_a", "accel_a"}, false},
+      {"rest_tremor", {"rate_rms", "tilt_rms", "pivot"}, true},
   };
 }
 
@@ -80,6 +81,8 @@ std::vector<double*> fields(AltEffects& fx, const std::string& name) {
   if (name == "latitude_error") return {&fx.latitude_error_rad};
   if (name == "quantisation") return {&fx.quant_dtheta_rad, &fx.quant_dv_mps};
   if (name == "output_filter") return {&fx.output_filter_gyro, &fx.output_filter_accel};
+  if (name == "rest_tremor")
+    return {&fx.tremor_rate_rms_radps, &fx.tremor_tilt_rms_rad, &fx.tremor_pivot_m};
   throw std::invalid_argument("unknown effect '" + name + "' (known: " + alt_effect_names() + ")");
 }
 
@@ -149,9 +152,9 @@ void apply_alt_effect_spec(AltEffects& fx, const std::string& spec) {
                                 param_list(e) + "), got " + std::to_string(vals.size()));
   if (e.trailing_shape && vals.size() == all && !(vals.back() > 0.0))
     throw std::invalid_argument("effect " + e.name + ": " + e.params.back() + " must be > 0");
-  if ((e.name == "bias_instability" || e.name == "quantisation") &&
+  if ((e.name == "bias_instability" || e.name == "quantisation" || e.name == "rest_tremor") &&
       (vals[0] < 0.0 || vals[1] < 0.0))
-    throw std::invalid_argument("effect " + e.name + ": sigmas and LSBs must be >= 0");
+    throw std::invalid_argument("effect " + e.name + ": sigmas, LSBs and RMS values must be >= 0");
   if (e.name == "output_filter" &&
       !(vals[0] >= 0.0 && vals[0] < 1.0 && vals[1] >= 0.0 && vals[1] < 1.0))
     throw std::invalid_argument("effect output_filter: coefficients must be in [0, 1)");

@@ -19,7 +19,7 @@ struct AltEffectParams {
   bool trailing_shape = false;
 };
 
-/// Every effect altsim simulates (the catalogue's 13), in catalogue order.
+/// Every effect altsim simulates (the catalogue's 15), in catalogue order.
 const std::vector<AltEffectParams>& alt_effect_table();
 /// "a, b, c" for error messages.
 std::string alt_effect_names();

@@ -4,6 +4,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "tools/altsim/alt_hand.hpp"
 #include "tools/altsim/alt_kinematics.hpp"
 #include "tools/altsim/alt_random.hpp"
 
@@ -72,8 +73,9 @@ struct Node {
 /// effects, on `substeps` equal steps per piece between the profile's breakpoints.
 class SampleIntegrator {
  public:
-  SampleIntegrator(const TableKinematics& kin, const AltEffects& fx, int substeps)
-      : kin_(kin), fx_(fx), substeps_(substeps) {
+  SampleIntegrator(const TableKinematics& kin, const AltEffects& fx, const AltHand& hand,
+                   int substeps)
+      : kin_(kin), fx_(fx), hand_(hand), substeps_(substeps) {
     for (const auto& r : fx.accel_lever_arm_m) lever_ = lever_ || !r.isZero();
     accel_fx_ = !fx.accel_k2_per_mps2.isZero() || !fx.accel_asym.isZero() ||
                 fx.gyro_accel_skew_s != 0.0 || !fx.thermal_accel_mps2.isZero();
@@ -85,13 +87,16 @@ class SampleIntegrator {
                             double dt_s);
 
  private:
-  Node node(const sequences::ProfileSegment& seg, double t_s) const;
-  /// The piece [t0 + a, t0 + b] of the current sample, a and b relative to its start t0.
-  void piece(const sequences::ProfileSegment& seg, double t0_s, double a_s, double b_s);
+  Node node(const sequences::ProfileSegment& seg, size_t segment, double t_s) const;
+  /// The piece [t0 + a, t0 + b] of the current sample (in profile segment `segment`), a and b
+  /// relative to its start t0.
+  void piece(const sequences::ProfileSegment& seg, size_t segment, double t0_s, double a_s,
+             double b_s);
   void accumulate(const Node& n, double weight);
 
   const TableKinematics& kin_;
   const AltEffects& fx_;
+  const AltHand& hand_;
   int substeps_;
   bool lever_ = false, accel_fx_ = false, gyro_fx_ = false;
   Quat q_;                                           ///< C_{b(t)}^{b(t_{k-1})}
@@ -99,13 +104,27 @@ class SampleIntegrator {
   SampleIntegrals out_;
 };
 
-Node SampleIntegrator::node(const sequences::ProfileSegment& seg, double t_s) const {
-  const BodyKinematics k = kin_.at(state_in_segment(seg, t_s), lever_);
-  Node n{t_s, k.w_ib_b, k.f_b};
+Node SampleIntegrator::node(const sequences::ProfileSegment& seg, size_t segment,
+                            double t_s) const {
+  const BodyKinematics k = kin_.at(state_in_segment(seg, t_s), lever_ || hand_.active());
+  Eigen::Vector3d w = k.w_ib_b, wdot = k.wdot_ib_b, f = k.f_b;
+  if (hand_.active()) {
+    // The hand turns the body by R = exp([θ×]) (C_bn = C_bn_table R): the table's rate and force
+    // seen in the turned body, the hand's rate added; the accelerometers turn about the pivot,
+    // fixed on the Earth, as a rigid body at the body's rate w.r.t. inertial space.
+    const HandPose h = hand_.at(segment, t_s);
+    const Eigen::Matrix3d Rt = rotation_from_vector(h.theta_rad).transpose();
+    const Eigen::Vector3d w_table = Rt * k.w_ib_b;
+    w = w_table + h.w_b;
+    wdot = Rt * k.wdot_ib_b - h.w_b.cross(w_table) + h.wdot_b;
+    const Eigen::Vector3d rho = hand_.pivot_to_unit_b(segment);
+    f = Rt * k.f_b + wdot.cross(rho) + w.cross(w.cross(rho));
+  }
+  Node n{t_s, w, f};
   if (lever_)
     for (int i = 0; i < 3; ++i) {
       const Eigen::Vector3d& r = fx_.accel_lever_arm_m[static_cast<size_t>(i)];
-      n.f_s(i) += (k.wdot_ib_b.cross(r) + k.w_ib_b.cross(k.w_ib_b.cross(r)))(i);
+      n.f_s(i) += (wdot.cross(r) + w.cross(w.cross(r)))(i);
     }
   return n;
 }
@@ -129,17 +148,17 @@ void SampleIntegrator::accumulate(const Node& n, double weight) {
   if (gyro_fx_) sum_dth_fx_ += weight * (fx_.gyro_g_sens * f0 + fx_.thermal_gyro_radps * warm);
 }
 
-void SampleIntegrator::piece(const sequences::ProfileSegment& seg, double t0_s, double a_s,
-                             double b_s) {
+void SampleIntegrator::piece(const sequences::ProfileSegment& seg, size_t segment, double t0_s,
+                             double a_s, double b_s) {
   const double h = (b_s - a_s) / substeps_;
   sum_dv_.setZero();
   sum_dv_fx_.setZero();
   sum_dth_fx_.setZero();
-  Node n0 = node(seg, t0_s + a_s);
+  Node n0 = node(seg, segment, t0_s + a_s);
   accumulate(n0, 1.0);
   for (int j = 1; j <= substeps_; ++j) {
-    const Node nm = node(seg, t0_s + (a_s + (j - 0.5) * h));
-    const Node n1 = node(seg, t0_s + (a_s + j * h));
+    const Node nm = node(seg, segment, t0_s + (a_s + (j - 0.5) * h));
+    const Node n1 = node(seg, segment, t0_s + (a_s + j * h));
     q_ = rk4_step(q_, n0.w_ib_b, nm.w_ib_b, n1.w_ib_b, h);
     // Composite Simpson weights 1, 4, 2, 4, ..., 4, 1 (substeps_ is even).
     accumulate(n1, j == substeps_ ? 1.0 : (j % 2 ? 4.0 : 2.0));
@@ -164,7 +183,7 @@ SampleIntegrals SampleIntegrator::integrate(const sequences::MotionProfile& prof
   for (size_t c = cursor;; ++c) {
     const bool last = c + 1 >= segs.size() || segs[c].t1_s - t0_s >= dt_s;
     const double b = last ? dt_s : segs[c].t1_s - t0_s;
-    if (b > a) piece(segs[c], t0_s, a, b);
+    if (b > a) piece(segs[c], c, t0_s, a, b);
     if (last) break;
     a = b;
   }
@@ -288,7 +307,8 @@ std::vector<AltSample> simulate_alt(const sequences::MotionProfile& profile, con
   // The physics happens at the true site; the station's configured one may be off.
   const TableKinematics kin(table, fx, site.lat_rad + fx.latitude_error_rad,
                             site.gravity_mps2 + fx.gravity_error_mps2, site.earth_rate_radps);
-  SampleIntegrator integrator(kin, fx, options.substeps);
+  const AltHand hand(profile, fx, options.seed);
+  SampleIntegrator integrator(kin, fx, hand, options.substeps);
   NoiseStage noise(unit, dt_s, options.seed, options.noise);
   std::vector<AltSample> out(n);
   size_t cursor = 0;

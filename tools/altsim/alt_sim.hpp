@@ -99,6 +99,9 @@ struct AltEffects {
   /// output_filter: a first-order low-pass on the output before the register, per sensor: each
   /// output moves the fraction (1 - a) of the way from the previous output to the new input.
   double output_filter_gyro = 0.0, output_filter_accel = 0.0;
+  /// rest_tremor: a hand holds the unit in the table's rests (alt_hand.hpp): the RMS rate per axis
+  /// of its tremor, the RMS angle per axis of its sway, the distance from the unit to its pivot.
+  double tremor_rate_rms_radps = 0.0, tremor_tilt_rms_rad = 0.0, tremor_pivot_m = 0.1;
   /// table_time_offset: the encoder log at IMU time t shows the angles of t - offset, s.
   double table_time_offset_s = 0.0;
   /// table_nonorthogonality: the inner axis leans by δ towards the outer axis (rotated about

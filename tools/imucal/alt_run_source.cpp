@@ -25,6 +25,9 @@ tools::altsim::AltEffects to_alt_effects(const calib::effects::Effects& fx) {
   a.quant_dv_mps = fx.quant_dv_mps;
   a.output_filter_gyro = fx.output_filter_gyro;
   a.output_filter_accel = fx.output_filter_accel;
+  a.tremor_rate_rms_radps = fx.tremor_rate_rms_radps;
+  a.tremor_tilt_rms_rad = fx.tremor_tilt_rms_rad;
+  a.tremor_pivot_m = fx.tremor_pivot_m;
   a.table_time_offset_s = fx.table_time_offset_s;
   a.table_nonorthogonality_rad = fx.table_nonorthogonality_rad;
   a.table_wobble_rad = fx.table_wobble_rad;

@@ -146,7 +146,8 @@ void print_table(const std::vector<calib::diagnosis::EffectDetectability>& d,
   for (const auto& e : d)
     if (!e.separable() && e.id != calib::effects::EffectId::kBiasInstability &&
         e.id != calib::effects::EffectId::kQuantisation &&
-        e.id != calib::effects::EffectId::kOutputFilter) {
+        e.id != calib::effects::EffectId::kOutputFilter &&
+        e.id != calib::effects::EffectId::kRestTremor) {
       if (!any) std::printf("\nto separate what this sequence cannot:\n");
       any = true;
       std::printf("  %-24s %s\n", e.name.c_str(), remedy(e.id).c_str());
