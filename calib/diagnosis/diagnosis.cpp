@@ -162,11 +162,38 @@ std::string base_names(const GapLinearisation& lin, const std::vector<int>& idx)
   return s;
 }
 
+/// The part of an estimate y (covariance Sy) along the directions whose σ is at most `limit`: a
+/// direction more uncertain than the largest plausible size says nothing of the size (issue #49: on
+/// `short` and factory-std the common part of the three lever arms, an offset of the whole triad,
+/// is fitted with σ ≈ 0.8 m beside K2, and its noise made the debiased norm of a real 45 mm size
+/// effect 0 ± 832 mm). Returns false when every direction is resolved (y, Sy unchanged).
+bool resolved_part(Eigen::VectorXd& y, Eigen::MatrixXd& Sy, double limit, int& unresolved) {
+  if (!std::isfinite(limit)) return false;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Sy);
+  std::vector<Eigen::Index> keep;
+  for (Eigen::Index i = 0; i < Sy.rows(); ++i)
+    if (std::sqrt(std::max(0.0, es.eigenvalues()(i))) <= limit) keep.push_back(i);
+  unresolved = static_cast<int>(Sy.rows()) - static_cast<int>(keep.size());
+  if (unresolved == 0) return false;
+  const auto m = static_cast<Eigen::Index>(keep.size());
+  Eigen::MatrixXd V(Sy.rows(), m);
+  for (Eigen::Index j = 0; j < m; ++j)
+    V.col(j) = es.eigenvectors().col(keep[static_cast<size_t>(j)]);
+  y = V.transpose() * y;
+  Sy = V.transpose() * Sy * V;
+  return true;
+}
+
 /// A fitted candidate's magnitude and its σ. The magnitude is a norm of scaled parameters,
 /// |s ⊙ v|; with two or more fitted components it is debiased for their noise
-/// (calib/diagnosis/effect_magnitude.hpp), with one it is |x| ± σ.
-void set_magnitude(CandidateResult& r, const EffectInfo& e, const std::vector<int>& param_index,
-                   const Eigen::VectorXd& x, const Eigen::MatrixXd& cov_x) {
+/// (calib/diagnosis/effect_magnitude.hpp), with one it is |x| ± σ. With a finite `resolve_limit`
+/// (the largest plausible size, in the magnitude's unit) the directions resolved within it are
+/// also weighed alone (resolved_part), and their size reported where it tells more than the
+/// whole's.
+/// Returns how many directions the reported size leaves out.
+int set_magnitude(CandidateResult& r, const EffectInfo& e, const std::vector<int>& param_index,
+                  const Eigen::VectorXd& x, const Eigen::MatrixXd& cov_x,
+                  double resolve_limit = std::numeric_limits<double>::infinity()) {
   const int n = static_cast<int>(param_index.size());
   Eigen::VectorXd scale_h(n);
   for (int k = 0; k < n; ++k) {
@@ -174,16 +201,32 @@ void set_magnitude(CandidateResult& r, const EffectInfo& e, const std::vector<in
     unit(param_index[static_cast<size_t>(k)]) = 1.0;
     scale_h(k) = e.magnitude(unit);
   }
-  const Eigen::VectorXd y = scale_h.cwiseProduct(x);
-  const Eigen::MatrixXd Sy = scale_h.asDiagonal() * cov_x * scale_h.asDiagonal();
-  if ((scale_h.array() > 0.0).count() >= 2) {
-    const NormEstimate m = debiased_norm(y, Sy);
-    r.magnitude = m.value;
-    r.magnitude_sigma = m.sigma;
-  } else {
+  Eigen::VectorXd y = scale_h.cwiseProduct(x);
+  Eigen::MatrixXd Sy = scale_h.asDiagonal() * cov_x * scale_h.asDiagonal();
+  if ((scale_h.array() > 0.0).count() < 2) {
     r.magnitude = y.norm();
     r.magnitude_sigma = std::sqrt(std::max(0.0, Sy.sum()));
+    return 0;
   }
+  const NormEstimate whole = debiased_norm(y, Sy);
+  r.magnitude = whole.value;
+  r.magnitude_sigma = whole.sigma;
+  int unresolved = 0;
+  if (!resolved_part(y, Sy, resolve_limit, unresolved) || y.size() == 0) return 0;
+  // The resolved part's size where it tells more (a larger size/σ): on a lever-arm run the whole
+  // norm is noise-level; on a sea run's g-sensitivity, its poorly resolved directions carry it.
+  NormEstimate part;
+  if (y.size() == 1) {
+    part.value = std::abs(y(0));
+    part.sigma = std::sqrt(std::max(0.0, Sy(0, 0)));
+  } else {
+    part = debiased_norm(y, Sy);
+  }
+  auto ratio = [](const NormEstimate& m) { return m.sigma > 0.0 ? m.value / m.sigma : 0.0; };
+  if (ratio(part) <= ratio(whole)) return 0;
+  r.magnitude = part.value;
+  r.magnitude_sigma = part.sigma;
+  return unresolved;
 }
 
 /// "partly separable: 2 of 3 parameter directions (the others alias ...); 1 more fitted with them,
@@ -206,6 +249,10 @@ struct Scored {
   Eigen::MatrixXd B;
   std::vector<int> param_index;
   double tau_s = 0.0;  ///< shape parameter used (thermal drift), 0 if none
+  /// It stands in the stepwise search for a set this sequence cannot tell apart (issue #49 item 2:
+  /// the set's first-ranked member); set_others are the other members, never searched themselves.
+  bool represents_set = false;
+  std::vector<std::string> set_others;
 };
 
 /// An effect's values, parameters and magnitude from its fitted coefficients α (covariance cov_a):
@@ -214,10 +261,12 @@ struct EffectValues {
   Eigen::VectorXd value_si;
   std::vector<CandidateParam> params;
   double magnitude = 0.0, magnitude_sigma = 0.0;
+  int unresolved = 0;  ///< directions left out of the magnitude (set_magnitude's resolve_limit)
 };
 
 EffectValues effect_values(const Scored& s, const Eigen::VectorXd& alpha,
-                           const Eigen::MatrixXd& cov_a) {
+                           const Eigen::MatrixXd& cov_a,
+                           double resolve_limit = std::numeric_limits<double>::infinity()) {
   const EffectInfo& e = effect_info(s.result.id);
   const Eigen::VectorXd x = s.B * alpha;
   const Eigen::MatrixXd cov_x = s.B * cov_a * s.B.transpose();
@@ -236,10 +285,22 @@ EffectValues effect_values(const Scored& s, const Eigen::VectorXd& alpha,
                         pi.shape ? 0.0 : sigma_si(j) * pi.si_to_human});
   }
   CandidateResult m;
-  set_magnitude(m, e, s.param_index, x, cov_x);
+  v.unresolved = set_magnitude(m, e, s.param_index, x, cov_x, resolve_limit);
   v.magnitude = m.magnitude;
   v.magnitude_sigma = m.magnitude_sigma;
   return v;
+}
+
+/// The largest plausible size of a candidate on this run's unit, in its magnitude's unit: the limit
+/// of judge_plausibility, and the σ beyond which a direction of a joint fit says nothing of the
+/// size.
+double plausible_size(const Scored& s, const Problem& p, const DiagnosisOptions& opt) {
+  const EffectInfo& e = effect_info(s.result.id);
+  const double t = e.magnitude(Eigen::Map<const Eigen::VectorXd>(
+      e.typical.data(), static_cast<Eigen::Index>(e.typical.size())));
+  const double limit =
+      plausible_limit_typical(s.result.id, p.model.input().grade, opt.max_plausible_typical);
+  return e.magnitude_params.empty() ? limit : limit * t;
 }
 
 /// Fit one candidate jointly with the base (in its separable subspace) and score it.
@@ -471,6 +532,23 @@ bool predicts_held_out(CandidateResult& r, double gap_before) {
   return false;
 }
 
+/// Each set of candidates this sequence cannot tell apart enters the stepwise search as one
+/// candidate (issue #49 item 2), so that another effect is never chosen for the set's signature:
+/// its first-ranked member stands for it. (On an independent simulator's K2 + lever-arm run the
+/// K2 | asymmetry set, left out of the search, left its signature to a 10 m size effect.)
+void mark_set_representatives(std::vector<Scored>& c) {
+  std::vector<std::string> represented;
+  for (Scored& s : c) {
+    const CandidateResult& r = s.result;
+    if (!r.in_ambiguous_set || s.J_eff.cols() == 0) continue;
+    if (std::find(represented.begin(), represented.end(), r.name) != represented.end()) continue;
+    s.represents_set = true;
+    s.set_others = r.confounded_with;
+    represented.push_back(r.name);
+    represented.insert(represented.end(), r.confounded_with.begin(), r.confounded_with.end());
+  }
+}
+
 void rank(std::vector<Scored>& c, const Problem& p, double held_out_before,
           const DiagnosisOptions& opt) {
   const double level = opt.alpha / std::max<size_t>(1, c.size());
@@ -478,7 +556,8 @@ void rank(std::vector<Scored>& c, const Problem& p, double held_out_before,
   for (size_t i = 0; i < c.size(); ++i) {
     CandidateResult& r = c[i].result;
     // The limit grows with the unit's grade: a MEMS unit's effects dwarf a navigation unit's.
-    judge_plausibility(r, opt.max_plausible_typical * effect_scale(r.id, p.model.input().grade));
+    judge_plausibility(
+        r, plausible_limit_typical(r.id, p.model.input().grade, opt.max_plausible_typical));
     test[i] =
         r.separable && r.plausible && r.p_value < level && predicts_held_out(r, held_out_before);
   }
@@ -516,6 +595,7 @@ void rank(std::vector<Scored>& c, const Problem& p, double held_out_before,
     if (a.result.separable != b.result.separable) return a.result.separable;
     return a.result.bic_gain > b.result.bic_gain;
   });
+  mark_set_representatives(c);
 }
 
 std::vector<ParamShift> moved_params(const GapLinearisation& lin, const GlsFit& before,
@@ -589,6 +669,8 @@ struct Selection {
   bool gm = false;
   Eigen::MatrixXd S;  ///< whitened-residual covariance under the Gauss-Markov bias (gm only)
   std::vector<std::string> ambiguous;
+  /// Members the search chose whose place the final joint fit does not support (earn_places).
+  std::vector<UnsupportedEffect> unsupported;
 };
 
 /// A candidate judged on a per-sample statistic of its own (the rest samples' lag-1
@@ -611,13 +693,14 @@ std::optional<size_t> index_of(const std::vector<Scored>& c, EffectId id) {
 constexpr size_t kMaxSteps = 6;
 
 /// Whether a candidate may join a stepwise explanation: a deterministic effect (it has columns),
-/// separable from the base, and not one of a set this sequence cannot tell apart. Its size is
+/// separable from the base, and not one of a set this sequence cannot tell apart unless it stands
+/// for the set (mark_set_representatives). Its size is
 /// judged given the effects chosen before it (next_step): fitted alone, a candidate takes on what
 /// the others do — on a paper-like unit the size effect alone read 2600x its typical lever arms,
 /// beside a 2.5 ms gyro/accelerometer skew that moves the same moves.
 bool steppable(const Scored& s) {
   const CandidateResult& r = s.result;
-  return s.J_eff.cols() > 0 && r.separable && !r.in_ambiguous_set;
+  return s.J_eff.cols() > 0 && r.separable && (!r.in_ambiguous_set || s.represents_set);
 }
 
 /// Whether a candidate's size in a joint fit (its coefficients at the tail of `fit`) is plausible
@@ -657,7 +740,7 @@ std::optional<StepFit> next_step(const std::vector<Scored>& c, const Problem& p,
       f.p_value = chi2_survival(std::max(0.0, lr), c[i].result.k);
       if (!(f.p_value < level)) continue;
       const double limit =
-          opt.max_plausible_typical * effect_scale(c[i].result.id, p.model.input().grade);
+          plausible_limit_typical(c[i].result.id, p.model.input().grade, opt.max_plausible_typical);
       if (!plausible_in(c[i], fit, limit)) continue;
       f.chi2 = fit.chi2;
       f.dof = fit.dof;
@@ -705,6 +788,124 @@ Eigen::MatrixXd step_columns(const std::vector<Scored>& c, const Problem& p,
   Eigen::MatrixXd J = p.Jb;
   for (const StepFit& f : steps) J = hcat(J, c[f.member].J_eff);
   return J;
+}
+
+/// The steps' figures in order, each given the steps before it: χ², dof, held-out gap and the
+/// test's p-value (after earn_places removed some, the survivors' "given the steps before" change).
+void refit_steps(Selection& sel, const std::vector<Scored>& c, const Problem& p, double chi2_0) {
+  Eigen::MatrixXd J = p.Jb;
+  double chi2_before = chi2_0;
+  int k = 0;
+  for (StepFit& f : sel.steps) {
+    J = hcat(J, c[f.member].J_eff);
+    const GlsFit fit = gls_fit(p.r0, J);
+    f.p_value = chi2_survival(std::max(0.0, chi2_before - fit.chi2), c[f.member].result.k);
+    f.chi2 = fit.chi2;
+    f.dof = fit.dof;
+    f.held_out = held_out_gap(p.r0, J, p.folds).ratio();
+    chi2_before = fit.chi2;
+    k += c[f.member].result.k;
+  }
+  sel.J = J;
+  sel.bic = sel.steps.empty()
+                ? 0.0
+                : (chi2_0 - sel.steps.back().chi2) - k * std::log(static_cast<double>(p.r0.size()));
+}
+
+/// Whether fitted coefficients a (covariance C) differ from zero by more than 2σ in their own
+/// dimension: the Wald statistic aᵀC⁻¹a beyond χ²(k)'s two-sided 2σ quantile (p < 0.0455). A
+/// multi-parameter effect is present beyond doubt when this holds, however noise-level the norm of
+/// its parameters (a sea run's g-sensitivity: norm 0.16 ± 0.15 °/h/g, p 1e-59).
+bool beyond_two_sigma(const Eigen::VectorXd& a, const Eigen::MatrixXd& C) {
+  if (a.size() == 0) return false;
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(C);
+  if (ldlt.info() != Eigen::Success) return false;
+  const double w = a.dot(ldlt.solve(a));
+  return std::isfinite(w) && chi2_survival(std::max(0.0, w), static_cast<int>(a.size())) < 0.0455;
+}
+
+/// How member i of the set `steps` fares in the final joint fit (issue #49 item 1): every test it
+/// fails, for people ("" when it earns its place), its size there and its test given the others.
+UnsupportedEffect judge_member(const std::vector<Scored>& c, const Problem& p,
+                               const std::vector<StepFit>& steps, size_t i, const GlsFit& fit,
+                               double held_all, double level, const DiagnosisOptions& opt) {
+  const Scored& sc = c[steps[i].member];
+  Eigen::Index col = p.Jb.cols();
+  for (size_t j = 0; j < i; ++j) col += c[steps[j].member].J_eff.cols();
+  const auto k = sc.J_eff.cols();
+  const EffectValues v = effect_values(sc, fit.x.segment(col, k), fit.cov.block(col, col, k, k),
+                                       plausible_size(sc, p, opt));
+  std::vector<StepFit> others = steps;
+  others.erase(others.begin() + static_cast<std::ptrdiff_t>(i));
+  const Eigen::MatrixXd J_wo = step_columns(c, p, others);
+  UnsupportedEffect u{sc.result.name, v.magnitude, v.magnitude_sigma, sc.result.unit, 1.0, ""};
+  u.p_value = chi2_survival(std::max(0.0, gls_fit(p.r0, J_wo).chi2 - fit.chi2), sc.result.k);
+  std::ostringstream os;
+  os.precision(3);
+  auto add = [&](const std::string& why) { os << (os.tellp() > 0 ? "; " : "") << why; };
+  if (!(u.p_value < level)) {
+    std::ostringstream w;
+    w.precision(2);
+    w << "not significant given the others refitted (p " << u.p_value << ", level " << level << ")";
+    add(w.str());
+  }
+  if (!beyond_two_sigma(fit.x.segment(col, k), fit.cov.block(col, col, k, k)))
+    add("its size is within 2 sigma of zero");
+  CandidateResult r;
+  r.id = sc.result.id;
+  r.separable = true;
+  r.unit = sc.result.unit;
+  r.magnitude = v.magnitude;
+  r.magnitude_sigma = v.magnitude_sigma;
+  judge_plausibility(
+      r, plausible_limit_typical(r.id, p.model.input().grade, opt.max_plausible_typical));
+  if (!r.plausible) add(r.note + ": an alias of another effect, not this one");
+  double held_wo = std::numeric_limits<double>::infinity();
+  try {
+    held_wo = held_out_gap(p.r0, J_wo, p.folds).ratio();
+  } catch (const std::invalid_argument&) {
+    // without it the base is not separable on a fold: it is needed
+  }
+  if (!(held_wo > held_all)) {
+    std::ostringstream w;
+    w.precision(3);
+    w << "leaving it out does not worsen the held-out gap (" << held_all << " with it, " << held_wo
+      << " without)";
+    add(w.str());
+  }
+  u.reason = os.str();
+  return u;
+}
+
+/// A named effect is earned (issue #49 item 1): in the final joint fit of the stepwise set, each
+/// member's size must be significant given all the others refitted (not only given the steps
+/// before it), at least 2σ from zero and plausible for the grade, and leaving it out must worsen
+/// the held-out gap. The member that fails worst (largest p given the others) is dropped and the
+/// set refitted, until every member earns its place. Returns the dropped ones with their reasons.
+std::vector<UnsupportedEffect> earn_places(Selection& sel, const std::vector<Scored>& c,
+                                           const Problem& p, double chi2_0, double level,
+                                           const DiagnosisOptions& opt) {
+  std::vector<UnsupportedEffect> dropped;
+  while (!sel.steps.empty()) {
+    const Eigen::MatrixXd J = step_columns(c, p, sel.steps);
+    const GlsFit fit = gls_fit(p.r0, J);
+    const double held_all = held_out_gap(p.r0, J, p.folds).ratio();
+    std::optional<size_t> worst;
+    UnsupportedEffect worst_u;
+    for (size_t i = 0; i < sel.steps.size(); ++i) {
+      UnsupportedEffect u = judge_member(c, p, sel.steps, i, fit, held_all, level, opt);
+      if (u.reason.empty()) continue;
+      if (!worst || u.p_value > worst_u.p_value) {
+        worst = i;
+        worst_u = std::move(u);
+      }
+    }
+    if (!worst) break;
+    dropped.push_back(std::move(worst_u));
+    sel.steps.erase(sel.steps.begin() + static_cast<std::ptrdiff_t>(*worst));
+  }
+  refit_steps(sel, c, p, chi2_0);
+  return dropped;
 }
 
 /// Backward elimination under a Gauss-Markov bias: the deterministic members that the wandering
@@ -755,8 +956,9 @@ std::optional<Selection> with_gauss_markov(const std::vector<Scored>& c, const P
   set_gauss_markov_size(given, p.lin, det.J, fc);
   given.plausible = true;
   given.separable = true;
-  judge_plausibility(given, opt.max_plausible_typical *
-                                effect_scale(EffectId::kBiasInstability, p.model.input().grade));
+  judge_plausibility(given,
+                     plausible_limit_typical(EffectId::kBiasInstability, p.model.input().grade,
+                                             opt.max_plausible_typical));
   if (!given.plausible) return std::nullopt;
   Selection s = det;
   s.gm = true;
@@ -778,56 +980,135 @@ std::optional<Selection> with_gauss_markov(const std::vector<Scored>& c, const P
   return s;
 }
 
-/// Model choice by BIC among: the stepwise set of deterministic effects (forward_selection), an
-/// undeclared Gauss-Markov bias GM alone, and the set followed by GM — each only if its members are
-/// significant (GM given the set for the last). A noise candidate never comes before a
-/// deterministic effect it accompanies. A significant top candidate that another one mimics makes
-/// the choice ambiguous: no finding. Quantisation and the output filter, independent of the segment
-/// residuals, join last when significant.
+/// The deterministic member of `both` (a set followed by a Gauss-Markov bias) whose size, fitted
+/// with the others under the bias's covariance, is within 2σ of zero or implausible — the weakest
+/// by size/σ — with why; empty when every member keeps its size (issue #49 item 1: with the
+/// wandering beside it a K2 run's thermal drift read "0 ± 2.1 × typical" and was named).
+std::optional<std::pair<size_t, UnsupportedEffect>> unsized_under_gauss_markov(
+    const std::vector<Scored>& c, const Problem& p, const Selection& both,
+    const DiagnosisOptions& opt) {
+  const GlsFit fit = gls_fit_cov(p.r0, both.J, both.S);
+  std::optional<std::pair<size_t, UnsupportedEffect>> weakest;
+  double weakest_ratio = std::numeric_limits<double>::infinity();
+  Eigen::Index col = p.Jb.cols();
+  for (size_t i = 0; i < both.steps.size(); ++i) {
+    const Scored& sc = c[both.steps[i].member];
+    const auto k = sc.J_eff.cols();
+    if (k == 0 || col + k > fit.x.size()) continue;  // the bias itself
+    const EffectValues v = effect_values(sc, fit.x.segment(col, k), fit.cov.block(col, col, k, k),
+                                         plausible_size(sc, p, opt));
+    col += k;
+    CandidateResult r;
+    r.id = sc.result.id;
+    r.separable = true;
+    r.unit = sc.result.unit;
+    r.magnitude = v.magnitude;
+    r.magnitude_sigma = v.magnitude_sigma;
+    judge_plausibility(
+        r, plausible_limit_typical(r.id, p.model.input().grade, opt.max_plausible_typical));
+    const bool sized =
+        beyond_two_sigma(fit.x.segment(col - k, k), fit.cov.block(col - k, col - k, k, k));
+    const double ratio = v.magnitude_sigma > 0.0 ? v.magnitude / v.magnitude_sigma : 0.0;
+    if ((sized && r.plausible) || ratio >= weakest_ratio) continue;
+    weakest_ratio = ratio;
+    UnsupportedEffect u{sc.result.name, v.magnitude, v.magnitude_sigma, sc.result.unit, 1.0, ""};
+    u.reason = r.plausible ? "its size is within 2 sigma of zero given the bias instability named "
+                             "with it: the bias's wandering takes its signature"
+                           : r.note + ", given the bias instability named with it";
+    weakest = std::make_pair(i, std::move(u));
+  }
+  return weakest;
+}
+
+/// The selection of a set this sequence cannot tell apart, alone: explained by the set (issue #19
+/// item 6), its members listed, no step.
+Selection set_alone(const std::vector<Scored>& c, const Problem& p, size_t member) {
+  Selection s;
+  s.ambiguous.push_back(c[member].result.name);
+  for (const auto& o : c[member].set_others) s.ambiguous.push_back(o);
+  s.J = hcat(p.Jb, c[member].J_eff);
+  return s;
+}
+
+/// The deterministic explanation: forward selection from the best finding (a set this sequence
+/// cannot tell apart enters as one), then each member's place earned in the final joint fit.
+/// Empty steps when none is left; the dropped members in `unsupported` either way.
+std::optional<Selection> deterministic_set(const std::vector<Scored>& c, const Problem& p,
+                                           double chi2_0, double level, const DiagnosisOptions& opt,
+                                           std::vector<UnsupportedEffect>& unsupported) {
+  std::optional<size_t> d1;
+  for (size_t i = 0; i < c.size() && !d1; ++i)
+    if ((c[i].result.significant || c[i].represents_set) && c[i].J_eff.cols() > 0) d1 = i;
+  if (!d1) return std::nullopt;
+  Selection det = forward_selection(c, p, *d1, chi2_0, level, opt);
+  unsupported = earn_places(det, c, p, chi2_0, level, opt);
+  if (det.steps.empty()) return std::nullopt;
+  return det;
+}
+
+/// Model choice among: the stepwise set of deterministic effects (deterministic_set), an
+/// undeclared Gauss-Markov bias GM, and the set followed by GM. Bias instability comes last (issue
+/// #49 item 3): its per-segment offsets absorb any slow signature, so it is named alone only when
+/// no deterministic effect earned a place, and after a set only when it is needed given the set and
+/// the set given it (with_gauss_markov); where it could stand for a member instead, that member's
+/// step says so. Its size is judged against the grade's datasheet range
+/// (EffectInfo::plausible_max). A set of candidates this sequence cannot tell apart, alone, is the
+/// finding as a set. Quantisation, the output filter and the hand's tremor, independent of the
+/// segment residuals, join last when significant.
 Selection select_model(const std::vector<Scored>& c, const Problem& p, double chi2_0,
                        const DiagnosisOptions& opt) {
   Selection best;
   best.J = p.Jb;
   if (c.empty()) return best;
-  if (c[0].result.in_ambiguous_set) {
-    best.ambiguous.push_back(c[0].result.name);
-    for (const auto& o : c[0].result.confounded_with) best.ambiguous.push_back(o);
-    best.J = hcat(p.Jb, c[0].J_eff);
+  const double level = opt.alpha / static_cast<double>(c.size());
+  std::vector<UnsupportedEffect> unsupported;
+  const std::optional<Selection> det = deterministic_set(c, p, chi2_0, level, opt, unsupported);
+  const auto g = index_of(c, EffectId::kBiasInstability);
+  if (det && det->steps.size() == 1 && c[det->steps[0].member].represents_set) {
+    best = set_alone(c, p, det->steps[0].member);
+    best.unsupported = std::move(unsupported);
     return best;
   }
-  const double level = opt.alpha / static_cast<double>(c.size());
-  auto consider = [&](Selection s) {
-    if (s.bic > best.bic) best = std::move(s);
-  };
-  std::optional<size_t> d1;
-  for (size_t i = 0; i < c.size() && !d1; ++i)
-    if (c[i].result.significant && c[i].J_eff.cols() > 0) d1 = i;
-  std::optional<Selection> det;
-  if (d1) {
-    det = forward_selection(c, p, *d1, chi2_0, level, opt);
-    consider(*det);
-  }
-  if (const auto g = index_of(c, EffectId::kBiasInstability)) {
-    if (c[*g].result.significant) {
-      const GaussMarkovFit f = fit_gauss_markov(p.lin, p.Jb, opt.instability_tau_grid_s);
-      Selection alone;
-      alone.J = p.Jb;
-      alone.gm = true;
-      alone.S = f.S;
-      alone.bic = c[*g].result.bic_gain;
-      alone.steps.push_back({*g, c[*g].result.p_value, f.chi2,
-                             p.model.rows() - static_cast<int>(p.Jb.cols()),
-                             c[*g].result.held_out_gap});
-      consider(std::move(alone));
+  std::optional<Selection> set = det;
+  const CandidateResult* r = g ? &c[*g].result : nullptr;
+  // After the set, the wandering is judged given it, also when alone it was significant but of
+  // implausible size: alone it takes on the set's effects too. A member whose size the wandering
+  // then takes leaves the set (unsized_under_gauss_markov) and the two are judged again.
+  const bool gm_candidate =
+      r && (r->significant || (!r->plausible && r->separable && r->p_value < level));
+  while (set && gm_candidate) {
+    auto both = with_gauss_markov(c, p, *set, *g, chi2_0, level, opt);
+    if (!both) {
+      if (r->significant) {
+        // The bias alone would do: its members it could stand for say so (not chosen by BIC).
+        const std::vector<size_t> like = unneeded_under_gauss_markov(c, p, set->steps, level, opt);
+        for (StepFit& f : set->steps)
+          f.like_wandering = std::find(like.begin(), like.end(), f.member) != like.end();
+      }
+      break;
     }
-    // After the set, the wandering is judged given it (with_gauss_markov), also when alone it
-    // was significant but of implausible size: alone it takes on the set's effects too.
-    const CandidateResult& r = c[*g].result;
-    const bool only_too_large = !r.plausible && r.separable && r.p_value < level;
-    if (det && (r.significant || only_too_large))
-      if (auto both = with_gauss_markov(c, p, *det, *g, chi2_0, level, opt))
-        consider(std::move(*both));
+    auto weak = unsized_under_gauss_markov(c, p, *both, opt);
+    if (!weak) {
+      set = std::move(*both);
+      break;
+    }
+    unsupported.push_back(std::move(weak->second));
+    set->steps.erase(set->steps.begin() + static_cast<std::ptrdiff_t>(weak->first));
+    refit_steps(*set, c, p, chi2_0);
+    if (set->steps.empty()) set.reset();
   }
+  if (set) {
+    best = std::move(*set);
+  } else if (g && c[*g].result.significant) {
+    const GaussMarkovFit f = fit_gauss_markov(p.lin, p.Jb, opt.instability_tau_grid_s);
+    best.gm = true;
+    best.S = f.S;
+    best.bic = c[*g].result.bic_gain;
+    best.steps.push_back({*g, c[*g].result.p_value, f.chi2,
+                          p.model.rows() - static_cast<int>(p.Jb.cols()),
+                          c[*g].result.held_out_gap});
+  }
+  best.unsupported = std::move(unsupported);
   // The per-sample candidates (quantisation, the output filter, the hand's tremor), independent of
   // the segment residuals, join last when significant.
   for (EffectId id : {EffectId::kQuantisation, EffectId::kOutputFilter, EffectId::kRestTremor})
@@ -841,7 +1122,8 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
 /// `fit` of the whole set (its columns in step order after the base), a noise candidate's from its
 /// own fit; the gaps after each step.
 std::vector<DiagnosisStep> result_steps(const Selection& sel, const std::vector<Scored>& c,
-                                        const Problem& p, const GlsFit& fit) {
+                                        const Problem& p, const GlsFit& fit,
+                                        const DiagnosisOptions& opt) {
   std::vector<DiagnosisStep> out;
   Eigen::Index col = p.Jb.cols();
   for (const StepFit& f : sel.steps) {
@@ -853,17 +1135,36 @@ std::vector<DiagnosisStep> result_steps(const Selection& sel, const std::vector<
     st.p_value = f.p_value;
     st.gap_after = f.dof > 0 ? f.chi2 / f.dof : std::numeric_limits<double>::quiet_NaN();
     st.held_out_after = f.held_out;
+    st.set = sc.set_others;
     if (f.like_wandering)
-      st.note =
-          "the bias instability named with it would explain it as well: this run cannot "
-          "tell a trend of this shape from the bias's wandering";
+      st.note = sel.gm ? "the bias instability named with it would explain it as well: this run "
+                         "cannot tell a trend of this shape from the bias's wandering"
+                       : "an undeclared bias instability alone would explain it as well (not "
+                         "named: not needed given this set): this run cannot tell a trend of "
+                         "this shape from a wandering bias";
     const auto k = sc.J_eff.cols();
     if (k > 0 && col + k <= fit.x.size()) {
-      const EffectValues v =
-          effect_values(sc, fit.x.segment(col, k), fit.cov.block(col, col, k, k));
+      const EffectValues v = effect_values(sc, fit.x.segment(col, k), fit.cov.block(col, col, k, k),
+                                           plausible_size(sc, p, opt));
       st.params = v.params;
       st.magnitude = v.magnitude;
       st.magnitude_sigma = v.magnitude_sigma;
+      if (!(v.magnitude >= 2.0 * v.magnitude_sigma)) {
+        std::ostringstream os;
+        os.precision(2);
+        os << "present (its parameters differ from zero by more than 2 sigma, p " << f.p_value
+           << ") but its size is not resolved on this run: the norm of its parameters is within 2 "
+              "sigma of zero";
+        st.note += (st.note.empty() ? "" : "; ") + os.str();
+      }
+      if (v.unresolved > 0) {
+        std::ostringstream os;
+        os.precision(3);
+        os << "its size along the directions this run resolves: " << v.unresolved
+           << " parameter direction(s) not resolved (sigma beyond the largest plausible size, "
+           << plausible_size(sc, p, opt) << " " << sc.result.unit << ")";
+        st.note += (st.note.empty() ? "" : "; ") + os.str();
+      }
       col += k;
     } else {
       const CandidateResult& own = f.size_given_set ? *f.size_given_set : sc.result;
@@ -884,7 +1185,7 @@ void apply_selection(DiagnosisResult& d, const Selection& sel, const std::vector
   const bool segment_model = sel.gm || sel.J.cols() > p.Jb.cols();
   const GlsFit fit = sel.gm ? gls_fit_cov(p.r0, sel.J, sel.S) : gls_fit(p.r0, sel.J);
   d.gap_after_best = fit.chi2 / fit.dof;
-  d.steps = result_steps(sel, c, p, fit);
+  d.steps = result_steps(sel, c, p, fit, opt);
   d.best.reset();
   d.second.reset();
   if (!sel.steps.empty()) d.best = sel.steps[0].member;
@@ -926,7 +1227,10 @@ void apply_selection(DiagnosisResult& d, const Selection& sel, const std::vector
   if (!sel.ambiguous.empty()) {
     d.explained_by = sel.ambiguous;
   } else {
-    for (const StepFit& f : sel.steps) d.explained_by.push_back(c[f.member].result.name);
+    for (const StepFit& f : sel.steps) {
+      d.explained_by.push_back(c[f.member].result.name);
+      for (const auto& o : c[f.member].set_others) d.explained_by.push_back(o);
+    }
   }
 }
 
@@ -981,8 +1285,9 @@ std::string summarise(const DiagnosisResult& d) {
     // Each effect's size from the joint fit of the whole set (the steps), in the order chosen.
     for (size_t i = 0; i < d.steps.size(); ++i) {
       const DiagnosisStep& s = d.steps[i];
-      os << (i ? (i + 1 == d.steps.size() ? " and " : ", ") : "") << s.effect << " = "
-         << s.magnitude << " +- " << s.magnitude_sigma << " " << s.unit;
+      os << (i ? (i + 1 == d.steps.size() ? " and " : ", ") : "") << s.effect;
+      for (const auto& o : s.set) os << " | " << o;
+      os << " = " << s.magnitude << " +- " << s.magnitude_sigma << " " << s.unit;
     }
     os << "; held-out gap " << d.held_out.gap_before << " -> "
        << (d.held_out.has_pair ? d.held_out.gap_after_pair : d.held_out.gap_after);
@@ -997,6 +1302,11 @@ std::string summarise(const DiagnosisResult& d) {
   }
   if (d.verdict == "unexplained" && !d.remaining.empty())
     os << "; largest remaining: " << d.remaining.front().first;
+  if (!d.unsupported.empty()) {
+    os << "; fitted, not supported: ";
+    for (size_t i = 0; i < d.unsupported.size(); ++i)
+      os << (i ? ", " : "") << d.unsupported[i].effect;
+  }
   return os.str();
 }
 
@@ -1112,6 +1422,7 @@ DiagnosisResult diagnose(const DiagnosisInput& in, const ParamSet& base,
     d.moved.clear();
     apply_selection(d, per_sample_findings(sel, cands, p, opt), cands, p, fit0, opt);
   }
+  d.unsupported = sel.unsupported;
   for (auto& s : cands) d.candidates.push_back(std::move(s.result));
   d.summary = summarise(d);
   d.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

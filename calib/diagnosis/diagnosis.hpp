@@ -26,9 +26,14 @@
 //     step the candidate that predicts the held-out segments best among those whose likelihood
 //     ratio, given the effects already chosen, passes the candidates' level and that shrink the
 //     held-out gap; it stops when none does (what is left is consistent with the model as far as
-//     any candidate can tell, or nothing separable is left). A noise candidate (an undeclared
-//     Gauss-Markov bias) joins only after the deterministic effects, and only if the set still
-//     needs it (or alone, if it explains the run better by BIC).
+//     any candidate can tell, or nothing separable is left). A set of candidates the sequence
+//     cannot tell apart (K2 | asymmetry) enters as one candidate, named as the set (issue #49
+//     item 2). Then each member must earn its place in the final joint fit (issue #49 item 1):
+//     significant given all the others refitted, at least 2σ from zero, plausible for the grade
+//     (EffectInfo::plausible_max), and needed by the held-out gap; one that is not is dropped and
+//     reported as "fitted, not supported" with its reason. A noise candidate (an undeclared
+//     Gauss-Markov bias) comes last (issue #49 item 3): after the deterministic effects only if the
+//     set still needs it and it the set, alone only when no deterministic effect earned a place.
 //  4. Quantify: the gap on held-out segments (K-fold over rests and the moves after them) before
 //     and after each step; the base parameters that move, in σ.
 #include <array>
@@ -155,6 +160,22 @@ struct DiagnosisStep {
   /// Empty, or why this finding is less certain than its test says (a trend that the bias
   /// instability named after it would explain as well).
   std::string note;
+  /// The other members of a set this sequence cannot tell apart that the step stands for (issue #49
+  /// item 2: "accel_quadratic_k2 | accel_asymmetry"); its size is that of `effect`, the member that
+  /// predicts the held-out segments best. Empty for a single effect.
+  std::vector<std::string> set;
+};
+
+/// A member of the stepwise explanation that was fitted but is not supported (issue #49 item 1):
+/// in the final joint fit of the set it fails one of the tests a named effect must pass — its size
+/// significant given all the others refitted and at least 2σ from zero, plausible for the unit's
+/// grade, and leaving it out worsens the held-out gap. Dropped from the explanation, reported.
+struct UnsupportedEffect {
+  std::string effect;
+  double magnitude = 0.0, magnitude_sigma = 0.0;  ///< its size in the joint fit it failed in
+  std::string unit;
+  double p_value = 1.0;  ///< its likelihood-ratio test given all the others refitted
+  std::string reason;    ///< every test it failed, for people
 };
 
 struct ParamShift {
@@ -190,6 +211,9 @@ struct DiagnosisResult {
   /// deterministic effect), each with its joint size and the gap after it; empty when no effect is
   /// a finding. best and second are its first two members.
   std::vector<DiagnosisStep> steps;
+  /// Effects the stepwise search chose but whose place in the final set is not earned (issue #49
+  /// item 1), in the order they were dropped: never in explained_by or the verdict.
+  std::vector<UnsupportedEffect> unsupported;
   /// Significant candidates that explain the gap equally and that this sequence cannot tell apart
   /// (the top one first); then best is empty and the finding is the set (explained_by).
   std::vector<std::string> ambiguous;

@@ -6,6 +6,8 @@
 // ones, the gap on held-out segments — is a least-squares question on (r0, J) restricted to some
 // rows and columns.
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -90,6 +92,19 @@ inline double effect_scale(EffectId id, Grade grade) {
   const EffectKind k = effect_info(id).kind;
   return k == EffectKind::kSensor || k == EffectKind::kStochastic ? grade_prior(grade).effect_scale
                                                                   : 1.0;
+}
+
+/// The largest plausible size of an effect on a unit of `grade`, in multiples of its catalogue
+/// typical magnitude: `max_typical` × effect_scale, or the catalogue's physical bound for the grade
+/// (EffectInfo::plausible_max) where that is lower.
+inline double plausible_limit_typical(EffectId id, Grade grade, double max_typical) {
+  const EffectInfo& e = effect_info(id);
+  double limit = max_typical * effect_scale(id, grade);
+  const double bound = e.plausible_max[static_cast<size_t>(grade)];
+  const double t = e.magnitude(Eigen::Map<const Eigen::VectorXd>(
+      e.typical.data(), static_cast<Eigen::Index>(e.typical.size())));
+  if (std::isfinite(bound) && t > 0.0) limit = std::min(limit, bound / t);
+  return limit;
 }
 
 /// A correlation as people read it in a note: three decimals ("0.977", not "0.977463").

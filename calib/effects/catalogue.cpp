@@ -199,9 +199,39 @@ void add_remaining_effects(std::vector<EffectInfo>& c) {
                {0}});
 }
 
+/// The physical bounds of EffectInfo::plausible_max (navigation, tactical, MEMS; magnitude units),
+/// where the general rule (50× the navigation-grade typical size times the grade's effect scale, 1
+/// : 100 : 10⁴) would allow sizes no unit has (issue #49: a 10 m lever arm named on a tactical
+/// unit). Each is generous — the diagnosis must not call a real unit implausible — and reasoned:
+void set_plausible_bounds(std::vector<EffectInfo>& c) {
+  auto set = [&](EffectId id, double navigation, double tactical, double mems) {
+    c[static_cast<size_t>(id)].plausible_max = {navigation, tactical, mems};
+  };
+  const double none = EffectInfo::kNoPlausibleBound;
+  // K2 (µg/g², norm of three): quartz pendulous ≲ 50, tactical ≲ 10³, MEMS nonlinearity ≲ 1 %/g.
+  set(EffectId::kAccelQuadraticK2, none, 20000.0, 100000.0);
+  // Asymmetry (ppm, norm of three): as K2 at 1 g.
+  set(EffectId::kAccelAsymmetry, none, 20000.0, 100000.0);
+  // Lever arms (mm, norm of nine): the accelerometers sit inside the unit, whatever its grade; the
+  // largest navigation units measure ~30 cm, three arms of 15 cm make 260 mm.
+  set(EffectId::kSizeEffect, 300.0, 300.0, 300.0);
+  // g-sensitivity ((°/h)/g, norm of nine): MEMS datasheets 0.01–0.1 (°/s)/g, i.e. ≤ 360 per axis.
+  set(EffectId::kGyroGSensitivity, none, none, 2000.0);
+  // Skew (ms): a few sample periods at the slowest rates such units log (100 Hz MEMS, 1 kHz
+  // navigation).
+  set(EffectId::kGyroAccelSkew, 10.0, 30.0, 50.0);
+  // Thermal warm-up (× typical 20 µg, 0.005 °/h): the grade's bias range (tactical ~20 mg and
+  // 5 °/h, MEMS ~200 mg and 50 °/h taken together).
+  set(EffectId::kThermalDrift, none, 1000.0, 10000.0);
+  // Bias instability (× typical 10 µg, 0.001 °/h): datasheets' ranges — navigation ≤ 0.01 °/h and
+  // 100 µg, tactical ≤ 1 °/h and 10 mg, MEMS ≤ 100 °/h and 100 mg.
+  set(EffectId::kBiasInstability, 10.0, 1000.0, 100000.0);
+}
+
 std::vector<EffectInfo> build_catalogue() {
   std::vector<EffectInfo> c = sensor_effects();
   add_remaining_effects(c);
+  set_plausible_bounds(c);
   return c;
 }
 

@@ -12,6 +12,7 @@
 // (shape parameters such as time constants do not count).
 #include <Eigen/Core>
 #include <array>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -69,6 +70,13 @@ struct EffectInfo {
   std::vector<double> typical;
   /// Parameters sharing the magnitude's unit: magnitude = Euclidean norm of these (human units).
   std::vector<int> magnitude_params;
+  /// The largest magnitude (in magnitude_unit()) a unit of each grade — navigation, tactical, MEMS,
+  /// calib/core/unit_grade.hpp's order — may physically have (issue #49): a lever arm is at most
+  /// the unit's size and a gyro/accelerometer skew a few sample periods whatever the grade, a
+  /// navigation unit's bias instability is its datasheet's. Infinity: no bound beyond the
+  /// diagnosis' general rule (DiagnosisOptions::max_plausible_typical × the grade's effect scale).
+  std::array<double, 3> plausible_max{kNoPlausibleBound, kNoPlausibleBound, kNoPlausibleBound};
+  static constexpr double kNoPlausibleBound = std::numeric_limits<double>::infinity();
   int size() const { return static_cast<int>(params.size()); }
   /// The unit of magnitude() (the human unit of the magnitude parameters).
   const std::string& magnitude_unit() const;

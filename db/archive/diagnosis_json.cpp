@@ -40,7 +40,18 @@ json step_json(const calib::diagnosis::DiagnosisStep& s) {
           {"gap_after", num(s.gap_after)},
           {"held_out_after", num(s.held_out_after)},
           {"note", s.note},
+          // The other members of a set this sequence cannot tell apart that the step stands for.
+          {"set", s.set},
           {"parameters", params_json(s.params)}};
+}
+
+json unsupported_json(const calib::diagnosis::UnsupportedEffect& u) {
+  return {{"effect", u.effect},
+          {"magnitude", num(u.magnitude)},
+          {"sigma", num(u.magnitude_sigma)},
+          {"unit", u.unit},
+          {"p_value_given_others", num(u.p_value)},
+          {"reason", u.reason}};
 }
 
 json candidate_json(const calib::diagnosis::CandidateResult& c) {
@@ -107,6 +118,10 @@ nlohmann::json diagnosis_to_json(const calib::diagnosis::DiagnosisResult& d) {
   json steps = json::array();
   for (const auto& st : d.steps) steps.push_back(step_json(st));
   j["steps"] = steps;
+  // Chosen by the stepwise search, then dropped: their place in the final set is not earned.
+  json unsupported = json::array();
+  for (const auto& u : d.unsupported) unsupported.push_back(unsupported_json(u));
+  j["not_supported"] = unsupported;
   // A significant candidate that removed too little of the held-out gap to be a finding.
   j["weak_candidate"] = d.weak_candidate.empty() ? json(nullptr)
                                                  : json{{"effect", d.weak_candidate},
@@ -162,7 +177,7 @@ nlohmann::json diagnosis_summary_json(const calib::diagnosis::DiagnosisResult& d
   const json full = diagnosis_to_json(d);
   json s;
   for (const char* k : {"verdict", "summary", "best", "second", "ambiguous", "explained_by",
-                        "weak_candidate", "held_out"})
+                        "not_supported", "weak_candidate", "held_out"})
     s[k] = full[k];
   // The explained set's steps without their parameters: effect, size and the gaps after it.
   s["steps"] = json::array();

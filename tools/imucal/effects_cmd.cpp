@@ -1,9 +1,13 @@
 #include "tools/imucal/effects_cmd.hpp"
 
+#include <array>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "calib/diagnosis/diagnosis.hpp"
+#include "calib/diagnosis/gap_fit.hpp"
 #include "calib/effects/catalogue.hpp"
 
 namespace imucal::tools::imucal {
@@ -22,6 +26,21 @@ const char* kind_name(calib::effects::EffectKind k) {
       return "stochastic";
   }
   return "?";
+}
+
+/// The largest size the diagnosis takes as plausible on a unit of each grade, in the magnitude's
+/// unit (calib/diagnosis/gap_fit.hpp plausible_limit_typical at the default options): beyond it a
+/// fitted size is an alias of another effect, never a finding (issue #49).
+std::array<double, 3> plausible_max(const calib::effects::EffectInfo& e) {
+  const double t = e.magnitude(Eigen::Map<const Eigen::VectorXd>(
+      e.typical.data(), static_cast<Eigen::Index>(e.typical.size())));
+  const double max_typical = calib::diagnosis::DiagnosisOptions{}.max_plausible_typical;
+  std::array<double, 3> out{};
+  for (auto g :
+       {calib::core::Grade::kNavigation, calib::core::Grade::kTactical, calib::core::Grade::kMems})
+    out[static_cast<size_t>(g)] = calib::diagnosis::plausible_limit_typical(e.id, g, max_typical) *
+                                  (e.magnitude_params.empty() ? 1.0 : t);
+  return out;
 }
 
 }  // namespace
@@ -45,7 +64,8 @@ int cmd_effects(bool json) {
                    {"model", e.model},
                    {"signature", e.signature},
                    {"parameters", ps},
-                   {"magnitude_unit", e.magnitude_unit()}});
+                   {"magnitude_unit", e.magnitude_unit()},
+                   {"plausible_max", plausible_max(e)}});
     }
     std::cout << a.dump(2) << '\n';
     return 0;
@@ -67,6 +87,10 @@ int cmd_effects(bool json) {
                   p.si_unit.c_str(), t, t * p.si_to_human, p.human_unit.c_str(),
                   p.shape ? "  shape parameter" : "");
     }
+    const std::array<double, 3> m = plausible_max(e);
+    if (e.typical.empty() || !std::isfinite(m[0])) continue;
+    std::printf("  plausible up to (diagnosis): navigation %.3g, tactical %.3g, MEMS %.3g %s\n",
+                m[0], m[1], m[2], e.magnitude_unit().c_str());
   }
   return 0;
 }
