@@ -256,14 +256,7 @@ int cmd_diagnose(const DiagnoseArgs& a) {
   calib::diagnosis::DiagnosisOptions opt;
   opt.candidates = ids;
   const calib::diagnosis::DiagnosisResult d = calib::diagnosis::diagnose(in, cal.params, opt);
-  nlohmann::json j = db::archive::diagnosis_to_json(d);
-  j["archive"] = a.dir;
-  j["serial"] = ar.info.serial;
-  j["sequence"] = ar.info.sequence_name;
-  j["setting"] = calib::core::setting_name(in.cal.setting);
-  j["grade"] = calib::core::grade_name(in.cal.grade);
-  j["table_free"] = table_free;
-  j["base_calibration"] = method;
+  const nlohmann::json j = db::archive::diagnosis_run_json(d, a.dir, ar.info, in.cal, method);
   if (!a.report_dir.empty()) write_report(a.report_dir, j);
   if (a.json) {
     std::cout << j.dump(2) << '\n';
