@@ -173,6 +173,22 @@ nlohmann::json diagnosis_to_json(const calib::diagnosis::DiagnosisResult& d) {
   return j;
 }
 
+nlohmann::json diagnosis_run_json(const calib::diagnosis::DiagnosisResult& d,
+                                  const std::string& archive, const RunInfo& info,
+                                  const calib::core::CalibrationInput& in,
+                                  const std::string& base_calibration) {
+  json j = diagnosis_to_json(d);
+  j["archive"] = archive;
+  j["serial"] = info.serial;
+  j["sequence"] = info.sequence_name;
+  j["setting"] = calib::core::setting_name(in.setting);
+  j["grade"] = calib::core::grade_name(in.grade);
+  j["table_free"] = !in.has_reference_attitude();
+  j["base_calibration"] = base_calibration;
+  j["samples"] = in.imu.size();
+  return j;
+}
+
 nlohmann::json diagnosis_summary_json(const calib::diagnosis::DiagnosisResult& d) {
   const json full = diagnosis_to_json(d);
   json s;

@@ -20,11 +20,23 @@
 #include <string>
 #include <vector>
 
+#include "calib/core/calibration_input.hpp"
 #include "calib/diagnosis/diagnosis.hpp"
+#include "db/archive/run_archive.hpp"
 
 namespace imucal::db::archive {
 
 nlohmann::json diagnosis_to_json(const calib::diagnosis::DiagnosisResult& d);
+
+/// A run archive's diagnosis: diagnosis_to_json plus what was diagnosed and how — "archive" (the
+/// directory), "serial", "sequence", "setting", "grade", "table_free", "base_calibration" (the
+/// model under test: "nlsq", "legacy" or "ains") and "samples" (IMU samples). What `imucal diagnose
+/// --json` prints and the station's `diagnose` answers (then with "run_id"), one shape from one
+/// function so that both print the same report (tools/report/diagnosis_text.hpp, issue #49 item 4).
+nlohmann::json diagnosis_run_json(const calib::diagnosis::DiagnosisResult& d,
+                                  const std::string& archive, const RunInfo& info,
+                                  const calib::core::CalibrationInput& in,
+                                  const std::string& base_calibration);
 
 /// The summary kept with a station run (runs.diagnosis_json): {"verdict", "summary", "best",
 /// "second", "ambiguous", "explained_by", "steps" (without parameters), "overall": {"gap",

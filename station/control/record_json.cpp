@@ -214,36 +214,6 @@ std::string gap_cell(const json& run) {
   return d.value("verdict", std::string("?"));
 }
 
-std::string render_diagnosis_text(const json& d) {
-  std::ostringstream os;
-  os << "Run " << str(d, "run_id", "?") << " gap diagnosis: " << str(d, "verdict", "?") << "\n  "
-     << str(d, "summary") << "\n";
-  if (d.contains("overall") && d["overall"].is_object()) {
-    const json& o = d["overall"];
-    os << "  overall chi2/dof " << fmt("%.3f", o.value("gap", 0.0)) << " (expected 1 +- "
-       << fmt("%.3f", o.value("sigma", 0.0)) << ", p " << fmt("%.2g", o.value("p_value", 1.0))
-       << ")\n";
-  }
-  if (d.contains("held_out") && d["held_out"].is_object() &&
-      d["held_out"]["gap_after"].is_number()) {
-    const json& h = d["held_out"];
-    os << "  held-out gap " << fmt("%.3f", h.value("gap_before", 0.0)) << " -> "
-       << fmt("%.3f", h["gap_after"].get<double>()) << " (shrinkage "
-       << fmt("%.0f", 100.0 * h.value("shrinkage", 0.0)) << " %)\n";
-  }
-  if (d.contains("candidates") && d["candidates"].is_array()) {
-    os << "  candidates (ranked):\n";
-    int n = 0;
-    for (const auto& c : d["candidates"]) {
-      if (++n > 6) break;
-      os << "    " << pad(str(c, "effect"), 24) << pad(fmt("%.1f", c.value("score", 0.0)), 10)
-         << (c.value("separable", false) ? magnitude_text(c) : std::string("not separable"))
-         << "\n";
-    }
-  }
-  return os.str();
-}
-
 std::string render_history_text(const json& history) {
   std::ostringstream os;
   const json& runs = history.at("runs");

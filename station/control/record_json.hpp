@@ -61,9 +61,6 @@ std::string render_history_text(const nlohmann::json& history);
 std::string render_show_text(const nlohmann::json& show);
 /// The parameter-set JSON, pretty-printed (what an INS loads); ends in '\n'.
 std::string render_params_text(const nlohmann::json& params);
-/// `stationctl diagnose`: the full diagnosis (db::archive::diagnosis_to_json + "run_id") for
-/// people.
-std::string render_diagnosis_text(const nlohmann::json& diagnosis);
 /// The history's SLOT cell: the fixture slot and the table run it shared with its siblings
 /// ("B of 12"), or "-" on a one-unit station.
 std::string slot_cell(const nlohmann::json& run);

@@ -55,15 +55,13 @@ GapCheck check_gap(calib::core::CalibrationInput in, const db::archive::RunArchi
 nlohmann::json diagnose_archive(const std::string& dir) {
   db::archive::RunArchive ar = db::archive::read_archive(dir);
   // The samples move into the input; ar keeps its info, all that is used below.
-  calib::core::CalibrationInput in = db::archive::to_calibration_input(std::move(ar));
-  const calib::core::CalibrationResult cal = calib::nlsq::calibrate_nlsq(in);
-  const calib::diagnosis::DiagnosisResult d =
-      calib::diagnosis::diagnose(diagnosis_input(std::move(in), ar), cal.params);
-  nlohmann::json j = db::archive::diagnosis_to_json(d);
+  const calib::diagnosis::DiagnosisInput din =
+      diagnosis_input(db::archive::to_calibration_input(std::move(ar)), ar);
+  const calib::core::CalibrationResult cal = calib::nlsq::calibrate_nlsq(din.cal);
+  const calib::diagnosis::DiagnosisResult d = calib::diagnosis::diagnose(din, cal.params);
+  // The shape imucal diagnose prints, so that stationctl diagnose prints the same report.
+  nlohmann::json j = db::archive::diagnosis_run_json(d, dir, ar.info, din.cal, "nlsq");
   j["stored_summary"] = db::archive::diagnosis_summary_json(d);
-  j["archive"] = dir;
-  j["serial"] = ar.info.serial;
-  j["sequence"] = ar.info.sequence_name;
   return j;
 }
 

@@ -34,8 +34,9 @@ GapCheck check_gap(calib::core::CalibrationInput in, const db::archive::RunArchi
                    const calib::core::ParamSet& nlsq_params, double false_alarm_per_run,
                    const std::vector<std::string>& known_effects = {});
 
-/// The full diagnosis JSON (db::archive::diagnosis_to_json) of an archive directory, plus
-/// "stored_summary" (what check_gap stores). Throws on input it cannot use, naming it.
+/// The full diagnosis JSON of an archive directory (db::archive::diagnosis_run_json, the shape
+/// imucal diagnose prints), plus "stored_summary" (what check_gap stores). Throws on input it
+/// cannot use, naming it.
 nlohmann::json diagnose_archive(const std::string& dir);
 
 }  // namespace imucal::station::run

@@ -3,8 +3,9 @@
 #include <filesystem>
 
 #include "db/archive/io_util.hpp"
-#include "station/control/record_json.hpp"
+#include "station/control/control_protocol.hpp"
 #include "tools/report/diagnosis_report.hpp"
+#include "tools/report/diagnosis_text.hpp"
 
 namespace imucal::tools::stationctl {
 
@@ -51,7 +52,8 @@ int cmd_diagnose(const Target& t, const DiagnoseArgs& a, bool as_json) {
   ControlClient client = connect_or_fail(t);
   const json d = call(client, station::control::cmd::kDiagnose, {{"run_id", a.run_id}});
   if (!a.report_dir.empty()) write_report(a.report_dir, d);
-  print_result(d, as_json, station::control::render_diagnosis_text);
+  // The report imucal diagnose prints, from the same JSON and the same code (issue #49 item 4).
+  print_result(d, as_json, tools::report::diagnosis_report_text);
   return d.value("verdict", "") == "unexplained" ? kGapUnexplained : kOk;
 }
 
