@@ -1,0 +1,379 @@
+#!/usr/bin/env python3
+"""The external-simulator validation of the gap diagnosis (issue #49 item 5): make the runs,
+diagnose every one, score, tabulate.  Re-runnable with any imucal binary and output directory.
+
+    batch.py --imucal BIN --out DIR [--psins PSINS_CHECKOUT] [--gis GNSS_INS_SIM_CHECKOUT]
+             [--sequence factory-std] [--jobs 2] [--only psins|gis] [--rediagnose]
+
+DIR/runs/<sim>-<name>/   the run archives (made once; kept unless --regenerate)
+DIR/diag/<run>.json      imucal diagnose --json of each run (redone with --rediagnose)
+DIR/calib/<run>.json     imucal calibrate --json of the null runs
+DIR/results.csv, DIR/results.json   one row per run (machine-readable)
+DIR/summary.md, DIR/summary.json    the table per simulator
+
+Run specs are deterministic (fixed seeds below), so the same DIR/runs is rebuilt bit for bit on
+the same simulator checkouts.  A run whose archive exists is not regenerated: to measure a new
+diagnosis on the same runs, pass the new binary with --rediagnose.
+"""
+import argparse
+import concurrent.futures as cf
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+# Effects one sequence cannot tell apart: a name from the same group counts as the injected one.
+ALIASES = [{"accel_quadratic_k2", "accel_asymmetry"}]
+PLAUSIBLE_X_TYPICAL = 50.0  # navigation grade: the diagnosis's plausibility limit (FORMAT.md)
+
+
+def group(name):
+    for g in ALIASES:
+        if name in g:
+            return g
+    return {name}
+
+
+# ----------------------------------------------------------------------------------- run specs
+def psins_specs():
+    """PSINS runs: (name, cfg in imuerrset units, injected catalogue effects)."""
+    rng = np.random.default_rng(4901)
+    specs = []
+
+    def base(seed):
+        r = lambda lo, hi, n: [float(x) for x in rng.uniform(lo, hi, n) * rng.choice([-1, 1], n)]
+        return {"seed": seed, "eb": r(0.005, 0.05, 3), "db": r(20, 300, 3), "web": 0.0015,
+                "wdb": 10.0, "dKGii": r(10, 300, 3), "dKAii": r(10, 300, 3),
+                "dKGij": r(5, 60, 6), "dKAij": r(5, 60, 3)}
+
+    s = lambda lo, hi, n=3: [float(x) for x in rng.uniform(lo, hi, n) * rng.choice([-1, 1], n)]
+    effects = {
+        "k2": lambda: {"Ka2": s(30, 100)},                               # ug/g^2
+        "lever": lambda: {"rxyz": s(1, 4, 9)},                           # cm
+        # ms; PSINS's imuadderr takes 0 <= dtGA < 10 samples only (it pads the accelerometer
+        # series by one sample before and ten after), so the sign drawn is dropped
+        "skew": lambda: {"dtGA": float(abs(rng.uniform(0.5, 2.0) * rng.choice([-1, 1])))},
+        "gsens": lambda: {"gSens": s(0.03, 0.15, 9)},                    # deg/h/g
+        "asym": lambda: {"Kap": s(30, 100)},                             # ppm
+        "markov": lambda: {"sqrtR0G": float(rng.uniform(0.003, 0.01)), "TauG": 500.0,
+                           "sqrtR0A": float(rng.uniform(30, 100)), "TauA": 500.0},
+    }
+    combos = ([(e,) for e in effects for _ in range(2)]
+              + [("k2", "lever"), ("k2", "skew"), ("lever", "skew"), ("k2", "gsens"),
+                 ("lever", "gsens"), ("skew", "gsens"), ("asym", "lever"), ("k2", "markov"),
+                 ("lever", "markov"), ("skew", "markov"), ("gsens", "markov"), ("asym", "skew")]
+              + [("k2", "lever", "skew"), ("k2", "lever", "gsens"), ("k2", "skew", "gsens"),
+                 ("lever", "skew", "gsens"), ("k2", "lever", "markov"), ("asym", "lever", "skew")])
+    seed = 100
+    # the issue's two cases first, with its sizes: K2 ~50 ug/g^2 + inner lever arms (+ 1 ms skew)
+    c = base(seed); c.update({"Ka2": [50.0, 50.0, 50.0], "rxyz": [2, 1, 0, -1, 2, 0, 0, 1, 3]})
+    specs.append(("issue-k2-lever", c))
+    seed += 1
+    c = base(seed); c.update({"Ka2": [50.0, 50.0, 50.0], "rxyz": [2, 1, 0, -1, 2, 0, 0, 1, 3], "dtGA": 1.0})
+    specs.append(("issue-k2-lever-skew1ms", c))
+    for i, combo in enumerate(combos):
+        seed += 1
+        c = base(seed)
+        for e in combo:
+            c.update(effects[e]())
+        specs.append(("-".join(combo) + f"-{i:02d}", c))
+    for i in range(12):
+        seed += 1
+        specs.append((f"null-{i:02d}", base(seed)))
+    return specs
+
+
+def gis_specs():
+    """gnss-ins-sim runs: its error model has one catalogue effect, the Gauss-Markov bias drift
+    (bias_instability), for the gyros and the accelerometers, with a correlation time."""
+    rng = np.random.default_rng(4902)
+    specs = []
+
+    def base(seed):
+        r = lambda lo, hi: [float(x) for x in rng.uniform(lo, hi, 3) * rng.choice([-1, 1], 3)]
+        return {"seed": seed, "gyro_b": r(0.005, 0.05), "gyro_arw": 0.0015,
+                "accel_b": r(2e-4, 3e-3), "accel_vrw": 10 * 9.80665e-6 * 60,
+                "gyro_b_stability": 0.0, "accel_b_stability": 0.0}
+
+    seed = 200
+    kinds = [("gyro", 1), ("accel", 1), ("both", 1)]
+    taus = [100.0, 300.0, 1000.0, 3000.0]
+    i = 0
+    for kind, _ in kinds:
+        for tau in taus:
+            for size in ("mid", "large", "xl"):
+                if len(specs) >= 34:
+                    break
+                seed += 1
+                c = base(seed)
+                f = {"mid": 3.0, "large": 10.0, "xl": 30.0}[size]
+                if kind in ("gyro", "both"):   # catalogue typical 0.001 deg/h
+                    c["gyro_b_stability"] = 0.001 * f * float(rng.uniform(0.8, 1.25))
+                    c["gyro_b_corr"] = tau
+                if kind in ("accel", "both"):  # catalogue typical 10 ug
+                    c["accel_b_stability"] = 10 * 9.80665e-6 * f * float(rng.uniform(0.8, 1.25))
+                    c["accel_b_corr"] = tau
+                specs.append((f"markov-{kind}-tau{int(tau)}-{size}-{i:02d}", c))
+                i += 1
+    for j in range(12):
+        seed += 1
+        specs.append((f"null-{j:02d}", base(seed)))
+    return specs
+
+
+# ------------------------------------------------------------------------------------- making
+def make_run(sim, name, cfg, a):
+    out = os.path.join(a.out, "runs", f"{sim}-{name}")
+    if os.path.exists(os.path.join(out, "truth.json")) and not a.regenerate:
+        return out
+    work = os.path.join(a.out, "work")
+    if sim == "psins":
+        import psins_make
+        psins_make.make(a.psins, a.imucal, a.sequence, work, cfg, out, f"PSINS-{name}")
+    else:
+        import gis_make
+        gis_make.make(a.gis, a.imucal, a.sequence, work, cfg, out, f"GIS-{name}")
+    return out
+
+
+def diagnose(run, a):
+    tag = os.path.basename(run)
+    path = os.path.join(a.out, "diag", tag + ".json")
+    if os.path.exists(path) and not a.rediagnose:
+        return path
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    p = subprocess.run([a.imucal, "diagnose", "--json", run], capture_output=True, text=True)
+    with open(path + ".tmp", "w") as f:
+        f.write(p.stdout if p.stdout.strip() else json.dumps({"error": p.stderr.strip(), "rc": p.returncode}))
+    os.rename(path + ".tmp", path)
+    return path
+
+
+def calibrate(run, a):
+    tag = os.path.basename(run)
+    path = os.path.join(a.out, "calib", tag + ".json")
+    if os.path.exists(path) and not a.rediagnose:
+        return path
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    p = subprocess.run([a.imucal, "calibrate", "--json", run], capture_output=True, text=True)
+    with open(path, "w") as f:
+        f.write(p.stdout if p.stdout.strip() else json.dumps({"error": p.stderr.strip(), "rc": p.returncode}))
+    return path
+
+
+# ------------------------------------------------------------------------------------ scoring
+def named_effects(d):
+    """The effects a diagnosis names ("explained by"), each with its size and sigma."""
+    names = []
+    for e in d.get("explained_by") or []:
+        n = e if isinstance(e, str) else (e.get("effect") or e.get("name"))
+        names += [x.strip() for x in str(n).split("|") if x.strip()]
+    steps = {s.get("effect"): s for s in d.get("steps") or [] if isinstance(s, dict)}
+    cands = {c.get("effect"): c for c in d.get("candidates") or [] if isinstance(c, dict)}
+    out = []
+    for n in names:
+        s = steps.get(n) or cands.get(n) or {}
+        c = cands.get(n) or {}
+        mag, sig = s.get("magnitude"), s.get("sigma")
+        typ = None
+        if c.get("typical_ratio") and c.get("magnitude"):
+            typ = c["magnitude"] / c["typical_ratio"]
+        out.append({"effect": n, "magnitude": mag, "sigma": sig, "unit": s.get("unit", c.get("unit")),
+                    "typical": typ, "plausible_flag": c.get("plausible")})
+    return out
+
+
+def learn_typicals(diags):
+    typ = {}
+    for d in diags:
+        for c in d.get("candidates") or []:
+            if c.get("typical_ratio") and c.get("magnitude"):
+                typ.setdefault(c["effect"], c["magnitude"] / c["typical_ratio"])
+    return typ
+
+
+def score(sim, name, truth, d, calib, typicals):
+    injected = sorted(truth.get("effects", {}).keys())
+    allowed = set().union(*[group(e) for e in injected]) if injected else set()
+    named = named_effects(d)
+    best = d.get("best")
+    best_eff = best.get("effect") if isinstance(best, dict) else (best if isinstance(best, str) else None)
+    if not best_eff and d.get("ambiguous"):
+        # a set the sequence cannot tell apart is the diagnosis's answer (best is then null)
+        best_eff = "|".join(e if isinstance(e, str) else str(e.get("effect")) for e in d["ambiguous"])
+    best_set = set(best_eff.split("|")) if best_eff else set()
+    weak = []
+    for n in named:
+        typ = n["typical"] or typicals.get(n["effect"])
+        mag, sig = n["magnitude"], n["sigma"]
+        why = []
+        if mag is not None and sig is not None and abs(mag) < 2 * sig:
+            why.append("|size|<2sigma")
+        if mag is not None and typ and abs(mag) / typ > PLAUSIBLE_X_TYPICAL:
+            why.append(f"{abs(mag) / typ:.0f}x typical")
+        elif n["plausible_flag"] is False:
+            why.append("implausible in the candidate table")
+        if why:
+            weak.append(f'{n["effect"]}={mag:.3g}+-{sig:.2g} {n["unit"]} ({", ".join(why)})'
+                        if mag is not None and sig is not None else f'{n["effect"]} ({", ".join(why)})')
+    row = {
+        "sim": sim, "run": name, "null": not injected, "injected": "+".join(injected),
+        "verdict": d.get("verdict", "error:" + str(d.get("error", ""))[:80]),
+        "best": best_eff or "",
+        "named": "+".join(n["effect"] for n in named),
+        "named_sizes": "; ".join(f'{n["effect"]}={n["magnitude"]:.3g}+-{n["sigma"]:.2g} {n["unit"]}'
+                                 for n in named if n["magnitude"] is not None and n["sigma"] is not None),
+        "best_right": bool(best_set & allowed) if injected else None,
+        "best_right_supported": (bool(best_set & allowed)
+                                 and not any(w.split("=")[0].split(" ")[0] in best_set for w in weak))
+                                if injected else None,
+        "all_named_injected": (all(n["effect"] in allowed for n in named) if named else None),
+        "all_injected_named": (all(any(n["effect"] in group(e) for n in named) for e in injected)
+                               if injected else None),
+        "weak_named": "; ".join(weak),
+        "false_alarm": (bool(named) or d.get("verdict") not in ("consistent",)) if not injected else None,
+        "summary": d.get("summary", ""),
+        "calibrate": (calib or {}).get("verdict", "") if calib else "",
+    }
+    # sizes of the injected effects against their fitted values (the issue's 3-sigma check)
+    checks = []
+    for e, p in truth.get("effects", {}).items():
+        step = next((s for s in d.get("steps") or [] if s.get("effect") in group(e)), None)
+        label = ""
+        if step is None:  # not named (or named as a set): the candidate table's fit
+            step = next((c for c in d.get("candidates") or [] if c.get("effect") == e), None)
+            label = " (candidate)"
+        if step is None:
+            continue
+        fit = {q["name"]: (q["value"], q["sigma"]) for q in step.get("parameters", [])}
+        conv = UNIT_SI.get(step.get("effect"), {})
+        worst = 0.0
+        for k, v in p.items():
+            if k in fit and k in conv and fit[k][1] > 0:
+                worst = max(worst, abs(fit[k][0] - v / conv[k]) / fit[k][1])
+        if conv:
+            checks.append(f"{step['effect']}{label}: max|fit-injected|/sigma={worst:.1f}")
+    row["size_checks"] = "; ".join(checks)
+    return row
+
+
+# SI -> the diagnosis's display unit, for comparing the fitted parameters with the injected ones
+UG = 9.80665e-6
+UNIT_SI = {
+    "accel_quadratic_k2": {f"k2_{a}": UG / 9.80665**2 for a in "xyz"},
+    "accel_asymmetry": {f"kap_{a}": 1e-6 for a in "xyz"},
+    "size_effect": {f"r_{a}_{b}": 1e-3 for a in "xyz" for b in "xyz"},
+    "gyro_accel_skew": {"t_GA": 1e-3},
+    "gyro_g_sensitivity": {f"G_{a}{b}": math.radians(1 / 3600) / 9.80665 for a in "xyz" for b in "xyz"},
+}
+
+
+def pct(xs):
+    xs = [x for x in xs if x is not None]
+    return (f"{100 * sum(xs) / len(xs):.0f} % ({sum(xs)}/{len(xs)})" if xs else "n/a"), xs
+
+
+def summarize(rows):
+    out = {}
+    for sim in sorted({r["sim"] for r in rows}):
+        R = [r for r in rows if r["sim"] == sim]
+        eff = [r for r in R if not r["null"]]
+        nul = [r for r in R if r["null"]]
+        s = {}
+        s["runs with effects"] = len(eff)
+        s["null runs"] = len(nul)
+        s["best effect right (an injected effect or its set)"] = pct([r["best_right"] for r in eff])[0]
+        s["best effect right, its size >= 2 sigma and plausible"] = pct([r["best_right_supported"] for r in eff])[0]
+        s["every named effect injected (runs naming any)"] = pct([r["all_named_injected"] for r in eff])[0]
+        s["effect runs naming nothing"] = f'{sum(1 for r in eff if not r["named"])}/{len(eff)}'
+        s["every injected effect named"] = pct([r["all_injected_named"] for r in eff])[0]
+        s["runs naming an effect with |size|<2sigma or implausible"] = \
+            f'{sum(1 for r in R if r["weak_named"])}/{len(R)}'
+        s["false alarms in null runs"] = f'{sum(1 for r in nul if r["false_alarm"])}/{len(nul)}'
+        s["null runs calibrate PASS"] = f'{sum(1 for r in nul if r["calibrate"] == "PASS")}/{len(nul)}'
+        out[sim] = s
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--imucal", required=True)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--psins", help="PSINS checkout")
+    ap.add_argument("--gis", help="gnss-ins-sim checkout")
+    ap.add_argument("--sequence", default="factory-std")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--only", choices=["psins", "gis"])
+    ap.add_argument("--rediagnose", action="store_true", help="rerun diagnose/calibrate on existing runs")
+    ap.add_argument("--regenerate", action="store_true", help="remake the run archives too")
+    a = ap.parse_args()
+    a.imucal = os.path.abspath(a.imucal)
+    a.out = os.path.abspath(a.out)
+    os.makedirs(a.out, exist_ok=True)
+    jobs = []
+    if a.psins and a.only in (None, "psins"):
+        a.psins = os.path.abspath(a.psins)
+        jobs += [("psins", n, c) for n, c in psins_specs()]
+    if a.gis and a.only in (None, "gis"):
+        a.gis = os.path.abspath(a.gis)
+        jobs += [("gis", n, c) for n, c in gis_specs()]
+    if not jobs:
+        sys.exit("nothing to do: give --psins and/or --gis")
+    # the profile and each simulator's per-sequence cache first, in this process
+    first = {}
+    for sim, n, c in jobs:
+        first.setdefault(sim, (sim, n, c))
+    for sim, n, c in first.values():
+        make_run(sim, n, c, a)
+    with cf.ProcessPoolExecutor(max_workers=a.jobs) as ex:
+        runs = list(ex.map(make_run, *zip(*[(s, n, c, a) for s, n, c in jobs])))
+    with cf.ThreadPoolExecutor(max_workers=a.jobs) as ex:
+        diags = list(ex.map(lambda r: diagnose(r, a), runs))
+        nulls = [r for (s, n, c), r in zip(jobs, runs) if n.startswith("null")]
+        cals = dict(zip(nulls, ex.map(lambda r: calibrate(r, a), nulls)))
+    D = [json.load(open(p)) for p in diags]
+    typicals = learn_typicals(D)
+    rows = []
+    for (sim, n, c), run, d in zip(jobs, runs, D):
+        truth = json.load(open(os.path.join(run, "truth.json")))
+        cal = None
+        if run in cals:
+            try:
+                cal = json.load(open(cals[run]))
+            except json.JSONDecodeError:
+                cal = {"verdict": "unreadable"}
+        rows.append(score(sim, n, truth, d, cal, typicals))
+    with open(os.path.join(a.out, "results.json"), "w") as f:
+        json.dump(rows, f, indent=1)
+    with open(os.path.join(a.out, "results.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
+        w.writeheader()
+        w.writerows(rows)
+    summ = summarize(rows)
+    with open(os.path.join(a.out, "summary.json"), "w") as f:
+        json.dump(summ, f, indent=1)
+    sims = list(summ)
+    lines = ["| | " + " | ".join(sims) + " |", "|---|" + "---|" * len(sims)]
+    for k in summ[sims[0]]:
+        lines.append(f"| {k} | " + " | ".join(str(summ[s][k]) for s in sims) + " |")
+    lines += ["", "| run | injected | verdict | named (size ± σ) | best right | weak named | size check |",
+              "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if r["run"].startswith("issue") or r["null"] and r["false_alarm"]:
+            lines.append(f'| {r["sim"]}-{r["run"]} | {r["injected"] or "—"} | {r["verdict"]} | '
+                         f'{r["named_sizes"] or r["named"] or "—"} | {r["best_right"]} | '
+                         f'{r["weak_named"] or "—"} | {r["size_checks"] or "—"} |')
+    with open(os.path.join(a.out, "summary.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
