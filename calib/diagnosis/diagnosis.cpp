@@ -1020,6 +1020,17 @@ std::optional<std::pair<size_t, UnsupportedEffect>> unsized_under_gauss_markov(
   return weakest;
 }
 
+/// Whether an undeclared Gauss-Markov bias and the deterministic set `det` are told apart in the
+/// bias's favour: the bias needed given the set, the set not needed given the bias (issue #49 item
+/// 3: each slow signature the wandering could absorb is tested against it both ways).
+bool wandering_explains_the_set(const Problem& p, const Selection& det, double level,
+                                const DiagnosisOptions& opt) {
+  const GaussMarkovFit fc = fit_gauss_markov(p.lin, det.J, opt.instability_tau_grid_s);
+  const int k_det = static_cast<int>(det.J.cols() - p.Jb.cols());
+  const double lr_det_given_g = gls_fit_cov(p.r0, p.Jb, fc.S).chi2 - fc.chi2;
+  return chi2_survival(fc.lr, 2) < level && !(chi2_survival(lr_det_given_g, k_det) < level);
+}
+
 /// The selection of a set this sequence cannot tell apart, alone: explained by the set (issue #19
 /// item 6), its members listed, no step.
 Selection set_alone(const std::vector<Scored>& c, const Problem& p, size_t member) {
@@ -1078,6 +1089,24 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
       r && (r->significant || (!r->plausible && r->separable && r->p_value < level));
   while (set && gm_candidate) {
     auto both = with_gauss_markov(c, p, *set, *g, chi2_0, level, opt);
+    if (!both && r->significant && wandering_explains_the_set(p, *set, level, opt)) {
+      // The two told apart: the wandering is needed given the set, the set not given it. Its
+      // members the wandering makes unnecessary leave; the rest is judged with it again.
+      std::vector<size_t> like = unneeded_under_gauss_markov(c, p, set->steps, level, opt);
+      if (like.empty())
+        for (const StepFit& f : set->steps) like.push_back(f.member);
+      for (size_t m : like) {
+        const CandidateResult& cr = c[m].result;
+        unsupported.push_back({cr.name, cr.magnitude, cr.magnitude_sigma, cr.unit, 1.0,
+                               "not significant given the bias instability, which is needed "
+                               "given it: the wandering explains what it fitted"});
+        set->steps.erase(std::find_if(set->steps.begin(), set->steps.end(),
+                                      [&](const StepFit& f) { return f.member == m; }));
+      }
+      refit_steps(*set, c, p, chi2_0);
+      if (set->steps.empty()) set.reset();
+      continue;
+    }
     if (!both) {
       if (r->significant) {
         // The bias alone would do: its members it could stand for say so (not chosen by BIC).
@@ -1096,6 +1125,20 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
     set->steps.erase(set->steps.begin() + static_cast<std::ptrdiff_t>(weak->first));
     refit_steps(*set, c, p, chi2_0);
     if (set->steps.empty()) set.reset();
+  }
+  // A set the wandering could not join (its size given the set implausible, or not needed) while
+  // alone it predicts the held-out segments better: the set is what the wandering fitted.
+  if (set && !set->gm && r && r->significant && r->held_out_gap < set->steps.back().held_out) {
+    for (const StepFit& f : set->steps) {
+      const CandidateResult& cr = c[f.member].result;
+      std::ostringstream os;
+      os.precision(3);
+      os << "the bias instability alone predicts the held-out segments better (held-out gap "
+         << r->held_out_gap << " against " << set->steps.back().held_out << " with the set)";
+      unsupported.push_back(
+          {cr.name, cr.magnitude, cr.magnitude_sigma, cr.unit, f.p_value, os.str()});
+    }
+    set.reset();
   }
   if (set) {
     best = std::move(*set);

@@ -199,7 +199,18 @@ def learn_typicals(diags):
     return typ
 
 
-def score(sim, name, truth, d, calib, typicals):
+def plausible_limits(imucal):
+    """The product's plausible size per effect at navigation grade (`imucal effects --json`,
+    "plausible_max", in the effect's magnitude unit); {} for a build that has none (before issue
+    #49), which then falls back on PLAUSIBLE_X_TYPICAL."""
+    out = subprocess.run([imucal, "effects", "--json"], capture_output=True, text=True)
+    try:
+        return {e["name"]: (e.get("plausible_max") or [None])[0] for e in json.loads(out.stdout)}
+    except (json.JSONDecodeError, KeyError, TypeError):
+        return {}
+
+
+def score(sim, name, truth, d, calib, typicals, limits=None):
     injected = sorted(truth.get("effects", {}).keys())
     allowed = set().union(*[group(e) for e in injected]) if injected else set()
     named = named_effects(d)
@@ -216,7 +227,12 @@ def score(sim, name, truth, d, calib, typicals):
         why = []
         if mag is not None and sig is not None and abs(mag) < 2 * sig:
             why.append("|size|<2sigma")
-        if mag is not None and typ and abs(mag) / typ > PLAUSIBLE_X_TYPICAL:
+        limit = (limits or {}).get(n["effect"])
+        if mag is not None and limit is not None:
+            # the size the named step reports (its joint fit) against the product's bound
+            if abs(mag) > limit:
+                why.append(f"beyond the plausible {limit:.3g} {n['unit']}")
+        elif mag is not None and typ and abs(mag) / typ > PLAUSIBLE_X_TYPICAL:
             why.append(f"{abs(mag) / typ:.0f}x typical")
         elif n["plausible_flag"] is False:
             why.append("implausible in the candidate table")
@@ -340,6 +356,7 @@ def main():
         cals = dict(zip(nulls, ex.map(lambda r: calibrate(r, a), nulls)))
     D = [json.load(open(p)) for p in diags]
     typicals = learn_typicals(D)
+    limits = plausible_limits(a.imucal)
     rows = []
     for (sim, n, c), run, d in zip(jobs, runs, D):
         truth = json.load(open(os.path.join(run, "truth.json")))
@@ -349,7 +366,7 @@ def main():
                 cal = json.load(open(cals[run]))
             except json.JSONDecodeError:
                 cal = {"verdict": "unreadable"}
-        rows.append(score(sim, n, truth, d, cal, typicals))
+        rows.append(score(sim, n, truth, d, cal, typicals, limits))
     with open(os.path.join(a.out, "results.json"), "w") as f:
         json.dump(rows, f, indent=1)
     with open(os.path.join(a.out, "results.csv"), "w", newline="") as f:

@@ -119,12 +119,15 @@ void explained_by(std::string& out, const json& d) {
     add(out, "explained step by step (sizes fitted jointly):\n");
     for (std::size_t i = 0; i < steps.size(); ++i) {
       const json& s = steps[i];
+      // A set this sequence cannot tell apart, named as the set (issue #49 item 2).
+      std::string name = text(s, "effect");
+      for (const json& o : list(s, "set"))
+        if (o.is_string()) name += " | " + o.get<std::string>();
       add(out,
           "  %zu. %s = %.3g +- %.2g %s (p %.2g given the steps before; chi2/dof -> %.3f, "
           "held-out gap -> %.3f)\n    ",
-          i + 1, text(s, "effect").c_str(), value(s, "magnitude"), value(s, "sigma"),
-          text(s, "unit").c_str(), value(s, "p_value"), value(s, "gap_after"),
-          value(s, "held_out_after"));
+          i + 1, name.c_str(), value(s, "magnitude"), value(s, "sigma"), text(s, "unit").c_str(),
+          value(s, "p_value"), value(s, "gap_after"), value(s, "held_out_after"));
       parameters(out, list(s, "parameters"));
       if (!text(s, "note").empty()) add(out, "    (%s)\n", text(s, "note").c_str());
     }
@@ -136,6 +139,17 @@ void explained_by(std::string& out, const json& d) {
       add(out, "  %s:", text(c, "effect").c_str());
       parameters(out, list(c, "parameters"));
     }
+}
+
+/// The effects the search chose whose place the final joint fit does not support (issue #49 item
+/// 1), with their size there and every test they failed.
+void not_supported(std::string& out, const json& d) {
+  const json& u = list(d, "not_supported");
+  if (u.empty()) return;
+  add(out, "fitted, not supported (dropped from the explanation):\n");
+  for (const json& e : u)
+    add(out, "  %s = %.3g +- %.2g %s: %s\n", text(e, "effect").c_str(), value(e, "magnitude"),
+        value(e, "sigma"), text(e, "unit").c_str(), text(e, "reason").c_str());
 }
 
 /// The overall gap, against what the model predicts for this run (its simulated twin) where there
@@ -287,6 +301,7 @@ std::string diagnosis_report_text(const nlohmann::json& diagnosis) {
   std::string out;
   t::run_line(out, diagnosis);
   t::explained_by(out, diagnosis);
+  t::not_supported(out, diagnosis);
   t::overall(out, diagnosis);
   t::whiteness_and_held_out(out, diagnosis);
   t::candidates(out, diagnosis);
