@@ -705,9 +705,13 @@ bool steppable(const Scored& s) {
 
 /// Whether a candidate's size in a joint fit (its coefficients at the tail of `fit`) is plausible
 /// (judge_plausibility's rule).
-bool plausible_in(const Scored& s, const GlsFit& fit, double max_typical) {
+bool plausible_in(const Scored& s, const GlsFit& fit, double max_typical, double resolve_limit) {
   const auto k = s.J_eff.cols();
-  const EffectValues v = effect_values(s, fit.x.tail(k), fit.cov.bottomRightCorner(k, k));
+  // Judged along the directions the fit resolves within the bound, as the final set is
+  // (judge_member): the lever arms' unresolved common part (σ ≈ 0.8 m) would make any size effect
+  // implausible beside a 300 mm bound (the paper-like unit's lost its place that way).
+  const EffectValues v =
+      effect_values(s, fit.x.tail(k), fit.cov.bottomRightCorner(k, k), resolve_limit);
   CandidateResult r;
   r.id = s.result.id;
   r.separable = true;
@@ -741,7 +745,7 @@ std::optional<StepFit> next_step(const std::vector<Scored>& c, const Problem& p,
       if (!(f.p_value < level)) continue;
       const double limit =
           plausible_limit_typical(c[i].result.id, p.model.input().grade, opt.max_plausible_typical);
-      if (!plausible_in(c[i], fit, limit)) continue;
+      if (!plausible_in(c[i], fit, limit, plausible_size(c[i], p, opt))) continue;
       f.chi2 = fit.chi2;
       f.dof = fit.dof;
       f.held_out = held_out_gap(p.r0, Ji, p.folds).ratio();
