@@ -342,13 +342,32 @@ void steps_table(std::ostringstream& os, const json& d) {
     auto cell = [&](const char* k) {
       return st[k].is_number() ? f(num(st, k), "%.3f") : std::string("-");
     };
-    os << "<tr class='sig'><td>" << ++i << "</td><td>" << esc(str(st, "effect")) << "</td><td>"
+    // A set this sequence cannot tell apart is named as the set (issue #49 item 2).
+    std::string name = str(st, "effect");
+    if (st.contains("set") && st["set"].is_array())
+      for (const auto& o : st["set"])
+        if (o.is_string()) name += " | " + o.get<std::string>();
+    os << "<tr class='sig'><td>" << ++i << "</td><td>" << esc(name) << "</td><td>"
        << f(num(st, "magnitude")) << " ± " << f(num(st, "sigma"), "%.2g") << " "
        << esc(str(st, "unit")) << "<br><small class='axes'>" << per_parameter(st)
        << "</small></td><td>" << f(num(st, "p_value", 1.0), "%.2g") << "</td><td>"
        << cell("gap_after") << "</td><td>" << cell("held_out_after") << "</td><td>"
        << esc(str(st, "note")) << "</td></tr>\n";
   }
+  os << "</table>\n";
+}
+
+/// Effects the search chose whose place in the final joint fit is not earned (issue #49 item 1):
+/// their size there and every test they failed.
+void not_supported_table(std::ostringstream& os, const json& d) {
+  if (!d.contains("not_supported") || !d["not_supported"].is_array() || d["not_supported"].empty())
+    return;
+  os << "<h2>Fitted, not supported: dropped from the explanation</h2>\n<table "
+        "id='not-supported'><tr><th>effect</th><th>magnitude ± 1σ</th><th>why</th></tr>\n";
+  for (const auto& u : d["not_supported"])
+    os << "<tr><td>" << esc(str(u, "effect")) << "</td><td>" << f(num(u, "magnitude")) << " ± "
+       << f(num(u, "sigma"), "%.2g") << " " << esc(str(u, "unit")) << "</td><td>"
+       << esc(str(u, "reason")) << "</td></tr>\n";
   os << "</table>\n";
 }
 
@@ -486,6 +505,7 @@ std::string diagnosis_report_html(const json& d) {
   score_chart(os, d["candidates"]);
   candidate_table(os, d["candidates"]);
   steps_table(os, d);
+  not_supported_table(os, d);
   os << "<h2>How far: the gap on held-out segments</h2>\n";
   held_out_chart(os, d["held_out"]);
   lists(os, d);
