@@ -703,6 +703,19 @@ bool steppable(const Scored& s) {
   return s.J_eff.cols() > 0 && r.separable && (!r.in_ambiguous_set || s.represents_set);
 }
 
+/// A candidate's size from a joint fit (`v`), judged by judge_plausibility against `max_typical`:
+/// plausible, or not with the note saying why.
+CandidateResult judged_size(const Scored& s, const EffectValues& v, double max_typical) {
+  CandidateResult r;
+  r.id = s.result.id;
+  r.separable = true;
+  r.unit = s.result.unit;
+  r.magnitude = v.magnitude;
+  r.magnitude_sigma = v.magnitude_sigma;
+  judge_plausibility(r, max_typical);
+  return r;
+}
+
 /// Whether a candidate's size in a joint fit (its coefficients at the tail of `fit`) is plausible
 /// (judge_plausibility's rule).
 bool plausible_in(const Scored& s, const GlsFit& fit, double max_typical, double resolve_limit) {
@@ -712,14 +725,7 @@ bool plausible_in(const Scored& s, const GlsFit& fit, double max_typical, double
   // implausible beside a 300 mm bound (the paper-like unit's lost its place that way).
   const EffectValues v =
       effect_values(s, fit.x.tail(k), fit.cov.bottomRightCorner(k, k), resolve_limit);
-  CandidateResult r;
-  r.id = s.result.id;
-  r.separable = true;
-  r.unit = s.result.unit;
-  r.magnitude = v.magnitude;
-  r.magnitude_sigma = v.magnitude_sigma;
-  judge_plausibility(r, max_typical);
-  return r.plausible;
+  return judged_size(s, v, max_typical).plausible;
 }
 
 /// The next step of the forward selection given the columns J (base + the effects chosen, χ²
@@ -855,14 +861,9 @@ UnsupportedEffect judge_member(const std::vector<Scored>& c, const Problem& p,
   }
   if (!beyond_two_sigma(fit.x.segment(col, k), fit.cov.block(col, col, k, k)))
     add("its size is within 2 sigma of zero");
-  CandidateResult r;
-  r.id = sc.result.id;
-  r.separable = true;
-  r.unit = sc.result.unit;
-  r.magnitude = v.magnitude;
-  r.magnitude_sigma = v.magnitude_sigma;
-  judge_plausibility(
-      r, plausible_limit_typical(r.id, p.model.input().grade, opt.max_plausible_typical));
+  const CandidateResult r = judged_size(
+      sc, v,
+      plausible_limit_typical(sc.result.id, p.model.input().grade, opt.max_plausible_typical));
   if (!r.plausible) add(r.note + ": an alias of another effect, not this one");
   double held_wo = std::numeric_limits<double>::infinity();
   try {
@@ -1002,14 +1003,9 @@ std::optional<std::pair<size_t, UnsupportedEffect>> unsized_under_gauss_markov(
     const EffectValues v = effect_values(sc, fit.x.segment(col, k), fit.cov.block(col, col, k, k),
                                          plausible_size(sc, p, opt));
     col += k;
-    CandidateResult r;
-    r.id = sc.result.id;
-    r.separable = true;
-    r.unit = sc.result.unit;
-    r.magnitude = v.magnitude;
-    r.magnitude_sigma = v.magnitude_sigma;
-    judge_plausibility(
-        r, plausible_limit_typical(r.id, p.model.input().grade, opt.max_plausible_typical));
+    const CandidateResult r = judged_size(
+        sc, v,
+        plausible_limit_typical(sc.result.id, p.model.input().grade, opt.max_plausible_typical));
     const bool sized =
         beyond_two_sigma(fit.x.segment(col - k, k), fit.cov.block(col - k, col - k, k, k));
     const double ratio = v.magnitude_sigma > 0.0 ? v.magnitude / v.magnitude_sigma : 0.0;

@@ -143,29 +143,26 @@ def make_run(sim, name, cfg, a):
     return out
 
 
-def diagnose(run, a):
-    tag = os.path.basename(run)
-    path = os.path.join(a.out, "diag", tag + ".json")
+def imucal_json(command, folder, run, a):
+    """`imucal COMMAND --json RUN` into OUT/FOLDER/RUN.json (written whole: a .tmp renamed), kept
+    unless --rediagnose; a failure is stored as {"error", "rc"}."""
+    path = os.path.join(a.out, folder, os.path.basename(run) + ".json")
     if os.path.exists(path) and not a.rediagnose:
         return path
     os.makedirs(os.path.dirname(path), exist_ok=True)
-    p = subprocess.run([a.imucal, "diagnose", "--json", run], capture_output=True, text=True)
+    p = subprocess.run([a.imucal, command, "--json", run], capture_output=True, text=True)
     with open(path + ".tmp", "w") as f:
         f.write(p.stdout if p.stdout.strip() else json.dumps({"error": p.stderr.strip(), "rc": p.returncode}))
     os.rename(path + ".tmp", path)
     return path
 
 
+def diagnose(run, a):
+    return imucal_json("diagnose", "diag", run, a)
+
+
 def calibrate(run, a):
-    tag = os.path.basename(run)
-    path = os.path.join(a.out, "calib", tag + ".json")
-    if os.path.exists(path) and not a.rediagnose:
-        return path
-    os.makedirs(os.path.dirname(path), exist_ok=True)
-    p = subprocess.run([a.imucal, "calibrate", "--json", run], capture_output=True, text=True)
-    with open(path, "w") as f:
-        f.write(p.stdout if p.stdout.strip() else json.dumps({"error": p.stderr.strip(), "rc": p.returncode}))
-    return path
+    return imucal_json("calibrate", "calib", run, a)
 
 
 # ------------------------------------------------------------------------------------ scoring
