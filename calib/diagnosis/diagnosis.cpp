@@ -253,6 +253,9 @@ struct Scored {
   /// the set's first-ranked member); set_others are the other members, never searched themselves.
   bool represents_set = false;
   std::vector<std::string> set_others;
+  /// The output filter's p-value given a slow wandering of the bias
+  /// (output_filter_p_given_wandering); NaN for every other candidate.
+  double p_given_wandering = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// An effect's values, parameters and magnitude from its fitted coefficients α (covariance cov_a):
@@ -421,6 +424,8 @@ Scored score_lag1(EffectId id, const Problem& p, const PerSampleRests& ps,
   s.result = id == EffectId::kQuantisation
                  ? score_quantisation(p.model.input(), ps.lag1, opt.folds)
                  : score_output_filter(p.model.input(), ps.lag1, opt.folds);
+  if (id == EffectId::kOutputFilter)
+    s.p_given_wandering = output_filter_p_given_wandering(p.model.input(), ps.lag1);
   if (!ps.lag1_note.empty()) s.result.note += "; " + ps.lag1_note;
   return s;
 }
@@ -1057,6 +1062,20 @@ std::optional<Selection> deterministic_set(const std::vector<Scored>& c, const P
   return det;
 }
 
+/// The output filter where the bias wanders (its candidate significant): a drift of minutes raises
+/// the rest samples' lag-1 autocorrelation as a filter does, but alike at lag 2, where a filter's
+/// falls (output_filter_p_given_wandering). Not supported when the fall is not significant (issue
+/// #49: named beside every independent simulator's Gauss-Markov drift, lag-1 a ≈ 0.04).
+UnsupportedEffect filter_beside_wandering(const Scored& filter) {
+  const CandidateResult& f = filter.result;
+  std::ostringstream os;
+  os.precision(2);
+  os << "its lag-1 autocorrelation is what the bias's wandering makes: lags 1 and 2 correlate "
+        "alike (p "
+     << filter.p_given_wandering << " for a filter's fall from lag 1 to lag 2)";
+  return {f.name, f.magnitude, f.magnitude_sigma, f.unit, filter.p_given_wandering, os.str()};
+}
+
 /// Model choice among: the stepwise set of deterministic effects (deterministic_set), an
 /// undeclared Gauss-Markov bias GM, and the set followed by GM. Bias instability comes last (issue
 /// #49 item 3): its per-segment offsets absorb any slow signature, so it is named alone only when
@@ -1157,13 +1176,21 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
                           p.model.rows() - static_cast<int>(p.Jb.cols()),
                           c[*g].result.held_out_gap});
   }
-  best.unsupported = std::move(unsupported);
   // The per-sample candidates (quantisation, the output filter, the hand's tremor), independent of
-  // the segment residuals, join last when significant.
-  for (EffectId id : {EffectId::kQuantisation, EffectId::kOutputFilter, EffectId::kRestTremor})
-    if (const auto q = index_of(c, id); q && c[*q].result.significant)
-      best.steps.push_back({*q, c[*q].result.p_value, std::numeric_limits<double>::quiet_NaN(), 0,
-                            c[*q].result.held_out_gap});
+  // the segment residuals, join last when significant — the filter, where the bias wanders, only
+  // when its signature is more than the wandering's (filter_beside_wandering).
+  const bool wandering = best.gm || (r && r->p_value < level);
+  for (EffectId id : {EffectId::kQuantisation, EffectId::kOutputFilter, EffectId::kRestTremor}) {
+    const auto q = index_of(c, id);
+    if (!q || !c[*q].result.significant) continue;
+    if (id == EffectId::kOutputFilter && wandering && !(c[*q].p_given_wandering < level)) {
+      unsupported.push_back(filter_beside_wandering(c[*q]));
+      continue;
+    }
+    best.steps.push_back({*q, c[*q].result.p_value, std::numeric_limits<double>::quiet_NaN(), 0,
+                          c[*q].result.held_out_gap});
+  }
+  best.unsupported = std::move(unsupported);
   return best;
 }
 

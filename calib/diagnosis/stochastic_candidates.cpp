@@ -24,6 +24,7 @@ namespace {
 /// Sums for one sensor (3 axes pooled) or one axis over a set of rests.
 struct Lag1Sums {
   double s0 = 0.0, s1 = 0.0, n0 = 0.0, n1 = 0.0;
+  double s2 = 0.0, n2 = 0.0;  ///< lag 2 (output_filter_p_given_wandering)
   double gamma0() const { return n0 > 0 ? s0 / n0 : 0.0; }
   double gamma1() const { return n1 > 0 ? s1 / n1 : 0.0; }
   double sigma_gamma1() const { return n1 > 0 ? gamma0() / std::sqrt(n1) : 0.0; }
@@ -32,7 +33,10 @@ struct Lag1Sums {
     s1 += o.s1;
     n0 += o.n0;
     n1 += o.n1;
+    s2 += o.s2;
+    n2 += o.n2;
   }
+  double gamma2() const { return n2 > 0 ? s2 / n2 : 0.0; }
 };
 
 /// Lag-1 sums of one axis of one rest (sensor 0 = dv, 1 = dθ), its mean removed. Removing the mean
@@ -45,17 +49,21 @@ Lag1Sums rest_axis_sums(const CalibrationInput& in, const RestPeriod& p, int sen
   for (size_t k = p.begin; k < p.end; ++k) mean += value(k);
   mean /= static_cast<double>(p.size());
   Lag1Sums s;
-  double prev = value(p.begin) - mean;
+  double prev = value(p.begin) - mean, prev2 = 0.0;
   s.s0 += prev * prev;
   for (size_t k = p.begin + 1; k < p.end; ++k) {
     const double x = value(k) - mean;
     s.s0 += x * x;
     s.s1 += x * prev;
+    if (k >= p.begin + 2) s.s2 += x * prev2;
+    prev2 = prev;
     prev = x;
   }
   s.s1 += s.s0 / static_cast<double>(p.size());
+  s.s2 += s.s0 / static_cast<double>(p.size());
   s.n0 = static_cast<double>(p.size());
   s.n1 = static_cast<double>(p.size() - 1);
+  s.n2 = p.size() > 2 ? static_cast<double>(p.size() - 2) : 0.0;
   return s;
 }
 
@@ -294,6 +302,23 @@ CandidateResult score_output_filter(const CalibrationInput& in,
   return r;
 }
 
+double output_filter_p_given_wandering(const CalibrationInput& in,
+                                       const std::vector<RestPeriod>& rests) {
+  double lr = 0.0;
+  for (int sensor = 0; sensor < 2; ++sensor) {
+    Lag1Sums all;
+    for (const RestPeriod& p : rests)
+      for (int axis = 0; axis < 3; ++axis) all.add(rest_axis_sums(in, p, sensor, axis));
+    if (all.n1 <= 0.0 || all.n2 <= 0.0) continue;
+    const double lsb = declared_lsb(in.noise, sensor);
+    const double d = all.gamma1() - all.gamma2() + lsb * lsb / 12.0;
+    const double sigma = all.gamma0() * std::sqrt(1.0 / all.n1 + 1.0 / all.n2);
+    const double z = sigma > 0.0 ? d / sigma : 0.0;
+    if (z > 0.0) lr += z * z;
+  }
+  return chi2_survival(lr, 2);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Bias instability: REML over the Gauss-Markov σ's.
 
@@ -347,6 +372,35 @@ struct GmFit {
   double sa = 0.0, sg = 0.0, tau = 0.0, ell = -std::numeric_limits<double>::infinity();
 };
 
+/// The grid's σ's refined: each in turn by a parabola through log σ and log σ ± log 1.2, its
+/// vertex (within a factor 1.5) kept when it is better, twice round. A strong drift's likelihood is
+/// sharp (LR ~10⁵ on a factory run at 8× typical): the grid's best σ (its step is 1.4) can be ℓ
+/// units from the peak, enough to prefer the wrong τ of the grid (a drift of τ 1000 s at 7.6×
+/// typical read 12.6× at τ 3000 s, "implausible").
+template <class Ell>
+void refine_sigmas(GmFit& f, const Ell& ell) {
+  const double h = std::log(1.2), reach = std::log(1.5);
+  for (int round = 0; round < 2; ++round)
+    for (double GmFit::*sigma : {&GmFit::sa, &GmFit::sg}) {
+      if (f.*sigma <= 0.0) continue;
+      const double x0 = std::log(f.*sigma);
+      const auto at = [&](double log_s) {
+        GmFit t = f;
+        t.*sigma = std::exp(log_s);
+        return ell(t.sa, t.sg);
+      };
+      const double lm = at(x0 - h), lp = at(x0 + h);
+      const double curv = lp - 2.0 * f.ell + lm;
+      double x = lp > lm ? x0 + h : x0 - h, l = std::max(lp, lm);
+      if (curv < 0.0) {
+        const double xv = x0 + std::clamp(-h * (lp - lm) / (2.0 * curv), -reach, reach);
+        const double lv = at(xv);
+        if (lv > l) x = xv, l = lv;
+      }
+      if (l > f.ell) f.*sigma = std::exp(x), f.ell = l;
+    }
+}
+
 GmFit fit_gm(const GapLinearisation& lin, const Eigen::MatrixXd& J, const GmMatrices& g, double tau,
              double typ_a, double typ_g) {
   const int m = lin.model().rows();
@@ -369,6 +423,7 @@ GmFit fit_gm(const GapLinearisation& lin, const Eigen::MatrixXd& J, const GmMatr
       const double l = ell(fa * sa_best, fg * sg_best);
       if (l > best.ell) best = {fa * sa_best, fg * sg_best, tau, l};
     }
+  refine_sigmas(best, ell);
   return best;
 }
 
@@ -382,12 +437,13 @@ GaussMarkovFit fit_gauss_markov(const GapLinearisation& lin, const Eigen::Matrix
   const double ell0 = reml(lin.r0(), J, I);
   GmFit best;
   GmMatrices gbest;
+  GaussMarkovFit out;
   for (double tau : tau_grid_s) {
     GmMatrices g = gm_matrices(lin, tau);
     const GmFit f = fit_gm(lin, J, g, tau, e.typical[1], e.typical[0]);
+    out.profile.push_back({tau, f.sa, f.sg, f.ell});
     if (f.ell > best.ell) best = f, gbest = std::move(g);
   }
-  GaussMarkovFit out;
   out.sigma_accel_mps2 = best.sa;
   out.sigma_gyro_radps = best.sg;
   out.tau_s = best.tau;
@@ -396,6 +452,40 @@ GaussMarkovFit fit_gauss_markov(const GapLinearisation& lin, const Eigen::Matrix
   reml(lin.r0(), J, out.S, &out.chi2);
   return out;
 }
+
+namespace {
+
+/// The smallest magnitude of a Gauss-Markov bias whose restricted log-likelihood on design J is at
+/// least `ell_min`: over the τ's of f's profile and the geometric midpoints between them (and
+/// below the first; σ's fitted there), the σ's scaled down along each τ's best pattern. The
+/// fitted magnitude when none is smaller. On a 2277 s run ℓ is flat over τ from ~500 s up (within
+/// 2 over 500–3000 s for a drift of τ 500 s) while σ doubles: the grid's τ's alone miss the
+/// smaller sizes the data allow.
+double smallest_size_within(const GapLinearisation& lin, const Eigen::MatrixXd& J,
+                            const GaussMarkovFit& f, double ell_min) {
+  const EffectInfo& e = effect_info(EffectId::kBiasInstability);
+  const int m = lin.model().rows();
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(m, m);
+  std::vector<GaussMarkovFit::AtTau> at_taus = f.profile;
+  for (size_t i = 0; i < f.profile.size(); ++i) {
+    const double below = i == 0 ? f.profile[0].tau_s / 1.7 : f.profile[i - 1].tau_s;
+    const double tau = std::sqrt(below * f.profile[i].tau_s);
+    const GmFit g = fit_gm(lin, J, gm_matrices(lin, tau), tau, e.typical[1], e.typical[0]);
+    at_taus.push_back({tau, g.sa, g.sg, g.ell});
+  }
+  double smallest = e.magnitude(Eigen::Vector3d(f.sigma_gyro_radps, f.sigma_accel_mps2, f.tau_s));
+  for (const GaussMarkovFit::AtTau& at : at_taus) {
+    const GmMatrices g = gm_matrices(lin, at.tau_s);
+    for (double k : {1.0, 0.85, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2}) {
+      const double sa = k * at.sigma_accel_mps2, sg = k * at.sigma_gyro_radps;
+      if (reml(lin.r0(), J, I + sa * sa * g.Ga + sg * sg * g.Gg) < ell_min) break;
+      smallest = std::min(smallest, e.magnitude(Eigen::Vector3d(sg, sa, at.tau_s)));
+    }
+  }
+  return smallest;
+}
+
+}  // namespace
 
 void set_gauss_markov_size(CandidateResult& r, const GapLinearisation& lin,
                            const Eigen::MatrixXd& J, const GaussMarkovFit& f) {
@@ -412,6 +502,8 @@ void set_gauss_markov_size(CandidateResult& r, const GapLinearisation& lin,
     const double lm = reml(lin.r0(), J, I + 0.49 * D), lp = reml(lin.r0(), J, I + 1.69 * D);
     const double curv = -(lp - 2.0 * l1 + lm) / (0.3 * 0.3);
     r.magnitude_sigma = curv > 0.0 ? r.magnitude / std::sqrt(curv) : r.magnitude;
+    const double floor = smallest_size_within(lin, J, f, l1 - 2.0);
+    r.magnitude_sigma = std::max(r.magnitude_sigma, 0.5 * (r.magnitude - floor));
   }
   r.params.clear();
   for (int j = 0; j < 3; ++j) {

@@ -43,11 +43,28 @@ CandidateResult score_quantisation(const CalibrationInput& in, const std::vector
 CandidateResult score_output_filter(const CalibrationInput& in,
                                     const std::vector<RestPeriod>& rests, int folds);
 
+/// The output filter judged given a slow wandering of the bias (issue #49: a Gauss-Markov drift of
+/// a few minutes' correlation time raises the rest samples' lag-1 autocorrelation too, and the
+/// filter was named beside the bias instability on every independent simulator's drift run). A
+/// drift correlates neighbouring samples alike — its autocovariance is flat over a few lags — where
+/// a first-order filter's falls from lag 1 to lag 2 (γ1 - γ2 = γ0_f (a - a²) > 0). Per sensor the
+/// pooled d = γ1 - γ2 + LSB²/12 (the declared carried rounding makes γ1 = -LSB²/12, γ2 = 0; each
+/// rest's mean removed, its bias the same at both lags) against σ(d) = γ0 √(1/pairs1 + 1/pairs2);
+/// returns the one-sided p-value of Σ z² over the sensors with z > 0 (χ²(2)).
+double output_filter_p_given_wandering(const CalibrationInput& in,
+                                       const std::vector<RestPeriod>& rests);
+
 /// An undeclared Gauss-Markov bias fitted by restricted maximum likelihood on the whitened
 /// residuals with fixed-effect design J (the base columns, possibly with deterministic effects
 /// appended).
 struct GaussMarkovFit {
   double sigma_accel_mps2 = 0.0, sigma_gyro_radps = 0.0, tau_s = 0.0;
+  /// The best σ's at each τ of the grid with their restricted log-likelihood (the profile over τ
+  /// that set_gauss_markov_size reads the size's uncertainty from).
+  struct AtTau {
+    double tau_s = 0.0, sigma_accel_mps2 = 0.0, sigma_gyro_radps = 0.0, ell = 0.0;
+  };
+  std::vector<AtTau> profile;
   double lr = 0.0;    ///< 2 Δℓ against no Gauss-Markov bias, same design
   double chi2 = 0.0;  ///< GLS χ² under its covariance
   Eigen::MatrixXd S;  ///< covariance of the whitened residuals under it
@@ -56,8 +73,12 @@ GaussMarkovFit fit_gauss_markov(const GapLinearisation& lin, const Eigen::Matrix
                                 const std::vector<double>& tau_grid_s);
 
 /// A Gauss-Markov bias fit `f` (on the design J: the base, or the base and a set of effects) as a
-/// candidate's size: value_si (σ_gyro, σ_accel, τ), magnitude with its σ (the profile's curvature
-/// along the fitted direction), params.
+/// candidate's size: value_si (σ_gyro, σ_accel, τ), magnitude with its σ, params. The σ is the
+/// larger of the likelihood's curvature along the fitted direction at the fitted τ and half the
+/// distance to the smallest size any τ of the grid leaves within Δℓ = 2 of the best: σ and τ
+/// trade off (a longer τ needs a larger σ for the same differences between segments), and on a
+/// 2277 s run a drift of τ 500 s at 8× typical read 19.5 ± 1.2 × typical at τ 3000 s, so the
+/// curvature alone made a navigation unit's drift "implausible" (issue #49).
 void set_gauss_markov_size(CandidateResult& r, const GapLinearisation& lin,
                            const Eigen::MatrixXd& J, const GaussMarkovFit& f);
 
