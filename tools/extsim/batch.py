@@ -90,41 +90,70 @@ def psins_specs():
     return specs
 
 
+# gnss-ins-sim's own accuracy presets (gnss_ins_sim/sim/imu_model.py, in its accuracy-dict units:
+# deg/h, deg/sqrt(h), m/s^2, m/s/sqrt(h)): "high" (partly HG9900) is a tactical unit by the
+# datasheets' ranges (gyro drift 0.1 deg/h), "mid" (partly IMU381) and "low" (AHRS380) are MEMS.
+GIS_PRESETS = {
+    "high": {"gyro_b_stability": 0.1, "gyro_arw": 2.0e-3, "accel_b_stability": 3.6e-6,
+             "accel_vrw": 2.5e-5, "grade": "tactical"},
+    "mid": {"gyro_b_stability": 3.5, "gyro_arw": 0.25, "accel_b_stability": 5.0e-5,
+            "accel_vrw": 0.03, "grade": "mems"},
+    "low": {"gyro_b_stability": 10.0, "gyro_arw": 0.75, "accel_b_stability": 2.0e-4,
+            "accel_vrw": 0.05, "grade": "mems"},
+}
+
+
 def gis_specs():
     """gnss-ins-sim runs: its error model has one catalogue effect, the Gauss-Markov bias drift
-    (bias_instability), for the gyros and the accelerometers, with a correlation time."""
+    (bias_instability), for the gyros and the accelerometers, with a correlation time. Each run is
+    declared at a grade whose datasheet range holds its drift (the product's plausible bound,
+    `imucal effects`): navigation-grade runs at 3-10x the catalogue's typical (0.001 deg/h, 10 ug;
+    the bound is 10x), tactical and MEMS runs with gnss-ins-sim's own presets and noise."""
     rng = np.random.default_rng(4902)
     specs = []
 
-    def base(seed):
+    def base(seed, preset=None):
         r = lambda lo, hi: [float(x) for x in rng.uniform(lo, hi, 3) * rng.choice([-1, 1], 3)]
-        return {"seed": seed, "gyro_b": r(0.005, 0.05), "gyro_arw": 0.0015,
-                "accel_b": r(2e-4, 3e-3), "accel_vrw": 10 * 9.80665e-6 * 60,
-                "gyro_b_stability": 0.0, "accel_b_stability": 0.0}
+        c = {"seed": seed, "gyro_b": r(0.005, 0.05), "gyro_arw": 0.0015,
+             "accel_b": r(2e-4, 3e-3), "accel_vrw": 10 * 9.80665e-6 * 60,
+             "gyro_b_stability": 0.0, "accel_b_stability": 0.0}
+        if preset:
+            P = GIS_PRESETS[preset]
+            c.update({"gyro_arw": P["gyro_arw"], "accel_vrw": P["accel_vrw"], "grade": P["grade"]})
+        return c
 
     seed = 200
-    kinds = [("gyro", 1), ("accel", 1), ("both", 1)]
-    taus = [100.0, 300.0, 1000.0, 3000.0]
     i = 0
-    for kind, _ in kinds:
-        for tau in taus:
-            for size in ("mid", "large", "xl"):
-                if len(specs) >= 34:
-                    break
+    # navigation grade: 3-10x typical (factor 4 or 8, times 0.8-1.25)
+    for kind in ("gyro", "accel", "both"):
+        for tau in (100.0, 300.0, 1000.0, 3000.0):
+            for f in (4.0, 8.0):
                 seed += 1
                 c = base(seed)
-                f = {"mid": 3.0, "large": 10.0, "xl": 30.0}[size]
                 if kind in ("gyro", "both"):   # catalogue typical 0.001 deg/h
                     c["gyro_b_stability"] = 0.001 * f * float(rng.uniform(0.8, 1.25))
                     c["gyro_b_corr"] = tau
                 if kind in ("accel", "both"):  # catalogue typical 10 ug
                     c["accel_b_stability"] = 10 * 9.80665e-6 * f * float(rng.uniform(0.8, 1.25))
                     c["accel_b_corr"] = tau
-                specs.append((f"markov-{kind}-tau{int(tau)}-{size}-{i:02d}", c))
+                specs.append((f"nav-{kind}-tau{int(tau)}-x{int(f)}-{i:02d}", c))
                 i += 1
-    for j in range(12):
+    # tactical and MEMS: gnss-ins-sim's presets at its correlation time (100 s) and two longer
+    # ones; the tactical preset also at 3x (0.3 deg/h, still within a tactical unit's range)
+    runs = ([("high", t, 1.0) for t in (100.0, 300.0, 1000.0)] + [("high", 100.0, 3.0)]
+            + [(p, t, 1.0) for p in ("mid", "low") for t in (100.0, 300.0, 1000.0)])
+    for preset, tau, scale in runs:
         seed += 1
-        specs.append((f"null-{j:02d}", base(seed)))
+        c = base(seed, preset)
+        P = GIS_PRESETS[preset]
+        c["gyro_b_stability"] = P["gyro_b_stability"] * scale
+        c["accel_b_stability"] = P["accel_b_stability"] * scale
+        c["gyro_b_corr"] = c["accel_b_corr"] = tau
+        specs.append((f"{P['grade'][:3]}-{preset}-tau{int(tau)}-x{int(scale)}-{i:02d}", c))
+        i += 1
+    for j, preset in enumerate([None] * 6 + ["high"] * 3 + ["mid", "mid", "low"]):
+        seed += 1
+        specs.append((f"null-{(preset or 'nav')}-{j:02d}", base(seed, preset)))
     return specs
 
 
@@ -196,18 +225,23 @@ def learn_typicals(diags):
     return typ
 
 
+GRADES = ("navigation", "tactical", "mems")  # the order of "plausible_max"
+
+
 def plausible_limits(imucal):
-    """The product's plausible size per effect at navigation grade (`imucal effects --json`,
-    "plausible_max", in the effect's magnitude unit); {} for a build that has none (before issue
-    #49), which then falls back on PLAUSIBLE_X_TYPICAL."""
+    """The product's plausible size per effect and grade (`imucal effects --json`, "plausible_max",
+    in the effect's magnitude unit, navigation/tactical/MEMS): {grade: {effect: limit}}; {} for a
+    build that has none (before issue #49), which then falls back on PLAUSIBLE_X_TYPICAL."""
     out = subprocess.run([imucal, "effects", "--json"], capture_output=True, text=True)
     try:
-        return {e["name"]: (e.get("plausible_max") or [None])[0] for e in json.loads(out.stdout)}
-    except (json.JSONDecodeError, KeyError, TypeError):
+        E = json.loads(out.stdout)
+        return {g: {e["name"]: (e.get("plausible_max") or [None] * 3)[i] for e in E}
+                for i, g in enumerate(GRADES)}
+    except (json.JSONDecodeError, KeyError, TypeError, IndexError):
         return {}
 
 
-def score(sim, name, truth, d, calib, typicals, limits=None):
+def score(sim, name, truth, d, calib, typicals, limits=None, grade="navigation"):
     injected = sorted(truth.get("effects", {}).keys())
     allowed = set().union(*[group(e) for e in injected]) if injected else set()
     named = named_effects(d)
@@ -224,7 +258,7 @@ def score(sim, name, truth, d, calib, typicals, limits=None):
         why = []
         if mag is not None and sig is not None and abs(mag) < 2 * sig:
             why.append("|size|<2sigma")
-        limit = (limits or {}).get(n["effect"])
+        limit = (limits or {}).get(grade, {}).get(n["effect"])
         if mag is not None and limit is not None:
             # the size the named step reports (its joint fit) against the product's bound
             if abs(mag) > limit:
@@ -237,7 +271,7 @@ def score(sim, name, truth, d, calib, typicals, limits=None):
             weak.append(f'{n["effect"]}={mag:.3g}+-{sig:.2g} {n["unit"]} ({", ".join(why)})'
                         if mag is not None and sig is not None else f'{n["effect"]} ({", ".join(why)})')
     row = {
-        "sim": sim, "run": name, "null": not injected, "injected": "+".join(injected),
+        "sim": sim, "run": name, "grade": grade, "null": not injected, "injected": "+".join(injected),
         "verdict": d.get("verdict", "error:" + str(d.get("error", ""))[:80]),
         "best": best_eff or "",
         "named": "+".join(n["effect"] for n in named),
@@ -363,7 +397,7 @@ def main():
                 cal = json.load(open(cals[run]))
             except json.JSONDecodeError:
                 cal = {"verdict": "unreadable"}
-        rows.append(score(sim, n, truth, d, cal, typicals, limits))
+        rows.append(score(sim, n, truth, d, cal, typicals, limits, c.get("grade", "navigation")))
     with open(os.path.join(a.out, "results.json"), "w") as f:
         json.dump(rows, f, indent=1)
     with open(os.path.join(a.out, "results.csv"), "w", newline="") as f:

@@ -24,6 +24,7 @@ is what is written (the errors are additive and constant or slow within a sample
 --cfg keys, in gnss-ins-sim's own units (imu_model.IMU accuracy dict):
   seed, gyro_b [3] deg/h, gyro_arw [3] deg/sqrt(h), gyro_b_stability [3] deg/h, gyro_b_corr [3] s,
   accel_b [3] m/s^2, accel_vrw [3] m/s/sqrt(h), accel_b_stability [3] m/s^2, accel_b_corr [3] s,
+  grade: the archive's [prior] grade ("navigation" when absent; db/archive/FORMAT.md),
   gyro_vib / accel_vib: a pathgen vib_def dict ({"type": "random"|"sinusoidal", "x": ..,
   "y": .., "z": .., "freq": Hz}), rad/s or m/s^2 (optional; no catalogue effect models it).
 """
@@ -121,7 +122,8 @@ def make(gis, imucal, sequence, work, cfg, out, serial, rate_hz=100.0):
     vrw = float(ae["vrw"][0]) / 9.80665e-6
     ec.write_archive(out, profile, w * ts, a * ts, serial=serial, gravity_mps2=g,
                      arw_deg_per_sqrt_h=max(arw, 1e-6), vrw_ug_per_sqrt_hz=max(vrw, 1e-3),
-                     truth=truth, generator="gnss-ins-sim imu_model/pathgen via tools/extsim/gis_make.py")
+                     truth=truth, generator="gnss-ins-sim imu_model/pathgen via tools/extsim/gis_make.py",
+                     grade=cfg.get("grade"))
     return truth
 
 
