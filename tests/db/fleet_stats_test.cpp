@@ -91,8 +91,8 @@ TEST_F(FleetStatsTest, RunsPerStationAndDayCountEveryMatchingRunOnce) {
 using VerdictSlots = std::array<std::int64_t, 7>;
 
 std::size_t verdict_slot(const std::string& verdict) {
-  const char* const order[] = {"PASS", "REVIEW", "FAILED", "STATION-FAULT", "ABORTED",
-                               "INTERRUPTED"};
+  const char* const order[] = {"PASS",          "REVIEW",  "FAILED",
+                               "STATION-FAULT", "ABORTED", "INTERRUPTED"};
   for (std::size_t k = 0; k < 6; ++k)
     if (verdict == order[k]) return k;
   return 6;  // live

@@ -85,8 +85,7 @@ TEST(StationOutcomes, TheTableDownIsAStationFaultAndLeavesTheUnitsYieldAlone) {
   EXPECT_NE(history.out.find(yield_line), std::string::npos) << history.out;
   EXPECT_NE(history.out.find("1 station fault(s)"), std::string::npos) << history.out;
   // The export says whose each end was.
-  const CmdResult exported =
-      st.ctl({"export", "--serial", "SIM-0950", "--format", "json"});
+  const CmdResult exported = st.ctl({"export", "--serial", "SIM-0950", "--format", "json"});
   ASSERT_EQ(exported.exit_code, 0) << exported.describe();
   const json rows = json::parse(exported.out, nullptr, false);
   ASSERT_TRUE(rows.is_array()) << exported.describe();

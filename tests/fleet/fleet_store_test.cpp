@@ -278,10 +278,12 @@ TEST(FleetStore, AVersionThreeStoreClassifiesItsRunsByWhoseTheirEndWas) {
     RunVerdict expected;
   };
   const std::vector<Ended> ended = {
-      {RunState::kAborted, "table: turntable tcp:127.0.0.1:1502: cannot connect after 10 attempt(s)",
+      {RunState::kAborted,
+       "table: turntable tcp:127.0.0.1:1502: cannot connect after 10 attempt(s)",
        RunVerdict::kStationFault},
       {RunState::kAborted, "unit loose in fixture", RunVerdict::kAborted},
-      {RunState::kFailed, "capture: CAN channel error: unixcan:/run/imu: peer closed the connection",
+      {RunState::kFailed,
+       "capture: CAN channel error: unixcan:/run/imu: peer closed the connection",
        RunVerdict::kStationFault},
       {RunState::kFailed, "archive: No space left on device", RunVerdict::kStationFault},
       {RunState::kFailed, "calibration failed: data check: accelerometer axis y stuck",

@@ -106,12 +106,11 @@ TEST_F(FleetView, TheStoresAggregatesEqualTheStationsForTheSameRows) {
     for (std::size_t i = 0; i < va.size(); ++i) {
       EXPECT_EQ(va[i].station, vb[i].station);
       // Issue #50: both backends apply the same rule to whose each end was.
-      EXPECT_EQ(std::vector<std::int64_t>({va[i].pass, va[i].review, va[i].failed,
-                                           va[i].station_fault, va[i].aborted, va[i].interrupted,
-                                           va[i].live}),
-                std::vector<std::int64_t>({vb[i].pass, vb[i].review, vb[i].failed,
-                                           vb[i].station_fault, vb[i].aborted, vb[i].interrupted,
-                                           vb[i].live}))
+      EXPECT_EQ(
+          std::vector<std::int64_t>({va[i].pass, va[i].review, va[i].failed, va[i].station_fault,
+                                     va[i].aborted, va[i].interrupted, va[i].live}),
+          std::vector<std::int64_t>({vb[i].pass, vb[i].review, vb[i].failed, vb[i].station_fault,
+                                     vb[i].aborted, vb[i].interrupted, vb[i].live}))
           << va[i].station;
     }
     for (int p = 0; p < calib::core::ParamSet::kSize; ++p) {

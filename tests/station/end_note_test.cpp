@@ -71,9 +71,6 @@ TEST(EndNote, NoReservationOrGarbageIsNoNote) {
   EXPECT_NE(reserve_end_note(dir.sub("no/such/dir/x.end")), "");
 }
 
-}  // namespace
-}  // namespace imucal::station
-
 // Issue #50: a note written before the verdict was recorded holds the state alone; it reads back
 // with the state's own verdict (an old aborted note is an operator's ABORTED).
 TEST(EndNote, ANoteWithoutAVerdictTakesTheStatesOwn) {
@@ -85,3 +82,6 @@ TEST(EndNote, ANoteWithoutAVerdictTakesTheStatesOwn) {
   EXPECT_EQ(note->verdict, db::history::RunVerdict::kAborted);
   EXPECT_EQ(note->reason, "unit loose in fixture");
 }
+
+}  // namespace
+}  // namespace imucal::station

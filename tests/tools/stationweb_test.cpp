@@ -366,8 +366,8 @@ void expect_fleet_equal(const std::string& html, const std::vector<FleetRow>& ro
     if (!db::test::fleet_row_matches(r, f)) continue;
     ++per_day[r.station + " " + db::history::format_time_utc(r.started_at_ms).substr(0, 10)];
     auto& v = verdicts[r.station];
-    const char* const order[] = {"PASS", "REVIEW", "FAILED", "STATION-FAULT", "ABORTED",
-                                 "INTERRUPTED"};
+    const char* const order[] = {"PASS",          "REVIEW",  "FAILED",
+                                 "STATION-FAULT", "ABORTED", "INTERRUPTED"};
     const auto k = static_cast<std::size_t>(std::find(order, order + 6, r.verdict) - order);
     ++v[k];  // 6: live
     if (k < 3) ++v[7];
@@ -381,10 +381,10 @@ void expect_fleet_equal(const std::string& html, const std::vector<FleetRow>& ro
   std::map<std::string, std::array<std::int64_t, 8>> page_verdicts;
   for (Attrs& v : tags(section(html, "verdicts", "</table>"), "<tr data-station"))
     page_verdicts[v["data-station"]] = {
-        std::stoll(v["data-pass"]),          std::stoll(v["data-review"]),
-        std::stoll(v["data-failed"]),        std::stoll(v["data-station-fault"]),
-        std::stoll(v["data-aborted"]),       std::stoll(v["data-interrupted"]),
-        std::stoll(v["data-live"]),          std::stoll(v["data-unit-outcomes"])};
+        std::stoll(v["data-pass"]),    std::stoll(v["data-review"]),
+        std::stoll(v["data-failed"]),  std::stoll(v["data-station-fault"]),
+        std::stoll(v["data-aborted"]), std::stoll(v["data-interrupted"]),
+        std::stoll(v["data-live"]),    std::stoll(v["data-unit-outcomes"])};
   EXPECT_EQ(page_verdicts, verdicts);
   const auto dist = tags(section(html, "distribution", "</table>"), "<tr data-station");
   ASSERT_EQ(dist.size(), values.size());
