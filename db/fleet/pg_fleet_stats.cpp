@@ -151,7 +151,8 @@ std::vector<AinsResultRow> PgFleetStats::ains_results(const FleetFilter& f) cons
       "r.ains_values::text, r.local_run_id FROM runs r JOIN calibrations c ON c.run_id = r.id AND "
       "c.method = 'ains' WHERE $1::text IS NULL AND $2::text IS NULL AND r.setting = 'factory' "
       "AND r.reprocessed_from_local IS NULL AND c.unobservable = '[]'::jsonb AND "
-      "r.ains_values IS NOT NULL AND r.verdict IN ('PASS', 'REVIEW', 'FAILED') AND" +
+      "r.ains_values IS NOT NULL AND (r.verdict IS NULL OR r.verdict IN ('PASS', 'REVIEW', "
+      "'FAILED')) AND" +
           std::string(kWhere) + "ORDER BY r.id",
       values, "AINS results");
   std::vector<AinsResultRow> out;

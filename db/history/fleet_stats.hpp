@@ -102,8 +102,8 @@ class FleetStats {
   /// The AINS results of the matching factory table runs that determine every parameter, as
   /// stored, ascending run id — what a station error would have moved. Left out: field runs (no
   /// table, no surveyed gravity), results with an undetermined term, reprocessed runs (the
-  /// same data again; their originals stand for them), and runs whose verdict is not the unit's
-  /// own (STATION-FAULT, ABORTED, INTERRUPTED: issue #50).
+  /// same data again; their originals stand for them), and ended runs whose verdict is not the
+  /// unit's own (STATION-FAULT, ABORTED, INTERRUPTED: issue #50).
   virtual std::vector<AinsResultRow> ains_results(const FleetFilter& filter) const = 0;
 };
 

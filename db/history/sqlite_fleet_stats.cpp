@@ -300,7 +300,8 @@ std::vector<AinsResultRow> SqliteFleetStats::ains_results(const FleetFilter& f) 
       "JOIN calibrations c ON c.run_id = r.id AND c.method = 'ains'" +
       where_clause(f,
                    "r.setting = 'factory' AND r.reprocessed_from IS NULL AND "
-                   "c.unobservable_json = '[]' AND r.verdict IN ('PASS', 'REVIEW', 'FAILED')") +
+                   "c.unobservable_json = '[]' AND "
+                   "(r.verdict IS NULL OR r.verdict IN ('PASS', 'REVIEW', 'FAILED'))") +
       " ORDER BY r.id";
   Impl::Query q(*impl_, sql, op);
   q.bind_filter(f);

@@ -491,7 +491,7 @@ TEST(Migration, VersionNineRunsAreClassifiedByWhoseTheirEndWas) {
           (live ? std::string("NULL") : std::to_string(kT0Migration + 1000)) + ", '" +
           old_runs[i].state + "', '" + old_runs[i].reason + "', lower(hex(randomblob(16))));");
     }
-    ASSERT_EQ(raw.text("SELECT count(*) FROM runs WHERE verdict = 'FAILED'"), "13")
+    ASSERT_EQ(raw.text("SELECT count(*) FROM runs WHERE verdict = 'FAILED'"), "14")
         << "version 9: every ended run that is not done or review is FAILED";
   }
   SqliteRepository repo(path);
