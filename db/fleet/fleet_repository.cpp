@@ -22,8 +22,8 @@ const std::string kRunColumns =
     "r.promoted_by, r.promote_reason, r.reasons::text, r.slot, "
     "(SELECT f.id FROM runs f WHERE f.station_id = r.station_id "
     "   AND f.local_run_id = r.table_run_local), "
-    "r.run_uuid, r.revision, r.holding_method, r.holding_reason";
-constexpr int kNumRunColumns = 29;
+    "r.run_uuid, r.revision, r.holding_method, r.holding_reason, r.verdict";
+constexpr int kNumRunColumns = 30;
 const std::string kRunFrom = " FROM runs r LEFT JOIN crosschecks x ON x.run_id = r.id ";
 const std::string kCalColumns =
     "c.method, c.params::text, c.sigma::text, c.converged, c.iterations, c.runtime_s, "
@@ -85,7 +85,13 @@ struct FleetRepository::Impl {
     r.holding_method =
         decode(origin + " holding_method", [&] { return method_from_string(q.text(row, 27)); });
     r.holding_reason = q.text(row, 28);
-    r.verdict = run_verdict(r.state);
+    if (!q.is_null(row, 29))
+      r.verdict =
+          decode(origin + " verdict", [&] { return run_verdict_from_string(q.text(row, 29)); });
+    if (is_terminal(r.state) != r.verdict.has_value() ||
+        (r.verdict && !verdict_fits_state(*r.verdict, r.state)))
+      throw Corrupt(origin + ": verdict \"" + q.text(row, 29) + "\" contradicts its state " +
+                    to_string(r.state));
     return r;
   }
 

@@ -9,7 +9,7 @@
 namespace imucal::db::fleet {
 
 /// The version this software writes and reads.
-constexpr int kFleetSchemaVersion = 3;
+constexpr int kFleetSchemaVersion = 4;
 
 /// Brings the store to kFleetSchemaVersion (the role needs CREATE on the schema the first time).
 /// Returns the version found before. IncompatibleSchema if the store is newer.

@@ -21,9 +21,9 @@ INSERT INTO runs (station_id, run_uuid, local_run_id, revision, serial, operator
   sequence_name, sequence_sha256, software_version, started_at_ms, ended_at_ms, state,
   failure_reason, reasons, archive_path, archive_sha256, reprocessed_from_local, table_run_local,
   slot, capture_json, diagnosis_json, setting, origin, promoted_at_ms, promoted_by, promote_reason,
-  ains_values, holding_method, holding_reason)
+  ains_values, holding_method, holding_reason, verdict)
 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15::jsonb, $16, $17, $18,
-  $19, $20, $21, $22, $23, $24, $25, $26, $27, $28::double precision[], $29, $30)
+  $19, $20, $21, $22, $23, $24, $25, $26, $27, $28::double precision[], $29, $30, $31)
 ON CONFLICT (station_id, run_uuid) DO UPDATE SET revision = EXCLUDED.revision,
   serial = EXCLUDED.serial, operator = EXCLUDED.operator, station = EXCLUDED.station,
   sequence_name = EXCLUDED.sequence_name, sequence_sha256 = EXCLUDED.sequence_sha256,
@@ -37,7 +37,7 @@ ON CONFLICT (station_id, run_uuid) DO UPDATE SET revision = EXCLUDED.revision,
   setting = EXCLUDED.setting, origin = EXCLUDED.origin, promoted_at_ms = EXCLUDED.promoted_at_ms,
   promoted_by = EXCLUDED.promoted_by, promote_reason = EXCLUDED.promote_reason,
   ains_values = EXCLUDED.ains_values, holding_method = EXCLUDED.holding_method,
-  holding_reason = EXCLUDED.holding_reason, received_at = now()
+  holding_reason = EXCLUDED.holding_reason, verdict = EXCLUDED.verdict, received_at = now()
 WHERE runs.revision < EXCLUDED.revision
 RETURNING id
 )SQL";
@@ -98,7 +98,8 @@ std::vector<PgParam> run_values(const std::string& station_id, const RunDetails&
           pg_value(r.promote_reason),
           ains_values(d),
           pg_value(to_string(r.holding_method)),
-          pg_value(r.holding_reason)};
+          pg_value(r.holding_reason),
+          r.verdict ? pg_value(std::string(to_string(*r.verdict))) : PgParam(std::nullopt)};
 }
 
 void replace_children(PgConnection& c, std::int64_t fleet_id, const RunDetails& d) {

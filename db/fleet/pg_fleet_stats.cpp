@@ -81,13 +81,25 @@ std::vector<StationVerdictCounts> PgFleetStats::verdict_counts_per_station(
   const PgResult q = impl_->conn.exec(
       "SELECT r.station_id, count(*) FILTER (WHERE r.verdict = 'PASS'), "
       "count(*) FILTER (WHERE r.verdict = 'REVIEW'), count(*) FILTER (WHERE r.verdict = 'FAILED'), "
+      "count(*) FILTER (WHERE r.verdict = 'STATION-FAULT'), "
+      "count(*) FILTER (WHERE r.verdict = 'ABORTED'), "
+      "count(*) FILTER (WHERE r.verdict = 'INTERRUPTED'), "
       "count(*) FILTER (WHERE r.verdict IS NULL) FROM runs r "
       "WHERE $1::text IS NULL AND $2::text IS NULL AND" +
           std::string(kWhere) + "GROUP BY 1 ORDER BY r.station_id COLLATE \"C\"",
       values, "verdicts per station");
   std::vector<StationVerdictCounts> out;
-  for (int i = 0; i < q.rows(); ++i)
-    out.push_back({q.text(i, 0), q.i64(i, 1), q.i64(i, 2), q.i64(i, 3), q.i64(i, 4)});
+  for (int i = 0; i < q.rows(); ++i) {
+    StationVerdictCounts c{q.text(i, 0)};
+    c.pass = q.i64(i, 1);
+    c.review = q.i64(i, 2);
+    c.failed = q.i64(i, 3);
+    c.station_fault = q.i64(i, 4);
+    c.aborted = q.i64(i, 5);
+    c.interrupted = q.i64(i, 6);
+    c.live = q.i64(i, 7);
+    out.push_back(c);
+  }
   return out;
 }
 
@@ -139,7 +151,8 @@ std::vector<AinsResultRow> PgFleetStats::ains_results(const FleetFilter& f) cons
       "r.ains_values::text, r.local_run_id FROM runs r JOIN calibrations c ON c.run_id = r.id AND "
       "c.method = 'ains' WHERE $1::text IS NULL AND $2::text IS NULL AND r.setting = 'factory' "
       "AND r.reprocessed_from_local IS NULL AND c.unobservable = '[]'::jsonb AND "
-      "r.ains_values IS NOT NULL AND" +
+      "r.ains_values IS NOT NULL AND (r.verdict IS NULL OR r.verdict IN ('PASS', 'REVIEW', "
+      "'FAILED')) AND" +
           std::string(kWhere) + "ORDER BY r.id",
       values, "AINS results");
   std::vector<AinsResultRow> out;

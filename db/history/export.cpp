@@ -10,7 +10,7 @@ namespace imucal::db::history {
 
 using nlohmann::json;
 
-const char* const kCsvRunColumns[23] = {"run_id",
+const char* const kCsvRunColumns[24] = {"run_id",
                                         "serial",
                                         "state",
                                         "verdict",
@@ -32,7 +32,8 @@ const char* const kCsvRunColumns[23] = {"run_id",
                                         "promoted_by",
                                         "promote_reason",
                                         "slot",
-                                        "table_run"};
+                                        "table_run",
+                                        "outcome_of"};
 
 const char* const kCsvCalibrationColumns[11] = {"method",         "converged",
                                                 "iterations",     "runtime_s",
@@ -220,6 +221,7 @@ std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::
     line.field(r.promote_reason);
     line.field(r.slot);
     r.table_run_id ? line.integer(*r.table_run_id) : line.empty();
+    r.verdict ? line.field(outcome_of(*r.verdict)) : line.empty();
     if (row.calibration) {
       const CalibrationRecord& c = *row.calibration;
       line.field(to_string(c.method));
@@ -343,6 +345,7 @@ json run_json(const RunRecord& r) {
   o["promote_reason"] = r.promote_reason;
   o["slot"] = r.slot;
   o["table_run"] = r.table_run_id ? json(*r.table_run_id) : json(nullptr);
+  o["outcome_of"] = r.verdict ? json(outcome_of(*r.verdict)) : json(nullptr);
   o["holding_method"] = to_string(r.holding_method);
   o["holding_reason"] = r.holding_reason;
   // Stored only after finish_run validated them as objects; a damaged text is reported, not hidden.

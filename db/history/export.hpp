@@ -12,8 +12,9 @@
 // their 1-σ as "sigma.<name>", then the run's cross-check (kCsvCrosscheckColumns: k_sigma and the
 // failing terms as "term: detail" joined by "; ") and its capture counters as "capture.<counter>"
 // (db::archive::CaptureInfo::counters(), the names of db/archive/FORMAT.md), then its gap diagnosis
-// (kCsvDiagnosisColumns). "verdict" is the run's
-// (PASS/REVIEW/FAILED), "crosscheck_verdict" the cross-check's own (PASS/REVIEW), "failure_reason"
+// (kCsvDiagnosisColumns). "verdict" is the run's (PASS/REVIEW/FAILED/STATION-FAULT/ABORTED/
+// INTERRUPTED), "outcome_of" whose it was (unit, station, operator, daemon; empty while live, issue
+// #50), "crosscheck_verdict" the cross-check's own (PASS/REVIEW), "failure_reason"
 // every reason joined by "; ". Times are ISO 8601 UTC
 // ("2024-05-01T12:34:56.789Z"); numbers are the shortest text that parses back to the stored
 // double; absent values are empty fields.
@@ -30,7 +31,7 @@
 namespace imucal::db::history {
 
 /// Run columns of the CSV export, in order.
-extern const char* const kCsvRunColumns[23];
+extern const char* const kCsvRunColumns[24];
 /// Calibration columns of the CSV export, in order (then parameters and sigmas).
 extern const char* const kCsvCalibrationColumns[11];
 /// The run's cross-check columns, after the sigmas (then the capture counters).

@@ -11,8 +11,10 @@
 //     given). A serial that names no unit matches nothing (no error);
 //   * a run's day is its UTC calendar day: floor(started_at_ms / 86 400 000) days since
 //     1970-01-01 (utc_day());
-//   * verdicts are the run's (RunRecord::verdict): PASS, REVIEW, FAILED; a run still live has none
-//     and is counted as live;
+//   * verdicts are the run's (RunRecord::verdict, stored at its end): PASS, REVIEW, FAILED — the
+//     unit's own outcomes, what its yield counts — and STATION-FAULT, ABORTED, INTERRUPTED, which
+//     say nothing about the unit (issue #50: a station's faults are counted per station, never as a
+//     unit's failure); a run still live has none and is counted as live;
 //   * a parameter's distribution takes the AINS calibration of every matching run that has one
 //     (whatever its verdict), the value in SI units as stored in the parameter-set JSON — except
 //     where that result does not determine the parameter (CalibrationRecord::unobservable lists
@@ -49,9 +51,16 @@ struct StationVerdictCounts {
   std::string station;
   std::int64_t pass = 0;
   std::int64_t review = 0;
-  std::int64_t failed = 0;
-  std::int64_t live = 0;  ///< runs without a verdict yet
-  std::int64_t total() const { return pass + review + failed + live; }
+  std::int64_t failed = 0;         ///< the unit's FAILED: its data or its calibration failed
+  std::int64_t station_fault = 0;  ///< STATION-FAULT: table, CAN bus, disk, daemon
+  std::int64_t aborted = 0;        ///< ABORTED: an operator's `run abort`
+  std::int64_t interrupted = 0;    ///< INTERRUPTED: the daemon stopped or died mid-run
+  std::int64_t live = 0;           ///< runs without a verdict yet
+  /// The runs whose outcome is the unit's own (PASS, REVIEW, FAILED): what yield is a share of.
+  std::int64_t unit_outcomes() const { return pass + review + failed; }
+  std::int64_t total() const {
+    return unit_outcomes() + station_fault + aborted + interrupted + live;
+  }
 };
 
 /// One station's values of one parameter (SI units), see the file comment for the definitions.
@@ -92,8 +101,9 @@ class FleetStats {
   virtual std::vector<RunId> table_run_members(RunId table_run_id) const = 0;
   /// The AINS results of the matching factory table runs that determine every parameter, as
   /// stored, ascending run id — what a station error would have moved. Left out: field runs (no
-  /// table, no surveyed gravity), results with an undetermined term, and reprocessed runs (the
-  /// same data again; their originals stand for them).
+  /// table, no surveyed gravity), results with an undetermined term, reprocessed runs (the
+  /// same data again; their originals stand for them), and ended runs whose verdict is not the
+  /// unit's own (STATION-FAULT, ABORTED, INTERRUPTED: issue #50).
   virtual std::vector<AinsResultRow> ains_results(const FleetFilter& filter) const = 0;
 };
 

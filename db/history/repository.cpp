@@ -121,8 +121,22 @@ const char* to_string(RunVerdict v) {
       return "REVIEW";
     case RunVerdict::kFailed:
       return "FAILED";
+    case RunVerdict::kStationFault:
+      return "STATION-FAULT";
+    case RunVerdict::kAborted:
+      return "ABORTED";
+    case RunVerdict::kInterrupted:
+      return "INTERRUPTED";
   }
   return "FAILED";
+}
+
+RunVerdict run_verdict_from_string(const std::string& s) {
+  for (RunVerdict v : {RunVerdict::kPass, RunVerdict::kReview, RunVerdict::kFailed,
+                       RunVerdict::kStationFault, RunVerdict::kAborted, RunVerdict::kInterrupted})
+    if (s == to_string(v)) return v;
+  throw InvalidInput("unknown run verdict \"" + s +
+                     "\" (expected PASS, REVIEW, FAILED, STATION-FAULT, ABORTED or INTERRUPTED)");
 }
 
 std::optional<RunVerdict> run_verdict(RunState s) {
@@ -132,11 +146,38 @@ std::optional<RunVerdict> run_verdict(RunState s) {
     case RunState::kReview:
       return RunVerdict::kReview;
     case RunState::kFailed:
-    case RunState::kAborted:
-    case RunState::kInterrupted:
       return RunVerdict::kFailed;
+    case RunState::kAborted:
+      return RunVerdict::kAborted;
+    case RunState::kInterrupted:
+      return RunVerdict::kInterrupted;
     default:
       return std::nullopt;
+  }
+}
+
+bool verdict_fits_state(RunVerdict v, RunState s) {
+  const std::optional<RunVerdict> own = run_verdict(s);
+  if (!own) return false;
+  if (v == *own) return true;
+  return v == RunVerdict::kStationFault &&
+         (s == RunState::kFailed || s == RunState::kAborted || s == RunState::kInterrupted);
+}
+
+bool is_unit_outcome(RunVerdict v) {
+  return v == RunVerdict::kPass || v == RunVerdict::kReview || v == RunVerdict::kFailed;
+}
+
+const char* outcome_of(RunVerdict v) {
+  switch (v) {
+    case RunVerdict::kStationFault:
+      return "station";
+    case RunVerdict::kAborted:
+      return "operator";
+    case RunVerdict::kInterrupted:
+      return "daemon";
+    default:
+      return "unit";
   }
 }
 

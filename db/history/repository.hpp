@@ -130,13 +130,32 @@ enum class Verdict { kPass, kReview };
 const char* to_string(Verdict v);                   ///< "PASS", "REVIEW"
 Verdict verdict_from_string(const std::string& s);  ///< InvalidInput otherwise
 
-/// The run's verdict (issue #19 item 2): the one answer every view shows, a function of the
-/// terminal state — done → PASS, review → REVIEW, failed/aborted/interrupted → FAILED; a live run
-/// has none. A PASS cross-check does not make a run PASS: the limits, the gap check, a partial
-/// archive or a field setting can still send it to review (its reasons say which).
-enum class RunVerdict { kPass, kReview, kFailed };
-const char* to_string(RunVerdict v);  ///< "PASS", "REVIEW", "FAILED"
+/// The run's verdict (issue #19 item 2, issue #50): the one answer every view shows, and whose
+/// the end was. done → PASS, review → REVIEW (the unit's own outcomes, what its yield counts); a
+/// run that ended without a result says whose it was — FAILED (the unit's: its data or its
+/// calibration failed), STATION-FAULT (the station's: table, CAN bus, disk, daemon), ABORTED (an
+/// operator's `run abort`), INTERRUPTED (the daemon stopped or died mid-run). A live run has none.
+/// A PASS cross-check does not make a run PASS: the limits, the gap check, a partial archive or a
+/// field setting can still send it to review (its reasons say which).
+enum class RunVerdict { kPass, kReview, kFailed, kStationFault, kAborted, kInterrupted };
+/// "PASS", "REVIEW", "FAILED", "STATION-FAULT", "ABORTED", "INTERRUPTED".
+const char* to_string(RunVerdict v);
+/// Inverse of to_string; InvalidInput naming the accepted words otherwise.
+RunVerdict run_verdict_from_string(const std::string& s);
+/// The verdict a terminal state has when nothing else is known of whose its end was: done → PASS,
+/// review → REVIEW, failed → FAILED, aborted → ABORTED, interrupted → INTERRUPTED; none while live.
 std::optional<RunVerdict> run_verdict(RunState s);
+/// Whether a terminal state may end with this verdict: done only PASS, review only REVIEW;
+/// failed, aborted and interrupted their default verdict or STATION-FAULT (a table fault ends a
+/// capture as aborted, a CAN bus or disk fault as failed, a daemon that could not calibrate as
+/// interrupted).
+bool verdict_fits_state(RunVerdict v, RunState s);
+/// Whether the verdict is the unit's own outcome (PASS, REVIEW, FAILED): what a unit's yield
+/// counts. STATION-FAULT, ABORTED and INTERRUPTED say nothing about the unit.
+bool is_unit_outcome(RunVerdict v);
+/// Whose the outcome is, one word for exports and pages: "unit" (PASS, REVIEW, FAILED), "station"
+/// (STATION-FAULT), "operator" (ABORTED), "daemon" (INTERRUPTED).
+const char* outcome_of(RunVerdict v);
 
 /// One reason a run is not PASS, with what raised it. Sources: "cross-check", "limits", "gap",
 /// "partial archive", "field" (a setting no second method can check), "error" (the calibration
@@ -194,7 +213,8 @@ struct RunRecord {
   std::string archive_path;
   std::string archive_sha256;  ///< 64 lowercase hex digits, or empty
   std::optional<RunId> reprocessed_from;
-  std::optional<RunVerdict> verdict;  ///< the run's verdict (run_verdict(state)); none while live
+  std::optional<RunVerdict> verdict;  ///< the run's verdict, stored at its end (schema v10); none
+                                      ///< while live
   std::optional<Verdict> crosscheck_verdict;  ///< the cross-check's own, if one is stored
   std::string capture_json;    ///< capture counters (station/run/capture_stats.hpp) as a JSON
                                ///< object text; empty if the run stored none (schema v2)
@@ -259,6 +279,9 @@ struct RunCompletion {
                                    ///< for review without a REVIEW cross-check;
                                    ///< empty: join_reasons(reasons)
   std::vector<RunReason> reasons;  ///< every reason by source; empty: `reason` as one reason
+  /// Whose end it was (issue #50): unset → run_verdict(state); STATION-FAULT for a failed,
+  /// aborted or interrupted run the station caused (verdict_fits_state, else InvalidInput).
+  std::optional<RunVerdict> verdict;
   std::optional<std::string> archive_path;  ///< replaces the stored path if given
   std::string archive_sha256;               ///< 64 lowercase hex digits, or empty
   std::vector<CalibrationRecord>

@@ -325,6 +325,64 @@ ALTER TABLE runs ADD COLUMN holding_method TEXT NOT NULL DEFAULT 'ains'
 ALTER TABLE runs ADD COLUMN holding_reason TEXT NOT NULL DEFAULT '';
 )SQL";
 
+// Version 10 (issue #50): a run's verdict says whose its end was. Until now it was generated from
+// the state, and every failed, aborted or interrupted run was the unit's FAILED — a table that
+// could not be reached, a CAN bus gone, a full disk, an operator's abort. The verdict becomes a
+// stored column (SQLite drops a VIRTUAL generated column in place) written by finish_run; the
+// migration classifies the runs already stored by their state and the reason texts the station
+// has always written for them (station/run/run_session.cpp, capture.cpp, run_controller.cpp):
+//   done → PASS, review → REVIEW, interrupted → INTERRUPTED;
+//   aborted with "table: …" (a turntable fault ended the capture; an operator's own abort starts
+//   with the operator's words) → STATION-FAULT, other aborted → ABORTED;
+//   failed with "archive: …", "import: cannot store the archive…", or a capture fault of the CAN
+//   channel, the bus or the archive writer ("CAN channel error", "went bus-off", "run archive
+//   write failed", "the CAN channel is closed", a channel URI that could not be opened) →
+//   STATION-FAULT; every other failed (data checks, the calibration, the unit's stream) → FAILED.
+// Triggers keep the verdict consistent with the state (a CHECK cannot be added to a table). The
+// updates count as a change of each ended run (revision, outbox), so a fleet store that is sent
+// the runs again takes the new verdicts. runs_by_time_station covers the verdict instead of the
+// state: the fleet pages count verdicts.
+const char* const kMigration10 = R"SQL(
+DROP INDEX runs_by_time_station;
+ALTER TABLE runs DROP COLUMN verdict;
+ALTER TABLE runs ADD COLUMN verdict TEXT CHECK (verdict IS NULL OR verdict IN
+  ('PASS', 'REVIEW', 'FAILED', 'STATION-FAULT', 'ABORTED', 'INTERRUPTED'));
+UPDATE runs SET verdict = CASE
+    WHEN state = 'done' THEN 'PASS'
+    WHEN state = 'review' THEN 'REVIEW'
+    WHEN state = 'interrupted' THEN 'INTERRUPTED'
+    WHEN state = 'aborted' AND failure_reason LIKE 'table: %' THEN 'STATION-FAULT'
+    WHEN state = 'aborted' THEN 'ABORTED'
+    WHEN failure_reason LIKE 'archive: %'
+      OR failure_reason LIKE 'import: cannot store the archive%'
+      OR failure_reason LIKE 'capture: CAN channel error%'
+      OR failure_reason LIKE 'capture: CAN controller % went bus-off%'
+      OR failure_reason LIKE 'capture: run archive write failed%'
+      OR failure_reason LIKE 'capture: %the CAN channel is closed%'
+      OR failure_reason LIKE 'capture: unixcan:%'
+      OR failure_reason LIKE 'capture: socketcan:%'
+      OR failure_reason LIKE 'capture: candump:%' THEN 'STATION-FAULT'
+    ELSE 'FAILED' END
+WHERE state IN ('done', 'review', 'failed', 'aborted', 'interrupted');
+CREATE INDEX runs_by_time_station ON runs (started_at_ms, station, verdict, unit_id);
+CREATE TRIGGER runs_verdict_fits_state_on_insert BEFORE INSERT ON runs
+WHEN NOT coalesce(
+  (NEW.state IN ('preparing', 'running', 'calibrating') AND NEW.verdict IS NULL)
+  OR (NEW.state = 'done' AND NEW.verdict = 'PASS') OR (NEW.state = 'review' AND NEW.verdict = 'REVIEW')
+  OR (NEW.state = 'failed' AND NEW.verdict IN ('FAILED', 'STATION-FAULT'))
+  OR (NEW.state = 'aborted' AND NEW.verdict IN ('ABORTED', 'STATION-FAULT'))
+  OR (NEW.state = 'interrupted' AND NEW.verdict IN ('INTERRUPTED', 'STATION-FAULT')), 0)
+BEGIN SELECT RAISE(ABORT, 'runs.verdict does not fit the run''s state'); END;
+CREATE TRIGGER runs_verdict_fits_state_on_update BEFORE UPDATE OF state, verdict ON runs
+WHEN NOT coalesce(
+  (NEW.state IN ('preparing', 'running', 'calibrating') AND NEW.verdict IS NULL)
+  OR (NEW.state = 'done' AND NEW.verdict = 'PASS') OR (NEW.state = 'review' AND NEW.verdict = 'REVIEW')
+  OR (NEW.state = 'failed' AND NEW.verdict IN ('FAILED', 'STATION-FAULT'))
+  OR (NEW.state = 'aborted' AND NEW.verdict IN ('ABORTED', 'STATION-FAULT'))
+  OR (NEW.state = 'interrupted' AND NEW.verdict IN ('INTERRUPTED', 'STATION-FAULT')), 0)
+BEGIN SELECT RAISE(ABORT, 'runs.verdict does not fit the run''s state'); END;
+)SQL";
+
 const char* const kMigration5 = R"SQL(
 ALTER TABLE runs ADD COLUMN verdict TEXT GENERATED ALWAYS AS (
   CASE state WHEN 'done' THEN 'PASS' WHEN 'review' THEN 'REVIEW'
@@ -445,6 +503,9 @@ const std::vector<Migration>& migrations() {
       {8, "runs_by_time_station index, ains_values: the fleet pages' aggregates", kMigration8},
       {9, "runs.holding_method, runs.holding_reason: the method a run's active set is",
        kMigration9},
+      {10,
+       "runs.verdict stored: whose a run's end was (FAILED, STATION-FAULT, ABORTED, INTERRUPTED)",
+       kMigration10},
   };
   return list;
 }

@@ -16,7 +16,7 @@
 namespace imucal::db::history::schema {
 
 /// The version this software writes and reads.
-constexpr int kSchemaVersion = 9;
+constexpr int kSchemaVersion = 10;
 /// PRAGMA application_id of a calibration-history database: ASCII "IMUC".
 constexpr int kApplicationId = 0x494D5543;
 

@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <map>
 #include <mutex>
@@ -193,43 +194,42 @@ std::vector<StationVerdictCounts> SqliteFleetStats::verdict_counts_per_station(
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const char* op = "verdict counts per station";
   Impl::Snapshot snapshot(*impl_, op);
-  // By state, not the generated verdict column, and counted here: runs_by_time_station covers
-  // the state (schema v8), so the count reads no run row and sorts nothing; run_verdict() is the
-  // verdict's definition.
-  Impl::Query q(*impl_, "SELECT r.station, r.state FROM runs r" + where_clause(f), op);
+  // Counted here, not by GROUP BY: runs_by_time_station covers the stored verdict (schema v10), so
+  // the count reads no run row and sorts nothing.
+  Impl::Query q(*impl_, "SELECT r.station, r.verdict FROM runs r" + where_clause(f), op);
   q.bind_filter(f);
   StationNames stations;
-  std::vector<std::map<std::string, std::int64_t, std::less<>>> per_state;
+  // Per station: the runs per verdict, indexed by RunVerdict, and the live ones (NULL) last.
+  constexpr std::size_t kLiveSlot = 6;
+  std::vector<std::array<std::int64_t, kLiveSlot + 1>> per_verdict;
   while (q.step()) {
     const std::size_t s = stations.index_of(q.view(0));
-    if (s == per_state.size()) per_state.emplace_back();
-    auto& counts = per_state[s];
-    const std::string_view state = q.view(1);
-    if (const auto it = counts.find(state); it != counts.end())
-      ++it->second;
-    else
-      counts.emplace(std::string(state), 1);
+    if (s == per_verdict.size()) per_verdict.push_back({});
+    if (q.type(1) == SQLITE_NULL) {
+      ++per_verdict[s][kLiveSlot];
+      continue;
+    }
+    const std::string_view text = q.view(1);
+    RunVerdict v{};
+    try {
+      v = run_verdict_from_string(std::string(text));
+    } catch (const InvalidInput&) {
+      throw Corrupt(impl_->path + ": " + op + ": stored run verdict \"" + std::string(text) +
+                    "\" is unknown");
+    }
+    ++per_verdict[s][static_cast<std::size_t>(v)];
   }
   std::vector<StationVerdictCounts> out;
   for (const std::size_t s : stations.sorted()) {
+    const auto& n = per_verdict[s];
     StationVerdictCounts c{stations.name(s)};
-    for (const auto& [text, n] : per_state[s]) {
-      RunState state{};
-      try {
-        state = run_state_from_string(text);
-      } catch (const InvalidInput&) {
-        throw Corrupt(impl_->path + ": " + op + ": stored run state \"" + text + "\" is unknown");
-      }
-      const std::optional<RunVerdict> verdict = run_verdict(state);
-      if (!verdict)
-        c.live += n;
-      else if (*verdict == RunVerdict::kPass)
-        c.pass += n;
-      else if (*verdict == RunVerdict::kReview)
-        c.review += n;
-      else
-        c.failed += n;
-    }
+    c.pass = n[static_cast<std::size_t>(RunVerdict::kPass)];
+    c.review = n[static_cast<std::size_t>(RunVerdict::kReview)];
+    c.failed = n[static_cast<std::size_t>(RunVerdict::kFailed)];
+    c.station_fault = n[static_cast<std::size_t>(RunVerdict::kStationFault)];
+    c.aborted = n[static_cast<std::size_t>(RunVerdict::kAborted)];
+    c.interrupted = n[static_cast<std::size_t>(RunVerdict::kInterrupted)];
+    c.live = n[kLiveSlot];
     out.push_back(c);
   }
   return out;
@@ -300,7 +300,8 @@ std::vector<AinsResultRow> SqliteFleetStats::ains_results(const FleetFilter& f) 
       "JOIN calibrations c ON c.run_id = r.id AND c.method = 'ains'" +
       where_clause(f,
                    "r.setting = 'factory' AND r.reprocessed_from IS NULL AND "
-                   "c.unobservable_json = '[]'") +
+                   "c.unobservable_json = '[]' AND "
+                   "(r.verdict IS NULL OR r.verdict IN ('PASS', 'REVIEW', 'FAILED'))") +
       " ORDER BY r.id";
   Impl::Query q(*impl_, sql, op);
   q.bind_filter(f);

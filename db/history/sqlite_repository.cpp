@@ -95,7 +95,7 @@ const char* const kSqlFinishRun =
     "UPDATE runs SET state = ?2, ended_at_ms = ?3, failure_reason = ?4, "
     "archive_path = coalesce(?5, archive_path), archive_sha256 = ?6, capture_json = ?7, "
     "diagnosis_json = ?8, reasons_json = ?9, holding_method = coalesce(?10, holding_method), "
-    "holding_reason = coalesce(?11, holding_reason) WHERE id = ?1";
+    "holding_reason = coalesce(?11, holding_reason), verdict = ?12 WHERE id = ?1";
 const char* const kSqlSetDiagnosis = "UPDATE runs SET diagnosis_json = ?2 WHERE id = ?1";
 const char* const kSqlHasMethod = "SELECT 1 FROM calibrations WHERE run_id = ?1 AND method = ?2";
 const char* const kSqlInsertCal =
@@ -389,8 +389,11 @@ struct SqliteRepository::Impl {
     if (!q.is_null(19)) r.promoted_at_ms = q.i64(19);
     r.promoted_by = q.text(20);
     r.promote_reason = q.text(21);
-    r.verdict = run_verdict(r.state);
-    if (q.is_null(22) != !r.verdict || (r.verdict && q.text(22) != to_string(*r.verdict)))
+    if (!q.is_null(22))
+      r.verdict = decode([&] { return run_label(r.run_id) + " verdict"; },
+                         [&] { return run_verdict_from_string(q.text(22)); });
+    if (is_terminal(r.state) != r.verdict.has_value() ||
+        (r.verdict && !verdict_fits_state(*r.verdict, r.state)))
       throw Corrupt(path + ": " + run_label(r.run_id) + " verdict \"" + q.text(22) +
                     "\" contradicts its state " + to_string(r.state));
     r.reasons = decode([&] { return run_label(r.run_id) + " reasons_json"; },
@@ -676,6 +679,17 @@ struct SqliteRepository::Impl {
     return *v;
   }
 
+  /// The verdict a completion stores: its own if given (InvalidInput if the state cannot end so),
+  /// else the state's.
+  static RunVerdict end_verdict(const RunCompletion& c, const std::string& who) {
+    const RunVerdict v = c.verdict.value_or(*run_verdict(c.state));
+    if (!verdict_fits_state(v, c.state))
+      throw InvalidInput(who + ": a " + to_string(c.state) + " run cannot have the verdict " +
+                         to_string(v) + " (failed, aborted and interrupted runs may be " +
+                         to_string(RunVerdict::kStationFault) + ")");
+    return v;
+  }
+
   void finish(RunId run_id, const RunCompletion& c) {
     const char* op = "finish_run";
     const std::string who = path + ": " + op + ": " + run_label(run_id);
@@ -683,6 +697,7 @@ struct SqliteRepository::Impl {
       throw InvalidInput(
           who + ": state " + to_string(c.state) +
           " is not terminal (expected done, review, failed, aborted or interrupted)");
+    const RunVerdict verdict_of_end = end_verdict(c, who);
     check_sha(c.archive_sha256, "archive SHA-256");
     check_json_object(c.capture_json, who, "capture_json");
     check_json_object(c.diagnosis_json, who, "diagnosis_json");
@@ -772,6 +787,7 @@ struct SqliteRepository::Impl {
     q.bind(5, c.archive_path).bind(6, c.archive_sha256).bind(7, c.capture_json);
     q.bind(8, c.diagnosis_json).bind(9, reasons_to_json(reasons));
     q.bind(10, to_string(c.holding_method)).bind(11, c.holding_reason);
+    q.bind(12, std::string(to_string(verdict_of_end)));
     q.run();
     tx.commit();
   }
@@ -989,6 +1005,7 @@ std::vector<RunId> SqliteRepository::mark_interrupted_runs(TimestampMs now) {
     q.bind_null(5).bind(6, std::string()).bind(7, std::string()).bind(8, std::string());
     q.bind(9, reasons_to_json({{default_reason_source(RunState::kInterrupted), reason}}));
     q.bind_null(10).bind_null(11);  // no calibration judged: the holding method stays as stored
+    q.bind(12, std::string(to_string(RunVerdict::kInterrupted)));
     q.run();
     ids.push_back(id);
   }

@@ -214,6 +214,33 @@ std::string gap_cell(const json& run) {
   return d.value("verdict", std::string("?"));
 }
 
+namespace {
+
+/// A unit's yield over the runs listed (issue #50): PASS among its own outcomes (PASS, REVIEW,
+/// FAILED); the station's faults, operators' aborts and interrupted runs are named apart and never
+/// count against the unit. "" when nothing has ended.
+std::string unit_yield_line(const json& runs) {
+  long own = 0, pass = 0, station = 0, aborted = 0, interrupted = 0;
+  for (const auto& r : runs) {
+    const std::string v = str(r, "verdict");
+    own += v == "PASS" || v == "REVIEW" || v == "FAILED";
+    pass += v == "PASS";
+    station += v == "STATION-FAULT";
+    aborted += v == "ABORTED";
+    interrupted += v == "INTERRUPTED";
+  }
+  if (own + station + aborted + interrupted == 0) return "";
+  std::string s = "Yield: " + std::to_string(pass) + " PASS of " + std::to_string(own) +
+                  " run(s) the unit decided";
+  if (own > 0) s += " (" + std::to_string((100 * pass + own / 2) / own) + " %)";
+  if (station + aborted + interrupted > 0)
+    s += "; not the unit's: " + std::to_string(station) + " station fault(s), " +
+         std::to_string(aborted) + " abort(s), " + std::to_string(interrupted) + " interrupted";
+  return s + "\n";
+}
+
+}  // namespace
+
 std::string render_history_text(const json& history) {
   std::ostringstream os;
   const json& runs = history.at("runs");
@@ -233,7 +260,7 @@ std::string render_history_text(const json& history) {
   bool any_slot = false;  // a fixture with several slots: which slot and table run
   for (const auto& r : runs) any_slot = any_slot || !str(r, "slot").empty();
   os << pad("RUN", 7) << (all_units ? pad("SERIAL", 16) : "") << (any_slot ? pad("SLOT", 10) : "")
-     << pad("STARTED (UTC)", 21) << pad("SETTING", 9) << pad("STATE", 13) << pad("VERDICT", 9)
+     << pad("STARTED (UTC)", 21) << pad("SETTING", 9) << pad("STATE", 13) << pad("VERDICT", 15)
      << pad("CROSS-CHECK", 13) << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13)
      << pad("GAP (best effect)", 40) << "REASON\n";
   for (const auto& r : runs) {
@@ -244,7 +271,7 @@ std::string render_history_text(const json& history) {
     os << rtrim(pad(id, 7) + (all_units ? pad(str(r, "serial"), 16) : "") +
                 (any_slot ? pad(slot_cell(r), 10) : "") +
                 pad(short_time(str(r, "started_at")), 21) + pad(str(r, "setting", "factory"), 9) +
-                pad(str(r, "state"), 13) + pad(str(r, "verdict", "-"), 9) +
+                pad(str(r, "state"), 13) + pad(str(r, "verdict", "-"), 15) +
                 pad(str(r, "crosscheck_verdict", "-"), 13) + pad(str(r, "sequence_name"), 16) +
                 pad(str(r, "operator"), 14) + pad(duration.empty() ? "-" : duration, 13) +
                 pad(gap_cell(r), 40) + str(r, "failure_reason"))
@@ -257,6 +284,7 @@ std::string render_history_text(const json& history) {
   for (const auto& r : runs) any_promoted = any_promoted || has(r, "promoted_at");
   if (any_promoted)
     os << "^ field run promoted by QA to the active parameters (stationctl show RUN for why)\n";
+  if (!all_units) os << unit_yield_line(runs);
   return os.str();
 }
 
@@ -400,6 +428,18 @@ void render_crosscheck(std::ostream& os, const json& show, const json& cals) {
 
 }  // namespace
 
+namespace {
+
+/// Whose a run's end was, for people (db::history::outcome_of's words).
+std::string outcome_owner_text(const std::string& owner) {
+  if (owner == "station") return "a station fault (table, CAN bus, disk); the unit is not blamed";
+  if (owner == "operator") return "aborted by an operator";
+  if (owner == "daemon") return "interrupted: the station daemon stopped mid-run";
+  return owner;
+}
+
+}  // namespace
+
 std::string render_show_text(const json& show) {
   std::ostringstream os;
   const json& run = show.at("run");
@@ -408,6 +448,8 @@ std::string render_show_text(const json& show) {
   if (has(run, "crosscheck_verdict"))
     os << "  (cross-check " << str(run, "crosscheck_verdict") << ")";
   os << "\n";
+  if (has(run, "outcome_of") && str(run, "outcome_of") != "unit")
+    os << "  not the unit's outcome: " << outcome_owner_text(str(run, "outcome_of")) << "\n";
   render_reasons(os, run);
   auto row = [&os](const char* label, const std::string& value) {
     if (!value.empty()) os << "  " << pad(label, 13) << value << "\n";

@@ -90,7 +90,8 @@ void Capture::run() {
       }
     } catch (const std::exception& e) {
       std::lock_guard<std::mutex> lk(mu_);
-      if (writer_ && !fault_) set_fault(std::string("CAN channel error: ") + e.what());
+      if (writer_ && !fault_)
+        set_fault(std::string("CAN channel error: ") + e.what(), /*station=*/true);
       eof = true;
     }
     if (eof) std::this_thread::sleep_for(options_.poll_timeout);
@@ -104,8 +105,9 @@ void Capture::run() {
       const auto ms =
           std::chrono::duration_cast<std::chrono::milliseconds>(now - last_sample_time_);
       set_fault("IMU stream timeout: no sample for " + std::to_string(ms.count()) + " ms after " +
-                (rows_ ? row_label(rows_ - 1) : std::string("attach (no row yet)")) +
-                (eof ? "; the CAN channel is closed" : ""));
+                    (rows_ ? row_label(rows_ - 1) : std::string("attach (no row yet)")) +
+                    (eof ? "; the CAN channel is closed" : ""),
+                /*station=*/eof);
     }
     if (rate_window_.empty() || now - rate_window_.back().first >= kRateStep) {
       rate_window_.emplace_back(now, slots_seen_);
@@ -152,9 +154,10 @@ void Capture::on_bus_off() {
   if (!writer_ || writes_disabled_ || fault_) return;
   const uint64_t errors = dec_.error_frames - baseline_.frames_error;
   set_fault("CAN controller " + channel_->interface_name() + " went bus-off at " +
-            row_label(rows_) + " (after " + std::to_string(errors) +
-            " error frames in this run): the IMU stream has a hole; check the bus wiring and "
-            "termination");
+                row_label(rows_) + " (after " + std::to_string(errors) +
+                " error frames in this run): the IMU stream has a hole; check the bus wiring and "
+                "termination",
+            /*station=*/true);
 }
 
 void Capture::on_sample(const drivers::imu::DecodedSample& s, Clock::time_point now) {
@@ -286,15 +289,16 @@ bool Capture::emit_row(const calib::core::ImuIncrement& in) {
   return true;
 }
 
-void Capture::set_fault(std::string reason) {
+void Capture::set_fault(std::string reason, bool station) {
   if (fault_) return;
   fault_ = std::move(reason);
+  fault_is_station_ = station;
   cv_.notify_all();
 }
 
 void Capture::writer_failed(const std::exception& e) {
   writes_disabled_ = true;
-  set_fault(std::string("run archive write failed: ") + e.what());
+  set_fault(std::string("run archive write failed: ") + e.what(), /*station=*/true);
 }
 
 std::string Capture::row_label(uint64_t row) const {
@@ -423,6 +427,11 @@ CaptureStats Capture::stats() const {
 std::optional<std::string> Capture::fault() const {
   std::lock_guard<std::mutex> lk(mu_);
   return fault_;
+}
+
+bool Capture::fault_is_station() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return fault_ && fault_is_station_;
 }
 
 double Capture::sample_rate_observed_hz() const {

@@ -102,6 +102,9 @@ class Capture {
 
   CaptureStats stats() const;
   std::optional<std::string> fault() const;
+  /// Whether the fault is the station's (issue #50): the CAN channel or bus failed, or the
+  /// archive could not be written — not the unit's stream or motion.
+  bool fault_is_station() const;
   /// Sample slots per wall second over the last ~2 s (for time-left estimates); 0 until known.
   double sample_rate_observed_hz() const;
   uint64_t rows() const;
@@ -120,7 +123,8 @@ class Capture {
   bool emit_row(const calib::core::ImuIncrement& inc);          ///< false: fault, nothing written
   double rate_dps(const calib::core::ImuIncrement& inc) const;  ///< |dθ|/dt in deg/s
   bool is_moving(const calib::core::ImuIncrement& inc) const;   ///< above rest_rate_threshold_dps
-  void set_fault(std::string reason);
+  /// The first fault wins; `station` says whose it is (fault_is_station()).
+  void set_fault(std::string reason, bool station = false);
   void writer_failed(const std::exception& e);
   std::string row_label(uint64_t row) const;  ///< "row N (t = X s)"
   CaptureStats raw_counters() const;
@@ -139,6 +143,7 @@ class Capture {
   ArchiveWriter* writer_ = nullptr;
   bool writes_disabled_ = false;  ///< archive I/O error: no more writes at all
   std::optional<std::string> fault_;
+  bool fault_is_station_ = false;
   int64_t rest_begun_ns_ = 0;  ///< realtime of the latest begin_rest (the receive-time domain)
 
   // Cumulative counters (since start); stats() subtracts baseline_ (taken at attach).

@@ -49,8 +49,9 @@ std::string reserve_end_note(const std::string& path) {
 }
 
 std::string record_end_note(const std::string& path, db::history::RunState state,
-                            const std::string& reason) {
-  std::string text = std::string(kMagic) + db::history::to_string(state) + "\n" + reason;
+                            db::history::RunVerdict verdict, const std::string& reason) {
+  std::string text = std::string(kMagic) + db::history::to_string(state) + " " +
+                     db::history::to_string(verdict) + "\n" + reason;
   if (text.size() > kEndNoteBytes - 1) text.resize(kEndNoteBytes - 1);
   text.resize(kEndNoteBytes, '\0');
   const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);  // no O_CREAT: only in place
@@ -75,12 +76,19 @@ std::optional<EndNote> read_end_note(const std::string& path) {
   text.erase(0, std::strlen(kMagic));
   const auto nl = text.find('\n');
   if (nl == std::string::npos) return std::nullopt;
+  // "state verdict"; notes written before issue #50 hold the state alone (its own verdict).
+  const std::string head = text.substr(0, nl);
+  const auto space = head.find(' ');
   EndNote note;
   try {
-    note.state = db::history::run_state_from_string(text.substr(0, nl));
+    note.state = db::history::run_state_from_string(head.substr(0, space));
+    note.verdict = space == std::string::npos
+                       ? *db::history::run_verdict(note.state)
+                       : db::history::run_verdict_from_string(head.substr(space + 1));
   } catch (const std::exception&) {
     return std::nullopt;
   }
+  if (!db::history::verdict_fits_state(note.verdict, note.state)) return std::nullopt;
   note.reason = text.substr(nl + 1);
   return note;
 }

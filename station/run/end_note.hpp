@@ -21,13 +21,14 @@ std::string end_note_path(const std::string& data_dir, db::history::RunId id);
 /// Creates the note with kEndNoteBytes allocated and no content. Returns "" or why not.
 std::string reserve_end_note(const std::string& path);
 
-/// Overwrites the reserved note with `state` and `reason` (cut to fit) and syncs it. Returns ""
-/// or why not (no reservation, I/O error).
+/// Overwrites the reserved note with `state`, `verdict` (whose the end was) and `reason` (cut to
+/// fit) and syncs it. Returns "" or why not (no reservation, I/O error).
 std::string record_end_note(const std::string& path, db::history::RunState state,
-                            const std::string& reason);
+                            db::history::RunVerdict verdict, const std::string& reason);
 
 struct EndNote {
   db::history::RunState state = db::history::RunState::kFailed;
+  db::history::RunVerdict verdict = db::history::RunVerdict::kFailed;
   std::string reason;
 };
 

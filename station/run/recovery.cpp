@@ -99,6 +99,7 @@ RecoveryReport recover_at_startup(const StationConfig& config, db::history::Repo
     }
     if (note) {
       c.state = note->state;
+      c.verdict = note->verdict;
       r.reason = note->reason +
                  " (recorded at start-up from the run's end note: the database "
                  "could not take it then); " +

@@ -596,6 +596,7 @@ nlohmann::json RunController::import_archive(const std::string& dir, const std::
   } catch (const std::exception& e) {
     db::history::RunCompletion c;
     c.state = db::history::RunState::kFailed;
+    c.verdict = db::history::RunVerdict::kStationFault;  // the station's disk, not the unit
     c.ended_at_ms = db::history::now_ms();
     c.reason = std::string("import: cannot store the archive: ") + e.what();
     repo_.finish_run(id, c);
@@ -679,6 +680,7 @@ bool RunController::abort(const std::string& reason) {
       if (u.ended) continue;
       db::history::RunCompletion c;
       c.state = db::history::RunState::kAborted;
+      c.verdict = db::history::RunVerdict::kAborted;
       c.ended_at_ms = db::history::now_ms();
       c.reason = reason;
       if (u.snap.capture) c.capture_json = to_json(*u.snap.capture).dump();
@@ -697,6 +699,7 @@ bool RunController::abort(const std::string& reason) {
       }
       u.ended = true;
       u.snap.state = db::history::RunState::kAborted;
+      u.snap.verdict = db::history::RunVerdict::kAborted;
       u.snap.reason = reason;
       u.snap.ended_at_ms = c.ended_at_ms;
       spdlog::warn("run {}: aborted while calibrating: {}", u.snap.run_id, reason);
@@ -890,9 +893,10 @@ void RunController::control_thread(std::shared_ptr<Live> live) {
 }
 
 void RunController::finish_early(Unit& unit, db::history::RunState state,
-                                 const std::string& reason) {
+                                 db::history::RunVerdict verdict, const std::string& reason) {
   std::lock_guard<std::mutex> lk(mu_);
   unit.snap.state = state;
+  unit.snap.verdict = verdict;
   unit.snap.reason = reason;
   unit.snap.ended_at_ms = db::history::now_ms();
   unit.snap.phase = RunPhase::kNone;
@@ -914,7 +918,8 @@ void RunController::record_end(Live& L, Unit& unit, const db::history::RunComple
       // (status says so, `--wait` returns); its end is kept in the reserved note so that a restart
       // finds the real reason, and recording is retried until space returns or the daemon stops.
       if (!noted) {
-        const std::string err = record_end_note(note, c.state, c.reason);
+        const std::string err = record_end_note(
+            note, c.state, c.verdict.value_or(*db::history::run_verdict(c.state)), c.reason);
         spdlog::error("run {}: the database cannot record its end ({}); {}; retrying every {} s",
                       id, e.what(),
                       err.empty() ? "kept in " + note : "and no end note either: " + err,

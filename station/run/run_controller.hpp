@@ -92,7 +92,8 @@ struct RunSnapshot {
   RunPhase phase = RunPhase::kNone;
   int step = 0, steps = 0;            ///< 0 / 0 when not applicable (reprocess, from the DB)
   std::optional<double> time_left_s;  ///< estimate while capturing
-  std::optional<db::history::RunVerdict> verdict;  ///< the run's: PASS / REVIEW / FAILED
+  std::optional<db::history::RunVerdict> verdict;  ///< the run's: PASS / REVIEW / FAILED /
+                                                   ///< STATION-FAULT / ABORTED / INTERRUPTED
   std::optional<db::history::Verdict>
       crosscheck_verdict;  ///< the cross-check's own, if one was made
   std::string reason;
@@ -194,7 +195,8 @@ class RunController {
   friend struct Session;
   void control_thread(std::shared_ptr<Live> live);
   void capture_run(const std::shared_ptr<Live>& live);
-  void finish_early(Unit& unit, db::history::RunState state, const std::string& reason);
+  void finish_early(Unit& unit, db::history::RunState state, db::history::RunVerdict verdict,
+                    const std::string& reason);
   /// Stores the run's end; when the database cannot (disk full), keeps it in the run's end note
   /// and retries every kRecordRetry until it can or the run is aborted / the daemon stops.
   void record_end(Live& live, Unit& unit, const db::history::RunCompletion& completion);

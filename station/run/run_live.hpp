@@ -67,10 +67,17 @@ constexpr double kMoveVisibleWithin_s = 5.0;
 /// The operator (or SIGTERM) asked to stop; carries no text (the reason is in Live).
 struct AbortRequested {};
 
-/// The IMU side failed: run -> failed.
+/// The IMU side failed: run -> failed, the unit's FAILED — or STATION-FAULT where the CAN channel,
+/// the bus or the archive failed (issue #50: the unit is not blamed for the station).
 class CaptureFailure : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  explicit CaptureFailure(const std::string& what,
+                          db::history::RunVerdict verdict = db::history::RunVerdict::kFailed)
+      : std::runtime_error(what), verdict_(verdict) {}
+  db::history::RunVerdict verdict() const { return verdict_; }
+
+ private:
+  db::history::RunVerdict verdict_;
 };
 
 }  // namespace imucal::station::run

@@ -71,6 +71,7 @@ struct RunController::Session {
   // How the capture of the units still live ended.
   bool captured = false;
   db::history::RunState end_state = db::history::RunState::kFailed;
+  db::history::RunVerdict end_verdict = db::history::RunVerdict::kFailed;  // whose the end was
   std::string reason;
 
   Unit& unit(const UnitCapture& u) { return L.units[u.index]; }
@@ -93,16 +94,18 @@ struct RunController::Session {
   void rest(double outer, double inner, const PlannedStep& step);
   void check_rest_table(double outer, double inner, double budget_s, Clock::time_point deadline);
   // --- one unit failing while the others go on ---
-  void unit_failed(UnitCapture& u, const std::string& why);
-  void drop_unit(UnitCapture& u, const std::string& why);
+  void unit_failed(UnitCapture& u, const std::string& why,
+                   db::history::RunVerdict verdict = db::history::RunVerdict::kFailed);
+  void drop_unit(UnitCapture& u, const std::string& why, db::history::RunVerdict verdict);
   // --- the end ---
-  void ended(db::history::RunState state, std::string why);
+  void ended(db::history::RunState state, db::history::RunVerdict verdict, std::string why);
   void resolve_abort();
   void end_capture(UnitCapture& u);
   void close_archive(UnitCapture& u, bool complete);
   void close_table();
   void hand_over(UnitCapture& u);
-  void record_failure(UnitCapture& u, db::history::RunState state, const std::string& why);
+  void record_failure(UnitCapture& u, db::history::RunState state, db::history::RunVerdict verdict,
+                      const std::string& why);
   // --- transitions ---
   void enter_running();
   void enter_calibrating(UnitCapture& u);
@@ -115,7 +118,10 @@ struct RunController::Session {
   void check_capture() {
     for (UnitCapture& u : units)
       if (u.live && u.cap)
-        if (auto f = u.cap->fault()) unit_failed(u, *f);
+        if (auto f = u.cap->fault())
+          unit_failed(u, *f,
+                      u.cap->fault_is_station() ? db::history::RunVerdict::kStationFault
+                                                : db::history::RunVerdict::kFailed);
   }
   milliseconds poll() const { return std::max(milliseconds(1), rc.cfg_.turntable.poll_period); }
 };
@@ -134,17 +140,22 @@ void RunController::Session::run() {
     check_capture();
     captured = true;
   } catch (const AbortRequested&) {
-    ended(db::history::RunState::kAborted, "");
+    ended(db::history::RunState::kAborted, db::history::RunVerdict::kAborted, "");
   } catch (const drivers::turntable::AbortedError&) {
-    ended(db::history::RunState::kAborted, "");
+    ended(db::history::RunState::kAborted, db::history::RunVerdict::kAborted, "");
   } catch (const drivers::turntable::TurntableError& e) {
-    ended(db::history::RunState::kAborted, std::string("table: ") + e.what());
+    // The table (its link, drives, e-stop, PLC) ended the capture: the station's, not the unit's.
+    ended(db::history::RunState::kAborted, db::history::RunVerdict::kStationFault,
+          std::string("table: ") + e.what());
   } catch (const CaptureFailure& e) {
-    ended(db::history::RunState::kFailed, std::string("capture: ") + e.what());
+    ended(db::history::RunState::kFailed, e.verdict(), std::string("capture: ") + e.what());
   } catch (const drivers::imu::CanChannelError& e) {
-    ended(db::history::RunState::kFailed, std::string("capture: ") + e.what());
+    ended(db::history::RunState::kFailed, db::history::RunVerdict::kStationFault,
+          std::string("capture: ") + e.what());
   } catch (const std::exception& e) {
-    ended(db::history::RunState::kFailed, e.what());
+    // Anything else (the archive directory, the disk) is the station's: the unit's own failures
+    // arrive as CaptureFailure.
+    ended(db::history::RunState::kFailed, db::history::RunVerdict::kStationFault, e.what());
   }
   resolve_abort();
   if (!captured) {
@@ -161,11 +172,12 @@ void RunController::Session::run() {
   for (UnitCapture& u : units) {
     if (!u.live) continue;
     if (!u.archive_error.empty())
-      record_failure(u, db::history::RunState::kFailed, "archive: " + u.archive_error);
+      record_failure(u, db::history::RunState::kFailed, db::history::RunVerdict::kStationFault,
+                     "archive: " + u.archive_error);
     else if (captured)
       hand_over(u);
     else
-      record_failure(u, end_state, reason);
+      record_failure(u, end_state, end_verdict, reason);
   }
 }
 
@@ -217,9 +229,9 @@ void RunController::Session::connect_imus() {
       try {
         waiting ? wait_for_stream(u) : open_imu(u);
       } catch (const CaptureFailure& e) {
-        unit_failed(u, e.what());
+        unit_failed(u, e.what(), e.verdict());
       } catch (const drivers::imu::CanChannelError& e) {
-        unit_failed(u, e.what());
+        unit_failed(u, e.what(), db::history::RunVerdict::kStationFault);
       }
     }
   }
@@ -249,7 +261,9 @@ void RunController::Session::open_imu(UnitCapture& u) {
 void RunController::Session::wait_for_stream(UnitCapture& u) {
   const ImuSlotConfig& s = slot(u);
   if (!u.cap->wait_for_stream(milliseconds(s.stream_timeout_ms))) {
-    if (auto f = u.cap->fault()) throw CaptureFailure(*f);
+    if (auto f = u.cap->fault())
+      throw CaptureFailure(*f, u.cap->fault_is_station() ? db::history::RunVerdict::kStationFault
+                                                         : db::history::RunVerdict::kFailed);
     throw CaptureFailure("no IMU samples on " + s.can_uri + " within " +
                          std::to_string(s.stream_timeout_ms) + " ms");
   }
@@ -417,24 +431,28 @@ void RunController::Session::check_rest_table(double outer, double inner, double
 
 /// A unit's capture failed: alone it ends the run (CaptureFailure); beside others it ends FAILED
 /// on its own and the table goes on for them.
-void RunController::Session::unit_failed(UnitCapture& u, const std::string& why) {
-  if (live_units() <= 1) throw CaptureFailure(why);
-  drop_unit(u, "capture: " + why);
+void RunController::Session::unit_failed(UnitCapture& u, const std::string& why,
+                                         db::history::RunVerdict verdict) {
+  if (live_units() <= 1) throw CaptureFailure(why, verdict);
+  drop_unit(u, "capture: " + why, verdict);
 }
 
-void RunController::Session::drop_unit(UnitCapture& u, const std::string& why) {
+void RunController::Session::drop_unit(UnitCapture& u, const std::string& why,
+                                       db::history::RunVerdict verdict) {
   spdlog::warn("run {} (slot {}): failed alone, the table run goes on: {}", run_id(u), slot(u).name,
                why);
   u.live = false;
   end_capture(u);
   close_archive(u, false);
-  record_failure(u, db::history::RunState::kFailed, why);
+  record_failure(u, db::history::RunState::kFailed, verdict, why);
 }
 
 // ----- the end -----------------------------------------------------------------------------------
 
-void RunController::Session::ended(db::history::RunState state, std::string why) {
+void RunController::Session::ended(db::history::RunState state, db::history::RunVerdict verdict,
+                                   std::string why) {
   end_state = state;
+  end_verdict = verdict;
   reason = std::move(why);
 }
 
@@ -447,6 +465,7 @@ void RunController::Session::resolve_abort() {
     if (L.abort && !captured) {
       const std::string consequence = reason;
       end_state = db::history::RunState::kAborted;
+      end_verdict = db::history::RunVerdict::kAborted;
       reason = L.abort_reason;
       if (!consequence.empty() && consequence != reason) reason += " (then: " + consequence + ")";
     }
@@ -454,6 +473,7 @@ void RunController::Session::resolve_abort() {
     if (captured && L.abort) {
       captured = false;
       end_state = db::history::RunState::kAborted;
+      end_verdict = db::history::RunVerdict::kAborted;
       reason = L.abort_reason;
     }
   }
@@ -530,7 +550,7 @@ void RunController::Session::hand_over(UnitCapture& u) {
       unit(u).handed_to_worker = false;
     }
     record_failure(
-        u, db::history::RunState::kInterrupted,
+        u, db::history::RunState::kInterrupted, db::history::RunVerdict::kInterrupted,
         std::string("capture complete but not calibrated: ") + e.what() + "; reprocess the run");
   }
 }
@@ -538,17 +558,19 @@ void RunController::Session::hand_over(UnitCapture& u) {
 /// A unit that ended before calibrating: its terminal state with the reason, the archive (if one
 /// was written), its digest and the capture counters.
 void RunController::Session::record_failure(UnitCapture& u, db::history::RunState state,
+                                            db::history::RunVerdict verdict,
                                             const std::string& why) {
   Unit& un = unit(u);
   const bool have_archive = fs::exists(fs::path(un.snap.archive_path) / "run.toml");
   db::history::RunCompletion c;
   c.state = state;
+  c.verdict = verdict;
   c.ended_at_ms = db::history::now_ms();
   c.reason = why;
   if (have_archive) c.archive_path = un.snap.archive_path;
   c.archive_sha256 = u.sha;
   c.capture_json = u.stats ? to_json(*u.stats).dump() : std::string();
-  rc.finish_early(un, state, why);
+  rc.finish_early(un, state, verdict, why);
   {
     std::lock_guard<std::mutex> lk(rc.mu_);
     if (!have_archive) un.snap.archive_path.clear();

@@ -108,7 +108,8 @@ class ExportTest : public ::testing::Test {
     add("SIM-A", kT0Export, 1, RunState::kDone);
     add("SIM-B", kT0Export + kDay, 2, RunState::kReview);
     add("SIM-A", kT0Export + 2 * kDay, 0, RunState::kFailed);
-    add("SIM-B", kT0Export + 2 * kDay, 3, RunState::kDone);  // same time as the failed run: id order
+    add("SIM-B", kT0Export + 2 * kDay, 3,
+        RunState::kDone);  // same time as the failed run: id order
     add("SIM-A", kT0Export + 3 * kDay, 4, RunState::kDone);
   }
 
@@ -162,18 +163,19 @@ class ExportTest : public ::testing::Test {
 };
 
 TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
-  const std::vector<ExportFilter> filters = {{},
-                                             {std::string("SIM-A"), std::nullopt, std::nullopt},
-                                             {std::nullopt, kT0Export + 2 * kDay, std::nullopt},
-                                             {std::string("SIM-B"), kT0Export + kDay + 1, std::nullopt},
-                                             {std::string("SIM-A"), kT0Export + 10 * kDay, std::nullopt}};
+  const std::vector<ExportFilter> filters = {
+      {},
+      {std::string("SIM-A"), std::nullopt, std::nullopt},
+      {std::nullopt, kT0Export + 2 * kDay, std::nullopt},
+      {std::string("SIM-B"), kT0Export + kDay + 1, std::nullopt},
+      {std::string("SIM-A"), kT0Export + 10 * kDay, std::nullopt}};
   for (const ExportFilter& f : filters) {
     std::ostringstream os;
     const std::size_t n = export_csv(*repo_, f, os);
     const auto rows = parse_csv(os.str());
     ASSERT_FALSE(rows.empty());
     const auto& header = rows[0];
-    ASSERT_EQ(header.size(), 23u + 11u + 2u * calib::core::ParamSet::kSize + 2u +
+    ASSERT_EQ(header.size(), 24u + 11u + 2u * calib::core::ParamSet::kSize + 2u +
                                  db::archive::CaptureInfo::counters().size() + 11u);
     std::map<std::string, std::size_t> col;
     for (std::size_t c = 0; c < header.size(); ++c) col[header[c]] = c;
@@ -213,6 +215,7 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
       EXPECT_EQ(row[col["serial"]], s.serial);
       EXPECT_EQ(row[col["state"]], to_string(s.state));
       EXPECT_EQ(row[col["verdict"]], to_string(*run_verdict(s.state))) << "the run's verdict";
+      EXPECT_EQ(row[col["outcome_of"]], "unit") << "done, review, failed: the unit's own (#50)";
       EXPECT_EQ(row[col["setting"]], "factory");
       EXPECT_EQ(row[col["promoted_at"]], "");
       EXPECT_EQ(parse_time_utc(row[col["started_at"]]), s.t);
@@ -256,10 +259,11 @@ TEST_F(ExportTest, CsvParsesBackToTheStoredValuesForEveryFilter) {
 }
 
 TEST_F(ExportTest, JsonParsesBackWithStrictParameterSetsForEveryFilter) {
-  const std::vector<ExportFilter> filters = {{},
-                                             {std::string("SIM-B"), std::nullopt, std::nullopt},
-                                             {std::nullopt, kT0Export + 3 * kDay, std::nullopt},
-                                             {std::string("SIM-B"), kT0Export + 100 * kDay, std::nullopt}};
+  const std::vector<ExportFilter> filters = {
+      {},
+      {std::string("SIM-B"), std::nullopt, std::nullopt},
+      {std::nullopt, kT0Export + 3 * kDay, std::nullopt},
+      {std::string("SIM-B"), kT0Export + 100 * kDay, std::nullopt}};
   for (const ExportFilter& f : filters) {
     std::ostringstream os;
     const std::size_t n = export_json(*repo_, f, os);
@@ -338,7 +342,8 @@ TEST_F(ExportTest, EmptyResultIsAHeaderOrAnEmptyArray) {
   EXPECT_EQ(json::parse(js.str()), json::array());
   // An unknown (but valid) serial exports nothing; an invalid one is refused.
   EXPECT_EQ(export_csv(*repo_, {std::string("SIM-ZZZ"), std::nullopt, std::nullopt}, csv), 0u);
-  EXPECT_THROW(export_csv(*repo_, {std::string("SIM A"), std::nullopt, std::nullopt}, csv), InvalidInput);
+  EXPECT_THROW(export_csv(*repo_, {std::string("SIM A"), std::nullopt, std::nullopt}, csv),
+               InvalidInput);
 }
 
 TEST_F(ExportTest, AFailingStreamIsAnIoError) {

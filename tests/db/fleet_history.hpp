@@ -2,7 +2,8 @@
 // A calibration history for the fleet questions (db/history/fleet_stats.hpp), written through the
 // repository, with every row also returned to the test so that it can compute the expected
 // answers on its own: three stations, six serials, five days of March 2024 (and one run before
-// 1970 when asked), verdicts PASS, REVIEW and FAILED, two live runs (one with its AINS result
+// 1970 when asked), verdicts PASS, REVIEW, FAILED, STATION-FAULT, ABORTED and INTERRUPTED, two
+// live runs (one with its AINS result
 // already stored), and AINS parameters drawn around a per-station mean so that the stations'
 // distributions differ. Used by tests/db/fleet_stats_test.cpp and tests/tools/stationweb_test.cpp.
 #include <algorithm>
@@ -23,7 +24,8 @@ struct FleetRow {
   RunId run_id = 0;
   std::string station, serial;
   TimestampMs started_at_ms = 0;
-  std::string verdict;                     ///< "PASS", "REVIEW", "FAILED", "" (live)
+  std::string verdict;  ///< "PASS", "REVIEW", "FAILED", "STATION-FAULT", "ABORTED",
+                        ///< "INTERRUPTED", "" (live)
   std::optional<calib::core::ParamVector> ains;  ///< the AINS values stored, if any
   std::optional<calib::core::ParamVector> ains_sigma;
   std::vector<std::string> unobservable;  ///< parameters the AINS result does not determine
@@ -58,10 +60,29 @@ inline RunCompletion fleet_completion(int i, TimestampMs end, std::mt19937& rng,
                                       std::size_t station) {
   RunCompletion c;
   c.ended_at_ms = end;
-  if (i % 11 == 0) {  // failed before calibrating
-    c.state = RunState::kFailed;
-    c.reason = "data check: IMU stream stopped";
-    row.verdict = "FAILED";
+  if (i % 11 == 0) {  // ended before calibrating: whose the end was, in turn (issue #50)
+    switch ((i / 11) % 4) {
+      case 0:  // the unit's own
+        c.state = RunState::kFailed;
+        c.reason = "data check: IMU stream stopped";
+        row.verdict = "FAILED";
+        break;
+      case 1:  // the table could not be reached: the station's
+        c.state = RunState::kAborted;
+        c.verdict = RunVerdict::kStationFault;
+        c.reason = "table: turntable tcp:127.0.0.1:1502: cannot connect after 10 attempt(s)";
+        row.verdict = "STATION-FAULT";
+        break;
+      case 2:  // an operator's abort
+        c.state = RunState::kAborted;
+        c.reason = "unit loose in fixture";
+        row.verdict = "ABORTED";
+        break;
+      default:  // the daemon died mid-run
+        c.state = RunState::kInterrupted;
+        c.reason = "the station daemon stopped while the run was running";
+        row.verdict = "INTERRUPTED";
+    }
     return c;
   }
   c = i % 7 == 0 ? review_completion(i, end) : pass_completion(i, end);
@@ -128,7 +149,7 @@ inline std::vector<FleetRow> write_fleet_history(SqliteRepository& repo, bool be
     NewRun run = new_run(row.serial, row.started_at_ms);
     run.station = row.station;
     row.run_id = repo.create_run(run);
-    repo.finish_run(row.run_id, fleet_completion(11, 0, rng, row, 0));  // FAILED
+    repo.finish_run(row.run_id, fleet_completion(11, 0, rng, row, 0));  // STATION-FAULT
     rows.push_back(row);
   }
   return rows;

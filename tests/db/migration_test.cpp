@@ -362,12 +362,12 @@ TEST(Migration, VersionFourDatabaseFromThePreviousReleaseGainsTheRunVerdictAndRe
       {2, RunState::kReview, RunVerdict::kReview, Verdict::kPass, "gap"},
       {3, RunState::kReview, RunVerdict::kReview, Verdict::kReview, "cross-check"},
       {4, RunState::kFailed, RunVerdict::kFailed, std::nullopt, "error"},
-      {5, RunState::kAborted, RunVerdict::kFailed, std::nullopt, "aborted"},
+      {5, RunState::kAborted, RunVerdict::kAborted, std::nullopt, "aborted"},
       {6, RunState::kReview, RunVerdict::kReview, Verdict::kPass, "partial archive"},
       {7, RunState::kDone, RunVerdict::kPass, Verdict::kPass, nullptr},
       {8, RunState::kDone, RunVerdict::kPass, Verdict::kPass, nullptr},
       {9, RunState::kReview, RunVerdict::kReview, std::nullopt, "field"},
-      {10, RunState::kInterrupted, RunVerdict::kFailed, std::nullopt, "interrupted"},
+      {10, RunState::kInterrupted, RunVerdict::kInterrupted, std::nullopt, "interrupted"},
       {11, RunState::kRunning, std::nullopt, std::nullopt, nullptr},
   };
   for (const Expected& e : expected) {
@@ -418,7 +418,7 @@ TEST(Migration, VersionFourDatabaseFromThePreviousReleaseGainsTheRunVerdictAndRe
     EXPECT_EQ(row.run.verdict, repo.show(row.run.run_id).run.verdict) << row.run.run_id;
   });
   EXPECT_EQ(rows, 17u) << "6 runs with two methods, 1 with one, 4 without";
-  // The verdict is generated from the state: it cannot be written around the code.
+  // The verdict must fit the state (v10 triggers): it cannot be written around the code.
   RawDb raw(path);
   char* err = nullptr;
   EXPECT_NE(sqlite3_exec(raw.get(), "UPDATE runs SET verdict = 'PASS' WHERE id = 2", nullptr,
@@ -427,6 +427,95 @@ TEST(Migration, VersionFourDatabaseFromThePreviousReleaseGainsTheRunVerdictAndRe
   sqlite3_free(err);
   EXPECT_EQ(raw.text("SELECT verdict FROM runs WHERE id = 2"), "REVIEW");
   EXPECT_EQ(raw.text("SELECT count(*) FROM runs WHERE verdict = 'PASS'"), "3");
+}
+
+// Schema v10 (issue #50): a version-9 database whose ended runs were all "FAILED" — a table that
+// could not be reached, an operator's abort, a CAN bus gone, a full disk, a daemon that died, and
+// the unit's own data — migrates to verdicts that say whose each end was, by the run's state and
+// the reason texts the station writes. The expected verdicts are written out by hand per row.
+TEST(Migration, VersionNineRunsAreClassifiedByWhoseTheirEndWas) {
+  TempDir dir;
+  const std::string path = dir.file("v9.db");
+  struct OldRun {
+    const char* state;
+    const char* reason;
+    std::optional<RunVerdict> expected;
+  };
+  const std::vector<OldRun> old_runs = {
+      {"done", "", RunVerdict::kPass},
+      {"review", "cross-check REVIEW: accel_bias_mps2[1]: too far", RunVerdict::kReview},
+      {"aborted",
+       "table: turntable tcp:127.0.0.1:1502: cannot connect after 10 attempt(s): Connection "
+       "refused",
+       RunVerdict::kStationFault},
+      {"aborted", "table: turntable tcp:127.0.0.1:1502 during a rest: e-stop open",
+       RunVerdict::kStationFault},
+      {"aborted", "unit loose in fixture", RunVerdict::kAborted},
+      {"aborted", "unit loose in fixture (then: table: turntable: aborted)", RunVerdict::kAborted},
+      {"failed", "capture: CAN channel error: unixcan:/run/imu.sock: peer closed the connection",
+       RunVerdict::kStationFault},
+      {"failed",
+       "capture: CAN controller can0 went bus-off at row 12 (t = 0.12 s) (after 40 error frames)",
+       RunVerdict::kStationFault},
+      {"failed", "capture: unixcan:/run/imu.sock: cannot connect to /run/imu.sock: refused",
+       RunVerdict::kStationFault},
+      {"failed", "capture: run archive write failed: No space left on device",
+       RunVerdict::kStationFault},
+      {"failed", "archive: No space left on device", RunVerdict::kStationFault},
+      {"failed", "import: cannot store the archive: No space left on device",
+       RunVerdict::kStationFault},
+      {"failed", "capture: IMU stream timeout: no sample for 2000 ms after row 5 (t = 0.05 s)",
+       RunVerdict::kFailed},
+      {"failed", "capture: IMU reports gyro x failure at row 100 (t = 1.00 s)",
+       RunVerdict::kFailed},
+      {"failed", "calibration failed: data check: accelerometer axis y stuck at 0.000 m/s²",
+       RunVerdict::kFailed},
+      {"interrupted", "the station daemon stopped while the run was running (found at start-up)",
+       RunVerdict::kInterrupted},
+      {"running", "", std::nullopt},
+  };
+  {
+    RawDb raw(path);
+    const std::vector<schema::Migration> v9(schema::migrations().begin(),
+                                            schema::migrations().begin() + 9);
+    schema::migrate(raw.get(), path, v9);
+    ASSERT_EQ(raw.text("PRAGMA user_version"), "9");
+    raw.exec("INSERT INTO units (serial, first_seen_ms) VALUES ('V9-1', 1714560000000);");
+    for (std::size_t i = 0; i < old_runs.size(); ++i) {
+      const bool live = std::string(old_runs[i].state) == "running";
+      raw.exec(
+          "INSERT INTO runs (unit_id, operator, station, sequence_name, sequence_sha256, "
+          "software_version, started_at_ms, ended_at_ms, state, failure_reason, uuid) VALUES "
+          "(1, 'op', 'st', 'short', '', '0.9', " +
+          std::to_string(kT0Migration + static_cast<TimestampMs>(i)) + ", " +
+          (live ? std::string("NULL") : std::to_string(kT0Migration + 1000)) + ", '" +
+          old_runs[i].state + "', '" + old_runs[i].reason + "', lower(hex(randomblob(16))));");
+    }
+    ASSERT_EQ(raw.text("SELECT count(*) FROM runs WHERE verdict = 'FAILED'"), "14")
+        << "version 9: every ended run that is not done or review is FAILED";
+  }
+  SqliteRepository repo(path);
+  EXPECT_EQ(repo.schema_version(), schema::kSchemaVersion);
+  EXPECT_EQ(repo.integrity_check(), "ok");
+  for (std::size_t i = 0; i < old_runs.size(); ++i) {
+    const RunRecord r = repo.show(static_cast<RunId>(i + 1)).run;
+    EXPECT_EQ(r.verdict, old_runs[i].expected) << old_runs[i].state << ": " << old_runs[i].reason;
+    EXPECT_EQ(r.failure_reason, old_runs[i].reason) << "the reason is kept";
+  }
+  // The station's copy of each ended run changed: its revision moved, so a fleet store takes it.
+  RawDb raw(path);
+  EXPECT_EQ(raw.text("SELECT count(*) FROM runs WHERE revision > 0"), "16");
+  // The stored verdict must fit the state, also around the code.
+  for (const char* bad : {"UPDATE runs SET verdict = 'FAILED' WHERE id = 1",
+                          "UPDATE runs SET verdict = 'ABORTED' WHERE id = 7",
+                          "UPDATE runs SET verdict = NULL WHERE id = 3",
+                          "UPDATE runs SET verdict = 'PASS' WHERE id = 17"}) {
+    char* err = nullptr;
+    EXPECT_NE(sqlite3_exec(raw.get(), bad, nullptr, nullptr, &err), SQLITE_OK) << bad;
+    sqlite3_free(err);
+  }
+  EXPECT_EQ(raw.text("SELECT verdict FROM runs WHERE id IN (1, 3, 7, 17) ORDER BY id"),
+            "PASS\nSTATION-FAULT\nSTATION-FAULT\nNULL");
 }
 
 // Schema v8 (issue #24, the fleet pages): ains_values holds every stored AINS result's values as

@@ -24,8 +24,8 @@ namespace imucal::db {
 using namespace imucal::db::history;
 namespace {
 
-using test::TempDir;
 using test::expect_throw_message;
+using test::TempDir;
 
 constexpr TimestampMs kT0Repository = 1714560000000;  // 2024-05-01T10:40:00Z
 constexpr TimestampMs kMinute = 60000;
@@ -54,8 +54,9 @@ TEST(Repository, HistoryOfTwoSerialsIsNewestFirstWithIdTieBreak) {
   // Interleaved serials, start times deliberately not in creation order, and one tie (A: two
   // runs at kT0 + 5 min, which must come out by id, newest id first).
   const std::vector<std::pair<std::string, TimestampMs>> plan = {
-      {"SIM-A", kT0Repository + 5 * kMinute}, {"SIM-B", kT0Repository + 1 * kMinute}, {"SIM-A", kT0Repository + 2 * kMinute},
-      {"SIM-A", kT0Repository + 9 * kMinute}, {"SIM-B", kT0Repository + 7 * kMinute}, {"SIM-A", kT0Repository + 5 * kMinute},
+      {"SIM-A", kT0Repository + 5 * kMinute}, {"SIM-B", kT0Repository + 1 * kMinute},
+      {"SIM-A", kT0Repository + 2 * kMinute}, {"SIM-A", kT0Repository + 9 * kMinute},
+      {"SIM-B", kT0Repository + 7 * kMinute}, {"SIM-A", kT0Repository + 5 * kMinute},
       {"SIM-B", kT0Repository + 3 * kMinute}, {"SIM-A", kT0Repository + 0 * kMinute}};
   long seed = 1;
   for (const auto& [serial, t] : plan) {
@@ -114,7 +115,8 @@ TEST(Repository, ActiveParamsIsLatestPassAndALaterReviewDoesNotReplaceIt) {
   const RunId rf = repo.create_run(test::new_run("SIM-A", kT0Repository + 30 * kMinute));
   repo.update_run_state(rf, RunState::kRunning);
   repo.update_run_state(rf, RunState::kFailed, "turntable fault 17 during step 3/12");
-  const RunId ri = repo.create_run(test::new_run("SIM-A", kT0Repository + 40 * kMinute, RunState::kRunning));
+  const RunId ri =
+      repo.create_run(test::new_run("SIM-A", kT0Repository + 40 * kMinute, RunState::kRunning));
   repo.mark_interrupted_runs(kT0Repository + 50 * kMinute);
   const RunId r14 = repo.create_run(test::new_run("SIM-A", kT0Repository + 5 * kMinute));
   repo.finish_run(r14, test::pass_completion(14, kT0Repository + 6 * kMinute));
@@ -258,7 +260,7 @@ TEST(Repository, TheRunVerdictFollowsTheStateWithEveryReasonNotTheCrossCheckAlon
             "limits: gyro bias z 0.31 deg/h > 0.2 deg/h; sim-to-real gap: explained by "
             "gyro_g_sensitivity");
   const RunRecord a = repo.show(failed).run;
-  EXPECT_EQ(a.verdict, RunVerdict::kFailed);
+  EXPECT_EQ(a.verdict, RunVerdict::kAborted) << "an operator's abort is not the unit's FAILED";
   EXPECT_EQ(a.reasons, (std::vector<RunReason>{{"aborted", "aborted by operator"}}));
   EXPECT_EQ(repo.show(done).run.verdict, RunVerdict::kPass);
   EXPECT_TRUE(repo.show(done).run.reasons.empty());
@@ -345,7 +347,8 @@ TEST(Repository, LifeCycleRulesAreEnforcedAndARefusedFinishWritesNothing) {
   NewRun dangling = test::new_run("SIM-0001", kT0Repository);
   dangling.reprocessed_from = 9999;
   EXPECT_THROW(repo.create_run(dangling), NotFound);
-  EXPECT_THROW(repo.create_run(test::new_run("SIM-0001", kT0Repository, RunState::kDone)), InvalidInput);
+  EXPECT_THROW(repo.create_run(test::new_run("SIM-0001", kT0Repository, RunState::kDone)),
+               InvalidInput);
   NewRun bad_seq = test::new_run("SIM-0001", kT0Repository);
   bad_seq.sequence_sha256 = std::string(64, 'G');
   EXPECT_THROW(repo.create_run(bad_seq), InvalidInput);
@@ -359,8 +362,9 @@ TEST(Repository, MarkInterruptedRunsTurnsEveryLiveRunIntoInterrupted) {
   RunId done = 0;
   {
     SqliteRepository repo(path);
-    live.push_back(repo.create_run(test::new_run("SIM-1", kT0Repository)));                      // preparing
-    live.push_back(repo.create_run(test::new_run("SIM-2", kT0Repository, RunState::kRunning)));  // running
+    live.push_back(repo.create_run(test::new_run("SIM-1", kT0Repository)));  // preparing
+    live.push_back(
+        repo.create_run(test::new_run("SIM-2", kT0Repository, RunState::kRunning)));  // running
     const RunId cal = repo.create_run(test::new_run("SIM-3", kT0Repository, RunState::kRunning));
     repo.update_run_state(cal, RunState::kCalibrating);
     repo.store_calibration(cal, test::seeded_calibration(8, Method::kAins));  // partial results
@@ -400,8 +404,8 @@ TEST_P(InvalidSerialTest, RefusedWithTheRuleAndNothingWritten) {
   SqliteRepository repo(dir.file("serial.db"));
   const BadSerial& bad = GetParam();
   ASSERT_TRUE(serial_problem(bad.serial).has_value());
-  const std::string msg =
-      expect_throw_message<InvalidInput>([&] { repo.create_run(test::new_run(bad.serial, kT0Repository)); });
+  const std::string msg = expect_throw_message<InvalidInput>(
+      [&] { repo.create_run(test::new_run(bad.serial, kT0Repository)); });
   EXPECT_NE(msg.find(bad.hint), std::string::npos) << msg;
   EXPECT_NE(msg.find(kSerialRule), std::string::npos) << msg;
   EXPECT_EQ(msg.find('\n'), std::string::npos) << "control characters are escaped: " << msg;
@@ -488,8 +492,8 @@ TEST(Repository, ReadOnlyModeRefusesWritesAndSeesCommittedDataWhileAWriterHoldsT
   EXPECT_TRUE(reader.runs_in_state(live_states()).empty());
 
   // Writes through the read-only repository: a clear ReadOnly error, whatever the method.
-  const std::string msg =
-      expect_throw_message<ReadOnly>([&] { reader.create_run(test::new_run("SIM-RO", kT0Repository + 1)); });
+  const std::string msg = expect_throw_message<ReadOnly>(
+      [&] { reader.create_run(test::new_run("SIM-RO", kT0Repository + 1)); });
   EXPECT_NE(msg.find("read-only"), std::string::npos) << msg;
   EXPECT_NE(msg.find(path), std::string::npos) << msg;
   EXPECT_THROW(reader.update_run_state(committed, RunState::kRunning), ReadOnly);
@@ -696,13 +700,53 @@ TEST(Time, FormatAndParseAgainstKnownEpochValues) {
             parse_time_utc("2024-05-01T10:34:56.789Z"));
   EXPECT_EQ(parse_time_utc("2024-05-01 10:34"), parse_time_utc("2024-05-01T10:34:00.000Z"));
   EXPECT_EQ(parse_time_utc("2024-05-01T10:34:56.7891"), parse_time_utc("2024-05-01T10:34:56.789"));
-  for (TimestampMs t : {kT0Repository, kT0Repository + 123, TimestampMs{951782400000}, TimestampMs{-86400001}})
+  for (TimestampMs t :
+       {kT0Repository, kT0Repository + 123, TimestampMs{951782400000}, TimestampMs{-86400001}})
     EXPECT_EQ(parse_time_utc(format_time_utc(t)), t) << t;
   for (const char* bad : {"2024-02-30", "2023-02-29", "2024-13-01", "24-05-01", "2024-05-01T25:00",
                           "2024-05-01T10:00:00X", "yesterday", "", "2024-05-01T10:00+2"}) {
     const std::string msg = expect_throw_message<InvalidInput>([&] { parse_time_utc(bad); });
     EXPECT_NE(msg.find("expected YYYY-MM-DD"), std::string::npos) << bad << ": " << msg;
   }
+}
+
+// Issue #50: finish_run stores whose the end was. A failed, aborted or interrupted run may be the
+// station's (STATION-FAULT); a completion's verdict its state cannot have is refused, nothing
+// stored; without one the state's own is stored.
+TEST(Repository, AFinishedRunStoresWhoseItsEndWasAndRefusesAVerdictItsStateCannotHave) {
+  test::TempDir dir;
+  SqliteRepository repo(dir.file("h.db"));
+  const RunId table = repo.create_run(test::new_run("SIM-W", kT0Repository));
+  RunCompletion c;
+  c.state = RunState::kAborted;
+  c.verdict = RunVerdict::kStationFault;
+  c.ended_at_ms = kT0Repository + kMinute;
+  c.reason = "table: turntable tcp:127.0.0.1:1502: cannot connect after 10 attempt(s)";
+  repo.finish_run(table, c);
+  EXPECT_EQ(repo.show(table).run.verdict, RunVerdict::kStationFault);
+
+  const RunId unit = repo.create_run(test::new_run("SIM-W", kT0Repository + 2 * kMinute));
+  RunCompletion wrong;
+  wrong.state = RunState::kFailed;
+  wrong.verdict = RunVerdict::kAborted;
+  wrong.ended_at_ms = kT0Repository + 3 * kMinute;
+  wrong.reason = "calibration failed: data check";
+  const std::string msg =
+      test::expect_throw_message<InvalidInput>([&] { repo.finish_run(unit, wrong); });
+  EXPECT_NE(msg.find("a failed run cannot have the verdict ABORTED"), std::string::npos) << msg;
+  EXPECT_FALSE(repo.show(unit).run.verdict.has_value()) << "nothing stored";
+  wrong.verdict.reset();
+  repo.finish_run(unit, wrong);
+  EXPECT_EQ(repo.show(unit).run.verdict, RunVerdict::kFailed) << "the state's own: the unit's";
+
+  const RunId pass = repo.create_run(test::new_run("SIM-W", kT0Repository + 4 * kMinute));
+  RunCompletion done = test::pass_completion(3, kT0Repository + 5 * kMinute);
+  done.verdict = RunVerdict::kStationFault;
+  EXPECT_THROW(repo.finish_run(pass, done), InvalidInput) << "a done run is PASS";
+  // Start-up recovery marks a live run INTERRUPTED: the daemon's, not the unit's.
+  const std::vector<RunId> marked = repo.mark_interrupted_runs(kT0Repository + 6 * kMinute);
+  ASSERT_EQ(marked, std::vector<RunId>{pass});
+  EXPECT_EQ(repo.show(pass).run.verdict, RunVerdict::kInterrupted);
 }
 
 }  // namespace

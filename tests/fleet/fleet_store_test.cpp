@@ -10,6 +10,7 @@
 #include "db/fleet/fleet_repository.hpp"
 #include "db/fleet/fleet_schema.hpp"
 #include "db/fleet/fleet_writer.hpp"
+#include "db/fleet/pg_fleet_stats.hpp"
 #include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 #include "tests/support/fleet_compare.hpp"
@@ -260,6 +261,80 @@ TEST(FleetStore, AReplacedStationDatabaseIsRefusedAndResyncKeepsTheOldRunsApart)
   upsert_runs(w, "ST-1", new_db.details_of({late}));
   EXPECT_EQ(set_apart_runs_not_in(w, "ST-1", keep, mark), 0u);
   EXPECT_EQ(fleet.stations().size(), 2u);
+}
+
+// Issue #50: a store of version 3, whose verdict was generated from the state (every ended run
+// that was not done or review FAILED), migrates to version 4 classifying the runs it holds by the
+// same rule as the station's history (db/history/schema.cpp, migration 10): the expected verdicts
+// are written out by hand per run. The store's counts then keep a station's faults apart from its
+// units' outcomes, as the SQLite backend does (tests/fleet/stationweb_fleet_test.cpp).
+TEST(FleetStore, AVersionThreeStoreClassifiesItsRunsByWhoseTheirEndWas) {
+  PgCluster pg;
+  test::TempDir dir;
+  SqliteRepository repo(dir.file("station.db"));
+  struct Ended {
+    RunState state;
+    const char* reason;
+    RunVerdict expected;
+  };
+  const std::vector<Ended> ended = {
+      {RunState::kAborted,
+       "table: turntable tcp:127.0.0.1:1502: cannot connect after 10 attempt(s)",
+       RunVerdict::kStationFault},
+      {RunState::kAborted, "unit loose in fixture", RunVerdict::kAborted},
+      {RunState::kFailed,
+       "capture: CAN channel error: unixcan:/run/imu: peer closed the connection",
+       RunVerdict::kStationFault},
+      {RunState::kFailed, "archive: No space left on device", RunVerdict::kStationFault},
+      {RunState::kFailed, "calibration failed: data check: accelerometer axis y stuck",
+       RunVerdict::kFailed},
+      {RunState::kInterrupted, "the station daemon stopped while the run was running",
+       RunVerdict::kInterrupted},
+  };
+  const RunId pass = repo.create_run(test::new_run("SN-A", kT0));
+  repo.finish_run(pass, test::pass_completion(1, kT0 + 100));
+  for (std::size_t i = 0; i < ended.size(); ++i) {
+    const RunId id = repo.create_run(test::new_run("SN-A", kT0 + 1000 * (1 + i)));
+    repo.update_run_state(id, ended[i].state, ended[i].reason);
+  }
+  PgConnection w(writer(pg));
+  migrate_fleet(w);
+  upsert_runs(w, "st-1", all_runs(repo));
+  // Back to version 3 as the previous release left it: the verdict generated from the state.
+  pg.admin(
+      "ALTER TABLE runs DROP CONSTRAINT runs_verdict_fits_state; DROP INDEX runs_by_time_counts; "
+      "ALTER TABLE runs DROP COLUMN verdict; ALTER TABLE runs ADD COLUMN verdict text GENERATED "
+      "ALWAYS AS (CASE state WHEN 'done' THEN 'PASS' WHEN 'review' THEN 'REVIEW' WHEN 'failed' "
+      "THEN 'FAILED' WHEN 'aborted' THEN 'FAILED' WHEN 'interrupted' THEN 'FAILED' END) STORED; "
+      "CREATE INDEX runs_by_time_counts ON runs (started_at_ms) INCLUDE (station_id, verdict); "
+      "DELETE FROM fleet_schema_version WHERE version = 4;",
+      "fleet");
+  EXPECT_EQ(pg.admin("SELECT count(*) FROM runs WHERE verdict = 'FAILED'", "fleet"), "6\n")
+      << "version 3: all six ended runs FAILED";
+  EXPECT_THROW(FleetRepository{reader(pg)}, IncompatibleSchema) << "a reader waits for a writer";
+  EXPECT_EQ(migrate_fleet(w), 3);
+  const FleetRepository fleet(reader(pg));
+  std::map<std::string, std::optional<RunVerdict>> got, expected;
+  for (const RunRecord& r : fleet.history("SN-A")) got[r.failure_reason] = r.verdict;
+  expected[""] = RunVerdict::kPass;
+  for (const Ended& e : ended) expected[e.reason] = e.expected;
+  EXPECT_EQ(got, expected);
+  const auto counts = PgFleetStats(reader(pg)).verdict_counts_per_station({});
+  ASSERT_EQ(counts.size(), 1u);
+  EXPECT_EQ(counts[0].pass, 1);
+  EXPECT_EQ(counts[0].failed, 1) << "the unit's own failure alone";
+  EXPECT_EQ(counts[0].station_fault, 3);
+  EXPECT_EQ(counts[0].aborted, 1);
+  EXPECT_EQ(counts[0].interrupted, 1);
+  EXPECT_EQ(counts[0].unit_outcomes(), 2);
+  // The stored verdict must fit the state in the store too.
+  std::string refused;
+  try {
+    pg.admin("UPDATE runs SET verdict = 'PASS' WHERE state = 'aborted'", "fleet");
+  } catch (const std::runtime_error& e) {
+    refused = e.what();
+  }
+  EXPECT_NE(refused.find("runs_verdict_fits_state"), std::string::npos) << refused;
 }
 
 TEST(FleetStore, TheReaderRoleCannotWriteAndFiltersAreBoundValues) {

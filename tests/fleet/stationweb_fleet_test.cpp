@@ -105,8 +105,13 @@ TEST_F(FleetView, TheStoresAggregatesEqualTheStationsForTheSameRows) {
     ASSERT_EQ(va.size(), vb.size());
     for (std::size_t i = 0; i < va.size(); ++i) {
       EXPECT_EQ(va[i].station, vb[i].station);
-      EXPECT_EQ(std::vector<std::int64_t>({va[i].pass, va[i].review, va[i].failed, va[i].live}),
-                std::vector<std::int64_t>({vb[i].pass, vb[i].review, vb[i].failed, vb[i].live}));
+      // Issue #50: both backends apply the same rule to whose each end was.
+      EXPECT_EQ(
+          std::vector<std::int64_t>({va[i].pass, va[i].review, va[i].failed, va[i].station_fault,
+                                     va[i].aborted, va[i].interrupted, va[i].live}),
+          std::vector<std::int64_t>({vb[i].pass, vb[i].review, vb[i].failed, vb[i].station_fault,
+                                     vb[i].aborted, vb[i].interrupted, vb[i].live}))
+          << va[i].station;
     }
     for (int p = 0; p < calib::core::ParamSet::kSize; ++p) {
       const auto da = sqlite.param_distribution(p, f), dp = fleet.param_distribution(p, f);
@@ -165,7 +170,8 @@ std::map<std::string, std::string> fleet_numbers(const std::string& html) {
   for (auto& c : tags(section(html, "runs-per-day", "</table>"), "<td class='num' data-station"))
     out["day " + c["data-station"] + " " + c["data-day"]] = c["data-runs"];
   for (auto& v : tags(section(html, "verdicts", "</table>"), "<tr data-station"))
-    for (const char* k : {"data-pass", "data-review", "data-failed", "data-live"})
+    for (const char* k : {"data-pass", "data-review", "data-failed", "data-station-fault",
+                          "data-aborted", "data-interrupted", "data-live", "data-unit-outcomes"})
       out["verdict " + v["data-station"] + " " + k] = v[k];
   for (auto& d : tags(section(html, "distribution", "</table>"), "<tr data-station"))
     for (const char* k : {"data-count", "data-min", "data-max"})

@@ -11,6 +11,8 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
+#include <algorithm>
+#include <array>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -357,13 +359,18 @@ void expect_fleet_equal(const std::string& html, const std::vector<FleetRow>& ro
   EXPECT_EQ(window["data-since-ms"], f.since_ms ? std::to_string(*f.since_ms) : "");
   EXPECT_EQ(window["data-until-ms"], f.until_ms ? std::to_string(*f.until_ms) : "");
   std::map<std::string, std::int64_t> per_day;
-  std::map<std::string, std::array<std::int64_t, 4>> verdicts;
+  // pass, review, failed, station fault, aborted, interrupted, live; and the units' own outcomes
+  std::map<std::string, std::array<std::int64_t, 8>> verdicts;
   std::map<std::string, std::vector<double>> values;
   for (const FleetRow& r : rows) {
     if (!db::test::fleet_row_matches(r, f)) continue;
     ++per_day[r.station + " " + db::history::format_time_utc(r.started_at_ms).substr(0, 10)];
     auto& v = verdicts[r.station];
-    ++v[r.verdict == "PASS" ? 0 : r.verdict == "REVIEW" ? 1 : r.verdict == "FAILED" ? 2 : 3];
+    const char* const order[] = {"PASS",          "REVIEW",  "FAILED",
+                                 "STATION-FAULT", "ABORTED", "INTERRUPTED"};
+    const auto k = static_cast<std::size_t>(std::find(order, order + 6, r.verdict) - order);
+    ++v[k];  // 6: live
+    if (k < 3) ++v[7];
     if (const auto v = db::test::fleet_value(r, param)) values[r.station].push_back(*v);
   }
   std::map<std::string, std::int64_t> page_days;
@@ -371,10 +378,13 @@ void expect_fleet_equal(const std::string& html, const std::vector<FleetRow>& ro
     if (c["data-runs"] != "0")
       page_days[c["data-station"] + " " + c["data-day"]] = std::stoll(c["data-runs"]);
   EXPECT_EQ(page_days, per_day);
-  std::map<std::string, std::array<std::int64_t, 4>> page_verdicts;
+  std::map<std::string, std::array<std::int64_t, 8>> page_verdicts;
   for (Attrs& v : tags(section(html, "verdicts", "</table>"), "<tr data-station"))
-    page_verdicts[v["data-station"]] = {std::stoll(v["data-pass"]), std::stoll(v["data-review"]),
-                                        std::stoll(v["data-failed"]), std::stoll(v["data-live"])};
+    page_verdicts[v["data-station"]] = {
+        std::stoll(v["data-pass"]),    std::stoll(v["data-review"]),
+        std::stoll(v["data-failed"]),  std::stoll(v["data-station-fault"]),
+        std::stoll(v["data-aborted"]), std::stoll(v["data-interrupted"]),
+        std::stoll(v["data-live"]),    std::stoll(v["data-unit-outcomes"])};
   EXPECT_EQ(page_verdicts, verdicts);
   const auto dist = tags(section(html, "distribution", "</table>"), "<tr data-station");
   ASSERT_EQ(dist.size(), values.size());

@@ -177,7 +177,17 @@ json station_signature_report(const db::history::FleetStats& stats,
                               const db::history::FleetFilter& window,
                               const calib::studies::fleet::SignatureOptions& options,
                               const std::function<void(const std::string&)>& progress) {
-  return report_of_rows(stats.ains_results(window), options, progress);
+  json report = report_of_rows(stats.ains_results(window), options, progress);
+  // Issue #50: the station's own faults in the window (table, CAN bus, disk) beside its
+  // signature; they are never among the units' results the signature is computed from.
+  std::map<std::string, std::int64_t> faults;
+  for (const auto& v : stats.verdict_counts_per_station(window))
+    faults[v.station] = v.station_fault;
+  for (json& st : report["stations"]) {
+    const auto it = faults.find(st["station"].get<std::string>());
+    st["station_faults"] = it == faults.end() ? 0 : it->second;
+  }
+  return report;
 }
 
 namespace {
@@ -253,6 +263,8 @@ std::string render_signatures_text(const json& report) {
                   s["station"].get<std::string>().c_str(), s["runs"].get<int>(),
                   s["population_units"].get<int>(), s["repeat_units"].get<int>());
     out += buf;
+    if (s.contains("station_faults"))
+      out += ", " + std::to_string(s["station_faults"].get<std::int64_t>()) + " station fault(s)";
     if (!s["assessed"].get<bool>()) {
       out += "  not assessed: " + s["why_not"].get<std::string>() + "\n";
       continue;

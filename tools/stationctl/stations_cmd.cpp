@@ -1,5 +1,6 @@
 #include "tools/stationctl/stations_cmd.hpp"
 
+#include <cstdio>
 #include <iostream>
 #include <memory>
 
@@ -12,24 +13,61 @@ namespace imucal::tools::stationctl {
 
 namespace {
 
-/// `stationctl --fleet URL stations`: the stations with runs in the fleet store.
+/// One station's runs by whose their end was (issue #50): the unit's own outcomes and its yield,
+/// and the station's faults, aborts and interrupted runs apart.
+json station_counts_json(const db::history::StationVerdictCounts& v) {
+  json o = {{"station", v.station},
+            {"runs", v.total()},
+            {"pass", v.pass},
+            {"review", v.review},
+            {"failed", v.failed},
+            {"unit_outcomes", v.unit_outcomes()},
+            {"station_faults", v.station_fault},
+            {"aborted", v.aborted},
+            {"interrupted", v.interrupted},
+            {"live", v.live}};
+  o["unit_yield"] = v.unit_outcomes() > 0
+                        ? json(static_cast<double>(v.pass) / static_cast<double>(v.unit_outcomes()))
+                        : json(nullptr);
+  return o;
+}
+
+std::string station_counts_text(const json& s) {
+  std::string line = text(s, "station") + "  " + text(s, "runs") + " runs: " + text(s, "pass") +
+                     " PASS, " + text(s, "review") + " REVIEW, " + text(s, "failed") +
+                     " FAILED of " + text(s, "unit_outcomes") + " the units decided";
+  if (!s["unit_yield"].is_null()) {
+    char pct[32];
+    std::snprintf(pct, sizeof pct, " (yield %.1f %%)", 100.0 * s["unit_yield"].get<double>());
+    line += pct;
+  }
+  return line + "; " + text(s, "station_faults") + " station fault(s), " + text(s, "aborted") +
+         " aborted, " + text(s, "interrupted") + " interrupted, " + text(s, "live") + " live";
+}
+
+/// `stationctl [--fleet URL | --db FILE] stations`: the stations with runs, each with its units'
+/// outcomes and its own faults counted apart.
 int list_stations(const Target& t, bool as_json) {
-  if (t.fleet_url.empty())
-    throw Failure{kBadInput, "stations: give the fleet store with --fleet URL"};
-  const auto repo = open_fleet(t);
+  if (t.fleet_url.empty() && t.db.empty())
+    throw Failure{kBadInput, "stations: give the fleet store with --fleet URL, or --db"};
   json list = json::array();
   try {
-    for (const auto& [id, runs] : repo->stations())
-      list.push_back({{"station", id}, {"runs", runs}});
+    std::unique_ptr<db::history::FleetStats> stats;
+    if (!t.fleet_url.empty())
+      stats = std::make_unique<db::fleet::PgFleetStats>(
+          db::fleet::parse_fleet_target(t.fleet_url, t.fleet_password));
+    else
+      stats = std::make_unique<db::history::SqliteFleetStats>(t.db);
+    for (const auto& v : stats->verdict_counts_per_station({}))
+      list.push_back(station_counts_json(v));
   } catch (const db::history::DbError& e) {
     throw Failure{exit_for_db_error(e.kind()), e.what()};
   }
   if (as_json) {
     print_json({{"stations", list}});
   } else {
-    for (const json& s : list)
-      std::cout << text(s, "station") << "  " << text(s, "runs") << " runs\n";
-    if (list.empty()) std::cout << "no station has stored runs in the fleet store\n";
+    for (const json& s : list) std::cout << station_counts_text(s) << "\n";
+    if (list.empty()) std::cout << "no station has stored runs\n";
   }
   return kOk;
 }
@@ -117,7 +155,10 @@ int station_signatures(const Target& t, const StationsArgs& a, bool as_json) {
 
 CLI::App* add_stations_command(CLI::App& app, StationsArgs& a) {
   CLI::App* stations = app.add_subcommand(
-      "stations", "the stations in the fleet store (--fleet URL), or their signatures");
+      "stations",
+      "the stations with runs in the fleet store (--fleet URL) or --db, each with its units' "
+      "outcomes and its own faults (station faults, aborts, interrupted) counted apart; or their "
+      "signatures");
   stations->add_flag("--signatures", a.signatures,
                      "each station's departure from the fleet and the station errors it fits "
                      "(issue #25), from the fleet store or --db; exit 1 if one is flagged");

@@ -1,5 +1,6 @@
 #pragma once
-// `stationctl --fleet URL stations`: the stations with runs in the fleet store;
+// `stationctl [--fleet URL | --db FILE] stations`: the stations with runs, each with its units'
+// outcomes (PASS, REVIEW, FAILED and the yield) and its own faults counted apart (issue #50);
 // `stationctl [--fleet URL | --db FILE] stations --signatures [--trend]`: station signatures
 // (issue #25), each station's departure from the fleet and the station errors it fits, for one
 // window or period by period; exit 1 if a station is flagged (with --trend: in the newest period).

@@ -162,22 +162,35 @@ std::string share(std::int64_t n, std::int64_t total) {
          " %)</span>";
 }
 
+/// The verdicts per station (issue #50): PASS, REVIEW and FAILED as shares of the runs whose
+/// outcome was the unit's own — its yield — and the station's faults, operators' aborts and
+/// interrupted runs counted apart, per station, never against the units.
 std::string verdict_section(const std::vector<db::history::StationVerdictCounts>& verdicts) {
   std::string s = "<h2>Verdicts per station</h2>\n";
   if (verdicts.empty()) return s + "<p id='verdicts'>No runs in this window.</p>\n";
   s += verdict_chart(verdicts);
+  s += "<p class='muted'>PASS, REVIEW and FAILED are shares of the runs the units decided; station "
+       "faults (table, CAN bus, disk), aborts and interrupted runs are the station's and the "
+       "operators', not the units'.</p>\n";
   s += "<table id='verdicts'>\n<tr><th>station</th><th class='num'>PASS</th><th "
-       "class='num'>REVIEW</th><th class='num'>FAILED</th><th class='num'>live</th><th "
+       "class='num'>REVIEW</th><th class='num'>FAILED</th><th class='num'>station faults</th>"
+       "<th class='num'>aborted</th><th class='num'>interrupted</th><th class='num'>live</th><th "
        "class='num'>runs</th></tr>\n";
   for (const auto& v : verdicts) {
-    const std::int64_t n = v.total();
-    s += "<tr data-station='" + esc(v.station) + "' data-pass='" + std::to_string(v.pass) +
-         "' data-review='" + std::to_string(v.review) + "' data-failed='" +
-         std::to_string(v.failed) + "' data-live='" + std::to_string(v.live) + "' data-total='" +
-         std::to_string(n) + "'><td>" + esc(v.station) + "</td><td class='num'>" +
-         share(v.pass, n) + "</td><td class='num'>" + share(v.review, n) + "</td><td class='num'>" +
-         share(v.failed, n) + "</td><td class='num'>" + share(v.live, n) + "</td><td class='num'>" +
-         std::to_string(n) + "</td></tr>\n";
+    const std::int64_t own = v.unit_outcomes();
+    const auto attr = [](const char* name, std::int64_t n) {
+      return std::string(" data-") + name + "='" + std::to_string(n) + "'";
+    };
+    const auto cell = [](const std::string& text) { return "<td class='num'>" + text + "</td>"; };
+    s += "<tr data-station='" + esc(v.station) + "'" + attr("pass", v.pass) +
+         attr("review", v.review) + attr("failed", v.failed) +
+         attr("station-fault", v.station_fault) + attr("aborted", v.aborted) +
+         attr("interrupted", v.interrupted) + attr("live", v.live) + attr("unit-outcomes", own) +
+         attr("total", v.total()) + "><td>" + esc(v.station) + "</td>" + cell(share(v.pass, own)) +
+         cell(share(v.review, own)) + cell(share(v.failed, own)) +
+         cell(std::to_string(v.station_fault)) + cell(std::to_string(v.aborted)) +
+         cell(std::to_string(v.interrupted)) + cell(std::to_string(v.live)) +
+         cell(std::to_string(v.total())) + "</tr>\n";
   }
   return s + "</table>\n";
 }

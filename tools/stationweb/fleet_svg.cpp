@@ -23,8 +23,11 @@ using tools::report::Panel;
 constexpr const char* kStationColours[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
                                            "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"};
 
-constexpr const char* kVerdictNames[] = {"PASS", "REVIEW", "FAILED", "live"};
-constexpr const char* kVerdictColours[] = {"#2ca02c", "#ff9f1c", "#d62728", "#aaaaaa"};
+constexpr const char* kVerdictNames[] = {"PASS",    "REVIEW",      "FAILED", "station fault",
+                                         "aborted", "interrupted", "live"};
+constexpr const char* kVerdictColours[] = {"#2ca02c", "#ff9f1c", "#d62728", "#7b4fa0",
+                                           "#5b8fd9", "#8c6d31", "#aaaaaa"};
+constexpr std::size_t kVerdictParts = sizeof kVerdictNames / sizeof kVerdictNames[0];
 
 std::string svg_open(const char* id, double height) {
   std::ostringstream os;
@@ -110,8 +113,9 @@ std::string verdict_chart(const std::vector<db::history::StationVerdictCounts>& 
     const auto& v = verdicts[i];
     const double n = static_cast<double>(std::max<std::int64_t>(v.total(), 1));
     double lo = 0;
-    const std::int64_t parts[] = {v.pass, v.review, v.failed, v.live};
-    for (std::size_t k = 0; k < 4; ++k) {
+    const std::int64_t parts[kVerdictParts] = {v.pass,    v.review,      v.failed, v.station_fault,
+                                               v.aborted, v.interrupted, v.live};
+    for (std::size_t k = 0; k < kVerdictParts; ++k) {
       const double share = 100.0 * static_cast<double>(parts[k]) / n;
       if (parts[k] == 0) continue;
       p.span(i, lo, lo + share, 0.0, p.slot() * 0.6, kVerdictColours[k],
@@ -122,8 +126,8 @@ std::string verdict_chart(const std::vector<db::history::StationVerdictCounts>& 
     labels.push_back(v.station);
   }
   slot_labels(os, p, labels);
-  double x = kWidth - kRight - 300;
-  for (std::size_t k = 0; k < 4; ++k, x += 75)
+  double x = kWidth - kRight - 600;
+  for (std::size_t k = 0; k < kVerdictParts; ++k, x += 86)
     os << "<rect x='" << x << "' y='" << kTop - 18 << "' width='10' height='10' fill='"
        << kVerdictColours[k] << "'/><text x='" << x + 13 << "' y='" << kTop - 8
        << "' font-size='11'>" << kVerdictNames[k] << "</text>\n";

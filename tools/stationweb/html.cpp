@@ -21,6 +21,7 @@ th, td { border: 1px solid #ccc; padding: 3px 8px; text-align: left; vertical-al
 th { background: #f1f3f5; } td.num, th.num { text-align: right; font-variant-numeric: tabular-nums; }
 .PASS { color: #176b2c; font-weight: bold; } .REVIEW { color: #a35d00; font-weight: bold; }
 .FAILED { color: #b3261e; font-weight: bold; } .muted { color: #666; }
+.STATION-FAULT { color: #7b4fa0; font-weight: bold; } .ABORTED, .INTERRUPTED { color: #555; }
 .alarm { border-left: 4px solid #b3261e; background: #fdf1f0; padding: 2px 12px; margin: 8px 0; }
 #error { font-size: 1.1em; padding: 12px; background: #fff4f4; border: 1px solid #e0a0a0; }
 svg { display: block; margin: 8px 0; } pre { background: #f8f9fa; padding: 8px; overflow-x: auto; }
