@@ -9,6 +9,7 @@
 #include "calib/core/param_set.hpp"
 #include "db/archive/param_json.hpp"
 #include "db/history/export.hpp"
+#include "db/history/export_per_run.hpp"
 
 namespace imucal::station::control {
 
@@ -99,14 +100,14 @@ json params_result(const db::history::ActiveCalibration& active) {
 }
 
 json export_result(const db::history::Repository& repo, const db::history::ExportFilter& filter,
-                   const std::string& format) {
+                   const std::string& format, bool per_run) {
   // A whole-history export is hundreds of MB: keep one copy of the text at a time (the stream's
   // buffer is gone before the JSON takes the string over by move).
   std::size_t rows = 0;
   std::string content;
   {
     std::ostringstream out;
-    rows = db::history::export_history(repo, filter, format, out);
+    rows = db::history::export_in_shape(repo, filter, format, per_run, out);
     content = out.str();
   }
   json result = json::object();
@@ -164,7 +165,8 @@ json answer_repository_read(const db::history::Repository& repo, const Request& 
   if (request.cmd == cmd::kParams)
     return params_result(repo.active_params(a.at("serial").get<std::string>()));
   if (request.cmd == cmd::kExport)
-    return export_result(repo, export_filter(repo, a), a.at("format").get<std::string>());
+    return export_result(repo, export_filter(repo, a), a.at("format").get<std::string>(),
+                         a.value("per_run", false));
   throw std::invalid_argument("not a repository read: " + request.cmd);
 }
 
