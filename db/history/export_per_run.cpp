@@ -15,9 +15,9 @@ namespace {
 
 using nlohmann::json;
 
-constexpr Method kMethodOrder[] = {Method::kAins, Method::kNlsq, Method::kLegacy};
+constexpr Method kPerRunMethodOrder[] = {Method::kAins, Method::kNlsq, Method::kLegacy};
 
-void check_stream(std::ostream& out, const char* what) {
+void check_per_run_stream(std::ostream& out, const char* what) {
   if (!out)
     throw IoError(std::string(what) + ": writing the output failed (disk full or closed pipe?)");
 }
@@ -101,7 +101,7 @@ class PerRunCsv : public std::streambuf {
     if (columns_ < kRun + kCalibration)
       throw std::logic_error("export --per-run: the CSV header has too few columns");
     std::vector<std::string> out(names.begin(), names.begin() + kRun);
-    for (const Method m : kMethodOrder)
+    for (const Method m : kPerRunMethodOrder)
       for (std::size_t k = kRun + 1; k < kRun + kCalibration; ++k)  // without "method"
         out.push_back(std::string(to_string(m)) + "." + names[k]);
     out.insert(out.end(), names.begin() + kRun + kCalibration, names.end());
@@ -113,7 +113,7 @@ class PerRunCsv : public std::streambuf {
     if (rows_.empty()) return;
     const std::vector<std::string>& first = rows_.front();
     std::vector<std::string> out(first.begin(), first.begin() + kRun);
-    for (const Method m : kMethodOrder) {
+    for (const Method m : kPerRunMethodOrder) {
       const std::vector<std::string>* row = nullptr;
       for (const auto& r : rows_)
         if (r[kRun] == to_string(m)) row = &r;
@@ -131,7 +131,7 @@ class PerRunCsv : public std::streambuf {
     for (std::size_t i = 0; i < fields.size(); ++i)
       line += (i == 0 ? "" : ",") + csv_field(fields[i]);
     out_ << line << "\r\n";
-    check_stream(out_, "export csv --per-run");
+    check_per_run_stream(out_, "export csv --per-run");
   }
 
   std::ostream& out_;
@@ -152,7 +152,7 @@ std::size_t export_csv_per_run(const Repository& repo, const ExportFilter& filte
   (void)export_csv(repo, filter, rows);
   const std::size_t runs = regroup.finish();
   out.flush();
-  check_stream(out, "export csv --per-run");
+  check_per_run_stream(out, "export csv --per-run");
   return runs;
 }
 
@@ -165,7 +165,7 @@ std::size_t export_json_per_run(const Repository& repo, const ExportFilter& filt
     if (object.is_null()) return;
     if (!ndjson) out << (runs == 0 ? "\n" : ",\n");
     out << object.dump(-1, ' ', false, json::error_handler_t::strict) << (ndjson ? "\n" : "");
-    check_stream(out, "export json --per-run");
+    check_per_run_stream(out, "export json --per-run");
     object = json();
     ++runs;
   };
@@ -182,7 +182,7 @@ std::size_t export_json_per_run(const Repository& repo, const ExportFilter& filt
   flush();
   if (!ndjson) out << (runs == 0 ? "]\n" : "\n]\n");
   out.flush();
-  check_stream(out, "export json --per-run");
+  check_per_run_stream(out, "export json --per-run");
   return runs;
 }
 
