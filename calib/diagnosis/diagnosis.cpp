@@ -1403,14 +1403,14 @@ void check_run_size(const GapModel& model, const GapLinearisation& lin,
   const int m = model.rows();
   const int nb = static_cast<int>(lin.Jb().cols());
   if (model.rests().size() < kMinRests)
-    throw std::invalid_argument("gap diagnosis: the run has " +
-                                std::to_string(model.rests().size()) +
-                                " rest periods; it needs at least " + std::to_string(kMinRests) +
-                                " (the held-out check fits on some and predicts the others)");
+    throw std::invalid_argument(
+        "gap diagnosis: the run is too short to diagnose: it has " +
+        std::to_string(model.rests().size()) + " rest period(s), a diagnosis needs at least " +
+        std::to_string(kMinRests) + " (it fits on some and predicts the others)");
   if (m <= nb + kMinDofForCandidate)
-    throw std::invalid_argument("gap diagnosis: only " + std::to_string(m) + " residuals for " +
-                                base_text(lin) +
-                                "; the run is too short (needs more rests and moves)");
+    throw std::invalid_argument("gap diagnosis: the run is too short to diagnose: only " +
+                                std::to_string(m) + " residuals for " + base_text(lin) +
+                                " (it needs more rests and moves)");
   for (EffectId id : opt.candidates) {
     int k = 0;
     for (const auto& pi : effect_info(id).params) k += pi.shape ? 0 : 1;
@@ -1430,9 +1430,9 @@ GlsFit fit_base(DiagnosisResult& d, const DiagnosisInput& in, const Problem& p,
   try {
     fit0 = gls_fit(p.r0, p.Jb);
   } catch (const std::invalid_argument&) {
-    throw std::invalid_argument("gap diagnosis: the run is too short: " + base_text(p.lin) +
-                                " are not all separable on its " +
-                                std::to_string(p.model.rests().size()) + " rests");
+    throw std::invalid_argument(
+        "gap diagnosis: the run is too short to diagnose: " + base_text(p.lin) +
+        " are not all separable on its " + std::to_string(p.model.rests().size()) + " rests");
   }
   d.rows = p.model.rows();
   d.dof = fit0.dof;
@@ -1460,9 +1460,9 @@ GlsFit fit_base(DiagnosisResult& d, const DiagnosisInput& in, const Problem& p,
     d.held_out.gap_before = held_out_gap(p.r0, p.Jb, p.folds).ratio();
   } catch (const std::invalid_argument&) {
     throw std::invalid_argument(
-        "gap diagnosis: the run is too short for the held-out check: with a fifth of its " +
-        std::to_string(p.model.rests().size()) + " rests held out, " + base_text(p.lin) +
-        " are not all separable");
+        "gap diagnosis: the run is too short to diagnose: with a fifth of its " +
+        std::to_string(p.model.rests().size()) + " rests held out (to predict them), " +
+        base_text(p.lin) + " are not all separable");
   }
   return fit0;
 }

@@ -7,8 +7,8 @@
 namespace imucal::db::history {
 
 const char* const kSerialRule =
-    "a serial number has 1 to 32 characters, only ASCII letters, digits, '-', '_' and '.', and "
-    "starts with a letter or digit";
+    "a serial number has 1 to 32 characters, only ASCII letters, digits, '-', '_' and '.', "
+    "starts with a letter or digit, and has a letter or digit after each '-', '_' or '.'";
 
 namespace {
 
@@ -70,11 +70,28 @@ std::optional<std::string> serial_problem(const std::string& serial) {
   }
   if (!is_alnum_ascii(static_cast<unsigned char>(serial[0])))
     return head + "must start with a letter or digit, not '" + serial.substr(0, 1) + "'" + tail;
+  // Only separators are left to check (the alphabet held above): each needs a letter or digit
+  // after it.
+  for (std::size_t i = 1; i < serial.size(); ++i)
+    if (!is_alnum_ascii(static_cast<unsigned char>(serial[i - 1])) &&
+        !is_alnum_ascii(static_cast<unsigned char>(serial[i])))
+      return head + "'" + serial.substr(i - 1, 2) + "' at position " + std::to_string(i) +
+             ": a letter or digit must follow each '-', '_' or '.'" + tail;
+  if (!is_alnum_ascii(static_cast<unsigned char>(serial.back())))
+    return head + "ends with '" + serial.substr(serial.size() - 1) +
+           "': a letter or digit must follow each '-', '_' or '.'" + tail;
   return std::nullopt;
 }
 
 void validate_serial(const std::string& serial) {
   if (auto problem = serial_problem(serial)) throw InvalidInput(*problem);
+}
+
+std::string did_you_mean(const std::vector<std::string>& serials) {
+  if (serials.empty()) return "";
+  std::string names;
+  for (std::size_t i = 0; i < serials.size(); ++i) names += (i == 0 ? "" : " or ") + serials[i];
+  return "; did you mean " + names + "? (serial numbers are compared exactly, case included)";
 }
 
 }  // namespace imucal::db::history

@@ -79,6 +79,9 @@ const std::string kSqlExportBoth =
     kExportHead + "WHERE u.serial = ?1 AND r.started_at_ms >= ?2" + kExportTail;
 
 const char* const kSqlUnitId = "SELECT id FROM units WHERE serial = ?1";
+/// Units whose serial differs from ?1 only in case (NOCASE folds ASCII: the serial alphabet).
+const char* const kSqlSerialsIgnoringCase =
+    "SELECT serial FROM units WHERE serial = ?1 COLLATE NOCASE ORDER BY serial LIMIT 4";
 const char* const kSqlInsertUnit =
     "INSERT INTO units (serial, first_seen_ms) VALUES (?1, ?2) ON CONFLICT (serial) DO NOTHING";
 const char* const kSqlRunExists = "SELECT 1 FROM runs WHERE id = ?1";
@@ -590,8 +593,18 @@ struct SqliteRepository::Impl {
   std::int64_t require_unit(const std::string& serial) const {
     validate_serial(serial);
     auto id = unit_id(serial);
-    if (!id) throw NotFound(path + ": no unit with serial number \"" + serial + "\" on record");
+    if (!id)
+      throw NotFound(path + ": no unit with serial number \"" + serial + "\" on record" +
+                     did_you_mean(serials_ignoring_case(serial)));
     return *id;
+  }
+
+  std::vector<std::string> serials_ignoring_case(const std::string& serial) const {
+    Stmt q(*this, kSqlSerialsIgnoringCase, "find unit ignoring case");
+    q.bind(1, serial);
+    std::vector<std::string> near;
+    while (q.step()) near.push_back(q.text(0));
+    return near;
   }
 
   RunState state_of(RunId run_id, const char* op) const {

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cstring>
 #include <thread>
+#include <utility>
 
 namespace imucal::station::control {
 
@@ -58,6 +59,23 @@ ControlClient::ControlClient(std::string socket_path, std::chrono::milliseconds 
 
 ControlClient::~ControlClient() {
   if (fd_ >= 0) ::close(fd_);
+}
+
+ControlClient::ControlClient(ControlClient&& other) noexcept
+    : path_(std::move(other.path_)),
+      fd_(std::exchange(other.fd_, -1)),
+      next_id_(other.next_id_),
+      in_(std::move(other.in_)) {}
+
+ControlClient& ControlClient::operator=(ControlClient&& other) noexcept {
+  if (this != &other) {
+    if (fd_ >= 0) ::close(fd_);
+    path_ = std::move(other.path_);
+    fd_ = std::exchange(other.fd_, -1);
+    next_id_ = other.next_id_;
+    in_ = std::move(other.in_);
+  }
+  return *this;
 }
 
 void ControlClient::send_raw(std::string_view bytes) {

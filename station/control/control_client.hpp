@@ -39,6 +39,10 @@ class ControlClient {
   ~ControlClient();
   ControlClient(const ControlClient&) = delete;
   ControlClient& operator=(const ControlClient&) = delete;
+  /// Movable, so that a follower whose daemon went away and came back can take a new connection
+  /// in place of the dead one (stationctl run start --wait); the moved-from client is closed.
+  ControlClient(ControlClient&& other) noexcept;
+  ControlClient& operator=(ControlClient&& other) noexcept;
 
   /// Sends {"id":next,"cmd":command,"args":args} and returns the reply with that id (a reply
   /// with another id is a kProtocol error). An error reply is returned, not thrown.

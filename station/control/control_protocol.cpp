@@ -58,6 +58,7 @@ const std::vector<CommandSpec>& specs() {
         {"since", ArgType::kTime, false},
         {"format", ArgType::kFormat, true},
         {"stream", ArgType::kBool, false},
+        {"per_run", ArgType::kBool, false},
         {"station", ArgType::kString, false}}},
       {cmd::kPing, {}},
       {cmd::kDiagnose, {{"run_id", ArgType::kPositiveInt, true}}},

@@ -8,12 +8,15 @@
 // Commands and their arguments ("?" = optional):
 //   run.start  {serial, sequence?, operator?}     run.status {run_id?}     run.abort {reason?}
 //   reprocess  {run_id, partial?, gravity_mps2?}  history {serial, limit?}  show {run_id}
-//   params     {serial}                           export {serial?, since?, format, stream?}
+//   params     {serial}                           export {serial?, since?, format, stream?,
+//                                                         per_run?}
 //   diagnose   {run_id}                           ping       {}
 //   import     {dir}                              promote    {run_id, reason}
-// export's format is "csv", "json" or "ndjson" (one JSON object per line). Without "stream" the
-// reply's result is {"format", "rows", "content"}: the whole export in one string, for small
-// exports. With "stream": true the export is streamed (kept to a bounded buffer at both ends):
+// export's format is "csv", "json" or "ndjson" (one JSON object per line); "per_run": true gives
+// a row per run (db/history/export_per_run.hpp) instead of a row per run and method. Without
+// "stream" the reply's result is {"format", "rows", "content"}: the whole export in one string, for
+// small exports. With "stream": true the export is streamed (kept to a bounded buffer at both
+// ends):
 //   {"id":N,"ok":true,"result":{"format":F,"stream":true}}     the header line, then frames:
 //   <byte count, hexadecimal>\n<that many bytes of the export>  ...   0\n      (the last frame)
 //   {"id":N,"ok":true,"result":{"format":F,"rows":R}}          or an error reply, and the daemon

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "db/history/export.hpp"
+#include "db/history/export_per_run.hpp"
 #include "db/history/sqlite_repository.hpp"
 #include "station/control/control_handler.hpp"
 #include "station/control/record_json.hpp"
@@ -122,7 +123,8 @@ void stream_export(int fd, const Request& request, const std::string& user,
         frames.send_line(reply_line(ok_reply(request.id, {{"format", format}, {"stream", true}})));
     if (header_sent) {
       std::ostream out(&frames);
-      rows = db::history::export_history(repo, filter, format, out);
+      rows = db::history::export_in_shape(repo, filter, format,
+                                          request.args.value("per_run", false), out);
       trailer = ok_reply(request.id, {{"format", format}, {"rows", rows}});
     }
   } catch (const std::exception& e) {

@@ -1,5 +1,6 @@
 #include "station/control/record_json.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -9,6 +10,7 @@
 #include "calib/core/param_set.hpp"
 #include "db/archive/param_json.hpp"
 #include "db/history/export.hpp"
+#include "db/history/export_per_run.hpp"
 
 namespace imucal::station::control {
 
@@ -63,6 +65,13 @@ std::string run_duration(const json& run) {
   return format_duration_s(s);
 }
 
+/// The run's state as people read it: with stationctl's "state_note" when the database said it
+/// and the daemon did not answer ("running (daemon not answering)", issue #50 item 2).
+std::string state_cell(const json& run) {
+  const std::string state = str(run, "state");
+  return has(run, "state_note") ? state + " (" + str(run, "state_note") + ")" : state;
+}
+
 /// "yyyy-mm-dd hh:mm:ss" out of the ISO text (people do not need the milliseconds in a table).
 std::string short_time(const std::string& iso) {
   if (iso.size() < 19) return iso;
@@ -99,14 +108,14 @@ json params_result(const db::history::ActiveCalibration& active) {
 }
 
 json export_result(const db::history::Repository& repo, const db::history::ExportFilter& filter,
-                   const std::string& format) {
+                   const std::string& format, bool per_run) {
   // A whole-history export is hundreds of MB: keep one copy of the text at a time (the stream's
   // buffer is gone before the JSON takes the string over by move).
   std::size_t rows = 0;
   std::string content;
   {
     std::ostringstream out;
-    rows = db::history::export_history(repo, filter, format, out);
+    rows = db::history::export_in_shape(repo, filter, format, per_run, out);
     content = out.str();
   }
   json result = json::object();
@@ -164,7 +173,8 @@ json answer_repository_read(const db::history::Repository& repo, const Request& 
   if (request.cmd == cmd::kParams)
     return params_result(repo.active_params(a.at("serial").get<std::string>()));
   if (request.cmd == cmd::kExport)
-    return export_result(repo, export_filter(repo, a), a.at("format").get<std::string>());
+    return export_result(repo, export_filter(repo, a), a.at("format").get<std::string>(),
+                         a.value("per_run", false));
   throw std::invalid_argument("not a repository read: " + request.cmd);
 }
 
@@ -259,10 +269,12 @@ std::string render_history_text(const json& history) {
   os << ")\n";
   bool any_slot = false;  // a fixture with several slots: which slot and table run
   for (const auto& r : runs) any_slot = any_slot || !str(r, "slot").empty();
+  std::size_t state_width = 13;  // wider where a state carries its note
+  for (const auto& r : runs) state_width = std::max(state_width, state_cell(r).size() + 2);
   os << pad("RUN", 7) << (all_units ? pad("SERIAL", 16) : "") << (any_slot ? pad("SLOT", 10) : "")
-     << pad("STARTED (UTC)", 21) << pad("SETTING", 9) << pad("STATE", 13) << pad("VERDICT", 15)
-     << pad("CROSS-CHECK", 13) << pad("SEQUENCE", 16) << pad("OPERATOR", 14) << pad("DURATION", 13)
-     << pad("GAP (best effect)", 40) << "REASON\n";
+     << pad("STARTED (UTC)", 21) << pad("SETTING", 9) << pad("STATE", state_width)
+     << pad("VERDICT", 15) << pad("CROSS-CHECK", 13) << pad("SEQUENCE", 16) << pad("OPERATOR", 14)
+     << pad("DURATION", 13) << pad("GAP (best effect)", 40) << "REASON\n";
   for (const auto& r : runs) {
     std::string id = str(r, "run_id");
     if (has(r, "reprocessed_from")) id += "*";
@@ -271,7 +283,7 @@ std::string render_history_text(const json& history) {
     os << rtrim(pad(id, 7) + (all_units ? pad(str(r, "serial"), 16) : "") +
                 (any_slot ? pad(slot_cell(r), 10) : "") +
                 pad(short_time(str(r, "started_at")), 21) + pad(str(r, "setting", "factory"), 9) +
-                pad(str(r, "state"), 13) + pad(str(r, "verdict", "-"), 15) +
+                pad(state_cell(r), state_width) + pad(str(r, "verdict", "-"), 15) +
                 pad(str(r, "crosscheck_verdict", "-"), 13) + pad(str(r, "sequence_name"), 16) +
                 pad(str(r, "operator"), 14) + pad(duration.empty() ? "-" : duration, 13) +
                 pad(gap_cell(r), 40) + str(r, "failure_reason"))
@@ -443,7 +455,7 @@ std::string outcome_owner_text(const std::string& owner) {
 std::string render_show_text(const json& show) {
   std::ostringstream os;
   const json& run = show.at("run");
-  os << "Run " << str(run, "run_id") << "  " << str(run, "serial") << "  " << str(run, "state");
+  os << "Run " << str(run, "run_id") << "  " << str(run, "serial") << "  " << state_cell(run);
   if (has(run, "verdict")) os << "  verdict " << str(run, "verdict");
   if (has(run, "crosscheck_verdict"))
     os << "  (cross-check " << str(run, "crosscheck_verdict") << ")";
@@ -529,6 +541,7 @@ std::string siblings_clause(const json& run) {
 std::string progress_line(const json& run) {
   std::string s = run_head(run) + ": ";
   const std::string state = str(run, "state");
+  if (has(run, "state_note")) return s + state_cell(run) + siblings_clause(run);
   if (state == "running" || state == "preparing") {
     if (has(run, "step") && has(run, "steps"))
       s += "step " + str(run, "step") + "/" + str(run, "steps") + " ";

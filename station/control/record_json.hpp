@@ -36,10 +36,11 @@ nlohmann::json show_result(const db::history::RunDetails& details);
 /// Exactly the parameter-set JSON of the active set (its run's holding method's: AINS but where
 /// legacy holds a land run) with "sigma".
 nlohmann::json params_result(const db::history::ActiveCalibration& active);
-/// format "csv", "json" or "ndjson" (db::history::InvalidInput otherwise); the whole export in
-/// "content".
+/// format "csv", "json" or "ndjson" (db::history::InvalidInput otherwise), a row per run and
+/// method or, `per_run`, per run (db/history/export_per_run.hpp); the whole export in "content".
 nlohmann::json export_result(const db::history::Repository& repo,
-                             const db::history::ExportFilter& filter, const std::string& format);
+                             const db::history::ExportFilter& filter, const std::string& format,
+                             bool per_run = false);
 /// The filter of an export request's validated args (serial, since): db::history::NotFound for a
 /// serial with no runs (its export would silently be empty).
 db::history::ExportFilter export_filter(const db::history::Repository& repo,

@@ -4,16 +4,25 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <stdexcept>
 
 #include "calib/core/conventions.hpp"
-#include "db/archive/io_util.hpp"
+#include "calib/core/readable_number.hpp"
 #include "drivers/imu/imu_protocol.hpp"
 
 namespace imucal::station::run {
 
 namespace {
+
+/// A number in a message a person reads, to `format`'s precision (issue #50 item 5: the shortest
+/// round-trip form printed "0.30000000000000004 deg/s").
+std::string rounded(const char* format, double v) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, format, v);
+  return buf;
+}
 
 // IMU conditions that make the data unusable for a calibration.
 constexpr uint8_t kFailureConditions =
@@ -252,13 +261,12 @@ bool Capture::emit_row(const calib::core::ImuIncrement& in) {
       break;
     case Phase::kResting:
       if (moving) {
-        set_fault("unit moved during a rest: |rate| = " + db::archive::format_double(rate_dps) +
-                  " deg/s > " + db::archive::format_double(options_.rest_rate_threshold_dps) +
-                  " deg/s at " + row_label(row) + ", rest sample " +
-                  std::to_string(rest_done_rows_ + 1) + " of " +
+        set_fault("unit moved during a rest: |rate| = " + rounded("%.3g", rate_dps) + " deg/s > " +
+                  rounded("%.3g", options_.rest_rate_threshold_dps) + " deg/s at " +
+                  row_label(row) + ", rest sample " + std::to_string(rest_done_rows_ + 1) + " of " +
                   std::to_string(rest_done_rows_ + rest_left_) + " at outer " +
-                  db::archive::format_double(outer_deg_) + " deg, inner " +
-                  db::archive::format_double(inner_deg_) + " deg");
+                  rounded("%.3f", outer_deg_) + " deg, inner " + rounded("%.3f", inner_deg_) +
+                  " deg");
         return false;
       }
       at_rest = true;
@@ -302,10 +310,9 @@ void Capture::writer_failed(const std::exception& e) {
 }
 
 std::string Capture::row_label(uint64_t row) const {
-  return "row " + std::to_string(row + 1) + " (t = " +
-         db::archive::format_double(static_cast<double>(row + 1) /
-                                    options_.decoder.sample_rate_hz) +
-         " s)";
+  return "row " + std::to_string(row + 1) + " (" +
+         calib::core::instant_text(static_cast<double>(row + 1) / options_.decoder.sample_rate_hz) +
+         ")";
 }
 
 uint64_t Capture::unseen_move_samples() const {

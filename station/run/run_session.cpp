@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -17,6 +18,7 @@
 #include <vector>
 
 #include "calib/core/conventions.hpp"
+#include "calib/core/readable_number.hpp"
 #include "db/archive/run_archive.hpp"
 #include "drivers/imu/can_channel.hpp"
 #include "drivers/turntable/turntable_client.hpp"
@@ -30,6 +32,16 @@ using namespace station::config;
 
 namespace fs = std::filesystem;
 using std::chrono::milliseconds;
+
+namespace {
+/// An angle or rate in a message a person reads: six significant digits, no trailing zeros
+/// (std::to_string printed "90.000000"; issue #50 item 5).
+std::string angle_text(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+}  // namespace
 
 struct RunController::Session {
   Session(RunController& controller, const std::shared_ptr<Live>& live)
@@ -415,14 +427,14 @@ void RunController::Session::check_rest_table(double outer, double inner, double
     const ImuSlotConfig& s = slot(u);
     // The table has arrived; the IMU must have seen the move within a few seconds of samples.
     if (u.cap->unseen_move_samples() > static_cast<uint64_t>(kMoveVisibleWithin_s * s.rate_hz))
-      unit_failed(u, "the IMU did not show the table's move to outer " + std::to_string(outer) +
-                         " deg, inner " + std::to_string(inner) + " deg (" +
+      unit_failed(u, "the IMU did not show the table's move to outer " + angle_text(outer) +
+                         " deg, inner " + angle_text(inner) + " deg (" +
                          std::to_string(static_cast<int>(kMoveVisibleWithin_s)) +
                          " s of samples after the table stopped): the unit did not move with the "
                          "table (loose, or not on it), or its gyro axis of that rotation is dead");
     else if (Clock::now() >= deadline && !u.cap->wait_rest_done(milliseconds(0)))
-      unit_failed(u, "the unit did not come to rest within " + std::to_string(budget_s) +
-                         " s (rest rate threshold " + std::to_string(s.rest_rate_threshold_dps) +
+      unit_failed(u, "the unit did not come to rest within " + calib::core::seconds_text(budget_s) +
+                         " (rest rate threshold " + angle_text(s.rest_rate_threshold_dps) +
                          " deg/s)");
   }
 }

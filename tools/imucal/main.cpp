@@ -353,9 +353,11 @@ int cmd_calibrate(const std::string& dir, const std::string& method, bool json, 
     if (partial) j["verdict"] = "REVIEW";
     std::cout << j.dump(2) << '\n';
   } else {
-    std::cout << "run " << dir << " (serial " << ar.info.serial << ", sequence "
-              << ar.info.sequence_name << ", setting " << calib::core::setting_name(in.setting)
-              << ", " << in.imu.size() << " samples)\n";
+    // An imported recording has no sequence: no empty clause for it (issue #50 item 5).
+    std::cout << "run " << dir << " (serial " << ar.info.serial
+              << (ar.info.sequence_name.empty() ? "" : ", sequence " + ar.info.sequence_name)
+              << ", setting " << calib::core::setting_name(in.setting) << ", " << in.imu.size()
+              << " samples)\n";
     if (fx) {
       std::cout << "compensated before calibrating (from " << prior.compensate << "):";
       for (const std::string& n : fx->names) std::cout << ' ' << n << ';';

@@ -90,8 +90,9 @@ void run_line(std::string& out, const json& d) {
   std::string what = text(d, "archive");
   if (d.contains("run_id") && d["run_id"].is_number_integer())
     what = std::to_string(d["run_id"].get<long long>()) + " (archive " + what + ")";
-  add(out, "run %s (serial %s, sequence %s, ", what.c_str(), text(d, "serial").c_str(),
-      text(d, "sequence").c_str());
+  add(out, "run %s (serial %s, ", what.c_str(), text(d, "serial").c_str());
+  // An imported recording has no sequence: no empty clause for it (issue #50 item 5).
+  if (!text(d, "sequence").empty()) add(out, "sequence %s, ", text(d, "sequence").c_str());
   if (d.contains("samples") && d["samples"].is_number_unsigned())
     add(out, "%zu samples, ", d["samples"].get<std::size_t>());
   add(out, "%zu segments)\n", list(d, "segments").size());

@@ -46,27 +46,59 @@ json fleet_read(const Target& t, const std::string& command, const json& args) {
   }
 }
 
-/// A read answered by the daemon; nullopt (with `why`) when it is not there or does not answer
-/// and there is a database to read instead.
+/// Why a read goes to the database instead of the daemon.
+struct Fallback {
+  std::string why;
+  /// The daemon is not there or does not answer (not: it refused this user, or is merely busy):
+  /// a run the database holds live has nobody running it now.
+  bool daemon_silent = false;
+};
+
+/// A read answered by the daemon; nullopt (with why it was not) when it is not there or does not
+/// answer and there is a database to read instead.
 std::optional<json> read_from_daemon(const Target& t, const std::string& command, const json& args,
-                                     std::string& why) {
+                                     Fallback& fallback) {
   using Kind = ControlClientError::Kind;
-  std::optional<ControlClient> client = connect_for_read(t, why);
+  std::optional<ControlClient> client;
+  try {
+    client.emplace(t.socket);
+  } catch (const ControlClientError& e) {
+    if (e.kind() != Kind::kUnreachable && e.kind() != Kind::kNoPermission)
+      throw Failure{kUnavailable, e.what()};
+    fallback = {e.what(), e.kind() == Kind::kUnreachable};
+    return std::nullopt;
+  }
   // A daemon that does not answer (busy, or its connections exhausted) is no reason not to read:
   // the database is there.
-  if (client) {
-    try {
-      const station::control::Reply r = client->call(command, args, kReadTimeout);
-      if (r.ok || r.error_code != station::control::error_code::kUnavailable || t.db.empty())
-        return result_or_fail(r);
-      why = "stationd: " + r.error_message;  // e.g. its connections are exhausted
-    } catch (const ControlClientError& e) {
-      if (t.db.empty() || (e.kind() != Kind::kTimeout && e.kind() != Kind::kClosed))
-        throw Failure{kUnavailable, e.what()};
-      why = e.what();
-    }
+  try {
+    const station::control::Reply r = client->call(command, args, kReadTimeout);
+    if (r.ok || r.error_code != station::control::error_code::kUnavailable || t.db.empty())
+      return result_or_fail(r);
+    fallback = {"stationd: " + r.error_message, false};  // e.g. its connections are exhausted
+  } catch (const ControlClientError& e) {
+    if (t.db.empty() || (e.kind() != Kind::kTimeout && e.kind() != Kind::kClosed))
+      throw Failure{kUnavailable, e.what()};
+    fallback = {e.what(), true};
   }
   return std::nullopt;
+}
+
+bool is_live_state(const std::string& state) {
+  for (const db::history::RunState s : db::history::live_states())
+    if (state == db::history::to_string(s)) return true;
+  return false;
+}
+
+/// Issue #50 item 2: with the daemon gone, the database still says `running` of the run it was
+/// running; the note tells a reader that nobody is.
+void mark_live_runs_of_silent_daemon(json& result) {
+  const auto mark = [](json& run) {
+    if (run.is_object() && is_live_state(text(run, "state")))
+      run["state_note"] = "daemon not answering";
+  };
+  if (result.contains("run")) mark(result["run"]);
+  if (result.contains("runs") && result["runs"].is_array())
+    for (json& run : result["runs"]) mark(run);
 }
 
 /// The history database opened read-only; no database (or not a usable one) is a database error,
@@ -95,17 +127,20 @@ json run_status_from(const db::history::SqliteRepository& repo,
   return json{{"run", run}};
 }
 
-/// A read from the database read-only, `why` the daemon did not answer it.
+/// A read from the database read-only, when and why the daemon did not answer it.
 json read_from_database(const Target& t, const std::string& command, const json& args,
-                        const std::string& why) {
-  announce_database_fallback(t, why);
+                        const Fallback& fallback) {
+  announce_database_fallback(t, fallback.why);
   const std::unique_ptr<db::history::SqliteRepository> opened = open_read_only(t.db);
   const db::history::SqliteRepository& repo = *opened;
   try {
     // The same validation and the same answer as the daemon's control server.
     const station::control::Request request = validated_read(command, args);
-    if (command == station::control::cmd::kRunStatus) return run_status_from(repo, request, why);
-    return station::control::answer_repository_read(repo, request);
+    json result = command == station::control::cmd::kRunStatus
+                      ? run_status_from(repo, request, fallback.why)
+                      : station::control::answer_repository_read(repo, request);
+    if (fallback.daemon_silent) mark_live_runs_of_silent_daemon(result);
+    return result;
   } catch (const station::control::BadRequest& e) {
     throw Failure{kBadInput, e.what()};
   } catch (const db::history::DbError& e) {
@@ -207,9 +242,21 @@ std::unique_ptr<db::fleet::FleetRepository> open_fleet(const Target& t) {
 
 json read_request(const Target& t, const std::string& command, const json& args) {
   if (!t.fleet_url.empty()) return fleet_read(t, command, args);
-  std::string why;
-  if (std::optional<json> answer = read_from_daemon(t, command, args, why)) return *answer;
-  return read_from_database(t, command, args, why);
+  Fallback fallback;
+  if (std::optional<json> answer = read_from_daemon(t, command, args, fallback)) return *answer;
+  return read_from_database(t, command, args, fallback);
+}
+
+std::optional<json> run_from_database(const Target& t, db::history::RunId run_id) {
+  if (t.db.empty()) return std::nullopt;
+  try {
+    db::history::SqliteOptions options;
+    options.read_only = true;
+    const db::history::SqliteRepository repo(t.db, options);
+    return station::control::run_record_json(repo.show(run_id).run);
+  } catch (const db::history::DbError&) {
+    return std::nullopt;  // locked, being recovered, or gone: the caller asks again later
+  }
 }
 
 std::function<std::string(const std::string&)> text_check(std::size_t max_chars) {

@@ -21,8 +21,17 @@ namespace imucal::tools::stationctl {
 using nlohmann::json;
 using station::control::ControlClient;
 
-/// stationctl's exit codes (main.cpp's header says what each means).
-enum Exit : int { kOk = 0, kRunNotPassed = 1, kBadInput = 2, kRefused = 3, kUnavailable = 4 };
+/// stationctl's exit codes (main.cpp's header says what each means). kRunInterrupted: a run
+/// followed with --wait ended interrupted — its daemon stopped during it and start-up recovery
+/// (station/run/recovery.hpp) marked it so; the unit is not to blame, the run may be reprocessed.
+enum Exit : int {
+  kOk = 0,
+  kRunNotPassed = 1,
+  kBadInput = 2,
+  kRefused = 3,
+  kUnavailable = 4,
+  kRunInterrupted = 5
+};
 /// Exit code when the operator stops following a run with Ctrl-C (128 + SIGINT, the shell's).
 constexpr int kInterrupted = 130;
 
@@ -86,8 +95,14 @@ void announce_database_fallback(const Target& t, const std::string& why);
 std::unique_ptr<db::fleet::FleetRepository> open_fleet(const Target& t);
 
 /// A read: over the socket, or from the database read-only when the daemon is unreachable, or
-/// from the fleet store with --fleet.
+/// from the fleet store with --fleet. Read from the database because the daemon does not answer,
+/// a run the database still holds live (preparing, running, calibrating) carries
+/// "state_note": "daemon not answering": nobody is running it now.
 json read_request(const Target& t, const std::string& command, const json& args);
+
+/// One run as the database holds it (run_record_json), read quietly (no fallback note): nullopt
+/// when there is no database or it cannot be read now. For a follower whose daemon went away.
+std::optional<json> run_from_database(const Target& t, db::history::RunId run_id);
 
 /// The daemon's own rule for names and reasons (station/control/control_protocol.hpp), checked
 /// before connecting so that the operator sees the problem at once.

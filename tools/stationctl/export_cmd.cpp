@@ -6,6 +6,7 @@
 #include <string_view>
 
 #include "db/history/export.hpp"
+#include "db/history/export_per_run.hpp"
 #include "db/history/sqlite_repository.hpp"
 #include "station/control/record_json.hpp"
 #include "tools/stationctl/export_output.hpp"
@@ -22,6 +23,7 @@ constexpr auto kExportFrameTimeout = std::chrono::seconds(30);
 /// export's request arguments, checked here as the daemon would check them.
 json export_args(const ExportArgs& a) {
   json args = {{"format", a.format}};
+  if (a.per_run) args["per_run"] = true;
   if (!a.station.empty()) args["station"] = a.station;
   if (!a.serial.empty()) {
     check_serial(a.serial);
@@ -47,8 +49,9 @@ json export_args(const ExportArgs& a) {
 
 /// The rows of `repo` the arguments select, written to `out`; their number.
 std::size_t export_rows(const db::history::Repository& repo, const json& args, ExportOutput& out) {
-  return db::history::export_history(repo, station::control::export_filter(repo, args),
-                                     args.at("format").get<std::string>(), out.stream());
+  return db::history::export_in_shape(repo, station::control::export_filter(repo, args),
+                                      args.at("format").get<std::string>(),
+                                      args.value("per_run", false), out.stream());
 }
 
 /// The export read from the fleet store (--fleet URL).
@@ -130,8 +133,10 @@ int export_to(const Target& t, const json& args, const std::string& output, bool
 CLI::App* add_export_command(CLI::App& app, ExportArgs& a) {
   CLI::App* exp = app.add_subcommand(
       "export",
-      "the history as CSV, JSON or NDJSON, streamed (with --json and --output: a JSON "
-      "summary of what was written)");
+      "the history as CSV, JSON or NDJSON, streamed: a row (CSV) or object (JSON) per run and "
+      "calibration method, so a factory run gives two, AINS and NLSQ, and a run without results "
+      "one; --per-run gives one per run (with --json and --output: a JSON summary of what was "
+      "written)");
   exp->add_option("--serial", a.serial, "only this unit");
   exp->add_option("--since", a.since, "only runs started at or after (YYYY-MM-DD[THH:MM[:SS]][Z])");
   exp->add_option("--format", a.format, "csv, json (one array) or ndjson (one object per line)")
@@ -139,6 +144,9 @@ CLI::App* add_export_command(CLI::App& app, ExportArgs& a) {
       ->check(CLI::IsMember({"csv", "json", "ndjson"}));
   exp->add_option("--output", a.output, "write to FILE instead of stdout");
   exp->add_option("--station", a.station, "only this station's runs");
+  exp->add_flag("--per-run", a.per_run,
+                "one row per run: each method's columns side by side, prefixed ains., nlsq., "
+                "legacy. (JSON: an object per run with its \"calibrations\")");
   exp->fallthrough();
   return exp;
 }

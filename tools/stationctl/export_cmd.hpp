@@ -1,7 +1,7 @@
 #pragma once
-// `stationctl export --format csv|json|ndjson [--output FILE]`: the history streamed from the
-// daemon as it reads the rows, or straight from the database when the daemon is down, or from the
-// fleet store (--fleet); memory stays flat either way (issue #11). Where the bytes go:
+// `stationctl export --format csv|json|ndjson [--per-run] [--output FILE]`: the history streamed
+// from the daemon as it reads the rows, or straight from the database when the daemon is down, or
+// from the fleet store (--fleet); memory stays flat either way (issue #11). Where the bytes go:
 // tools/stationctl/export_output.hpp.
 #include <CLI/CLI.hpp>
 #include <string>
@@ -16,6 +16,7 @@ struct ExportArgs {
   std::string format;
   std::string output;  ///< "" = standard output
   std::string station;
+  bool per_run = false;  ///< a row per run, the methods side by side (else per run and method)
 };
 
 CLI::App* add_export_command(CLI::App& app, ExportArgs& args);

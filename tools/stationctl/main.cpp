@@ -6,8 +6,9 @@
 // output is the same either way.
 //
 // Exit codes: 0 ok (with --wait: the run is done with verdict PASS); 1 the run ended review,
-// failed, aborted or interrupted; 2 bad input (usage, invalid serial, unknown sequence or run);
-// 3 refused (busy, permission); 4 daemon unreachable for a control command, database or I/O error;
+// failed or aborted; 2 bad input (usage, invalid serial, unknown sequence or run); 3 refused (busy,
+// permission); 4 daemon unreachable for a control command, database or I/O error (--wait: no
+// answer for 10 minutes); 5 with --wait, the run was interrupted (its daemon stopped during it);
 // 130 when Ctrl-C stops --wait from following a run (the run itself goes on). `diagnose` exits as
 // `imucal diagnose` does: 0 consistent or explained, 3 unexplained (a refusal, also 3, says so on
 // stderr).

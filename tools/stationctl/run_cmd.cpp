@@ -3,6 +3,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <iostream>
@@ -17,8 +18,15 @@ namespace imucal::tools::stationctl {
 namespace {
 
 constexpr auto kPollPeriod = std::chrono::milliseconds(200);
-/// How long --wait looks in the database for the outcome of a run whose daemon went away.
-constexpr auto kOutcomeGrace = std::chrono::seconds(10);
+/// A run.status the daemon does not answer in this time counts as a daemon that stopped answering.
+constexpr auto kRunStatusTimeout = std::chrono::seconds(30);
+/// While the daemon does not answer, --wait asks again after 0.25 s, then twice as long each time
+/// up to 4 s: a restarted daemon is seen within 4 s, a dead one costs a connect attempt per 4 s.
+constexpr auto kOutageFirstRetry = std::chrono::milliseconds(250);
+constexpr auto kOutageLongestRetry = std::chrono::milliseconds(4000);
+/// How long --wait waits for a daemon that stopped answering before it gives up (exit 4): long
+/// enough for systemd to restart it, or for a person to.
+constexpr auto kOutageLimit = std::chrono::minutes(10);
 
 /// Set by SIGINT/SIGTERM while --wait follows a run: stop following (the run itself goes on).
 std::atomic<bool> g_stop_following{false};
@@ -34,6 +42,13 @@ void stop_following_on_signals() {
 
 bool state_done_pass(const json& run) {
   return text(run, "state") == "done" && text(run, "verdict") == "PASS";
+}
+
+/// --wait's exit code for a run that ended: 0 done + PASS, 5 interrupted (its daemon stopped;
+/// not the unit's doing), 1 any other end.
+int exit_for_outcome(const json& run) {
+  if (state_done_pass(run)) return kOk;
+  return text(run, "state") == "interrupted" ? kRunInterrupted : kRunNotPassed;
 }
 
 bool is_terminal_state(const std::string& state) {
@@ -82,52 +97,80 @@ class ProgressLine {
   std::size_t shown_width_ = 0;
 };
 
-/// The daemon went away while a run was followed (SIGTERM, a crash): what the database says of
-/// the run once it is terminal — the daemon records an abort as it stops, recovery a crash when
-/// it starts again. Waits up to kOutcomeGrace for that; nullopt if there is still no outcome.
-std::optional<json> outcome_after_daemon_left(const Target& target, db::history::RunId run_id) {
-  const auto deadline = std::chrono::steady_clock::now() + kOutcomeGrace;
-  for (;;) {
-    try {
-      const json status =
-          read_request(target, station::control::cmd::kRunStatus, {{"run_id", run_id}});
-      if (status.contains("run") && is_terminal_state(text(status["run"], "state")))
-        return status["run"];
-    } catch (const Failure&) {
-      // The database is not readable either (yet): try again until the deadline.
-    }
-    if (std::chrono::steady_clock::now() >= deadline) return std::nullopt;
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+/// Sleeps `period`, or less when a signal stops the following.
+void pause_unless_stopped(std::chrono::milliseconds period) {
+  const auto until = std::chrono::steady_clock::now() + period;
+  while (!g_stop_following && std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+}
+
+/// The run as a daemon answering on a fresh connection reports it; that connection replaces
+/// `client`. nullopt while nobody answers.
+std::optional<json> run_from_returned_daemon(const Target& target, ControlClient& client,
+                                             db::history::RunId run_id) {
+  try {
+    ControlClient fresh(target.socket);
+    const station::control::Reply r =
+        fresh.call(station::control::cmd::kRunStatus, {{"run_id", run_id}}, kRunStatusTimeout);
+    const json status = result_or_fail(r);
+    client = std::move(fresh);
+    if (status.contains("run") && status["run"].is_object()) return status["run"];
+    throw Failure{kUnavailable, "run.status reply without a run object: " + status.dump()};
+  } catch (const station::control::ControlClientError&) {
+    return std::nullopt;  // not back yet (or starting: it recovers before it listens)
   }
 }
 
-/// The followed run as the daemon reports it now; when the daemon has gone away, its outcome from
-/// the database.
-json poll_run(const Target& target, ControlClient& client, db::history::RunId run_id,
-              ProgressLine& progress) {
+/// The daemon stopped answering while run `run_id` was followed (killed, crashed, stopped, hung):
+/// said once, then the daemon is asked again with back-off until it answers — a restarted daemon
+/// has marked the run interrupted (station/run/recovery.hpp) before it listens — while the
+/// database is read quietly for an end the daemon recorded as it stopped (a SIGTERM aborts the
+/// run). The run as then known; nullopt if a signal stopped the following; a Failure after
+/// kOutageLimit of silence.
+std::optional<json> follow_through_outage(const Target& target, ControlClient& client,
+                                          db::history::RunId run_id, const std::string& why) {
+  const std::string id = std::to_string(run_id);
+  std::cerr << "stationctl: stationd stopped answering while following run " << id << " (" << why
+            << "); waiting for it to come back (Ctrl-C stops waiting; the run's state: "
+            << "`stationctl run status --run " << id << "`)\n"
+            << std::flush;
+  const auto give_up = std::chrono::steady_clock::now() + kOutageLimit;
+  auto delay = kOutageFirstRetry;
+  while (!g_stop_following) {
+    if (auto run = run_from_returned_daemon(target, client, run_id)) return run;
+    if (auto run = run_from_database(target, run_id); run && is_terminal_state(text(*run, "state")))
+      return run;
+    if (std::chrono::steady_clock::now() >= give_up)
+      throw Failure{kUnavailable, "stationd has not answered for " +
+                                      station::control::format_duration_s(
+                                          std::chrono::duration<double>(kOutageLimit).count()) +
+                                      " while following run " + id + " (" + why +
+                                      "); the run's state: `stationctl run status --run " + id +
+                                      "`"};
+    pause_unless_stopped(delay);
+    delay = std::min(delay * 2, kOutageLongestRetry);
+  }
+  return std::nullopt;
+}
+
+/// The followed run as the daemon reports it now; when the daemon has stopped answering, as it is
+/// once the daemon answers again (or the database shows its end). nullopt if a signal stopped the
+/// following meanwhile.
+std::optional<json> poll_run(const Target& target, ControlClient& client, db::history::RunId run_id,
+                             ProgressLine& progress) {
+  using Kind = station::control::ControlClientError::Kind;
   json status;
   try {
-    status = call(client, station::control::cmd::kRunStatus, {{"run_id", run_id}});
-  } catch (Failure& f) {
+    status = result_or_fail(
+        client.call(station::control::cmd::kRunStatus, {{"run_id", run_id}}, kRunStatusTimeout));
+  } catch (const station::control::ControlClientError& e) {
+    if (e.kind() == Kind::kProtocol) throw Failure{kUnavailable, e.what()};
     progress.end_line();  // keep the last progress shown
-    if (f.code == kUnavailable) {
-      if (auto outcome = outcome_after_daemon_left(target, run_id)) return *outcome;
-    }
-    f.message = "while waiting for run " + std::to_string(run_id) + ": " + f.message +
-                " (the run's outcome: `stationctl run status --run " + std::to_string(run_id) +
-                "`)";
-    throw;
+    return follow_through_outage(target, client, run_id, e.what());
   }
   if (!status.contains("run") || !status["run"].is_object())
     throw Failure{kUnavailable, "run.status reply without a run object: " + status.dump()};
   return status["run"];
-}
-
-/// Sleeps until the next poll, or less when a signal stops the following.
-void pause_between_polls() {
-  for (auto slept = std::chrono::milliseconds(0); slept < kPollPeriod && !g_stop_following;
-       slept += std::chrono::milliseconds(20))
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
 }
 
 /// The units of one table run followed to their ends (the first one's progress line names the
@@ -140,7 +183,7 @@ int wait_for_runs(const Target& target, ControlClient& client,
     json run;
     const int c = wait_for_run(target, client, id, json_out, &run);
     if (c == kInterrupted) return c;
-    if (c != kOk) code = c;
+    if (c != kOk && code != kRunInterrupted) code = c;  // an interrupted unit says the most
     runs.push_back(run);
   }
   if (json_out)
@@ -276,10 +319,12 @@ int wait_for_run(const Target& target, ControlClient& client, db::history::RunId
                 << "; the run goes on (`stationctl run status --run " << run_id << "`)\n";
       return kInterrupted;
     }
-    run = poll_run(target, client, run_id, progress);
+    std::optional<json> polled = poll_run(target, client, run_id, progress);
+    if (!polled) continue;  // a signal stopped the following: said above
+    run = std::move(*polled);
     if (is_terminal_state(text(run, "state"))) break;  // the outcome line below says it once
     progress.show(run);
-    pause_between_polls();
+    pause_unless_stopped(kPollPeriod);
   }
   progress.wipe();
   if (outcome)
@@ -288,7 +333,7 @@ int wait_for_run(const Target& target, ControlClient& client, db::history::RunId
     print_json(json{{"run", run}});
   else
     std::cout << station::control::outcome_line(run) << "\n";
-  return state_done_pass(run) ? kOk : kRunNotPassed;
+  return exit_for_outcome(run);
 }
 
 int started(const Target& t, ControlClient& client, const json& r, const std::string& what,
