@@ -438,9 +438,13 @@ GaussMarkovFit fit_gauss_markov(const GapLinearisation& lin, const Eigen::Matrix
   GmFit best;
   GmMatrices gbest;
   GaussMarkovFit out;
+  // The σ grid from the unit's grade: a MEMS unit's drift is 10⁴ × the catalogue's (navigation)
+  // typical, where a grid of navigation sizes stopped at ~90 × (gnss-ins-sim's IMU381 preset, 3.5
+  // °/h: "91 ± 28 × typical", not significant).
+  const double scale = effect_scale(EffectId::kBiasInstability, lin.model().input().grade);
   for (double tau : tau_grid_s) {
     GmMatrices g = gm_matrices(lin, tau);
-    const GmFit f = fit_gm(lin, J, g, tau, e.typical[1], e.typical[0]);
+    const GmFit f = fit_gm(lin, J, g, tau, scale * e.typical[1], scale * e.typical[0]);
     out.profile.push_back({tau, f.sa, f.sg, f.ell});
     if (f.ell > best.ell) best = f, gbest = std::move(g);
   }
@@ -470,7 +474,9 @@ double smallest_size_within(const GapLinearisation& lin, const Eigen::MatrixXd& 
   for (size_t i = 0; i < f.profile.size(); ++i) {
     const double below = i == 0 ? f.profile[0].tau_s / 1.7 : f.profile[i - 1].tau_s;
     const double tau = std::sqrt(below * f.profile[i].tau_s);
-    const GmFit g = fit_gm(lin, J, gm_matrices(lin, tau), tau, e.typical[1], e.typical[0]);
+    const double scale = effect_scale(EffectId::kBiasInstability, lin.model().input().grade);
+    const GmFit g =
+        fit_gm(lin, J, gm_matrices(lin, tau), tau, scale * e.typical[1], scale * e.typical[0]);
     at_taus.push_back({tau, g.sa, g.sg, g.ell});
   }
   double smallest = e.magnitude(Eigen::Vector3d(f.sigma_gyro_radps, f.sigma_accel_mps2, f.tau_s));

@@ -260,9 +260,10 @@ def score(sim, name, truth, d, calib, typicals, limits=None, grade="navigation")
             why.append("|size|<2sigma")
         limit = (limits or {}).get(grade, {}).get(n["effect"])
         if mag is not None and limit is not None:
-            # the size the named step reports (its joint fit) against the product's bound
-            if abs(mag) > limit:
-                why.append(f"beyond the plausible {limit:.3g} {n['unit']}")
+            # the size the named step reports (its joint fit) against the product's bound, by the
+            # product's rule (calib/diagnosis judge_plausibility): beyond it by more than its 2 sigma
+            if abs(mag) - 2 * (sig or 0.0) > limit:
+                why.append(f"beyond the plausible {limit:.3g} {n['unit']} by more than 2 sigma")
         elif mag is not None and typ and abs(mag) / typ > PLAUSIBLE_X_TYPICAL:
             why.append(f"{abs(mag) / typ:.0f}x typical")
         elif n["plausible_flag"] is False:
