@@ -212,3 +212,22 @@ TEST(DiagnosisEarned, ANavigationUnitsDriftWithinItsRangeIsNamedAloneWithAnHones
     EXPECT_LT(std::abs(d.steps[0].magnitude - 8.0), 3.0 * d.steps[0].magnitude_sigma) << d.summary;
   }
 }
+
+// Where the simulators' runs meet the sequence's resolution (issue #49 item 5): a navigation unit's
+// gyro drift alone, at its grade's bound (10× typical, 0.01 °/h), moves factory-std's ~90 s rest
+// means by about the ARW's own scatter there (0.0015 °/√h over 90 s: 0.0095 °/h), so the run
+// stays within a few σ of the model and nothing is named — on gnss-ins-sim's gyro-only runs at
+// 3–10× as here. What must hold: nothing else is named for it.
+TEST(DiagnosisEarned, AGyroDriftAtTheNavigationBoundNamesNothingElse) {
+  Effects fx;
+  fx.instability_gyro_radps = 0.01 * kDegToRad / 3600.0;
+  for (double tau_s : {300.0, 1000.0}) {
+    fx.instability_tau_s = tau_s;
+    for (uint64_t seed : {31u, 33u}) {
+      const DiagnosisResult d = diagnose_table_run("factory-std", fx, seed);
+      std::printf("tau %g s, seed %llu: %s\n", tau_s, static_cast<unsigned long long>(seed),
+                  d.summary.c_str());
+      for (const auto& s : d.steps) EXPECT_EQ(s.effect, "bias_instability") << d.summary;
+    }
+  }
+}

@@ -137,7 +137,7 @@ TEST_F(StationctlTest, HistoryFromTheDatabaseIsNewestFirst) {
   EXPECT_NE(p.err.find("reading the database " + db_ + " read-only"), std::string::npos) << p.err;
   EXPECT_NE(p.err.find("absent.sock"), std::string::npos) << "the note names the socket";
   const auto lines = lines_of_stationctl_readonly(p.out);
-  ASSERT_EQ(lines.size(), 6u) << p.out;               // title, header, 4 runs
+  ASSERT_EQ(lines.size(), 7u) << p.out;               // title, header, 4 runs, the yield
   const char* expected[] = {"4 ", "2 ", "3 ", "1 "};  // 13:00, 12:00, 11:00, 10:00
   for (int i = 0; i < 4; ++i)
     EXPECT_EQ(lines[static_cast<std::size_t>(i + 2)].rfind(expected[i], 0), 0u)
@@ -145,6 +145,9 @@ TEST_F(StationctlTest, HistoryFromTheDatabaseIsNewestFirst) {
   EXPECT_NE(lines[2].find("aborted"), std::string::npos);
   EXPECT_NE(lines[2].find("operator: wrong fixture"), std::string::npos);
   EXPECT_NE(lines[4].find("REVIEW"), std::string::npos);
+  // Runs 1 and 2 PASS, 3 REVIEW: the unit decided three; 4, the operator's abort, is not its own.
+  EXPECT_EQ(lines[6].rfind("Yield: 2 PASS of 3 run(s)", 0), 0u) << lines[6];
+  EXPECT_NE(lines[6].find("1 abort(s)"), std::string::npos) << lines[6];
 
   const ProcStationctlReadonly j = ctl("--json history SN-B");
   ASSERT_EQ(j.code, 0) << j.err;
@@ -221,7 +224,8 @@ TEST_F(StationctlTest, ExportCsvAndJson) {
   // Oldest first: SN-B's 09:00 run.
   EXPECT_EQ(lines[1].rfind("5,SN-B,done,PASS,", 0), 0u) << lines[1];
 
-  const ProcStationctlReadonly js = ctl("export --serial SN-A --since 2024-05-01T11:30:00Z --format json");
+  const ProcStationctlReadonly js =
+      ctl("export --serial SN-A --since 2024-05-01T11:30:00Z --format json");
   ASSERT_EQ(js.code, 0) << js.err;
   const json arr = json::parse(js.out);
   ASSERT_EQ(arr.size(), 3u);  // run 2 (two methods) and run 4
@@ -230,7 +234,8 @@ TEST_F(StationctlTest, ExportCsvAndJson) {
   EXPECT_TRUE(arr[2].at("calibration").is_null());
 
   const std::string out_file = dir_.file("export.csv");
-  const ProcStationctlReadonly to_file = ctl("export --serial SN-B --format csv --output " + out_file);
+  const ProcStationctlReadonly to_file =
+      ctl("export --serial SN-B --format csv --output " + out_file);
   ASSERT_EQ(to_file.code, 0) << to_file.err;
   EXPECT_TRUE(to_file.out.empty());
   EXPECT_NE(to_file.err.find("3 rows written to " + out_file), std::string::npos) << to_file.err;
@@ -292,29 +297,34 @@ TEST_F(StationctlTest, ExportOutputWritesDevicesAndPipesInPlaceAndFollowsLinks) 
             fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
   const std::string dangling = dir_.file("dangling.csv");
   fs::create_symlink("created.csv", dangling);
-  const ProcStationctlReadonly to_dangling = ctl("export --serial SN-B --format csv --output " + dangling);
+  const ProcStationctlReadonly to_dangling =
+      ctl("export --serial SN-B --format csv --output " + dangling);
   EXPECT_EQ(to_dangling.code, 0) << to_dangling.err;
   EXPECT_EQ(lstat_type(dangling), static_cast<mode_t>(S_IFLNK));
   EXPECT_EQ(slurp_stationctl_readonly(dir_.file("created.csv")), rows);
 
   // /dev/stdout is the process's own standard output (here the test's pipe).
-  const ProcStationctlReadonly to_stdout = ctl("export --serial SN-B --format csv --output /dev/stdout");
+  const ProcStationctlReadonly to_stdout =
+      ctl("export --serial SN-B --format csv --output /dev/stdout");
   EXPECT_EQ(to_stdout.code, 0) << to_stdout.err;
   EXPECT_EQ(to_stdout.out, rows);
 
   // Refused before anything is written, naming the user's path (never a temporary file) and the
   // system's reason; nothing left beside it.
-  const ProcStationctlReadonly to_dir = ctl("export --serial SN-B --format csv --output " + dir_.path());
+  const ProcStationctlReadonly to_dir =
+      ctl("export --serial SN-B --format csv --output " + dir_.path());
   EXPECT_NE(to_dir.code, 0);
   EXPECT_NE(to_dir.err.find("cannot write " + dir_.path() + ": it is a directory"),
             std::string::npos)
       << to_dir.err;
-  const ProcStationctlReadonly to_proc = ctl("export --serial SN-B --format csv --output /proc/nope.csv");
+  const ProcStationctlReadonly to_proc =
+      ctl("export --serial SN-B --format csv --output /proc/nope.csv");
   EXPECT_NE(to_proc.code, 0);
   EXPECT_NE(to_proc.err.find("cannot write /proc/nope.csv: "), std::string::npos) << to_proc.err;
   EXPECT_EQ(to_proc.err.find("tmp"), std::string::npos) << to_proc.err;
   const std::string missing_dir = dir_.file("no-such-dir") + "/x.csv";
-  const ProcStationctlReadonly to_missing = ctl("export --serial SN-B --format csv --output " + missing_dir);
+  const ProcStationctlReadonly to_missing =
+      ctl("export --serial SN-B --format csv --output " + missing_dir);
   EXPECT_NE(to_missing.code, 0);
   EXPECT_NE(to_missing.err.find("cannot write " + missing_dir + ": No such file or directory"),
             std::string::npos)
@@ -376,7 +386,8 @@ TEST_F(StationctlTest, ControlCommandsWithoutTheDaemonExitWithFour) {
   EXPECT_EQ(none.code, 4) << none.err;
   EXPECT_NE(none.err.find("give --db or --config"), std::string::npos) << none.err;
   // A database that is not there is an error, never created by a read.
-  const ProcStationctlReadonly missing = ctl("history SN-A", "--socket " + sock + " --db " + dir_.file("no.sqlite"));
+  const ProcStationctlReadonly missing =
+      ctl("history SN-A", "--socket " + sock + " --db " + dir_.file("no.sqlite"));
   EXPECT_EQ(missing.code, 4) << missing.err;
   EXPECT_NE(missing.err.find("no.sqlite"), std::string::npos) << missing.err;
   EXPECT_FALSE(fs::exists(dir_.file("no.sqlite")));
@@ -389,7 +400,8 @@ TEST_F(StationctlTest, ConfigFileGivesSocketAndDatabase) {
   fs::copy_file(std::string(IMUCAL_SOURCE_DIR) + "/station/config/stationd.example.toml",
                 conf_dir + "/stationd.toml");
   fs::copy_file(db_, conf_dir + "/data/history.sqlite");
-  const ProcStationctlReadonly p = ctl("history SN-B --json", "--config " + conf_dir + "/stationd.toml");
+  const ProcStationctlReadonly p =
+      ctl("history SN-B --json", "--config " + conf_dir + "/stationd.toml");
   ASSERT_EQ(p.code, 0) << p.err;
   EXPECT_EQ(json::parse(p.out).at("runs").size(), 2u);
   EXPECT_NE(p.err.find(conf_dir + "/stationd.sock"), std::string::npos) << p.err;
@@ -489,7 +501,8 @@ TEST_F(StationctlLive, SocketAndFallbackPrintTheSame) {
 
 TEST_F(StationctlLive, WaitFollowsTheRunToPass) {
   serve(script_ending("done", "PASS", ""));
-  const ProcStationctlReadonly p = ctl("run start --serial SIM-0001 --sequence short --wait", live_target());
+  const ProcStationctlReadonly p =
+      ctl("run start --serial SIM-0001 --sequence short --wait", live_target());
   EXPECT_EQ(p.code, 0) << p.err;
   EXPECT_EQ(p.out, "run 41 SIM-0001: done, verdict PASS\n");
   // Not a TTY: one line per change of state, phase or step (the 19 s repeat is not shown).
@@ -533,18 +546,22 @@ TEST_F(StationctlLive, RefusalsExitWithThree) {
 /// A run that never ends: for following and stopping to follow.
 std::vector<json> endless() { return {live("running", "resting", 1, 99)}; }
 
-TEST_F(StationctlLive, LosingTheDaemonWhileWaitingExitsFour) {
+// A daemon that stops answering and does not come back: one line when it stops, then exit 4 once
+// --give-up-after has passed (issue #50 item 2; before, exit 4 at once with "stationd closed the
+// connection").
+TEST_F(StationctlLive, LosingTheDaemonWhileWaitingExitsFourWhenItDoesNotComeBack) {
   serve(endless());
   std::thread stopper([&] {
     std::this_thread::sleep_for(std::chrono::milliseconds(700));
     server_->stop();
   });
-  const ProcStationctlReadonly p = ctl("run start --serial SIM-0001 --wait", live_target());
+  const ProcStationctlReadonly p =
+      ctl("run start --serial SIM-0001 --wait --give-up-after 2", live_target());
   stopper.join();
   EXPECT_EQ(p.code, 4) << p.err;
-  EXPECT_NE(p.err.find("while waiting for run 41: stationd closed the connection"),
-            std::string::npos)
+  EXPECT_NE(p.err.find("stationd stopped answering while following run 41"), std::string::npos)
       << p.err;
+  EXPECT_NE(p.err.find("has not answered for"), std::string::npos) << p.err;
   EXPECT_NE(p.err.find("stationctl run status --run 41"), std::string::npos) << p.err;
 }
 
@@ -566,14 +583,16 @@ TEST_F(StationctlLive, CtrlCStopsFollowingNotTheRun) {
   ASSERT_EQ(posix_spawn(&pid, bin.c_str(), &actions, nullptr, argv.data(), environ), 0);
   posix_spawn_file_actions_destroy(&actions);
   // Wait until it follows (its first progress line), then interrupt.
-  for (int i = 0; i < 200 && slurp_stationctl_readonly(err_file).find("resting") == std::string::npos; ++i)
+  for (int i = 0;
+       i < 200 && slurp_stationctl_readonly(err_file).find("resting") == std::string::npos; ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   ::kill(pid, SIGINT);
   int status = 0;
   ASSERT_EQ(::waitpid(pid, &status, 0), pid);
   ASSERT_TRUE(WIFEXITED(status)) << "killed by the signal instead of handling it";
   EXPECT_EQ(WEXITSTATUS(status), 130);
-  EXPECT_NE(slurp_stationctl_readonly(err_file).find("stopped following run 41; the run goes on"), std::string::npos)
+  EXPECT_NE(slurp_stationctl_readonly(err_file).find("stopped following run 41; the run goes on"),
+            std::string::npos)
       << slurp_stationctl_readonly(err_file);
 }
 

@@ -8,10 +8,10 @@
 // Exit codes: 0 ok (with --wait: the run is done with verdict PASS); 1 the run ended review,
 // failed or aborted; 2 bad input (usage, invalid serial, unknown sequence or run); 3 refused (busy,
 // permission); 4 daemon unreachable for a control command, database or I/O error (--wait: no
-// answer for 10 minutes); 5 with --wait, the run was interrupted (its daemon stopped during it);
-// 130 when Ctrl-C stops --wait from following a run (the run itself goes on). `diagnose` exits as
-// `imucal diagnose` does: 0 consistent or explained, 3 unexplained (a refusal, also 3, says so on
-// stderr).
+// answer for 10 minutes, or --give-up-after S); 5 with --wait, the run was interrupted (its daemon
+// stopped during it); 130 when Ctrl-C stops --wait from following a run (the run itself goes on).
+// `diagnose` exits as `imucal diagnose` does: 0 consistent or explained, 3 unexplained (a refusal,
+// also 3, says so on stderr).
 //
 // This file is the program's wiring: the global options, each command's registration (one file
 // pair per command or group, *_cmd.{hpp,cpp}; what they share in connection.{hpp,cpp}), dispatch

@@ -24,9 +24,10 @@ constexpr auto kRunStatusTimeout = std::chrono::seconds(30);
 /// up to 4 s: a restarted daemon is seen within 4 s, a dead one costs a connect attempt per 4 s.
 constexpr auto kOutageFirstRetry = std::chrono::milliseconds(250);
 constexpr auto kOutageLongestRetry = std::chrono::milliseconds(4000);
-/// How long --wait waits for a daemon that stopped answering before it gives up (exit 4): long
-/// enough for systemd to restart it, or for a person to.
-constexpr auto kOutageLimit = std::chrono::minutes(10);
+/// How long --wait waits for a daemon that stopped answering before it gives up (exit 4): by
+/// default 10 minutes, long enough for systemd to restart it, or for a person to
+/// (`run start --give-up-after S`).
+std::chrono::duration<double> g_outage_limit{600.0};
 
 /// Set by SIGINT/SIGTERM while --wait follows a run: stop following (the run itself goes on).
 std::atomic<bool> g_stop_following{false};
@@ -126,7 +127,7 @@ std::optional<json> run_from_returned_daemon(const Target& target, ControlClient
 /// has marked the run interrupted (station/run/recovery.hpp) before it listens — while the
 /// database is read quietly for an end the daemon recorded as it stopped (a SIGTERM aborts the
 /// run). The run as then known; nullopt if a signal stopped the following; a Failure after
-/// kOutageLimit of silence.
+/// g_outage_limit of silence.
 std::optional<json> follow_through_outage(const Target& target, ControlClient& client,
                                           db::history::RunId run_id, const std::string& why) {
   const std::string id = std::to_string(run_id);
@@ -134,7 +135,9 @@ std::optional<json> follow_through_outage(const Target& target, ControlClient& c
             << "); waiting for it to come back (Ctrl-C stops waiting; the run's state: "
             << "`stationctl run status --run " << id << "`)\n"
             << std::flush;
-  const auto give_up = std::chrono::steady_clock::now() + kOutageLimit;
+  const auto give_up =
+      std::chrono::steady_clock::now() +
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(g_outage_limit);
   auto delay = kOutageFirstRetry;
   while (!g_stop_following) {
     if (auto run = run_from_returned_daemon(target, client, run_id)) return run;
@@ -142,8 +145,7 @@ std::optional<json> follow_through_outage(const Target& target, ControlClient& c
       return run;
     if (std::chrono::steady_clock::now() >= give_up)
       throw Failure{kUnavailable, "stationd has not answered for " +
-                                      station::control::format_duration_s(
-                                          std::chrono::duration<double>(kOutageLimit).count()) +
+                                      station::control::format_duration_s(g_outage_limit.count()) +
                                       " while following run " + id + " (" + why +
                                       "); the run's state: `stationctl run status --run " + id +
                                       "`"};
@@ -247,6 +249,11 @@ RunCommands add_run_commands(CLI::App& app, RunArgs& a) {
   c.start->add_option("--operator", a.operator_name, "operator name (default: your user name)")
       ->check(text_check(station::control::kMaxNameChars));
   c.start->add_flag("--wait", a.wait, "follow the run to its end; exit 0 only for done + PASS");
+  c.start
+      ->add_option("--give-up-after", a.give_up_after_s,
+                   "with --wait: seconds to wait for a daemon that stopped answering before "
+                   "giving up (exit 4; default 600)")
+      ->check(CLI::PositiveNumber);
   c.start->fallthrough();
   c.status = run->add_subcommand("status", "the daemon's state, or one run's (--run)");
   c.status->add_option("--run", a.run_id, "run id")->check(CLI::PositiveNumber);
@@ -259,6 +266,7 @@ RunCommands add_run_commands(CLI::App& app, RunArgs& a) {
 }
 
 int cmd_run_start(const Target& t, const RunArgs& a, bool as_json) {
+  g_outage_limit = std::chrono::duration<double>(a.give_up_after_s);
   const json args = start_args(a, start_units(a));
   ControlClient client = connect_or_fail(t);
   const json r = call(client, station::control::cmd::kRunStart, args);

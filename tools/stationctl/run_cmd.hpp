@@ -17,6 +17,7 @@ struct RunArgs {
   std::vector<std::string> serials, slots;  ///< start: the units, by order or by slot
   std::string sequence, operator_name;      ///< start
   bool wait = false;                        ///< start
+  double give_up_after_s = 600.0;           ///< start --wait: silence before exit 4
   db::history::RunId run_id = 0;            ///< status --run
   std::string reason;                       ///< abort
 };
