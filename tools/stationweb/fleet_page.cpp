@@ -147,10 +147,10 @@ std::string window_line(const FleetQuery& q) {
                             : "")
                  : ", every setting";
   if (f.verdict) s += ", verdict " + esc(*f.verdict);
-  if (!q.notes.empty()) s += ". <span id='window-note' class='REVIEW'>" + esc(q.notes) + "</span>";
-  return s +
-         ". <span id='capture-rule'>One capture counts once: a reprocessed run is stood for by its "
-         "newest reprocess.</span></p>\n";
+  s += ". <span id='capture-rule'>One capture counts once: a reprocessed run is stood for by its "
+       "newest reprocess.</span>";
+  if (!q.notes.empty()) s += " <span id='window-note' class='REVIEW'>" + esc(q.notes) + "</span>";
+  return s + "</p>\n";
 }
 
 /// The day range the chart spans: the window, narrowed to the days that have runs.
@@ -265,7 +265,7 @@ std::string distribution_section(const FleetQuery& q,
   std::string s = "<h2>Parameter distribution per station</h2>\n";
   if (!q.param) return s + "<p>Choose a parameter above to see its distribution per station.</p>\n";
   const calib::core::ParamInfo& info = calib::core::param_info(*q.param);
-  s += "<p>" + info.name + ": the AINS value of every run in the window that has one, in " +
+  s += "<p>" + info.name + ": the AINS value of every run counted above that has one, in " +
        esc(info.human_unit) + " (sample standard deviation; quartiles interpolated).</p>\n";
   if (dist.empty()) return s + "<p id='distribution'>No AINS calibration in this window.</p>\n";
   s += box_plot(dist, info);

@@ -252,6 +252,7 @@ db::history::FleetFilter trend_window(const History& history, const Params& quer
   if (!w.until_ms) return w;
   const db::history::TimestampMs period_ms = period_days * kDayMs;
   const auto newest = history.repo->recent_runs(1);
+  if (newest.empty()) return w;  // an empty history with until given: nothing to cut
   const db::history::TimestampMs newest_end =
       (db::history::utc_day(newest.front().started_at_ms) + 1) * kDayMs;
   if (*w.until_ms > newest_end) {
