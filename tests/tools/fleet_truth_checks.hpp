@@ -62,15 +62,17 @@ inline void expect_fleet_truth(const std::string& html, const std::vector<db::te
 
 /// The units each station ran among the runs the signatures read (factory, originals, the
 /// unit's own outcome, an AINS result): what /signatures' "units" must say.
+/// With `runs`, the runs instead of the units.
 inline std::map<std::string, std::size_t> truth_signature_units(
-    const std::vector<db::test::TruthRow>& rows) {
-  std::map<std::string, std::set<std::string>> serials;
+    const std::vector<db::test::TruthRow>& rows, bool runs = false) {
+  std::map<std::string, std::multiset<std::string>> serials;
   for (const db::test::TruthRow& r : rows)
     if (r.setting == "factory" && !r.reprocessed_from && r.ains &&
         (r.verdict == "PASS" || r.verdict == "REVIEW" || r.verdict == "FAILED"))
       serials[r.station].insert(r.serial);
   std::map<std::string, std::size_t> out;
-  for (const auto& [station, s] : serials) out[station] = s.size();
+  for (const auto& [station, s] : serials)
+    out[station] = runs ? s.size() : std::set<std::string>(s.begin(), s.end()).size();
   return out;
 }
 
@@ -78,7 +80,7 @@ inline std::map<std::string, std::size_t> truth_signature_units(
 /// from the rows), whether it was assessed, whether it was flagged.
 inline void expect_signatures_agree(const std::string& signatures, const std::string& fleet,
                                     const std::vector<db::test::TruthRow>& rows) {
-  std::map<std::string, std::size_t> units;
+  std::map<std::string, std::size_t> units, runs;
   std::map<std::string, std::string> said;  // station -> "flagged" / "not assessed" / "ok"
   for (const std::string& row : [&] {
          std::vector<std::string> out;
@@ -91,11 +93,13 @@ inline void expect_signatures_agree(const std::string& signatures, const std::st
     Attrs tr = tags(row, "<tr data-station")[0];
     const auto cell = tags(row, "<td class='num' data-units");
     if (!cell.empty()) units[tr["data-station"]] = std::stoul(cell[0].at("data-units"));
+    runs[tr["data-station"]] = std::stoul(tr["data-runs"]);
     said[tr["data-station"]] = row.find("not assessed") != std::string::npos ? "not assessed"
                                : tr["data-flagged"] == "1"                   ? "flagged"
                                                                              : "ok";
   }
   EXPECT_EQ(units, truth_signature_units(rows)) << "units per station on /signatures";
+  EXPECT_EQ(runs, truth_signature_units(rows, true)) << "runs per station on /signatures";
   const std::string banner = section(fleet, "signature-banner", "</div>");
   ASSERT_FALSE(banner.empty());
   for (const auto& [station, what] : said) {
@@ -110,8 +114,8 @@ inline void expect_signatures_agree(const std::string& signatures, const std::st
           what == "not assessed");
     }
   }
-  const bool all_ok = std::all_of(said.begin(), said.end(),
-                                  [](const auto& st) { return st.second == "ok"; });
+  const bool all_ok =
+      std::all_of(said.begin(), said.end(), [](const auto& st) { return st.second == "ok"; });
   if (!all_ok) {
     EXPECT_EQ(banner.find("no station flagged."), std::string::npos)
         << "a station not assessed is not \"no station flagged\"";

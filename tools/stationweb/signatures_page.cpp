@@ -59,7 +59,8 @@ std::string fit_cell(const nlohmann::json& fit) {
 std::string station_row(const nlohmann::json& st, std::size_t candidates) {
   const bool flagged = st.value("flagged", false);
   std::string s = "<tr data-station='" + esc(st["station"].get<std::string>()) +
-                  "' data-flagged='" + (flagged ? "1" : "0") + "'><td>" +
+                  "' data-flagged='" + (flagged ? "1" : "0") + "' data-runs='" +
+                  std::to_string(st["runs"].get<int>()) + "'><td>" +
                   esc(st["station"].get<std::string>()) + "</td><td class='num'>" +
                   std::to_string(st["runs"].get<int>()) + "</td><td class='num' data-units='" +
                   std::to_string(st["units"].get<int>()) + "' data-population-units='" +
