@@ -40,7 +40,6 @@ class StationwebTruth : public ::testing::Test {
     {
       db::history::SqliteRepository repo(db_);
       rows_ = db::test::write_truth_history(repo);
-
     }
     web_ =
         std::make_unique<test_support::StationwebProcess>(kBin, db_, dir_->file("stationweb.log"));
