@@ -13,12 +13,24 @@ using namespace db::history;
 
 namespace {
 
-// $3 since, $4 until, $5 station, $6 serial: unset ones fold away when the server plans the
-// statement with its values (an unnamed statement is planned per call), so the indexes serve.
+// $3 since, $4 until, $5 station, $6 serial, $7 setting, $8 verdict ('live': none yet), $9 the
+// runs a reprocess supersedes (db/history/fleet_stats.hpp: one capture counted once): unset ones
+// fold away when the server plans the statement with its values (an unnamed statement is planned
+// per call), so the indexes serve.
 const char* const kWhere =
     " ($3::bigint IS NULL OR r.started_at_ms >= $3) AND ($4::bigint IS NULL OR r.started_at_ms < "
     "$4)"
-    " AND ($5::text IS NULL OR r.station_id = $5) AND ($6::text IS NULL OR r.serial = $6) ";
+    " AND ($5::text IS NULL OR r.station_id = $5) AND ($6::text IS NULL OR r.serial = $6) "
+    " AND ($7::text IS NULL OR r.setting = $7)"
+    " AND ($8::text IS NULL OR r.verdict = $8 OR ($8 = 'live' AND r.verdict IS NULL))"
+    " AND NOT (r.id = ANY($9::bigint[])) ";
+
+/// "{1,2,3}": a bigint[] parameter's text.
+std::string id_array(const std::vector<RunId>& ids) {
+  std::string s = "{";
+  for (const RunId id : ids) s += (s.size() > 1 ? "," : "") + std::to_string(id);
+  return s + "}";
+}
 
 // The UTC day (utc_day()) in integer arithmetic: floor() of a numeric quotient cost 20 ms more
 // over a year of 10^5 runs.
@@ -48,10 +60,27 @@ struct PgFleetStats::Impl {
   mutable PgConnection conn;
   mutable std::mutex mutex;
 
-  std::vector<PgParam> filter_values(const FleetFilter& f, PgParam a, PgParam b) const {
+  /// The filter's values ($3..$9); with `one_per_capture`, $9 lists the runs a reprocess
+  /// supersedes, read now (every reprocess of the store: a capture's newest run may lie outside
+  /// the window). Call with the mutex held.
+  std::vector<PgParam> filter_values(const FleetFilter& f, PgParam a, PgParam b,
+                                     bool one_per_capture = true) const {
     validate_filter(f);
+    std::vector<RunId> superseded;
+    if (one_per_capture) {
+      const PgResult q = conn.exec(
+          "SELECT r.id, o.id, r.local_run_id, o.local_run_id FROM runs r JOIN runs o ON "
+          "o.station_id = r.station_id AND o.local_run_id = r.reprocessed_from_local "
+          "WHERE $1::text IS NULL AND r.reprocessed_from_local IS NOT NULL",
+          {std::nullopt}, "reprocesses");
+      std::vector<ReprocessLink> links;
+      for (int i = 0; i < q.rows(); ++i)
+        links.push_back({q.i64(i, 0), q.i64(i, 1), q.i64(i, 2), q.i64(i, 3)});
+      superseded = superseded_runs(links);
+    }
     return {std::move(a),         std::move(b),        pg_value(f.since_ms),
-            pg_value(f.until_ms), pg_value(f.station), pg_value(f.serial)};
+            pg_value(f.until_ms), pg_value(f.station), pg_value(f.serial),
+            pg_value(f.setting),  pg_value(f.verdict), PgParam(id_array(superseded))};
   }
 };
 
@@ -61,8 +90,8 @@ PgFleetStats::~PgFleetStats() = default;
 std::string PgFleetStats::param_distribution_sql() { return kDistribution; }
 
 std::vector<StationDayCount> PgFleetStats::runs_per_station_day(const FleetFilter& f) const {
-  const auto values = impl_->filter_values(f, std::nullopt, std::nullopt);
   std::lock_guard<std::mutex> lock(impl_->mutex);
+  const auto values = impl_->filter_values(f, std::nullopt, std::nullopt);
   const PgResult q = impl_->conn.exec(
       "SELECT r.station_id, " + std::string(kDayExpr) +
           " AS day, count(*) "
@@ -76,8 +105,8 @@ std::vector<StationDayCount> PgFleetStats::runs_per_station_day(const FleetFilte
 
 std::vector<StationVerdictCounts> PgFleetStats::verdict_counts_per_station(
     const FleetFilter& f) const {
-  const auto values = impl_->filter_values(f, std::nullopt, std::nullopt);
   std::lock_guard<std::mutex> lock(impl_->mutex);
+  const auto values = impl_->filter_values(f, std::nullopt, std::nullopt);
   const PgResult q = impl_->conn.exec(
       "SELECT r.station_id, count(*) FILTER (WHERE r.verdict = 'PASS'), "
       "count(*) FILTER (WHERE r.verdict = 'REVIEW'), count(*) FILTER (WHERE r.verdict = 'FAILED'), "
@@ -108,9 +137,9 @@ std::vector<ParamSummary> PgFleetStats::param_distribution(int param_index,
   if (param_index < 0 || param_index >= calib::core::ParamSet::kSize)
     throw InvalidInput("parameter index " + std::to_string(param_index) + " is not in 0..26");
   // ains_values is 1-based in SQL and in calib::core::param_info order (db/fleet/fleet_schema.cpp).
+  std::lock_guard<std::mutex> lock(impl_->mutex);
   const auto values =
       impl_->filter_values(f, pg_value(std::int64_t{param_index + 1}), std::nullopt);
-  std::lock_guard<std::mutex> lock(impl_->mutex);
   const PgResult q = impl_->conn.exec(kDistribution, values, "parameter distribution");
   std::vector<ParamSummary> out;
   for (int i = 0; i < q.rows(); ++i) {
@@ -144,8 +173,9 @@ std::vector<RunId> PgFleetStats::table_run_members(RunId table_run_id) const {
 }
 
 std::vector<AinsResultRow> PgFleetStats::ains_results(const FleetFilter& f) const {
-  const auto values = impl_->filter_values(f, std::nullopt, std::nullopt);
   std::lock_guard<std::mutex> lock(impl_->mutex);
+  // Its own rule for reprocesses (the originals stand for them): no list of superseded runs.
+  const auto values = impl_->filter_values(f, std::nullopt, std::nullopt, false);
   const PgResult q = impl_->conn.exec(
       "SELECT r.id, r.station_id, r.serial, r.sequence_name, r.started_at_ms, c.sigma::text, "
       "r.ains_values::text, r.local_run_id FROM runs r JOIN calibrations c ON c.run_id = r.id AND "

@@ -26,8 +26,9 @@ class PgFleetStats final : public FleetStats {
   std::vector<RunId> table_run_members(RunId table_run_id) const override;
   std::vector<AinsResultRow> ains_results(const FleetFilter& filter) const override;
 
-  /// The distribution's statement ($1 the 1-based parameter index, $2 NULL, $3-$6 the filter), for
-  /// EXPLAIN in the benchmark.
+  /// The distribution's statement ($1 the 1-based parameter index, $2 NULL, $3-$9 the filter:
+  /// since, until, station, serial, setting, verdict, the superseded runs as bigint[]), for EXPLAIN
+  /// in the benchmark.
   static std::string param_distribution_sql();
 
  private:

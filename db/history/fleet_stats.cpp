@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 
 #include "calib/core/param_set.hpp"
 #include "db/history/serial_number.hpp"
@@ -60,12 +61,55 @@ void validate_filter(const FleetFilter& f) {
     throw InvalidInput("since " + format_time_utc(*f.since_ms) + " is after until " +
                        format_time_utc(*f.until_ms));
   if (f.serial) validate_serial(*f.serial);
+  if (f.setting && *f.setting != "factory" && *f.setting != "land" && *f.setting != "sea")
+    throw InvalidInput("setting \"" + f.setting->substr(0, 40) + "\" is not factory, land or sea");
+  if (f.verdict && *f.verdict != "live") {
+    try {
+      run_verdict_from_string(*f.verdict);
+    } catch (const InvalidInput&) {
+      throw InvalidInput("verdict \"" + f.verdict->substr(0, 40) +
+                         "\" is not PASS, REVIEW, FAILED, STATION-FAULT, ABORTED, INTERRUPTED "
+                         "or live");
+    }
+  }
   if (f.station) {
     if (f.station->size() > kMaxStationBytes)
       throw InvalidInput("station name longer than " + std::to_string(kMaxStationBytes) + " bytes");
     for (unsigned char c : *f.station)
       if (c < 0x20 || c == 0x7F) throw InvalidInput("station name has a control character");
   }
+}
+
+std::vector<RunId> superseded_runs(const std::vector<ReprocessLink>& links) {
+  // Each run's origin and creation order; a capture's root is the run reached by following
+  // origins until a run that names none (a chain is short: guarded against a cycle anyway).
+  std::map<RunId, RunId> origin_of;
+  std::map<RunId, std::int64_t> seq_of;
+  for (const ReprocessLink& l : links) {
+    origin_of[l.run] = l.origin;
+    seq_of[l.run] = l.run_seq;
+    seq_of.emplace(l.origin, l.origin_seq);
+  }
+  std::map<RunId, std::vector<RunId>> capture;  // root -> its runs
+  for (const auto& [run, seq] : seq_of) {
+    RunId root = run;
+    for (std::size_t hops = 0; hops <= origin_of.size(); ++hops) {
+      const auto it = origin_of.find(root);
+      if (it == origin_of.end()) break;
+      root = it->second;
+    }
+    capture[root].push_back(run);
+  }
+  std::vector<RunId> out;
+  for (const auto& [root, runs] : capture) {
+    const RunId newest = *std::max_element(runs.begin(), runs.end(), [&](RunId a, RunId b) {
+      return std::make_pair(seq_of[a], a) < std::make_pair(seq_of[b], b);
+    });
+    for (const RunId r : runs)
+      if (r != newest) out.push_back(r);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 }  // namespace imucal::db::history

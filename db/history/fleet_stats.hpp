@@ -7,8 +7,15 @@
 //
 // Every implementation must give the same numbers for the same rows, so the definitions are here:
 //   * a run belongs to a filter when since_ms <= started_at_ms < until_ms (each bound optional),
-//     its station equals `station` exactly (if given) and its unit's serial equals `serial` (if
-//     given). A serial that names no unit matches nothing (no error);
+//     its station equals `station` exactly (if given), its unit's serial equals `serial` (if
+//     given), its setting equals `setting` (if given: factory, land, sea) and its verdict equals
+//     `verdict` (if given; "live" for a run without one). A serial that names no unit matches
+//     nothing (no error);
+//   * one capture is counted once (issue #52): a run and the reprocesses reached from it through
+//     reprocessed_from are one capture (the same archive calibrated again), and only its newest
+//     run — the highest station-local run id — stands for it in runs_per_station_day,
+//     verdict_counts_per_station and param_distribution; the filter applies to that run
+//     (superseded_runs()). Without it a reprocessed capture counted twice in the verdict rates;
 //   * a run's day is its UTC calendar day: floor(started_at_ms / 86 400 000) days since
 //     1970-01-01 (utc_day());
 //   * verdicts are the run's (RunRecord::verdict, stored at its end): PASS, REVIEW, FAILED — the
@@ -39,6 +46,16 @@ struct FleetFilter {
   std::optional<TimestampMs> until_ms;  ///< started_at_ms < until_ms
   std::optional<std::string> station;   ///< exact station name
   std::optional<std::string> serial;    ///< exact serial (db/history/serial_number.hpp rule)
+  std::optional<std::string> setting;   ///< "factory", "land" or "sea" (runs.setting)
+  std::optional<std::string> verdict;   ///< a RunVerdict's text, or "live" (no verdict yet)
+};
+
+/// A reprocess and the run it names (reprocessed_from), each with the history's id and its
+/// order of creation at its station (a station's SQLite: the id itself; the fleet store: the
+/// station's own run id), for superseded_runs().
+struct ReprocessLink {
+  RunId run = 0, origin = 0;
+  std::int64_t run_seq = 0, origin_seq = 0;
 };
 
 struct StationDayCount {
@@ -118,7 +135,13 @@ std::int64_t utc_day(TimestampMs t_ms);
 ParamSummary summarize(std::vector<double>& values);
 
 /// InvalidInput naming the field if a filter value breaks a rule: since after until, a malformed
-/// serial, a station name longer than 200 bytes or with control characters.
+/// serial, a station name longer than 200 bytes or with control characters, a setting other than
+/// factory/land/sea, a verdict other than a RunVerdict's text or "live".
 void validate_filter(const FleetFilter& filter);
+
+/// The runs that do not stand for their capture (the file comment): of every capture that holds a
+/// reprocess, each run but the newest (highest run_seq). `links` holds every reprocess of the
+/// history (any window: a capture's newest run may lie outside it).
+std::vector<RunId> superseded_runs(const std::vector<ReprocessLink>& links);
 
 }  // namespace imucal::db::history

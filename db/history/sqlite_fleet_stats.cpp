@@ -9,6 +9,8 @@
 #include <map>
 #include <mutex>
 #include <string_view>
+#include <unordered_map>
+#include <unordered_set>
 
 #include "calib/core/param_set.hpp"
 #include "db/history/compact_param_text.hpp"
@@ -26,6 +28,8 @@ const char* const kWhereSerial = "r.unit_id = (SELECT id FROM units WHERE serial
 const char* const kWhereSince = "r.started_at_ms >= :since";
 const char* const kWhereUntil = "r.started_at_ms < :until";
 const char* const kWhereStation = "r.station = :station";
+const char* const kWhereVerdict = "r.verdict = :verdict";
+const char* const kWhereLive = "r.verdict IS NULL";
 
 /// " WHERE a AND b ..." for the filters given and `also` ("" for none).
 std::string where_clause(const FleetFilter& f, const std::string& also = "") {
@@ -36,6 +40,7 @@ std::string where_clause(const FleetFilter& f, const std::string& also = "") {
   if (f.since_ms) add(kWhereSince);
   if (f.until_ms) add(kWhereUntil);
   if (f.station) add(kWhereStation);
+  if (f.verdict) add(*f.verdict == "live" ? kWhereLive : kWhereVerdict);
   return w;
 }
 
@@ -73,6 +78,17 @@ struct SqliteFleetStats::Impl {
   sqlite3* db = nullptr;
   mutable std::mutex mutex;
 
+  /// The few runs the counts must look at one by one: those a reprocess supersedes, and the field
+  /// runs (setting land or sea). Read by a scan of the run rows, which the counts themselves never
+  /// read (they use the covering index runs_by_time_station); kept until another connection
+  /// commits (PRAGMA data_version changes).
+  struct Exceptions {
+    std::int64_t data_version = -1;
+    std::unordered_set<RunId> superseded;
+    std::unordered_map<RunId, std::string> field_setting;
+  };
+  mutable Exceptions exceptions;
+
   ~Impl() {
     if (db) sqlite3_close_v2(db);
   }
@@ -99,6 +115,7 @@ struct SqliteFleetStats::Impl {
         check(sqlite3_bind_int64(st_, i, v));
     }
     void bind_filter(const FleetFilter& f) {
+      if (f.verdict && *f.verdict != "live") bind_text(":verdict", *f.verdict);
       if (f.serial) bind_text(":serial", *f.serial);
       if (f.since_ms) bind_int(":since", *f.since_ms);
       if (f.until_ms) bind_int(":until", *f.until_ms);
@@ -143,6 +160,43 @@ struct SqliteFleetStats::Impl {
    private:
     const Impl& impl_;
   };
+
+  /// The exceptions as of the current snapshot (call inside one), re-read after a commit.
+  const Exceptions& current_exceptions(const char* op) const {
+    std::int64_t version = 0;
+    {
+      Query v(*this, "PRAGMA data_version", op);
+      if (v.step()) version = v.i64(0);
+    }
+    if (version == exceptions.data_version) return exceptions;
+    Exceptions e;
+    e.data_version = version;
+    Query q(*this,
+            "SELECT id, reprocessed_from, setting FROM runs "
+            "WHERE reprocessed_from IS NOT NULL OR setting <> 'factory'",
+            op);
+    std::vector<ReprocessLink> links;
+    while (q.step()) {
+      const RunId id = q.i64(0);
+      if (q.type(1) != SQLITE_NULL) links.push_back({id, q.i64(1), id, q.i64(1)});
+      std::string setting = q.text(2);
+      if (setting != "factory") e.field_setting.emplace(id, std::move(setting));
+    }
+    for (const RunId r : superseded_runs(links)) e.superseded.insert(r);
+    exceptions = std::move(e);
+    return exceptions;
+  }
+
+  /// Whether run `id` has the filter's setting (factory unless listed as a field run).
+  static bool setting_matches(const Exceptions& e, RunId id, const FleetFilter& f) {
+    if (!f.setting) return true;
+    const auto it = e.field_setting.find(id);
+    return (it == e.field_setting.end() ? std::string("factory") : it->second) == *f.setting;
+  }
+  /// Whether run `id` counts in the aggregates: it stands for its capture and has the setting.
+  static bool counts(const Exceptions& e, RunId id, const FleetFilter& f) {
+    return e.superseded.count(id) == 0 && setting_matches(e, id, f);
+  }
 };
 
 SqliteFleetStats::SqliteFleetStats(const std::string& path) : impl_(std::make_unique<Impl>()) {
@@ -173,11 +227,14 @@ std::vector<StationDayCount> SqliteFleetStats::runs_per_station_day(const FleetF
   Impl::Snapshot snapshot(*impl_, op);
   // Counted here, not by GROUP BY: the rows come from runs_by_time_station alone (schema v8), and
   // SQLite's GROUP BY would sort them all (in a temporary file beyond the bounded page cache).
-  Impl::Query q(*impl_, "SELECT r.station, r.started_at_ms FROM runs r" + where_clause(f), op);
+  const Impl::Exceptions& ex = impl_->current_exceptions(op);
+  Impl::Query q(*impl_, "SELECT r.station, r.started_at_ms, r.id FROM runs r" + where_clause(f),
+                op);
   q.bind_filter(f);
   StationNames stations;
   std::vector<std::map<std::int64_t, std::int64_t>> per_day;
   while (q.step()) {
+    if (!Impl::counts(ex, q.i64(2), f)) continue;
     const std::size_t s = stations.index_of(q.view(0));
     if (s == per_day.size()) per_day.emplace_back();
     ++per_day[s][utc_day(q.i64(1))];
@@ -196,13 +253,15 @@ std::vector<StationVerdictCounts> SqliteFleetStats::verdict_counts_per_station(
   Impl::Snapshot snapshot(*impl_, op);
   // Counted here, not by GROUP BY: runs_by_time_station covers the stored verdict (schema v10), so
   // the count reads no run row and sorts nothing.
-  Impl::Query q(*impl_, "SELECT r.station, r.verdict FROM runs r" + where_clause(f), op);
+  const Impl::Exceptions& ex = impl_->current_exceptions(op);
+  Impl::Query q(*impl_, "SELECT r.station, r.verdict, r.id FROM runs r" + where_clause(f), op);
   q.bind_filter(f);
   StationNames stations;
   // Per station: the runs per verdict, indexed by RunVerdict, and the live ones (NULL) last.
   constexpr std::size_t kLiveSlot = 6;
   std::vector<std::array<std::int64_t, kLiveSlot + 1>> per_verdict;
   while (q.step()) {
+    if (!Impl::counts(ex, q.i64(2), f)) continue;
     const std::size_t s = stations.index_of(q.view(0));
     if (s == per_verdict.size()) per_verdict.push_back({});
     if (q.type(1) == SQLITE_NULL) {
@@ -247,8 +306,9 @@ std::vector<ParamSummary> SqliteFleetStats::param_distribution(int param_index,
   // determine the parameter. The column name is ours (p00..p26 from the checked index), not input.
   char column[8];
   std::snprintf(column, sizeof column, "a.p%02d", param_index);
+  const Impl::Exceptions& ex = impl_->current_exceptions(op);
   Impl::Query q(*impl_,
-                std::string("SELECT r.station, ") + column +
+                std::string("SELECT r.station, ") + column + ", r.id" +
                     " FROM runs r JOIN ains_values a ON a.run_id = r.id" +
                     where_clause(f, std::string(column) + " IS NOT NULL"),
                 op);
@@ -256,6 +316,7 @@ std::vector<ParamSummary> SqliteFleetStats::param_distribution(int param_index,
   StationNames stations;
   std::vector<std::vector<double>> values;
   while (q.step()) {
+    if (!Impl::counts(ex, q.i64(2), f)) continue;
     const std::size_t s = stations.index_of(q.view(0));
     if (s == values.size()) values.emplace_back();
     values[s].push_back(q.f64(1));
@@ -303,10 +364,12 @@ std::vector<AinsResultRow> SqliteFleetStats::ains_results(const FleetFilter& f) 
                    "c.unobservable_json = '[]' AND "
                    "(r.verdict IS NULL OR r.verdict IN ('PASS', 'REVIEW', 'FAILED'))") +
       " ORDER BY r.id";
+  const Impl::Exceptions& ex = impl_->current_exceptions(op);
   Impl::Query q(*impl_, sql, op);
   q.bind_filter(f);
   std::vector<AinsResultRow> out;
   while (q.step()) {
+    if (!Impl::setting_matches(ex, q.i64(0), f)) continue;
     AinsResultRow row;
     row.run_id = q.i64(0);
     row.local_run_id = row.run_id;  // a station's own database

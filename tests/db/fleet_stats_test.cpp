@@ -46,7 +46,8 @@ class FleetStatsTest : public ::testing::Test {
     out[2].until_ms = t0 + 3 * kDayMs;
     out[3].station = "st-B";
     out[4].serial = "SN-3";
-    out[5] = {t0 + kDayMs, t0 + 4 * kDayMs + 7200000, std::string("st-C"), std::string("SN-2")};
+    out[5] = {t0 + kDayMs, t0 + 4 * kDayMs + 7200000, std::string("st-C"), std::string("SN-2"), {},
+              {}};
     return out;
   }
 

@@ -181,11 +181,11 @@ int bench(int argc, char** argv) {
                        serials[0] + "' ORDER BY r.started_at_ms DESC, r.id DESC",
                    "fleet");
   std::cout << "\nplan, a week's distribution:\n"
-            << pg.admin("PREPARE week(int, text, bigint, bigint, text, text) AS " +
+            << pg.admin("PREPARE week(int, text, bigint, bigint, text, text, text, text, bigint[]) AS " +
                             db::fleet::PgFleetStats::param_distribution_sql() +
                             "; EXPLAIN ANALYZE EXECUTE week(" + std::to_string(gyro_bias_z + 1) +
                             ", NULL, " + std::to_string(kT0 + 20 * kWeekMs) + ", " +
-                            std::to_string(kT0 + 21 * kWeekMs) + ", NULL, NULL)",
+                            std::to_string(kT0 + 21 * kWeekMs) + ", NULL, NULL, NULL, NULL, '{}')",
                         "fleet");
   return 0;
 }

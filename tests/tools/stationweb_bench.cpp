@@ -209,9 +209,9 @@ bool time_fleet(const std::string& path) {
   // The slowest page's plans: the whole year's distribution and counts per station and day.
   const std::string year = std::to_string(kT0) + ", " + std::to_string(kT0 + 366 * 86400000LL);
   std::printf("\nplan, the whole year's distribution of gyro_bias_radps[2]:\n%s\n",
-              pg.admin("PREPARE year(int, text, bigint, bigint, text, text) AS " +
+              pg.admin("PREPARE year(int, text, bigint, bigint, text, text, text, text, bigint[]) AS " +
                            imucal::db::fleet::PgFleetStats::param_distribution_sql() +
-                           "; EXPLAIN ANALYZE EXECUTE year(15, NULL, " + year + ", NULL, NULL)",
+                           "; EXPLAIN ANALYZE EXECUTE year(15, NULL, " + year + ", NULL, NULL, 'factory', NULL, '{}')",
                        "fleet")
                   .c_str());
   return slow;

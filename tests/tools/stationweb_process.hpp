@@ -56,6 +56,7 @@ class StationwebProcess {
   StationwebProcess& operator=(const StationwebProcess&) = delete;
 
   int port() const { return port_; }
+  pid_t pid() const { return pid_; }
   const std::string& first_line() const { return first_line_; }
   /// SIGTERM, then the exit status (-1 if it did not exit normally or was stopped before).
   int stop() {

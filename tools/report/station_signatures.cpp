@@ -204,10 +204,12 @@ json report_of_rows(const std::vector<db::history::AinsResultRow>& rows,
   const std::vector<calib::studies::fleet::StationError> errors =
       measured_errors(sequence, progress);
   std::vector<calib::studies::fleet::SignatureRun> runs;
-  std::map<std::int64_t, std::int64_t> local_id;  // the history's id -> the station's own
+  std::map<std::int64_t, std::int64_t> local_id;         // the history's id -> the station's own
+  std::map<std::string, std::set<std::string>> serials;  // the units each station ran
   for (const auto& r : rows) {
     runs.push_back({r.station, r.serial, r.run_id, r.value.to_vector(), r.sigma.to_vector()});
     local_id[r.run_id] = r.local_run_id;
+    serials[r.station].insert(r.serial);
   }
   const calib::studies::fleet::FleetSignatures fs =
       calib::studies::fleet::station_signatures(runs, errors, options);
@@ -217,6 +219,9 @@ json report_of_rows(const std::vector<db::history::AinsResultRow>& rows,
   for (const calib::studies::fleet::StationSignature& sig : fs.stations) {
     json s = {{"station", sig.station},
               {"runs", sig.runs},
+              // Every unit it ran (issue #52 item 3); population_units counts only those its
+              // population evidence used (none when no other station is a reference).
+              {"units", serials[sig.station].size()},
               {"population_units", sig.population_units},
               {"repeat_units", sig.repeat_units},
               {"assessed", sig.assessed}};
@@ -261,7 +266,7 @@ std::string render_signatures_text(const json& report) {
   for (const json& s : report["stations"]) {
     std::snprintf(buf, sizeof buf, "%-16s %4d runs, %3d units, %2d seen elsewhere",
                   s["station"].get<std::string>().c_str(), s["runs"].get<int>(),
-                  s["population_units"].get<int>(), s["repeat_units"].get<int>());
+                  s["units"].get<int>(), s["repeat_units"].get<int>());
     out += buf;
     if (s.contains("station_faults"))
       out += ", " + std::to_string(s["station_faults"].get<std::int64_t>()) + " station fault(s)";

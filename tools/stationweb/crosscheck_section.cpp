@@ -23,6 +23,9 @@ const db::history::CalibrationRecord* find_method(
 std::string status_of(const db::history::CrosscheckRecord& x,
                       const db::history::CalibrationRecord& a,
                       const db::history::CalibrationRecord& b, const std::string& name) {
+  // An estimate that did not converge is no estimate to agree with (issue #52 item 2: a huge σ of
+  // an unconverged NLSQ put every difference "within" its bound).
+  if (!a.converged || !b.converged) return "not compared";
   if (listed(x.not_compared, name) || listed(a.unobservable, name) || listed(b.unobservable, name))
     return "not compared";
   for (const auto& f : x.failures)
@@ -46,9 +49,9 @@ std::string parameter_rows(const db::history::CrosscheckRecord& x,
     if (numbers) s += " data-diff-si='" + exact(diff) + "' data-sigma-si='" + exact(sigma) + "'";
     s += "><td>" + info.name + "</td><td>" + esc(info.human_unit) + "</td>";
     if (numbers)
-      s += "<td class='num'>" + fmt("%.3f", diff * info.si_to_human) + "</td><td class='num'>" +
-           fmt("%.3f", sigma * info.si_to_human) + "</td><td class='num'>" +
-           fmt("%.3f", x.k_sigma * sigma * info.si_to_human) + "</td><td class='num'>" +
+      s += "<td class='num'>" + fmt_to_sigma(diff * info.si_to_human, sigma * info.si_to_human) +
+           "</td><td class='num'>" + fmt_sigma(sigma * info.si_to_human) + "</td><td class='num'>" +
+           fmt_sigma(x.k_sigma * sigma * info.si_to_human) + "</td><td class='num'>" +
            (sigma > 0 ? fmt("%.2f", std::abs(diff) / sigma) : std::string("-")) + "</td>";
     else
       s += "<td colspan='4' class='muted'>-</td>";
@@ -92,6 +95,13 @@ std::string crosscheck_section(const db::history::RunDetails& d) {
        (x.failures.empty() ? ": they agree on every compared parameter" : "") + ".</p>\n";
   s += stored_findings(x);
   if (!a || !b) return s + "<p>Only one method stored: no per-parameter comparison.</p></div>\n";
+  if (!a->converged || !b->converged)
+    s += "<p id='not-converged' class='REVIEW'>" +
+         std::string(!a->converged && !b->converged ? "Neither method"
+                     : !a->converged                ? "AINS"
+                                                    : second) +
+         " did not converge: no parameter is compared, whatever the bound (a diverged estimate's "
+         "σ would put any difference within it).</p>\n";
   if (a->body_frame != b->body_frame)
     s +=
         "<p class='muted'>The two results are in different body frames; the station compared "

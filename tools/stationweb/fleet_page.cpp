@@ -3,12 +3,14 @@
 // station — for a window (since/until; default: the 30 days up to the newest run) and optional
 // station and serial filters.
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <set>
 
 #include "calib/core/param_set.hpp"
 #include "tools/stationweb/fleet_svg.hpp"
 #include "tools/stationweb/html.hpp"
+#include "tools/stationweb/page_limits.hpp"
 #include "tools/stationweb/page_util.hpp"
 #include "tools/stationweb/pages.hpp"
 
@@ -23,28 +25,39 @@ struct FleetQuery {
   std::optional<int> param;
   Params echo;  ///< the form's values as given
   bool default_window = false;
+  std::string notes;  ///< dates clamped to the served range (page_limits.hpp)
 };
 
-db::history::TimestampMs parse_time_field(const std::string& field, const std::string& text,
-                                          bool end) {
-  db::history::TimestampMs t = 0;
+/// setting (default factory: a field run's values are another population; "all" for every
+/// setting) and verdict (one of the six, or "live"; default every verdict).
+void parse_setting_and_verdict(FleetQuery& q) {
+  const std::string setting = q.echo.find("setting")->second;
+  if (setting != "all") q.filter.setting = setting.empty() ? "factory" : setting;
+  const std::string verdict = q.echo.find("verdict")->second;
+  if (!verdict.empty()) q.filter.verdict = verdict;
+  db::history::FleetFilter only;
+  only.setting = q.filter.setting;
   try {
-    t = db::history::parse_time_utc(text);
+    db::history::validate_filter(only);
   } catch (const db::history::InvalidInput& e) {
-    bad_input(field, e.what());
+    bad_input("setting", std::string(e.what()) + " (or all)");
   }
-  // "until=2024-05-07" means up to the end of that day.
-  const bool date_only = text.size() == 10;
-  return end && date_only ? t + kDayMs : t;
+  only = {};
+  only.verdict = q.filter.verdict;
+  try {
+    db::history::validate_filter(only);
+  } catch (const db::history::InvalidInput& e) {
+    bad_input("verdict", e.what());
+  }
 }
 
 FleetQuery parse_query(const History& history, const Params& query) {
   FleetQuery q;
-  for (const char* name : {"since", "until", "station", "serial", "param"})
+  for (const char* name : {"since", "until", "station", "serial", "param", "setting", "verdict"})
     q.echo.emplace(name, query_value(query, name));
   const std::string since = q.echo.find("since")->second, until = q.echo.find("until")->second;
-  if (!since.empty()) q.filter.since_ms = parse_time_field("since", since, false);
-  if (!until.empty()) q.filter.until_ms = parse_time_field("until", until, true);
+  if (!since.empty()) q.filter.since_ms = window_time("since", since, false, q.notes);
+  if (!until.empty()) q.filter.until_ms = window_time("until", until, true, q.notes);
   if (q.filter.since_ms && q.filter.until_ms && *q.filter.since_ms >= *q.filter.until_ms)
     bad_input("until", "the window ends (" + until + ") before it starts (" + since + ")");
   const std::string station = q.echo.find("station")->second;
@@ -54,6 +67,7 @@ FleetQuery parse_query(const History& history, const Params& query) {
   } catch (const db::history::InvalidInput& e) {
     bad_input("station", e.what());
   }
+  parse_setting_and_verdict(q);
   const std::string serial = q.echo.find("serial")->second;
   if (!serial.empty()) {
     check_serial(serial, "serial");
@@ -78,6 +92,16 @@ FleetQuery parse_query(const History& history, const Params& query) {
   return q;
 }
 
+/// <label>NAME <select>: the options, `given` selected; `none` (if not "") first as value ''.
+std::string choice(const char* name, const std::string& given,
+                   const std::vector<std::string>& options, const char* none) {
+  std::string s = std::string("<label>") + name + " <select name='" + name + "'>";
+  if (*none) s += std::string("<option value=''>") + none + "</option>";
+  for (const std::string& o : options)
+    s += "<option" + std::string(given == o ? " selected" : "") + ">" + o + "</option>";
+  return s + "</select></label>";
+}
+
 std::string filter_form(const FleetQuery& q) {
   auto value = [&](const char* name) { return esc(q.echo.find(name)->second); };
   std::string s = "<form class='filters' id='fleet-filters' action='/fleet' method='get'>\n";
@@ -93,14 +117,23 @@ std::string filter_form(const FleetQuery& q) {
     s += "<option" + std::string(q.param && *q.param == i ? " selected" : "") + ">" + name +
          "</option>";
   }
-  return s + "</select></label> <button type='submit'>Show</button></form>\n";
+  s += "</select></label>";
+  s += choice("setting",
+              q.echo.find("setting")->second.empty() ? "factory" : q.echo.find("setting")->second,
+              {"factory", "land", "sea", "all"}, "");
+  s += choice("verdict", q.echo.find("verdict")->second,
+              {"PASS", "REVIEW", "FAILED", "STATION-FAULT", "ABORTED", "INTERRUPTED", "live"},
+              "(every verdict)");
+  return s + " <button type='submit'>Show</button></form>\n";
 }
 
 std::string window_line(const FleetQuery& q) {
   const auto& f = q.filter;
   std::string s = "<p id='window' data-since-ms='" +
                   (f.since_ms ? std::to_string(*f.since_ms) : "") + "' data-until-ms='" +
-                  (f.until_ms ? std::to_string(*f.until_ms) : "") + "'>Runs started ";
+                  (f.until_ms ? std::to_string(*f.until_ms) : "") + "' data-setting='" +
+                  esc(f.setting.value_or("")) + "' data-verdict='" + esc(f.verdict.value_or("")) +
+                  "'>Runs started ";
   s += f.since_ms ? "from " + short_time(*f.since_ms) + " UTC " : "at any time ";
   s += f.until_ms ? "until (before) " + short_time(*f.until_ms) + " UTC" : "until now";
   if (q.default_window)
@@ -108,7 +141,16 @@ std::string window_line(const FleetQuery& q) {
          " days up to the newest run's day (set since/until for another window)";
   if (f.station) s += ", station " + esc(*f.station);
   if (f.serial) s += ", serial " + unit_link(*f.serial);
-  return s + ".</p>\n";
+  s += f.setting ? ", " + esc(*f.setting) + " runs" +
+                       (*f.setting == "factory" && q.echo.find("setting")->second.empty()
+                            ? " (the default: setting=all for field runs too)"
+                            : "")
+                 : ", every setting";
+  if (f.verdict) s += ", verdict " + esc(*f.verdict);
+  s += ". <span id='capture-rule'>One capture counts once: a reprocessed run is stood for by its "
+       "newest reprocess.</span>";
+  if (!q.notes.empty()) s += " <span id='window-note' class='REVIEW'>" + esc(q.notes) + "</span>";
+  return s + "</p>\n";
 }
 
 /// The day range the chart spans: the window, narrowed to the days that have runs.
@@ -205,7 +247,16 @@ std::string distribution_row(const db::history::ParamSummary& d,
       {"median", d.median}, {"q3", d.q3},       {"max", d.max}};
   for (const auto& [name, v] : stats) s += std::string(" data-") + name + "='" + exact(v) + "'";
   s += "><td>" + esc(d.station) + "</td><td class='num'>" + std::to_string(d.count) + "</td>";
-  for (const auto& [name, v] : stats) s += "<td class='num'>" + fmt("%.4g", v * k) + "</td>";
+  // Each figure to the precision the spread allows: the mean to its standard error, the
+  // order statistics and the std to the std's second digit (issue #52 item 12).
+  const double spread = d.std_dev * k;
+  const double mean_se = d.count > 1 ? spread / std::sqrt(static_cast<double>(d.count)) : 0.0;
+  for (const auto& [name, v] : stats) {
+    const std::string text = std::string(name) == "mean"  ? fmt_to_sigma(v * k, mean_se)
+                             : std::string(name) == "std" ? fmt_sigma(v * k)
+                                                          : fmt_to_sigma(v * k, spread);
+    s += "<td class='num'>" + text + "</td>";
+  }
   return s + "</tr>\n";
 }
 
@@ -214,15 +265,15 @@ std::string distribution_section(const FleetQuery& q,
   std::string s = "<h2>Parameter distribution per station</h2>\n";
   if (!q.param) return s + "<p>Choose a parameter above to see its distribution per station.</p>\n";
   const calib::core::ParamInfo& info = calib::core::param_info(*q.param);
-  s += "<p>" + info.name + ": the AINS value of every run in the window that has one, in " +
+  s += "<p>" + info.name + ": the AINS value of every run counted above that has one, in " +
        esc(info.human_unit) + " (sample standard deviation; quartiles interpolated).</p>\n";
   if (dist.empty()) return s + "<p id='distribution'>No AINS calibration in this window.</p>\n";
   s += box_plot(dist, info);
-  s += "<table id='distribution' data-param='" + info.name +
-       "'>\n<tr><th>station</th><th "
-       "class='num'>runs</th><th class='num'>mean</th><th class='num'>std</th><th "
-       "class='num'>min</th><th class='num'>Q1</th><th class='num'>median</th><th "
-       "class='num'>Q3</th><th class='num'>max</th></tr>\n";
+  s += "<table id='distribution' data-param='" + info.name + "' data-unit='" +
+       esc(info.human_unit) + "'>\n<tr><th>station</th><th class='num'>runs</th>";
+  for (const char* h : {"mean", "std", "min", "Q1", "median", "Q3", "max"})
+    s += std::string("<th class='num'>") + h + " (" + esc(info.human_unit) + ")</th>";
+  s += "</tr>\n";
   for (const auto& d : dist) s += distribution_row(d, info);
   return s + "</table>\n";
 }

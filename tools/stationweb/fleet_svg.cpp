@@ -37,10 +37,12 @@ std::string svg_open(const char* id, double height) {
   return os.str();
 }
 
-/// Station names under their slots (rotated when there are many).
-void slot_labels(std::ostringstream& os, const Panel& p, const std::vector<std::string>& labels) {
-  const bool rotate = labels.size() > 8;
-  for (std::size_t i = 0; i < labels.size(); ++i) {
+/// Labels under their slots: every `every`-th (a year of daily periods would smear 366 labels into
+/// one band: issue #52 item 5), rotated when more than eight are shown.
+void slot_labels(std::ostringstream& os, const Panel& p, const std::vector<std::string>& labels,
+                 std::size_t every = 1) {
+  const bool rotate = (labels.size() + every - 1) / every > 8;
+  for (std::size_t i = 0; i < labels.size(); i += every) {
     const double x = p.x(i), y = kTop + kPanelH + 14;
     if (rotate)
       os << "<text transform='translate(" << x + 3 << ',' << y - 6
@@ -90,7 +92,7 @@ std::string runs_chart(const std::vector<db::history::StationDayCount>& counts,
     const auto i = static_cast<std::size_t>(c.day - first_day);
     const double lo = stacked[i], hi = lo + static_cast<double>(c.runs);
     p.span(i, lo, hi, 0.0, std::max(p.slot() * 0.8, 1.0), station_colour(colour_of[c.station]),
-           c.station + " " + day_text(c.day) + ": " + std::to_string(c.runs) + " runs");
+           c.station + " " + day_text(c.day) + ": " + count_of(c.runs, "run"));
     stacked[i] = hi;
   }
   const std::size_t every = std::max<std::size_t>(1, n_days / 12);
@@ -223,8 +225,9 @@ std::string signature_trend_svg(const nlohmann::json& trend) {
     }
   }
   std::vector<std::string> labels;
-  for (const auto& period : periods) labels.push_back(period_label(period).substr(5));
-  slot_labels(os, p, labels);
+  // With the year (a trend may span a new year); at most about 24 labels.
+  for (const auto& period : periods) labels.push_back(period_label(period));
+  slot_labels(os, p, labels, std::max<std::size_t>(1, (labels.size() + 23) / 24));
   station_legend(os, stations);
   return os.str() + "</svg>\n";
 }

@@ -1,5 +1,7 @@
 #include "tools/stationweb/html.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include "tools/report/html_escape.hpp"
@@ -70,6 +72,42 @@ std::string url_encode(const std::string& value) {
     }
   }
   return out;
+}
+
+namespace {
+
+/// Decimal places that show `sigma`'s second significant digit (0..12).
+int decimals_for(double sigma) {
+  const int d = 1 - static_cast<int>(std::floor(std::log10(std::abs(sigma))));
+  return std::max(0, std::min(12, d));
+}
+
+}  // namespace
+
+std::string fmt_to_sigma(double value, double sigma) {
+  if (!(sigma > 0) || !std::isfinite(sigma) || !std::isfinite(value)) return fmt("%.4g", value);
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", decimals_for(sigma), value);
+  return buf;
+}
+
+std::string fmt_sigma(double sigma) {
+  if (!(sigma > 0) || !std::isfinite(sigma)) return fmt("%.2g", sigma);
+  const double a = std::abs(sigma);
+  if (a < 1e-6 || a >= 1e7) return fmt("%.2g", sigma);
+  return fmt_to_sigma(sigma, sigma);
+}
+
+std::string count_of(std::int64_t n, const std::string& noun) {
+  return std::to_string(n) + " " + noun + (n == 1 ? "" : "s");
+}
+
+std::string with_notice(std::string page_html, const std::string& text) {
+  if (text.empty()) return page_html;
+  const std::string html = "<p id='notice' class='alarm'>" + esc(text) + "</p>\n";
+  const std::size_t at = page_html.find("</nav>\n");
+  if (at != std::string::npos) page_html.insert(at + 7, html);  // not a page: left as it is
+  return page_html;
 }
 
 std::string run_link(db::history::RunId id) {

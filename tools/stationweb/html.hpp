@@ -39,6 +39,18 @@ std::string day_text(std::int64_t day);
 /// Percent-encoding of a query value (RFC 3986 unreserved characters kept).
 std::string url_encode(const std::string& value);
 
+/// `value` to the decimal place of its 1-σ's second significant digit (issue #52 item 12: no
+/// fixed three decimals whatever the size); "%.4g" when σ is 0 or not finite.
+std::string fmt_to_sigma(double value, double sigma);
+/// A 1-σ (or any spread) to two significant digits, without an exponent within 1e-6..1e7.
+std::string fmt_sigma(double sigma);
+/// "1 run", "3 runs": the count and the noun, plural unless one.
+std::string count_of(std::int64_t n, const std::string& noun);
+/// A notice for the top of a rendered page (after the navigation bar): `page_html` with
+/// <p id='notice' class='alarm'>text</p> inserted; unchanged when `text` is empty or the body is
+/// no page (no navigation bar: a download).
+std::string with_notice(std::string page_html, const std::string& text);
+
 /// <a href='/run/ID'>ID</a> and <a href='/unit/SN'>SN</a>.
 std::string run_link(db::history::RunId id);
 std::string unit_link(const std::string& serial);

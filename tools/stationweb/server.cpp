@@ -1,11 +1,13 @@
 #include "tools/stationweb/server.hpp"
 
+#include <malloc.h>
 #include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <functional>
 
 #include "tools/stationweb/html.hpp"
+#include "tools/stationweb/page_limits.hpp"
 #include "tools/stationweb/pages.hpp"
 
 namespace imucal::tools::stationweb {
@@ -35,12 +37,27 @@ void fail(httplib::Response& res, int status, const std::string& field,
   res.set_content(error_page(status, reason_phrase(status), field, message), kHtml);
 }
 
-/// Renders a page into `res`, mapping its failures to statuses; logs the request and its time.
+/// Gives the heap's free pages back to the system after a large request (issue #52 item 5: the
+/// server kept 1.78 GB resident after one page): glibc keeps freed memory in its arenas.
+void return_memory(std::size_t body_bytes, double ms) {
+  if (body_bytes > (256u << 10) || ms > 50) malloc_trim(0);
+}
+
+/// Renders a page into `res`, mapping its failures to statuses, with the source's notice on top
+/// (a history file deleted or replaced under the server); logs the request and its time.
 void respond(const httplib::Request& req, httplib::Response& res,
-             const std::function<std::string()>& render) {
+             const std::function<std::string()>& render,
+             const std::function<std::string()>& notice = {}) {
   const auto t0 = std::chrono::steady_clock::now();
   try {
-    res.set_content(render(), kHtml);
+    std::string body = render();
+    if (body.size() > kMaxPageBytes)
+      throw PageError(400, "",
+                      "This page would be " + std::to_string(body.size() >> 20) +
+                          " MB, more than stationweb's limit of " +
+                          std::to_string(kMaxPageBytes >> 20) +
+                          " MB per page: narrow the window or the filters.");
+    res.set_content(notice ? with_notice(std::move(body), notice()) : std::move(body), kHtml);
     res.status = 200;
   } catch (const PageError& e) {
     fail(res, e.status, e.field, e.what());
@@ -51,16 +68,19 @@ void respond(const httplib::Request& req, httplib::Response& res,
     spdlog::error("{} {}: {}", req.method, req.path, e.what());
     fail(res, 500, "", std::string("The history could not be read: ") + e.what());
   }
+  if (notice && res.status != 200) res.body = with_notice(std::move(res.body), notice());
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return_memory(res.body.size(), ms);
   spdlog::debug("{} {} {} {:.1f} ms", req.method, req.target, res.status, ms);
 }
 
 using Render = std::function<std::string(const httplib::Request&)>;
 
-httplib::Server::Handler page_handler(Render render) {
-  return [render = std::move(render)](const httplib::Request& req, httplib::Response& res) {
-    respond(req, res, [&] { return render(req); });
+httplib::Server::Handler page_handler(const History* h, Render render) {
+  return [h, render = std::move(render)](const httplib::Request& req, httplib::Response& res) {
+    respond(
+        req, res, [&] { return render(req); }, h->source_notice);
   };
 }
 
@@ -75,8 +95,8 @@ void method_not_allowed(const httplib::Request& req, httplib::Response& res) {
 
 void install_routes(httplib::Server& server, const History& history) {
   const History* h = &history;
-  server.Get("/",
-             page_handler([h](const httplib::Request& req) { return index_page(*h, req.params); }));
+  server.Get("/", page_handler(
+                      h, [h](const httplib::Request& req) { return index_page(*h, req.params); }));
   server.Get("/unit", [](const httplib::Request& req, httplib::Response& res) {
     std::string serial;
     respond(req, res, [&] {
@@ -85,18 +105,19 @@ void install_routes(httplib::Server& server, const History& history) {
     });
     if (res.status == 200) res.set_redirect("/unit/" + url_encode(serial), 303);
   });
-  server.Get(R"(/unit/([^/]*))", page_handler([h](const httplib::Request& req) {
+  server.Get(R"(/unit/([^/]*))", page_handler(h, [h](const httplib::Request& req) {
                return unit_page(*h, req.matches[1].str());
              }));
-  server.Get(R"(/run/([^/]*))", page_handler([h](const httplib::Request& req) {
+  server.Get(R"(/run/([^/]*))", page_handler(h, [h](const httplib::Request& req) {
                return run_page(*h, req.matches[1].str());
              }));
-  server.Get("/fleet",
-             page_handler([h](const httplib::Request& req) { return fleet_page(*h, req.params); }));
-  server.Get("/signatures/trend", page_handler([h](const httplib::Request& req) {
+  server.Get("/fleet", page_handler(h, [h](const httplib::Request& req) {
+               return fleet_page(*h, req.params);
+             }));
+  server.Get("/signatures/trend", page_handler(h, [h](const httplib::Request& req) {
                return signature_trend_page(*h, req.params);
              }));
-  server.Get("/signatures", page_handler([h](const httplib::Request& req) {
+  server.Get("/signatures", page_handler(h, [h](const httplib::Request& req) {
                return signatures_page(*h, req.params);
              }));
   server.Post(".*", method_not_allowed);

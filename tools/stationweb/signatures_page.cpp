@@ -8,20 +8,43 @@
 #include "tools/report/station_signatures.hpp"
 #include "tools/stationweb/fleet_svg.hpp"
 #include "tools/stationweb/html.hpp"
+#include "tools/stationweb/page_limits.hpp"
+#include "tools/stationweb/page_util.hpp"
 #include "tools/stationweb/pages.hpp"
 
 namespace imucal::tools::stationweb {
 
 namespace {
 
-db::history::FleetFilter window_of(const History& history, const Params& query,
+/// The signature window of since/until (dates outside the served range clamped, `notes` saying
+/// so: page_limits.hpp).
+db::history::FleetFilter window_of(const History& history, const Params& query, std::string& notes,
                                    int default_days = 7) {
+  const std::string since = clamped_date_text("since", query_value(query, "since"), false, notes);
+  const std::string until = clamped_date_text("until", query_value(query, "until"), true, notes);
   try {
-    return tools::report::signature_window(*history.repo, query_value(query, "since"),
-                                           query_value(query, "until"), default_days);
+    return tools::report::signature_window(*history.repo, since, until, default_days);
   } catch (const tools::report::WindowError& e) {
     bad_input(e.field, e.reason);
   }
+}
+
+std::string note_span(const std::string& notes) {
+  return notes.empty() ? "" : " <span id='window-note' class='REVIEW'>" + esc(notes) + "</span>";
+}
+
+/// 400 naming since when the window holds more factory runs than a signature page reads
+/// (kMaxSignatureRuns): their AINS results are held in memory together.
+void check_signature_runs(const History& history, const db::history::FleetFilter& window) {
+  db::history::FleetFilter factory = window;
+  factory.setting = "factory";
+  std::int64_t runs = 0;
+  for (const auto& v : history.stats->verdict_counts_per_station(factory))
+    runs += v.unit_outcomes() + v.live;
+  if (runs > kMaxSignatureRuns)
+    bad_input("since", "the window holds " + std::to_string(runs) +
+                           " factory runs; the signatures read at most " +
+                           std::to_string(kMaxSignatureRuns) + " at once: narrow since/until");
 }
 
 std::string fit_cell(const nlohmann::json& fit) {
@@ -36,10 +59,13 @@ std::string fit_cell(const nlohmann::json& fit) {
 std::string station_row(const nlohmann::json& st, std::size_t candidates) {
   const bool flagged = st.value("flagged", false);
   std::string s = "<tr data-station='" + esc(st["station"].get<std::string>()) +
-                  "' data-flagged='" + (flagged ? "1" : "0") + "'><td>" +
+                  "' data-flagged='" + (flagged ? "1" : "0") + "' data-runs='" +
+                  std::to_string(st["runs"].get<int>()) + "'><td>" +
                   esc(st["station"].get<std::string>()) + "</td><td class='num'>" +
-                  std::to_string(st["runs"].get<int>()) + "</td><td class='num'>" +
-                  std::to_string(st["population_units"].get<int>()) + "</td><td class='num'>" +
+                  std::to_string(st["runs"].get<int>()) + "</td><td class='num' data-units='" +
+                  std::to_string(st["units"].get<int>()) + "' data-population-units='" +
+                  std::to_string(st["population_units"].get<int>()) + "'>" +
+                  std::to_string(st["units"].get<int>()) + "</td><td class='num'>" +
                   std::to_string(st["repeat_units"].get<int>()) + "</td>";
   if (!st["assessed"].get<bool>())
     return s + "<td colspan='" + std::to_string(candidates + 1) +
@@ -106,30 +132,53 @@ std::string signatures_banner(const History& history) {
     return "<p id='signature-banner' class='muted'>Station signatures unavailable: " +
            esc(e.what()) + "</p>\n";
   }
-  std::string flagged;
-  int n = 0;
-  for (const auto& st : report["stations"])
-    if (st.value("flagged", false)) {
-      std::string causes;
-      for (const auto& alarm : st["alarms"])
-        causes += (causes.empty() ? "" : "; ") + alarm["cause"].get<std::string>();
-      flagged += "<li data-station='" + esc(st["station"].get<std::string>()) + "'><b>" +
-                 esc(st["station"].get<std::string>()) + "</b>: " + esc(causes) + " (" +
-                 std::to_string(st["run_ids"].size()) + " runs)</li>";
-      ++n;
+  std::string flagged, not_assessed;
+  int n = 0, assessed = 0, unassessed = 0;
+  for (const auto& st : report["stations"]) {
+    const std::string name = st["station"].get<std::string>();
+    if (!st["assessed"].get<bool>()) {
+      // Issue #52 item 3: what /signatures says of it, not silence read as "not flagged".
+      not_assessed += "<li data-station='" + esc(name) + "' data-assessed='0'><b>" + esc(name) +
+                      "</b>: not assessed: " + esc(st["why_not"].get<std::string>()) + "</li>";
+      ++unassessed;
+      continue;
     }
+    ++assessed;
+    if (!st.value("flagged", false)) continue;
+    std::string causes;
+    for (const auto& alarm : st["alarms"])
+      causes += (causes.empty() ? "" : "; ") + alarm["cause"].get<std::string>();
+    flagged += "<li data-station='" + esc(name) + "'><b>" + esc(name) + "</b>: " + esc(causes) +
+               " (" + count_of(static_cast<std::int64_t>(st["run_ids"].size()), "run") + ")</li>";
+    ++n;
+  }
   const std::string week = "the week to " + short_time(*window.until_ms) + " UTC";
-  if (n == 0)
-    return "<p id='signature-banner' class='muted' data-flagged='0'>Station signatures over " +
-           week + ": no station flagged (<a href='/signatures'>signatures</a>).</p>\n";
-  return "<div id='signature-banner' class='alarm' data-flagged='" + std::to_string(n) + "'><p>" +
-         std::to_string(n) + (n == 1 ? " station departs" : " stations depart") +
-         " from the fleet over " + week + " (<a href='/signatures'>signatures</a>):</p><ul>" +
-         flagged + "</ul></div>\n";
+  const std::string attrs = " data-flagged='" + std::to_string(n) + "' data-assessed='" +
+                            std::to_string(assessed) + "' data-not-assessed='" +
+                            std::to_string(unassessed) + "'";
+  const std::string link = " (<a href='/signatures'>signatures</a>)";
+  std::string text;
+  if (report["stations"].empty())
+    text = "no factory AINS results to assess";
+  else if (n == 0 && unassessed == 0)
+    text = "no station flagged";
+  else if (n == 0)
+    text = assessed == 0 ? "no station assessed"
+                         : "no station flagged among the " + count_of(assessed, "assessed station");
+  if (!text.empty() && not_assessed.empty())
+    return "<p id='signature-banner' class='muted'" + attrs + ">Station signatures over " + week +
+           ": " + text + link + ".</p>\n";
+  std::string head = n == 0
+                         ? "Station signatures over " + week + ": " + text + link + ":"
+                         : std::to_string(n) + (n == 1 ? " station departs" : " stations depart") +
+                               " from the fleet over " + week + link + ":";
+  return "<div id='signature-banner' class='" + std::string(n ? "alarm" : "muted") + "'" + attrs +
+         "><p>" + head + "</p><ul>" + flagged + not_assessed + "</ul></div>\n";
 }
 
 std::string signatures_page(const History& history, const Params& query) {
-  const db::history::FleetFilter window = window_of(history, query);
+  std::string notes;
+  const db::history::FleetFilter window = window_of(history, query, notes);
   std::string b = "<h1>Station signatures: what one run cannot see</h1>\n";
   b += "<form class='filters' action='/signatures' method='get'><label>since <input name='since' "
        "size='12' value='" +
@@ -140,8 +189,9 @@ std::string signatures_page(const History& history, const Params& query) {
   if (!window.until_ms) return page("Station signatures", b + "<p>No runs stored yet.</p>\n");
   b += "<p id='window' data-since-ms='" + std::to_string(*window.since_ms) + "' data-until-ms='" +
        std::to_string(*window.until_ms) + "'>Factory AINS results of runs started from " +
-       short_time(*window.since_ms) + " until (before) " + short_time(*window.until_ms) +
-       " UTC.</p>\n";
+       short_time(*window.since_ms) + " until (before) " + short_time(*window.until_ms) + " UTC." +
+       note_span(notes) + "</p>\n";
+  check_signature_runs(history, window);
   const nlohmann::json report = tools::report::station_signature_report(
       *history.stats, window, calib::studies::fleet::SignatureOptions{});
   if (report["stations"].empty())
@@ -193,19 +243,47 @@ int period_days_of(const Params& query) {
   return days;
 }
 
+/// The trend's window (issue #52 items 5 and 12): since/until clamped to the served dates; the end
+/// no later than the newest run's day (no period after it holds a run); periods starting at
+/// `since` when it is given (the end moved on to close the last one), at most kMaxTrendPeriods
+/// of them — the newest. `notes` says what was moved and why.
+db::history::FleetFilter trend_window(const History& history, const Params& query, int period_days,
+                                      std::string& notes) {
+  db::history::FleetFilter w = window_of(history, query, notes, 12 * period_days);
+  if (!w.until_ms) return w;
+  const db::history::TimestampMs period_ms = period_days * kDayMs;
+  const auto newest = history.repo->recent_runs(1);
+  if (newest.empty()) return w;  // an empty history with until given: nothing to cut
+  const db::history::TimestampMs newest_end =
+      (db::history::utc_day(newest.front().started_at_ms) + 1) * kDayMs;
+  if (*w.until_ms > newest_end) {
+    w.until_ms = newest_end;
+    if (*w.since_ms >= newest_end) w.since_ms = newest_end - period_ms;
+    notes += "The window ends with the newest run's day, " + utc_date(newest_end - 1) + ". ";
+  }
+  const db::history::TimestampMs span = *w.until_ms - *w.since_ms;
+  const db::history::TimestampMs n = (span + period_ms - 1) / period_ms;
+  if (n > kMaxTrendPeriods) {
+    w.since_ms = *w.until_ms - kMaxTrendPeriods * period_ms;
+    notes += "At most " + std::to_string(kMaxTrendPeriods) + " periods are shown: the newest " +
+             std::to_string(kMaxTrendPeriods) + ", from " + utc_date(*w.since_ms) + ". ";
+  } else if (!query_value(query, "since").empty() && span % period_ms != 0) {
+    w.until_ms = *w.since_ms + n * period_ms;
+    notes += "Periods start at since; the last one ends " + short_time(*w.until_ms) + " UTC. ";
+  }
+  return w;
+}
+
 /// Station × period: the strongest |z| ('*' and the cause's effect when flagged).
 std::string trend_table(const nlohmann::json& trend) {
   std::string b = "<table id='trend'>\n<tr><th>station</th>";
   for (const auto& p : trend["periods"])
-    b += "<th class='num'>" +
-         db::history::format_time_utc(p["since_ms"].get<db::history::TimestampMs>()).substr(5, 5) +
-         "</th>";
+    b += "<th class='num'>" + utc_date(p["since_ms"].get<db::history::TimestampMs>()) + "</th>";
   b += "</tr>\n";
   for (const auto& name : trend["stations"]) {
     b += "<tr><td>" + esc(name.get<std::string>()) + "</td>";
     for (const auto& p : trend["periods"]) {
-      const std::string period =
-          db::history::format_time_utc(p["since_ms"].get<db::history::TimestampMs>()).substr(0, 10);
+      const std::string period = utc_date(p["since_ms"].get<db::history::TimestampMs>());
       const nlohmann::json* cell = tools::report::signature_trend_cell(p, name.get<std::string>());
       if (!cell || !cell->contains("strongest")) {
         b += "<td class='num muted'>–</td>";
@@ -230,7 +308,8 @@ std::string trend_table(const nlohmann::json& trend) {
 
 std::string signature_trend_page(const History& history, const Params& query) {
   const int period_days = period_days_of(query);
-  const db::history::FleetFilter window = window_of(history, query, 12 * period_days);
+  std::string notes;
+  const db::history::FleetFilter window = trend_window(history, query, period_days, notes);
   std::string b = "<h1>Station signatures period by period</h1>\n";
   b += "<form class='filters' action='/signatures/trend' method='get'><label>since <input "
        "name='since' size='12' value='" +
@@ -241,6 +320,12 @@ std::string signature_trend_page(const History& history, const Params& query) {
        "'></label><label>period (days) <input name='period_days' size='4' value='" +
        std::to_string(period_days) + "'></label> <button type='submit'>Show</button></form>\n";
   if (!window.until_ms) return page("Signature trend", b + "<p>No runs stored yet.</p>\n");
+  b += "<p id='window' data-since-ms='" + std::to_string(*window.since_ms) + "' data-until-ms='" +
+       std::to_string(*window.until_ms) + "' data-periods='" +
+       std::to_string((*window.until_ms - *window.since_ms) / (period_days * kDayMs)) +
+       "'>Periods of " + count_of(period_days, "day") + " from " + short_time(*window.since_ms) +
+       " until (before) " + short_time(*window.until_ms) + " UTC." + note_span(notes) + "</p>\n";
+  check_signature_runs(history, window);
   const nlohmann::json trend = tools::report::station_signature_trend(
       *history.stats, window, period_days, calib::studies::fleet::SignatureOptions{});
   if (trend["stations"].empty())

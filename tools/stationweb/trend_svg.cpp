@@ -79,6 +79,8 @@ void y_range(const std::vector<TrendPoint>& points, const std::vector<int>& idx,
   tools::report::round_range(lo, hi);
 }
 
+/// Five time labels; the first starts and the last ends at its tick, inside the picture (a
+/// centred last label was cut at the chart's edge: issue #52 item 12).
 void time_ticks(std::ostringstream& os, const TimeAxis& axis) {
   const bool short_span = axis.t1_ms - axis.t0_ms < 3 * 24 * kHourMs;
   for (int k = 0; k <= 4; ++k) {
@@ -86,9 +88,12 @@ void time_ticks(std::ostringstream& os, const TimeAxis& axis) {
     const auto t_ms = static_cast<db::history::TimestampMs>(std::llround(t));
     const double x = axis.x(t), y = kTop + kPanelH;
     os << "<line x1='" << x << "' x2='" << x << "' y1='" << y << "' y2='" << y + 5
-       << "' stroke='#888'/><text x='" << x << "' y='" << y + 18
-       << "' text-anchor='middle' font-size='11'>"
-       << (short_span ? short_time(t_ms).substr(0, 16) : utc_date(t_ms)) << "</text>\n";
+       << "' stroke='#888'/><text x='" << x << "' y='" << y + 18 << "' text-anchor='"
+       << (k == 0   ? "start"
+           : k == 4 ? "end"
+                    : "middle")
+       << "' font-size='11'>" << (short_span ? short_time(t_ms).substr(0, 16) : utc_date(t_ms))
+       << "</text>\n";
   }
   os << "<text x='" << kWidth / 2 << "' y='" << kTop + kPanelH + 36
      << "' text-anchor='middle' font-size='12'>calibration time (run start, UTC)</text>\n";
