@@ -49,6 +49,7 @@ FleetQuery parse_query(const History& history, const Params& query) {
     bad_input("until", "the window ends (" + until + ") before it starts (" + since + ")");
   const std::string station = q.echo.find("station")->second;
   if (!station.empty()) q.filter.station = station;
+  if (!station.empty()) check_known_station(history, station);  // #52: not "no runs"
   try {
     db::history::validate_filter(q.filter);
   } catch (const db::history::InvalidInput& e) {
@@ -57,6 +58,7 @@ FleetQuery parse_query(const History& history, const Params& query) {
   const std::string serial = q.echo.find("serial")->second;
   if (!serial.empty()) {
     check_serial(serial, "serial");
+    check_known_serial(history, serial, "serial");  // #52 item 10: "unknown serial", not "no runs"
     q.filter.serial = serial;
   }
   const std::string param = q.echo.find("param")->second;

@@ -35,6 +35,15 @@ void fail(httplib::Response& res, int status, const std::string& field,
   res.set_content(error_page(status, reason_phrase(status), field, message), kHtml);
 }
 
+/// An error page keeps what the page offered (issue #52 item 10): the refusal's own links (a
+/// suggested serial) and the request's parameters as a form to correct and send again.
+void keep_request_form(const httplib::Request& req, httplib::Response& res, const PageError& e) {
+  const auto* more = dynamic_cast<const PageErrorMore*>(&e);
+  std::string extra = (more ? more->more_html : "") + request_form(req.path, req.params);
+  const std::size_t at = res.body.rfind("\n</body>");
+  if (!extra.empty() && at != std::string::npos) res.body.insert(at, "\n" + extra);
+}
+
 /// Renders a page into `res`, mapping its failures to statuses; logs the request and its time.
 void respond(const httplib::Request& req, httplib::Response& res,
              const std::function<std::string()>& render) {
@@ -44,6 +53,7 @@ void respond(const httplib::Request& req, httplib::Response& res,
     res.status = 200;
   } catch (const PageError& e) {
     fail(res, e.status, e.field, e.what());
+    keep_request_form(req, res, e);
   } catch (const db::history::Busy& e) {
     spdlog::warn("{} {}: {}", req.method, req.path, e.what());
     fail(res, 503, "", "The history is busy; try again in a moment.");
@@ -64,6 +74,26 @@ httplib::Server::Handler page_handler(Render render) {
   };
 }
 
+using ReplyRender = std::function<Reply(const httplib::Request&)>;
+
+/// A route that may answer data (?format=csv|json) as well as a page: rendered through respond
+/// (its statuses and logging), then given the reply's media type and download name.
+httplib::Server::Handler reply_handler(ReplyRender render) {
+  return [render = std::move(render)](const httplib::Request& req, httplib::Response& res) {
+    Reply reply;
+    respond(req, res, [&] {
+      reply = render(req);
+      return reply.body;
+    });
+    if (res.status != 200) return;
+    std::string body;
+    body.swap(res.body);
+    res.set_content(body, reply.content_type);
+    if (!reply.filename.empty())
+      res.set_header("Content-Disposition", "attachment; filename=\"" + reply.filename + "\"");
+  };
+}
+
 void method_not_allowed(const httplib::Request& req, httplib::Response& res) {
   spdlog::debug("{} {} refused: read-only view", req.method, req.path);
   res.set_header("Allow", "GET, HEAD");
@@ -75,8 +105,8 @@ void method_not_allowed(const httplib::Request& req, httplib::Response& res) {
 
 void install_routes(httplib::Server& server, const History& history) {
   const History* h = &history;
-  server.Get("/",
-             page_handler([h](const httplib::Request& req) { return index_page(*h, req.params); }));
+  server.Get(
+      "/", reply_handler([h](const httplib::Request& req) { return index_reply(*h, req.params); }));
   server.Get("/unit", [](const httplib::Request& req, httplib::Response& res) {
     std::string serial;
     respond(req, res, [&] {
@@ -85,11 +115,16 @@ void install_routes(httplib::Server& server, const History& history) {
     });
     if (res.status == 200) res.set_redirect("/unit/" + url_encode(serial), 303);
   });
-  server.Get(R"(/unit/([^/]*))", page_handler([h](const httplib::Request& req) {
-               return unit_page(*h, req.matches[1].str());
+  server.Get(R"(/unit/([^/]*))", reply_handler([h](const httplib::Request& req) {
+               return unit_reply(*h, req.matches[1].str(), req.params);
              }));
   server.Get(R"(/run/([^/]*))", page_handler([h](const httplib::Request& req) {
-               return run_page(*h, req.matches[1].str());
+               return run_page_checked(*h, req.matches[1].str(), req.params);
+             }));
+  server.Get("/runs", reply_handler(
+                          [h](const httplib::Request& req) { return runs_reply(*h, req.params); }));
+  server.Get("/compare", reply_handler([h](const httplib::Request& req) {
+               return compare_reply(*h, req.params);
              }));
   server.Get("/fleet",
              page_handler([h](const httplib::Request& req) { return fleet_page(*h, req.params); }));
