@@ -316,7 +316,9 @@ TEST_F(StationwebQaTest, Item8RunsPageListsTheRunsBehindAFleetCount) {
   for (const auto& row : tags(test_support::section(html, "runs", "</table>"), "<tr class='run'"))
     got.push_back(std::stoll(row["data-run-id"]));
   EXPECT_EQ(got, want);
-  EXPECT_EQ(tags(html, "<span id='runs-matched'")[0]["data-value"], std::to_string(want.size()));
+  const auto matched = tags(html, "<span id='runs-matched'");
+  ASSERT_EQ(matched.size(), 1u);
+  EXPECT_EQ(matched[0]["data-value"], std::to_string(want.size()));
   // By station and parameter: the AINS value of each run, as stored.
   const std::string p = get_ok("/runs?station=st-2&param=gyro_bias_radps%5B2%5D&since=2026-11-01");
   const auto rows = tags(test_support::section(p, "runs", "</table>"), "<tr class='run'");
@@ -391,7 +393,9 @@ TEST_F(StationwebQaTest, Item9UnitPageMarksVerdictsSpreadsRunsAndShowsTheActiveS
   ASSERT_EQ(rows.size(), static_cast<std::size_t>(calib::core::ParamSet::kSize));
   for (int i = 0; i < calib::core::ParamSet::kSize; ++i)
     EXPECT_DOUBLE_EQ(test_support::number(rows[i]["data-value-si"]), v(i));
-  EXPECT_EQ(tags(html, "<table id='active-values'")[0]["data-run-id"], id(active.run.run_id));
+  const auto table_tag = tags(html, "<table id='active-values'");
+  ASSERT_EQ(table_tag.size(), 1u);
+  EXPECT_EQ(table_tag[0]["data-run-id"], id(active.run.run_id));
 }
 
 // ----- item 10: forgiving search ----------------------------------------------------------------

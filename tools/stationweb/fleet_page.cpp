@@ -49,12 +49,12 @@ FleetQuery parse_query(const History& history, const Params& query) {
     bad_input("until", "the window ends (" + until + ") before it starts (" + since + ")");
   const std::string station = q.echo.find("station")->second;
   if (!station.empty()) q.filter.station = station;
-  if (!station.empty()) check_known_station(history, station);  // #52: not "no runs"
   try {
     db::history::validate_filter(q.filter);
   } catch (const db::history::InvalidInput& e) {
     bad_input("station", e.what());
   }
+  if (!station.empty()) check_known_station(history, station);  // #52: not "no runs"
   const std::string serial = q.echo.find("serial")->second;
   if (!serial.empty()) {
     check_serial(serial, "serial");

@@ -85,8 +85,8 @@ void check_known_serial(const History& history, const std::string& serial,
       html += (html.empty() ? "" : " or ") + unit_link(s);
       text += (text.empty() ? "" : " or ") + s;
     }
-    const std::string message = field + ": unknown serial: no unit with serial number \"" + serial +
-                                "\" in this history" +
+    const std::string message = "No unit with serial number \"" + serial +
+                                "\" in this history (unknown serial)" +
                                 (near.empty() ? "" : "; did you mean " + text + "?");
     throw PageErrorMore(404, field, message,
                         near.empty() ? std::string()
