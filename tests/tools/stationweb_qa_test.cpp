@@ -464,7 +464,7 @@ TEST_F(StationwebQaTest, ChromiumRendersTheQaPages) {
     std::remove(shot.c_str());
     const auto r = test_support::run_command(
         "timeout 120 chromium --headless --no-sandbox --disable-gpu --hide-scrollbars "
-        "--window-size=1280,1400 --screenshot=" +
+        "--window-size=1280,2400 --screenshot=" +
         shot + " '" + base + p.target + "' 2>/dev/null");
     EXPECT_EQ(r.code, 0);
     std::ifstream f(shot, std::ios::binary | std::ios::ate);

@@ -120,22 +120,22 @@ std::string unit_page(const History& history, const std::string& serial) {
   const std::vector<TrendPoint> points = ains_points(*history.repo, serial);
   std::string b = "<h1>Unit " + esc(serial) + "</h1>\n<p><span id='run-count' data-value='" +
                   std::to_string(runs.size()) + "'>" + std::to_string(runs.size()) +
-                  "</span> runs, newest first.</p>\n" + active_line(active) + active_values(active);
-  // The history first (issue #52 item 9: it sat ~2 500 px below the charts), the trend after.
-  b += "<p id='jump'><a href='#history'>History</a> · <a href='#trend'>Parameter trend</a></p>\n";
+                  "</span> runs, newest first.</p>\n" + active_line(active);
+  // The history first (issue #52 item 9: it sat ~2 500 px below the charts), then the active
+  // set's values, then the trend.
+  b += "<p id='jump'><a href='#history'>History</a> · <a href='#active-values-box'>Active "
+       "set's values</a> · <a href='#trend'>Parameter trend</a></p>\n";
   b += "<h2>History</h2>\n" + run_table(runs, false, "history") +
-       download_links("/unit/" + url_encode(serial));
+       download_links("/unit/" + url_encode(serial)) + active_values(active);
   b += "<h2 id='trend'>Parameter trend</h2>\n<p class='muted'>Each calibration's AINS estimate "
        "(<span "
        "id='trend-count' data-value='" +
        std::to_string(points.size()) + "'>" + std::to_string(points.size()) +
        "</span> runs with one) at its run's start time; the dark band is ±1σ, the light band "
-       "±3σ; the dashed line marks the run of the active set. Markers by verdict: ● PASS (filled), "
-       "○ "
-       "REVIEW (a ring in the colour), a dark ring any other; runs closer in time than a marker "
-       "are spread "
-       "apart (each point's tooltip has its exact time). Parameters a run does not determine "
-       "are not drawn.</p>\n";
+       "±3σ; the dashed line marks the run of the active set. Markers by verdict: ● PASS "
+       "(filled), ○ REVIEW (a ring in the colour), a dark ring any other; runs closer in time "
+       "than a marker are spread apart (each point's tooltip has its exact time). Parameters a "
+       "run does not determine are not drawn.</p>\n";
   const std::optional<db::history::RunId> active_run =
       active ? std::optional<db::history::RunId>(active->run.run_id) : std::nullopt;
   if (points.empty()) b += "<p>No calibration stored yet.</p>\n";
