@@ -68,6 +68,11 @@ const json& object(const json& o, const char* key) {
   return it != o.end() && it->is_object() ? *it : empty;
 }
 
+/// Whether `d` has `key` at all: a run's stored summary (db::archive::diagnosis_summary_json, what
+/// stationweb shows) has no segments, candidates, whiteness or chi2, and its text leaves them out
+/// rather than print empty tables and NaN (issue #52 item 6).
+bool has(const json& d, const char* key) { return d.is_object() && d.contains(key); }
+
 /// A sea run's residuals are the navigation filter's GNSS innovations, not rests and moves.
 bool at_sea(const json& d) { return text(d, "residuals") == "gnss_innovations"; }
 
@@ -95,7 +100,10 @@ void run_line(std::string& out, const json& d) {
   if (!text(d, "sequence").empty()) add(out, "sequence %s, ", text(d, "sequence").c_str());
   if (d.contains("samples") && d["samples"].is_number_unsigned())
     add(out, "%zu samples, ", d["samples"].get<std::size_t>());
-  add(out, "%zu segments)\n", list(d, "segments").size());
+  if (has(d, "segments"))
+    add(out, "%zu segments)\n", list(d, "segments").size());
+  else
+    add(out, "stored summary)\n");
   add(out, "verdict: %s -- %s\n", text(d, "verdict").c_str(), text(d, "summary").c_str());
 }
 
@@ -112,6 +120,21 @@ void parameters(std::string& out, const json& params) {
   add(out, "\n");
 }
 
+/// A stored summary has no candidates to look the best effect up in: its best (and second) effect
+/// with size and unit as stored. Nothing for a full diagnosis, whose candidate table has them.
+void best_of_summary(std::string& out, const json& d) {
+  if (has(d, "candidates")) return;
+  for (const char* key : {"best", "second"}) {
+    const json& b = object(d, key);
+    if (!b.contains("effect")) continue;
+    add(out, "%s effect: %s = %.3g +- %.2g %s\n", key, text(b, "effect").c_str(),
+        value(b, "magnitude"), value(b, "sigma"), text(b, "unit").c_str());
+  }
+  for (const json& a : list(d, "ambiguous"))
+    if (a.is_string())
+      add(out, "  not told apart from the best: %s\n", a.get<std::string>().c_str());
+}
+
 /// The explained set step by step (sizes from its joint fit) or, for an ambiguous set, each
 /// member's own fit.
 void explained_by(std::string& out, const json& d) {
@@ -126,14 +149,18 @@ void explained_by(std::string& out, const json& d) {
         if (o.is_string()) name += " | " + o.get<std::string>();
       add(out,
           "  %zu. %s = %.3g +- %.2g %s (p %.2g given the steps before; chi2/dof -> %.3f, "
-          "held-out gap -> %.3f)\n    ",
+          "held-out gap -> %.3f)\n",
           i + 1, name.c_str(), value(s, "magnitude"), value(s, "sigma"), text(s, "unit").c_str(),
           value(s, "p_value"), value(s, "gap_after"), value(s, "held_out_after"));
-      parameters(out, list(s, "parameters"));
+      if (has(s, "parameters")) {  // a stored summary's steps have none
+        add(out, "    ");
+        parameters(out, list(s, "parameters"));
+      }
       if (!text(s, "note").empty()) add(out, "    (%s)\n", text(s, "note").c_str());
     }
     return;
   }
+  best_of_summary(out, d);
   for (const json& name : list(d, "explained_by"))
     for (const json& c : list(d, "candidates")) {
       if (!name.is_string() || text(c, "effect") != name.get<std::string>()) continue;
@@ -158,6 +185,11 @@ void not_supported(std::string& out, const json& d) {
 void overall(std::string& out, const json& d) {
   const json& o = object(d, "overall");
   const int dof = o.contains("dof") && o["dof"].is_number() ? o["dof"].get<int>() : 0;
+  if (!has(o, "chi2")) {  // a stored summary: the ratio, its expectation and p only
+    add(out, "overall gap: chi2/dof %.3f (expected 1 +- %.3f; p %.2g)\n", value(o, "gap"),
+        value(o, "sigma"), value(o, "p_value"));
+    return;
+  }
   add(out, "overall gap: chi2/dof %.3f (chi2 %.1f, dof %d; expected 1 +- %.3f; p %.2g)",
       value(o, "gap"), value(o, "chi2"), dof, value(o, "sigma"), value(o, "p_value"));
   if (object(d, "best").contains("effect") || !list(d, "ambiguous").empty())
@@ -180,7 +212,9 @@ void overall(std::string& out, const json& d) {
 }
 
 void whiteness_and_held_out(std::string& out, const json& d) {
-  if (at_sea(d)) {
+  if (!has(d, "whiteness")) {
+    // a stored summary: no rest-sample figures to report
+  } else if (at_sea(d)) {
     add(out, "rest samples: not judged at sea (the deck turns the unit during its rests)\n");
   } else {
     add(out, "rest samples, lag-1 autocorrelation (z vs declared noise):");
@@ -192,6 +226,7 @@ void whiteness_and_held_out(std::string& out, const json& d) {
     }
     add(out, "\n");
   }
+  if (!has(d, "held_out")) return;
   const json& h = object(d, "held_out");
   if (h.contains("gap_after") && h["gap_after"].is_number()) {
     add(out, "held-out gap (fit on the other segments): %.3f -> %.3f", value(h, "gap_before"),
@@ -215,6 +250,7 @@ bool separable_from_base(const json& c) {
 /// Every candidate in the diagnosis' rank order (findings first, by held-out gap; then the
 /// separable ones by score), each column labelled.
 void candidates(std::string& out, const json& d) {
+  if (!has(d, "candidates")) return;
   add(out, "\ncandidate effects, ranked (score = BIC gain; LR = chi2 drop when added):\n");
   add(out, "  %-24s %10s %10s %3s %9s  %-28s %9s  %s\n", "effect", "score", "LR", "k", "p",
       "magnitude +- 1 sigma", "held-out", "note");
@@ -248,6 +284,7 @@ std::size_t worst_component(const json& g, const std::vector<std::string>& keys)
 }
 
 void segments(std::string& out, const json& d) {
+  if (!has(d, "segments")) return;
   const std::vector<std::string> keys = components(d);
   std::vector<const json*> s;
   for (const json& g : list(d, "segments")) s.push_back(&g);

@@ -68,9 +68,11 @@ FleetQuery parse_query(const History& history, const Params& query) {
     bad_input("station", e.what());
   }
   parse_setting_and_verdict(q);
+  if (!station.empty()) check_known_station(history, station);  // #52: not "no runs"
   const std::string serial = q.echo.find("serial")->second;
   if (!serial.empty()) {
     check_serial(serial, "serial");
+    check_known_serial(history, serial, "serial");  // #52 item 10: "unknown serial", not "no runs"
     q.filter.serial = serial;
   }
   const std::string param = q.echo.find("param")->second;

@@ -24,6 +24,18 @@ std::size_t parse_limit(const std::string& text) {
 
 }  // namespace
 
+Reply index_reply(const History& history, const Params& query) {
+  check_known_params(query, {"limit", "format"});
+  const Format format = parse_format(query);
+  if (format == Format::kHtml) return {index_page(history, query)};
+  const std::size_t limit = parse_limit(query_value(query, "limit"));
+  const std::vector<db::history::RunRecord> runs = history.repo->recent_runs(limit);
+  if (format == Format::kJson)
+    return {run_list_json("", runs, history.repo->total_run_count()), "application/json",
+            "recent-runs.json"};
+  return {run_list_csv(runs), "text/csv; charset=utf-8", "recent-runs.csv"};
+}
+
 std::string index_page(const History& history, const Params& query) {
   const std::size_t limit = parse_limit(query_value(query, "limit"));
   const std::vector<db::history::RunRecord> runs = history.repo->recent_runs(limit);
@@ -37,6 +49,7 @@ std::string index_page(const History& history, const Params& query) {
   b += "<h2>Newest " + std::to_string(runs.size()) + " runs</h2>\n";
   if (runs.empty()) return page("Recent runs", b + "<p>No runs yet.</p>\n");
   b += run_table(runs, true, "recent-runs");
+  b += download_links("/?limit=" + std::to_string(limit));
   if (total > runs.size())
     b += "<p class='muted'>Older runs: <a href='/?limit=" + std::to_string(kMaxLimit) +
          "'>the newest " + std::to_string(kMaxLimit) +

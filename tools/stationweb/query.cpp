@@ -17,7 +17,7 @@ void check_serial(const std::string& serial, const std::string& field) {
 }
 
 std::string unit_search(const Params& query) {
-  const std::string serial = query_value(query, "serial");
+  const std::string serial = trimmed(query_value(query, "serial"));  // a pasted " SN-0008 "
   if (serial.empty()) bad_input("serial", "no serial number given");
   check_serial(serial, "serial");
   return serial;

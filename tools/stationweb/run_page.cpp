@@ -7,6 +7,7 @@
 #include "db/history/fleet_stats.hpp"
 #include "station/control/record_json.hpp"
 #include "tools/stationweb/html.hpp"
+#include "tools/stationweb/next_step.hpp"
 #include "tools/stationweb/pages.hpp"
 #include "tools/stationweb/run_page_parts.hpp"
 #include "tools/stationweb/run_table.hpp"
@@ -55,7 +56,44 @@ std::string siblings(const History& history, const db::history::RunRecord& r) {
          run_table(runs, true, "siblings");
 }
 
+/// The runs reprocessed from `r` (newest first): the other direction of "reprocessed from", so a
+/// run whose reason says "reprocess it" leads to its reprocess (issue #52 item 8).
+std::vector<db::history::RunRecord> reprocesses_of(const History& history,
+                                                   const db::history::RunRecord& r) {
+  std::vector<db::history::RunRecord> out;
+  try {
+    for (db::history::RunRecord& x : history.repo->history(r.serial))
+      if (x.reprocessed_from && *x.reprocessed_from == r.run_id) out.push_back(std::move(x));
+  } catch (const db::history::DbError&) {
+    // a serial stored before the serial rule cannot be looked up by name: no links, no failure
+  }
+  return out;
+}
+
+std::string reprocess_links(const std::vector<db::history::RunRecord>& reprocesses) {
+  if (reprocesses.empty()) return "";
+  std::string s = "<p id='reprocessed-as'>Reprocessed as run";
+  s += reprocesses.size() > 1 ? "s " : " ";
+  for (std::size_t i = 0; i < reprocesses.size(); ++i)
+    s += (i ? ", " : "") + run_link(reprocesses[i].run_id) + " (" +
+         verdict_html(reprocesses[i].verdict) + ")";
+  return s + ".</p>\n";
+}
+
+std::optional<bool> capture_complete(const json& run) {
+  if (!run.contains("capture") || !run["capture"].is_object()) return std::nullopt;
+  const json& c = run["capture"];
+  if (!c.contains("complete") || !c["complete"].is_boolean()) return std::nullopt;
+  return c["complete"].get<bool>();
+}
+
 }  // namespace
+
+std::string run_page_checked(const History& history, const std::string& run_id_text,
+                             const Params& query) {
+  check_known_params(query, {});
+  return run_page(history, run_id_text);
+}
 
 std::string run_page(const History& history, const std::string& run_id_text) {
   const db::history::RunId id = parse_run_id(run_id_text);
@@ -67,7 +105,16 @@ std::string run_page(const History& history, const std::string& run_id_text) {
   }
   const json show = station::control::show_result(details);
   const db::history::RunRecord& r = details.run;
+  const std::vector<db::history::RunRecord> reprocesses = reprocesses_of(history, r);
   std::string b = head(r);
+  b += next_step_section(next_steps(r, reprocesses, capture_complete(show["run"])));
+  b += reprocess_links(reprocesses);
+  b += "<p class='muted'><a href='/compare?a=" + std::to_string(id) +
+       (reprocesses.empty() && !r.reprocessed_from
+            ? std::string()
+            : "&amp;b=" + std::to_string(reprocesses.empty() ? *r.reprocessed_from
+                                                             : reprocesses.front().run_id)) +
+       "'>Compare this run with another</a></p>\n";
   b += "<h2>Run</h2>\n" + facts_table(r);
   b += siblings(history, r);
   b += capture_section(show["run"]);

@@ -5,6 +5,7 @@
 
 #include "calib/core/param_set.hpp"
 #include "station/control/record_json.hpp"
+#include "tools/report/diagnosis_text.hpp"
 #include "tools/stationweb/html.hpp"
 #include "tools/stationweb/page_util.hpp"
 
@@ -52,6 +53,24 @@ std::string optional_rows(const db::history::RunRecord& r) {
                              esc(r.promote_reason));
   if (r.reprocessed_from) s += row("reprocessed", "from run " + run_link(*r.reprocessed_from));
   return s;
+}
+
+/// The diagnosis in words with units (issue #52 item 6): the one renderer `stationctl diagnose` and
+/// `imucal diagnose` print with (tools/report/diagnosis_text.hpp), given the stored summary and the
+/// run it belongs to. A diagnosis that did not run says why instead.
+std::string diagnosis_words(const json& run, const json& g) {
+  if (g.value("verdict", std::string()) == "not run")
+    return "<p id='diagnosis-text'>Not run: " + esc(g.value("reason", std::string("-"))) + "</p>\n";
+  json d = g;
+  d["run_id"] = run.value("run_id", json(nullptr));
+  d["serial"] = run.value("serial", std::string());
+  d["sequence"] = run.value("sequence_name", std::string());
+  d["archive"] = run.value("archive_path", std::string());
+  const std::string id = run.contains("run_id") ? run["run_id"].dump() : "RUN_ID";
+  return "<pre id='diagnosis-text'>" + esc(tools::report::diagnosis_report_text(d)) +
+         "</pre>\n<p class='muted'>The stored summary; the whole diagnosis (candidate effects, "
+         "segments, rest samples) from the archive: <code>stationctl diagnose " +
+         esc(id) + "</code>.</p>\n";
 }
 
 }  // namespace
@@ -116,7 +135,10 @@ std::string diagnosis_section(const json& run) {
   if (g.value("known_effects_only", false))
     s += "<p>Explained by the product's known effects alone ([calibration] known_effects): no "
          "review.</p>\n";
-  return s + json_html(g) + "\n</div>\n";
+  s += diagnosis_words(run, g);
+  // Every stored field, for whoever needs one the text leaves out; closed: it is not the report.
+  return s + "<details id='diagnosis-fields'><summary>Stored fields</summary>\n" + json_html(g) +
+         "\n</details>\n</div>\n";
 }
 
 std::string calibration_table(const std::vector<db::history::CalibrationRecord>& cals) {

@@ -43,6 +43,15 @@ void return_memory(std::size_t body_bytes, double ms) {
   if (body_bytes > (256u << 10) || ms > 50) malloc_trim(0);
 }
 
+/// An error page keeps what the page offered (issue #52 item 10): the refusal's own links (a
+/// suggested serial) and the request's parameters as a form to correct and send again.
+void keep_request_form(const httplib::Request& req, httplib::Response& res, const PageError& e) {
+  const auto* more = dynamic_cast<const PageErrorMore*>(&e);
+  std::string extra = (more ? more->more_html : "") + request_form(req.path, req.params);
+  const std::size_t at = res.body.rfind("\n</body>");
+  if (!extra.empty() && at != std::string::npos) res.body.insert(at, "\n" + extra);
+}
+
 /// Renders a page into `res`, mapping its failures to statuses, with the source's notice on top
 /// (a history file deleted or replaced under the server); logs the request and its time.
 void respond(const httplib::Request& req, httplib::Response& res,
@@ -61,6 +70,7 @@ void respond(const httplib::Request& req, httplib::Response& res,
     res.status = 200;
   } catch (const PageError& e) {
     fail(res, e.status, e.field, e.what());
+    keep_request_form(req, res, e);
   } catch (const db::history::Busy& e) {
     spdlog::warn("{} {}: {}", req.method, req.path, e.what());
     fail(res, 503, "", "The history is busy; try again in a moment.");
@@ -84,6 +94,29 @@ httplib::Server::Handler page_handler(const History* h, Render render) {
   };
 }
 
+using ReplyRender = std::function<Reply(const httplib::Request&)>;
+
+/// A route that may answer data (?format=csv|json) as well as a page: rendered through respond
+/// (its statuses and logging), then given the reply's media type and download name.
+httplib::Server::Handler reply_handler(const History* h, ReplyRender render) {
+  return [h, render = std::move(render)](const httplib::Request& req, httplib::Response& res) {
+    Reply reply;
+    respond(
+        req, res,
+        [&] {
+          reply = render(req);
+          return reply.body;
+        },
+        h->source_notice);  // with_notice leaves what is not a page (CSV, JSON) as it is
+    if (res.status != 200) return;
+    std::string body;
+    body.swap(res.body);
+    res.set_content(body, reply.content_type);
+    if (!reply.filename.empty())
+      res.set_header("Content-Disposition", "attachment; filename=\"" + reply.filename + "\"");
+  };
+}
+
 void method_not_allowed(const httplib::Request& req, httplib::Response& res) {
   spdlog::debug("{} {} refused: read-only view", req.method, req.path);
   res.set_header("Allow", "GET, HEAD");
@@ -95,8 +128,8 @@ void method_not_allowed(const httplib::Request& req, httplib::Response& res) {
 
 void install_routes(httplib::Server& server, const History& history) {
   const History* h = &history;
-  server.Get("/", page_handler(
-                      h, [h](const httplib::Request& req) { return index_page(*h, req.params); }));
+  server.Get("/", reply_handler(
+                      h, [h](const httplib::Request& req) { return index_reply(*h, req.params); }));
   server.Get("/unit", [](const httplib::Request& req, httplib::Response& res) {
     std::string serial;
     respond(req, res, [&] {
@@ -105,11 +138,17 @@ void install_routes(httplib::Server& server, const History& history) {
     });
     if (res.status == 200) res.set_redirect("/unit/" + url_encode(serial), 303);
   });
-  server.Get(R"(/unit/([^/]*))", page_handler(h, [h](const httplib::Request& req) {
-               return unit_page(*h, req.matches[1].str());
+  server.Get(R"(/unit/([^/]*))", reply_handler(h, [h](const httplib::Request& req) {
+               return unit_reply(*h, req.matches[1].str(), req.params);
              }));
   server.Get(R"(/run/([^/]*))", page_handler(h, [h](const httplib::Request& req) {
-               return run_page(*h, req.matches[1].str());
+               return run_page_checked(*h, req.matches[1].str(), req.params);
+             }));
+  server.Get("/runs", reply_handler(h, [h](const httplib::Request& req) {
+               return runs_reply(*h, req.params);
+             }));
+  server.Get("/compare", reply_handler(h, [h](const httplib::Request& req) {
+               return compare_reply(*h, req.params);
              }));
   server.Get("/fleet", page_handler(h, [h](const httplib::Request& req) {
                return fleet_page(*h, req.params);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <sstream>
 
 #include "tools/report/svg_panel.hpp"
@@ -40,14 +41,40 @@ std::string component_label(int i) {
   return out;
 }
 
+constexpr double kMinGap = 9;  ///< px between two runs' markers (issue #52 item 9: 1.6 px apart)
+
 /// Calibration time to page x, the runs spread between the frame's edges.
 struct TimeAxis {
   double t0_ms, t1_ms;
+  std::map<db::history::RunId, double> spread;  ///< each run's x, at least kMinGap apart
   double x(double t_ms) const {
     return kLeft + kInset +
            (kWidth - kLeft - kRight - 2 * kInset) * (t_ms - t0_ms) / (t1_ms - t0_ms);
   }
+  /// A run's x: its time's, moved just enough that no two runs' markers overlap.
+  double at(const TrendPoint& q) const {
+    const auto it = spread.find(q.run_id);
+    return it == spread.end() ? x(static_cast<double>(q.t_ms)) : it->second;
+  }
 };
+
+/// Runs closer in time than a marker's width pushed apart, forwards then (where that ran past the
+/// frame) backwards; runs that far apart already keep their time's x.
+void spread_runs(TimeAxis& axis, const std::vector<TrendPoint>& points) {
+  std::vector<const TrendPoint*> order;
+  for (const TrendPoint& p : points) order.push_back(&p);
+  std::stable_sort(order.begin(), order.end(), [](const TrendPoint* a, const TrendPoint* b) {
+    return a->t_ms < b->t_ms || (a->t_ms == b->t_ms && a->run_id < b->run_id);
+  });
+  std::vector<double> xs;
+  for (const TrendPoint* p : order)
+    xs.push_back(
+        std::max(axis.x(static_cast<double>(p->t_ms)), xs.empty() ? -1e9 : xs.back() + kMinGap));
+  const double right = kWidth - kRight - 2;
+  for (std::size_t i = xs.size(); i-- > 0;)
+    xs[i] = std::min(xs[i], i + 1 < xs.size() ? xs[i + 1] - kMinGap : right);
+  for (std::size_t i = 0; i < order.size(); ++i) axis.spread[order[i]->run_id] = xs[i];
+}
 
 TimeAxis time_axis(const std::vector<TrendPoint>& points) {
   double t0 = static_cast<double>(points.front().t_ms), t1 = t0;
@@ -60,7 +87,9 @@ TimeAxis time_axis(const std::vector<TrendPoint>& points) {
     t0 = mid - kHourMs / 2;
     t1 = mid + kHourMs / 2;
   }
-  return {t0, t1};
+  TimeAxis axis{t0, t1, {}};
+  spread_runs(axis, points);
+  return axis;
 }
 
 /// The y range in human units covering every drawn value ± 3σ, widened to round ticks.
@@ -107,17 +136,16 @@ void band(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
   auto upper = [&](const TrendPoint* q) { return p.y((q->value(i) + k * q->sigma(i)) * s); };
   auto lower = [&](const TrendPoint* q) { return p.y((q->value(i) - k * q->sigma(i)) * s); };
   if (pts.size() == 1) {
-    const double x = axis.x(static_cast<double>(pts[0]->t_ms));
+    const double x = axis.at(*pts[0]);
     os << "<rect x='" << x - 5 << "' y='" << upper(pts[0]) << "' width='10' height='"
        << std::max(lower(pts[0]) - upper(pts[0]), 0.5) << "' fill='" << colour << "' fill-opacity='"
        << opacity << "'/>\n";
     return;
   }
   os << "<polygon fill='" << colour << "' fill-opacity='" << opacity << "' stroke='none' points='";
-  for (const TrendPoint* q : pts)
-    os << axis.x(static_cast<double>(q->t_ms)) << ',' << upper(q) << ' ';
+  for (const TrendPoint* q : pts) os << axis.at(*q) << ',' << upper(q) << ' ';
   for (auto it = pts.rbegin(); it != pts.rend(); ++it)
-    os << axis.x(static_cast<double>((*it)->t_ms)) << ',' << lower(*it) << ' ';
+    os << axis.at(**it) << ',' << lower(*it) << ' ';
   os << "'/>\n";
 }
 
@@ -133,20 +161,25 @@ void component(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
   const calib::core::ParamInfo& info = calib::core::param_info(i);
   const double s = info.si_to_human;
   os << "<polyline fill='none' stroke='" << colour << "' stroke-width='1.2' points='";
-  for (const TrendPoint* q : pts)
-    os << axis.x(static_cast<double>(q->t_ms)) << ',' << p.y(q->value(i) * s) << ' ';
+  for (const TrendPoint* q : pts) os << axis.at(*q) << ',' << p.y(q->value(i) * s) << ' ';
   os << "'/>\n";
   for (const TrendPoint* q : pts) {
     const bool is_active = active && *active == q->run_id;
-    os << "<circle class='pt" << (is_active ? " active" : "") << "' cx='"
-       << axis.x(static_cast<double>(q->t_ms)) << "' cy='" << p.y(q->value(i) * s) << "' r='"
-       << (is_active ? 5 : 3) << "' fill='" << colour << "' stroke='"
-       << (is_active ? "#000" : colour) << "' stroke-width='" << (is_active ? 2 : 1)
-       << "' data-run-id='" << q->run_id << "' data-param='" << info.name << "' data-value-si='"
-       << exact(q->value(i)) << "' data-sigma-si='" << exact(q->sigma(i)) << "'><title>run "
-       << q->run_id << " " << short_time(q->t_ms) << ": " << info.name << " = "
-       << fmt("%.4g", q->value(i) * s) << " ± " << fmt("%.2g", q->sigma(i) * s) << " "
-       << esc(info.human_unit) << " (1σ)</title></circle>\n";
+    // PASS filled; REVIEW a hollow ring in the component's colour; any other verdict a dark ring.
+    const bool pass = q->verdict == "PASS", review = q->verdict == "REVIEW";
+    const char* stroke = is_active ? "#000" : pass || review ? colour : "#333";
+    os << "<circle class='pt" << (is_active ? " active" : "") << "' cx='" << axis.at(*q) << "' cy='"
+       << p.y(q->value(i) * s) << "' r='"
+       << (is_active ? 5
+           : pass    ? 3
+                     : 4.5)
+       << "' fill='" << (pass ? colour : "#fff") << "' stroke='" << stroke << "' stroke-width='"
+       << (is_active || !pass ? 2 : 1) << "' data-run-id='" << q->run_id << "' data-verdict='"
+       << esc(q->verdict) << "' data-t-ms='" << q->t_ms << "' data-param='" << info.name
+       << "' data-value-si='" << exact(q->value(i)) << "' data-sigma-si='" << exact(q->sigma(i))
+       << "'><title>run " << q->run_id << " (" << esc(q->verdict) << ") " << short_time(q->t_ms)
+       << ": " << info.name << " = " << fmt("%.4g", q->value(i) * s) << " ± "
+       << fmt("%.2g", q->sigma(i) * s) << " " << esc(info.human_unit) << " (1σ)</title></circle>\n";
   }
 }
 
@@ -156,7 +189,7 @@ void active_marker(std::ostringstream& os, const TimeAxis& axis,
   if (!active) return;
   for (const TrendPoint& q : points) {
     if (q.run_id != *active) continue;
-    const double x = axis.x(static_cast<double>(q.t_ms));
+    const double x = axis.at(q);
     os << "<line class='active-marker' x1='" << x << "' x2='" << x << "' y1='" << kTop << "' y2='"
        << kTop + kPanelH << "' stroke='#000' stroke-dasharray='4,3'/>"
        << "<text x='" << x + 4 << "' y='" << kTop + 12 << "' font-size='11'>active set (run "

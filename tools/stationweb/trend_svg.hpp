@@ -4,8 +4,10 @@
 // run's AINS value in human units (µg, ppm, µrad, deg/h, arcsec) with a ±1σ band and a lighter
 // ±3σ band; the active set's run marked. Drawn with the panels of tools/report/svg_panel.hpp.
 //
-// Every point is a <circle class='pt'> with data-run-id, data-param (the parameter-set JSON name),
-// data-value-si and data-sigma-si (as stored, full precision) and a tooltip.
+// Every point is a <circle class='pt'> with data-run-id, data-verdict (PASS filled, REVIEW a
+// hollow ring, any other verdict a dark hollow ring: issue #52 item 9), data-t-ms, data-param (the
+// parameter-set JSON name), data-value-si and data-sigma-si (as stored, full precision) and a
+// tooltip.
 #include <array>
 #include <optional>
 #include <string>
@@ -22,7 +24,8 @@ struct TrendPoint {
   calib::core::ParamVector value = calib::core::ParamVector::Zero();
   calib::core::ParamVector sigma = calib::core::ParamVector::Zero();
   std::array<bool, calib::core::ParamSet::kSize>
-      observable{};  ///< false: not determined, not drawn
+      observable{};     ///< false: not determined, not drawn
+  std::string verdict;  ///< the run's verdict ("PASS", "REVIEW", ...): its marker's shape
 };
 
 /// <svg id='trend-GROUP'> for one group, points in time order.
