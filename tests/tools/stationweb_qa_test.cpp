@@ -330,6 +330,36 @@ TEST_F(StationwebQaTest, Item8RunsPageListsTheRunsBehindAFleetCount) {
   EXPECT_DOUBLE_EQ(test_support::number(values[0]["data-value-si"]), v);
 }
 
+// From a fleet figure to the runs behind it (issue #52 item 8): each verdict count of /fleet links
+// to /runs with its station, verdict, setting and window; every run listed there is that station's
+// with that verdict, and there are at least as many as the figure counts (/runs lists a capture's
+// reprocesses apart, the fleet counts a capture once).
+TEST_F(StationwebQaTest, Item8FleetCountsLinkToTheRunsBehindThem) {
+  const std::string fleet = get_ok("/fleet?since=2026-11-01&until=2026-11-30");
+  const std::string table = test_support::section(fleet, "verdicts", "</table>");
+  int links_followed = 0;
+  for (const std::string verdict : {"PASS", "REVIEW", "FAILED"}) {
+    const std::string needle = "&amp;verdict=" + verdict;
+    for (std::size_t at = table.find(needle); at != std::string::npos;
+         at = table.find(needle, at + 1)) {
+      const std::size_t href = table.rfind("href='", at) + 6;
+      std::string target = table.substr(href, table.find('\'', href) - href);
+      for (std::size_t amp; (amp = target.find("&amp;")) != std::string::npos;)
+        target.replace(amp, 5, "&");
+      const std::string station = target.substr(14, target.find('&') - 14);  // "/runs?station="
+      EXPECT_NE(target.find("&setting=factory"), std::string::npos) << target;
+      EXPECT_NE(target.find("&since=2026-11-01&until=2026-11-30"), std::string::npos) << target;
+      const std::string html = get_ok(target);
+      for (auto& row : tags(test_support::section(html, "runs", "</table>"), "<tr class='run'")) {
+        EXPECT_EQ(row["data-verdict"], verdict) << target;
+        EXPECT_EQ(row["data-station"], station) << target;
+      }
+      ++links_followed;
+    }
+  }
+  EXPECT_GE(links_followed, 3);
+}
+
 TEST_F(StationwebQaTest, Item8AReprocessAndItsOriginLinkBothWays) {
   const std::string origin = get_ok("/run/" + id(runs_.interrupted));
   const std::string as = test_support::section(origin, "reprocessed-as", "</p>");

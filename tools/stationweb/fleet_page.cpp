@@ -176,7 +176,22 @@ std::string runs_chart_section(const FleetQuery& q,
          "<p class='muted'>The numbers: <a href='#runs-per-day'>the table below</a>.</p>\n";
 }
 
-std::string runs_table_section(const std::vector<db::history::StationDayCount>& counts,
+/// The runs behind a fleet figure (issue #52 item 8): /runs with the page's station, window and
+/// setting, plus `more` ("&verdict=PASS", a day's window, a parameter). /runs lists a capture and
+/// its reprocesses apart, where the fleet counts one capture once (its newest run).
+std::string runs_link(const FleetQuery& q, const std::string& station, const std::string& more,
+                      const std::string& text) {
+  std::string href = "/runs?station=" + url_encode(station);
+  if (q.filter.setting) href += "&setting=" + url_encode(*q.filter.setting);
+  if (more.find("&since=") == std::string::npos)
+    for (const char* w : {"since", "until"})
+      if (const std::string v = q.echo.find(w)->second; !v.empty())
+        href += std::string("&") + w + "=" + url_encode(v);
+  return "<a class='runs-link' href='" + esc(href + more) + "'>" + text + "</a>";
+}
+
+std::string runs_table_section(const FleetQuery& q,
+                               const std::vector<db::history::StationDayCount>& counts,
                                const std::vector<std::string>& stations) {
   std::string s = "<h2>Runs per station per day (table)</h2>\n";
   if (counts.empty()) return s + "<p id='runs-per-day'>No runs in this window.</p>\n";
@@ -193,7 +208,11 @@ std::string runs_table_section(const std::vector<db::history::StationDayCount>& 
       const std::int64_t n = it == row.end() ? 0 : it->second;
       total += n;
       s += "<td class='num' data-station='" + esc(st) + "' data-day='" + day_text(day) +
-           "' data-runs='" + std::to_string(n) + "'>" + (n ? std::to_string(n) : "") + "</td>";
+           "' data-runs='" + std::to_string(n) + "'>" +
+           (n ? runs_link(q, st, "&since=" + day_text(day) + "&until=" + day_text(day),
+                          std::to_string(n))
+              : "") +
+           "</td>";
     }
     s += "<td class='num'>" + std::to_string(total) + "</td></tr>\n";
   }
@@ -209,7 +228,8 @@ std::string share(std::int64_t n, std::int64_t total) {
 /// The verdicts per station (issue #50): PASS, REVIEW and FAILED as shares of the runs whose
 /// outcome was the unit's own — its yield — and the station's faults, operators' aborts and
 /// interrupted runs counted apart, per station, never against the units.
-std::string verdict_section(const std::vector<db::history::StationVerdictCounts>& verdicts) {
+std::string verdict_section(const FleetQuery& q,
+                            const std::vector<db::history::StationVerdictCounts>& verdicts) {
   std::string s = "<h2>Verdicts per station</h2>\n";
   if (verdicts.empty()) return s + "<p id='verdicts'>No runs in this window.</p>\n";
   s += verdict_chart(verdicts);
@@ -230,16 +250,21 @@ std::string verdict_section(const std::vector<db::history::StationVerdictCounts>
          attr("review", v.review) + attr("failed", v.failed) +
          attr("station-fault", v.station_fault) + attr("aborted", v.aborted) +
          attr("interrupted", v.interrupted) + attr("live", v.live) + attr("unit-outcomes", own) +
-         attr("total", v.total()) + "><td>" + esc(v.station) + "</td>" + cell(share(v.pass, own)) +
-         cell(share(v.review, own)) + cell(share(v.failed, own)) +
-         cell(std::to_string(v.station_fault)) + cell(std::to_string(v.aborted)) +
-         cell(std::to_string(v.interrupted)) + cell(std::to_string(v.live)) +
-         cell(std::to_string(v.total())) + "</tr>\n";
+         attr("total", v.total()) + "><td>" + esc(v.station) + "</td>";
+    const auto linked = [&](const char* verdict, const std::string& text) {
+      return cell(runs_link(q, v.station, std::string("&verdict=") + verdict, text));
+    };
+    s += linked("PASS", share(v.pass, own)) + linked("REVIEW", share(v.review, own)) +
+         linked("FAILED", share(v.failed, own)) +
+         linked("STATION-FAULT", std::to_string(v.station_fault)) +
+         linked("ABORTED", std::to_string(v.aborted)) +
+         linked("INTERRUPTED", std::to_string(v.interrupted)) + cell(std::to_string(v.live)) +
+         cell(runs_link(q, v.station, "", std::to_string(v.total()))) + "</tr>\n";
   }
   return s + "</table>\n";
 }
 
-std::string distribution_row(const db::history::ParamSummary& d,
+std::string distribution_row(const FleetQuery& q, const db::history::ParamSummary& d,
                              const calib::core::ParamInfo& info) {
   const double k = info.si_to_human;
   std::string s =
@@ -248,7 +273,9 @@ std::string distribution_row(const db::history::ParamSummary& d,
       {"mean", d.mean},     {"std", d.std_dev}, {"min", d.min}, {"q1", d.q1},
       {"median", d.median}, {"q3", d.q3},       {"max", d.max}};
   for (const auto& [name, v] : stats) s += std::string(" data-") + name + "='" + exact(v) + "'";
-  s += "><td>" + esc(d.station) + "</td><td class='num'>" + std::to_string(d.count) + "</td>";
+  s += "><td>" + esc(d.station) + "</td><td class='num'>" +
+       runs_link(q, d.station, "&param=" + url_encode(info.name), std::to_string(d.count)) +
+       "</td>";
   // Each figure to the precision the spread allows: the mean to its standard error, the
   // order statistics and the std to the std's second digit (issue #52 item 12).
   const double spread = d.std_dev * k;
@@ -276,7 +303,7 @@ std::string distribution_section(const FleetQuery& q,
   for (const char* h : {"mean", "std", "min", "Q1", "median", "Q3", "max"})
     s += std::string("<th class='num'>") + h + " (" + esc(info.human_unit) + ")</th>";
   s += "</tr>\n";
-  for (const auto& d : dist) s += distribution_row(d, info);
+  for (const auto& d : dist) s += distribution_row(q, d, info);
   return s + "</table>\n";
 }
 
@@ -296,9 +323,9 @@ std::string fleet_page(const History& history, const Params& query) {
   b += signatures_banner(history);
   b += filter_form(q) + window_line(q);
   b += runs_chart_section(q, counts, stations);
-  b += verdict_section(verdicts);
+  b += verdict_section(q, verdicts);
   b += distribution_section(q, dist);
-  b += runs_table_section(counts, stations);
+  b += runs_table_section(q, counts, stations);
   return page("Fleet", b);
 }
 
