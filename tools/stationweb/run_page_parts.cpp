@@ -165,8 +165,8 @@ std::string calibration_table(const std::vector<db::history::CalibrationRecord>&
       }
       s += "<td class='num'" + attrs + " data-value-si='" + exact(value[k](i)) +
            "' data-sigma-si='" + exact(sigma[k](i)) + "'>" +
-           fmt("%.3f", value[k](i) * info.si_to_human) + "</td><td class='num'>" +
-           fmt("%.3f", sigma[k](i) * info.si_to_human) + "</td>";
+           fmt_to_sigma(value[k](i) * info.si_to_human, sigma[k](i) * info.si_to_human) +
+           "</td><td class='num'>" + fmt_sigma(sigma[k](i) * info.si_to_human) + "</td>";
     }
     s += "</tr>\n";
   }
