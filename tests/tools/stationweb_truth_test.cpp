@@ -7,6 +7,7 @@
 // is said on the page; `--db DIR` is refused naming the directory.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -15,6 +16,7 @@
 
 #include "calib/core/param_set.hpp"
 #include "tests/db/fleet_truth_history.hpp"
+#include "tests/support/headless_chromium.hpp"
 #include "tests/support/html_tags.hpp"
 #include "tests/support/run_command.hpp"
 #include "tests/tools/fleet_truth_checks.hpp"
@@ -31,6 +33,11 @@ using test_support::section;
 using test_support::tags;
 
 const std::string kBin = std::string(IMUCAL_BIN_DIR) + "/stationweb";
+
+/// The running stationweb's port, for `rendered` (a free function beside the fixture).
+struct StationwebTruthPort {
+  static inline int port = 0;
+};
 
 class StationwebTruth : public ::testing::Test {
  protected:
@@ -91,6 +98,38 @@ TEST_F(StationwebTruth, SettingAndVerdictFiltersRefuseUnknownValuesNamingTheFiel
     EXPECT_EQ(status, 400) << target;
     EXPECT_NE(html.find("data-field='" + field + "'"), std::string::npos) << html;
   }
+}
+
+// Items 1-3 as QA's browser shows them: the pages rendered by headless Chromium (its DOM after
+// load, no console message) carry the same numbers, computed from the rows, as the HTTP replies.
+std::string rendered(const std::string& target, const std::string& log) {
+  const test_support::RenderedPage page = test_support::render_in_chromium(
+      "http://127.0.0.1:" + std::to_string(StationwebTruthPort::port) + target, log);
+  EXPECT_EQ(page.code, 0) << target;
+  EXPECT_TRUE(page.console.empty()) << target << ": " << page.console.front();
+  // Chromium serialises attributes in double quotes; the tag reader takes single ones.
+  static const std::regex dq("([a-z0-9-]+)=\"([^\"']*)\"");
+  return std::regex_replace(page.dom, dq, "$1='$2'");
+}
+
+TEST_F(StationwebTruth, ChromiumShowsTheNumbersTheRowsGive) {
+  ASSERT_TRUE(test_support::chromium_installed()) << "tools/setup.sh installs chromium";
+  StationwebTruthPort::port = web_->port();
+  const std::string log = dir_->file("chromium.log");
+  test_support::expect_fleet_truth(rendered("/fleet?param=gyro_bias_radps%5B2%5D", log), rows_,
+                                   "factory", "", 14);
+  test_support::expect_fleet_truth(
+      rendered("/fleet?setting=all&verdict=STATION-FAULT&param=gyro_bias_radps%5B2%5D", log), rows_,
+      "", "STATION-FAULT", 14);
+  test_support::expect_signatures_agree(rendered("/signatures", log), rendered("/fleet", log),
+                                        rows_);
+  const auto it =
+      std::find_if(rows_.begin(), rows_.end(), [](const TruthRow& r) { return !r.nlsq_converged; });
+  ASSERT_NE(it, rows_.end());
+  const std::string run = rendered("/run/" + std::to_string(it->run_id), log);
+  const auto rows = tags(section(run, "crosscheck-table", "</table>"), "<tr data-param");
+  ASSERT_EQ(rows.size(), 27u);
+  for (Attrs r : rows) EXPECT_EQ(r["data-status"], "not compared") << r["data-param"];
 }
 
 // ----- item 2: an unconverged method is not compared ---------------------------------------------
