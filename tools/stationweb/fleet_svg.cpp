@@ -106,7 +106,7 @@ std::string runs_chart(const std::vector<db::history::StationDayCount>& counts,
 
 std::string verdict_chart(const std::vector<db::history::StationVerdictCounts>& verdicts) {
   std::ostringstream os;
-  os << svg_open("verdict-chart", kTop + kPanelH + 70);
+  os << svg_open("verdict-chart", kTop + kPanelH + 90);
   if (verdicts.empty()) return os.str() + "</svg>\n";
   Panel p{os, kTop, 0.0, 100.0, verdicts.size()};
   p.frame("Verdicts per station (share of its runs)", "% of runs");
@@ -128,11 +128,14 @@ std::string verdict_chart(const std::vector<db::history::StationVerdictCounts>& 
     labels.push_back(v.station);
   }
   slot_labels(os, p, labels);
-  double x = kWidth - kRight - 600;
+  // The legend under the station labels, as the runs chart's: above the panel it ran into the
+  // title on a narrow chart (issue #52 item 12: no label drawn over another).
+  double x = kLeft;
+  const double y = kTop + kPanelH + 78;
   for (std::size_t k = 0; k < kVerdictParts; ++k, x += 86)
-    os << "<rect x='" << x << "' y='" << kTop - 18 << "' width='10' height='10' fill='"
-       << kVerdictColours[k] << "'/><text x='" << x + 13 << "' y='" << kTop - 8
-       << "' font-size='11'>" << kVerdictNames[k] << "</text>\n";
+    os << "<rect x='" << x << "' y='" << y - 10 << "' width='10' height='10' fill='"
+       << kVerdictColours[k] << "'/><text x='" << x + 13 << "' y='" << y << "' font-size='11'>"
+       << kVerdictNames[k] << "</text>\n";
   return os.str() + "</svg>\n";
 }
 
