@@ -365,22 +365,20 @@ TEST_F(StationwebQaTest, Item8FleetCountsLinkToTheRunsBehindThem) {
 // The run page's parameters to the precision their σ allows (issue #52 item 12): a value is
 // printed to the decimal place of its σ's second significant digit, not a fixed three decimals
 // ("696442.005 µg", a gyro bias "0.001 deg/h").
-TEST_F(StationwebQaTest, Item12RunParametersArePrintedToTheirSigma) {
-  const std::string html = get_ok("/run/" + id(runs_.pass1));
+/// The value cells opening with `open` and the σ cell after each: each σ to two significant
+/// digits, each value to σ's last printed decimal. Returns how many pairs were checked.
+int expect_values_to_their_sigma(const std::string& html, const std::string& open) {
+  const auto decimals = [](const std::string& t) {
+    const std::size_t dot = t.find('.');
+    return dot == std::string::npos ? 0 : static_cast<int>(t.size() - dot - 1);
+  };
   int checked = 0;
-  for (std::size_t at = html.find("<td class='num' data-method='ains'"); at != std::string::npos;
-       at = html.find("<td class='num' data-method='ains'", at + 1)) {
+  for (std::size_t at = html.find(open); at != std::string::npos; at = html.find(open, at + 1)) {
     const std::size_t gt = html.find('>', at), end = html.find("</td>", gt);
     const std::string value_text = html.substr(gt + 1, end - gt - 1);
     const std::size_t s0 = html.find("<td class='num'>", end) + 16;
     const std::string sigma_text = html.substr(s0, html.find("</td>", s0) - s0);
-    if (sigma_text.find_first_of("e") != std::string::npos || std::stod(sigma_text) <= 0.0)
-      continue;
-    const auto decimals = [](const std::string& t) {
-      const std::size_t dot = t.find('.');
-      return dot == std::string::npos ? 0 : static_cast<int>(t.size() - dot - 1);
-    };
-    // σ to two significant digits, the value to σ's last printed decimal.
+    if (sigma_text.find('e') != std::string::npos || std::stod(sigma_text) <= 0.0) continue;
     std::string digits;
     for (char c : sigma_text)
       if (std::isdigit(static_cast<unsigned char>(c))) digits += c;
@@ -389,7 +387,16 @@ TEST_F(StationwebQaTest, Item12RunParametersArePrintedToTheirSigma) {
     EXPECT_EQ(decimals(value_text), decimals(sigma_text)) << value_text << " +- " << sigma_text;
     ++checked;
   }
-  EXPECT_GE(checked, 20);
+  return checked;
+}
+
+TEST_F(StationwebQaTest, Item12RunParametersArePrintedToTheirSigma) {
+  EXPECT_GE(expect_values_to_their_sigma(get_ok("/run/" + id(runs_.pass1)),
+                                         "<td class='num' data-method='ains'"),
+            20);
+  // The unit page's active set too (it printed six significant digits beside a three-digit σ).
+  EXPECT_GE(expect_values_to_their_sigma(get_ok("/unit/SN-0008"), "<td class='num' data-value-si="),
+            20);
 }
 
 TEST_F(StationwebQaTest, Item8AReprocessAndItsOriginLinkBothWays) {

@@ -86,8 +86,8 @@ std::string active_values(const std::optional<db::history::ActiveCalibration>& a
       continue;
     }
     s += "<td class='num' data-value-si='" + exact(v(i)) + "' data-sigma-si='" + exact(sg(i)) +
-         "'>" + fmt("%.6g", v(i) * info.si_to_human) + "</td><td class='num'>" +
-         fmt("%.3g", sg(i) * info.si_to_human) + "</td></tr>\n";
+         "'>" + fmt_to_sigma(v(i) * info.si_to_human, sg(i) * info.si_to_human) +
+         "</td><td class='num'>" + fmt_sigma(sg(i) * info.si_to_human) + "</td></tr>\n";
   }
   return s + "</table>\n</details>\n";
 }
