@@ -3,6 +3,8 @@
 #include <string>
 #include <vector>
 
+#include "db/history/verdict_rule.hpp"
+
 namespace imucal::db::fleet {
 using namespace db::history;
 
@@ -113,34 +115,17 @@ ALTER TABLE runs ADD COLUMN holding_reason text NOT NULL DEFAULT '';
 // and the runs already here are classified by the same rule as the station's migration (their
 // state and the reason texts the station writes), so a store whose stations have not resent their
 // runs yet counts the same. A table CHECK keeps it consistent with the state.
-const char* const kFleetMigration4 = R"SQL(
+const std::string kFleetMigration4 = std::string(R"SQL(
 DROP INDEX runs_by_time_counts;
 ALTER TABLE runs DROP COLUMN verdict;
 ALTER TABLE runs ADD COLUMN verdict text CHECK (verdict IS NULL OR verdict IN
   ('PASS', 'REVIEW', 'FAILED', 'STATION-FAULT', 'ABORTED', 'INTERRUPTED'));
-UPDATE runs SET verdict = CASE
-    WHEN state = 'done' THEN 'PASS'
-    WHEN state = 'review' THEN 'REVIEW'
-    WHEN state = 'interrupted' THEN 'INTERRUPTED'
-    WHEN state = 'aborted' AND failure_reason LIKE 'table: %' THEN 'STATION-FAULT'
-    WHEN state = 'aborted' THEN 'ABORTED'
-    WHEN failure_reason LIKE 'archive: %'
-      OR failure_reason LIKE 'import: cannot store the archive%'
-      OR failure_reason LIKE 'capture: CAN channel error%'
-      OR failure_reason LIKE 'capture: CAN controller % went bus-off%'
-      OR failure_reason LIKE 'capture: run archive write failed%'
-      OR failure_reason LIKE 'capture: %the CAN channel is closed%'
-      OR failure_reason LIKE 'capture: unixcan:%'
-      OR failure_reason LIKE 'capture: socketcan:%'
-      OR failure_reason LIKE 'capture: candump:%' THEN 'STATION-FAULT'
-    ELSE 'FAILED' END
+UPDATE runs SET verdict = )SQL") + db::history::kVerdictOfEndedRunSql +
+                                     R"SQL(
 WHERE state IN ('done', 'review', 'failed', 'aborted', 'interrupted');
 ALTER TABLE runs ADD CONSTRAINT runs_verdict_fits_state CHECK (coalesce(
-  (state IN ('preparing', 'running', 'calibrating') AND verdict IS NULL)
-  OR (state = 'done' AND verdict = 'PASS') OR (state = 'review' AND verdict = 'REVIEW')
-  OR (state = 'failed' AND verdict IN ('FAILED', 'STATION-FAULT'))
-  OR (state = 'aborted' AND verdict IN ('ABORTED', 'STATION-FAULT'))
-  OR (state = 'interrupted' AND verdict IN ('INTERRUPTED', 'STATION-FAULT')), false));
+  )SQL" + db::history::verdict_fits_state_sql("") +
+                                     R"SQL(, false));
 CREATE INDEX runs_by_time_counts ON runs (started_at_ms) INCLUDE (station_id, verdict);
 )SQL";
 
@@ -158,7 +143,7 @@ const std::vector<FleetMigration>& fleet_migrations() {
        kFleetMigration3},
       {4,
        "runs.verdict stored: whose a run's end was (FAILED, STATION-FAULT, ABORTED, INTERRUPTED)",
-       kFleetMigration4}};
+       kFleetMigration4.c_str()}};
   return list;
 }
 

@@ -2,8 +2,10 @@
 
 #include <cstdio>
 #include <stdexcept>
+#include <string>
 
 #include "db/history/repository.hpp"
+#include "db/history/verdict_rule.hpp"
 
 namespace imucal::db::history::schema {
 
@@ -342,46 +344,23 @@ ALTER TABLE runs ADD COLUMN holding_reason TEXT NOT NULL DEFAULT '';
 // updates count as a change of each ended run (revision, outbox), so a fleet store that is sent
 // the runs again takes the new verdicts. runs_by_time_station covers the verdict instead of the
 // state: the fleet pages count verdicts.
-const char* const kMigration10 = R"SQL(
+std::string verdict_trigger(const std::string& name, const std::string& event) {
+  return "CREATE TRIGGER " + name + " BEFORE " + event + " ON runs\nWHEN NOT coalesce(" +
+         verdict_fits_state_sql("NEW.") +
+         ", 0)\nBEGIN SELECT RAISE(ABORT, 'runs.verdict does not fit the run''s state'); END;\n";
+}
+const std::string kMigration10 = std::string(R"SQL(
 DROP INDEX runs_by_time_station;
 ALTER TABLE runs DROP COLUMN verdict;
 ALTER TABLE runs ADD COLUMN verdict TEXT CHECK (verdict IS NULL OR verdict IN
   ('PASS', 'REVIEW', 'FAILED', 'STATION-FAULT', 'ABORTED', 'INTERRUPTED'));
-UPDATE runs SET verdict = CASE
-    WHEN state = 'done' THEN 'PASS'
-    WHEN state = 'review' THEN 'REVIEW'
-    WHEN state = 'interrupted' THEN 'INTERRUPTED'
-    WHEN state = 'aborted' AND failure_reason LIKE 'table: %' THEN 'STATION-FAULT'
-    WHEN state = 'aborted' THEN 'ABORTED'
-    WHEN failure_reason LIKE 'archive: %'
-      OR failure_reason LIKE 'import: cannot store the archive%'
-      OR failure_reason LIKE 'capture: CAN channel error%'
-      OR failure_reason LIKE 'capture: CAN controller % went bus-off%'
-      OR failure_reason LIKE 'capture: run archive write failed%'
-      OR failure_reason LIKE 'capture: %the CAN channel is closed%'
-      OR failure_reason LIKE 'capture: unixcan:%'
-      OR failure_reason LIKE 'capture: socketcan:%'
-      OR failure_reason LIKE 'capture: candump:%' THEN 'STATION-FAULT'
-    ELSE 'FAILED' END
+UPDATE runs SET verdict = )SQL") +
+                                 kVerdictOfEndedRunSql + R"SQL(
 WHERE state IN ('done', 'review', 'failed', 'aborted', 'interrupted');
 CREATE INDEX runs_by_time_station ON runs (started_at_ms, station, verdict, unit_id);
-CREATE TRIGGER runs_verdict_fits_state_on_insert BEFORE INSERT ON runs
-WHEN NOT coalesce(
-  (NEW.state IN ('preparing', 'running', 'calibrating') AND NEW.verdict IS NULL)
-  OR (NEW.state = 'done' AND NEW.verdict = 'PASS') OR (NEW.state = 'review' AND NEW.verdict = 'REVIEW')
-  OR (NEW.state = 'failed' AND NEW.verdict IN ('FAILED', 'STATION-FAULT'))
-  OR (NEW.state = 'aborted' AND NEW.verdict IN ('ABORTED', 'STATION-FAULT'))
-  OR (NEW.state = 'interrupted' AND NEW.verdict IN ('INTERRUPTED', 'STATION-FAULT')), 0)
-BEGIN SELECT RAISE(ABORT, 'runs.verdict does not fit the run''s state'); END;
-CREATE TRIGGER runs_verdict_fits_state_on_update BEFORE UPDATE OF state, verdict ON runs
-WHEN NOT coalesce(
-  (NEW.state IN ('preparing', 'running', 'calibrating') AND NEW.verdict IS NULL)
-  OR (NEW.state = 'done' AND NEW.verdict = 'PASS') OR (NEW.state = 'review' AND NEW.verdict = 'REVIEW')
-  OR (NEW.state = 'failed' AND NEW.verdict IN ('FAILED', 'STATION-FAULT'))
-  OR (NEW.state = 'aborted' AND NEW.verdict IN ('ABORTED', 'STATION-FAULT'))
-  OR (NEW.state = 'interrupted' AND NEW.verdict IN ('INTERRUPTED', 'STATION-FAULT')), 0)
-BEGIN SELECT RAISE(ABORT, 'runs.verdict does not fit the run''s state'); END;
-)SQL";
+)SQL" + verdict_trigger("runs_verdict_fits_state_on_insert", "INSERT") +
+                                 verdict_trigger("runs_verdict_fits_state_on_update",
+                                                 "UPDATE OF state, verdict");
 
 const char* const kMigration5 = R"SQL(
 ALTER TABLE runs ADD COLUMN verdict TEXT GENERATED ALWAYS AS (
@@ -505,7 +484,7 @@ const std::vector<Migration>& migrations() {
        kMigration9},
       {10,
        "runs.verdict stored: whose a run's end was (FAILED, STATION-FAULT, ABORTED, INTERRUPTED)",
-       kMigration10},
+       kMigration10.c_str()},
   };
   return list;
 }
