@@ -1076,6 +1076,23 @@ UnsupportedEffect filter_beside_wandering(const Scored& filter) {
   return {f.name, f.magnitude, f.magnitude_sigma, f.unit, filter.p_given_wandering, os.str()};
 }
 
+/// The per-sample candidates (quantisation, the output filter, the hand's tremor), independent of
+/// the segment residuals, join the selection last when significant — the filter, where the bias
+/// wanders, only when its signature is more than the wandering's (filter_beside_wandering).
+void join_per_sample(Selection& best, const std::vector<Scored>& c, bool wandering, double level,
+                     std::vector<UnsupportedEffect>& unsupported) {
+  for (EffectId id : {EffectId::kQuantisation, EffectId::kOutputFilter, EffectId::kRestTremor}) {
+    const auto q = index_of(c, id);
+    if (!q || !c[*q].result.significant) continue;
+    if (id == EffectId::kOutputFilter && wandering && !(c[*q].p_given_wandering < level)) {
+      unsupported.push_back(filter_beside_wandering(c[*q]));
+      continue;
+    }
+    best.steps.push_back({*q, c[*q].result.p_value, std::numeric_limits<double>::quiet_NaN(), 0,
+                          c[*q].result.held_out_gap});
+  }
+}
+
 /// Model choice among: the stepwise set of deterministic effects (deterministic_set), an
 /// undeclared Gauss-Markov bias GM, and the set followed by GM. Bias instability comes last (issue
 /// #49 item 3): its per-segment offsets absorb any slow signature, so it is named alone only when
@@ -1176,20 +1193,7 @@ Selection select_model(const std::vector<Scored>& c, const Problem& p, double ch
                           p.model.rows() - static_cast<int>(p.Jb.cols()),
                           c[*g].result.held_out_gap});
   }
-  // The per-sample candidates (quantisation, the output filter, the hand's tremor), independent of
-  // the segment residuals, join last when significant — the filter, where the bias wanders, only
-  // when its signature is more than the wandering's (filter_beside_wandering).
-  const bool wandering = best.gm || (r && r->p_value < level);
-  for (EffectId id : {EffectId::kQuantisation, EffectId::kOutputFilter, EffectId::kRestTremor}) {
-    const auto q = index_of(c, id);
-    if (!q || !c[*q].result.significant) continue;
-    if (id == EffectId::kOutputFilter && wandering && !(c[*q].p_given_wandering < level)) {
-      unsupported.push_back(filter_beside_wandering(c[*q]));
-      continue;
-    }
-    best.steps.push_back({*q, c[*q].result.p_value, std::numeric_limits<double>::quiet_NaN(), 0,
-                          c[*q].result.held_out_gap});
-  }
+  join_per_sample(best, c, best.gm || (r && r->p_value < level), level, unsupported);
   best.unsupported = std::move(unsupported);
   return best;
 }
