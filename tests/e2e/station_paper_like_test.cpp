@@ -5,8 +5,8 @@
 //    limit holds.
 //  * The station still sees what no single model of it explains: the gap diagnosis names the
 //    budget's sources — the gyro/accelerometer skew first (the budget's largest that biases a
-//    calibration), the table's wobble, the accelerometer warm-up, the site's latitude and the
-//    accelerometer bias instability — so by default the run is REVIEW.
+//    calibration), the table's wobble, the accelerometer warm-up, the site's latitude (2 runs in 3)
+//    and the accelerometer bias instability — so by default the run is REVIEW.
 //  * A product whose effects are known ([calibration] known_effects, the budget's list) ends
 //    PASS, the diagnosis kept with the run.
 #include <gtest/gtest.h>
@@ -31,7 +31,12 @@ const std::vector<std::string> kBudgetSources = {
     "latitude_error",  "table_wobble",  "table_nonorthogonality"};
 
 // Of them, those a `short` run separates and the diagnosis must name.
-const std::vector<std::string> kMustName = {"gyro_accel_skew", "table_wobble", "latitude_error"};
+const std::vector<std::string> kMustName = {"gyro_accel_skew", "table_wobble"};
+// The site's latitude error is not among them: its 5 arcmin is about 5 sigma on `short` (sigma
+// 0.99 arcmin), and at the station's level (false alarm 1e-4 per run: alpha 5e-5 over 15
+// candidates, |z| > 4.65) that is a coin weighted 2:1 — named in 41 of 60 runs on 2026-11-30 (the
+// CI run of 3c62f8d failed on one of the other 7). Where it is named its size must be the
+// budget's (below); where it is not, the slow drift it leaves is named instead (kSlowBiasDrift).
 // And the accelerometer's slow bias drift, as its warm-up or its bias instability: a `short` run
 // names both in most runs, and at least one always. Under a busy CPU (two busy loops beside the
 // test, 2026-11-28) 28 of 29 runs named both; one named the instability alone, its held-out gap
@@ -93,7 +98,11 @@ TEST(StationPaperLike, TheMethodsAgreeAndTheDiagnosisNamesTheBudgetsSourcesSoThe
       << "no slow accelerometer drift named: " << rec["diagnosis"].dump(2);
   // Of the budget's sources, at least those it must name.
   int budget_named = 0;
-  for (const std::string& e : named) budget_named += contains(kBudgetSources, e) ? 1 : 0;
+  for (const std::string& e : named) {
+    budget_named += contains(kBudgetSources, e) ? 1 : 0;
+    // Nothing the unit does not carry (issue #49: a named effect is earned).
+    EXPECT_TRUE(contains(kBudgetSources, e)) << e << " is no source of this unit";
+  }
   EXPECT_GE(budget_named, static_cast<int>(kMustName.size()) + 1) << rec["diagnosis"].dump(2);
   // The sizes the budget fitted, within the diagnosis' own ±4σ (skew 2.5 ms; latitude 5 arcmin).
   for (const json& step : rec["diagnosis"]["steps"]) {
