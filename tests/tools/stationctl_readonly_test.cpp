@@ -365,6 +365,13 @@ TEST_F(StationctlTest, BadInputExitsWithTwo) {
   EXPECT_TRUE(p.out.empty());
 }
 
+TEST_F(StationctlTest, VersionPrintsTheVersionAndExitsZero) {
+  // It exited 2, as bad input: a script asking for the version read a failure.
+  const ProcStationctlReadonly p = ctl("--version");
+  EXPECT_EQ(p.code, 0) << p.err;
+  EXPECT_NE(p.out.find(IMUCAL_VERSION), std::string::npos) << p.out;
+}
+
 TEST_F(StationctlTest, ControlCommandsWithoutTheDaemonExitWithFour) {
   const std::string sock = dir_.file("absent.sock");
   for (const char* args : {"run start --serial SIM-0001", "run abort", "reprocess 1",

@@ -128,6 +128,8 @@ int main(int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);  // prints the version, exit 0 (it was caught below as bad input, exit 2)
   } catch (const CLI::ParseError& e) {
     app.exit(e);
     return kBadInput;
