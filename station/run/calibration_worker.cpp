@@ -6,8 +6,11 @@
 #include <algorithm>
 #include <chrono>
 #include <exception>
+#include <stdexcept>
+#include <string>
 
 #include "calib/pipeline/calibration_pipeline.hpp"
+#include "db/archive/archive_error.hpp"
 #include "db/archive/archive_input.hpp"
 #include "db/archive/run_archive.hpp"
 #include "station/run/gap_check.hpp"
@@ -132,6 +135,32 @@ void cap_partial_archive(const CalibrationJob& job, const db::archive::RunArchiv
                             {"partial archive", "partial archive: " + why + " — REVIEW at best"});
 }
 
+/// The run's archive could not be read back: the station wrote it (a capture) or copied it in
+/// after reading it whole (an import), so a missing, unreadable or corrupt archive is the station's
+/// disk or writer, never the unit (issue #50: "a station fault (table, bus, disk, daemon)").
+struct StationArchiveFault : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+db::archive::RunArchive read_own_archive(const std::string& dir) {
+  try {
+    return db::archive::read_archive(dir);
+  } catch (const db::archive::ArchiveError& e) {
+    throw StationArchiveFault(e.what());
+  }
+}
+
+/// The completion of a run that failed with `reason`, its archive and capture kept.
+void failed(const CalibrationJob& job, db::history::RunCompletion& completion,
+            const std::string& reason) {
+  completion = db::history::RunCompletion{};
+  completion.state = db::history::RunState::kFailed;
+  completion.reasons = {{"error", reason}};
+  completion.archive_path = job.archive_dir;
+  completion.archive_sha256 = job.archive_sha256;
+  completion.capture_json = job.capture_json;
+}
+
 }  // namespace
 
 CalibrationOutcome run_calibration_job(db::history::Repository& repo, const CalibrationJob& job,
@@ -149,7 +178,7 @@ CalibrationOutcome run_calibration_job(db::history::Repository& repo, const Cali
   completion.capture_json = job.capture_json;
   try {
     phase("reading the archive");
-    db::archive::RunArchive ar = db::archive::read_archive(job.archive_dir);
+    db::archive::RunArchive ar = read_own_archive(job.archive_dir);
     phase("checking the archive");
     // The samples move into the input (no copy held through the calibration); ar keeps its info,
     // all that is used below.
@@ -165,17 +194,17 @@ CalibrationOutcome run_calibration_job(db::history::Repository& repo, const Cali
     else
       store_field_result(r, in.setting, job.k_sigma, completion);
     cap_partial_archive(job, ar, completion);
+  } catch (const StationArchiveFault& e) {
+    failed(job, completion, "archive: cannot read the run's archive: " + std::string(e.what()));
+    completion.verdict =
+        db::history::RunVerdict::kStationFault;  // the station's disk, not the unit
   } catch (const std::exception& e) {
-    completion = db::history::RunCompletion{};
-    completion.state = db::history::RunState::kFailed;
-    completion.reasons = {{"error", std::string("calibration failed: ") + e.what()}};
-    completion.archive_path = job.archive_dir;
-    completion.archive_sha256 = job.archive_sha256;
-    completion.capture_json = job.capture_json;
+    failed(job, completion, std::string("calibration failed: ") + e.what());
   }
   completion.reason = db::history::join_reasons(completion.reasons);
   out.state = completion.state;
-  out.verdict = db::history::run_verdict(completion.state);
+  out.verdict =
+      completion.verdict ? completion.verdict : db::history::run_verdict(completion.state);
   if (completion.crosscheck) out.crosscheck_verdict = completion.crosscheck->verdict;
   out.reason = completion.reason;
   completion.ended_at_ms = job.ended_at_ms.value_or(db::history::now_ms());

@@ -12,7 +12,9 @@
 //   otherwise -> review (verdict REVIEW) with one reason per source (db::history::RunReason): the
 //     cross-check's failures, the limits', "sim-to-real gap: " + the diagnosis summary, a
 //     partial archive, a field setting no second method checks
-//   any error -> failed (verdict FAILED), reason = the error (data checks, archive format, ...)
+//   the archive unreadable (missing, I/O error, corrupt: the station wrote or copied it) -> failed
+//     (verdict STATION-FAULT), reason "archive: cannot read the run's archive: ..."
+//   any other error -> failed (verdict FAILED), reason = the error (the data checks, ...)
 // with the archive's SHA-256, the capture counters (capture_json) and the diagnosis summary
 // (diagnosis_json) stored with the run.
 //
