@@ -16,6 +16,8 @@ const char* const kChannel[6] = {"gyro x", "gyro y", "gyro z", "accel x", "accel
 
 double channel(const ImuIncrement& s, int c) { return c < 3 ? s.dtheta_rad(c) : s.dv_mps(c - 3); }
 
+}  // namespace
+
 double median_interval_s(const ImuSeries& imu) {
   std::vector<double> dt;
   dt.reserve(imu.size());
@@ -24,6 +26,8 @@ double median_interval_s(const ImuSeries& imu) {
   std::nth_element(dt.begin(), dt.begin() + static_cast<std::ptrdiff_t>(dt.size() / 2), dt.end());
   return dt[dt.size() / 2];
 }
+
+namespace {
 
 /// The plateaus of one channel at its extreme in one direction (sign +1: the largest value, -1:
 /// the smallest), when that extreme is beyond `floor` (an increment).

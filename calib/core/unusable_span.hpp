@@ -32,6 +32,9 @@ inline constexpr double kMinAccelRange_g = 1.5;
 /// (ranges are in standard g).
 std::vector<UnusableSpan> find_clipped_spans(const ImuSeries& imu);
 
+/// The recording's sample interval: the median of its samples' dt_s (0 for no sample).
+double median_interval_s(const ImuSeries& imu);
+
 /// Dropped samples: every sample whose interval dt_s exceeds 1.5 times the median interval. The
 /// span is that one sample (its increment does not describe the time it covers).
 std::vector<UnusableSpan> find_time_gaps(const ImuSeries& imu);

@@ -8,6 +8,7 @@
 
 #include "calib/core/calibration_input.hpp"
 #include "calib/core/rest_detector.hpp"
+#include "calib/core/unusable_span.hpp"
 
 namespace imucal::calib::core {
 
@@ -126,11 +127,17 @@ VariationRestResult detect_rest_by_variation(const ImuSeries& imu, const Variati
   check_rest_detector_input(imu);
   VariationRestResult r;
   r.at_rest.assign(imu.size(), false);
-  // Step 1: the variation of the raw rate and specific force.
+  // Step 1: the variation of the raw rate and specific force. After dropped samples the increment
+  // is its own sample's while dt_s spans the gap (find_time_gaps): over dt_s it would read a
+  // fraction of the rate, and every window holding it would vary by tens of mg — a 400 Hz logger
+  // that drops one sample in a hundred (x-io's NGIMU walk, docs/validation/corpus.md) had no rest
+  // at all. Such a sample's rate is over one interval; the gap itself stays unusable.
+  const double interval_s = median_interval_s(imu);
   std::vector<Eigen::Vector3d> w(imu.size()), f(imu.size());
   for (size_t k = 0; k < imu.size(); ++k) {
-    w[k] = imu[k].dtheta_rad / imu[k].dt_s;
-    f[k] = imu[k].dv_mps / imu[k].dt_s;
+    const double own_s = imu[k].dt_s > 1.5 * interval_s ? interval_s : imu[k].dt_s;
+    w[k] = imu[k].dtheta_rad / own_s;
+    f[k] = imu[k].dv_mps / own_s;
   }
   const std::vector<double> dw = windowed_rms_deviation(imu, w, o.window_s);
   const std::vector<double> df = windowed_rms_deviation(imu, f, o.window_s);

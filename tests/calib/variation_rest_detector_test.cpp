@@ -69,6 +69,42 @@ TEST_P(VariationRestMems, FindsTheRestsOfAHandPlacedRunWithLargeGyroOffsets) {
 
 INSTANTIATE_TEST_SUITE_P(Seeds, VariationRestMems, ::testing::Values(1, 2, 3, 4, 5));
 
+// A logger that drops samples (x-io's NGIMU at 400 Hz: 165 gaps of 1-4 samples in 41 s): the
+// sample after a gap keeps its own increment while its interval spans the gap. The rests are the
+// same rests; before, each gap's diluted rate made its windows vary by tens of mg and the corpus
+// recording had no rest at all.
+TEST(VariationRest, DroppedSamplesDoNotHideTheRests) {
+  const FieldSimResult sim = simulate_mems(3);
+  ImuSeries imu;
+  std::vector<bool> truth;
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> every(60, 140), lost(1, 4);
+  for (size_t k = 0, next = 100; k < sim.imu.size(); ++k) {
+    if (k == next) {  // drop 1-4 samples: the next kept one spans them
+      const size_t n = std::min<size_t>(static_cast<size_t>(lost(rng)), sim.imu.size() - 1 - k);
+      double spanned_s = 0.0;
+      for (size_t j = 0; j < n; ++j) spanned_s += sim.imu[k + j].dt_s;
+      k += n;
+      ImuIncrement s = sim.imu[k];
+      s.dt_s += spanned_s;
+      imu.push_back(s);
+      truth.push_back(sim.true_rest[k]);
+      next = k + static_cast<size_t>(every(rng));
+      continue;
+    }
+    imu.push_back(sim.imu[k]);
+    truth.push_back(sim.true_rest[k]);
+  }
+  ASSERT_GT(sim.imu.size() - imu.size(), 100u) << "samples dropped";
+  const VariationRestResult r = detect_rest_by_variation(imu, variation_rest_options(Grade::kMems));
+  const ScoreVariationRestDetector s = score_variation_rest_detector(r.at_rest, truth);
+  std::printf("%zu samples dropped: %d rests of 39, found %.1f %% of the rest time, %zu false\n",
+              sim.imu.size() - imu.size(), r.rests, 100.0 * s.found, s.false_samples);
+  EXPECT_GE(s.found, 0.95);
+  EXPECT_EQ(s.false_samples, 0u);
+  EXPECT_EQ(r.rests, 39);
+}
+
 // A turntable's cruise about the vertical varies neither the rate nor the specific force; its
 // mean rate (10 °/s on top of the offset, more than a hand's drift) gives it away.
 TEST(VariationRest, AConstantRateTurnIsNotRest) {
