@@ -98,7 +98,9 @@ void expect_named_exactly(const DiagnosisResult& d, std::vector<std::string> exp
   expect_within_3_sigma(step(d, "size_effect"), std::sqrt(arms_mm), what + " lever arms");
   if (skew_ms > 0.0) expect_within_3_sigma(step(d, "gyro_accel_skew"), skew_ms, what + " skew");
   const DiagnosisStep* k2 = step(d, "accel_quadratic_k2");
-  if (k2) EXPECT_FALSE(k2->set.empty()) << what << ": K2 is named as its set";
+  if (k2) {
+    EXPECT_FALSE(k2->set.empty()) << what << ": K2 is named as its set";
+  }
 }
 
 }  // namespace
@@ -180,9 +182,11 @@ TEST(DiagnosisEarned, ADriftIsNoOutputFilter) {
     const DiagnosisResult d = diagnose_table_run("factory-std", wandering_biases(), seed);
     std::printf("seed %llu: %s\n", static_cast<unsigned long long>(seed), d.summary.c_str());
     EXPECT_EQ(named(d, "output_filter"), nullptr) << d.summary;
-    for (const auto& u : d.unsupported)
-      if (u.effect == "output_filter")
+    for (const auto& u : d.unsupported) {
+      if (u.effect == "output_filter") {
         EXPECT_NE(u.reason.find("lag 2"), std::string::npos) << u.reason;
+      }
+    }
   }
 }
 
