@@ -180,10 +180,15 @@ class PassRunner {
         dg_dh_(0.5 * (EarthModel::normal_gravity_mps2(in_.site.lat_rad, h0_ + 1.0) -
                       EarthModel::normal_gravity_mps2(in_.site.lat_rad, h0_ - 1.0))),
         // Continuous process noise: ARW drives ψ through -C_bn n_g (isotropic), VRW drives δv.
-        // Quantisation is not added: a unit's output register carries the rounding remainder into
-        // the next sample (as the simulator does), so rounding never accumulates.
-        q_psi_(in_.noise.arw_rad_per_sqrt_s * in_.noise.arw_rad_per_sqrt_s),
-        q_vel_(in_.noise.vrw_mps_per_sqrt_s * in_.noise.vrw_mps_per_sqrt_s) {
+        // A carried rounding is not added: the output register carries the remainder into the
+        // next sample (as the simulator does), so it never accumulates. A per-sample rounding (a
+        // logger of counts) does, as white noise of density LSB²/(12 dt) (noise_model.hpp).
+        q_psi_(in_.noise.arw_rad_per_sqrt_s * in_.noise.arw_rad_per_sqrt_s +
+               rounding_white_density(in_.noise.dtheta_lsb_rad, in_.noise.lsb_rounding,
+                                      in_.imu.front().dt_s)),
+        q_vel_(in_.noise.vrw_mps_per_sqrt_s * in_.noise.vrw_mps_per_sqrt_s +
+               rounding_white_density(in_.noise.dv_lsb_mps, in_.noise.lsb_rounding,
+                                      in_.imu.front().dt_s)) {
     Qc_.block<3, 3>(kPsi, kPsi) = q_psi_ * Matrix3d::Identity();
     Qc_.block<3, 3>(kVel, kVel) = q_vel_ * Matrix3d::Identity();
   }

@@ -202,10 +202,15 @@ void GapModel::build_covariances() {
   cov_.clear();
   whitener_.clear();
   const NoiseModel& nm = in_.noise;
-  const double arw2 = nm.arw_rad_per_sqrt_s * nm.arw_rad_per_sqrt_s;
-  const double vrw2 = nm.vrw_mps_per_sqrt_s * nm.vrw_mps_per_sqrt_s;
-  const double q_dv = 2.0 * nm.dv_lsb_mps * nm.dv_lsb_mps / 12.0;  // one LSB residue at each end
-  const double q_th = 2.0 * nm.dtheta_lsb_rad * nm.dtheta_lsb_rad / 12.0;
+  // The declared rounding (noise_model.hpp): per sample, white noise beside ARW and VRW (it
+  // walks the attitude of a move as ARW does); carried, one LSB residue at each end of a segment.
+  const double dt = in_.imu.front().dt_s;
+  const double arw2 = nm.arw_rad_per_sqrt_s * nm.arw_rad_per_sqrt_s +
+                      rounding_white_density(nm.dtheta_lsb_rad, nm.lsb_rounding, dt);
+  const double vrw2 = nm.vrw_mps_per_sqrt_s * nm.vrw_mps_per_sqrt_s +
+                      rounding_white_density(nm.dv_lsb_mps, nm.lsb_rounding, dt);
+  const double q_dv = rounding_end_residues(nm.dv_lsb_mps, nm.lsb_rounding);
+  const double q_th = rounding_end_residues(nm.dtheta_lsb_rad, nm.lsb_rounding);
   const EarthModel earth(in_.site);
   const Eigen::Matrix3d F = skew<double>(Eigen::Vector3d(-earth.g_n()));  // [f_n×] at rest
   for (const GapSegment& s : segments_) {

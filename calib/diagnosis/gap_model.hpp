@@ -19,7 +19,9 @@
 // Under the model the residuals are zero-mean Gaussian with a covariance that follows from the
 // declared noise (ARW, VRW, quantisation): per rest VRW²/T and ARW²/T per axis; per move the
 // attitude random walk ARW²T, the velocity VRW²T plus the tilt the attitude noise causes in gravity
-// (|g|² ARW² T³/3 horizontally) and their correlation (ARW² T²/2 [f_n×]). Segments are independent
+// (|g|² ARW² T³/3 horizontally) and their correlation (ARW² T²/2 [f_n×]); a carried rounding adds
+// one LSB residue at each end (2·LSB²/12), a per-sample one its white density LSB²/(12 dt) to ARW²
+// and VRW² (calib/core/noise_model.hpp). Segments are independent
 // (disjoint samples). So a residual vector whitened segment by segment is N(0, I) under the model:
 // every departure — per segment, per sensor axis — is the gap, in units of the model's own spread.
 //
@@ -215,7 +217,7 @@ class GapModel {
   std::vector<Block6> whitener_;  ///< L⁻¹ per segment
   bool table_free_ = false;
   std::vector<Eigen::Matrix3d> rest_C_bn_;  ///< per rest: the table's, or the estimate
-  double t_first_s_ = 0.0;        ///< start of the first interval (thermal drift's t = 0)
+  double t_first_s_ = 0.0;                  ///< start of the first interval (thermal drift's t = 0)
   // Sea: the kept rows (GNSS fixes inside a segment), their index among the filter's innovations,
   // sample, component (0 north, 1 east) and predicted σ; the INS start attitude held for every
   // hypothesis; segment s's rows [seg_row_begin_[s], seg_row_begin_[s + 1]).

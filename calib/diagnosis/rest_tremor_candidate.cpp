@@ -111,8 +111,9 @@ struct TremorSums {
 /// The declared noise as the sums need it, summed over the axes of the compensated rate (the noise
 /// is the raw output's: compensating by (I + M_g)⁻¹ scales it by that matrix's rows).
 struct DeclaredNoise {
-  double rate_var = 0.0;  ///< (rad/s)²: ARW²/dt and the carried rounding's LSB²/6 over dt²
-  double arw2 = 0.0;      ///< rad²/s
+  double rate_var = 0.0;  ///< (rad/s)²: ARW²/dt and the rounding's variance (LSB²/6 carried,
+                          ///< LSB²/12 per sample) over dt²
+  double arw2 = 0.0;      ///< rad²/s: ARW² and a per-sample rounding's white density
 };
 
 /// Sums of one window: the blocks' tilt and specific force (the slope), the blocks' rates about
@@ -212,8 +213,11 @@ DeclaredNoise declared_noise(const CalibrationInput& in, const ImuCompensator& c
   const double dt = in.imu.front().dt_s, q = in.noise.dtheta_lsb_rad;
   const double gain = comp.A_g_inv.squaredNorm();  // Σ over the axes of each row's squared norm
   DeclaredNoise n;
-  n.arw2 = gain * in.noise.arw_rad_per_sqrt_s * in.noise.arw_rad_per_sqrt_s;
-  n.rate_var = n.arw2 / dt + gain * q * q / (6.0 * dt * dt);
+  const double arw2 = gain * in.noise.arw_rad_per_sqrt_s * in.noise.arw_rad_per_sqrt_s;
+  // A sample's rate carries the rounding's whole variance; the tilt integrates a per-sample
+  // rounding into a random walk as it does ARW, a carried one not (noise_model.hpp).
+  n.rate_var = arw2 / dt + gain * rounding_variance(q, in.noise.lsb_rounding) / (dt * dt);
+  n.arw2 = arw2 + gain * rounding_white_density(q, in.noise.lsb_rounding, dt);
   return n;
 }
 

@@ -21,7 +21,9 @@ DiagnosisInput simulated_twin(const DiagnosisInput& real, const ParamSet& calibr
   const ImuErrorModel<double> em = ImuErrorModel<double>::from_params(calibrated);
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> n01(0.0, 1.0);
-  Quantiser q_th{in.noise.dtheta_lsb_rad}, q_dv{in.noise.dv_lsb_mps};
+  // The declared rounding, carried or per sample, as the real run's output had it.
+  Quantiser q_th{in.noise.dtheta_lsb_rad, in.noise.lsb_rounding},
+      q_dv{in.noise.dv_lsb_mps, in.noise.lsb_rounding};
   Eigen::Matrix3d C_prev = S * in.reference.front().C_bn_ref;
   for (size_t k = 0; k < in.imu.size(); ++k) {
     const double dt = in.imu[k].dt_s;

@@ -67,15 +67,32 @@ Lag1Sums rest_axis_sums(const CalibrationInput& in, const RestPeriod& p, int sen
   return s;
 }
 
-double declared_lsb(const NoiseModel& nm, int sensor) {
-  return sensor == 0 ? nm.dv_lsb_mps : nm.dtheta_lsb_rad;
+/// One sensor's declared rounding as the rest samples' statistics see it (noise_model.hpp):
+/// carried, variance LSB²/6 and lag-1 autocovariance -LSB²/12; per sample, LSB²/12 and none.
+struct DeclaredRounding {
+  double lsb = 0.0;
+  double carried_lsb = 0.0;  ///< the LSB when carried, else 0: what the lag-1 statistics see
+  double variance = 0.0;     ///< of one sample's error
+  double lag1 = 0.0;         ///< autocovariance of neighbouring samples' errors
+};
+
+DeclaredRounding declared_rounding(const NoiseModel& nm, int sensor) {
+  DeclaredRounding d;
+  d.lsb = sensor == 0 ? nm.dv_lsb_mps : nm.dtheta_lsb_rad;
+  d.carried_lsb = nm.lsb_rounding == LsbRounding::kCarried ? d.lsb : 0.0;
+  d.variance = rounding_variance(d.lsb, nm.lsb_rounding);
+  d.lag1 = rounding_lag1_autocov(d.lsb, nm.lsb_rounding);
+  return d;
 }
 
-/// z of a lag-1 autocovariance against the value an LSB predicts (-LSB²/12).
-double lag1_z(const Lag1Sums& s, double lsb) {
+/// z of a lag-1 autocovariance against the value the rounding predicts.
+double lag1_z(const Lag1Sums& s, double expected_gamma1) {
   const double sg = s.sigma_gamma1();
-  return sg > 0.0 ? (s.gamma1() + lsb * lsb / 12.0) / sg : 0.0;
+  return sg > 0.0 ? (s.gamma1() - expected_gamma1) / sg : 0.0;
 }
+
+/// The lag-1 autocovariance a carried rounding of `lsb` makes (the quantisation effect's).
+double carried_lag1(double lsb) { return rounding_lag1_autocov(lsb, LsbRounding::kCarried); }
 
 /// Allan deviation of one axis' rate residual at cluster size m, pooled over the rests.
 double allan_deviation(const CalibrationInput& in, const std::vector<RestPeriod>& rests, int sensor,
@@ -111,14 +128,17 @@ WhitenessStats whiteness_stats(const CalibrationInput& in, const std::vector<Res
     Lag1Sums s;
     for (const RestPeriod& p : rests) s.add(rest_axis_sums(in, p, sensor, axis));
     w.lag1_autocorr[static_cast<size_t>(c)] = s.gamma0() > 0 ? s.gamma1() / s.gamma0() : 0.0;
-    const double lsb = declared_lsb(in.noise, sensor);
-    w.lag1_z[static_cast<size_t>(c)] = lag1_z(s, lsb);
+    const DeclaredRounding q = declared_rounding(in.noise, sensor);
+    w.lag1_z[static_cast<size_t>(c)] = lag1_z(s, q.lag1);
     const double white = sensor == 0 ? in.noise.vrw_mps_per_sqrt_s : in.noise.arw_rad_per_sqrt_s;
+    // Allan variance: white noise (a per-sample rounding's among it) falls as 1/τ, a carried
+    // rounding as 3 (LSB²/12)/τ².
+    const double white2 = white * white + rounding_white_density(q.lsb, in.noise.lsb_rounding, dt);
     for (double tau : w.tau_s) {
       const size_t m = static_cast<size_t>(std::lround(tau / dt));
       w.adev[static_cast<size_t>(c)].push_back(allan_deviation(in, rests, sensor, axis, m));
       w.adev_expected[static_cast<size_t>(c)].push_back(
-          std::sqrt(white * white / tau + lsb * lsb / (4.0 * tau * tau)));
+          std::sqrt(white2 / tau + q.carried_lsb * q.carried_lsb / (4.0 * tau * tau)));
     }
   }
   return w;
@@ -159,8 +179,11 @@ CandidateResult score_quantisation(const CalibrationInput& in, const std::vector
   for (int sensor = 0; sensor < 2; ++sensor) {
     Lag1Sums all;
     for (const auto& f : fold_sums[static_cast<size_t>(sensor)]) all.add(f);
-    const double lsb0 = declared_lsb(in.noise, sensor);
-    const double z = lag1_z(all, lsb0);
+    // The candidate is a carried rounding coarser than the declared one; a per-sample declared
+    // rounding has no lag-1 share, so it leaves the candidate's floor at 0.
+    const DeclaredRounding d = declared_rounding(in.noise, sensor);
+    const double lsb0 = d.carried_lsb;
+    const double z = lag1_z(all, d.lag1);
     if (z < 0.0) r.lr += z * z;  // quantisation only makes γ1 more negative
     const double q2 = std::max(lsb0 * lsb0, -12.0 * all.gamma1());
     const int p = sensor == 0 ? 1 : 0;  // catalogue order: dtheta_lsb, dv_lsb
@@ -173,8 +196,8 @@ CandidateResult score_quantisation(const CalibrationInput& in, const std::vector
         if (g != f) train.add(fold_sums[static_cast<size_t>(sensor)][static_cast<size_t>(g)]);
       const double q_train = std::sqrt(std::max(lsb0 * lsb0, -12.0 * train.gamma1()));
       const Lag1Sums& held = fold_sums[static_cast<size_t>(sensor)][static_cast<size_t>(f)];
-      before += std::pow(lag1_z(held, lsb0), 2);
-      after += std::pow(lag1_z(held, q_train), 2);
+      before += std::pow(lag1_z(held, d.lag1), 2);
+      after += std::pow(lag1_z(held, carried_lag1(q_train)), 2);
     }
   }
   r.p_value = chi2_survival(r.lr, r.k);
@@ -190,11 +213,13 @@ CandidateResult score_quantisation(const CalibrationInput& in, const std::vector
     r.params.push_back(
         {pi.name, pi.human_unit, r.value_si(j) * pi.si_to_human, sigma(j) * pi.si_to_human});
   }
-  char note[160];
+  char note[200];
   std::snprintf(
       note, sizeof note,
-      "from the lag-1 autocovariance of the rest samples (declared LSBs %.3g rad, %.3g m/s)",
-      in.noise.dtheta_lsb_rad, in.noise.dv_lsb_mps);
+      "from the lag-1 autocovariance of the rest samples (declared LSBs %.3g rad, %.3g "
+      "m/s, %s)",
+      in.noise.dtheta_lsb_rad, in.noise.dv_lsb_mps,
+      in.noise.lsb_rounding == LsbRounding::kCarried ? "remainder carried" : "per-sample rounding");
   r.note = note;
   return r;
 }
@@ -205,22 +230,23 @@ CandidateResult score_quantisation(const CalibrationInput& in, const std::vector
 namespace {
 
 /// The filter coefficient a of one sensor's pooled rest sums, unclamped (a held-out fold may read
-/// below 0). Under a filter of coefficient a over white noise plus the declared carried rounding
-/// (quantisation.hpp), γ0 = γ0_f + q²/6 and γ1 = a γ0_f - q²/12, so a = (γ1 + q²/12)/(γ0 - q²/6).
+/// below 0). Under a filter of coefficient a over white noise plus the declared rounding
+/// (noise_model.hpp), γ0 = γ0_f + var_q and γ1 = a γ0_f + lag1_q (carried: q²/6, -q²/12; per
+/// sample: q²/12, 0), so a = (γ1 - lag1_q)/(γ0 - var_q).
 /// Removing each rest's mean biases the sums by the mean's variance, which the filter inflates by
 /// f = (1+a)/(1-a) (output_filter.hpp): E s0 = n0 γ0 - R γ0 f, and rest_axis_sums' white-noise
 /// correction (+s0/n per rest) leaves E s1 = n1 γ1 - R γ0 (f - 1), R = n0 - n1 the (rest, axis)
 /// pairs; solved by fixed-point iteration from a = 0.
-double filter_coefficient(const Lag1Sums& s, double lsb) {
-  const double R = s.n0 - s.n1, q2 = lsb * lsb;
+double filter_coefficient(const Lag1Sums& s, const DeclaredRounding& q) {
+  const double R = s.n0 - s.n1;
   double a = 0.0;
   for (int it = 0; it < 30; ++it) {
     const double ac = std::clamp(a, 0.0, 0.99);  // the bias terms only for a filter's a
     const double f = (1.0 + ac) / (1.0 - ac);
     const double gamma0 = s.s0 / std::max(1.0, s.n0 - R * f);
     const double gamma1 = (s.s1 + R * gamma0 * (f - 1.0)) / std::max(1.0, s.n1);
-    const double denom = gamma0 - q2 / 6.0;
-    a = denom > 0.0 ? (gamma1 + q2 / 12.0) / denom : 0.0;
+    const double denom = gamma0 - q.variance;
+    a = denom > 0.0 ? (gamma1 - q.lag1) / denom : 0.0;
   }
   return a;
 }
@@ -253,21 +279,21 @@ CandidateResult score_output_filter(const CalibrationInput& in,
     const auto& fs = fold_sums[static_cast<size_t>(sensor)];
     Lag1Sums all;
     for (const auto& f : fs) all.add(f);
-    const double lsb0 = declared_lsb(in.noise, sensor);
+    const DeclaredRounding q = declared_rounding(in.noise, sensor);
     // The same z as the whiteness line's: departure from white noise with the declared rounding.
-    const double z = lag1_z(all, lsb0);
+    const double z = lag1_z(all, q.lag1);
     if (z > 0.0) r.lr += z * z;  // a filter only makes γ1 positive (quantisation: negative)
     const int p = sensor == 0 ? 1 : 0;
-    r.value_si(p) = std::clamp(filter_coefficient(all, lsb0), 0.0, 0.99);
+    r.value_si(p) = std::clamp(filter_coefficient(all, q), 0.0, 0.99);
     sigma(p) = sigma_filter_coefficient(r.value_si(p), all.n1);
     for (int f = 0; f < K; ++f) {
       Lag1Sums train;
       for (int g = 0; g < K; ++g)
         if (g != f) train.add(fs[static_cast<size_t>(g)]);
-      const double a_train = std::clamp(filter_coefficient(train, lsb0), 0.0, 0.99);
+      const double a_train = std::clamp(filter_coefficient(train, q), 0.0, 0.99);
       const Lag1Sums& held = fs[static_cast<size_t>(f)];
-      const double a_held = filter_coefficient(held, lsb0);
-      before += std::pow(lag1_z(held, lsb0), 2);
+      const double a_held = filter_coefficient(held, q);
+      before += std::pow(lag1_z(held, q.lag1), 2);
       after += std::pow((a_held - a_train) / sigma_filter_coefficient(a_train, held.n1), 2);
     }
   }
@@ -310,8 +336,7 @@ double output_filter_p_given_wandering(const CalibrationInput& in,
     for (const RestPeriod& p : rests)
       for (int axis = 0; axis < 3; ++axis) all.add(rest_axis_sums(in, p, sensor, axis));
     if (all.n1 <= 0.0 || all.n2 <= 0.0) continue;
-    const double lsb = declared_lsb(in.noise, sensor);
-    const double d = all.gamma1() - all.gamma2() + lsb * lsb / 12.0;
+    const double d = all.gamma1() - all.gamma2() - declared_rounding(in.noise, sensor).lag1;
     const double sigma = all.gamma0() * std::sqrt(1.0 / all.n1 + 1.0 / all.n2);
     const double z = sigma > 0.0 ? d / sigma : 0.0;
     if (z > 0.0) lr += z * z;
@@ -546,7 +571,7 @@ double quantisation_noncentrality(const GapModel& model, double m) {
   const double dt = in.imu.front().dt_s;
   double lambda = 0.0;
   for (int sensor = 0; sensor < 2; ++sensor) {
-    const double lsb0 = declared_lsb(in.noise, sensor);
+    const double lsb0 = declared_rounding(in.noise, sensor).carried_lsb;
     const double q = m * e.typical[sensor == 0 ? 1 : 0];
     const double white = sensor == 0 ? in.noise.vrw_mps_per_sqrt_s : in.noise.arw_rad_per_sqrt_s;
     const double gamma0 = white * white * dt + q * q / 6.0;

@@ -8,7 +8,8 @@
 //    none. Over the rest samples (each rest's mean removed) the pooled lag-1 autocovariance γ1 per
 //    sensor estimates LSB² = -12 γ1 with σ(γ1) ≈ γ0/√N; the likelihood ratio is the squared z of
 //    the departure from the declared LSB (one-sided). The held-out gap is that statistic on
-//    held-out rests before and after the fitted LSB.
+//    held-out rests before and after the fitted LSB. A declared LSB rounded per sample (a logger
+//    of counts, calib/core/noise_model.hpp) predicts γ1 = 0: it is white, like the noise.
 //  * bias_instability: a Gauss-Markov bias (σ, τ) not in the noise model moves each segment's bias
 //    away from the run's mean, correlated over |Δt| as exp(-|Δt|/τ). In the whitened segment
 //    residuals this adds σ_a² G_a + σ_g² G_g to the unit covariance, G built from the bias columns
@@ -30,12 +31,12 @@ CandidateResult score_quantisation(const CalibrationInput& in, const std::vector
 
 /// output_filter (calib/effects/output_filter.hpp): a first-order filter y_k = a y_{k-1} + (1-a)
 /// x_k on the output makes the rest samples' lag-1 autocorrelation a > 0, where white noise with
-/// the declared carried rounding gives -LSB²/12/γ0 <= 0. Per sensor the pooled lag-1 sums (rest
-/// means removed) give z against white noise (the whiteness line's z); LR = Σ z² over the sensors
-/// with z > 0 (one-sided: quantisation, the other lag-1 effect, has the opposite sign). Its size is
-/// a per sensor (the mean-removal bias corrected for the filter), σ(a) = √((1-a²)/pairs). The
-/// held-out gap: per fold of rests, z² of the held fold against white noise (before) and against a
-/// fitted on the other folds (after), averaged over folds and sensors.
+/// the declared rounding gives -LSB²/12/γ0 <= 0 when carried, 0 when per sample. Per sensor the
+/// pooled lag-1 sums (rest means removed) give z against white noise (the whiteness line's z);
+/// LR = Σ z² over the sensors with z > 0 (one-sided: quantisation, the other lag-1 effect, has the
+/// opposite sign). Its size is a per sensor (the mean-removal bias corrected for the filter),
+/// σ(a) = √((1-a²)/pairs). The held-out gap: per fold of rests, z² of the held fold against white
+/// noise (before) and against a fitted on the other folds (after), averaged over folds and sensors.
 /// What it does not do: change the segment residuals. The filter's DC gain is 1, so a rest's mean
 /// keeps the input's noise; the (1+a)/(1-a) inflation of a mean's variance is against the
 /// per-sample scatter, and explains a segment excess only when the declared noise was read from
@@ -48,8 +49,9 @@ CandidateResult score_output_filter(const CalibrationInput& in,
 /// filter was named beside the bias instability on every independent simulator's drift run). A
 /// drift correlates neighbouring samples alike — its autocovariance is flat over a few lags — where
 /// a first-order filter's falls from lag 1 to lag 2 (γ1 - γ2 = γ0_f (a - a²) > 0). Per sensor the
-/// pooled d = γ1 - γ2 + LSB²/12 (the declared carried rounding makes γ1 = -LSB²/12, γ2 = 0; each
-/// rest's mean removed, its bias the same at both lags) against σ(d) = γ0 √(1/pairs1 + 1/pairs2);
+/// pooled d = γ1 - γ2 + LSB²/12 (the declared carried rounding makes γ1 = -LSB²/12, γ2 = 0; a
+/// per-sample one γ1 = 0, so d = γ1 - γ2; each rest's mean removed, its bias the same at both
+/// lags) against σ(d) = γ0 √(1/pairs1 + 1/pairs2);
 /// returns the one-sided p-value of Σ z² over the sensors with z > 0 (χ²(2)).
 double output_filter_p_given_wandering(const CalibrationInput& in,
                                        const std::vector<RestPeriod>& rests);

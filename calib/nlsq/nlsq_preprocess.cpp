@@ -38,7 +38,12 @@ std::vector<NlsqRestMean> nlsq_rest_means(const CalibrationInput& in,
                                           const std::vector<RestPeriod>& rests) {
   std::vector<NlsqRestMean> out;
   out.reserve(rests.size());
-  const double lsb_dv = in.noise.dv_lsb_mps;
+  // The declared dv rounding (noise_model.hpp): white beside VRW when rounded per sample, one
+  // residue at each end of the rest's sum when carried.
+  const NoiseModel& nm = in.noise;
+  const double vrw2 = nm.vrw_mps_per_sqrt_s * nm.vrw_mps_per_sqrt_s +
+                      rounding_white_density(nm.dv_lsb_mps, nm.lsb_rounding, in.imu.front().dt_s);
+  const double q_dv = rounding_end_residues(nm.dv_lsb_mps, nm.lsb_rounding);
   for (const RestPeriod& p : rests) {
     NlsqRestMean r;
     r.begin = p.begin;
@@ -61,8 +66,7 @@ std::vector<NlsqRestMean> nlsq_rest_means(const CalibrationInput& in,
     r.h1_s = static_cast<double>(s2 / (2.0L * s1));
     r.h2_s2 = static_cast<double>(s3 / (6.0L * s1));
     r.C_bn_ref = in.reference[r.mid].C_bn_ref;
-    const double vrw = in.noise.vrw_mps_per_sqrt_s;
-    r.sigma_f_mps2 = std::sqrt(vrw * vrw / r.T_s + 2.0 * lsb_dv * lsb_dv / 12.0 / (r.T_s * r.T_s));
+    r.sigma_f_mps2 = std::sqrt(vrw2 / r.T_s + q_dv / (r.T_s * r.T_s));
     out.push_back(r);
   }
   return out;
@@ -139,10 +143,14 @@ NlsqRotation nlsq_linearise_rotation(const CalibrationInput& in,
   const Eigen::Vector3d w_ie_n = EarthModel(in.site).w_ie_n();
   rot.E_n = rotvec_to_matrix<double>(Eigen::Vector3d(-w_ie_n * rot.T_s));
   // ARW: each increment's noise is rotated into the end frame by an orthogonal matrix, so the
-  // accumulated attitude noise stays isotropic with variance ARW²·T; the quantiser's carry leaves
-  // one LSB residue at each end.
-  const double arw = in.noise.arw_rad_per_sqrt_s, lsb = in.noise.dtheta_lsb_rad;
-  rot.sigma_psi_rad = std::sqrt(arw * arw * rot.T_s + 2.0 * lsb * lsb / 12.0);
+  // accumulated attitude noise stays isotropic with variance ARW²·T; a carried rounding leaves
+  // one LSB residue at each end, a per-sample one adds its white density to ARW².
+  const NoiseModel& nm = in.noise;
+  const double arw2 =
+      nm.arw_rad_per_sqrt_s * nm.arw_rad_per_sqrt_s +
+      rounding_white_density(nm.dtheta_lsb_rad, nm.lsb_rounding, in.imu.front().dt_s);
+  rot.sigma_psi_rad =
+      std::sqrt(arw2 * rot.T_s + rounding_end_residues(nm.dtheta_lsb_rad, nm.lsb_rounding));
   return rot;
 }
 

@@ -33,7 +33,8 @@ struct NlsqRestMean {
 };
 
 /// Reduce each rest period. Noise: VRW gives σ² = VRW²/T per axis; an accumulating quantiser (the
-/// simulator's and a real output register's) leaves one LSB residue at each end: 2·LSB²/12 / T².
+/// simulator's and a real output register's) leaves one LSB residue at each end: 2·LSB²/12 / T²;
+/// a per-sample rounding (a logger of counts) is white, LSB²/(12 dt) beside VRW² (noise_model.hpp).
 std::vector<NlsqRestMean> nlsq_rest_means(const CalibrationInput& in,
                                           const std::vector<RestPeriod>& rests);
 

@@ -30,6 +30,7 @@ calib::input::RunDescription run_description(const RunInfo& info) {
   run.noise.vrw_mps_per_sqrt_s = info.vrw_mps_per_sqrt_s;
   run.noise.dtheta_lsb_rad = info.dtheta_lsb_rad;
   run.noise.dv_lsb_mps = info.dv_lsb_mps;
+  run.noise.lsb_rounding = info.lsb_rounding;
   run.grade = info.grade;
   run.prior_overrides = info.prior_overrides;
   run.min_rest_s = info.min_rest_s;

@@ -367,6 +367,13 @@ Eigen::Vector3d scaled(const Rows& rows, std::size_t r, const std::size_t cols[3
   return v;
 }
 
+/// Whether the row's three cells are whole numbers (counts).
+bool whole_numbers(const Rows& rows, std::size_t r, const std::size_t cols[3]) {
+  for (int a = 0; a < 3; ++a)
+    if (const double v = rows.at(r, cols[a]); v != std::trunc(v)) return false;
+  return true;
+}
+
 void check_options(const RawImportOptions& o) {
   if (!(std::isfinite(o.seconds_per_time_unit) && o.seconds_per_time_unit > 0.0))
     throw std::invalid_argument("the time unit must be a positive number of seconds");
@@ -389,8 +396,11 @@ RawRecording assemble(const Rows& g, const std::size_t gcols[3], const Rows& a,
   out.samples_missing = grid.samples_missing;
   const double per_sample = o.quantity == RawQuantity::kRates ? grid.T : 1.0;
   out.imu.resize(grid.samples(g.size()));
+  bool gyro_counts = true, accel_counts = true;
   for (std::size_t k = 0; k < out.imu.size(); ++k) {
     const std::size_t r = grid.row_of(k);
+    gyro_counts = gyro_counts && whole_numbers(g, r, gcols);
+    accel_counts = accel_counts && whole_numbers(a, r, acols);
     calib::core::ImuIncrement& s = out.imu[k];
     s.t_s = grid.t0 + grid.T * grid.slot_of(k);
     // After a gap the interval covers the samples lost (the increment is its own sample's): what
@@ -404,6 +414,11 @@ RawRecording assemble(const Rows& g, const std::size_t gcols[3], const Rows& a,
     if (!s.dv_mps.allFinite())
       throw ArchiveError(a.source, a.line[r], "a value overflows once scaled to SI");
   }
+  // Divided by the rate rather than times the period: the same to an ulp, and run.toml then reads
+  // 7.5e-07 rather than 7.499999999999999e-07 for 1.5e-4 at 200 Hz.
+  const double per_rate = o.quantity == RawQuantity::kRates ? out.rate_hz : 1.0;
+  if (gyro_counts) out.dtheta_count_rad = o.gyro.scale.cwiseAbs().maxCoeff() / per_rate;
+  if (accel_counts) out.dv_count_mps = o.accel.scale.cwiseAbs().maxCoeff() / per_rate;
   return out;
 }
 

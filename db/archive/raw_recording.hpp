@@ -68,6 +68,11 @@ struct RawRecording {
   std::size_t repeated_rows = 0;     ///< rows dropped as verbatim repeats of the one before
   std::size_t gaps = 0;              ///< dropped-sample gaps kept on the grid
   std::size_t samples_missing = 0;   ///< samples those gaps lack, in all
+  /// One raw unit as an increment where every raw value of a sensor's three columns is a whole
+  /// number (counts): |scale| × the grid's period for rates (the factor they were integrated
+  /// with), |scale| for increments, the coarsest axis's. 0 where a value has a fraction: a decimal
+  /// reading's resolution is not known.
+  double dtheta_count_rad = 0.0, dv_count_mps = 0.0;
 };
 
 /// One file with every channel (options.columns says which is which).

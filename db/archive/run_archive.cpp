@@ -321,14 +321,23 @@ void read_optional_sections(const TomlSection& root, RunInfo& ri) {
       ri.first_rest_s = *m;
     }
   }
-  if (const auto n = root.section(
-          "noise", {"arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz", "dtheta_lsb_rad", "dv_lsb_mps"})) {
+  if (const auto n = root.section("noise", {"arw_deg_per_sqrt_h", "vrw_ug_per_sqrt_hz",
+                                            "dtheta_lsb_rad", "dv_lsb_mps", "lsb_rounding"})) {
     for (const auto& [key, member] : {std::pair{"dtheta_lsb_rad", &RunInfo::dtheta_lsb_rad},
                                       std::pair{"dv_lsb_mps", &RunInfo::dv_lsb_mps}})
       if (const auto q = n->number(key)) {
         if (!(*q >= 0.0 && *q < 1.0)) n->fail(key, "must be in [0, 1) (0 = no quantisation)");
         ri.*member = *q;
       }
+    if (const auto r = n->string("lsb_rounding")) {
+      const auto rounding = calib::core::parse_lsb_rounding(*r);
+      if (!rounding)
+        n->fail("lsb_rounding",
+                "must be \"carried\" (an output register's) or \"per_sample\" "
+                "(a logger of counts), got \"" +
+                    *r + "\"");
+      ri.lsb_rounding = *rounding;
+    }
     if (const auto a = n->number("arw_deg_per_sqrt_h")) {
       if (!(*a > 0.0)) n->fail("arw_deg_per_sqrt_h", "must be > 0 (it weights the gyro data)");
       ri.arw_rad_per_sqrt_s = arw_to_si(*a);
@@ -467,6 +476,9 @@ std::string run_info_text(const RunInfo& ri) {
     w.key("dtheta_lsb_rad", ri.dtheta_lsb_rad);
     w.key("dv_lsb_mps", ri.dv_lsb_mps);
   }
+  // Written only when not the default, so an archive of the station's protocol reads as before.
+  if (ri.lsb_rounding != calib::core::LsbRounding::kCarried)
+    w.key("lsb_rounding", calib::core::lsb_rounding_name(ri.lsb_rounding));
   std::string text = w.text();
   if (ri.capture) {
     // TomlWriter has no integer/boolean keys; counters are written as TOML integers (exact).

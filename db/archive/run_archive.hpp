@@ -105,6 +105,9 @@ struct RunInfo {
   /// 1e-9 rad and 1e-7 m/s); the gap diagnosis models the quantisation with them.
   double dtheta_lsb_rad = calib::core::NoiseModel{}.dtheta_lsb_rad;
   double dv_lsb_mps = calib::core::NoiseModel{}.dv_lsb_mps;
+  /// [noise] lsb_rounding: "carried" (default: an output register's, the station's protocol) or
+  /// "per_sample" (a logger of counts, written by `imucal import`); calib/core/noise_model.hpp.
+  calib::core::LsbRounding lsb_rounding = calib::core::LsbRounding::kCarried;
   /// [prior] grade: what the unit is expected to be (calib/core/unit_grade.hpp); navigation by
   /// default. Chooses the field runs' rest detector so far (issue #21).
   calib::core::Grade grade = calib::core::Grade::kNavigation;

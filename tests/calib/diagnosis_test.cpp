@@ -19,6 +19,7 @@
 #include "calib/sim/sim_input.hpp"
 #include "calib/sim/truth_sim.hpp"
 #include "sequences/library.hpp"
+#include "tests/support/diagnosis_finding.hpp"
 
 using namespace imucal;
 using namespace imucal::calib;
@@ -234,6 +235,76 @@ TEST(Diagnosis, UndeclaredQuantisationIsNamedWithItsLsb) {
   EXPECT_NEAR(b.params[0].value, 100.0, 4.0 * b.params[0].sigma + 5.0);  // nrad
   EXPECT_NEAR(b.params[1].value, 20.0, 4.0 * b.params[1].sigma + 1.0);   // µm/s
   EXPECT_LT(d.whiteness.lag1_autocorr[3], -0.05);  // gyro x: rounding error anticorrelated
+}
+
+namespace {
+
+/// Every increment rounded to its LSB on its own, no remainder carried: what a logger of counts
+/// makes of its rates (the increment's LSB is scale × dt; issue #50).
+void round_each_sample(CalibrationInput& in, double dtheta_lsb_rad, double dv_lsb_mps) {
+  for (ImuIncrement& s : in.imu)
+    for (int i = 0; i < 3; ++i) {
+      s.dtheta_rad(i) = std::round(s.dtheta_rad(i) / dtheta_lsb_rad) * dtheta_lsb_rad;
+      s.dv_mps(i) = std::round(s.dv_mps(i) / dv_lsb_mps) * dv_lsb_mps;
+    }
+}
+
+void print_lag1(const char* what, const DiagnosisResult& d) {
+  std::printf("%s: verdict %s, chi2/dof %.3f, lag-1 z (accel x y z, gyro x y z):", what,
+              d.verdict.c_str(), d.overall_gap);
+  for (double z : d.whiteness.lag1_z) std::printf(" %.1f", z);
+  std::printf("; steps:");
+  for (const auto& st : d.steps) std::printf(" %s", st.effect.c_str());
+  std::printf("\n");
+}
+
+}  // namespace
+
+// Issue #50: rounding each sample on its own (a logger of counts) leaves a white error, variance
+// LSB²/12 and no lag-1 autocovariance. Rounded so, to LSBs about the per-sample noise σ (ARW 4.4e-8
+// rad and VRW 9.8e-6 m/s a sample at 100 Hz), and declared as such, the rest samples' lag-1 z's
+// are white noise's (|z| < 4) and neither lag-1 effect is named. Declared as a carried rounding,
+// the same data miss the -LSB²/12 that model predicts: z = (LSB²/12)/(γ0/√pairs), γ0 = σ² +
+// LSB²/12 — far above 3 on every axis — and the output filter (positive lag-1) is what the
+// diagnosis then sees.
+TEST(Diagnosis, PerSampleRoundingDeclaredAsSuchLeavesTheRestSamplesWhite) {
+  const double q_th = 5e-8, q_dv = 1e-5;
+  DiagnosisInput in = simulate_run("factory-std", default_unit(), true, 61);
+  round_each_sample(in.cal, q_th, q_dv);
+  in.cal.noise.dtheta_lsb_rad = q_th;
+  in.cal.noise.dv_lsb_mps = q_dv;
+  in.cal.noise.lsb_rounding = LsbRounding::kPerSample;
+  const ParamSet params = calibrate_nlsq(in.cal).params;
+  const DiagnosisResult white = diagnose(in, params);
+  print_lag1("declared per sample", white);
+  for (int c = 0; c < 6; ++c) EXPECT_LT(std::abs(white.whiteness.lag1_z[c]), 4.0) << c;
+  EXPECT_FALSE(test_support::named(white, "quantisation"));
+  EXPECT_FALSE(test_support::named(white, "output_filter"));
+  EXPECT_FALSE(test_support::candidate(white, "output_filter").significant);
+  EXPECT_FALSE(test_support::candidate(white, "quantisation").significant);
+  EXPECT_NE(test_support::candidate(white, "quantisation").note.find("per-sample rounding"),
+            std::string::npos);
+
+  in.cal.noise.lsb_rounding = LsbRounding::kCarried;
+  const DiagnosisResult carried = diagnose(in, params);
+  print_lag1("declared carried", carried);
+  double pairs = 0.0;
+  const GapModel model(in);
+  for (const RestPeriod& p : model.rests()) pairs += static_cast<double>(p.size() - 1);
+  const double dt = in.cal.imu.front().dt_s;
+  for (int c = 0; c < 6; ++c) {
+    const bool gyro = c >= 3;
+    const double q = gyro ? q_th : q_dv;
+    const double white_sd =
+        (gyro ? default_unit().noise.arw_rad_per_sqrt_s : default_unit().noise.vrw_mps_per_sqrt_s) *
+        std::sqrt(dt);
+    const double expected = q * q / 12.0 * std::sqrt(pairs) / (white_sd * white_sd + q * q / 12.0);
+    std::printf("  axis %d: lag-1 z %.1f, expected %.1f\n", c, carried.whiteness.lag1_z[c],
+                expected);
+    EXPECT_GT(carried.whiteness.lag1_z[c], 3.0) << c;
+    EXPECT_NEAR(carried.whiteness.lag1_z[c], expected, 0.25 * expected + 4.0) << c;
+  }
+  EXPECT_TRUE(test_support::candidate(carried, "output_filter").significant);
 }
 
 // An undeclared Gauss-Markov bias (5x the catalogue's typical size): segment biases wander and

@@ -345,6 +345,47 @@ TEST(Archive, TheProtocolAndItsResolutionReadWriteBackAndReachTheInput) {
   EXPECT_NE(std::string(e.what()).find("[0, 1)"), std::string::npos) << e.what();
 }
 
+// Issue #50: how the LSBs were rounded ([noise] lsb_rounding) reads, reaches the calibration input
+// and survives a write/read; absent it is the carried rounding (an archive from before reads
+// unchanged, and the default is not written); a value other than the two is refused naming the
+// file, line and key.
+TEST(Archive, TheLsbRoundingReadsWritesBackAndIsRefusedWhenWrong) {
+  TempDir tmp("imucal_archive_test");
+  const std::string dir = write_simple(tmp, "r");
+  const std::string orig = slurp(dir + "/run.toml");
+  EXPECT_EQ(orig.find("lsb_rounding"), std::string::npos);
+  EXPECT_EQ(to_calibration_input(read_archive(dir)).noise.lsb_rounding,
+            calib::core::LsbRounding::kCarried);
+  replace_in_file(
+      dir + "/run.toml", "[noise]\n",
+      "[noise]\ndtheta_lsb_rad = 3e-6\ndv_lsb_mps = 2e-4\nlsb_rounding = \"per_sample\"\n");
+  const RunArchive a = read_archive(dir);
+  EXPECT_EQ(a.info.lsb_rounding, calib::core::LsbRounding::kPerSample);
+  const calib::core::CalibrationInput in = to_calibration_input(a);
+  EXPECT_EQ(in.noise.lsb_rounding, calib::core::LsbRounding::kPerSample);
+  EXPECT_EQ(in.noise.dtheta_lsb_rad, 3e-6);
+  EXPECT_EQ(in.noise.dv_lsb_mps, 2e-4);
+  const std::string again = tmp.path() + "/again";
+  write_archive(again, a, false);
+  EXPECT_NE(slurp(again + "/run.toml").find("lsb_rounding = \"per_sample\""), std::string::npos);
+  EXPECT_EQ(read_archive(again).info.lsb_rounding, calib::core::LsbRounding::kPerSample);
+  for (const char* bad : {"\"per-sample\"", "\"rounded\"", "1"}) {
+    put(dir + "/run.toml", orig);
+    replace_in_file(dir + "/run.toml", "[noise]\n",
+                    std::string("[noise]\nlsb_rounding = ") + bad + "\n");
+    const ArchiveError e = read_error(dir);
+    EXPECT_EQ(e.field(), "noise.lsb_rounding") << e.what();
+    EXPECT_EQ(e.file(), dir + "/run.toml");
+    EXPECT_GT(e.line(), 0u) << e.what();
+  }
+  put(dir + "/run.toml", orig);
+  replace_in_file(dir + "/run.toml", "[noise]\n", "[noise]\nlsb_rounding = \"sometimes\"\n");
+  const std::string says = read_error(dir).what();
+  EXPECT_NE(says.find("\"carried\""), std::string::npos) << says;
+  EXPECT_NE(says.find("\"per_sample\""), std::string::npos) << says;
+  EXPECT_NE(says.find("sometimes"), std::string::npos) << says;
+}
+
 // Issue #21: the grade's envelopes may be overridden per product; the overrides reach the
 // calibration input exactly and survive a write/read.
 TEST(Archive, PriorEnvelopeOverridesReadWriteBackAndReachTheInput) {

@@ -13,10 +13,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -400,6 +402,114 @@ TEST(ImucalImportTime, ARecordingThatLostSamplesInAMoveCalibratesWithoutThatMove
   EXPECT_EQ(cal.code, 0) << cal.out;
   EXPECT_NE(cal.out.find("left out of the gyro fit: 8 samples missing"), std::string::npos)
       << cal.out;
+}
+
+/// Sample k's counts of a logger at rest (whole numbers): gyro x y z, accelerometer x y z.
+std::array<int, 6> counts_at(int k) {
+  return {1 + k % 5, -2 + k % 3, 1 - k % 4, 20 + k % 3, -15 + k % 2, 16341 + k % 7};
+}
+
+/// `n` rows of counts, "gx,gy,gz,ax,ay,az", preceded by the time stamp `t_of(k)` (in the file's
+/// unit) when one is given.
+std::string count_rows(int n, const std::function<double(int)>& t_of = nullptr) {
+  std::string s;
+  for (int k = 0; k < n; ++k) {
+    if (t_of) s += std::to_string(std::llround(t_of(k))) + ",";
+    const std::array<int, 6> c = counts_at(k);
+    for (int i = 0; i < 6; ++i) s += std::to_string(c[i]) + (i < 5 ? "," : "\n");
+  }
+  return s;
+}
+
+/// run.toml's [noise] of an imported archive: its LSBs and rounding as read, and the text.
+struct DeclaredLsbs {
+  double dtheta_rad = -1.0, dv_mps = -1.0;
+  calib::core::LsbRounding rounding = calib::core::LsbRounding::kCarried;
+  std::string toml;
+};
+DeclaredLsbs declared_lsbs(const std::string& dir) {
+  const db::archive::RunArchive ar = db::archive::read_archive(dir);
+  std::ifstream f(dir + "/run.toml");
+  std::stringstream toml;
+  toml << f.rdbuf();
+  return {ar.info.dtheta_lsb_rad, ar.info.dv_lsb_mps, ar.info.lsb_rounding, toml.str()};
+}
+
+// Issue #50: a logger of counts rounds each rate sample on its own, so the increment's LSB is one
+// count × scale × the sample period, and its error is white. The importer declares both in
+// run.toml's [noise] (the diagnosis models the quantisation with them) on every path of rates: a
+// key,value preamble without a time column (--rate), jittered stamps (the period fitted to them),
+// one file per sensor. The expected LSBs are the scales and periods written here; where the axes'
+// scales differ, the coarsest.
+TEST(ImucalImportResolution, RatesInCountsDeclareOneCountTimesScaleTimesPeriodRoundedPerSample) {
+  test_support::ScopedTempDir tmp("imucal-import-lsb");
+  const std::string scales = " --gyro-scale 1.3e-4 1.5e-4 1.4e-4 --accel-scale 6e-4";
+  const std::string preamble = "device,counts-logger\nrate_hz,200\n";
+  const Imported rate = import_text(tmp, "rate", preamble + "gx,gy,gz,ax,ay,az\n" + count_rows(600),
+                                    scales + " --rate 200");
+  ASSERT_EQ(rate.result.code, 0) << rate.result.out;
+  DeclaredLsbs d = declared_lsbs(rate.out);
+  EXPECT_NEAR(d.dtheta_rad, 1.5e-4 / 200.0, 1e-12 * d.dtheta_rad);
+  EXPECT_NEAR(d.dv_mps, 6e-4 / 200.0, 1e-12 * d.dv_mps);
+  EXPECT_EQ(d.rounding, calib::core::LsbRounding::kPerSample);
+  EXPECT_NE(d.toml.find("lsb_rounding = \"per_sample\""), std::string::npos) << d.toml;
+  EXPECT_EQ(rate.report.at("lsb_rounding"), "per_sample");
+
+  // Stamps in µs at 80 Hz with up to ±200 µs of jitter: the period is the one fitted to them.
+  const auto jittered = [](int k) { return 12500.0 * k + 200.0 * std::sin(1.3 * k); };
+  const Imported stamped =
+      import_text(tmp, "stamped", "t,gx,gy,gz,ax,ay,az\n" + count_rows(800, jittered),
+                  scales + " --time-unit us");
+  ASSERT_EQ(stamped.result.code, 0) << stamped.result.out;
+  d = declared_lsbs(stamped.out);
+  EXPECT_NEAR(d.dtheta_rad, 1.5e-4 * 0.0125, 1e-5 * d.dtheta_rad);
+  EXPECT_NEAR(d.dv_mps, 6e-4 * 0.0125, 1e-5 * d.dv_mps);
+  EXPECT_EQ(d.rounding, calib::core::LsbRounding::kPerSample);
+
+  // One file per sensor ("t x y z"), at 100 Hz.
+  std::ofstream gyro(tmp.path() + "/g.txt"), accel(tmp.path() + "/a.txt");
+  for (int k = 0; k < 500; ++k) {
+    const std::array<int, 6> c = counts_at(k);
+    gyro << 0.01 * k << ' ' << c[0] << ' ' << c[1] << ' ' << c[2] << '\n';
+    accel << 0.01 * k << ' ' << c[3] << ' ' << c[4] << ' ' << c[5] << '\n';
+  }
+  gyro.close();
+  accel.close();
+  const auto pair = run_imucal("import --gyro " + tmp.path() + "/g.txt --accel " + tmp.path() +
+                                   "/a.txt --out " + tmp.path() + "/pair" + kLoggerSite + scales,
+                               false);
+  ASSERT_EQ(pair.code, 0) << pair.out;
+  EXPECT_NE(pair.out.find("rates rounded per sample"), std::string::npos) << pair.out;
+  d = declared_lsbs(tmp.path() + "/pair");
+  EXPECT_NEAR(d.dtheta_rad, 1.5e-4 * 0.01, 1e-9 * d.dtheta_rad);
+  EXPECT_NEAR(d.dv_mps, 6e-4 * 0.01, 1e-9 * d.dv_mps);
+}
+
+// Issue #50: increment counts (an accumulating register) declare one count × scale with the
+// remainder carried (the default, not written); a recording in SI decimals, or in decimals with a
+// scale (deg/s), has no resolution the importer knows of and declares none (0) — not the station
+// protocol's 1e-9 rad and 1e-7 m/s it never went through.
+TEST(ImucalImportResolution, IncrementCountsAreCarriedAndDecimalsDeclareNoLsb) {
+  test_support::ScopedTempDir tmp("imucal-import-lsb-inc");
+  const Imported inc = import_text(tmp, "inc", "gx,gy,gz,ax,ay,az\n" + count_rows(600),
+                                   " --rate 200 --quantity increments --gyro-scale 1e-6 "
+                                   "--accel-scale 3e-6");
+  ASSERT_EQ(inc.result.code, 0) << inc.result.out;
+  DeclaredLsbs d = declared_lsbs(inc.out);
+  EXPECT_EQ(d.dtheta_rad, 1e-6);
+  EXPECT_EQ(d.dv_mps, 3e-6);
+  EXPECT_EQ(d.rounding, calib::core::LsbRounding::kCarried);
+  EXPECT_EQ(d.toml.find("lsb_rounding"), std::string::npos) << d.toml;
+
+  const std::string si_rows = rows(300, {"t", "gx", "gy", "gz", "ax", "ay", "az"}, " ");
+  const Imported si = import_text(tmp, "si", si_rows, "");
+  ASSERT_EQ(si.result.code, 0) << si.result.out;
+  d = declared_lsbs(si.out);
+  EXPECT_EQ(d.dtheta_rad, 0.0);
+  EXPECT_EQ(d.dv_mps, 0.0);
+  const Imported deg = import_text(tmp, "deg", si_rows, " --gyro-scale 0.0174533");
+  ASSERT_EQ(deg.result.code, 0) << deg.result.out;
+  EXPECT_EQ(declared_lsbs(deg.out).dtheta_rad, 0.0);
 }
 
 }  // namespace

@@ -157,6 +157,21 @@ db::archive::RunInfo run_info(const ImportArgs& a, double rate_hz) {
   return info;
 }
 
+/// [noise]'s LSBs and their rounding from what the recording is (issue #50): a sensor read in
+/// counts (a scale given and every raw value a whole number) has one count's increment as its LSB,
+/// the coarsest axis's where the axes' scales differ (the noise model holds one LSB a sensor). A
+/// sensor in SI or read with decimals has no LSB the importer knows of, and declares none (0, "no
+/// quantisation"), rather than the station protocol's 1e-9 rad and 1e-7 m/s it never went
+/// through. A logger of rates rounds each sample on its own (white, no lag-1 correlation); a unit
+/// that outputs increment counts accumulates them, carrying the remainder (the default's kind).
+void set_resolution(const ImportArgs& a, const db::archive::RawRecording& rec,
+                    db::archive::RunInfo& info) {
+  info.dtheta_lsb_rad = a.gyro_scale.empty() ? 0.0 : rec.dtheta_count_rad;
+  info.dv_lsb_mps = a.accel_scale.empty() ? 0.0 : rec.dv_count_mps;
+  info.lsb_rounding = a.quantity == "increments" ? calib::core::LsbRounding::kCarried
+                                                 : calib::core::LsbRounding::kPerSample;
+}
+
 /// How the file was read where a reader would want to know: columns from its header, lines
 /// skipped before the data, decimal commas, a time grid from the rate alone.
 void print_reading_notes(const db::archive::RawRecording& rec, bool rate_given) {
@@ -179,7 +194,27 @@ void print_reading_notes(const db::archive::RawRecording& rec, bool rate_given) 
         rec.gaps, rec.samples_missing);
 }
 
-void print_import_report(const ImportArgs& a, const db::archive::RawRecording& rec) {
+/// The LSBs the archive declares and why (the diagnosis models the quantisation with them).
+void print_resolution(const db::archive::RunInfo& info) {
+  const auto lsb = [](double v, const char* unit) {
+    char text[48];
+    if (v > 0.0)
+      std::snprintf(text, sizeof text, "%.4g %s", v, unit);
+    else
+      std::snprintf(text, sizeof text, "none");
+    return std::string(text);
+  };
+  std::printf(
+      "LSBs declared (a sensor in whole counts with a scale: one count): dtheta %s, dv %s; "
+      "%s\n",
+      lsb(info.dtheta_lsb_rad, "rad").c_str(), lsb(info.dv_lsb_mps, "m/s").c_str(),
+      info.lsb_rounding == calib::core::LsbRounding::kPerSample
+          ? "rates rounded per sample"
+          : "increments with the remainder carried");
+}
+
+void print_import_report(const ImportArgs& a, const db::archive::RawRecording& rec,
+                         const db::archive::RunInfo& info) {
   const double span_s = rec.imu.back().t_s - rec.imu.front().t_s + rec.imu.front().dt_s;
   if (a.json) {
     std::cout << nlohmann::json{{"out", a.out_dir},
@@ -194,7 +229,10 @@ void print_import_report(const ImportArgs& a, const db::archive::RawRecording& r
                                 {"decimal_comma", rec.decimal_comma},
                                 {"repeated_rows_dropped", rec.repeated_rows},
                                 {"gaps", rec.gaps},
-                                {"samples_missing", rec.samples_missing}}
+                                {"samples_missing", rec.samples_missing},
+                                {"dtheta_lsb_rad", info.dtheta_lsb_rad},
+                                {"dv_lsb_mps", info.dv_lsb_mps},
+                                {"lsb_rounding", calib::core::lsb_rounding_name(info.lsb_rounding)}}
                      .dump()
               << '\n';
     return;
@@ -208,6 +246,7 @@ void print_import_report(const ImportArgs& a, const db::archive::RawRecording& r
       rec.jitter_max_s * 1e6,
       a.quantity == "increments" ? "" : "; rates integrated over the period");
   print_reading_notes(rec, !unset(a.rate_hz));
+  print_resolution(info);
 }
 
 /// A recording whose values cannot be what the options say (a unit mix-up) is refused, naming
@@ -296,9 +335,10 @@ int cmd_import(const ImportArgs& args) {
   refuse_implausible(a, rec);
   db::archive::RunArchive ar;
   ar.info = run_info(a, rec.rate_hz);
+  set_resolution(a, rec, ar.info);
   ar.imu = rec.imu;
   db::archive::write_archive(a.out_dir, ar, a.overwrite);
-  print_import_report(a, rec);
+  print_import_report(a, rec, ar.info);
   return 0;
 }
 

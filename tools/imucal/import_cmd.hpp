@@ -12,6 +12,9 @@
 //   [run]     serial = "...", grade = "navigation"|"tactical"|"mems"
 //   [station] name, lat_deg, lon_deg, height_m (required), gravity_mps2 (optional)
 //   [noise]   arw_deg_per_sqrt_h, vrw_ug_per_sqrt_hz (default: the grade's worst of class)
+// A sensor in counts (a scale given, every raw value whole) declares its LSB in run.toml [noise]:
+// one count × scale × period for rates, rounded per sample; × 1 for increments, carried (issue
+// #50). SI or decimal values declare none (0).
 // Bad input is one line naming the file, line and column or key; nothing is written. A recording
 // whose values cannot be what the options say (a unit mix-up: db/archive/import_plausibility.hpp)
 // is refused naming the factor and the option that fixes it (--skip-plausibility imports it).
