@@ -33,7 +33,7 @@ enum Exit : int {
   kRunInterrupted = 5
 };
 /// Exit code when the operator stops following a run with Ctrl-C (128 + SIGINT, the shell's).
-constexpr int kInterrupted = 130;
+constexpr int kStoppedFollowing = 130;
 
 /// A failure with its exit code; main prints "stationctl: <message>" and exits with the code.
 struct Failure {

@@ -67,7 +67,7 @@ int reprocess_batch(const Target& t, const ReprocessArgs& a, bool as_json) {
                 << " reprocessing as run " << text(r, "run_id", "?") << "\n";
     json run;
     const int c = wait_for_run(t, client, r.at("run_id").get<db::history::RunId>(), as_json, &run);
-    if (c == kInterrupted) {
+    if (c == kStoppedFollowing) {
       std::cerr << "stationctl: the batch stopped" << left << "\n";
       return c;
     }

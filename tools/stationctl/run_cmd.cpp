@@ -184,7 +184,7 @@ int wait_for_runs(const Target& target, ControlClient& client,
   for (const db::history::RunId id : ids) {
     json run;
     const int c = wait_for_run(target, client, id, json_out, &run);
-    if (c == kInterrupted) return c;
+    if (c == kStoppedFollowing) return c;
     if (c != kOk && code != kRunInterrupted) code = c;  // an interrupted unit says the most
     runs.push_back(run);
   }
@@ -325,7 +325,7 @@ int wait_for_run(const Target& target, ControlClient& client, db::history::RunId
       progress.end_line();
       std::cerr << "stationctl: stopped following run " << run_id
                 << "; the run goes on (`stationctl run status --run " << run_id << "`)\n";
-      return kInterrupted;
+      return kStoppedFollowing;
     }
     std::optional<json> polled = poll_run(target, client, run_id, progress);
     if (!polled) continue;  // a signal stopped the following: said above

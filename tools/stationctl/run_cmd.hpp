@@ -34,7 +34,7 @@ int cmd_run_abort(const Target& t, const RunArgs& a, bool as_json);
 
 /// Follows one run to its end with the progress line on stderr (a TTY: rewritten in place;
 /// otherwise a new line only when step, phase or state changes); prints its outcome (or, with
-/// `outcome`, hands it back unprinted). Exit code: 0 only for done + PASS; kInterrupted when
+/// `outcome`, hands it back unprinted). Exit code: 0 only for done + PASS; kStoppedFollowing when
 /// SIGINT/SIGTERM stops the following (the run itself goes on).
 int wait_for_run(const Target& target, ControlClient& client, db::history::RunId run_id,
                  bool json_out, json* outcome = nullptr);
