@@ -12,6 +12,7 @@
 #include <string>
 
 #include "db/history/sqlite_repository.hpp"
+#include "tests/support/calibration_job.hpp"
 #include "tests/support/data_archive.hpp"
 #include "tests/support/temp_dir.hpp"
 
@@ -20,22 +21,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// One calibration job on the archive at `dir` for a run created calibrating; the stored record.
+/// One calibration job on the archive at `dir`, as the station runs it; the stored record.
 db::history::RunRecord calibrate_stored(db::history::SqliteRepository& repo,
                                         const std::string& dir) {
-  db::history::NewRun nr;
-  nr.serial = "SN-WORKER";
-  nr.operator_name = "test";
-  nr.station = "worker-test";
-  nr.sequence_name = "factory-std";
-  nr.software_version = "test";
-  nr.started_at_ms = 1714560000000;
-  nr.archive_path = dir;
-  nr.state = db::history::RunState::kCalibrating;
-  station::run::CalibrationJob job;
-  job.run_id = repo.create_run(nr);
-  job.archive_dir = dir;
-  const station::run::CalibrationOutcome out = station::run::run_calibration_job(repo, job);
+  const station::run::CalibrationOutcome out =
+      test_support::calibrate_as_the_station(repo, "SN-WORKER", "worker-test", dir);
   EXPECT_TRUE(out.stored);
   EXPECT_EQ(out.state, db::history::RunState::kFailed) << out.reason;
   const std::vector<db::history::RunRecord> runs = repo.recent_runs(1);

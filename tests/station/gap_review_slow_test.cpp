@@ -30,6 +30,7 @@
 #include "db/history/sqlite_repository.hpp"
 #include "sequences/library.hpp"
 #include "station/run/calibration_worker.hpp"
+#include "tests/support/calibration_job.hpp"
 #include "tests/support/ci_count.hpp"
 #include "tests/support/temp_dir.hpp"
 
@@ -79,19 +80,8 @@ Outcome run_case(const Case& c, const std::string& dir, db::history::Repository&
   ar.imu = std::move(sim.imu);
   ar.table = std::move(sim.table);
   db::archive::write_archive(dir, ar);
-  db::history::NewRun nr;
-  nr.serial = ar.info.serial;
-  nr.operator_name = "test";
-  nr.station = "gap-test";
-  nr.sequence_name = "factory-std";
-  nr.software_version = "test";
-  nr.started_at_ms = 1714560000000;
-  nr.archive_path = dir;
-  nr.state = db::history::RunState::kCalibrating;
-  station::run::CalibrationJob job;
-  job.run_id = repo.create_run(nr);
-  job.archive_dir = dir;
-  const station::run::CalibrationOutcome out = station::run::run_calibration_job(repo, job);
+  const station::run::CalibrationOutcome out =
+      test_support::calibrate_as_the_station(repo, ar.info.serial, "gap-test", dir);
   return {out.state, out.reason};
 }
 

@@ -136,29 +136,35 @@ std::string calibrate_and_judge(const std::string& folder, const std::string& fi
   return cal;
 }
 
-TEST(Corpus, ImuCalibsFirstMpu9150HeldByHandAtFirst) {
-  CORPUS_FILE_OR_SKIP(f, "mikoff_mpu9150", "imu0.log");
-  const test_support::ScopedTempDir tmp("corpus-mikoff0");
-  calibrate_and_judge("mikoff_mpu9150", f, "mikoff0", tmp);
+/// A calibration recording of the corpus, with the peer fit to compare with ("" for none).
+struct CalibrationRecording {
+  const char* name;
+  const char* folder;
+  const char* file;
+  const char* peer;
+};
+
+class CorpusCalibration : public ::testing::TestWithParam<CalibrationRecording> {};
+
+TEST_P(CorpusCalibration, ImportCalibrateCheckBesideThePeerAndDiagnose) {
+  const CalibrationRecording& r = GetParam();
+  CORPUS_FILE_OR_SKIP(f, r.folder, r.file);
+  const test_support::ScopedTempDir tmp(std::string("corpus-") + r.name);
+  calibrate_and_judge(r.folder, f, r.peer, tmp);
 }
 
-TEST(Corpus, ImuCalibsSecondMpu9150) {
-  CORPUS_FILE_OR_SKIP(f, "mikoff_mpu9150", "imu1.log");
-  const test_support::ScopedTempDir tmp("corpus-mikoff1");
-  calibrate_and_judge("mikoff_mpu9150", f, "mikoff1", tmp);
-}
-
-TEST(Corpus, ImuCalibsFourthMpu9150) {
-  CORPUS_FILE_OR_SKIP(f, "mikoff_mpu9150", "imu3.log");
-  const test_support::ScopedTempDir tmp("corpus-mikoff3");
-  calibrate_and_judge("mikoff_mpu9150", f, "mikoff3", tmp);
-}
-
-TEST(Corpus, MadLabsFerrarisSessionInSi) {
-  CORPUS_FILE_OR_SKIP(f, "madlab_ferraris_si", "example_ferraris_session.csv");
-  const test_support::ScopedTempDir tmp("corpus-madlab-si");
-  calibrate_and_judge("madlab_ferraris_si", f, "", tmp);
-}
+// IMU-calib's MPU-9150 units #1, #2 and #4 (each held by hand at first; SI, no time column) and
+// MaD Lab's Ferraris session in SI (no published fit).
+INSTANTIATE_TEST_SUITE_P(
+    Corpus, CorpusCalibration,
+    ::testing::Values(CalibrationRecording{"mikoff0", "mikoff_mpu9150", "imu0.log", "mikoff0"},
+                      CalibrationRecording{"mikoff1", "mikoff_mpu9150", "imu1.log", "mikoff1"},
+                      CalibrationRecording{"mikoff3", "mikoff_mpu9150", "imu3.log", "mikoff3"},
+                      CalibrationRecording{"madlab_si", "madlab_ferraris_si",
+                                           "example_ferraris_session.csv", ""}),
+    [](const ::testing::TestParamInfo<CalibrationRecording>& i) {
+      return std::string(i.param.name);
+    });
 
 // The MPU-6050 in counts, no time column, three clipped moves; then the same unit's second
 // recording, held out: our fit within 10 % of the peer's there (three rests do not rank two fits
