@@ -18,6 +18,7 @@
 #include "db/history/sqlite_fleet_stats.hpp"
 #include "db/history/sqlite_repository.hpp"
 #include "tests/db/fleet_history.hpp"
+#include "tests/fleet/replicate_to_store.hpp"
 #include "tests/support/html_tags.hpp"
 #include "tests/support/pg_cluster.hpp"
 #include "tests/tools/stationweb_process.hpp"
@@ -28,18 +29,6 @@ namespace {
 
 using test_support::PgCluster;
 using test_support::tags;
-
-/// The station's runs replicated into the store, one station id per station name.
-void replicate(const db::history::SqliteRepository& repo, const PgCluster& pg) {
-  db::fleet::PgConnection w(
-      db::fleet::parse_fleet_target(pg.url("fleet_writer"), PgCluster::kWriterPassword));
-  db::fleet::migrate_fleet(w);
-  std::map<std::string, std::vector<db::history::RunId>> by_station;
-  for (const db::history::RunRecord& r : repo.recent_runs(0))
-    by_station[r.station].push_back(r.run_id);
-  for (const auto& [station, ids] : by_station)
-    db::fleet::upsert_runs(w, station, repo.details_of(ids));
-}
 
 class FleetView : public ::testing::Test {
  protected:
@@ -58,7 +47,7 @@ class FleetView : public ::testing::Test {
     second.slot = "B";
     second.table_run_id = table_first_;
     repo.create_run(second);
-    replicate(repo, *pg_);
+    test_support::replicate_to_store(repo, *pg_);
   }
   static void TearDownTestSuite() {
     dir_.reset();

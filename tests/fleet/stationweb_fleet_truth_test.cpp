@@ -14,6 +14,7 @@
 #include "db/fleet/fleet_writer.hpp"
 #include "db/history/sqlite_repository.hpp"
 #include "tests/db/fleet_truth_history.hpp"
+#include "tests/fleet/replicate_to_store.hpp"
 #include "tests/support/pg_cluster.hpp"
 #include "tests/tools/fleet_truth_checks.hpp"
 #include "tests/tools/stationweb_process.hpp"
@@ -32,14 +33,7 @@ class FleetTruth : public ::testing::Test {
     const std::string db = dir_->file("truth.sqlite");
     db::history::SqliteRepository repo(db);
     rows_ = db::test::write_truth_history(repo);
-    db::fleet::PgConnection w(
-        db::fleet::parse_fleet_target(pg_->url("fleet_writer"), PgCluster::kWriterPassword));
-    db::fleet::migrate_fleet(w);
-    std::map<std::string, std::vector<db::history::RunId>> by_station;
-    for (const db::history::RunRecord& r : repo.recent_runs(0))
-      by_station[r.station].push_back(r.run_id);
-    for (const auto& [station, ids] : by_station)
-      db::fleet::upsert_runs(w, station, repo.details_of(ids));
+    test_support::replicate_to_store(repo, *pg_);
     const std::string pw = dir_->file("reader.pw");
     std::ofstream(pw) << PgCluster::kReaderPassword << "\n";
     web_ = std::make_unique<test_support::StationwebProcess>(
@@ -67,14 +61,8 @@ class FleetTruth : public ::testing::Test {
 };
 
 TEST_F(FleetTruth, TheStoreCountsFactoryRunsOnceEachCaptureAndStationFaultsApart) {
-  const int gz = 14;  // gyro_bias_radps[2]
-  const std::string p = "&param=gyro_bias_radps%5B2%5D";
-  test_support::expect_fleet_truth(get("/fleet?" + p), rows_, "factory", "", gz);
-  test_support::expect_fleet_truth(get("/fleet?setting=all" + p), rows_, "", "", gz);
-  test_support::expect_fleet_truth(get("/fleet?setting=land" + p), rows_, "land", "", gz);
-  test_support::expect_fleet_truth(get("/fleet?verdict=PASS" + p), rows_, "factory", "PASS", gz);
-  test_support::expect_fleet_truth(get("/fleet?setting=all&verdict=STATION-FAULT" + p), rows_, "",
-                                   "STATION-FAULT", gz);
+  test_support::expect_fleet_truth_under_every_filter(
+      [](const std::string& target) { return get(target); }, rows_);
 }
 
 TEST_F(FleetTruth, TheStoresBannerAndSignaturesSayTheSameOfEveryStation) {

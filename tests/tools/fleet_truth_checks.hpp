@@ -122,4 +122,19 @@ inline void expect_signatures_agree(const std::string& signatures, const std::st
   }
 }
 
+/// expect_fleet_truth on /fleet under each filter QA uses (the default factory runs, every setting,
+/// land alone, PASS alone, station faults of every setting), the pages fetched by `get(target)`,
+/// gyro_bias_radps[2] as the parameter: the same checks of the SQLite and the PostgreSQL backends.
+template <typename Get>
+void expect_fleet_truth_under_every_filter(Get get, const std::vector<db::test::TruthRow>& rows) {
+  const int gz = 14;  // gyro_bias_radps[2]
+  const std::string p = "&param=gyro_bias_radps%5B2%5D";
+  expect_fleet_truth(get("/fleet?" + p), rows, "factory", "", gz);
+  expect_fleet_truth(get("/fleet?setting=all" + p), rows, "", "", gz);
+  expect_fleet_truth(get("/fleet?setting=land" + p), rows, "land", "", gz);
+  expect_fleet_truth(get("/fleet?verdict=PASS" + p), rows, "factory", "PASS", gz);
+  expect_fleet_truth(get("/fleet?setting=all&verdict=STATION-FAULT" + p), rows, "", "STATION-FAULT",
+                     gz);
+}
+
 }  // namespace imucal::test_support
