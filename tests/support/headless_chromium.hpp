@@ -2,6 +2,7 @@
 // A page as a browser shows it, for the web tests: headless Chromium (tools/setup.sh installs it)
 // dumps the DOM after scripts ran, reports the console's messages, and takes screenshots.
 #include <fstream>
+#include <regex>
 #include <string>
 #include <vector>
 
@@ -32,6 +33,25 @@ inline RenderedPage render_in_chromium(const std::string& url, const std::string
   for (std::string line; std::getline(log, line);)
     if (line.find(":CONSOLE") != std::string::npos) page.console.push_back(line);
   return page;
+}
+
+/// `dom` with its attributes in single quotes, as stationweb writes them, so that the tests' tag
+/// reader (html_tags.hpp) reads a page as Chromium shows it: Chromium serialises attributes in
+/// double quotes and writes a single quote inside one as it is.
+inline std::string single_quoted(const std::string& dom) {
+  static const std::regex dq("([a-z0-9-]+)=\"([^\"]*)\"");
+  std::string out;
+  auto last = dom.cbegin();
+  for (std::sregex_iterator it(dom.begin(), dom.end(), dq), end; it != end; ++it) {
+    out.append(last, (*it)[0].first);
+    std::string value = (*it)[2];
+    for (std::size_t q = value.find('\''); q != std::string::npos; q = value.find('\'', q))
+      value.replace(q, 1, "&#39;");
+    out += (*it)[1].str() + "='" + value + "'";
+    last = (*it)[0].second;
+  }
+  out.append(last, dom.cend());
+  return out;
 }
 
 /// A screenshot of `url`, `width` × `height` px, to `png_path`; chromium's exit status.

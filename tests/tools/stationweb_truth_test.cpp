@@ -102,9 +102,7 @@ std::string rendered(const std::string& target, const std::string& log) {
       "http://127.0.0.1:" + std::to_string(StationwebTruthPort::port) + target, log);
   EXPECT_EQ(page.code, 0) << target;
   EXPECT_TRUE(page.console.empty()) << target << ": " << page.console.front();
-  // Chromium serialises attributes in double quotes; the tag reader takes single ones.
-  static const std::regex dq("([a-z0-9-]+)=\"([^\"']*)\"");
-  return std::regex_replace(page.dom, dq, "$1='$2'");
+  return test_support::single_quoted(page.dom);
 }
 
 TEST_F(StationwebTruth, ChromiumShowsTheNumbersTheRowsGive) {
