@@ -25,6 +25,12 @@ const char* const kWhere =
     " AND ($8::text IS NULL OR r.verdict = $8 OR ($8 = 'live' AND r.verdict IS NULL))"
     " AND NOT (r.id = ANY($9::bigint[])) ";
 
+// The AINS result ains_results() takes (runs r and calibrations c joined): every term determined,
+// and a verdict that is the unit's own (or none yet).
+const char* const kUsableAinsResult =
+    "c.unobservable = '[]'::jsonb AND r.ains_values IS NOT NULL AND "
+    "(r.verdict IS NULL OR r.verdict IN ('PASS', 'REVIEW', 'FAILED'))";
+
 /// "{1,2,3}": a bigint[] parameter's text.
 std::string id_array(const std::vector<RunId>& ids) {
   std::string s = "{";
@@ -60,6 +66,36 @@ struct PgFleetStats::Impl {
   mutable PgConnection conn;
   mutable std::mutex mutex;
 
+  /// Every reprocess of the store and the run it names. Call with the mutex held.
+  std::vector<ReprocessLink> reprocess_links() const {
+    const PgResult q = conn.exec(
+        "SELECT r.id, o.id, r.local_run_id, o.local_run_id FROM runs r JOIN runs o ON "
+        "o.station_id = r.station_id AND o.local_run_id = r.reprocessed_from_local "
+        "WHERE $1::text IS NULL AND r.reprocessed_from_local IS NOT NULL",
+        {std::nullopt}, "reprocesses");
+    std::vector<ReprocessLink> links;
+    for (int i = 0; i < q.rows(); ++i)
+      links.push_back({q.i64(i, 0), q.i64(i, 1), q.i64(i, 2), q.i64(i, 3)});
+    return links;
+  }
+
+  /// The runs of a reprocess chain with a result ains_results() takes, not calibrated from a
+  /// partial archive (signature_stand_ins()'s `usable`; the SQLite backend's rule). Call with the
+  /// mutex held.
+  std::vector<RunId> usable_reprocess_results() const {
+    const PgResult q = conn.exec(
+        "SELECT r.id FROM runs r JOIN calibrations c ON c.run_id = r.id AND c.method = 'ains' "
+        "WHERE $1::text IS NULL AND r.setting = 'factory' AND " +
+            std::string(kUsableAinsResult) +
+            " AND (r.reprocessed_from_local IS NOT NULL OR EXISTS (SELECT 1 FROM runs x WHERE "
+            "x.station_id = r.station_id AND x.reprocessed_from_local = r.local_run_id)) AND NOT "
+            "r.reasons @> '[{\"source\": \"partial archive\"}]'::jsonb",
+        {std::nullopt}, "reprocess results");
+    std::vector<RunId> out;
+    for (int i = 0; i < q.rows(); ++i) out.push_back(q.i64(i, 0));
+    return out;
+  }
+
   /// The filter's values ($3..$9); with `one_per_capture`, $9 lists the runs a reprocess
   /// supersedes, read now (every reprocess of the store: a capture's newest run may lie outside
   /// the window). Call with the mutex held.
@@ -67,17 +103,7 @@ struct PgFleetStats::Impl {
                                      bool one_per_capture = true) const {
     validate_filter(f);
     std::vector<RunId> superseded;
-    if (one_per_capture) {
-      const PgResult q = conn.exec(
-          "SELECT r.id, o.id, r.local_run_id, o.local_run_id FROM runs r JOIN runs o ON "
-          "o.station_id = r.station_id AND o.local_run_id = r.reprocessed_from_local "
-          "WHERE $1::text IS NULL AND r.reprocessed_from_local IS NOT NULL",
-          {std::nullopt}, "reprocesses");
-      std::vector<ReprocessLink> links;
-      for (int i = 0; i < q.rows(); ++i)
-        links.push_back({q.i64(i, 0), q.i64(i, 1), q.i64(i, 2), q.i64(i, 3)});
-      superseded = superseded_runs(links);
-    }
+    if (one_per_capture) superseded = superseded_runs(reprocess_links());
     return {std::move(a),         std::move(b),        pg_value(f.since_ms),
             pg_value(f.until_ms), pg_value(f.station), pg_value(f.serial),
             pg_value(f.setting),  pg_value(f.verdict), PgParam(id_array(superseded))};
@@ -174,16 +200,17 @@ std::vector<RunId> PgFleetStats::table_run_members(RunId table_run_id) const {
 
 std::vector<AinsResultRow> PgFleetStats::ains_results(const FleetFilter& f) const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  // Its own rule for reprocesses (the originals stand for them): no list of superseded runs.
-  const auto values = impl_->filter_values(f, std::nullopt, std::nullopt, false);
+  // Its own rule for reprocesses (the originals stand for them, or the first reprocess with a
+  // result where the original has none: signature_stand_ins): no list of superseded runs.
+  auto values = impl_->filter_values(f, std::nullopt, std::nullopt, false);
+  values.push_back(PgParam(id_array(signature_stand_ins(impl_->reprocess_links(),
+                                                        impl_->usable_reprocess_results()))));
   const PgResult q = impl_->conn.exec(
       "SELECT r.id, r.station_id, r.serial, r.sequence_name, r.started_at_ms, c.sigma::text, "
       "r.ains_values::text, r.local_run_id FROM runs r JOIN calibrations c ON c.run_id = r.id AND "
       "c.method = 'ains' WHERE $1::text IS NULL AND $2::text IS NULL AND r.setting = 'factory' "
-      "AND r.reprocessed_from_local IS NULL AND c.unobservable = '[]'::jsonb AND "
-      "r.ains_values IS NOT NULL AND (r.verdict IS NULL OR r.verdict IN ('PASS', 'REVIEW', "
-      "'FAILED')) AND" +
-          std::string(kWhere) + "ORDER BY r.id",
+      "AND (r.reprocessed_from_local IS NULL OR r.id = ANY($10::bigint[])) AND " +
+          std::string(kUsableAinsResult) + " AND" + std::string(kWhere) + "ORDER BY r.id",
       values, "AINS results");
   std::vector<AinsResultRow> out;
   for (int i = 0; i < q.rows(); ++i) {

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
+#include <set>
 
 #include "calib/core/param_set.hpp"
 #include "db/history/serial_number.hpp"
@@ -80,33 +82,64 @@ void validate_filter(const FleetFilter& f) {
   }
 }
 
-std::vector<RunId> superseded_runs(const std::vector<ReprocessLink>& links) {
-  // Each run's origin and creation order; a capture's root is the run reached by following
-  // origins until a run that names none (a chain is short: guarded against a cycle anyway).
+namespace {
+
+/// The captures of `links`: each root (the run reached by following origins until a run that
+/// names none) with its runs, and every run's creation order.
+struct Captures {
+  std::map<RunId, std::vector<RunId>> runs;  // root -> its runs, the root among them
+  std::map<RunId, std::int64_t> seq;
+  bool before(RunId a, RunId b) const {
+    return std::make_pair(seq.at(a), a) < std::make_pair(seq.at(b), b);
+  }
+};
+
+Captures captures_of(const std::vector<ReprocessLink>& links) {
   std::map<RunId, RunId> origin_of;
-  std::map<RunId, std::int64_t> seq_of;
+  Captures c;
   for (const ReprocessLink& l : links) {
     origin_of[l.run] = l.origin;
-    seq_of[l.run] = l.run_seq;
-    seq_of.emplace(l.origin, l.origin_seq);
+    c.seq[l.run] = l.run_seq;
+    c.seq.emplace(l.origin, l.origin_seq);
   }
-  std::map<RunId, std::vector<RunId>> capture;  // root -> its runs
-  for (const auto& [run, seq] : seq_of) {
-    RunId root = run;
+  for (const auto& [run, seq] : c.seq) {
+    RunId root = run;  // a chain is short: guarded against a cycle anyway
     for (std::size_t hops = 0; hops <= origin_of.size(); ++hops) {
       const auto it = origin_of.find(root);
       if (it == origin_of.end()) break;
       root = it->second;
     }
-    capture[root].push_back(run);
+    c.runs[root].push_back(run);
   }
+  return c;
+}
+
+}  // namespace
+
+std::vector<RunId> superseded_runs(const std::vector<ReprocessLink>& links) {
+  const Captures c = captures_of(links);
   std::vector<RunId> out;
-  for (const auto& [root, runs] : capture) {
-    const RunId newest = *std::max_element(runs.begin(), runs.end(), [&](RunId a, RunId b) {
-      return std::make_pair(seq_of[a], a) < std::make_pair(seq_of[b], b);
-    });
+  for (const auto& [root, runs] : c.runs) {
+    const RunId newest = *std::max_element(
+        runs.begin(), runs.end(), [&](RunId a, RunId b) { return c.before(a, b); });
     for (const RunId r : runs)
       if (r != newest) out.push_back(r);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<RunId> signature_stand_ins(const std::vector<ReprocessLink>& links,
+                                       const std::vector<RunId>& usable) {
+  const Captures c = captures_of(links);
+  const std::set<RunId> ok(usable.begin(), usable.end());
+  std::vector<RunId> out;
+  for (const auto& [root, runs] : c.runs) {
+    if (ok.count(root)) continue;  // the original stands
+    std::optional<RunId> first;
+    for (const RunId r : runs)
+      if (r != root && ok.count(r) && (!first || c.before(r, *first))) first = r;
+    if (first) out.push_back(*first);
   }
   std::sort(out.begin(), out.end());
   return out;

@@ -119,10 +119,21 @@ class FleetStats {
   /// The AINS results of the matching factory table runs that determine every parameter, as
   /// stored, ascending run id — what a station error would have moved. Left out: field runs (no
   /// table, no surveyed gravity), results with an undetermined term, reprocessed runs (the
-  /// same data again; their originals stand for them), and ended runs whose verdict is not the
-  /// unit's own (STATION-FAULT, ABORTED, INTERRUPTED: issue #50).
+  /// same data again; their originals stand for them — unless the original has no result, see
+  /// signature_stand_ins()), and ended runs whose verdict is not the unit's own (STATION-FAULT,
+  /// ABORTED, INTERRUPTED: issue #50).
   virtual std::vector<AinsResultRow> ains_results(const FleetFilter& filter) const = 0;
 };
+
+/// The reprocesses that stand for their capture in ains_results(): a capture (a run and the
+/// reprocesses reached from it, as in superseded_runs()) is stood for by its original when the
+/// original has a usable result, otherwise by the first of its reprocesses (by creation order)
+/// that has one. `usable`: the runs among `links` with an AINS result ains_results() would take,
+/// not calibrated from a partial archive (a partial capture lacks part of the sequence the
+/// signature's responses are measured on). Without it a capture the daemon interrupted — its
+/// only result a reprocess — was left out of the signatures, and its unit with it (issue #52).
+std::vector<RunId> signature_stand_ins(const std::vector<ReprocessLink>& links,
+                                       const std::vector<RunId>& usable);
 
 /// The parameter's flat index (calib::core::param_info) from its name in the parameter-set JSON,
 /// e.g. "gyro_bias_radps[2]" or "accel_M[0][1]"; InvalidInput naming the accepted form otherwise.

@@ -73,6 +73,14 @@ class StationNames {
 
 }  // namespace
 
+namespace {
+/// The AINS result ains_results() takes (runs r and calibrations c joined): every term
+/// determined, and a verdict that is the unit's own (or none yet).
+constexpr const char* kUsableAinsResult =
+    "c.unobservable_json = '[]' AND "
+    "(r.verdict IS NULL OR r.verdict IN ('PASS', 'REVIEW', 'FAILED'))";
+}  // namespace
+
 struct SqliteFleetStats::Impl {
   std::string path;
   sqlite3* db = nullptr;
@@ -86,6 +94,7 @@ struct SqliteFleetStats::Impl {
     std::int64_t data_version = -1;
     std::unordered_set<RunId> superseded;
     std::unordered_map<RunId, std::string> field_setting;
+    std::vector<ReprocessLink> links;  ///< every reprocess and the run it names
   };
   mutable Exceptions exceptions;
 
@@ -183,6 +192,7 @@ struct SqliteFleetStats::Impl {
       if (setting != "factory") e.field_setting.emplace(id, std::move(setting));
     }
     for (const RunId r : superseded_runs(links)) e.superseded.insert(r);
+    e.links = std::move(links);
     exceptions = std::move(e);
     return exceptions;
   }
@@ -196,6 +206,24 @@ struct SqliteFleetStats::Impl {
   /// Whether run `id` counts in the aggregates: it stands for its capture and has the setting.
   static bool counts(const Exceptions& e, RunId id, const FleetFilter& f) {
     return e.superseded.count(id) == 0 && setting_matches(e, id, f);
+  }
+
+  /// The runs of a reprocess chain (a reprocess or a run reprocessed) with a result
+  /// ains_results() takes, not calibrated from a partial archive: signature_stand_ins()'s
+  /// `usable`. Call inside a snapshot.
+  std::vector<RunId> usable_reprocess_results(const char* op) const {
+    Query q(*this,
+            std::string("SELECT r.id FROM runs r JOIN calibrations c ON c.run_id = r.id AND "
+                        "c.method = 'ains' WHERE r.setting = 'factory' AND ") +
+                kUsableAinsResult +
+                " AND (r.reprocessed_from IS NOT NULL OR r.id IN (SELECT reprocessed_from FROM "
+                "runs WHERE reprocessed_from IS NOT NULL)) AND NOT EXISTS (SELECT 1 FROM "
+                "json_each(r.reasons_json) j WHERE json_extract(j.value, '$.source') = "
+                "'partial archive')",
+            op);
+    std::vector<RunId> out;
+    while (q.step()) out.push_back(q.i64(0));
+    return out;
   }
 };
 
@@ -356,15 +384,15 @@ std::vector<AinsResultRow> SqliteFleetStats::ains_results(const FleetFilter& f) 
     std::snprintf(column, sizeof column, ", a.p%02d", i);
     sql += column;
   }
-  sql +=
-      " FROM runs r JOIN units u ON u.id = r.unit_id JOIN ains_values a ON a.run_id = r.id "
-      "JOIN calibrations c ON c.run_id = r.id AND c.method = 'ains'" +
-      where_clause(f,
-                   "r.setting = 'factory' AND r.reprocessed_from IS NULL AND "
-                   "c.unobservable_json = '[]' AND "
-                   "(r.verdict IS NULL OR r.verdict IN ('PASS', 'REVIEW', 'FAILED'))") +
-      " ORDER BY r.id";
   const Impl::Exceptions& ex = impl_->current_exceptions(op);
+  std::string captures = "r.reprocessed_from IS NULL";
+  for (const RunId id : signature_stand_ins(ex.links, impl_->usable_reprocess_results(op)))
+    captures += " OR r.id = " + std::to_string(id);
+  sql += " FROM runs r JOIN units u ON u.id = r.unit_id JOIN ains_values a ON a.run_id = r.id "
+         "JOIN calibrations c ON c.run_id = r.id AND c.method = 'ains'" +
+         where_clause(f, std::string("r.setting = 'factory' AND (") + captures +
+                             ") AND " + kUsableAinsResult) +
+         " ORDER BY r.id";
   Impl::Query q(*impl_, sql, op);
   q.bind_filter(f);
   std::vector<AinsResultRow> out;

@@ -159,7 +159,7 @@ TEST_F(SignaturesCli, AWindowThatEndsBeforeItStartsOrHasNoRunsIsClear) {
   const auto bad =
       run_command(bin + " stations --signatures --since 2026-11-20 --until 2026-11-10 2>&1");
   EXPECT_EQ(bad.code, 2) << bad.out;
-  EXPECT_NE(bad.out.find("--since is not before --until"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("since must be earlier than until"), std::string::npos) << bad.out;
   const auto empty =
       run_command(bin + " stations --signatures --since 2020-01-01 --until 2020-01-07 2>&1");
   EXPECT_EQ(empty.code, 0) << empty.out;

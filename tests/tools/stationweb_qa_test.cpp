@@ -114,6 +114,7 @@ Runs write_history(db::history::SqliteRepository& repo) {
 /// loading it (issue #52 asks for the pages as QA's browser shows them). Status codes, headers and
 /// downloads are read from the reply either way.
 enum class Via { kHttp, kChromium };
+void PrintTo(Via via, std::ostream* os) { *os << (via == Via::kHttp ? "http" : "chromium"); }
 
 class StationwebQaTest : public ::testing::TestWithParam<Via> {
  protected:

@@ -159,10 +159,10 @@ db::history::FleetFilter signature_window(const db::history::Repository& history
   }
   if (!f.since_ms) f.since_ms = *f.until_ms - default_days * kDayMs;
   if (*f.since_ms >= *f.until_ms)
-    throw WindowError("until", "the window ends (" + db::history::format_time_utc(*f.until_ms) +
-                                   ") before it starts (" +
-                                   db::history::format_time_utc(*f.since_ms) +
-                                   "): --since is not before --until");
+    throw WindowError("until", "the window from " + db::history::format_time_utc(*f.since_ms) +
+                                   " until (before) " +
+                                   db::history::format_time_utc(*f.until_ms) +
+                                   " holds no time: since must be earlier than until");
   return f;
 }
 
@@ -206,14 +206,26 @@ json report_of_rows(const std::vector<db::history::AinsResultRow>& rows,
   std::vector<calib::studies::fleet::SignatureRun> runs;
   std::map<std::int64_t, std::int64_t> local_id;         // the history's id -> the station's own
   std::map<std::string, std::set<std::string>> serials;  // the units each station ran
+  // A station error moves a run's parameters by the response of the run's own sequence: runs of
+  // another sequence are left out and counted (issue #52), not fitted with these responses.
+  std::map<std::string, int> other_sequences;
   for (const auto& r : rows) {
+    if (r.sequence_name != sequence) {
+      ++other_sequences[r.sequence_name];
+      continue;
+    }
     runs.push_back({r.station, r.serial, r.run_id, r.value.to_vector(), r.sigma.to_vector()});
     local_id[r.run_id] = r.local_run_id;
     serials[r.station].insert(r.serial);
   }
   const calib::studies::fleet::FleetSignatures fs =
       calib::studies::fleet::station_signatures(runs, errors, options);
+  report["runs"] = runs.size();
   report["sequence"] = sequence;
+  json left_out = json::array();
+  for (const auto& [name, count] : other_sequences)
+    left_out.push_back({{"sequence", name}, {"runs", count}});
+  report["other_sequences"] = left_out;
   report["z_threshold"] = fs.z_threshold;
   json stations = json::array();
   for (const calib::studies::fleet::StationSignature& sig : fs.stations) {
@@ -263,6 +275,11 @@ std::string render_signatures_text(const json& report) {
                 report["runs"].get<int>(), report["sequence"].get<std::string>().c_str(),
                 report["z_threshold"].get<double>(), report["false_alarm"].get<double>());
   std::string out = buf;
+  if (report.contains("other_sequences"))
+    for (const json& o : report["other_sequences"])
+      out += "left out: " + std::to_string(o["runs"].get<int>()) + " run(s) of " +
+             o["sequence"].get<std::string>() + " (the responses are " +
+             report["sequence"].get<std::string>() + "'s)\n";
   for (const json& s : report["stations"]) {
     std::snprintf(buf, sizeof buf, "%-16s %4d runs, %3d units, %2d seen elsewhere",
                   s["station"].get<std::string>().c_str(), s["runs"].get<int>(),

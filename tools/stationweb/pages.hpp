@@ -93,6 +93,10 @@ Reply index_reply(const History& history, const Params& query);
 Reply unit_reply(const History& history, const std::string& serial, const Params& query);
 Reply runs_reply(const History& history, const Params& query);
 Reply compare_reply(const History& history, const Params& query);
+/// /signatures and /signatures/trend with ?format=csv|json (the report stationctl stations
+/// --signatures --json prints; CSV: a row per station, or per station and period).
+Reply signatures_reply(const History& history, const Params& query);
+Reply signature_trend_reply(const History& history, const Params& query);
 /// run_page after checking that the query holds nothing (the run page takes no parameter).
 std::string run_page_checked(const History& history, const std::string& run_id_text,
                              const Params& query);

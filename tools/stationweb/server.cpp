@@ -94,6 +94,13 @@ httplib::Server::Handler page_handler(const History* h, Render render) {
   };
 }
 
+/// `text` as a header value: control characters (a line break would end the header) as blanks.
+std::string header_safe(std::string text) {
+  for (char& c : text)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = ' ';
+  return text;
+}
+
 using ReplyRender = std::function<Reply(const httplib::Request&)>;
 
 /// A route that may answer data (?format=csv|json) as well as a page: rendered through respond
@@ -112,6 +119,11 @@ httplib::Server::Handler reply_handler(const History* h, ReplyRender render) {
     std::string body;
     body.swap(res.body);
     res.set_content(body, reply.content_type);
+    // A download has no page to carry the notice (issue #52 item 11): a header says it, in plain
+    // text (the notice names a file path, which may hold any byte but a line break).
+    if (reply.content_type.rfind("text/html", 0) != 0)
+      if (const std::string notice = h->source_notice(); !notice.empty())
+        res.set_header("X-History-Notice", header_safe(notice));
     if (!reply.filename.empty())
       res.set_header("Content-Disposition", "attachment; filename=\"" + reply.filename + "\"");
   };
@@ -153,11 +165,11 @@ void install_routes(httplib::Server& server, const History& history) {
   server.Get("/fleet", page_handler(h, [h](const httplib::Request& req) {
                return fleet_page(*h, req.params);
              }));
-  server.Get("/signatures/trend", page_handler(h, [h](const httplib::Request& req) {
-               return signature_trend_page(*h, req.params);
+  server.Get("/signatures/trend", reply_handler(h, [h](const httplib::Request& req) {
+               return signature_trend_reply(*h, req.params);
              }));
-  server.Get("/signatures", page_handler(h, [h](const httplib::Request& req) {
-               return signatures_page(*h, req.params);
+  server.Get("/signatures", reply_handler(h, [h](const httplib::Request& req) {
+               return signatures_reply(*h, req.params);
              }));
   server.Post(".*", method_not_allowed);
   server.Put(".*", method_not_allowed);
@@ -168,6 +180,12 @@ void install_routes(httplib::Server& server, const History& history) {
   server.set_error_handler(httplib::Server::HandlerWithResponse([](const httplib::Request& req,
                                                                    httplib::Response& res) {
     if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+    // A write the parser refused before routing (a POST without a body is a 400 there) is still
+    // a write to a read-only view.
+    if (req.method != "GET" && req.method != "HEAD" && !req.method.empty()) {
+      method_not_allowed(req, res);
+      return httplib::Server::HandlerResponse::Handled;
+    }
     spdlog::debug("{} {} {}", req.method, req.path, res.status);
     fail(res, res.status, "", res.status == 404 ? "No page at " + req.path + "." : "Bad request.");
     return httplib::Server::HandlerResponse::Handled;

@@ -11,6 +11,7 @@
 #include "tools/stationweb/page_limits.hpp"
 #include "tools/stationweb/page_util.hpp"
 #include "tools/stationweb/pages.hpp"
+#include "tools/stationweb/run_table.hpp"
 
 namespace imucal::tools::stationweb {
 
@@ -45,6 +46,20 @@ void check_signature_runs(const History& history, const db::history::FleetFilter
     bad_input("since", "the window holds " + std::to_string(runs) +
                            " factory runs; the signatures read at most " +
                            std::to_string(kMaxSignatureRuns) + " at once: narrow since/until");
+}
+
+/// The runs of other sequences than the one the responses are measured on (issue #52): left out,
+/// counted, not fitted with another sequence's responses.
+std::string left_out_note(const nlohmann::json& report) {
+  if (!report.contains("other_sequences") || report["other_sequences"].empty()) return "";
+  std::string list;
+  for (const auto& o : report["other_sequences"])
+    list += (list.empty() ? "" : ", ") + count_of(o["runs"].get<std::int64_t>(), "run") + " of " +
+            esc(o["sequence"].get<std::string>());
+  return "<p id='other-sequences' class='REVIEW'>Left out: " + list +
+         " — a station error moves a run's parameters by its own sequence's responses, and these "
+         "are measured on " +
+         esc(report["sequence"].get<std::string>()) + " only.</p>\n";
 }
 
 std::string fit_cell(const nlohmann::json& fit) {
@@ -202,7 +217,7 @@ std::string signatures_page(const History& history, const Params& query) {
        fmt("%.2f", report["z_threshold"].get<double>()) + " (false alarms " +
        fmt("%.3g", report["false_alarm"].get<double>()) +
        " per station and period); responses on " + esc(report["sequence"].get<std::string>()) +
-       ".</p>\n";
+       ".</p>\n" + left_out_note(report);
   std::string alarms;
   for (const auto& st : report["stations"])
     if (st.value("flagged", false)) alarms += alarm_section(st);
@@ -337,6 +352,99 @@ std::string signature_trend_page(const History& history, const Params& query) {
   b += signature_trend_svg(trend);
   b += "<h2>Strongest |z| per station and period</h2>\n" + trend_table(trend);
   return page("Signature trend", b);
+}
+
+namespace {
+
+/// A signature report's stations as CSV: a row each, then each candidate's size, σ (SI) and z.
+std::string stations_csv(const nlohmann::json& stations, const std::string& lead_header,
+                         const std::string& lead) {
+  nlohmann::json effects = nlohmann::json::array();
+  for (const auto& st : stations)
+    if (st.contains("fits") && st["fits"].size() > effects.size()) effects = st["fits"];
+  std::string out = lead_header + "station,runs,units,seen_elsewhere,assessed,why_not,flagged,causes";
+  for (const auto& f : effects) {
+    const std::string e = f["effect"].get<std::string>();
+    out += "," + e + "_size_si," + e + "_sigma_si," + e + "_z";
+  }
+  out += "\n";
+  for (const auto& st : stations) {
+    std::string causes;
+    if (st.contains("alarms"))
+      for (const auto& a : st["alarms"])
+        causes += (causes.empty() ? "" : "; ") + a["cause"].get<std::string>();
+    out += lead + csv_field(st["station"].get<std::string>()) + "," +
+           std::to_string(st.value("runs", 0)) + "," + std::to_string(st.value("units", 0)) + "," +
+           std::to_string(st.value("repeat_units", 0)) + "," +
+           (st.value("assessed", false) ? "1" : "0") + "," + csv_field(st.value("why_not", "")) +
+           "," + (st.value("flagged", false) ? "1" : "0") + "," + csv_field(causes);
+    for (std::size_t k = 0; k < effects.size(); ++k) {
+      if (!st.contains("fits") || k >= st["fits"].size()) {
+        out += ",,,";
+        continue;
+      }
+      const auto& f = st["fits"][k];
+      out += "," + exact(f["size_si"].get<double>()) + "," + exact(f["sigma_si"].get<double>()) +
+             "," + exact(f["z"].get<double>());
+    }
+    out += "\n";
+  }
+  return out;
+}
+
+}  // namespace
+
+Reply signatures_reply(const History& history, const Params& query) {
+  check_known_params(query, {"since", "until", "format"});
+  const Format format = parse_format(query);
+  if (format == Format::kHtml) return Reply(signatures_page(history, query));
+  std::string notes;
+  const db::history::FleetFilter window = window_of(history, query, notes);
+  nlohmann::json report = {{"runs", 0}, {"stations", nlohmann::json::array()}};
+  if (window.until_ms) {
+    check_signature_runs(history, window);
+    report = tools::report::station_signature_report(*history.stats, window,
+                                                     calib::studies::fleet::SignatureOptions{});
+    report["since_ms"] = *window.since_ms;
+    report["until_ms"] = *window.until_ms;
+  }
+  if (!notes.empty()) report["notes"] = notes;
+  if (format == Format::kJson)
+    return {report.dump(2) + "\n", "application/json", "signatures.json"};
+  return {stations_csv(report["stations"], "", ""), "text/csv; charset=utf-8", "signatures.csv"};
+}
+
+Reply signature_trend_reply(const History& history, const Params& query) {
+  check_known_params(query, {"since", "until", "period_days", "format"});
+  const Format format = parse_format(query);
+  if (format == Format::kHtml) return Reply(signature_trend_page(history, query));
+  const int period_days = period_days_of(query);
+  std::string notes;
+  const db::history::FleetFilter window = trend_window(history, query, period_days, notes);
+  nlohmann::json trend = {{"period_days", period_days}, {"periods", nlohmann::json::array()}};
+  if (window.until_ms) {
+    check_signature_runs(history, window);
+    trend = tools::report::station_signature_trend(*history.stats, window, period_days,
+                                                   calib::studies::fleet::SignatureOptions{});
+  }
+  if (!notes.empty()) trend["notes"] = notes;
+  if (format == Format::kJson)
+    return {trend.dump(2) + "\n", "application/json", "signature-trend.json"};
+  std::string out = "period_since,period_until,station,assessed,flagged,strongest_effect,"
+                    "strongest_z,cause\n";
+  for (const auto& p : trend["periods"])
+    for (const auto& cell : p["stations"]) {
+      const bool has = cell.contains("strongest");
+      out += db::history::format_time_utc(p["since_ms"].get<db::history::TimestampMs>()) + "," +
+             db::history::format_time_utc(p["until_ms"].get<db::history::TimestampMs>()) + "," +
+             csv_field(cell["station"].get<std::string>()) + "," +
+             (cell.value("assessed", false) ? "1" : "0") + "," +
+             (cell.value("flagged", false) ? "1" : "0") + "," +
+             (has ? csv_field(cell["strongest"]["effect"].get<std::string>()) : "") + "," +
+             (has ? exact(cell["strongest"]["z"].get<double>()) : "") + "," +
+             csv_field(cell.value("cause", "")) + "\n";
+    }
+  return {out, "text/csv; charset=utf-8", "signature-trend.csv"};
 }
 
 }  // namespace imucal::tools::stationweb
