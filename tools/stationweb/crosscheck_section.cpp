@@ -49,7 +49,8 @@ std::string parameter_rows(const db::history::CrosscheckRecord& x,
     if (numbers) s += " data-diff-si='" + exact(diff) + "' data-sigma-si='" + exact(sigma) + "'";
     s += "><td>" + info.name + "</td><td>" + esc(info.human_unit) + "</td>";
     if (numbers)
-      s += "<td class='num'>" + fmt_to_sigma(diff * info.si_to_human, sigma * info.si_to_human) +
+      s += "<td class='num'>" +
+           fmt_signed_to_sigma(diff * info.si_to_human, sigma * info.si_to_human) +
            "</td><td class='num'>" + fmt_sigma(sigma * info.si_to_human) + "</td><td class='num'>" +
            fmt_sigma(x.k_sigma * sigma * info.si_to_human) + "</td><td class='num'>" +
            (sigma > 0 ? fmt("%.2f", std::abs(diff) / sigma) : std::string("-")) + "</td>";

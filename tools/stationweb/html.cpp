@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
 #include "tools/report/html_escape.hpp"
 #include "tools/stationweb/page_util.hpp"
@@ -89,6 +90,13 @@ std::string fmt_to_sigma(double value, double sigma) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.*f", decimals_for(sigma), value);
   return buf;
+}
+
+std::string fmt_signed_to_sigma(double value, double sigma, bool plus) {
+  std::string s = fmt_to_sigma(value, sigma);
+  if (!s.empty() && (s[0] == '-' || s[0] == '+')) s.erase(0, 1);
+  if (std::strtod(s.c_str(), nullptr) == 0 || std::isnan(value)) return s;  // "0.0", not "-0.0"
+  return (value < 0 ? "-" : plus ? "+" : "") + s;
 }
 
 std::string fmt_sigma(double sigma) {

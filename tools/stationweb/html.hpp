@@ -42,6 +42,10 @@ std::string url_encode(const std::string& value);
 /// `value` to the decimal place of its 1-σ's second significant digit (issue #52 item 12: no
 /// fixed three decimals whatever the size); "%.4g" when σ is 0 or not finite.
 std::string fmt_to_sigma(double value, double sigma);
+/// fmt_to_sigma for a difference or any signed figure: "+1.23" / "-1.23" with `plus` (no sign
+/// otherwise), and a value that rounds to zero at that precision is "0.0…" with no sign (never
+/// "-0.0" nor "+0": issue #52 item 12).
+std::string fmt_signed_to_sigma(double value, double sigma, bool plus = false);
 /// A 1-σ (or any spread) to two significant digits, without an exponent within 1e-6..1e7.
 std::string fmt_sigma(double sigma);
 /// "1 run", "3 runs": the count and the noun, plural unless one.

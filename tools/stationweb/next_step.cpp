@@ -86,18 +86,54 @@ std::vector<NextStep> review_steps(const RunRecord& r) {
   return out;
 }
 
+/// An ABORTED run the daemon's stop ended: what happened, and what the kept archive can give.
+NextStep daemon_stop_step(const RunRecord& r, std::optional<bool> complete) {
+  const std::string what = "The station's daemon (stationd) was stopped during the run (\"" +
+                           r.failure_reason +
+                           "\"): neither an operator's abort nor the unit's failure. ";
+  if (!r.archive_path.empty() && complete.value_or(false))
+    return {"reprocess", "stationctl reprocess " + id_of(r),
+            what +
+                "The capture is complete: recalibrate it from its archive (a new run; no need "
+                "to mount the unit again)."};
+  if (!r.archive_path.empty())
+    return {"rerun", "",
+            what +
+                "Its record does not say the capture completed: run the unit again. (Had it "
+                "completed, `stationctl reprocess " +
+                id_of(r) + "` would recalibrate the archive; it refuses an incomplete one.)"};
+  return {"rerun", "", what + "No archive was kept: run the unit again."};
+}
+
 }  // namespace
 
+bool stopped_by_daemon(const RunRecord& r) {
+  // The daemon's wording, station/daemon/daemon.cpp (Daemon::run's stop_reason).
+  static const char* const kDaemonStops[] = {"daemon stopped by SIGTERM",
+                                             "daemon stopped by SIGINT", "stop requested"};
+  for (const char* p : kDaemonStops)
+    if (r.failure_reason.rfind(p, 0) == 0) return true;
+  return false;
+}
+
 std::vector<NextStep> next_steps(const RunRecord& r, const std::vector<RunRecord>& reprocesses,
-                                 std::optional<bool> capture_complete) {
+                                 std::optional<bool> capture_complete,
+                                 const std::optional<RunRecord>& newest) {
   if (!r.verdict)
     return {{"wait", "", "The run is still " + std::string(db::history::to_string(r.state)) + "."}};
   if (!reprocesses.empty()) {
     const RunRecord& n = reprocesses.front();
-    return {{"see-reprocess", "",
-             "Reprocessed as run " + id_of(n) + " (" +
-                 std::string(n.verdict ? db::history::to_string(*n.verdict) : "live") +
-                 "): that run decides; its page says what next."}};
+    const RunRecord& d = newest ? *newest : n;
+    const std::string verdict = d.verdict ? db::history::to_string(*d.verdict) : "live";
+    NextStep step{"see-reprocess", "",
+                  d.run_id == n.run_id
+                      ? "Reprocessed as run " + id_of(n) + " (" + verdict + "): run " + id_of(n) +
+                            " decides; its page says what next."
+                      : "Reprocessed as run " + id_of(n) + ", itself reprocessed as run " +
+                            id_of(d) + " (" + verdict + ", the newest of the chain): run " +
+                            id_of(d) + " decides; its page says what next."};
+    step.decides = d.run_id;
+    return {step};
   }
   switch (*r.verdict) {
     case RunVerdict::kPass:
@@ -115,6 +151,7 @@ std::vector<NextStep> next_steps(const RunRecord& r, const std::vector<RunRecord
                "The unit's data or calibration failed: run it once more; failing "
                "again, reject the unit."}};
     case RunVerdict::kAborted:
+      if (stopped_by_daemon(r)) return {daemon_stop_step(r, capture_complete)};
       return {{"rerun", "", "An operator aborted the run: run the unit again when ready."}};
     default:  // STATION-FAULT, INTERRUPTED: not the unit's
       return {station_step(r, capture_complete)};
@@ -125,9 +162,14 @@ std::string next_step_section(const std::vector<NextStep>& steps) {
   if (steps.empty()) return "";
   const NextStep& p = steps.front();
   std::string s = "<div id='next-step' class='next' data-action='" + esc(p.action) +
-                  "' data-command='" + esc(p.command) + "'>\n<p><b>Next step:</b> " +
+                  "' data-command='" + esc(p.command) + "' data-decides='" +
+                  (p.decides ? std::to_string(p.decides) : "") + "'>\n<p><b>Next step:</b> " +
                   (p.command.empty() ? "" : "<code>" + esc(p.command) + "</code> — ") +
-                  esc(p.text) + "</p>\n";
+                  esc(p.text) +
+                  (p.decides ? " <a href='/run/" + std::to_string(p.decides) + "'>Go to run " +
+                                   std::to_string(p.decides) + "</a>"
+                             : "") +
+                  "</p>\n";
   if (steps.size() > 1) {
     s += "<ul id='next-steps-more'>\n";
     for (std::size_t i = 1; i < steps.size(); ++i)

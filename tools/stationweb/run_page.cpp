@@ -2,7 +2,9 @@
 // is the content, its render_show_text the text at the page's end), laid out as a page: state,
 // verdict, reasons, the run's facts and archive, capture counters, the gap diagnosis, the other
 // units of its table run, both methods' parameters with 1-σ, and the cross-check per parameter.
+#include <algorithm>
 #include <cctype>
+#include <optional>
 
 #include "db/history/fleet_stats.hpp"
 #include "station/control/record_json.hpp"
@@ -70,14 +72,62 @@ std::vector<db::history::RunRecord> reprocesses_of(const History& history,
   return out;
 }
 
-std::string reprocess_links(const std::vector<db::history::RunRecord>& reprocesses) {
+/// The newest run of the reprocess chain from `r`: its newest reprocess, that one's newest, ...
+/// (21 → 22 → 23: 23); nullopt when `r` has none.
+std::optional<db::history::RunRecord> newest_of_chain(
+    const History& history, const std::vector<db::history::RunRecord>& reprocesses) {
+  if (reprocesses.empty()) return std::nullopt;
+  db::history::RunRecord n = reprocesses.front();
+  for (int hops = 0; hops < 1000; ++hops) {
+    const std::vector<db::history::RunRecord> next = reprocesses_of(history, n);
+    if (next.empty()) break;
+    n = next.front();
+  }
+  return n;
+}
+
+std::string reprocess_links(const std::vector<db::history::RunRecord>& reprocesses,
+                            const std::optional<db::history::RunRecord>& newest) {
   if (reprocesses.empty()) return "";
   std::string s = "<p id='reprocessed-as'>Reprocessed as run";
   s += reprocesses.size() > 1 ? "s " : " ";
   for (std::size_t i = 0; i < reprocesses.size(); ++i)
     s += (i ? ", " : "") + run_link(reprocesses[i].run_id) + " (" +
          verdict_html(reprocesses[i].verdict) + ")";
+  if (newest && newest->run_id != reprocesses.front().run_id)
+    s += "; reprocessed again since: the newest of the chain is run " + run_link(newest->run_id) +
+         " (" + verdict_html(newest->verdict) + ")";
   return s + ".</p>\n";
+}
+
+bool has_method(const History& history, db::history::RunId id, db::history::Method m) {
+  try {
+    for (const auto& c : history.repo->show(id).calibrations)
+      if (c.method == m) return true;
+  } catch (const db::history::NotFound&) {
+  }
+  return false;
+}
+
+/// "Compare this run with another" where the run has an AINS calibration (/compare's default
+/// method; a run without one — interrupted, a station fault, aborted — has nothing to compare:
+/// the link was a 400), paired with its newest reprocess or the run it reprocessed when that one
+/// has a calibration too.
+std::string compare_link(const History& history, const db::history::RunDetails& d,
+                         const std::optional<db::history::RunRecord>& newest) {
+  const auto ains = [](const db::history::CalibrationRecord& c) {
+    return c.method == db::history::Method::kAins;
+  };
+  if (std::none_of(d.calibrations.begin(), d.calibrations.end(), ains)) return "";
+  std::optional<db::history::RunId> other;
+  if (newest)
+    other = newest->run_id;
+  else if (d.run.reprocessed_from)
+    other = *d.run.reprocessed_from;
+  if (other && !has_method(history, *other, db::history::Method::kAins)) other.reset();
+  return "<p class='muted' id='compare-link'><a href='/compare?a=" + std::to_string(d.run.run_id) +
+         (other ? "&amp;b=" + std::to_string(*other) : std::string()) +
+         "'>Compare this run with another</a></p>\n";
 }
 
 std::optional<bool> capture_complete(const json& run) {
@@ -106,15 +156,11 @@ std::string run_page(const History& history, const std::string& run_id_text) {
   const json show = station::control::show_result(details);
   const db::history::RunRecord& r = details.run;
   const std::vector<db::history::RunRecord> reprocesses = reprocesses_of(history, r);
+  const std::optional<db::history::RunRecord> newest = newest_of_chain(history, reprocesses);
   std::string b = head(r);
-  b += next_step_section(next_steps(r, reprocesses, capture_complete(show["run"])));
-  b += reprocess_links(reprocesses);
-  b += "<p class='muted'><a href='/compare?a=" + std::to_string(id) +
-       (reprocesses.empty() && !r.reprocessed_from
-            ? std::string()
-            : "&amp;b=" + std::to_string(reprocesses.empty() ? *r.reprocessed_from
-                                                             : reprocesses.front().run_id)) +
-       "'>Compare this run with another</a></p>\n";
+  b += next_step_section(next_steps(r, reprocesses, capture_complete(show["run"]), newest));
+  b += reprocess_links(reprocesses, newest);
+  b += compare_link(history, details, newest);
   b += "<h2>Run</h2>\n" + facts_table(r);
   b += siblings(history, r);
   b += capture_section(show["run"]);

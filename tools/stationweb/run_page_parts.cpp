@@ -165,7 +165,7 @@ std::string calibration_table(const std::vector<db::history::CalibrationRecord>&
       }
       s += "<td class='num'" + attrs + " data-value-si='" + exact(value[k](i)) +
            "' data-sigma-si='" + exact(sigma[k](i)) + "'>" +
-           fmt_to_sigma(value[k](i) * info.si_to_human, sigma[k](i) * info.si_to_human) +
+           fmt_signed_to_sigma(value[k](i) * info.si_to_human, sigma[k](i) * info.si_to_human) +
            "</td><td class='num'>" + fmt_sigma(sigma[k](i) * info.si_to_human) + "</td>";
     }
     s += "</tr>\n";

@@ -149,18 +149,40 @@ void band(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
   os << "'/>\n";
 }
 
-void component(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
-               const std::vector<TrendPoint>& points, int i, const char* colour,
-               std::optional<db::history::RunId> active) {
-  std::vector<const TrendPoint*> pts;
+bool frame_dependent(int i) {
+  const calib::core::ParamGroup g = calib::core::param_info(i).group;
+  return g == calib::core::ParamGroup::kAccelMisalign ||
+         g == calib::core::ParamGroup::kGyroMisalign;
+}
+
+const char* frame_name(calib::core::BodyFrame f) {
+  return f == calib::core::BodyFrame::kHousing ? "housing" : "accel_symmetric";
+}
+
+/// Whether the panel of `idx` holds drawn points of both body frames (then split by frame).
+bool mixed_frames(const std::vector<TrendPoint>& points, const std::vector<int>& idx) {
+  if (!frame_dependent(idx.front())) return false;
+  bool housing = false, other = false;
   for (const TrendPoint& q : points)
-    if (q.observable[static_cast<std::size_t>(i)]) pts.push_back(&q);
+    for (int i : idx)
+      if (q.observable[static_cast<std::size_t>(i)])
+        (q.body_frame == calib::core::BodyFrame::kHousing ? housing : other) = true;
+  return housing && other;
+}
+
+/// One series of one component: its points (one body frame where that matters), bands, line and
+/// markers.
+void series(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
+            const std::vector<const TrendPoint*>& pts, int i, const char* colour,
+            std::optional<db::history::RunId> active, bool dashed) {
   if (pts.empty()) return;
   band(os, p, axis, pts, i, 3.0, colour, 0.10);
   band(os, p, axis, pts, i, 1.0, colour, 0.28);
   const calib::core::ParamInfo& info = calib::core::param_info(i);
   const double s = info.si_to_human;
-  os << "<polyline fill='none' stroke='" << colour << "' stroke-width='1.2' points='";
+  os << "<polyline fill='none' stroke='" << colour << "' stroke-width='1.2'"
+     << (dashed ? " stroke-dasharray='5,3'" : "") << " data-param='" << info.name
+     << "' data-frame='" << frame_name(pts.front()->body_frame) << "' points='";
   for (const TrendPoint* q : pts) os << axis.at(*q) << ',' << p.y(q->value(i) * s) << ' ';
   os << "'/>\n";
   for (const TrendPoint* q : pts) {
@@ -176,11 +198,30 @@ void component(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
        << "' fill='" << (pass ? colour : "#fff") << "' stroke='" << stroke << "' stroke-width='"
        << (is_active || !pass ? 2 : 1) << "' data-run-id='" << q->run_id << "' data-verdict='"
        << esc(q->verdict) << "' data-t-ms='" << q->t_ms << "' data-param='" << info.name
-       << "' data-value-si='" << exact(q->value(i)) << "' data-sigma-si='" << exact(q->sigma(i))
-       << "'><title>run " << q->run_id << " (" << esc(q->verdict) << ") " << short_time(q->t_ms)
-       << ": " << info.name << " = " << fmt("%.4g", q->value(i) * s) << " ± "
-       << fmt("%.2g", q->sigma(i) * s) << " " << esc(info.human_unit) << " (1σ)</title></circle>\n";
+       << "' data-frame='" << frame_name(q->body_frame) << "' data-value-si='" << exact(q->value(i))
+       << "' data-sigma-si='" << exact(q->sigma(i)) << "'><title>run " << q->run_id << " ("
+       << esc(q->verdict) << ") " << short_time(q->t_ms) << ": " << info.name << " = "
+       << fmt("%.4g", q->value(i) * s) << " ± " << fmt("%.2g", q->sigma(i) * s) << " "
+       << esc(info.human_unit) << " (1σ"
+       << (frame_dependent(i)
+               ? std::string(", ") + (q->body_frame == calib::core::BodyFrame::kHousing
+                                          ? "housing frame"
+                                          : "accelerometer triad's frame")
+               : std::string())
+       << ")</title></circle>\n";
   }
+}
+
+void component(std::ostringstream& os, const Panel& p, const TimeAxis& axis,
+               const std::vector<TrendPoint>& points, int i, const char* colour,
+               std::optional<db::history::RunId> active) {
+  std::vector<const TrendPoint*> housing, other;
+  for (const TrendPoint& q : points)
+    if (q.observable[static_cast<std::size_t>(i)])
+      (!frame_dependent(i) || q.body_frame == calib::core::BodyFrame::kHousing ? housing : other)
+          .push_back(&q);
+  series(os, p, axis, housing, i, colour, active, false);
+  series(os, p, axis, other, i, colour, active, true);
 }
 
 void active_marker(std::ostringstream& os, const TimeAxis& axis,
@@ -195,6 +236,17 @@ void active_marker(std::ostringstream& os, const TimeAxis& axis,
        << "<text x='" << x + 4 << "' y='" << kTop + 12 << "' font-size='11'>active set (run "
        << q.run_id << ")</text>\n";
   }
+}
+
+/// Under the time axis of a panel whose points are in two body frames: what solid and dashed are.
+void frame_legend(std::ostringstream& os) {
+  os << "<g class='frame-legend'><line x1='" << kLeft << "' x2='" << kLeft + 24 << "' y1='"
+     << kHeight - 8 << "' y2='" << kHeight - 8 << "' stroke='#444'/><text x='" << kLeft + 28
+     << "' y='" << kHeight - 4 << "' font-size='11'>housing frame (factory runs)</text><line x1='"
+     << kLeft + 210 << "' x2='" << kLeft + 234 << "' y1='" << kHeight - 8 << "' y2='" << kHeight - 8
+     << "' stroke='#444' stroke-dasharray='5,3'/><text x='" << kLeft + 238 << "' y='" << kHeight - 4
+     << "' font-size='11'>accelerometer triad's frame (land, sea, legacy): a separate series, "
+        "the frames differ by the housing angle</text></g>\n";
 }
 
 void legend(std::ostringstream& os, const std::vector<int>& idx) {
@@ -230,6 +282,7 @@ std::string trend_svg(calib::core::ParamGroup group, const std::vector<TrendPoin
     component(os, p, axis, points, idx[k], kColours[k], active_run);
   active_marker(os, axis, points, active_run);
   legend(os, idx);
+  if (mixed_frames(points, idx)) frame_legend(os);
   os << "</svg>\n";
   return os.str();
 }

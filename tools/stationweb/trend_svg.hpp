@@ -8,6 +8,12 @@
 // hollow ring, any other verdict a dark hollow ring: issue #52 item 9), data-t-ms, data-param (the
 // parameter-set JSON name), data-value-si and data-sigma-si (as stored, full precision) and a
 // tooltip.
+//
+// Misalignments depend on the body frame (calib/core/body_frame.hpp: a factory run's are in the
+// housing frame, a land, sea or legacy run's in the accelerometer triad's; a change of frame
+// rotates them by the housing angle). In the misalignment panels each frame is its own series —
+// housing solid, the triad's frame dashed, never joined into one line or band — said in a legend;
+// every point and line carries data-frame ("housing", "accel_symmetric").
 #include <array>
 #include <optional>
 #include <string>
@@ -26,6 +32,7 @@ struct TrendPoint {
   std::array<bool, calib::core::ParamSet::kSize>
       observable{};     ///< false: not determined, not drawn
   std::string verdict;  ///< the run's verdict ("PASS", "REVIEW", ...): its marker's shape
+  calib::core::BodyFrame body_frame = calib::core::BodyFrame::kHousing;  ///< of its calibration
 };
 
 /// <svg id='trend-GROUP'> for one group, points in time order.

@@ -32,6 +32,7 @@ std::vector<TrendPoint> ains_points(const db::history::Repository& repo,
     p.verdict = row.run.verdict ? db::history::to_string(*row.run.verdict) : "";
     p.value = row.calibration->params.to_vector();
     p.sigma = row.calibration->sigma.to_vector();
+    p.body_frame = row.calibration->body_frame;
     for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
       const auto& names = row.calibration->unobservable;
       p.observable[static_cast<std::size_t>(i)] =
@@ -86,7 +87,7 @@ std::string active_values(const std::optional<db::history::ActiveCalibration>& a
       continue;
     }
     s += "<td class='num' data-value-si='" + exact(v(i)) + "' data-sigma-si='" + exact(sg(i)) +
-         "'>" + fmt_to_sigma(v(i) * info.si_to_human, sg(i) * info.si_to_human) +
+         "'>" + fmt_signed_to_sigma(v(i) * info.si_to_human, sg(i) * info.si_to_human) +
          "</td><td class='num'>" + fmt_sigma(sg(i) * info.si_to_human) + "</td></tr>\n";
   }
   return s + "</table>\n</details>\n";
@@ -135,7 +136,10 @@ std::string unit_page(const History& history, const std::string& serial) {
        "±3σ; the dashed line marks the run of the active set. Markers by verdict: ● PASS "
        "(filled), ○ REVIEW (a ring in the colour), a dark ring any other; runs closer in time "
        "than a marker are spread apart (each point's tooltip has its exact time). Parameters a "
-       "run does not determine are not drawn.</p>\n";
+       "run does not determine are not drawn. Misalignments depend on the body frame: a factory "
+       "run's are in the housing frame, a land, sea or legacy run's in the accelerometer triad's "
+       "(the frames differ by the housing angle, which only a factory run determines), so each "
+       "frame is its own series (solid and dashed), never joined.</p>\n";
   const std::optional<db::history::RunId> active_run =
       active ? std::optional<db::history::RunId>(active->run.run_id) : std::nullopt;
   if (points.empty()) b += "<p>No calibration stored yet.</p>\n";
