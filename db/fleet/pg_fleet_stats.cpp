@@ -48,7 +48,8 @@ const std::string kDistribution =
     "coalesce(stddev_samp(v) FILTER (WHERE NOT o), 0), min(v) FILTER (WHERE NOT o), "
     "percentile_cont(ARRAY[0.25, 0.5, 0.75]) WITHIN GROUP (ORDER BY v) FILTER (WHERE NOT o), "
     "max(v) FILTER (WHERE NOT o), count(*) FILTER (WHERE o) "
-    "FROM (SELECT r.station_id, r.ains_values[$1::int] AS v, ($2::boolean AND r.setting <> "
+    "FROM (SELECT r.station_id, r.ains_values[$1::int] AS v, (coalesce($2::boolean, false) AND "
+    "r.setting <> "
     "'factory' AND EXISTS (SELECT 1 FROM calibrations c WHERE c.run_id = r.id AND c.method = "
     "'ains' AND c.body_frame <> 'housing')) AS o FROM runs r "
     "      WHERE r.ains_values IS NOT NULL AND" +
