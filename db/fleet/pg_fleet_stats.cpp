@@ -13,7 +13,8 @@ using namespace db::history;
 
 namespace {
 
-// $3 since, $4 until, $5 station, $6 serial, $7 setting, $8 verdict ('live': none yet), $9 the
+// $3 since, $4 until, $5 station, $6 serial, $7 setting, $8 verdicts (comma-separated, 'live': none
+// yet), $9 the
 // runs a reprocess supersedes (db/history/fleet_stats.hpp: one capture counted once): unset ones
 // fold away when the server plans the statement with its values (an unnamed statement is planned
 // per call), so the indexes serve.
@@ -22,7 +23,7 @@ const char* const kWhere =
     "$4)"
     " AND ($5::text IS NULL OR r.station_id = $5) AND ($6::text IS NULL OR r.serial = $6) "
     " AND ($7::text IS NULL OR r.setting = $7)"
-    " AND ($8::text IS NULL OR r.verdict = $8 OR ($8 = 'live' AND r.verdict IS NULL))"
+    " AND ($8::text IS NULL OR coalesce(r.verdict, 'live') = ANY(string_to_array($8, ',')))"
     " AND NOT (r.id = ANY($9::bigint[])) ";
 
 // The AINS result ains_results() takes (runs r and calibrations c joined): every term determined,
@@ -44,12 +45,20 @@ const char* const kDayExpr =
     "CASE WHEN r.started_at_ms >= 0 THEN r.started_at_ms / 86400000 "
     "ELSE -((86399999 - r.started_at_ms) / 86400000) END";
 
-// OFFSET 0 keeps the subquery whole: only (station, value) reach the sort, not each run's array.
+// OFFSET 0 keeps the subquery whole: only (station, value, frame) reach the sort, not each run's
+// array. $2: the parameter depends on the body frame (frame_dependent()); then a field run's result
+// in another frame than the housing's (a factory AINS result is always in the housing frame:
+// calib/ains/ains.cpp) is left out of the statistics and counted apart (o).
 const std::string kDistribution =
-    "SELECT station_id, count(*), avg(v), coalesce(stddev_samp(v), 0), min(v), "
-    "percentile_cont(ARRAY[0.25, 0.5, 0.75]) WITHIN GROUP (ORDER BY v), max(v) "
-    "FROM (SELECT r.station_id, r.ains_values[$1::int] AS v FROM runs r "
-    "      WHERE r.ains_values IS NOT NULL AND $2::text IS NULL AND" +
+    "SELECT station_id, count(*) FILTER (WHERE NOT o), avg(v) FILTER (WHERE NOT o), "
+    "coalesce(stddev_samp(v) FILTER (WHERE NOT o), 0), min(v) FILTER (WHERE NOT o), "
+    "percentile_cont(ARRAY[0.25, 0.5, 0.75]) WITHIN GROUP (ORDER BY v) FILTER (WHERE NOT o), "
+    "max(v) FILTER (WHERE NOT o), count(*) FILTER (WHERE o) "
+    "FROM (SELECT r.station_id, r.ains_values[$1::int] AS v, (coalesce($2::boolean, false) AND "
+    "r.setting <> "
+    "'factory' AND EXISTS (SELECT 1 FROM calibrations c WHERE c.run_id = r.id AND c.method = "
+    "'ains' AND c.body_frame <> 'housing')) AS o FROM runs r "
+    "      WHERE r.ains_values IS NOT NULL AND" +
     std::string(kWhere) +
     " OFFSET 0) s WHERE v IS NOT NULL GROUP BY station_id "
     "ORDER BY station_id COLLATE \"C\"";
@@ -65,19 +74,6 @@ struct PgFleetStats::Impl {
   }
   mutable PgConnection conn;
   mutable std::mutex mutex;
-
-  /// Every reprocess of the store and the run it names. Call with the mutex held.
-  std::vector<ReprocessLink> reprocess_links() const {
-    const PgResult q = conn.exec(
-        "SELECT r.id, o.id, r.local_run_id, o.local_run_id FROM runs r JOIN runs o ON "
-        "o.station_id = r.station_id AND o.local_run_id = r.reprocessed_from_local "
-        "WHERE $1::text IS NULL AND r.reprocessed_from_local IS NOT NULL",
-        {std::nullopt}, "reprocesses");
-    std::vector<ReprocessLink> links;
-    for (int i = 0; i < q.rows(); ++i)
-      links.push_back({q.i64(i, 0), q.i64(i, 1), q.i64(i, 2), q.i64(i, 3)});
-    return links;
-  }
 
   /// The runs of a reprocess chain with a result ains_results() takes, not calibrated from a
   /// partial archive (signature_stand_ins()'s `usable`; the SQLite backend's rule). Call with the
@@ -103,10 +99,28 @@ struct PgFleetStats::Impl {
                                      bool one_per_capture = true) const {
     validate_filter(f);
     std::vector<RunId> superseded;
-    if (one_per_capture) superseded = superseded_runs(reprocess_links());
+    if (one_per_capture) superseded = superseded_runs(read_links());
+    PgParam verdicts;
+    if (f.verdict) {
+      std::string list;
+      for (const std::string& v : verdict_list(*f.verdict)) list += (list.empty() ? "" : ",") + v;
+      verdicts = list;
+    }
     return {std::move(a),         std::move(b),        pg_value(f.since_ms),
             pg_value(f.until_ms), pg_value(f.station), pg_value(f.serial),
-            pg_value(f.setting),  pg_value(f.verdict), PgParam(id_array(superseded))};
+            pg_value(f.setting),  std::move(verdicts), PgParam(id_array(superseded))};
+  }
+  /// Every reprocess of the store, ascending run. Call with the mutex held.
+  std::vector<ReprocessLink> read_links() const {
+    const PgResult q = conn.exec(
+        "SELECT r.id, o.id, r.local_run_id, o.local_run_id FROM runs r JOIN runs o ON "
+        "o.station_id = r.station_id AND o.local_run_id = r.reprocessed_from_local "
+        "WHERE $1::text IS NULL AND r.reprocessed_from_local IS NOT NULL ORDER BY r.id",
+        {std::nullopt}, "reprocesses");
+    std::vector<ReprocessLink> links;
+    for (int i = 0; i < q.rows(); ++i)
+      links.push_back({q.i64(i, 0), q.i64(i, 1), q.i64(i, 2), q.i64(i, 3)});
+    return links;
   }
 };
 
@@ -164,14 +178,19 @@ std::vector<ParamSummary> PgFleetStats::param_distribution(int param_index,
     throw InvalidInput("parameter index " + std::to_string(param_index) + " is not in 0..26");
   // ains_values is 1-based in SQL and in calib::core::param_info order (db/fleet/fleet_schema.cpp).
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  const auto values =
-      impl_->filter_values(f, pg_value(std::int64_t{param_index + 1}), std::nullopt);
+  const auto values = impl_->filter_values(f, pg_value(std::int64_t{param_index + 1}),
+                                           pg_value(frame_dependent(param_index)));
   const PgResult q = impl_->conn.exec(kDistribution, values, "parameter distribution");
   std::vector<ParamSummary> out;
   for (int i = 0; i < q.rows(); ++i) {
     ParamSummary s;
     s.station = q.text(i, 0);
     s.count = q.i64(i, 1);
+    s.other_frame = q.i64(i, 7);
+    if (s.count == 0) {  // every result in another frame: no statistics (NULLs)
+      out.push_back(s);
+      continue;
+    }
     s.mean = q.f64(i, 2);
     s.std_dev = q.f64(i, 3);
     s.min = q.f64(i, 4);
@@ -185,6 +204,11 @@ std::vector<ParamSummary> PgFleetStats::param_distribution(int param_index,
     out.push_back(s);
   }
   return out;
+}
+
+std::vector<ReprocessLink> PgFleetStats::reprocess_links() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->read_links();
 }
 
 std::vector<RunId> PgFleetStats::table_run_members(RunId table_run_id) const {
@@ -203,7 +227,7 @@ std::vector<AinsResultRow> PgFleetStats::ains_results(const FleetFilter& f) cons
   // Its own rule for reprocesses (the originals stand for them, or the first reprocess with a
   // result where the original has none: signature_stand_ins): no list of superseded runs.
   auto values = impl_->filter_values(f, std::nullopt, std::nullopt, false);
-  values.push_back(PgParam(id_array(signature_stand_ins(impl_->reprocess_links(),
+  values.push_back(PgParam(id_array(signature_stand_ins(impl_->read_links(),
                                                         impl_->usable_reprocess_results()))));
   const PgResult q = impl_->conn.exec(
       "SELECT r.id, r.station_id, r.serial, r.sequence_name, r.started_at_ms, c.sigma::text, "

@@ -25,6 +25,7 @@ class PgFleetStats final : public FleetStats {
                                                const FleetFilter& filter) const override;
   std::vector<RunId> table_run_members(RunId table_run_id) const override;
   std::vector<AinsResultRow> ains_results(const FleetFilter& filter) const override;
+  std::vector<ReprocessLink> reprocess_links() const override;
 
   /// The distribution's statement ($1 the 1-based parameter index, $2 NULL, $3-$9 the filter:
   /// since, until, station, serial, setting, verdict, the superseded runs as bigint[]), for EXPLAIN

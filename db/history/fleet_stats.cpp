@@ -35,6 +35,29 @@ int param_index(const std::string& name) {
                      "table_misalignment_rad[1])");
 }
 
+bool frame_dependent(int param_index) {
+  // accel_M at 3..11 and gyro_M at 15..23, row-major (calib::core::param_info order).
+  for (const int first : {3, 15}) {
+    const int k = param_index - first;
+    if (k >= 0 && k < 9) return k / 3 != k % 3;
+  }
+  return false;
+}
+
+std::vector<std::string> verdict_list(const std::string& text) {
+  std::vector<std::string> out;
+  std::size_t p = 0;
+  while (p <= text.size()) {
+    const std::size_t q = std::min(text.find(',', p), text.size());
+    std::size_t a = p, b = q;
+    while (a < b && (text[a] == ' ' || text[a] == '\t')) ++a;
+    while (b > a && (text[b - 1] == ' ' || text[b - 1] == '\t')) --b;
+    if (b > a) out.push_back(text.substr(a, b - a));
+    p = q + 1;
+  }
+  return out;
+}
+
 std::int64_t utc_day(TimestampMs t_ms) {
   return t_ms >= 0 ? t_ms / kDayMs : -((-t_ms + kDayMs - 1) / kDayMs);
 }
@@ -65,13 +88,18 @@ void validate_filter(const FleetFilter& f) {
   if (f.serial) validate_serial(*f.serial);
   if (f.setting && *f.setting != "factory" && *f.setting != "land" && *f.setting != "sea")
     throw InvalidInput("setting \"" + f.setting->substr(0, 40) + "\" is not factory, land or sea");
-  if (f.verdict && *f.verdict != "live") {
-    try {
-      run_verdict_from_string(*f.verdict);
-    } catch (const InvalidInput&) {
-      throw InvalidInput("verdict \"" + f.verdict->substr(0, 40) +
-                         "\" is not PASS, REVIEW, FAILED, STATION-FAULT, ABORTED, INTERRUPTED "
-                         "or live");
+  if (f.verdict) {
+    const std::vector<std::string> words = verdict_list(*f.verdict);
+    if (words.empty()) throw InvalidInput("verdict: none given");
+    for (const std::string& word : words) {
+      if (word == "live") continue;
+      try {
+        run_verdict_from_string(word);
+      } catch (const InvalidInput&) {
+        throw InvalidInput("verdict \"" + word.substr(0, 40) +
+                           "\" is not PASS, REVIEW, FAILED, STATION-FAULT, ABORTED, INTERRUPTED "
+                           "or live");
+      }
     }
   }
   if (f.station) {

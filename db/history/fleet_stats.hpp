@@ -8,9 +8,9 @@
 // Every implementation must give the same numbers for the same rows, so the definitions are here:
 //   * a run belongs to a filter when since_ms <= started_at_ms < until_ms (each bound optional),
 //     its station equals `station` exactly (if given), its unit's serial equals `serial` (if
-//     given), its setting equals `setting` (if given: factory, land, sea) and its verdict equals
-//     `verdict` (if given; "live" for a run without one). A serial that names no unit matches
-//     nothing (no error);
+//     given), its setting equals `setting` (if given: factory, land, sea) and its verdict is one of
+//     `verdict` (if given: one or several comma-separated; "live" for a run without one). A serial
+//     that names no unit matches nothing (no error);
 //   * one capture is counted once (issue #52): a run and the reprocesses reached from it through
 //     reprocessed_from are one capture (the same archive calibrated again), and only its newest
 //     run — the highest station-local run id — stands for it in runs_per_station_day,
@@ -25,7 +25,12 @@
 //   * a parameter's distribution takes the AINS calibration of every matching run that has one
 //     (whatever its verdict), the value in SI units as stored in the parameter-set JSON — except
 //     where that result does not determine the parameter (CalibrationRecord::unobservable lists
-//     it: its stored value is a placeholder, e.g. ς of a field run). count,
+//     it: its stored value is a placeholder, e.g. ς of a field run). A parameter that depends on
+//     the body frame (frame_dependent(): the off-diagonal misalignments accel_M[i][j] and
+//     gyro_M[i][j], i != j, which a rotation of the frame moves) takes only the results in the
+//     housing frame: a field result is in the accelerometer-symmetric frame (calib/ains/ains.cpp,
+//     calibrations.body_frame), its misalignments are relative to another frame and cannot be
+//     pooled with a factory result's; those left out are counted per station (other_frame). count,
 //     mean, sample standard deviation (n - 1; 0 for one value), min, max and the quartiles by
 //     linear interpolation between order statistics (R's type 7, PostgreSQL's percentile_cont):
 //     q(p) = x[floor(h)] + (h - floor(h)) (x[floor(h) + 1] - x[floor(h)]), h = (n - 1) p, x sorted
@@ -47,7 +52,8 @@ struct FleetFilter {
   std::optional<std::string> station;   ///< exact station name
   std::optional<std::string> serial;    ///< exact serial (db/history/serial_number.hpp rule)
   std::optional<std::string> setting;   ///< "factory", "land" or "sea" (runs.setting)
-  std::optional<std::string> verdict;   ///< a RunVerdict's text, or "live" (no verdict yet)
+  /// A RunVerdict's text, or "live" (no verdict yet); several comma-separated: any of them.
+  std::optional<std::string> verdict;
 };
 
 /// A reprocess and the run it names (reprocessed_from), each with the history's id and its
@@ -85,6 +91,10 @@ struct ParamSummary {
   std::string station;
   std::int64_t count = 0;
   double mean = 0, std_dev = 0, min = 0, q1 = 0, median = 0, q3 = 0, max = 0;
+  /// A frame-dependent parameter: the station's matching results left out because they are not
+  /// in the housing frame (field runs). A station whose results are all left out appears with
+  /// count 0.
+  std::int64_t other_frame = 0;
 };
 
 /// One AINS result for the station signatures (issue #25,
@@ -123,6 +133,10 @@ class FleetStats {
   /// signature_stand_ins()), and ended runs whose verdict is not the unit's own (STATION-FAULT,
   /// ABORTED, INTERRUPTED: issue #50).
   virtual std::vector<AinsResultRow> ains_results(const FleetFilter& filter) const = 0;
+  /// Every reprocess of the history with the run it names (any window), ascending run: what
+  /// superseded_runs() takes, for a list of runs that must count what the aggregates count and
+  /// say which run a reprocess replaced (stationweb's run lists).
+  virtual std::vector<ReprocessLink> reprocess_links() const = 0;
 };
 
 /// The reprocesses that stand for their capture in ains_results(): a capture (a run and the
@@ -138,6 +152,14 @@ std::vector<RunId> signature_stand_ins(const std::vector<ReprocessLink>& links,
 /// The parameter's flat index (calib::core::param_info) from its name in the parameter-set JSON,
 /// e.g. "gyro_bias_radps[2]" or "accel_M[0][1]"; InvalidInput naming the accepted form otherwise.
 int param_index(const std::string& name);
+
+/// Whether the parameter's value depends on the body frame a result is expressed in: the
+/// off-diagonal misalignments accel_M[i][j] and gyro_M[i][j], i != j (calib/core/body_frame.hpp:
+/// a rotation R of the frame turns I + M into (I + M) Rᵀ, which moves them to first order).
+bool frame_dependent(int param_index);
+
+/// The verdicts of a filter's `verdict` text (comma-separated, each trimmed), in the order given.
+std::vector<std::string> verdict_list(const std::string& text);
 
 /// floor(t_ms / 86 400 000): the UTC day of a time, also before 1970.
 std::int64_t utc_day(TimestampMs t_ms);

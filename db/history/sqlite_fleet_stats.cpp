@@ -28,8 +28,8 @@ const char* const kWhereSerial = "r.unit_id = (SELECT id FROM units WHERE serial
 const char* const kWhereSince = "r.started_at_ms >= :since";
 const char* const kWhereUntil = "r.started_at_ms < :until";
 const char* const kWhereStation = "r.station = :station";
-const char* const kWhereVerdict = "r.verdict = :verdict";
-const char* const kWhereLive = "r.verdict IS NULL";
+// :verdicts is ",PASS,REVIEW,": the filter's verdicts between commas ("live": none yet).
+const char* const kWhereVerdict = "instr(:verdicts, ',' || coalesce(r.verdict, 'live') || ',') > 0";
 
 /// " WHERE a AND b ..." for the filters given and `also` ("" for none).
 std::string where_clause(const FleetFilter& f, const std::string& also = "") {
@@ -40,7 +40,7 @@ std::string where_clause(const FleetFilter& f, const std::string& also = "") {
   if (f.since_ms) add(kWhereSince);
   if (f.until_ms) add(kWhereUntil);
   if (f.station) add(kWhereStation);
-  if (f.verdict) add(*f.verdict == "live" ? kWhereLive : kWhereVerdict);
+  if (f.verdict) add(kWhereVerdict);
   return w;
 }
 
@@ -87,14 +87,16 @@ struct SqliteFleetStats::Impl {
   mutable std::mutex mutex;
 
   /// The few runs the counts must look at one by one: those a reprocess supersedes, and the field
-  /// runs (setting land or sea). Read by a scan of the run rows, which the counts themselves never
-  /// read (they use the covering index runs_by_time_station); kept until another connection
-  /// commits (PRAGMA data_version changes).
+  /// runs (setting land or sea), with the field runs whose AINS result is not in the housing frame
+  /// (a factory AINS result always is: calib/ains/ains.cpp). Read by a scan of the run rows, which
+  /// the counts themselves never read (they use the covering index runs_by_time_station); kept
+  /// until another connection commits (PRAGMA data_version changes).
   struct Exceptions {
     std::int64_t data_version = -1;
     std::unordered_set<RunId> superseded;
     std::unordered_map<RunId, std::string> field_setting;
-    std::vector<ReprocessLink> links;  ///< every reprocess and the run it names
+    std::unordered_set<RunId> other_frame;
+    std::vector<ReprocessLink> links;  ///< ascending run
   };
   mutable Exceptions exceptions;
 
@@ -124,7 +126,11 @@ struct SqliteFleetStats::Impl {
         check(sqlite3_bind_int64(st_, i, v));
     }
     void bind_filter(const FleetFilter& f) {
-      if (f.verdict && *f.verdict != "live") bind_text(":verdict", *f.verdict);
+      if (f.verdict) {
+        std::string list = ",";
+        for (const std::string& v : verdict_list(*f.verdict)) list += v + ",";
+        bind_text(":verdicts", list);
+      }
       if (f.serial) bind_text(":serial", *f.serial);
       if (f.since_ms) bind_int(":since", *f.since_ms);
       if (f.until_ms) bind_int(":until", *f.until_ms);
@@ -181,8 +187,9 @@ struct SqliteFleetStats::Impl {
     Exceptions e;
     e.data_version = version;
     Query q(*this,
-            "SELECT id, reprocessed_from, setting FROM runs "
-            "WHERE reprocessed_from IS NOT NULL OR setting <> 'factory'",
+            "SELECT r.id, r.reprocessed_from, r.setting, (SELECT c.body_frame FROM calibrations c "
+            "WHERE c.run_id = r.id AND c.method = 'ains') FROM runs r "
+            "WHERE r.reprocessed_from IS NOT NULL OR r.setting <> 'factory'",
             op);
     std::vector<ReprocessLink> links;
     while (q.step()) {
@@ -190,8 +197,11 @@ struct SqliteFleetStats::Impl {
       if (q.type(1) != SQLITE_NULL) links.push_back({id, q.i64(1), id, q.i64(1)});
       std::string setting = q.text(2);
       if (setting != "factory") e.field_setting.emplace(id, std::move(setting));
+      if (q.type(3) != SQLITE_NULL && q.text(3) != "housing") e.other_frame.insert(id);
     }
     for (const RunId r : superseded_runs(links)) e.superseded.insert(r);
+    std::sort(links.begin(), links.end(),
+              [](const ReprocessLink& a, const ReprocessLink& b) { return a.run < b.run; });
     e.links = std::move(links);
     exceptions = std::move(e);
     return exceptions;
@@ -341,21 +351,34 @@ std::vector<ParamSummary> SqliteFleetStats::param_distribution(int param_index,
                     where_clause(f, std::string(column) + " IS NOT NULL"),
                 op);
   q.bind_filter(f);
+  const bool by_frame = frame_dependent(param_index);
   StationNames stations;
   std::vector<std::vector<double>> values;
+  std::vector<std::int64_t> other_frame;
   while (q.step()) {
     if (!Impl::counts(ex, q.i64(2), f)) continue;
     const std::size_t s = stations.index_of(q.view(0));
-    if (s == values.size()) values.emplace_back();
-    values[s].push_back(q.f64(1));
+    if (s == values.size()) values.emplace_back(), other_frame.push_back(0);
+    if (by_frame && ex.other_frame.count(q.i64(2)))
+      ++other_frame[s];
+    else
+      values[s].push_back(q.f64(1));
   }
   std::vector<ParamSummary> out;
   for (const std::size_t s : stations.sorted()) {
     ParamSummary summary = summarize(values[s]);
     summary.station = stations.name(s);
+    summary.other_frame = other_frame[s];
     out.push_back(summary);
   }
   return out;
+}
+
+std::vector<ReprocessLink> SqliteFleetStats::reprocess_links() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const char* op = "reprocess links";
+  Impl::Snapshot snapshot(*impl_, op);
+  return impl_->current_exceptions(op).links;
 }
 
 std::vector<RunId> SqliteFleetStats::table_run_members(RunId table_run_id) const {

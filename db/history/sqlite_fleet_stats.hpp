@@ -34,6 +34,7 @@ class SqliteFleetStats final : public FleetStats {
                                                const FleetFilter& filter) const override;
   std::vector<RunId> table_run_members(RunId table_run_id) const override;
   std::vector<AinsResultRow> ains_results(const FleetFilter& filter) const override;
+  std::vector<ReprocessLink> reprocess_links() const override;
 
  private:
   struct Impl;

@@ -46,8 +46,9 @@ std::string station_counts_text(const json& s) {
 }
 
 /// `stationctl [--fleet URL | --db FILE] stations`: the stations with runs, each with its units'
-/// outcomes and its own faults counted apart.
-int list_stations(const Target& t, bool as_json) {
+/// outcomes and its own faults counted apart, by /fleet's rule (factory runs unless --setting says
+/// otherwise; one capture once).
+int list_stations(const Target& t, const StationsArgs& a, bool as_json) {
   if (t.fleet_url.empty() && t.db.empty())
     throw Failure{kBadInput, "stations: give the fleet store with --fleet URL, or --db"};
   json list = json::array();
@@ -58,14 +59,20 @@ int list_stations(const Target& t, bool as_json) {
           db::fleet::parse_fleet_target(t.fleet_url, t.fleet_password));
     else
       stats = std::make_unique<db::history::SqliteFleetStats>(t.db);
-    for (const auto& v : stats->verdict_counts_per_station({}))
+    db::history::FleetFilter filter;
+    if (a.setting != "all") filter.setting = a.setting;
+    for (const auto& v : stats->verdict_counts_per_station(filter))
       list.push_back(station_counts_json(v));
   } catch (const db::history::DbError& e) {
     throw Failure{exit_for_db_error(e.kind()), e.what()};
   }
+  const std::string counted =
+      (a.setting == "all" ? std::string("runs of every setting") : a.setting + " runs") +
+      ", one capture once (a reprocessed run is stood for by its newest reprocess)";
   if (as_json) {
-    print_json({{"stations", list}});
+    print_json({{"setting", a.setting}, {"counted", counted}, {"stations", list}});
   } else {
+    std::cout << "counted: " << counted << "\n";
     for (const json& s : list) std::cout << station_counts_text(s) << "\n";
     if (list.empty()) std::cout << "no station has stored runs\n";
   }
@@ -179,12 +186,18 @@ CLI::App* add_stations_command(CLI::App& app, StationsArgs& a) {
                    "signatures: false-alarm rate per station and period")
       ->check(CLI::Range(1e-6, 0.2))
       ->default_val(1e-3);
+  stations
+      ->add_option("--setting", a.setting,
+                   "the list: the runs of this setting (factory, land, sea or all), as "
+                   "stationweb's /fleet?setting= counts them")
+      ->check(CLI::IsMember({"factory", "land", "sea", "all"}))
+      ->default_val("factory");
   stations->fallthrough();
   return stations;
 }
 
 int cmd_stations(const Target& t, const StationsArgs& a, bool as_json) {
-  return a.signatures || a.trend ? station_signatures(t, a, as_json) : list_stations(t, as_json);
+  return a.signatures || a.trend ? station_signatures(t, a, as_json) : list_stations(t, a, as_json);
 }
 
 }  // namespace imucal::tools::stationctl

@@ -10,6 +10,7 @@
 #include "calib/core/param_set.hpp"
 #include "tools/stationweb/fleet_svg.hpp"
 #include "tools/stationweb/html.hpp"
+#include "tools/stationweb/list_filter.hpp"
 #include "tools/stationweb/page_limits.hpp"
 #include "tools/stationweb/page_util.hpp"
 #include "tools/stationweb/pages.hpp"
@@ -17,8 +18,6 @@
 namespace imucal::tools::stationweb {
 
 namespace {
-
-constexpr int kDefaultWindowDays = 30;
 
 struct FleetQuery {
   db::history::FleetFilter filter;
@@ -28,67 +27,22 @@ struct FleetQuery {
   std::string notes;  ///< dates clamped to the served range (page_limits.hpp)
 };
 
-/// setting (default factory: a field run's values are another population; "all" for every
-/// setting) and verdict (one of the six, or "live"; default every verdict).
-void parse_setting_and_verdict(FleetQuery& q) {
-  const std::string setting = q.echo.find("setting")->second;
-  if (setting != "all") q.filter.setting = setting.empty() ? "factory" : setting;
-  const std::string verdict = q.echo.find("verdict")->second;
-  if (!verdict.empty()) q.filter.verdict = verdict;
-  db::history::FleetFilter only;
-  only.setting = q.filter.setting;
-  try {
-    db::history::validate_filter(only);
-  } catch (const db::history::InvalidInput& e) {
-    bad_input("setting", std::string(e.what()) + " (or all)");
-  }
-  only = {};
-  only.verdict = q.filter.verdict;
-  try {
-    db::history::validate_filter(only);
-  } catch (const db::history::InvalidInput& e) {
-    bad_input("verdict", e.what());
-  }
-}
-
+/// The filters /runs shares (list_filter.hpp: setting default factory — a field run's values are
+/// another population; "all" for every setting), and the parameter.
 FleetQuery parse_query(const History& history, const Params& query) {
   FleetQuery q;
   for (const char* name : {"since", "until", "station", "serial", "param", "setting", "verdict"})
     q.echo.emplace(name, query_value(query, name));
-  const std::string since = q.echo.find("since")->second, until = q.echo.find("until")->second;
-  if (!since.empty()) q.filter.since_ms = window_time("since", since, false, q.notes);
-  if (!until.empty()) q.filter.until_ms = window_time("until", until, true, q.notes);
-  if (q.filter.since_ms && q.filter.until_ms && *q.filter.since_ms >= *q.filter.until_ms)
-    bad_input("until", "the window ends (" + until + ") before it starts (" + since + ")");
-  const std::string station = q.echo.find("station")->second;
-  if (!station.empty()) q.filter.station = station;
-  try {
-    db::history::validate_filter(q.filter);
-  } catch (const db::history::InvalidInput& e) {
-    bad_input("station", e.what());
-  }
-  parse_setting_and_verdict(q);
-  if (!station.empty()) check_known_station(history, station);  // #52: not "no runs"
-  const std::string serial = q.echo.find("serial")->second;
-  if (!serial.empty()) {
-    check_serial(serial, "serial");
-    check_known_serial(history, serial, "serial");  // #52 item 10: "unknown serial", not "no runs"
-    q.filter.serial = serial;
-  }
-  const std::string param = q.echo.find("param")->second;
+  ListFilter l = parse_list_filter(history, query, std::string("factory"));
+  q.filter = l.filter;
+  q.default_window = l.default_window;
+  q.notes = l.notes;
+  const std::string param = trimmed(q.echo.find("param")->second);
   if (!param.empty()) {
     try {
       q.param = db::history::param_index(param);
     } catch (const db::history::InvalidInput& e) {
       bad_input("param", e.what());
-    }
-  }
-  if (!q.filter.since_ms && !q.filter.until_ms) {
-    const std::vector<db::history::RunRecord> newest = history.repo->recent_runs(1);
-    if (!newest.empty()) {
-      q.filter.until_ms = (db::history::utc_day(newest.front().started_at_ms) + 1) * kDayMs;
-      q.filter.since_ms = *q.filter.until_ms - kDefaultWindowDays * kDayMs;
-      q.default_window = true;
     }
   }
   return q;
@@ -99,8 +53,13 @@ std::string choice(const char* name, const std::string& given,
                    const std::vector<std::string>& options, const char* none) {
   std::string s = std::string("<label>") + name + " <select name='" + name + "'>";
   if (*none) s += std::string("<option value=''>") + none + "</option>";
-  for (const std::string& o : options)
+  bool listed_option = given.empty();
+  for (const std::string& o : options) {
     s += "<option" + std::string(given == o ? " selected" : "") + ">" + o + "</option>";
+    listed_option = listed_option || given == o;
+  }
+  // A value the list does not offer (verdict=PASS,REVIEW) stays what the form sends again.
+  if (!listed_option) s += "<option selected>" + esc(given) + "</option>";
   return s + "</select></label>";
 }
 
@@ -135,9 +94,7 @@ std::string window_line(const FleetQuery& q) {
                   (f.since_ms ? std::to_string(*f.since_ms) : "") + "' data-until-ms='" +
                   (f.until_ms ? std::to_string(*f.until_ms) : "") + "' data-setting='" +
                   esc(f.setting.value_or("")) + "' data-verdict='" + esc(f.verdict.value_or("")) +
-                  "'>Runs started ";
-  s += f.since_ms ? "from " + short_time(*f.since_ms) + " UTC " : "at any time ";
-  s += f.until_ms ? "until (before) " + short_time(*f.until_ms) + " UTC" : "until now";
+                  "'>Runs started " + window_text(f);
   if (q.default_window)
     s += " — the " + std::to_string(kDefaultWindowDays) +
          " days up to the newest run's day (set since/until for another window)";
@@ -176,18 +133,56 @@ std::string runs_chart_section(const FleetQuery& q,
          "<p class='muted'>The numbers: <a href='#runs-per-day'>the table below</a>.</p>\n";
 }
 
-/// The runs behind a fleet figure (issue #52 item 8): /runs with the page's station, window and
-/// setting, plus `more` ("&verdict=PASS", a day's window, a parameter). /runs lists a capture and
-/// its reprocesses apart, where the fleet counts one capture once (its newest run).
-std::string runs_link(const FleetQuery& q, const std::string& station, const std::string& more,
-                      const std::string& text) {
+/// What a link to the runs behind a figure adds to the page's filters.
+struct Behind {
+  std::optional<std::string> verdict;  ///< the figure's verdict (within the page's verdicts)
+  std::optional<std::int64_t> day;     ///< the figure's UTC day (within the page's window)
+  std::string param;                   ///< the distribution's parameter
+};
+
+/// The runs behind a fleet figure (issue #52 item 8, the audit's F1): /runs with every filter the
+/// figure counted — station, serial, setting (`all` when every setting), verdicts, the window as
+/// exact times (the default window too) — and the figure's own (a verdict, a day, a parameter).
+/// /runs counts as the fleet does (one capture once), so the list holds as many runs as the
+/// figure says. "" when the figure's verdict is not among the page's (it counts nothing).
+std::string runs_href(const FleetQuery& q, const std::string& station, const Behind& behind) {
+  const auto& f = q.filter;
   std::string href = "/runs?station=" + url_encode(station);
-  if (q.filter.setting) href += "&setting=" + url_encode(*q.filter.setting);
-  if (more.find("&since=") == std::string::npos)
+  if (f.serial) href += "&serial=" + url_encode(*f.serial);
+  href += "&setting=" + url_encode(f.setting.value_or("all"));
+  std::optional<std::string> verdict = f.verdict;
+  if (behind.verdict) {
+    if (f.verdict && !listed(db::history::verdict_list(*f.verdict), *behind.verdict)) return "";
+    verdict = behind.verdict;
+  }
+  if (verdict) href += "&verdict=" + url_encode(*verdict);
+  if (behind.day) {  // the day, within the page's window
+    const std::int64_t start = *behind.day * kDayMs, end = start + kDayMs;
+    if ((!f.since_ms || *f.since_ms <= start) && (!f.until_ms || *f.until_ms >= end)) {
+      href += "&since=" + day_text(*behind.day) + "&until=" + day_text(*behind.day);
+    } else {
+      db::history::FleetFilter window;
+      window.since_ms = f.since_ms ? std::max(*f.since_ms, start) : start;
+      window.until_ms = f.until_ms ? std::min(*f.until_ms, end) : end;
+      href += window_query(window);
+    }
+  } else if (q.default_window) {  // the default window's days, so the list needs no default
+    href += "&since=" + day_text(db::history::utc_day(*f.since_ms)) +
+            "&until=" + day_text(db::history::utc_day(*f.until_ms - 1));
+  } else {  // the texts given: /runs reads them with the same parser (list_filter.hpp)
     for (const char* w : {"since", "until"})
-      if (const std::string v = q.echo.find(w)->second; !v.empty())
+      if (const std::string v = trimmed(q.echo.find(w)->second); !v.empty())
         href += std::string("&") + w + "=" + url_encode(v);
-  return "<a class='runs-link' href='" + esc(href + more) + "'>" + text + "</a>";
+  }
+  if (!behind.param.empty()) href += "&param=" + url_encode(behind.param);
+  return href;
+}
+
+std::string runs_link(const FleetQuery& q, const std::string& station, const Behind& behind,
+                      const std::string& text) {
+  const std::string href = runs_href(q, station, behind);
+  if (href.empty()) return text;
+  return "<a class='runs-link' href='" + esc(href) + "'>" + text + "</a>";
 }
 
 std::string runs_table_section(const FleetQuery& q,
@@ -209,10 +204,7 @@ std::string runs_table_section(const FleetQuery& q,
       total += n;
       s += "<td class='num' data-station='" + esc(st) + "' data-day='" + day_text(day) +
            "' data-runs='" + std::to_string(n) + "'>" +
-           (n ? runs_link(q, st, "&since=" + day_text(day) + "&until=" + day_text(day),
-                          std::to_string(n))
-              : "") +
-           "</td>";
+           (n ? runs_link(q, st, Behind{std::nullopt, day, ""}, std::to_string(n)) : "") + "</td>";
     }
     s += "<td class='num'>" + std::to_string(total) + "</td></tr>\n";
   }
@@ -233,7 +225,8 @@ std::string verdict_section(const FleetQuery& q,
   std::string s = "<h2>Verdicts per station</h2>\n";
   if (verdicts.empty()) return s + "<p id='verdicts'>No runs in this window.</p>\n";
   s += verdict_chart(verdicts);
-  s += "<p class='muted'>PASS, REVIEW and FAILED are shares of the runs the units decided; station "
+  s += "<p class='muted'>The chart counts runs; the table gives PASS, REVIEW and FAILED as shares "
+       "of the runs the units decided (their yield: the one PASS rate on this page); station "
        "faults (table, CAN bus, disk), aborts and interrupted runs are the station's and the "
        "operators', not the units'.</p>\n";
   s += "<table id='verdicts'>\n<tr><th>station</th><th class='num'>PASS</th><th "
@@ -252,14 +245,15 @@ std::string verdict_section(const FleetQuery& q,
          attr("interrupted", v.interrupted) + attr("live", v.live) + attr("unit-outcomes", own) +
          attr("total", v.total()) + "><td>" + esc(v.station) + "</td>";
     const auto linked = [&](const char* verdict, const std::string& text) {
-      return cell(runs_link(q, v.station, std::string("&verdict=") + verdict, text));
+      return cell(runs_link(q, v.station, Behind{std::string(verdict), std::nullopt, ""}, text));
     };
     s += linked("PASS", share(v.pass, own)) + linked("REVIEW", share(v.review, own)) +
          linked("FAILED", share(v.failed, own)) +
          linked("STATION-FAULT", std::to_string(v.station_fault)) +
          linked("ABORTED", std::to_string(v.aborted)) +
-         linked("INTERRUPTED", std::to_string(v.interrupted)) + cell(std::to_string(v.live)) +
-         cell(runs_link(q, v.station, "", std::to_string(v.total()))) + "</tr>\n";
+         linked("INTERRUPTED", std::to_string(v.interrupted)) +
+         linked("live", std::to_string(v.live)) +
+         cell(runs_link(q, v.station, Behind{}, std::to_string(v.total()))) + "</tr>\n";
   }
   return s + "</table>\n";
 }
@@ -267,25 +261,30 @@ std::string verdict_section(const FleetQuery& q,
 std::string distribution_row(const FleetQuery& q, const db::history::ParamSummary& d,
                              const calib::core::ParamInfo& info) {
   const double k = info.si_to_human;
-  std::string s =
-      "<tr data-station='" + esc(d.station) + "' data-count='" + std::to_string(d.count) + "'";
+  std::string s = "<tr data-station='" + esc(d.station) + "' data-count='" +
+                  std::to_string(d.count) + "' data-other-frame='" + std::to_string(d.other_frame) +
+                  "'";
   const std::pair<const char*, double> stats[] = {
       {"mean", d.mean},     {"std", d.std_dev}, {"min", d.min}, {"q1", d.q1},
       {"median", d.median}, {"q3", d.q3},       {"max", d.max}};
   for (const auto& [name, v] : stats) s += std::string(" data-") + name + "='" + exact(v) + "'";
   s += "><td>" + esc(d.station) + "</td><td class='num'>" +
-       runs_link(q, d.station, "&param=" + url_encode(info.name), std::to_string(d.count)) +
+       runs_link(q, d.station, Behind{std::nullopt, std::nullopt, info.name},
+                 std::to_string(d.count)) +
        "</td>";
   // Each figure to the precision the spread allows: the mean to its standard error, the
   // order statistics and the std to the std's second digit (issue #52 item 12).
   const double spread = d.std_dev * k;
   const double mean_se = d.count > 1 ? spread / std::sqrt(static_cast<double>(d.count)) : 0.0;
   for (const auto& [name, v] : stats) {
-    const std::string text = std::string(name) == "mean"  ? fmt_to_sigma(v * k, mean_se)
-                             : std::string(name) == "std" ? fmt_sigma(v * k)
-                                                          : fmt_to_sigma(v * k, spread);
+    const std::string text = d.count == 0                  ? std::string("—")  // all left out
+                             : std::string(name) == "mean" ? fmt_to_sigma(v * k, mean_se)
+                             : std::string(name) == "std"  ? fmt_sigma(v * k)
+                                                           : fmt_to_sigma(v * k, spread);
     s += "<td class='num'>" + text + "</td>";
   }
+  if (db::history::frame_dependent(*q.param))
+    s += "<td class='num other-frame'>" + std::to_string(d.other_frame) + "</td>";
   return s + "</tr>\n";
 }
 
@@ -297,11 +296,29 @@ std::string distribution_section(const FleetQuery& q,
   s += "<p>" + info.name + ": the AINS value of every run counted above that has one, in " +
        esc(info.human_unit) + " (sample standard deviation; quartiles interpolated).</p>\n";
   if (dist.empty()) return s + "<p id='distribution'>No AINS calibration in this window.</p>\n";
-  s += box_plot(dist, info);
+  const bool by_frame = db::history::frame_dependent(*q.param);
+  std::int64_t other_frame = 0;
+  for (const auto& d : dist) other_frame += d.other_frame;
+  if (by_frame)
+    s += "<p id='frame-note' data-other-frame='" + std::to_string(other_frame) + "'>" + info.name +
+         " depends on the body frame a result is expressed in: only results in the housing "
+         "frame (factory runs) are counted. " +
+         (other_frame ? count_of(other_frame, "result") +
+                            " left out (last column): field runs' results are in the "
+                            "accelerometer-symmetric frame, their misalignments relative to the "
+                            "accelerometer triad, not to the housing, and cannot be pooled with "
+                            "the factory runs' (compare them on a unit's page or /compare)."
+                      : std::string("No result was left out.")) +
+         "</p>\n";
+  std::vector<db::history::ParamSummary> shown;
+  for (const auto& d : dist)
+    if (d.count > 0) shown.push_back(d);
+  s += box_plot(shown, info);
   s += "<table id='distribution' data-param='" + info.name + "' data-unit='" +
        esc(info.human_unit) + "'>\n<tr><th>station</th><th class='num'>runs</th>";
   for (const char* h : {"mean", "std", "min", "Q1", "median", "Q3", "max"})
     s += std::string("<th class='num'>") + h + " (" + esc(info.human_unit) + ")</th>";
+  if (by_frame) s += "<th class='num'>left out: another body frame</th>";
   s += "</tr>\n";
   for (const auto& d : dist) s += distribution_row(q, d, info);
   return s + "</table>\n";

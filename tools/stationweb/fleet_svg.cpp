@@ -95,9 +95,17 @@ std::string runs_chart(const std::vector<db::history::StationDayCount>& counts,
            c.station + " " + day_text(c.day) + ": " + count_of(c.runs, "run"));
     stacked[i] = hi;
   }
+  // Every `every`-th day and always the last (the newest day was left without a label: issue #52
+  // F12), the label before it dropped when it would crowd it.
   const std::size_t every = std::max<std::size_t>(1, n_days / 12);
-  for (std::size_t i = 0; i < n_days; i += every)
-    os << "<text transform='translate(" << p.x(i) - 3 << ',' << kTop + kPanelH + 8
+  std::vector<std::size_t> labelled;
+  for (std::size_t i = 0; i < n_days; i += every) labelled.push_back(i);
+  if (labelled.back() != n_days - 1) {
+    if (labelled.size() > 1 && n_days - 1 - labelled.back() < (every + 1) / 2) labelled.pop_back();
+    labelled.push_back(n_days - 1);
+  }
+  for (const std::size_t i : labelled)
+    os << "<text class='day-label' transform='translate(" << p.x(i) - 3 << ',' << kTop + kPanelH + 8
        << ") rotate(60)' font-size='10'>" << day_text(first_day + static_cast<std::int64_t>(i))
        << "</text>\n";
   station_legend(os, stations);
@@ -108,22 +116,29 @@ std::string verdict_chart(const std::vector<db::history::StationVerdictCounts>& 
   std::ostringstream os;
   os << svg_open("verdict-chart", kTop + kPanelH + 90);
   if (verdicts.empty()) return os.str() + "</svg>\n";
-  Panel p{os, kTop, 0.0, 100.0, verdicts.size()};
-  p.frame("Verdicts per station (share of its runs)", "% of runs");
+  // Counts, not shares (issue #52 F12): a share of all runs next to the table's share of the
+  // runs the units decided read as two PASS rates. The tooltips give the table's basis.
+  double bottom = 0, top = 1;
+  for (const auto& v : verdicts) top = std::max(top, static_cast<double>(v.total()));
+  tools::report::round_range(bottom, top);
+  Panel p{os, kTop, bottom, top, verdicts.size()};
+  p.frame("Verdicts per station (runs)", "runs");
   std::vector<std::string> labels;
   for (std::size_t i = 0; i < verdicts.size(); ++i) {
     const auto& v = verdicts[i];
-    const double n = static_cast<double>(std::max<std::int64_t>(v.total(), 1));
+    const std::int64_t own = v.unit_outcomes();
     double lo = 0;
     const std::int64_t parts[kVerdictParts] = {v.pass,    v.review,      v.failed, v.station_fault,
                                                v.aborted, v.interrupted, v.live};
     for (std::size_t k = 0; k < kVerdictParts; ++k) {
-      const double share = 100.0 * static_cast<double>(parts[k]) / n;
       if (parts[k] == 0) continue;
-      p.span(i, lo, lo + share, 0.0, p.slot() * 0.6, kVerdictColours[k],
-             v.station + " " + kVerdictNames[k] + ": " + std::to_string(parts[k]) + " (" +
-                 fmt("%.1f", share) + " %)");
-      lo += share;
+      const double n = static_cast<double>(parts[k]);
+      std::string tip = v.station + " " + kVerdictNames[k] + ": " + count_of(parts[k], "run");
+      if (k < 3)
+        tip += " (" + fmt("%.1f", 100.0 * n / static_cast<double>(own)) + " % of the " +
+               std::to_string(own) + " the units decided)";
+      p.span(i, lo, lo + n, 0.0, p.slot() * 0.6, kVerdictColours[k], tip);
+      lo += n;
     }
     labels.push_back(v.station);
   }

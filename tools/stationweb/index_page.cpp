@@ -48,7 +48,7 @@ std::string index_page(const History& history, const Params& query) {
        "unit's history</button></form>\n";
   b += "<h2>Newest " + std::to_string(runs.size()) + " runs</h2>\n";
   if (runs.empty()) return page("Recent runs", b + "<p>No runs yet.</p>\n");
-  b += run_table(runs, true, "recent-runs");
+  b += run_table(history, runs, true, "recent-runs");
   b += download_links("/?limit=" + std::to_string(limit));
   if (total > runs.size())
     b += "<p class='muted'>Older runs: <a href='/?limit=" + std::to_string(kMaxLimit) +

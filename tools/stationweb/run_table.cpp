@@ -1,6 +1,10 @@
 #include "tools/stationweb/run_table.hpp"
 
+#include <algorithm>
+#include <map>
+
 #include "calib/core/param_set.hpp"
+#include "db/history/fleet_stats.hpp"
 #include "station/control/record_json.hpp"
 #include "tools/stationweb/html.hpp"
 
@@ -13,6 +17,58 @@ std::string verdict_html(const std::optional<db::history::RunVerdict>& verdict) 
 }
 
 namespace {
+
+/// Each run's direct reprocesses and, for a run that does not stand for its capture, the run that
+/// does (db::history::superseded_runs: the one run of a capture it does not list).
+struct Reprocesses {
+  std::map<db::history::RunId, std::vector<db::history::RunId>> as;
+  std::map<db::history::RunId, db::history::RunId> newest;
+};
+
+Reprocesses reprocesses_of(const std::vector<db::history::ReprocessLink>& links) {
+  Reprocesses out;
+  std::map<db::history::RunId, db::history::RunId> origin_of;
+  for (const auto& l : links) out.as[l.origin].push_back(l.run), origin_of[l.run] = l.origin;
+  const auto root_of = [&](db::history::RunId run) {
+    for (std::size_t hops = 0; hops <= origin_of.size(); ++hops) {
+      const auto it = origin_of.find(run);
+      if (it == origin_of.end()) break;
+      run = it->second;
+    }
+    return run;
+  };
+  const std::vector<db::history::RunId> superseded = db::history::superseded_runs(links);
+  std::map<db::history::RunId, db::history::RunId> standing;  // root -> the run standing for it
+  for (const auto& l : links)
+    for (const auto run : {l.run, l.origin})
+      if (!std::binary_search(superseded.begin(), superseded.end(), run))
+        standing[root_of(run)] = run;
+  for (const auto run : superseded) out.newest[run] = standing[root_of(run)];
+  return out;
+}
+
+/// The reason cell's links: "reprocess of run N", "→ run M" (and the capture's newest).
+std::string reprocess_note(const db::history::RunRecord& r, const Reprocesses* rep) {
+  if (!rep) return "";
+  std::string s;
+  if (r.reprocessed_from)
+    s += " <span class='reprocess-of'>reprocess of <a href='/run/" +
+         std::to_string(*r.reprocessed_from) + "'>run " + std::to_string(*r.reprocessed_from) +
+         "</a></span>";
+  if (const auto it = rep->as.find(r.run_id); it != rep->as.end()) {
+    s += " <span class='reprocessed-as'>→ reprocessed as ";
+    for (std::size_t i = 0; i < it->second.size(); ++i)
+      s += std::string(i ? ", " : "") + "<a href='/run/" + std::to_string(it->second[i]) +
+           "'>run " + std::to_string(it->second[i]) + "</a>";
+    const auto newest = rep->newest.find(r.run_id);
+    if (newest != rep->newest.end() &&
+        std::find(it->second.begin(), it->second.end(), newest->second) == it->second.end())
+      s += "; the capture's newest, which decides: <a href='/run/" +
+           std::to_string(newest->second) + "'>run " + std::to_string(newest->second) + "</a>";
+    s += "</span>";
+  }
+  return s;
+}
 
 /// Seconds from start to end, or nullopt while live.
 std::optional<double> duration_s(const db::history::RunRecord& r) {
@@ -37,7 +93,17 @@ std::string run_cell(const db::history::RunRecord& r) {
   return s;
 }
 
-std::string row_attrs(const db::history::RunRecord& r) {
+std::string reprocess_attrs(const db::history::RunRecord& r, const Reprocesses* rep) {
+  if (!rep) return "";
+  std::string as;
+  if (const auto it = rep->as.find(r.run_id); it != rep->as.end())
+    for (const auto m : it->second) as += (as.empty() ? "" : ",") + std::to_string(m);
+  const auto newest = rep->newest.find(r.run_id);
+  return " data-reprocessed-as='" + as + "' data-capture-newest='" +
+         (newest != rep->newest.end() ? std::to_string(newest->second) : "") + "'";
+}
+
+std::string row_attrs(const db::history::RunRecord& r, const Reprocesses* rep) {
   const auto d = duration_s(r);
   return "<tr class='run' data-run-id='" + std::to_string(r.run_id) + "' data-serial='" +
          esc(r.serial) + "' data-state='" + db::history::to_string(r.state) + "' data-verdict='" +
@@ -46,13 +112,15 @@ std::string row_attrs(const db::history::RunRecord& r) {
          "' data-setting='" + calib::core::setting_name(r.setting) + "' data-origin='" +
          esc(r.origin) + "' data-operator='" + esc(r.operator_name) + "' data-duration-s='" +
          (d ? fmt("%.3f", *d) : "") + "' data-reprocessed-from='" +
-         (r.reprocessed_from ? std::to_string(*r.reprocessed_from) : "") + "'>";
+         (r.reprocessed_from ? std::to_string(*r.reprocessed_from) : "") + "'" +
+         reprocess_attrs(r, rep) + ">";
 }
 
-std::string run_row(const db::history::RunRecord& r, bool with_serial, const std::string* extra) {
+std::string run_row(const db::history::RunRecord& r, bool with_serial, const std::string* extra,
+                    const Reprocesses* rep) {
   const nlohmann::json j = station::control::run_record_json(r);
   const auto d = duration_s(r);
-  std::string s = row_attrs(r) + "<td class='num'>" + run_cell(r) + "</td>";
+  std::string s = row_attrs(r, rep) + "<td class='num'>" + run_cell(r) + "</td>";
   if (with_serial) s += "<td>" + unit_link(r.serial) + "</td>";
   s += "<td>" + short_time(r.started_at_ms) + "</td><td>" + esc(setting_text(r)) + "</td><td>" +
        db::history::to_string(r.state) + "</td><td>" + verdict_html(r.verdict) + "</td><td>" +
@@ -62,16 +130,14 @@ std::string run_row(const db::history::RunRecord& r, bool with_serial, const std
        esc(r.sequence_name) + "</td><td>" + esc(r.operator_name) + "</td><td class='num'>" +
        (d ? station::control::format_duration_s(*d) : "-") + "</td><td>" +
        esc(station::control::gap_cell(j)) + "</td><td class='reason'>" + esc(r.failure_reason) +
-       "</td>";
+       reprocess_note(r, rep) + "</td>";
   if (extra) s += "<td class='num'>" + *extra + "</td>";
   return s + "</tr>\n";
 }
 
-}  // namespace
-
-std::string run_table(const std::vector<db::history::RunRecord>& runs, bool with_serial,
-                      const std::string& id, const std::string& extra_header,
-                      const std::vector<std::string>& extra_cells) {
+std::string table(const std::vector<db::history::RunRecord>& runs, bool with_serial,
+                  const std::string& id, const std::string& extra_header,
+                  const std::vector<std::string>& extra_cells, const Reprocesses* rep) {
   std::string s = "<table id='" + esc(id) + "'>\n<tr><th>Run</th>";
   if (with_serial) s += "<th>Serial</th>";
   s += "<th>Started (UTC)</th><th>Setting</th><th>State</th><th>Verdict</th><th>Cross-check</th>"
@@ -80,7 +146,7 @@ std::string run_table(const std::vector<db::history::RunRecord>& runs, bool with
   if (!extra_header.empty()) s += "<th>" + extra_header + "</th>";
   s += "</tr>\n";
   for (std::size_t i = 0; i < runs.size(); ++i)
-    s += run_row(runs[i], with_serial, i < extra_cells.size() ? &extra_cells[i] : nullptr);
+    s += run_row(runs[i], with_serial, i < extra_cells.size() ? &extra_cells[i] : nullptr, rep);
   s += "</table>\n";
   bool reprocessed = false, promoted = false;
   for (const auto& r : runs) {
@@ -90,6 +156,21 @@ std::string run_table(const std::vector<db::history::RunRecord>& runs, bool with
   if (reprocessed) s += "<p class='muted'>* reprocessed from an earlier run's archive</p>\n";
   if (promoted) s += "<p class='muted'>^ field run promoted by QA to the active parameters</p>\n";
   return s;
+}
+
+}  // namespace
+
+std::string run_table(const std::vector<db::history::RunRecord>& runs, bool with_serial,
+                      const std::string& id, const std::string& extra_header,
+                      const std::vector<std::string>& extra_cells) {
+  return table(runs, with_serial, id, extra_header, extra_cells, nullptr);
+}
+
+std::string run_table(const History& history, const std::vector<db::history::RunRecord>& runs,
+                      bool with_serial, const std::string& id, const std::string& extra_header,
+                      const std::vector<std::string>& extra_cells) {
+  const Reprocesses rep = reprocesses_of(history.stats->reprocess_links());
+  return table(runs, with_serial, id, extra_header, extra_cells, &rep);
 }
 
 std::string run_list_json(const std::string& serial,

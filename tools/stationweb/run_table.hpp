@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "db/history/repository.hpp"
+#include "tools/stationweb/history_source.hpp"
 
 namespace imucal::tools::stationweb {
 
@@ -23,6 +24,15 @@ namespace imucal::tools::stationweb {
 /// `extra_header`/`extra_cells` (one per run, HTML) add a last column (/runs' parameter value).
 std::string run_table(const std::vector<db::history::RunRecord>& runs, bool with_serial,
                       const std::string& id, const std::string& extra_header = {},
+                      const std::vector<std::string>& extra_cells = {});
+
+/// The same table with each run's reprocess links (issue #52, the audit's F10), read from
+/// `history`'s reprocesses: a reprocessed run says which run reprocessed it and, at the end of a
+/// chain, which run decides ("→ run 22, newest run 23"); a reprocess says which run it reprocessed
+/// ("reprocess of run 21"). The rows carry data-reprocessed-as (the direct reprocesses) and
+/// data-capture-newest (the capture's newest run, where it is another).
+std::string run_table(const History& history, const std::vector<db::history::RunRecord>& runs,
+                      bool with_serial, const std::string& id, const std::string& extra_header = {},
                       const std::vector<std::string>& extra_cells = {});
 
 /// <span class='PASS'>PASS</span> (REVIEW, FAILED), or "-" for a live run.

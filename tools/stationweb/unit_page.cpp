@@ -126,7 +126,7 @@ std::string unit_page(const History& history, const std::string& serial) {
   // set's values, then the trend.
   b += "<p id='jump'><a href='#history'>History</a> · <a href='#active-values-box'>Active "
        "set's values</a> · <a href='#trend'>Parameter trend</a></p>\n";
-  b += "<h2>History</h2>\n" + run_table(runs, false, "history") +
+  b += "<h2>History</h2>\n" + run_table(history, runs, false, "history") +
        download_links("/unit/" + url_encode(serial)) + active_values(active);
   b += "<h2 id='trend'>Parameter trend</h2>\n<p class='muted'>Each calibration's AINS estimate "
        "(<span "
