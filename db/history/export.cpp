@@ -221,7 +221,7 @@ std::size_t export_csv(const Repository& repo, const ExportFilter& filter, std::
     line.field(r.promote_reason);
     line.field(r.slot);
     r.table_run_id ? line.integer(*r.table_run_id) : line.empty();
-    r.verdict ? line.field(outcome_of(*r.verdict)) : line.empty();
+    r.verdict ? line.field(outcome_of(r)) : line.empty();
     if (row.calibration) {
       const CalibrationRecord& c = *row.calibration;
       line.field(to_string(c.method));
@@ -345,7 +345,7 @@ json run_json(const RunRecord& r) {
   o["promote_reason"] = r.promote_reason;
   o["slot"] = r.slot;
   o["table_run"] = r.table_run_id ? json(*r.table_run_id) : json(nullptr);
-  o["outcome_of"] = r.verdict ? json(outcome_of(*r.verdict)) : json(nullptr);
+  o["outcome_of"] = r.verdict ? json(outcome_of(r)) : json(nullptr);
   o["holding_method"] = to_string(r.holding_method);
   o["holding_reason"] = r.holding_reason;
   // Stored only after finish_run validated them as objects; a damaged text is reported, not hidden.

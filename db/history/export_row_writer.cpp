@@ -207,7 +207,7 @@ void append_export_row_json(std::string& out, const ExportRow& row) {
   append_string(o.key("operator"), r.operator_name);
   append_string(o.key("origin"), r.origin);
   append_optional(o.key("outcome_of"), r.verdict,
-                  [](std::string& s, RunVerdict v) { append_string(s, outcome_of(v)); });
+                  [&r](std::string& s, RunVerdict) { append_string(s, outcome_of(r)); });
   append_string(o.key("promote_reason"), r.promote_reason);
   append_optional(o.key("promoted_at"), r.promoted_at_ms, time_utc);
   append_string(o.key("promoted_by"), r.promoted_by);

@@ -76,7 +76,8 @@ struct StationVerdictCounts {
   std::int64_t review = 0;
   std::int64_t failed = 0;         ///< the unit's FAILED: its data or its calibration failed
   std::int64_t station_fault = 0;  ///< STATION-FAULT: table, CAN bus, disk, daemon
-  std::int64_t aborted = 0;        ///< ABORTED: an operator's `run abort`
+  std::int64_t aborted = 0;        ///< ABORTED: an operator's `run abort`, or stationd stopped
+                                   ///< during the run (stopped_by_daemon)
   std::int64_t interrupted = 0;    ///< INTERRUPTED: the daemon stopped or died mid-run
   std::int64_t live = 0;           ///< runs without a verdict yet
   /// The runs whose outcome is the unit's own (PASS, REVIEW, FAILED): what yield is a share of.

@@ -181,6 +181,18 @@ const char* outcome_of(RunVerdict v) {
   }
 }
 
+bool stopped_by_daemon(const RunRecord& run) {
+  if (run.verdict != RunVerdict::kAborted) return false;
+  for (const char* p : kDaemonStopReasons)
+    if (run.failure_reason.rfind(p, 0) == 0) return true;
+  return false;
+}
+
+const char* outcome_of(const RunRecord& run) {
+  if (!run.verdict) return "";
+  return stopped_by_daemon(run) ? "daemon" : outcome_of(*run.verdict);
+}
+
 std::string join_reasons(const std::vector<RunReason>& reasons) {
   std::string s;
   for (const RunReason& r : reasons) s += (s.empty() ? "" : "; ") + r.text;

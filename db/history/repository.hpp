@@ -154,7 +154,7 @@ bool verdict_fits_state(RunVerdict v, RunState s);
 /// counts. STATION-FAULT, ABORTED and INTERRUPTED say nothing about the unit.
 bool is_unit_outcome(RunVerdict v);
 /// Whose the outcome is, one word for exports and pages: "unit" (PASS, REVIEW, FAILED), "station"
-/// (STATION-FAULT), "operator" (ABORTED), "daemon" (INTERRUPTED).
+/// (STATION-FAULT), "operator" (ABORTED), "daemon" (INTERRUPTED). A run's own: outcome_of(run).
 const char* outcome_of(RunVerdict v);
 
 /// One reason a run is not PASS, with what raised it. Sources: "cross-check", "limits", "gap",
@@ -238,6 +238,18 @@ struct RunRecord {
   Method holding_method = Method::kAins;
   std::string holding_reason;
 };
+
+/// Whether an ABORTED run was ended by stationd's own stop (SIGTERM, SIGINT, a stop request),
+/// not by an operator's `run abort`: its reason starts with the daemon's wording
+/// (station/daemon/daemon.cpp Daemon::run, kDaemonStopReasons). The record holds no structured
+/// cause, so the daemon's words are the contract.
+bool stopped_by_daemon(const RunRecord& run);
+/// outcome_of(verdict), but "daemon" for an ABORTED run stationd's stop ended (issue #52: it
+/// was shown as an operator's abort).
+const char* outcome_of(const RunRecord& run);
+/// The beginnings of the reasons stationd gives a run it stopped (stopped_by_daemon()).
+inline constexpr const char* kDaemonStopReasons[] = {"daemon stopped by SIGTERM",
+                                                     "daemon stopped by SIGINT", "stop requested"};
 
 /// Headline evaluation metrics of one method (paper §VII, calib/checks/evaluation.hpp), per-period
 /// details excluded (they are reproducible from the archive).

@@ -446,7 +446,8 @@ namespace {
 std::string outcome_owner_text(const std::string& owner) {
   if (owner == "station") return "a station fault (table, CAN bus, disk); the unit is not blamed";
   if (owner == "operator") return "aborted by an operator";
-  if (owner == "daemon") return "interrupted: the station daemon stopped mid-run";
+  if (owner == "daemon")
+    return "the station daemon stopped mid-run (it died, or it was stopped: not an operator)";
   return owner;
 }
 

@@ -192,7 +192,9 @@ int Daemon::run() {
          : 1000);
   auto next_watchdog = std::chrono::steady_clock::now();
   std::string last_status;
-  std::string stop_reason = "stop requested";
+  // The words db::history::stopped_by_daemon() reads back (a run this stop aborts is not an
+  // operator's abort: issue #52).
+  std::string stop_reason = db::history::kDaemonStopReasons[2];
   while (!stop_requested_.load()) {
     if (wd && std::chrono::steady_clock::now() >= next_watchdog) {
       // The loop is alive and the run controller answers (status_line takes its lock).
@@ -210,7 +212,7 @@ int Daemon::run() {
     ts.tv_nsec = (wait % 1000) * 1000000L;
     const int sig = sigtimedwait(&set, nullptr, &ts);
     if (sig == SIGTERM || sig == SIGINT) {
-      stop_reason = std::string("daemon stopped by ") + (sig == SIGTERM ? "SIGTERM" : "SIGINT");
+      stop_reason = db::history::kDaemonStopReasons[sig == SIGTERM ? 0 : 1];
       spdlog::info("{} received", sig == SIGTERM ? "SIGTERM" : "SIGINT");
       break;
     }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <set>
 
 #include "calib/core/param_set.hpp"
@@ -14,6 +15,7 @@
 #include "tools/stationweb/page_limits.hpp"
 #include "tools/stationweb/page_util.hpp"
 #include "tools/stationweb/pages.hpp"
+#include "tools/stationweb/run_table.hpp"
 
 namespace imucal::tools::stationweb {
 
@@ -218,7 +220,7 @@ std::string share(std::int64_t n, std::int64_t total) {
 }
 
 /// The verdicts per station (issue #50): PASS, REVIEW and FAILED as shares of the runs whose
-/// outcome was the unit's own — its yield — and the station's faults, operators' aborts and
+/// outcome was the unit's own — its yield — and the station's faults, aborts (an operator's or the daemon's stop) and
 /// interrupted runs counted apart, per station, never against the units.
 std::string verdict_section(const FleetQuery& q,
                             const std::vector<db::history::StationVerdictCounts>& verdicts) {
@@ -227,8 +229,8 @@ std::string verdict_section(const FleetQuery& q,
   s += verdict_chart(verdicts);
   s += "<p class='muted'>The chart counts runs; the table gives PASS, REVIEW and FAILED as shares "
        "of the runs the units decided (their yield: the one PASS rate on this page); station "
-       "faults (table, CAN bus, disk), aborts and interrupted runs are the station's and the "
-       "operators', not the units'.</p>\n";
+       "faults (table, CAN bus, disk), aborts (an operator's, or the station daemon stopped during "
+       "the run) and interrupted runs are the station's and the operators', not the units'.</p>\n";
   s += "<table id='verdicts'>\n<tr><th>station</th><th class='num'>PASS</th><th "
        "class='num'>REVIEW</th><th class='num'>FAILED</th><th class='num'>station faults</th>"
        "<th class='num'>aborted</th><th class='num'>interrupted</th><th class='num'>live</th><th "
@@ -344,6 +346,101 @@ std::string fleet_page(const History& history, const Params& query) {
   b += distribution_section(q, dist);
   b += runs_table_section(q, counts, stations);
   return page("Fleet", b);
+}
+
+namespace {
+
+/// The page's figures as data (issue #52: what a page shows, downloadable): JSON with every table
+/// (runs per station and day, verdicts per station, the distribution in SI units), CSV a row per
+/// station with its verdict counts, yield and, with a parameter, its distribution.
+Reply fleet_data(const FleetQuery& q, const std::vector<db::history::StationDayCount>& counts,
+                 const std::vector<db::history::StationVerdictCounts>& verdicts,
+                 const std::vector<db::history::ParamSummary>& dist, Format format) {
+  const auto yield = [](const db::history::StationVerdictCounts& v) {
+    return v.unit_outcomes() ? static_cast<double>(v.pass) / v.unit_outcomes() : 0.0;
+  };
+  std::map<std::string, const db::history::ParamSummary*> by_station;
+  for (const auto& d : dist) by_station[d.station] = &d;
+  if (format == Format::kJson) {
+    nlohmann::json j;
+    j["since_ms"] = q.filter.since_ms ? nlohmann::json(*q.filter.since_ms) : nlohmann::json();
+    j["until_ms"] = q.filter.until_ms ? nlohmann::json(*q.filter.until_ms) : nlohmann::json();
+    j["setting"] = q.filter.setting ? nlohmann::json(*q.filter.setting) : nlohmann::json("all");
+    j["verdict"] = q.filter.verdict ? nlohmann::json(*q.filter.verdict) : nlohmann::json();
+    j["runs_per_day"] = nlohmann::json::array();
+    for (const auto& c : counts)
+      j["runs_per_day"].push_back(
+          {{"station", c.station}, {"day", utc_date(c.day * kDayMs)}, {"runs", c.runs}});
+    j["verdicts"] = nlohmann::json::array();
+    for (const auto& v : verdicts)
+      j["verdicts"].push_back({{"station", v.station},
+                               {"PASS", v.pass},
+                               {"REVIEW", v.review},
+                               {"FAILED", v.failed},
+                               {"STATION-FAULT", v.station_fault},
+                               {"ABORTED", v.aborted},
+                               {"INTERRUPTED", v.interrupted},
+                               {"live", v.live},
+                               {"yield", v.unit_outcomes() ? nlohmann::json(yield(v))
+                                                           : nlohmann::json()}});
+    if (q.param) {
+      j["param"] = calib::core::param_info(*q.param).name;
+      j["distribution_si"] = nlohmann::json::array();
+      for (const auto& d : dist)
+        j["distribution_si"].push_back({{"station", d.station},
+                                        {"count", d.count},
+                                        {"mean", d.mean},
+                                        {"std", d.std_dev},
+                                        {"min", d.min},
+                                        {"q1", d.q1},
+                                        {"median", d.median},
+                                        {"q3", d.q3},
+                                        {"max", d.max},
+                                        {"other_frame", d.other_frame}});
+    }
+    return {j.dump(2) + "\n", "application/json", "fleet.json"};
+  }
+  std::string out =
+      "station,PASS,REVIEW,FAILED,STATION-FAULT,ABORTED,INTERRUPTED,live,yield";
+  if (q.param)
+    out += ",param,count,mean_si,std_si,min_si,q1_si,median_si,q3_si,max_si,other_frame";
+  out += "\n";
+  for (const auto& v : verdicts) {
+    out += csv_field(v.station) + "," + std::to_string(v.pass) + "," + std::to_string(v.review) +
+           "," + std::to_string(v.failed) + "," + std::to_string(v.station_fault) + "," +
+           std::to_string(v.aborted) + "," + std::to_string(v.interrupted) + "," +
+           std::to_string(v.live) + "," + (v.unit_outcomes() ? exact(yield(v)) : "");
+    if (q.param) {
+      out += "," + calib::core::param_info(*q.param).name;
+      const auto it = by_station.find(v.station);
+      if (it == by_station.end()) {
+        out += ",0,,,,,,,,0";
+      } else {
+        const auto& d = *it->second;
+        out += "," + std::to_string(d.count);
+        for (const double x : {d.mean, d.std_dev, d.min, d.q1, d.median, d.q3, d.max})
+          out += "," + (d.count ? exact(x) : std::string());
+        out += "," + std::to_string(d.other_frame);
+      }
+    }
+    out += "\n";
+  }
+  return {out, "text/csv; charset=utf-8", "fleet.csv"};
+}
+
+}  // namespace
+
+Reply fleet_reply(const History& history, const Params& query) {
+  check_known_params(query, {"since", "until", "station", "serial", "param", "setting", "verdict",
+                             "format"});
+  const Format format = parse_format(query);
+  if (format == Format::kHtml) return Reply(fleet_page(history, query));
+  const FleetQuery q = parse_query(history, query);
+  const std::vector<db::history::ParamSummary> dist =
+      q.param ? history.stats->param_distribution(*q.param, q.filter)
+              : std::vector<db::history::ParamSummary>{};
+  return fleet_data(q, history.stats->runs_per_station_day(q.filter),
+                    history.stats->verdict_counts_per_station(q.filter), dist, format);
 }
 
 }  // namespace imucal::tools::stationweb

@@ -107,15 +107,6 @@ NextStep daemon_stop_step(const RunRecord& r, std::optional<bool> complete) {
 
 }  // namespace
 
-bool stopped_by_daemon(const RunRecord& r) {
-  // The daemon's wording, station/daemon/daemon.cpp (Daemon::run's stop_reason).
-  static const char* const kDaemonStops[] = {"daemon stopped by SIGTERM",
-                                             "daemon stopped by SIGINT", "stop requested"};
-  for (const char* p : kDaemonStops)
-    if (r.failure_reason.rfind(p, 0) == 0) return true;
-  return false;
-}
-
 std::vector<NextStep> next_steps(const RunRecord& r, const std::vector<RunRecord>& reprocesses,
                                  std::optional<bool> capture_complete,
                                  const std::optional<RunRecord>& newest) {
@@ -151,7 +142,7 @@ std::vector<NextStep> next_steps(const RunRecord& r, const std::vector<RunRecord
                "The unit's data or calibration failed: run it once more; failing "
                "again, reject the unit."}};
     case RunVerdict::kAborted:
-      if (stopped_by_daemon(r)) return {daemon_stop_step(r, capture_complete)};
+      if (db::history::stopped_by_daemon(r)) return {daemon_stop_step(r, capture_complete)};
       return {{"rerun", "", "An operator aborted the run: run the unit again when ready."}};
     default:  // STATION-FAULT, INTERRUPTED: not the unit's
       return {station_step(r, capture_complete)};

@@ -22,12 +22,6 @@ struct NextStep {
   db::history::RunId decides = 0;  ///< see-reprocess: the run that decides (newest of the chain)
 };
 
-/// Whether an ABORTED run's reason is the station daemon's own stop, not an operator's abort: the
-/// run record holds no structured cause (its reason's source is "aborted" either way), so this
-/// matches the daemon's wording (station/daemon/daemon.cpp, Daemon::run: "daemon stopped by
-/// SIGTERM" / "... SIGINT", "stop requested"), at the start of the reason (the run controller may
-/// append " (then: ...)").
-bool stopped_by_daemon(const db::history::RunRecord& run);
 
 /// The primary step, then one per further reason (deduplicated by action).
 /// `reprocesses`: the runs reprocessed from this one (newest first); `capture_complete`: the run's

@@ -96,9 +96,11 @@ Reply compare_reply(const History& history, const Params& query);
 /// /signatures and /signatures/trend with ?format=csv|json (the report stationctl stations
 /// --signatures --json prints; CSV: a row per station, or per station and period).
 Reply signatures_reply(const History& history, const Params& query);
+/// /fleet, refusing parameters it does not take, with ?format=csv|json (its tables as data).
+Reply fleet_reply(const History& history, const Params& query);
 Reply signature_trend_reply(const History& history, const Params& query);
-/// run_page after checking that the query holds nothing (the run page takes no parameter).
-std::string run_page_checked(const History& history, const std::string& run_id_text,
-                             const Params& query);
+/// /run/ID, refusing parameters it does not take, with ?format=json (`stationctl show ID --json`)
+/// or csv (its parameters, a row per method and parameter, SI values).
+Reply run_reply(const History& history, const std::string& run_id_text, const Params& query);
 
 }  // namespace imucal::tools::stationweb

@@ -20,6 +20,7 @@ void check_serial(const std::string& serial, const std::string& field) {
 }
 
 std::string unit_search(const Params& query) {
+  check_known_params(query, {"serial"});
   const std::string serial = trimmed(query_value(query, "serial"));  // a pasted " SN-0008 "
   if (serial.empty()) bad_input("serial", "no serial number given");
   check_serial(serial, "serial");

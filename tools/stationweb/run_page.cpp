@@ -139,10 +139,36 @@ std::optional<bool> capture_complete(const json& run) {
 
 }  // namespace
 
-std::string run_page_checked(const History& history, const std::string& run_id_text,
-                             const Params& query) {
-  check_known_params(query, {});
-  return run_page(history, run_id_text);
+Reply run_reply(const History& history, const std::string& run_id_text, const Params& query) {
+  check_known_params(query, {"format"});
+  const Format format = parse_format(query);
+  if (format == Format::kHtml) return Reply(run_page(history, run_id_text));
+  const db::history::RunId id = parse_run_id(run_id_text);
+  db::history::RunDetails details;
+  try {
+    details = history.repo->show(id);
+  } catch (const db::history::NotFound&) {
+    throw PageError(404, "run id", "No run " + std::to_string(id) + " in this history.");
+  }
+  const std::string name = "run-" + std::to_string(id);
+  if (format == Format::kJson)  // what `stationctl show ID --json` prints
+    return {station::control::show_result(details).dump(2) + "\n", "application/json",
+            name + ".json"};
+  // CSV: the parameter table, a row per method and parameter, SI values.
+  std::string out = "run_id,method,parameter,value_si,sigma_si,determined,human_unit,si_to_human\n";
+  for (const auto& c : details.calibrations) {
+    const calib::core::ParamVector v = c.params.to_vector(), sd = c.sigma.to_vector();
+    for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
+      const calib::core::ParamInfo& info = calib::core::param_info(i);
+      const bool determined =
+          std::find(c.unobservable.begin(), c.unobservable.end(), info.name) == c.unobservable.end();
+      out += std::to_string(id) + "," + db::history::to_string(c.method) + "," + info.name + "," +
+             (determined ? exact(v(i)) : "") + "," + (determined ? exact(sd(i)) : "") + "," +
+             (determined ? "1" : "0") + "," + csv_field(info.human_unit) + "," +
+             exact(info.si_to_human) + "\n";
+    }
+  }
+  return {out, "text/csv; charset=utf-8", name + ".csv"};
 }
 
 std::string run_page(const History& history, const std::string& run_id_text) {

@@ -153,8 +153,8 @@ void install_routes(httplib::Server& server, const History& history) {
   server.Get(R"(/unit/([^/]*))", reply_handler(h, [h](const httplib::Request& req) {
                return unit_reply(*h, req.matches[1].str(), req.params);
              }));
-  server.Get(R"(/run/([^/]*))", page_handler(h, [h](const httplib::Request& req) {
-               return run_page_checked(*h, req.matches[1].str(), req.params);
+  server.Get(R"(/run/([^/]*))", reply_handler(h, [h](const httplib::Request& req) {
+               return run_reply(*h, req.matches[1].str(), req.params);
              }));
   server.Get("/runs", reply_handler(h, [h](const httplib::Request& req) {
                return runs_reply(*h, req.params);
@@ -162,8 +162,8 @@ void install_routes(httplib::Server& server, const History& history) {
   server.Get("/compare", reply_handler(h, [h](const httplib::Request& req) {
                return compare_reply(*h, req.params);
              }));
-  server.Get("/fleet", page_handler(h, [h](const httplib::Request& req) {
-               return fleet_page(*h, req.params);
+  server.Get("/fleet", reply_handler(h, [h](const httplib::Request& req) {
+               return fleet_reply(*h, req.params);
              }));
   server.Get("/signatures/trend", reply_handler(h, [h](const httplib::Request& req) {
                return signature_trend_reply(*h, req.params);

@@ -1,11 +1,13 @@
 // Issue #52 on a real station's history (tests/data/qa_station_history: 24 runs made by stationsim,
-// stationd and stationctl, each run's truth in its README): the station signatures take one result
-// per capture — the original's, or where the daemon interrupted the original, the first complete
-// reprocess's — and only runs of the sequence the responses are measured on; /signatures and its
-// trend refuse what they do not take and answer data (CSV, JSON); a download of a history that
-// vanished under the server says so; a write is a 405 even without a body. Every expected figure is
-// computed here from the file's rows (or read from its README's truth table), not from the code
-// under test.
+// stationd and stationctl, each run's truth in its README), the audit's findings F5, F7, F8, F9,
+// F12 and F13: the station signatures take one result per capture — the original's, or where the
+// daemon interrupted the original, the first complete reprocess's — and only runs of the sequence
+// the responses are measured on; /signatures, its trend, /fleet, /run and /unit?serial= refuse
+// parameters they do not take, and the pages of figures answer data (CSV, JSON); a run the
+// daemon's stop ended is nobody's abort but the daemon's; a download of a history that vanished
+// under the server says so; a write is a 405 even without a body. Every expected figure is computed
+// here from the file's rows (or read from its README's truth table), not from the code under test.
+// (stationweb_lists_test.cpp and stationweb_pages_test.cpp hold the audit's other findings.)
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
@@ -24,7 +26,7 @@
 #include "tests/tools/stationweb_process.hpp"
 #include "tools/stationweb/httplib.hpp"
 
-namespace imucal::stationweb_signatures_test {
+namespace imucal::stationweb_audit_test {
 
 using db::history::RunId;
 
@@ -222,4 +224,70 @@ TEST_F(SignaturesPage, ZZADownloadOfAHistoryThatVanishedSaysSo) {
   }
 }
 
-}  // namespace imucal::stationweb_signatures_test
+// ----- the pages of figures as data; parameters refused; a daemon's stop -------------------------
+
+class AuditedDownloads : public SignaturesPage {};
+
+TEST_F(AuditedDownloads, TheFleetsFiguresDownloadAsTheRowsGiveThem) {
+  db::history::SqliteRepository repo(dir_->file("history.sqlite"), {true, false, 5000});
+  const auto runs = repo.recent_runs(0);
+  std::set<RunId> replaced;  // every run a later reprocess of its capture replaced
+  for (const auto& r : runs)
+    for (auto from = r.reprocessed_from; from; from = repo.show(*from).run.reprocessed_from)
+      replaced.insert(*from);
+  std::map<std::string, int> want;  // verdict -> factory captures
+  for (const auto& r : runs)
+    if (r.setting == calib::core::Setting::kFactory && !replaced.count(r.run_id) && r.verdict)
+      ++want[db::history::to_string(*r.verdict)];
+  const auto reply = get("/fleet?since=2026-11-01&until=2026-12-31&format=json");
+  ASSERT_TRUE(reply && reply->status == 200);
+  EXPECT_NE(reply->get_header_value("Content-Disposition").find("fleet.json"), std::string::npos);
+  const auto j = nlohmann::json::parse(reply->body);
+  ASSERT_EQ(j["verdicts"].size(), 1u);
+  for (const char* v : {"PASS", "REVIEW", "FAILED", "STATION-FAULT", "ABORTED", "INTERRUPTED"})
+    EXPECT_EQ(j["verdicts"][0][v].get<int>(), want[v]) << v;
+  const auto csv = get("/fleet?since=2026-11-01&until=2026-12-31&format=csv&param=gyro_bias_radps%5B2%5D");
+  ASSERT_TRUE(csv && csv->status == 200);
+  EXPECT_NE(csv->body.find("\nqa-station," + std::to_string(want["PASS"]) + "," +
+                           std::to_string(want["REVIEW"]) + "," + std::to_string(want["FAILED"]) +
+                           ","),
+            std::string::npos)
+      << csv->body;
+  for (const std::string target : {"/fleet?Since=2026-11-01", "/unit?serial=SN-0001&foo=1",
+                                   "/run/1?x=1", "/fleet?format=xml"}) {
+    const auto r = get(target);
+    ASSERT_TRUE(r) << target;
+    EXPECT_EQ(r->status, 400) << target;
+  }
+}
+
+TEST_F(AuditedDownloads, ARunDownloadsItsParametersAndTheDaemonsStopIsNoOperatorsAbort) {
+  db::history::SqliteRepository repo(dir_->file("history.sqlite"), {true, false, 5000});
+  const auto d = repo.show(4);
+  const auto csv = get("/run/4?format=csv");
+  ASSERT_TRUE(csv && csv->status == 200);
+  std::size_t rows = 0;
+  for (std::size_t p = csv->body.find("\n4,"); p != std::string::npos;
+       p = csv->body.find("\n4,", p + 1))
+    ++rows;
+  EXPECT_EQ(rows, d.calibrations.size() * calib::core::ParamSet::kSize);
+  const auto& ains = d.calibrations.at(0);
+  char line[160];
+  std::snprintf(line, sizeof line, "\n4,%s,gyro_bias_radps[2],%.17g,",
+                db::history::to_string(ains.method), ains.params.to_vector()(14));
+  EXPECT_NE(csv->body.find(line), std::string::npos) << line << "\n" << csv->body.substr(0, 400);
+  // Run 13: stationd stopped by SIGTERM during the run (the README's truth), ABORTED.
+  const auto stopped = get("/run/13?format=json");
+  ASSERT_TRUE(stopped && stopped->status == 200);
+  const auto j = nlohmann::json::parse(stopped->body);
+  EXPECT_EQ(j["run"]["verdict"], "ABORTED");
+  EXPECT_EQ(j["run"]["outcome_of"], "daemon");
+  const auto page = get("/run/13");
+  ASSERT_TRUE(page && page->status == 200);
+  EXPECT_EQ(page->body.find("aborted by an operator"), std::string::npos);
+  const auto operator_abort = get("/run/7?format=json");  // "unit loose in fixture"
+  ASSERT_TRUE(operator_abort && operator_abort->status == 200);
+  EXPECT_EQ(nlohmann::json::parse(operator_abort->body)["run"]["outcome_of"], "operator");
+}
+
+}  // namespace imucal::stationweb_audit_test
