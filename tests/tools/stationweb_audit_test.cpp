@@ -290,4 +290,25 @@ TEST_F(AuditedDownloads, ARunDownloadsItsParametersAndTheDaemonsStopIsNoOperator
   EXPECT_EQ(nlohmann::json::parse(operator_abort->body)["run"]["outcome_of"], "operator");
 }
 
+TEST_F(AuditedDownloads, ThePagesOfFiguresLinkTheirDownloads) {
+  for (const std::string page : {"/fleet?param=gyro_bias_radps%5B2%5D", "/run/4", "/signatures"}) {
+    const auto html = get(page);
+    ASSERT_TRUE(html && html->status == 200) << page;
+    const auto links = test_support::tags(html->body, "<a class=");
+    int followed = 0;
+    for (const auto& a : links) {
+      const std::string kind = a["class"];
+      if (kind != "csv" && kind != "json") continue;
+      const auto r = get(a["href"]);
+      ASSERT_TRUE(r) << a["href"];
+      EXPECT_EQ(r->status, 200) << a["href"];
+      EXPECT_NE(r->get_header_value("Content-Type").find(kind == "csv" ? "text/csv" : "application/json"),
+                std::string::npos)
+          << a["href"];
+      ++followed;
+    }
+    EXPECT_EQ(followed, 2) << page;
+  }
+}
+
 }  // namespace imucal::stationweb_audit_test

@@ -343,6 +343,11 @@ std::string fleet_page(const History& history, const Params& query) {
   b += filter_form(q) + window_line(q);
   b += runs_chart_section(q, counts, stations);
   b += verdict_section(q, verdicts);
+  std::string target = "/fleet";  // the page's own filters, as given
+  for (const auto& [name, value] : q.echo)
+    if (!value.empty())
+      target += (target.size() == 6 ? "?" : "&") + name + "=" + url_encode(value);
+  b += download_links(target);
   b += distribution_section(q, dist);
   b += runs_table_section(q, counts, stations);
   return page("Fleet", b);

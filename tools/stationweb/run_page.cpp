@@ -192,6 +192,8 @@ std::string run_page(const History& history, const std::string& run_id_text) {
   b += capture_section(show["run"]);
   b += diagnosis_section(show["run"]);
   b += "<h2>Calibration (value ± 1σ)</h2>\n" + calibration_table(details.calibrations);
+  if (!details.calibrations.empty())  // CSV: the parameters; JSON: what stationctl show --json prints
+    b += download_links("/run/" + std::to_string(id));
   b += method_lines(details.calibrations);
   b += crosscheck_section(details);
   b += "<details id='show-text'><summary>As <code>stationctl show " + std::to_string(id) +

@@ -223,6 +223,11 @@ std::string signatures_page(const History& history, const Params& query) {
     if (st.value("flagged", false)) alarms += alarm_section(st);
   b += "<h2>Flagged stations</h2>\n" + (alarms.empty() ? "<p>None.</p>\n" : alarms);
   b += "<p><a href='/signatures/trend'>Period by period</a>: the last 12 weeks' signatures.</p>\n";
+  std::string target = "/signatures";
+  for (const char* name : {"since", "until"})
+    if (const std::string v = query_value(query, name); !v.empty())
+      target += (target.size() == 11 ? "?" : "&") + std::string(name) + "=" + url_encode(v);
+  b += download_links(target);
   b += "<h2>Every station</h2>\n<table id='signatures'>\n<tr><th>station</th><th "
        "class='num'>runs</th><th class='num'>units</th><th class='num'>seen elsewhere</th>";
   // Every assessed station has a fit per candidate; one not assessed has none.
