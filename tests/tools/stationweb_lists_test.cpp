@@ -23,6 +23,7 @@
 #include "tests/db/history_fixtures.hpp"
 #include "tests/support/html_tags.hpp"
 #include "tests/support/run_command.hpp"
+#include "tests/tools/stationweb_get.hpp"
 #include "tests/tools/stationweb_process.hpp"
 #include "tools/stationweb/httplib.hpp"
 
@@ -118,18 +119,8 @@ class StationwebListsTest : public ::testing::Test {
     ASSERT_EQ(rows_.size(), 24u);
   }
 
-  struct Got {
-    int status = -1;
-    std::string body;
-  };
-  static Got get(const std::string& target) {
-    httplib::Client c("127.0.0.1", web_->port());
-    c.set_url_encode(false);
-    c.set_read_timeout(30, 0);
-    const auto r = c.Get(target.c_str());
-    if (!r) return {};
-    return {r->status, r->body};
-  }
+  using Got = test_support::WebReply;
+  static Got get(const std::string& target) { return test_support::web_get(web_->port(), target); }
   static std::string page(const std::string& target) {
     const Got g = get(target);
     EXPECT_EQ(g.status, 200) << target << "\n" << g.body.substr(0, 1500);

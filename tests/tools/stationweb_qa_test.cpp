@@ -22,6 +22,7 @@
 #include "tests/support/headless_chromium.hpp"
 #include "tests/support/html_tags.hpp"
 #include "tests/support/run_command.hpp"
+#include "tests/tools/stationweb_get.hpp"
 #include "tests/tools/stationweb_process.hpp"
 #include "tools/stationweb/httplib.hpp"
 
@@ -140,24 +141,8 @@ class StationwebQaTest : public ::testing::TestWithParam<Via> {
   }
   void SetUp() override { ASSERT_TRUE(web_) << "stationweb did not start: " << start_error_; }
 
-  /// GET `target`: status, body and the Content-Type and Location headers.
-  struct Got {
-    int status = -1;
-    std::string body, type, location;
-  };
-  static Got get(const std::string& target) {
-    httplib::Client c("127.0.0.1", web_->port());
-    c.set_url_encode(false);
-    c.set_read_timeout(30, 0);
-    const auto r = c.Get(target.c_str());
-    Got g;
-    if (!r) return g;
-    g.status = r->status;
-    g.body = r->body;
-    g.type = r->get_header_value("Content-Type");
-    g.location = r->get_header_value("Location");
-    return g;
-  }
+  using Got = test_support::WebReply;
+  static Got get(const std::string& target) { return test_support::web_get(web_->port(), target); }
   static std::string get_ok(const std::string& target) {
     const Got g = get(target);
     EXPECT_EQ(g.status, 200) << target << "\n" << g.body.substr(0, 1500);

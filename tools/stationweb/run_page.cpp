@@ -137,6 +137,15 @@ std::optional<bool> capture_complete(const json& run) {
   return c["complete"].get<bool>();
 }
 
+/// The run's details, or 404 naming it.
+db::history::RunDetails details_of(const History& history, db::history::RunId id) {
+  try {
+    return history.repo->show(id);
+  } catch (const db::history::NotFound&) {
+    throw PageError(404, "run id", "No run " + std::to_string(id) + " in this history.");
+  }
+}
+
 }  // namespace
 
 Reply run_reply(const History& history, const std::string& run_id_text, const Params& query) {
@@ -144,12 +153,7 @@ Reply run_reply(const History& history, const std::string& run_id_text, const Pa
   const Format format = parse_format(query);
   if (format == Format::kHtml) return Reply(run_page(history, run_id_text));
   const db::history::RunId id = parse_run_id(run_id_text);
-  db::history::RunDetails details;
-  try {
-    details = history.repo->show(id);
-  } catch (const db::history::NotFound&) {
-    throw PageError(404, "run id", "No run " + std::to_string(id) + " in this history.");
-  }
+  const db::history::RunDetails details = details_of(history, id);
   const std::string name = "run-" + std::to_string(id);
   if (format == Format::kJson)  // what `stationctl show ID --json` prints
     return {station::control::show_result(details).dump(2) + "\n", "application/json",
@@ -173,12 +177,7 @@ Reply run_reply(const History& history, const std::string& run_id_text, const Pa
 
 std::string run_page(const History& history, const std::string& run_id_text) {
   const db::history::RunId id = parse_run_id(run_id_text);
-  db::history::RunDetails details;
-  try {
-    details = history.repo->show(id);
-  } catch (const db::history::NotFound&) {
-    throw PageError(404, "run id", "No run " + std::to_string(id) + " in this history.");
-  }
+  const db::history::RunDetails details = details_of(history, id);
   const json show = station::control::show_result(details);
   const db::history::RunRecord& r = details.run;
   const std::vector<db::history::RunRecord> reprocesses = reprocesses_of(history, r);
