@@ -227,8 +227,8 @@ std::vector<AinsResultRow> PgFleetStats::ains_results(const FleetFilter& f) cons
   // Its own rule for reprocesses (the originals stand for them, or the first reprocess with a
   // result where the original has none: signature_stand_ins): no list of superseded runs.
   auto values = impl_->filter_values(f, std::nullopt, std::nullopt, false);
-  values.push_back(PgParam(id_array(signature_stand_ins(impl_->read_links(),
-                                                        impl_->usable_reprocess_results()))));
+  values.push_back(PgParam(
+      id_array(signature_stand_ins(impl_->read_links(), impl_->usable_reprocess_results()))));
   const PgResult q = impl_->conn.exec(
       "SELECT r.id, r.station_id, r.serial, r.sequence_name, r.started_at_ms, c.sigma::text, "
       "r.ains_values::text, r.local_run_id FROM runs r JOIN calibrations c ON c.run_id = r.id AND "

@@ -148,8 +148,8 @@ std::vector<RunId> superseded_runs(const std::vector<ReprocessLink>& links) {
   const Captures c = captures_of(links);
   std::vector<RunId> out;
   for (const auto& [root, runs] : c.runs) {
-    const RunId newest = *std::max_element(
-        runs.begin(), runs.end(), [&](RunId a, RunId b) { return c.before(a, b); });
+    const RunId newest = *std::max_element(runs.begin(), runs.end(),
+                                           [&](RunId a, RunId b) { return c.before(a, b); });
     for (const RunId r : runs)
       if (r != newest) out.push_back(r);
   }

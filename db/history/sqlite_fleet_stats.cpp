@@ -411,11 +411,12 @@ std::vector<AinsResultRow> SqliteFleetStats::ains_results(const FleetFilter& f) 
   std::string captures = "r.reprocessed_from IS NULL";
   for (const RunId id : signature_stand_ins(ex.links, impl_->usable_reprocess_results(op)))
     captures += " OR r.id = " + std::to_string(id);
-  sql += " FROM runs r JOIN units u ON u.id = r.unit_id JOIN ains_values a ON a.run_id = r.id "
-         "JOIN calibrations c ON c.run_id = r.id AND c.method = 'ains'" +
-         where_clause(f, std::string("r.setting = 'factory' AND (") + captures +
-                             ") AND " + kUsableAinsResult) +
-         " ORDER BY r.id";
+  sql +=
+      " FROM runs r JOIN units u ON u.id = r.unit_id JOIN ains_values a ON a.run_id = r.id "
+      "JOIN calibrations c ON c.run_id = r.id AND c.method = 'ains'" +
+      where_clause(
+          f, std::string("r.setting = 'factory' AND (") + captures + ") AND " + kUsableAinsResult) +
+      " ORDER BY r.id";
   Impl::Query q(*impl_, sql, op);
   q.bind_filter(f);
   std::vector<AinsResultRow> out;

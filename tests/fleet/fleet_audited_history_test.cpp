@@ -1,13 +1,14 @@
-// Issue #52's audit rules in the fleet store: a real station's history (tests/data/qa_station_history,
-// with an interrupted original whose reprocess was reprocessed again, a partial reprocess and two
-// imported land runs) replicated into a throw-away PostgreSQL gives, through db::fleet::PgFleetStats,
-// what the station's own file gives through db::history::SqliteFleetStats: the signatures' AINS
-// results of the same runs (one per capture, signature_stand_ins), the verdicts of a comma list of
-// verdicts, and a frame-dependent parameter's distribution over housing-frame results only.
+// Issue #52's audit rules in the fleet store: a real station's history
+// (tests/data/qa_station_history, with an interrupted original whose reprocess was reprocessed
+// again, a partial reprocess and two imported land runs) replicated into a throw-away PostgreSQL
+// gives, through db::fleet::PgFleetStats, what the station's own file gives through
+// db::history::SqliteFleetStats: the signatures' AINS results of the same runs (one per capture,
+// signature_stand_ins), the verdicts of a comma list of verdicts, and a frame-dependent parameter's
+// distribution over housing-frame results only.
 #include <gtest/gtest.h>
 
-#include <filesystem>
 #include <cmath>
+#include <filesystem>
 #include <memory>
 #include <set>
 #include <tuple>

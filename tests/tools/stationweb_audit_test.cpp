@@ -75,7 +75,8 @@ std::map<RunId, Row> read_rows(const std::string& path) {
 /// The signature's runs by the rule: per capture (a run and the reprocesses reached from it), the
 /// original if usable, else its first usable reprocess.
 std::set<RunId> standing(const std::map<RunId, Row>& rows) {
-  std::map<RunId, std::vector<RunId>> capture;  // root -> members, ascending (ids are creation order)
+  std::map<RunId, std::vector<RunId>>
+      capture;  // root -> members, ascending (ids are creation order)
   for (const auto& [id, row] : rows) {
     RunId root = id;
     while (rows.at(root).origin) root = *rows.at(root).origin;
@@ -216,8 +217,8 @@ TEST_F(SignaturesPage, ZZADownloadOfAHistoryThatVanishedSaysSo) {
   ASSERT_TRUE(before && before->status == 200);
   EXPECT_FALSE(before->has_header("X-History-Notice"));
   std::filesystem::remove(dir_->file("history.sqlite"));
-  for (const std::string target : {"/?format=csv", "/?format=json", "/unit/SN-0001?format=json",
-                                   "/signatures?format=json"}) {
+  for (const std::string target :
+       {"/?format=csv", "/?format=json", "/unit/SN-0001?format=json", "/signatures?format=json"}) {
     const auto r = get(target);
     ASSERT_TRUE(r) << target;
     EXPECT_NE(r->get_header_value("X-History-Notice"), "") << target;
@@ -246,12 +247,13 @@ TEST_F(AuditedDownloads, TheFleetsFiguresDownloadAsTheRowsGiveThem) {
   ASSERT_EQ(j["verdicts"].size(), 1u);
   for (const char* v : {"PASS", "REVIEW", "FAILED", "STATION-FAULT", "ABORTED", "INTERRUPTED"})
     EXPECT_EQ(j["verdicts"][0][v].get<int>(), want[v]) << v;
-  const auto csv = get("/fleet?since=2026-11-01&until=2026-12-31&format=csv&param=gyro_bias_radps%5B2%5D");
+  const auto csv =
+      get("/fleet?since=2026-11-01&until=2026-12-31&format=csv&param=gyro_bias_radps%5B2%5D");
   ASSERT_TRUE(csv && csv->status == 200);
-  EXPECT_NE(csv->body.find("\nqa-station," + std::to_string(want["PASS"]) + "," +
-                           std::to_string(want["REVIEW"]) + "," + std::to_string(want["FAILED"]) +
-                           ","),
-            std::string::npos)
+  EXPECT_NE(
+      csv->body.find("\nqa-station," + std::to_string(want["PASS"]) + "," +
+                     std::to_string(want["REVIEW"]) + "," + std::to_string(want["FAILED"]) + ","),
+      std::string::npos)
       << csv->body;
   for (const std::string target : {"/fleet?Since=2026-11-01", "/unit?serial=SN-0001&foo=1",
                                    "/run/1?x=1", "/fleet?format=xml"}) {
@@ -302,8 +304,9 @@ TEST_F(AuditedDownloads, ThePagesOfFiguresLinkTheirDownloads) {
       const auto r = get(a["href"]);
       ASSERT_TRUE(r) << a["href"];
       EXPECT_EQ(r->status, 200) << a["href"];
-      EXPECT_NE(r->get_header_value("Content-Type").find(kind == "csv" ? "text/csv" : "application/json"),
-                std::string::npos)
+      EXPECT_NE(
+          r->get_header_value("Content-Type").find(kind == "csv" ? "text/csv" : "application/json"),
+          std::string::npos)
           << a["href"];
       ++followed;
     }

@@ -534,8 +534,7 @@ TEST_F(StationwebQaTest, ChromiumRendersTheQaPages) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Via, StationwebQaTest,
-                         ::testing::Values(Via::kHttp, Via::kChromium),
+INSTANTIATE_TEST_SUITE_P(Via, StationwebQaTest, ::testing::Values(Via::kHttp, Via::kChromium),
                          [](const ::testing::TestParamInfo<Via>& info) {
                            return info.param == Via::kHttp ? "Http" : "Chromium";
                          });

@@ -160,8 +160,7 @@ db::history::FleetFilter signature_window(const db::history::Repository& history
   if (!f.since_ms) f.since_ms = *f.until_ms - default_days * kDayMs;
   if (*f.since_ms >= *f.until_ms)
     throw WindowError("until", "the window from " + db::history::format_time_utc(*f.since_ms) +
-                                   " until (before) " +
-                                   db::history::format_time_utc(*f.until_ms) +
+                                   " until (before) " + db::history::format_time_utc(*f.until_ms) +
                                    " holds no time: since must be earlier than until");
   return f;
 }

@@ -220,8 +220,8 @@ std::string share(std::int64_t n, std::int64_t total) {
 }
 
 /// The verdicts per station (issue #50): PASS, REVIEW and FAILED as shares of the runs whose
-/// outcome was the unit's own — its yield — and the station's faults, aborts (an operator's or the daemon's stop) and
-/// interrupted runs counted apart, per station, never against the units.
+/// outcome was the unit's own — its yield — and the station's faults, aborts (an operator's or the
+/// daemon's stop) and interrupted runs counted apart, per station, never against the units.
 std::string verdict_section(const FleetQuery& q,
                             const std::vector<db::history::StationVerdictCounts>& verdicts) {
   std::string s = "<h2>Verdicts per station</h2>\n";
@@ -345,8 +345,7 @@ std::string fleet_page(const History& history, const Params& query) {
   b += verdict_section(q, verdicts);
   std::string target = "/fleet";  // the page's own filters, as given
   for (const auto& [name, value] : q.echo)
-    if (!value.empty())
-      target += (target.size() == 6 ? "?" : "&") + name + "=" + url_encode(value);
+    if (!value.empty()) target += (target.size() == 6 ? "?" : "&") + name + "=" + url_encode(value);
   b += download_links(target);
   b += distribution_section(q, dist);
   b += runs_table_section(q, counts, stations);
@@ -378,16 +377,16 @@ Reply fleet_data(const FleetQuery& q, const std::vector<db::history::StationDayC
           {{"station", c.station}, {"day", utc_date(c.day * kDayMs)}, {"runs", c.runs}});
     j["verdicts"] = nlohmann::json::array();
     for (const auto& v : verdicts)
-      j["verdicts"].push_back({{"station", v.station},
-                               {"PASS", v.pass},
-                               {"REVIEW", v.review},
-                               {"FAILED", v.failed},
-                               {"STATION-FAULT", v.station_fault},
-                               {"ABORTED", v.aborted},
-                               {"INTERRUPTED", v.interrupted},
-                               {"live", v.live},
-                               {"yield", v.unit_outcomes() ? nlohmann::json(yield(v))
-                                                           : nlohmann::json()}});
+      j["verdicts"].push_back(
+          {{"station", v.station},
+           {"PASS", v.pass},
+           {"REVIEW", v.review},
+           {"FAILED", v.failed},
+           {"STATION-FAULT", v.station_fault},
+           {"ABORTED", v.aborted},
+           {"INTERRUPTED", v.interrupted},
+           {"live", v.live},
+           {"yield", v.unit_outcomes() ? nlohmann::json(yield(v)) : nlohmann::json()}});
     if (q.param) {
       j["param"] = calib::core::param_info(*q.param).name;
       j["distribution_si"] = nlohmann::json::array();
@@ -405,10 +404,8 @@ Reply fleet_data(const FleetQuery& q, const std::vector<db::history::StationDayC
     }
     return {j.dump(2) + "\n", "application/json", "fleet.json"};
   }
-  std::string out =
-      "station,PASS,REVIEW,FAILED,STATION-FAULT,ABORTED,INTERRUPTED,live,yield";
-  if (q.param)
-    out += ",param,count,mean_si,std_si,min_si,q1_si,median_si,q3_si,max_si,other_frame";
+  std::string out = "station,PASS,REVIEW,FAILED,STATION-FAULT,ABORTED,INTERRUPTED,live,yield";
+  if (q.param) out += ",param,count,mean_si,std_si,min_si,q1_si,median_si,q3_si,max_si,other_frame";
   out += "\n";
   for (const auto& v : verdicts) {
     out += csv_field(v.station) + "," + std::to_string(v.pass) + "," + std::to_string(v.review) +
@@ -436,8 +433,8 @@ Reply fleet_data(const FleetQuery& q, const std::vector<db::history::StationDayC
 }  // namespace
 
 Reply fleet_reply(const History& history, const Params& query) {
-  check_known_params(query, {"since", "until", "station", "serial", "param", "setting", "verdict",
-                             "format"});
+  check_known_params(
+      query, {"since", "until", "station", "serial", "param", "setting", "verdict", "format"});
   const Format format = parse_format(query);
   if (format == Format::kHtml) return Reply(fleet_page(history, query));
   const FleetQuery q = parse_query(history, query);

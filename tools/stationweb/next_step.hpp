@@ -22,7 +22,6 @@ struct NextStep {
   db::history::RunId decides = 0;  ///< see-reprocess: the run that decides (newest of the chain)
 };
 
-
 /// The primary step, then one per further reason (deduplicated by action).
 /// `reprocesses`: the runs reprocessed from this one (newest first); `capture_complete`: the run's
 /// capture counters say complete (nullopt: none stored); `newest`: the newest run of the

@@ -164,8 +164,8 @@ Reply run_reply(const History& history, const std::string& run_id_text, const Pa
     const calib::core::ParamVector v = c.params.to_vector(), sd = c.sigma.to_vector();
     for (int i = 0; i < calib::core::ParamSet::kSize; ++i) {
       const calib::core::ParamInfo& info = calib::core::param_info(i);
-      const bool determined =
-          std::find(c.unobservable.begin(), c.unobservable.end(), info.name) == c.unobservable.end();
+      const bool determined = std::find(c.unobservable.begin(), c.unobservable.end(), info.name) ==
+                              c.unobservable.end();
       out += std::to_string(id) + "," + db::history::to_string(c.method) + "," + info.name + "," +
              (determined ? exact(v(i)) : "") + "," + (determined ? exact(sd(i)) : "") + "," +
              (determined ? "1" : "0") + "," + csv_field(info.human_unit) + "," +
@@ -191,7 +191,8 @@ std::string run_page(const History& history, const std::string& run_id_text) {
   b += capture_section(show["run"]);
   b += diagnosis_section(show["run"]);
   b += "<h2>Calibration (value ± 1σ)</h2>\n" + calibration_table(details.calibrations);
-  if (!details.calibrations.empty())  // CSV: the parameters; JSON: what stationctl show --json prints
+  if (!details.calibrations
+           .empty())  // CSV: the parameters; JSON: what stationctl show --json prints
     b += download_links("/run/" + std::to_string(id));
   b += method_lines(details.calibrations);
   b += crosscheck_section(details);

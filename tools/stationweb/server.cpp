@@ -85,15 +85,6 @@ void respond(const httplib::Request& req, httplib::Response& res,
   spdlog::debug("{} {} {} {:.1f} ms", req.method, req.target, res.status, ms);
 }
 
-using Render = std::function<std::string(const httplib::Request&)>;
-
-httplib::Server::Handler page_handler(const History* h, Render render) {
-  return [h, render = std::move(render)](const httplib::Request& req, httplib::Response& res) {
-    respond(
-        req, res, [&] { return render(req); }, h->source_notice);
-  };
-}
-
 /// `text` as a header value: control characters (a line break would end the header) as blanks.
 std::string header_safe(std::string text) {
   for (char& c : text)

@@ -367,7 +367,8 @@ std::string stations_csv(const nlohmann::json& stations, const std::string& lead
   nlohmann::json effects = nlohmann::json::array();
   for (const auto& st : stations)
     if (st.contains("fits") && st["fits"].size() > effects.size()) effects = st["fits"];
-  std::string out = lead_header + "station,runs,units,seen_elsewhere,assessed,why_not,flagged,causes";
+  std::string out =
+      lead_header + "station,runs,units,seen_elsewhere,assessed,why_not,flagged,causes";
   for (const auto& f : effects) {
     const std::string e = f["effect"].get<std::string>();
     out += "," + e + "_size_si," + e + "_sigma_si," + e + "_z";
@@ -435,8 +436,9 @@ Reply signature_trend_reply(const History& history, const Params& query) {
   if (!notes.empty()) trend["notes"] = notes;
   if (format == Format::kJson)
     return {trend.dump(2) + "\n", "application/json", "signature-trend.json"};
-  std::string out = "period_since,period_until,station,assessed,flagged,strongest_effect,"
-                    "strongest_z,cause\n";
+  std::string out =
+      "period_since,period_until,station,assessed,flagged,strongest_effect,"
+      "strongest_z,cause\n";
   for (const auto& p : trend["periods"])
     for (const auto& cell : p["stations"]) {
       const bool has = cell.contains("strongest");
