@@ -1,6 +1,7 @@
 #pragma once
-// One GET of a running stationweb for the web tests: status (-1 when no answer), body, and the
-// Content-Type and Location headers.
+// The web tests' stationweb: which binary serves (stationweb_under_test), and one GET of it
+// (status, -1 when no answer; body; the Content-Type and Location headers).
+#include <cstdlib>
 #include <string>
 
 #include "tools/stationweb/httplib.hpp"
@@ -11,6 +12,13 @@ struct WebReply {
   int status = -1;
   std::string body, type, location;
 };
+
+/// The stationweb a web test serves its history with: build/bin/stationweb, or
+/// $IMUCAL_STATIONWEB_BIN (another build, e.g. one from before a fix, which the test must fail on).
+inline std::string stationweb_under_test() {
+  const char* bin = std::getenv("IMUCAL_STATIONWEB_BIN");
+  return bin && *bin ? bin : std::string(IMUCAL_BIN_DIR) + "/stationweb";
+}
 
 inline WebReply web_get(int port, const std::string& target) {
   httplib::Client c("127.0.0.1", port);

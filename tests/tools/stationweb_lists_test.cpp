@@ -102,10 +102,8 @@ class StationwebListsTest : public ::testing::Test {
     rows_ = read_rows(db_);
     gone_ = superseded(rows_);
     try {
-      const char* bin = std::getenv("IMUCAL_STATIONWEB_BIN");
       web_ = std::make_unique<test_support::StationwebProcess>(
-          bin && *bin ? bin : std::string(IMUCAL_BIN_DIR) + "/stationweb", db_,
-          dir_->file("stationweb.log"));
+          test_support::stationweb_under_test(), db_, dir_->file("stationweb.log"));
     } catch (const std::exception& e) {
       start_error_ = e.what();
     }

@@ -29,6 +29,7 @@
 #include "db/history/sqlite_repository.hpp"
 #include "tests/db/history_fixtures.hpp"
 #include "tests/support/html_tags.hpp"
+#include "tests/tools/stationweb_get.hpp"
 #include "tests/tools/stationweb_process.hpp"
 #include "tools/stationweb/httplib.hpp"
 
@@ -40,11 +41,6 @@ using db::history::RunId;
 using test_support::Attrs;
 using test_support::section;
 using test_support::tags;
-
-std::string stationweb_bin() {
-  const char* bin = std::getenv("IMUCAL_STATIONWEB_BIN");
-  return bin && *bin ? bin : std::string(IMUCAL_BIN_DIR) + "/stationweb";
-}
 
 std::string id(RunId r) { return std::to_string(r); }
 
@@ -59,8 +55,9 @@ class StationwebPagesTest : public ::testing::Test {
     db::history::SqliteOptions ro;
     ro.read_only = true;
     repo_ = std::make_unique<db::history::SqliteRepository>(dir_->file("rows.sqlite"), ro);
-    web_ = std::make_unique<test_support::StationwebProcess>(
-        stationweb_bin(), dir_->file("history.sqlite"), dir_->file("stationweb.log"));
+    web_ = std::make_unique<test_support::StationwebProcess>(test_support::stationweb_under_test(),
+                                                             dir_->file("history.sqlite"),
+                                                             dir_->file("stationweb.log"));
   }
   static void TearDownTestSuite() {
     web_.reset();

@@ -127,10 +127,8 @@ class StationwebQaTest : public ::testing::TestWithParam<Via> {
         db::history::SqliteRepository repo(db_);
         runs_ = write_history(repo);
       }
-      const char* bin = std::getenv("IMUCAL_STATIONWEB_BIN");
       web_ = std::make_unique<test_support::StationwebProcess>(
-          bin && *bin ? bin : std::string(IMUCAL_BIN_DIR) + "/stationweb", db_,
-          dir_->file("stationweb.log"));
+          test_support::stationweb_under_test(), db_, dir_->file("stationweb.log"));
     } catch (const std::exception& e) {
       start_error_ = e.what();
     }
