@@ -4,20 +4,22 @@
 #                              server, daemon, run controller) and three end-to-end tests whose
 #                              stationd/stationsim/stationctl are TSan builds too; every process
 #                              writes its reports under build-tsan/reports, and any report fails.
-#   tools/sanitizers.sh asan   the whole suite under ASan + UBSan (clang-16; -fno-sanitize-recover:
-#                              UB stops the test) but the slow Monte Carlo sets (IMUCAL_ASAN_SLOW=1
-#                              adds them at reduced counts), with the bounded libFuzzer runs;
-#                              every process's reports go to
-#                              build-asan/reports, and any report fails. Not here: the QEMU guest
-#                              and the install sets (a kernel in an emulator, the Debian package's
-#                              own build trees: neither runs instrumented code).
+#   tools/sanitizers.sh asan   every test under ASan + UBSan (clang-16; -fno-sanitize-recover: UB
+#                              stops the test) but the QEMU guest and the install sets (a kernel in
+#                              an emulator, the Debian package's own build trees: neither runs
+#                              instrumented code), the slow sets at their CI counts and the bounded
+#                              libFuzzer runs among them; tree build-asan, the calibration core
+#                              linked uninstrumented from the Release tree (build/ first, which
+#                              tools/setup.sh --test builds). Every process's reports go to
+#                              build-asan/reports, and any report fails. IMUCAL_SKIP_FUZZ=1 leaves
+#                              out the fuzz runs; IMUCAL_ASAN_CORE=1 instruments the core too (tree
+#                              build-asan-core; about 6x the suite's Release time against 1.5-1.7x,
+#                              docs/validation/build-and-ci.md).
 #   tools/sanitizers.sh fuzz   only the libFuzzer targets (tree build-fuzz, the calibration core
 #                              linked from build/): 30 s of fuzzing each, which starts with their
 #                              seed corpus and regression inputs.
-# tools/test.sh runs tsan and fuzz always, asan instead of fuzz with IMUCAL_ASAN=1 (README,
-# "A verdict QA can trust", for the times). ccache makes repeated runs cheap.
-# IMUCAL_ASAN_RELEASE_CORE=1 (asan mode): the calibration core linked from the Release tree, not
-# instrumented (tree build-asan-rc; build/ must be built first).
+# tools/test.sh runs asan and tsan (README, "The test command", for the times). ccache makes repeated
+# runs cheap.
 # IMUCAL_SANITIZER_TREE=DIR uses another build tree; IMUCAL_BUILD_ONLY=1 stops after the build.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -98,22 +100,31 @@ case $mode in
     # Nlsq.NoiseFreeDefaultUnitRecoveredExactly took 20.8 CPU-s with -O0 tests, 1.9 with -O1
     # (0.1 s in Release); calib_tests compiles in 3.2 CPU-min at -O1 (2026-11-30). Only the fuzzed
     # parsers carry coverage.
+    # Where the core is linked from the Release tree, its objects come first on every link line, so
+    # that its own copies win (calib/prebuilt_core_first.cmake).
     # The fuzz mode has a tree of its own, build-fuzz, that links the Release calibration core like
-    # the TSan tree (no parser calls into its math).
+    # the TSan tree (no parser calls into its math); the asan tree builds and runs the same targets
+    # among its tests.
     calib=()
     if [ "$mode" = fuzz ]; then
       tree=${IMUCAL_SANITIZER_TREE:-build-fuzz}
       calib=("${release_calib[@]}")
       test_opt=-O0
-    elif [ "${IMUCAL_ASAN_RELEASE_CORE:-0}" = 1 ]; then
-      # Every test under ASan + UBSan, the calibration core (pure arithmetic, fuzzed on its own)
-      # linked uninstrumented from the Release tree: 1.7x the tests' Release time against 6.5x
-      # with the core instrumented (docs/validation/build-and-ci.md, issue #51).
-      tree=${IMUCAL_SANITIZER_TREE:-build-asan-rc}
-      calib=("${release_calib[@]}")
+    elif [ "${IMUCAL_ASAN_CORE:-0}" = 1 ]; then
+      tree=${IMUCAL_SANITIZER_TREE:-build-asan-core}
       test_opt=-O1
     else
+      # Every test under ASan + UBSan, the calibration core (pure single-threaded arithmetic,
+      # fuzzed on its own) linked uninstrumented from the Release tree and loaded first, so that it
+      # runs its own Release code (calib/prebuilt_core_first.cmake): 1.5-1.7x the tests' Release
+      # time against 6.5x with the core instrumented (docs/validation/build-and-ci.md, issue #51).
+      if [ ${#release_calib[@]} -eq 0 ]; then
+        echo "asan: build/calib/libimucal_calib_core.a is missing: build the Release tree first" \
+          "(tools/setup.sh --test), or instrument the core too with IMUCAL_ASAN_CORE=1" >&2
+        exit 2
+      fi
       tree=${IMUCAL_SANITIZER_TREE:-build-asan}
+      calib=("${release_calib[@]}")
       test_opt=-O1
     fi
     CC=clang-16 CXX=clang++-16 cmake -S . -B $tree $(generator $tree) -DIMUCAL_FUZZ=ON -DCMAKE_BUILD_TYPE=None \
@@ -121,23 +132,18 @@ case $mode in
       "${launcher[@]}" "${calib[@]}" >/dev/null
     if [ "$mode" = fuzz ]; then
       # Each fuzz run starts by executing its whole corpus and regression inputs under ASan + UBSan,
-      # so the replay programs (run uninstrumented in the main ctest) are not built here.
+      # so the replay programs (tests of the asan tree) are not built here.
       cmake --build $tree -j2 --target fuzz_targets
       selection=(-R "^Fuzz\\.run\\.")
     else
       cmake --build $tree -j2
-      # IMUCAL_ASAN_SLOW=1 adds the slow Monte Carlo sets at reduced counts. Not by default: at
-      # those counts their statistical bounds are not valid (AinsFieldMonteCarlo's RMS(error/sigma)
-      # >= 0.7 over 2 runs failed, 2026-11-27), and they take minutes each under ASan (issue #22
-      # item 5, README).
-      selection=(-LE "slow|qemu|install")
-      if [ "${IMUCAL_ASAN_SLOW:-0}" = 1 ]; then
-        selection=(-LE "qemu|install")
-        export IMUCAL_MC_SEEDS=${IMUCAL_MC_SEEDS:-3} IMUCAL_MC_RUNS=${IMUCAL_MC_RUNS:-2} \
-          IMUCAL_VALIDATION_RUNS=${IMUCAL_VALIDATION_RUNS:-1} \
-          IMUCAL_GAP_NULL_SEEDS=${IMUCAL_GAP_NULL_SEEDS:-6} \
-          IMUCAL_CRASH_POINTS=${IMUCAL_CRASH_POINTS:-6} IMUCAL_SOAK_RUNS=${IMUCAL_SOAK_RUNS:-12}
-      fi
+      # Every test but the QEMU guest and the install sets, the slow sets at their CI counts
+      # (docs/validation/ci-counts.md: the same counts and bounds as in Release, and the calibration
+      # core is the Release one, so they give the same figures).
+      selection=(-LE "qemu|install")
+      [ "${IMUCAL_SKIP_FUZZ:-0}" = 1 ] && selection+=(-E "^Fuzz\\.run\\.")
+      # The costliest tests first (their Release costs, tests/ctest_costs.txt, for a new tree).
+      bash tools/refresh_ctest_costs.sh --seed $tree
     fi
     [ "${IMUCAL_BUILD_ONLY:-0}" = 1 ] && exit 0
     # Every process (test programs and the stationd/stationsim/stationctl/imucal they start) logs

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Installs the Debian packages the project needs, then configures and builds it.
-#   tools/setup.sh          everything (the test command, tools/test.sh): all packages, every
-#                           program, test and benchmark
+#   tools/setup.sh          everything: all packages, every program, test and benchmark
+#   tools/setup.sh --test   the test command (tools/test.sh): all packages; in build/ every program,
+#                           the calibration core the sanitizer trees link and the install and QEMU
+#                           tests (the rest of the suite runs under ASan + UBSan, issue #51)
 #   tools/setup.sh --main   the main job (tools/demo.sh) and the install: only the packages the four
 #                           programs need, and only imucal, stationd, stationsim and stationctl
 #                           (no test program, no test-only package)
@@ -18,8 +20,9 @@ MODE=all
 case "${1:-}" in
   "") ;;
   --main) MODE=main ;;
+  --test) MODE=test ;;
   *)
-    echo "usage: tools/setup.sh [--main]" >&2
+    echo "usage: tools/setup.sh [--main | --test]" >&2
     exit 2
     ;;
 esac
@@ -74,6 +77,8 @@ tests=ON
 if [ $MODE = main ]; then
   targets=(--target "${PROGRAMS[@]}")
   tests=OFF
+elif [ $MODE = test ]; then
+  targets=(--target test_command_release)
 fi
 build_status=0
 BUILD_DIR=${IMUCAL_BUILD_DIR:-build}

@@ -1,0 +1,99 @@
+# imucal_prebuilt_core_first(): in a tree that links the calibration core from the Release tree
+# (IMUCAL_CALIB_PREBUILT_DIR: the ASan + UBSan, TSan and fuzz trees, tools/sanitizers.sh), every
+# program that links the core gets the core's objects first on its link line.
+#
+# Why: a test file or a program instantiates the same Eigen (and project header) templates as the
+# core. The linker keeps one copy of each such inline function, the first it meets, and the
+# program's own objects come before the libraries on the line: the core would then run the
+# sanitizer tree's instrumented -O1 copies of its hottest functions instead of the Release copies it
+# was compiled with. Loaded first (whole archives, before the objects), the core's copies win:
+# `GradeLegacy.MemsSigmaIsHonestMonteCarlo` 7.2 s -> 5.2 s under ASan + UBSan (Release 3.1 s),
+# `OutputFilter.NullRunsDoNotNameIt` 23.2 s -> 17.0 s (Release 9.5 s); issue #51,
+# docs/validation/build-and-ci.md.
+# The price: a call that a sanitizer-tree file makes to such a function and does not inline also
+# runs the core's uninstrumented copy (the core itself is pure arithmetic, fuzzed on its own).
+
+# Collects into OUT the targets TARGET links, transitively (LINK_LIBRARIES and
+# INTERFACE_LINK_LIBRARIES, $<LINK_ONLY:...> unwrapped).
+function(imucal_link_closure target out)
+  set(seen "")
+  set(todo ${target})
+  while(todo)
+    list(POP_FRONT todo t)
+    if(t IN_LIST seen OR NOT TARGET ${t})
+      continue()
+    endif()
+    list(APPEND seen ${t})
+    get_target_property(type ${t} TYPE)
+    set(props INTERFACE_LINK_LIBRARIES)
+    if(NOT type STREQUAL "INTERFACE_LIBRARY")
+      list(APPEND props LINK_LIBRARIES)
+    endif()
+    foreach(p ${props})
+      get_target_property(libs ${t} ${p})
+      if(libs)
+        foreach(l ${libs})
+          string(REGEX REPLACE "^\\$<LINK_ONLY:(.*)>$" "\\1" l "${l}")
+          list(APPEND todo ${l})
+        endforeach()
+      endif()
+    endforeach()
+  endwhile()
+  set(${out} ${seen} PARENT_SCOPE)
+endfunction()
+
+# Every executable target in DIR and its subdirectories, into OUT.
+function(imucal_executables_under dir out)
+  set(found "")
+  get_property(targets DIRECTORY ${dir} PROPERTY BUILDSYSTEM_TARGETS)
+  foreach(t ${targets})
+    get_target_property(type ${t} TYPE)
+    if(type STREQUAL "EXECUTABLE")
+      list(APPEND found ${t})
+    endif()
+  endforeach()
+  get_property(subdirs DIRECTORY ${dir} PROPERTY SUBDIRECTORIES)
+  foreach(d ${subdirs})
+    imucal_executables_under(${d} sub)
+    list(APPEND found ${sub})
+  endforeach()
+  set(${out} ${found} PARENT_SCOPE)
+endfunction()
+
+function(imucal_prebuilt_core_first)
+  if(NOT IMUCAL_CALIB_PREBUILT_DIR)
+    return()
+  endif()
+  # Every room's archive, whole: a program that links one room links its dependencies too, and
+  # the whole core (its INTERFACE target imucal_calib) brings what any room needs (Ceres, sequences).
+  set(archives "")
+  set(core_targets "")
+  foreach(room ${IMUCAL_ROOMS})
+    if(room MATCHES "^calib/")
+      set(t ${IMUCAL_ROOM_LIBRARY_${room}})
+      list(APPEND core_targets ${t})
+      list(APPEND archives "${IMUCAL_CALIB_PREBUILT_DIR}/lib${t}.a")
+    endif()
+  endforeach()
+  imucal_executables_under(${PROJECT_SOURCE_DIR} programs)
+  foreach(program ${programs})
+    # The room link checks (room_link_<room>) link one room alone to prove what it may reach.
+    if(program MATCHES "^room_link_")
+      continue()
+    endif()
+    imucal_link_closure(${program} closure)
+    set(links_core OFF)
+    foreach(t ${core_targets})
+      if(t IN_LIST closure)
+        set(links_core ON)
+      endif()
+    endforeach()
+    if(links_core)
+      # LINK_OPTIONS stand before the objects on the link line (CMake's link rule).
+      target_link_options(${program} BEFORE PRIVATE "LINKER:--whole-archive" ${archives}
+                          "LINKER:--no-whole-archive")
+      target_link_libraries(${program} PRIVATE imucal_calib)
+      set_property(TARGET ${program} APPEND PROPERTY LINK_DEPENDS ${archives})
+    endif()
+  endforeach()
+endfunction()
