@@ -1,6 +1,7 @@
-# imucal_prebuilt_core_first(): in a tree that links the calibration core from the Release tree
-# (IMUCAL_CALIB_PREBUILT_DIR: the ASan + UBSan, TSan and fuzz trees, tools/sanitizers.sh), every
-# program that links the core gets the core's objects first on its link line.
+# imucal_prebuilt_core_first(): in a tree that links the calibration core (and the independent
+# simulator, tools/altsim) from the Release tree (IMUCAL_CALIB_PREBUILT_DIR: the ASan + UBSan, TSan
+# and fuzz trees, tools/sanitizers.sh), every program that links them gets their objects first on
+# its link line.
 #
 # Why: a test file or a program instantiates the same Eigen (and project header) templates as the
 # core. The linker keeps one copy of each such inline function, the first it meets, and the
@@ -66,13 +67,16 @@ function(imucal_prebuilt_core_first)
   endif()
   # Every room's archive, whole: a program that links one room links its dependencies too, and
   # the whole core (its INTERFACE target imucal_calib) brings what any room needs (Ceres, sequences).
+  # The independent simulator (tools/altsim) is linked from the Release tree too, and loaded first
+  # with the core.
   set(archives "")
   set(core_targets "")
   foreach(room ${IMUCAL_ROOMS})
-    if(room MATCHES "^calib/")
+    if(room MATCHES "^calib/" OR room STREQUAL "tools/altsim")
       set(t ${IMUCAL_ROOM_LIBRARY_${room}})
       list(APPEND core_targets ${t})
-      list(APPEND archives "${IMUCAL_CALIB_PREBUILT_DIR}/lib${t}.a")
+      get_target_property(archive ${t} IMPORTED_LOCATION)
+      list(APPEND archives "${archive}")
     endif()
   endforeach()
   imucal_executables_under(${PROJECT_SOURCE_DIR} programs)
@@ -92,7 +96,7 @@ function(imucal_prebuilt_core_first)
       # LINK_OPTIONS stand before the objects on the link line (CMake's link rule).
       target_link_options(${program} BEFORE PRIVATE "LINKER:--whole-archive" ${archives}
                           "LINKER:--no-whole-archive")
-      target_link_libraries(${program} PRIVATE imucal_calib)
+      target_link_libraries(${program} PRIVATE imucal_calib imucal_altsim)
       set_property(TARGET ${program} APPEND PROPERTY LINK_DEPENDS ${archives})
     endif()
   endforeach()
