@@ -12,7 +12,13 @@
 # `OutputFilter.NullRunsDoNotNameIt` 23.2 s -> 17.0 s (Release 9.5 s); issue #51,
 # docs/validation/build-and-ci.md.
 # The price: a call that a sanitizer-tree file makes to such a function and does not inline also
-# runs the core's uninstrumented copy (the core itself is pure arithmetic, fuzzed on its own).
+# runs the core's uninstrumented copy (the core itself is pure arithmetic, fuzzed on its own). Under
+# ASan that only leaves such a call unchecked. Under TSan it is wrong: the threaded code then ran
+# the core's uninstrumented copies of std::shared_ptr's reference counting, and TSan, blind to
+# their synchronisation, reported races on the deletes that follow (three reports in the cold run
+# of 2026-11-30). So only the ASan + UBSan tree asks for it (IMUCAL_CALIB_PREBUILT_FIRST=ON,
+# tools/sanitizers.sh asan); the TSan and fuzz trees keep the usual order.
+option(IMUCAL_CALIB_PREBUILT_FIRST "load the prebuilt calibration core first on every link line (ASan tree)" OFF)
 
 # Collects into OUT the targets TARGET links, transitively (LINK_LIBRARIES and
 # INTERFACE_LINK_LIBRARIES, $<LINK_ONLY:...> unwrapped).
@@ -62,7 +68,7 @@ function(imucal_executables_under dir out)
 endfunction()
 
 function(imucal_prebuilt_core_first)
-  if(NOT IMUCAL_CALIB_PREBUILT_DIR)
+  if(NOT IMUCAL_CALIB_PREBUILT_DIR OR NOT IMUCAL_CALIB_PREBUILT_FIRST)
     return()
   endif()
   # Every room's archive, whole: a program that links one room links its dependencies too, and

@@ -61,7 +61,7 @@ case $mode in
            e2e/station_run e2e/station_abort e2e/station_faults e2e/station_gap e2e/station_fleet)
     # Line tables only (-g1) are all the reports need; the test programs at -O0 (compile time).
     cmake -S . -B $tree $(generator $tree) -DIMUCAL_TSAN=ON -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1 -g1" \
-      -DIMUCAL_TEST_OPTIMIZE=-O0 -DIMUCAL_TEST_SELECTION="$(IFS=';'; echo "${files[*]}")" \
+      -DIMUCAL_TEST_OPTIMIZE=-O0 -DIMUCAL_TEST_SELECTION="$(IFS=';'; echo "${files[*]}")" -DIMUCAL_CALIB_PREBUILT_FIRST=OFF \
       "${launcher[@]}" "${release_calib[@]}" >/dev/null
     cmake --build $tree -j2 --target station_tests drivers_tests e2e_tests stationd stationsim stationctl
     reports=$(fresh_reports $tree)
@@ -100,15 +100,16 @@ case $mode in
     # Nlsq.NoiseFreeDefaultUnitRecoveredExactly took 20.8 CPU-s with -O0 tests, 1.9 with -O1
     # (0.1 s in Release); calib_tests compiles in 3.2 CPU-min at -O1 (2026-11-30). Only the fuzzed
     # parsers carry coverage.
-    # Where the core is linked from the Release tree, its objects come first on every link line, so
-    # that its own copies win (calib/prebuilt_core_first.cmake).
+    # In the asan tree the core's objects come first on every link line, so that its own copies win
+    # (calib/prebuilt_core_first.cmake; not in the TSan tree, which must see std::shared_ptr's
+    # atomics instrumented).
     # The fuzz mode has a tree of its own, build-fuzz, that links the Release calibration core like
     # the TSan tree (no parser calls into its math); the asan tree builds and runs the same targets
     # among its tests.
     calib=()
     if [ "$mode" = fuzz ]; then
       tree=${IMUCAL_SANITIZER_TREE:-build-fuzz}
-      calib=("${release_calib[@]}")
+      calib=("${release_calib[@]}" -DIMUCAL_CALIB_PREBUILT_FIRST=OFF)
       test_opt=-O0
     elif [ "${IMUCAL_ASAN_CORE:-0}" = 1 ]; then
       tree=${IMUCAL_SANITIZER_TREE:-build-asan-core}
@@ -124,7 +125,7 @@ case $mode in
         exit 2
       fi
       tree=${IMUCAL_SANITIZER_TREE:-build-asan}
-      calib=("${release_calib[@]}")
+      calib=("${release_calib[@]}" -DIMUCAL_CALIB_PREBUILT_FIRST=ON)
       test_opt=-O1
     fi
     CC=clang-16 CXX=clang++-16 cmake -S . -B $tree $(generator $tree) -DIMUCAL_FUZZ=ON -DCMAKE_BUILD_TYPE=None \
