@@ -15,7 +15,7 @@
 # runs the core's uninstrumented copy (the core itself is pure arithmetic, fuzzed on its own). Under
 # ASan that only leaves such a call unchecked. Under TSan it is wrong: the threaded code then ran
 # the core's uninstrumented copies of std::shared_ptr's reference counting, and TSan, blind to
-# their synchronisation, reported races on the deletes that follow (three reports in the cold run
+# their synchronisation, reported races on the deletes that follow (12 reports in the cold run
 # of 2026-11-30). So only the ASan + UBSan tree asks for it (IMUCAL_CALIB_PREBUILT_FIRST=ON,
 # tools/sanitizers.sh asan); the TSan and fuzz trees keep the usual order.
 option(IMUCAL_CALIB_PREBUILT_FIRST "load the prebuilt calibration core first on every link line (ASan tree)" OFF)

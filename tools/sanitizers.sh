@@ -13,7 +13,7 @@
 #                              tools/setup.sh --test builds). Every process's reports go to
 #                              build-asan/reports, and any report fails. IMUCAL_SKIP_FUZZ=1 leaves
 #                              out the fuzz runs; IMUCAL_ASAN_CORE=1 instruments the core too (tree
-#                              build-asan-core; about 6x the suite's Release time against 1.5-1.7x,
+#                              build-asan-core; about 6x the suite's Release time against 1.3x,
 #                              docs/validation/build-and-ci.md).
 #   tools/sanitizers.sh fuzz   only the libFuzzer targets (tree build-fuzz, the calibration core
 #                              linked from build/): 30 s of fuzzing each, which starts with their
@@ -117,7 +117,7 @@ case $mode in
     else
       # Every test under ASan + UBSan, the calibration core (pure single-threaded arithmetic,
       # fuzzed on its own) linked uninstrumented from the Release tree and loaded first, so that it
-      # runs its own Release code (calib/prebuilt_core_first.cmake): 1.5-1.7x the tests' Release
+      # runs its own Release code (calib/prebuilt_core_first.cmake): 1.3x the tests' Release
       # time against 6.5x with the core instrumented (docs/validation/build-and-ci.md, issue #51).
       if [ ${#release_calib[@]} -eq 0 ]; then
         echo "asan: build/calib/libimucal_calib_core.a is missing: build the Release tree first" \
