@@ -56,9 +56,9 @@ case $mode in
     # export stream, daemon, run controller, and the end-to-end runs (stationctl diagnose on its own
     # thread, issue #22; the outbox sender's thread beside the run, issue #24). The tree builds them
     # alone (IMUCAL_TEST_SELECTION), in their rooms' programs.
-    files=(station/capture drivers/turntable_client drivers/station_sim station/control_server
-           station/export_stream station/daemon station/run_controller
-           e2e/station_run e2e/station_abort e2e/station_faults e2e/station_gap e2e/station_fleet)
+    files=(e2e/station_fleet e2e/station_run e2e/station_faults e2e/station_gap e2e/station_abort
+           station/run_controller station/daemon station/capture drivers/turntable_client
+           drivers/station_sim station/control_server station/export_stream)
     # Line tables only (-g1) are all the reports need; the test programs at -O0 (compile time).
     cmake -S . -B $tree $(generator $tree) -DIMUCAL_TSAN=ON -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1 -g1" \
       -DIMUCAL_TEST_OPTIMIZE=-O0 -DIMUCAL_TEST_SELECTION="$(IFS=';'; echo "${files[*]}")" -DIMUCAL_CALIB_PREBUILT_FIRST=OFF \
@@ -69,10 +69,20 @@ case $mode in
     # The busy-CPU run is a timing test (the daemon sharing a core with busy loops): under TSan it
     # only costs 40 s and says nothing about races that the other runs do not.
     skip="-StationEndToEnd.ShortSequencePassesWithTheDaemonOnABusyCpu"
+    # Two files at a time, as ctest -j2 runs the suite (the end-to-end files, the longest, first):
+    # each writes its verdict beside its output, read back in the list's order below.
+    export TSAN_TREE=$tree TSAN_REPORTS=$reports TSAN_SKIP=$skip
+    printf '%s\n' "${files[@]}" | xargs -P2 -I{} bash -c '
+      t=$(echo {} | tr / _)_test  # <tree>/tests/<room>_<file>_test runs that file (tools/run_test_file.sh)
+      if TSAN_OPTIONS="halt_on_error=0 second_deadlock_stack=1 log_path=$TSAN_REPORTS/$t" \
+        "$TSAN_TREE/tests/$t" --gtest_filter="$TSAN_SKIP" >"$TSAN_REPORTS/$t.out" 2>&1; then
+        echo pass >"$TSAN_REPORTS/$t.verdict"
+      else
+        echo fail >"$TSAN_REPORTS/$t.verdict"
+      fi'
     for f in "${files[@]}"; do
-      t=${f/\//_}_test  # build/tests/<room>_<file>_test runs that file's tests (tools/run_test_file.sh)
-      if TSAN_OPTIONS="halt_on_error=0 second_deadlock_stack=1 log_path=$reports/$t" \
-        "$tree/tests/$t" --gtest_filter="$skip" >"$reports/$t.out" 2>&1; then
+      t=${f/\//_}_test
+      if [ "$(cat "$reports/$t.verdict" 2>/dev/null)" = pass ]; then
         # A file script that selected no test exits 0 too: that is no pass.
         if ! grep -qE '^\[  PASSED  \] [1-9]' "$reports/$t.out"; then
           echo "tsan: $t ran no test (output: $reports/$t.out)"
@@ -94,15 +104,17 @@ case $mode in
     # programs under test at -O1, the calibration core at -O2 without Eigen's own index assertions
     # (the suite spends its time in its Eigen loops, ~20x Release's time under ASan with them; ASan
     # itself catches an index out of bounds, and Release runs without them too), the test programs
-    # at -O1 under asan (-O0 for fuzz). Not -O0 for the suite: a test file instantiates the same
-    # Eigen templates as the libraries it calls, the linker keeps one copy of each (the first it
-    # meets: the test's), and the calibration core then runs the test file's unoptimised copies —
-    # Nlsq.NoiseFreeDefaultUnitRecoveredExactly took 20.8 CPU-s with -O0 tests, 1.9 with -O1
-    # (0.1 s in Release); calib_tests compiles in 3.2 CPU-min at -O1 (2026-11-30). Only the fuzzed
-    # parsers carry coverage.
-    # In the asan tree the core's objects come first on every link line, so that its own copies win
-    # (calib/prebuilt_core_first.cmake; not in the TSan tree, which must see std::shared_ptr's
-    # atomics instrumented).
+    # at -O0: under ASan + UBSan a file compiles in a quarter of its -O1 time (stationd's main, 7.4
+    # against 31.6 CPU-s), and the tree's cold build went from 1 027 to 592 s (2026-11-30).
+    # A test file instantiates the same Eigen templates as the libraries it calls, and the linker
+    # keeps the first copy it meets, the test's: so -O0 tests are only affordable because the
+    # asan tree loads the calibration core first on every link line, and the core runs its own
+    # Release copies (calib/prebuilt_core_first.cmake; not in the TSan tree, which must see
+    # std::shared_ptr's atomics instrumented). Before that, Nlsq.NoiseFreeDefaultUnitRecoveredExactly
+    # took 20.8 CPU-s with -O0 tests, 1.9 with -O1. The tree's own libraries still meet the tests'
+    # -O0 copies: db_tests 35.5 -> 42.4 s, the whole suite 2 018 -> 1 808 s with the fuzz coverage
+    # out of the libraries (tests/fuzz/CMakeLists.txt). IMUCAL_ASAN_CORE=1 keeps -O1 tests (no core
+    # to load first). Only the libFuzzer binaries carry coverage.
     # The fuzz mode has a tree of its own, build-fuzz, that links the Release calibration core like
     # the TSan tree (no parser calls into its math); the asan tree builds and runs the same targets
     # among its tests.
@@ -126,7 +138,7 @@ case $mode in
       fi
       tree=${IMUCAL_SANITIZER_TREE:-build-asan}
       calib=("${release_calib[@]}" -DIMUCAL_CALIB_PREBUILT_FIRST=ON)
-      test_opt=-O1
+      test_opt=-O0
     fi
     CC=clang-16 CXX=clang++-16 cmake -S . -B $tree $(generator $tree) -DIMUCAL_FUZZ=ON -DCMAKE_BUILD_TYPE=None \
       -DCMAKE_CXX_FLAGS="-O1 -gline-tables-only" -DIMUCAL_CALIB_OPTIMIZE="-O2 -DEIGEN_NO_DEBUG" -DIMUCAL_TEST_OPTIMIZE=$test_opt \

@@ -1,6 +1,6 @@
 # Questions about the build's targets, asked once every target exists (top-level CMakeLists.txt):
-# which programs there are, and what a target links. Used by calib/prebuilt_core_first.cmake, the
-# test command's Release set (tests/CMakeLists.txt) and the sanitizer trees' benchmark rule.
+# which programs there are, and what a target links. Used by calib/prebuilt_core_first.cmake and the
+# sanitizer trees' benchmark rule (top-level CMakeLists.txt).
 
 # Collects into OUT the targets TARGET links, transitively (LINK_LIBRARIES and
 # INTERFACE_LINK_LIBRARIES, $<LINK_ONLY:...> unwrapped).
