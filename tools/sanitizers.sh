@@ -72,16 +72,18 @@ case $mode in
     # Two files at a time, as ctest -j2 runs the suite (the end-to-end files, the longest, first):
     # each writes its verdict beside its output, read back in the list's order below.
     export TSAN_TREE=$tree TSAN_REPORTS=$reports TSAN_SKIP=$skip
-    printf '%s\n' "${files[@]}" | xargs -P2 -I{} bash -c '
-      t=$(echo {} | tr / _)_test  # <tree>/tests/<room>_<file>_test runs that file (tools/run_test_file.sh)
+    # <tree>/tests/<room>_<file>_test runs that file's tests (tools/run_test_file.sh).
+    programs=("${files[@]//\//_}")
+    programs=("${programs[@]/%/_test}")
+    printf '%s\n' "${programs[@]}" | xargs -P2 -I{} bash -c '
+      t={}
       if TSAN_OPTIONS="halt_on_error=0 second_deadlock_stack=1 log_path=$TSAN_REPORTS/$t" \
         "$TSAN_TREE/tests/$t" --gtest_filter="$TSAN_SKIP" >"$TSAN_REPORTS/$t.out" 2>&1; then
         echo pass >"$TSAN_REPORTS/$t.verdict"
       else
         echo fail >"$TSAN_REPORTS/$t.verdict"
       fi'
-    for f in "${files[@]}"; do
-      t=${f/\//_}_test
+    for t in "${programs[@]}"; do
       if [ "$(cat "$reports/$t.verdict" 2>/dev/null)" = pass ]; then
         # A file script that selected no test exits 0 too: that is no pass.
         if ! grep -qE '^\[  PASSED  \] [1-9]' "$reports/$t.out"; then
