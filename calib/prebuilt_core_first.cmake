@@ -18,6 +18,15 @@
 # their synchronisation, reported races on the deletes that follow (12 reports in the cold run
 # of 2026-11-30). So only the ASan + UBSan tree asks for it (IMUCAL_CALIB_PREBUILT_FIRST=ON,
 # tools/sanitizers.sh asan); the TSan and fuzz trees keep the usual order.
+#
+# The tree's own libraries too (the rooms this tree builds: station, drivers, db, sequences, ...),
+# after the core: the ASan tree compiles its test programs and most of its programs (tools/: imucal,
+# stationctl, stationweb) at -O0 (IMUCAL_TEST_OPTIMIZE, IMUCAL_PROGRAM_OPTIMIZE: a quarter of the
+# -O1 compile time under ASan + UBSan), and loaded first
+# the libraries keep their -O1 copies of what a program's file instantiates as well; before,
+# db_tests ran the tests' -O0 copies (35.5 -> 42.4 s). The libFuzzer binaries are left out: they
+# link the fuzzed sources a second time, with coverage (tests/fuzz/CMakeLists.txt), and a whole
+# library would define them twice.
 option(IMUCAL_CALIB_PREBUILT_FIRST "load the prebuilt calibration core first on every link line (ASan tree)" OFF)
 
 function(imucal_prebuilt_core_first)
@@ -51,12 +60,36 @@ function(imucal_prebuilt_core_first)
         set(links_core ON)
       endif()
     endforeach()
+    set(first "")
     if(links_core)
+      list(APPEND first ${archives})
+    endif()
+    if(NOT imucal_fuzz_coverage IN_LIST closure)
+      imucal_tree_libraries("${closure}" own)
+      list(APPEND first ${own})
+    endif()
+    if(first)
       # LINK_OPTIONS stand before the objects on the link line (CMake's link rule).
-      target_link_options(${program} BEFORE PRIVATE "LINKER:--whole-archive" ${archives}
+      target_link_options(${program} BEFORE PRIVATE "LINKER:--whole-archive" ${first}
                           "LINKER:--no-whole-archive")
+    endif()
+    if(links_core)
       target_link_libraries(${program} PRIVATE imucal_calib imucal_altsim)
       set_property(TARGET ${program} APPEND PROPERTY LINK_DEPENDS ${archives})
     endif()
   endforeach()
+endfunction()
+
+# The archives of the static libraries this tree builds among TARGETS (a list), into OUT
+# ($<TARGET_FILE:...>, for a link line).
+function(imucal_tree_libraries targets out)
+  set(files "")
+  foreach(t ${targets})
+    get_target_property(type ${t} TYPE)
+    get_target_property(imported ${t} IMPORTED)
+    if(type STREQUAL "STATIC_LIBRARY" AND NOT imported)
+      list(APPEND files "$<TARGET_FILE:${t}>")
+    endif()
+  endforeach()
+  set(${out} ${files} PARENT_SCOPE)
 endfunction()

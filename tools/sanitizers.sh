@@ -113,14 +113,16 @@ case $mode in
     # asan tree loads the calibration core first on every link line, and the core runs its own
     # Release copies (calib/prebuilt_core_first.cmake; not in the TSan tree, which must see
     # std::shared_ptr's atomics instrumented). Before that, Nlsq.NoiseFreeDefaultUnitRecoveredExactly
-    # took 20.8 CPU-s with -O0 tests, 1.9 with -O1. The tree's own libraries still meet the tests'
-    # -O0 copies: db_tests 35.5 -> 42.4 s, the whole suite 2 018 -> 1 808 s with the fuzz coverage
-    # out of the libraries (tests/fuzz/CMakeLists.txt). IMUCAL_ASAN_CORE=1 keeps -O1 tests (no core
-    # to load first). Only the libFuzzer binaries carry coverage.
+    # took 20.8 CPU-s with -O0 tests, 1.9 with -O1. The tree's own libraries are loaded first too
+    # (whole, after the core), so the programs of tools/ go to -O0 as well, but for those on a run's
+    # hot path (IMUCAL_PROGRAM_OPTIMIZE, IMUCAL_KEEP_OPTIMIZED in the top-level CMakeLists.txt).
+    # IMUCAL_ASAN_CORE=1 keeps -O1 tests and programs (no core to load first). Only the libFuzzer
+    # binaries carry coverage.
     # The fuzz mode has a tree of its own, build-fuzz, that links the Release calibration core like
     # the TSan tree (no parser calls into its math); the asan tree builds and runs the same targets
     # among its tests.
     calib=()
+    program_opt=""
     if [ "$mode" = fuzz ]; then
       tree=${IMUCAL_SANITIZER_TREE:-build-fuzz}
       calib=("${release_calib[@]}" -DIMUCAL_CALIB_PREBUILT_FIRST=OFF)
@@ -141,10 +143,11 @@ case $mode in
       tree=${IMUCAL_SANITIZER_TREE:-build-asan}
       calib=("${release_calib[@]}" -DIMUCAL_CALIB_PREBUILT_FIRST=ON)
       test_opt=-O0
+      program_opt=-O0
     fi
     CC=clang-16 CXX=clang++-16 cmake -S . -B $tree $(generator $tree) -DIMUCAL_FUZZ=ON -DCMAKE_BUILD_TYPE=None \
       -DCMAKE_CXX_FLAGS="-O1 -gline-tables-only" -DIMUCAL_CALIB_OPTIMIZE="-O2 -DEIGEN_NO_DEBUG" -DIMUCAL_TEST_OPTIMIZE=$test_opt \
-      "${launcher[@]}" "${calib[@]}" >/dev/null
+      -DIMUCAL_PROGRAM_OPTIMIZE="$program_opt" "${launcher[@]}" "${calib[@]}" >/dev/null
     if [ "$mode" = fuzz ]; then
       # Each fuzz run starts by executing its whole corpus and regression inputs under ASan + UBSan,
       # so the replay programs (tests of the asan tree) are not built here.
