@@ -20,13 +20,13 @@
 # tools/sanitizers.sh asan); the TSan and fuzz trees keep the usual order.
 #
 # The tree's own libraries too (the rooms this tree builds: station, drivers, db, sequences, ...),
-# after the core: the ASan tree compiles its test programs and most of its programs (tools/: imucal,
-# stationctl, stationweb) at -O0 (IMUCAL_TEST_OPTIMIZE, IMUCAL_PROGRAM_OPTIMIZE: a quarter of the
-# -O1 compile time under ASan + UBSan), and loaded first
-# the libraries keep their -O1 copies of what a program's file instantiates as well; before,
-# db_tests ran the tests' -O0 copies (35.5 -> 42.4 s). The libFuzzer binaries are left out: they
-# link the fuzzed sources a second time, with coverage (tests/fuzz/CMakeLists.txt), and a whole
-# library would define them twice.
+# whole, after the core. The ASan tree compiles its test programs and most of its programs
+# (tools/: imucal, stationctl, stationweb) at -O0 (IMUCAL_TEST_OPTIMIZE, IMUCAL_PROGRAM_OPTIMIZE:
+# a quarter of the -O1 compile time under ASan + UBSan). Loaded first, the libraries keep their -O1
+# copies of what a test or program file instantiates as well; before, db_tests ran the tests' -O0
+# copies (35.5 -> 42.4 s). The libFuzzer binaries load the core alone: they link the fuzzed
+# sources a second time, with coverage (tests/fuzz/CMakeLists.txt), and a whole library would
+# define them twice.
 option(IMUCAL_CALIB_PREBUILT_FIRST "load the prebuilt calibration core first on every link line (ASan tree)" OFF)
 
 function(imucal_prebuilt_core_first)
